@@ -1,0 +1,166 @@
+"""The action-tuple: Trigger | Action | Do-until | Value (thesis: "the action-tuple",
+"computing expected values").
+
+Each tuple is a hypothesis: in context Tr, doing Ac until Du holds is worth V. Tr and Du share
+one functional interface (``evaluate(t)``) and get their meaning from their role. The expected
+value is ``Tr.evaluate(t)·V`` while inactive and ``(1 − Du.evaluate(t))·V`` while active.
+Every tuple follows one life cycle, after py_trees: ``start`` → ``update``… → ``stop``.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Protocol
+
+import numpy as np
+
+from creatures.behaviour.percept import Percept
+from creatures.behaviour.value import ScalarValue, Value
+
+
+class DurationModel(Protocol):
+    """Anything a Du can sample a duration from and teach the actual duration to."""
+
+    def sample(self, rng: np.random.Generator) -> float: ...
+
+    def update(self, duration: float) -> None: ...
+
+
+class Action:
+    """Ac: what the creature does. Subclasses drive motors, voices or MIDI.
+
+    ``proximity_to`` says how much credit earned by one action should also reach another
+    (thesis: "all equivalent action-tuples take place in credit assignment"); identical
+    actions have proximity 1, unrelated ones 0.
+    """
+
+    def __init__(self, name: str) -> None:
+        self.name = name
+
+    def start(self, t: float, tuple_: "ActionTuple") -> None:
+        """Called once when the owning tuple becomes active."""
+
+    def update(self, t: float) -> None:
+        """Called on every tick while the owning tuple is active."""
+
+    def stop(self, t: float, *, interrupted: bool) -> None:
+        """Called once when the owning tuple stops (interrupted or done)."""
+
+    def proximity_to(self, other: "Action") -> float:
+        return 1.0 if other.name == self.name else 0.0
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self.name!r})"
+
+
+class DoUntil:
+    """Du: when an active tuple should stop, as a saliency in [0, 1] (1 = done).
+
+    ``duration`` is a fixed number of seconds or a shared duration model that is sampled when
+    the tuple starts and taught the actual duration when it stops, so many tuples looking at
+    one model share one pulse. ``until`` is an optional percept for "until the food is gone";
+    the tuple is done when either says so.
+    """
+
+    def __init__(
+        self,
+        duration: float | DurationModel | None = None,
+        *,
+        until: Percept | None = None,
+        learn: bool = True,
+    ) -> None:
+        if duration is None and until is None:
+            raise ValueError("a Do-until needs a duration, an until-percept, or both")
+        if isinstance(duration, (int, float)) and not duration > 0:
+            raise ValueError(f"a fixed duration must be positive (got {duration!r})")
+        self.duration = duration
+        self.until = until
+        self.learn = learn
+        self.started_at: float | None = None
+        self.planned: float = float("inf")
+
+    @property
+    def model(self) -> DurationModel | None:
+        return None if isinstance(self.duration, (int, float, type(None))) else self.duration
+
+    def begin(self, t: float, rng: np.random.Generator) -> None:
+        self.started_at = t
+        if self.duration is None:
+            self.planned = float("inf")
+        elif isinstance(self.duration, (int, float)):
+            self.planned = float(self.duration)
+        else:
+            self.planned = float(self.duration.sample(rng))
+
+    def evaluate(self, t: float) -> float:
+        done = 0.0
+        if self.started_at is not None and t - self.started_at >= self.planned:
+            done = 1.0
+        if self.until is not None:
+            done = max(done, float(self.until.evaluate(t)))
+        return done
+
+    def end(self, t: float) -> float:
+        """Close the activation; teach the model the actual duration; return it."""
+        if self.started_at is None:
+            return 0.0
+        actual = t - self.started_at
+        self.started_at = None
+        model = self.model
+        if self.learn and model is not None and actual > 0:
+            model.update(actual)
+        return actual
+
+
+class ActionTuple:
+    """Tr | Ac | Du | V — a valued hypothesis about doing something in some context."""
+
+    def __init__(
+        self,
+        name: str,
+        trigger: Percept,
+        action: Action,
+        do_until: DoUntil,
+        value: Value | float,
+    ) -> None:
+        self.name = name
+        self.trigger = trigger
+        self.action = action
+        self.do_until = do_until
+        self.value: Value = value if isinstance(value, Value) else ScalarValue(value)
+        self.active = False
+        self.started_at: float | None = None
+        self.trigger_at_start = 0.0
+        self.context: dict[str, Any] = {}
+
+    def expected_value(self, t: float) -> float:
+        v = self.value.to_float()
+        if self.active:
+            return (1.0 - self.do_until.evaluate(t)) * v
+        return self.trigger.evaluate(t) * v
+
+    def start(self, t: float, rng: np.random.Generator, **context: Any) -> None:
+        """Become active: remember Tr at activation (for credit), sample Du, start Ac."""
+        self.active = True
+        self.started_at = t
+        self.trigger_at_start = float(self.trigger.evaluate(t))
+        self.context = dict(context)
+        self.do_until.begin(t, rng)
+        self.action.start(t, self)
+
+    def update(self, t: float) -> None:
+        self.action.update(t)
+
+    def stop(self, t: float, *, interrupted: bool = False) -> float:
+        """Become inactive; returns how long the tuple was active."""
+        self.active = False
+        self.action.stop(t, interrupted=interrupted)
+        return self.do_until.end(t)
+
+    def proximity_to(self, other: "ActionTuple") -> float:
+        return self.action.proximity_to(other.action)
+
+    def __repr__(self) -> str:
+        return (
+            f"ActionTuple({self.trigger.name} | {self.action.name} | "
+            f"{self.name}; V={self.value.to_float():.3g})"
+        )

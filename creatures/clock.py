@@ -1,0 +1,49 @@
+"""One clock per run (DESIGN.md, "Time").
+
+Everything that changes over time reads elapsed seconds from a clock object, never loop
+counts: the WavesWorld lesson is that machine-dependent time makes behaviour run faster on
+faster machines. Offline runs and tests use :class:`SimulatedClock`, advanced as fast as the
+work allows; live runs use :class:`WallClock`.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Protocol
+
+
+class Clock(Protocol):
+    """Anything that can tell the current time in seconds since the run started."""
+
+    def now(self) -> float: ...
+
+
+class SimulatedClock:
+    """A clock that only moves when told to, so runs are deterministic and fast."""
+
+    def __init__(self, start: float = 0.0) -> None:
+        self._t = float(start)
+
+    def now(self) -> float:
+        return self._t
+
+    def advance(self, dt: float) -> float:
+        """Move time forward by ``dt`` seconds (never backwards) and return the new time."""
+        if not dt >= 0.0:
+            raise ValueError(f"a clock cannot go backwards (dt={dt!r})")
+        self._t += dt
+        return self._t
+
+    def advance_to(self, t: float) -> float:
+        """Move time forward to ``t``; a ``t`` in the past is an error."""
+        return self.advance(t - self._t)
+
+
+class WallClock:
+    """Monotonic real time, zeroed when the clock is made."""
+
+    def __init__(self) -> None:
+        self._t0 = time.monotonic()
+
+    def now(self) -> float:
+        return time.monotonic() - self._t0

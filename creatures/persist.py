@@ -1,0 +1,103 @@
+"""Atomic, code-free persistence of creature state (DESIGN.md, "State that lasts").
+
+State is JSON (human readable, diffable, mergeable) plus NPZ for large arrays. Every save
+goes to a temporary file in the same directory, is fsync'd, then renamed over the target:
+a crash or a full disk mid-save leaves the previous file intact. Loading never executes
+code (no pickle; ``np.load(allow_pickle=False)``).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+FORMAT_VERSION = 1
+
+
+class StateFileError(Exception):
+    """A state file is missing, unreadable or malformed; the message names the file."""
+
+
+def _atomic_write(path: Path, write: Callable[[Any], None], mode: str) -> None:
+    path = Path(path)
+    directory = path.parent if str(path.parent) else Path(".")
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
+    try:
+        with os.fdopen(fd, mode) as handle:
+            write(handle)
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        # Nothing partial survives: the temporary file goes, the old target stays.
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
+    try:
+        dir_fd = os.open(directory, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(dir_fd)
+    except OSError:
+        pass
+    finally:
+        os.close(dir_fd)
+
+
+def save_json(path: str | os.PathLike, data: dict[str, Any], *, kind: str) -> None:
+    """Write ``data`` as JSON atomically, stamped with ``kind`` and the format version."""
+    document = {"format": kind, "version": FORMAT_VERSION, **data}
+    text = json.dumps(document, indent=1, sort_keys=True, allow_nan=False)
+    _atomic_write(Path(path), lambda h: h.write(text), "w")
+
+
+def load_json(path: str | os.PathLike, *, kind: str) -> dict[str, Any]:
+    """Read a JSON state file written by :func:`save_json`, checking its kind and version."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise StateFileError(f"{path}: state file not found") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise StateFileError(f"{path}: cannot read state file ({exc})") from None
+    try:
+        document = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise StateFileError(f"{path}:{exc.lineno}: malformed JSON ({exc.msg})") from None
+    if not isinstance(document, dict):
+        raise StateFileError(f"{path}: expected a JSON object at the top level")
+    if document.get("format") != kind:
+        raise StateFileError(
+            f"{path}: not a {kind!r} file (format={document.get('format')!r})"
+        )
+    if document.get("version") != FORMAT_VERSION:
+        raise StateFileError(
+            f"{path}: unsupported {kind} version {document.get('version')!r}"
+            f" (this build reads version {FORMAT_VERSION})"
+        )
+    return document
+
+
+def save_npz(path: str | os.PathLike, arrays: dict[str, np.ndarray]) -> None:
+    """Write named arrays to an ``.npz`` atomically."""
+    _atomic_write(Path(path), lambda h: np.savez(h, **arrays), "wb")
+
+
+def load_npz(path: str | os.PathLike) -> dict[str, np.ndarray]:
+    """Read an ``.npz`` written by :func:`save_npz`; object arrays are refused."""
+    path = Path(path)
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            return {name: data[name] for name in data.files}
+    except FileNotFoundError:
+        raise StateFileError(f"{path}: array file not found") from None
+    except (OSError, ValueError) as exc:
+        raise StateFileError(f"{path}: malformed array file ({exc})") from None
