@@ -1,0 +1,1 @@
+"""Percept models (thesis: "phase three – models")."""

@@ -1,0 +1,1 @@
+"""The visible body: offscreen rendering of body poses and note objects (pyrender)."""
