@@ -1,0 +1,148 @@
+"""Installation configs: TOML read with the stdlib, validated with pydantic.
+
+A bad config must say *where* it is wrong: every :class:`ConfigError` names the file, the
+dotted key path and the line, and for an unknown key suggests the nearest valid one. A config
+may name a base config with ``extends = "base.toml"`` (relative to itself); tables merge
+key by key, the extending file wins.
+"""
+
+from __future__ import annotations
+
+import difflib
+import re
+import tomllib
+from pathlib import Path
+from typing import Any, TypeVar
+
+from pydantic import BaseModel, ValidationError
+
+Model = TypeVar("Model", bound=BaseModel)
+
+_HEADER = re.compile(r"^\s*(\[\[?)\s*([^\]]+?)\s*\]\]?\s*(#.*)?$")
+_ASSIGN = re.compile(r"""^\s*((?:[A-Za-z0-9_\-]+|"[^"]*"|'[^']*')(?:\s*\.\s*(?:[A-Za-z0-9_\-]+|"[^"]*"|'[^']*'))*)\s*=""")
+
+
+class ConfigError(Exception):
+    """A config problem located by file, key path and line."""
+
+    def __init__(self, file: Path, message: str, *, key: str = "", line: int | None = None) -> None:
+        self.file, self.key, self.line, self.message = file, key, line, message
+        where = f"{file}:{line}" if line else str(file)
+        super().__init__(f"{where}: {key + ': ' if key else ''}{message}")
+
+
+def _split_key(text: str) -> list[str]:
+    parts = re.findall(r'"[^"]*"|\'[^\']*\'|[^.\s]+', text)
+    return [p.strip("\"'") for p in parts]
+
+
+def key_lines(text: str) -> dict[tuple[str | int, ...], int]:
+    """Map each key path defined in TOML ``text`` to its 1-based line.
+
+    Arrays of tables get integer indices (``creature.0.name``) in the order they appear, so a
+    validation error at ``("creature", 1, "kind")`` finds the second ``[[creature]]`` block.
+    """
+    lines: dict[tuple[str | int, ...], int] = {}
+    prefix: tuple[str | int, ...] = ()
+    counters: dict[tuple[str | int, ...], int] = {}
+    for lineno, raw in enumerate(text.splitlines(), 1):
+        header = _HEADER.match(raw)
+        if header:
+            names = _split_key(header.group(2))
+            # A sub-table of an array of tables belongs to that array's latest element.
+            path: tuple[str | int, ...] = ()
+            for name in names[:-1]:
+                path = (*path, name)
+                if path in counters:
+                    path = (*path, counters[path])
+            path = (*path, names[-1])
+            if header.group(1) == "[[":
+                index = counters.get(path, -1) + 1
+                counters[path] = index
+                prefix = (*path, index)
+            else:
+                prefix = path
+            lines.setdefault(prefix, lineno)
+            continue
+        assign = _ASSIGN.match(raw)
+        if assign:
+            lines.setdefault((*prefix, *_split_key(assign.group(1))), lineno)
+    return lines
+
+
+def _merge(base: dict[str, Any], override: dict[str, Any]) -> dict[str, Any]:
+    merged = dict(base)
+    for key, value in override.items():
+        if isinstance(value, dict) and isinstance(merged.get(key), dict):
+            merged[key] = _merge(merged[key], value)
+        else:
+            merged[key] = value
+    return merged
+
+
+def read_toml(path: str | Path, *, _seen: tuple[Path, ...] = ()) -> tuple[dict[str, Any], dict[tuple, tuple[Path, int]]]:
+    """Read a TOML file and its ``extends`` chain; return data and key → (file, line)."""
+    path = Path(path).resolve()
+    if path in _seen:
+        raise ConfigError(path, f"'extends' loops back to {path.name}", key="extends")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConfigError(path, "config file not found") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(path, f"cannot read config ({exc})") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        match = re.search(r"line (\d+)", str(exc))
+        raise ConfigError(path, f"invalid TOML ({exc})", line=int(match.group(1)) if match else None) from None
+    where = {loc: (path, line) for loc, line in key_lines(text).items()}
+    parent = data.pop("extends", None)
+    if parent is None:
+        return data, where
+    if not isinstance(parent, str):
+        raise ConfigError(path, "must be a file name (string)", key="extends", line=where.get(("extends",), (path, None))[1])
+    base_data, base_where = read_toml(path.parent / parent, _seen=(*_seen, path))
+    return _merge(base_data, data), {**base_where, **where}
+
+
+def _fields_at(model: type[BaseModel], loc: tuple[str | int, ...]) -> list[str]:
+    """Valid key names at the table that holds ``loc``'s last key (for suggestions)."""
+    current: Any = model
+    for part in loc[:-1]:
+        if isinstance(part, int):
+            continue
+        fields = getattr(current, "model_fields", None)
+        if not fields or part not in fields:
+            return []
+        annotation = fields[part].annotation
+        args = getattr(annotation, "__args__", ()) or ()
+        candidates = [annotation, *args]
+        current = next((c for c in candidates if isinstance(c, type) and issubclass(c, BaseModel)), None)
+        if current is None:
+            return []
+    return list(getattr(current, "model_fields", {}))
+
+
+def load_config(path: str | Path, model: type[Model]) -> Model:
+    """Read, merge and validate a config; raise :class:`ConfigError` on the first problem."""
+    data, where = read_toml(path)
+    try:
+        return model.model_validate(data)
+    except ValidationError as exc:
+        # An unknown key usually explains a "missing" one (a typo), so report it first.
+        error = min(exc.errors(), key=lambda e: e["type"] != "extra_forbidden")
+        loc = tuple(error["loc"])
+        key = ".".join(str(p) for p in loc)
+        file, line = Path(path).resolve(), None
+        for n in range(len(loc), 0, -1):
+            if loc[:n] in where:
+                file, line = where[loc[:n]]
+                break
+        message = error["msg"]
+        if error["type"] == "extra_forbidden":
+            close = difflib.get_close_matches(str(loc[-1]), _fields_at(model, loc), n=1)
+            message = "unknown key" + (f" (did you mean {close[0]!r}?)" if close else "")
+        elif "input" in error and error["type"] != "missing":
+            message += f" (got {error['input']!r})"
+        raise ConfigError(file, message, key=key, line=line) from None

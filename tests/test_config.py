@@ -1,0 +1,101 @@
+"""Config errors name the file, key path and line, and suggest the nearest valid key."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from pydantic import BaseModel, ConfigDict
+
+from creatures.config import ConfigError, key_lines, load_config
+
+
+class Voice(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    stiffness: float = 0.1
+
+
+class CreatureSpec(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    name: str
+    kind: str
+    voice: Voice = Voice()
+
+
+class Installation(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    title: str
+    seed: int = 0
+    creature: list[CreatureSpec] = []
+
+
+def write(tmp_path: Path, name: str, text: str) -> Path:
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def test_valid_config_loads(tmp_path):
+    path = write(tmp_path, "a.toml", 'title = "x"\n[[creature]]\nname = "a"\nkind = "listen"\n')
+    config = load_config(path, Installation)
+    assert config.creature[0].kind == "listen"
+
+
+def test_unknown_key_names_line_and_suggests(tmp_path):
+    text = 'title = "x"\n\n[[creature]]\nname = "a"\nkind = "listen"\n\n[[creature]]\nname = "b"\nknid = "exchange"\n'
+    path = write(tmp_path, "a.toml", text)
+    with pytest.raises(ConfigError) as err:
+        load_config(path, Installation)
+    assert err.value.line == 9
+    assert err.value.key == "creature.1.knid"
+    assert "did you mean 'kind'" in str(err.value)
+    assert str(path.resolve()) in str(err.value)
+
+
+def test_wrong_type_in_nested_table(tmp_path):
+    text = 'title = "x"\n[[creature]]\nname = "a"\nkind = "k"\n[creature.voice]\nstiffness = "stiff"\n'
+    path = write(tmp_path, "a.toml", text)
+    with pytest.raises(ConfigError) as err:
+        load_config(path, Installation)
+    assert err.value.key == "creature.0.voice.stiffness"
+    assert err.value.line == 6
+    assert "'stiff'" in str(err.value)
+
+
+def test_missing_key_and_missing_file(tmp_path):
+    with pytest.raises(ConfigError, match="title: Field required"):
+        load_config(write(tmp_path, "a.toml", "seed = 3\n"), Installation)
+    with pytest.raises(ConfigError, match="config file not found"):
+        load_config(tmp_path / "absent.toml", Installation)
+
+
+def test_invalid_toml_reports_line(tmp_path):
+    with pytest.raises(ConfigError) as err:
+        load_config(write(tmp_path, "a.toml", 'title = "x"\nseed = = 3\n'), Installation)
+    assert err.value.line == 2
+
+
+def test_extends_merges_and_locates_errors_in_the_base(tmp_path):
+    write(tmp_path, "base.toml", 'title = "base"\nseed = "seven"\n')
+    child = write(tmp_path, "child.toml", 'extends = "base.toml"\ntitle = "child"\n')
+    with pytest.raises(ConfigError) as err:
+        load_config(child, Installation)
+    assert err.value.file.name == "base.toml" and err.value.line == 2
+    write(tmp_path, "base.toml", 'title = "base"\nseed = 7\n')
+    config = load_config(child, Installation)
+    assert (config.title, config.seed) == ("child", 7)
+
+
+def test_extends_loop_is_an_error(tmp_path):
+    write(tmp_path, "a.toml", 'extends = "b.toml"\n')
+    write(tmp_path, "b.toml", 'extends = "a.toml"\n')
+    with pytest.raises(ConfigError, match="loops back"):
+        load_config(tmp_path / "a.toml", Installation)
+
+
+def test_key_lines_handles_dotted_and_quoted_keys():
+    lines = key_lines('a.b = 1\n"quoted key" = 2\n[t]\nx = 3\n[[arr]]\ny = 4\n[[arr]]\ny = 5\n')
+    assert lines[("a", "b")] == 1
+    assert lines[("quoted key",)] == 2
+    assert lines[("t", "x")] == 4
+    assert lines[("arr", 1, "y")] == 8

@@ -1,0 +1,43 @@
+"""The events log writes one JSON object per line, rotates at its bound, and reads back."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from creatures.events import EventLog, read_events
+
+
+def test_events_round_trip_with_numpy_values(tmp_path):
+    path = tmp_path / "events.jsonl"
+    with EventLog(path) as log:
+        log.emit(0.5, "selection", tuple="sit", values=np.array([1.0, 2.5]), v=np.float32(3.0))
+        log.emit(1.0, "reward", value=float("nan"))
+    events = read_events(path)
+    assert events[0] == {"t": 0.5, "kind": "selection", "tuple": "sit", "values": [1.0, 2.5], "v": 3.0}
+    assert events[1]["value"] is None
+
+
+def test_rotation_bounds_disk_use(tmp_path):
+    path = tmp_path / "events.jsonl"
+    with EventLog(path, max_bytes=2000, backups=2) as log:
+        for i in range(1000):
+            log.emit(i, "tick", i=i)
+    files = sorted(p.name for p in tmp_path.iterdir())
+    assert files == ["events.jsonl", "events.jsonl.1", "events.jsonl.2"]
+    assert all(p.stat().st_size < 2100 for p in tmp_path.iterdir())
+    assert read_events(path)[-1]["i"] == 999
+
+
+def test_in_memory_log_is_bounded():
+    log = EventLog(keep_in_memory=10)
+    for i in range(100):
+        log.emit(i, "tick")
+    assert log.count == 100 and len(log.records) >= 10
+
+
+def test_malformed_line_names_file_and_line(tmp_path):
+    path = tmp_path / "events.jsonl"
+    path.write_text('{"t": 0, "kind": "a"}\n{broken\n')
+    with pytest.raises(ValueError, match=r"events.jsonl:2"):
+        read_events(path)
