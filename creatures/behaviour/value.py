@@ -1,16 +1,28 @@
-"""The Value interface and the scalar low-pass value (thesis: "complex value implementations").
+"""The Value interface and its implementations (thesis: "complex value implementations",
+"value chaining", "expectations about value", "emotional tags").
 
 Value gets its meaning only through action selection. The thesis asks only four operations of
 a value: ``toDouble``, ``compareTo``, ``distanceTo`` and ``blendTo``; anything richer (tracer
 dye, Gaussian models, emotional tags) is hidden behind them so action-groups never need to
-know which implementation a tuple carries.
+know which implementation a tuple carries. ``VALUE_KINDS`` names every implementation for
+``value_from_dict``.
 """
 
 from __future__ import annotations
 
 import enum
+import math
 from abc import ABC, abstractmethod
-from typing import Any
+from typing import Any, Mapping
+
+from creatures.behaviour.models.gaussian import GaussianModel
+from creatures.clock import Clock
+
+
+def toward(x: float, target: float, alpha: float) -> float:
+    """The one-pole low-pass step (1 − α)x + αtarget, written x + α(target − x) so that a
+    value already at its target stays exactly there (the metric axioms hold in floats)."""
+    return x + alpha * (target - x)
 
 
 class Comparison(enum.Enum):
@@ -63,9 +75,12 @@ class ScalarValue(Value):
     def to_float(self) -> float:
         return self.value
 
+    def rate(self, alpha: float) -> float:
+        """The effective blend parameter: ``alpha`` scaled by plasticity, kept in [0, 1]."""
+        return min(max(alpha * self.plasticity, 0.0), 1.0)
+
     def blend_to(self, other: Value, alpha: float) -> None:
-        a = min(max(alpha * self.plasticity, 0.0), 1.0)
-        self.value = (1.0 - a) * self.value + a * other.to_float()
+        self.value = toward(self.value, other.to_float(), self.rate(alpha))
 
     def to_dict(self) -> dict[str, Any]:
         return {"kind": self.kind, "value": self.value, "plasticity": self.plasticity}
@@ -78,13 +93,294 @@ class ScalarValue(Value):
         return f"ScalarValue({self.value:.4g})"
 
 
-VALUE_KINDS: dict[str, type] = {ScalarValue.kind: ScalarValue}
+def _learned(value: Value) -> float:
+    """The learned scalar of a value, before any motivational modulation of ``to_float``."""
+    return value.value if isinstance(value, ChainValue) else value.to_float()
+
+
+class ChainValue(ScalarValue):
+    """A scalar value carrying "tracer dye" distances to goal sources (thesis: "value chaining
+    – the *precedes* relationship").
+
+    ``distances`` maps a source name (a consummatory action such as "eat") to how many
+    credit-assignment steps this tuple usually is from it. A source is distance 0 from itself
+    (``source=``) and every unknown distance reads as ``max_distance``. Blending moves the
+    dye with the scalar, by the same α: D_s ← (1 − α)D_s + α(D_n,s + 1), clamped to
+    ``max_distance``.
+
+    Motivational modulation. ``importance`` is a live mapping from source to how much the
+    creature wants it now (e.g. {"eat": hunger, "drink": thirst}), shared by every value of
+    a creature and read live from its drives (see ``Motivation.importance``). Then
+
+        to_float = value · Σ_s I_s·w_s / Σ_s w_s,   w_s = 2^(−D_s / half_distance),
+
+    over the sources named in either mapping (missing importances count 1, missing
+    distances count ``max_distance``). It is a proximity-weighted mean of importances:
+    importances of 1 leave the value unchanged, and when the creature is not hungry every tuple
+    that earned its value by preceding "eat" loses it at once, the whole chain together.
+    ``compare_to`` and ``distance_to`` use the learned scalar, so the metric axioms do not
+    depend on the creature's mood. ``importance`` is creature state, not value state: it is
+    not saved by ``to_dict`` and must be re-attached after loading.
+    """
+
+    kind = "chain"
+
+    def __init__(
+        self,
+        value: float,
+        *,
+        plasticity: float = 1.0,
+        distances: Mapping[str, float] | None = None,
+        source: str | None = None,
+        max_distance: float = 10.0,
+        half_distance: float = 1.0,
+        importance: Mapping[str, float] | None = None,
+    ) -> None:
+        super().__init__(value, plasticity=plasticity)
+        if not max_distance > 0 or not half_distance > 0:
+            raise ValueError("max_distance and half_distance must be positive")
+        self.max_distance = float(max_distance)
+        self.half_distance = float(half_distance)
+        self.source = source
+        self.distances: dict[str, float] = {
+            k: min(max(float(d), 0.0), self.max_distance) for k, d in (distances or {}).items()
+        }
+        if source is not None:
+            self.distances[source] = 0.0
+        self.importance = importance
+
+    def distance_from(self, source: str) -> float:
+        return self.distances.get(source, self.max_distance)
+
+    def modulation(self) -> float:
+        """The motivational factor applied by ``to_float`` (1 without an importance map)."""
+        if not self.importance:
+            return 1.0
+        sources = self.distances.keys() | self.importance.keys()
+        num = den = 0.0
+        for s in sources:
+            w = 2.0 ** (-self.distance_from(s) / self.half_distance)
+            num += w * float(self.importance.get(s, 1.0))
+            den += w
+        return num / den
+
+    def to_float(self) -> float:
+        return self.value * self.modulation()
+
+    def compare_to(self, other: Value) -> Comparison:
+        a, b = self.value, _learned(other)
+        if a == b:
+            return Comparison.SAME
+        return Comparison.BIGGER if a > b else Comparison.SMALLER
+
+    def distance_to(self, other: Value) -> float:
+        return abs(self.value - _learned(other))
+
+    def blend_to(self, other: Value, alpha: float) -> None:
+        a = self.rate(alpha)
+        self.value = toward(self.value, _learned(other), a)
+        theirs = other.distances if isinstance(other, ChainValue) else {}
+        for s in self.distances.keys() | theirs.keys():
+            if s == self.source:
+                continue
+            there = theirs.get(s, self.max_distance)
+            d = toward(self.distance_from(s), there + 1.0, a)
+            self.distances[s] = min(d, self.max_distance)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            **super().to_dict(),
+            "distances": dict(self.distances),
+            "source": self.source,
+            "max_distance": self.max_distance,
+            "half_distance": self.half_distance,
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> "ChainValue":
+        return cls(
+            data["value"],
+            plasticity=data.get("plasticity", 1.0),
+            distances=data.get("distances"),
+            source=data.get("source"),
+            max_distance=data.get("max_distance", 10.0),
+            half_distance=data.get("half_distance", 1.0),
+        )
+
+    def __repr__(self) -> str:
+        dye = ", ".join(f"{k}:{d:.2g}" for k, d in sorted(self.distances.items()))
+        return f"ChainValue({self.value:.4g}; {dye})"
+
+
+class GaussianValue(ScalarValue):
+    """A value with expectations: a model of the incoming V_n (thesis: "expectations about
+    value").
+
+    ``to_float`` is the low-pass moving mean V_l of the V_n it was blended toward (so the
+    metric axioms hold exactly as for :class:`ScalarValue`), and a rolling-buffer
+    :class:`GaussianModel` of the same V_n supplies the spread σ. Then
+
+        p(V_n) ∝ exp(−(V_n − V_l)² / 2σ²)
+
+    and a V_n whose likelihood falls below ``threshold`` is surprising. How surprising is
+    scaled by ``confidence``, which the thesis asks to fall in two cases:
+
+    - the model has been wrong recently: ``reliability`` is an exponential average of hits
+      (1 when a blended V_n was unsurprising, 0 when surprising) with rate ``reliance``;
+    - the model has not been tested for a long time: with a clock, confidence decays as
+      exp(−(t − t_tested) / ``memory``) seconds since the last blend.
+
+    confidence = reliability · staleness factor, in [0, 1]. The clock is not saved with
+    the value: after ``value_from_dict`` the owner re-attaches it (``value.clock = clock``).
+    """
+
+    kind = "gaussian"
+
+    def __init__(
+        self,
+        value: float,
+        *,
+        plasticity: float = 1.0,
+        spread: float = 1.0,
+        size: int = 16,
+        prior_weight: float = 0.1,
+        threshold: float = 0.05,
+        reliance: float = 0.2,
+        memory: float = 600.0,
+        clock: Clock | None = None,
+    ) -> None:
+        super().__init__(value, plasticity=plasticity)
+        if not 0.0 < threshold < 1.0:
+            raise ValueError(f"surprise threshold must be in (0, 1) (got {threshold!r})")
+        if not 0.0 < reliance <= 1.0:
+            raise ValueError(f"reliance must be in (0, 1] (got {reliance!r})")
+        if not memory > 0:
+            raise ValueError(f"memory must be a positive time in seconds (got {memory!r})")
+        self.model = GaussianModel(value, spread, size=size, prior_weight=prior_weight)
+        self.threshold = float(threshold)
+        self.reliance = float(reliance)
+        self.memory = float(memory)
+        self.reliability = 1.0
+        self.clock = clock
+        self.tested_at: float | None = clock.now() if clock is not None else None
+
+    def likelihood(self, v_n: float) -> float:
+        """Unnormalised p(V_n) around the moving mean V_l with the model's σ."""
+        z = (float(v_n) - self.value) / self.model.std
+        return math.exp(-0.5 * z * z)
+
+    def confidence(self, t: float | None = None) -> float:
+        """How much to trust the model now (see the class docstring)."""
+        if t is None and self.clock is not None:
+            t = self.clock.now()
+        if t is None or self.tested_at is None:
+            return self.reliability
+        return self.reliability * math.exp(-max(0.0, t - self.tested_at) / self.memory)
+
+    def surprise(self, v_n: float, t: float | None = None) -> float:
+        """0 if V_n is expected; else confidence·(1 − p(V_n)) — how surprising it is."""
+        p = self.likelihood(v_n)
+        return 0.0 if p >= self.threshold else self.confidence(t) * (1.0 - p)
+
+    def blend_to(self, other: Value, alpha: float) -> None:
+        a = self.rate(alpha)
+        if a == 0.0:
+            return
+        v_n = _learned(other)
+        hit = 1.0 if self.likelihood(v_n) >= self.threshold else 0.0
+        self.reliability += self.reliance * a * (hit - self.reliability)
+        self.model.update(v_n, weight=a)
+        self.value = toward(self.value, v_n, a)
+        if self.clock is not None:
+            self.tested_at = self.clock.now()
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            **super().to_dict(),
+            "model": self.model.to_dict(),
+            "threshold": self.threshold,
+            "reliance": self.reliance,
+            "memory": self.memory,
+            "reliability": self.reliability,
+            "tested_at": self.tested_at,
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any], *, clock: Clock | None = None) -> "GaussianValue":
+        model = GaussianModel.from_dict(data["model"])
+        value = cls(
+            data["value"],
+            plasticity=data.get("plasticity", 1.0),
+            spread=model.prior_std,
+            size=model.size,
+            prior_weight=model.prior_weight,
+            threshold=data["threshold"],
+            reliance=data["reliance"],
+            memory=data["memory"],
+            clock=clock,
+        )
+        value.model = model
+        value.reliability = float(data["reliability"])
+        value.tested_at = data.get("tested_at")
+        return value
+
+    def __repr__(self) -> str:
+        return f"GaussianValue({self.value:.4g} ± {self.model.std:.3g})"
+
+
+class StanceValue(ScalarValue):
+    """A value with an emotional stance tag in [−1, 1] (thesis: "emotional tags").
+
+    The stance is blended by the same α as the scalar (toward the stance of a following
+    StanceValue; other values carry no tag and leave it alone). When the owning tuple becomes
+    active, :meth:`perturb` pulls a character-wide mood toward this stance, so a startle that
+    has come to predict food stops being frightening.
+    """
+
+    kind = "stance"
+
+    def __init__(self, value: float, *, plasticity: float = 1.0, stance: float = 0.0) -> None:
+        super().__init__(value, plasticity=plasticity)
+        if not -1.0 <= stance <= 1.0:
+            raise ValueError(f"stance must be in [-1, 1] (got {stance!r})")
+        self.stance = float(stance)
+
+    def blend_to(self, other: Value, alpha: float) -> None:
+        super().blend_to(other, alpha)
+        if isinstance(other, StanceValue):
+            self.stance = toward(self.stance, other.stance, self.rate(alpha))
+
+    def perturb(self, mood: float, strength: float) -> float:
+        """The mood moved toward this stance by ``strength`` in [0, 1]."""
+        s = min(max(strength, 0.0), 1.0)
+        return (1.0 - s) * mood + s * self.stance
+
+    def to_dict(self) -> dict[str, Any]:
+        return {**super().to_dict(), "stance": self.stance}
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> "StanceValue":
+        return cls(data["value"], plasticity=data.get("plasticity", 1.0), stance=data["stance"])
+
+    def __repr__(self) -> str:
+        return f"StanceValue({self.value:.4g}, stance={self.stance:+.2f})"
+
+
+VALUE_KINDS: dict[str, type] = {
+    cls.kind: cls for cls in (ScalarValue, ChainValue, GaussianValue, StanceValue)
+}
 
 
 def value_from_dict(data: dict[str, Any]) -> Value:
-    """Rebuild a value saved with ``to_dict``; the ``kind`` key picks the class."""
+    """Rebuild a value saved with ``to_dict``; the ``kind`` key picks the class.
+
+    A malformed record raises ValueError naming the missing key.
+    """
     try:
         cls = VALUE_KINDS[data["kind"]]
     except KeyError:
         raise ValueError(f"unknown value kind {data.get('kind')!r}") from None
-    return cls.from_dict(data)
+    try:
+        return cls.from_dict(data)
+    except KeyError as exc:
+        raise ValueError(f"{data['kind']} value is missing key {exc.args[0]!r}") from None

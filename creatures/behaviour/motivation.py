@@ -1,0 +1,215 @@
+"""Motivational state as linear "synthetic chemistry" (thesis: "soft state"; sand:stone,
+figure 37; after Grand, Cliff and Malhotra's *Creatures*).
+
+Motivations are explicit scalar drives ("hunger", "desire to sing", "breath", "boredom"),
+modelled *ad hoc* by the author and read by behaviour in two ways: by modulating values
+(a hungry creature values eating, and through value chaining everything that precedes
+eating) and by being modelled directly by Tr percepts (scale-free "hungry"). Between events
+they obey one linear system
+
+    dx/dt = r − D(x − x_eq) + Cx + u
+
+with per-second growth r, decay rates D (diagonal) toward equilibria x_eq, a coupling matrix
+C (C[i, j]: how drive j feeds drive i) and external inputs u held until changed. Behaviour
+closes the loop with impulses (:meth:`Motivation.perturb`: eating takes hunger down).
+
+The system is integrated *exactly* over any elapsed clock time with one matrix exponential
+of the augmented system [[M, b], [0, 0]], M = C − D, b = r + D·x_eq + u, so the result never
+depends on how often the creature ticks. Optional floor/ceiling clip afterwards (chemical
+concentrations do not go negative); clipping is the only non-linear step.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable, Iterator, Mapping
+
+import numpy as np
+from scipy.linalg import expm
+
+
+class Motivation:
+    """A creature's named drives and their linear dynamics.
+
+    Parameters are mappings by drive name (missing entries are 0, equilibria default to the
+    initial level); ``coupling`` maps ``(to, from)`` pairs to rates.
+    """
+
+    def __init__(
+        self,
+        levels: Mapping[str, float],
+        *,
+        growth: Mapping[str, float] | None = None,
+        decay: Mapping[str, float] | None = None,
+        equilibrium: Mapping[str, float] | None = None,
+        coupling: Mapping[tuple[str, str], float] | None = None,
+        floor: float | None = 0.0,
+        ceiling: float | None = None,
+        start: float = 0.0,
+    ) -> None:
+        if not levels:
+            raise ValueError("a motivation needs at least one drive")
+        self.names = list(levels)
+        self._index = {name: k for k, name in enumerate(self.names)}
+        self.levels = self._vector(levels, "levels")
+        self.growth = self._vector(growth or {}, "growth")
+        self.decay = self._vector(decay or {}, "decay")
+        if (self.decay < 0).any():
+            raise ValueError("decay rates must be non-negative")
+        self.equilibrium = self._vector({**levels, **(equilibrium or {})}, "equilibrium")
+        n = len(self.names)
+        self.coupling = np.zeros((n, n))
+        for (to, frm), rate in (coupling or {}).items():
+            self.coupling[self.index(to), self.index(frm)] = float(rate)
+        self.inputs = np.zeros(n)
+        self.floor = floor
+        self.ceiling = ceiling
+        self.time = float(start)
+
+    def _vector(self, values: Mapping[str, float], what: str) -> np.ndarray:
+        out = np.zeros(len(self.names))
+        for name, v in values.items():
+            if name not in self._index:
+                raise KeyError(f"{what}: no drive named {name!r} (drives: {self.names})")
+            out[self._index[name]] = float(v)
+        if not np.isfinite(out).all():
+            raise ValueError(f"{what} must be finite numbers")
+        return out
+
+    def index(self, name: str) -> int:
+        try:
+            return self._index[name]
+        except KeyError:
+            raise KeyError(f"no drive named {name!r} (drives: {self.names})") from None
+
+    # -- dynamics ------------------------------------------------------------------------------
+    def _propagator(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        n = len(self.names)
+        m = self.coupling - np.diag(self.decay)
+        b = self.growth + self.decay * self.equilibrium + self.inputs
+        augmented = np.zeros((n + 1, n + 1))
+        augmented[:n, :n] = m
+        augmented[:n, n] = b
+        e = expm(augmented * dt)
+        return e[:n, :n], e[:n, n]
+
+    def _clip(self, x: np.ndarray) -> np.ndarray:
+        if self.floor is None and self.ceiling is None:
+            return x
+        return np.clip(x, self.floor, self.ceiling)
+
+    def levels_at(self, t: float) -> np.ndarray:
+        """Every drive's level at ``t`` ≥ the current time, without moving the state."""
+        dt = float(t) - self.time
+        if dt < 0:
+            raise ValueError(f"motivation: time went backwards ({t} < {self.time})")
+        if dt == 0:
+            return self.levels.copy()
+        phi, offset = self._propagator(dt)
+        return self._clip(phi @ self.levels + offset)
+
+    def advance(self, t: float) -> None:
+        """Integrate exactly from the current time to clock time ``t``."""
+        self.levels = self.levels_at(t)
+        self.time = float(t)
+
+    def level(self, name: str, t: float | None = None) -> float:
+        if t is None:
+            return float(self.levels[self.index(name)])
+        return float(self.levels_at(t)[self.index(name)])
+
+    def set_input(self, t: float, name: str, rate: float) -> None:
+        """From ``t`` on, feed ``rate`` per second into a drive (a sensed presence, say)."""
+        self.advance(t)
+        self.inputs[self.index(name)] = float(rate)
+
+    def perturb(self, t: float, name: str, amount: float) -> None:
+        """An impulse at ``t``: behaviour acting on state (eating: hunger − amount)."""
+        self.advance(t)
+        i = self.index(name)
+        self.levels[i] = self._clip(self.levels[i : i + 1] + float(amount))[0]
+
+    # -- reaching behaviour ---------------------------------------------------------------------
+    def modulate(self, value: float, name: str, *, gain: float = 1.0, base: float = 0.0) -> float:
+        """``value`` scaled by (base + gain·level): a drive weighting a consummatory value."""
+        return float(value) * (base + gain * self.level(name))
+
+    def modulator(
+        self, name: str, *, gain: float = 1.0, base: float = 1.0
+    ) -> Callable[[float], float]:
+        """A saliency gain t ↦ base + gain·level(t) for :meth:`StateObject.modulate_by`
+        (hunger sharpening the smell of food)."""
+        return lambda t: base + gain * self.level(name, max(float(t), self.time))
+
+    def importance(self, sources: Mapping[str, str]) -> Mapping[str, float]:
+        """A live map from value-chain source to the level of the drive it serves, e.g.
+        ``{"eat": "hunger"}``, to hand to :class:`ChainValue` as its ``importance``."""
+        for drive in sources.values():
+            self.index(drive)
+        return _Importance(self, dict(sources))
+
+    # -- persistence -------------------------------------------------------------------------------
+    def to_dict(self) -> dict[str, Any]:
+        def named(v: np.ndarray) -> dict[str, float]:
+            return {n: float(x) for n, x in zip(self.names, v)}
+
+        return {
+            "kind": "motivation",
+            "levels": named(self.levels),
+            "growth": named(self.growth),
+            "decay": named(self.decay),
+            "equilibrium": named(self.equilibrium),
+            "coupling": [
+                [to, frm, float(self.coupling[i, j])]
+                for i, to in enumerate(self.names)
+                for j, frm in enumerate(self.names)
+                if self.coupling[i, j] != 0.0
+            ],
+            "inputs": named(self.inputs),
+            "floor": self.floor,
+            "ceiling": self.ceiling,
+            "time": self.time,
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> "Motivation":
+        keys = ("levels", "growth", "decay", "equilibrium", "coupling", "inputs", "floor",
+                "ceiling", "time")
+        missing = [k for k in keys if k not in data]
+        if missing:
+            raise ValueError(f"motivation state is missing key {missing[0]!r}")
+        try:
+            motivation = cls(
+                data["levels"],
+                growth=data["growth"],
+                decay=data["decay"],
+                equilibrium=data["equilibrium"],
+                coupling={(to, frm): rate for to, frm, rate in data["coupling"]},
+                floor=data["floor"],
+                ceiling=data["ceiling"],
+                start=data["time"],
+            )
+            motivation.inputs = motivation._vector(data["inputs"], "inputs")
+        except KeyError as exc:  # a parameter names a drive that has no level
+            raise ValueError(f"motivation state: {exc.args[0]}") from None
+        return motivation
+
+    def __repr__(self) -> str:
+        inner = ", ".join(f"{n}={x:.3g}" for n, x in zip(self.names, self.levels))
+        return f"Motivation({inner} @ t={self.time:.3g})"
+
+
+class _Importance(Mapping[str, float]):
+    """Read-only view: source name → current level of the drive it serves."""
+
+    def __init__(self, motivation: Motivation, sources: dict[str, str]) -> None:
+        self._motivation = motivation
+        self._sources = sources
+
+    def __getitem__(self, source: str) -> float:
+        return self._motivation.level(self._sources[source])
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._sources)
+
+    def __len__(self) -> int:
+        return len(self._sources)

@@ -1,0 +1,140 @@
+"""Motivational drives as linear synthetic chemistry, integrated exactly from clock time."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from creatures.behaviour.motivation import Motivation
+from creatures.behaviour.state_object import StateObject
+from creatures.behaviour.value import ChainValue
+
+
+def test_single_drive_by_hand(clock):
+    hunger = Motivation({"hunger": 0.0}, growth={"hunger": 0.2}, decay={"hunger": 0.1})
+    clock.advance(7.0)
+    hunger.advance(clock.now())
+    # x' = r − d(x − x_eq): x* = x_eq + r/d = 2, x(t) = x* + (x0 − x*)·e^(−dt)
+    assert hunger.level("hunger") == pytest.approx(2.0 + (0.0 - 2.0) * math.exp(-0.7))
+
+
+def test_pure_growth_is_linear_in_time():
+    boredom = Motivation({"boredom": 1.0}, growth={"boredom": 0.5})
+    assert boredom.level("boredom", t=4.0) == pytest.approx(3.0)
+    assert boredom.level("boredom") == 1.0  # asking about the future does not move the state
+
+
+def test_elapsed_time_not_tick_count():
+    def make() -> Motivation:
+        return Motivation(
+            {"sing": 0.1, "breath": 1.0},
+            growth={"sing": 0.3},
+            decay={"sing": 0.05, "breath": 0.2},
+            coupling={("breath", "sing"): -0.4, ("sing", "breath"): 0.1},
+            floor=None,
+        )
+
+    once, ticked = make(), make()
+    once.advance(10.0)
+    for t in np.linspace(0.0, 10.0, 1001)[1:]:
+        ticked.advance(float(t))
+    np.testing.assert_allclose(ticked.levels, once.levels, rtol=1e-9)
+
+
+def test_coupled_drives_match_a_numerical_integration():
+    m = Motivation(
+        {"sing": 0.1, "breath": 1.0},
+        growth={"sing": 0.3},
+        decay={"sing": 0.05, "breath": 0.2},
+        equilibrium={"breath": 1.0},
+        coupling={("breath", "sing"): -0.4},
+        floor=None,
+    )
+    m.set_input(0.0, "sing", 0.2)  # someone stands at the centre of the sand
+
+    def rate(_t, x):
+        sing, breath = x
+        return [0.3 + 0.2 - 0.05 * (sing - 0.1), -0.2 * (breath - 1.0) - 0.4 * sing]
+
+    ref = solve_ivp(rate, (0.0, 6.0), [0.1, 1.0], rtol=1e-10, atol=1e-12).y[:, -1]
+    m.advance(6.0)
+    np.testing.assert_allclose(m.levels, ref, rtol=1e-7)
+    assert m.level("breath") < 1.0  # singing used breath
+
+
+def test_behaviour_closes_the_loop_with_impulses():
+    m = Motivation({"hunger": 0.5}, growth={"hunger": 0.1})
+    m.perturb(2.0, "hunger", -0.5)  # eat at t = 2
+    assert m.level("hunger") == pytest.approx(0.2)
+    m.perturb(3.0, "hunger", -5.0)
+    assert m.level("hunger") == 0.0  # the floor: concentrations do not go negative
+    with pytest.raises(ValueError, match="time went backwards"):
+        m.advance(1.0)
+
+
+def test_modulate_a_consummatory_value():
+    m = Motivation({"hunger": 0.25})
+    assert m.modulate(100.0, "hunger") == pytest.approx(25.0)
+    assert m.modulate(100.0, "hunger", base=1.0, gain=2.0) == pytest.approx(150.0)
+
+
+def test_hunger_modulates_the_smell_of_food():
+    m = Motivation({"hunger": 0.0}, growth={"hunger": 0.5})
+    smell = StateObject("food smell")
+    smell.modulate_by(m.modulator("hunger"))
+    assert smell.push(0.0, 1.0) == pytest.approx(1.0)
+    assert smell.push(4.0, 1.0) == pytest.approx(1.0 + 2.0)
+
+
+def test_hungry_versus_not_hungry_reweights_whole_chains():
+    m = Motivation({"hunger": 1.0, "thirst": 1.0})
+    importance = m.importance({"eat": "hunger", "drink": "thirst"})
+    eat, drink = ChainValue(100.0, source="eat"), ChainValue(100.0, source="drink")
+    chase = ChainValue(0.0, importance=importance)
+    follow_river = ChainValue(0.0, importance=importance)
+    for _ in range(30):
+        chase.blend_to(eat, 0.3)
+        follow_river.blend_to(drink, 0.3)
+    assert chase.to_float() == pytest.approx(follow_river.to_float())
+    m.perturb(0.0, "hunger", -1.0)  # fed: no drive for food
+    assert chase.to_float() < 0.01 * follow_river.to_float()
+    assert dict(importance) == {"eat": 0.0, "drink": 1.0}
+
+
+def test_round_trip_is_exact():
+    m = Motivation(
+        {"a": 0.3, "b": 0.7},
+        growth={"a": 0.1},
+        decay={"b": 0.4},
+        equilibrium={"b": 0.2},
+        coupling={("a", "b"): 0.25},
+        ceiling=5.0,
+    )
+    m.set_input(1.5, "b", 0.05)
+    again = Motivation.from_dict(json.loads(json.dumps(m.to_dict())))
+    assert again.to_dict() == m.to_dict()
+    m.advance(9.0)
+    again.advance(9.0)
+    np.testing.assert_array_equal(again.levels, m.levels)
+
+
+def test_bad_input_is_refused_by_name():
+    with pytest.raises(KeyError, match="growth: no drive named 'thirst'"):
+        Motivation({"hunger": 0.0}, growth={"thirst": 1.0})
+    with pytest.raises(ValueError, match="at least one drive"):
+        Motivation({})
+    m = Motivation({"hunger": 0.0})
+    data = m.to_dict()
+    del data["decay"]
+    with pytest.raises(ValueError, match="missing key 'decay'"):
+        Motivation.from_dict(data)
+    data = m.to_dict()
+    data["inputs"] = {"ghost": 1.0}
+    with pytest.raises(ValueError, match="inputs: no drive named 'ghost'"):
+        Motivation.from_dict(data)
+    with pytest.raises(KeyError, match="'ghost'"):
+        m.importance({"eat": "ghost"})
