@@ -1,0 +1,57 @@
+"""Mixer for a colony: each creature's mono voice, with gain and pan, summed to stereo.
+
+Several creatures share one loudspeaker pair (thesis *exchange*, *soundcreatures* played
+"together"). The mix is one matrix product ``(frames, sources) @ (sources, 2)`` written
+into a buffer allocated once, so mixing a block allocates nothing. Pan is equal-power
+(−3 dB in the centre) so a creature keeps its loudness as it moves across the stereo field.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+class Mixer:
+    """``n_sources`` mono inputs → stereo, with per-source ``gain`` and ``pan`` (−1 left … +1 right).
+
+    Example
+    -------
+    >>> mixer = Mixer(2, block_size=256)
+    >>> mixer.set(0, gain=0.5, pan=-1.0)
+    >>> stereo = mixer.mix(np.zeros((2, 256)))  # (256, 2), a view of the mixer's buffer
+    """
+
+    def __init__(self, n_sources: int, *, block_size: int = 1024) -> None:
+        if n_sources < 1 or block_size < 1:
+            raise ValueError(f"need n_sources ≥ 1 and block_size ≥ 1, got {n_sources}, {block_size}")
+        self.gains = np.ones(n_sources)
+        self.pans = np.zeros(n_sources)
+        self._weights = np.empty((n_sources, 2))
+        self._out = np.zeros((block_size, 2))
+        self._update_weights()
+
+    def set(self, source: int, *, gain: float | None = None, pan: float | None = None) -> None:
+        """Change one source's gain (linear, ≥ 0) and/or pan (clamped to [−1, 1])."""
+        if gain is not None:
+            if not gain >= 0:
+                raise ValueError(f"gain must be ≥ 0, got {gain!r}")
+            self.gains[source] = gain
+        if pan is not None:
+            self.pans[source] = min(max(pan, -1.0), 1.0)
+        self._update_weights()
+
+    def _update_weights(self) -> None:
+        angle = (self.pans + 1.0) * (np.pi / 4.0)
+        self._weights[:, 0] = self.gains * np.cos(angle)
+        self._weights[:, 1] = self.gains * np.sin(angle)
+
+    def mix(self, blocks: np.ndarray) -> np.ndarray:
+        """Sum ``blocks`` ``(n_sources, frames)`` into the stereo buffer; returns ``(frames, 2)``."""
+        sources, frames = blocks.shape
+        if sources != len(self.gains) or frames > len(self._out):
+            raise ValueError(
+                f"blocks must be ({len(self.gains)}, ≤{len(self._out)}), got {blocks.shape}"
+            )
+        out = self._out[:frames]
+        np.matmul(blocks.T, self._weights, out=out)
+        return out

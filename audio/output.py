@@ -1,0 +1,184 @@
+"""Audio out, one interface for the loudspeaker and for files (the creature's "mouth").
+
+Every output takes blocks of shape ``(frames, channels)`` through :meth:`AudioOutput.write`
+and is closed once (or used as a context manager), in the manner of mido's ports: a small
+base class whose subclasses fill in ``_write``/``_close``.
+
+* :class:`WavOutput` — soundfile, written to a temporary file beside the target and renamed
+  into place on close (atomic: a crash never leaves half a WAV where a good one was).
+* :class:`LiveOutput` — sounddevice callback stream. Blocks go, interleaved, into the
+  preallocated lock-free :class:`audio.sources.RingBuffer` that live input uses too; the
+  PortAudio callback only copies out of it (no allocation of buffers, no locks, no
+  logging) and counts underruns. Callback streams, never blocking ``write()``: under JACK
+  a blocking mono write aborted the process (ENVIRONMENT.md).
+* :class:`SilentOutput` — what :func:`open_output` returns when no device exists, so an
+  installation keeps running (and can still record) with a clear ``reason``.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import soundfile
+
+from audio.device import AudioDeviceUnavailable, find_device, sounddevice_module
+from audio.sources import RingBuffer
+
+log = logging.getLogger(__name__)
+
+
+class AudioOutput:
+    """Base class: checks block shapes, holds rate and channel count, closes once."""
+
+    def __init__(self, sample_rate: int, channels: int) -> None:
+        if sample_rate <= 0 or channels <= 0:
+            raise ValueError(f"sample_rate and channels must be > 0, got {sample_rate}, {channels}")
+        self.sample_rate = int(sample_rate)
+        self.channels = int(channels)
+        self.frames_written = 0
+        self.closed = False
+
+    def write(self, block: np.ndarray) -> None:
+        """Queue or store one block ``(frames, channels)`` (a 1-D block is taken as mono)."""
+        if self.closed:
+            raise ValueError(f"{type(self).__name__} is closed")
+        block = np.asarray(block)
+        if block.ndim == 1:
+            block = block[:, None]
+        if block.ndim != 2 or block.shape[1] != self.channels:
+            raise ValueError(f"block must be (frames, {self.channels}), got {block.shape}")
+        self._write(block)
+        self.frames_written += len(block)
+
+    def close(self) -> None:
+        if not self.closed:
+            self.closed = True
+            self._close()
+
+    def _write(self, block: np.ndarray) -> None:
+        raise NotImplementedError
+
+    def _close(self) -> None:
+        pass
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        self.close()
+
+
+class WavOutput(AudioOutput):
+    """A WAV file written atomically: temp file in the same directory, fsync, rename."""
+
+    def __init__(self, path: str | os.PathLike, sample_rate: int, channels: int = 2, *,
+                 subtype: str = "PCM_16") -> None:
+        super().__init__(sample_rate, channels)
+        self.path = Path(path)
+        fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=".tmp", dir=self.path.parent)
+        os.close(fd)
+        self._tmp = Path(tmp)
+        self._file = soundfile.SoundFile(self._tmp, mode="w", samplerate=self.sample_rate,
+                                         channels=self.channels, format="WAV", subtype=subtype)
+
+    def _write(self, block: np.ndarray) -> None:
+        self._file.write(block)
+
+    def _close(self) -> None:
+        self._file.flush()
+        self._file.close()  # writes the final header
+        with open(self._tmp, "rb+") as handle:
+            os.fsync(handle.fileno())
+        os.replace(self._tmp, self.path)
+
+    def abandon(self) -> None:
+        """Drop the partial recording; whatever was at ``path`` before stays untouched."""
+        if not self.closed:
+            self.closed = True
+            self._file.close()
+            self._tmp.unlink(missing_ok=True)
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is not None:
+            self.abandon()
+        else:
+            self.close()
+
+
+class LiveOutput(AudioOutput):
+    """The loudspeaker: a sounddevice callback stream fed from a :class:`RingBuffer`.
+
+    ``write`` blocks (sleeping, on the caller's thread) while the ring is full, which paces an
+    offline-speed producer to real time. ``callbacks`` and ``underruns`` (callbacks that had
+    to pad with silence) can be read at any time.
+    """
+
+    def __init__(self, sample_rate: int = 48000, channels: int = 2, *, blocksize: int = 512,
+                 device: str | int | None = None, buffer_seconds: float = 0.25) -> None:
+        super().__init__(sample_rate, channels)
+        sd = sounddevice_module()
+        index = find_device(device, kind="output")
+        # interleaved samples: (frames, channels) blocks are C-contiguous, so a flat view is free
+        self.ring = RingBuffer(max(int(buffer_seconds * sample_rate), 2 * blocksize) * channels)
+        self.callbacks = 0
+        self.underruns = 0
+        self._pause = blocksize / sample_rate / 2
+        try:
+            self.stream = sd.OutputStream(samplerate=sample_rate, channels=channels, dtype="float32",
+                                          blocksize=blocksize, device=index, callback=self._callback)
+            self.stream.start()
+        except sd.PortAudioError as exc:
+            native = sd.query_devices(index, kind="output")["default_samplerate"]
+            raise AudioDeviceUnavailable(
+                f"cannot open audio output {device!r} at {sample_rate} Hz (device runs at {native:g} Hz): {exc}"
+            ) from None
+
+    def _callback(self, outdata, frames, time_info, status) -> None:
+        # Real-time thread: copy and count only.
+        self.callbacks += 1
+        flat = outdata.reshape(-1)
+        copied = self.ring.read(flat)
+        if copied < len(flat):
+            flat[copied:] = 0.0
+            self.underruns += 1
+
+    def _write(self, block: np.ndarray) -> None:
+        samples = np.ascontiguousarray(block, dtype=np.float32).reshape(-1)
+        step = self.ring.capacity // 2 // self.channels * self.channels
+        for start in range(0, len(samples), step):
+            part = samples[start : start + step]
+            while self.ring.capacity - self.ring.available() < len(part):
+                if not self.stream.active:
+                    raise AudioDeviceUnavailable("audio output stream stopped while writing")
+                time.sleep(self._pause)
+            self.ring.write(part)
+
+    def _close(self) -> None:
+        self.stream.stop()
+        self.stream.close()
+
+
+class SilentOutput(AudioOutput):
+    """Discards audio; stands in for a missing device and says why in :attr:`reason`."""
+
+    def __init__(self, sample_rate: int, channels: int, reason: str) -> None:
+        super().__init__(sample_rate, channels)
+        self.reason = reason
+
+    def _write(self, block: np.ndarray) -> None:
+        pass
+
+
+def open_output(sample_rate: int = 48000, channels: int = 2, *, device: str | int | None = None,
+                blocksize: int = 512) -> LiveOutput | SilentOutput:
+    """The live output, or a :class:`SilentOutput` (with a logged warning) when none exists."""
+    try:
+        return LiveOutput(sample_rate, channels, blocksize=blocksize, device=device)
+    except AudioDeviceUnavailable as exc:
+        log.warning("continuing without sound: %s", exc)
+        return SilentOutput(sample_rate, channels, reason=str(exc))

@@ -1,0 +1,85 @@
+"""Sampler: soundcreatures sing back what they heard (thesis *soundcreatures*).
+
+"Without phase information we couldn't reconstruct model samples perfectly. So here we cheat
+and also keep the raw samples around": the percept trees classify heard sounds, and the raw
+audio is kept here to be played back. It is the creature's *body* that produces the sound —
+"labelled positions on the animated body control parameters such as amplitude modulation
+(e.g. rib cage) and a simple low-pass filter (e.g. here, back angle)" — so :meth:`render`
+takes an ``amplitude`` and a ``cutoff_hz`` each block, typically from
+:class:`audio.coupling.BodyControl`.
+
+The low-pass is a 2nd-order Butterworth run by :func:`scipy.signal.lfilter` with its state
+carried from block to block, so block boundaries are inaudible; the amplitude ramps
+linearly across a block from the previous value, so body movement does not zipper.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.signal import butter, lfilter
+
+
+class Sampler:
+    """Stored sounds, played (overlapping) through one body-driven gain and low-pass.
+
+    Parameters
+    ----------
+    sample_rate : float
+        Rate of stored sounds and output.
+    block_size : int
+        Largest block :meth:`render` will be asked for.
+    """
+
+    def __init__(self, sample_rate: float = 48000.0, *, block_size: int = 1024) -> None:
+        self.sample_rate = float(sample_rate)
+        self.sounds: list[np.ndarray] = []
+        self.playing: list[list] = []  # [sound index, next frame, gain]
+        self._mix = np.zeros(block_size)
+        self._amplitude = 0.0
+        self._cutoff: float | None = None
+        self._ba: tuple[np.ndarray, np.ndarray] | None = None
+        self._zi: np.ndarray | None = None
+
+    def add(self, sound: np.ndarray) -> int:
+        """Keep a heard sound (mono, at ``sample_rate``); returns its index for :meth:`play`."""
+        sound = np.asarray(sound, dtype=float)
+        if sound.ndim != 1 or not len(sound) or not np.isfinite(sound).all():
+            raise ValueError(f"a sound must be a non-empty finite mono array, got shape {sound.shape}")
+        self.sounds.append(sound)
+        return len(self.sounds) - 1
+
+    def play(self, index: int, *, gain: float = 1.0) -> None:
+        """Start sound ``index`` from its beginning (several may overlap)."""
+        if not 0 <= index < len(self.sounds):
+            raise IndexError(f"no stored sound {index} (have {len(self.sounds)})")
+        self.playing.append([index, 0, float(gain)])
+
+    def _set_cutoff(self, cutoff_hz: float) -> None:
+        nyquist = 0.5 * self.sample_rate
+        cutoff = min(max(cutoff_hz, 10.0), 0.99 * nyquist)
+        if cutoff == self._cutoff:
+            return
+        b, a = butter(2, cutoff, fs=self.sample_rate)
+        if self._zi is None:
+            self._zi = np.zeros(max(len(a), len(b)) - 1)  # the filter starts at rest
+        self._ba, self._cutoff = (b, a), cutoff
+
+    def render(self, out: np.ndarray, *, amplitude: float = 1.0, cutoff_hz: float = 20000.0) -> np.ndarray:
+        """Mix the playing sounds into ``out`` through the body's gain and low-pass."""
+        frames = len(out)
+        if frames > len(self._mix):
+            raise ValueError(f"block of {frames} frames exceeds block_size {len(self._mix)}")
+        mix = self._mix[:frames]
+        mix[:] = 0.0
+        for voice in self.playing:
+            sound = self.sounds[voice[0]]
+            part = sound[voice[1] : voice[1] + frames]
+            mix[: len(part)] += voice[2] * part
+            voice[1] += frames
+        self.playing = [v for v in self.playing if v[1] < len(self.sounds[v[0]])]
+        self._set_cutoff(cutoff_hz)
+        filtered, self._zi = lfilter(*self._ba, mix, zi=self._zi)
+        ramp = np.arange(1, frames + 1) / frames
+        out[:] = filtered * (self._amplitude + (amplitude - self._amplitude) * ramp)
+        self._amplitude = amplitude
+        return out

@@ -1,0 +1,92 @@
+"""Polyphony for scanned strings: note events → voices, the oldest voice stolen when full.
+
+A creature's motor system emits note events (thesis NoteObjects); each sounding note needs
+its own string because the string's shape *is* the note's timbre. :class:`VoicePool` keeps
+a fixed set of :class:`~audio.scanned.ScannedString` voices (allocated once, so a live
+block never allocates) and hands a note-on to a free voice, or steals the one that started
+longest ago. Note-off starts a linear release so a stolen or ended note does not click.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from audio.scanned import ScannedString, StringParameters
+
+
+def midi_to_hz(pitch: float) -> float:
+    """Equal-tempered frequency of a MIDI pitch (A4 = 69 = 440 Hz)."""
+    return 440.0 * 2.0 ** ((pitch - 69.0) / 12.0)
+
+
+class VoicePool:
+    """``n_voices`` scanned strings sharing one parameter set; render sums them.
+
+    Parameters
+    ----------
+    n_voices : int
+        Maximum simultaneous notes.
+    parameters : StringParameters
+        String physics of every voice.
+    sample_rate : float
+        Audio rate.
+    release : float
+        Seconds of the linear fade after note-off (and when a voice is stolen).
+    block_size : int
+        Largest block :meth:`render` will be asked for (sizes the scratch buffer).
+    """
+
+    def __init__(self, n_voices: int = 8, parameters: StringParameters | None = None, *,
+                 sample_rate: float = 48000.0, release: float = 0.2, block_size: int = 1024) -> None:
+        if n_voices < 1:
+            raise ValueError(f"n_voices must be ≥ 1, got {n_voices}")
+        if not release > 0:
+            raise ValueError(f"release must be > 0 seconds, got {release!r}")
+        self.voices = [ScannedString(parameters, sample_rate=sample_rate, gain=1.0) for _ in range(n_voices)]
+        self.sample_rate = float(sample_rate)
+        self.pitch = np.full(n_voices, -1.0)  # -1: free
+        self.started = np.full(n_voices, -np.inf)  # note-on order stamp
+        self.level = np.zeros(n_voices)  # envelope now
+        self.slope = np.zeros(n_voices)  # envelope change per sample (negative while releasing)
+        self._release_step = 1.0 / (release * sample_rate)
+        self._count = 0
+        self._scratch = np.empty(block_size)
+        self._ramp = np.arange(1, block_size + 1, dtype=float)
+
+    def note_on(self, pitch: float, velocity: float = 1.0) -> int:
+        """Start a note (MIDI pitch, velocity 0..1); returns the voice index used."""
+        free = np.flatnonzero(self.pitch < 0)
+        index = int(free[0]) if len(free) else int(np.argmin(self.started))
+        voice = self.voices[index]
+        voice.silence()
+        voice.note_on(midi_to_hz(pitch), velocity)
+        self._count += 1
+        self.pitch[index], self.started[index] = pitch, self._count
+        self.level[index], self.slope[index] = 1.0, 0.0
+        return index
+
+    def note_off(self, pitch: float) -> None:
+        """Release every voice sounding ``pitch`` (unknown pitches are ignored, like MIDI)."""
+        self.slope[(self.pitch == pitch) & (self.slope == 0)] = -self._release_step
+
+    @property
+    def active(self) -> int:
+        return int((self.pitch >= 0).sum())
+
+    def render(self, out: np.ndarray) -> np.ndarray:
+        """Sum all sounding voices into ``out`` (raw, before any limiter); frees finished voices."""
+        frames = len(out)
+        if frames > len(self._scratch):
+            raise ValueError(f"block of {frames} frames exceeds block_size {len(self._scratch)}")
+        out[:] = 0.0
+        scratch, ramp = self._scratch[:frames], self._ramp[:frames]
+        for index in np.flatnonzero(self.pitch >= 0):
+            self.voices[index].render_raw(scratch)
+            if self.slope[index]:
+                envelope = np.clip(self.level[index] + self.slope[index] * ramp, 0.0, 1.0)
+                scratch *= envelope
+                self.level[index] = envelope[-1]
+                if self.level[index] <= 0.0:
+                    self.pitch[index] = -1.0
+            out += scratch
+        return out

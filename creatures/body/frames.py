@@ -1,0 +1,74 @@
+"""Frames on their own clock, and where they go (PNG files, a video file).
+
+The behaviour system ticks at whatever rate its work allows; pictures must come at a fixed
+frame rate regardless (DESIGN.md "Time": elapsed clock time, never loop counts). A
+:class:`FrameClock` says how many frames fell due since it was last asked, from elapsed
+time alone: a slow tick repeats the latest picture, a fast one skips frames — so a video's
+length always equals the run's length.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+
+import imageio.v2 as imageio_v2
+import imageio.v3 as iio
+import numpy as np
+
+from creatures.clock import Clock
+
+
+class FrameClock:
+    """Frames at ``fps`` from a clock's elapsed time; frame 0 falls due at the first call."""
+
+    def __init__(self, fps: float, clock: Clock) -> None:
+        if not (math.isfinite(fps) and fps > 0):
+            raise ValueError(f"fps must be a positive number, got {fps!r}")
+        self.fps = float(fps)
+        self.clock = clock
+        self._start = clock.now()
+        self.emitted = 0
+
+    def due(self) -> int:
+        """How many frames fell due since the last call (0, 1, or more after a slow tick)."""
+        total = math.floor((self.clock.now() - self._start) * self.fps + 1e-9) + 1
+        count = max(total - self.emitted, 0)
+        self.emitted += count
+        return count
+
+
+class FrameWriter:
+    """Writes RGB frames as numbered PNGs into ``directory`` and/or a ``video`` (imageio-ffmpeg)."""
+
+    def __init__(self, *, directory: str | os.PathLike | None = None, video: str | os.PathLike | None = None,
+                 fps: float = 30.0) -> None:
+        if directory is None and video is None:
+            raise ValueError("FrameWriter needs a directory for PNGs, a video path, or both")
+        self.directory = None if directory is None else Path(directory)
+        if self.directory is not None:
+            self.directory.mkdir(parents=True, exist_ok=True)
+        self._video = None if video is None else imageio_v2.get_writer(
+            video, fps=fps, codec="libx264", quality=7, macro_block_size=8)
+        self.count = 0
+
+    def write(self, frame: np.ndarray, *, repeat: int = 1) -> None:
+        """Write ``frame`` ``repeat`` times (as :meth:`FrameClock.due` asks)."""
+        for _ in range(repeat):
+            if self.directory is not None:
+                iio.imwrite(self.directory / f"frame_{self.count:06d}.png", frame)
+            if self._video is not None:
+                self._video.append_data(frame)
+            self.count += 1
+
+    def close(self) -> None:
+        if self._video is not None:
+            self._video.close()
+            self._video = None
+
+    def __enter__(self) -> FrameWriter:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()

@@ -1,0 +1,164 @@
+"""ScannedString: pitch from the scan rate, decay from damping, timbre from stiffness, safety."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.signal import find_peaks
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from audio.scanned import GESTURAL_LIMIT_HZ, ScannedString, StringParameters, UnstableStringError
+from audio.voices import VoicePool, midi_to_hz
+
+SR = 48000
+
+
+def fundamental(signal: np.ndarray, *, low: float = 50.0) -> float:
+    """Lowest spectral peak above ``low`` Hz within 20 dB of the strongest, refined by
+    parabolic interpolation of log |X| (the strongest partial wanders as the shape evolves)."""
+    n = 1 << 19  # zero-padded: ~0.09 Hz bins before interpolation
+    spectrum = np.abs(np.fft.rfft(signal * np.hanning(len(signal)), n))
+    freqs = np.fft.rfftfreq(n, 1.0 / SR)
+    spectrum[freqs < low] = 0.0
+    peaks, _ = find_peaks(spectrum, height=0.1 * spectrum.max())
+    k = int(peaks[0])
+    a, b, c = np.log(spectrum[k - 1 : k + 2])
+    return float(freqs[k] + 0.5 * (a - c) / (a - 2 * b + c) * SR / n)
+
+
+def centroid(signal: np.ndarray) -> float:
+    power = np.abs(np.fft.rfft(signal * np.hanning(len(signal)))) ** 2
+    return float(power @ np.fft.rfftfreq(len(signal), 1.0 / SR) / power.sum())
+
+
+def test_plucked_string_sounds_at_the_scan_frequency():
+    string = ScannedString(StringParameters(), sample_rate=SR, frequency=220.0)
+    string.pluck(position=0.3, width=0.2, amplitude=0.5)
+    audio = string.render(2 * SR)
+    assert fundamental(audio[SR // 10 :]) == pytest.approx(220.0, abs=2.0)
+
+
+def test_note_event_sets_pitch_through_the_scan_rate():
+    string = ScannedString(StringParameters(), sample_rate=SR)
+    string.note_on(midi_to_hz(57), 0.5)  # A3
+    assert fundamental(string.render(SR)[SR // 10 :]) == pytest.approx(220.0, abs=2.0)
+
+
+@pytest.mark.parametrize("damping", [0.5, 2.0])
+def test_energy_decays_and_faster_with_more_damping(damping):
+    def energies(d):
+        string = ScannedString(StringParameters(damping=d), sample_rate=SR, frequency=220.0)
+        string.pluck(amplitude=0.5)
+        start = string.energy()
+        string.render(SR)
+        audio = string.render(SR // 4)
+        return start, string.energy(), np.sqrt(np.mean(audio**2))
+
+    start, after, rms = energies(damping)
+    assert after < 0.7 * start
+    _, after_more, rms_more = energies(2 * damping)
+    assert after_more < after and rms_more < rms
+
+
+def test_stiffer_string_struck_by_a_hammer_sounds_darker():
+    """A strike gives mode n displacement v_n / ω_n; stiffness raises high-mode ω_n most,
+    so the stiffer string's shape is smoother and its spectral centroid *falls*."""
+
+    def struck_centroid(stiffness):
+        string = ScannedString(StringParameters(stiffness=stiffness), sample_rate=SR, frequency=110.0)
+        string.strike(position=0.3, width=0.05, velocity=5.0)
+        return centroid(string.render(SR))
+
+    soft, stiff = struck_centroid(100.0), struck_centroid(3000.0)
+    assert stiff < 0.8 * soft
+
+
+@pytest.mark.parametrize(
+    "changes, words",
+    [
+        ({"stiffness": 1e6}, "use stiffness <"),
+        ({"damping": 2000.0}, "damping/mass × step"),
+        ({"mass": 0.0}, "mass must be a positive"),
+        ({"centring": float("nan")}, "centring must be"),
+        ({"n_masses": 2}, "at least 3 masses"),
+    ],
+)
+def test_unstable_parameters_are_rejected_with_a_clear_error(changes, words):
+    with pytest.raises(UnstableStringError, match=words):
+        StringParameters(**changes)
+
+
+def test_stability_bound_is_the_real_one():
+    """Just inside the documented bound the fastest mode neither grows nor decays (undamped);
+    just outside it the parameters are refused."""
+    p = StringParameters(damping=0.0, centring=0.0, haptic_rate=500.0, stiffness=0.999 * 500.0**2)
+    string = ScannedString(p, sample_rate=SR)
+    string.x[:] = (-1.0) ** np.arange(p.n_masses)  # the highest (zig-zag) mode
+    early = max(np.abs(string.render_raw(np.empty(SR // 10))).max() for _ in range(2))
+    string.render_raw(np.empty(5 * SR))
+    late = max(np.abs(string.render_raw(np.empty(SR // 10))).max() for _ in range(2))
+    assert late == pytest.approx(early, rel=0.2)
+    with pytest.raises(UnstableStringError):
+        StringParameters(damping=0.0, centring=0.0, haptic_rate=500.0, stiffness=1.001 * 500.0**2)
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    stiffness_fraction=st.floats(0.0, 0.999),
+    damping=st.floats(0.0, 999.0),
+    centring=st.floats(0.0, 1e4),
+    amplitude=st.floats(-1e150, 1e150),
+    force=st.floats(-1e300, 1e300),
+    frequency=st.floats(0.0, 23999.0),
+    ring=st.booleans(),
+)
+def test_output_is_finite_and_limited_for_extreme_accepted_parameters(
+    stiffness_fraction, damping, centring, amplitude, force, frequency, ring
+):
+    rate, mass = 500.0, 1.0
+    h = 1.0 / rate
+    limit = ((4.0 - 2.0 * damping * h) * mass / h**2 - centring) / 4.0
+    if limit <= 0:
+        return
+    p = StringParameters(n_masses=32, stiffness=stiffness_fraction * limit, damping=damping,
+                         centring=centring, ring=ring, haptic_rate=rate)
+    string = ScannedString(p, sample_rate=SR, frequency=frequency, gain=1e6)
+    string.pluck(amplitude=amplitude)
+    string.push(np.full(p.n_masses, force))
+    audio = string.render(4096)
+    assert np.isfinite(audio).all()
+    assert np.abs(audio).max() <= 1.0
+
+
+def test_voice_pool_steals_the_oldest_voice_and_releases():
+    pool = VoicePool(2, sample_rate=SR, release=0.01, block_size=512)
+    first, second = pool.note_on(60), pool.note_on(64)
+    assert first != second and pool.active == 2
+    assert pool.note_on(67) == first  # full: the oldest (60) is stolen
+    assert sorted(pool.pitch) == [64, 67]
+    out = np.empty(512)
+    assert np.abs(pool.render(out)).max() > 0
+    pool.note_off(64)
+    pool.note_off(67)
+    for _ in range(2):  # 0.01 s release = 480 samples
+        pool.render(out)
+    assert pool.active == 0
+    assert not pool.render(out).any()
+
+
+@pytest.mark.parametrize("haptic_rate", [250.0, 1000.0])
+def test_fastest_mode_is_gestural_and_independent_of_the_haptic_rate(haptic_rate):
+    """The default string's fastest mode rings at ``highest_mode_hz`` (< 15 Hz, thesis figure 47),
+    whatever the physics rate: time comes from the step size, not from counting steps."""
+    p = StringParameters(damping=0.0, haptic_rate=haptic_rate)
+    assert p.highest_mode_hz < GESTURAL_LIMIT_HZ
+    string = ScannedString(p, sample_rate=SR)
+    string.x[:] = 1e-3 * (-1.0) ** np.arange(p.n_masses)  # the zig-zag: fastest mode
+    block = np.empty(SR // 1000)
+    middle = np.empty(2000)  # the middle mass, once per millisecond for 2 s
+    for i in range(len(middle)):
+        string.render_raw(block)
+        middle[i] = string.x[p.n_masses // 2]
+    crossings = np.count_nonzero(np.diff(np.signbit(middle)))
+    assert crossings / 2 / 2.0 == pytest.approx(p.highest_mode_hz, rel=0.03)
