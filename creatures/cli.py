@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 from typing import Callable
 
 COMMANDS: dict[str, tuple[str, Callable[[argparse.ArgumentParser], None], Callable[[argparse.Namespace], int]]] = {}
@@ -53,6 +54,70 @@ def _devices(_: argparse.Namespace) -> int:
         print(f"MIDI devices: unavailable ({exc}); on Linux without ALSA start a JACK server and set "
               "MIDO_BACKEND=mido.backends.rtmidi/UNIX_JACK")
     return 0
+
+
+def _offline_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("config", type=Path, help="installation config (TOML)")
+    parser.add_argument("--audio", type=Path, help="recorded audio to feed (overrides the config)")
+    parser.add_argument("--midi", type=Path, help="recorded MIDI to feed (overrides the config)")
+    parser.add_argument("--out", type=Path, required=True, help="directory for the outputs")
+    parser.add_argument("--duration", type=float, help="simulated seconds (default: the config's)")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def _run_offline(config: Path, out: Path, *, audio: Path | None = None, midi: Path | None = None,
+                 duration: float | None = None, progress: bool = True) -> int:
+    from audio.sources import AudioFileError
+    from creatures.config import ConfigError
+    from creatures.runtime.offline import OutputDirectoryError, run_offline
+    from creatures.runtime.schema import load_installation
+    from midi.files import MidiFileError
+
+    try:
+        installation = load_installation(config)
+        for given in (audio, midi):
+            if given is not None and not given.is_file():
+                raise FileNotFoundError(f"{given}: no such file")
+        summary = run_offline(installation, out, audio=audio, midi=midi, duration=duration, progress=progress)
+    except (ConfigError, OutputDirectoryError, AudioFileError, MidiFileError, FileNotFoundError) as exc:
+        print(f"creatures: {exc}", file=sys.stderr)
+        return 2
+    for message in summary.messages:
+        print(f"note: {message}")
+    print(f"{installation.settings.title}: {summary.simulated:.1f} simulated s in {summary.wall:.2f} wall s "
+          f"({summary.speed:.1f}x real time), {summary.notes_played} notes played")
+    for name, file in summary.files.items():
+        print(f"  {name:<7} {file}")
+    return 0
+
+
+@command("offline", "run an installation on recorded input, faster than real time", _offline_options)
+def _offline(args: argparse.Namespace) -> int:
+    return _run_offline(args.config, args.out, audio=args.audio, midi=args.midi,
+                        duration=args.duration, progress=not args.no_progress)
+
+
+def _demo_options(parser: argparse.ArgumentParser) -> None:
+    import installations
+
+    parser.add_argument("name", nargs="?", default="exchange", help=f"one of {installations.names()}")
+    parser.add_argument("--out", type=Path, default=Path("creatures-demo"), help="output directory")
+    parser.add_argument("--duration", type=float, default=30.0, help="simulated seconds")
+
+
+@command("demo", "run a shipped installation offline on generated input (no hardware needed)", _demo_options)
+def _demo(args: argparse.Namespace) -> int:
+    import installations
+
+    try:
+        config = installations.path(args.name)
+    except FileNotFoundError as exc:
+        print(f"creatures: {exc}", file=sys.stderr)
+        return 2
+    code = _run_offline(config, args.out, duration=args.duration)
+    if code == 0:
+        print(f"open {args.out / 'report' / 'index.html'} to see what the creatures did")
+    return code
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -124,25 +124,70 @@ def _fields_at(model: type[BaseModel], loc: tuple[str | int, ...]) -> list[str]:
     return list(getattr(current, "model_fields", {}))
 
 
-def load_config(path: str | Path, model: type[Model]) -> Model:
-    """Read, merge and validate a config; raise :class:`ConfigError` on the first problem."""
-    data, where = read_toml(path)
+def _data_path(data: Any, loc: tuple[str | int, ...]) -> tuple[str | int, ...]:
+    """The part of a pydantic error location that names real keys in ``data``.
+
+    Tagged unions add the tag to the location (``creature.0.exchange.hunger``); walking the
+    data drops such steps so the key path is the one the author wrote.
+    """
+    path: list[str | int] = []
+    node = data
+    for part in loc:
+        if isinstance(node, dict) and part in node:
+            node = node[part]
+        elif isinstance(node, list) and isinstance(part, int) and 0 <= part < len(node):
+            node = node[part]
+        elif isinstance(node, (dict, list)) and part != loc[-1]:
+            continue
+        path.append(part)
+    return tuple(path)
+
+
+def validate(
+    model: type[Model],
+    data: Any,
+    where: dict[tuple, tuple[Path, int]],
+    file: Path,
+    *,
+    prefix: tuple[str | int, ...] = (),
+) -> Model:
+    """Validate ``data`` (found at key path ``prefix`` of ``file``) or raise :class:`ConfigError`."""
     try:
         return model.model_validate(data)
     except ValidationError as exc:
         # An unknown key usually explains a "missing" one (a typo), so report it first.
         error = min(exc.errors(), key=lambda e: e["type"] != "extra_forbidden")
-        loc = tuple(error["loc"])
-        key = ".".join(str(p) for p in loc)
-        file, line = Path(path).resolve(), None
-        for n in range(len(loc), 0, -1):
-            if loc[:n] in where:
-                file, line = where[loc[:n]]
-                break
-        message = error["msg"]
-        if error["type"] == "extra_forbidden":
-            close = difflib.get_close_matches(str(loc[-1]), _fields_at(model, loc), n=1)
-            message = "unknown key" + (f" (did you mean {close[0]!r}?)" if close else "")
-        elif "input" in error and error["type"] != "missing":
-            message += f" (got {error['input']!r})"
-        raise ConfigError(file, message, key=key, line=line) from None
+        loc = (*prefix, *_data_path(data, tuple(error["loc"])))
+        raise config_error(file, where, loc, error["msg"] if error["type"] != "extra_forbidden" else None,
+                           choices=_fields_at(model, loc[len(prefix):]),
+                           got=error.get("input") if error["type"] not in ("missing", "extra_forbidden") else None) from None
+
+
+def config_error(
+    file: Path,
+    where: dict[tuple, tuple[Path, int]],
+    loc: tuple[str | int, ...],
+    message: str | None,
+    *,
+    choices: list[str] = (),
+    got: Any = None,
+) -> ConfigError:
+    """A :class:`ConfigError` at key path ``loc``; ``message=None`` means "unknown key"."""
+    key = ".".join(str(p) for p in loc)
+    line = None
+    for n in range(len(loc), 0, -1):
+        if loc[:n] in where:
+            file, line = where[loc[:n]]
+            break
+    if message is None:
+        close = difflib.get_close_matches(str(loc[-1]), list(choices), n=1)
+        message = "unknown key" + (f" (did you mean {close[0]!r}?)" if close else "")
+    elif got is not None:
+        message += f" (got {got!r})"
+    return ConfigError(file, message, key=key, line=line)
+
+
+def load_config(path: str | Path, model: type[Model]) -> Model:
+    """Read, merge and validate a config; raise :class:`ConfigError` on the first problem."""
+    data, where = read_toml(path)
+    return validate(model, data, where, Path(path).resolve())

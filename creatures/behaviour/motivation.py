@@ -61,6 +61,7 @@ class Motivation:
         for (to, frm), rate in (coupling or {}).items():
             self.coupling[self.index(to), self.index(frm)] = float(rate)
         self.inputs = np.zeros(n)
+        self._propagators: dict[tuple[float, bytes], tuple[np.ndarray, np.ndarray]] = {}
         self.floor = floor
         self.ceiling = ceiling
         self.time = float(start)
@@ -83,6 +84,17 @@ class Motivation:
 
     # -- dynamics ------------------------------------------------------------------------------
     def _propagator(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        # A creature ticks at a fixed rate, so the same few steps recur: keep their
+        # propagators (keyed by the step and the inputs, the only parameters that change).
+        key = (dt, self.inputs.tobytes())
+        cached = self._propagators.get(key)
+        if cached is None:
+            if len(self._propagators) >= 16:
+                self._propagators.clear()
+            cached = self._propagators[key] = self._compute_propagator(dt)
+        return cached
+
+    def _compute_propagator(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
         n = len(self.names)
         m = self.coupling - np.diag(self.decay)
         b = self.growth + self.decay * self.equilibrium + self.inputs

@@ -1,0 +1,258 @@
+"""*exchange*: a colony that places every note it hears in space and plays what it strikes
+(thesis, "exchange (installation)" and "musical worlds").
+
+The two rules of the game:
+
+* every time a creature hears a note, it places a copy of that note in space
+  (:class:`~creatures.motor.note_space.NotePlacement`: pitch → height and azimuth, velocity →
+  distance, fitted to where its hand can reach);
+* every time a creature strikes a note in space, the note plays — and the other creatures
+  hear it, so passages pass between creatures.
+
+A slow wander around the motor graph is enough to make music; a *hunger* for notes, fed by
+*boredom* (time without hearing anything), sends the body straight to the nearest note
+(one A* search whose goals are the poses putting the hand on any note). Traversal in space
+reorders what was heard (retrogrades, swapped sub-segments); copying is imperfect: with
+probability ``mutation`` a placed copy moves a fourth, fifth or octave (circle-of-fifths
+neighbours), so passages mutate as they travel. Notes older than ``note_lifetime`` fade from
+space, which keeps a weeks-long run bounded.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+import numpy as np
+from pydantic import Field
+
+from creatures.behaviour.action_group import ActionGroup
+from creatures.behaviour.action_tuple import Action, ActionTuple, DoUntil
+from creatures.behaviour.models.gaussian import GaussianModel
+from creatures.behaviour.motivation import Motivation
+from creatures.behaviour.percept import FunctionPercept, WhateverPercept
+from creatures.kinds import register
+from creatures.kinds.base import CreatureKind, CreatureSpec
+from creatures.kinds.parts import Body, Voice, VoiceSpec
+from creatures.motor.note_space import NotePlacement, nearest_note
+from creatures.motor.search import NoPath
+from midi.note_objects import NoteObject, NoteSpace
+from midi.notes import NoteEvent
+
+MUTATIONS = np.array([-12, -7, -5, 5, 7, 12])
+"""Transpositions a copied note may undergo: octave, fifth and fourth, up or down."""
+
+REPORT_EVERY = 0.5
+"""Seconds between the value/motivation/motor snapshots written to the events log."""
+
+
+class ExchangeSpec(CreatureSpec):
+    kind: Literal["exchange"]
+    hears_input: bool = Field(True, description="hear notes from outside the colony (else only other creatures)")
+    strike_radius: float = Field(0.15, gt=0, le=1.0, description="how close the hand must pass to strike a note (m)")
+    note_lifetime: float = Field(45.0, gt=0, description="seconds a placed note stays in space")
+    max_notes: int = Field(48, ge=1, le=4096, description="most notes in space; the oldest fade first")
+    mutation: float = Field(0.15, ge=0, le=1, description="chance a placed copy is transposed")
+    boredom_rate: float = Field(0.08, ge=0, description="boredom growth per second without notes")
+    relief: float = Field(0.3, ge=0, description="boredom removed by each heard note")
+    hunger_gain: float = Field(0.5, ge=0, description="how strongly boredom feeds hunger for notes")
+    satiation: float = Field(0.25, ge=0, description="hunger removed by each struck note")
+    temperature: float | None = Field(None, gt=0, description="Boltzmann temperature of action selection")
+    voice: VoiceSpec = VoiceSpec()
+
+
+class _Wander(Action):
+    """A slow progression around the graph, striking whatever notes the hand passes."""
+
+    def __init__(self, creature: "Exchange") -> None:
+        super().__init__("wander")
+        self.creature = creature
+
+    def start(self, t: float, tuple_: ActionTuple) -> None:
+        body = self.creature.body
+        target = int(self.creature.rng.integers(len(body.graph)))
+        try:
+            body.motor.set_course(t, body.motor.course(t, [target]))
+        except NoPath:
+            pass
+
+    def update(self, t: float) -> None:
+        self.creature.strike_nearby(t)
+
+
+class _SeekNote(Action):
+    """Hunger for notes: go to the nearest note object and strike it."""
+
+    def __init__(self, creature: "Exchange") -> None:
+        super().__init__("seek note")
+        self.creature = creature
+        self.target: NoteObject | None = None
+
+    def start(self, t: float, tuple_: ActionTuple) -> None:
+        c = self.creature
+        self.target = None
+        try:
+            self.target, path = nearest_note(c.body.finder, c.body.motor.position(t), c.body.effector,
+                                             c.space.objects, tolerance=c.spec.strike_radius)
+        except NoPath:
+            return
+        c.body.motor.set_course(t, path)
+
+    def update(self, t: float) -> None:
+        if self.target is not None and self.creature.body.motor.arrived(t):
+            if self.target in self.creature.space.objects:
+                self.creature.strike(t, self.target, 1.0)
+            self.target = None
+
+    def done(self, t: float) -> float:
+        return 1.0 if self.target is None else 0.0
+
+
+class _Rest(Action):
+    """Return to a low-energy pose and stay there a while."""
+
+    def __init__(self, creature: "Exchange") -> None:
+        super().__init__("rest")
+        self.creature = creature
+
+    def start(self, t: float, tuple_: ActionTuple) -> None:
+        motor = self.creature.body.motor
+        try:
+            motor.set_course(t, motor.finder.to_rest(motor.position(t)))
+        except NoPath:
+            pass
+
+
+@register("exchange")
+class Exchange(CreatureKind):
+    Spec = ExchangeSpec
+
+    def __init__(self, spec: ExchangeSpec, world, rng: np.random.Generator) -> None:
+        super().__init__(spec, world, rng)
+        self.body = Body(rng)
+        self.placement = NotePlacement.around(self.body.reach())
+        self.space = NoteSpace(world.scheduler_for(self), world.clock)
+        self.placed_at: dict[int, float] = {}
+        self.voice: Voice | None = None
+        self._struck_at: dict[int, float] = {}
+        self.motivation = Motivation(
+            {"boredom": 0.2, "hunger": 0.0},
+            growth={"boredom": spec.boredom_rate},
+            decay={"hunger": 0.05},
+            equilibrium={"hunger": 0.0},
+            coupling={("hunger", "boredom"): spec.hunger_gain * 0.1},
+            ceiling=2.0,
+        )
+        root = WhateverPercept()
+        hungry = FunctionPercept("hungry", lambda t: self.motivation.level("hunger", t), parent=root)
+        self.seek = _SeekNote(self)
+        arrived = FunctionPercept("arrived", lambda t: 1.0 if self.body.motor.arrived(t) else 0.0)
+        found = FunctionPercept("struck", self.seek.done)
+        self.group = ActionGroup(
+            f"{self.name}", rng=rng, temperature=spec.temperature, on_event=self._log_selection,
+            tuples=[
+                ActionTuple("wander", root, _Wander(self), DoUntil(GaussianModel(4.0, 1.0), until=arrived), 1.0),
+                ActionTuple("seek note", hungry, self.seek, DoUntil(8.0, until=found), 3.0),
+                ActionTuple("rest", root, _Rest(self), DoUntil(GaussianModel(2.0, 0.5)), 0.4),
+            ],
+        )
+        self._next_report = 0.0
+
+    # -- hearing and playing ------------------------------------------------------------
+    def hear(self, note: NoteEvent, source: str) -> None:
+        if source == "input" and not self.spec.hears_input:
+            return
+        t = self.world.clock.now()
+        self.motivation.perturb(t, "boredom", -self.spec.relief)
+        pitch = note.pitch
+        if self.rng.random() < self.spec.mutation:
+            pitch = int(np.clip(pitch + self.rng.choice(MUTATIONS), 0, 127))
+        copy = NoteEvent(note.time, pitch, note.velocity, self.spec.channel, min(note.duration, 2.0))
+        obj = self.space.place(copy, self.placement.place(pitch, note.velocity))
+        self.placed_at[id(obj)] = t
+        self.world.emit("placed", creature=self.name, pitch=pitch, source=source, heard=note.pitch,
+                        position=obj.position)
+        while len(self.space) > self.spec.max_notes:
+            self._forget(self.space.objects[0])
+
+    def strike(self, t: float, obj: NoteObject, strength: float) -> None:
+        self._struck_at[id(obj)] = t
+        self.space.strike(obj, strength)
+        self.motivation.perturb(t, "hunger", -self.spec.satiation)
+
+    def strike_nearby(self, t: float) -> None:
+        """Strike notes the hand passes through (each at most once a second)."""
+        for obj in self.space.within(self.body.hand(), self.spec.strike_radius):
+            if t - self._struck_at.get(id(obj), -np.inf) >= 1.0:
+                self.strike(t, obj, 0.8)
+
+    def played(self, note: NoteEvent) -> None:
+        if self.voice is not None:
+            self.voice.play(note.pitch, note.velocity, note.end)
+
+    def _forget(self, obj: NoteObject) -> None:
+        self.space.remove(obj)
+        self.placed_at.pop(id(obj), None)
+        self._struck_at.pop(id(obj), None)
+
+    # -- the tick ----------------------------------------------------------------------
+    def tick(self, t: float) -> None:
+        self.motivation.advance(t)
+        for obj in [o for o in self.space.objects if t - self.placed_at.get(id(o), t) > self.spec.note_lifetime]:
+            self._forget(obj)
+        pose = self.body.update(t)
+        self.group.tick(t)
+        self.space.tick()
+        if self.voice is not None:
+            self.voice.feel(pose)
+        if t >= self._next_report:
+            self._next_report = t + REPORT_EVERY
+            self._report(t)
+
+    def _log_selection(self, event: dict[str, Any]) -> None:
+        event = dict(event)
+        kind, t = event.pop("event"), event.pop("t")
+        event.pop("group", None)
+        self.world.log.emit(t, kind, creature=self.name, **event)
+
+    def _report(self, t: float) -> None:
+        log = self.world.log
+        log.emit(t, "values", creature=self.name, values={tp.name: tp.value.to_float() for tp in self.group.tuples})
+        log.emit(t, "motivation", creature=self.name,
+                 drives=dict(zip(self.motivation.names, self.motivation.levels_at(t).tolist())))
+        hand = self.body.hand()
+        log.emit(t, "motor", creature=self.name, node=self.body.motor.position(t).node,
+                 position={"x": hand[0], "y": hand[1], "z": hand[2]})
+        log.emit(t, "percepts", creature=self.name, sizes={"notes in space": len(self.space)})
+
+    # -- outputs -----------------------------------------------------------------------
+    def sound(self, out: np.ndarray, sample_rate: int) -> None:
+        if self.voice is None:
+            self.voice = Voice(self.spec.voice, sample_rate)
+            reach = self.body.reach()
+            low, high = reach.min(axis=0), reach.max(axis=0)
+            line = np.linspace(0.0, 1.0, self.spec.voice.masses)[:, None]
+            self.voice.couple(low + line * (high - low), [self.body.skeleton.names.index("hand_l"),
+                                                          self.body.effector_index])
+        self.voice.render(out, self.world.clock.now())
+
+    def figure(self) -> tuple[np.ndarray, np.ndarray] | None:
+        return self.body.pose.positions, np.asarray(self.body.skeleton.parents)
+
+    def marks(self) -> list[tuple[tuple[float, float, float], int]]:
+        return [(tuple(o.position), o.pitch) for o in self.space.objects]
+
+    # -- persistence -------------------------------------------------------------------
+    def state(self) -> dict[str, Any]:
+        return {
+            "values": {tp.name: tp.value.to_dict() for tp in self.group.tuples},
+            "motivation": self.motivation.to_dict(),
+        }
+
+    def restore(self, state: dict[str, Any]) -> None:
+        from creatures.behaviour.value import value_from_dict
+
+        for tp in self.group.tuples:
+            if tp.name in state.get("values", {}):
+                tp.value = value_from_dict(state["values"][tp.name])
+        if "motivation" in state:
+            self.motivation = Motivation.from_dict(state["motivation"])

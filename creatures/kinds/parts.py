@@ -1,0 +1,136 @@
+"""Parts several creature kinds share: a scanned-string voice and a body on a motor graph.
+
+Kinds compose these rather than inherit them (no framework inside the framework): a kind
+that sings has a :class:`Voice`, a kind that moves has a :class:`Body`.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from audio.coupling import BodyCoupling
+from audio.scanned import StringParameters, UnstableStringError, soft_limit
+from audio.voices import VoicePool
+from creatures.motor.animations import example_animations
+from creatures.motor.graph import MotorGraph
+from creatures.motor.pose import BodyPose, PoseSet
+from creatures.motor.programs import MotorSystem
+from creatures.motor.search import PathFinder
+
+
+class VoiceSpec(BaseModel):
+    """``[creature.voice]``: the scanned strings a creature sings with (checked for stability)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    voices: int = Field(6, ge=1, le=32, description="polyphony (strings)")
+    masses: int = Field(64, ge=3, le=1024, description="masses per string")
+    mass: float = Field(1.0, gt=0)
+    stiffness: float = Field(800.0, ge=0, description="spring between neighbouring masses")
+    centring: float = Field(4.0, ge=0, description="spring of each mass to rest")
+    damping: float = Field(0.5, ge=0, description="velocity damping (sets how fast a string rings down)")
+    haptic_rate: float = Field(500.0, gt=0, le=4000, description="string physics updates per second")
+    release: float = Field(0.2, gt=0, le=10, description="fade after note-off, seconds")
+    gain: float = Field(0.3, ge=0, le=4)
+    body_gain: float = Field(40.0, ge=0, description="force per unit joint velocity pushing the strings")
+
+    @model_validator(mode="after")
+    def _stable(self) -> "VoiceSpec":
+        self.parameters()  # raises UnstableStringError (a ValueError) naming the bound
+        return self
+
+    def parameters(self) -> StringParameters:
+        return StringParameters(n_masses=self.masses, mass=self.mass, stiffness=self.stiffness,
+                                centring=self.centring, damping=self.damping, haptic_rate=self.haptic_rate)
+
+
+class Voice:
+    """A creature's scanned strings: notes start them, the body pushes them, a limiter ends them."""
+
+    def __init__(self, spec: VoiceSpec, sample_rate: int, block_size: int = 4096) -> None:
+        try:
+            parameters = spec.parameters()
+        except UnstableStringError as exc:  # validated already; kept for direct construction
+            raise ValueError(str(exc)) from None
+        self.spec = spec
+        self.pool = VoicePool(spec.voices, parameters, sample_rate=sample_rate, release=spec.release,
+                              block_size=block_size)
+        self.sample_rate = sample_rate
+        self._ends: list[tuple[float, int]] = []
+        self.coupling: BodyCoupling | None = None
+
+    def couple(self, node_positions: np.ndarray, joints: list[int]) -> None:
+        """Lay the strings in space at ``node_positions`` so ``joints`` moving nearby push them."""
+        self.coupling = BodyCoupling(node_positions, radius=0.25, gain=self.spec.body_gain, joints=joints)
+
+    def play(self, pitch: int, velocity: int, end: float) -> None:
+        self.pool.note_on(pitch, velocity / 127.0)
+        self._ends.append((end, pitch))
+
+    def feel(self, pose: BodyPose) -> None:
+        """Push every sounding string with the body's movement since the last pose."""
+        if self.coupling is None:
+            return
+        force = self.coupling.forces(pose)
+        if force.any():
+            for index in np.flatnonzero(self.pool.pitch >= 0):
+                self.pool.voices[index].push(force)
+
+    def render(self, out: np.ndarray, t: float) -> None:
+        """Fill ``out`` with the voice up to clock time ``t`` (note-offs that fell due first)."""
+        due = [item for item in self._ends if item[0] <= t]
+        if due:
+            self._ends = [item for item in self._ends if item[0] > t]
+            for _, pitch in due:
+                self.pool.note_off(pitch)
+        self.pool.render(out)
+        out *= self.spec.gain
+        soft_limit(out, out=out)
+
+
+@functools.lru_cache(maxsize=1)
+def shared_material() -> PoseSet:
+    """The shipped source animations (sway, reach, strike) as one pose set."""
+    return PoseSet.concatenate(example_animations())
+
+
+@functools.lru_cache(maxsize=1)
+def shared_graph() -> MotorGraph:
+    """One motor graph per process, built once from the shipped animations (read-only)."""
+    graph = MotorGraph.build(shared_material(), k=6)
+    graph.annotate_low_energy()
+    return graph
+
+
+class Body:
+    """A creature's body on the shared motor graph, with its own position and course."""
+
+    def __init__(self, rng: np.random.Generator, *, effector: str = "hand_r") -> None:
+        self.graph = shared_graph()
+        self.finder = PathFinder(self.graph)
+        start = int(rng.integers(len(self.graph)))
+        self.motor = MotorSystem(self.graph, start=start, finder=self.finder)
+        self.effector = effector
+        self.skeleton = self.graph.skeleton
+        self.effector_index = self.skeleton.names.index(effector)
+        self._pose: BodyPose = self.motor.pose(0.0)
+
+    def update(self, t: float) -> BodyPose:
+        """Advance the body to clock time ``t`` and return the pose there."""
+        self.motor.arrived(t)
+        self._pose = self.motor.pose(t)
+        return self._pose
+
+    @property
+    def pose(self) -> BodyPose:
+        return self._pose
+
+    def hand(self) -> np.ndarray:
+        return self._pose.positions[self.effector_index]
+
+    def reach(self) -> np.ndarray:
+        """Every place the effector can be in the source material ``(N, 3)``."""
+        return self.graph.poses.positions[:, self.effector_index]

@@ -1,0 +1,114 @@
+"""The installation config: what ``creatures run`` and ``creatures offline`` read.
+
+Every key is documented in ``docs/config.md``; the field descriptions here are the source
+of that page. Unknown keys are errors (a typo must never be silently ignored in a gallery).
+"""
+
+from __future__ import annotations
+
+import difflib
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from creatures.config import ConfigError, config_error, read_toml, validate
+from creatures.kinds import CreatureSpec, load_all
+
+
+class Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class AudioSection(Strict):
+    sample_rate: int = Field(22050, ge=8000, le=192000, description="rate of synthesis and analysis, Hz")
+    block: int = Field(512, ge=32, le=16384, description="frames per audio block")
+    input_device: str | int | None = Field(None, description="live input device (name fragment or index)")
+    output_device: str | int | None = Field(None, description="live output device (name fragment or index)")
+
+
+class MidiSection(Strict):
+    input_port: str | None = Field(None, description="live MIDI input port name or pattern")
+    output_port: str | None = Field(None, description="live MIDI output port name or pattern")
+
+
+class OscSection(Strict):
+    host: str = Field("127.0.0.1", description="address OSC listeners bind to (loopback by default)")
+    port: int | None = Field(None, ge=1024, le=65535, description="UDP port to listen on; none = no OSC")
+    peers: list[str] = Field(default_factory=list, description="host:port of other colonies to send notes to")
+
+
+class InputSection(Strict):
+    audio: str | None = Field(None, description="recorded audio fed offline (path relative to the config)")
+    midi: str | None = Field(None, description="recorded MIDI fed offline (path relative to the config)")
+    generate: str = Field("phrase", pattern="^(phrase|none)$",
+                          description="input generated when no file is given: 'phrase' or 'none'")
+
+
+class OutputSection(Strict):
+    midi: bool = Field(True, description="write out.mid")
+    wav: bool = Field(True, description="write out.wav")
+    frames: bool = Field(False, description="render the bodies to PNG frames (needs EGL or OSMesa)")
+    video: bool = Field(False, description="also encode frames to out.mp4")
+    fps: float = Field(12.0, gt=0, le=120, description="frame rate of rendered frames")
+    width: int = Field(320, ge=16, le=3840)
+    height: int = Field(240, ge=16, le=2160)
+    report: bool = Field(True, description="write report/ (plots and index.html) after an offline run")
+
+
+class Installation(Strict):
+    title: str = Field(description="name of the installation")
+    description: str = ""
+    seed: int = Field(0, description="seed of every random choice in the run")
+    tick: float = Field(0.02, gt=0.0005, le=0.5, description="behaviour tick, seconds")
+    duration: float = Field(60.0, gt=0, description="offline run length in simulated seconds (default)")
+    save_every: float = Field(60.0, gt=0, description="seconds between state saves in live runs")
+    state: str | None = Field(None, description="directory for saved creature state (live runs)")
+    audio: AudioSection = AudioSection()
+    midi: MidiSection = MidiSection()
+    osc: OscSection = OscSection()
+    input: InputSection = InputSection()
+    output: OutputSection = OutputSection()
+    creature: list[dict[str, Any]] = Field(min_length=1, description="the creatures, one [[creature]] table each")
+
+
+class LoadedInstallation:
+    """A validated installation: its top-level settings and each creature's typed spec."""
+
+    def __init__(self, path: Path, settings: Installation, specs: list[CreatureSpec]) -> None:
+        self.path = path
+        self.settings = settings
+        self.specs = specs
+
+    def resolve(self, relative: str | None) -> Path | None:
+        """A path from the config, relative to the config's own directory."""
+        return None if relative is None else (self.path.parent / relative).resolve()
+
+
+def load_installation(path: str | Path) -> LoadedInstallation:
+    """Read and validate an installation config; :class:`ConfigError` names key and line."""
+    path = Path(path).resolve()
+    data, where = read_toml(path)
+    settings = validate(Installation, data, where, path)
+    kinds = load_all()
+    specs: list[CreatureSpec] = []
+    names: set[str] = set()
+    for i, table in enumerate(settings.creature):
+        kind = table.get("kind")
+        if kind not in kinds:
+            close = difflib.get_close_matches(str(kind), list(kinds), n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else f" (choose from {sorted(kinds)})"
+            raise config_error(path, where, ("creature", i, "kind"), f"unknown creature kind {kind!r}{hint}")
+        spec = validate(kinds[kind].Spec, table, where, path, prefix=("creature", i))
+        if spec.name in names:
+            raise config_error(path, where, ("creature", i, "name"), f"duplicate creature name {spec.name!r}")
+        names.add(spec.name)
+        specs.append(spec)
+    for key in ("audio", "midi"):
+        file = getattr(settings.input, key)
+        if file is not None and not (path.parent / file).exists():
+            raise config_error(path, where, ("input", key), f"file not found: {file}")
+    return LoadedInstallation(path, settings, specs)
+
+
+__all__ = ["ConfigError", "Installation", "LoadedInstallation", "load_installation"]

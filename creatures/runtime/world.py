@@ -1,0 +1,98 @@
+"""The shared world of a colony: one clock, one events log, one note bus.
+
+Creatures in one process hear each other through the same channel a performer uses (thesis,
+*three creatures*: "equivalent communication between creatures"): a note a creature plays is
+scheduled to the MIDI output and, when it starts, delivered to every other creature's ear.
+Notes from outside (files, ports, OSC) enter the same bus with their source's name.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import heapq
+import itertools
+from typing import TYPE_CHECKING
+
+from creatures.clock import Clock
+from creatures.events import EventLog
+from midi.notes import NoteEvent
+from midi.scheduler import NoteHandle, NoteScheduler
+
+if TYPE_CHECKING:
+    from creatures.kinds.base import CreatureKind
+
+INPUT = "input"
+"""The source name of notes that come from outside the colony."""
+
+
+class World:
+    """Routes notes between creatures and to the output; every note is logged."""
+
+    def __init__(self, clock: Clock, log: EventLog, scheduler: NoteScheduler) -> None:
+        self.clock = clock
+        self.log = log
+        self.scheduler = scheduler
+        self.creatures: list[CreatureKind] = []
+        self._pending: list[tuple[float, int, NoteEvent, str]] = []
+        self._seq = itertools.count()
+        self.notes_played = 0
+
+    def add(self, creature: "CreatureKind") -> None:
+        self.creatures.append(creature)
+
+    def emit(self, kind: str, **fields: object) -> None:
+        """Log an event at the present clock time."""
+        self.log.emit(self.clock.now(), kind, **fields)
+
+    def play(self, creature: "CreatureKind", note: NoteEvent, *, hold: bool = False) -> NoteHandle:
+        """``creature`` plays ``note`` on its own channel; the others hear it when it starts.
+
+        ``hold`` leaves it sounding until released (a stuck note object).
+        """
+        note = dataclasses.replace(note, channel=creature.spec.channel)
+        handle = self.scheduler.play(note, hold=hold)
+        creature.played(note)
+        self.notes_played += 1
+        self.log.emit(self.clock.now(), "note", creature=creature.name, time=note.time, pitch=note.pitch,
+                      velocity=note.velocity, duration=note.duration, channel=note.channel)
+        heapq.heappush(self._pending, (note.time, next(self._seq), note, creature.name))
+        return handle
+
+    def scheduler_for(self, creature: "CreatureKind") -> "CreatureScheduler":
+        """The shared scheduler as ``creature`` sees it: what it plays, the others hear."""
+        return CreatureScheduler(self, creature)
+
+    def inject(self, note: NoteEvent, source: str = INPUT) -> None:
+        """A note from outside the colony, heard by every creature when it starts."""
+        self.log.emit(self.clock.now(), "heard", source=source, time=note.time, pitch=note.pitch,
+                      velocity=note.velocity, duration=note.duration)
+        heapq.heappush(self._pending, (note.time, next(self._seq), note, source))
+
+    def deliver(self, t: float) -> int:
+        """Give every note that has started by ``t`` to every creature but its player."""
+        count = 0
+        while self._pending and self._pending[0][0] <= t:
+            _, _, note, source = heapq.heappop(self._pending)
+            for creature in self.creatures:
+                if creature.name != source:
+                    creature.hear(note, source)
+            count += 1
+        return count
+
+
+class CreatureScheduler:
+    """A creature's view of the world's :class:`NoteScheduler` (for :class:`NoteSpace`).
+
+    ``play`` goes through :meth:`World.play` so every note a creature strikes is logged and
+    heard by the colony; everything else is the shared scheduler's own.
+    """
+
+    def __init__(self, world: World, creature: "CreatureKind") -> None:
+        self._world = world
+        self._creature = creature
+
+    def play(self, note: NoteEvent, *, hold: bool = False) -> NoteHandle:
+        return self._world.play(self._creature, note, hold=hold)
+
+    def __getattr__(self, name: str):
+        return getattr(self._world.scheduler, name)

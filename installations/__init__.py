@@ -1,0 +1,23 @@
+"""The shipped installations: one TOML config each (see README, "Installations").
+
+This folder is a package only so the configs install with the code; ``path(name)`` finds one.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+
+
+def names() -> list[str]:
+    """Names of the shipped installations (config files without ``.toml``)."""
+    return sorted(p.stem for p in HERE.glob("*.toml") if not p.stem.startswith("_"))
+
+
+def path(name: str) -> Path:
+    """The config file of a shipped installation, or a clear error listing the choices."""
+    candidate = HERE / f"{name}.toml"
+    if not candidate.is_file():
+        raise FileNotFoundError(f"no shipped installation {name!r}; choose from {names()}")
+    return candidate
