@@ -1,0 +1,274 @@
+"""Where a creature's ear gets its sound: live input, files and arrays behind one interface.
+
+A creature hears through a microphone (thesis: "soundcreatures", a microphone-as-ear) or, for
+offline runs and tests, from a recording. Every source yields mono float32 blocks at one
+known analysis rate, so segmentation and cepstral analysis never care where sound came from.
+
+Live input follows DESIGN.md ("The audio callback only copies blocks"): the PortAudio callback
+copies each block into a preallocated single-producer/single-consumer :class:`RingBuffer` and
+returns; overruns are counted, never logged. Cleaning (NaN/inf) and resampling happen on the
+creature's side, in :meth:`LiveInput.read`.
+"""
+
+from __future__ import annotations
+
+import os
+from abc import ABC, abstractmethod
+from pathlib import Path
+from typing import Any, Iterator
+
+import numpy as np
+import soundfile
+import soxr
+
+from audio.device import AudioDeviceUnavailable, find_device, sounddevice_module
+
+ANALYSIS_RATE = 22050
+"""The rate every source delivers (librosa's default; enough for speech and song)."""
+
+__all__ = [
+    "ANALYSIS_RATE",
+    "ArraySource",
+    "AudioDeviceUnavailable",
+    "AudioFileError",
+    "AudioSource",
+    "FileSource",
+    "LiveInput",
+    "RingBuffer",
+    "load_audio",
+]
+
+
+class AudioFileError(ValueError):
+    """A sound file cannot be heard (unreadable, empty, non-finite); the message names it."""
+
+
+class AudioSource(ABC):
+    """Blocks of mono float32 samples at :attr:`samplerate`.
+
+    :meth:`read` returns the next block, an empty block when a live source has nothing new
+    yet, or ``None`` when the source is exhausted. Iterating yields blocks until exhaustion.
+    """
+
+    samplerate: int
+
+    @abstractmethod
+    def read(self) -> np.ndarray | None: ...
+
+    def __iter__(self) -> Iterator[np.ndarray]:
+        while (block := self.read()) is not None:
+            yield block
+
+
+class ArraySource(AudioSource):
+    """A numpy signal cut into blocks: the in-memory source for tests and offline analysis."""
+
+    def __init__(self, samples: np.ndarray, samplerate: int, *, block_size: int = 1024) -> None:
+        if block_size < 1:
+            raise ValueError(f"block_size must be positive (got {block_size})")
+        self.samples = np.ascontiguousarray(samples, dtype=np.float32)
+        if self.samples.ndim != 1:
+            raise ValueError(
+                f"ArraySource wants a mono 1-D signal (got shape {self.samples.shape})"
+            )
+        self.samplerate = int(samplerate)
+        self.block_size = int(block_size)
+        self._pos = 0
+
+    def read(self) -> np.ndarray | None:
+        if self._pos >= len(self.samples):
+            return None
+        block = self.samples[self._pos : self._pos + self.block_size]
+        self._pos += len(block)
+        return block
+
+
+def load_audio(path: str | os.PathLike, *, samplerate: int = ANALYSIS_RATE) -> np.ndarray:
+    """Read a sound file as mono float32 at ``samplerate``.
+
+    Any format libsndfile reads (WAV 8/16/24/32-bit and float, FLAC, OGG, ...) at any rate;
+    channels are averaged, the rate is converted with soxr. Raises :class:`AudioFileError`
+    naming the file when it is unreadable, truncated beyond use, empty, or holds NaN/inf
+    samples (silently zeroing those would hide a broken recording).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise AudioFileError(f"{path}: no such sound file")
+    try:
+        data, rate = soundfile.read(path, dtype="float32", always_2d=True)
+    except (soundfile.LibsndfileError, RuntimeError, OSError) as exc:
+        if path.stat().st_size == 0:
+            raise AudioFileError(f"{path}: empty file (0 bytes)") from None
+        raise AudioFileError(f"{path}: unreadable or corrupt ({exc})") from None
+    if data.shape[0] == 0:
+        raise AudioFileError(f"{path}: contains no samples (zero-length recording)")
+    bad = ~np.isfinite(data)
+    if bad.any():
+        frame = int(np.argmax(bad.any(axis=1)))
+        raise AudioFileError(
+            f"{path}: {int(bad.sum())} NaN/inf samples (first at {frame / rate:.3f} s)"
+        )
+    mono = data.mean(axis=1) if data.shape[1] > 1 else data[:, 0]
+    if rate != samplerate:
+        mono = soxr.resample(mono, rate, samplerate)
+    return np.ascontiguousarray(mono, dtype=np.float32)
+
+
+class FileSource(ArraySource):
+    """A recording played into the ear block by block (see :func:`load_audio`)."""
+
+    def __init__(
+        self,
+        path: str | os.PathLike,
+        *,
+        samplerate: int = ANALYSIS_RATE,
+        block_size: int = 1024,
+    ) -> None:
+        self.path = Path(path)
+        super().__init__(load_audio(path, samplerate=samplerate), samplerate, block_size=block_size)
+
+
+class RingBuffer:
+    """A preallocated single-producer/single-consumer ring of float32 frames.
+
+    The producer (the audio callback) only copies into the preallocated array and moves its
+    own write counter; the consumer only moves its read counter. Each counter has one writer,
+    so no lock is needed. A block that does not fit is dropped whole and counted in
+    :attr:`overruns`: the callback must never wait for the creature.
+    """
+
+    def __init__(self, capacity: int) -> None:
+        if capacity < 1:
+            raise ValueError(f"ring capacity must be positive (got {capacity})")
+        self.capacity = int(capacity)
+        self._data = np.zeros(self.capacity, dtype=np.float32)
+        self._written = 0  # total frames written (producer only)
+        self._read = 0  # total frames read (consumer only)
+        self.overruns = 0
+
+    def available(self) -> int:
+        return self._written - self._read
+
+    def write(self, frames: np.ndarray) -> bool:
+        """Copy ``frames`` in (no allocation); False and an overrun counted if it won't fit."""
+        n = frames.shape[0]
+        if n > self.capacity - (self._written - self._read):
+            self.overruns += 1
+            return False
+        start = self._written % self.capacity
+        first = min(n, self.capacity - start)
+        self._data[start : start + first] = frames[:first]
+        self._data[: n - first] = frames[first:]
+        self._written += n
+        return True
+
+    def read(self, out: np.ndarray) -> int:
+        """Copy up to ``len(out)`` frames into ``out``; returns how many were copied."""
+        n = min(out.shape[0], self.available())
+        start = self._read % self.capacity
+        first = min(n, self.capacity - start)
+        out[:first] = self._data[start : start + first]
+        out[first:n] = self._data[: n - first]
+        self._read += n
+        return n
+
+
+class LiveInput(AudioSource):
+    """A microphone through sounddevice/PortAudio, resampled to the analysis rate.
+
+    The stream runs at the device's own rate (JACK, for one, will not change it); blocks are
+    converted with a streaming soxr resampler on the reading side. Non-finite samples from a
+    misbehaving driver are replaced by zero and counted in :attr:`bad_samples` so the
+    creature's loop never dies on them.
+    """
+
+    def __init__(
+        self,
+        device: str | int | None = None,
+        *,
+        samplerate: int = ANALYSIS_RATE,
+        block_size: int = 512,
+        buffer_seconds: float = 2.0,
+    ) -> None:
+        self.device = device
+        self.samplerate = int(samplerate)
+        self.block_size = int(block_size)
+        self.buffer_seconds = float(buffer_seconds)
+        self.device_rate: int | None = None
+        self.bad_samples = 0
+        self.driver_overflows = 0
+        self.ring: RingBuffer | None = None
+        self._stream: Any = None
+        self._scratch: np.ndarray | None = None
+        self._resampler: soxr.ResampleStream | None = None
+
+    @property
+    def overruns(self) -> int:
+        """Blocks dropped because the creature did not read fast enough."""
+        return self.ring.overruns if self.ring is not None else 0
+
+    def prepare(self, device_rate: int) -> None:
+        """Allocate the ring and scratch buffers for ``device_rate`` (done before streaming)."""
+        self.device_rate = int(device_rate)
+        self.ring = RingBuffer(int(self.buffer_seconds * self.device_rate))
+        self._scratch = np.zeros(self.ring.capacity, dtype=np.float32)
+        self._resampler = (
+            None
+            if self.device_rate == self.samplerate
+            else soxr.ResampleStream(self.device_rate, self.samplerate, 1, dtype="float32")
+        )
+
+    def start(self) -> None:
+        """Open and start the input stream; :class:`AudioDeviceUnavailable` if there is none."""
+        sd = sounddevice_module()
+        index = find_device(self.device, kind="input")
+        info = sd.query_devices(index, kind="input")
+        self.prepare(int(info["default_samplerate"]))
+        try:
+            self._stream = sd.InputStream(
+                device=index,
+                channels=1,
+                samplerate=self.device_rate,
+                blocksize=self.block_size,
+                dtype="float32",
+                callback=self.callback,
+            )
+            self._stream.start()
+        except sd.PortAudioError as exc:
+            self._stream = None
+            raise AudioDeviceUnavailable(
+                f"cannot open audio input {info['name']!r}: {exc}"
+            ) from None
+
+    def stop(self) -> None:
+        if self._stream is not None:
+            self._stream.stop()
+            self._stream.close()
+            self._stream = None
+
+    def callback(self, indata: np.ndarray, frames: int, time: Any, status: Any) -> None:
+        """PortAudio's thread: copy channel 0 into the ring; nothing else (no alloc/lock/log)."""
+        if status:
+            self.driver_overflows += 1
+        self.ring.write(indata[:frames, 0])
+
+    def read(self) -> np.ndarray | None:
+        """Everything that arrived since the last read (possibly empty), cleaned and resampled."""
+        if self.ring is None:
+            raise AudioDeviceUnavailable("live input not started: call start() first")
+        n = self.ring.read(self._scratch)
+        block = self._scratch[:n]
+        bad = ~np.isfinite(block)
+        if bad.any():
+            self.bad_samples += int(bad.sum())
+            block[bad] = 0.0
+        if self._resampler is not None:
+            return self._resampler.resample_chunk(block)
+        return block.copy()
+
+    def __enter__(self) -> "LiveInput":
+        self.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()

@@ -1,0 +1,200 @@
+"""Audio input sources: files, arrays and live input, and how they fail (audio/sources.py)."""
+
+from __future__ import annotations
+
+import importlib.abc
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import soundfile
+
+from audio.device import AudioDeviceUnavailable
+from audio.segment import Segmenter
+from audio.sources import (
+    ANALYSIS_RATE,
+    ArraySource,
+    AudioFileError,
+    FileSource,
+    LiveInput,
+    RingBuffer,
+    load_audio,
+)
+from audio_fixtures import SR, tone, write_wav
+
+
+def peak_hz(x: np.ndarray, sr: int) -> float:
+    spectrum = np.abs(np.fft.rfft(x * np.hanning(len(x))))
+    return float(np.fft.rfftfreq(len(x), 1 / sr)[np.argmax(spectrum)])
+
+
+@pytest.mark.parametrize(
+    "make, message",
+    [
+        (lambda p: p.write_bytes(b""), "empty file"),
+        (lambda p: soundfile.write(p, np.zeros(0), SR), "no samples"),
+        (lambda p: p.write_bytes(np.random.default_rng(1).bytes(5000)), "corrupt"),
+        (lambda p: p.write_bytes(write_wav(p, tone(440, 0.5)).read_bytes()[:30]), "corrupt"),
+    ],
+    ids=["empty", "zero-length", "garbage", "header-cut"],
+)
+def test_unusable_files_raise_a_clear_error_naming_the_file(tmp_path: Path, make, message) -> None:
+    path = tmp_path / "heard.wav"
+    make(path)
+    with pytest.raises(AudioFileError, match=message) as err:
+        load_audio(path)
+    assert str(path) in str(err.value)
+
+
+def test_missing_file_is_named(tmp_path: Path) -> None:
+    with pytest.raises(AudioFileError, match="no such sound file"):
+        FileSource(tmp_path / "nowhere.wav")
+
+
+def test_nan_and_inf_samples_are_refused_with_their_count_and_place(tmp_path: Path) -> None:
+    x = tone(440, 1.0).astype(np.float32)
+    x[11025], x[15000] = np.nan, np.inf
+    path = write_wav(tmp_path / "broken.wav", x, subtype="FLOAT")
+    with pytest.raises(AudioFileError, match=r"2 NaN/inf samples \(first at 0\.500 s\)"):
+        load_audio(path)
+
+
+def test_file_cut_inside_the_data_keeps_what_was_recorded(tmp_path: Path) -> None:
+    x = tone(440, 1.0)
+    data = write_wav(tmp_path / "full.wav", x).read_bytes()
+    cut = tmp_path / "cut.wav"
+    cut.write_bytes(data[: len(data) // 2])
+    y = load_audio(cut)
+    assert 0.45 * SR < len(y) < 0.55 * SR
+    np.testing.assert_allclose(y, x[: len(y)], atol=1 / 2**15)
+
+
+@pytest.mark.parametrize(
+    "subtype, tolerance", [("PCM_U8", 1 / 2**7), ("PCM_24", 1e-6), ("PCM_16", 1 / 2**15)]
+)
+def test_integer_wavs_read_as_floats(tmp_path: Path, subtype: str, tolerance: float) -> None:
+    x = tone(440, 0.5, rms=0.3)
+    y = load_audio(write_wav(tmp_path / "x.wav", x, subtype=subtype))
+    np.testing.assert_allclose(y, x, atol=tolerance)
+
+
+def test_96_khz_is_resampled_to_the_analysis_rate(tmp_path: Path) -> None:
+    x = tone(1000.0, 1.0, 96000, harmonics=1)
+    y = load_audio(write_wav(tmp_path / "hi.wav", x, 96000))
+    assert abs(len(y) - ANALYSIS_RATE) <= 1
+    assert peak_hz(y, ANALYSIS_RATE) == pytest.approx(1000.0, abs=2.0)
+
+
+def test_multichannel_is_mixed_down(tmp_path: Path) -> None:
+    a, b = tone(300.0, 0.5, harmonics=1), tone(700.0, 0.5, harmonics=1)
+    quad = np.stack([a, b, a, -a], axis=1)
+    y = load_audio(write_wav(tmp_path / "quad.wav", quad, subtype="FLOAT"))
+    np.testing.assert_allclose(y, (a + b) / 4, atol=1e-6)
+
+
+@pytest.mark.parametrize("fmt", ["FLAC", "OGG"])
+def test_flac_and_ogg_read_through_the_same_path(tmp_path: Path, fmt: str) -> None:
+    x = tone(440.0, 1.0, 44100, harmonics=1)
+    path = tmp_path / f"x.{fmt.lower()}"
+    soundfile.write(path, x, 44100, format=fmt)
+    y = load_audio(path)
+    assert abs(len(y) - ANALYSIS_RATE) <= 1
+    assert peak_hz(y, ANALYSIS_RATE) == pytest.approx(440.0, abs=2.0)
+
+
+def test_file_and_array_sources_give_the_same_blocks(tmp_path: Path) -> None:
+    x = tone(440.0, 0.3).astype(np.float32)
+    path = write_wav(tmp_path / "x.wav", x, subtype="FLOAT")
+    from_file = list(FileSource(path, block_size=1000))
+    from_array = list(ArraySource(x, SR, block_size=1000))
+    assert [len(b) for b in from_file] == [1000] * 6 + [615]
+    np.testing.assert_array_equal(np.concatenate(from_file), np.concatenate(from_array))
+
+
+def test_ring_buffer_wraps_and_counts_overruns() -> None:
+    ring = RingBuffer(10)
+    out = np.zeros(10, np.float32)
+    assert ring.write(np.arange(6, dtype=np.float32))
+    assert ring.read(out[:4]) == 4
+    assert ring.write(np.arange(6, 14, dtype=np.float32))  # wraps round the end
+    assert not ring.write(np.zeros(3, np.float32))  # only 0 free: dropped whole
+    assert ring.overruns == 1
+    assert ring.read(out) == 10
+    np.testing.assert_array_equal(out, np.arange(4, 14))
+
+
+def test_live_loop_survives_bad_blocks() -> None:
+    """Drive the callback as PortAudio would, with NaN/inf, odd sizes and overflows."""
+    live = LiveInput(buffer_seconds=0.1)
+    live.prepare(44100)  # device rate differs: blocks are resampled to 22.05 kHz
+    seg = Segmenter(ANALYSIS_RATE, adaptive=False)
+    rng = np.random.default_rng(3)
+    heard = 0
+    for i in range(200):
+        block = rng.standard_normal((int(rng.integers(1, 2048)), 1)).astype(np.float32) * 0.1
+        if i % 7 == 0:
+            block[::3] = np.nan
+        if i % 11 == 0:
+            block[1::5] = -np.inf
+        live.callback(block, len(block), None, "input overflow" if i % 50 == 0 else None)
+        if i % 4 == 0:  # the creature reads less often than blocks arrive
+            out = live.read()
+            assert np.isfinite(out).all()
+            heard += len(out)
+            seg.feed(out)
+    assert live.bad_samples > 0
+    assert live.overruns > 0  # 0.1 s of ring cannot hold four 2048-frame blocks
+    assert live.driver_overflows == 4
+    assert heard > 0
+
+
+def test_unknown_device_is_named() -> None:
+    # Whether PortAudio is missing, lists no devices or lacks this one, the message says so.
+    with pytest.raises(AudioDeviceUnavailable, match="no such microphone|no audio input|PortAudio"):
+        LiveInput("no such microphone").start()
+
+
+def test_reading_before_start_says_so() -> None:
+    with pytest.raises(AudioDeviceUnavailable, match="start"):
+        LiveInput().read()
+
+
+class _NoPortAudio(importlib.abc.MetaPathFinder):
+    """Make `import sounddevice` fail as it does when libportaudio2 is missing."""
+
+    def find_spec(self, name, path, target=None):
+        if name == "sounddevice":
+            raise OSError("PortAudio library not found")
+        return None
+
+
+def test_missing_portaudio_gives_a_clear_message_and_files_still_work(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.delitem(sys.modules, "sounddevice", raising=False)
+    monkeypatch.setattr(sys, "meta_path", [_NoPortAudio(), *sys.meta_path])
+    with pytest.raises(AudioDeviceUnavailable, match="PortAudio library not found.*libportaudio2"):
+        LiveInput().start()
+    x = tone(440.0, 0.2)
+    assert len(load_audio(write_wav(tmp_path / "x.wav", x))) == len(x)
+
+
+def test_live_input_through_a_real_device() -> None:
+    try:
+        live = LiveInput(block_size=512)
+        live.start()
+    except AudioDeviceUnavailable as exc:
+        pytest.skip(f"no live audio input here: {exc}")
+    try:
+        got = []
+        deadline = time.monotonic() + 3.0
+        while sum(map(len, got)) < ANALYSIS_RATE // 10 and time.monotonic() < deadline:
+            got.append(live.read())
+            time.sleep(0.01)  # waiting for the device, not measuring time
+    finally:
+        live.stop()
+    heard = np.concatenate(got)
+    assert len(heard) >= ANALYSIS_RATE // 10, "the device delivered no audio within 3 s"
+    assert heard.dtype == np.float32 and np.isfinite(heard).all()
