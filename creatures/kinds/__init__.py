@@ -1,18 +1,19 @@
 """Creature kinds, looked up by the ``kind`` key of a ``[[creature]]`` table.
 
-Each kind lives in its own module and registers itself with :func:`register`; importing this
-package imports them all so every config can name any of them.
+Each kind lives in its own module and registers itself with :func:`register`;
+:func:`load_all` imports every module of this package (a new kind is just a new file).
 """
 
 from __future__ import annotations
 
 import importlib
+import pkgutil
 
 from creatures.kinds.base import CreatureKind, CreatureSpec
 
 KINDS: dict[str, type[CreatureKind]] = {}
 
-_MODULES: tuple[str, ...] = ("exchange",)
+_SHARED = {"base", "parts"}
 
 
 def register(kind: str):
@@ -26,8 +27,9 @@ def register(kind: str):
 
 
 def load_all() -> dict[str, type[CreatureKind]]:
-    for module in _MODULES:
-        importlib.import_module(f"creatures.kinds.{module}")
+    for module in pkgutil.iter_modules(__path__):
+        if module.name not in _SHARED:
+            importlib.import_module(f"creatures.kinds.{module.name}")
     return KINDS
 
 

@@ -15,6 +15,8 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 if TYPE_CHECKING:
+    from pathlib import Path
+
     from creatures.runtime.world import World
     from midi.notes import NoteEvent
 
@@ -71,6 +73,11 @@ class CreatureKind(ABC):
     def marks(self) -> list[tuple[tuple[float, float, float], int]]:
         """Note objects to draw in space as ``(position, pitch)``."""
         return []
+
+    def finish(self, out: "Path") -> dict[str, "Path"]:
+        """The run is over: write any kind-specific outputs into ``out`` (e.g. an edit
+        decision list) and return them by name; default none."""
+        return {}
 
     def state(self) -> dict[str, Any]:
         """JSON-able learned state, saved periodically and on exit."""

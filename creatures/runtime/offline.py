@@ -75,6 +75,20 @@ def _inputs(inst: LoadedInstallation, audio: Path | None, midi: Path | None, dur
     return [n for n in notes if n.time < duration], samples
 
 
+def _heard(samples: np.ndarray | None, a: int, b: int, room: np.ndarray | None) -> np.ndarray | None:
+    """What the creatures' ears get for frames ``[a, b)``: the input, plus the room's sound
+    (every voice of the previous tick) when creatures hear each other through the air."""
+    recorded = None if samples is None or a >= len(samples) else samples[a:min(b, len(samples))]
+    if room is None or not len(room):
+        return recorded
+    heard = np.zeros(b - a, dtype=np.float32)
+    if recorded is not None:
+        heard[: len(recorded)] += recorded
+    n = min(len(room), b - a)
+    heard[:n] += room[:n]
+    return heard
+
+
 class _Bodies:
     """Draws every creature's body side by side into frames, when a GL platform exists."""
 
@@ -160,6 +174,7 @@ def run_offline(
     for i, creature in enumerate(creatures):
         mixer.set(i, gain=creature.spec.gain, pan=creature.spec.pan)
     voices = np.zeros((len(creatures), block), dtype=np.float64)
+    air, room = settings.audio.air, np.zeros(0)
     wav = WavOutput(out / "out.wav", sr, 2) if settings.output.wav else None
     bodies = _Bodies(inst, out, clock, messages) if settings.output.frames else None
     steps = int(math.ceil(duration / tick - 1e-9))
@@ -175,16 +190,19 @@ def run_offline(
             clock.advance_to(t)
             world.deliver(t)
             a, b = int(round(t0 * sr)), int(round(t * sr))
-            if samples is not None and a < len(samples):
-                heard = samples[a:min(b, len(samples))]
+            heard = _heard(samples, a, b, room if air else None)
+            if heard is not None:
                 for creature in creatures:
                     creature.listen(t, heard, sr)
             for creature in creatures:
                 creature.tick(t)
             scheduler.pump()
-            if wav is not None:
+            if wav is not None or air:
                 for i, creature in enumerate(creatures):
                     creature.sound(voices[i, : b - a], sr)
+                if air:
+                    room = voices[:, : b - a].T @ mixer.gains
+            if wav is not None:
                 wav.write(mixer.mix(voices[:, : b - a]))
             if bodies is not None:
                 bodies.draw(creatures)
@@ -211,6 +229,8 @@ def run_offline(
     if settings.output.midi:
         write_notes(out / "out.mid", sink.notes())
         files["midi"] = out / "out.mid"
+    for creature in creatures:
+        files.update(creature.finish(out))
     if bodies is not None and bodies.renderer is not None:
         files["frames"] = out / "frames"
         if settings.output.video:

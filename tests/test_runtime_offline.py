@@ -1,0 +1,93 @@
+"""Offline runs: valid outputs, deterministic, and bad input stops before anything is written."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import mido
+import pytest
+import soundfile
+
+from creatures.cli import main
+from creatures.events import read_events
+from creatures.runtime.offline import run_offline
+from creatures.runtime.schema import load_installation
+
+EXCHANGE = Path(__file__).resolve().parents[1] / "installations" / "exchange.toml"
+
+
+@pytest.fixture(scope="module")
+def exchange_run(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("exchange")
+    assert main(["offline", str(EXCHANGE), "--out", str(out), "--duration", "20", "--no-progress"]) == 0
+    return out
+
+
+def test_offline_outputs_are_valid(exchange_run):
+    info = soundfile.info(exchange_run / "out.wav")
+    assert (info.samplerate, info.channels) == (22050, 2)
+    assert info.frames == 20 * 22050
+    midi = mido.MidiFile(exchange_run / "out.mid")
+    ons = [m for track in midi.tracks for m in track if m.type == "note_on" and m.velocity > 0]
+    offs = [m for track in midi.tracks for m in track if m.type == "note_off" or (m.type == "note_on" and m.velocity == 0)]
+    assert len(ons) > 5 and len(ons) == len(offs)
+    events = read_events(exchange_run / "events.jsonl")
+    kinds = {e["kind"] for e in events}
+    assert {"run", "heard", "placed", "selection", "note", "values", "motivation", "end"} <= kinds
+    assert (exchange_run / "report" / "index.html").read_text().count("<img") >= 4
+
+
+def test_offline_is_deterministic(exchange_run, tmp_path):
+    assert main(["offline", str(EXCHANGE), "--out", str(tmp_path), "--duration", "20", "--no-progress"]) == 0
+    first = (exchange_run / "events.jsonl").read_text()
+    assert (tmp_path / "events.jsonl").read_text() == first
+    assert (tmp_path / "out.mid").read_bytes() == (exchange_run / "out.mid").read_bytes()
+    a, _ = soundfile.read(exchange_run / "out.wav")
+    b, _ = soundfile.read(tmp_path / "out.wav")
+    assert (a == b).all()
+
+
+BAD_CONFIGS = {
+    "unknown key": ('title = "x"\n[[creature]]\nname = "a"\nkind = "exchange"\nstrike_radus = 0.2\n',
+                    "creature.0.strike_radus", 5, "did you mean 'strike_radius'"),
+    "wrong type": ('title = "x"\ntick = "fast"\n[[creature]]\nname = "a"\nkind = "exchange"\n', "tick", 2, "valid number"),
+    "missing file": ('title = "x"\n[input]\nmidi = "nowhere.mid"\n[[creature]]\nname = "a"\nkind = "exchange"\n',
+                     "input.midi", 3, "file not found"),
+    "unstable synth": ('title = "x"\n[[creature]]\nname = "a"\nkind = "exchange"\n[creature.voice]\nstiffness = 1e9\n',
+                       "creature.0.voice", 5, "unstable string"),
+    "unknown kind": ('title = "x"\n[[creature]]\nname = "a"\nkind = "exchnage"\n', "creature.0.kind", 4,
+                     "did you mean 'exchange'"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_CONFIGS))
+def test_bad_config_exits_2_naming_key_and_line_and_writes_nothing(case, tmp_path, capsys):
+    text, key, line, phrase = BAD_CONFIGS[case]
+    config = tmp_path / "bad.toml"
+    config.write_text(text)
+    out = tmp_path / "out"
+    assert main(["offline", str(config), "--out", str(out), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert f"bad.toml:{line}: {key}" in err and phrase in err
+    assert not out.exists()
+
+
+def test_unwritable_output_directory_is_a_clear_error(tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a directory")
+    assert main(["offline", str(EXCHANGE), "--out", str(blocker / "out"), "--no-progress"]) == 2
+    assert "cannot write outputs" in capsys.readouterr().err
+
+
+def test_recorded_midi_input_overrides_generated(tmp_path):
+    from midi.files import write_notes
+    from midi.notes import NoteEvent
+
+    recorded = tmp_path / "in.mid"
+    write_notes(recorded, [NoteEvent(0.5 + 0.25 * i, 50 + i, 90, 0, 0.2) for i in range(8)])
+    inst = load_installation(EXCHANGE)
+    inst.settings.output.wav = inst.settings.output.report = False
+    run_offline(inst, tmp_path / "out", midi=recorded, duration=5)
+    heard = [e["pitch"] for e in read_events(tmp_path / "out" / "events.jsonl") if e["kind"] == "heard"]
+    assert heard == [50 + i for i in range(8)]
