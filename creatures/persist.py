@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import os
 import tempfile
+import zipfile
 from pathlib import Path
 from typing import Any, Callable
 
@@ -23,7 +24,9 @@ class StateFileError(Exception):
     """A state file is missing, unreadable or malformed; the message names the file."""
 
 
-def _atomic_write(path: Path, write: Callable[[Any], None], mode: str) -> None:
+def atomic_write(path: str | os.PathLike, write: Callable[[Any], None], mode: str) -> None:
+    """Call ``write(handle)`` on a temporary file beside ``path``, fsync it, rename it over
+    ``path``: other formats (e.g. ``.mid`` files in ``midi.files``) save atomically too."""
     path = Path(path)
     directory = path.parent if str(path.parent) else Path(".")
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
@@ -50,6 +53,9 @@ def _atomic_write(path: Path, write: Callable[[Any], None], mode: str) -> None:
         pass
     finally:
         os.close(dir_fd)
+
+
+_atomic_write = atomic_write  # the former private name, kept for existing callers
 
 
 def save_json(path: str | os.PathLike, data: dict[str, Any], *, kind: str) -> None:
@@ -99,5 +105,5 @@ def load_npz(path: str | os.PathLike) -> dict[str, np.ndarray]:
             return {name: data[name] for name in data.files}
     except FileNotFoundError:
         raise StateFileError(f"{path}: array file not found") from None
-    except (OSError, ValueError) as exc:
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:  # truncated: BadZipFile
         raise StateFileError(f"{path}: malformed array file ({exc})") from None

@@ -1,0 +1,183 @@
+"""Standard MIDI files in and out as :class:`~midi.notes.NoteEvent` lists.
+
+Times inside a file are ticks whose length changes with every tempo change; creatures live
+in seconds. :class:`TempoMap` converts both ways (``mido.tick2second`` applied to arrays, segment by
+segment). Files are written as type 1 — a tempo-map
+track, then one track per channel (or one merged track) — which every DAW opens, and saved
+atomically through :func:`creatures.persist.atomic_write`.
+
+mido raises an assortment of exceptions on bad files (``OSError``, ``EOFError``,
+``ValueError``, ``KeyError``, ``IndexError``); :func:`read_notes` turns every one of them into
+a :class:`MidiFileError` that names the file.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Iterable
+
+import mido
+import numpy as np
+
+from creatures.persist import atomic_write
+from midi.notes import NoteEvent, TimedMessage, from_messages, to_messages
+
+DEFAULT_TEMPO = 500_000  # microseconds per beat: 120 bpm, the MIDI file default
+
+
+class MidiFileError(Exception):
+    """A MIDI file is missing, truncated or malformed; the message names the file."""
+
+
+class TempoMap:
+    """Piecewise-linear map between ticks and seconds.
+
+    ``changes`` are ``(tick, tempo)`` pairs (tempo in microseconds per beat); before the first
+    change the tempo is 120 bpm, as the MIDI file standard says.
+    """
+
+    def __init__(self, ticks_per_beat: int, changes: Iterable[tuple[int, int]] = ()) -> None:
+        if ticks_per_beat <= 0:
+            raise ValueError(f"ticks_per_beat must be positive, got {ticks_per_beat}")
+        self.ticks_per_beat = ticks_per_beat
+        points: dict[int, int] = {0: DEFAULT_TEMPO}
+        for tick, tempo in sorted(changes, key=lambda c: c[0]):
+            if not tempo > 0 or not tick >= 0:
+                raise ValueError(f"tempo change ({tick}, {tempo}): tick must be >= 0 and tempo > 0")
+            points[int(tick)] = int(tempo)  # the last change at a tick wins
+        self.ticks = np.array(sorted(points), dtype=np.int64)
+        self.tempos = np.array([points[t] for t in self.ticks], dtype=np.float64)
+        spans = np.diff(self.ticks) * self.tempos[:-1] * 1e-6 / ticks_per_beat
+        self.seconds = np.concatenate([[0.0], np.cumsum(spans)])
+
+    @classmethod
+    def from_seconds(
+        cls, ticks_per_beat: int, changes: Iterable[tuple[float, float]]
+    ) -> TempoMap:
+        """Build a map from ``(seconds, bpm)`` changes, each placed on the nearest tick."""
+        built = cls(ticks_per_beat)
+        for seconds, bpm in sorted(changes):
+            if not bpm > 0:
+                raise ValueError(f"tempo change at {seconds} s: bpm must be > 0, got {bpm}")
+            tick = int(built.to_ticks(np.array([seconds]))[0])
+            built = cls(ticks_per_beat, [*built.changes(), (tick, mido.bpm2tempo(bpm))])
+        return built
+
+    def changes(self) -> list[tuple[int, int]]:
+        return [(int(t), int(q)) for t, q in zip(self.ticks, self.tempos)]
+
+    def to_seconds(self, ticks: np.ndarray) -> np.ndarray:
+        ticks = np.asarray(ticks, dtype=np.float64)
+        i = np.searchsorted(self.ticks, ticks, side="right") - 1
+        return self.seconds[i] + mido.tick2second(ticks - self.ticks[i], self.ticks_per_beat, self.tempos[i])
+
+    def to_ticks(self, seconds: np.ndarray) -> np.ndarray:
+        """Nearest whole tick for each time in ``seconds``."""
+        seconds = np.asarray(seconds, dtype=np.float64)
+        i = np.searchsorted(self.seconds, seconds, side="right") - 1
+        # mido.second2tick rounds to a Python int, so its formula is inlined for arrays.
+        seconds_per_tick = self.tempos[i] * 1e-6 / self.ticks_per_beat
+        return np.rint(self.ticks[i] + (seconds - self.seconds[i]) / seconds_per_tick).astype(np.int64)
+
+
+def _open(path: Path) -> mido.MidiFile:
+    try:
+        return mido.MidiFile(path)
+    except FileNotFoundError:
+        raise MidiFileError(f"{path}: MIDI file not found") from None
+    except EOFError:
+        raise MidiFileError(f"{path}: truncated MIDI file (ended inside a chunk)") from None
+    except (OSError, ValueError, KeyError, IndexError, TypeError) as exc:
+        raise MidiFileError(f"{path}: malformed MIDI file ({exc or type(exc).__name__})") from None
+
+
+def read_messages(path: str | os.PathLike) -> list[TimedMessage]:
+    """All channel messages of a ``.mid`` file with their times in seconds, in time order.
+
+    Type 0/1 files share one tempo map (set-tempo events on any track); each track of a type 2
+    file keeps its own.
+    """
+    path = Path(path)
+    midi = _open(path)
+    if midi.ticks_per_beat <= 0:
+        raise MidiFileError(f"{path}: SMPTE time division is not supported")
+    groups = [midi.tracks] if midi.type != 2 else [[track] for track in midi.tracks]
+    timed: list[TimedMessage] = []
+    for group in groups:
+        # mido.merge_tracks copies every message twice; a stable sort of absolute ticks gives
+        # the same order (track by track at equal ticks) without copies.
+        messages = [msg for track in group for msg in track]
+        ticks = np.concatenate([np.cumsum([m.time for m in track], dtype=np.int64) for track in group] or [[]])
+        order = np.argsort(ticks, kind="stable")
+        try:
+            tempo = TempoMap(
+                midi.ticks_per_beat,
+                [(ticks[i], messages[i].tempo) for i in order if messages[i].type == "set_tempo"],
+            )
+        except ValueError as exc:
+            raise MidiFileError(f"{path}: bad tempo map ({exc})") from None
+        seconds = tempo.to_seconds(ticks[order])
+        for t, i in zip(seconds.tolist(), order.tolist()):
+            msg = messages[i]
+            if not msg.is_meta and msg.type != "sysex":
+                msg.time = 0  # the time is the pair's first element; the file's own copy is ours
+                timed.append((t, msg))
+    timed.sort(key=lambda item: item[0])  # stable: type 2 tracks interleave by time only
+    return timed
+
+
+def read_notes(path: str | os.PathLike) -> list[NoteEvent]:
+    """The notes of a ``.mid`` file, sorted by start time (see :func:`read_messages`).
+
+    Raises :class:`MidiFileError` naming the file when it is missing or malformed.
+    """
+    return from_messages(read_messages(path))
+
+
+def write_messages(
+    path: str | os.PathLike,
+    timed: Iterable[TimedMessage],
+    *,
+    tempo: TempoMap | None = None,
+    split_channels: bool = True,
+) -> None:
+    """Write timed channel messages to a type 1 ``.mid`` file, atomically.
+
+    Track 0 holds the tempo map; then one track per channel used (``split_channels``) or one
+    track with everything.
+    """
+    tempo = tempo or TempoMap(480)
+    timed = list(timed)
+    ticks = tempo.to_ticks(np.array([t for t, _ in timed], dtype=np.float64))
+    midi = mido.MidiFile(type=1, ticks_per_beat=tempo.ticks_per_beat)
+    midi.tracks.append(_track("tempo", [(t, mido.MetaMessage("set_tempo", tempo=q)) for t, q in tempo.changes()]))
+    tracks: dict[int, list[tuple[int, mido.Message]]] = {}
+    for tick, (_, msg) in zip(ticks.tolist(), timed):
+        key = getattr(msg, "channel", 0) if split_channels else 0
+        tracks.setdefault(key, []).append((tick, msg))
+    for key in sorted(tracks):
+        midi.tracks.append(_track(f"channel {key + 1}" if split_channels else "notes", tracks[key]))
+    atomic_write(Path(path), lambda handle: midi.save(file=handle), "wb")
+
+
+def write_notes(
+    path: str | os.PathLike,
+    notes: Iterable[NoteEvent],
+    *,
+    tempo: TempoMap | None = None,
+    split_channels: bool = True,
+) -> None:
+    """Write notes to a type 1 ``.mid`` file, atomically (see :func:`write_messages`)."""
+    write_messages(path, to_messages(notes), tempo=tempo, split_channels=split_channels)
+
+
+def _track(name: str, events: list[tuple[int, mido.Message]]) -> mido.MidiTrack:
+    """A track from absolute-tick events (already in time order), with delta times."""
+    track = mido.MidiTrack([mido.MetaMessage("track_name", name=name)])
+    previous = 0
+    for tick, msg in events:
+        track.append(msg.copy(time=tick - previous))
+        previous = tick
+    track.append(mido.MetaMessage("end_of_track", time=0))
+    return track

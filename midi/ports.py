@@ -1,0 +1,203 @@
+"""MIDI ports: an in-memory pair needing no backend, port lookup by name or pattern, and a
+port that survives its device going away.
+
+An installation runs for weeks; a USB interface gets unplugged, a JACK client restarts. A
+:class:`ResilientPort` reports the loss once, keeps the creature's loop running (no exception
+escapes), looks for the device again at a bounded rate measured in elapsed clock time, and
+reports once more when it is back. Device access goes through a small :class:`PortFactory`
+so tests can use a fake backend that fails and recovers on cue.
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+from typing import Callable, Protocol
+
+import mido
+from mido.ports import BaseInput, BaseOutput, BasePort
+
+from creatures.clock import Clock
+
+logger = logging.getLogger(__name__)
+
+
+class MemoryInput(BaseInput):
+    """An input port whose messages are put there by a :class:`MemoryOutput` (or a test)."""
+
+    def _receive(self, block: bool = True) -> None:
+        """Nothing to fetch: senders append straight to the port's queue."""
+
+    def inject(self, msg: mido.Message) -> None:
+        """Deliver ``msg`` as if a device had sent it (thread-safe: a deque append)."""
+        self._messages.append(msg)
+
+
+class MemoryOutput(BaseOutput):
+    """An output port that delivers every message to a :class:`MemoryInput`, if given."""
+
+    def __init__(self, name: str = "", into: MemoryInput | None = None, **kwargs) -> None:
+        self.into = into
+        super().__init__(name, **kwargs)
+
+    def _send(self, msg: mido.Message) -> None:
+        if self.into is not None:
+            self.into.inject(msg)
+
+
+def memory_pair(name: str = "memory") -> tuple[MemoryInput, MemoryOutput]:
+    """A connected (input, output) pair: what is sent on the output arrives at the input."""
+    inport = MemoryInput(name)
+    return inport, MemoryOutput(name, into=inport)
+
+
+class PortFactory(Protocol):
+    """Lists and opens ports of one direction; mido's backends or a fake one in tests."""
+
+    def names(self) -> list[str]: ...
+
+    def open(self, name: str, *, virtual: bool = False) -> BasePort: ...
+
+
+class MidoInputs:
+    """Input ports of a mido backend: by default the one ``MIDO_BACKEND`` names (python-rtmidi
+    if unset), or e.g. ``mido.Backend("mido.backends.rtmidi/UNIX_JACK")``."""
+
+    def __init__(self, backend: mido.Backend | None = None) -> None:
+        self.backend = backend or mido
+
+    def names(self) -> list[str]:
+        return list(self.backend.get_input_names())
+
+    def open(self, name: str, *, virtual: bool = False) -> BasePort:
+        return self.backend.open_input(name, virtual=virtual)
+
+
+class MidoOutputs(MidoInputs):
+    """Output ports of a mido backend (see :class:`MidoInputs`)."""
+
+    def names(self) -> list[str]:
+        return list(self.backend.get_output_names())
+
+    def open(self, name: str, *, virtual: bool = False) -> BasePort:
+        return self.backend.open_output(name, virtual=virtual)
+
+
+def match_port(names: list[str], pattern: str) -> str | None:
+    """The port called exactly ``pattern``, else the first whose name the regular expression
+    ``pattern`` finds (or, if it is not a valid expression, contains it as a substring)."""
+    if pattern in names:
+        return pattern
+    try:
+        regex = re.compile(pattern, re.IGNORECASE)
+    except re.error:
+        return next((n for n in names if pattern.lower() in n.lower()), None)
+    return next((n for n in names if regex.search(n)), None)
+
+
+class ResilientPort:
+    """One port, found by name or pattern, kept open across device faults.
+
+    ``pending()`` (input) and ``send()`` (output) never raise. While the device is gone,
+    incoming messages cannot arrive and outgoing ones are dropped and counted. Presence is
+    checked against ``factory.names()`` at most every ``retry_interval`` seconds of clock time.
+    """
+
+    def __init__(
+        self,
+        pattern: str,
+        factory: PortFactory,
+        clock: Clock,
+        *,
+        retry_interval: float = 1.0,
+        report: Callable[[str], None] = logger.warning,
+    ) -> None:
+        self.pattern = pattern
+        self.factory = factory
+        self.clock = clock
+        self.retry_interval = retry_interval
+        self.report = report
+        self.port: BasePort | None = None
+        self.faults = 0  # times the port was lost
+        self.reopened = 0  # times it came back
+        self.dropped = 0  # outgoing messages that found no port
+        self._missing_reported = False
+        self._last_check = -float("inf")
+        self._check(force=True)
+
+    @property
+    def connected(self) -> bool:
+        return self.port is not None
+
+    def pending(self) -> list[mido.Message]:
+        """Every message waiting on the input port; never blocks, never raises."""
+        self._check()
+        if self.port is None:
+            return []
+        try:
+            return list(self.port.iter_pending())
+        except Exception as exc:  # any backend error means the device is gone
+            self._lose(f"{exc}")
+            return []
+
+    def send(self, msg: mido.Message) -> bool:
+        """Send ``msg`` if the port is there; return whether it went out."""
+        self._check()
+        if self.port is not None:
+            try:
+                self.port.send(msg)
+                return True
+            except Exception as exc:
+                self._lose(f"{exc}")
+        self.dropped += 1
+        return False
+
+    def close(self) -> None:
+        if self.port is not None:
+            self._close_quietly()
+
+    def _check(self, *, force: bool = False) -> None:
+        now = self.clock.now()
+        if not force and now - self._last_check < self.retry_interval:
+            return
+        self._last_check = now
+        try:
+            names = self.factory.names()
+        except Exception as exc:
+            names = []
+            logger.debug("listing MIDI ports failed: %s", exc)
+        if self.port is not None:
+            if self.port.name not in names:
+                self._lose("it is no longer listed")
+            return
+        name = match_port(names, self.pattern)
+        if name is None:
+            if not self._missing_reported and self.faults == 0:
+                self.report(f"MIDI port {self.pattern!r} not found among {names}; will keep looking")
+                self._missing_reported = True
+            return
+        try:
+            self.port = self.factory.open(name)
+        except Exception as exc:
+            if not self._missing_reported:
+                self.report(f"MIDI port {name!r} could not be opened ({exc}); will keep trying")
+                self._missing_reported = True
+            return
+        if self.faults or self._missing_reported:
+            self.reopened += 1
+            self.report(f"MIDI port {name!r} is back")
+        self._missing_reported = False
+
+    def _lose(self, why: str) -> None:
+        name = self.port.name if self.port is not None else self.pattern
+        self._close_quietly()
+        self.faults += 1
+        self._missing_reported = True
+        self.report(f"MIDI port {name!r} lost ({why}); will reopen it when it returns")
+
+    def _close_quietly(self) -> None:
+        try:
+            self.port.close()
+        except Exception as exc:
+            logger.debug("closing a lost MIDI port failed: %s", exc)
+        self.port = None

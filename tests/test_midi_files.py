@@ -1,0 +1,123 @@
+"""Standard MIDI files: notes survive a write/read round trip through a tempo map."""
+
+from __future__ import annotations
+
+import mido
+import numpy as np
+import pytest
+
+from midi.files import MidiFileError, TempoMap, read_messages, read_notes, write_notes
+from midi.notes import NoteEvent
+
+
+def random_notes(rng: np.random.Generator, n: int, *, seconds: float = 120.0) -> list[NoteEvent]:
+    """Random notes on 16 channels; same-pitch notes may overlap, but a later start never ends
+    earlier (MIDI cannot say which of two overlapping equal notes an off ends; we pair FIFO)."""
+    starts = np.sort(rng.uniform(0.0, seconds, n))
+    pitches, channels = rng.integers(48, 72, n), rng.integers(0, 16, n)
+    ends = starts + rng.uniform(0.01, 3.0, n)
+    last_end: dict[tuple[int, int], float] = {}
+    notes = []
+    for t, p, v, c, end in zip(starts, pitches, rng.integers(1, 128, n), channels, ends):
+        end = max(end, last_end.get((c, p), 0.0) + 0.01)
+        last_end[c, p] = end
+        notes.append(NoteEvent(float(t), int(p), int(v), int(c), float(end - t)))
+    return notes
+
+
+def by_voice(notes: list[NoteEvent]) -> list[NoteEvent]:
+    return sorted(notes, key=lambda n: (n.channel, n.pitch, n.time))
+
+
+@pytest.mark.parametrize("split_channels", [True, False])
+def test_thousand_notes_with_tempo_changes_round_trip_within_one_tick(rng, tmp_path, split_channels):
+    notes = random_notes(rng, 1000)
+    voices = by_voice(notes)
+    overlapping = sum(
+        a.channel == b.channel and a.pitch == b.pitch and b.time < a.end for a, b in zip(voices, voices[1:])
+    )
+    assert overlapping > 10  # the FIFO pairing of overlapping same-pitch notes is exercised
+    tempo = TempoMap.from_seconds(480, [(12.5, 90.0), (40.0, 173.0), (77.7, 61.0), (100.0, 140.0)])
+    path = tmp_path / "phrase.mid"
+    write_notes(path, notes, tempo=tempo, split_channels=split_channels)
+
+    back = read_notes(path)
+    assert len(back) == len(notes)
+    longest_tick = float(tempo.tempos.max()) * 1e-6 / 480
+    for original, read in zip(by_voice(notes), by_voice(back)):
+        assert (read.pitch, read.velocity, read.channel) == (original.pitch, original.velocity, original.channel)
+        assert abs(read.time - original.time) <= longest_tick
+        assert abs(read.end - original.end) <= longest_tick
+
+
+def test_written_file_is_type_1_with_tempo_track_and_one_track_per_channel(rng, tmp_path):
+    notes = [n for n in random_notes(rng, 200) if n.channel in (0, 3, 9)]
+    tempo = TempoMap.from_seconds(96, [(5.0, 100.0)])
+    write_notes(tmp_path / "x.mid", notes, tempo=tempo)
+    midi = mido.MidiFile(tmp_path / "x.mid")
+    assert midi.type == 1 and midi.ticks_per_beat == 96
+    assert [m.tempo for m in midi.tracks[0] if m.type == "set_tempo"] == [500_000, 600_000]
+    channels = [{m.channel for m in track if not m.is_meta} for track in midi.tracks[1:]]
+    assert channels == [{0}, {3}, {9}]
+    # mido's own tempo-aware playback agrees with ours on when the last note ends.
+    assert midi.length == pytest.approx(max(n.end for n in notes), abs=tempo.tempos.max() * 1e-6 / 96)
+
+
+def test_tempo_map_is_inverse_of_itself(rng):
+    tempo = TempoMap(480, [(1000, 400_000), (5000, 1_000_000), (5000, 300_000), (9000, 800_000)])
+    ticks = rng.integers(0, 20_000, 500)
+    assert np.array_equal(tempo.to_ticks(tempo.to_seconds(ticks)), ticks)
+    assert tempo.changes()[2] == (5000, 300_000)  # the later of two changes at one tick wins
+    assert tempo.to_seconds(np.array([1000]))[0] == pytest.approx(1000 * 0.5 / 480)
+
+
+def test_type_2_tracks_keep_their_own_tempo(tmp_path):
+    midi = mido.MidiFile(type=2, ticks_per_beat=100)
+    for tempo in (500_000, 1_000_000):
+        midi.tracks.append(mido.MidiTrack([
+            mido.MetaMessage("set_tempo", tempo=tempo),
+            mido.Message("note_on", note=60, velocity=64, time=100),
+            mido.Message("note_off", note=60, time=100),
+        ]))
+    midi.save(tmp_path / "t2.mid")
+    starts = sorted(n.time for n in read_notes(tmp_path / "t2.mid"))
+    assert starts == pytest.approx([0.5, 1.0])
+
+
+def test_running_status_in_file_and_velocity_zero_note_offs(tmp_path):
+    # MThd, one MTrk: note-on 60, running-status note-on 60 vel 0 (= note-off) after 480 ticks.
+    track = bytes.fromhex("00 90 3C 40 83 60 3C 00 00 FF 2F 00")
+    data = b"MThd" + (6).to_bytes(4, "big") + bytes.fromhex("0000 0001 01E0")
+    data += b"MTrk" + len(track).to_bytes(4, "big") + track
+    (tmp_path / "rs.mid").write_bytes(data)
+    assert read_notes(tmp_path / "rs.mid") == [NoteEvent(0.0, 60, 64, 0, 0.5)]
+
+
+def test_missing_and_garbage_files_name_the_file(tmp_path):
+    with pytest.raises(MidiFileError, match="nowhere.mid: MIDI file not found"):
+        read_notes(tmp_path / "nowhere.mid")
+    (tmp_path / "junk.mid").write_bytes(b"RIFF not a midi file at all")
+    with pytest.raises(MidiFileError, match=r"junk\.mid: malformed MIDI file \(MThd not found"):
+        read_messages(tmp_path / "junk.mid")
+
+
+def test_failed_write_leaves_previous_file_intact(rng, tmp_path):
+    path = tmp_path / "keep.mid"
+    notes = random_notes(rng, 20)
+    write_notes(path, notes)
+    before = path.read_bytes()
+    bad = [*notes, "not a note"]
+    with pytest.raises(AttributeError):
+        write_notes(path, bad)
+    assert path.read_bytes() == before
+    assert [p.name for p in tmp_path.iterdir()] == ["keep.mid"]
+
+
+def test_zero_tempo_in_a_file_is_a_clear_error(tmp_path):
+    midi = mido.MidiFile(type=0)
+    midi.tracks.append(mido.MidiTrack([mido.MetaMessage("set_tempo", tempo=0), mido.Message("note_on", time=10)]))
+    midi.save(tmp_path / "stopped.mid")
+    with pytest.raises(MidiFileError, match=r"stopped\.mid: bad tempo map"):
+        read_notes(tmp_path / "stopped.mid")
+    with pytest.raises(ValueError, match="bpm must be > 0"):
+        TempoMap.from_seconds(480, [(1.0, 0.0)])
