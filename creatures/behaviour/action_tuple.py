@@ -129,6 +129,7 @@ class ActionTuple:
         self.value: Value = value if isinstance(value, Value) else ScalarValue(value)
         self.active = False
         self.started_at: float | None = None
+        self.stopped_at: float | None = None  # when the last activation ended (interval relations)
         self.trigger_at_start = 0.0
         self.context: dict[str, Any] = {}
 
@@ -153,6 +154,7 @@ class ActionTuple:
     def stop(self, t: float, *, interrupted: bool = False) -> float:
         """Become inactive; returns how long the tuple was active."""
         self.active = False
+        self.stopped_at = t
         self.action.stop(t, interrupted=interrupted)
         return self.do_until.end(t)
 

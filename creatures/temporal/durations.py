@@ -1,0 +1,590 @@
+"""Duration models for Do-until (thesis: "temporal models – simple durations" and "exotic
+duration models", figure 11 "low integer ratio blind duration models").
+
+A Du that says "for around 5 s" samples a duration model when its tuple starts and teaches
+it the actual duration when the tuple stops (:class:`~creatures.behaviour.DoUntil`). Both
+models here satisfy the :class:`~creatures.behaviour.DurationModel` protocol
+(``sample(rng)``, ``update(duration)``) and add ``pulse`` and ``sample_pulse(rng)`` so a
+:mod:`creatures.temporal.tree` percept can share one pulse among many tuples.
+
+Bad durations — zero, negative, NaN, ±inf or longer than ``max_duration`` (an hour by
+default) — are handled per entry point:
+
+* ``update(d)`` raises :class:`ValueError` naming the value: one duration is an explicit
+  claim by the caller, and a wrong claim is a bug to surface;
+* ``update_many(ds)`` skips them and counts them in ``rejected``: a stream of onsets from
+  MIDI or audio carries junk (double triggers, a dropped note-off) that must not stop the
+  listening, and the count says how much was dropped.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from collections import deque
+from itertools import islice
+from fractions import Fraction
+from typing import Any, Iterable, Mapping, Protocol
+
+import numpy as np
+
+from creatures.behaviour.action_tuple import DurationModel
+from creatures.behaviour.models.gaussian import GaussianModel
+
+MAX_DURATION = 3600.0
+
+#: Prior preferences for reinterpreting ratios (duration : pulse): the simpler the ratio,
+#: the likelier (Desain & Honing's rhythm-induction preferences, thesis ref. [28]).
+DEFAULT_RATIOS: dict[Fraction, float] = {
+    Fraction(1): 8.0,
+    Fraction(2): 4.0,
+    Fraction(1, 2): 4.0,
+    Fraction(3, 2): 2.0,
+    Fraction(2, 3): 2.0,
+    Fraction(3): 2.0,
+    Fraction(1, 3): 2.0,
+    Fraction(4): 1.0,
+    Fraction(1, 4): 1.0,
+    Fraction(4, 3): 1.0,
+    Fraction(3, 4): 1.0,
+}
+
+
+class PulseModel(DurationModel, Protocol):
+    """A duration model with a pulse: what :mod:`creatures.temporal.tree` shares."""
+
+    @property
+    def pulse(self) -> float: ...
+
+    def sample_pulse(self, rng: np.random.Generator) -> float: ...
+
+
+def check_duration(duration: float, *, max_duration: float = MAX_DURATION) -> float:
+    """``duration`` as a float, or :class:`ValueError` saying why it cannot be a duration."""
+    d = float(duration)
+    if not math.isfinite(d):
+        raise ValueError(f"a duration must be a finite number of seconds (got {d!r})")
+    if not 0.0 < d <= max_duration:
+        raise ValueError(f"a duration must be in (0, {max_duration:g}] seconds (got {d!r})")
+    return d
+
+
+def valid_durations(
+    durations: Iterable[float] | np.ndarray, *, max_duration: float = MAX_DURATION
+) -> np.ndarray:
+    """Boolean mask of the entries of ``durations`` that :func:`check_duration` accepts."""
+    d = np.asarray(durations, dtype=float)
+    with np.errstate(invalid="ignore"):
+        return np.isfinite(d) & (d > 0.0) & (d <= max_duration)
+
+
+class SimpleDurationModel:
+    """"Around 5 s": the thesis's simple duration model — a :class:`GaussianModel` (rolling
+    FIFO with a prior) over durations, made safe for durations.
+
+    The Gaussian can put mass below zero; a sampled duration is floored at ``min_duration``
+    so a Du never plans a negative or zero activation.
+    """
+
+    kind = "simple_duration_model"
+
+    def __init__(
+        self,
+        prior_mean: float,
+        prior_std: float,
+        *,
+        size: int = 32,
+        prior_weight: float = 0.1,
+        min_duration: float = 1e-3,
+        max_duration: float = MAX_DURATION,
+        rng: np.random.Generator | None = None,
+    ) -> None:
+        check_duration(prior_mean, max_duration=max_duration)
+        self.gaussian = GaussianModel(prior_mean, prior_std, size=size, prior_weight=prior_weight, rng=rng)
+        self.min_duration = check_duration(min_duration, max_duration=max_duration)
+        self.max_duration = float(max_duration)
+        self.rejected = 0
+
+    @property
+    def pulse(self) -> float:
+        return self.gaussian.mean
+
+    mean = pulse
+
+    @property
+    def std(self) -> float:
+        return self.gaussian.std
+
+    def update(self, duration: float) -> None:
+        """Learn one actual duration; raises ValueError for a bad one."""
+        self.gaussian.update(check_duration(duration, max_duration=self.max_duration))
+
+    def update_many(self, durations: Iterable[float] | np.ndarray) -> int:
+        """Learn a stream of durations in order, skipping (and counting) bad ones."""
+        d = np.asarray(durations, dtype=float).ravel()
+        ok = valid_durations(d, max_duration=self.max_duration)
+        self.rejected += int(d.size - ok.sum())
+        for x in d[ok]:
+            self.gaussian.update(float(x))
+        return int(ok.sum())
+
+    def sample(self, rng: np.random.Generator) -> float:
+        return max(self.gaussian.sample(rng), self.min_duration)
+
+    sample_pulse = sample
+
+    def sample_many(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        return np.maximum(rng.normal(self.gaussian.mean, self.gaussian.std, n), self.min_duration)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "kind": self.kind,
+            "gaussian": self.gaussian.to_dict(),
+            "min_duration": self.min_duration,
+            "max_duration": self.max_duration,
+            "rejected": self.rejected,
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> "SimpleDurationModel":
+        try:
+            gaussian = GaussianModel.from_dict(data["gaussian"])
+            model = cls(
+                gaussian.prior_mean,
+                gaussian.prior_std,
+                size=gaussian.size,
+                prior_weight=gaussian.prior_weight,
+                min_duration=data["min_duration"],
+                max_duration=data["max_duration"],
+            )
+            model.rejected = int(data["rejected"])
+        except KeyError as exc:
+            raise ValueError(f"simple duration model state is missing key {exc.args[0]!r}") from None
+        model.gaussian = gaussian
+        return model
+
+    def __repr__(self) -> str:
+        return f"SimpleDurationModel(mean={self.pulse:.4g}, std={self.std:.4g})"
+
+
+class LowIntegerRatioModel:
+    """A duration model that hears durations as low-integer ratios of a pulse (figure 11).
+
+    **Hearing.** A new duration ``d`` is first reinterpreted against the pulse ``p`` (the
+    mean of a FIFO of normalised durations): every ratio ``r`` in the ratio set with
+    ``|log(d / (r·p))| ≤ tolerance`` explains it, and the explanation with the best
+    ``log prior(r) − ½(residual/σ)²`` (σ = tolerance/2) wins. The normalised duration
+    ``d / r`` enters the pulse FIFO (2.1 under 2:1 adds 1.05) and ``r`` enters the ratio
+    distribution. A duration no ratio explains is left out of the pulse (it would blur it).
+
+    **Generating.** ``sample`` draws a ratio from the learned ratio distribution (counts of
+    the last ``recency`` interpretations plus ``prior_strength`` pseudo-counts spread by the
+    ratio prior), then a base duration from N(pulse, std of the FIFO) kept within the
+    tolerance band (the model only ever admitted durations inside it), and multiplies.
+
+    **Following the tempo (re-anchoring rule).** Slow drift is followed by the FIFO itself:
+    each admitted duration pulls the pulse toward it. Anything faster shows as *trouble*:
+    durations no ratio explains, or explained only by a ratio the recent style makes
+    surprising (learned probability below ``surprise``; 100 → 130 BPM is within 2.5 % of a
+    4:3 modulation, so quarters at the new tempo pass as 3:4 of the old beat, but a piece
+    that never used 3:4 finds that surprising). When ``reanchor_count`` of the last
+    ``reanchor_window`` durations since the last anchor were trouble and at least
+    ``reanchor_segment`` durations have been heard since the first of them, the model
+    re-anchors on that *segment* (what came before it fitted the old pulse): every
+    ``d_i / r`` is a candidate pulse, moved to the mean pulse its explanations imply,
+    scored by how well it explains the whole segment under the ratio distribution learned
+    *before* the segment (so the style heard so far keeps its metrical level across a
+    tempo change) less a cost for jumping far from the old pulse (log-normal, width
+    ``tempo_spread``), and the winner's normalised durations restart the FIFO while the
+    segment's interpretations are revised. The prior pulse is only the first anchor: a fresh
+    model anchors itself on its first segment of durations the same way.
+
+    **Metrical level.** Every ``level_every`` durations the pulse moves to the level at
+    which the recently heard ratios are simplest under the ratio prior (see
+    :meth:`_check_level`): whether the first segment happened to be full of dotted quarters
+    or of eighths, a piece of quarters, eighths, halves and dotted quarters ends up counted
+    in quarters.
+
+    **Batch path.** ``update_many`` is exactly ``update`` in a loop, computed in blocks: a
+    block is interpreted against the current pulse (one numpy pass over block × ratios), the
+    pulse each item would then have seen is rebuilt from a cumulative sum over the FIFO,
+    the block is re-interpreted against those pulses, and the prefix up to the first
+    disagreement is committed (that first disagreeing item is already right: everything
+    before it agreed). ``update`` is the same path with a block of one.
+    """
+
+    kind = "low_integer_ratio_model"
+    LEVEL_MARGIN = 2.0  #: nats a simpler metrical level must gain before the pulse moves to it
+    REFINE = 3  #: passes that move each re-anchoring candidate to the pulse its explanations imply
+
+    def __init__(
+        self,
+        prior_pulse: float = 0.5,
+        *,
+        ratios: Mapping[Fraction | tuple[int, int] | int, float] | None = None,
+        tolerance: float = 0.08,
+        size: int = 32,
+        recency: int = 128,
+        prior_strength: float = 2.0,
+        reanchor_window: int = 16,
+        reanchor_count: int = 3,
+        reanchor_segment: int = 6,
+        surprise: float = 0.01,
+        level_every: int = 128,
+        tempo_spread: float = 0.35,
+        max_duration: float = MAX_DURATION,
+        block: int = 256,
+    ) -> None:
+        table = {_fraction(r): float(w) for r, w in (ratios or DEFAULT_RATIOS).items()}
+        if Fraction(1) not in table or any(not (r > 0 and w > 0) for r, w in table.items()):
+            raise ValueError("ratios must map positive ratios (1 among them) to positive prior preferences")
+        if not 0.0 < tolerance < 1.0:
+            raise ValueError(f"tolerance is a log-ratio in (0, 1) (got {tolerance!r})")
+        if not 1 <= reanchor_count <= reanchor_segment <= reanchor_window <= recency:
+            raise ValueError("need 1 ≤ reanchor_count ≤ reanchor_segment ≤ reanchor_window ≤ recency")
+        if size < reanchor_window or block < 1 or level_every < 1:
+            raise ValueError("need size ≥ reanchor_window, block ≥ 1 and level_every ≥ 1")
+        if not (prior_strength > 0 and tempo_spread > 0):
+            raise ValueError("prior_strength and tempo_spread must be positive")
+        self.ratios = tuple(sorted(table))
+        self.preferences = [table[r] for r in self.ratios]  # as authored, for persistence
+        self.prior = np.array(self.preferences) / sum(self.preferences)
+        self.tolerance = float(tolerance)
+        self.prior_strength = float(prior_strength)
+        self.reanchor_window = int(reanchor_window)
+        self.reanchor_count = int(reanchor_count)
+        self.reanchor_segment = int(reanchor_segment)
+        self.surprise = float(surprise)
+        self.level_every = int(level_every)
+        self.tempo_spread = float(tempo_spread)
+        self.max_duration = float(max_duration)
+        self.block = int(block)
+        self._values = np.array([float(r) for r in self.ratios])
+        self._index = np.arange(len(self.ratios))
+        self._log_ratios = np.log(self._values)
+        self._log_prior = np.log(self.prior)
+        self._half_inv_var = 0.5 / (self.tolerance / 2.0) ** 2
+        index = {r: j for j, r in enumerate(self.ratios)}
+        # _quotient[j, s]: index of ratio_j / ratio_s (ratio_j heard against a pulse ratio_s
+        # times longer), −1 when that is not in the set; the last row maps "unexplained".
+        self._quotient = np.array(
+            [[index.get(r / q, -1) for q in self.ratios] for r in self.ratios] + [[-1] * len(self.ratios)],
+            dtype=np.intp,
+        )
+        self.size = int(size)
+        # The pulse FIFO, oldest first: starts full of the prior pulse; a re-anchoring restarts
+        # it with the few durations it reinterpreted, and it refills to ``size`` from there.
+        self._fifo = np.full(self.size, check_duration(prior_pulse, max_duration=max_duration))
+        self._labels: deque[int] = deque(maxlen=int(recency))  # ratio index per duration, −1 unexplained
+        self._recent: deque[float] = deque(maxlen=self.reanchor_window)  # for re-anchoring
+        self._recent_trouble: deque[bool] = deque(maxlen=self.reanchor_window)
+        self._since_anchor = 0
+        self._since_level = 0
+        self.rejected = 0
+        self.reanchors = 0
+        self._changed()
+
+    # -- what the model knows ----------------------------------------------------------
+    @property
+    def pulse(self) -> float:
+        """The current pulse: the mean of the FIFO of normalised durations."""
+        return self._pulse
+
+    @property
+    def std(self) -> float:
+        if self._std is None:
+            self._std = float(self._fifo.std())
+        return self._std
+
+    def ratio_distribution(self) -> np.ndarray:
+        """P(ratio) over ``self.ratios``: recent interpretation counts plus the prior."""
+        if self._distribution is None:
+            self._distribution = self._smoothed(self._counts, self.prior_strength)
+            self._cdf = np.cumsum(self._distribution).tolist()
+        return self._distribution
+
+    def _count(self, labels: Iterable[int]) -> np.ndarray:
+        """How often each ratio occurs among ``labels`` (−1, unexplained, is not counted)."""
+        lab = np.fromiter(labels, dtype=np.intp)
+        return np.bincount(lab[lab >= 0], minlength=len(self.ratios))
+
+    def _smoothed(self, counts: np.ndarray, strength: float) -> np.ndarray:
+        """Counts plus ``strength`` pseudo-counts spread by the ratio prior, normalised."""
+        return (counts + strength * self.prior) / (counts.sum() + strength)
+
+    def interpret(self, durations: Iterable[float] | np.ndarray) -> np.ndarray:
+        """Ratio index (into ``self.ratios``) each duration would get now, −1 if none; no learning."""
+        return self._interpret(np.asarray(durations, dtype=float), self._pulse)
+
+    # -- hearing -----------------------------------------------------------------------
+    def update(self, duration: float) -> int:
+        """Hear one duration; returns its ratio index (−1: unexplained). Bad input raises."""
+        d = check_duration(duration, max_duration=self.max_duration)
+        return int(self._absorb(np.array([d]))[0])
+
+    def update_many(self, durations: Iterable[float] | np.ndarray) -> np.ndarray:
+        """Hear durations in order; bad ones are skipped and counted in ``rejected``.
+
+        Returns the ratio index of each accepted duration (−1 unexplained); a re-anchoring
+        revises the indices of the window it reinterpreted.
+        """
+        d = np.asarray(durations, dtype=float).ravel()
+        ok = valid_durations(d, max_duration=self.max_duration)
+        self.rejected += int(d.size - ok.sum())
+        return self._absorb(d[ok])
+
+    def _interpret(self, d: np.ndarray, pulse: float | np.ndarray) -> np.ndarray:
+        residual = (np.log(d) - np.log(pulse))[:, None] - self._log_ratios
+        fit = self._log_prior - self._half_inv_var * residual**2
+        score = np.where(np.abs(residual) <= self.tolerance, fit, -np.inf)
+        best = score.argmax(axis=1)
+        return np.where(np.isfinite(score[np.arange(d.size), best]), best, -1)
+
+    def _pulses_seen(self, d: np.ndarray, labels: np.ndarray) -> np.ndarray:
+        """The pulse each duration would meet if the block were heard with ``labels``."""
+        explained = labels >= 0
+        history = np.concatenate((self._fifo, d[explained] / self._values[labels[explained]]))
+        csum = np.concatenate(([0.0], np.cumsum(history)))
+        end = self._fifo.size + np.cumsum(explained) - explained  # FIFO end before each item
+        start = np.maximum(end - self.size, 0)
+        return (csum[end] - csum[start]) / (end - start)
+
+    def _troubling(self, labels: np.ndarray) -> np.ndarray:
+        """Which durations of a block (heard in order with ``labels``) are trouble for the
+        pulse: unexplained, or explained only by a ratio the recent style makes surprising
+        (probability below ``surprise``, e.g. 3:4 in a piece that never used it — how a
+        tempo change close to a simple ratio, 100 → 130 BPM ≈ 4:3, shows itself)."""
+        # Counts before item k = the window's counts + the block's first k labels − the
+        # labels pushed out of the ``recency`` window meanwhile (oldest first).
+        held, cap, m = len(self._labels), self._labels.maxlen, labels.size
+        oldest = np.fromiter(islice(self._labels, 0, min(m, held)), dtype=np.intp)
+        stream = np.concatenate((oldest, labels))
+        onehot = stream[:, None] == self._index
+        csum = np.vstack((np.zeros(len(self.ratios), dtype=np.intp), np.cumsum(onehot, axis=0)))
+        k = np.arange(m)
+        dropped = np.maximum(held + k - cap, 0)
+        counts = self._counts + csum[oldest.size + k] - csum[oldest.size] - csum[dropped]
+        heard = counts[k, labels] + self.prior_strength * self.prior[labels]
+        probability = heard / (counts.sum(axis=1) + self.prior_strength)
+        return (labels < 0) | (probability < self.surprise)
+
+    def _reanchor_point(self, trouble: np.ndarray) -> int | None:
+        """Index of the first duration of the block that triggers a re-anchoring, if any."""
+        w = self.reanchor_window
+        since = min(self._since_anchor, w)
+        recent = list(self._recent_trouble)
+        previous = np.array(recent[len(recent) - since :], dtype=bool)  # flags since the anchor
+        flags = np.concatenate((previous, trouble))
+        csum = np.concatenate(([0], np.cumsum(flags)))
+        end = previous.size + np.arange(1, trouble.size + 1)  # exclusive window ends
+        start = np.maximum(end - w, 0)
+        count = csum[end] - csum[start]
+        where = np.where(flags, np.arange(flags.size), flags.size)
+        first = np.minimum.accumulate(where[::-1])[::-1][start]  # first trouble in the window
+        hits = np.flatnonzero((count >= self.reanchor_count) & (end - first >= self.reanchor_segment))
+        return int(hits[0]) if hits.size else None
+
+    def _absorb(self, d: np.ndarray) -> np.ndarray:
+        out = np.empty(d.size, dtype=np.intp)
+        i = 0
+        while i < d.size:
+            chunk = d[i : i + self.block]
+            guess = self._interpret(chunk, self._pulse)
+            labels = self._interpret(chunk, self._pulses_seen(chunk, guess)) if chunk.size > 1 else guess
+            wrong = np.flatnonzero(labels != guess)
+            m = int(wrong[0]) + 1 if wrong.size else chunk.size
+            trouble = self._troubling(labels[:m])
+            trigger = self._reanchor_point(trouble)
+            if trigger is not None:
+                m = trigger + 1
+            level_due = self.level_every - self._since_level <= m
+            if level_due:
+                m, trigger = self.level_every - self._since_level, None
+            self._commit(chunk[:m], labels[:m], trouble[:m])
+            out[i : i + m] = labels[:m]
+            i += m
+            if trigger is not None:
+                revised = self._reanchor()
+                k = min(revised.size, i)
+                out[i - k : i] = revised[revised.size - k :]
+            if level_due:
+                shift = self._check_level()
+                if shift is not None:
+                    out[:i] = self._quotient[out[:i], shift]
+        return out
+
+    def _commit(self, d: np.ndarray, labels: np.ndarray, trouble: np.ndarray) -> None:
+        explained = labels >= 0
+        self._fifo = np.concatenate((self._fifo, d[explained] / self._values[labels[explained]]))[-self.size :]
+        self._labels.extend(labels.tolist())
+        self._recent.extend(d.tolist())
+        self._recent_trouble.extend(trouble.tolist())
+        self._since_anchor += d.size
+        self._since_level += d.size
+        self._changed()
+
+    def _reanchor(self) -> np.ndarray:
+        """Choose the pulse that best explains the recent durations; returns their indices.
+
+        Only the durations from the window's first trouble on (the segment) are
+        reinterpreted: those before it fitted the old pulse and belong to the old tempo.
+        """
+        d = np.array(self._recent)[list(self._recent_trouble).index(True) :]
+        log_d = np.log(d)
+        # The segment's own (old-pulse) interpretations are what is in doubt: they do not vote;
+        # and the style must have been heard for a while (a window's worth of pseudo-counts)
+        # before it overrules the authored preferences — a fresh model's few coincidental
+        # explanations under its prior pulse must not pick the metrical level.
+        strength = max(self.prior_strength, float(self.reanchor_window))
+        before = islice(self._labels, 0, len(self._labels) - d.size)
+        log_post = np.log(self._smoothed(self._count(before), strength))
+        unexplained_cost = log_post.min() - 2.0 * self._half_inv_var * self.tolerance**2
+        log_pulse = (log_d[:, None] - self._log_ratios).ravel()  # every d_i / r_j, in logs
+        for _ in range(self.REFINE):
+            residual = log_d[None, :, None] - log_pulse[:, None, None] - self._log_ratios
+            fit = log_post - self._half_inv_var * residual**2
+            score = np.where(np.abs(residual) <= self.tolerance, fit, -np.inf)
+            labels = score.argmax(axis=2)  # (candidate, duration)
+            chosen = np.take_along_axis(score, labels[..., None], axis=2)[..., 0]
+            explained = np.isfinite(chosen)
+            fitted = np.take_along_axis(residual, labels[..., None], axis=2)[..., 0]
+            # Move each candidate to the (log-)mean of the pulses its explanations imply.
+            log_pulse = log_pulse + (fitted * explained).sum(axis=1) / np.maximum(explained.sum(axis=1), 1)
+        # Tempo continuity: a jump of the pulse by log-ratio x costs ½(x / tempo_spread)², so a
+        # segment that fits the beat and the half-bar alike (all quarters) keeps the level.
+        continuity = 0.5 * ((log_pulse - math.log(self._pulse)) / self.tempo_spread) ** 2
+        winner = int((np.where(explained, chosen, unexplained_cost).sum(axis=1) - continuity).argmax())
+        labels = np.where(explained[winner], labels[winner], -1)
+        explained = labels >= 0
+        self._fifo = d[explained] / self._values[labels[explained]]
+        for _ in range(d.size):
+            self._labels.pop()
+        self._labels.extend(labels.tolist())
+        self._since_anchor = 0
+        self.reanchors += 1
+        self._changed()
+        return labels
+
+    def _check_level(self) -> int | None:
+        """Move the pulse to the metrical level at which the heard ratios are simplest.
+
+        The same rhythm reads as quarters-and-eighths (1, 1/2, 2, 3/2) or as dotted-quarters
+        (2/3, 1/3, 4/3, 1); both explain every duration, so only the ratio prior can choose:
+        the level whose reinterpreted recent counts score best under the prior wins, if it
+        beats the current level by ``LEVEL_MARGIN`` nats. Returns the shift used, if any.
+        """
+        self._since_level = 0
+        counts = self._counts
+        mapped = self._quotient[: len(self.ratios)]
+        unexplained_cost = self._log_prior.min() - 2.0 * self._half_inv_var * self.tolerance**2
+        score = counts @ np.where(mapped >= 0, self._log_prior[mapped], unexplained_cost)
+        shift = int(score.argmax())
+        if score[shift] - score[self._values.tolist().index(1.0)] <= self.LEVEL_MARGIN:
+            return None
+        remapped = self._quotient[np.array(self._labels, dtype=np.intp), shift].tolist()
+        self._labels.clear()
+        self._labels.extend(remapped)
+        self._fifo = self._fifo * self._values[shift]
+        self._changed()
+        return shift
+
+    def _changed(self) -> None:
+        self._pulse = float(self._fifo.sum() / self._fifo.size)
+        self._counts = self._count(self._labels)
+        self._std: float | None = None
+        self._distribution: np.ndarray | None = None
+        self._cdf: list[float] = []
+
+    # -- generating --------------------------------------------------------------------
+    def _band(self) -> tuple[float, float]:
+        return self._pulse * math.exp(-self.tolerance), self._pulse * math.exp(self.tolerance)
+
+    def sample_pulse(self, rng: np.random.Generator) -> float:
+        """A base duration: N(pulse, std) kept inside the tolerance band around the pulse."""
+        lo, hi = self._band()
+        return min(max(rng.normal(self._pulse, self.std), lo), hi)
+
+    def sample(self, rng: np.random.Generator) -> float:
+        """Draw a ratio from the ratio distribution, a base duration, and multiply (fig. 11)."""
+        self.ratio_distribution()
+        j = min(bisect.bisect_right(self._cdf, rng.random() * self._cdf[-1]), len(self._cdf) - 1)
+        return self._values[j] * self.sample_pulse(rng)
+
+    def sample_many(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        """``n`` independent draws of :meth:`sample` in one vectorised pass."""
+        cdf = np.cumsum(self.ratio_distribution())
+        j = np.minimum(np.searchsorted(cdf, rng.random(n) * cdf[-1], side="right"), cdf.size - 1)
+        lo, hi = self._band()
+        return self._values[j] * np.clip(rng.normal(self._pulse, self.std, n), lo, hi)
+
+    # -- persistence -------------------------------------------------------------------
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "kind": self.kind,
+            "ratios": [[r.numerator, r.denominator, w] for r, w in zip(self.ratios, self.preferences)],
+            "tolerance": self.tolerance,
+            "recency": self._labels.maxlen,
+            "prior_strength": self.prior_strength,
+            "reanchor_window": self.reanchor_window,
+            "reanchor_count": self.reanchor_count,
+            "reanchor_segment": self.reanchor_segment,
+            "surprise": self.surprise,
+            "level_every": self.level_every,
+            "tempo_spread": self.tempo_spread,
+            "max_duration": self.max_duration,
+            "block": self.block,
+            "size": self.size,
+            "fifo": self._fifo.tolist(),
+            "labels": list(self._labels),
+            "recent": list(self._recent),
+            "recent_trouble": list(self._recent_trouble),
+            "since_anchor": self._since_anchor,
+            "since_level": self._since_level,
+            "rejected": self.rejected,
+            "reanchors": self.reanchors,
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> "LowIntegerRatioModel":
+        try:
+            fifo = np.asarray(data["fifo"], dtype=float)
+            model = cls(
+                1.0,
+                ratios={Fraction(n, m): w for n, m, w in data["ratios"]},
+                tolerance=data["tolerance"],
+                size=data["size"],
+                recency=data["recency"],
+                prior_strength=data["prior_strength"],
+                reanchor_window=data["reanchor_window"],
+                reanchor_count=data["reanchor_count"],
+                reanchor_segment=data["reanchor_segment"],
+                surprise=data["surprise"],
+                level_every=data["level_every"],
+                tempo_spread=data["tempo_spread"],
+                max_duration=data["max_duration"],
+                block=data["block"],
+            )
+            labels, recent = [int(x) for x in data["labels"]], [float(x) for x in data["recent"]]
+            since, rejected, reanchors = int(data["since_anchor"]), int(data["rejected"]), int(data["reanchors"])
+            since_level, trouble = int(data["since_level"]), [bool(x) for x in data["recent_trouble"]]
+        except KeyError as exc:
+            raise ValueError(f"low-integer ratio model state is missing key {exc.args[0]!r}") from None
+        if not (1 <= fifo.size <= model.size and valid_durations(fifo, max_duration=model.max_duration).all()):
+            raise ValueError("low-integer ratio model state: 'fifo' must hold 1 to 'size' positive, finite durations")
+        if any(not -1 <= lab < len(model.ratios) for lab in labels):
+            raise ValueError("low-integer ratio model state: 'labels' must index 'ratios' (or be −1)")
+        model._fifo = fifo
+        model._labels.extend(labels)
+        model._recent.extend(recent)
+        model._recent_trouble.extend(trouble)
+        model._since_anchor, model.rejected, model.reanchors = since, rejected, reanchors
+        model._since_level = since_level
+        model._changed()
+        return model
+
+    def __repr__(self) -> str:
+        return f"LowIntegerRatioModel(pulse={self._pulse:.4g}, ratios={len(self.ratios)}, reanchors={self.reanchors})"
+
+
+def _fraction(r: Fraction | tuple[int, int] | int) -> Fraction:
+    return Fraction(*r) if isinstance(r, tuple) else Fraction(r)

@@ -1,0 +1,129 @@
+"""Duration percept trees (thesis: "exotic duration models": "the ability to share percept
+models between action-tuples, by placing them in percept tree structures ... a coherent
+pulse across action-tuples", whose hierarchy "can directly represent the hierarchical
+structures that are undeniably useful for music").
+
+A :class:`PulsePercept` holds one pulse model (a :class:`~creatures.temporal.durations.
+LowIntegerRatioModel` or :class:`~creatures.temporal.durations.SimpleDurationModel`).
+Every tuple whose Du is ``DoUntil(beat.model)`` samples the same pulse and teaches it
+what it actually did, so the tuples keep one time. Children are metrical levels at fixed
+ratios of their parent — ``beat.subdivide(2)`` is the half-beat, ``beat.group(4)`` the
+bar — whose models are views onto the parent's: sampling one samples the shared pulse at
+that ratio, and a half-beat tuple's durations teach the beat too.
+
+As a percept, ``evaluate(t)`` says how close ``t`` is to a point of the level's grid
+(1 on the grid, falling off between), so the same node serves as a "on the (half-)beat"
+trigger.
+"""
+
+from __future__ import annotations
+
+import math
+from fractions import Fraction
+from typing import Any
+
+import numpy as np
+
+from creatures.behaviour.percept import Percept
+from creatures.temporal.durations import PulseModel
+
+
+class Subdivision:
+    """A pulse model at ``ratio`` × another's pulse (a view: it keeps no state of its own)."""
+
+    def __init__(self, parent: PulseModel, ratio: Fraction) -> None:
+        if not ratio > 0:
+            raise ValueError(f"a metrical level needs a positive ratio (got {ratio})")
+        self.parent = parent
+        self.ratio = Fraction(ratio)
+
+    @property
+    def pulse(self) -> float:
+        return float(self.ratio) * self.parent.pulse
+
+    def sample_pulse(self, rng: np.random.Generator) -> float:
+        return float(self.ratio) * self.parent.sample_pulse(rng)
+
+    sample = sample_pulse  # a subdivision's own duration is its grid step
+
+    def update(self, duration: float) -> None:
+        """Teach the parent: a half-beat that lasted 0.31 s says the beat is 0.62 s."""
+        self.parent.update(duration / float(self.ratio))
+
+    def __repr__(self) -> str:
+        return f"Subdivision({self.ratio} × {self.parent!r})"
+
+
+class PulsePercept(Percept):
+    """A shared pulse in a percept tree: Du's reference ``.model``; Tr's ``evaluate(t)``.
+
+    ``sharpness`` κ shapes the grid saliency exp(κ·(cos 2πφ − 1)) at phase φ of the grid:
+    1 on a grid point, e^(−2κ) half way between. The grid's phase is anchored at time 0
+    (a free-running pulse) until :meth:`entrain` anchors it on a heard onset; children share
+    their root's anchor, so the half-beats fall between the beats.
+    """
+
+    def __init__(
+        self,
+        name: str,
+        model: PulseModel,
+        *,
+        parent: Percept | None = None,
+        sharpness: float = 8.0,
+    ) -> None:
+        if not sharpness > 0:
+            raise ValueError(f"sharpness must be positive (got {sharpness!r})")
+        super().__init__(name, parent=parent)
+        self.model = model
+        self.sharpness = float(sharpness)
+        self._anchor = 0.0
+
+    @property
+    def pulse(self) -> float:
+        return self.model.pulse
+
+    @property
+    def anchor(self) -> float:
+        """The time of a grid point: the root pulse's last entrained onset."""
+        parent = self.parent
+        return parent.anchor if isinstance(parent, PulsePercept) else self._anchor
+
+    def entrain(self, onset: float) -> None:
+        """Put a grid point of this level (and so of the whole pulse tree) at ``onset``."""
+        root = self
+        while isinstance(root.parent, PulsePercept):
+            root = root.parent
+        root._anchor = float(onset)
+
+    def phase(self, t: float) -> float:
+        """Where ``t`` falls between grid points, in [0, 1)."""
+        return ((t - self.anchor) / self.pulse) % 1.0
+
+    def evaluate(self, t: float) -> float:
+        return math.exp(self.sharpness * (math.cos(2.0 * math.pi * self.phase(t)) - 1.0))
+
+    def level(self, ratio: Fraction | int, name: str | None = None) -> "PulsePercept":
+        """A child metrical level at ``ratio`` × this pulse (e.g. 1/2, 3 or 4)."""
+        ratio = Fraction(ratio)
+        return PulsePercept(
+            name or f"{self.name}×{ratio}",
+            Subdivision(self.model, ratio),
+            parent=self,
+            sharpness=self.sharpness,
+        )
+
+    def subdivide(self, n: int, name: str | None = None) -> "PulsePercept":
+        """The level ``n`` times faster: ``beat.subdivide(2)`` is the half-beat."""
+        return self.level(Fraction(1, n), name or f"{self.name}/{n}")
+
+    def group(self, n: int, name: str | None = None) -> "PulsePercept":
+        """The level ``n`` times slower: ``beat.group(4)`` is a bar of four."""
+        return self.level(Fraction(n), name or f"{self.name}*{n}")
+
+    def to_dict(self) -> dict[str, Any]:
+        data = {**super().to_dict(), "pulse": self.pulse, "anchor": self.anchor, "sharpness": self.sharpness}
+        if isinstance(self.model, Subdivision):
+            data["ratio"] = [self.model.ratio.numerator, self.model.ratio.denominator]
+        elif hasattr(self.model, "to_dict"):
+            data["model"] = self.model.to_dict()
+        return data

@@ -1,0 +1,223 @@
+"""Duration models (thesis: "temporal models", figure 11 low-integer-ratio duration models).
+
+The rhythm fixture: notes of 1, ½, 2 and 1½ beats (quarter, eighth, half, dotted quarter)
+with each inter-onset interval jittered uniformly by ±5 %, rendered as onset times and turned
+back into intervals by :func:`inter_onset_intervals` (the path a MIDI or audio listener uses).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from fractions import Fraction
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from creatures.behaviour import ActionTuple, DoUntil, WhateverPercept
+from creatures.behaviour.action_tuple import Action
+from creatures.temporal.durations import LowIntegerRatioModel, SimpleDurationModel
+from creatures.temporal.onsets import inter_onset_intervals, merge_onsets, onsets_from_intervals
+
+NOTES = np.array([1.0, 0.5, 2.0, 1.5])  # in beats: quarter, eighth, half, dotted quarter
+WEIGHTS = np.array([0.4, 0.3, 0.15, 0.15])
+JITTER = 0.05
+SEEDS = range(8)
+
+
+def rhythm(rng: np.random.Generator, n: int, bpm: float) -> tuple[np.ndarray, np.ndarray]:
+    """(intervals in seconds, nominal lengths in beats) of ``n`` jittered notes."""
+    beats = NOTES[rng.choice(NOTES.size, size=n, p=WEIGHTS)]
+    onsets = onsets_from_intervals(beats * 60.0 / bpm * rng.uniform(1 - JITTER, 1 + JITTER, n))
+    return inter_onset_intervals(onsets), beats
+
+
+def ratio_values(model: LowIntegerRatioModel, labels: np.ndarray) -> np.ndarray:
+    values = np.array([float(r) for r in model.ratios] + [np.nan])
+    return values[labels]
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_learns_the_beat_and_hears_each_note_as_its_ratio(seed):
+    rng = np.random.default_rng(seed)
+    intervals, beats = rhythm(rng, 199, bpm=100.0)  # 200 onsets
+    model = LowIntegerRatioModel(prior_pulse=0.5)
+    labels = model.update_many(intervals)
+    beat = 0.6
+    # The pulse is the beat itself (not the eighth or dotted quarter the first bars might suggest).
+    assert model.pulse == pytest.approx(beat, rel=0.02)
+    heard = ratio_values(model, labels)
+    assert np.mean(heard == beats) >= 0.95
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_follows_a_tempo_change_within_sixteen_beats(seed):
+    rng = np.random.default_rng(seed)
+    model = LowIntegerRatioModel(prior_pulse=0.5)
+    model.update_many(rhythm(rng, 199, bpm=100.0)[0])
+    assert model.pulse == pytest.approx(0.6, rel=0.02)
+    intervals, beats = rhythm(rng, 60, bpm=130.0)
+    new_beat = 60.0 / 130.0
+    elapsed = 0.0
+    for d, b in zip(intervals, beats):
+        model.update(d)
+        elapsed += b
+        if elapsed >= 16.0:  # from 16 beats after the change on, the pulse is the new beat
+            assert model.pulse == pytest.approx(new_beat, rel=0.02), f"{elapsed} beats after the change"
+    assert model.reanchors >= 2  # the first anchoring and the tempo change
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_follows_a_gradual_accelerando(seed):
+    """Consistent drift (100 → 140 BPM over 100 notes) is followed by the FIFO and, when it
+    falls behind, by re-anchoring — without ever losing the metrical level."""
+    rng = np.random.default_rng(seed)
+    bpm = np.concatenate((np.full(100, 100.0), np.linspace(100.0, 140.0, 100), np.full(60, 140.0)))
+    beats = NOTES[rng.choice(NOTES.size, size=bpm.size, p=WEIGHTS)]
+    intervals = beats * 60.0 / bpm * rng.uniform(1 - JITTER, 1 + JITTER, bpm.size)
+    model = LowIntegerRatioModel()
+    error = []
+    for d, tempo in zip(intervals, bpm):
+        model.update(d)
+        error.append(model.pulse / (60.0 / tempo) - 1.0)
+    error = np.abs(error)
+    assert error[100:].max() < 0.1  # lags the ramp by at most the tolerance, never by a level
+    assert error[-20:].max() < 0.02  # and settles on the final beat
+
+
+def test_samples_lie_on_the_learned_lattice_with_the_heard_ratio_histogram():
+    rng = np.random.default_rng(7)
+    model = LowIntegerRatioModel(prior_pulse=0.5)
+    intervals, beats = rhythm(rng, 400, bpm=100.0)
+    model.update_many(intervals)
+    samples = model.sample_many(rng, 5000)
+    scalar = np.array([model.sample(rng) for _ in range(5000)])
+    lattice = np.array([float(r) for r in model.ratios]) * model.pulse
+    for drawn in (samples, scalar):
+        residual = np.log(drawn[:, None] / lattice)
+        nearest = np.abs(residual).argmin(axis=1)
+        off = residual[np.arange(drawn.size), nearest]
+        assert np.abs(off).max() <= model.tolerance + 1e-12
+        # The spread around the lattice is the heard jitter (uniform ±5 %: sd ≈ 2.9 %).
+        assert 0.015 < off.std() < 0.045
+        # Ratio histogram of the samples vs the last `recency` notes heard (in beats).
+        recent = beats[-model.to_dict()["recency"] :]
+        heard = np.array([np.mean(recent == n) for n in NOTES])
+        drawn_beats = np.array([float(model.ratios[j]) for j in nearest])
+        produced = np.array([np.mean(drawn_beats == n) for n in NOTES])
+        assert 0.5 * np.abs(heard - produced).sum() + 0.5 * (1 - produced.sum()) <= 0.1
+
+
+def test_figure_11_two_point_one_is_twice_the_pulse():
+    model = LowIntegerRatioModel(prior_pulse=1.0, reanchor_window=16)
+    index = model.update(2.1)
+    assert model.ratios[index] == Fraction(2)
+    assert model.to_dict()["fifo"][-1] == pytest.approx(1.05)
+    # Asking (without learning) how other durations would be heard:
+    heard = [model.ratios[j] if j >= 0 else None for j in model.interpret([0.5, 1.52, 1.2, 3.1])]
+    assert heard == [Fraction(1, 2), Fraction(3, 2), None, Fraction(3)]
+
+
+def test_update_many_is_update_in_a_loop():
+    rng = np.random.default_rng(3)
+    first, _ = rhythm(rng, 150, bpm=100.0)
+    second, _ = rhythm(rng, 150, bpm=130.0)
+    stream = np.concatenate((first, second))
+    batch, scalar = LowIntegerRatioModel(block=64), LowIntegerRatioModel()
+    batch.update_many(stream)
+    for d in stream:
+        scalar.update(d)
+    a, b = batch.to_dict(), scalar.to_dict()
+    assert a["labels"] == b["labels"] and a["reanchors"] == b["reanchors"] >= 2
+    assert np.allclose(a["fifo"], b["fifo"], rtol=1e-12)
+
+
+@pytest.mark.parametrize("bad", [0.0, -1.0, math.nan, math.inf, -math.inf, 7200.0])
+def test_update_rejects_bad_durations_loudly(bad):
+    for model in (LowIntegerRatioModel(), SimpleDurationModel(1.0, 0.1)):
+        before = model.to_dict()
+        with pytest.raises(ValueError, match="duration"):
+            model.update(bad)
+        assert model.to_dict() == before  # nothing learnt, nothing lost
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(
+        st.one_of(
+            st.floats(0.05, 5.0),
+            st.sampled_from([0.0, -1.0, math.nan, math.inf, -math.inf, 7200.0]),
+        ),
+        max_size=300,
+    )
+)
+def test_update_many_skips_and_counts_bad_durations_and_never_diverges(stream):
+    stream = np.array(stream, dtype=float)
+    good = stream[np.isfinite(stream) & (stream > 0) & (stream <= 3600)]
+    ratio, simple = LowIntegerRatioModel(prior_pulse=0.5), SimpleDurationModel(0.5, 0.1)
+    labels = ratio.update_many(stream)
+    accepted = simple.update_many(stream)
+    assert labels.size == accepted == good.size
+    assert ratio.rejected == simple.rejected == stream.size - good.size
+    lo = min([0.5] + list(good / 4)) * math.exp(-ratio.tolerance)
+    hi = max([0.5] + list(good * 4)) * math.exp(ratio.tolerance)
+    assert lo <= ratio.pulse <= hi
+    assert math.isfinite(simple.pulse) and simple.std > 0
+    rng = np.random.default_rng(0)
+    assert np.isfinite(ratio.sample_many(rng, 100)).all() and ratio.sample(rng) > 0
+    assert simple.sample(rng) >= simple.min_duration
+
+
+def test_json_round_trip_is_exact():
+    rng = np.random.default_rng(11)
+    model = LowIntegerRatioModel()
+    model.update_many(np.concatenate((rhythm(rng, 120, 100.0)[0], [0.0, math.nan])))
+    data = json.loads(json.dumps(model.to_dict()))
+    again = LowIntegerRatioModel.from_dict(data)
+    assert again.to_dict() == model.to_dict()
+    follow = rhythm(rng, 40, 130.0)[0]
+    assert np.array_equal(again.update_many(follow), model.update_many(follow))
+    assert again.pulse == model.pulse
+    simple = SimpleDurationModel(2.0, 0.5)
+    simple.update_many([1.0, 3.0, -2.0])
+    assert SimpleDurationModel.from_dict(json.loads(json.dumps(simple.to_dict()))).to_dict() == simple.to_dict()
+
+
+def test_state_missing_a_key_is_a_clear_error():
+    data = LowIntegerRatioModel().to_dict()
+    del data["fifo"]
+    with pytest.raises(ValueError, match="'fifo'"):
+        LowIntegerRatioModel.from_dict(data)
+
+
+def test_do_until_samples_and_teaches_the_shared_model(rng):
+    model = LowIntegerRatioModel(prior_pulse=0.5)
+    model.update_many(rhythm(np.random.default_rng(1), 100, 100.0)[0])
+    tuples = [ActionTuple(f"t{i}", WhateverPercept(), Action("play"), DoUntil(model), 1.0) for i in range(2)]
+    planned = []
+    for k, tp in enumerate(tuples):
+        tp.start(10.0 * k, rng)
+        planned.append(tp.do_until.planned)
+        tp.stop(10.0 * k + 1.2)
+    ratios = np.array(planned) / model.pulse
+    assert np.all(np.min(np.abs(np.log(ratios[:, None] / [0.5, 1, 1.5, 2])), axis=1) <= model.tolerance)
+    assert model.to_dict()["labels"][-2:] == [model.ratios.index(Fraction(2))] * 2  # 1.2 s = 2 beats
+
+
+def test_simple_duration_model_learns_around_five_seconds(rng):
+    model = SimpleDurationModel(2.0, 0.5, size=16, prior_weight=0.1)
+    heard = rng.normal(5.0, 0.2, 64)
+    for d in heard:
+        model.update(d)
+    assert model.pulse == pytest.approx(0.9 * heard[-16:].mean() + 0.1 * 2.0)  # FIFO pooled with the prior
+    assert (model.sample_many(rng, 1000) >= model.min_duration).all()
+
+
+def test_onsets_merge_chords_and_give_positive_intervals():
+    onsets = [0.0, 0.004, 0.6, 0.6, 1.2, 0.9]
+    assert np.allclose(merge_onsets(onsets, min_gap=0.02), [0.0, 0.6, 0.9, 1.2])
+    assert np.allclose(inter_onset_intervals(onsets, min_gap=0.02), [0.6, 0.3, 0.3])
+    with pytest.raises(ValueError, match="onset 1"):
+        inter_onset_intervals([0.0, math.nan])

@@ -1,0 +1,135 @@
+"""Do-untils with forward transition models (thesis: "forward transition models", fig. 10):
+recording what follows what, priming selection with it, and fission on value contrast."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from creatures.behaviour import Action, ActionTuple, DoUntil, WhateverPercept
+from creatures.behaviour.action_group import ActionGroup
+from creatures.temporal.transitions import LikelySuccessor, Succession, TransitionDoUntil, fission, follow
+
+
+def tuples(succession: Succession, names: str = "ABC", *, strength: float = 1.0) -> list[ActionTuple]:
+    return [
+        follow(ActionTuple(n, WhateverPercept(), Action(n), DoUntil(0.5), 1.0), succession, strength=strength)
+        for n in names
+    ]
+
+
+def recorded_starts(group: ActionGroup) -> list[str]:
+    """The names of the tuples the group starts from now on, in order (from its events)."""
+    started: list[str] = []
+
+    def record(event: dict) -> None:
+        if event["event"] == "selection" and not event.get("kept"):
+            started.append(event["tuple"])
+
+    group.on_event = record
+    return started
+
+
+def selections(group: ActionGroup, seconds: float, dt: float = 0.1) -> list[str]:
+    started = recorded_starts(group)
+    for k in range(int(seconds / dt)):
+        group.tick(k * dt)
+    return started
+
+
+def successors(sequence: list[str], of: str) -> list[str]:
+    return [b for a, b in zip(sequence, sequence[1:]) if a == of]
+
+
+def test_the_du_records_every_transition_the_group_makes():
+    succession = Succession(window=1000)
+    group = ActionGroup("g", tuples(succession), rng=np.random.default_rng(0))
+    seq = selections(group, 30.0)
+    assert len(seq) > 20
+    model = succession.model
+    for i in "ABC":
+        for j in "ABC":
+            expected = sum(1 for a, b in zip(seq, seq[1:]) if (a, b) == (i, j))
+            assert model.counts[model.index(i), model.index(j)] == expected
+    assert succession.current == seq[-1]
+
+
+def test_likely_successors_are_primed():
+    succession = Succession(window=10, alpha=0.1)
+    a, b, c = tuples(succession)
+    for _ in range(10):
+        succession.model.record("A", "B")
+    succession.observe("A", 1.0)  # A has played and is not active: what follows A is primed
+    assert b.trigger.evaluate(0.0) > 1.0 > c.trigger.evaluate(0.0)
+    assert b.trigger.evaluate(0.0) == pytest.approx(3 * (1 + 0.1) / (1 + 0.3))
+    a.start(1.0, np.random.default_rng(0))  # while A plays again, A's predecessor (A) still primes...
+    assert succession.source(1.2) == "A" and succession.previous == "A"
+    b.start(1.5, np.random.default_rng(0))
+    assert succession.source(1.7) == "A"  # ...and while B plays, what follows A stays primed
+    assert succession.source(2.0) == "B"  # B's Du is done (0.5 s): now what follows B is primed
+
+
+def first_successor(group: ActionGroup, of: str, seconds: float = 30.0, dt: float = 0.1) -> str | None:
+    """What the group chose right after ``of`` first ended (None if it never did)."""
+    started = recorded_starts(group)
+    for k in range(int(seconds / dt)):
+        group.tick(k * dt)
+        after = successors(started, of)
+        if after:
+            return after[0]
+    return None
+
+
+def test_priming_makes_what_usually_follows_follow_more_often():
+    shares = {}
+    for strength in (0.0, 1.0):
+        chosen = []
+        for seed in range(60):
+            succession = Succession(window=10)
+            group = ActionGroup("g", tuples(succession, strength=strength), rng=np.random.default_rng(seed))
+            for _ in range(10):  # a history in which B followed A
+                succession.model.record("A", "B")
+            chosen.append(first_successor(group, "A"))
+        shares[strength] = chosen.count("B") / len(chosen)
+    assert shares[0.0] < 0.5  # unprimed: B is one of three
+    assert shares[1.0] > 0.65  # primed by p(A → B) ≈ 0.85: what usually happens next
+
+
+def fissionable(values: dict[str, float]) -> tuple[Succession, list[ActionTuple]]:
+    succession = Succession(window=10)
+    tps = tuples(succession)
+    for _ in range(4):
+        for j, v in values.items():
+            succession.model.record("A", j, v)
+    return succession, tps
+
+
+def test_fission_splits_off_the_valuable_transition():
+    succession, (a, b, c) = fissionable({"B": 1.0, "C": 0.0})
+    child = fission(a, succession)
+    assert child is not None and child.name == "A→B"
+    assert child.value.to_float() == pytest.approx(1.0)
+    assert child.action is a.action and child.do_until is not a.do_until
+    assert isinstance(child.do_until, TransitionDoUntil) and isinstance(child.trigger, LikelySuccessor)
+    model = succession.model
+    assert model.probability("A→B", "B") > model.probability("A", "B")
+    assert fission(a, succession) is None  # A' exists already
+
+
+def test_no_fission_without_value_contrast():
+    succession, (a, _, _) = fissionable({"B": 0.5, "C": 0.5})
+    assert fission(a, succession) is None
+    with pytest.raises(ValueError, match="follow"):
+        fission(ActionTuple("X", WhateverPercept(), Action("X"), DoUntil(1.0), 1.0), succession)
+
+
+def test_a_fissioned_tuple_tends_to_lead_to_its_successor():
+    chosen = []
+    for seed in range(40):
+        succession, tps = fissionable({"B": 1.0, "C": 0.0})
+        group = ActionGroup("g", tps, rng=np.random.default_rng(seed), alpha=0.0)
+        child = fission(tps[0], succession)
+        group.add(child)
+        chosen.append(first_successor(group, child.name))
+    assert chosen.count(None) < 10
+    assert chosen.count("B") / len(chosen) > 0.5  # chance would be one in four
