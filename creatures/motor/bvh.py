@@ -1,0 +1,265 @@
+"""BVH motion-capture files in and out (thesis "re-editing animation data").
+
+Source animations arrive as BVH (the common text format: a HIERARCHY of joints with
+OFFSETs and CHANNELS, then MOTION frames), become a :class:`Skeleton` and key-frame
+poses, and paths the creature actually took can be written back out for an animator to
+edit and reload (figure 31).
+
+Rotation channels are Euler angles in degrees applied in the listed order (intrinsic:
+``Zrotation Xrotation Yrotation`` means ``Rz·Rx·Ry``), converted by
+``scipy.spatial.transform.Rotation``. Position channels are read on the root only. An
+``End Site`` becomes a joint named ``<parent>_end`` and an end-effector.
+
+Malformed files raise :class:`BVHError`, naming the file and line.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from creatures.motor.pose import BodyPose, PoseSet, estimate_velocities
+from creatures.motor.skeleton import Skeleton, subtree_sizes
+
+_AXES = {"Xrotation": "X", "Yrotation": "Y", "Zrotation": "Z"}
+_POSITIONS = ("Xposition", "Yposition", "Zposition")
+
+
+class BVHError(ValueError):
+    """A BVH file is malformed; the message starts ``file:line:``."""
+
+
+@dataclass
+class _Joint:
+    name: str
+    parent: int
+    offset: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    channels: list[str] = field(default_factory=list)
+    column: int = 0
+    end_site: bool = False
+
+
+class _Tokens:
+    """Whitespace tokens with their line numbers, so every error can say where."""
+
+    def __init__(self, text: str, source: str) -> None:
+        self.source = source
+        self.items = [(tok, n) for n, line in enumerate(text.splitlines(), start=1) for tok in line.split()]
+        self.pos = 0
+
+    @property
+    def line(self) -> int:
+        if self.pos < len(self.items):
+            return self.items[self.pos][1]
+        return self.items[-1][1] if self.items else 1
+
+    def error(self, message: str, line: int | None = None) -> BVHError:
+        return BVHError(f"{self.source}:{line or self.line}: {message}")
+
+    def next(self, what: str) -> str:
+        if self.pos >= len(self.items):
+            raise self.error(f"unexpected end of file, expected {what}")
+        token = self.items[self.pos][0]
+        self.pos += 1
+        return token
+
+    def expect(self, word: str) -> None:
+        line = self.line
+        token = self.next(repr(word))
+        if token != word:
+            raise self.error(f"expected {word!r}, found {token!r}", line)
+
+    def number(self, what: str) -> float:
+        line = self.line
+        token = self.next(what)
+        try:
+            return float(token)
+        except ValueError:
+            raise self.error(f"expected a number for {what}, found {token!r}", line) from None
+
+    def peek(self) -> str | None:
+        return self.items[self.pos][0] if self.pos < len(self.items) else None
+
+
+def _parse_joint(tokens: _Tokens, joints: list[_Joint], name: str, parent: int, column: int) -> int:
+    """Parse one ``{ ... }`` joint body (recursively); returns the next channel column."""
+    index = len(joints)
+    joint = _Joint(name, parent, column=column)
+    joints.append(joint)
+    tokens.expect("{")
+    tokens.expect("OFFSET")
+    joint.offset = [tokens.number(f"{name} OFFSET") for _ in range(3)]
+    if tokens.peek() == "CHANNELS":
+        tokens.next("CHANNELS")
+        line = tokens.line
+        count = tokens.number(f"{name} channel count")
+        if count != int(count) or not 0 <= count <= 6:
+            raise tokens.error(f"joint {name!r}: channel count must be 0..6, found {count:g}", line)
+        for _ in range(int(count)):
+            line = tokens.line
+            channel = tokens.next("a channel name")
+            if channel not in _AXES and channel not in _POSITIONS:
+                raise tokens.error(f"joint {name!r}: unknown channel {channel!r}", line)
+            if channel in _POSITIONS and parent >= 0:
+                raise tokens.error(f"joint {name!r}: position channels are only supported on the root", line)
+            joint.channels.append(channel)
+        column += len(joint.channels)
+    while True:
+        line = tokens.line
+        word = tokens.next("JOINT, End Site or '}'")
+        if word == "}":
+            return column
+        if word == "JOINT":
+            column = _parse_joint(tokens, joints, tokens.next("a joint name"), index, column)
+        elif word == "End":
+            tokens.expect("Site")
+            tokens.expect("{")
+            tokens.expect("OFFSET")
+            offset = [tokens.number(f"{name} End Site OFFSET") for _ in range(3)]
+            tokens.expect("}")
+            joints.append(_Joint(f"{name}_end", index, offset, end_site=True))
+        else:
+            raise tokens.error(f"expected JOINT, End Site or '}}' in joint {name!r}, found {word!r}", line)
+
+
+def load_bvh_set(path: str | os.PathLike) -> PoseSet:
+    """Read a BVH file as a :class:`PoseSet` (source = file stem) ready for a motor graph."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise BVHError(f"{path}: cannot read BVH file ({exc})") from None
+    return parse_bvh(text, source=str(path), name=path.stem)
+
+
+def load_bvh(path: str | os.PathLike) -> tuple[Skeleton, list[BodyPose]]:
+    """Read a BVH file as its skeleton and one :class:`BodyPose` per frame."""
+    poses = load_bvh_set(path)
+    return poses.skeleton, [poses.pose(i) for i in range(len(poses))]
+
+
+def parse_bvh(text: str, *, source: str = "<bvh>", name: str = "bvh") -> PoseSet:
+    """Parse BVH text; ``source`` names it in errors, ``name`` becomes the pose source."""
+    tokens = _Tokens(text, source)
+    tokens.expect("HIERARCHY")
+    tokens.expect("ROOT")
+    joints: list[_Joint] = []
+    columns = _parse_joint(tokens, joints, tokens.next("the root joint name"), -1, 0)
+    tokens.expect("MOTION")
+    tokens.expect("Frames:")
+    line = tokens.line
+    frames = tokens.number("the frame count")
+    if frames != int(frames) or frames < 1:
+        raise tokens.error(f"frame count must be a positive integer, found {frames:g}", line)
+    tokens.expect("Frame")
+    tokens.expect("Time:")
+    line = tokens.line
+    frame_time = tokens.number("the frame time")
+    if not frame_time > 0.0:
+        raise tokens.error(f"frame time must be positive, found {frame_time:g}", line)
+    if tokens.peek() is None:
+        raise tokens.error(f"'Frames: {int(frames)}' declared but the file has no frame rows")
+    motion_line = tokens.line
+    rows = text.splitlines()[motion_line - 1 :]
+    data = np.zeros((int(frames), columns))
+    count = 0
+    for offset, row in enumerate(rows):
+        if not row.strip():
+            continue
+        if count >= frames:
+            raise BVHError(f"{source}:{motion_line + offset}: more frame rows than 'Frames: {int(frames)}'")
+        try:
+            values = [float(x) for x in row.split()]
+        except ValueError:
+            raise BVHError(f"{source}:{motion_line + offset}: frame row contains a non-number") from None
+        if len(values) != columns:
+            raise BVHError(
+                f"{source}:{motion_line + offset}: frame row has {len(values)} values, the hierarchy declares {columns} channels"
+            )
+        data[count] = values
+        count += 1
+    if count != frames:
+        raise BVHError(f"{source}:{len(text.splitlines())}: file ends after {count} of {int(frames)} frames")
+    return _to_poses(joints, data, frame_time, name)
+
+
+def _to_poses(joints: list[_Joint], data: np.ndarray, frame_time: float, name: str) -> PoseSet:
+    parents = np.array([j.parent for j in joints])
+    skeleton = Skeleton(
+        names=tuple(j.name for j in joints),
+        parents=parents,
+        offsets=np.array([j.offset for j in joints]),
+        masses=subtree_sizes(parents),
+        end_effectors=tuple(j.name for j in joints if j.end_site),
+    )
+    frames = len(data)
+    rotations = np.zeros((frames, len(joints), 4))
+    rotations[..., 0] = 1.0
+    roots = np.zeros((frames, 3))
+    for index, joint in enumerate(joints):
+        axes = "".join(_AXES[c] for c in joint.channels if c in _AXES)
+        angles = np.stack([data[:, joint.column + k] for k, c in enumerate(joint.channels) if c in _AXES], axis=1) if axes else None
+        if axes:
+            xyzw = Rotation.from_euler(axes, angles, degrees=True).as_quat()
+            rotations[:, index] = xyzw[:, [3, 0, 1, 2]]
+        for k, channel in enumerate(joint.channels):
+            if channel in _POSITIONS:
+                roots[:, _POSITIONS.index(channel)] = data[:, joint.column + k]
+    times = np.arange(frames) * frame_time
+    return PoseSet(
+        skeleton=skeleton,
+        rotations=rotations,
+        velocities=estimate_velocities(rotations, times),
+        roots=roots,
+        times=times,
+        source_ids=np.zeros(frames, dtype=np.int64),
+        sources=[name],
+        labels=[frozenset()] * frames,
+    )
+
+
+def save_bvh(path: str | os.PathLike, poses: PoseSet, *, frame_time: float | None = None) -> None:
+    """Write poses (evenly spaced, ``frame_time`` apart) as BVH with ZXY Euler channels.
+
+    End-site joints (childless joints named ``*_end``) are written as ``End Site``. This is
+    how a path through the graph goes back to the animator.
+    """
+    skeleton = poses.skeleton
+    children: dict[int, list[int]] = {j: [] for j in range(skeleton.joint_count)}
+    for j, p in enumerate(skeleton.parents):
+        if p >= 0:
+            children[int(p)].append(j)
+    site = {j for j in range(skeleton.joint_count) if not children[j] and skeleton.parents[j] >= 0 and skeleton.names[j].endswith("_end")}
+    lines = ["HIERARCHY"]
+    order: list[int] = []
+
+    def write(j: int, depth: int) -> None:
+        pad = "  " * depth
+        offset = " ".join(f"{x:.6f}" for x in skeleton.offsets[j])
+        if j in site:
+            lines.extend([f"{pad}End Site", f"{pad}{{", f"{pad}  OFFSET {offset}", f"{pad}}}"])
+            return
+        keyword = "ROOT" if skeleton.parents[j] < 0 else "JOINT"
+        channels = "6 Xposition Yposition Zposition" if skeleton.parents[j] < 0 else "3"
+        lines.extend([f"{pad}{keyword} {skeleton.names[j]}", f"{pad}{{", f"{pad}  OFFSET {offset}", f"{pad}  CHANNELS {channels} Zrotation Xrotation Yrotation"])
+        order.append(j)
+        for child in children[j]:
+            write(child, depth + 1)
+        lines.append(f"{pad}}}")
+
+    roots = [j for j in range(skeleton.joint_count) if skeleton.parents[j] < 0]
+    if len(roots) != 1:
+        raise ValueError(f"BVH needs exactly one root joint (skeleton has {len(roots)})")
+    write(roots[0], 0)
+    if frame_time is None:
+        frame_time = float(np.median(np.diff(poses.times))) if len(poses) > 1 else 1.0 / 30.0
+    angles = Rotation.from_quat(poses.rotations[:, order][..., [1, 2, 3, 0]].reshape(-1, 4)).as_euler("ZXY", degrees=True)
+    angles = angles.reshape(len(poses), len(order) * 3)
+    table = np.concatenate((poses.roots, angles), axis=1)
+    lines += ["MOTION", f"Frames: {len(poses)}", f"Frame Time: {frame_time:.8f}"]
+    lines += [" ".join(f"{x:.6f}" for x in row) for row in table]
+    Path(path).write_text("\n".join(lines) + "\n", encoding="utf-8")

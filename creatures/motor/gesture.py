@@ -1,0 +1,292 @@
+"""Gesture models over motor-graph node identities (thesis "learning to chase your tail",
+"gesture graph generation", figure 32; reused by *listen* for notes).
+
+A body's recent history is a :class:`BodyMemory` of visited graph nodes. Because the motor
+system generated those movements, the nodes already categorise them: a gesture model need
+only look at node *identities* ("node A, moving to node B, moving to node C"), not at
+hundreds of joint angles. :class:`GestureModel` is an augmented-Markov-style model of them:
+
+* **learning** aligns each new sequence with the best-matching chain already in the model
+  ("23456" is explained by "2345", so only "6" is added) and creates fresh states for poses
+  repeated within one sequence, so loops do not tangle;
+* **confidence** of a state rises with how many sequences visited it and falls with the
+  entropy of its outgoing transitions (being part of a tangled mess);
+* **segmentation** grows the *core* from the most confident state forwards and backwards
+  along the most probable transitions until confidence stays below a threshold for two
+  steps;
+* **execution** samples (or takes the core of) the model as an executable
+  :class:`~creatures.motor.programs.MotorProgram`.
+
+States may also carry note references, as in *listen*, where heard notes are modelled with
+the same machinery and played out through their BodyPose references.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any, Iterable, Sequence
+
+import numpy as np
+
+from creatures.motor.programs import MotorProgram, Statement
+
+
+@dataclass(frozen=True)
+class Observation:
+    """One entry of a BodyMemory: a motor-graph node reached at ``time`` (maybe with a note)."""
+
+    node: int
+    time: float
+    note: Any = None
+
+
+class BodyMemory:
+    """A bounded record of the graph nodes the body passed through, oldest first."""
+
+    def __init__(self, capacity: int = 256) -> None:
+        self._items: deque[Observation] = deque(maxlen=capacity)
+
+    def record(self, node: int, time: float, note: Any = None) -> None:
+        if self._items and self._items[-1].node == node:
+            return  # staying on a node is not a new transition
+        self._items.append(Observation(int(node), float(time), note))
+
+    def since(self, time: float) -> list[Observation]:
+        return [o for o in self._items if o.time >= time]
+
+    def __iter__(self):
+        return iter(self._items)
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+
+@dataclass
+class GestureNode:
+    """A model state: which motor node it stands for, how often it was seen, its timing."""
+
+    node: int
+    visits: int = 0
+    dwell: float = 0.0  # mean seconds until the next observation
+    notes: list[Any] = field(default_factory=list)
+    out: dict[int, int] = field(default_factory=dict)  # next state -> count
+
+    def probabilities(self) -> dict[int, float]:
+        total = sum(self.out.values())
+        return {s: c / total for s, c in self.out.items()} if total else {}
+
+    def entropy(self) -> float:
+        """Entropy (bits) of the outgoing transitions, with transitions seen only once pooled
+        into one "anywhere" outcome: uncorrelated noise is one kind of thing, not many."""
+        counts = [c for c in self.out.values() if c > 1]
+        anywhere = sum(c for c in self.out.values() if c == 1)
+        counts += [anywhere] if anywhere else []
+        total = sum(counts)
+        return -sum(c / total * math.log2(c / total) for c in counts) if total else 0.0
+
+
+class GestureModel:
+    """Augmented-Markov model over motor node identities, learnt from BodyMemories."""
+
+    def __init__(self, *, entropy_weight: float = 0.25, threshold: float = 0.25) -> None:
+        self.states: list[GestureNode] = []
+        self.sequences = 0
+        self.entropy_weight = entropy_weight
+        self.threshold = threshold
+
+    # --- learning -------------------------------------------------------------------------
+
+    def learn(self, observations: Iterable[Observation | int]) -> list[int]:
+        """Add one sequence; returns the state each observation was assigned to."""
+        items = [o if isinstance(o, Observation) else Observation(int(o), float(i)) for i, o in enumerate(observations)]
+        if not items:
+            return []
+        nodes = [o.node for o in items]
+        states = self._align(nodes)
+        for k, (state, obs) in enumerate(zip(states, items)):
+            g = self.states[state]
+            g.visits += 1
+            if obs.note is not None:
+                g.notes.append(obs.note)
+            if k + 1 < len(items):
+                nxt = states[k + 1]
+                g.out[nxt] = g.out.get(nxt, 0) + 1
+                gap = items[k + 1].time - obs.time
+                g.dwell += (gap - g.dwell) / g.visits
+        self.sequences += 1
+        return states
+
+    def _new(self, node: int) -> int:
+        self.states.append(GestureNode(node))
+        return len(self.states) - 1
+
+    def _match_lengths(self, nodes: Sequence[int]) -> dict[tuple[int, int], int]:
+        """``(i, s) -> n``: states from ``s`` follow transitions matching ``nodes[i:i+n]``."""
+        length: dict[tuple[int, int], int] = {}
+        for i in range(len(nodes) - 1, -1, -1):
+            for s, g in enumerate(self.states):
+                if g.node != nodes[i]:
+                    continue
+                best = 0
+                if i + 1 < len(nodes):
+                    for t in g.out:
+                        best = max(best, length.get((i + 1, t), 0))
+                length[(i, s)] = 1 + best
+        return length
+
+    def _align(self, nodes: Sequence[int]) -> list[int]:
+        """Assign states: the longest chain the model already has, then extend both ways."""
+        length = self._match_lengths(nodes)
+        assigned: list[int | None] = [None] * len(nodes)
+        if length:
+            (i, s), n = max(length.items(), key=lambda item: (item[1], self.states[item[0][1]].visits))
+            assigned[i] = s
+            for k in range(i + 1, i + n):
+                prev = self.states[assigned[k - 1]]
+                assigned[k] = max(
+                    (t for t in prev.out if length.get((k, t), 0) == i + n - k),
+                    key=lambda t: prev.out[t],
+                )
+        else:
+            i = 0  # nothing in common with the model yet: start a fresh chain
+            assigned[0] = self._new(nodes[0])
+        used = {s for s in assigned if s is not None}
+        for k in range(i - 1, -1, -1):
+            assigned[k] = self._extend(nodes[k], into=assigned[k + 1], used=used)
+        for k in range(i + 1, len(nodes)):
+            if assigned[k] is None:
+                assigned[k] = self._extend(nodes[k], after=assigned[k - 1], used=used)
+        return [int(s) for s in assigned]
+
+    def _extend(self, node: int, *, used: set[int], after: int | None = None, into: int | None = None) -> int:
+        """A state for ``node`` next to an assigned neighbour: an existing linked state, else
+        any unused state of that node, else a new one (repeats get new states: no tangles)."""
+        linked = [s for s, g in enumerate(self.states) if g.node == node and s not in used]
+        if after is not None:
+            linked.sort(key=lambda s: -self.states[after].out.get(s, 0))
+        if into is not None:
+            linked.sort(key=lambda s: -self.states[s].out.get(into, 0))
+        state = linked[0] if linked else self._new(node)
+        used.add(state)
+        return state
+
+    # --- confidence and segmentation ------------------------------------------------------
+
+    def confidence(self, state: int) -> float:
+        """Visits relative to the most visited state, minus ``entropy_weight`` × transition
+        entropy in bits: frequently seen, untangled states are core."""
+        g = self.states[state]
+        most = max(s.visits for s in self.states)
+        return g.visits / max(most, 1) - self.entropy_weight * g.entropy()
+
+    def core(self) -> list[int]:
+        """The gesture's core: states grown out from the most confident one along the most
+        probable transitions, stopping after two consecutive low-confidence steps."""
+        if not self.states:
+            return []
+        seed = max(range(len(self.states)), key=lambda s: (self.confidence(s), self.states[s].visits))
+        incoming: dict[int, dict[int, int]] = {}
+        for s, g in enumerate(self.states):
+            for t, c in g.out.items():
+                incoming.setdefault(t, {})[s] = c
+        seen = {seed}
+        forward = self._grow(seed, lambda s: self.states[s].out, seen)
+        backward = self._grow(seed, lambda s: incoming.get(s, {}), seen)
+        return [*reversed(backward), seed, *forward]
+
+    def _grow(self, seed: int, links, seen: set[int]) -> list[int]:
+        """Follow the most frequent repeated transition from ``seed`` while confidence holds.
+
+        A transition seen only once, beside others, is the "anywhere" of
+        :meth:`GestureNode.entropy` — uncorrelated noise, not a path to follow.
+        """
+        chain: list[int] = []
+        pending: list[int] = []
+        current = seed
+        while True:
+            out = links(current)
+            options = {t: c for t, c in out.items() if t not in seen and (c > 1 or len(out) == 1)}
+            if not options:
+                break
+            current = max(options, key=options.get)
+            seen.add(current)
+            if self.confidence(current) >= self.threshold:
+                chain.extend(pending)
+                chain.append(current)
+                pending = []
+            else:
+                pending.append(current)
+                if len(pending) >= 2:
+                    break
+        return chain
+
+    def core_nodes(self) -> list[int]:
+        """Motor-graph nodes of the core, in order."""
+        return [self.states[s].node for s in self.core()]
+
+    # --- percept model and execution ------------------------------------------------------
+
+    def log_likelihood(self, observations: Iterable[Observation | int], *, floor: float = 1e-3) -> float:
+        """Mean log-probability per transition of a sequence under the model (best alignment
+        of states by node identity), so models can categorise incoming BodyMemory data."""
+        nodes = [o.node if isinstance(o, Observation) else int(o) for o in observations]
+        if len(nodes) < 2:
+            return 0.0
+        total = 0.0
+        for a, b in zip(nodes, nodes[1:]):
+            best = floor
+            for g in self.states:
+                if g.node == a:
+                    for t, p in g.probabilities().items():
+                        if self.states[t].node == b:
+                            best = max(best, p)
+            total += math.log(best)
+        return total / (len(nodes) - 1)
+
+    def sample(self, rng: np.random.Generator, *, start: int | None = None, max_length: int = 64) -> list[int]:
+        """A random walk of states by transition probability, from ``start`` (default: the
+        first core state)."""
+        if not self.states:
+            return []
+        state = self.core()[0] if start is None else start
+        walk = [state]
+        while len(walk) < max_length:
+            options = self.states[state].probabilities()
+            if not options:
+                break
+            choices = list(options)
+            state = choices[int(rng.choice(len(choices), p=np.array([options[c] for c in choices])))]
+            walk.append(state)
+        return walk
+
+    def to_program(self, name: str, states: Sequence[int] | None = None) -> MotorProgram:
+        """An executable motor program visiting ``states`` (default: the core) in order."""
+        states = self.core() if states is None else states
+        statements: list[Statement] = []
+        for s in states:
+            statements += [Statement("getTo", (self.states[s].node,)), Statement("wait")]
+        return MotorProgram(name, [*statements, Statement("end")])
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data for :func:`creatures.persist.save_json` (note references are dropped)."""
+        return {
+            "sequences": self.sequences,
+            "entropy_weight": self.entropy_weight,
+            "threshold": self.threshold,
+            "states": [
+                {"node": g.node, "visits": g.visits, "dwell": g.dwell, "out": {str(t): c for t, c in g.out.items()}}
+                for g in self.states
+            ],
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> GestureModel:
+        model = cls(entropy_weight=data["entropy_weight"], threshold=data["threshold"])
+        model.sequences = int(data["sequences"])
+        model.states = [
+            GestureNode(int(s["node"]), int(s["visits"]), float(s["dwell"]), [], {int(t): int(c) for t, c in s["out"].items()})
+            for s in data["states"]
+        ]
+        return model

@@ -1,0 +1,434 @@
+"""MotorGraph: the directed, weighted graph of BodyPoses (thesis "graph-based motor systems").
+
+Nodes are the key-frames of the source animations (a :class:`PoseSet`); edges come from
+*automatic topology generation* — each pose joins its ``k`` nearest poses under the
+:mod:`~creatures.motor.metric` plus its successor in its own source animation. The graph
+can then be *re-edited* as the thesis describes: edges forbidden (and never re-forged),
+forged, reweighted, whole nodes favoured or disfavoured (a multiplier on their outgoing
+edges), and new material added as nodes.
+
+Searching needs compact arrays, so the graph keeps its edges as a CSR adjacency
+(``indptr``/``indices``/``costs``), rebuilt lazily after edits. It saves as diffable JSON
+through :mod:`creatures.persist`: one line per node, one line per edge.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+from creatures.motor import metric
+from creatures.motor.metric import MetricWeights
+from creatures.motor.pose import LOW_ENERGY, PoseSet
+from creatures.motor.skeleton import Skeleton, SkeletonFileError, line_of
+from creatures.persist import StateFileError, load_json, save_json
+
+KIND = "motor-graph"
+
+
+@dataclass(frozen=True)
+class Adjacency:
+    """CSR view of the edges: out-edges of node ``n`` are ``indptr[n]:indptr[n+1]``.
+
+    ``neighbours[n]`` mirrors row ``n`` as a plain list of ``(node, cost)`` pairs, which the
+    A* loop iterates much faster than numpy scalars.
+    """
+
+    indptr: np.ndarray
+    indices: np.ndarray
+    costs: np.ndarray
+    neighbours: list[list[tuple[int, float]]]
+
+
+class MotorGraph:
+    """BodyPose nodes, weighted edges, animator edits and a cached CSR adjacency."""
+
+    def __init__(
+        self,
+        poses: PoseSet,
+        edges: dict[tuple[int, int], float],
+        *,
+        weights: MetricWeights | None = None,
+        scales: dict[tuple[int, int], float] | None = None,
+        forbidden: set[tuple[int, int]] | None = None,
+        favour: np.ndarray | None = None,
+    ) -> None:
+        self.poses = poses
+        self.weights = weights or MetricWeights()
+        self._base = dict(edges)
+        self._scales = dict(scales or {})
+        self.forbidden = set(forbidden or ())
+        self.favour = np.ones(len(poses)) if favour is None else np.asarray(favour, dtype=float)
+        self._adjacency: Adjacency | None = None
+        self._timing: tuple[np.ndarray, float] | None = None
+        self.version = 0
+
+    # --- construction ---------------------------------------------------------------------
+
+    @classmethod
+    def build(
+        cls, poses: PoseSet, *, k: int = 6, weights: MetricWeights | None = None, oversample: int = 3
+    ) -> MotorGraph:
+        """Automatic topology: each pose to its ``k`` nearest poses plus its source successor.
+
+        Candidates come from a KD-tree on a PCA projection of the mass-weighted quaternions
+        (``oversample × k`` per node), then are re-ranked with the exact metric, so the cost
+        stays near ``O(N log N)`` instead of all pairs. Every edge then gets its reverse and
+        separate islands are bridged (see :meth:`_complete`), so the body can never be
+        stranded in a corner of the graph.
+        """
+        weights = weights or MetricWeights()
+        graph = cls(poses, {}, weights=weights)
+        graph._base = _nearest_edges(poses, np.arange(len(poses)), np.arange(len(poses)), k, weights, oversample)
+        graph._complete()
+        return graph
+
+    @property
+    def skeleton(self) -> Skeleton:
+        return self.poses.skeleton
+
+    def __len__(self) -> int:
+        return len(self.poses)
+
+    @property
+    def edge_count(self) -> int:
+        return len(self._base)
+
+    def edges(self) -> dict[tuple[int, int], float]:
+        """Current edge costs (base metric × edge scale × node favour)."""
+        return {
+            (a, b): cost * self._scales.get((a, b), 1.0) * float(self.favour[a])
+            for (a, b), cost in self._base.items()
+        }
+
+    def has_edge(self, a: int, b: int) -> bool:
+        return (a, b) in self._base
+
+    # --- editing ("re-editing animation data") --------------------------------------------
+
+    def forbid(self, a: int, b: int) -> None:
+        """Remove ``a → b`` and refuse to forge it again (e.g. a self-penetrating blend)."""
+        self._check_nodes(a, b)
+        self._base.pop((a, b), None)
+        self._scales.pop((a, b), None)
+        self.forbidden.add((a, b))
+        self._changed()
+
+    def connect(self, a: int, b: int, cost: float | None = None) -> None:
+        """Forge ``a → b`` with ``cost`` (default: the metric); lifts a previous ban."""
+        self._check_nodes(a, b)
+        if a == b:
+            raise ValueError(f"a motor graph edge joins two different nodes (got {a} → {a})")
+        if cost is None:
+            cost = float(metric.edge_costs(self.poses, np.array([a]), np.array([b]), self.weights)[0])
+        if not cost >= 0.0:
+            raise ValueError(f"edge cost must be non-negative (got {cost!r})")
+        self.forbidden.discard((a, b))
+        self._base[(a, b)] = float(cost)
+        self._changed()
+
+    def reweight(self, a: int, b: int, scale: float) -> None:
+        """Multiply the cost of ``a → b`` by ``scale`` (makes the route less or more likely)."""
+        if (a, b) not in self._base:
+            raise KeyError(f"no edge {a} → {b}")
+        if not scale > 0.0:
+            raise ValueError(f"edge scale must be positive (got {scale!r})")
+        self._scales[(a, b)] = float(scale)
+        self._changed()
+
+    def set_favour(self, node: int, multiplier: float) -> None:
+        """Scale all of ``node``'s outgoing edges: < 1 favours the node, > 1 avoids it."""
+        self._check_nodes(node)
+        if not multiplier > 0.0:
+            raise ValueError(f"favour multiplier must be positive (got {multiplier!r})")
+        self.favour[node] = multiplier
+        self._changed()
+
+    def add_poses(self, material: PoseSet, *, k: int = 6, oversample: int = 3) -> np.ndarray:
+        """Patch new material into the graph (edit form 4); returns the new node indices.
+
+        New nodes join their ``k`` nearest nodes (old or new) in both directions, and their
+        own successors; existing edges are kept.
+        """
+        first = len(self.poses)
+        self.poses = PoseSet.concatenate([self.poses, material])
+        new = np.arange(first, len(self.poses))
+        self.favour = np.concatenate((self.favour, np.ones(len(new))))
+        found = _nearest_edges(self.poses, new, np.arange(len(self.poses)), k, self.weights, oversample)
+        self._base.update({edge: cost for edge, cost in found.items() if edge not in self.forbidden})
+        self._complete()
+        return new
+
+    def _complete(self) -> None:
+        """Give every edge its reverse, then bridge islands until the graph is strongly connected.
+
+        The thesis notes a missing connection "might not be *that* bad" because the body can
+        always interpolate across it; bridging makes that edge explicit. Each island joins
+        the pose nearest to it (pose term, sampled) elsewhere, in both directions. Forbidden
+        edges are never re-forged.
+        """
+        missing = [(b, a) for (a, b) in self._base if (b, a) not in self._base and (b, a) not in self.forbidden]
+        missing = np.array(missing, dtype=np.int64).reshape(-1, 2)
+        if len(missing):
+            costs = metric.edge_costs(self.poses, missing[:, 0], missing[:, 1], self.weights)
+            self._base.update(zip(map(tuple, missing.tolist()), costs.tolist()))
+        self._changed()
+        rng = np.random.default_rng(0)
+        while True:
+            adj = self.adjacency
+            n = len(self.poses)
+            count, component = connected_components(
+                csr_matrix((adj.costs, adj.indices, adj.indptr), shape=(n, n)), directed=True, connection="strong"
+            )
+            if count == 1:
+                return
+            smallest = np.argmin(np.bincount(component))
+            inside = np.flatnonzero(component == smallest)
+            outside = np.flatnonzero(component != smallest)
+            inside = rng.choice(inside, min(len(inside), 200), replace=False)
+            outside = rng.choice(outside, min(len(outside), 2000), replace=False)
+            gap = metric.pose_difference(
+                self.poses.rotations[inside][:, None], self.poses.rotations[outside][None], self.skeleton.masses
+            )
+            for flat in np.argsort(gap, axis=None):
+                i, j = np.unravel_index(flat, gap.shape)
+                a, b = int(inside[i]), int(outside[j])
+                if (a, b) not in self.forbidden and (b, a) not in self.forbidden:
+                    break
+            else:
+                raise ValueError("cannot connect the motor graph: every bridge is forbidden")
+            pair = np.array([a, b])
+            costs = metric.edge_costs(self.poses, pair, pair[::-1], self.weights)
+            self._base[(a, b)], self._base[(b, a)] = float(costs[0]), float(costs[1])
+            self._changed()
+
+    def label(self, node: int, label: str) -> None:
+        """Attach ``label`` to ``node`` (e.g. an animator marking a low-energy state)."""
+        self._check_nodes(node)
+        self.poses.labels[node] = self.poses.labels[node] | {label}
+        self._changed()
+
+    def annotate_low_energy(self, *, speed: float = 0.05, label: str = LOW_ENERGY) -> np.ndarray:
+        """Label near-still poses (mass-weighted joint speed below ``speed`` rad/s) as low energy."""
+        masses = self.skeleton.masses
+        still = np.linalg.norm(self.poses.velocities, axis=-1) @ masses / masses.sum() < speed
+        nodes = np.flatnonzero(still)
+        for node in nodes:
+            self.poses.labels[node] = self.poses.labels[node] | {label}
+        self._changed()
+        return nodes
+
+    def _check_nodes(self, *nodes: int) -> None:
+        for node in nodes:
+            if not 0 <= node < len(self.poses):
+                raise IndexError(f"no node {node} (graph has {len(self.poses)} nodes)")
+
+    def _changed(self) -> None:
+        self._adjacency = None
+        self._timing = None
+        self.version += 1
+
+    # --- compact arrays for search --------------------------------------------------------
+
+    @property
+    def adjacency(self) -> Adjacency:
+        """CSR adjacency of the current edges (cached until the next edit)."""
+        if self._adjacency is None:
+            edges = self.edges()
+            pairs = np.array(list(edges), dtype=np.int64).reshape(-1, 2)
+            costs = np.fromiter(edges.values(), dtype=float, count=len(edges))
+            order = np.lexsort((pairs[:, 1], pairs[:, 0]))
+            pairs, costs = pairs[order], costs[order]
+            indptr = np.zeros(len(self.poses) + 1, dtype=np.int64)
+            np.cumsum(np.bincount(pairs[:, 0], minlength=len(self.poses)), out=indptr[1:])
+            flat = list(zip(pairs[:, 1].tolist(), costs.tolist()))
+            bounds = indptr.tolist()
+            rows = [flat[bounds[n] : bounds[n + 1]] for n in range(len(self.poses))]
+            self._adjacency = Adjacency(indptr, pairs[:, 1].copy(), costs, rows)
+        return self._adjacency
+
+    def transit_times(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Seconds to move ``a[i] → b[i]`` (:func:`metric.transit_time`, with cached inputs)."""
+        if self._timing is None:
+            self._timing = (metric.successors(self.poses), metric.typical_speed(self.poses))
+        next_frame, speed = self._timing
+        return metric.transit_time(self.poses, a, b, self.weights, next_frame=next_frame, speed=speed)
+
+    def edge_cost(self, a: int, b: int) -> float:
+        """Current cost of ``a → b`` (KeyError when there is no such edge)."""
+        if (a, b) not in self._base:
+            raise KeyError(f"no edge {a} → {b}")
+        return self._base[(a, b)] * self._scales.get((a, b), 1.0) * float(self.favour[a])
+
+    # --- persistence ----------------------------------------------------------------------
+
+    def to_dict(self) -> dict[str, Any]:
+        """Diffable plain data: one string per node and per edge, sorted."""
+        p = self.poses
+        nodes = [
+            {
+                "source": p.sources[p.source_ids[i]],
+                "time": float(p.times[i]),
+                "labels": sorted(p.labels[i]),
+                "root": _floats(p.roots[i]),
+                "rotations": _floats(p.rotations[i]),
+                "velocities": _floats(p.velocities[i]),
+                **({"favour": float(self.favour[i])} if self.favour[i] != 1.0 else {}),
+            }
+            for i in range(len(p))
+        ]
+        edges = [
+            f"{a} {b} {cost!r} {self._scales.get((a, b), 1.0)!r}" for (a, b), cost in sorted(self._base.items())
+        ]
+        return {
+            "skeleton": self.skeleton.to_dict(),
+            "weights": self.weights.to_dict(),
+            "nodes": nodes,
+            "edges": edges,
+            "forbidden": [f"{a} {b}" for a, b in sorted(self.forbidden)],
+        }
+
+    def save(self, path: str | os.PathLike) -> None:
+        """Write the graph atomically as JSON (``creatures.persist``)."""
+        save_json(path, self.to_dict(), kind=KIND)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> MotorGraph:
+        """Read a graph saved by :meth:`save`; errors name the file and the offending line."""
+        path = Path(path)
+        document = load_json(path, kind=KIND)
+        text = path.read_text(encoding="utf-8")
+        try:
+            return cls.from_dict(document, source=str(path), text=text)
+        except SkeletonFileError as exc:
+            raise StateFileError(str(exc)) from None
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any], *, source: str = "<motor graph>", text: str = "") -> MotorGraph:
+        def fail(message: str, needle: str | None = None) -> StateFileError:
+            line = line_of(text, needle) if needle else None
+            return StateFileError(f"{source}:{line}: {message}" if line else f"{source}: {message}")
+
+        for key in ("skeleton", "nodes", "edges"):
+            if key not in data:
+                raise fail(f"missing key {key!r}")
+        skeleton = Skeleton.from_dict(data["skeleton"], source=source, text=text)
+        joints = skeleton.joint_count
+        nodes = data["nodes"]
+        if not isinstance(nodes, list) or not nodes:
+            raise fail("'nodes' must be a non-empty list", "nodes")
+        sources: list[str] = []
+        arrays: dict[str, list] = {"rotations": [], "velocities": [], "roots": []}
+        times, source_ids, labels, favour = [], [], [], []
+        for i, node in enumerate(nodes):
+            try:
+                name = str(node["source"])
+                arrays["rotations"].append(_parse_floats(node["rotations"], (joints, 4)))
+                arrays["velocities"].append(_parse_floats(node["velocities"], (joints, 3)))
+                arrays["roots"].append(_parse_floats(node["root"], (3,)))
+                times.append(float(node["time"]))
+                labels.append(frozenset(str(x) for x in node.get("labels", [])))
+                favour.append(float(node.get("favour", 1.0)))
+            except (KeyError, TypeError, ValueError) as exc:
+                needle = node.get("rotations") if isinstance(node, dict) else None
+                raise fail(f"node {i} is malformed ({exc})", needle if isinstance(needle, str) else None) from None
+            if name not in sources:
+                sources.append(name)
+            source_ids.append(sources.index(name))
+        poses = PoseSet(
+            skeleton=skeleton,
+            rotations=np.array(arrays["rotations"]),
+            velocities=np.array(arrays["velocities"]),
+            roots=np.array(arrays["roots"]),
+            times=np.array(times),
+            source_ids=np.array(source_ids),
+            sources=sources,
+            labels=labels,
+        )
+        edges: dict[tuple[int, int], float] = {}
+        scales: dict[tuple[int, int], float] = {}
+        for entry in data["edges"]:
+            a, b, cost, scale = _parse_edge(entry, 4, len(poses), fail)
+            edges[(int(a), int(b))] = cost
+            if scale != 1.0:
+                scales[(int(a), int(b))] = scale
+        forbidden = {tuple(int(x) for x in _parse_edge(e, 2, len(poses), fail)) for e in data.get("forbidden", [])}
+        weights = MetricWeights.from_dict(data["weights"]) if "weights" in data else None
+        return cls(poses, edges, weights=weights, scales=scales, forbidden=forbidden, favour=np.array(favour))
+
+
+def _floats(array: np.ndarray) -> str:
+    return " ".join(f"{x:.9g}" for x in np.ravel(array))
+
+
+def _parse_floats(text: str, shape: tuple[int, ...]) -> np.ndarray:
+    if not isinstance(text, str):
+        raise TypeError(f"expected a string of numbers, got {type(text).__name__}")
+    values = np.array([float(x) for x in text.split()])
+    if values.size != int(np.prod(shape)) or not np.all(np.isfinite(values)):
+        raise ValueError(f"expected {int(np.prod(shape))} finite numbers, got {values.size}")
+    return values.reshape(shape)
+
+
+def _parse_edge(entry: Any, fields: int, nodes: int, fail) -> tuple:
+    parts = entry.split() if isinstance(entry, str) else []
+    try:
+        if len(parts) != fields:
+            raise ValueError
+        a, b = int(parts[0]), int(parts[1])
+        rest = [float(x) for x in parts[2:]]
+    except ValueError:
+        raise fail(f"edge {entry!r} must be {fields} numbers 'from to" + (" cost scale'" if fields == 4 else "'"), str(entry)) from None
+    if not (0 <= a < nodes and 0 <= b < nodes) or any(not (x >= 0.0) for x in rest):
+        raise fail(f"edge {entry!r} names a node outside 0..{nodes - 1} or has a negative cost", str(entry))
+    return (a, b, *rest)
+
+
+def _features(poses: PoseSet) -> np.ndarray:
+    """Mass-weighted quaternions in one hemisphere (w ≥ 0), flattened: a Euclidean stand-in."""
+    q = np.where(poses.rotations[..., :1] < 0.0, -poses.rotations, poses.rotations)
+    return (q * poses.skeleton.masses[:, None]).reshape(len(poses), -1)
+
+
+def _nearest_edges(
+    poses: PoseSet, rows: np.ndarray, cols: np.ndarray, k: int, weights: MetricWeights, oversample: int
+) -> dict[tuple[int, int], float]:
+    """Edges from each ``rows`` node to its ``k`` metric-nearest ``cols`` nodes and its successor."""
+    features = _features(poses)
+    sample = features[cols[:: max(1, len(cols) // 2000)]]
+    centre = sample.mean(axis=0)
+    # Principal axes from the small covariance matrix (eigh): LAPACK's SVD of the tall
+    # sample matrix is orders of magnitude slower on this machine's OpenBLAS.
+    spread = np.cov(sample - centre, rowvar=False) if len(sample) > 1 else np.eye(features.shape[1])
+    _, vectors = np.linalg.eigh(np.atleast_2d(spread))
+    basis = vectors[:, ::-1][:, :12]
+    tree = cKDTree((features[cols] - centre) @ basis)
+    count = min(len(cols), oversample * k + 1)
+    _, found = tree.query((features[rows] - centre) @ basis, k=count)
+    candidates = cols[np.asarray(found).reshape(len(rows), count)]
+    next_frame = metric.successors(poses)
+    edges: dict[tuple[int, int], float] = {}
+    block = max(1, 50_000 // count)
+    for start in range(0, len(rows), block):
+        a = rows[start : start + block]
+        b = candidates[start : start + block]
+        cost = metric.edge_costs(poses, a[:, None], b, weights, next_frame)
+        cost = np.where(b == a[:, None], np.inf, cost)
+        keep = np.argsort(cost, axis=1)[:, :k]
+        for i, node in enumerate(a.tolist()):
+            for j in keep[i]:
+                if np.isfinite(cost[i, j]):
+                    edges[(node, int(b[i, j]))] = float(cost[i, j])
+    with_next = rows[next_frame[rows] >= 0]
+    if len(with_next):
+        succ = next_frame[with_next]
+        for a, b, c in zip(with_next.tolist(), succ.tolist(), metric.edge_costs(poses, with_next, succ, weights, next_frame)):
+            edges[(a, b)] = float(c)
+    return edges

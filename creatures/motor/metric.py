@@ -1,0 +1,223 @@
+"""The BodyPose distance metric (thesis "developing the distance metrics", figure 28).
+
+The weight of a graph edge ``a → b`` is a weighted sum of three terms, each summed over
+joints with per-joint mass weights ("weight joints that move more body mass"):
+
+* **pose difference** – the rotation angle between the joints. The thesis writes
+  ``acos(1 − (q1·q2))``; we use the shortest-path rotation angle ``2 acos|q1·q2|`` because it is
+  a true metric (triangle inequality), which is what lets the pose term serve as an
+  admissible A* heuristic (:mod:`creatures.motor.search`).
+* **closest transit** ("acceleration") – how far ``b`` lies from the geodesic that ``a``'s
+  joint velocities are heading along, at the point of closest approach (appendix ``α̃``).
+  Continuing in the same direction costs nothing.
+* **source recapture** (time) – zero for the successor frame in the source animation, a
+  jump penalty otherwise, plus local inhibition of nearby-but-not-subsequent frames of the
+  same source. The *exchange* variant (:func:`ratio_curve`) instead favours time jumps that
+  are low-integer ratios of the source length.
+
+All functions broadcast over leading axes, so a whole edge list or a block of all pairs
+is one call.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from fractions import Fraction
+
+import numpy as np
+
+from creatures.motor import quaternion as quat
+from creatures.motor.pose import PoseSet
+
+
+@dataclass(frozen=True)
+class MetricWeights:
+    """The "somewhat arbitrary scale factors" of figure 28, in one place.
+
+    ``horizon`` is the look-ahead (seconds) along the velocity tangent for the transit
+    term; ``inhibition_width`` (seconds) is how far local inhibition reaches;
+    ``ratios`` switches the time term to the *exchange* low-integer-ratio curve.
+    """
+
+    pose: float = 1.0
+    transit: float = 0.3
+    time: float = 0.5
+    jump: float = 1.0
+    horizon: float = 0.1
+    inhibition_width: float = 0.3
+    ratios: tuple[Fraction, ...] = field(default=())
+    ratio_tolerance: float = 0.05
+
+    def to_dict(self) -> dict:
+        return {
+            "pose": self.pose,
+            "transit": self.transit,
+            "time": self.time,
+            "jump": self.jump,
+            "horizon": self.horizon,
+            "inhibition_width": self.inhibition_width,
+            "ratios": [str(r) for r in self.ratios],
+            "ratio_tolerance": self.ratio_tolerance,
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict) -> MetricWeights:
+        return cls(**{**data, "ratios": tuple(Fraction(r) for r in data.get("ratios", ()))})
+
+
+def low_integer_ratios(limit: int = 4) -> tuple[Fraction, ...]:
+    """Fractions ``p/q`` in (0, 1] with ``q ≤ limit``: 1, 1/2, 1/3, 2/3, 1/4, 3/4, ..."""
+    return tuple(sorted({Fraction(p, q) for q in range(1, limit + 1) for p in range(1, q + 1)}))
+
+
+def pose_difference(rot_a: np.ndarray, rot_b: np.ndarray, masses: np.ndarray) -> np.ndarray:
+    """Mass-weighted sum of joint rotation angles between poses ``(..., J, 4)``."""
+    return quat.angle_between(rot_a, rot_b) @ masses
+
+
+def closest_transit(
+    rot_a: np.ndarray, vel_a: np.ndarray, rot_b: np.ndarray, masses: np.ndarray, horizon: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Residual and time of the closest transit from pose ``a`` towards pose ``b`` (figure 29).
+
+    Each joint travels from ``q_a`` along its velocity tangent; ``v = exp(ω·horizon) q_a`` is
+    where it would be after ``horizon`` seconds. ``α̃`` (appendix) says how many horizons
+    until the geodesic passes closest to ``q_b``. Returns the mass-weighted residual angle
+    at that point and the mass-weighted mean transit time in seconds (0 where at rest).
+    Heading away from ``b`` (``α̃ < 0``) is treated as not moving, so the residual is the
+    whole angle.
+    """
+    tangent = quat.multiply(quat.exp(vel_a * horizon), rot_a)
+    alpha = np.maximum(quat.closest_approach(rot_a, tangent, rot_b), 0.0)
+    passing = quat.slerp(rot_a, tangent, alpha)
+    residual = quat.angle_between(passing, rot_b) @ masses
+    time = (alpha * horizon) @ masses / masses.sum()
+    return residual, time
+
+
+def inhibition_curve(dt: np.ndarray, width: float) -> np.ndarray:
+    """Local inhibition: nearby (but not subsequent) frames of one source cost most."""
+    return np.exp(-((dt / width) ** 2))
+
+
+def ratio_curve(dt: np.ndarray, length: np.ndarray, ratios: tuple[Fraction, ...], tolerance: float) -> np.ndarray:
+    """*Exchange*: 0 where ``|dt| / length`` is a low-integer ratio, rising to 1 between them."""
+    r = np.abs(dt) / np.maximum(length, 1e-9)
+    targets = np.array([float(x) for x in ratios])
+    gap = np.min(np.abs(r[..., None] - targets), axis=-1)
+    return np.minimum(gap / tolerance, 1.0)
+
+
+def successors(poses: PoseSet) -> np.ndarray:
+    """Index of each pose's next frame in its source animation, or −1 at the end."""
+    nxt = np.full(len(poses), -1, dtype=np.int64)
+    same = poses.source_ids[1:] == poses.source_ids[:-1]
+    later = poses.times[1:] > poses.times[:-1]
+    idx = np.flatnonzero(same & later)
+    nxt[idx] = idx + 1
+    return nxt
+
+
+def source_lengths(poses: PoseSet) -> np.ndarray:
+    """Duration of each source animation, indexed by source id."""
+    count = len(poses.sources)
+    lo = np.full(count, np.inf)
+    hi = np.full(count, -np.inf)
+    np.minimum.at(lo, poses.source_ids, poses.times)
+    np.maximum.at(hi, poses.source_ids, poses.times)
+    return np.maximum(hi - lo, 0.0)
+
+
+def time_term(
+    poses: PoseSet, a: np.ndarray, b: np.ndarray, weights: MetricWeights, next_frame: np.ndarray
+) -> np.ndarray:
+    """Source-recapture cost of moving from poses ``a`` to ``b`` (broadcast index arrays)."""
+    a = np.asarray(a)
+    b = np.asarray(b)
+    same = poses.source_ids[a] == poses.source_ids[b]
+    dt = poses.times[b] - poses.times[a]
+    if weights.ratios:
+        length = source_lengths(poses)[poses.source_ids[a]]
+        within = ratio_curve(dt, length, weights.ratios, weights.ratio_tolerance)
+    else:
+        within = inhibition_curve(dt, weights.inhibition_width)
+    cost = np.where(same, weights.jump * within, weights.jump)
+    return np.where(next_frame[a] == b, 0.0, cost)
+
+
+def edge_costs(
+    poses: PoseSet,
+    a: np.ndarray,
+    b: np.ndarray,
+    weights: MetricWeights,
+    next_frame: np.ndarray | None = None,
+    *,
+    chunk: int = 8192,
+) -> np.ndarray:
+    """Intrinsic metric: weight of the edges ``a[i] → b[i]`` (index arrays, broadcast).
+
+    Edges are costed ``chunk`` at a time so a whole graph's edge list never materialises
+    its per-joint temporaries at once.
+    """
+    a, b = np.broadcast_arrays(np.asarray(a), np.asarray(b))
+    if next_frame is None:
+        next_frame = successors(poses)
+    flat_a, flat_b = a.ravel(), b.ravel()
+    out = np.empty(flat_a.shape)
+    masses = poses.skeleton.masses
+    for start in range(0, len(flat_a), chunk):
+        i = flat_a[start : start + chunk]
+        j = flat_b[start : start + chunk]
+        pose = pose_difference(poses.rotations[i], poses.rotations[j], masses)
+        residual, _ = closest_transit(
+            poses.rotations[i], poses.velocities[i], poses.rotations[j], masses, weights.horizon
+        )
+        out[start : start + chunk] = (
+            weights.pose * pose
+            + weights.transit * residual
+            + weights.time * time_term(poses, i, j, weights, next_frame)
+        )
+    return out.reshape(a.shape)
+
+
+def pairwise(poses: PoseSet, rows: np.ndarray, cols: np.ndarray, weights: MetricWeights) -> np.ndarray:
+    """All-pairs edge costs ``rows × cols`` (the extrinsic metric between any two poses)."""
+    rows = np.asarray(rows)
+    cols = np.asarray(cols)
+    return edge_costs(poses, rows[:, None], cols[None, :], weights)
+
+
+def transit_time(
+    poses: PoseSet,
+    a: np.ndarray,
+    b: np.ndarray,
+    weights: MetricWeights,
+    *,
+    next_frame: np.ndarray | None = None,
+    speed: float | None = None,
+) -> np.ndarray:
+    """Seconds to move ``a → b``: source timing for successors, else estimated from velocity.
+
+    The estimate is the closest-transit time; when the joints are at rest (or heading
+    away) it falls back to the pose angle covered at ``speed`` (default: the source
+    material's :func:`typical_speed`). Pass ``next_frame``/``speed`` to reuse them.
+    """
+    a = np.asarray(a)
+    b = np.asarray(b)
+    next_frame = successors(poses) if next_frame is None else next_frame
+    speed = typical_speed(poses) if speed is None else speed
+    masses = poses.skeleton.masses
+    source_dt = poses.times[b] - poses.times[a]
+    _, estimate = closest_transit(
+        poses.rotations[a], poses.velocities[a], poses.rotations[b], masses, weights.horizon
+    )
+    at_rest = pose_difference(poses.rotations[a], poses.rotations[b], masses) / (speed * masses.sum())
+    estimate = np.where(estimate > 1e-6, estimate, at_rest)
+    return np.where(next_frame[a] == b, source_dt, np.clip(estimate, 1e-3, 2.0))
+
+
+def typical_speed(poses: PoseSet) -> float:
+    """Median mass-weighted joint angular speed over the pose set (rad/s, at least 0.1)."""
+    masses = poses.skeleton.masses
+    speed = np.linalg.norm(poses.velocities, axis=-1) @ masses / masses.sum()
+    return float(max(np.median(speed), 0.1))

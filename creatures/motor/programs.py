@@ -1,0 +1,415 @@
+"""Motor programs: small programs that drive the body around the motor graph.
+
+Thesis "towards a complete motor system: complex labels" and "motor program graphs".
+A program is a list of statements run by a stack machine::
+
+    walk:
+      getToClosest {"sway left", "sway right"}; wait
+      getToFurthest {"sway left", "sway right"}; wait
+      cycle 2
+
+``getTo`` sets a course (it does not block), ``wait`` blocks until the body arrives (or a
+sub-program ends or cycles), ``cycle [n]`` waits for arrival then jumps to statement ``n``,
+``end`` finishes. A target is a node label, a node index, or the name of another program,
+which is then pushed on the stack ("a dynamic alias for other nodes"). ``forcedGetTo``
+marks the statements that still run when the program is asked to exit (the "forced low
+energy state" example).
+
+:class:`MotorProgramGraph` lays the same statements out as vertices: flow starts at the
+vertex ``"start"``, takes at each branch the successor whose target is nearest in the
+motor graph, and on exit heads for the nearest vertex ``"exit"``.
+
+Every program runs under :class:`ProgramStack`, whose life cycle is the project's one
+life cycle: ``start(t)``, ``update(t) -> Status``, ``done``.
+"""
+
+from __future__ import annotations
+
+import enum
+import re
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Protocol, Sequence
+
+import numpy as np
+
+from creatures.clock import SimulatedClock
+from creatures.motor.graph import MotorGraph
+from creatures.motor.playback import Playback
+from creatures.motor.pose import BodyPose
+from creatures.motor.search import GraphPosition, NoPath, Path, PathFinder
+
+Target = str | int
+
+
+class Status(enum.Enum):
+    RUNNING = "running"
+    DONE = "done"
+
+
+class ProgramSyntaxError(ValueError):
+    """A motor program text is malformed; the message names the source and line."""
+
+
+# --- the body the programs move ---------------------------------------------------------
+
+
+class MotorSystem:
+    """The body on its motor graph: where it is, the course it is following, where it arrived.
+
+    ``arrivals`` logs ``(time, node)`` each time a course completes; it is what tests and a
+    BodyMemory read.
+    """
+
+    def __init__(self, graph: MotorGraph, *, start: int = 0, finder: PathFinder | None = None) -> None:
+        self.graph = graph
+        self.finder = finder or PathFinder(graph)
+        self._rest = GraphPosition(start)
+        self.playback: Playback | None = None
+        self.arrivals: list[tuple[float, int]] = []
+
+    def position(self, t: float) -> GraphPosition:
+        return self.playback.position(t) if self.playback else self._rest
+
+    def pose(self, t: float) -> BodyPose:
+        """Current BodyPose (interpolated when travelling)."""
+        if self.playback:
+            return self.playback.sample(t)
+        return self.graph.poses.pose(self._rest.node)
+
+    def arrived(self, t: float) -> bool:
+        """True once the current course is complete (logging the arrival once)."""
+        if self.playback is None:
+            return True
+        if not self.playback.done(t):
+            return False
+        node = int(self.playback.path.goal)
+        self.arrivals.append((self.playback.end_time, node))
+        self._rest = GraphPosition(node)
+        self.playback = None
+        return True
+
+    def goals(self, target: Target) -> list[int]:
+        """Nodes a target names: a node index or every node with that label."""
+        if isinstance(target, (int, np.integer)):
+            return [int(target)]
+        nodes = self.graph.poses.labelled(target).tolist()
+        if not nodes:
+            raise NoPath(f"no node is labelled {target!r}")
+        return nodes
+
+    def course(self, t: float, targets: Sequence[Target], *, furthest: bool = False) -> Path:
+        """Shortest path to the closest (or, per target, furthest) of ``targets``."""
+        start = self.position(t)
+        if not furthest:
+            return self.finder.path(start, [n for target in targets for n in self.goals(target)])
+        paths = [self.finder.path(start, self.goals(target)) for target in targets]
+        return max(paths, key=lambda p: p.cost)
+
+    def set_course(self, t: float, path: Path) -> None:
+        """Follow ``path`` from time ``t`` (it starts where the body is, even mid-edge)."""
+        origin = None
+        if self.playback is not None and not self.arrived(t):
+            rotations, roots = self.playback.sample_rotations(np.array([t]))
+            origin = (rotations[0], roots[0])
+        self.playback = Playback(self.graph, path, t, origin=origin)
+
+
+# --- statements -------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Statement:
+    """One motor-program statement: ``op`` with its targets (labels, nodes or programs)."""
+
+    op: str
+    targets: tuple[Target, ...] = ()
+    jump: int = 0
+
+    OPS = ("getTo", "getToClosest", "getToFurthest", "forcedGetTo", "wait", "cycle", "end")
+
+    def __post_init__(self) -> None:
+        if self.op not in self.OPS:
+            raise ValueError(f"unknown motor statement {self.op!r} (known: {', '.join(self.OPS)})")
+
+    def __str__(self) -> str:
+        if self.op == "cycle":
+            return f"cycle {self.jump}"
+        names = ", ".join(repr(t) for t in self.targets)
+        return self.op if not self.targets else f"{self.op} {{{names}}}"
+
+
+class Program(Protocol):
+    """What the stack machine needs of a program: where to begin, go next, and exit."""
+
+    name: str
+
+    def first(self) -> object: ...
+    def statement(self, cursor: object) -> Statement: ...
+    def advance(self, cursor: object, motor: MotorSystem, t: float) -> object | None: ...
+    def exit_cursor(self, cursor: object) -> object | None: ...
+
+
+@dataclass
+class MotorProgram:
+    """A linear motor program (the thesis's textual form)."""
+
+    name: str
+    statements: list[Statement]
+
+    def first(self) -> int:
+        return 0
+
+    def statement(self, cursor: int) -> Statement:
+        return self.statements[cursor] if cursor < len(self.statements) else Statement("end")
+
+    def advance(self, cursor: int, motor: MotorSystem, t: float) -> int | None:
+        stmt = self.statement(cursor)
+        if stmt.op == "end":
+            return None
+        return stmt.jump if stmt.op == "cycle" else cursor + 1
+
+    def exit_cursor(self, cursor: int) -> int | None:
+        """Exiting skips to the next ``forcedGetTo`` (if any): forced moves still happen."""
+        for index in range(cursor, len(self.statements)):
+            if self.statements[index].op == "forcedGetTo":
+                return index
+        return None
+
+    def __str__(self) -> str:
+        return f"{self.name}:\n" + "\n".join(f"  {i}: {s}" for i, s in enumerate(self.statements))
+
+
+@dataclass
+class MotorProgramGraph:
+    """Statements as vertices; flow from ``"start"``, exit towards the nearest ``"exit"``."""
+
+    name: str
+    vertices: dict[str, Statement]
+    edges: dict[str, list[str]] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if "start" not in self.vertices:
+            raise ValueError(f"motor program graph {self.name!r} needs a 'start' vertex")
+        for source, targets in self.edges.items():
+            for name in (source, *targets):
+                if name not in self.vertices:
+                    raise ValueError(f"motor program graph {self.name!r}: edge names unknown vertex {name!r}")
+
+    def first(self) -> str:
+        return "start"
+
+    def statement(self, cursor: str | tuple[str, ...]) -> Statement:
+        return self.vertices[cursor[0] if isinstance(cursor, tuple) else cursor]
+
+    def advance(self, cursor: str | tuple[str, ...], motor: MotorSystem, t: float) -> str | tuple[str, ...] | None:
+        """Take the successor whose target is nearest by path cost (statements without
+        targets cost nothing); no successor ends the program. A tuple cursor is a route
+        being followed to an exit."""
+        if isinstance(cursor, tuple):
+            if len(cursor) > 1:
+                return cursor[1:]
+            cursor = cursor[0]
+        options = self.edges.get(cursor, [])
+        if not options:
+            return None
+        labels = _labels(motor)
+
+        def cost(name: str) -> float:
+            stmt = self.vertices[name]
+            if not stmt.targets or any(isinstance(x, str) and x not in labels for x in stmt.targets):
+                return 0.0
+            try:
+                return motor.course(t, stmt.targets).cost
+            except NoPath:
+                return float("inf")
+
+        return min(options, key=cost)
+
+    def exit_cursor(self, cursor: str | tuple[str, ...]) -> tuple[str, ...] | None:
+        """The fewest-hop route from ``cursor`` to a vertex named ``exit…`` (cursor excluded)."""
+        here = cursor[0] if isinstance(cursor, tuple) else cursor
+        parents: dict[str, str | None] = {here: None}
+        queue = deque([here])
+        while queue:
+            name = queue.popleft()
+            if name.startswith("exit"):
+                route = [name]
+                while parents[route[-1]] is not None:
+                    route.append(parents[route[-1]])
+                route.reverse()
+                return tuple(route[1:]) or (here,)
+            for nxt in self.edges.get(name, []):
+                if nxt not in parents:
+                    parents[nxt] = name
+                    queue.append(nxt)
+        return None
+
+
+def _labels(motor: MotorSystem) -> set[str]:
+    return set().union(*motor.graph.poses.labels)
+
+
+# --- the stack machine ------------------------------------------------------------------
+
+
+@dataclass
+class _Frame:
+    program: Program
+    cursor: object
+
+
+class ProgramStack:
+    """Runs a program (and the sub-programs it calls) against a :class:`MotorSystem`.
+
+    ``library`` maps names to programs so a target can name a program. ``cycles`` counts
+    the root program's ``cycle`` statements; ``trace`` records executed statements.
+    """
+
+    MAX_STEPS = 256
+
+    def __init__(self, motor: MotorSystem, program: Program, *, library: dict[str, Program] | None = None) -> None:
+        self.motor = motor
+        self.program = program
+        self.library = dict(library or {})
+        self.stack: list[_Frame] = []
+        self.cycles = 0
+        self.trace: list[tuple[float, str, str]] = []
+
+    @property
+    def done(self) -> bool:
+        return not self.stack
+
+    def start(self, t: float) -> None:
+        self.stack = [_Frame(self.program, self.program.first())]
+
+    def request_exit(self, t: float) -> None:
+        """Unwind: each frame jumps to its forced statements (or exit vertex) or is dropped.
+
+        The body finishes the course it is on; only the programs stop issuing new ones.
+        """
+        kept = []
+        for frame in self.stack:
+            cursor = frame.program.exit_cursor(frame.cursor)
+            if cursor is not None:
+                kept.append(_Frame(frame.program, cursor))
+        self.stack = kept
+
+    def update(self, t: float) -> Status:
+        """Run statements until one blocks (waiting for the body) or the program ends."""
+        for _ in range(self.MAX_STEPS):
+            if not self.stack:
+                return Status.DONE
+            frame = self.stack[-1]
+            stmt = frame.program.statement(frame.cursor)
+            if stmt.op in ("wait", "cycle") and not self.motor.arrived(t):
+                return Status.RUNNING
+            self.trace.append((t, frame.program.name, str(stmt)))
+            nxt = frame.program.advance(frame.cursor, self.motor, t)
+            callee = self._callee(stmt)
+            if nxt is None:
+                self.stack.pop()
+            else:
+                frame.cursor = nxt
+            if callee is not None:
+                self.stack.append(_Frame(callee, callee.first()))
+            elif stmt.op in ("getTo", "getToClosest", "getToFurthest", "forcedGetTo"):
+                self.motor.set_course(t, self.motor.course(t, stmt.targets, furthest=stmt.op == "getToFurthest"))
+            elif stmt.op == "cycle" and nxt is not None:
+                if len(self.stack) > 1:
+                    # A sub-program that cycles hands control back to its caller's wait.
+                    self.stack.pop()
+                else:
+                    self.cycles += 1
+        raise RuntimeError(
+            f"motor program {self.stack[-1].program.name!r} ran {self.MAX_STEPS} statements"
+            " without the body moving (a cycle with no course to follow?)"
+        )
+
+    def _callee(self, stmt: Statement) -> Program | None:
+        """The sub-program a ``getTo``-style statement names, if it names one."""
+        if stmt.op not in ("getTo", "forcedGetTo"):
+            return None
+        names = [x for x in stmt.targets if isinstance(x, str) and x in self.library]
+        return self.library[names[0]] if names else None
+
+    def describe(self) -> str:
+        """What the creature's body is doing, one line per stack frame (for debugging)."""
+        return "\n".join(
+            f"{'  ' * depth}{frame.program.name}: {frame.program.statement(frame.cursor)}"
+            for depth, frame in enumerate(self.stack)
+        ) or "(idle)"
+
+
+# --- the textual language ---------------------------------------------------------------
+
+_STATEMENT = re.compile(r"^(?P<op>[A-Za-z]+)\s*(?P<args>.*)$")
+_TARGET = re.compile(r'"([^"]*)"|([^,\s{}"]+)')
+
+
+def _parse_targets(args: str) -> tuple[Target, ...]:
+    inner = args.strip()
+    if inner.startswith("{"):
+        if not inner.endswith("}"):
+            raise ValueError(f"unclosed target set {inner!r}")
+        inner = inner[1:-1]
+    targets: list[Target] = []
+    for quoted, bare in _TARGET.findall(inner):
+        if quoted:
+            targets.append(quoted)
+        else:
+            targets.append(int(bare) if bare.lstrip("-").isdigit() else bare)
+    return tuple(targets)
+
+
+def parse_programs(text: str, *, source: str = "<motor program>") -> dict[str, MotorProgram]:
+    """Parse ``name: statements`` blocks (``;`` or newlines between statements).
+
+    The thesis's loop marks ``↑ | ↓`` are accepted and ignored; ``cycle n`` says where the
+    loop starts. Errors name ``source`` and the line.
+    """
+    programs: dict[str, MotorProgram] = {}
+    current: MotorProgram | None = None
+    for number, raw in enumerate(text.splitlines(), start=1):
+        line = raw.split("#", 1)[0].strip()
+        header = re.match(r"^([\w -]+):(.*)$", line)
+        if header and not header.group(1).strip().startswith(Statement.OPS):
+            current = MotorProgram(header.group(1).strip(), [])
+            programs[current.name] = current
+            line = header.group(2)
+        for part in line.split(";"):
+            part = part.strip().lstrip("↑|↓ ").strip()
+            if not part:
+                continue
+            if current is None:
+                raise ProgramSyntaxError(f"{source}:{number}: statement {part!r} before any 'name:' header")
+            match = _STATEMENT.match(part)
+            try:
+                if match is None:
+                    raise ValueError(f"cannot read {part!r}")
+                op, args = match.group("op"), match.group("args")
+                if op == "cycle":
+                    current.statements.append(Statement("cycle", jump=int(args or 0)))
+                elif op in ("wait", "end") and args.strip():
+                    raise ValueError(f"{op!r} takes no arguments")
+                else:
+                    targets = _parse_targets(args) if args.strip() else ()
+                    if op.startswith(("getTo", "forcedGetTo")) and not targets:
+                        raise ValueError(f"{op!r} needs a target")
+                    current.statements.append(Statement(op, targets))
+            except ValueError as exc:
+                raise ProgramSyntaxError(f"{source}:{number}: {exc}") from None
+    for program in programs.values():
+        for stmt in program.statements:
+            if stmt.op == "cycle" and not 0 <= stmt.jump < len(program.statements):
+                raise ProgramSyntaxError(f"{source}: program {program.name!r}: cycle {stmt.jump} jumps outside it")
+    return programs
+
+
+def run(stack: ProgramStack, clock: SimulatedClock, *, until: float, step: float = 1.0 / 30.0) -> Status:
+    """Drive a program stack from a simulated clock until ``until`` seconds or it is done."""
+    status = Status.RUNNING
+    while clock.now() < until and status is Status.RUNNING:
+        status = stack.update(clock.now())
+        clock.advance(step)
+    return status

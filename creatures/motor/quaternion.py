@@ -1,0 +1,201 @@
+"""Unit-quaternion maths for joint angles (thesis appendix "(quaternions)", p. 215).
+
+Joint angles are not well expressed in vector spaces, so the motor system keeps every joint
+as a unit quaternion ``(w, x, y, z)`` and interpolates on the 3-sphere. Every function takes
+arrays whose last axis has length 4 (or 3 for vectors) and broadcasts over the leading axes,
+so a whole pose ``(J, 4)`` or a whole animation ``(N, J, 4)`` is one call.
+
+Plain numpy is used on purpose: ``bench/motor.py`` measures :func:`multiply` against
+``scipy.spatial.transform.Rotation`` on the same data, and the per-call object construction
+there costs more than it saves at the batch sizes the motor system uses.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+_EPS = 1e-12
+
+
+def normalize(q: np.ndarray) -> np.ndarray:
+    """Scale quaternions to unit norm; a zero quaternion becomes the identity."""
+    q = np.asarray(q, dtype=float)
+    norm = np.linalg.norm(q, axis=-1, keepdims=True)
+    identity = np.zeros_like(q)
+    identity[..., 0] = 1.0
+    return np.where(norm > _EPS, q / np.maximum(norm, _EPS), identity)
+
+
+def identity(shape: tuple[int, ...] = ()) -> np.ndarray:
+    """Identity rotations of the given leading shape."""
+    q = np.zeros((*shape, 4))
+    q[..., 0] = 1.0
+    return q
+
+
+def conjugate(q: np.ndarray) -> np.ndarray:
+    """``q⁻¹`` for unit quaternions: ``{w, -x, -y, -z}``."""
+    q = np.asarray(q, dtype=float)
+    return q * np.array([1.0, -1.0, -1.0, -1.0])
+
+
+def multiply(q1: np.ndarray, q2: np.ndarray) -> np.ndarray:
+    """Hamilton product ``q1 q2`` (apply ``q2`` first, then ``q1``)."""
+    q1 = np.asarray(q1, dtype=float)
+    q2 = np.asarray(q2, dtype=float)
+    w1, x1, y1, z1 = q1[..., 0], q1[..., 1], q1[..., 2], q1[..., 3]
+    w2, x2, y2, z2 = q2[..., 0], q2[..., 1], q2[..., 2], q2[..., 3]
+    out = np.empty(np.broadcast_shapes(q1.shape, q2.shape))
+    out[..., 0] = w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2
+    out[..., 1] = w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2
+    out[..., 2] = w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2
+    out[..., 3] = w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2
+    return out
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a × b`` over the last axis (np.cross's axis handling costs more than the maths)."""
+    ax, ay, az = a[..., 0], a[..., 1], a[..., 2]
+    bx, by, bz = b[..., 0], b[..., 1], b[..., 2]
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[..., 0] = ay * bz - az * by
+    out[..., 1] = az * bx - ax * bz
+    out[..., 2] = ax * by - ay * bx
+    return out
+
+
+def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Rotate vectors ``v`` by unit quaternions ``q`` (``q {0, v} q⁻¹``, expanded)."""
+    q = np.asarray(q, dtype=float)
+    v = np.asarray(v, dtype=float)
+    u = q[..., 1:]
+    t = 2.0 * _cross(u, v)
+    return v + q[..., :1] * t + _cross(u, t)
+
+
+def from_axis_angle(axis: np.ndarray, angle: np.ndarray | float) -> np.ndarray:
+    """``{cos(θ/2), v̂ sin(θ/2)}`` for axes ``(..., 3)`` and angles ``(...)`` in radians."""
+    axis = np.asarray(axis, dtype=float)
+    angle = np.asarray(angle, dtype=float)
+    norm = np.linalg.norm(axis, axis=-1, keepdims=True)
+    unit = axis / np.maximum(norm, _EPS)
+    half = 0.5 * angle[..., None]
+    return np.concatenate((np.cos(half), unit * np.sin(half)), axis=-1)
+
+
+def exp(v: np.ndarray) -> np.ndarray:
+    """Exponential map: rotation vector ``v`` (axis × angle, radians) → unit quaternion."""
+    v = np.asarray(v, dtype=float)
+    angle = np.linalg.norm(v, axis=-1)
+    return from_axis_angle(v, angle)
+
+
+def log(q: np.ndarray) -> np.ndarray:
+    """Logarithm map: unit quaternion → rotation vector (axis × angle), shortest way round."""
+    q = np.asarray(q, dtype=float)
+    q = np.where(q[..., :1] < 0.0, -q, q)
+    vector = q[..., 1:]
+    sin_half = np.linalg.norm(vector, axis=-1, keepdims=True)
+    angle = 2.0 * np.arctan2(sin_half, q[..., :1])
+    return vector * np.where(sin_half > _EPS, angle / np.maximum(sin_half, _EPS), 2.0)
+
+
+def dot(q1: np.ndarray, q2: np.ndarray) -> np.ndarray:
+    """Inner product ``q1 · q2`` over the last axis."""
+    return np.einsum("...i,...i->...", np.asarray(q1, dtype=float), np.asarray(q2, dtype=float))
+
+
+def distance(q1: np.ndarray, q2: np.ndarray) -> np.ndarray:
+    """The appendix metric ``1 − |q1 · q2|``: zero for equal rotations, 1 at half a turn.
+
+    The absolute value makes ``q`` and ``−q`` (the same rotation) distance zero, so the
+    metric always measures the shortest path.
+    """
+    return 1.0 - np.minimum(np.abs(dot(q1, q2)), 1.0)
+
+
+def angle_between(q1: np.ndarray, q2: np.ndarray) -> np.ndarray:
+    """Rotation angle (radians, in [0, π]) taking ``q1`` to ``q2`` the short way."""
+    return 2.0 * np.arccos(np.minimum(np.abs(dot(q1, q2)), 1.0))
+
+
+def slerp(q1: np.ndarray, q2: np.ndarray, alpha: np.ndarray | float) -> np.ndarray:
+    """Spherical linear interpolation along the shorter great arc (extrinsic form).
+
+    ``alpha`` broadcasts against the leading axes of ``q1``/``q2``; values outside [0, 1]
+    extrapolate along the same geodesic.
+    """
+    q1 = np.asarray(q1, dtype=float)
+    q2 = np.asarray(q2, dtype=float)
+    alpha = np.asarray(alpha, dtype=float)[..., None]
+    c = dot(q1, q2)[..., None]
+    q2 = np.where(c < 0.0, -q2, q2)
+    c = np.abs(c)
+    phi = np.arccos(np.minimum(c, 1.0))
+    s = np.sin(phi)
+    close = s < 1e-6
+    safe_s = np.where(close, 1.0, s)
+    a = np.where(close, 1.0 - alpha, np.sin((1.0 - alpha) * phi) / safe_s)
+    b = np.where(close, alpha, np.sin(alpha * phi) / safe_s)
+    return normalize(a * q1 + b * q2)
+
+
+def squad_controls(q: np.ndarray) -> np.ndarray:
+    """Shoemake's inner control quaternions for a key-frame sequence ``q`` of shape (N, ..., 4).
+
+    ``s_i = q_i exp(−(log(q_i⁻¹ q_{i+1}) + log(q_i⁻¹ q_{i−1})) / 4)``, with the ends clamped,
+    so consecutive :func:`squad` segments join with continuous tangents (the "higher (third)
+    order spline interpolant" of the appendix).
+    """
+    q = hemisphere_align(np.asarray(q, dtype=float))
+    prev = np.concatenate((q[:1], q[:-1]), axis=0)
+    nxt = np.concatenate((q[1:], q[-1:]), axis=0)
+    inv = conjugate(q)
+    tangent = log(multiply(inv, nxt)) + log(multiply(inv, prev))
+    return multiply(q, exp(-0.25 * tangent))
+
+
+def squad(
+    q1: np.ndarray, q2: np.ndarray, s1: np.ndarray, s2: np.ndarray, alpha: np.ndarray | float
+) -> np.ndarray:
+    """Spherical quadrangle interpolation between ``q1`` and ``q2`` with controls ``s1, s2``."""
+    alpha = np.asarray(alpha, dtype=float)
+    outer = slerp(q1, q2, alpha)
+    inner = slerp(s1, s2, alpha)
+    return slerp(outer, inner, 2.0 * alpha * (1.0 - alpha))
+
+
+def hemisphere_align(q: np.ndarray) -> np.ndarray:
+    """Flip signs along axis 0 so each key-frame lies in the hemisphere of the one before."""
+    q = np.array(q, dtype=float, copy=True)
+    if len(q) < 2:
+        return q
+    signs = np.where(dot(q[1:], q[:-1]) < 0.0, -1.0, 1.0)
+    q[1:] *= np.cumprod(signs, axis=0)[..., None]
+    return q
+
+
+def closest_approach(q1: np.ndarray, q2: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """The ``α̃`` taking the geodesic ``slerp(q1, q2; α)`` as close as possible to ``p``.
+
+    Maximising ``slerp(q1, q2; α) · p`` with ``a = q1 · p``, ``b = q2 · p``, ``φ = acos(q1 · q2)``
+    gives ``tan(αφ) = (b − a cos φ) / (a sin φ)``. The appendix prints
+    ``atan(b / a − q1 · q2) / φ``, which drops the ``1 / sin φ`` factor; this is the exact
+    stationary point. ``α̃`` is not clipped: values beyond 1 say the geodesic passes ``p``
+    after reaching ``q2`` (used for the closest-transit term of the pose metric).
+    Degenerate arcs (``q1 ≈ q2``) give ``α̃ = 0``.
+    """
+    q1 = np.asarray(q1, dtype=float)
+    q2 = np.asarray(q2, dtype=float)
+    p = np.asarray(p, dtype=float)
+    c = dot(q1, q2)
+    q2 = np.where((c < 0.0)[..., None], -q2, q2)
+    c = np.abs(c)
+    a = dot(q1, p)
+    p = np.where((a < 0.0)[..., None], -p, p)
+    a = np.abs(a)
+    b = dot(q2, p)
+    phi = np.arccos(np.minimum(c, 1.0))
+    s = np.sin(phi)
+    theta = np.arctan2(b - a * c, a * s)
+    return np.where(phi > 1e-9, theta / np.maximum(phi, 1e-9), 0.0)

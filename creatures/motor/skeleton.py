@@ -1,0 +1,241 @@
+"""The body's joint hierarchy and forward kinematics (thesis "graph-based motor systems").
+
+A :class:`Skeleton` is the fixed part of a body: joint names, parents, bone offsets, the
+per-joint mass weights the pose metric uses ("weight joints that move more body mass",
+figure 28) and the end-effectors that reach for notes. Poses (:mod:`creatures.motor.pose`)
+are only the changing part: joint rotations and root position.
+
+Skeleton files are JSON or TOML with one table per joint::
+
+    end_effectors = ["hand"]
+    [[joints]]
+    name = "root"
+    offset = [0, 0, 0]
+    [[joints]]
+    name = "hand"
+    parent = "root"
+    offset = [0, 1, 0]
+    mass = 0.5          # optional; defaults to the joint's subtree size
+
+Joints must be listed parent-before-child.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from creatures.motor import quaternion as quat
+
+
+class SkeletonFileError(ValueError):
+    """A skeleton description is malformed; the message names the file (and line)."""
+
+
+@dataclass(frozen=True, eq=False)
+class Skeleton:
+    """A joint tree with bone offsets, mass weights and named end-effectors."""
+
+    names: tuple[str, ...]
+    parents: np.ndarray
+    offsets: np.ndarray
+    masses: np.ndarray
+    end_effectors: tuple[str, ...] = ()
+    _index: dict[str, int] = field(init=False, repr=False)
+    _levels: tuple[np.ndarray, ...] = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        names = tuple(self.names)
+        parents = np.asarray(self.parents, dtype=np.int64)
+        offsets = np.asarray(self.offsets, dtype=float)
+        masses = np.asarray(self.masses, dtype=float)
+        count = len(names)
+        if parents.shape != (count,) or offsets.shape != (count, 3) or masses.shape != (count,):
+            raise ValueError(
+                f"skeleton arrays disagree: {count} names, parents {parents.shape},"
+                f" offsets {offsets.shape}, masses {masses.shape}"
+            )
+        if len(set(names)) != count:
+            raise ValueError("skeleton joint names must be unique")
+        for j, p in enumerate(parents):
+            if not -1 <= p < j:
+                raise ValueError(
+                    f"joint {names[j]!r}: parent index {p} must come before the joint (or be -1)"
+                )
+        index = {name: j for j, name in enumerate(names)}
+        for name in self.end_effectors:
+            if name not in index:
+                raise ValueError(f"end-effector {name!r} is not a joint of this skeleton")
+        depth = np.zeros(count, dtype=np.int64)
+        for j, p in enumerate(parents):
+            depth[j] = 0 if p < 0 else depth[p] + 1
+        levels = tuple(np.flatnonzero(depth == d) for d in range(int(depth.max(initial=-1)) + 1))
+        for name, value in (
+            ("names", names),
+            ("parents", parents),
+            ("offsets", offsets),
+            ("masses", masses),
+            ("end_effectors", tuple(self.end_effectors)),
+            ("_index", index),
+            ("_levels", levels),
+        ):
+            object.__setattr__(self, name, value)
+        for array in (parents, offsets, masses):
+            array.flags.writeable = False
+
+    @property
+    def joint_count(self) -> int:
+        return len(self.names)
+
+    def index(self, name: str) -> int:
+        """Joint index of ``name`` (KeyError lists the joints when it is unknown)."""
+        try:
+            return self._index[name]
+        except KeyError:
+            raise KeyError(f"no joint {name!r}; joints are {', '.join(self.names)}") from None
+
+    def forward_kinematics(self, rotations: np.ndarray, root: np.ndarray) -> np.ndarray:
+        """World joint positions from local joint rotations and the root translation.
+
+        ``rotations`` is ``(J, 4)`` or batched ``(N, J, 4)``; ``root`` is ``(3,)`` or
+        ``(N, 3)``. Each joint sits at its parent's position plus its offset rotated by the
+        parent's world rotation; the root sits at ``root + offsets[0]`` (BVH convention).
+        The loop runs over tree depth, not joints, so a batch is a handful of numpy calls.
+        """
+        rotations = np.asarray(rotations, dtype=float)
+        root = np.asarray(root, dtype=float)
+        lead = rotations.shape[:-2]
+        world_rot = np.empty_like(rotations)
+        positions = np.empty((*lead, self.joint_count, 3))
+        for level in self._levels:
+            parents = self.parents[level]
+            if parents[0] < 0:
+                world_rot[..., level, :] = rotations[..., level, :]
+                positions[..., level, :] = self.offsets[level] + root[..., None, :]
+                continue
+            parent_rot = world_rot[..., parents, :]
+            world_rot[..., level, :] = quat.multiply(parent_rot, rotations[..., level, :])
+            positions[..., level, :] = positions[..., parents, :] + quat.rotate(
+                parent_rot, self.offsets[level]
+            )
+        return positions
+
+    # --- files --------------------------------------------------------------------------
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-data description (the file format above)."""
+        joints = []
+        for j, name in enumerate(self.names):
+            joint: dict[str, Any] = {
+                "name": name,
+                "offset": [float(x) for x in self.offsets[j]],
+                "mass": float(self.masses[j]),
+            }
+            if self.parents[j] >= 0:
+                joint["parent"] = self.names[self.parents[j]]
+            joints.append(joint)
+        return {"joints": joints, "end_effectors": list(self.end_effectors)}
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any], *, source: str = "<skeleton>", text: str = "") -> Skeleton:
+        """Build from :meth:`to_dict` data; errors name ``source`` and, given ``text``, a line."""
+
+        def fail(message: str, needle: str | None = None) -> SkeletonFileError:
+            line = line_of(text, needle) if needle else None
+            where = f"{source}:{line}" if line else source
+            return SkeletonFileError(f"{where}: {message}")
+
+        joints = data.get("joints") if isinstance(data, dict) else None
+        if not isinstance(joints, list) or not joints:
+            raise fail("expected a non-empty list 'joints'")
+        names: list[str] = []
+        parents: list[int] = []
+        offsets: list[list[float]] = []
+        masses: list[float | None] = []
+        for k, joint in enumerate(joints):
+            if not isinstance(joint, dict) or not isinstance(joint.get("name"), str):
+                raise fail(f"joints[{k}] needs a string 'name'")
+            name = joint["name"]
+            needle = name
+            if name in names:
+                raise fail(f"joint {name!r} is listed twice", needle)
+            parent = joint.get("parent")
+            if parent is None:
+                parents.append(-1)
+            elif parent in names:
+                parents.append(names.index(parent))
+            else:
+                raise fail(f"joint {name!r}: parent {parent!r} is not listed before it", needle)
+            offset = joint.get("offset", [0.0, 0.0, 0.0])
+            if not (
+                isinstance(offset, list)
+                and len(offset) == 3
+                and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in offset)
+            ):
+                raise fail(f"joint {name!r}: 'offset' must be three numbers", needle)
+            mass = joint.get("mass")
+            if mass is not None and not (isinstance(mass, (int, float)) and mass >= 0):
+                raise fail(f"joint {name!r}: 'mass' must be a non-negative number", needle)
+            names.append(name)
+            offsets.append([float(x) for x in offset])
+            masses.append(None if mass is None else float(mass))
+        effectors = data.get("end_effectors", [])
+        if not isinstance(effectors, list) or not all(isinstance(e, str) for e in effectors):
+            raise fail("'end_effectors' must be a list of joint names", "end_effectors")
+        for name in effectors:
+            if name not in names:
+                raise fail(f"end-effector {name!r} is not a joint", "end_effectors")
+        parents_array = np.asarray(parents, dtype=np.int64)
+        default = subtree_sizes(parents_array)
+        mass_array = np.array([default[j] if m is None else m for j, m in enumerate(masses)])
+        return cls(tuple(names), parents_array, np.asarray(offsets), mass_array, tuple(effectors))
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> Skeleton:
+        """Read a JSON (``.json``) or TOML (any other suffix) skeleton description."""
+        path = Path(path)
+        try:
+            text = path.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            raise SkeletonFileError(f"{path}: cannot read skeleton file ({exc})") from None
+        if path.suffix.lower() == ".json":
+            try:
+                data = json.loads(text)
+            except json.JSONDecodeError as exc:
+                raise SkeletonFileError(f"{path}:{exc.lineno}: malformed JSON ({exc.msg})") from None
+        else:
+            try:
+                data = tomllib.loads(text)
+            except tomllib.TOMLDecodeError as exc:
+                raise SkeletonFileError(f"{path}:{_toml_line(exc, text)}: malformed TOML ({exc})") from None
+        return cls.from_dict(data, source=str(path), text=text)
+
+
+def subtree_sizes(parents: np.ndarray) -> np.ndarray:
+    """Number of joints at or below each joint: the default "mass moved" weight."""
+    sizes = np.ones(len(parents))
+    for j in range(len(parents) - 1, -1, -1):
+        if parents[j] >= 0:
+            sizes[parents[j]] += sizes[j]
+    return sizes
+
+
+def _toml_line(exc: tomllib.TOMLDecodeError, text: str) -> int:
+    """The line tomllib's message points at ("at line N" or "at end of document")."""
+    found = re.search(r"at line (\d+)", str(exc))
+    return int(found.group(1)) if found else max(1, len(text.splitlines()))
+
+
+def line_of(text: str, needle: str) -> int | None:
+    """1-based line where ``needle`` first appears quoted, or as a key, in ``text``."""
+    for number, line in enumerate(text.splitlines(), start=1):
+        if f'"{needle}"' in line or f"'{needle}'" in line or line.lstrip().startswith(needle):
+            return number
+    return None

@@ -1,0 +1,188 @@
+"""Motor programs: the stack machine, sub-programs, forced moves and program graphs."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from creatures.motor import quaternion as quat
+from creatures.motor.animations import creature_skeleton, example_animations
+from creatures.motor.graph import MotorGraph
+from creatures.motor.pose import PoseSet
+from creatures.motor.programs import (
+    MotorProgramGraph,
+    MotorSystem,
+    ProgramStack,
+    ProgramSyntaxError,
+    Statement,
+    Status,
+    parse_programs,
+    run,
+)
+from motor_fixtures import fastest_source_step
+
+LEFT, RIGHT = "sway left", "sway right"
+
+
+@pytest.fixture(scope="module")
+def graph() -> MotorGraph:
+    return MotorGraph.build(PoseSet.concatenate(example_animations(creature_skeleton())), k=5)
+
+
+def arrived_labels(graph: MotorGraph, motor: MotorSystem) -> list[str]:
+    """Which of the two sway extremes each completed course ended on."""
+    out = []
+    for _, node in motor.arrivals:
+        tags = graph.poses.labels[node] & {LEFT, RIGHT}
+        assert len(tags) == 1, "every course of the walk program ends on a labelled extreme"
+        out.append(next(iter(tags)))
+    return out
+
+
+def merge_repeats(labels: list[str]) -> list[str]:
+    return [x for k, x in enumerate(labels) if k == 0 or labels[k - 1] != x]
+
+
+def test_biphasic_cycle_alternates(graph, clock):
+    programs = parse_programs(f'walk: getToClosest {{"{LEFT}", "{RIGHT}"}}; wait; getToFurthest {{"{LEFT}", "{RIGHT}"}}; cycle')
+    motor = MotorSystem(graph, start=int(graph.poses.labelled("reach")[10]))
+    stack = ProgramStack(motor, programs["walk"])
+    stack.start(clock.now())
+    assert run(stack, clock, until=25.0) is Status.RUNNING  # a cycle never ends by itself
+    visits = merge_repeats(arrived_labels(graph, motor))
+    assert len(visits) >= 6
+    assert all(a != b for a, b in zip(visits, visits[1:]))
+    assert stack.cycles >= 3
+
+
+def test_cycle_to_the_furthest_statement_alternates_every_arrival(graph, clock):
+    text = f"""
+    walk:
+      getToClosest {{"{LEFT}", "{RIGHT}"}}; wait
+      ↑ getToFurthest {{"{LEFT}", "{RIGHT}"}}; wait
+      ↓ cycle 2
+    """
+    motor = MotorSystem(graph, start=0)
+    stack = ProgramStack(motor, parse_programs(text)["walk"])
+    stack.start(clock.now())
+    run(stack, clock, until=20.0)
+    visits = arrived_labels(graph, motor)
+    assert len(visits) >= 6
+    assert all(a != b for a, b in zip(visits, visits[1:]))
+
+
+def test_sub_programs_and_forced_exit(graph, clock):
+    text = """
+    beg:
+      getTo "strike"; wait
+      getTo "strike ready"; wait
+      forcedGetTo "low energy"; wait
+      end
+    perform:
+      getTo beg; wait
+      end
+    """
+    programs = parse_programs(text)
+    motor = MotorSystem(graph, start=int(graph.poses.labelled("reach")[20]))
+    stack = ProgramStack(motor, programs["perform"], library=programs)
+    stack.start(clock.now())
+    assert run(stack, clock, until=30.0) is Status.DONE
+    labels = [graph.poses.labels[n] for _, n in motor.arrivals]
+    assert "strike" in labels[0] and "strike ready" in labels[1] and "low energy" in labels[2]
+
+    # Asked to stop early, the program still makes its forced move to a low-energy state.
+    motor = MotorSystem(graph, start=int(graph.poses.labelled("reach")[20]))
+    stack = ProgramStack(motor, programs["beg"], library=programs)
+    stack.start(clock.now())
+    stack.update(clock.now())
+    stack.request_exit(clock.now())
+    assert run(stack, clock, until=clock.now() + 30.0) is Status.DONE
+    final = motor.arrivals[-1][1]
+    assert "low energy" in graph.poses.labels[final]
+    assert not any("strike ready" in graph.poses.labels[n] for _, n in motor.arrivals)
+
+
+def test_program_graph_takes_the_nearer_branch_and_exits(graph, clock):
+    program = MotorProgramGraph(
+        "beg",
+        {
+            "start": Statement("getTo", ("strike",)),
+            "w1": Statement("wait"),
+            "left": Statement("getTo", (LEFT,)),
+            "reach": Statement("getTo", ("reach",)),
+            "w2": Statement("wait"),
+            "exit": Statement("forcedGetTo", ("low energy",)),
+            "w3": Statement("wait"),
+        },
+        {"start": ["w1"], "w1": ["left", "reach"], "left": ["w2"], "reach": ["w2"], "w2": ["exit"], "exit": ["w3"]},
+    )
+    motor = MotorSystem(graph, start=0)
+    stack = ProgramStack(motor, program)
+    stack.start(clock.now())
+    assert run(stack, clock, until=30.0) is Status.DONE
+    strike_node = motor.arrivals[0][1]
+    chosen = motor.arrivals[1][1]
+    cost_left = motor.finder.to_label(strike_node, LEFT).cost
+    cost_reach = motor.finder.to_label(strike_node, "reach").cost
+    expected = LEFT if cost_left < cost_reach else "reach"
+    assert expected in graph.poses.labels[chosen]
+    assert "low energy" in graph.poses.labels[motor.arrivals[-1][1]]
+    # Asked to exit, flow follows the fewest-hop route to the "exit" vertex.
+    assert program.exit_cursor("w2") == ("exit",)
+    assert program.exit_cursor("start") == ("w1", "left", "w2", "exit")
+
+    motor = MotorSystem(graph, start=0)
+    stack = ProgramStack(motor, program)
+    stack.start(clock.now())
+    stack.update(clock.now())
+    stack.request_exit(clock.now())
+    assert run(stack, clock, until=clock.now() + 30.0) is Status.DONE
+    assert "low energy" in graph.poses.labels[motor.arrivals[-1][1]]
+
+
+def test_describe_shows_the_stack(graph, clock):
+    programs = parse_programs('beg: getTo "strike"; wait\nperform: getTo beg; wait')
+    stack = ProgramStack(MotorSystem(graph), programs["perform"], library=programs)
+    stack.start(clock.now())
+    stack.update(clock.now())
+    assert stack.describe().splitlines() == ["perform: wait", "  beg: wait"]
+
+
+def test_changing_course_mid_way_does_not_jump(graph, clock):
+    motor = MotorSystem(graph, start=0)
+    motor.set_course(clock.now(), motor.course(clock.now(), ["strike"]))
+    frame = 1.0 / 60.0
+    shown = []
+    for k in range(40):
+        if k == 17:  # the behaviour system changes its mind mid-course
+            motor.set_course(clock.now(), motor.course(clock.now(), [LEFT]))
+        shown.append(motor.pose(clock.now()).rotations)
+        clock.advance(frame)
+    steps = quat.angle_between(np.array(shown[1:]), np.array(shown[:-1])).max(axis=1)
+    assert steps.max() < 1.25 * fastest_source_step(frame)
+    # Across the switch the body keeps moving at the pace it had: no jump onto the new path.
+    assert steps[16] < 2.0 * max(steps[14], steps[15])
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ('getTo "x"', r"<motor program>:1: statement .* before any 'name:' header"),
+        ("walk:\n  fly away", r"<motor program>:2: unknown motor statement 'fly'"),
+        ("walk:\n  getTo", r"<motor program>:2: 'getTo' needs a target"),
+        ("walk:\n  wait 3", r"<motor program>:2: 'wait' takes no arguments"),
+        ("walk:\n  getTo {a, b", r"<motor program>:2: unclosed target set"),
+        ("walk:\n  wait; cycle 9", r"cycle 9 jumps outside it"),
+    ],
+)
+def test_syntax_errors_name_the_line(text, message):
+    with pytest.raises(ProgramSyntaxError, match=message):
+        parse_programs(text)
+
+
+def test_a_cycle_that_never_moves_is_reported(graph, clock):
+    programs = parse_programs("spin: cycle")
+    stack = ProgramStack(MotorSystem(graph), programs["spin"])
+    stack.start(clock.now())
+    with pytest.raises(RuntimeError, match="without the body moving"):
+        stack.update(clock.now())
