@@ -1,0 +1,420 @@
+"""The action-group: competitive action selection and credit assignment (thesis: "the
+action-group", "a baseline action selection mechanism", "credit assignment", "hierarchical
+action-groups").
+
+Selection follows the thesis's pseudocode. When a slot is free, choose a tuple with
+probability proportional to the expected values ``S`` and record every tuple's expected value
+at that moment (the *base* values). While a tuple is active, interrupt it only if some other
+tuple's expected value has grown to ``multiple`` × its base value *and* is at least the
+active tuple's current expected value; then choose again from everyone (the active tuple
+included, so an interruption may confirm what the creature is already doing). ``multiple``
+above 1 is the hysteresis that stops the creature dithering between near-equal tuples; a
+tuple whose trigger was absent at the last selection (base ≤ 0) only has to become positive
+and beat the active tuple, which is how the dog still reacts to a sudden noise.
+
+Expected values ≤ 0 are never chosen: a non-positive value says "not worth doing now". With
+a ``temperature`` T the positive expected values pass through the Boltzmann function
+``exp(S/T)`` (the thesis's exploration/exploitation extension); negative and zero values are
+still excluded rather than given the small weight ``exp(S/T)`` would give them, so a lion
+tuple whose negative saliency meets a negative value (S > 0) can win while a negative S can
+never be drawn by a high temperature.
+
+Credit assignment runs whenever a tuple becomes active (a finished tuple starting again is
+a new activation and discounts itself; an interruption that re-chooses the running tuple is
+not): every tuple ``i`` is blended toward the discounted value of the newcomer,
+``V_i ← (1 − a_i)V_i + a_i·β·V_n`` with ``a_i = α · proximity(last_active, i) · Tr_i``
+(clipped to [0, 1]) where ``Tr_i`` is tuple i's trigger saliency at the time the last active
+tuple became active. β·V_n is a value of V_n's own kind (:func:`discounted`), so tracer dye or
+stance tags travel back with it. Only leaf tuples take credit, and a group tuple's transitions
+are credited between the leaves it ran (hierarchical groups: "assign only the credit to the
+leaf nodes"); a group tuple's Du is its active child's Du.
+
+Hot path: triggers are evaluated once per distinct percept (percepts are creature-wide and
+shared between tuples) and combined with the values as numpy arrays, so only the active
+tuples do Python-level work per tick.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable, Iterable, Protocol
+
+import numpy as np
+
+from creatures.behaviour.action_tuple import Action, ActionTuple, DoUntil
+from creatures.behaviour.percept import Percept
+from creatures.behaviour.value import Value, value_from_dict
+
+EventSink = Callable[[dict[str, Any]], None]
+
+
+class Learner(Protocol):
+    """Anything that learns from a credit assignment (see ``creatures.behaviour.learning``)."""
+
+    def after_credit(
+        self, group: "ActionGroup", t: float, last: ActionTuple, a: np.ndarray, target: Value, before: np.ndarray
+    ) -> None: ...
+
+
+def discounted(value: Value, beta: float) -> Value:
+    """β·V as a value of the same kind, so hidden structure (tracer dye, stance tags) rides
+    along with the scalar when ``blend_to`` carries it back."""
+    data = value.to_dict()
+    data["value"] = beta * data["value"]
+    return value_from_dict(data)
+
+
+def selection_probabilities(expected: np.ndarray, temperature: float | None = None) -> np.ndarray | None:
+    """Probabilities ∝ ``expected`` (or ∝ ``exp(S/T)``) over the strictly positive entries.
+
+    Returns ``None`` when nothing is positive: nothing is worth doing.
+    """
+    positive = expected > 0.0
+    if not positive.any():
+        return None
+    weights = np.zeros_like(expected, dtype=float)
+    s = expected[positive]
+    weights[positive] = s if temperature is None else np.exp((s - s.max()) / temperature)
+    return weights / weights.sum()
+
+
+class ActionGroup:
+    """A set of action-tuples competing for ``max_active`` activation slots.
+
+    ``rng`` is the creature's numpy Generator (no global randomness); time comes in through
+    :meth:`tick`. ``on_event`` receives plain dicts for the events log: ``selection`` (a
+    tuple became active), ``interruption``, ``reselection`` (an interruption chose the
+    running tuple again), ``stop`` and ``credit``. ``max_active`` > 1 lets several tuples be
+    active at once (e.g. a non-exclusive group of perception actions).
+    """
+
+    def __init__(
+        self,
+        name: str,
+        tuples: Iterable[ActionTuple] = (),
+        *,
+        rng: np.random.Generator,
+        alpha: float = 0.1,
+        discount: float = 0.8,
+        multiple: float = 1.5,
+        temperature: float | None = None,
+        max_active: int = 1,
+        on_event: EventSink | None = None,
+        learning: Learner | None = None,
+    ) -> None:
+        if max_active < 1:
+            raise ValueError(f"{name}: max_active must be at least 1 (got {max_active})")
+        if temperature is not None and not temperature > 0:
+            raise ValueError(f"{name}: temperature must be positive (got {temperature})")
+        self.name = name
+        self.rng = rng
+        self.alpha = float(alpha)
+        self.discount = float(discount)
+        self.multiple = float(multiple)
+        self.temperature = temperature
+        self.max_active = int(max_active)
+        self.on_event = on_event
+        self.learning = learning
+        self.tuples: list[ActionTuple] = []
+        self.active: list[ActionTuple] = []
+        self.last_active: ActionTuple | None = None
+        self.last_started_at: float | None = None  # when last_active became active
+        self.last_tick: float | None = None
+        self._base = np.zeros(0)
+        self._interrupt_at = np.zeros(0)
+        self._trigger_at_last_start = np.zeros(0)
+        self._proximity: dict[ActionTuple, np.ndarray] = {}
+        self._positions: dict[int, int] = {}
+        self._ticking = False
+        self._deferred: list[Callable[[], object]] = []
+        self._percepts: list[Percept] = []
+        self._percept_index = np.zeros(0, dtype=np.intp)
+        self._leaf = np.zeros(0, dtype=bool)
+        for tuple_ in tuples:
+            self.add(tuple_)
+
+    # -- membership -------------------------------------------------------------------
+    def add(self, tuple_: ActionTuple) -> ActionTuple:
+        """Add a tuple (e.g. a new hypothesis); it takes no credit for the current transition.
+
+        Called during a tick (by a learner), the change waits for the end of the tick so the
+        arrays of this tick's selection stay aligned with the tuples.
+        """
+        if self._ticking:
+            self._deferred.append(lambda: self.add(tuple_))
+            return tuple_
+        self.tuples.append(tuple_)
+        self.record_base(np.append(self._base, 0.0))
+        self._trigger_at_last_start = np.append(self._trigger_at_last_start, 0.0)
+        self._reindex()
+        return tuple_
+
+    def remove(self, tuple_: ActionTuple, t: float) -> None:
+        """Drop a tuple (e.g. after percept fusion), stopping it first if active."""
+        if self._ticking:
+            self._deferred.append(lambda: self.remove(tuple_, t))
+            return
+        if tuple_.active:
+            self._stop(tuple_, t, interrupted=True)
+        i = self._position(tuple_)
+        del self.tuples[i]
+        self.record_base(np.delete(self._base, i))
+        self._trigger_at_last_start = np.delete(self._trigger_at_last_start, i)
+        if self.last_active is tuple_:
+            self.last_active = None
+        self._reindex()
+
+    def find(self, name: str) -> ActionTuple:
+        for tuple_ in self.tuples:
+            if tuple_.name == name:
+                return tuple_
+        raise KeyError(f"no action-tuple named {name!r} in group {self.name!r}")
+
+    def _position(self, tuple_: ActionTuple) -> int:
+        return self._positions[id(tuple_)]
+
+    def _reindex(self) -> None:
+        self._positions = {id(tp): i for i, tp in enumerate(self.tuples)}
+        index: dict[int, int] = {}
+        self._percepts = []
+        for tuple_ in self.tuples:
+            if id(tuple_.trigger) not in index:
+                index[id(tuple_.trigger)] = len(self._percepts)
+                self._percepts.append(tuple_.trigger)
+        self._percept_index = np.array([index[id(tp.trigger)] for tp in self.tuples], dtype=np.intp)
+        self._leaf = np.array([not isinstance(tp.action, GroupAction) for tp in self.tuples], dtype=bool)
+        self._proximity.clear()
+
+    # -- evaluation ---------------------------------------------------------------------
+    def triggers(self, t: float) -> np.ndarray:
+        """Every tuple's trigger saliency at ``t`` (each distinct percept evaluated once)."""
+        saliency = np.fromiter((p.evaluate(t) for p in self._percepts), float, len(self._percepts))
+        return saliency[self._percept_index]
+
+    def values(self) -> np.ndarray:
+        return np.fromiter((tp.value.to_float() for tp in self.tuples), float, len(self.tuples))
+
+    @property
+    def trigger_at_last_start(self) -> np.ndarray:
+        """Every tuple's Tr saliency when the last active tuple became active (read-only)."""
+        view = self._trigger_at_last_start.view()
+        view.flags.writeable = False
+        return view
+
+    def leaf_values(self) -> np.ndarray:
+        """Values of the leaf tuples only (group tuples excluded), e.g. for thresholds."""
+        return self.values()[self._leaf]
+
+    def expected_values(self, t: float) -> np.ndarray:
+        """``Tr·V`` for inactive tuples and ``(1 − Du)·V`` for active ones, as one array."""
+        return self._expected(t, self.triggers(t), self.values())
+
+    def _expected(self, t: float, trig: np.ndarray, vals: np.ndarray) -> np.ndarray:
+        expected = trig * vals
+        for tuple_ in self.active:
+            i = self._position(tuple_)
+            expected[i] = (1.0 - tuple_.do_until.evaluate(t)) * vals[i]
+        return expected
+
+    # -- the selection loop -------------------------------------------------------------
+    def tick(self, t: float) -> None:
+        """One step of the baseline mechanism: stop what is done, fill free slots or
+        interrupt, then update whatever is active."""
+        self.last_tick = t
+        self._ticking = True
+        try:
+            for tuple_ in list(self.active):
+                if tuple_.do_until.evaluate(t) >= 1.0:
+                    self._stop(tuple_, t, interrupted=False)
+            trig = self.triggers(t)
+            expected = self._expected(t, trig, self.values())
+            if len(self.active) < self.max_active:
+                self._fill(t, trig, expected)
+            elif self._should_interrupt(expected):
+                self._reselect(t, trig, expected)
+            for tuple_ in list(self.active):
+                tuple_.update(t)
+        finally:
+            self._ticking = False
+        while self._deferred:
+            self._deferred.pop(0)()
+
+    def _inactive_mask(self) -> np.ndarray:
+        mask = np.ones(len(self.tuples), dtype=bool)
+        for tuple_ in self.active:
+            mask[self._position(tuple_)] = False
+        return mask
+
+    def record_base(self, expected: np.ndarray) -> None:
+        """Remember every tuple's expected value at a selection, and from it the interruption
+        thresholds: ``multiple`` × a positive base value, the base itself otherwise."""
+        self._base = np.array(expected, dtype=float)
+        self._interrupt_at = np.where(self._base > 0.0, self.multiple * self._base, self._base)
+
+    def _should_interrupt(self, expected: np.ndarray) -> bool:
+        weakest = min(expected[self._position(tp)] for tp in self.active)
+        grown = (expected > 0.0) & (expected >= self._interrupt_at) & (expected >= weakest)
+        return bool((grown & self._inactive_mask()).any())
+
+    def _choose(self, expected: np.ndarray, allowed: np.ndarray) -> int | None:
+        p = selection_probabilities(np.where(allowed, expected, 0.0), self.temperature)
+        if p is None:
+            return None
+        i = int(np.searchsorted(np.cumsum(p), self.rng.random() * p.sum(), side="right"))
+        return min(i, len(p) - 1)
+
+    def _fill(self, t: float, trig: np.ndarray, expected: np.ndarray) -> None:
+        while len(self.active) < self.max_active:
+            i = self._choose(expected, self._inactive_mask())
+            if i is None:
+                return
+            self.record_base(expected)
+            self._start(self.tuples[i], t, trig)
+
+    def _reselect(self, t: float, trig: np.ndarray, expected: np.ndarray) -> None:
+        weakest = min(self.active, key=lambda tp: expected[self._position(tp)])
+        allowed = self._inactive_mask()
+        allowed[self._position(weakest)] = True
+        i = self._choose(expected, allowed)
+        self.record_base(expected)
+        if i is None or self.tuples[i] is weakest:
+            self._emit("reselection", t, tuple=weakest.name)  # the interruption confirmed it
+            return
+        self._emit("interruption", t, tuple=weakest.name, by=self.tuples[i].name)
+        self._stop(weakest, t, interrupted=True)
+        self._start(self.tuples[i], t, trig)
+
+    def _start(self, tuple_: ActionTuple, t: float, trig: np.ndarray) -> None:
+        tuple_.start(t, self.rng, group=self)
+        self.active.append(tuple_)
+        self._emit("selection", t, tuple=tuple_.name, value=tuple_.value.to_float())
+        if self.last_active is not None:  # a tuple restarting after it finished counts too
+            self.assign_credit(t, self.last_active, tuple_)
+        self.last_active = tuple_
+        self.last_started_at = t
+        self._trigger_at_last_start = trig.copy()
+
+    def _stop(self, tuple_: ActionTuple, t: float, *, interrupted: bool) -> None:
+        duration = tuple_.stop(t, interrupted=interrupted)
+        self.active.remove(tuple_)
+        self._emit("stop", t, tuple=tuple_.name, duration=duration, interrupted=interrupted)
+
+    def stop_all(self, t: float) -> None:
+        """Stop every active tuple (the group itself is being deactivated)."""
+        for tuple_ in list(self.active):
+            self._stop(tuple_, t, interrupted=True)
+
+    # -- credit assignment ------------------------------------------------------------
+    def proximity(self, leaf: ActionTuple) -> np.ndarray:
+        """``leaf.proximity_to(i)`` for every tuple (0 for group tuples), cached per leaf."""
+        row = self._proximity.get(leaf)
+        if row is None:
+            row = np.array(
+                [leaf.proximity_to(tp) if is_leaf else 0.0 for tp, is_leaf in zip(self.tuples, self._leaf)]
+            )
+            self._proximity[leaf] = row
+        return row
+
+    def assign_credit(self, t: float, last: ActionTuple, new: ActionTuple) -> np.ndarray:
+        """Blend every leaf toward ``β·V_n``; returns the blend parameters ``a_i`` used."""
+        last_leaf, new_leaf = leaf_of(last), leaf_of(new)
+        target = discounted(new_leaf.value, self.discount)
+        a = np.clip(self.alpha * self.proximity(last_leaf) * self._trigger_at_last_start, 0.0, 1.0)
+        before = self.values() if self.learning is not None else None
+        for i in np.flatnonzero(a):
+            self.tuples[i].value.blend_to(target, float(a[i]))
+        self._emit(
+            "credit", t, last=last_leaf.name, new=new_leaf.name, target=target.to_float(),
+            blended={self.tuples[i].name: float(a[i]) for i in np.flatnonzero(a)},
+        )
+        if self.learning is not None:
+            self.learning.after_credit(self, t, last_leaf, a, target, before)
+        return a
+
+    # -- persistence ----------------------------------------------------------------------
+    def activation_state(self) -> dict[str, Any]:
+        """What selection needs to continue exactly after a reload: who is active, the base
+        values of the last selection, the triggers when the last active tuple started.
+        Arrays are returned as numpy arrays (the creature stores them in its NPZ)."""
+        return {
+            "active": [tp.name for tp in self.active],
+            "last_active": None if self.last_active is None else self.last_active.name,
+            "last_started_at": self.last_started_at,
+            "last_tick": self.last_tick,
+            "alpha": self.alpha,
+            "base": self._base.copy(),
+            "trigger_at_last_start": self._trigger_at_last_start.copy(),
+        }
+
+    def restore_activation(self, state: dict[str, Any], order: list[str]) -> None:
+        """Take back :meth:`activation_state`, with the tuples put in the saved ``order``."""
+        position = {name: k for k, name in enumerate(order)}
+        unsaved = sorted({tp.name for tp in self.tuples} - position.keys())
+        if unsaved or len(position) != len(self.tuples):
+            raise ValueError(f"group {self.name!r}: tuples {unsaved or order} do not match the saved tuples")
+        self.tuples.sort(key=lambda tp: position[tp.name])
+        self._reindex()
+        base, trig = np.asarray(state["base"], float), np.asarray(state["trigger_at_last_start"], float)
+        if base.shape != (len(self.tuples),) or trig.shape != (len(self.tuples),):
+            raise ValueError(f"group {self.name!r}: saved arrays do not match its {len(self.tuples)} tuples")
+        self.record_base(base)
+        self._trigger_at_last_start = trig
+        self.alpha = float(state["alpha"])
+        self.active = [self.find(name) for name in state["active"]]
+        self.last_active = None if state["last_active"] is None else self.find(state["last_active"])
+        self.last_started_at = state["last_started_at"]
+        self.last_tick = state["last_tick"]
+
+    def _emit(self, event: str, t: float, **fields: Any) -> None:
+        if self.on_event is not None:
+            self.on_event({"event": event, "t": t, "group": self.name, **fields})
+
+    def __repr__(self) -> str:
+        return f"ActionGroup({self.name!r}, {len(self.tuples)} tuples, active={[tp.name for tp in self.active]})"
+
+
+# -- hierarchical action-groups ------------------------------------------------------------
+class GroupAction(Action):
+    """Ac of a tuple that *is* an action-group: while active it runs selection among its
+    children (thesis: "we can dress an action-group ... up as an action-tuple itself")."""
+
+    def __init__(self, group: ActionGroup) -> None:
+        super().__init__(group.name)
+        self.group = group
+
+    def start(self, t: float, tuple_: ActionTuple) -> None:
+        self.group.tick(t)
+
+    def update(self, t: float) -> None:
+        if self.group.last_tick != t:  # already ticked by start() at this instant
+            self.group.tick(t)
+
+    def stop(self, t: float, *, interrupted: bool) -> None:
+        self.group.stop_all(t)
+
+
+class ActiveChildDone(Percept):
+    """Du of a group tuple: the active child's Du percolates upward; with no active child
+    (nothing worth doing inside) the group is done."""
+
+    def __init__(self, group: ActionGroup) -> None:
+        super().__init__(f"{group.name}:done")
+        self.group = group
+
+    def evaluate(self, t: float) -> float:
+        if not self.group.active:
+            return 1.0
+        return min(tp.do_until.evaluate(t) for tp in self.group.active)
+
+
+def group_tuple(
+    group: ActionGroup, trigger: Percept, value: Value | float, *, duration: float | None = None
+) -> ActionTuple:
+    """Wrap ``group`` as ``trigger | group | until its active child is done | value``."""
+    return ActionTuple(group.name, trigger, GroupAction(group), DoUntil(duration, until=ActiveChildDone(group)), value)
+
+
+def leaf_of(tuple_: ActionTuple) -> ActionTuple:
+    """The leaf tuple actually doing the work under ``tuple_`` (itself if it is a leaf)."""
+    while isinstance(tuple_.action, GroupAction) and tuple_.action.group.last_active is not None:
+        tuple_ = tuple_.action.group.last_active
+    return tuple_
