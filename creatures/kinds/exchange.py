@@ -51,10 +51,13 @@ class ExchangeSpec(CreatureSpec):
     strike_radius: float = Field(0.15, gt=0, le=1.0, description="how close the hand must pass to strike a note (m)")
     note_lifetime: float = Field(45.0, gt=0, description="seconds a placed note stays in space")
     max_notes: int = Field(48, ge=1, le=4096, description="most notes in space; the oldest fade first")
-    mutation: float = Field(0.15, ge=0, le=1, description="chance a placed copy is transposed")
+    refractory: float = Field(20.0, ge=0, description="seconds before the same note is struck again")
+    strike_interval: float = Field(0.25, ge=0, description="shortest time between two strikes while wandering (s)")
+    mutation: float = Field(0.08, ge=0, le=1, description="chance a placed copy is transposed")
     boredom_rate: float = Field(0.08, ge=0, description="boredom growth per second without notes")
     relief: float = Field(0.3, ge=0, description="boredom removed by each heard note")
-    hunger_gain: float = Field(0.5, ge=0, description="how strongly boredom feeds hunger for notes")
+    appetite: float = Field(0.08, ge=0, description="hunger for notes gained per second")
+    hunger_gain: float = Field(0.1, ge=0, description="extra hunger per second per unit of boredom")
     satiation: float = Field(0.25, ge=0, description="hunger removed by each struck note")
     temperature: float | None = Field(None, gt=0, description="Boltzmann temperature of action selection")
     voice: VoiceSpec = VoiceSpec()
@@ -90,9 +93,10 @@ class _SeekNote(Action):
     def start(self, t: float, tuple_: ActionTuple) -> None:
         c = self.creature
         self.target = None
+        fresh = c.unstruck(t)
         try:
             self.target, path = nearest_note(c.body.finder, c.body.motor.position(t), c.body.effector,
-                                             c.space.objects, tolerance=c.spec.strike_radius)
+                                             fresh, tolerance=c.spec.strike_radius)
         except NoPath:
             return
         c.body.motor.set_course(t, path)
@@ -129,21 +133,23 @@ class Exchange(CreatureKind):
     def __init__(self, spec: ExchangeSpec, world, rng: np.random.Generator) -> None:
         super().__init__(spec, world, rng)
         self.body = Body(rng)
-        self.placement = NotePlacement.around(self.body.reach())
+        self._reach = self.body.reach()
+        self.placement = NotePlacement.around(self._reach)
         self.space = NoteSpace(world.scheduler_for(self), world.clock)
         self.placed_at: dict[int, float] = {}
         self.voice: Voice | None = None
         self._struck_at: dict[int, float] = {}
+        self._last_strike = -np.inf
         self.motivation = Motivation(
             {"boredom": 0.2, "hunger": 0.0},
-            growth={"boredom": spec.boredom_rate},
+            growth={"boredom": spec.boredom_rate, "hunger": spec.appetite},
             decay={"hunger": 0.05},
             equilibrium={"hunger": 0.0},
-            coupling={("hunger", "boredom"): spec.hunger_gain * 0.1},
+            coupling={("hunger", "boredom"): spec.hunger_gain},
             ceiling=2.0,
         )
         root = WhateverPercept()
-        hungry = FunctionPercept("hungry", lambda t: self.motivation.level("hunger", t), parent=root)
+        hungry = FunctionPercept("hungry", self._hunger_for_fresh_notes, parent=root)
         self.seek = _SeekNote(self)
         arrived = FunctionPercept("arrived", lambda t: 1.0 if self.body.motor.arrived(t) else 0.0)
         found = FunctionPercept("struck", self.seek.done)
@@ -165,25 +171,62 @@ class Exchange(CreatureKind):
         self.motivation.perturb(t, "boredom", -self.spec.relief)
         pitch = note.pitch
         if self.rng.random() < self.spec.mutation:
-            pitch = int(np.clip(pitch + self.rng.choice(MUTATIONS), 0, 127))
+            pitch = self._in_register(pitch + int(self.rng.choice(MUTATIONS)))
+        position = self.place(pitch, note.velocity)
+        for same in self.space.within(position, 0.02):
+            if same.pitch == pitch:
+                # Note objects are not independent (thesis "musical worlds"): hearing a note
+                # already in space renews it rather than stacking a duplicate.
+                self.placed_at[id(same)] = t
+                return
         copy = NoteEvent(note.time, pitch, note.velocity, self.spec.channel, min(note.duration, 2.0))
-        obj = self.space.place(copy, self.placement.place(pitch, note.velocity))
+        obj = self.space.place(copy, position)
         self.placed_at[id(obj)] = t
         self.world.emit("placed", creature=self.name, pitch=pitch, source=source, heard=note.pitch,
                         position=obj.position)
         while len(self.space) > self.spec.max_notes:
             self._forget(self.space.objects[0])
 
+    def place(self, pitch: int, velocity: int) -> np.ndarray:
+        """Where a note goes: the pitch/velocity place, snapped to the nearest point the hand
+        actually passes in the source material, so every note in space can be struck."""
+        wanted = self.placement.place(pitch, velocity)
+        return self._reach[int(np.argmin(np.sum((self._reach - wanted) ** 2, axis=1)))].copy()
+
+    def unstruck(self, t: float) -> list[NoteObject]:
+        """Notes not struck for ``refractory`` seconds: a hungry creature looks for notes it
+        has not just eaten, so its hand travels the whole space (and reorders it)."""
+        return [o for o in self.space.objects
+                if t - self._struck_at.get(id(o), -np.inf) >= self.spec.refractory]
+
+    def _in_register(self, pitch: int) -> int:
+        """Fold a pitch by octaves into the placement's range, so copies of copies cannot
+        drift out of the space the body reaches."""
+        low, high = self.placement.pitch_range
+        while pitch < low:
+            pitch += 12
+        while pitch > high:
+            pitch -= 12
+        return pitch
+
+    def _hunger_for_fresh_notes(self, t: float) -> float:
+        """Hunger matters only when there is something to eat."""
+        return self.motivation.level("hunger", t) if self.unstruck(t) else 0.0
+
     def strike(self, t: float, obj: NoteObject, strength: float) -> None:
-        self._struck_at[id(obj)] = t
+        self._struck_at[id(obj)] = self._last_strike = t
         self.space.strike(obj, strength)
         self.motivation.perturb(t, "hunger", -self.spec.satiation)
 
     def strike_nearby(self, t: float) -> None:
-        """Strike notes the hand passes through (each at most once a second)."""
+        """Strike the nearest note the hand passes through (not one struck within
+        ``refractory``, and no more often than ``strike_interval``: one note at a time)."""
+        if t - self._last_strike < self.spec.strike_interval:
+            return
         for obj in self.space.within(self.body.hand(), self.spec.strike_radius):
-            if t - self._struck_at.get(id(obj), -np.inf) >= 1.0:
+            if t - self._struck_at.get(id(obj), -np.inf) >= self.spec.refractory:
                 self.strike(t, obj, 0.8)
+                return
 
     def played(self, note: NoteEvent) -> None:
         if self.voice is not None:
