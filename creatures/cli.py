@@ -97,6 +97,32 @@ def _offline(args: argparse.Namespace) -> int:
                         duration=args.duration, progress=not args.no_progress)
 
 
+def _run_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("config", type=Path, help="installation config (TOML)")
+    parser.add_argument("--state", type=Path, help="directory for saved creature state (overrides the config)")
+    parser.add_argument("--log", type=Path, help="write the events log (JSONL) here")
+    parser.add_argument("--duration", type=float, help="stop after this many seconds (default: run until Ctrl-C)")
+
+
+@command("run", "run an installation live with its configured devices (Ctrl-C stops cleanly)", _run_options)
+def _run(args: argparse.Namespace) -> int:
+    from creatures.config import ConfigError
+    from creatures.persist import StateFileError
+    from creatures.runtime.live import run_live
+    from creatures.runtime.schema import load_installation
+
+    try:
+        installation = load_installation(args.config)
+        summary = run_live(installation, duration=args.duration, state=args.state, log_path=args.log)
+    except (ConfigError, StateFileError) as exc:
+        print(f"creatures: {exc}", file=sys.stderr)
+        return 2
+    restored = f", restored {', '.join(summary.restored)}" if summary.restored else ""
+    print(f"stopped after {summary.seconds:.1f} s: {summary.ticks} ticks, {summary.notes_played} notes, "
+          f"{summary.late} late{restored}")
+    return 0
+
+
 def _demo_options(parser: argparse.ArgumentParser) -> None:
     import installations
 

@@ -1,7 +1,8 @@
 """Creature kinds, looked up by the ``kind`` key of a ``[[creature]]`` table.
 
 Each kind lives in its own module and registers itself with :func:`register`;
-:func:`load_all` imports every module of this package (a new kind is just a new file).
+:func:`load_all` imports every module of this package (a new kind is just a new file;
+modules of shared parts register nothing).
 """
 
 from __future__ import annotations
@@ -12,9 +13,6 @@ import pkgutil
 from creatures.kinds.base import CreatureKind, CreatureSpec
 
 KINDS: dict[str, type[CreatureKind]] = {}
-
-_SHARED = {"base", "parts"}
-
 
 def register(kind: str):
     """Class decorator: make a :class:`CreatureKind` available as ``kind = "<kind>"``."""
@@ -28,8 +26,7 @@ def register(kind: str):
 
 def load_all() -> dict[str, type[CreatureKind]]:
     for module in pkgutil.iter_modules(__path__):
-        if module.name not in _SHARED:
-            importlib.import_module(f"creatures.kinds.{module.name}")
+        importlib.import_module(f"creatures.kinds.{module.name}")
     return KINDS
 
 

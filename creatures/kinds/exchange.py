@@ -298,4 +298,6 @@ class Exchange(CreatureKind):
             if tp.name in state.get("values", {}):
                 tp.value = value_from_dict(state["values"][tp.name])
         if "motivation" in state:
+            # Levels carry over; their clock starts again with this run's.
             self.motivation = Motivation.from_dict(state["motivation"])
+            self.motivation.time = self.world.clock.now()

@@ -16,19 +16,17 @@ from pathlib import Path
 
 import numpy as np
 
-from audio.mixer import Mixer
 from audio.output import WavOutput
 from audio.sources import load_audio
 from creatures.body.frames import FrameClock, FrameWriter
 from creatures.clock import SimulatedClock
 from creatures.events import EventLog
-from creatures.kinds import KINDS
 from creatures.runtime.inputs import phrase_notes, render_notes
 from creatures.runtime.schema import LoadedInstallation
-from creatures.runtime.world import World
+from creatures.runtime.speech_input import spoken_poem
+from creatures.runtime.session import Session
 from midi.files import read_notes, write_notes
 from midi.notes import NoteEvent
-from midi.scheduler import NoteScheduler
 from midi.sinks import MemorySink
 
 
@@ -72,21 +70,9 @@ def _inputs(inst: LoadedInstallation, audio: Path | None, midi: Path | None, dur
     if midi is None and audio is None and settings.input.generate == "phrase":
         notes = phrase_notes(rng=rng)
         samples = render_notes(notes, sr, duration)
+    elif midi is None and audio is None and settings.input.generate == "speech":
+        samples = spoken_poem(duration, sr, rng)
     return [n for n in notes if n.time < duration], samples
-
-
-def _heard(samples: np.ndarray | None, a: int, b: int, room: np.ndarray | None) -> np.ndarray | None:
-    """What the creatures' ears get for frames ``[a, b)``: the input, plus the room's sound
-    (every voice of the previous tick) when creatures hear each other through the air."""
-    recorded = None if samples is None or a >= len(samples) else samples[a:min(b, len(samples))]
-    if room is None or not len(room):
-        return recorded
-    heard = np.zeros(b - a, dtype=np.float32)
-    if recorded is not None:
-        heard[: len(recorded)] += recorded
-    n = min(len(room), b - a)
-    heard[:n] += room[:n]
-    return heard
 
 
 class _Bodies:
@@ -149,32 +135,20 @@ def run_offline(
     settings = inst.settings
     duration = float(duration if duration is not None else settings.duration)
     _check_writable(out)
-    seeds = np.random.SeedSequence(settings.seed).spawn(len(inst.specs) + 1)
-    notes, samples = _inputs(inst, audio, midi, duration, np.random.default_rng(seeds[-1]))
-
     wall0 = time.perf_counter()
     clock = SimulatedClock()
     sink = MemorySink()
     messages: list[str] = []
     (out / "events.jsonl").unlink(missing_ok=True)  # a fresh log per run
     log = EventLog(out / "events.jsonl")
-    scheduler = NoteScheduler(sink, clock)
-    world = World(clock, log, scheduler)
-    for spec, seed in zip(inst.specs, seeds):
-        world.add(KINDS[spec.kind](spec, world, np.random.default_rng(seed)))
-    creatures = world.creatures
+    session = Session(inst, clock, log, sink)
+    session.world.emit("run", title=settings.title, mode="offline", duration=duration, seed=settings.seed,
+                       creatures=[c.name for c in session.creatures])
+    notes, samples = _inputs(inst, audio, midi, duration, session.input_rng)
     for note in notes:
-        world.inject(note)
-    world.emit("run", title=settings.title, mode="offline", duration=duration, seed=settings.seed,
-               creatures=[c.name for c in creatures])
+        session.world.inject(note)
 
     sr, tick = settings.audio.sample_rate, settings.tick
-    block = int(math.ceil(tick * sr)) + 1
-    mixer = Mixer(len(creatures), block_size=block)
-    for i, creature in enumerate(creatures):
-        mixer.set(i, gain=creature.spec.gain, pan=creature.spec.pan)
-    voices = np.zeros((len(creatures), block), dtype=np.float64)
-    air, room = settings.audio.air, np.zeros(0)
     wav = WavOutput(out / "out.wav", sr, 2) if settings.output.wav else None
     bodies = _Bodies(inst, out, clock, messages) if settings.output.frames else None
     steps = int(math.ceil(duration / tick - 1e-9))
@@ -183,43 +157,29 @@ def run_offline(
         from tqdm import tqdm
 
         bar = tqdm(total=steps, unit="tick", desc=settings.title, leave=False)
-    done = 0
     try:
         for step in range(1, steps + 1):
             t0, t = (step - 1) * tick, min(step * tick, duration)
             clock.advance_to(t)
-            world.deliver(t)
             a, b = int(round(t0 * sr)), int(round(t * sr))
-            heard = _heard(samples, a, b, room if air else None)
-            if heard is not None:
-                for creature in creatures:
-                    creature.listen(t, heard, sr)
-            for creature in creatures:
-                creature.tick(t)
-            scheduler.pump()
-            if wav is not None or air:
-                for i, creature in enumerate(creatures):
-                    creature.sound(voices[i, : b - a], sr)
-                if air:
-                    room = voices[:, : b - a].T @ mixer.gains
+            recorded = None if samples is None or a >= len(samples) else samples[a:min(b, len(samples))]
+            mix = session.step(t, b - a, recorded, audio=wav is not None)
             if wav is not None:
-                wav.write(mixer.mix(voices[:, : b - a]))
+                wav.write(mix)
             if bodies is not None:
-                bodies.draw(creatures)
+                bodies.draw(session.creatures)
             if bar is not None:
                 bar.update(1)
-            done = step
     except BaseException:
         if wav is not None:
             wav.abandon()
         raise
     finally:
-        scheduler.all_notes_off()
+        session.close()
         if bar is not None:
             bar.close()
         if bodies is not None:
             bodies.close()
-        world.emit("end", ticks=done, notes=world.notes_played)
         log.close()
 
     files = {"events": out / "events.jsonl"}
@@ -229,13 +189,13 @@ def run_offline(
     if settings.output.midi:
         write_notes(out / "out.mid", sink.notes())
         files["midi"] = out / "out.mid"
-    for creature in creatures:
+    for creature in session.creatures:
         files.update(creature.finish(out))
     if bodies is not None and bodies.renderer is not None:
         files["frames"] = out / "frames"
         if settings.output.video:
             files["video"] = out / "out.mp4"
-    summary = OfflineSummary(duration, time.perf_counter() - wall0, world.notes_played, files, messages)
+    summary = OfflineSummary(duration, time.perf_counter() - wall0, session.world.notes_played, files, messages)
     if settings.output.report:
         from creatures.runtime.report import write_report
 

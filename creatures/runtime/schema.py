@@ -43,8 +43,10 @@ class OscSection(Strict):
 class InputSection(Strict):
     audio: str | None = Field(None, description="recorded audio fed offline (path relative to the config)")
     midi: str | None = Field(None, description="recorded MIDI fed offline (path relative to the config)")
-    generate: str = Field("phrase", pattern="^(phrase|none)$",
-                          description="input generated when no file is given: 'phrase' or 'none'")
+    generate: str = Field("phrase", pattern="^(phrase|speech|none)$",
+                          description="input generated when no file is given: 'phrase' (three note "
+                                      "fragments, as notes and as tones), 'speech' (the poem Ozymandias "
+                                      "read by formant voices, audio only) or 'none'")
 
 
 class OutputSection(Strict):

@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 import heapq
 import itertools
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Callable
 
 from creatures.clock import Clock
 from creatures.events import EventLog
@@ -34,6 +34,7 @@ class World:
         self.scheduler = scheduler
         self.creatures: list[CreatureKind] = []
         self._pending: list[tuple[float, int, NoteEvent, str]] = []
+        self.listeners: list[Callable[[str, NoteEvent], None]] = []  # e.g. OSC to other colonies
         self._seq = itertools.count()
         self.notes_played = 0
 
@@ -52,6 +53,8 @@ class World:
         note = dataclasses.replace(note, channel=creature.spec.channel)
         handle = self.scheduler.play(note, hold=hold)
         creature.played(note)
+        for listener in self.listeners:
+            listener(creature.name, note)
         self.notes_played += 1
         self.log.emit(self.clock.now(), "note", creature=creature.name, time=note.time, pitch=note.pitch,
                       velocity=note.velocity, duration=note.duration, channel=note.channel)

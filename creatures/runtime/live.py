@@ -1,0 +1,168 @@
+"""``creatures run``: an installation live, on the wall clock, with real devices.
+
+The behaviour tick is fixed in elapsed seconds (machine-independent time); if the machine
+falls behind by more than a second the run skips ahead rather than racing to catch up, and
+counts it. Devices are optional and resilient: a named MIDI port that is absent is reported
+once (with how to list devices) and reopened when it appears; a missing audio device falls
+back to silence with the reason printed. Learned state is saved every ``save_every`` seconds
+and on exit (Ctrl-C or SIGTERM: every note off, state saved) and restored on the next start.
+"""
+
+from __future__ import annotations
+
+import logging
+import signal
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+from audio.device import AudioDeviceUnavailable
+from audio.output import SilentOutput, open_output
+from audio.sources import LiveInput
+from creatures.clock import WallClock
+from creatures.events import EventLog
+from creatures.runtime.schema import LoadedInstallation
+from creatures.runtime.session import Session
+from midi.notes import NotePairer
+from midi.osc import OscListener, OscSender
+from midi.ports import MidoInputs, MidoOutputs, ResilientPort
+from midi.sinks import MemorySink, PortSink
+
+HELP = "list devices with `creatures devices`"
+
+
+@dataclass
+class LiveSummary:
+    seconds: float = 0.0
+    ticks: int = 0
+    late: int = 0
+    notes_played: int = 0
+    restored: list[str] = field(default_factory=list)
+    messages: list[str] = field(default_factory=list)
+
+
+class _Inputs:
+    """Live note inputs (a MIDI port, an OSC listener) feeding the colony's note bus."""
+
+    def __init__(self, inst: LoadedInstallation, session: Session, clock: WallClock, say: Callable[[str], None]) -> None:
+        settings = inst.settings
+        self.session = session
+        self.midi = None
+        self.pairer = NotePairer()
+        if settings.midi.input_port:
+            self.midi = ResilientPort(settings.midi.input_port, MidoInputs(), clock,
+                                      report=lambda m: say(f"MIDI input: {m}; {HELP}"))
+        self.osc = None
+        self.sender = None
+        if settings.osc.port is not None:
+            self.osc = OscListener(clock, host=settings.osc.host, port=settings.osc.port)
+            self.sender = OscSender(settings.title.replace(" ", "_")[:64] or "colony")
+            for peer in settings.osc.peers:
+                host, _, port = peer.rpartition(":")
+                self.sender.add_peer(peer, (host, int(port)))
+            session.world.listeners.append(lambda who, note: self.sender.note(note))
+
+    def poll(self, t: float) -> None:
+        world = self.session.world
+        if self.midi is not None:
+            for msg in self.midi.pending():
+                note = self.pairer.feed(t, msg)
+                if note is not None:
+                    world.inject(note, "midi")
+        if self.osc is not None:
+            for heard in self.osc.poll():
+                if heard.note is not None:
+                    world.inject(heard.note, heard.creature)
+
+    def close(self) -> None:
+        if self.midi is not None:
+            self.midi.close()
+        if self.osc is not None:
+            self.osc.close()
+
+
+def run_live(
+    inst: LoadedInstallation,
+    *,
+    duration: float | None = None,
+    state: Path | None = None,
+    log_path: Path | None = None,
+    say: Callable[[str], None] = print,
+) -> LiveSummary:
+    """Run ``inst`` live until Ctrl-C/SIGTERM (or ``duration`` wall seconds)."""
+    settings = inst.settings
+    summary = LiveSummary()
+    clock = WallClock()
+    log = EventLog(log_path, keep_in_memory=0) if log_path else EventLog(keep_in_memory=1000)
+    logging.getLogger("audio.output").setLevel(logging.ERROR)  # we print the reason ourselves
+
+    sink: PortSink | MemorySink = MemorySink()
+    if settings.midi.output_port:
+        port = ResilientPort(settings.midi.output_port, MidoOutputs(), clock,
+                             report=lambda m: say(f"MIDI output: {m}; {HELP}"))
+        sink = PortSink(port)
+    session = Session(inst, clock, log, sink)
+    state_dir = state or inst.resolve(settings.state)
+    if state_dir is not None:
+        summary.restored = session.load_state(state_dir)
+    inputs = _Inputs(inst, session, clock, say)
+    sr, tick = settings.audio.sample_rate, settings.tick
+    output = open_output(sr, 2, device=settings.audio.output_device, blocksize=settings.audio.block)
+    if isinstance(output, SilentOutput):
+        say(f"audio output {settings.audio.output_device or '(default)'} unavailable, running silent: "
+            f"{output.reason}")
+    microphone = None
+    if settings.audio.input_device is not None:
+        try:
+            microphone = LiveInput(settings.audio.input_device, samplerate=sr)
+            microphone.start()
+        except AudioDeviceUnavailable as exc:
+            say(f"audio input {settings.audio.input_device!r} unavailable, not listening: {exc}")
+            microphone = None
+
+    stopping = False
+
+    def stop(*_: object) -> None:
+        nonlocal stopping
+        stopping = True
+
+    previous = signal.signal(signal.SIGTERM, stop)
+    session.world.emit("run", title=settings.title, mode="live", seed=settings.seed,
+                       creatures=[c.name for c in session.creatures], restored=summary.restored)
+    say(f"{len(session.creatures)} creature(s) running; Ctrl-C or SIGTERM stops cleanly")
+    start = clock.now()  # setting up took time; the run's ticks count from here
+    next_tick, next_save, frames_done = start + tick, start + settings.save_every, int(round(start * sr))
+    try:
+        while not stopping and (duration is None or next_tick - start <= duration):
+            wait = next_tick - clock.now()
+            if wait > 0:
+                time.sleep(wait)
+            elif wait < -1.0:  # far behind (a stall): skip ahead instead of racing
+                summary.late += 1
+                next_tick = clock.now()
+            frames = int(round(next_tick * sr)) - frames_done
+            frames_done += frames
+            inputs.poll(next_tick)
+            heard = microphone.read() if microphone is not None else None
+            output.write(session.step(next_tick, frames, heard))
+            if state_dir is not None and next_tick >= next_save:
+                session.save_state(state_dir)
+                next_save += settings.save_every
+            next_tick += tick
+    except KeyboardInterrupt:
+        pass
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+        session.close()
+        if state_dir is not None:
+            session.save_state(state_dir)
+        if microphone is not None:
+            microphone.stop()
+        output.close()
+        inputs.close()
+        log.close()
+    summary.seconds = clock.now() - start
+    summary.ticks = session.ticks
+    summary.notes_played = session.world.notes_played
+    return summary

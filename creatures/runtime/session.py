@@ -1,0 +1,120 @@
+"""What a live run and an offline run share: the creatures, their world, the mix, the tick.
+
+A tick at clock time ``t`` delivers the notes that started, feeds the ears (recorded or live
+input, plus the room when creatures hear each other through the air), lets every creature
+perceive, decide and move, sends the notes that fell due, and renders exactly the audio
+frames between the previous tick and this one (frame counts come from elapsed time, so
+rounding never drifts). Only where time comes from and where the outputs go differ between
+``creatures offline`` and ``creatures run``.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from audio.mixer import Mixer
+from creatures.clock import Clock
+from creatures.events import EventLog
+from creatures.kinds import KINDS
+from creatures.persist import StateFileError, load_json, save_json
+from creatures.runtime.schema import LoadedInstallation
+from creatures.runtime.world import World
+from midi.scheduler import NoteScheduler
+from midi.sinks import NoteSink
+
+STATE_KIND = "creature-music creature state"
+
+
+class Session:
+    """The creatures of one installation on one clock, ticking together."""
+
+    def __init__(self, inst: LoadedInstallation, clock: Clock, log: EventLog, sink: NoteSink) -> None:
+        settings = inst.settings
+        self.inst = inst
+        self.clock = clock
+        self.log = log
+        self.scheduler = NoteScheduler(sink, clock)
+        self.world = World(clock, log, self.scheduler)
+        seeds = np.random.SeedSequence(settings.seed).spawn(len(inst.specs) + 1)
+        self.input_rng = np.random.default_rng(seeds[-1])
+        for spec, seed in zip(inst.specs, seeds):
+            self.world.add(KINDS[spec.kind](spec, self.world, np.random.default_rng(seed)))
+        self.creatures = self.world.creatures
+        self.sample_rate = settings.audio.sample_rate
+        block = int(math.ceil(settings.tick * self.sample_rate)) + 1
+        self.mixer = Mixer(len(self.creatures), block_size=block)
+        for i, creature in enumerate(self.creatures):
+            self.mixer.set(i, gain=creature.spec.gain, pan=creature.spec.pan)
+        self._voices = np.zeros((len(self.creatures), block))
+        self._room = np.zeros(0)
+        self.air = settings.audio.air
+        self.ticks = 0
+
+    def step(self, t: float, frames: int, recorded: np.ndarray | None, *, audio: bool = True) -> np.ndarray | None:
+        """One behaviour tick at clock time ``t`` covering ``frames`` audio frames.
+
+        ``recorded`` is what the microphone (or file) gave for those frames. Returns the
+        stereo mix ``(frames, 2)`` (a view, valid until the next step), or None when
+        ``audio`` is off and no creature hears the room.
+        """
+        self.world.deliver(t)
+        heard = self._ears(recorded, frames)
+        if heard is not None:
+            for creature in self.creatures:
+                creature.listen(t, heard, self.sample_rate)
+        for creature in self.creatures:
+            creature.tick(t)
+        self.scheduler.pump()
+        self.ticks += 1
+        if not (audio or self.air):
+            return None
+        voices = self._voices[:, :frames]
+        for i, creature in enumerate(self.creatures):
+            creature.sound(voices[i], self.sample_rate)
+        if self.air:
+            self._room = voices.T @ self.mixer.gains
+        return self.mixer.mix(voices)
+
+    def _ears(self, recorded: np.ndarray | None, frames: int) -> np.ndarray | None:
+        """The input, plus the room's sound (every voice of the previous tick) with air on."""
+        if not self.air or not len(self._room):
+            return recorded
+        heard = np.zeros(frames, dtype=np.float32)
+        if recorded is not None:
+            heard[: len(recorded)] += recorded[:frames]
+        n = min(len(self._room), frames)
+        heard[:n] += self._room[:n]
+        return heard
+
+    def close(self) -> None:
+        """Silence every sounding note and log the end of the run."""
+        self.scheduler.all_notes_off()
+        self.world.emit("end", ticks=self.ticks, notes=self.world.notes_played)
+
+    # -- state that lasts across restarts ---------------------------------------------------
+    def save_state(self, directory: Path) -> None:
+        """Each creature's learned state, one atomic JSON file per creature."""
+        directory.mkdir(parents=True, exist_ok=True)
+        for creature in self.creatures:
+            save_json(directory / f"{creature.name}.json",
+                      {"kind": creature.spec.kind, "state": creature.state()}, kind=STATE_KIND)
+
+    def load_state(self, directory: Path) -> list[str]:
+        """Restore creatures from ``directory`` where a file exists; returns who was restored.
+
+        A file of another kind raises :class:`StateFileError` naming it (never a silent mix).
+        """
+        restored = []
+        for creature in self.creatures:
+            path = directory / f"{creature.name}.json"
+            if not path.exists():
+                continue
+            data = load_json(path, kind=STATE_KIND)
+            if data.get("kind") != creature.spec.kind:
+                raise StateFileError(f"{path}: saved for kind {data.get('kind')!r}, config says {creature.spec.kind!r}")
+            creature.restore(data.get("state", {}))
+            restored.append(creature.name)
+        return restored

@@ -1,0 +1,68 @@
+"""Live runs without devices keep going, say which device is missing and how to list
+devices, save state on exit (also on SIGTERM) and resume from it."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+from creatures.cli import main
+
+CONFIG = """
+title = "live check"
+tick = 0.02
+[audio]
+output_device = "NoSuchCard"
+[midi]
+output_port = "NoSuchSynth"
+[[creature]]
+name = "ada"
+kind = "exchange"
+"""
+
+
+def test_absent_devices_are_named_and_the_run_goes_on(tmp_path, capsys):
+    config = tmp_path / "live.toml"
+    config.write_text(CONFIG)
+    state = tmp_path / "state"
+    assert main(["run", str(config), "--duration", "0.3", "--state", str(state)]) == 0
+    out = capsys.readouterr().out
+    assert "MIDI output" in out and "NoSuchSynth" in out and "creatures devices" in out
+    assert "audio output NoSuchCard unavailable" in out
+    assert (state / "ada.json").is_file()
+    assert main(["run", str(config), "--duration", "0.2", "--state", str(state)]) == 0
+    assert "restored ada" in capsys.readouterr().out
+
+
+def test_sigterm_stops_cleanly_and_saves_state(tmp_path):
+    config = tmp_path / "live.toml"
+    config.write_text(CONFIG)
+    state = tmp_path / "state"
+    process = subprocess.Popen(
+        [sys.executable, "-m", "creatures.cli", "run", str(config), "--state", str(state)],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env={**os.environ, "PYTHONUNBUFFERED": "1"},
+    )
+    try:
+        for line in process.stdout:  # wait until the loop is running
+            if "running; Ctrl-C or SIGTERM" in line:
+                break
+        process.send_signal(signal.SIGTERM)
+        rest = process.communicate(timeout=60)[0]
+    finally:
+        process.kill()
+    assert process.returncode == 0, rest
+    assert "stopped after" in rest
+    assert (state / "ada.json").is_file()
+
+
+def test_bad_state_file_is_a_clear_error(tmp_path, capsys):
+    config = tmp_path / "live.toml"
+    config.write_text(CONFIG)
+    state = tmp_path / "state"
+    state.mkdir()
+    (state / "ada.json").write_text("{not json")
+    assert main(["run", str(config), "--duration", "0.1", "--state", str(state)]) == 2
+    assert "ada.json:1: malformed JSON" in capsys.readouterr().err
