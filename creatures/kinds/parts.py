@@ -14,9 +14,11 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 from audio.coupling import BodyCoupling
 from audio.scanned import StringParameters, UnstableStringError, soft_limit
 from audio.voices import VoicePool
+from creatures.motor import quaternion as quat
 from creatures.motor.animations import example_animations
 from creatures.motor.graph import MotorGraph
 from creatures.motor.pose import BodyPose, PoseSet
+from creatures.motor.playback import Playback
 from creatures.motor.programs import MotorSystem
 from creatures.motor.search import PathFinder
 
@@ -105,6 +107,30 @@ def shared_graph() -> MotorGraph:
     return graph
 
 
+BODY_RATE = 60.0
+"""Poses per second precomputed along a course (interpolation finer than any tick)."""
+
+
+class _Trajectory:
+    """A whole course sampled at :data:`BODY_RATE` in one batch (squad + forward kinematics
+    vectorised over time), so a tick only looks a pose up instead of computing it."""
+
+    def __init__(self, playback: Playback, skeleton) -> None:
+        step = 1.0 / BODY_RATE
+        start = float(playback.key_times[0])
+        self.times = start + step * np.arange(int(np.ceil((playback.end_time - start) / step)) + 2)
+        self.rotations, self.roots = playback.sample_rotations(self.times)
+        self.positions = skeleton.forward_kinematics(self.rotations, self.roots)
+        turn = quat.log(quat.multiply(self.rotations[1:], quat.conjugate(self.rotations[:-1]))) / step
+        self.velocities = np.concatenate((turn, turn[-1:]))
+        self.playback = playback
+
+    def pose(self, t: float) -> BodyPose:
+        i = min(int(round((t - self.times[0]) * BODY_RATE)), len(self.times) - 1)
+        return BodyPose(self.rotations[i], self.velocities[i], self.roots[i], time=t, source="playback",
+                        positions=self.positions[i])
+
+
 class Body:
     """A creature's body on the shared motor graph, with its own position and course."""
 
@@ -116,12 +142,25 @@ class Body:
         self.effector = effector
         self.skeleton = self.graph.skeleton
         self.effector_index = self.skeleton.names.index(effector)
-        self._pose: BodyPose = self.motor.pose(0.0)
+        self._trajectory: _Trajectory | None = None
+        self._pose: BodyPose = self._rest_pose(start, 0.0)
+
+    def _rest_pose(self, node: int, t: float) -> BodyPose:
+        poses = self.graph.poses
+        return BodyPose(poses.rotations[node], np.zeros_like(poses.velocities[node]), poses.roots[node],
+                        time=t, source="rest", labels=poses.labels[node], positions=poses.positions[node])
 
     def update(self, t: float) -> BodyPose:
         """Advance the body to clock time ``t`` and return the pose there."""
         self.motor.arrived(t)
-        self._pose = self.motor.pose(t)
+        playback = self.motor.playback
+        if playback is None:
+            self._trajectory = None
+            self._pose = self._rest_pose(self.motor.position(t).node, t)
+        else:
+            if self._trajectory is None or self._trajectory.playback is not playback:
+                self._trajectory = _Trajectory(playback, self.skeleton)
+            self._pose = self._trajectory.pose(t)
         return self._pose
 
     @property
