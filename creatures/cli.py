@@ -123,6 +123,14 @@ def _run(args: argparse.Namespace) -> int:
     return 0
 
 
+@command("config-docs", "print the reference of every config key (docs/config.md)", lambda parser: None)
+def _config_docs(_: argparse.Namespace) -> int:
+    from creatures.runtime.docs import config_reference
+
+    sys.stdout.write(config_reference())
+    return 0
+
+
 def _demo_options(parser: argparse.ArgumentParser) -> None:
     import installations
 

@@ -26,8 +26,8 @@ class CreatureSpec(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    name: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_\-]+$")
-    kind: str
+    name: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_\-]+$", description="unique name (letters, digits, _ and -)")
+    kind: str = Field(description="which creature kind (the sections below)")
     channel: int = Field(0, ge=0, le=15, description="MIDI channel this creature plays on")
     gain: float = Field(0.8, ge=0.0, le=4.0, description="linear gain of its voice in the mix")
     pan: float = Field(0.0, ge=-1.0, le=1.0, description="stereo position of its voice")

@@ -30,13 +30,13 @@ class VoiceSpec(BaseModel):
 
     voices: int = Field(6, ge=1, le=32, description="polyphony (strings)")
     masses: int = Field(64, ge=3, le=1024, description="masses per string")
-    mass: float = Field(1.0, gt=0)
+    mass: float = Field(1.0, gt=0, description="mass of each node of the string")
     stiffness: float = Field(800.0, ge=0, description="spring between neighbouring masses")
     centring: float = Field(4.0, ge=0, description="spring of each mass to rest")
     damping: float = Field(0.5, ge=0, description="velocity damping (sets how fast a string rings down)")
     haptic_rate: float = Field(500.0, gt=0, le=4000, description="string physics updates per second")
     release: float = Field(0.2, gt=0, le=10, description="fade after note-off, seconds")
-    gain: float = Field(0.3, ge=0, le=4)
+    gain: float = Field(0.3, ge=0, le=4, description="output gain of the strings before the limiter")
     body_gain: float = Field(40.0, ge=0, description="force per unit joint velocity pushing the strings")
 
     @model_validator(mode="after")

@@ -21,6 +21,8 @@ class Strict(BaseModel):
 
 
 class AudioSection(Strict):
+    """Sample rate, live audio devices, and whether creatures hear each other."""
+
     sample_rate: int = Field(22050, ge=8000, le=192000, description="rate of synthesis and analysis, Hz")
     block: int = Field(512, ge=32, le=16384, description="frames per audio block")
     input_device: str | int | None = Field(None, description="live input device (name fragment or index)")
@@ -30,17 +32,23 @@ class AudioSection(Strict):
 
 
 class MidiSection(Strict):
+    """Live MIDI ports (absent ports are reported and looked for again)."""
+
     input_port: str | None = Field(None, description="live MIDI input port name or pattern")
     output_port: str | None = Field(None, description="live MIDI output port name or pattern")
 
 
 class OscSection(Strict):
+    """OSC (UDP) between colonies and to other tools."""
+
     host: str = Field("127.0.0.1", description="address OSC listeners bind to (loopback by default)")
     port: int | None = Field(None, ge=1024, le=65535, description="UDP port to listen on; none = no OSC")
     peers: list[str] = Field(default_factory=list, description="host:port of other colonies to send notes to")
 
 
 class InputSection(Strict):
+    """What an offline run hears when the command line gives no files."""
+
     audio: str | None = Field(None, description="recorded audio fed offline (path relative to the config)")
     midi: str | None = Field(None, description="recorded MIDI fed offline (path relative to the config)")
     generate: str = Field("phrase", pattern="^(phrase|speech|none)$",
@@ -50,19 +58,21 @@ class InputSection(Strict):
 
 
 class OutputSection(Strict):
+    """What an offline run writes into its output directory."""
+
     midi: bool = Field(True, description="write out.mid")
     wav: bool = Field(True, description="write out.wav")
     frames: bool = Field(False, description="render the bodies to PNG frames (needs EGL or OSMesa)")
     video: bool = Field(False, description="also encode frames to out.mp4")
     fps: float = Field(12.0, gt=0, le=120, description="frame rate of rendered frames")
-    width: int = Field(320, ge=16, le=3840)
-    height: int = Field(240, ge=16, le=2160)
+    width: int = Field(320, ge=16, le=3840, description="frame width, pixels")
+    height: int = Field(240, ge=16, le=2160, description="frame height, pixels")
     report: bool = Field(True, description="write report/ (plots and index.html) after an offline run")
 
 
 class Installation(Strict):
     title: str = Field(description="name of the installation")
-    description: str = ""
+    description: str = Field("", description="free text shown in reports")
     seed: int = Field(0, description="seed of every random choice in the run")
     tick: float = Field(0.02, gt=0.0005, le=0.5, description="behaviour tick, seconds")
     duration: float = Field(60.0, gt=0, description="offline run length in simulated seconds (default)")
