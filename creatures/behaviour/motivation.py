@@ -13,10 +13,13 @@ with per-second growth r, decay rates D (diagonal) toward equilibria x_eq, a cou
 C (C[i, j]: how drive j feeds drive i) and external inputs u held until changed. Behaviour
 closes the loop with impulses (:meth:`Motivation.perturb`: eating takes hunger down).
 
-The system is integrated *exactly* over any elapsed clock time with one matrix exponential
-of the augmented system [[M, b], [0, 0]], M = C − D, b = r + D·x_eq + u, so the result never
-depends on how often the creature ticks. Optional floor/ceiling clip afterwards (chemical
-concentrations do not go negative); clipping is the only non-linear step.
+The system is integrated *exactly* over any elapsed clock time, x(t+dt) = Φx + Ψb with
+M = C − D, b = r + D·x_eq + u, Φ = e^{M·dt} and Ψ = ∫₀^dt e^{M·s} ds, both read from one
+matrix exponential of [[M, I], [0, 0]]·dt, so the result never depends on how often the
+creature ticks. Φ and Ψ depend on the step only (not on the inputs), so a creature that
+re-sets its inputs every step (a sensed presence) still reuses them. Optional floor/ceiling
+clip afterwards (chemical concentrations do not go negative); clipping is the only
+non-linear step.
 """
 
 from __future__ import annotations
@@ -61,7 +64,7 @@ class Motivation:
         for (to, frm), rate in (coupling or {}).items():
             self.coupling[self.index(to), self.index(frm)] = float(rate)
         self.inputs = np.zeros(n)
-        self._propagators: dict[tuple[float, bytes], tuple[np.ndarray, np.ndarray]] = {}
+        self._propagators: dict[float, tuple[np.ndarray, np.ndarray]] = {}
         self.floor = floor
         self.ceiling = ceiling
         self.time = float(start)
@@ -84,25 +87,25 @@ class Motivation:
 
     # -- dynamics ------------------------------------------------------------------------------
     def _propagator(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
-        # A creature ticks at a fixed rate, so the same few steps recur: keep their
-        # propagators (keyed by the step and the inputs, the only parameters that change).
-        key = (dt, self.inputs.tobytes())
+        """``(Φ, offset)`` of a step ``dt`` with the present inputs."""
+        # A creature ticks at a fixed rate, so the same few steps recur: keep their (Φ, Ψ),
+        # keyed by the step rounded to a nanosecond (clock sums differ in the last bits).
+        key = round(dt, 9)
         cached = self._propagators.get(key)
         if cached is None:
             if len(self._propagators) >= 16:
                 self._propagators.clear()
             cached = self._propagators[key] = self._compute_propagator(dt)
-        return cached
+        phi, psi = cached
+        return phi, psi @ (self.growth + self.decay * self.equilibrium + self.inputs)
 
     def _compute_propagator(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
         n = len(self.names)
-        m = self.coupling - np.diag(self.decay)
-        b = self.growth + self.decay * self.equilibrium + self.inputs
-        augmented = np.zeros((n + 1, n + 1))
-        augmented[:n, :n] = m
-        augmented[:n, n] = b
+        augmented = np.zeros((2 * n, 2 * n))
+        augmented[:n, :n] = self.coupling - np.diag(self.decay)
+        augmented[:n, n:] = np.eye(n)
         e = expm(augmented * dt)
-        return e[:n, :n], e[:n, n]
+        return e[:n, :n], e[:n, n:]
 
     def _clip(self, x: np.ndarray) -> np.ndarray:
         if self.floor is None and self.ceiling is None:

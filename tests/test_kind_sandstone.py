@@ -1,0 +1,288 @@
+"""sand:stone: rock creatures that sing only their precomposed phrases, more when present,
+less when they hear music far away on the circle of fifths, and never longer than a breath."""
+
+from __future__ import annotations
+
+import itertools
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import installations
+from creatures.clock import SimulatedClock
+from creatures.config import ConfigError
+from creatures.events import EventLog, read_events
+from creatures.kinds.sandstone import DEFAULT_PHRASES, Sandstone, SandstoneSpec
+from creatures.runtime.offline import run_offline
+from creatures.runtime.schema import load_installation
+from creatures.runtime.world import World
+from midi.fifths import circular_distance, fifths_distance, fifths_vector
+from midi.files import write_notes
+from midi.notes import NoteEvent
+from midi.scheduler import NoteScheduler
+from midi.sinks import MemorySink
+
+TICK = 0.02
+C, CS, D, DS, E, F, FS, G, GS, A, AS, B = range(60, 72)
+
+
+# -- the circle-of-fifths metric -------------------------------------------------------------
+@pytest.mark.parametrize("a, b, steps", [
+    (C, G, 1), (C, F, 1), (C, D, 2), (C, AS, 2), (C, A, 3), (C, DS, 3), (C, E, 4), (C, GS, 4),
+    (C, B, 5), (C, CS, 5), (C, FS, 6), (C, C + 12, 0), (C - 24, G + 12, 1), (E, AS, 6),
+])
+def test_fifths_distance_exact_values(a, b, steps):
+    assert fifths_distance(a, b) == steps
+    assert fifths_distance(b, a) == steps
+
+
+def test_fifths_distance_is_a_metric_on_pitch_classes():
+    d = np.array([[fifths_distance(a, b) for b in range(12)] for a in range(12)])
+    assert (d == d.T).all() and (np.diag(d) == 0).all() and d.max() == 6
+    assert all(d[a, c] <= d[a, b] + d[b, c] for a, b, c in itertools.product(range(12), repeat=3))
+    # every pitch class has two neighbours a fifth away and one tritone opposite
+    assert ((d == 1).sum(axis=1) == 2).all() and ((d == 6).sum(axis=1) == 1).all()
+
+
+def test_passages_in_neighbouring_keys_are_one_fifth_apart():
+    major = np.array([0, 2, 4, 5, 7, 9, 11])
+    c_major = fifths_vector(60 + major)
+    assert circular_distance(c_major, fifths_vector(67 + major)) == pytest.approx(1.0, abs=1e-9)
+    assert circular_distance(c_major, fifths_vector(65 + major)) == pytest.approx(1.0, abs=1e-9)
+    assert circular_distance(c_major, fifths_vector(66 + major)) == pytest.approx(6.0, abs=1e-9)
+    assert circular_distance(c_major, np.zeros(2)) == 6.0  # nothing heard is never "correlated"
+
+
+# -- the chemistry with inputs re-set every soft-state step ------------------------------------
+def test_changing_inputs_reuse_one_propagator_and_stay_exact(rng):
+    """Presence × boredom re-sets the inputs every step; the step's (Φ, Ψ) is reused and
+    each step still equals the exponential of the augmented system [[M, b], [0, 0]]."""
+    from scipy.linalg import expm
+
+    from creatures.behaviour.motivation import Motivation
+
+    m = Motivation({"desire": 0.0, "boredom": 0.0, "breath": 1.0, "pulse": 1.0},
+                   decay={"desire": 0.03, "boredom": 0.03, "breath": 0.1, "pulse": 0.5},
+                   coupling={("pulse", "desire"): 0.1, ("pulse", "boredom"): -0.1}, floor=None)
+    big = np.zeros((5, 5))
+    big[:4, :4] = m.coupling - np.diag(m.decay)
+    t = 0.0
+    for step in range(50):
+        m.set_input(t, "desire", float(rng.uniform(-0.5, 0.5)))
+        m.set_input(t, "boredom", float(rng.uniform(0.0, 0.1)))
+        big[:4, 4] = m.growth + m.decay * m.equilibrium + m.inputs
+        expected = (expm(big * 0.1) @ np.append(m.levels, 1.0))[:4]
+        t = 0.1 * (step + 1)  # clock sums: the steps differ in the last bits
+        m.advance(t)
+        np.testing.assert_allclose(m.levels, expected, rtol=1e-12, atol=1e-14)
+    assert len(m._propagators) == 1
+
+
+# -- running creatures -----------------------------------------------------------------------
+def _toml(value) -> str:
+    if isinstance(value, str):
+        return json.dumps(value)
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_toml(v) for v in value) + "]"
+    return repr(value)
+
+
+def _run(tmp_path: Path, creatures: list[dict], *, duration: float, heard: list[NoteEvent] | None = None,
+         seed: int = 3) -> list[dict]:
+    """Run sandstone creatures offline (no audio) and return the events."""
+    tmp_path.mkdir(parents=True, exist_ok=True)
+    lines = [f'title = "t"', f"seed = {seed}", f"tick = {TICK}", "[output]", "wav = false", "report = false"]
+    if heard is not None:
+        write_notes(tmp_path / "in.mid", heard)
+        lines += ["[input]", 'midi = "in.mid"']
+    else:
+        lines += ["[input]", 'generate = "none"']
+    for i, keys in enumerate(creatures):
+        lines += ["[[creature]]", f'name = "rock{i}"', 'kind = "sandstone"', f"channel = {i}"]
+        lines += [f"{k} = {_toml(v)}" for k, v in keys.items()]
+    config = tmp_path / "sandstone.toml"
+    config.write_text("\n".join(lines) + "\n")
+    run_offline(load_installation(config), tmp_path / "out", duration=duration)
+    return read_events(tmp_path / "out" / "events.jsonl")
+
+
+def _notes(events: list[dict], creature: str = "rock0") -> list[dict]:
+    return [e for e in events if e["kind"] == "note" and e["creature"] == creature]
+
+
+def _activations(events: list[dict], tuple_: str, creature: str = "rock0") -> list[tuple[float, float]]:
+    """(start, stop) of every activation of ``tuple_`` (a last one still running ends at the end)."""
+    spans, start = [], None
+    for e in events:
+        if e.get("creature") != creature or e.get("tuple") != tuple_:
+            continue
+        if e["kind"] == "selection" and not e.get("kept"):
+            start = e["t"]
+        elif e["kind"] == "stop":
+            spans.append((start, e["t"]))
+            start = None
+    if start is not None:
+        spans.append((start, events[-1]["t"]))
+    return spans
+
+
+def test_every_note_comes_from_the_phrases_in_order(tmp_path):
+    """All six rocks of the shipped installation: each creature's whole note sequence is its
+    phrases read in order (cycling), so it never skips, reorders or invents a note."""
+    inst = load_installation(installations.path("sandstone"))
+    inst.settings.output.wav = inst.settings.output.report = False
+    run_offline(inst, tmp_path, duration=60.0)
+    events = read_events(tmp_path / "events.jsonl")
+    singers = 0
+    for spec in inst.specs:
+        notes = _notes(events, spec.name)
+        song = itertools.cycle([pitch for phrase in spec.phrases for pitch, _ in phrase])
+        assert [n["pitch"] for n in notes] == [next(song) for _ in notes], spec.name
+        onsets = [n["time"] for n in notes]
+        assert onsets == sorted(onsets) and all(n["duration"] > 0 for n in notes)
+        singers += len(notes) > 5
+    assert singers >= 4
+
+
+def test_presence_makes_a_creature_sing_more(tmp_path):
+    counts = []
+    for level in (0.2, 0.5, 0.9):
+        events = _run(tmp_path / str(level), [{"presence": [[0.0, level]]}], duration=40.0)
+        counts.append(len(_notes(events)))
+    assert counts[0] < counts[1] < counts[2], counts
+    assert counts[2] >= 2 * counts[0] > 0
+
+
+def _arpeggio_loop(root: int, duration: float) -> list[NoteEvent]:
+    shape = [0, 4, 7, 12, 7, 4]  # a major arpeggio, six eighths at 120 BPM
+    return [NoteEvent(round(0.25 * i, 6), root + shape[i % 6], 90, 0, 0.22) for i in range(int(duration / 0.25))]
+
+
+def test_uncorrelated_music_suppresses_singing(tmp_path):
+    """The same creature (C major) under the same presence, hearing the same rhythm in G
+    (a fifth away: correlated) or in F# (a tritone away: uncorrelated)."""
+    spec = SandstoneSpec(name="x", kind="sandstone")
+    key = fifths_vector(np.array([p for phrase in spec.phrases for p, _ in phrase]))
+    near, far = _arpeggio_loop(G, 40.0), _arpeggio_loop(FS, 40.0)
+    assert circular_distance(fifths_vector(np.array([n.pitch for n in near])), key) < spec.correlated_within
+    assert circular_distance(fifths_vector(np.array([n.pitch for n in far])), key) > 5.0
+    rock = [{"presence": [[0.0, 0.8]]}]
+    with_near = _run(tmp_path / "near", rock, duration=40.0, heard=near)
+    with_far = _run(tmp_path / "far", rock, duration=40.0, heard=far)
+    assert len(_notes(with_far)) <= 0.5 * len(_notes(with_near)), (len(_notes(with_far)), len(_notes(with_near)))
+    discord = lambda events: max(e["levels"]["discord"] for e in events if e["kind"] == "percepts")  # noqa: E731
+    assert discord(with_near) == 0.0 < discord(with_far)
+    assert any(e["kind"] == "selection" and e["tuple"] == "listen" for e in with_far)
+
+
+def test_breath_runs_out_and_forces_pauses(tmp_path):
+    use, recovery = 0.3, 0.1
+    longest = math.log(use / (use - recovery)) / recovery  # full breath to none, singing throughout
+    eager = {"presence": [[0.0, 1.0]], "eagerness": 1.0, "satiation": 0.0, "habituation": 0.0,
+             "breath_recovery": recovery, "phrases": [[[60 + i % 5, 0.5] for i in range(40)]]}
+    events = _run(tmp_path / "short", [{**eager, "breath_use": use}], duration=40.0)
+    sings, notes = _activations(events, "sing"), _notes(events)
+    assert len(notes) > 40 and len(sings) >= 3
+    for n in notes:  # every note starts inside a singing activation
+        assert any(a - 1e-9 <= n["time"] <= b + 1e-9 for a, b in sings), n
+    stretches = {}
+    for start, stop in sings:
+        inside = [n for n in notes if start - 1e-9 <= n["time"] <= stop + 1e-9]
+        if inside:
+            stretches[stop] = max(n["time"] + n["duration"] for n in inside) - min(n["time"] for n in inside)
+    assert max(stretches.values()) <= longest
+    breathless = [e["t"] for e in events if e["kind"] == "breathless"]
+    assert len(breathless) >= 2
+    # it ran out *during long singing*: the stretches that ended breathless used most of a breath
+    ran_out = [stop for stop in stretches if any(stop - 2 * TICK <= t <= stop for t in breathless)]
+    assert len(ran_out) >= 2 and all(stretches[stop] >= 0.6 * longest for stop in ran_out)
+    for t in breathless[:-1]:  # each time it ran out: it stopped singing and paused to breathe
+        following = [e for e in events if e["kind"] == "selection" and e["t"] > t]
+        assert following[0]["tuple"] == "pause"
+        pauses = [(a, b) for a, b in _activations(events, "pause") if a > t]
+        assert pauses[0][1] - pauses[0][0] >= 0.5
+    # with breath to spare, the same creature sings one long stretch instead
+    deep = _run(tmp_path / "deep", [{**eager, "breath_use": 0.01}], duration=40.0)
+    assert max(b - a for a, b in _activations(deep, "sing")) > 3 * longest
+    assert not any(e["kind"] == "breathless" for e in deep)
+
+
+def test_boredom_softens_and_detaches_the_singing(tmp_path):
+    events = _run(tmp_path, [{"presence": [[0.0, 1.0]], "habituation": 0.02}], duration=60.0)
+    notes = _notes(events)
+    early = [n for n in notes if n["time"] < 15.0]
+    late = [n for n in notes if n["time"] > 45.0]
+    assert early and late
+    assert np.mean([n["velocity"] for n in late]) < np.mean([n["velocity"] for n in early]) - 10
+    boredom = [e["drives"]["boredom"] for e in events if e["kind"] == "motivation"]
+    assert boredom[-1] > boredom[len(boredom) // 4] > boredom[0]
+
+
+def test_pulse_governs_internal_time(tmp_path):
+    """With ``hurry`` 0 the pulse rests at 1 and every beat lasts exactly 60/tempo seconds;
+    with ``hurry`` the desire to sing presses internal time on."""
+    steady = {"presence": [[0.0, 1.0]], "eagerness": 1.0, "habituation": 0.0, "phrase_rest": 0.0,
+              "tempo": 96.0, "phrases": [[[60, 0.5], [64, 0.5], [67, 0.5], [72, 0.5]]]}
+    beat = 60.0 / 96.0
+
+    def gaps(events):
+        onsets = [n["time"] for n in _notes(events)]
+        return np.diff(onsets)[np.diff(onsets) < 2 * 0.5 * beat]  # within a stretch of singing
+
+    calm = gaps(_run(tmp_path / "calm", [{**steady, "hurry": 0.0}], duration=30.0))
+    eager = gaps(_run(tmp_path / "eager", [{**steady, "hurry": 0.4}], duration=30.0))
+    assert len(calm) > 20 and np.allclose(calm, 0.5 * beat, atol=2e-6)
+    assert len(eager) > 20 and np.median(eager) < 0.85 * 0.5 * beat
+
+
+def test_a_rock_sensor_reading_sets_presence_and_is_not_music(tmp_path):
+    rock = {"presence": [[0.0, 0.0]], "rock": 40}
+    reading = [NoteEvent(1.0, 40, 127, 15, 0.1), NoteEvent(1.5, 41, 127, 15, 0.1)]  # ours, another rock's
+    sensed = _run(tmp_path / "sensed", [rock], duration=20.0, heard=reading)
+    silent = _run(tmp_path / "silent", [rock], duration=20.0, heard=[NoteEvent(1.0, 40, 127, 14, 0.1)])
+    percepts = [e for e in sensed if e["kind"] == "percepts" and e["t"] > 1.5]
+    assert all(e["levels"]["presence"] == 1.0 and e["levels"]["heard amount"] == 0.0 for e in percepts)
+    assert len(_notes(sensed)) > 5
+    assert _notes(silent) == []  # on a music channel it is a note to hear, not a reading
+
+
+# -- state and config ------------------------------------------------------------------------
+def _world() -> World:
+    clock = SimulatedClock()
+    return World(clock, EventLog(None), NoteScheduler(MemorySink(), clock))
+
+
+def test_state_round_trips_through_json():
+    spec = SandstoneSpec(name="a", kind="sandstone")
+    world = _world()
+    creature = Sandstone(spec, world, np.random.default_rng(0))
+    world.add(creature)
+    for step in range(1, 500):
+        world.clock.advance_to(step * TICK)
+        creature.tick(world.clock.now())
+        if step % 50 == 0:
+            creature.hear(NoteEvent(world.clock.now(), 66, 90, 3, 0.4), "other")
+    state = json.loads(json.dumps(creature.state()))
+    assert state["song"] != {"phrase": 0, "note": 0}  # it has sung; the position is saved
+    fresh = Sandstone(spec, _world(), np.random.default_rng(1))
+    fresh.restore(state)
+    assert fresh.state() == state
+    with pytest.raises(ValueError, match="song position"):
+        fresh.restore({**state, "song": {"phrase": len(DEFAULT_PHRASES), "note": 0}})
+
+
+@pytest.mark.parametrize("key, value, phrase", [
+    ("presence", "[[0.0, 0.5], [10.0, 1.0], [5.0, 0.0]]", "strictly increase"),
+    ("presence", "[[0.0, 1.5]]", "0..1"),
+    ("phrases", "[[[60, 1.0], [200, 0.5]]]", "phrase 0 note 1"),
+    ("phrases", "[[]]", "phrase 0 is empty"),
+])
+def test_bad_scripts_and_phrases_are_named(tmp_path, key, value, phrase):
+    config = tmp_path / "bad.toml"
+    config.write_text(f'title = "x"\n[[creature]]\nname = "a"\nkind = "sandstone"\n{key} = {value}\n')
+    with pytest.raises(ConfigError) as error:
+        load_installation(config)
+    assert f"bad.toml:5: creature.0.{key}" in str(error.value) and phrase in str(error.value)
