@@ -4,8 +4,12 @@ from __future__ import annotations
 
 import os
 
-import numpy as np
-import pytest
+# One BLAS thread, as the CLI sets: tiny matrix operations only fight over the cores.
+for _name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_name, "1")
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
 
 os.environ.setdefault("NUMBA_CACHE_DIR", os.path.join(os.path.dirname(__file__), "..", ".numba_cache"))
 
