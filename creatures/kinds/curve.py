@@ -1,0 +1,308 @@
+"""*curve*: line-drawn creatures whose bodies play scanned strings and who perceive each
+other's shapes (thesis "curve (technology)", "scanned synthesis models (technology)",
+"artificial gestural control").
+
+"There is an obvious hybrid to be made between our character animation technology and this
+synthesis model – to connect characters' bodies to such a synthesis technique." Design:
+
+* **Bodies in one room.** Every curve creature is a :class:`~creatures.kinds.parts.Body` on
+  the shared motor graph, standing at ``x`` along a room (the figure is drawn as lines: the
+  skeleton's bones). It walks along the room (``walk_speed``) as well as moving through the
+  graph.
+* **Strings in space.** Each creature's :class:`~creatures.kinds.parts.Voice` is a scanned
+  string stretched along x through the space its hands reach, carried with it. The *first*
+  of the thesis's two connections: the nearby movement of limbs — its own and every other
+  curve creature's, in the room's coordinates — pushes the string
+  (:class:`~audio.coupling.BodyCoupling`: force ∝ joint velocity near each mass), so a body
+  moving through a string changes its shape, hence its timbre, while a still body leaves it
+  to ring down. A creature sounds a note on its string each time it begins an action: the
+  pitch its hand's place names (:class:`~creatures.motor.note_space.NotePlacement`).
+* **Perceiving shapes.** Percepts read the other bodies: the distance between the nearest
+  joints of two bodies (*seen* within ``sense``, *close* within ``near``), and how much of
+  the creature's string another body overlaps (logged).
+* **Responding.** An :class:`ActionGroup` chooses *wander* (a random graph target and a
+  small drift along the room), *approach* (walk towards the nearest creature seen and reach
+  for it), *mirror* (follow the other's movement in the pose that is its left–right mirror
+  image, or its very pose where the material has no mirror image — the seed of "creatures
+  that learn through imitation") or *rest* (a low-energy pose, standing still: the strings
+  ring down). Percepts are evaluated once per tick (:meth:`Curve.look`), not per tuple.
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import Any, Literal
+
+import numpy as np
+from pydantic import Field
+
+from creatures.behaviour.action_group import ActionGroup
+from creatures.behaviour.action_tuple import Action, ActionTuple, DoUntil
+from creatures.behaviour.models.gaussian import GaussianModel
+from creatures.behaviour.percept import FunctionPercept, WhateverPercept
+from creatures.behaviour.value import value_from_dict
+from creatures.kinds import register
+from creatures.kinds.base import CreatureKind, CreatureSpec
+from creatures.kinds.moves import Rest, head_for
+from creatures.kinds.parts import Body, Voice, VoiceSpec, shared_graph
+from creatures.kinds.report_parts import report_values, selection_logger
+from creatures.motor.note_space import NotePlacement
+from midi.notes import NoteEvent
+
+LIMBS = tuple(f"{part}_{side}" for side in "lr" for part in ("elbow", "wrist", "hand"))
+"""Joints whose movement pushes strings: the thesis's "nearby movement of a character's limbs"."""
+
+REPORT_EVERY = 0.5
+"""Seconds between the values/percepts/motor snapshots written to the events log."""
+
+
+class CurveSpec(CreatureSpec):
+    kind: Literal["curve"]
+    place: float = Field(0.0, description="where along the room the creature starts (x, m)")
+    room: float = Field(3.0, gt=0, description="half-width of the room (m): creatures stay within ±room")
+    walk_speed: float = Field(0.4, gt=0, le=5, description="how fast the creature walks along the room (m/s)")
+    drift: float = Field(0.4, ge=0, description="furthest a wander moves it along the room (m)")
+    sense: float = Field(2.5, gt=0, description="distance between bodies within which another creature is seen (m)")
+    near: float = Field(0.8, gt=0, description="distance between bodies at which another creature is close (m)")
+    note_length: float = Field(3.0, gt=0, le=30, description="seconds each note the creature sounds is held")
+    temperature: float | None = Field(None, gt=0, description="Boltzmann temperature of action selection")
+    voice: VoiceSpec = VoiceSpec(voices=3, body_gain=12.0)
+
+
+MIRROR_TOLERANCE = 0.05
+"""Mean joint distance (m) within which a pose counts as another's mirror image."""
+
+
+@functools.lru_cache(maxsize=1)
+def mirror_nodes() -> np.ndarray:
+    """For every node of the shared graph, the node whose pose is its mirror image (x
+    negated, left and right joints swapped) — or, where the material has no such pose (the
+    shipped *reach* and *strike* are right-handed), the node itself: the creature then
+    copies the other's shape instead, the way dancers "mirror" a partner they stand beside.
+    """
+    graph = shared_graph()
+    names = list(graph.skeleton.names)
+    swap = [names.index(n[:-2] + {"_l": "_r", "_r": "_l"}[n[-2:]]) if n[-2:] in ("_l", "_r") else i
+            for i, n in enumerate(names)]
+    positions = graph.poses.positions  # (N, J, 3)
+    mirrored = positions[:, swap] * np.array([-1.0, 1.0, 1.0])
+    gap = np.linalg.norm(mirrored[:, None] - positions[None], axis=-1).mean(axis=-1)  # (N, N)
+    best = np.argmin(gap, axis=1)
+    return np.where(gap[np.arange(len(best)), best] <= MIRROR_TOLERANCE, best, np.arange(len(best)))
+
+
+class _Wander(Action):
+    """A random graph target and a small drift along the room."""
+
+    def __init__(self, creature: "Curve") -> None:
+        super().__init__("wander")
+        self.creature = creature
+
+    def start(self, t: float, tuple_: ActionTuple) -> None:
+        c = self.creature
+        head_for(c.body, t, [int(c.rng.integers(len(c.body.graph)))])
+        c.target_x = c.x + c.rng.uniform(-c.spec.drift, c.spec.drift)
+        c.sound_hand(t)
+
+
+class _Approach(Action):
+    """Walk towards the nearest creature seen and reach for it."""
+
+    def __init__(self, creature: "Curve") -> None:
+        super().__init__("approach")
+        self.creature = creature
+
+    def start(self, t: float, tuple_: ActionTuple) -> None:
+        c = self.creature
+        other = c.nearest()
+        if other is None:
+            return
+        side = np.sign(other.x - c.x) or 1.0
+        c.target_x = other.x - side * 0.8 * c.spec.near
+        chest = other.body.pose.positions[other.body.skeleton.names.index("chest")]
+        reach_for = chest + [other.x - c.target_x, 0.0, 0.0]  # where it will be, seen from where c goes
+        head_for(c.body, t, c.body.finder.effector_goals(c.body.effector, reach_for).tolist())
+        c.sound_hand(t)
+
+
+class _Mirror(Action):
+    """Take the mirror image of the nearest creature's pose, and keep following it."""
+
+    def __init__(self, creature: "Curve") -> None:
+        super().__init__("mirror")
+        self.creature = creature
+        self.goal = -1
+
+    def start(self, t: float, tuple_: ActionTuple) -> None:
+        self.goal = -1
+        self.update(t)
+        self.creature.sound_hand(t)
+
+    def update(self, t: float) -> None:
+        c = self.creature
+        other = c.nearest()
+        if other is None:
+            return
+        goal = int(mirror_nodes()[other.body.motor.position(t).node])
+        if goal != self.goal:
+            self.goal = goal
+            head_for(c.body, t, [goal])
+
+
+class _Rest(Rest):
+    """Stand still in a low-energy pose: the strings ring down."""
+
+    def __init__(self, creature: "Curve") -> None:
+        super().__init__(creature.body)
+        self.creature = creature
+
+    def start(self, t: float, tuple_: ActionTuple) -> None:
+        self.creature.target_x = self.creature.x
+        super().start(t, tuple_)
+
+
+@register("curve")
+class Curve(CreatureKind):
+    Spec = CurveSpec
+
+    def __init__(self, spec: CurveSpec, world, rng: np.random.Generator) -> None:
+        super().__init__(spec, world, rng)
+        self.body = Body(rng)
+        self.x = self.target_x = float(np.clip(spec.place, -spec.room, spec.room))
+        self.placement = NotePlacement.around(self.body.reach())
+        self.voice: Voice | None = None
+        self._t = 0.0
+        self._nearest: Curve | None = None
+        self.distance = np.inf
+        root = WhateverPercept()
+        seen = FunctionPercept("other seen", self.seen, parent=root)
+        close = FunctionPercept("other close", self.close, parent=seen)
+        arrived = FunctionPercept("arrived", lambda t: 1.0 if self.body.motor.arrived(t) else 0.0)
+        there = FunctionPercept("walked there", lambda t: float(abs(self.x - self.target_x) < 0.05 and
+                                                                self.body.motor.arrived(t)))
+        self.group = ActionGroup(
+            self.name, rng=rng, temperature=spec.temperature, on_event=selection_logger(world, self.name),
+            tuples=[
+                ActionTuple("wander", root, _Wander(self), DoUntil(GaussianModel(4.0, 1.0), until=arrived), 1.0),
+                ActionTuple("approach", seen, _Approach(self), DoUntil(6.0, until=there), 2.0),
+                ActionTuple("mirror", close, _Mirror(self), DoUntil(GaussianModel(4.0, 1.0)), 3.0),
+                ActionTuple("rest", root, _Rest(self), DoUntil(GaussianModel(3.0, 1.0)), 0.4),
+            ],
+        )
+        self._next_report = 0.0
+
+    # -- the room ------------------------------------------------------------------------------
+    def others(self) -> list["Curve"]:
+        return [c for c in self.world.creatures if isinstance(c, Curve) and c is not self]
+
+    def gap(self, other: "Curve") -> float:
+        """Distance between the nearest joints of two bodies, in the room (m)."""
+        mine = self.body.pose.positions + [self.x, 0.0, 0.0]
+        theirs = other.body.pose.positions + [other.x, 0.0, 0.0]
+        return float(np.sqrt(((mine[:, None] - theirs[None]) ** 2).sum(axis=-1).min()))
+
+    def look(self) -> None:
+        """Find the nearest other body (once a tick; the percepts read what was seen)."""
+        others = self.others()
+        gaps = [self.gap(o) for o in others]
+        k = int(np.argmin(gaps)) if gaps else -1
+        self._nearest, self.distance = (others[k], gaps[k]) if gaps else (None, np.inf)
+
+    def nearest(self) -> "Curve | None":
+        return self._nearest
+
+    def seen(self, t: float) -> float:
+        """Saliency of the nearest other body: 1 at touching, falling to 0 at ``sense``."""
+        return float(np.clip(1.0 - self.distance / self.spec.sense, 0.0, 1.0))
+
+    def close(self, t: float) -> float:
+        return 1.0 if self.distance <= self.spec.near else 0.0
+
+    def overlap(self) -> float:
+        """Fraction of this creature's string within reach of another body's joints."""
+        if self.voice is None or self.voice.coupling is None:
+            return 0.0
+        nodes = self.voice.coupling.nodes
+        near = np.zeros(len(nodes), dtype=bool)
+        for other in self.others():
+            theirs = other.body.pose.positions + [other.x - self.x, 0.0, 0.0]
+            d = np.sqrt(((nodes[:, None] - theirs[None]) ** 2).sum(axis=-1)).min(axis=1)
+            near |= d <= self.voice.coupling.radius
+        return float(near.mean())
+
+    # -- moving and sounding -----------------------------------------------------------------
+    def sound_hand(self, t: float) -> None:
+        """Sound the note the hand's place names, held for ``note_length``."""
+        pitch, velocity = self.placement.note_at(self.body.hand())
+        self.world.play(self, NoteEvent(t, pitch, max(velocity, 40), self.spec.channel, self.spec.note_length))
+
+    def feel(self) -> None:
+        """The limbs of every curve body in the room push this creature's string (in its
+        coordinates)."""
+        if self.voice is None:
+            return
+        limbs = [self.body.skeleton.names.index(name) for name in LIMBS]
+        bodies = [self.body.pose.positions[limbs]] + [o.body.pose.positions[limbs] + [o.x - self.x, 0.0, 0.0]
+                                                      for o in self.others()]
+        self.voice.feel(_Bodies(np.concatenate(bodies), self._t))
+
+    def tick(self, t: float) -> None:
+        dt, self._t = t - self._t, t
+        step = self.spec.walk_speed * dt
+        self.x = float(np.clip(self.x + np.clip(self.target_x - self.x, -step, step), -self.spec.room, self.spec.room))
+        self.body.update(t)
+        self.look()
+        self.group.tick(t)
+        self.feel()
+        if t >= self._next_report:
+            self._next_report = t + REPORT_EVERY
+            self._report(t)
+
+    def _report(self, t: float) -> None:
+        report_values(self.world, t, self.name, self.group)
+        self.world.emit("percepts", creature=self.name,
+                        sizes={"bodies seen": int(sum(self.gap(o) < self.spec.sense for o in self.others()))},
+                        levels={"seen": self.seen(t), "close": self.close(t), "string overlap": self.overlap()},
+                        distance=None if self._nearest is None else self.distance)
+        hand = self.body.hand()
+        self.world.emit("motor", creature=self.name, node=self.body.motor.position(t).node, x=self.x,
+                        position={"x": hand[0] + self.x, "y": hand[1], "z": hand[2]})
+
+    # -- outputs -------------------------------------------------------------------------------
+    def played(self, note: NoteEvent) -> None:
+        if self.voice is not None:
+            self.voice.play(note.pitch, note.velocity, note.end)
+
+    def sound(self, out: np.ndarray, sample_rate: int) -> None:
+        if self.voice is None:
+            self.voice = Voice(self.spec.voice, sample_rate)
+            reach = self.body.reach()
+            low, high = reach.min(axis=0), reach.max(axis=0)
+            height = float(np.median(reach[:, 1]))
+            self.voice.couple(np.column_stack((np.linspace(low[0], high[0], self.spec.voice.masses),
+                                               np.full(self.spec.voice.masses, height),
+                                               np.full(self.spec.voice.masses, float(np.median(reach[:, 2]))))),
+                              joints=None)
+        self.voice.render(out, self.world.clock.now())
+
+    def figure(self) -> tuple[np.ndarray, np.ndarray] | None:
+        return self.body.pose.positions + [self.x, 0.0, 0.0], np.asarray(self.body.skeleton.parents)
+
+    # -- persistence ---------------------------------------------------------------------------
+    def state(self) -> dict[str, Any]:
+        return {"values": {tp.name: tp.value.to_dict() for tp in self.group.tuples}, "x": self.x}
+
+    def restore(self, state: dict[str, Any]) -> None:
+        for tp in self.group.tuples:
+            if tp.name in state.get("values", {}):
+                tp.value = value_from_dict(state["values"][tp.name])
+        if "x" in state:
+            self.x = self.target_x = float(np.clip(state["x"], -self.spec.room, self.spec.room))
+
+
+class _Bodies:
+    """Several bodies' joints as one pose-like object for :class:`BodyCoupling`."""
+
+    def __init__(self, positions: np.ndarray, time: float) -> None:
+        self.positions = positions
+        self.time = time
