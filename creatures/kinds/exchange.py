@@ -32,7 +32,9 @@ from creatures.behaviour.motivation import Motivation
 from creatures.behaviour.percept import FunctionPercept, WhateverPercept
 from creatures.kinds import register
 from creatures.kinds.base import CreatureKind, CreatureSpec
+from creatures.kinds.moves import Rest, head_for
 from creatures.kinds.parts import Body, Voice, VoiceSpec
+from creatures.kinds.report_parts import report_values, selection_logger
 from creatures.motor.note_space import NotePlacement, nearest_note
 from creatures.motor.search import NoPath
 from midi.note_objects import NoteObject, NoteSpace
@@ -72,11 +74,7 @@ class _Wander(Action):
 
     def start(self, t: float, tuple_: ActionTuple) -> None:
         body = self.creature.body
-        target = int(self.creature.rng.integers(len(body.graph)))
-        try:
-            body.motor.set_course(t, body.motor.course(t, [target]))
-        except NoPath:
-            pass
+        head_for(body, t, [int(self.creature.rng.integers(len(body.graph)))])
 
     def update(self, t: float) -> None:
         self.creature.strike_nearby(t)
@@ -99,7 +97,7 @@ class _SeekNote(Action):
                                              fresh, tolerance=c.spec.strike_radius)
         except NoPath:
             return
-        c.body.motor.set_course(t, path)
+        head_for(c.body, t, path)
 
     def update(self, t: float) -> None:
         if self.target is not None and self.creature.body.motor.arrived(t):
@@ -109,21 +107,6 @@ class _SeekNote(Action):
 
     def done(self, t: float) -> float:
         return 1.0 if self.target is None else 0.0
-
-
-class _Rest(Action):
-    """Return to a low-energy pose and stay there a while."""
-
-    def __init__(self, creature: "Exchange") -> None:
-        super().__init__("rest")
-        self.creature = creature
-
-    def start(self, t: float, tuple_: ActionTuple) -> None:
-        motor = self.creature.body.motor
-        try:
-            motor.set_course(t, motor.finder.to_rest(motor.position(t)))
-        except NoPath:
-            pass
 
 
 @register("exchange")
@@ -154,11 +137,11 @@ class Exchange(CreatureKind):
         arrived = FunctionPercept("arrived", lambda t: 1.0 if self.body.motor.arrived(t) else 0.0)
         found = FunctionPercept("struck", self.seek.done)
         self.group = ActionGroup(
-            f"{self.name}", rng=rng, temperature=spec.temperature, on_event=self._log_selection,
+            f"{self.name}", rng=rng, temperature=spec.temperature, on_event=selection_logger(world, self.name),
             tuples=[
                 ActionTuple("wander", root, _Wander(self), DoUntil(GaussianModel(4.0, 1.0), until=arrived), 1.0),
                 ActionTuple("seek note", hungry, self.seek, DoUntil(8.0, until=found), 3.0),
-                ActionTuple("rest", root, _Rest(self), DoUntil(GaussianModel(2.0, 0.5)), 0.4),
+                ActionTuple("rest", root, Rest(self.body), DoUntil(GaussianModel(2.0, 0.5)), 0.4),
             ],
         )
         self._next_report = 0.0
@@ -251,17 +234,9 @@ class Exchange(CreatureKind):
             self._next_report = t + REPORT_EVERY
             self._report(t)
 
-    def _log_selection(self, event: dict[str, Any]) -> None:
-        event = dict(event)
-        kind, t = event.pop("event"), event.pop("t")
-        event.pop("group", None)
-        self.world.log.emit(t, kind, creature=self.name, **event)
-
     def _report(self, t: float) -> None:
+        report_values(self.world, t, self.name, self.group, self.motivation)
         log = self.world.log
-        log.emit(t, "values", creature=self.name, values={tp.name: tp.value.to_float() for tp in self.group.tuples})
-        log.emit(t, "motivation", creature=self.name,
-                 drives=dict(zip(self.motivation.names, self.motivation.levels_at(t).tolist())))
         hand = self.body.hand()
         log.emit(t, "motor", creature=self.name, node=self.body.motor.position(t).node,
                  position={"x": hand[0], "y": hand[1], "z": hand[2]})

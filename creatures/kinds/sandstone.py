@@ -79,6 +79,7 @@ from creatures.behaviour.value import value_from_dict
 from creatures.kinds import register
 from creatures.kinds.base import CreatureKind, CreatureSpec
 from creatures.kinds.parts import Voice, VoiceSpec
+from creatures.kinds.report_parts import report_values, selection_logger
 from creatures.runtime.world import INPUT
 from midi.fifths import STEPS, circular_distance, fifths_vector
 from midi.notes import NoteEvent
@@ -297,7 +298,7 @@ class Sandstone(CreatureKind):
         recovered = FunctionPercept("recovered", lambda t: 1.0 if breath.evaluate(t) >= spec.recovered else 0.0)
         discord = FunctionPercept("discord", lambda t: self.discord)
         self.group = ActionGroup(
-            self.name, rng=rng, alpha=0.0, on_event=self._log_selection,
+            self.name, rng=rng, alpha=0.0, on_event=selection_logger(world, self.name),
             tuples=[
                 ActionTuple("sing", ready, _Activity("sing", self), DoUntil(until=sung_out), SING_VALUE),
                 ActionTuple("pause", winded, _Activity("pause", self), DoUntil(until=recovered), PAUSE_VALUE),
@@ -397,16 +398,9 @@ class Sandstone(CreatureKind):
             self._next_report = t + REPORT_EVERY
             self._report(t)
 
-    def _log_selection(self, event: dict[str, Any]) -> None:
-        event = dict(event)
-        kind, t = event.pop("event"), event.pop("t")
-        event.pop("group", None)
-        self.world.log.emit(t, kind, creature=self.name, **event)
-
     def _report(self, t: float) -> None:
+        report_values(self.world, t, self.name, self.group, self.motivation)
         log = self.world.log
-        log.emit(t, "values", creature=self.name, values={tp.name: tp.value.to_float() for tp in self.group.tuples})
-        log.emit(t, "motivation", creature=self.name, drives=dict(self.drives))
         levels = {name: p.evaluate(t) for name, p in self.percepts.items()}
         log.emit(t, "percepts", creature=self.name, phrase=self.song.phrase, note=self.song.note,
                  levels={**levels, "discord": self.discord, "heard amount": self.heard.amount()})
