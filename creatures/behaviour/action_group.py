@@ -364,6 +364,17 @@ class ActionGroup:
         self.last_started_at = state["last_started_at"]
         self.last_tick = state["last_tick"]
 
+    # -- what lasts across runs --------------------------------------------------------------
+    def value_state(self) -> dict[str, dict[str, Any]]:
+        """Every tuple's learned value, by tuple name (JSON-able)."""
+        return {tp.name: tp.value.to_dict() for tp in self.tuples}
+
+    def restore_values(self, saved: dict[str, dict[str, Any]]) -> None:
+        """Take back values saved by :meth:`value_state`; tuples not saved keep theirs."""
+        for tp in self.tuples:
+            if tp.name in saved:
+                tp.value = value_from_dict(saved[tp.name])
+
     def _emit(self, event: str, t: float, **fields: Any) -> None:
         if self.on_event is not None:
             self.on_event({"event": event, "t": t, "group": self.name, **fields})

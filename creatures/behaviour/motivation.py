@@ -186,7 +186,9 @@ class Motivation:
         }
 
     @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> "Motivation":
+    def from_dict(cls, data: dict[str, Any], *, now: float | None = None) -> "Motivation":
+        """Rebuild saved drives; ``now`` restarts their clock at a new run's time (levels
+        carry over, the saved time belongs to a clock that no longer runs)."""
         keys = ("levels", "growth", "decay", "equilibrium", "coupling", "inputs", "floor",
                 "ceiling", "time")
         missing = [k for k in keys if k not in data]
@@ -201,7 +203,7 @@ class Motivation:
                 coupling={(to, frm): rate for to, frm, rate in data["coupling"]},
                 floor=data["floor"],
                 ceiling=data["ceiling"],
-                start=data["time"],
+                start=data["time"] if now is None else now,
             )
             motivation.inputs = motivation._vector(data["inputs"], "inputs")
         except KeyError as exc:  # a parameter names a drive that has no level

@@ -40,7 +40,6 @@ from creatures.behaviour.action_group import ActionGroup
 from creatures.behaviour.action_tuple import Action, ActionTuple, DoUntil
 from creatures.behaviour.models.gaussian import GaussianModel
 from creatures.behaviour.percept import FunctionPercept, WhateverPercept
-from creatures.behaviour.value import value_from_dict
 from creatures.kinds import register
 from creatures.kinds.base import CreatureKind, CreatureSpec
 from creatures.kinds.moves import Rest, head_for
@@ -290,12 +289,10 @@ class Curve(CreatureKind):
 
     # -- persistence ---------------------------------------------------------------------------
     def state(self) -> dict[str, Any]:
-        return {"values": {tp.name: tp.value.to_dict() for tp in self.group.tuples}, "x": self.x}
+        return {"values": self.group.value_state(), "x": self.x}
 
     def restore(self, state: dict[str, Any]) -> None:
-        for tp in self.group.tuples:
-            if tp.name in state.get("values", {}):
-                tp.value = value_from_dict(state["values"][tp.name])
+        self.group.restore_values(state.get("values", {}))
         if "x" in state:
             self.x = self.target_x = float(np.clip(state["x"], -self.spec.room, self.spec.room))
 

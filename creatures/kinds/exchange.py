@@ -261,18 +261,9 @@ class Exchange(CreatureKind):
 
     # -- persistence -------------------------------------------------------------------
     def state(self) -> dict[str, Any]:
-        return {
-            "values": {tp.name: tp.value.to_dict() for tp in self.group.tuples},
-            "motivation": self.motivation.to_dict(),
-        }
+        return {"values": self.group.value_state(), "motivation": self.motivation.to_dict()}
 
     def restore(self, state: dict[str, Any]) -> None:
-        from creatures.behaviour.value import value_from_dict
-
-        for tp in self.group.tuples:
-            if tp.name in state.get("values", {}):
-                tp.value = value_from_dict(state["values"][tp.name])
+        self.group.restore_values(state.get("values", {}))
         if "motivation" in state:
-            # Levels carry over; their clock starts again with this run's.
-            self.motivation = Motivation.from_dict(state["motivation"])
-            self.motivation.time = self.world.clock.now()
+            self.motivation = Motivation.from_dict(state["motivation"], now=self.world.clock.now())

@@ -58,7 +58,6 @@ from creatures.behaviour.action_tuple import Action, ActionTuple, DoUntil
 from creatures.behaviour.models.gaussian import GaussianModel
 from creatures.behaviour.motivation import Motivation
 from creatures.behaviour.percept import FunctionPercept, WhateverPercept
-from creatures.behaviour.value import value_from_dict
 from creatures.kinds import register
 from creatures.kinds.base import CreatureKind, CreatureSpec
 from creatures.kinds.moves import Rest, head_for
@@ -556,18 +555,16 @@ class Listen(CreatureKind):
     # -- persistence ---------------------------------------------------------------------------
     def state(self) -> dict[str, Any]:
         return {
-            "values": {tp.name: tp.value.to_dict() for tp in self.group.tuples},
+            "values": self.group.value_state(),
             "motivation": self.motivation.to_dict(),
             "poses": self.poses.to_dict(),
             "population": self.population.to_dict(),
         }
 
     def restore(self, state: dict[str, Any]) -> None:
-        for tp in self.group.tuples:
-            if tp.name in state.get("values", {}):
-                tp.value = value_from_dict(state["values"][tp.name])
+        self.group.restore_values(state.get("values", {}))
         if "motivation" in state:
-            self.motivation = Motivation.from_dict(state["motivation"])
+            self.motivation = Motivation.from_dict(state["motivation"], now=self.world.clock.now())
         if "poses" in state:
             self.poses.restore(state["poses"])
         if "population" in state:

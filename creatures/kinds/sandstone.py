@@ -75,7 +75,6 @@ from creatures.behaviour.action_group import ActionGroup
 from creatures.behaviour.action_tuple import Action, ActionTuple, DoUntil
 from creatures.behaviour.motivation import Motivation
 from creatures.behaviour.percept import FunctionPercept
-from creatures.behaviour.value import value_from_dict
 from creatures.kinds import register
 from creatures.kinds.base import CreatureKind, CreatureSpec
 from creatures.kinds.parts import Voice, VoiceSpec
@@ -421,7 +420,7 @@ class Sandstone(CreatureKind):
     # -- persistence -------------------------------------------------------------------------
     def state(self) -> dict[str, Any]:
         return {
-            "values": {tp.name: tp.value.to_dict() for tp in self.group.tuples},
+            "values": self.group.value_state(),
             "motivation": self.motivation.to_dict(),
             "song": {"phrase": self.song.phrase, "note": self.song.note},
             "heard": {"vector": self.heard.vector.tolist(), "weight": self.heard.weight, "time": self.heard.time},
@@ -435,12 +434,10 @@ class Sandstone(CreatureKind):
         phrase, note = int(state["song"]["phrase"]), int(state["song"]["note"])
         if not (0 <= phrase < len(self.song.phrases) and 0 <= note < len(self.song.phrases[phrase][0])):
             raise ValueError(f"sandstone state of {self.name!r}: song position {phrase}/{note} is not in its phrases")
-        for tp in self.group.tuples:
-            if tp.name in state["values"]:
-                tp.value = value_from_dict(state["values"][tp.name])
-        self.motivation = Motivation.from_dict(state["motivation"])
+        self.group.restore_values(state["values"])
+        self.motivation = Motivation.from_dict(state["motivation"], now=self.world.clock.now())
         self.song.phrase, self.song.note = phrase, note
         self.heard.vector = np.asarray(state["heard"]["vector"], dtype=float).reshape(2)
-        self.heard.weight, self.heard.time = float(state["heard"]["weight"]), float(state["heard"]["time"])
+        self.heard.weight, self.heard.time = float(state["heard"]["weight"]), self.world.clock.now()
         self.sensed = None if state["sensed"] is None else float(state["sensed"])
         self.drives.update(zip(self.motivation.names, self.motivation.levels.tolist()))
