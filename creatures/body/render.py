@@ -85,24 +85,32 @@ def look_at(eye, target, up=(0.0, 1.0, 0.0)) -> np.ndarray:
     return pose
 
 
-def _bone_matrix(a: np.ndarray, b: np.ndarray, radius: float) -> np.ndarray:
-    """Transform taking the unit cylinder (radius 1, height 1, along z) onto the bone a→b."""
+def _bone_matrices(a: np.ndarray, b: np.ndarray, radius: float) -> np.ndarray:
+    """Transforms ``(N, 4, 4)`` taking the unit cylinder (radius 1, height 1, along z) onto
+    each bone ``a[i] → b[i]``."""
     axis = b - a
-    length = float(np.linalg.norm(axis))
-    z = axis / length if length > 1e-9 else np.array([0.0, 0.0, 1.0])
-    helper = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    length = np.linalg.norm(axis, axis=1)
+    z = np.where(length[:, None] > 1e-9, axis / np.maximum(length, 1e-9)[:, None], [0.0, 0.0, 1.0])
+    helper = np.where(np.abs(z[:, :1]) < 0.9, [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
     x = np.cross(helper, z)
-    x /= np.linalg.norm(x)
-    matrix = np.eye(4)
-    matrix[:3, 0], matrix[:3, 1], matrix[:3, 2] = x * radius, np.cross(z, x) * radius, z * length
-    matrix[:3, 3] = 0.5 * (a + b)
-    return matrix
+    x /= np.linalg.norm(x, axis=1, keepdims=True)
+    matrices = np.zeros((len(a), 4, 4))
+    matrices[:, :3, 0] = x * radius
+    matrices[:, :3, 1] = np.cross(z, x) * radius
+    matrices[:, :3, 2] = z * length[:, None]
+    matrices[:, :3, 3] = 0.5 * (a + b)
+    matrices[:, 3, 3] = 1.0
+    return matrices
 
 
-def _sphere_matrix(centre: np.ndarray, radius: float) -> np.ndarray:
-    matrix = np.diag([radius, radius, radius, 1.0])
-    matrix[:3, 3] = centre
-    return matrix
+def _sphere_matrices(centres: np.ndarray, radius: float | np.ndarray) -> np.ndarray:
+    """Transforms ``(N, 4, 4)`` taking the unit sphere onto spheres at ``centres``."""
+    centres = np.asarray(centres, dtype=float).reshape(-1, 3)
+    matrices = np.zeros((len(centres), 4, 4))
+    matrices[:, [0, 1, 2], [0, 1, 2]] = np.broadcast_to(np.asarray(radius, float).reshape(-1, 1), (len(centres), 3))
+    matrices[:, :3, 3] = centres
+    matrices[:, 3, 3] = 1.0
+    return matrices
 
 
 @dataclass(frozen=True)
@@ -134,12 +142,10 @@ class BodyRenderer:
 
         self._pr = pyrender
         self.joint_radius, self.bone_radius = joint_radius, bone_radius
-        body = pyrender.MetallicRoughnessMaterial(baseColorFactor=(*body_colour, 1.0), roughnessFactor=0.7)
+        self._body = pyrender.MetallicRoughnessMaterial(baseColorFactor=(*body_colour, 1.0), roughnessFactor=0.7)
         self._sphere = trimesh.creation.icosphere(subdivisions=2, radius=1.0)
-        self._joint_mesh = pyrender.Mesh.from_trimesh(self._sphere, material=body, smooth=True)
-        self._bone_mesh = pyrender.Mesh.from_trimesh(
-            trimesh.creation.cylinder(radius=1.0, height=1.0, sections=16), material=body, smooth=False)
-        self._note_meshes: dict[int, object] = {}
+        self._cylinder = trimesh.creation.cylinder(radius=1.0, height=1.0, sections=16)
+        self._note_materials: dict[int, object] = {}
         self.scene = pyrender.Scene(bg_color=(*background, 1.0), ambient_light=(0.25, 0.25, 0.25))
         self._camera = self.scene.add(pyrender.PerspectiveCamera(yfov=np.pi / 3.5, aspectRatio=width / height),
                                       pose=np.eye(4) if camera_pose is None else camera_pose)
@@ -147,9 +153,7 @@ class BodyRenderer:
         self._framed = camera_pose is not None
         if self._framed:
             self.scene.set_pose(self._light, camera_pose)
-        self._joints: list = []  # scene nodes reused frame to frame: re-adding meshes re-uploads them
-        self._bones: list = []
-        self._notes: list = []
+        self._frame_nodes: list = []  # this frame's instanced meshes (joints, bones, notes by pitch)
         try:
             self._renderer = pyrender.OffscreenRenderer(width, height)
         except Exception as exc:  # pyglet/EGL errors vary by platform
@@ -164,19 +168,18 @@ class BodyRenderer:
         self.scene.set_pose(self._light, pose)
         self._framed = True
 
-    def _resize(self, nodes: list, mesh, count: int) -> None:
-        while len(nodes) < count:
-            nodes.append(self.scene.add(mesh))
-        while len(nodes) > count:
-            self.scene.remove_node(nodes.pop())
+    def _instanced(self, mesh, material, matrices: np.ndarray) -> None:
+        """One scene node drawing ``mesh`` at every transform: one draw call per frame
+        instead of one per joint, bone or note (pyrender's per-node GL calls dominated,
+        ~165 ms a frame for three bodies)."""
+        node = self.scene.add(self._pr.Mesh.from_trimesh(mesh, material=material, poses=matrices))
+        self._frame_nodes.append(node)
 
-    def _note_mesh(self, pitch: float):
-        key = int(round(pitch))
-        if key not in self._note_meshes:
-            material = self._pr.MetallicRoughnessMaterial(baseColorFactor=(*pitch_colour(key), 1.0),
-                                                          emissiveFactor=pitch_colour(key))
-            self._note_meshes[key] = self._pr.Mesh.from_trimesh(self._sphere, material=material, smooth=True)
-        return self._note_meshes[key]
+    def _note_material(self, pitch: int):
+        if pitch not in self._note_materials:
+            self._note_materials[pitch] = self._pr.MetallicRoughnessMaterial(
+                baseColorFactor=(*pitch_colour(pitch), 1.0), emissiveFactor=pitch_colour(pitch))
+        return self._note_materials[pitch]
 
     def render(self, positions: np.ndarray, parents: np.ndarray, notes=()) -> np.ndarray:
         """RGB image ``(height, width, 3)`` uint8 of the body and notes."""
@@ -190,17 +193,20 @@ class BodyRenderer:
             raise ValueError(f"need positions (J, 3) and parents (J,), got {positions.shape} and {parents.shape}")
         if not self._framed:
             self.frame_camera(positions)
-        bones = [(parent, j) for j, parent in enumerate(parents) if parent >= 0]
-        self._resize(self._joints, self._joint_mesh, len(positions))
-        self._resize(self._bones, self._bone_mesh, len(bones))
-        for node, p in zip(self._joints, positions):
-            self.scene.set_pose(node, _sphere_matrix(p, self.joint_radius))
-        for node, (parent, j) in zip(self._bones, bones):
-            self.scene.set_pose(node, _bone_matrix(positions[parent], positions[j], self.bone_radius))
-        for node in self._notes:
+        for node in self._frame_nodes:
             self.scene.remove_node(node)
-        self._notes = [self.scene.add(self._note_mesh(n.pitch), pose=_sphere_matrix(np.asarray(n.position, float), n.radius))
-                       for n in notes]
+        self._frame_nodes = []
+        self._instanced(self._sphere, self._body, _sphere_matrices(positions, self.joint_radius))
+        child = np.flatnonzero(parents >= 0)
+        if len(child):
+            self._instanced(self._cylinder, self._body,
+                            _bone_matrices(positions[parents[child]], positions[child], self.bone_radius))
+        by_pitch: dict[int, list] = {}
+        for n in notes:
+            by_pitch.setdefault(int(round(n.pitch)), []).append(n)
+        for pitch, marks in by_pitch.items():
+            self._instanced(self._sphere, self._note_material(pitch),
+                            _sphere_matrices([m.position for m in marks], np.array([m.radius for m in marks])))
         return self._renderer.render(self.scene)
 
     def close(self) -> None:

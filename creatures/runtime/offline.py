@@ -156,7 +156,7 @@ def run_offline(
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=steps, unit="tick", desc=settings.title, leave=False)
+        bar = tqdm(total=steps, unit="tick", desc=settings.title, leave=False, disable=None)
     try:
         for step in range(1, steps + 1):
             t0, t = (step - 1) * tick, min(step * tick, duration)
