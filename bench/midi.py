@@ -59,7 +59,9 @@ def _file_rows(rng: np.random.Generator, n: int) -> list[Row]:
         write_notes(path, notes, tempo=TempoMap.from_seconds(480, [(starts[-1] / 3, 90.0), (starts[-1] / 2, 150.0)]))
         t_ours = best_of(lambda: read_notes(path), repeat=2)
         t_mido = best_of(lambda: mido.MidiFile(path), repeat=2)
-    return [Row(f"load .mid of {n:,} notes to NoteEvents", t_ours, "s", target=3.0 * n / 100_000,
+    # The issue sets no target here; the ratio says how much pairing and the tempo map add to
+    # mido's own parse (which is most of the time).
+    return [Row(f"load .mid of {n:,} notes to NoteEvents", t_ours, "s",
                 higher_is_better=False, baseline="mido.MidiFile parse only", ratio=t_mido / t_ours)]
 
 
