@@ -12,19 +12,10 @@ import pytest
 import soundfile
 from scipy import signal
 
-SR = 22050
+# The speech-like generators live in the library (installations use them too); re-exported.
+from audio.formants import SAMPLE_RATE, VOWELS, WORDS, envelope, formant_burst, normalise, word  # noqa: F401
 
-VOWELS: dict[str, tuple[float, float, float]] = {
-    # First three formants (Hz), Peterson & Barney style averages.
-    "a": (730.0, 1090.0, 2440.0),
-    "e": (530.0, 1840.0, 2480.0),
-    "i": (270.0, 2290.0, 3010.0),
-    "o": (570.0, 840.0, 2410.0),
-    "u": (300.0, 870.0, 2240.0),
-}
-
-WORDS: tuple[str, ...] = ("ai", "ua", "ieu", "oe", "eao")
-"""Five "word" classes: different vowel (formant) sequences."""
+SR = SAMPLE_RATE
 
 
 @pytest.fixture(scope="session")
@@ -43,15 +34,6 @@ def warm_librosa() -> None:
 
 def midi_to_hz(midi: float) -> float:
     return 440.0 * 2.0 ** ((midi - 69.0) / 12.0)
-
-
-def envelope(n: int, sr: int = SR, *, attack: float = 0.005, release: float = 0.02) -> np.ndarray:
-    """Raised-cosine attack and release, flat between."""
-    env = np.ones(n)
-    a, r = min(n // 2, int(attack * sr)), min(n // 2, int(release * sr))
-    env[:a] = 0.5 - 0.5 * np.cos(np.pi * np.arange(a) / max(a, 1))
-    env[n - r :] = env[:r][::-1] if a == r else 0.5 + 0.5 * np.cos(np.pi * np.arange(r) / max(r, 1))
-    return env
 
 
 def silence(duration: float, sr: int = SR) -> np.ndarray:
@@ -81,55 +63,10 @@ def chirp(f0: float, f1: float, duration: float, sr: int = SR, *, rms: float = 0
     return normalise(x * envelope(len(x), sr), rms)
 
 
-def formant_burst(
-    formants: tuple[float, ...],
-    duration: float,
-    rng: np.random.Generator,
-    sr: int = SR,
-    *,
-    f0: float = 120.0,
-    rms: float = 0.1,
-) -> np.ndarray:
-    """A vowel-like sound: a jittered glottal pulse train through parallel formant resonators."""
-    n = int(duration * sr)
-    periods = sr / (f0 * (1.0 + 0.01 * rng.standard_normal(int(duration * f0) + 2)))
-    pulses = np.cumsum(periods).astype(int)
-    source = np.zeros(n)
-    source[pulses[pulses < n]] = 1.0
-    source = signal.lfilter([1.0], [1.0, -0.95], source)  # glottal spectral tilt
-    x = np.zeros(n)
-    for k, f in enumerate(formants):
-        r = np.exp(-np.pi * (60.0 + 20.0 * k) / sr)
-        a = [1.0, -2 * r * np.cos(2 * np.pi * f / sr), r * r]
-        x += signal.lfilter([1.0 - r], a, source) / (k + 1)
-    return normalise(x * envelope(n, sr, attack=0.01, release=0.03), rms)
 
 
-def word(
-    name: str,
-    rng: np.random.Generator,
-    sr: int = SR,
-    *,
-    stretch: float = 1.0,
-    f0: float = 120.0,
-    rms: float = 0.1,
-    segment: float = 0.15,
-) -> np.ndarray:
-    """A "word": its vowels in sequence, cross-faded; ``stretch`` scales its duration."""
-    fade = int(0.03 * sr)
-    out = np.zeros(0)
-    for v in name:
-        seg = formant_burst(VOWELS[v], segment * stretch + 0.03, rng, sr, f0=f0)
-        if len(out):
-            ramp = np.linspace(0.0, 1.0, fade)
-            out[-fade:] = out[-fade:] * (1 - ramp) + seg[:fade] * ramp
-            seg = seg[fade:]
-        out = np.concatenate([out, seg])
-    return normalise(out * envelope(len(out), sr, attack=0.01, release=0.03), rms)
 
 
-def normalise(x: np.ndarray, rms: float) -> np.ndarray:
-    return x * (rms / max(np.sqrt(np.mean(x**2)), 1e-12))
 
 
 @dataclass

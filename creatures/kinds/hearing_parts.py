@@ -1,0 +1,354 @@
+"""Parts the hearing kinds share: an ear, a mouth, and an aural model that survives a save.
+
+Thesis, "soundcreatures": each creature has "a microphone-as-ear and a loudspeaker-as-mouth".
+
+* :class:`Ear` — amplitude segmentation (:class:`audio.segment.Segmenter`) into cepstral
+  :class:`audio.utterance.Utterance`'s, deaf while its own mouth sings (half-duplex: the
+  singing flow inhibits the hearing flow's saliency, :mod:`audio.self_hearing`). The singing
+  flow exists before the first block arrives (the sample rate is only known then), so it is
+  made here and attached to the segmenter's hearing flow when the segmenter is made.
+* :class:`Mouth` — a :class:`audio.sampler.Sampler` sung through the body: "labelled
+  positions on the animated body control parameters such as amplitude modulation (e.g. rib
+  cage) and a simple low-pass filter (e.g. here, back angle)". Here the rib cage is the
+  distance between the elbows (arms opening as the chest fills) and the back angle is the
+  angle at the chest between pelvis and head; each is mapped from its 5–95 % range over the
+  shipped motor graph (:func:`body_range`) so any body sweeps the whole parameter range.
+  Singing is timed from the sample's length on the clock, not from rendering, so behaviour
+  is the same whether or not audio is rendered (a run without out.wav or air).
+* :class:`SingFrom` and :class:`AuralLearning` — the *Ac* side of the shared aural tree
+  ("aural Ac percept trees"): a tuple's action sings an exemplar drawn from one percept;
+  when such a tuple becomes valuable its percept is clustered (fission) and each new child
+  becomes a new, more specific action ``same Tr | sing child``; when a tuple *triggered* by
+  an aural percept becomes valuable, the same fission yields ``child | same Ac`` (new sounds
+  incorporated as triggers, figure 39). Children that fuse away take their tuples with them.
+* :func:`tree_state` / :func:`tree_from_state` — an utterance percept tree as a JSON-able
+  dict (samples as base64 16-bit PCM, cepstra recomputed on load) for ``state()``; the
+  file format of :func:`audio.utterance.save_aural_model` stays the one for seeding.
+"""
+
+from __future__ import annotations
+
+import base64
+import functools
+from pathlib import Path
+from typing import Annotated, Any, Callable
+
+import numpy as np
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, model_validator
+
+from audio.cepstrum import cepstra
+from audio.coupling import BodyControl, joint_angle, joint_distance
+from audio.sampler import Sampler
+from audio.segment import Segmenter
+from audio.self_hearing import SingingState
+from audio.utterance import DEFAULT_RADIUS, Utterance, UtterancePercept
+from creatures.behaviour.action_group import ActionGroup
+from creatures.behaviour.action_tuple import Action, ActionTuple, DoUntil
+from creatures.behaviour.learning import PerceptLearning, copy_value
+from creatures.kinds.parts import shared_graph
+from creatures.motor.pose import BodyPose
+
+
+class HearingSpec(BaseModel):
+    """``[creature.hearing]``: how the ear cuts sound into utterances and groups them."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    on_db: float = Field(12.0, gt=0, le=60, description="dB above the noise floor that starts a sound")
+    off_db: float = Field(6.0, gt=0, le=60, description="dB above the floor that keeps a sound going")
+    hold: float = Field(0.08, ge=0, le=1, description="dips shorter than this (s) do not end a sound")
+    min_length: float = Field(0.1, gt=0, le=2, description="shorter sounds are ignored (clicks), s")
+    max_length: float = Field(2.0, gt=0, le=10, description="longer sounds are cut into pieces, s")
+    radius: float = Field(DEFAULT_RADIUS, gt=0, description="cepstral cluster radius of a sound class")
+    memory: float = Field(0.25, gt=0, le=5, description="seconds a heard sound stays perceived")
+    keep: int = Field(60, ge=3, le=1000, description="most exemplars a sound percept keeps (the newest); "
+                                                      "clustering costs keep² time warps")
+    half_duplex: bool = Field(True, description="deaf while singing (set false only to demonstrate why)")
+    release: float = Field(0.3, ge=0, le=2, description="deafness held after singing stops (room echo), s")
+
+    @model_validator(mode="after")
+    def _hysteresis(self) -> "HearingSpec":
+        if self.off_db > self.on_db:
+            raise ValueError(f"off_db ({self.off_db}) must not exceed on_db ({self.on_db})")
+        if self.max_length < self.min_length:
+            raise ValueError("max_length must not be below min_length")
+        return self
+
+
+def _existing_file(path: str | None) -> str | None:
+    if path is not None and not Path(path).is_file():
+        raise ValueError(f"file not found: {path}")
+    return path
+
+
+SeedModel = Annotated[str | None, AfterValidator(_existing_file)]
+"""A config key naming an aural model (:func:`audio.utterance.save_aural_model`'s JSON,
+absolute or relative to the working directory) to seed a creature with: "persistent aural
+models … offer an ability to seed the creatures with musical material" (soundcreatures)."""
+
+
+class Ear:
+    """Blocks in, utterances out; deaf while ``singing`` is salient (if ``half_duplex``)."""
+
+    def __init__(self, spec: HearingSpec) -> None:
+        self.spec = spec
+        self.singing = SingingState(release=spec.release)
+        self.segmenter: Segmenter | None = None
+
+    def listen(self, t: float, block: np.ndarray, sample_rate: int) -> list[Utterance]:
+        """Feed the block ending at clock time ``t``; return the utterances that ended."""
+        if self.segmenter is None:
+            s = self.spec
+            self.segmenter = Segmenter(sample_rate, on_db=s.on_db, off_db=s.off_db, hold=s.hold,
+                                       min_length=s.min_length, max_length=s.max_length,
+                                       t0=t - len(block) / sample_rate)
+            if s.half_duplex:
+                self.segmenter.hearing.inhibit_by(self.singing)
+        return [Utterance.from_event(e) for e in self.segmenter.feed(block)]
+
+
+class MouthSpec(BaseModel):
+    """``[creature.mouth]``: how the body shapes the sung sound."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    gain: float = Field(1.0, ge=0, le=4, description="gain of sung sounds before the body's amplitude")
+    quiet: float = Field(0.3, ge=0, le=1, description="amplitude with the rib cage closed")
+    loud: float = Field(1.0, ge=0, le=2, description="amplitude with the rib cage open")
+    dull_hz: float = Field(1500.0, ge=50, description="low-pass cutoff with the back bent")
+    bright_hz: float = Field(9000.0, ge=50, description="low-pass cutoff with the back straight")
+
+
+@functools.lru_cache(maxsize=8)
+def body_range(feature_name: str) -> tuple[float, float]:
+    """5th and 95th percentile of a named body feature over the shared motor graph."""
+    feature = body_features()[feature_name]
+    values = np.array([feature(p) for p in shared_graph().poses.positions])
+    low, high = np.percentile(values, [5.0, 95.0])
+    return float(low), float(high) if high > low else float(low) + 1e-6
+
+
+def body_features() -> dict[str, Callable[[np.ndarray], float]]:
+    """The labelled body positions a mouth listens to: rib cage and back angle."""
+    index = shared_graph().skeleton.names.index
+    return {
+        "rib cage": joint_distance(index("elbow_l"), index("elbow_r")),
+        "back angle": joint_angle(index("pelvis"), index("chest"), index("head")),
+    }
+
+
+class Mouth:
+    """Sings utterances through a body; tells the ear's singing flow while it sounds."""
+
+    def __init__(self, spec: MouthSpec, singing: SingingState) -> None:
+        self.spec = spec
+        self.singing = singing
+        features = body_features()
+        self.amplitude = BodyControl(features["rib cage"], *body_range("rib cage"), spec.quiet, spec.loud)
+        self.cutoff = BodyControl(features["back angle"], *body_range("back angle"), spec.dull_hz, spec.bright_hz)
+        self.sampler: Sampler | None = None
+        self._index: dict[int, int] = {}
+        self._queue: list[tuple[np.ndarray, float]] = []
+        self.since = self.until = -np.inf  # clock times the latest song began and ends
+        self._idle = False  # a whole block rendered with nothing playing
+
+    def sing(self, t: float, utterance: Utterance, gain: float = 1.0) -> float:
+        """Start singing ``utterance`` at ``t``; returns when it will have been sung."""
+        if not self.sounding(t):
+            self.since = t
+        self.until = max(self.until, t + len(utterance.samples) / utterance.samplerate)
+        self.singing.sing(t, 1.0)  # binary: a fraction would only partly deafen the ear
+        key = id(utterance.samples)
+        if self.sampler is not None and key in self._index:
+            self.sampler.play(self._index[key], gain=gain * self.spec.gain)
+        else:
+            self._queue.append((utterance.samples, gain * self.spec.gain))
+        return self.until
+
+    def sounding(self, t: float) -> bool:
+        return t < self.until
+
+    def sang_during(self, start: float, end: float) -> bool:
+        """Whether the latest song overlapped ``[start, end]`` (its echo one tick late too)."""
+        return self.since <= end and start <= self.until + self.singing.release
+
+    def tick(self, t: float) -> None:
+        """End the singing flow once the last sound is over (the ear's release follows)."""
+        if not self.sounding(t):
+            self.singing.silence(t)
+
+    def render(self, out: np.ndarray, sample_rate: int, pose: BodyPose | None = None) -> None:
+        """Fill ``out`` with the sung sounds shaped by ``pose`` (no body: loud and bright)."""
+        if self.sampler is None or (not self.sampler.playing and len(self._index) > 64):
+            # A fresh sampler when idle keeps the stored sounds bounded over a long run.
+            self.sampler, self._index = Sampler(sample_rate, block_size=2 * len(out) + 2), {}
+        if not self._queue and not self.sampler.playing and self._idle:
+            out[:] = 0.0  # nothing sounding and the filter's tail has died: skip the filter
+            return
+        self._idle = not self._queue and not self.sampler.playing
+        for samples, gain in self._queue:
+            key = id(samples)
+            if key not in self._index:
+                self._index[key] = self.sampler.add(samples)
+            self.sampler.play(self._index[key], gain=gain)
+        self._queue.clear()
+        if pose is None:
+            self.sampler.render(out, amplitude=self.spec.loud, cutoff_hz=self.spec.bright_hz)
+        else:
+            self.sampler.render(out, amplitude=self.amplitude(pose), cutoff_hz=self.cutoff(pose))
+
+
+# -- an utterance tree as JSON ------------------------------------------------------------------
+
+
+def pack_samples(samples: np.ndarray) -> str:
+    """Mono float samples in [−1, 1] as base64 of little-endian 16-bit PCM."""
+    pcm = np.round(np.clip(samples, -1.0, 1.0) * 32767.0).astype("<i2")
+    return base64.b64encode(pcm.tobytes()).decode("ascii")
+
+
+def unpack_samples(text: str) -> np.ndarray:
+    return (np.frombuffer(base64.b64decode(text), dtype="<i2") / 32767.0).astype(np.float32)
+
+
+def tree_state(root: UtterancePercept) -> dict[str, Any]:
+    """The tree's structure, parameters and exemplars (each utterance stored once)."""
+    table: dict[int, int] = {}
+    utterances: list[dict[str, Any]] = []
+
+    def index(u: Utterance) -> int:
+        if id(u) not in table:
+            table[id(u)] = len(utterances)
+            utterances.append({"samples": pack_samples(u.samples), "samplerate": u.samplerate, "time": u.time})
+        return table[id(u)]
+
+    def node(p: UtterancePercept) -> dict[str, Any]:
+        return {"name": p.name, "born": p._born, "members": [index(u) for u in p.members],
+                "children": [node(c) for c in p.utterance_children()]}
+
+    return {"radius": root.radius, "max_children": root.max_children, "min_members": root.min_members,
+            "max_members": root.max_members, "memory": root.memory, "root": node(root),
+            "utterances": utterances}
+
+
+def tree_from_state(state: dict[str, Any]) -> UtterancePercept:
+    """Rebuild a tree saved by :func:`tree_state`; raises ValueError naming what is wrong."""
+    try:
+        table = []
+        for u in state["utterances"]:
+            samples = unpack_samples(u["samples"])
+            table.append(Utterance(samples, int(u["samplerate"]), cepstra(samples, int(u["samplerate"])),
+                                   float(u["time"])))
+        options = {k: state[k] for k in ("radius", "max_children", "min_members", "max_members", "memory")}
+
+        def build(d: dict[str, Any], parent: UtterancePercept | None) -> UtterancePercept:
+            p = UtterancePercept(d["name"], parent=parent, **options)
+            p._born = int(d["born"])
+            p.members = [table[i] for i in d["members"]]
+            for child in d["children"]:
+                build(child, p)
+            return p
+
+        return build(state["root"], None)
+    except (KeyError, IndexError, TypeError, ValueError) as exc:
+        raise ValueError(f"malformed aural model state ({type(exc).__name__}: {exc})") from None
+
+
+# -- the Ac side of the aural tree ------------------------------------------------------------
+
+
+class SingFrom(Action):
+    """Ac percept: sing an exemplar drawn from ``percept`` (nothing while it has none).
+
+    ``perform(t, utterance, percept)`` is the kind's singing (mouth, EDL, log). Actions on
+    one percept share a name, so credit flows between all tuples singing the same class.
+    """
+
+    def __init__(self, percept: UtterancePercept, rng: np.random.Generator,
+                 perform: Callable[[float, Utterance, UtterancePercept], None]) -> None:
+        super().__init__(f"sing {percept.name}")
+        self.percept = percept
+        self.rng = rng
+        self.perform = perform
+
+    def start(self, t: float, tuple_: ActionTuple) -> None:
+        if self.percept.members:
+            self.perform(t, self.percept.draw(self.rng), self.percept)
+
+
+class AuralLearning(PerceptLearning):
+    """:class:`PerceptLearning` for a tree of utterance percepts shared by Tr and Ac.
+
+    Clustering costs n²/2 time warps, so one percept is re-clustered at most every
+    ``refission_every`` seconds however often its tuples earn credit.
+    """
+
+    def __init__(self, root: UtterancePercept, sing_from: Callable[[UtterancePercept], SingFrom], *,
+                 refission_every: float = 10.0, **options: Any) -> None:
+        super().__init__(**options)
+        self.root = root
+        self.sing_from = sing_from
+        self.refission_every = float(refission_every)
+        self._clustered: dict[int, float] = {}
+
+    def thresholds(self, group: ActionGroup) -> tuple[float, float]:
+        """As :meth:`PerceptLearning.thresholds`, over the *plastic* tuples only: a fixed,
+        high-valued perception action (attending a sound, being clicked) is the reward, not
+        one of the hypotheses whose worth is being judged, and would otherwise set the bar
+        above every one of them."""
+        values = [tp.value.to_float() for tp in group.tuples if getattr(tp.value, "plasticity", 1.0) > 0]
+        mean = float(np.mean(values)) if values else 0.0
+        return self.statistics * mean, self.innovation * mean
+
+    def review(self, group: ActionGroup, tuple_: ActionTuple, t: float) -> None:
+        _, innovation = self.thresholds(group)
+        worth = tuple_.value.to_float()
+        sung = tuple_.action.percept if isinstance(tuple_.action, SingFrom) else None
+        for percept in (tuple_.trigger, sung):
+            if not isinstance(percept, UtterancePercept) or not self._in_tree(percept):
+                continue
+            if t - self._clustered.get(id(percept), -np.inf) < self.refission_every:
+                continue
+            self._clustered[id(percept)] = t
+            before = {id(c) for c in self.root.walk()}
+            born = percept.fission(worth, innovation)
+            if born:
+                self._emit("fission", t, percept=percept.name, children=[c.name for c in born],
+                           members=[len(c.members) for c in born])
+            if len({id(c) for c in self.root.walk()}) < len(before) + len(born):
+                self.prune(group, t)
+        if isinstance(tuple_.trigger, UtterancePercept):
+            self.spawn_hypotheses(group, tuple_, t)
+        if sung is not None:
+            self.spawn_actions(group, tuple_, t)
+
+    def _in_tree(self, percept: UtterancePercept) -> bool:
+        return percept.root() is self.root  # a fused-away child is the root of its own stump
+
+    def spawn_actions(self, group: ActionGroup, tuple_: ActionTuple, t: float) -> list[ActionTuple]:
+        """``same Tr | sing child | same Du | V`` for each child of the sung percept."""
+        made = []
+        for child in tuple_.action.percept.utterance_children():
+            if any(tp.trigger is tuple_.trigger and getattr(tp.action, "percept", None) is child
+                   for tp in group.tuples):
+                continue
+            du = tuple_.do_until
+            action = self.sing_from(child)
+            hypothesis = ActionTuple(f"{tuple_.trigger.name}|{action.name}", tuple_.trigger, action,
+                                     DoUntil(du.duration, until=du.until, learn=du.learn),
+                                     copy_value(tuple_.value))
+            group.add(hypothesis)
+            made.append(hypothesis)
+            self._emit("hypothesis", t, tuple=hypothesis.name, parent=tuple_.name, side="Ac")
+        return made
+
+    def prune(self, group: ActionGroup, t: float) -> None:
+        """Drop the tuples of percepts that fused away (they were detached from the tree)."""
+        alive = {id(p) for p in self.root.walk()}
+        gone = [tp for tp in group.tuples
+                if isinstance(tp.trigger, UtterancePercept) and id(tp.trigger) not in alive
+                or isinstance(tp.action, SingFrom) and id(tp.action.percept) not in alive]
+        for tp in gone:
+            group.remove(tp, t)
+        if gone:
+            self._emit("fusion", t, tuples=[tp.name for tp in gone])

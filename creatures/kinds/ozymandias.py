@@ -1,0 +1,279 @@
+"""*ozymandias*: sound creatures trained on a spoken text by an author's clicks, reading the
+recording back out of time, and writing what they did as an edit decision list (thesis,
+"ozymandias (video)"; the hearing is that of "soundcreatures" and "aural models").
+
+"Simple creatures are trained on the text of the poem (by repeatedly playing the text at
+them) … here the author controls the reward of these creatures with a simple mouse-click.
+The resulting creatures act as a stimulateable delay line … becoming excited by the text of
+the poem, and reading parts of the audio material back out of time. … instructions
+concerning the manipulation of sound are also stored to file – equivalent in use to an Edit
+Decision List (EDL) – for higher fidelity off-line manipulation."
+
+Design decisions:
+
+* **Training by hearing.** Every word the ear cuts from the recording joins the "any sound"
+  utterance percept (the latest ``max_members`` are kept), so repeated readings of the text
+  fill the repertoire. Air is off in the shipped config: the creatures hear the recording
+  itself, which is what makes an EDL into the recording possible (with air on the material
+  would be the room, not the source).
+* **The author's click is scripted.** ``clicks`` lists the seconds at which the author
+  clicks; a click is a highly salient percept triggering a non-plastic, highly valued
+  ``clicked`` tuple (the clicker-training pattern of the thesis), so whatever the creature
+  was doing just before is credited toward the click's value. Valuable reading tuples
+  cluster their percept (:class:`AuralLearning`): the creature's reading narrows to the
+  classes of words it was clicked for.
+* **A stimulated delay line.** A drive, ``excitement``, jumps with each heard word and
+  decays between (half-life ``calm``); the ``read`` tuple triggers on it, the ``echo`` tuple
+  on a word just heard. Reading takes a part (``shortest`` seconds up to the whole) of an
+  exemplar and plays it now, out of time, at a gain that grows with excitement.
+* **Hearing while reading.** Half-duplex is off by default: a delay line keeps taking in
+  the text while it reads (with air off it never hears itself anyway).
+* **No body.** Ozymandias's images came from *sand:stone*; these creatures are voices only.
+* **The EDL is the truth.** The voice plays exactly the heard samples, a part at a time,
+  scaled by one gain, with no filter, so ``render_edl`` from the source recording reproduces
+  the creature's output sample for sample (tests check it against ``out.wav``).
+
+EDL format (``<creature>.edl.json``, written by :meth:`Ozymandias.finish`)::
+
+    {"format": "creature-music edl", "version": 1,
+     "sample_rate": 22050,            # frames below are at this rate
+     "creature": "echo", "mix": {"gain": 0.8, "pan": -0.5},   # the creature's place in out.wav
+     "entries": [{"source_start": 1.2345, "source_end": 1.5678,   # seconds in the recording
+                  "output_time": 7.5,                              # seconds in out.wav
+                  "source_start_frame": 27221, "source_end_frame": 34570,
+                  "output_frame": 165375, "gain": 0.42, "creature": "echo"}, ...]}
+
+Seconds are for people; the ``*_frame`` fields are exact. Output = Σ gain · source[start:end]
+placed at output_frame, then mixed with ``mix`` (equal-power pan, :class:`audio.mixer.Mixer`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+from pydantic import Field, field_validator
+
+from audio.mixer import Mixer
+from audio.utterance import Utterance, UtterancePercept
+from creatures.behaviour.action_group import ActionGroup
+from creatures.behaviour.action_tuple import Action, ActionTuple, DoUntil
+from creatures.behaviour.models.gaussian import GaussianModel
+from creatures.behaviour.motivation import Motivation
+from creatures.behaviour.percept import FunctionPercept
+from creatures.behaviour.value import ScalarValue, value_from_dict
+from creatures.kinds import register
+from creatures.kinds.base import CreatureKind, CreatureSpec
+from creatures.kinds.hearing_parts import AuralLearning, Ear, HearingSpec, SingFrom, tree_from_state, tree_state
+from creatures.persist import load_json, save_json
+
+EDL_KIND = "creature-music edl"
+REPORT_EVERY = 0.5
+
+
+class OzymandiasSpec(CreatureSpec):
+    kind: Literal["ozymandias"]
+    clicks: list[float] = Field(default_factory=list, description="seconds at which the author clicks "
+                                                                  "(rewards the creature)")
+    click_value: float = Field(3.0, gt=0, description="value of being clicked (the primary reinforcer)")
+    excitement: float = Field(0.35, ge=0, description="excitement added by each heard word")
+    calm: float = Field(3.0, gt=0, description="half-life of excitement, seconds")
+    shortest: float = Field(0.15, gt=0, le=5, description="shortest part of a word read back, seconds")
+    loudness: float = Field(0.6, ge=0, le=2, description="gain of a part read at full excitement")
+    innovation: float = Field(0.8, gt=0, description="value (× mean) above which a percept is clustered")
+    hearing: HearingSpec = HearingSpec(half_duplex=False, memory=0.5)
+
+    @field_validator("clicks")
+    @classmethod
+    def _sorted(cls, clicks: list[float]) -> list[float]:
+        if any(t < 0 for t in clicks) or clicks != sorted(clicks):
+            raise ValueError("clicks must be non-negative seconds in increasing order")
+        return clicks
+
+
+class _Clicked(Action):
+    """The author clicked: nothing to do but be rewarded (the value is the reward)."""
+
+    def __init__(self, creature: "Ozymandias") -> None:
+        super().__init__("clicked")
+        self.creature = creature
+
+    def start(self, t: float, tuple_: ActionTuple) -> None:
+        self.creature.world.emit("reward", creature=self.creature.name, value=tuple_.value.to_float())
+
+
+@register("ozymandias")
+class Ozymandias(CreatureKind):
+    Spec = OzymandiasSpec
+
+    def __init__(self, spec: OzymandiasSpec, world, rng: np.random.Generator) -> None:
+        super().__init__(spec, world, rng)
+        self.ear = Ear(spec.hearing)
+        self.root = UtterancePercept("any sound", radius=spec.hearing.radius, memory=spec.hearing.memory,
+                                     max_members=spec.hearing.keep)
+        self.motivation = Motivation({"excitement": 0.0}, decay={"excitement": np.log(2.0) / spec.calm},
+                                     equilibrium={"excitement": 0.0}, ceiling=1.0)
+        self._readers: dict[int, SingFrom] = {}
+        self._queued: list[tuple[np.ndarray, float, int]] = []  # part, gain, source frame: to start
+        self._playing: list[list] = []  # [part, gain, next frame]
+        self._frame = 0  # frames of output rendered so far
+        self.sample_rate: int | None = None
+        self.edl: list[dict[str, Any]] = []
+        self._until = -np.inf
+        self._next_report = 0.0
+        self._build_group()
+
+    def _build_group(self) -> None:
+        spec = self.spec
+        clicks = np.asarray(spec.clicks, dtype=float)
+        clicked = FunctionPercept("click", lambda t: 1.0 if ((t >= clicks) & (t < clicks + 0.1)).any() else 0.0)
+        self.excited = FunctionPercept("excited", lambda t: self.motivation.level("excitement"))  # advanced each tick
+        self.part_read = FunctionPercept("part read", lambda t: 1.0 if t >= self._until else 0.0)
+        read_any = self.reader(self.root)
+        self.learning = AuralLearning(self.root, self.reader, statistics=0.5, innovation=spec.innovation,
+                                      min_trigger=0.5, on_event=self._log)
+        self.group = ActionGroup(
+            self.name, rng=self.rng, temperature=0.5, on_event=self._log, learning=self.learning,
+            tuples=[
+                ActionTuple("clicked", clicked, _Clicked(self), DoUntil(0.1),
+                            ScalarValue(spec.click_value, plasticity=0.0)),
+                ActionTuple("read", self.excited, read_any, self._do_until(read_any), 1.0),
+                ActionTuple("echo", self.root, read_any, self._do_until(read_any), 1.0),
+                ActionTuple("listen", FunctionPercept("always", lambda t: 1.0), Action("listen"),
+                            self._do_until(None), 0.3),
+            ],
+        )
+
+    def _do_until(self, action: Action | None) -> DoUntil:
+        if isinstance(action, SingFrom):
+            return DoUntil(10.0, until=self.part_read)
+        return DoUntil(GaussianModel(1.0, 0.3), learn=False)
+
+    def reader(self, percept: UtterancePercept) -> SingFrom:
+        """The one reading action of ``percept`` (shared by every tuple that reads it)."""
+        if id(percept) not in self._readers:
+            self._readers[id(percept)] = SingFrom(percept, self.rng, self._read)
+        return self._readers[id(percept)]
+
+    def _read(self, t: float, utterance: Utterance, percept: UtterancePercept) -> None:
+        """Read a part of ``utterance`` back now, louder the more excited."""
+        n = len(utterance.samples)
+        shortest = min(n, max(1, int(self.spec.shortest * utterance.samplerate)))
+        length = int(self.rng.integers(shortest, n + 1))
+        offset = int(self.rng.integers(0, n - length + 1))
+        gain = self.spec.loudness * max(self.motivation.level("excitement", t), 0.1)
+        start = round(utterance.time * utterance.samplerate) - n + offset  # source frame
+        self._queued.append((utterance.samples[offset : offset + length], gain, start))
+        self._until = t + length / utterance.samplerate
+        self.world.emit("read", creature=self.name, percept=percept.name, source_start=start / utterance.samplerate,
+                        length=length / utterance.samplerate, gain=gain)
+
+    # -- hearing: training by repetition ------------------------------------------------
+    def listen(self, t: float, block: np.ndarray, sample_rate: int) -> None:
+        for utterance in self.ear.listen(t, block, sample_rate):
+            self.root.hear(utterance)
+            self.root.update(t, 1.0)
+            self.motivation.perturb(t, "excitement", self.spec.excitement)
+            self.world.emit("sound", creature=self.name, end=utterance.time,
+                            start=utterance.time - len(utterance.samples) / sample_rate)
+
+    def tick(self, t: float) -> None:
+        self.motivation.advance(t)
+        self.group.tick(t)
+        if t >= self._next_report:
+            self._next_report = t + REPORT_EVERY
+            log = self.world.log
+            log.emit(t, "values", creature=self.name, values={tp.name: tp.value.to_float() for tp in self.group.tuples})
+            log.emit(t, "motivation", creature=self.name, drives={"excitement": self.motivation.level("excitement")})
+            log.emit(t, "percepts", creature=self.name, sizes={p.name: len(p.members) for p in self.root.walk()})
+
+    def _log(self, event: dict[str, Any]) -> None:
+        event = dict(event)
+        kind, t = event.pop("event"), event.pop("t")
+        event.pop("group", None)
+        self.world.log.emit(t, kind, creature=self.name, **event)
+
+    # -- the voice: a delay line that writes its own edit decision list -------------------
+    def sound(self, out: np.ndarray, sample_rate: int) -> None:
+        self.sample_rate = sample_rate
+        for part, gain, source in self._queued:
+            self.edl.append(edl_entry(self.name, source, source + len(part), self._frame, gain, sample_rate))
+            self._playing.append([part, gain, 0])
+        self._queued.clear()
+        out[:] = 0.0
+        for voice in self._playing:
+            part, gain, at = voice
+            piece = part[at : at + len(out)]
+            out[: len(piece)] += gain * piece
+            voice[2] += len(out)
+        self._playing = [v for v in self._playing if v[2] < len(v[0])]
+        self._frame += len(out)
+
+    def finish(self, out: Path) -> dict[str, Path]:
+        path = out / f"{self.name}.edl.json"
+        save_json(path, {"sample_rate": self.sample_rate or 0, "creature": self.name,
+                         "mix": {"gain": self.spec.gain, "pan": self.spec.pan}, "entries": self.edl},
+                  kind=EDL_KIND)  # stamps "format" and "version"
+        return {f"edl {self.name}": path}
+
+    # -- persistence ---------------------------------------------------------------------
+    def state(self) -> dict[str, Any]:
+        return {"tree": tree_state(self.root), "motivation": self.motivation.to_dict(),
+                "tuples": [[tp.trigger.name, tp.action.name, tp.name, tp.value.to_dict()] for tp in self.group.tuples]}
+
+    def restore(self, state: dict[str, Any]) -> None:
+        self.root = tree_from_state(state["tree"])
+        self._readers.clear()
+        self._build_group()
+        percepts = {p.name: p for p in self.root.walk()}
+        percepts.update({tp.trigger.name: tp.trigger for tp in self.group.tuples})
+        try:
+            for trigger, action, name, value in state["tuples"]:
+                if name not in {tp.name for tp in self.group.tuples}:
+                    act = self.reader(percepts[action.removeprefix("sing ")])
+                    self.group.add(ActionTuple(name, percepts[trigger], act, self._do_until(act), 0.0))
+                self.group.find(name).value = value_from_dict(value)
+        except KeyError as exc:
+            raise ValueError(f"{self.name}: saved tuples name an unknown percept {exc}") from None
+        self.motivation = Motivation.from_dict(state["motivation"])
+
+
+# -- the edit decision list ---------------------------------------------------------------------
+
+
+def edl_entry(creature: str, start: int, end: int, output: int, gain: float, sample_rate: int) -> dict[str, Any]:
+    """One EDL line: source frames ``[start, end)`` played from output frame ``output``."""
+    return {"creature": creature, "source_start": start / sample_rate, "source_end": end / sample_rate,
+            "output_time": output / sample_rate, "source_start_frame": start, "source_end_frame": end,
+            "output_frame": output, "gain": gain}
+
+
+def read_edl(path: str | Path) -> dict[str, Any]:
+    """Load an EDL written by :meth:`Ozymandias.finish`; raises ValueError naming the entry
+    that is malformed (missing field, end before start, negative frame)."""
+    doc = load_json(path, kind=EDL_KIND)
+    for i, e in enumerate(doc.get("entries", [])):
+        try:
+            ok = 0 <= e["source_start_frame"] <= e["source_end_frame"] and e["output_frame"] >= 0
+            float(e["gain"])
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ValueError(f"{path}: entry {i} is malformed ({type(exc).__name__}: {exc})") from None
+        if not ok:
+            raise ValueError(f"{path}: entry {i} has frames out of order: {e}")
+    return doc
+
+
+def render_edl(edls: list[dict[str, Any]], source: np.ndarray, frames: int) -> np.ndarray:
+    """Re-render ``frames`` of stereo output from the ``source`` recording and the EDLs of
+    every creature (in the installation's creature order): what ``out.wav`` holds."""
+    voices = np.zeros((len(edls), frames))
+    mixer = Mixer(len(edls), block_size=frames)
+    for i, edl in enumerate(edls):
+        mixer.set(i, gain=edl["mix"]["gain"], pan=edl["mix"]["pan"])
+        for e in edl["entries"]:
+            part = source[e["source_start_frame"] : e["source_end_frame"]]
+            n = min(len(part), frames - e["output_frame"])
+            if n > 0:
+                voices[i, e["output_frame"] : e["output_frame"] + n] += e["gain"] * part[:n]
+    return mixer.mix(voices).copy()

@@ -1,0 +1,127 @@
+"""ozymandias: the edit decision lists are valid, point inside the source recording, and
+re-render the creatures' output from that recording (the EDL is a faithful record)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import soundfile
+
+from audio.formants import speak
+from audio.sources import load_audio
+from audio_fixtures import SR, warm_librosa  # noqa: F401
+from creatures.persist import save_json
+from creatures.clock import SimulatedClock
+from creatures.events import EventLog, read_events
+from creatures.kinds.ozymandias import read_edl, render_edl
+from creatures.runtime.offline import run_offline
+from creatures.runtime.schema import load_installation
+from creatures.runtime.session import Session
+from creatures.runtime.speech_input import POEM
+from midi.sinks import MemorySink
+
+CONFIG = Path(__file__).resolve().parents[1] / "installations" / "ozymandias.toml"
+DURATION = 30.0
+
+pytestmark = pytest.mark.usefixtures("warm_librosa")
+
+
+@pytest.fixture(scope="module")
+def reading(tmp_path_factory) -> Path:
+    """A "recording" of the poem's last lines, twice (a reading the config never generates)."""
+    rng = np.random.default_rng(3)
+    text = "\n".join(POEM.splitlines()[-4:])
+    x = np.concatenate([np.zeros(SR // 2, np.float32), speak(text, rng, SR)[0], speak(text, rng, SR)[0]])
+    path = tmp_path_factory.mktemp("reading") / "reading.wav"
+    soundfile.write(path, x, SR, subtype="PCM_16")
+    return path
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory, reading) -> tuple[Path, list[str]]:
+    out = tmp_path_factory.mktemp("ozymandias")
+    inst = load_installation(CONFIG)
+    inst.settings.output.report = False
+    summary = run_offline(inst, out, audio=reading, duration=DURATION)
+    names = [spec.name for spec in inst.specs]
+    assert {f"edl {n}" for n in names} <= set(summary.files)
+    return out, names
+
+
+def test_edl_is_valid_and_points_inside_the_source(run, reading):
+    out, names = run
+    source = load_audio(reading, samplerate=SR)
+    total = 0
+    for name in names:
+        edl = read_edl(out / f"{name}.edl.json")
+        assert edl["sample_rate"] == SR and edl["creature"] == name
+        for e in edl["entries"]:
+            assert e["creature"] == name
+            assert 0 <= e["source_start_frame"] < e["source_end_frame"] <= len(source)
+            assert e["source_start"] == e["source_start_frame"] / SR
+            assert 0 <= e["output_frame"] < DURATION * SR and e["gain"] > 0
+        total += len(edl["entries"])
+    assert total >= 10
+    # "out of time": a creature reads material back later than it was spoken
+    lags = [e["output_time"] - e["source_start"] for n in names for e in read_edl(out / f"{n}.edl.json")["entries"]]
+    assert min(lags) > 0 and np.median(lags) > 1.0
+
+
+def test_rendering_the_edl_from_the_source_reproduces_the_output(run, reading):
+    out, names = run
+    source = load_audio(reading, samplerate=SR).astype(np.float64)
+    heard, sr = soundfile.read(out / "out.wav")
+    again = render_edl([read_edl(out / f"{n}.edl.json") for n in names], source, len(heard))
+    assert np.abs(heard).max() > 0.01, "the creatures read something back"
+    assert np.abs(again - heard).max() <= 1.5 / 32768  # out.wav is 16-bit
+    # and the record is not trivially satisfied: one entry moved by a word breaks it
+    edls = [read_edl(out / f"{n}.edl.json") for n in names]
+    entry = next(e for edl in edls for e in edl["entries"])
+    entry["source_start_frame"] += SR // 5
+    entry["source_end_frame"] += SR // 5
+    assert np.abs(render_edl(edls, source, len(heard)) - heard).max() > 1e-3
+
+
+def test_clicks_reward_and_excitement_follows_the_text(run):
+    out, names = run
+    events = read_events(out / "events.jsonl")
+    spec = {s.name: s for s in load_installation(CONFIG).specs}
+    for name in names:
+        rewards = [e["t"] for e in events if e["kind"] == "reward" and e["creature"] == name]
+        clicks = [c for c in spec[name].clicks if c <= DURATION]
+        assert len(rewards) == len(clicks)
+        assert all(min(abs(r - c) for c in clicks) <= 0.1 for r in rewards)
+        credit = [e for e in events if e["kind"] == "credit" and e["creature"] == name and e["new"] == "clicked"]
+        assert credit and all(e["target"] > 2.0 for e in credit)  # the click's value flows back
+    drive = [e["drives"]["excitement"] for e in events if e["kind"] == "motivation" and e["creature"] == names[0]]
+    assert max(drive) > 0.3 and drive[0] == 0.0
+
+
+def test_bad_edl_is_a_clear_error(tmp_path):
+    path = tmp_path / "bad.edl.json"
+    save_json(path, {"sample_rate": SR, "creature": "x",
+                     "mix": {"gain": 1, "pan": 0},
+                     "entries": [{"source_start_frame": 10, "source_end_frame": 5, "output_frame": 0, "gain": 1}]},
+              kind="creature-music edl")
+    with pytest.raises(ValueError, match="entry 0"):
+        read_edl(path)
+
+
+def test_state_survives_a_save(reading, tmp_path):
+    inst = load_installation(CONFIG)
+    session = Session(inst, SimulatedClock(), EventLog(tmp_path / "a.jsonl"), MemorySink())
+    x = load_audio(reading, samplerate=SR)
+    frames = int(0.02 * SR)
+    for k in range(1, int(20.0 / 0.02) + 1):
+        session.clock.advance_to(k * 0.02)
+        session.step(k * 0.02, frames, x[(k - 1) * frames : k * frames])
+    creature = next(c for c in session.creatures if len(c.group.tuples) > 4)  # one that grew hypotheses
+    saved = json.loads(json.dumps(creature.state()))
+    again = Session(inst, SimulatedClock(), EventLog(tmp_path / "b.jsonl"), MemorySink()).creatures[0]
+    again.restore(saved)
+    assert [tp.name for tp in again.group.tuples] == [tp.name for tp in creature.group.tuples]
+    assert [tp.value.to_float() for tp in again.group.tuples] == [tp.value.to_float() for tp in creature.group.tuples]
+    assert [len(p.members) for p in again.root.walk()] == [len(p.members) for p in creature.root.walk()]

@@ -1,0 +1,145 @@
+"""soundcreatures: a creature sings back what it heard (both sound classes) and, hearing the
+room through the air, never triggers on its own singing — unless half-duplex is turned off."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import soundfile
+
+from audio.cepstrum import cepstra, distances_to
+from audio.formants import word
+from audio_fixtures import SR, warm_librosa  # noqa: F401
+from creatures.clock import SimulatedClock
+from creatures.events import EventLog, read_events
+from creatures.runtime.offline import run_offline
+from creatures.runtime.schema import load_installation
+from creatures.runtime.session import Session
+from midi.sinks import MemorySink
+
+CONFIG = Path(__file__).resolve().parents[1] / "installations" / "soundcreatures.toml"
+CLASSES = ("ai", "oe")
+TALKING = 30.0  # the two classes alternate for this long, then the room is silent
+
+pytestmark = pytest.mark.usefixtures("warm_librosa")
+
+
+def two_classes(seed: int = 1, length: float = 60.0) -> tuple[np.ndarray, list[tuple[float, float]]]:
+    """Alternating "ai" and "oe" words 1.2–2 s apart for TALKING seconds; the word spans."""
+    rng = np.random.default_rng(seed)
+    x = np.zeros(int(length * SR), np.float32)
+    spans, t, k = [], 1.0, 0
+    while t < TALKING:
+        w = word(CLASSES[k % 2], rng, SR, stretch=rng.uniform(0.9, 1.1), rms=0.05)
+        i = int(t * SR)
+        x[i : i + len(w)] += w
+        spans.append((t, t + len(w) / SR))
+        t += len(w) / SR + rng.uniform(1.2, 2.0)
+        k += 1
+    return x, spans
+
+
+@pytest.fixture(scope="module")
+def talk(tmp_path_factory) -> tuple[Path, list[tuple[float, float]]]:
+    x, spans = two_classes()
+    path = tmp_path_factory.mktemp("input") / "two.wav"
+    soundfile.write(path, x, SR, subtype="FLOAT")
+    return path, spans
+
+
+def run(out: Path, audio: Path, *, half_duplex: bool) -> list[dict]:
+    inst = load_installation(CONFIG)
+    assert inst.settings.audio.air, "the shipped config must let the creature hear the room"
+    inst.settings.output.report = False
+    inst.specs[0].hearing.half_duplex = half_duplex
+    run_offline(inst, out, audio=audio, duration=60.0)
+    return read_events(out / "events.jsonl")
+
+
+@pytest.fixture(scope="module")
+def heard(tmp_path_factory, talk) -> tuple[Path, list[dict]]:
+    out = tmp_path_factory.mktemp("soundcreature")
+    return out, run(out, talk[0], half_duplex=True)
+
+
+def own_triggers(events: list[dict], spans: list[tuple[float, float]], release: float) -> int:
+    """Heard sounds that began while the creature sang (its voice reaches the ear one tick
+    late, the room may ring a little after) with no input word anywhere near."""
+    songs = [(e["start"], e["end"] + 0.02 + release) for e in events if e["kind"] == "sing"]
+    count = 0
+    for e in (e for e in events if e["kind"] == "sound"):
+        during_song = any(a - 0.03 <= e["start"] <= b for a, b in songs)
+        input_near = any(a - 0.15 <= e["start"] <= b + 0.15 for a, b in spans)
+        count += during_song and not input_near
+    return count
+
+
+def test_sings_back_material_from_both_heard_classes(heard, rng):
+    out, events = heard
+    sung = [e for e in events if e["kind"] == "sing" and e["start"] > TALKING]
+    assert len(sung) >= 4, "the creature should keep singing its repertoire in the silence"
+    mix, sr = soundfile.read(out / "out.wav")
+    voice = mix[:, 0]
+    templates = [[cepstra(word(c, rng, SR), SR) for _ in range(3)] for c in CLASSES]
+    classes = set()
+    for e in sung:
+        piece = voice[int(e["start"] * sr) : int(e["end"] * sr)]
+        assert np.sqrt(np.mean(piece**2)) > 1e-3, "the song is in the output audio"
+        c = cepstra(piece.astype(np.float32), sr)
+        classes.add(int(np.argmin([distances_to(c, t).min() for t in templates])))
+    assert classes == {0, 1}
+    # and the tree grew: the sound classes became percepts (fission), each with its tuples
+    assert any(e["kind"] == "fission" for e in events)
+    assert any(e["kind"] == "hypothesis" and e.get("side") == "Ac" for e in events)
+
+
+def test_hearing_is_rewarding_and_selection_is_logged(heard):
+    _, events = heard
+    kinds = {e["kind"] for e in events}
+    assert {"sound", "attend", "sing", "selection", "credit", "values", "motivation", "percepts"} <= kinds
+    attends = [e for e in events if e["kind"] == "attend"]
+    assert attends and all(e["t"] < TALKING + 1.0 for e in attends)  # nothing to hear later
+    drive = [e for e in events if e["kind"] == "motivation"]
+    quiet = [e["drives"]["hear"] for e in drive if e["t"] > TALKING + 5]
+    assert quiet == sorted(quiet) and quiet[-1] > quiet[0]  # the wish to hear grows in silence
+    assert drive[-1]["temperature"] > min(e["temperature"] for e in drive)  # … and raises exploration
+
+
+def test_does_not_trigger_on_its_own_singing(heard, talk, tmp_path):
+    _, events = heard
+    spans = talk[1]
+    release = load_installation(CONFIG).specs[0].hearing.release
+    assert sum(e["kind"] == "sing" for e in events) >= 10
+    assert own_triggers(events, spans, release) == 0
+    control = run(tmp_path, talk[0], half_duplex=False)
+    assert own_triggers(control, spans, release) >= 5
+
+
+def test_state_survives_a_save(talk, tmp_path):
+    def session() -> Session:
+        inst = load_installation(CONFIG)
+        return Session(inst, SimulatedClock(), EventLog(tmp_path / f"{len(list(tmp_path.iterdir()))}.jsonl"),
+                       MemorySink())
+
+    x, _ = two_classes()
+    first = session()
+    frames = int(0.02 * SR)
+    for k in range(1, int(TALKING / 0.02) + 1):
+        first.clock.advance_to(k * 0.02)
+        first.step(k * 0.02, frames, x[(k - 1) * frames : k * frames])
+    creature = first.creatures[0]
+    assert len(list(creature.root.walk())) > 1, "by now the tree has sound classes to save"
+    saved = json.loads(json.dumps(creature.state()))
+    second = session()
+    again = second.creatures[0]
+    again.restore(saved)
+    assert [tp.name for tp in again.group.tuples] == [tp.name for tp in creature.group.tuples]
+    assert [tp.value.to_float() for tp in again.group.tuples] == [tp.value.to_float() for tp in creature.group.tuples]
+    assert [len(p.members) for p in again.root.walk()] == [len(p.members) for p in creature.root.walk()]
+    a, b = creature.root.members[0].samples, again.root.members[0].samples
+    assert np.abs(a - b).max() < 1e-4  # 16-bit PCM in the state
+    with pytest.raises(ValueError, match="malformed aural model"):
+        again.restore({**saved, "tree": {"root": {}}})
