@@ -251,4 +251,4 @@ class SoundCreature(CreatureKind):
                 self.group.find(name).value = value_from_dict(value)
         except KeyError as exc:
             raise ValueError(f"{self.name}: saved tuples name an unknown percept or action {exc}") from None
-        self.motivation = Motivation.from_dict(state["motivation"])
+        self.motivation = Motivation.from_dict(state["motivation"], now=self.world.clock.now())

@@ -247,7 +247,7 @@ class ThreeCreature(CreatureKind):
                 samples, sr = unpack_samples(m["samples"]), int(m["samplerate"])
                 memory.append(Memory(Utterance(samples, sr, cepstra(samples, sr), float(m["time"])),
                                      profile(samples, sr), str(m["origin"])))
-            motivation = Motivation.from_dict(state["motivation"])
+            motivation = Motivation.from_dict(state["motivation"], now=self.world.clock.now())
         except (KeyError, TypeError, ValueError) as exc:
             raise ValueError(f"{self.name}: malformed saved memory ({type(exc).__name__}: {exc})") from None
         self.memory, self.motivation = memory, motivation
