@@ -22,7 +22,7 @@ import numpy as np
 from scipy.interpolate import RBFInterpolator
 
 from creatures.motor import quaternion as quat
-from creatures.motor.pose import PoseSet, estimate_velocities
+from creatures.motor.pose import PoseSet
 
 
 @dataclass(frozen=True)
@@ -100,16 +100,7 @@ class AdverbBlend:
         rotations, roots = self.sample(adverbs, times)
         skeleton = self.examples[0].animation.skeleton
         name = source or "blend(" + ", ".join(f"{a:g}" for a in adverbs) + ")"
-        return PoseSet(
-            skeleton=skeleton,
-            rotations=rotations,
-            velocities=estimate_velocities(rotations, times),
-            roots=roots,
-            times=times,
-            source_ids=np.zeros(len(times), dtype=np.int64),
-            sources=[name],
-            labels=[frozenset()] * len(times),
-        )
+        return PoseSet.animation(skeleton, rotations, roots, times, name)
 
 
 def _at(example: Example, neutral: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -19,7 +19,7 @@ from typing import Callable
 import numpy as np
 
 from creatures.motor import quaternion as quat
-from creatures.motor.pose import LOW_ENERGY, PoseSet, estimate_velocities
+from creatures.motor.pose import LOW_ENERGY, PoseSet
 from creatures.motor.skeleton import Skeleton
 
 X = np.array([1.0, 0.0, 0.0])
@@ -58,16 +58,7 @@ def _animate(
     for name, q in joints.items():
         rotations[:, skeleton.index(name)] = q
     roots = np.zeros((len(times), 3))
-    return PoseSet(
-        skeleton=skeleton,
-        rotations=rotations,
-        velocities=estimate_velocities(rotations, times),
-        roots=roots,
-        times=times,
-        source_ids=np.zeros(len(times), dtype=np.int64),
-        sources=[source],
-        labels=labels(times),
-    )
+    return PoseSet.animation(skeleton, rotations, roots, times, source, labels(times))
 
 
 def _frames(duration: float, fps: float) -> np.ndarray:

@@ -149,6 +149,31 @@ class PoseSet:
         )
 
     @classmethod
+    def animation(
+        cls,
+        skeleton: Skeleton,
+        rotations: np.ndarray,
+        roots: np.ndarray,
+        times: np.ndarray,
+        source: str,
+        labels: Sequence[frozenset[str]] | None = None,
+    ) -> PoseSet:
+        """One source animation from key-frame rotations ``(N, J, 4)`` over ``times``, its
+        angular velocities estimated by differences (BVH files, procedural and blended
+        animations all arrive this way)."""
+        times = np.asarray(times, dtype=float)
+        return cls(
+            skeleton=skeleton,
+            rotations=rotations,
+            velocities=estimate_velocities(rotations, times),
+            roots=roots,
+            times=times,
+            source_ids=np.zeros(len(times), dtype=np.int64),
+            sources=[source],
+            labels=[frozenset()] * len(times) if labels is None else labels,
+        )
+
+    @classmethod
     def concatenate(cls, sets: Sequence[PoseSet]) -> PoseSet:
         """Join pose sets over one skeleton; equal source names become one source."""
         sources: list[str] = []
