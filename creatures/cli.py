@@ -66,20 +66,22 @@ def _offline_options(parser: argparse.ArgumentParser) -> None:
 
 
 def _run_offline(config: Path, out: Path, *, audio: Path | None = None, midi: Path | None = None,
-                 duration: float | None = None, progress: bool = True) -> int:
+                 duration: float | None = None, progress: bool = True, pictures: bool = False) -> int:
     from audio.sources import AudioFileError
     from creatures.config import ConfigError
-    from creatures.runtime.offline import OutputDirectoryError, run_offline
+    from creatures.runtime.offline import run_offline
     from creatures.runtime.schema import load_installation
     from midi.files import MidiFileError
 
     try:
         installation = load_installation(config)
+        if pictures:
+            installation.settings.output.frames = installation.settings.output.video = True
         for given in (audio, midi):
             if given is not None and not given.is_file():
                 raise FileNotFoundError(f"{given}: no such file")
         summary = run_offline(installation, out, audio=audio, midi=midi, duration=duration, progress=progress)
-    except (ConfigError, OutputDirectoryError, AudioFileError, MidiFileError, FileNotFoundError) as exc:
+    except (ConfigError, AudioFileError, MidiFileError, OSError) as exc:  # OSError: e.g. disk full
         print(f"creatures: {exc}", file=sys.stderr)
         return 2
     for message in summary.messages:
@@ -123,6 +125,24 @@ def _run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _inspect_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("path", type=Path, help="an offline output directory (events.jsonl) and/or a state directory")
+    parser.add_argument("--out", type=Path, help="where to write the plots and index.html (default: PATH/inspect)")
+
+
+@command("inspect", "show what the creatures learned: plots and one self-contained HTML page", _inspect_options)
+def _inspect(args: argparse.Namespace) -> int:
+    from creatures.runtime.inspect import InspectError, inspect
+
+    try:
+        page = inspect(args.path, args.out or args.path / "inspect")
+    except (InspectError, ValueError, OSError) as exc:  # ValueError: a malformed events line
+        print(f"creatures: {exc}", file=sys.stderr)
+        return 2
+    print(f"open {page}")
+    return 0
+
+
 @command("config-docs", "print the reference of every config key (docs/config.md)", lambda parser: None)
 def _config_docs(_: argparse.Namespace) -> int:
     from creatures.runtime.docs import config_reference
@@ -148,7 +168,7 @@ def _demo(args: argparse.Namespace) -> int:
     except FileNotFoundError as exc:
         print(f"creatures: {exc}", file=sys.stderr)
         return 2
-    code = _run_offline(config, args.out, duration=args.duration)
+    code = _run_offline(config, args.out, duration=args.duration, pictures=True)
     if code == 0:
         print(f"open {args.out / 'report' / 'index.html'} to see what the creatures did")
     return code
