@@ -90,12 +90,15 @@ class Motivation:
         """``(Φ, offset)`` of a step ``dt`` with the present inputs."""
         # A creature ticks at a fixed rate, so the same few steps recur: keep their (Φ, Ψ),
         # keyed by the step rounded to a nanosecond (clock sums differ in the last bits).
+        # The propagator is computed for the rounded step itself, so a result never depends
+        # on which nearby step happened to fill the cache first (a reloaded creature must
+        # continue bit for bit).
         key = round(dt, 9)
         cached = self._propagators.get(key)
         if cached is None:
             if len(self._propagators) >= 16:
                 self._propagators.clear()
-            cached = self._propagators[key] = self._compute_propagator(dt)
+            cached = self._propagators[key] = self._compute_propagator(key)
         phi, psi = cached
         return phi, psi @ (self.growth + self.decay * self.equilibrium + self.inputs)
 
