@@ -26,6 +26,13 @@ from audio.device import AudioDeviceUnavailable, find_device, sounddevice_module
 ANALYSIS_RATE = 22050
 """The rate every source delivers (librosa's default; enough for speech and song)."""
 
+MIN_FILE_RATE = 1000
+"""Lowest sample rate a sound file may declare. Resampling multiplies a file's size by
+``samplerate / rate``: a 44 kB file claiming 1 Hz would unpack to 2 GB at 22.05 kHz."""
+
+FULL_SCALE = 0.999
+"""A live sample this loud (or louder) is counted as clipped."""
+
 __all__ = [
     "ANALYSIS_RATE",
     "ArraySource",
@@ -102,6 +109,8 @@ def load_audio(path: str | os.PathLike, *, samplerate: int = ANALYSIS_RATE) -> n
         raise AudioFileError(f"{path}: unreadable or corrupt ({exc})") from None
     if data.shape[0] == 0:
         raise AudioFileError(f"{path}: contains no samples (zero-length recording)")
+    if rate < MIN_FILE_RATE:
+        raise AudioFileError(f"{path}: sample rate {rate} Hz is below {MIN_FILE_RATE} Hz (a damaged header?)")
     bad = ~np.isfinite(data)
     if bad.any():
         frame = int(np.argmax(bad.any(axis=1)))
@@ -179,7 +188,8 @@ class LiveInput(AudioSource):
     The stream runs at the device's own rate (JACK, for one, will not change it); blocks are
     converted with a streaming soxr resampler on the reading side. Non-finite samples from a
     misbehaving driver are replaced by zero and counted in :attr:`bad_samples` so the
-    creature's loop never dies on them.
+    creature's loop never dies on them; samples at full scale are counted in :attr:`clipped`
+    (a microphone gain set too high in a gallery shows there, not only in what is heard).
     """
 
     def __init__(
@@ -196,6 +206,7 @@ class LiveInput(AudioSource):
         self.buffer_seconds = float(buffer_seconds)
         self.device_rate: int | None = None
         self.bad_samples = 0
+        self.clipped = 0
         self.driver_overflows = 0
         self.ring: RingBuffer | None = None
         self._stream: Any = None
@@ -262,6 +273,7 @@ class LiveInput(AudioSource):
         if bad.any():
             self.bad_samples += int(bad.sum())
             block[bad] = 0.0
+        self.clipped += int(np.count_nonzero(np.abs(block) >= FULL_SCALE))
         if self._resampler is not None:
             return self._resampler.resample_chunk(block)
         return block.copy()

@@ -28,7 +28,8 @@ class Row:
     def passed(self) -> bool | None:
         if self.target is None:
             return None
-        return self.value >= self.target if self.higher_is_better else self.value <= self.target
+        # bool(): a numpy comparison gives numpy.bool_, which json cannot write.
+        return bool(self.value >= self.target if self.higher_is_better else self.value <= self.target)
 
     def to_dict(self) -> dict:
         return {**asdict(self), "passed": self.passed}

@@ -37,16 +37,24 @@ def main(argv: list[str] | None = None) -> int:
 
     results = []
     print(f"{'benchmark':<58} {'value':>14} {'unit':<12} {'target':>10}  {'ratio':>18}  ok")
+
+    def show(name: str, row: bench.Row) -> None:
+        mark = {True: "PASS", False: "FAIL", None: "-"}[row.passed]
+        target = "" if row.target is None else f"{'≥' if row.higher_is_better else '≤'}{row.target:g}"
+        ratio = "" if row.ratio is None else f"{row.ratio:.3g}× {row.baseline or ''}"
+        print(f"{name + ': ' + row.name:<58} {row.value:>14.4g} {row.unit:<12} {target:>10}  {ratio:>18}  {mark}")
+        results.append({"bench": name, **row.to_dict()})
+
+    start = time.perf_counter()
     for name in names:
         module = importlib.import_module(f"bench.{name}")
         t0 = time.perf_counter()
         for row in module.run(quick=args.quick):
-            mark = {True: "PASS", False: "FAIL", None: "-"}[row.passed]
-            target = "" if row.target is None else f"{'≥' if row.higher_is_better else '≤'}{row.target:g}"
-            ratio = "" if row.ratio is None else f"{row.ratio:.3g}× {row.baseline or ''}"
-            print(f"{name + ': ' + row.name:<58} {row.value:>14.4g} {row.unit:<12} {target:>10}  {ratio:>18}  {mark}")
-            results.append({"bench": name, **row.to_dict()})
+            show(name, row)
         print(f"  ({name} took {time.perf_counter() - t0:.1f} s)", file=sys.stderr)
+    if not args.names and not args.quick:  # the whole suite must fit in 10 minutes on 2 cores
+        show("all", bench.Row("every benchmark, wall time", time.perf_counter() - start, "s",
+                              target=600.0, higher_is_better=False))
     if args.json:
         args.json.write_text(
             json.dumps({"python": platform.python_version(), "machine": platform.machine(), "results": results}, indent=1)

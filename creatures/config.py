@@ -18,6 +18,9 @@ from pydantic import BaseModel, ValidationError
 
 Model = TypeVar("Model", bound=BaseModel)
 
+MAX_CONFIG_BYTES = 1024 * 1024
+"""Largest config file read (a hand-written installation is a few kilobytes)."""
+
 _HEADER = re.compile(r"^\s*(\[\[?)\s*([^\]]+?)\s*\]\]?\s*(#.*)?$")
 _ASSIGN = re.compile(r"""^\s*((?:[A-Za-z0-9_\-]+|"[^"]*"|'[^']*')(?:\s*\.\s*(?:[A-Za-z0-9_\-]+|"[^"]*"|'[^']*'))*)\s*=""")
 
@@ -86,6 +89,8 @@ def read_toml(path: str | Path, *, _seen: tuple[Path, ...] = ()) -> tuple[dict[s
     if path in _seen:
         raise ConfigError(path, f"'extends' loops back to {path.name}", key="extends")
     try:
+        if path.stat().st_size > MAX_CONFIG_BYTES:
+            raise ConfigError(path, f"config file larger than {MAX_CONFIG_BYTES} bytes; refused")
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise ConfigError(path, "config file not found") from None

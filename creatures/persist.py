@@ -4,6 +4,10 @@ State is JSON (human readable, diffable, mergeable) plus NPZ for large arrays. E
 goes to a temporary file in the same directory, is fsync'd, then renamed over the target:
 a crash or a full disk mid-save leaves the previous file intact. Loading never executes
 code (no pickle; ``np.load(allow_pickle=False)``).
+
+Files are bounded: a JSON state file, and the arrays of an NPZ once unpacked, may hold at
+most :data:`MAX_STATE_BYTES`; anything larger is refused before it is read, so a damaged or
+hostile file cannot exhaust a gallery machine's memory.
 """
 
 from __future__ import annotations
@@ -18,6 +22,8 @@ from typing import Any, Callable
 import numpy as np
 
 FORMAT_VERSION = 1
+MAX_STATE_BYTES = 256 * 1024 * 1024
+"""Largest JSON state file, and largest total of unpacked NPZ arrays, that will be read."""
 
 
 class StateFileError(Exception):
@@ -36,12 +42,15 @@ def atomic_write(path: str | os.PathLike, write: Callable[[Any], None], mode: st
             handle.flush()
             os.fsync(handle.fileno())
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         # Nothing partial survives: the temporary file goes, the old target stays.
         try:
             os.unlink(tmp)
         except FileNotFoundError:
             pass
+        if isinstance(exc, OSError) and exc.errno is not None and exc.filename is None:
+            # "No space left on device" alone does not say which save failed.
+            raise type(exc)(exc.errno, exc.strerror, str(path)) from None
         raise
     try:
         dir_fd = os.open(directory, os.O_RDONLY)
@@ -69,15 +78,19 @@ def load_json(path: str | os.PathLike, *, kind: str) -> dict[str, Any]:
     """Read a JSON state file written by :func:`save_json`, checking its kind and version."""
     path = Path(path)
     try:
+        if path.stat().st_size > MAX_STATE_BYTES:
+            raise StateFileError(f"{path}: state file larger than {MAX_STATE_BYTES} bytes; refused")
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise StateFileError(f"{path}: state file not found") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise StateFileError(f"{path}: cannot read state file ({exc})") from None
     try:
-        document = json.loads(text)
+        document = json.loads(text, parse_constant=_refuse_constant)
     except json.JSONDecodeError as exc:
         raise StateFileError(f"{path}:{exc.lineno}: malformed JSON ({exc.msg})") from None
+    except ValueError as exc:
+        raise StateFileError(f"{path}: {exc}") from None
     if not isinstance(document, dict):
         raise StateFileError(f"{path}: expected a JSON object at the top level")
     if document.get("format") != kind:
@@ -92,6 +105,12 @@ def load_json(path: str | os.PathLike, *, kind: str) -> dict[str, Any]:
     return document
 
 
+def _refuse_constant(name: str) -> float:
+    """Python's json reads NaN/Infinity, which :func:`save_json` never writes: a file holding
+    them was not saved by us, and a NaN restored into a value would poison it silently."""
+    raise ValueError(f"non-finite number {name} (state files hold finite numbers only)")
+
+
 def save_npz(path: str | os.PathLike, arrays: dict[str, np.ndarray]) -> None:
     """Write named arrays to an ``.npz`` atomically."""
     _atomic_write(Path(path), lambda h: np.savez(h, **arrays), "wb")
@@ -102,8 +121,12 @@ def load_npz(path: str | os.PathLike) -> dict[str, np.ndarray]:
     path = Path(path)
     try:
         with np.load(path, allow_pickle=False) as data:
+            unpacked = sum(info.file_size for info in data.zip.infolist())
+            if unpacked > MAX_STATE_BYTES:  # checked before unpacking: a zip bomb stays packed
+                raise StateFileError(f"{path}: arrays unpack to {unpacked} bytes, more than {MAX_STATE_BYTES}; refused")
             return {name: data[name] for name in data.files}
     except FileNotFoundError:
         raise StateFileError(f"{path}: array file not found") from None
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:  # truncated: BadZipFile
+    # truncated: BadZipFile; a damaged header can claim a zip version zipfile lacks: NotImplementedError
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, NotImplementedError) as exc:
         raise StateFileError(f"{path}: malformed array file ({exc})") from None

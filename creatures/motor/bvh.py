@@ -15,6 +15,7 @@ Malformed files raise :class:`BVHError`, naming the file and line.
 
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -22,7 +23,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from creatures.motor.pose import BodyPose, PoseSet, estimate_velocities
+from creatures.motor.pose import BodyPose, PoseSet
 from creatures.motor.skeleton import Skeleton, subtree_sizes
 
 _AXES = {"Xrotation": "X", "Yrotation": "Y", "Zrotation": "Z"}
@@ -77,9 +78,12 @@ class _Tokens:
         line = self.line
         token = self.next(what)
         try:
-            return float(token)
+            value = float(token)
         except ValueError:
             raise self.error(f"expected a number for {what}, found {token!r}", line) from None
+        if not math.isfinite(value):
+            raise self.error(f"expected a finite number for {what}, found {token!r}", line)
+        return value
 
     def peek(self) -> str | None:
         return self.items[self.pos][0] if self.pos < len(self.items) else None
@@ -104,6 +108,8 @@ def _parse_joint(tokens: _Tokens, joints: list[_Joint], name: str, parent: int, 
             channel = tokens.next("a channel name")
             if channel not in _AXES and channel not in _POSITIONS:
                 raise tokens.error(f"joint {name!r}: unknown channel {channel!r}", line)
+            if channel in joint.channels:
+                raise tokens.error(f"joint {name!r}: channel {channel!r} given twice", line)
             if channel in _POSITIONS and parent >= 0:
                 raise tokens.error(f"joint {name!r}: position channels are only supported on the root", line)
             joint.channels.append(channel)
@@ -165,6 +171,9 @@ def parse_bvh(text: str, *, source: str = "<bvh>", name: str = "bvh") -> PoseSet
         raise tokens.error(f"'Frames: {int(frames)}' declared but the file has no frame rows")
     motion_line = tokens.line
     rows = text.splitlines()[motion_line - 1 :]
+    available = sum(1 for row in rows if row.strip())
+    if available < frames:  # checked before allocating: "Frames: 1e12" must not exhaust memory
+        raise BVHError(f"{source}:{len(text.splitlines())}: file ends after {available} of {int(frames)} frames")
     data = np.zeros((int(frames), columns))
     count = 0
     for offset, row in enumerate(rows):
@@ -176,14 +185,14 @@ def parse_bvh(text: str, *, source: str = "<bvh>", name: str = "bvh") -> PoseSet
             values = [float(x) for x in row.split()]
         except ValueError:
             raise BVHError(f"{source}:{motion_line + offset}: frame row contains a non-number") from None
+        if not all(map(math.isfinite, values)):
+            raise BVHError(f"{source}:{motion_line + offset}: frame row contains a non-finite number")
         if len(values) != columns:
             raise BVHError(
                 f"{source}:{motion_line + offset}: frame row has {len(values)} values, the hierarchy declares {columns} channels"
             )
         data[count] = values
         count += 1
-    if count != frames:
-        raise BVHError(f"{source}:{len(text.splitlines())}: file ends after {count} of {int(frames)} frames")
     return _to_poses(joints, data, frame_time, name)
 
 
@@ -210,16 +219,7 @@ def _to_poses(joints: list[_Joint], data: np.ndarray, frame_time: float, name: s
             if channel in _POSITIONS:
                 roots[:, _POSITIONS.index(channel)] = data[:, joint.column + k]
     times = np.arange(frames) * frame_time
-    return PoseSet(
-        skeleton=skeleton,
-        rotations=rotations,
-        velocities=estimate_velocities(rotations, times),
-        roots=roots,
-        times=times,
-        source_ids=np.zeros(frames, dtype=np.int64),
-        sources=[name],
-        labels=[frozenset()] * frames,
-    )
+    return PoseSet.animation(skeleton, rotations, roots, times, name)
 
 
 def save_bvh(path: str | os.PathLike, poses: PoseSet, *, frame_time: float | None = None) -> None:

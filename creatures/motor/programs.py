@@ -58,15 +58,18 @@ class MotorSystem:
     """The body on its motor graph: where it is, the course it is following, where it arrived.
 
     ``arrivals`` logs ``(time, node)`` each time a course completes; it is what tests and a
-    BodyMemory read.
+    BodyMemory read. Only the latest ``ARRIVALS_KEPT`` are kept: a body in a gallery arrives
+    somewhere every few seconds for weeks (an unbounded list here was the leak the soak found).
     """
+
+    ARRIVALS_KEPT = 256
 
     def __init__(self, graph: MotorGraph, *, start: int = 0, finder: PathFinder | None = None) -> None:
         self.graph = graph
         self.finder = finder or PathFinder(graph)
         self._rest = GraphPosition(start)
         self.playback: Playback | None = None
-        self.arrivals: list[tuple[float, int]] = []
+        self.arrivals: deque[tuple[float, int]] = deque(maxlen=self.ARRIVALS_KEPT)
 
     def position(self, t: float) -> GraphPosition:
         return self.playback.position(t) if self.playback else self._rest

@@ -38,6 +38,7 @@ class LiveSummary:
     ticks: int = 0
     late: int = 0
     notes_played: int = 0
+    failed_saves: int = 0
     restored: list[str] = field(default_factory=list)
     messages: list[str] = field(default_factory=list)
 
@@ -80,6 +81,16 @@ class _Inputs:
             self.midi.close()
         if self.osc is not None:
             self.osc.close()
+
+
+def _save(session: Session, state_dir: Path, summary: LiveSummary, say: Callable[[str], None]) -> None:
+    """Save state; a full or read-only disk is reported and the run goes on (the previous
+    files stay intact, persist.atomic_write) rather than silencing a gallery."""
+    try:
+        session.save_state(state_dir)
+    except OSError as exc:
+        summary.failed_saves += 1
+        say(f"could not save creature state ({exc}); the previous state is kept, will try again")
 
 
 def run_live(
@@ -147,7 +158,7 @@ def run_live(
             heard = microphone.read() if microphone is not None else None
             output.write(session.step(next_tick, frames, heard))
             if state_dir is not None and next_tick >= next_save:
-                session.save_state(state_dir)
+                _save(session, state_dir, summary, say)
                 next_save += settings.save_every
             next_tick += tick
     except KeyboardInterrupt:
@@ -156,7 +167,7 @@ def run_live(
         signal.signal(signal.SIGTERM, previous)
         session.close()
         if state_dir is not None:
-            session.save_state(state_dir)
+            _save(session, state_dir, summary, say)
         if microphone is not None:
             microphone.stop()
         output.close()

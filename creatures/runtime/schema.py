@@ -109,7 +109,7 @@ def load_installation(path: str | Path) -> LoadedInstallation:
     names: set[str] = set()
     for i, table in enumerate(settings.creature):
         kind = table.get("kind")
-        if kind not in kinds:
+        if not isinstance(kind, str) or kind not in kinds:  # kind = [] must not crash the lookup
             close = difflib.get_close_matches(str(kind), list(kinds), n=1)
             hint = f" (did you mean {close[0]!r}?)" if close else f" (choose from {sorted(kinds)})"
             raise config_error(path, where, ("creature", i, "kind"), f"unknown creature kind {kind!r}{hint}")

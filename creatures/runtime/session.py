@@ -105,7 +105,8 @@ class Session:
     def load_state(self, directory: Path) -> list[str]:
         """Restore creatures from ``directory`` where a file exists; returns who was restored.
 
-        A file of another kind raises :class:`StateFileError` naming it (never a silent mix).
+        A file of another kind, or one whose content the kind cannot take back, raises
+        :class:`StateFileError` naming it (never a silent mix).
         """
         restored = []
         for creature in self.creatures:
@@ -115,6 +116,14 @@ class Session:
             data = load_json(path, kind=STATE_KIND)
             if data.get("kind") != creature.spec.kind:
                 raise StateFileError(f"{path}: saved for kind {data.get('kind')!r}, config says {creature.spec.kind!r}")
-            creature.restore(data.get("state", {}))
+            state = data.get("state", {})
+            if not isinstance(state, dict):
+                raise StateFileError(f"{path}: 'state' must be a table, found {type(state).__name__}")
+            try:
+                creature.restore(state)
+            except (KeyError, TypeError, ValueError, IndexError, AttributeError) as exc:
+                # A kind's restore reads plain dicts; whatever a damaged file makes it trip
+                # on is reported as that file's fault (creatures.behaviour.creature does the same).
+                raise StateFileError(f"{path}: malformed {creature.spec.kind} state ({exc})") from None
             restored.append(creature.name)
         return restored

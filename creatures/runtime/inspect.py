@@ -1,0 +1,228 @@
+"""``creatures inspect PATH``: what the creatures learned, as plots and one HTML page.
+
+An artist whose installation has run for weeks needs to see inside the creatures without a
+debugger (DESIGN.md "Seeing inside"). The inspector reads only what a run leaves behind — an
+offline output directory (``events.jsonl``) and/or a state directory (one JSON file per
+creature, written by ``Session.save_state``, i.e. ``creatures run --state``) — and renders:
+
+* action-tuples with their learned values, and confidence where the value kind has one
+  (thesis, "surprise and confidence": a :class:`GaussianValue`'s reliability);
+* percept trees with the size of every node (thesis, "percept trees");
+* duration models where present: the pulse and the ratio histogram of a low-integer-ratio
+  model (thesis, figure 11), the mean of a simple one;
+* drive levels and their time series (thesis, "motivation");
+* the part of the motor graph each body walked, and its path (thesis, "graph-based motor
+  systems"), with the run's other plots from :mod:`creatures.runtime.report`.
+
+State files are read generically, without building creatures from code: every kind saves
+plain dicts, and the inspector recognises the parts by their ``kind`` tags (value kinds,
+``motivation``, duration-model kinds) and tree nodes by their ``children``. The page embeds
+every image as a base64 data URI, so it can be mailed or archived as one file.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from creatures.behaviour.value import value_from_dict
+from creatures.events import read_events
+from creatures.persist import StateFileError, load_json
+from creatures.runtime.report import counts_table, event_plots, html_page, plot_bars, plt
+from creatures.runtime.session import STATE_KIND
+from creatures.temporal.durations import LowIntegerRatioModel, SimpleDurationModel
+
+VALUE_KINDS = ("scalar", "chain", "gaussian", "stance")
+DURATION_MODELS = {m.kind: m for m in (LowIntegerRatioModel, SimpleDurationModel)}
+
+
+class InspectError(Exception):
+    """PATH holds neither an events log nor creature state; the message says what was looked for."""
+
+
+@dataclass
+class Tree:
+    """One percept tree node: its name, how many nodes hang below it (itself included)."""
+
+    name: str
+    size: int
+    children: list["Tree"] = field(default_factory=list)
+
+
+@dataclass
+class Knowledge:
+    """What one creature's saved state says it has learned."""
+
+    creature: str
+    kind: str
+    values: dict[str, float] = field(default_factory=dict)
+    confidence: dict[str, float] = field(default_factory=dict)
+    drives: dict[str, float] = field(default_factory=dict)
+    trees: list[Tree] = field(default_factory=list)
+    durations: list[tuple[str, Any]] = field(default_factory=list)  # (where, rebuilt model)
+
+
+def _tree(node: dict[str, Any]) -> Tree:
+    children = [_tree(c) for c in node["children"] if isinstance(c, dict)]
+    return Tree(str(node.get("name", "?")), 1 + sum(c.size for c in children), children)
+
+
+def _is_tree(node: Any) -> bool:
+    return isinstance(node, dict) and isinstance(node.get("children"), list)
+
+
+def knowledge(creature: str, kind: str, state: dict[str, Any]) -> Knowledge:
+    """Walk a creature's saved ``state`` and collect what it knows (see the module docstring)."""
+    known = Knowledge(creature, kind)
+
+    def visit(node: Any, label: str, path: str) -> None:
+        if isinstance(node, list):
+            # [trigger, action, name, value] rows name their value by the last string before it.
+            names = [x for x in node if isinstance(x, str)]
+            for i, child in enumerate(node):
+                visit(child, names[-1] if names and isinstance(child, dict) else label, f"{path}[{i}]")
+            return
+        if not isinstance(node, dict):
+            return
+        tag = node.get("kind")
+        if tag in VALUE_KINDS and "value" in node:
+            try:
+                value = value_from_dict(node)
+            except (KeyError, TypeError, ValueError):
+                return
+            known.values[label] = value.to_float()
+            if hasattr(value, "confidence"):
+                known.confidence[label] = float(value.confidence())
+            return
+        if tag == "motivation" and isinstance(node.get("levels"), dict):
+            known.drives.update({k: float(v) for k, v in node["levels"].items() if isinstance(v, (int, float))})
+            return
+        if tag in DURATION_MODELS:
+            try:
+                known.durations.append((path, DURATION_MODELS[tag].from_dict(node)))
+            except (KeyError, TypeError, ValueError):
+                pass
+            return
+        if _is_tree(node):
+            known.trees.append(_tree(node))
+            return
+        for key, child in node.items():
+            name = node.get("name") if key == "value" and isinstance(node.get("name"), str) else str(key)
+            visit(child, name, f"{path}.{key}" if path else str(key))
+
+    visit(state, "", "")
+    return known
+
+
+def read_state(directory: Path) -> list[Knowledge]:
+    """Every creature state file in ``directory`` (others are skipped)."""
+    found = []
+    for path in sorted(directory.glob("*.json")):
+        try:
+            document = load_json(path, kind=STATE_KIND)
+        except StateFileError:
+            continue
+        state = document.get("state")
+        if isinstance(state, dict):
+            found.append(knowledge(path.stem, str(document.get("kind", "?")), state))
+    return found
+
+
+def latest_values(events: list[dict]) -> list[Knowledge]:
+    """Without saved state, the last ``values``/``motivation`` each creature logged."""
+    known: dict[str, Knowledge] = {}
+    for e in events:
+        if e["kind"] in ("values", "motivation") and "creature" in e:
+            k = known.setdefault(e["creature"], Knowledge(e["creature"], "from the events log"))
+            fields = e.get("values" if e["kind"] == "values" else "drives")
+            if isinstance(fields, dict):
+                target = k.values if e["kind"] == "values" else k.drives
+                target.update({n: float(v) for n, v in fields.items() if isinstance(v, (int, float))})
+    return list(known.values())
+
+
+def _plot_durations(known: list[Knowledge], path: Path) -> Path | None:
+    models = [(k.creature, where, m) for k in known for where, m in k.durations]
+    if not models:
+        return None
+    fig, axes = plt.subplots(len(models), 1, figsize=(9, 2.4 * len(models)), squeeze=False)
+    for ax, (creature, where, model) in zip(axes[:, 0], models):
+        if isinstance(model, LowIntegerRatioModel):
+            labels = [f"{r.numerator}/{r.denominator}" for r in model.ratios]
+            ax.bar(labels, model.ratio_distribution(), color="C2")
+            ax.set_ylabel("p(ratio)")
+            ax.set_title(f"{creature} {where}: pulse {model.pulse:.3f} s", fontsize=9)
+        else:
+            ax.bar(["mean"], [model.pulse], color="C2")
+            ax.set_title(f"{creature} {where}: mean duration {model.pulse:.3f} s", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return path
+
+
+def _tree_html(tree: Tree) -> str:
+    children = "".join(_tree_html(c) for c in tree.children)
+    inner = f"<ul>{children}</ul>" if children else ""
+    return f"<li>{html.escape(tree.name)} <small>({tree.size} node{'s' if tree.size != 1 else ''})</small>{inner}</li>"
+
+
+def _creature_html(k: Knowledge) -> str:
+    rows = "".join(
+        f"<tr><td>{html.escape(n)}</td><td>{v:.4g}</td>"
+        f"<td>{'' if n not in k.confidence else f'{k.confidence[n]:.3f}'}</td></tr>"
+        for n, v in sorted(k.values.items()))
+    drives = "".join(f"<tr><td>{html.escape(n)}</td><td>{v:.4g}</td></tr>" for n, v in sorted(k.drives.items()))
+    parts = [f"<h3>{html.escape(k.creature)} <small>({html.escape(k.kind)})</small></h3>"]
+    if rows:
+        parts.append(f"<table><tr><th>action-tuple</th><th>value</th><th>confidence</th></tr>{rows}</table>")
+    if drives:
+        parts.append(f"<table><tr><th>drive</th><th>level</th></tr>{drives}</table>")
+    if k.trees:
+        parts.append("<p>percept trees</p><ul>" + "".join(_tree_html(t) for t in k.trees) + "</ul>")
+    return "".join(parts)
+
+
+def _embed(path: Path) -> str:
+    return "data:image/png;base64," + base64.b64encode(path.read_bytes()).decode("ascii")
+
+
+def inspect(path: Path, out: Path) -> Path:
+    """Render what the creatures at ``path`` know into ``out`` (PNGs and ``index.html``);
+    return the page. ``path`` is an offline output directory, a state directory, or both."""
+    path = Path(path)
+    events_path = path / "events.jsonl"
+    events = read_events(events_path) if events_path.is_file() else []
+    known = read_state(path) if path.is_dir() else []
+    if not events and not known:
+        raise InspectError(f"{path}: no events.jsonl and no creature state files "
+                           f"(give an offline output directory or a --state directory)")
+    from_state = bool(known)
+    if not known:
+        known = latest_values(events)
+    out.mkdir(parents=True, exist_ok=True)
+    what = "saved state" if from_state else "the last values logged"
+    plots = [
+        (f"Action-tuple values ({what})",
+         plot_bars({k.creature: k.values for k in known}, "action-tuple values", "V", out / "known_values.png",
+                   shade={k.creature: k.confidence for k in known})),
+        (f"Drives ({what})",
+         plot_bars({k.creature: k.drives for k in known}, "drive levels", "level", out / "known_drives.png")),
+        ("Percept trees (saved state)",
+         plot_bars({k.creature: {t.name: t.size for t in k.trees} for k in known}, "percept tree sizes", "nodes",
+                   out / "known_trees.png")),
+        ("Duration models (saved state)", _plot_durations(known, out / "known_durations.png")),
+    ]
+    plots = [(name, p) for name, p in plots if p is not None] + event_plots(events, out)
+    title = f"inside {path.name or path}"
+    figures = "".join(f'<h2>{html.escape(name)}</h2><img src="{_embed(p)}" alt="{html.escape(name)}">'
+                      for name, p in plots)
+    page = html_page(title, f"<p>{len(events)} events, {len(known)} creature(s) from {html.escape(what)}.</p>"
+                            f"{counts_table(events) if events else ''}"
+                            f"<h2>What each creature knows</h2>{''.join(_creature_html(k) for k in known)}{figures}")
+    page_path = out / "index.html"
+    page_path.write_text(page, encoding="utf-8")
+    return page_path
