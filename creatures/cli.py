@@ -104,6 +104,7 @@ def _run_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--state", type=Path, help="directory for saved creature state (overrides the config)")
     parser.add_argument("--log", type=Path, help="write the events log (JSONL) here")
     parser.add_argument("--duration", type=float, help="stop after this many seconds (default: run until Ctrl-C)")
+    parser.add_argument("--frames", type=Path, help="draw the bodies into this directory (PNGs; a video if the config asks)")
 
 
 @command("run", "run an installation live with its configured devices (Ctrl-C stops cleanly)", _run_options)
@@ -115,7 +116,8 @@ def _run(args: argparse.Namespace) -> int:
 
     try:
         installation = load_installation(args.config)
-        summary = run_live(installation, duration=args.duration, state=args.state, log_path=args.log)
+        summary = run_live(installation, duration=args.duration, state=args.state, log_path=args.log,
+                           pictures=args.frames)
     except (ConfigError, StateFileError) as exc:
         print(f"creatures: {exc}", file=sys.stderr)
         return 2

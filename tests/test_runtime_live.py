@@ -9,6 +9,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from creatures.cli import main
 
 CONFIG = """
@@ -66,3 +68,15 @@ def test_bad_state_file_is_a_clear_error(tmp_path, capsys):
     (state / "ada.json").write_text("{not json")
     assert main(["run", str(config), "--duration", "0.1", "--state", str(state)]) == 2
     assert "ada.json:1: malformed JSON" in capsys.readouterr().err
+
+
+def test_live_frames_follow_their_own_clock(tmp_path, capsys):
+    config = tmp_path / "live.toml"
+    config.write_text(CONFIG.replace("[midi]", "[output]\nfps = 10\n[midi]"))
+    pictures = tmp_path / "pictures"
+    assert main(["run", str(config), "--duration", "1.0", "--frames", str(pictures)]) == 0
+    out = capsys.readouterr().out
+    if "no frames:" in out:
+        pytest.skip(out.split("no frames:", 1)[1].splitlines()[0])
+    count = len(list((pictures / "frames").glob("frame_*.png")))
+    assert 8 <= count <= 13, count  # 10 fps for ~1 s of wall time, whatever the tick rate

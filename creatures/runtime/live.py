@@ -22,6 +22,7 @@ from audio.output import SilentOutput, open_output
 from audio.sources import LiveInput
 from creatures.clock import WallClock
 from creatures.events import EventLog
+from creatures.runtime.bodies import BodyFrames
 from creatures.runtime.schema import LoadedInstallation
 from creatures.runtime.session import Session
 from midi.notes import NotePairer
@@ -99,9 +100,12 @@ def run_live(
     duration: float | None = None,
     state: Path | None = None,
     log_path: Path | None = None,
+    pictures: Path | None = None,
     say: Callable[[str], None] = print,
 ) -> LiveSummary:
-    """Run ``inst`` live until Ctrl-C/SIGTERM (or ``duration`` wall seconds)."""
+    """Run ``inst`` live until Ctrl-C/SIGTERM (or ``duration`` wall seconds); with
+    ``pictures`` the bodies are drawn into that directory (PNGs, and a video if the config asks) at the
+    config's frame rate."""
     settings = inst.settings
     summary = LiveSummary()
     clock = WallClock()
@@ -131,7 +135,6 @@ def run_live(
         except AudioDeviceUnavailable as exc:
             say(f"audio input {settings.audio.input_device!r} unavailable, not listening: {exc}")
             microphone = None
-
     stopping = False
 
     def stop(*_: object) -> None:
@@ -141,6 +144,12 @@ def run_live(
     previous = signal.signal(signal.SIGTERM, stop)
     session.world.emit("run", title=settings.title, mode="live", seed=settings.seed,
                        creatures=[c.name for c in session.creatures], restored=summary.restored)
+    bodies = None
+    if pictures is not None:
+        pictures.mkdir(parents=True, exist_ok=True)
+        bodies = BodyFrames(settings.output, pictures, clock, summary.messages)
+        for message in summary.messages:
+            say(message)
     say(f"{len(session.creatures)} creature(s) running; Ctrl-C or SIGTERM stops cleanly")
     start = clock.now()  # setting up took time; the run's ticks count from here
     next_tick, next_save, frames_done = start + tick, start + settings.save_every, int(round(start * sr))
@@ -157,6 +166,8 @@ def run_live(
             inputs.poll(next_tick)
             heard = microphone.read() if microphone is not None else None
             output.write(session.step(next_tick, frames, heard))
+            if bodies is not None:
+                bodies.draw(session.creatures)
             if state_dir is not None and next_tick >= next_save:
                 _save(session, state_dir, summary, say)
                 next_save += settings.save_every
@@ -171,6 +182,8 @@ def run_live(
         if microphone is not None:
             microphone.stop()
         output.close()
+        if bodies is not None:
+            bodies.close()
         inputs.close()
         log.close()
     summary.seconds = clock.now() - start

@@ -18,9 +18,9 @@ import numpy as np
 
 from audio.output import WavOutput
 from audio.sources import load_audio
-from creatures.body.frames import FrameClock, FrameWriter
 from creatures.clock import SimulatedClock
 from creatures.events import EventLog
+from creatures.runtime.bodies import BodyFrames
 from creatures.runtime.inputs import phrase_notes, render_notes
 from creatures.runtime.schema import LoadedInstallation
 from creatures.runtime.speech_input import spoken_poem
@@ -75,53 +75,6 @@ def _inputs(inst: LoadedInstallation, audio: Path | None, midi: Path | None, dur
     return [n for n in notes if n.time < duration], samples
 
 
-class _Bodies:
-    """Draws every creature's body side by side into frames, when a GL platform exists."""
-
-    def __init__(self, inst: LoadedInstallation, out: Path, clock: SimulatedClock, messages: list[str]) -> None:
-        from creatures.body.render import BodyRenderer, RenderUnavailable
-
-        o = inst.settings.output
-        self.clock = FrameClock(o.fps, clock)
-        try:
-            self.renderer = BodyRenderer(o.width, o.height)
-        except RenderUnavailable as exc:
-            messages.append(f"no frames: {exc}")
-            self.renderer = None
-            return
-        self.writer = FrameWriter(directory=out / "frames", video=out / "out.mp4" if o.video else None, fps=o.fps)
-
-    def draw(self, creatures: list) -> None:
-        if self.renderer is None:
-            return
-        due = self.clock.due()
-        if not due:
-            return
-        positions, parents, marks = [], [], []
-        offset = 0
-        spacing = 1.5
-        for i, creature in enumerate(creatures):
-            shift = np.array([(i - (len(creatures) - 1) / 2) * spacing, 0.0, 0.0])
-            body = creature.figure()
-            if body is not None:
-                p, par = body
-                positions.append(p + shift)
-                parents.append(np.where(par >= 0, par + offset, -1))
-                offset += len(p)
-            for position, pitch in creature.marks():
-                from creatures.body.render import NoteMark
-
-                marks.append(NoteMark(tuple(np.asarray(position) + shift), pitch))
-        if positions:
-            frame = self.renderer.render(np.concatenate(positions), np.concatenate(parents), marks)
-            self.writer.write(frame, repeat=due)
-
-    def close(self) -> None:
-        if self.renderer is not None:
-            self.writer.close()
-            self.renderer.close()
-
-
 def run_offline(
     inst: LoadedInstallation,
     out: Path,
@@ -150,7 +103,7 @@ def run_offline(
 
     sr, tick = settings.audio.sample_rate, settings.tick
     wav = WavOutput(out / "out.wav", sr, 2) if settings.output.wav else None
-    bodies = _Bodies(inst, out, clock, messages) if settings.output.frames else None
+    bodies = BodyFrames(settings.output, out, clock, messages) if settings.output.frames else None
     steps = int(math.ceil(duration / tick - 1e-9))
     bar = None
     if progress:
