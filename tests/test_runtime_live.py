@@ -8,9 +8,17 @@ import signal
 import subprocess
 import sys
 
+import mido
 import pytest
 
 from creatures.cli import main
+from creatures.clock import SimulatedClock
+from creatures.events import EventLog
+from creatures.runtime import live
+from creatures.runtime.schema import load_installation
+from creatures.runtime.session import Session
+from midi.ports import MemoryInput
+from midi.sinks import MemorySink
 
 CONFIG = """
 title = "live check"
@@ -79,3 +87,29 @@ def test_live_frames_follow_their_own_clock(tmp_path, capsys):
         pytest.skip(out.split("no frames:", 1)[1].splitlines()[0])
     count = len(list((pictures / "frames").glob("frame_*.png")))
     assert 8 <= count <= 13, count  # 10 fps for ~1 s of wall time, whatever the tick rate
+
+
+def test_live_midi_notes_are_heard_when_the_key_goes_down(tmp_path, monkeypatch):
+    keyboard = MemoryInput("Test Keyboard")
+
+    class Keyboards:
+        def names(self) -> list[str]:
+            return ["Test Keyboard"]
+
+        def open(self, name: str, *, virtual: bool = False):
+            return keyboard
+
+    monkeypatch.setattr(live, "MidoInputs", Keyboards)
+    config = tmp_path / "live.toml"
+    config.write_text(CONFIG.replace('output_port = "NoSuchSynth"', 'input_port = "keyboard"'))
+    inst = load_installation(config)
+    clock = SimulatedClock()
+    session = Session(inst, clock, EventLog(), MemorySink())
+    inputs = live._Inputs(inst, session, clock, say=lambda message: None)
+    keyboard.inject(mido.Message("note_on", note=64, velocity=90))
+    keyboard.inject(mido.Message("note_on", note=64, velocity=0))  # its release: not a new note
+    clock.advance(0.5)
+    inputs.poll(clock.now())
+    assert session.world.deliver(clock.now()) == 1
+    heard = [e for e in session.log.records if e["kind"] == "heard"]
+    assert [(e["pitch"], e["velocity"], e["time"], e["source"]) for e in heard] == [(64, 90, 0.5, "midi")]

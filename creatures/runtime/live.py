@@ -25,12 +25,14 @@ from creatures.events import EventLog
 from creatures.runtime.bodies import BodyFrames
 from creatures.runtime.schema import LoadedInstallation
 from creatures.runtime.session import Session
-from midi.notes import NotePairer
+from midi.notes import NoteEvent, is_note_off
 from midi.osc import OscListener, OscSender
 from midi.ports import MidoInputs, MidoOutputs, ResilientPort
 from midi.sinks import MemorySink, PortSink
 
 HELP = "list devices with `creatures devices`"
+HEARD_LENGTH = 0.25
+"""Seconds assumed for a live MIDI note heard at its note-on (its real length is unknown)."""
 
 
 @dataclass
@@ -51,7 +53,6 @@ class _Inputs:
         settings = inst.settings
         self.session = session
         self.midi = None
-        self.pairer = NotePairer()
         if settings.midi.input_port:
             self.midi = ResilientPort(settings.midi.input_port, MidoInputs(), clock,
                                       report=lambda m: say(f"MIDI input: {m}; {HELP}"))
@@ -69,9 +70,11 @@ class _Inputs:
         world = self.session.world
         if self.midi is not None:
             for msg in self.midi.pending():
-                note = self.pairer.feed(t, msg)
-                if note is not None:
-                    world.inject(note, "midi")
+                # A player expects creatures to react when a key goes down, not when it is
+                # released: notes are heard at note-on, with a nominal length (the real one
+                # is not known yet).
+                if msg.type == "note_on" and not is_note_off(msg):
+                    world.inject(NoteEvent(t, msg.note, msg.velocity, msg.channel, HEARD_LENGTH), "midi")
         if self.osc is not None:
             for heard in self.osc.poll():
                 if heard.note is not None:
