@@ -12,6 +12,7 @@ hostile file cannot exhaust a gallery machine's memory.
 
 from __future__ import annotations
 
+import glob
 import json
 import os
 import tempfile
@@ -42,6 +43,10 @@ def atomic_write(path: str | os.PathLike, write: Callable[[Any], None], mode: st
             handle.flush()
             os.fsync(handle.fileno())
         os.replace(tmp, path)
+        # A process killed mid-save (SIGKILL, power loss) leaves its temporary file behind;
+        # the next good save of the same file clears such leftovers so they cannot pile up.
+        for stale in directory.glob(f".{glob.escape(path.name)}.*.tmp"):
+            stale.unlink(missing_ok=True)
     except BaseException as exc:
         # Nothing partial survives: the temporary file goes, the old target stays.
         try:
@@ -64,14 +69,11 @@ def atomic_write(path: str | os.PathLike, write: Callable[[Any], None], mode: st
         os.close(dir_fd)
 
 
-_atomic_write = atomic_write  # the former private name, kept for existing callers
-
-
 def save_json(path: str | os.PathLike, data: dict[str, Any], *, kind: str) -> None:
     """Write ``data`` as JSON atomically, stamped with ``kind`` and the format version."""
     document = {"format": kind, "version": FORMAT_VERSION, **data}
     text = json.dumps(document, indent=1, sort_keys=True, allow_nan=False)
-    _atomic_write(Path(path), lambda h: h.write(text), "w")
+    atomic_write(Path(path), lambda h: h.write(text), "w")
 
 
 def load_json(path: str | os.PathLike, *, kind: str) -> dict[str, Any]:
@@ -113,7 +115,7 @@ def _refuse_constant(name: str) -> float:
 
 def save_npz(path: str | os.PathLike, arrays: dict[str, np.ndarray]) -> None:
     """Write named arrays to an ``.npz`` atomically."""
-    _atomic_write(Path(path), lambda h: np.savez(h, **arrays), "wb")
+    atomic_write(Path(path), lambda h: np.savez(h, **arrays), "wb")
 
 
 def load_npz(path: str | os.PathLike) -> dict[str, np.ndarray]:
