@@ -94,7 +94,7 @@ def _run(tmp_path: Path, creatures: list[dict], *, duration: float, heard: list[
          seed: int = 3) -> list[dict]:
     """Run sandstone creatures offline (no audio) and return the events."""
     tmp_path.mkdir(parents=True, exist_ok=True)
-    lines = [f'title = "t"', f"seed = {seed}", f"tick = {TICK}", "[output]", "wav = false", "report = false"]
+    lines = ['title = "t"', f"seed = {seed}", f"tick = {TICK}", "[output]", "wav = false", "report = false"]
     if heard is not None:
         write_notes(tmp_path / "in.mid", heard)
         lines += ["[input]", 'midi = "in.mid"']

@@ -15,7 +15,7 @@ gesture recognition models from the graph-based motor system." Design decisions:
 * **The running memory** is a deque of :class:`~creatures.motor.gesture.Observation` of the
   last ``memory`` notes (not a ``BodyMemory``: that drops a repeated node, but a repeated
   note is a new musical event).
-* **The population** (:class:`ModelPopulation`) is the percept-tree fission/fusion analogue
+* **The population** (:class:`~creatures.kinds.model_population.ModelPopulation`) is the percept-tree fission/fusion analogue
   for models "that themselves have no idea how to split": every ``analysis_every`` seconds
   (its own rate, with a random phase) the notes heard since the last analysis, behind
   ``context`` already-learnt notes that let a model find where they go ("23456 is explained
@@ -26,8 +26,8 @@ gesture recognition models from the graph-based motor system." Design decisions:
   whose cores are the same cycle are fused (the less useful retires); a model grown past
   ``max_states`` is distilled to its core; usefulness (how often a model was the best
   match) decays with time constant ``forget`` and models that fall below
-  :data:`FORGOTTEN` retire, as does the least useful while the population exceeds
-  ``max_models``. Each state keeps only its last :data:`NOTES_KEPT` note references.
+  :data:`~creatures.kinds.model_population.FORGOTTEN` retire, as does the least useful while the population exceeds
+  ``max_models``. Each state keeps only its last :data:`~creatures.kinds.model_population.NOTES_KEPT` note references.
 * **Dancing.** The model with the highest mean log-likelihood of the whole memory buffer is
   the one played out. Each heard note is located among that model's states (preferring a
   successor of the current state) and the body sets off, by A* through the motor graph,
@@ -47,7 +47,6 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
@@ -60,21 +59,13 @@ from creatures.behaviour.motivation import Motivation
 from creatures.behaviour.percept import FunctionPercept, WhateverPercept
 from creatures.kinds import register
 from creatures.kinds.base import CreatureKind, CreatureSpec
+from creatures.kinds.model_population import Member, ModelPopulation
 from creatures.kinds.moves import Rest, head_for
 from creatures.kinds.parts import Body, Voice, VoiceSpec
 from creatures.kinds.report_parts import report_values, selection_logger
 from creatures.motor.gesture import GestureModel, Observation
 from creatures.motor.note_space import NotePlacement
 from midi.notes import NoteEvent
-
-FLOOR = 1e-3
-"""Probability GestureModel.log_likelihood gives a transition the model has never seen."""
-
-FORGOTTEN = 0.01
-"""Usefulness below which a model that is not the best match retires."""
-
-NOTES_KEPT = 8
-"""Heard notes a model state keeps a reference to (their mean velocity sets predicted notes')."""
 
 REPORT_EVERY = 0.5
 """Seconds between the values/motivation/percepts/motor snapshots in the events log."""
@@ -153,172 +144,6 @@ class NotePoses:
         self.pitches = {}
         for p, n in self.nodes.items():
             self.pitches.setdefault(n, p)
-
-
-# --- the population of models -------------------------------------------------------------
-
-
-@dataclass
-class Member:
-    """One model of the population, with what maintenance needs to know about it."""
-
-    id: int
-    model: GestureModel
-    born: float
-    usefulness: float = 0.0
-
-
-class ModelPopulation:
-    """Gesture models of heard notes: spawned, taught, fused, distilled and retired.
-
-    ``on_event(kind, **fields)`` is told of every birth and retirement. Time only enters
-    through the ``t`` arguments (usefulness decays by elapsed time, never by call count).
-    """
-
-    def __init__(self, *, known: float, evidence: int, max_models: int, max_states: int, forget: float,
-                 on_event=None) -> None:
-        self.members: list[Member] = []
-        self.known = known
-        self.evidence = evidence
-        self.max_models = max_models
-        self.max_states = max_states
-        self.forget = forget
-        self.best: Member | None = None
-        self.best_score = -math.inf
-        self._next_id = 0
-        self._time = 0.0
-        self._on_event = on_event or (lambda kind, **fields: None)
-
-    @property
-    def threshold(self) -> float:
-        """Lowest mean log-likelihood of a window that a model may learn: that of a window
-        with ``known`` of its transitions certain and the rest never heard."""
-        return (1.0 - self.known) * math.log(FLOOR)
-
-    def _spawn(self, t: float) -> Member:
-        member = Member(self._next_id, GestureModel(), t)
-        self._next_id += 1
-        self.members.append(member)
-        self._on_event("model", action="spawn", model=member.id)
-        return member
-
-    def _retire(self, member: Member, reason: str) -> None:
-        self.members.remove(member)
-        if self.best is member:
-            self.best, self.best_score = None, -math.inf
-        self._on_event("model", action="retire", model=member.id, reason=reason,
-                       states=len(member.model.states))
-
-    def learn(self, t: float, context: list[Observation], new: list[Observation]) -> Member | None:
-        """Teach ``context + new`` to a model, spawn one for it, or wait for more evidence.
-
-        In order: the model that best explains the transitions into and within the ``new``
-        notes learns them; else a model still growing at that point (its state for the last
-        context note leads nowhere yet) that explains the context extends itself; else, once
-        at least ``evidence`` transitions are unexplained, a new model is spawned (fission).
-        Returns None while waiting: the caller keeps the notes and asks again later.
-        """
-        arriving = context[-1:] + new
-        window = context + new
-        if self.members and len(arriving) >= 2:
-            scores = [m.model.log_likelihood(arriving, floor=FLOOR) for m in self.members]
-            if max(scores) >= self.threshold:
-                return self._teach(self.members[int(np.argmax(scores))], window)
-        growing = [m for m in self.members if context and _grows_from(m.model, context, self.threshold)]
-        if growing:
-            return self._teach(max(growing, key=lambda m: m.usefulness), window)
-        if len(arriving) - 1 >= self.evidence:
-            return self._teach(self._spawn(t), window)
-        return None
-
-    @staticmethod
-    def _teach(member: Member, window: list[Observation]) -> Member:
-        for state in member.model.learn(window):
-            notes = member.model.states[state].notes
-            del notes[:-NOTES_KEPT]
-        return member
-
-    def match(self, t: float, memory: list[Observation]) -> Member | None:
-        """Choose the model that best explains ``memory``; it gains usefulness."""
-        self._decay(t)
-        if not self.members or len(memory) < 2:
-            return self.best
-        scores = np.array([m.model.log_likelihood(memory, floor=FLOOR) for m in self.members])
-        k = int(np.argmax(scores))
-        self.best, self.best_score = self.members[k], float(scores[k])
-        self.best.usefulness += 1.0
-        return self.best
-
-    def _decay(self, t: float) -> None:
-        factor = math.exp(-max(t - self._time, 0.0) / self.forget)
-        self._time = max(t, self._time)
-        for m in self.members:
-            m.usefulness *= factor
-
-    def maintain(self, t: float) -> None:
-        """Fusion, distillation and retirement (the population stays bounded)."""
-        for member in list(self.members):
-            if len(member.model.states) > self.max_states:
-                self._distil(member)
-        cores: dict[tuple[int, ...], Member] = {}
-        for member in sorted(self.members, key=lambda m: -m.usefulness):
-            key = _cycle_key(member.model)
-            if key is None:
-                continue
-            if key in cores:
-                cores[key].usefulness += member.usefulness
-                self._retire(member, "fused with model %d" % cores[key].id)
-            else:
-                cores[key] = member
-        for member in [m for m in self.members if m is not self.best and m.usefulness < FORGOTTEN
-                       and t - m.born > self.forget]:
-            self._retire(member, "forgotten")
-        while len(self.members) > self.max_models:
-            spare = [m for m in self.members if m is not self.best]
-            self._retire(min(spare, key=lambda m: (m.usefulness, -m.id)), "population full")
-
-    def _distil(self, member: Member) -> None:
-        """Replace a model overgrown with noise by one learnt from its core alone."""
-        old = member.model
-        core = old.core()
-        fresh = GestureModel(entropy_weight=old.entropy_weight, threshold=old.threshold)
-        times = np.concatenate(([0.0], np.cumsum([old.states[s].dwell for s in core[:-1]])))
-        fresh.learn([Observation(old.states[s].node, float(u)) for s, u in zip(core, times)])
-        if len(core) > 1 and core[0] in old.states[core[-1]].out:  # the core is a cycle: close it
-            fresh.learn([Observation(old.states[core[-1]].node, 0.0),
-                         Observation(old.states[core[0]].node, old.states[core[-1]].dwell)])
-        self._on_event("model", action="distil", model=member.id, states=len(old.states), core=len(core))
-        member.model = fresh
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"next_id": self._next_id, "time": self._time,
-                "best": None if self.best is None else self.best.id,
-                "members": [{"id": m.id, "born": m.born, "usefulness": m.usefulness, "model": m.model.to_dict()}
-                            for m in self.members]}
-
-    def restore(self, data: dict[str, Any]) -> None:
-        self._next_id, self._time = int(data["next_id"]), float(data["time"])
-        self.members = [Member(int(m["id"]), GestureModel.from_dict(m["model"]), float(m["born"]),
-                               float(m["usefulness"])) for m in data["members"]]
-        self.best = next((m for m in self.members if m.id == data["best"]), None)
-
-
-def _grows_from(model: GestureModel, context: list[Observation], threshold: float) -> bool:
-    """Whether ``model`` explains ``context`` and its state for the last context note has no
-    way on yet: new notes there extend the model rather than depart from it."""
-    last = context[-1].node
-    if not any(g.node == last and not g.out for g in model.states):
-        return False
-    return len(context) < 2 or model.log_likelihood(context, floor=FLOOR) >= threshold
-
-
-def _cycle_key(model: GestureModel) -> tuple[int, ...] | None:
-    """A model's core as a rotation-free key (the rotation starting at its smallest node)."""
-    nodes = model.core_nodes()
-    if len(nodes) < 3:
-        return None
-    k = int(np.argmin(nodes))
-    return tuple(nodes[k:] + nodes[:k])
 
 
 # --- the dance ----------------------------------------------------------------------------
