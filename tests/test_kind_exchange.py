@@ -8,6 +8,7 @@ import numpy as np
 
 import installations
 from creatures.events import read_events
+from creatures.kinds.parts import shared_graph
 from creatures.runtime.offline import run_offline
 from creatures.runtime.schema import load_installation
 from midi.files import write_notes
@@ -60,3 +61,12 @@ def test_notes_fed_to_one_creature_reach_another_transformed(tmp_path: Path):
     shared = set(others) & set(PHRASE)
     assert len(shared) >= 3, f"too little of the phrase reached the others: {sorted(set(others))}"
     assert variations(PHRASE, others), "passages passed on unchanged"
+
+
+def test_ratio_metric_gives_a_body_on_the_exchange_graph():
+    plain, ratios = shared_graph(False), shared_graph(True)
+    assert not plain.weights.ratios and ratios.weights.ratios
+    assert plain.edges() != ratios.edges()  # the perturbed time metric reshapes the topology
+    inst = load_installation(installations.path("exchange"))
+    cy = next(spec for spec in inst.specs if spec.name == "cy")
+    assert cy.ratio_metric

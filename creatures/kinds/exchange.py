@@ -62,6 +62,8 @@ class ExchangeSpec(CreatureSpec):
     hunger_gain: float = Field(0.1, ge=0, description="extra hunger per second per unit of boredom")
     satiation: float = Field(0.25, ge=0, description="hunger removed by each struck note")
     temperature: float | None = Field(None, gt=0, description="Boltzmann temperature of action selection")
+    ratio_metric: bool = Field(False, description="move on a motor graph whose time metric favours low-integer "
+                                                    "ratios of the source animation length (the thesis's twist)")
     voice: VoiceSpec = VoiceSpec()
 
 
@@ -115,7 +117,7 @@ class Exchange(CreatureKind):
 
     def __init__(self, spec: ExchangeSpec, world, rng: np.random.Generator) -> None:
         super().__init__(spec, world, rng)
-        self.body = Body(rng)
+        self.body = Body(rng, ratios=spec.ratio_metric)
         self._reach = self.body.reach()
         self.placement = NotePlacement.around(self._reach)
         self.space = NoteSpace(world.scheduler_for(self), world.clock)

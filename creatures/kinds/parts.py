@@ -17,6 +17,7 @@ from audio.voices import VoicePool
 from creatures.motor import quaternion as quat
 from creatures.motor.animations import example_animations
 from creatures.motor.graph import MotorGraph
+from creatures.motor.note_space import exchange_metric
 from creatures.motor.pose import BodyPose, PoseSet
 from creatures.motor.playback import Playback
 from creatures.motor.programs import MotorSystem
@@ -99,10 +100,12 @@ def shared_material() -> PoseSet:
     return PoseSet.concatenate(example_animations())
 
 
-@functools.lru_cache(maxsize=1)
-def shared_graph() -> MotorGraph:
-    """One motor graph per process, built once from the shipped animations (read-only)."""
-    graph = MotorGraph.build(shared_material(), k=6)
+@functools.lru_cache(maxsize=2)
+def shared_graph(ratios: bool = False) -> MotorGraph:
+    """One motor graph per process (and per metric), built once from the shipped animations
+    (read-only). ``ratios`` builds it with the *exchange* metric, whose time term favours
+    jumps at low-integer ratios of the source animation's length (thesis "exchange")."""
+    graph = MotorGraph.build(shared_material(), k=6, weights=exchange_metric() if ratios else None)
     graph.annotate_low_energy()
     return graph
 
@@ -134,8 +137,8 @@ class _Trajectory:
 class Body:
     """A creature's body on the shared motor graph, with its own position and course."""
 
-    def __init__(self, rng: np.random.Generator, *, effector: str = "hand_r") -> None:
-        self.graph = shared_graph()
+    def __init__(self, rng: np.random.Generator, *, effector: str = "hand_r", ratios: bool = False) -> None:
+        self.graph = shared_graph(ratios)
         self.finder = PathFinder(self.graph)
         start = int(rng.integers(len(self.graph)))
         self.motor = MotorSystem(self.graph, start=start, finder=self.finder)
