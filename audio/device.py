@@ -53,3 +53,13 @@ def find_device(name: str | int | None, *, kind: str) -> int | None:
         f"audio {kind} device {name!r} not found (have: {[d['name'] for d in devices]}); "
         "list devices with `creatures devices`"
     )
+
+
+def device_rate(name: str | int | None, *, kind: str) -> int | None:
+    """The native sample rate of a device (``None`` = the default one), or None when there is
+    no such device: JACK and most interfaces run at one rate and refuse others."""
+    try:
+        index = find_device(name, kind=kind)
+        return int(sounddevice_module().query_devices(index, kind=kind)["default_samplerate"])
+    except AudioDeviceUnavailable:
+        return None

@@ -123,7 +123,7 @@ def _run(args: argparse.Namespace) -> int:
         return 2
     restored = f", restored {', '.join(summary.restored)}" if summary.restored else ""
     print(f"stopped after {summary.seconds:.1f} s: {summary.ticks} ticks, {summary.notes_played} notes, "
-          f"{summary.late} late{restored}")
+          f"{summary.late} late{restored}; sound {summary.sound}")
     return 0
 
 

@@ -11,6 +11,7 @@ import sys
 import mido
 import pytest
 
+from audio.device import device_rate
 from creatures.cli import main
 from creatures.clock import SimulatedClock
 from creatures.events import EventLog
@@ -113,3 +114,16 @@ def test_live_midi_notes_are_heard_when_the_key_goes_down(tmp_path, monkeypatch)
     assert session.world.deliver(clock.now()) == 1
     heard = [e for e in session.log.records if e["kind"] == "heard"]
     assert [(e["pitch"], e["velocity"], e["time"], e["source"]) for e in heard] == [(64, 90, 0.5, "midi")]
+
+
+@pytest.mark.jack
+def test_live_sound_reaches_a_jack_device_at_its_own_rate(tmp_path):
+    rate = device_rate(None, kind="output")
+    if rate is None:
+        pytest.skip("no audio output device (start: jackd --no-realtime -d dummy -r 44100 -p 512)")
+    config = tmp_path / "live.toml"
+    config.write_text('title = "jack"\n[audio]\nsample_rate = 22050\n[[creature]]\nname = "ada"\nkind = "exchange"\n')
+    summary = live.run_live(load_installation(config), duration=0.5, say=lambda message: None)
+    expected = f"live at {rate} Hz" + (" (resampled from 22050 Hz)" if rate != 22050 else "")
+    assert summary.sound == expected
+    assert summary.ticks >= 20

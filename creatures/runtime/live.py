@@ -17,7 +17,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
-from audio.device import AudioDeviceUnavailable
+import numpy as np
+import soxr
+
+from audio.device import AudioDeviceUnavailable, device_rate
 from audio.output import SilentOutput, open_output
 from audio.sources import LiveInput
 from creatures.clock import WallClock
@@ -44,6 +47,7 @@ class LiveSummary:
     failed_saves: int = 0
     restored: list[str] = field(default_factory=list)
     messages: list[str] = field(default_factory=list)
+    sound: str = ""  # where the mix went: "live at 44100 Hz (resampled from 22050 Hz)" or "silent: why"
 
 
 class _Inputs:
@@ -126,7 +130,13 @@ def run_live(
         summary.restored = session.load_state(state_dir)
     inputs = _Inputs(inst, session, clock, say)
     sr, tick = settings.audio.sample_rate, settings.tick
-    output = open_output(sr, 2, device=settings.audio.output_device, blocksize=settings.audio.block)
+    # Creatures synthesise at the config's rate; the device plays at its own (JACK will not
+    # change it), so the mix is resampled on the way out when they differ.
+    rate = device_rate(settings.audio.output_device, kind="output") or sr
+    output = open_output(rate, 2, device=settings.audio.output_device, blocksize=settings.audio.block)
+    to_device = soxr.ResampleStream(sr, rate, 2, dtype="float32") if rate != sr else None
+    summary.sound = (f"silent: {output.reason}" if isinstance(output, SilentOutput) else
+                     f"live at {rate} Hz" + (f" (resampled from {sr} Hz)" if to_device is not None else ""))
     if isinstance(output, SilentOutput):
         say(f"audio output {settings.audio.output_device or '(default)'} unavailable, running silent: "
             f"{output.reason}")
@@ -168,7 +178,8 @@ def run_live(
             frames_done += frames
             inputs.poll(next_tick)
             heard = microphone.read() if microphone is not None else None
-            output.write(session.step(next_tick, frames, heard))
+            mix = session.step(next_tick, frames, heard)
+            output.write(mix if to_device is None else to_device.resample_chunk(mix.astype(np.float32)))
             if bodies is not None:
                 bodies.draw(session.creatures)
             if state_dir is not None and next_tick >= next_save:
