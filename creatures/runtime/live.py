@@ -10,7 +10,6 @@ and on exit (Ctrl-C or SIGTERM: every note off, state saved) and restored on the
 
 from __future__ import annotations
 
-import logging
 import signal
 import time
 from dataclasses import dataclass, field
@@ -117,7 +116,6 @@ def run_live(
     summary = LiveSummary()
     clock = WallClock()
     log = EventLog(log_path, keep_in_memory=0) if log_path else EventLog(keep_in_memory=1000)
-    logging.getLogger("audio.output").setLevel(logging.ERROR)  # we print the reason ourselves
 
     sink: PortSink | MemorySink = MemorySink()
     if settings.midi.output_port:
