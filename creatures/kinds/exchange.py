@@ -138,8 +138,13 @@ class Exchange(CreatureKind):
         self.seek = _SeekNote(self)
         arrived = FunctionPercept("arrived", lambda t: 1.0 if self.body.motor.arrived(t) else 0.0)
         found = FunctionPercept("struck", self.seek.done)
+        # An authored creature, not a trained one: nothing here is a consummatory reward that
+        # could ground learnt values (with credit assignment but no reward, every value would
+        # only leak away by the discount), so values stay as authored (alpha = 0) and the
+        # motivations do the modulating, as in the thesis's description of exchange.
         self.group = ActionGroup(
-            f"{self.name}", rng=rng, temperature=spec.temperature, on_event=selection_logger(world, self.name),
+            f"{self.name}", rng=rng, alpha=0.0, temperature=spec.temperature,
+            on_event=selection_logger(world, self.name),
             tuples=[
                 ActionTuple("wander", root, _Wander(self), DoUntil(GaussianModel(4.0, 1.0), until=arrived), 1.0),
                 ActionTuple("seek note", hungry, self.seek, DoUntil(8.0, until=found), 3.0),
@@ -157,13 +162,14 @@ class Exchange(CreatureKind):
         pitch = note.pitch
         if self.rng.random() < self.spec.mutation:
             pitch = self._in_register(pitch + int(self.rng.choice(MUTATIONS)))
-        position = self.place(pitch, note.velocity)
-        for same in self.space.within(position, 0.02):
+        for same in self.space.objects:
             if same.pitch == pitch:
-                # Note objects are not independent (thesis "musical worlds"): hearing a note
-                # already in space renews it rather than stacking a duplicate.
+                # Note objects are not independent (thesis "musical worlds"): hearing a pitch
+                # already in space renews that note rather than stacking a duplicate, so no
+                # single pitch can crowd the space however often the colony plays it.
                 self.placed_at[id(same)] = t
                 return
+        position = self.place(pitch, note.velocity)
         copy = NoteEvent(note.time, pitch, note.velocity, self.spec.channel, min(note.duration, 2.0))
         obj = self.space.place(copy, position)
         self.placed_at[id(obj)] = t
