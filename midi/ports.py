@@ -18,6 +18,7 @@ import mido
 from mido.ports import BaseInput, BaseOutput, BasePort
 
 from creatures.clock import Clock
+from midi.polled import PolledInput
 
 logger = logging.getLogger(__name__)
 
@@ -61,15 +62,21 @@ class PortFactory(Protocol):
 
 class MidoInputs:
     """Input ports of a mido backend: by default the one ``MIDO_BACKEND`` names (python-rtmidi
-    if unset), or e.g. ``mido.Backend("mido.backends.rtmidi/UNIX_JACK")``."""
+    if unset), or e.g. ``mido.Backend("mido.backends.rtmidi/UNIX_JACK")``.
+
+    rtmidi inputs open as :class:`midi.polled.PolledInput` (no Python on the driver's thread);
+    other backends open as mido opens them.
+    """
 
     def __init__(self, backend: mido.Backend | None = None) -> None:
-        self.backend = backend or mido
+        self.backend = backend or mido.backend
 
     def names(self) -> list[str]:
         return list(self.backend.get_input_names())
 
     def open(self, name: str, *, virtual: bool = False) -> BasePort:
+        if self.backend.name == "mido.backends.rtmidi":
+            return PolledInput(name, api=self.backend.api, virtual=virtual)
         return self.backend.open_input(name, virtual=virtual)
 
 

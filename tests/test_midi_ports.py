@@ -4,9 +4,11 @@ virtual ports on a real backend (JACK here; ALSA where the kernel has it)."""
 from __future__ import annotations
 
 import os
+import threading
 import time
 
 import mido
+import numpy as np
 import pytest
 from mido.ports import BaseInput, BaseOutput
 
@@ -179,6 +181,31 @@ def test_jack_virtual_ports_loop_100_messages(clock):
     assert heard == sent
     assert echoed == [m.copy(note=(m.note + 7) % 128) for m in sent]
 
+
+
+@pytest.mark.jack
+def test_jack_input_keeps_every_note_while_python_is_busy(clock):
+    """The creature's thread may hold the GIL for a second (a GC pass, a numba compile). No
+    Python runs on JACK's thread, so the graph does not stall and no stale buffer is re-read:
+    a 100-note burst arrives whole, in order (mido's callback input got 50 distinct of 100)."""
+    backend = _jack_backend()
+    inputs, outputs = MidoInputs(backend), MidoOutputs(backend)
+    voice = outputs.open("creature-busy", virtual=True)
+    listener = PortSource(match_port(inputs.names(), r"creature-busy$"), clock, factory=inputs)
+    floats = np.random.default_rng(0).random(4_000_000).tolist()
+    busy = threading.Thread(target=sorted, args=(floats,))  # list sorting never releases the GIL
+    sent = [mido.Message("note_on", note=i % 128, velocity=1 + i % 127) for i in range(100)]
+    try:
+        for i, msg in enumerate(sent):
+            voice.send(msg)
+            if i == 49:
+                busy.start()
+        busy.join()
+        heard = _receive_all(listener, 100)
+    finally:
+        voice.close()
+        listener.close()
+    assert heard == sent
 
 def test_alsa_sequencer_virtual_port():
     if not os.path.exists("/dev/snd/seq"):
