@@ -99,6 +99,7 @@ def test_live_output_runs_callbacks_under_jack():
         assert live.ring.available() == 0
         assert live.callbacks >= (rate // 2) // 512
         drained, underruns = live.callbacks, live.underruns
+        deadline = time.monotonic() + 5.0
         while live.callbacks < drained + 3 and time.monotonic() < deadline:
             time.sleep(0.01)
         assert live.underruns >= underruns + 3  # nothing queued: the callback padded with silence and counted it
