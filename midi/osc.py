@@ -25,6 +25,7 @@ this address space.
 
 from __future__ import annotations
 
+import logging
 import math
 import re
 import select
@@ -36,6 +37,8 @@ from pythonosc.osc_packet import OscPacket
 
 from creatures.clock import Clock
 from midi.notes import NoteEvent
+
+logger = logging.getLogger(__name__)
 
 MAX_PACKET = 1024  # bytes; every message of this protocol is far smaller
 NAME = re.compile(r"[A-Za-z0-9_.\-]{1,64}")
@@ -96,6 +99,13 @@ class OscListener:
         self.max_packet = max_packet
         self.socket = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.socket.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, receive_buffer)
+        # The kernel may grant less (Linux caps at net.core.rmem_max, often 208 KiB, and reports
+        # double what it grants): a burst larger than the buffer between two polls is lost, so say so.
+        self.receive_buffer: int = self.socket.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF)
+        if self.receive_buffer < receive_buffer:
+            logger.warning("OSC receive buffer is %d bytes, not the %d asked for; bursts of more than "
+                           "a few hundred messages per tick may drop (raise net.core.rmem_max)",
+                           self.receive_buffer, receive_buffer)
         self.socket.bind((host, port))
         self.socket.setblocking(False)
         self.port: int = self.socket.getsockname()[1]

@@ -185,3 +185,11 @@ def test_malformed_packets_are_dropped_and_counted_by_a_running_peer():
         assert a.process.poll() is None
     finally:
         a.stop()
+
+
+def test_a_receive_buffer_the_kernel_caps_is_reported(clock, caplog):
+    asked = 1 << 30  # beyond any net.core.rmem_max
+    ear = OscListener(clock, receive_buffer=asked)
+    ear.close()
+    assert ear.receive_buffer < asked
+    assert "OSC receive buffer is" in caplog.text and "rmem_max" in caplog.text
