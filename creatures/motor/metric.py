@@ -187,33 +187,46 @@ def pairwise(poses: PoseSet, rows: np.ndarray, cols: np.ndarray, weights: Metric
     return edge_costs(poses, rows[:, None], cols[None, :], weights)
 
 
+@dataclass(frozen=True)
+class Timing:
+    """What :func:`transit_time` needs from the whole pose set, computed once per graph.
+
+    ``typical_speed`` (rad/s) paces a move from rest; ``max_speed`` (rad/s) is the speed
+    limit no joint exceeds on an estimated move (nor, in :mod:`~creatures.motor.playback`,
+    anywhere on the interpolated curve). :meth:`of` takes both from the source material.
+    """
+
+    next_frame: np.ndarray
+    typical_speed: float
+    max_speed: float
+
+    @classmethod
+    def of(cls, poses: PoseSet) -> Timing:
+        next_frame = successors(poses)
+        return cls(next_frame, typical_speed(poses), fastest_speed(poses, next_frame))
+
+
 def transit_time(
-    poses: PoseSet,
-    a: np.ndarray,
-    b: np.ndarray,
-    weights: MetricWeights,
-    *,
-    next_frame: np.ndarray | None = None,
-    speed: float | None = None,
+    poses: PoseSet, a: np.ndarray, b: np.ndarray, weights: MetricWeights, timing: Timing | None = None
 ) -> np.ndarray:
     """Seconds to move ``a → b``: source timing for successors, else estimated from velocity.
 
     The estimate is the closest-transit time; when the joints are at rest (or heading
-    away) it falls back to the pose angle covered at ``speed`` (default: the source
-    material's :func:`typical_speed`). Pass ``next_frame``/``speed`` to reuse them.
+    away) it falls back to the pose angle covered at ``timing.typical_speed``. Closest
+    approach is not arrival, so the estimate alone can be near zero for a large move
+    (playback would then jump); every estimate is therefore lengthened until no joint
+    turns faster than ``timing.max_speed``.
     """
     a = np.asarray(a)
     b = np.asarray(b)
-    next_frame = successors(poses) if next_frame is None else next_frame
-    speed = typical_speed(poses) if speed is None else speed
+    timing = Timing.of(poses) if timing is None else timing
     masses = poses.skeleton.masses
-    source_dt = poses.times[b] - poses.times[a]
-    _, estimate = closest_transit(
-        poses.rotations[a], poses.velocities[a], poses.rotations[b], masses, weights.horizon
-    )
-    at_rest = pose_difference(poses.rotations[a], poses.rotations[b], masses) / (speed * masses.sum())
-    estimate = np.where(estimate > 1e-6, estimate, at_rest)
-    return np.where(next_frame[a] == b, source_dt, np.clip(estimate, 1e-3, 2.0))
+    rot_a, rot_b = poses.rotations[a], poses.rotations[b]
+    _, estimate = closest_transit(rot_a, poses.velocities[a], rot_b, masses, weights.horizon)
+    at_rest = pose_difference(rot_a, rot_b, masses) / (timing.typical_speed * masses.sum())
+    estimate = np.minimum(np.where(estimate > 1e-6, estimate, at_rest), 2.0)
+    limited = quat.angle_between(rot_a, rot_b).max(axis=-1, initial=0.0) / timing.max_speed
+    return np.where(timing.next_frame[a] == b, poses.times[b] - poses.times[a], np.maximum(estimate, limited))
 
 
 def typical_speed(poses: PoseSet) -> float:
@@ -221,3 +234,24 @@ def typical_speed(poses: PoseSet) -> float:
     masses = poses.skeleton.masses
     speed = np.linalg.norm(poses.velocities, axis=-1) @ masses / masses.sum()
     return float(max(np.median(speed), 0.1))
+
+
+def fastest_speed(poses: PoseSet, next_frame: np.ndarray) -> float:
+    """Fastest any joint turns while the source animations play (rad/s, at least 0.1).
+
+    Each source step is measured along the squad curve playback draws through it (with
+    its neighbouring frames as controls), so a path that stays on a source animation
+    is never slowed by the limit this sets. Recorded velocities count too, for pose sets
+    without source steps.
+    """
+    a = np.flatnonzero(next_frame >= 0)
+    b = next_frame[a]
+    before = np.arange(len(poses))
+    before[b] = a
+    after = np.where(next_frame >= 0, next_frame, np.arange(len(poses)))
+    rot = poses.rotations
+    controls = quat.squad_control(rot[before], rot, rot[after])
+    turns = quat.squad_rate(rot[a], rot[b], controls[a], controls[b]).max(axis=-1, initial=0.0)
+    played = np.max(turns / (poses.times[b] - poses.times[a]), initial=0.0)
+    recorded = np.linalg.norm(poses.velocities, axis=-1).max(initial=0.0)
+    return float(max(played, recorded, 0.1))

@@ -4,7 +4,10 @@ A path through the motor graph is a list of key-frames; playback interpolates th
 angles between them with *squad* (graph nodes may be sparser than source frames, so a
 higher-order interpolant is used) and the root linearly. Key-frame timing is recaptured
 from the source animation where consecutive nodes are consecutive frames, and otherwise
-estimated from the joint velocities (:func:`creatures.motor.metric.transit_time`).
+estimated from the joint velocities (:func:`creatures.motor.metric.transit_time`). No
+segment plays faster than the source animations themselves ever move
+(:attr:`creatures.motor.metric.Timing.max_speed`), so a jump between poses is always
+travelled, never popped.
 
 Playback is driven by elapsed clock time: ask for the pose at ``clock.now()`` and it is
 the same whatever the frame rate.
@@ -62,8 +65,12 @@ class Playback:
         self.keys = quat.hemisphere_align(np.concatenate((rotations[None], graph.poses.rotations[nodes])))
         self.controls = quat.squad_controls(self.keys)
         self.roots = np.concatenate((root[None], graph.poses.roots[nodes]))
-        gaps = np.concatenate(([first_gap], durations)) / speed
-        self.key_times = start_time + np.concatenate(([0.0], np.cumsum(gaps)))
+        # Squad bends each segment towards its neighbours, so next to a sharp turn it can
+        # outrun the edge's own timing: slow such a segment to the speed limit. A run of
+        # source frames never needs this (the limit is the source's own played speed).
+        turns = quat.squad_rate(self.keys[:-1], self.keys[1:], self.controls[:-1], self.controls[1:]).max(axis=-1)
+        gaps = np.maximum(np.concatenate(([first_gap], durations)), turns / graph.timing.max_speed)
+        self.key_times = start_time + np.concatenate(([0.0], np.cumsum(gaps / speed)))
 
     @staticmethod
     def _first_gap(graph: MotorGraph, start: GraphPosition, first: int) -> float:

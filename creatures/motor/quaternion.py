@@ -148,8 +148,16 @@ def squad_controls(q: np.ndarray) -> np.ndarray:
     order spline interpolant" of the appendix).
     """
     q = hemisphere_align(np.asarray(q, dtype=float))
-    prev = np.concatenate((q[:1], q[:-1]), axis=0)
-    nxt = np.concatenate((q[1:], q[-1:]), axis=0)
+    return squad_control(np.concatenate((q[:1], q[:-1]), axis=0), q, np.concatenate((q[1:], q[-1:]), axis=0))
+
+
+def squad_control(prev: np.ndarray, q: np.ndarray, nxt: np.ndarray) -> np.ndarray:
+    """The control quaternion of key ``q`` between keys ``prev`` and ``nxt`` (broadcast).
+
+    For keys that are not one sequence, e.g. every source frame of a graph at once; pass
+    ``q`` itself as ``prev`` or ``nxt`` at an end. :func:`squad` takes the short way
+    everywhere, so the keys' signs do not matter.
+    """
     inv = conjugate(q)
     tangent = log(multiply(inv, nxt)) + log(multiply(inv, prev))
     return multiply(q, exp(-0.25 * tangent))
@@ -163,6 +171,25 @@ def squad(
     outer = slerp(q1, q2, alpha)
     inner = slerp(s1, s2, alpha)
     return slerp(outer, inner, 2.0 * alpha * (1.0 - alpha))
+
+
+def squad_rate(
+    q1: np.ndarray, q2: np.ndarray, s1: np.ndarray, s2: np.ndarray, samples: int = 16
+) -> np.ndarray:
+    """Peak turning rate (radians per unit ``alpha``) along each :func:`squad` segment.
+
+    Squad bends a segment towards its neighbours, so near a sharp turn it moves faster
+    than the straight ``angle_between(q1, q2)``; playback needs the true peak to keep
+    to a speed limit. Measured over ``samples`` equal steps of ``alpha``, one step at a
+    time so a whole graph's source steps fit in memory; one value per leading index.
+    """
+    previous = np.asarray(q1, dtype=float)
+    peak = np.zeros(previous.shape[:-1])
+    for alpha in np.linspace(0.0, 1.0, samples + 1)[1:]:
+        point = squad(q1, q2, s1, s2, alpha)
+        peak = np.maximum(peak, angle_between(point, previous))
+        previous = point
+    return peak * samples
 
 
 def hemisphere_align(q: np.ndarray) -> np.ndarray:
