@@ -55,7 +55,6 @@ kind = "exchange"
 name = "bo"
 kind = "exchange"
 channel = 1
-hears_input = false
 """
 
 

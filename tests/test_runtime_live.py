@@ -107,7 +107,8 @@ def test_live_midi_notes_are_heard_when_the_key_goes_down(tmp_path, monkeypatch)
 
     monkeypatch.setattr(live, "MidoInputs", Keyboards)
     config = tmp_path / "live.toml"
-    config.write_text(CONFIG.replace('output_port = "NoSuchSynth"', 'input_port = "keyboard"'))
+    deaf = '[[creature]]\nname = "bo"\nkind = "exchange"\nchannel = 1\nhears_input = false\n'
+    config.write_text(CONFIG.replace('output_port = "NoSuchSynth"', 'input_port = "keyboard"') + deaf)
     inst = load_installation(config)
     clock = SimulatedClock()
     session = Session(inst, clock, EventLog(), MemorySink())
@@ -119,6 +120,9 @@ def test_live_midi_notes_are_heard_when_the_key_goes_down(tmp_path, monkeypatch)
     assert session.world.deliver(clock.now()) == 1
     heard = [e for e in session.log.records if e["kind"] == "heard"]
     assert [(e["pitch"], e["velocity"], e["time"], e["source"]) for e in heard] == [(64, 90, 0.5, "midi")]
+    # A keyboard is input like a file: only creatures that hear the input take the note.
+    placed = [(e["creature"], e["source"]) for e in session.log.records if e["kind"] == "placed"]
+    assert placed == [("ada", "input")]
 
 
 @pytest.mark.jack

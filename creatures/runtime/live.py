@@ -77,7 +77,7 @@ class _Inputs:
                 # released: notes are heard at note-on, with a nominal length (the real one
                 # is not known yet).
                 if msg.type == "note_on" and not is_note_off(msg):
-                    world.inject(NoteEvent(t, msg.note, msg.velocity, msg.channel, HEARD_LENGTH), "midi")
+                    world.inject(NoteEvent(t, msg.note, msg.velocity, msg.channel, HEARD_LENGTH), via="midi")
         if self.osc is not None:
             for heard in self.osc.poll():
                 if heard.note is not None:
@@ -122,7 +122,9 @@ def run_live(
         port = ResilientPort(settings.midi.output_port, MidoOutputs(), clock,
                              report=lambda m: say(f"MIDI output: {m}; {HELP}"))
         sink = PortSink(port)
-    session = Session(inst, clock, log, sink)
+    transcribe = settings.audio.transcribe
+    session = Session(inst, clock, log, sink,
+                      transcribe=transcribe if transcribe is not None else not settings.midi.input_port)
     state_dir = state or inst.resolve(settings.state)
     if state_dir is not None:
         summary.restored = session.load_state(state_dir)

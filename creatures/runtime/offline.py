@@ -100,6 +100,8 @@ def run_offline(
     notes, samples = _inputs(inst, audio, midi, duration, session.input_rng)
     for note in notes:
         session.world.inject(note)
+    transcribe = settings.audio.transcribe
+    session.transcribe = samples is not None and (transcribe if transcribe is not None else not notes)
 
     sr, tick = settings.audio.sample_rate, settings.tick
     wav = WavOutput(out / "out.wav", sr, 2) if settings.output.wav else None

@@ -29,6 +29,9 @@ class AudioSection(Strict):
     output_device: str | int | None = Field(None, description="live output device (name fragment or index)")
     air: bool = Field(False, description="creatures hear each other's voices (and their own) through "
                                          "the room, one tick late, as well as the input")
+    transcribe: bool | None = Field(None, description="hear the pitched notes of the input audio (file or "
+                                                      "microphone) as note events; unset = only when the "
+                                                      "run has no MIDI note input")
 
 
 class MidiSection(Strict):

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from audio.mixer import Mixer
+from audio.transcribe import Transcriber
 from creatures.clock import Clock
 from creatures.events import EventLog
 from creatures.kinds import KINDS
@@ -31,7 +32,9 @@ STATE_KIND = "creature-music creature state"
 class Session:
     """The creatures of one installation on one clock, ticking together."""
 
-    def __init__(self, inst: LoadedInstallation, clock: Clock, log: EventLog, sink: NoteSink) -> None:
+    def __init__(self, inst: LoadedInstallation, clock: Clock, log: EventLog, sink: NoteSink, *,
+                 transcribe: bool = False) -> None:
+        """``transcribe``: the input audio's pitched notes are heard as notes (audio-only runs)."""
         settings = inst.settings
         self.inst = inst
         self.clock = clock
@@ -51,6 +54,8 @@ class Session:
         self._voices = np.zeros((len(self.creatures), block))
         self._room = np.zeros(0)
         self.air = settings.audio.air
+        self.transcribe = transcribe
+        self._transcriber: Transcriber | None = None
         self.ticks = 0
 
     def step(self, t: float, frames: int, recorded: np.ndarray | None, *, audio: bool = True) -> np.ndarray | None:
@@ -60,6 +65,8 @@ class Session:
         stereo mix ``(frames, 2)`` (a view, valid until the next step), or None when
         ``audio`` is off and no creature hears the room.
         """
+        if self.transcribe and recorded is not None:
+            self._hear_notes(t, recorded)
         self.world.deliver(t)
         heard = self._ears(recorded, frames)
         if heard is not None:
@@ -77,6 +84,13 @@ class Session:
         if self.air:
             self._room = voices.T @ self.mixer.gains
         return self.mixer.mix(voices)
+
+    def _hear_notes(self, t: float, recorded: np.ndarray) -> None:
+        """Notes of the input audio join the note bus as they are recognised."""
+        if self._transcriber is None:  # the input's first sample sounded at the start of this tick
+            self._transcriber = Transcriber(self.sample_rate, t0=t - len(recorded) / self.sample_rate)
+        for note in self._transcriber.feed(recorded):
+            self.world.inject(note, via="audio")
 
     def _ears(self, recorded: np.ndarray | None, frames: int) -> np.ndarray | None:
         """The input, plus the room's sound (every voice of the previous tick) with air on."""

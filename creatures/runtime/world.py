@@ -65,9 +65,14 @@ class World:
         """The shared scheduler as ``creature`` sees it: what it plays, the others hear."""
         return CreatureScheduler(self, creature)
 
-    def inject(self, note: NoteEvent, source: str = INPUT) -> None:
-        """A note from outside the colony, heard by every creature when it starts."""
-        self.log.emit(self.clock.now(), "heard", source=source, time=note.time, pitch=note.pitch,
+    def inject(self, note: NoteEvent, source: str = INPUT, *, via: str | None = None) -> None:
+        """A note from outside the colony, heard by every creature when it starts.
+
+        ``source`` is who played it as the creatures see it (:data:`INPUT` for anything from
+        outside the colony, else a remote creature's name); ``via`` names the channel it came
+        through (``"midi"``, ``"audio"``) for the events log.
+        """
+        self.log.emit(self.clock.now(), "heard", source=via or source, time=note.time, pitch=note.pitch,
                       velocity=note.velocity, duration=note.duration)
         heapq.heappush(self._pending, (note.time, next(self._seq), note, source))
 

@@ -1,0 +1,54 @@
+"""Audio-only runs: the input audio's pitched notes reach the creatures as note events."""
+
+from __future__ import annotations
+
+import numpy as np
+import soundfile as sf
+
+from audio.transcribe import Transcriber
+from creatures.events import read_events
+from creatures.runtime.inputs import phrase_notes, render_notes
+from creatures.runtime.offline import run_offline
+from creatures.runtime.schema import load_installation
+from installations import path as installation_path
+
+SR = 22050
+
+
+def _phrase() -> tuple[list, np.ndarray]:
+    notes = phrase_notes(start=0.5, gap=4.0, rng=np.random.default_rng(3))
+    return notes, render_notes(notes, SR, 13.0)
+
+
+def test_streamed_audio_gives_the_notes_that_were_played():
+    notes, audio = _phrase()
+    noisy = audio + np.random.default_rng(0).normal(0.0, 0.003, len(audio)).astype(np.float32)
+    ear = Transcriber(SR)
+    heard = [n for start in range(0, len(noisy), 882) for n in ear.feed(noisy[start:start + 882])]
+    assert [n.pitch for n in heard] == [n.pitch for n in notes]
+    assert max(abs(h.time - n.time) for h, n in zip(heard, notes)) < 0.03
+    assert ear.notes == len(notes)
+
+
+def test_an_audio_only_offline_run_feeds_the_note_pipeline(tmp_path):
+    notes, audio = _phrase()
+    wav = tmp_path / "flute.wav"
+    sf.write(wav, audio, SR)
+    inst = load_installation(installation_path("exchange"))
+    inst.settings.output.wav = inst.settings.output.report = False
+    run_offline(inst, tmp_path / "out", audio=wav, duration=13.0)
+    events = read_events(tmp_path / "out" / "events.jsonl")
+    heard = [e for e in events if e["kind"] == "heard"]
+    assert heard and all(e["source"] == "audio" for e in heard)
+    assert [e["pitch"] for e in heard] == [n.pitch for n in notes]
+    # Heard notes are the creatures' own material now: a creature that hears the input places them.
+    placed = {e["heard"] for e in events if e["kind"] == "placed" and e["source"] == "input"}
+    assert placed and placed <= {n.pitch for n in notes}
+
+
+def test_runs_that_are_given_notes_do_not_also_transcribe_them(tmp_path):
+    inst = load_installation(installation_path("exchange"))  # generated phrase: notes and their tones
+    inst.settings.output.wav = inst.settings.output.report = False
+    run_offline(inst, tmp_path / "out", duration=20.0)
+    heard = [e for e in read_events(tmp_path / "out" / "events.jsonl") if e["kind"] == "heard"]
+    assert heard and {e["source"] for e in heard} == {"input"}
