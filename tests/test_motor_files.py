@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+import copy
 import json
+import re
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from creatures.motor import quaternion as quat
 from creatures.motor.animations import creature_skeleton, strike
@@ -118,11 +122,12 @@ def test_shipped_skeleton_loads_as_json_and_toml(tmp_path):
     "text, where, message",
     [
         ('{"joints": [\n {"name": "a"},\n {"name": "b", "parent": "zz"}\n]}', ":3: ", "parent 'zz' is not listed before it"),
-        ('{"joints": [\n {"name": "a"},\n {"name": "a"}\n]}', ":2: ", "listed twice"),
+        ('{"joints": [\n {"name": "a"},\n {"name": "a"}\n]}', ":3: ", "listed twice"),
         ('{"joints": [\n {"name": "a", "offset": [1, 2]}\n]}', ":2: ", "'offset' must be three numbers"),
         ('{"joints": [\n {"name": "a"}\n],\n "end_effectors": ["hand"]}', ":4: ", "end-effector 'hand' is not a joint"),
         ('{"joints": [\n {"name": "a"},,\n]}', ":2: ", "malformed JSON"),
-        ('{"joints": []}', ": ", "non-empty list 'joints'"),
+        ('{"end_effectors": [],\n "joints": []}', ":2: ", "non-empty list 'joints'"),
+        ('{"joints": [\n {"name": "a"},\n {"name": "b", "mass": true}\n]}', ":3: ", "'mass' must be a non-negative number"),
     ],
 )
 def test_malformed_skeleton_json_names_file_and_line(tmp_path, text, where, message):
@@ -188,3 +193,148 @@ def test_graph_file_that_is_not_json_or_not_a_graph(saved_graph, tmp_path):
     other.write_text('{"format": "gesture-model", "version": 1}')
     with pytest.raises(StateFileError, match="not a 'motor-graph' file"):
         MotorGraph.load(other)
+
+
+def rewrite(path, mutate) -> str:
+    """Apply ``mutate`` to the saved document and write it back the way ``save_json`` does."""
+    document = json.loads(path.read_text())
+    mutate(document)
+    text = json.dumps(document, indent=1, sort_keys=True)
+    path.write_text(text)
+    return text
+
+
+def line_with(text: str, snippet: str) -> int:
+    """The one line holding ``snippet``."""
+    lines = [n for n, line in enumerate(text.splitlines(), start=1) if snippet in line]
+    assert len(lines) == 1, (snippet, lines)
+    return lines[0]
+
+
+def copy_rotations_then(node: int, mutate):
+    """Give ``node`` the rotations of node 3 (a string that now appears twice), then ``mutate``."""
+
+    def both(document):
+        document["nodes"][node]["rotations"] = document["nodes"][3]["rotations"]
+        mutate(document)
+
+    return both
+
+
+@pytest.mark.parametrize(
+    "mutate, snippet, message",
+    [
+        (lambda d: d["weights"].update(bogus=1), '"bogus"', "unknown metric weight 'bogus'"),
+        (lambda d: d["weights"].update(time="x"), '"time": "x"', "metric weight 'time' must be a non-negative"),
+        (lambda d: d["weights"].update(horizon=0), '"horizon": 0', "metric weight 'horizon' must be a positive"),
+        (lambda d: d["weights"].update(ratios=["1/0"]), '"ratios": [', "ratio '1/0' must be a fraction"),
+        (lambda d: d.update(weights=[1]), '"weights": [', "metric weights must be an object"),
+        (lambda d: d.update(edges=5), '"edges": 5', "'edges' must be a list"),
+        (lambda d: d.update(forbidden="0 1"), '"forbidden": "0 1"', "'forbidden' must be a list"),
+        (lambda d: d["edges"].__setitem__(4, "0 1 -1 1"), '"0 1 -1 1"', "needs a finite cost ≥ 0"),
+        (lambda d: d["edges"].__setitem__(4, "0 1 0.5 0"), '"0 1 0.5 0"', "finite scale > 0"),
+        (lambda d: d["edges"].__setitem__(4, "2 2 0.5 1"), '"2 2 0.5 1"', "joins node 2 to itself"),
+        (lambda d: d["nodes"][7].update(favour=-0.25), '"favour": -0.25', "node 7 is malformed: 'favour' must be positive"),
+        (lambda d: d["nodes"][7].update(labels="low"), '"labels": "low"', "node 7 is malformed: 'labels' must be a list"),
+        (lambda d: d["nodes"][7].update(source=3), '"source": 3', "node 7 is malformed: 'source' must be a string"),
+        (copy_rotations_then(30, lambda d: d["nodes"][30].update(time="x")), '"time": "x"', "node 30 is malformed: 'time'"),
+        (lambda d: d["nodes"][5].update(rotations=" ".join(["0"] * len(d["nodes"][5]["rotations"].split()))),
+         '"rotations": "0 0 0', "node 5 is malformed: 'rotations' holds a zero quaternion"),
+        (lambda d: d["skeleton"]["joints"][2].update(mass="x"), '"mass": "x"', "'mass' must be a non-negative number"),
+    ],
+)
+def test_graph_file_errors_name_the_line_of_the_element(saved_graph, mutate, snippet, message):
+    _, path = saved_graph
+    text = rewrite(path, mutate)
+    with pytest.raises(StateFileError) as caught:
+        MotorGraph.load(path)
+    assert str(caught.value).startswith(f"{path}:{line_with(text, snippet)}: ")
+    assert message in str(caught.value)
+
+
+def test_graph_file_node_missing_a_key_names_the_node_line(saved_graph):
+    graph, path = saved_graph
+    graph.set_favour(12, 0.123456)  # favour sorts first: the node opens on the line before it
+    graph.save(path)
+    text = rewrite(path, lambda d: d["nodes"][12].pop("rotations"))
+    with pytest.raises(StateFileError, match=rf"{path}:{line_with(text, '0.123456') - 1}: node 12 is malformed: no 'rotations'"):
+        MotorGraph.load(path)
+
+
+json_values = st.recursive(
+    st.none() | st.booleans() | st.integers(-5, 10**6) | st.floats(allow_nan=False, allow_infinity=False) | st.text(max_size=8),
+    lambda inner: st.lists(inner, max_size=3) | st.dictionaries(st.text(max_size=6), inner, max_size=3),
+    max_leaves=6,
+)
+bad_tokens = st.sampled_from(["-1", "-0.5", "0", "nan", "inf", "1e999", "x", "", "99999", "3.5", "1 2"])
+
+
+def paths_of(value, prefix=()):
+    """Every path (keys and indices) into a JSON document, the document itself included."""
+    yield prefix
+    children = value.items() if isinstance(value, dict) else enumerate(value) if isinstance(value, list) else ()
+    for key, child in children:
+        yield from paths_of(child, (*prefix, key))
+
+
+@pytest.fixture(scope="module")
+def small_graph_document(tmp_path_factory):
+    path = tmp_path_factory.mktemp("fuzz") / "graph.json"
+    graph = MotorGraph.build(strike(creature_skeleton()).subset(np.arange(6)), k=2)
+    graph.forbid(*next(iter(graph.edges())))
+    graph.set_favour(2, 0.5)
+    graph.save(path)
+    document = json.loads(path.read_text())
+    paths = [p for p in paths_of(document) if p and p[0] not in ("format", "version")]
+    return path, document, paths
+
+
+def corrupt_at(document, path, action, value, token):
+    """Replace, delete or (for strings of numbers) re-spell one token of the value at ``path``."""
+    *parents, last = path
+    container = document
+    for step in parents:
+        container = container[step]
+    if action == "delete":
+        del container[last]
+    elif action == "token" and isinstance(container[last], str):
+        words = container[last].split() or [""]
+        words[len(words) // 2] = token
+        container[last] = " ".join(words)
+    else:
+        container[last] = value
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data())
+def test_fuzzed_graph_files_fail_only_with_a_located_state_file_error(small_graph_document, data):
+    """Random corruptions of a saved graph: it loads (and then has no negative cost or favour)
+    or raises StateFileError naming the file and a line, never a raw TypeError/KeyError."""
+    path, original, paths = small_graph_document
+    document = copy.deepcopy(original)
+    for _ in range(data.draw(st.integers(1, 3))):
+        alive = [p for p in paths if _exists(document, p)]
+        corrupt_at(
+            document,
+            data.draw(st.sampled_from(alive)),
+            data.draw(st.sampled_from(["replace", "delete", "token", "token"])),
+            data.draw(json_values),
+            data.draw(bad_tokens),
+        )
+    path.write_text(json.dumps(document, indent=1, sort_keys=True))
+    try:
+        graph = MotorGraph.load(path)
+    except StateFileError as exc:
+        assert re.match(rf"{re.escape(str(path))}:\d+: ", str(exc)), str(exc)
+    else:
+        costs = np.array(list(graph.edges().values()))
+        assert np.all(np.isfinite(costs) & (costs >= 0.0)) and np.all(graph.favour > 0.0)
+
+
+def _exists(document, path) -> bool:
+    for step in path:
+        try:
+            document = document[step]
+        except (KeyError, IndexError, TypeError):
+            return False
+    return True

@@ -14,6 +14,7 @@ through :mod:`creatures.persist`: one line per node, one line per edge.
 
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,8 +28,9 @@ from scipy.spatial import cKDTree
 from creatures.motor import metric
 from creatures.motor.metric import MetricWeights
 from creatures.motor.pose import LOW_ENERGY, PoseSet
-from creatures.motor.skeleton import Skeleton, SkeletonFileError, line_of
-from creatures.persist import StateFileError, load_json, save_json
+from creatures.motor.graph_file import read_graph
+from creatures.motor.skeleton import Skeleton
+from creatures.persist import load_json, save_json
 
 KIND = "motor-graph"
 
@@ -128,8 +130,8 @@ class MotorGraph:
             raise ValueError(f"a motor graph edge joins two different nodes (got {a} → {a})")
         if cost is None:
             cost = float(metric.edge_costs(self.poses, np.array([a]), np.array([b]), self.weights)[0])
-        if not cost >= 0.0:
-            raise ValueError(f"edge cost must be non-negative (got {cost!r})")
+        if not (math.isfinite(cost) and cost >= 0.0):
+            raise ValueError(f"edge cost must be finite and non-negative (got {cost!r})")
         self.forbidden.discard((a, b))
         self._base[(a, b)] = float(cost)
         self._changed()
@@ -138,16 +140,16 @@ class MotorGraph:
         """Multiply the cost of ``a → b`` by ``scale`` (makes the route less or more likely)."""
         if (a, b) not in self._base:
             raise KeyError(f"no edge {a} → {b}")
-        if not scale > 0.0:
-            raise ValueError(f"edge scale must be positive (got {scale!r})")
+        if not (math.isfinite(scale) and scale > 0.0):
+            raise ValueError(f"edge scale must be finite and positive (got {scale!r})")
         self._scales[(a, b)] = float(scale)
         self._changed()
 
     def set_favour(self, node: int, multiplier: float) -> None:
         """Scale all of ``node``'s outgoing edges: < 1 favours the node, > 1 avoids it."""
         self._check_nodes(node)
-        if not multiplier > 0.0:
-            raise ValueError(f"favour multiplier must be positive (got {multiplier!r})")
+        if not (math.isfinite(multiplier) and multiplier > 0.0):
+            raise ValueError(f"favour multiplier must be finite and positive (got {multiplier!r})")
         self.favour[node] = multiplier
         self._changed()
 
@@ -309,91 +311,24 @@ class MotorGraph:
         """Read a graph saved by :meth:`save`; errors name the file and the offending line."""
         path = Path(path)
         document = load_json(path, kind=KIND)
-        text = path.read_text(encoding="utf-8")
-        try:
-            return cls.from_dict(document, source=str(path), text=text)
-        except SkeletonFileError as exc:
-            raise StateFileError(str(exc)) from None
+        return cls.from_dict(document, source=str(path), text=path.read_text(encoding="utf-8"))
 
     @classmethod
     def from_dict(cls, data: dict[str, Any], *, source: str = "<motor graph>", text: str = "") -> MotorGraph:
-        def fail(message: str, needle: str | None = None) -> StateFileError:
-            line = line_of(text, needle) if needle else None
-            return StateFileError(f"{source}:{line}: {message}" if line else f"{source}: {message}")
-
-        for key in ("skeleton", "nodes", "edges"):
-            if key not in data:
-                raise fail(f"missing key {key!r}")
-        skeleton = Skeleton.from_dict(data["skeleton"], source=source, text=text)
-        joints = skeleton.joint_count
-        nodes = data["nodes"]
-        if not isinstance(nodes, list) or not nodes:
-            raise fail("'nodes' must be a non-empty list", "nodes")
-        sources: list[str] = []
-        arrays: dict[str, list] = {"rotations": [], "velocities": [], "roots": []}
-        times, source_ids, labels, favour = [], [], [], []
-        for i, node in enumerate(nodes):
-            try:
-                name = str(node["source"])
-                arrays["rotations"].append(_parse_floats(node["rotations"], (joints, 4)))
-                arrays["velocities"].append(_parse_floats(node["velocities"], (joints, 3)))
-                arrays["roots"].append(_parse_floats(node["root"], (3,)))
-                times.append(float(node["time"]))
-                labels.append(frozenset(str(x) for x in node.get("labels", [])))
-                favour.append(float(node.get("favour", 1.0)))
-            except (KeyError, TypeError, ValueError) as exc:
-                needle = node.get("rotations") if isinstance(node, dict) else None
-                raise fail(f"node {i} is malformed ({exc})", needle if isinstance(needle, str) else None) from None
-            if name not in sources:
-                sources.append(name)
-            source_ids.append(sources.index(name))
-        poses = PoseSet(
-            skeleton=skeleton,
-            rotations=np.array(arrays["rotations"]),
-            velocities=np.array(arrays["velocities"]),
-            roots=np.array(arrays["roots"]),
-            times=np.array(times),
-            source_ids=np.array(source_ids),
-            sources=sources,
-            labels=labels,
+        """Build from :meth:`to_dict` data, checked element by element (:mod:`~creatures.motor.graph_file`)."""
+        parts = read_graph(data, source=source, text=text)
+        return cls(
+            parts.poses,
+            parts.edges,
+            weights=parts.weights,
+            scales=parts.scales,
+            forbidden=parts.forbidden,
+            favour=parts.favour,
         )
-        edges: dict[tuple[int, int], float] = {}
-        scales: dict[tuple[int, int], float] = {}
-        for entry in data["edges"]:
-            a, b, cost, scale = _parse_edge(entry, 4, len(poses), fail)
-            edges[(int(a), int(b))] = cost
-            if scale != 1.0:
-                scales[(int(a), int(b))] = scale
-        forbidden = {tuple(int(x) for x in _parse_edge(e, 2, len(poses), fail)) for e in data.get("forbidden", [])}
-        weights = MetricWeights.from_dict(data["weights"]) if "weights" in data else None
-        return cls(poses, edges, weights=weights, scales=scales, forbidden=forbidden, favour=np.array(favour))
 
 
 def _floats(array: np.ndarray) -> str:
     return " ".join(f"{x:.9g}" for x in np.ravel(array))
-
-
-def _parse_floats(text: str, shape: tuple[int, ...]) -> np.ndarray:
-    if not isinstance(text, str):
-        raise TypeError(f"expected a string of numbers, got {type(text).__name__}")
-    values = np.array([float(x) for x in text.split()])
-    if values.size != int(np.prod(shape)) or not np.all(np.isfinite(values)):
-        raise ValueError(f"expected {int(np.prod(shape))} finite numbers, got {values.size}")
-    return values.reshape(shape)
-
-
-def _parse_edge(entry: Any, fields: int, nodes: int, fail) -> tuple:
-    parts = entry.split() if isinstance(entry, str) else []
-    try:
-        if len(parts) != fields:
-            raise ValueError
-        a, b = int(parts[0]), int(parts[1])
-        rest = [float(x) for x in parts[2:]]
-    except ValueError:
-        raise fail(f"edge {entry!r} must be {fields} numbers 'from to" + (" cost scale'" if fields == 4 else "'"), str(entry)) from None
-    if not (0 <= a < nodes and 0 <= b < nodes) or any(not (x >= 0.0) for x in rest):
-        raise fail(f"edge {entry!r} names a node outside 0..{nodes - 1} or has a negative cost", str(entry))
-    return (a, b, *rest)
 
 
 def _features(poses: PoseSet) -> np.ndarray:

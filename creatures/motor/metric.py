@@ -21,13 +21,27 @@ is one call.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import math
+from dataclasses import dataclass, field, fields
 from fractions import Fraction
+from typing import Any
 
 import numpy as np
 
 from creatures.motor import quaternion as quat
 from creatures.motor.pose import PoseSet
+
+
+class WeightError(ValueError):
+    """A metric weight is unknown or out of range; ``key`` names it (``None``: the table)."""
+
+    def __init__(self, key: str | None, message: str) -> None:
+        super().__init__(message)
+        self.key = key
+
+
+_COST_SCALES = ("pose", "transit", "time", "jump")
+_SPANS = ("horizon", "inhibition_width", "ratio_tolerance")
 
 
 @dataclass(frozen=True)
@@ -48,6 +62,19 @@ class MetricWeights:
     ratios: tuple[Fraction, ...] = field(default=())
     ratio_tolerance: float = 0.05
 
+    def __post_init__(self) -> None:
+        """Refuse weights that would break the graph: a negative cost scale can make an edge
+        cost negative (A* is then no longer exact) and a zero span divides by zero."""
+        for name in _COST_SCALES + _SPANS:
+            value = getattr(self, name)
+            number = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+            if not (number and (value >= 0.0 if name in _COST_SCALES else value > 0.0)):
+                sign = "non-negative" if name in _COST_SCALES else "positive"
+                raise WeightError(name, f"metric weight {name!r} must be a {sign} finite number (got {value!r:.40})")
+        for ratio in self.ratios:
+            if not (isinstance(ratio, Fraction) and 0 < ratio <= 1):
+                raise WeightError("ratios", f"ratio {ratio!r} must be a fraction in (0, 1]")
+
     def to_dict(self) -> dict:
         return {
             "pose": self.pose,
@@ -61,8 +88,27 @@ class MetricWeights:
         }
 
     @classmethod
-    def from_dict(cls, data: dict) -> MetricWeights:
-        return cls(**{**data, "ratios": tuple(Fraction(r) for r in data.get("ratios", ()))})
+    def from_dict(cls, data: Any) -> MetricWeights:
+        """Weights from :meth:`to_dict` data; :class:`WeightError` names any bad entry."""
+        if not isinstance(data, dict):
+            raise WeightError(None, f"metric weights must be an object of names and numbers (got {data!r:.40})")
+        known = [f.name for f in fields(cls)]
+        for key in data:
+            if key not in known:
+                raise WeightError(key, f"unknown metric weight {key!r} (known: {', '.join(known)})")
+        ratios = data.get("ratios", [])
+        if not isinstance(ratios, list):
+            raise WeightError("ratios", f"'ratios' must be a list of fractions such as \"2/3\" (got {ratios!r:.40})")
+        return cls(**{**data, "ratios": tuple(_fraction(r) for r in ratios)})
+
+
+def _fraction(text: Any) -> Fraction:
+    if isinstance(text, str):
+        try:
+            return Fraction(text)
+        except (ValueError, ZeroDivisionError):
+            pass
+    raise WeightError("ratios", f"ratio {text!r:.40} must be a fraction such as \"2/3\"")
 
 
 def low_integer_ratios(limit: int = 4) -> tuple[Fraction, ...]:

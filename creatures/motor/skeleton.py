@@ -23,6 +23,7 @@ Joints must be listed parent-before-child.
 from __future__ import annotations
 
 import json
+import math
 import os
 import re
 import tomllib
@@ -33,6 +34,7 @@ from typing import Any
 import numpy as np
 
 from creatures.motor import quaternion as quat
+from creatures.motor.json_lines import JsonPath, line_at
 
 
 class SkeletonFileError(ValueError):
@@ -144,54 +146,59 @@ class Skeleton:
         return {"joints": joints, "end_effectors": list(self.end_effectors)}
 
     @classmethod
-    def from_dict(cls, data: dict[str, Any], *, source: str = "<skeleton>", text: str = "") -> Skeleton:
-        """Build from :meth:`to_dict` data; errors name ``source`` and, given ``text``, a line."""
+    def from_dict(
+        cls, data: dict[str, Any], *, source: str = "<skeleton>", text: str = "", at: JsonPath | None = None
+    ) -> Skeleton:
+        """Build from :meth:`to_dict` data; errors name ``source`` and, given ``text``, a line.
 
-        def fail(message: str, needle: str | None = None) -> SkeletonFileError:
-            line = line_of(text, needle) if needle else None
+        ``at`` is where ``data`` sits in ``text`` when that is JSON (``()`` for a skeleton
+        file, ``("skeleton",)`` inside a saved graph): each error then names its element's
+        own line. Otherwise (TOML) the line is found by searching for the joint's name.
+        """
+
+        def fail(message: str, path: JsonPath, needle: str | None = None) -> SkeletonFileError:
+            if at is not None:
+                line = line_at(text, at + path)
+            else:
+                line = line_of(text, needle) if needle else None
             where = f"{source}:{line}" if line else source
             return SkeletonFileError(f"{where}: {message}")
 
         joints = data.get("joints") if isinstance(data, dict) else None
         if not isinstance(joints, list) or not joints:
-            raise fail("expected a non-empty list 'joints'")
+            raise fail("expected a non-empty list 'joints'", ("joints",), "joints")
         names: list[str] = []
         parents: list[int] = []
         offsets: list[list[float]] = []
         masses: list[float | None] = []
         for k, joint in enumerate(joints):
             if not isinstance(joint, dict) or not isinstance(joint.get("name"), str):
-                raise fail(f"joints[{k}] needs a string 'name'")
+                raise fail(f"joints[{k}] needs a string 'name'", ("joints", k))
             name = joint["name"]
-            needle = name
             if name in names:
-                raise fail(f"joint {name!r} is listed twice", needle)
+                raise fail(f"joint {name!r} is listed twice", ("joints", k), name)
             parent = joint.get("parent")
             if parent is None:
                 parents.append(-1)
             elif parent in names:
                 parents.append(names.index(parent))
             else:
-                raise fail(f"joint {name!r}: parent {parent!r} is not listed before it", needle)
+                raise fail(f"joint {name!r}: parent {parent!r} is not listed before it", ("joints", k, "parent"), name)
             offset = joint.get("offset", [0.0, 0.0, 0.0])
-            if not (
-                isinstance(offset, list)
-                and len(offset) == 3
-                and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in offset)
-            ):
-                raise fail(f"joint {name!r}: 'offset' must be three numbers", needle)
+            if not (isinstance(offset, list) and len(offset) == 3 and all(_finite(x) for x in offset)):
+                raise fail(f"joint {name!r}: 'offset' must be three numbers", ("joints", k, "offset"), name)
             mass = joint.get("mass")
-            if mass is not None and not (isinstance(mass, (int, float)) and mass >= 0):
-                raise fail(f"joint {name!r}: 'mass' must be a non-negative number", needle)
+            if mass is not None and not (_finite(mass) and mass >= 0):
+                raise fail(f"joint {name!r}: 'mass' must be a non-negative number", ("joints", k, "mass"), name)
             names.append(name)
             offsets.append([float(x) for x in offset])
             masses.append(None if mass is None else float(mass))
         effectors = data.get("end_effectors", [])
         if not isinstance(effectors, list) or not all(isinstance(e, str) for e in effectors):
-            raise fail("'end_effectors' must be a list of joint names", "end_effectors")
-        for name in effectors:
+            raise fail("'end_effectors' must be a list of joint names", ("end_effectors",), "end_effectors")
+        for e, name in enumerate(effectors):
             if name not in names:
-                raise fail(f"end-effector {name!r} is not a joint", "end_effectors")
+                raise fail(f"end-effector {name!r} is not a joint", ("end_effectors", e), "end_effectors")
         parents_array = np.asarray(parents, dtype=np.int64)
         default = subtree_sizes(parents_array)
         mass_array = np.array([default[j] if m is None else m for j, m in enumerate(masses)])
@@ -215,7 +222,12 @@ class Skeleton:
                 data = tomllib.loads(text)
             except tomllib.TOMLDecodeError as exc:
                 raise SkeletonFileError(f"{path}:{_toml_line(exc, text)}: malformed TOML ({exc})") from None
-        return cls.from_dict(data, source=str(path), text=text)
+        return cls.from_dict(data, source=str(path), text=text, at=() if path.suffix.lower() == ".json" else None)
+
+
+def _finite(value: Any) -> bool:
+    """A real number a file may give for an offset or mass (not a bool, not infinite)."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
 
 def subtree_sizes(parents: np.ndarray) -> np.ndarray:
