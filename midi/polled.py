@@ -10,14 +10,22 @@ mido's callback input received 100 messages of which only 50 were distinct (stal
 this polled input received all 100, in order.
 
 So this port leaves the messages in RtMidi's own C++ queue (``queue_size_limit``) and
-drains it from the creature's thread when asked, like any mido input. Bytes go through
-mido's :class:`~mido.Parser`, which drops malformed data instead of raising.
+drains it from the creature's thread when asked, like any mido input. Bytes go through the
+project's :class:`~midi.parser.StreamParser` (not mido's ``Parser``, which drops malformed
+bytes without a trace), so what a faulty device sends is dropped *and counted*
+(:attr:`PolledInput.malformed_bytes`). RtMidi drops messages beyond a full queue and only
+prints a line to stderr; a poll that finds the queue full is counted in
+:attr:`PolledInput.full_queues`, the sign that messages may have been lost.
 """
 
 from __future__ import annotations
 
+from typing import Any
+
 import rtmidi
 from mido.ports import BaseInput
+
+from midi.parser import StreamParser
 
 QUEUE_SIZE = 4096  # messages RtMidi holds between two polls (a busy tick at 25 Hz needs ~100)
 
@@ -37,7 +45,14 @@ class PolledInput(BaseInput):
 
     _locking = False  # only the creature's thread touches it
 
-    def _open(self, api: str | None = None, virtual: bool = False, **kwargs) -> None:
+    def _open(self, api: str | None = None, virtual: bool = False, midi_in: Any = None, **kwargs) -> None:
+        """``midi_in``: an rtmidi ``MidiIn`` already open (tests pass a stand-in); else one
+        is made for ``api`` and opened on the port called ``name``."""
+        self._stream = StreamParser()
+        self.full_queues = 0  # polls that found RtMidi's queue full (messages may have been lost)
+        if midi_in is not None:
+            self._rt = midi_in
+            return
         self._rt = rtmidi.MidiIn(rtapi=api_id(api), queue_size_limit=QUEUE_SIZE)
         try:
             if virtual:
@@ -52,11 +67,22 @@ class PolledInput(BaseInput):
             raise OSError(str(exc)) from exc
         self._rt.ignore_types(sysex=False, timing=False, active_sense=True)
 
+    @property
+    def malformed_bytes(self) -> int:
+        """Bytes received that belonged to no message (dropped)."""
+        return self._stream.malformed_bytes
+
     def _receive(self, block: bool = True) -> None:
-        """Move everything RtMidi has queued into the port's parser (never waits: the base
+        """Move everything RtMidi has queued into the port's messages (never waits: the base
         class loops, with a short sleep, when a caller asks to block)."""
+        drained = 0
         while (event := self._rt.get_message()) is not None:
-            self._parser.feed(event[0])
+            self._stream.feed(event[0])
+            drained += 1
+        # RtMidi's ring holds QUEUE_SIZE - 1 messages; a poll that drained that many found it full.
+        if drained >= QUEUE_SIZE - 1:
+            self.full_queues += 1
+        self._messages.extend(self._stream.pending())
 
     def _close(self) -> None:
         self._rt.close_port()
