@@ -15,7 +15,9 @@ A slow wander around the motor graph is enough to make music; a *hunger* for not
 reorders what was heard (retrogrades, swapped sub-segments); copying is imperfect: with
 probability ``mutation`` a placed copy moves a fourth, fifth or octave (circle-of-fifths
 neighbours), so passages mutate as they travel. Notes older than ``note_lifetime`` fade from
-space, which keeps a weeks-long run bounded.
+space, which keeps a weeks-long run bounded. With ``answer`` a creature may also strike a note
+the moment it lands (call and response: live, within a millisecond of hearing it, not at the
+next behaviour tick), within the same limits as the hand.
 """
 
 from __future__ import annotations
@@ -37,6 +39,7 @@ from creatures.kinds.parts import Body, Voice, VoiceSpec
 from creatures.kinds.report_parts import report_values, selection_logger
 from creatures.motor.note_space import NotePlacement, nearest_note
 from creatures.motor.search import NoPath
+from creatures.runtime.pulse import PulseDuration
 from midi.note_objects import NoteObject, NoteSpace
 from midi.notes import NoteEvent
 
@@ -56,6 +59,8 @@ class ExchangeSpec(CreatureSpec):
     refractory: float = Field(20.0, ge=0, description="seconds before the same note is struck again")
     strike_interval: float = Field(0.25, ge=0, description="shortest time between two strikes while wandering (s)")
     mutation: float = Field(0.08, ge=0, le=1, description="chance a placed copy is transposed")
+    answer: float = Field(0.0, ge=0, le=1, description="chance of striking a heard note the moment it lands in "
+                                                        "space (a reflex answer), within strike_interval and refractory")
     boredom_rate: float = Field(0.08, ge=0, description="boredom growth per second without notes")
     relief: float = Field(0.3, ge=0, description="boredom removed by each heard note")
     appetite: float = Field(0.08, ge=0, description="hunger for notes gained per second")
@@ -64,6 +69,8 @@ class ExchangeSpec(CreatureSpec):
     temperature: float | None = Field(None, gt=0, description="Boltzmann temperature of action selection")
     ratio_metric: bool = Field(False, description="move on a motor graph whose time metric favours low-integer "
                                                     "ratios of the source animation length (the thesis's twist)")
+    rests_in_time: bool = Field(False, description="rest for two durations of the rhythm the colony hears "
+                                                     "(its low-integer-ratio pulse) instead of 2 ± 0.5 s")
     voice: VoiceSpec = VoiceSpec()
 
 
@@ -142,13 +149,16 @@ class Exchange(CreatureKind):
         # could ground learnt values (with credit assignment but no reward, every value would
         # only leak away by the discount), so values stay as authored (alpha = 0) and the
         # motivations do the modulating, as in the thesis's description of exchange.
+        rest = GaussianModel(2.0, 0.5)
+        if spec.rests_in_time:
+            rest = PulseDuration(world.pulse, rest)
         self.group = ActionGroup(
             f"{self.name}", rng=rng, alpha=0.0, temperature=spec.temperature,
             on_event=selection_logger(world, self.name),
             tuples=[
                 ActionTuple("wander", root, _Wander(self), DoUntil(GaussianModel(4.0, 1.0), until=arrived), 1.0),
                 ActionTuple("seek note", hungry, self.seek, DoUntil(8.0, until=found), 3.0),
-                ActionTuple("rest", root, Rest(self.body), DoUntil(GaussianModel(2.0, 0.5)), 0.4),
+                ActionTuple("rest", root, Rest(self.body), DoUntil(rest), 0.4),
             ],
         )
         self._next_report = 0.0
@@ -168,6 +178,7 @@ class Exchange(CreatureKind):
                 # already in space renews that note rather than stacking a duplicate, so no
                 # single pitch can crowd the space however often the colony plays it.
                 self.placed_at[id(same)] = t
+                self._answer(t, same)
                 return
         position = self.place(pitch, note.velocity)
         copy = NoteEvent(note.time, pitch, note.velocity, self.spec.channel, min(note.duration, 2.0))
@@ -177,6 +188,17 @@ class Exchange(CreatureKind):
                         position=obj.position)
         while len(self.space) > self.spec.max_notes:
             self._forget(self.space.objects[0])
+        self._answer(t, obj)
+
+    def _answer(self, t: float, obj: NoteObject) -> None:
+        """The reflex: strike the note just heard where it landed, at once (with chance
+        ``answer``), if the hand's own limits allow: ``strike_interval`` since the last
+        strike, ``refractory`` since this note was last struck."""
+        if not self.spec.answer or self.rng.random() >= self.spec.answer:
+            return  # no random draw at all when answering is off: seeded runs stay as they were
+        if (t - self._last_strike >= self.spec.strike_interval
+                and t - self._struck_at.get(id(obj), -np.inf) >= self.spec.refractory):
+            self.strike(t, obj, 1.0)
 
     def place(self, pitch: int, velocity: int) -> np.ndarray:
         """Where a note goes: the pitch/velocity place, snapped to the nearest point the hand

@@ -3,7 +3,9 @@
 Creatures in one process hear each other through the same channel a performer uses (thesis,
 *three creatures*: "equivalent communication between creatures"): a note a creature plays is
 scheduled to the MIDI output and, when it starts, delivered to every other creature's ear.
-Notes from outside (files, ports, OSC) enter the same bus with their source's name.
+Notes from outside (files, ports, OSC) enter the same bus with their source's name, and
+teach the colony's :class:`HeardPulse` when they start: the creatures keep the time of the
+music they hear, not of their own wandering.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ from typing import TYPE_CHECKING, Callable
 
 from creatures.clock import Clock
 from creatures.events import EventLog
+from creatures.runtime.pulse import HeardPulse
 from midi.notes import NoteEvent
 from midi.scheduler import NoteHandle, NoteScheduler
 
@@ -37,6 +40,7 @@ class World:
         self.listeners: list[Callable[[str, NoteEvent], None]] = []  # e.g. OSC to other colonies
         self._seq = itertools.count()
         self.notes_played = 0
+        self.pulse = HeardPulse()  # the rhythm of the notes heard from outside the colony
 
     def add(self, creature: "CreatureKind") -> None:
         self.creatures.append(creature)
@@ -81,10 +85,13 @@ class World:
         count = 0
         while self._pending and self._pending[0][0] <= t:
             _, _, note, source = heapq.heappop(self._pending)
+            if not any(creature.name == source for creature in self.creatures):
+                self.pulse.hear(note.time)  # the rhythm heard from outside, not the colony's own
             for creature in self.creatures:
                 if creature.name != source:
                     creature.hear(note, source)
             count += 1
+        self.pulse.settle()
         return count
 
 

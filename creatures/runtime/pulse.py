@@ -1,0 +1,85 @@
+"""The colony's heard pulse: one low-integer-ratio duration model fed by every note onset.
+
+Thesis, "temporal models": duration models shared by many action-tuples give the creatures
+one coherent pulse. Here the world hears every note from outside the colony that starts
+(from a MIDI port or file, pitch-tracked audio, another colony over OSC) and, once a tick,
+turns the new
+onsets into inter-onset intervals with the same helper both listening paths use
+(:func:`creatures.temporal.onsets.inter_onset_intervals`: near-simultaneous onsets, a chord,
+count once) and teaches them to a :class:`LowIntegerRatioModel`. A Du that rests "in time"
+samples it (:class:`PulseDuration`), so what the colony plays falls on the ratio lattice of
+what it hears.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from creatures.behaviour.models.gaussian import GaussianModel
+from creatures.temporal.durations import LowIntegerRatioModel
+from creatures.temporal.onsets import inter_onset_intervals
+
+CHORD_GAP = 0.03
+"""Seconds: onsets closer than this are one rhythmic event."""
+
+LONGEST_INTERVAL = 3.0
+"""Seconds: a longer gap between onsets is a pause, not a duration of the rhythm."""
+
+READY_AFTER = 8
+"""Intervals heard before the pulse is trusted over a Du's own fallback."""
+
+
+class HeardPulse:
+    """Onsets in, a pulse (and rhythmic durations to sample) out."""
+
+    def __init__(self, prior_pulse: float = 0.5) -> None:
+        self.model = LowIntegerRatioModel(prior_pulse)
+        self.heard = 0  # intervals taught to the model
+        self._last: float | None = None
+        self._onsets: list[float] = []
+
+    @property
+    def ready(self) -> bool:
+        return self.heard >= READY_AFTER
+
+    def hear(self, onset: float) -> None:
+        """A note started at ``onset`` (seconds); learnt at the next :meth:`settle`."""
+        self._onsets.append(onset)
+
+    def settle(self) -> None:
+        """Teach the model the intervals between the onsets heard since the last call.
+
+        An onset older than the last one learnt (a note recognised late, e.g. from audio) has
+        lost its place in the rhythm and is dropped.
+        """
+        if not self._onsets:
+            return
+        onsets = np.array(self._onsets if self._last is None else [self._last, *self._onsets])
+        self._onsets.clear()
+        if self._last is not None:
+            onsets = onsets[onsets >= self._last]
+        self._last = float(onsets.max())
+        for interval in inter_onset_intervals(onsets, min_gap=CHORD_GAP):
+            if interval <= LONGEST_INTERVAL:
+                self.model.update(float(interval))
+                self.heard += 1
+
+
+class PulseDuration:
+    """A Du duration: ``beats`` times a duration sampled from the heard pulse (so it lies on the
+    pulse's low-integer-ratio lattice), or a fallback model's sample until the pulse is ready.
+    It learns only from hearing: the length an action happened to last says nothing about
+    the music, so ``update`` leaves the pulse alone."""
+
+    def __init__(self, pulse: HeardPulse, fallback: GaussianModel, beats: int = 2) -> None:
+        self.pulse = pulse
+        self.fallback = fallback
+        self.beats = beats
+
+    def sample(self, rng: np.random.Generator) -> float:
+        if not self.pulse.ready:
+            return self.fallback.sample(rng)
+        return self.beats * self.pulse.model.sample(rng)
+
+    def update(self, duration: float) -> None:
+        """Nothing to learn from an action's own length (see the class docstring)."""
