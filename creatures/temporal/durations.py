@@ -281,9 +281,6 @@ class LowIntegerRatioModel:
         self._value_list: list[float] = self._values.tolist()
         self._pseudo: list[float] = (self.prior_strength * self.prior).tolist()
         self._edges, self._winners = self._explanation_table()
-        # Counts of durations since an anchoring at which the level is checked early (see
-        # "Metrical level"); a set, so the hot path asks with one lookup.
-        self._young_levels = frozenset(range(self.YOUNG_LEVEL_EVERY, self.level_every, self.YOUNG_LEVEL_EVERY))
         index = {r: j for j, r in enumerate(self.ratios)}
         # _quotient[j, s]: index of ratio_j / ratio_s (ratio_j heard against a pulse ratio_s
         # times longer), −1 when that is not in the set; the last row maps "unexplained".
@@ -442,7 +439,8 @@ class LowIntegerRatioModel:
         self._since_level += 1
         self._stats = self._cumulative = None
         heard.append(label)
-        if self._since_level >= self.level_every or self._since_anchor in self._young_levels:
+        young = self._since_anchor < self.level_every and self._since_anchor % self.YOUNG_LEVEL_EVERY == 0
+        if self._since_level >= self.level_every or young:
             shift = self._check_level()
             if shift is not None:
                 heard[:] = self._quotient[heard, shift].tolist()
