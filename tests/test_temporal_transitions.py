@@ -133,3 +133,39 @@ def test_a_fissioned_tuple_tends_to_lead_to_its_successor():
         chosen.append(first_successor(group, child.name))
     assert chosen.count(None) < 10
     assert chosen.count("B") / len(chosen) > 0.5  # chance would be one in four
+
+
+def valued(succession: Succession, values: dict[str, float]) -> list[ActionTuple]:
+    return [
+        follow(ActionTuple(n, WhateverPercept(), Action(n), DoUntil(0.5), v), succession)
+        for n, v in values.items()
+    ]
+
+
+def test_the_succession_fissions_by_itself_when_transitions_carry_different_values():
+    succession = Succession(window=10)
+    group = ActionGroup("g", valued(succession, {"A": 0.5, "B": 1.0, "C": 0.2}), rng=np.random.default_rng(0), alpha=0.0)
+    played = selections(group, 60.0)
+    grown = {tp.name: succession.fissioned[tp.name] for tp in group.tuples if tp.name in succession.fissioned}
+    assert "A→B" in grown  # the group grew the sub-hypothesis "A, leading to B" as it played
+    assert set(grown.values()) == {"B"}  # every sub-hypothesis leads to the valuable successor...
+    assert len(group.tuples) == 3 + len(grown) == len(succession.model.names)  # ...once (no A→B→B)
+    child = group.find("A→B")
+    assert child.value.to_float() == pytest.approx(1.0)
+    assert isinstance(child.do_until, TransitionDoUntil) and isinstance(child.trigger, LikelySuccessor)
+    assert "A→B" in played  # and the group chooses it
+
+
+@pytest.mark.parametrize(
+    "values, innovation",
+    [
+        ({"A": 1.0, "B": 1.0, "C": 1.0}, 0.25),  # no spread of values at all
+        ({"A": 1.0, "B": 0.95, "C": 0.9}, 0.25),  # η² ≈ 1, but the values hardly differ
+        ({"A": 0.5, "B": 1.0, "C": 0.2}, None),  # automatic fission switched off
+    ],
+)
+def test_no_automatic_fission_below_the_innovation_threshold(values, innovation):
+    succession = Succession(window=10, innovation=innovation)
+    group = ActionGroup("g", valued(succession, values), rng=np.random.default_rng(0), alpha=0.0)
+    assert len(set(selections(group, 60.0))) == 3
+    assert succession.fissioned == {} and [tp.name for tp in group.tuples] == list(values)

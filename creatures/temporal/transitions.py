@@ -9,13 +9,17 @@ group. The model then perturbs selection — a candidate's trigger is scaled by 
 it is to follow what was just active, lowering the bar for likely successors and raising it
 for unlikely ones — and, when the transitions out of a tuple carry different values
 (A → B valuable, A → C not), it grounds a *fission*: a sub-hypothesis A' ("A, leading to
-B") that is refined on its own.
+B") that is refined on its own. The succession tries that fission itself each time it
+records a valued transition (see :class:`Succession`, ``innovation``), so a group grows
+its sub-hypotheses as it plays; :func:`fission` can also be called by hand.
 
 Everything goes through the public life cycle (``DoUntil.begin``) and percepts, so an
 :class:`~creatures.behaviour.action_group.ActionGroup` needs no hook: wrap the tuples with
-:func:`follow` before adding them, and add a fissioned tuple with ``group.add``. (A group
-that re-took its interruption base values just after each start would let the priming
-switch to the new tuple's successors at once; see :class:`Succession` for why it waits.)
+:func:`follow` before adding them; a fissioned tuple joins the group that started the
+tuple whose transition grounded it (``group.add``, deferred to the end of the tick). (A
+group that re-took its interruption base values just after each start would let the
+priming switch to the new tuple's successors at once; see :class:`Succession` for why it
+waits.)
 """
 
 from __future__ import annotations
@@ -44,11 +48,31 @@ class Succession:
 
     One succession serves one group; with several active slots, ``current`` is simply the
     latest start.
+
+    **Fission.** After recording a valued transition out of a tuple, the succession tries
+    :func:`fission` on it with ``innovation`` as the value gap: the best successor's
+    transitions must carry at least ``innovation`` more value than the tuple's transitions
+    on average (besides the correlation-ratio and count tests of :func:`fission`). The gap
+    is what makes the divergence matter: η² alone is scale-free, and two successors whose
+    values differ by a few hundredths would explain all of a tiny spread. ``None`` leaves
+    fission to the author. ``fissioned`` maps each sub-hypothesis made here to the
+    successor it leads to (so A→B is not split again towards B).
     """
 
-    def __init__(self, model: TransitionModel | None = None, *, window: int = 10, alpha: float = 0.1) -> None:
+    def __init__(
+        self,
+        model: TransitionModel | None = None,
+        *,
+        window: int = 10,
+        alpha: float = 0.1,
+        innovation: float | None = 0.25,
+    ) -> None:
+        if innovation is not None and not innovation >= 0.0:
+            raise ValueError(f"innovation is a value gap, ≥ 0 or None (got {innovation!r})")
         self.model = model if model is not None else TransitionModel(window=window, alpha=alpha)
+        self.innovation = innovation
         self.tuples: dict[str, ActionTuple] = {}
+        self.fissioned: dict[str, str] = {}
         self.current: str | None = None
         self.previous: str | None = None
 
@@ -56,11 +80,18 @@ class Succession:
         self.tuples[tuple_.name] = tuple_
         self.model.add(tuple_.name)
 
-    def observe(self, name: str, value: float) -> None:
-        """``name`` became active carrying ``value``: record current → name."""
-        if self.current is not None:
-            self.model.record(self.current, name, value)
-        self.previous, self.current = self.current, name
+    def observe(self, name: str, value: float) -> ActionTuple | None:
+        """``name`` became active carrying ``value``: record current → name, and return the
+        sub-hypothesis that transition grounded, if any (see the class notes)."""
+        source = self.current
+        self.previous, self.current = source, name
+        if source is None:
+            return None
+        self.model.record(source, name, value)
+        tuple_ = self.tuples.get(source)
+        if self.innovation is None or tuple_ is None or not isinstance(tuple_.trigger, LikelySuccessor):
+            return None
+        return fission(tuple_, self, min_gap=self.innovation)
 
     def source(self, t: float) -> str | None:
         """The tuple a candidate starting at ``t`` would follow (see the class notes)."""
@@ -87,7 +118,10 @@ class TransitionDoUntil(WrappedDoUntil):
         succession.join(tuple_)
 
     def begin(self, t: float, rng: np.random.Generator) -> None:
-        self.succession.observe(self.tuple.name, self.tuple.value.to_float())
+        child = self.succession.observe(self.tuple.name, self.tuple.value.to_float())
+        group = self.tuple.context.get("group")  # the group that is starting this tuple
+        if child is not None and group is not None:
+            group.add(child)
         super().begin(t, rng)
 
 
@@ -127,17 +161,20 @@ def fission(
     *,
     min_contrast: float = 0.5,
     min_count: int = 3,
+    min_gap: float = 0.0,
 ) -> ActionTuple | None:
     """Split off "``tuple_``, leading to its most valuable successor" when it pays.
 
     It pays when the successor explains at least ``min_contrast`` of the spread of values
-    credited on transitions out of the tuple (the model's correlation ratio η²) and the best
-    successor has been seen ``min_count`` times. The new tuple A' shares A's action, trigger
-    and duration model (a fresh Du around the same model), starts with the mean value of the
+    credited on transitions out of the tuple (the model's correlation ratio η²), the best
+    successor has been seen ``min_count`` times, and its transitions carry at least
+    ``min_gap`` more value than the tuple's transitions on average. The new tuple A' shares
+    A's action, trigger and duration model (a fresh Du around the same model), starts with the mean value of the
     A → B transitions, and inherits as many A' → B transitions (at that mean value) — so it
     tends to lead to B, while A stays the general hypothesis. Returns None when no split is
-    warranted or A' exists. A' is wrapped in :func:`follow` already; add it to the group with
-    ``group.add``. (Its Du is a plain one: interval constraints on A are not copied.)
+    warranted, A' exists, or A is itself a sub-hypothesis leading to that successor. A' is
+    wrapped in :func:`follow` already; add it to the group with ``group.add``. (Its Du is a
+    plain one: interval constraints on A are not copied.)
     """
     if not isinstance(tuple_.do_until, TransitionDoUntil) or not isinstance(tuple_.trigger, LikelySuccessor):
         raise ValueError(f"{tuple_.name!r} does not model transitions: wrap it with follow() first")
@@ -148,9 +185,11 @@ def fission(
     seen = {j: mean for j, (count, mean, _) in stats.items() if count >= min_count and not math.isnan(mean)}
     if not seen:
         return None
+    valued = [(count, mean) for count, mean, _ in stats.values() if count > 0]
+    overall = sum(count * mean for count, mean in valued) / sum(count for count, _ in valued)
     best = max(seen, key=seen.__getitem__)
     child_name = f"{name}→{best}"
-    if child_name in model.names:
+    if seen[best] - overall < min_gap or child_name in model.names or succession.fissioned.get(name) == best:
         return None
     inner = tuple_.do_until.inner
     child = ActionTuple(
@@ -161,6 +200,7 @@ def fission(
         ScalarValue(seen[best]),
     )
     follow(child, succession, strength=tuple_.trigger.strength)
+    succession.fissioned[child_name] = best
     for _ in range(stats[best][0]):
         model.record(child_name, best, seen[best])
     return child
