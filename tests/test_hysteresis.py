@@ -107,3 +107,19 @@ def test_several_active_at_once(rng):
     assert len(group.active) == 3 and len({tp.name for tp in group.active}) == 3
     with pytest.raises(ValueError, match="max_active"):
         ActionGroup("bad", tuples, rng=rng, max_active=0)
+
+
+def test_expected_values_are_each_tuples_expected_value(rng):
+    """The group's vector S (what selection compares) is Tr·V for waiting tuples and
+    (1 − Du)·V for the active one, tuple by tuple."""
+    level = {"t": 0.3}
+    tuples = [
+        ActionTuple("a", FunctionPercept("a", lambda t: level["t"]), Action("a"), DoUntil(4.0), 2.0),
+        ActionTuple("b", FunctionPercept("b", lambda t: 0.5), Action("b"), DoUntil(4.0), 1.0),
+    ]
+    group = ActionGroup("g", tuples, rng=rng, max_active=1)
+    group.tick(0.0)
+    (active,) = group.active
+    for t in (1.0, 3.0):
+        np.testing.assert_allclose(group.expected_values(t), [tu.expected_value(t) for tu in tuples])
+    assert active.expected_value(1.0) == pytest.approx((1 - active.do_until.evaluate(1.0)) * active.value.to_float())

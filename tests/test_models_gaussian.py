@@ -143,3 +143,18 @@ def test_percept_update_models_what_led_up_to_the_action():
     looking_back = GaussianModel(0.0, 1.0, size=2, prior_weight=0.5)
     GaussianPercept("q", state, looking_back, lookback=2.0).update(2.0, value=10.0)
     assert 70.0 in looking_back.buffer  # the most salient datum in [0, 2]
+
+
+def test_acausally_masked_update_learns_each_event_but_not_its_echoes():
+    """Two calls 1 s apart, each followed by a weaker echo 0.1 s later, before one reward."""
+    state = StateObject("call loudness")
+    for t, level in [(0.0, 60.0), (0.1, 40.0), (1.0, 70.0), (1.1, 45.0)]:
+        state.push(t, level)
+    model = GaussianModel(0.0, 1.0, size=8, prior_weight=0.5)
+    GaussianPercept("calls", state, model, lookback=1.5, mask_reach=0.5).update(1.2, value=1.0)
+    learnt = set(model.buffer.tolist())
+    assert {60.0, 70.0} <= learnt  # both calls taught the model ...
+    assert not {40.0, 45.0} & learnt  # ... their echoes did not
+    most_salient = GaussianModel(0.0, 1.0, size=8, prior_weight=0.5)
+    GaussianPercept("loudest", state, most_salient, lookback=1.5).update(1.2, value=1.0)
+    assert {60.0, 70.0} & set(most_salient.buffer.tolist()) == {70.0}  # without masking: the loudest only

@@ -274,7 +274,8 @@ def _restore_state(state: StateObject, data: dict[str, Any], arrays: dict[str, n
 def _percept_to_dict(percept: Percept) -> dict[str, Any]:
     out: dict[str, Any] = {"name": percept.name, "type": type(percept).__name__}
     if isinstance(percept, GaussianPercept):
-        out.update(state=percept.state.name, lookback=percept.lookback, model=percept.model.to_dict())
+        out.update(state=percept.state.name, lookback=percept.lookback, mask_reach=percept.mask_reach,
+                   model=percept.model.to_dict())
     out["children"] = [_percept_to_dict(c) for c in percept.children]
     return out
 
@@ -294,6 +295,7 @@ def _restore_percept(percept: Percept, data: dict[str, Any], states: dict[str, S
                 GaussianModel.from_dict(child_data["model"]),
                 parent=percept,
                 lookback=child_data["lookback"],
+                mask_reach=child_data.get("mask_reach", 0.0),
             )
         _restore_percept(child, child_data, states)
 

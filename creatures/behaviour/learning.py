@@ -254,7 +254,8 @@ class PerceptLearning:
             )
             children.append(
                 GaussianPercept(
-                    f"{percept.name}.{self.grown}", percept.state, model, parent=percept, lookback=percept.lookback
+                    f"{percept.name}.{self.grown}", percept.state, model, parent=percept,
+                    lookback=percept.lookback, mask_reach=percept.mask_reach,
                 )
             )
         self._emit("fission", t, percept=percept.name, children=[c.name for c in children],

@@ -178,7 +178,10 @@ class GaussianPercept(Percept):
 
     With ``lookback > 0`` the update uses the most salient datum in ``[t − lookback, t]``
     rather than the datum at ``t`` (thesis: "updating the model with most salient event inside
-    a window around the start of an action").
+    a window around the start of an action"). With ``mask_reach > 0`` as well, it uses every
+    datum in that window that survives acausal masking (:meth:`StateObject.masked_saliencies`):
+    two separate events before one action both teach the model, while the weaker echoes
+    around each event do not.
     """
 
     def __init__(
@@ -189,13 +192,15 @@ class GaussianPercept(Percept):
         *,
         parent: Percept | None = None,
         lookback: float = 0.0,
+        mask_reach: float = 0.0,
     ) -> None:
         super().__init__(name, parent=parent)
-        if lookback < 0:
-            raise ValueError(f"lookback must be non-negative (got {lookback!r})")
+        if lookback < 0 or mask_reach < 0:
+            raise ValueError(f"lookback and mask_reach must be non-negative (got {lookback!r}, {mask_reach!r})")
         self.state = state
         self.model = model
         self.lookback = float(lookback)
+        self.mask_reach = float(mask_reach)
 
     def evaluate(self, t: float) -> float:
         datum = self.state.datum_at(t)
@@ -204,6 +209,10 @@ class GaussianPercept(Percept):
         return float(self.model.likelihood(float(datum)))
 
     def update(self, t: float, value: float) -> None:
+        if self.lookback > 0 and self.mask_reach > 0:
+            for _, datum, _ in self.state.unmasked(t - self.lookback, t, reach=self.mask_reach):
+                self.model.update(float(datum))
+            return
         if self.lookback > 0:
             event = self.state.most_salient(t - self.lookback, t)
             datum = None if event is None else event[1]
@@ -217,5 +226,6 @@ class GaussianPercept(Percept):
             **super().to_dict(),
             "state": self.state.name,
             "lookback": self.lookback,
+            "mask_reach": self.mask_reach,
             "model": self.model.to_dict(),
         }
