@@ -78,5 +78,46 @@ def test_pulse_levels_sit_in_a_percept_tree():
     saved = beat.to_dict()
     assert saved["model"]["kind"] == "low_integer_ratio_model"
     assert saved["children"][1]["ratio"] == [3, 1]
+    assert saved["children"][1]["own"]["kind"] == "low_integer_ratio_model"  # each level's own model
     with pytest.raises(ValueError, match="positive ratio"):
         beat.level(Fraction(0))
+
+
+def test_a_subdivision_learns_its_own_swing_and_keeps_the_parents_time():
+    rng = np.random.default_rng(3)
+    beat = PulsePercept("beat", LowIntegerRatioModel(prior_pulse=0.5))
+    half = beat.subdivide(2)
+    for d in 0.6 * rng.uniform(0.97, 1.03, 40):  # a drum teaches the beat
+        beat.model.update(d)
+    for _ in range(64):  # swung half-beats: long-short, 2:1 within each 0.6 s beat
+        half.model.update(0.4 * rng.uniform(0.97, 1.03))
+        half.model.update(0.2 * rng.uniform(0.97, 1.03))
+    # The swung half-beats taught the beat (0.4 + 0.2 s per beat), not 0.8 or 0.4 s...
+    assert beat.pulse == pytest.approx(0.6, rel=0.02) and beat.model.reanchors == 1
+    assert half.pulse == pytest.approx(0.3, rel=0.02)  # ...and the level's grid is still half the beat,
+
+    def played(n: int = 2000) -> tuple[np.ndarray, np.ndarray]:
+        """Shares of long and short notes (within 5 %) among the level's sampled durations."""
+        steps = np.array([half.model.sample(rng) for _ in range(n)]) / half.pulse
+        return np.abs(steps / (4 / 3) - 1) < 0.05, np.abs(steps / (2 / 3) - 1) < 0.05
+
+    long, short = played()  # ...but what the level plays is its own swing
+    assert (long | short).mean() > 0.95 and abs(long.mean() - short.mean()) < 0.1
+    # Tied to the parent: the drum speeds up to 130 BPM (quarters and eighths); the level
+    # swings at the new tempo without having heard a single new half-beat.
+    for d in 60.0 / 130.0 * rng.choice([1.0, 0.5], 60) * rng.uniform(0.97, 1.03, 60):
+        beat.model.update(d)
+    assert half.pulse == pytest.approx(30.0 / 130.0, rel=0.02)
+    long, short = played()
+    assert (long | short).mean() > 0.95 and abs(long.mean() - short.mean()) < 0.1
+
+
+def test_an_untaught_level_plays_its_grid_and_an_even_one_stays_even(rng):
+    beat = PulsePercept("beat", LowIntegerRatioModel(prior_pulse=0.6))
+    triplet = beat.subdivide(3)
+    assert np.allclose([triplet.model.sample(rng) for _ in range(50)], 0.2)  # the prior grid step
+    for d in 0.2 * np.random.default_rng(2).uniform(0.97, 1.03, 60):
+        triplet.model.update(d)
+    steps = np.array([triplet.model.sample(rng) for _ in range(500)]) / triplet.pulse
+    assert np.mean(np.abs(steps - 1.0) < 0.05) > 0.95
+    assert beat.pulse == pytest.approx(0.6, rel=0.02)

@@ -8,8 +8,9 @@ LowIntegerRatioModel` or :class:`~creatures.temporal.durations.SimpleDurationMod
 Every tuple whose Du is ``DoUntil(beat.model)`` samples the same pulse and teaches it
 what it actually did, so the tuples keep one time. Children are metrical levels at fixed
 ratios of their parent — ``beat.subdivide(2)`` is the half-beat, ``beat.group(4)`` the
-bar — whose models are views onto the parent's: sampling one samples the shared pulse at
-that ratio, and a half-beat tuple's durations teach the beat too.
+bar — whose grid is the parent's pulse at that ratio, and whose models learn on their own
+how the level fills that grid (:class:`Subdivision`: a swung half-beat is long-short, not
+two halves), while a half-beat tuple's durations teach the beat too.
 
 As a percept, ``evaluate(t)`` says how close ``t`` is to a point of the level's grid
 (1 on the grid, falling off between), so the same node serves as a "on the (half-)beat"
@@ -19,39 +20,73 @@ trigger.
 from __future__ import annotations
 
 import math
+from collections import deque
 from fractions import Fraction
 from typing import Any
 
 import numpy as np
 
 from creatures.behaviour.percept import Percept
-from creatures.temporal.durations import PulseModel
+from creatures.temporal.durations import LowIntegerRatioModel, PulseModel, check_duration
 
 
 class Subdivision:
-    """A pulse model at ``ratio`` × another's pulse (a view: it keeps no state of its own)."""
+    """A metrical level at ``ratio`` × a parent pulse, with a model of its own.
 
-    def __init__(self, parent: PulseModel, ratio: Fraction) -> None:
+    **Tied to the parent.** The level's grid step (``pulse``) is always ``ratio`` × the
+    parent's pulse, so every level keeps the parent's time and follows its tempo.
+
+    **Its own model.** ``own`` (a :class:`LowIntegerRatioModel`) hears each of the level's
+    durations in units of the grid step it was played against, so it learns how the level
+    fills its grid: a half-beat level played swung (long-short, 2:1 within the beat) learns
+    4/3 and 2/3 of its grid instead of averaging them to one grid step. Sampling draws from
+    that, times the current grid step — the swing is kept, at whatever tempo the parent has
+    reached since. A level that has heard nothing samples its grid step.
+
+    **Teaching the parent.** The level's durations average to its grid step over whole
+    cycles of its pattern (long + short = two half-beats), whatever the pattern, so the
+    parent is taught the mean of the level's last ``CYCLES`` × (the ratio's denominator)
+    durations — four cycles of a pattern that repeats every parent pulse, the last eight
+    half-beats — divided by the ratio: swung half-beats of 0.4 and 0.2 s say the beat is
+    0.6 s, where each alone would say 0.8 or 0.4 s. (A level that plays only the long notes
+    of its pattern cannot be told from one with a longer grid; the parent's own durations
+    settle that.)
+    """
+
+    CYCLES = 4  #: cycles of the level's pattern averaged when teaching the parent
+
+    def __init__(self, parent: PulseModel, ratio: Fraction, own: LowIntegerRatioModel | None = None) -> None:
         if not ratio > 0:
             raise ValueError(f"a metrical level needs a positive ratio (got {ratio})")
         self.parent = parent
         self.ratio = Fraction(ratio)
+        self.own = own if own is not None else LowIntegerRatioModel(prior_pulse=1.0)
+        self._recent: deque[float] = deque(maxlen=self.CYCLES * self.ratio.denominator)
 
     @property
     def pulse(self) -> float:
+        """The grid step: ``ratio`` × the parent's pulse."""
         return float(self.ratio) * self.parent.pulse
 
     def sample_pulse(self, rng: np.random.Generator) -> float:
         return float(self.ratio) * self.parent.sample_pulse(rng)
 
-    sample = sample_pulse  # a subdivision's own duration is its grid step
+    def sample(self, rng: np.random.Generator) -> float:
+        """A duration of this level: its own learned pattern (in grid steps) × the grid step."""
+        if not self._recent:
+            return self.sample_pulse(rng)
+        return self.own.sample(rng) * self.pulse
 
     def update(self, duration: float) -> None:
-        """Teach the parent: a half-beat that lasted 0.31 s says the beat is 0.62 s."""
-        self.parent.update(duration / float(self.ratio))
+        """Learn where ``duration`` falls on the grid, and teach the parent the pulse the
+        level's recent durations imply (a half-beat of 0.31 s says the beat is 0.62 s)."""
+        d = check_duration(duration)
+        self.own.update(d / self.pulse)
+        self._recent.append(d)
+        self.parent.update(sum(self._recent) / len(self._recent) / float(self.ratio))
 
     def __repr__(self) -> str:
-        return f"Subdivision({self.ratio} × {self.parent!r})"
+        return f"Subdivision({self.ratio} × {self.parent!r}, own={self.own!r})"
 
 
 class PulsePercept(Percept):
@@ -124,6 +159,7 @@ class PulsePercept(Percept):
         data = {**super().to_dict(), "pulse": self.pulse, "anchor": self.anchor, "sharpness": self.sharpness}
         if isinstance(self.model, Subdivision):
             data["ratio"] = [self.model.ratio.numerator, self.model.ratio.denominator]
+            data["own"] = self.model.own.to_dict()
         elif hasattr(self.model, "to_dict"):
             data["model"] = self.model.to_dict()
         return data
