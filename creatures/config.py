@@ -105,9 +105,15 @@ def read_toml(path: str | Path, *, _seen: tuple[Path, ...] = ()) -> tuple[dict[s
     parent = data.pop("extends", None)
     if parent is None:
         return data, where
+    line = where.get(("extends",), (path, None))[1]
     if not isinstance(parent, str):
-        raise ConfigError(path, "must be a file name (string)", key="extends", line=where.get(("extends",), (path, None))[1])
-    base_data, base_where = read_toml(path.parent / parent, _seen=(*_seen, path))
+        raise ConfigError(path, "must be a file name (string)", key="extends", line=line)
+    base = path.parent / parent
+    if not base.is_file():
+        # Named here, at the including file's line: the base's own path alone would not say
+        # which config asked for it.
+        raise ConfigError(path, f"base config {parent!r} not found (looked for {base})", key="extends", line=line)
+    base_data, base_where = read_toml(base, _seen=(*_seen, path))
     return _merge(base_data, data), {**base_where, **where}
 
 

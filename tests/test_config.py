@@ -99,3 +99,12 @@ def test_key_lines_handles_dotted_and_quoted_keys():
     assert lines[("quoted key",)] == 2
     assert lines[("t", "x")] == 4
     assert lines[("arr", 1, "y")] == 8
+
+
+def test_missing_extends_file_names_the_key_and_the_including_line(tmp_path):
+    child = write(tmp_path, "child.toml", 'title = "child"\n\nextends = "bases/absent.toml"\n')
+    with pytest.raises(ConfigError) as err:
+        load_config(child, Installation)
+    assert (err.value.file.name, err.value.key, err.value.line) == ("child.toml", "extends", 3)
+    assert "'bases/absent.toml' not found" in str(err.value)
+    assert str(tmp_path.resolve() / "bases" / "absent.toml") in str(err.value)
