@@ -1,11 +1,15 @@
 """Synthetic sounds for the hearing tests: tones, chirps, vowel-like formant bursts, "words",
 noise and silence, plus event tracks with known onsets. Everything is generated in code from
-seeded RNGs, so no test depends on a recording or a download."""
+seeded RNGs, so no test depends on a recording or a download. The ``record`` fixture
+(:func:`recording`) writes a synthesised signal as a WAV file, so a test hears it the way an
+installation hears a recording: through :mod:`audio.sources`."""
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Protocol
 
 import numpy as np
 import pytest
@@ -63,12 +67,6 @@ def chirp(f0: float, f1: float, duration: float, sr: int = SR, *, rms: float = 0
     return normalise(x * envelope(len(x), sr), rms)
 
 
-
-
-
-
-
-
 @dataclass
 class EventTrack:
     """A signal with sound events at known times (seconds)."""
@@ -113,3 +111,29 @@ def event_track(
 def write_wav(path: Path, x: np.ndarray, sr: int = SR, *, subtype: str = "PCM_16") -> Path:
     soundfile.write(path, x, sr, subtype=subtype)
     return path
+
+
+class Recorder(Protocol):
+    """What the ``record`` fixture gives a test: a signal in, a WAV file's path out."""
+
+    def __call__(self, x: np.ndarray, *, subtype: str = "PCM_16") -> Path: ...
+
+
+@pytest.fixture(name="record")
+def recording(tmp_path: Path) -> Recorder:
+    """``record(x)`` writes ``x`` as a new WAV file in ``tmp_path`` and returns its path, to be
+    heard through :func:`audio.sources.load_audio` or :class:`audio.sources.FileSource`.
+
+    16-bit PCM by default, as a microphone recording would be; a signal that would clip there
+    is refused rather than silently distorted (pass ``subtype="FLOAT"`` for signals whose
+    random gain goes above full scale, e.g. the ±12 dB words).
+    """
+    takes = itertools.count()
+
+    def record(x: np.ndarray, *, subtype: str = "PCM_16") -> Path:
+        peak = float(np.abs(x).max(initial=0.0))
+        if subtype.startswith("PCM") and peak >= 1.0:
+            raise ValueError(f"peak {peak:.2f} would clip in {subtype}: record it as FLOAT")
+        return write_wav(tmp_path / f"take{next(takes)}.wav", x, subtype=subtype)
+
+    return record

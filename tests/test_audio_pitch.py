@@ -7,8 +7,9 @@ import pytest
 
 from audio.pitch import note_events, velocity_from_level
 from audio.segment import SoundEvent, frame_levels_db
+from audio.sources import load_audio
 from midi.notes import NoteEvent
-from audio_fixtures import SR, midi_to_hz, noise, tone, warm_librosa  # noqa: F401
+from audio_fixtures import SR, Recorder, midi_to_hz, noise, recording, tone, warm_librosa  # noqa: F401
 
 pytestmark = pytest.mark.usefixtures("warm_librosa")
 
@@ -18,13 +19,15 @@ def event(x: np.ndarray, start: float = 0.0) -> SoundEvent:
     return SoundEvent(start, start + len(x) / SR, x, SR, float(frame_levels_db(x, 256).max()))
 
 
-def test_harmonic_tones_midi_40_to_90_within_half_a_semitone(rng: np.random.Generator) -> None:
+def test_harmonic_tones_midi_40_to_90_within_half_a_semitone(
+    rng: np.random.Generator, record: Recorder
+) -> None:
     within = 0
     pitches = np.arange(40, 91)
     for midi in pitches:
         played = midi + rng.uniform(-0.3, 0.3)  # an out-of-tune player
         x = tone(midi_to_hz(played), 0.3, harmonics=8, rms=0.05)
-        notes = note_events(event(x + noise(0.3, rng, rms=0.0005)))
+        notes = note_events(event(load_audio(record(x + noise(0.3, rng, rms=0.0005)))))
         within += len(notes) == 1 and abs(notes[0].pitch - played) <= 0.5
     assert within >= 0.95 * len(pitches), f"{within}/{len(pitches)} notes within ±0.5 semitone"
 

@@ -4,12 +4,14 @@
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from audio.segment import SoundEvent
+from audio.sources import load_audio
 from audio.utterance import (
     UtterancePercept,
     Utterance,
@@ -17,22 +19,37 @@ from audio.utterance import (
     load_aural_model,
     save_aural_model,
 )
-from audio_fixtures import SR, WORDS, word, warm_librosa  # noqa: F401
+from audio_fixtures import SR, WORDS, Recorder, recording, word, warm_librosa  # noqa: F401
 from creatures.persist import StateFileError
 
 pytestmark = pytest.mark.usefixtures("warm_librosa")
 
 
-def heard(name: str, rng: np.random.Generator, t: float) -> Utterance:
+@dataclass
+class Speaker:
+    """Says words into the ear through WAV files, as a recording would bring them."""
+
+    rng: np.random.Generator
+    record: Recorder
+
+
+@pytest.fixture
+def speaker(rng: np.random.Generator, record: Recorder) -> Speaker:
+    return Speaker(rng, record)
+
+
+def heard(name: str, speaker: Speaker, t: float) -> Utterance:
     """An utterance of ``name`` that ended at ``t``, as the segmenter would deliver it."""
+    rng = speaker.rng
     x = word(name, rng, stretch=rng.uniform(0.8, 1.25), f0=rng.uniform(100.0, 160.0))
     x = (x * 10 ** (rng.uniform(-12, 12) / 20)).astype(np.float32)
     x += np.float32(np.sqrt(np.mean(x**2)) * 0.1) * rng.standard_normal(len(x)).astype(np.float32)
+    x = load_audio(speaker.record(x, subtype="FLOAT"))  # float WAV: +12 dB goes past full scale
     return Utterance.from_event(SoundEvent(t - len(x) / SR, t, x, SR, -20.0))
 
 
 def rewarded(
-    root: UtterancePercept, names: list[str], rng: np.random.Generator, *, start: float = 0.0
+    root: UtterancePercept, names: list[str], speaker: Speaker, *, start: float = 0.0
 ) -> dict[int, str]:
     """Hear each word, then reward the tuple that followed it 0.3 s later.
 
@@ -41,36 +58,34 @@ def rewarded(
     truth = {}
     for i, name in enumerate(names):
         t = start + 2.0 * (i + 1)
-        u = heard(name, rng, t)
+        u = heard(name, speaker, t)
         truth[id(u)] = name
         root.hear(u)
         root.update(t + 0.3, 1.0)
     return truth
 
 
-def grown_tree(
-    rng: np.random.Generator, names: list[str]
-) -> tuple[UtterancePercept, dict[int, str]]:
+def grown_tree(speaker: Speaker, names: list[str]) -> tuple[UtterancePercept, dict[int, str]]:
     root = UtterancePercept()
-    return root, rewarded(root, names, rng)
+    return root, rewarded(root, names, speaker)
 
 
 def word_of(u: Utterance, truth: dict[int, str]) -> str:
     return truth[id(u)]
 
 
-def test_root_responds_to_any_recent_sound(rng: np.random.Generator) -> None:
+def test_root_responds_to_any_recent_sound(speaker: Speaker) -> None:
     root = UtterancePercept(memory=1.0)
     assert root.evaluate(0.0) == 0.0
-    root.hear(heard("ai", rng, 5.0))
+    root.hear(heard("ai", speaker, 5.0))
     assert root.evaluate(5.5) == 1.0
     assert root.evaluate(6.5) == 0.0  # forgotten after `memory` seconds
     assert root.evaluate(4.0) == 0.0  # not heard yet
 
 
-def test_only_rewarded_recent_sounds_are_collected(rng: np.random.Generator) -> None:
+def test_only_rewarded_recent_sounds_are_collected(speaker: Speaker) -> None:
     root = UtterancePercept(memory=1.0)
-    root.hear(heard("ai", rng, 1.0))
+    root.hear(heard("ai", speaker, 1.0))
     root.update(1.5, 0.0)  # no reward
     root.update(3.0, 1.0)  # rewarded, but the sound is too old to have led to it
     assert root.members == []
@@ -79,9 +94,9 @@ def test_only_rewarded_recent_sounds_are_collected(rng: np.random.Generator) -> 
     assert len(root.members) == 1
 
 
-def test_distinct_words_grow_one_child_each(rng: np.random.Generator) -> None:
+def test_distinct_words_grow_one_child_each(speaker: Speaker) -> None:
     names = [WORDS[i % 3] for i in range(18)]
-    root, truth = grown_tree(rng, names)
+    root, truth = grown_tree(speaker, names)
     assert root.fission(value=0.4, innovation_threshold=0.5) == []  # not yet important
     born = root.fission(value=0.9, innovation_threshold=0.5)
     assert len(born) == 3 and root.children == born
@@ -90,7 +105,7 @@ def test_distinct_words_grow_one_child_each(rng: np.random.Generator) -> None:
         assert len(child.members) == 6
     # A fresh utterance of each word is most like its own child.
     for name in WORDS[:3]:
-        u = heard(name, rng, 100.0)
+        u = heard(name, speaker, 100.0)
         root.hear(u)
         scores = [c.evaluate(100.2) for c in born]
         best = born[int(np.argmax(scores))]
@@ -98,24 +113,24 @@ def test_distinct_words_grow_one_child_each(rng: np.random.Generator) -> None:
         assert 0.5 < max(scores) <= 1.0 and sorted(scores)[-2] < 0.5
 
 
-def test_one_word_does_not_split(rng: np.random.Generator) -> None:
-    root, _ = grown_tree(rng, ["ieu"] * 15)
+def test_one_word_does_not_split(speaker: Speaker) -> None:
+    root, _ = grown_tree(speaker, ["ieu"] * 15)
     assert root.fission(value=1.0, innovation_threshold=0.5) == []
     assert root.children == []
 
 
-def test_new_word_adds_a_child_and_old_children_keep_identity(rng: np.random.Generator) -> None:
-    root, truth = grown_tree(rng, ["ai", "oe"] * 5)
+def test_new_word_adds_a_child_and_old_children_keep_identity(speaker: Speaker) -> None:
+    root, truth = grown_tree(speaker, ["ai", "oe"] * 5)
     first = root.fission(1.0, 0.5)
     assert len(first) == 2
-    rewarded(root, ["eao"] * 5, rng, start=100.0)
+    rewarded(root, ["eao"] * 5, speaker, start=100.0)
     second = root.fission(1.0, 0.5)
     assert len(second) == 1 and len(root.children) == 3
     assert all(c in root.children for c in first)
 
 
-def test_children_fuse_when_no_longer_distinct(rng: np.random.Generator) -> None:
-    root, _ = grown_tree(rng, ["ai", "ua"] * 6)
+def test_children_fuse_when_no_longer_distinct(speaker: Speaker) -> None:
+    root, _ = grown_tree(speaker, ["ai", "ua"] * 6)
     assert len(root.fission(1.0, 0.5)) == 2
     root.radius = 1e6  # the creature's notion of "the same sound" widens
     removed = root.fusion()
@@ -123,13 +138,13 @@ def test_children_fuse_when_no_longer_distinct(rng: np.random.Generator) -> None
     assert len(root.children[0].members) == 12
 
 
-def test_draw_gives_raw_samples_to_sing(rng: np.random.Generator) -> None:
-    root, truth = grown_tree(rng, ["ai", "oe"] * 4)
+def test_draw_gives_raw_samples_to_sing(speaker: Speaker) -> None:
+    root, truth = grown_tree(speaker, ["ai", "oe"] * 4)
     child = root.fission(1.0, 0.5)[0]
-    u = child.draw(rng)
+    u = child.draw(speaker.rng)
     assert u in child.members and u.samples.dtype == np.float32 and len(u.samples) > SR // 4
     with pytest.raises(LookupError, match="no exemplars"):
-        UtterancePercept("empty").draw(rng)
+        UtterancePercept("empty").draw(speaker.rng)
 
 
 def test_cluster_medoids_on_a_known_matrix() -> None:
@@ -141,10 +156,10 @@ def test_cluster_medoids_on_a_known_matrix() -> None:
     assert len(cluster_medoids(d, 0.5, max_clusters=1, min_members=2)) == 1
 
 
-def test_save_and_reload_is_exact(rng: np.random.Generator, tmp_path: Path) -> None:
-    root, _ = grown_tree(rng, ["ai", "ua", "oe"] * 4)
+def test_save_and_reload_is_exact(speaker: Speaker, tmp_path: Path) -> None:
+    root, _ = grown_tree(speaker, ["ai", "ua", "oe"] * 4)
     root.fission(1.0, 0.5)
-    probe = heard("ua", rng, 50.0)
+    probe = heard("ua", speaker, 50.0)
     root.hear(probe)
     path = tmp_path / "ear.json"
     save_aural_model(root, path)
@@ -161,7 +176,7 @@ def test_save_and_reload_is_exact(rng: np.random.Generator, tmp_path: Path) -> N
     # Shared utterances stay shared: the root's members are the children's objects.
     assert {id(u) for c in again.children for u in c.members} <= {id(u) for u in again.members}
     # A reloaded model seeds another creature that keeps learning.
-    rewarded(again, ["eao"] * 4, rng, start=100.0)
+    rewarded(again, ["eao"] * 4, speaker, start=100.0)
     assert len(again.fission(1.0, 0.5)) == 1
 
 
@@ -171,8 +186,8 @@ def test_an_empty_model_round_trips(tmp_path: Path) -> None:
     assert (again.name, again.radius, again.members, again.children) == ("quiet", 123.0, [], [])
 
 
-def test_damaged_model_files_are_named(rng: np.random.Generator, tmp_path: Path) -> None:
-    root, _ = grown_tree(rng, ["ai"] * 3)
+def test_damaged_model_files_are_named(speaker: Speaker, tmp_path: Path) -> None:
+    root, _ = grown_tree(speaker, ["ai"] * 3)
     path = tmp_path / "ear.json"
     save_aural_model(root, path)
     doc = json.loads(path.read_text())
