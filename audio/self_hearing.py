@@ -6,6 +6,12 @@ to produce with StateObject's ability to process the saliency of data before pas
 to the Percepts" (and "state objects": one StateObject inhibiting another). The singing flow
 is a :class:`SingingState` whose saliency is the creature's own output level and which holds
 for ``release`` seconds after the voice stops, covering the room's echo of the last note.
+Half-duplex hearing is then one call, ``hearing.inhibit_by(singing, strength)``, made by
+whoever owns both flows (:class:`creatures.kinds.hearing_parts.Ear`)::
+
+    singing = SingingState(release=0.3)
+    segmenter.hearing.inhibit_by(singing)
+    singing.sing(clock.now()); ...; singing.silence(clock.now())
 
 Why a hold and not a fade: inhibition scales the hearing saliency, which measures dB above
 the noise floor; a loud echo 40 dB up still crosses the threshold when the inhibition has
@@ -55,15 +61,3 @@ class SingingState(StateObject):
         # A silence that follows singing: the sung level holds until the release has passed.
         return float(saliencies[i - 1]) if t - times[i] < self.release else 0.0
 
-
-def half_duplex(
-    hearing: StateObject, *, strength: float = 1.0, release: float = 0.25
-) -> SingingState:
-    """Make ``hearing`` deaf (by ``strength``) while the returned singing flow is salient.
-
-    >>> singing = half_duplex(segmenter.hearing, release=0.3)
-    >>> singing.sing(clock.now()); ...; singing.silence(clock.now())
-    """
-    singing = SingingState(release=release)
-    hearing.inhibit_by(singing, strength)
-    return singing

@@ -7,7 +7,7 @@ import pytest
 from scipy import signal
 
 from audio.segment import Segmenter, SoundEvent
-from audio.self_hearing import SingingState, half_duplex
+from audio.self_hearing import SingingState
 from audio_fixtures import SR, noise, word, warm_librosa  # noqa: F401
 from creatures.clock import SimulatedClock
 
@@ -47,7 +47,9 @@ def listen(
 ) -> tuple[list[SoundEvent], Segmenter]:
     """Run the creature's hearing loop block by block; it sings from SING_AT to ``sing_until``."""
     seg = Segmenter(SR, t0=clock.now())
-    singing = half_duplex(seg.hearing, strength=strength, release=release) if sing_until else None
+    singing = SingingState(release=release) if sing_until else None
+    if singing is not None:
+        seg.hearing.inhibit_by(singing, strength)
     events = []
     for block in np.array_split(x, len(x) // 512):
         if singing is not None and clock.now() >= SING_AT and len(singing) == 0:
