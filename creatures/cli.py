@@ -63,10 +63,14 @@ def _offline_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, required=True, help="directory for the outputs")
     parser.add_argument("--duration", type=float, help="simulated seconds (default: the config's)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument("--frames", action="store_true", help="draw the bodies into DIR/frames (PNGs; needs EGL or OSMesa)")
+    parser.add_argument("--video", action="store_true", help="draw the frames and encode them to DIR/out.mp4")
 
 
 def _run_offline(config: Path, out: Path, *, audio: Path | None = None, midi: Path | None = None,
-                 duration: float | None = None, progress: bool = True, pictures: bool = False) -> int:
+                 duration: float | None = None, progress: bool = True, frames: bool = False,
+                 video: bool = False) -> int:
+    """``frames``/``video`` turn the config's ``[output]`` keys on (never off)."""
     from audio.sources import AudioFileError
     from creatures.config import ConfigError
     from creatures.runtime.offline import run_offline
@@ -75,8 +79,9 @@ def _run_offline(config: Path, out: Path, *, audio: Path | None = None, midi: Pa
 
     try:
         installation = load_installation(config)
-        if pictures:
-            installation.settings.output.frames = installation.settings.output.video = True
+        output = installation.settings.output
+        output.frames = output.frames or frames or video
+        output.video = output.video or video
         for given in (audio, midi):
             if given is not None and not given.is_file():
                 raise FileNotFoundError(f"{given}: no such file")
@@ -95,8 +100,8 @@ def _run_offline(config: Path, out: Path, *, audio: Path | None = None, midi: Pa
 
 @command("offline", "run an installation on recorded input, faster than real time", _offline_options)
 def _offline(args: argparse.Namespace) -> int:
-    return _run_offline(args.config, args.out, audio=args.audio, midi=args.midi,
-                        duration=args.duration, progress=not args.no_progress)
+    return _run_offline(args.config, args.out, audio=args.audio, midi=args.midi, duration=args.duration,
+                        progress=not args.no_progress, frames=args.frames, video=args.video)
 
 
 def _run_options(parser: argparse.ArgumentParser) -> None:
@@ -105,6 +110,10 @@ def _run_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--log", type=Path, help="write the events log (JSONL) here")
     parser.add_argument("--duration", type=float, help="stop after this many seconds (default: run until Ctrl-C)")
     parser.add_argument("--frames", type=Path, help="draw the bodies into this directory (PNGs; a video if the config asks)")
+
+
+NO_STATE = ("no state directory: learned state will not be kept (nothing is saved or restored); "
+            "use --state DIR or `state = \"DIR\"` in the config")
 
 
 @command("run", "run an installation live with its configured devices (Ctrl-C stops cleanly)", _run_options)
@@ -116,6 +125,8 @@ def _run(args: argparse.Namespace) -> int:
 
     try:
         installation = load_installation(args.config)
+        if args.state is None and installation.settings.state is None:
+            print(f"note: {NO_STATE}")
         summary = run_live(installation, duration=args.duration, state=args.state, log_path=args.log,
                            pictures=args.frames)
     except (ConfigError, StateFileError) as exc:
@@ -170,7 +181,7 @@ def _demo(args: argparse.Namespace) -> int:
     except FileNotFoundError as exc:
         print(f"creatures: {exc}", file=sys.stderr)
         return 2
-    code = _run_offline(config, args.out, duration=args.duration, pictures=True)
+    code = _run_offline(config, args.out, duration=args.duration, frames=True, video=True)
     if code == 0:
         print(f"open {args.out / 'report' / 'index.html'} to see what the creatures did")
     return code
