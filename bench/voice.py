@@ -8,19 +8,47 @@ Rows (``python -m bench voice``):
 * the same string model vectorised in numpy over the masses (a Python loop over haptic
   frames) — the measurement behind choosing numba for :mod:`audio.scanned`;
 * body frames per second at 640×480 (pyrender offscreen), when a GL platform exists.
+
+The voice rows run under :func:`one_core` (the target is per core); the render row does not,
+since the GL driver's own threads are part of what a frame costs.
 """
 
 from __future__ import annotations
 
+import contextlib
+import os
 import sys
+from typing import Iterator
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from bench import Row, best_of
 from audio.scanned import ScannedString, StringParameters
 
 SR = 48000
 BLOCK = 512
+
+
+@contextlib.contextmanager
+def one_core() -> Iterator[None]:
+    """Run the block pinned to one CPU with one BLAS/OpenMP thread, then restore both.
+
+    Targets say "on one core", and a ratio only means something when both sides get the same
+    machine: unpinned, a baseline that reaches threaded BLAS (librosa's mel projection, in
+    ``bench/hearing.py``) would use every core while the measured path uses one. Where the OS
+    cannot pin (macOS, Windows) the thread pools are still limited.
+    """
+    with threadpool_limits(limits=1):
+        if not hasattr(os, "sched_setaffinity"):
+            yield
+            return
+        cpus = os.sched_getaffinity(0)
+        os.sched_setaffinity(0, {min(cpus)})
+        try:
+            yield
+        finally:
+            os.sched_setaffinity(0, cpus)
 
 
 def _plucked() -> ScannedString:
@@ -87,10 +115,11 @@ def run(quick: bool) -> list[Row]:
     string, out = _plucked(), np.empty(BLOCK)
     string.render(BLOCK, out=out)  # JIT (or load the numba cache) before timing
     repeat = 2 if quick else 5
-    scanned = 1.0 / best_of(lambda: _scanned_second(string, out), repeat=repeat)
     table = np.sin(2 * np.pi * np.arange(4096) / 4096)
-    sine = 1.0 / best_of(lambda: _sine_table_second(table, out), repeat=repeat)
-    vectorised = 1.0 / best_of(lambda: _numpy_scanned_second(string.parameters), repeat=1 if quick else 2)
+    with one_core():
+        scanned = 1.0 / best_of(lambda: _scanned_second(string, out), repeat=repeat)
+        sine = 1.0 / best_of(lambda: _sine_table_second(table, out), repeat=repeat)
+        vectorised = 1.0 / best_of(lambda: _numpy_scanned_second(string.parameters), repeat=1 if quick else 2)
     rows = [
         Row("128-mass scanned strings in real time @48 kHz (numba)", scanned, "voices", target=50.0,
             baseline="numpy sine-table voices", ratio=scanned / sine),
