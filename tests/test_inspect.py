@@ -14,10 +14,12 @@ from creatures.behaviour.percept import FunctionPercept, WhateverPercept
 from creatures.behaviour.value import GaussianValue, ScalarValue
 from creatures.cli import main
 from creatures.clock import SimulatedClock
-from creatures.events import EventLog
+from creatures.events import EventLog, read_events
 from creatures.persist import save_json
+from creatures.kinds.parts import shared_graph
 from creatures.runtime.inspect import InspectError, inspect
 from creatures.runtime.offline import run_offline
+from creatures.runtime.report import motor_walks
 from creatures.runtime.schema import load_installation
 from creatures.runtime.session import STATE_KIND, Session
 from creatures.temporal.durations import LowIntegerRatioModel
@@ -52,6 +54,18 @@ def test_inspect_an_offline_run(offline_run, tmp_path, capsys):
     assert ".png\"" not in page
     for name in ("ada", "bo", "cy", "wander", "seek note", "rest", "boredom", "hunger"):
         assert f"<td>{name}</td>" in page or f"<h3>{name} " in page, name
+
+
+def test_the_motor_graph_is_the_real_graph_and_the_path_walks_its_edges(offline_run):
+    walks = motor_walks(read_events(offline_run / "events.jsonl"))
+    assert set(walks) == {"ada", "bo", "cy"}
+    for creature, walk in walks.items():
+        graph = shared_graph(ratios=creature == "cy")  # the whole graph, not only what was walked
+        np.testing.assert_allclose(walk.hands, graph.poses.positions[:, graph.skeleton.names.index("hand_r")],
+                                   atol=1e-4)
+        assert walk.edges == {(min(a, b), max(a, b)) for a, b in graph.edges()}, creature
+        assert len(walk.path) > 50 and walk.jumps() == 0, creature  # every node reached, each step a graph edge
+        assert len(set(walk.path)) < len(walk.hands) and sum(walk.steps().values()) == len(walk.path) - 1
 
 
 def _state_dir(tmp_path):

@@ -36,7 +36,7 @@ from creatures.kinds import register
 from creatures.kinds.base import CreatureKind, CreatureSpec
 from creatures.kinds.moves import Rest, head_for
 from creatures.kinds.parts import Body, Voice, VoiceSpec
-from creatures.kinds.report_parts import report_values, selection_logger
+from creatures.kinds.report_parts import MotorTrail, report_values, selection_logger
 from creatures.motor.note_space import NotePlacement, nearest_note
 from creatures.motor.search import NoPath
 from creatures.runtime.pulse import PulseDuration
@@ -125,6 +125,7 @@ class Exchange(CreatureKind):
     def __init__(self, spec: ExchangeSpec, world, rng: np.random.Generator) -> None:
         super().__init__(spec, world, rng)
         self.body = Body(rng, ratios=spec.ratio_metric)
+        self.trail = MotorTrail(world, self.name, self.body)
         self._reach = self.body.reach()
         self.placement = NotePlacement.around(self._reach)
         self.space = NoteSpace(world.scheduler_for(self), world.clock)
@@ -255,6 +256,7 @@ class Exchange(CreatureKind):
         self.motivation.advance(t)
         for obj in [o for o in self.space.objects if t - self.placed_at.get(id(o), t) > self.spec.note_lifetime]:
             self._forget(obj)
+        self.trail.follow(t)
         pose = self.body.update(t)
         self.group.tick(t)
         self.space.tick()
@@ -266,11 +268,8 @@ class Exchange(CreatureKind):
 
     def _report(self, t: float) -> None:
         report_values(self.world, t, self.name, self.group, self.motivation)
-        log = self.world.log
-        hand = self.body.hand()
-        log.emit(t, "motor", creature=self.name, node=self.body.motor.position(t).node,
-                 position={"x": hand[0], "y": hand[1], "z": hand[2]})
-        log.emit(t, "percepts", creature=self.name, sizes={"notes in space": len(self.space)})
+        self.trail.report(t)
+        self.world.log.emit(t, "percepts", creature=self.name, sizes={"notes in space": len(self.space)})
 
     # -- outputs -----------------------------------------------------------------------
     def sound(self, out: np.ndarray, sample_rate: int) -> None:

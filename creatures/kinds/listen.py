@@ -62,7 +62,7 @@ from creatures.kinds.base import CreatureKind, CreatureSpec
 from creatures.kinds.model_population import Member, ModelPopulation
 from creatures.kinds.moves import Rest, head_for
 from creatures.kinds.parts import Body, Voice, VoiceSpec
-from creatures.kinds.report_parts import report_values, selection_logger
+from creatures.kinds.report_parts import MotorTrail, report_values, selection_logger
 from creatures.motor.gesture import GestureModel, Observation
 from creatures.motor.note_space import NotePlacement
 from midi.notes import NoteEvent
@@ -235,6 +235,7 @@ class Listen(CreatureKind):
     def __init__(self, spec: ListenSpec, world, rng: np.random.Generator) -> None:
         super().__init__(spec, world, rng)
         self.body = Body(rng)
+        self.trail = MotorTrail(world, self.name, self.body)
         self.poses = NotePoses(self.body.reach())
         self.memory: deque[Observation] = deque(maxlen=spec.memory)
         self.unlearnt = 0
@@ -343,6 +344,7 @@ class Listen(CreatureKind):
         if t >= self._next_analysis:
             self._next_analysis = t + self.spec.analysis_every
             self.analyse(t)
+        self.trail.follow(t)
         self.body.update(t)
         self.group.tick(t)
         if not any(tp.name == "dance" for tp in self.group.active):
@@ -360,9 +362,7 @@ class Listen(CreatureKind):
                                "states of best": 0 if best is None else len(best.model.states)},
                         best=None if best is None else best.id,
                         match=None if best is None else self.population.best_score, core=core)
-        hand = self.body.hand()
-        self.world.emit("motor", creature=self.name, node=self.body.motor.position(t).node,
-                        position={"x": hand[0], "y": hand[1], "z": hand[2]})
+        self.trail.report(t)
 
     # -- outputs -------------------------------------------------------------------------------
     def played(self, note: NoteEvent) -> None:

@@ -1,18 +1,23 @@
 """Writing a creature's inner life to the events log (DESIGN.md "Seeing inside").
 
 Shared by the kinds that report through the same events as *exchange*: ``selection`` /
-``interruption`` / ``stop`` / ``credit`` from an :class:`ActionGroup`, and periodic
-``values`` and ``motivation`` snapshots, each tagged with the creature's name so the report
-can plot creatures side by side.
+``interruption`` / ``stop`` / ``credit`` from an :class:`ActionGroup`, periodic ``values``
+and ``motivation`` snapshots, and the body's way through its motor graph
+(:class:`MotorTrail`), each tagged with the creature's name so the report can plot creatures
+side by side.
 """
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any, Callable
 
+import numpy as np
+
 if TYPE_CHECKING:
     from creatures.behaviour.action_group import ActionGroup
     from creatures.behaviour.motivation import Motivation
+    from creatures.kinds.parts import Body
+    from creatures.motor.playback import Playback
     from creatures.runtime.world import World
 
 
@@ -35,3 +40,61 @@ def report_values(world: "World", t: float, creature: str, group: "ActionGroup",
     if motivation is not None:
         world.log.emit(t, "motivation", creature=creature,
                        drives=dict(zip(motivation.names, motivation.levels_at(t).tolist())))
+
+
+class MotorTrail:
+    """Every motor-graph node a body reaches, in order, for the events log (thesis
+    "graph-based motor systems": the body's path through its graph).
+
+    A snapshot of where the body is every half second skips the nodes it passed in between,
+    and joining snapshots draws edges the graph does not have. So :meth:`follow` runs every
+    tick, *before* ``Body.update`` (which forgets a finished course), and collects the
+    course's own ``visited`` nodes; a course abandoned for a new one ends where the body
+    turned, and the new one starts from there (an end of the same edge), so consecutive
+    nodes are always joined by a graph edge. :meth:`report` logs the graph itself once
+    (node → hand position, edges) as a ``motor graph`` event, then a ``motor`` snapshot with
+    the nodes ``reached`` since the last one.
+    """
+
+    def __init__(self, world: "World", creature: str, body: "Body") -> None:
+        self.world = world
+        self.creature = creature
+        self.body = body
+        self.reached: list[int] = []
+        self._last: int | None = None
+        self._course: "Playback | None" = None
+        self._seen = 0  # nodes of the current course already reached
+        self._graph_logged = False
+
+    def follow(self, t: float) -> None:
+        """Collect the nodes reached by clock time ``t`` (call every tick, before the body moves on)."""
+        motor = self.body.motor
+        course = motor.playback
+        if course is None:
+            self._reach(motor.position(t).node)
+            return
+        if course is not self._course:
+            self._course, self._seen = course, 0
+        visited = course.visited(t)
+        for node in visited[self._seen:]:
+            self._reach(node)
+        self._seen = len(visited)
+
+    def _reach(self, node: int) -> None:
+        if node != self._last:
+            self.reached.append(node)
+            self._last = node
+
+    def report(self, t: float) -> None:
+        """The graph (first time only), then where the body is and what it reached since."""
+        log = self.world.log
+        if not self._graph_logged:
+            graph = self.body.graph
+            edges = sorted({(min(a, b), max(a, b)) for a, b in graph.edges()})
+            log.emit(t, "motor graph", creature=self.creature, effector=self.body.effector,
+                     hands=np.round(self.body.reach(), 4), edges=edges)
+            self._graph_logged = True
+        hand = self.body.hand()
+        log.emit(t, "motor", creature=self.creature, node=self.body.motor.position(t).node,
+                 position={"x": hand[0], "y": hand[1], "z": hand[2]}, reached=self.reached)
+        self.reached = []

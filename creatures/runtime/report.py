@@ -3,7 +3,8 @@
 Reading only ``events.jsonl`` keeps the report honest (it shows what was logged, not what the
 code meant to do) and lets the inspector reuse it. Each plot is drawn only when its events
 exist: notes (a piano roll per creature), action selections, action values, motivations,
-percept-tree sizes, the motor path and the part of the motor graph walked. The inspector
+percept counts (whatever each kind counts: notes in space, models, members of each percept),
+the motor path, and each motor graph with the path walked over it. The inspector
 (``creatures inspect``) draws with the same functions.
 """
 
@@ -11,12 +12,15 @@ from __future__ import annotations
 
 import html
 from collections import defaultdict
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import matplotlib
+import numpy as np
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.collections import LineCollection  # noqa: E402
 
 from creatures.events import read_events  # noqa: E402
 
@@ -95,51 +99,82 @@ def event_plots(events: list[dict], out: Path) -> list[tuple[str, Path]]:
         ("Action selections", _plot_selections(events, out / "selections.png")),
         ("Action values", _plot_series(_series(events, "values", "values"), "action values", "V", out / "values.png")),
         ("Motivations", _plot_series(_series(events, "motivation", "drives"), "motivations", "level", out / "motivations.png")),
-        ("Percept trees", _plot_series(_series(events, "percepts", "sizes"), "percept tree sizes", "nodes", out / "percepts.png")),
+        ("Percept counts", _plot_series(_series(events, "percepts", "sizes"), "what it perceives and holds, counted",
+                                        "count", out / "percepts.png")),
         ("Motor path", _plot_series(_series(events, "motor", "position"), "end-effector position", "m", out / "motor.png")),
         ("Motor graph", plot_motor_graph(events, out / "motor_graph.png")),
     ]
     return [(name, path) for name, path in plots if path is not None]
 
 
-def motor_walks(events: list[dict]) -> dict[str, tuple[list[int], dict[int, tuple[float, float]]]]:
-    """creature → (graph nodes in the order visited, node → mean hand (x, z) there), from
-    ``motor`` events (thesis "graph-based motor systems": the body's path through its graph)."""
-    walks: dict[str, list[int]] = defaultdict(list)
-    where: dict[str, dict[int, list[tuple[float, float]]]] = defaultdict(lambda: defaultdict(list))
+@dataclass
+class MotorWalk:
+    """One body's motor graph and its way through it, as logged by
+    :class:`~creatures.kinds.report_parts.MotorTrail`."""
+
+    hands: np.ndarray  # (N, 3): where the effector is at each node's pose
+    edges: set[tuple[int, int]]  # undirected node pairs
+    path: list[int] = field(default_factory=list)  # nodes in the order reached
+
+    def steps(self) -> dict[tuple[int, int], int]:
+        """Graph edges walked (undirected), with how often."""
+        walked: dict[tuple[int, int], int] = defaultdict(int)
+        for a, b in zip(self.path, self.path[1:]):
+            if (min(a, b), max(a, b)) in self.edges:
+                walked[(min(a, b), max(a, b))] += 1
+        return walked
+
+    def jumps(self) -> int:
+        """Consecutive nodes of the path that no edge joins (a restart: another run in the same log)."""
+        return sum((min(a, b), max(a, b)) not in self.edges for a, b in zip(self.path, self.path[1:]))
+
+
+def motor_walks(events: list[dict]) -> dict[str, MotorWalk]:
+    """creature → its graph (the latest ``motor graph`` event) and the nodes its ``motor``
+    events say it reached after it (thesis "graph-based motor systems")."""
+    walks: dict[str, MotorWalk] = {}
     for e in events:
-        if e["kind"] != "motor" or not isinstance(e.get("node"), int):
-            continue
-        creature, node = e.get("creature", ""), e["node"]
-        if not walks[creature] or walks[creature][-1] != node:
-            walks[creature].append(node)
-        position = e.get("position")
-        if isinstance(position, dict) and all(isinstance(position.get(k), (int, float)) for k in "xz"):
-            where[creature][node].append((position["x"], position["z"]))
-    layout = {c: {n: (sum(x for x, _ in ps) / len(ps), sum(z for _, z in ps) / len(ps)) for n, ps in nodes.items()}
-              for c, nodes in where.items()}
-    return {c: (walk, layout.get(c, {})) for c, walk in walks.items()}
+        creature = e.get("creature", "")
+        if e["kind"] == "motor graph":
+            walks[creature] = MotorWalk(np.asarray(e["hands"], dtype=float).reshape(-1, 3),
+                                        {(min(a, b), max(a, b)) for a, b in e["edges"]})
+        elif e["kind"] == "motor" and creature in walks and isinstance(e.get("reached"), list):
+            walks[creature].path.extend(n for n in e["reached"] if isinstance(n, int))
+    return walks
 
 
 def plot_motor_graph(events: list[dict], path: Path) -> Path | None:
-    """The part of each creature's motor graph it visited: nodes at the hand's mean place
-    there (x–z plane), an edge per transition walked (thicker when walked more often)."""
-    walks = {c: w for c, w in motor_walks(events).items() if len(w[0]) > 1 and w[1]}
+    """Each body's whole motor graph seen from the front (every node at its pose's hand
+    position, hand x across and height up; every edge in grey) and the path it walked over
+    it (edges walked in colour, thicker when walked more often; nodes visited, the first
+    and the last marked)."""
+    walks = {c: w for c, w in motor_walks(events).items() if len(w.hands)}
     if not walks:
         return None
-    fig, axes = plt.subplots(1, len(walks), figsize=(4.2 * len(walks), 4), squeeze=False)
-    for ax, (creature, (walk, layout)) in zip(axes[0], sorted(walks.items())):
-        counts: dict[tuple[int, int], int] = defaultdict(int)
-        for a, b in zip(walk, walk[1:]):
-            if a in layout and b in layout:
-                counts[(min(a, b), max(a, b))] += 1
-        for (a, b), n in counts.items():
-            ax.plot(*zip(layout[a], layout[b]), color="0.5", linewidth=0.5 + n ** 0.5, alpha=0.6)
-        xs, zs = zip(*layout.values())
-        ax.scatter(xs, zs, s=12, color="C0", zorder=3)
-        ax.set_title(f"{creature}: {len(layout)} nodes, {len(counts)} edges walked", fontsize=9)
+    fig, axes = plt.subplots(1, len(walks), figsize=(4.4 * len(walks), 4.4), squeeze=False)
+    for ax, (creature, walk) in zip(axes[0], sorted(walks.items())):
+        front = walk.hands[:, :2]
+        ax.add_collection(LineCollection([front[[a, b]] for a, b in sorted(walk.edges)], colors="0.82",
+                                         linewidths=0.4, zorder=1))
+        ax.scatter(*front.T, s=5, color="0.6", zorder=2)
+        steps = walk.steps()
+        if steps:
+            ax.add_collection(LineCollection([front[[a, b]] for a, b in steps], colors="C1", alpha=0.8, zorder=3,
+                                             linewidths=[0.8 + n ** 0.5 for n in steps.values()]))
+        visited = sorted(set(walk.path))
+        ax.scatter(*front[visited].T, s=14, color="C0", zorder=4)
+        if walk.path:
+            ax.scatter(*front[walk.path[0]], s=60, marker="o", facecolors="none", edgecolors="k", zorder=5,
+                       label="first")
+            ax.scatter(*front[walk.path[-1]], s=60, marker="s", facecolors="none", edgecolors="k", zorder=5,
+                       label="last")
+            ax.legend(fontsize=6, loc="lower right")
+        jumps = walk.jumps()
+        ax.set_title(f"{creature}: {len(walk.hands)} nodes, {len(walk.edges)} edges; walked {len(steps)} edges "
+                     f"through {len(visited)} nodes" + (f" ({jumps} restarts)" if jumps else ""), fontsize=8)
         ax.set_xlabel("hand x (m)")
-        ax.set_ylabel("hand z (m)")
+        ax.set_ylabel("hand height (m)")
+        ax.autoscale_view()
     fig.tight_layout()
     fig.savefig(path, dpi=90)
     plt.close(fig)
