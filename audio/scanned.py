@@ -101,6 +101,12 @@ class StringParameters:
         """Upper bound on the chain's highest natural frequency (Hz), ignoring damping."""
         return math.sqrt((4.0 * self.stiffness + self.centring) / self.mass) / (2.0 * math.pi)
 
+    def stiffness_for_highest_mode(self, hz: float) -> float:
+        """The stiffness that would put :attr:`highest_mode_hz` at ``hz`` with this mass and
+        centring: the most a config may ask for and stay gestural. Negative when centring
+        alone already rings faster than ``hz``."""
+        return ((2.0 * math.pi * hz) ** 2 * self.mass - self.centring) / 4.0
+
 
 @numba.njit(cache=True, fastmath=False)
 def _haptic_step(x, v, force, ring, k, c, gamma, inv_m, h):

@@ -7,12 +7,13 @@ that sings has a :class:`Voice`, a kind that moves has a :class:`Body`.
 from __future__ import annotations
 
 import functools
+import math
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from audio.coupling import BodyCoupling
-from audio.scanned import StringParameters, UnstableStringError, soft_limit
+from audio.scanned import GESTURAL_LIMIT_HZ, StringParameters, UnstableStringError, soft_limit
 from audio.voices import VoicePool
 from creatures.motor import quaternion as quat
 from creatures.motor.animations import example_animations
@@ -25,7 +26,13 @@ from creatures.motor.search import PathFinder
 
 
 class VoiceSpec(BaseModel):
-    """``[creature.voice]``: the scanned strings a creature sings with (checked for stability)."""
+    """``[creature.voice]``: the scanned strings a creature sings with (checked for stability).
+
+    Every string the config accepts is stable (the integrator's bound, checked by
+    :class:`audio.scanned.StringParameters`) and gestural: physics at a haptic rate of
+    100–1000 Hz and no mode above :data:`audio.scanned.GESTURAL_LIMIT_HZ` (thesis figure 47:
+    "lower than 10-15Hz"), so the body moves the string at the speed the string moves.
+    """
 
     model_config = ConfigDict(extra="forbid")
 
@@ -35,19 +42,35 @@ class VoiceSpec(BaseModel):
     stiffness: float = Field(800.0, ge=0, description="spring between neighbouring masses")
     centring: float = Field(4.0, ge=0, description="spring of each mass to rest")
     damping: float = Field(0.5, ge=0, description="velocity damping (sets how fast a string rings down)")
-    haptic_rate: float = Field(500.0, gt=0, le=4000, description="string physics updates per second")
+    haptic_rate: float = Field(500.0, ge=100, le=1000, description="string physics updates per second")
     release: float = Field(0.2, gt=0, le=10, description="fade after note-off, seconds")
     gain: float = Field(0.3, ge=0, le=4, description="output gain of the strings before the limiter")
     body_gain: float = Field(40.0, ge=0, description="force per unit joint velocity pushing the strings")
 
     @model_validator(mode="after")
-    def _stable(self) -> "VoiceSpec":
-        self.parameters()  # raises UnstableStringError (a ValueError) naming the bound
+    def _stable_and_gestural(self) -> "VoiceSpec":
+        parameters = self.parameters()  # raises UnstableStringError (a ValueError) naming the bound
+        if parameters.highest_mode_hz > GESTURAL_LIMIT_HZ:
+            most = parameters.stiffness_for_highest_mode(GESTURAL_LIMIT_HZ)
+            advice = (f"use stiffness ≤ {_round_down(most):g}" if most >= 0 else
+                      f"use centring ≤ {_round_down(4.0 * most + self.centring):g} and stiffness 0")
+            raise ValueError(
+                f"stiffness {self.stiffness:g} with centring {self.centring:g} and mass {self.mass:g} puts the "
+                f"string's highest mode at {parameters.highest_mode_hz:.3g} Hz, above the gestural limit of "
+                f"{GESTURAL_LIMIT_HZ:g} Hz: {advice}, or a larger mass"
+            )
         return self
 
     def parameters(self) -> StringParameters:
         return StringParameters(n_masses=self.masses, mass=self.mass, stiffness=self.stiffness,
                                 centring=self.centring, damping=self.damping, haptic_rate=self.haptic_rate)
+
+
+def _round_down(value: float, digits: int = 4) -> float:
+    """``value`` (> 0) cut to ``digits`` significant figures, rounding down: an advised upper
+    bound that, typed back into the config, is itself accepted."""
+    scale = 10.0 ** (digits - 1 - math.floor(math.log10(value)))
+    return math.floor(value * scale) / scale
 
 
 class Voice:
