@@ -17,9 +17,10 @@ and ``pose.time`` — any BodyPose-like object will do:
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, Protocol
+from typing import Any, Callable, Protocol
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 
 class PoseLike(Protocol):
@@ -46,7 +47,7 @@ class BodyCoupling:
         Which joints couple (default all), e.g. a creature's hands only.
     """
 
-    def __init__(self, node_positions: np.ndarray, *, axis=(0.0, 1.0, 0.0), radius: float = 0.2,
+    def __init__(self, node_positions: np.ndarray, *, axis: ArrayLike = (0.0, 1.0, 0.0), radius: float = 0.2,
                  gain: float = 50.0, joints: np.ndarray | list[int] | None = None) -> None:
         self.nodes = np.asarray(node_positions, dtype=float)
         if self.nodes.ndim != 2 or self.nodes.shape[1] != 3:
@@ -64,7 +65,7 @@ class BodyCoupling:
         self._last: tuple[np.ndarray, float] | None = None
 
     @classmethod
-    def along(cls, start, end, n_masses: int, **kwargs) -> BodyCoupling:
+    def along(cls, start: ArrayLike, end: ArrayLike, n_masses: int, **kwargs: Any) -> BodyCoupling:
         """A string stretched in a straight line from ``start`` to ``end``."""
         t = np.linspace(0.0, 1.0, n_masses)[:, None]
         return cls((1.0 - t) * np.asarray(start, float) + t * np.asarray(end, float), **kwargs)

@@ -22,8 +22,16 @@ import sys
 from dataclasses import dataclass
 from functools import cache
 from types import ModuleType
+from typing import TYPE_CHECKING, Iterable
 
 import numpy as np
+from numpy.typing import ArrayLike
+
+if TYPE_CHECKING:  # imported for real only once a GL platform is chosen (see _pyrender)
+    import pyrender
+    import trimesh
+
+RGB = tuple[float, float, float]
 
 PLATFORMS = ("egl", "osmesa")
 _PROBE = "import pyrender; pyrender.OffscreenRenderer(8, 8).delete()"
@@ -67,13 +75,13 @@ def _pyrender() -> ModuleType:
     return pyrender
 
 
-def pitch_colour(pitch: float) -> tuple[float, float, float]:
+def pitch_colour(pitch: float) -> RGB:
     """RGB for a MIDI pitch: hue walks the circle of pitch classes, octave sets brightness."""
     octave = min(max((pitch // 12 - 2) / 7.0, 0.0), 1.0)
     return colorsys.hsv_to_rgb((pitch % 12) / 12.0, 0.85, 0.45 + 0.55 * octave)
 
 
-def look_at(eye, target, up=(0.0, 1.0, 0.0)) -> np.ndarray:
+def look_at(eye: ArrayLike, target: ArrayLike, up: ArrayLike = (0.0, 1.0, 0.0)) -> np.ndarray:
     """Camera pose (4×4, OpenGL convention: the camera looks down its −z) from eye to target."""
     eye, target, up = (np.asarray(v, dtype=float) for v in (eye, target, up))
     back = eye - target
@@ -136,7 +144,7 @@ class BodyRenderer:
 
     def __init__(self, width: int = 640, height: int = 480, *, joint_radius: float = 0.04,
                  bone_radius: float = 0.025, camera_pose: np.ndarray | None = None,
-                 body_colour=(0.85, 0.82, 0.75), background=(0.08, 0.08, 0.1)) -> None:
+                 body_colour: RGB = (0.85, 0.82, 0.75), background: RGB = (0.08, 0.08, 0.1)) -> None:
         pyrender = _pyrender()
         import trimesh
 
@@ -145,7 +153,7 @@ class BodyRenderer:
         self._body = pyrender.MetallicRoughnessMaterial(baseColorFactor=(*body_colour, 1.0), roughnessFactor=0.7)
         self._sphere = trimesh.creation.icosphere(subdivisions=2, radius=1.0)
         self._cylinder = trimesh.creation.cylinder(radius=1.0, height=1.0, sections=16)
-        self._note_materials: dict[int, object] = {}
+        self._note_materials: dict[int, pyrender.MetallicRoughnessMaterial] = {}
         self.scene = pyrender.Scene(bg_color=(*background, 1.0), ambient_light=(0.25, 0.25, 0.25))
         self._camera = self.scene.add(pyrender.PerspectiveCamera(yfov=np.pi / 3.5, aspectRatio=width / height),
                                       pose=np.eye(4) if camera_pose is None else camera_pose)
@@ -153,7 +161,7 @@ class BodyRenderer:
         self._framed = camera_pose is not None
         if self._framed:
             self.scene.set_pose(self._light, camera_pose)
-        self._frame_nodes: list = []  # this frame's instanced meshes (joints, bones, notes by pitch)
+        self._frame_nodes: list[pyrender.Node] = []  # this frame's instanced meshes (joints, bones, notes by pitch)
         try:
             self._renderer = pyrender.OffscreenRenderer(width, height)
         except Exception as exc:  # pyglet/EGL errors vary by platform
@@ -168,24 +176,25 @@ class BodyRenderer:
         self.scene.set_pose(self._light, pose)
         self._framed = True
 
-    def _instanced(self, mesh, material, matrices: np.ndarray) -> None:
+    def _instanced(self, mesh: trimesh.Trimesh, material: pyrender.Material, matrices: np.ndarray) -> None:
         """One scene node drawing ``mesh`` at every transform: one draw call per frame
         instead of one per joint, bone or note (pyrender's per-node GL calls dominated,
         ~165 ms a frame for three bodies)."""
         node = self.scene.add(self._pr.Mesh.from_trimesh(mesh, material=material, poses=matrices))
         self._frame_nodes.append(node)
 
-    def _note_material(self, pitch: int):
+    def _note_material(self, pitch: int) -> pyrender.MetallicRoughnessMaterial:
         if pitch not in self._note_materials:
             self._note_materials[pitch] = self._pr.MetallicRoughnessMaterial(
                 baseColorFactor=(*pitch_colour(pitch), 1.0), emissiveFactor=pitch_colour(pitch))
         return self._note_materials[pitch]
 
-    def render(self, positions: np.ndarray, parents: np.ndarray, notes=()) -> np.ndarray:
+    def render(self, positions: ArrayLike, parents: ArrayLike, notes: Iterable[NoteMark] = ()) -> np.ndarray:
         """RGB image ``(height, width, 3)`` uint8 of the body and notes."""
         return self.render_with_depth(positions, parents, notes)[0]
 
-    def render_with_depth(self, positions, parents, notes=()) -> tuple[np.ndarray, np.ndarray]:
+    def render_with_depth(self, positions: ArrayLike, parents: ArrayLike,
+                          notes: Iterable[NoteMark] = ()) -> tuple[np.ndarray, np.ndarray]:
         """RGB and depth; ``depth > 0`` is the silhouette of everything drawn."""
         positions = np.asarray(positions, dtype=float)
         parents = np.asarray(parents)
@@ -201,7 +210,7 @@ class BodyRenderer:
         if len(child):
             self._instanced(self._cylinder, self._body,
                             _bone_matrices(positions[parents[child]], positions[child], self.bone_radius))
-        by_pitch: dict[int, list] = {}
+        by_pitch: dict[int, list[NoteMark]] = {}
         for n in notes:
             by_pitch.setdefault(int(round(n.pitch)), []).append(n)
         for pitch, marks in by_pitch.items():
@@ -215,5 +224,5 @@ class BodyRenderer:
     def __enter__(self) -> BodyRenderer:
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()

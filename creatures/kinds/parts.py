@@ -67,8 +67,10 @@ class VoiceSpec(BaseModel):
 
 
 def _round_down(value: float, digits: int = 4) -> float:
-    """``value`` (> 0) cut to ``digits`` significant figures, rounding down: an advised upper
-    bound that, typed back into the config, is itself accepted."""
+    """``value`` cut to ``digits`` significant figures, rounding down: an advised upper bound
+    that, typed back into the config, is itself accepted."""
+    if value <= 0.0:
+        return 0.0
     scale = 10.0 ** (digits - 1 - math.floor(math.log10(value)))
     return math.floor(value * scale) / scale
 
