@@ -10,7 +10,8 @@ base class whose subclasses fill in ``_write``/``_close``.
   preallocated lock-free :class:`audio.sources.RingBuffer` that live input uses too; the
   PortAudio callback only copies out of it (no allocation of buffers, no locks, no
   logging) and counts underruns. Callback streams, never blocking ``write()``: under JACK
-  a blocking mono write aborted the process (ENVIRONMENT.md).
+  a blocking mono write aborted the process (ENVIRONMENT.md). A loudspeaker that survives
+  its device vanishing and returning is :class:`audio.resilient.ResilientOutput`.
 * :class:`SilentOutput` — what :func:`open_output` returns when no device exists, so an
   installation keeps running (and can still record) with a clear ``reason``.
 """
@@ -22,11 +23,13 @@ import os
 import tempfile
 import time
 from pathlib import Path
+from types import TracebackType
+from typing import Any, Self
 
 import numpy as np
 import soundfile
 
-from audio.device import AudioDeviceUnavailable, find_device, sounddevice_module
+from audio.device import AudioBackend, AudioDeviceUnavailable, device_rate, find_device, portaudio, start_stream
 from audio.sources import RingBuffer
 
 log = logging.getLogger(__name__)
@@ -66,10 +69,11 @@ class AudioOutput:
     def _close(self) -> None:
         pass
 
-    def __enter__(self):
+    def __enter__(self) -> Self:
         return self
 
-    def __exit__(self, exc_type, exc, tb) -> None:
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
         self.close()
 
 
@@ -103,7 +107,8 @@ class WavOutput(AudioOutput):
             self._file.close()
             self._tmp.unlink(missing_ok=True)
 
-    def __exit__(self, exc_type, exc, tb) -> None:
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
         if exc_type is not None:
             self.abandon()
         else:
@@ -113,32 +118,46 @@ class WavOutput(AudioOutput):
 class LiveOutput(AudioOutput):
     """The loudspeaker: a sounddevice callback stream fed from a :class:`RingBuffer`.
 
-    ``write`` blocks (sleeping, on the caller's thread) while the ring is full, which paces an
-    offline-speed producer to real time. ``callbacks`` and ``underruns`` (callbacks that had
-    to pad with silence) can be read at any time.
+    With ``pace`` (the default) ``write`` blocks (sleeping, on the caller's thread) while the
+    ring is full, which paces an offline-speed producer to real time; without it a block that
+    finds no room is dropped and counted in :attr:`overruns`, for a caller already paced by
+    its clock that must never be held up by a stalled device. ``callbacks`` and
+    ``underruns`` (callbacks that had to pad with silence) can be read at any time.
     """
 
     def __init__(self, sample_rate: int = 48000, channels: int = 2, *, blocksize: int = 512,
-                 device: str | int | None = None, buffer_seconds: float = 0.25) -> None:
+                 device: str | int | None = None, buffer_seconds: float = 0.25, pace: bool = True,
+                 backend: AudioBackend | None = None) -> None:
         super().__init__(sample_rate, channels)
-        sd = sounddevice_module()
-        index = find_device(device, kind="output")
+        backend = backend or portaudio()
+        index = find_device(device, kind="output", backend=backend)
         # interleaved samples: (frames, channels) blocks are C-contiguous, so a flat view is free
         self.ring = RingBuffer(max(int(buffer_seconds * sample_rate), 2 * blocksize) * channels)
         self.callbacks = 0
         self.underruns = 0
+        self.pace = pace
         self._pause = blocksize / sample_rate / 2
         try:
-            self.stream = sd.OutputStream(samplerate=sample_rate, channels=channels, dtype="float32",
-                                          blocksize=blocksize, device=index, callback=self._callback)
-            self.stream.start()
-        except sd.PortAudioError as exc:
-            native = sd.query_devices(index, kind="output")["default_samplerate"]
+            self.stream = start_stream(backend, "output", samplerate=sample_rate, channels=channels,
+                                       dtype="float32", blocksize=blocksize, device=index, callback=self._callback)
+        except backend.PortAudioError as exc:
+            native = device_rate(device, kind="output", backend=backend)
+            runs_at = f" (device runs at {native} Hz)" if native else ""
             raise AudioDeviceUnavailable(
-                f"cannot open audio output {device!r} at {sample_rate} Hz (device runs at {native:g} Hz): {exc}"
+                f"cannot open audio output {device!r} at {sample_rate} Hz{runs_at}: {exc}"
             ) from None
 
-    def _callback(self, outdata, frames, time_info, status) -> None:
+    @property
+    def overruns(self) -> int:
+        """Blocks dropped because the ring was full (only without ``pace``)."""
+        return self.ring.overruns
+
+    @property
+    def active(self) -> bool:
+        """Whether the device still calls back (PortAudio stops a stream that failed)."""
+        return bool(self.stream.active)
+
+    def _callback(self, outdata: np.ndarray, frames: int, time_info: Any, status: Any) -> None:
         # Real-time thread: copy and count only.
         self.callbacks += 1
         flat = outdata.reshape(-1)
@@ -152,15 +171,17 @@ class LiveOutput(AudioOutput):
         step = self.ring.capacity // 2 // self.channels * self.channels
         for start in range(0, len(samples), step):
             part = samples[start : start + step]
-            while self.ring.capacity - self.ring.available() < len(part):
+            while self.pace and self.ring.capacity - self.ring.available() < len(part):
                 if not self.stream.active:
                     raise AudioDeviceUnavailable("audio output stream stopped while writing")
                 time.sleep(self._pause)
             self.ring.write(part)
 
     def _close(self) -> None:
-        self.stream.stop()
-        self.stream.close()
+        try:
+            self.stream.stop()
+        finally:  # closed even when stopping fails (a device already gone)
+            self.stream.close()
 
 
 class SilentOutput(AudioOutput):

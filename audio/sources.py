@@ -7,7 +7,8 @@ known analysis rate, so segmentation and cepstral analysis never care where soun
 Live input follows DESIGN.md ("The audio callback only copies blocks"): the PortAudio callback
 copies each block into a preallocated single-producer/single-consumer :class:`RingBuffer` and
 returns; overruns are counted, never logged. Cleaning (NaN/inf) and resampling happen on the
-creature's side, in :meth:`LiveInput.read`.
+creature's side, in :meth:`LiveInput.read`. A microphone that survives its device vanishing
+and returning is :class:`audio.resilient.ResilientInput`.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ import numpy as np
 import soundfile
 import soxr
 
-from audio.device import AudioDeviceUnavailable, find_device, sounddevice_module
+from audio.device import AudioBackend, AudioDeviceUnavailable, find_device, portaudio, start_stream
 
 ANALYSIS_RATE = 22050
 """The rate every source delivers (librosa's default; enough for speech and song)."""
@@ -138,12 +139,15 @@ class FileSource(ArraySource):
 
 
 class RingBuffer:
-    """A preallocated single-producer/single-consumer ring of float32 frames.
+    """A preallocated single-producer/single-consumer ring of float32 samples between an audio
+    callback and the creature's thread.
 
-    The producer (the audio callback) only copies into the preallocated array and moves its
-    own write counter; the consumer only moves its read counter. Each counter has one writer,
-    so no lock is needed. A block that does not fit is dropped whole and counted in
-    :attr:`overruns`: the callback must never wait for the creature.
+    For live input the callback is the producer and the creature the consumer; for live
+    output (:class:`audio.output.LiveOutput`) the creature produces and the callback consumes.
+    The producer only copies into the preallocated array and moves its own write counter; the
+    consumer only moves its read counter. Each counter has one writer, so no lock is needed.
+    A block that does not fit is dropped whole and counted in :attr:`overruns`, so neither
+    side ever waits for the other inside the ring.
     """
 
     def __init__(self, capacity: int) -> None:
@@ -190,6 +194,8 @@ class LiveInput(AudioSource):
     misbehaving driver are replaced by zero and counted in :attr:`bad_samples` so the
     creature's loop never dies on them; samples at full scale are counted in :attr:`clipped`
     (a microphone gain set too high in a gallery shows there, not only in what is heard).
+    It can be started again after :meth:`stop` (on a device that came back); the counters
+    carry on.
     """
 
     def __init__(
@@ -199,8 +205,10 @@ class LiveInput(AudioSource):
         samplerate: int = ANALYSIS_RATE,
         block_size: int = 512,
         buffer_seconds: float = 2.0,
+        backend: AudioBackend | None = None,
     ) -> None:
         self.device = device
+        self.backend = backend
         self.samplerate = int(samplerate)
         self.block_size = int(block_size)
         self.buffer_seconds = float(buffer_seconds)
@@ -208,6 +216,7 @@ class LiveInput(AudioSource):
         self.bad_samples = 0
         self.clipped = 0
         self.driver_overflows = 0
+        self.callbacks = 0
         self.ring: RingBuffer | None = None
         self._stream: Any = None
         self._scratch: np.ndarray | None = None
@@ -221,7 +230,9 @@ class LiveInput(AudioSource):
     def prepare(self, device_rate: int) -> None:
         """Allocate the ring and scratch buffers for ``device_rate`` (done before streaming)."""
         self.device_rate = int(device_rate)
+        dropped_before = self.overruns
         self.ring = RingBuffer(int(self.buffer_seconds * self.device_rate))
+        self.ring.overruns = dropped_before
         self._scratch = np.zeros(self.ring.capacity, dtype=np.float32)
         self._resampler = (
             None
@@ -231,12 +242,14 @@ class LiveInput(AudioSource):
 
     def start(self) -> None:
         """Open and start the input stream; :class:`AudioDeviceUnavailable` if there is none."""
-        sd = sounddevice_module()
-        index = find_device(self.device, kind="input")
-        info = sd.query_devices(index, kind="input")
-        self.prepare(int(info["default_samplerate"]))
+        backend = self.backend or portaudio()
+        index = find_device(self.device, kind="input", backend=backend)
         try:
-            self._stream = sd.InputStream(
+            info = backend.query_devices(index, kind="input")
+            self.prepare(int(info["default_samplerate"]))
+            self._stream = start_stream(
+                backend,
+                "input",
                 device=index,
                 channels=1,
                 samplerate=self.device_rate,
@@ -244,21 +257,28 @@ class LiveInput(AudioSource):
                 dtype="float32",
                 callback=self.callback,
             )
-            self._stream.start()
-        except sd.PortAudioError as exc:
+        except backend.PortAudioError as exc:
             self._stream = None
-            raise AudioDeviceUnavailable(
-                f"cannot open audio input {info['name']!r}: {exc}"
-            ) from None
+            named = repr(self.device) if self.device is not None else "(default)"
+            raise AudioDeviceUnavailable(f"cannot open audio input {named}: {exc}") from None
+
+    @property
+    def active(self) -> bool:
+        """Whether the device still calls back (PortAudio stops a stream that failed)."""
+        return self._stream is not None and bool(self._stream.active)
 
     def stop(self) -> None:
-        if self._stream is not None:
-            self._stream.stop()
-            self._stream.close()
-            self._stream = None
+        """Stop and close the stream; closed even when stopping fails (a device already gone)."""
+        stream, self._stream = self._stream, None
+        if stream is not None:
+            try:
+                stream.stop()
+            finally:
+                stream.close()
 
     def callback(self, indata: np.ndarray, frames: int, time: Any, status: Any) -> None:
         """PortAudio's thread: copy channel 0 into the ring; nothing else (no alloc/lock/log)."""
+        self.callbacks += 1
         if status:
             self.driver_overflows += 1
         self.ring.write(indata[:frames, 0])

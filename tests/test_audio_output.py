@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 import soundfile
 
-import audio.output as output
-from audio.device import AudioDeviceUnavailable
+import audio.device as device
+from audio.device import AudioDeviceUnavailable, sounddevice_module
 from audio.mixer import Mixer
 from audio.output import LiveOutput, SilentOutput, WavOutput, open_output
 
@@ -65,7 +65,7 @@ def test_live_output_degrades_to_silence_with_a_clear_message(monkeypatch, caplo
     def missing():
         raise AudioDeviceUnavailable("live audio unavailable: PortAudio library not found; install PortAudio")
 
-    monkeypatch.setattr(output, "sounddevice_module", missing)
+    monkeypatch.setattr(device, "sounddevice_module", missing)
     with pytest.raises(AudioDeviceUnavailable, match="PortAudio"):
         LiveOutput(SR, 2)
     with caplog.at_level("WARNING"), open_output(SR, 2) as out:
@@ -78,7 +78,7 @@ def test_live_output_degrades_to_silence_with_a_clear_message(monkeypatch, caplo
 
 def jack_running() -> bool:
     try:
-        apis = output.sounddevice_module().query_hostapis()
+        apis = sounddevice_module().query_hostapis()
     except AudioDeviceUnavailable:
         return False
     return any("JACK" in api["name"] and api["devices"] for api in apis)
@@ -88,7 +88,7 @@ def jack_running() -> bool:
 def test_live_output_runs_callbacks_under_jack():
     if not jack_running():
         pytest.skip("no JACK server running (start: jackd --no-realtime -d dummy -r 48000 -p 512)")
-    rate = int(output.sounddevice_module().query_devices(kind="output")["default_samplerate"])
+    rate = int(sounddevice_module().query_devices(kind="output")["default_samplerate"])
     with LiveOutput(rate, 2, blocksize=512) as live:
         tone = np.sin(2 * np.pi * 440 * np.arange(rate // 2) / rate)
         live.write(np.repeat(0.1 * tone[:, None], 2, axis=1).astype(np.float32))
