@@ -1,0 +1,297 @@
+"""Live audio that survives its device vanishing and returning.
+
+An installation runs for weeks; a USB interface gets unplugged, a JACK server restarts. As
+:class:`midi.ports.ResilientPort` does for MIDI, :class:`ResilientOutput` and
+:class:`ResilientInput` report the loss once, keep the creature's loop running (nothing
+escapes ``write``/``read``), look for the device again at a bounded rate measured in clock
+time, reopen it when it is back and report that once. They count faults, reopens and what
+was dropped while the device was gone.
+
+A stream is taken as lost when PortAudio stops it (a failed device, or a callback that raised
+``CallbackAbort``), when asking whether it is active raises, when no callback has come for
+``stall_timeout`` seconds (a stream whose server died can stay "active"), or when the device
+is no longer listed. Device access goes through :class:`audio.device.AudioBackend`, so tests
+drive a fake device on a simulated clock. The real-time callbacks stay those of
+:class:`audio.output.LiveOutput` and :class:`audio.sources.LiveInput` (copy and count only):
+every check here runs on the creature's thread.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Callable, Generic, Protocol, TypeVar
+
+import numpy as np
+import soxr
+
+from audio.device import AudioBackend, device_rate, find_device, portaudio
+from audio.output import AudioOutput, LiveOutput
+from audio.sources import ANALYSIS_RATE, AudioSource, LiveInput
+from creatures.clock import Clock
+
+log = logging.getLogger(__name__)
+
+
+class LiveStream(Protocol):
+    """What a :class:`DeviceWatch` looks at: the device's callbacks and PortAudio's state."""
+
+    callbacks: int
+
+    @property
+    def active(self) -> bool: ...
+
+
+S = TypeVar("S", bound=LiveStream)
+
+
+class DeviceWatch(Generic[S]):
+    """One live stream kept open across device faults: when to look for the device again,
+    what counts as lost, and telling each loss and each return once.
+
+    ``start`` makes a started stream (or raises); ``stop`` lets one go. :meth:`poll` never
+    raises: whatever a backend throws means the device is gone.
+    """
+
+    def __init__(self, what: str, kind: str, device: str | int | None, clock: Clock, *,
+                 start: Callable[[], S], stop: Callable[[S], None], backend: AudioBackend | None,
+                 retry_interval: float, stall_timeout: float, report: Callable[[str], None]) -> None:
+        if retry_interval <= 0 or stall_timeout <= 0:
+            raise ValueError(f"retry_interval and stall_timeout must be > 0, got {retry_interval}, {stall_timeout}")
+        self.what, self.kind, self.device, self.clock = what, kind, device, clock
+        self.backend = backend
+        self.retry_interval = retry_interval
+        self.stall_timeout = stall_timeout
+        self.report = report
+        self.stream: S | None = None
+        self.faults = 0  # times the device was lost
+        self.reopened = 0  # times it came back (or first appeared after being missing)
+        self.reason = ""  # why there is no stream, while there is none
+        self._start, self._stop = start, stop
+        self._told_missing = False
+        self._looked = False
+        self._last_look = -float("inf")
+        self._beats = 0
+        self._last_beat = 0.0
+        self.poll()
+
+    def poll(self) -> S | None:
+        """The open stream, or None while the device is gone (looking again when it is due)."""
+        now = self.clock.now()
+        due = now - self._last_look >= self.retry_interval
+        if due:
+            self._last_look = now
+        if self.stream is not None:
+            why = self._trouble(self.stream, now, listing=due)
+            if why is not None:
+                self.lose(why)
+        elif due:
+            self._reopen(now)
+        return self.stream
+
+    def lose(self, why: str) -> None:
+        """Let the stream go, count the fault and say so once."""
+        self._let_go()
+        self.faults += 1
+        self.reason = why
+        self._told_missing = True
+        self.report(f"{self.what} lost ({why}); will reopen it when it returns")
+
+    def close(self) -> None:
+        self._let_go()
+
+    def _trouble(self, stream: S, now: float, *, listing: bool) -> str | None:
+        try:
+            if not stream.active:
+                return "its stream stopped"
+            if stream.callbacks != self._beats:
+                self._beats, self._last_beat = stream.callbacks, now
+            elif now - self._last_beat >= self.stall_timeout:
+                return f"no callback for {now - self._last_beat:.1f} s"
+            if listing:
+                find_device(self.device, kind=self.kind, backend=self.backend or portaudio())
+        except Exception as exc:  # any backend error means the device is gone
+            return str(exc) or type(exc).__name__
+        return None
+
+    def _reopen(self, now: float) -> None:
+        try:
+            if self._looked:  # PortAudio lists the devices it saw when it started
+                (self.backend or portaudio()).refresh()
+            self._looked = True
+            stream = self._start()
+        except Exception as exc:
+            self.reason = str(exc) or type(exc).__name__
+            if not self._told_missing:
+                self.report(f"{self.what} unavailable ({self.reason}); carrying on without it, "
+                            f"looking again every {self.retry_interval:g} s")
+                self._told_missing = True
+            return
+        self.stream = stream
+        self._beats, self._last_beat = stream.callbacks, now
+        self.reason = ""
+        if self._told_missing:
+            self.reopened += 1
+            self.report(f"{self.what} is back")
+        self._told_missing = False
+
+    def _let_go(self) -> None:
+        stream, self.stream = self.stream, None
+        if stream is not None:
+            try:
+                self._stop(stream)
+            except Exception as exc:
+                log.debug("closing a lost %s failed: %s", self.what, exc)
+
+
+def _named(kind: str, device: str | int | None) -> str:
+    return f"audio {kind} {device if device is not None else '(default)'}"
+
+
+class ResilientOutput(AudioOutput):
+    """The loudspeaker, kept across device faults; ``write`` never raises for the device.
+
+    Blocks come at ``sample_rate`` and are resampled to the rate the device runs at each time
+    it opens (JACK will not change its rate, and a device may come back at another one).
+    While the device is gone blocks are dropped and counted in :attr:`dropped` (frames at
+    ``sample_rate``). Writing never waits: the caller is paced by its clock, and a block that
+    finds the ring full is dropped and counted in :attr:`overruns`.
+    """
+
+    def __init__(self, sample_rate: int, channels: int = 2, *, clock: Clock, device: str | int | None = None,
+                 blocksize: int = 512, buffer_seconds: float = 0.25, retry_interval: float = 2.0,
+                 stall_timeout: float = 2.0, backend: AudioBackend | None = None,
+                 report: Callable[[str], None] = log.warning) -> None:
+        super().__init__(sample_rate, channels)
+        self.device = device
+        self.blocksize = blocksize
+        self.buffer_seconds = buffer_seconds
+        self.backend = backend
+        self.dropped = 0
+        self.device_rate: int | None = None  # the rate of the open device
+        self._resampler: soxr.ResampleStream | None = None
+        self._past_underruns = self._past_overruns = 0  # of the streams let go
+        self.watch: DeviceWatch[LiveOutput] = DeviceWatch(
+            _named("output", device), "output", device, clock, start=self._open, stop=self._let_go,
+            backend=backend, retry_interval=retry_interval, stall_timeout=stall_timeout, report=report)
+
+    @property
+    def connected(self) -> bool:
+        return self.watch.stream is not None
+
+    @property
+    def faults(self) -> int:
+        return self.watch.faults
+
+    @property
+    def reopened(self) -> int:
+        return self.watch.reopened
+
+    @property
+    def reason(self) -> str:
+        """Why there is no sound, while there is none."""
+        return self.watch.reason
+
+    @property
+    def underruns(self) -> int:
+        """Callbacks that found nothing to play (padded with silence), over every stream."""
+        live = self.watch.stream
+        return self._past_underruns + (live.underruns if live is not None else 0)
+
+    @property
+    def overruns(self) -> int:
+        """Blocks dropped because the device had not played the ones before, over every stream."""
+        live = self.watch.stream
+        return self._past_overruns + (live.overruns if live is not None else 0)
+
+    def describe(self) -> str:
+        """Where the sound goes now: ``live at 44100 Hz (resampled from 22050 Hz)`` or ``silent: why``."""
+        if self.device_rate is None:
+            return f"silent: {self.reason}"
+        resampled = f" (resampled from {self.sample_rate} Hz)" if self.device_rate != self.sample_rate else ""
+        return f"live at {self.device_rate} Hz{resampled}"
+
+    def _write(self, block: np.ndarray) -> None:
+        live = self.watch.poll()
+        if live is None:
+            self.dropped += len(block)
+            return
+        samples = np.asarray(block, dtype=np.float32)
+        if self._resampler is not None:
+            samples = self._resampler.resample_chunk(samples)
+        live.write(samples)
+
+    def _close(self) -> None:
+        self.watch.close()
+
+    def _open(self) -> LiveOutput:
+        backend = self.backend or portaudio()
+        rate = device_rate(self.device, kind="output", backend=backend) or self.sample_rate
+        live = LiveOutput(rate, self.channels, blocksize=self.blocksize, device=self.device,
+                          buffer_seconds=self.buffer_seconds, pace=False, backend=backend)
+        self.device_rate = rate
+        self._resampler = (None if rate == self.sample_rate else
+                           soxr.ResampleStream(self.sample_rate, rate, self.channels, dtype="float32"))
+        return live
+
+    def _let_go(self, live: LiveOutput) -> None:
+        self._past_underruns += live.underruns
+        self._past_overruns += live.overruns
+        self.device_rate = None
+        live.close()
+
+
+class ResilientInput(AudioSource):
+    """A microphone kept across device faults; ``read`` never raises for the device.
+
+    Reads give what arrived since the last one (resampled to ``samplerate``, see
+    :class:`audio.sources.LiveInput`), and an empty block while the device is gone: the
+    creature hears nothing rather than invented silence. The counters of :attr:`live` carry
+    on across reopens.
+    """
+
+    def __init__(self, device: str | int | None = None, *, clock: Clock, samplerate: int = ANALYSIS_RATE,
+                 block_size: int = 512, buffer_seconds: float = 2.0, retry_interval: float = 2.0,
+                 stall_timeout: float = 2.0, backend: AudioBackend | None = None,
+                 report: Callable[[str], None] = log.warning) -> None:
+        self.samplerate = int(samplerate)
+        self.live = LiveInput(device, samplerate=samplerate, block_size=block_size,
+                              buffer_seconds=buffer_seconds, backend=backend)
+        self.watch: DeviceWatch[LiveInput] = DeviceWatch(
+            _named("input", device), "input", device, clock, start=self._start, stop=LiveInput.stop,
+            backend=backend, retry_interval=retry_interval, stall_timeout=stall_timeout, report=report)
+        self._nothing = np.zeros(0, dtype=np.float32)
+
+    @property
+    def connected(self) -> bool:
+        return self.watch.stream is not None
+
+    @property
+    def faults(self) -> int:
+        return self.watch.faults
+
+    @property
+    def reopened(self) -> int:
+        return self.watch.reopened
+
+    @property
+    def overruns(self) -> int:
+        """Blocks dropped because the creature did not read fast enough."""
+        return self.live.overruns
+
+    @property
+    def driver_overflows(self) -> int:
+        """Callbacks whose driver reported an input overflow."""
+        return self.live.driver_overflows
+
+    def read(self) -> np.ndarray:
+        live = self.watch.poll()
+        if live is None:
+            return self._nothing
+        return live.read()
+
+    def stop(self) -> None:
+        self.watch.close()
+
+    def _start(self) -> LiveInput:
+        self.live.start()
+        return self.live
