@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import asdict, dataclass
-from typing import Callable
+from typing import Any, Callable
 
 
 @dataclass
@@ -31,8 +31,24 @@ class Row:
         # bool(): a numpy comparison gives numpy.bool_, which json cannot write.
         return bool(self.value >= self.target if self.higher_is_better else self.value <= self.target)
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         return {**asdict(self), "passed": self.passed}
+
+
+HEADER = f"{'benchmark':<58} {'value':>14} {'unit':<12} {'target':>10}  {'ratio':>18}  ok"
+"""The heading of the table :func:`format_row` lines up under."""
+
+
+def format_row(bench: str, row: Row, previous: float | None = None) -> str:
+    """One line of the results table; with ``previous`` (the same row's value in an earlier
+    run) the ratio now/then is appended, so a regression shows beside the number."""
+    mark = {True: "PASS", False: "FAIL", None: "-"}[row.passed]
+    target = "" if row.target is None else f"{'≥' if row.higher_is_better else '≤'}{row.target:g}"
+    ratio = "" if row.ratio is None else f"{row.ratio:.3g}× {row.baseline or ''}"
+    line = f"{bench + ': ' + row.name:<58} {row.value:>14.4g} {row.unit:<12} {target:>10}  {ratio:>18}  {mark}"
+    if previous is not None:
+        line += f"  {row.value / previous:.3g}× prev" if previous else "  (prev 0)"
+    return line
 
 
 def best_of(fn: Callable[[], object], *, repeat: int = 3) -> float:

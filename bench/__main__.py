@@ -1,7 +1,9 @@
 """Run the project's benchmarks and print a table of numbers, targets and ratios.
 
 Usage: ``python -m bench`` (all), ``python -m bench behaviour temporal``, ``--quick`` for a
-smoke run, ``--json FILE`` to keep the numbers for comparison with later runs.
+smoke run. Every run writes its numbers as JSON (``bench-results-<UTC time>.json`` in the
+current directory, or ``--json FILE``) so later runs can be compared: ``--compare FILE``
+prints each number's ratio to the same row of that earlier run.
 """
 
 from __future__ import annotations
@@ -13,7 +15,9 @@ import pkgutil
 import platform
 import sys
 import time
+from datetime import datetime, timezone
 from pathlib import Path
+from typing import Any
 
 import bench
 
@@ -24,25 +28,36 @@ def available() -> list[str]:
     )
 
 
+def previous_values(path: Path) -> dict[tuple[str, str], float]:
+    """``(bench, row name) → value`` of an earlier run's JSON (rows whose name carries a
+    measured number, e.g. a size, only match runs of the same size)."""
+    try:
+        results = json.loads(path.read_text())["results"]
+        return {(r["bench"], r["name"]): float(r["value"]) for r in results}
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise SystemExit(f"python -m bench: cannot compare with {path}: {exc}") from None
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m bench", description=__doc__)
     parser.add_argument("names", nargs="*", help=f"benchmarks to run (default all: {available()})")
     parser.add_argument("--quick", action="store_true", help="smaller sizes, for smoke tests")
-    parser.add_argument("--json", type=Path, help="also write the results as JSON here")
+    parser.add_argument("--json", type=Path, help="write the results here (default bench-results-<UTC time>.json)")
+    parser.add_argument("--compare", type=Path, metavar="PREV.json", help="print ratios to an earlier run's results")
     args = parser.parse_args(argv)
     names = args.names or available()
     unknown = sorted(set(names) - set(available()))
     if unknown:
         parser.error(f"unknown benchmark(s) {unknown}; choose from {available()}")
+    previous = previous_values(args.compare) if args.compare else {}
+    started = datetime.now(timezone.utc)
+    out = args.json or Path(f"bench-results-{started:%Y%m%dT%H%M%SZ}.json")
 
-    results = []
-    print(f"{'benchmark':<58} {'value':>14} {'unit':<12} {'target':>10}  {'ratio':>18}  ok")
+    results: list[dict[str, Any]] = []
+    print(bench.HEADER + ("  vs prev" if args.compare else ""))
 
     def show(name: str, row: bench.Row) -> None:
-        mark = {True: "PASS", False: "FAIL", None: "-"}[row.passed]
-        target = "" if row.target is None else f"{'≥' if row.higher_is_better else '≤'}{row.target:g}"
-        ratio = "" if row.ratio is None else f"{row.ratio:.3g}× {row.baseline or ''}"
-        print(f"{name + ': ' + row.name:<58} {row.value:>14.4g} {row.unit:<12} {target:>10}  {ratio:>18}  {mark}")
+        print(bench.format_row(name, row, previous.get((name, row.name))))
         results.append({"bench": name, **row.to_dict()})
 
     start = time.perf_counter()
@@ -55,10 +70,14 @@ def main(argv: list[str] | None = None) -> int:
     if not args.names and not args.quick:  # the whole suite must fit in 10 minutes on 2 cores
         show("all", bench.Row("every benchmark, wall time", time.perf_counter() - start, "s",
                               target=600.0, higher_is_better=False))
-    if args.json:
-        args.json.write_text(
-            json.dumps({"python": platform.python_version(), "machine": platform.machine(), "results": results}, indent=1)
-        )
+    record = {"started": started.isoformat(timespec="seconds"), "argv": sys.argv[1:] if argv is None else argv,
+              "python": platform.python_version(), "machine": platform.machine(), "results": results}
+    try:
+        out.write_text(json.dumps(record, indent=1))
+    except OSError as exc:  # the table above is still the run's record
+        print(f"python -m bench: cannot write {out}: {exc.strerror or exc}", file=sys.stderr)
+        return 1
+    print(f"results written to {out}")
     return 1 if any(r["passed"] is False for r in results) else 0
 
 

@@ -10,8 +10,11 @@ from creatures.behaviour.models.activation import ActivationModel
 from creatures.behaviour.state_object import StateObject
 
 
-def _loop_activation_event(d, met, active, t_act, t_inact, alpha, m, dt) -> None:
-    """The same D_ij update as ActivationModel._integrate, one pair at a time."""
+def _loop_activation_event(d: list[list[float]], met: list[list[bool]], active: list[bool], t_act: list[float],
+                           t_inact: list[float], alpha: float, m: float, dt: float) -> None:
+    """The same D_ij update as ActivationModel._integrate, one pair at a time: distances
+    ``d`` (updated in place) between tuples that have ``met``, given which are ``active`` and
+    their mean active/inactive times, with decay ``alpha``, separation ``m`` and step ``dt``."""
     n = len(active)
     for i in range(n):
         ratio = min(max((t_inact[i] + 1e-9) / (t_act[i] + 1e-9), 0.01), 100.0)
