@@ -15,14 +15,16 @@ from creatures.behaviour.value import GaussianValue, ScalarValue
 from creatures.cli import main
 from creatures.clock import SimulatedClock
 from creatures.events import EventLog, read_events
-from creatures.persist import save_json
+from creatures.persist import load_json, save_json
 from creatures.kinds.parts import shared_graph
 from creatures.runtime.inspect import InspectError, inspect
 from creatures.runtime.offline import run_offline
 from creatures.runtime.report import motor_walks
 from creatures.runtime.schema import load_installation
-from creatures.runtime.session import STATE_KIND, Session
+from creatures.runtime.session import COLONY_FILE, COLONY_KIND, STATE_KIND, Session
+from creatures.runtime.speech_input import spoken_poem
 from creatures.temporal.durations import LowIntegerRatioModel
+from midi.notes import NoteEvent
 from midi.sinks import MemorySink
 
 PNG = re.compile(r'src="data:image/png;base64,([A-Za-z0-9+/=]+)"')
@@ -66,6 +68,91 @@ def test_the_motor_graph_is_the_real_graph_and_the_path_walks_its_edges(offline_
         assert walk.edges == {(min(a, b), max(a, b)) for a, b in graph.edges()}, creature
         assert len(walk.path) > 50 and walk.jumps() == 0, creature  # every node reached, each step a graph edge
         assert len(set(walk.path)) < len(walk.hands) and sum(walk.steps().values()) == len(walk.path) - 1
+
+
+PHRASE = [60, 64, 67, 72, 71, 67, 62, 65]
+BEATS = [1, 1, 2, 1, 1, 1, 2, 1]  # a rhythm of 1:1 and 2:1 durations
+BEAT = 0.3
+
+
+def _real_run(out, name: str, seconds: float, *, phrase: bool = False, speech: bool = False):
+    """A shipped installation run as ``creatures offline`` runs it (one Session on the
+    simulated clock, the input's notes injected, its audio fed tick by tick, events logged to
+    ``out/events.jsonl``), with its state saved into the same directory, as ``creatures run
+    --state`` saves it."""
+    inst = load_installation(installations.path(name))
+    clock = SimulatedClock()
+    log = EventLog(out / "events.jsonl")
+    session = Session(inst, clock, log, MemorySink())
+    tick, sr = inst.settings.tick, inst.settings.audio.sample_rate
+    if phrase:
+        onsets = 1.0 + BEAT * np.concatenate(([0], np.cumsum(np.tile(BEATS, 40))))
+        for i, onset in enumerate(onsets[onsets < seconds]):
+            session.world.inject(NoteEvent(round(float(onset), 6), PHRASE[i % 8], 90, 0, 0.25))
+    heard = spoken_poem(seconds, sr, session.input_rng) if speech else None
+    for step in range(1, int(round(seconds / tick)) + 1):
+        a, b = int(round((step - 1) * tick * sr)), int(round(step * tick * sr))
+        clock.advance_to(step * tick)
+        session.step(step * tick, b - a, None if heard is None else heard[a:b], audio=False)
+    session.close()
+    log.close()
+    session.save_state(out)
+    return session
+
+
+@pytest.fixture(scope="module")
+def listened(tmp_path_factory):
+    out = tmp_path_factory.mktemp("listen")
+    session = _real_run(out, "listen", 30.0, phrase=True)
+    seen = out / "inspect"
+    assert main(["inspect", str(out), "--out", str(seen)]) == 0
+    return out, session, (seen / "index.html").read_text(), {p.name: p.read_bytes() for p in seen.glob("*.png")}
+
+
+def test_a_real_run_shows_the_colony_s_heard_pulse(listened):
+    out, session, page, pngs = listened
+    saved = load_json(out / COLONY_FILE, kind=COLONY_KIND)
+    pulse = LowIntegerRatioModel.from_dict(saved["pulse"])
+    assert pulse.pulse == pytest.approx(session.world.pulse.model.pulse)
+    assert min(abs(pulse.pulse / (BEAT * level) - 1) for level in (0.5, 1, 2)) < 0.05  # the rhythm fed, at some level
+    assert saved["heard"] > 50
+    # The page shows it: pulse value, ratio histogram (most probable first) and its plot.
+    p = pulse.ratio_distribution()
+    top = int(np.argmax(p))
+    row = (f"<tr><td>pulse</td><td>pulse {pulse.pulse:.3f} s</td><td>{pulse.ratios[top].numerator}/"
+           f"{pulse.ratios[top].denominator}: {p[top]:.2f}, ")
+    assert "<h3>colony <small>" in page and row in page
+    assert {"known_durations.png", "known_values.png", "motor_graph.png"} <= set(pngs)
+    assert sorted(_images(page)) == sorted(pngs.values())
+
+
+def test_a_real_run_shows_the_listener_s_confidence(listened):
+    out, session, page, _ = listened
+    lis = next(c for c in session.creatures if c.name == "lis")
+    saved = load_json(out / "lis.json", kind=STATE_KIND)["state"]["expected match"]
+    expected = GaussianValue.from_dict(saved)
+    assert expected.to_dict() == lis.expected_match.to_dict()
+    assert 0.5 < expected.confidence() <= 1.0  # a phrase heard over and over is expected
+    assert f"<td>expected match</td><td>{expected.to_float():.4g}</td><td>{expected.confidence():.3f}</td>" in page
+    for name in ("dance", "anticipate", "rest", "excitement"):
+        assert f"<td>{name}</td>" in page, name
+
+
+def _size(node: dict) -> int:
+    return 1 + sum(_size(c) for c in node["children"])
+
+
+@pytest.mark.slow
+def test_a_real_run_shows_percept_trees(tmp_path):
+    _real_run(tmp_path, "ozymandias", 60.0, speech=True)
+    page = inspect(tmp_path, tmp_path / "seen").read_text()
+    assert "known_trees.png" in {p.name for p in (tmp_path / "seen").glob("*.png")}
+    for creature in ("traveller", "sculptor", "king"):
+        tree = load_json(tmp_path / f"{creature}.json", kind=STATE_KIND)["state"]["tree"]["root"]
+        children = tree["children"]
+        assert children, f"{creature} grew no percept tree in a minute of speech"
+        assert f"{tree['name']} <small>({_size(tree)} nodes)" in page
+        assert all(f"{c['name']} <small>(" in page for c in children)
 
 
 def _state_dir(tmp_path):

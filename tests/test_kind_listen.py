@@ -113,6 +113,22 @@ def test_new_material_spawns_a_model_and_the_best_match_follows_the_music():
     assert len(spawned) == 2
 
 
+def test_a_repeated_phrase_makes_the_match_confident_and_new_material_surprises():
+    world, creature = colony(seed=5)
+    t = feed(world, PHRASE, 6, 1.0)
+    t2 = feed(world, OTHER, 4, t)
+    run(world, creature, t2)
+    seen = [e for e in world.log.records if e["kind"] == "percepts"]
+    steady = [e for e in seen if 8.0 <= e["t"] < t]  # the phrase, once its model has formed
+    change = [e for e in seen if t <= e["t"] < t + 3.0]
+    assert all(e["surprise"] == 0.0 for e in steady)
+    assert steady[-1]["expected_match"] > -0.1 and steady[-1]["confidence"] > 0.9
+    assert max(e["surprise"] for e in change) > 0.5
+    assert min(e["expected_match"] for e in change) < -2.0
+    assert min(e["confidence"] for e in change) < steady[-1]["confidence"] - 0.03
+    assert seen[-1]["confidence"] > min(e["confidence"] for e in change)  # the new phrase is learnt in turn
+
+
 def test_population_stays_bounded_under_ever_new_material(rng):
     world, creature = colony(seed=7, max_models=3, forget=5.0)
     t = 1.0
@@ -144,6 +160,8 @@ def test_state_round_trips_through_json(danced):
     assert fresh.poses.nodes == creature.poses.nodes
     assert core_pitches(fresh) == core_pitches(creature)
     assert [m.id for m in fresh.population.members] == [m.id for m in creature.population.members]
+    assert fresh.expected_match.to_dict() == creature.expected_match.to_dict()
+    assert fresh.expected_match.clock is world.clock  # confidence fades with the new run's time
 
 
 def test_bad_config_is_rejected_with_the_key():

@@ -41,6 +41,14 @@ gesture recognition models from the graph-based motor system." Design decisions:
 * **Behaviour.** An :class:`ActionGroup` chooses between *dance* (triggered by the
   *excitement* drive that each heard note raises), *anticipate* (triggered by silence while
   the model still predicts notes) and *rest* (go to a low-energy pose).
+* **Expecting the match** (thesis "expectations about value"). How well the best model
+  predicted the notes heard since the last analysis (the mean log-probability of their
+  transitions, before they are learnt) is itself modelled by a
+  :class:`~creatures.behaviour.value.GaussianValue`, taught at every analysis that follows
+  new notes. A repeated phrase makes it *confident* (its expectation keeps being met); new
+  material is *surprising* (the match falls far below what it expects) until a model of it
+  has formed and become the best; a long silence lets the confidence fade. Both are logged with the percepts and
+  the expectation is saved with the creature, so the inspector can show them.
 """
 
 from __future__ import annotations
@@ -57,9 +65,10 @@ from creatures.behaviour.action_tuple import Action, ActionTuple, DoUntil
 from creatures.behaviour.models.gaussian import GaussianModel
 from creatures.behaviour.motivation import Motivation
 from creatures.behaviour.percept import FunctionPercept, WhateverPercept
+from creatures.behaviour.value import GaussianValue, ScalarValue
 from creatures.kinds import register
 from creatures.kinds.base import CreatureKind, CreatureSpec
-from creatures.kinds.model_population import Member, ModelPopulation
+from creatures.kinds.model_population import FLOOR, Member, ModelPopulation
 from creatures.kinds.moves import Rest, head_for
 from creatures.kinds.parts import Body, Voice, VoiceSpec
 from creatures.kinds.report_parts import MotorTrail, report_values, selection_logger
@@ -69,6 +78,9 @@ from midi.notes import NoteEvent
 
 REPORT_EVERY = 0.5
 """Seconds between the values/motivation/percepts/motor snapshots in the events log."""
+
+MATCH_RATE = 0.3
+"""How far each analysis moves the expected match towards the match found (the blend's α)."""
 
 
 class ListenSpec(CreatureSpec):
@@ -249,6 +261,10 @@ class Listen(CreatureKind):
         self.motivation = Motivation({"excitement": 0.0}, decay={"excitement": spec.calm},
                                      equilibrium={"excitement": 0.0}, ceiling=2.0)
         self.continued = 0  # notes played since the music stopped
+        # Expects a perfect match (0 nats), give or take one, until the music says otherwise.
+        self.expected_match = GaussianValue(0.0, spread=1.0, clock=world.clock)
+        self.surprise = 0.0  # how surprising the last match was (0: as expected)
+        self._new_notes = 0  # heard since the last analysis
         root = WhateverPercept()
         music = FunctionPercept("music", lambda t: min(self.motivation.level("excitement", t), 1.0)
                                 * (1.0 - self.silence(t)), parent=root)
@@ -275,6 +291,7 @@ class Listen(CreatureKind):
         self.memory.append(observation)
         self.heard.append(observation)
         self.unlearnt += 1
+        self._new_notes += 1
         self.continued = 0
         self.last_heard = max(self.last_heard, float(note.time))
         self.motivation.perturb(self.world.clock.now(), "excitement", self.spec.excitement)
@@ -293,6 +310,7 @@ class Listen(CreatureKind):
     # -- analysis (its own, slower rate) ---------------------------------------------------
     def analyse(self, t: float) -> None:
         memory = list(self.memory)
+        self._expect(memory)
         if self.unlearnt:
             split = len(memory) - min(self.unlearnt, len(memory))
             context = memory[max(split - self.spec.context, 0):split]
@@ -303,6 +321,18 @@ class Listen(CreatureKind):
         self.population.match(t, memory)
         self.population.maintain(t)
         self.dance.follow(self.population.best)
+
+    def _expect(self, memory: list[Observation]) -> None:
+        """How well the best model predicted the notes heard since the last analysis (before
+        anything learns them): how surprising that is, then the expectation learns it."""
+        new = min(self._new_notes, len(memory) - 1)
+        self._new_notes = 0
+        best = self.population.best
+        if best is None or new < 1:
+            return
+        match = best.model.log_likelihood(memory[-(new + 1):], floor=FLOOR)
+        self.surprise = self.expected_match.surprise(match)
+        self.expected_match.blend_to(ScalarValue(match), MATCH_RATE)
 
     # -- dancing -----------------------------------------------------------------------------
     def step_with_music(self, t: float) -> None:
@@ -361,7 +391,9 @@ class Listen(CreatureKind):
                         sizes={"models": len(self.population.members), "memory": len(self.memory),
                                "states of best": 0 if best is None else len(best.model.states)},
                         best=None if best is None else best.id,
-                        match=None if best is None else self.population.best_score, core=core)
+                        match=None if best is None else self.population.best_score, core=core,
+                        expected_match=self.expected_match.to_float(), surprise=self.surprise,
+                        confidence=self.expected_match.confidence())
         self.trail.report(t)
 
     # -- outputs -------------------------------------------------------------------------------
@@ -384,6 +416,7 @@ class Listen(CreatureKind):
             "motivation": self.motivation.to_dict(),
             "poses": self.poses.to_dict(),
             "population": self.population.to_dict(),
+            "expected match": self.expected_match.to_dict(),
         }
 
     def restore(self, state: dict[str, Any]) -> None:
@@ -395,4 +428,6 @@ class Listen(CreatureKind):
         if "population" in state:
             self.population.restore(state["population"])
             self.dance.follow(self.population.best)
+        if "expected match" in state:
+            self.expected_match = GaussianValue.from_dict(state["expected match"], clock=self.world.clock)
 

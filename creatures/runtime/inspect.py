@@ -3,15 +3,17 @@
 An artist whose installation has run for weeks needs to see inside the creatures without a
 debugger (DESIGN.md "Seeing inside"). The inspector reads only what a run leaves behind — an
 offline output directory (``events.jsonl``) and/or a state directory (one JSON file per
-creature, written by ``Session.save_state``, i.e. ``creatures run --state``) — and renders:
+creature and one for the colony, written by ``Session.save_state``, i.e. ``creatures run
+--state``) — and renders:
 
-* action-tuples with their learned values, and confidence where the value kind has one
-  (thesis, "surprise and confidence": a :class:`GaussianValue`'s reliability);
+* action-tuples with their learned values, and expectations (e.g. *listen*'s expected match),
+  with confidence where the value kind has one (thesis, "surprise and confidence": a
+  :class:`GaussianValue`'s reliability, faded by time untested);
 * percept trees with the size of every node (thesis, "percept trees");
-* duration models where present: the pulse and the ratio histogram of a low-integer-ratio
-  model (thesis, figure 11), the mean of a simple one;
+* duration models: the pulse and the ratio histogram of a low-integer-ratio model (thesis,
+  figure 11) — the colony's heard pulse, and any a creature keeps —, the mean of a simple one;
 * drive levels and their time series (thesis, "motivation");
-* the part of the motor graph each body walked, and its path (thesis, "graph-based motor
+* each body's motor graph and the path it walked over it (thesis, "graph-based motor
   systems"), with the run's other plots from :mod:`creatures.runtime.report`.
 
 State files are read generically, without building creatures from code: every kind saves
@@ -32,7 +34,7 @@ from creatures.behaviour.value import value_from_dict
 from creatures.events import read_events
 from creatures.persist import StateFileError, load_json
 from creatures.runtime.report import counts_table, event_plots, html_page, plot_bars, plt
-from creatures.runtime.session import STATE_KIND
+from creatures.runtime.session import COLONY_FILE, COLONY_KIND, STATE_KIND
 from creatures.temporal.durations import LowIntegerRatioModel, SimpleDurationModel
 
 VALUE_KINDS = ("scalar", "chain", "gaussian", "stance")
@@ -103,7 +105,7 @@ def knowledge(creature: str, kind: str, state: dict[str, Any]) -> Knowledge:
         if tag in DURATION_MODELS:
             try:
                 known.durations.append((path, DURATION_MODELS[tag].from_dict(node)))
-            except (KeyError, TypeError, ValueError):
+            except (KeyError, TypeError, ValueError, ArithmeticError):  # e.g. a damaged ratio n/0
                 pass
             return
         if _is_tree(node):
@@ -117,8 +119,12 @@ def knowledge(creature: str, kind: str, state: dict[str, Any]) -> Knowledge:
     return known
 
 
+COLONY = "colony"
+"""How the inspector names what the creatures learned together (the colony's state file)."""
+
+
 def read_state(directory: Path) -> list[Knowledge]:
-    """Every creature state file in ``directory`` (others are skipped)."""
+    """Every creature state file in ``directory``, then the colony's (others are skipped)."""
     found = []
     for path in sorted(directory.glob("*.json")):
         try:
@@ -128,6 +134,11 @@ def read_state(directory: Path) -> list[Knowledge]:
         state = document.get("state")
         if isinstance(state, dict):
             found.append(knowledge(path.stem, str(document.get("kind", "?")), state))
+    try:
+        found.append(knowledge(COLONY, "what the creatures hear together", load_json(directory / COLONY_FILE,
+                                                                                     kind=COLONY_KIND)))
+    except StateFileError:  # none (a state directory from before colonies saved one), or unreadable
+        pass
     return found
 
 
@@ -154,10 +165,10 @@ def _plot_durations(known: list[Knowledge], path: Path) -> Path | None:
             labels = [f"{r.numerator}/{r.denominator}" for r in model.ratios]
             ax.bar(labels, model.ratio_distribution(), color="C2")
             ax.set_ylabel("p(ratio)")
-            ax.set_title(f"{creature} {where}: pulse {model.pulse:.3f} s", fontsize=9)
+            ax.set_title(f"{creature} · {where}: pulse {model.pulse:.3f} s", fontsize=9)
         else:
             ax.bar(["mean"], [model.pulse], color="C2")
-            ax.set_title(f"{creature} {where}: mean duration {model.pulse:.3f} s", fontsize=9)
+            ax.set_title(f"{creature} · {where}: mean duration {model.pulse:.3f} s", fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=90)
     plt.close(fig)
@@ -170,6 +181,17 @@ def _tree_html(tree: Tree) -> str:
     return f"<li>{html.escape(tree.name)} <small>({tree.size} node{'s' if tree.size != 1 else ''})</small>{inner}</li>"
 
 
+def _duration_html(where: str, model: Any) -> str:
+    """One duration model as a table row: its pulse and, for a low-integer-ratio model, the
+    ratio histogram (most probable first; the plot shows the ratios under 1 % too)."""
+    if isinstance(model, LowIntegerRatioModel):
+        p = model.ratio_distribution()
+        ratios = ", ".join(f"{model.ratios[i].numerator}/{model.ratios[i].denominator}: {p[i]:.2f}"
+                           for i in sorted(range(len(p)), key=lambda i: -p[i]) if p[i] >= 0.01)
+        return f"<tr><td>{html.escape(where)}</td><td>pulse {model.pulse:.3f} s</td><td>{ratios}</td></tr>"
+    return f"<tr><td>{html.escape(where)}</td><td>mean {model.pulse:.3f} s</td><td></td></tr>"
+
+
 def _creature_html(k: Knowledge) -> str:
     rows = "".join(
         f"<tr><td>{html.escape(n)}</td><td>{v:.4g}</td>"
@@ -178,7 +200,11 @@ def _creature_html(k: Knowledge) -> str:
     drives = "".join(f"<tr><td>{html.escape(n)}</td><td>{v:.4g}</td></tr>" for n, v in sorted(k.drives.items()))
     parts = [f"<h3>{html.escape(k.creature)} <small>({html.escape(k.kind)})</small></h3>"]
     if rows:
-        parts.append(f"<table><tr><th>action-tuple</th><th>value</th><th>confidence</th></tr>{rows}</table>")
+        parts.append(f"<table><tr><th>action-tuple or expectation</th><th>value</th><th>confidence</th></tr>"
+                     f"{rows}</table>")
+    if k.durations:
+        parts.append("<table><tr><th>duration model</th><th>pulse</th><th>p(ratio)</th></tr>"
+                     + "".join(_duration_html(where, m) for where, m in k.durations) + "</table>")
     if drives:
         parts.append(f"<table><tr><th>drive</th><th>level</th></tr>{drives}</table>")
     if k.trees:
@@ -206,8 +232,8 @@ def inspect(path: Path, out: Path) -> Path:
     out.mkdir(parents=True, exist_ok=True)
     what = "saved state" if from_state else "the last values logged"
     plots = [
-        (f"Action-tuple values ({what})",
-         plot_bars({k.creature: k.values for k in known}, "action-tuple values", "V", out / "known_values.png",
+        (f"Values of action-tuples and expectations, with confidence ({what})",
+         plot_bars({k.creature: k.values for k in known}, "values", "V", out / "known_values.png",
                    shade={k.creature: k.confidence for k in known})),
         (f"Drives ({what})",
          plot_bars({k.creature: k.drives for k in known}, "drive levels", "level", out / "known_drives.png")),

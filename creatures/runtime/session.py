@@ -23,10 +23,15 @@ from creatures.kinds import KINDS
 from creatures.persist import StateFileError, load_json, save_json
 from creatures.runtime.schema import LoadedInstallation
 from creatures.runtime.world import World
+from creatures.temporal.durations import LowIntegerRatioModel
 from midi.scheduler import NoteScheduler
 from midi.sinks import NoteSink
 
 STATE_KIND = "creature-music creature state"
+COLONY_KIND = "creature-music colony state"
+COLONY_FILE = "colony.state.json"
+"""What the colony learned together (the pulse it hears), saved beside the creatures' files;
+the dots keep it from ever being a creature's file (names have none)."""
 
 
 class Session:
@@ -110,11 +115,14 @@ class Session:
 
     # -- state that lasts across restarts ---------------------------------------------------
     def save_state(self, directory: Path) -> None:
-        """Each creature's learned state, one atomic JSON file per creature."""
+        """Each creature's learned state, one atomic JSON file per creature, then the colony's
+        (:data:`COLONY_FILE`): a pulse learnt over weeks of listening is kept like the rest."""
         directory.mkdir(parents=True, exist_ok=True)
         for creature in self.creatures:
             save_json(directory / f"{creature.name}.json",
                       {"kind": creature.spec.kind, "state": creature.state()}, kind=STATE_KIND)
+        pulse = self.world.pulse
+        save_json(directory / COLONY_FILE, {"pulse": pulse.model.to_dict(), "heard": pulse.heard}, kind=COLONY_KIND)
 
     def load_state(self, directory: Path) -> list[str]:
         """Restore creatures from ``directory`` where a file exists; returns who was restored.
@@ -140,4 +148,21 @@ class Session:
                 # on is reported as that file's fault (creatures.behaviour.creature does the same).
                 raise StateFileError(f"{path}: malformed {creature.spec.kind} state ({exc})") from None
             restored.append(creature.name)
+        self._load_colony(directory / COLONY_FILE)
         return restored
+
+    def _load_colony(self, path: Path) -> None:
+        """The colony's heard pulse, if a file was saved (older state directories have none).
+        The last onset before the restart is not kept: the gap across it is no duration."""
+        if not path.exists():
+            return
+        data = load_json(path, kind=COLONY_KIND)
+        try:
+            model = LowIntegerRatioModel.from_dict(data["pulse"])
+            heard = data["heard"]
+            if not isinstance(heard, int) or isinstance(heard, bool) or heard < 0:
+                raise ValueError(f"'heard' must be a count, found {heard!r}")
+        except (KeyError, TypeError, ValueError, IndexError, AttributeError, ArithmeticError) as exc:
+            # ArithmeticError: e.g. a ratio with denominator 0, a size too large for an index.
+            raise StateFileError(f"{path}: malformed colony state ({type(exc).__name__}: {exc})") from None
+        self.world.pulse.model, self.world.pulse.heard = model, heard
