@@ -7,13 +7,19 @@ import sys
 from pathlib import Path
 from typing import Callable
 
-COMMANDS: dict[str, tuple[str, Callable[[argparse.ArgumentParser], None], Callable[[argparse.Namespace], int]]] = {}
+Configure = Callable[[argparse.ArgumentParser], None]
+"""Adds a subcommand's arguments to its parser."""
+
+Run = Callable[[argparse.Namespace], int]
+"""Runs a subcommand with its parsed arguments; returns the exit code."""
+
+COMMANDS: dict[str, tuple[str, Configure, Run]] = {}
 
 
-def command(name: str, help_text: str, configure: Callable[[argparse.ArgumentParser], None]):
+def command(name: str, help_text: str, configure: Configure) -> Callable[[Run], Run]:
     """Register ``fn(args) -> exit code`` as ``creatures NAME``."""
 
-    def register(fn: Callable[[argparse.Namespace], int]):
+    def register(fn: Run) -> Run:
         COMMANDS[name] = (help_text, configure, fn)
         return fn
 

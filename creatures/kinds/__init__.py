@@ -9,15 +9,20 @@ from __future__ import annotations
 
 import importlib
 import pkgutil
+from typing import Callable, TypeVar
 
 from creatures.kinds.base import CreatureKind, CreatureSpec
 
 KINDS: dict[str, type[CreatureKind]] = {}
 
-def register(kind: str):
-    """Class decorator: make a :class:`CreatureKind` available as ``kind = "<kind>"``."""
+Kind = TypeVar("Kind", bound=type[CreatureKind])
 
-    def add(cls: type[CreatureKind]) -> type[CreatureKind]:
+
+def register(kind: str) -> Callable[[Kind], Kind]:
+    """Class decorator: make a :class:`CreatureKind` available as ``kind = "<kind>"`` (the
+    class itself is returned unchanged, so type checkers keep its own type)."""
+
+    def add(cls: Kind) -> Kind:
         KINDS[kind] = cls
         return cls
 

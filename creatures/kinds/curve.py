@@ -31,7 +31,7 @@ synthesis model – to connect characters' bodies to such a synthesis technique.
 from __future__ import annotations
 
 import functools
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 from pydantic import Field
@@ -47,6 +47,9 @@ from creatures.kinds.parts import Body, Voice, VoiceSpec, shared_graph
 from creatures.kinds.report_parts import report_values, selection_logger
 from creatures.motor.note_space import NotePlacement
 from midi.notes import NoteEvent
+
+if TYPE_CHECKING:
+    from creatures.runtime.world import World
 
 LIMBS = tuple(f"{part}_{side}" for side in "lr" for part in ("elbow", "wrist", "hand"))
 """Joints whose movement pushes strings: the thesis's "nearby movement of a character's limbs"."""
@@ -164,7 +167,7 @@ class _Rest(Rest):
 class Curve(CreatureKind):
     Spec = CurveSpec
 
-    def __init__(self, spec: CurveSpec, world, rng: np.random.Generator) -> None:
+    def __init__(self, spec: CurveSpec, world: "World", rng: np.random.Generator) -> None:
         super().__init__(spec, world, rng)
         self.body = Body(rng)
         self.x = self.target_x = float(np.clip(spec.place, -spec.room, spec.room))

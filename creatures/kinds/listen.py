@@ -55,7 +55,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 from pydantic import Field, model_validator
@@ -75,6 +75,9 @@ from creatures.kinds.report_parts import MotorTrail, report_values, selection_lo
 from creatures.motor.gesture import GestureModel, Observation
 from creatures.motor.note_space import NotePlacement
 from midi.notes import NoteEvent
+
+if TYPE_CHECKING:
+    from creatures.runtime.world import World
 
 REPORT_EVERY = 0.5
 """Seconds between the values/motivation/percepts/motor snapshots in the events log."""
@@ -244,7 +247,7 @@ class Listen(CreatureKind):
     DEFAULT_GAP = 0.5
     """Seconds assumed between notes before any timing has been learnt."""
 
-    def __init__(self, spec: ListenSpec, world, rng: np.random.Generator) -> None:
+    def __init__(self, spec: ListenSpec, world: "World", rng: np.random.Generator) -> None:
         super().__init__(spec, world, rng)
         self.body = Body(rng)
         self.trail = MotorTrail(world, self.name, self.body)

@@ -50,7 +50,7 @@ placed at output_frame, then mixed with ``mix`` (equal-power pan, :class:`audio.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 from pydantic import Field, field_validator
@@ -67,6 +67,9 @@ from creatures.kinds import register
 from creatures.kinds.base import CreatureKind, CreatureSpec
 from creatures.kinds.hearing_parts import AuralLearning, Ear, HearingSpec, SingFrom, tree_from_state, tree_state
 from creatures.persist import load_json, save_json
+
+if TYPE_CHECKING:
+    from creatures.runtime.world import World
 
 EDL_KIND = "creature-music edl"
 REPORT_EVERY = 0.5
@@ -107,7 +110,7 @@ class _Clicked(Action):
 class Ozymandias(CreatureKind):
     Spec = OzymandiasSpec
 
-    def __init__(self, spec: OzymandiasSpec, world, rng: np.random.Generator) -> None:
+    def __init__(self, spec: OzymandiasSpec, world: "World", rng: np.random.Generator) -> None:
         super().__init__(spec, world, rng)
         self.ear = Ear(spec.hearing)
         self.root = UtterancePercept("any sound", radius=spec.hearing.radius, memory=spec.hearing.memory,

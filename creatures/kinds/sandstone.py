@@ -79,7 +79,7 @@ from creatures.kinds import register
 from creatures.kinds.base import CreatureKind, CreatureSpec
 from creatures.kinds.parts import Voice, VoiceSpec
 from creatures.kinds.report_parts import report_values, selection_logger
-from creatures.runtime.world import INPUT
+from creatures.runtime.world import INPUT, World
 from midi.fifths import STEPS, circular_distance, fifths_vector
 from midi.notes import NoteEvent
 
@@ -261,7 +261,7 @@ class _Activity(Action):
 class Sandstone(CreatureKind):
     Spec = SandstoneSpec
 
-    def __init__(self, spec: SandstoneSpec, world, rng: np.random.Generator) -> None:
+    def __init__(self, spec: SandstoneSpec, world: World, rng: np.random.Generator) -> None:
         super().__init__(spec, world, rng)
         self.song = Song(spec.phrases)
         self.heard = HeardMusic(spec.memory)

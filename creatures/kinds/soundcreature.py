@@ -43,7 +43,7 @@ percept, start, end, when it was heard), ``selection``/``credit``/``hypothesis``
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 from pydantic import Field
@@ -61,6 +61,9 @@ from creatures.kinds.hearing_parts import (AuralLearning, Ear, HearingSpec, Mout
                                            SingFrom, tree_from_state, tree_state)
 from creatures.kinds.parts import Body
 from creatures.motor.search import NoPath
+
+if TYPE_CHECKING:
+    from creatures.runtime.world import World
 
 REPORT_EVERY = 0.5
 """Seconds between the value/motivation/percept snapshots written to the events log."""
@@ -124,7 +127,7 @@ class _Rest(Action):
 class SoundCreature(CreatureKind):
     Spec = SoundCreatureSpec
 
-    def __init__(self, spec: SoundCreatureSpec, world, rng: np.random.Generator) -> None:
+    def __init__(self, spec: SoundCreatureSpec, world: "World", rng: np.random.Generator) -> None:
         super().__init__(spec, world, rng)
         self.body = Body(rng)
         self.ear = Ear(spec.hearing)

@@ -45,7 +45,7 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import librosa
 import numpy as np
@@ -57,6 +57,9 @@ from creatures.behaviour.motivation import Motivation
 from creatures.kinds import register
 from creatures.kinds.base import CreatureKind, CreatureSpec
 from creatures.kinds.hearing_parts import Ear, HearingSpec, Mouth, MouthSpec, SeedModel, pack_samples, unpack_samples
+
+if TYPE_CHECKING:
+    from creatures.runtime.world import World
 
 REPORT_EVERY = 0.5
 N_MELS = 40
@@ -132,7 +135,7 @@ class ThreeCreaturesSpec(CreatureSpec):
 class ThreeCreature(CreatureKind):
     Spec = ThreeCreaturesSpec
 
-    def __init__(self, spec: ThreeCreaturesSpec, world, rng: np.random.Generator) -> None:
+    def __init__(self, spec: ThreeCreaturesSpec, world: "World", rng: np.random.Generator) -> None:
         super().__init__(spec, world, rng)
         self.ear = Ear(spec.hearing)
         self.mouth = Mouth(spec.mouth, self.ear.singing)
