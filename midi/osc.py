@@ -2,23 +2,27 @@
 OSC over UDP (thesis, "exchange": creatures hear each other "through MIDI, or, more robustly,
 though a UDP protocol"; "listen" creatures use the same protocol).
 
-Address space (every address starts with the speaking creature's name, ``[A-Za-z0-9_.-]``,
-at most 64 characters):
+Address space. Every creature speaks under its own name (``[A-Za-z0-9_.-]``, at most 64
+characters), so a colony of three sends from three addresses:
 
 ``/creature/<name>/hello port:int``
-    "I am here; reach me at my sender address on ``port``." Sent on start and now and then,
-    so a restarted creature is found again without configuration.
+    "I am here; reach me at my sender address on ``port``." Sent on start and twice a second
+    after, so a restarted creature is found again without configuration.
 ``/creature/<name>/note pitch:int velocity:int duration:float [channel:int]``
     A note the creature plays now: pitch 0–127, velocity 1–127, duration in seconds ≥ 0,
     MIDI channel 0–15 (default 0). The hearer stamps it with its own clock.
 ``/creature/<name>/state key:str value:int|float|str``
-    One named quantity of the creature's state (boredom, hunger, …) for inspectors and peers.
+    One named quantity of the creature's state, sent for each key twice a second: each drive
+    of its motivation by name (``boredom 0.42``, ``hunger 0.1``, ``desire``, ``breath`` …,
+    floats) and ``action`` (what it is doing: the names of its active action-tuples joined
+    by ``+``, e.g. ``"seek note"``, or ``"none"``). A hearing colony keeps the latest value
+    of every key per creature for its own creatures to read (``World.peers``).
 ``/creature/<name>/bye``
     The creature is leaving; peers may forget it.
 
 Any OSC client (SuperCollider, Max, Pd, TouchDesigner) can speak or listen. Listeners bind
-127.0.0.1 unless told otherwise, read a non-blocking socket that the creature polls once a
-tick (python-osc's threading server dropped burst messages here, ENVIRONMENT.md), parse with
+127.0.0.1 unless told otherwise, read a non-blocking socket that the creature polls (python-osc's
+threading server dropped burst messages here, ENVIRONMENT.md), parse with
 ``pythonosc.osc_packet``, and drop and count packets that are too large, not OSC, or outside
 this address space.
 """
@@ -150,13 +154,17 @@ class OscListener:
 
 
 class OscSender:
-    """Speaks for creature ``name`` to its peers, keyed by creature name."""
+    """Speaks for creature ``name`` to its peers, keyed by peer name.
 
-    def __init__(self, name: str) -> None:
+    ``peers`` may be a table shared by several senders (the creatures of one colony speak to
+    the same peers); by default the sender has its own.
+    """
+
+    def __init__(self, name: str, *, peers: dict[str, tuple[str, int]] | None = None) -> None:
         if NAME.fullmatch(name) is None:
             raise ValueError(f"creature name {name!r} must match {NAME.pattern}")
         self.name = name
-        self.peers: dict[str, tuple[str, int]] = {}
+        self.peers: dict[str, tuple[str, int]] = {} if peers is None else peers
         self.send_errors = 0
         self.socket = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
 

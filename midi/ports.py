@@ -52,6 +52,20 @@ def memory_pair(name: str = "memory") -> tuple[MemoryInput, MemoryOutput]:
     return inport, MemoryOutput(name, into=inport)
 
 
+class MemoryPorts:
+    """A :class:`PortFactory` over in-memory ports (tests, benchmarks): lists them by name and
+    opens the port itself, so a run's configured port name finds it like a device."""
+
+    def __init__(self, *ports: BasePort) -> None:
+        self.ports = {port.name: port for port in ports}
+
+    def names(self) -> list[str]:
+        return list(self.ports)
+
+    def open(self, name: str, *, virtual: bool = False) -> BasePort:
+        return self.ports[name]
+
+
 class PortFactory(Protocol):
     """Lists and opens ports of one direction; mido's backends or a fake one in tests."""
 

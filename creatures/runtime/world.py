@@ -38,6 +38,9 @@ class World:
         self.creatures: list[CreatureKind] = []
         self._pending: list[tuple[float, int, NoteEvent, str]] = []
         self.listeners: list[Callable[[str, NoteEvent], None]] = []  # e.g. OSC to other colonies
+        # What creatures of other colonies last said of themselves over OSC, by creature then
+        # key (creatures.runtime.network): e.g. peers["bo"]["boredom"], peers["bo"]["action"].
+        self.peers: dict[str, dict[str, int | float | str]] = {}
         self._seq = itertools.count()
         self.notes_played = 0
         self.pulse = HeardPulse()  # the rhythm of the notes heard from outside the colony
