@@ -140,7 +140,8 @@ def _run(args: argparse.Namespace) -> int:
         return 2
     restored = f", restored {', '.join(summary.restored)}" if summary.restored else ""
     print(f"stopped after {summary.seconds:.1f} s: {summary.ticks} ticks, {summary.notes_played} notes, "
-          f"{summary.late} late{restored}; sound {summary.sound}")
+          f"{summary.late} late{restored}; sound {summary.sound}; {summary.underruns} audio underruns, "
+          f"{summary.overruns} input overruns")
     return 0
 
 

@@ -90,7 +90,7 @@ def _midi_run(inst, monkeypatch, *, unplug: bool):
     clock, log, reports = SimulatedClock(), EventLog(), []
     sink = CountingPortSink(ResilientPort(inst.settings.midi.output_port, synth, clock, report=reports.append))
     session = Session(inst, clock, log, sink)
-    inputs = live._Inputs(inst, session, clock, reports.append)
+    inputs = live.LiveInputs(inst, session, clock, reports.append)
     played, at_return = [], None
     for step in range(1, 751):
         t = round(step * 0.02, 6)
@@ -174,8 +174,8 @@ def test_osc_flood_of_malformed_packets_at_a_running_listener(colony, rng):
     colony.settings.midi.input_port = None
     clock, log = SimulatedClock(), EventLog()
     session = Session(colony, clock, log, MemorySink())
-    inputs = live._Inputs(colony, session, clock, print)
-    listener = inputs.osc
+    inputs = live.LiveInputs(colony, session, clock, print)
+    listener = inputs.network.listener
     assert listener.socket.getsockname()[0] == "127.0.0.1"  # loopback unless configured
     visitor = OscSender("visitor")
     visitor.add_peer("colony", ("127.0.0.1", listener.port))

@@ -3,8 +3,10 @@ devices, save state on exit (also on SIGTERM) and resume from it."""
 
 from __future__ import annotations
 
+import json
 import math
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -14,13 +16,14 @@ import mido
 import pytest
 
 from audio.device import device_rate
+from audio.output import AudioOutput
 from creatures.cli import main
 from creatures.clock import SimulatedClock
 from creatures.events import EventLog
 from creatures.runtime import live
 from creatures.runtime.schema import load_installation
 from creatures.runtime.session import Session
-from midi.ports import MemoryInput
+from midi.ports import MemoryInput, MemoryPorts
 from midi.sinks import MemorySink
 
 CONFIG = """
@@ -44,6 +47,7 @@ def test_absent_devices_are_named_and_the_run_goes_on(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "MIDI output" in out and "NoSuchSynth" in out and "creatures devices" in out
     assert "audio output NoSuchCard unavailable" in out
+    assert "0 audio underruns, 0 input overruns" in out
     assert (state / "ada.json").is_file()
     assert main(["run", str(config), "--duration", "0.2", "--state", str(state)]) == 0
     assert "restored ada" in capsys.readouterr().out
@@ -95,34 +99,66 @@ def test_live_frames_follow_their_own_clock(tmp_path, capsys):
     assert 8 <= count <= math.floor(10 * elapsed) + 1, (count, elapsed)
 
 
-def test_live_midi_notes_are_heard_when_the_key_goes_down(tmp_path, monkeypatch):
+def test_live_midi_notes_are_heard_when_the_key_goes_down(tmp_path):
     keyboard = MemoryInput("Test Keyboard")
-
-    class Keyboards:
-        def names(self) -> list[str]:
-            return ["Test Keyboard"]
-
-        def open(self, name: str, *, virtual: bool = False):
-            return keyboard
-
-    monkeypatch.setattr(live, "MidoInputs", Keyboards)
     config = tmp_path / "live.toml"
     deaf = '[[creature]]\nname = "bo"\nkind = "exchange"\nchannel = 1\nhears_input = false\n'
     config.write_text(CONFIG.replace('output_port = "NoSuchSynth"', 'input_port = "keyboard"') + deaf)
     inst = load_installation(config)
     clock = SimulatedClock()
     session = Session(inst, clock, EventLog(), MemorySink())
-    inputs = live._Inputs(inst, session, clock, say=lambda message: None)
+    inputs = live.LiveInputs(inst, session, clock, say=lambda message: None, ports=MemoryPorts(keyboard))
     keyboard.inject(mido.Message("note_on", note=64, velocity=90))
     keyboard.inject(mido.Message("note_on", note=64, velocity=0))  # its release: not a new note
     clock.advance(0.5)
-    inputs.poll(clock.now())
+    assert inputs.poll(clock.now()) == 1
     assert session.world.deliver(clock.now()) == 1
     heard = [e for e in session.log.records if e["kind"] == "heard"]
     assert [(e["pitch"], e["velocity"], e["time"], e["source"]) for e in heard] == [(64, 90, 0.5, "midi")]
     # A keyboard is input like a file: only creatures that hear the input take the note.
     placed = [(e["creature"], e["source"]) for e in session.log.records if e["kind"] == "placed"]
     assert placed == [("ada", "input")]
+
+
+def test_audio_underruns_and_input_overruns_are_counted_logged_and_reported(tmp_path, monkeypatch, capsys):
+    class Loudspeaker(AudioOutput):
+        """A device whose callback never finds the next block in time."""
+
+        def __init__(self, sample_rate: int, channels: int, **kwargs) -> None:
+            super().__init__(sample_rate, channels)
+            self.underruns = 0
+
+        def _write(self, block) -> None:
+            self.underruns += 1
+
+    class Microphone:
+        """A microphone read too slowly: a block was lost before every read."""
+
+        def __init__(self, device: str, *, samplerate: int) -> None:
+            self.overruns = self.driver_overflows = 0
+
+        def start(self) -> None:
+            pass
+
+        def read(self) -> None:
+            self.overruns += 1
+            return None
+
+        def stop(self) -> None:
+            pass
+
+    monkeypatch.setattr(live, "open_output", lambda rate, channels, **kwargs: Loudspeaker(rate, channels))
+    monkeypatch.setattr(live, "LiveInput", Microphone)
+    config = tmp_path / "live.toml"
+    config.write_text(CONFIG.replace('output_device = "NoSuchCard"', 'input_device = "mic"'))
+    log = tmp_path / "events.jsonl"
+    assert main(["run", str(config), "--duration", "0.3", "--log", str(log)]) == 0
+    summary = re.search(r"(\d+) ticks, .* (\d+) audio underruns, (\d+) input overruns", capsys.readouterr().out)
+    ticks, underruns, overruns = map(int, summary.groups())
+    assert ticks >= 5 and underruns == overruns == ticks
+    xruns = [e for e in map(json.loads, log.read_text().splitlines()) if e["kind"] == "xruns"]
+    assert len(xruns) >= 2  # logged while running (when they change) and at the end
+    assert (xruns[-1]["underruns"], xruns[-1]["overruns"]) == (ticks, ticks)
 
 
 @pytest.mark.jack
