@@ -1,24 +1,34 @@
 """MIDI benchmarks: raw-byte parsing beside mido's own Parser, loading a 100,000-note file,
-and MIDI-in → creature decision → MIDI-out latency through in-memory ports."""
+and MIDI-in → creature decision → MIDI-out latency through the live loop's own code path.
+
+Only the latency has a target (the issue's: p99 ≤ 5 ms); parse and load speeds are printed
+beside mido's as numbers to compare, without invented targets.
+"""
 
 from __future__ import annotations
 
+import bisect
 import tempfile
-import threading
 import time
+from collections import defaultdict
 from pathlib import Path
 
 import mido
 import numpy as np
+from threadpoolctl import threadpool_limits
 
+import installations
 from bench import Row, best_of
-from creatures.clock import WallClock
+from creatures.clock import SimulatedClock
+from creatures.events import EventLog
+from creatures.runtime.live import LiveInputs
+from creatures.runtime.schema import load_installation
+from creatures.runtime.session import Session
+from creatures.runtime.ticking import TickLoop, setup_kept
 from midi.files import TempoMap, read_notes, write_notes
 from midi.notes import NoteEvent
 from midi.parser import StreamParser
-from midi.ports import memory_pair
-from midi.sinks import PortSink
-from midi.sources import PortSource
+from midi.ports import MemoryInput, MemoryPorts
 
 
 def _channel_stream(rng: np.random.Generator, n: int) -> bytes:
@@ -43,7 +53,7 @@ def _parse_rows(rng: np.random.Generator, n: int) -> list[Row]:
         assert len(list(parser)) == n
 
     t_ours, t_theirs = best_of(ours), best_of(theirs)
-    return [Row("parse raw bytes (running-status aware)", n / t_ours, "msgs/s", target=100_000,
+    return [Row("parse raw bytes (running-status aware)", n / t_ours, "msgs/s",
                 baseline="mido.Parser", ratio=t_theirs / t_ours)]
 
 
@@ -65,44 +75,118 @@ def _file_rows(rng: np.random.Generator, n: int) -> list[Row]:
                 higher_is_better=False, baseline="mido.MidiFile parse only", ratio=t_mido / t_ours)]
 
 
+class _FastForward:
+    """Wall time with the loop's idle sleeps skipped: it runs at real speed while the loop works
+    and jumps ahead when the loop would sleep. A long performance is replayed in the time its
+    processing takes, and every wait a note really has — the poll interval, a tick in progress —
+    is still in its latency."""
+
+    def __init__(self) -> None:
+        self.skipped = 0.0
+
+    def now(self) -> float:
+        return time.perf_counter() + self.skipped
+
+    def wait(self, seconds: float) -> None:
+        self.skipped += seconds
+
+
+class _Player(MemoryInput):
+    """A keyboard playing ``score`` (``(time, message)``, in time order): each message is in
+    the port from its time on, whatever the loop is doing then."""
+
+    def __init__(self, name: str, clock: _FastForward, score: list[tuple[float, mido.Message]]) -> None:
+        super().__init__(name)
+        self.clock = clock
+        self.score = score
+        self.played = 0
+
+    def _receive(self, block: bool = True) -> None:
+        now = self.clock.now()
+        while self.played < len(self.score) and self.score[self.played][0] <= now:
+            self._messages.append(self.score[self.played][1])
+            self.played += 1
+
+
+class _Arrivals:
+    """A MIDI sink that stamps, by pitch, the time each message of one channel reaches it."""
+
+    def __init__(self, clock: _FastForward, channel: int) -> None:
+        self.clock = clock
+        self.channel = channel
+        self.at: dict[int, list[float]] = defaultdict(list)
+
+    def send(self, time_: float, msg: mido.Message) -> None:
+        # A struck note object sounds (note-on), or swells if it still sounds (polytouch).
+        if msg.type in ("note_on", "polytouch") and msg.channel == self.channel:
+            self.at[msg.note].append(self.clock.now())
+
+
+WARM_UP = 200
+"""Notes played before the measured ones: the first path searches load compiled code (numba)."""
+
+
 def _latency_rows(rng: np.random.Generator, n: int) -> list[Row]:
-    """A producer thread plays notes into an in-memory input at ~2–5 kHz; the creature loop
-    polls it, decides (transpose a fifth), and sends to an in-memory output."""
-    clock = WallClock()
-    inport, player = memory_pair("ear")
-    _, voice = memory_pair("voice")
-    ear, sink = PortSource(inport, clock), PortSink(voice)
-    sent_at = np.zeros(n)
-    answered_at = np.zeros(n)
-    gaps = rng.uniform(0.0001, 0.0004, n)
+    """The shipped *exchange* colony, live: a keyboard plays notes 5–25 ms apart into an
+    in-memory MIDI input; the live loop (:class:`TickLoop`, the code path of ``creatures run``,
+    audio off) ticks the three creatures on their 40 ms grid and, between ticks, looks at the
+    input every millisecond and hears what arrived (:class:`LiveInputs` → World); ada decides
+    to answer every note she hears (``answer = 1``, no refractory wait) by striking it where it
+    lands in space (World → NoteScheduler → sink). Latency: from the moment a note is at the
+    input to its answer reaching the sink, on a clock that runs at wall speed whenever the
+    loop works (:class:`_FastForward`), so a note that arrives during a tick waits for it.
+    The first :data:`WARM_UP` notes are not counted (the first note's wait is shown)."""
+    inst = load_installation(installations.path("exchange"))
+    inst.settings.midi.input_port = "bench keys"
+    ada = inst.specs[0]
+    ada.answer, ada.strike_interval, ada.refractory, ada.mutation = 1.0, 0.0, 0.0, 0.0
+    total = WARM_UP + n
+    wall = _FastForward()
+    clock = SimulatedClock(wall.now())
+    arrivals = _Arrivals(wall, ada.channel)
+    pitches = np.concatenate([rng.permutation(128) for _ in range(total // 128 + 1)])[:total]
+    velocities = rng.integers(40, 120, total)
+    ticks: list[tuple[float, float]] = []  # (start, end) of every tick on the loop's clock
+    with tempfile.TemporaryDirectory() as tmp, threadpool_limits(limits=1):  # as `creatures run` sets
+        log = EventLog(Path(tmp) / "events.jsonl")  # as `creatures run --log`
+        session = Session(inst, clock, log, arrivals)
+        due = wall.now() + 0.5 + np.cumsum(rng.uniform(0.005, 0.025, total))
+        keys = _Player("bench keys", wall, [(float(t), mido.Message("note_on", note=int(p), velocity=int(v)))
+                                            for t, p, v in zip(due, pitches, velocities)])
+        loop = TickLoop(session, LiveInputs(inst, session, clock, say=lambda m: None, ports=MemoryPorts(keys)),
+                        wall, clock, inst.settings.tick, wait=wall.wait)
 
-    def play() -> None:
-        for i in range(n):
-            sent_at[i] = time.perf_counter()
-            player.send(mido.Message("note_on", note=int(i % 128), velocity=100))
-            time.sleep(gaps[i])
+        def tick(t: float) -> None:
+            began = wall.now()
+            session.step(t, 0, None, audio=False)
+            ticks.append((began, wall.now()))
 
-    def decide(msg: mido.Message) -> mido.Message:
-        return msg.copy(note=(msg.note + 7) % 128) if msg.type == "note_on" else msg
-
-    producer = threading.Thread(target=play)
-    producer.start()
-    done = 0
-    while done < n:
-        heard = ear.poll()
-        for t, msg in heard:
-            sink.send(t, decide(msg))
-            answered_at[done] = time.perf_counter()
-            done += 1
-        if not heard:
-            time.sleep(0.00005)
-    producer.join()
-    latency_ms = (answered_at - sent_at) * 1e3
+        with setup_kept():
+            loop.run(tick, until=lambda t: t > due[-1] + 0.5)
+        session.close()
+        log.close()
+    latency_ms = np.full(total, np.inf)  # an unanswered note counts as infinitely late
+    for i, (pitch, sent) in enumerate(zip(pitches, due)):
+        answers = arrivals.at[int(pitch)]
+        k = bisect.bisect_left(answers, sent)
+        if k < len(answers):
+            latency_ms[i] = (answers[k] - sent) * 1e3
+    first, latency_ms, due = latency_ms[0], latency_ms[WARM_UP:], due[WARM_UP:]
+    starts, ends = np.array(ticks).T
+    k = np.searchsorted(starts, due, side="right") - 1
+    during_tick = (k >= 0) & (due < ends[np.maximum(k, 0)])
+    what = f"MIDI in → exchange decision → out ({n:,} notes)"
     return [
-        Row(f"MIDI in → decision → out latency p50 ({n:,} events)", float(np.percentile(latency_ms, 50)), "ms",
-            target=1.0, higher_is_better=False),
-        Row(f"MIDI in → decision → out latency p99 ({n:,} events)", float(np.percentile(latency_ms, 99)), "ms",
-            target=5.0, higher_is_better=False),
+        Row(f"{what} p50", float(np.percentile(latency_ms, 50)), "ms", higher_is_better=False),
+        Row(f"{what} p99", float(np.percentile(latency_ms, 99)), "ms", target=5.0, higher_is_better=False),
+        Row("  p99 of notes arriving between ticks (≤1 ms poll + decision)",
+            float(np.percentile(latency_ms[~during_tick], 99)), "ms", higher_is_better=False),
+        Row("  notes arriving while a tick runs (they wait for its end)", float(during_tick.mean() * 100), "%"),
+        Row("  colony's behaviour tick p99", float(np.percentile(ends - starts, 99) * 1e3), "ms",
+            higher_is_better=False),
+        Row("  notes answered", float(np.isfinite(latency_ms).mean() * 100), "%"),
+        Row("  first note of the run (loads compiled code; not counted)", float(first), "ms",
+            higher_is_better=False),
     ]
 
 
