@@ -13,6 +13,8 @@ what it hears.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from creatures.behaviour.models.gaussian import GaussianModel
@@ -41,6 +43,19 @@ class HeardPulse:
     @property
     def ready(self) -> bool:
         return self.heard >= READY_AFTER
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"pulse": self.model.to_dict(), "heard": self.heard}
+
+    def restore(self, data: dict[str, Any]) -> None:
+        """Take back a saved pulse in place (Du durations hold this object, not a copy). The
+        last onset before the save is not kept: the gap across a restart is no duration.
+        Raises KeyError/TypeError/ValueError/ArithmeticError on malformed data."""
+        model = LowIntegerRatioModel.from_dict(data["pulse"])
+        heard = data["heard"]
+        if not isinstance(heard, int) or isinstance(heard, bool) or heard < 0:
+            raise ValueError(f"'heard' must be a count, found {heard!r}")
+        self.model, self.heard = model, heard
 
     def hear(self, onset: float) -> None:
         """A note started at ``onset`` (seconds); learnt at the next :meth:`settle`."""

@@ -23,7 +23,6 @@ from creatures.kinds import KINDS
 from creatures.persist import StateFileError, load_json, save_json
 from creatures.runtime.schema import LoadedInstallation
 from creatures.runtime.world import World
-from creatures.temporal.durations import LowIntegerRatioModel
 from midi.scheduler import NoteScheduler
 from midi.sinks import NoteSink
 
@@ -121,8 +120,7 @@ class Session:
         for creature in self.creatures:
             save_json(directory / f"{creature.name}.json",
                       {"kind": creature.spec.kind, "state": creature.state()}, kind=STATE_KIND)
-        pulse = self.world.pulse
-        save_json(directory / COLONY_FILE, {"pulse": pulse.model.to_dict(), "heard": pulse.heard}, kind=COLONY_KIND)
+        save_json(directory / COLONY_FILE, self.world.pulse.to_dict(), kind=COLONY_KIND)
 
     def load_state(self, directory: Path) -> list[str]:
         """Restore creatures from ``directory`` where a file exists; returns who was restored.
@@ -152,17 +150,12 @@ class Session:
         return restored
 
     def _load_colony(self, path: Path) -> None:
-        """The colony's heard pulse, if a file was saved (older state directories have none).
-        The last onset before the restart is not kept: the gap across it is no duration."""
+        """The colony's heard pulse, if a file was saved (older state directories have none)."""
         if not path.exists():
             return
         data = load_json(path, kind=COLONY_KIND)
         try:
-            model = LowIntegerRatioModel.from_dict(data["pulse"])
-            heard = data["heard"]
-            if not isinstance(heard, int) or isinstance(heard, bool) or heard < 0:
-                raise ValueError(f"'heard' must be a count, found {heard!r}")
+            self.world.pulse.restore(data)
         except (KeyError, TypeError, ValueError, IndexError, AttributeError, ArithmeticError) as exc:
             # ArithmeticError: e.g. a ratio with denominator 0, a size too large for an index.
             raise StateFileError(f"{path}: malformed colony state ({type(exc).__name__}: {exc})") from None
-        self.world.pulse.model, self.world.pulse.heard = model, heard
