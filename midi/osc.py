@@ -16,7 +16,9 @@ characters), so a colony of three sends from three addresses:
     of its motivation by name (``boredom 0.42``, ``hunger 0.1``, ``desire``, ``breath`` …,
     floats) and ``action`` (what it is doing: the names of its active action-tuples joined
     by ``+``, e.g. ``"seek note"``, or ``"none"``). A hearing colony keeps the latest value
-    of every key per creature for its own creatures to read (``World.peers``).
+    of every key per creature for its own creatures to read (``World.peers``). A creature's
+    keys travel together as one OSC bundle (one datagram), so a hearer takes them in as one
+    snapshot; single ``state`` messages from any other client are as welcome.
 ``/creature/<name>/bye``
     The creature is leaving; peers may forget it.
 
@@ -36,6 +38,7 @@ import select
 import socket
 from dataclasses import dataclass
 
+from pythonosc.osc_bundle_builder import IMMEDIATELY, OscBundleBuilder
 from pythonosc.osc_message_builder import OscMessageBuilder
 from pythonosc.osc_packet import OscPacket
 
@@ -178,17 +181,26 @@ class OscSender:
     def note(self, note: NoteEvent) -> None:
         self._send("note", [note.pitch, note.velocity, float(note.duration), note.channel])
 
-    def state(self, key: str, value: int | float | str) -> None:
-        self._send("state", [key, value])
+    def state(self, values: dict[str, int | float | str]) -> None:
+        """Every ``key value`` as a ``state`` message, all in one bundle."""
+        bundle = OscBundleBuilder(IMMEDIATELY)
+        for key, value in values.items():
+            bundle.add_content(self._message("state", [key, value]))
+        self._deliver(bundle.build().dgram)
 
     def bye(self) -> None:
         self._send("bye", [])
 
-    def _send(self, kind: str, args: list) -> None:
+    def _message(self, kind: str, args: list):
         builder = OscMessageBuilder(f"/creature/{self.name}/{kind}")
         for arg in args:
             builder.add_arg(arg)
-        dgram = builder.build().dgram
+        return builder.build()
+
+    def _send(self, kind: str, args: list) -> None:
+        self._deliver(self._message(kind, args).dgram)
+
+    def _deliver(self, dgram: bytes) -> None:
         for address in self.peers.values():
             try:
                 self.socket.sendto(dgram, address)

@@ -5,11 +5,13 @@ It plays the exchange game over OSC (thesis, "exchange"): every note it hears is
 (placed, in the full installation, in space); at its own pace it plays back the oldest
 remembered note, transformed (transposed), or its own seed note when it remembers nothing.
 Passages therefore pass back and forth between creatures and drift. It learns peers from
-their ``hello`` messages, so a peer that restarts is heard again without configuration.
+their ``hello`` messages, so a peer that restarts is heard again without configuration. With
+each hello it sends its state: ``remembered`` (notes waiting to be played back).
 
 It reports on stdout, one JSON object per line: ``listening``, ``hello``, ``heard`` (each note
-heard) and ``stats`` (whenever a dropped-packet counter changes) — what the two-process test
-reads.
+heard), ``state`` (each state value heard) and ``stats`` (whenever a dropped-packet counter
+changes) — what the two-process test reads. The framework's own creatures speak the same
+protocol (``creatures run`` with ``[osc]``, :mod:`creatures.runtime.network`).
 """
 
 from __future__ import annotations
@@ -75,6 +77,7 @@ def main(argv: list[str] | None = None) -> int:
             now = clock.now()
             if now >= next_hello:
                 sender.hello(listener.port)
+                sender.state({"remembered": len(memory)})
                 next_hello = now + args.hello_every
             for heard in listener.poll():
                 if heard.creature == args.name:
@@ -90,6 +93,8 @@ def main(argv: list[str] | None = None) -> int:
                     memory.append(heard.note)
                     _say(event="heard", name=heard.creature, pitch=heard.note.pitch,
                          velocity=heard.note.velocity, duration=heard.note.duration)
+                elif heard.kind == "state":
+                    _say(event="state", name=heard.creature, key=heard.args[0], value=heard.args[1])
                 elif heard.kind == "bye":
                     sender.peers.pop(heard.creature, None)
             if now >= next_play:

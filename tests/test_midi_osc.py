@@ -42,18 +42,19 @@ def test_notes_and_state_cross_between_two_creatures_in_process(clock):
     try:
         for note in notes:
             voice.note(note)
-        voice.state("boredom", 0.75)
+        voice.state({"boredom": 0.75, "action": "seek note"})  # one bundle
         voice.hello(ear.port)
         heard: list = []
-        assert wait_until(lambda: heard.extend(ear.poll()) or len(heard) >= 102)
+        assert wait_until(lambda: heard.extend(ear.poll()) or len(heard) >= 103)
     finally:
         ear.close()
         voice.close()
     assert [h.note for h in heard[:100]] == notes
     assert {h.creature for h in heard} == {"exchange-1"}
-    assert (heard[100].kind, heard[100].args) == ("state", ("boredom", 0.75))
-    assert (heard[101].kind, heard[101].args) == ("hello", (ear.port,))
-    assert ear.received == 102 and ear.malformed == 0
+    assert [(h.kind, h.args) for h in heard[100:102]] == [("state", ("boredom", 0.75)),
+                                                           ("state", ("action", "seek note"))]
+    assert (heard[102].kind, heard[102].args) == ("hello", (ear.port,))
+    assert ear.received == 103 and ear.malformed == 0
 
 
 def test_a_burst_of_2000_notes_is_received_whole(clock):
@@ -142,6 +143,8 @@ def test_two_peer_processes_exchange_and_survive_a_restart():
         first = a.expect(heard_from("B"))
         assert first["pitch"] == 67  # B's seed note, transposed a fifth
         b.expect(heard_from("A"))
+        state = a.expect(lambda e: e["event"] == "state" and e["name"] == "B")  # state crosses too
+        assert state["key"] == "remembered" and isinstance(state["value"], int)
         # Notes pass back and forth and drift: A hears transformations of its own echoes.
         assert a.expect(lambda e: heard_from("B")(e) and e["pitch"] not in (60, 67))
 

@@ -84,8 +84,7 @@ class Network:
         for creature in self.world.creatures:
             sender = self.senders[creature.name]
             sender.hello(self.listener.port)
-            for key, value in shown_state(creature, t).items():
-                sender.state(key, value)
+            sender.state(shown_state(creature, t))
 
     def poll(self, t: float) -> int:
         """Take in what other colonies said; returns how many notes joined the note bus."""
