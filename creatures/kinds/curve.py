@@ -44,7 +44,7 @@ from creatures.kinds import register
 from creatures.kinds.base import CreatureKind, CreatureSpec
 from creatures.kinds.moves import Rest, head_for
 from creatures.kinds.parts import Body, Voice, VoiceSpec, shared_graph
-from creatures.kinds.report_parts import report_values, selection_logger
+from creatures.kinds.report_parts import MotorTrail, report_values, selection_logger
 from creatures.motor.note_space import NotePlacement
 from midi.notes import NoteEvent
 
@@ -170,6 +170,7 @@ class Curve(CreatureKind):
     def __init__(self, spec: CurveSpec, world: "World", rng: np.random.Generator) -> None:
         super().__init__(spec, world, rng)
         self.body = Body(rng)
+        self.trail = MotorTrail(world, self.name, self.body)
         self.x = self.target_x = float(np.clip(spec.place, -spec.room, spec.room))
         self.placement = NotePlacement.around(self.body.reach())
         self.voice: Voice | None = None
@@ -252,6 +253,7 @@ class Curve(CreatureKind):
         dt, self._t = t - self._t, t
         step = self.spec.walk_speed * dt
         self.x = float(np.clip(self.x + np.clip(self.target_x - self.x, -step, step), -self.spec.room, self.spec.room))
+        self.trail.follow(t)
         self.body.update(t)
         self.look()
         self.group.tick(t)
@@ -266,9 +268,7 @@ class Curve(CreatureKind):
                         sizes={"bodies seen": int(sum(self.gap(o) < self.spec.sense for o in self.others()))},
                         levels={"seen": self.seen(t), "close": self.close(t), "string overlap": self.overlap()},
                         distance=None if self._nearest is None else self.distance)
-        hand = self.body.hand()
-        self.world.emit("motor", creature=self.name, node=self.body.motor.position(t).node, x=self.x,
-                        position={"x": hand[0] + self.x, "y": hand[1], "z": hand[2]})
+        self.trail.report(t, shift=(self.x, 0.0, 0.0), x=self.x)
 
     # -- outputs -------------------------------------------------------------------------------
     def played(self, note: NoteEvent) -> None:

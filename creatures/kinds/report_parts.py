@@ -85,8 +85,10 @@ class MotorTrail:
             self.reached.append(node)
             self._last = node
 
-    def report(self, t: float) -> None:
-        """The graph (first time only), then where the body is and what it reached since."""
+    def report(self, t: float, *, shift: tuple[float, float, float] = (0.0, 0.0, 0.0), **fields: object) -> None:
+        """The graph (first time only), then where the body is and what it reached since;
+        ``shift`` moves the hand by where the whole body stands in the room (a walking
+        creature), ``fields`` add kind-specific context to the ``motor`` event."""
         log = self.world.log
         if not self._graph_logged:
             graph = self.body.graph
@@ -94,7 +96,7 @@ class MotorTrail:
             log.emit(t, "motor graph", creature=self.creature, effector=self.body.effector,
                      hands=np.round(self.body.reach(), 4), edges=edges)
             self._graph_logged = True
-        hand = self.body.hand()
+        hand = self.body.hand() + np.asarray(shift)
         log.emit(t, "motor", creature=self.creature, node=self.body.motor.position(t).node,
-                 position={"x": hand[0], "y": hand[1], "z": hand[2]}, reached=self.reached)
+                 position={"x": hand[0], "y": hand[1], "z": hand[2]}, reached=self.reached, **fields)
         self.reached = []

@@ -60,6 +60,7 @@ from creatures.kinds.base import CreatureKind, CreatureSpec
 from creatures.kinds.hearing_parts import (AuralLearning, Ear, HearingSpec, Mouth, MouthSpec, SeedModel,
                                            SingFrom, tree_from_state, tree_state)
 from creatures.kinds.parts import Body
+from creatures.kinds.report_parts import MotorTrail
 from creatures.motor.search import NoPath
 
 if TYPE_CHECKING:
@@ -130,6 +131,7 @@ class SoundCreature(CreatureKind):
     def __init__(self, spec: SoundCreatureSpec, world: "World", rng: np.random.Generator) -> None:
         super().__init__(spec, world, rng)
         self.body = Body(rng)
+        self.trail = MotorTrail(world, self.name, self.body)
         self.ear = Ear(spec.hearing)
         self.mouth = Mouth(spec.mouth, self.ear.singing)
         self.root = load_aural_model(spec.seed_model) if spec.seed_model else self._new_tree()
@@ -203,6 +205,7 @@ class SoundCreature(CreatureKind):
         self.mouth.tick(t)
         if t >= self._next_pose:
             self._next_pose = t + 1.0 / self.spec.body_rate
+            self.trail.follow(t)
             self.body.update(t)
         self.group.tick(t)
         if t >= self._next_report:
@@ -222,6 +225,7 @@ class SoundCreature(CreatureKind):
                  temperature=self.group.temperature)
         log.emit(t, "percepts", creature=self.name,
                  sizes={p.name: len(p.members) for p in self.root.walk()})
+        self.trail.report(t)
 
     # -- outputs -------------------------------------------------------------------------
     def sound(self, out: np.ndarray, sample_rate: int) -> None:
