@@ -131,8 +131,9 @@ def _latency_rows(rng: np.random.Generator, n: int) -> list[Row]:
     in-memory MIDI input; the live loop (:class:`TickLoop`, the code path of ``creatures run``,
     audio off) ticks the three creatures on their 40 ms grid and, between ticks, looks at the
     input every millisecond and hears what arrived (:class:`LiveInputs` → World); ada decides
-    to answer every note she hears (``answer = 1``, no refractory wait) by striking it where it
-    lands in space (World → NoteScheduler → sink). Latency: from the moment a note is at the
+    to answer every note she hears by striking it where it lands in space (World →
+    NoteScheduler → sink): ``answer = 1`` with no wait between strikes or before re-striking a
+    note, and no mutation, so each answer is found by its pitch. Latency: from the moment a note is at the
     input to its answer reaching the sink, on a clock that runs at wall speed whenever the
     loop works (:class:`_FastForward`), so a note that arrives during a tick waits for it.
     The first :data:`WARM_UP` notes are not counted (the first note's wait is shown)."""
