@@ -12,6 +12,7 @@ from creatures.motor import metric
 from creatures.motor import quaternion as quat
 from creatures.motor.animations import creature_skeleton, example_animations
 from creatures.motor.graph import MotorGraph
+from creatures.motor.neighbours import EXACT_BELOW, nearest_edges
 from creatures.motor.note_space import exchange_metric
 from creatures.motor.playback import Playback
 from creatures.motor.pose import PoseSet
@@ -69,6 +70,38 @@ def test_topology_links_neighbours_and_successors(graph, poses):
     # Edges join different animations too: that is what lets the body move between them.
     sources = poses.source_ids
     assert any(sources[a] != sources[b] for a, b in graph.edges())
+
+
+def brute_force_nearest(poses: PoseSet, k: int) -> np.ndarray:
+    """The k smallest edge costs out of every pose, over all pairs (metric.pairwise)."""
+    table = metric.pairwise(poses, np.arange(len(poses)), np.arange(len(poses)), metric.MetricWeights())
+    np.fill_diagonal(table, np.inf)
+    return np.sort(table, axis=1)[:, :k]
+
+
+def found_nearest(poses: PoseSet, k: int) -> np.ndarray:
+    """The k smallest edge costs out of every pose among the edges nearest_edges proposes."""
+    found = nearest_edges(poses, np.arange(len(poses)), np.arange(len(poses)), k, metric.MetricWeights())
+    costs = [[] for _ in range(len(poses))]
+    for (a, _), cost in found.items():
+        costs[a].append(cost)
+    return np.array([sorted(c)[:k] for c in costs])
+
+
+def test_nearest_neighbours_are_exact_on_small_graphs(poses):
+    """Below EXACT_BELOW poses the k nearest by the full metric are found exactly (compared
+    by cost, so ties may pick either pose); the KD-tree search missed 1.5% here."""
+    assert len(poses) <= EXACT_BELOW
+    assert np.allclose(found_nearest(poses, 5), brute_force_nearest(poses, 5), rtol=1e-12, atol=0.0)
+
+
+def test_approximate_nearest_neighbours_stay_close(poses, monkeypatch):
+    """Large graphs use KD-tree candidates instead: nearly all of the true nearest."""
+    monkeypatch.setattr("creatures.motor.neighbours.EXACT_BELOW", 0)
+    exact = brute_force_nearest(poses, 5)
+    found = found_nearest(poses, 5)
+    assert np.all(found >= exact - 1e-12)  # never better than exact: they are real costs
+    assert np.mean(np.isclose(found, exact, rtol=1e-12)) > 0.95
 
 
 def test_successor_edges_cost_nothing_for_time():

@@ -23,10 +23,10 @@ from typing import Any
 import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
-from scipy.spatial import cKDTree
 
 from creatures.motor import metric
 from creatures.motor.metric import MetricWeights
+from creatures.motor.neighbours import nearest_edges
 from creatures.motor.pose import LOW_ENERGY, PoseSet
 from creatures.motor.graph_file import read_graph
 from creatures.motor.skeleton import Skeleton
@@ -80,15 +80,15 @@ class MotorGraph:
     ) -> MotorGraph:
         """Automatic topology: each pose to its ``k`` nearest poses plus its source successor.
 
-        Candidates come from a KD-tree on a PCA projection of the mass-weighted quaternions
-        (``oversample × k`` per node), then are re-ranked with the exact metric, so the cost
-        stays near ``O(N log N)`` instead of all pairs. Every edge then gets its reverse and
-        separate islands are bridged (see :meth:`_complete`), so the body can never be
-        stranded in a corner of the graph.
+        The nearest are exact up to :data:`~creatures.motor.neighbours.EXACT_BELOW` poses
+        and found among ``oversample × k`` KD-tree candidates beyond
+        (:mod:`~creatures.motor.neighbours`). Every edge then gets its reverse and separate
+        islands are bridged (see :meth:`_complete`), so the body can never be stranded in a
+        corner of the graph.
         """
         weights = weights or MetricWeights()
         graph = cls(poses, {}, weights=weights)
-        graph._base = _nearest_edges(poses, np.arange(len(poses)), np.arange(len(poses)), k, weights, oversample)
+        graph._base = nearest_edges(poses, np.arange(len(poses)), np.arange(len(poses)), k, weights, oversample)
         graph._complete()
         return graph
 
@@ -164,7 +164,7 @@ class MotorGraph:
         self._timing = None
         new = np.arange(first, len(self.poses))
         self.favour = np.concatenate((self.favour, np.ones(len(new))))
-        found = _nearest_edges(self.poses, new, np.arange(len(self.poses)), k, self.weights, oversample)
+        found = nearest_edges(self.poses, new, np.arange(len(self.poses)), k, self.weights, oversample)
         self._base.update({edge: cost for edge, cost in found.items() if edge not in self.forbidden})
         self._complete()
         return new
@@ -329,46 +329,3 @@ class MotorGraph:
 
 def _floats(array: np.ndarray) -> str:
     return " ".join(f"{x:.9g}" for x in np.ravel(array))
-
-
-def _features(poses: PoseSet) -> np.ndarray:
-    """Mass-weighted quaternions in one hemisphere (w ≥ 0), flattened: a Euclidean stand-in."""
-    q = np.where(poses.rotations[..., :1] < 0.0, -poses.rotations, poses.rotations)
-    return (q * poses.skeleton.masses[:, None]).reshape(len(poses), -1)
-
-
-def _nearest_edges(
-    poses: PoseSet, rows: np.ndarray, cols: np.ndarray, k: int, weights: MetricWeights, oversample: int
-) -> dict[tuple[int, int], float]:
-    """Edges from each ``rows`` node to its ``k`` metric-nearest ``cols`` nodes and its successor."""
-    features = _features(poses)
-    sample = features[cols[:: max(1, len(cols) // 2000)]]
-    centre = sample.mean(axis=0)
-    # Principal axes from the small covariance matrix (eigh): LAPACK's SVD of the tall
-    # sample matrix is orders of magnitude slower on this machine's OpenBLAS.
-    spread = np.cov(sample - centre, rowvar=False) if len(sample) > 1 else np.eye(features.shape[1])
-    _, vectors = np.linalg.eigh(np.atleast_2d(spread))
-    basis = vectors[:, ::-1][:, :12]
-    tree = cKDTree((features[cols] - centre) @ basis)
-    count = min(len(cols), oversample * k + 1)
-    _, found = tree.query((features[rows] - centre) @ basis, k=count)
-    candidates = cols[np.asarray(found).reshape(len(rows), count)]
-    next_frame = metric.successors(poses)
-    edges: dict[tuple[int, int], float] = {}
-    block = max(1, 50_000 // count)
-    for start in range(0, len(rows), block):
-        a = rows[start : start + block]
-        b = candidates[start : start + block]
-        cost = metric.edge_costs(poses, a[:, None], b, weights, next_frame)
-        cost = np.where(b == a[:, None], np.inf, cost)
-        keep = np.argsort(cost, axis=1)[:, :k]
-        for i, node in enumerate(a.tolist()):
-            for j in keep[i]:
-                if np.isfinite(cost[i, j]):
-                    edges[(node, int(b[i, j]))] = float(cost[i, j])
-    with_next = rows[next_frame[rows] >= 0]
-    if len(with_next):
-        succ = next_frame[with_next]
-        for a, b, c in zip(with_next.tolist(), succ.tolist(), metric.edge_costs(poses, with_next, succ, weights, next_frame)):
-            edges[(a, b)] = float(c)
-    return edges
