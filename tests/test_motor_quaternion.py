@@ -106,6 +106,50 @@ def test_squad_passes_through_keys_and_is_continuous(raw):
         assert np.allclose(rate_in, rate_out, atol=1e-3 * (1 + np.abs(rate_in).max()))
 
 
+signs = arrays(np.float64, (5,), elements=st.sampled_from([-1.0, 1.0]))
+
+
+@given(keyframes, signs, alpha)
+def test_squad_stays_unit(raw, flips, t):
+    keys = quat.normalize(raw) * flips[:, None]
+    controls = quat.squad_controls(keys)
+    for i in range(len(keys) - 1):
+        q = quat.squad(keys[i], keys[i + 1], controls[i], controls[i + 1], t)
+        assert np.isclose(np.linalg.norm(q), 1.0)
+
+
+@given(keyframes, signs, alpha)
+def test_squad_takes_the_shortest_path(raw, flips, t):
+    # q and −q are one rotation: the signs keys arrive with (e.g. straight from the graph's
+    # nodes) must not send playback the long way round.
+    keys = quat.normalize(raw)
+    flipped = keys * flips[:, None]
+    controls, flipped_controls = quat.squad_controls(keys), quat.squad_controls(flipped)
+    for i in range(len(keys) - 1):
+        q = quat.squad(keys[i], keys[i + 1], controls[i], controls[i + 1], t)
+        p = quat.squad(flipped[i], flipped[i + 1], flipped_controls[i], flipped_controls[i + 1], t)
+        assert quat.angle_between(p, q) < 1e-6
+    # Unbent (controls at the keys), squad is slerp along the short arc, at constant speed.
+    a, b = keys[0], keys[1] * flips[1]
+    q = quat.squad(a, b, a, b, t)
+    total = quat.angle_between(a, b)
+    assert np.isclose(quat.angle_between(a, q), t * total, atol=1e-6)
+    assert np.isclose(quat.angle_between(q, b), (1 - t) * total, atol=1e-6)
+
+
+@given(keyframes)
+def test_squad_rate_bounds_the_turn_of_each_segment(raw):
+    keys = quat.hemisphere_align(quat.normalize(raw))
+    controls = quat.squad_controls(keys)
+    rate = quat.squad_rate(keys[:-1], keys[1:], controls[:-1], controls[1:])
+    # A segment covers at least its straight angle in unit time, so its peak rate is no less.
+    # (arccos near 1 resolves angles to ~1e-8 rad; the rate sums 16 of them.)
+    straight = quat.angle_between(keys[:-1], keys[1:])
+    assert np.all(rate >= straight - 1e-6)
+    # Unbent, the rate is constant: exactly that angle.
+    assert np.allclose(quat.squad_rate(keys[:-1], keys[1:], keys[:-1], keys[1:]), straight, atol=1e-6)
+
+
 @given(unit)
 def test_log_and_exp_are_inverse(q):
     assert quat.distance(quat.exp(quat.log(q)), q) < 1e-9
