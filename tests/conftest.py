@@ -13,7 +13,15 @@ import pytest  # noqa: E402
 
 os.environ.setdefault("NUMBA_CACHE_DIR", os.path.join(os.path.dirname(__file__), "..", ".numba_cache"))
 
+from hypothesis import settings  # noqa: E402
+
 from creatures.clock import SimulatedClock  # noqa: E402
+
+# Property tests draw the same examples on every run (CI included), so a pass or a failure can
+# be reproduced; HYPOTHESIS_PROFILE=explore searches afresh each time, as hypothesis does by default.
+settings.register_profile("deterministic", derandomize=True, database=None)
+settings.register_profile("explore")
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "deterministic"))
 
 
 @pytest.fixture
