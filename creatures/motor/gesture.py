@@ -26,7 +26,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass, field
-from typing import Any, Iterable, Sequence
+from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
 
@@ -196,7 +196,7 @@ class GestureModel:
         backward = self._grow(seed, lambda s: incoming.get(s, {}), seen)
         return [*reversed(backward), seed, *forward]
 
-    def _grow(self, seed: int, links, seen: set[int]) -> list[int]:
+    def _grow(self, seed: int, links: Callable[[int], dict[int, int]], seen: set[int]) -> list[int]:
         """Follow the most frequent repeated transition from ``seed`` while confidence holds.
 
         A transition seen only once, beside others, is the "anywhere" of

@@ -9,7 +9,9 @@ edges), and new material added as nodes.
 
 Searching needs compact arrays, so the graph keeps its edges as a CSR adjacency
 (``indptr``/``indices``/``costs``), rebuilt lazily after edits. It saves as diffable JSON
-through :mod:`creatures.persist`: one line per node, one line per edge.
+through :mod:`creatures.persist`: one short object per node (a line per field, so an edit
+to one node's favour or labels is a small diff) and one line per edge; reading it back is
+checked element by element (:mod:`~creatures.motor.graph_file`).
 """
 
 from __future__ import annotations
@@ -39,14 +41,13 @@ KIND = "motor-graph"
 class Adjacency:
     """CSR view of the edges: out-edges of node ``n`` are ``indptr[n]:indptr[n+1]``.
 
-    ``neighbours[n]`` mirrors row ``n`` as a plain list of ``(node, cost)`` pairs, which the
-    A* loop iterates much faster than numpy scalars.
+    Plain arrays because the compiled A* kernel (:mod:`creatures.motor.search`) and
+    scipy's graph routines both read exactly this layout.
     """
 
     indptr: np.ndarray
     indices: np.ndarray
     costs: np.ndarray
-    neighbours: list[list[tuple[int, float]]]
 
 
 class MotorGraph:
@@ -250,10 +251,7 @@ class MotorGraph:
             pairs, costs = pairs[order], costs[order]
             indptr = np.zeros(len(self.poses) + 1, dtype=np.int64)
             np.cumsum(np.bincount(pairs[:, 0], minlength=len(self.poses)), out=indptr[1:])
-            flat = list(zip(pairs[:, 1].tolist(), costs.tolist()))
-            bounds = indptr.tolist()
-            rows = [flat[bounds[n] : bounds[n + 1]] for n in range(len(self.poses))]
-            self._adjacency = Adjacency(indptr, pairs[:, 1].copy(), costs, rows)
+            self._adjacency = Adjacency(indptr, pairs[:, 1].copy(), costs)
         return self._adjacency
 
     @property

@@ -105,7 +105,7 @@ class PoseSet:
     source_ids: np.ndarray  # (N,) int
     sources: list[str]
     labels: list[frozenset[str]]
-    positions: np.ndarray = field(default=None)  # (N, J, 3), FK when omitted
+    positions: np.ndarray | None = None  # (N, J, 3), FK when omitted
 
     def __post_init__(self) -> None:
         self.rotations = quat.normalize(self.rotations)
