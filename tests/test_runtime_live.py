@@ -16,7 +16,6 @@ import mido
 import pytest
 
 from audio.device import device_rate
-from audio.output import AudioOutput
 from creatures.cli import main
 from creatures.clock import SimulatedClock
 from creatures.events import EventLog
@@ -121,24 +120,26 @@ def test_live_midi_notes_are_heard_when_the_key_goes_down(tmp_path):
 
 
 def test_audio_underruns_and_input_overruns_are_counted_logged_and_reported(tmp_path, monkeypatch, capsys):
-    class Loudspeaker(AudioOutput):
+    class Loudspeaker:
         """A device whose callback never finds the next block in time."""
 
-        def __init__(self, sample_rate: int, channels: int, **kwargs) -> None:
-            super().__init__(sample_rate, channels)
+        def __init__(self, sample_rate: int, channels: int, **kwargs: object) -> None:
             self.underruns = 0
 
-        def _write(self, block) -> None:
+        def describe(self) -> str:
+            return "live at 22050 Hz"
+
+        def write(self, block: object) -> None:
             self.underruns += 1
+
+        def close(self) -> None:
+            pass
 
     class Microphone:
         """A microphone read too slowly: a block was lost before every read."""
 
-        def __init__(self, device: str, *, samplerate: int) -> None:
+        def __init__(self, device: str, **kwargs: object) -> None:
             self.overruns = self.driver_overflows = 0
-
-        def start(self) -> None:
-            pass
 
         def read(self) -> None:
             self.overruns += 1
@@ -147,8 +148,8 @@ def test_audio_underruns_and_input_overruns_are_counted_logged_and_reported(tmp_
         def stop(self) -> None:
             pass
 
-    monkeypatch.setattr(live, "open_output", lambda rate, channels, **kwargs: Loudspeaker(rate, channels))
-    monkeypatch.setattr(live, "LiveInput", Microphone)
+    monkeypatch.setattr(live, "ResilientOutput", Loudspeaker)
+    monkeypatch.setattr(live, "ResilientInput", Microphone)
     config = tmp_path / "live.toml"
     config.write_text(CONFIG.replace('output_device = "NoSuchCard"', 'input_device = "mic"'))
     log = tmp_path / "events.jsonl"

@@ -21,12 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
-import numpy as np
-import soxr
-
-from audio.device import AudioDeviceUnavailable, device_rate
-from audio.output import AudioOutput, SilentOutput, open_output
-from audio.sources import LiveInput
+from audio.resilient import ResilientInput, ResilientOutput
 from creatures.clock import Clock, SimulatedClock, WallClock
 from creatures.events import EventLog
 from creatures.runtime.bodies import BodyFrames
@@ -113,14 +108,14 @@ class LiveInputs:
 class _Counters:
     """Audio underruns and microphone overruns: read, and logged whenever they change."""
 
-    def __init__(self, session: Session, output: AudioOutput, microphone: LiveInput | None) -> None:
+    def __init__(self, session: Session, output: ResilientOutput, microphone: ResilientInput | None) -> None:
         self.session = session
         self.output = output
         self.microphone = microphone
         self.last = (0, 0)
 
     def now(self) -> tuple[int, int]:
-        underruns = getattr(self.output, "underruns", 0)  # a loudspeaker counts them; silence has none
+        underruns = self.output.underruns
         mic = self.microphone
         return underruns, (mic.overruns + mic.driver_overflows) if mic is not None else 0
 
@@ -173,23 +168,14 @@ def run_live(
     inputs = LiveInputs(inst, session, clock, say)
     sr = settings.audio.sample_rate
     # Creatures synthesise at the config's rate; the device plays at its own (JACK will not
-    # change it), so the mix is resampled on the way out when they differ.
-    rate = device_rate(settings.audio.output_device, kind="output") or sr
-    output = open_output(rate, 2, device=settings.audio.output_device, blocksize=settings.audio.block)
-    to_device = soxr.ResampleStream(sr, rate, 2, dtype="float32") if rate != sr else None
-    summary.sound = (f"silent: {output.reason}" if isinstance(output, SilentOutput) else
-                     f"live at {rate} Hz" + (f" (resampled from {sr} Hz)" if to_device is not None else ""))
-    if isinstance(output, SilentOutput):
-        say(f"audio output {settings.audio.output_device or '(default)'} unavailable, running silent: "
-            f"{output.reason}")
+    # change it), so the mix is resampled on the way out. A device that is absent, or vanishes
+    # mid-run, is reported, played to as silence, and reopened when it is back (audio/resilient.py).
+    output = ResilientOutput(sr, 2, clock=wall, device=settings.audio.output_device,
+                             blocksize=settings.audio.block, report=say)
+    summary.sound = output.describe()
     microphone = None
     if settings.audio.input_device is not None:
-        try:
-            microphone = LiveInput(settings.audio.input_device, samplerate=sr)
-            microphone.start()
-        except AudioDeviceUnavailable as exc:
-            say(f"audio input {settings.audio.input_device!r} unavailable, not listening: {exc}")
-            microphone = None
+        microphone = ResilientInput(settings.audio.input_device, clock=wall, samplerate=sr, report=say)
     counters = _Counters(session, output, microphone)
     stopping = False
 
@@ -218,7 +204,7 @@ def run_live(
             frames_done += frames
             heard = microphone.read() if microphone is not None else None
             mix = session.step(t, frames, heard)
-            output.write(mix if to_device is None else to_device.resample_chunk(mix.astype(np.float32)))
+            output.write(mix)
             if inputs.network is not None:
                 inputs.network.publish(t)
             if bodies is not None:
