@@ -175,7 +175,8 @@ def run_live(
     summary.sound = output.describe()
     microphone = None
     if settings.audio.input_device is not None:
-        microphone = ResilientInput(settings.audio.input_device, clock=wall, samplerate=sr, report=say)
+        device = None if settings.audio.input_device == "default" else settings.audio.input_device
+        microphone = ResilientInput(device, clock=wall, samplerate=sr, report=say)
     counters = _Counters(session, output, microphone)
     stopping = False
 

@@ -25,7 +25,8 @@ class AudioSection(Strict):
 
     sample_rate: int = Field(22050, ge=8000, le=192000, description="rate of synthesis and analysis, Hz")
     block: int = Field(512, ge=32, le=16384, description="frames per audio block")
-    input_device: str | int | None = Field(None, description="live input device (name fragment or index)")
+    input_device: str | int | None = Field(None, description="live input device (name fragment or index, or "
+                                                            "'default' for the system's); none = no microphone")
     output_device: str | int | None = Field(None, description="live output device (name fragment or index)")
     air: bool = Field(False, description="creatures hear each other's voices (and their own) through "
                                          "the room, one tick late, as well as the input")
