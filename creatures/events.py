@@ -62,9 +62,15 @@ class EventLog:
             if len(self.records) > self.keep_in_memory:
                 del self.records[: len(self.records) - self.keep_in_memory]
         if self._handle is not None:
-            self._handle.write(json.dumps(record, separators=(",", ":")) + "\n")
-            if self._handle.tell() >= self.max_bytes:
-                self._rotate()
+            try:
+                self._handle.write(json.dumps(record, separators=(",", ":")) + "\n")
+                if self._handle.tell() >= self.max_bytes:
+                    self._rotate()
+            except OSError as exc:
+                if exc.filename is not None:
+                    raise
+                # "No space left on device" alone does not say which file filled the disk.
+                raise type(exc)(exc.errno, exc.strerror, str(self.path)) from None
 
     def _rotate(self) -> None:
         assert self._handle is not None and self.path is not None
@@ -81,9 +87,9 @@ class EventLog:
             self._handle.flush()
 
     def close(self) -> None:
-        if self._handle is not None:
-            self._handle.close()
-            self._handle = None
+        handle, self._handle = self._handle, None  # closed even if the final flush fails
+        if handle is not None:
+            handle.close()
 
     def __enter__(self) -> "EventLog":
         return self

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import errno
+import os
+
 import numpy as np
 import pytest
 
@@ -41,3 +44,29 @@ def test_malformed_line_names_file_and_line(tmp_path):
     path.write_text('{"t": 0, "kind": "a"}\n{broken\n')
     with pytest.raises(ValueError, match=r"events.jsonl:2"):
         read_events(path)
+
+
+def test_a_full_disk_names_the_log_and_close_still_lets_go(tmp_path):
+    path = tmp_path / "events.jsonl"
+    log = EventLog(path)
+    closed = []
+
+    class FullDisk:
+        """The log's file once the disk is full: every write and the final flush fail."""
+
+        def write(self, text):
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+        def close(self):
+            closed.append(True)
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    log._handle.close()
+    log._handle = FullDisk()
+    with pytest.raises(OSError) as caught:
+        log.emit(0.0, "tick")
+    assert caught.value.errno == errno.ENOSPC and caught.value.filename == str(path)  # which file filled it
+    with pytest.raises(OSError):
+        log.close()
+    log.close()  # the failed close let go of the file: nothing left to fail
+    assert closed == [True]

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import errno
 import hashlib
+import io
 import json
 import os
 import signal
@@ -22,9 +23,9 @@ from pythonosc.osc_message_builder import OscMessageBuilder
 
 from audio.output import WavOutput
 from audio.sources import LiveInput
-from creatures import persist
 from creatures.clock import SimulatedClock
-from creatures.events import EventLog
+from creatures.cli import main
+from creatures.events import EventLog, read_events
 from creatures.persist import load_json, save_json
 from creatures.runtime import live
 from creatures.runtime.inputs import phrase_notes, render_notes
@@ -229,96 +230,205 @@ def _colony_session(inst, seconds: float) -> Session:
     return session
 
 
-def _snapshot(directory: Path) -> dict[str, bytes]:
-    return {p.name: p.read_bytes() for p in sorted(directory.iterdir())}
+def _tree(directory: Path) -> dict[str, bytes | None]:
+    """Everything under ``directory``, hidden files and empty directories too (None)."""
+    return {str(p.relative_to(directory)): p.read_bytes() if p.is_file() else None
+            for p in sorted(directory.rglob("*"))}
+
+
+def _where(path, dir_fd: int | None = None) -> Path:
+    """The absolute path a file call refers to (a name relative to ``dir_fd``, as
+    shutil.rmtree passes, or an open file descriptor)."""
+    if isinstance(path, int):
+        return Path(os.readlink(f"/proc/self/fd/{path}"))
+    base = os.readlink(f"/proc/self/fd/{dir_fd}") if dir_fd is not None else os.getcwd()
+    return Path(os.path.abspath(os.path.join(base, os.fsdecode(path))))
+
+
+class FillingFile:
+    """A file on a disk with ``room`` bytes left: the write that would pass it writes what
+    fits and fails with ENOSPC, as a full disk does, and so does every later write."""
+
+    def __init__(self, handle, room: int, path: Path, failures: list[Path]) -> None:
+        self.handle, self.room, self.path, self.failures = handle, room, path, failures
+
+    def write(self, data):
+        if len(data) > self.room:
+            self.handle.write(data[: self.room])
+            self.room = 0
+            self.failures.append(self.path)
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        self.room -= len(data)
+        return self.handle.write(data)
+
+    def __getattr__(self, name):
+        return getattr(self.handle, name)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.handle.close()
+
+
+def _fill_disk(monkeypatch, directory: Path, name: str, room: int) -> list[Path]:
+    """From now on every file opened for writing (``open``, ``Path.open``, ``os.fdopen``)
+    under ``directory`` whose name contains ``name`` fills the disk after ``room`` bytes.
+    Returns the files whose writes failed, as they fail."""
+    real_open, failures = io.open, []
+
+    def open_(file, mode="r", *args, **kwargs):
+        handle = real_open(file, mode, *args, **kwargs)
+        path = _where(file)
+        if set(mode) & set("wax+") and path.is_relative_to(directory) and name in path.name:
+            return FillingFile(handle, room, path, failures)
+        return handle
+
+    monkeypatch.setattr(io, "open", open_)
+    return failures
+
+
+def _read_only(monkeypatch, directory: Path, code: int) -> list[Path]:
+    """From now on ``directory`` behaves as read-only even for root (``code``: EROFS, a
+    read-only mount, or EACCES, no write permission): every call that would create, write,
+    rename or remove anything in it fails. Returns the refused paths, as they are refused."""
+    refused: list[Path] = []
+
+    def refuse(path: Path) -> None:
+        if path.is_relative_to(directory):
+            refused.append(path)
+            raise OSError(code, os.strerror(code), str(path))
+
+    def guard(real, *, arguments: int = 1, writes=lambda *a, **k: True):
+        def call(*args, **kwargs):
+            if writes(*args, **kwargs):
+                for path in args[:arguments]:
+                    refuse(_where(path, kwargs.get("dir_fd")))
+            return real(*args, **kwargs)
+        return call
+
+    changing = os.O_WRONLY | os.O_RDWR | os.O_CREAT | os.O_TRUNC | os.O_APPEND
+    monkeypatch.setattr(os, "open", guard(os.open, writes=lambda path, flags, *a, **k: flags & changing))
+    monkeypatch.setattr(io, "open", guard(io.open, writes=lambda file, mode="r", *a, **k: set(mode) & set("wax+")))
+    # mkdir of what exists fails with EEXIST first, on a read-only mount too
+    monkeypatch.setattr(os, "mkdir", guard(os.mkdir, writes=lambda path, *a, **k: not _where(path, k.get("dir_fd"))
+                                           .exists()))
+    for name in ("unlink", "remove", "rmdir"):
+        monkeypatch.setattr(os, name, guard(getattr(os, name)))
+    for name in ("replace", "rename"):
+        monkeypatch.setattr(os, name, guard(getattr(os, name), arguments=2))
+    return refused
 
 
 def test_disk_full_during_a_state_save_keeps_the_previous_state(colony, tmp_path, monkeypatch):
     state = tmp_path / "state"
     session = _colony_session(colony, 2.0)
     session.save_state(state)
-    before = _snapshot(state)
+    before = _tree(state)
     session.world.clock.advance(1.0)
     session.step(session.world.clock.now(), 0, None, audio=False)
 
-    real_fdopen, failures = os.fdopen, []
-
-    class FullDisk:
-        """A file whose writes fill the disk halfway through the state."""
-
-        def __init__(self, handle):
-            self.handle = handle
-
-        def write(self, data):
-            self.handle.write(data[: len(data) // 2])
-            failures.append(self.handle.name)
-            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
-
-        def __getattr__(self, name):
-            return getattr(self.handle, name)
-
-        def __enter__(self):
-            return self
-
-        def __exit__(self, *exc):
-            self.handle.close()
-
-    monkeypatch.setattr(persist.os, "fdopen", lambda fd, mode: FullDisk(real_fdopen(fd, mode)))
+    failures = _fill_disk(monkeypatch, state, ".json", room=10)  # each file fills the disk part-way
     with pytest.raises(OSError) as caught:
         session.save_state(state)
     monkeypatch.undo()
     assert caught.value.errno == errno.ENOSPC and caught.value.filename == str(state / "ada.json")
     assert len(failures) == 1  # the first file failed; the save stopped there
-    assert _snapshot(state) == before  # previous files intact, no partial temp file left
+    assert _tree(state) == before  # previous files intact, no partial temp file left
     assert _colony_session(colony, 0.02).load_state(state) == ["ada", "bo"]
 
     # A live run whose periodic saves hit a full disk reports it and keeps running.
     colony.settings.save_every = 0.05
     colony.settings.midi.input_port = colony.settings.midi.output_port = None
-    monkeypatch.setattr(persist.os, "fdopen", lambda fd, mode: FullDisk(real_fdopen(fd, mode)))
+    failures = _fill_disk(monkeypatch, state, ".json", room=10)
+    said = []
+    summary = live.run_live(colony, duration=0.3, state=state, say=said.append)
+    monkeypatch.undo()
+    assert summary.ticks >= 10 and summary.failed_saves >= 2 and len(failures) == summary.failed_saves
+    assert sum("could not save creature state" in s for s in said) == summary.failed_saves
+    assert _tree(state) == before
+
+
+@pytest.mark.parametrize("code", [errno.EROFS, errno.EACCES], ids=["EROFS", "EACCES"])
+def test_read_only_state_directory_is_a_clear_error_and_keeps_the_files(code, colony, tmp_path, monkeypatch):
+    state = tmp_path / "state"
+    session = _colony_session(colony, 1.0)
+    session.save_state(state)
+    before = _tree(state)
+
+    refused = _read_only(monkeypatch, state, code)
+    with pytest.raises(OSError) as caught:
+        session.save_state(state)
+    assert caught.value.errno == code and Path(caught.value.filename).parent == state
+    assert len(refused) == 1  # the first file was refused; the save stopped there
+
+    # A live run saving into it reports every refused save and keeps running.
+    colony.settings.save_every = 0.05
+    colony.settings.midi.input_port = colony.settings.midi.output_port = None
     said = []
     summary = live.run_live(colony, duration=0.3, state=state, say=said.append)
     monkeypatch.undo()
     assert summary.ticks >= 10 and summary.failed_saves >= 2
-    assert sum("could not save creature state" in s for s in said) == summary.failed_saves
-    assert _snapshot(state) == before
+    assert sum("could not save creature state" in s and os.strerror(code) in s for s in said) == summary.failed_saves
+    assert _tree(state) == before
+    assert _colony_session(colony, 0.02).load_state(state) == ["ada", "bo"]
 
 
-def test_read_only_state_directory_is_a_clear_error_and_keeps_the_files(colony, tmp_path):
-    if os.geteuid() == 0:
-        pytest.skip("running as root: chmod cannot make a directory read-only for root "
-                    "(the ENOSPC test covers the same path with a monkeypatched write)")
-    state = tmp_path / "state"
-    session = _colony_session(colony, 1.0)
-    session.save_state(state)
-    before = _snapshot(state)
-    state.chmod(0o555)
-    try:
-        with pytest.raises(PermissionError, match="state"):
-            session.save_state(state)
-        assert _snapshot(state) == before
-    finally:
-        state.chmod(0o755)
-
-
-def test_disk_full_while_writing_offline_outputs_keeps_the_previous_run(colony, tmp_path, monkeypatch):
+@pytest.mark.parametrize("code", [errno.EROFS, errno.EACCES], ids=["EROFS", "EACCES"])
+def test_read_only_output_directory_is_a_clear_error_and_keeps_the_previous_run(code, colony, tmp_path,
+                                                                               monkeypatch, capsys):
     out = tmp_path / "out"
-    run_offline(colony, out, duration=1.0)
-    before = {name: (out / name).read_bytes() for name in ("out.wav", "out.mid")}
-    real_write, blocks = WavOutput._write, []
+    run_offline(colony, out, duration=0.5)
+    before = _tree(out)
+    assert {"events.jsonl", "out.wav", "out.mid"} <= set(before)
+
+    refused = _read_only(monkeypatch, out, code)
+    assert main(["offline", str(tmp_path / "colony.toml"), "--out", str(out), "--duration", "1",
+                 "--no-progress"]) == 2
+    monkeypatch.undo()
+    assert f"cannot write outputs to {out}: {os.strerror(code)}" in capsys.readouterr().err
+    assert len(refused) == 1  # refused at the first thing it tried to create; nothing was run
+    assert _tree(out) == before
+
+
+def _full_wav(monkeypatch, out: Path) -> list[Path]:
+    """The 20th audio block written fills the disk (libsndfile writes from C, beyond ``open``)."""
+    real_write, failures, blocks = WavOutput._write, [], []
 
     def fills_up(self, block):
         blocks.append(len(block))
         if len(blocks) == 20:
+            failures.append(self.path)
             raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(self.path))
         real_write(self, block)
 
     monkeypatch.setattr(WavOutput, "_write", fills_up)
-    with pytest.raises(OSError, match="No space left"):
-        run_offline(colony, out, duration=1.0)
-    assert len(blocks) == 20
-    assert {name: (out / name).read_bytes() for name in before} == before
-    assert not list(out.glob(".*.tmp"))
+    return failures
+
+
+@pytest.mark.parametrize("full_at", ["out.wav", "events.jsonl", "out.mid"])
+def test_disk_full_while_writing_offline_outputs_keeps_the_previous_run(full_at, colony, tmp_path, monkeypatch):
+    out = tmp_path / "out"
+    run_offline(colony, out, duration=1.0)
+    before = _tree(out)
+    assert {"events.jsonl", "out.wav", "out.mid"} <= set(before)
+
+    if full_at == "out.wav":
+        failures = _full_wav(monkeypatch, out)
+    else:  # the log fills the disk half-way through the run; the MIDI file in its first bytes
+        room = len(before["events.jsonl"]) // 2 if full_at == "events.jsonl" else 20
+        failures = _fill_disk(monkeypatch, out, full_at, room=room)
+    with pytest.raises(OSError, match="No space left") as caught:
+        run_offline(colony, out, duration=1.5)
+    monkeypatch.undo()
+    assert len(failures) >= 1 and all(full_at in path.name for path in failures)
+    assert caught.value.filename is not None and full_at in caught.value.filename  # it names the file
+    assert _tree(out) == before  # the previous run whole; nothing of the failed one left
+
+    summary = run_offline(colony, out, duration=1.5)  # with room again, the next run replaces it
+    assert summary.files["events"] == out / "events.jsonl"
+    assert read_events(out / "events.jsonl")[0]["duration"] == 1.5
+    assert sorted(_tree(out)) == sorted(before)
 
 
 # -- killed while saving ---------------------------------------------------------------------
@@ -327,7 +437,8 @@ import hashlib, json, signal, sys
 from pathlib import Path
 import numpy as np
 from creatures.clock import SimulatedClock
-from creatures.events import EventLog
+from creatures.cli import main
+from creatures.events import EventLog, read_events
 from creatures.persist import save_json
 from creatures.runtime.schema import load_installation
 from creatures.runtime.session import Session

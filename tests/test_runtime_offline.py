@@ -90,3 +90,23 @@ def test_recorded_midi_input_overrides_generated(tmp_path):
     run_offline(inst, tmp_path / "out", midi=recorded, duration=5)
     heard = [e["pitch"] for e in read_events(tmp_path / "out" / "events.jsonl") if e["kind"] == "heard"]
     assert heard == [50 + i for i in range(8)]
+
+
+def test_a_finished_run_replaces_every_output_of_the_previous_one(tmp_path):
+    inst = load_installation(EXCHANGE)
+    inst.settings.output.report = False
+    out = tmp_path / "out"
+    run_offline(inst, out, duration=2)
+    # Leftovers of older runs: the rotated part of a long run's log, and the staging
+    # directory of a run that was killed (nothing else could have removed it).
+    (out / "events.jsonl.3").write_text('{"t": 0, "kind": "old"}\n')
+    (out / ".run-killed").mkdir()
+    (out / ".run-killed" / "events.jsonl").write_text("")
+    (out / "notes.txt").write_text("the artist's own file")
+
+    summary = run_offline(inst, out, duration=3)
+    assert sorted(p.name for p in out.iterdir()) == ["events.jsonl", "notes.txt", "out.mid", "out.wav"]
+    assert summary.files == {"events": out / "events.jsonl", "wav": out / "out.wav", "midi": out / "out.mid"}
+    assert read_events(out / "events.jsonl")[0]["duration"] == 3
+    assert soundfile.info(out / "out.wav").frames == 3 * 22050
+    assert (out / "notes.txt").read_text() == "the artist's own file"

@@ -5,11 +5,21 @@ The same creatures as a live run, fed recorded (or generated) audio and MIDI, wr
 Time advances in behaviour ticks; audio is produced in blocks that exactly cover each tick
 (frame counts come from elapsed time, so rounding never drifts), and frames fall due on their
 own clock.
+
+Every output is written into a hidden staging directory inside the output directory and moved
+into place only once the run has finished (renames within one file system are atomic): a run
+that fails — disk full, a crash, Ctrl-C — leaves the previous run's outputs exactly as they
+were, and a run that succeeds replaces them all, so the files beside each other are always
+from one run.
 """
 
 from __future__ import annotations
 
+import contextlib
 import math
+import os
+import shutil
+import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -48,14 +58,35 @@ class OfflineSummary:
         return self.simulated / self.wall if self.wall > 0 else math.inf
 
 
-def _check_writable(out: Path) -> None:
+STAGING = ".run-"
+"""Prefix of the hidden directory inside the output directory that a run writes into."""
+
+
+def _stage(out: Path) -> Path:
+    """A fresh staging directory inside ``out`` (created if need be): where the run writes."""
     try:
         out.mkdir(parents=True, exist_ok=True)
-        probe = out / ".write-probe"
-        probe.write_bytes(b"")
-        probe.unlink()
+        return Path(tempfile.mkdtemp(prefix=STAGING, dir=out))
     except OSError as exc:
         raise OutputDirectoryError(f"cannot write outputs to {out}: {exc.strerror or exc}") from None
+
+
+def _publish(staged: Path, out: Path) -> None:
+    """Move a finished run's outputs from ``staged`` into ``out``, replacing the previous
+    run's: files by atomic rename, directories (frames, report) by removing the old first.
+    The previous log's rotated parts go too, and so do staging directories left behind by
+    runs that were killed (the same clean-up :func:`creatures.persist.atomic_write` does)."""
+    for old in out.glob("events.jsonl.*"):
+        if old.suffix[1:].isdigit() and not (staged / old.name).exists():
+            old.unlink()
+    for item in sorted(staged.iterdir()):
+        target = out / item.name
+        if target.is_dir() and not target.is_symlink():  # a directory cannot be renamed over
+            shutil.rmtree(target)
+        os.replace(item, target)
+    staged.rmdir()
+    for stale in out.glob(f"{STAGING}*"):
+        shutil.rmtree(stale, ignore_errors=True)
 
 
 def _inputs(inst: LoadedInstallation, audio: Path | None, midi: Path | None, duration: float,
@@ -84,15 +115,32 @@ def run_offline(
     duration: float | None = None,
     progress: bool = False,
 ) -> OfflineSummary:
-    """Run ``inst`` on the simulated clock for ``duration`` seconds, writing into ``out``."""
+    """Run ``inst`` on the simulated clock for ``duration`` seconds, writing into ``out``.
+
+    Raises :class:`OutputDirectoryError` (before running) when ``out`` cannot be written;
+    any failure during the run leaves the previous outputs in ``out`` untouched.
+    """
     settings = inst.settings
     duration = float(duration if duration is not None else settings.duration)
-    _check_writable(out)
+    staged = _stage(out)
+    try:
+        summary = _run(inst, staged, audio=audio, midi=midi, duration=duration, progress=progress)
+        _publish(staged, out)
+    except BaseException:
+        shutil.rmtree(staged, ignore_errors=True)
+        raise
+    summary.files = {name: out / path.relative_to(staged) for name, path in summary.files.items()}
+    return summary
+
+
+def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path | None, duration: float,
+         progress: bool) -> OfflineSummary:
+    """The run itself, writing every output into ``out`` (the staging directory)."""
+    settings = inst.settings
     wall0 = time.perf_counter()
     clock = SimulatedClock()
     sink = MemorySink()
     messages: list[str] = []
-    (out / "events.jsonl").unlink(missing_ok=True)  # a fresh log per run
     log = EventLog(out / "events.jsonl")
     session = Session(inst, clock, log, sink)
     session.world.emit("run", title=settings.title, mode="offline", duration=duration, seed=settings.seed,
@@ -130,12 +178,13 @@ def run_offline(
             wav.abandon()
         raise
     finally:
-        session.close()
-        if bar is not None:
-            bar.close()
-        if bodies is not None:
-            bodies.close()
-        log.close()
+        with contextlib.ExitStack() as closing:  # each is closed even when another fails (disk full)
+            closing.callback(log.close)
+            if bodies is not None:
+                closing.callback(bodies.close)
+            if bar is not None:
+                closing.callback(bar.close)
+            closing.callback(session.close)  # first: it logs the end and silences every note
 
     files = {"events": out / "events.jsonl"}
     if wav is not None:
