@@ -150,6 +150,16 @@ def test_squad_rate_bounds_the_turn_of_each_segment(raw):
     assert np.allclose(quat.squad_rate(keys[:-1], keys[1:], keys[:-1], keys[1:]), straight, atol=1e-6)
 
 
+@settings(max_examples=300)
+@given(keyframes, keyframes, arrays(np.float64, (5, 3), elements=st.floats(-0.6, 0.6)))
+def test_squad_rate_bound_is_never_below_the_rate(raw, raw_controls, nudges):
+    # squad_controls', controls near the keys (where the bound is finite) and any at all.
+    keys = quat.normalize(raw)
+    for controls in (quat.squad_controls(keys), quat.multiply(keys, quat.exp(nudges)), quat.normalize(raw_controls)):
+        rate = quat.squad_rate(keys[:-1], keys[1:], controls[:-1], controls[1:], samples=64)
+        assert np.all(rate <= quat.squad_rate_bound(keys[:-1], keys[1:], controls[:-1], controls[1:]) + 1e-6)
+
+
 @given(unit)
 def test_log_and_exp_are_inverse(q):
     assert quat.distance(quat.exp(quat.log(q)), q) < 1e-9

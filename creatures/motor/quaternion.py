@@ -203,6 +203,24 @@ def squad_rate(
     return peak * samples
 
 
+def squad_rate_bound(q1: np.ndarray, q2: np.ndarray, s1: np.ndarray, s2: np.ndarray) -> np.ndarray:
+    """An upper bound on :func:`squad_rate`, from four angles instead of a sampled curve.
+
+    On the unit sphere of quaternions (distance = half the rotation angle) squad is the
+    point a fraction ``h = 2α(1 − α)`` along the short geodesic from ``A = slerp(q1, q2; α)``
+    to ``B = slerp(s1, s2; α)``. That point moves no faster than ``|A'| + |B'| + |h'|·d(A, B)``
+    (a moving end drags it by at most its own speed while ``d ≤ π/2``), with ``|h'| ≤ 2`` and
+    ``d(A, B)`` at most half of ``(θ + θ_s)/2 + max(δ1, δ2)``, where ``θ, θ_s, δ1, δ2`` are
+    the rotation angles ``q1→q2``, ``s1→s2``, ``q1→s1``, ``q2→s2``. In rotation angle per unit
+    ``α`` that gives ``2(θ + θ_s + max(δ1, δ2))``. Where ``A`` and ``B`` may come half a turn
+    apart (``(θ + θ_s)/2 + max(δ1, δ2)`` reaches π, less a margin for rounding) the short way
+    between them can flip and squad jump, so the bound is infinite.
+    """
+    straight, inner = angle_between(q1, q2), angle_between(s1, s2)
+    apart = np.maximum(angle_between(q1, s1), angle_between(q2, s2))
+    return np.where(0.5 * (straight + inner) + apart < np.pi - 1e-6, 2.0 * (straight + inner + apart), np.inf)
+
+
 def hemisphere_align(q: np.ndarray) -> np.ndarray:
     """Flip signs along axis 0 so each key-frame lies in the hemisphere of the one before."""
     q = np.array(q, dtype=float, copy=True)
