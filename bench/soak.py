@@ -69,11 +69,12 @@ from midi.notes import NoteEvent
 DAY = 24.0
 """Simulated hours the issue asks the benchmark run to soak for."""
 
-BENCH_HOURS = 3.0
-"""Simulated hours ``python -m bench soak`` runs: what fits its share (~5 min) of the 10-minute
-budget of ``python -m bench`` on 2 cores. At a legal tick this colony runs ~35× real time
-(mostly the playback laid out at each action start: ~1 a second per creature), so the whole
-day takes ~40 min: ``python -m bench.soak --hours 24``. ``--quick`` runs 15 minutes."""
+BENCH_HOURS = 2.0
+"""Simulated hours ``python -m bench soak`` runs: what fits its share (~4 min) of the 10-minute
+budget of ``python -m bench`` on 2 cores (3 hours made the whole run 511 s, too close to it).
+At a legal tick this colony runs ~30–35× real time (mostly the playback laid out at each action
+start: about one a second per creature), so the whole day takes ~45 min:
+``python -m bench.soak --hours 24``. ``--quick`` runs 15 minutes."""
 
 
 PER_CREATURE = 300
