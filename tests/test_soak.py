@@ -38,9 +38,13 @@ def test_five_minutes_of_exchange_with_a_listener_stay_bounded(tmp_path, monkeyp
     assert result.max_queues["listen models"] <= 6 + 1  # max_models, plus one spawned before maintenance
     assert result.max_queues["listen model states"] <= 7 * 2 * 96  # distilled past max_states
 
-    assert result.growth("traced") < 0.05, [s.traced for s in result.samples]
+    # The measure: the process's memory grows < 5 % after warm-up.
     assert result.growth("rss") < 0.05, [s.rss for s in result.samples]
     assert result.growth("blocks") < 0.01, [s.blocks for s in result.samples]
+    # tracemalloc sees only the colony (1–20 MB, depending on what the process cached before):
+    # after warm-up it grows by what the listen population learns on its way to its bounds.
+    before, after = result.medians("traced")
+    assert 0 < before and after - before < 512 * 1024, [s.traced for s in result.samples]
 
     # Rotation: the live file plus two backups, each near the bound, all valid JSONL.
     names = sorted(p.name for p in result.log_files)
