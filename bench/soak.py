@@ -278,8 +278,8 @@ def soak(
             tracemalloc.stop()
     wall = time.perf_counter() - wall0
     files = sorted(out.glob("events.jsonl*"))
-    return SoakResult(seconds, tick, len(session.creatures), wall, taken, session.world.notes_played, heard, log.count, log.tally,
-                      files, [f.stat().st_size for f in files], sink, biggest)
+    return SoakResult(seconds, tick, len(session.creatures), wall, taken, session.world.notes_played, heard,
+                      log.count, log.tally, files, [f.stat().st_size for f in files], sink, biggest)
 
 
 def rows(result: SoakResult, log_bytes: int) -> list[Row]:
