@@ -177,26 +177,32 @@ class GestureModel:
     def confidence(self, state: int) -> float:
         """Visits relative to the most visited state, minus ``entropy_weight`` × transition
         entropy in bits: frequently seen, untangled states are core."""
-        g = self.states[state]
-        most = max(s.visits for s in self.states)
-        return g.visits / max(most, 1) - self.entropy_weight * g.entropy()
+        return self._confidences()[state]
+
+    def _confidences(self) -> list[float]:
+        """:meth:`confidence` of every state at once (the most visited state is found once,
+        not once per state: a listening creature asks for cores every tick)."""
+        most = max(max((s.visits for s in self.states), default=1), 1)
+        return [g.visits / most - self.entropy_weight * g.entropy() for g in self.states]
 
     def core(self) -> list[int]:
         """The gesture's core: states grown out from the most confident one along the most
         probable transitions, stopping after two consecutive low-confidence steps."""
         if not self.states:
             return []
-        seed = max(range(len(self.states)), key=lambda s: (self.confidence(s), self.states[s].visits))
+        confidence = self._confidences()
+        seed = max(range(len(self.states)), key=lambda s: (confidence[s], self.states[s].visits))
         incoming: dict[int, dict[int, int]] = {}
         for s, g in enumerate(self.states):
             for t, c in g.out.items():
                 incoming.setdefault(t, {})[s] = c
         seen = {seed}
-        forward = self._grow(seed, lambda s: self.states[s].out, seen)
-        backward = self._grow(seed, lambda s: incoming.get(s, {}), seen)
+        forward = self._grow(seed, lambda s: self.states[s].out, seen, confidence)
+        backward = self._grow(seed, lambda s: incoming.get(s, {}), seen, confidence)
         return [*reversed(backward), seed, *forward]
 
-    def _grow(self, seed: int, links: Callable[[int], dict[int, int]], seen: set[int]) -> list[int]:
+    def _grow(self, seed: int, links: Callable[[int], dict[int, int]], seen: set[int],
+              confidence: list[float]) -> list[int]:
         """Follow the most frequent repeated transition from ``seed`` while confidence holds.
 
         A transition seen only once, beside others, is the "anywhere" of
@@ -212,7 +218,7 @@ class GestureModel:
                 break
             current = max(options, key=options.get)
             seen.add(current)
-            if self.confidence(current) >= self.threshold:
+            if confidence[current] >= self.threshold:
                 chain.extend(pending)
                 chain.append(current)
                 pending = []
