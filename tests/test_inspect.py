@@ -56,6 +56,9 @@ def test_inspect_an_offline_run(offline_run, tmp_path, capsys):
     assert ".png\"" not in page
     for name in ("ada", "bo", "cy", "wander", "seek note", "rest", "boredom", "hunger"):
         assert f"<td>{name}</td>" in page or f"<h3>{name} " in page, name
+    # The run saved what its creatures learned into DIR/state, and the page is drawn from it.
+    assert {"ada.json", "bo.json", "cy.json", COLONY_FILE} <= {p.name for p in (offline_run / "state").iterdir()}
+    assert "(saved state)" in page and "<h3>colony <small>" in page
 
 
 def test_the_motor_graph_is_the_real_graph_and_the_path_walks_its_edges(offline_run):

@@ -105,8 +105,9 @@ def test_a_finished_run_replaces_every_output_of_the_previous_one(tmp_path):
     (out / "notes.txt").write_text("the artist's own file")
 
     summary = run_offline(inst, out, duration=3)
-    assert sorted(p.name for p in out.iterdir()) == ["events.jsonl", "notes.txt", "out.mid", "out.wav"]
-    assert summary.files == {"events": out / "events.jsonl", "wav": out / "out.wav", "midi": out / "out.mid"}
+    assert sorted(p.name for p in out.iterdir()) == ["events.jsonl", "notes.txt", "out.mid", "out.wav", "state"]
+    assert summary.files == {"events": out / "events.jsonl", "wav": out / "out.wav", "midi": out / "out.mid",
+                             "state": out / "state"}
     assert read_events(out / "events.jsonl")[0]["duration"] == 3
     assert soundfile.info(out / "out.wav").frames == 3 * 22050
     assert (out / "notes.txt").read_text() == "the artist's own file"

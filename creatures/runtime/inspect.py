@@ -222,7 +222,8 @@ def inspect(path: Path, out: Path) -> Path:
     path = Path(path)
     events_path = path / "events.jsonl"
     events = read_events(events_path) if events_path.is_file() else []
-    known = read_state(path) if path.is_dir() else []
+    saved = path / "state" if (path / "state").is_dir() else path  # an offline run saves into DIR/state
+    known = read_state(saved) if saved.is_dir() else []
     if not events and not known:
         raise InspectError(f"{path}: no events.jsonl and no creature state files "
                            f"(give an offline output directory or a --state directory)")

@@ -195,6 +195,8 @@ def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path 
         files["midi"] = out / "out.mid"
     for creature in session.creatures:
         files.update(creature.finish(out))
+    session.save_state(out / "state")  # what the creatures learned: `creatures inspect DIR` shows it
+    files["state"] = out / "state"
     if bodies is not None and bodies.renderer is not None:
         files["frames"] = out / "frames"
         if settings.output.video:
