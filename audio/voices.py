@@ -74,10 +74,17 @@ class VoicePool:
         return int((self.pitch >= 0).sum())
 
     def render(self, out: np.ndarray) -> np.ndarray:
-        """Sum all sounding voices into ``out`` (raw, before any limiter); frees finished voices."""
+        """Sum all sounding voices into ``out`` (raw, before any limiter); frees finished voices.
+
+        A block longer than ``block_size`` (a coarse behaviour tick at a high sample rate) is
+        rendered in ``block_size`` pieces, so the scratch buffers stay preallocated and small."""
+        size = len(self._scratch)
+        for start in range(0, len(out), size):
+            self._render(out[start:start + size])
+        return out
+
+    def _render(self, out: np.ndarray) -> None:
         frames = len(out)
-        if frames > len(self._scratch):
-            raise ValueError(f"block of {frames} frames exceeds block_size {len(self._scratch)}")
         out[:] = 0.0
         scratch, ramp = self._scratch[:frames], self._ramp[:frames]
         for index in np.flatnonzero(self.pitch >= 0):
@@ -89,4 +96,3 @@ class VoicePool:
                 if self.level[index] <= 0.0:
                     self.pitch[index] = -1.0
             out += scratch
-        return out

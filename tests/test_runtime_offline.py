@@ -111,3 +111,13 @@ def test_a_finished_run_replaces_every_output_of_the_previous_one(tmp_path):
     assert read_events(out / "events.jsonl")[0]["duration"] == 3
     assert soundfile.info(out / "out.wav").frames == 3 * 22050
     assert (out / "notes.txt").read_text() == "the artist's own file"
+
+
+def test_the_coarsest_tick_the_schema_accepts_renders_audio(tmp_path):
+    """0.5 s ticks at 22,050 Hz ask the voices for 11,025 frames a tick: more than one voice
+    block, rendered in pieces rather than refused."""
+    inst = load_installation(EXCHANGE)
+    inst.settings.tick = 0.5
+    inst.settings.output.report = False
+    run_offline(inst, tmp_path / "out", duration=6)
+    assert soundfile.info(tmp_path / "out" / "out.wav").frames == 6 * 22050
