@@ -28,6 +28,23 @@ def _plain(value: Any) -> Any:
     return value
 
 
+def _array_to_list(value: Any) -> Any:
+    """``json.dumps`` hook: numpy scalars and arrays become Python numbers and lists."""
+    if hasattr(value, "tolist"):
+        return value.tolist()
+    raise TypeError(f"{type(value).__name__} is not JSON serialisable")
+
+
+def _line(record: dict[str, Any]) -> str:
+    """One JSON line for ``record``. The encoder takes numpy values itself; only a record holding
+    NaN/inf or a key JSON cannot take goes through :func:`_plain` (the fast path writes most of a
+    gallery day's millions of events without copying them first)."""
+    try:
+        return json.dumps(record, separators=(",", ":"), allow_nan=False, default=_array_to_list) + "\n"
+    except (ValueError, TypeError):
+        return json.dumps(_plain(record), separators=(",", ":")) + "\n"
+
+
 class EventLog:
     """Append-only JSONL log, rotated to ``NAME.1``, ``NAME.2``… past ``max_bytes``.
 
@@ -50,21 +67,27 @@ class EventLog:
         self.records: list[dict[str, Any]] = []
         self.count = 0
         self._handle: IO[str] | None = None
+        self._size = 0  # bytes in the live file, counted here rather than asking tell() per event
         if self.path is not None:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             self._handle = self.path.open("a", encoding="utf-8")
+            self._size = self._handle.tell()
 
     def emit(self, t: float, kind: str, **fields: Any) -> None:
-        record = {"t": round(float(t), 6), "kind": kind, **_plain(fields)}
         self.count += 1
         if self.keep_in_memory:
+            record = {"t": round(float(t), 6), "kind": kind, **_plain(fields)}
             self.records.append(record)
             if len(self.records) > self.keep_in_memory:
                 del self.records[: len(self.records) - self.keep_in_memory]
+        else:
+            record = {"t": round(float(t), 6), "kind": kind, **fields}
         if self._handle is not None:
             try:
-                self._handle.write(json.dumps(record, separators=(",", ":")) + "\n")
-                if self._handle.tell() >= self.max_bytes:
+                line = _line(record)
+                self._handle.write(line)
+                self._size += len(line)  # ASCII (json.dumps escapes the rest): characters = bytes
+                if self._size >= self.max_bytes:
                     self._rotate()
             except OSError as exc:
                 if exc.filename is not None:
@@ -81,6 +104,7 @@ class EventLog:
                 older.replace(self.path.with_name(f"{self.path.name}.{i + 1}"))
         self.path.replace(self.path.with_name(f"{self.path.name}.1"))
         self._handle = self.path.open("a", encoding="utf-8")
+        self._size = 0
 
     def flush(self) -> None:
         if self._handle is not None:

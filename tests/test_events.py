@@ -32,6 +32,29 @@ def test_rotation_bounds_disk_use(tmp_path):
     assert read_events(path)[-1]["i"] == 999
 
 
+def test_a_reopened_log_counts_what_is_already_on_disk(tmp_path):
+    """Rotation is decided on bytes counted in memory; a log appended to by a restarted run
+    starts from the file's size, so the bound holds across restarts too."""
+    path = tmp_path / "events.jsonl"
+    with EventLog(path, max_bytes=2000, backups=1) as log:
+        for i in range(40):
+            log.emit(i, "tick", i=i)
+    before = path.stat().st_size
+    with EventLog(path, max_bytes=2000, backups=1) as log:
+        for i in range(40, 80):
+            log.emit(i, "tick", i=i, where="café")  # escaped by JSON: still one byte a character
+    assert before > 500 and (tmp_path / "events.jsonl.1").exists()
+    assert all(p.stat().st_size < 2100 for p in tmp_path.iterdir())
+    assert [e["i"] for e in read_events(tmp_path / "events.jsonl.1") + read_events(path)] == list(range(80))
+
+
+def test_nan_anywhere_and_numpy_keys_are_written_as_plain_json(tmp_path):
+    path = tmp_path / "events.jsonl"
+    with EventLog(path) as log:
+        log.emit(0.0, "values", values={np.int64(3): np.array([1.0, np.nan]), "b": (np.inf, 2)})
+    assert read_events(path) == [{"t": 0.0, "kind": "values", "values": {"3": [1.0, None], "b": [None, 2]}}]
+
+
 def test_in_memory_log_is_bounded():
     log = EventLog(keep_in_memory=10)
     for i in range(100):
