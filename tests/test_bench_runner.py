@@ -1,0 +1,78 @@
+"""``python -m bench`` writes its table as JSON, compares with an earlier run, and gives a
+benchmark that runs beside the others (the soak) a core of its own."""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import types
+
+import pytest
+
+import bench
+from bench import Row
+from bench import __main__ as runner
+
+
+@pytest.fixture
+def affinity():
+    """Restore this process's CPU set after a test that pins it."""
+    if not hasattr(os, "sched_getaffinity"):
+        pytest.skip("this OS cannot pin a process to CPUs")
+    cpus = os.sched_getaffinity(0)
+    yield cpus
+    os.sched_setaffinity(0, cpus)
+
+
+def fake_bench(monkeypatch, name: str, **functions) -> None:
+    """Install ``bench.<name>`` with ``functions`` (``run``, ``start``) as a benchmark module."""
+    module = types.ModuleType(f"bench.{name}")
+    for key, fn in functions.items():
+        setattr(module, key, fn)
+    monkeypatch.setitem(sys.modules, f"bench.{name}", module)
+    known = [n for n in runner.available() if n != name]
+    monkeypatch.setattr(runner, "available", lambda: sorted([*known, name]))
+
+
+def test_results_are_written_and_compared(tmp_path, monkeypatch, capsys, affinity):
+    fake_bench(monkeypatch, "steady", run=lambda quick: [Row("ticks/s", 400.0, "1/s", target=200.0)])
+    first, second = tmp_path / "first.json", tmp_path / "second.json"
+    assert runner.main(["steady", "--json", str(first)]) == 0
+    saved = json.loads(first.read_text())["results"]
+    assert saved == [{"bench": "steady", **Row("ticks/s", 400.0, "1/s", target=200.0).to_dict()}]
+    assert saved[0]["passed"] is True
+    first.write_text(first.read_text().replace("400.0", "800.0"))  # an earlier, faster run
+    assert runner.main(["steady", "--json", str(second), "--compare", str(first)]) == 0
+    assert "0.5× prev" in capsys.readouterr().out
+
+
+def test_a_failed_target_makes_the_run_fail(tmp_path, monkeypatch, affinity):
+    fake_bench(monkeypatch, "steady", run=lambda quick: [Row("ticks/s", 100.0, "1/s", target=200.0)])
+    assert runner.main(["steady", "--json", str(tmp_path / "r.json")]) == 1
+
+
+def test_a_benchmark_beside_the_others_gets_a_core_they_do_not_use(tmp_path, monkeypatch, affinity):
+    if len(affinity) < 2:
+        pytest.skip("one CPU: benchmarks run in turn")
+    seen: dict[str, object] = {}
+
+    def start(quick: bool, cpu: int | None) -> object:
+        seen["cpu"] = cpu
+        return lambda: [Row("beside", 1.0, "runs")]
+
+    def run(quick: bool) -> list[Row]:
+        seen["others ran on"] = os.sched_getaffinity(0)
+        return [Row("in turn", 1.0, "runs")]
+
+    fake_bench(monkeypatch, "beside", start=start, run=lambda quick: pytest.fail("a beside bench ran in turn"))
+    fake_bench(monkeypatch, "steady", run=run)
+    out = tmp_path / "r.json"
+    assert runner.main(["beside", "steady", "--json", str(out)]) == 0
+    assert seen["cpu"] in affinity and seen["cpu"] not in seen["others ran on"]
+    assert [r["bench"] for r in json.loads(out.read_text())["results"]] == ["steady", "beside"]
+
+
+def test_format_row_marks_pass_and_fail():
+    assert bench.format_row("x", Row("a", 1.0, "s", target=2.0, higher_is_better=False)).endswith("PASS")
+    assert bench.format_row("x", Row("a", 3.0, "s", target=2.0, higher_is_better=False)).endswith("FAIL")
