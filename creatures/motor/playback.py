@@ -15,6 +15,9 @@ the same whatever the frame rate.
 
 from __future__ import annotations
 
+import weakref
+
+import numba
 import numpy as np
 
 from creatures.motor import quaternion as quat
@@ -60,24 +63,37 @@ class Playback:
         rotations, root = pose_at(graph, start) if origin is None else origin
         nodes = np.asarray(path.nodes, dtype=np.int64)
         first_gap = self._first_gap(graph, start, int(nodes[0]))
-        durations = graph.transit_times(nodes[:-1], nodes[1:])
+        durations = np.concatenate(([first_gap], transit_times(graph, nodes[:-1], nodes[1:])))
         self.key_nodes = nodes
         self.keys = quat.hemisphere_align(np.concatenate((rotations[None], graph.poses.rotations[nodes])))
         self.controls = quat.squad_controls(self.keys)
         self.roots = np.concatenate((root[None], graph.poses.roots[nodes]))
-        # Squad bends each segment towards its neighbours, so next to a sharp turn it can
-        # outrun the edge's own timing: slow such a segment to the speed limit. A run of
-        # source frames never needs this (the limit is the source's own played speed).
-        turns = quat.squad_rate(self.keys[:-1], self.keys[1:], self.controls[:-1], self.controls[1:]).max(axis=-1)
-        gaps = np.maximum(np.concatenate(([first_gap], durations)), turns / graph.timing.max_speed)
+        gaps = np.maximum(durations, self._turns(durations, graph.timing.max_speed) / graph.timing.max_speed)
         self.key_times = start_time + np.concatenate(([0.0], np.cumsum(gaps / speed)))
+
+    def _turns(self, durations: np.ndarray, max_speed: float) -> np.ndarray:
+        """Peak turning rate of each segment's squad curve, where it could break the limit.
+
+        Squad bends each segment towards its neighbours, so next to a sharp turn it can
+        outrun the edge's own timing: such a segment is slowed to the speed limit. A run of
+        source frames never needs this (the limit is the source's own played speed). Only
+        joints whose :func:`~creatures.motor.quaternion.squad_rate_bound` exceeds what
+        their segment's duration allows are sampled; for the rest the sampled rate (never
+        above the bound) could not lengthen the segment, so they count as 0.
+        """
+        q1, q2, s1, s2 = self.keys[:-1], self.keys[1:], self.controls[:-1], self.controls[1:]
+        segment, joint = np.nonzero(quat.squad_rate_bound(q1, q2, s1, s2) / max_speed > durations[:, None])
+        turns = np.zeros(len(durations))
+        rates = quat.squad_rate(q1[segment, joint], q2[segment, joint], s1[segment, joint], s2[segment, joint])
+        np.maximum.at(turns, segment, rates)
+        return turns
 
     @staticmethod
     def _first_gap(graph: MotorGraph, start: GraphPosition, first: int) -> float:
         """Seconds from the start position to the first path node."""
         if start.next is None or start.fraction in (0.0, 1.0):
             return 0.0
-        whole = float(graph.transit_times(np.array([start.node]), np.array([start.next]))[0])
+        whole = float(transit_times(graph, np.array([start.node]), np.array([start.next]))[0])
         share = 1.0 - start.fraction if first == start.next else start.fraction
         return share * whole
 
@@ -89,12 +105,9 @@ class Playback:
         return t >= self.end_time
 
     def _segments(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        seg = np.clip(np.searchsorted(self.key_times, times, side="right") - 1, 0, max(len(self.keys) - 2, 0))
-        if len(self.keys) == 1:
-            return seg, np.zeros_like(times)
-        span = self.key_times[seg + 1] - self.key_times[seg]
-        u = np.where(span > 0.0, (times - self.key_times[seg]) / np.where(span > 0.0, span, 1.0), 1.0)
-        return seg, np.clip(u, 0.0, 1.0)
+        """Segment index and the fraction ``u`` along it for each time (compiled: a tick asks
+        for one or two times, where numpy's per-call overhead was most of the cost)."""
+        return _segments(self.key_times, np.ascontiguousarray(times, dtype=float))
 
     def sample_rotations(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Rotations ``(T, J, 4)`` and roots ``(T, 3)`` at many clock times at once."""
@@ -102,10 +115,8 @@ class Playback:
         seg, u = self._segments(times)
         if len(self.keys) == 1:
             return np.broadcast_to(self.keys[0], (len(times), *self.keys[0].shape)).copy(), np.tile(self.roots[0], (len(times), 1))
+        rotations = quat.squad_keys(self.keys, self.controls, seg, u)
         alpha = u[:, None]
-        rotations = quat.squad(
-            self.keys[seg], self.keys[seg + 1], self.controls[seg], self.controls[seg + 1], alpha
-        )
         roots = (1.0 - alpha) * self.roots[seg] + alpha * self.roots[seg + 1]
         return rotations, roots
 
@@ -143,3 +154,42 @@ class Playback:
     def visited(self, t: float) -> list[int]:
         """Path nodes reached by time ``t`` (what a BodyMemory records)."""
         return self.key_nodes[: int(np.searchsorted(self.key_times[1:], t, side="right"))].tolist()
+
+
+_TRANSITS: weakref.WeakKeyDictionary[MotorGraph, tuple[int, dict[tuple[int, int], float]]] = (
+    weakref.WeakKeyDictionary()
+)
+
+
+def transit_times(graph: MotorGraph, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``graph.transit_times(a, b)``, remembered per graph version.
+
+    A transit time depends only on its two nodes, and courses keep stepping along the same
+    edges (the soak sets thousands of courses over the shared graph's ~1,400 edges), so each
+    pair is estimated once; any edit to the graph starts the memo afresh.
+    """
+    version, known = _TRANSITS.get(graph, (-1, {}))
+    if version != graph.version:
+        known = {}
+        _TRANSITS[graph] = (graph.version, known)
+    pairs = list(zip(np.asarray(a).tolist(), np.asarray(b).tolist()))
+    missing = list(dict.fromkeys(pair for pair in pairs if pair not in known))
+    if missing:
+        new = np.array(missing, dtype=np.int64)
+        known.update(zip(missing, graph.transit_times(new[:, 0], new[:, 1]).tolist()))
+    return np.array([known[pair] for pair in pairs], dtype=float)
+
+
+@numba.njit(cache=True)
+def _segments(key_times, times):  # pragma: no cover - compiled
+    """For each time, the key segment it falls in (clamped to the ends) and how far along."""
+    last = max(key_times.shape[0] - 2, 0)
+    segments = np.empty(times.shape[0], dtype=np.int64)
+    fractions = np.zeros(times.shape[0])
+    for i in range(times.shape[0]):
+        k = min(max(np.searchsorted(key_times, times[i], side="right") - 1, 0), last)
+        segments[i] = k
+        if key_times.shape[0] > 1:
+            span = key_times[k + 1] - key_times[k]
+            fractions[i] = min(max((times[i] - key_times[k]) / span, 0.0), 1.0) if span > 0.0 else 1.0
+    return segments, fractions

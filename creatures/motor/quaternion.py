@@ -8,10 +8,20 @@ so a whole pose ``(J, 4)`` or a whole animation ``(N, J, 4)`` is one call.
 Plain numpy is used on purpose: ``bench/motor.py`` measures :func:`multiply` against
 ``scipy.spatial.transform.Rotation`` on the same data, and the per-call object construction
 there costs more than it saves at the batch sizes the motor system uses.
+
+Playback is the exception. Every course a creature sets out on runs squad over a few
+segments of a few dozen joints, where numpy spends its time on call overhead for tiny
+arrays (a course cost ~1.8 ms). So :func:`squad_rate`, :func:`squad_controls` and
+:func:`squad_keys` run compiled (numba) kernels built from the one-quaternion functions at
+the end of this module; they evaluate the same formulas as the numpy functions in the same
+order, so results differ only by rounding (``tests/test_motor_kernels.py``).
 """
 
 from __future__ import annotations
 
+import math
+
+import numba
 import numpy as np
 
 _EPS = 1e-12
@@ -145,10 +155,12 @@ def squad_controls(q: np.ndarray) -> np.ndarray:
 
     ``s_i = q_i exp(−(log(q_i⁻¹ q_{i+1}) + log(q_i⁻¹ q_{i−1})) / 4)``, with the ends clamped,
     so consecutive :func:`squad` segments join with continuous tangents (the "higher (third)
-    order spline interpolant" of the appendix).
+    order spline interpolant" of the appendix). The keys are hemisphere-aligned first
+    (:func:`hemisphere_align`); compiled, it is :func:`squad_control` along the sequence.
     """
-    q = hemisphere_align(np.asarray(q, dtype=float))
-    return squad_control(np.concatenate((q[:1], q[:-1]), axis=0), q, np.concatenate((q[1:], q[-1:]), axis=0))
+    q = np.asarray(q, dtype=float)
+    flat = np.ascontiguousarray(q).reshape(len(q), math.prod(q.shape[1:-1]), 4)
+    return _squad_controls(flat).reshape(q.shape)
 
 
 def squad_control(prev: np.ndarray, q: np.ndarray, nxt: np.ndarray) -> np.ndarray:
@@ -173,8 +185,22 @@ def squad(
     return slerp(outer, inner, 2.0 * alpha * (1.0 - alpha))
 
 
-RATE_BATCH = 1 << 14
-"""Quaternions :func:`squad_rate` evaluates per vectorised pass (bounds its memory)."""
+def squad_keys(keys: np.ndarray, controls: np.ndarray, segments: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+    """A key sequence's squad curve at many points: ``(T, ..., 4)`` for ``T`` segment indices.
+
+    Point ``t`` is ``squad(keys[k], keys[k + 1], controls[k], controls[k + 1], alpha[t])``
+    with ``k = segments[t]``, for keys and controls of shape (K, ..., 4); compiled, so
+    sampling a whole course does not gather four copies of the keys first.
+    """
+    keys = np.asarray(keys, dtype=float)
+    joints = math.prod(keys.shape[1:-1])
+    flat_keys = np.ascontiguousarray(keys).reshape(len(keys), joints, 4)
+    flat_controls = np.ascontiguousarray(controls, dtype=float).reshape(len(keys), joints, 4)
+    segments = np.ascontiguousarray(segments, dtype=np.int64)
+    alpha = np.ascontiguousarray(alpha, dtype=float)
+    if len(segments) and not 0 <= segments.min() <= segments.max() < len(keys) - 1:
+        raise IndexError(f"squad segments must lie in [0, {len(keys) - 2}] (got {segments.min()}..{segments.max()})")
+    return _squad_keys(flat_keys, flat_controls, segments, alpha).reshape((len(segments), *keys.shape[1:]))
 
 
 def squad_rate(
@@ -184,23 +210,15 @@ def squad_rate(
 
     Squad bends a segment towards its neighbours, so near a sharp turn it moves faster
     than the straight ``angle_between(q1, q2)``; playback needs the true peak to keep
-    to a speed limit. Measured over ``samples`` equal steps of ``alpha``, as many steps at a
-    time as fit in :data:`RATE_BATCH` quaternions: a short path (a playback's, in a creature's
-    tick) in one vectorised pass, a whole graph's source steps one step at a time so they fit
-    in memory. One value per leading index.
+    to a speed limit. Measured over ``samples`` equal steps of ``alpha`` (the largest
+    ``angle_between`` of consecutive points, times ``samples``), one segment at a time in a
+    compiled loop, so memory stays flat however many segments (a whole graph's source
+    steps) are asked for. One value per leading index (inputs broadcast).
     """
-    q1 = np.asarray(q1, dtype=float)
-    batch = max(1, RATE_BATCH // max(q1[..., 0].size, 1))
+    arrays = np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in (q1, q2, s1, s2)))
+    flat = [np.ascontiguousarray(x).reshape(-1, 4) for x in arrays]
     alphas = np.linspace(0.0, 1.0, samples + 1)[1:]
-    previous = q1
-    peak = np.zeros(q1.shape[:-1])
-    for start in range(0, samples, batch):
-        alpha = alphas[start:start + batch].reshape((-1,) + (1,) * (q1.ndim - 1))
-        points = squad(q1, q2, s1, s2, alpha)
-        steps = angle_between(points, np.concatenate((previous[None], points[:-1])))
-        peak = np.maximum(peak, steps.max(axis=0))
-        previous = points[-1]
-    return peak * samples
+    return _squad_rates(*flat, alphas).reshape(arrays[0].shape[:-1])
 
 
 def squad_rate_bound(q1: np.ndarray, q2: np.ndarray, s1: np.ndarray, s2: np.ndarray) -> np.ndarray:
@@ -255,3 +273,153 @@ def closest_approach(q1: np.ndarray, q2: np.ndarray, p: np.ndarray) -> np.ndarra
     s = np.sin(phi)
     theta = np.arctan2(b - a * c, a * s)
     return np.where(phi > 1e-9, theta / np.maximum(phi, 1e-9), 0.0)
+
+
+# --- compiled kernels -------------------------------------------------------------------
+# One quaternion is a (w, x, y, z) tuple, one vector an (x, y, z) tuple: each function is
+# the single-quaternion form of the numpy function of the same name above, written in the
+# same order of operations so the two agree to rounding.
+
+
+@numba.njit(cache=True)
+def dot_one(p, q):  # pragma: no cover - compiled
+    return p[0] * q[0] + p[1] * q[1] + p[2] * q[2] + p[3] * q[3]
+
+
+@numba.njit(cache=True)
+def normalize_one(w, x, y, z):  # pragma: no cover - compiled
+    norm = math.sqrt(w * w + x * x + y * y + z * z)
+    if norm > _EPS:
+        return (w / norm, x / norm, y / norm, z / norm)
+    return (1.0, 0.0, 0.0, 0.0)
+
+
+@numba.njit(cache=True)
+def multiply_one(p, q):  # pragma: no cover - compiled
+    w1, x1, y1, z1 = p
+    w2, x2, y2, z2 = q
+    return (
+        w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
+        w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+        w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
+        w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
+    )
+
+
+@numba.njit(cache=True)
+def _cross_one(a, b):  # pragma: no cover - compiled
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+@numba.njit(cache=True)
+def rotate_one(q, v):  # pragma: no cover - compiled
+    u = (q[1], q[2], q[3])
+    c = _cross_one(u, v)
+    t = (2.0 * c[0], 2.0 * c[1], 2.0 * c[2])
+    r = _cross_one(u, t)
+    return (v[0] + q[0] * t[0] + r[0], v[1] + q[0] * t[1] + r[1], v[2] + q[0] * t[2] + r[2])
+
+
+@numba.njit(cache=True)
+def log_one(q):  # pragma: no cover - compiled
+    sign = -1.0 if q[0] < 0.0 else 1.0
+    w, x, y, z = sign * q[0], sign * q[1], sign * q[2], sign * q[3]
+    sin_half = math.sqrt(x * x + y * y + z * z)
+    scale = 2.0 * math.atan2(sin_half, w) / max(sin_half, _EPS) if sin_half > _EPS else 2.0
+    return (x * scale, y * scale, z * scale)
+
+
+@numba.njit(cache=True)
+def exp_one(v):  # pragma: no cover - compiled
+    angle = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+    norm = max(angle, _EPS)
+    s = math.sin(0.5 * angle)
+    return (math.cos(0.5 * angle), v[0] / norm * s, v[1] / norm * s, v[2] / norm * s)
+
+
+@numba.njit(cache=True)
+def angle_between_one(p, q):  # pragma: no cover - compiled
+    return 2.0 * math.acos(min(abs(dot_one(p, q)), 1.0))
+
+
+@numba.njit(cache=True)
+def slerp_one(p, q, alpha):  # pragma: no cover - compiled
+    c = dot_one(p, q)
+    sign = -1.0 if c < 0.0 else 1.0
+    phi = math.acos(min(abs(c), 1.0))
+    s = math.sin(phi)
+    if s < 1e-6:
+        a, b = 1.0 - alpha, alpha
+    else:
+        a, b = math.sin((1.0 - alpha) * phi) / s, math.sin(alpha * phi) / s
+    return normalize_one(
+        a * p[0] + b * (sign * q[0]), a * p[1] + b * (sign * q[1]), a * p[2] + b * (sign * q[2]), a * p[3] + b * (sign * q[3])
+    )
+
+
+@numba.njit(cache=True)
+def squad_one(q1, q2, s1, s2, alpha):  # pragma: no cover - compiled
+    return slerp_one(slerp_one(q1, q2, alpha), slerp_one(s1, s2, alpha), 2.0 * alpha * (1.0 - alpha))
+
+
+@numba.njit(cache=True)
+def _at(q, i):  # pragma: no cover - compiled
+    return (q[i, 0], q[i, 1], q[i, 2], q[i, 3])
+
+
+@numba.njit(cache=True)
+def _control_one(prev, q, nxt):  # pragma: no cover - compiled
+    inv = (q[0], -q[1], -q[2], -q[3])
+    ahead = log_one(multiply_one(inv, nxt))
+    behind = log_one(multiply_one(inv, prev))
+    return multiply_one(q, exp_one((-0.25 * (ahead[0] + behind[0]), -0.25 * (ahead[1] + behind[1]), -0.25 * (ahead[2] + behind[2]))))
+
+
+@numba.njit(cache=True)
+def _squad_controls(q):  # pragma: no cover - compiled
+    """:func:`squad_controls` of keys ``(N, M, 4)``: align each of the M tracks, then control it."""
+    n, m = q.shape[0], q.shape[1]
+    aligned = q.copy()
+    out = np.empty_like(q)
+    for j in range(m):
+        sign = 1.0
+        for i in range(1, n):
+            if dot_one(_at(q[:, j], i), _at(q[:, j], i - 1)) < 0.0:
+                sign = -sign
+            for c in range(4):
+                aligned[i, j, c] = sign * q[i, j, c]
+        for i in range(n):
+            track = aligned[:, j]
+            control = _control_one(_at(track, max(i - 1, 0)), _at(track, i), _at(track, min(i + 1, n - 1)))
+            for c in range(4):
+                out[i, j, c] = control[c]
+    return out
+
+
+@numba.njit(cache=True)
+def _squad_keys(keys, controls, segments, alpha):  # pragma: no cover - compiled
+    """:func:`squad_keys` over keys and controls ``(K, M, 4)``."""
+    out = np.empty((segments.shape[0], keys.shape[1], 4))
+    for t in range(segments.shape[0]):
+        k = segments[t]
+        for j in range(keys.shape[1]):
+            point = squad_one(_at(keys[k], j), _at(keys[k + 1], j), _at(controls[k], j), _at(controls[k + 1], j), alpha[t])
+            for c in range(4):
+                out[t, j, c] = point[c]
+    return out
+
+
+@numba.njit(cache=True)
+def _squad_rates(q1, q2, s1, s2, alphas):  # pragma: no cover - compiled
+    """:func:`squad_rate` of ``(M, 4)`` segments at the given ``alphas``."""
+    out = np.empty(q1.shape[0])
+    for m in range(q1.shape[0]):
+        a, b, c, d = _at(q1, m), _at(q2, m), _at(s1, m), _at(s2, m)
+        previous = a
+        peak = 0.0
+        for alpha in alphas:
+            point = squad_one(a, b, c, d, alpha)
+            peak = max(peak, angle_between_one(point, previous))
+            previous = point
+        out[m] = peak * alphas.shape[0]
+    return out

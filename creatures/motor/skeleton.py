@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numba
 import numpy as np
 
 from creatures.motor import quaternion as quat
@@ -51,7 +52,6 @@ class Skeleton:
     masses: np.ndarray
     end_effectors: tuple[str, ...] = ()
     _index: dict[str, int] = field(init=False, repr=False)
-    _levels: tuple[np.ndarray, ...] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         names = tuple(self.names)
@@ -75,10 +75,6 @@ class Skeleton:
         for name in self.end_effectors:
             if name not in index:
                 raise ValueError(f"end-effector {name!r} is not a joint of this skeleton")
-        depth = np.zeros(count, dtype=np.int64)
-        for j, p in enumerate(parents):
-            depth[j] = 0 if p < 0 else depth[p] + 1
-        levels = tuple(np.flatnonzero(depth == d) for d in range(int(depth.max(initial=-1)) + 1))
         for name, value in (
             ("names", names),
             ("parents", parents),
@@ -86,7 +82,6 @@ class Skeleton:
             ("masses", masses),
             ("end_effectors", tuple(self.end_effectors)),
             ("_index", index),
-            ("_levels", levels),
         ):
             object.__setattr__(self, name, value)
         for array in (parents, offsets, masses):
@@ -109,25 +104,14 @@ class Skeleton:
         ``rotations`` is ``(J, 4)`` or batched ``(N, J, 4)``; ``root`` is ``(3,)`` or
         ``(N, 3)``. Each joint sits at its parent's position plus its offset rotated by the
         parent's world rotation; the root sits at ``root + offsets[0]`` (BVH convention).
-        The loop runs over tree depth, not joints, so a batch is a handful of numpy calls.
+        Compiled, one joint after another (parents come first): a body samples a pose per
+        tick, where numpy's per-call overhead on a few joints cost more than the maths.
         """
         rotations = np.asarray(rotations, dtype=float)
-        root = np.asarray(root, dtype=float)
         lead = rotations.shape[:-2]
-        world_rot = np.empty_like(rotations)
-        positions = np.empty((*lead, self.joint_count, 3))
-        for level in self._levels:
-            parents = self.parents[level]
-            if parents[0] < 0:
-                world_rot[..., level, :] = rotations[..., level, :]
-                positions[..., level, :] = self.offsets[level] + root[..., None, :]
-                continue
-            parent_rot = world_rot[..., parents, :]
-            world_rot[..., level, :] = quat.multiply(parent_rot, rotations[..., level, :])
-            positions[..., level, :] = positions[..., parents, :] + quat.rotate(
-                parent_rot, self.offsets[level]
-            )
-        return positions
+        flat = np.ascontiguousarray(rotations).reshape(-1, self.joint_count, 4)
+        roots = np.ascontiguousarray(np.broadcast_to(np.asarray(root, dtype=float), (*lead, 3))).reshape(-1, 3)
+        return _forward_kinematics(flat, roots, self.parents, self.offsets).reshape((*lead, self.joint_count, 3))
 
     # --- files --------------------------------------------------------------------------
 
@@ -251,3 +235,29 @@ def line_of(text: str, needle: str) -> int | None:
         if f'"{needle}"' in line or f"'{needle}'" in line or line.lstrip().startswith(needle):
             return number
     return None
+
+
+@numba.njit(cache=True)
+def _forward_kinematics(rotations, roots, parents, offsets):  # pragma: no cover - compiled
+    """:meth:`Skeleton.forward_kinematics` of ``(N, J, 4)`` rotations and ``(N, 3)`` roots."""
+    count, joints = rotations.shape[0], rotations.shape[1]
+    positions = np.empty((count, joints, 3))
+    world = np.empty((joints, 4))
+    for n in range(count):
+        for j in range(joints):
+            local = (rotations[n, j, 0], rotations[n, j, 1], rotations[n, j, 2], rotations[n, j, 3])
+            offset = (offsets[j, 0], offsets[j, 1], offsets[j, 2])
+            p = parents[j]
+            if p < 0:
+                turn = local
+                place = (offset[0] + roots[n, 0], offset[1] + roots[n, 1], offset[2] + roots[n, 2])
+            else:
+                parent = (world[p, 0], world[p, 1], world[p, 2], world[p, 3])
+                turn = quat.multiply_one(parent, local)
+                bone = quat.rotate_one(parent, offset)
+                place = (positions[n, p, 0] + bone[0], positions[n, p, 1] + bone[1], positions[n, p, 2] + bone[2])
+            for c in range(4):
+                world[j, c] = turn[c]
+            for c in range(3):
+                positions[n, j, c] = place[c]
+    return positions

@@ -1,0 +1,159 @@
+"""The compiled motor kernels agree with the numpy formulas they replace (to rounding).
+
+Each reference below is the numpy code the kernel took over, written out with the public
+numpy functions of :mod:`creatures.motor.quaternion`; inputs are seeded random key
+sequences plus the awkward cases: a key and its antipode (the same rotation, opposite
+sign) and keys a hair apart (slerp's near-zero-angle branch).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from creatures.motor import quaternion as quat
+from creatures.motor import playback as playback_module
+from creatures.motor.animations import creature_skeleton, example_animations, strike
+from creatures.motor.graph import MotorGraph
+from creatures.motor.playback import Playback, transit_times
+from creatures.motor.pose import PoseSet
+from creatures.motor.search import GraphPosition, PathFinder
+
+TOLERANCE = 1e-9
+
+
+def key_sequences(seed: int, count: int = 9, joints: int = 7) -> dict[str, np.ndarray]:
+    """Random unit keys ``(count, joints, 4)``, and the same with antipodal or near-equal neighbours."""
+    rng = np.random.default_rng(seed)
+    keys = quat.normalize(rng.normal(size=(count, joints, 4)))
+    antipodal = keys.copy()
+    antipodal[1::2] = -antipodal[:-1:2] + 1e-9 * rng.normal(size=antipodal[1::2].shape)
+    near = keys.copy()
+    near[1:] = keys[:1] + 1e-8 * rng.normal(size=(count - 1, joints, 4))
+    return {"random": keys, "antipodal": quat.normalize(antipodal), "near": quat.normalize(near)}
+
+
+def reference_controls(keys: np.ndarray) -> np.ndarray:
+    q = quat.hemisphere_align(keys)
+    return quat.squad_control(np.concatenate((q[:1], q[:-1])), q, np.concatenate((q[1:], q[-1:])))
+
+
+def reference_rate(q1, q2, s1, s2, samples: int = 16) -> np.ndarray:
+    alphas = np.linspace(0.0, 1.0, samples + 1)[1:].reshape((-1,) + (1,) * (q1.ndim - 1))
+    points = quat.squad(q1, q2, s1, s2, alphas)
+    return quat.angle_between(points, np.concatenate((q1[None], points[:-1]))).max(axis=0) * samples
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_squad_controls_match_numpy(seed):
+    for name, keys in key_sequences(seed).items():
+        assert np.abs(quat.squad_controls(keys) - reference_controls(keys)).max() < TOLERANCE, name
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_squad_keys_match_numpy_squad(seed):
+    rng = np.random.default_rng(100 + seed)
+    for name, keys in key_sequences(seed).items():
+        keys = quat.hemisphere_align(keys)
+        controls = quat.squad_controls(keys)
+        segments = rng.integers(0, len(keys) - 1, 40)
+        alpha = np.concatenate(([0.0, 1.0, 1e-12, 0.5], rng.uniform(0.0, 1.0, 36)))
+        expected = quat.squad(keys[segments], keys[segments + 1], controls[segments], controls[segments + 1], alpha[:, None])
+        assert np.abs(quat.squad_keys(keys, controls, segments, alpha) - expected).max() < TOLERANCE, name
+
+
+def test_squad_keys_refuses_segments_past_the_last_key():
+    keys = key_sequences(0)["random"]
+    with pytest.raises(IndexError):
+        quat.squad_keys(keys, keys, np.array([len(keys) - 1]), np.array([0.5]))
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_squad_rate_matches_numpy(seed):
+    for name, keys in key_sequences(seed).items():
+        keys = quat.hemisphere_align(keys)
+        controls = quat.squad_controls(keys)
+        args = (keys[:-1], keys[1:], controls[:-1], controls[1:])
+        for samples in (4, 16, 64):
+            got, expected = quat.squad_rate(*args, samples=samples), reference_rate(*args, samples=samples)
+            # Points a hair apart are an acos near 1 apart, where a rounding step or two in
+            # their dot product moves the angle by up to 2·acos(1 − 2ε) ≈ 6e-8 (per sample).
+            tolerance = samples * 2.0 * np.arccos(1.0 - 2.0 * np.finfo(float).eps) if name == "near" else TOLERANCE
+            assert np.abs(got - expected).max() < tolerance, (name, samples)
+
+
+def test_squad_rate_broadcasts_its_inputs():
+    keys = key_sequences(1)["random"]
+    rate = quat.squad_rate(keys[:-1], keys[1:], keys[0], keys[1])
+    assert rate.shape == (len(keys) - 1, keys.shape[1])
+    s1, s2 = np.broadcast_to(keys[0], keys[1:].shape), np.broadcast_to(keys[1], keys[1:].shape)
+    assert np.abs(rate - reference_rate(keys[:-1], keys[1:], s1, s2)).max() < TOLERANCE
+
+
+def reference_forward_kinematics(skeleton, rotations: np.ndarray, root: np.ndarray) -> np.ndarray:
+    world = np.empty_like(rotations)
+    positions = np.empty((*rotations.shape[:-1], 3))
+    for j, p in enumerate(skeleton.parents):
+        if p < 0:
+            world[..., j, :] = rotations[..., j, :]
+            positions[..., j, :] = skeleton.offsets[j] + root
+        else:
+            world[..., j, :] = quat.multiply(world[..., p, :], rotations[..., j, :])
+            positions[..., j, :] = positions[..., p, :] + quat.rotate(world[..., p, :], skeleton.offsets[j])
+    return positions
+
+
+def test_forward_kinematics_matches_numpy():
+    skeleton = creature_skeleton()
+    rng = np.random.default_rng(7)
+    rotations = quat.normalize(rng.normal(size=(25, skeleton.joint_count, 4)))
+    roots = rng.normal(size=(25, 3))
+    expected = reference_forward_kinematics(skeleton, rotations, roots)
+    assert np.abs(skeleton.forward_kinematics(rotations, roots) - expected).max() < TOLERANCE
+    assert np.abs(skeleton.forward_kinematics(rotations[3], roots[3]) - expected[3]).max() < TOLERANCE
+    shared_root = skeleton.forward_kinematics(rotations, roots[0])
+    assert np.abs(shared_root - reference_forward_kinematics(skeleton, rotations, roots[0])).max() < TOLERANCE
+
+
+@pytest.fixture(scope="module")
+def graph() -> MotorGraph:
+    return MotorGraph.build(PoseSet.concatenate(example_animations(creature_skeleton())), k=5)
+
+
+def test_playback_times_match_sampling_every_joint(graph):
+    """Skipping the joints whose bound keeps them under the limit lays out the same times
+    as sampling every joint of every segment."""
+    rng = np.random.default_rng(11)
+    finder = PathFinder(graph)
+    edges = list(graph.edges())
+    slowed = 0
+    for i in range(60):
+        a, b = edges[int(rng.integers(len(edges)))]
+        start = GraphPosition(a, b, float(rng.uniform(0.05, 0.95))) if i % 2 else GraphPosition(a)
+        playback = Playback(graph, finder.path(start, [int(rng.integers(len(graph)))]), 0.0)
+        keys, controls = playback.keys, playback.controls
+        turns = quat.squad_rate(keys[:-1], keys[1:], controls[:-1], controls[1:]).max(axis=-1)
+        # Every segment after the first (which starts from the body's own pose) joins two nodes.
+        durations = transit_times(graph, playback.key_nodes[:-1], playback.key_nodes[1:])
+        expected = np.maximum(durations, turns[1:] / graph.timing.max_speed)
+        assert np.diff(playback.key_times)[1:] == pytest.approx(expected, rel=1e-12, abs=1e-12)
+        slowed += int(np.sum(expected > durations))
+    assert slowed > 0  # some segments are slowed by the limit, so skipping could have mattered
+
+
+def test_transit_times_are_remembered_until_the_graph_changes():
+    skeleton = creature_skeleton()
+    graph = MotorGraph.build(PoseSet.concatenate(example_animations(skeleton)), k=5)
+    pairs = np.array(list(graph.edges()))
+    before = transit_times(graph, pairs[:, 0], pairs[:, 1])
+    assert np.array_equal(before, graph.transit_times(pairs[:, 0], pairs[:, 1]))
+    version, known = playback_module._TRANSITS[graph]
+    assert version == graph.version and len(known) == len(pairs)
+    # A strike four times faster raises the speed limit, which shortens the estimated
+    # transits of the old edges: a memo that outlived the edit would keep the old times.
+    graph.add_poses(dataclasses.replace(strike(skeleton, duration=0.5), sources=["fast strike"]))
+    after = transit_times(graph, pairs[:, 0], pairs[:, 1])
+    assert np.array_equal(after, graph.transit_times(pairs[:, 0], pairs[:, 1]))
+    assert np.any(after < before)
