@@ -100,3 +100,43 @@ def test_body_memory_ignores_staying_put_and_is_bounded():
         memory.record(node, float(t))
     assert [o.node for o in memory] == [6, 7, 8]
     assert [o.node for o in memory.since(3.0)] == [7, 8]
+
+
+def derived(model: GestureModel, probe: list[int]) -> tuple:
+    """Everything a model caches, as a listening creature reads it."""
+    return (model.core(), model.core_nodes(), [model.confidence(s) for s in range(len(model.states))],
+            model.log_likelihood(probe))
+
+
+def test_learning_invalidates_what_the_model_derived(rng):
+    """Cores, confidences and matches are cached between lessons: after ``learn`` they must
+    be those of a model that learnt the same sequences and was never asked before."""
+    lessons = [[1, 2, 3, 4]] * 3 + [[7, 8, 9, 7, 8, 9, 7, 8, 9]] * 4 + [[1, 2, 3, 9, 5]] * 2 + [[5, 6, 7, 8]] * 3
+    probe = [7, 8, 9, 1, 2, 3]
+    asked = GestureModel()
+    cores = []
+    for k, lesson in enumerate(lessons):
+        version = asked.version
+        asked.learn(lesson)
+        assert asked.version > version
+        fresh = GestureModel()
+        for earlier in lessons[:k + 1]:
+            fresh.learn(earlier)
+        assert derived(asked, probe) == derived(fresh, probe)
+        cores.append(asked.core_nodes())
+    assert sum(a != b for a, b in zip(cores, cores[1:])) >= 3  # the core really moved as the model learnt
+
+
+def test_a_restored_model_derives_and_learns_like_the_original(tmp_path):
+    model = GestureModel(entropy_weight=0.5, threshold=0.3)
+    for lesson in [[1, 2, 3, 4]] * 3 + [[2, 3, 5, 6]]:
+        model.learn(lesson)
+    probe = [1, 2, 3, 5, 6]
+    before = derived(model, probe)  # cached on the original before it is saved
+    save_json(tmp_path / "gesture.json", model.to_dict(), kind="gesture-model")
+    restored = GestureModel.from_dict(load_json(tmp_path / "gesture.json", kind="gesture-model"))
+    assert derived(restored, probe) == before
+    for lesson in [[5, 6, 7]] * 4:
+        model.learn(lesson)
+        restored.learn(lesson)
+    assert derived(restored, probe) == derived(model, probe) != before

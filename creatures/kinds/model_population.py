@@ -188,5 +188,5 @@ def _cycle_key(model: GestureModel) -> tuple[int, ...] | None:
     nodes = model.core_nodes()
     if len(nodes) < 3:
         return None
-    k = int(np.argmin(nodes))
+    k = nodes.index(min(nodes))
     return tuple(nodes[k:] + nodes[:k])

@@ -26,7 +26,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass, field
-from typing import Any, Callable, Iterable, Sequence
+from typing import Any, Callable, Hashable, Iterable, Sequence
 
 import numpy as np
 
@@ -88,13 +88,45 @@ class GestureNode:
 
 
 class GestureModel:
-    """Augmented-Markov model over motor node identities, learnt from BodyMemories."""
+    """Augmented-Markov model over motor node identities, learnt from BodyMemories.
+
+    What is derived from the states (confidences, the core, the transition table that
+    :meth:`log_likelihood` reads) is computed once per :attr:`version` and cached: a listening
+    creature asks every model for its core and its match every tick, while a model changes
+    only when it learns. The states are therefore changed only through :meth:`learn`, and
+    ``entropy_weight`` and ``threshold`` are fixed at construction.
+    """
 
     def __init__(self, *, entropy_weight: float = 0.25, threshold: float = 0.25) -> None:
         self.states: list[GestureNode] = []
         self.sequences = 0
-        self.entropy_weight = entropy_weight
-        self.threshold = threshold
+        self._entropy_weight = entropy_weight
+        self._threshold = threshold
+        self._version = 0
+        self._derived: dict[Hashable, Any] = {}
+
+    @property
+    def entropy_weight(self) -> float:
+        return self._entropy_weight
+
+    @property
+    def threshold(self) -> float:
+        return self._threshold
+
+    @property
+    def version(self) -> int:
+        """Bumped by every change to the states, so results derived from them can be cached."""
+        return self._version
+
+    def _changed(self) -> None:
+        self._version += 1
+        self._derived.clear()
+
+    def _derive(self, key: Hashable, compute: Callable[[], Any]) -> Any:
+        """``compute()``, once per version."""
+        if key not in self._derived:
+            self._derived[key] = compute()
+        return self._derived[key]
 
     # --- learning -------------------------------------------------------------------------
 
@@ -116,6 +148,7 @@ class GestureModel:
                 gap = items[k + 1].time - obs.time
                 g.dwell += (gap - g.dwell) / g.visits
         self.sequences += 1
+        self._changed()
         return states
 
     def _new(self, node: int) -> int:
@@ -181,15 +214,21 @@ class GestureModel:
 
     def _confidences(self) -> list[float]:
         """:meth:`confidence` of every state at once (the most visited state is found once,
-        not once per state: a listening creature asks for cores every tick)."""
+        not once per state)."""
+        return self._derive("confidences", self._compute_confidences)
+
+    def _compute_confidences(self) -> list[float]:
         most = max(max((s.visits for s in self.states), default=1), 1)
         return [g.visits / most - self.entropy_weight * g.entropy() for g in self.states]
 
     def core(self) -> list[int]:
         """The gesture's core: states grown out from the most confident one along the most
         probable transitions, stopping after two consecutive low-confidence steps."""
+        return list(self._derive("core", self._compute_core))
+
+    def _compute_core(self) -> tuple[int, ...]:
         if not self.states:
-            return []
+            return ()
         confidence = self._confidences()
         seed = max(range(len(self.states)), key=lambda s: (confidence[s], self.states[s].visits))
         incoming: dict[int, dict[int, int]] = {}
@@ -199,7 +238,7 @@ class GestureModel:
         seen = {seed}
         forward = self._grow(seed, lambda s: self.states[s].out, seen, confidence)
         backward = self._grow(seed, lambda s: incoming.get(s, {}), seen, confidence)
-        return [*reversed(backward), seed, *forward]
+        return (*reversed(backward), seed, *forward)
 
     def _grow(self, seed: int, links: Callable[[int], dict[int, int]], seen: set[int],
               confidence: list[float]) -> list[int]:
@@ -230,7 +269,7 @@ class GestureModel:
 
     def core_nodes(self) -> list[int]:
         """Motor-graph nodes of the core, in order."""
-        return [self.states[s].node for s in self.core()]
+        return list(self._derive("core nodes", lambda: tuple(self.states[s].node for s in self.core())))
 
     # --- percept model and execution ------------------------------------------------------
 
@@ -240,16 +279,24 @@ class GestureModel:
         nodes = [o.node if isinstance(o, Observation) else int(o) for o in observations]
         if len(nodes) < 2:
             return 0.0
+        logs = self._derive(("log transitions", floor), lambda: self._log_transitions(floor))
+        unseen = math.log(floor)
         total = 0.0
-        for a, b in zip(nodes, nodes[1:]):
-            best = floor
-            for g in self.states:
-                if g.node == a:
-                    for t, p in g.probabilities().items():
-                        if self.states[t].node == b:
-                            best = max(best, p)
-            total += math.log(best)
+        for pair in zip(nodes, nodes[1:]):
+            total += logs.get(pair, unseen)
         return total / (len(nodes) - 1)
+
+    def _log_transitions(self, floor: float) -> dict[tuple[int, int], float]:
+        """``(a, b) -> log p``: the most probable transition from a state of node ``a`` to a
+        state of node ``b`` (what the best alignment of a sequence uses at that step), at
+        least ``floor``."""
+        best: dict[tuple[int, int], float] = {}
+        for g in self.states:
+            total = sum(g.out.values())
+            for t, c in g.out.items():
+                pair = (g.node, self.states[t].node)
+                best[pair] = max(best.get(pair, floor), c / total)
+        return {pair: math.log(p) for pair, p in best.items()}
 
     def sample(self, rng: np.random.Generator, *, start: int | None = None, max_length: int = 64) -> list[int]:
         """A random walk of states by transition probability, from ``start`` (default: the
