@@ -13,6 +13,8 @@ import dataclasses
 import numpy as np
 import pytest
 
+from creatures.kinds.moves import head_for
+from creatures.kinds.parts import BODY_BLOCK, BODY_RATE, Body
 from creatures.motor import quaternion as quat
 from creatures.motor import playback as playback_module
 from creatures.motor.animations import creature_skeleton, example_animations, strike
@@ -157,3 +159,38 @@ def test_transit_times_are_remembered_until_the_graph_changes():
     after = transit_times(graph, pairs[:, 0], pairs[:, 1])
     assert np.array_equal(after, graph.transit_times(pairs[:, 0], pairs[:, 1]))
     assert np.any(after < before)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_squad_rate_samples_only_segments_whose_bound_passes_above(seed):
+    keys = quat.hemisphere_align(key_sequences(seed)["random"])
+    # Controls near the keys on even joints (finite bounds), anywhere on odd ones (often infinite).
+    controls = quat.normalize(keys + 0.3 * np.random.default_rng(seed + 100).normal(size=keys.shape))
+    controls[:, 1::2] = key_sequences(seed + 10)["random"][:, 1::2]
+    args = (keys[:-1], keys[1:], controls[:-1], controls[1:])
+    rate, bound = quat.squad_rate(*args), quat.squad_rate_bound(*args)
+    finite = np.isfinite(bound)
+    assert finite.any() and (~finite).any()
+    # Just under its bound every segment is sampled; just over, only unbounded ones are
+    # (the compiled bound agrees with squad_rate_bound to rounding).
+    assert np.array_equal(quat.squad_rate(*args, above=np.where(finite, bound - 1e-9, 0.0)), rate)
+    assert np.array_equal(quat.squad_rate(*args, above=np.where(finite, bound + 1e-9, 0.0)), np.where(finite, 0.0, rate))
+
+
+def test_a_body_looked_up_in_any_order_follows_its_course_on_the_grid():
+    """Body poses come from blocks computed where a tick first looks; whichever order the
+    ticks come in, each is the course's squad sample on the BODY_RATE grid, moving at the
+    turn to the next grid sample."""
+    body = Body(np.random.default_rng(3), ratios=True)
+    graph = body.graph
+    head_for(body, 2.0, [int(np.argmax(quat.angle_between(graph.poses.rotations, body.pose.rotations).sum(axis=1)))])
+    playback = body.motor.playback
+    grid = 2.0 + np.arange(int((playback.end_time - 2.0) * BODY_RATE)) / BODY_RATE
+    assert len(grid) > 3 * BODY_BLOCK
+    rotations, roots = playback.sample_rotations(np.concatenate((grid, [grid[-1] + 1.0 / BODY_RATE])))
+    turns = quat.log(quat.multiply(rotations[1:], quat.conjugate(rotations[:-1]))) * BODY_RATE
+    for i in np.random.default_rng(4).permutation(len(grid)):
+        pose = body.update(float(grid[i]))
+        assert np.abs(pose.rotations - rotations[i]).max() < TOLERANCE
+        assert np.abs(pose.velocities - turns[i]).max() < 1e-6
+        assert np.abs(pose.positions - graph.skeleton.forward_kinematics(rotations[i], roots[i])).max() < TOLERANCE

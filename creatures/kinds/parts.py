@@ -136,27 +136,47 @@ def shared_graph(ratios: bool = False) -> MotorGraph:
 
 
 BODY_RATE = 60.0
-"""Poses per second precomputed along a course (interpolation finer than any tick)."""
+"""Poses per second sampled along a course (interpolation finer than any tick)."""
+
+BODY_BLOCK = 8
+"""Samples of a course computed together, when a tick first looks among them."""
 
 
 class _Trajectory:
-    """A whole course sampled at :data:`BODY_RATE` in one batch (squad + forward kinematics
-    vectorised over time), so a tick only looks a pose up instead of computing it."""
+    """A course sampled on a :data:`BODY_RATE` grid, a block of :data:`BODY_BLOCK` samples
+    at a time (squad + forward kinematics vectorised over the block), so a tick only looks
+    a pose up. Blocks are computed where a tick first looks: a 0.04 s tick looks at most
+    of them, a 0.5 s tick at one in four, and a course replaced half-way never pays for
+    the rest. Sample ``i`` moves at the turn from ``i`` to ``i + 1`` (the last at the turn
+    into it), whichever block computed it."""
+
+    STEP = 1.0 / BODY_RATE
 
     def __init__(self, playback: Playback, skeleton) -> None:
-        step = 1.0 / BODY_RATE
-        start = float(playback.key_times[0])
-        self.times = start + step * np.arange(int(np.ceil((playback.end_time - start) / step)) + 2)
-        self.rotations, self.roots = playback.sample_rotations(self.times)
-        self.positions = skeleton.forward_kinematics(self.rotations, self.roots)
-        turn = quat.log(quat.multiply(self.rotations[1:], quat.conjugate(self.rotations[:-1]))) / step
-        self.velocities = np.concatenate((turn, turn[-1:]))
+        self.start = float(playback.key_times[0])
+        self.count = int(np.ceil((playback.end_time - self.start) / self.STEP)) + 2
         self.playback = playback
+        self.skeleton = skeleton
+        self._blocks: dict[int, tuple[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
+
+    def _block(self, block: int) -> tuple[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(first, rotations, velocities, roots, positions)`` of samples ``first`` onwards
+        covering the block (one sample before it when the block holds only the last)."""
+        if block not in self._blocks:
+            first = min(block * BODY_BLOCK, self.count - 2)
+            indices = np.arange(first, min((block + 1) * BODY_BLOCK, self.count - 1) + 1)
+            rotations, roots = self.playback.sample_rotations(self.start + self.STEP * indices)
+            turn = quat.log(quat.multiply(rotations[1:], quat.conjugate(rotations[:-1]))) / self.STEP
+            velocities = np.concatenate((turn, turn[-1:])) if indices[-1] == self.count - 1 else turn
+            positions = self.skeleton.forward_kinematics(rotations, roots)
+            self._blocks[block] = (first, rotations, velocities, roots, positions)
+        return self._blocks[block]
 
     def pose(self, t: float) -> BodyPose:
-        i = min(int(round((t - self.times[0]) * BODY_RATE)), len(self.times) - 1)
-        return BodyPose(self.rotations[i], self.velocities[i], self.roots[i], time=t, source="playback",
-                        positions=self.positions[i])
+        i = min(max(int(round((t - self.start) * BODY_RATE)), 0), self.count - 1)
+        first, rotations, velocities, roots, positions = self._block(i // BODY_BLOCK)
+        k = i - first
+        return BodyPose(rotations[k], velocities[k], roots[k], time=t, source="playback", positions=positions[k])
 
 
 class Body:

@@ -76,17 +76,13 @@ class Playback:
 
         Squad bends each segment towards its neighbours, so next to a sharp turn it can
         outrun the edge's own timing: such a segment is slowed to the speed limit. A run of
-        source frames never needs this (the limit is the source's own played speed). Only
-        joints whose :func:`~creatures.motor.quaternion.squad_rate_bound` exceeds what
-        their segment's duration allows are sampled; for the rest the sampled rate (never
-        above the bound) could not lengthen the segment, so they count as 0.
+        source frames never needs this (the limit is the source's own played speed). Joints
+        whose :func:`~creatures.motor.quaternion.squad_rate_bound` keeps them within what
+        their segment's duration allows are not sampled and count as 0: they could not
+        lengthen it.
         """
         q1, q2, s1, s2 = self.keys[:-1], self.keys[1:], self.controls[:-1], self.controls[1:]
-        segment, joint = np.nonzero(quat.squad_rate_bound(q1, q2, s1, s2) / max_speed > durations[:, None])
-        turns = np.zeros(len(durations))
-        rates = quat.squad_rate(q1[segment, joint], q2[segment, joint], s1[segment, joint], s2[segment, joint])
-        np.maximum.at(turns, segment, rates)
-        return turns
+        return quat.squad_rate(q1, q2, s1, s2, above=(durations * max_speed)[:, None]).max(axis=-1)
 
     @staticmethod
     def _first_gap(graph: MotorGraph, start: GraphPosition, first: int) -> float:

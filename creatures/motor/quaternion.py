@@ -204,7 +204,13 @@ def squad_keys(keys: np.ndarray, controls: np.ndarray, segments: np.ndarray, alp
 
 
 def squad_rate(
-    q1: np.ndarray, q2: np.ndarray, s1: np.ndarray, s2: np.ndarray, samples: int = 16
+    q1: np.ndarray,
+    q2: np.ndarray,
+    s1: np.ndarray,
+    s2: np.ndarray,
+    samples: int = 16,
+    *,
+    above: np.ndarray | float | None = None,
 ) -> np.ndarray:
     """Peak turning rate (radians per unit ``alpha``) along each :func:`squad` segment.
 
@@ -214,11 +220,18 @@ def squad_rate(
     ``angle_between`` of consecutive points, times ``samples``), one segment at a time in a
     compiled loop, so memory stays flat however many segments (a whole graph's source
     steps) are asked for. One value per leading index (inputs broadcast).
+
+    A caller that only cares whether a segment turns faster than some rate passes it as
+    ``above`` (broadcast too): a segment whose :func:`squad_rate_bound` is at most that is
+    not sampled (its rate cannot exceed it) and reports 0, which skips most segments of a
+    course at the cost of four angles each.
     """
     arrays = np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in (q1, q2, s1, s2)))
+    shape = arrays[0].shape[:-1]
     flat = [np.ascontiguousarray(x).reshape(-1, 4) for x in arrays]
     alphas = np.linspace(0.0, 1.0, samples + 1)[1:]
-    return _squad_rates(*flat, alphas).reshape(arrays[0].shape[:-1])
+    floor = np.ascontiguousarray(np.broadcast_to(-np.inf if above is None else above, shape), dtype=float).ravel()
+    return _squad_rates(*flat, alphas, floor).reshape(shape)
 
 
 def squad_rate_bound(q1: np.ndarray, q2: np.ndarray, s1: np.ndarray, s2: np.ndarray) -> np.ndarray:
@@ -241,12 +254,9 @@ def squad_rate_bound(q1: np.ndarray, q2: np.ndarray, s1: np.ndarray, s2: np.ndar
 
 def hemisphere_align(q: np.ndarray) -> np.ndarray:
     """Flip signs along axis 0 so each key-frame lies in the hemisphere of the one before."""
-    q = np.array(q, dtype=float, copy=True)
-    if len(q) < 2:
-        return q
-    signs = np.where(dot(q[1:], q[:-1]) < 0.0, -1.0, 1.0)
-    q[1:] *= np.cumprod(signs, axis=0)[..., None]
-    return q
+    q = np.asarray(q, dtype=float)
+    flat = np.ascontiguousarray(q).reshape(len(q), math.prod(q.shape[1:-1]), 4)
+    return _hemisphere_align(flat).reshape(q.shape)
 
 
 def closest_approach(q1: np.ndarray, q2: np.ndarray, p: np.ndarray) -> np.ndarray:
@@ -376,20 +386,28 @@ def _control_one(prev, q, nxt):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True)
-def _squad_controls(q):  # pragma: no cover - compiled
-    """:func:`squad_controls` of keys ``(N, M, 4)``: align each of the M tracks, then control it."""
-    n, m = q.shape[0], q.shape[1]
+def _hemisphere_align(q):  # pragma: no cover - compiled
+    """:func:`hemisphere_align` of ``(N, M, 4)``: each key's sign from the original dot products."""
     aligned = q.copy()
-    out = np.empty_like(q)
-    for j in range(m):
+    for j in range(q.shape[1]):
         sign = 1.0
-        for i in range(1, n):
+        for i in range(1, q.shape[0]):
             if dot_one(_at(q[:, j], i), _at(q[:, j], i - 1)) < 0.0:
                 sign = -sign
             for c in range(4):
                 aligned[i, j, c] = sign * q[i, j, c]
+    return aligned
+
+
+@numba.njit(cache=True)
+def _squad_controls(q):  # pragma: no cover - compiled
+    """:func:`squad_controls` of keys ``(N, M, 4)``: align each of the M tracks, then control it."""
+    n = q.shape[0]
+    aligned = _hemisphere_align(q)
+    out = np.empty_like(q)
+    for j in range(q.shape[1]):
+        track = aligned[:, j]
         for i in range(n):
-            track = aligned[:, j]
             control = _control_one(_at(track, max(i - 1, 0)), _at(track, i), _at(track, min(i + 1, n - 1)))
             for c in range(4):
                 out[i, j, c] = control[c]
@@ -410,11 +428,20 @@ def _squad_keys(keys, controls, segments, alpha):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True)
-def _squad_rates(q1, q2, s1, s2, alphas):  # pragma: no cover - compiled
-    """:func:`squad_rate` of ``(M, 4)`` segments at the given ``alphas``."""
-    out = np.empty(q1.shape[0])
+def _squad_rate_bound_one(q1, q2, s1, s2):  # pragma: no cover - compiled
+    straight, inner = angle_between_one(q1, q2), angle_between_one(s1, s2)
+    apart = max(angle_between_one(q1, s1), angle_between_one(q2, s2))
+    return 2.0 * (straight + inner + apart) if 0.5 * (straight + inner) + apart < np.pi - 1e-6 else np.inf
+
+
+@numba.njit(cache=True)
+def _squad_rates(q1, q2, s1, s2, alphas, above):  # pragma: no cover - compiled
+    """:func:`squad_rate` of ``(M, 4)`` segments at the given ``alphas`` (0 where the bound is ≤ ``above``)."""
+    out = np.zeros(q1.shape[0])
     for m in range(q1.shape[0]):
         a, b, c, d = _at(q1, m), _at(q2, m), _at(s1, m), _at(s2, m)
+        if above[m] > -np.inf and _squad_rate_bound_one(a, b, c, d) <= above[m]:
+            continue
         previous = a
         peak = 0.0
         for alpha in alphas:
