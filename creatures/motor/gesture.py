@@ -72,6 +72,12 @@ class GestureNode:
     dwell: float = 0.0  # mean seconds until the next observation
     notes: list[Any] = field(default_factory=list)
     out: dict[int, int] = field(default_factory=dict)  # next state -> count
+    _entropy: float | None = field(default=None, init=False, repr=False, compare=False)
+
+    def followed_by(self, state: int) -> None:
+        """Count one transition to ``state``."""
+        self.out[state] = self.out.get(state, 0) + 1
+        self._entropy = None
 
     def probabilities(self) -> dict[int, float]:
         total = sum(self.out.values())
@@ -79,7 +85,15 @@ class GestureNode:
 
     def entropy(self) -> float:
         """Entropy (bits) of the outgoing transitions, with transitions seen only once pooled
-        into one "anywhere" outcome: uncorrelated noise is one kind of thing, not many."""
+        into one "anywhere" outcome: uncorrelated noise is one kind of thing, not many.
+
+        Kept until :meth:`followed_by` changes the counts: a lesson touches a few states,
+        and the confidence of all of them is asked for after it."""
+        if self._entropy is None:
+            self._entropy = self._count_entropy()
+        return self._entropy
+
+    def _count_entropy(self) -> float:
         counts = [c for c in self.out.values() if c > 1]
         anywhere = sum(c for c in self.out.values() if c == 1)
         counts += [anywhere] if anywhere else []
@@ -143,8 +157,7 @@ class GestureModel:
             if obs.note is not None:
                 g.notes.append(obs.note)
             if k + 1 < len(items):
-                nxt = states[k + 1]
-                g.out[nxt] = g.out.get(nxt, 0) + 1
+                g.followed_by(states[k + 1])
                 gap = items[k + 1].time - obs.time
                 g.dwell += (gap - g.dwell) / g.visits
         self.sequences += 1
