@@ -308,7 +308,8 @@ class GestureModel:
             total = sum(g.out.values())
             for t, c in g.out.items():
                 pair = (g.node, self.states[t].node)
-                best[pair] = max(best.get(pair, floor), c / total)
+                if c / total > best.get(pair, floor):
+                    best[pair] = c / total
         return {pair: math.log(p) for pair, p in best.items()}
 
     def sample(self, rng: np.random.Generator, *, start: int | None = None, max_length: int = 64) -> list[int]:
