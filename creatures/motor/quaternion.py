@@ -19,6 +19,7 @@ order, so results differ only by rounding (``tests/test_motor_kernels.py``).
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numba
@@ -229,9 +230,17 @@ def squad_rate(
     arrays = np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in (q1, q2, s1, s2)))
     shape = arrays[0].shape[:-1]
     flat = [np.ascontiguousarray(x).reshape(-1, 4) for x in arrays]
-    alphas = np.linspace(0.0, 1.0, samples + 1)[1:]
+    alphas = _rate_alphas(samples)
     floor = np.ascontiguousarray(np.broadcast_to(-np.inf if above is None else above, shape), dtype=float).ravel()
     return _squad_rates(*flat, alphas, floor).reshape(shape)
+
+
+@functools.lru_cache(maxsize=8)
+def _rate_alphas(samples: int) -> np.ndarray:
+    """The ``alpha`` of each :func:`squad_rate` step, made once per sample count (read-only)."""
+    alphas = np.linspace(0.0, 1.0, samples + 1)[1:]
+    alphas.flags.writeable = False
+    return alphas
 
 
 def squad_rate_bound(q1: np.ndarray, q2: np.ndarray, s1: np.ndarray, s2: np.ndarray) -> np.ndarray:
