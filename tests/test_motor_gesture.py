@@ -136,6 +136,7 @@ def test_a_restored_model_derives_and_learns_like_the_original(tmp_path):
     save_json(tmp_path / "gesture.json", model.to_dict(), kind="gesture-model")
     restored = GestureModel.from_dict(load_json(tmp_path / "gesture.json", kind="gesture-model"))
     assert derived(restored, probe) == before
+    assert [restored.states_of(n) for n in range(8)] == [model.states_of(n) for n in range(8)]
     for lesson in [[5, 6, 7]] * 4:
         model.learn(lesson)
         restored.learn(lesson)

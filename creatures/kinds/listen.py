@@ -192,7 +192,7 @@ class Dance:
             following = [s for s in states[self.state].out if states[s].node == node]
             if following:
                 return max(following, key=states[self.state].out.get)
-        candidates = [s for s, g in enumerate(states) if g.node == node]
+        candidates = self.model.states_of(node)
         return max(candidates, key=lambda s: states[s].visits) if candidates else None
 
     def predicted(self) -> int | None:

@@ -177,8 +177,7 @@ class ModelPopulation:
 def _grows_from(model: GestureModel, context: list[Observation], threshold: float) -> bool:
     """Whether ``model`` explains ``context`` and its state for the last context note has no
     way on yet: new notes there extend the model rather than depart from it."""
-    last = context[-1].node
-    if not any(g.node == last and not g.out for g in model.states):
+    if not any(not model.states[s].out for s in model.states_of(context[-1].node)):
         return False
     return len(context) < 2 or model.log_likelihood(context, floor=FLOOR) >= threshold
 

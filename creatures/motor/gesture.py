@@ -113,6 +113,7 @@ class GestureModel:
 
     def __init__(self, *, entropy_weight: float = 0.25, threshold: float = 0.25) -> None:
         self.states: list[GestureNode] = []
+        self._of_node: dict[int, list[int]] = {}  # node -> its states, ascending
         self.sequences = 0
         self._entropy_weight = entropy_weight
         self._threshold = threshold
@@ -165,16 +166,24 @@ class GestureModel:
         return states
 
     def _new(self, node: int) -> int:
-        self.states.append(GestureNode(node))
+        return self._add(GestureNode(node))
+
+    def _add(self, state: GestureNode) -> int:
+        self.states.append(state)
+        self._of_node.setdefault(state.node, []).append(len(self.states) - 1)
         return len(self.states) - 1
+
+    def states_of(self, node: int) -> tuple[int, ...]:
+        """The states standing for motor node ``node``, oldest first (looked up, not searched:
+        learning and matching ask this for every note)."""
+        return tuple(self._of_node.get(node, ()))
 
     def _match_lengths(self, nodes: Sequence[int]) -> dict[tuple[int, int], int]:
         """``(i, s) -> n``: states from ``s`` follow transitions matching ``nodes[i:i+n]``."""
         length: dict[tuple[int, int], int] = {}
         for i in range(len(nodes) - 1, -1, -1):
-            for s, g in enumerate(self.states):
-                if g.node != nodes[i]:
-                    continue
+            for s in self._of_node.get(nodes[i], ()):
+                g = self.states[s]
                 best = 0
                 if i + 1 < len(nodes):
                     for t in g.out:
@@ -209,7 +218,7 @@ class GestureModel:
     def _extend(self, node: int, *, used: set[int], after: int | None = None, into: int | None = None) -> int:
         """A state for ``node`` next to an assigned neighbour: an existing linked state, else
         any unused state of that node, else a new one (repeats get new states: no tangles)."""
-        linked = [s for s, g in enumerate(self.states) if g.node == node and s not in used]
+        linked = [s for s in self._of_node.get(node, ()) if s not in used]
         if after is not None:
             linked.sort(key=lambda s: -self.states[after].out.get(s, 0))
         if into is not None:
@@ -352,8 +361,7 @@ class GestureModel:
     def from_dict(cls, data: dict[str, Any]) -> GestureModel:
         model = cls(entropy_weight=data["entropy_weight"], threshold=data["threshold"])
         model.sequences = int(data["sequences"])
-        model.states = [
-            GestureNode(int(s["node"]), int(s["visits"]), float(s["dwell"]), [], {int(t): int(c) for t, c in s["out"].items()})
-            for s in data["states"]
-        ]
+        for s in data["states"]:
+            model._add(GestureNode(int(s["node"]), int(s["visits"]), float(s["dwell"]), [],
+                                   {int(t): int(c) for t, c in s["out"].items()}))
         return model
