@@ -33,6 +33,9 @@ import numpy as np
 from creatures.motor.programs import MotorProgram, Statement
 
 
+_NO_ROW: dict[int, float] = {}
+
+
 @dataclass(frozen=True)
 class Observation:
     """One entry of a BodyMemory: a motor-graph node reached at ``time`` (maybe with a note)."""
@@ -119,6 +122,9 @@ class GestureModel:
         self._threshold = threshold
         self._version = 0
         self._derived: dict[Hashable, Any] = {}
+        self._log_rows: dict[int, dict[int, float]] = {}  # node a -> node b -> best log p(a → b)
+        self._incoming: dict[int, dict[int, int]] = {}  # state -> {state before it: count}
+        self._stale_rows: set[int] = set()  # nodes whose row a lesson changed
 
     @property
     def entropy_weight(self) -> float:
@@ -158,7 +164,7 @@ class GestureModel:
             if obs.note is not None:
                 g.notes.append(obs.note)
             if k + 1 < len(items):
-                g.followed_by(states[k + 1])
+                self._link(state, states[k + 1])
                 gap = items[k + 1].time - obs.time
                 g.dwell += (gap - g.dwell) / g.visits
         self.sequences += 1
@@ -169,9 +175,23 @@ class GestureModel:
         return self._add(GestureNode(node))
 
     def _add(self, state: GestureNode) -> int:
+        index = len(self.states)
         self.states.append(state)
-        self._of_node.setdefault(state.node, []).append(len(self.states) - 1)
-        return len(self.states) - 1
+        self._of_node.setdefault(state.node, []).append(index)
+        for t, c in state.out.items():  # a loaded state arrives with its transitions
+            self._incoming.setdefault(t, {})[index] = c
+        self._stale_rows.add(state.node)
+        return index
+
+    def _link(self, state: int, after: int) -> None:
+        """Count the transition ``state → after`` everywhere it is kept: the state's own counts,
+        the incoming links the core grows backwards along, and (marked stale) the log row of
+        the state's node. A lesson touches a few states; rebuilding these for the whole model
+        after every lesson was most of a listening creature's time."""
+        g = self.states[state]
+        g.followed_by(after)
+        self._incoming.setdefault(after, {})[state] = g.out[after]
+        self._stale_rows.add(g.node)
 
     def states_of(self, node: int) -> tuple[int, ...]:
         """The states standing for motor node ``node``, oldest first (looked up, not searched:
@@ -253,13 +273,11 @@ class GestureModel:
             return ()
         confidence = self._confidences()
         seed = max(range(len(self.states)), key=lambda s: (confidence[s], self.states[s].visits))
-        incoming: dict[int, dict[int, int]] = {}
-        for s, g in enumerate(self.states):
-            for t, c in g.out.items():
-                incoming.setdefault(t, {})[s] = c
         seen = {seed}
         forward = self._grow(seed, lambda s: self.states[s].out, seen, confidence)
-        backward = self._grow(seed, lambda s: incoming.get(s, {}), seen, confidence)
+        # oldest state first, as in the states' own order: a tie goes to the oldest
+        backward = self._grow(seed, lambda s: dict(sorted(self._incoming.get(s, _NO_ROW).items())), seen,
+                              confidence)
         return (*reversed(backward), seed, *forward)
 
     def _grow(self, seed: int, links: Callable[[int], dict[int, int]], seen: set[int],
@@ -301,25 +319,30 @@ class GestureModel:
         nodes = [o.node if isinstance(o, Observation) else int(o) for o in observations]
         if len(nodes) < 2:
             return 0.0
-        logs = self._derive(("log transitions", floor), lambda: self._log_transitions(floor))
+        rows = self._rows()
         unseen = math.log(floor)
         total = 0.0
-        for pair in zip(nodes, nodes[1:]):
-            total += logs.get(pair, unseen)
+        for a, b in zip(nodes, nodes[1:]):
+            log_p = rows.get(a, _NO_ROW).get(b, unseen)
+            total += log_p if log_p > unseen else unseen
         return total / (len(nodes) - 1)
 
-    def _log_transitions(self, floor: float) -> dict[tuple[int, int], float]:
-        """``(a, b) -> log p``: the most probable transition from a state of node ``a`` to a
-        state of node ``b`` (what the best alignment of a sequence uses at that step), at
-        least ``floor``."""
-        best: dict[tuple[int, int], float] = {}
-        for g in self.states:
-            total = sum(g.out.values())
-            for t, c in g.out.items():
-                pair = (g.node, self.states[t].node)
-                if c / total > best.get(pair, floor):
-                    best[pair] = c / total
-        return {pair: math.log(p) for pair, p in best.items()}
+    def _rows(self) -> dict[int, dict[int, float]]:
+        """``a -> b -> log p``: the most probable transition from a state of node ``a`` to a
+        state of node ``b`` (what the best alignment of a sequence uses at that step), the rows
+        a lesson changed rebuilt first."""
+        for a in self._stale_rows:
+            best: dict[int, float] = {}
+            for s in self._of_node[a]:
+                g = self.states[s]
+                total = sum(g.out.values())
+                for t, c in g.out.items():
+                    b = self.states[t].node
+                    if c / total > best.get(b, 0.0):
+                        best[b] = c / total
+            self._log_rows[a] = {b: math.log(p) for b, p in best.items()}
+        self._stale_rows.clear()
+        return self._log_rows
 
     def sample(self, rng: np.random.Generator, *, start: int | None = None, max_length: int = 64) -> list[int]:
         """A random walk of states by transition probability, from ``start`` (default: the
