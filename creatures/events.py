@@ -14,6 +14,8 @@ import os
 from pathlib import Path
 from typing import IO, Any
 
+import orjson
+
 
 def _plain(value: Any) -> Any:
     """JSON-safe copy: numpy scalars/arrays become Python numbers/lists, NaN becomes None."""
@@ -28,21 +30,18 @@ def _plain(value: Any) -> Any:
     return value
 
 
-def _array_to_list(value: Any) -> Any:
-    """``json.dumps`` hook: numpy scalars and arrays become Python numbers and lists."""
-    if hasattr(value, "tolist"):
-        return value.tolist()
-    raise TypeError(f"{type(value).__name__} is not JSON serialisable")
+_ORJSON = orjson.OPT_SERIALIZE_NUMPY | orjson.OPT_NON_STR_KEYS
 
 
-def _line(record: dict[str, Any]) -> str:
-    """One JSON line for ``record``. The encoder takes numpy values itself; only a record holding
-    NaN/inf or a key JSON cannot take goes through :func:`_plain` (the fast path writes most of a
-    gallery day's millions of events without copying them first)."""
+def _line(record: dict[str, Any]) -> bytes:
+    """One JSON line for ``record``, UTF-8. orjson writes numpy values and NaN (as ``null``)
+    itself, about 9× faster than the standard library; only a record it refuses (a key JSON
+    cannot take, e.g. a numpy integer) goes through :func:`_plain` first. A gallery day
+    writes millions of events, so this is on every tick's path."""
     try:
-        return json.dumps(record, separators=(",", ":"), allow_nan=False, default=_array_to_list) + "\n"
-    except (ValueError, TypeError):
-        return json.dumps(_plain(record), separators=(",", ":")) + "\n"
+        return orjson.dumps(record, option=_ORJSON) + b"\n"
+    except TypeError:  # orjson.JSONEncodeError
+        return orjson.dumps(_plain(record), option=_ORJSON) + b"\n"
 
 
 class EventLog:
@@ -66,11 +65,11 @@ class EventLog:
         self.keep_in_memory = keep_in_memory if path is not None else max(keep_in_memory, 1 << 20)
         self.records: list[dict[str, Any]] = []
         self.count = 0
-        self._handle: IO[str] | None = None
+        self._handle: IO[bytes] | None = None
         self._size = 0  # bytes in the live file, counted here rather than asking tell() per event
         if self.path is not None:
             self.path.parent.mkdir(parents=True, exist_ok=True)
-            self._handle = self.path.open("a", encoding="utf-8")
+            self._handle = self.path.open("ab")
             self._size = self._handle.tell()
 
     def emit(self, t: float, kind: str, **fields: Any) -> None:
@@ -86,7 +85,7 @@ class EventLog:
             try:
                 line = _line(record)
                 self._handle.write(line)
-                self._size += len(line)  # ASCII (json.dumps escapes the rest): characters = bytes
+                self._size += len(line)
                 if self._size >= self.max_bytes:
                     self._rotate()
             except OSError as exc:
@@ -103,7 +102,7 @@ class EventLog:
             if older.exists():
                 older.replace(self.path.with_name(f"{self.path.name}.{i + 1}"))
         self.path.replace(self.path.with_name(f"{self.path.name}.1"))
-        self._handle = self.path.open("a", encoding="utf-8")
+        self._handle = self.path.open("ab")
         self._size = 0
 
     def flush(self) -> None:

@@ -42,7 +42,7 @@ def test_a_reopened_log_counts_what_is_already_on_disk(tmp_path):
     before = path.stat().st_size
     with EventLog(path, max_bytes=2000, backups=1) as log:
         for i in range(40, 80):
-            log.emit(i, "tick", i=i, where="café")  # escaped by JSON: still one byte a character
+            log.emit(i, "tick", i=i, where="café")  # two bytes for é: bytes are counted, not characters
     assert before > 500 and (tmp_path / "events.jsonl.1").exists()
     assert all(p.stat().st_size < 2100 for p in tmp_path.iterdir())
     assert [e["i"] for e in read_events(tmp_path / "events.jsonl.1") + read_events(path)] == list(range(80))
