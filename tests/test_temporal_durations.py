@@ -105,6 +105,41 @@ def test_follows_a_tempo_change_within_sixteen_beats():
     assert from_24.max() <= 0.02, np.flatnonzero(from_24 > 0.02)
 
 
+@pytest.mark.parametrize(("before", "after"), [(100.0, 130.0), (130.0, 100.0), (100.0, 150.0)])
+def test_a_steady_beat_follows_a_tempo_change_within_sixteen_beats(before, after):
+    """Quarters only, then a jump by about a modulating ratio (100 → 130 BPM is within 2.5 %
+    of 4:3): the new quarters are heard as 3:4 notes, familiar after two of them, so only
+    the steady run of one modulating ratio shows the change. Before that rule the pulse
+    stayed behind for ~190 notes (until the metrical level check); now, on 50 seeds, it is
+    the new beat within 2.5 % from the 16th beat on and stays there."""
+    late = []
+    for seed in range(50):
+        rng = np.random.default_rng(seed)
+        model = LowIntegerRatioModel(prior_pulse=0.5)
+        model.update_many(60.0 / before * rng.uniform(1 - JITTER, 1 + JITTER, 200))
+        beat = 60.0 / after
+        error = []
+        for d in beat * rng.uniform(1 - JITTER, 1 + JITTER, 200):
+            model.update(d)
+            error.append(abs(model.pulse / beat - 1.0))
+        if max(error[15:]) > 0.025:
+            late.append((seed, int(np.argmax(np.array(error) <= 0.025)) + 1))
+    assert not late, f"(seed, beats until followed): {late}"
+
+
+def test_a_run_of_eighths_keeps_the_beat():
+    """Sixteen and more eighths after a passage of quarters are eighths at the same tempo: the
+    steady-run rule is for modulating ratios only (the metrical level check decides, later,
+    whether a piece is counted in eighths)."""
+    rng = np.random.default_rng(3)
+    model = LowIntegerRatioModel(prior_pulse=0.5)
+    model.update_many(0.6 * rng.uniform(1 - JITTER, 1 + JITTER, 200))
+    anchors = model.reanchors
+    labels = model.update_many(0.3 * rng.uniform(1 - JITTER, 1 + JITTER, 40))
+    assert model.reanchors == anchors and model.pulse == pytest.approx(0.6, rel=0.03)
+    assert set(ratio_values(model, labels)) == {0.5}
+
+
 @pytest.mark.parametrize("seed", range(4))
 def test_follows_a_gradual_accelerando(seed):
     """Consistent drift (100 → 140 BPM over 100 notes) is followed by the FIFO and, when it
@@ -221,6 +256,12 @@ def test_json_round_trip_is_exact():
     assert again.to_dict() == model.to_dict()
     follow = rhythm(rng, 40, 130.0)[0]
     assert np.array_equal(again.update_many(follow), model.update_many(follow))
+    steady = np.full(40, 60.0 / 170.0)  # a steady beat 130 → 170 BPM: saved mid-run, re-anchors alike
+    for d in steady[:20]:
+        model.update(d)
+    again = LowIntegerRatioModel.from_dict(json.loads(json.dumps(model.to_dict())))
+    assert np.array_equal(again.update_many(steady[20:]), model.update_many(steady[20:]))
+    assert again.pulse == model.pulse and again.reanchors == model.reanchors
     assert again.pulse == model.pulse
     simple = SimpleDurationModel(2.0, 0.5)
     simple.update_many([1.0, 3.0, -2.0])

@@ -201,6 +201,10 @@ class LowIntegerRatioModel:
     ``tempo_spread``), and the winner's normalised durations restart the FIFO while the
     segment's interpretations are revised. The prior pulse is only the first anchor: a fresh
     model anchors itself on its first segment of durations the same way.
+    A steady beat that jumps by about a modulating ratio (quarters 100 → 130 BPM, heard as
+    3:4 notes) makes only two durations trouble, since they make 3:4 familiar; a whole
+    window of that one ratio, the first of them surprising, re-anchors as well
+    (:meth:`_steady_surprise`), so the pulse follows within ``reanchor_window`` beats.
 
     **Metrical level.** Every ``level_every`` durations the pulse moves to the level at
     which the recently heard ratios are simplest under the ratio prior (see
@@ -279,6 +283,7 @@ class LowIntegerRatioModel:
         # The same tables as Python lists: indexing a list with an int is what the hot path
         # does, and it is several times cheaper than indexing a numpy array.
         self._value_list: list[float] = self._values.tolist()
+        self._modulating = [r.numerator > 1 and r.denominator > 1 for r in self.ratios]
         self._pseudo: list[float] = (self.prior_strength * self.prior).tolist()
         self._edges, self._winners = self._explanation_table()
         index = {r: j for j, r in enumerate(self.ratios)}
@@ -423,6 +428,7 @@ class LowIntegerRatioModel:
             fifo.append(d / self._value_list[label])
             self._pulse = pulse = sum(fifo) / len(fifo)
             self._log_pulse = math.log(pulse)
+        self._run = self._run + 1 if labels and labels[-1] == label else 1
         if len(labels) == labels.maxlen and labels[0] >= 0:  # a label leaves the window
             counts[labels[0]] -= 1
             self._explained -= 1
@@ -444,10 +450,22 @@ class LowIntegerRatioModel:
             shift = self._check_level()
             if shift is not None:
                 heard[:] = self._quotient[heard, shift].tolist()
-        elif self._trouble_held >= self.reanchor_count and self._reanchor_due():
+        elif (self._trouble_held >= self.reanchor_count and self._reanchor_due()) or self._steady_surprise(label):
             revised = self._reanchor().tolist()
             k = min(len(revised), len(heard))
             heard[len(heard) - k :] = revised[len(revised) - k :]
+
+    def _steady_surprise(self, label: int) -> bool:
+        """A whole window of one modulating ratio (3:4, 4:3, 2:3, 3:2 …), the first of them
+        surprising: a steady beat whose tempo moved by about that ratio (quarters 100 → 130
+        BPM are heard as 3:4 notes). Only the first two are trouble (they make 3:4 familiar),
+        so the trouble rule alone left the pulse behind until the metrical level check, ~190
+        notes later; re-anchoring scores the simpler reading, one pulse with 1:1 notes.
+
+        Runs of a plain subdivision or multiple (1:2, 1:3, 2:1 …) do not count: sixteen
+        eighths after a passage of quarters are eighths at the same tempo."""
+        return (self._run >= self.reanchor_window and self._since_anchor >= self.reanchor_window
+                and label >= 0 and self._modulating[label] and self._recent_trouble[0])
 
     def _reanchor_due(self) -> bool:
         """``reanchor_count`` trouble among the last ``reanchor_window`` durations since the
@@ -529,6 +547,11 @@ class LowIntegerRatioModel:
         self._counts: list[int] = self._count(self._labels).tolist()
         self._explained = sum(self._counts)
         self._trouble_held = sum(self._recent_trouble)
+        self._run = 0  # how many of the latest labels are the same ratio
+        for lab in reversed(self._labels):
+            if lab != self._labels[-1]:
+                break
+            self._run += 1
         self._stats: tuple[float, float, float] | None = None
         self._cumulative: list[float] | None = None
 
