@@ -155,6 +155,7 @@ class SoakResult:
     log_bytes: list[int]
     sink: CountingSink
     max_queues: dict[str, int] = field(default_factory=dict)
+    state_bound: int = 0  # most states the listen populations may hold (see :func:`state_bound`)
 
     def medians(self, what: str) -> tuple[float, float]:
         """Median of a :class:`Sample` field (``rss``, ``blocks``, ``traced``, ``t``) over the
@@ -194,6 +195,14 @@ def queue_sizes(session: Session, sink: CountingSink, log: EventLog) -> dict[str
         "sink hanging notes": sink.hanging,
         "log in memory": len(log.records),
     }
+
+
+def state_bound(session: Session) -> int:
+    """Most states the listen populations may hold at the end of a tick: ``max_models``
+    models of at most ``max_states`` each. A lesson or a spawn may pass either bound, but
+    the population's maintenance follows every lesson in the same analysis step and distils
+    or retires back within them."""
+    return sum(c.spec.max_models * c.spec.max_states for c in session.creatures if hasattr(c, "population"))
 
 
 def colony(name: str, tick: float, learner: bool) -> LoadedInstallation:
@@ -273,8 +282,9 @@ def soak(
             tracemalloc.stop()
     wall = time.perf_counter() - wall0
     files = sorted(out.glob("events.jsonl*"))
+    bound = state_bound(session)
     return SoakResult(seconds, tick, len(session.creatures), wall, taken, session.world.notes_played, heard,
-                      log.count, log.tally, files, [f.stat().st_size for f in files], sink, biggest)
+                      log.count, log.tally, files, [f.stat().st_size for f in files], sink, biggest, bound)
 
 
 def rows(result: SoakResult, log_bytes: int, hours_target: float = DAY) -> list[Row]:
@@ -299,6 +309,8 @@ def rows(result: SoakResult, log_bytes: int, hours_target: float = DAY) -> list[
         Row(f"largest of {len(result.max_queues)} containers ({largest})",
             result.max_queues[largest], "items", target=PER_CREATURE * result.creatures, higher_is_better=False),
         Row("listen models spawned (fission)", tally["model spawn"], "models"),
+        Row("listen model states, most at once (distilled, retired)", result.max_queues["listen model states"],
+            "states", target=result.state_bound, higher_is_better=False),
         Row("listen models pruned (fused, distilled, retired)", tally["model retire"] + tally["model distil"],
             "models", target=1.0),
         Row("events log files on disk (live + 2 rotated)", len(result.log_files), "files", target=3.0),

@@ -36,7 +36,8 @@ def test_five_minutes_of_exchange_with_a_listener_stay_bounded(tmp_path, monkeyp
     assert result.tally["model spawn"] > 6
     assert result.tally["model retire"] + result.tally["model distil"] > 0
     assert result.max_queues["listen models"] <= 6 + 1  # max_models, plus one spawned before maintenance
-    assert result.max_queues["listen model states"] <= 7 * 2 * 96  # distilled past max_states
+    assert result.state_bound == 6 * 96  # max_models × max_states
+    assert result.max_queues["listen model states"] <= result.state_bound  # distilled past max_states
 
     # The measure: the process's memory grows < 5 % after warm-up.
     assert result.growth("rss") < 0.05, [s.rss for s in result.samples]
