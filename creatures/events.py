@@ -35,13 +35,14 @@ _ORJSON = orjson.OPT_SERIALIZE_NUMPY | orjson.OPT_NON_STR_KEYS
 
 def _line(record: dict[str, Any]) -> bytes:
     """One JSON line for ``record``, UTF-8. orjson writes numpy values and NaN (as ``null``)
-    itself, about 9× faster than the standard library; only a record it refuses (a key JSON
-    cannot take, e.g. a numpy integer) goes through :func:`_plain` first. A gallery day
-    writes millions of events, so this is on every tick's path."""
+    itself, about 9× faster than the standard library; a record it refuses (a key JSON cannot
+    take, e.g. a numpy integer, or an integer beyond 64 bits) goes through :func:`_plain` and
+    the standard library instead. A gallery day writes millions of events, so this is on
+    every tick's path."""
     try:
         return orjson.dumps(record, option=_ORJSON) + b"\n"
     except TypeError:  # orjson.JSONEncodeError
-        return orjson.dumps(_plain(record), option=_ORJSON) + b"\n"
+        return json.dumps(_plain(record), separators=(",", ":"), ensure_ascii=False).encode() + b"\n"
 
 
 class EventLog:

@@ -52,7 +52,9 @@ def test_nan_anywhere_and_numpy_keys_are_written_as_plain_json(tmp_path):
     path = tmp_path / "events.jsonl"
     with EventLog(path) as log:
         log.emit(0.0, "values", values={np.int64(3): np.array([1.0, np.nan]), "b": (np.inf, 2)})
-    assert read_events(path) == [{"t": 0.0, "kind": "values", "values": {"3": [1.0, None], "b": [None, 2]}}]
+        log.emit(1.0, "count", n=2**70, who="café")  # beyond what orjson takes
+    assert read_events(path) == [{"t": 0.0, "kind": "values", "values": {"3": [1.0, None], "b": [None, 2]}},
+                                 {"t": 1.0, "kind": "count", "n": 2**70, "who": "café"}]
 
 
 def test_in_memory_log_is_bounded():
