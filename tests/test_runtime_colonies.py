@@ -70,14 +70,15 @@ class Colony:
         lines = self.log.read_text().split("\n")[:-1]  # a half-written last line is not an event yet
         return [json.loads(line) for line in lines]
 
-    def expect(self, match: Callable[[dict], bool], timeout: float = 90.0) -> dict:
-        """The first event after those already seen that matches, within ``timeout`` seconds."""
+    def expect(self, match: Callable[[dict], bool], timeout: float = 90.0, *, anywhere: bool = False) -> dict:
+        """The first event after those already seen (``anywhere``: in the whole log, leaving
+        what counts as seen alone) that matches, within ``timeout`` seconds."""
         deadline = time.monotonic() + timeout
         while True:
             events = self.events()
-            for i in range(self.seen, len(events)):
+            for i in range(0 if anywhere else self.seen, len(events)):
                 if match(events[i]):
-                    self.seen = i + 1
+                    self.seen = self.seen if anywhere else i + 1
                     return events[i]
             if time.monotonic() > deadline or self.process.poll() is not None:
                 raise AssertionError(f"no matching event in {self.log.name} within {timeout} s "
@@ -118,8 +119,12 @@ def test_two_colonies_exchange_notes_and_state_and_survive_a_restart(tmp_path):
         sung = echo.expect(heard_from("stone"))
         echo.expect(lambda e: e["kind"] == "placed" and e["source"] == "stone")
         echo.expect(state_of("stone", "desire"))
+        # What stone hears from echo is a note of stone's that echo placed (at the heard pitch,
+        # or moved in its note space) and struck.
         answer = stone.expect(heard_from("echo"))
-        assert answer["pitch"] in {n["pitch"] for n in echo.events() if n["kind"] == "heard"} | {sung["pitch"]}
+        placed = echo.expect(lambda e: e["kind"] == "placed" and e["pitch"] == answer["pitch"], anywhere=True)
+        assert placed["source"] == "stone"
+        assert placed["heard"] in {e["pitch"] for e in stone.events() if e["kind"] == "note"} | {sung["pitch"]}
         seen = stone.expect(state_of("echo", "boredom"))
         assert isinstance(seen["state"]["boredom"], float) and "action" in seen["state"]
 
