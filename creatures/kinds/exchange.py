@@ -121,6 +121,7 @@ class _SeekNote(Action):
 @register("exchange")
 class Exchange(CreatureKind):
     Spec = ExchangeSpec
+    DRIVES = ("boredom", "hunger")
 
     def __init__(self, spec: ExchangeSpec, world, rng: np.random.Generator) -> None:
         super().__init__(spec, world, rng)
@@ -166,8 +167,6 @@ class Exchange(CreatureKind):
 
     # -- hearing and playing ------------------------------------------------------------
     def hear(self, note: NoteEvent, source: str) -> None:
-        if source == "input" and not self.spec.hears_input:
-            return
         t = self.world.clock.now()
         self.motivation.perturb(t, "boredom", -self.spec.relief)
         pitch = note.pitch

@@ -244,6 +244,7 @@ class _Anticipate(Action):
 @register("listen")
 class Listen(CreatureKind):
     Spec = ListenSpec
+    DRIVES = ("excitement",)
     DEFAULT_GAP = 0.5
     """Seconds assumed between notes before any timing has been learnt."""
 
@@ -288,8 +289,6 @@ class Listen(CreatureKind):
 
     # -- hearing -------------------------------------------------------------------------
     def hear(self, note: NoteEvent, source: str) -> None:
-        if source == "input" and not self.spec.hears_input:
-            return
         observation = Observation(self.poses.node(note.pitch), float(note.time), note)
         self.memory.append(observation)
         self.heard.append(observation)

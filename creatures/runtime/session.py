@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -20,6 +21,7 @@ from audio.transcribe import Transcriber
 from creatures.clock import Clock
 from creatures.events import EventLog
 from creatures.kinds import KINDS
+from creatures.runtime.input_map import InputRouter
 from creatures.persist import StateFileError, load_json, save_json
 from creatures.runtime.schema import LoadedInstallation
 from creatures.runtime.world import World
@@ -37,8 +39,9 @@ class Session:
     """The creatures of one installation on one clock, ticking together."""
 
     def __init__(self, inst: LoadedInstallation, clock: Clock, log: EventLog, sink: NoteSink, *,
-                 transcribe: bool = False) -> None:
-        """``transcribe``: the input audio's pitched notes are heard as notes (audio-only runs)."""
+                 transcribe: bool = False, say: Callable[[str], None] = lambda message: None) -> None:
+        """``transcribe``: the input audio's pitched notes are heard as notes (audio-only runs);
+        ``say`` reports to the person running it (e.g. the first unmapped input)."""
         settings = inst.settings
         self.inst = inst
         self.clock = clock
@@ -50,6 +53,7 @@ class Session:
         for spec, seed in zip(inst.specs, seeds):
             self.world.add(KINDS[spec.kind](spec, self.world, np.random.default_rng(seed)))
         self.creatures = self.world.creatures
+        self.inputs = InputRouter(inst.routes, self.world, say)  # the [[input]] maps
         self.sample_rate = settings.audio.sample_rate
         block = int(math.ceil(settings.tick * self.sample_rate)) + 1
         self.mixer = Mixer(len(self.creatures), block_size=block)
@@ -108,8 +112,9 @@ class Session:
         return heard
 
     def close(self) -> None:
-        """Silence every sounding note and log the end of the run."""
+        """Silence every sounding note and log the input counters and the end of the run."""
         self.scheduler.all_notes_off()
+        self.world.emit("inputs", **self.inputs.summary())
         self.world.emit("end", ticks=self.ticks, notes=self.world.notes_played)
 
     # -- state that lasts across restarts ---------------------------------------------------
