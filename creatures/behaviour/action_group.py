@@ -357,7 +357,8 @@ class ActionGroup:
             self.learning.after_credit(self, t, last_leaf, a, target, before)
         return a
 
-    def reward(self, amount: float, t: float, window: float) -> tuple[list[str], dict[str, float]]:
+    def reward(self, amount: float, t: float, window: float, *,
+               rate: float | None = None) -> tuple[list[str], dict[str, float]]:
         """A reward from outside at ``t`` (the clicker): every tuple active at some time in
         the last ``window`` seconds — active now, or ended since ``t − window`` — is credited
         as if ``amount`` of value had followed it (thesis: clicker training, "credit
@@ -365,22 +366,25 @@ class ActionGroup:
 
         Credit reaches what that activation's credit assignment reaches: each leaf ``i`` moves
         by ``a_i·amount`` (``V_i ← V_i + a_i·amount``, through ``blend_to`` so plasticity
-        scales it), ``a_i = α·proximity(credited, i)·Tr_i`` with ``Tr_i`` read when the credited
-        tuple began, and the largest ``a_i`` of all credited activations. A group tuple passes
-        the reward to its own group. Returns the credited tuples' names and ``{tuple name: a_i}``
-        of every value moved (none when the group does not learn, α = 0)."""
+        scales it), ``a_i = rate·proximity(credited, i)·Tr_i`` with ``Tr_i`` read when the
+        credited tuple began, and the largest ``a_i`` of all credited activations. ``rate``
+        is the group's α unless given: an authored group that keeps its values (α = 0, no
+        reward inside it to ground them) is still trained by a reward from outside. A group
+        tuple passes the reward to its own group. Returns the credited tuples' names and ``{tuple name: a_i}``
+        of every value moved."""
         window = min(max(window, 0.0), RECALL)
+        rate = self.alpha if rate is None else rate
         credited = [a for a in self.recent if a.started <= t and (a.ended is None or a.ended >= t - window)]
         names, moved = [c.tuple_.name for c in credited], {}
         a = np.zeros(len(self.tuples))
         for activation in credited:
             tuple_ = activation.tuple_
             if isinstance(tuple_.action, GroupAction):
-                inner, inner_moved = tuple_.action.group.reward(amount, t, window)
+                inner, inner_moved = tuple_.action.group.reward(amount, t, window, rate=rate)
                 names += inner
                 moved.update(inner_moved)
             elif id(tuple_) in self._positions:
-                np.maximum(a, np.clip(self.alpha * self.proximity(tuple_) * activation.triggers, 0.0, 1.0), out=a)
+                np.maximum(a, np.clip(rate * self.proximity(tuple_) * activation.triggers, 0.0, 1.0), out=a)
         for i in np.flatnonzero(a):
             value = self.tuples[i].value
             target = value.to_dict()

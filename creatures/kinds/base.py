@@ -44,7 +44,7 @@ class CreatureKind(ABC):
     Outside input reaches every kind alike through the parts it is composed of (an
     :class:`ActionGroup` as ``group``, a :class:`Motivation` as ``motivation``):
     :meth:`reward` and :meth:`drive`, which the config checks before a run through
-    :meth:`rewardable` and :meth:`drives`.
+    :meth:`rewardable` and :meth:`drive_names`.
     """
 
     Spec: ClassVar[type[CreatureSpec]] = CreatureSpec
@@ -60,7 +60,7 @@ class CreatureKind(ABC):
         self.rng = rng
 
     @classmethod
-    def drives(cls, spec: CreatureSpec) -> tuple[str, ...]:
+    def drive_names(cls, spec: CreatureSpec) -> tuple[str, ...]:
         """The drives a creature of this spec will have (kinds whose drives depend on the
         spec override this)."""
         return cls.DRIVES
@@ -70,12 +70,13 @@ class CreatureKind(ABC):
         """Whether a creature of this spec has an action-group to reward."""
         return cls.REWARDABLE
 
-    def reward(self, amount: float, t: float, window: float) -> list[str]:
+    def reward(self, amount: float, t: float, window: float, rate: float) -> list[str]:
         """A reward from outside at ``t`` (the clicker), given to the tuples of ``group`` active
-        within ``window`` seconds before (:meth:`ActionGroup.reward`); logged as ``reward``.
-        Returns the credited tuples."""
+        within ``window`` seconds before, blended at ``rate`` (:meth:`ActionGroup.reward`);
+        logged as ``reward``. Returns the credited tuples."""
         group = getattr(self, "group", None)
-        credited, blended = group.reward(amount, t, window) if isinstance(group, ActionGroup) else ([], {})
+        credited, blended = (group.reward(amount, t, window, rate=rate) if isinstance(group, ActionGroup)
+                             else ([], {}))
         self.world.emit("reward", creature=self.name, tuple=credited[-1] if credited else None, amount=amount,
                         credited=credited, blended=blended)
         return credited

@@ -23,6 +23,7 @@ Both are counted and logged once per address and source (again at most every
 
 from __future__ import annotations
 
+import difflib
 import math
 import re
 from collections import Counter
@@ -56,7 +57,7 @@ TARGETS = ("note", "sensor", "reward", "drive")
 TARGET_KEYS = {
     "note": ("pitch", "velocity", "duration"),
     "sensor": ("name", "value", "range", "input_range"),
-    "reward": ("creatures", "amount", "window"),
+    "reward": ("creatures", "amount", "window", "rate"),
     "drive": ("drive", "amount", "set", "creatures"),
 }
 
@@ -186,7 +187,7 @@ def arg_indices(spec: InputMap) -> list[tuple[str, int]]:
 @dataclass
 class Colony:
     """What the config knows of a creature before it exists: its drives, and whether it has
-    an action-group a reward can reach (``CreatureKind.drives`` / ``rewardable``)."""
+    an action-group a reward can reach (``CreatureKind.drive_names`` / ``rewardable``)."""
 
     drives: tuple[str, ...]
     rewardable: bool
@@ -209,8 +210,10 @@ class Route:
                 raise MapError("midi", f"unknown MIDI message {spec.midi!r}{_nearest(spec.midi, MIDI)}")
             self.midi = spec.midi
         self._check_filters()
+        if spec.to is None:
+            raise MapError("to", f"a map needs to = {' / '.join(repr(t) for t in TARGETS)}")
         if spec.to not in TARGETS:
-            raise MapError("to", f"unknown target {spec.to!r}{_nearest(str(spec.to), TARGETS)}")
+            raise MapError("to", f"unknown target {spec.to!r}{_nearest(spec.to, TARGETS)}")
         for key in sorted({k for keys in TARGET_KEYS.values() for k in keys} - set(TARGET_KEYS[spec.to])):
             if key in spec.model_fields_set:
                 raise MapError(key, f"not a key of to = {spec.to!r} (its keys: {', '.join(TARGET_KEYS[spec.to])})")
@@ -268,8 +271,6 @@ class Route:
 
 
 def _nearest(name: str, choices: Any) -> str:
-    import difflib
-
     close = difflib.get_close_matches(str(name), list(choices), n=1)
     return f" (did you mean {close[0]!r}?)" if close else f" (choose from {', '.join(sorted(choices))})"
 
@@ -338,14 +339,16 @@ class InputRouter:
         matched = [r for r in self.midi_routes if kind is not None and r.matches_midi(kind, msg)]
         if matched:
             return self._apply(matched, tuple(getattr(msg, field) for field in MIDI[kind][1]), t, via, kind)
-        if kind == "note":
-            # A player expects creatures to react when a key goes down, not when it is
-            # released: heard at note-on, with a nominal length (the real one is not known yet).
-            self.world.inject(NoteEvent(t, msg.note, msg.velocity, msg.channel, HEARD_LENGTH), via=via)
-            return 1
-        if kind != "note_off":
+        if kind not in ("note", "note_off"):
             self.miss("unmapped", via, msg.type, t, "no [[input]] map takes it")
-        return 0
+            return 0
+        self.mapped(via)  # by the default map of a keyboard
+        if kind == "note_off":
+            return 0
+        # A player expects creatures to react when a key goes down, not when it is
+        # released: heard at note-on, with a nominal length (the real one is not known yet).
+        self.world.inject(NoteEvent(t, msg.note, msg.velocity, msg.channel, HEARD_LENGTH), via=via)
+        return 1
 
     def midi_bytes(self, data: bytes | list[int], t: float, via: str) -> int:
         """Raw MIDI bytes (a rehearsal row, a fuzzer): one message, or malformed."""
@@ -358,16 +361,23 @@ class InputRouter:
 
     # -- targets ----------------------------------------------------------------------------
     def _apply(self, routes: list[Route], args: tuple, t: float, via: str, address: str) -> int:
-        notes = 0
+        """Every matching route takes the message; it counts once: mapped, or malformed if
+        any route could not read it."""
+        notes, failed = 0, None
         for route in routes:
             try:
                 notes += getattr(self, f"_{route.spec.to}")(route, args, t, via)
             except Unreadable as exc:
-                self.miss("malformed", via, address, t, str(exc))
-            else:
-                self.counts["mapped"] += 1
-                self.counts[f"mapped {via}"] += 1
+                failed = failed or str(exc)
+        if failed is not None:
+            self.miss("malformed", via, address, t, failed)
+        else:
+            self.mapped(via)
         return notes
+
+    def mapped(self, via: str) -> None:
+        self.counts["mapped"] += 1
+        self.counts[f"mapped {via}"] += 1
 
     def _note(self, route: Route, args: tuple, t: float, via: str) -> int:
         spec = route.spec
@@ -399,7 +409,7 @@ class InputRouter:
     def _reward(self, route: Route, args: tuple, t: float, via: str) -> int:
         amount = as_number(read(route.spec.amount, args, 1.0), "amount")
         for creature in self._reached(route, args):
-            creature.reward(amount, t, route.spec.window)
+            creature.reward(amount, t, route.spec.window, route.spec.rate)
         return 0
 
     def _drive(self, route: Route, args: tuple, t: float, via: str) -> int:
@@ -423,7 +433,7 @@ class InputRouter:
     def _able(self, route: Route) -> set[str]:
         if route.spec.to == "reward":
             return {c.name for c in self.world.creatures if c.rewardable(c.spec)}
-        return {c.name for c in self.world.creatures if route.spec.drive in c.drives(c.spec)}
+        return {c.name for c in self.world.creatures if route.spec.drive in c.drive_names(c.spec)}
 
     # -- what nothing takes ----------------------------------------------------------------
     def miss(self, what: str, via: str, address: str, t: float, why: str) -> None:

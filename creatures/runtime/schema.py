@@ -116,6 +116,9 @@ class InputMap(Strict):
     window: float = Field(1.5, ge=0, le=10, description="to = 'reward': seconds before the click in which a tuple "
                                                         "that was active still takes the reward (a late click lands "
                                                         "where the visitor meant it)")
+    rate: float = Field(0.2, ge=0, le=1, description="to = 'reward': how far one reward moves a credited tuple's "
+                                                     "value, V += rate x trigger x amount (its own credit "
+                                                     "assignment's blend parameter, whatever the creature's alpha)")
 
 
 class InputSection(Strict):
@@ -180,7 +183,7 @@ class LoadedInstallation:
         kinds = load_all()
         # The input maps, checked against the creatures (unknown names, drives): MapError.
         self.routes = compile_maps(settings.input.map, {
-            spec.name: Colony(kinds[spec.kind].drives(spec), kinds[spec.kind].rewardable(spec)) for spec in specs})
+            spec.name: Colony(kinds[spec.kind].drive_names(spec), kinds[spec.kind].rewardable(spec)) for spec in specs})
         self.rehearsals: dict[int, list] = {}  # rows of each rehearsal file, by [[input]] table
 
     def resolve(self, relative: str | None) -> Path | None:
