@@ -142,6 +142,8 @@ def _run(args: argparse.Namespace) -> int:
     print(f"stopped after {summary.seconds:.1f} s: {summary.ticks} ticks, {summary.notes_played} notes, "
           f"{summary.late} late{restored}; sound {summary.sound}; {summary.underruns} audio underruns, "
           f"{summary.overruns} input overruns")
+    if summary.inputs:
+        print("outside input: " + ", ".join(f"{n} {what}" for what, n in summary.inputs.items() if " " not in what))
     return 0
 
 

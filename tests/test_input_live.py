@@ -23,6 +23,8 @@ from pythonosc.osc_message_builder import OscMessageBuilder
 from pythonosc.osc_packet import OscPacket
 from pythonosc.udp_client import SimpleUDPClient
 
+from input_fixtures import COLONY
+
 from creatures.clock import SimulatedClock
 from creatures.events import EventLog
 from creatures.runtime.live import LiveInputs
@@ -33,20 +35,7 @@ from midi.osc import MAX_PACKET
 from midi.ports import MemoryInput, MemoryPorts
 from midi.sinks import MemorySink
 
-CREATURES = """
-title = "open door"
-tick = 0.02
-[audio]
-output_device = "NoSuchCard"
-[[creature]]
-name = "bo"
-kind = "exchange"
-[[creature]]
-name = "deaf"
-kind = "exchange"
-channel = 1
-hears_input = false
-"""
+CREATURES = COLONY + '[audio]\noutput_device = "NoSuchCard"\n'
 
 MAPS = """
 [[input.map]]

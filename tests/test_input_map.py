@@ -12,6 +12,8 @@ import mido
 import numpy as np
 import pytest
 
+from input_fixtures import COLONY
+
 from creatures.behaviour.action_group import ActionGroup
 from creatures.behaviour.action_tuple import Action, ActionTuple, DoUntil
 from creatures.behaviour.percept import FunctionPercept
@@ -25,19 +27,6 @@ from creatures.runtime.input_sources import RETRY, SerialSource, line_message, v
 from creatures.runtime.schema import load_installation
 from creatures.runtime.session import Session
 from midi.sinks import MemorySink
-
-COLONY = """
-title = "input map"
-tick = 0.02
-[[creature]]
-name = "bo"
-kind = "exchange"
-[[creature]]
-name = "deaf"
-kind = "exchange"
-channel = 1
-hears_input = false
-"""
 
 MAPS = """
 [[input]]
@@ -411,3 +400,56 @@ def test_maps_inside_an_input_table_and_extends(tmp_path):
         """))
     inst = load_installation(path)
     assert inst.settings.input.generate == "none" and [r.spec.osc for r in inst.routes] == ["/n"]
+
+
+def test_transcribed_audio_notes_reach_only_those_that_hear_input(tmp_path):
+    from midi.notes import NoteEvent
+
+    session, clock = colony(tmp_path)
+    session.world.inject(NoteEvent(0.5, 60, 90, 0, 0.3), via="audio")
+    session.world.deliver(1.0)
+    assert {e["creature"] for e in events(session, "placed")} == {"bo"}
+
+
+@pytest.mark.parametrize("args,ok", [
+    ([60.0, 100.0, 0.5], True), ([60.0, 100.0, 0.5, 2.0], True), ([60, 100, 1], True),
+    ([60.5, 100, 0.5], False), ([60, True, 0.5], False), ([60, 100, 0.5, float("nan")], False),
+])
+def test_the_shipped_address_space_takes_whole_floats_where_it_takes_ints(args, ok):
+    from midi.osc import decode
+
+    if ok:
+        note = decode("/creature/A/note", args, 0.0, ("127.0.0.1", 1)).note
+        assert (note.pitch, note.velocity, note.channel) == (60, 100, int(args[3]) if len(args) == 4 else 0)
+    else:
+        with pytest.raises(ValueError):
+            decode("/creature/A/note", args, 0.0, ("127.0.0.1", 1))
+    assert decode("/creature/A/hello", [9000.0], 0.0, ("127.0.0.1", 1)).args == (9000,)
+
+
+def test_rehearsal_files_in_json_lines_and_their_errors(tmp_path):
+    from creatures.runtime.input_sources import RehearsalError, load_rehearsal
+
+    good = tmp_path / "r.jsonl"
+    good.write_text('{"time": 2.0, "address": "/b", "args": ["x", 1.5]}\n{"time": 1.0, "address": "midi", '
+                    '"args": [144, 60, 90]}\n')
+    assert [(r.time, r.address, r.args) for r in load_rehearsal(good)] == [(1.0, "midi", (144, 60, 90)),
+                                                                           (2.0, "/b", ("x", 1.5))]
+    bad = tmp_path / "r.csv"
+    bad.write_text("time,address,args\n1.0,/a,1\nsoon,/b\n")
+    with pytest.raises(RehearsalError, match="r.csv:3: row is not time,address"):
+        load_rehearsal(bad)
+    config = tmp_path / "c.toml"
+    config.write_text(COLONY + '\n[[input]]\nfile = "r.csv"\n')
+    with pytest.raises(ConfigError, match="input.0.file: .*r.csv:3"):
+        load_installation(config)
+
+
+def test_the_readme_example_loads(tmp_path):
+    readme = (__import__("pathlib").Path(__file__).parent.parent / "README.md").read_text()
+    example = readme.split("### The input map: `[[input]]`", 1)[1].split("```toml\n", 1)[1].split("```", 1)[0]
+    (tmp_path / "rehearsal.csv").write_text("time,address,args\n0.5,/calm\n")
+    path = tmp_path / "readme.toml"
+    path.write_text(COLONY + example)
+    inst = load_installation(path)
+    assert [r.spec.to for r in inst.routes] == ["reward", "note", "sensor", "drive"]
