@@ -305,3 +305,14 @@ def test_fuzz_random_osc_and_midi_never_crash_the_loop_and_all_is_counted(fuzzed
     session.inputs.midi_bytes(chunk, t, "midi")  # raw bytes: one message, or malformed
     session.step(t, 441, None, audio=False)  # the creatures take whatever it became
     assert counted(session, inputs) - before == sum(expected(p) for p in packets) + len(messages) + 1
+
+
+def test_maps_no_port_can_reach_are_reported_at_start(tmp_path):
+    config = tmp_path / "c.toml"
+    config.write_text(CREATURES + MAPS)
+    inst = load_installation(config)
+    clock = SimulatedClock()
+    said: list[str] = []
+    LiveInputs(inst, Session(inst, clock, EventLog(), MemorySink()), clock, said.append).close()
+    assert said == ["[[input]] maps OSC messages but [osc] port is not set: nothing will reach them",
+                    "[[input]] maps MIDI messages but [midi] input_port is not set: nothing will reach them"]

@@ -75,6 +75,12 @@ class LiveInputs:
         if settings.osc.port is not None:
             self.network = Network(settings.osc, session.world, clock, say, elsewhere=self.router)
         self.sources = open_sources(inst, self.router, clock, say, live=True)
+        reached = "only the config's serial devices and rehearsal files" if self.sources else "nothing"
+        for routes, source, key in ((self.router.osc_routes, self.network, "[osc] port"),
+                                    (self.router.midi_routes, self.midi, "[midi] input_port")):
+            if routes and source is None:
+                say(f"[[input]] maps {'OSC' if key[1] == 'o' else 'MIDI'} messages but {key} is not set: "
+                    f"{reached} will reach them")
 
     def poll(self, t: float) -> int:
         """What arrived is heard at time ``t``; returns how many notes joined the note bus."""

@@ -99,7 +99,9 @@ class InputMap(Strict):
                                                       "else 100)")
     duration: Number | None = Field(None, description="to = 'note': seconds (default 0.25)")
     name: str | None = Field(None, pattern=r"^[A-Za-z0-9_.\-]+$", description="to = 'sensor': the sensor's name "
-                                                                             "(world.sensors[name])")
+                                                                             "(world.sensors[name], a StateObject: "
+                                                                             "saliency = |reading|, habituating "
+                                                                             "to repetition)")
     value: Number | None = Field(None, description="to = 'sensor': the reading (default: {arg = 0})")
     range: tuple[float, float] | None = Field(None, description="to = 'sensor': scale the reading linearly from "
                                                                 "`input_range` to [lo, hi]")

@@ -48,12 +48,13 @@ class Session:
         self.log = log
         self.scheduler = NoteScheduler(sink, clock)
         self.world = World(clock, log, self.scheduler)
+        # The [[input]] maps; their sensors exist before the creatures, which may model them.
+        self.inputs = InputRouter(inst.routes, self.world, say)
         seeds = np.random.SeedSequence(settings.seed).spawn(len(inst.specs) + 1)
         self.input_rng = np.random.default_rng(seeds[-1])
         for spec, seed in zip(inst.specs, seeds):
             self.world.add(KINDS[spec.kind](spec, self.world, np.random.default_rng(seed)))
         self.creatures = self.world.creatures
-        self.inputs = InputRouter(inst.routes, self.world, say)  # the [[input]] maps
         self.sample_rate = settings.audio.sample_rate
         block = int(math.ceil(settings.tick * self.sample_rate)) + 1
         self.mixer = Mixer(len(self.creatures), block_size=block)
