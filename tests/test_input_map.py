@@ -453,3 +453,21 @@ def test_the_readme_example_loads(tmp_path):
     path.write_text(COLONY + example)
     inst = load_installation(path)
     assert [r.spec.to for r in inst.routes] == ["reward", "note", "sensor", "drive"]
+
+
+@pytest.mark.parametrize("air", [False, True])
+def test_input_audio_does_not_reach_those_deaf_to_input(tmp_path, air):
+    session, clock = colony(tmp_path, maps="", extra=f"[audio]\nair = {'true' if air else 'false'}\n")
+    blocks: dict[str, list] = {"bo": [], "deaf": []}
+    for creature in session.creatures:
+        creature.listen = lambda t, block, sr, name=creature.name: blocks[name].append(block.copy())
+    recorded = np.full(441, 0.25, dtype=np.float32)
+    for step in (1, 2):
+        clock.advance_to(step * 0.02)
+        session.step(step * 0.02, 441, recorded)
+    assert len(blocks["bo"]) == 2
+    if not air:
+        assert blocks["deaf"] == []  # no input, no room: nothing to hear
+    else:  # the room only: what the input added is missing from the deaf creature's block
+        assert len(blocks["deaf"]) == 1
+        assert np.allclose(blocks["bo"][1] - blocks["deaf"][0], recorded)

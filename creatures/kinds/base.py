@@ -33,6 +33,9 @@ class CreatureSpec(BaseModel):
     channel: int = Field(0, ge=0, le=15, description="MIDI channel this creature plays on")
     gain: float = Field(0.8, ge=0.0, le=4.0, description="linear gain of its voice in the mix")
     pan: float = Field(0.0, ge=-1.0, le=1.0, description="stereo position of its voice")
+    hears_input: bool = Field(True, description="hear what comes from outside the colony (MIDI, OSC, the input "
+                                                "map's notes, the input audio and its notes); else only other "
+                                                "creatures (and, with [audio] air, the room)")
 
 
 class CreatureKind(ABC):

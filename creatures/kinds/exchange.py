@@ -52,7 +52,6 @@ REPORT_EVERY = 0.5
 
 class ExchangeSpec(CreatureSpec):
     kind: Literal["exchange"]
-    hears_input: bool = Field(True, description="hear notes from outside the colony (else only other creatures)")
     strike_radius: float = Field(0.15, gt=0, le=1.0, description="how close the hand must pass to strike a note (m)")
     note_lifetime: float = Field(45.0, gt=0, description="seconds a placed note stays in space")
     max_notes: int = Field(48, ge=1, le=4096, description="most notes in space; the oldest fade first")

@@ -88,7 +88,6 @@ MATCH_RATE = 0.3
 
 class ListenSpec(CreatureSpec):
     kind: Literal["listen"]
-    hears_input: bool = Field(True, description="hear notes from outside the colony (else only other creatures)")
     memory: int = Field(16, ge=3, le=256, description="notes in the running memory buffer models are matched against")
     analysis_every: float = Field(0.5, gt=0, le=10, description="seconds between analyses of the model population "
                                                                  "(matching, learning, maintenance)")

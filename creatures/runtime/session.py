@@ -63,6 +63,7 @@ class Session:
         self._voices = np.zeros((len(self.creatures), block))
         self._room = np.zeros(0)
         self.air = settings.audio.air
+        self._deaf = any(not creature.spec.hears_input for creature in self.creatures)
         self.transcribe = transcribe
         self._transcriber: Transcriber | None = None
         self.ticks = 0
@@ -78,9 +79,11 @@ class Session:
             self._hear_notes(t, recorded)
         self.world.deliver(t)
         heard = self._ears(recorded, frames)
-        if heard is not None:
-            for creature in self.creatures:
-                creature.listen(t, heard, self.sample_rate)
+        room = self._ears(None, frames) if self._deaf and recorded is not None else heard  # hears_input = false
+        for creature in self.creatures:
+            block = heard if creature.spec.hears_input else room
+            if block is not None:
+                creature.listen(t, block, self.sample_rate)
         for creature in self.creatures:
             creature.tick(t)
         self.scheduler.pump()

@@ -103,7 +103,7 @@ class World:
             if not any(creature.name == source for creature in self.creatures):
                 self.pulse.hear(note.time)  # the rhythm heard from outside, not the colony's own
             for creature in self.creatures:
-                if creature.name != source and (source != INPUT or getattr(creature.spec, "hears_input", True)):
+                if creature.name != source and (source != INPUT or creature.spec.hears_input):
                     creature.hear(note, source)
             count += 1
         self.pulse.settle()
