@@ -143,7 +143,8 @@ def _run(args: argparse.Namespace) -> int:
           f"{summary.late} late{restored}; sound {summary.sound}; {summary.underruns} audio underruns, "
           f"{summary.overruns} input overruns")
     if summary.inputs:
-        print("outside input: " + ", ".join(f"{n} {what}" for what, n in summary.inputs.items() if " " not in what))
+        print("outside input: " + ", ".join(f"{summary.inputs.get(what, 0)} {what}"
+                                            for what in ("mapped", "unmapped", "malformed", "refused osc")))
     return 0
 
 

@@ -89,6 +89,7 @@ client.send_message("/creature/visitor/note", [62.0, 100.0, 0.25])  # the shippe
 client.send_message("/reward", ["bo", 1.0])
 client.send_message("/light/left", [0.75])
 client.send_message("/no/such/map", [1, "x", True])
+client.send_message("/creature/visitor/note", [60.5, 100, 0.25])  # no such pitch: refused by the listener
 """
 
 
@@ -132,6 +133,8 @@ def test_foreign_osc_senders_reach_a_live_run(tmp_path):
     assert [(e["creature"], e["level"]) for e in events if e["kind"] == "drive"] == [("bo", 1.5), ("deaf", 1.5)]
     counts = [e for e in events if e["kind"] == "inputs"][-1]
     assert counts["unmapped osc"] == 2 and counts["mapped osc"] == 7 and "malformed" not in counts
+    assert counts["refused osc"] == 1
+    assert "outside input: 7 mapped, 2 unmapped, 0 malformed, 1 refused osc" in out
     assert any("/no/such/map" in line and "unmapped" in line for line in lines)
 
 

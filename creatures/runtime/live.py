@@ -94,6 +94,13 @@ class LiveInputs:
             heard += source.poll(t)
         return heard
 
+    def tally(self) -> None:
+        """Count, with the input map's counters, the OSC packets the listener refused (not OSC,
+        too large, or not fitting ``/creature/…``): nothing that arrived goes uncounted."""
+        if self.network is not None:
+            ear = self.network.listener
+            self.router.counts["refused osc"] = ear.malformed + ear.oversize
+
     def wait(self, timeout: float) -> None:
         """Sleep up to ``timeout`` s; an OSC packet wakes the loop at once (RtMidi has no handle
         to wait on, so MIDI is looked at when the sleep ends)."""
@@ -233,6 +240,7 @@ def run_live(
             signal.signal(signal.SIGTERM, previous)
             counters.log_change(always=True)
             summary.underruns, summary.overruns = counters.now()
+            inputs.tally()
             session.close()
             if state_dir is not None:
                 _save(session, state_dir, summary, say)
