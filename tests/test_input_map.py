@@ -22,7 +22,8 @@ from creatures.clock import SimulatedClock
 from creatures.config import ConfigError
 from creatures.events import EventLog
 from creatures.kinds import load_all
-from creatures.runtime.input_map import address_pattern, as_pitch
+from creatures.runtime.input_map import as_pitch
+from creatures.runtime.input_routes import address_pattern
 from creatures.runtime.input_sources import RETRY, SerialSource, line_message, value_of
 from creatures.runtime.schema import load_installation
 from creatures.runtime.session import Session

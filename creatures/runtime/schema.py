@@ -177,7 +177,7 @@ class LoadedInstallation:
     """A validated installation: its top-level settings and each creature's typed spec."""
 
     def __init__(self, path: Path, settings: Installation, specs: list[CreatureSpec]) -> None:
-        from creatures.runtime.input_map import Colony, compile_maps
+        from creatures.runtime.input_routes import Colony, compile_maps
 
         self.path = path
         self.settings = settings
@@ -224,13 +224,13 @@ def _with_input_maps(path: Path, settings: Installation, specs: list[CreatureSpe
                      where: dict[tuple, tuple[Path, int]], prefix: tuple[str, ...]) -> LoadedInstallation:
     """The installation, once every ``[[input]]`` table is known to work (the rehearsal files
     read, the maps checked against the creatures); :class:`ConfigError` at the table's key."""
-    from creatures.runtime.input_map import MapError
+    from creatures.runtime.input_routes import MapError
     from creatures.runtime.input_sources import RehearsalError, load_rehearsal
 
     try:
         inst = LoadedInstallation(path, settings, specs)
     except MapError as exc:
-        raise config_error(path, where, (*prefix, exc.index, exc.key), str(exc)) from None  # type: ignore[attr-defined]
+        raise config_error(path, where, (*prefix, exc.index, exc.key), str(exc)) from None
     for i, spec in enumerate(settings.input.map):
         if spec.file is not None:
             try:
