@@ -261,6 +261,8 @@ def test_a_late_click_credits_the_tuple_that_just_ended_and_not_one_long_gone():
     ('osc = "/a"\nto = "note"\nname = "x"', "input.0.name", "not a key of to = 'note'"),
     ('osc = "/a"\ncontrol = 7\nto = "note"', "input.0.control", "only for midi = 'cc'"),
     ('serial = "/dev/ttyUSB0"\nto = "note"', "input.0.to", "a serial table is a source"),
+    ('file = "r.csv"\nchannel = 2', "input.0.channel", "a file table is a source"),
+    ('osc = "/a"\nto = "note"\nbaud = 9600', "input.0.baud", "only with serial"),
     ('file = "missing.csv"', "input.0.file", "cannot read rehearsal file"),
     ('osc = "/a"\nto = "note"\npitchh = 3', "input.0.pitchh", "did you mean 'pitch'"),
 ])

@@ -210,13 +210,15 @@ def compile_maps(maps: list[InputMap], colony: dict[str, Colony]) -> list[Route]
             if len(given) != 1:
                 raise MapError(given[1] if given else "osc", f"an [[input]] table hears one of {', '.join(SOURCES)} "
                                                              f"(this one: {', '.join(given) or 'none'})")
-            if given[0] in ("serial", "file"):
-                targets = [k for k in ("to", *sorted({k for ks in TARGET_KEYS.values() for k in ks}))
-                           if k in spec.model_fields_set]
-                if targets:
-                    raise MapError(targets[0], f"a {given[0]} table is a source of OSC messages; map them "
-                                               "with osc = ... tables")
+            own = {"serial": ("serial", "baud"), "file": ("file",)}.get(given[0])
+            if own is not None:
+                others = [k for k in InputMap.model_fields if k in spec.model_fields_set and k not in own]
+                if others:
+                    raise MapError(others[0], f"a {given[0]} table is a source of OSC messages (its keys: "
+                                              f"{', '.join(own)}); map them with osc = ... tables")
                 continue
+            if "baud" in spec.model_fields_set:
+                raise MapError("baud", "the speed of a serial device: only with serial = ...")
             routes.append(Route(spec, colony))
         except MapError as exc:
             exc.index = i
