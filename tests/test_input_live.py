@@ -125,7 +125,8 @@ def test_foreign_osc_senders_reach_a_live_run(tmp_path):
     assert run.returncode == 0, "".join(lines) + out
     events = records(log)
     heard = sorted((e["pitch"], e["velocity"], e["duration"], e["source"]) for e in events if e["kind"] == "heard")
-    assert heard == [(60, 90, 0.5, "osc"), (61, 80, 0.25, "osc"), (62, 100, 0.25, "osc"), (64, 100, pytest.approx(0.3), "osc")]
+    assert heard == [(60, 90, 0.5, "osc"), (61, 80, 0.25, "osc"), (62, 100, 0.25, "visitor"),
+                     (64, 100, pytest.approx(0.3), "osc")]  # the shipped space's notes keep the sender's name
     placed = {e["creature"] for e in events if e["kind"] == "placed" and e["source"] == "input"}
     assert placed == {"bo"}  # hears_input = false holds for OSC notes too, the shipped space's included
     assert [(e["creature"], e["amount"]) for e in events if e["kind"] == "reward"] == [("bo", 1.0), ("deaf", 0.5)]

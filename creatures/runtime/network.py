@@ -109,7 +109,7 @@ class Network:
             if heard.kind == "note":
                 known = heard.creature in self.where  # a creature of a colony that said hello
                 self.world.inject(dataclasses.replace(heard.note, time=t), heard.creature if known else INPUT,
-                                  via=None if known else "osc")
+                                  via=heard.creature)
                 notes += 1
             elif heard.kind == "state":
                 key, value = heard.args
