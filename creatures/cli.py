@@ -142,6 +142,9 @@ def _run(args: argparse.Namespace) -> int:
     print(f"stopped after {summary.seconds:.1f} s: {summary.ticks} ticks, {summary.notes_played} notes, "
           f"{summary.late} late{restored}; sound {summary.sound}; {summary.underruns} audio underruns, "
           f"{summary.overruns} input overruns")
+    if summary.inputs:
+        print("outside input: " + ", ".join(f"{summary.inputs.get(what, 0)} {what}"
+                                            for what in ("mapped", "unmapped", "malformed", "refused osc")))
     return 0
 
 

@@ -128,6 +128,7 @@ def _fields_at(model: type[BaseModel], loc: tuple[str | int, ...]) -> list[str]:
             return []
         annotation = fields[part].annotation
         args = getattr(annotation, "__args__", ()) or ()
+        args = (*args, *(a for arg in args for a in getattr(arg, "__args__", ())))  # list[Model] | None
         candidates = [annotation, *args]
         current = next((c for c in candidates if isinstance(c, type) and issubclass(c, BaseModel)), None)
         if current is None:
@@ -169,8 +170,12 @@ def validate(
         # An unknown key usually explains a "missing" one (a typo), so report it first.
         error = min(exc.errors(), key=lambda e: e["type"] != "extra_forbidden")
         loc = (*prefix, *_data_path(data, tuple(error["loc"])))
+        # Valid keys are found along pydantic's own location (where a validator moved a table:
+        # ``[[input]]`` read as ``input.map``), else along the keys the author wrote (a tagged
+        # union adds its tag to pydantic's).
+        choices = _fields_at(model, tuple(error["loc"])) or _fields_at(model, loc[len(prefix):])
         raise config_error(file, where, loc, error["msg"] if error["type"] != "extra_forbidden" else None,
-                           choices=_fields_at(model, loc[len(prefix):]),
+                           choices=choices,
                            got=error.get("input") if error["type"] not in ("missing", "extra_forbidden") else None) from None
 
 

@@ -22,11 +22,14 @@ characters), so a colony of three sends from three addresses:
 ``/creature/<name>/bye``
     The creature is leaving; peers may forget it.
 
-Any OSC client (SuperCollider, Max, Pd, TouchDesigner) can speak or listen. Listeners bind
-127.0.0.1 unless told otherwise, read a non-blocking socket that the creature polls (python-osc's
-threading server dropped burst messages here, ENVIRONMENT.md), parse with
-``pythonosc.osc_packet``, and drop and count packets that are too large, not OSC, or outside
-this address space.
+Any OSC client (SuperCollider, Max, Pd, TouchDesigner) can speak or listen. Where this
+space takes an int it also takes a float with a whole value (``60.0``: TouchDesigner's and
+Max's default number type). Listeners bind 127.0.0.1 unless told otherwise, read a
+non-blocking socket that the creature polls (python-osc's threading server dropped burst
+messages here, ENVIRONMENT.md), parse with ``pythonosc.osc_packet``, and drop and count
+packets that are too large or not OSC. Messages outside ``/creature/…`` go to the listener's
+``elsewhere`` (the colony's input map, :mod:`creatures.runtime.input_map`), or are dropped
+and counted when it has none.
 """
 
 from __future__ import annotations
@@ -37,6 +40,7 @@ import re
 import select
 import socket
 from dataclasses import dataclass
+from typing import Callable
 
 from pythonosc.osc_bundle_builder import IMMEDIATELY, OscBundleBuilder
 from pythonosc.osc_message_builder import OscMessageBuilder
@@ -65,12 +69,23 @@ class Heard:
     note: NoteEvent | None = None
 
 
+PREFIX = "/creature/"
+"""Addresses under this prefix are the creature address space; the rest is for ``elsewhere``."""
+
+
+def _whole(x: object) -> object:
+    """A float with a whole value as the int it stands for; anything else unchanged."""
+    return int(x) if type(x) is float and math.isfinite(x) and x == int(x) else x
+
+
 def decode(address: str, args: list, time: float, sender: tuple[str, int]) -> Heard:
     """Check one OSC message against the address space; ValueError if it does not fit."""
     match = _ADDRESS.fullmatch(address)
     if match is None or NAME.fullmatch(match[1]) is None:
         raise ValueError(f"address {address!r} is not in the creature address space")
     creature, kind = match[1], match[2]
+    if kind in ("hello", "note"):  # pitch, velocity, channel, port: ints, sent as floats by many tools
+        args = [_whole(a) if i != 2 or kind == "hello" else a for i, a in enumerate(args)]
     types = tuple(type(a) for a in args)
     note = None
     if kind == "hello":
@@ -101,8 +116,11 @@ class OscListener:
         port: int = 0,
         max_packet: int = MAX_PACKET,
         receive_buffer: int = 1 << 20,
+        elsewhere: Callable[[str, list, float], object] | None = None,
     ) -> None:
+        """``elsewhere(address, args, time)`` takes every message outside ``/creature/…``."""
         self.clock = clock
+        self.elsewhere = elsewhere
         self.max_packet = max_packet
         self.socket = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.socket.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, receive_buffer)
@@ -144,6 +162,9 @@ class OscListener:
                 self.malformed += 1
                 continue
             for timed in messages:
+                if self.elsewhere is not None and not timed.message.address.startswith(PREFIX):
+                    self.elsewhere(timed.message.address, list(timed.message.params), now)
+                    continue
                 try:
                     heard.append(decode(timed.message.address, list(timed.message.params), now, sender))
                 except ValueError:

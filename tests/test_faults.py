@@ -212,7 +212,8 @@ def test_osc_flood_of_malformed_packets_at_a_running_listener(colony, rng):
     flood.close()
     visitor.close()
     assert listener.oversize == sent["oversize"]
-    assert listener.malformed == sum(sent.values()) - sent["oversize"]
+    assert listener.malformed == sum(sent.values()) - sent["oversize"] - sent["wrong address"]
+    assert session.inputs.counts["unmapped osc"] == sent["wrong address"]  # outside /creature/: the input map's
     assert listener.received == len(good) == 50
     assert [p for _, p in _heard(log, "visitor")] == good
     assert session.ticks == 250

@@ -36,6 +36,7 @@ tuples do Python-level work per tick.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any, Callable, Iterable, Protocol
 
 import numpy as np
@@ -45,6 +46,20 @@ from creatures.behaviour.percept import Percept
 from creatures.behaviour.value import Value, value_from_dict
 
 EventSink = Callable[[dict[str, Any]], None]
+
+RECALL = 10.0
+"""Seconds an ended activation is remembered for a late reward (the longest reward window)."""
+
+
+@dataclass
+class Activation:
+    """One time a tuple was active: when, and every tuple's Tr saliency when it began (what
+    credit assignment needs to credit it later)."""
+
+    tuple_: ActionTuple
+    started: float
+    triggers: np.ndarray
+    ended: float | None = None
 
 
 class Learner(Protocol):
@@ -129,6 +144,7 @@ class ActionGroup:
         self._percepts: list[Percept] = []
         self._percept_index = np.zeros(0, dtype=np.intp)
         self._leaf = np.zeros(0, dtype=bool)
+        self.recent: list[Activation] = []  # activations that may still take a late reward
         for tuple_ in tuples:
             self.add(tuple_)
 
@@ -145,6 +161,8 @@ class ActionGroup:
         self.tuples.append(tuple_)
         self.record_base(np.append(self._base, 0.0))
         self._trigger_at_last_start = np.append(self._trigger_at_last_start, 0.0)
+        for activation in self.recent:  # a newcomer takes no credit for what went before it
+            activation.triggers = np.append(activation.triggers, 0.0)
         self._reindex()
         return tuple_
 
@@ -159,6 +177,9 @@ class ActionGroup:
         del self.tuples[i]
         self.record_base(np.delete(self._base, i))
         self._trigger_at_last_start = np.delete(self._trigger_at_last_start, i)
+        self.recent = [a for a in self.recent if a.tuple_ is not tuple_]
+        for activation in self.recent:
+            activation.triggers = np.delete(activation.triggers, i)
         if self.last_active is tuple_:
             self.last_active = None
         self._reindex()
@@ -292,10 +313,16 @@ class ActionGroup:
         self.last_active = tuple_
         self.last_started_at = t
         self._trigger_at_last_start = trig.copy()
+        self.recent = [a for a in self.recent if a.ended is None or a.ended >= t - RECALL]
+        self.recent.append(Activation(tuple_, t, self._trigger_at_last_start))
 
     def _stop(self, tuple_: ActionTuple, t: float, *, interrupted: bool) -> None:
         duration = tuple_.stop(t, interrupted=interrupted)
         self.active.remove(tuple_)
+        for activation in reversed(self.recent):
+            if activation.tuple_ is tuple_ and activation.ended is None:
+                activation.ended = t
+                break
         self._emit("stop", t, tuple=tuple_.name, duration=duration, interrupted=interrupted)
 
     def stop_all(self, t: float) -> None:
@@ -329,6 +356,42 @@ class ActionGroup:
         if self.learning is not None:
             self.learning.after_credit(self, t, last_leaf, a, target, before)
         return a
+
+    def reward(self, amount: float, t: float, window: float, *,
+               rate: float | None = None) -> tuple[list[str], dict[str, float]]:
+        """A reward from outside at ``t`` (the clicker): every tuple active at some time in
+        the last ``window`` seconds — active now, or ended since ``t − window`` — is credited
+        as if ``amount`` of value had followed it (thesis: clicker training, "credit
+        assignment"), so a visitor's late click still lands on what they saw.
+
+        Credit reaches what that activation's credit assignment reaches: each leaf ``i`` moves
+        by ``a_i·amount`` (``V_i ← V_i + a_i·amount``, through ``blend_to`` so plasticity
+        scales it), ``a_i = rate·proximity(credited, i)·Tr_i`` with ``Tr_i`` read when the
+        credited tuple began, and the largest ``a_i`` of all credited activations. ``rate``
+        is the group's α unless given: an authored group that keeps its values (α = 0, no
+        reward inside it to ground them) is still trained by a reward from outside. A group
+        tuple passes the reward to its own group. Returns the credited tuples' names and ``{tuple name: a_i}``
+        of every value moved."""
+        window = min(max(window, 0.0), RECALL)
+        rate = self.alpha if rate is None else rate
+        credited = [a for a in self.recent if a.started <= t and (a.ended is None or a.ended >= t - window)]
+        names, moved = [c.tuple_.name for c in credited], {}
+        a = np.zeros(len(self.tuples))
+        for activation in credited:
+            tuple_ = activation.tuple_
+            if isinstance(tuple_.action, GroupAction):
+                inner, inner_moved = tuple_.action.group.reward(amount, t, window, rate=rate)
+                names += inner
+                moved.update(inner_moved)
+            elif id(tuple_) in self._positions:
+                np.maximum(a, np.clip(rate * self.proximity(tuple_) * activation.triggers, 0.0, 1.0), out=a)
+        for i in np.flatnonzero(a):
+            value = self.tuples[i].value
+            target = value.to_dict()
+            target["value"] += amount
+            value.blend_to(value_from_dict(target), float(a[i]))
+            moved[self.tuples[i].name] = float(a[i])
+        return names, moved
 
     # -- persistence ----------------------------------------------------------------------
     def activation_state(self) -> dict[str, Any]:

@@ -14,6 +14,8 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from creatures.behaviour.action_group import ActionGroup
+
 if TYPE_CHECKING:
     from pathlib import Path
 
@@ -31,6 +33,9 @@ class CreatureSpec(BaseModel):
     channel: int = Field(0, ge=0, le=15, description="MIDI channel this creature plays on")
     gain: float = Field(0.8, ge=0.0, le=4.0, description="linear gain of its voice in the mix")
     pan: float = Field(0.0, ge=-1.0, le=1.0, description="stereo position of its voice")
+    hears_input: bool = Field(True, description="hear what comes from outside the colony (MIDI, OSC, the input "
+                                                "map's notes, the input audio and its notes); else only other "
+                                                "creatures (and, with [audio] air, the room)")
 
 
 class CreatureKind(ABC):
@@ -39,15 +44,55 @@ class CreatureKind(ABC):
     The runtime calls, in order, every behaviour tick: :meth:`hear` for notes that fell due,
     :meth:`listen` for audio input, :meth:`tick`; then :meth:`sound` for each audio block and
     :meth:`figure` for each video frame. Creatures play by calling ``world.play(self, note)``.
+    Outside input reaches every kind alike through the parts it is composed of (an
+    :class:`ActionGroup` as ``group``, a :class:`Motivation` as ``motivation``):
+    :meth:`reward` and :meth:`drive`, which the config checks before a run through
+    :meth:`rewardable` and :meth:`drive_names`.
     """
 
     Spec: ClassVar[type[CreatureSpec]] = CreatureSpec
+    DRIVES: ClassVar[tuple[str, ...]] = ()
+    """The drives of the kind's ``motivation`` (a test checks them against a built creature)."""
+    REWARDABLE: ClassVar[bool] = True
+    """Whether the kind has an action-group (``group``) a reward can reach."""
 
     def __init__(self, spec: CreatureSpec, world: "World", rng: np.random.Generator) -> None:
         self.spec = spec
         self.name = spec.name
         self.world = world
         self.rng = rng
+
+    @classmethod
+    def drive_names(cls, spec: CreatureSpec) -> tuple[str, ...]:
+        """The drives a creature of this spec will have (kinds whose drives depend on the
+        spec override this)."""
+        return cls.DRIVES
+
+    @classmethod
+    def rewardable(cls, spec: CreatureSpec) -> bool:
+        """Whether a creature of this spec has an action-group to reward."""
+        return cls.REWARDABLE
+
+    def reward(self, amount: float, t: float, window: float, rate: float) -> list[str]:
+        """A reward from outside at ``t`` (the clicker), given to the tuples of ``group`` active
+        within ``window`` seconds before, blended at ``rate`` (:meth:`ActionGroup.reward`);
+        logged as ``reward``. Returns the credited tuples."""
+        group = getattr(self, "group", None)
+        credited, blended = (group.reward(amount, t, window, rate=rate) if isinstance(group, ActionGroup)
+                             else ([], {}))
+        self.world.emit("reward", creature=self.name, tuple=credited[-1] if credited else None, amount=amount,
+                        credited=credited, blended=blended)
+        return credited
+
+    def drive(self, t: float, name: str, *, amount: float | None = None, level: float | None = None) -> float:
+        """Perturb drive ``name`` of ``motivation`` at ``t``: add ``amount``, or set it to
+        ``level``; logged as ``drive``. Returns the new level."""
+        motivation = self.motivation  # type: ignore[attr-defined]  # kinds with DRIVES have one
+        change = amount if level is None else level - motivation.level(name, max(t, motivation.time))
+        motivation.perturb(max(t, motivation.time), name, change)
+        new = motivation.level(name)
+        self.world.emit("drive", creature=self.name, drive=name, level=new, amount=change)
+        return new
 
     def hear(self, note: "NoteEvent", source: str) -> None:
         """A note played by ``source`` (another creature's name, or "input") started."""

@@ -52,7 +52,6 @@ REPORT_EVERY = 0.5
 
 class ExchangeSpec(CreatureSpec):
     kind: Literal["exchange"]
-    hears_input: bool = Field(True, description="hear notes from outside the colony (else only other creatures)")
     strike_radius: float = Field(0.15, gt=0, le=1.0, description="how close the hand must pass to strike a note (m)")
     note_lifetime: float = Field(45.0, gt=0, description="seconds a placed note stays in space")
     max_notes: int = Field(48, ge=1, le=4096, description="most notes in space; the oldest fade first")
@@ -121,6 +120,7 @@ class _SeekNote(Action):
 @register("exchange")
 class Exchange(CreatureKind):
     Spec = ExchangeSpec
+    DRIVES = ("boredom", "hunger")
 
     def __init__(self, spec: ExchangeSpec, world, rng: np.random.Generator) -> None:
         super().__init__(spec, world, rng)
@@ -166,8 +166,6 @@ class Exchange(CreatureKind):
 
     # -- hearing and playing ------------------------------------------------------------
     def hear(self, note: NoteEvent, source: str) -> None:
-        if source == "input" and not self.spec.hears_input:
-            return
         t = self.world.clock.now()
         self.motivation.perturb(t, "boredom", -self.spec.relief)
         pitch = note.pitch

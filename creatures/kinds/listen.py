@@ -88,7 +88,6 @@ MATCH_RATE = 0.3
 
 class ListenSpec(CreatureSpec):
     kind: Literal["listen"]
-    hears_input: bool = Field(True, description="hear notes from outside the colony (else only other creatures)")
     memory: int = Field(16, ge=3, le=256, description="notes in the running memory buffer models are matched against")
     analysis_every: float = Field(0.5, gt=0, le=10, description="seconds between analyses of the model population "
                                                                  "(matching, learning, maintenance)")
@@ -244,6 +243,7 @@ class _Anticipate(Action):
 @register("listen")
 class Listen(CreatureKind):
     Spec = ListenSpec
+    DRIVES = ("excitement",)
     DEFAULT_GAP = 0.5
     """Seconds assumed between notes before any timing has been learnt."""
 
@@ -288,8 +288,6 @@ class Listen(CreatureKind):
 
     # -- hearing -------------------------------------------------------------------------
     def hear(self, note: NoteEvent, source: str) -> None:
-        if source == "input" and not self.spec.hears_input:
-            return
         observation = Observation(self.poses.node(note.pitch), float(note.time), note)
         self.memory.append(observation)
         self.heard.append(observation)

@@ -109,6 +109,7 @@ class _Clicked(Action):
 @register("ozymandias")
 class Ozymandias(CreatureKind):
     Spec = OzymandiasSpec
+    DRIVES = ("excitement",)
 
     def __init__(self, spec: OzymandiasSpec, world: "World", rng: np.random.Generator) -> None:
         super().__init__(spec, world, rng)

@@ -260,6 +260,7 @@ class _Activity(Action):
 @register("sandstone")
 class Sandstone(CreatureKind):
     Spec = SandstoneSpec
+    DRIVES = ("desire", "boredom", "breath", "pulse")
 
     def __init__(self, spec: SandstoneSpec, world: World, rng: np.random.Generator) -> None:
         super().__init__(spec, world, rng)

@@ -127,6 +127,7 @@ class _Rest(Action):
 @register("soundcreature")
 class SoundCreature(CreatureKind):
     Spec = SoundCreatureSpec
+    DRIVES = ("hear",)
 
     def __init__(self, spec: SoundCreatureSpec, world: "World", rng: np.random.Generator) -> None:
         super().__init__(spec, world, rng)

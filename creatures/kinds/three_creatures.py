@@ -134,6 +134,8 @@ class ThreeCreaturesSpec(CreatureSpec):
 @register("three_creatures")
 class ThreeCreature(CreatureKind):
     Spec = ThreeCreaturesSpec
+    DRIVES = ("interest", "urge")
+    REWARDABLE = False  # a data flow with no action selection: nothing to credit
 
     def __init__(self, spec: ThreeCreaturesSpec, world: "World", rng: np.random.Generator) -> None:
         super().__init__(spec, world, rng)

@@ -7,19 +7,20 @@ what the loader accepts (a test regenerates it and compares).
 
 from __future__ import annotations
 
+import re
 import sys
 import typing
 
 from pydantic import BaseModel
 
 from creatures.kinds import load_all
-from creatures.runtime.schema import Installation
+from creatures.runtime.schema import Installation, InputMap
 
 
 def _type_name(annotation: object) -> str:
     if isinstance(annotation, type):
         return annotation.__name__
-    text = str(annotation).replace("typing.", "").replace("NoneType", "none")
+    text = re.sub(r"\b(?:\w+\.)+(\w+)", r"\1", str(annotation)).replace("NoneType", "none")
     return text.replace("|", "or")
 
 
@@ -53,6 +54,12 @@ def config_reference() -> str:
         "## Top level",
         "",
         *[row for row in _rows(Installation, "") if "`creature`" not in row],
+        "",
+        "## `[[input]]` — the input map: one table per source",
+        "",
+        " ".join((InputMap.__doc__ or "").split()),
+        "",
+        *_rows(InputMap, ""),
         "",
         "## `[[creature]]` — one table per creature; `kind` picks the keys below",
     ]

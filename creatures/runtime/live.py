@@ -25,17 +25,15 @@ from audio.resilient import ResilientInput, ResilientOutput
 from creatures.clock import Clock, SimulatedClock, WallClock
 from creatures.events import EventLog
 from creatures.runtime.bodies import BodyFrames
+from creatures.runtime.input_sources import SerialSource, open_sources
 from creatures.runtime.network import Network
 from creatures.runtime.schema import LoadedInstallation
 from creatures.runtime.session import Session
 from creatures.runtime.ticking import TickLoop, setup_kept
-from midi.notes import NoteEvent, is_note_off
 from midi.ports import MidoInputs, MidoOutputs, PortFactory, ResilientPort
 from midi.sinks import MemorySink, PortSink
 
 HELP = "list devices with `creatures devices`"
-HEARD_LENGTH = 0.25
-"""Seconds assumed for a live MIDI note heard at its note-on (its real length is unknown)."""
 
 HOUSEKEEPING_EVERY = 1.0
 """Seconds between flushes of the events log and checks of the audio counters."""
@@ -52,12 +50,14 @@ class LiveSummary:
     overruns: int = 0  # microphone blocks lost: the loop read too slowly, or the driver overflowed
     failed_saves: int = 0
     restored: list[str] = field(default_factory=list)
+    inputs: dict[str, int] = field(default_factory=dict)  # outside messages mapped / unmapped / malformed
     messages: list[str] = field(default_factory=list)
     sound: str = ""  # where the mix went: "live at 44100 Hz (resampled from 22050 Hz)" or "silent: why"
 
 
 class LiveInputs:
-    """Live note inputs feeding the colony's note bus: a MIDI port and the OSC network.
+    """Live inputs feeding the colony: a MIDI port, the OSC network, serial devices and
+    rehearsal files, every message through the session's input map (:mod:`creatures.runtime.input_map`).
 
     ``ports`` is where the configured MIDI input is looked for (mido's backend unless given;
     tests and the benchmark pass :class:`midi.ports.MemoryPorts`).
@@ -66,29 +66,40 @@ class LiveInputs:
     def __init__(self, inst: LoadedInstallation, session: Session, clock: Clock, say: Callable[[str], None], *,
                  ports: PortFactory | None = None) -> None:
         settings = inst.settings
-        self.world = session.world
+        self.router = session.inputs
         self.midi = None
         if settings.midi.input_port:
             self.midi = ResilientPort(settings.midi.input_port, ports or MidoInputs(), clock,
                                       report=lambda m: say(f"MIDI input: {m}; {HELP}"))
         self.network = None
         if settings.osc.port is not None:
-            self.network = Network(settings.osc, session.world, clock, say)
+            self.network = Network(settings.osc, session.world, clock, say, elsewhere=self.router)
+        self.sources = open_sources(inst, self.router, clock, say, live=True)
+        reached = "only the config's serial devices and rehearsal files" if self.sources else "nothing"
+        for routes, source, key in ((self.router.osc_routes, self.network, "[osc] port"),
+                                    (self.router.midi_routes, self.midi, "[midi] input_port")):
+            if routes and source is None:
+                say(f"[[input]] maps {'OSC' if key[1] == 'o' else 'MIDI'} messages but {key} is not set: "
+                    f"{reached} will reach them")
 
     def poll(self, t: float) -> int:
-        """Notes that arrived join the note bus at time ``t``; returns how many."""
+        """What arrived is heard at time ``t``; returns how many notes joined the note bus."""
         heard = 0
         if self.midi is not None:
             for msg in self.midi.pending():
-                # A player expects creatures to react when a key goes down, not when it is
-                # released: notes are heard at note-on, with a nominal length (the real one
-                # is not known yet).
-                if msg.type == "note_on" and not is_note_off(msg):
-                    self.world.inject(NoteEvent(t, msg.note, msg.velocity, msg.channel, HEARD_LENGTH), via="midi")
-                    heard += 1
+                heard += self.router.midi(msg, t)
         if self.network is not None:
             heard += self.network.poll(t)
+        for source in self.sources:
+            heard += source.poll(t)
         return heard
+
+    def tally(self) -> None:
+        """Count, with the input map's counters, the OSC packets the listener refused (not OSC,
+        too large, or not fitting ``/creature/…``): nothing that arrived goes uncounted."""
+        if self.network is not None:
+            ear = self.network.listener
+            self.router.counts["refused osc"] = ear.malformed + ear.oversize
 
     def wait(self, timeout: float) -> None:
         """Sleep up to ``timeout`` s; an OSC packet wakes the loop at once (RtMidi has no handle
@@ -103,6 +114,9 @@ class LiveInputs:
             self.midi.close()
         if self.network is not None:
             self.network.close()
+        for source in self.sources:
+            if isinstance(source, SerialSource):
+                source.close()
 
 
 class _Counters:
@@ -161,7 +175,7 @@ def run_live(
         sink = PortSink(port)
     transcribe = settings.audio.transcribe
     session = Session(inst, clock, log, sink,
-                      transcribe=transcribe if transcribe is not None else not settings.midi.input_port)
+                      transcribe=transcribe if transcribe is not None else not settings.midi.input_port, say=say)
     state_dir = state or inst.resolve(settings.state)
     if state_dir is not None:
         summary.restored = session.load_state(state_dir)
@@ -226,6 +240,7 @@ def run_live(
             signal.signal(signal.SIGTERM, previous)
             counters.log_change(always=True)
             summary.underruns, summary.overruns = counters.now()
+            inputs.tally()
             session.close()
             if state_dir is not None:
                 _save(session, state_dir, summary, say)
@@ -241,4 +256,5 @@ def run_live(
     summary.late = loop.late
     summary.heard_between_ticks = loop.heard_between
     summary.notes_played = session.world.notes_played
+    summary.inputs = session.inputs.summary()
     return summary

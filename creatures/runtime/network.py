@@ -8,6 +8,10 @@ any other input: notes join the note bus under the remote creature's name; state
 :attr:`World.peers <creatures.runtime.world.World.peers>` (``world.peers["bo"]["boredom"]``)
 for creatures to read and logged (``peer state``); hellos and byes keep the table of whom to
 speak to (``peer``, ``peer left``), so a colony that restarts elsewhere is found again.
+
+A note from a sender that never said hello (``oscsend``, a Max patch speaking the creature
+protocol) is outside input, like a keyboard's: creatures with ``hears_input = false`` do not
+hear it. Every message outside ``/creature/…`` goes to the colony's input map.
 """
 
 from __future__ import annotations
@@ -19,7 +23,9 @@ from typing import TYPE_CHECKING, Callable
 from creatures.behaviour.action_group import ActionGroup
 from creatures.behaviour.motivation import Motivation
 from creatures.clock import Clock
+from creatures.runtime.input_map import InputRouter
 from creatures.runtime.schema import OscSection
+from creatures.runtime.world import INPUT
 from midi.notes import NoteEvent
 from midi.osc import Heard, OscListener, OscSender
 
@@ -57,9 +63,13 @@ def _key(address: Address) -> str:
 class Network:
     """The OSC side of a live run: one sender per creature, one listener for the colony."""
 
-    def __init__(self, osc: OscSection, world: "World", clock: Clock, say: Callable[[str], None]) -> None:
+    def __init__(self, osc: OscSection, world: "World", clock: Clock, say: Callable[[str], None], *,
+                 elsewhere: InputRouter | None = None) -> None:
         self.world = world
-        self.listener = OscListener(clock, host=osc.host, port=osc.port or 0)
+        self.elsewhere = elsewhere
+        self._outside: list[tuple[str, list]] = []  # messages for the input map, taken in at poll
+        self.listener = OscListener(clock, host=osc.host, port=osc.port or 0,
+                                    elsewhere=None if elsewhere is None else self._take)
         self.configured: set[Address] = set()
         for peer in osc.peers:
             host, _, port = peer.rpartition(":")
@@ -72,6 +82,9 @@ class Network:
         self.where: dict[str, Address] = {}  # remote creature -> the address its hello gave
         self._next_state = -float("inf")
         world.listeners.append(self._played)
+
+    def _take(self, address: str, args: list, time: float) -> None:
+        self._outside.append((address, args))
 
     def _played(self, creature: str, note: NoteEvent) -> None:
         self.senders[creature].note(note)
@@ -94,7 +107,9 @@ class Network:
             if heard.creature in self.senders:
                 continue  # our own voice, sent back to us by a peer list that names this colony
             if heard.kind == "note":
-                self.world.inject(dataclasses.replace(heard.note, time=t), heard.creature)
+                known = heard.creature in self.where  # a creature of a colony that said hello
+                self.world.inject(dataclasses.replace(heard.note, time=t), heard.creature if known else INPUT,
+                                  via=heard.creature)
                 notes += 1
             elif heard.kind == "state":
                 key, value = heard.args
@@ -106,6 +121,9 @@ class Network:
                 self._part(heard.creature)
         for creature, state in said.items():
             self.world.emit("peer state", creature=creature, state=state)
+        outside, self._outside = self._outside, []
+        for address, args in outside:
+            notes += self.elsewhere.osc(address, args, t)
         return notes
 
     def _meet(self, heard: Heard) -> None:

@@ -31,6 +31,7 @@ from audio.sources import load_audio
 from creatures.clock import SimulatedClock
 from creatures.events import EventLog
 from creatures.runtime.bodies import BodyFrames
+from creatures.runtime.input_sources import open_sources
 from creatures.runtime.inputs import phrase_notes, render_notes
 from creatures.runtime.schema import LoadedInstallation
 from creatures.runtime.speech_input import spoken_poem
@@ -142,7 +143,8 @@ def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path 
     sink = MemorySink()
     messages: list[str] = []
     log = EventLog(out / "events.jsonl")
-    session = Session(inst, clock, log, sink)
+    session = Session(inst, clock, log, sink, say=messages.append)
+    sources = open_sources(inst, session.inputs, clock, messages.append, live=False)  # rehearsal files
     session.world.emit("run", title=settings.title, mode="offline", duration=duration, seed=settings.seed,
                        creatures=[c.name for c in session.creatures])
     notes, samples = _inputs(inst, audio, midi, duration, session.input_rng)
@@ -164,6 +166,8 @@ def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path 
         for step in range(1, steps + 1):
             t0, t = (step - 1) * tick, min(step * tick, duration)
             clock.advance_to(t)
+            for source in sources:
+                source.poll(t)
             a, b = int(round(t0 * sr)), int(round(t * sr))
             recorded = None if samples is None or a >= len(samples) else samples[a:min(b, len(samples))]
             mix = session.step(t, b - a, recorded, audio=wav is not None)

@@ -10,7 +10,7 @@ import difflib
 from pathlib import Path
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from creatures.config import ConfigError, config_error, read_toml, validate
 from creatures.kinds import CreatureSpec, load_all
@@ -50,8 +50,81 @@ class OscSection(Strict):
     peers: list[str] = Field(default_factory=list, description="host:port of other colonies to send notes to")
 
 
+class Arg(Strict):
+    """A value read from the message: argument ``arg`` (0 = the first), or ``default`` when
+    the message has no such argument."""
+
+    arg: int = Field(ge=0, le=63, description="index of the message argument (0 = the first)")
+    default: float | str | None = Field(None, description="used when the message has no argument `arg`")
+
+
+Number = float | Arg
+"""A constant, or ``{arg = N, default = X}``: read from the message."""
+
+
+class InputMap(Strict):
+    """One `[[input]]` table: an outside source mapped to what the creatures take in
+    (an OSC address or a MIDI message to a heard note, a sensor, a reward or a drive), or a
+    source of messages (a serial device, a rehearsal file) whose lines are heard as OSC.
+    TOML allows `[input]` or `[[input]]` in one file, not both: a config with an `[input]`
+    table writes its maps as `[[input.map]]`."""
+
+    osc: str | None = Field(None, description="OSC address pattern heard (OSC 1.0 wildcards: `*`, `?`, `[abc]`, "
+                                              "`[!a-z]`, `{foo,bar}`); also matches serial lines and rehearsal rows")
+    midi: str | None = Field(None, description="MIDI message heard: 'note', 'note_off', 'cc', 'program', "
+                                               "'pitchbend', 'aftertouch' or 'polytouch' (its arguments, by index: "
+                                               "note/note_off/polytouch: note, velocity or pressure, channel; "
+                                               "cc: value, control, channel; program: program, channel; "
+                                               "pitchbend: bend -8192..8191, channel; aftertouch: pressure, channel)")
+    channel: int | None = Field(None, ge=0, le=15, description="only MIDI messages on this channel (0-15); none = any")
+    control: int | None = Field(None, ge=0, le=127, description="only this controller number (midi = 'cc')")
+    note: int | None = Field(None, ge=0, le=127, description="only this note number (midi = 'note', 'note_off', "
+                                                              "'polytouch')")
+    args: int | None = Field(None, ge=0, le=64, description="OSC arity: only messages with exactly this many "
+                                                            "arguments; none = any")
+    serial: str | None = Field(None, description="serial device read as a source (lines `name value ...`, "
+                                                 "spaces or commas): a line is heard as the OSC message "
+                                                 "`/name value ...`; a missing device is reported and retried")
+    baud: int = Field(9600, gt=0, description="serial speed, bits per second")
+    file: str | None = Field(None, description="rehearsal file (path relative to the config) of timed messages "
+                                               "played from the start of the run: CSV rows `time,address,args...` "
+                                               "or JSON lines {\"time\", \"address\", \"args\"}; address 'midi' "
+                                               "takes the MIDI bytes as args")
+    to: str | None = Field(None, description="what the message becomes: 'note' (a heard note), 'sensor' (a named "
+                                             "sensor creatures read as a percept), 'reward' (the clicker) or "
+                                             "'drive' (a drive perturbation)")
+    pitch: Number | None = Field(None, description="to = 'note': MIDI pitch, or a note name such as 'C4' "
+                                                   "(default: {arg = 0})")
+    velocity: Number | None = Field(None, description="to = 'note': velocity 1-127 (default: the MIDI note's, "
+                                                      "else 100)")
+    duration: Number | None = Field(None, description="to = 'note': seconds (default 0.25)")
+    name: str | None = Field(None, pattern=r"^[A-Za-z0-9_.\-]+$", description="to = 'sensor': the sensor's name "
+                                                                             "(world.sensors[name], a StateObject: "
+                                                                             "saliency = |reading|, habituating "
+                                                                             "to repetition)")
+    value: Number | None = Field(None, description="to = 'sensor': the reading (default: {arg = 0})")
+    range: tuple[float, float] | None = Field(None, description="to = 'sensor': scale the reading linearly from "
+                                                                "`input_range` to [lo, hi]")
+    input_range: tuple[float, float] | None = Field(None, description="to = 'sensor': the reading's own span "
+                                                                      "(default: the MIDI value's, 0-127 or "
+                                                                      "-8192..8191; for OSC [0, 1])")
+    creatures: list[str] | Arg | None = Field(None, description="to = 'reward' or 'drive': the creatures it "
+                                                                "reaches, or {arg = N} naming one; none = every "
+                                                                "creature that can take it")
+    amount: Number | None = Field(None, description="to = 'reward': value of the reward (default 1.0; negative "
+                                                    "punishes); to = 'drive': added to the drive's level")
+    set: Number | None = Field(None, description="to = 'drive': the level the drive is set to (instead of amount)")
+    drive: str | None = Field(None, description="to = 'drive': the drive's name (e.g. 'boredom')")
+    window: float = Field(1.5, ge=0, le=10, description="to = 'reward': seconds before the click in which a tuple "
+                                                        "that was active still takes the reward (a late click lands "
+                                                        "where the visitor meant it)")
+    rate: float = Field(0.2, ge=0, le=1, description="to = 'reward': how far one reward moves a credited tuple's "
+                                                     "value, V += rate x trigger x amount (its own credit "
+                                                     "assignment's blend parameter, whatever the creature's alpha)")
+
+
 class InputSection(Strict):
-    """What an offline run hears when the command line gives no files."""
+    """What an offline run hears when the command line gives no files (and `map`: the input maps, see `[[input]]`)."""
 
     audio: str | None = Field(None, description="recorded audio fed offline (path relative to the config)")
     midi: str | None = Field(None, description="recorded MIDI fed offline (path relative to the config)")
@@ -59,6 +132,7 @@ class InputSection(Strict):
                           description="input generated when no file is given: 'phrase' (three note "
                                       "fragments, as notes and as tones), 'speech' (the poem Ozymandias "
                                       "read by formant voices, audio only) or 'none'")
+    map: list[InputMap] = Field(default_factory=list, description="the input maps (see `[[input]]`)")
 
 
 class OutputSection(Strict):
@@ -89,14 +163,30 @@ class Installation(Strict):
     output: OutputSection = OutputSection()
     creature: list[dict[str, Any]] = Field(min_length=1, description="the creatures, one [[creature]] table each")
 
+    @model_validator(mode="before")
+    @classmethod
+    def _input_maps(cls, data: Any) -> Any:
+        """``[[input]]`` tables are the maps of the ``[input]`` section (TOML lets a file have
+        one form or the other, so both are read into one place)."""
+        if isinstance(data, dict) and isinstance(data.get("input"), list):
+            data = {**data, "input": {"map": data["input"]}}
+        return data
+
 
 class LoadedInstallation:
     """A validated installation: its top-level settings and each creature's typed spec."""
 
     def __init__(self, path: Path, settings: Installation, specs: list[CreatureSpec]) -> None:
+        from creatures.runtime.input_routes import Colony, compile_maps
+
         self.path = path
         self.settings = settings
         self.specs = specs
+        kinds = load_all()
+        # The input maps, checked against the creatures (unknown names, drives): MapError.
+        self.routes = compile_maps(settings.input.map, {
+            spec.name: Colony(kinds[spec.kind].drive_names(spec), kinds[spec.kind].rewardable(spec)) for spec in specs})
+        self.rehearsals: dict[int, list] = {}  # rows of each rehearsal file, by [[input]] table
 
     def resolve(self, relative: str | None) -> Path | None:
         """A path from the config, relative to the config's own directory."""
@@ -126,7 +216,28 @@ def load_installation(path: str | Path) -> LoadedInstallation:
         file = getattr(settings.input, key)
         if file is not None and not (path.parent / file).exists():
             raise config_error(path, where, ("input", key), f"file not found: {file}")
-    return LoadedInstallation(path, settings, specs)
+    return _with_input_maps(path, settings, specs, where, ("input",) if isinstance(data.get("input"), list)
+                            else ("input", "map"))
+
+
+def _with_input_maps(path: Path, settings: Installation, specs: list[CreatureSpec],
+                     where: dict[tuple, tuple[Path, int]], prefix: tuple[str, ...]) -> LoadedInstallation:
+    """The installation, once every ``[[input]]`` table is known to work (the rehearsal files
+    read, the maps checked against the creatures); :class:`ConfigError` at the table's key."""
+    from creatures.runtime.input_routes import MapError
+    from creatures.runtime.input_sources import RehearsalError, load_rehearsal
+
+    try:
+        inst = LoadedInstallation(path, settings, specs)
+    except MapError as exc:
+        raise config_error(path, where, (*prefix, exc.index, exc.key), str(exc)) from None
+    for i, spec in enumerate(settings.input.map):
+        if spec.file is not None:
+            try:
+                inst.rehearsals[i] = load_rehearsal(path.parent / spec.file)
+            except RehearsalError as exc:
+                raise config_error(path, where, (*prefix, i, "file"), str(exc)) from None
+    return inst
 
 
 __all__ = ["ConfigError", "Installation", "LoadedInstallation", "load_installation"]

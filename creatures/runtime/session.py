@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -20,6 +21,7 @@ from audio.transcribe import Transcriber
 from creatures.clock import Clock
 from creatures.events import EventLog
 from creatures.kinds import KINDS
+from creatures.runtime.input_map import InputRouter
 from creatures.persist import StateFileError, load_json, save_json
 from creatures.runtime.schema import LoadedInstallation
 from creatures.runtime.world import World
@@ -37,14 +39,17 @@ class Session:
     """The creatures of one installation on one clock, ticking together."""
 
     def __init__(self, inst: LoadedInstallation, clock: Clock, log: EventLog, sink: NoteSink, *,
-                 transcribe: bool = False) -> None:
-        """``transcribe``: the input audio's pitched notes are heard as notes (audio-only runs)."""
+                 transcribe: bool = False, say: Callable[[str], None] = lambda message: None) -> None:
+        """``transcribe``: the input audio's pitched notes are heard as notes (audio-only runs);
+        ``say`` reports to the person running it (e.g. the first unmapped input)."""
         settings = inst.settings
         self.inst = inst
         self.clock = clock
         self.log = log
         self.scheduler = NoteScheduler(sink, clock)
         self.world = World(clock, log, self.scheduler)
+        # The [[input]] maps; their sensors exist before the creatures, which may model them.
+        self.inputs = InputRouter(inst.routes, self.world, say)
         seeds = np.random.SeedSequence(settings.seed).spawn(len(inst.specs) + 1)
         self.input_rng = np.random.default_rng(seeds[-1])
         for spec, seed in zip(inst.specs, seeds):
@@ -58,6 +63,7 @@ class Session:
         self._voices = np.zeros((len(self.creatures), block))
         self._room = np.zeros(0)
         self.air = settings.audio.air
+        self._deaf = any(not creature.spec.hears_input for creature in self.creatures)
         self.transcribe = transcribe
         self._transcriber: Transcriber | None = None
         self.ticks = 0
@@ -73,9 +79,11 @@ class Session:
             self._hear_notes(t, recorded)
         self.world.deliver(t)
         heard = self._ears(recorded, frames)
-        if heard is not None:
-            for creature in self.creatures:
-                creature.listen(t, heard, self.sample_rate)
+        room = self._ears(None, frames) if self._deaf and recorded is not None else heard  # hears_input = false
+        for creature in self.creatures:
+            block = heard if creature.spec.hears_input else room
+            if block is not None:
+                creature.listen(t, block, self.sample_rate)
         for creature in self.creatures:
             creature.tick(t)
         self.scheduler.pump()
@@ -108,8 +116,9 @@ class Session:
         return heard
 
     def close(self) -> None:
-        """Silence every sounding note and log the end of the run."""
+        """Silence every sounding note and log the input counters and the end of the run."""
         self.scheduler.all_notes_off()
+        self.world.emit("inputs", **self.inputs.summary())
         self.world.emit("end", ticks=self.ticks, notes=self.world.notes_played)
 
     # -- state that lasts across restarts ---------------------------------------------------

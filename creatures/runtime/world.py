@@ -5,7 +5,10 @@ Creatures in one process hear each other through the same channel a performer us
 scheduled to the MIDI output and, when it starts, delivered to every other creature's ear.
 Notes from outside (files, ports, OSC) enter the same bus with their source's name, and
 teach the colony's :class:`HeardPulse` when they start: the creatures keep the time of the
-music they hear, not of their own wandering.
+music they hear, not of their own wandering. A creature whose spec says ``hears_input =
+false`` hears none of them (MIDI, OSC, transcribed audio, the input map's notes), only other
+creatures. Sensors (``[[input]]`` with ``to = "sensor"``) are the world's too: named
+:class:`StateObject` flows any creature may model as a percept.
 """
 
 from __future__ import annotations
@@ -15,6 +18,7 @@ import heapq
 import itertools
 from typing import TYPE_CHECKING, Callable
 
+from creatures.behaviour.state_object import StateObject
 from creatures.clock import Clock
 from creatures.events import EventLog
 from creatures.runtime.pulse import HeardPulse
@@ -42,11 +46,19 @@ class World:
         # key (creatures.runtime.network): e.g. peers["bo"]["boredom"], peers["bo"]["action"].
         self.peers: dict[str, dict[str, int | float | str]] = {}
         self._seq = itertools.count()
+        self.sensors: dict[str, StateObject] = {}  # by name, fed by the input map
         self.notes_played = 0
         self.pulse = HeardPulse()  # the rhythm of the notes heard from outside the colony
 
     def add(self, creature: "CreatureKind") -> None:
         self.creatures.append(creature)
+
+    def sensor(self, name: str) -> StateObject:
+        """The sensor called ``name`` (KeyError naming those there are)."""
+        try:
+            return self.sensors[name]
+        except KeyError:
+            raise KeyError(f"no sensor named {name!r} (sensors: {sorted(self.sensors) or 'none'})") from None
 
     def emit(self, kind: str, **fields: object) -> None:
         """Log an event at the present clock time."""
@@ -91,7 +103,7 @@ class World:
             if not any(creature.name == source for creature in self.creatures):
                 self.pulse.hear(note.time)  # the rhythm heard from outside, not the colony's own
             for creature in self.creatures:
-                if creature.name != source:
+                if creature.name != source and (source != INPUT or creature.spec.hears_input):
                     creature.hear(note, source)
             count += 1
         self.pulse.settle()

@@ -1,0 +1,253 @@
+"""The open input map: any OSC address or MIDI message from outside the colony becomes a
+heard note, a sensor reading, a reward or a drive perturbation (``[[input]]`` tables).
+
+An installation meets the tools artists already use (TouchDesigner, Max, Pd, a light sensor on
+an Arduino, a visitor's clicker) without code: each ``[[input]]`` table names what it hears
+(``osc = "/pattern"`` with OSC 1.0 wildcards, or ``midi = "cc"`` and filters) and what it
+becomes (``to``):
+
+* ``note``: a note heard from outside, like one played on a keyboard;
+* ``sensor``: a reading pushed into a named :class:`StateObject` in ``World.sensors`` — history,
+  saliency and habituation for any creature that models it as a percept (thesis: "state
+  objects and decaying memory traces");
+* ``reward``: the clicker (thesis: clicker training, "credit assignment"): the tuples that were
+  active within ``window`` seconds before the click take it (:meth:`ActionGroup.reward`);
+* ``drive``: an impulse to, or a new level of, a drive of the creatures' motivation.
+
+Nothing is dropped in silence. A message no map takes is *unmapped*; one a map takes but
+cannot read (an argument missing or of the wrong type, a pitch out of range) is *malformed*.
+Both are counted and logged once per address and source (again at most every
+:data:`LOG_EVERY` seconds, with the count), and the counters are logged at the end of the run
+(``inputs``). Every message is applied at the time it is polled, on the creature's thread.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections import Counter
+from typing import TYPE_CHECKING, Any, Callable
+
+import mido
+
+from creatures.behaviour.state_object import Habituation, StateObject
+from creatures.runtime.input_routes import MIDI, MIDI_KIND, MIDI_SPAN, Route
+from creatures.runtime.schema import Arg, InputMap, Number
+from midi.notes import NoteEvent, is_note_off
+
+if TYPE_CHECKING:
+    from creatures.runtime.world import World
+
+HEARD_LENGTH = 0.25
+"""Seconds assumed for a heard note whose length is not known (a MIDI note heard at its note-on)."""
+
+LOG_EVERY = 60.0
+"""Seconds between two log lines for the same unmapped or malformed address."""
+
+MAX_ADDRESSES = 1024
+"""Distinct addresses whose log lines are rate limited one by one; beyond them, one for all."""
+
+SENSOR_LOG_EVERY = 0.1
+"""Seconds between two ``sensor`` log lines of one sensor (a 100 Hz controller must not
+flood the events log; every reading still reaches the sensor)."""
+
+_NOTE_NAME = re.compile(r"([A-Ga-g])([#b]?)(-?\d)")
+_STEPS = {"c": 0, "d": 2, "e": 4, "f": 5, "g": 7, "a": 9, "b": 11}
+
+
+class Unreadable(ValueError):
+    """A message a map matched but cannot read (counted as malformed)."""
+
+
+# -- reading values from a message ---------------------------------------------------------------
+def as_number(x: Any, what: str) -> float:
+    """An argument as a finite number: int, float, bool (1/0) or a numeric string."""
+    if isinstance(x, str):
+        try:
+            x = float(x)
+        except ValueError:
+            raise Unreadable(f"{what}: {x!r} is not a number") from None
+    if not isinstance(x, (int, float)) or not math.isfinite(x):
+        raise Unreadable(f"{what}: {x!r} is not a finite number")
+    return float(x)
+
+
+def as_pitch(x: Any) -> int:
+    """A MIDI pitch from a number or a note name (``C4`` = 60, ``F#3``, ``Bb2``)."""
+    if isinstance(x, str) and (name := _NOTE_NAME.fullmatch(x.strip())):
+        accidental = {"#": 1, "b": -1}.get(name[2], 0)
+        x = 12 * (int(name[3]) + 1) + _STEPS[name[1].lower()] + accidental
+    pitch = round(as_number(x, "pitch"))
+    if not 0 <= pitch <= 127:
+        raise Unreadable(f"pitch {pitch} is outside 0..127")
+    return pitch
+
+
+def read(value: Number | None, args: tuple, fallback: Number) -> Any:
+    """``value`` (a constant or an :class:`Arg`) read from ``args``; ``fallback`` if unset."""
+    value = fallback if value is None else value
+    if not isinstance(value, Arg):
+        return value
+    if value.arg < len(args):
+        return args[value.arg]
+    if value.default is None:
+        raise Unreadable(f"no argument {value.arg} (the message has {len(args)})")
+    return value.default
+
+
+# -- the router ---------------------------------------------------------------------------------
+class InputRouter:
+    """Applies the colony's routes to every message from outside, counting what none takes."""
+
+    def __init__(self, routes: list[Route], world: "World", say: Callable[[str], None] = lambda m: None) -> None:
+        self.routes = routes
+        self.osc_routes = [r for r in routes if r.pattern is not None]
+        self.midi_routes = [r for r in routes if r.midi is not None]
+        self.world = world
+        self.say = say
+        self.counts: Counter[str] = Counter()  # mapped / unmapped / malformed, and by source
+        self._logged: dict[tuple[str, str, str], tuple[float, int]] = {}  # -> (last logged, count since)
+        self._sensor_logged: dict[str, float] = {}
+        for route in routes:
+            if route.spec.to == "sensor":
+                self._make_sensor(route.spec)
+
+    def _make_sensor(self, spec: InputMap) -> None:
+        if spec.name not in self.world.sensors:
+            # A reading's saliency is its size (a brighter light is more stimulating); repeated
+            # readings habituate the way a startle does (Habituation's defaults).
+            self.world.sensors[spec.name] = StateObject(spec.name, history=1024, habituation=Habituation())
+
+    # -- sources --------------------------------------------------------------------------
+    def osc(self, address: str, args: list | tuple, t: float, via: str = "osc") -> int:
+        """An OSC message (or a serial line or rehearsal row read as one); notes heard."""
+        args = tuple(args)
+        matched = [r for r in self.osc_routes if r.matches_osc(address, args)]
+        if not matched:
+            self.miss("unmapped", via, address, t, "no [[input]] map takes it")
+            return 0
+        return self._apply(matched, args, t, via, address)
+
+    def midi(self, msg: mido.Message, t: float, via: str = "midi") -> int:
+        """A MIDI message: mapped ones go where their map says; unmapped note-ons are heard
+        as notes (a keyboard needs no map) and note-offs end them; anything else is unmapped."""
+        kind = "note_off" if is_note_off(msg) else MIDI_KIND.get(msg.type)
+        matched = [r for r in self.midi_routes if kind is not None and r.matches_midi(kind, msg)]
+        if matched:
+            return self._apply(matched, tuple(getattr(msg, field) for field in MIDI[kind][1]), t, via, kind)
+        if kind not in ("note", "note_off"):
+            self.miss("unmapped", via, msg.type, t, "no [[input]] map takes it")
+            return 0
+        self.mapped(via)  # by the default map of a keyboard
+        if kind == "note_off":
+            return 0
+        # A player expects creatures to react when a key goes down, not when it is
+        # released: heard at note-on, with a nominal length (the real one is not known yet).
+        self.world.inject(NoteEvent(t, msg.note, msg.velocity, msg.channel, HEARD_LENGTH), via=via)
+        return 1
+
+    def midi_bytes(self, data: bytes | list[int], t: float, via: str) -> int:
+        """Raw MIDI bytes (a rehearsal row, a fuzzer): one message, or malformed."""
+        try:
+            msg = mido.Message.from_bytes(list(data))
+        except (ValueError, TypeError, IndexError) as exc:
+            self.miss("malformed", via, "midi", t, f"not one MIDI message ({exc})")
+            return 0
+        return self.midi(msg, t, via)
+
+    # -- targets ----------------------------------------------------------------------------
+    def _apply(self, routes: list[Route], args: tuple, t: float, via: str, address: str) -> int:
+        """Every matching route takes the message; it counts once: mapped, or malformed if
+        any route could not read it."""
+        notes, failed = 0, None
+        for route in routes:
+            try:
+                notes += getattr(self, f"_{route.spec.to}")(route, args, t, via)
+            except Unreadable as exc:
+                failed = failed or str(exc)
+        if failed is not None:
+            self.miss("malformed", via, address, t, failed)
+        else:
+            self.mapped(via)
+        return notes
+
+    def mapped(self, via: str) -> None:
+        self.counts["mapped"] += 1
+        self.counts[f"mapped {via}"] += 1
+
+    def _note(self, route: Route, args: tuple, t: float, via: str) -> int:
+        spec = route.spec
+        midi_note = route.midi in ("note", "note_off", "polytouch")
+        pitch = as_pitch(read(spec.pitch, args, Arg(arg=0)))
+        velocity = round(as_number(read(spec.velocity, args, Arg(arg=1) if midi_note else 100.0), "velocity"))
+        duration = as_number(read(spec.duration, args, HEARD_LENGTH), "duration")
+        if not 1 <= velocity <= 127 or duration < 0:
+            raise Unreadable(f"velocity {velocity} (1..127) or duration {duration} (>= 0) out of range")
+        channel = args[-1] if route.midi else 0
+        self.world.inject(NoteEvent(t, pitch, velocity, channel, duration), via=via)
+        return 1
+
+    def _sensor(self, route: Route, args: tuple, t: float, via: str) -> int:
+        spec = route.spec
+        value = as_number(read(spec.value, args, Arg(arg=0)), "value")
+        if spec.range is not None:
+            lo, hi = spec.input_range or MIDI_SPAN.get(route.midi or "", (0.0, 127.0) if route.midi else (0.0, 1.0))
+            if hi == lo:
+                raise Unreadable("input_range is empty")
+            value = spec.range[0] + (value - lo) / (hi - lo) * (spec.range[1] - spec.range[0])
+        sensor = self.world.sensors[spec.name]
+        saliency = sensor.push(max(t, sensor.times_array[-1]) if len(sensor) else t, value)
+        if t >= self._sensor_logged.get(spec.name, -math.inf) + SENSOR_LOG_EVERY:
+            self._sensor_logged[spec.name] = t
+            self.world.emit("sensor", name=spec.name, value=value, saliency=saliency, via=via)
+        return 0
+
+    def _reward(self, route: Route, args: tuple, t: float, via: str) -> int:
+        amount = as_number(read(route.spec.amount, args, 1.0), "amount")
+        for creature in self._reached(route, args):
+            creature.reward(amount, t, route.spec.window, route.spec.rate)
+        return 0
+
+    def _drive(self, route: Route, args: tuple, t: float, via: str) -> int:
+        spec = route.spec
+        amount = None if spec.amount is None else as_number(read(spec.amount, args, 0.0), "amount")
+        level = None if spec.set is None else as_number(read(spec.set, args, 0.0), "set")
+        for creature in self._reached(route, args):
+            creature.drive(t, spec.drive, amount=amount, level=level)
+        return 0
+
+    def _reached(self, route: Route, args: tuple) -> list:
+        by_name = {c.name: c for c in self.world.creatures}
+        if route.creatures is not None:
+            return [by_name[name] for name in route.creatures]
+        name = read(route.spec.creatures, args, route.spec.creatures)
+        creature = by_name.get(name) if isinstance(name, str) else None
+        if creature is None or creature.name not in self._able(route):
+            raise Unreadable(f"{name!r} names no creature this map can reach")
+        return [creature]
+
+    def _able(self, route: Route) -> set[str]:
+        if route.spec.to == "reward":
+            return {c.name for c in self.world.creatures if c.rewardable(c.spec)}
+        return {c.name for c in self.world.creatures if route.spec.drive in c.drive_names(c.spec)}
+
+    # -- what nothing takes ----------------------------------------------------------------
+    def miss(self, what: str, via: str, address: str, t: float, why: str) -> None:
+        """Count an unmapped or malformed message; log it the first time its address is seen
+        from this source, then at most every :data:`LOG_EVERY` seconds with the count."""
+        self.counts[what] += 1
+        self.counts[f"{what} {via}"] += 1
+        key = (what, via, address if len(self._logged) < MAX_ADDRESSES or (what, via, address) in self._logged
+               else "(other addresses)")
+        last, since = self._logged.get(key, (-math.inf, 0))
+        if t - last < LOG_EVERY:
+            self._logged[key] = (last, since + 1)
+            return
+        self._logged[key] = (t, 0)
+        self.world.emit(what, via=via, address=key[2], why=why, count=since + 1)
+        if last == -math.inf:
+            self.say(f"{via} input {key[2][:80]!r} {what} ({why}); counted, logged at most every {LOG_EVERY:.0f} s")
+
+    def summary(self) -> dict[str, int]:
+        """The counters, for the run's summary and its last ``inputs`` event."""
+        return dict(sorted(self.counts.items()))

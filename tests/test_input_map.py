@@ -1,0 +1,476 @@
+"""The open input map (``[[input]]``): every kind of mapping, config errors that name the key
+and line, serial devices on a pseudo-terminal, and the clicker's late reward."""
+
+from __future__ import annotations
+
+import os
+import pty
+import select
+import textwrap
+
+import mido
+import numpy as np
+import pytest
+
+from input_fixtures import COLONY
+
+from creatures.behaviour.action_group import ActionGroup
+from creatures.behaviour.action_tuple import Action, ActionTuple, DoUntil
+from creatures.behaviour.percept import FunctionPercept
+from creatures.cli import main
+from creatures.clock import SimulatedClock
+from creatures.config import ConfigError
+from creatures.events import EventLog
+from creatures.kinds import load_all
+from creatures.runtime.input_map import as_pitch
+from creatures.runtime.input_routes import address_pattern
+from creatures.runtime.input_sources import RETRY, SerialSource, line_message, value_of
+from creatures.runtime.schema import load_installation
+from creatures.runtime.session import Session
+from midi.sinks import MemorySink
+
+MAPS = """
+[[input]]
+osc = "/note"
+to = "note"
+pitch = {arg = 0}
+velocity = {arg = 1, default = 100}
+duration = {arg = 2, default = 0.25}
+
+[[input]]
+osc = "/light/{left,right}/[0-9]*"
+to = "sensor"
+name = "light"
+
+[[input]]
+osc = "/lux"
+to = "sensor"
+name = "lux"
+
+[[input]]
+osc = "/any"
+to = "sensor"
+name = "count"
+value = {arg = 3, default = -1}
+
+[[input]]
+midi = "cc"
+control = 7
+to = "sensor"
+name = "fader"
+range = [-1.0, 1.0]
+
+[[input]]
+midi = "note"
+channel = 9
+note = 36
+to = "reward"
+creatures = ["bo"]
+amount = 2.0
+
+[[input]]
+osc = "/reward"
+to = "reward"
+creatures = {arg = 0}
+amount = {arg = 1, default = 1.0}
+
+[[input]]
+osc = "/bored"
+to = "drive"
+drive = "boredom"
+amount = {arg = 0}
+
+[[input]]
+osc = "/calm"
+to = "drive"
+drive = "boredom"
+creatures = ["bo"]
+set = 0.0
+"""
+
+
+def colony(tmp_path, maps: str = MAPS, extra: str = ""):
+    path = tmp_path / "colony.toml"
+    path.write_text(COLONY + extra + maps)
+    inst = load_installation(path)
+    clock = SimulatedClock()
+    return Session(inst, clock, EventLog(), MemorySink()), clock
+
+
+def events(session: Session, kind: str) -> list[dict]:
+    return [e for e in session.log.records if e["kind"] == kind]
+
+
+@pytest.mark.parametrize("pattern,address,matches", [
+    ("/a/b", "/a/b", True),
+    ("/a/*", "/a/anything", True),
+    ("/a/*", "/a/b/c", False),  # no wildcard crosses a '/'
+    ("/a/?x", "/a/yx", True),
+    ("/a/?x", "/a/x", False),
+    ("/ch/[0-9]", "/ch/7", True),
+    ("/ch/[!0-9]", "/ch/7", False),
+    ("/ch/[!0-9]", "/ch/a", True),
+    ("/ch/[abc]d", "/ch/bd", True),
+    ("/{foo,bar}/x", "/bar/x", True),
+    ("/{foo,bar}/x", "/baz/x", False),
+    ("/a.b", "/aXb", False),  # '.' is a plain character
+    ("/a-b", "/a-b", True),
+])
+def test_osc_1_0_address_patterns(pattern, address, matches):
+    assert (address_pattern(pattern).fullmatch(address) is not None) is matches
+
+
+@pytest.mark.parametrize("pattern", ["no/slash", "/a/[bc", "/a/{x,y", "/a b", "/a/]", "/a/[]", "/{a,*}"])
+def test_bad_patterns_are_refused(pattern):
+    with pytest.raises(ValueError):
+        address_pattern(pattern)
+
+
+def test_osc_int_float_string_and_two_argument_notes_are_heard_by_those_that_hear_input(tmp_path):
+    session, clock = colony(tmp_path)
+    router = session.inputs
+    clock.advance_to(1.0)
+    assert router.osc("/note", [60, 90, 0.5], 1.0) == 1  # ints, and a float duration
+    assert router.osc("/note", [62.0, 80.0], 1.0) == 1  # floats, two arguments: the duration's default
+    assert router.osc("/note", ["C#4"], 1.0) == 1  # a string: a note name; velocity's default
+    assert router.osc("/note", ["64", True], 1.0) == 1  # a numeric string, a bool (velocity 1)
+    heard = [(e["pitch"], e["velocity"], e["duration"], e["source"]) for e in events(session, "heard")]
+    assert heard == [(60, 90, 0.5, "osc"), (62, 80, 0.25, "osc"), (61, 100, 0.25, "osc"), (64, 1, 0.25, "osc")]
+    session.world.deliver(1.0)
+    placed = {(e["creature"], e["source"]) for e in session.log.records if e["kind"] == "placed"}
+    assert placed == {("bo", "input")}  # `deaf` (hears_input = false) hears none of them
+    assert router.counts["mapped"] == 4 and router.counts["malformed"] == 0
+
+
+def test_unreadable_and_unmapped_messages_are_counted_and_logged_once_per_address(tmp_path):
+    session, clock = colony(tmp_path)
+    router = session.inputs
+    said: list[str] = []
+    router.say = said.append
+    for t in (1.0, 2.0, 3.0):
+        router.osc("/note", [], t)  # no pitch
+        router.osc("/note", ["sixty"], t)  # not a pitch
+        router.osc("/note", [60, 0], t)  # velocity 0 is no note
+        router.osc("/synth/freq", [440.0], t)
+    assert router.counts["malformed"] == 9 and router.counts["unmapped"] == 3
+    assert router.counts["malformed osc"] == 9 and router.counts["mapped"] == 0
+    logged = [(e["kind"], e["address"], e["count"]) for e in session.log.records if e["kind"] in ("unmapped", "malformed")]
+    assert logged == [("malformed", "/note", 1), ("unmapped", "/synth/freq", 1)]  # rate limited per address
+    assert len(said) == 2 and "/synth/freq" in said[1]
+    router.osc("/synth/freq", [1.0], 70.0)  # a minute later: logged again, with the count since
+    assert [e["count"] for e in events(session, "unmapped")] == [1, 3]
+    session.close()
+    assert events(session, "inputs")[-1]["unmapped"] == 4
+
+
+def test_wildcard_any_arity_and_bool_readings_reach_named_sensors(tmp_path):
+    session, clock = colony(tmp_path)
+    router = session.inputs
+    router.osc("/light/left/3", [0.25], 1.0)
+    router.osc("/light/right/12", [True], 1.5)
+    router.osc("/light/up/3", [0.9], 1.6)  # not {left,right}
+    for n, t in ((0, 2.0), (4, 2.5), (7, 3.0)):  # any arity: argument 3 or its default
+        router.osc("/any", list(range(10, 10 + n)), t)
+    light = session.world.sensor("light")
+    assert light.data == [0.25, 1.0] and light.times == [1.0, 1.5]
+    assert session.world.sensor("count").data == [-1.0, 13.0, 13.0]
+    assert light.saliency_at(1.2) == pytest.approx(0.25)  # a StateObject: saliency and history
+    assert router.counts["unmapped"] == 1
+    with pytest.raises(KeyError, match="sensors: \\['count', 'fader', 'light', 'lux'\\]"):
+        session.world.sensor("dark")
+
+
+def test_midi_cc_is_scaled_into_a_sensor_and_other_controllers_are_unmapped(tmp_path):
+    session, clock = colony(tmp_path)
+    router = session.inputs
+    for value, t in ((0, 1.0), (127, 1.1), (64, 1.2)):
+        router.midi(mido.Message("control_change", control=7, value=value, channel=3), t)
+    router.midi(mido.Message("control_change", control=8, value=1), 1.3)
+    router.midi(mido.Message("program_change", program=5), 1.4)
+    assert session.world.sensor("fader").data == pytest.approx([-1.0, 1.0, 64 / 127 * 2 - 1])
+    assert router.counts["unmapped midi"] == 2
+
+
+def test_midi_note_rewards_the_tuple_that_was_active_and_a_string_names_the_creature(tmp_path):
+    session, clock = colony(tmp_path)
+    bo = session.world.creatures[0]
+    for step in range(1, 51):  # one simulated second: bo selects something
+        clock.advance_to(step * 0.02)
+        session.step(step * 0.02, 441, None, audio=False)
+    active = bo.group.active[0]
+    before = active.value.to_float()
+    t = clock.now()
+    router = session.inputs
+    router.midi(mido.Message("note_on", note=36, velocity=100, channel=9), t)
+    router.midi(mido.Message("note_on", note=36, velocity=100, channel=0), t)  # another channel: a heard note
+    reward = events(session, "reward")
+    assert [(e["creature"], e["tuple"], e["amount"]) for e in reward] == [("bo", active.name, 2.0)]
+    assert active.value.to_float() == pytest.approx(before + 0.2 * 1.0 * 2.0)  # V + rate·Tr·amount (Tr: whatever)
+    router.osc("/reward", ["deaf", 0.5], t)
+    router.osc("/reward", ["nobody"], t)  # names no creature: malformed, not a crash
+    assert [e["creature"] for e in events(session, "reward")] == ["bo", "deaf"]
+    assert router.counts["malformed osc"] == 1
+    assert [e["pitch"] for e in events(session, "heard")] == [36]
+
+
+def test_drive_perturbation_adds_or_sets_a_drive(tmp_path):
+    session, clock = colony(tmp_path)
+    bo, deaf = session.world.creatures
+    clock.advance_to(1.0)
+    levels = [c.motivation.level("boredom", 1.0) for c in (bo, deaf)]
+    session.inputs.osc("/bored", [0.5], 1.0)  # every creature with a boredom drive
+    assert [c.motivation.level("boredom") for c in (bo, deaf)] == pytest.approx([x + 0.5 for x in levels])
+    session.inputs.osc("/calm", [], 1.0)
+    assert bo.motivation.level("boredom") == 0.0 and deaf.motivation.level("boredom") > 0.5
+    assert [(e["creature"], e["drive"]) for e in events(session, "drive")] == [("bo", "boredom"), ("deaf", "boredom"),
+                                                                                 ("bo", "boredom")]
+
+
+# -- the clicker's window -------------------------------------------------------------------------
+def test_a_late_click_credits_the_tuple_that_just_ended_and_not_one_long_gone():
+    rng = np.random.default_rng(3)
+    show = {"sit": 1.0, "roll": 0.0}
+    tuples = [ActionTuple(name, FunctionPercept(name, lambda t, n=name: show[n]), Action(name), DoUntil(1.0), 5.0)
+              for name in show]
+    group = ActionGroup("dog", tuples, rng=rng, alpha=0.5)
+    group.tick(0.0)
+    assert group.active[0].name == "sit"
+    show.update(sit=0.0, roll=1.0)
+    group.tick(1.0)  # sit is done; roll starts
+    assert group.active[0].name == "roll"
+    before = {name: group.find(name).value.to_float() for name in show}
+    credited, moved = group.reward(2.0, 1.4, window=0.6)  # the visitor meant the sit, 0.4 s late
+    assert credited == ["sit", "roll"]
+    for name in show:  # each was triggered (Tr = 1) when it began: V += α·Tr·amount
+        assert group.find(name).value.to_float() == pytest.approx(before[name] + 0.5 * 1.0 * 2.0)
+    credited, moved = group.reward(2.0, 1.9, window=0.6)  # sit ended 0.9 s before: outside the window
+    assert credited == ["roll"] and "sit" not in moved
+
+
+# -- config errors -----------------------------------------------------------------------------
+@pytest.mark.parametrize("table,key,message", [
+    ('osc = "/a/[bc"\nto = "note"', "input.0.osc", "bad OSC address pattern"),
+    ('osc = "/a"\nargs = 2\nto = "note"\npitch = {arg = 2}', "input.0.pitch", "beyond the 2 argument(s)"),
+    ('midi = "program"\nto = "sensor"\nname = "p"\nvalue = {arg = 2}', "input.0.value", "beyond the 2 argument(s)"),
+    ('osc = "/a"\nto = "nite"', "input.0.to", "did you mean 'note'"),
+    ('osc = "/a"\nto = "reward"\ncreatures = ["boo"]', "input.0.creatures", "did you mean 'bo'"),
+    ('osc = "/a"\nto = "drive"\ndrive = "bordom"\namount = 1', "input.0.drive", "did you mean 'boredom'"),
+    ('osc = "/a"\nto = "drive"\ndrive = "boredom"', "input.0.amount", "amount (added) or set"),
+    ('midi = "ccc"\nto = "note"', "input.0.midi", "did you mean 'cc'"),
+    ('osc = "/a"\nmidi = "cc"\nto = "note"', "input.0.midi", "hears one of"),
+    ('osc = "/a"\nto = "note"\nname = "x"', "input.0.name", "not a key of to = 'note'"),
+    ('osc = "/a"\ncontrol = 7\nto = "note"', "input.0.control", "only for midi = 'cc'"),
+    ('serial = "/dev/ttyUSB0"\nto = "note"', "input.0.to", "a serial table is a source"),
+    ('file = "r.csv"\nchannel = 2', "input.0.channel", "a file table is a source"),
+    ('osc = "/a"\nto = "note"\nbaud = 9600', "input.0.baud", "only with serial"),
+    ('file = "missing.csv"', "input.0.file", "cannot read rehearsal file"),
+    ('osc = "/a"\nto = "note"\npitchh = 3', "input.0.pitchh", "did you mean 'pitch'"),
+])
+def test_a_bad_input_map_names_key_and_line(tmp_path, table, key, message):
+    path = tmp_path / "bad.toml"
+    path.write_text(COLONY + "\n[[input]]\n" + table + "\n")
+    rows = [i for i, row in enumerate(table.split("\n")) if row.startswith(key.split(".")[-1])]
+    line = COLONY.count("\n") + 3 + rows[0] if rows else COLONY.count("\n") + 2  # else the table's own line
+    with pytest.raises(ConfigError) as err:
+        load_installation(path)
+    assert err.value.key == key and message in err.value.message, str(err.value)
+    assert err.value.line == line, str(err.value)
+
+
+def test_a_bad_map_is_exit_2_before_anything_runs(tmp_path, capsys):
+    path = tmp_path / "bad.toml"
+    path.write_text(COLONY + '\n[input]\ngenerate = "none"\n[[input.map]]\nosc = "/x"\nto = "drive"\n'
+                    'drive = "hungr"\namount = 1\n')
+    assert main(["offline", str(path), "--out", str(tmp_path / "out"), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "input.map.0.drive" in err and f"{path}:{COLONY.count(chr(10)) + 7}" in err and "'hunger'" in err
+    assert not (tmp_path / "out" / "events.jsonl").exists()
+
+
+def test_every_kind_declares_the_drives_and_action_group_it_builds(tmp_path):
+    """What the config checks a map against (``drive_names``/``rewardable``) is what the creature has."""
+    import installations
+
+    seen = set()
+    for name in installations.names():
+        inst = load_installation(installations.path(name))
+        if not {s.kind for s in inst.specs} - seen:
+            continue
+        session = Session(inst, SimulatedClock(), EventLog(), MemorySink())
+        for creature in session.creatures:
+            seen.add(creature.spec.kind)
+            motivation = getattr(creature, "motivation", None)
+            assert set(creature.drive_names(creature.spec)) == set(getattr(motivation, "names", ())), creature.spec.kind
+            assert creature.rewardable(creature.spec) == isinstance(getattr(creature, "group", None), ActionGroup)
+    assert seen == set(load_all())
+
+
+# -- serial devices --------------------------------------------------------------------------------
+def arrived(fd: int) -> None:
+    """Wait until the terminal has input to read (the kernel moves it across the pty)."""
+    assert select.select([fd], [], [], 10.0)[0], "nothing arrived on the pseudo-terminal"
+
+
+def test_serial_lines_from_a_pseudo_terminal_are_heard_as_osc(tmp_path):
+    session, clock = colony(tmp_path)
+    master, slave = pty.openpty()
+    said: list[str] = []
+    try:
+        source = SerialSource(os.ttyname(slave), 115200, clock, session.inputs, said.append)
+        assert source.poll(0.0) == 0 and source.port is not None  # opened (raw mode), nothing yet
+        os.write(master, b"lux 0.5\r\nany,1,2,3,4\nfader")  # the last line is not finished yet
+        clock.advance_to(1.0)
+        arrived(slave)
+        assert source.poll(1.0) == 0
+        os.write(master, b" 1\n\xff\xfe\n/note 60 90\n")
+        clock.advance_to(2.0)
+        arrived(slave)
+        assert source.poll(2.0) == 1
+        source.close()
+    finally:
+        os.close(master)
+        os.close(slave)
+    assert session.world.sensor("lux").data == [0.5]
+    assert session.world.sensor("count").data == [4.0]
+    assert [e["pitch"] for e in events(session, "heard")] == [60]
+    counts = session.inputs.counts
+    assert counts["unmapped serial"] == 1  # /fader 1 (the fader is a MIDI map)
+    assert counts["malformed serial"] == 1  # bytes that are not UTF-8
+    assert said == []  # the device was there: nothing to report
+
+
+def test_a_missing_serial_device_is_reported_once_and_retried(tmp_path):
+    session, clock = colony(tmp_path)
+    said: list[str] = []
+    opened: list[str] = []
+    master, slave = pty.openpty()
+    device = str(tmp_path / "ttyUSB0")
+
+    def opener(path, **kwargs):
+        import serial
+
+        opened.append(path)
+        if not os.path.exists(path):
+            raise serial.SerialException(f"could not open port {path}")
+        return serial.serial_for_url(os.ttyname(slave), **kwargs)
+
+    try:
+        source = SerialSource(device, 9600, clock, session.inputs, said.append, opener=opener)
+        for t in (0.0, 0.5, 1.0, 1.5):
+            clock.advance_to(t)
+            source.poll(t)
+        assert len(opened) == 1 and len(said) == 1 and "unavailable" in said[0]  # retried only after RETRY
+        clock.advance_to(RETRY + 0.1)
+        source.poll(clock.now())
+        assert len(opened) == 2 and len(said) == 1  # still absent, still reported only once
+        open(device, "w").close()  # plugged in
+        clock.advance_to(2 * RETRY + 0.2)
+        source.poll(clock.now())
+        os.write(master, b"lux 0.75\n")
+        arrived(slave)
+        source.poll(clock.now())
+        assert "connected" in said[-1] and session.world.sensor("lux").data == [0.75]
+        source.close()
+    finally:
+        os.close(master)
+        os.close(slave)
+
+
+@pytest.mark.parametrize("line,message", [
+    ("light 0.5", ("/light", [0.5])),
+    ("/a/b,1,x, true", ("/a/b", [1, "x", True])),
+    ("   ", None),
+])
+def test_serial_line_forms(line, message):
+    assert line_message(line) == message
+
+
+def test_values_and_note_names():
+    assert [value_of(x) for x in ("3", "2.5", "TRUE", "C4")] == [3, 2.5, True, "C4"]
+    assert [as_pitch(x) for x in ("C4", "c-1", "Bb3", "F#5", 69.4)] == [60, 0, 58, 78, 69]
+
+
+def test_maps_inside_an_input_table_and_extends(tmp_path):
+    base = tmp_path / "base.toml"
+    base.write_text(COLONY)
+    path = tmp_path / "child.toml"
+    path.write_text('extends = "base.toml"\n' + textwrap.dedent("""
+        [input]
+        generate = "none"
+        [[input.map]]
+        osc = "/n"
+        to = "note"
+        """))
+    inst = load_installation(path)
+    assert inst.settings.input.generate == "none" and [r.spec.osc for r in inst.routes] == ["/n"]
+
+
+def test_transcribed_audio_notes_reach_only_those_that_hear_input(tmp_path):
+    from midi.notes import NoteEvent
+
+    session, clock = colony(tmp_path)
+    session.world.inject(NoteEvent(0.5, 60, 90, 0, 0.3), via="audio")
+    session.world.deliver(1.0)
+    assert {e["creature"] for e in events(session, "placed")} == {"bo"}
+
+
+@pytest.mark.parametrize("args,ok", [
+    ([60.0, 100.0, 0.5], True), ([60.0, 100.0, 0.5, 2.0], True), ([60, 100, 1], True),
+    ([60.5, 100, 0.5], False), ([60, True, 0.5], False), ([60, 100, 0.5, float("nan")], False),
+])
+def test_the_shipped_address_space_takes_whole_floats_where_it_takes_ints(args, ok):
+    from midi.osc import decode
+
+    if ok:
+        note = decode("/creature/A/note", args, 0.0, ("127.0.0.1", 1)).note
+        assert (note.pitch, note.velocity, note.channel) == (60, 100, int(args[3]) if len(args) == 4 else 0)
+    else:
+        with pytest.raises(ValueError):
+            decode("/creature/A/note", args, 0.0, ("127.0.0.1", 1))
+    assert decode("/creature/A/hello", [9000.0], 0.0, ("127.0.0.1", 1)).args == (9000,)
+
+
+def test_rehearsal_files_in_json_lines_and_their_errors(tmp_path):
+    from creatures.runtime.input_sources import RehearsalError, load_rehearsal
+
+    good = tmp_path / "r.jsonl"
+    good.write_text('{"time": 2.0, "address": "/b", "args": ["x", 1.5]}\n{"time": 1.0, "address": "midi", '
+                    '"args": [144, 60, 90]}\n')
+    assert [(r.time, r.address, r.args) for r in load_rehearsal(good)] == [(1.0, "midi", (144, 60, 90)),
+                                                                           (2.0, "/b", ("x", 1.5))]
+    bad = tmp_path / "r.csv"
+    bad.write_text("time,address,args\n1.0,/a,1\nsoon,/b\n")
+    with pytest.raises(RehearsalError, match="r.csv:3: row is not time,address"):
+        load_rehearsal(bad)
+    config = tmp_path / "c.toml"
+    config.write_text(COLONY + '\n[[input]]\nfile = "r.csv"\n')
+    with pytest.raises(ConfigError, match="input.0.file: .*r.csv:3"):
+        load_installation(config)
+
+
+def test_the_readme_example_loads(tmp_path):
+    readme = (__import__("pathlib").Path(__file__).parent.parent / "README.md").read_text()
+    example = readme.split("### The input map: `[[input]]`", 1)[1].split("```toml\n", 1)[1].split("```", 1)[0]
+    (tmp_path / "rehearsal.csv").write_text("time,address,args\n0.5,/calm\n")
+    path = tmp_path / "readme.toml"
+    path.write_text(COLONY + example)
+    inst = load_installation(path)
+    assert [r.spec.to for r in inst.routes] == ["reward", "note", "sensor", "drive"]
+
+
+@pytest.mark.parametrize("air", [False, True])
+def test_input_audio_does_not_reach_those_deaf_to_input(tmp_path, air):
+    session, clock = colony(tmp_path, maps="", extra=f"[audio]\nair = {'true' if air else 'false'}\n")
+    blocks: dict[str, list] = {"bo": [], "deaf": []}
+    for creature in session.creatures:
+        creature.listen = lambda t, block, sr, name=creature.name: blocks[name].append(block.copy())
+    recorded = np.full(441, 0.25, dtype=np.float32)
+    for step in (1, 2):
+        clock.advance_to(step * 0.02)
+        session.step(step * 0.02, 441, recorded)
+    assert len(blocks["bo"]) == 2
+    if not air:
+        assert blocks["deaf"] == []  # no input, no room: nothing to hear
+    else:  # the room only: what the input added is missing from the deaf creature's block
+        assert len(blocks["deaf"]) == 1
+        assert np.allclose(blocks["bo"][1] - blocks["deaf"][0], recorded)
