@@ -126,7 +126,7 @@ def _scan(out, x, v, x_prev, force, trajectory, state, ring, k, c, gamma, inv_m,
           haptic_per_sample, phase_per_sample, dc_pole):
     """Fill ``out`` by scanning the chain; run a haptic step whenever a frame is due.
 
-    ``state`` = [scan phase (0..1), haptic fraction (0..1), dc-blocker x₁, dc-blocker y₁].
+    ``state`` = [scan phase (0..1), haptic fraction (0..1), dc-blocker x₁, dc-blocker y₁, …].
     The value at trajectory position ``p`` is the node shape interpolated linearly along
     the trajectory and between the previous and current haptic frames.
     """
@@ -224,6 +224,7 @@ class ScannedString:
             )
         n = self.parameters.n_masses
         self.sample_rate = float(sample_rate)
+        self._state = np.zeros(5)  # scan phase, haptic fraction, DC blocker x₁ and y₁, scan increment
         self.frequency = frequency
         self.gain = float(gain)
         traj = default_trajectory(n, ring=self.parameters.ring) if trajectory is None else np.asarray(trajectory, dtype=np.int64)
@@ -234,9 +235,15 @@ class ScannedString:
         self.v = np.zeros(n)
         self._x_prev = np.zeros(n)
         self.force = np.zeros(n)
-        self._state = np.zeros(4)
-        self._dc_pole = math.exp(-2.0 * math.pi * 10.0 / self.sample_rate)
+        self.dc_pole = math.exp(-2.0 * math.pi * 10.0 / self.sample_rate)
         self.resets = 0
+
+    def bind(self, x: np.ndarray, v: np.ndarray, x_prev: np.ndarray, force: np.ndarray, state: np.ndarray) -> None:
+        """Keep this string's state in the given arrays from now on (rows of a
+        :class:`~audio.string_bank.StringBank`, whose kernel renders many strings at once)."""
+        for new, old in zip((x, v, x_prev, force, state), (self.x, self.v, self._x_prev, self.force, self._state)):
+            new[:] = old
+        self.x, self.v, self._x_prev, self.force, self._state = x, v, x_prev, force, state
 
     @property
     def frequency(self) -> float:
@@ -247,6 +254,7 @@ class ScannedString:
         if not (math.isfinite(hz) and 0.0 <= hz < 0.5 * self.sample_rate):
             raise ValueError(f"scan frequency must be in [0, Nyquist), got {hz!r}")
         self._frequency = float(hz)
+        self._state[4] = self._frequency / self.sample_rate
 
     def _bump(self, position: float, width: float) -> np.ndarray:
         if not (0.0 <= position <= 1.0 and 0.0 < width <= 1.0):
@@ -282,7 +290,7 @@ class ScannedString:
 
     def silence(self) -> None:
         """Bring the string to rest (shape, velocity, DC blocker)."""
-        for array in (self.x, self.v, self._x_prev, self._state[2:]):
+        for array in (self.x, self.v, self._x_prev, self._state[2:4]):
             array[:] = 0.0
 
     def energy(self) -> float:
@@ -297,7 +305,7 @@ class ScannedString:
         p = self.parameters
         _scan(out, self.x, self.v, self._x_prev, self.force, self.trajectory, self._state,
               p.ring, p.stiffness, p.centring, p.damping / p.mass, 1.0 / p.mass, 1.0 / p.haptic_rate,
-              p.haptic_rate / self.sample_rate, self._frequency / self.sample_rate, self._dc_pole)
+              p.haptic_rate / self.sample_rate, self._state[4], self.dc_pole)
         if not math.isfinite(self.x.sum() + self._state[3]):
             self.silence()  # only reachable by forces of ~1e300: restart quiet rather than NaN
             out[:] = 0.0

@@ -1,16 +1,26 @@
-"""Voices: how many 128-mass scanned strings one core runs in real time, and render speed.
+"""Voices: how many scanned strings one core runs in real time, beside Csound, and render speed.
 
 Rows (``python -m bench voice``):
 
-* scanned strings in real time at 48 kHz (target ≥ 50), beside a plain numpy sine-table
-  oscillator measured in the same process (the ratio says what a scanned voice costs
-  relative to the cheapest possible voice on this machine);
-* the same string model vectorised in numpy over the masses (a Python loop over haptic
-  frames) — the measurement behind choosing numba for :mod:`audio.scanned`;
+* strings in real time at 48 kHz with 1 kHz physics (a :class:`~audio.voices.VoicePool`, the
+  path a creature's voice takes), beside Csound 6.18's ``scantable`` rendering the same
+  strings in the same run (:mod:`bench._peers`): 128 masses (target ≥ 1.5× Csound), then 3
+  (the fewest a string may have), 64 and 1,024;
+* one string rendered alone (``ScannedString.render``, the reference kernel), a plain numpy
+  sine-table oscillator (the cheapest possible voice), and the same string vectorised in numpy
+  over the masses (a Python loop over haptic frames) — the measurement behind numba;
 * body frames per second at 640×480 (pyrender offscreen), when a GL platform exists.
 
-The voice rows run under :func:`one_core` (the target is per core); the render row does not,
-since the GL driver's own threads are part of what a frame costs.
+Equal physics with ``scantable``: the same masses on a ring, one update per millisecond
+(``ksmps`` 48 at 48 kHz), ``stiffness``/``mass``/damping giving the same step (its ``damp``
+factor is our ``1 − γh``), output at 48 kHz. Ours does more per sample and per step: it
+interpolates linearly along the string and between haptic frames (``scantable`` reads the
+nearest mass of the current frame), applies centring, a DC blocker and an envelope, is pushed
+by a moving body (:class:`~audio.coupling.BodyCoupling`, forces recomputed every 40 ms tick)
+and was checked against the stability bound when built.
+
+The voice rows run under :func:`one_core` (the target is per core; Csound inherits the pin);
+the render row does not, since the GL driver's own threads are part of what a frame costs.
 """
 
 from __future__ import annotations
@@ -18,13 +28,17 @@ from __future__ import annotations
 import contextlib
 import os
 import sys
+from types import SimpleNamespace
 from typing import Iterator
 
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from bench import Row, best_of
+from audio.coupling import BodyCoupling
 from audio.scanned import ScannedString, StringParameters
+from audio.voices import VoicePool
+from bench import Row, best_of
+from bench._peers import csound_string_seconds, skipped
 
 SR = 48000
 BLOCK = 512
@@ -111,17 +125,74 @@ def _render_fps(quick: bool) -> Row | None:
     return Row("body frames at 640x480 (11 joints, 4 notes)", frames / seconds, "frames/s")
 
 
+PEER_PHYSICS = dict(mass=1.0, stiffness=800.0, damping=0.5, centring=4.0, haptic_rate=1000.0, ring=True)
+"""The defaults of :class:`StringParameters` on Csound's topology (a ring) and update rate (1 kHz)."""
+
+TICK = 40e-3
+"""How often the body pushes the strings (a behaviour tick)."""
+
+
+def _pool_seconds(masses: int, voices: int, seconds: float, repeat: int) -> float:
+    """Wall time a VoicePool of ``voices`` sounding strings takes to render ``seconds`` at 48 kHz
+    in 512-sample blocks, a moving arm pushing every string once per :data:`TICK`."""
+    parameters = StringParameters(n_masses=masses, **PEER_PHYSICS)
+    pool = VoicePool(voices, parameters, sample_rate=SR, block_size=BLOCK)
+    for k in range(voices):
+        pool.note_on(40 + k % 48, 0.5)
+    coupling = BodyCoupling.along((0.0, 0.0, 0.0), (1.0, 0.0, 0.0), masses, radius=0.2, gain=50.0)
+    out = np.empty(BLOCK)
+    pool.render(out)  # JIT (or load the numba cache) before timing
+    blocks = int(seconds * SR / BLOCK)
+    per_tick = max(int(TICK * SR / BLOCK), 1)
+    sounding = np.arange(voices)
+
+    def play() -> None:
+        for b in range(blocks):
+            if b % per_tick == 0:
+                t = b * BLOCK / SR
+                hand = SimpleNamespace(positions=np.array([[0.5 + 0.3 * np.sin(3.0 * t), 0.1, 0.0]]), time=t)
+                pool.bank.push(sounding, coupling.forces(hand))
+            pool.render(out)
+
+    return best_of(play, repeat=repeat)
+
+
+def _peer_rows(quick: bool) -> list[Row]:
+    """Ours beside Csound's scantable, at equal physics, for each string size."""
+    rows: list[Row] = []
+    damp = 1.0 - PEER_PHYSICS["damping"] / PEER_PHYSICS["mass"] / PEER_PHYSICS["haptic_rate"]
+    seconds = 2.0 if quick else 10.0
+    for masses, voices in ((128, 512), (3, 512), (64, 512), (1024, 64)):
+        voices = voices // 4 if quick else voices
+        what = f"{masses}-mass strings in real time @48 kHz, 1 kHz physics"
+        theirs = csound_string_seconds(voices=voices, seconds=seconds, masses=masses, sample_rate=SR,
+                                       haptic_rate=int(PEER_PHYSICS["haptic_rate"]), mass=PEER_PHYSICS["mass"],
+                                       stiffness=PEER_PHYSICS["stiffness"], damp=damp, repeat=2)
+        ours = voices * seconds / _pool_seconds(masses, voices, seconds, repeat=2)
+        if theirs is None:
+            rows += [Row(f"{what} (VoicePool)", ours, "voices"),
+                     skipped(f"{what}, Csound scantable", "csound not installed")]
+            continue
+        peer = voices * seconds / theirs
+        rows += [Row(f"{what} (VoicePool)", ours, "voices", target=1.5 * peer if masses == 128 else None,
+                     baseline="Csound scantable", ratio=ours / peer),
+                 Row(f"{what} (Csound 6.18 scantable, same run)", peer, "voices")]
+    return rows
+
+
 def run(quick: bool) -> list[Row]:
     string, out = _plucked(), np.empty(BLOCK)
     string.render(BLOCK, out=out)  # JIT (or load the numba cache) before timing
     repeat = 2 if quick else 5
     table = np.sin(2 * np.pi * np.arange(4096) / 4096)
     with one_core():
+        peers = _peer_rows(quick)
         scanned = 1.0 / best_of(lambda: _scanned_second(string, out), repeat=repeat)
         sine = 1.0 / best_of(lambda: _sine_table_second(table, out), repeat=repeat)
         vectorised = 1.0 / best_of(lambda: _numpy_scanned_second(string.parameters), repeat=1 if quick else 2)
     rows = [
-        Row("128-mass scanned strings in real time @48 kHz (numba)", scanned, "voices", target=50.0,
+        *peers,
+        Row("128-mass string rendered alone (ScannedString, 500 Hz physics)", scanned, "voices", target=50.0,
             baseline="numpy sine-table voices", ratio=scanned / sine),
         Row("numpy sine-table oscillators in real time @48 kHz", sine, "voices"),
         Row("same string vectorised in numpy (not used)", vectorised, "voices",

@@ -104,8 +104,7 @@ class Voice:
             return
         force = self.coupling.forces(pose)
         if force.any():
-            for index in np.flatnonzero(self.pool.pitch >= 0):
-                self.pool.voices[index].push(force)
+            self.pool.bank.push(np.flatnonzero(self.pool.pitch >= 0), force)
 
     def render(self, out: np.ndarray, t: float) -> None:
         """Fill ``out`` with the voice up to clock time ``t`` (note-offs that fell due first)."""
