@@ -80,7 +80,7 @@ def _lay_out(shape, delta, x_prev, x, lead):
 
 @numba.njit(cache=True, fastmath=False)
 def _render(mix, voices, x, v, x_prev, force, state, level, slope, failed, trajectory, shape, delta,
-            scratch, ring, k, c, gamma, inv_m, h, haptic_per_sample, dc_pole):
+            scratch, ring, k, c, gamma, inv_m, h, haptic_per_sample, dc_pole, interpolate):
     """Add every string in ``voices`` to ``mix``, each scaled by its envelope ``level`` moving
     by ``slope`` per sample (clipped to [0, 1]); a string whose state stops being finite is
     silenced, adds nothing, and is flagged in ``failed`` (the reference's reset)."""
@@ -103,10 +103,13 @@ def _render(mix, voices, x, v, x_prev, force, state, level, slope, failed, traje
             j = int(pos)
             if j >= n_points:  # phase just below 1 can round up to n_points
                 j -= n_points
-            a = pos - j
-            y0 = shape[j] + frac * delta[j]
-            y1 = shape[j + 1] + frac * delta[j + 1]
-            y = y0 + a * (y1 - y0)
+            if interpolate:
+                a = pos - j
+                y0 = shape[j] + frac * delta[j]
+                y1 = shape[j + 1] + frac * delta[j + 1]
+                y = y0 + a * (y1 - y0)
+            else:  # the node under the scan, current frame (to rounding: shape + delta is x)
+                y = shape[j] + delta[j]
             dc_y1 = y - dc_x1 + dc_pole * dc_y1
             dc_x1 = y
             scratch[s] = dc_y1
@@ -180,7 +183,7 @@ class StringBank:
         _render(mix, np.asarray(voices, dtype=np.int64), self.x, self.v, self.x_prev, self.force, self.state,
                 level, slope, self._failed, self.trajectory, self._shape, self._delta, self.scratch,
                 p.ring, p.stiffness, p.centring, p.damping / p.mass, 1.0 / p.mass, 1.0 / p.haptic_rate,
-                p.haptic_rate / self.sample_rate, self.strings[0].dc_pole)
+                p.haptic_rate / self.sample_rate, self.strings[0].dc_pole, p.interpolation == "linear")
         if self._failed.any():
             for i in np.flatnonzero(self._failed):
                 self.strings[i].resets += 1

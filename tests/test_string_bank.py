@@ -6,10 +6,12 @@ import dataclasses
 
 import numpy as np
 import pytest
+from pydantic import ValidationError
 
 from audio.scanned import ScannedString, StringParameters
 from audio.string_bank import StringBank
 from audio.voices import VoicePool, midi_to_hz
+from creatures.kinds.parts import VoiceSpec
 
 SR = 48000
 
@@ -21,12 +23,13 @@ def excite(string: ScannedString, rng: np.random.Generator) -> None:
     string.push(rng.normal(0, 20, string.parameters.n_masses))
 
 
+@pytest.mark.parametrize("interpolation", ["linear", "none"])
 @pytest.mark.parametrize("ring", [False, True])
 @pytest.mark.parametrize("masses, haptic_rate", [(3, 1000.0), (64, 500.0), (128, 1000.0), (1024, 250.0)])
-def test_bank_samples_are_the_reference_integrators(ring, masses, haptic_rate):
+def test_bank_samples_are_the_reference_integrators(ring, masses, haptic_rate, interpolation):
     """Every string of a bank, excited and pushed between blocks of uneven length, scans the
     same samples as a lone ScannedString given the same history (to 1e-6)."""
-    parameters = StringParameters(n_masses=masses, haptic_rate=haptic_rate, ring=ring)
+    parameters = StringParameters(n_masses=masses, haptic_rate=haptic_rate, ring=ring, interpolation=interpolation)
     rng_bank, rng_ref = np.random.default_rng(23), np.random.default_rng(23)
     frequencies = [55.0, 220.0, 1234.5, 23000.0]
     bank = StringBank(len(frequencies), parameters, sample_rate=SR, block_size=700)
@@ -118,3 +121,24 @@ def test_push_sets_the_force_of_the_chosen_strings_only():
     assert not bank.strings[1].force.any()
     with pytest.raises(ValueError, match=r"shape \(8,\)"):
         bank.push(np.array([0]), np.zeros(7))
+
+
+def test_scanning_without_interpolation_reads_the_nearest_mass_of_the_latest_frame():
+    """``interpolation = "none"`` (Csound's scantable): a slow scan of a frozen shape holds each
+    mass's value for a whole node span instead of ramping between masses; the config passes it on."""
+    parameters = StringParameters(n_masses=8, ring=True, damping=0.0, stiffness=0.0, centring=0.0,
+                                  interpolation="none")
+    string = ScannedString(parameters, sample_rate=SR, frequency=SR / 800.0)  # 100 samples per mass
+    string.x[:] = string._x_prev[:] = np.arange(8.0)
+    raw = string.render_raw(np.empty(800))
+    steps = np.flatnonzero(np.abs(np.diff(raw)) > 0.5)
+    assert len(steps) == 7 and np.all(np.abs(np.diff(steps) - 100) <= 1)  # a step per mass, flat between
+    linear = ScannedString(dataclasses.replace(parameters, interpolation="linear"), sample_rate=SR,
+                           frequency=SR / 800.0)
+    linear.x[:] = linear._x_prev[:] = np.arange(8.0)
+    assert not (np.abs(np.diff(linear.render_raw(np.empty(800)))) > 0.5).any()
+    assert VoiceSpec(interpolation="none").parameters().interpolation == "none"
+    with pytest.raises(ValidationError, match="interpolation"):
+        VoiceSpec(interpolation="cubic")
+    with pytest.raises(ValueError, match="interpolation must be one of"):
+        StringParameters(interpolation="cubic")
