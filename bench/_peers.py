@@ -15,7 +15,7 @@ import time
 from pathlib import Path
 from typing import Callable
 
-from bench import Row
+from bench import Row, best_of
 
 
 def best_cpu_of(fn: Callable[[], object], *, repeat: int = 2) -> float:
@@ -24,12 +24,7 @@ def best_cpu_of(fn: Callable[[], object], *, repeat: int = 2) -> float:
     Where a row sets two single-threaded programs side by side (ours and a peer's), CPU time is
     what both are charged with on a shared machine: wall time would add whatever else waited
     for the core at that moment, differently for each side."""
-    best = float("inf")
-    for _ in range(repeat):
-        t0 = time.process_time()
-        fn()
-        best = min(best, time.process_time() - t0)
-    return best
+    return best_of(fn, repeat=repeat, clock=time.process_time)
 
 
 def skipped(name: str, reason: str) -> Row:

@@ -73,6 +73,14 @@ def _vlq(data, pos):
 
 
 @numba.njit(cache=True)
+def _byte(data, pos):
+    """The byte at ``pos`` and the next position, or (-1, pos) past the end."""
+    if pos >= data.shape[0]:
+        return -1, pos
+    return np.int64(data[pos]), pos + 1
+
+
+@numba.njit(cache=True)
 def _walk(data, starts, ends, track, tick, status, data1, data2, meta_track, meta_tick, meta_kind, meta_start,
           meta_length):
     """Walk every track chunk as mido's ``read_track`` does, filling the arrays; returns
@@ -104,12 +112,9 @@ def _walk(data, starts, ends, track, tick, status, data1, data2, meta_track, met
             if byte == 0xFF or byte == 0xF0 or byte == 0xF7:
                 kind = 0
                 if byte == 0xFF:
-                    if pos >= n:
-                        return k, m, _DECLINE
-                    kind = data[pos]
-                    pos += 1
+                    kind, pos = _byte(data, pos)
                 length, pos = _vlq(data, pos)
-                if length < 0 or length > MAX_MESSAGE_LENGTH or pos + length > n:
+                if kind < 0 or length < 0 or length > MAX_MESSAGE_LENGTH or pos + length > n:
                     return k, m, _DECLINE
                 if byte == 0xFF:
                     meta_track[m], meta_tick[m], meta_kind[m] = t, now, kind
@@ -128,19 +133,12 @@ def _walk(data, starts, ends, track, tick, status, data1, data2, meta_track, met
                 continue
             if byte >= 0xF0:
                 return k, m, _DECLINE  # system common / real-time inside a file: left to mido
-            size = 1 if (byte & 0xF0) == 0xC0 or (byte & 0xF0) == 0xD0 else 2
             if first < 0:
-                if pos >= n:
-                    return k, m, _DECLINE
-                first = data[pos]
-                pos += 1
+                first, pos = _byte(data, pos)
             second = 0
-            if size == 2:
-                if pos >= n:
-                    return k, m, _DECLINE
-                second = data[pos]
-                pos += 1
-            if first > 0x7F or second > 0x7F:
+            if (byte & 0xF0) != 0xC0 and (byte & 0xF0) != 0xD0:  # two data bytes
+                second, pos = _byte(data, pos)
+            if not (0 <= first <= 0x7F and 0 <= second <= 0x7F):  # past the end, or not a data byte
                 return k, m, _DECLINE
             track[k], tick[k], status[k], data1[k], data2[k] = t, now, byte, first, second
             k += 1
