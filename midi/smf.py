@@ -192,8 +192,8 @@ def parse(raw: bytes) -> Events | None:
 def _pair(is_on, is_off, key, start_of, end, completed):
     """FIFO pairing of note-ons with note-offs per (channel, pitch) key, as
     :class:`midi.notes.NotePairer`: ``start_of[k]`` the message index of note ``k``'s on,
-    ``end[k]`` the time it ends (its off's message index, or -1 if still sounding at the end),
-    ``completed[k]`` its rank among completed notes (-1 for the ones flushed)."""
+    ``end[k]`` its off's message index (-1 if still sounding at the end), ``completed[k]`` its
+    rank among completed notes (-1 for the ones flushed); returns the number of notes."""
     n = is_on.shape[0]
     head = np.full(2048, -1, np.int64)
     tail = np.full(2048, -1, np.int64)
