@@ -17,7 +17,9 @@ The names follow Csound's ``scanu``/``scans`` where they agree: ``haptic_rate`` 
 ``init``/``scanhammer``, :meth:`strike` is ``ifnvel``, and ``trajectory`` is ``ifntraj``.
 Like ``scans`` (which interpolates between the last two ``scanu`` shapes) the scanner
 interpolates linearly between successive haptic frames as well as between nodes along
-the trajectory, so a 500 Hz physics rate makes no zipper noise at 48 kHz.
+the trajectory, so a 500 Hz physics rate makes no zipper noise at 48 kHz;
+``interpolation = "none"`` reads the nearest node of the current frame instead, as Csound's
+``scantable`` does (:data:`INTERPOLATIONS`).
 
 The physics is semi-implicit (symplectic) Euler at step ``h = 1/haptic_rate``::
 
@@ -46,6 +48,12 @@ import numpy as np
 #: Highest mode the thesis allows for gestural control ("lower than 10-15Hz").
 GESTURAL_LIMIT_HZ = 15.0
 
+INTERPOLATIONS = ("linear", "none")
+"""How the scanner reads the shape: ``linear`` between nodes along the trajectory and between
+the last two haptic frames (as Csound's ``scans``: no zipper noise), or ``none``, the node under
+the scan position in the current frame (as Csound's ``scantable``: brighter, with the steps of
+the frame rate in it)."""
+
 
 class UnstableStringError(ValueError):
     """String parameters for which the explicit haptic integrator would blow up."""
@@ -67,8 +75,11 @@ class StringParameters:
     damping: float = 0.5
     ring: bool = False
     haptic_rate: float = 500.0
+    interpolation: str = "linear"
 
     def __post_init__(self) -> None:
+        if self.interpolation not in INTERPOLATIONS:
+            raise UnstableStringError(f"interpolation must be one of {INTERPOLATIONS}, got {self.interpolation!r}")
         if self.n_masses < 3:
             raise UnstableStringError(f"a string needs at least 3 masses, got n_masses={self.n_masses}")
         for name in ("mass", "haptic_rate"):
@@ -123,12 +134,13 @@ def _haptic_step(x, v, force, ring, k, c, gamma, inv_m, h):
 
 @numba.njit(cache=True, fastmath=False)
 def _scan(out, x, v, x_prev, force, trajectory, state, ring, k, c, gamma, inv_m, h,
-          haptic_per_sample, phase_per_sample, dc_pole):
+          haptic_per_sample, phase_per_sample, dc_pole, interpolate):
     """Fill ``out`` by scanning the chain; run a haptic step whenever a frame is due.
 
-    ``state`` = [scan phase (0..1), haptic fraction (0..1), dc-blocker x₁, dc-blocker y₁].
+    ``state`` = [scan phase (0..1), haptic fraction (0..1), dc-blocker x₁, dc-blocker y₁, …].
     The value at trajectory position ``p`` is the node shape interpolated linearly along
-    the trajectory and between the previous and current haptic frames.
+    the trajectory and between the previous and current haptic frames, or (``interpolate``
+    false) the current frame's node at ``int(p)``.
     """
     n_points = trajectory.shape[0]
     n = x.shape[0]
@@ -147,11 +159,14 @@ def _scan(out, x, v, x_prev, force, trajectory, state, ring, k, c, gamma, inv_m,
         j1 = trajectory[(j + 1) % n_points]
         y0 = 0.0
         y1 = 0.0
-        if j0 >= 0:
-            y0 = x_prev[j0] + frac * (x[j0] - x_prev[j0])
-        if j1 >= 0:
-            y1 = x_prev[j1] + frac * (x[j1] - x_prev[j1])
-        y = y0 + a * (y1 - y0)
+        if not interpolate:
+            y = x[j0] if j0 >= 0 else 0.0
+        else:
+            if j0 >= 0:
+                y0 = x_prev[j0] + frac * (x[j0] - x_prev[j0])
+            if j1 >= 0:
+                y1 = x_prev[j1] + frac * (x[j1] - x_prev[j1])
+            y = y0 + a * (y1 - y0)
         dc_y1 = y - dc_x1 + dc_pole * dc_y1  # one-pole DC blocker: a pluck is mostly one-signed
         dc_x1 = y
         out[s] = dc_y1
@@ -224,6 +239,7 @@ class ScannedString:
             )
         n = self.parameters.n_masses
         self.sample_rate = float(sample_rate)
+        self._state = np.zeros(5)  # scan phase, haptic fraction, DC blocker x₁ and y₁, scan increment
         self.frequency = frequency
         self.gain = float(gain)
         traj = default_trajectory(n, ring=self.parameters.ring) if trajectory is None else np.asarray(trajectory, dtype=np.int64)
@@ -234,9 +250,15 @@ class ScannedString:
         self.v = np.zeros(n)
         self._x_prev = np.zeros(n)
         self.force = np.zeros(n)
-        self._state = np.zeros(4)
-        self._dc_pole = math.exp(-2.0 * math.pi * 10.0 / self.sample_rate)
+        self.dc_pole = math.exp(-2.0 * math.pi * 10.0 / self.sample_rate)
         self.resets = 0
+
+    def bind(self, x: np.ndarray, v: np.ndarray, x_prev: np.ndarray, force: np.ndarray, state: np.ndarray) -> None:
+        """Keep this string's state in the given arrays from now on (rows of a
+        :class:`~audio.string_bank.StringBank`, whose kernel renders many strings at once)."""
+        for new, old in zip((x, v, x_prev, force, state), (self.x, self.v, self._x_prev, self.force, self._state)):
+            new[:] = old
+        self.x, self.v, self._x_prev, self.force, self._state = x, v, x_prev, force, state
 
     @property
     def frequency(self) -> float:
@@ -247,6 +269,7 @@ class ScannedString:
         if not (math.isfinite(hz) and 0.0 <= hz < 0.5 * self.sample_rate):
             raise ValueError(f"scan frequency must be in [0, Nyquist), got {hz!r}")
         self._frequency = float(hz)
+        self._state[4] = self._frequency / self.sample_rate
 
     def _bump(self, position: float, width: float) -> np.ndarray:
         if not (0.0 <= position <= 1.0 and 0.0 < width <= 1.0):
@@ -282,7 +305,7 @@ class ScannedString:
 
     def silence(self) -> None:
         """Bring the string to rest (shape, velocity, DC blocker)."""
-        for array in (self.x, self.v, self._x_prev, self._state[2:]):
+        for array in (self.x, self.v, self._x_prev, self._state[2:4]):
             array[:] = 0.0
 
     def energy(self) -> float:
@@ -297,7 +320,7 @@ class ScannedString:
         p = self.parameters
         _scan(out, self.x, self.v, self._x_prev, self.force, self.trajectory, self._state,
               p.ring, p.stiffness, p.centring, p.damping / p.mass, 1.0 / p.mass, 1.0 / p.haptic_rate,
-              p.haptic_rate / self.sample_rate, self._frequency / self.sample_rate, self._dc_pole)
+              p.haptic_rate / self.sample_rate, self._state[4], self.dc_pole, p.interpolation == "linear")
         if not math.isfinite(self.x.sum() + self._state[3]):
             self.silence()  # only reachable by forces of ~1e300: restart quiet rather than NaN
             out[:] = 0.0

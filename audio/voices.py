@@ -5,13 +5,16 @@ its own string because the string's shape *is* the note's timbre. :class:`VoiceP
 a fixed set of :class:`~audio.scanned.ScannedString` voices (allocated once, so a live
 block never allocates) and hands a note-on to a free voice, or steals the one that started
 longest ago. Note-off starts a linear release so a stolen or ended note does not click.
+The voices are one :class:`~audio.string_bank.StringBank`: a block renders, envelopes and
+mixes every sounding voice in one compiled call.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from audio.scanned import ScannedString, StringParameters
+from audio.scanned import StringParameters
+from audio.string_bank import StringBank
 
 
 def midi_to_hz(pitch: float) -> float:
@@ -42,7 +45,8 @@ class VoicePool:
             raise ValueError(f"n_voices must be ≥ 1, got {n_voices}")
         if not release > 0:
             raise ValueError(f"release must be > 0 seconds, got {release!r}")
-        self.voices = [ScannedString(parameters, sample_rate=sample_rate, gain=1.0) for _ in range(n_voices)]
+        self.bank = StringBank(n_voices, parameters, sample_rate=sample_rate, block_size=block_size)
+        self.voices = self.bank.strings
         self.sample_rate = float(sample_rate)
         self.pitch = np.full(n_voices, -1.0)  # -1: free
         self.started = np.full(n_voices, -np.inf)  # note-on order stamp
@@ -50,8 +54,6 @@ class VoicePool:
         self.slope = np.zeros(n_voices)  # envelope change per sample (negative while releasing)
         self._release_step = 1.0 / (release * sample_rate)
         self._count = 0
-        self._scratch = np.empty(block_size)
-        self._ramp = np.arange(1, block_size + 1, dtype=float)
 
     def note_on(self, pitch: float, velocity: float = 1.0) -> int:
         """Start a note (MIDI pitch, velocity 0..1); returns the voice index used."""
@@ -78,21 +80,10 @@ class VoicePool:
 
         A block longer than ``block_size`` (a coarse behaviour tick at a high sample rate) is
         rendered in ``block_size`` pieces, so the scratch buffers stay preallocated and small."""
-        size = len(self._scratch)
-        for start in range(0, len(out), size):
-            self._render(out[start:start + size])
-        return out
-
-    def _render(self, out: np.ndarray) -> None:
-        frames = len(out)
         out[:] = 0.0
-        scratch, ramp = self._scratch[:frames], self._ramp[:frames]
-        for index in np.flatnonzero(self.pitch >= 0):
-            self.voices[index].render_raw(scratch)
-            if self.slope[index]:
-                envelope = np.clip(self.level[index] + self.slope[index] * ramp, 0.0, 1.0)
-                scratch *= envelope
-                self.level[index] = envelope[-1]
-                if self.level[index] <= 0.0:
-                    self.pitch[index] = -1.0
-            out += scratch
+        size = len(self.bank.scratch)
+        for start in range(0, len(out), size):
+            sounding = np.flatnonzero(self.pitch >= 0)
+            self.bank.render(out[start:start + size], sounding, self.level, self.slope)
+            self.pitch[sounding[self.level[sounding] <= 0.0]] = -1.0
+        return out

@@ -1,8 +1,9 @@
-"""MIDI benchmarks: raw-byte parsing beside mido's own Parser, loading a 100,000-note file,
-and MIDI-in → creature decision → MIDI-out latency through the live loop's own code path.
+"""MIDI benchmarks: raw-byte parsing beside mido's own Parser, loading a 100,000-note file
+beside mido's parse of it, and MIDI-in → creature decision → MIDI-out latency through the live
+loop's own code path.
 
-Only the latency has a target (the issue's: p99 ≤ 5 ms); parse and load speeds are printed
-beside mido's as numbers to compare, without invented targets.
+Targets: latency p99 ≤ 5 ms; the file load at least 1.5× as fast as mido's parse alone,
+measured in the same run. The raw-byte parse is printed beside mido's without a target.
 """
 
 from __future__ import annotations
@@ -69,10 +70,11 @@ def _file_rows(rng: np.random.Generator, n: int) -> list[Row]:
         write_notes(path, notes, tempo=TempoMap.from_seconds(480, [(starts[-1] / 3, 90.0), (starts[-1] / 2, 150.0)]))
         t_ours = best_of(lambda: read_notes(path), repeat=2)
         t_mido = best_of(lambda: mido.MidiFile(path), repeat=2)
-    # The issue sets no target here; the ratio says how much pairing and the tempo map add to
-    # mido's own parse (which is most of the time).
-    return [Row(f"load .mid of {n:,} notes to NoteEvents", t_ours, "s",
-                higher_is_better=False, baseline="mido.MidiFile parse only", ratio=t_mido / t_ours)]
+    # Ours is the whole load (parse, tempo map, pairing, NoteEvents); mido's only its parse
+    # to messages. Target: at most 1/1.5 of mido's time, measured in this run.
+    return [Row(f"load .mid of {n:,} notes to NoteEvents (midi.smf)", t_ours, "s", target=t_mido / 1.5,
+                higher_is_better=False, baseline="mido.MidiFile parse only", ratio=t_mido / t_ours),
+            Row("mido.MidiFile parse of the same file (peer, same run)", t_mido, "s", higher_is_better=False)]
 
 
 class _FastForward:

@@ -1,30 +1,48 @@
-"""Voices: how many 128-mass scanned strings one core runs in real time, and render speed.
+"""Voices: how many scanned strings one core runs in real time, beside Csound, and render speed.
 
 Rows (``python -m bench voice``):
 
-* scanned strings in real time at 48 kHz (target ≥ 50), beside a plain numpy sine-table
-  oscillator measured in the same process (the ratio says what a scanned voice costs
-  relative to the cheapest possible voice on this machine);
-* the same string model vectorised in numpy over the masses (a Python loop over haptic
-  frames) — the measurement behind choosing numba for :mod:`audio.scanned`;
-* body frames per second at 640×480 (pyrender offscreen), when a GL platform exists.
+* strings in real time at 48 kHz with 1 kHz physics (a :class:`~audio.voices.VoicePool`, the
+  path a creature's voice takes), beside Csound 6.18's ``scantable`` rendering the same
+  strings in the same run (:mod:`bench._peers`): 128 masses (target ≥ 1.5× Csound), then 3
+  (the fewest a string may have), 64 and 1,024; at 128 masses also with ours' default
+  linear interpolation, which does more per sample than ``scantable``;
+* one string rendered alone (``ScannedString.render``, the reference kernel), a plain numpy
+  sine-table oscillator (the cheapest possible voice), and the same string vectorised in numpy
+  over the masses (a Python loop over haptic frames) — the measurement behind numba;
+* body frames per second at 640×480, one body and three (target ≥ 120 frames/s), drawn by
+  :mod:`creatures.body.render` (instanced GL) beside pyrender drawing the same scene the way
+  the renderer used to (:class:`bench._peers.PyrenderBodies`), when a GL platform exists.
 
-The voice rows run under :func:`one_core` (the target is per core); the render row does not,
-since the GL driver's own threads are part of what a frame costs.
+Equal physics with ``scantable``: the same masses on a ring, one update per millisecond
+(``ksmps`` 48 at 48 kHz), ``stiffness``/``mass``/damping giving the same step (its ``damp``
+factor is our ``1 − γh``), output at 48 kHz, and the same reading of the shape
+(``interpolation = "none"``: the nearest mass of the latest frame). Ours still does more per
+sample and per step: centring, a DC blocker and an envelope, pushes from a moving body
+(:class:`~audio.coupling.BodyCoupling`, forces recomputed every 40 ms tick), and a stability
+check when the string was built.
+
+The voice rows run under :func:`one_core` (the target is per core; Csound inherits the pin),
+and the rows beside Csound compare CPU time (:func:`bench._peers.best_cpu_of`; Csound's from
+its process's rusage), which a loaded machine charges both sides alike. The render rows are
+wall time and not pinned, since the GL driver's own threads are part of what a frame costs.
 """
 
 from __future__ import annotations
 
 import contextlib
 import os
-import sys
+from types import SimpleNamespace
 from typing import Iterator
 
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from bench import Row, best_of
+from audio.coupling import BodyCoupling
 from audio.scanned import ScannedString, StringParameters
+from audio.voices import VoicePool
+from bench import Row, best_of
+from bench._peers import best_cpu_of, csound_string_seconds, skipped
 
 SR = 48000
 BLOCK = 512
@@ -92,23 +110,111 @@ def _numpy_scanned_second(p: StringParameters) -> None:
         np.tanh(y0 + a * (y1 - y0))
 
 
-def _render_fps(quick: bool) -> Row | None:
-    from creatures.body.render import BodyRenderer, NoteMark, RenderUnavailable
+def _figures(count: int) -> tuple[np.ndarray, np.ndarray, list]:
+    """``count`` 11-joint stick figures 1.5 m apart, and two notes per figure."""
+    from creatures.body.render import NoteMark
 
     parents = np.array([-1, 0, 1, 1, 3, 1, 5, 0, 7, 0, 9])
     body = np.array([[0, 1, 0], [0, 1.5, 0], [0, 1.8, 0], [-0.3, 1.45, 0], [-0.6, 1.2, 0], [0.3, 1.45, 0],
                      [0.6, 1.2, 0], [-0.15, 0.5, 0], [-0.15, 0, 0], [0.15, 0.5, 0], [0.15, 0, 0]], float)
-    notes = [NoteMark((0.8, 1.6, 0.0), 60 + i) for i in range(4)]
-    try:
-        renderer = BodyRenderer(640, 480)
-    except RenderUnavailable as exc:
-        print(f"voice: render row skipped: {exc}", file=sys.stderr)
-        return None
-    frames = 10 if quick else 40
-    with renderer:
-        renderer.render(body, parents, notes)  # warm: uploads meshes
-        seconds = best_of(lambda: [renderer.render(body + 0.01 * i, parents, notes) for i in range(frames)], repeat=2)
-    return Row("body frames at 640x480 (11 joints, 4 notes)", frames / seconds, "frames/s")
+    shifts = (np.arange(count) - (count - 1) / 2) * 1.5
+    positions = np.concatenate([body + [dx, 0.0, 0.0] for dx in shifts])
+    all_parents = np.concatenate([np.where(parents >= 0, parents + len(body) * k, -1) for k in range(count)])
+    notes = [NoteMark((dx + 0.4 * side, 2.1, 0.0), 60 + 2 * k + (side > 0)) for k, dx in enumerate(shifts)
+             for side in (-1, 1)]
+    return positions, all_parents, notes
+
+
+def _render_rows(quick: bool) -> list[Row]:
+    """Frames per second at 640×480, ours beside pyrender drawing the same scene in this run."""
+    from creatures.body.render import BodyRenderer, RenderUnavailable
+
+    from bench._peers import PyrenderBodies
+
+    frames = 20 if quick else 100
+    rows: list[Row] = []
+    for count in (1, 3):
+        positions, parents, notes = _figures(count)
+        what = f"{'one body' if count == 1 else f'{count} bodies'} at 640x480 ({len(positions)} joints, {len(notes)} notes)"
+        try:
+            renderer = BodyRenderer(640, 480)
+        except RenderUnavailable as exc:
+            return [skipped("body frames", str(exc))]
+        out = np.empty((480, 640, 3), np.uint8)
+        with renderer:
+            renderer.render(positions, parents, notes, out=out)  # frames the camera, compiles shaders
+            camera = renderer.camera_pose
+            ours = frames / best_of(lambda: [renderer.render(positions + 0.01 * i, parents, notes, out=out)
+                                             for i in range(frames)], repeat=2)
+        peer, slow_frames = PyrenderBodies(640, 480, camera), max(frames // 4, 5)  # pyrender is slower
+        peer.render(positions, parents, notes)
+        theirs = slow_frames / best_of(lambda: [peer.render(positions + 0.01 * i, parents, notes)
+                                                for i in range(slow_frames)], repeat=2)
+        peer.close()
+        rows += [Row(f"{what}, instanced GL", ours, "frames/s", target=120.0 if count == 3 else None,
+                     baseline="pyrender", ratio=ours / theirs),
+                 Row(f"{what}, pyrender (peer, same run)", theirs, "frames/s")]
+    return rows
+
+
+PEER_PHYSICS = dict(mass=1.0, stiffness=800.0, damping=0.5, centring=4.0, haptic_rate=1000.0, ring=True)
+"""The defaults of :class:`StringParameters` on Csound's topology (a ring) and update rate (1 kHz)."""
+
+TICK = 40e-3
+"""How often the body pushes the strings (a behaviour tick)."""
+
+
+def _pool_seconds(masses: int, voices: int, seconds: float, repeat: int, interpolation: str) -> float:
+    """CPU time a VoicePool of ``voices`` sounding strings takes to render ``seconds`` at 48 kHz
+    in 512-sample blocks, a moving arm pushing every string once per :data:`TICK`."""
+    parameters = StringParameters(n_masses=masses, interpolation=interpolation, **PEER_PHYSICS)
+    pool = VoicePool(voices, parameters, sample_rate=SR, block_size=BLOCK)
+    for k in range(voices):
+        pool.note_on(40 + k % 48, 0.5)
+    coupling = BodyCoupling.along((0.0, 0.0, 0.0), (1.0, 0.0, 0.0), masses, radius=0.2, gain=50.0)
+    out = np.empty(BLOCK)
+    pool.render(out)  # JIT (or load the numba cache) before timing
+    blocks = int(seconds * SR / BLOCK)
+    per_tick = max(int(TICK * SR / BLOCK), 1)
+    sounding = np.arange(voices)
+
+    def play() -> None:
+        for b in range(blocks):
+            if b % per_tick == 0:
+                t = b * BLOCK / SR
+                hand = SimpleNamespace(positions=np.array([[0.5 + 0.3 * np.sin(3.0 * t), 0.1 + 0.1 * np.cos(5.0 * t), 0.0]]),
+                                       time=t)
+                pool.bank.push(sounding, coupling.forces(hand))
+            pool.render(out)
+
+    return best_cpu_of(play, repeat=repeat)
+
+
+def _peer_rows(quick: bool) -> list[Row]:
+    """Ours beside Csound's scantable for each string size: at equal physics (no interpolation,
+    as scantable), and at 128 masses also with ours' default linear interpolation."""
+    rows: list[Row] = []
+    damp = 1.0 - PEER_PHYSICS["damping"] / PEER_PHYSICS["mass"] / PEER_PHYSICS["haptic_rate"]
+    seconds = 2.0 if quick else 10.0
+    for masses, voices in ((128, 512), (3, 512), (64, 512), (1024, 64)):
+        voices = voices // 4 if quick else voices
+        what = f"{masses}-mass strings in real time @48 kHz, 1 kHz physics"
+        theirs = csound_string_seconds(voices=voices, seconds=seconds, masses=masses, sample_rate=SR,
+                                       haptic_rate=int(PEER_PHYSICS["haptic_rate"]), mass=PEER_PHYSICS["mass"],
+                                       stiffness=PEER_PHYSICS["stiffness"], damp=damp, repeat=2)
+        peer = None if theirs is None else voices * seconds / theirs
+        for interpolation in ("none", "linear") if masses == 128 else ("none",):
+            ours = voices * seconds / _pool_seconds(masses, voices, seconds, 2, interpolation)
+            label = f"{what}, interpolation {interpolation} (VoicePool)"
+            if peer is None:
+                rows.append(Row(label, ours, "voices"))
+                continue
+            equal = interpolation == "none"  # scantable reads the nearest mass of the latest frame
+            rows.append(Row(label, ours, "voices", target=1.5 * peer if equal and masses == 128 else None,
+                            baseline="Csound scantable" + ("" if equal else " (no interp.)"), ratio=ours / peer))
+        rows.append(skipped(f"{what}, Csound scantable", "csound not installed") if peer is None else
+                    Row(f"{what} (Csound 6.18 scantable, same run)", peer, "voices"))
+    return rows
 
 
 def run(quick: bool) -> list[Row]:
@@ -117,15 +223,16 @@ def run(quick: bool) -> list[Row]:
     repeat = 2 if quick else 5
     table = np.sin(2 * np.pi * np.arange(4096) / 4096)
     with one_core():
+        peers = _peer_rows(quick)
         scanned = 1.0 / best_of(lambda: _scanned_second(string, out), repeat=repeat)
         sine = 1.0 / best_of(lambda: _sine_table_second(table, out), repeat=repeat)
         vectorised = 1.0 / best_of(lambda: _numpy_scanned_second(string.parameters), repeat=1 if quick else 2)
     rows = [
-        Row("128-mass scanned strings in real time @48 kHz (numba)", scanned, "voices", target=50.0,
+        *peers,
+        Row("128-mass string rendered alone (ScannedString, 500 Hz physics)", scanned, "voices", target=50.0,
             baseline="numpy sine-table voices", ratio=scanned / sine),
         Row("numpy sine-table oscillators in real time @48 kHz", sine, "voices"),
         Row("same string vectorised in numpy (not used)", vectorised, "voices",
             baseline="numba kernel", ratio=vectorised / scanned),
     ]
-    frame_row = _render_fps(quick)
-    return rows + ([frame_row] if frame_row else [])
+    return rows + _render_rows(quick)

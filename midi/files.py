@@ -21,6 +21,7 @@ import mido
 import numpy as np
 
 from creatures.persist import atomic_write
+from midi import smf
 from midi.notes import NoteEvent, TimedMessage, from_messages, to_messages
 
 DEFAULT_TEMPO = 500_000  # microseconds per beat: 120 bpm, the MIDI file default
@@ -92,6 +93,50 @@ def _open(path: Path) -> mido.MidiFile:
         raise MidiFileError(f"{path}: malformed MIDI file ({exc or type(exc).__name__})") from None
 
 
+def _load(path: Path) -> smf.Events | mido.MidiFile:
+    """The file parsed by :mod:`midi.smf` (arrays, no message objects), or by mido where that
+    reader declines it (then every error is mido's, turned into a MidiFileError as before)."""
+    try:
+        raw = path.read_bytes()
+    except OSError:
+        raw = b""  # missing, a directory, unreadable: mido says which
+    events = smf.parse(raw)
+    midi = _open(path) if events is None else events
+    if midi.ticks_per_beat <= 0:
+        raise MidiFileError(f"{path}: SMPTE time division is not supported")
+    return midi
+
+
+def _tempo_map(path: Path, ticks_per_beat: int, changes: Iterable[tuple[int, int]]) -> TempoMap:
+    try:
+        return TempoMap(ticks_per_beat, changes)
+    except ValueError as exc:
+        raise MidiFileError(f"{path}: bad tempo map ({exc})") from None
+
+
+def _timed_groups(path: Path, events: smf.Events) -> Iterable[tuple[np.ndarray, np.ndarray]]:
+    """Per tempo group (the whole file, or each track of a type 2 file): the indices of its
+    channel messages in time order and their times in seconds."""
+    groups = [np.arange(events.n_tracks)] if events.type != 2 else [np.array([t]) for t in range(events.n_tracks)]
+    for tracks in groups:
+        # Channel messages are in file order (track by track), as read_messages' stable sort wants.
+        chosen = np.flatnonzero(np.isin(events.track, tracks))
+        order = chosen[np.argsort(events.tick[chosen], kind="stable")]
+        tempos = np.flatnonzero(np.isin(events.tempo_track, tracks))
+        tempos = tempos[np.argsort(events.tempo_tick[tempos], kind="stable")]
+        tempo = _tempo_map(path, events.ticks_per_beat, zip(events.tempo_tick[tempos].tolist(), events.tempo[tempos].tolist()))
+        yield order, tempo.to_seconds(events.tick[order])
+
+
+def _events_in_time(path: Path, events: smf.Events) -> tuple[np.ndarray, np.ndarray]:
+    """All channel messages' indices and times, in time order (type 2 tracks interleaved)."""
+    parts = list(_timed_groups(path, events))
+    order = np.concatenate([o for o, _ in parts] or [np.zeros(0, np.int64)])
+    seconds = np.concatenate([t for _, t in parts] or [np.zeros(0)])
+    by_time = np.argsort(seconds, kind="stable")
+    return order[by_time], seconds[by_time]
+
+
 def read_messages(path: str | os.PathLike) -> list[TimedMessage]:
     """All channel messages of a ``.mid`` file with their times in seconds, in time order.
 
@@ -99,9 +144,15 @@ def read_messages(path: str | os.PathLike) -> list[TimedMessage]:
     file keeps its own.
     """
     path = Path(path)
-    midi = _open(path)
-    if midi.ticks_per_beat <= 0:
-        raise MidiFileError(f"{path}: SMPTE time division is not supported")
+    midi = _load(path)
+    if isinstance(midi, smf.Events):
+        order, seconds = _events_in_time(path, midi)
+        return [(t, mido.Message.from_bytes(midi.message_bytes(k))) for t, k in zip(seconds.tolist(), order.tolist())]
+    return _mido_messages(path, midi)
+
+
+def _mido_messages(path: Path, midi: mido.MidiFile) -> list[TimedMessage]:
+    """read_messages for a file only mido reads."""
     groups = [midi.tracks] if midi.type != 2 else [[track] for track in midi.tracks]
     timed: list[TimedMessage] = []
     for group in groups:
@@ -110,13 +161,8 @@ def read_messages(path: str | os.PathLike) -> list[TimedMessage]:
         messages = [msg for track in group for msg in track]
         ticks = np.concatenate([np.cumsum([m.time for m in track], dtype=np.int64) for track in group] or [[]])
         order = np.argsort(ticks, kind="stable")
-        try:
-            tempo = TempoMap(
-                midi.ticks_per_beat,
-                [(ticks[i], messages[i].tempo) for i in order if messages[i].type == "set_tempo"],
-            )
-        except ValueError as exc:
-            raise MidiFileError(f"{path}: bad tempo map ({exc})") from None
+        tempo = _tempo_map(path, midi.ticks_per_beat,
+                           [(ticks[i], messages[i].tempo) for i in order if messages[i].type == "set_tempo"])
         seconds = tempo.to_seconds(ticks[order])
         for t, i in zip(seconds.tolist(), order.tolist()):
             msg = messages[i]
@@ -132,7 +178,13 @@ def read_notes(path: str | os.PathLike) -> list[NoteEvent]:
 
     Raises :class:`MidiFileError` naming the file when it is missing or malformed.
     """
-    return from_messages(read_messages(path))
+    path = Path(path)
+    midi = _load(path)
+    if not isinstance(midi, smf.Events):
+        return from_messages(_mido_messages(path, midi))
+    order, seconds = _events_in_time(path, midi)
+    columns = smf.pair_notes(seconds, midi.status[order], midi.data1[order], midi.data2[order])
+    return [NoteEvent(*note) for note in zip(*(column.tolist() for column in columns))]
 
 
 def write_messages(

@@ -1,4 +1,4 @@
-"""The rendered body: a creature's skeleton and its notes drawn offscreen with pyrender.
+"""The rendered body: a creature's skeleton and its notes drawn offscreen.
 
 The thesis' creatures are seen as well as heard (*soundcreatures*: "each creature has a
 graphical representation"; *exchange*: notes as objects in space). Here a body is drawn
@@ -6,11 +6,13 @@ from what every BodyPose carries — world joint positions and the skeleton's pa
 indices — as spheres at joints and cylinders along bones (together: capsules), under one
 camera and one light, with NoteObjects as spheres coloured by pitch class.
 
-pyrender is unmaintained upstream since 2021, so it stays behind this one module. It needs
-an offscreen OpenGL platform chosen *before* PyOpenGL is first imported; :func:`gl_platform`
-respects ``PYOPENGL_PLATFORM`` if set, else tries EGL then OSMesa (each in a throw-away
-subprocess, since a failed platform cannot be swapped in-process) and raises
-:class:`RenderUnavailable` naming what was tried, so callers carry on without frames.
+Drawing is instanced plain OpenGL (:mod:`creatures.body.gl`: one buffer upload and two draw
+calls a frame); pyrender, unmaintained upstream since 2021, only provides the offscreen
+context and stays behind this module and that one. An offscreen OpenGL platform must be
+chosen *before* PyOpenGL is first imported; :func:`gl_platform` respects
+``PYOPENGL_PLATFORM`` if set, else tries EGL then OSMesa (each in a throw-away subprocess,
+since a failed platform cannot be swapped in-process) and raises :class:`RenderUnavailable`
+naming what was tried, so callers carry on without frames.
 """
 
 from __future__ import annotations
@@ -21,15 +23,10 @@ import subprocess
 import sys
 from dataclasses import dataclass
 from functools import cache
-from types import ModuleType
-from typing import TYPE_CHECKING, Iterable
+from typing import Iterable
 
 import numpy as np
 from numpy.typing import ArrayLike
-
-if TYPE_CHECKING:  # imported for real only once a GL platform is chosen (see _pyrender)
-    import pyrender
-    import trimesh
 
 RGB = tuple[float, float, float]
 
@@ -66,13 +63,51 @@ def gl_platform() -> str:
     )
 
 
-def _pyrender() -> ModuleType:
+def _context(width: int, height: int) -> object:
+    """An offscreen GL context of the chosen platform (pyrender's), made current."""
     platform = gl_platform()
     try:
-        import pyrender
+        if platform == "egl":
+            from pyrender.platforms.egl import EGLPlatform as Platform
+        elif platform == "osmesa":
+            from pyrender.platforms.osmesa import OSMesaPlatform as Platform
+        else:
+            raise RenderUnavailable(f"PYOPENGL_PLATFORM={platform} is not an offscreen platform (use egl or osmesa)")
+    except RenderUnavailable:
+        raise
     except Exception as exc:  # PyOpenGL raises ImportError, AttributeError, … per platform
         raise RenderUnavailable(f"pyrender cannot load with PYOPENGL_PLATFORM={platform}: {exc!r}") from None
-    return pyrender
+    try:
+        context = Platform(width, height)
+        context.init_context()
+        context.make_current()
+    except Exception as exc:  # EGL/OSMesa errors vary by driver
+        raise RenderUnavailable(f"could not open a {platform} context: {exc}") from None
+    return context
+
+
+def _release(context: object) -> None:
+    """Destroy a context from :func:`_context`. pyrender's ``delete_context`` also terminates
+    the EGL display, which every renderer in the process shares, so on EGL only the context
+    goes: another renderer keeps drawing."""
+    if gl_platform() != "egl":
+        context.delete_context()
+        return
+    from OpenGL.EGL import eglDestroyContext
+
+    context.make_uncurrent()
+    eglDestroyContext(context._egl_display, context._egl_context)
+
+
+def perspective(yfov: float, aspect: float, znear: float) -> np.ndarray:
+    """pyrender's PerspectiveCamera projection without a far plane (depth runs to infinity),
+    upside down: GL's first framebuffer row is then the image's top row, so a frame is read
+    out without flipping (nothing is culled, so the reversed winding changes nothing)."""
+    t = np.tan(yfov / 2.0)
+    projection = np.zeros((4, 4))
+    projection[0, 0], projection[1, 1] = 1.0 / (aspect * t), -1.0 / t
+    projection[2, 2], projection[2, 3], projection[3, 2] = -1.0, -2.0 * znear, -1.0
+    return projection
 
 
 def pitch_colour(pitch: float) -> RGB:
@@ -93,32 +128,32 @@ def look_at(eye: ArrayLike, target: ArrayLike, up: ArrayLike = (0.0, 1.0, 0.0)) 
     return pose
 
 
-def _bone_matrices(a: np.ndarray, b: np.ndarray, radius: float) -> np.ndarray:
-    """Transforms ``(N, 4, 4)`` taking the unit cylinder (radius 1, height 1, along z) onto
-    each bone ``a[i] → b[i]``."""
+def _place_spheres(rows: np.ndarray, centres: np.ndarray, radius: float | np.ndarray) -> None:
+    """Instance rows (:data:`creatures.body.gl.ROW`) whose transforms take the unit sphere onto
+    spheres at ``centres``: scale on the diagonal, centre in the fourth column."""
+    rows[:, :16] = 0.0
+    for column in (0, 5, 10):
+        rows[:, column] = radius
+    rows[:, 12:15] = centres
+    rows[:, 15] = 1.0
+
+
+def _place_bones(rows: np.ndarray, a: np.ndarray, b: np.ndarray, radius: float) -> None:
+    """Instance rows taking the unit cylinder (radius 1, height 1, along z) onto each bone
+    ``a[i] → b[i]`` (columns of the column-major transform: x, y scaled by the radius, z along
+    the bone, the midpoint)."""
     axis = b - a
     length = np.linalg.norm(axis, axis=1)
     z = np.where(length[:, None] > 1e-9, axis / np.maximum(length, 1e-9)[:, None], [0.0, 0.0, 1.0])
     helper = np.where(np.abs(z[:, :1]) < 0.9, [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
     x = np.cross(helper, z)
     x /= np.linalg.norm(x, axis=1, keepdims=True)
-    matrices = np.zeros((len(a), 4, 4))
-    matrices[:, :3, 0] = x * radius
-    matrices[:, :3, 1] = np.cross(z, x) * radius
-    matrices[:, :3, 2] = z * length[:, None]
-    matrices[:, :3, 3] = 0.5 * (a + b)
-    matrices[:, 3, 3] = 1.0
-    return matrices
-
-
-def _sphere_matrices(centres: np.ndarray, radius: float | np.ndarray) -> np.ndarray:
-    """Transforms ``(N, 4, 4)`` taking the unit sphere onto spheres at ``centres``."""
-    centres = np.asarray(centres, dtype=float).reshape(-1, 3)
-    matrices = np.zeros((len(centres), 4, 4))
-    matrices[:, [0, 1, 2], [0, 1, 2]] = np.broadcast_to(np.asarray(radius, float).reshape(-1, 1), (len(centres), 3))
-    matrices[:, :3, 3] = centres
-    matrices[:, 3, 3] = 1.0
-    return matrices
+    rows[:, 0:3] = x * radius
+    rows[:, 4:7] = np.cross(z, x) * radius
+    rows[:, 8:11] = z * length[:, None]
+    rows[:, 12:15] = 0.5 * (a + b)
+    rows[:, (3, 7, 11)] = 0.0
+    rows[:, 15] = 1.0
 
 
 @dataclass(frozen=True)
@@ -134,7 +169,9 @@ class BodyRenderer:
     """Offscreen renderer of skeletons (joint positions + parents) and note marks.
 
     The camera is framed on the first body drawn (or given as ``camera_pose``) and then
-    stays put, so a moving body moves on screen.
+    stays put, so a moving body moves on screen. Materials are pyrender's metallic-roughness
+    ones as the first renderer had them: the body metallic with roughness 0.7, notes glowing
+    in their pitch colour.
 
     Example
     -------
@@ -142,84 +179,107 @@ class BodyRenderer:
     >>> rgb = renderer.render(pose.positions, skeleton.parents, [NoteMark((0, 1, 0), 60)])
     """
 
+    SPHERE, CYLINDER = 0, 1
+    YFOV, ZNEAR = np.pi / 3.5, 0.05
+    LIGHT_INTENSITY, AMBIENT = 3.0, (0.25, 0.25, 0.25)
+
     def __init__(self, width: int = 640, height: int = 480, *, joint_radius: float = 0.04,
                  bone_radius: float = 0.025, camera_pose: np.ndarray | None = None,
                  body_colour: RGB = (0.85, 0.82, 0.75), background: RGB = (0.08, 0.08, 0.1)) -> None:
-        pyrender = _pyrender()
+        self._context = _context(width, height)
         import trimesh
 
-        self._pr = pyrender
+        from creatures.body import gl
+
+        self._gl = gl
+        self.width, self.height = width, height
         self.joint_radius, self.bone_radius = joint_radius, bone_radius
-        self._body = pyrender.MetallicRoughnessMaterial(baseColorFactor=(*body_colour, 1.0), roughnessFactor=0.7)
-        self._sphere = trimesh.creation.icosphere(subdivisions=2, radius=1.0)
-        self._cylinder = trimesh.creation.cylinder(radius=1.0, height=1.0, sections=16)
-        self._note_materials: dict[int, pyrender.MetallicRoughnessMaterial] = {}
-        self.scene = pyrender.Scene(bg_color=(*background, 1.0), ambient_light=(0.25, 0.25, 0.25))
-        self._camera = self.scene.add(pyrender.PerspectiveCamera(yfov=np.pi / 3.5, aspectRatio=width / height),
-                                      pose=np.eye(4) if camera_pose is None else camera_pose)
-        self._light = self.scene.add(pyrender.DirectionalLight(intensity=3.0), pose=np.eye(4))
-        self._framed = camera_pose is not None
-        if self._framed:
-            self.scene.set_pose(self._light, camera_pose)
-        self._frame_nodes: list[pyrender.Node] = []  # this frame's instanced meshes (joints, bones, notes by pitch)
+        self.body_colour, self.background = np.array(body_colour), np.array(background)
+        meshes = [trimesh.creation.icosphere(subdivisions=2, radius=1.0),
+                  trimesh.creation.cylinder(radius=1.0, height=1.0, sections=16)]
         try:
-            self._renderer = pyrender.OffscreenRenderer(width, height)
-        except Exception as exc:  # pyglet/EGL errors vary by platform
-            raise RenderUnavailable(f"pyrender could not open a {gl_platform()} context: {exc}") from None
+            self._meshes = gl.InstancedMeshes(width, height, [(m.vertices, m.vertex_normals, m.faces) for m in meshes],
+                                              framebuffer=self._context.supports_framebuffers())
+        except Exception as exc:  # a context without GL 3.3 core, or a driver refusing the shaders
+            _release(self._context)
+            raise RenderUnavailable(f"OpenGL on {gl_platform()} cannot draw the bodies: {exc}") from None
+        self._projection = perspective(self.YFOV, width / height, self.ZNEAR)
+        self._camera = np.eye(4) if camera_pose is None else np.asarray(camera_pose, float)
+        self._framed = camera_pose is not None
+
+    @property
+    def camera_pose(self) -> np.ndarray:
+        """Where the camera (and the light with it) stands: 4×4, looking down its −z."""
+        return self._camera.copy()
 
     def frame_camera(self, positions: np.ndarray) -> None:
         """Aim the camera at a body from the front, far enough to see all of it (and the light with it)."""
         low, high = positions.min(axis=0), positions.max(axis=0)
         centre, size = 0.5 * (low + high), max(float(np.max(high - low)), 0.5)
-        pose = look_at(centre + np.array([0.25, 0.3, 1.7]) * size, centre)
-        self.scene.set_pose(self._camera, pose)
-        self.scene.set_pose(self._light, pose)
+        self._camera = look_at(centre + np.array([0.25, 0.3, 1.7]) * size, centre)
         self._framed = True
 
-    def _instanced(self, mesh: trimesh.Trimesh, material: pyrender.Material, matrices: np.ndarray) -> None:
-        """One scene node drawing ``mesh`` at every transform: one draw call per frame
-        instead of one per joint, bone or note (pyrender's per-node GL calls dominated,
-        ~165 ms a frame for three bodies)."""
-        node = self.scene.add(self._pr.Mesh.from_trimesh(mesh, material=material, poses=matrices))
-        self._frame_nodes.append(node)
+    def _fill(self, positions: np.ndarray, parents: np.ndarray, notes: Iterable[NoteMark]) -> list[int]:
+        """Write this frame's instances (joints and notes as spheres, bones as cylinders) into
+        the instance rows; returns the count per mesh."""
+        gl, meshes = self._gl, self._meshes
+        notes = list(notes)
+        child = np.flatnonzero(parents >= 0)
+        counts = [len(positions) + len(notes), len(child)]
+        if any(c > cap for c, cap in zip(counts, meshes.capacities)):
+            meshes.reserve([max(c, cap) * 2 for c, cap in zip(counts, meshes.capacities)])
+        spheres = meshes.instances[meshes.offsets[self.SPHERE]:][:counts[self.SPHERE]]
+        joints, marks = spheres[:len(positions)], spheres[len(positions):]
+        _place_spheres(joints, positions, self.joint_radius)
+        joints[:, gl.BASE], joints[:, gl.EMISSIVE], joints[:, gl.ROUGHNESS] = self.body_colour, 0.0, 0.7
+        if notes:
+            _place_spheres(marks, [n.position for n in notes], np.array([n.radius for n in notes]))
+            colours = np.array([pitch_colour(int(round(n.pitch))) for n in notes])
+            marks[:, gl.BASE], marks[:, gl.EMISSIVE], marks[:, gl.ROUGHNESS] = colours, colours, 1.0
+        spheres[:, gl.METALLIC] = 1.0
+        if len(child):
+            bones = meshes.instances[meshes.offsets[self.CYLINDER]:][:counts[self.CYLINDER]]
+            _place_bones(bones, positions[parents[child]], positions[child], self.bone_radius)
+            bones[:, gl.BASE], bones[:, gl.EMISSIVE] = self.body_colour, 0.0
+            bones[:, gl.ROUGHNESS], bones[:, gl.METALLIC] = 0.7, 1.0
+        return counts
 
-    def _note_material(self, pitch: int) -> pyrender.MetallicRoughnessMaterial:
-        if pitch not in self._note_materials:
-            self._note_materials[pitch] = self._pr.MetallicRoughnessMaterial(
-                baseColorFactor=(*pitch_colour(pitch), 1.0), emissiveFactor=pitch_colour(pitch))
-        return self._note_materials[pitch]
-
-    def render(self, positions: ArrayLike, parents: ArrayLike, notes: Iterable[NoteMark] = ()) -> np.ndarray:
-        """RGB image ``(height, width, 3)`` uint8 of the body and notes."""
-        return self.render_with_depth(positions, parents, notes)[0]
-
-    def render_with_depth(self, positions: ArrayLike, parents: ArrayLike,
-                          notes: Iterable[NoteMark] = ()) -> tuple[np.ndarray, np.ndarray]:
-        """RGB and depth; ``depth > 0`` is the silhouette of everything drawn."""
+    def _draw(self, positions: ArrayLike, parents: ArrayLike, notes: Iterable[NoteMark]) -> None:
         positions = np.asarray(positions, dtype=float)
         parents = np.asarray(parents)
         if positions.ndim != 2 or positions.shape[1] != 3 or len(parents) != len(positions):
             raise ValueError(f"need positions (J, 3) and parents (J,), got {positions.shape} and {parents.shape}")
         if not self._framed:
             self.frame_camera(positions)
-        for node in self._frame_nodes:
-            self.scene.remove_node(node)
-        self._frame_nodes = []
-        self._instanced(self._sphere, self._body, _sphere_matrices(positions, self.joint_radius))
-        child = np.flatnonzero(parents >= 0)
-        if len(child):
-            self._instanced(self._cylinder, self._body,
-                            _bone_matrices(positions[parents[child]], positions[child], self.bone_radius))
-        by_pitch: dict[int, list[NoteMark]] = {}
-        for n in notes:
-            by_pitch.setdefault(int(round(n.pitch)), []).append(n)
-        for pitch, marks in by_pitch.items():
-            self._instanced(self._sphere, self._note_material(pitch),
-                            _sphere_matrices([m.position for m in marks], np.array([m.radius for m in marks])))
-        return self._renderer.render(self.scene)
+        counts = self._fill(positions, parents, notes)
+        self._context.make_current()  # another renderer's context may have been current
+        camera = self._camera
+        self._meshes.draw(counts, np.linalg.inv(camera), self._projection, camera[:3, 3],
+                          -camera[:3, 2], np.full(3, self.LIGHT_INTENSITY), np.array(self.AMBIENT), self.background)
+
+    def render(self, positions: ArrayLike, parents: ArrayLike, notes: Iterable[NoteMark] = (), *,
+               out: np.ndarray | None = None) -> np.ndarray:
+        """RGB image ``(height, width, 3)`` uint8 of the body and notes; into ``out`` if given
+        (a frame loop that passes the same array allocates nothing per frame)."""
+        self._draw(positions, parents, notes)
+        return self._meshes.read_colour(np.empty((self.height, self.width, 3), np.uint8) if out is None else out)
+
+    def render_with_depth(self, positions: ArrayLike, parents: ArrayLike,
+                          notes: Iterable[NoteMark] = ()) -> tuple[np.ndarray, np.ndarray]:
+        """RGB and depth (distance along the view axis, as pyrender gave it); ``depth > 0`` is
+        the silhouette of everything drawn."""
+        self._draw(positions, parents, notes)
+        colour = self._meshes.read_colour(np.empty((self.height, self.width, 3), np.uint8))
+        window = self._meshes.read_depth()
+        drawn = window < 1.0
+        depth = np.zeros(window.shape, np.float32)
+        depth[drawn] = self.ZNEAR / (1.0 - window[drawn])  # the infinite projection's inverse
+        return colour, depth
 
     def close(self) -> None:
-        self._renderer.delete()
+        self._context.make_current()
+        self._meshes.delete()
+        _release(self._context)
 
     def __enter__(self) -> BodyRenderer:
         return self

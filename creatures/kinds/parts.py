@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import functools
 import math
+from typing import Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
@@ -46,6 +47,10 @@ class VoiceSpec(BaseModel):
     release: float = Field(0.2, gt=0, le=10, description="fade after note-off, seconds")
     gain: float = Field(0.3, ge=0, le=4, description="output gain of the strings before the limiter")
     body_gain: float = Field(40.0, ge=0, description="force per unit joint velocity pushing the strings")
+    interpolation: Literal["linear", "none"] = Field(
+        "linear", description="how the scan reads the string: linear between masses and physics frames "
+        "(smooth, like Csound's scans) or none, the nearest mass of the latest frame (brighter and "
+        "stepped at the haptic rate, like Csound's scantable)")
 
     @model_validator(mode="after")
     def _stable_and_gestural(self) -> "VoiceSpec":
@@ -63,7 +68,8 @@ class VoiceSpec(BaseModel):
 
     def parameters(self) -> StringParameters:
         return StringParameters(n_masses=self.masses, mass=self.mass, stiffness=self.stiffness,
-                                centring=self.centring, damping=self.damping, haptic_rate=self.haptic_rate)
+                                centring=self.centring, damping=self.damping, haptic_rate=self.haptic_rate,
+                                interpolation=self.interpolation)
 
 
 def _round_down(value: float, digits: int = 4) -> float:
@@ -104,8 +110,7 @@ class Voice:
             return
         force = self.coupling.forces(pose)
         if force.any():
-            for index in np.flatnonzero(self.pool.pitch >= 0):
-                self.pool.voices[index].push(force)
+            self.pool.bank.push(np.flatnonzero(self.pool.pitch >= 0), force)
 
     def render(self, out: np.ndarray, t: float) -> None:
         """Fill ``out`` with the voice up to clock time ``t`` (note-offs that fell due first)."""

@@ -36,6 +36,7 @@ class BodyFrames:
         self.writer = FrameWriter(directory=out / "frames", video=out / "out.mp4" if output.video else None,
                                   fps=output.fps)
         self.clock = FrameClock(output.fps, clock)  # frames count from when drawing can start
+        self._frame = np.empty((output.height, output.width, 3), np.uint8)  # drawn into, frame after frame
 
     def draw(self, creatures: list[CreatureKind]) -> None:
         if self.renderer is None:
@@ -57,7 +58,7 @@ class BodyFrames:
                 offset += len(p)
             marks += [NoteMark(tuple(np.asarray(position) + shift), pitch) for position, pitch in creature.marks()]
         if positions:
-            frame = self.renderer.render(np.concatenate(positions), np.concatenate(parents), marks)
+            frame = self.renderer.render(np.concatenate(positions), np.concatenate(parents), marks, out=self._frame)
             self.writer.write(frame, repeat=due)
 
     def close(self) -> None:

@@ -31,7 +31,7 @@ def _rows(model: type[BaseModel], prefix: str) -> list[str]:
         if isinstance(annotation, type) and issubclass(annotation, BaseModel):
             nested.append((f"{prefix}{name}", annotation))
             continue
-        if typing.get_origin(annotation) is typing.Literal:
+        if name == "kind" and typing.get_origin(annotation) is typing.Literal:
             continue  # the discriminating ``kind`` key, documented by its section title
         default = "required" if field.is_required() else f"`{field.get_default(call_default_factory=True)!r}`"
         rows.append(f"| `{prefix}{name}` | {_type_name(annotation)} | {default} | {field.description or ''} |")
