@@ -10,6 +10,7 @@ import re
 import signal
 import subprocess
 import sys
+import threading
 import time
 
 import mido
@@ -22,7 +23,7 @@ from creatures.events import EventLog
 from creatures.runtime import live
 from creatures.runtime.schema import load_installation
 from creatures.runtime.session import Session
-from midi.ports import MemoryInput, MemoryPorts
+from midi.ports import MemoryInput, MemoryOutput, MemoryPorts
 from midi.sinks import MemorySink
 
 CONFIG = """
@@ -173,3 +174,66 @@ def test_live_sound_reaches_a_jack_device_at_its_own_rate(tmp_path):
     expected = f"live at {rate} Hz" + (" (resampled from 22050 Hz)" if rate != 22050 else "")
     assert summary.sound == expected
     assert summary.ticks >= 20
+
+
+# -- nothing slow on the creature's thread (issue 14) -----------------------------------------
+class SlowSynthPorts:
+    """A MIDI output backend whose listing takes 2 s (JACK's took ~2.5 s under load), with one
+    synth port that refuses one send mid-run (the signal to look again). Records when each
+    listing ran, on which thread."""
+
+    LISTING = 2.0
+
+    def __init__(self) -> None:
+        self.synth = MemoryOutput("Slow Synth")
+        self.listings: list[tuple[float, float, str]] = []  # (began, ended, thread) in monotonic time
+        self.fail_next = 0
+        self.sent: list[mido.Message] = []
+        self.synth._send = self._send
+
+    def _send(self, msg: mido.Message) -> None:
+        if self.fail_next:
+            self.fail_next -= 1
+            raise OSError("JACK client zombified")
+        self.sent.append(msg)
+
+    def names(self) -> list[str]:
+        began = time.monotonic()
+        time.sleep(self.LISTING)
+        self.listings.append((began, time.monotonic(), threading.current_thread().name))
+        return ["Slow Synth"]
+
+    def open(self, name: str, *, virtual: bool = False) -> MemoryOutput:
+        return self.synth
+
+
+def test_a_port_listing_of_two_seconds_never_delays_a_tick_by_more_than_5_ms(tmp_path, monkeypatch):
+    """The stall of issue 14, with a fake backend: presence checks list the ports every second
+    and a send fails mid-run, yet every tick whose grid time fell inside a 2 s listing began
+    within 5 ms of it. Wall-clock timing, as the issue demands; the loop's own lateness is what
+    is measured (the run's ticks are light: one creature, audio off)."""
+    ports = SlowSynthPorts()
+    monkeypatch.setattr(live, "MidoOutputs", lambda: ports)
+    config = tmp_path / "live.toml"
+    config.write_text(CONFIG.replace('output_device = "NoSuchCard"', "output = false")
+                      .replace("NoSuchSynth", "Slow Synth"))
+    inst = load_installation(config)
+    grid: list[tuple[float, float]] = []  # (grid time, lateness) on the loop's own clock
+    real_add = live.TickTiming.add
+
+    def add(self, lateness: float) -> None:
+        grid.append((time.monotonic(), lateness))
+        real_add(self, lateness)
+        if len(grid) == 60:
+            ports.fail_next = 1  # the next send fails: the supervisor looks again at once
+
+    monkeypatch.setattr(live.TickTiming, "add", add)
+    summary = live.run_live(inst, duration=6.0, say=lambda message: None)
+    assert summary.sound == "off ([audio] output = false)" and summary.underruns == 0
+    on_loop = [(a, b) for a, b, thread in ports.listings if thread != "MainThread"]
+    assert len(on_loop) >= 2, ports.listings  # listings ran during the run, all off the loop's thread
+    assert all(thread != "MainThread" for _, _, thread in ports.listings[1:])  # the first: before the run
+    during = [lateness for t, lateness in grid if any(a <= t - lateness <= b for a, b in on_loop)]
+    assert len(during) >= 50
+    assert max(during) <= 0.005, [(i, round(x * 1e3, 1)) for i, (t, x) in enumerate(grid) if x > 0.005]
+    assert ports.sent, "the synth heard the colony"

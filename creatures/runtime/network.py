@@ -57,8 +57,12 @@ def _key(address: Address) -> str:
 class Network:
     """The OSC side of a live run: one sender per creature, one listener for the colony."""
 
-    def __init__(self, osc: OscSection, world: "World", clock: Clock, say: Callable[[str], None]) -> None:
+    def __init__(self, osc: OscSection, world: "World", clock: Clock, say: Callable[[str], None], *,
+                 epoch: float | None = None) -> None:
+        """``epoch``: the Unix time of clock time 0; given, each note goes out time-tagged with
+        when it sounds (:meth:`OscSender.note`), else marked "immediately"."""
         self.world = world
+        self.epoch = epoch
         self.listener = OscListener(clock, host=osc.host, port=osc.port or 0)
         self.configured: set[Address] = set()
         for peer in osc.peers:
@@ -74,7 +78,7 @@ class Network:
         world.listeners.append(self._played)
 
     def _played(self, creature: str, note: NoteEvent) -> None:
-        self.senders[creature].note(note)
+        self.senders[creature].note(note, at=None if self.epoch is None else self.epoch + note.time)
 
     def publish(self, t: float) -> None:
         """Hello and state from every creature, at most every :data:`STATE_EVERY` seconds."""

@@ -35,7 +35,8 @@ from creatures.runtime.inputs import phrase_notes, render_notes
 from creatures.runtime.schema import LoadedInstallation
 from creatures.runtime.speech_input import spoken_poem
 from creatures.runtime.session import Session
-from midi.files import read_notes, write_notes
+from creatures.runtime.score import write_score
+from midi.files import read_notes
 from midi.notes import NoteEvent
 from midi.sinks import MemorySink
 
@@ -143,6 +144,7 @@ def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path 
     messages: list[str] = []
     log = EventLog(out / "events.jsonl")
     session = Session(inst, clock, log, sink)
+    session.world.recording = settings.output.midi  # out.mid's input track and heard tempo
     session.world.emit("run", title=settings.title, mode="offline", duration=duration, seed=settings.seed,
                        creatures=[c.name for c in session.creatures])
     notes, samples = _inputs(inst, audio, midi, duration, session.input_rng)
@@ -191,7 +193,7 @@ def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path 
         wav.close()
         files["wav"] = out / "out.wav"
     if settings.output.midi:
-        write_notes(out / "out.mid", sink.notes())
+        write_score(out / "out.mid", session.world, sink.messages)
         files["midi"] = out / "out.mid"
     for creature in session.creatures:
         files.update(creature.finish(out))

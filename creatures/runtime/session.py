@@ -17,12 +17,14 @@ import numpy as np
 
 from audio.mixer import Mixer
 from audio.transcribe import Transcriber
+from creatures.behaviour.motivation import Motivation
 from creatures.clock import Clock
 from creatures.events import EventLog
 from creatures.kinds import KINDS
 from creatures.persist import StateFileError, load_json, save_json
 from creatures.runtime.schema import LoadedInstallation
 from creatures.runtime.world import World
+from midi.channel_setup import CcStream, channel_setup
 from midi.scheduler import NoteScheduler
 from midi.sinks import NoteSink
 
@@ -61,6 +63,8 @@ class Session:
         self.transcribe = transcribe
         self._transcriber: Transcriber | None = None
         self.ticks = 0
+        self._set_up_channels()
+        self._cc = self._cc_streams()
 
     def step(self, t: float, frames: int, recorded: np.ndarray | None, *, audio: bool = True) -> np.ndarray | None:
         """One behaviour tick at clock time ``t`` covering ``frames`` audio frames.
@@ -78,6 +82,10 @@ class Session:
                 creature.listen(t, heard, self.sample_rate)
         for creature in self.creatures:
             creature.tick(t)
+        for motivation, drive, stream in self._cc:
+            msg = stream.due(t, motivation.level(drive, max(t, motivation.time)))
+            if msg is not None:
+                self.scheduler.send_at(t, msg)
         self.scheduler.pump()
         self.ticks += 1
         if not (audio or self.air):
@@ -88,6 +96,33 @@ class Session:
         if self.air:
             self._room = voices.T @ self.mixer.gains
         return self.mixer.mix(voices)
+
+    def _set_up_channels(self) -> None:
+        """Each creature's channel in its voice before its first note (midi/channel_setup.py):
+        its own ``program``/``bank``/``volume``/``bend_range``, else ``[midi]``'s, and its pan."""
+        midi = self.inst.settings.midi
+        now = self.clock.now()
+        for creature in self.creatures:
+            spec = creature.spec
+            chosen = {key: getattr(spec, key) if getattr(spec, key) is not None else getattr(midi, key)
+                      for key in ("program", "bank", "volume", "bend_range")}
+            for msg in channel_setup(spec.channel, pan=spec.pan, **chosen):
+                self.scheduler.send_at(now, msg)
+
+    def _cc_streams(self) -> list[tuple[Motivation, str, CcStream]]:
+        """``[[output.cc]]``: each stream's creature motivation and drive, checked by name."""
+        streams = []
+        by_name = {c.name: c for c in self.creatures}
+        for i, cc in enumerate(self.inst.settings.output.cc):
+            name, drive = cc.source.split(".")
+            creature = by_name[name]  # the config loader checked the creature's name
+            motivation = getattr(creature, "motivation", None)
+            drives = motivation.names if isinstance(motivation, Motivation) else []
+            if drive not in drives:
+                raise self.inst.error(("output", "cc", i, "source"),
+                                      f"{name} has no drive {drive!r} (drives: {drives or 'none'})")
+            streams.append((motivation, drive, CcStream(creature.spec.channel, cc.controller, *cc.range, cc.rate)))
+        return streams
 
     def _hear_notes(self, t: float, recorded: np.ndarray) -> None:
         """Notes of the input audio join the note bus as they are recognised."""
