@@ -8,6 +8,7 @@ import math
 import os
 import re
 import signal
+import socket
 import subprocess
 import sys
 import threading
@@ -237,3 +238,46 @@ def test_a_port_listing_of_two_seconds_never_delays_a_tick_by_more_than_5_ms(tmp
     assert len(during) >= 50
     assert max(during) <= 0.005, [(i, round(x * 1e3, 1)) for i, (t, x) in enumerate(grid) if x > 0.005]
     assert ports.sent, "the synth heard the colony"
+
+
+def test_an_unreachable_peer_host_is_one_message_naming_key_and_line_before_anything_runs(tmp_path, capsys):
+    config = tmp_path / "live.toml"
+    text = CONFIG + '[osc]\nport = 9000\npeers = [\n  "127.0.0.1:9001",\n  "nosuchhost.invalid:9002",\n]\n'
+    config.write_text(text)
+    state = tmp_path / "state"
+    assert main(["run", str(config), "--duration", "5", "--state", str(state)]) == 2
+    captured = capsys.readouterr()
+    line = text.splitlines().index("peers = [") + 1  # the line of the key (TOML arrays keep no line per item)
+    (message,) = captured.err.strip().splitlines()
+    assert message.startswith(f"creatures: {config}:{line}: osc.peers.1: peer host of 'nosuchhost.invalid:9002' "
+                              "cannot be resolved"), message
+    assert "running" not in captured.out and not state.exists()  # nothing ran
+    config.write_text(CONFIG + '[osc]\nport = 9000\npeers = ["127.0.0.1:99999"]\n')
+    assert main(["run", str(config), "--duration", "5"]) == 2
+    assert "osc.peers.0: peer '127.0.0.1:99999' is not host:port (port 99999 is out of range" in capsys.readouterr().err
+
+
+def test_osc_notes_go_out_time_tagged_with_when_they_sound(tmp_path):
+    from pythonosc.osc_packet import OscPacket
+
+    from creatures.runtime.network import Network
+    from midi.notes import NoteEvent
+
+    listener = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    listener.bind(("127.0.0.1", 0))
+    listener.settimeout(5.0)
+    config = tmp_path / "live.toml"
+    config.write_text(CONFIG + f'[osc]\npeers = ["127.0.0.1:{listener.getsockname()[1]}"]\n')
+    inst = load_installation(config)  # no port of its own: the network listens on any free one
+    clock = SimulatedClock(100.0)
+    session = Session(inst, clock, EventLog(), MemorySink())
+    network = Network(inst.settings.osc, session.world, clock, lambda m: None, epoch=1_800_000_000.0)
+    try:
+        session.world.play(session.creatures[0], NoteEvent(100.25, 62, 90, 0, 0.5))  # sounds in 250 ms
+        packet = OscPacket(listener.recv(1024))
+    finally:
+        network.close()
+        listener.close()
+    (timed,) = packet.messages
+    assert timed.message.address == "/creature/ada/note" and timed.message.params[:2] == [62, 90]
+    assert timed.time == pytest.approx(1_800_000_000.0 + 100.25, abs=1e-3)
