@@ -147,7 +147,8 @@ def _run(args: argparse.Namespace) -> int:
     print(f"timing: ticks began at most {summary.worst_lateness * 1e3:.1f} ms late (p99 "
           f"{summary.lateness_p99 * 1e3:.2f} ms), {summary.late} more than {LATE_TICK * 1e3:g} ms late, "
           f"{summary.skipped} skips ahead; {summary.late_notes} notes reached the MIDI port more than "
-          f"{LATE_NOTE * 1e3:g} ms late")
+          f"{LATE_NOTE * 1e3:g} ms late" + (f"; {summary.frames_dropped} frames dropped (drawing too slow)"
+                                            if summary.frames_dropped else ""))
     return 0
 
 

@@ -33,7 +33,7 @@ from typing import Callable
 from audio.resilient import ResilientInput, ResilientOutput
 from creatures.clock import Clock, SimulatedClock, WallClock
 from creatures.events import EventLog
-from creatures.runtime.bodies import BodyFrames
+from creatures.runtime.bodies import FramesBeside
 from creatures.runtime.network import Network
 from creatures.runtime.schema import LoadedInstallation
 from creatures.runtime.session import Session
@@ -64,6 +64,7 @@ class LiveSummary:
     lateness_p99: float = 0.0  # seconds
     notes_played: int = 0
     late_notes: int = 0  # note-ons that reached the MIDI port more than sinks.LATE_NOTE late
+    frames_dropped: int = 0  # frames the drawing process was too busy to take
     heard_between_ticks: int = 0  # notes heard (and answerable) at once, not at the next tick
     underruns: int = 0  # audio output callbacks that found no sound ready and played silence
     overruns: int = 0  # microphone blocks lost: the loop read too slowly, or the driver overflowed
@@ -248,7 +249,7 @@ def run_live(
     bodies = None
     if pictures is not None:
         pictures.mkdir(parents=True, exist_ok=True)
-        bodies = BodyFrames(settings.output, pictures, wall, summary.messages)
+        bodies = FramesBeside(settings.output, pictures, wall, summary.messages)
         for message in summary.messages:
             say(message)
     say(f"{len(session.creatures)} creature(s) running; Ctrl-C or SIGTERM stops cleanly")
@@ -281,6 +282,11 @@ def run_live(
                 timing.log_change()
 
         try:
+            # The first tick builds what creatures build on first use (their first course, the
+            # motor graph's log record: ~130 ms for exchange's three); the grid starts after it.
+            clock.advance_to(max(start, clock.now()))
+            inputs.poll(start)
+            tick(start)
             loop.run(tick, until=lambda t: stopping or (duration is not None and t - start > duration))
         except KeyboardInterrupt:
             pass
@@ -299,6 +305,7 @@ def run_live(
                 output.close()
             if bodies is not None:
                 bodies.close()
+                summary.frames_dropped = bodies.dropped
             inputs.close()
             log.close()
     summary.seconds = wall.now() - start
