@@ -177,14 +177,22 @@ class ResilientOutput(AudioOutput):
     While the device is gone blocks are dropped and counted in :attr:`dropped` (frames at
     ``sample_rate``). Writing never waits: the caller is paced by its clock, and a block that
     finds the ring full is dropped and counted in :attr:`overruns`.
+
+    ``lead`` seconds of silence go ahead of the first block after each open: a caller that
+    writes a tick's audio once per tick, paced by its clock, leaves the ring near empty just
+    before each write, and any lateness of a write (a busy machine wakes a loop a few ms late)
+    would then be an underrun; the lead absorbs it, at the price of that much latency.
     """
 
     def __init__(self, sample_rate: int, channels: int = 2, *, clock: Clock, device: str | int | None = None,
                  blocksize: int = 512, buffer_seconds: float = 0.25, retry_interval: float = 2.0,
                  stall_timeout: float = 2.0, backend: AudioBackend | None = None,
-                 report: Callable[[str], None] = log.warning, supervisor: Supervisor | None = None) -> None:
+                 report: Callable[[str], None] = log.warning, supervisor: Supervisor | None = None,
+                 lead: float = 0.0) -> None:
         super().__init__(sample_rate, channels)
         self.device = device
+        self.lead = lead
+        self._led = False  # the lead went ahead of this stream's first block
         self.blocksize = blocksize
         self.buffer_seconds = buffer_seconds
         self.backend = backend
@@ -241,6 +249,9 @@ class ResilientOutput(AudioOutput):
         samples = np.asarray(block, dtype=np.float32)
         if self._resampler is not None:
             samples = self._resampler.resample_chunk(samples)
+        if not self._led:
+            self._led = True
+            live.write(np.zeros((int(self.lead * live.sample_rate), self.channels), dtype=np.float32))
         live.write(samples)
 
     def _close(self) -> None:
@@ -252,6 +263,7 @@ class ResilientOutput(AudioOutput):
         live = LiveOutput(rate, self.channels, blocksize=self.blocksize, device=self.device,
                           buffer_seconds=self.buffer_seconds, pace=False, backend=backend)
         self.device_rate = rate
+        self._led = False
         self._resampler = (None if rate == self.sample_rate else
                            soxr.ResampleStream(self.sample_rate, rate, self.channels, dtype="float32"))
         return live

@@ -37,7 +37,7 @@ from creatures.runtime.bodies import FramesBeside
 from creatures.runtime.network import Network
 from creatures.runtime.schema import LoadedInstallation
 from creatures.runtime.session import Session
-from creatures.runtime.ticking import TickLoop, TickTiming, setup_kept
+from creatures.runtime.ticking import TickLoop, TickTiming, realtime, setup_kept
 from creatures.supervisor import Supervisor
 from midi.notes import NoteEvent, is_note_off
 from midi.ports import MidoInputs, MidoOutputs, PortFactory, ResilientPort
@@ -49,6 +49,10 @@ HEARD_LENGTH = 0.25
 
 REHEARSAL = 1.0
 """Simulated seconds a throwaway copy of the colony plays before the show (:func:`rehearse`)."""
+
+AUDIO_LEAD = 0.05
+"""Seconds of audio kept ahead of the loudspeaker (audio/resilient.py): a tick's mix written up
+to this late still plays whole."""
 
 HOUSEKEEPING_EVERY = 1.0
 """Seconds between flushes of the events log, checks of the audio counters and timing records."""
@@ -230,7 +234,7 @@ def run_live(
     summary.sound = "off ([audio] output = false)"
     if settings.audio.output:
         output = ResilientOutput(sr, 2, clock=wall, device=settings.audio.output_device,
-                                 blocksize=settings.audio.block, report=say, supervisor=supervisor)
+                                 blocksize=settings.audio.block, report=say, supervisor=supervisor, lead=AUDIO_LEAD)
         summary.sound = output.describe()
     microphone = None
     if settings.audio.input_device is not None:
@@ -256,8 +260,8 @@ def run_live(
     loop = TickLoop(session, inputs, wall, clock, settings.tick)
     timing = _Timing(session, loop.timing, sink)
     supervisor.every(HOUSEKEEPING_EVERY, log.flush, name="events log flush")  # a tail -f shows the present
-    with setup_kept():
-        supervisor.start()
+    supervisor.start()  # before the loop's thread turns real-time: the supervisor keeps ordinary scheduling
+    with setup_kept(), realtime(settings.realtime, say):
         start = wall.now()  # setting up took time; the run's ticks count from here
         next_save, next_housekeeping, frames_done = start + settings.save_every, start, int(round(start * sr))
 

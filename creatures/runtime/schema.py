@@ -106,6 +106,9 @@ class Installation(Strict):
     duration: float = Field(60.0, gt=0, description="offline run length in simulated seconds (default)")
     save_every: float = Field(60.0, gt=0, description="seconds between state saves in live runs")
     state: str | None = Field(None, description="directory for saved creature state (live runs)")
+    realtime: bool = Field(True, description="live runs ask the OS for real-time scheduling of the creatures' "
+                                             "thread (round-robin, priority 5: below JACK's) where allowed, so a "
+                                             "busy machine cannot make ticks late; refused, the run goes on and says so")
     audio: AudioSection = AudioSection()
     midi: MidiSection = MidiSection()
     osc: OscSection = OscSection()
