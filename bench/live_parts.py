@@ -118,13 +118,15 @@ for i in range(count):
 """
 
 
-def send_notes(port: int, count: int, rate: float, name: str = "visitor") -> subprocess.Popen:
+def send_notes(port: int, count: int, rate: float, record: Path, name: str = "visitor") -> subprocess.Popen:
     """A foreign OSC sender (python-osc's client, its own process) sending ``count`` notes at
-    ``rate`` a second; it prints one JSON line per note sent (with its Unix send time)."""
-    return subprocess.Popen([sys.executable, "-c", SENDER, str(port), str(count), str(rate), name],
-                            stdout=subprocess.PIPE, text=True)
+    ``rate`` a second; it writes one JSON line per note sent (with its Unix send time) to
+    ``record`` (a file, not a pipe: a pipe nobody reads until the end fills and stops it)."""
+    with open(record, "w") as out:
+        return subprocess.Popen([sys.executable, "-c", SENDER, str(port), str(count), str(rate), name], stdout=out)
 
 
-def sent_notes(sender: subprocess.Popen, timeout: float) -> list[dict]:
-    out, _ = sender.communicate(timeout=timeout)
-    return [json.loads(line) for line in out.splitlines() if line.strip()]
+def sent_notes(sender: subprocess.Popen, record: Path, timeout: float) -> list[dict]:
+    """What the sender sent, once it has finished."""
+    sender.wait(timeout)
+    return [json.loads(line) for line in record.read_text().splitlines() if line.strip()]

@@ -234,12 +234,12 @@ class ResilientPort:
         self._check_now()
 
     def _check_now(self) -> None:
-        self._let_go_broken()
         try:
             names = self.factory.names()
         except Exception as exc:
             names = []
             logger.debug("listing MIDI ports failed: %s", exc)
+        self._let_go_broken()  # after the listing: a send may have failed while it ran
         port = self.port
         if port is not None:
             if port.name not in names:

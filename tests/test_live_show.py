@@ -65,8 +65,9 @@ def test_the_exchange_colony_plays_fluidsynth_on_time_while_a_foreign_sender_pla
             started = wait_for(colony, "running; Ctrl-C", 120)
             before = synth.blocks
             silent_before = synth.loud_blocks()
-            sender = send_notes(port, NOTES, rate=NOTES / (SECONDS - 4.0))
-            sent = sent_notes(sender, timeout=SECONDS + 30)
+            record = tmp_path / "sent.jsonl"
+            sender = send_notes(port, NOTES, NOTES / (SECONDS - 4.0), record)
+            sent = sent_notes(sender, record, timeout=SECONDS + 30)
             rest = colony.communicate(timeout=SECONDS + 90)[0]
         finally:
             colony.kill()
