@@ -21,7 +21,7 @@ from creatures.behaviour.motivation import Motivation
 from creatures.clock import Clock
 from creatures.events import EventLog
 from creatures.kinds import KINDS
-from creatures.persist import StateFileError, load_json, save_json
+from creatures.persist import StateFileError, json_text, load_json, write_json_text
 from creatures.runtime.schema import LoadedInstallation
 from creatures.runtime.world import World
 from midi.channel_setup import CcStream, channel_setup
@@ -151,11 +151,14 @@ class Session:
     def save_state(self, directory: Path) -> None:
         """Each creature's learned state, one atomic JSON file per creature, then the colony's
         (:data:`COLONY_FILE`): a pulse learnt over weeks of listening is kept like the rest."""
-        directory.mkdir(parents=True, exist_ok=True)
-        for creature in self.creatures:
-            save_json(directory / f"{creature.name}.json",
-                      {"kind": creature.spec.kind, "state": creature.state()}, kind=STATE_KIND)
-        save_json(directory / COLONY_FILE, self.world.pulse.to_dict(), kind=COLONY_KIND)
+        write_snapshot(directory, self.snapshot())
+
+    def snapshot(self) -> list[tuple[str, str]]:
+        """What :meth:`save_state` writes, as ``(file name, JSON text)``, encoded now (a
+        consistent instant of the colony); :func:`write_snapshot` does the slow part."""
+        files = [(f"{creature.name}.json", json_text({"kind": creature.spec.kind, "state": creature.state()},
+                                                     kind=STATE_KIND)) for creature in self.creatures]
+        return files + [(COLONY_FILE, json_text(self.world.pulse.to_dict(), kind=COLONY_KIND))]
 
     def load_state(self, directory: Path) -> list[str]:
         """Restore creatures from ``directory`` where a file exists; returns who was restored.
@@ -194,3 +197,11 @@ class Session:
         except (KeyError, TypeError, ValueError, IndexError, AttributeError, ArithmeticError) as exc:
             # ArithmeticError: e.g. a ratio with denominator 0, a size too large for an index.
             raise StateFileError(f"{path}: malformed colony state ({type(exc).__name__}: {exc})") from None
+
+
+def write_snapshot(directory: Path, snapshot: list[tuple[str, str]]) -> None:
+    """Write a :meth:`Session.snapshot` into ``directory``, each file atomically (creatures
+    first, the colony's last, as :meth:`Session.save_state` always has)."""
+    directory.mkdir(parents=True, exist_ok=True)
+    for name, text in snapshot:
+        write_json_text(directory / name, text)
