@@ -12,8 +12,11 @@ A stream is taken as lost when PortAudio stops it (a failed device, or a callbac
 ``stall_timeout`` seconds (a stream whose server died can stay "active"), or when the device
 is no longer listed. Device access goes through :class:`audio.device.AudioBackend`, so tests
 drive a fake device on a simulated clock. The real-time callbacks stay those of
-:class:`audio.output.LiveOutput` and :class:`audio.sources.LiveInput` (copy and count only):
-every check here runs on the creature's thread.
+:class:`audio.output.LiveOutput` and :class:`audio.sources.LiveInput` (copy and count only).
+Checks run on the creature's thread at a bounded rate, or, given a
+:class:`~creatures.supervisor.Supervisor` (as a live run does), on the supervisor's thread:
+re-listing devices and reopening a stream (PortAudio restarts to see new devices) can take
+far longer than a tick.
 """
 
 from __future__ import annotations
@@ -28,8 +31,12 @@ from audio.device import AudioBackend, device_rate, find_device, portaudio
 from audio.output import AudioOutput, LiveOutput
 from audio.sources import ANALYSIS_RATE, AudioSource, LiveInput
 from creatures.clock import Clock
+from creatures.supervisor import Supervisor
 
 log = logging.getLogger(__name__)
+
+SUPERVISED_CHECK = 0.25
+"""Seconds between looks at a supervised stream (stopped? stalled?); listing stays at ``retry_interval``."""
 
 
 class LiveStream(Protocol):
@@ -54,7 +61,8 @@ class DeviceWatch(Generic[S]):
 
     def __init__(self, what: str, kind: str, device: str | int | None, clock: Clock, *,
                  start: Callable[[], S], stop: Callable[[S], None], backend: AudioBackend | None,
-                 retry_interval: float, stall_timeout: float, report: Callable[[str], None]) -> None:
+                 retry_interval: float, stall_timeout: float, report: Callable[[str], None],
+                 supervisor: Supervisor | None = None) -> None:
         if retry_interval <= 0 or stall_timeout <= 0:
             raise ValueError(f"retry_interval and stall_timeout must be > 0, got {retry_interval}, {stall_timeout}")
         self.what, self.kind, self.device, self.clock = what, kind, device, clock
@@ -72,10 +80,21 @@ class DeviceWatch(Generic[S]):
         self._last_look = -float("inf")
         self._beats = 0
         self._last_beat = 0.0
-        self.poll()
+        self._supervised = False
+        self.check()  # before the run starts: the device is there from the first block
+        if supervisor is not None:
+            self._supervised = True
+            self._job = supervisor.every(min(SUPERVISED_CHECK, retry_interval), self.check, name=what)
 
     def poll(self) -> S | None:
-        """The open stream, or None while the device is gone (looking again when it is due)."""
+        """The open stream, or None while the device is gone; unsupervised, looks again when
+        it is due (on the caller's thread)."""
+        if self._supervised:
+            return self.stream
+        return self.check()
+
+    def check(self) -> S | None:
+        """Is the stream still well, or the device back? (Blocking: see the module docstring.)"""
         now = self.clock.now()
         due = now - self._last_look >= self.retry_interval
         if due:
@@ -97,6 +116,9 @@ class DeviceWatch(Generic[S]):
         self.report(f"{self.what} lost ({why}); will reopen it when it returns")
 
     def close(self) -> None:
+        if self._supervised:
+            self._job.cancel()
+            self._supervised = False
         self._let_go()
 
     def _trouble(self, stream: S, now: float, *, listing: bool) -> str | None:
@@ -155,14 +177,22 @@ class ResilientOutput(AudioOutput):
     While the device is gone blocks are dropped and counted in :attr:`dropped` (frames at
     ``sample_rate``). Writing never waits: the caller is paced by its clock, and a block that
     finds the ring full is dropped and counted in :attr:`overruns`.
+
+    ``lead`` seconds of silence go ahead of the first block after each open: a caller that
+    writes a tick's audio once per tick, paced by its clock, leaves the ring near empty just
+    before each write, and any lateness of a write (a busy machine wakes a loop a few ms late)
+    would then be an underrun; the lead absorbs it, at the price of that much latency.
     """
 
     def __init__(self, sample_rate: int, channels: int = 2, *, clock: Clock, device: str | int | None = None,
                  blocksize: int = 512, buffer_seconds: float = 0.25, retry_interval: float = 2.0,
                  stall_timeout: float = 2.0, backend: AudioBackend | None = None,
-                 report: Callable[[str], None] = log.warning) -> None:
+                 report: Callable[[str], None] = log.warning, supervisor: Supervisor | None = None,
+                 lead: float = 0.0) -> None:
         super().__init__(sample_rate, channels)
         self.device = device
+        self.lead = lead
+        self._led = False  # the lead went ahead of this stream's first block
         self.blocksize = blocksize
         self.buffer_seconds = buffer_seconds
         self.backend = backend
@@ -172,7 +202,8 @@ class ResilientOutput(AudioOutput):
         self._past_underruns = self._past_overruns = 0  # of the streams let go
         self.watch: DeviceWatch[LiveOutput] = DeviceWatch(
             _named("output", device), "output", device, clock, start=self._open, stop=self._let_go,
-            backend=backend, retry_interval=retry_interval, stall_timeout=stall_timeout, report=report)
+            backend=backend, retry_interval=retry_interval, stall_timeout=stall_timeout, report=report,
+            supervisor=supervisor)
 
     @property
     def connected(self) -> bool:
@@ -218,6 +249,9 @@ class ResilientOutput(AudioOutput):
         samples = np.asarray(block, dtype=np.float32)
         if self._resampler is not None:
             samples = self._resampler.resample_chunk(samples)
+        if not self._led:
+            self._led = True
+            live.write(np.zeros((int(self.lead * live.sample_rate), self.channels), dtype=np.float32))
         live.write(samples)
 
     def _close(self) -> None:
@@ -229,6 +263,7 @@ class ResilientOutput(AudioOutput):
         live = LiveOutput(rate, self.channels, blocksize=self.blocksize, device=self.device,
                           buffer_seconds=self.buffer_seconds, pace=False, backend=backend)
         self.device_rate = rate
+        self._led = False
         self._resampler = (None if rate == self.sample_rate else
                            soxr.ResampleStream(self.sample_rate, rate, self.channels, dtype="float32"))
         return live
@@ -252,13 +287,14 @@ class ResilientInput(AudioSource):
     def __init__(self, device: str | int | None = None, *, clock: Clock, samplerate: int = ANALYSIS_RATE,
                  block_size: int = 512, buffer_seconds: float = 2.0, retry_interval: float = 2.0,
                  stall_timeout: float = 2.0, backend: AudioBackend | None = None,
-                 report: Callable[[str], None] = log.warning) -> None:
+                 report: Callable[[str], None] = log.warning, supervisor: Supervisor | None = None) -> None:
         self.samplerate = int(samplerate)
         self.live = LiveInput(device, samplerate=samplerate, block_size=block_size,
                               buffer_seconds=buffer_seconds, backend=backend)
         self.watch: DeviceWatch[LiveInput] = DeviceWatch(
             _named("input", device), "input", device, clock, start=self._start, stop=LiveInput.stop,
-            backend=backend, retry_interval=retry_interval, stall_timeout=stall_timeout, report=report)
+            backend=backend, retry_interval=retry_interval, stall_timeout=stall_timeout, report=report,
+            supervisor=supervisor)
         self._nothing = np.zeros(0, dtype=np.float32)
 
     @property

@@ -127,6 +127,8 @@ def _run(args: argparse.Namespace) -> int:
     from creatures.config import ConfigError
     from creatures.persist import StateFileError
     from creatures.runtime.live import run_live
+    from creatures.runtime.ticking import LATE_TICK
+    from midi.sinks import LATE_NOTE
     from creatures.runtime.schema import load_installation
 
     try:
@@ -145,6 +147,11 @@ def _run(args: argparse.Namespace) -> int:
     if summary.inputs:
         print("outside input: " + ", ".join(f"{summary.inputs.get(what, 0)} {what}"
                                             for what in ("mapped", "unmapped", "malformed", "refused osc")))
+    print(f"timing: ticks began at most {summary.worst_lateness * 1e3:.1f} ms late (p99 "
+          f"{summary.lateness_p99 * 1e3:.2f} ms), {summary.late} more than {LATE_TICK * 1e3:g} ms late, "
+          f"{summary.skipped} skips ahead; {summary.late_notes} notes reached the MIDI port more than "
+          f"{LATE_NOTE * 1e3:g} ms late" + (f"; {summary.frames_dropped} frames dropped (drawing too slow)"
+                                            if summary.frames_dropped else ""))
     return 0
 
 

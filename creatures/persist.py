@@ -71,8 +71,17 @@ def atomic_write(path: str | os.PathLike, write: Callable[[Any], None], mode: st
 
 def save_json(path: str | os.PathLike, data: dict[str, Any], *, kind: str) -> None:
     """Write ``data`` as JSON atomically, stamped with ``kind`` and the format version."""
+    write_json_text(path, json_text(data, kind=kind))
+
+
+def json_text(data: dict[str, Any], *, kind: str) -> str:
+    """What :func:`save_json` writes: encoding is quick, the atomic write (an fsync) is not, so a
+    live run encodes on the creature's thread and writes on another (creatures/runtime/live.py)."""
     document = {"format": kind, "version": FORMAT_VERSION, **data}
-    text = json.dumps(document, indent=1, sort_keys=True, allow_nan=False)
+    return json.dumps(document, indent=1, sort_keys=True, allow_nan=False)
+
+
+def write_json_text(path: str | os.PathLike, text: str) -> None:
     atomic_write(Path(path), lambda h: h.write(text), "w")
 
 

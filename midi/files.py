@@ -199,17 +199,27 @@ def write_messages(
     Track 0 holds the tempo map; then one track per channel used (``split_channels``) or one
     track with everything.
     """
+    tracks: dict[int, list[TimedMessage]] = {}
+    for item in timed:
+        tracks.setdefault(getattr(item[1], "channel", 0) if split_channels else 0, []).append(item)
+    write_tracks(path, [(f"channel {key + 1}" if split_channels else "notes", tracks[key]) for key in sorted(tracks)],
+                 tempo=tempo)
+
+
+def write_tracks(
+    path: str | os.PathLike,
+    tracks: Iterable[tuple[str, list[TimedMessage]]],
+    *,
+    tempo: TempoMap | None = None,
+) -> None:
+    """Write named tracks of timed messages (each in time order) to a type 1 ``.mid`` file,
+    atomically, after a first track holding the tempo map."""
     tempo = tempo or TempoMap(480)
-    timed = list(timed)
-    ticks = tempo.to_ticks(np.array([t for t, _ in timed], dtype=np.float64))
     midi = mido.MidiFile(type=1, ticks_per_beat=tempo.ticks_per_beat)
     midi.tracks.append(_track("tempo", [(t, mido.MetaMessage("set_tempo", tempo=q)) for t, q in tempo.changes()]))
-    tracks: dict[int, list[tuple[int, mido.Message]]] = {}
-    for tick, (_, msg) in zip(ticks.tolist(), timed):
-        key = getattr(msg, "channel", 0) if split_channels else 0
-        tracks.setdefault(key, []).append((tick, msg))
-    for key in sorted(tracks):
-        midi.tracks.append(_track(f"channel {key + 1}" if split_channels else "notes", tracks[key]))
+    for name, timed in tracks:
+        ticks = tempo.to_ticks(np.array([t for t, _ in timed], dtype=np.float64))
+        midi.tracks.append(_track(name, list(zip(ticks.tolist(), (msg for _, msg in timed)))))
     atomic_write(Path(path), lambda handle: midi.save(file=handle), "wb")
 
 

@@ -199,8 +199,17 @@ class OscSender:
     def hello(self, port: int) -> None:
         self._send("hello", [port])
 
-    def note(self, note: NoteEvent) -> None:
-        self._send("note", [note.pitch, note.velocity, float(note.duration), note.channel])
+    def note(self, note: NoteEvent, *, at: float | None = None) -> None:
+        """Say ``note``; with ``at`` (when it sounds, seconds since the Unix epoch) the message
+        goes in a bundle time-tagged with that instant, so a receiver that schedules (e.g.
+        SuperCollider) plays it when it sounds here rather than when the packet lands."""
+        message = self._message("note", [note.pitch, note.velocity, float(note.duration), note.channel])
+        if at is None:
+            self._deliver(message.dgram)
+            return
+        bundle = OscBundleBuilder(at)
+        bundle.add_content(message)
+        self._deliver(bundle.build().dgram)
 
     def state(self, values: dict[str, int | float | str]) -> None:
         """Every ``key value`` as a ``state`` message, all in one bundle."""

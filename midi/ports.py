@@ -6,6 +6,13 @@ An installation runs for weeks; a USB interface gets unplugged, a JACK client re
 escapes), looks for the device again at a bounded rate measured in elapsed clock time, and
 reports once more when it is back. Device access goes through a small :class:`PortFactory`
 so tests can use a fake backend that fails and recovers on cue.
+
+Listing ports can be slow: mido's rtmidi backend opens two new clients per listing, and under
+JACK one listing took ~2.5 s on a loaded machine (issue 14). So :class:`MidoInputs` lists
+through one probe client kept open (a fraction of a millisecond), and a live run gives every
+:class:`ResilientPort` a :class:`~creatures.supervisor.Supervisor`: presence checks and
+reopening then run on the supervisor's thread, and the creature's thread only sends (a send
+that fails hands the port to the supervisor, which looks again at once).
 """
 
 from __future__ import annotations
@@ -18,7 +25,8 @@ import mido
 from mido.ports import BaseInput, BaseOutput, BasePort
 
 from creatures.clock import Clock
-from midi.polled import PolledInput
+from creatures.supervisor import Supervisor
+from midi.polled import PolledInput, api_id
 
 logger = logging.getLogger(__name__)
 
@@ -79,14 +87,27 @@ class MidoInputs:
     if unset), or e.g. ``mido.Backend("mido.backends.rtmidi/UNIX_JACK")``.
 
     rtmidi inputs open as :class:`midi.polled.PolledInput` (no Python on the driver's thread);
-    other backends open as mido opens them.
+    other backends open as mido opens them. With rtmidi, names are listed by one probe client
+    made on the first listing and kept (see the module docstring for why).
     """
 
     def __init__(self, backend: mido.Backend | None = None) -> None:
         self.backend = backend or mido.backend
+        self._probe = None
 
     def names(self) -> list[str]:
-        return list(self.backend.get_input_names())
+        probe = self._rtmidi_probe()
+        return list(probe.get_ports()) if probe is not None else list(self.backend.get_input_names())
+
+    def _rtmidi_probe(self, kind: str = "MidiIn"):
+        """The kept rtmidi client that lists ports, or None for other backends."""
+        if self.backend.name != "mido.backends.rtmidi":
+            return None
+        if self._probe is None:
+            import rtmidi
+
+            self._probe = getattr(rtmidi, kind)(rtapi=api_id(self.backend.api), name="creatures-probe")
+        return self._probe
 
     def open(self, name: str, *, virtual: bool = False) -> BasePort:
         if self.backend.name == "mido.backends.rtmidi":
@@ -98,7 +119,8 @@ class MidoOutputs(MidoInputs):
     """Output ports of a mido backend (see :class:`MidoInputs`)."""
 
     def names(self) -> list[str]:
-        return list(self.backend.get_output_names())
+        probe = self._rtmidi_probe("MidiOut")
+        return list(probe.get_ports()) if probe is not None else list(self.backend.get_output_names())
 
     def open(self, name: str, *, virtual: bool = False) -> BasePort:
         return self.backend.open_output(name, virtual=virtual)
@@ -121,7 +143,9 @@ class ResilientPort:
 
     ``pending()`` (input) and ``send()`` (output) never raise. While the device is gone,
     incoming messages cannot arrive and outgoing ones are dropped and counted. Presence is
-    checked against ``factory.names()`` at most every ``retry_interval`` seconds of clock time.
+    checked against ``factory.names()`` at most every ``retry_interval`` seconds: of clock
+    time on the caller's thread, or, given a ``supervisor``, on the supervisor's thread, so
+    ``send`` and ``pending`` never list, open or close anything.
     """
 
     def __init__(
@@ -132,6 +156,7 @@ class ResilientPort:
         *,
         retry_interval: float = 1.0,
         report: Callable[[str], None] = logger.warning,
+        supervisor: Supervisor | None = None,
     ) -> None:
         self.pattern = pattern
         self.factory = factory
@@ -144,7 +169,11 @@ class ResilientPort:
         self.dropped = 0  # outgoing messages that found no port
         self._missing_reported = False
         self._last_check = -float("inf")
-        self._check(force=True)
+        self._broken: list[tuple[BasePort, str]] = []  # failed on the creature's thread, to let go
+        self._job = None
+        self._check(force=True)  # before the run starts: the port is there from the first tick
+        if supervisor is not None:
+            self._job = supervisor.every(retry_interval, self._check_now, name=f"MIDI port {pattern}")
 
     @property
     def connected(self) -> bool:
@@ -153,43 +182,69 @@ class ResilientPort:
     def pending(self) -> list[mido.Message]:
         """Every message waiting on the input port; never blocks, never raises."""
         self._check()
-        if self.port is None:
+        port = self.port
+        if port is None:
             return []
         try:
-            return list(self.port.iter_pending())
+            return list(port.iter_pending())
         except Exception as exc:  # any backend error means the device is gone
-            self._lose(f"{exc}")
+            self._failed(port, f"{exc}")
             return []
 
     def send(self, msg: mido.Message) -> bool:
         """Send ``msg`` if the port is there; return whether it went out."""
         self._check()
-        if self.port is not None:
+        port = self.port
+        if port is not None:
             try:
-                self.port.send(msg)
+                port.send(msg)
                 return True
             except Exception as exc:
-                self._lose(f"{exc}")
+                self._failed(port, f"{exc}")
         self.dropped += 1
         return False
 
     def close(self) -> None:
+        if self._job is not None:
+            self._job.cancel()
+        self._let_go_broken()
         if self.port is not None:
-            self._close_quietly()
+            self._close_quietly(self.port)
+            self.port = None
+
+    def _failed(self, port: BasePort, why: str) -> None:
+        """A port that raised is dropped at once; letting it go (closing may block) and looking
+        again is the supervisor's, when there is one."""
+        if self.port is not port:
+            return
+        self.port = None
+        self._broken.append((port, why))
+        if self._job is not None:
+            self._job.wake()
+        else:
+            self._let_go_broken()
 
     def _check(self, *, force: bool = False) -> None:
+        if self._job is not None and not force:
+            return  # the supervisor looks
         now = self.clock.now()
         if not force and now - self._last_check < self.retry_interval:
             return
         self._last_check = now
+        self._check_now()
+
+    def _check_now(self) -> None:
         try:
             names = self.factory.names()
         except Exception as exc:
             names = []
             logger.debug("listing MIDI ports failed: %s", exc)
-        if self.port is not None:
-            if self.port.name not in names:
-                self._lose("it is no longer listed")
+        self._let_go_broken()  # after the listing: a send may have failed while it ran
+        port = self.port
+        if port is not None:
+            if port.name not in names:
+                self.port = None
+                self._lose(port, "it is no longer listed")
             return
         name = match_port(names, self.pattern)
         if name is None:
@@ -198,27 +253,32 @@ class ResilientPort:
                 self._missing_reported = True
             return
         try:
-            self.port = self.factory.open(name)
+            opened = self.factory.open(name)
         except Exception as exc:
             if not self._missing_reported:
                 self.report(f"MIDI port {name!r} could not be opened ({exc}); will keep trying")
                 self._missing_reported = True
             return
+        self.port = opened
         if self.faults or self._missing_reported:
             self.reopened += 1
             self.report(f"MIDI port {name!r} is back")
         self._missing_reported = False
 
-    def _lose(self, why: str) -> None:
-        name = self.port.name if self.port is not None else self.pattern
-        self._close_quietly()
+    def _let_go_broken(self) -> None:
+        while self._broken:
+            port, why = self._broken.pop(0)
+            self._lose(port, why)
+
+    def _lose(self, port: BasePort, why: str) -> None:
+        self._close_quietly(port)
         self.faults += 1
         self._missing_reported = True
-        self.report(f"MIDI port {name!r} lost ({why}); will reopen it when it returns")
+        self.report(f"MIDI port {port.name!r} lost ({why}); will reopen it when it returns")
 
-    def _close_quietly(self) -> None:
+    @staticmethod
+    def _close_quietly(port: BasePort) -> None:
         try:
-            self.port.close()
+            port.close()
         except Exception as exc:
             logger.debug("closing a lost MIDI port failed: %s", exc)
-        self.port = None

@@ -12,6 +12,7 @@ from typing import Protocol
 
 import mido
 
+from creatures.clock import Clock
 from midi.files import TempoMap, write_messages
 from midi.notes import NoteEvent, TimedMessage, from_messages
 from midi.ports import ResilientPort
@@ -34,15 +35,32 @@ class MemorySink:
         return from_messages(self.messages)
 
 
+LATE_NOTE = 0.010
+"""Seconds after its due time past which a note-on reaching the port counts as late."""
+
+
 class PortSink:
     """A live output port: an open mido port, or a :class:`ResilientPort` that drops (and
-    counts) messages while its device is away."""
+    counts) messages while its device is away.
 
-    def __init__(self, port: mido.ports.BaseOutput | ResilientPort) -> None:
+    Given the ``clock`` the due times are on, each note-on's lateness at the port is measured:
+    :attr:`late` counts those more than :data:`LATE_NOTE` late, :attr:`worst` keeps the most.
+    """
+
+    def __init__(self, port: mido.ports.BaseOutput | ResilientPort, clock: Clock | None = None) -> None:
         self.port = port
+        self.clock = clock
+        self.notes = 0
+        self.late = 0
+        self.worst = 0.0
 
     def send(self, time: float, msg: mido.Message) -> None:
         self.port.send(msg)
+        if self.clock is not None and msg.type == "note_on" and msg.velocity > 0:
+            lateness = self.clock.now() - time
+            self.notes += 1
+            self.late += lateness > LATE_NOTE
+            self.worst = max(self.worst, lateness)
 
     def close(self) -> None:
         self.port.close()

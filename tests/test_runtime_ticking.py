@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import os
 from typing import Callable
 
 import mido
@@ -13,7 +14,8 @@ from creatures.events import EventLog
 from creatures.runtime.live import LiveInputs
 from creatures.runtime.schema import load_installation
 from creatures.runtime.session import Session
-from creatures.runtime.ticking import POLL, TickLoop
+from creatures.runtime import ticking
+from creatures.runtime.ticking import POLL, TickLoop, realtime
 from midi.ports import MemoryInput, MemoryPorts
 from midi.sinks import MemorySink
 
@@ -96,5 +98,37 @@ def test_a_note_that_arrives_at_a_tick_is_heard_at_the_ticks_own_instant(tmp_pat
 def test_a_machine_far_behind_skips_ahead_and_counts_it(tmp_path):
     rig = Rig(tmp_path, [], tick_takes=1.5)  # every tick stalls the loop for longer than a second
     rig.run(until=lambda t: len(rig.ticks) >= 3)
-    assert rig.loop.late >= 1
+    assert rig.loop.skipped >= 1
+    assert rig.loop.timing.late >= 1 and rig.loop.timing.worst > 1.0
     assert rig.ticks[1] - rig.ticks[0] > 1.0
+
+
+def test_the_loop_thread_turns_real_time_where_allowed_and_back_after():
+    said: list[str] = []
+    with realtime(True, said.append) as granted:
+        inside = os.sched_getscheduler(0)
+    if not granted:
+        pytest.skip(f"real-time scheduling not allowed here: {said}")
+    assert inside == os.SCHED_RR and os.sched_getscheduler(0) == os.SCHED_OTHER and not said
+
+
+def test_real_time_refused_is_said_once_and_the_run_goes_on(monkeypatch):
+    def refuse(*args: object) -> None:
+        raise PermissionError(1, "Operation not permitted")
+
+    monkeypatch.setattr(ticking.os, "sched_setscheduler", refuse)
+    said: list[str] = []
+    with realtime(True, said.append) as granted:
+        assert not granted
+    with realtime(False, said.append) as granted:  # realtime = false: not even asked
+        assert not granted
+    assert len(said) == 1 and "real-time scheduling refused (Operation not permitted)" in said[0]
+
+
+def test_ticks_that_begin_late_are_counted_not_hidden(tmp_path):
+    rig = Rig(tmp_path, [], tick_takes=0.05)  # each tick works 50 ms of a 40 ms grid: the next starts late
+    rig.run(until=lambda t: len(rig.ticks) >= 10)
+    timing = rig.loop.timing
+    assert timing.ticks == 10 and rig.loop.skipped == 0
+    assert timing.late == 9  # all but the first, each 10 ms later than the one before
+    assert timing.worst == pytest.approx(0.09) and timing.percentile(50) == pytest.approx(0.045, abs=0.006)

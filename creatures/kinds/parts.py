@@ -190,6 +190,7 @@ class Body:
     def __init__(self, rng: np.random.Generator, *, effector: str = "hand_r", ratios: bool = False) -> None:
         self.graph = shared_graph(ratios)
         self.finder = PathFinder(self.graph)
+        self.finder.prepare()  # its landmark tables (~10 ms) before the first tick, not in it
         start = int(rng.integers(len(self.graph)))
         self.motor = MotorSystem(self.graph, start=start, finder=self.finder)
         self.effector = effector

@@ -4,10 +4,20 @@ Each creature's figure (joint positions and parents) and its note objects are dr
 picture, creatures spaced along x, at the configured frame rate whatever the behaviour tick
 (:class:`~creatures.body.frames.FrameClock`). Without an offscreen GL platform the run goes on
 without pictures and says why.
+
+Offline, frames are drawn in the run's own process (time waits for them). Live, drawing one
+frame (pyrender on llvmpipe, a PNG encoded) took up to a second on a loaded machine, and on
+the creature's thread it made most ticks late; so :class:`FramesBeside` only gathers each
+due frame's figures (a few small arrays) and hands them to a process of its own, which draws
+and writes them. A frame that finds that process still busy with earlier ones is dropped and
+counted (:attr:`FramesBeside.dropped`): the creatures never wait for a picture.
 """
 
 from __future__ import annotations
 
+import multiprocessing
+import queue
+import signal
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +29,28 @@ from creatures.runtime.schema import OutputSection
 
 SPACING = 1.5
 """Metres between neighbouring creatures in the picture."""
+
+
+Scene = tuple[np.ndarray, np.ndarray, list[tuple[tuple[float, float, float], float]]]
+"""Joint positions (J, 3), their parents (J,) and note marks (position, pitch): one frame's content."""
+
+
+def gather(creatures: list[CreatureKind]) -> Scene | None:
+    """Every creature's figure and note objects, side by side along x; None if no one has a body."""
+    positions, parents, marks = [], [], []
+    offset = 0
+    for i, creature in enumerate(creatures):
+        shift = np.array([(i - (len(creatures) - 1) / 2) * SPACING, 0.0, 0.0])
+        figure = creature.figure()
+        if figure is not None:
+            p, par = figure
+            positions.append(p + shift)
+            parents.append(np.where(par >= 0, par + offset, -1))
+            offset += len(p)
+        marks += [(tuple(float(x) for x in np.asarray(position) + shift), pitch) for position, pitch in creature.marks()]
+    if not positions:
+        return None
+    return np.concatenate(positions), np.concatenate(parents), marks
 
 
 class BodyFrames:
@@ -42,26 +74,84 @@ class BodyFrames:
         if self.renderer is None:
             return
         due = self.clock.due()
-        if not due:
-            return
+        if due:
+            scene = gather(creatures)
+            if scene is not None:
+                self.paint(scene, due)
+
+    def paint(self, scene: Scene, repeat: int) -> None:
+        """Render one gathered scene and write it ``repeat`` times (frames that fell due together)."""
         from creatures.body.render import NoteMark
 
-        positions, parents, marks = [], [], []
-        offset = 0
-        for i, creature in enumerate(creatures):
-            shift = np.array([(i - (len(creatures) - 1) / 2) * SPACING, 0.0, 0.0])
-            figure = creature.figure()
-            if figure is not None:
-                p, par = figure
-                positions.append(p + shift)
-                parents.append(np.where(par >= 0, par + offset, -1))
-                offset += len(p)
-            marks += [NoteMark(tuple(np.asarray(position) + shift), pitch) for position, pitch in creature.marks()]
-        if positions:
-            frame = self.renderer.render(np.concatenate(positions), np.concatenate(parents), marks, out=self._frame)
-            self.writer.write(frame, repeat=due)
+        positions, parents, marks = scene
+        frame = self.renderer.render(positions, parents, [NoteMark(p, pitch) for p, pitch in marks], out=self._frame)
+        self.writer.write(frame, repeat=repeat)
 
     def close(self) -> None:
         if self.renderer is not None:
             self.writer.close()
             self.renderer.close()
+
+
+QUEUED_FRAMES = 32
+"""Frames that may wait for the drawing process; more are dropped (and counted)."""
+
+
+def _draw_beside(output: dict, out: str, scenes: multiprocessing.Queue, ready: multiprocessing.Queue) -> None:
+    """The drawing process: a :class:`BodyFrames` of its own, fed scenes until ``None``."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the run's: it sends the last frames and None
+    messages: list[str] = []
+    from creatures.clock import WallClock
+
+    frames = BodyFrames(OutputSection(**output), Path(out), WallClock(), messages)
+    ready.put(messages[0] if messages else "")
+    if frames.renderer is None:
+        return
+    try:
+        while (item := scenes.get()) is not None:
+            frames.paint(*item)
+    finally:
+        frames.close()
+
+
+class FramesBeside:
+    """Live frames: due on the run's clock, drawn and written by a process of their own."""
+
+    def __init__(self, output: OutputSection, out: Path, clock: Clock, messages: list[str]) -> None:
+        context = multiprocessing.get_context("spawn")  # a fresh interpreter: no copy of the colony
+        self.scenes = context.Queue(QUEUED_FRAMES)
+        ready = context.Queue()
+        self.process = context.Process(target=_draw_beside, args=(output.model_dump(), str(out), self.scenes, ready),
+                                       name="creatures-frames", daemon=True)
+        self.process.start()
+        self.dropped = 0  # frames that found the drawing process busy
+        problem = ready.get(timeout=120)  # before the run starts: the process has its renderer or says why
+        self.drawing = not problem
+        if problem:
+            messages.append(problem)
+            self.process.join(10)
+        self.clock = FrameClock(output.fps, clock)
+
+    def draw(self, creatures: list[CreatureKind]) -> None:
+        if not self.drawing:
+            return
+        due = self.clock.due()
+        if due:
+            scene = gather(creatures)
+            if scene is not None:
+                try:
+                    self.scenes.put_nowait((scene, due))
+                except queue.Full:
+                    self.dropped += due
+
+    def close(self) -> None:
+        """The last frames are drawn and the video finished (bounded wait), then the process ends."""
+        if self.drawing:
+            self.drawing = False
+            try:
+                self.scenes.put(None, timeout=10)
+            except queue.Full:
+                pass
+        self.process.join(60)
+        if self.process.is_alive():
+            self.process.terminate()

@@ -11,6 +11,15 @@ overruns (input dropped: the loop read too slowly) are counted, logged when they
 reported at the end. With ``[osc] port`` set the colony speaks and listens on the network
 (:mod:`creatures.runtime.network`). Learned state is saved every ``save_every`` seconds and on
 exit (Ctrl-C or SIGTERM: every note off, state saved) and restored on the next start.
+
+Nothing that can block runs on the creature's thread: looking for ports and devices, checking
+they are still there, reopening them and flushing the events log are jobs of a
+:class:`~creatures.supervisor.Supervisor` thread (issue 14: a port listing of ~2.5 s once a
+second had cost four ticks in five). What the loop still cannot keep is counted: ticks that
+began more than :data:`~creatures.runtime.ticking.LATE_TICK` late and note-ons that reached
+the MIDI port more than :data:`~midi.sinks.LATE_NOTE` late, logged each second (``timing``)
+and in the summary. With ``[audio] output = false`` (the sound is an external synth's) no
+audio device is opened at all.
 """
 
 from __future__ import annotations
@@ -24,27 +33,41 @@ from typing import Callable
 from audio.resilient import ResilientInput, ResilientOutput
 from creatures.clock import Clock, SimulatedClock, WallClock
 from creatures.events import EventLog
-from creatures.runtime.bodies import BodyFrames
+from creatures.runtime.bodies import FramesBeside
 from creatures.runtime.input_sources import SerialSource, open_sources
 from creatures.runtime.network import Network
 from creatures.runtime.schema import LoadedInstallation
-from creatures.runtime.session import Session
-from creatures.runtime.ticking import TickLoop, setup_kept
+from creatures.runtime.session import Session, write_snapshot
+from creatures.runtime.ticking import TickLoop, TickTiming, realtime, setup_kept
+from creatures.supervisor import Supervisor
+from midi.notes import NoteEvent
 from midi.ports import MidoInputs, MidoOutputs, PortFactory, ResilientPort
 from midi.sinks import MemorySink, PortSink
 
 HELP = "list devices with `creatures devices`"
 
+REHEARSAL = 1.0
+"""Simulated seconds a throwaway copy of the colony plays before the show (:func:`rehearse`)."""
+
+AUDIO_LEAD = 0.05
+"""Seconds of audio kept ahead of the loudspeaker (audio/resilient.py): a tick's mix written up
+to this late still plays whole."""
+
 HOUSEKEEPING_EVERY = 1.0
-"""Seconds between flushes of the events log and checks of the audio counters."""
+"""Seconds between flushes of the events log, checks of the audio counters and timing records."""
 
 
 @dataclass
 class LiveSummary:
     seconds: float = 0.0
     ticks: int = 0
-    late: int = 0
+    late: int = 0  # ticks that began more than ticking.LATE_TICK after their grid time
+    skipped: int = 0  # times the loop fell a second behind and skipped ahead
+    worst_lateness: float = 0.0  # seconds, the latest a tick began
+    lateness_p99: float = 0.0  # seconds
     notes_played: int = 0
+    late_notes: int = 0  # note-ons that reached the MIDI port more than sinks.LATE_NOTE late
+    frames_dropped: int = 0  # frames the drawing process was too busy to take
     heard_between_ticks: int = 0  # notes heard (and answerable) at once, not at the next tick
     underruns: int = 0  # audio output callbacks that found no sound ready and played silence
     overruns: int = 0  # microphone blocks lost: the loop read too slowly, or the driver overflowed
@@ -64,16 +87,19 @@ class LiveInputs:
     """
 
     def __init__(self, inst: LoadedInstallation, session: Session, clock: Clock, say: Callable[[str], None], *,
-                 ports: PortFactory | None = None) -> None:
+                 ports: PortFactory | None = None, supervisor: Supervisor | None = None,
+                 epoch: float | None = None) -> None:
+        """``supervisor``: where the MIDI port's presence checks run (else on the caller's
+        thread); ``epoch``: Unix time of clock time 0, to time-tag the notes sent over OSC."""
         settings = inst.settings
         self.router = session.inputs
         self.midi = None
         if settings.midi.input_port:
             self.midi = ResilientPort(settings.midi.input_port, ports or MidoInputs(), clock,
-                                      report=lambda m: say(f"MIDI input: {m}; {HELP}"))
+                                      report=lambda m: say(f"MIDI input: {m}; {HELP}"), supervisor=supervisor)
         self.network = None
         if settings.osc.port is not None:
-            self.network = Network(settings.osc, session.world, clock, say, elsewhere=self.router)
+            self.network = Network(settings.osc, session.world, clock, say, elsewhere=self.router, epoch=epoch)
         self.sources = open_sources(inst, self.router, clock, say, live=True)
         reached = "only the config's serial devices and rehearsal files" if self.sources else "nothing"
         for routes, source, key in ((self.router.osc_routes, self.network, "[osc] port"),
@@ -122,14 +148,14 @@ class LiveInputs:
 class _Counters:
     """Audio underruns and microphone overruns: read, and logged whenever they change."""
 
-    def __init__(self, session: Session, output: ResilientOutput, microphone: ResilientInput | None) -> None:
+    def __init__(self, session: Session, output: ResilientOutput | None, microphone: ResilientInput | None) -> None:
         self.session = session
         self.output = output
         self.microphone = microphone
         self.last = (0, 0)
 
     def now(self) -> tuple[int, int]:
-        underruns = self.output.underruns
+        underruns = self.output.underruns if self.output is not None else 0
         mic = self.microphone
         return underruns, (mic.overruns + mic.driver_overflows) if mic is not None else 0
 
@@ -140,14 +166,72 @@ class _Counters:
             self.session.world.emit("xruns", underruns=counts[0], overruns=counts[1])
 
 
+class _Timing:
+    """Late ticks and late notes, logged once a :data:`HOUSEKEEPING_EVERY` (``timing``) when
+    any came since the last record, and at the end."""
+
+    def __init__(self, session: Session, timing: TickTiming, sink: PortSink | MemorySink) -> None:
+        self.session, self.timing, self.sink = session, timing, sink
+        self.last = (0, 0)
+
+    def log_change(self, *, always: bool = False) -> None:
+        counts = (self.timing.late, getattr(self.sink, "late", 0))
+        if always or counts != self.last:
+            self.last = counts
+            self.session.world.emit("timing", ticks=self.timing.ticks, late_ticks=counts[0],
+                                    worst_ms=round(self.timing.worst * 1e3, 3), late_notes=counts[1])
+
+
+def rehearse(inst: LoadedInstallation) -> None:
+    """A throwaway copy of the colony plays :data:`REHEARSAL` simulated seconds, hearing a few
+    notes, before the show, so what loads at first use is loaded before the first real tick:
+    numba's cached kernels load when first called (measured: exchange's first move took
+    100 ms, making the live run's first five ticks late). The real creatures are untouched."""
+    clock = SimulatedClock()
+    session = Session(inst, clock, EventLog(keep_in_memory=0), MemorySink())
+    for i, pitch in enumerate((60, 64, 67, 72)):
+        session.world.inject(NoteEvent(0.1 + 0.15 * i, pitch, 90, 0, 0.2))
+    tick, sr = inst.settings.tick, inst.settings.audio.sample_rate
+    for step in range(1, int(REHEARSAL / tick) + 1):
+        clock.advance_to(step * tick)
+        session.step(clock.now(), int(round(tick * sr)), None)
+    session.close()
+
+
 def _save(session: Session, state_dir: Path, summary: LiveSummary, say: Callable[[str], None]) -> None:
     """Save state; a full or read-only disk is reported and the run goes on (the previous
     files stay intact, persist.atomic_write) rather than silencing a gallery."""
+    _write_state(state_dir, session.snapshot(), summary, say)
+
+
+def _write_state(state_dir: Path, snapshot: list[tuple[str, str]], summary: LiveSummary,
+                 say: Callable[[str], None]) -> None:
     try:
-        session.save_state(state_dir)
+        write_snapshot(state_dir, snapshot)
     except OSError as exc:
         summary.failed_saves += 1
         say(f"could not save creature state ({exc}); the previous state is kept, will try again")
+
+
+class _Saver:
+    """Periodic saves: the colony's state is encoded on the creature's thread (one instant,
+    ~0.1 ms), and written (an fsync per file: 25–40 ms measured) by a supervisor job, which
+    reports a failed write as :func:`_save` does. The save on exit stays :func:`_save`."""
+
+    def __init__(self, supervisor: Supervisor, state_dir: Path, summary: LiveSummary,
+                 say: Callable[[str], None], every: float) -> None:
+        self.state_dir, self.summary, self.say = state_dir, summary, say
+        self.pending: list[tuple[str, str]] | None = None
+        self.job = supervisor.every(every, self._write, name="state save")
+
+    def save(self, session: Session) -> None:
+        self.pending = session.snapshot()
+        self.job.wake()
+
+    def _write(self) -> None:
+        snapshot, self.pending = self.pending, None
+        if snapshot is not None:
+            _write_state(self.state_dir, snapshot, self.summary, self.say)
 
 
 def run_live(
@@ -164,33 +248,39 @@ def run_live(
     config's frame rate."""
     settings = inst.settings
     summary = LiveSummary()
+    rehearse(inst)
     wall = WallClock()
     clock = SimulatedClock(wall.now())  # the creatures' time, moved by the loop (ticking.py)
+    epoch = time.time() - wall.now()
     log = EventLog(log_path, keep_in_memory=0) if log_path else EventLog(keep_in_memory=1000)
+    supervisor = Supervisor()  # started with the loop; until then devices are looked at here
 
     sink: PortSink | MemorySink = MemorySink()
     if settings.midi.output_port:
         port = ResilientPort(settings.midi.output_port, MidoOutputs(), wall,
-                             report=lambda m: say(f"MIDI output: {m}; {HELP}"))
-        sink = PortSink(port)
+                             report=lambda m: say(f"MIDI output: {m}; {HELP}"), supervisor=supervisor)
+        sink = PortSink(port, wall)
     transcribe = settings.audio.transcribe
     session = Session(inst, clock, log, sink,
                       transcribe=transcribe if transcribe is not None else not settings.midi.input_port, say=say)
     state_dir = state or inst.resolve(settings.state)
     if state_dir is not None:
         summary.restored = session.load_state(state_dir)
-    inputs = LiveInputs(inst, session, clock, say)
+    inputs = LiveInputs(inst, session, clock, say, supervisor=supervisor, epoch=epoch)
     sr = settings.audio.sample_rate
     # Creatures synthesise at the config's rate; the device plays at its own (JACK will not
     # change it), so the mix is resampled on the way out. A device that is absent, or vanishes
     # mid-run, is reported, played to as silence, and reopened when it is back (audio/resilient.py).
-    output = ResilientOutput(sr, 2, clock=wall, device=settings.audio.output_device,
-                             blocksize=settings.audio.block, report=say)
-    summary.sound = output.describe()
+    output = None
+    summary.sound = "off ([audio] output = false)"
+    if settings.audio.output:
+        output = ResilientOutput(sr, 2, clock=wall, device=settings.audio.output_device,
+                                 blocksize=settings.audio.block, report=say, supervisor=supervisor, lead=AUDIO_LEAD)
+        summary.sound = output.describe()
     microphone = None
     if settings.audio.input_device is not None:
         device = None if settings.audio.input_device == "default" else settings.audio.input_device
-        microphone = ResilientInput(device, clock=wall, samplerate=sr, report=say)
+        microphone = ResilientInput(device, clock=wall, samplerate=sr, report=say, supervisor=supervisor)
     counters = _Counters(session, output, microphone)
     stopping = False
 
@@ -204,12 +294,16 @@ def run_live(
     bodies = None
     if pictures is not None:
         pictures.mkdir(parents=True, exist_ok=True)
-        bodies = BodyFrames(settings.output, pictures, wall, summary.messages)
+        bodies = FramesBeside(settings.output, pictures, wall, summary.messages)
         for message in summary.messages:
             say(message)
     say(f"{len(session.creatures)} creature(s) running; Ctrl-C or SIGTERM stops cleanly")
     loop = TickLoop(session, inputs, wall, clock, settings.tick)
-    with setup_kept():
+    timing = _Timing(session, loop.timing, sink)
+    supervisor.every(HOUSEKEEPING_EVERY, log.flush, name="events log flush")  # a tail -f shows the present
+    saver = _Saver(supervisor, state_dir, summary, say, settings.save_every) if state_dir is not None else None
+    supervisor.start()  # before the loop's thread turns real-time: the supervisor keeps ordinary scheduling
+    with setup_kept(), realtime(settings.realtime, say):
         start = wall.now()  # setting up took time; the run's ticks count from here
         next_save, next_housekeeping, frames_done = start + settings.save_every, start, int(round(start * sr))
 
@@ -218,27 +312,35 @@ def run_live(
             frames = int(round(t * sr)) - frames_done
             frames_done += frames
             heard = microphone.read() if microphone is not None else None
-            mix = session.step(t, frames, heard)
-            output.write(mix)
+            mix = session.step(t, frames, heard, audio=output is not None)
+            if output is not None:
+                output.write(mix)
             if inputs.network is not None:
                 inputs.network.publish(t)
             if bodies is not None:
                 bodies.draw(session.creatures)
             if state_dir is not None and t >= next_save:
-                _save(session, state_dir, summary, say)
+                saver.save(session)
                 next_save += settings.save_every
-            if t >= next_housekeeping:  # a tail -f of the log shows the present; xruns are seen
+            if t >= next_housekeeping:  # xruns and late ticks are seen while running
                 next_housekeeping = t + HOUSEKEEPING_EVERY
                 counters.log_change()
-                log.flush()
+                timing.log_change()
 
         try:
+            # The first tick builds what creatures build on first use (their first course, the
+            # motor graph's log record: ~130 ms for exchange's three); the grid starts after it.
+            clock.advance_to(max(start, clock.now()))
+            inputs.poll(start)
+            tick(start)
             loop.run(tick, until=lambda t: stopping or (duration is not None and t - start > duration))
         except KeyboardInterrupt:
             pass
         finally:
             signal.signal(signal.SIGTERM, previous)
+            supervisor.stop()  # before what it watches closes
             counters.log_change(always=True)
+            timing.log_change(always=True)
             summary.underruns, summary.overruns = counters.now()
             inputs.tally()
             session.close()
@@ -246,14 +348,18 @@ def run_live(
                 _save(session, state_dir, summary, say)
             if microphone is not None:
                 microphone.stop()
-            output.close()
+            if output is not None:
+                output.close()
             if bodies is not None:
                 bodies.close()
+                summary.frames_dropped = bodies.dropped
             inputs.close()
             log.close()
     summary.seconds = wall.now() - start
     summary.ticks = session.ticks
-    summary.late = loop.late
+    summary.late, summary.skipped = loop.timing.late, loop.skipped
+    summary.worst_lateness, summary.lateness_p99 = loop.timing.worst, loop.timing.percentile(99)
+    summary.late_notes = getattr(sink, "late", 0)
     summary.heard_between_ticks = loop.heard_between
     summary.notes_played = session.world.notes_played
     summary.inputs = session.inputs.summary()

@@ -64,9 +64,13 @@ class Network:
     """The OSC side of a live run: one sender per creature, one listener for the colony."""
 
     def __init__(self, osc: OscSection, world: "World", clock: Clock, say: Callable[[str], None], *,
-                 elsewhere: InputRouter | None = None) -> None:
+                 elsewhere: InputRouter | None = None, epoch: float | None = None) -> None:
+        """``elsewhere``: the input map that takes messages outside the creature address space;
+        ``epoch``: the Unix time of clock time 0; given, each note goes out time-tagged with
+        when it sounds (:meth:`OscSender.note`), else marked "immediately"."""
         self.world = world
         self.elsewhere = elsewhere
+        self.epoch = epoch
         self._outside: list[tuple[str, list]] = []  # messages for the input map, taken in at poll
         self.listener = OscListener(clock, host=osc.host, port=osc.port or 0,
                                     elsewhere=None if elsewhere is None else self._take)
@@ -87,7 +91,7 @@ class Network:
         self._outside.append((address, args))
 
     def _played(self, creature: str, note: NoteEvent) -> None:
-        self.senders[creature].note(note)
+        self.senders[creature].note(note, at=None if self.epoch is None else self.epoch + note.time)
 
     def publish(self, t: float) -> None:
         """Hello and state from every creature, at most every :data:`STATE_EVERY` seconds."""

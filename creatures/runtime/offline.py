@@ -36,7 +36,8 @@ from creatures.runtime.inputs import phrase_notes, render_notes
 from creatures.runtime.schema import LoadedInstallation
 from creatures.runtime.speech_input import spoken_poem
 from creatures.runtime.session import Session
-from midi.files import read_notes, write_notes
+from creatures.runtime.score import write_score
+from midi.files import read_notes
 from midi.notes import NoteEvent
 from midi.sinks import MemorySink
 
@@ -144,6 +145,7 @@ def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path 
     messages: list[str] = []
     log = EventLog(out / "events.jsonl")
     session = Session(inst, clock, log, sink, say=messages.append)
+    session.world.recording = settings.output.midi  # out.mid's input track and heard tempo
     sources = open_sources(inst, session.inputs, clock, messages.append, live=False)  # rehearsal files
     session.world.emit("run", title=settings.title, mode="offline", duration=duration, seed=settings.seed,
                        creatures=[c.name for c in session.creatures])
@@ -195,7 +197,7 @@ def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path 
         wav.close()
         files["wav"] = out / "out.wav"
     if settings.output.midi:
-        write_notes(out / "out.mid", sink.notes())
+        write_score(out / "out.mid", session.world, sink.messages)
         files["midi"] = out / "out.mid"
     for creature in session.creatures:
         files.update(creature.finish(out))

@@ -44,6 +44,10 @@ class HeardPulse:
     def ready(self) -> bool:
         return self.heard >= READY_AFTER
 
+    def bpm(self) -> float | None:
+        """The heard tempo, beats a minute (a beat = the pulse), or None until it is trusted."""
+        return 60.0 / self.model.pulse if self.ready else None
+
     def to_dict(self) -> dict[str, Any]:
         return {"pulse": self.model.to_dict(), "heard": self.heard}
 

@@ -7,6 +7,7 @@ of that page. Unknown keys are errors (a typo must never be silently ignored in 
 from __future__ import annotations
 
 import difflib
+import socket
 from pathlib import Path
 from typing import Any
 
@@ -28,6 +29,8 @@ class AudioSection(Strict):
     input_device: str | int | None = Field(None, description="live input device (name fragment or index, or "
                                                             "'default' for the system's); none = no microphone")
     output_device: str | int | None = Field(None, description="live output device (name fragment or index)")
+    output: bool = Field(True, description="live runs open an audio output; false when the sound comes from an "
+                                           "external synth (MIDI or OSC): no device is opened, no underruns counted")
     air: bool = Field(False, description="creatures hear each other's voices (and their own) through "
                                          "the room, one tick late, as well as the input")
     transcribe: bool | None = Field(None, description="hear the pitched notes of the input audio (file or "
@@ -36,10 +39,18 @@ class AudioSection(Strict):
 
 
 class MidiSection(Strict):
-    """Live MIDI ports (absent ports are reported and looked for again)."""
+    """Live MIDI ports (absent ports are reported and looked for again), and how each creature's
+    channel is set up at the start of a run (live and in ``out.mid``) for creatures that do not
+    set ``program``, ``bank``, ``volume`` or ``bend_range`` themselves; pan comes from each creature's ``pan``."""
 
     input_port: str | None = Field(None, description="live MIDI input port name or pattern")
     output_port: str | None = Field(None, description="live MIDI output port name or pattern")
+    program: int | None = Field(None, ge=0, le=127, description="General MIDI program (0 = piano) sent on "
+                                                                "every creature's channel at start; none = the synth's own")
+    bank: int | None = Field(None, ge=0, le=16383, description="bank (CC 0 and 32) sent before the program")
+    volume: int | None = Field(None, ge=0, le=127, description="channel volume (CC 7) sent at start")
+    bend_range: float | None = Field(None, ge=0, le=24, description="pitch-bend range in semitones (RPN 0) sent "
+                                                                    "at start, for synths that bend the creatures' pitch")
 
 
 class OscSection(Strict):
@@ -135,8 +146,19 @@ class InputSection(Strict):
     map: list[InputMap] = Field(default_factory=list, description="the input maps (see `[[input]]`)")
 
 
+class CcSection(Strict):
+    """One ``[[output.cc]]`` stream: a creature's drive sent as a MIDI control change (live and
+    in ``out.mid``), e.g. boredom opening a synth's filter."""
+
+    source: str = Field(pattern=r"^[A-Za-z0-9_\-]+\.[A-Za-z0-9_\-]+$",
+                        description="'<creature>.<drive>', e.g. 'ada.boredom'")
+    controller: int = Field(ge=0, le=119, description="MIDI controller number (on the creature's channel)")
+    range: tuple[float, float] = Field((0.0, 1.0), description="source values mapped to 0 and 127 (clipped)")
+    rate: float = Field(10.0, gt=0, le=100, description="most messages a second (sent only when the value changes)")
+
+
 class OutputSection(Strict):
-    """What an offline run writes into its output directory."""
+    """What an offline run writes into its output directory, and MIDI control streams."""
 
     midi: bool = Field(True, description="write out.mid")
     wav: bool = Field(True, description="write out.wav")
@@ -146,6 +168,8 @@ class OutputSection(Strict):
     width: int = Field(320, ge=16, le=3840, description="frame width, pixels")
     height: int = Field(240, ge=16, le=2160, description="frame height, pixels")
     report: bool = Field(True, description="write report/ (plots and index.html) after an offline run")
+    cc: list[CcSection] = Field(default_factory=list, description="MIDI control-change streams, one [[output.cc]] "
+                                                                  "table each")
 
 
 class Installation(Strict):
@@ -156,6 +180,9 @@ class Installation(Strict):
     duration: float = Field(60.0, gt=0, description="offline run length in simulated seconds (default)")
     save_every: float = Field(60.0, gt=0, description="seconds between state saves in live runs")
     state: str | None = Field(None, description="directory for saved creature state (live runs)")
+    realtime: bool = Field(True, description="live runs ask the OS for real-time scheduling of the creatures' "
+                                             "thread (round-robin, priority 5: below JACK's) where allowed, so a "
+                                             "busy machine cannot make ticks late; refused, the run goes on and says so")
     audio: AudioSection = AudioSection()
     midi: MidiSection = MidiSection()
     osc: OscSection = OscSection()
@@ -176,17 +203,23 @@ class Installation(Strict):
 class LoadedInstallation:
     """A validated installation: its top-level settings and each creature's typed spec."""
 
-    def __init__(self, path: Path, settings: Installation, specs: list[CreatureSpec]) -> None:
+    def __init__(self, path: Path, settings: Installation, specs: list[CreatureSpec],
+                 where: dict[tuple, tuple[Path, int]] | None = None) -> None:
         from creatures.runtime.input_routes import Colony, compile_maps
 
         self.path = path
         self.settings = settings
         self.specs = specs
+        self.where = where or {}  # key path -> (file, line): errors found later still name the line
         kinds = load_all()
         # The input maps, checked against the creatures (unknown names, drives): MapError.
         self.routes = compile_maps(settings.input.map, {
             spec.name: Colony(kinds[spec.kind].drive_names(spec), kinds[spec.kind].rewardable(spec)) for spec in specs})
         self.rehearsals: dict[int, list] = {}  # rows of each rehearsal file, by [[input]] table
+
+    def error(self, loc: tuple[str | int, ...], message: str) -> ConfigError:
+        """A :class:`ConfigError` at key path ``loc`` of this config, with its line."""
+        return config_error(self.path, self.where, loc, message)
 
     def resolve(self, relative: str | None) -> Path | None:
         """A path from the config, relative to the config's own directory."""
@@ -216,6 +249,16 @@ def load_installation(path: str | Path) -> LoadedInstallation:
         file = getattr(settings.input, key)
         if file is not None and not (path.parent / file).exists():
             raise config_error(path, where, ("input", key), f"file not found: {file}")
+    for i, peer in enumerate(settings.osc.peers):
+        problem = peer_problem(peer)
+        if problem is not None:
+            raise config_error(path, where, ("osc", "peers", i), problem)
+    for i, stream in enumerate(settings.output.cc):
+        creature = stream.source.split(".")[0]
+        if creature not in names:
+            close = difflib.get_close_matches(creature, sorted(names), n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else f" (creatures: {sorted(names)})"
+            raise config_error(path, where, ("output", "cc", i, "source"), f"no creature named {creature!r}{hint}")
     return _with_input_maps(path, settings, specs, where, ("input",) if isinstance(data.get("input"), list)
                             else ("input", "map"))
 
@@ -228,7 +271,7 @@ def _with_input_maps(path: Path, settings: Installation, specs: list[CreatureSpe
     from creatures.runtime.input_sources import RehearsalError, load_rehearsal
 
     try:
-        inst = LoadedInstallation(path, settings, specs)
+        inst = LoadedInstallation(path, settings, specs, where)
     except MapError as exc:
         raise config_error(path, where, (*prefix, exc.index, exc.key), str(exc)) from None
     for i, spec in enumerate(settings.input.map):
@@ -238,6 +281,28 @@ def _with_input_maps(path: Path, settings: Installation, specs: list[CreatureSpe
             except RehearsalError as exc:
                 raise config_error(path, where, (*prefix, i, "file"), str(exc)) from None
     return inst
+
+
+def peer_address(peer: str) -> tuple[str, int]:
+    """``host:port`` (host defaults to 127.0.0.1) resolved to an IPv4 address and port; raises
+    OSError (unknown host) or ValueError (no port, or one out of range)."""
+    host, _, port = peer.rpartition(":")
+    number = int(port)
+    if not 0 < number < 65536:
+        raise ValueError(f"port {number} is out of range 1-65535")
+    return socket.gethostbyname(host or "127.0.0.1"), number
+
+
+def peer_problem(peer: str) -> str | None:
+    """Why ``peer`` cannot be spoken to (before anything runs: a typo'd host must not leave a
+    colony talking to no one all night), or None."""
+    try:
+        peer_address(peer)
+    except ValueError as exc:
+        return f"peer {peer!r} is not host:port ({exc})"
+    except OSError as exc:
+        return f"peer host of {peer!r} cannot be resolved ({exc.strerror or exc})"
+    return None
 
 
 __all__ = ["ConfigError", "Installation", "LoadedInstallation", "load_installation"]

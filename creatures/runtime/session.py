@@ -18,13 +18,15 @@ import numpy as np
 
 from audio.mixer import Mixer
 from audio.transcribe import Transcriber
+from creatures.behaviour.motivation import Motivation
 from creatures.clock import Clock
 from creatures.events import EventLog
 from creatures.kinds import KINDS
+from creatures.persist import StateFileError, json_text, load_json, write_json_text
 from creatures.runtime.input_map import InputRouter
-from creatures.persist import StateFileError, load_json, save_json
 from creatures.runtime.schema import LoadedInstallation
 from creatures.runtime.world import World
+from midi.channel_setup import CcStream, channel_setup
 from midi.scheduler import NoteScheduler
 from midi.sinks import NoteSink
 
@@ -67,6 +69,8 @@ class Session:
         self.transcribe = transcribe
         self._transcriber: Transcriber | None = None
         self.ticks = 0
+        self._set_up_channels()
+        self._cc = self._cc_streams()
 
     def step(self, t: float, frames: int, recorded: np.ndarray | None, *, audio: bool = True) -> np.ndarray | None:
         """One behaviour tick at clock time ``t`` covering ``frames`` audio frames.
@@ -86,6 +90,10 @@ class Session:
                 creature.listen(t, block, self.sample_rate)
         for creature in self.creatures:
             creature.tick(t)
+        for motivation, drive, stream in self._cc:
+            msg = stream.due(t, motivation.level(drive, max(t, motivation.time)))
+            if msg is not None:
+                self.scheduler.send_at(t, msg)
         self.scheduler.pump()
         self.ticks += 1
         if not (audio or self.air):
@@ -96,6 +104,33 @@ class Session:
         if self.air:
             self._room = voices.T @ self.mixer.gains
         return self.mixer.mix(voices)
+
+    def _set_up_channels(self) -> None:
+        """Each creature's channel in its voice before its first note (midi/channel_setup.py):
+        its own ``program``/``bank``/``volume``/``bend_range``, else ``[midi]``'s, and its pan."""
+        midi = self.inst.settings.midi
+        now = self.clock.now()
+        for creature in self.creatures:
+            spec = creature.spec
+            chosen = {key: getattr(spec, key) if getattr(spec, key) is not None else getattr(midi, key)
+                      for key in ("program", "bank", "volume", "bend_range")}
+            for msg in channel_setup(spec.channel, pan=spec.pan, **chosen):
+                self.scheduler.send_at(now, msg)
+
+    def _cc_streams(self) -> list[tuple[Motivation, str, CcStream]]:
+        """``[[output.cc]]``: each stream's creature motivation and drive, checked by name."""
+        streams = []
+        by_name = {c.name: c for c in self.creatures}
+        for i, cc in enumerate(self.inst.settings.output.cc):
+            name, drive = cc.source.split(".")
+            creature = by_name[name]  # the config loader checked the creature's name
+            motivation = getattr(creature, "motivation", None)
+            drives = motivation.names if isinstance(motivation, Motivation) else []
+            if drive not in drives:
+                raise self.inst.error(("output", "cc", i, "source"),
+                                      f"{name} has no drive {drive!r} (drives: {drives or 'none'})")
+            streams.append((motivation, drive, CcStream(creature.spec.channel, cc.controller, *cc.range, cc.rate)))
+        return streams
 
     def _hear_notes(self, t: float, recorded: np.ndarray) -> None:
         """Notes of the input audio join the note bus as they are recognised."""
@@ -125,11 +160,14 @@ class Session:
     def save_state(self, directory: Path) -> None:
         """Each creature's learned state, one atomic JSON file per creature, then the colony's
         (:data:`COLONY_FILE`): a pulse learnt over weeks of listening is kept like the rest."""
-        directory.mkdir(parents=True, exist_ok=True)
-        for creature in self.creatures:
-            save_json(directory / f"{creature.name}.json",
-                      {"kind": creature.spec.kind, "state": creature.state()}, kind=STATE_KIND)
-        save_json(directory / COLONY_FILE, self.world.pulse.to_dict(), kind=COLONY_KIND)
+        write_snapshot(directory, self.snapshot())
+
+    def snapshot(self) -> list[tuple[str, str]]:
+        """What :meth:`save_state` writes, as ``(file name, JSON text)``, encoded now (a
+        consistent instant of the colony); :func:`write_snapshot` does the slow part."""
+        files = [(f"{creature.name}.json", json_text({"kind": creature.spec.kind, "state": creature.state()},
+                                                     kind=STATE_KIND)) for creature in self.creatures]
+        return files + [(COLONY_FILE, json_text(self.world.pulse.to_dict(), kind=COLONY_KIND))]
 
     def load_state(self, directory: Path) -> list[str]:
         """Restore creatures from ``directory`` where a file exists; returns who was restored.
@@ -168,3 +206,11 @@ class Session:
         except (KeyError, TypeError, ValueError, IndexError, AttributeError, ArithmeticError) as exc:
             # ArithmeticError: e.g. a ratio with denominator 0, a size too large for an index.
             raise StateFileError(f"{path}: malformed colony state ({type(exc).__name__}: {exc})") from None
+
+
+def write_snapshot(directory: Path, snapshot: list[tuple[str, str]]) -> None:
+    """Write a :meth:`Session.snapshot` into ``directory``, each file atomically (creatures
+    first, the colony's last, as :meth:`Session.save_state` always has)."""
+    directory.mkdir(parents=True, exist_ok=True)
+    for name, text in snapshot:
+        write_json_text(directory / name, text)

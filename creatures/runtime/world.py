@@ -31,6 +31,9 @@ if TYPE_CHECKING:
 INPUT = "input"
 """The source name of notes that come from outside the colony."""
 
+TEMPO_STEP = 0.02
+"""Relative change of the heard tempo that is logged as a new tempo (and a tempo change in out.mid)."""
+
 
 class World:
     """Routes notes between creatures and to the output; every note is logged."""
@@ -49,6 +52,11 @@ class World:
         self.sensors: dict[str, StateObject] = {}  # by name, fed by the input map
         self.notes_played = 0
         self.pulse = HeardPulse()  # the rhythm of the notes heard from outside the colony
+        # A recording run (offline: out.mid) keeps every note heard from outside (the input
+        # track) and every tempo change; a live run of weeks keeps only the latest tempo.
+        self.recording = False
+        self.heard: list[NoteEvent] = []
+        self.tempo: list[tuple[float, float]] = []  # (time, bpm) whenever the heard tempo moved
 
     def add(self, creature: "CreatureKind") -> None:
         self.creatures.append(creature)
@@ -93,6 +101,8 @@ class World:
         """
         self.log.emit(self.clock.now(), "heard", source=via or source, time=note.time, pitch=note.pitch,
                       velocity=note.velocity, duration=note.duration)
+        if self.recording:
+            self.heard.append(note)
         heapq.heappush(self._pending, (note.time, next(self._seq), note, source))
 
     def deliver(self, t: float) -> int:
@@ -107,7 +117,19 @@ class World:
                     creature.hear(note, source)
             count += 1
         self.pulse.settle()
+        self._follow_tempo(t)
         return count
+
+    def _follow_tempo(self, t: float) -> None:
+        """Log the heard tempo when it has moved by :data:`TEMPO_STEP` (the tempo map of
+        ``out.mid``); only the last change is kept in a long live run."""
+        bpm = self.pulse.bpm()
+        if bpm is None or (self.tempo and abs(bpm / self.tempo[-1][1] - 1.0) < TEMPO_STEP):
+            return
+        if not self.recording:
+            self.tempo.clear()
+        self.tempo.append((t, bpm))
+        self.emit("tempo", bpm=round(bpm, 3))
 
 
 class CreatureScheduler:

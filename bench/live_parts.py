@@ -1,0 +1,132 @@
+"""The real parts of a live show, for the live benchmark (bench/live.py) and the live test: fluidsynth on JACK
+as the colony's synth, a JACK client that listens to fluidsynth's audio, and a foreign OSC
+sender (python-osc's client in its own process, not this project's code).
+
+Everything started here is stopped here; JACK itself must already run (CI starts the dummy
+server). Client names carry the process id so parallel runs never collide.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+SOUNDFONT = Path("/usr/share/sounds/sf2/FluidR3_GM.sf2")
+
+
+def missing_parts() -> str | None:
+    """Why the real parts cannot run here, or None."""
+    if shutil.which("fluidsynth") is None:
+        return "fluidsynth is not installed (apt-get install fluidsynth fluid-soundfont-gm)"
+    if not SOUNDFONT.exists():
+        return f"{SOUNDFONT} is missing (apt-get install fluid-soundfont-gm)"
+    try:
+        import jack
+    except (ImportError, OSError) as exc:
+        return f"JACK-Client is unusable ({exc}); pip install JACK-Client"
+    try:
+        jack.Client(f"creatures-probe-{os.getpid()}", no_start_server=True).close()
+    except jack.JackError as exc:
+        return f"no JACK server running ({exc}); start: jackd --no-realtime -d dummy -r 44100 -p 512 &"
+    return None
+
+
+def free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+class Synth:
+    """``fluidsynth -a jack -m jack`` under a unique JACK name, and a JACK client that keeps the
+    peak of each block of its audio (a Python process callback is fine here: this client is
+    not the creatures' process)."""
+
+    def __init__(self, tag: str) -> None:
+        import jack
+
+        self.name = f"{tag}{os.getpid()}"
+        self.process = subprocess.Popen(
+            ["fluidsynth", "-a", "jack", "-m", "jack", "-i", "-s", "-g", "0.8",
+             "-o", f"midi.jack.id={self.name}", "-o", f"audio.jack.id={self.name}", str(SOUNDFONT)],
+            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        self.client = jack.Client(f"{self.name}-ear", no_start_server=True)
+        self.ears = [self.client.inports.register(f"in_{side}") for side in ("l", "r")]
+        self.peaks = np.zeros(1 << 20, dtype=np.float32)
+        self.blocks = 0
+        self.client.set_process_callback(self._process)
+        self.client.activate()
+        deadline = time.monotonic() + 30.0
+        while not self.client.get_ports(f"{self.name}:left"):
+            if time.monotonic() > deadline or self.process.poll() is not None:
+                self.close()
+                raise RuntimeError(f"fluidsynth did not come up on JACK as {self.name}")
+            time.sleep(0.1)
+        for side, ear in zip(("left", "right"), self.ears):
+            self.client.connect(f"{self.name}:{side}", ear)
+        while not self.client.get_ports(f"{self.name}:midi", is_midi=True):
+            time.sleep(0.1)
+
+    @property
+    def midi_port(self) -> str:
+        """A pattern for the synth's MIDI input port (``<name>:midi_00``)."""
+        return f"{self.name}:midi"
+
+    def _process(self, frames: int) -> None:
+        if self.blocks < len(self.peaks):
+            self.peaks[self.blocks] = max(float(np.abs(ear.get_array()).max()) for ear in self.ears)
+            self.blocks += 1
+
+    def loud_blocks(self, since: int = 0, threshold: float = 1e-3) -> int:
+        """Blocks since block ``since`` whose peak passed ``threshold`` (about -60 dBFS)."""
+        return int((self.peaks[since:self.blocks] > threshold).sum())
+
+    def close(self) -> None:
+        try:
+            self.client.deactivate()
+            self.client.close()
+        finally:
+            self.process.terminate()
+            try:
+                self.process.wait(10)
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+
+
+SENDER = r"""
+import json, sys, time
+from pythonosc.udp_client import SimpleUDPClient
+port, count, rate, name = int(sys.argv[1]), int(sys.argv[2]), float(sys.argv[3]), sys.argv[4]
+client = SimpleUDPClient("127.0.0.1", port)
+start = time.monotonic()
+for i in range(count):
+    while time.monotonic() < start + i / rate:
+        time.sleep(0.0005)
+    pitch, velocity = 48 + (i * 7) % 36, 60 + i % 60
+    # Max's and TouchDesigner's defaults send floats; others send ints: both where the protocol allows.
+    args = [pitch, velocity, 0.2] if i % 2 == 0 else [pitch, velocity, 1, i % 16]
+    client.send_message(f"/creature/{name}/note", args)
+    print(json.dumps({"i": i, "pitch": pitch, "args": args, "sent": time.time()}), flush=True)
+"""
+
+
+def send_notes(port: int, count: int, rate: float, record: Path, name: str = "visitor") -> subprocess.Popen:
+    """A foreign OSC sender (python-osc's client, its own process) sending ``count`` notes at
+    ``rate`` a second; it writes one JSON line per note sent (with its Unix send time) to
+    ``record`` (a file, not a pipe: a pipe nobody reads until the end fills and stops it)."""
+    with open(record, "w") as out:
+        return subprocess.Popen([sys.executable, "-c", SENDER, str(port), str(count), str(rate), name], stdout=out)
+
+
+def sent_notes(sender: subprocess.Popen, record: Path, timeout: float) -> list[dict]:
+    """What the sender sent, once it has finished."""
+    sender.wait(timeout)
+    return [json.loads(line) for line in record.read_text().splitlines() if line.strip()]
