@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 from pathlib import Path
 from typing import Callable
@@ -79,6 +80,7 @@ def _run_offline(config: Path, out: Path, *, audio: Path | None = None, midi: Pa
     """``frames``/``video`` turn the config's ``[output]`` keys on (never off)."""
     from audio.sources import AudioFileError
     from creatures.config import ConfigError
+    from creatures.paths import regular_file
     from creatures.runtime.offline import run_offline
     from creatures.runtime.schema import load_installation
     from midi.files import MidiFileError
@@ -88,11 +90,11 @@ def _run_offline(config: Path, out: Path, *, audio: Path | None = None, midi: Pa
         output = installation.settings.output
         output.frames = output.frames or frames or video
         output.video = output.video or video
-        for given in (audio, midi):
-            if given is not None and not given.is_file():
+        for given, what in ((audio, "--audio"), (midi, "--midi")):
+            if given is not None and not regular_file(given, what).exists():
                 raise FileNotFoundError(f"{given}: no such file")
         summary = run_offline(installation, out, audio=audio, midi=midi, duration=duration, progress=progress)
-    except (ConfigError, AudioFileError, MidiFileError, OSError) as exc:  # OSError: e.g. disk full
+    except (ConfigError, AudioFileError, MidiFileError, OSError) as exc:  # OSError: e.g. disk full, locked
         print(f"creatures: {exc}", file=sys.stderr)
         return 2
     for message in summary.messages:
@@ -125,23 +127,36 @@ NO_STATE = ("no state directory: learned state will not be kept (nothing is save
 @command("run", "run an installation live with its configured devices (Ctrl-C stops cleanly)", _run_options)
 def _run(args: argparse.Namespace) -> int:
     from creatures.config import ConfigError
+    from creatures.lock import hold
+    from creatures.paths import directory
     from creatures.persist import StateFileError
     from creatures.runtime.live import run_live
     from creatures.runtime.schema import load_installation
 
     try:
         installation = load_installation(args.config)
-        if args.state is None and installation.settings.state is None:
+        state = args.state or installation.resolve(installation.settings.state)
+        if state is None:
             print(f"note: {NO_STATE}")
-        summary = run_live(installation, duration=args.duration, state=args.state, log_path=args.log,
-                           pictures=args.frames)
-    except (ConfigError, StateFileError) as exc:
+        lock = hold(directory(state, "--state"), "state folder", print) if state is not None else None
+        try:  # the state folder is this run's until it ends (creatures/lock.py)
+            summary = run_live(installation, duration=args.duration, state=state, log_path=args.log,
+                               pictures=args.frames)
+        finally:
+            if lock is not None:
+                lock.release()
+    except (ConfigError, StateFileError, OSError) as exc:  # OSError: a path that is not a file, a locked folder
         print(f"creatures: {exc}", file=sys.stderr)
         return 2
     restored = f", restored {', '.join(summary.restored)}" if summary.restored else ""
     print(f"stopped after {summary.seconds:.1f} s: {summary.ticks} ticks, {summary.notes_played} notes, "
           f"{summary.late} late{restored}; sound {summary.sound}; {summary.underruns} audio underruns, "
           f"{summary.overruns} input overruns")
+    if summary.log_loss:
+        print(f"note: {summary.log_loss}")
+    if summary.unsaved:
+        print(f"creatures: {summary.unsaved}", file=sys.stderr)
+        return 1
     return 0
 
 
@@ -154,11 +169,14 @@ def _inspect_options(parser: argparse.ArgumentParser) -> None:
 def _inspect(args: argparse.Namespace) -> int:
     from creatures.runtime.inspect import InspectError, inspect
 
+    skipped: list[str] = []
     try:
-        page = inspect(args.path, args.out or args.path / "inspect")
+        page = inspect(args.path, args.out or args.path / "inspect", skipped)
     except (InspectError, ValueError, OSError) as exc:  # ValueError: a malformed events line
         print(f"creatures: {exc}", file=sys.stderr)
         return 2
+    for why in skipped:
+        print(f"note: skipped {why}")
     print(f"open {page}")
     return 0
 
@@ -204,14 +222,42 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised wherever the command is, so that it unwinds as on Ctrl-C: staging
+    folders go, locks are let go, and one line says so (``creatures run`` stops its loop on
+    SIGTERM itself, and saves)."""
+
+
+def _terminate(signum: int, frame: object) -> None:
+    raise Terminated()
+
+
+STOPPED = {
+    "offline": "nothing was published; the output directory holds the previous run's outputs as they were",
+    "demo": "nothing was published; the output directory holds the previous run's outputs as they were",
+    "run": "stopped before the run began or while it saved; the state folder holds the last state saved",
+    "inspect": "the page was not written",
+}
+"""What a command stopped by Ctrl-C or SIGTERM outside its own handling left behind."""
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    from threadpoolctl import threadpool_limits
+    previous = signal.signal(signal.SIGTERM, _terminate)
+    try:
+        from threadpoolctl import threadpool_limits
 
-    # Creatures do many tiny matrix operations; multi-threaded BLAS only fights over the
-    # cores for them (measured: scipy's expm on 5x5 went from 15 us to 2 ms under load).
-    threadpool_limits(limits=1)
-    return int(args.run(args))
+        # Creatures do many tiny matrix operations; multi-threaded BLAS only fights over the
+        # cores for them (measured: scipy's expm on 5x5 went from 15 us to 2 ms under load).
+        threadpool_limits(limits=1)
+        return int(args.run(args))
+    except KeyboardInterrupt as stop:
+        how = "SIGTERM" if isinstance(stop, Terminated) else "Ctrl-C"
+        left = STOPPED.get(args.command)
+        print(f"creatures {args.command}: stopped by {how}" + (f"; {left}" if left else ""), file=sys.stderr)
+        return 128 + (signal.SIGTERM if isinstance(stop, Terminated) else signal.SIGINT)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":

@@ -260,15 +260,68 @@ class EventLog:
         self.close()
 
 
+def _number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def _edges(value: Any) -> bool:
+    return isinstance(value, list) and all(
+        isinstance(e, list) and len(e) == 2 and all(isinstance(n, int) and n >= 0 for n in e) for e in value)
+
+
+def _hands(value: Any) -> bool:
+    flat = value
+    while flat and isinstance(flat, list) and all(isinstance(v, list) for v in flat):
+        flat = [x for v in flat for x in v]
+    return isinstance(flat, list) and len(flat) % 3 == 0 and all(_number(x) for x in flat)
+
+
+_NOTE = {"time": _number, "pitch": _number, "duration": _number}
+FIELDS: dict[str, dict[str, Callable[[Any], bool]]] = {
+    "": {"t": _number, "kind": lambda v: isinstance(v, str)},
+    "note": _NOTE,
+    "heard": _NOTE,
+    "selection": {"tuple": lambda v: isinstance(v, str)},
+    "motor graph": {"hands": _hands, "edges": _edges},
+}
+"""The fields every event has (``""``) and those the readers (report, inspector) take from
+some kinds, with what each must be; ``creature`` and ``source`` are strings where present."""
+
+
+def _malformed(event: Any) -> str | None:
+    """What is wrong with one decoded event, or None."""
+    if not isinstance(event, dict):
+        return f"an event is a JSON object, found {type(event).__name__}"
+    for kind in ("", event.get("kind")):
+        for name, fits in FIELDS.get(kind, {}).items() if isinstance(kind, str) else ():
+            if not fits(event.get(name)):
+                what = f"{kind!r} event" if kind else "event"
+                return f"{what} with a missing or malformed {name!r} ({event.get(name)!r:.40})"
+    for name in ("creature", "source"):
+        if name in event and not isinstance(event[name], str):
+            return f"{name!r} must be a string"
+    return None
+
+
 def read_events(path: str | os.PathLike) -> list[dict[str, Any]]:
-    """Read a JSONL events log; a malformed line raises ValueError naming file and line."""
+    """Read a JSONL events log; a malformed line — not JSON, not UTF-8, nested too deep, or
+    an event lacking what the readers take from it (:data:`FIELDS`) — raises ValueError
+    naming file and line (issue 13: ``creatures inspect`` gave tracebacks on such logs)."""
     events = []
-    with Path(path).open(encoding="utf-8") as handle:
-        for lineno, line in enumerate(handle, 1):
-            if not line.strip():
+    with Path(path).open("rb") as handle:
+        for lineno, raw in enumerate(handle, 1):
+            if not raw.strip():
                 continue
             try:
-                events.append(json.loads(line))
+                event = json.loads(raw.decode("utf-8"))
+            except UnicodeDecodeError:
+                raise ValueError(f"{path}:{lineno}: malformed event (not UTF-8 text)") from None
             except json.JSONDecodeError as exc:
                 raise ValueError(f"{path}:{lineno}: malformed event ({exc.msg})") from None
+            except RecursionError:
+                raise ValueError(f"{path}:{lineno}: malformed event (nested too deeply)") from None
+            problem = _malformed(event)
+            if problem is not None:
+                raise ValueError(f"{path}:{lineno}: malformed event ({problem})")
+            events.append(event)
     return events

@@ -11,7 +11,6 @@ over by the next one; a pid alone could not tell a dead holder from a reused pid
 from __future__ import annotations
 
 import contextlib
-import errno
 import fcntl
 import os
 import stat
@@ -50,9 +49,8 @@ class FolderLock:
                     fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
                 except BlockingIOError:
                     raise FolderLockedError(
-                        errno.EBUSY, f"in use by another run (pid {_holder(fd) or 'unknown'}); two runs cannot "
-                        f"share one {self.what}: stop the other run or choose another folder",
-                        str(self.directory)) from None
+                        f"{self.directory}: in use by another run (pid {_holder(fd) or 'unknown'}); two runs "
+                        f"cannot share one {self.what}: stop the other run or choose another folder") from None
                 if _same_file(fd, self.path):
                     break
             except BaseException:
@@ -105,9 +103,7 @@ def hold(directory: Path, what: str, say: Callable[[str], None]) -> FolderLock |
     lock = FolderLock(directory, what)
     try:
         lock.acquire()
-    except FolderLockedError:
-        raise
-    except UnsafePathError:
+    except (FolderLockedError, UnsafePathError):
         raise
     except OSError as exc:
         say(f"could not lock {what} {directory} ({exc.strerror or exc}); going on without a lock")

@@ -24,6 +24,7 @@ from typing import Callable
 from audio.resilient import ResilientInput, ResilientOutput
 from creatures.clock import Clock, SimulatedClock, WallClock
 from creatures.events import EventLog
+from creatures.paths import directory, regular_file
 from creatures.runtime.bodies import BodyFrames
 from creatures.runtime.network import Network
 from creatures.runtime.schema import LoadedInstallation
@@ -51,6 +52,10 @@ class LiveSummary:
     underruns: int = 0  # audio output callbacks that found no sound ready and played silence
     overruns: int = 0  # microphone blocks lost: the loop read too slowly, or the driver overflowed
     failed_saves: int = 0
+    saved_at: float | None = None  # seconds into the run of the last save that succeeded
+    unsaved: str | None = None  # the final save failed: what was not kept, in words
+    events_lost: int = 0  # events the log could not write (a full disk): counted, the run went on
+    log_loss: str | None = None  # the same in words, naming the log and the last failure
     restored: list[str] = field(default_factory=list)
     messages: list[str] = field(default_factory=list)
     sound: str = ""  # where the mix went: "live at 44100 Hz (resampled from 22050 Hz)" or "silent: why"
@@ -126,14 +131,24 @@ class _Counters:
             self.session.world.emit("xruns", underruns=counts[0], overruns=counts[1])
 
 
-def _save(session: Session, state_dir: Path, summary: LiveSummary, say: Callable[[str], None]) -> None:
+def _save(session: Session, state_dir: Path, summary: LiveSummary, say: Callable[[str], None], at: float, *,
+          final: bool = False) -> None:
     """Save state; a full or read-only disk is reported and the run goes on (the previous
-    files stay intact, persist.atomic_write) rather than silencing a gallery."""
+    files stay intact, persist.atomic_write) rather than silencing a gallery. A failed final
+    save is kept in ``summary.unsaved``: the command then exits non-zero saying what was lost."""
     try:
         session.save_state(state_dir)
     except OSError as exc:
         summary.failed_saves += 1
-        say(f"could not save creature state ({exc}); the previous state is kept, will try again")
+        say(f"could not save creature state ({exc}); the previous state is kept"
+            + ("" if final else ", will try again"))
+        if not final:
+            return
+        since = "in this run" if summary.saved_at is None else f"after the save at {summary.saved_at:.1f} s"
+        summary.unsaved = (f"the final save failed ({exc}): what the creatures learned {since} was not kept; "
+                           f"{state_dir} holds the state before it")
+    else:
+        summary.saved_at = at
 
 
 def run_live(
@@ -152,7 +167,12 @@ def run_live(
     summary = LiveSummary()
     wall = WallClock()
     clock = SimulatedClock(wall.now())  # the creatures' time, moved by the loop (ticking.py)
-    log = EventLog(log_path, keep_in_memory=0) if log_path else EventLog(keep_in_memory=1000)
+    state_dir = state or inst.resolve(settings.state)
+    for path, what in ((state_dir, "state folder"), (pictures, "--frames")):  # before anything runs
+        if path is not None:
+            directory(path, what)
+    log = EventLog(regular_file(log_path, "--log"), keep_in_memory=0, report=say) if log_path \
+        else EventLog(keep_in_memory=1000)
 
     sink: PortSink | MemorySink = MemorySink()
     if settings.midi.output_port:
@@ -162,7 +182,6 @@ def run_live(
     transcribe = settings.audio.transcribe
     session = Session(inst, clock, log, sink,
                       transcribe=transcribe if transcribe is not None else not settings.midi.input_port)
-    state_dir = state or inst.resolve(settings.state)
     if state_dir is not None:
         summary.restored = session.load_state(state_dir)
     inputs = LiveInputs(inst, session, clock, say)
@@ -211,7 +230,7 @@ def run_live(
             if bodies is not None:
                 bodies.draw(session.creatures)
             if state_dir is not None and t >= next_save:
-                _save(session, state_dir, summary, say)
+                _save(session, state_dir, summary, say, t - start)
                 next_save += settings.save_every
             if t >= next_housekeeping:  # a tail -f of the log shows the present; xruns are seen
                 next_housekeeping = t + HOUSEKEEPING_EVERY
@@ -228,7 +247,7 @@ def run_live(
             summary.underruns, summary.overruns = counters.now()
             session.close()
             if state_dir is not None:
-                _save(session, state_dir, summary, say)
+                _save(session, state_dir, summary, say, wall.now() - start, final=True)
             if microphone is not None:
                 microphone.stop()
             output.close()
@@ -241,4 +260,5 @@ def run_live(
     summary.late = loop.late
     summary.heard_between_ticks = loop.heard_between
     summary.notes_played = session.world.notes_played
+    summary.events_lost, summary.log_loss = log.lost, log.loss
     return summary
