@@ -164,6 +164,10 @@ class EventLog:
         self._size += len(self._pending)
         self._pending.clear()
         self._ends.clear()
+        if self._down:
+            self._down = False
+            if self.report is not None:
+                self.report(f"events log: writing {self.path} again ({self.lost} events lost)")
         if self._size >= self.max_bytes:
             try:
                 self._rotate()
@@ -198,7 +202,7 @@ class EventLog:
 
     def _reopen(self) -> bool:
         """After a failure, open the file again once :data:`RETRY_EVERY` has passed; the first
-        line then says how many events were lost."""
+        line then says how many events were lost (the outage ends when a write succeeds)."""
         if self._t < self._retry_at:
             return False
         self._retry_at = self._t + RETRY_EVERY
@@ -208,9 +212,6 @@ class EventLog:
             return False
         self._append(_line({"t": round(float(self._t), 6), "kind": "events lost", "lost": self.lost,
                             "error": self.error}))
-        if self.report is not None:
-            self.report(f"events log: writing {self.path} again ({self.lost} events lost so far)")
-        self._down = False
         return True
 
     def _rotate(self) -> None:

@@ -38,7 +38,7 @@ def atomic_write(path: str | os.PathLike, write: Callable[[Any], None], mode: st
     directory = path.parent if str(path.parent) else Path(".")
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
     try:
-        os.fchmod(fd, _mode_for(path))  # mkstemp makes 0600: a saved file gets a normal file's mode
+        os.fchmod(fd, file_mode(path))  # mkstemp makes 0600: a saved file gets a normal file's mode
         with os.fdopen(fd, mode) as handle:
             write(handle)
             handle.flush()
@@ -85,9 +85,10 @@ def umask() -> int:
     return mask
 
 
-def _mode_for(path: Path) -> int:
-    """The mode a saved ``path`` gets: the one it has (an artist's chmod is kept), else what
-    ``open`` would give a new file (0666 less the umask)."""
+def file_mode(path: Path) -> int:
+    """The mode a file written through a temporary file (``mkstemp`` makes 0600) gets at
+    ``path``: the one it has (an artist's chmod is kept), else what ``open`` would give a new
+    file (0666 less the umask)."""
     try:
         return path.stat().st_mode & 0o7777
     except OSError:
