@@ -39,18 +39,13 @@ from test_faults import _fill_disk, _read_only, _tree
 
 ROOT = Path(__file__).resolve().parents[1]
 LISTEN = ROOT / "installations" / "listen.toml"
-COLONY = """
+COLONY = f"""
+extends = "{ROOT / 'installations' / 'exchange.toml'}"
 title = "reliable"
-seed = 3
-tick = 0.02
-[audio]
-sample_rate = 22050
 [output]
 report = false
-[[creature]]
-name = "ada"
-kind = "exchange"
 """
+"""The shipped exchange colony (three creatures, 0.04 s ticks), without the report."""
 
 
 @pytest.fixture
@@ -323,7 +318,7 @@ def test_a_full_disk_under_a_live_log_is_counted_loss_and_the_colony_goes_on(cod
     printed = capsys.readouterr().out
     assert disk.failures >= 2  # it failed, and failed again when tried again a second later
     stopped = next(line for line in printed.splitlines() if line.startswith("stopped after"))
-    assert int(stopped.split(": ")[1].split()[0]) >= 100  # 3 s at 0.02 s a tick: the colony went on to the end
+    assert int(stopped.split(": ")[1].split()[0]) >= 50  # 3 s at 0.04 s a tick: the colony went on to the end
     lost = [line for line in printed.splitlines() if "events not written" in line]
     assert len(lost) == 1 and str(log) in lost[0] and os.strerror(code) in lost[0]
     assert sum("events log: cannot write" in line for line in printed.splitlines()) == 1  # said once
@@ -459,6 +454,17 @@ def test_inspect_says_state_files_were_skipped_and_why(tmp_path, capsys):
     assert f"{state / 'ada.json'}:1: malformed JSON" in err and "(and 1 more)" in err
 
 
+def test_inspect_names_the_state_files_it_skipped_beside_those_it_read(config, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert _offline(config, out) == 0
+    (out / "state" / "cy.json").write_text("{")
+    capsys.readouterr()
+    assert main(["inspect", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert f"note: skipped {out / 'state' / 'cy.json'}:1: malformed JSON" in printed
+    assert "cy.json" in (out / "inspect" / "index.html").read_text()
+
+
 # -- defect 10: friendly stops -------------------------------------------------------------
 def _signal_inside(monkeypatch, target, name: str, sig: int) -> None:
     """The command's work receives a real ``sig`` (delivered to this process) part-way."""
@@ -498,6 +504,32 @@ def test_ctrl_c_and_sigterm_end_every_command_with_one_line(command, sig, config
         assert _hidden(out) == [] and not (out / "events.jsonl").exists()  # staging gone, nothing published
     if command == "run":
         assert not (tmp_path / "state" / LOCK_FILE).exists()
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["Ctrl-C", "SIGTERM"])
+def test_a_stop_a_finaliser_swallows_is_raised_again_at_the_next_tick(sig, config, tmp_path, monkeypatch, capsys):
+    """Python ignores an exception raised in ``__del__`` (numba's compiler swallowed about one
+    SIGTERM in two this way): the stop must still end the run, in one line."""
+    from creatures.runtime import offline
+
+    class Finaliser:
+        def __del__(self):
+            os.kill(os.getpid(), sig)  # the handler runs in here, and what it raises is ignored
+
+    real, swallowed = offline.Session.step, []
+
+    def step(self, *args, **kwargs):
+        if not swallowed:
+            swallowed.append(True)
+            Finaliser()  # dropped at once: its __del__ runs here
+        return real(self, *args, **kwargs)
+
+    monkeypatch.setattr(offline.Session, "step", step)
+    out = tmp_path / "out"
+    assert _offline(config, out, 5.0) == 128 + sig
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Exception ignored" not in err and "stopped by" in err
+    assert _hidden(out) == [] and not (out / "events.jsonl").exists()
 
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["Ctrl-C", "SIGTERM"])

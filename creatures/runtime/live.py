@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Callable
 
 from audio.resilient import ResilientInput, ResilientOutput
+from creatures import stop as stops
 from creatures.clock import Clock, SimulatedClock, WallClock
 from creatures.events import EventLog
 from creatures.paths import directory, regular_file
@@ -238,7 +239,8 @@ def run_live(
                 log.flush()
 
         try:
-            loop.run(tick, until=lambda t: stopping or (duration is not None and t - start > duration))
+            loop.run(tick, until=lambda t: stopping or stops.requested is not None  # a Ctrl-C a finaliser swallowed
+                     or (duration is not None and t - start > duration))
         except KeyboardInterrupt:
             pass
         finally:

@@ -26,6 +26,7 @@ import numpy as np
 
 from audio.output import WavOutput
 from audio.sources import load_audio
+from creatures import stop
 from creatures.clock import SimulatedClock
 from creatures.events import EventLog
 from creatures.lock import FolderLock, FolderLockedError
@@ -157,6 +158,7 @@ def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path 
         bar = tqdm(total=steps, unit="tick", desc=settings.title, leave=False, disable=None)
     try:
         for step in range(1, steps + 1):
+            stop.check()  # a Ctrl-C or SIGTERM a finaliser swallowed (creatures/stop.py)
             t0, t = (step - 1) * tick, min(step * tick, duration)
             clock.advance_to(t)
             a, b = int(round(t0 * sr)), int(round(t * sr))
