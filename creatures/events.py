@@ -100,6 +100,8 @@ class EventLog:
         self._t = 0.0
         self._retry_at = -math.inf
         self._down = False  # an outage is under way (reported once, and again when it ends)
+        self._gap_pending = False  # the first pending line is the ``events lost`` record, not an event
+        self._closed = False
         if self.path is not None:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             self._open()
@@ -126,7 +128,7 @@ class EventLog:
                 del self.records[: len(self.records) - self.keep_in_memory]
         else:
             record = {"t": round(float(t), 6), "kind": kind, **fields}
-        if self.path is None:
+        if self.path is None or self._closed:
             return
         self._t = t
         if self._handle is None and not self._reopen():
@@ -164,6 +166,7 @@ class EventLog:
         self._size += len(self._pending)
         self._pending.clear()
         self._ends.clear()
+        self._gap_pending = False
         if self._down:
             self._down = False
             if self.report is not None:
@@ -178,21 +181,21 @@ class EventLog:
         """The file failed (disk full, I/O error, cannot rotate): keep the whole lines that
         reached it, cut a torn one off, count the rest lost, let go of the file."""
         handle, self._handle = self._handle, None
-        assert handle is not None
-        try:
-            reached = os.fstat(handle.fileno()).st_size - self._size
-            whole = bisect.bisect_right(self._ends, reached)
-            kept = self._ends[whole - 1] if whole else 0
-            if reached > kept:
-                os.ftruncate(handle.fileno(), self._size + kept)
-        except OSError:  # the file cannot even be measured: count every pending line lost
-            whole = kept = 0
-        self.lost += len(self._ends) - whole
+        whole = kept = 0  # without the file (it failed to reopen) or its size, every pending line is lost
+        if handle is not None:
+            with contextlib.suppress(OSError):
+                reached = os.fstat(handle.fileno()).st_size - self._size
+                whole = bisect.bisect_right(self._ends, reached)
+                kept = self._ends[whole - 1] if whole else 0
+                if reached > kept:
+                    os.ftruncate(handle.fileno(), self._size + kept)
+            with contextlib.suppress(OSError):
+                handle.close()
+        self.lost += len(self._ends) - whole - (self._gap_pending and whole == 0)
         self._size += kept
         self._pending.clear()
         self._ends.clear()
-        with contextlib.suppress(OSError):
-            handle.close()
+        self._gap_pending = False
         self.error = f"{exc.strerror or exc} ({exc.filename or self.path})"
         self._retry_at = self._t + RETRY_EVERY
         first, self._down = not self._down, True
@@ -210,6 +213,7 @@ class EventLog:
             self._open()
         except OSError:
             return False
+        self._gap_pending = True
         self._append(_line({"t": round(float(self._t), 6), "kind": "events lost", "lost": self.lost,
                             "error": self.error}))
         return True
@@ -249,6 +253,7 @@ class EventLog:
 
     def close(self) -> None:
         self._drain()
+        self._closed = True
         handle, self._handle = self._handle, None
         if handle is not None:
             with contextlib.suppress(OSError):  # unbuffered: nothing is left to fail but the descriptor

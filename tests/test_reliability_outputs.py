@@ -327,25 +327,28 @@ def test_a_full_disk_under_a_live_log_is_counted_loss_and_the_colony_goes_on(cod
 
 
 def test_a_log_that_can_be_written_again_resumes_and_records_the_gap(tmp_path, monkeypatch):
+    """Full for three seconds of clock time (each retry fails again), then room again: every
+    event is either in the file, whole and in order, or counted lost, exactly."""
     path = tmp_path / "events.jsonl"
-    _fill_disk(monkeypatch, tmp_path, "events.jsonl", room=400)
+    disk = FailingDisk(errno.ENOSPC, room=400)
+    _failing_disk(monkeypatch, tmp_path, disk)
     said = []
     log = EventLog(path, report=said.append)
-    for i in range(50):
+    for i in range(600):
+        if i == 300:
+            disk.room = 10**9  # space freed at t = 3 s
         log.emit(i * 0.01, "tick", i=i)
-    log.flush()
-    lost = log.lost
-    assert lost > 0 and "No space left on device" in said[0]
-    monkeypatch.undo()  # room again
-    for i in range(50, 300):
-        log.emit(i * 0.01, "tick", i=i)
+        if i % 10 == 9:
+            log.flush()  # as the live loop's housekeeping does
     log.close()
+    monkeypatch.undo()
+    assert disk.failures >= 3 and len(said) == 2  # the outage, said once, and its end
+    assert "No space left on device" in said[0] and "writing" in said[1] and "again" in said[1]
     events = read_events(path)
-    gap = [e for e in events if e["kind"] == "events lost"]
-    assert len(gap) == 1 and gap[0]["lost"] >= lost and "No space left" in gap[0]["error"]
+    gaps = [e for e in events if e["kind"] == "events lost"]
+    assert len(gaps) == 1 and gaps[0]["lost"] == log.lost and "No space left" in gaps[0]["error"]
     kept = [e["i"] for e in events if e["kind"] == "tick"]
-    assert kept == sorted(kept) and kept[-1] == 299 and len(kept) + log.lost == 300
-    assert "writing" in said[1] and "again" in said[1]
+    assert kept == sorted(kept) and kept[-1] == 599 and len(kept) + log.lost == 600
 
 
 def test_a_full_disk_under_an_offline_log_is_counted_printed_and_recorded(config, tmp_path, monkeypatch, capsys):
