@@ -121,10 +121,10 @@ def publish(staged: Path, out: Path, **facts: object) -> None:
     save_json(out / JOURNAL, {"staged": staged.name, "retired": retired.name, "new": new, "old": old},
               kind=JOURNAL_KIND)
     try:
+        if (out / MANIFEST).exists():  # first: a manifest in ``out`` now means the commit happened
+            os.replace(out / MANIFEST, retired / MANIFEST)
         for name in old:
             os.replace(out / name, retired / name)
-        if (out / MANIFEST).exists():
-            os.replace(out / MANIFEST, retired / MANIFEST)
         for name in new:
             os.replace(staged / name, out / name)
         save_json(out / MANIFEST, {"files": [e for name in new for e in _listing(out, name)], **facts},
