@@ -5,13 +5,16 @@ staging folders go, locks are let go, and the CLI says so in one line (issue 13:
 left an offline run's staging folder behind, Ctrl-C printed tracebacks). Python ignores an
 exception raised inside a finaliser or a C callback, and a signal handler may happen to run
 there: numba compiling a creature's kernels (llvmlite's ``__del__`` and object-cache
-callbacks) swallowed about one SIGTERM in two in a measured start-up. The request is therefore
-also kept in :data:`requested`, and the loops that run for long (the offline ticks, the live
-loop) call :func:`check` (or read it) each tick, so a swallowed stop is raised again there.
+callbacks) swallowed about one SIGTERM in two in a measured start-up, and unwinding LLVM in
+the middle of a compile crashed the process (SIGSEGV, about one Ctrl-C in five). So the
+request is also kept in :data:`requested`; while numba or llvmlite code is on the stack
+nothing is raised at all; and the loops that run for long (the offline ticks, the live loop)
+call :func:`check` (or read it) each tick, where a deferred or swallowed stop is raised.
 """
 
 from __future__ import annotations
 
+import os
 import signal
 import sys
 from typing import Any, Callable
@@ -25,11 +28,25 @@ requested: int | None = None
 """The signal that asked the command to stop, until the stop has been handled."""
 
 
-def _stop(signum: int, frame: object) -> None:
+NATIVE = tuple(f"{os.sep}{name}{os.sep}" for name in ("numba", "llvmlite"))
+"""Where code lives that must not be unwound by a signal (see the module docstring)."""
+
+
+def _in_native(frame: Any) -> bool:
+    while frame is not None:
+        if any(part in frame.f_code.co_filename for part in NATIVE):
+            return True
+        frame = frame.f_back
+    return False
+
+
+def _stop(signum: int, frame: Any) -> None:
     global requested
     if requested is not None:  # a second Ctrl-C while the first unwinds: one stop is enough
         return
     requested = signum
+    if _in_native(frame):  # compiling: raised at the next check() instead
+        return
     raise Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
 
 

@@ -539,6 +539,28 @@ def test_a_stop_a_finaliser_swallows_is_raised_again_at_the_next_tick(sig, confi
 
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["Ctrl-C", "SIGTERM"])
+def test_a_stop_during_a_numba_compile_waits_for_the_compile_to_end(sig, config, tmp_path, monkeypatch, capsys):
+    """Unwinding llvmlite mid-compile crashed the process (SIGSEGV): a stop that lands in
+    numba's or llvmlite's code is not raised there, and ends the run at the next tick."""
+    from creatures.runtime import offline
+
+    compiling = {"os": os, "sig": sig, "done": []}
+    code = compile("os.kill(os.getpid(), sig)\ndone.append(True)", f"{os.sep}site{os.sep}numba{os.sep}core.py", "exec")
+    real = offline.Session.step
+
+    def step(self, *args, **kwargs):
+        if not compiling["done"]:
+            exec(code, compiling)  # as if numba compiled a kernel on this tick and the signal came then
+        return real(self, *args, **kwargs)
+
+    monkeypatch.setattr(offline.Session, "step", step)
+    out = tmp_path / "out"
+    assert _offline(config, out, 5.0) == 128 + sig
+    assert compiling["done"] == [True]  # the "compile" ran to its end
+    assert capsys.readouterr().err.count("\n") == 1 and _hidden(out) == []
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["Ctrl-C", "SIGTERM"])
 def test_a_stopped_offline_process_cleans_its_staging_folder(sig, config, tmp_path):
     """A real ``creatures offline`` process, stopped while it runs: one line, no traceback,
     no staging folder, the previous outputs as they were."""
