@@ -109,5 +109,5 @@ def hold(directory: Path, what: str, say: Callable[[str], None]) -> FolderLock |
         say(f"could not lock {what} {directory} ({exc.strerror or exc}); going on without a lock")
         return None
     if lock.stale is not None:
-        say(f"took over the lock of {what} {directory} from pid {lock.stale}, which is no longer running")
+        say(f"took over the lock of {what} {directory} left by pid {lock.stale}, which no longer holds it")
     return lock

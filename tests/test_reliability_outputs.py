@@ -419,7 +419,7 @@ def test_a_stale_lock_of_a_dead_run_is_taken_over(config, tmp_path, holder, caps
     dead.wait()
     assert (state / LOCK_FILE).read_text() == f"{dead.pid}\n"  # left behind, as SIGKILL leaves it
     assert main(["run", str(config), "--state", str(state), "--duration", "0.2"]) == 0
-    assert f"from pid {dead.pid}, which is no longer running" in capsys.readouterr().out
+    assert f"left by pid {dead.pid}, which no longer holds it" in capsys.readouterr().out
     assert not (state / LOCK_FILE).exists() and (state / "ada.json").exists()
     with FolderLock(state, "state folder"):  # and it was let go at the end
         with pytest.raises(FolderLockedError):
