@@ -31,6 +31,7 @@ import soundfile
 
 from audio.device import AudioBackend, AudioDeviceUnavailable, device_rate, find_device, portaudio, start_stream
 from audio.sources import RingBuffer
+from creatures.persist import file_mode
 
 log = logging.getLogger(__name__)
 
@@ -85,7 +86,10 @@ class WavOutput(AudioOutput):
         super().__init__(sample_rate, channels)
         self.path = Path(path)
         fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=".tmp", dir=self.path.parent)
-        os.close(fd)
+        try:
+            os.fchmod(fd, file_mode(self.path))  # a recording is a normal file once renamed, not 0600
+        finally:
+            os.close(fd)
         self._tmp = Path(tmp)
         self._file = soundfile.SoundFile(self._tmp, mode="w", samplerate=self.sample_rate,
                                          channels=self.channels, format="WAV", subtype=subtype)

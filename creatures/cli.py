@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 from pathlib import Path
 from typing import Callable
@@ -79,6 +80,7 @@ def _run_offline(config: Path, out: Path, *, audio: Path | None = None, midi: Pa
     """``frames``/``video`` turn the config's ``[output]`` keys on (never off)."""
     from audio.sources import AudioFileError
     from creatures.config import ConfigError
+    from creatures.paths import regular_file
     from creatures.runtime.offline import run_offline
     from creatures.runtime.schema import load_installation
     from midi.files import MidiFileError
@@ -88,11 +90,11 @@ def _run_offline(config: Path, out: Path, *, audio: Path | None = None, midi: Pa
         output = installation.settings.output
         output.frames = output.frames or frames or video
         output.video = output.video or video
-        for given in (audio, midi):
-            if given is not None and not given.is_file():
+        for given, what in ((audio, "--audio"), (midi, "--midi")):
+            if given is not None and not regular_file(given, what).exists():
                 raise FileNotFoundError(f"{given}: no such file")
         summary = run_offline(installation, out, audio=audio, midi=midi, duration=duration, progress=progress)
-    except (ConfigError, AudioFileError, MidiFileError, OSError) as exc:  # OSError: e.g. disk full
+    except (ConfigError, AudioFileError, MidiFileError, OSError) as exc:  # OSError: e.g. disk full, locked
         print(f"creatures: {exc}", file=sys.stderr)
         return 2
     for message in summary.messages:
@@ -125,6 +127,8 @@ NO_STATE = ("no state directory: learned state will not be kept (nothing is save
 @command("run", "run an installation live with its configured devices (Ctrl-C stops cleanly)", _run_options)
 def _run(args: argparse.Namespace) -> int:
     from creatures.config import ConfigError
+    from creatures.lock import hold
+    from creatures.paths import directory
     from creatures.persist import StateFileError
     from creatures.runtime.live import run_live
     from creatures.runtime.ticking import LATE_TICK
@@ -133,11 +137,17 @@ def _run(args: argparse.Namespace) -> int:
 
     try:
         installation = load_installation(args.config)
-        if args.state is None and installation.settings.state is None:
+        state = args.state or installation.resolve(installation.settings.state)
+        if state is None:
             print(f"note: {NO_STATE}")
-        summary = run_live(installation, duration=args.duration, state=args.state, log_path=args.log,
-                           pictures=args.frames)
-    except (ConfigError, StateFileError) as exc:
+        lock = hold(directory(state, "--state"), "state folder", print) if state is not None else None
+        try:  # the state folder is this run's until it ends (creatures/lock.py)
+            summary = run_live(installation, duration=args.duration, state=state, log_path=args.log,
+                               pictures=args.frames)
+        finally:
+            if lock is not None:
+                lock.release()
+    except (ConfigError, StateFileError, OSError) as exc:  # OSError: a path that is not a file, a locked folder
         print(f"creatures: {exc}", file=sys.stderr)
         return 2
     restored = f", restored {', '.join(summary.restored)}" if summary.restored else ""
@@ -152,6 +162,11 @@ def _run(args: argparse.Namespace) -> int:
           f"{summary.skipped} skips ahead; {summary.late_notes} notes reached the MIDI port more than "
           f"{LATE_NOTE * 1e3:g} ms late" + (f"; {summary.frames_dropped} frames dropped (drawing too slow)"
                                             if summary.frames_dropped else ""))
+    if summary.log_loss:
+        print(f"note: {summary.log_loss}")
+    if summary.unsaved:
+        print(f"creatures: {summary.unsaved}", file=sys.stderr)
+        return 1
     return 0
 
 
@@ -164,11 +179,14 @@ def _inspect_options(parser: argparse.ArgumentParser) -> None:
 def _inspect(args: argparse.Namespace) -> int:
     from creatures.runtime.inspect import InspectError, inspect
 
+    skipped: list[str] = []
     try:
-        page = inspect(args.path, args.out or args.path / "inspect")
+        page = inspect(args.path, args.out or args.path / "inspect", skipped)
     except (InspectError, ValueError, OSError) as exc:  # ValueError: a malformed events line
         print(f"creatures: {exc}", file=sys.stderr)
         return 2
+    for why in skipped:
+        print(f"note: skipped {why}")
     print(f"open {page}")
     return 0
 
@@ -214,14 +232,35 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
-    from threadpoolctl import threadpool_limits
+STOPPED = {
+    "offline": "nothing was published; the output directory holds the previous run's outputs as they were",
+    "demo": "nothing was published; the output directory holds the previous run's outputs as they were",
+    "run": "stopped before the run began or while it saved; the state folder holds the last state saved",
+    "inspect": "the page was not written",
+}
+"""What a command stopped by Ctrl-C or SIGTERM outside its own handling left behind."""
 
-    # Creatures do many tiny matrix operations; multi-threaded BLAS only fights over the
-    # cores for them (measured: scipy's expm on 5x5 went from 15 us to 2 ms under load).
-    threadpool_limits(limits=1)
-    return int(args.run(args))
+
+def main(argv: list[str] | None = None) -> int:
+    from creatures import stop
+
+    args = build_parser().parse_args(argv)
+    restore = stop.install()
+    try:
+        from threadpoolctl import threadpool_limits
+
+        # Creatures do many tiny matrix operations; multi-threaded BLAS only fights over the
+        # cores for them (measured: scipy's expm on 5x5 went from 15 us to 2 ms under load).
+        threadpool_limits(limits=1)
+        return int(args.run(args))
+    except KeyboardInterrupt as stopped:  # creatures/stop.py: SIGTERM is raised as Ctrl-C is
+        term = isinstance(stopped, stop.Terminated)
+        left = STOPPED.get(args.command)
+        print(f"creatures {args.command}: stopped by {'SIGTERM' if term else 'Ctrl-C'}" + (f"; {left}" if left else ""),
+              file=sys.stderr)
+        return 128 + (signal.SIGTERM if term else signal.SIGINT)
+    finally:
+        restore()
 
 
 if __name__ == "__main__":

@@ -10,11 +10,14 @@ from __future__ import annotations
 
 import difflib
 import re
+import stat
 import tomllib
 from pathlib import Path
 from typing import Any, TypeVar
 
 from pydantic import BaseModel, ValidationError
+
+from creatures.paths import kind_of
 
 Model = TypeVar("Model", bound=BaseModel)
 
@@ -89,6 +92,9 @@ def read_toml(path: str | Path, *, _seen: tuple[Path, ...] = ()) -> tuple[dict[s
     if path in _seen:
         raise ConfigError(path, f"'extends' loops back to {path.name}", key="extends")
     try:
+        mode = path.stat().st_mode
+        if not stat.S_ISREG(mode):  # /dev/zero would be read until memory runs out; a FIFO blocks
+            raise ConfigError(path, f"is {kind_of(mode)}, not a regular file; a config is a TOML file")
         if path.stat().st_size > MAX_CONFIG_BYTES:
             raise ConfigError(path, f"config file larger than {MAX_CONFIG_BYTES} bytes; refused")
         text = path.read_text(encoding="utf-8")

@@ -8,13 +8,21 @@ weeks cannot fill the disk.
 
 from __future__ import annotations
 
+import bisect
+import contextlib
+import errno
+import io
 import json
 import math
 import os
+import stat
+import threading
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, Any, Callable
 
 import orjson
+
+from creatures.paths import UnsafePathError, kind_of, regular_file
 
 
 def _plain(value: Any) -> Any:
@@ -45,11 +53,27 @@ def _line(record: dict[str, Any]) -> bytes:
         return json.dumps(_plain(record), separators=(",", ":"), ensure_ascii=False).encode() + b"\n"
 
 
+BUFFER_BYTES = 64 * 1024
+"""Events are gathered up to this many bytes and written at once (and at every flush)."""
+
+RETRY_EVERY = 1.0
+"""Clock seconds between attempts to write again once the log's file failed (a full disk)."""
+
+
 class EventLog:
     """Append-only JSONL log, rotated to ``NAME.1``, ``NAME.2``… past ``max_bytes``.
 
     With ``path=None`` events are only kept in memory (``records``), which tests use.
     ``keep_in_memory`` bounds the in-memory list too.
+
+    The log is what a run can most afford to lose: a full disk or an I/O error on its file
+    never stops the colony. Events that cannot be written are counted (``lost``, with the
+    reason in ``error``), ``report`` is told once per outage, writing is tried again every
+    :data:`RETRY_EVERY` clock seconds, and the first line written after an outage is an
+    ``events lost`` record, so the log itself shows the gap. A line torn by the failure is cut
+    off the file, which keeps only whole lines. Only a regular file is written and rotated:
+    ``path`` naming a device, a FIFO or a directory is refused at once, and rotation renames
+    only the very file the log has open and regular files beside it.
     """
 
     def __init__(
@@ -59,19 +83,46 @@ class EventLog:
         max_bytes: int = 64 * 1024 * 1024,
         backups: int = 5,
         keep_in_memory: int = 0,
+        report: Callable[[str], None] | None = None,
     ) -> None:
-        self.path = Path(path) if path is not None else None
+        self.path = regular_file(path, "events log") if path is not None else None
         self.max_bytes = max_bytes
         self.backups = backups
         self.keep_in_memory = keep_in_memory if path is not None else max(keep_in_memory, 1 << 20)
         self.records: list[dict[str, Any]] = []
         self.count = 0
+        self.lost = 0
+        self.error: str | None = None
+        self.report = report
         self._handle: IO[bytes] | None = None
         self._size = 0  # bytes in the live file, counted here rather than asking tell() per event
+        self._pending = bytearray()  # whole lines not yet written
+        self._ends: list[int] = []  # where each pending line ends in ``_pending``
+        self._t = 0.0
+        self._retry_at = -math.inf
+        self._down = False  # an outage is under way (reported once, and again when it ends)
+        self._gap_pending = False  # the first pending line is the ``events lost`` record, not an event
+        self._closed = False
+        # A live run flushes from its supervisor thread (creatures/supervisor.py) while the
+        # creature's thread emits: the pending buffer and its line ends change under this lock.
+        # Reentrant, since ``report`` may itself log.
+        self._lock = threading.RLock()
         if self.path is not None:
             self.path.parent.mkdir(parents=True, exist_ok=True)
-            self._handle = self.path.open("ab")
-            self._size = self._handle.tell()
+            self._open()
+
+    def _open(self) -> None:
+        """Open the log's file for appending; refuse anything but a regular file (O_NONBLOCK:
+        a FIFO put there since the check must not block the run)."""
+        assert self.path is not None
+        handle = io.open(self.path, "ab", buffering=0,
+                         opener=lambda p, flags: os.open(p, flags | os.O_NONBLOCK, 0o666))
+        mode = os.fstat(handle.fileno()).st_mode
+        if not stat.S_ISREG(mode):
+            handle.close()
+            raise UnsafePathError(f"events log {self.path}: is {kind_of(mode)}, not a regular file")
+        self._handle = handle
+        self._size = os.fstat(handle.fileno()).st_size
 
     def emit(self, t: float, kind: str, **fields: Any) -> None:
         self.count += 1
@@ -82,38 +133,140 @@ class EventLog:
                 del self.records[: len(self.records) - self.keep_in_memory]
         else:
             record = {"t": round(float(t), 6), "kind": kind, **fields}
-        if self._handle is not None:
+        if self.path is None or self._closed:
+            return
+        line = _line(record)
+        with self._lock:
+            self._t = t
+            if self._handle is None and not self._reopen():
+                self.lost += 1
+                return
+            self._append(line)
+
+    def _append(self, line: bytes) -> None:
+        self._pending += line
+        self._ends.append(len(self._pending))
+        if len(self._pending) >= BUFFER_BYTES or self._size + len(self._pending) >= self.max_bytes:
+            self._drain()
+
+    def _drain(self) -> None:
+        """Write the pending lines; rotate past the bound. A failure counts what was lost."""
+        if self._handle is None or not self._pending:
+            return
+        if self._size >= self.max_bytes:  # reopened after an outage: rotate before writing more
             try:
-                line = _line(record)
-                self._handle.write(line)
-                self._size += len(line)
-                if self._size >= self.max_bytes:
-                    self._rotate()
+                self._rotate()
             except OSError as exc:
-                if exc.filename is not None:
-                    raise
-                # "No space left on device" alone does not say which file filled the disk.
-                raise type(exc)(exc.errno, exc.strerror, str(self.path)) from None
+                self._fail(exc)
+                return
+        data = bytes(self._pending)
+        try:
+            written = 0
+            while written < len(data):  # an unbuffered write may take part of it
+                taken = self._handle.write(data[written:])
+                if not taken:
+                    raise OSError(errno.EIO, "the file took none of the write", str(self.path))
+                written += taken
+        except OSError as exc:
+            self._fail(exc)
+            return
+        self._size += len(self._pending)
+        self._pending.clear()
+        self._ends.clear()
+        self._gap_pending = False
+        if self._down:
+            self._down = False
+            if self.report is not None:
+                self.report(f"events log: writing {self.path} again ({self.lost} events lost)")
+        if self._size >= self.max_bytes:
+            try:
+                self._rotate()
+            except OSError as exc:
+                self._fail(exc)
+
+    def _fail(self, exc: OSError) -> None:
+        """The file failed (disk full, I/O error, cannot rotate): keep the whole lines that
+        reached it, cut a torn one off, count the rest lost, let go of the file."""
+        handle, self._handle = self._handle, None
+        whole = kept = 0  # without the file (it failed to reopen) or its size, every pending line is lost
+        if handle is not None:
+            with contextlib.suppress(OSError):
+                reached = os.fstat(handle.fileno()).st_size - self._size
+                whole = bisect.bisect_right(self._ends, reached)
+                kept = self._ends[whole - 1] if whole else 0
+                if reached > kept:
+                    os.ftruncate(handle.fileno(), self._size + kept)
+            with contextlib.suppress(OSError):
+                handle.close()
+        self.lost += len(self._ends) - whole - (self._gap_pending and whole == 0)
+        self._size += kept
+        self._pending.clear()
+        self._ends.clear()
+        self._gap_pending = False
+        self.error = f"{exc.strerror or exc} ({exc.filename or self.path})"
+        self._retry_at = self._t + RETRY_EVERY
+        first, self._down = not self._down, True
+        if first and self.report is not None:
+            self.report(f"events log: cannot write {self.path}: {self.error}; the colony goes on, events "
+                        f"are counted and dropped until it can be written again")
+
+    def _reopen(self) -> bool:
+        """After a failure, open the file again once :data:`RETRY_EVERY` has passed; the first
+        line then says how many events were lost (the outage ends when a write succeeds)."""
+        if self._t < self._retry_at:
+            return False
+        self._retry_at = self._t + RETRY_EVERY
+        try:
+            self._open()
+        except OSError:
+            return False
+        self._gap_pending = True
+        self._append(_line({"t": round(float(self._t), 6), "kind": "events lost", "lost": self.lost,
+                            "error": self.error}))
+        return True
 
     def _rotate(self) -> None:
+        """``NAME`` → ``NAME.1`` → ``NAME.2``…, renaming only regular files: ``NAME`` must still
+        be the file this log has open (the same inode), never whatever the path names now."""
         assert self._handle is not None and self.path is not None
+        ours = os.fstat(self._handle.fileno())
+        now = os.lstat(self.path)
+        if not stat.S_ISREG(now.st_mode) or (now.st_dev, now.st_ino) != (ours.st_dev, ours.st_ino):
+            raise UnsafePathError(errno.EEXIST, "not rotated: the path is no longer this log's regular file",
+                                  str(self.path))
+        parts = [self.path.with_name(f"{self.path.name}.{i}") for i in range(1, self.backups + 1)]
+        for part in parts:
+            with contextlib.suppress(FileNotFoundError):
+                mode = os.lstat(part).st_mode
+                if not stat.S_ISREG(mode):
+                    raise UnsafePathError(errno.EEXIST, f"not rotated: is {kind_of(mode)}", str(part))
         self._handle.close()
-        for i in range(self.backups - 1, 0, -1):
-            older = self.path.with_name(f"{self.path.name}.{i}")
+        self._handle = None
+        for older, newer in zip(reversed(parts[:-1]), reversed(parts[1:])):
             if older.exists():
-                older.replace(self.path.with_name(f"{self.path.name}.{i + 1}"))
-        self.path.replace(self.path.with_name(f"{self.path.name}.1"))
-        self._handle = self.path.open("ab")
-        self._size = 0
+                older.replace(newer)
+        self.path.replace(parts[0])
+        self._open()
 
     def flush(self) -> None:
-        if self._handle is not None:
-            self._handle.flush()
+        with self._lock:
+            self._drain()
+
+    @property
+    def loss(self) -> str | None:
+        """One line on what the log lost, or None when it kept everything."""
+        if not self.lost:
+            return None
+        return f"events log {self.path}: {self.lost} events not written (last failure: {self.error})"
 
     def close(self) -> None:
-        handle, self._handle = self._handle, None  # closed even if the final flush fails
+        with self._lock:
+            self._drain()
+            self._closed = True
+        handle, self._handle = self._handle, None
         if handle is not None:
-            handle.close()
+            with contextlib.suppress(OSError):  # unbuffered: nothing is left to fail but the descriptor
+                handle.close()
 
     def __enter__(self) -> "EventLog":
         return self
@@ -122,15 +275,68 @@ class EventLog:
         self.close()
 
 
+def _number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def _edges(value: Any) -> bool:
+    return isinstance(value, list) and all(
+        isinstance(e, list) and len(e) == 2 and all(isinstance(n, int) and n >= 0 for n in e) for e in value)
+
+
+def _hands(value: Any) -> bool:
+    flat = value
+    while flat and isinstance(flat, list) and all(isinstance(v, list) for v in flat):
+        flat = [x for v in flat for x in v]
+    return isinstance(flat, list) and len(flat) % 3 == 0 and all(_number(x) for x in flat)
+
+
+_NOTE = {"time": _number, "pitch": _number, "duration": _number}
+FIELDS: dict[str, dict[str, Callable[[Any], bool]]] = {
+    "": {"t": _number, "kind": lambda v: isinstance(v, str)},
+    "note": _NOTE,
+    "heard": _NOTE,
+    "selection": {"tuple": lambda v: isinstance(v, str)},
+    "motor graph": {"hands": _hands, "edges": _edges},
+}
+"""The fields every event has (``""``) and those the readers (report, inspector) take from
+some kinds, with what each must be; ``creature`` and ``source`` are strings where present."""
+
+
+def _malformed(event: Any) -> str | None:
+    """What is wrong with one decoded event, or None."""
+    if not isinstance(event, dict):
+        return f"an event is a JSON object, found {type(event).__name__}"
+    for kind in ("", event.get("kind")):
+        for name, fits in FIELDS.get(kind, {}).items() if isinstance(kind, str) else ():
+            if not fits(event.get(name)):
+                what = f"{kind!r} event" if kind else "event"
+                return f"{what} with a missing or malformed {name!r} ({event.get(name)!r:.40})"
+    for name in ("creature", "source"):
+        if name in event and not isinstance(event[name], str):
+            return f"{name!r} must be a string"
+    return None
+
+
 def read_events(path: str | os.PathLike) -> list[dict[str, Any]]:
-    """Read a JSONL events log; a malformed line raises ValueError naming file and line."""
+    """Read a JSONL events log; a malformed line — not JSON, not UTF-8, nested too deep, or
+    an event lacking what the readers take from it (:data:`FIELDS`) — raises ValueError
+    naming file and line (issue 13: ``creatures inspect`` gave tracebacks on such logs)."""
     events = []
-    with Path(path).open(encoding="utf-8") as handle:
-        for lineno, line in enumerate(handle, 1):
-            if not line.strip():
+    with Path(path).open("rb") as handle:
+        for lineno, raw in enumerate(handle, 1):
+            if not raw.strip():
                 continue
             try:
-                events.append(json.loads(line))
+                event = json.loads(raw.decode("utf-8"))
+            except UnicodeDecodeError:
+                raise ValueError(f"{path}:{lineno}: malformed event (not UTF-8 text)") from None
             except json.JSONDecodeError as exc:
                 raise ValueError(f"{path}:{lineno}: malformed event ({exc.msg})") from None
+            except RecursionError:
+                raise ValueError(f"{path}:{lineno}: malformed event (nested too deeply)") from None
+            problem = _malformed(event)
+            if problem is not None:
+                raise ValueError(f"{path}:{lineno}: malformed event ({problem})")
+            events.append(event)
     return events

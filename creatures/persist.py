@@ -38,6 +38,7 @@ def atomic_write(path: str | os.PathLike, write: Callable[[Any], None], mode: st
     directory = path.parent if str(path.parent) else Path(".")
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
     try:
+        os.fchmod(fd, file_mode(path))  # mkstemp makes 0600: a saved file gets a normal file's mode
         with os.fdopen(fd, mode) as handle:
             write(handle)
             handle.flush()
@@ -67,6 +68,31 @@ def atomic_write(path: str | os.PathLike, write: Callable[[Any], None], mode: st
         pass
     finally:
         os.close(dir_fd)
+
+
+def umask() -> int:
+    """The process's umask, read without changing it (``os.umask`` can only be read by setting
+    it, a race with any other thread creating files meanwhile)."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as status:
+            for line in status:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError):
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def file_mode(path: Path) -> int:
+    """The mode a file written through a temporary file (``mkstemp`` makes 0600) gets at
+    ``path``: the one it has (an artist's chmod is kept), else what ``open`` would give a new
+    file (0666 less the umask)."""
+    try:
+        return path.stat().st_mode & 0o7777
+    except OSError:
+        return 0o666 & ~umask()
 
 
 def save_json(path: str | os.PathLike, data: dict[str, Any], *, kind: str) -> None:

@@ -71,27 +71,31 @@ def test_malformed_line_names_file_and_line(tmp_path):
         read_events(path)
 
 
-def test_a_full_disk_names_the_log_and_close_still_lets_go(tmp_path):
+def test_a_full_disk_is_counted_loss_naming_the_log_and_close_still_lets_go(tmp_path):
+    """A full disk never raises out of the log (issue 13: it crashed a live run): the events
+    are counted lost, the reason names the file, and close lets go of it."""
     path = tmp_path / "events.jsonl"
-    log = EventLog(path)
-    closed = []
+    said = []
+    log = EventLog(path, report=said.append)
+    real = log._handle
 
     class FullDisk:
-        """The log's file once the disk is full: every write and the final flush fail."""
+        """The log's file once the disk is full: every write fails."""
 
-        def write(self, text):
+        def write(self, data):
             raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+        def fileno(self):
+            return real.fileno()
 
         def close(self):
-            closed.append(True)
-            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+            real.close()
 
-    log._handle.close()
     log._handle = FullDisk()
-    with pytest.raises(OSError) as caught:
-        log.emit(0.0, "tick")
-    assert caught.value.errno == errno.ENOSPC and caught.value.filename == str(path)  # which file filled it
-    with pytest.raises(OSError):
-        log.close()
-    log.close()  # the failed close let go of the file: nothing left to fail
-    assert closed == [True]
+    for i in range(3):
+        log.emit(0.1 * i, "tick")
+    log.close()
+    assert log.lost == 3 and real.closed
+    assert log.loss == f"events log {path}: 3 events not written (last failure: No space left on device ({path}))"
+    assert len(said) == 1 and str(path) in said[0]
+    log.close()  # nothing left to fail

@@ -11,6 +11,7 @@ import soundfile
 from creatures.cli import main
 from creatures.events import read_events
 from creatures.runtime.offline import run_offline
+from creatures.runtime.outputs import MANIFEST, stage
 from creatures.runtime.schema import load_installation
 
 EXCHANGE = Path(__file__).resolve().parents[1] / "installations" / "exchange.toml"
@@ -94,18 +95,18 @@ def test_recorded_midi_input_overrides_generated(tmp_path):
 
 def test_a_finished_run_replaces_every_output_of_the_previous_one(tmp_path):
     inst = load_installation(EXCHANGE)
-    inst.settings.output.report = False
     out = tmp_path / "out"
     run_offline(inst, out, duration=2)
-    # Leftovers of older runs: the rotated part of a long run's log, and the staging
-    # directory of a run that was killed (nothing else could have removed it).
-    (out / "events.jsonl.3").write_text('{"t": 0, "kind": "old"}\n')
-    (out / ".run-killed").mkdir()
-    (out / ".run-killed" / "events.jsonl").write_text("")
+    assert (out / "report" / "index.html").is_file()
+    # Leftovers of a run that was killed: its staging directory (nothing else could have removed it).
+    killed = stage(out)
+    (killed / "events.jsonl").write_text("")
     (out / "notes.txt").write_text("the artist's own file")
 
+    inst.settings.output.report = False  # the older run's report must not stay beside this run's files
     summary = run_offline(inst, out, duration=3)
-    assert sorted(p.name for p in out.iterdir()) == ["events.jsonl", "notes.txt", "out.mid", "out.wav", "state"]
+    assert sorted(p.name for p in out.iterdir()) == [MANIFEST, "events.jsonl", "notes.txt", "out.mid", "out.wav",
+                                                     "state"]
     assert summary.files == {"events": out / "events.jsonl", "wav": out / "out.wav", "midi": out / "out.mid",
                              "state": out / "state"}
     assert read_events(out / "events.jsonl")[0]["duration"] == 3

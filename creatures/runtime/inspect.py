@@ -123,13 +123,18 @@ COLONY = "colony"
 """How the inspector names what the creatures learned together (the colony's state file)."""
 
 
-def read_state(directory: Path) -> list[Knowledge]:
-    """Every creature state file in ``directory``, then the colony's (others are skipped)."""
+def read_state(directory: Path, skipped: list[str] | None = None) -> list[Knowledge]:
+    """Every creature state file in ``directory``, then the colony's. Files that are not
+    state, or are damaged, are skipped, each with why (the error naming it) in ``skipped``."""
     found = []
-    for path in sorted(directory.glob("*.json")):
+    skipped = [] if skipped is None else skipped
+    for path in sorted(directory.glob("[!.]*.json")):
+        if path.name == COLONY_FILE:
+            continue
         try:
             document = load_json(path, kind=STATE_KIND)
-        except StateFileError:
+        except StateFileError as exc:
+            skipped.append(str(exc))
             continue
         state = document.get("state")
         if isinstance(state, dict):
@@ -137,8 +142,9 @@ def read_state(directory: Path) -> list[Knowledge]:
     try:
         found.append(knowledge(COLONY, "what the creatures hear together", load_json(directory / COLONY_FILE,
                                                                                      kind=COLONY_KIND)))
-    except StateFileError:  # none (a state directory from before colonies saved one), or unreadable
-        pass
+    except StateFileError as exc:  # none (a state directory from before colonies saved one), or unreadable
+        if (directory / COLONY_FILE).exists():
+            skipped.append(str(exc))
     return found
 
 
@@ -216,14 +222,19 @@ def _embed(path: Path) -> str:
     return "data:image/png;base64," + base64.b64encode(path.read_bytes()).decode("ascii")
 
 
-def inspect(path: Path, out: Path) -> Path:
+def inspect(path: Path, out: Path, skipped: list[str] | None = None) -> Path:
     """Render what the creatures at ``path`` know into ``out`` (PNGs and ``index.html``);
-    return the page. ``path`` is an offline output directory, a state directory, or both."""
+    return the page. ``path`` is an offline output directory, a state directory, or both.
+    State files that could not be read are listed in ``skipped`` (and on the page)."""
     path = Path(path)
+    skipped = [] if skipped is None else skipped
     events_path = path / "events.jsonl"
     events = read_events(events_path) if events_path.is_file() else []
     saved = path / "state" if (path / "state").is_dir() else path  # an offline run saves into DIR/state
-    known = read_state(saved) if saved.is_dir() else []
+    known = read_state(saved, skipped) if saved.is_dir() else []
+    if not events and not known and skipped:
+        more = f" (and {len(skipped) - 1} more)" if len(skipped) > 1 else ""
+        raise InspectError(f"{saved}: no events.jsonl, and every state file there was skipped: {skipped[0]}{more}")
     if not events and not known:
         raise InspectError(f"{path}: no events.jsonl and no creature state files "
                            f"(give an offline output directory or a --state directory)")
@@ -247,7 +258,9 @@ def inspect(path: Path, out: Path) -> Path:
     title = f"inside {path.name or path}"
     figures = "".join(f'<h2>{html.escape(name)}</h2><img src="{_embed(p)}" alt="{html.escape(name)}">'
                       for name, p in plots)
+    unread = "".join(f"<li>{html.escape(s)}</li>" for s in skipped)
     page = html_page(title, f"<p>{len(events)} events, {len(known)} creature(s) from {html.escape(what)}.</p>"
+                            f"{f'<p>State files skipped:</p><ul>{unread}</ul>' if unread else ''}"
                             f"{counts_table(events) if events else ''}"
                             f"<h2>What each creature knows</h2>{''.join(_creature_html(k) for k in known)}{figures}")
     page_path = out / "index.html"

@@ -31,8 +31,10 @@ from pathlib import Path
 from typing import Callable
 
 from audio.resilient import ResilientInput, ResilientOutput
+from creatures import stop as stops
 from creatures.clock import Clock, SimulatedClock, WallClock
 from creatures.events import EventLog
+from creatures.paths import directory, regular_file
 from creatures.runtime.bodies import FramesBeside
 from creatures.runtime.input_sources import SerialSource, open_sources
 from creatures.runtime.network import Network
@@ -72,6 +74,10 @@ class LiveSummary:
     underruns: int = 0  # audio output callbacks that found no sound ready and played silence
     overruns: int = 0  # microphone blocks lost: the loop read too slowly, or the driver overflowed
     failed_saves: int = 0
+    saved_at: float | None = None  # seconds into the run of the last save that succeeded
+    unsaved: str | None = None  # the final save failed: what was not kept, in words
+    events_lost: int = 0  # events the log could not write (a full disk): counted, the run went on
+    log_loss: str | None = None  # the same in words, naming the log and the last failure
     restored: list[str] = field(default_factory=list)
     inputs: dict[str, int] = field(default_factory=dict)  # outside messages mapped / unmapped / malformed
     messages: list[str] = field(default_factory=list)
@@ -198,19 +204,29 @@ def rehearse(inst: LoadedInstallation) -> None:
     session.close()
 
 
-def _save(session: Session, state_dir: Path, summary: LiveSummary, say: Callable[[str], None]) -> None:
+def _save(session: Session, state_dir: Path, summary: LiveSummary, say: Callable[[str], None], at: float, *,
+          final: bool = False) -> None:
     """Save state; a full or read-only disk is reported and the run goes on (the previous
-    files stay intact, persist.atomic_write) rather than silencing a gallery."""
-    _write_state(state_dir, session.snapshot(), summary, say)
+    files stay intact, persist.atomic_write) rather than silencing a gallery. A failed final
+    save is kept in ``summary.unsaved``: the command then exits non-zero saying what was lost."""
+    _write_state(state_dir, session.snapshot(), summary, say, at, final=final)
 
 
 def _write_state(state_dir: Path, snapshot: list[tuple[str, str]], summary: LiveSummary,
-                 say: Callable[[str], None]) -> None:
+                 say: Callable[[str], None], at: float, *, final: bool = False) -> None:
     try:
         write_snapshot(state_dir, snapshot)
     except OSError as exc:
         summary.failed_saves += 1
-        say(f"could not save creature state ({exc}); the previous state is kept, will try again")
+        say(f"could not save creature state ({exc}); the previous state is kept"
+            + ("" if final else ", will try again"))
+        if not final:
+            return
+        since = "in this run" if summary.saved_at is None else f"after the save at {summary.saved_at:.1f} s"
+        summary.unsaved = (f"the final save failed ({exc}): what the creatures learned {since} was not kept; "
+                           f"{state_dir} holds the state before it")
+    else:
+        summary.saved_at = at
 
 
 class _Saver:
@@ -221,17 +237,18 @@ class _Saver:
     def __init__(self, supervisor: Supervisor, state_dir: Path, summary: LiveSummary,
                  say: Callable[[str], None], every: float) -> None:
         self.state_dir, self.summary, self.say = state_dir, summary, say
-        self.pending: list[tuple[str, str]] | None = None
+        self.pending: tuple[list[tuple[str, str]], float] | None = None
         self.job = supervisor.every(every, self._write, name="state save")
 
-    def save(self, session: Session) -> None:
-        self.pending = session.snapshot()
+    def save(self, session: Session, at: float) -> None:
+        """Encode the state now (``at`` seconds into the run) and have it written."""
+        self.pending = (session.snapshot(), at)
         self.job.wake()
 
     def _write(self) -> None:
-        snapshot, self.pending = self.pending, None
-        if snapshot is not None:
-            _write_state(self.state_dir, snapshot, self.summary, self.say)
+        pending, self.pending = self.pending, None
+        if pending is not None:
+            _write_state(self.state_dir, pending[0], self.summary, self.say, pending[1])
 
 
 def run_live(
@@ -248,11 +265,16 @@ def run_live(
     config's frame rate."""
     settings = inst.settings
     summary = LiveSummary()
+    state_dir = state or inst.resolve(settings.state)
+    for path, what in ((state_dir, "state folder"), (pictures, "--frames")):  # before anything runs
+        if path is not None:
+            directory(path, what)
     rehearse(inst)
     wall = WallClock()
     clock = SimulatedClock(wall.now())  # the creatures' time, moved by the loop (ticking.py)
     epoch = time.time() - wall.now()
-    log = EventLog(log_path, keep_in_memory=0) if log_path else EventLog(keep_in_memory=1000)
+    log = EventLog(regular_file(log_path, "--log"), keep_in_memory=0, report=say) if log_path \
+        else EventLog(keep_in_memory=1000)
     supervisor = Supervisor()  # started with the loop; until then devices are looked at here
 
     sink: PortSink | MemorySink = MemorySink()
@@ -263,7 +285,6 @@ def run_live(
     transcribe = settings.audio.transcribe
     session = Session(inst, clock, log, sink,
                       transcribe=transcribe if transcribe is not None else not settings.midi.input_port, say=say)
-    state_dir = state or inst.resolve(settings.state)
     if state_dir is not None:
         summary.restored = session.load_state(state_dir)
     inputs = LiveInputs(inst, session, clock, say, supervisor=supervisor, epoch=epoch)
@@ -320,7 +341,7 @@ def run_live(
             if bodies is not None:
                 bodies.draw(session.creatures)
             if state_dir is not None and t >= next_save:
-                saver.save(session)
+                saver.save(session, t - start)
                 next_save += settings.save_every
             if t >= next_housekeeping:  # xruns and late ticks are seen while running
                 next_housekeeping = t + HOUSEKEEPING_EVERY
@@ -333,7 +354,8 @@ def run_live(
             clock.advance_to(max(start, clock.now()))
             inputs.poll(start)
             tick(start)
-            loop.run(tick, until=lambda t: stopping or (duration is not None and t - start > duration))
+            loop.run(tick, until=lambda t: stopping or stops.requested is not None  # a Ctrl-C a finaliser swallowed
+                     or (duration is not None and t - start > duration))
         except KeyboardInterrupt:
             pass
         finally:
@@ -345,7 +367,7 @@ def run_live(
             inputs.tally()
             session.close()
             if state_dir is not None:
-                _save(session, state_dir, summary, say)
+                _save(session, state_dir, summary, say, wall.now() - start, final=True)
             if microphone is not None:
                 microphone.stop()
             if output is not None:
@@ -363,4 +385,5 @@ def run_live(
     summary.heard_between_ticks = loop.heard_between
     summary.notes_played = session.world.notes_played
     summary.inputs = session.inputs.summary()
+    summary.events_lost, summary.log_loss = log.lost, log.loss
     return summary

@@ -6,20 +6,18 @@ Time advances in behaviour ticks; audio is produced in blocks that exactly cover
 (frame counts come from elapsed time, so rounding never drifts), and frames fall due on their
 own clock.
 
-Every output is written into a hidden staging directory inside the output directory and moved
-into place only once the run has finished (renames within one file system are atomic): a run
-that fails — disk full, a crash, Ctrl-C — leaves the previous run's outputs exactly as they
-were, and a run that succeeds replaces them all, so the files beside each other are always
-from one run.
+Every output is written into a hidden staging directory inside the output directory and
+published only once the run has finished, all or none, replacing only what the previous run's
+manifest lists (:mod:`creatures.runtime.outputs`): a run that fails — disk full, a crash,
+Ctrl-C — leaves the previous run's outputs exactly as they were, a run that succeeds replaces
+them all, so the files beside each other are always from one run, and nothing a run did not
+write is ever replaced or removed. The directory is locked for the run (:mod:`creatures.lock`).
 """
 
 from __future__ import annotations
 
 import contextlib
 import math
-import os
-import shutil
-import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -28,22 +26,22 @@ import numpy as np
 
 from audio.output import WavOutput
 from audio.sources import load_audio
+from creatures import stop
 from creatures.clock import SimulatedClock
 from creatures.events import EventLog
+from creatures.lock import FolderLock, FolderLockedError
+from creatures.paths import directory
 from creatures.runtime.bodies import BodyFrames
 from creatures.runtime.input_sources import open_sources
 from creatures.runtime.inputs import phrase_notes, render_notes
-from creatures.runtime.schema import LoadedInstallation
+from creatures.runtime.outputs import OutputDirectoryError, discard, publish, recover, refuse_foreign, stage
+from creatures.runtime.schema import Installation, LoadedInstallation
 from creatures.runtime.speech_input import spoken_poem
 from creatures.runtime.session import Session
 from creatures.runtime.score import write_score
 from midi.files import read_notes
 from midi.notes import NoteEvent
 from midi.sinks import MemorySink
-
-
-class OutputDirectoryError(OSError):
-    """The output directory cannot be created or written; nothing was run."""
 
 
 @dataclass
@@ -53,6 +51,7 @@ class OfflineSummary:
     notes_played: int
     files: dict[str, Path] = field(default_factory=dict)
     messages: list[str] = field(default_factory=list)
+    events_lost: int = 0  # events the log could not write (a full disk): counted, never fatal
 
     @property
     def speed(self) -> float:
@@ -60,35 +59,25 @@ class OfflineSummary:
         return self.simulated / self.wall if self.wall > 0 else math.inf
 
 
-STAGING = ".run-"
-"""Prefix of the hidden directory inside the output directory that a run writes into."""
+def _planned(settings: Installation) -> set[str]:
+    """The names a run of ``settings`` will publish (creatures' own files are checked when
+    publishing): refused before running if anything else holds one."""
+    output = settings.output
+    wanted = {"events.jsonl": True, "state": True, "out.wav": output.wav, "out.mid": output.midi,
+              "report": output.report, "frames": output.frames, "out.mp4": output.frames and output.video}
+    return {name for name, on in wanted.items() if on}
 
 
-def _stage(out: Path) -> Path:
-    """A fresh staging directory inside ``out`` (created if need be): where the run writes."""
+def _lock(out: Path) -> FolderLock:
+    """Create and lock ``out``; a directory that cannot be written is an
+    :class:`OutputDirectoryError` before anything runs."""
     try:
-        out.mkdir(parents=True, exist_ok=True)
-        return Path(tempfile.mkdtemp(prefix=STAGING, dir=out))
+        directory(out, "--out").mkdir(parents=True, exist_ok=True)
+        return FolderLock(out, "output directory").acquire()
+    except FolderLockedError:
+        raise
     except OSError as exc:
         raise OutputDirectoryError(f"cannot write outputs to {out}: {exc.strerror or exc}") from None
-
-
-def _publish(staged: Path, out: Path) -> None:
-    """Move a finished run's outputs from ``staged`` into ``out``, replacing the previous
-    run's: files by atomic rename, directories (frames, report) by removing the old first.
-    The previous log's rotated parts go too, and so do staging directories left behind by
-    runs that were killed (the same clean-up :func:`creatures.persist.atomic_write` does)."""
-    for old in out.glob("events.jsonl.*"):
-        if old.suffix[1:].isdigit() and not (staged / old.name).exists():
-            old.unlink()
-    for item in sorted(staged.iterdir()):
-        target = out / item.name
-        if target.is_dir() and not target.is_symlink():  # a directory cannot be renamed over
-            shutil.rmtree(target)
-        os.replace(item, target)
-    staged.rmdir()
-    for stale in out.glob(f"{STAGING}*"):
-        shutil.rmtree(stale, ignore_errors=True)
 
 
 def _inputs(inst: LoadedInstallation, audio: Path | None, midi: Path | None, duration: float,
@@ -119,18 +108,25 @@ def run_offline(
 ) -> OfflineSummary:
     """Run ``inst`` on the simulated clock for ``duration`` seconds, writing into ``out``.
 
-    Raises :class:`OutputDirectoryError` (before running) when ``out`` cannot be written;
-    any failure during the run leaves the previous outputs in ``out`` untouched.
+    Raises :class:`OutputDirectoryError` (before running) when ``out`` cannot be written or
+    holds something no run wrote where this one would publish, :class:`FolderLockedError`
+    when another run uses it; any failure during the run leaves the previous outputs in
+    ``out`` untouched.
     """
     settings = inst.settings
     duration = float(duration if duration is not None else settings.duration)
-    staged = _stage(out)
-    try:
-        summary = _run(inst, staged, audio=audio, midi=midi, duration=duration, progress=progress)
-        _publish(staged, out)
-    except BaseException:
-        shutil.rmtree(staged, ignore_errors=True)
-        raise
+    with _lock(out):
+        recover(out)
+        refuse_foreign(out, _planned(settings))
+        try:
+            staged = stage(out)
+        except OSError as exc:
+            raise OutputDirectoryError(f"cannot write outputs to {out}: {exc.strerror or exc}") from None
+        try:
+            summary = _run(inst, staged, audio=audio, midi=midi, duration=duration, progress=progress)
+            publish(staged, out, events_lost=summary.events_lost)
+        finally:
+            discard(staged)
     summary.files = {name: out / path.relative_to(staged) for name, path in summary.files.items()}
     return summary
 
@@ -143,7 +139,7 @@ def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path 
     clock = SimulatedClock()
     sink = MemorySink()
     messages: list[str] = []
-    log = EventLog(out / "events.jsonl")
+    log = EventLog(out / "events.jsonl", report=messages.append)
     session = Session(inst, clock, log, sink, say=messages.append)
     session.world.recording = settings.output.midi  # out.mid's input track and heard tempo
     sources = open_sources(inst, session.inputs, clock, messages.append, live=False)  # rehearsal files
@@ -166,6 +162,7 @@ def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path 
         bar = tqdm(total=steps, unit="tick", desc=settings.title, leave=False, disable=None)
     try:
         for step in range(1, steps + 1):
+            stop.check()  # a Ctrl-C or SIGTERM a finaliser swallowed (creatures/stop.py)
             t0, t = (step - 1) * tick, min(step * tick, duration)
             clock.advance_to(t)
             for source in sources:
@@ -207,7 +204,10 @@ def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path 
         files["frames"] = out / "frames"
         if settings.output.video:
             files["video"] = out / "out.mp4"
-    summary = OfflineSummary(duration, time.perf_counter() - wall0, session.world.notes_played, files, messages)
+    if log.loss:
+        messages.append(log.loss)
+    summary = OfflineSummary(duration, time.perf_counter() - wall0, session.world.notes_played, files, messages,
+                             events_lost=log.lost)
     if settings.output.report:
         from creatures.runtime.report import write_report
 

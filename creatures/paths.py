@@ -1,0 +1,55 @@
+"""What a path handed to a run may name, checked before anything runs.
+
+A run writes logs, state and outputs, and rotates and renames them. Aimed at a device node,
+a FIFO or a directory, that is how a log rotation came to rename ``/dev/null`` (issue 13):
+so every file a run is given must be a regular file or absent, and every directory a
+directory or absent. The check follows symbolic links, so a link to a regular file is fine
+and a link to a device is not.
+"""
+
+from __future__ import annotations
+
+import os
+import stat
+from pathlib import Path
+
+KINDS = {stat.S_IFDIR: "a directory", stat.S_IFCHR: "a character device", stat.S_IFBLK: "a block device",
+         stat.S_IFIFO: "a FIFO (named pipe)", stat.S_IFSOCK: "a socket", stat.S_IFLNK: "a symbolic link",
+         stat.S_IFREG: "a regular file"}
+
+
+class UnsafePathError(OSError):
+    """A path names something a run must not write to or read as a file; says what it is."""
+
+
+def kind_of(mode: int) -> str:
+    """``st_mode`` in words ("a character device")."""
+    return KINDS.get(stat.S_IFMT(mode), "not a regular file")
+
+
+def _mode(path: Path) -> int | None:
+    try:
+        return os.stat(path).st_mode
+    except FileNotFoundError:
+        return None
+    except NotADirectoryError:  # a parent is a file: nothing can be made there
+        raise UnsafePathError(f"{path}: a parent of it is not a directory") from None
+
+
+def regular_file(path: str | os.PathLike, what: str) -> Path:
+    """``path`` if it is a regular file or absent; else :class:`UnsafePathError` naming
+    ``what`` (e.g. "--log") and what the path is."""
+    path = Path(path)
+    mode = _mode(path)
+    if mode is not None and not stat.S_ISREG(mode):
+        raise UnsafePathError(f"{what} {path}: is {kind_of(mode)}, not a regular file")
+    return path
+
+
+def directory(path: str | os.PathLike, what: str) -> Path:
+    """``path`` if it is a directory or absent; else :class:`UnsafePathError`."""
+    path = Path(path)
+    mode = _mode(path)
+    if mode is not None and not stat.S_ISDIR(mode):
+        raise UnsafePathError(f"{what} {path}: is {kind_of(mode)}, not a directory")
+    return path

@@ -1,0 +1,187 @@
+"""An offline run's outputs: written aside, published all or none, never over what is not ours.
+
+``--out DIR`` is a folder the artist owns, and may hold anything: their notes, a live run's
+state, an older run's outputs. An offline run therefore
+
+* writes every output into a hidden staging directory inside ``DIR`` (``.creatures-run-*``);
+* records what it published in a manifest, ``DIR/.creatures-manifest.json``: every file and
+  directory, relative to ``DIR``;
+* replaces only what the previous manifest lists. Before running, and again before
+  publishing, it checks every name it will write and every name the previous run wrote: a
+  name that holds anything the previous manifest does not list (a ``state/`` the artist made,
+  a note put into ``report/``) is *refused*, with the path named and nothing changed. We chose
+  refusal over publishing elsewhere: an output directory whose layout depended on what
+  happened to be in it would break every script that reads ``DIR/events.jsonl``;
+* publishes all or none. The previous run's entries are moved aside into a hidden
+  ``.creatures-old-*`` directory, the new ones moved in, and the new manifest written last:
+  that write is the commit. A failure before it (a rename refused, a full disk) moves
+  everything back. A journal (``DIR/.creatures-publish.json``) written before the first rename
+  lets the next run finish or undo a publish that was killed half-way (SIGKILL, power loss);
+* removes what the previous run wrote and this one did not (an older ``report/`` or
+  ``frames/``), so the files side by side are always from one run;
+* cleans staging directories of runs that were killed at the next start (they hold a marker
+  file; a directory without it is not ours and is left alone).
+
+Renames within one file system are atomic, and all of these are inside ``DIR``.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+from creatures.persist import StateFileError, load_json, save_json
+
+MANIFEST = ".creatures-manifest.json"
+MANIFEST_KIND = "creature-music outputs"
+JOURNAL = ".creatures-publish.json"
+JOURNAL_KIND = "creature-music publish journal"
+STAGING = ".creatures-run-"
+RETIRED = ".creatures-old-"
+MARKER = ".creatures-staging"
+"""In every staging and set-aside directory: what makes it ours to remove."""
+
+
+class OutputDirectoryError(OSError):
+    """The output directory cannot be created or written, or holds files this run did not
+    write where it would publish; nothing was changed."""
+
+
+def entries(root: Path) -> list[str]:
+    """Every file and directory under ``root``, relative, directories ending in ``/``."""
+    found = []
+    for here, dirs, files in os.walk(root):
+        base = Path(here).relative_to(root)
+        found += [f"{(base / d).as_posix()}/" for d in dirs]
+        found += [(base / f).as_posix() for f in files]
+    return sorted(found)
+
+
+def _entry(out: Path, name: str) -> str:
+    """``name``'s manifest entry as it stands in ``out`` (a directory ends in ``/``)."""
+    return f"{name}/" if (out / name).is_dir() and not (out / name).is_symlink() else name
+
+
+def owned(out: Path) -> set[str]:
+    """What the manifest says the previous run wrote (nothing, without a readable one)."""
+    try:
+        files = load_json(out / MANIFEST, kind=MANIFEST_KIND).get("files")
+    except StateFileError:
+        return set()
+    return {f for f in files if isinstance(f, str)} if isinstance(files, list) else set()
+
+
+def foreign(out: Path, names: set[str], ours: set[str]) -> list[str]:
+    """Paths under ``out/name`` (for each of ``names``) that ``ours`` does not list."""
+    strangers = []
+    for name in sorted(names):
+        target = out / name
+        if not os.path.lexists(target):
+            continue
+        top = _entry(out, name)
+        inside = [f"{name}/{e}" for e in entries(target)] if top.endswith("/") else []
+        strangers += [e for e in [top, *inside] if e not in ours]
+    return strangers
+
+
+def refuse_foreign(out: Path, names: set[str]) -> None:
+    """Raise :class:`OutputDirectoryError` if publishing ``names`` (top-level entries) into
+    ``out`` would replace or remove anything the previous run did not write."""
+    ours = owned(out)
+    previous = {e.split("/", 1)[0] for e in ours}
+    strangers = foreign(out, names | previous, ours)
+    if strangers:
+        more = f" (and {len(strangers) - 1} more)" if len(strangers) > 1 else ""
+        raise OutputDirectoryError(
+            f"{out}: not replacing {out / strangers[0]}{more}: no creatures run wrote it (it is not in "
+            f"{MANIFEST}); nothing was changed. Move it away or choose another --out")
+
+
+def _hidden_dir(out: Path, prefix: str) -> Path:
+    path = Path(tempfile.mkdtemp(prefix=prefix, dir=out))
+    (path / MARKER).write_text(f"{os.getpid()}\n")
+    return path
+
+
+def stage(out: Path) -> Path:
+    """A fresh staging directory inside ``out``: where the run writes."""
+    return _hidden_dir(out, STAGING)
+
+
+def publish(staged: Path, out: Path, **facts: object) -> None:
+    """Move a finished run's outputs from ``staged`` into ``out`` all or none (module
+    docstring); ``facts`` are recorded in the manifest beside the file list."""
+    new = sorted(p.name for p in staged.iterdir() if p.name != MARKER)
+    refuse_foreign(out, set(new))
+    ours = owned(out)
+    old = sorted({e.split("/", 1)[0] for e in ours if os.path.lexists(out / e.split("/", 1)[0])})
+    retired = _hidden_dir(out, RETIRED)
+    save_json(out / JOURNAL, {"staged": staged.name, "retired": retired.name, "new": new, "old": old},
+              kind=JOURNAL_KIND)
+    try:
+        if (out / MANIFEST).exists():  # first: a manifest in ``out`` now means the commit happened
+            os.replace(out / MANIFEST, retired / MANIFEST)
+        for name in old:
+            os.replace(out / name, retired / name)
+        for name in new:
+            os.replace(staged / name, out / name)
+        save_json(out / MANIFEST, {"files": [e for name in new for e in _listing(out, name)], **facts},
+                  kind=MANIFEST_KIND)  # the commit
+    except BaseException:
+        _undo(out, staged, retired, new, old)  # if this fails too, the journal is left for the next run
+        (out / JOURNAL).unlink()
+        shutil.rmtree(retired, ignore_errors=True)
+        raise
+    _finish(out, staged, retired)
+
+
+def _listing(out: Path, name: str) -> list[str]:
+    top = _entry(out, name)
+    return [top] + ([f"{name}/{e}" for e in entries(out / name)] if top.endswith("/") else [])
+
+
+def _undo(out: Path, staged: Path, retired: Path, new: list[str], old: list[str]) -> None:
+    """Put back what a publish moved: the new entries into staging, the old ones into place."""
+    for name in new:
+        if os.path.lexists(out / name) and not os.path.lexists(staged / name):
+            os.replace(out / name, staged / name)
+    for name in [*old, MANIFEST]:
+        if os.path.lexists(retired / name):
+            os.replace(retired / name, out / name)
+
+
+def _finish(out: Path, staged: Path, retired: Path) -> None:
+    (out / JOURNAL).unlink(missing_ok=True)
+    shutil.rmtree(retired, ignore_errors=True)
+    shutil.rmtree(staged, ignore_errors=True)
+
+
+def recover(out: Path) -> None:
+    """At a run's start (holding ``out``'s lock): finish or undo a publish that was killed
+    half-way, and remove staging directories of runs that were killed."""
+    journal = out / JOURNAL
+    if journal.exists():
+        try:
+            done = load_json(journal, kind=JOURNAL_KIND)
+            staged, retired = out / str(done["staged"]), out / str(done["retired"])
+            new, old = [str(n) for n in done["new"]], [str(n) for n in done["old"]]
+        except (StateFileError, KeyError, TypeError) as exc:
+            raise OutputDirectoryError(f"{journal}: cannot finish an interrupted publish ({exc}); "
+                                       f"look inside {out} and remove the journal") from None
+        if not (out / MANIFEST).exists():  # killed before the commit: the previous run comes back
+            _undo(out, staged, retired, new, old)
+        _finish(out, staged, retired)
+    for prefix in (STAGING, RETIRED):
+        for leftover in out.glob(f"{prefix}*"):
+            if (leftover / MARKER).is_file() or not any(leftover.iterdir()):
+                shutil.rmtree(leftover, ignore_errors=True)
+
+
+def discard(staged: Path) -> None:
+    """A run that failed or was stopped: its staging directory goes."""
+    shutil.rmtree(staged, ignore_errors=True)
+
+
+__all__ = ["MANIFEST", "OutputDirectoryError", "discard", "publish", "recover", "refuse_foreign", "stage"]

@@ -1,0 +1,81 @@
+"""Ctrl-C and SIGTERM stop a command wherever it is, and only once.
+
+Both raise an exception where the program is, so every command unwinds as on Ctrl-C:
+staging folders go, locks are let go, and the CLI says so in one line (issue 13: SIGTERM
+left an offline run's staging folder behind, Ctrl-C printed tracebacks). Python ignores an
+exception raised inside a finaliser or a C callback, and a signal handler may happen to run
+there: numba compiling a creature's kernels (llvmlite's ``__del__`` and object-cache
+callbacks) swallowed about one SIGTERM in two in a measured start-up, and unwinding LLVM in
+the middle of a compile crashed the process (SIGSEGV, about one Ctrl-C in five). So the
+request is also kept in :data:`requested`; while numba or llvmlite code is on the stack
+nothing is raised at all; and the loops that run for long (the offline ticks, the live loop)
+call :func:`check` (or read it) each tick, where a deferred or swallowed stop is raised.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+from typing import Any, Callable
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised as Ctrl-C's KeyboardInterrupt is."""
+
+
+requested: int | None = None
+"""The signal that asked the command to stop, until the stop has been handled."""
+
+
+NATIVE = tuple(f"{os.sep}{name}{os.sep}" for name in ("numba", "llvmlite"))
+"""Where code lives that must not be unwound by a signal (see the module docstring)."""
+
+
+def _in_native(frame: Any) -> bool:
+    while frame is not None:
+        if any(part in frame.f_code.co_filename for part in NATIVE):
+            return True
+        frame = frame.f_back
+    return False
+
+
+def _stop(signum: int, frame: Any) -> None:
+    global requested
+    if requested is not None:  # a second Ctrl-C while the first unwinds: one stop is enough
+        return
+    requested = signum
+    if _in_native(frame):  # compiling: raised at the next check() instead
+        return
+    raise Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
+
+
+def check() -> None:
+    """Raise the stop a finaliser swallowed, if one was asked for."""
+    if requested is not None:
+        raise Terminated() if requested == signal.SIGTERM else KeyboardInterrupt()
+
+
+def install() -> Callable[[], None]:
+    """Stop on SIGINT and SIGTERM from now on; returns what puts the previous handlers back.
+    A stop swallowed by a finaliser is not reported as "Exception ignored" with a traceback
+    (it is raised again by :func:`check`); anything else unraisable still is."""
+    global requested
+    requested = None
+    previous = {sig: signal.signal(sig, _stop) for sig in (signal.SIGINT, signal.SIGTERM)}
+    hook = sys.unraisablehook
+
+    def unraisable(info: Any) -> None:
+        if not (requested is not None and isinstance(info.exc_value, KeyboardInterrupt)):
+            hook(info)
+
+    sys.unraisablehook = unraisable
+
+    def restore() -> None:
+        global requested
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        sys.unraisablehook = hook
+        requested = None
+
+    return restore
