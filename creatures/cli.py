@@ -126,7 +126,9 @@ NO_STATE = ("no state directory: learned state will not be kept (nothing is save
 def _run(args: argparse.Namespace) -> int:
     from creatures.config import ConfigError
     from creatures.persist import StateFileError
+    from creatures import log_limit
     from creatures.runtime.live import run_live
+    from creatures.runtime.network import describe
     from creatures.runtime.schema import load_installation
 
     try:
@@ -139,9 +141,12 @@ def _run(args: argparse.Namespace) -> int:
         print(f"creatures: {exc}", file=sys.stderr)
         return 2
     restored = f", restored {', '.join(summary.restored)}" if summary.restored else ""
+    network = f"; {describe(summary.network)}" if summary.network is not None else ""
     print(f"stopped after {summary.seconds:.1f} s: {summary.ticks} ticks, {summary.notes_played} notes, "
           f"{summary.late} late{restored}; sound {summary.sound}; {summary.underruns} audio underruns, "
-          f"{summary.overruns} input overruns")
+          f"{summary.overruns} input overruns{network}")
+    for line in log_limit.install().pending():
+        print(line, file=sys.stderr)
     return 0
 
 
@@ -211,6 +216,9 @@ def main(argv: list[str] | None = None) -> int:
     # Creatures do many tiny matrix operations; multi-threaded BLAS only fights over the
     # cores for them (measured: scipy's expm on 5x5 went from 15 us to 2 ms under load).
     threadpool_limits(limits=1)
+    from creatures import log_limit
+
+    log_limit.install()  # a library that logs per bad packet must not flood stderr
     return int(args.run(args))
 
 

@@ -27,6 +27,17 @@ Any OSC client (SuperCollider, Max, Pd, TouchDesigner) can speak or listen. List
 threading server dropped burst messages here, ENVIRONMENT.md), parse with
 ``pythonosc.osc_packet``, and drop and count packets that are too large, not OSC, or outside
 this address space.
+
+Every argument is bounded at the door (:func:`decode`), because a number that enters here
+ends up in a creature's state and in its saved files (two notes of 1e308 seconds once made a
+sand:stone creature's ear infinite and its state unsavable). What can be clamped without
+changing what the message means is clamped and counted (a velocity above 127, a duration
+above :data:`MAX_DURATION`, a state number beyond :data:`MAX_STATE_VALUE`); what cannot is
+refused and counted (a pitch or channel out of range, a velocity of 0 — a note-off —, a
+negative or non-finite number, a name or text longer than :data:`MAX_TEXT`). A listener reads
+at most ``max_rate`` packets a second (a flood must not starve the creatures; the kernel drops
+the rest, and those are counted too), and checks each packet's type tags before python-osc
+sees it (python-osc logs a warning per unknown tag: one 1 KB packet made 1,000 lines).
 """
 
 from __future__ import annotations
@@ -36,6 +47,9 @@ import math
 import re
 import select
 import socket
+import struct
+import time
+from collections import Counter
 from dataclasses import dataclass
 
 from pythonosc.osc_bundle_builder import IMMEDIATELY, OscBundleBuilder
@@ -51,11 +65,39 @@ MAX_PACKET = 1024  # bytes; every message of this protocol is far smaller
 NAME = re.compile(r"[A-Za-z0-9_.\-]{1,64}")
 _ADDRESS = re.compile(r"/creature/([^/]+)/(hello|note|state|bye)")
 
+MAX_DURATION = 60.0
+"""Seconds: a heard note longer than this is heard as this long (a drone of a minute is
+already longer than any creature's memory of what it heard)."""
+
+MAX_STATE_VALUE = 1e6
+"""A state number beyond ±this is clamped to it (drives live in 0..1; a count of a million
+is still a count)."""
+
+MAX_TEXT = 128
+"""Characters: the longest state text (``action`` joins active action names) accepted."""
+
+MAX_RATE = 10_000
+"""Packets a second a listener reads by default: far above what a colony says (a few dozen a
+second per creature) and a small share of one core; a flood beyond it is left to the kernel."""
+
+_TAGS = frozenset(b"ifsdh")  # int32, float32, string, float64, int64: all this protocol uses
+_BUNDLE = b"#bundle\x00"
+_RXQ_OVFL = getattr(socket, "SO_RXQ_OVFL", 40)  # Linux: count of datagrams the kernel dropped
+
+
+class Refused(ValueError):
+    """A message this protocol does not take; ``cause`` names why, for the drop counters."""
+
+    def __init__(self, cause: str, message: str) -> None:
+        super().__init__(message)
+        self.cause = cause
+
 
 @dataclass(frozen=True, slots=True)
 class Heard:
     """One message from another creature: ``kind`` is hello/note/state/bye; ``note`` is set
-    for notes, ``args`` holds the decoded arguments, ``sender`` the UDP source address."""
+    for notes, ``args`` holds the decoded (bounded) arguments, ``sender`` the UDP source
+    address; ``clamped`` says an argument was brought into bounds."""
 
     creature: str
     kind: str
@@ -63,35 +105,95 @@ class Heard:
     args: tuple
     sender: tuple[str, int]
     note: NoteEvent | None = None
+    clamped: bool = False
+
+
+_STATE_KEY = re.compile(r"[^\x00-\x1f]{1,64}")
 
 
 def decode(address: str, args: list, time: float, sender: tuple[str, int]) -> Heard:
-    """Check one OSC message against the address space; ValueError if it does not fit."""
+    """Check one OSC message against the address space and bound its arguments;
+    :class:`Refused` (a ValueError) if it does not fit."""
     match = _ADDRESS.fullmatch(address)
     if match is None or NAME.fullmatch(match[1]) is None:
-        raise ValueError(f"address {address!r} is not in the creature address space")
+        raise Refused("address", f"address {address!r} is not in the creature address space")
     creature, kind = match[1], match[2]
     types = tuple(type(a) for a in args)
     note = None
+    clamped = False
     if kind == "hello":
         if types != (int,) or not 0 < args[0] < 65536:
-            raise ValueError(f"{address}: expects one port number, got {args!r}")
+            raise Refused("arguments", f"{address}: expects one port number, got {args!r}")
     elif kind == "note":
         if types not in ((int, int, float), (int, int, float, int), (int, int, int), (int, int, int, int)):
-            raise ValueError(f"{address}: expects pitch velocity duration [channel], got {args!r}")
-        if not math.isfinite(args[2]):
-            raise ValueError(f"{address}: duration must be finite, got {args[2]!r}")
-        note = NoteEvent(time, args[0], args[1], args[3] if len(args) == 4 else 0, float(args[2]))
+            raise Refused("arguments", f"{address}: expects pitch velocity duration [channel], got {args!r}")
+        velocity, duration = args[1], float(args[2])
+        if not 0 <= duration < math.inf:
+            raise Refused("arguments", f"{address}: duration must be finite and >= 0, got {args[2]!r}")
+        if velocity > 127 or duration > MAX_DURATION:
+            velocity, duration, clamped = min(velocity, 127), min(duration, MAX_DURATION), True
+        try:
+            note = NoteEvent(time, args[0], velocity, args[3] if len(args) == 4 else 0, duration)
+        except ValueError as exc:  # pitch or channel out of range, velocity <= 0: not clampable
+            raise Refused("arguments", f"{address}: {exc}") from None
+        args = [args[0], velocity, duration, note.channel]
     elif kind == "state":
-        if len(args) != 2 or not isinstance(args[0], str) or not isinstance(args[1], (int, float, str)):
-            raise ValueError(f"{address}: expects key value, got {args!r}")
+        if len(args) != 2 or not isinstance(args[0], str) or types[1] not in (int, float, str):
+            raise Refused("arguments", f"{address}: expects key value, got {args!r}")
+        key, value = args
+        if _STATE_KEY.fullmatch(key) is None:
+            raise Refused("arguments", f"{address}: a state key is 1..64 printable characters, got {key!r}")
+        if isinstance(value, str):
+            if len(value) > MAX_TEXT:
+                raise Refused("arguments", f"{address}: state text longer than {MAX_TEXT} characters")
+        elif not math.isfinite(value):
+            raise Refused("arguments", f"{address}: state value must be finite, got {value!r}")
+        elif abs(value) > MAX_STATE_VALUE:
+            value, clamped = type(value)(math.copysign(MAX_STATE_VALUE, value)), True
+        args = [key, value]
     elif args:
-        raise ValueError(f"{address}: expects no arguments, got {args!r}")
-    return Heard(creature, kind, time, tuple(args), sender, note)
+        raise Refused("arguments", f"{address}: expects no arguments, got {args!r}")
+    return Heard(creature, kind, time, tuple(args), sender, note, clamped)
+
+
+def check_wire(data: bytes, depth: int = 0) -> None:
+    """Refuse, before python-osc parses it, a datagram that is not a bundle of (at most 4 deep)
+    or a message with at most 4 arguments of the types this protocol uses, under ``/creature/``.
+
+    Cheap (no parsing of arguments), so a flood of junk costs little; and python-osc never
+    meets an unknown type tag, on which it logs a warning per tag."""
+    if data.startswith(_BUNDLE):
+        if depth >= 4 or len(data) < 16:
+            raise Refused("not osc", "bundle nested too deep or shorter than its header")
+        index = 16
+        while index < len(data):
+            size = struct.unpack_from(">i", data, index)[0] if index + 4 <= len(data) else -1
+            index += 4
+            if size <= 0 or size % 4 or index + size > len(data):
+                raise Refused("not osc", "bundle element of an impossible size")
+            check_wire(data[index:index + size], depth + 1)
+            index += size
+        return
+    if not data.startswith(b"/creature/"):
+        raise Refused("address", "not in the creature address space")
+    end = data.find(b"\x00")
+    tags = (end + 4) & ~3
+    if end < 0 or data[tags:tags + 1] != b",":
+        raise Refused("not osc", "no type tag string")
+    stop = data.find(b"\x00", tags)
+    if stop < 0 or stop - tags > 5 or not _TAGS.issuperset(data[tags + 1:stop]):
+        raise Refused("type tags", "more than 4 arguments, or a type this protocol never sends")
 
 
 class OscListener:
-    """A non-blocking UDP socket read once a tick; never raises on what arrives."""
+    """A non-blocking UDP socket read once a tick; never raises on what arrives.
+
+    ``dropped`` counts what was not taken, by cause: ``oversize``, ``not osc``, ``address``
+    (outside the creature address space), ``type tags``, ``arguments`` (out of bounds) and
+    ``kernel`` (datagrams the kernel dropped because the socket's buffer was full: beyond
+    ``max_rate`` or between slow polls). ``clamped`` counts messages taken with an argument
+    brought into bounds.
+    """
 
     def __init__(
         self,
@@ -101,10 +203,25 @@ class OscListener:
         port: int = 0,
         max_packet: int = MAX_PACKET,
         receive_buffer: int = 1 << 20,
+        max_rate: float = MAX_RATE,
     ) -> None:
         self.clock = clock
         self.max_packet = max_packet
+        self.max_rate = max_rate
         self.socket = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        try:
+            self._setup(host, port, receive_buffer)
+        except BaseException:
+            self.socket.close()
+            raise
+        self.port: int = self.socket.getsockname()[1]
+        self.received = 0  # messages accepted
+        self.received_bytes = 0  # every datagram read, taken or not
+        self.clamped = 0
+        self.dropped: Counter[str] = Counter()
+        self._tokens, self._filled = max_rate / 4, time.monotonic()  # a quarter second's burst
+
+    def _setup(self, host: str, port: int, receive_buffer: int) -> None:
         self.socket.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, receive_buffer)
         # The kernel may grant less (Linux caps at net.core.rmem_max, often 208 KiB, and reports
         # double what it grants): a burst larger than the buffer between two polls is lost, so say so.
@@ -113,44 +230,90 @@ class OscListener:
             logger.warning("OSC receive buffer is %d bytes, not the %d asked for; bursts of more than "
                            "a few hundred messages per tick may drop (raise net.core.rmem_max)",
                            self.receive_buffer, receive_buffer)
+        try:
+            self.socket.setsockopt(socket.SOL_SOCKET, _RXQ_OVFL, 1)
+        except OSError:  # not Linux: kernel drops go uncounted
+            pass
         self.socket.bind((host, port))
         self.socket.setblocking(False)
-        self.port: int = self.socket.getsockname()[1]
-        self.received = 0  # messages accepted
-        self.malformed = 0  # packets or messages dropped as not OSC / not this protocol
-        self.oversize = 0  # packets dropped for exceeding max_packet
+
+    @property
+    def malformed(self) -> int:
+        """Packets or messages dropped as not OSC or not this protocol (all causes but size)."""
+        return sum(n for cause, n in self.dropped.items() if cause not in ("oversize", "kernel"))
+
+    @property
+    def oversize(self) -> int:
+        return self.dropped["oversize"]
 
     def wait(self, timeout: float) -> bool:
-        """Block up to ``timeout`` seconds for a packet (for loops with nothing else to do)."""
+        """Block up to ``timeout`` seconds for a packet (for loops with nothing else to do).
+
+        While this second's ``max_rate`` is spent it sleeps instead: under a flood the socket
+        is always readable, and a loop woken by it at once would spin on a full core."""
+        self._refill()
+        if self._tokens < 1.0:
+            time.sleep(max(0.0, timeout))
+            return False
         return bool(select.select([self.socket], [], [], max(0.0, timeout))[0])
 
-    def poll(self, *, limit: int = 10_000) -> list[Heard]:
-        """Everything that has arrived, at most ``limit`` packets per call."""
+    def _refill(self) -> None:
+        """``max_rate`` packets a second of real time, a quarter second's worth at most."""
+        now = time.monotonic()
+        self._tokens = min(self.max_rate / 4, self._tokens + (now - self._filled) * self.max_rate)
+        self._filled = now
+
+    def _allowance(self, limit: int) -> int:
+        """Packets this poll may read, so a flood costs the creatures a bounded share of the CPU."""
+        self._refill()
+        return min(limit, int(self._tokens))
+
+    def poll(self, *, limit: int = 512) -> list[Heard]:
+        """What has arrived, at most ``limit`` packets per call (and ``max_rate`` a second)."""
         heard: list[Heard] = []
         now = self.clock.now()
-        for _ in range(limit):
+        allowed = self._allowance(limit)
+        taken = 0
+        while taken < allowed:
             try:
-                data, sender = self.socket.recvfrom(self.max_packet + 1)
+                data, ancillary, _, sender = self.socket.recvmsg(self.max_packet + 1, 64)
             except (BlockingIOError, InterruptedError):
                 break
             except OSError:  # e.g. an ICMP error queued on the socket; the next read is fine
                 continue
+            taken += 1
+            for _, kind, value in ancillary:
+                if kind == _RXQ_OVFL and len(value) >= 4:  # the kernel's running count
+                    self.dropped["kernel"] = struct.unpack("=I", value[:4])[0]
+            self.received_bytes += len(data)
             if len(data) > self.max_packet:
-                self.oversize += 1
+                self.dropped["oversize"] += 1
                 continue
             try:
+                check_wire(data)
                 messages = OscPacket(data).messages
+            except Refused as refused:
+                self.dropped[refused.cause] += 1
+                continue
             except Exception:  # python-osc raises ParseError, but also struct/index errors
-                self.malformed += 1
+                self.dropped["not osc"] += 1
                 continue
             for timed in messages:
                 try:
-                    heard.append(decode(timed.message.address, list(timed.message.params), now, sender))
-                except ValueError:
-                    self.malformed += 1
+                    message = decode(timed.message.address, list(timed.message.params), now, sender)
+                except Refused as refused:
+                    self.dropped[refused.cause] += 1
                 else:
+                    heard.append(message)
                     self.received += 1
+                    self.clamped += message.clamped
+        self._tokens -= taken
         return heard
+
+    def counts(self) -> dict[str, object]:
+        """The counters, for the events log and the end-of-run summary."""
+        return {"received": self.received, "received_bytes": self.received_bytes, "clamped": self.clamped,
+                "dropped": dict(sorted(self.dropped.items()))}
 
     def close(self) -> None:
         self.socket.close()
@@ -169,6 +332,7 @@ class OscSender:
         self.name = name
         self.peers: dict[str, tuple[str, int]] = {} if peers is None else peers
         self.send_errors = 0
+        self.sent_bytes = 0  # bytes that left, to every peer
         self.socket = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
 
     def add_peer(self, name: str, address: tuple[str, int]) -> None:
@@ -203,7 +367,7 @@ class OscSender:
     def _deliver(self, dgram: bytes) -> None:
         for address in self.peers.values():
             try:
-                self.socket.sendto(dgram, address)
+                self.sent_bytes += self.socket.sendto(dgram, address)
             except OSError:  # a peer that is gone must not stop the others hearing us
                 self.send_errors += 1
 

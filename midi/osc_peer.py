@@ -5,7 +5,8 @@ It plays the exchange game over OSC (thesis, "exchange"): every note it hears is
 (placed, in the full installation, in space); at its own pace it plays back the oldest
 remembered note, transformed (transposed), or its own seed note when it remembers nothing.
 Passages therefore pass back and forth between creatures and drift. It learns peers from
-their ``hello`` messages, so a peer that restarts is heard again without configuration. With
+their ``hello`` messages (a bounded table, :mod:`midi.peer_table`), so a peer that restarts
+is heard again without configuration. With
 each hello it sends its state: ``remembered`` (notes waiting to be played back).
 
 It reports on stdout, one JSON object per line: ``listening``, ``hello``, ``heard`` (each note
@@ -25,6 +26,7 @@ from collections import deque
 from creatures.clock import WallClock
 from midi.notes import NoteEvent
 from midi.osc import OscListener, OscSender
+from midi.peer_table import PeerTable
 
 
 def _address(text: str) -> tuple[str, int]:
@@ -57,9 +59,8 @@ def main(argv: list[str] | None = None) -> int:
 
     clock = WallClock()
     listener = OscListener(clock, host=args.host, port=args.port)
-    sender = OscSender(args.name)
-    for i, address in enumerate(args.peer):
-        sender.add_peer(f"peer{i}", address)
+    table = PeerTable(args.peer)
+    sender = OscSender(args.name, peers=table.targets)
     memory: deque[NoteEvent] = deque(maxlen=64)
     running = True
 
@@ -76,6 +77,7 @@ def main(argv: list[str] | None = None) -> int:
         while running:
             now = clock.now()
             if now >= next_hello:
+                table.expire(now)
                 sender.hello(listener.port)
                 sender.state({"remembered": len(memory)})
                 next_hello = now + args.hello_every
@@ -84,10 +86,7 @@ def main(argv: list[str] | None = None) -> int:
                     continue
                 if heard.kind == "hello":
                     address = (heard.sender[0], heard.args[0])
-                    if sender.peers.get(heard.creature) != address:
-                        # A named peer replaces the same address given on the command line.
-                        sender.peers = {k: v for k, v in sender.peers.items() if v != address}
-                        sender.add_peer(heard.creature, address)
+                    if table.meet(heard.creature, address, now) in ("new", "moved"):
                         _say(event="hello", name=heard.creature, port=address[1])
                 elif heard.kind == "note":
                     memory.append(heard.note)
@@ -96,7 +95,7 @@ def main(argv: list[str] | None = None) -> int:
                 elif heard.kind == "state":
                     _say(event="state", name=heard.creature, key=heard.args[0], value=heard.args[1])
                 elif heard.kind == "bye":
-                    sender.peers.pop(heard.creature, None)
+                    table.part(heard.creature)
             if now >= next_play:
                 played = memory.popleft() if memory else NoteEvent(now, args.seed_pitch, 90, 0, 0.2)
                 sender.note(transform(played, args.transpose))

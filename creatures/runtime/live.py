@@ -54,6 +54,7 @@ class LiveSummary:
     restored: list[str] = field(default_factory=list)
     messages: list[str] = field(default_factory=list)
     sound: str = ""  # where the mix went: "live at 44100 Hz (resampled from 22050 Hz)" or "silent: why"
+    network: dict[str, object] | None = None  # the OSC counters (Network.counts) when [osc] port is set
 
 
 class LiveInputs:
@@ -73,7 +74,8 @@ class LiveInputs:
                                       report=lambda m: say(f"MIDI input: {m}; {HELP}"))
         self.network = None
         if settings.osc.port is not None:
-            self.network = Network(settings.osc, session.world, clock, say)
+            self.network = Network(settings.osc, session.world, clock, say,
+                                   where=lambda key, message: inst.error(("osc", key), message))
 
     def poll(self, t: float) -> int:
         """Notes that arrived join the note bus at time ``t``; returns how many."""
@@ -235,6 +237,8 @@ def run_live(
             if bodies is not None:
                 bodies.close()
             inputs.close()
+            if inputs.network is not None:
+                summary.network = inputs.network.counts()
             log.close()
     summary.seconds = wall.now() - start
     summary.ticks = session.ticks

@@ -48,6 +48,12 @@ class OscSection(Strict):
     host: str = Field("127.0.0.1", description="address OSC listeners bind to (loopback by default)")
     port: int | None = Field(None, ge=1024, le=65535, description="UDP port to listen on; none = no OSC")
     peers: list[str] = Field(default_factory=list, description="host:port of other colonies to send notes to")
+    max_peers: int = Field(64, ge=1, le=1024, description="remote creatures learned from hellos kept at once; "
+                                                         "hellos beyond, or faster than 2 new a second, are "
+                                                         "refused and counted (the network is no amplifier)")
+    max_rate: int = Field(10_000, ge=100, le=1_000_000, description="OSC packets read per second at most; a "
+                                                                    "flood beyond is dropped by the kernel and "
+                                                                    "counted, and the creatures keep their time")
 
 
 class InputSection(Strict):
@@ -93,10 +99,16 @@ class Installation(Strict):
 class LoadedInstallation:
     """A validated installation: its top-level settings and each creature's typed spec."""
 
-    def __init__(self, path: Path, settings: Installation, specs: list[CreatureSpec]) -> None:
+    def __init__(self, path: Path, settings: Installation, specs: list[CreatureSpec],
+                 where: dict[tuple, tuple[Path, int]] | None = None) -> None:
         self.path = path
         self.settings = settings
         self.specs = specs
+        self.where = where or {}  # key path -> (file, line), for errors found after loading
+
+    def error(self, loc: tuple[str | int, ...], message: str) -> ConfigError:
+        """A :class:`ConfigError` at key ``loc`` found while running (a busy port): file and line."""
+        return config_error(self.path, self.where, loc, message)
 
     def resolve(self, relative: str | None) -> Path | None:
         """A path from the config, relative to the config's own directory."""
@@ -126,7 +138,7 @@ def load_installation(path: str | Path) -> LoadedInstallation:
         file = getattr(settings.input, key)
         if file is not None and not (path.parent / file).exists():
             raise config_error(path, where, ("input", key), f"file not found: {file}")
-    return LoadedInstallation(path, settings, specs)
+    return LoadedInstallation(path, settings, specs, where)
 
 
 __all__ = ["ConfigError", "Installation", "LoadedInstallation", "load_installation"]
