@@ -5,9 +5,14 @@ though a UDP protocol"; "listen" creatures use the same protocol).
 Address space. Every creature speaks under its own name (``[A-Za-z0-9_.-]``, at most 64
 characters), so a colony of three sends from three addresses:
 
-``/creature/<name>/hello port:int``
+``/creature/<name>/hello port:int [token:int]``
     "I am here; reach me at my sender address on ``port``." Sent on start and twice a second
-    after, so a restarted creature is found again without configuration.
+    after, so a restarted creature is found again without configuration. A colony that does
+    not know the address answers with an ``ask``; the hello is believed once it carries the
+    asked ``token`` (:mod:`midi.peer_table`: the network is not an amplifier).
+``/creature/<name>/ask token:int``
+    "I hear you; to be heard, say hello to me (at the address this comes from: a colony's
+    listening socket) with ``token``." Never larger than the hello it answers.
 ``/creature/<name>/note pitch:int velocity:int duration:float [channel:int]``
     A note the creature plays now: pitch 0–127, velocity 1–127, duration in seconds ≥ 0,
     MIDI channel 0–15 (default 0). The hearer stamps it with its own clock.
@@ -58,12 +63,13 @@ from pythonosc.osc_packet import OscPacket
 
 from creatures.clock import Clock
 from midi.notes import NoteEvent
+from midi.peer_table import Bucket, PeerTable
 
 logger = logging.getLogger(__name__)
 
 MAX_PACKET = 1024  # bytes; every message of this protocol is far smaller
 NAME = re.compile(r"[A-Za-z0-9_.\-]{1,64}")
-_ADDRESS = re.compile(r"/creature/([^/]+)/(hello|note|state|bye)")
+_ADDRESS = re.compile(r"/creature/([^/]+)/(hello|ask|note|state|bye)")
 
 MAX_DURATION = 60.0
 """Seconds: a heard note longer than this is heard as this long (a drone of a minute is
@@ -106,12 +112,13 @@ class Heard:
     sender: tuple[str, int]
     note: NoteEvent | None = None
     clamped: bool = False
+    size: int = 0  # bytes of the message on the wire (an answer to it must not be larger)
 
 
 _STATE_KEY = re.compile(r"[^\x00-\x1f]{1,64}")
 
 
-def decode(address: str, args: list, time: float, sender: tuple[str, int]) -> Heard:
+def decode(address: str, args: list, time: float, sender: tuple[str, int], size: int = 0) -> Heard:
     """Check one OSC message against the address space and bound its arguments;
     :class:`Refused` (a ValueError) if it does not fit."""
     match = _ADDRESS.fullmatch(address)
@@ -122,8 +129,11 @@ def decode(address: str, args: list, time: float, sender: tuple[str, int]) -> He
     note = None
     clamped = False
     if kind == "hello":
-        if types != (int,) or not 0 < args[0] < 65536:
-            raise Refused("arguments", f"{address}: expects one port number, got {args!r}")
+        if types not in ((int,), (int, int)) or not 0 < args[0] < 65536:
+            raise Refused("arguments", f"{address}: expects one port number [token], got {args!r}")
+    elif kind == "ask":
+        if types != (int,):
+            raise Refused("arguments", f"{address}: expects one token, got {args!r}")
     elif kind == "note":
         if types not in ((int, int, float), (int, int, float, int), (int, int, int), (int, int, int, int)):
             raise Refused("arguments", f"{address}: expects pitch velocity duration [channel], got {args!r}")
@@ -153,7 +163,7 @@ def decode(address: str, args: list, time: float, sender: tuple[str, int]) -> He
         args = [key, value]
     elif args:
         raise Refused("arguments", f"{address}: expects no arguments, got {args!r}")
-    return Heard(creature, kind, time, tuple(args), sender, note, clamped)
+    return Heard(creature, kind, time, tuple(args), sender, note, clamped, size)
 
 
 def check_wire(data: bytes, depth: int = 0) -> None:
@@ -218,8 +228,9 @@ class OscListener:
         self.received = 0  # messages accepted
         self.received_bytes = 0  # every datagram read, taken or not
         self.clamped = 0
+        self.sent_bytes = 0  # asks (answers to hellos, midi.peer_table)
         self.dropped: Counter[str] = Counter()
-        self._tokens, self._filled = max_rate / 4, time.monotonic()  # a quarter second's burst
+        self._budget = Bucket(max_rate, max(max_rate / 4, 1.0))  # a quarter second's burst at once
 
     def _setup(self, host: str, port: int, receive_buffer: int) -> None:
         self.socket.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, receive_buffer)
@@ -251,28 +262,17 @@ class OscListener:
 
         While this second's ``max_rate`` is spent it sleeps instead: under a flood the socket
         is always readable, and a loop woken by it at once would spin on a full core."""
-        self._refill()
-        if self._tokens < 1.0:
+        if self._budget.fill(time.monotonic()) < 1.0:
             time.sleep(max(0.0, timeout))
             return False
         return bool(select.select([self.socket], [], [], max(0.0, timeout))[0])
-
-    def _refill(self) -> None:
-        """``max_rate`` packets a second of real time, a quarter second's worth at most."""
-        now = time.monotonic()
-        self._tokens = min(self.max_rate / 4, self._tokens + (now - self._filled) * self.max_rate)
-        self._filled = now
-
-    def _allowance(self, limit: int) -> int:
-        """Packets this poll may read, so a flood costs the creatures a bounded share of the CPU."""
-        self._refill()
-        return min(limit, int(self._tokens))
 
     def poll(self, *, limit: int = 512) -> list[Heard]:
         """What has arrived, at most ``limit`` packets per call (and ``max_rate`` a second)."""
         heard: list[Heard] = []
         now = self.clock.now()
-        allowed = self._allowance(limit)
+        # max_rate packets a second of real time: a flood costs the creatures a bounded share of the CPU
+        allowed = min(limit, int(self._budget.fill(time.monotonic())))
         taken = 0
         while taken < allowed:
             try:
@@ -300,15 +300,31 @@ class OscListener:
                 continue
             for timed in messages:
                 try:
-                    message = decode(timed.message.address, list(timed.message.params), now, sender)
+                    message = decode(timed.message.address, list(timed.message.params), now, sender,
+                                     timed.message.size)
                 except Refused as refused:
                     self.dropped[refused.cause] += 1
                 else:
                     heard.append(message)
                     self.received += 1
                     self.clamped += message.clamped
-        self._tokens -= taken
+        self._budget.tokens -= taken
         return heard
+
+    def ask(self, address: tuple[str, int], name: str, token: int, *, at_most: int) -> bool:
+        """Ask ``address``, as creature ``name``, to say hello with ``token``: from this socket,
+        so the asked colony knows where we listen; only if that takes no more than ``at_most``
+        bytes (the size of the hello that provoked it). True if sent."""
+        builder = OscMessageBuilder(f"/creature/{name}/ask")
+        builder.add_arg(token, "i")
+        dgram = builder.build().dgram
+        if len(dgram) > at_most:
+            return False
+        try:
+            self.sent_bytes += self.socket.sendto(dgram, address)
+        except OSError:
+            return False
+        return True
 
     def counts(self) -> dict[str, object]:
         """The counters, for the events log and the end-of-run summary."""
@@ -339,8 +355,13 @@ class OscSender:
         """Speak to ``address`` as peer ``name`` (a newer hello replaces an older address)."""
         self.peers[name] = address
 
-    def hello(self, port: int) -> None:
-        self._send("hello", [port])
+    def hello(self, port: int, tokens: dict[str, int] | None = None) -> None:
+        """Hello to every peer; to those in ``tokens`` (peer key → token it asked for) with it."""
+        plain = self._message("hello", [port]).dgram
+        for peer, address in self.peers.items():
+            token = tokens.get(peer) if tokens else None
+            self._send_to(plain if token is None else self._message("hello", [port, token]).dgram, address)
+
 
     def note(self, note: NoteEvent) -> None:
         self._send("note", [note.pitch, note.velocity, float(note.duration), note.channel])
@@ -366,10 +387,26 @@ class OscSender:
 
     def _deliver(self, dgram: bytes) -> None:
         for address in self.peers.values():
-            try:
-                self.sent_bytes += self.socket.sendto(dgram, address)
-            except OSError:  # a peer that is gone must not stop the others hearing us
-                self.send_errors += 1
+            self._send_to(dgram, address)
+
+    def _send_to(self, dgram: bytes, address: tuple[str, int]) -> None:
+        try:
+            self.sent_bytes += self.socket.sendto(dgram, address)
+        except OSError:  # a peer that is gone must not stop the others hearing us
+            self.send_errors += 1
 
     def close(self) -> None:
         self.socket.close()
+
+
+def answer_hello(table: PeerTable, listener: OscListener, name: str, heard: Heard, t: float) -> str:
+    """Take a hello into ``table`` (:meth:`PeerTable.hello`): an address not yet proved is asked
+    for its token by ``listener`` as creature ``name``, if no larger than the hello; the verdict."""
+    address = (heard.sender[0], heard.args[0])
+    verdict = table.hello(heard.creature, address, heard.args[1] if len(heard.args) == 2 else None, t)
+    if verdict == "ask":
+        if listener.ask(address, name, table.token(address), at_most=heard.size):
+            table.asked += 1
+        else:
+            table.refused["large"] += 1
+    return verdict

@@ -25,7 +25,7 @@ from collections import deque
 
 from creatures.clock import WallClock
 from midi.notes import NoteEvent
-from midi.osc import OscListener, OscSender
+from midi.osc import OscListener, OscSender, answer_hello
 from midi.peer_table import PeerTable
 
 
@@ -78,16 +78,17 @@ def main(argv: list[str] | None = None) -> int:
             now = clock.now()
             if now >= next_hello:
                 table.expire(now)
-                sender.hello(listener.port)
+                sender.hello(listener.port, table.echo)
                 sender.state({"remembered": len(memory)})
                 next_hello = now + args.hello_every
             for heard in listener.poll():
                 if heard.creature == args.name:
                     continue
                 if heard.kind == "hello":
-                    address = (heard.sender[0], heard.args[0])
-                    if table.meet(heard.creature, address, now) in ("new", "moved"):
-                        _say(event="hello", name=heard.creature, port=address[1])
+                    if answer_hello(table, listener, args.name, heard, now) in ("new", "moved"):
+                        _say(event="hello", name=heard.creature, port=heard.args[0])
+                elif heard.kind == "ask":
+                    table.was_asked(heard.sender, heard.args[0])
                 elif heard.kind == "note":
                     memory.append(heard.note)
                     _say(event="heard", name=heard.creature, pitch=heard.note.pitch,

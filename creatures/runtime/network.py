@@ -28,7 +28,7 @@ from creatures.clock import Clock
 from creatures.config import ConfigError
 from creatures.runtime.schema import OscSection
 from midi.notes import NoteEvent
-from midi.osc import Heard, OscListener, OscSender
+from midi.osc import Heard, OscListener, OscSender, answer_hello
 from midi.peer_table import Address, PeerTable
 from midi.peer_table import key as peer_key
 
@@ -107,6 +107,7 @@ class Network:
         self.table = PeerTable(configured, max_peers=osc.max_peers)
         self.peers = self.table.targets  # shared by every sender
         self.senders = {c.name: OscSender(c.name, peers=self.peers) for c in world.creatures}
+        self._asker = min(self.senders, key=len)  # the shortest name makes the shortest ask
         self.refused_state = 0  # state values refused: too many remote creatures or keys
         self._next_state = -float("inf")
         self._next_counts = 0.0
@@ -134,7 +135,7 @@ class Network:
             self._left(name, "silent")
         for creature in self.world.creatures:
             sender = self.senders[creature.name]
-            sender.hello(self.listener.port)
+            sender.hello(self.listener.port, self.table.echo)
             sender.state(shown_state(creature, t))
 
     def poll(self, t: float) -> int:
@@ -153,6 +154,8 @@ class Network:
                     said.setdefault(heard.creature, {})[key] = value
             elif heard.kind == "hello":
                 self._meet(heard, t)
+            elif heard.kind == "ask":
+                self.table.was_asked(heard.sender, heard.args[0])
             elif self.table.part(heard.creature):
                 self._left(heard.creature, "bye")
             else:
@@ -175,9 +178,8 @@ class Network:
         return True
 
     def _meet(self, heard: Heard, t: float) -> None:
-        address = (heard.sender[0], heard.args[0])
-        if self.table.meet(heard.creature, address, t) in ("new", "moved"):
-            self.world.emit("peer", creature=heard.creature, address=peer_key(address))
+        if answer_hello(self.table, self.listener, self._asker, heard, t) in ("new", "moved"):
+            self.world.emit("peer", creature=heard.creature, address=peer_key(self.table.where[heard.creature]))
 
     def _left(self, creature: str, why: str) -> None:
         self.world.peers.pop(creature, None)
@@ -185,14 +187,16 @@ class Network:
 
     def counts(self) -> dict[str, object]:
         """Every network counter: what came in (``received``, bytes, ``clamped``, ``dropped``
-        by cause), whom it refused (``refused``: hellos when full or too fast, state values),
+        by cause), whom it asked to prove a hello (``asked``) and refused (``refused``: hellos
+        when full or too fast, asks too large, state values),
         how many peers it has, what went out (``sent_bytes``, ``send_errors``), and how many
         library log lines were left out (:mod:`creatures.log_limit`)."""
         refused = dict(self.table.refused)
         if self.refused_state:
             refused["state"] = self.refused_state
-        return {**self.listener.counts(), "refused": refused, "peers": len(self.table.where),
-                "sent_bytes": sum(s.sent_bytes for s in self.senders.values()),
+        return {**self.listener.counts(), "refused": refused, "asked": self.table.asked,
+                "peers": len(self.table.where),
+                "sent_bytes": self.listener.sent_bytes + sum(s.sent_bytes for s in self.senders.values()),
                 "send_errors": sum(s.send_errors for s in self.senders.values()),
                 "log_suppressed": log_limit.suppressed()}
 
