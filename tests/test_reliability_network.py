@@ -31,6 +31,7 @@ from midi.notes import NoteEvent
 from midi.osc import MAX_DURATION, MAX_PACKET, MAX_STATE_VALUE, MAX_TEXT, OscListener, Refused, decode
 from midi.peer_table import ADMIT_BURST, ASK_RATE, PeerTable
 from midi.sinks import MemorySink
+from test_runtime_network import colony, free_port
 
 
 def osc(address: str, *args, doubles: bool = False) -> bytes:
@@ -38,12 +39,6 @@ def osc(address: str, *args, doubles: bool = False) -> bytes:
     for arg in args:
         builder.add_arg(arg, "d" if doubles and isinstance(arg, float) else None)
     return builder.build().dgram
-
-
-def free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def drain(network: Network, t: float, expected: int, timeout: float = 10.0) -> None:
@@ -288,15 +283,6 @@ def test_a_colony_learned_only_from_its_hellos_is_heard_once_it_answers_the_ask(
     assert net_b.table.asked == 1 and net_b.where == {"ada": ("127.0.0.1", port_a)}
     assert net_a.table.echo == {f"127.0.0.1:{port_b}": net_b.table.token(("127.0.0.1", port_a))}
     assert "boredom" in a.world.peers["bo"]
-
-
-def colony(tmp_path, name: str, port: int, peers: list[int]) -> tuple[Session, Network]:
-    config = tmp_path / f"{name}.toml"
-    config.write_text(f'title = "{name}"\n[[creature]]\nname = "{name}"\nkind = "exchange"\n')
-    clock = SimulatedClock()
-    session = Session(load_installation(config), clock, EventLog(), MemorySink())
-    osc_section = OscSection(port=port, peers=[f"127.0.0.1:{p}" for p in peers])
-    return session, Network(osc_section, session.world, clock, say=print)
 
 
 def test_the_table_admits_at_a_bounded_rate_and_forgets_the_silent():
