@@ -52,6 +52,19 @@ class RateLimit(logging.Filter):
                 for (name, path, line), (_, n) in self._windows.items() if n]
 
 
+class _Stderr(logging.StreamHandler):
+    """Writes to whatever ``sys.stderr`` is when a record comes (tests and embedding programs
+    swap it; a handler holding the stream of its creation would write to a closed file)."""
+
+    @property
+    def stream(self):  # type: ignore[override]
+        return sys.stderr
+
+    @stream.setter
+    def stream(self, _: object) -> None:
+        pass
+
+
 _installed: RateLimit | None = None
 
 
@@ -61,12 +74,10 @@ def install(interval: float = INTERVAL) -> RateLimit:
     global _installed
     if _installed is None:
         _installed = RateLimit(interval)
-        handler = logging.StreamHandler(sys.stderr)
+        handler = _Stderr()
         handler.setFormatter(logging.Formatter("%(levelname)s %(name)s: %(message)s"))
         handler.addFilter(_installed)
-        root = logging.getLogger()
-        root.addHandler(handler)
-        root.setLevel(logging.WARNING)
+        logging.getLogger().addHandler(handler)
     return _installed
 
 

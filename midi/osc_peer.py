@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import json
 import signal
+import socket
 import sys
 from collections import deque
 
@@ -30,8 +31,9 @@ from midi.peer_table import PeerTable
 
 
 def _address(text: str) -> tuple[str, int]:
+    """``HOST:PORT`` with the host resolved, as asks from that peer will come from it."""
     host, _, port = text.rpartition(":")
-    return host or "127.0.0.1", int(port)
+    return socket.gethostbyname(host or "127.0.0.1"), int(port)
 
 
 def _say(**event: object) -> None:
