@@ -22,6 +22,7 @@ import installations
 from bench.flood import packets
 from creatures import cli
 from creatures.clock import SimulatedClock
+from creatures.config import ConfigError
 from creatures.events import EventLog
 from creatures.log_limit import RateLimit
 from creatures.runtime.network import Network, describe
@@ -385,3 +386,17 @@ def test_an_osc_port_in_use_is_one_config_error(tmp_path, capsys):
     assert err.strip() == (f"creatures: {config}:3: osc.port: OSC port {port} is already in use (another "
                            "colony or program listens there; choose another [osc] port)")
     assert "running" not in out
+
+
+@pytest.mark.parametrize("peer,why", [
+    ("127.0.0.1:99999", "a port in 1..65535"),
+    ("127.0.0.1", "a port in 1..65535"),
+    ("::1:9000", "is IPv6: OSC here speaks IPv4 only"),
+])
+def test_a_peer_that_no_socket_could_send_to_is_a_config_error(tmp_path, peer, why):
+    """Before, a port of 99999 passed and every send raised OverflowError mid-run."""
+    config = tmp_path / "c.toml"
+    config.write_text(f'title = "t"\n[osc]\nport = 9000\npeers = ["{peer}"]\n[[creature]]\nname = "ada"\nkind = "exchange"\n')
+    with pytest.raises(ConfigError, match=why) as error:
+        load_installation(config)
+    assert (error.value.key, error.value.line) == ("osc.peers.0", 4)

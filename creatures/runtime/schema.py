@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import difflib
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 
 from creatures.config import ConfigError, config_error, read_toml, validate
 from creatures.kinds import CreatureSpec, load_all
@@ -42,12 +42,23 @@ class MidiSection(Strict):
     output_port: str | None = Field(None, description="live MIDI output port name or pattern")
 
 
+def _peer(text: str) -> str:
+    """``host:port`` with an IPv4 host (or none: 127.0.0.1) and a port in 1..65535."""
+    host, colon, port = text.rpartition(":")
+    if not colon or not port.isdigit() or not 0 < int(port) < 65536:
+        raise ValueError(f"a peer is host:port with a port in 1..65535, got {text!r}")
+    if ":" in host or host.startswith("["):
+        raise ValueError(f"peer {text!r} is IPv6: OSC here speaks IPv4 only")
+    return text
+
+
 class OscSection(Strict):
     """OSC (UDP) between colonies and to other tools."""
 
     host: str = Field("127.0.0.1", description="address OSC listeners bind to (loopback by default)")
     port: int | None = Field(None, ge=1024, le=65535, description="UDP port to listen on; none = no OSC")
-    peers: list[str] = Field(default_factory=list, description="host:port of other colonies to send notes to")
+    peers: list[Annotated[str, AfterValidator(_peer)]] = Field(
+        default_factory=list, max_length=256, description="host:port of other colonies to send notes to")
     max_peers: int = Field(64, ge=1, le=1024, description="remote creatures learned from hellos kept at once; "
                                                          "hellos beyond, or faster than 2 new a second, are "
                                                          "refused and counted (the network is no amplifier)")
