@@ -399,4 +399,4 @@ def test_a_peer_that_no_socket_could_send_to_is_a_config_error(tmp_path, peer, w
     config.write_text(f'title = "t"\n[osc]\nport = 9000\npeers = ["{peer}"]\n[[creature]]\nname = "ada"\nkind = "exchange"\n')
     with pytest.raises(ConfigError, match=why) as error:
         load_installation(config)
-    assert (error.value.key, error.value.line) == ("osc.peers.0", 4)
+    assert (error.value.key, error.value.line) == ("osc.peers", 4)

@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import difflib
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Any
 
-from pydantic import AfterValidator, BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from creatures.config import ConfigError, config_error, read_toml, validate
 from creatures.kinds import CreatureSpec, load_all
@@ -57,14 +57,16 @@ class OscSection(Strict):
 
     host: str = Field("127.0.0.1", description="address OSC listeners bind to (loopback by default)")
     port: int | None = Field(None, ge=1024, le=65535, description="UDP port to listen on; none = no OSC")
-    peers: list[Annotated[str, AfterValidator(_peer)]] = Field(
-        default_factory=list, max_length=256, description="host:port of other colonies to send notes to")
+    peers: list[str] = Field(default_factory=list, max_length=256,
+                             description="host:port of other colonies to send notes to (IPv4)")
     max_peers: int = Field(64, ge=1, le=1024, description="remote creatures learned from hellos kept at once; "
                                                          "hellos beyond, or faster than 2 new a second, are "
                                                          "refused and counted (the network is no amplifier)")
     max_rate: int = Field(2_000, ge=100, le=1_000_000, description="OSC packets read per second at most; a "
                                                                     "flood beyond is dropped by the kernel and "
                                                                     "counted, and the creatures keep their time")
+
+    _peers = field_validator("peers")(lambda peers: [_peer(p) for p in peers])
 
 
 class InputSection(Strict):
