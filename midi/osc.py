@@ -106,7 +106,7 @@ class Refused(ValueError):
 
 @dataclass(frozen=True, slots=True)
 class Heard:
-    """One message from another creature: ``kind`` is hello/note/state/bye; ``note`` is set
+    """One message from another creature: ``kind`` is hello/ask/note/state/bye; ``note`` is set
     for notes, ``args`` holds the decoded (bounded) arguments, ``sender`` the UDP source
     address; ``clamped`` says an argument was brought into bounds."""
 
@@ -190,7 +190,7 @@ def check_wire(data: bytes, depth: int = 0) -> None:
             index += size
         return
     if not data.startswith(b"/creature/"):
-        raise Refused("address", "not in the creature address space")
+        raise Refused("address" if data[:1] == b"/" else "not osc", "not in the creature address space")
     end = data.find(b"\x00")
     tags = (end + 4) & ~3
     if end < 0 or data[tags:tags + 1] != b",":
@@ -231,7 +231,7 @@ class OscListener:
             raise
         self.port: int = self.socket.getsockname()[1]
         self.received = 0  # messages accepted
-        self.received_bytes = 0  # every datagram read, taken or not
+        self.received_bytes = 0  # every datagram read, taken or not (an oversize one: what was read of it)
         self.clamped = 0
         self.sent_bytes = 0  # asks (answers to hellos, midi.peer_table)
         self.dropped: Counter[str] = Counter()
