@@ -227,6 +227,6 @@ def describe(counts: dict[str, object]) -> str:
     causes = ", ".join(f"{n} {cause}" for cause, n in dropped.items() if n)
     return (f"OSC {counts['received']} messages taken ({counts['clamped']} clamped), "
             f"{sum(dropped.values())} dropped{f' ({causes})' if causes else ''}, "
-            f"{sum(refused.values())} refused, {counts['peers']} peers; "
+            f"{counts['asked']} asked, {sum(refused.values())} refused, {counts['peers']} peers; "
             f"{counts['received_bytes']} bytes in, {counts['sent_bytes']} out; "
             f"{counts['log_suppressed']} log lines not shown")
