@@ -22,7 +22,8 @@ other hosts by forging the hello's source address). So what a hello can earn is 
 
 Refusals are counted (``refused``: ``rate`` — asks and admissions too fast —, ``full``,
 ``large`` — an ask would have been larger than its hello) for the events log and the
-end-of-run summary. Configured peers are trusted: never asked, refused nor forgotten.
+end-of-run summary. Configured addresses are trusted: never asked, and always spoken to
+(the names heard from them still count against ``max_peers``).
 """
 
 from __future__ import annotations
