@@ -30,6 +30,7 @@ from pythonosc.osc_message_builder import OscMessageBuilder
 
 import installations
 from bench import Row
+from creatures.runtime.schema import OscSection
 
 SECONDS = 10.0
 """Length of the flood (the issue's)."""
@@ -120,6 +121,7 @@ def _free_port() -> int:
 def flood_colony(folder: Path, *, seconds: float = SECONDS, installation: str = "sandstone") -> FloodResult:
     """Run ``installation`` live with OSC on, flood it for ``seconds`` from another process
     once it says hello (to a listener standing for a peer colony), and read what it did."""
+    folder.mkdir(parents=True, exist_ok=True)
     port, probe = _free_port(), socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     probe.bind(("127.0.0.1", 0))
     probe.settimeout(60.0)
@@ -152,7 +154,7 @@ def flood_colony(folder: Path, *, seconds: float = SECONDS, installation: str = 
     final = network[-1]
     return FloodResult(
         ticks=int(match[2]), expected_ticks=int(float(match[1]) / tick), peers=max(r["peers"] for r in network),
-        max_peers=64, bytes_in=final["received_bytes"], bytes_out=final["sent_bytes"],
+        max_peers=OscSection().max_peers, bytes_in=final["received_bytes"], bytes_out=final["sent_bytes"],
         sent_packets=sent["packets"], sent_bytes=sent["bytes"], stderr_lines=len(err.splitlines()),
         dropped=final["dropped"], summary=summary)
 
