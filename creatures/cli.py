@@ -124,9 +124,9 @@ NO_STATE = ("no state directory: learned state will not be kept (nothing is save
 
 @command("run", "run an installation live with its configured devices (Ctrl-C stops cleanly)", _run_options)
 def _run(args: argparse.Namespace) -> int:
+    from creatures import log_limit
     from creatures.config import ConfigError
     from creatures.persist import StateFileError
-    from creatures import log_limit
     from creatures.runtime.live import run_live
     from creatures.runtime.network import describe
     from creatures.runtime.schema import load_installation

@@ -59,14 +59,18 @@ class OscSection(Strict):
     port: int | None = Field(None, ge=1024, le=65535, description="UDP port to listen on; none = no OSC")
     peers: list[str] = Field(default_factory=list, max_length=256,
                              description="host:port of other colonies to send notes to (IPv4)")
-    max_peers: int = Field(64, ge=1, le=1024, description="remote creatures learned from hellos kept at once; "
-                                                         "hellos beyond, or faster than 2 new a second, are "
-                                                         "refused and counted (the network is no amplifier)")
+    max_peers: int = Field(64, ge=1, le=1024, description="remote creatures learned from (proved) hellos kept "
+                                                         "at once; hellos beyond, or faster than 2 new a "
+                                                         "second, are refused and counted (the network is "
+                                                         "no amplifier: see README)")
     max_rate: int = Field(2_000, ge=100, le=1_000_000, description="OSC packets read per second at most; a "
                                                                     "flood beyond is dropped by the kernel and "
                                                                     "counted, and the creatures keep their time")
 
-    _peers = field_validator("peers")(lambda peers: [_peer(p) for p in peers])
+    @field_validator("peers")
+    @classmethod
+    def _peers(cls, peers: list[str]) -> list[str]:
+        return [_peer(peer) for peer in peers]
 
 
 class InputSection(Strict):
