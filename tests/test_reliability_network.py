@@ -400,3 +400,14 @@ def test_a_peer_that_no_socket_could_send_to_is_a_config_error(tmp_path, peer, w
     with pytest.raises(ConfigError, match=why) as error:
         load_installation(config)
     assert (error.value.key, error.value.line) == ("osc.peers", 4)
+
+
+def test_the_cli_installs_the_limit_for_its_runs(capsys):
+    """Whatever library logs, through the CLI one call site gives one line per interval."""
+    assert cli.main(["version"]) == 0
+    capsys.readouterr()
+    noisy = logging.getLogger("some.library")
+    for i in range(500):
+        noisy.warning("bad thing %d", i)  # one call site: one cause
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and "bad thing" in err[0]
