@@ -82,10 +82,11 @@ is still a count)."""
 MAX_TEXT = 128
 """Characters: the longest state text (``action`` joins active action names) accepted."""
 
-MAX_RATE = 2_000
+MAX_RATE = 1_000
 """Packets a second a listener reads by default: far above what a colony says (a few dozen a
-second per creature) and a small share of one core (about 25 µs a packet, so 5 %); a flood
-beyond it is left to the kernel."""
+second per creature) and a small share of one core (about 25 µs a packet: 2.5 %); a flood
+beyond it is left to the kernel (at 2,000 a second a sand:stone run on a loaded machine still
+lost a second now and then under a flood; at 1,000 it did not)."""
 
 BURST = 2_500
 """Packets read at once after a quiet spell, whatever ``max_rate`` (a burst of 2,000 notes is

@@ -63,7 +63,7 @@ class OscSection(Strict):
                                                          "at once; hellos beyond, or faster than 2 new a "
                                                          "second, are refused and counted (the network is "
                                                          "no amplifier: see README)")
-    max_rate: int = Field(2_000, ge=100, le=1_000_000, description="OSC packets read per second at most; a "
+    max_rate: int = Field(1_000, ge=100, le=1_000_000, description="OSC packets read per second at most; a "
                                                                     "flood beyond is dropped by the kernel and "
                                                                     "counted, and the creatures keep their time")
 
