@@ -126,6 +126,7 @@ NO_STATE = ("no state directory: learned state will not be kept (nothing is save
 
 @command("run", "run an installation live with its configured devices (Ctrl-C stops cleanly)", _run_options)
 def _run(args: argparse.Namespace) -> int:
+    from creatures import log_limit
     from creatures.config import ConfigError
     from creatures.lock import hold
     from creatures.paths import directory
@@ -133,6 +134,7 @@ def _run(args: argparse.Namespace) -> int:
     from creatures.runtime.live import run_live
     from creatures.runtime.ticking import LATE_TICK
     from midi.sinks import LATE_NOTE
+    from creatures.runtime.network import describe
     from creatures.runtime.schema import load_installation
 
     try:
@@ -151,9 +153,10 @@ def _run(args: argparse.Namespace) -> int:
         print(f"creatures: {exc}", file=sys.stderr)
         return 2
     restored = f", restored {', '.join(summary.restored)}" if summary.restored else ""
+    network = f"; {describe(summary.network)}" if summary.network is not None else ""
     print(f"stopped after {summary.seconds:.1f} s: {summary.ticks} ticks, {summary.notes_played} notes, "
           f"{summary.late} late{restored}; sound {summary.sound}; {summary.underruns} audio underruns, "
-          f"{summary.overruns} input overruns")
+          f"{summary.overruns} input overruns{network}")
     if summary.inputs:
         print("outside input: " + ", ".join(f"{summary.inputs.get(what, 0)} {what}"
                                             for what in ("mapped", "unmapped", "malformed", "refused osc")))
@@ -162,6 +165,8 @@ def _run(args: argparse.Namespace) -> int:
           f"{summary.skipped} skips ahead; {summary.late_notes} notes reached the MIDI port more than "
           f"{LATE_NOTE * 1e3:g} ms late" + (f"; {summary.frames_dropped} frames dropped (drawing too slow)"
                                             if summary.frames_dropped else ""))
+    for line in log_limit.install().pending():
+        print(line, file=sys.stderr)
     if summary.log_loss:
         print(f"note: {summary.log_loss}")
     if summary.unsaved:
@@ -252,6 +257,9 @@ def main(argv: list[str] | None = None) -> int:
         # Creatures do many tiny matrix operations; multi-threaded BLAS only fights over the
         # cores for them (measured: scipy's expm on 5x5 went from 15 us to 2 ms under load).
         threadpool_limits(limits=1)
+        from creatures import log_limit
+
+        log_limit.install()  # a library that logs per bad packet must not flood stderr
         return int(args.run(args))
     except KeyboardInterrupt as stopped:  # creatures/stop.py: SIGTERM is raised as Ctrl-C is
         term = isinstance(stopped, stop.Terminated)

@@ -5,9 +5,14 @@ though a UDP protocol"; "listen" creatures use the same protocol).
 Address space. Every creature speaks under its own name (``[A-Za-z0-9_.-]``, at most 64
 characters), so a colony of three sends from three addresses:
 
-``/creature/<name>/hello port:int``
+``/creature/<name>/hello port:int [token:int]``
     "I am here; reach me at my sender address on ``port``." Sent on start and twice a second
-    after, so a restarted creature is found again without configuration.
+    after, so a restarted creature is found again without configuration. A colony that does
+    not know the address answers with an ``ask``; the hello is believed once it carries the
+    asked ``token`` (:mod:`midi.peer_table`: the network is not an amplifier).
+``/creature/<name>/ask token:int``
+    "I hear you; to be heard, say hello to me (at the address this comes from: a colony's
+    listening socket) with ``token``." Never larger than the hello it answers.
 ``/creature/<name>/note pitch:int velocity:int duration:float [channel:int]``
     A note the creature plays now: pitch 0–127, velocity 1–127, duration in seconds ≥ 0,
     MIDI channel 0–15 (default 0). The hearer stamps it with its own clock.
@@ -30,6 +35,17 @@ messages here, ENVIRONMENT.md), parse with ``pythonosc.osc_packet``, and drop an
 packets that are too large or not OSC. Messages outside ``/creature/…`` go to the listener's
 ``elsewhere`` (the colony's input map, :mod:`creatures.runtime.input_map`), or are dropped
 and counted when it has none.
+
+Every argument is bounded at the door (:func:`decode`), because a number that enters here
+ends up in a creature's state and in its saved files (two notes of 1e308 seconds once made a
+sand:stone creature's ear infinite and its state unsavable). What can be clamped without
+changing what the message means is clamped and counted (a velocity above 127, a duration
+above :data:`MAX_DURATION`, a state number beyond :data:`MAX_STATE_VALUE`); what cannot is
+refused and counted (a pitch or channel out of range, a velocity of 0 — a note-off —, a
+negative or non-finite number, a name or text longer than :data:`MAX_TEXT`). A listener reads
+at most ``max_rate`` packets a second (a flood must not starve the creatures; the kernel drops
+the rest, and those are counted too), and checks each packet's type tags before python-osc
+sees it (python-osc logs a warning per unknown tag: one 1 KB packet made 1,000 lines).
 """
 
 from __future__ import annotations
@@ -39,6 +55,9 @@ import math
 import re
 import select
 import socket
+import struct
+import time
+from collections import Counter
 from dataclasses import dataclass
 from typing import Callable
 
@@ -48,18 +67,56 @@ from pythonosc.osc_packet import OscPacket
 
 from creatures.clock import Clock
 from midi.notes import NoteEvent
+from midi.peer_table import Bucket, PeerTable
 
 logger = logging.getLogger(__name__)
 
 MAX_PACKET = 1024  # bytes; every message of this protocol is far smaller
 NAME = re.compile(r"[A-Za-z0-9_.\-]{1,64}")
-_ADDRESS = re.compile(r"/creature/([^/]+)/(hello|note|state|bye)")
+_ADDRESS = re.compile(r"/creature/([^/]+)/(hello|ask|note|state|bye)")
+
+MAX_DURATION = 60.0
+"""Seconds: a heard note longer than this is heard as this long (a drone of a minute is
+already longer than any creature's memory of what it heard)."""
+
+MAX_STATE_VALUE = 1e6
+"""A state number beyond ±this is clamped to it (drives live in 0..1; a count of a million
+is still a count)."""
+
+MAX_TEXT = 128
+"""Characters: the longest state text (``action`` joins active action names) accepted."""
+
+MAX_RATE = 1_000
+"""Packets a second a listener reads by default: far above what a colony says (a few dozen a
+second per creature) and a small share of one core (about 25 µs a packet: 2.5 %); a flood
+beyond it is left to the kernel (at 2,000 a second a sand:stone run on a loaded machine still
+lost a second now and then under a flood; at 1,000 it did not)."""
+
+BURST = 2_500
+"""Packets read at once after a quiet spell, whatever ``max_rate`` (a burst of 2,000 notes is
+taken whole)."""
+
+_TAGS = frozenset(b"ifsdh")  # int32, float32, string, float64, int64: all this protocol uses
+_ANY_TAGS = frozenset(b"ifsdhbrmtTFN[]")  # every type python-osc decodes (it logs on any other)
+MAX_ELSEWHERE_ARGS = 64
+"""Arguments a message for the input map may carry (``[[input]] args`` goes up to 64)."""
+_BUNDLE = b"#bundle\x00"
+_RXQ_OVFL = getattr(socket, "SO_RXQ_OVFL", 40)  # Linux: count of datagrams the kernel dropped
+
+
+class Refused(ValueError):
+    """A message this protocol does not take; ``cause`` names why, for the drop counters."""
+
+    def __init__(self, cause: str, message: str) -> None:
+        super().__init__(message)
+        self.cause = cause
 
 
 @dataclass(frozen=True, slots=True)
 class Heard:
-    """One message from another creature: ``kind`` is hello/note/state/bye; ``note`` is set
-    for notes, ``args`` holds the decoded arguments, ``sender`` the UDP source address."""
+    """One message from another creature: ``kind`` is hello/ask/note/state/bye; ``note`` is set
+    for notes, ``args`` holds the decoded (bounded) arguments, ``sender`` the UDP source
+    address; ``clamped`` says an argument was brought into bounds."""
 
     creature: str
     kind: str
@@ -67,10 +124,14 @@ class Heard:
     args: tuple
     sender: tuple[str, int]
     note: NoteEvent | None = None
+    clamped: bool = False
+    size: int = 0  # bytes of the message on the wire (an answer to it must not be larger)
 
 
 PREFIX = "/creature/"
 """Addresses under this prefix are the creature address space; the rest is for ``elsewhere``."""
+
+_STATE_KEY = re.compile(r"[^\x00-\x1f]{1,64}")
 
 
 def _whole(x: object) -> object:
@@ -78,35 +139,100 @@ def _whole(x: object) -> object:
     return int(x) if type(x) is float and math.isfinite(x) and x == int(x) else x
 
 
-def decode(address: str, args: list, time: float, sender: tuple[str, int]) -> Heard:
-    """Check one OSC message against the address space; ValueError if it does not fit."""
+def decode(address: str, args: list, time: float, sender: tuple[str, int], size: int = 0) -> Heard:
+    """Check one OSC message against the address space and bound its arguments;
+    :class:`Refused` (a ValueError) if it does not fit."""
     match = _ADDRESS.fullmatch(address)
     if match is None or NAME.fullmatch(match[1]) is None:
-        raise ValueError(f"address {address!r} is not in the creature address space")
+        raise Refused("address", f"address {address!r} is not in the creature address space")
     creature, kind = match[1], match[2]
     if kind in ("hello", "note"):  # pitch, velocity, channel, port: ints, sent as floats by many tools
         args = [_whole(a) if i != 2 or kind == "hello" else a for i, a in enumerate(args)]
     types = tuple(type(a) for a in args)
     note = None
+    clamped = False
     if kind == "hello":
-        if types != (int,) or not 0 < args[0] < 65536:
-            raise ValueError(f"{address}: expects one port number, got {args!r}")
+        if types not in ((int,), (int, int)) or not 0 < args[0] < 65536:
+            raise Refused("arguments", f"{address}: expects one port number [token], got {args!r}")
+    elif kind == "ask":
+        if types != (int,):
+            raise Refused("arguments", f"{address}: expects one token, got {args!r}")
     elif kind == "note":
         if types not in ((int, int, float), (int, int, float, int), (int, int, int), (int, int, int, int)):
-            raise ValueError(f"{address}: expects pitch velocity duration [channel], got {args!r}")
-        if not math.isfinite(args[2]):
-            raise ValueError(f"{address}: duration must be finite, got {args[2]!r}")
-        note = NoteEvent(time, args[0], args[1], args[3] if len(args) == 4 else 0, float(args[2]))
+            raise Refused("arguments", f"{address}: expects pitch velocity duration [channel], got {args!r}")
+        velocity, duration = args[1], float(args[2])
+        if not 0 <= duration < math.inf:
+            raise Refused("arguments", f"{address}: duration must be finite and >= 0, got {args[2]!r}")
+        if velocity > 127 or duration > MAX_DURATION:
+            velocity, duration, clamped = min(velocity, 127), min(duration, MAX_DURATION), True
+        try:
+            note = NoteEvent(time, args[0], velocity, args[3] if len(args) == 4 else 0, duration)
+        except ValueError as exc:  # pitch or channel out of range, velocity <= 0: not clampable
+            raise Refused("arguments", f"{address}: {exc}") from None
+        args = [args[0], velocity, duration, note.channel]
     elif kind == "state":
-        if len(args) != 2 or not isinstance(args[0], str) or not isinstance(args[1], (int, float, str)):
-            raise ValueError(f"{address}: expects key value, got {args!r}")
+        if len(args) != 2 or not isinstance(args[0], str) or types[1] not in (int, float, str):
+            raise Refused("arguments", f"{address}: expects key value, got {args!r}")
+        key, value = args
+        if _STATE_KEY.fullmatch(key) is None:
+            raise Refused("arguments", f"{address}: a state key is 1..64 printable characters, got {key!r}")
+        if isinstance(value, str):
+            if len(value) > MAX_TEXT:
+                raise Refused("arguments", f"{address}: state text longer than {MAX_TEXT} characters")
+        elif not math.isfinite(value):
+            raise Refused("arguments", f"{address}: state value must be finite, got {value!r}")
+        elif abs(value) > MAX_STATE_VALUE:
+            value, clamped = type(value)(math.copysign(MAX_STATE_VALUE, value)), True
+        args = [key, value]
     elif args:
-        raise ValueError(f"{address}: expects no arguments, got {args!r}")
-    return Heard(creature, kind, time, tuple(args), sender, note)
+        raise Refused("arguments", f"{address}: expects no arguments, got {args!r}")
+    return Heard(creature, kind, time, tuple(args), sender, note, clamped, size)
+
+
+def check_wire(data: bytes, depth: int = 0, *, elsewhere: bool = False) -> None:
+    """Refuse, before python-osc parses it, a datagram that is not a bundle of (at most 4 deep)
+    or a message with at most 4 arguments of the types this protocol uses, under ``/creature/``.
+    With ``elsewhere`` (an input map takes the other addresses) a message at any other address
+    may carry up to :data:`MAX_ELSEWHERE_ARGS` arguments of any type python-osc decodes.
+
+    Cheap (no parsing of arguments), so a flood of junk costs little; and python-osc never
+    meets an unknown type tag, on which it logs a warning per tag."""
+    if data.startswith(_BUNDLE):
+        if depth >= 4 or len(data) < 16:
+            raise Refused("not osc", "bundle nested too deep or shorter than its header")
+        index = 16
+        while index < len(data):
+            size = struct.unpack_from(">i", data, index)[0] if index + 4 <= len(data) else -1
+            index += 4
+            if size <= 0 or size % 4 or index + size > len(data):
+                raise Refused("not osc", "bundle element of an impossible size")
+            check_wire(data[index:index + size], depth + 1, elsewhere=elsewhere)
+            index += size
+        return
+    ours = data.startswith(b"/creature/")
+    if not ours and not (elsewhere and data[:1] == b"/"):
+        raise Refused("address" if data[:1] == b"/" else "not osc", "not in the creature address space")
+    end = data.find(b"\x00")
+    tags = (end + 4) & ~3
+    if end < 0 or data[tags:tags + 1] != b",":
+        raise Refused("not osc", "no type tag string")
+    stop = data.find(b"\x00", tags)
+    if ours:
+        if stop < 0 or stop - tags > 5 or not _TAGS.issuperset(data[tags + 1:stop]):
+            raise Refused("type tags", "more than 4 arguments, or a type this protocol never sends")
+    elif stop < 0 or stop - tags > MAX_ELSEWHERE_ARGS + 1 or not _ANY_TAGS.issuperset(data[tags + 1:stop]):
+        raise Refused("type tags", f"more than {MAX_ELSEWHERE_ARGS} arguments, or a type python-osc cannot read")
 
 
 class OscListener:
-    """A non-blocking UDP socket read once a tick; never raises on what arrives."""
+    """A non-blocking UDP socket read once a tick; never raises on what arrives.
+
+    ``dropped`` counts what was not taken, by cause: ``oversize``, ``not osc``, ``address``
+    (outside the creature address space), ``type tags``, ``arguments`` (out of bounds) and
+    ``kernel`` (datagrams the kernel dropped because the socket's buffer was full: beyond
+    ``max_rate`` or between slow polls). ``clamped`` counts messages taken with an argument
+    brought into bounds.
+    """
 
     def __init__(
         self,
@@ -117,12 +243,28 @@ class OscListener:
         max_packet: int = MAX_PACKET,
         receive_buffer: int = 1 << 20,
         elsewhere: Callable[[str, list, float], object] | None = None,
+        max_rate: float = MAX_RATE,
     ) -> None:
         """``elsewhere(address, args, time)`` takes every message outside ``/creature/…``."""
         self.clock = clock
         self.elsewhere = elsewhere
         self.max_packet = max_packet
+        self.max_rate = max_rate
         self.socket = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        try:
+            self._setup(host, port, receive_buffer)
+        except BaseException:
+            self.socket.close()
+            raise
+        self.port: int = self.socket.getsockname()[1]
+        self.received = 0  # messages accepted
+        self.received_bytes = 0  # every datagram read, taken or not (an oversize one: what was read of it)
+        self.clamped = 0
+        self.sent_bytes = 0  # asks (answers to hellos, midi.peer_table)
+        self.dropped: Counter[str] = Counter()
+        self._budget = Bucket(max_rate, max(BURST, max_rate / 4))
+
+    def _setup(self, host: str, port: int, receive_buffer: int) -> None:
         self.socket.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, receive_buffer)
         # The kernel may grant less (Linux caps at net.core.rmem_max, often 208 KiB, and reports
         # double what it grants): a burst larger than the buffer between two polls is lost, so say so.
@@ -131,47 +273,101 @@ class OscListener:
             logger.warning("OSC receive buffer is %d bytes, not the %d asked for; bursts of more than "
                            "a few hundred messages per tick may drop (raise net.core.rmem_max)",
                            self.receive_buffer, receive_buffer)
+        try:
+            self.socket.setsockopt(socket.SOL_SOCKET, _RXQ_OVFL, 1)
+        except OSError:  # not Linux: kernel drops go uncounted
+            pass
         self.socket.bind((host, port))
         self.socket.setblocking(False)
-        self.port: int = self.socket.getsockname()[1]
-        self.received = 0  # messages accepted
-        self.malformed = 0  # packets or messages dropped as not OSC / not this protocol
-        self.oversize = 0  # packets dropped for exceeding max_packet
+
+    @property
+    def malformed(self) -> int:
+        """Packets or messages dropped as not OSC or not this protocol (all causes but size)."""
+        return sum(n for cause, n in self.dropped.items() if cause not in ("oversize", "kernel"))
+
+    @property
+    def oversize(self) -> int:
+        return self.dropped["oversize"]
 
     def wait(self, timeout: float) -> bool:
-        """Block up to ``timeout`` seconds for a packet (for loops with nothing else to do)."""
+        """Block up to ``timeout`` seconds for a packet (for loops with nothing else to do).
+
+        While ``max_rate`` is nearly spent (less than 10 ms of it left) it first sleeps until
+        it is back: under a flood the socket is always readable, and a loop woken by it at once,
+        to read a packet or two each time, would spin on a full core."""
+        missing = self.max_rate / 100 - self._budget.fill(time.monotonic())
+        if missing > 0:
+            slept = min(max(0.0, timeout), missing / self.max_rate)
+            time.sleep(slept)
+            timeout -= slept
         return bool(select.select([self.socket], [], [], max(0.0, timeout))[0])
 
-    def poll(self, *, limit: int = 10_000) -> list[Heard]:
-        """Everything that has arrived, at most ``limit`` packets per call."""
+    def poll(self, *, limit: int = 512) -> list[Heard]:
+        """What has arrived, at most ``limit`` packets per call (and ``max_rate`` a second)."""
         heard: list[Heard] = []
         now = self.clock.now()
-        for _ in range(limit):
+        # max_rate packets a second of real time: a flood costs the creatures a bounded share of the CPU
+        allowed = min(limit, int(self._budget.fill(time.monotonic())))
+        taken = 0
+        while taken < allowed:
             try:
-                data, sender = self.socket.recvfrom(self.max_packet + 1)
+                data, ancillary, _, sender = self.socket.recvmsg(self.max_packet + 1, 64)
             except (BlockingIOError, InterruptedError):
                 break
             except OSError:  # e.g. an ICMP error queued on the socket; the next read is fine
                 continue
+            taken += 1
+            for _, kind, value in ancillary:
+                if kind == _RXQ_OVFL and len(value) >= 4:  # the kernel's running count
+                    self.dropped["kernel"] = struct.unpack("=I", value[:4])[0]
+            self.received_bytes += len(data)
             if len(data) > self.max_packet:
-                self.oversize += 1
+                self.dropped["oversize"] += 1
                 continue
             try:
+                check_wire(data, elsewhere=self.elsewhere is not None)
                 messages = OscPacket(data).messages
+            except Refused as refused:
+                self.dropped[refused.cause] += 1
+                continue
             except Exception:  # python-osc raises ParseError, but also struct/index errors
-                self.malformed += 1
+                self.dropped["not osc"] += 1
                 continue
             for timed in messages:
                 if self.elsewhere is not None and not timed.message.address.startswith(PREFIX):
                     self.elsewhere(timed.message.address, list(timed.message.params), now)
                     continue
                 try:
-                    heard.append(decode(timed.message.address, list(timed.message.params), now, sender))
-                except ValueError:
-                    self.malformed += 1
+                    message = decode(timed.message.address, list(timed.message.params), now, sender,
+                                     timed.message.size)
+                except Refused as refused:
+                    self.dropped[refused.cause] += 1
                 else:
+                    heard.append(message)
                     self.received += 1
+                    self.clamped += message.clamped
+        self._budget.tokens -= taken
         return heard
+
+    def ask(self, address: tuple[str, int], name: str, token: int, *, at_most: int) -> bool:
+        """Ask ``address``, as creature ``name``, to say hello with ``token``: from this socket,
+        so the asked colony knows where we listen; only if that takes no more than ``at_most``
+        bytes (the size of the hello that provoked it). True if sent."""
+        builder = OscMessageBuilder(f"/creature/{name}/ask")
+        builder.add_arg(token, "i")
+        dgram = builder.build().dgram
+        if len(dgram) > at_most:
+            return False
+        try:
+            self.sent_bytes += self.socket.sendto(dgram, address)
+        except OSError:
+            return False
+        return True
+
+    def counts(self) -> dict[str, object]:
+        """The counters, for the events log and the end-of-run summary."""
+        return {"received": self.received, "received_bytes": self.received_bytes, "clamped": self.clamped,
+                "dropped": dict(sorted(self.dropped.items()))}
 
     def close(self) -> None:
         self.socket.close()
@@ -190,14 +386,20 @@ class OscSender:
         self.name = name
         self.peers: dict[str, tuple[str, int]] = {} if peers is None else peers
         self.send_errors = 0
+        self.sent_bytes = 0  # bytes that left, to every peer
         self.socket = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
 
     def add_peer(self, name: str, address: tuple[str, int]) -> None:
         """Speak to ``address`` as peer ``name`` (a newer hello replaces an older address)."""
         self.peers[name] = address
 
-    def hello(self, port: int) -> None:
-        self._send("hello", [port])
+    def hello(self, port: int, tokens: dict[str, int] | None = None) -> None:
+        """Hello to every peer; to those in ``tokens`` (peer key → token it asked for) with it."""
+        plain = self._message("hello", [port]).dgram
+        for peer, address in self.peers.items():
+            token = tokens.get(peer) if tokens else None
+            self._send_to(plain if token is None else self._message("hello", [port, token]).dgram, address)
+
 
     def note(self, note: NoteEvent, *, at: float | None = None) -> None:
         """Say ``note``; with ``at`` (when it sounds, seconds since the Unix epoch) the message
@@ -232,10 +434,26 @@ class OscSender:
 
     def _deliver(self, dgram: bytes) -> None:
         for address in self.peers.values():
-            try:
-                self.socket.sendto(dgram, address)
-            except OSError:  # a peer that is gone must not stop the others hearing us
-                self.send_errors += 1
+            self._send_to(dgram, address)
+
+    def _send_to(self, dgram: bytes, address: tuple[str, int]) -> None:
+        try:
+            self.sent_bytes += self.socket.sendto(dgram, address)
+        except OSError:  # a peer that is gone must not stop the others hearing us
+            self.send_errors += 1
 
     def close(self) -> None:
         self.socket.close()
+
+
+def answer_hello(table: PeerTable, listener: OscListener, name: str, heard: Heard, t: float) -> str:
+    """Take a hello into ``table`` (:meth:`PeerTable.hello`): an address not yet proved is asked
+    for its token by ``listener`` as creature ``name``, if no larger than the hello; the verdict."""
+    address = (heard.sender[0], heard.args[0])
+    verdict = table.hello(heard.creature, address, heard.args[1] if len(heard.args) == 2 else None, t)
+    if verdict == "ask":
+        if listener.ask(address, name, table.token(address), at_most=heard.size):
+            table.asked += 1
+        else:
+            table.refused["large"] += 1
+    return verdict

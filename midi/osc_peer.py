@@ -5,7 +5,8 @@ It plays the exchange game over OSC (thesis, "exchange"): every note it hears is
 (placed, in the full installation, in space); at its own pace it plays back the oldest
 remembered note, transformed (transposed), or its own seed note when it remembers nothing.
 Passages therefore pass back and forth between creatures and drift. It learns peers from
-their ``hello`` messages, so a peer that restarts is heard again without configuration. With
+their ``hello`` messages (a bounded table, :mod:`midi.peer_table`), so a peer that restarts
+is heard again without configuration. With
 each hello it sends its state: ``remembered`` (notes waiting to be played back).
 
 It reports on stdout, one JSON object per line: ``listening``, ``hello``, ``heard`` (each note
@@ -19,17 +20,20 @@ from __future__ import annotations
 import argparse
 import json
 import signal
+import socket
 import sys
 from collections import deque
 
 from creatures.clock import WallClock
 from midi.notes import NoteEvent
-from midi.osc import OscListener, OscSender
+from midi.osc import OscListener, OscSender, answer_hello
+from midi.peer_table import PeerTable
 
 
 def _address(text: str) -> tuple[str, int]:
+    """``HOST:PORT`` with the host resolved, as asks from that peer will come from it."""
     host, _, port = text.rpartition(":")
-    return host or "127.0.0.1", int(port)
+    return socket.gethostbyname(host or "127.0.0.1"), int(port)
 
 
 def _say(**event: object) -> None:
@@ -57,9 +61,8 @@ def main(argv: list[str] | None = None) -> int:
 
     clock = WallClock()
     listener = OscListener(clock, host=args.host, port=args.port)
-    sender = OscSender(args.name)
-    for i, address in enumerate(args.peer):
-        sender.add_peer(f"peer{i}", address)
+    table = PeerTable(args.peer)
+    sender = OscSender(args.name, peers=table.targets)
     memory: deque[NoteEvent] = deque(maxlen=64)
     running = True
 
@@ -76,19 +79,18 @@ def main(argv: list[str] | None = None) -> int:
         while running:
             now = clock.now()
             if now >= next_hello:
-                sender.hello(listener.port)
+                table.expire(now)
+                sender.hello(listener.port, table.echo)
                 sender.state({"remembered": len(memory)})
                 next_hello = now + args.hello_every
             for heard in listener.poll():
                 if heard.creature == args.name:
                     continue
                 if heard.kind == "hello":
-                    address = (heard.sender[0], heard.args[0])
-                    if sender.peers.get(heard.creature) != address:
-                        # A named peer replaces the same address given on the command line.
-                        sender.peers = {k: v for k, v in sender.peers.items() if v != address}
-                        sender.add_peer(heard.creature, address)
-                        _say(event="hello", name=heard.creature, port=address[1])
+                    if answer_hello(table, listener, args.name, heard, now) in ("new", "moved"):
+                        _say(event="hello", name=heard.creature, port=heard.args[0])
+                elif heard.kind == "ask":
+                    table.was_asked(heard.sender, heard.args[0])
                 elif heard.kind == "note":
                     memory.append(heard.note)
                     _say(event="heard", name=heard.creature, pitch=heard.note.pitch,
@@ -96,7 +98,7 @@ def main(argv: list[str] | None = None) -> int:
                 elif heard.kind == "state":
                     _say(event="state", name=heard.creature, key=heard.args[0], value=heard.args[1])
                 elif heard.kind == "bye":
-                    sender.peers.pop(heard.creature, None)
+                    table.part(heard.creature)
             if now >= next_play:
                 played = memory.popleft() if memory else NoteEvent(now, args.seed_pitch, 90, 0, 0.2)
                 sender.note(transform(played, args.transpose))

@@ -31,7 +31,7 @@ from creatures.runtime.live import LiveInputs
 from creatures.runtime.offline import run_offline
 from creatures.runtime.schema import load_installation
 from creatures.runtime.session import Session
-from midi.osc import MAX_PACKET
+from midi.osc import MAX_PACKET, check_wire
 from midi.ports import MemoryInput, MemoryPorts
 from midi.sinks import MemorySink
 
@@ -248,10 +248,12 @@ def osc_packets(draw) -> bytes:
 
 
 def expected(packet: bytes) -> int:
-    """How many counts a packet must add: one per message, or one for the packet itself."""
+    """How many counts a packet must add: one per message, or one for the packet itself (too
+    large, not OSC, or refused whole at the door by :func:`midi.osc.check_wire`)."""
     if len(packet) > MAX_PACKET:
         return 1
     try:
+        check_wire(packet, elsewhere=True)
         return len(OscPacket(packet).messages)
     except Exception:
         return 1

@@ -225,7 +225,11 @@ class HeardMusic:
             self.time = t
 
     def hear(self, t: float, pitch: int, seconds: float) -> None:
+        """A note weighs what it lasts, but no more than ``memory`` seconds: held for ever it
+        would fade to that weight anyway, and the ear stays finite whatever it is told (two
+        notes of 1e308 seconds once made it infinite, and the creature's state unsavable)."""
         self.fade(t)
+        seconds = min(seconds, self.memory)
         self.vector += fifths_vector(np.array([pitch]), np.array([seconds]))
         self.weight += seconds
 

@@ -82,6 +82,7 @@ class LiveSummary:
     inputs: dict[str, int] = field(default_factory=dict)  # outside messages mapped / unmapped / malformed
     messages: list[str] = field(default_factory=list)
     sound: str = ""  # where the mix went: "live at 44100 Hz (resampled from 22050 Hz)" or "silent: why"
+    network: dict[str, object] | None = None  # the OSC counters (Network.counts) when [osc] port is set
 
 
 class LiveInputs:
@@ -105,7 +106,8 @@ class LiveInputs:
                                       report=lambda m: say(f"MIDI input: {m}; {HELP}"), supervisor=supervisor)
         self.network = None
         if settings.osc.port is not None:
-            self.network = Network(settings.osc, session.world, clock, say, elsewhere=self.router, epoch=epoch)
+            self.network = Network(settings.osc, session.world, clock, say, elsewhere=self.router, epoch=epoch,
+                                   where=lambda key, message: inst.error(("osc", key), message))
         self.sources = open_sources(inst, self.router, clock, say, live=True)
         reached = "only the config's serial devices and rehearsal files" if self.sources else "nothing"
         for routes, source, key in ((self.router.osc_routes, self.network, "[osc] port"),
@@ -376,6 +378,8 @@ def run_live(
                 bodies.close()
                 summary.frames_dropped = bodies.dropped
             inputs.close()
+            if inputs.network is not None:
+                summary.network = inputs.network.counts()
             log.close()
     summary.seconds = wall.now() - start
     summary.ticks = session.ticks

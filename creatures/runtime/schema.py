@@ -58,7 +58,15 @@ class OscSection(Strict):
 
     host: str = Field("127.0.0.1", description="address OSC listeners bind to (loopback by default)")
     port: int | None = Field(None, ge=1024, le=65535, description="UDP port to listen on; none = no OSC")
-    peers: list[str] = Field(default_factory=list, description="host:port of other colonies to send notes to")
+    peers: list[str] = Field(default_factory=list, max_length=256,
+                             description="host:port of other colonies to send notes to (IPv4)")
+    max_peers: int = Field(64, ge=1, le=1024, description="remote creatures learned from (proved) hellos kept "
+                                                         "at once; hellos beyond, or faster than 2 new a "
+                                                         "second, are refused and counted (the network is "
+                                                         "no amplifier: see README)")
+    max_rate: int = Field(1_000, ge=100, le=1_000_000, description="OSC packets read per second at most; a "
+                                                                    "flood beyond is dropped by the kernel and "
+                                                                    "counted, and the creatures keep their time")
 
 
 class Arg(Strict):
@@ -249,6 +257,8 @@ def load_installation(path: str | Path) -> LoadedInstallation:
         file = getattr(settings.input, key)
         if file is not None and not (path.parent / file).exists():
             raise config_error(path, where, ("input", key), f"file not found: {file}")
+    if settings.osc.port is not None and (problem := host_problem(settings.osc.host)) is not None:
+        raise config_error(path, where, ("osc", "host"), problem)
     for i, peer in enumerate(settings.osc.peers):
         problem = peer_problem(peer)
         if problem is not None:
@@ -283,23 +293,33 @@ def _with_input_maps(path: Path, settings: Installation, specs: list[CreatureSpe
     return inst
 
 
-def peer_address(peer: str) -> tuple[str, int]:
-    """``host:port`` (host defaults to 127.0.0.1) resolved to an IPv4 address and port; raises
-    OSError (unknown host) or ValueError (no port, or one out of range)."""
-    host, _, port = peer.rpartition(":")
-    number = int(port)
-    if not 0 < number < 65536:
-        raise ValueError(f"port {number} is out of range 1-65535")
-    return socket.gethostbyname(host or "127.0.0.1"), number
+def host_problem(host: str) -> str | None:
+    """Why the colony cannot listen on ``host`` ([osc] host), or None: a host that does not
+    resolve, or one that is IPv6 (refused: every socket here is IPv4, and a colony on ::1 that
+    peers on 127.0.0.1 would hear nothing). Checked at load, before anything runs or is made."""
+    try:
+        family = socket.getaddrinfo(host, None, type=socket.SOCK_DGRAM)[0][0]
+    except (OSError, UnicodeError) as exc:
+        return f"OSC host {host!r} does not resolve ({exc})"
+    if family != socket.AF_INET:
+        return (f"OSC host {host!r} is not IPv4: OSC here speaks IPv4 only "
+                "(use 127.0.0.1, 0.0.0.0 or an IPv4 address of this machine)")
+    return None
 
 
 def peer_problem(peer: str) -> str | None:
     """Why ``peer`` cannot be spoken to (before anything runs: a typo'd host must not leave a
-    colony talking to no one all night), or None."""
+    colony talking to no one all night, and a port of 99999 once passed and made every send
+    raise mid-run), or None. IPv6 is refused: every socket here is IPv4."""
+    host, colon, port = peer.rpartition(":")
+    if not colon:
+        return f"peer {peer!r} is not host:port (no port: a port in 1..65535)"
+    if not port.isdigit() or not 0 < int(port) < 65536:
+        return f"peer {peer!r} is not host:port (port {port} is out of range: a port in 1..65535)"
+    if ":" in host or host.startswith("["):
+        return f"peer {peer!r} is IPv6: OSC here speaks IPv4 only"
     try:
-        peer_address(peer)
-    except ValueError as exc:
-        return f"peer {peer!r} is not host:port ({exc})"
+        socket.gethostbyname(host or "127.0.0.1")
     except OSError as exc:
         return f"peer host of {peer!r} cannot be resolved ({exc.strerror or exc})"
     return None
