@@ -21,6 +21,9 @@ Model = TypeVar("Model", bound=BaseModel)
 MAX_CONFIG_BYTES = 1024 * 1024
 """Largest config file read (a hand-written installation is a few kilobytes)."""
 
+MAX_CONFIG_DEPTH = 16
+"""Deepest nesting of tables and arrays a config may have (the schema needs five)."""
+
 _HEADER = re.compile(r"^\s*(\[\[?)\s*([^\]]+?)\s*\]\]?\s*(#.*)?$")
 _ASSIGN = re.compile(r"""^\s*((?:[A-Za-z0-9_\-]+|"[^"]*"|'[^']*')(?:\s*\.\s*(?:[A-Za-z0-9_\-]+|"[^"]*"|'[^']*'))*)\s*=""")
 
@@ -89,9 +92,13 @@ def read_toml(path: str | Path, *, _seen: tuple[Path, ...] = ()) -> tuple[dict[s
     if path in _seen:
         raise ConfigError(path, f"'extends' loops back to {path.name}", key="extends")
     try:
-        if path.stat().st_size > MAX_CONFIG_BYTES:
+        # Read at most one byte past the cap: a device or FIFO (/dev/zero) reports size 0
+        # and would otherwise be read until memory runs out.
+        with path.open("rb") as handle:
+            raw = handle.read(MAX_CONFIG_BYTES + 1)
+        if len(raw) > MAX_CONFIG_BYTES:
             raise ConfigError(path, f"config file larger than {MAX_CONFIG_BYTES} bytes; refused")
-        text = path.read_text(encoding="utf-8")
+        text = raw.decode("utf-8")
     except FileNotFoundError:
         raise ConfigError(path, "config file not found") from None
     except (OSError, UnicodeDecodeError) as exc:
@@ -101,7 +108,12 @@ def read_toml(path: str | Path, *, _seen: tuple[Path, ...] = ()) -> tuple[dict[s
     except tomllib.TOMLDecodeError as exc:
         match = re.search(r"line (\d+)", str(exc))
         raise ConfigError(path, f"invalid TOML ({exc})", line=int(match.group(1)) if match else None) from None
+    except RecursionError:  # tomllib parses nested arrays and tables recursively
+        raise ConfigError(path, f"invalid TOML (nested too deeply; at most {MAX_CONFIG_DEPTH} levels of tables and arrays)") from None
     where = {loc: (path, line) for loc, line in key_lines(text).items()}
+    deep = _too_deep(data, ())
+    if deep is not None:
+        raise config_error(path, where, deep, f"nested too deeply (at most {MAX_CONFIG_DEPTH} levels of tables and arrays)")
     parent = data.pop("extends", None)
     if parent is None:
         return data, where
@@ -115,6 +127,19 @@ def read_toml(path: str | Path, *, _seen: tuple[Path, ...] = ()) -> tuple[dict[s
         raise ConfigError(path, f"base config {parent!r} not found (looked for {base})", key="extends", line=line)
     base_data, base_where = read_toml(base, _seen=(*_seen, path))
     return _merge(base_data, data), {**base_where, **where}
+
+
+def _too_deep(node: Any, loc: tuple[str | int, ...]) -> tuple[str | int, ...] | None:
+    """The key path at which ``node`` nests deeper than :data:`MAX_CONFIG_DEPTH`, if any
+    (checked before validation, which would recurse as deep)."""
+    if len(loc) > MAX_CONFIG_DEPTH:
+        return loc
+    children = node.items() if isinstance(node, dict) else enumerate(node) if isinstance(node, list) else ()
+    for key, child in children:
+        found = _too_deep(child, (*loc, key))
+        if found is not None:
+            return found
+    return None
 
 
 def _fields_at(model: type[BaseModel], loc: tuple[str | int, ...]) -> list[str]:

@@ -10,14 +10,19 @@ import difflib
 from pathlib import Path
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, Field
 
+from creatures.bounds import FINITE, LONGEST_OFFLINE
 from creatures.config import ConfigError, config_error, read_toml, validate
 from creatures.kinds import CreatureSpec, load_all
 
 
+LONGEST_SEED = 2**63 - 1
+"""Largest seed: numpy's SeedSequence takes any non-negative int, a config needs no more."""
+
+
 class Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = FINITE
 
 
 class AudioSection(Strict):
@@ -77,17 +82,17 @@ class OutputSection(Strict):
 class Installation(Strict):
     title: str = Field(description="name of the installation")
     description: str = Field("", description="free text shown in reports")
-    seed: int = Field(0, description="seed of every random choice in the run")
+    seed: int = Field(0, ge=0, le=LONGEST_SEED, description="seed of every random choice in the run")
     tick: float = Field(0.02, gt=0.0005, le=0.5, description="behaviour tick, seconds")
-    duration: float = Field(60.0, gt=0, description="offline run length in simulated seconds (default)")
-    save_every: float = Field(60.0, gt=0, description="seconds between state saves in live runs")
+    duration: float = Field(60.0, gt=0, le=LONGEST_OFFLINE, description="offline run length in simulated seconds (default)")
+    save_every: float = Field(60.0, gt=0, le=24 * 3600.0, description="seconds between state saves in live runs")
     state: str | None = Field(None, description="directory for saved creature state (live runs)")
     audio: AudioSection = AudioSection()
     midi: MidiSection = MidiSection()
     osc: OscSection = OscSection()
     input: InputSection = InputSection()
     output: OutputSection = OutputSection()
-    creature: list[dict[str, Any]] = Field(min_length=1, description="the creatures, one [[creature]] table each")
+    creature: list[dict[str, Any]] = Field(min_length=1, max_length=256, description="the creatures, one [[creature]] table each")
 
 
 class LoadedInstallation:
