@@ -14,15 +14,23 @@ import typing
 from pathlib import Path
 
 import annotated_types
+import json
 import mido
+import numpy as np
 import pytest
 from pydantic import BaseModel
 
 import installations
 from creatures.cli import main
+from creatures.clock import SimulatedClock
 from creatures.config import ConfigError
+from creatures.events import EventLog
 from creatures.kinds import load_all
+from creatures.persist import StateFileError
 from creatures.runtime.schema import Installation, load_installation
+from creatures.runtime.session import COLONY_FILE, Session
+from midi.notes import NoteEvent
+from midi.sinks import MemorySink
 
 
 def _config(tmp_path: Path, name: str, key: str, value: str) -> Path:
@@ -164,3 +172,81 @@ def test_a_midi_file_note_held_absurdly_long_is_held_at_most_the_longest_note(tm
     notes = read_notes(tmp_path / "long.mid")
     assert [n.pitch for n in notes] == [60, 62]
     assert notes[0].duration == LONGEST_NOTE and notes[1].duration == pytest.approx(2**24 / 1e6, rel=1e-3)
+
+
+# -- saved state (defects 9 and 10) ------------------------------------------------------------
+
+def _lived(path: Path, seconds: float, state: Path | None = None) -> Session:
+    """A session of the installation at ``path`` (restored from ``state``) after ``seconds``
+    of ticks with a note heard every 0.3 s."""
+    session = Session(load_installation(path), SimulatedClock(), EventLog(), MemorySink())
+    if state is not None:
+        session.load_state(state)
+    for step in range(1, int(seconds / 0.1) + 1):
+        t = round(step * 0.1, 6)
+        session.clock.advance_to(t)
+        if step % 3 == 0:
+            session.world.inject(NoteEvent(t, 60 + step % 7, 90, 0, 0.2))
+        session.step(t, 0, None, audio=False)
+    return session
+
+
+def test_an_edited_setting_wins_over_restored_state_and_learned_levels_are_kept(tmp_path):
+    """Defect 10: an edited ``boredom_rate`` was ignored after a restart (the saved drive
+    rates replaced the config's). Rates are settings, levels are what the creature lived."""
+    before = _lived(installations.path("exchange"), 5.0)
+    before.save_state(tmp_path / "state")
+    saved_levels = before.creatures[0].motivation.levels.copy()
+    edited = _config(tmp_path, "exchange", "boredom_rate", "0.5")
+    after = _lived(edited, 0.0, state=tmp_path / "state")
+    motivation = after.creatures[0].motivation
+    assert motivation.growth[motivation.index("boredom")] == 0.5
+    assert np.array_equal(motivation.levels, saved_levels)
+
+
+def test_a_huge_pulse_size_is_refused_naming_the_file_not_a_memory_error(tmp_path):
+    """Defect 9: a colony file with ``size`` 1e12 failed with MemoryError at start."""
+    _lived(installations.path("exchange"), 3.0).save_state(tmp_path)
+    path = tmp_path / COLONY_FILE
+    document = json.loads(path.read_text())
+    document["pulse"]["size"] = 10**12
+    path.write_text(json.dumps(document))
+    with pytest.raises(StateFileError, match=re.escape(str(path))):
+        _lived(installations.path("exchange"), 0.0, state=tmp_path)
+
+
+@pytest.mark.parametrize("damage", ["deep", "1e400", "decay"])
+def test_damaged_state_is_refused_at_load_or_runs(tmp_path, damage):
+    """Deep nesting hit the recursion limit; ``1e400`` read as an infinite value; a drive decay of
+    1e308 loaded and made the levels NaN, so the next save died. Now the first two are
+    refused naming the file, and a saved rate is not read (the config's is used)."""
+    _lived(installations.path("exchange"), 3.0).save_state(tmp_path)
+    path = tmp_path / "ada.json"
+    text = path.read_text()
+    if damage == "deep":
+        text = text.replace('"values":', '"deep": ' + "[" * 5000 + "]" * 5000 + ', "values":')
+    elif damage == "1e400":
+        text = re.sub(r'("value": )[0-9.e-]+', r"\g<1>1e400", text, count=1)  # a learned value
+    else:
+        document = json.loads(text)
+        document["state"]["motivation"]["decay"]["boredom"] = 1e308
+        text = json.dumps(document)
+    path.write_text(text)
+    if damage == "decay":
+        after = _lived(installations.path("exchange"), 60.0, state=tmp_path)
+        after.save_state(tmp_path)
+        assert np.isfinite(after.creatures[0].motivation.levels).all()
+    else:
+        with pytest.raises(StateFileError, match=re.escape(str(path))):
+            _lived(installations.path("exchange"), 0.0, state=tmp_path)
+
+
+def test_a_midi_file_past_the_size_cap_is_refused_before_it_is_read(tmp_path):
+    from midi.files import MAX_MIDI_BYTES, MidiFileError, read_notes
+
+    path = tmp_path / "huge.mid"
+    with open(path, "wb") as handle:  # sparse: no disk is used
+        handle.write(b"MThd")
+        handle.truncate(MAX_MIDI_BYTES + 1)
+    with pytest.raises(MidiFileError, match=f"{re.escape(str(path))}: MIDI file larger than"):
+        read_notes(path)

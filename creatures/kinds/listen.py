@@ -70,7 +70,7 @@ from creatures.kinds import register
 from creatures import bounds
 from creatures.bounds import LARGEST_RATE, LONGEST_SECONDS
 from creatures.kinds.base import CreatureKind, CreatureSpec
-from creatures.kinds.model_population import FLOOR, Member, ModelPopulation
+from creatures.kinds.model_population import FLOOR, MOST_MODELS, MOST_STATES, Member, ModelPopulation
 from creatures.kinds.moves import Rest, head_for
 from creatures.kinds.parts import Body, Voice, VoiceSpec
 from creatures.kinds.report_parts import MotorTrail, report_values, selection_logger
@@ -99,8 +99,8 @@ class ListenSpec(CreatureSpec):
     known: float = Field(0.2, ge=0, le=1, description="fraction of the arriving notes' transitions a model must "
                                                       "already explain to learn them (else a growing model extends "
                                                       "itself, or a new model is spawned)")
-    max_models: int = Field(6, ge=1, le=64, description="most models in the population; the least useful retires")
-    max_states: int = Field(96, ge=8, le=4096, description="states a model may grow to before it is distilled "
+    max_models: int = Field(6, ge=1, le=MOST_MODELS, description="most models in the population; the least useful retires")
+    max_states: int = Field(96, ge=8, le=MOST_STATES, description="states a model may grow to before it is distilled "
                                                            "to its core")
     forget: float = Field(120.0, gt=0, le=LONGEST_SECONDS, description="time constant (s) of a model's usefulness; unused models retire")
     continuation: int = Field(8, ge=0, le=256, description="predicted notes played when the music stops")

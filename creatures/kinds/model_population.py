@@ -174,15 +174,22 @@ class ModelPopulation:
         self._next_id = bounds.count(data["next_id"], "population.next_id")
         self._time = bounds.number(data["time"], "population.time", low=0.0, high=bounds.LATEST_TIME)
         members = []
-        for i, m in enumerate(bounds.items(data["members"], "population.members", longest=self.max_models)):
+        # The config's max_models wins: a population saved larger keeps its first members.
+        saved = bounds.items(data["members"], "population.members", longest=MOST_MODELS)[: self.max_models]
+        for i, m in enumerate(saved):
             where = f"population.members.{i}"
             m = bounds.table(m, where)
             members.append(Member(bounds.count(m["id"], f"{where}.id"),
-                                  GestureModel.from_dict(m["model"], nodes=nodes, longest=4 * self.max_states, where=f"{where}.model"),
+                                  GestureModel.from_dict(m["model"], nodes=nodes, longest=4 * MOST_STATES, where=f"{where}.model"),
                                   bounds.number(m["born"], f"{where}.born", low=0.0, high=bounds.LATEST_TIME),
                                   bounds.number(m["usefulness"], f"{where}.usefulness")))
         self.members = members
         self.best = next((m for m in self.members if m.id == data["best"]), None)
+
+
+MOST_MODELS, MOST_STATES = 64, 4096
+"""Largest ``max_models`` and ``max_states`` a config may set; a saved model may have grown
+past ``max_states`` until its next distillation, so up to four times that is read back."""
 
 
 def _grows_from(model: GestureModel, context: list[Observation], threshold: float) -> bool:

@@ -105,9 +105,13 @@ class Memory:
     origin: str  # "seed", "heard" or "flush"
 
 
+MOST_MEMORIES = 256
+"""Most sounds a creature may remember (``memory_size``), and read back from a saved state."""
+
+
 class ThreeCreaturesSpec(CreatureSpec):
     kind: Literal["three_creatures"]
-    memory_size: int = Field(8, ge=1, le=256, description="sounds a creature remembers")
+    memory_size: int = Field(8, ge=1, le=MOST_MEMORIES, description="sounds a creature remembers")
     interest_growth: float = Field(0.08, ge=0, le=LARGEST_RATE, description="interest regained per second")
     interest_cost: float = Field(0.3, ge=0, le=LARGEST_RATE, description="interest spent by remembering a sound")
     urge_gain: float = Field(0.8, ge=0, le=LARGEST_RATE, description="urge to sing added by a fully familiar sound "
@@ -247,7 +251,8 @@ class ThreeCreature(CreatureKind):
     def restore(self, state: dict[str, Any]) -> None:
         try:
             memory = []
-            saved = bounds.items(state["memory"], "memory", longest=self.spec.memory_size)
+            # The config's memory_size wins: a memory saved larger keeps its first sounds.
+            saved = bounds.items(state["memory"], "memory", longest=MOST_MEMORIES)[: self.spec.memory_size]
             for i, m in enumerate(saved):
                 utterance = utterance_from_state(m, f"memory.{i}")
                 memory.append(Memory(utterance, profile(utterance.samples, utterance.samplerate), str(m["origin"])))
