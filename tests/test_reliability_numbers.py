@@ -250,3 +250,15 @@ def test_a_midi_file_past_the_size_cap_is_refused_before_it_is_read(tmp_path):
         handle.truncate(MAX_MIDI_BYTES + 1)
     with pytest.raises(MidiFileError, match=f"{re.escape(str(path))}: MIDI file larger than"):
         read_notes(path)
+
+
+@pytest.mark.parametrize("time, duration", [(0.0, 1e308), (0.0, 3600.5), (1e308, 1.0), (2e12, 1.0)])
+def test_a_note_no_clock_reaches_the_end_of_is_refused(time, duration):
+    """Every door that makes a NoteEvent (OSC, MIDI, a creature) gets this bound: two OSC
+    notes of 1e308 s sent a sandstone drive to infinity (defect 4; the OSC side is tested
+    with the network)."""
+    from midi.notes import LONGEST_NOTE
+
+    with pytest.raises(ValueError, match="NoteEvent (time|duration) must be"):
+        NoteEvent(time, 60, 90, 0, duration)
+    assert NoteEvent(1e12, 60, 90, 0, LONGEST_NOTE).end == 1e12 + LONGEST_NOTE
