@@ -24,10 +24,10 @@ def _seconds(longest: float) -> Callable[[str], float]:
 
     def parse(text: str) -> float:
         try:
-            value = number(float(text), "seconds", high=longest)
+            value = number(float(text), "seconds", low=0.0, high=longest)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds in (0, {longest:g}]") from None
-        if value <= 0:
+            value = 0.0
+        if value == 0.0:
             raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds in (0, {longest:g}]")
         return value
 
