@@ -8,6 +8,8 @@ import sys
 from pathlib import Path
 from typing import Callable
 
+from creatures.bounds import LONGEST_OFFLINE, LONGEST_SECONDS, number
+
 Configure = Callable[[argparse.ArgumentParser], None]
 """Adds a subcommand's arguments to its parser."""
 
@@ -15,6 +17,22 @@ Run = Callable[[argparse.Namespace], int]
 """Runs a subcommand with its parsed arguments; returns the exit code."""
 
 COMMANDS: dict[str, tuple[str, Configure, Run]] = {}
+
+
+def _seconds(longest: float) -> Callable[[str], float]:
+    """An argparse ``type``: a finite number of seconds in (0, ``longest``]; anything else
+    (``nan``, ``inf``, ``-5``) is argparse's usage error, exit 2, naming the option."""
+
+    def parse(text: str) -> float:
+        try:
+            value = number(float(text), "seconds", low=0.0, high=longest)
+        except ValueError:
+            value = 0.0
+        if value == 0.0:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds in (0, {longest:g}]")
+        return value
+
+    return parse
 
 
 def command(name: str, help_text: str, configure: Configure) -> Callable[[Run], Run]:
@@ -68,7 +86,7 @@ def _offline_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--audio", type=Path, help="recorded audio to feed (overrides the config)")
     parser.add_argument("--midi", type=Path, help="recorded MIDI to feed (overrides the config)")
     parser.add_argument("--out", type=Path, required=True, help="directory for the outputs")
-    parser.add_argument("--duration", type=float, help="simulated seconds (default: the config's)")
+    parser.add_argument("--duration", type=_seconds(LONGEST_OFFLINE), help="simulated seconds (default: the config's)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("--frames", action="store_true", help="draw the bodies into DIR/frames (PNGs; needs EGL or OSMesa)")
     parser.add_argument("--video", action="store_true", help="draw the frames and encode them to DIR/out.mp4")
@@ -116,7 +134,8 @@ def _run_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("config", type=Path, help="installation config (TOML)")
     parser.add_argument("--state", type=Path, help="directory for saved creature state (overrides the config)")
     parser.add_argument("--log", type=Path, help="write the events log (JSONL) here")
-    parser.add_argument("--duration", type=float, help="stop after this many seconds (default: run until Ctrl-C)")
+    parser.add_argument("--duration", type=_seconds(LONGEST_SECONDS),
+                        help="stop after this many seconds (default: run until Ctrl-C)")
     parser.add_argument("--frames", type=Path, help="draw the bodies into this directory (PNGs; a video if the config asks)")
 
 
@@ -209,7 +228,7 @@ def _demo_options(parser: argparse.ArgumentParser) -> None:
 
     parser.add_argument("name", nargs="?", default="exchange", help=f"one of {installations.names()}")
     parser.add_argument("--out", type=Path, default=Path("creatures-demo"), help="output directory")
-    parser.add_argument("--duration", type=float, default=30.0, help="simulated seconds")
+    parser.add_argument("--duration", type=_seconds(LONGEST_OFFLINE), default=30.0, help="simulated seconds")
 
 
 @command("demo", "run a shipped installation offline on generated input (no hardware needed)", _demo_options)

@@ -24,6 +24,9 @@ Model = TypeVar("Model", bound=BaseModel)
 MAX_CONFIG_BYTES = 1024 * 1024
 """Largest config file read (a hand-written installation is a few kilobytes)."""
 
+MAX_CONFIG_DEPTH = 16
+"""Deepest nesting of tables and arrays a config may have (the schema needs five)."""
+
 _HEADER = re.compile(r"^\s*(\[\[?)\s*([^\]]+?)\s*\]\]?\s*(#.*)?$")
 _ASSIGN = re.compile(r"""^\s*((?:[A-Za-z0-9_\-]+|"[^"]*"|'[^']*')(?:\s*\.\s*(?:[A-Za-z0-9_\-]+|"[^"]*"|'[^']*'))*)\s*=""")
 
@@ -95,9 +98,12 @@ def read_toml(path: str | Path, *, _seen: tuple[Path, ...] = ()) -> tuple[dict[s
         mode = path.stat().st_mode
         if not stat.S_ISREG(mode):  # /dev/zero would be read until memory runs out; a FIFO blocks
             raise ConfigError(path, f"is {kind_of(mode)}, not a regular file; a config is a TOML file")
-        if path.stat().st_size > MAX_CONFIG_BYTES:
+        # Read at most one byte past the cap, whatever stat said (a file may grow meanwhile).
+        with path.open("rb") as handle:
+            raw = handle.read(MAX_CONFIG_BYTES + 1)
+        if len(raw) > MAX_CONFIG_BYTES:
             raise ConfigError(path, f"config file larger than {MAX_CONFIG_BYTES} bytes; refused")
-        text = path.read_text(encoding="utf-8")
+        text = raw.decode("utf-8")
     except FileNotFoundError:
         raise ConfigError(path, "config file not found") from None
     except (OSError, UnicodeDecodeError) as exc:
@@ -107,7 +113,12 @@ def read_toml(path: str | Path, *, _seen: tuple[Path, ...] = ()) -> tuple[dict[s
     except tomllib.TOMLDecodeError as exc:
         match = re.search(r"line (\d+)", str(exc))
         raise ConfigError(path, f"invalid TOML ({exc})", line=int(match.group(1)) if match else None) from None
+    except RecursionError:  # tomllib parses nested arrays and tables recursively
+        raise ConfigError(path, f"invalid TOML (nested too deeply; at most {MAX_CONFIG_DEPTH} levels of tables and arrays)") from None
     where = {loc: (path, line) for loc, line in key_lines(text).items()}
+    deep = _too_deep(data, ())
+    if deep is not None:
+        raise config_error(path, where, deep, f"nested too deeply (at most {MAX_CONFIG_DEPTH} levels of tables and arrays)")
     parent = data.pop("extends", None)
     if parent is None:
         return data, where
@@ -121,6 +132,19 @@ def read_toml(path: str | Path, *, _seen: tuple[Path, ...] = ()) -> tuple[dict[s
         raise ConfigError(path, f"base config {parent!r} not found (looked for {base})", key="extends", line=line)
     base_data, base_where = read_toml(base, _seen=(*_seen, path))
     return _merge(base_data, data), {**base_where, **where}
+
+
+def _too_deep(node: Any, loc: tuple[str | int, ...]) -> tuple[str | int, ...] | None:
+    """The key path at which ``node`` nests deeper than :data:`MAX_CONFIG_DEPTH`, if any
+    (checked before validation, which would recurse as deep)."""
+    if len(loc) > MAX_CONFIG_DEPTH:
+        return loc
+    children = node.items() if isinstance(node, dict) else enumerate(node) if isinstance(node, list) else ()
+    for key, child in children:
+        found = _too_deep(child, (*loc, key))
+        if found is not None:
+            return found
+    return None
 
 
 def _fields_at(model: type[BaseModel], loc: tuple[str | int, ...]) -> list[str]:

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import glob
 import json
+import math
 import os
 import tempfile
 import zipfile
@@ -123,11 +124,13 @@ def load_json(path: str | os.PathLike, *, kind: str) -> dict[str, Any]:
     except (OSError, UnicodeDecodeError) as exc:
         raise StateFileError(f"{path}: cannot read state file ({exc})") from None
     try:
-        document = json.loads(text, parse_constant=_refuse_constant)
+        document = json.loads(text, parse_constant=_refuse_constant, parse_float=_finite_float)
     except json.JSONDecodeError as exc:
         raise StateFileError(f"{path}:{exc.lineno}: malformed JSON ({exc.msg})") from None
     except ValueError as exc:
         raise StateFileError(f"{path}: {exc}") from None
+    except RecursionError:  # the parser recurses once per nested array or object
+        raise StateFileError(f"{path}: nested too deeply to be a state file") from None
     if not isinstance(document, dict):
         raise StateFileError(f"{path}: expected a JSON object at the top level")
     if document.get("format") != kind:
@@ -146,6 +149,14 @@ def _refuse_constant(name: str) -> float:
     """Python's json reads NaN/Infinity, which :func:`save_json` never writes: a file holding
     them was not saved by us, and a NaN restored into a value would poison it silently."""
     raise ValueError(f"non-finite number {name} (state files hold finite numbers only)")
+
+
+def _finite_float(text: str) -> float:
+    """A JSON number; ``1e400`` reads as infinity, which no saved state holds (see above)."""
+    value = float(text)
+    if not math.isfinite(value):
+        raise ValueError(f"number {text[:40]} is out of range (state files hold finite numbers only)")
+    return value
 
 
 def save_npz(path: str | os.PathLike, arrays: dict[str, np.ndarray]) -> None:

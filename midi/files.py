@@ -13,6 +13,7 @@ a :class:`MidiFileError` that names the file.
 
 from __future__ import annotations
 
+import io
 import os
 from pathlib import Path
 from typing import Iterable
@@ -25,6 +26,9 @@ from midi import smf
 from midi.notes import NoteEvent, TimedMessage, from_messages, to_messages
 
 DEFAULT_TEMPO = 500_000  # microseconds per beat: 120 bpm, the MIDI file default
+
+MAX_MIDI_BYTES = 64 * 1024 * 1024
+"""Largest MIDI file read (a long performance is a few megabytes)."""
 
 
 class MidiFileError(Exception):
@@ -84,7 +88,12 @@ class TempoMap:
 
 def _open(path: Path) -> mido.MidiFile:
     try:
-        return mido.MidiFile(path)
+        # At most one byte past the cap is read: a device or a runaway file cannot fill memory.
+        with open(path, "rb") as handle:
+            data = handle.read(MAX_MIDI_BYTES + 1)
+        if len(data) > MAX_MIDI_BYTES:
+            raise MidiFileError(f"{path}: MIDI file larger than {MAX_MIDI_BYTES} bytes; refused")
+        return mido.MidiFile(file=io.BytesIO(data))
     except FileNotFoundError:
         raise MidiFileError(f"{path}: MIDI file not found") from None
     except EOFError:

@@ -8,12 +8,19 @@ velocity-0 note-on that most keyboards send instead of a note-off).
 
 from __future__ import annotations
 
-import math
 from collections import defaultdict, deque
 from dataclasses import dataclass
 from typing import Iterable
 
 import mido
+
+from creatures.bounds import LATEST_TIME
+
+LONGEST_NOTE = 3600.0
+"""Seconds: the longest a note may sound (an hour's drone). A :class:`NoteEvent` refuses a
+longer duration, so no door (OSC, a creature) lets in a note no clock reaches the end of,
+and :class:`NotePairer` holds a note whose note-off comes later (a stuck key, a damaged
+file) for this long."""
 
 TimedMessage = tuple[float, mido.Message]
 """A MIDI message with the time (seconds on the run's clock) at which it happens."""
@@ -41,10 +48,10 @@ class NoteEvent:
             _refuse("velocity", "an int in 1..127", self.velocity)
         if type(self.channel) is not int or not 0 <= self.channel <= 15:
             _refuse("channel", "an int in 0..15", self.channel)
-        if not isinstance(self.time, (int, float)) or not 0 <= self.time < math.inf:
-            _refuse("time", "a finite number >= 0", self.time)
-        if not isinstance(self.duration, (int, float)) or not 0 <= self.duration < math.inf:
-            _refuse("duration", "a finite number >= 0", self.duration)
+        if not isinstance(self.time, (int, float)) or not 0 <= self.time <= LATEST_TIME:
+            _refuse("time", f"a finite number >= 0 and <= {LATEST_TIME:g}", self.time)
+        if not isinstance(self.duration, (int, float)) or not 0 <= self.duration <= LONGEST_NOTE:
+            _refuse("duration", f"a finite number >= 0 and <= {LONGEST_NOTE:g} (seconds)", self.duration)
 
     @property
     def end(self) -> float:
@@ -104,7 +111,7 @@ class NotePairer:
             self.unmatched_offs += 1
             return None
         start, velocity = queue.popleft()
-        return NoteEvent(start, msg.note, velocity, msg.channel, max(0.0, time - start))
+        return NoteEvent(start, msg.note, velocity, msg.channel, _held(start, time))
 
     @property
     def sounding(self) -> int:
@@ -114,12 +121,17 @@ class NotePairer:
     def flush(self, time: float) -> list[NoteEvent]:
         """End every sounding note at ``time`` (end of file, port closed) and return them."""
         notes = [
-            NoteEvent(start, pitch, velocity, channel, max(0.0, time - start))
+            NoteEvent(start, pitch, velocity, channel, _held(start, time))
             for (channel, pitch), queue in self._sounding.items()
             for start, velocity in queue
         ]
         self._sounding.clear()
         return sorted(notes, key=lambda n: (n.time, n.channel, n.pitch))
+
+
+def _held(start: float, end: float) -> float:
+    """How long a note from ``start`` to ``end`` sounds: at most :data:`LONGEST_NOTE`."""
+    return min(max(0.0, end - start), LONGEST_NOTE)
 
 
 def from_messages(timed: Iterable[TimedMessage], *, end: float | None = None) -> list[NoteEvent]:

@@ -26,6 +26,8 @@ import numba
 import numpy as np
 from mido.midifiles.meta import build_meta_message
 
+from midi.notes import LONGEST_NOTE
+
 MAX_MESSAGE_LENGTH = 1_000_000
 """mido's limit on a meta or sysex event's length (``mido.midifiles.midifiles``)."""
 
@@ -232,7 +234,8 @@ def pair_notes(times: np.ndarray, status: np.ndarray, data1: np.ndarray, data2: 
     note-ons end notes, notes still sounding end at the last message, sorted by (time,
     channel, pitch) with ties in the order ``from_messages`` leaves them.
 
-    Returns ``(start, pitch, velocity, channel, duration)`` arrays."""
+    Returns ``(start, pitch, velocity, channel, duration)`` arrays; a note held past
+    :data:`midi.notes.LONGEST_NOTE` is held that long."""
     kind = status & 0xF0
     is_on = (kind == 0x90) & (data2 > 0)
     is_off = (kind == 0x80) | ((kind == 0x90) & (data2 == 0))
@@ -250,4 +253,4 @@ def pair_notes(times: np.ndarray, status: np.ndarray, data1: np.ndarray, data2: 
     order = np.lexsort((np.where(flushed, start_of, completed), flushed, data1[start_of], channel[start_of], start))
     start_of = start_of[order]
     return (start[order], data1[start_of].astype(np.int64), data2[start_of].astype(np.int64), channel[start_of],
-            np.maximum(0.0, end[order] - start[order]))
+            np.clip(end[order] - start[order], 0.0, LONGEST_NOTE))  # as midi.notes._held

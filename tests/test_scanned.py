@@ -125,7 +125,7 @@ def test_config_keeps_strings_gestural_and_the_haptic_rate_in_its_band():
 def accepted_voices(draw: st.DrawFn) -> VoiceSpec:
     """A ``[creature.voice]`` the config accepts, each constant drawn across its whole range:
     haptic rate 100–1000 Hz, masses 3–1024, mass over twelve decades (the config bounds it
-    only below, by 0), centring and stiffness up to the gestural limit, damping up to the
+    to 0 < mass ≤ 1e6), centring and stiffness up to the gestural limit, damping up to the
     integrator's bound ``h²(4k + c)/m < 4 − 2·damping·h/m`` (audio/scanned.py)."""
     mass = draw(st.floats(1e-6, 1e6))
     haptic_rate = draw(st.floats(100.0, 1000.0))

@@ -29,6 +29,8 @@ from typing import Any, Callable, Iterator, Mapping
 import numpy as np
 from scipy.linalg import expm
 
+from creatures import bounds
+
 
 class Motivation:
     """A creature's named drives and their linear dynamics.
@@ -212,6 +214,27 @@ class Motivation:
         except KeyError as exc:  # a parameter names a drive that has no level
             raise ValueError(f"motivation state: {exc.args[0]}") from None
         return motivation
+
+    def restore(self, data: Any, *, now: float) -> None:
+        """Take back the levels (and inputs) of saved drives into this motivation, whose
+        rates, equilibria, coupling and bounds stay the ones it was built with: those are
+        the author's settings (an edited config wins over a saved file), the levels are
+        what the creature lived through. Each level is kept within [floor, ceiling] (or
+        ±:data:`creatures.bounds.LARGEST_RATE` without them); the clock restarts at ``now``.
+        Raises ValueError naming the key on malformed data."""
+        data = bounds.table(data, "motivation")
+        low = -bounds.LARGEST_RATE if self.floor is None else self.floor
+        high = bounds.LARGEST_RATE if self.ceiling is None else self.ceiling
+        levels = bounds.table(data.get("levels"), "motivation.levels")
+        inputs = bounds.table(data.get("inputs", {}), "motivation.inputs")
+        restored = self.levels.copy(), self.inputs.copy()
+        for vector, saved, what, (lo, hi) in ((restored[0], levels, "levels", (low, high)),
+                                               (restored[1], inputs, "inputs", (-bounds.LARGEST_RATE, bounds.LARGEST_RATE))):
+            for name, value in saved.items():
+                if name in self._index:  # a drive the config no longer has is forgotten
+                    vector[self._index[name]] = bounds.number(value, f"motivation.{what}.{name}", low=lo, high=hi)
+        self.levels, self.inputs = restored
+        self.time = float(now)
 
     def __repr__(self) -> str:
         inner = ", ".join(f"{n}={x:.3g}" for n, x in zip(self.names, self.levels))

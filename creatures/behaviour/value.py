@@ -15,6 +15,7 @@ import math
 from abc import ABC, abstractmethod
 from typing import Any, Mapping
 
+from creatures import bounds
 from creatures.behaviour.models.gaussian import GaussianModel
 from creatures.clock import Clock
 
@@ -324,6 +325,18 @@ class GaussianValue(ScalarValue):
         value.tested_at = data.get("tested_at")
         return value
 
+    def restore(self, data: dict[str, Any]) -> None:
+        """Take back what was learnt (the value, its reliability, the model's samples) into
+        this value, whose threshold, reliance, memory and prior are the author's settings.
+        Raises ValueError naming the key on damaged data."""
+        data = bounds.table(data, "value")
+        self.model.restore(bounds.table(data.get("model"), "value.model"))
+        self.value = bounds.number(data.get("value"), "value.value", low=-bounds.LARGEST_VALUE, high=bounds.LARGEST_VALUE)
+        self.reliability = bounds.number(data.get("reliability"), "value.reliability", low=0.0, high=1.0)
+        tested = data.get("tested_at")
+        self.tested_at = None if tested is None else bounds.number(tested, "value.tested_at", low=0.0,
+                                                                  high=bounds.LATEST_TIME)
+
     def __repr__(self) -> str:
         return f"GaussianValue({self.value:.4g} ± {self.model.std:.3g})"
 
@@ -374,12 +387,18 @@ VALUE_KINDS: dict[str, type] = {
 def value_from_dict(data: dict[str, Any]) -> Value:
     """Rebuild a value saved with ``to_dict``; the ``kind`` key picks the class.
 
-    A malformed record raises ValueError naming the missing key.
+    A malformed record raises ValueError naming the missing key; a value or plasticity that
+    is not a finite number of sane size (:data:`creatures.bounds.LARGEST_RATE`) is refused,
+    whatever the kind, before it can weigh in action selection.
     """
+    data = bounds.table(data, "value")
     try:
         cls = VALUE_KINDS[data["kind"]]
-    except KeyError:
+    except (KeyError, TypeError):
         raise ValueError(f"unknown value kind {data.get('kind')!r}") from None
+    if "value" in data:
+        bounds.number(data["value"], "value", low=-bounds.LARGEST_VALUE, high=bounds.LARGEST_VALUE)
+    bounds.number(data.get("plasticity", 1.0), "plasticity", low=0.0, high=1e3)
     try:
         return cls.from_dict(data)
     except KeyError as exc:

@@ -12,7 +12,9 @@ from abc import ABC, abstractmethod
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, Field
+
+from creatures.bounds import FINITE
 
 from creatures.behaviour.action_group import ActionGroup
 
@@ -26,7 +28,7 @@ if TYPE_CHECKING:
 class CreatureSpec(BaseModel):
     """Keys every ``[[creature]]`` table accepts; kinds subclass this with their own keys."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = FINITE
 
     name: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_\-]+$", description="unique name (letters, digits, _ and -)")
     kind: str = Field(description="which creature kind (the sections below)")

@@ -60,14 +60,14 @@ REPORT_EVERY = 0.5
 
 class CurveSpec(CreatureSpec):
     kind: Literal["curve"]
-    place: float = Field(0.0, description="where along the room the creature starts (x, m)")
-    room: float = Field(3.0, gt=0, description="half-width of the room (m): creatures stay within ±room")
+    place: float = Field(0.0, ge=-100, le=100, description="where along the room the creature starts (x, m)")
+    room: float = Field(3.0, gt=0, le=100, description="half-width of the room (m): creatures stay within ±room")
     walk_speed: float = Field(0.4, gt=0, le=5, description="how fast the creature walks along the room (m/s)")
-    drift: float = Field(0.4, ge=0, description="furthest a wander moves it along the room (m)")
-    sense: float = Field(2.5, gt=0, description="distance between bodies within which another creature is seen (m)")
-    near: float = Field(0.8, gt=0, description="distance between bodies at which another creature is close (m)")
+    drift: float = Field(0.4, ge=0, le=100, description="furthest a wander moves it along the room (m)")
+    sense: float = Field(2.5, gt=0, le=200, description="distance between bodies within which another creature is seen (m)")
+    near: float = Field(0.8, gt=0, le=200, description="distance between bodies at which another creature is close (m)")
     note_length: float = Field(3.0, gt=0, le=30, description="seconds each note the creature sounds is held")
-    temperature: float | None = Field(None, gt=0, description="Boltzmann temperature of action selection")
+    temperature: float | None = Field(None, gt=0, le=1e3, description="Boltzmann temperature of action selection")
     voice: VoiceSpec = VoiceSpec(voices=3, body_gain=12.0)
 
 

@@ -33,6 +33,7 @@ from creatures.behaviour.models.gaussian import GaussianModel
 from creatures.behaviour.motivation import Motivation
 from creatures.behaviour.percept import FunctionPercept, WhateverPercept
 from creatures.kinds import register
+from creatures.bounds import LARGEST_RATE, LONGEST_SECONDS
 from creatures.kinds.base import CreatureKind, CreatureSpec
 from creatures.kinds.moves import Rest, head_for
 from creatures.kinds.parts import Body, Voice, VoiceSpec
@@ -53,19 +54,19 @@ REPORT_EVERY = 0.5
 class ExchangeSpec(CreatureSpec):
     kind: Literal["exchange"]
     strike_radius: float = Field(0.15, gt=0, le=1.0, description="how close the hand must pass to strike a note (m)")
-    note_lifetime: float = Field(45.0, gt=0, description="seconds a placed note stays in space")
+    note_lifetime: float = Field(45.0, gt=0, le=LONGEST_SECONDS, description="seconds a placed note stays in space")
     max_notes: int = Field(48, ge=1, le=4096, description="most notes in space; the oldest fade first")
-    refractory: float = Field(20.0, ge=0, description="seconds before the same note is struck again")
-    strike_interval: float = Field(0.25, ge=0, description="shortest time between two strikes while wandering (s)")
+    refractory: float = Field(20.0, ge=0, le=LONGEST_SECONDS, description="seconds before the same note is struck again")
+    strike_interval: float = Field(0.25, ge=0, le=3600, description="shortest time between two strikes while wandering (s)")
     mutation: float = Field(0.08, ge=0, le=1, description="chance a placed copy is transposed")
     answer: float = Field(0.0, ge=0, le=1, description="chance of striking a heard note the moment it lands in "
                                                         "space (a reflex answer), within strike_interval and refractory")
-    boredom_rate: float = Field(0.08, ge=0, description="boredom growth per second without notes")
-    relief: float = Field(0.3, ge=0, description="boredom removed by each heard note")
-    appetite: float = Field(0.08, ge=0, description="hunger for notes gained per second")
-    hunger_gain: float = Field(0.1, ge=0, description="extra hunger per second per unit of boredom")
-    satiation: float = Field(0.25, ge=0, description="hunger removed by each struck note")
-    temperature: float | None = Field(None, gt=0, description="Boltzmann temperature of action selection")
+    boredom_rate: float = Field(0.08, ge=0, le=LARGEST_RATE, description="boredom growth per second without notes")
+    relief: float = Field(0.3, ge=0, le=LARGEST_RATE, description="boredom removed by each heard note")
+    appetite: float = Field(0.08, ge=0, le=LARGEST_RATE, description="hunger for notes gained per second")
+    hunger_gain: float = Field(0.1, ge=0, le=LARGEST_RATE, description="extra hunger per second per unit of boredom")
+    satiation: float = Field(0.25, ge=0, le=LARGEST_RATE, description="hunger removed by each struck note")
+    temperature: float | None = Field(None, gt=0, le=1e3, description="Boltzmann temperature of action selection")
     ratio_metric: bool = Field(False, description="move on a motor graph whose time metric favours low-integer "
                                                     "ratios of the source animation length (the thesis's twist)")
     rests_in_time: bool = Field(False, description="rest for two durations of the rhythm the colony hears "
@@ -293,4 +294,4 @@ class Exchange(CreatureKind):
     def restore(self, state: dict[str, Any]) -> None:
         self.group.restore_values(state.get("values", {}))
         if "motivation" in state:
-            self.motivation = Motivation.from_dict(state["motivation"], now=self.world.clock.now())
+            self.motivation.restore(state["motivation"], now=self.world.clock.now())

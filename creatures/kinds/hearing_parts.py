@@ -34,32 +34,35 @@ from pathlib import Path
 from typing import Annotated, Any, Callable
 
 import numpy as np
-from pydantic import AfterValidator, BaseModel, ConfigDict, Field, model_validator
+from pydantic import AfterValidator, BaseModel, Field, model_validator
 
 from audio.cepstrum import cepstra
 from audio.coupling import BodyControl, joint_angle, joint_distance
 from audio.sampler import Sampler
 from audio.segment import Segmenter
 from audio.self_hearing import SingingState
-from audio.utterance import DEFAULT_RADIUS, Utterance, UtterancePercept
+from audio.utterance import DEFAULT_RADIUS, Utterance, UtterancePercept, load_aural_model
 from creatures.behaviour.action_group import ActionGroup
 from creatures.behaviour.action_tuple import Action, ActionTuple, DoUntil
 from creatures.behaviour.learning import PerceptLearning, copy_value
+from creatures import bounds
+from creatures.bounds import FINITE
 from creatures.kinds.parts import shared_graph
 from creatures.motor.pose import BodyPose
+from creatures.persist import StateFileError
 
 
 class HearingSpec(BaseModel):
     """``[creature.hearing]``: how the ear cuts sound into utterances and groups them."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = FINITE
 
     on_db: float = Field(12.0, gt=0, le=60, description="dB above the noise floor that starts a sound")
     off_db: float = Field(6.0, gt=0, le=60, description="dB above the floor that keeps a sound going")
     hold: float = Field(0.08, ge=0, le=1, description="dips shorter than this (s) do not end a sound")
     min_length: float = Field(0.1, gt=0, le=2, description="shorter sounds are ignored (clicks), s")
     max_length: float = Field(2.0, gt=0, le=10, description="longer sounds are cut into pieces, s")
-    radius: float = Field(DEFAULT_RADIUS, gt=0, description="cepstral cluster radius of a sound class")
+    radius: float = Field(DEFAULT_RADIUS, gt=0, le=1e5, description="cepstral cluster radius of a sound class")
     memory: float = Field(0.25, gt=0, le=5, description="seconds a heard sound stays perceived")
     keep: int = Field(60, ge=3, le=1000, description="most exemplars a sound percept keeps (the newest); "
                                                       "clustering costs keep² time warps")
@@ -75,13 +78,23 @@ class HearingSpec(BaseModel):
         return self
 
 
-def _existing_file(path: str | None) -> str | None:
-    if path is not None and not Path(path).is_file():
+def _aural_model(path: str | None) -> str | None:
+    """``path`` if it names an aural model that loads, read now so that a wrong file
+    (``/etc/passwd``) is a config error at its key, not a crash when the creature is built."""
+    if path is None:
+        return None
+    if not Path(path).is_file():
         raise ValueError(f"file not found: {path}")
+    if Path(path).suffix != ".json":
+        raise ValueError(f"not an aural model (save_aural_model writes a .json file): {path}")
+    try:
+        load_aural_model(path)
+    except (StateFileError, ValueError, ArithmeticError) as exc:
+        raise ValueError(f"not a loadable aural model ({exc})") from None
     return path
 
 
-SeedModel = Annotated[str | None, AfterValidator(_existing_file)]
+SeedModel = Annotated[str | None, AfterValidator(_aural_model)]
 """A config key naming an aural model (:func:`audio.utterance.save_aural_model`'s JSON,
 absolute or relative to the working directory) to seed a creature with: "persistent aural
 models … offer an ability to seed the creatures with musical material" (soundcreatures)."""
@@ -110,13 +123,13 @@ class Ear:
 class MouthSpec(BaseModel):
     """``[creature.mouth]``: how the body shapes the sung sound."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = FINITE
 
     gain: float = Field(1.0, ge=0, le=4, description="gain of sung sounds before the body's amplitude")
     quiet: float = Field(0.3, ge=0, le=1, description="amplitude with the rib cage closed")
     loud: float = Field(1.0, ge=0, le=2, description="amplitude with the rib cage open")
-    dull_hz: float = Field(1500.0, ge=50, description="low-pass cutoff with the back bent")
-    bright_hz: float = Field(9000.0, ge=50, description="low-pass cutoff with the back straight")
+    dull_hz: float = Field(1500.0, ge=50, le=96000, description="low-pass cutoff with the back bent")
+    bright_hz: float = Field(9000.0, ge=50, le=96000, description="low-pass cutoff with the back straight")
 
 
 @functools.lru_cache(maxsize=8)
@@ -231,25 +244,49 @@ def tree_state(root: UtterancePercept) -> dict[str, Any]:
             "utterances": utterances}
 
 
-def tree_from_state(state: dict[str, Any]) -> UtterancePercept:
-    """Rebuild a tree saved by :func:`tree_state`; raises ValueError naming what is wrong."""
-    try:
-        table = []
-        for u in state["utterances"]:
-            samples = unpack_samples(u["samples"])
-            table.append(Utterance(samples, int(u["samplerate"]), cepstra(samples, int(u["samplerate"])),
-                                   float(u["time"])))
-        options = {k: state[k] for k in ("radius", "max_children", "min_members", "max_members", "memory")}
+LONGEST_UTTERANCE = 60.0
+"""Seconds: the longest saved utterance taken back (the ear cuts sounds at ``max_length``,
+at most 10 s)."""
 
-        def build(d: dict[str, Any], parent: UtterancePercept | None) -> UtterancePercept:
+
+def utterance_from_state(saved: Any, what: str) -> Utterance:
+    """An utterance saved as ``{"samples", "samplerate", "time"}`` (cepstra recomputed), or
+    ValueError naming ``what``: a rate, a length or a time no ear produces is refused here,
+    not when the creature first sings it."""
+    saved = bounds.table(saved, what)
+    rate = bounds.count(saved.get("samplerate"), f"{what}.samplerate", low=8000, high=192000)
+    if not isinstance(saved.get("samples"), str):
+        raise ValueError(f"{what}.samples: must be base64 text")
+    samples = unpack_samples(saved["samples"])
+    if not 0 < len(samples) <= LONGEST_UTTERANCE * rate:
+        raise ValueError(f"{what}.samples: must hold 1 to {LONGEST_UTTERANCE:g} s of sound, found {len(samples)} samples")
+    time = bounds.number(saved.get("time"), f"{what}.time", low=0.0, high=bounds.LATEST_TIME)
+    return Utterance(samples, rate, cepstra(samples, rate), time)
+
+
+def tree_from_state(state: dict[str, Any], like: UtterancePercept) -> UtterancePercept:
+    """Rebuild a tree saved by :func:`tree_state`; raises ValueError naming what is wrong.
+
+    The tree's settings (radius, sizes, memory) are those of ``like``, the tree the config
+    built: an edited config wins over the saved file; the classes and exemplars are learnt."""
+    try:
+        saved = bounds.items(state["utterances"], "tree.utterances", longest=100_000)
+        table = [utterance_from_state(u, f"tree.utterances.{i}") for i, u in enumerate(saved)]
+        options = {"radius": like.radius, "max_children": like.max_children, "min_members": like.min_members,
+                   "max_members": like.max_members, "memory": like.memory}
+
+        def build(d: dict[str, Any], parent: UtterancePercept | None, where: str) -> UtterancePercept:
+            if not isinstance(d.get("name"), str):
+                raise ValueError(f"{where}.name: must be text")
             p = UtterancePercept(d["name"], parent=parent, **options)
-            p._born = int(d["born"])
-            p.members = [table[i] for i in d["members"]]
-            for child in d["children"]:
-                build(child, p)
+            p._born = bounds.count(d.get("born"), f"{where}.born")
+            members = bounds.items(d.get("members"), f"{where}.members", longest=len(table))
+            p.members = [table[bounds.count(i, f"{where}.members", high=len(table) - 1)] for i in members]
+            for k, child in enumerate(bounds.items(d.get("children"), f"{where}.children", longest=like.max_children)):
+                build(bounds.table(child, f"{where}.children.{k}"), p, f"{where}.children.{k}")
             return p
 
-        return build(state["root"], None)
+        return build(bounds.table(state["root"], "tree.root"), None, "tree.root")
     except (KeyError, IndexError, TypeError, ValueError) as exc:
         raise ValueError(f"malformed aural model state ({type(exc).__name__}: {exc})") from None
 

@@ -67,8 +67,10 @@ from creatures.behaviour.motivation import Motivation
 from creatures.behaviour.percept import FunctionPercept, WhateverPercept
 from creatures.behaviour.value import GaussianValue, ScalarValue
 from creatures.kinds import register
+from creatures import bounds
+from creatures.bounds import LARGEST_RATE, LONGEST_SECONDS
 from creatures.kinds.base import CreatureKind, CreatureSpec
-from creatures.kinds.model_population import FLOOR, Member, ModelPopulation
+from creatures.kinds.model_population import FLOOR, MOST_MODELS, MOST_STATES, Member, ModelPopulation
 from creatures.kinds.moves import Rest, head_for
 from creatures.kinds.parts import Body, Voice, VoiceSpec
 from creatures.kinds.report_parts import MotorTrail, report_values, selection_logger
@@ -96,18 +98,18 @@ class ListenSpec(CreatureSpec):
     known: float = Field(0.2, ge=0, le=1, description="fraction of the arriving notes' transitions a model must "
                                                       "already explain to learn them (else a growing model extends "
                                                       "itself, or a new model is spawned)")
-    max_models: int = Field(6, ge=1, le=64, description="most models in the population; the least useful retires")
-    max_states: int = Field(96, ge=8, le=4096, description="states a model may grow to before it is distilled "
+    max_models: int = Field(6, ge=1, le=MOST_MODELS, description="most models in the population; the least useful retires")
+    max_states: int = Field(96, ge=8, le=MOST_STATES, description="states a model may grow to before it is distilled "
                                                            "to its core")
-    forget: float = Field(120.0, gt=0, description="time constant (s) of a model's usefulness; unused models retire")
+    forget: float = Field(120.0, gt=0, le=LONGEST_SECONDS, description="time constant (s) of a model's usefulness; unused models retire")
     continuation: int = Field(8, ge=0, le=256, description="predicted notes played when the music stops")
     predict_velocity: float = Field(0.4, gt=0, le=1, description="velocity of a predicted note, relative to the "
                                                                   "notes it was learnt from")
     patience: float = Field(2.0, gt=1, le=10, description="silence, in multiples of the expected gap, before the "
                                                           "creature starts anticipating")
     excitement: float = Field(0.3, ge=0, le=2, description="excitement added by each heard note")
-    calm: float = Field(0.4, ge=0, description="rate (1/s) at which excitement decays")
-    temperature: float | None = Field(None, gt=0, description="Boltzmann temperature of action selection")
+    calm: float = Field(0.4, ge=0, le=LARGEST_RATE, description="rate (1/s) at which excitement decays")
+    temperature: float | None = Field(None, gt=0, le=1e3, description="Boltzmann temperature of action selection")
     voice: VoiceSpec = VoiceSpec(voices=4)
 
     @model_validator(mode="after")
@@ -154,7 +156,12 @@ class NotePoses:
         return {str(p): n for p, n in self.nodes.items()}
 
     def restore(self, data: dict[str, int]) -> None:
-        self.nodes = {int(p): int(n) for p, n in data.items()}
+        """Take back pitch → node; a pitch outside MIDI or a node outside the graph is refused."""
+        saved = bounds.table(data, "poses")
+        if not all(key.isdigit() for key in saved):
+            raise ValueError("poses: keys must be MIDI pitches")
+        self.nodes = {bounds.count(int(p), "poses", high=127): bounds.count(n, f"poses.{p}", high=len(self.reach) - 1)
+                      for p, n in saved.items()}
         self.pitches = {}
         for p, n in self.nodes.items():
             self.pitches.setdefault(n, p)
@@ -423,12 +430,12 @@ class Listen(CreatureKind):
     def restore(self, state: dict[str, Any]) -> None:
         self.group.restore_values(state.get("values", {}))
         if "motivation" in state:
-            self.motivation = Motivation.from_dict(state["motivation"], now=self.world.clock.now())
+            self.motivation.restore(state["motivation"], now=self.world.clock.now())
         if "poses" in state:
             self.poses.restore(state["poses"])
         if "population" in state:
-            self.population.restore(state["population"])
+            self.population.restore(state["population"], nodes=len(self.body.graph))
             self.dance.follow(self.population.best)
         if "expected match" in state:
-            self.expected_match = GaussianValue.from_dict(state["expected match"], clock=self.world.clock)
+            self.expected_match.restore(state["expected match"])
 

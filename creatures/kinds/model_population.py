@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from creatures import bounds
 from creatures.motor.gesture import GestureModel, Observation
 
 FLOOR = 1e-3
@@ -167,11 +168,28 @@ class ModelPopulation:
                 "members": [{"id": m.id, "born": m.born, "usefulness": m.usefulness, "model": m.model.to_dict()}
                             for m in self.members]}
 
-    def restore(self, data: dict[str, Any]) -> None:
-        self._next_id, self._time = int(data["next_id"]), float(data["time"])
-        self.members = [Member(int(m["id"]), GestureModel.from_dict(m["model"]), float(m["born"]),
-                               float(m["usefulness"])) for m in data["members"]]
+    def restore(self, data: dict[str, Any], *, nodes: int) -> None:
+        """Take back saved members (models over a graph of ``nodes`` poses); every number is
+        checked against this population's bounds, which stay its own (the config's)."""
+        self._next_id = bounds.count(data["next_id"], "population.next_id")
+        self._time = bounds.number(data["time"], "population.time", low=0.0, high=bounds.LATEST_TIME)
+        members = []
+        # The config's max_models wins: a population saved larger keeps its first members.
+        saved = bounds.items(data["members"], "population.members", longest=MOST_MODELS)[: self.max_models]
+        for i, m in enumerate(saved):
+            where = f"population.members.{i}"
+            m = bounds.table(m, where)
+            members.append(Member(bounds.count(m["id"], f"{where}.id"),
+                                  GestureModel.from_dict(m["model"], nodes=nodes, longest=4 * MOST_STATES, where=f"{where}.model"),
+                                  bounds.number(m["born"], f"{where}.born", low=0.0, high=bounds.LATEST_TIME),
+                                  bounds.number(m["usefulness"], f"{where}.usefulness")))
+        self.members = members
         self.best = next((m for m in self.members if m.id == data["best"]), None)
+
+
+MOST_MODELS, MOST_STATES = 64, 4096
+"""Largest ``max_models`` and ``max_states`` a config may set; a saved model may have grown
+past ``max_states`` until its next distillation, so up to four times that is read back."""
 
 
 def _grows_from(model: GestureModel, context: list[Observation], threshold: float) -> bool:

@@ -64,6 +64,7 @@ from creatures.behaviour.motivation import Motivation
 from creatures.behaviour.percept import FunctionPercept
 from creatures.behaviour.value import ScalarValue, value_from_dict
 from creatures.kinds import register
+from creatures.bounds import LARGEST_RATE, LONGEST_SECONDS, Seconds
 from creatures.kinds.base import CreatureKind, CreatureSpec
 from creatures.kinds.hearing_parts import AuralLearning, Ear, HearingSpec, SingFrom, tree_from_state, tree_state
 from creatures.persist import load_json, save_json
@@ -77,14 +78,14 @@ REPORT_EVERY = 0.5
 
 class OzymandiasSpec(CreatureSpec):
     kind: Literal["ozymandias"]
-    clicks: list[float] = Field(default_factory=list, description="seconds at which the author clicks "
+    clicks: list[Seconds] = Field(default_factory=list, max_length=100_000, description="seconds at which the author clicks "
                                                                   "(rewards the creature)")
-    click_value: float = Field(3.0, gt=0, description="value of being clicked (the primary reinforcer)")
-    excitement: float = Field(0.35, ge=0, description="excitement added by each heard word")
-    calm: float = Field(3.0, gt=0, description="half-life of excitement, seconds")
+    click_value: float = Field(3.0, gt=0, le=LARGEST_RATE, description="value of being clicked (the primary reinforcer)")
+    excitement: float = Field(0.35, ge=0, le=LARGEST_RATE, description="excitement added by each heard word")
+    calm: float = Field(3.0, gt=0, le=LONGEST_SECONDS, description="half-life of excitement, seconds")
     shortest: float = Field(0.15, gt=0, le=5, description="shortest part of a word read back, seconds")
     loudness: float = Field(0.6, ge=0, le=2, description="gain of a part read at full excitement")
-    innovation: float = Field(0.8, gt=0, description="value (× mean) above which a percept is clustered")
+    innovation: float = Field(0.8, gt=0, le=1e3, description="value (× mean) above which a percept is clustered")
     hearing: HearingSpec = HearingSpec(half_duplex=False, memory=0.5)
 
     @field_validator("clicks")
@@ -227,7 +228,7 @@ class Ozymandias(CreatureKind):
                 "tuples": [[tp.trigger.name, tp.action.name, tp.name, tp.value.to_dict()] for tp in self.group.tuples]}
 
     def restore(self, state: dict[str, Any]) -> None:
-        self.root = tree_from_state(state["tree"])
+        self.root = tree_from_state(state["tree"], like=self.root)
         self._readers.clear()
         self._build_group()
         percepts = {p.name: p for p in self.root.walk()}
@@ -240,7 +241,7 @@ class Ozymandias(CreatureKind):
                 self.group.find(name).value = value_from_dict(value)
         except KeyError as exc:
             raise ValueError(f"{self.name}: saved tuples name an unknown percept {exc}") from None
-        self.motivation = Motivation.from_dict(state["motivation"], now=self.world.clock.now())
+        self.motivation.restore(state["motivation"], now=self.world.clock.now())
 
 
 # -- the edit decision list ---------------------------------------------------------------------

@@ -11,11 +11,12 @@ import math
 from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, Field, model_validator
 
 from audio.coupling import BodyCoupling
 from audio.scanned import GESTURAL_LIMIT_HZ, StringParameters, UnstableStringError, soft_limit
 from audio.voices import VoicePool
+from creatures.bounds import FINITE
 from creatures.motor import quaternion as quat
 from creatures.motor.animations import example_animations
 from creatures.motor.graph import MotorGraph
@@ -35,18 +36,18 @@ class VoiceSpec(BaseModel):
     "lower than 10-15Hz"), so the body moves the string at the speed the string moves.
     """
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = FINITE
 
     voices: int = Field(6, ge=1, le=32, description="polyphony (strings)")
     masses: int = Field(64, ge=3, le=1024, description="masses per string")
-    mass: float = Field(1.0, gt=0, description="mass of each node of the string")
-    stiffness: float = Field(800.0, ge=0, description="spring between neighbouring masses")
-    centring: float = Field(4.0, ge=0, description="spring of each mass to rest")
-    damping: float = Field(0.5, ge=0, description="velocity damping (sets how fast a string rings down)")
+    mass: float = Field(1.0, gt=0, le=1e6, description="mass of each node of the string")
+    stiffness: float = Field(800.0, ge=0, le=1e12, description="spring between neighbouring masses")
+    centring: float = Field(4.0, ge=0, le=1e12, description="spring of each mass to rest")
+    damping: float = Field(0.5, ge=0, le=1e12, description="velocity damping (sets how fast a string rings down)")
     haptic_rate: float = Field(500.0, ge=100, le=1000, description="string physics updates per second")
     release: float = Field(0.2, gt=0, le=10, description="fade after note-off, seconds")
     gain: float = Field(0.3, ge=0, le=4, description="output gain of the strings before the limiter")
-    body_gain: float = Field(40.0, ge=0, description="force per unit joint velocity pushing the strings")
+    body_gain: float = Field(40.0, ge=0, le=1e4, description="force per unit joint velocity pushing the strings")
     interpolation: Literal["linear", "none"] = Field(
         "linear", description="how the scan reads the string: linear between masses and physics frames "
         "(smooth, like Csound's scans) or none, the nearest mass of the latest frame (brighter and "

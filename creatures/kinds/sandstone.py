@@ -69,13 +69,15 @@ from collections import deque
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import ConfigDict, Field, field_validator
+from pydantic import Field, field_validator
 
 from creatures.behaviour.action_group import ActionGroup
 from creatures.behaviour.action_tuple import Action, ActionTuple, DoUntil
 from creatures.behaviour.motivation import Motivation
 from creatures.behaviour.percept import FunctionPercept
 from creatures.kinds import register
+from creatures import bounds
+from creatures.bounds import FINITE, LARGEST_RATE, LONGEST_SECONDS, Seconds
 from creatures.kinds.base import CreatureKind, CreatureSpec
 from creatures.kinds.parts import Voice, VoiceSpec
 from creatures.kinds.report_parts import report_values, selection_logger
@@ -117,17 +119,18 @@ DEFAULT_PHRASES: list[list[tuple[int, float]]] = [
 class SandstoneSpec(CreatureSpec):
     """``[[creature]]`` keys of a sand:stone rock (rates are per second of clock time)."""
 
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+    model_config = FINITE
 
     kind: Literal["sandstone"]
     phrases: list[list[tuple[int, float]]] = Field(
-        DEFAULT_PHRASES, min_length=1,
+        DEFAULT_PHRASES, min_length=1, max_length=1024,
         description="precomposed segments, sung in order: each a list of [pitch, beats] notes "
                     "(beats from this note's onset to the next)")
-    tempo: float = Field(96.0, gt=0, le=400, description="beats per minute of internal time at pulse 1")
-    phrase_rest: float = Field(1.0, ge=0, description="beats of silence between the end of a segment and the next")
-    presence: list[tuple[float, float]] = Field(
-        [(0.0, 1.0)], min_length=1,
+    tempo: float = Field(96.0, ge=10, le=400, description="beats per minute of internal time at pulse 1 "
+                                                         "(at 10, the longest note lasts under 13 minutes)")
+    phrase_rest: float = Field(1.0, ge=0, le=64, description="beats of silence between the end of a segment and the next")
+    presence: list[tuple[Seconds, float]] = Field(
+        [(0.0, 1.0)], min_length=1, max_length=100_000,
         description="presence script: [seconds, level 0..1] points, linearly interpolated and held "
                     "beyond the ends (the rock's closeness to the centre of the sand)")
     rock: int | None = Field(None, ge=0, le=127,
@@ -135,21 +138,21 @@ class SandstoneSpec(CreatureSpec):
                                          "(velocity/127 = presence) overrides the script from then on")
     sensor_channel: int = Field(15, ge=0, le=15,
                                 description="MIDI channel of rock-sensor readings (never heard as music)")
-    eagerness: float = Field(0.3, ge=0, description="desire per second at full presence and no boredom")
+    eagerness: float = Field(0.3, ge=0, le=LARGEST_RATE, description="desire per second at full presence and no boredom")
     threshold: float = Field(0.4, gt=0, lt=CEILING, description="desire above which the creature wants to sing")
-    satiation: float = Field(0.25, ge=0, description="desire used per second of singing")
-    forgetting: float = Field(0.03, ge=0, description="per-second decay of desire toward 0")
-    habituation: float = Field(0.015, ge=0, description="boredom per second at full presence")
-    recovery: float = Field(0.03, ge=0, description="per-second decay of boredom toward 0")
-    breath_use: float = Field(0.3, gt=0, description="breath used per second of singing (full breath = 1)")
-    breath_recovery: float = Field(0.1, gt=0, description="per-second return of breath toward full")
-    inhale: float = Field(0.5, ge=0, description="extra breath per second while pausing")
+    satiation: float = Field(0.25, ge=0, le=LARGEST_RATE, description="desire used per second of singing")
+    forgetting: float = Field(0.03, ge=0, le=LARGEST_RATE, description="per-second decay of desire toward 0")
+    habituation: float = Field(0.015, ge=0, le=LARGEST_RATE, description="boredom per second at full presence")
+    recovery: float = Field(0.03, ge=0, le=LARGEST_RATE, description="per-second decay of boredom toward 0")
+    breath_use: float = Field(0.3, gt=0, le=LARGEST_RATE, description="breath used per second of singing (full breath = 1)")
+    breath_recovery: float = Field(0.1, gt=0, le=LARGEST_RATE, description="per-second return of breath toward full")
+    inhale: float = Field(0.5, ge=0, le=LARGEST_RATE, description="extra breath per second while pausing")
     recovered: float = Field(0.8, gt=0, le=1, description="breath needed to start singing again")
-    hurry: float = Field(0.1, ge=0, description="how strongly desire speeds, and boredom slows, internal time")
+    hurry: float = Field(0.1, ge=0, le=100, description="how strongly desire speeds, and boredom slows, internal time")
     correlated_within: float = Field(1.5, ge=0, lt=STEPS / 2,
                                      description="circle-of-fifths distance below which heard music is correlated")
-    memory: float = Field(4.0, gt=0, description="seconds over which heard music fades from the ear")
-    suppression: float = Field(0.2, ge=0, description="desire removed per second by fully uncorrelated music")
+    memory: float = Field(4.0, gt=0, le=LONGEST_SECONDS, description="seconds over which heard music fades from the ear")
+    suppression: float = Field(0.2, ge=0, le=LARGEST_RATE, description="desire removed per second by fully uncorrelated music")
     velocity: int = Field(96, ge=1, le=127, description="loudness of a fresh (unbored) creature")
     timbre_depth: float = Field(0.5, ge=0, le=1, description="how much full boredom softens (velocity) "
                                                              "and detaches (note length) the singing")
@@ -440,9 +443,12 @@ class Sandstone(CreatureKind):
         if not (0 <= phrase < len(self.song.phrases) and 0 <= note < len(self.song.phrases[phrase][0])):
             raise ValueError(f"sandstone state of {self.name!r}: song position {phrase}/{note} is not in its phrases")
         self.group.restore_values(state["values"])
-        self.motivation = Motivation.from_dict(state["motivation"], now=self.world.clock.now())
+        self.motivation.restore(state["motivation"], now=self.world.clock.now())
         self.song.phrase, self.song.note = phrase, note
-        self.heard.vector = np.asarray(state["heard"]["vector"], dtype=float).reshape(2)
-        self.heard.weight, self.heard.time = float(state["heard"]["weight"]), self.world.clock.now()
-        self.sensed = None if state["sensed"] is None else float(state["sensed"])
+        heard = bounds.table(state["heard"], "heard")
+        vector = bounds.items(heard.get("vector"), "heard.vector", shortest=2, longest=2)
+        self.heard.vector = np.array([bounds.number(x, f"heard.vector.{i}") for i, x in enumerate(vector)])
+        self.heard.weight = bounds.number(heard.get("weight"), "heard.weight", low=0.0)
+        self.heard.time = self.world.clock.now()
+        self.sensed = None if state["sensed"] is None else bounds.number(state["sensed"], "sensed", low=0.0, high=1.0)
         self.drives.update(zip(self.motivation.names, self.motivation.levels.tolist()))

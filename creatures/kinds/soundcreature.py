@@ -56,6 +56,7 @@ from creatures.behaviour.motivation import Motivation
 from creatures.behaviour.percept import FunctionPercept
 from creatures.behaviour.value import ScalarValue, value_from_dict
 from creatures.kinds import register
+from creatures.bounds import LARGEST_RATE
 from creatures.kinds.base import CreatureKind, CreatureSpec
 from creatures.kinds.hearing_parts import (AuralLearning, Ear, HearingSpec, Mouth, MouthSpec, SeedModel,
                                            SingFrom, tree_from_state, tree_state)
@@ -72,17 +73,17 @@ REPORT_EVERY = 0.5
 
 class SoundCreatureSpec(CreatureSpec):
     kind: Literal["soundcreature"]
-    temperature: float = Field(0.3, gt=0, description="Boltzmann temperature of selection when content")
-    curiosity: float = Field(2.0, ge=0, description="how much the motivation to hear raises the temperature")
-    hear_growth: float = Field(0.1, ge=0, description="growth per second of the motivation to hear (in silence)")
-    hear_relief: float = Field(0.5, ge=0, description="motivation to hear removed by each attended sound")
+    temperature: float = Field(0.3, gt=0, le=1e3, description="Boltzmann temperature of selection when content")
+    curiosity: float = Field(2.0, ge=0, le=1e3, description="how much the motivation to hear raises the temperature")
+    hear_growth: float = Field(0.1, ge=0, le=LARGEST_RATE, description="growth per second of the motivation to hear (in silence)")
+    hear_relief: float = Field(0.5, ge=0, le=LARGEST_RATE, description="motivation to hear removed by each attended sound")
     answer_wait: float = Field(1.0, ge=0, le=10, description="seconds after a song in which a heard sound "
                                                              "still rewards it")
-    attend_value: float = Field(3.0, gt=0, description="value of attending a sound (the primary reinforcer)")
+    attend_value: float = Field(3.0, gt=0, le=LARGEST_RATE, description="value of attending a sound (the primary reinforcer)")
     body_rate: float = Field(10.0, gt=0, le=100, description="body poses per second (forward kinematics is "
                                                             "the costliest per-tick work; the sound follows "
                                                             "the body at this rate)")
-    innovation: float = Field(0.8, gt=0, description="value (× mean) above which a percept is clustered")
+    innovation: float = Field(0.8, gt=0, le=1e3, description="value (× mean) above which a percept is clustered")
     seed_model: SeedModel = Field(None, description="aural model (save_aural_model JSON, absolute or relative "
                                                     "to the working directory) to start with instead of an "
                                                     "empty repertoire")
@@ -245,7 +246,7 @@ class SoundCreature(CreatureKind):
 
     def restore(self, state: dict[str, Any]) -> None:
         """Rebuild the tree, then every tuple the state names (hypotheses too), with its value."""
-        self.root = tree_from_state(state["tree"])
+        self.root = tree_from_state(state["tree"], like=self.root)
         self._singers.clear()
         self._build_group()
         percepts = {p.name: p for p in (*self.root.walk(), self.repertoire, self.always)}
@@ -259,4 +260,4 @@ class SoundCreature(CreatureKind):
                 self.group.find(name).value = value_from_dict(value)
         except KeyError as exc:
             raise ValueError(f"{self.name}: saved tuples name an unknown percept or action {exc}") from None
-        self.motivation = Motivation.from_dict(state["motivation"], now=self.world.clock.now())
+        self.motivation.restore(state["motivation"], now=self.world.clock.now())

@@ -51,12 +51,13 @@ import librosa
 import numpy as np
 from pydantic import Field, field_validator
 
-from audio.cepstrum import cepstra
 from audio.utterance import Utterance, load_aural_model
 from creatures.behaviour.motivation import Motivation
 from creatures.kinds import register
+from creatures import bounds
+from creatures.bounds import LARGEST_RATE, LONGEST_SECONDS, Seconds
 from creatures.kinds.base import CreatureKind, CreatureSpec
-from creatures.kinds.hearing_parts import Ear, HearingSpec, Mouth, MouthSpec, SeedModel, pack_samples, unpack_samples
+from creatures.kinds.hearing_parts import Ear, HearingSpec, Mouth, MouthSpec, SeedModel, pack_samples, utterance_from_state
 
 if TYPE_CHECKING:
     from creatures.runtime.world import World
@@ -104,21 +105,25 @@ class Memory:
     origin: str  # "seed", "heard" or "flush"
 
 
+MOST_MEMORIES = 256
+"""Most sounds a creature may remember (``memory_size``), and read back from a saved state."""
+
+
 class ThreeCreaturesSpec(CreatureSpec):
     kind: Literal["three_creatures"]
-    memory_size: int = Field(8, ge=1, le=256, description="sounds a creature remembers")
-    interest_growth: float = Field(0.08, ge=0, description="interest regained per second")
-    interest_cost: float = Field(0.3, ge=0, description="interest spent by remembering a sound")
-    urge_gain: float = Field(0.8, ge=0, description="urge to sing added by a fully familiar sound "
+    memory_size: int = Field(8, ge=1, le=MOST_MEMORIES, description="sounds a creature remembers")
+    interest_growth: float = Field(0.08, ge=0, le=LARGEST_RATE, description="interest regained per second")
+    interest_cost: float = Field(0.3, ge=0, le=LARGEST_RATE, description="interest spent by remembering a sound")
+    urge_gain: float = Field(0.8, ge=0, le=LARGEST_RATE, description="urge to sing added by a fully familiar sound "
                                                     "(half as much by an unrelated one)")
-    urge_decay: float = Field(0.05, ge=0, description="rate per second at which the urge to sing fades")
-    flush_every: float = Field(15.0, gt=0, description="seconds between the score computer's flushes")
+    urge_decay: float = Field(0.05, ge=0, le=LARGEST_RATE, description="rate per second at which the urge to sing fades")
+    flush_every: float = Field(15.0, gt=0, le=LONGEST_SECONDS, description="seconds between the score computer's flushes")
     flush_size: int = Field(2, ge=0, le=256, description="memory slots re-seeded from the input per flush")
     seed_model: SeedModel = Field(None, description="aural model (save_aural_model JSON; absolute or "
                                                     "relative to the working directory) seeding the memory")
-    in_kind: float = Field(1.0, ge=0, description="how strongly a song answers in kind: memories weigh "
+    in_kind: float = Field(1.0, ge=0, le=100, description="how strongly a song answers in kind: memories weigh "
                                                    "exp(in_kind × correlation with the sound just heard)")
-    latency: tuple[float, float] = Field((0.3, 1.5), description="range of seconds between being moved "
+    latency: tuple[Seconds, Seconds] = Field((0.3, 1.5), description="range of seconds between being moved "
                                                                   "to sing and singing")
     hearing: HearingSpec = HearingSpec(hold=0.05)
     mouth: MouthSpec = MouthSpec()
@@ -248,11 +253,12 @@ class ThreeCreature(CreatureKind):
     def restore(self, state: dict[str, Any]) -> None:
         try:
             memory = []
-            for m in state["memory"]:
-                samples, sr = unpack_samples(m["samples"]), int(m["samplerate"])
-                memory.append(Memory(Utterance(samples, sr, cepstra(samples, sr), float(m["time"])),
-                                     profile(samples, sr), str(m["origin"])))
-            motivation = Motivation.from_dict(state["motivation"], now=self.world.clock.now())
+            # The config's memory_size wins: a memory saved larger keeps its first sounds.
+            saved = bounds.items(state["memory"], "memory", longest=MOST_MEMORIES)[: self.spec.memory_size]
+            for i, m in enumerate(saved):
+                utterance = utterance_from_state(m, f"memory.{i}")
+                memory.append(Memory(utterance, profile(utterance.samples, utterance.samplerate), str(m["origin"])))
+            self.motivation.restore(state["motivation"], now=self.world.clock.now())
         except (KeyError, TypeError, ValueError) as exc:
             raise ValueError(f"{self.name}: malformed saved memory ({type(exc).__name__}: {exc})") from None
-        self.memory, self.motivation = memory, motivation
+        self.memory = memory

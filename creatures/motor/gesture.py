@@ -30,7 +30,9 @@ from typing import Any, Callable, Hashable, Iterable, Sequence
 
 import numpy as np
 
+from creatures import bounds
 from creatures.motor.programs import MotorProgram, Statement
+from creatures.temporal.durations import MAX_DURATION
 
 
 _NO_ROW: dict[int, float] = {}
@@ -381,10 +383,22 @@ class GestureModel:
         }
 
     @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> GestureModel:
-        model = cls(entropy_weight=data["entropy_weight"], threshold=data["threshold"])
-        model.sequences = int(data["sequences"])
-        for s in data["states"]:
-            model._add(GestureNode(int(s["node"]), int(s["visits"]), float(s["dwell"]), [],
-                                   {int(t): int(c) for t, c in s["out"].items()}))
+    def from_dict(cls, data: dict[str, Any], *, nodes: int = bounds.LARGEST_COUNT, longest: int = 65_536,
+                  where: str = "model") -> GestureModel:
+        """A model of the states in ``data`` (at most ``longest``, over graph nodes below
+        ``nodes``). Raises ValueError naming the key on damaged data."""
+        model = cls(entropy_weight=bounds.number(data["entropy_weight"], f"{where}.entropy_weight", low=0.0, high=1e3),
+                    threshold=bounds.number(data["threshold"], f"{where}.threshold"))
+        model.sequences = bounds.count(data["sequences"], f"{where}.sequences")
+        states = bounds.items(data["states"], f"{where}.states", longest=longest)
+        for i, s in enumerate(states):
+            at = f"{where}.states.{i}"
+            s = bounds.table(s, at)
+            out = bounds.table(s["out"], f"{at}.out")
+            if not all(t.isdigit() and int(t) < len(states) for t in out):
+                raise ValueError(f"{at}.out: keys must be indices of states")
+            model._add(GestureNode(bounds.count(s["node"], f"{at}.node", high=nodes - 1),
+                                   bounds.count(s["visits"], f"{at}.visits"),
+                                   bounds.number(s["dwell"], f"{at}.dwell", low=0.0, high=MAX_DURATION), [],
+                                   {int(t): bounds.count(c, f"{at}.out.{t}", low=1) for t, c in out.items()}))
         return model

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from creatures import bounds
 from creatures.behaviour.models.gaussian import GaussianModel
 from creatures.temporal.durations import LowIntegerRatioModel
 from creatures.temporal.onsets import inter_onset_intervals
@@ -54,12 +55,12 @@ class HeardPulse:
     def restore(self, data: dict[str, Any]) -> None:
         """Take back a saved pulse in place (Du durations hold this object, not a copy). The
         last onset before the save is not kept: the gap across a restart is no duration.
+        The model's settings are this pulse's (the code's); only what it learnt is taken.
         Raises KeyError/TypeError/ValueError/ArithmeticError on malformed data."""
-        model = LowIntegerRatioModel.from_dict(data["pulse"])
-        heard = data["heard"]
-        if not isinstance(heard, int) or isinstance(heard, bool) or heard < 0:
-            raise ValueError(f"'heard' must be a count, found {heard!r}")
-        self.model, self.heard = model, heard
+        saved = bounds.table(data["pulse"], "pulse")
+        LowIntegerRatioModel.from_dict(saved)  # a damaged file is refused, even in parts not read
+        model = self.model.learned(saved)
+        self.model, self.heard = model, bounds.count(data["heard"], "heard")
 
     def hear(self, onset: float) -> None:
         """A note started at ``onset`` (seconds); learnt at the next :meth:`settle`."""

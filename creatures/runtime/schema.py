@@ -9,16 +9,26 @@ from __future__ import annotations
 import difflib
 import socket
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, Field, model_validator
 
+from creatures.bounds import FINITE, LARGEST_RATE, LONGEST_OFFLINE
 from creatures.config import ConfigError, config_error, read_toml, validate
 from creatures.kinds import CreatureSpec, load_all
 
 
+LONGEST_SEED = 2**63 - 1
+"""Largest seed: numpy's SeedSequence takes any non-negative int, a config needs no more."""
+
+
 class Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = FINITE
+
+
+Bounded = Annotated[float, Field(ge=-LARGEST_RATE, le=LARGEST_RATE)]
+"""A number with no natural bound of its own (a reading, a reward, a range's end), still
+bounded: every number is (creatures/bounds.py)."""
 
 
 class AudioSection(Strict):
@@ -74,10 +84,10 @@ class Arg(Strict):
     the message has no such argument."""
 
     arg: int = Field(ge=0, le=63, description="index of the message argument (0 = the first)")
-    default: float | str | None = Field(None, description="used when the message has no argument `arg`")
+    default: Bounded | str | None = Field(None, description="used when the message has no argument `arg`")
 
 
-Number = float | Arg
+Number = Bounded | Arg
 """A constant, or ``{arg = N, default = X}``: read from the message."""
 
 
@@ -104,7 +114,7 @@ class InputMap(Strict):
     serial: str | None = Field(None, description="serial device read as a source (lines `name value ...`, "
                                                  "spaces or commas): a line is heard as the OSC message "
                                                  "`/name value ...`; a missing device is reported and retried")
-    baud: int = Field(9600, gt=0, description="serial speed, bits per second")
+    baud: int = Field(9600, gt=0, le=4_000_000, description="serial speed, bits per second")
     file: str | None = Field(None, description="rehearsal file (path relative to the config) of timed messages "
                                                "played from the start of the run: CSV rows `time,address,args...` "
                                                "or JSON lines {\"time\", \"address\", \"args\"}; address 'midi' "
@@ -122,12 +132,12 @@ class InputMap(Strict):
                                                                              "saliency = |reading|, habituating "
                                                                              "to repetition)")
     value: Number | None = Field(None, description="to = 'sensor': the reading (default: {arg = 0})")
-    range: tuple[float, float] | None = Field(None, description="to = 'sensor': scale the reading linearly from "
+    range: tuple[Bounded, Bounded] | None = Field(None, description="to = 'sensor': scale the reading linearly from "
                                                                 "`input_range` to [lo, hi]")
-    input_range: tuple[float, float] | None = Field(None, description="to = 'sensor': the reading's own span "
+    input_range: tuple[Bounded, Bounded] | None = Field(None, description="to = 'sensor': the reading's own span "
                                                                       "(default: the MIDI value's, 0-127 or "
                                                                       "-8192..8191; for OSC [0, 1])")
-    creatures: list[str] | Arg | None = Field(None, description="to = 'reward' or 'drive': the creatures it "
+    creatures: Annotated[list[str], Field(max_length=256)] | Arg | None = Field(None, description="to = 'reward' or 'drive': the creatures it "
                                                                 "reaches, or {arg = N} naming one; none = every "
                                                                 "creature that can take it")
     amount: Number | None = Field(None, description="to = 'reward': value of the reward (default 1.0; negative "
@@ -151,7 +161,7 @@ class InputSection(Strict):
                           description="input generated when no file is given: 'phrase' (three note "
                                       "fragments, as notes and as tones), 'speech' (the poem Ozymandias "
                                       "read by formant voices, audio only) or 'none'")
-    map: list[InputMap] = Field(default_factory=list, description="the input maps (see `[[input]]`)")
+    map: list[InputMap] = Field(default_factory=list, max_length=1024, description="the input maps (see `[[input]]`)")
 
 
 class CcSection(Strict):
@@ -161,7 +171,7 @@ class CcSection(Strict):
     source: str = Field(pattern=r"^[A-Za-z0-9_\-]+\.[A-Za-z0-9_\-]+$",
                         description="'<creature>.<drive>', e.g. 'ada.boredom'")
     controller: int = Field(ge=0, le=119, description="MIDI controller number (on the creature's channel)")
-    range: tuple[float, float] = Field((0.0, 1.0), description="source values mapped to 0 and 127 (clipped)")
+    range: tuple[Bounded, Bounded] = Field((0.0, 1.0), description="source values mapped to 0 and 127 (clipped)")
     rate: float = Field(10.0, gt=0, le=100, description="most messages a second (sent only when the value changes)")
 
 
@@ -176,17 +186,17 @@ class OutputSection(Strict):
     width: int = Field(320, ge=16, le=3840, description="frame width, pixels")
     height: int = Field(240, ge=16, le=2160, description="frame height, pixels")
     report: bool = Field(True, description="write report/ (plots and index.html) after an offline run")
-    cc: list[CcSection] = Field(default_factory=list, description="MIDI control-change streams, one [[output.cc]] "
+    cc: list[CcSection] = Field(default_factory=list, max_length=256, description="MIDI control-change streams, one [[output.cc]] "
                                                                   "table each")
 
 
 class Installation(Strict):
     title: str = Field(description="name of the installation")
     description: str = Field("", description="free text shown in reports")
-    seed: int = Field(0, description="seed of every random choice in the run")
+    seed: int = Field(0, ge=0, le=LONGEST_SEED, description="seed of every random choice in the run")
     tick: float = Field(0.02, gt=0.0005, le=0.5, description="behaviour tick, seconds")
-    duration: float = Field(60.0, gt=0, description="offline run length in simulated seconds (default)")
-    save_every: float = Field(60.0, gt=0, description="seconds between state saves in live runs")
+    duration: float = Field(60.0, gt=0, le=LONGEST_OFFLINE, description="offline run length in simulated seconds (default)")
+    save_every: float = Field(60.0, gt=0, le=24 * 3600.0, description="seconds between state saves in live runs")
     state: str | None = Field(None, description="directory for saved creature state (live runs)")
     realtime: bool = Field(True, description="live runs ask the OS for real-time scheduling of the creatures' "
                                              "thread (round-robin, priority 5: below JACK's) where allowed, so a "
@@ -196,7 +206,7 @@ class Installation(Strict):
     osc: OscSection = OscSection()
     input: InputSection = InputSection()
     output: OutputSection = OutputSection()
-    creature: list[dict[str, Any]] = Field(min_length=1, description="the creatures, one [[creature]] table each")
+    creature: list[dict[str, Any]] = Field(min_length=1, max_length=256, description="the creatures, one [[creature]] table each")
 
     @model_validator(mode="before")
     @classmethod

@@ -10,6 +10,7 @@ rounding never drifts). Only where time comes from and where the outputs go diff
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 from typing import Callable
@@ -35,6 +36,11 @@ COLONY_KIND = "creature-music colony state"
 COLONY_FILE = "colony.state.json"
 """What the colony learned together (the pulse it hears), saved beside the creatures' files;
 the dots keep it from ever being a creature's file (names have none)."""
+
+
+RESTORE_ERRORS = (KeyError, TypeError, ValueError, IndexError, AttributeError, ArithmeticError, RecursionError)
+"""What taking back a damaged file can raise (ArithmeticError: e.g. a ratio with denominator
+0; RecursionError: a tree nested deeper than any creature grows); each names the file."""
 
 
 class Session:
@@ -188,10 +194,13 @@ class Session:
                 raise StateFileError(f"{path}: 'state' must be a table, found {type(state).__name__}")
             try:
                 creature.restore(state)
-            except (KeyError, TypeError, ValueError, IndexError, AttributeError) as exc:
+                # A state that loads is one that saves: what was taken back must write out again.
+                json.dumps(creature.state(), allow_nan=False)
+            except RESTORE_ERRORS as exc:
                 # A kind's restore reads plain dicts; whatever a damaged file makes it trip
                 # on is reported as that file's fault (creatures.behaviour.creature does the same).
-                raise StateFileError(f"{path}: malformed {creature.spec.kind} state ({exc})") from None
+                # Each kind checks bounds with creatures.bounds, whose messages name the key.
+                raise StateFileError(f"{path}: malformed {creature.spec.kind} state ({type(exc).__name__}: {exc})") from None
             restored.append(creature.name)
         self._load_colony(directory / COLONY_FILE)
         return restored
@@ -203,8 +212,7 @@ class Session:
         data = load_json(path, kind=COLONY_KIND)
         try:
             self.world.pulse.restore(data)
-        except (KeyError, TypeError, ValueError, IndexError, AttributeError, ArithmeticError) as exc:
-            # ArithmeticError: e.g. a ratio with denominator 0, a size too large for an index.
+        except RESTORE_ERRORS as exc:
             raise StateFileError(f"{path}: malformed colony state ({type(exc).__name__}: {exc})") from None
 
 

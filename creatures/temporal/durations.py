@@ -29,8 +29,16 @@ from typing import Any, Iterable, Mapping, Protocol
 
 import numpy as np
 
+from creatures import bounds
 from creatures.behaviour.action_tuple import DurationModel
 from creatures.behaviour.models.gaussian import GaussianModel
+
+MAX_SIZE = 65_536
+"""Largest FIFO or label window a saved low-integer-ratio model may ask for (the default is
+32 and 128): a damaged ``size`` of 1e12 is refused, not allocated."""
+
+LEARNED = ("fifo", "labels", "recent", "recent_trouble", "since_anchor", "since_level", "rejected", "reanchors")
+"""What a low-integer-ratio model learns (the rest of its saved state is its settings)."""
 
 MAX_DURATION = 3600.0
 
@@ -575,22 +583,19 @@ class LowIntegerRatioModel:
         return self._values[j] * np.clip(rng.normal(self._pulse, std, n), lo, hi)
 
     # -- persistence -------------------------------------------------------------------
+    def _settings(self) -> dict[str, Any]:
+        """The constructor's keywords that made this model (what the author chose)."""
+        return {"tolerance": self.tolerance, "recency": self._labels.maxlen, "prior_strength": self.prior_strength,
+                "reanchor_window": self.reanchor_window, "reanchor_count": self.reanchor_count,
+                "reanchor_segment": self.reanchor_segment, "surprise": self.surprise,
+                "level_every": self.level_every, "tempo_spread": self.tempo_spread,
+                "max_duration": self.max_duration, "block": self.block, "size": self.size}
+
     def to_dict(self) -> dict[str, Any]:
         return {
             "kind": self.kind,
             "ratios": [[r.numerator, r.denominator, w] for r, w in zip(self.ratios, self.preferences)],
-            "tolerance": self.tolerance,
-            "recency": self._labels.maxlen,
-            "prior_strength": self.prior_strength,
-            "reanchor_window": self.reanchor_window,
-            "reanchor_count": self.reanchor_count,
-            "reanchor_segment": self.reanchor_segment,
-            "surprise": self.surprise,
-            "level_every": self.level_every,
-            "tempo_spread": self.tempo_spread,
-            "max_duration": self.max_duration,
-            "block": self.block,
-            "size": self.size,
+            **self._settings(),
             "fifo": list(self._fifo),
             "labels": list(self._labels),
             "recent": list(self._recent),
@@ -603,39 +608,45 @@ class LowIntegerRatioModel:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> "LowIntegerRatioModel":
+        """A model with the settings and the learned pulse of ``data`` (see :meth:`learned`)."""
         try:
-            fifo = np.asarray(data["fifo"], dtype=float)
-            model = cls(
-                1.0,
-                ratios={Fraction(n, m): w for n, m, w in data["ratios"]},
-                tolerance=data["tolerance"],
-                size=data["size"],
-                recency=data["recency"],
-                prior_strength=data["prior_strength"],
-                reanchor_window=data["reanchor_window"],
-                reanchor_count=data["reanchor_count"],
-                reanchor_segment=data["reanchor_segment"],
-                surprise=data["surprise"],
-                level_every=data["level_every"],
-                tempo_spread=data["tempo_spread"],
-                max_duration=data["max_duration"],
-                block=data["block"],
-            )
-            labels, recent = [int(x) for x in data["labels"]], [float(x) for x in data["recent"]]
-            since, rejected, reanchors = int(data["since_anchor"]), int(data["rejected"]), int(data["reanchors"])
-            since_level, trouble = int(data["since_level"]), [bool(x) for x in data["recent_trouble"]]
+            settings = {key: data[key] for key in cls(1.0)._settings()}
+            ratios = {Fraction(n, m): w for n, m, w in data["ratios"]}
         except KeyError as exc:
             raise ValueError(f"low-integer ratio model state is missing key {exc.args[0]!r}") from None
-        if not (1 <= fifo.size <= model.size and valid_durations(fifo, max_duration=model.max_duration).all()):
-            raise ValueError("low-integer ratio model state: 'fifo' must hold 1 to 'size' positive, finite durations")
-        if any(not -1 <= lab < len(model.ratios) for lab in labels):
-            raise ValueError("low-integer ratio model state: 'labels' must index 'ratios' (or be −1)")
-        model._fifo = deque(fifo.tolist(), model.size)
-        model._labels.extend(labels)
-        model._recent.extend(recent)
+        if not 0 < settings["size"] <= MAX_SIZE or not 0 < settings["recency"] <= MAX_SIZE:
+            raise ValueError(f"low-integer ratio model state: 'size' and 'recency' must be 1 to {MAX_SIZE}")
+        return cls(1.0, ratios=ratios, **settings).learned(data)
+
+    def learned(self, data: dict[str, Any]) -> "LowIntegerRatioModel":
+        """A model with this one's settings (ratios, sizes, tolerances: the author's, so an
+        edited setting wins over a saved file) that knows what ``data`` learnt: the pulse
+        FIFO, the recent labels and durations, the counters. Every part is checked against
+        those settings (raises ValueError naming the key): a state that loads is one that runs."""
+        missing = [key for key in LEARNED if key not in data]
+        if missing:
+            raise ValueError(f"low-integer ratio model state is missing key {missing[0]!r}")
+        model = type(self)(1.0, ratios=dict(zip(self.ratios, self.preferences)), **self._settings())
+        what = "pulse"
+        fifo = bounds.items(data.get("fifo"), f"{what}.fifo", shortest=1, longest=model.size)
+        labels = bounds.items(data.get("labels"), f"{what}.labels", longest=model._labels.maxlen)
+        recent = bounds.items(data.get("recent"), f"{what}.recent", longest=min(model.reanchor_window, len(labels)))
+        trouble = bounds.items(data.get("recent_trouble"), f"{what}.recent_trouble", shortest=len(recent),
+                               longest=len(recent))
+        for key, durations in (("fifo", fifo), ("recent", recent)):
+            for i, d in enumerate(durations):
+                bounds.number(d, f"{what}.{key}.{i}", low=0.0, high=model.max_duration)
+            if not valid_durations(durations, max_duration=model.max_duration).all():
+                raise ValueError(f"{what}.{key}: must hold positive, finite durations")
+        model._fifo = deque((float(d) for d in fifo), model.size)
+        model._labels.extend(bounds.count(lab, f"{what}.labels.{i}", low=-1, high=len(model.ratios) - 1)
+                             for i, lab in enumerate(labels))
+        model._recent.extend(float(d) for d in recent)
+        if any(not isinstance(flag, bool) for flag in trouble):
+            raise ValueError(f"{what}.recent_trouble: must hold true/false flags")
         model._recent_trouble.extend(trouble)
-        model._since_anchor, model.rejected, model.reanchors = since, rejected, reanchors
-        model._since_level = since_level
+        model._since_anchor, model._since_level, model.rejected, model.reanchors = (
+            bounds.count(data.get(key), f"{what}.{key}") for key in ("since_anchor", "since_level", "rejected", "reanchors"))
         model._changed()
         return model
 

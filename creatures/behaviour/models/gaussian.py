@@ -21,8 +21,13 @@ from typing import Any
 import numpy as np
 from scipy.stats import norm
 
+from creatures import bounds
 from creatures.behaviour.percept import Percept
 from creatures.behaviour.state_object import StateObject
+
+
+MAX_SIZE = 65_536
+"""Most samples a saved model may hold (a damaged size is refused, not allocated)."""
 
 
 def _finite(x: float, what: str) -> float:
@@ -141,28 +146,36 @@ class GaussianModel:
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> "GaussianModel":
         try:
-            buffer = np.asarray(data["buffer"], dtype=float)
-            weights = np.asarray(data.get("weights", np.ones(len(buffer))), dtype=float)
+            buffer = bounds.items(data["buffer"], "gaussian model state: 'buffer'", shortest=1, longest=MAX_SIZE)
             model = cls(
-                data["prior_mean"],
-                data["prior_std"],
+                bounds.number(data["prior_mean"], "gaussian model state: 'prior_mean'",
+                              low=-bounds.LARGEST_VALUE, high=bounds.LARGEST_VALUE),
+                bounds.number(data["prior_std"], "gaussian model state: 'prior_std'", low=0.0, high=bounds.LARGEST_VALUE),
                 size=len(buffer),
-                prior_weight=data["prior_weight"],
+                prior_weight=bounds.number(data["prior_weight"], "gaussian model state: 'prior_weight'", low=0.0),
             )
         except KeyError as exc:
             raise ValueError(f"gaussian model state is missing key {exc.args[0]!r}") from None
-        if buffer.ndim != 1 or not np.isfinite(buffer).all():
+        model.restore(data)
+        return model
+
+    def restore(self, data: dict[str, Any]) -> None:
+        """Take back the samples of a saved model of this size; the prior stays this one's
+        (a setting: an edited config wins over a saved file). Raises ValueError."""
+        buffer = np.asarray(bounds.items(data.get("buffer"), "gaussian model state: 'buffer'",
+                                         shortest=self.size, longest=self.size), dtype=float)
+        weights = np.asarray(data.get("weights", np.ones(len(buffer))), dtype=float)
+        if buffer.ndim != 1 or not (np.isfinite(buffer) & (np.abs(buffer) <= bounds.LARGEST_VALUE)).all():
             raise ValueError("gaussian model state: 'buffer' must be a flat list of finite numbers")
         if weights.shape != buffer.shape or not ((weights >= 0) & (weights <= 1)).all():
             raise ValueError("gaussian model state: 'weights' must match 'buffer', each in [0, 1]")
         head = data.get("head", 0)
         if not (isinstance(head, int) and 0 <= head < len(buffer)):
             raise ValueError(f"gaussian model state: 'head' must index the buffer (got {head!r})")
-        model.buffer[:] = buffer
-        model.weights[:] = weights
-        model._head = head
-        model._refresh()
-        return model
+        self.buffer[:] = buffer
+        self.weights[:] = weights
+        self._head = head
+        self._refresh()
 
     def __repr__(self) -> str:
         return f"GaussianModel(mean={self._mean:.4g}, std={self._std:.4g}, size={self.size})"
