@@ -70,6 +70,7 @@ from creatures.kinds import register
 from creatures.kinds.base import CreatureKind, CreatureSpec
 from creatures.kinds.model_population import FLOOR, Member, ModelPopulation
 from creatures.kinds.moves import Rest, head_for
+from creatures.kinds.layers import BodySpec
 from creatures.kinds.parts import Body, Voice, VoiceSpec
 from creatures.kinds.report_parts import MotorTrail, report_values, selection_logger
 from creatures.motor.gesture import GestureModel, Observation
@@ -109,6 +110,7 @@ class ListenSpec(CreatureSpec):
     calm: float = Field(0.4, ge=0, description="rate (1/s) at which excitement decays")
     temperature: float | None = Field(None, gt=0, description="Boltzmann temperature of action selection")
     voice: VoiceSpec = VoiceSpec(voices=4)
+    body: BodySpec = BodySpec()
 
     @model_validator(mode="after")
     def _context_fits(self) -> "ListenSpec":
@@ -249,7 +251,7 @@ class Listen(CreatureKind):
 
     def __init__(self, spec: ListenSpec, world: "World", rng: np.random.Generator) -> None:
         super().__init__(spec, world, rng)
-        self.body = Body(rng)
+        self.body = Body(rng, spec=spec.body)
         self.trail = MotorTrail(world, self.name, self.body)
         self.poses = NotePoses(self.body.reach())
         self.memory: deque[Observation] = deque(maxlen=spec.memory)

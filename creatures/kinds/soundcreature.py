@@ -59,6 +59,7 @@ from creatures.kinds import register
 from creatures.kinds.base import CreatureKind, CreatureSpec
 from creatures.kinds.hearing_parts import (AuralLearning, Ear, HearingSpec, Mouth, MouthSpec, SeedModel,
                                            SingFrom, tree_from_state, tree_state)
+from creatures.kinds.layers import BodySpec
 from creatures.kinds.parts import Body
 from creatures.kinds.report_parts import MotorTrail
 from creatures.motor.search import NoPath
@@ -88,6 +89,7 @@ class SoundCreatureSpec(CreatureSpec):
                                                     "empty repertoire")
     hearing: HearingSpec = HearingSpec()
     mouth: MouthSpec = MouthSpec()
+    body: BodySpec = BodySpec()
 
 
 class _Attend(Action):
@@ -131,7 +133,7 @@ class SoundCreature(CreatureKind):
 
     def __init__(self, spec: SoundCreatureSpec, world: "World", rng: np.random.Generator) -> None:
         super().__init__(spec, world, rng)
-        self.body = Body(rng)
+        self.body = Body(rng, spec=spec.body)
         self.trail = MotorTrail(world, self.name, self.body)
         self.ear = Ear(spec.hearing)
         self.mouth = Mouth(spec.mouth, self.ear.singing)

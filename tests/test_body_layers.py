@@ -1,0 +1,63 @@
+"""A creature's body blends layers over its course: ``[creature.body] breathe`` (creatures/kinds/layers.py)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from creatures.config import ConfigError
+from creatures.kinds.hearing_parts import body_features
+from creatures.kinds.layers import BodySpec, BreatheSpec
+from creatures.kinds.parts import Body
+from creatures.motor import quaternion as quat
+from creatures.runtime.schema import load_installation
+
+CONFIG = Path(__file__).resolve().parents[1] / "installations" / "soundcreatures.toml"
+
+
+def rib_cage_track(body: Body, times: np.ndarray, course_at: float | None = None) -> np.ndarray:
+    rib = body_features()["rib cage"]
+    out = []
+    for t in times:
+        if course_at is not None and abs(t - course_at) < 1e-9:
+            body.motor.set_course(t, body.motor.course(t, ["strike"]))
+        out.append(rib(body.update(t).positions))
+    return np.array(out)
+
+
+def test_a_breathing_body_breathes_at_its_period_over_rest_and_course():
+    times = np.arange(0.0, 16.0, 1.0 / 30.0)
+    still = rib_cage_track(Body(np.random.default_rng(4)), times)
+    assert np.ptp(still) == 0.0  # at rest and unlayered, the rib cage does not move
+    body = Body(np.random.default_rng(4), spec=BodySpec(breathe=BreatheSpec(period=2.0, depth=0.1, fade=0.5)))
+    breathing = rib_cage_track(body, times)
+    assert np.ptp(breathing[times > 1.0]) > 0.01
+    spectrum = np.abs(np.fft.rfft(breathing[times > 1.0] - breathing[times > 1.0].mean()))
+    freqs = np.fft.rfftfreq(int((times > 1.0).sum()), 1.0 / 30.0)
+    assert freqs[np.argmax(spectrum)] == pytest.approx(0.5, abs=0.07)  # one breath every 2 s
+    # Easing in on clock time: the first tenth of a second barely moves.
+    assert abs(breathing[3] - still[3]) < 0.1 * np.ptp(breathing[times > 1.0])
+    # Over a course the body still arrives where the course goes, breathing as it travels.
+    walker = Body(np.random.default_rng(4), spec=BodySpec(breathe=BreatheSpec(period=2.0, depth=0.1)))
+    rib_cage_track(walker, np.arange(0.0, 12.0, 1.0 / 30.0), course_at=1.0)
+    assert walker.motor.arrivals and "strike" in walker.graph.poses.labels[walker.motor.arrivals[-1][1]]
+    shown, course = walker.pose.rotations, walker.graph.poses.rotations[walker.motor.arrivals[-1][1]]
+    moved = quat.angle_between(shown, course)
+    names = walker.skeleton.names
+    breathing_joints = [names.index(n) for n in BreatheSpec().joints]
+    assert np.delete(moved, breathing_joints).max() < 1e-6  # only the breathing joints leave the course
+    assert moved[breathing_joints].max() <= 0.1 + 1e-9
+
+
+def test_breathe_is_a_config_key_and_bad_joints_are_named(tmp_path):
+    text = CONFIG.read_text().replace('pan = -0.6\n', 'pan = -0.6\n\n[creature.body]\nbreathe = {period = 4.0, depth = 0.05}\n', 1)
+    path = tmp_path / "breathing.toml"
+    path.write_text(text)
+    specs = load_installation(path).specs
+    assert specs[0].body.breathe.depth == 0.05 and specs[0].body.breathe.period == 4.0
+    assert specs[1].body.breathe.depth == 0.0  # the other creature does not breathe
+    path.write_text(text.replace("depth = 0.05}", 'depth = 0.05, joints = {ribs = [1, 0, 0]}}'))
+    with pytest.raises(ConfigError, match=r"body.*no joint 'ribs'.*chest"):
+        load_installation(path)
