@@ -117,6 +117,7 @@ class Blend:
             raise ValueError(f"blend hold has shape {self.hold.shape}, the channels need {shape}")
         self.contributions: list[Contribution] = []
         self._arrays: tuple[np.ndarray, ...] | None = None
+        self._drop_at = math.inf  # when the next contributor has faded out (made with the arrays)
 
     def start(self, contribution: Contribution, t: float) -> Contribution:
         """Add a contributor that eases in from ``t`` (replacing one of the same name)."""
@@ -151,6 +152,7 @@ class Blend:
             for i, c in enumerate(cs):
                 if c.mask is not None:
                     masks[i] = c.mask
+            self._drop_at = min((c.stopped + c.fade for c in cs), default=math.inf)
             self._arrays = (
                 np.array([int(c.policy) for c in cs], dtype=np.int64),
                 masks * np.array([c.weight for c in cs]).reshape(-1, 1),
@@ -162,7 +164,8 @@ class Blend:
 
     def resolve(self, t: float) -> np.ndarray:
         """Every channel at clock time ``t``, all contributions resolved (faded-out ones dropped)."""
-        if any(c.gone(t) for c in self.contributions):
+        self._order()
+        if t >= self._drop_at:
             self.contributions = [c for c in self.contributions if not c.gone(t)]
             self._arrays = None
         policies, weights, started, stopped, fades = self._order()
@@ -224,7 +227,7 @@ class Oscillator:
         return (np.abs(self.axes).sum(axis=1) > 0.0).astype(float)
 
     def __call__(self, t: float) -> np.ndarray:
-        return quat.exp(self.axes * (self.depth * math.sin(2.0 * math.pi * t / self.period + self.phase)))
+        return _turns(self.axes, self.depth * math.sin(2.0 * math.pi * t / self.period + self.phase))
 
 
 def weighted_mean(rotations: np.ndarray, weights: np.ndarray) -> np.ndarray:
@@ -241,6 +244,18 @@ def weighted_mean(rotations: np.ndarray, weights: np.ndarray) -> np.ndarray:
 
 
 # --- compiled kernels -------------------------------------------------------------------
+
+@numba.njit(cache=True)
+def _turns(axes, angle):  # pragma: no cover - compiled
+    """``quat.exp(axes × angle)`` for unit (or zero) axes ``(J, 3)``: one pose per tick, where
+    numpy's call overhead was most of an oscillator's cost."""
+    out = np.empty((axes.shape[0], 4))
+    for j in range(axes.shape[0]):
+        q = quat.exp_one((angle * axes[j, 0], angle * axes[j, 1], angle * axes[j, 2]))
+        for c in range(4):
+            out[j, c] = q[c]
+    return out
+
 
 @numba.njit(cache=True)
 def _ease(u):  # pragma: no cover - compiled
@@ -269,7 +284,13 @@ def _norm3(v):  # pragma: no cover - compiled
 
 @numba.njit(cache=True)
 def _karcher(values, weights, levels, policies, j, hold):  # pragma: no cover - compiled
-    """The ``mean`` stage on joint ``j``: the weighted geodesic mean (see module docstring)."""
+    """The ``mean`` stage on joint ``j``: the weighted geodesic mean (see module docstring).
+
+    Started from the normalised weighted sum of the values (each turned into the heaviest
+    one's hemisphere, the chordal mean: within a hair of the geodesic one, and on the great
+    circle of two), then Karcher steps until one moves it less than ``1e-10`` rad (at most
+    8). Two values lie on one geodesic, so one step lands on their weighted slerp exactly.
+    """
     total, heaviest, top, count = 0.0, -1, 0.0, 0
     for i in range(values.shape[0]):
         w = weights[i, j] * levels[i]
@@ -279,31 +300,47 @@ def _karcher(values, weights, levels, policies, j, hold):  # pragma: no cover - 
             if w > top:
                 top, heaviest = w, i
     if count == 0:
-        return quat._at(hold, j)
-    m = quat._at(values[heaviest], j)
+        return (hold[j, 0], hold[j, 1], hold[j, 2], hold[j, 3])
+    h = (values[heaviest, j, 0], values[heaviest, j, 1], values[heaviest, j, 2], values[heaviest, j, 3])
     if count == 1 and total >= 1.0:
-        return m
+        return h
     rest = max(1.0 - total, 0.0)
-    total += rest
-    for _ in range(16):
+    cw, cx, cy, cz = 0.0, 0.0, 0.0, 0.0
+    for i in range(values.shape[0] + 1):
+        if i < values.shape[0]:
+            w = weights[i, j] * levels[i] if policies[i] == 0 else 0.0
+            q = (values[i, j, 0], values[i, j, 1], values[i, j, 2], values[i, j, 3])
+        else:
+            w, q = rest, (hold[j, 0], hold[j, 1], hold[j, 2], hold[j, 3])
+        if w > 0.0:
+            if quat.dot_one(q, h) < 0.0:
+                w = -w
+            cw += w * q[0]
+            cx += w * q[1]
+            cy += w * q[2]
+            cz += w * q[3]
+    m = quat.normalize_one(cw, cx, cy, cz)
+    for _ in range(8):
         inv = (m[0], -m[1], -m[2], -m[3])
         sx, sy, sz = 0.0, 0.0, 0.0
-        for i in range(values.shape[0]):
-            w = weights[i, j] * levels[i]
-            if policies[i] == 0 and w > 0.0:
-                v = quat.log_one(quat.multiply_one(inv, quat._at(values[i], j)))
+        for i in range(values.shape[0] + 1):
+            if i < values.shape[0]:
+                w = weights[i, j] * levels[i] if policies[i] == 0 else 0.0
+                q = (values[i, j, 0], values[i, j, 1], values[i, j, 2], values[i, j, 3])
+            else:
+                w, q = rest, (hold[j, 0], hold[j, 1], hold[j, 2], hold[j, 3])
+            if w > 0.0:
+                v = quat.log_one(quat.multiply_one(inv, q))
                 sx += w * v[0]
                 sy += w * v[1]
                 sz += w * v[2]
-        if rest > 0.0:
-            v = quat.log_one(quat.multiply_one(inv, quat._at(hold, j)))
-            sx += rest * v[0]
-            sy += rest * v[1]
-            sz += rest * v[2]
-        step = (sx / total, sy / total, sz / total)
-        if _norm3(step) < 1e-15:
+        step = (sx / (total + rest), sy / (total + rest), sz / (total + rest))
+        size = _norm3(step)
+        if size < 1e-15:
             break
         m = quat.normalize_one(*quat.multiply_one(m, quat.exp_one(step)))
+        if size < 1e-10:
+            break
     return m
 
 
