@@ -6,15 +6,19 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import soundfile
 
 from creatures.config import ConfigError
+from creatures.events import read_events
 from creatures.kinds.hearing_parts import body_features
 from creatures.kinds.layers import BodySpec, BreatheSpec
 from creatures.kinds.parts import Body
 from creatures.motor import quaternion as quat
+from creatures.runtime.offline import run_offline
 from creatures.runtime.schema import load_installation
 
 CONFIG = Path(__file__).resolve().parents[1] / "installations" / "soundcreatures.toml"
+BREATH = 3.0  # seconds per breath in the soundcreatures runs
 
 
 def rib_cage_track(body: Body, times: np.ndarray, course_at: float | None = None) -> np.ndarray:
@@ -52,7 +56,7 @@ def test_a_breathing_body_breathes_at_its_period_over_rest_and_course():
 
 
 def test_breathe_is_a_config_key_and_bad_joints_are_named(tmp_path):
-    text = CONFIG.read_text().replace('pan = -0.6\n', 'pan = -0.6\n\n[creature.body]\nbreathe = {period = 4.0, depth = 0.05}\n', 1)
+    text = CONFIG.read_text().replace("pan = -0.6\n", "pan = -0.6\n\n[creature.body]\nbreathe = {period = 4.0, depth = 0.05}\n", 1)
     path = tmp_path / "breathing.toml"
     path.write_text(text)
     specs = load_installation(path).specs
@@ -61,3 +65,34 @@ def test_breathe_is_a_config_key_and_bad_joints_are_named(tmp_path):
     path.write_text(text.replace("depth = 0.05}", 'depth = 0.05, joints = {ribs = [1, 0, 0]}}'))
     with pytest.raises(ConfigError, match=r"body.*no joint 'ribs'.*chest"):
         load_installation(path)
+
+
+def voice_track(tmp_path: Path, depth: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Times, rib cage and amplitude of the first creature in a 20 s offline run of the
+    shipped soundcreatures breathing every 3 s ``depth`` radians deep, in a silent room
+    (nothing heard, so nothing sung: the body rests and only its breathing moves it)."""
+    wav = tmp_path / "silence.wav"
+    soundfile.write(wav, np.zeros(22050 * 20, np.float32), 22050)
+    inst = load_installation(CONFIG)
+    inst.settings.output.report = False
+    for spec in inst.specs:
+        spec.body.breathe = BreatheSpec(period=BREATH, depth=depth)
+    out = tmp_path / f"run-{depth}"
+    run_offline(inst, out, audio=wav, duration=20.0)
+    first = inst.specs[0].name
+    voice = [e for e in read_events(out / "events.jsonl") if e["kind"] == "voice" and e["creature"] == first]
+    return (np.array([e["t"] for e in voice]), np.array([e["rib_cage"] for e in voice]),
+            np.array([e["amplitude"] for e in voice]))
+
+
+def test_soundcreatures_breathe_out_their_songs(tmp_path):
+    times, rib, amplitude = voice_track(tmp_path, 0.15)
+    settled = times > 3.0
+    assert np.ptp(amplitude[settled]) > 0.2  # the breath is heard: the voice swells and ebbs
+    assert np.corrcoef(rib[settled], amplitude[settled])[0, 1] >= 0.8
+    spectrum = np.abs(np.fft.rfft(amplitude[settled] - amplitude[settled].mean()))
+    freqs = np.fft.rfftfreq(int(settled.sum()), float(np.diff(times).mean()))
+    assert freqs[np.argmax(spectrum)] == pytest.approx(1.0 / BREATH, abs=0.06)
+    # Without the breathing layer the resting body gives the voice one steady amplitude.
+    _, _, still = voice_track(tmp_path, 0.0)
+    assert np.ptp(still[settled]) < 1e-9

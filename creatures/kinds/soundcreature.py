@@ -38,7 +38,8 @@ Design, following the thesis's "key elements of their behavior":
 
 Events logged: ``sound`` (an utterance heard: start, end, level), ``sing`` (what was sung:
 percept, start, end, when it was heard), ``selection``/``credit``/``hypothesis``/``fission``/
-``fusion``, and every ``REPORT_EVERY`` seconds ``values``, ``motivation``, ``percepts``.
+``fusion``, and every ``REPORT_EVERY`` seconds ``values``, ``motivation``, ``percepts`` and
+``voice`` (the rib cage, and the amplitude and cutoff the body gives the sampler).
 """
 
 from __future__ import annotations
@@ -228,6 +229,9 @@ class SoundCreature(CreatureKind):
                  temperature=self.group.temperature)
         log.emit(t, "percepts", creature=self.name,
                  sizes={p.name: len(p.members) for p in self.root.walk()})
+        pose = self.body.pose  # what the body gives the voice (thesis: rib cage → amplitude)
+        log.emit(t, "voice", creature=self.name, rib_cage=self.mouth.amplitude.feature(pose.positions),
+                 amplitude=self.mouth.amplitude(pose), cutoff=self.mouth.cutoff(pose))
         self.trail.report(t)
 
     # -- outputs -------------------------------------------------------------------------

@@ -283,58 +283,64 @@ def _norm3(v):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True)
-def _karcher(values, weights, levels, policies, j, hold):  # pragma: no cover - compiled
+def _levels(started, stopped, fades, t):  # pragma: no cover - compiled
+    """Every contributor's crossfade envelope at ``t``."""
+    levels = np.empty(started.shape[0])
+    for i in range(started.shape[0]):
+        levels[i] = _level(started[i], stopped[i], fades[i], t)
+    return levels
+
+
+@numba.njit(cache=True)
+def _karcher(values, weights, levels, policies, j, hold, ws, qs):  # pragma: no cover - compiled
     """The ``mean`` stage on joint ``j``: the weighted geodesic mean (see module docstring).
 
     Started from the normalised weighted sum of the values (each turned into the heaviest
     one's hemisphere, the chordal mean: within a hair of the geodesic one, and on the great
     circle of two), then Karcher steps until one moves it less than ``1e-10`` rad (at most
     8). Two values lie on one geodesic, so one step lands on their weighted slerp exactly.
+    ``ws`` and ``qs`` are scratch space for the terms (the hold last, with the weight the
+    contributors leave below 1).
     """
-    total, heaviest, top, count = 0.0, -1, 0.0, 0
+    total, heaviest, top, n = 0.0, -1, 0.0, 0
     for i in range(values.shape[0]):
         w = weights[i, j] * levels[i]
         if policies[i] == 0 and w > 0.0:
             total += w
-            count += 1
+            ws[n] = w
+            for c in range(4):
+                qs[n, c] = values[i, j, c]
+            n += 1
             if w > top:
-                top, heaviest = w, i
-    if count == 0:
+                top, heaviest = w, n - 1
+    if n == 0:
         return (hold[j, 0], hold[j, 1], hold[j, 2], hold[j, 3])
-    h = (values[heaviest, j, 0], values[heaviest, j, 1], values[heaviest, j, 2], values[heaviest, j, 3])
-    if count == 1 and total >= 1.0:
+    h = quat._at(qs, heaviest)
+    if n == 1 and total >= 1.0:
         return h
-    rest = max(1.0 - total, 0.0)
+    if total < 1.0:
+        ws[n] = 1.0 - total
+        for c in range(4):
+            qs[n, c] = hold[j, c]
+        n += 1
+        total = 1.0
     cw, cx, cy, cz = 0.0, 0.0, 0.0, 0.0
-    for i in range(values.shape[0] + 1):
-        if i < values.shape[0]:
-            w = weights[i, j] * levels[i] if policies[i] == 0 else 0.0
-            q = (values[i, j, 0], values[i, j, 1], values[i, j, 2], values[i, j, 3])
-        else:
-            w, q = rest, (hold[j, 0], hold[j, 1], hold[j, 2], hold[j, 3])
-        if w > 0.0:
-            if quat.dot_one(q, h) < 0.0:
-                w = -w
-            cw += w * q[0]
-            cx += w * q[1]
-            cy += w * q[2]
-            cz += w * q[3]
+    for i in range(n):
+        w = ws[i] if quat.dot_one(quat._at(qs, i), h) >= 0.0 else -ws[i]
+        cw += w * qs[i, 0]
+        cx += w * qs[i, 1]
+        cy += w * qs[i, 2]
+        cz += w * qs[i, 3]
     m = quat.normalize_one(cw, cx, cy, cz)
     for _ in range(8):
         inv = (m[0], -m[1], -m[2], -m[3])
         sx, sy, sz = 0.0, 0.0, 0.0
-        for i in range(values.shape[0] + 1):
-            if i < values.shape[0]:
-                w = weights[i, j] * levels[i] if policies[i] == 0 else 0.0
-                q = (values[i, j, 0], values[i, j, 1], values[i, j, 2], values[i, j, 3])
-            else:
-                w, q = rest, (hold[j, 0], hold[j, 1], hold[j, 2], hold[j, 3])
-            if w > 0.0:
-                v = quat.log_one(quat.multiply_one(inv, q))
-                sx += w * v[0]
-                sy += w * v[1]
-                sz += w * v[2]
-        step = (sx / (total + rest), sy / (total + rest), sz / (total + rest))
+        for i in range(n):
+            v = quat.log_one(quat.multiply_one(inv, quat._at(qs, i)))
+            sx += ws[i] * v[0]
+            sy += ws[i] * v[1]
+            sz += ws[i] * v[2]
+        step = (sx / total, sy / total, sz / total)
         size = _norm3(step)
         if size < 1e-15:
             break
@@ -348,12 +354,11 @@ def _karcher(values, weights, levels, policies, j, hold):  # pragma: no cover - 
 def _blend_rotations(values, weights, policies, started, stopped, fades, t, budget, hold):  # pragma: no cover - compiled
     """:meth:`Blend.resolve` on joints: values ``(C, J, 4)`` in resolution order."""
     c_count, j_count = values.shape[0], values.shape[1]
-    levels = np.empty(c_count)
-    for i in range(c_count):
-        levels[i] = _level(started[i], stopped[i], fades[i], t)
+    levels = _levels(started, stopped, fades, t)
     out = np.empty((j_count, 4))
+    ws, qs = np.empty(c_count + 1), np.empty((c_count + 1, 4))
     for j in range(j_count):
-        q = _karcher(values, weights, levels, policies, j, hold)
+        q = _karcher(values, weights, levels, policies, j, hold, ws, qs)
         left = budget[j]
         for i in range(c_count):
             w = weights[i, j] * levels[i]
@@ -379,9 +384,7 @@ def _blend_rotations(values, weights, policies, started, stopped, fades, t, budg
 def _blend_scalars(values, weights, policies, started, stopped, fades, t, budget, hold):  # pragma: no cover - compiled
     """:meth:`Blend.resolve` on scalars: values ``(C, P)`` in resolution order."""
     c_count, p_count = values.shape[0], values.shape[1]
-    levels = np.empty(c_count)
-    for i in range(c_count):
-        levels[i] = _level(started[i], stopped[i], fades[i], t)
+    levels = _levels(started, stopped, fades, t)
     out = np.empty(p_count)
     for p in range(p_count):
         total, acc = 0.0, 0.0
