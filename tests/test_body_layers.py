@@ -96,3 +96,25 @@ def test_soundcreatures_breathe_out_their_songs(tmp_path):
     # Without the breathing layer the resting body gives the voice one steady amplitude.
     _, _, still = voice_track(tmp_path, 0.0)
     assert np.ptp(still[settled]) < 1e-9
+
+
+def test_the_events_log_names_who_drives_the_body(tmp_path):
+    inst = load_installation(CONFIG)
+    inst.settings.output.report = False
+    inst.specs[0].body.breathe = BreatheSpec(period=BREATH, depth=0.1, fade=2.0)
+    run_offline(inst, tmp_path / "out", duration=4.0)
+    motor = [e for e in read_events(tmp_path / "out" / "events.jsonl") if e["kind"] == "motor"]
+    layered = [e for e in motor if e["creature"] == inst.specs[0].name]
+    assert all("layers" not in e for e in motor if e["creature"] == inst.specs[1].name)
+    assert all(e["layers"]["course"] == 1.0 for e in layered)
+    breath = [e["layers"]["breathe"] for e in layered]
+    assert breath[0] < 0.5 and breath[-1] == 1.0 and breath == sorted(breath)  # easing in over 2 s
+
+
+def test_the_shipped_exchange_layers_a_breath_over_one_wander():
+    import installations
+
+    specs = {spec.name: spec for spec in load_installation(installations.path("exchange")).specs}
+    assert specs["bo"].body.breathe.depth > 0.0
+    assert all(spec.body.breathe.depth == 0.0 for name, spec in specs.items() if name != "bo")
+    assert Body(np.random.default_rng(0), spec=specs["bo"].body).layers is not None

@@ -139,6 +139,11 @@ class Blend:
                 c.stopped = t
                 self._arrays = None
 
+    def contributors(self, t: float) -> dict[str, float]:
+        """Each contributor's weight at ``t`` (its ``weight`` × crossfade level): what the
+        events log records of a blend."""
+        return {c.name: c.weight * c.level(t) for c in self.contributions}
+
     def __contains__(self, name: str) -> bool:
         return any(c.name == name for c in self.contributions)
 
