@@ -10,20 +10,26 @@ single-threaded; a shared machine's other work does not count against it).
 The body rows time :meth:`creatures.kinds.parts.Body.update` along the same course with and
 without a breathing layer (``[creature.body] breathe``), in the same run: the ratio is what
 blending adds to the body's part of a tick (forward kinematics of the blended pose included).
+The colony rows run the shipped *exchange* offline with and without every body breathing.
 """
 
 from __future__ import annotations
 
+import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 
+import installations
 from bench import Row, best_of
 from bench.motor import chain_skeleton
 from creatures.kinds.layers import BodySpec, BreatheSpec
 from creatures.kinds.parts import Body
 from creatures.motor import quaternion as quat
 from creatures.motor.blend import Blend, Contribution, Limits, Oscillator, Policy
+from creatures.runtime.offline import run_offline
+from creatures.runtime.schema import load_installation
 
 JOINTS = 30
 
@@ -70,6 +76,31 @@ def _body_rows(quick: bool) -> list[Row]:
     ]
 
 
+def _colony_rows(quick: bool) -> list[Row]:
+    """The shipped *exchange* colony offline with every body breathing (course + breath
+    blended each tick) and with none, CPU time of the same simulated span in the same run:
+    issue 17 asks that two blended layers cost a tick at most 1.5× what it did before."""
+    seconds = 10.0 if quick else 30.0
+
+    def cost(depth: float) -> float:
+        inst = load_installation(installations.path("exchange"))
+        inst.settings.output.report = False
+        inst.settings.output.frames = False
+        for spec in inst.specs:
+            spec.body = BodySpec(breathe=BreatheSpec(depth=depth))
+        with tempfile.TemporaryDirectory() as out:
+            run_offline(inst, Path(out), duration=1.0)  # warm caches and JIT
+            return best_of(lambda: run_offline(inst, Path(out), duration=seconds), repeat=2,
+                           clock=time.process_time) / seconds
+
+    plain, breathing = cost(0.0), cost(0.05)
+    return [
+        Row("exchange colony tick, every body course + breath", breathing * 1e3, "ms CPU/sim s", target=1.5 * plain * 1e3,
+            higher_is_better=False, baseline="no layers", ratio=breathing / plain),
+        Row("exchange colony tick, no layers (same run)", plain * 1e3, "ms CPU/sim s", higher_is_better=False),
+    ]
+
+
 def run(quick: bool) -> list[Row]:
     rng = np.random.default_rng(17)
     blend = _blend(rng)
@@ -95,4 +126,5 @@ def run(quick: bool) -> list[Row]:
         Row(f"blend {len(blend.contributions)} contributors + joint and speed limits, {JOINTS} joints",
             count / limited, "poses/s", target=20_000.0),
         *_body_rows(quick),
+        *_colony_rows(quick),
     ]
