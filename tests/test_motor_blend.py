@@ -177,3 +177,6 @@ def test_masks_confine_a_layer_and_oscillators_breathe():
         Oscillator(names, {"rib": (1.0, 0.0, 0.0)}, period=4.0, depth=0.1)
     with pytest.raises(ValueError, match="mask has shape"):
         blend.start(Contribution("bad", held(quat.identity((3,))), mask=np.ones(2)), 0.0)
+    blend.start(Contribution("short", held(quat.identity((2,)))), 1.0)
+    with pytest.raises(ValueError, match=r"'short' gave a value of shape \(2, 4\).*\(3, 4\)"):
+        blend.resolve(1.5)

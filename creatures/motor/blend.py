@@ -177,7 +177,11 @@ class Blend:
         shape = (len(self.contributions), self.channels, 4) if self.rotations else (len(self.contributions), self.channels)
         values = np.empty(shape)
         for i, c in enumerate(self.contributions):
-            values[i] = c.source(t)
+            value = np.asarray(c.source(t), dtype=float)
+            if value.shape != shape[1:]:
+                raise ValueError(f"contribution {c.name!r} gave a value of shape {value.shape}; the blend's"
+                                 f" channels are {shape[1:]}")
+            values[i] = value
         kernel = _blend_rotations if self.rotations else _blend_scalars
         return kernel(values, weights, policies, started, stopped, fades, float(t), self.budget, self.hold)
 
@@ -185,7 +189,7 @@ class Blend:
 @dataclass(frozen=True)
 class Limits:
     """What a blended frame may not exceed: each joint's range in the source material (the
-    largest rotation from rest any source pose shows, a cone about the rest orientation) and
+    largest rotation from rest any source pose shows: a ball of rotation vectors about rest) and
     the source's fastest joint speed (``graph.timing.max_speed``, rad/s)."""
 
     range: np.ndarray  # (J,) radians
