@@ -43,6 +43,7 @@ from creatures.behaviour.percept import FunctionPercept, WhateverPercept
 from creatures.kinds import register
 from creatures.kinds.base import CreatureKind, CreatureSpec
 from creatures.kinds.moves import Rest, head_for
+from creatures.kinds.layers import BodySpec
 from creatures.kinds.parts import Body, Voice, VoiceSpec, shared_graph
 from creatures.kinds.report_parts import MotorTrail, report_values, selection_logger
 from creatures.motor.note_space import NotePlacement
@@ -69,6 +70,7 @@ class CurveSpec(CreatureSpec):
     note_length: float = Field(3.0, gt=0, le=30, description="seconds each note the creature sounds is held")
     temperature: float | None = Field(None, gt=0, le=1e3, description="Boltzmann temperature of action selection")
     voice: VoiceSpec = VoiceSpec(voices=3, body_gain=12.0)
+    body: BodySpec = BodySpec()
 
 
 MIRROR_TOLERANCE = 0.05
@@ -169,7 +171,7 @@ class Curve(CreatureKind):
 
     def __init__(self, spec: CurveSpec, world: "World", rng: np.random.Generator) -> None:
         super().__init__(spec, world, rng)
-        self.body = Body(rng)
+        self.body = Body(rng, spec=spec.body)
         self.trail = MotorTrail(world, self.name, self.body)
         self.x = self.target_x = float(np.clip(spec.place, -spec.room, spec.room))
         self.placement = NotePlacement.around(self.body.reach())

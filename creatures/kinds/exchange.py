@@ -36,6 +36,7 @@ from creatures.kinds import register
 from creatures.bounds import LARGEST_RATE, LONGEST_SECONDS
 from creatures.kinds.base import CreatureKind, CreatureSpec
 from creatures.kinds.moves import Rest, head_for
+from creatures.kinds.layers import BodySpec
 from creatures.kinds.parts import Body, Voice, VoiceSpec
 from creatures.kinds.report_parts import MotorTrail, report_values, selection_logger
 from creatures.motor.note_space import NotePlacement, nearest_note
@@ -72,6 +73,7 @@ class ExchangeSpec(CreatureSpec):
     rests_in_time: bool = Field(False, description="rest for two durations of the rhythm the colony hears "
                                                      "(its low-integer-ratio pulse) instead of 2 ± 0.5 s")
     voice: VoiceSpec = VoiceSpec()
+    body: BodySpec = BodySpec()
 
 
 class _Wander(Action):
@@ -125,7 +127,7 @@ class Exchange(CreatureKind):
 
     def __init__(self, spec: ExchangeSpec, world, rng: np.random.Generator) -> None:
         super().__init__(spec, world, rng)
-        self.body = Body(rng, ratios=spec.ratio_metric)
+        self.body = Body(rng, ratios=spec.ratio_metric, spec=spec.body)
         self.trail = MotorTrail(world, self.name, self.body)
         self._reach = self.body.reach()
         self.placement = NotePlacement.around(self._reach)

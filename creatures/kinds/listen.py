@@ -72,6 +72,7 @@ from creatures.bounds import LARGEST_RATE, LONGEST_SECONDS
 from creatures.kinds.base import CreatureKind, CreatureSpec
 from creatures.kinds.model_population import FLOOR, MOST_MODELS, MOST_STATES, Member, ModelPopulation
 from creatures.kinds.moves import Rest, head_for
+from creatures.kinds.layers import BodySpec
 from creatures.kinds.parts import Body, Voice, VoiceSpec
 from creatures.kinds.report_parts import MotorTrail, report_values, selection_logger
 from creatures.motor.gesture import GestureModel, Observation
@@ -111,6 +112,7 @@ class ListenSpec(CreatureSpec):
     calm: float = Field(0.4, ge=0, le=LARGEST_RATE, description="rate (1/s) at which excitement decays")
     temperature: float | None = Field(None, gt=0, le=1e3, description="Boltzmann temperature of action selection")
     voice: VoiceSpec = VoiceSpec(voices=4)
+    body: BodySpec = BodySpec()
 
     @model_validator(mode="after")
     def _context_fits(self) -> "ListenSpec":
@@ -256,7 +258,7 @@ class Listen(CreatureKind):
 
     def __init__(self, spec: ListenSpec, world: "World", rng: np.random.Generator) -> None:
         super().__init__(spec, world, rng)
-        self.body = Body(rng)
+        self.body = Body(rng, spec=spec.body)
         self.trail = MotorTrail(world, self.name, self.body)
         self.poses = NotePoses(self.body.reach())
         self.memory: deque[Observation] = deque(maxlen=spec.memory)

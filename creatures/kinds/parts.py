@@ -17,6 +17,7 @@ from audio.coupling import BodyCoupling
 from audio.scanned import GESTURAL_LIMIT_HZ, StringParameters, UnstableStringError, soft_limit
 from audio.voices import VoicePool
 from creatures.bounds import FINITE
+from creatures.kinds.layers import BodyLayers, BodySpec
 from creatures.motor import quaternion as quat
 from creatures.motor.animations import example_animations
 from creatures.motor.graph import MotorGraph
@@ -186,9 +187,14 @@ class _Trajectory:
 
 
 class Body:
-    """A creature's body on the shared motor graph, with its own position and course."""
+    """A creature's body on the shared motor graph, with its own position and course.
 
-    def __init__(self, rng: np.random.Generator, *, effector: str = "hand_r", ratios: bool = False) -> None:
+    With layers in ``spec`` (``[creature.body]``) the course is one contributor among them
+    (:class:`~creatures.kinds.layers.BodyLayers`); without, the course alone is the pose.
+    """
+
+    def __init__(self, rng: np.random.Generator, *, effector: str = "hand_r", ratios: bool = False,
+                 spec: BodySpec | None = None) -> None:
         self.graph = shared_graph(ratios)
         self.finder = PathFinder(self.graph)
         self.finder.prepare()  # its landmark tables (~10 ms) before the first tick, not in it
@@ -199,6 +205,8 @@ class Body:
         self.effector_index = self.skeleton.names.index(effector)
         self._trajectory: _Trajectory | None = None
         self._pose: BodyPose = self._rest_pose(start, 0.0)
+        layers = (spec or BodySpec()).contributions(self.skeleton.names)
+        self.layers = BodyLayers(self.graph, layers) if layers else None
 
     def _rest_pose(self, node: int, t: float) -> BodyPose:
         poses = self.graph.poses
@@ -216,6 +224,8 @@ class Body:
             if self._trajectory is None or self._trajectory.playback is not playback:
                 self._trajectory = _Trajectory(playback, self.skeleton)
             self._pose = self._trajectory.pose(t)
+        if self.layers is not None:
+            self._pose = self.layers.shape(self._pose, t)
         return self._pose
 
     @property

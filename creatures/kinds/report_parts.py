@@ -88,7 +88,8 @@ class MotorTrail:
     def report(self, t: float, *, shift: tuple[float, float, float] = (0.0, 0.0, 0.0), **fields: object) -> None:
         """The graph (first time only), then where the body is and what it reached since;
         ``shift`` moves the hand by where the whole body stands in the room (a walking
-        creature), ``fields`` add kind-specific context to the ``motor`` event."""
+        creature), ``fields`` add kind-specific context to the ``motor`` event, and a body
+        with layers adds each contributor's weight (``layers``)."""
         log = self.world.log
         if not self._graph_logged:
             graph = self.body.graph
@@ -97,6 +98,8 @@ class MotorTrail:
                      hands=np.round(self.body.reach(), 4), edges=edges)
             self._graph_logged = True
         hand = self.body.hand() + np.asarray(shift)
+        if self.body.layers is not None:  # who drives the joints (issue 17: contributors in the log)
+            fields = {**fields, "layers": self.body.layers.blend.contributors(t)}
         log.emit(t, "motor", creature=self.creature, node=self.body.motor.position(t).node,
                  position={"x": hand[0], "y": hand[1], "z": hand[2]}, reached=self.reached, **fields)
         self.reached = []

@@ -38,7 +38,8 @@ Design, following the thesis's "key elements of their behavior":
 
 Events logged: ``sound`` (an utterance heard: start, end, level), ``sing`` (what was sung:
 percept, start, end, when it was heard), ``selection``/``credit``/``hypothesis``/``fission``/
-``fusion``, and every ``REPORT_EVERY`` seconds ``values``, ``motivation``, ``percepts``.
+``fusion``, and every ``REPORT_EVERY`` seconds ``values``, ``motivation``, ``percepts`` and
+``voice`` (the rib cage, and the amplitude and cutoff the body gives the sampler).
 """
 
 from __future__ import annotations
@@ -60,6 +61,7 @@ from creatures.bounds import LARGEST_RATE
 from creatures.kinds.base import CreatureKind, CreatureSpec
 from creatures.kinds.hearing_parts import (AuralLearning, Ear, HearingSpec, Mouth, MouthSpec, SeedModel,
                                            SingFrom, tree_from_state, tree_state)
+from creatures.kinds.layers import BodySpec
 from creatures.kinds.parts import Body
 from creatures.kinds.report_parts import MotorTrail
 from creatures.motor.search import NoPath
@@ -89,6 +91,7 @@ class SoundCreatureSpec(CreatureSpec):
                                                     "empty repertoire")
     hearing: HearingSpec = HearingSpec()
     mouth: MouthSpec = MouthSpec()
+    body: BodySpec = BodySpec()
 
 
 class _Attend(Action):
@@ -132,7 +135,7 @@ class SoundCreature(CreatureKind):
 
     def __init__(self, spec: SoundCreatureSpec, world: "World", rng: np.random.Generator) -> None:
         super().__init__(spec, world, rng)
-        self.body = Body(rng)
+        self.body = Body(rng, spec=spec.body)
         self.trail = MotorTrail(world, self.name, self.body)
         self.ear = Ear(spec.hearing)
         self.mouth = Mouth(spec.mouth, self.ear.singing)
@@ -227,6 +230,9 @@ class SoundCreature(CreatureKind):
                  temperature=self.group.temperature)
         log.emit(t, "percepts", creature=self.name,
                  sizes={p.name: len(p.members) for p in self.root.walk()})
+        pose = self.body.pose  # what the body gives the voice (thesis: rib cage → amplitude)
+        log.emit(t, "voice", creature=self.name, rib_cage=self.mouth.amplitude.feature(pose.positions),
+                 amplitude=self.mouth.amplitude(pose), cutoff=self.mouth.cutoff(pose))
         self.trail.report(t)
 
     # -- outputs -------------------------------------------------------------------------

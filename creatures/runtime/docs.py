@@ -42,12 +42,14 @@ def _range(field: FieldInfo) -> str:
     return f", {low}x{high}" if low or high else ""
 
 
-def _rows(model: type[BaseModel], prefix: str) -> list[str]:
+def _rows(model: type[BaseModel], prefix: str, section: str = "") -> list[str]:
+    """The key table of ``model``, then one table per nested model (``section``: the dotted
+    path of ``model`` itself, so a table two levels down is titled ``[body.breathe]``)."""
     rows, nested = [], []
     for name, field in model.model_fields.items():
         annotation = field.annotation
         if isinstance(annotation, type) and issubclass(annotation, BaseModel):
-            nested.append((f"{prefix}{name}", annotation))
+            nested.append((f"{section}.{name}" if section else f"{prefix}{name}", annotation))
             continue
         if name == "kind" and typing.get_origin(annotation) is typing.Literal:
             continue  # the discriminating ``kind`` key, documented by its section title
@@ -56,7 +58,7 @@ def _rows(model: type[BaseModel], prefix: str) -> list[str]:
     out = ["| key | type | default | meaning |", "|---|---|---|---|", *rows] if rows else []
     for path, sub in nested:
         summary = (sub.__doc__ or "").strip().splitlines()[0]
-        out += ["", f"`[{path}]` — {summary}", "", *_rows(sub, "")]
+        out += [*([""] if out else []), f"`[{path}]` — {summary}", "", *_rows(sub, "", path)]
     return out
 
 

@@ -1,0 +1,130 @@
+"""Blending (creatures/motor/blend.py): poses resolved per second, and what a layer costs a body.
+
+Eight contributors on a 30-joint body, one of each kind a creature would run at once: the
+course and two other ``mean`` sources (the geodesic mean iterates), two masked ``exclusive``
+layers, two oscillators (``add``) and a ``budget`` offset, resolved one pose per call as a
+tick asks for them, then pulled within joint limits and the top speed. Target (issue 17):
+≥ 20,000 poses/s on one core, so timed in this process's CPU time (the blend is
+single-threaded; a shared machine's other work does not count against it).
+
+The body rows time :meth:`creatures.kinds.parts.Body.update` along the same course with and
+without a breathing layer (``[creature.body] breathe``), in the same run: the ratio is what
+blending adds to the body's part of a tick (forward kinematics of the blended pose included).
+The colony rows run the shipped *exchange* offline with and without every body breathing.
+"""
+
+from __future__ import annotations
+
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+import installations
+from bench import Row, best_of
+from bench.motor import chain_skeleton
+from creatures.kinds.layers import BodySpec, BreatheSpec
+from creatures.kinds.parts import Body
+from creatures.motor import quaternion as quat
+from creatures.motor.blend import Blend, Contribution, Limits, Oscillator, Policy
+from creatures.runtime.offline import run_offline
+from creatures.runtime.schema import load_installation
+
+JOINTS = 30
+
+
+def _blend(rng: np.random.Generator) -> Blend:
+    names = chain_skeleton(JOINTS).names
+    blend = Blend(JOINTS, budget=0.5)
+
+    def held(value: np.ndarray):
+        return lambda t: value
+
+    def pose() -> np.ndarray:
+        return quat.exp(rng.normal(scale=0.4, size=(JOINTS, 3)))
+
+    for k in range(3):
+        blend.start(Contribution(f"mean{k}", held(pose()), weight=float(rng.uniform(0.5, 2.0))), 0.0)
+    for k in range(2):
+        mask = (rng.random(JOINTS) < 0.3).astype(float)
+        blend.start(Contribution(f"exclusive{k}", held(pose()), Policy.EXCLUSIVE, priority=k, mask=mask), 0.0)
+    for k in range(2):
+        axes = {names[j]: tuple(rng.normal(size=3)) for j in rng.choice(JOINTS, 6, replace=False)}
+        breath = Oscillator(names, axes, period=3.0 + k, depth=0.1)
+        blend.start(Contribution(f"add{k}", breath, Policy.ADD, mask=breath.mask), 0.0)
+    blend.start(Contribution("budget", held(pose()), Policy.BUDGET, priority=1.0), 0.0)
+    return blend
+
+
+def _body_rows(quick: bool) -> list[Row]:
+    times = np.arange(0.0, 6.0 if quick else 20.0, 0.02)
+
+    def walk(body: Body) -> None:
+        for t in times:
+            if not body.motor.playback:
+                body.motor.set_course(t, body.motor.course(t, ["strike" if body.motor.arrivals else "reach"]))
+            body.update(t)
+
+    plain = best_of(lambda: walk(Body(np.random.default_rng(5))), clock=time.process_time)
+    breathing = best_of(lambda: walk(Body(np.random.default_rng(5), spec=BodySpec(breathe=BreatheSpec(depth=0.05)))),
+                        clock=time.process_time)
+    return [
+        Row("body update along courses, breathing layer", len(times) / breathing, "updates/s",
+            baseline="no layers", ratio=plain / breathing),
+        Row("body update along courses, no layers (same run)", len(times) / plain, "updates/s"),
+    ]
+
+
+def _colony_rows(quick: bool) -> list[Row]:
+    """The shipped *exchange* colony offline with every body breathing (course + breath
+    blended each tick) and with none, CPU time of the same simulated span in the same run:
+    issue 17 asks that two blended layers cost a tick at most 1.5× what it did before."""
+    seconds = 10.0 if quick else 30.0
+
+    def cost(depth: float) -> float:
+        inst = load_installation(installations.path("exchange"))
+        inst.settings.output.report = False
+        inst.settings.output.frames = False
+        for spec in inst.specs:
+            spec.body = BodySpec(breathe=BreatheSpec(depth=depth))
+        with tempfile.TemporaryDirectory() as out:
+            run_offline(inst, Path(out), duration=1.0)  # warm caches and JIT
+            return best_of(lambda: run_offline(inst, Path(out), duration=seconds), repeat=2,
+                           clock=time.process_time) / seconds
+
+    plain, breathing = cost(0.0), cost(0.05)
+    return [
+        Row("exchange colony tick, every body course + breath", breathing * 1e3, "ms CPU/sim s", target=1.5 * plain * 1e3,
+            higher_is_better=False, baseline="no layers", ratio=breathing / plain),
+        Row("exchange colony tick, no layers (same run)", plain * 1e3, "ms CPU/sim s", higher_is_better=False),
+    ]
+
+
+def run(quick: bool) -> list[Row]:
+    rng = np.random.default_rng(17)
+    blend = _blend(rng)
+    limits = Limits(np.full(JOINTS, 2.0), max_speed=10.0)
+    count = 2_000 if quick else 20_000
+    times = np.arange(count) / 60.0
+    blend.resolve(0.0)  # compiles (or loads) the kernels before timing
+
+    def resolve() -> None:
+        for t in times:
+            blend.resolve(t)
+
+    def resolve_limited() -> None:
+        shown = None
+        for t in times:
+            shown = limits.apply(blend.resolve(t), shown, 1.0 / 60.0)
+
+    resolved = best_of(resolve, clock=time.process_time)
+    limited = best_of(resolve_limited, clock=time.process_time)
+    return [
+        Row(f"blend {len(blend.contributions)} contributors, {JOINTS} joints, one pose per call", count / resolved,
+            "poses/s", target=20_000.0),
+        Row(f"blend {len(blend.contributions)} contributors + joint and speed limits, {JOINTS} joints",
+            count / limited, "poses/s", target=20_000.0),
+        *_body_rows(quick),
+        *_colony_rows(quick),
+    ]

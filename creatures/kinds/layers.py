@@ -1,0 +1,109 @@
+"""Layers over a creature's course: the config side of :mod:`creatures.motor.blend`.
+
+``[creature.body]`` names the layers an embodied kind's body blends over the course it follows
+on the motor graph (thesis "general layering"; DESIGN.md "Several actions, one degree of
+freedom"). The course is one ``mean`` contributor among others; each layer spec here builds
+one :class:`~creatures.motor.blend.Contribution` from plain config data
+(:meth:`BreatheSpec.contribution`), so any code holding such data (an authored creature's
+body section, a test) instantiates the same layer the TOML key does. :class:`BodyLayers`
+resolves them each tick and keeps the frame within the source's joint range and speed.
+"""
+
+from __future__ import annotations
+
+import functools
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+from creatures.motor import quaternion as quat
+from creatures.motor.animations import creature_skeleton
+from creatures.motor.blend import Blend, Contribution, Limits, Oscillator, Policy
+from creatures.motor.graph import MotorGraph
+from creatures.motor.pose import BodyPose
+
+BREATHING_JOINTS = {"shoulder_l": (0.0, 0.0, 1.0), "shoulder_r": (0.0, 0.0, -1.0), "chest": (1.0, 0.0, 0.0)}
+"""The shipped skeleton's breathing: both shoulders open (the elbows part: the rib cage a
+mouth reads, thesis "soundcreatures") and the chest lifts."""
+
+
+class BreatheSpec(BaseModel):
+    """``[creature.body] breathe = {...}``: an oscillator over named joints, added over the course."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    period: float = Field(4.0, gt=0, le=60, description="seconds per breath")
+    depth: float = Field(0.0, ge=0, le=0.5, description="radians each breathing joint turns at the top of a "
+                                                         "breath (0: no breathing layer)")
+    fade: float = Field(1.0, ge=0, le=30, description="seconds the breathing eases in over (clock time)")
+    joints: dict[str, tuple[float, float, float]] = Field(
+        default_factory=lambda: dict(BREATHING_JOINTS),
+        description="joint name → axis (in the joint's frame) it turns about as the breath fills")
+
+    @field_validator("joints")
+    @classmethod
+    def _known_joints(cls, joints: dict[str, tuple[float, float, float]]) -> dict[str, tuple[float, float, float]]:
+        names = creature_skeleton().names
+        for name, axis in joints.items():
+            if name not in names:
+                raise ValueError(f"no joint {name!r} in the body (joints: {', '.join(names)})")
+            if not any(axis):
+                raise ValueError(f"joint {name!r} needs a non-zero axis")
+        return joints
+
+    def contribution(self, names: tuple[str, ...]) -> Contribution:
+        """The breathing layer for a skeleton with joints ``names``: an ``add`` offset masked
+        to the breathing joints."""
+        breath = Oscillator(names, self.joints, period=self.period, depth=self.depth)
+        return Contribution("breathe", breath, Policy.ADD, mask=breath.mask, fade=self.fade)
+
+
+class BodySpec(BaseModel):
+    """``[creature.body]``: layers blended over the course the body follows on the motor graph."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    breathe: BreatheSpec = BreatheSpec()
+
+    def contributions(self, names: tuple[str, ...]) -> list[Contribution]:
+        """The layers this spec asks for (none: the course alone drives the body, as before)."""
+        return [self.breathe.contribution(names)] if self.breathe.depth > 0.0 else []
+
+
+@functools.lru_cache(maxsize=2)
+def _limits(graph: MotorGraph) -> Limits:
+    return Limits.of(graph.poses, graph.timing.max_speed)
+
+
+class BodyLayers:
+    """The course plus layers, resolved per tick into the pose the body shows.
+
+    The course (whatever the motor system samples) enters as the ``mean`` contributor
+    ``"course"`` at weight 1; layers are started and stopped by name on clock time. Each
+    frame is pulled within the source material's joint range and top speed
+    (:class:`~creatures.motor.blend.Limits`), measured from the frame shown before.
+    """
+
+    def __init__(self, graph: MotorGraph, layers: list[Contribution], t: float = 0.0) -> None:
+        self.skeleton = graph.skeleton
+        self.limits = _limits(graph)
+        self.blend = Blend(self.skeleton.joint_count)
+        self._course = quat.identity((self.skeleton.joint_count,))
+        self.blend.start(Contribution("course", lambda _t: self._course, fade=0.0), t)
+        for layer in layers:
+            self.blend.start(layer, t)
+        self._shown: BodyPose | None = None
+
+    def shape(self, course: BodyPose, t: float) -> BodyPose:
+        """The pose shown at ``t`` given the course's own pose there."""
+        self._course = course.rotations
+        previous = self._shown
+        dt = 0.0 if previous is None else t - previous.time
+        rotations = self.limits.apply(self.blend.resolve(t), None if previous is None else previous.rotations, dt)
+        if previous is None or dt <= 0.0:
+            velocities = course.velocities
+        else:
+            velocities = quat.log(quat.multiply(rotations, quat.conjugate(previous.rotations))) / dt
+        self._shown = BodyPose(rotations, velocities, course.root, time=t, source="blend", labels=course.labels,
+                               positions=self.skeleton.forward_kinematics(rotations, course.root))
+        return self._shown
+
