@@ -14,7 +14,7 @@ import soundfile
 
 from audio.cepstrum import cepstra, distances_to
 from audio.formants import word
-from audio_fixtures import SR, warm_librosa  # noqa: F401
+from audio_fixtures import SR, alternating_words, warm_librosa  # noqa: F401
 from creatures.clock import SimulatedClock
 from creatures.events import EventLog, read_events
 from creatures.runtime.offline import run_offline
@@ -30,18 +30,8 @@ pytestmark = pytest.mark.usefixtures("warm_librosa")
 
 
 def two_classes(seed: int = 1, length: float = 60.0) -> tuple[np.ndarray, list[tuple[float, float]]]:
-    """Alternating "ai" and "oe" words 1.2–2 s apart for TALKING seconds; the word spans."""
-    rng = np.random.default_rng(seed)
-    x = np.zeros(int(length * SR), np.float32)
-    spans, t, k = [], 1.0, 0
-    while t < TALKING:
-        w = word(CLASSES[k % 2], rng, SR, stretch=rng.uniform(0.9, 1.1), rms=0.05)
-        i = int(t * SR)
-        x[i : i + len(w)] += w
-        spans.append((t, t + len(w) / SR))
-        t += len(w) / SR + rng.uniform(1.2, 2.0)
-        k += 1
-    return x, spans
+    """Alternating "ai" and "oe" words for TALKING seconds, then silence; the word spans."""
+    return alternating_words(CLASSES, TALKING, seed=seed, length=length)
 
 
 @pytest.fixture(scope="module")
