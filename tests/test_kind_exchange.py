@@ -13,6 +13,7 @@ import installations
 from creatures.events import read_events
 from creatures.kinds.exchange import Exchange
 from creatures.kinds.parts import shared_graph
+from creatures.motor.metric import source_lengths, successors
 from creatures.runtime.offline import run_offline
 from creatures.runtime.schema import load_installation
 from midi.files import write_notes
@@ -151,3 +152,40 @@ def test_ratio_metric_gives_a_body_on_the_exchange_graph():
     inst = load_installation(installations.path("exchange"))
     cy = next(spec for spec in inst.specs if spec.name == "cy")
     assert cy.ratio_metric
+
+
+def on_lattice(events: list[dict], ratios: bool) -> tuple[int, float]:
+    """Of the time jumps the colony's bodies actually made within one source animation (a
+    step to a node that is not the next frame), how many and what fraction are within the
+    metric's tolerance of a low-integer ratio of that animation's length."""
+    graph = shared_graph(ratios)
+    poses, weights = graph.poses, shared_graph(True).weights
+    lengths, after = source_lengths(poses), successors(poses)
+    lattice = np.array([float(r) for r in weights.ratios])
+    jumps, on = 0, 0
+    for name in ("ada", "bo", "cy"):
+        nodes = np.array([n for e in events if e["kind"] == "motor" and e["creature"] == name for n in e["reached"]])
+        a, b = nodes[:-1], nodes[1:]
+        inside = (after[a] != b) & (poses.source_ids[a] == poses.source_ids[b])
+        r = np.abs(poses.times[b] - poses.times[a])[inside] / lengths[poses.source_ids[a][inside]]
+        jumps += int(inside.sum())
+        on += int((np.abs(r[:, None] - lattice).min(axis=1) < weights.ratio_tolerance).sum())
+    return jumps, on / max(jumps, 1)
+
+
+def test_ratio_metric_favours_low_integer_ratio_jumps_on_the_paths_taken(tmp_path: Path):
+    """The thesis's twist ("exchange (installation)": the animator can "carve the temporal
+    equivalent of note triads out of animation material"): the same colony, same seed, with
+    every body on the ratio metric makes more of its within-animation time jumps at
+    low-integer ratios than on the plain metric (measured, seed 7, 60 s: 35 % of 631 jumps
+    against 28 % of 667; seeds 8 and 9 give 30 vs 24 % and 35 vs 29 %)."""
+    fractions = {}
+    for ratios in (True, False):
+        inst = load_installation(installations.path("exchange"))
+        inst.settings.output.wav = inst.settings.output.report = False
+        for spec in inst.specs:
+            spec.ratio_metric = ratios
+        run_offline(inst, tmp_path / str(ratios), duration=60.0)
+        jumps, fractions[ratios] = on_lattice(read_events(tmp_path / str(ratios) / "events.jsonl"), ratios)
+        assert jumps >= 300, "the bodies should have jumped often enough to count"
+    assert fractions[True] >= fractions[False] + 0.05, fractions
