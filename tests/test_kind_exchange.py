@@ -154,6 +154,17 @@ def test_ratio_metric_gives_a_body_on_the_exchange_graph():
     assert cy.ratio_metric
 
 
+def run_colony(out: Path, **fields: object) -> list[dict]:
+    """The shipped exchange, unfed, for 60 s with ``fields`` set on every creature's spec."""
+    inst = load_installation(installations.path("exchange"))
+    inst.settings.output.wav = inst.settings.output.report = False
+    for spec in inst.specs:
+        for name, value in fields.items():
+            setattr(spec, name, value)
+    run_offline(inst, out, duration=60.0)
+    return read_events(out / "events.jsonl")
+
+
 def on_lattice(events: list[dict], ratios: bool) -> tuple[int, float]:
     """Of the time jumps the colony's bodies actually made within one source animation (a
     step to a node that is not the next frame), how many and what fraction are within the
@@ -181,12 +192,7 @@ def test_ratio_metric_favours_low_integer_ratio_jumps_on_the_paths_taken(tmp_pat
     against 28 % of 667; seeds 8 and 9 give 30 vs 24 % and 35 vs 29 %)."""
     fractions = {}
     for ratios in (True, False):
-        inst = load_installation(installations.path("exchange"))
-        inst.settings.output.wav = inst.settings.output.report = False
-        for spec in inst.specs:
-            spec.ratio_metric = ratios
-        run_offline(inst, tmp_path / str(ratios), duration=60.0)
-        jumps, fractions[ratios] = on_lattice(read_events(tmp_path / str(ratios) / "events.jsonl"), ratios)
+        jumps, fractions[ratios] = on_lattice(run_colony(tmp_path / str(ratios), ratio_metric=ratios), ratios)
         assert jumps >= 300, "the bodies should have jumped often enough to count"
     assert fractions[True] >= fractions[False] + 0.05, fractions
 
@@ -197,11 +203,6 @@ def test_a_graded_du_lets_hunger_interrupt_wandering_and_resting_more(tmp_path: 
     interruptions against 55; seed 8: 206 against 48)."""
     counts = {}
     for graded in (False, True):
-        inst = load_installation(installations.path("exchange"))
-        inst.settings.output.wav = inst.settings.output.report = False
-        for spec in inst.specs:
-            spec.graded_du = graded
-        run_offline(inst, tmp_path / str(graded), duration=60.0)
-        events = read_events(tmp_path / str(graded) / "events.jsonl")
+        events = run_colony(tmp_path / str(graded), graded_du=graded)
         counts[graded] = sum(e["kind"] == "interruption" and e["tuple"] in ("wander", "rest") for e in events)
     assert counts[True] >= 2 * counts[False] > 0, counts
