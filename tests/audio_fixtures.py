@@ -36,6 +36,23 @@ def warm_librosa() -> None:
     note_events(SoundEvent(0.0, 0.3, x, SR, -20.0))
 
 
+def alternating_words(classes: tuple[str, ...], talking: float, *, seed: int = 1, length: float = 60.0,
+                      ) -> tuple[np.ndarray, list[tuple[float, float]]]:
+    """Words of ``classes`` in turn, 1.2–2 s apart, for ``talking`` seconds of a ``length``
+    second signal (silence after); the words' spans, word ``k`` of class ``k % len(classes)``."""
+    rng = np.random.default_rng(seed)
+    x = np.zeros(int(length * SR), np.float32)
+    spans, t, k = [], 1.0, 0
+    while t < talking:
+        w = word(classes[k % len(classes)], rng, SR, stretch=rng.uniform(0.9, 1.1), rms=0.05)
+        i = int(t * SR)
+        x[i : i + len(w)] += w
+        spans.append((t, t + len(w) / SR))
+        t += len(w) / SR + rng.uniform(1.2, 2.0)
+        k += 1
+    return x, spans
+
+
 def midi_to_hz(midi: float) -> float:
     return 440.0 * 2.0 ** ((midi - 69.0) / 12.0)
 

@@ -1,5 +1,7 @@
 """Every shipped installation validates and runs offline for 60 simulated seconds, producing a
-valid .mid, .wav and events.jsonl, identically for a fixed seed."""
+valid .mid, .wav and events.jsonl, identically for a fixed seed, and is heard: out.wav is loud
+enough over the run and every creature acts (plays a note, sings or reads) often enough, whatever
+its output is (ozymandias, soundcreatures and three creatures write no MIDI by design)."""
 
 from __future__ import annotations
 
@@ -7,6 +9,7 @@ import hashlib
 from pathlib import Path
 
 import mido
+import numpy as np
 import pytest
 import soundfile
 
@@ -17,6 +20,30 @@ from creatures.runtime.schema import load_installation
 from midi.files import read_notes
 
 SECONDS = 60.0
+
+LOUDNESS_FLOOR = 0.005
+"""Least RMS of out.wav over a run (full scale 1): the quietest shipped piece, soundcreatures,
+measures 0.019 over 60 s; a silent one 0."""
+
+ACTS = ("note", "sing", "read")
+"""Events that are a creature making sound: a MIDI note, a sung utterance, a part read back."""
+
+ACTS_PER_MINUTE = 2.0
+"""Least acts per minute of every creature: the sparsest shipped creature (sandstone's king,
+a listener most of the time) plays 3 notes in 60 s, three creatures' sing 3–4 times."""
+
+
+def assert_heard(name: str, out: Path, events: list[dict], seconds: float) -> None:
+    """The run is not silent: ``out.wav`` is above :data:`LOUDNESS_FLOOR` and every creature
+    in the config acted at least :data:`ACTS_PER_MINUTE` times a minute."""
+    wav, _ = soundfile.read(out / "out.wav")
+    rms = float(np.sqrt(np.mean(wav**2)))
+    assert rms > LOUDNESS_FLOOR, f"{name}: out.wav RMS {rms:.4f} is below {LOUDNESS_FLOOR}"
+    creatures = [spec.name for spec in load_installation(installations.path(name)).specs]
+    for creature in creatures:
+        acts = sum(e["kind"] in ACTS and e.get("creature") == creature for e in events)
+        rate = acts / (seconds / 60.0)
+        assert rate >= ACTS_PER_MINUTE, f"{name}: {creature} acted {acts} times in {seconds:.0f} s"
 
 
 def _digest(out: Path) -> dict[str, str]:
@@ -42,6 +69,7 @@ def test_shipped_installation_runs_offline_deterministically(name, tmp_path):
     heard = [e for e in events if e["kind"] == "heard"]
     # out.mid: what the creatures played, and what they heard on its own "input" track
     assert first.notes_played == len(played) and len(read_notes(out / "out.mid")) == len(played) + len(heard)
+    assert_heard(name, out, events, SECONDS)
     run_offline(inst, tmp_path / "b", duration=SECONDS)
     assert _digest(tmp_path / "a") == _digest(tmp_path / "b")
 
@@ -50,3 +78,15 @@ def test_every_shipped_config_validates():
     for name in installations.names():
         inst = load_installation(installations.path(name))
         assert inst.specs, name
+
+
+def test_a_silent_run_is_not_heard(tmp_path):
+    """The check above bites: a run whose audio is silence, or whose creature never acts, fails."""
+    soundfile.write(tmp_path / "out.wav", np.zeros((22050, 2)), 22050)
+    with pytest.raises(AssertionError, match="RMS"):
+        assert_heard("exchange", tmp_path, [], 60.0)
+    soundfile.write(tmp_path / "out.wav", np.full((22050, 2), 0.1), 22050)
+    acts = [{"kind": "note", "creature": name} for name in ("ada", "bo") for _ in range(5)]
+    with pytest.raises(AssertionError, match="cy acted 0 times"):
+        assert_heard("exchange", tmp_path, acts, 60.0)
+    assert_heard("exchange", tmp_path, acts + [{"kind": "note", "creature": "cy"}] * 2, 60.0)

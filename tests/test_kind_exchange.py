@@ -1,14 +1,19 @@
-"""exchange: notes fed to one creature appear, transformed, in another creature's output."""
+"""exchange: notes fed to one creature reach the others; what a creature plays is tested for
+recognisable transformations (retrograde, swapped sub-segments) of what it heard against a
+shuffle of the same notes."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 import installations
 from creatures.events import read_events
+from creatures.kinds.exchange import Exchange
 from creatures.kinds.parts import shared_graph
+from creatures.motor.metric import source_lengths, successors
 from creatures.runtime.offline import run_offline
 from creatures.runtime.schema import load_installation
 from midi.files import write_notes
@@ -17,39 +22,89 @@ from midi.notes import NoteEvent
 PHRASE = [60, 62, 64, 67, 69, 72, 74, 76]
 
 
-def variations(original: list[int], played: list[int]) -> set[str]:
-    """Which transformations of ``original`` show in ``played``: transposition (a pitch a
-    fourth, fifth or octave from one heard, not itself heard), retrograde (some descending
-    step of the phrase's ascending pairs) or reordering (a heard pitch order not in order)."""
-    found = set()
-    heard = set(original)
-    if any(p not in heard and any(abs(p - q) in (5, 7, 12) for q in heard) for p in played):
-        found.add("transposition")
-    rank = {p: i for i, p in enumerate(original)}
-    ranks = [rank[p] for p in played if p in rank]
-    steps = np.diff(ranks)
-    if (steps == -1).any():
-        found.add("retrograde")
-    if (steps < 0).any() or (steps > 1).any():
-        found.add("reordering")
-    return found
+SHUFFLES = 200
+"""Seeded reorderings of a creature's output that its transformation score must beat."""
 
 
-def test_variations_detector():
-    assert variations(PHRASE, PHRASE) == set()
-    assert "retrograde" in variations(PHRASE, PHRASE[::-1])
-    assert variations(PHRASE, [60, 67]) == {"reordering"}
-    assert variations(PHRASE, [65]) == {"transposition"}
+def fragments(heard: list[int], played: list[int]) -> list[tuple[int, int, int]]:
+    """Runs of three or more consecutive ``played`` notes that are a sub-segment of ``heard``
+    (each pair followed each other in what was heard: direction +1) or its retrograde (each
+    pair in reverse: −1), as ``(direction, first index in played, length)``."""
+    follows = set(zip(heard, heard[1:]))
+    found = []
+    for direction in (1, -1):
+        run = 1
+        for i in range(1, len(played) + 1):
+            pair = (played[i - 1], played[i]) if i < len(played) else None
+            if pair is not None and (pair if direction == 1 else pair[::-1]) in follows:
+                run += 1
+                continue
+            if run >= 3:
+                found.append((direction, i - run, run))
+            run = 1
+    return sorted(found, key=lambda f: f[1])
 
 
-def test_notes_fed_to_one_creature_reach_another_transformed(tmp_path: Path):
+def _heard_at(heard: list[int], segment: list[int]) -> int:
+    """Where ``segment`` first occurs contiguously in ``heard`` (fragments always do)."""
+    return next(i for i in range(len(heard)) if heard[i : i + len(segment)] == segment)
+
+
+def swapped(heard: list[int], played: list[int]) -> int:
+    """Pairs of forward fragments played in the opposite order to the one they were heard in
+    (swapped sub-segments: ...B...A played where A...B was heard, A and B not overlapping)."""
+    forward = [(i, n) for d, i, n in fragments(heard, played) if d == 1]
+    at = [(_heard_at(heard, played[i : i + n]), n) for i, n in forward]
+    return sum(b + nb <= a for k, (a, _) in enumerate(at) for b, nb in at[k + 1 :])
+
+
+def score(heard: list[int], played: list[int]) -> int:
+    """Notes of ``played`` inside a fragment (sub-segment or retrograde) of ``heard``."""
+    return sum(n for _, _, n in fragments(heard, played))
+
+
+def recognisable(heard: list[int], played: list[int], seed: int = 0) -> bool:
+    """``played`` is a recognisable transformation of ``heard``: it holds a retrograde or a
+    swapped pair of sub-segments, and more of its notes lie in fragments of ``heard`` than
+    in 99 % of seeded reorderings of the very same notes (so a shuffle, which has the same
+    notes, cannot pass, and silence has none)."""
+    if not any(d == -1 for d, _, _ in fragments(heard, played)) and not swapped(heard, played):
+        return False
+    rng = np.random.default_rng(seed)
+    chance = [score(heard, list(rng.permutation(played))) for _ in range(SHUFFLES)]
+    return score(heard, played) > np.percentile(chance, 99)
+
+
+def test_transformation_detector():
+    """Retrogrades and swapped sub-segments are found; the phrase unchanged, shuffles of a
+    varied passage (all but a chance few) and silence are not recognisable transformations."""
+    assert fragments(PHRASE, PHRASE[::-1]) == [(-1, 0, 8)]
+    assert swapped(PHRASE, PHRASE[4:7] + PHRASE[0:3]) == 1 and swapped(PHRASE, PHRASE) == 0
+    varied = PHRASE[4:8] + PHRASE[0:4] + PHRASE[::-1] + PHRASE[2:6][::-1] + PHRASE[5:] + PHRASE[:3]
+    assert recognisable(PHRASE, varied)
+    shuffles = np.random.default_rng(3)  # a shuffle passes by chance on about 1 % of draws
+    assert sum(recognisable(PHRASE, list(shuffles.permutation(varied))) for _ in range(100)) <= 3
+    assert not recognisable(PHRASE, [])
+    assert not recognisable(PHRASE, PHRASE)  # the passage passed on unchanged is no variation
+
+
+def run_exchange(tmp_path: Path, duration: float = 45.0) -> list[dict]:
+    """The shipped exchange, its first creature fed the phrase three times."""
     inst = load_installation(installations.path("exchange"))
     inst.settings.output.wav = inst.settings.output.report = False
     phrase = tmp_path / "phrase.mid"
     write_notes(phrase, [NoteEvent(1.0 + 0.3 * i + 6.0 * r, p, 96, 0, 0.25)
                          for r in range(3) for i, p in enumerate(PHRASE)])
-    run_offline(inst, tmp_path / "out", midi=phrase, duration=45)
-    events = read_events(tmp_path / "out" / "events.jsonl")
+    run_offline(inst, tmp_path / "out", midi=phrase, duration=duration)
+    return read_events(tmp_path / "out" / "events.jsonl")
+
+
+def played_by(events: list[dict], creature: str) -> list[int]:
+    return [e["pitch"] for e in events if e["kind"] == "note" and e["creature"] == creature]
+
+
+def test_notes_fed_to_one_creature_reach_another(tmp_path: Path):
+    events = run_exchange(tmp_path)
     placed = {}
     for e in events:
         if e["kind"] == "placed":
@@ -57,10 +112,37 @@ def test_notes_fed_to_one_creature_reach_another_transformed(tmp_path: Path):
     # Only the first creature hears the input; the others hear only the colony.
     assert set(placed["ada"]) >= {"input"}
     assert "input" not in set(placed.get("bo", [])) | set(placed.get("cy", []))
-    others = [e["pitch"] for e in events if e["kind"] == "note" and e["creature"] in ("bo", "cy")]
+    others = played_by(events, "bo") + played_by(events, "cy")
     shared = set(others) & set(PHRASE)
     assert len(shared) >= 3, f"too little of the phrase reached the others: {sorted(set(others))}"
-    assert variations(PHRASE, others), "passages passed on unchanged"
+
+
+@pytest.mark.parametrize("output", ["shuffle", "silence"])
+def test_a_shuffling_or_silent_creature_plays_no_variation(tmp_path: Path, monkeypatch, output):
+    """The detector bites in a real run: an exchange creature whose every strike plays a
+    random note of those in its space (a random shuffle of what it heard), or plays nothing,
+    is not heard to transform the phrase."""
+    if output == "silence":
+        monkeypatch.setattr(Exchange, "strike", lambda self, t, obj, strength: None)
+    else:
+        real = Exchange.strike
+
+        def shuffling(self, t, obj, strength):
+            real(self, t, self.space.objects[int(self.rng.integers(len(self.space)))], strength)
+        monkeypatch.setattr(Exchange, "strike", shuffling)
+    played = played_by(run_exchange(tmp_path), "ada")
+    assert (len(played) >= 10) == (output == "shuffle")
+    assert not recognisable(PHRASE, played)
+
+
+@pytest.mark.xfail(strict=True, reason="issue 20: exchange's hand mostly crosses the line of placed "
+                   "notes one note at a time, so its order is at chance (ada, seed 7, 90 s: 0 of 46 "
+                   "consecutive pairs heard-adjacent against 2.3 for a shuffle)")
+def test_the_first_creature_plays_recognisable_variations_of_the_phrase(tmp_path: Path):
+    """The thesis's claim ("exchange (installation)": "retrograde variations, repeated
+    subsegments are swapped back and forth"): what the creature hearing the phrase plays
+    is a retrograde or a swap of its sub-segments beyond what a shuffle of its notes gives."""
+    assert recognisable(PHRASE, played_by(run_exchange(tmp_path, 90.0), "ada"))
 
 
 def test_ratio_metric_gives_a_body_on_the_exchange_graph():
@@ -70,3 +152,57 @@ def test_ratio_metric_gives_a_body_on_the_exchange_graph():
     inst = load_installation(installations.path("exchange"))
     cy = next(spec for spec in inst.specs if spec.name == "cy")
     assert cy.ratio_metric
+
+
+def run_colony(out: Path, **fields: object) -> list[dict]:
+    """The shipped exchange, unfed, for 60 s with ``fields`` set on every creature's spec."""
+    inst = load_installation(installations.path("exchange"))
+    inst.settings.output.wav = inst.settings.output.report = False
+    for spec in inst.specs:
+        for name, value in fields.items():
+            setattr(spec, name, value)
+    run_offline(inst, out, duration=60.0)
+    return read_events(out / "events.jsonl")
+
+
+def on_lattice(events: list[dict], ratios: bool) -> tuple[int, float]:
+    """Of the time jumps the colony's bodies actually made within one source animation (a
+    step to a node that is not the next frame), how many and what fraction are within the
+    metric's tolerance of a low-integer ratio of that animation's length."""
+    graph = shared_graph(ratios)
+    poses, weights = graph.poses, shared_graph(True).weights
+    lengths, after = source_lengths(poses), successors(poses)
+    lattice = np.array([float(r) for r in weights.ratios])
+    jumps, on = 0, 0
+    for name in ("ada", "bo", "cy"):
+        nodes = np.array([n for e in events if e["kind"] == "motor" and e["creature"] == name for n in e["reached"]])
+        a, b = nodes[:-1], nodes[1:]
+        inside = (after[a] != b) & (poses.source_ids[a] == poses.source_ids[b])
+        r = np.abs(poses.times[b] - poses.times[a])[inside] / lengths[poses.source_ids[a][inside]]
+        jumps += int(inside.sum())
+        on += int((np.abs(r[:, None] - lattice).min(axis=1) < weights.ratio_tolerance).sum())
+    return jumps, on / max(jumps, 1)
+
+
+def test_ratio_metric_favours_low_integer_ratio_jumps_on_the_paths_taken(tmp_path: Path):
+    """The thesis's twist ("exchange (installation)": the animator can "carve the temporal
+    equivalent of note triads out of animation material"): the same colony, same seed, with
+    every body on the ratio metric makes more of its within-animation time jumps at
+    low-integer ratios than on the plain metric (measured, seed 7, 60 s: 35 % of 631 jumps
+    against 28 % of 667; seeds 8 and 9 give 30 vs 24 % and 35 vs 29 %)."""
+    fractions = {}
+    for ratios in (True, False):
+        jumps, fractions[ratios] = on_lattice(run_colony(tmp_path / str(ratios), ratio_metric=ratios), ratios)
+        assert jumps >= 300, "the bodies should have jumped often enough to count"
+    assert fractions[True] >= fractions[False] + 0.05, fractions
+
+
+def test_a_graded_du_lets_hunger_interrupt_wandering_and_resting_more(tmp_path: Path):
+    """``graded_du``: a wander's or rest's expected value declines as its planned time runs
+    out, so hunger for notes interrupts it more often (measured over 120 s, seed 7: 190
+    interruptions against 55; seed 8: 206 against 48)."""
+    counts = {}
+    for graded in (False, True):
+        events = run_colony(tmp_path / str(graded), graded_du=graded)
+        counts[graded] = sum(e["kind"] == "interruption" and e["tuple"] in ("wander", "rest") for e in events)
+    assert counts[True] >= 2 * counts[False] > 0, counts

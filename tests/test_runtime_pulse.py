@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from creatures.clock import SimulatedClock
-from creatures.events import EventLog
+from creatures.events import EventLog, read_events
 from creatures.runtime.inputs import render_notes
 from creatures.runtime.pulse import HeardPulse
 from creatures.runtime.schema import load_installation
@@ -39,10 +39,10 @@ def _rhythm(n: int, rng: np.random.Generator) -> list[NoteEvent]:
     return [NoteEvent(float(t), int(p), 90, 0, float(0.8 * b * BEAT)) for t, p, b in zip(times, pitches, beats)]
 
 
-def _session(tmp_path) -> Session:
+def _session(tmp_path, log: EventLog | None = None) -> Session:
     config = tmp_path / "pulse.toml"
     config.write_text(CONFIG)
-    return Session(load_installation(config), SimulatedClock(), EventLog(), MemorySink())
+    return Session(load_installation(config), SimulatedClock(), log or EventLog(), MemorySink())
 
 
 def _run(session: Session, seconds: float, audio: np.ndarray | None = None) -> None:
@@ -88,3 +88,20 @@ def test_pitch_tracked_audio_teaches_the_same_pulse(tmp_path):
     pulse = session.world.pulse
     assert pulse.heard >= 40
     assert pulse.model.pulse == pytest.approx(BEAT, rel=0.03)
+
+
+def test_the_colony_logs_surprise_when_the_heard_rhythm_changes(tmp_path):
+    """The pulse's surprise is a percept in the log: 60 notes at 100 BPM surprise it at most
+    once after it is ready (once, measured, at 10.6 s), then triplet eighths surprise it at their
+    first notes (at the second triplet, measured)."""
+    session = _session(tmp_path, EventLog(tmp_path / "events.jsonl"))
+    steady = _rhythm(60, np.random.default_rng(2))
+    end = steady[-1].time + BEAT
+    triplets = [NoteEvent(end + i * BEAT / 3, 67, 90, 0, 0.1) for i in range(12)]
+    for note in steady + triplets:
+        session.world.inject(note)
+    _run(session, end + 5.0)
+    session.log.close()
+    surprises = [e["t"] for e in read_events(tmp_path / "events.jsonl") if e["kind"] == "surprise"]
+    assert sum(t < end for t in surprises) <= 1
+    assert any(end <= t <= triplets[3].time + 2 * session.inst.settings.tick for t in surprises)

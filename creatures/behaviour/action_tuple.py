@@ -3,7 +3,8 @@
 
 Each tuple is a hypothesis: in context Tr, doing Ac until Du holds is worth V. Tr and Du share
 one functional interface (``evaluate(t)``) and get their meaning from their role. The expected
-value is ``Tr.evaluate(t)·V`` while inactive and ``(1 − Du.evaluate(t))·V`` while active.
+value is ``Tr.evaluate(t)·V`` while inactive and ``(1 − Du.evaluate(t))·V`` while active
+(with a graded Du, declining over the planned duration).
 Every tuple follows one life cycle, after py_trees: ``start`` → ``update``… → ``stop``.
 """
 
@@ -59,6 +60,13 @@ class DoUntil:
     the tuple starts and taught the actual duration when it stops, so many tuples looking at
     one model share one pulse. ``until`` is an optional percept for "until the food is gone";
     the tuple is done when either says so.
+
+    ``graded``: Du ramps from 0 at the start to 1 at the planned duration instead of stepping
+    (thesis, "computing expected values": while active the expected value is related to "how
+    *distant* the world is from the ending condition (including the expected duration)"), so
+    an active tuple's expected value ``(1 − Du)·V`` declines as its time runs out and an
+    interruption competes against what is left of it, not against its full value. The tuple
+    still stops at the planned duration (Du = 1) or when ``until`` says so.
     """
 
     def __init__(
@@ -67,6 +75,7 @@ class DoUntil:
         *,
         until: Percept | None = None,
         learn: bool = True,
+        graded: bool = False,
     ) -> None:
         if duration is None and until is None:
             raise ValueError("a Do-until needs a duration, an until-percept, or both")
@@ -75,6 +84,7 @@ class DoUntil:
         self.duration = duration
         self.until = until
         self.learn = learn
+        self.graded = graded
         self.started_at: float | None = None
         self.planned: float = float("inf")
 
@@ -93,8 +103,12 @@ class DoUntil:
 
     def evaluate(self, t: float) -> float:
         done = 0.0
-        if self.started_at is not None and t - self.started_at >= self.planned:
-            done = 1.0
+        if self.started_at is not None:
+            elapsed = t - self.started_at
+            if elapsed >= self.planned:
+                done = 1.0
+            elif self.graded and self.planned < float("inf"):
+                done = max(elapsed, 0.0) / self.planned
         if self.until is not None:
             done = max(done, float(self.until.evaluate(t)))
         return done

@@ -332,6 +332,7 @@ def _tuple_to_dict(tuple_: ActionTuple) -> dict[str, Any]:
             "model": _model_to_dict(du.model),
             "until": None if du.until is None else du.until.name,
             "learn": du.learn,
+            "graded": du.graded,
             "started_at": du.started_at,
             "planned": du.planned if np.isfinite(du.planned) else None,
         },
@@ -357,7 +358,7 @@ def _restore_group(
                 tuple_data["name"],
                 _lookup(percepts, tuple_data["trigger"], "percept"),
                 action,
-                DoUntil(duration, until=until, learn=du_data["learn"]),
+                DoUntil(duration, until=until, learn=du_data["learn"], graded=du_data.get("graded", False)),
                 0.0,
             )
             group.add(tuple_)

@@ -299,7 +299,7 @@ class PerceptLearning:
                 f"{child.name}|{tuple_.action.name}",
                 child,
                 tuple_.action,
-                DoUntil(du.duration, until=du.until, learn=du.learn),
+                DoUntil(du.duration, until=du.until, learn=du.learn, graded=du.graded),
                 copy_value(tuple_.value),
             )
             group.add(hypothesis)

@@ -72,6 +72,9 @@ class ExchangeSpec(CreatureSpec):
                                                     "ratios of the source animation length (the thesis's twist)")
     rests_in_time: bool = Field(False, description="rest for two durations of the rhythm the colony hears "
                                                      "(its low-integer-ratio pulse) instead of 2 ± 0.5 s")
+    graded_du: bool = Field(False, description="wandering and resting lose expected value as their planned time "
+                                               "runs out (a graded Du), so hunger interrupts them more easily "
+                                               "near their end")
     voice: VoiceSpec = VoiceSpec()
     body: BodySpec = BodySpec()
 
@@ -160,9 +163,10 @@ class Exchange(CreatureKind):
             f"{self.name}", rng=rng, alpha=0.0, temperature=spec.temperature,
             on_event=selection_logger(world, self.name),
             tuples=[
-                ActionTuple("wander", root, _Wander(self), DoUntil(GaussianModel(4.0, 1.0), until=arrived), 1.0),
+                ActionTuple("wander", root, _Wander(self),
+                            DoUntil(GaussianModel(4.0, 1.0), until=arrived, graded=spec.graded_du), 1.0),
                 ActionTuple("seek note", hungry, self.seek, DoUntil(8.0, until=found), 3.0),
-                ActionTuple("rest", root, Rest(self.body), DoUntil(rest), 0.4),
+                ActionTuple("rest", root, Rest(self.body), DoUntil(rest, graded=spec.graded_du), 0.4),
             ],
         )
         self._next_report = 0.0

@@ -16,9 +16,11 @@ Design decisions:
   fill the repertoire. Air is off in the shipped config: the creatures hear the recording
   itself, which is what makes an EDL into the recording possible (with air on the material
   would be the room, not the source).
-* **The author's click is scripted.** ``clicks`` lists the seconds at which the author
-  clicks; a click is a highly salient percept triggering a non-plastic, highly valued
-  ``clicked`` tuple (the clicker-training pattern of the thesis), so whatever the creature
+* **The author's click is scripted, or live.** ``clicks`` lists the seconds at which the
+  author clicks; a reward from outside (an ``[[input]]`` reward route) is a live click, the
+  same percept (not a value added to whatever ran: the click tuple's credit assignment
+  decides what is trained). A click is a highly salient percept triggering a non-plastic,
+  highly valued ``clicked`` tuple (the clicker-training pattern of the thesis), so whatever the creature
   was doing just before is credited toward the click's value. Valuable reading tuples
   cluster their percept (:class:`AuralLearning`): the creature's reading narrows to the
   classes of words it was clicked for.
@@ -49,6 +51,7 @@ placed at output_frame, then mixed with ``mix`` (equal-power pan, :class:`audio.
 
 from __future__ import annotations
 
+import bisect
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -73,6 +76,8 @@ if TYPE_CHECKING:
     from creatures.runtime.world import World
 
 EDL_KIND = "creature-music edl"
+CLICK_LENGTH = 0.1
+"""Seconds a click lasts as a percept."""
 REPORT_EVERY = 0.5
 
 
@@ -131,8 +136,8 @@ class Ozymandias(CreatureKind):
 
     def _build_group(self) -> None:
         spec = self.spec
-        clicks = np.asarray(spec.clicks, dtype=float)
-        clicked = FunctionPercept("click", lambda t: 1.0 if ((t >= clicks) & (t < clicks + 0.1)).any() else 0.0)
+        self._clicks = list(spec.clicks)
+        clicked = FunctionPercept("click", self._clicked)
         self.excited = FunctionPercept("excited", lambda t: self.motivation.level("excitement"))  # advanced each tick
         self.part_read = FunctionPercept("part read", lambda t: 1.0 if t >= self._until else 0.0)
         read_any = self.reader(self.root)
@@ -149,6 +154,20 @@ class Ozymandias(CreatureKind):
                             self._do_until(None), 0.3),
             ],
         )
+
+    def _clicked(self, t: float) -> float:
+        """The click percept: 1 for the tenth of a second after each click."""
+        i = bisect.bisect_right(self._clicks, t)
+        return 1.0 if i and t < self._clicks[i - 1] + CLICK_LENGTH else 0.0
+
+    def reward(self, amount: float, t: float, window: float, rate: float) -> list[str]:
+        """A reward from outside (the input map's ``reward`` route) is the author clicking
+        live: the same click percept the scripted ``clicks`` fire, so the highly valued
+        ``clicked`` tuple interrupts and credit assignment carries its value back to what
+        the creature was reading (thesis, clicker training). ``amount``, ``window`` and
+        ``rate`` are the click tuple's own (``click_value``, one activation, α)."""
+        bisect.insort(self._clicks, t)
+        return [tp.name for tp in self.group.active]
 
     def _do_until(self, action: Action | None) -> DoUntil:
         if isinstance(action, SingFrom):

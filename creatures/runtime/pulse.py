@@ -66,23 +66,28 @@ class HeardPulse:
         """A note started at ``onset`` (seconds); learnt at the next :meth:`settle`."""
         self._onsets.append(onset)
 
-    def settle(self) -> None:
-        """Teach the model the intervals between the onsets heard since the last call.
+    def settle(self) -> int:
+        """Teach the model the intervals between the onsets heard since the last call; returns
+        how many of them surprised it (:attr:`LowIntegerRatioModel.surprised`: the rhythm
+        heard changed).
 
         An onset older than the last one learnt (a note recognised late, e.g. from audio) has
         lost its place in the rhythm and is dropped.
         """
         if not self._onsets:
-            return
+            return 0
         onsets = np.array(self._onsets if self._last is None else [self._last, *self._onsets])
         self._onsets.clear()
         if self._last is not None:
             onsets = onsets[onsets >= self._last]
         self._last = float(onsets.max())
+        surprises = 0
         for interval in inter_onset_intervals(onsets, min_gap=CHORD_GAP):
             if interval <= LONGEST_INTERVAL:
                 self.model.update(float(interval))
                 self.heard += 1
+                surprises += self.model.surprised
+        return surprises
 
 
 class PulseDuration:

@@ -116,7 +116,9 @@ class World:
                 if creature.name != source and (source != INPUT or creature.spec.hears_input):
                     creature.hear(note, source)
             count += 1
-        self.pulse.settle()
+        surprises = self.pulse.settle()
+        if surprises and self.pulse.ready:  # the heard rhythm changed: an expectation violated
+            self.log.emit(t, "surprise", percept="pulse", count=surprises, pulse=self.pulse.model.pulse)
         self._follow_tempo(t)
         return count
 

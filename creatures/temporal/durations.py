@@ -339,6 +339,14 @@ class LowIntegerRatioModel:
             self._stats = (std, max(pulse - jitter, pulse / band), min(pulse + jitter, pulse * band))
         return self._stats
 
+    @property
+    def surprised(self) -> bool:
+        """Whether the last duration heard surprised the model (thesis, "expectations about
+        value": an expectation violated): no ratio explains it, or only one the recent style
+        makes unlikely (learned probability below ``surprise``). The same *trouble* that
+        drives re-anchoring, so the percept and the model's own reaction to it agree."""
+        return bool(self._recent_trouble) and self._recent_trouble[-1]
+
     def ratio_distribution(self) -> np.ndarray:
         """P(ratio) over ``self.ratios``: recent interpretation counts plus the prior."""
         return self._smoothed(np.array(self._counts), self.prior_strength)
