@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from audio.mixer import Mixer
-from audio.transcribe import Transcriber
+from audio.transcribe import WINDOW, Transcriber
 from creatures.clock import Clock
 from creatures.events import EventLog
 from creatures.kinds import KINDS
@@ -59,6 +59,7 @@ class Session:
         self._room = np.zeros(0)
         self.air = settings.audio.air
         self.transcribe = transcribe
+        self.transcribe_window = WINDOW  # live: ≤ 60 ms from an attack to its note; offline sets a longer one
         self._transcriber: Transcriber | None = None
         self.ticks = 0
 
@@ -92,7 +93,8 @@ class Session:
     def _hear_notes(self, t: float, recorded: np.ndarray) -> None:
         """Notes of the input audio join the note bus as they are recognised."""
         if self._transcriber is None:  # the input's first sample sounded at the start of this tick
-            self._transcriber = Transcriber(self.sample_rate, t0=t - len(recorded) / self.sample_rate)
+            self._transcriber = Transcriber(self.sample_rate, t0=t - len(recorded) / self.sample_rate,
+                                            window=self.transcribe_window)
         for note in self._transcriber.feed(recorded):
             self.world.inject(note, via="audio")
 
