@@ -77,7 +77,6 @@ class Transcriber:
         self.delay_frames = -(-(self.window_length - SHORT // 2) // HOP)  # frames until WINDOW samples follow the onset
         self.threshold = float(threshold)
         self.newness = 0.4
-        self.rise = 0.7
         self.release = 10 ** (-release_db / 20)
         self.heard_length = float(heard_length)
         self.max_length = float(max_length)
@@ -97,7 +96,8 @@ class Transcriber:
         self._noise_long: np.ndarray | None = None
         self._energy: deque[float] = deque([0.0, 0.0], maxlen=2)  # short-window energy, last frames
         self._flux: deque[float] = deque(maxlen=round(0.3 * RATE / HOP))
-        self._last_onset, self._last_flux = -np.inf, 0.0
+        self._last_onset, self._last_flux, self._last_falling = -np.inf, 0.0, False
+        self._bad_frames = 0  # frames still to pass before onsets are taken again
         self._due: list[tuple[int, int]] = []  # (frame to analyse at, onset frame)
         self._sounding: dict[int, _Sounding] = {}
         self.ended: deque[NoteEvent] = deque(maxlen=1024)
@@ -106,6 +106,7 @@ class Transcriber:
         self.notes = 0  # notes given
         self.bad_samples = 0  # non-finite samples replaced by silence
         self.clipped = 0  # samples at or beyond full scale
+        self._last_good = 0.0
         self._rate = 0
         self._resampler: soxr.ResampleStream | None = None
         self.set_rate(samplerate)
@@ -130,8 +131,14 @@ class Transcriber:
             x = x.mean(axis=1)
         bad = ~np.isfinite(x)
         if bad.any():
+            # Each bad sample holds the last good one: a zero in a loud tone would be a click.
             self.bad_samples += int(bad.sum())
-            x = np.where(bad, 0.0, x).astype(np.float32)
+            self._bad_frames = -(-len(x) * RATE // (self._rate * HOP)) + SHORT // HOP + 1
+            good = np.where(bad, 0, np.arange(len(x)))
+            np.maximum.accumulate(good, out=good)
+            x = np.where(bad[good], self._last_good, x[good]).astype(np.float32)
+        if len(x):
+            self._last_good = float(x[-1])
         self.clipped += int(np.count_nonzero(np.abs(x) >= 0.999))
         if self._resampler is not None:
             x = self._resampler.resample_chunk(x)
@@ -141,7 +148,7 @@ class Transcriber:
         if hops == 0:
             return []
         stream = np.concatenate([self._buffer, x[: hops * HOP]])
-        self._buffer = stream[-self._keep:]
+        self._buffer = stream  # the whole block while its frames are analysed, then trimmed
         self._stream_end += hops * HOP
         ends = len(stream) - HOP * np.arange(hops - 1, -1, -1)  # each frame's window ends there
         frames = stream[ends[:, None] + np.arange(-self.window_length, 0)[None, :]]
@@ -150,6 +157,7 @@ class Transcriber:
         notes: list[NoteEvent] = []
         for i in range(hops):
             notes.extend(self._step(long[i], short[i]))
+        self._buffer = stream[-self._keep:]
         return notes
 
     def _spectra(self, frames: np.ndarray) -> np.ndarray:
@@ -175,13 +183,13 @@ class Transcriber:
         self._track_noise(self._noise_short, short)
         self._track_noise(self._noise_long, long)
         energy = float(np.sum(short**2))
-        rising = energy > self.rise * self._energy[0]  # not much quieter than two frames ago: a note cut off is not a new one
+        falling = energy < self._energy[0]  # quieter than two frames ago: perhaps a note cut off
         self._energy.append(energy)
         level = np.log1p(np.maximum(short - 2.0 * self._noise_short, 0.0) / (SHORT * 1e-4))
         if self._previous is not None:
             rise = level - np.maximum.reduce([self._previous, np.roll(self._previous, 1), np.roll(self._previous, -1)])
             flux = float(np.maximum(rise, 0.0).sum())
-            self._detect(frame, flux, rising)
+            self._detect(frame, flux, falling)
         self._previous = level
         self._follow(long, frame)
         notes = []
@@ -190,23 +198,27 @@ class Transcriber:
             notes.extend(self._recognise(onset, long))
         return notes
 
-    def _detect(self, frame: int, flux: float, rising: bool) -> None:
-        """Take ``frame`` as an onset if its flux stands out; within REFRACTORY of the last one
-        only if it is stronger, and then instead of it (a click just before a note's attack)."""
+    def _detect(self, frame: int, flux: float, falling: bool) -> None:
+        """Take ``frame`` as an onset if its flux stands out. Within REFRACTORY of the last
+        one, only instead of it, if it is stronger or the last one came as the sound fell (the
+        click of a note cut off, just before the next note's attack)."""
         recent = float(np.median(self._flux)) if self._flux else 0.0
         self._flux.append(flux)
         settled = len(self._flux) >= WARM_UP  # the floors and the flux's median have been learnt
-        if not (settled and rising and flux > self.threshold + 2.0 * recent):
+        if self._bad_frames > 0:
+            self._bad_frames -= 1  # repaired samples make steps: no onsets in their frames
+            return
+        if not (settled and flux > self.threshold + 2.0 * recent):
             return
         t = self._time(frame)
         if t - self._last_onset > REFRACTORY:
             self.onsets += 1
             self._due.append((frame + self.delay_frames, frame))
-        elif flux > self._last_flux and self._due:
+        elif self._due and (flux > self._last_flux or self._last_falling):
             self._due[-1] = (frame + self.delay_frames, frame)
         else:
             return
-        self._last_onset, self._last_flux = t, flux
+        self._last_onset, self._last_flux, self._last_falling = t, flux, falling
 
     @staticmethod
     def _track_noise(floor: np.ndarray, spectrum: np.ndarray) -> None:
@@ -220,6 +232,9 @@ class Transcriber:
         t = self._time(onset) - SHORT / 2 / RATE  # the short window's centre
         at = len(self._buffer) - (self._stream_end - (onset + 1) * HOP + SHORT // 2)
         after, before = self._spectra(np.stack([self._buffer[at:at + self.window_length], self._buffer[at - self.window_length:at]]))
+        edge = self._buffer[at - SHORT:at + SHORT]
+        if np.sum(edge[SHORT:] ** 2) < 0.5 * np.sum(edge[:SHORT] ** 2):
+            return []  # quieter just after than just before: a note cut off (its click), not an attack
         began = np.maximum(after - before, 0.0)
         notes = []
         for pitch, amplitude in self.salience.estimate(began, floor=2.0 * self._noise_long):
