@@ -59,7 +59,7 @@ class HarmonicSalience:
         self.reach = (k >= low[..., None]) & (k <= high[..., None]) & self.valid[..., None]
         # Partials among the first six a note must show: three, or two above 1 kHz (where
         # fewer fall below the band's edge and a piano's run sharpest).
-        self.needed = np.where(f0 > 1000.0, 2, 3)
+        self.needed = np.where(f0 > 1000.0, 1, np.where(f0 > 500.0, 2, 3))
         self.weights = np.where(self.valid, (f0[:, None] + ALPHA) / (freqs + BETA), 0.0)
 
     def estimate(self, spectrum: np.ndarray, *, floor: float | np.ndarray, max_polyphony: int = 6,

@@ -107,3 +107,25 @@ def test_live_window_answers_within_60_ms() -> None:
     assert [n.pitch for _, n in given] == [n.pitch for n in played]
     delays = [out - note.time for (out, _), note in zip(given, played)]
     assert max(delays) <= 0.06, delays
+
+
+def room_noise(seconds: float, rate: int, rng: np.random.Generator, dbfs: float) -> np.ndarray:
+    """A room's noise: brown-ish (a fan's rumble and hiss, falling with frequency) at ``dbfs`` RMS."""
+    from scipy import signal
+
+    x = signal.lfilter([1.0], [1.0, -0.9], rng.standard_normal(int(seconds * rate)))
+    return (x * 10 ** (dbfs / 20) / np.sqrt(np.mean(x**2))).astype(np.float32)
+
+
+@pytest.mark.parametrize("window", [WINDOW, OFFLINE_WINDOW])
+def test_a_minute_of_room_noise_gives_no_notes_and_no_utterances(rng: np.random.Generator, window: int) -> None:
+    from creatures.kinds.hearing_parts import Ear, HearingSpec
+
+    rate = 22050
+    x = room_noise(60.0, rate, rng, -40.0)
+    ear, notes = hear(x, rate, block=882, window=window)
+    assert notes == [] and ear.onsets == 0
+    if window == WINDOW:
+        utterances = Ear(HearingSpec())
+        heard = [u for i in range(0, len(x), 882) for u in utterances.listen((i + 882) / rate, x[i:i + 882], rate)]
+        assert heard == []
