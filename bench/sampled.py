@@ -1,4 +1,4 @@
-"""Audio made by a real sampler for the transcription tests: textures generated in code (random
+"""Audio made by a real sampler for the transcription tests and bench: textures generated in code (random
 and composed, 1–4 voices, General MIDI programs), written as MIDI files, rendered by fluidsynth
 through Debian's GM soundfont (``fluid-soundfont-gm``), optionally with room noise and
 reverb, and scored with mir_eval (the field's metric: note F1, onset within 50 ms, no offset
