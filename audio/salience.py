@@ -18,33 +18,34 @@ whole candidate grid (MIDI 28–100 by default), a few dozen µs.
 from __future__ import annotations
 
 import numpy as np
-from scipy.ndimage import maximum_filter1d, median_filter
+from scipy.ndimage import maximum_filter1d
 
 ALPHA, BETA = 52.0, 320.0
 """Klapuri's harmonic weights for a 93 ms frame (2048 samples at 22.05 kHz), Hz."""
-GAMMA = 0.27
-"""Polyphony discount for 93 ms frames (Klapuri 2006, table 1)."""
 MAX_HARMONIC_HZ = 9000.0
 """Partials above this are not summed (the analysis rate's band, less its anti-alias edge)."""
-
-
 STRETCH = 0.02
 """How far above ``m f`` a partial may lie (a fraction): a piano's strings are stiff, so its
 partials run sharp (2nd partial of C7 ~1 % high, measured on the GM soundfont's piano)."""
 
 
 class HarmonicSalience:
-    """The candidate grid, its harmonics' search ranges and weights, for one FFT size and rate."""
+    """The candidate grid, its harmonics' search ranges and weights, for one FFT size and rate.
 
-    def __init__(self, samplerate: int, n_fft: int, midi_range: tuple[int, int] = (28, 100),
-                 max_harmonics: int = 20) -> None:
+    ``gamma``: the polyphony discount — 0.27 for 93 ms looks (Klapuri's table), 0.6 measured
+    best for 46 ms ones (shorter frames hear fewer partials per note, so each further note must
+    add more). ``range_db`` and ``power``: see :meth:`estimate`; the defaults are the best of a
+    sweep on sampled piano (docs/hearing.md). ``min_ratio``: a later pitch must have this
+    fraction of the first one's salience. ``support``: the fraction of a pitch's strongest
+    partial its fundamental (or its 2nd and 3rd partials) must reach.
+    """
+
+    def __init__(self, samplerate: int, n_fft: int, midi_range: tuple[int, int] = (28, 100), *,
+                 gamma: float = 0.27, range_db: float = 25.0, power: float = 0.7, min_ratio: float = 0.3,
+                 support: float = 0.2, max_harmonics: int = 20) -> None:
         self.samplerate, self.n_fft = int(samplerate), int(n_fft)
-        self.gamma = GAMMA
-        self.support = 0.2
-        self.min_ratio = 0.3
-        self.power = 0.5
-        self.range_db = 30.0
-        self.contrast, self.contrast_bins = 2.0, 31
+        self.gamma, self.range_db, self.power = float(gamma), float(range_db), float(power)
+        self.min_ratio, self.support = float(min_ratio), float(support)
         self.pitches = np.arange(midi_range[0], midi_range[1] + 1)
         f0 = 440.0 * 2.0 ** ((self.pitches - 69) / 12.0)
         n_bins = n_fft // 2 + 1
@@ -57,13 +58,14 @@ class HarmonicSalience:
         k = np.arange(n_bins)
         # reach[p, m, b]: bin b is where harmonic m of pitch p may lie.
         self.reach = (k >= low[..., None]) & (k <= high[..., None]) & self.valid[..., None]
-        # Partials among the first six a note must show: three, or two above 1 kHz (where
-        # fewer fall below the band's edge and a piano's run sharpest).
+        # Partials among the first six a note must show: three; two above 500 Hz and one above
+        # 1 kHz, where fewer fall below the band's edge, a piano's run sharpest and a flute has
+        # little but its fundamental.
         self.needed = np.where(f0 > 1000.0, 1, np.where(f0 > 500.0, 2, 3))
         self.weights = np.where(self.valid, (f0[:, None] + ALPHA) / (freqs + BETA), 0.0)
 
-    def estimate(self, spectrum: np.ndarray, *, floor: float | np.ndarray, max_polyphony: int = 6,
-                 range_db: float | None = None) -> list[tuple[int, float]]:
+    def estimate(self, spectrum: np.ndarray, *, floor: float | np.ndarray,
+                 max_polyphony: int = 6) -> list[tuple[int, float]]:
         """The pitches in ``spectrum`` (linear magnitudes), strongest first, with the amplitude
         of each one's strongest partial.
 
@@ -71,17 +73,14 @@ class HarmonicSalience:
         came with the sound — and within ``range_db`` of the strongest): a dense comb of a low
         candidate must not collect the spectrum between partials. Magnitudes are compressed
         (``** power``) so one loud partial does not outweigh a note's whole series. A pitch
-        needs a partial at its fundamental or at both its 2nd and 3rd harmonics (else it is a
-        sub-harmonic made of another note's partials). ``min_ratio``: a later pitch must have
-        this fraction of the first one's salience.
+        needs a strong partial at its fundamental or at both its 2nd and 3rd harmonics, and
+        enough of its first six (else it is a sub-harmonic made of another note's partials).
         """
         floor = np.broadcast_to(np.asarray(floor, dtype=float), spectrum.shape)
-        loud = spectrum > floor
         local = maximum_filter1d(spectrum, size=5, mode="nearest")
-        at = np.flatnonzero((spectrum >= local) & loud & (spectrum > spectrum.max() * 10 ** (-self.range_db / 20)))
+        top = spectrum.max() * 10 ** (-self.range_db / 20)
+        at = np.flatnonzero((spectrum >= local) & (spectrum > floor) & (spectrum > top))
         residual = spectrum[at] ** self.power  # the peaks' compressed magnitudes
-        background = median_filter(spectrum, size=self.contrast_bins, mode="nearest")[at] + floor[at] + 1e-12
-        standing = spectrum[at] + floor[at]
         reach = self.reach[:, :, at]  # (pitches, harmonics, peaks)
         found: list[tuple[int, float]] = []
         total, best = 0.0, 0.0
@@ -103,10 +102,7 @@ class HarmonicSalience:
             taken[max(k - 1, 0): k + 2] = True
             amps = partials[k]
             strong = amps >= self.support * amps.max()
-            used = heard[k].argmax(axis=1)[amps > 0]  # the peaks its partials took
-            contrast = standing[used].sum() / background[used].sum() if len(used) else 0.0
-            if ((strong[0] or (strong[1] and strong[2])) and np.count_nonzero(amps[:6]) >= self.needed[k]
-                    and contrast >= self.contrast):
+            if (strong[0] or (strong[1] and strong[2])) and np.count_nonzero(amps[:6]) >= self.needed[k]:
                 found.append((int(self.pitches[k]), float(amps.max()) ** (1 / self.power)))
                 best, total = max(best, s), total + s
             # Cancel its partials' smoothed amplitudes: a partial it shares with a note not

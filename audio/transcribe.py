@@ -10,23 +10,28 @@ published model and the earlier monophonic YIN path in ``docs/hearing.md``):
    does not count (Böck & Widmer's "SuperFlux", 2013). A rise above ``threshold`` (and
    above what the recent music gave, so a dense texture does not fire on every frame) is an
    onset.
-2. **What began.** ``delay`` seconds after the onset, the positive difference between the
-   long spectrum (2048 samples, 93 ms) then and the one just before the onset is the sound
-   that started there; notes still ringing from before are not in it.
+   onset. A stronger onset within ``REFRACTORY`` replaces a weaker one, and so does the next
+   one after an onset that came as the sound fell (the click of a note cut off).
+2. **What began.** Once ``window`` samples have followed the onset, the positive difference
+   between their spectrum and that of the ``window`` samples before it is the sound that
+   started there; notes still ringing from before are not in it. The live look is 1024 samples
+   (46 ms), the offline one 2048 (93 ms: nobody waits offline, and chords are heard better).
 3. **Which pitches.** :class:`audio.salience.HarmonicSalience` finds the notes in it
    (Klapuri 2006: harmonic salience, iterative cancellation, polyphony by the discounted
    salience sum), each with a velocity from its strongest partial's level.
-4. **How long.** Each started note is followed in the long spectrum (its first partials)
-   until it falls ``release_db`` below its peak or is struck again; its measured duration
-   goes to :attr:`Transcriber.ended`.
+4. **How long.** Each started note is followed in the spectrum (its first partials) until it
+   falls ``release_db`` below its peak or is struck again; its measured duration goes to
+   :attr:`Transcriber.ended`.
 
-A note event is given at onset + ``delay`` (≤ 60 ms after the attack, so a creature answers a
-chord as promptly as a MIDI key), with the provisional duration ``heard_length`` — as the
-live MIDI input gives a note-on (its length is not known until it ends).
+A note event is given as soon as its pitches are known (live: ≤ 60 ms after the attack, so a
+creature answers a chord as promptly as a MIDI key), with the provisional duration
+``heard_length`` — as the live MIDI input gives a note-on (its length is not known until it
+ends).
 
-Any rate (8–192 kHz), any number of channels (averaged) is taken; non-finite samples are
-replaced by silence and counted (:attr:`Transcriber.bad_samples`); a change of input rate
-(:meth:`Transcriber.set_rate`) restarts the resampler without losing the timeline.
+Any rate (8–192 kHz), any number of channels (averaged) is taken; non-finite samples hold the
+last good one and are counted (:attr:`Transcriber.bad_samples`), and no onset is taken in the
+frames they touch; a change of input rate (:meth:`Transcriber.set_rate`) restarts the
+resampler without losing the timeline.
 """
 
 from __future__ import annotations
@@ -52,6 +57,9 @@ where latency costs nothing, look at twice as much (:data:`OFFLINE_WINDOW`)."""
 OFFLINE_WINDOW = 2048
 WARM_UP = 8
 """Frames (93 ms) heard before the first onset may be taken: the noise floors are learnt first."""
+NEWNESS = 0.4
+"""Fraction of a found pitch's first partials that must be new at its onset (else it was
+sounding already, and only fluctuated)."""
 REFRACTORY = 0.05
 """Seconds after an onset in which no second onset is taken (one attack's flux lasts that long)."""
 
@@ -74,15 +82,13 @@ class Transcriber:
         self.t0 = float(t0)
         self.window_length = int(window)
         self.n_fft = 2 * self.window_length  # zero-padded: partials placed to a quarter of a lobe
-        self.delay_frames = -(-(self.window_length - SHORT // 2) // HOP)  # frames until WINDOW samples follow the onset
+        self.delay_frames = -(-(self.window_length - SHORT // 2) // HOP)  # frames until a window follows the onset
         self.threshold = float(threshold)
-        self.newness = 0.4
         self.release = 10 ** (-release_db / 20)
         self.heard_length = float(heard_length)
         self.max_length = float(max_length)
-        self.salience = HarmonicSalience(RATE, self.n_fft, midi_range)
-        self.salience.range_db, self.salience.power = 25.0, 0.7
-        self.salience.gamma = 0.27 if self.window_length >= OFFLINE_WINDOW else 0.6
+        self.salience = HarmonicSalience(RATE, self.n_fft, midi_range,
+                                         gamma=0.27 if self.window_length >= OFFLINE_WINDOW else 0.6)
         self._short_window = np.hanning(SHORT).astype(np.float32)
         self._window = np.hanning(self.window_length).astype(np.float32)
         self._keep = 2 * self.window_length + (self.delay_frames + 2) * HOP  # samples an onset's analysis may need
@@ -111,16 +117,15 @@ class Transcriber:
         self._resampler: soxr.ResampleStream | None = None
         self.set_rate(samplerate)
 
-    @property
-    def events(self) -> int:
-        """Onsets heard (kept under the old name: the sound events the ear took in)."""
-        return self.onsets
-
     def set_rate(self, samplerate: int) -> None:
         """The input's rate from now on (a live device reopened at another rate)."""
         samplerate = int(samplerate)
         if samplerate == self._rate:
             return
+        if self._rate:
+            # The old resampler's tail is lost and the new one starts cold: a seam in the
+            # stream, which must not be heard as an attack.
+            self._bad_frames = max(self._bad_frames, SHORT // HOP + 2)
         self._rate = samplerate
         self._resampler = None if samplerate == RATE else soxr.ResampleStream(samplerate, RATE, 1, dtype="float32")
 
@@ -240,7 +245,7 @@ class Transcriber:
         for pitch, amplitude in self.salience.estimate(began, floor=2.0 * self._noise_long):
             k = pitch - int(self.salience.pitches[0])
             bins = self.salience.bins[k][self.salience.valid[k]][:4]
-            if began[bins].sum() < self.newness * after[bins].sum():
+            if began[bins].sum() < NEWNESS * after[bins].sum():
                 continue  # it was sounding before: a fluctuation, not a note
             level_db = 20.0 * np.log10(max(amplitude * 4.0 / self.window_length, 1e-10))
             if pitch in self._sounding:

@@ -21,7 +21,7 @@ from audio.formants import SAMPLE_RATE as SR
 from audio.formants import WORDS, word
 from audio.segment import segment
 from bench import Row, best_of
-from bench.sampled import chorale, have_sampler, note_f1, random_texture, render
+from bench._sampled import chorale, have_sampler, note_f1, random_texture, render
 from bench.voice import one_core
 
 

@@ -85,7 +85,7 @@ def synthetic_corpus(rng: np.random.Generator, copies: int = 3) -> tuple[list[np
 
 
 def instrument_corpus(rng: np.random.Generator) -> tuple[list[np.ndarray], np.ndarray, int]:
-    from bench.sampled import Note, render
+    from bench._sampled import Note, render
 
     rate, sounds, labels = 22050, [], []
     phrase = [(0.0, 60), (0.25, 64), (0.5, 67), (0.75, 72)]
@@ -134,7 +134,7 @@ def profile_correlations(sounds: list[np.ndarray], labels: np.ndarray, rate: int
 
 
 def run(quick: bool) -> list[Row]:
-    from bench.sampled import have_sampler
+    from bench._sampled import have_sampler
 
     rng = np.random.default_rng(18)
     corpora = {"synthetic words": synthetic_corpus(rng)}

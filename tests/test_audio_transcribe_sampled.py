@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from audio.transcribe import OFFLINE_WINDOW, WINDOW, Transcriber
-from bench.sampled import RANGES, chorale, have_sampler, note_f1, random_texture, render, room
+from bench._sampled import RANGES, chorale, have_sampler, note_f1, random_texture, render, room
 
 pytest.importorskip("mir_eval")
 pytestmark = pytest.mark.skipif(not have_sampler(), reason="needs fluidsynth and fluid-soundfont-gm")

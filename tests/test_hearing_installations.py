@@ -17,7 +17,7 @@ from creatures.events import read_events
 from creatures.runtime.offline import run_offline
 from creatures.runtime.schema import load_installation
 from installations import path as installation_path
-from bench.sampled import chorale, have_sampler, render
+from bench._sampled import chorale, have_sampler, render
 
 pytestmark = [pytest.mark.skipif(not have_sampler(), reason="needs fluidsynth and fluid-soundfont-gm"),
               pytest.mark.slow]
