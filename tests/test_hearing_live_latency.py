@@ -13,10 +13,11 @@ from bench.live_hearing import jack_available, measure
 
 @pytest.mark.jack
 @pytest.mark.slow
-@pytest.mark.xfail(strict=False, reason="measured 2026-12-01: the first onset is answered (147-307 ms), then the run "
-                   "hears nothing more once its MIDI output (rtmidi on JACK) is open — JACK prints 'Cannot read "
-                   "socket fd' and the microphone's blocks stop reaching the transcriber; without a MIDI output "
-                   "every onset is heard and answered (8/8)")
+@pytest.mark.xfail(strict=False, reason="measured 2026-12-01: the first onset is answered (147-307 ms after it), then "
+                   "the run's loop stalls for seconds at a time: every send re-lists the JACK MIDI ports on the "
+                   "creature's thread (midi/ports.py ResilientPort._check -> factory.names()), the microphone's "
+                   "ring overflows and later onsets are lost; without a MIDI output all 8 of 8 onsets were heard "
+                   "and answered")
 def test_onset_to_answer_latency_through_jack() -> None:
     if not os.environ.get("CREATURES_JACK"):
         pytest.skip("set CREATURES_JACK=1 with a JACK server running (.ci/run starts one)")
