@@ -36,6 +36,7 @@ resampler without losing the timeline.
 
 from __future__ import annotations
 
+import statistics
 from collections import deque
 from dataclasses import dataclass
 
@@ -192,7 +193,10 @@ class Transcriber:
         self._energy.append(energy)
         level = np.log1p(np.maximum(short - 2.0 * self._noise_short, 0.0) / (SHORT * 1e-4))
         if self._previous is not None:
-            rise = level - np.maximum.reduce([self._previous, np.roll(self._previous, 1), np.roll(self._previous, -1)])
+            before = self._previous.copy()  # its 3-bin maximum, by shifted slices
+            np.maximum(before[1:], self._previous[:-1], out=before[1:])
+            np.maximum(before[:-1], self._previous[1:], out=before[:-1])
+            rise = level - before
             flux = float(np.maximum(rise, 0.0).sum())
             self._detect(frame, flux, falling)
         self._previous = level
@@ -207,7 +211,7 @@ class Transcriber:
         """Take ``frame`` as an onset if its flux stands out. Within REFRACTORY of the last
         one, only instead of it, if it is stronger or the last one came as the sound fell (the
         click of a note cut off, just before the next note's attack)."""
-        recent = float(np.median(self._flux)) if self._flux else 0.0
+        recent = statistics.median(self._flux) if self._flux else 0.0  # 26 floats: no numpy round trip
         self._flux.append(flux)
         settled = len(self._flux) >= WARM_UP  # the floors and the flux's median have been learnt
         if self._bad_frames > 0:
