@@ -9,7 +9,11 @@ Cepstral mean normalisation (CMN) subtracts each coefficient's mean over the eve
 removes a fixed channel colouring (microphone, room, loudspeaker) and, through c0, the overall
 gain: the same word whispered close or spoken across the room should match. Sinusoidal
 liftering (HTK's L = 22) evens out the coefficients' scales; without it the loudness contour
-in c0 outweighs the timbre (measured: 5-word accuracy 80 % without, 100 % with).
+in c0 outweighs the timbre (measured: 5-word accuracy 80 % without, 100 % with). On words
+said by three espeak-ng voices a lighter lifter separates words better (L = 6 best; L = 22
+worst of 0/6/12/22: ``python -m bench sound_classes``, docs/hearing.md); the synthetic words
+and sampled instruments separate under every choice. L = 22 is kept for what the shipped
+radius was measured with.
 
 The DTW here is a numba kernel with librosa's default step pattern (match, insertion,
 deletion, unit weights). It accumulates only the cost and the length of the best path, with

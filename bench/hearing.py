@@ -1,6 +1,9 @@
 """Hearing: offline analysis speed of a creature's ear (segmentation + cepstra + DTW against
 50 templates) as a multiple of real time on a synthetic recording, with librosa's bare MFCC
-over the same audio as the anchor; and the numba DTW kernel against librosa.sequence.dtw.
+over the same audio as the anchor; the numba DTW kernel against librosa.sequence.dtw; and
+streaming polyphonic transcription (audio/transcribe.py) of sampled piano at 44.1 kHz, with
+basic-pitch's published ONNX model (Spotify, Apache-2.0; ``pip install basic-pitch==0.4.0
+--no-deps`` beside ``onnxruntime``) side by side on the same audio where it is installed.
 
 Everything is timed under :func:`bench.voice.one_core`: the target is "≥ 100× real time on
 one core", and the anchor ratio compares like with like only if librosa's MFCC (whose mel
@@ -18,6 +21,7 @@ from audio.formants import SAMPLE_RATE as SR
 from audio.formants import WORDS, word
 from audio.segment import segment
 from bench import Row, best_of
+from bench._sampled import chorale, have_sampler, note_f1, random_texture, render
 from bench.voice import one_core
 
 
@@ -94,9 +98,107 @@ def _dtw_rows(quick: bool) -> list[Row]:
     ]
 
 
+def basic_pitch_model() -> str | None:
+    """Where basic-pitch's ONNX model is, if the package (``--no-deps``, with ``onnxruntime``,
+    ``pretty_midi`` and ``resampy<0.4.3`` for its note creation) is installed."""
+    import importlib.util
+    from pathlib import Path
+
+    needed = ("basic_pitch", "onnxruntime", "pretty_midi", "resampy")
+    if any(importlib.util.find_spec(name) is None for name in needed):
+        return None
+    spec = importlib.util.find_spec("basic_pitch")
+    model = Path(spec.submodule_search_locations[0]) / "saved_models" / "icassp_2022" / "nmp.onnx"
+    return str(model) if model.is_file() else None
+
+
+def basic_pitch_notes(session: object, mono: np.ndarray, rate: int) -> list[tuple[float, float, int]]:
+    """basic-pitch's ``predict`` with its own note creation and default thresholds, run on an
+    onnxruntime session: 2 s windows at 22.05 kHz overlapping by 30 frames, half the overlap
+    cut from each side (``basic_pitch.inference.run_inference``, without its file loading)."""
+    import logging
+
+    import soxr
+
+    logging.getLogger().setLevel(logging.ERROR)  # it warns about each backend it lacks (TensorFlow, CoreML)
+    from basic_pitch import note_creation
+
+    n, overlap = 43844, 30 * 256
+    y = soxr.resample(mono, rate, 22050).astype(np.float32)
+    frames_total = int(len(y) * 86 / 22050)
+    y = np.concatenate([np.zeros(overlap // 2, np.float32), y])
+    note, onset = [], []
+    for i in range(0, len(y), n - overlap):
+        w = np.pad(y[i:i + n], (0, max(0, n - len(y[i:i + n]))))[None, :, None]
+        f, o = session.run(["StatefulPartitionedCall:1", "StatefulPartitionedCall:2"], {"serving_default_input_2:0": w})
+        note.append(f[0, 15:-15])
+        onset.append(o[0, 15:-15])
+    frames, onsets = np.concatenate(note)[:frames_total], np.concatenate(onset)[:frames_total]
+    events = note_creation.output_to_notes_polyphonic(frames, onsets, onset_thresh=0.5, frame_thresh=0.3,
+                                                      min_note_len=11, infer_onsets=True, max_freq=None,
+                                                      min_freq=None, melodia_trick=True)
+    times = note_creation.model_frames_to_time(len(frames))
+    return [(float(times[a]), float(times[min(b, len(times) - 1)]), int(p)) for a, b, p, *_ in events]
+
+
+def _transcription_rows(quick: bool) -> list[Row]:
+    """Sampled piano (fluidsynth) at 44.1 kHz, streamed in 512-frame blocks as a live input gives it."""
+    from audio.transcribe import OFFLINE_WINDOW, WINDOW, Transcriber
+
+    if not have_sampler():
+        return [Row("transcription (skipped: needs fluidsynth and fluid-soundfont-gm)", 0.0, "")]
+    rate, seconds = 44100, 30.0 if quick else 120.0
+    rng = np.random.default_rng(11)
+    notes = random_texture(rng, 4, seconds / 2, 36, 96)
+    notes += [type(n)(n.onset + seconds / 2, n.offset + seconds / 2, n.pitch, n.velocity)
+              for n in chorale(rng, 4, seconds / 2, 36, 96)]
+    mono = render(notes, "piano", rate).mean(axis=1)
+    rows = []
+    for label, window in (("live, 46 ms look", WINDOW), ("offline, 93 ms look", OFFLINE_WINDOW)):
+        heard: list[tuple[float, float, int]] = []
+
+        def stream() -> None:
+            ear = Transcriber(rate, window=window)
+            ear.ended = type(ear.ended)()
+            for i in range(0, len(mono), 512):
+                ear.feed(mono[i:i + 512])
+            ear.flush()
+            heard[:] = [(n.time, n.end, n.pitch) for n in ear.ended]
+
+        speed = len(mono) / rate / best_of(stream, repeat=1 if quick else 2)
+        rows.append(Row(f"transcription, 4-voice piano 44.1 kHz ({label})", speed, "× real time", target=50.0))
+        rows.append(Row(f"  note F1 (mir_eval, onset 50 ms) ({label})", note_f1(notes, heard), "", target=0.75))
+    model = basic_pitch_model()
+    if model is None:
+        rows.append(Row("basic-pitch ONNX (not installed: pip install basic-pitch==0.4.0 --no-deps onnxruntime)",
+                        0.0, ""))
+        return rows
+    import onnxruntime
+
+    options = onnxruntime.SessionOptions()
+    options.intra_op_num_threads = options.inter_op_num_threads = 1
+    t0 = time.perf_counter()
+    session = onnxruntime.InferenceSession(model, options, providers=["CPUExecutionProvider"])
+    load = time.perf_counter() - t0
+    theirs: list[tuple[float, float, int]] = []
+
+    def infer() -> None:
+        theirs[:] = basic_pitch_notes(session, mono, rate)
+
+    their_speed = len(mono) / rate / best_of(infer, repeat=1)
+    ours = rows[2].value  # the offline window's speed
+    rows[2].baseline, rows[2].ratio = "basic-pitch ONNX", ours / their_speed
+    rows += [
+        Row("basic-pitch ONNX, same audio (offline, 2 s windows)", their_speed, "× real time"),
+        Row("  note F1 (basic-pitch ONNX)", note_f1(notes, theirs), ""),
+        Row("  basic-pitch model load", load * 1e3, "ms"),
+    ]
+    return rows
+
+
 def run(quick: bool) -> list[Row]:
     t0 = time.perf_counter()
     with one_core():
-        rows = _dtw_rows(quick) + _hearing_rows(quick)
+        rows = _dtw_rows(quick) + _hearing_rows(quick) + _transcription_rows(quick)
     rows.append(Row("benchmark wall time", time.perf_counter() - t0, "s"))
     return rows

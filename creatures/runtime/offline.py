@@ -27,6 +27,7 @@ import numpy as np
 from audio.output import WavOutput
 from audio.sources import load_audio
 from creatures import stop
+from audio.transcribe import OFFLINE_WINDOW
 from creatures.clock import SimulatedClock
 from creatures.events import EventLog
 from creatures.lock import FolderLock, FolderLockedError
@@ -150,6 +151,7 @@ def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path 
         session.world.inject(note)
     transcribe = settings.audio.transcribe
     session.transcribe = samples is not None and (transcribe if transcribe is not None else not notes)
+    session.transcribe_window = OFFLINE_WINDOW  # nobody waits offline: the longer look hears chords better
 
     sr, tick = settings.audio.sample_rate, settings.tick
     wav = WavOutput(out / "out.wav", sr, 2) if settings.output.wav else None

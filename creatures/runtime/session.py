@@ -18,7 +18,7 @@ from typing import Callable
 import numpy as np
 
 from audio.mixer import Mixer
-from audio.transcribe import Transcriber
+from audio.transcribe import WINDOW, Transcriber
 from creatures.behaviour.motivation import Motivation
 from creatures.clock import Clock
 from creatures.events import EventLog
@@ -73,6 +73,7 @@ class Session:
         self.air = settings.audio.air
         self._deaf = any(not creature.spec.hears_input for creature in self.creatures)
         self.transcribe = transcribe
+        self.transcribe_window = WINDOW  # live: ≤ 60 ms from an attack to its note; offline sets a longer one
         self._transcriber: Transcriber | None = None
         self.ticks = 0
         self._set_up_channels()
@@ -141,7 +142,8 @@ class Session:
     def _hear_notes(self, t: float, recorded: np.ndarray) -> None:
         """Notes of the input audio join the note bus as they are recognised."""
         if self._transcriber is None:  # the input's first sample sounded at the start of this tick
-            self._transcriber = Transcriber(self.sample_rate, t0=t - len(recorded) / self.sample_rate)
+            self._transcriber = Transcriber(self.sample_rate, t0=t - len(recorded) / self.sample_rate,
+                                            window=self.transcribe_window)
         for note in self._transcriber.feed(recorded):
             self.world.inject(note, via="audio")
 

@@ -1,0 +1,170 @@
+"""Live hearing latency through JACK: an onset played into the run's microphone → the creature's
+answering note leaving its MIDI output, measured on JACK's own frame clock.
+
+A probe JACK client plays tones (one every ``gap`` seconds, pitches cycling through an octave)
+from its audio output into the input ports of a ``creatures run`` started as a subprocess, and
+receives that run's MIDI output on its MIDI input. The run is one exchange creature that
+answers every heard note at once (``answer = 1``, no refractory). Both the onset (the frame the
+tone starts in the probe's output buffer) and the note-on (its frame in the probe's input
+buffer) are read in the same process callback, so the latency is a difference of JACK frame
+times: what the audience would hear between a performer's attack and the creature's note.
+
+``python -m bench live_hearing`` (needs a JACK server and the ``JACK-Client`` package).
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+
+from bench import Row
+
+CONFIG = """title = "hearing latency"
+tick = 0.01
+[audio]
+sample_rate = 22050
+block = 512
+input_device = "system"
+[midi]
+output_port = "{port}"
+[[creature]]
+name = "ada"
+kind = "exchange"
+answer = 1.0
+refractory = 0.0
+strike_interval = 0.0
+"""
+
+
+def jack_available() -> str | None:
+    """None if a JACK server answers and the client package is installed, else why not."""
+    try:
+        import jack
+    except ImportError:
+        return "the JACK-Client package is not installed (pip install JACK-Client)"
+    try:
+        jack.Client(f"hearing-check-{os.getpid()}", no_start_server=True).close()
+    except jack.JackError as exc:
+        return f"no JACK server ({exc}); start one: jackd --no-realtime -d dummy -r 44100 -p 512"
+    return None
+
+
+def tone(pitch: int, rate: int, seconds: float = 0.3) -> np.ndarray:
+    """A plucked harmonic tone: instant attack, exponential decay, faded out at the end."""
+    t = np.arange(int(seconds * rate)) / rate
+    f0 = 440.0 * 2 ** ((pitch - 69) / 12)
+    x = sum(np.sin(2 * np.pi * k * f0 * t) / k for k in range(1, 6) if k * f0 < rate / 2)
+    return (0.2 * x * np.exp(-6 * t) * np.minimum(1.0, (seconds - t) / 0.02)).astype(np.float32)
+
+
+def measure(onsets: int = 40, gap: float = 0.5, *, warm_up: float = 6.0, timeout: float = 90.0,
+            log: Path | None = None) -> tuple[list[float], int, str]:
+    """Latencies (s) from each played onset to the first MIDI note-on after it, the number of
+    onsets played, and what the run printed. Onsets with no answer before the next one are
+    left out (so ``played - len(latencies)`` went unanswered). ``warm_up``: seconds the run is
+    given before the first onset (its first seconds compile and fill buffers)."""
+    import jack
+
+    name = f"hearing-probe-{os.getpid()}"
+    client = jack.Client(name, no_start_server=True)
+    out = client.outports.register("out")
+    midi_in = client.midi_inports.register("in")
+    rate = client.samplerate
+    tones = [tone(60 + (k * 5) % 12, rate) for k in range(onsets)]
+    start_frames: list[int] = []
+    answer_frames: list[int] = []
+    state = {"next": None, "k": 0, "playing": None, "pos": 0}
+
+    @client.set_process_callback
+    def process(frames: int) -> None:
+        buf = out.get_array()
+        buf[:] = 0.0
+        now = client.last_frame_time
+        for offset, data in midi_in.incoming_midi_events():
+            data = bytes(data)
+            if len(data) == 3 and data[0] & 0xF0 == 0x90 and data[2] > 0:
+                answer_frames.append(now + offset)
+        if state["next"] is None:
+            return
+        i = 0
+        while i < frames:
+            if state["playing"] is None:
+                if state["k"] >= onsets:
+                    break
+                begin = state["next"] - now
+                if begin >= frames:
+                    break
+                i = max(i, begin)
+                state["playing"], state["pos"] = tones[state["k"]], 0
+                start_frames.append(now + i)
+                state["k"] += 1
+                state["next"] += int(gap * rate)
+            x = state["playing"]
+            n = min(frames - i, len(x) - state["pos"])
+            buf[i:i + n] = x[state["pos"]:state["pos"] + n]
+            state["pos"] += n
+            i += n
+            if state["pos"] >= len(x):
+                state["playing"] = None
+
+    with tempfile.TemporaryDirectory() as tmp, client:
+        before = set(p.name for p in client.get_ports(is_audio=True, is_input=True))
+        config = Path(tmp) / "latency.toml"
+        config.write_text(CONFIG.format(port=name))
+        env = {**os.environ, "MIDO_BACKEND": "mido.backends.rtmidi/UNIX_JACK", "JACK_NO_START_SERVER": "1"}
+        run = subprocess.Popen([sys.executable, "-m", "creatures.cli", "run", str(config), "--duration",
+                                str(warm_up + 2.0 + onsets * gap + 2.0)] + (["--log", str(log)] if log else []), env=env, stdout=subprocess.PIPE,
+                               stderr=subprocess.STDOUT, text=True)
+        output: list[str] = []
+        reader = threading.Thread(target=lambda: output.extend(run.stdout), daemon=True)
+        reader.start()
+        try:
+            deadline = time.monotonic() + timeout
+            ears: list[str] = []
+            while not ears and time.monotonic() < deadline and run.poll() is None:
+                ears = [p.name for p in client.get_ports(is_audio=True, is_input=True)
+                        if p.name not in before and not p.name.startswith(name)]
+                time.sleep(0.05)
+            if not ears:
+                raise RuntimeError("the run's microphone never appeared on JACK:\n" + "".join(output))
+            for port in ears:
+                client.connect(out, port)
+            time.sleep(warm_up)  # the run starts: compiles, first buffers, the MIDI port found
+            state["next"] = client.frame_time + rate // 10
+            while state["k"] < onsets and time.monotonic() < deadline:
+                time.sleep(0.05)
+            time.sleep(gap)
+        finally:
+            run.terminate()
+            run.wait(timeout=20)
+            reader.join(timeout=5)
+    latencies = []
+    for k, start in enumerate(start_frames):
+        end = start_frames[k + 1] if k + 1 < len(start_frames) else start + int(gap * rate)
+        after = [f for f in answer_frames if start <= f < end]
+        if after:
+            latencies.append((after[0] - start) / rate)
+    return latencies, len(start_frames), "".join(output)
+
+
+def run(quick: bool) -> list[Row]:
+    why = jack_available()
+    if why is not None:
+        return [Row(f"live onset → answer (skipped: {why})", 0.0, "")]
+    latencies, played, _ = measure(20 if quick else 60)
+    if not latencies:
+        return [Row(f"live onset → answer: none of {played} onsets answered", 0.0, "")]
+    ms = 1e3 * np.array(latencies)
+    return [
+        Row(f"live onset → answering MIDI note, p50 ({len(ms)}/{played} answered)", float(np.median(ms)), "ms",
+            higher_is_better=False),
+        Row("live onset → answering MIDI note, p99 (through JACK)", float(np.percentile(ms, 99)), "ms",
+            target=30.0, higher_is_better=False),
+    ]

@@ -1,0 +1,131 @@
+"""Bad and unusual input to the streaming transcriber (audio/transcribe.py): handled, counted,
+no crash, no phantom notes — and the notes that are there still heard."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from audio.transcribe import OFFLINE_WINDOW, WINDOW, Transcriber
+from creatures.runtime.inputs import phrase_notes, render_notes
+
+PITCHES = [60, 64, 67]
+
+
+def chord_line(rate: int, seconds: float = 3.0) -> np.ndarray:
+    """Three synthetic notes, one every 0.8 s from 0.5 s, rendered at ``rate``."""
+    from midi.notes import NoteEvent
+
+    notes = [NoteEvent(0.5 + 0.8 * i, p, 90, 0, 0.6) for i, p in enumerate(PITCHES)]
+    return render_notes(notes, rate, seconds)
+
+
+def hear(x: np.ndarray, rate: int, *, block: int = 1000, window: int = OFFLINE_WINDOW) -> tuple[Transcriber, list]:
+    ear = Transcriber(rate, window=window)
+    notes = [n for i in range(0, len(x), block) for n in ear.feed(x[i:i + block])]
+    return ear, notes
+
+
+@pytest.mark.parametrize("window", [WINDOW, OFFLINE_WINDOW])
+@pytest.mark.parametrize("rate", [8000, 16000, 44100, 96000, 192000])
+def test_every_rate_hears_the_same_notes(rate: int, window: int) -> None:
+    _, notes = hear(chord_line(rate), rate, block=rate // 50, window=window)
+    assert [n.pitch for n in notes] == PITCHES
+    assert all(abs(n.time - (0.5 + 0.8 * i)) < 0.03 for i, n in enumerate(notes))
+
+
+@pytest.mark.parametrize("channels", [1, 2, 8])
+def test_channels_are_mixed(channels: int) -> None:
+    x = chord_line(22050)
+    wide = np.repeat(x[:, None], channels, axis=1) * np.linspace(1.0, 0.2, channels)[None, :]
+    _, notes = hear(wide, 22050)
+    assert [n.pitch for n in notes] == PITCHES
+
+
+def test_non_finite_samples_are_counted_and_repaired() -> None:
+    """Bursts of NaN and inf from a failing driver, in the middle of notes: counted, and no
+    note is heard from the steps they leave."""
+    x = chord_line(22050)
+    for start, value in ((int(0.9 * 22050), np.nan), (int(1.6 * 22050), np.inf), (int(2.5 * 22050), -np.inf)):
+        x[start:start + 100] = value
+    ear, notes = hear(x, 22050)
+    assert ear.bad_samples == 300
+    assert [n.pitch for n in notes] == PITCHES
+
+
+def test_clipping_is_counted_and_the_notes_survive() -> None:
+    x = np.clip(chord_line(22050) * 20.0, -1.0, 1.0)
+    ear, notes = hear(x, 22050)
+    assert ear.clipped > 1000
+    assert [n.pitch for n in notes] == PITCHES
+
+
+def test_dc_offset_changes_nothing() -> None:
+    _, plain = hear(chord_line(22050), 22050)
+    _, offset = hear(chord_line(22050) + 0.3, 22050)
+    assert [(n.pitch, round(n.time, 3)) for n in offset] == [(n.pitch, round(n.time, 3)) for n in plain]
+
+
+@pytest.mark.parametrize("window", [WINDOW, OFFLINE_WINDOW])
+def test_no_phantom_notes_from_silence_noise_or_steps(rng: np.random.Generator, window: int) -> None:
+    rate = 22050
+    cases = {
+        "digital silence": np.zeros(10 * rate, dtype=np.float32),
+        "dither": rng.integers(-1, 2, 10 * rate) / 32768.0,  # ±1 LSB of 16-bit audio
+        "white noise at -20 dBFS": 0.1 * rng.standard_normal(10 * rate),
+        "DC switched on": np.r_[np.zeros(rate), np.full(9 * rate, 0.5)],
+    }
+    for name, x in cases.items():
+        ear, notes = hear(x.astype(np.float32), rate, window=window)
+        assert notes == [], name
+        assert ear.bad_samples == 0
+
+
+def test_a_rate_change_mid_stream_keeps_the_timeline() -> None:
+    """A live device reopened at another rate: the transcriber is told, and the notes after the
+    change are heard at their times (the stream's clock counts analysis samples)."""
+    first, second = chord_line(44100, 1.0), chord_line(48000, 3.0)[48000:]  # one timeline, two rates
+    ear = Transcriber(44100)
+    heard = [n for i in range(0, len(first), 441) for n in ear.feed(first[i:i + 441])]
+    ear.set_rate(48000)
+    heard += [n for i in range(0, len(second), 480) for n in ear.feed(second[i:i + 480])]
+    ear.feed(np.zeros(48000, dtype=np.float32))
+    assert [n.pitch for n in heard] == PITCHES
+    assert abs(heard[1].time - 1.3) < 0.03 and abs(heard[2].time - 2.1) < 0.03
+
+
+def test_live_window_answers_within_60_ms() -> None:
+    """The note event of an attack is given by the block that holds onset + 60 ms."""
+    rate = 22050
+    played = phrase_notes(start=0.5, gap=4.0)
+    x = render_notes(played, rate, 13.0)
+    ear = Transcriber(rate, window=WINDOW)
+    block = 64
+    given = []  # (when the note event came out, the note)
+    for i in range(0, len(x), block):
+        given += [((i + block) / rate, note) for note in ear.feed(x[i:i + block])]
+    assert [n.pitch for _, n in given] == [n.pitch for n in played]
+    delays = [out - note.time for (out, _), note in zip(given, played)]
+    assert max(delays) <= 0.06, delays
+
+
+def room_noise(seconds: float, rate: int, rng: np.random.Generator, dbfs: float) -> np.ndarray:
+    """A room's noise: brown-ish (a fan's rumble and hiss, falling with frequency) at ``dbfs`` RMS."""
+    from scipy import signal
+
+    x = signal.lfilter([1.0], [1.0, -0.9], rng.standard_normal(int(seconds * rate)))
+    return (x * 10 ** (dbfs / 20) / np.sqrt(np.mean(x**2))).astype(np.float32)
+
+
+@pytest.mark.parametrize("window", [WINDOW, OFFLINE_WINDOW])
+def test_a_minute_of_room_noise_gives_no_notes_and_no_utterances(rng: np.random.Generator, window: int) -> None:
+    from creatures.kinds.hearing_parts import Ear, HearingSpec
+
+    rate = 22050
+    x = room_noise(60.0, rate, rng, -40.0)
+    ear, notes = hear(x, rate, block=882, window=window)
+    assert notes == [] and ear.onsets == 0
+    if window == WINDOW:
+        utterances = Ear(HearingSpec())
+        heard = [u for i in range(0, len(x), 882) for u in utterances.listen((i + 882) / rate, x[i:i + 882], rate)]
+        assert heard == []
