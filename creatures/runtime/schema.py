@@ -12,6 +12,8 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from creatures.authored.include import expand_includes
+from creatures.authored.plugins import load_plugins
 from creatures.config import ConfigError, config_error, read_toml, validate
 from creatures.kinds import CreatureSpec, load_all
 
@@ -87,6 +89,10 @@ class Installation(Strict):
     osc: OscSection = OscSection()
     input: InputSection = InputSection()
     output: OutputSection = OutputSection()
+    include: list[str] = Field(default_factory=list, description="creature files ([[creature]] tables) "
+                                                                 "included, relative to this file")
+    plugins: list[str] = Field(default_factory=list, description="Python files of actions, percepts, models "
+                                                                 "or kinds to register, relative to this file")
     creature: list[dict[str, Any]] = Field(min_length=1, description="the creatures, one [[creature]] table each")
 
 
@@ -107,7 +113,11 @@ def load_installation(path: str | Path) -> LoadedInstallation:
     """Read and validate an installation config; :class:`ConfigError` names key and line."""
     path = Path(path).resolve()
     data, where = read_toml(path)
+    includes = data.get("include", [])
+    expand_includes(data, where, path)
+    data["include"] = includes
     settings = validate(Installation, data, where, path)
+    load_plugins(settings.plugins, path, where)
     kinds = load_all()
     specs: list[CreatureSpec] = []
     names: set[str] = set()
@@ -118,6 +128,9 @@ def load_installation(path: str | Path) -> LoadedInstallation:
             hint = f" (did you mean {close[0]!r}?)" if close else f" (choose from {sorted(kinds)})"
             raise config_error(path, where, ("creature", i, "kind"), f"unknown creature kind {kind!r}{hint}")
         spec = validate(kinds[kind].Spec, table, where, path, prefix=("creature", i))
+        check = getattr(spec, "check_references", None)  # kinds that name parts resolve them now
+        if check is not None:
+            check(path, where, ("creature", i))
         if spec.name in names:
             raise config_error(path, where, ("creature", i, "name"), f"duplicate creature name {spec.name!r}")
         names.add(spec.name)

@@ -1,0 +1,244 @@
+"""The built-in action library of authored creatures (thesis: "the action-tuple": Ac is what
+the creature does; "phase four – extensions" for drives perturbed by behaviour).
+
+Each class is one ``type`` a tuple's ``action`` can name; its ``Params`` are the keys of the
+action's table. ``build`` returns a library :class:`~creatures.behaviour.action_tuple.Action`.
+Actions that play material remember where the phrase ends, so a Du with ``done = true`` stops
+the tuple when the phrase has been played out.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from creatures.authored.registry import ACTIONS, Part
+from creatures.behaviour.action_tuple import Action, ActionTuple
+from midi.notes import NoteEvent
+
+if TYPE_CHECKING:
+    from creatures.authored.creature import Authored
+
+
+class Params(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class ActionPart(Part):
+    """An action type: ``build`` makes the Ac of one tuple."""
+
+    def build(self, params: BaseModel, creature: "Authored", name: str) -> Action:  # pragma: no cover
+        raise NotImplementedError
+
+
+class Playing(Action):
+    """An action that plays notes from its start: ``notes(t)`` gives them (relative times
+    from 0); ``done(t)`` is 1 once the last has ended (for ``until.done``)."""
+
+    def __init__(self, name: str, creature: "Authored") -> None:
+        super().__init__(name)
+        self.creature = creature
+        self.ends_at = -np.inf
+
+    def notes(self, t: float) -> list[NoteEvent]:
+        raise NotImplementedError
+
+    def start(self, t: float, tuple_: ActionTuple) -> None:
+        notes = self.notes(t)
+        self.ends_at = t
+        for note in notes:
+            self.creature.play(note.pitch, note.velocity, note.duration, at=t + note.time)
+            self.ends_at = max(self.ends_at, t + note.time + note.duration)
+
+    def done(self, t: float) -> float:
+        return 1.0 if t >= self.ends_at else 0.0
+
+
+def _relative(notes: list[NoteEvent], transpose: int = 0) -> list[NoteEvent]:
+    """Heard notes moved to start at 0 (their rhythm kept), transposed and kept in MIDI range."""
+    if not notes:
+        return []
+    t0 = notes[0].time
+    return [NoteEvent(n.time - t0, min(max(n.pitch + transpose, 0), 127), n.velocity, 0, n.duration) for n in notes]
+
+
+# -- playing --------------------------------------------------------------------------------
+class _NoteParams(Params):
+    pitch: int = Field(ge=0, le=127, description="MIDI pitch")
+    velocity: int = Field(90, ge=1, le=127, description="MIDI velocity")
+    duration: float = Field(0.5, gt=0, le=60, description="seconds")
+
+
+@ACTIONS.register
+class PlayNote(ActionPart):
+    """Play one note."""
+
+    name = "play_note"
+    thesis = "the action-tuple"
+    Params = _NoteParams
+
+    def build(self, params, creature, name):
+        class Note(Playing):
+            def notes(self, t):
+                return [NoteEvent(0.0, params.pitch, params.velocity, 0, params.duration)]
+
+        return Note(name, creature)
+
+
+class _PhraseParams(Params):
+    pitches: list[int] = Field(min_length=1, description="MIDI pitches in order")
+    durations: list[float] | float = Field(0.5, description="seconds per note (one for all, or one each)")
+    velocity: int = Field(90, ge=1, le=127, description="MIDI velocity")
+
+    @model_validator(mode="after")
+    def _lengths(self):
+        if any(not 0 <= p <= 127 for p in self.pitches):
+            raise ValueError("pitches must be MIDI numbers 0–127")
+        durations = self.durations if isinstance(self.durations, list) else [self.durations] * len(self.pitches)
+        if len(durations) != len(self.pitches) or any(not d > 0 for d in durations):
+            raise ValueError("durations must be positive seconds, one for all notes or one per pitch")
+        return self
+
+
+@ACTIONS.register
+class PlayPhrase(ActionPart):
+    """Play a written phrase, one note after another."""
+
+    name = "play_phrase"
+    thesis = "the action-tuple"
+    Params = _PhraseParams
+
+    def build(self, params, creature, name):
+        durations = params.durations if isinstance(params.durations, list) else [params.durations] * len(params.pitches)
+        onsets = np.concatenate(([0.0], np.cumsum(durations)[:-1]))
+        written = [NoteEvent(float(o), p, params.velocity, 0, 0.9 * d)
+                   for o, p, d in zip(onsets, params.pitches, durations)]
+
+        class Phrase(Playing):
+            def notes(self, t):
+                return written
+
+        return Phrase(name, creature)
+
+
+class _HeardParams(Params):
+    count: int = Field(4, ge=1, le=64, description="how many of the last heard notes")
+    transpose: int = Field(0, ge=-48, le=48, description="semitones")
+
+
+@ACTIONS.register
+class PlayHeard(ActionPart):
+    """Play back the last ``count`` notes heard, in their own rhythm (heard material)."""
+
+    name = "play_heard"
+    thesis = "the action-tuple"
+    Params = _HeardParams
+
+    def build(self, params, creature, name):
+        class Heard(Playing):
+            def notes(self, t):
+                heard = [n for phrase in creature.ear.phrases for n in phrase]
+                return _relative(heard[-params.count:], params.transpose)
+
+        return Heard(name, creature)
+
+
+class _EchoParams(Params):
+    count: int = Field(4, ge=1, le=64, description="how many of the last heard notes")
+    mutation: float = Field(0.2, ge=0, le=1, description="chance each note moves by one of 'steps'")
+    steps: list[int] = Field([-12, -7, -5, 5, 7, 12], min_length=1, description="semitone moves a note may make")
+    jitter: float = Field(0.0, ge=0, le=1, description="seconds of timing variation per note (uniform ±)")
+
+
+@ACTIONS.register
+class Echo(ActionPart):
+    """Echo the last heard notes with variation: some move by fourths, fifths or octaves
+    (circle-of-fifths neighbours, as exchange copies), onsets may drift."""
+
+    name = "echo"
+    thesis = "the action-tuple"
+    Params = _EchoParams
+
+    def build(self, params, creature, name):
+        steps = np.array(params.steps)
+
+        class EchoAction(Playing):
+            def notes(self, t):
+                heard = [n for phrase in creature.ear.phrases for n in phrase]
+                out = []
+                for n in _relative(heard[-params.count:]):
+                    pitch = n.pitch
+                    if creature.rng.random() < params.mutation:
+                        pitch = min(max(pitch + int(creature.rng.choice(steps)), 0), 127)
+                    shift = float(creature.rng.uniform(-params.jitter, params.jitter)) if params.jitter else 0.0
+                    out.append(NoteEvent(max(0.0, n.time + shift), pitch, n.velocity, 0, n.duration))
+                return out
+
+        return EchoAction(name, creature)
+
+
+class _LearnedParams(Params):
+    phrase: int | Literal["latest", "most_heard"] = Field("latest", description="which remembered phrase: its "
+                                                                                 "number (1 = first heard), "
+                                                                                 "'latest' or 'most_heard'")
+    transpose: int = Field(0, ge=-48, le=48, description="semitones")
+
+
+@ACTIONS.register
+class PlayLearned(ActionPart):
+    """Sing back a phrase the creature heard and remembered (the ear's phrase memory); with
+    ``learning.phrases`` each new phrase gets a tuple of its own, so credit can favour one."""
+
+    name = "play_learned"
+    thesis = "percept trees"
+    Params = _LearnedParams
+
+    def build(self, params, creature, name):
+        class Learned(Playing):
+            def notes(self, t):
+                ear = creature.ear
+                if params.phrase == "latest":
+                    phrase = ear.phrases[-1] if ear.phrases else None
+                elif params.phrase == "most_heard":
+                    phrase = max(ear.phrases, key=len, default=None)
+                else:
+                    phrase = ear.phrase(params.phrase)
+                return _relative(phrase or [], params.transpose)
+
+        return Learned(name, creature)
+
+
+# -- doing nothing, and acting on the creature itself ----------------------------------------
+@ACTIONS.register
+class Rest(ActionPart):
+    """Do nothing for the Du (a rest, or attending)."""
+
+    name = "rest"
+    thesis = "a baseline action selection mechanism"
+
+    def build(self, params, creature, name):
+        return Action(name)
+
+
+class _PerturbParams(Params):
+    drive: str = Field(description="the drive")
+    amount: float = Field(description="added to its level when the tuple starts")
+
+
+@ACTIONS.register
+class Perturb(ActionPart):
+    """Change a drive when the tuple starts (eating takes hunger down)."""
+
+    name = "perturb"
+    thesis = "soft state"
+    Params = _PerturbParams
+    refs = {"drive": "drives"}
+
+    def build(self, params, creature, name):
+        class PerturbAction(Action):
+            def start(self, t, tuple_):
+                creature.motivation.perturb(t, params.drive, params.amount)
+
+        return PerturbAction(name)

@@ -1,0 +1,134 @@
+"""Authored creatures (issue 15): a creature declared in the config runs, and every bad name,
+reference or structure is refused at load with file, key and line."""
+
+from __future__ import annotations
+
+import textwrap
+from collections import Counter
+from pathlib import Path
+
+import pytest
+
+from creatures.config import ConfigError
+from creatures.events import read_events
+from creatures.runtime.offline import run_offline
+from creatures.runtime.schema import load_installation
+
+TUTORIAL = Path(__file__).resolve().parents[1] / "installations" / "tutorial"
+
+HEAD = 'title = "t"\nduration = 30.0\n'
+
+CREATURE = """
+[[creature]]
+name = "c"
+kind = "authored"
+
+[creature.drives.boredom]
+growth = 0.1
+
+[creature.percepts.bored]
+type = "drive"
+drive = "boredom"
+
+[creature.tuples.sing]
+trigger = "bored"
+action = { type = "play_phrase", pitches = [60, 64, 67] }
+until = { done = true }
+
+[creature.tuples.rest]
+action = "rest"
+until = { seconds = 2.0 }
+value = 0.3
+
+[creature.groups.main]
+tuples = ["sing", "rest"]
+alpha = 0.0
+"""
+
+
+def write(tmp_path: Path, text: str, name: str = "inst.toml") -> Path:
+    path = tmp_path / name
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(textwrap.dedent(text))
+    return path
+
+
+def error_of(path: Path) -> ConfigError:
+    with pytest.raises(ConfigError) as info:
+        load_installation(path)
+    return info.value
+
+
+def line_of(path: Path, fragment: str) -> int:
+    return next(i for i, line in enumerate(path.read_text().splitlines(), 1) if fragment in line)
+
+
+def test_a_small_authored_creature_plays_its_phrase_when_bored(tmp_path):
+    inst = load_installation(write(tmp_path, HEAD + CREATURE))
+    inst.settings.output.wav = inst.settings.output.report = False
+    run_offline(inst, tmp_path / "out", duration=30.0)
+    events = read_events(tmp_path / "out" / "events.jsonl")
+    sung = [e["pitch"] for e in events if e["kind"] == "note" and e["creature"] == "c"]
+    assert sung[:3] == [60, 64, 67] and len(sung) >= 6
+    assert Counter(e["tuple"] for e in events if e["kind"] == "selection")["sing"] >= 2
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "key", "message"),
+    [
+        ('action = "rest"', 'action = "rset"', "creature.0.tuples.rest.action", "did you mean 'rest'"),
+        ('type = "drive"', 'type = "driv"', "creature.0.percepts.bored.type", "did you mean 'drive'"),
+        ('trigger = "bored"', 'trigger = "boredd"', "creature.0.tuples.sing.trigger", "no percept named 'boredd'"),
+        ('drive = "boredom"', 'drive = "hunger"', "creature.0.percepts.bored.drive", "no drive named 'hunger'"),
+        ('tuples = ["sing", "rest"]', 'tuples = ["sing"]', "creature.0.tuples.rest", "in no group"),
+        ("growth = 0.1", "growth = 0.1\ncoupling = { hunger = 0.2 }", "creature.0.drives.boredom.coupling.hunger",
+         "no drive named 'hunger'"),
+        ("alpha = 0.0", "alpha = 0.1", "creature.0.groups.main.alpha", "non-plastic"),
+        ("until = { seconds = 2.0 }", "until = { }", "creature.0.tuples.rest.until", "needs at least one"),
+        ("pitches = [60, 64, 67] }", "pitches = [60, 64, 67], loud = 1 }", "creature.0.tuples.sing.action.loud",
+         "unknown key"),
+    ],
+)
+def test_bad_names_and_structures_are_errors_at_their_line(tmp_path, old, new, key, message):
+    assert old in CREATURE
+    path = write(tmp_path, HEAD + CREATURE.replace(old, new, 1))
+    error = error_of(path)
+    assert error.key == key and message in error.message, str(error)
+    where = {"creature.0.tuples.rest": "[creature.tuples.rest]"}.get(key, new.splitlines()[-1])
+    assert error.file == path and error.line == line_of(path, where), str(error)
+
+
+def test_a_percept_reference_cycle_is_named(tmp_path):
+    cyc = CREATURE + """
+[creature.percepts.a]
+type = "and"
+of = ["bored", "b"]
+
+[creature.percepts.b]
+type = "not"
+of = "a"
+"""
+    error = error_of(write(tmp_path, HEAD + cyc))
+    assert "reference cycle" in error.message and "a -> b -> a" in error.message
+
+
+def test_includes_keep_their_own_file_and_line(tmp_path):
+    write(tmp_path, CREATURE.replace('action = "rest"', 'action = "rset"'), "creatures/c.toml")
+    path = write(tmp_path, HEAD + 'include = ["creatures/c.toml"]\n')
+    error = error_of(path)
+    assert error.file == tmp_path / "creatures" / "c.toml" and error.line == line_of(error.file, '"rset"')
+
+
+def test_missing_and_circular_includes_are_errors(tmp_path):
+    error = error_of(write(tmp_path, HEAD + 'include = ["nope.toml"]\n' + CREATURE))
+    assert error.key == "include.0" and "not found" in error.message and error.line == 3
+    write(tmp_path, 'include = ["a.toml"]\n', "b.toml")
+    write(tmp_path, 'include = ["b.toml"]\n', "a.toml")
+    error = error_of(write(tmp_path, HEAD + 'include = ["a.toml"]\n' + CREATURE))
+    assert "circular include" in error.message
+
+
+def test_an_included_creature_runs_like_an_inline_one(tmp_path):
+    write(tmp_path, CREATURE, "creatures/c.toml")
+    inst = load_installation(write(tmp_path, HEAD + 'include = ["creatures/c.toml"]\n'))
+    assert [s.name for s in inst.specs] == ["c"] and inst.specs[0].kind == "authored"
