@@ -132,3 +132,55 @@ def test_an_included_creature_runs_like_an_inline_one(tmp_path):
     write(tmp_path, CREATURE, "creatures/c.toml")
     inst = load_installation(write(tmp_path, HEAD + 'include = ["creatures/c.toml"]\n'))
     assert [s.name for s in inst.specs] == ["c"] and inst.specs[0].kind == "authored"
+
+
+DANCER = """
+[[creature]]
+name = "d"
+kind = "authored"
+body = true
+
+[creature.tuples.sway]
+action = { type = "motor_program", text = 'sway: getToClosest {"sway left"}; wait; getTo "sway right"; wait; end' }
+until = { done = true }
+
+[creature.tuples.reach]
+action = { type = "go_to", labels = ["reach"] }
+until = { done = true }
+value = 0.8
+
+[creature.groups.main]
+tuples = ["sway", "reach"]
+alpha = 0.0
+"""
+
+
+def test_motor_programs_and_labels_move_the_body_there(tmp_path):
+    from creatures.kinds.parts import shared_graph
+
+    inst = load_installation(write(tmp_path, HEAD + DANCER))
+    inst.settings.output.wav = inst.settings.output.report = False
+    run_offline(inst, tmp_path / "out", duration=30.0)
+    events = read_events(tmp_path / "out" / "events.jsonl")
+    reached = [n for e in events if e["kind"] == "motor" for n in e["reached"]]
+    selected = Counter(e["tuple"] for e in events if e["kind"] == "selection")
+    labels = shared_graph().poses.labels
+    seen = {label for n in reached for label in labels[n]}
+    assert selected["sway"] >= 2 and selected["reach"] >= 2
+    assert {"sway left", "sway right", "reach"} <= seen
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "message"),
+    [
+        ('labels = ["reach"]', 'labels = ["rech"]', "no motor label 'rech' (did you mean 'reach'?)"),
+        ("body = true", "body = false", "set 'body = true'"),
+        ("wait; end'", "wait; cycle 9'", "jumps outside"),
+        ('until = { done = true }\nvalue = 0.8', 'until = { done = true }\nvalue = 0.8\n[creature.tuples.x]\n'
+         'action = "rest"\nuntil = { done = true }', "has no end of its own"),
+    ],
+)
+def test_bad_motor_actions_are_errors_at_load(tmp_path, old, new, message):
+    assert old in DANCER
+    error = error_of(write(tmp_path, HEAD + DANCER.replace(old, new)))
+    assert message in error.message and error.line is not None, str(error)

@@ -9,13 +9,15 @@ the tuple when the phrase has been played out.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING, ClassVar, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from creatures.authored.registry import ACTIONS, Part
 from creatures.behaviour.action_tuple import Action, ActionTuple
+from creatures.motor.programs import ProgramStack, parse_programs
+from creatures.motor.search import NoPath
 from midi.notes import NoteEvent
 
 if TYPE_CHECKING:
@@ -27,7 +29,10 @@ class Params(BaseModel):
 
 
 class ActionPart(Part):
-    """An action type: ``build`` makes the Ac of one tuple."""
+    """An action type: ``build`` makes the Ac of one tuple. ``ends``: its Action has
+    ``done(t)`` (1 once it is finished), so a Du can say ``done = true``."""
+
+    ends: ClassVar[bool] = False
 
     def build(self, params: BaseModel, creature: "Authored", name: str) -> Action:  # pragma: no cover
         raise NotImplementedError
@@ -75,6 +80,7 @@ class _NoteParams(Params):
 class PlayNote(ActionPart):
     """Play one note."""
 
+    ends = True
     name = "play_note"
     thesis = "the action-tuple"
     Params = _NoteParams
@@ -106,6 +112,7 @@ class _PhraseParams(Params):
 class PlayPhrase(ActionPart):
     """Play a written phrase, one note after another."""
 
+    ends = True
     name = "play_phrase"
     thesis = "the action-tuple"
     Params = _PhraseParams
@@ -132,6 +139,7 @@ class _HeardParams(Params):
 class PlayHeard(ActionPart):
     """Play back the last ``count`` notes heard, in their own rhythm (heard material)."""
 
+    ends = True
     name = "play_heard"
     thesis = "the action-tuple"
     Params = _HeardParams
@@ -157,6 +165,7 @@ class Echo(ActionPart):
     """Echo the last heard notes with variation: some move by fourths, fifths or octaves
     (circle-of-fifths neighbours, as exchange copies), onsets may drift."""
 
+    ends = True
     name = "echo"
     thesis = "the action-tuple"
     Params = _EchoParams
@@ -191,6 +200,7 @@ class PlayLearned(ActionPart):
     """Sing back a phrase the creature heard and remembered (the ear's phrase memory); with
     ``learning.phrases`` each new phrase gets a tuple of its own, so credit can favour one."""
 
+    ends = True
     name = "play_learned"
     thesis = "percept trees"
     Params = _LearnedParams
@@ -242,3 +252,121 @@ class Perturb(ActionPart):
                 creature.motivation.perturb(t, params.drive, params.amount)
 
         return PerturbAction(name)
+
+
+# -- the body (thesis: "towards a complete motor system") -----------------------------------
+class MotorPart(ActionPart):
+    """An action that moves the creature's body (``body = true``) on the shared motor graph;
+    ``labels`` names the motor-graph labels it needs, checked against the body at load."""
+
+    @classmethod
+    def labels(cls, params: BaseModel) -> list[str]:
+        return []
+
+
+class _GoToParams(Params):
+    labels: list[str] = Field(min_length=1, description="motor-graph labels; the nearest node with any of them")
+    furthest: bool = Field(False, description="the furthest of the labels instead (getToFurthest)")
+
+
+@ACTIONS.register
+class GoTo(MotorPart):
+    """Go to the nearest pose with a label, by A* on the motor graph (done on arrival)."""
+
+    ends = True
+    name = "go_to"
+    thesis = "towards a complete motor system: complex labels"
+    Params = _GoToParams
+
+    @classmethod
+    def labels(cls, params):
+        return list(params.labels)
+
+    def build(self, params, creature, name):
+        from creatures.kinds.moves import head_for
+
+        class GoToAction(Action):
+            def start(self, t, tuple_):
+                motor = creature.body.motor
+                try:
+                    head_for(creature.body, t, motor.course(t, params.labels, furthest=params.furthest))
+                except NoPath:
+                    pass
+
+            def done(self, t):
+                return 1.0 if creature.body.motor.arrived(t) else 0.0
+
+        return GoToAction(name)
+
+
+class _ProgramParams(Params):
+    text: str = Field(description="motor programs in the thesis's language ('name: getTo {...}; wait; cycle')")
+    program: str | None = Field(None, description="which program of the text runs (default: the first)")
+
+    @model_validator(mode="after")
+    def _parses(self):
+        programs = parse_programs(self.text, source="motor program")  # a ProgramSyntaxError is a ValueError
+        if not programs:
+            raise ValueError("the text holds no 'name:' program")
+        if self.program is not None and self.program not in programs:
+            raise ValueError(f"no program {self.program!r} in the text (programs: {sorted(programs)})")
+        return self
+
+
+@ACTIONS.register
+class RunProgram(MotorPart):
+    """Run a motor program written as text (getTo / getToClosest / getToFurthest /
+    forcedGetTo / wait / cycle; a target may name another program of the text). Done when the
+    program ends; stopping the tuple asks it to exit (its forcedGetTo statements still run)."""
+
+    ends = True
+    name = "motor_program"
+    thesis = "motor program graphs"
+    Params = _ProgramParams
+
+    @classmethod
+    def labels(cls, params):
+        programs = parse_programs(params.text)
+        return sorted({x for p in programs.values() for s in p.statements for x in s.targets
+                       if isinstance(x, str) and x not in programs})
+
+    def build(self, params, creature, name):
+        programs = parse_programs(params.text, source=f"tuple {name!r}")
+        main = programs[params.program or next(iter(programs))]
+
+        class ProgramAction(Action):
+            stack: ProgramStack | None = None
+
+            def start(self, t, tuple_):
+                self.stack = ProgramStack(creature.body.motor, main, library=programs)
+                self.stack.start(t)
+
+            def update(self, t):
+                try:
+                    self.stack.update(t)
+                except NoPath:
+                    self.stack.stack.clear()  # nowhere to go from here: the program is over
+
+            def stop(self, t, *, interrupted):
+                if interrupted:
+                    self.stack.request_exit(t)
+
+            def done(self, t):
+                return 1.0 if self.stack is None or self.stack.done else 0.0
+
+        return ProgramAction(name)
+
+
+@ACTIONS.register
+class RestPose(MotorPart):
+    """Return to the nearest low-energy pose and stay there (thesis "enforcing physical constraints")."""
+
+    name = "rest_pose"
+    thesis = "towards a complete motor system"
+
+    def build(self, params, creature, name):
+        from creatures.kinds.moves import Rest as RestMove
+
+        rest = RestMove(creature.body)
+        rest.name = name
+        return rest

@@ -140,15 +140,34 @@ def _action(c: _Checker, action, loc: tuple):
         action = PartSpec(type=action)
     cls, params = c.part(ACTIONS, action.type, action.params(), loc)
     c.references(cls, params, loc)
+    labels = getattr(cls, "labels", None)
+    if labels is not None:
+        if not c.spec.body:
+            raise c.error(loc, f"action {action.type!r} moves the body: set 'body = true' on the creature")
+        _labels(c, labels(params), loc)
     return cls
+
+
+def _labels(c: _Checker, wanted: list[str], loc: tuple) -> None:
+    from creatures.kinds.parts import shared_graph
+
+    known = sorted(set().union(*shared_graph().poses.labels))
+    for label in wanted:
+        if label not in known:
+            close = difflib.get_close_matches(label, known, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else f" (labels: {known})"
+            raise c.error(loc, f"the body has no motor label {label!r}{hint}")
 
 
 def _tuples(c: _Checker) -> None:
     for name, tp in c.spec.tuples.items():
         loc = ("tuples", name)
         c.need("percepts", tp.trigger, (*loc, "trigger"))
-        _action(c, tp.action, (*loc, "action"))
+        cls = _action(c, tp.action, (*loc, "action"))
         _until(c, tp.until, (*loc, "until"))
+        if tp.until.done and not cls.ends:
+            raise c.error((*loc, "until", "done"), f"action {cls.name!r} has no end of its own: give the Du "
+                                                    "seconds, a model or a percept")
         if not isinstance(tp.value, float | int):
             for drive in tp.value.serves.values():
                 c.need("drives", drive, (*loc, "value", "serves"))
@@ -207,6 +226,8 @@ def _learning(c: _Checker) -> None:
         cls = ACTIONS.get(ph.action)
         if cls is None:
             raise c.error((*loc, "action"), ACTIONS.unknown(ph.action))
+        if ph.until.done and not cls.ends:
+            raise c.error((*loc, "until", "done"), f"action {ph.action!r} has no end of its own")
         if "phrase" not in cls.Params.model_fields:
             raise c.error((*loc, "action"), f"action {ph.action!r} has no 'phrase' key to sing a learnt phrase with")
         _until(c, ph.until, (*loc, "until"))

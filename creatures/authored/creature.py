@@ -33,8 +33,8 @@ from creatures.behaviour.value import ChainValue, GaussianValue, ScalarValue, Va
 from creatures.config import ConfigError
 from creatures.kinds import register
 from creatures.kinds.base import CreatureKind
-from creatures.kinds.parts import Voice
-from creatures.kinds.report_parts import report_values, selection_logger
+from creatures.kinds.parts import Body, Voice
+from creatures.kinds.report_parts import MotorTrail, report_values, selection_logger
 from creatures.temporal import intervals
 from creatures.temporal.transitions import Succession, follow
 from midi.notes import NoteEvent
@@ -75,6 +75,8 @@ class Authored(CreatureKind):
     def __init__(self, spec: AuthoredSpec, world: "World", rng: np.random.Generator) -> None:
         super().__init__(spec, world, rng)
         registry.load_parts()
+        self.body = Body(rng) if spec.body else None  # before the tuples: motor actions hold it
+        self.trail = MotorTrail(world, self.name, self.body) if self.body is not None else None
         learning = spec.learning
         self.ear = Ear(phrase_gap=learning.phrase_gap, max_phrases=learning.max_phrases)
         self.motivation = self._drives(spec)
@@ -243,12 +245,19 @@ class Authored(CreatureKind):
             for name, drive in self.spec.drives.items():
                 rate = sum(r * self.percepts[p].evaluate(t) for p, r in drive.inputs.items()) + _arc(drive.arc, t)
                 self.motivation.inputs[self.motivation.index(name)] = rate
+        if self.body is not None:
+            self.trail.follow(t)
+            pose = self.body.update(t)
+            if self.voice is not None:
+                self.voice.feel(pose)
         for group in self.top:
             group.tick(t)
         if t >= self._next_report:
             self._next_report = t + self.spec.report_every
             for group in self.groups.values():
                 report_values(self.world, t, self.name, group)
+            if self.trail is not None:
+                self.trail.report(t)
             if self.motivation is not None:
                 self.world.log.emit(t, "motivation", creature=self.name,
                                     drives=dict(zip(self.motivation.names, self.motivation.levels.tolist())))
@@ -257,6 +266,11 @@ class Authored(CreatureKind):
         if self.voice is None:
             self.voice = Voice(self.spec.voice, sample_rate)
         self.voice.render(out, self.now())
+
+    def figure(self) -> tuple[np.ndarray, np.ndarray] | None:
+        if self.body is None:
+            return None
+        return self.body.pose.positions, np.asarray(self.body.skeleton.parents)
 
     # -- persistence -------------------------------------------------------------------
     def state(self) -> dict[str, Any]:

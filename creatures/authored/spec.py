@@ -166,6 +166,8 @@ class AuthoredSpec(CreatureSpec):
     groups: dict[str, GroupSpec] = Field(min_length=1, description="action-groups by name")
     learning: LearningSpec = LearningSpec()
     hears_input: bool = Field(True, description="hear notes from outside the colony")
+    body: bool = Field(False, description="a body on the shared motor graph (sway, reach, strike); motor "
+                                          "actions need it")
     report_every: float = Field(0.5, gt=0, description="seconds between value/drive snapshots in the events log")
     voice: VoiceSpec = VoiceSpec()
     _file: Path | None = PrivateAttr(None)
