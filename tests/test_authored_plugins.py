@@ -44,6 +44,7 @@ class Croak(ActionPart):
     name = "{name}"
     thesis = "the action-tuple"
     Params = CroakParams
+    ends = True
 
     def build(self, params, creature, name):
         class Two(Playing):

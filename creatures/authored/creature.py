@@ -203,7 +203,6 @@ class Authored(CreatureKind):
         t = self.now()
         self.ear.hear(t, note, source)
         self._impulse(t, "on_heard")
-        self._learn_phrase()
 
     def played(self, note: NoteEvent) -> None:
         self.ear.played.append(note)
@@ -217,11 +216,12 @@ class Authored(CreatureKind):
             if amount:
                 self.motivation.perturb(t, name, amount)
 
-    def _learn_phrase(self) -> None:
-        """A new hypothesis for the phrase being heard, once it is long enough (thesis:
-        "percept trees": a new distinction, a new tuple to try)."""
+    def _learn_phrase(self, t: float) -> None:
+        """A new hypothesis for the last phrase heard, once it is over (``phrase_gap`` of
+        silence) and long enough (thesis "percept trees": a new distinction, a new tuple to try)."""
         ph = self.spec.learning.phrases
-        if ph is None or not self.ear.phrases or len(self.ear.phrases[-1]) < ph.min_notes:
+        if (ph is None or not self.ear.phrases or len(self.ear.phrases[-1]) < ph.min_notes
+                or self.ear.since_heard(t) <= self.ear.phrase_gap):
             return
         number = self.ear.phrases_made
         if number in self._learnt:
@@ -240,6 +240,7 @@ class Authored(CreatureKind):
         return name
 
     def tick(self, t: float) -> None:
+        self._learn_phrase(t)
         if self.motivation is not None:
             self.motivation.advance(t)
             for name, drive in self.spec.drives.items():
