@@ -184,3 +184,33 @@ def test_bad_motor_actions_are_errors_at_load(tmp_path, old, new, message):
     assert old in DANCER
     error = error_of(write(tmp_path, HEAD + DANCER.replace(old, new)))
     assert message in error.message and error.line is not None, str(error)
+
+
+def test_like_starts_a_creature_from_an_earlier_one(tmp_path):
+    twin = HEAD + CREATURE + '\n[[creature]]\nname = "twin"\nlike = "c"\nchannel = 3\ntuples.rest.value = 0.5\n'
+    inst = load_installation(write(tmp_path, twin))
+    c, t = inst.specs
+    assert t.channel == 3 and t.tuples["rest"].value == 0.5 and t.tuples["sing"] == c.tuples["sing"]
+    assert c.tuples["rest"].value == 0.3  # the original is untouched
+    path = write(tmp_path, twin.replace('like = "c"', 'like = "d"'))
+    error = error_of(path)
+    assert error.key == "creature.1.like" and "no earlier creature named 'd'" in error.message
+    path = write(tmp_path, twin.replace("tuples.rest.value = 0.5", 'tuples.sing.trigger = "boredd"'))
+    error = error_of(path)
+    assert error.key == "creature.1.tuples.sing.trigger" and error.line == line_of(path, '"boredd"')
+
+
+def test_the_authored_exchange_runs_deterministically(tmp_path):
+    import hashlib
+
+    config = Path(__file__).resolve().parents[1] / "installations" / "authored" / "exchange.toml"
+    digests = []
+    for run in ("a", "b"):
+        inst = load_installation(config)
+        inst.settings.output.report = False
+        run_offline(inst, tmp_path / run, duration=20.0)
+        digests.append({n: hashlib.sha256((tmp_path / run / n).read_bytes()).hexdigest()
+                        for n in ("out.mid", "out.wav", "events.jsonl")})
+    assert digests[0] == digests[1]
+    played = Counter(e["creature"] for e in read_events(tmp_path / "a" / "events.jsonl") if e["kind"] == "note")
+    assert set(played) == {"ada", "bo", "cy"}

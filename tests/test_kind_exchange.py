@@ -1,10 +1,13 @@
-"""exchange: notes fed to one creature appear, transformed, in another creature's output."""
+"""exchange: notes fed to one creature appear, transformed, in another creature's output —
+for the Exchange class and for the same colony written as authored creatures
+(installations/authored/exchange.toml)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 import installations
 from creatures.events import read_events
@@ -15,6 +18,9 @@ from midi.files import write_notes
 from midi.notes import NoteEvent
 
 PHRASE = [60, 62, 64, 67, 69, 72, 74, 76]
+
+CONFIGS = {"class": installations.path("exchange"),
+           "authored": Path(installations.__file__).parent / "authored" / "exchange.toml"}
 
 
 def variations(original: list[int], played: list[int]) -> set[str]:
@@ -42,8 +48,9 @@ def test_variations_detector():
     assert variations(PHRASE, [65]) == {"transposition"}
 
 
-def test_notes_fed_to_one_creature_reach_another_transformed(tmp_path: Path):
-    inst = load_installation(installations.path("exchange"))
+@pytest.mark.parametrize("config", CONFIGS)
+def test_notes_fed_to_one_creature_reach_another_transformed(tmp_path: Path, config: str):
+    inst = load_installation(CONFIGS[config])
     inst.settings.output.wav = inst.settings.output.report = False
     phrase = tmp_path / "phrase.mid"
     write_notes(phrase, [NoteEvent(1.0 + 0.3 * i + 6.0 * r, p, 96, 0, 0.25)
@@ -63,10 +70,11 @@ def test_notes_fed_to_one_creature_reach_another_transformed(tmp_path: Path):
     assert variations(PHRASE, others), "passages passed on unchanged"
 
 
-def test_ratio_metric_gives_a_body_on_the_exchange_graph():
+@pytest.mark.parametrize("config", CONFIGS)
+def test_ratio_metric_gives_a_body_on_the_exchange_graph(config: str):
     plain, ratios = shared_graph(False), shared_graph(True)
     assert not plain.weights.ratios and ratios.weights.ratios
     assert plain.edges() != ratios.edges()  # the perturbed time metric reshapes the topology
-    inst = load_installation(installations.path("exchange"))
+    inst = load_installation(CONFIGS[config])
     cy = next(spec for spec in inst.specs if spec.name == "cy")
     assert cy.ratio_metric

@@ -16,6 +16,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from creatures.authored.registry import ACTIONS, Part
 from creatures.behaviour.action_tuple import Action, ActionTuple
+from creatures.kinds.note_world import SeekNote, Wander
 from creatures.motor.programs import ProgramStack, parse_programs
 from creatures.motor.search import NoPath
 from midi.notes import NoteEvent
@@ -259,6 +260,8 @@ class MotorPart(ActionPart):
     """An action that moves the creature's body (``body = true``) on the shared motor graph;
     ``labels`` names the motor-graph labels it needs, checked against the body at load."""
 
+    needs: ClassVar[str] = "body"
+
     @classmethod
     def labels(cls, params: BaseModel) -> list[str]:
         return []
@@ -370,3 +373,31 @@ class RestPose(MotorPart):
         rest = RestMove(creature.body)
         rest.name = name
         return rest
+
+
+# -- notes in space (thesis: "musical worlds") ----------------------------------------------
+@ACTIONS.register
+class WanderSpace(MotorPart):
+    """Wander to a random pose of the motor graph, striking the notes in space the hand passes
+    (exchange's slow progression; needs ``[creature.space]``)."""
+
+    name = "wander"
+    thesis = "musical worlds"
+    needs = "space"
+
+    def build(self, params, creature, name):
+        return Wander(creature.notes, name)
+
+
+@ACTIONS.register
+class SeekNoteSpace(MotorPart):
+    """Go to the nearest note in space not struck lately, by one A* search over the poses that
+    put the hand on any of them, and strike it (done when struck; needs ``[creature.space]``)."""
+
+    name = "seek_note"
+    thesis = "musical worlds"
+    needs = "space"
+    ends = True
+
+    def build(self, params, creature, name):
+        return SeekNote(creature.notes, name)

@@ -71,6 +71,9 @@ def check(spec: "AuthoredSpec", file: Path, where: Where, prefix: tuple) -> None
     except PluginError as exc:
         raise ConfigError(file, str(exc), key=".".join(map(str, (*prefix, "kind")))) from None
     c = _Checker(spec, file, where, prefix)
+    for key in ("space", "ratio_metric"):
+        if getattr(spec, key) and not spec.body:
+            raise c.error((key,), f"'{key}' is for a creature with a body: set 'body = true'")
     _percepts(c)
     _drives(c)
     _tuples(c)
@@ -85,6 +88,7 @@ def _percepts(c: _Checker) -> None:
         if name == ROOT:
             raise c.error(loc, f"{ROOT!r} is the root of every percept tree; give this percept another name")
         cls, params = c.part(PERCEPTS, p.type, p.params(), loc)
+        _needs(c, cls, (*loc, "type"))
         edges[name] = c.references(cls, params, loc)
         c.need("percepts", p.parent, (*loc, "parent"))
         edges[name].append(p.parent)
@@ -119,6 +123,8 @@ def _drives(c: _Checker) -> None:
 
 def _until(c: _Checker, until, loc: tuple) -> None:
     given = [k for k in ("seconds", "gaussian", "pulse", "model") if getattr(until, k) is not None]
+    if given == ["gaussian", "pulse"]:
+        given = ["pulse"]  # the pulse, with the Gaussian as its fallback until the pulse is trusted
     if not (given or until.percept or until.done):
         raise c.error(loc, "a Do-until needs at least one of seconds, gaussian, pulse, model, percept or done")
     if len(given) > 1:
@@ -140,12 +146,19 @@ def _action(c: _Checker, action, loc: tuple):
         action = PartSpec(type=action)
     cls, params = c.part(ACTIONS, action.type, action.params(), loc)
     c.references(cls, params, loc)
+    _needs(c, cls, loc)
     labels = getattr(cls, "labels", None)
     if labels is not None:
-        if not c.spec.body:
-            raise c.error(loc, f"action {action.type!r} moves the body: set 'body = true' on the creature")
         _labels(c, labels(params), loc)
     return cls
+
+
+def _needs(c: _Checker, cls, loc: tuple) -> None:
+    """A part that uses the body or the note space needs the creature to have it."""
+    if getattr(cls, "needs", None) in ("body", "space") and not c.spec.body:
+        raise c.error(loc, f"{cls.name!r} uses the body: set 'body = true' on the creature")
+    if getattr(cls, "needs", None) == "space" and c.spec.space is None:
+        raise c.error(loc, f"{cls.name!r} uses notes in space: give the creature a [creature.space] table")
 
 
 def _labels(c: _Checker, wanted: list[str], loc: tuple) -> None:

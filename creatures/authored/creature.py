@@ -33,7 +33,8 @@ from creatures.behaviour.value import ChainValue, GaussianValue, ScalarValue, Va
 from creatures.config import ConfigError
 from creatures.kinds import register
 from creatures.kinds.base import CreatureKind
-from creatures.kinds.parts import Body, Voice
+from creatures.kinds.note_world import NoteWorld
+from creatures.kinds.parts import Body, Voice, couple_to_hands
 from creatures.kinds.report_parts import MotorTrail, report_values, selection_logger
 from creatures.temporal import intervals
 from creatures.temporal.transitions import Succession, follow
@@ -75,8 +76,9 @@ class Authored(CreatureKind):
     def __init__(self, spec: AuthoredSpec, world: "World", rng: np.random.Generator) -> None:
         super().__init__(spec, world, rng)
         registry.load_parts()
-        self.body = Body(rng) if spec.body else None  # before the tuples: motor actions hold it
+        self.body = Body(rng, ratios=spec.ratio_metric) if spec.body else None  # motor actions hold it
         self.trail = MotorTrail(world, self.name, self.body) if self.body is not None else None
+        self.notes = NoteWorld(spec.space, self, self.body, rng) if spec.space is not None else None
         learning = spec.learning
         self.ear = Ear(phrase_gap=learning.phrase_gap, max_phrases=learning.max_phrases)
         self.motivation = self._drives(spec)
@@ -129,10 +131,11 @@ class Authored(CreatureKind):
     def _do_until(self, until: UntilSpec, action) -> DoUntil:
         duration = until.seconds
         model = until.model
-        if until.gaussian is not None:
+        if until.pulse is not None:
+            fallback = {} if until.gaussian is None else {"mean": until.gaussian[0], "std": until.gaussian[1]}
+            model = PartSpec(type="pulse", beats=until.pulse, **fallback)
+        elif until.gaussian is not None:
             model = PartSpec(type="gaussian", mean=until.gaussian[0], std=until.gaussian[1])
-        elif until.pulse is not None:
-            model = PartSpec(type="pulse", beats=until.pulse)
         if model is not None:
             cls = registry.MODELS.get(model.type)
             duration = cls().build(cls.Params.model_validate(model.params()), self)
@@ -203,6 +206,8 @@ class Authored(CreatureKind):
         t = self.now()
         self.ear.hear(t, note, source)
         self._impulse(t, "on_heard")
+        if self.notes is not None:
+            self.notes.hear(t, note, source)
 
     def played(self, note: NoteEvent) -> None:
         self.ear.played.append(note)
@@ -241,6 +246,8 @@ class Authored(CreatureKind):
 
     def tick(self, t: float) -> None:
         self._learn_phrase(t)
+        if self.notes is not None:
+            self.notes.fade(t)
         if self.motivation is not None:
             self.motivation.advance(t)
             for name, drive in self.spec.drives.items():
@@ -253,6 +260,8 @@ class Authored(CreatureKind):
                 self.voice.feel(pose)
         for group in self.top:
             group.tick(t)
+        if self.notes is not None:
+            self.notes.space.tick()
         if t >= self._next_report:
             self._next_report = t + self.spec.report_every
             for group in self.groups.values():
@@ -266,7 +275,12 @@ class Authored(CreatureKind):
     def sound(self, out: np.ndarray, sample_rate: int) -> None:
         if self.voice is None:
             self.voice = Voice(self.spec.voice, sample_rate)
+            if self.body is not None:
+                couple_to_hands(self.voice, self.body)
         self.voice.render(out, self.now())
+
+    def marks(self) -> list[tuple[tuple[float, float, float], int]]:
+        return [] if self.notes is None else self.notes.marks()
 
     def figure(self) -> tuple[np.ndarray, np.ndarray] | None:
         if self.body is None:

@@ -10,7 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from creatures.config import ConfigError, config_error, read_toml
+from creatures.config import ConfigError, _merge, config_error, read_toml
 
 Where = dict[tuple, tuple[Path, int]]
 
@@ -48,3 +48,30 @@ def expand_includes(data: dict[str, Any], where: Where, path: Path, *, _chain: t
         for loc, at in sub_where.items():
             if len(loc) >= 2 and loc[0] == "creature" and isinstance(loc[1], int):
                 where[("creature", loc[1] + offset, *loc[2:])] = at
+
+
+def expand_likes(data: dict[str, Any], where: Where, path: Path) -> None:
+    """``like = "ada"`` in a ``[[creature]]`` table: start from the table of the earlier
+    creature named ada (keys merge table by table; this one's win, and ``name`` is its own), so
+    a colony of near-identical creatures is written once. Inherited keys keep the lines they
+    were written at."""
+    tables = data.get("creature")
+    if not isinstance(tables, list):
+        return
+    seen: dict[str, int] = {}
+    for i, table in enumerate(tables):
+        if not isinstance(table, dict):
+            continue
+        like = table.pop("like", None)
+        if like is not None:
+            if not isinstance(like, str) or like not in seen:
+                raise config_error(path, where, ("creature", i, "like"),
+                                   f"no earlier creature named {like!r} to be like (earlier: {sorted(seen)})")
+            j = seen[like]
+            tables[i] = _merge(tables[j], table)
+            for loc, at in list(where.items()):
+                if loc[:2] == ("creature", j) and ("creature", i, *loc[2:]) not in where:
+                    where[("creature", i, *loc[2:])] = at
+        name = tables[i].get("name")
+        if isinstance(name, str):
+            seen[name] = i

@@ -337,3 +337,28 @@ class Not(PerceptPart):
 
     def build(self, params, creature, name):
         return NotPercept(name, creature.percept(params.of))
+
+
+# -- the body and the notes in space --------------------------------------------------------
+@PERCEPTS.register
+class Arrived(PerceptPart):
+    """The body has arrived where its course led (1), or is still on its way (0)."""
+
+    name = "arrived"
+    thesis = "towards a complete motor system"
+    needs = "body"
+
+    def build(self, params, creature, name):
+        return FunctionPercept(name, lambda t: 1.0 if creature.body.motor.arrived(t) else 0.0)
+
+
+@PERCEPTS.register
+class FreshNotes(PerceptPart):
+    """There are notes in space not struck lately (something to eat): 1, else 0."""
+
+    name = "notes"
+    thesis = "musical worlds"
+    needs = "space"
+
+    def build(self, params, creature, name):
+        return FunctionPercept(name, lambda t: 1.0 if creature.notes.unstruck(t) else 0.0)

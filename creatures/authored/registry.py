@@ -51,6 +51,9 @@ class Part:
     name: ClassVar[str]
     thesis: ClassVar[str] = ""
     Params: ClassVar[type[BaseModel]] = NoParams
+    needs: ClassVar[str | None] = None
+    """What of the creature the part uses beyond its ear and drives: "body" (``body = true``)
+    or "space" (a ``[creature.space]`` table as well); checked at load."""
     refs: ClassVar[dict[str, str]] = {}
     """Params keys that name other things: key → "percepts", "drives" or "tuples" (a name or
     a list of names), checked at load and followed for reference cycles."""

@@ -15,6 +15,7 @@ from pathlib import Path
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, field_validator
 
 from creatures.kinds.base import CreatureSpec
+from creatures.kinds.note_world import SpaceSpec
 from creatures.kinds.parts import VoiceSpec
 
 
@@ -74,7 +75,9 @@ class UntilSpec(Strict):
 
     seconds: float | None = Field(None, gt=0, description="fixed duration")
     gaussian: tuple[float, float] | None = Field(None, description="[mean, std] seconds, learnt from each activation")
-    pulse: int | None = Field(None, ge=1, le=64, description="beats of the colony's heard pulse (low-integer ratios)")
+    pulse: int | None = Field(None, ge=1, le=64, description="durations of the colony's heard pulse (low-integer "
+                                                          "ratios); with 'gaussian', that is the fallback until "
+                                                          "the pulse is trusted")
     model: PartSpec | None = Field(None, description="a duration model from the library by 'type' (see 'Models')")
     percept: str | None = Field(None, description="until this percept is salient")
     done: bool = Field(False, description="until the action says it is finished (a phrase played out)")
@@ -168,6 +171,10 @@ class AuthoredSpec(CreatureSpec):
     hears_input: bool = Field(True, description="hear notes from outside the colony")
     body: bool = Field(False, description="a body on the shared motor graph (sway, reach, strike); motor "
                                           "actions need it")
+    ratio_metric: bool = Field(False, description="its body's graph favours moves at low-integer ratios of the "
+                                                  "source animation length (exchange's metric)")
+    space: SpaceSpec | None = Field(None, description="heard notes placed in space for the hand to strike "
+                                                      "([creature.space]; needs body = true)")
     report_every: float = Field(0.5, gt=0, description="seconds between value/drive snapshots in the events log")
     voice: VoiceSpec = VoiceSpec()
     _file: Path | None = PrivateAttr(None)

@@ -12,7 +12,7 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from creatures.authored.include import expand_includes
+from creatures.authored.include import expand_includes, expand_likes
 from creatures.authored.plugins import load_plugins
 from creatures.config import ConfigError, config_error, read_toml, validate
 from creatures.kinds import CreatureSpec, load_all
@@ -115,6 +115,7 @@ def load_installation(path: str | Path) -> LoadedInstallation:
     data, where = read_toml(path)
     includes = data.get("include", [])
     expand_includes(data, where, path)
+    expand_likes(data, where, path)
     data["include"] = includes
     settings = validate(Installation, data, where, path)
     load_plugins(settings.plugins, path, where)
