@@ -214,3 +214,111 @@ def test_the_authored_exchange_runs_deterministically(tmp_path):
     assert digests[0] == digests[1]
     played = Counter(e["creature"] for e in read_events(tmp_path / "a" / "events.jsonl") if e["kind"] == "note")
     assert set(played) == {"ada", "bo", "cy"}
+
+
+PARTS = HEAD + """
+[[creature]]
+name = "p"
+kind = "authored"
+
+[creature.percepts.low]
+type = "pitch"
+near = 62.0
+spread = 4.0
+
+[creature.percepts.door]
+type = "sensor"
+sensor = "door"
+
+[creature.tuples.answer]
+trigger = "low"
+action = { type = "echo", count = 3, mutation = 0.0 }
+until = { done = true, follow = true }
+value = 2.0
+
+[creature.tuples.greet]
+trigger = "door"
+action = { type = "play_note", pitch = 84 }
+until = { done = true }
+value = 1.0
+
+[creature.tuples.rest]
+action = "rest"
+until = { seconds = 1.0, follow = true }
+value = { value = 0.5, plastic = false }
+
+[creature.tuples.after]
+action = { type = "play_note", pitch = 48 }
+until = { done = true }
+value = 0.4
+
+[creature.groups.main]
+tuples = ["answer", "rest", "inner"]
+alpha = 0.1
+constraints = [{ relation = "meets", a = "rest", b = "after" }]
+
+[creature.groups.inner]
+tuples = ["greet", "after"]
+alpha = 0.0
+value = 1.5
+
+[creature.learning]
+groups = ["main"]
+"""
+
+
+def _world_with(sensors: dict):
+    from creatures.clock import SimulatedClock
+    from creatures.events import EventLog
+    from creatures.runtime.world import World
+    from midi.scheduler import NoteScheduler
+    from midi.sinks import MemorySink
+
+    clock = SimulatedClock()
+    world = World(clock, EventLog(), NoteScheduler(MemorySink(), clock))
+    world.sensors = sensors
+    return clock, world
+
+
+def test_sensors_models_follow_nested_groups_constraints_and_learning_run_together(tmp_path):
+    import numpy as np
+
+    from creatures.behaviour.state_object import StateObject
+    from creatures.kinds import KINDS
+    from creatures.temporal.transitions import TransitionDoUntil
+    from midi.notes import NoteEvent
+
+    spec = load_installation(write(tmp_path, PARTS)).specs[0]
+    door = StateObject("door")
+    clock, world = _world_with({"door": door})
+    creature = KINDS["authored"](spec, world, np.random.default_rng(1))
+    world.add(creature)
+    assert isinstance(creature.tuples["answer"].do_until, TransitionDoUntil)
+    played, starts = [], Counter()
+    creature.played = lambda note: played.append((clock.now(), note.pitch))
+    world.log.emit = lambda t, kind, **f: starts.update([f.get("tuple")] if kind == "selection" else [])
+    for k in range(1, 1200):  # 60 s at 0.05 s
+        t = k * 0.05
+        clock.advance(0.05)
+        if k % 40 == 0:
+            world.inject(NoteEvent(t, 60 + k % 5, 90, 0, 0.2))
+        door.push(t, 1.0 if 600 <= k < 800 else 0.0)
+        world.deliver(t)
+        creature.tick(t)
+    assert starts["answer"] >= 3 and starts["rest"] >= 3
+    echoed = {p for _, p in played} & {60, 61, 62, 63, 64}
+    assert echoed, played  # heard material echoed back
+    greet = [t for t, p in played if p == 84]
+    assert greet and all(30.0 <= t <= 40.5 for t in greet), played  # only while the door sensor is on
+    assert any(p == 48 for _, p in played)  # 'after' runs when 'rest' ends (meets), inside 'inner'
+
+
+def test_a_missing_sensor_is_a_config_error_naming_it(tmp_path):
+    import numpy as np
+
+    from creatures.kinds import KINDS
+
+    spec = load_installation(write(tmp_path, PARTS)).specs[0]
+    _, world = _world_with({})
+    with pytest.raises(ConfigError, match="no sensor named 'door'"):
+        KINDS["authored"](spec, world, np.random.default_rng(1))
