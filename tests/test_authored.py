@@ -322,3 +322,48 @@ def test_a_missing_sensor_is_a_config_error_naming_it(tmp_path):
     _, world = _world_with({})
     with pytest.raises(ConfigError, match="no sensor named 'door'"):
         KINDS["authored"](spec, world, np.random.default_rng(1))
+
+
+def test_drives_grow_decay_couple_take_percept_inputs_and_follow_scripted_arcs(tmp_path):
+    import numpy as np
+
+    from creatures.kinds import KINDS
+    from midi.notes import NoteEvent
+
+    text = HEAD + CREATURE.replace("[creature.drives.boredom]\ngrowth = 0.1", """[creature.drives.boredom]
+growth = 0.1
+inputs = { hearing = -1.0 }
+arc = [[0.0, 0.0], [10.0, 0.0], [20.0, 0.5]]
+
+[creature.drives.calm]
+level = 1.0
+decay = 0.5
+equilibrium = 0.0
+coupling = { boredom = -0.2 }
+
+[creature.drives.tide]
+arc = [[0.0, 0.0], [10.0, 1.0]]
+
+[creature.percepts.hearing]
+type = "heard"
+window = 100.0""")
+    spec = load_installation(write(tmp_path, text)).specs[0]
+    clock, world = _world_with({})
+    c = KINDS["authored"](spec, world, np.random.default_rng(0))
+    world.add(c)
+    level = {}
+    for k in range(1, 601):
+        t = k * 0.05
+        clock.advance(0.05)
+        if k == 200:  # t = 10: a note, and 'hearing' feeds -1/s into boredom from then on
+            world.inject(NoteEvent(t, 60, 90, 0, 0.2))
+        world.deliver(t)
+        c.tick(t)
+        level[round(t, 2)] = (c.drive("boredom", t), c.drive("calm", t), c.drive("tide", t))
+    assert level[10.0][0] == pytest.approx(1.0, abs=0.02)  # growth alone for 10 s
+    # 10..20 s: growth 0.1 − 1.0 from hearing + the arc ramping 0 → 0.5: net −0.65 over 10 s, floored at 0
+    assert level[20.0][0] == 0.0
+    assert level[30.0][0] == pytest.approx(0.0, abs=1e-9)  # the arc holds 0.5: 0.1 + 0.5 − 1.0 < 0
+    assert level[5.0][1] < np.exp(-0.5 * 5.0) + 1e-9  # calm decays, and boredom pulls it down further
+    # The tide follows its scripted input: ∫ t/10 dt = 5 by t = 10 (inputs held per 0.05 s tick), then +1/s.
+    assert level[10.0][2] == pytest.approx(5.0, abs=0.03) and level[20.0][2] == pytest.approx(15.0, abs=0.06)

@@ -86,6 +86,9 @@ class Authored(CreatureKind):
         self.percepts: dict[str, Percept] = {ROOT: self.root}
         for name in spec.percepts:
             self.percept(name)
+        # Drives fed by percepts or scripted arcs (the others need no work per tick).
+        self._fed = [(self.motivation.index(name), [(self.percept(p), r) for p, r in d.inputs.items()], d.arc)
+                     for name, d in spec.drives.items() if d.inputs or d.arc]
         self.tuples = {name: self._tuple(name, tp) for name, tp in spec.tuples.items()}
         for group in spec.groups.values():
             for constraint in group.constraints:
@@ -250,9 +253,8 @@ class Authored(CreatureKind):
             self.notes.fade(t)
         if self.motivation is not None:
             self.motivation.advance(t)
-            for name, drive in self.spec.drives.items():
-                rate = sum(r * self.percepts[p].evaluate(t) for p, r in drive.inputs.items()) + _arc(drive.arc, t)
-                self.motivation.inputs[self.motivation.index(name)] = rate
+            for i, inputs, arc in self._fed:
+                self.motivation.inputs[i] = sum(r * p.evaluate(t) for p, r in inputs) + _arc(arc, t)
         if self.body is not None:
             self.trail.follow(t)
             pose = self.body.update(t)
