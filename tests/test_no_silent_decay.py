@@ -3,7 +3,7 @@ shipped pieces keep their authored values (and keep selecting) over hours."""
 
 from __future__ import annotations
 
-from collections import defaultdict
+from collections import Counter, defaultdict
 from pathlib import Path
 
 import numpy as np
@@ -94,3 +94,21 @@ def test_a_state_saved_while_values_decayed_does_not_bring_the_decay_back(tmp_pa
     decayed = {name: {**v, "value": 7e-8} for name, v in authored.items()}
     lis.restore({**lis.state(), "values": decayed})
     assert lis.group.value_state() == authored
+
+
+@pytest.mark.slow
+def test_a_grounded_learning_creature_keeps_what_it_learnt_for_hours(tmp_path):
+    """The heron learns (alpha 0.2) from a non-plastic praise: over six simulated hours its
+    values neither leak away nor run off, the praised phrase stays ahead, and it still selects."""
+    inst = load_installation(Path(installations.__file__).parent / "tutorial" / "heron-4.toml")
+    inst.settings.tick = 0.5
+    run_offline(inst, tmp_path, duration=6 * 3600.0, progress=False)
+    events = read_events(tmp_path / "events.jsonl")
+    late = [e["values"] for e in events if e["kind"] == "values" and e["t"] > 5 * 3600.0]
+    assert late
+    for values in late:
+        assert values["praised"] == 4.0
+        assert all(0.5 < v < 4.0 for k, v in values.items() if k != "praised"), values
+        assert values["phrase 3"] > max(values["phrase 1"], values["phrase 2"])
+    last_hour = Counter(e["tuple"] for e in events if e["kind"] == "selection" and e["t"] > 5 * 3600.0)
+    assert last_hour["phrase 3"] > max(last_hour["phrase 1"], last_hour["phrase 2"]) >= 20, last_hour
