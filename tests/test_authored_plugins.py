@@ -47,10 +47,8 @@ class Croak(ActionPart):
     ends = True
 
     def build(self, params, creature, name):
-        class Two(Playing):
-            def notes(self, t):
-                return [NoteEvent(0.0, params.pitch, 100, 0, 0.2), NoteEvent(0.3, params.pitch, 100, 0, 0.2)]
-        return Two(name, creature)
+        croaks = [NoteEvent(0.0, params.pitch, 100, 0, 0.2), NoteEvent(0.3, params.pitch, 100, 0, 0.2)]
+        return Playing(name, creature, lambda t: croaks)
 '''
 
 CONFIG = '''

@@ -9,7 +9,7 @@ the tuple when the phrase has been played out.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, ClassVar, Literal
+from typing import TYPE_CHECKING, Callable, ClassVar, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
@@ -40,16 +40,14 @@ class ActionPart(Part):
 
 
 class Playing(Action):
-    """An action that plays notes from its start: ``notes(t)`` gives them (relative times
-    from 0); ``done(t)`` is 1 once the last has ended (for ``until.done``)."""
+    """An action that plays notes from its start: ``notes(t)`` gives them (times relative to
+    the start); ``done(t)`` is 1 once the last has ended (for ``until.done``)."""
 
-    def __init__(self, name: str, creature: "Authored") -> None:
+    def __init__(self, name: str, creature: "Authored", notes: Callable[[float], list[NoteEvent]]) -> None:
         super().__init__(name)
         self.creature = creature
+        self.notes = notes
         self.ends_at = -np.inf
-
-    def notes(self, t: float) -> list[NoteEvent]:
-        raise NotImplementedError
 
     def start(self, t: float, tuple_: ActionTuple) -> None:
         notes = self.notes(t)
@@ -87,11 +85,8 @@ class PlayNote(ActionPart):
     Params = _NoteParams
 
     def build(self, params, creature, name):
-        class Note(Playing):
-            def notes(self, t):
-                return [NoteEvent(0.0, params.pitch, params.velocity, 0, params.duration)]
-
-        return Note(name, creature)
+        note = NoteEvent(0.0, params.pitch, params.velocity, 0, params.duration)
+        return Playing(name, creature, lambda t: [note])
 
 
 class _PhraseParams(Params):
@@ -124,11 +119,7 @@ class PlayPhrase(ActionPart):
         written = [NoteEvent(float(o), p, params.velocity, 0, 0.9 * d)
                    for o, p, d in zip(onsets, params.pitches, durations)]
 
-        class Phrase(Playing):
-            def notes(self, t):
-                return written
-
-        return Phrase(name, creature)
+        return Playing(name, creature, lambda t: written)
 
 
 class _HeardParams(Params):
@@ -146,12 +137,7 @@ class PlayHeard(ActionPart):
     Params = _HeardParams
 
     def build(self, params, creature, name):
-        class Heard(Playing):
-            def notes(self, t):
-                heard = [n for phrase in creature.ear.phrases for n in phrase]
-                return _relative(heard[-params.count:], params.transpose)
-
-        return Heard(name, creature)
+        return Playing(name, creature, lambda t: _relative(creature.ear.last(params.count), params.transpose))
 
 
 class _EchoParams(Params):
@@ -174,19 +160,17 @@ class Echo(ActionPart):
     def build(self, params, creature, name):
         steps = np.array(params.steps)
 
-        class EchoAction(Playing):
-            def notes(self, t):
-                heard = [n for phrase in creature.ear.phrases for n in phrase]
-                out = []
-                for n in _relative(heard[-params.count:]):
-                    pitch = n.pitch
-                    if creature.rng.random() < params.mutation:
-                        pitch = min(max(pitch + int(creature.rng.choice(steps)), 0), 127)
-                    shift = float(creature.rng.uniform(-params.jitter, params.jitter)) if params.jitter else 0.0
-                    out.append(NoteEvent(max(0.0, n.time + shift), pitch, n.velocity, 0, n.duration))
-                return out
+        def varied(t: float) -> list[NoteEvent]:
+            out = []
+            for n in _relative(creature.ear.last(params.count)):
+                pitch = n.pitch
+                if creature.rng.random() < params.mutation:
+                    pitch = min(max(pitch + int(creature.rng.choice(steps)), 0), 127)
+                shift = float(creature.rng.uniform(-params.jitter, params.jitter)) if params.jitter else 0.0
+                out.append(NoteEvent(max(0.0, n.time + shift), pitch, n.velocity, 0, n.duration))
+            return out
 
-        return EchoAction(name, creature)
+        return Playing(name, creature, varied)
 
 
 class _LearnedParams(Params):
@@ -207,18 +191,17 @@ class PlayLearned(ActionPart):
     Params = _LearnedParams
 
     def build(self, params, creature, name):
-        class Learned(Playing):
-            def notes(self, t):
-                ear = creature.ear
-                if params.phrase == "latest":
-                    phrase = ear.phrases[-1] if ear.phrases else None
-                elif params.phrase == "most_heard":
-                    phrase = max(ear.phrases, key=len, default=None)
-                else:
-                    phrase = ear.phrase(params.phrase)
-                return _relative(phrase or [], params.transpose)
+        def learned(t: float) -> list[NoteEvent]:
+            ear = creature.ear
+            if params.phrase == "latest":
+                phrase = ear.phrases[-1] if ear.phrases else None
+            elif params.phrase == "most_heard":
+                phrase = max(ear.phrases, key=len, default=None)
+            else:
+                phrase = ear.phrase(params.phrase)
+            return _relative(phrase or [], params.transpose)
 
-        return Learned(name, creature)
+        return Playing(name, creature, learned)
 
 
 # -- doing nothing, and acting on the creature itself ----------------------------------------

@@ -59,5 +59,14 @@ class Ear:
             return None
         return self.phrases[number - first]
 
+    def last(self, count: int) -> list[NoteEvent]:
+        """The last ``count`` notes heard (across phrases), oldest first."""
+        out: list[NoteEvent] = []
+        for phrase in reversed(self.phrases):
+            out[:0] = phrase[-(count - len(out)):]
+            if len(out) >= count:
+                break
+        return out
+
     def since_heard(self, t: float) -> float:
         return t - self.heard_at
