@@ -367,3 +367,24 @@ window = 100.0""")
     assert level[5.0][1] < np.exp(-0.5 * 5.0) + 1e-9  # calm decays, and boredom pulls it down further
     # The tide follows its scripted input: ∫ t/10 dt = 5 by t = 10 (inputs held per 0.05 s tick), then +1/s.
     assert level[10.0][2] == pytest.approx(5.0, abs=0.03) and level[20.0][2] == pytest.approx(15.0, abs=0.06)
+
+
+def test_an_authored_creature_keeps_what_it_learnt_across_a_restart(tmp_path):
+    import json
+
+    import numpy as np
+
+    from creatures.kinds import KINDS
+
+    inst = load_installation(TUTORIAL / "heron-4.toml")
+    inst.settings.output.wav = inst.settings.output.report = False
+    run_offline(inst, tmp_path / "out", duration=300.0)
+    saved = json.loads((tmp_path / "out" / "state" / "heron.json").read_text())["state"]
+    assert saved["learnt"] == [1, 2, 3] and len(saved["phrases"]) == 3
+    _, world = _world_with({})
+    fresh = KINDS["authored"](inst.specs[0], world, np.random.default_rng(5))
+    fresh.restore(json.loads(json.dumps(saved)))  # through JSON, as a state file is
+    assert fresh.state() == {**saved, "motivation": fresh.state()["motivation"]}
+    assert fresh.groups["main"].value_state() == saved["values"]["main"]
+    assert [n.pitch for n in fresh.ear.phrase(3)] == [72, 71, 69, 67, 64, 60]
+    assert fresh.motivation.level("boredom") == pytest.approx(saved["motivation"]["levels"]["boredom"])
