@@ -388,3 +388,47 @@ def test_an_authored_creature_keeps_what_it_learnt_across_a_restart(tmp_path):
     assert fresh.groups["main"].value_state() == saved["values"]["main"]
     assert [n.pitch for n in fresh.ear.phrase(3)] == [72, 71, 69, 67, 64, 60]
     assert fresh.motivation.level("boredom") == pytest.approx(saved["motivation"]["levels"]["boredom"])
+
+
+@pytest.mark.parametrize("slots", [1, 2])
+def test_due_and_together_percepts_model_rhythm_and_company(tmp_path, slots):
+    import numpy as np
+
+    from creatures.kinds import KINDS
+    from midi.notes import NoteEvent
+
+    text = HEAD + CREATURE.replace("alpha = 0.0", f"alpha = 0.0\nmax_active = {slots}").replace(
+        'tuples = ["sing", "rest"]', 'tuples = ["sing", "rest", "hum"]') + """
+[creature.tuples.hum]
+action = "rest"
+until = { seconds = 1.3 }
+value = 0.3
+
+[creature.percepts.due]
+type = "due"
+mean = 2.0
+
+[creature.percepts.company]
+type = "together"
+of = "rest"
+"""
+    spec = load_installation(write(tmp_path, text)).specs[0]
+    clock, world = _world_with({})
+    c = KINDS["authored"](spec, world, np.random.default_rng(0))
+    world.add(c)
+    due, company = c.percept("due"), c.percept("company")
+    readings = {}
+    for k in range(1, 401):
+        t = round(k * 0.05, 2)
+        clock.advance(0.05)
+        if k <= 200 and k % 10 == 0:  # a note every 0.5 s for 10 s, then silence
+            world.inject(NoteEvent(t, 60, 90, 0, 0.2))
+        world.deliver(t)
+        c.tick(t)
+        readings[t] = (due.evaluate(t), company.evaluate(t))
+    # Learnt 0.5 s intervals (from a 2 s prior): just after a note nothing is due, 1 s later it is.
+    assert readings[10.0][0] < 0.3 and readings[11.0][0] > 0.9
+    assert readings[0.2][0] == 0.0  # nothing heard yet: nothing expected
+    # With one slot nothing runs beside 'rest'; with two, others run beside it and grow close.
+    closest = max(v[1] for v in readings.values())
+    assert closest == 0.0 if slots == 1 else closest > 0.1

@@ -15,9 +15,11 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from creatures.authored.ear import DENSITY_WINDOW
 from creatures.authored.registry import PERCEPTS, Part
+from creatures.behaviour.models.activation import ActivationModel
 from creatures.behaviour.models.fuzzy import AndPercept, NotPercept, OrPercept
 from creatures.behaviour.models.gaussian import GaussianModel, GaussianPercept
 from creatures.behaviour.percept import FunctionPercept, Percept
+from creatures.temporal.durations import SimpleDurationModel
 
 if TYPE_CHECKING:
     from creatures.authored.creature import Authored
@@ -362,3 +364,73 @@ class FreshNotes(PerceptPart):
 
     def build(self, params, creature, name):
         return FunctionPercept(name, lambda t: 1.0 if creature.notes.unstruck(t) else 0.0)
+
+
+# -- temporal and activation models ---------------------------------------------------------
+class _DueParams(Params):
+    mean: float = Field(1.0, gt=0, description="prior inter-onset interval, seconds")
+    std: float = Field(0.5, gt=0, description="its prior spread")
+    longest: float = Field(3.0, gt=0, description="a longer gap is a pause, not an interval of the rhythm")
+    memory: int = Field(8, ge=2, le=1024, description="intervals the model remembers")
+
+
+@PERCEPTS.register
+class Due(PerceptPart):
+    """A note is due: a duration model of the intervals between heard onsets, read as the
+    probability that the next onset should have come by now (0 just after a note, toward 1
+    as the silence outlasts the rhythm). Expectation, not a threshold."""
+
+    name = "due"
+    thesis = "temporal models – duration models"
+    Params = _DueParams
+
+    def build(self, params, creature, name):
+        model = SimpleDurationModel(params.mean, params.std, size=params.memory)
+        last = [creature.ear.heard_at]
+
+        def due(t: float) -> float:
+            ear = creature.ear
+            if ear.heard_at != last[0]:  # a new onset: teach the interval that led to it
+                gap = ear.heard_at - last[0]
+                if 0.0 < gap <= params.longest:
+                    model.update(gap)
+                last[0] = ear.heard_at
+            if not math.isfinite(ear.heard_at):
+                return 0.0
+            z = (ear.since_heard(t) - model.mean) / (math.sqrt(2.0) * model.std)
+            return 0.5 * (1.0 + math.erf(z))
+
+        return FunctionPercept(name, due)
+
+
+class _TogetherParams(Params):
+    of: str = Field(description="the tuple whose usual company this percept looks for")
+    alpha: float = Field(0.9, gt=0, lt=1, description="per-second filter constant of the activation model")
+
+
+@PERCEPTS.register
+class Together(PerceptPart):
+    """How close the tuples active now are to ``of`` in an activation model of which tuples
+    run together (1: always together, 0: never seen together): a Tr for "what usually
+    accompanies this"."""
+
+    name = "together"
+    thesis = "activation models"
+    Params = _TogetherParams
+    refs = {"of": "tuples"}
+
+    def build(self, params, creature, name):
+        model: list[ActivationModel] = []
+
+        def together(t: float) -> float:
+            if not model:  # tuples are all built by the first evaluation
+                model.append(ActivationModel(list(creature.tuples), alpha=params.alpha, start=t))
+            m = model[0]
+            active = [n for n, tp in creature.tuples.items() if tp.active]
+            m.observe(t, active)
+            others = [n for n in active if n != params.of]
+            if not others:
+                return 0.0
+            return 1.0 - min(m.distance(params.of, n) for n in others) / m.max_distance
+
+        return FunctionPercept(name, together)
