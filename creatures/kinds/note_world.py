@@ -153,6 +153,10 @@ class NoteWorld:
         for obj in [o for o in self.space.objects if t - self.placed_at.get(id(o), t) > self.spec.note_lifetime]:
             self._forget(obj)
 
+    def remembered(self) -> int:
+        """Entries of the placed and struck tables (bounded by the notes in space: a leak check)."""
+        return len(self.placed_at) + len(self._struck_at)
+
     def marks(self) -> list[tuple[tuple[float, float, float], int]]:
         return [(tuple(o.position), o.pitch) for o in self.space.objects]
 
