@@ -432,3 +432,47 @@ of = "rest"
     # With one slot nothing runs beside 'rest'; with two, others run beside it and grow close.
     closest = max(v[1] for v in readings.values())
     assert closest == 0.0 if slots == 1 else closest > 0.1
+
+
+STRIKER = HEAD + """
+[[creature]]
+name = "s"
+kind = "authored"
+body = true
+
+[creature.space]
+mutation = 0.0
+refractory = 2.0
+
+[creature.tuples.dance]
+action = { type = "motor_program", text = 'd: getTo "reach"; wait; getTo "strike"; wait; getTo "sway left"; wait; cycle 0' }
+until = { seconds = 30.0 }
+
+[creature.tuples.hands]
+action = "strike"
+until = { seconds = 30.0 }
+
+[creature.groups.body]
+tuples = ["dance"]
+alpha = 0.0
+
+[creature.groups.reflexes]
+tuples = ["hands"]
+alpha = 0.0
+"""
+
+
+def test_strike_plays_the_notes_in_space_another_group_moves_the_hand_through(tmp_path):
+    from midi.files import write_notes
+    from midi.notes import NoteEvent
+
+    inst = load_installation(write(tmp_path, STRIKER))
+    inst.settings.output.wav = inst.settings.output.report = False
+    heard = [NoteEvent(0.5 + 0.25 * i, p, 90, 0, 0.2) for i, p in enumerate(range(48, 84, 3))]
+    write_notes(tmp_path / "in.mid", heard)
+    run_offline(inst, tmp_path / "out", midi=tmp_path / "in.mid", duration=30.0)
+    events = read_events(tmp_path / "out" / "events.jsonl")
+    placed = {e["pitch"] for e in events if e["kind"] == "placed"}
+    struck = [e["pitch"] for e in events if e["kind"] == "note"]
+    assert placed == {n.pitch for n in heard}
+    assert len(struck) >= 5 and set(struck) <= placed

@@ -384,3 +384,20 @@ class SeekNoteSpace(MotorPart):
 
     def build(self, params, creature, name):
         return SeekNote(creature.notes, name)
+
+
+@ACTIONS.register
+class StrikeNearby(MotorPart):
+    """Strike the notes in space the hand passes, wherever another group moves it (one note
+    at a time, within the space's ``strike_interval`` and ``refractory``)."""
+
+    name = "strike"
+    thesis = "musical worlds"
+    needs = "space"
+
+    def build(self, params, creature, name):
+        class Strike(Action):
+            def update(self, t):
+                creature.notes.strike_nearby(t)
+
+        return Strike(name)
