@@ -129,6 +129,21 @@ def test_an_action_from_an_installed_package_is_usable_from_toml(tmp_path, monke
     assert pitches[:2] == [38, 38] and len(pitches) >= 6
 
 
+@pytest.mark.slow
+def test_an_installed_package_whose_entry_point_fails_is_exit_2(tmp_path, monkeypatch, capsys):
+    site = tmp_path / "site"
+    wheel = _wheel(tmp_path, "toad_extras", "raise RuntimeError('toads are not ready')\n")
+    subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--no-index",
+                    "--target", str(site), str(wheel)], check=True)
+    monkeypatch.syspath_prepend(str(site))
+    config = tmp_path / "frog.toml"
+    config.write_text(CONFIG.format(top="", name="rest"))
+    assert main(["offline", str(config), "--out", str(tmp_path / "out"), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "toad_extras" in err and "toads are not ready" in err and str(config) in err
+    assert not (tmp_path / "out").exists()
+
+
 def test_an_action_from_a_plugins_file_is_usable_from_toml(tmp_path):
     (tmp_path / "my_actions.py").write_text(CROAK.replace("{name}", "ribbit"))
     config = tmp_path / "frog.toml"

@@ -14,6 +14,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from creatures.authored.include import expand_includes, expand_likes
 from creatures.authored.plugins import load_plugins
+from creatures.authored.registry import PluginError
 from creatures.config import ConfigError, config_error, read_toml, validate
 from creatures.kinds import CreatureSpec, load_all
 
@@ -119,7 +120,10 @@ def load_installation(path: str | Path) -> LoadedInstallation:
     data["include"] = includes
     settings = validate(Installation, data, where, path)
     load_plugins(settings.plugins, path, where)
-    kinds = load_all()
+    try:
+        kinds = load_all()
+    except PluginError as exc:  # an installed package's entry point that does not import
+        raise ConfigError(path, str(exc)) from None
     specs: list[CreatureSpec] = []
     names: set[str] = set()
     for i, table in enumerate(settings.creature):
