@@ -476,3 +476,41 @@ def test_strike_plays_the_notes_in_space_another_group_moves_the_hand_through(tm
     struck = [e["pitch"] for e in events if e["kind"] == "note"]
     assert placed == {n.pitch for n in heard}
     assert len(struck) >= 5 and set(struck) <= placed
+
+
+def test_a_motor_program_graph_and_a_reach_to_a_point_move_the_body(tmp_path):
+    import numpy as np
+
+    from creatures.kinds.parts import shared_graph
+
+    graph = shared_graph()
+    target = graph.poses.positions[graph.poses.labelled("strike")[0], graph.skeleton.index("hand_r")]
+    text = HEAD + f"""
+[[creature]]
+name = "g"
+kind = "authored"
+body = true
+
+[creature.tuples.walk]
+action = {{ type = "motor_graph", vertices = {{ start = 'getTo "sway left"', w = "wait", right = 'getTo "sway right"', w2 = "wait", exit = "end" }}, edges = {{ start = ["w"], w = ["right"], right = ["w2"], w2 = ["exit"] }} }}
+until = {{ done = true }}
+
+[creature.tuples.point]
+action = {{ type = "reach_point", point = {list(map(float, target))}, tolerance = 0.05 }}
+until = {{ done = true }}
+value = 0.9
+
+[creature.groups.main]
+tuples = ["walk", "point"]
+alpha = 0.0
+"""
+    inst = load_installation(write(tmp_path, text))
+    inst.settings.output.wav = inst.settings.output.report = False
+    run_offline(inst, tmp_path / "out", duration=40.0)
+    events = read_events(tmp_path / "out" / "events.jsonl")
+    reached = [n for e in events if e["kind"] == "motor" for n in e["reached"]]
+    hands = graph.poses.positions[reached, graph.skeleton.index("hand_r")]
+    assert {"sway left", "sway right"} <= {label for n in reached for label in graph.poses.labels[n]}
+    assert np.linalg.norm(hands - target, axis=1).min() <= 0.05
+    bad = write(tmp_path, text.replace('w2 = ["exit"]', 'w2 = ["nowhere"]'), "bad.toml")
+    assert "unknown vertex 'nowhere'" in error_of(bad).message

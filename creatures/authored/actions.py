@@ -17,7 +17,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 from creatures.authored.registry import ACTIONS, Part
 from creatures.behaviour.action_tuple import Action, ActionTuple
 from creatures.kinds.note_world import SeekNote, Wander
-from creatures.motor.programs import ProgramStack, parse_programs
+from creatures.motor.programs import MotorProgramGraph, ProgramStack, Statement, parse_programs
 from creatures.motor.search import NoPath
 from midi.notes import NoteEvent
 
@@ -318,29 +318,106 @@ class RunProgram(MotorPart):
 
     def build(self, params, creature, name):
         programs = parse_programs(params.text, source=f"tuple {name!r}")
-        main = programs[params.program or next(iter(programs))]
+        return ProgramAction(name, creature, programs[params.program or next(iter(programs))], programs)
 
-        class ProgramAction(Action):
-            stack: ProgramStack | None = None
 
+class ProgramAction(Action):
+    """Runs a motor program (text or graph) under a :class:`ProgramStack` while the tuple is
+    active; stopping the tuple asks the program to exit (its forced statements still run)."""
+
+    def __init__(self, name: str, creature: "Authored", program, library: dict | None = None) -> None:
+        super().__init__(name)
+        self.creature = creature
+        self.program = program
+        self.library = library or {}
+        self.stack: ProgramStack | None = None
+
+    def start(self, t: float, tuple_: ActionTuple) -> None:
+        self.stack = ProgramStack(self.creature.body.motor, self.program, library=self.library)
+        self.stack.start(t)
+
+    def update(self, t: float) -> None:
+        try:
+            self.stack.update(t)
+        except NoPath:
+            self.stack.stack.clear()  # nowhere to go from here: the program is over
+
+    def stop(self, t: float, *, interrupted: bool) -> None:
+        if interrupted:
+            self.stack.request_exit(t)
+
+    def done(self, t: float) -> float:
+        return 1.0 if self.stack is None or self.stack.done else 0.0
+
+
+def _statement(text: str) -> Statement:
+    """One statement of the motor-program language (``getTo "reach"``, ``wait`` …)."""
+    statements = parse_programs(f"vertex: {text}", source="motor graph vertex")["vertex"].statements
+    if len(statements) != 1:
+        raise ValueError(f"a vertex holds one statement (got {text!r})")
+    return statements[0]
+
+
+class _GraphParams(Params):
+    vertices: dict[str, str] = Field(description="vertex name → one statement; flow starts at 'start', an "
+                                                 "exit heads for the nearest vertex named 'exit…'")
+    edges: dict[str, list[str]] = Field(default_factory=dict, description="vertex → the vertices that may follow")
+
+    @model_validator(mode="after")
+    def _builds(self):
+        MotorProgramGraph("check", {k: _statement(v) for k, v in self.vertices.items()}, self.edges)
+        return self
+
+
+@ACTIONS.register
+class RunGraph(MotorPart):
+    """Run a motor program graph: statements as vertices, at each branch the successor whose
+    target is nearest on the motor graph; stopping the tuple heads for the nearest exit."""
+
+    ends = True
+    name = "motor_graph"
+    thesis = "motor program graphs"
+    Params = _GraphParams
+
+    @classmethod
+    def labels(cls, params):
+        return sorted({x for v in params.vertices.values() for x in _statement(v).targets if isinstance(x, str)})
+
+    def build(self, params, creature, name):
+        graph = MotorProgramGraph(name, {k: _statement(v) for k, v in params.vertices.items()}, params.edges)
+        return ProgramAction(name, creature, graph)
+
+
+class _ReachParams(Params):
+    point: tuple[float, float, float] = Field(description="where the effector (right hand) should go, metres")
+    tolerance: float = Field(0.1, gt=0, description="how close counts; none close: the nearest pose")
+
+
+@ACTIONS.register
+class ReachPoint(MotorPart):
+    """Get the hand to a point in space: A* to a pose that puts the effector there (done on arrival)."""
+
+    ends = True
+    name = "reach_point"
+    thesis = "towards a complete motor system"
+    Params = _ReachParams
+
+    def build(self, params, creature, name):
+        from creatures.kinds.moves import head_for
+
+        class Reach(Action):
             def start(self, t, tuple_):
-                self.stack = ProgramStack(creature.body.motor, main, library=programs)
-                self.stack.start(t)
-
-            def update(self, t):
+                body = creature.body
                 try:
-                    self.stack.update(t)
+                    head_for(body, t, body.finder.to_effector(body.motor.position(t), body.effector,
+                                                              np.asarray(params.point), tolerance=params.tolerance))
                 except NoPath:
-                    self.stack.stack.clear()  # nowhere to go from here: the program is over
-
-            def stop(self, t, *, interrupted):
-                if interrupted:
-                    self.stack.request_exit(t)
+                    pass
 
             def done(self, t):
-                return 1.0 if self.stack is None or self.stack.done else 0.0
+                return 1.0 if creature.body.motor.arrived(t) else 0.0
 
-        return ProgramAction(name)
+        return Reach(name)
 
 
 @ACTIONS.register
