@@ -29,7 +29,7 @@ def test_describe_prints_drives_percept_trees_groups_and_tuples(capsys):
     out = capsys.readouterr().out.splitlines()
     assert out[1] == "heron (authored)"
     assert "│  └─ boredom = 0 (growth 0.05, decay 0)" in out
-    assert "│     ├─ bored (FunctionPercept)" in out
+    assert "│     ├─ bored (drive)" in out
     assert "└─ group main [max_active 1, alpha 0.2, discount 0.8]" in out
     assert "   └─ praised: praise | praised | 0.5 s | V 4, non-plastic" in out
 

@@ -67,9 +67,10 @@ def _group(group: ActionGroup, label: str | None = None) -> tuple[str, list[Any]
     return (f"{label or 'group ' + group.name} [{settings}]", [_tuple(tp) for tp in group.tuples])
 
 
-def _percept(p: Percept) -> tuple[str, list[Any]] | str:
-    label = f"{p.name} ({type(p).__name__})"
-    return (label, [_percept(c) for c in p.children]) if p.children else label
+def _percept(p: Percept, types: dict[str, str]) -> tuple[str, list[Any]] | str:
+    """A percept and its children; an authored percept is labelled by the type its config gave."""
+    label = f"{p.name} ({types.get(p.name) or type(p).__name__})"
+    return (label, [_percept(c, types) for c in p.children]) if p.children else label
 
 
 def _roots(groups: Iterable[ActionGroup]) -> list[Percept]:
@@ -106,7 +107,8 @@ def describe(inst: LoadedInstallation) -> str:
         motivations = [m for m in parts.values() if isinstance(m, Motivation)]
         if motivations:
             children.append(("drives", _drives(motivations[0])))
-        children.append(("percepts", [_percept(r) for r in _roots(top)]))
+        types = {name: p.type for name, p in getattr(spec, "percepts", {}).items()}
+        children.append(("percepts", [_percept(r, types) for r in _roots(top)]))
         children += [_group(g) for g in top]
         out += _tree(f"{spec.name} ({spec.kind})", children)
     return "\n".join(out) + "\n"

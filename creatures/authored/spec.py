@@ -161,12 +161,17 @@ class LearningSpec(Strict):
 
 class AuthoredSpec(CreatureSpec):
     kind: Literal["authored"]
-    drives: dict[str, DriveSpec] = Field(default_factory=dict, description="drives by name")
+    drives: dict[str, DriveSpec] = Field(default_factory=dict, description="drives by name: [creature.drives.NAME] "
+                                                                           "(docs/authoring.md, 'Reference')")
     drive_floor: float | None = Field(0.0, description="lowest level of any drive; none = unbounded")
     drive_ceiling: float | None = Field(None, description="highest level of any drive; none = unbounded")
-    percepts: dict[str, PerceptSpec] = Field(default_factory=dict, description="percepts by name")
-    tuples: dict[str, TupleSpec] = Field(default_factory=dict, description="action-tuples by name")
-    groups: dict[str, GroupSpec] = Field(min_length=1, description="action-groups by name")
+    percepts: dict[str, PerceptSpec] = Field(default_factory=dict, description="percepts by name: "
+                                                                               "[creature.percepts.NAME]")
+    tuples: dict[str, TupleSpec] = Field(default_factory=dict, description="action-tuples by name: "
+                                                                           "[creature.tuples.NAME]")
+    groups: dict[str, GroupSpec] = Field(min_length=1, description="action-groups by name: [creature.groups.NAME]; "
+                                                                   "a group named in no other group is ticked "
+                                                                   "by the creature")
     learning: LearningSpec = LearningSpec()
     hears_input: bool = Field(True, description="hear notes from outside the colony")
     body: bool = Field(False, description="a body on the shared motor graph (sway, reach, strike); motor "
