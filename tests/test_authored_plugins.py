@@ -82,19 +82,25 @@ alpha = 0.0
 @pytest.fixture(autouse=True)
 def _own_registry(monkeypatch):
     """Parts a test registers leave with it (the built-in ones are loaded first)."""
-    registry.load_parts()
+    from creatures import kinds
+
+    kinds.load_all()
+    saved = dict(kinds.KINDS)
     monkeypatch.setattr(registry.ACTIONS, "_parts", dict(registry.ACTIONS._parts))
     monkeypatch.setattr(registry, "_loaded", set(registry._loaded))
+    yield
+    kinds.KINDS.clear()
+    kinds.KINDS.update(saved)
 
 
-def _wheel(tmp_path: Path, module: str, source: str) -> Path:
-    """A minimal pure-Python wheel of ``module`` whose entry point joins creature_music.actions."""
+def _wheel(tmp_path: Path, module: str, source: str, group: str = "actions") -> Path:
+    """A minimal pure-Python wheel of ``module`` whose entry point joins creature_music.<group>."""
     dist = f"{module}-0.1.dist-info"
     files = {
         f"{module}.py": source,
         f"{dist}/METADATA": f"Metadata-Version: 2.1\nName: {module}\nVersion: 0.1\n",
         f"{dist}/WHEEL": "Wheel-Version: 1.0\nGenerator: test\nRoot-Is-Purelib: true\nTag: py3-none-any\n",
-        f"{dist}/entry_points.txt": f"[creature_music.actions]\nextras = {module}\n",
+        f"{dist}/entry_points.txt": f"[creature_music.{group}]\nextras = {module}\n",
     }
     record = []
     for name, text in files.items():
@@ -127,6 +133,46 @@ def test_an_action_from_an_installed_package_is_usable_from_toml(tmp_path, monke
     config.write_text(CONFIG.format(top="", name="croak"))
     pitches = _croaks(load_installation(config), tmp_path / "out")
     assert pitches[:2] == [38, 38] and len(pitches) >= 6
+
+
+POND = '''
+"""A third party's whole creature kind: a pond that plops once a second."""
+from typing import Literal
+
+from creatures.kinds import register
+from creatures.kinds.base import CreatureKind, CreatureSpec
+from midi.notes import NoteEvent
+
+
+class PondSpec(CreatureSpec):
+    kind: Literal["pond"]
+    pitch: int = 40
+
+
+@register("pond")
+class Pond(CreatureKind):
+    Spec = PondSpec
+    next = 1.0
+
+    def tick(self, t):
+        if t >= self.next:
+            self.world.play(self, NoteEvent(t, self.spec.pitch, 80, 0, 0.1))
+            self.next += 1.0
+'''
+
+
+@pytest.mark.slow
+def test_a_whole_kind_from_an_installed_package_is_usable_from_toml(tmp_path, monkeypatch):
+    site = tmp_path / "site"
+    subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--no-index", "--target",
+                    str(site), str(_wheel(tmp_path, "pond_kind", POND, group="kinds"))], check=True)
+    monkeypatch.syspath_prepend(str(site))
+    config = tmp_path / "pond.toml"
+    config.write_text('title = "pond"\n[output]\nwav = false\nreport = false\n'
+                      '[[creature]]\nname = "p"\nkind = "pond"\npitch = 43\n')
+    inst = load_installation(config)
+    run_offline(inst, tmp_path / "out", duration=5.0)
+    assert [e["pitch"] for e in read_events(tmp_path / "out" / "events.jsonl") if e["kind"] == "note"] == [43] * 5  # t = 1 … 5 s
 
 
 @pytest.mark.slow
