@@ -514,3 +514,78 @@ alpha = 0.0
     assert np.linalg.norm(hands - target, axis=1).min() <= 0.05
     bad = write(tmp_path, text.replace('w2 = ["exit"]', 'w2 = ["nowhere"]'), "bad.toml")
     assert "unknown vertex 'nowhere'" in error_of(bad).message
+
+
+
+FISSION = HEAD + """
+[[creature]]
+name = "f"
+kind = "authored"
+
+[creature.percepts.tone]
+type = "pitch"
+near = 60.0
+spread = 8.0
+
+[creature.percepts.applause]
+type = "played"
+pitches = [48, 72]
+window = 0.3
+
+[creature.tuples.answer]
+trigger = "tone"
+action = { type = "play_heard", count = 1 }
+until = { done = true }
+value = 1.0
+
+[creature.tuples.rest]
+action = "rest"
+until = { seconds = 1.0 }
+value = 0.2
+
+[creature.tuples.praised]
+trigger = "applause"
+action = "rest"
+until = { seconds = 0.2 }
+value = { value = 5.0, plastic = false }
+
+[creature.groups.main]
+tuples = ["answer", "rest", "praised"]
+alpha = 0.3
+
+[creature.learning]
+groups = ["main"]
+statistics = 0.2
+innovation = 0.3
+"""
+
+
+def test_learning_splits_a_percept_the_rewarded_data_shows_to_be_two_and_tries_each(tmp_path):
+    """Thesis "percept trees": value-driven updates teach the 'tone' model the pitches that led
+    to praise; two clusters of them (around 48 and 72) split it in two, and each child gets
+    hypotheses of its own."""
+    import numpy as np
+
+    from creatures.kinds import KINDS
+    from midi.notes import NoteEvent
+
+    spec = load_installation(write(tmp_path, FISSION)).specs[0]
+    clock, world = _world_with({})
+    events = []
+    world.log.emit = lambda t, kind, **f: events.append((kind, f))
+    c = KINDS["authored"](spec, world, np.random.default_rng(0))
+    world.add(c)
+    rng = np.random.default_rng(1)
+    for k in range(1, 1401):  # 70 s
+        t = k * 0.05
+        clock.advance(0.05)
+        if k % 40 == 0:
+            world.inject(NoteEvent(t, int(rng.choice([48, 72]) + rng.integers(-1, 2)), 90, 0, 0.2))
+        world.deliver(t)
+        c.tick(t)
+    fission = next(f for kind, f in events if kind == "fission")
+    assert fission["percept"] == "tone" and fission["children"] == ["tone.1", "tone.2"]
+    low, high = sorted(fission["means"])
+    assert abs(low - 48) < 4 and abs(high - 72) < 8, fission["means"]
+    names = {tp.name for tp in c.groups["main"].tuples}
+    assert {"tone.1|answer", "tone.2|answer"} <= names
