@@ -33,7 +33,8 @@ def make_group(n: int, seed: int = 0) -> ActionGroup:
         )
         for i in range(n)
     ]
-    return ActionGroup(f"bench{n}", tuples, rng=rng, alpha=0.05, multiple=1.5)
+    return ActionGroup(f"bench{n}", tuples, rng=rng, alpha=0.05, multiple=1.5,
+                       grounded_by="a benchmark of the cost of selection and credit, not of what is learnt")
 
 
 def ticks_per_second(n: int, ticks: int) -> float:

@@ -181,13 +181,13 @@ def queue_sizes(session: Session, sink: CountingSink, log: EventLog) -> dict[str
     """Every container in a running colony that would betray a leak by growing."""
     world, scheduler, creatures = session.world, session.scheduler, session.creatures
     populations = [c.population for c in creatures if hasattr(c, "population")]
+    worlds = [c.notes for c in creatures if getattr(c, "notes", None) is not None]  # exchange's note worlds
     return {
         "world pending": len(world._pending),
         "scheduler heap": len(scheduler._heap),
         "scheduler notes": len(scheduler._ends) + len(scheduler._handles) + len(scheduler._sounding),
-        "note spaces": sum(len(getattr(c, "space", ())) for c in creatures),
-        "placed/struck tables": sum(len(getattr(c, "placed_at", {})) + len(getattr(c, "_struck_at", {}))
-                                    for c in creatures),
+        "note spaces": sum(len(w.space) for w in worlds),
+        "placed/struck tables": sum(w.remembered() for w in worlds),
         "motor arrivals": sum(len(c.body.motor.arrivals) for c in creatures if hasattr(c, "body")),
         "listen models": sum(len(p.members) for p in populations),
         "listen model states": sum(len(m.model.states) for p in populations for m in p.members),

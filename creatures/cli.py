@@ -82,7 +82,7 @@ def _devices(_: argparse.Namespace) -> int:
 
 
 def _offline_options(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("config", type=Path, help="installation config (TOML)")
+    parser.add_argument("config", type=Path, help="installation config (TOML), or a shipped installation's name")
     parser.add_argument("--audio", type=Path, help="recorded audio to feed (overrides the config)")
     parser.add_argument("--midi", type=Path, help="recorded MIDI to feed (overrides the config)")
     parser.add_argument("--out", type=Path, required=True, help="directory for the outputs")
@@ -90,6 +90,18 @@ def _offline_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("--frames", action="store_true", help="draw the bodies into DIR/frames (PNGs; needs EGL or OSMesa)")
     parser.add_argument("--video", action="store_true", help="draw the frames and encode them to DIR/out.mp4")
+
+
+def _config_path(config: Path) -> Path:
+    """A config path, or the name of a shipped installation (as ``demo`` takes)."""
+    import installations
+
+    if config.exists() or config.suffix == ".toml":
+        return config
+    try:
+        return installations.path(str(config))
+    except FileNotFoundError:
+        return config  # the loader reports it as a missing config file
 
 
 def _run_offline(config: Path, out: Path, *, audio: Path | None = None, midi: Path | None = None,
@@ -104,7 +116,7 @@ def _run_offline(config: Path, out: Path, *, audio: Path | None = None, midi: Pa
     from midi.files import MidiFileError
 
     try:
-        installation = load_installation(config)
+        installation = load_installation(_config_path(config))
         output = installation.settings.output
         output.frames = output.frames or frames or video
         output.video = output.video or video
@@ -220,6 +232,42 @@ def _config_docs(_: argparse.Namespace) -> int:
     from creatures.runtime.docs import config_reference
 
     sys.stdout.write(config_reference())
+    return 0
+
+
+def _describe_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("config", type=Path, help="installation config (TOML), or a shipped installation's name")
+
+
+@command("describe", "print each creature's drives, percept trees, groups and tuples as a tree", _describe_options)
+def _describe(args: argparse.Namespace) -> int:
+    from creatures.authored.describe import describe
+    from creatures.config import ConfigError
+    from creatures.runtime.schema import load_installation
+
+    try:
+        sys.stdout.write(describe(load_installation(_config_path(args.config))))
+    except ConfigError as exc:
+        print(f"creatures: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
+def _new_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("name", help="the installation's (and its creature's) name")
+    parser.add_argument("--dir", type=Path, default=Path("."), help="where to write NAME.toml")
+
+
+@command("new", "write a commented starting installation with one authored creature", _new_options)
+def _new(args: argparse.Namespace) -> int:
+    from creatures.authored.scaffold import new_installation
+
+    try:
+        path = new_installation(args.name, args.dir)
+    except (ValueError, OSError) as exc:
+        print(f"creatures: {exc}", file=sys.stderr)
+        return 2
+    print(f"wrote {path}; run it with: creatures offline {path} --out {args.name}-out")
     return 0
 
 

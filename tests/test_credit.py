@@ -29,7 +29,8 @@ def three_tuple_group(rng, events):
     a = ActionTuple("sound|sit", sound, TableAction("sit", {"sit-ish": 0.5}), DoUntil(5.0), 10.0)
     b = ActionTuple("whatever|sit-ish", WhateverPercept(), TableAction("sit-ish"), DoUntil(5.0), 0.0)
     c = ActionTuple("food|eat", food, TableAction("eat"), DoUntil(1.0), 100.0)
-    group = ActionGroup("dog", [a, b, c], rng=rng, alpha=0.2, discount=0.8, on_event=events.append)
+    group = ActionGroup("dog", [a, b, c], rng=rng, alpha=0.2, discount=0.8, on_event=events.append,
+                        grounded_by="the credit arithmetic under test")
     return group, a, b, c
 
 
@@ -70,7 +71,8 @@ def test_tr_modulation_blocks_credit_without_trigger(rng):
     sit = ActionTuple("whatever|sit", WhateverPercept(), TableAction("sit"), DoUntil(5.0), 10.0)
     sound_sit = ActionTuple("any sound|sit", quiet, TableAction("sit"), DoUntil(5.0), 10.0)
     eat = ActionTuple("food|eat", food, TableAction("eat"), DoUntil(1.0), 100.0)
-    group = ActionGroup("dog", [sit, sound_sit, eat], rng=rng, alpha=0.5, discount=0.5)
+    group = ActionGroup("dog", [sit, sound_sit, eat], rng=rng, alpha=0.5, discount=0.5,
+                        grounded_by="the credit arithmetic under test")
     group.tick(0.0)
     group.tick(1.0)
     assert group.active == [eat]
@@ -96,12 +98,13 @@ def test_hierarchical_credit_reaches_leaves_only(rng):
     flows from and to the leaves (thesis: "hierarchical action-groups")."""
     food = FunctionPercept("food", lambda t: 1.0 if t >= 1.0 else 0.0)
     play = ActionTuple("whatever|fetch", WhateverPercept(), TableAction("fetch"), DoUntil(5.0), 10.0)
-    inner = ActionGroup("play", [play], rng=rng)
+    inner = ActionGroup("play", [play], rng=rng, grounded_by="the outer group's credit under test")
     play_group = group_tuple(inner, WhateverPercept(), 20.0)
     eat = ActionTuple("food|eat", food, TableAction("eat"), DoUntil(1.0), 100.0)
     # An outer leaf doing the same action as the inner leaf: proximity 1 lets credit reach it.
     twin = ActionTuple("outer|fetch", WhateverPercept(), TableAction("fetch"), DoUntil(5.0), 0.0)
-    outer = ActionGroup("dog", [play_group, eat, twin], rng=rng, alpha=0.5, discount=0.5, temperature=1.0)
+    outer = ActionGroup("dog", [play_group, eat, twin], rng=rng, alpha=0.5, discount=0.5, temperature=1.0,
+                        grounded_by="the credit arithmetic under test")
 
     outer.tick(0.0)
     assert outer.active == [play_group] and inner.active == [play]
@@ -120,8 +123,8 @@ def test_hierarchical_credit_reaches_leaves_only(rng):
 
 def test_group_du_percolates_from_active_child(rng):
     short = ActionTuple("whatever|bark", WhateverPercept(), TableAction("bark"), DoUntil(0.5), 10.0)
-    inner = ActionGroup("noise", [short], rng=rng)
-    outer = ActionGroup("dog", [group_tuple(inner, WhateverPercept(), 5.0)], rng=rng)
+    inner = ActionGroup("noise", [short], rng=rng, alpha=0.0)
+    outer = ActionGroup("dog", [group_tuple(inner, WhateverPercept(), 5.0)], rng=rng, alpha=0.0)
     outer.tick(0.0)
     g = outer.tuples[0]
     assert g.do_until.evaluate(0.25) == 0.0

@@ -102,7 +102,7 @@ def test_empirical_choice_frequencies(rng):
 def test_several_active_at_once(rng):
     tr = FunctionPercept("on", lambda t: 1.0)
     tuples = [ActionTuple(n, tr, Action(n), DoUntil(5.0), 1.0) for n in "pqrs"]
-    group = ActionGroup("perception", tuples, rng=rng, max_active=3)
+    group = ActionGroup("perception", tuples, rng=rng, max_active=3, alpha=0.0)
     group.tick(0.0)
     assert len(group.active) == 3 and len({tp.name for tp in group.active}) == 3
     with pytest.raises(ValueError, match="max_active"):
@@ -117,7 +117,7 @@ def test_expected_values_are_each_tuples_expected_value(rng):
         ActionTuple("a", FunctionPercept("a", lambda t: level["t"]), Action("a"), DoUntil(4.0), 2.0),
         ActionTuple("b", FunctionPercept("b", lambda t: 0.5), Action("b"), DoUntil(4.0), 1.0),
     ]
-    group = ActionGroup("g", tuples, rng=rng, max_active=1)
+    group = ActionGroup("g", tuples, rng=rng, max_active=1, alpha=0.0)
     group.tick(0.0)
     (active,) = group.active
     for t in (1.0, 3.0):

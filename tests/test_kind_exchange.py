@@ -1,6 +1,7 @@
-"""exchange: notes fed to one creature reach the others; what a creature plays is tested for
-recognisable transformations (retrograde, swapped sub-segments) of what it heard against a
-shuffle of the same notes."""
+"""exchange: notes fed to one creature reach the others, for the Exchange class and for the
+same colony written as authored creatures (installations/authored/exchange.toml); what a
+creature plays is tested for recognisable transformations (retrograde, swapped sub-segments)
+of what it heard against a shuffle of the same notes."""
 
 from __future__ import annotations
 
@@ -20,6 +21,9 @@ from midi.files import write_notes
 from midi.notes import NoteEvent
 
 PHRASE = [60, 62, 64, 67, 69, 72, 74, 76]
+
+CONFIGS = {"class": installations.path("exchange"),
+           "authored": Path(installations.__file__).parent / "authored" / "exchange.toml"}
 
 
 SHUFFLES = 200
@@ -88,9 +92,9 @@ def test_transformation_detector():
     assert not recognisable(PHRASE, PHRASE)  # the passage passed on unchanged is no variation
 
 
-def run_exchange(tmp_path: Path, duration: float = 45.0) -> list[dict]:
-    """The shipped exchange, its first creature fed the phrase three times."""
-    inst = load_installation(installations.path("exchange"))
+def run_exchange(tmp_path: Path, duration: float = 45.0, config: str = "class") -> list[dict]:
+    """The shipped exchange (or its authored twin), its first creature fed the phrase three times."""
+    inst = load_installation(CONFIGS[config])
     inst.settings.output.wav = inst.settings.output.report = False
     phrase = tmp_path / "phrase.mid"
     write_notes(phrase, [NoteEvent(1.0 + 0.3 * i + 6.0 * r, p, 96, 0, 0.25)
@@ -103,8 +107,9 @@ def played_by(events: list[dict], creature: str) -> list[int]:
     return [e["pitch"] for e in events if e["kind"] == "note" and e["creature"] == creature]
 
 
-def test_notes_fed_to_one_creature_reach_another(tmp_path: Path):
-    events = run_exchange(tmp_path)
+@pytest.mark.parametrize("config", CONFIGS)
+def test_notes_fed_to_one_creature_reach_another(tmp_path: Path, config: str):
+    events = run_exchange(tmp_path, config=config)
     placed = {}
     for e in events:
         if e["kind"] == "placed":
@@ -145,11 +150,12 @@ def test_the_first_creature_plays_recognisable_variations_of_the_phrase(tmp_path
     assert recognisable(PHRASE, played_by(run_exchange(tmp_path, 90.0), "ada"))
 
 
-def test_ratio_metric_gives_a_body_on_the_exchange_graph():
+@pytest.mark.parametrize("config", CONFIGS)
+def test_ratio_metric_gives_a_body_on_the_exchange_graph(config: str):
     plain, ratios = shared_graph(False), shared_graph(True)
     assert not plain.weights.ratios and ratios.weights.ratios
     assert plain.edges() != ratios.edges()  # the perturbed time metric reshapes the topology
-    inst = load_installation(installations.path("exchange"))
+    inst = load_installation(CONFIGS[config])
     cy = next(spec for spec in inst.specs if spec.name == "cy")
     assert cy.ratio_metric
 

@@ -99,7 +99,7 @@ def test_negative_expected_values_are_never_selected(rng):
     """A negative value meeting a positive trigger gives S < 0: never chosen, even as the
     only candidate, and even at a high Boltzmann temperature."""
     doom = ActionTuple("whatever|walk into lion", WhateverPercept(), Action("walk"), DoUntil(1.0), -5.0)
-    group = ActionGroup("zebra", [doom], rng=rng, temperature=1e6)
+    group = ActionGroup("zebra", [doom], rng=rng, temperature=1e6, alpha=0.0)
     for k in range(50):
         group.tick(k * DT)
     assert group.active == []

@@ -43,7 +43,8 @@ def successors(sequence: list[str], of: str) -> list[str]:
 
 def test_the_du_records_every_transition_the_group_makes():
     succession = Succession(window=1000)
-    group = ActionGroup("g", tuples(succession), rng=np.random.default_rng(0))
+    group = ActionGroup("g", tuples(succession), rng=np.random.default_rng(0),
+                        grounded_by="transitions under test, not values")
     seq = selections(group, 30.0)
     assert len(seq) > 20
     model = succession.model
@@ -86,7 +87,8 @@ def test_priming_makes_what_usually_follows_follow_more_often():
         chosen = []
         for seed in range(60):
             succession = Succession(window=10)
-            group = ActionGroup("g", tuples(succession, strength=strength), rng=np.random.default_rng(seed))
+            group = ActionGroup("g", tuples(succession, strength=strength), rng=np.random.default_rng(seed),
+                                grounded_by="transitions under test, not values")
             for _ in range(10):  # a history in which B followed A
                 succession.model.record("A", "B")
             chosen.append(first_successor(group, "A"))

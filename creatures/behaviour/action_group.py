@@ -78,6 +78,21 @@ def discounted(value: Value, beta: float) -> Value:
     return value_from_dict(data)
 
 
+def ungrounded_message(name: str, alpha: float, discount: float) -> str:
+    """Why a group that assigns credit needs a fixed value to learn from (thesis "credit
+    assignment": values flow back from consummatory actions; with none, each step only blends
+    a value toward β × another value and all of them shrink geometrically toward 0)."""
+    return (f"group {name!r} assigns credit (alpha = {alpha:g}, discount = {discount:g}) but none of its tuples "
+            f"has a non-plastic value: every value would only be blended toward {discount:g} × another value, "
+            "shrinking geometrically toward 0 (thesis 'credit assignment': values are grounded by consummatory "
+            "rewards)")
+
+
+def grounds(value: Value) -> bool:
+    """A value credit assignment cannot move (plasticity 0): a reward that grounds the others."""
+    return getattr(value, "plasticity", 1.0) == 0.0
+
+
 def selection_probabilities(expected: np.ndarray, temperature: float | None = None) -> np.ndarray | None:
     """Probabilities ∝ ``expected`` (or ∝ ``exp(S/T)``) over the strictly positive entries.
 
@@ -115,6 +130,7 @@ class ActionGroup:
         max_active: int = 1,
         on_event: EventSink | None = None,
         learning: Learner | None = None,
+        grounded_by: str | None = None,
     ) -> None:
         if max_active < 1:
             raise ValueError(f"{name}: max_active must be at least 1 (got {max_active})")
@@ -129,6 +145,8 @@ class ActionGroup:
         self.max_active = int(max_active)
         self.on_event = on_event
         self.learning = learning
+        self.grounded_by = grounded_by
+        self._checked = False
         self.tuples: list[ActionTuple] = []
         self.active: list[ActionTuple] = []
         self.last_active: ActionTuple | None = None
@@ -147,6 +165,15 @@ class ActionGroup:
         self.recent: list[Activation] = []  # activations that may still take a late reward
         for tuple_ in tuples:
             self.add(tuple_)
+        if self.tuples:
+            self.check_grounded()
+
+    def check_grounded(self) -> None:
+        """Refuse credit assignment with nothing to ground it (see the class docstring)."""
+        self._checked = True
+        if self.alpha > 0 and self.discount < 1 and self.grounded_by is None:
+            if not any(grounds(tp.value) for tp in self.tuples):
+                raise ValueError(ungrounded_message(self.name, self.alpha, self.discount))
 
     # -- membership -------------------------------------------------------------------
     def add(self, tuple_: ActionTuple) -> ActionTuple:
@@ -240,6 +267,8 @@ class ActionGroup:
     def tick(self, t: float) -> None:
         """One step of the baseline mechanism: stop what is done, fill free slots or
         interrupt, then update whatever is active."""
+        if not self._checked:
+            self.check_grounded()
         self.last_tick = t
         self._ticking = True
         try:

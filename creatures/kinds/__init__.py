@@ -2,7 +2,8 @@
 
 Each kind lives in its own module and registers itself with :func:`register`;
 :func:`load_all` imports every module of this package (a new kind is just a new file;
-modules of shared parts register nothing).
+modules of shared parts register nothing) and the modules named by ``creature_music.kinds``
+entry points, so a user's package adds kinds the same way.
 """
 
 from __future__ import annotations
@@ -30,8 +31,13 @@ def register(kind: str) -> Callable[[Kind], Kind]:
 
 
 def load_all() -> dict[str, type[CreatureKind]]:
+    """Every kind: this package's modules, then the ``creature_music.kinds`` entry points
+    (the authored kind and any user package's kinds) through the parts registry."""
+    from creatures.authored.registry import load_parts
+
     for module in pkgutil.iter_modules(__path__):
         importlib.import_module(f"creatures.kinds.{module.name}")
+    load_parts()
     return KINDS
 
 

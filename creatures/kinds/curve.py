@@ -185,8 +185,12 @@ class Curve(CreatureKind):
         arrived = FunctionPercept("arrived", lambda t: 1.0 if self.body.motor.arrived(t) else 0.0)
         there = FunctionPercept("walked there", lambda t: float(abs(self.x - self.target_x) < 0.05 and
                                                                 self.body.motor.arrived(t)))
+        # Values as authored (alpha = 0), as in exchange: nothing here is a consummatory reward,
+        # so credit assignment would only shrink every value by the discount at each
+        # selection (one simulated hour took 3.0/2.0/0.3 to ~1e-7; ActionGroup now refuses it).
         self.group = ActionGroup(
-            self.name, rng=rng, temperature=spec.temperature, on_event=selection_logger(world, self.name),
+            self.name, rng=rng, alpha=0.0, temperature=spec.temperature,
+            on_event=selection_logger(world, self.name),
             tuples=[
                 ActionTuple("wander", root, _Wander(self), DoUntil(GaussianModel(4.0, 1.0), until=arrived), 1.0),
                 ActionTuple("approach", seen, _Approach(self), DoUntil(6.0, until=there), 2.0),
@@ -297,7 +301,8 @@ class Curve(CreatureKind):
         return {"values": self.group.value_state(), "x": self.x}
 
     def restore(self, state: dict[str, Any]) -> None:
-        self.group.restore_values(state.get("values", {}))
+        # Values are authored (alpha = 0): the config is their truth, and a state saved while
+        # credit assignment still decayed them must not carry the decay into this run.
         if "x" in state:
             self.x = self.target_x = float(np.clip(state["x"], -self.spec.room, self.spec.room))
 

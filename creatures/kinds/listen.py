@@ -283,8 +283,12 @@ class Listen(CreatureKind):
         silence = FunctionPercept("silence", self.silence, parent=root)
         expecting = FunctionPercept("expecting", self.expecting, parent=silence)
         expected_all = FunctionPercept("expected all", lambda t: 1.0 - self.expecting(t))
+        # Values as authored (alpha = 0), as in exchange: nothing here is a consummatory reward,
+        # so credit assignment would only shrink every value by the discount at each
+        # selection (one simulated hour took 3.0/2.0/0.3 to ~1e-7; ActionGroup now refuses it).
         self.group = ActionGroup(
-            self.name, rng=rng, temperature=spec.temperature, on_event=selection_logger(world, self.name),
+            self.name, rng=rng, alpha=0.0, temperature=spec.temperature,
+            on_event=selection_logger(world, self.name),
             tuples=[
                 ActionTuple("dance", music, _Dance(self), DoUntil(GaussianModel(6.0, 2.0), until=silence), 3.0),
                 ActionTuple("anticipate", expecting, _Anticipate(self),
@@ -430,7 +434,8 @@ class Listen(CreatureKind):
         }
 
     def restore(self, state: dict[str, Any]) -> None:
-        self.group.restore_values(state.get("values", {}))
+        # Values are authored (alpha = 0): the config is their truth, and a state saved while
+        # credit assignment still decayed them must not carry the decay into this run.
         if "motivation" in state:
             self.motivation.restore(state["motivation"], now=self.world.clock.now())
         if "poses" in state:

@@ -126,6 +126,15 @@ class Voice:
         soft_limit(out, out=out)
 
 
+def couple_to_hands(voice: Voice, body: "Body") -> None:
+    """Lay a voice's strings along the diagonal of the box the effector reaches, pushed by both
+    hands (so striking and reaching visibly shake what sounds)."""
+    reach = body.reach()
+    low, high = reach.min(axis=0), reach.max(axis=0)
+    line = np.linspace(0.0, 1.0, voice.spec.masses)[:, None]
+    voice.couple(low + line * (high - low), [body.skeleton.names.index("hand_l"), body.effector_index])
+
+
 @functools.lru_cache(maxsize=1)
 def shared_material() -> PoseSet:
     """The shipped source animations (sway, reach, strike) as one pose set."""

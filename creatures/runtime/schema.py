@@ -14,6 +14,9 @@ from typing import Annotated, Any
 from pydantic import BaseModel, Field, model_validator
 
 from creatures.bounds import FINITE, LARGEST_RATE, LONGEST_OFFLINE
+from creatures.authored.include import expand_includes, expand_likes
+from creatures.authored.plugins import load_plugins
+from creatures.authored.registry import PluginError
 from creatures.config import ConfigError, config_error, read_toml, validate
 from creatures.kinds import CreatureSpec, load_all
 
@@ -206,6 +209,11 @@ class Installation(Strict):
     osc: OscSection = OscSection()
     input: InputSection = InputSection()
     output: OutputSection = OutputSection()
+    include: list[str] = Field(default_factory=list, max_length=256, description="creature files ([[creature]] "
+                                                                 "tables) included, relative to this file")
+    plugins: list[str] = Field(default_factory=list, max_length=256, description="Python files of actions, "
+                                                                 "percepts, models or kinds to register, "
+                                                                 "relative to this file")
     creature: list[dict[str, Any]] = Field(min_length=1, max_length=256, description="the creatures, one [[creature]] table each")
 
     @model_validator(mode="before")
@@ -248,8 +256,16 @@ def load_installation(path: str | Path) -> LoadedInstallation:
     """Read and validate an installation config; :class:`ConfigError` names key and line."""
     path = Path(path).resolve()
     data, where = read_toml(path)
+    includes = data.get("include", [])
+    expand_includes(data, where, path)
+    expand_likes(data, where, path)
+    data["include"] = includes
     settings = validate(Installation, data, where, path)
-    kinds = load_all()
+    load_plugins(settings.plugins, path, where)
+    try:
+        kinds = load_all()
+    except PluginError as exc:  # an installed package's entry point that does not import
+        raise ConfigError(path, str(exc)) from None
     specs: list[CreatureSpec] = []
     names: set[str] = set()
     for i, table in enumerate(settings.creature):
@@ -259,6 +275,9 @@ def load_installation(path: str | Path) -> LoadedInstallation:
             hint = f" (did you mean {close[0]!r}?)" if close else f" (choose from {sorted(kinds)})"
             raise config_error(path, where, ("creature", i, "kind"), f"unknown creature kind {kind!r}{hint}")
         spec = validate(kinds[kind].Spec, table, where, path, prefix=("creature", i))
+        check = getattr(spec, "check_references", None)  # kinds that name parts resolve them now
+        if check is not None:
+            check(path, where, ("creature", i))
         if spec.name in names:
             raise config_error(path, where, ("creature", i, "name"), f"duplicate creature name {spec.name!r}")
         names.add(spec.name)

@@ -17,15 +17,17 @@ from __future__ import annotations
 
 from typing import Any, Literal, Sequence
 
-import numpy as np
+import math
 
 from creatures.behaviour.percept import Percept
 
 Logic = Literal["minmax", "product"]
 
 
-def _memberships(operands: Sequence[Percept], t: float) -> np.ndarray:
-    return np.clip([p.evaluate(t) for p in operands], 0.0, 1.0)
+def _memberships(operands: Sequence[Percept], t: float) -> list[float]:
+    """Each operand's saliency clipped to a membership in [0, 1] (plain floats: a handful of
+    operands per tick is cheaper in Python than as an array)."""
+    return [min(max(float(p.evaluate(t)), 0.0), 1.0) for p in operands]
 
 
 class _Combination(Percept):
@@ -68,7 +70,7 @@ class AndPercept(_Combination):
 
     def evaluate(self, t: float) -> float:
         x = _memberships(self.operands, t)
-        return float(x.min() if self.logic == "minmax" else x.prod())
+        return min(x) if self.logic == "minmax" else math.prod(x)
 
 
 class OrPercept(_Combination):
@@ -78,7 +80,7 @@ class OrPercept(_Combination):
 
     def evaluate(self, t: float) -> float:
         x = _memberships(self.operands, t)
-        return float(x.max() if self.logic == "minmax" else 1.0 - np.prod(1.0 - x))
+        return max(x) if self.logic == "minmax" else 1.0 - math.prod(1.0 - v for v in x)
 
 
 class NotPercept(_Combination):

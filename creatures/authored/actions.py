@@ -1,0 +1,480 @@
+"""The built-in action library of authored creatures (thesis: "the action-tuple": Ac is what
+the creature does; "phase four – extensions" for drives perturbed by behaviour).
+
+Each class is one ``type`` a tuple's ``action`` can name; its ``Params`` are the keys of the
+action's table. ``build`` returns a library :class:`~creatures.behaviour.action_tuple.Action`.
+Actions that play material remember where the phrase ends, so a Du with ``done = true`` stops
+the tuple when the phrase has been played out.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Callable, ClassVar, Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from creatures.authored.registry import ACTIONS, Part
+from creatures.behaviour.action_tuple import Action, ActionTuple
+from creatures.kinds.note_world import SeekNote, Wander
+from creatures.motor.programs import MotorProgramGraph, ProgramStack, Statement, parse_programs
+from creatures.motor.search import NoPath
+from midi.notes import NoteEvent
+
+if TYPE_CHECKING:
+    from creatures.authored.creature import Authored
+
+
+class Params(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class ActionPart(Part):
+    """An action type: ``build`` makes the Ac of one tuple. ``ends``: its Action has
+    ``done(t)`` (1 once it is finished), so a Du can say ``done = true``."""
+
+    ends: ClassVar[bool] = False
+
+    def build(self, params: BaseModel, creature: "Authored", name: str) -> Action:  # pragma: no cover
+        raise NotImplementedError
+
+
+class Playing(Action):
+    """An action that plays notes from its start: ``notes(t)`` gives them (times relative to
+    the start); ``done(t)`` is 1 once the last has ended (for ``until.done``)."""
+
+    def __init__(self, name: str, creature: "Authored", notes: Callable[[float], list[NoteEvent]]) -> None:
+        super().__init__(name)
+        self.creature = creature
+        self.notes = notes
+        self.ends_at = -np.inf
+
+    def start(self, t: float, tuple_: ActionTuple) -> None:
+        notes = self.notes(t)
+        self.ends_at = t
+        for note in notes:
+            self.creature.play(note.pitch, note.velocity, note.duration, at=t + note.time)
+            self.ends_at = max(self.ends_at, t + note.time + note.duration)
+
+    def done(self, t: float) -> float:
+        return 1.0 if t >= self.ends_at else 0.0
+
+
+def _relative(notes: list[NoteEvent], transpose: int = 0) -> list[NoteEvent]:
+    """Heard notes moved to start at 0 (their rhythm kept), transposed and kept in MIDI range."""
+    if not notes:
+        return []
+    t0 = notes[0].time
+    return [NoteEvent(n.time - t0, min(max(n.pitch + transpose, 0), 127), n.velocity, 0, n.duration) for n in notes]
+
+
+# -- playing --------------------------------------------------------------------------------
+class _NoteParams(Params):
+    pitch: int = Field(ge=0, le=127, description="MIDI pitch")
+    velocity: int = Field(90, ge=1, le=127, description="MIDI velocity")
+    duration: float = Field(0.5, gt=0, le=60, description="seconds")
+
+
+@ACTIONS.register
+class PlayNote(ActionPart):
+    """Play one note."""
+
+    ends = True
+    name = "play_note"
+    thesis = "the action-tuple"
+    Params = _NoteParams
+
+    def build(self, params, creature, name):
+        note = NoteEvent(0.0, params.pitch, params.velocity, 0, params.duration)
+        return Playing(name, creature, lambda t: [note])
+
+
+class _PhraseParams(Params):
+    pitches: list[int] = Field(min_length=1, description="MIDI pitches in order")
+    durations: list[float] | float = Field(0.5, description="seconds per note (one for all, or one each)")
+    velocity: int = Field(90, ge=1, le=127, description="MIDI velocity")
+
+    @model_validator(mode="after")
+    def _lengths(self):
+        if any(not 0 <= p <= 127 for p in self.pitches):
+            raise ValueError("pitches must be MIDI numbers 0–127")
+        durations = self.durations if isinstance(self.durations, list) else [self.durations] * len(self.pitches)
+        if len(durations) != len(self.pitches) or any(not d > 0 for d in durations):
+            raise ValueError("durations must be positive seconds, one for all notes or one per pitch")
+        return self
+
+
+@ACTIONS.register
+class PlayPhrase(ActionPart):
+    """Play a written phrase, one note after another."""
+
+    ends = True
+    name = "play_phrase"
+    thesis = "the action-tuple"
+    Params = _PhraseParams
+
+    def build(self, params, creature, name):
+        durations = params.durations if isinstance(params.durations, list) else [params.durations] * len(params.pitches)
+        onsets = np.concatenate(([0.0], np.cumsum(durations)[:-1]))
+        written = [NoteEvent(float(o), p, params.velocity, 0, 0.9 * d)
+                   for o, p, d in zip(onsets, params.pitches, durations)]
+
+        return Playing(name, creature, lambda t: written)
+
+
+class _HeardParams(Params):
+    count: int = Field(4, ge=1, le=64, description="how many of the last heard notes")
+    transpose: int = Field(0, ge=-48, le=48, description="semitones")
+
+
+@ACTIONS.register
+class PlayHeard(ActionPart):
+    """Play back the last ``count`` notes heard, in their own rhythm (heard material)."""
+
+    ends = True
+    name = "play_heard"
+    thesis = "the action-tuple"
+    Params = _HeardParams
+
+    def build(self, params, creature, name):
+        return Playing(name, creature, lambda t: _relative(creature.ear.last(params.count), params.transpose))
+
+
+class _EchoParams(Params):
+    count: int = Field(4, ge=1, le=64, description="how many of the last heard notes")
+    mutation: float = Field(0.2, ge=0, le=1, description="chance each note moves by one of 'steps'")
+    steps: list[int] = Field([-12, -7, -5, 5, 7, 12], min_length=1, description="semitone moves a note may make")
+    jitter: float = Field(0.0, ge=0, le=1, description="seconds of timing variation per note (uniform ±)")
+
+
+@ACTIONS.register
+class Echo(ActionPart):
+    """Echo the last heard notes with variation: some move by fourths, fifths or octaves
+    (circle-of-fifths neighbours, as exchange copies), onsets may drift."""
+
+    ends = True
+    name = "echo"
+    thesis = "the action-tuple"
+    Params = _EchoParams
+
+    def build(self, params, creature, name):
+        steps = np.array(params.steps)
+
+        def varied(t: float) -> list[NoteEvent]:
+            out = []
+            for n in _relative(creature.ear.last(params.count)):
+                pitch = n.pitch
+                if creature.rng.random() < params.mutation:
+                    pitch = min(max(pitch + int(creature.rng.choice(steps)), 0), 127)
+                shift = float(creature.rng.uniform(-params.jitter, params.jitter)) if params.jitter else 0.0
+                out.append(NoteEvent(max(0.0, n.time + shift), pitch, n.velocity, 0, n.duration))
+            return out
+
+        return Playing(name, creature, varied)
+
+
+class _LearnedParams(Params):
+    phrase: int | Literal["latest", "most_heard"] = Field("latest", description="which remembered phrase: its "
+                                                                                 "number (1 = first heard), "
+                                                                                 "'latest' or 'most_heard'")
+    transpose: int = Field(0, ge=-48, le=48, description="semitones")
+
+
+@ACTIONS.register
+class PlayLearned(ActionPart):
+    """Sing back a phrase the creature heard and remembered (the ear's phrase memory); with
+    ``learning.phrases`` each new phrase gets a tuple of its own, so credit can favour one."""
+
+    ends = True
+    name = "play_learned"
+    thesis = "percept trees"
+    Params = _LearnedParams
+
+    def build(self, params, creature, name):
+        def learned(t: float) -> list[NoteEvent]:
+            ear = creature.ear
+            if params.phrase == "latest":
+                phrase = ear.phrases[-1] if ear.phrases else None
+            elif params.phrase == "most_heard":
+                phrase = max(ear.phrases, key=len, default=None)
+            else:
+                phrase = ear.phrase(params.phrase)
+            return _relative(phrase or [], params.transpose)
+
+        return Playing(name, creature, learned)
+
+
+# -- doing nothing, and acting on the creature itself ----------------------------------------
+@ACTIONS.register
+class Rest(ActionPart):
+    """Do nothing for the Du (a rest, or attending)."""
+
+    name = "rest"
+    thesis = "a baseline action selection mechanism"
+
+    def build(self, params, creature, name):
+        return Action(name)
+
+
+class _PerturbParams(Params):
+    drive: str = Field(description="the drive")
+    amount: float = Field(description="added to its level when the tuple starts")
+
+
+@ACTIONS.register
+class Perturb(ActionPart):
+    """Change a drive when the tuple starts (eating takes hunger down)."""
+
+    name = "perturb"
+    thesis = "soft state"
+    Params = _PerturbParams
+    refs = {"drive": "drives"}
+
+    def build(self, params, creature, name):
+        class PerturbAction(Action):
+            def start(self, t, tuple_):
+                creature.motivation.perturb(t, params.drive, params.amount)
+
+        return PerturbAction(name)
+
+
+# -- the body (thesis: "towards a complete motor system") -----------------------------------
+class MotorPart(ActionPart):
+    """An action that moves the creature's body (``body = true``) on the shared motor graph;
+    ``labels`` names the motor-graph labels it needs, checked against the body at load."""
+
+    needs: ClassVar[str] = "body"
+
+    @classmethod
+    def labels(cls, params: BaseModel) -> list[str]:
+        return []
+
+
+class _GoToParams(Params):
+    labels: list[str] = Field(min_length=1, description="motor-graph labels; the nearest node with any of them")
+    furthest: bool = Field(False, description="the furthest of the labels instead (getToFurthest)")
+
+
+@ACTIONS.register
+class GoTo(MotorPart):
+    """Go to the nearest pose with a label, by A* on the motor graph (done on arrival)."""
+
+    ends = True
+    name = "go_to"
+    thesis = "towards a complete motor system: complex labels"
+    Params = _GoToParams
+
+    @classmethod
+    def labels(cls, params):
+        return list(params.labels)
+
+    def build(self, params, creature, name):
+        from creatures.kinds.moves import head_for
+
+        class GoToAction(Action):
+            def start(self, t, tuple_):
+                motor = creature.body.motor
+                try:
+                    head_for(creature.body, t, motor.course(t, params.labels, furthest=params.furthest))
+                except NoPath:
+                    pass
+
+            def done(self, t):
+                return 1.0 if creature.body.motor.arrived(t) else 0.0
+
+        return GoToAction(name)
+
+
+class _ProgramParams(Params):
+    text: str = Field(description="motor programs in the thesis's language ('name: getTo {...}; wait; cycle')")
+    program: str | None = Field(None, description="which program of the text runs (default: the first)")
+
+    @model_validator(mode="after")
+    def _parses(self):
+        programs = parse_programs(self.text, source="motor program")  # a ProgramSyntaxError is a ValueError
+        if not programs:
+            raise ValueError("the text holds no 'name:' program")
+        if self.program is not None and self.program not in programs:
+            raise ValueError(f"no program {self.program!r} in the text (programs: {sorted(programs)})")
+        return self
+
+
+@ACTIONS.register
+class RunProgram(MotorPart):
+    """Run a motor program written as text (getTo / getToClosest / getToFurthest /
+    forcedGetTo / wait / cycle; a target may name another program of the text). Done when the
+    program ends; stopping the tuple asks it to exit (its forcedGetTo statements still run)."""
+
+    ends = True
+    name = "motor_program"
+    thesis = "motor program graphs"
+    Params = _ProgramParams
+
+    @classmethod
+    def labels(cls, params):
+        programs = parse_programs(params.text)
+        return sorted({x for p in programs.values() for s in p.statements for x in s.targets
+                       if isinstance(x, str) and x not in programs})
+
+    def build(self, params, creature, name):
+        programs = parse_programs(params.text, source=f"tuple {name!r}")
+        return ProgramAction(name, creature, programs[params.program or next(iter(programs))], programs)
+
+
+class ProgramAction(Action):
+    """Runs a motor program (text or graph) under a :class:`ProgramStack` while the tuple is
+    active; stopping the tuple asks the program to exit (its forced statements still run)."""
+
+    def __init__(self, name: str, creature: "Authored", program, library: dict | None = None) -> None:
+        super().__init__(name)
+        self.creature = creature
+        self.program = program
+        self.library = library or {}
+        self.stack: ProgramStack | None = None
+
+    def start(self, t: float, tuple_: ActionTuple) -> None:
+        self.stack = ProgramStack(self.creature.body.motor, self.program, library=self.library)
+        self.stack.start(t)
+
+    def update(self, t: float) -> None:
+        try:
+            self.stack.update(t)
+        except NoPath:
+            self.stack.stack.clear()  # nowhere to go from here: the program is over
+
+    def stop(self, t: float, *, interrupted: bool) -> None:
+        if interrupted:
+            self.stack.request_exit(t)
+
+    def done(self, t: float) -> float:
+        return 1.0 if self.stack is None or self.stack.done else 0.0
+
+
+def _statement(text: str) -> Statement:
+    """One statement of the motor-program language (``getTo "reach"``, ``wait`` …)."""
+    statements = parse_programs(f"vertex: {text}", source="motor graph vertex")["vertex"].statements
+    if len(statements) != 1:
+        raise ValueError(f"a vertex holds one statement (got {text!r})")
+    return statements[0]
+
+
+class _GraphParams(Params):
+    vertices: dict[str, str] = Field(description="vertex name → one statement; flow starts at 'start', an "
+                                                 "exit heads for the nearest vertex named 'exit…'")
+    edges: dict[str, list[str]] = Field(default_factory=dict, description="vertex → the vertices that may follow")
+
+    @model_validator(mode="after")
+    def _builds(self):
+        MotorProgramGraph("check", {k: _statement(v) for k, v in self.vertices.items()}, self.edges)
+        return self
+
+
+@ACTIONS.register
+class RunGraph(MotorPart):
+    """Run a motor program graph: statements as vertices, at each branch the successor whose
+    target is nearest on the motor graph; stopping the tuple heads for the nearest exit."""
+
+    ends = True
+    name = "motor_graph"
+    thesis = "motor program graphs"
+    Params = _GraphParams
+
+    @classmethod
+    def labels(cls, params):
+        return sorted({x for v in params.vertices.values() for x in _statement(v).targets if isinstance(x, str)})
+
+    def build(self, params, creature, name):
+        graph = MotorProgramGraph(name, {k: _statement(v) for k, v in params.vertices.items()}, params.edges)
+        return ProgramAction(name, creature, graph)
+
+
+class _ReachParams(Params):
+    point: tuple[float, float, float] = Field(description="where the effector (right hand) should go, metres")
+    tolerance: float = Field(0.1, gt=0, description="how close counts; none close: the nearest pose")
+
+
+@ACTIONS.register
+class ReachPoint(MotorPart):
+    """Get the hand to a point in space: A* to a pose that puts the effector there (done on arrival)."""
+
+    ends = True
+    name = "reach_point"
+    thesis = "towards a complete motor system"
+    Params = _ReachParams
+
+    def build(self, params, creature, name):
+        from creatures.kinds.moves import head_for
+
+        class Reach(Action):
+            def start(self, t, tuple_):
+                body = creature.body
+                try:
+                    head_for(body, t, body.finder.to_effector(body.motor.position(t), body.effector,
+                                                              np.asarray(params.point), tolerance=params.tolerance))
+                except NoPath:
+                    pass
+
+            def done(self, t):
+                return 1.0 if creature.body.motor.arrived(t) else 0.0
+
+        return Reach(name)
+
+
+@ACTIONS.register
+class RestPose(MotorPart):
+    """Return to the nearest low-energy pose and stay there (thesis "enforcing physical constraints")."""
+
+    name = "rest_pose"
+    thesis = "towards a complete motor system"
+
+    def build(self, params, creature, name):
+        from creatures.kinds.moves import Rest as RestMove
+
+        rest = RestMove(creature.body)
+        rest.name = name
+        return rest
+
+
+# -- notes in space (thesis: "musical worlds") ----------------------------------------------
+@ACTIONS.register
+class WanderSpace(MotorPart):
+    """Wander to a random pose of the motor graph, striking the notes in space the hand passes
+    (exchange's slow progression; needs ``[creature.space]``)."""
+
+    name = "wander"
+    thesis = "musical worlds"
+    needs = "space"
+
+    def build(self, params, creature, name):
+        return Wander(creature.notes, name)
+
+
+@ACTIONS.register
+class SeekNoteSpace(MotorPart):
+    """Go to the nearest note in space not struck lately, by one A* search over the poses that
+    put the hand on any of them, and strike it (done when struck; needs ``[creature.space]``)."""
+
+    name = "seek_note"
+    thesis = "musical worlds"
+    needs = "space"
+    ends = True
+
+    def build(self, params, creature, name):
+        return SeekNote(creature.notes, name)
+
+
+@ACTIONS.register
+class StrikeNearby(MotorPart):
+    """Strike the notes in space the hand passes, wherever another group moves it (one note
+    at a time, within the space's ``strike_interval`` and ``refractory``)."""
+
+    name = "strike"
+    thesis = "musical worlds"
+    needs = "space"
+
+    def build(self, params, creature, name):
+        class Strike(Action):
+            def update(self, t):
+                creature.notes.strike_nearby(t)
+
+        return Strike(name)

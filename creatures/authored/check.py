@@ -1,0 +1,249 @@
+"""Load-time resolution of an authored creature: every name it writes must exist, and the
+structure must be one that can run (DESIGN.md: "a run never meets an unresolved name").
+
+Checked here, each as a :class:`ConfigError` at the offending key's file and line with the
+nearest valid name: unknown action/percept/model types and their keys; a percept, drive or
+tuple that is referred to but not declared; a cycle of percept references or of groups; a
+tuple in no group (or in two); and a group that assigns credit with nothing grounding its
+values (thesis "credit assignment": without a non-plastic value every value only shrinks by
+β at each step).
+"""
+
+from __future__ import annotations
+
+import difflib
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from creatures.authored.registry import ACTIONS, MODELS, PERCEPTS, PluginError, load_parts
+from creatures.behaviour.action_group import ungrounded_message
+from creatures.config import ConfigError, config_error, validate
+
+if TYPE_CHECKING:
+    from creatures.authored.spec import AuthoredSpec
+
+ROOT = "whatever"
+"""The root of every percept tree, always declared."""
+
+Where = dict[tuple, tuple[Path, int]]
+
+
+class _Checker:
+    def __init__(self, spec: "AuthoredSpec", file: Path, where: Where, prefix: tuple) -> None:
+        self.spec, self.file, self.where, self.prefix = spec, file, where, prefix
+        self.names = {
+            "percepts": {ROOT, *spec.percepts},
+            "drives": set(spec.drives),
+            "tuples": set(spec.tuples),
+            "groups": set(spec.groups),
+        }
+
+    def error(self, loc: tuple, message: str) -> ConfigError:
+        return config_error(self.file, self.where, (*self.prefix, *loc), message)
+
+    def need(self, namespace: str, name: Any, loc: tuple) -> None:
+        if name in self.names[namespace]:
+            return
+        what = namespace[:-1]
+        close = difflib.get_close_matches(str(name), sorted(self.names[namespace]), n=1)
+        hint = f" (did you mean {close[0]!r}?)" if close else (
+            f" (declared: {sorted(self.names[namespace])})" if self.names[namespace] else f" (no {namespace} declared)")
+        raise self.error(loc, f"no {what} named {name!r}{hint}")
+
+    def part(self, registry, type_: Any, params: dict[str, Any], loc: tuple):
+        cls = registry.get(type_) if isinstance(type_, str) else None
+        if cls is None:
+            raise self.error((*loc, "type"), registry.unknown(type_))
+        return cls, validate(cls.Params, params, self.where, self.file, prefix=(*self.prefix, *loc))
+
+    def references(self, cls, params, loc: tuple) -> list[str]:
+        percepts = []
+        for key, namespace, name in cls.references(params):
+            self.need(namespace, name, (*loc, key))
+            if namespace == "percepts":
+                percepts.append(name)
+        return percepts
+
+
+def check(spec: "AuthoredSpec", file: Path, where: Where, prefix: tuple) -> None:
+    try:
+        load_parts()
+    except PluginError as exc:
+        raise ConfigError(file, str(exc), key=".".join(map(str, (*prefix, "kind")))) from None
+    c = _Checker(spec, file, where, prefix)
+    for key in ("space", "ratio_metric"):
+        if getattr(spec, key) and not spec.body:
+            raise c.error((key,), f"'{key}' is for a creature with a body: set 'body = true'")
+    _percepts(c)
+    _drives(c)
+    _tuples(c)
+    _groups(c)
+    _learning(c)
+
+
+def _percepts(c: _Checker) -> None:
+    edges: dict[str, list[str]] = {}
+    for name, p in c.spec.percepts.items():
+        loc = ("percepts", name)
+        if name == ROOT:
+            raise c.error(loc, f"{ROOT!r} is the root of every percept tree; give this percept another name")
+        cls, params = c.part(PERCEPTS, p.type, p.params(), loc)
+        _needs(c, cls, (*loc, "type"))
+        edges[name] = c.references(cls, params, loc)
+        c.need("percepts", p.parent, (*loc, "parent"))
+        edges[name].append(p.parent)
+    _acyclic(c, edges, "percepts", "a percept cannot be defined by itself")
+
+
+def _acyclic(c: _Checker, edges: dict[str, list[str]], section: str, why: str) -> None:
+    state: dict[str, int] = {}  # 1 = on the path, 2 = done
+
+    def visit(node: str, path: list[str]) -> None:
+        if state.get(node) == 2 or node not in edges:
+            return
+        if state.get(node) == 1:
+            loop = path[path.index(node):] + [node]
+            raise c.error((section, node), f"reference cycle {' -> '.join(loop)}: {why}")
+        state[node] = 1
+        for nxt in edges[node]:
+            visit(nxt, [*path, node])
+        state[node] = 2
+
+    for node in edges:
+        visit(node, [])
+
+
+def _drives(c: _Checker) -> None:
+    for name, d in c.spec.drives.items():
+        for other in d.coupling:
+            c.need("drives", other, ("drives", name, "coupling", other))
+        for percept in d.inputs:
+            c.need("percepts", percept, ("drives", name, "inputs", percept))
+
+
+def _until(c: _Checker, until, loc: tuple) -> None:
+    given = [k for k in ("seconds", "gaussian", "pulse", "model") if getattr(until, k) is not None]
+    if given == ["gaussian", "pulse"]:
+        given = ["pulse"]  # the pulse, with the Gaussian as its fallback until the pulse is trusted
+    if not (given or until.percept or until.done):
+        raise c.error(loc, "a Do-until needs at least one of seconds, gaussian, pulse, model, percept or done")
+    if len(given) > 1:
+        raise c.error((*loc, given[1]), f"one duration per Do-until: {given[0]!r} and {given[1]!r} are both given")
+    if until.model is not None:
+        c.part(MODELS, until.model.type, until.model.params(), (*loc, "model"))
+    if until.percept is not None:
+        c.need("percepts", until.percept, (*loc, "percept"))
+    if until.gaussian is not None and not (until.gaussian[0] > 0 and until.gaussian[1] > 0):
+        raise c.error((*loc, "gaussian"), "mean and std must be positive seconds")
+
+
+def _action(c: _Checker, action, loc: tuple):
+    from creatures.authored.spec import PartSpec
+
+    if isinstance(action, str):
+        if action not in ACTIONS:
+            raise c.error(loc, ACTIONS.unknown(action))
+        action = PartSpec(type=action)
+    cls, params = c.part(ACTIONS, action.type, action.params(), loc)
+    c.references(cls, params, loc)
+    _needs(c, cls, loc)
+    labels = getattr(cls, "labels", None)
+    if labels is not None:
+        _labels(c, labels(params), loc)
+    return cls
+
+
+def _needs(c: _Checker, cls, loc: tuple) -> None:
+    """A part that uses the body or the note space needs the creature to have it."""
+    if getattr(cls, "needs", None) in ("body", "space") and not c.spec.body:
+        raise c.error(loc, f"{cls.name!r} uses the body: set 'body = true' on the creature")
+    if getattr(cls, "needs", None) == "space" and c.spec.space is None:
+        raise c.error(loc, f"{cls.name!r} uses notes in space: give the creature a [creature.space] table")
+
+
+def _labels(c: _Checker, wanted: list[str], loc: tuple) -> None:
+    from creatures.kinds.parts import shared_graph
+
+    known = sorted(set().union(*shared_graph().poses.labels))
+    for label in wanted:
+        if label not in known:
+            close = difflib.get_close_matches(label, known, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else f" (labels: {known})"
+            raise c.error(loc, f"the body has no motor label {label!r}{hint}")
+
+
+def _tuples(c: _Checker) -> None:
+    for name, tp in c.spec.tuples.items():
+        loc = ("tuples", name)
+        c.need("percepts", tp.trigger, (*loc, "trigger"))
+        cls = _action(c, tp.action, (*loc, "action"))
+        _until(c, tp.until, (*loc, "until"))
+        if tp.until.done and not cls.ends:
+            raise c.error((*loc, "until", "done"), f"action {cls.name!r} has no end of its own: give the Du "
+                                                    "seconds, a model or a percept")
+        if not isinstance(tp.value, float | int):
+            for drive in tp.value.serves.values():
+                c.need("drives", drive, (*loc, "value", "serves"))
+
+
+def _groups(c: _Checker) -> None:
+    owner: dict[str, str] = {}
+    edges: dict[str, list[str]] = {}
+    for name, g in c.spec.groups.items():
+        loc = ("groups", name)
+        if name in c.spec.tuples:
+            raise c.error(loc, f"{name!r} is both a tuple and a group; a member name must say which")
+        edges[name] = []
+        for member in g.tuples:
+            if member in c.spec.groups:
+                edges[name].append(member)
+            else:
+                c.need("tuples", member, (*loc, "tuples"))
+            if member in owner:
+                raise c.error((*loc, "tuples"), f"{member!r} is already a member of group {owner[member]!r} "
+                                                "(a tuple or group belongs to one group)")
+            owner[member] = name
+        c.need("percepts", g.trigger, (*loc, "trigger"))
+        for k, constraint in enumerate(g.constraints):
+            for end in ("a", "b"):
+                c.need("tuples", getattr(constraint, end), (*loc, "constraints", k, end))
+    _acyclic(c, edges, "groups", "a group cannot contain itself")
+    for name in c.spec.tuples:
+        if name not in owner:
+            raise c.error(("tuples", name), f"tuple {name!r} is in no group: add it to a group's 'tuples' "
+                                            f"(groups: {sorted(c.spec.groups)})")
+    for name, g in c.spec.groups.items():
+        if g.alpha > 0 and g.discount < 1 and not _grounded(c, g):
+            raise c.error(("groups", name, "alpha"), ungrounded_message(name, g.alpha, g.discount) +
+                          ". Give a reward tuple 'value = { value = ..., plastic = false }', or set alpha = 0 "
+                          "to keep the values as authored")
+
+
+def _grounded(c: _Checker, group) -> bool:
+    for member in group.tuples:
+        tp = c.spec.tuples.get(member)
+        if tp is not None and not isinstance(tp.value, float | int) and not tp.value.plastic:
+            return True
+    return False
+
+
+def _learning(c: _Checker) -> None:
+    learning = c.spec.learning
+    for k, group in enumerate(learning.groups):
+        c.need("groups", group, ("learning", "groups", k))
+    ph = learning.phrases
+    if ph is not None:
+        loc = ("learning", "phrases")
+        c.need("groups", ph.group, (*loc, "group"))
+        c.need("percepts", ph.trigger, (*loc, "trigger"))
+        cls = ACTIONS.get(ph.action)
+        if cls is None:
+            raise c.error((*loc, "action"), ACTIONS.unknown(ph.action))
+        if ph.until.done and not cls.ends:
+            raise c.error((*loc, "until", "done"), f"action {ph.action!r} has no end of its own")
+        if "phrase" not in cls.Params.model_fields:
+            raise c.error((*loc, "action"), f"action {ph.action!r} has no 'phrase' key to sing a learnt phrase with")
+        _until(c, ph.until, (*loc, "until"))
+
+
+__all__ = ["ROOT", "check"]

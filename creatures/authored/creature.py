@@ -1,0 +1,323 @@
+"""``kind = "authored"``: a creature built from its config (thesis: "motivation-based
+authoring"; DESIGN.md "Authored creatures").
+
+The config names the parts; this module only composes the library's own: drives are one
+:class:`~creatures.behaviour.motivation.Motivation`, percepts come from
+:mod:`creatures.authored.percepts` (library percepts and models), tuples are
+:class:`~creatures.behaviour.action_tuple.ActionTuple`, groups are
+:class:`~creatures.behaviour.action_group.ActionGroup` (nested with ``group_tuple``, learning
+with :class:`~creatures.behaviour.learning.PerceptLearning`, ``follow`` Du from
+:mod:`creatures.temporal.transitions`, constraints from :mod:`creatures.temporal.intervals`).
+One tick: drives advance with their percept inputs and arcs, then every top-level group
+selects (the groups inside them are ticked by their group tuples).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from creatures.authored import registry
+from creatures.authored.check import ROOT
+from creatures.authored.ear import Ear
+from creatures.authored.spec import AuthoredSpec, PartSpec, TupleSpec, UntilSpec, ValueSpec
+from creatures.behaviour.action_group import ActionGroup, group_tuple
+from creatures.behaviour.action_tuple import ActionTuple, DoUntil
+from creatures.behaviour.learning import PerceptLearning
+from creatures.behaviour.models.fuzzy import OrPercept
+from creatures.behaviour.motivation import Motivation
+from creatures.behaviour.percept import FunctionPercept, Percept, WhateverPercept
+from creatures.behaviour.state_object import StateObject
+from creatures.behaviour.value import ChainValue, GaussianValue, ScalarValue, Value
+from creatures.config import ConfigError
+from creatures.kinds import register
+from creatures.kinds.base import CreatureKind
+from creatures.kinds.note_world import NoteWorld
+from creatures.kinds.parts import Body, Voice, couple_to_hands
+from creatures.kinds.report_parts import MotorTrail, report_values, selection_logger
+from creatures.temporal import intervals
+from creatures.temporal.transitions import Succession, follow
+from midi.notes import NoteEvent
+
+if TYPE_CHECKING:
+    from creatures.runtime.world import World
+
+
+def find_sensor(world: "World", name: str) -> StateObject:
+    """A sensor of the installation's input map by name: the World keeps them as state
+    objects (``world.sensors``); a missing one is a clear error listing those there are."""
+    sensors = getattr(world, "sensors", None) or {}
+    if name not in sensors:
+        raise KeyError(f"no sensor named {name!r} in this installation (sensors: {sorted(sensors) or 'none'})")
+    return sensors[name]
+
+
+def make_value(spec: float | ValueSpec, importance) -> Value:
+    """V from its config: a number, or a scalar/chain/gaussian table (``plastic = false``
+    gives plasticity 0: a reward credit assignment cannot move)."""
+    if isinstance(spec, int | float):
+        return ScalarValue(float(spec))
+    plasticity = 1.0 if spec.plastic else 0.0
+    if spec.kind == "chain":
+        return ChainValue(spec.value, plasticity=plasticity, source=spec.source,
+                          importance=importance(spec.serves) if spec.serves else None)
+    if spec.kind == "gaussian":
+        return GaussianValue(spec.value, plasticity=plasticity, spread=spec.spread)
+    return ScalarValue(spec.value, plasticity=plasticity)
+
+
+@register("authored")
+class Authored(CreatureKind):
+    """A creature whose behaviour is its config (see the module docstring)."""
+
+    Spec = AuthoredSpec
+
+    def __init__(self, spec: AuthoredSpec, world: "World", rng: np.random.Generator) -> None:
+        super().__init__(spec, world, rng)
+        registry.load_parts()
+        self.body = Body(rng, ratios=spec.ratio_metric) if spec.body else None  # motor actions hold it
+        self.trail = MotorTrail(world, self.name, self.body) if self.body is not None else None
+        self.notes = NoteWorld(spec.space, self, self.body, rng) if spec.space is not None else None
+        learning = spec.learning
+        self.ear = Ear(phrase_gap=learning.phrase_gap, max_phrases=learning.max_phrases)
+        self.motivation = self._drives(spec)
+        self.root = WhateverPercept(ROOT)
+        self.percepts: dict[str, Percept] = {ROOT: self.root}
+        for name in spec.percepts:
+            self.percept(name)
+        # Drives fed by percepts or scripted arcs (the others need no work per tick).
+        self._fed = [(self.motivation.index(name), [(self.percept(p), r) for p, r in d.inputs.items()], d.arc)
+                     for name, d in spec.drives.items() if d.inputs or d.arc]
+        self.tuples = {name: self._tuple(name, tp) for name, tp in spec.tuples.items()}
+        for group in spec.groups.values():
+            for constraint in group.constraints:
+                getattr(intervals, constraint.relation)(self.tuples[constraint.a], self.tuples[constraint.b],
+                                                        **({"gap": constraint.gap} if constraint.relation == "before"
+                                                           else {}))
+        self.groups: dict[str, ActionGroup] = {}
+        members = {m for g in spec.groups.values() for m in g.tuples}
+        self.top = [self._group(name) for name in spec.groups if name not in members]
+        self.voice: Voice | None = None
+        self._learnt: list[int] = []  # phrase numbers that have a tuple of their own
+        self._next_report = 0.0
+
+    # -- building ---------------------------------------------------------------------
+    def _drives(self, spec: AuthoredSpec) -> Motivation | None:
+        if not spec.drives:
+            return None
+        d = spec.drives
+        return Motivation(
+            {n: x.level for n, x in d.items()},
+            growth={n: x.growth for n, x in d.items()},
+            decay={n: x.decay for n, x in d.items()},
+            equilibrium={n: x.equilibrium for n, x in d.items() if x.equilibrium is not None},
+            coupling={(n, other): rate for n, x in d.items() for other, rate in x.coupling.items()},
+            floor=spec.drive_floor, ceiling=spec.drive_ceiling, start=self.now(),
+        )
+
+    def percept(self, name: str) -> Percept:
+        """The percept ``name``, built on first use (the loader excluded reference cycles)."""
+        if name not in self.percepts:
+            p = self.spec.percepts[name]
+            cls = registry.PERCEPTS.get(p.type)
+            percept = cls().build(cls.Params.model_validate(p.params()), self, name)
+            self.percepts[name] = percept
+            self.percept(p.parent).add_child(percept)
+        return self.percepts[name]
+
+    def _action(self, action: str | PartSpec, name: str, **extra: Any):
+        part = PartSpec(type=action) if isinstance(action, str) else action
+        cls = registry.ACTIONS.get(part.type)
+        return cls().build(cls.Params.model_validate({**part.params(), **extra}), self, name)
+
+    def _do_until(self, until: UntilSpec, action) -> DoUntil:
+        duration = until.seconds
+        model = until.model
+        if until.pulse is not None:
+            fallback = {} if until.gaussian is None else {"mean": until.gaussian[0], "std": until.gaussian[1]}
+            model = PartSpec(type="pulse", beats=until.pulse, **fallback)
+        elif until.gaussian is not None:
+            model = PartSpec(type="gaussian", mean=until.gaussian[0], std=until.gaussian[1])
+        if model is not None:
+            cls = registry.MODELS.get(model.type)
+            duration = cls().build(cls.Params.model_validate(model.params()), self)
+        stops = [self.percept(until.percept)] if until.percept is not None else []
+        if until.done:
+            stops.append(FunctionPercept(f"{action.name} done", action.done))
+        stop = None if not stops else stops[0] if len(stops) == 1 else OrPercept(f"{action.name} stops", stops)
+        return DoUntil(duration, until=stop)
+
+    def _tuple(self, name: str, tp: TupleSpec) -> ActionTuple:
+        action = self._action(tp.action, name)
+        return ActionTuple(name, self.percept(tp.trigger), action, self._do_until(tp.until, action),
+                           make_value(tp.value, self._importance))
+
+    def _importance(self, serves: dict[str, str]):
+        return self.motivation.importance(serves)
+
+    def _group(self, name: str) -> ActionGroup:
+        g = self.spec.groups[name]
+        tuples = []
+        succession = None
+        for member in g.tuples:
+            if member in self.spec.groups:
+                child = self._group(member)
+                child_spec = self.spec.groups[member]
+                tuples.append(group_tuple(child, self.percept(child_spec.trigger), child_spec.value))
+                continue
+            tuple_ = self.tuples[member]
+            if self.spec.tuples[member].until.follow:
+                succession = succession or Succession(innovation=g.innovation)
+                follow(tuple_, succession)
+            tuples.append(tuple_)
+        learning = self.spec.learning
+        learner = None
+        if name in learning.groups:
+            learner = PerceptLearning(statistics=learning.statistics, innovation=max(learning.innovation,
+                                                                                     learning.statistics),
+                                      split_at=learning.split_at, fuse_below=learning.fuse_below,
+                                      on_event=selection_logger(self.world, self.name))
+        group = ActionGroup(name, tuples, rng=self.rng, alpha=g.alpha, discount=g.discount, multiple=g.multiple,
+                            temperature=g.temperature, max_active=g.max_active, learning=learner,
+                            on_event=selection_logger(self.world, self.name))
+        self.groups[name] = group
+        return group
+
+    # -- what the runtime calls ---------------------------------------------------------
+    def now(self) -> float:
+        return self.world.clock.now()
+
+    def drive(self, name: str, t: float) -> float:
+        return self.motivation.level(name, max(t, self.motivation.time))
+
+    def tuple(self, name: str) -> ActionTuple:
+        return self.tuples[name]
+
+    def sensor(self, name: str) -> StateObject:
+        try:
+            return find_sensor(self.world, name)
+        except KeyError as exc:
+            raise ConfigError(self.spec.source_file(), exc.args[0], key=f"creature {self.name}: sensor") from None
+
+    def play(self, pitch: int, velocity: int, duration: float, *, at: float) -> None:
+        self.world.play(self, NoteEvent(round(at, 6), pitch, velocity, self.spec.channel, duration))
+
+    def hear(self, note: NoteEvent, source: str) -> None:
+        if source == "input" and not self.spec.hears_input:
+            return
+        t = self.now()
+        self.ear.hear(t, note, source)
+        self._impulse(t, "on_heard")
+        if self.notes is not None:
+            self.notes.hear(t, note, source)
+
+    def played(self, note: NoteEvent) -> None:
+        self.ear.played.append(note)
+        self._impulse(self.now(), "on_played")
+        if self.voice is not None:
+            self.voice.play(note.pitch, note.velocity, note.end)
+
+    def _impulse(self, t: float, which: str) -> None:
+        for name, drive in self.spec.drives.items():
+            amount = getattr(drive, which)
+            if amount:
+                self.motivation.perturb(t, name, amount)
+
+    def _learn_phrase(self, t: float) -> None:
+        """A new hypothesis for the last phrase heard, once it is over (``phrase_gap`` of
+        silence) and long enough (thesis "percept trees": a new distinction, a new tuple to try)."""
+        ph = self.spec.learning.phrases
+        if (ph is None or not self.ear.phrases or len(self.ear.phrases[-1]) < ph.min_notes
+                or self.ear.since_heard(t) <= self.ear.phrase_gap):
+            return
+        number = self.ear.phrases_made
+        if number in self._learnt:
+            return
+        name = self._phrase_tuple(number)
+        self.world.emit("hypothesis", creature=self.name, tuple=name, notes=len(self.ear.phrases[-1]))
+
+    def _phrase_tuple(self, number: int) -> str:
+        """Add ``phrase N | sing it | until sung | V`` to the phrases' group; returns its name."""
+        ph = self.spec.learning.phrases
+        self._learnt.append(number)
+        name = f"phrase {number}"
+        action = self._action(ph.action, name, phrase=number)
+        self.groups[ph.group].add(ActionTuple(name, self.percept(ph.trigger), action,
+                                              self._do_until(ph.until, action), ScalarValue(ph.value)))
+        return name
+
+    def tick(self, t: float) -> None:
+        self._learn_phrase(t)
+        if self.notes is not None:
+            self.notes.fade(t)
+        if self.motivation is not None:
+            self.motivation.advance(t)
+            for i, inputs, arc in self._fed:
+                self.motivation.inputs[i] = sum(r * p.evaluate(t) for p, r in inputs) + _arc(arc, t)
+        if self.body is not None:
+            self.trail.follow(t)
+            pose = self.body.update(t)
+            if self.voice is not None:
+                self.voice.feel(pose)
+        for group in self.top:
+            group.tick(t)
+        if self.notes is not None:
+            self.notes.space.tick()
+        if t >= self._next_report:
+            self._next_report = t + self.spec.report_every
+            for group in self.groups.values():
+                report_values(self.world, t, self.name, group)
+            if self.trail is not None:
+                self.trail.report(t)
+            if self.motivation is not None:
+                self.world.log.emit(t, "motivation", creature=self.name,
+                                    drives=dict(zip(self.motivation.names, self.motivation.levels.tolist())))
+
+    def sound(self, out: np.ndarray, sample_rate: int) -> None:
+        if self.voice is None:
+            self.voice = Voice(self.spec.voice, sample_rate)
+            if self.body is not None:
+                couple_to_hands(self.voice, self.body)
+        self.voice.render(out, self.now())
+
+    def marks(self) -> list[tuple[tuple[float, float, float], int]]:
+        return [] if self.notes is None else self.notes.marks()
+
+    def figure(self) -> tuple[np.ndarray, np.ndarray] | None:
+        if self.body is None:
+            return None
+        return self.body.pose.positions, np.asarray(self.body.skeleton.parents)
+
+    # -- persistence -------------------------------------------------------------------
+    def state(self) -> dict[str, Any]:
+        return {
+            "values": {name: g.value_state() for name, g in self.groups.items()},
+            "motivation": None if self.motivation is None else self.motivation.to_dict(),
+            "phrases": [[[n.time, n.pitch, n.velocity, n.duration] for n in p] for p in self.ear.phrases],
+            "phrases_made": self.ear.phrases_made,
+            "learnt": list(self._learnt),
+        }
+
+    def restore(self, state: dict[str, Any]) -> None:
+        self.ear.phrases.clear()
+        for phrase in state.get("phrases", []):
+            self.ear.phrases.append([NoteEvent(float(t), int(p), int(v), self.spec.channel, float(d))
+                                     for t, p, v, d in phrase])
+        self.ear.phrases_made = int(state.get("phrases_made", len(self.ear.phrases)))
+        for number in state.get("learnt", []):
+            if self.spec.learning.phrases is not None and int(number) not in self._learnt:
+                self._phrase_tuple(int(number))
+        for name, values in state.get("values", {}).items():
+            if name in self.groups:
+                self.groups[name].restore_values(values)
+        if state.get("motivation") and self.motivation is not None:
+            self.motivation = Motivation.from_dict(state["motivation"], now=self.now())
+
+
+def _arc(points: list[tuple[float, float]], t: float) -> float:
+    """The scripted input rate at ``t``: linear between the points, held outside them."""
+    if not points:
+        return 0.0
+    times, rates = zip(*points)
+    return float(np.interp(t, times, rates))

@@ -1,0 +1,114 @@
+"""``creatures describe CONFIG``: what each creature is made of, as a tree, before a run
+(STYLE.md, after py_trees: "trees render as text for debugging").
+
+Every creature is built on a silent world (a simulated clock, no output), so the tree shows
+what the runtime would run — class-based kinds as well as authored ones: their action-groups
+(nested groups inside), each tuple as ``Tr | Ac | Du | V``, the percept trees its triggers
+grow from, and its drives.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Iterable
+
+import numpy as np
+
+from creatures.behaviour.action_group import ActionGroup, GroupAction
+from creatures.behaviour.action_tuple import ActionTuple, DoUntil
+from creatures.behaviour.motivation import Motivation
+from creatures.behaviour.percept import Percept
+from creatures.clock import SimulatedClock
+from creatures.events import EventLog
+from creatures.kinds import KINDS
+from creatures.runtime.schema import LoadedInstallation
+from creatures.runtime.world import World
+from midi.scheduler import NoteScheduler
+from midi.sinks import MemorySink
+
+
+def _tree(label: str, children: list[Any]) -> list[str]:
+    """``label`` then its children, drawn with box characters; a child is a label or (label, children)."""
+    lines = [label]
+    for k, child in enumerate(children):
+        last = k == len(children) - 1
+        sub = _tree(*child) if isinstance(child, tuple) else [child]
+        lines.append(("└─ " if last else "├─ ") + sub[0])
+        lines += [("   " if last else "│  ") + line for line in sub[1:]]
+    return lines
+
+
+def _du(du: DoUntil) -> str:
+    inner = getattr(du, "inner", None)
+    if isinstance(inner, DoUntil):
+        return f"{_du(inner)} ({type(du).__name__})"
+    if du.duration is None:
+        length = ""
+    elif isinstance(du.duration, int | float):
+        length = f"{du.duration:g} s"
+    else:
+        length = type(du.duration).__name__
+    until = f"until {du.until.name}" if du.until is not None else ""
+    return " ".join(x for x in (length, until) if x) or "—"
+
+
+def _tuple(tp: ActionTuple) -> tuple[str, list[Any]] | str:
+    value = tp.value
+    plastic = "" if getattr(value, "plasticity", 1.0) else ", non-plastic"
+    label = f"{tp.name}: {tp.trigger.name} | {tp.action.name} | {_du(tp.do_until)} | V {value.to_float():.3g}{plastic}"
+    if isinstance(tp.action, GroupAction):
+        return _group(tp.action.group, label)
+    return label
+
+
+def _group(group: ActionGroup, label: str | None = None) -> tuple[str, list[Any]]:
+    settings = f"max_active {group.max_active}, alpha {group.alpha:g}, discount {group.discount:g}"
+    if group.temperature is not None:
+        settings += f", temperature {group.temperature:g}"
+    return (f"{label or 'group ' + group.name} [{settings}]", [_tuple(tp) for tp in group.tuples])
+
+
+def _percept(p: Percept, types: dict[str, str]) -> tuple[str, list[Any]] | str:
+    """A percept and its children; an authored percept is labelled by the type its config gave."""
+    label = f"{p.name} ({types.get(p.name) or type(p).__name__})"
+    return (label, [_percept(c, types) for c in p.children]) if p.children else label
+
+
+def _roots(groups: Iterable[ActionGroup]) -> list[Percept]:
+    roots: dict[int, Percept] = {}
+    for group in groups:
+        for tp in group.tuples:
+            node = tp.trigger
+            while node.parent is not None:
+                node = node.parent
+            roots.setdefault(id(node), node)
+    return list(roots.values())
+
+
+def _drives(m: Motivation) -> list[str]:
+    return [f"{name} = {m.levels[i]:g} (growth {m.growth[i]:g}, decay {m.decay[i]:g})"
+            for i, name in enumerate(m.names)]
+
+
+def describe(inst: LoadedInstallation) -> str:
+    """The tree of every creature of ``inst``."""
+    clock = SimulatedClock()
+    world = World(clock, EventLog(), NoteScheduler(MemorySink(), clock))
+    seeds = np.random.SeedSequence(inst.settings.seed).spawn(len(inst.specs))
+    out = [inst.settings.title]
+    for spec, seed in zip(inst.specs, seeds):
+        creature = KINDS[spec.kind](spec, world, np.random.default_rng(seed))
+        world.add(creature)
+        parts = vars(creature)
+        groups = [g for g in parts.values() if isinstance(g, ActionGroup)]
+        groups += [g for d in parts.values() if isinstance(d, dict) for g in d.values() if isinstance(g, ActionGroup)]
+        nested = {id(tp.action.group) for g in groups for tp in g.tuples if isinstance(tp.action, GroupAction)}
+        top = list({id(g): g for g in groups if id(g) not in nested}.values())
+        children: list[Any] = []
+        motivations = [m for m in parts.values() if isinstance(m, Motivation)]
+        if motivations:
+            children.append(("drives", _drives(motivations[0])))
+        types = {name: p.type for name, p in getattr(spec, "percepts", {}).items()}
+        children.append(("percepts", [_percept(r, types) for r in _roots(top)]))
+        children += [_group(g) for g in top]
+        out += _tree(f"{spec.name} ({spec.kind})", children)
+    return "\n".join(out) + "\n"

@@ -1,0 +1,72 @@
+"""What an authored creature hears, as state objects (thesis: "state objects and decaying
+memory traces"), and the phrases it remembers.
+
+Every heard note pushes its pitch, velocity, interval from the previous note, register
+(octave) and the note density of the last :data:`DENSITY_WINDOW` seconds into one
+:class:`StateObject` each, so percepts read one flow by name and learning can look back at
+what led up to an action. Notes separated by more than ``phrase_gap`` seconds of silence
+start a new phrase; :class:`Ear` keeps the last ``max_phrases`` (the material a creature
+sings back). The creature's own notes go to ``played`` (a percept of what it just did).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+
+from creatures.behaviour.state_object import StateObject
+from midi.notes import NoteEvent
+
+FEATURES = ("pitch", "velocity", "interval", "register", "density")
+"""The flows a heard note feeds; each is a percept type of the same name."""
+
+DENSITY_WINDOW = 4.0
+"""Seconds over which ``density`` counts notes (notes per second)."""
+
+
+class Ear:
+    """Heard notes in, flows and remembered phrases out."""
+
+    def __init__(self, *, phrase_gap: float = 2.0, max_phrases: int = 8, history: int = 256) -> None:
+        self.flows = {name: StateObject(name, history=history) for name in FEATURES}
+        self.phrase_gap = float(phrase_gap)
+        self.phrases: deque[list[NoteEvent]] = deque(maxlen=max_phrases)
+        self.phrases_made = 0  # phrases begun so far (numbers stay unique as old ones leave)
+        self.heard_at = -float("inf")  # clock time of the last heard onset
+        self.heard_from = ""
+        self.played: deque[NoteEvent] = deque(maxlen=64)
+        self._recent: deque[float] = deque()
+        self._last_pitch: int | None = None
+
+    def hear(self, t: float, note: NoteEvent, source: str) -> None:
+        if t - self.heard_at > self.phrase_gap or not self.phrases:
+            self.phrases.append([])
+            self.phrases_made += 1
+        self.phrases[-1].append(note)
+        self.heard_at, self.heard_from = t, source
+        self._recent.append(t)
+        while self._recent and self._recent[0] < t - DENSITY_WINDOW:
+            self._recent.popleft()
+        interval = 0 if self._last_pitch is None else note.pitch - self._last_pitch
+        self._last_pitch = note.pitch
+        for name, datum in (("pitch", note.pitch), ("velocity", note.velocity), ("interval", interval),
+                            ("register", note.pitch // 12), ("density", len(self._recent) / DENSITY_WINDOW)):
+            self.flows[name].push(t, float(datum))
+
+    def phrase(self, number: int) -> list[NoteEvent] | None:
+        """Phrase ``number`` (1 = the first ever heard) if still remembered and complete."""
+        first = self.phrases_made - len(self.phrases) + 1
+        if not first <= number <= self.phrases_made:
+            return None
+        return self.phrases[number - first]
+
+    def last(self, count: int) -> list[NoteEvent]:
+        """The last ``count`` notes heard (across phrases), oldest first."""
+        out: list[NoteEvent] = []
+        for phrase in reversed(self.phrases):
+            out[:0] = phrase[-(count - len(out)):]
+            if len(out) >= count:
+                break
+        return out
+
+    def since_heard(self, t: float) -> float:
+        return t - self.heard_at

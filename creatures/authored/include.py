@@ -1,0 +1,77 @@
+"""``include = ["creatures/heron.toml"]``: creature files an installation includes (paths
+relative to the including file). Each included file holds ``[[creature]]`` tables (and may
+include further files); they are appended to the installation's creatures in order, and
+their key lines keep pointing into their own file, so an error in a creature says where it
+was written. A missing or circular include is a :class:`ConfigError` at the ``include`` line.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from creatures.config import ConfigError, _merge, config_error, read_toml
+
+Where = dict[tuple, tuple[Path, int]]
+
+
+def expand_includes(data: dict[str, Any], where: Where, path: Path, *, _chain: tuple[Path, ...] = ()) -> None:
+    """Append the creatures of every included file to ``data["creature"]`` (in place)."""
+    includes = data.pop("include", None)
+    if includes is None:
+        return
+    if not isinstance(includes, list) or not all(isinstance(i, str) for i in includes):
+        raise config_error(path, where, ("include",), "must be a list of file names (strings)")
+    chain = (*_chain, path.resolve())
+    creatures = data.setdefault("creature", [])
+    if not isinstance(creatures, list):
+        return  # the schema reports the malformed [[creature]] itself
+    for k, name in enumerate(includes):
+        file = (path.parent / name).resolve()
+        if file in chain:
+            loop = " -> ".join(p.name for p in (*chain, file))
+            raise config_error(path, where, ("include", k), f"circular include ({loop})")
+        if not file.is_file():
+            raise config_error(path, where, ("include", k), f"included file {name!r} not found (looked for {file})")
+        sub, sub_where = read_toml(file)
+        expand_includes(sub, sub_where, file, _chain=chain)
+        extra = set(sub) - {"creature"}
+        if extra:
+            key = sorted(extra)[0]
+            raise config_error(file, sub_where, (key,), "an included file holds only [[creature]] tables "
+                                                         "(and include)")
+        tables = sub.get("creature", [])
+        if not isinstance(tables, list):
+            raise ConfigError(file, "'creature' must be [[creature]] tables", key="creature")
+        offset = len(creatures)
+        creatures.extend(tables)
+        for loc, at in sub_where.items():
+            if len(loc) >= 2 and loc[0] == "creature" and isinstance(loc[1], int):
+                where[("creature", loc[1] + offset, *loc[2:])] = at
+
+
+def expand_likes(data: dict[str, Any], where: Where, path: Path) -> None:
+    """``like = "ada"`` in a ``[[creature]]`` table: start from the table of the earlier
+    creature named ada (keys merge table by table; this one's win, and ``name`` is its own), so
+    a colony of near-identical creatures is written once. Inherited keys keep the lines they
+    were written at."""
+    tables = data.get("creature")
+    if not isinstance(tables, list):
+        return
+    seen: dict[str, int] = {}
+    for i, table in enumerate(tables):
+        if not isinstance(table, dict):
+            continue
+        like = table.pop("like", None)
+        if like is not None:
+            if not isinstance(like, str) or like not in seen:
+                raise config_error(path, where, ("creature", i, "like"),
+                                   f"no earlier creature named {like!r} to be like (earlier: {sorted(seen)})")
+            j = seen[like]
+            tables[i] = _merge(tables[j], table)
+            for loc, at in list(where.items()):
+                if loc[:2] == ("creature", j) and ("creature", i, *loc[2:]) not in where:
+                    where[("creature", i, *loc[2:])] = at
+        name = tables[i].get("name")
+        if isinstance(name, str):
+            seen[name] = i

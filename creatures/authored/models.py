@@ -1,0 +1,83 @@
+"""The built-in duration models a Du samples (thesis: "temporal models – duration models",
+"low-integer-ratio duration models"): ``until = { gaussian = [4, 1] }`` and
+``until = { pulse = 2 }`` are shorthands for ``until = { model = { type = "gaussian", … } }``. Every tuple resting on the colony's pulse
+samples the one :class:`~creatures.runtime.pulse.HeardPulse` of its world, so they keep one time.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from creatures.authored.registry import MODELS, Part
+from creatures.behaviour.action_tuple import DurationModel
+from creatures.behaviour.models.gaussian import GaussianModel
+from creatures.runtime.pulse import PulseDuration
+from creatures.temporal.durations import LowIntegerRatioModel
+
+if TYPE_CHECKING:
+    from creatures.authored.creature import Authored
+
+
+class Params(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class ModelPart(Part):
+    """A duration model type: ``build`` makes the model a Du samples and teaches."""
+
+    def build(self, params: BaseModel, creature: "Authored") -> DurationModel:  # pragma: no cover
+        raise NotImplementedError
+
+
+class _GaussianParams(Params):
+    mean: float = Field(gt=0, description="seconds")
+    std: float = Field(gt=0, description="seconds")
+
+
+@MODELS.register
+class Gaussian(ModelPart):
+    """A Gaussian duration, learnt from how long each activation actually lasted."""
+
+    name = "gaussian"
+    thesis = "temporal models"
+    Params = _GaussianParams
+
+    def build(self, params, creature):
+        return GaussianModel(params.mean, params.std)
+
+
+class _PulseParams(Params):
+    beats: int = Field(2, ge=1, le=64, description="durations of the heard pulse")
+    mean: float = Field(2.0, gt=0, description="fallback seconds until the pulse is trusted")
+    std: float = Field(0.5, gt=0, description="fallback spread")
+
+
+@MODELS.register
+class Pulse(ModelPart):
+    """``beats`` durations sampled from the colony's heard pulse (a low-integer-ratio model of
+    what it hears): rests in the time of the music. Learns only from hearing."""
+
+    name = "pulse"
+    thesis = "low-integer-ratio duration models"
+    Params = _PulseParams
+
+    def build(self, params, creature):
+        return PulseDuration(creature.world.pulse, GaussianModel(params.mean, params.std), beats=params.beats)
+
+
+class _RatioParams(Params):
+    pulse: float = Field(0.5, gt=0, description="prior pulse, seconds")
+
+
+@MODELS.register
+class Ratio(ModelPart):
+    """The tuple's own low-integer-ratio model, learnt from its activations' lengths."""
+
+    name = "ratio"
+    thesis = "low-integer-ratio duration models"
+    Params = _RatioParams
+
+    def build(self, params, creature):
+        return LowIntegerRatioModel(params.pulse)

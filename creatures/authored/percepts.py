@@ -1,0 +1,436 @@
+"""The built-in percept library of authored creatures (thesis: "percepts", "percept trees",
+"state objects and decaying memory traces"; "soft state" for drives as percepts).
+
+Each class is one ``type`` a ``[creature.percepts.NAME]`` table can name; its ``Params`` are
+that table's keys. ``build`` returns a library :class:`~creatures.behaviour.percept.Percept`
+(models come from :mod:`creatures.behaviour.models`, not re-implemented here).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, ClassVar, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from creatures.authored.ear import DENSITY_WINDOW
+from creatures.authored.registry import PERCEPTS, Part
+from creatures.behaviour.models.activation import ActivationModel
+from creatures.behaviour.models.fuzzy import AndPercept, NotPercept, OrPercept
+from creatures.behaviour.models.gaussian import GaussianModel, GaussianPercept
+from creatures.behaviour.percept import FunctionPercept, Percept
+from creatures.temporal.durations import SimpleDurationModel
+
+if TYPE_CHECKING:
+    from creatures.authored.creature import Authored
+
+
+class Params(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class PerceptPart(Part):
+    """A percept type: ``build`` makes the percept for one creature."""
+
+    def build(self, params: BaseModel, creature: "Authored", name: str) -> Percept:  # pragma: no cover
+        raise NotImplementedError
+
+
+def ramp(x: float, low: float, high: float) -> float:
+    """A fuzzy membership: 0 at ``low``, 1 at ``high``, linear between (either order)."""
+    if high == low:
+        return 1.0 if x >= high else 0.0
+    return min(max((x - low) / (high - low), 0.0), 1.0)
+
+
+# -- what is heard --------------------------------------------------------------------------
+class _HeardParams(Params):
+    window: float = Field(1.0, gt=0, description="seconds a heard onset stays salient")
+
+
+@PERCEPTS.register
+class Heard(PerceptPart):
+    """A note was heard within the last ``window`` seconds (1), else 0."""
+
+    name = "heard"
+    thesis = "percepts"
+    Params = _HeardParams
+
+    def build(self, params, creature, name):
+        return FunctionPercept(name, lambda t: 1.0 if creature.ear.since_heard(t) <= params.window else 0.0)
+
+
+class _OnsetParams(_HeardParams):
+    window: float = Field(0.1, gt=0, description="seconds an onset counts as 'now'")
+
+
+@PERCEPTS.register
+class Onset(Heard):
+    """A note began just now (within ``window``, a tick or so): the moment of an onset."""
+
+    name = "onset"
+    Params = _OnsetParams
+
+
+class _SilenceParams(Params):
+    after: float = Field(2.0, ge=0, description="seconds of silence before the percept starts to rise")
+    ramp: float = Field(4.0, ge=0, description="seconds more until it is fully salient")
+
+
+@PERCEPTS.register
+class Silence(PerceptPart):
+    """How long nothing has been heard, as a fuzzy ramp from ``after`` to ``after + ramp`` seconds."""
+
+    name = "silence"
+    thesis = "percepts"
+    Params = _SilenceParams
+
+    def build(self, params, creature, name):
+        return FunctionPercept(name, lambda t: ramp(creature.ear.since_heard(t), params.after,
+                                                    params.after + params.ramp))
+
+
+class _FeatureParams(Params):
+    near: float | None = Field(None, description="Gaussian model: the typical value (with 'spread')")
+    spread: float = Field(2.0, gt=0, description="Gaussian model: its standard deviation")
+    low: float | None = Field(None, description="fuzzy ramp: saliency 0 here …")
+    high: float | None = Field(None, description="… and 1 here (either order)")
+    lookback: float = Field(0.0, ge=0, description="Gaussian model: learn from the most salient datum this "
+                                                   "many seconds before a valued action")
+
+    @model_validator(mode="after")
+    def _one_shape(self):
+        if (self.near is None) == (self.low is None or self.high is None):
+            raise ValueError("give either 'near' (a Gaussian model) or both 'low' and 'high' (a fuzzy ramp)")
+        return self
+
+
+class _Feature(PerceptPart):
+    thesis = "percept trees"
+    Params = _FeatureParams
+    flow: ClassVar[str]
+
+    def build(self, params, creature, name):
+        state = creature.ear.flows[self.flow]
+        if params.near is not None:
+            # A model, not a threshold: learning (fission) may split it into children.
+            return GaussianPercept(name, state, GaussianModel(params.near, params.spread), lookback=params.lookback)
+
+        def fuzzy(t: float) -> float:
+            datum = state.datum_at(t)
+            return 0.0 if datum is None else ramp(float(datum), params.low, params.high)
+
+        return FunctionPercept(name, fuzzy)
+
+
+def _feature(flow: str, doc: str) -> type[_Feature]:
+    cls = type(f"{flow.title()}Percept", (_Feature,), {"name": flow, "flow": flow, "__doc__": doc})
+    return PERCEPTS.register(cls)
+
+
+_feature("pitch", "The pitch of the last heard note (MIDI number), as a Gaussian model or a fuzzy ramp.")
+_feature("velocity", "The velocity of the last heard note (1–127), as a Gaussian model or a fuzzy ramp.")
+_feature("interval", "Semitones from the previous heard note to the last, as a Gaussian model or a fuzzy ramp.")
+_feature("register", "The octave of the last heard note (pitch // 12), as a Gaussian model or a fuzzy ramp.")
+_feature("density", f"Notes per second heard over the last {DENSITY_WINDOW:g} s, as a Gaussian model or a ramp.")
+
+
+# -- the colony's pulse ---------------------------------------------------------------------
+class _PulseParams(Params):
+    width: float = Field(0.1, gt=0, description="seconds either side of a predicted beat that count as on it")
+
+
+@PERCEPTS.register
+class OnPulse(PerceptPart):
+    """On a beat of the colony's heard pulse (its low-integer-ratio model), counted from the
+    last heard onset; 0 until the pulse is trusted."""
+
+    name = "pulse"
+    thesis = "temporal models"
+    Params = _PulseParams
+
+    def build(self, params, creature, name):
+        pulse = creature.world.pulse
+
+        def on_beat(t: float) -> float:
+            if not pulse.ready:
+                return 0.0
+            beat = pulse.model.pulse
+            phase = math.fmod(creature.ear.since_heard(t), beat)
+            return 1.0 if min(phase, beat - phase) <= params.width else 0.0
+
+        return FunctionPercept(name, on_beat)
+
+
+# -- drives, time, sensors, the creature's own playing --------------------------------------
+class _DriveParams(Params):
+    drive: str = Field(description="the drive")
+    scale: Literal["free", "level"] = Field("free", description="'free': how high the level is among the levels "
+                                                               "it has had (a model of the drive); 'level': the "
+                                                               "level itself")
+    spread: float = Field(0.1, gt=0, description="free: the model's prior spread")
+
+
+@PERCEPTS.register
+class DrivePercept(PerceptPart):
+    """A drive's level. Scale-free by default: a Gaussian model of the levels the drive has
+    had, read as its cumulative probability, so "bored" means bored for this creature
+    whatever units the author chose (a model of the drive, not a threshold)."""
+
+    name = "drive"
+    thesis = "soft state"
+    Params = _DriveParams
+    refs = {"drive": "drives"}
+
+    def build(self, params, creature, name):
+        if params.scale == "level":
+            return FunctionPercept(name, lambda t: creature.drive(params.drive, t))
+        model = GaussianModel(creature.drive(params.drive, creature.now()), params.spread, size=64)
+        last = [-math.inf]
+
+        def scale_free(t: float) -> float:
+            level = creature.drive(params.drive, t)
+            if t - last[0] >= 1.0:  # one sample a second: the model follows the drive's history
+                model.update(level)
+                last[0] = t
+            return 0.5 * (1.0 + math.erf((level - model.mean) / (math.sqrt(2.0) * model.std)))
+
+        return FunctionPercept(name, scale_free)
+
+
+class _TimerParams(Params):
+    after: float = Field(gt=0, description="seconds before the timer starts to rise")
+    ramp: float = Field(0.0, ge=0, description="seconds more until fully salient")
+    since: str | None = Field(None, description="a tuple: count from when it last stopped (none: from the start)")
+
+
+@PERCEPTS.register
+class Timer(PerceptPart):
+    """Time since the start, or since a tuple last stopped, as a fuzzy ramp."""
+
+    name = "timer"
+    thesis = "percepts"
+    Params = _TimerParams
+    refs = {"since": "tuples"}
+
+    def build(self, params, creature, name):
+        start = creature.now()
+
+        def elapsed(t: float) -> float:
+            origin = start
+            if params.since is not None:
+                stopped = creature.tuple(params.since).stopped_at
+                origin = start if stopped is None else stopped
+            return ramp(t - origin, params.after, params.after + params.ramp)
+
+        return FunctionPercept(name, elapsed)
+
+
+class _SensorParams(Params):
+    sensor: str = Field(description="an [[input]] sensor by name")
+    low: float = Field(0.0, description="saliency 0 at this sensor value …")
+    high: float = Field(1.0, description="… and 1 here")
+
+
+@PERCEPTS.register
+class Sensor(PerceptPart):
+    """A sensor of the installation's input map, by name (a StateObject in the World), as a ramp."""
+
+    name = "sensor"
+    thesis = "state objects and decaying memory traces"
+    Params = _SensorParams
+
+    def build(self, params, creature, name):
+        state = creature.sensor(params.sensor)
+
+        def read(t: float) -> float:
+            datum = state.datum_at(t)
+            return 0.0 if datum is None else ramp(float(datum), params.low, params.high)
+
+        return FunctionPercept(name, read)
+
+
+class _ScheduleParams(Params):
+    times: list[float] = Field(min_length=1, description="clock times (seconds) of the events")
+    width: float = Field(1.0, gt=0, description="seconds each stays salient")
+
+
+@PERCEPTS.register
+class Schedule(PerceptPart):
+    """Scripted events at given times (a visitor's rewards, a cue): 1 for ``width`` seconds after each."""
+
+    name = "schedule"
+    thesis = "percepts"
+    Params = _ScheduleParams
+
+    def build(self, params, creature, name):
+        times = sorted(params.times)
+        return FunctionPercept(name, lambda t: 1.0 if any(0.0 <= t - x <= params.width for x in times) else 0.0)
+
+
+class _PlayedParams(Params):
+    pitches: list[int] = Field(min_length=1, description="the pitches that count")
+    window: float = Field(1.0, gt=0, description="seconds after the note started")
+
+
+@PERCEPTS.register
+class Played(PerceptPart):
+    """The creature itself played one of ``pitches`` within ``window`` seconds (what it just
+    did, e.g. what a scripted visitor likes to hear)."""
+
+    name = "played"
+    thesis = "percepts"
+    Params = _PlayedParams
+
+    def build(self, params, creature, name):
+        wanted = set(params.pitches)
+
+        def played(t: float) -> float:
+            for note in reversed(creature.ear.played):
+                if t - note.time > params.window:
+                    break
+                if note.pitch in wanted and note.time <= t:
+                    return 1.0
+            return 0.0
+
+        return FunctionPercept(name, played)
+
+
+# -- fuzzy logic ----------------------------------------------------------------------------
+class _OfParams(Params):
+    of: list[str] = Field(min_length=1, description="the percepts combined")
+    logic: Literal["minmax", "product"] = Field("minmax", description="fuzzy logic: min/max or product/sum")
+
+
+@PERCEPTS.register
+class And(PerceptPart):
+    """Fuzzy and of other percepts."""
+
+    name = "and"
+    thesis = "percepts"
+    Params = _OfParams
+    refs = {"of": "percepts"}
+    combine: ClassVar[type] = AndPercept
+
+    def build(self, params, creature, name):
+        return self.combine(name, [creature.percept(p) for p in params.of], logic=params.logic)
+
+
+@PERCEPTS.register
+class Or(And):
+    """Fuzzy or of other percepts."""
+
+    name = "or"
+    combine = OrPercept
+
+
+class _NotParams(Params):
+    of: str = Field(description="the percept negated")
+
+
+@PERCEPTS.register
+class Not(PerceptPart):
+    """Fuzzy not (1 − saliency) of another percept."""
+
+    name = "not"
+    thesis = "percepts"
+    Params = _NotParams
+    refs = {"of": "percepts"}
+
+    def build(self, params, creature, name):
+        return NotPercept(name, creature.percept(params.of))
+
+
+# -- the body and the notes in space --------------------------------------------------------
+@PERCEPTS.register
+class Arrived(PerceptPart):
+    """The body has arrived where its course led (1), or is still on its way (0)."""
+
+    name = "arrived"
+    thesis = "towards a complete motor system"
+    needs = "body"
+
+    def build(self, params, creature, name):
+        return FunctionPercept(name, lambda t: 1.0 if creature.body.motor.arrived(t) else 0.0)
+
+
+@PERCEPTS.register
+class FreshNotes(PerceptPart):
+    """There are notes in space not struck lately (something to eat): 1, else 0."""
+
+    name = "notes"
+    thesis = "musical worlds"
+    needs = "space"
+
+    def build(self, params, creature, name):
+        return FunctionPercept(name, lambda t: 1.0 if creature.notes.unstruck(t) else 0.0)
+
+
+# -- temporal and activation models ---------------------------------------------------------
+class _DueParams(Params):
+    mean: float = Field(1.0, gt=0, description="prior inter-onset interval, seconds")
+    std: float = Field(0.5, gt=0, description="its prior spread")
+    longest: float = Field(3.0, gt=0, description="a longer gap is a pause, not an interval of the rhythm")
+    memory: int = Field(8, ge=2, le=1024, description="intervals the model remembers")
+
+
+@PERCEPTS.register
+class Due(PerceptPart):
+    """A note is due: a duration model of the intervals between heard onsets, read as the
+    probability that the next onset should have come by now (0 just after a note, toward 1
+    as the silence outlasts the rhythm). Expectation, not a threshold."""
+
+    name = "due"
+    thesis = "temporal models – duration models"
+    Params = _DueParams
+
+    def build(self, params, creature, name):
+        model = SimpleDurationModel(params.mean, params.std, size=params.memory)
+        last = [creature.ear.heard_at]
+
+        def due(t: float) -> float:
+            ear = creature.ear
+            if ear.heard_at != last[0]:  # a new onset: teach the interval that led to it
+                gap = ear.heard_at - last[0]
+                if 0.0 < gap <= params.longest:
+                    model.update(gap)
+                last[0] = ear.heard_at
+            if not math.isfinite(ear.heard_at):
+                return 0.0
+            z = (ear.since_heard(t) - model.mean) / (math.sqrt(2.0) * model.std)
+            return 0.5 * (1.0 + math.erf(z))
+
+        return FunctionPercept(name, due)
+
+
+class _TogetherParams(Params):
+    of: str = Field(description="the tuple whose usual company this percept looks for")
+    alpha: float = Field(0.9, gt=0, lt=1, description="per-second filter constant of the activation model")
+
+
+@PERCEPTS.register
+class Together(PerceptPart):
+    """How close the tuples active now are to ``of`` in an activation model of which tuples
+    run together (1: always together, 0: never seen together): a Tr for "what usually
+    accompanies this"."""
+
+    name = "together"
+    thesis = "activation models"
+    Params = _TogetherParams
+    refs = {"of": "tuples"}
+
+    def build(self, params, creature, name):
+        model: list[ActivationModel] = []
+
+        def together(t: float) -> float:
+            if not model:  # tuples are all built by the first evaluation
+                model.append(ActivationModel(list(creature.tuples), alpha=params.alpha, start=t))
+            m = model[0]
+            active = [n for n, tp in creature.tuples.items() if tp.active]
+            m.observe(t, active)
+            others = [n for n in active if n != params.of]
+            if not others:
+                return 0.0
+            return 1.0 - min(m.distance(params.of, n) for n in others) / m.max_distance
+
+        return FunctionPercept(name, together)

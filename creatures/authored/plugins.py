@@ -1,0 +1,19 @@
+"""``plugins = ["my_actions.py"]``: Python files next to a config that register parts
+(:mod:`creatures.authored.registry`). Imported before the creatures are validated, so their
+names resolve like the built-in ones; one that fails is a :class:`ConfigError` at its line.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from creatures.authored.registry import PluginError, load_plugin_file
+from creatures.config import config_error
+
+
+def load_plugins(files: list[str], config: Path, where: dict) -> None:
+    for k, name in enumerate(files):
+        try:
+            load_plugin_file(config.parent / name)
+        except PluginError as exc:
+            raise config_error(config, where, ("plugins", k), str(exc)) from None

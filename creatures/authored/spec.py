@@ -1,0 +1,196 @@
+"""The schema of ``kind = "authored"``: a creature's drives, percepts, tuples, groups and
+learning, as the config writes them.
+
+Types and ranges are checked by pydantic; names are checked afterwards by
+:mod:`creatures.authored.check` against the registries and against each other, so every
+error names file, key and line.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+from pathlib import Path
+
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, field_validator
+
+from creatures.kinds.base import CreatureSpec
+from creatures.kinds.note_world import SpaceSpec
+from creatures.kinds.parts import VoiceSpec
+
+
+class Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class DriveSpec(Strict):
+    """``[creature.drives.NAME]`` — one motivation of the synthetic chemistry (thesis "soft state")."""
+
+    level: float = Field(0.0, description="starting level")
+    growth: float = Field(0.0, description="per-second growth r")
+    decay: float = Field(0.0, ge=0, description="per-second decay D toward the equilibrium")
+    equilibrium: float | None = Field(None, description="level decay returns to; none = the starting level")
+    coupling: dict[str, float] = Field(default_factory=dict,
+                                       description="other drive → rate it feeds this one (C[this, other])")
+    inputs: dict[str, float] = Field(default_factory=dict,
+                                     description="percept → rate fed per second per unit of its saliency")
+    on_heard: float = Field(0.0, description="impulse per note heard")
+    on_played: float = Field(0.0, description="impulse per note the creature plays itself")
+    arc: list[tuple[float, float]] = Field(default_factory=list,
+                                           description="scripted arc: [seconds, input rate] points, linear "
+                                                       "between them, held after the last")
+
+    @field_validator("arc")
+    @classmethod
+    def _in_time_order(cls, arc: list[tuple[float, float]]) -> list[tuple[float, float]]:
+        if any(b[0] <= a[0] for a, b in zip(arc, arc[1:])):
+            raise ValueError("arc points must be in increasing time order")
+        return arc
+
+
+class PerceptSpec(Strict):
+    """``[creature.percepts.NAME]`` — a percept: ``type`` picks one of the percept library."""
+
+    model_config = ConfigDict(extra="allow")
+    type: str = Field(description="percept type (see docs/authoring.md, 'Percepts')")
+    parent: str = Field("whatever", description="parent in the percept tree (the root is 'whatever')")
+
+    def params(self) -> dict[str, Any]:
+        return dict(self.model_extra or {})
+
+
+class PartSpec(Strict):
+    """An action or model by ``type`` with its own keys."""
+
+    model_config = ConfigDict(extra="allow")
+    type: str = Field(description="a name from the library")
+
+    def params(self) -> dict[str, Any]:
+        return dict(self.model_extra or {})
+
+
+class UntilSpec(Strict):
+    """Du: when an active tuple is done (thesis "the action-tuple", "temporal models"). Any
+    combination; the tuple stops when the first says so."""
+
+    seconds: float | None = Field(None, gt=0, description="fixed duration")
+    gaussian: tuple[float, float] | None = Field(None, description="[mean, std] seconds, learnt from each activation")
+    pulse: int | None = Field(None, ge=1, le=64, description="durations of the colony's heard pulse (low-integer "
+                                                          "ratios); with 'gaussian', that is the fallback until "
+                                                          "the pulse is trusted")
+    model: PartSpec | None = Field(None, description="a duration model from the library by 'type' (see 'Models')")
+    percept: str | None = Field(None, description="until this percept is salient")
+    done: bool = Field(False, description="until the action says it is finished (a phrase played out)")
+    follow: bool = Field(False, description="forward transition model: record what follows, prime likely "
+                                            "successors (thesis 'forward transition models')")
+
+
+class ValueSpec(Strict):
+    """V: what the tuple is worth (thesis "computing expected values", "value chaining")."""
+
+    value: float = Field(1.0, description="the starting value")
+    kind: Literal["scalar", "chain", "gaussian"] = Field("scalar", description="value type")
+    plastic: bool = Field(True, description="credit assignment may change it (false: a grounding reward)")
+    source: str | None = Field(None, description="chain: this tuple is a goal (distance 0 from itself)")
+    serves: dict[str, str] = Field(default_factory=dict,
+                                   description="chain: goal source → drive whose level is its importance")
+    spread: float = Field(1.0, gt=0, description="gaussian: prior spread of the incoming values")
+
+
+class TupleSpec(Strict):
+    """``[creature.tuples.NAME]`` — Tr | Ac | Du | V."""
+
+    trigger: str = Field("whatever", description="Tr: a percept name")
+    action: str | PartSpec = Field(description="Ac: an action name or a table with its 'type' and keys")
+    until: UntilSpec = Field(description="Du")
+    value: float | ValueSpec = Field(1.0, description="V: a number or a table")
+
+
+class ConstraintSpec(Strict):
+    """An interval relation between two tuples (thesis "interval constraints")."""
+
+    relation: Literal["before", "meets", "overlaps", "starts", "during"] = Field(description="Allen relation")
+    a: str = Field(description="first tuple")
+    b: str = Field(description="second tuple")
+    gap: float = Field(0.0, ge=0, description="before: seconds between a's end and b's start")
+
+
+class GroupSpec(Strict):
+    """``[creature.groups.NAME]`` — an action-group (thesis "the action-group", "hierarchical
+    action-groups"). A group named among another group's members becomes one of its tuples."""
+
+    tuples: list[str] = Field(min_length=1, description="members: tuple names, or other groups' names")
+    max_active: int = Field(1, ge=1, le=64, description="tuples active at once")
+    temperature: float | None = Field(None, gt=0, description="Boltzmann temperature; none = ∝ expected value")
+    alpha: float = Field(0.1, ge=0, le=1, description="credit assignment rate α (0 = values as authored)")
+    discount: float = Field(0.8, ge=0, le=1, description="credit discount β")
+    multiple: float = Field(1.5, ge=1, description="interruption hysteresis")
+    innovation: float | None = Field(0.25, ge=0, description="value gap for forward-transition fission "
+                                                              "(tuples with until.follow); none = never")
+    constraints: list[ConstraintSpec] = Field(default_factory=list, description="interval relations")
+    trigger: str = Field("whatever", description="as a member of another group: its Tr")
+    value: float = Field(1.0, description="as a member of another group: its V")
+
+
+class PhraseHypotheses(Strict):
+    """``[creature.learning.phrases]`` — a new hypothesis tuple for every phrase heard
+    (thesis "percept trees": a new distinction lets the group try a new action-tuple)."""
+
+    group: str = Field(description="the group the new tuples join")
+    trigger: str = Field("whatever", description="their Tr")
+    action: str = Field("play_learned", description="an action with a 'phrase' key")
+    until: UntilSpec = Field(UntilSpec(done=True), description="their Du")
+    value: float = Field(1.0, description="their starting V (plastic)")
+    min_notes: int = Field(3, ge=1, description="shorter phrases are not learnt")
+
+
+class LearningSpec(Strict):
+    """``[creature.learning]`` — value-driven model updates and percept-tree growth."""
+
+    groups: list[str] = Field(default_factory=list, description="groups whose credit teaches their percept "
+                                                                "models (fission/fusion of Gaussian percepts)")
+    statistics: float = Field(1.0, ge=0, description="× mean value a tuple must exceed to teach its models")
+    innovation: float = Field(1.5, ge=0, description="× mean value above which its percept may split")
+    split_at: float = Field(2.0, gt=0, description="Ashman's D that splits a percept")
+    fuse_below: float = Field(1.0, ge=0, description="Ashman's D below which children fuse")
+    phrase_gap: float = Field(2.0, gt=0, description="seconds of silence that end a heard phrase")
+    max_phrases: int = Field(8, ge=1, le=256, description="phrases remembered")
+    phrases: PhraseHypotheses | None = Field(None, description="a new tuple for every phrase heard "
+                                                                "([creature.learning.phrases])")
+
+
+class AuthoredSpec(CreatureSpec):
+    kind: Literal["authored"]
+    drives: dict[str, DriveSpec] = Field(default_factory=dict, description="drives by name: [creature.drives.NAME] "
+                                                                           "(docs/authoring.md, 'Reference')")
+    drive_floor: float | None = Field(0.0, description="lowest level of any drive; none = unbounded")
+    drive_ceiling: float | None = Field(None, description="highest level of any drive; none = unbounded")
+    percepts: dict[str, PerceptSpec] = Field(default_factory=dict, description="percepts by name: "
+                                                                               "[creature.percepts.NAME]")
+    tuples: dict[str, TupleSpec] = Field(default_factory=dict, description="action-tuples by name: "
+                                                                           "[creature.tuples.NAME]")
+    groups: dict[str, GroupSpec] = Field(min_length=1, description="action-groups by name: [creature.groups.NAME]; "
+                                                                   "a group named in no other group is ticked "
+                                                                   "by the creature")
+    learning: LearningSpec = LearningSpec()
+    hears_input: bool = Field(True, description="hear notes from outside the colony")
+    body: bool = Field(False, description="a body on the shared motor graph (sway, reach, strike); motor "
+                                          "actions need it")
+    ratio_metric: bool = Field(False, description="its body's graph favours moves at low-integer ratios of the "
+                                                  "source animation length (exchange's metric)")
+    space: SpaceSpec | None = Field(None, description="heard notes placed in space for the hand to strike "
+                                                      "([creature.space]; needs body = true)")
+    report_every: float = Field(0.5, gt=0, description="seconds between value/drive snapshots in the events log")
+    voice: VoiceSpec = VoiceSpec()
+    _file: Path | None = PrivateAttr(None)
+
+    def check_references(self, file: Path, where: dict, prefix: tuple) -> None:
+        """Resolve every name (called by the loader with the config's key lines)."""
+        from creatures.authored.check import check
+
+        self._file = where.get(prefix, (file, 0))[0]
+        check(self, file, where, prefix)
+
+    def source_file(self) -> Path:
+        """The config file this creature was written in (for errors found while building it)."""
+        return self._file or Path("<config>")

@@ -1,0 +1,206 @@
+"""Heard notes placed in space, struck by a hand (thesis: "musical worlds", "exchange
+(installation)"): the part *exchange* and authored creatures with a ``[creature.space]``
+share.
+
+* every heard note is copied into space (:class:`~creatures.motor.note_space.NotePlacement`:
+  pitch → height and azimuth, velocity → distance, snapped to where the hand actually passes);
+  with probability ``mutation`` the copy moves a fourth, fifth or octave (circle-of-fifths
+  neighbours, folded back into the placement's register), so passages mutate as they travel;
+  hearing a pitch already in space renews that note instead of stacking a duplicate;
+* a struck note plays (and the colony hears it); a note is not struck again within
+  ``refractory`` seconds, nor any note within ``strike_interval`` of the last strike;
+* notes older than ``note_lifetime`` fade, and at most ``max_notes`` stay (oldest first);
+* with ``answer`` a note may be struck the moment it lands (a reflex, within the same limits).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Callable
+
+import numpy as np
+from pydantic import BaseModel, Field
+
+from creatures.behaviour.action_tuple import Action, ActionTuple
+from creatures.bounds import FINITE, LONGEST_SECONDS
+from creatures.kinds.moves import head_for
+from creatures.motor.note_space import NotePlacement, nearest_note
+from creatures.motor.search import NoPath
+from midi.note_objects import NoteObject, NoteSpace
+from midi.notes import NoteEvent
+
+if TYPE_CHECKING:
+    from creatures.kinds.base import CreatureKind
+    from creatures.kinds.parts import Body
+
+MUTATIONS = np.array([-12, -7, -5, 5, 7, 12])
+"""Transpositions a copied note may undergo: octave, fifth and fourth, up or down."""
+
+
+class SpaceSpec(BaseModel):
+    """``[creature.space]`` — heard notes placed in space for the hand to strike ("musical worlds")."""
+
+    model_config = FINITE
+
+    strike_radius: float = Field(0.15, gt=0, le=1.0, description="how close the hand must pass to strike a note (m)")
+    note_lifetime: float = Field(45.0, gt=0, le=LONGEST_SECONDS, description="seconds a placed note stays in space")
+    max_notes: int = Field(48, ge=1, le=4096, description="most notes in space; the oldest fade first")
+    refractory: float = Field(20.0, ge=0, le=LONGEST_SECONDS, description="seconds before the same note is struck again")
+    strike_interval: float = Field(0.25, ge=0, le=3600, description="shortest time between two strikes while wandering (s)")
+    mutation: float = Field(0.08, ge=0, le=1, description="chance a placed copy is transposed")
+    answer: float = Field(0.0, ge=0, le=1, description="chance of striking a heard note the moment it lands in "
+                                                        "space (a reflex answer), within strike_interval and refractory")
+
+
+class NoteWorld:
+    """One creature's notes in space, its hand's limits, and how heard notes get there.
+
+    ``emit`` logs a ``placed`` event; ``on_strike(t)`` is told of every strike (exchange's
+    satiation). Random draws come from the creature's ``rng`` in a fixed order, so a seeded
+    run is reproducible.
+    """
+
+    def __init__(self, spec: SpaceSpec, creature: "CreatureKind", body: "Body", rng: np.random.Generator, *,
+                 on_strike: Callable[[float], None] | None = None) -> None:
+        self.spec = spec
+        self.creature = creature
+        self.body = body
+        self.rng = rng
+        self.on_strike = on_strike
+        world = creature.world
+        self._reach = body.reach()
+        self.placement = NotePlacement.around(self._reach)
+        self.space = NoteSpace(world.scheduler_for(creature), world.clock)
+        self.placed_at: dict[int, float] = {}
+        self._struck_at: dict[int, float] = {}
+        self._last_strike = -np.inf
+
+    def hear(self, t: float, note: NoteEvent, source: str) -> None:
+        """Place a copy of a heard note (or renew the note of its pitch), then maybe answer it."""
+        pitch = note.pitch
+        if self.rng.random() < self.spec.mutation:
+            pitch = self._in_register(pitch + int(self.rng.choice(MUTATIONS)))
+        for same in self.space.objects:
+            if same.pitch == pitch:
+                # Note objects are not independent (thesis "musical worlds"): hearing a pitch
+                # already in space renews that note rather than stacking a duplicate, so no
+                # single pitch can crowd the space however often the colony plays it.
+                self.placed_at[id(same)] = t
+                self._answer(t, same)
+                return
+        position = self.place(pitch, note.velocity)
+        copy = NoteEvent(note.time, pitch, note.velocity, self.creature.spec.channel, min(note.duration, 2.0))
+        obj = self.space.place(copy, position)
+        self.placed_at[id(obj)] = t
+        self.creature.world.emit("placed", creature=self.creature.name, pitch=pitch, source=source,
+                                 heard=note.pitch, position=obj.position)
+        while len(self.space) > self.spec.max_notes:
+            self._forget(self.space.objects[0])
+        self._answer(t, obj)
+
+    def _answer(self, t: float, obj: NoteObject) -> None:
+        """The reflex: strike the note just heard where it landed, at once (with chance
+        ``answer``), if the hand's own limits allow."""
+        if not self.spec.answer or self.rng.random() >= self.spec.answer:
+            return  # no random draw at all when answering is off: seeded runs stay as they were
+        if (t - self._last_strike >= self.spec.strike_interval
+                and t - self._struck_at.get(id(obj), -np.inf) >= self.spec.refractory):
+            self.strike(t, obj, 1.0)
+
+    def place(self, pitch: int, velocity: int) -> np.ndarray:
+        """Where a note goes: the pitch/velocity place, snapped to the nearest point the hand
+        actually passes in the source material, so every note in space can be struck."""
+        wanted = self.placement.place(pitch, velocity)
+        return self._reach[int(np.argmin(np.sum((self._reach - wanted) ** 2, axis=1)))].copy()
+
+    def unstruck(self, t: float) -> list[NoteObject]:
+        """Notes not struck for ``refractory`` seconds: a hungry creature looks for notes it
+        has not just eaten, so its hand travels the whole space (and reorders it)."""
+        return [o for o in self.space.objects
+                if t - self._struck_at.get(id(o), -np.inf) >= self.spec.refractory]
+
+    def _in_register(self, pitch: int) -> int:
+        """Fold a pitch by octaves into the placement's range, so copies of copies cannot
+        drift out of the space the body reaches."""
+        low, high = self.placement.pitch_range
+        while pitch < low:
+            pitch += 12
+        while pitch > high:
+            pitch -= 12
+        return pitch
+
+    def strike(self, t: float, obj: NoteObject, strength: float) -> None:
+        self._struck_at[id(obj)] = self._last_strike = t
+        self.space.strike(obj, strength)
+        if self.on_strike is not None:
+            self.on_strike(t)
+
+    def strike_nearby(self, t: float) -> None:
+        """Strike the nearest note the hand passes through (not one struck within
+        ``refractory``, and no more often than ``strike_interval``: one note at a time)."""
+        if t - self._last_strike < self.spec.strike_interval:
+            return
+        for obj in self.space.within(self.body.hand(), self.spec.strike_radius):
+            if t - self._struck_at.get(id(obj), -np.inf) >= self.spec.refractory:
+                self.strike(t, obj, 0.8)
+                return
+
+    def _forget(self, obj: NoteObject) -> None:
+        self.space.remove(obj)
+        self.placed_at.pop(id(obj), None)
+        self._struck_at.pop(id(obj), None)
+
+    def fade(self, t: float) -> None:
+        """Forget notes placed (or renewed) more than ``note_lifetime`` seconds ago."""
+        for obj in [o for o in self.space.objects if t - self.placed_at.get(id(o), t) > self.spec.note_lifetime]:
+            self._forget(obj)
+
+    def remembered(self) -> int:
+        """Entries of the placed and struck tables (bounded by the notes in space: a leak check)."""
+        return len(self.placed_at) + len(self._struck_at)
+
+    def marks(self) -> list[tuple[tuple[float, float, float], int]]:
+        return [(tuple(o.position), o.pitch) for o in self.space.objects]
+
+
+class Wander(Action):
+    """A slow progression around the graph (to a random node), striking whatever notes the hand passes."""
+
+    def __init__(self, notes: NoteWorld, name: str = "wander") -> None:
+        super().__init__(name)
+        self.notes = notes
+
+    def start(self, t: float, tuple_: ActionTuple) -> None:
+        body = self.notes.body
+        head_for(body, t, [int(self.notes.rng.integers(len(body.graph)))])
+
+    def update(self, t: float) -> None:
+        self.notes.strike_nearby(t)
+
+
+class SeekNote(Action):
+    """Hunger for notes: go to the nearest note not struck lately (one A* search over the poses
+    that put the hand on any of them) and strike it. ``done`` once struck (or unreachable)."""
+
+    def __init__(self, notes: NoteWorld, name: str = "seek note") -> None:
+        super().__init__(name)
+        self.notes = notes
+        self.target: NoteObject | None = None
+
+    def start(self, t: float, tuple_: ActionTuple) -> None:
+        notes, body = self.notes, self.notes.body
+        self.target = None
+        try:
+            self.target, path = nearest_note(body.finder, body.motor.position(t), body.effector,
+                                             notes.unstruck(t), tolerance=notes.spec.strike_radius)
+        except NoPath:
+            return
+        head_for(body, t, path)
+
+    def update(self, t: float) -> None:
+        if self.target is not None and self.notes.body.motor.arrived(t):
+            if self.target in self.notes.space.objects:
+                self.notes.strike(t, self.target, 1.0)
+            self.target = None
+
+    def done(self, t: float) -> float:
+        return 1.0 if self.target is None else 0.0

@@ -1,0 +1,591 @@
+"""Authored creatures (issue 15): a creature declared in the config runs, and every bad name,
+reference or structure is refused at load with file, key and line."""
+
+from __future__ import annotations
+
+import textwrap
+from collections import Counter
+from pathlib import Path
+
+import pytest
+
+from creatures.config import ConfigError
+from creatures.events import read_events
+from creatures.runtime.offline import run_offline
+from creatures.runtime.schema import load_installation
+
+TUTORIAL = Path(__file__).resolve().parents[1] / "installations" / "tutorial"
+
+HEAD = 'title = "t"\nduration = 30.0\n'
+
+CREATURE = """
+[[creature]]
+name = "c"
+kind = "authored"
+
+[creature.drives.boredom]
+growth = 0.1
+
+[creature.percepts.bored]
+type = "drive"
+drive = "boredom"
+
+[creature.tuples.sing]
+trigger = "bored"
+action = { type = "play_phrase", pitches = [60, 64, 67] }
+until = { done = true }
+
+[creature.tuples.rest]
+action = "rest"
+until = { seconds = 2.0 }
+value = 0.3
+
+[creature.groups.main]
+tuples = ["sing", "rest"]
+alpha = 0.0
+"""
+
+
+def write(tmp_path: Path, text: str, name: str = "inst.toml") -> Path:
+    path = tmp_path / name
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(textwrap.dedent(text))
+    return path
+
+
+def error_of(path: Path) -> ConfigError:
+    with pytest.raises(ConfigError) as info:
+        load_installation(path)
+    return info.value
+
+
+def line_of(path: Path, fragment: str) -> int:
+    return next(i for i, line in enumerate(path.read_text().splitlines(), 1) if fragment in line)
+
+
+def test_a_small_authored_creature_plays_its_phrase_when_bored(tmp_path):
+    inst = load_installation(write(tmp_path, HEAD + CREATURE))
+    inst.settings.output.wav = inst.settings.output.report = False
+    run_offline(inst, tmp_path / "out", duration=30.0)
+    events = read_events(tmp_path / "out" / "events.jsonl")
+    sung = [e["pitch"] for e in events if e["kind"] == "note" and e["creature"] == "c"]
+    assert sung[:3] == [60, 64, 67] and len(sung) >= 6
+    assert Counter(e["tuple"] for e in events if e["kind"] == "selection")["sing"] >= 2
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "key", "message"),
+    [
+        ('action = "rest"', 'action = "rset"', "creature.0.tuples.rest.action", "did you mean 'rest'"),
+        ('type = "drive"', 'type = "driv"', "creature.0.percepts.bored.type", "did you mean 'drive'"),
+        ('trigger = "bored"', 'trigger = "boredd"', "creature.0.tuples.sing.trigger", "no percept named 'boredd'"),
+        ('drive = "boredom"', 'drive = "hunger"', "creature.0.percepts.bored.drive", "no drive named 'hunger'"),
+        ('tuples = ["sing", "rest"]', 'tuples = ["sing"]', "creature.0.tuples.rest", "in no group"),
+        ("growth = 0.1", "growth = 0.1\ncoupling = { hunger = 0.2 }", "creature.0.drives.boredom.coupling.hunger",
+         "no drive named 'hunger'"),
+        ("alpha = 0.0", "alpha = 0.1", "creature.0.groups.main.alpha", "non-plastic"),
+        ("until = { seconds = 2.0 }", "until = { }", "creature.0.tuples.rest.until", "needs at least one"),
+        ("pitches = [60, 64, 67] }", "pitches = [60, 64, 67], loud = 1 }", "creature.0.tuples.sing.action.loud",
+         "unknown key"),
+    ],
+)
+def test_bad_names_and_structures_are_errors_at_their_line(tmp_path, old, new, key, message):
+    assert old in CREATURE
+    path = write(tmp_path, HEAD + CREATURE.replace(old, new, 1))
+    error = error_of(path)
+    assert error.key == key and message in error.message, str(error)
+    where = {"creature.0.tuples.rest": "[creature.tuples.rest]"}.get(key, new.splitlines()[-1])
+    assert error.file == path and error.line == line_of(path, where), str(error)
+
+
+def test_a_percept_reference_cycle_is_named(tmp_path):
+    cyc = CREATURE + """
+[creature.percepts.a]
+type = "and"
+of = ["bored", "b"]
+
+[creature.percepts.b]
+type = "not"
+of = "a"
+"""
+    error = error_of(write(tmp_path, HEAD + cyc))
+    assert "reference cycle" in error.message and "a -> b -> a" in error.message
+
+
+def test_includes_keep_their_own_file_and_line(tmp_path):
+    write(tmp_path, CREATURE.replace('action = "rest"', 'action = "rset"'), "creatures/c.toml")
+    path = write(tmp_path, HEAD + 'include = ["creatures/c.toml"]\n')
+    error = error_of(path)
+    assert error.file == tmp_path / "creatures" / "c.toml" and error.line == line_of(error.file, '"rset"')
+
+
+def test_missing_and_circular_includes_are_errors(tmp_path):
+    error = error_of(write(tmp_path, HEAD + 'include = ["nope.toml"]\n' + CREATURE))
+    assert error.key == "include.0" and "not found" in error.message and error.line == 3
+    write(tmp_path, 'include = ["a.toml"]\n', "b.toml")
+    write(tmp_path, 'include = ["b.toml"]\n', "a.toml")
+    error = error_of(write(tmp_path, HEAD + 'include = ["a.toml"]\n' + CREATURE))
+    assert "circular include" in error.message
+
+
+def test_an_included_creature_runs_like_an_inline_one(tmp_path):
+    write(tmp_path, CREATURE, "creatures/c.toml")
+    inst = load_installation(write(tmp_path, HEAD + 'include = ["creatures/c.toml"]\n'))
+    assert [s.name for s in inst.specs] == ["c"] and inst.specs[0].kind == "authored"
+
+
+DANCER = """
+[[creature]]
+name = "d"
+kind = "authored"
+body = true
+
+[creature.tuples.sway]
+action = { type = "motor_program", text = 'sway: getToClosest {"sway left"}; wait; getTo "sway right"; wait; end' }
+until = { done = true }
+
+[creature.tuples.reach]
+action = { type = "go_to", labels = ["reach"] }
+until = { done = true }
+value = 0.8
+
+[creature.groups.main]
+tuples = ["sway", "reach"]
+alpha = 0.0
+"""
+
+
+def test_motor_programs_and_labels_move_the_body_there(tmp_path):
+    from creatures.kinds.parts import shared_graph
+
+    inst = load_installation(write(tmp_path, HEAD + DANCER))
+    inst.settings.output.wav = inst.settings.output.report = False
+    run_offline(inst, tmp_path / "out", duration=30.0)
+    events = read_events(tmp_path / "out" / "events.jsonl")
+    reached = [n for e in events if e["kind"] == "motor" for n in e["reached"]]
+    selected = Counter(e["tuple"] for e in events if e["kind"] == "selection")
+    labels = shared_graph().poses.labels
+    seen = {label for n in reached for label in labels[n]}
+    assert selected["sway"] >= 2 and selected["reach"] >= 2
+    assert {"sway left", "sway right", "reach"} <= seen
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "message"),
+    [
+        ('labels = ["reach"]', 'labels = ["rech"]', "no motor label 'rech' (did you mean 'reach'?)"),
+        ("body = true", "body = false", "set 'body = true'"),
+        ("wait; end'", "wait; cycle 9'", "jumps outside"),
+        ('until = { done = true }\nvalue = 0.8', 'until = { done = true }\nvalue = 0.8\n[creature.tuples.x]\n'
+         'action = "rest"\nuntil = { done = true }', "has no end of its own"),
+    ],
+)
+def test_bad_motor_actions_are_errors_at_load(tmp_path, old, new, message):
+    assert old in DANCER
+    error = error_of(write(tmp_path, HEAD + DANCER.replace(old, new)))
+    assert message in error.message and error.line is not None, str(error)
+
+
+def test_like_starts_a_creature_from_an_earlier_one(tmp_path):
+    twin = HEAD + CREATURE + '\n[[creature]]\nname = "twin"\nlike = "c"\nchannel = 3\ntuples.rest.value = 0.5\n'
+    inst = load_installation(write(tmp_path, twin))
+    c, t = inst.specs
+    assert t.channel == 3 and t.tuples["rest"].value == 0.5 and t.tuples["sing"] == c.tuples["sing"]
+    assert c.tuples["rest"].value == 0.3  # the original is untouched
+    path = write(tmp_path, twin.replace('like = "c"', 'like = "d"'))
+    error = error_of(path)
+    assert error.key == "creature.1.like" and "no earlier creature named 'd'" in error.message
+    path = write(tmp_path, twin.replace("tuples.rest.value = 0.5", 'tuples.sing.trigger = "boredd"'))
+    error = error_of(path)
+    assert error.key == "creature.1.tuples.sing.trigger" and error.line == line_of(path, '"boredd"')
+
+
+def test_the_authored_exchange_runs_deterministically(tmp_path):
+    import hashlib
+
+    config = Path(__file__).resolve().parents[1] / "installations" / "authored" / "exchange.toml"
+    digests = []
+    for run in ("a", "b"):
+        inst = load_installation(config)
+        inst.settings.output.report = False
+        run_offline(inst, tmp_path / run, duration=20.0)
+        digests.append({n: hashlib.sha256((tmp_path / run / n).read_bytes()).hexdigest()
+                        for n in ("out.mid", "out.wav", "events.jsonl")})
+    assert digests[0] == digests[1]
+    played = Counter(e["creature"] for e in read_events(tmp_path / "a" / "events.jsonl") if e["kind"] == "note")
+    assert set(played) == {"ada", "bo", "cy"}
+
+
+PARTS = HEAD + """
+[[creature]]
+name = "p"
+kind = "authored"
+
+[creature.percepts.low]
+type = "pitch"
+near = 62.0
+spread = 4.0
+
+[creature.percepts.door]
+type = "sensor"
+sensor = "door"
+
+[creature.tuples.answer]
+trigger = "low"
+action = { type = "echo", count = 3, mutation = 0.0 }
+until = { done = true, follow = true }
+value = 2.0
+
+[creature.tuples.greet]
+trigger = "door"
+action = { type = "play_note", pitch = 84 }
+until = { done = true }
+value = 1.0
+
+[creature.tuples.rest]
+action = "rest"
+until = { seconds = 1.0, follow = true }
+value = { value = 0.5, plastic = false }
+
+[creature.tuples.after]
+action = { type = "play_note", pitch = 48 }
+until = { done = true }
+value = 0.4
+
+[creature.groups.main]
+tuples = ["answer", "rest", "inner"]
+alpha = 0.1
+constraints = [{ relation = "meets", a = "rest", b = "after" }]
+
+[creature.groups.inner]
+tuples = ["greet", "after"]
+alpha = 0.0
+value = 1.5
+
+[creature.learning]
+groups = ["main"]
+"""
+
+
+def _world_with(sensors: dict):
+    from creatures.clock import SimulatedClock
+    from creatures.events import EventLog
+    from creatures.runtime.world import World
+    from midi.scheduler import NoteScheduler
+    from midi.sinks import MemorySink
+
+    clock = SimulatedClock()
+    world = World(clock, EventLog(), NoteScheduler(MemorySink(), clock))
+    world.sensors = sensors
+    return clock, world
+
+
+def test_sensors_models_follow_nested_groups_constraints_and_learning_run_together(tmp_path):
+    import numpy as np
+
+    from creatures.behaviour.state_object import StateObject
+    from creatures.kinds import KINDS
+    from creatures.temporal.transitions import TransitionDoUntil
+    from midi.notes import NoteEvent
+
+    spec = load_installation(write(tmp_path, PARTS)).specs[0]
+    door = StateObject("door")
+    clock, world = _world_with({"door": door})
+    creature = KINDS["authored"](spec, world, np.random.default_rng(1))
+    world.add(creature)
+    assert isinstance(creature.tuples["answer"].do_until, TransitionDoUntil)
+    played, starts = [], Counter()
+    creature.played = lambda note: played.append((clock.now(), note.pitch))
+    world.log.emit = lambda t, kind, **f: starts.update([f.get("tuple")] if kind == "selection" else [])
+    for k in range(1, 1200):  # 60 s at 0.05 s
+        t = k * 0.05
+        clock.advance(0.05)
+        if k % 40 == 0:
+            world.inject(NoteEvent(t, 60 + k % 5, 90, 0, 0.2))
+        door.push(t, 1.0 if 600 <= k < 800 else 0.0)
+        world.deliver(t)
+        creature.tick(t)
+    assert starts["answer"] >= 3 and starts["rest"] >= 3
+    echoed = {p for _, p in played} & {60, 61, 62, 63, 64}
+    assert echoed, played  # heard material echoed back
+    greet = [t for t, p in played if p == 84]
+    assert greet and all(30.0 <= t <= 40.5 for t in greet), played  # only while the door sensor is on
+    assert any(p == 48 for _, p in played)  # 'after' runs when 'rest' ends (meets), inside 'inner'
+
+
+def test_a_missing_sensor_is_a_config_error_naming_it(tmp_path):
+    import numpy as np
+
+    from creatures.kinds import KINDS
+
+    spec = load_installation(write(tmp_path, PARTS)).specs[0]
+    _, world = _world_with({})
+    with pytest.raises(ConfigError, match="no sensor named 'door'"):
+        KINDS["authored"](spec, world, np.random.default_rng(1))
+
+
+def test_drives_grow_decay_couple_take_percept_inputs_and_follow_scripted_arcs(tmp_path):
+    import numpy as np
+
+    from creatures.kinds import KINDS
+    from midi.notes import NoteEvent
+
+    text = HEAD + CREATURE.replace("[creature.drives.boredom]\ngrowth = 0.1", """[creature.drives.boredom]
+growth = 0.1
+inputs = { hearing = -1.0 }
+arc = [[0.0, 0.0], [10.0, 0.0], [20.0, 0.5]]
+
+[creature.drives.calm]
+level = 1.0
+decay = 0.5
+equilibrium = 0.0
+coupling = { boredom = -0.2 }
+
+[creature.drives.tide]
+arc = [[0.0, 0.0], [10.0, 1.0]]
+
+[creature.percepts.hearing]
+type = "heard"
+window = 100.0""")
+    spec = load_installation(write(tmp_path, text)).specs[0]
+    clock, world = _world_with({})
+    c = KINDS["authored"](spec, world, np.random.default_rng(0))
+    world.add(c)
+    level = {}
+    for k in range(1, 601):
+        t = k * 0.05
+        clock.advance(0.05)
+        if k == 200:  # t = 10: a note, and 'hearing' feeds -1/s into boredom from then on
+            world.inject(NoteEvent(t, 60, 90, 0, 0.2))
+        world.deliver(t)
+        c.tick(t)
+        level[round(t, 2)] = (c.drive("boredom", t), c.drive("calm", t), c.drive("tide", t))
+    assert level[10.0][0] == pytest.approx(1.0, abs=0.02)  # growth alone for 10 s
+    # 10..20 s: growth 0.1 − 1.0 from hearing + the arc ramping 0 → 0.5: net −0.65 over 10 s, floored at 0
+    assert level[20.0][0] == 0.0
+    assert level[30.0][0] == pytest.approx(0.0, abs=1e-9)  # the arc holds 0.5: 0.1 + 0.5 − 1.0 < 0
+    assert level[5.0][1] < np.exp(-0.5 * 5.0) + 1e-9  # calm decays, and boredom pulls it down further
+    # The tide follows its scripted input: ∫ t/10 dt = 5 by t = 10 (inputs held per 0.05 s tick), then +1/s.
+    assert level[10.0][2] == pytest.approx(5.0, abs=0.03) and level[20.0][2] == pytest.approx(15.0, abs=0.06)
+
+
+def test_an_authored_creature_keeps_what_it_learnt_across_a_restart(tmp_path):
+    import json
+
+    import numpy as np
+
+    from creatures.kinds import KINDS
+
+    inst = load_installation(TUTORIAL / "heron-4.toml")
+    inst.settings.output.wav = inst.settings.output.report = False
+    run_offline(inst, tmp_path / "out", duration=300.0)
+    saved = json.loads((tmp_path / "out" / "state" / "heron.json").read_text())["state"]
+    assert saved["learnt"] == [1, 2, 3] and len(saved["phrases"]) == 3
+    _, world = _world_with({})
+    fresh = KINDS["authored"](inst.specs[0], world, np.random.default_rng(5))
+    fresh.restore(json.loads(json.dumps(saved)))  # through JSON, as a state file is
+    assert fresh.state() == {**saved, "motivation": fresh.state()["motivation"]}
+    assert fresh.groups["main"].value_state() == saved["values"]["main"]
+    assert [n.pitch for n in fresh.ear.phrase(3)] == [72, 71, 69, 67, 64, 60]
+    assert fresh.motivation.level("boredom") == pytest.approx(saved["motivation"]["levels"]["boredom"])
+
+
+@pytest.mark.parametrize("slots", [1, 2])
+def test_due_and_together_percepts_model_rhythm_and_company(tmp_path, slots):
+    import numpy as np
+
+    from creatures.kinds import KINDS
+    from midi.notes import NoteEvent
+
+    text = HEAD + CREATURE.replace("alpha = 0.0", f"alpha = 0.0\nmax_active = {slots}").replace(
+        'tuples = ["sing", "rest"]', 'tuples = ["sing", "rest", "hum"]') + """
+[creature.tuples.hum]
+action = "rest"
+until = { seconds = 1.3 }
+value = 0.3
+
+[creature.percepts.due]
+type = "due"
+mean = 2.0
+
+[creature.percepts.company]
+type = "together"
+of = "rest"
+"""
+    spec = load_installation(write(tmp_path, text)).specs[0]
+    clock, world = _world_with({})
+    c = KINDS["authored"](spec, world, np.random.default_rng(0))
+    world.add(c)
+    due, company = c.percept("due"), c.percept("company")
+    readings = {}
+    for k in range(1, 401):
+        t = round(k * 0.05, 2)
+        clock.advance(0.05)
+        if k <= 200 and k % 10 == 0:  # a note every 0.5 s for 10 s, then silence
+            world.inject(NoteEvent(t, 60, 90, 0, 0.2))
+        world.deliver(t)
+        c.tick(t)
+        readings[t] = (due.evaluate(t), company.evaluate(t))
+    # Learnt 0.5 s intervals (from a 2 s prior): just after a note nothing is due, 1 s later it is.
+    assert readings[10.0][0] < 0.3 and readings[11.0][0] > 0.9
+    assert readings[0.2][0] == 0.0  # nothing heard yet: nothing expected
+    # With one slot nothing runs beside 'rest'; with two, others run beside it and grow close.
+    closest = max(v[1] for v in readings.values())
+    assert closest == 0.0 if slots == 1 else closest > 0.1
+
+
+STRIKER = HEAD + """
+[[creature]]
+name = "s"
+kind = "authored"
+body = true
+
+[creature.space]
+mutation = 0.0
+refractory = 2.0
+
+[creature.tuples.dance]
+action = { type = "motor_program", text = 'd: getTo "reach"; wait; getTo "strike"; wait; getTo "sway left"; wait; cycle 0' }
+until = { seconds = 30.0 }
+
+[creature.tuples.hands]
+action = "strike"
+until = { seconds = 30.0 }
+
+[creature.groups.body]
+tuples = ["dance"]
+alpha = 0.0
+
+[creature.groups.reflexes]
+tuples = ["hands"]
+alpha = 0.0
+"""
+
+
+def test_strike_plays_the_notes_in_space_another_group_moves_the_hand_through(tmp_path):
+    from midi.files import write_notes
+    from midi.notes import NoteEvent
+
+    inst = load_installation(write(tmp_path, STRIKER))
+    inst.settings.output.wav = inst.settings.output.report = False
+    heard = [NoteEvent(0.5 + 0.25 * i, p, 90, 0, 0.2) for i, p in enumerate(range(48, 84, 3))]
+    write_notes(tmp_path / "in.mid", heard)
+    run_offline(inst, tmp_path / "out", midi=tmp_path / "in.mid", duration=30.0)
+    events = read_events(tmp_path / "out" / "events.jsonl")
+    placed = {e["pitch"] for e in events if e["kind"] == "placed"}
+    struck = [e["pitch"] for e in events if e["kind"] == "note"]
+    assert placed == {n.pitch for n in heard}
+    assert len(struck) >= 5 and set(struck) <= placed
+
+
+def test_a_motor_program_graph_and_a_reach_to_a_point_move_the_body(tmp_path):
+    import numpy as np
+
+    from creatures.kinds.parts import shared_graph
+
+    graph = shared_graph()
+    target = graph.poses.positions[graph.poses.labelled("strike")[0], graph.skeleton.index("hand_r")]
+    text = HEAD + f"""
+[[creature]]
+name = "g"
+kind = "authored"
+body = true
+
+[creature.tuples.walk]
+action = {{ type = "motor_graph", vertices = {{ start = 'getTo "sway left"', w = "wait", right = 'getTo "sway right"', w2 = "wait", exit = "end" }}, edges = {{ start = ["w"], w = ["right"], right = ["w2"], w2 = ["exit"] }} }}
+until = {{ done = true }}
+
+[creature.tuples.point]
+action = {{ type = "reach_point", point = {list(map(float, target))}, tolerance = 0.05 }}
+until = {{ done = true }}
+value = 0.9
+
+[creature.groups.main]
+tuples = ["walk", "point"]
+alpha = 0.0
+"""
+    inst = load_installation(write(tmp_path, text))
+    inst.settings.output.wav = inst.settings.output.report = False
+    run_offline(inst, tmp_path / "out", duration=40.0)
+    events = read_events(tmp_path / "out" / "events.jsonl")
+    reached = [n for e in events if e["kind"] == "motor" for n in e["reached"]]
+    hands = graph.poses.positions[reached, graph.skeleton.index("hand_r")]
+    assert {"sway left", "sway right"} <= {label for n in reached for label in graph.poses.labels[n]}
+    assert np.linalg.norm(hands - target, axis=1).min() <= 0.05
+    bad = write(tmp_path, text.replace('w2 = ["exit"]', 'w2 = ["nowhere"]'), "bad.toml")
+    assert "unknown vertex 'nowhere'" in error_of(bad).message
+
+
+
+FISSION = HEAD + """
+[[creature]]
+name = "f"
+kind = "authored"
+
+[creature.percepts.tone]
+type = "pitch"
+near = 60.0
+spread = 8.0
+
+[creature.percepts.applause]
+type = "played"
+pitches = [48, 72]
+window = 0.3
+
+[creature.tuples.answer]
+trigger = "tone"
+action = { type = "play_heard", count = 1 }
+until = { done = true }
+value = 1.0
+
+[creature.tuples.rest]
+action = "rest"
+until = { seconds = 1.0 }
+value = 0.2
+
+[creature.tuples.praised]
+trigger = "applause"
+action = "rest"
+until = { seconds = 0.2 }
+value = { value = 5.0, plastic = false }
+
+[creature.groups.main]
+tuples = ["answer", "rest", "praised"]
+alpha = 0.3
+
+[creature.learning]
+groups = ["main"]
+statistics = 0.2
+innovation = 0.3
+"""
+
+
+def test_learning_splits_a_percept_the_rewarded_data_shows_to_be_two_and_tries_each(tmp_path):
+    """Thesis "percept trees": value-driven updates teach the 'tone' model the pitches that led
+    to praise; two clusters of them (around 48 and 72) split it in two, and each child gets
+    hypotheses of its own."""
+    import numpy as np
+
+    from creatures.kinds import KINDS
+    from midi.notes import NoteEvent
+
+    spec = load_installation(write(tmp_path, FISSION)).specs[0]
+    clock, world = _world_with({})
+    events = []
+    world.log.emit = lambda t, kind, **f: events.append((kind, f))
+    c = KINDS["authored"](spec, world, np.random.default_rng(0))
+    world.add(c)
+    rng = np.random.default_rng(1)
+    for k in range(1, 1401):  # 70 s
+        t = k * 0.05
+        clock.advance(0.05)
+        if k % 40 == 0:
+            world.inject(NoteEvent(t, int(rng.choice([48, 72]) + rng.integers(-1, 2)), 90, 0, 0.2))
+        world.deliver(t)
+        c.tick(t)
+    fission = next(f for kind, f in events if kind == "fission")
+    assert fission["percept"] == "tone" and fission["children"] == ["tone.1", "tone.2"]
+    low, high = sorted(fission["means"])
+    assert abs(low - 48) < 4 and abs(high - 72) < 8, fission["means"]
+    names = {tp.name for tp in c.groups["main"].tuples}
+    assert {"tone.1|answer", "tone.2|answer"} <= names

@@ -1,0 +1,63 @@
+"""Authoring tools (issue 15): ``creatures new``, ``creatures describe`` and ``creatures
+offline NAME`` for a shipped installation."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from creatures.cli import main
+from creatures.events import read_events
+
+TUTORIAL = Path(__file__).resolve().parents[1] / "installations" / "tutorial"
+
+
+def test_new_writes_a_commented_installation_that_runs(tmp_path, capsys):
+    assert main(["new", "egret", "--dir", str(tmp_path)]) == 0
+    path = tmp_path / "egret.toml"
+    text = path.read_text()
+    assert text.count("#") >= 8 and 'kind = "authored"' in text
+    assert main(["offline", str(path), "--out", str(tmp_path / "out"), "--duration", "40", "--no-progress"]) == 0
+    notes = [e for e in read_events(tmp_path / "out" / "events.jsonl") if e["kind"] == "note"]
+    assert notes and {e["creature"] for e in notes} == {"egret"}
+    assert main(["new", "egret", "--dir", str(tmp_path)]) == 2  # never overwrites
+    assert "not overwritten" in capsys.readouterr().err
+    assert main(["new", "bad name", "--dir", str(tmp_path)]) == 2
+
+
+def test_describe_prints_drives_percept_trees_groups_and_tuples(capsys):
+    assert main(["describe", str(TUTORIAL / "heron-4.toml")]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[1] == "heron (authored)"
+    assert "│  └─ boredom = 0 (growth 0.05, decay 0)" in out
+    assert "│     ├─ bored (drive)" in out
+    assert "└─ group main [max_active 1, alpha 0.2, discount 0.8]" in out
+    assert "   └─ praised: praise | praised | 0.5 s | V 4, non-plastic" in out
+
+
+def test_describe_shows_class_based_kinds_and_nested_groups_too(tmp_path, capsys):
+    assert main(["describe", "sandstone"]) == 0
+    out = capsys.readouterr().out
+    assert "(sandstone)" in out and "| sing |" in out
+    nested = tmp_path / "nested.toml"
+    nested.write_text((TUTORIAL / "heron-1.toml").read_text().replace(
+        '[creature.groups.main]      # the tuples compete here\ntuples = ["call", "rest"]',
+        '[creature.groups.voice]\ntuples = ["call"]\nalpha = 0.0\n\n[creature.groups.main]\ntuples = ["voice", "rest"]'))
+    assert main(["describe", str(nested)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert any(line.endswith("voice: whatever | voice | until voice:done | V 1 [max_active 1, alpha 0, "
+                             "discount 0.8]") for line in out), out
+    assert any("call: bored | call | until call done | V 1" in line for line in out)
+
+
+def test_describe_of_a_bad_config_is_exit_2(tmp_path, capsys):
+    bad = tmp_path / "bad.toml"
+    bad.write_text((TUTORIAL / "heron-1.toml").read_text().replace('action = "rest"', 'action = "rset"'))
+    assert main(["describe", str(bad)]) == 2
+    assert "did you mean 'rest'" in capsys.readouterr().err
+
+
+def test_offline_takes_a_shipped_installations_name(tmp_path):
+    assert main(["offline", "tutorial/heron-1", "--out", str(tmp_path / "h"), "--duration", "5", "--no-progress"]) == 0
+    assert main(["offline", "exchange", "--out", str(tmp_path / "e"), "--duration", "1", "--no-progress"]) == 0
+    assert (tmp_path / "e" / "events.jsonl").is_file()
+    assert main(["offline", "no-such-piece", "--out", str(tmp_path / "n"), "--no-progress"]) == 2
