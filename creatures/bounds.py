@@ -36,6 +36,10 @@ Seconds = Annotated[float, Field(ge=0, le=LONGEST_SECONDS)]
 LARGEST_RATE = 1e6
 """Largest magnitude of a rate, gain or level that has no natural bound of its own."""
 
+Bounded = Annotated[float, Field(ge=-LARGEST_RATE, le=LARGEST_RATE)]
+"""A number with no natural bound of its own (a reading, a reward, a range's end, a drive's
+level), bounded all the same."""
+
 LARGEST_VALUE = 1e12
 """Largest magnitude of a learned value or model sample read back (squares stay far from
 overflow, and no value a creature learns comes near it)."""

@@ -14,29 +14,31 @@ from pathlib import Path
 
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, field_validator
 
+from creatures.bounds import FINITE, LARGEST_RATE, LONGEST_SECONDS, Bounded, Seconds
+
 from creatures.kinds.base import CreatureSpec
 from creatures.kinds.note_world import SpaceSpec
 from creatures.kinds.parts import VoiceSpec
 
 
 class Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = FINITE
 
 
 class DriveSpec(Strict):
     """``[creature.drives.NAME]`` — one motivation of the synthetic chemistry (thesis "soft state")."""
 
-    level: float = Field(0.0, description="starting level")
-    growth: float = Field(0.0, description="per-second growth r")
-    decay: float = Field(0.0, ge=0, description="per-second decay D toward the equilibrium")
-    equilibrium: float | None = Field(None, description="level decay returns to; none = the starting level")
-    coupling: dict[str, float] = Field(default_factory=dict,
+    level: float = Field(0.0, ge=-LARGEST_RATE, le=LARGEST_RATE, description="starting level")
+    growth: float = Field(0.0, ge=-LARGEST_RATE, le=LARGEST_RATE, description="per-second growth r")
+    decay: float = Field(0.0, ge=0, le=LARGEST_RATE, description="per-second decay D toward the equilibrium")
+    equilibrium: float | None = Field(None, ge=-LARGEST_RATE, le=LARGEST_RATE, description="level decay returns to; none = the starting level")
+    coupling: dict[str, Bounded] = Field(default_factory=dict, max_length=256,
                                        description="other drive → rate it feeds this one (C[this, other])")
-    inputs: dict[str, float] = Field(default_factory=dict,
+    inputs: dict[str, Bounded] = Field(default_factory=dict, max_length=256,
                                      description="percept → rate fed per second per unit of its saliency")
-    on_heard: float = Field(0.0, description="impulse per note heard")
-    on_played: float = Field(0.0, description="impulse per note the creature plays itself")
-    arc: list[tuple[float, float]] = Field(default_factory=list,
+    on_heard: float = Field(0.0, ge=-LARGEST_RATE, le=LARGEST_RATE, description="impulse per note heard")
+    on_played: float = Field(0.0, ge=-LARGEST_RATE, le=LARGEST_RATE, description="impulse per note the creature plays itself")
+    arc: list[tuple[Seconds, Bounded]] = Field(default_factory=list, max_length=4096,
                                            description="scripted arc: [seconds, input rate] points, linear "
                                                        "between them, held after the last")
 
@@ -51,7 +53,7 @@ class DriveSpec(Strict):
 class PerceptSpec(Strict):
     """``[creature.percepts.NAME]`` — a percept: ``type`` picks one of the percept library."""
 
-    model_config = ConfigDict(extra="allow")
+    model_config = ConfigDict(extra="allow", allow_inf_nan=False)
     type: str = Field(description="percept type (see docs/authoring.md, 'Percepts')")
     parent: str = Field("whatever", description="parent in the percept tree (the root is 'whatever')")
 
@@ -62,7 +64,7 @@ class PerceptSpec(Strict):
 class PartSpec(Strict):
     """An action or model by ``type`` with its own keys."""
 
-    model_config = ConfigDict(extra="allow")
+    model_config = ConfigDict(extra="allow", allow_inf_nan=False)
     type: str = Field(description="a name from the library")
 
     def params(self) -> dict[str, Any]:
@@ -73,8 +75,8 @@ class UntilSpec(Strict):
     """Du: when an active tuple is done (thesis "the action-tuple", "temporal models"). Any
     combination; the tuple stops when the first says so."""
 
-    seconds: float | None = Field(None, gt=0, description="fixed duration")
-    gaussian: tuple[float, float] | None = Field(None, description="[mean, std] seconds, learnt from each activation")
+    seconds: float | None = Field(None, gt=0, le=LONGEST_SECONDS, description="fixed duration")
+    gaussian: tuple[Seconds, Seconds] | None = Field(None, description="[mean, std] seconds, learnt from each activation")
     pulse: int | None = Field(None, ge=1, le=64, description="durations of the colony's heard pulse (low-integer "
                                                           "ratios); with 'gaussian', that is the fallback until "
                                                           "the pulse is trusted")
@@ -88,13 +90,13 @@ class UntilSpec(Strict):
 class ValueSpec(Strict):
     """V: what the tuple is worth (thesis "computing expected values", "value chaining")."""
 
-    value: float = Field(1.0, description="the starting value")
+    value: float = Field(1.0, ge=-LARGEST_RATE, le=LARGEST_RATE, description="the starting value")
     kind: Literal["scalar", "chain", "gaussian"] = Field("scalar", description="value type")
     plastic: bool = Field(True, description="credit assignment may change it (false: a grounding reward)")
     source: str | None = Field(None, description="chain: this tuple is a goal (distance 0 from itself)")
     serves: dict[str, str] = Field(default_factory=dict,
                                    description="chain: goal source → drive whose level is its importance")
-    spread: float = Field(1.0, gt=0, description="gaussian: prior spread of the incoming values")
+    spread: float = Field(1.0, gt=0, le=LARGEST_RATE, description="gaussian: prior spread of the incoming values")
 
 
 class TupleSpec(Strict):
@@ -103,7 +105,7 @@ class TupleSpec(Strict):
     trigger: str = Field("whatever", description="Tr: a percept name")
     action: str | PartSpec = Field(description="Ac: an action name or a table with its 'type' and keys")
     until: UntilSpec = Field(description="Du")
-    value: float | ValueSpec = Field(1.0, description="V: a number or a table")
+    value: Bounded | ValueSpec = Field(1.0, description="V: a number or a table")
 
 
 class ConstraintSpec(Strict):
@@ -112,24 +114,24 @@ class ConstraintSpec(Strict):
     relation: Literal["before", "meets", "overlaps", "starts", "during"] = Field(description="Allen relation")
     a: str = Field(description="first tuple")
     b: str = Field(description="second tuple")
-    gap: float = Field(0.0, ge=0, description="before: seconds between a's end and b's start")
+    gap: float = Field(0.0, ge=0, le=LONGEST_SECONDS, description="before: seconds between a's end and b's start")
 
 
 class GroupSpec(Strict):
     """``[creature.groups.NAME]`` — an action-group (thesis "the action-group", "hierarchical
     action-groups"). A group named among another group's members becomes one of its tuples."""
 
-    tuples: list[str] = Field(min_length=1, description="members: tuple names, or other groups' names")
+    tuples: list[str] = Field(min_length=1, max_length=1024, description="members: tuple names, or other groups' names")
     max_active: int = Field(1, ge=1, le=64, description="tuples active at once")
-    temperature: float | None = Field(None, gt=0, description="Boltzmann temperature; none = ∝ expected value")
+    temperature: float | None = Field(None, gt=0, le=1e3, description="Boltzmann temperature; none = ∝ expected value")
     alpha: float = Field(0.1, ge=0, le=1, description="credit assignment rate α (0 = values as authored)")
     discount: float = Field(0.8, ge=0, le=1, description="credit discount β")
-    multiple: float = Field(1.5, ge=1, description="interruption hysteresis")
-    innovation: float | None = Field(0.25, ge=0, description="value gap for forward-transition fission "
+    multiple: float = Field(1.5, ge=1, le=1e3, description="interruption hysteresis")
+    innovation: float | None = Field(0.25, ge=0, le=LARGEST_RATE, description="value gap for forward-transition fission "
                                                               "(tuples with until.follow); none = never")
-    constraints: list[ConstraintSpec] = Field(default_factory=list, description="interval relations")
+    constraints: list[ConstraintSpec] = Field(default_factory=list, max_length=1024, description="interval relations")
     trigger: str = Field("whatever", description="as a member of another group: its Tr")
-    value: float = Field(1.0, description="as a member of another group: its V")
+    value: float = Field(1.0, ge=-LARGEST_RATE, le=LARGEST_RATE, description="as a member of another group: its V")
 
 
 class PhraseHypotheses(Strict):
@@ -140,20 +142,20 @@ class PhraseHypotheses(Strict):
     trigger: str = Field("whatever", description="their Tr")
     action: str = Field("play_learned", description="an action with a 'phrase' key")
     until: UntilSpec = Field(UntilSpec(done=True), description="their Du")
-    value: float = Field(1.0, description="their starting V (plastic)")
-    min_notes: int = Field(3, ge=1, description="shorter phrases are not learnt")
+    value: float = Field(1.0, ge=-LARGEST_RATE, le=LARGEST_RATE, description="their starting V (plastic)")
+    min_notes: int = Field(3, ge=1, le=1024, description="shorter phrases are not learnt")
 
 
 class LearningSpec(Strict):
     """``[creature.learning]`` — value-driven model updates and percept-tree growth."""
 
-    groups: list[str] = Field(default_factory=list, description="groups whose credit teaches their percept "
+    groups: list[str] = Field(default_factory=list, max_length=256, description="groups whose credit teaches their percept "
                                                                 "models (fission/fusion of Gaussian percepts)")
-    statistics: float = Field(1.0, ge=0, description="× mean value a tuple must exceed to teach its models")
-    innovation: float = Field(1.5, ge=0, description="× mean value above which its percept may split")
-    split_at: float = Field(2.0, gt=0, description="Ashman's D that splits a percept")
-    fuse_below: float = Field(1.0, ge=0, description="Ashman's D below which children fuse")
-    phrase_gap: float = Field(2.0, gt=0, description="seconds of silence that end a heard phrase")
+    statistics: float = Field(1.0, ge=0, le=1e3, description="× mean value a tuple must exceed to teach its models")
+    innovation: float = Field(1.5, ge=0, le=1e3, description="× mean value above which its percept may split")
+    split_at: float = Field(2.0, gt=0, le=1e3, description="Ashman's D that splits a percept")
+    fuse_below: float = Field(1.0, ge=0, le=1e3, description="Ashman's D below which children fuse")
+    phrase_gap: float = Field(2.0, gt=0, le=3600, description="seconds of silence that end a heard phrase")
     max_phrases: int = Field(8, ge=1, le=256, description="phrases remembered")
     phrases: PhraseHypotheses | None = Field(None, description="a new tuple for every phrase heard "
                                                                 "([creature.learning.phrases])")
@@ -163,8 +165,8 @@ class AuthoredSpec(CreatureSpec):
     kind: Literal["authored"]
     drives: dict[str, DriveSpec] = Field(default_factory=dict, description="drives by name: [creature.drives.NAME] "
                                                                            "(docs/authoring.md, 'Reference')")
-    drive_floor: float | None = Field(0.0, description="lowest level of any drive; none = unbounded")
-    drive_ceiling: float | None = Field(None, description="highest level of any drive; none = unbounded")
+    drive_floor: float | None = Field(0.0, ge=-LARGEST_RATE, le=LARGEST_RATE, description="lowest level of any drive; none = unbounded")
+    drive_ceiling: float | None = Field(None, ge=-LARGEST_RATE, le=LARGEST_RATE, description="highest level of any drive; none = unbounded")
     percepts: dict[str, PerceptSpec] = Field(default_factory=dict, description="percepts by name: "
                                                                                "[creature.percepts.NAME]")
     tuples: dict[str, TupleSpec] = Field(default_factory=dict, description="action-tuples by name: "
@@ -180,7 +182,7 @@ class AuthoredSpec(CreatureSpec):
                                                   "source animation length (exchange's metric)")
     space: SpaceSpec | None = Field(None, description="heard notes placed in space for the hand to strike "
                                                       "([creature.space]; needs body = true)")
-    report_every: float = Field(0.5, gt=0, description="seconds between value/drive snapshots in the events log")
+    report_every: float = Field(0.5, gt=0, le=3600, description="seconds between value/drive snapshots in the events log")
     voice: VoiceSpec = VoiceSpec()
     _file: Path | None = PrivateAttr(None)
 

@@ -13,8 +13,9 @@ from __future__ import annotations
 
 import functools
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, Field, field_validator
 
+from creatures.bounds import FINITE
 from creatures.motor import quaternion as quat
 from creatures.motor.animations import creature_skeleton
 from creatures.motor.blend import Blend, Contribution, Limits, Oscillator, Policy
@@ -29,7 +30,7 @@ mouth reads, thesis "soundcreatures") and the chest lifts."""
 class BreatheSpec(BaseModel):
     """``[creature.body] breathe = {...}``: an oscillator over named joints, added over the course."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = FINITE
 
     period: float = Field(4.0, gt=0, le=60, description="seconds per breath")
     depth: float = Field(0.0, ge=0, le=0.5, description="radians each breathing joint turns at the top of a "
@@ -60,7 +61,7 @@ class BreatheSpec(BaseModel):
 class BodySpec(BaseModel):
     """``[creature.body]``: layers blended over the course the body follows on the motor graph."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = FINITE
 
     breathe: BreatheSpec = BreatheSpec()
 

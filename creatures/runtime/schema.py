@@ -13,7 +13,7 @@ from typing import Annotated, Any
 
 from pydantic import BaseModel, Field, model_validator
 
-from creatures.bounds import FINITE, LARGEST_RATE, LONGEST_OFFLINE
+from creatures.bounds import FINITE, LONGEST_OFFLINE, Bounded
 from creatures.authored.include import expand_includes, expand_likes
 from creatures.authored.plugins import load_plugins
 from creatures.authored.registry import PluginError
@@ -27,11 +27,6 @@ LONGEST_SEED = 2**63 - 1
 
 class Strict(BaseModel):
     model_config = FINITE
-
-
-Bounded = Annotated[float, Field(ge=-LARGEST_RATE, le=LARGEST_RATE)]
-"""A number with no natural bound of its own (a reading, a reward, a range's end), still
-bounded: every number is (creatures/bounds.py)."""
 
 
 class AudioSection(Strict):
