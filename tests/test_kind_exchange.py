@@ -12,7 +12,7 @@ import pytest
 
 import installations
 from creatures.events import read_events
-from creatures.kinds.exchange import Exchange
+from creatures.kinds.note_world import NoteWorld
 from creatures.kinds.parts import shared_graph
 from creatures.motor.metric import source_lengths, successors
 from creatures.runtime.offline import run_offline
@@ -128,13 +128,13 @@ def test_a_shuffling_or_silent_creature_plays_no_variation(tmp_path: Path, monke
     random note of those in its space (a random shuffle of what it heard), or plays nothing,
     is not heard to transform the phrase."""
     if output == "silence":
-        monkeypatch.setattr(Exchange, "strike", lambda self, t, obj, strength: None)
+        monkeypatch.setattr(NoteWorld, "strike", lambda self, t, obj, strength: None)
     else:
-        real = Exchange.strike
+        real = NoteWorld.strike
 
         def shuffling(self, t, obj, strength):
             real(self, t, self.space.objects[int(self.rng.integers(len(self.space)))], strength)
-        monkeypatch.setattr(Exchange, "strike", shuffling)
+        monkeypatch.setattr(NoteWorld, "strike", shuffling)
     played = played_by(run_exchange(tmp_path), "ada")
     assert (len(played) >= 10) == (output == "shuffle")
     assert not recognisable(PHRASE, played)

@@ -28,7 +28,7 @@ from creatures.log_limit import RateLimit
 from creatures.runtime.network import Network, describe
 from creatures.runtime.schema import OscSection, load_installation
 from creatures.runtime.session import Session
-from midi.notes import NoteEvent
+from midi.notes import LONGEST_NOTE, NoteEvent
 from midi.osc import MAX_DURATION, MAX_PACKET, MAX_STATE_VALUE, MAX_TEXT, OscListener, Refused, decode
 from midi.peer_table import ADMIT_BURST, ASK_RATE, PeerTable
 from midi.sinks import MemorySink
@@ -92,13 +92,16 @@ def test_two_notes_of_1e308_seconds_leave_a_live_sandstone_colony_finite_and_sav
 
 
 def test_a_sandstone_ear_stays_finite_whatever_length_it_is_told(tmp_path):
-    """The creature side: a note of any finite length (NoteEvent allows 1e308) weighs at most
-    the ear's memory, so the creature saves whatever it heard, however it arrived."""
+    """The creature side: a note of any length a NoteEvent takes (up to LONGEST_NOTE, an hour;
+    1e308 is refused by the note itself) weighs at most the ear's memory, so the creature saves
+    whatever it heard, however it arrived."""
+    with pytest.raises(ValueError, match="duration"):
+        NoteEvent(0.0, 61, 100, 0, 1e308)
     inst = load_installation(installations.path("sandstone"))
     clock = SimulatedClock()
     session = Session(inst, clock, EventLog(), MemorySink())
     for _ in range(3):
-        session.world.inject(NoteEvent(0.0, 61, 100, 0, 1e308), "stranger")
+        session.world.inject(NoteEvent(0.0, 61, 100, 0, LONGEST_NOTE), "stranger")
     for step in range(1, 101):
         clock.advance_to(step * 0.02)
         session.step(step * 0.02, 0, None, audio=False)

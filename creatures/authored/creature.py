@@ -184,6 +184,20 @@ class Authored(CreatureKind):
         self.groups[name] = group
         return group
 
+    # -- what outside input reaches (the input map: creatures/runtime/input_map.py) ----------
+    @classmethod
+    def drive_names(cls, spec: AuthoredSpec) -> tuple[str, ...]:
+        """The authored drives: ``[[input]] to = "drive"`` may name any of them."""
+        return tuple(spec.drives)
+
+    @classmethod
+    def rewardable(cls, spec: AuthoredSpec) -> bool:
+        return True  # every authored creature has at least one group (the schema requires it)
+
+    def reward_groups(self) -> list[ActionGroup]:
+        """The clicker reaches every top-level group; each passes it to the groups it holds."""
+        return list(self.top)
+
     # -- what the runtime calls ---------------------------------------------------------
     def now(self) -> float:
         return self.world.clock.now()

@@ -163,7 +163,7 @@ class LearningSpec(Strict):
 
 class AuthoredSpec(CreatureSpec):
     kind: Literal["authored"]
-    drives: dict[str, DriveSpec] = Field(default_factory=dict, description="drives by name: [creature.drives.NAME] "
+    drives: dict[str, DriveSpec] = Field(default_factory=dict, max_length=256, description="drives by name: [creature.drives.NAME] "
                                                                            "(docs/authoring.md, 'Reference')")
     drive_floor: float | None = Field(0.0, ge=-LARGEST_RATE, le=LARGEST_RATE, description="lowest level of any drive; none = unbounded")
     drive_ceiling: float | None = Field(None, ge=-LARGEST_RATE, le=LARGEST_RATE, description="highest level of any drive; none = unbounded")
@@ -171,7 +171,7 @@ class AuthoredSpec(CreatureSpec):
                                                                                "[creature.percepts.NAME]")
     tuples: dict[str, TupleSpec] = Field(default_factory=dict, description="action-tuples by name: "
                                                                            "[creature.tuples.NAME]")
-    groups: dict[str, GroupSpec] = Field(min_length=1, description="action-groups by name: [creature.groups.NAME]; "
+    groups: dict[str, GroupSpec] = Field(min_length=1, max_length=256, description="action-groups by name: [creature.groups.NAME]; "
                                                                    "a group named in no other group is ticked "
                                                                    "by the creature")
     learning: LearningSpec = LearningSpec()

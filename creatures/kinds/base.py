@@ -83,13 +83,23 @@ class CreatureKind(ABC):
         """Whether a creature of this spec has an action-group to reward."""
         return cls.REWARDABLE
 
-    def reward(self, amount: float, t: float, window: float, rate: float) -> list[str]:
-        """A reward from outside at ``t`` (the clicker), given to the tuples of ``group`` active
-        within ``window`` seconds before, blended at ``rate`` (:meth:`ActionGroup.reward`);
-        logged as ``reward``. Returns the credited tuples."""
+    def reward_groups(self) -> list[ActionGroup]:
+        """The action-groups a reward from outside reaches: ``group`` where the kind has one
+        (a group tuple passes it on to its own group; kinds with several top-level groups
+        override this)."""
         group = getattr(self, "group", None)
-        credited, blended = (group.reward(amount, t, window, rate=rate) if isinstance(group, ActionGroup)
-                             else ([], {}))
+        return [group] if isinstance(group, ActionGroup) else []
+
+    def reward(self, amount: float, t: float, window: float, rate: float) -> list[str]:
+        """A reward from outside at ``t`` (the clicker), given to the tuples of
+        :meth:`reward_groups` active within ``window`` seconds before, blended at ``rate``
+        (:meth:`ActionGroup.reward`); logged as ``reward``. Returns the credited tuples."""
+        credited: list[str] = []
+        blended: dict = {}
+        for group in self.reward_groups():
+            names, moved = group.reward(amount, t, window, rate=rate)
+            credited += names
+            blended.update(moved)
         self.world.emit("reward", creature=self.name, tuple=credited[-1] if credited else None, amount=amount,
                         credited=credited, blended=blended)
         return credited
