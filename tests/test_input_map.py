@@ -192,6 +192,69 @@ def test_midi_cc_is_scaled_into_a_sensor_and_other_controllers_are_unmapped(tmp_
     assert router.counts["unmapped midi"] == 2
 
 
+PRESSURE_MAPS = """
+[[input]]
+midi = "program"
+channel = 2
+to = "sensor"
+name = "scene"
+range = [0.0, 127.0]
+
+[[input]]
+midi = "aftertouch"
+to = "sensor"
+name = "press"
+range = [0.0, 1.0]
+
+[[input]]
+midi = "polytouch"
+note = 60
+to = "sensor"
+name = "key60"
+value = {arg = 0}
+"""
+
+
+def test_program_change_aftertouch_and_polytouch_reach_sensors_and_filters_hold(tmp_path):
+    """Every MIDI message kind the map names reaches its sensor, by its own argument order
+    (program: program, channel; aftertouch: pressure, channel; polytouch: pressure, note,
+    channel), and the channel and note filters send the rest to the unmapped count."""
+    session, clock = colony(tmp_path, PRESSURE_MAPS)
+    router = session.inputs
+    router.midi(mido.Message("program_change", program=7, channel=2), 1.0)
+    router.midi(mido.Message("program_change", program=9, channel=3), 1.1)  # another channel
+    router.midi(mido.Message("aftertouch", value=127, channel=5), 1.2)
+    router.midi(mido.Message("aftertouch", value=0, channel=0), 1.3)
+    router.midi(mido.Message("polytouch", note=60, value=90), 1.4)
+    router.midi(mido.Message("polytouch", note=61, value=90), 1.5)  # another key
+    assert session.world.sensor("scene").data == pytest.approx([7.0])
+    assert session.world.sensor("press").data == pytest.approx([1.0, 0.0])  # 0-127 onto [0, 1]
+    assert session.world.sensor("key60").data == pytest.approx([90.0])  # no range: the raw reading
+    assert router.counts["mapped midi"] == 4 and router.counts["unmapped midi"] == 2
+
+
+def test_the_configured_window_decides_which_tuples_a_late_click_reaches(tmp_path):
+    """``window`` in the config reaches the reward: the same late click credits the tuple that
+    just ended with a wide window and only the active one with a narrow one."""
+    credited = {}
+    for window in (0.05, 3.0):
+        table = f'[[input]]\nosc = "/click"\nto = "reward"\ncreatures = ["bo"]\nwindow = {window}\n'
+        session, clock = colony(tmp_path, table)
+        bo = session.world.creatures[0]
+        names: list[str] = []
+        step = 0
+        while len(set(names)) < 2 and step < 3000:  # until bo has begun a second tuple
+            step += 1
+            clock.advance_to(step * 0.02)
+            session.step(step * 0.02, 441, None, audio=False)
+            names += [t.name for t in bo.group.active]
+        t = clock.now()
+        session.inputs.osc("/click", [], t)
+        (event,) = events(session, "reward")
+        credited[window] = event["credited"]
+    assert len(credited[3.0]) > len(credited[0.05]) >= 1, credited
+
+
 def test_midi_note_rewards_the_tuple_that_was_active_and_a_string_names_the_creature(tmp_path):
     session, clock = colony(tmp_path)
     bo = session.world.creatures[0]
