@@ -114,8 +114,9 @@ for i in range(count):
     pitch, velocity = 48 + (i * 7) % 36, 60 + i % 60
     # Max's and TouchDesigner's defaults send floats; others send ints: both where the protocol allows.
     args = [pitch, velocity, 0.2] if i % 2 == 0 else [pitch, velocity, 1, i % 16]
+    sent = time.time()  # before the send: an answer can reach the MIDI port before send_message returns
     client.send_message(f"/creature/{name}/note", args)
-    print(json.dumps({"i": i, "pitch": pitch, "args": args, "sent": time.time()}), flush=True)
+    print(json.dumps({"i": i, "pitch": pitch, "args": args, "sent": sent}), flush=True)
     if i == reward_after:  # the clicker: "/reward <creature> <amount>"
         client.send_message("/reward", [rewarded, 1.0])
         print(json.dumps({"reward": rewarded, "amount": 1.0, "sent": time.time()}), flush=True)
