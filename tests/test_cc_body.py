@@ -94,3 +94,16 @@ def test_a_creature_without_a_body_has_no_body_features(tmp_path):
                       '[[output.cc]]\nsource = "left.body.effector_height"\ncontroller = 20\n')
     with pytest.raises(ConfigError, match=r"bodiless.toml:3.*output.cc.0.source.*left has no body"):
         load_installation(config)
+
+
+def test_an_authored_creature_streams_its_hand_when_it_has_a_body(tmp_path):
+    """``body = true`` on an authored creature gives it the features (``Authored.has_body``)."""
+    config = tmp_path / "authored.toml"
+    config.write_text(f'extends = "{installations.path("authored/exchange")}"\n'
+                      '[[output.cc]]\nsource = "bo.body.speed"\ncontroller = 21\nrange = [0.0, 3.0]\n')
+    sink, clock = MemorySink(), SimulatedClock()
+    session = Session(load_installation(config), clock, EventLog(), sink)
+    for step in range(1, 301):
+        session.step(clock.advance_to(step * session.inst.settings.tick), 0, None, audio=False)
+    values = [m.value for _, m in sink.messages if m.type == "control_change" and m.control == 21]
+    assert len(values) >= 10 and len(set(values)) >= 5, values  # the hand moves, at varying speeds
