@@ -43,6 +43,11 @@ strike_interval = 0.0
 """
 
 
+RUN_CLIENT = "PortAudio"
+"""The JACK client name of the run's microphone (PortAudio's): on a shared JACK server, other
+programs' new input ports (a parallel run's listener) must not be taken for the run's."""
+
+
 def jack_available() -> str | None:
     """None if a JACK server answers and the client package is installed, else why not."""
     try:
@@ -130,7 +135,7 @@ def measure(onsets: int = 40, gap: float = 0.5, *, warm_up: float = 6.0, timeout
             ears: list[str] = []
             while not ears and time.monotonic() < deadline and run.poll() is None:
                 ears = [p.name for p in client.get_ports(is_audio=True, is_input=True)
-                        if p.name not in before and not p.name.startswith(name)]
+                        if p.name not in before and p.name.startswith(RUN_CLIENT)]
                 time.sleep(0.05)
             if not ears:
                 raise RuntimeError("the run's microphone never appeared on JACK:\n" + "".join(output))

@@ -105,6 +105,7 @@ SENDER = r"""
 import json, sys, time
 from pythonosc.udp_client import SimpleUDPClient
 port, count, rate, name = int(sys.argv[1]), int(sys.argv[2]), float(sys.argv[3]), sys.argv[4]
+rewarded, reward_after = sys.argv[5], int(sys.argv[6])
 client = SimpleUDPClient("127.0.0.1", port)
 start = time.monotonic()
 for i in range(count):
@@ -113,20 +114,29 @@ for i in range(count):
     pitch, velocity = 48 + (i * 7) % 36, 60 + i % 60
     # Max's and TouchDesigner's defaults send floats; others send ints: both where the protocol allows.
     args = [pitch, velocity, 0.2] if i % 2 == 0 else [pitch, velocity, 1, i % 16]
+    sent = time.time()  # before the send: an answer can reach the MIDI port before send_message returns
     client.send_message(f"/creature/{name}/note", args)
-    print(json.dumps({"i": i, "pitch": pitch, "args": args, "sent": time.time()}), flush=True)
+    print(json.dumps({"i": i, "pitch": pitch, "args": args, "sent": sent}), flush=True)
+    if i == reward_after:  # the clicker: "/reward <creature> <amount>"
+        client.send_message("/reward", [rewarded, 1.0])
+        print(json.dumps({"reward": rewarded, "amount": 1.0, "sent": time.time()}), flush=True)
 """
 
 
-def send_notes(port: int, count: int, rate: float, record: Path, name: str = "visitor") -> subprocess.Popen:
+def send_notes(port: int, count: int, rate: float, record: Path, name: str = "visitor",
+               reward: tuple[str, int] | None = None) -> subprocess.Popen:
     """A foreign OSC sender (python-osc's client, its own process) sending ``count`` notes at
-    ``rate`` a second; it writes one JSON line per note sent (with its Unix send time) to
-    ``record`` (a file, not a pipe: a pipe nobody reads until the end fills and stops it)."""
+    ``rate`` a second to ``/creature/<name>/note``, and with ``reward = (creature, i)`` a
+    clicker's ``/reward <creature> 1.0`` right after note ``i``; it writes one JSON line per
+    message sent (with its Unix send time) to ``record`` (a file, not a pipe: a pipe nobody
+    reads until the end fills and stops it)."""
+    rewarded, after = reward or ("", -1)
     with open(record, "w") as out:
-        return subprocess.Popen([sys.executable, "-c", SENDER, str(port), str(count), str(rate), name], stdout=out)
+        return subprocess.Popen([sys.executable, "-c", SENDER, str(port), str(count), str(rate), name, rewarded,
+                                 str(after)], stdout=out)
 
 
 def sent_notes(sender: subprocess.Popen, record: Path, timeout: float) -> list[dict]:
-    """What the sender sent, once it has finished."""
+    """What the sender sent, once it has finished (notes and rewards, in order)."""
     sender.wait(timeout)
     return [json.loads(line) for line in record.read_text().splitlines() if line.strip()]

@@ -51,7 +51,7 @@ def channel_setup(channel: int, *, pan: float, program: int | None = None, bank:
 
 
 class CcStream:
-    """One ``[[output.cc]]`` stream: a number read from a creature (a drive's level) scaled
+    """One ``[[output.cc]]`` stream: a number read from a creature (a drive's level, a body feature) scaled
     from ``range`` to 0..127 and sent as a control change at most ``rate`` times a second,
     and only when its value changed (a synth's filter follows boredom without flooding it)."""
 

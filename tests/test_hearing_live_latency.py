@@ -1,5 +1,20 @@
-"""Live: an onset played into the run's microphone through JACK → the creature's answering note
-on its MIDI output, measured on JACK's frame clock (bench/live_hearing.py does the measuring)."""
+"""Live (issue 18): an onset played into the run's microphone through JACK → the creature's
+answering note on its MIDI output, measured on JACK's frame clock (bench/live_hearing.py does
+the measuring: one probe client plays the tones and receives the notes, so both ends are JACK
+frame times).
+
+Every onset must be answered, and the p99 must stay under :data:`P99_BOUND_MS`. That bound is
+what a loaded 2-core CI can keep, not the issue's ≤ 30 ms, which is unreachable by design: the
+transcriber must hear its look of 1024 samples after an attack (``audio/transcribe.py``
+``WINDOW``; 46 ms at the run's 22.05 kHz) before it can name the pitch, and a JACK period of 512
+frames (11.6 ms) and the run's 10 ms tick come on top.
+
+Measured 2026-12-01 on the shared 2-core machine (other helpers' runs beside it, load ≈ 5),
+JACK dummy at 44.1 kHz / 512 frames, 20 onsets a run, 10 runs: p50 71–81 ms, p99 93–225 ms;
+the tail is the loaded machine (in the 225 ms run the run's ticks began up to 100 ms late, with
+128 input overruns). Hence 300 ms: it still fails a run that loses onsets or stalls for the
+gap between two of them.
+"""
 
 from __future__ import annotations
 
@@ -10,26 +25,28 @@ import pytest
 
 from bench.live_hearing import jack_available, measure
 
+ONSETS, GAP = 20, 0.5
+P99_BOUND_MS = 300.0
+"""The worst p99 measured under load (225 ms) plus room (see the module's docstring)."""
+
 
 @pytest.mark.jack
 @pytest.mark.slow
-@pytest.mark.xfail(strict=False, reason="measured 2026-12-01: the first onset is answered (147-307 ms after it), then "
-                   "the run's loop stalls for seconds at a time: every send re-lists the JACK MIDI ports on the "
-                   "creature's thread (midi/ports.py ResilientPort._check -> factory.names()), the microphone's "
-                   "ring overflows and later onsets are lost; without a MIDI output all 8 of 8 onsets were heard "
-                   "and answered")
-def test_onset_to_answer_latency_through_jack() -> None:
+def test_every_onset_is_answered_through_jack_within_the_bound() -> None:
     if not os.environ.get("CREATURES_JACK"):
         pytest.skip("set CREATURES_JACK=1 with a JACK server running (.ci/run starts one)")
     why = jack_available()
     if why is not None:
         pytest.skip(why)
-    latencies, played, output = measure(onsets=20, gap=0.5)
+    latencies, played, output = measure(onsets=ONSETS, gap=GAP)
     ms = 1e3 * np.array(latencies)
-    print(f"answered {len(ms)}/{played}; onset → answer p50 {np.median(ms):.1f} ms, "
-          f"p99 {np.percentile(ms, 99):.1f} ms" if len(ms) else f"answered 0/{played}\n{output}")
-    assert played == 20
-    # Each answer is the first note-on after its onset and before the next one (0.5 s later);
-    # a silent run answers none, so at least a third must be heard and answered.
-    assert len(ms) >= played // 3, output
-    assert ms.min() > 0
+    summary = (f"answered {len(ms)}/{played}; onset → answer p50 {np.median(ms):.1f} ms, "
+               f"p99 {np.percentile(ms, 99):.1f} ms (bound {P99_BOUND_MS:.0f} ms)" if len(ms)
+               else f"answered 0/{played}")
+    print(summary)
+    assert played == ONSETS, output
+    # Each answer is the first note-on after its onset and before the next one (GAP later): a
+    # deaf or silent run answers none, one that loses onsets (a stalled loop) fewer than all.
+    assert len(ms) == played, f"{summary}\n{output}"
+    assert ms.min() > 0, summary
+    assert np.percentile(ms, 99) <= P99_BOUND_MS, f"{summary}\n{output}"

@@ -1,9 +1,11 @@
 """The live show with its real parts (issue 14): the shipped exchange colony run as a user
 runs it (``creatures run``), playing fluidsynth on JACK, hearing a foreign OSC sender
-(python-osc's client in its own process) that sends notes with float and int arguments, with
-frames drawn. Over 30 s at the shipped tick: at least 98 % of ticks on time, every sent note
-heard, fluidsynth sounding the creatures' notes (its audio, captured through JACK, is loud
-while they play and silent before), at most one late note.
+(python-osc's client in its own process) that sends notes with float and int arguments and a
+clicker's reward through the input map (``[[input]] osc = "/reward"``), with frames drawn. Over
+30 s at the shipped tick: at least 98 % of ticks on time, every sent note heard, the reward
+logged and applied (the credited tuples' values moved by the logged amount), fluidsynth sounding
+the creatures' notes (its audio, captured through JACK, is loud while they play and silent
+before), at most one late note.
 
 Needs a JACK server (CI starts the dummy one and sets CREATURES_JACK=1), fluidsynth and
 fluid-soundfont-gm; skips with the reason otherwise. Wall-clock timing, as the issue asks.
@@ -24,6 +26,9 @@ from bench.live_parts import Synth, free_udp_port, missing_parts, send_notes, se
 
 SECONDS = 30.0
 NOTES = 60
+REWARDED = "ada"
+REWARD_AFTER = 20
+"""The sender clicks for ``REWARDED`` after this note (about 9 s in: it has long been acting)."""
 
 
 def live_config(tmp_path, synth: Synth, port: int) -> str:
@@ -31,8 +36,29 @@ def live_config(tmp_path, synth: Synth, port: int) -> str:
     config.write_text(f'extends = "{installations.path("exchange")}"\n'
                       f'[audio]\noutput = false  # the sound is fluidsynth\'s\n'
                       f'[midi]\noutput_port = "{synth.midi_port}"\nprogram = 11\n'
-                      f'[osc]\nport = {port}\n')
+                      f'[osc]\nport = {port}\n'
+                      # the clicker: "/reward <creature> <amount>" (README, "The input map")
+                      '[[input]]\nosc = "/reward"\nto = "reward"\ncreatures = {arg = 0}\namount = {arg = 1}\n')
     return str(config)
+
+
+def assert_reward_applied(events: list[dict], amount: float) -> None:
+    """The click was logged as one ``reward`` of ``REWARDED`` crediting the tuples active
+    then, and applied: between the ``values`` snapshots either side of it, every value it
+    blended moved by ``a_i × amount`` and no other moved (exchange's own credit assignment
+    is off, alpha = 0, so nothing else moves a value)."""
+    at = [i for i, e in enumerate(events) if e["kind"] == "reward"]
+    assert len(at) == 1, [events[i] for i in at]
+    reward = events[at[0]]
+    assert reward["creature"] == REWARDED and reward["amount"] == amount, reward
+    assert reward["credited"] and reward["tuple"] == reward["credited"][-1], reward
+    assert reward["blended"] and all(0 < a <= 1 for a in reward["blended"].values()), reward
+    snapshots = [(i, e["values"]) for i, e in enumerate(events) if e["kind"] == "values" and e["creature"] == REWARDED]
+    before = [v for i, v in snapshots if i < at[0]][-1]
+    after = next(v for i, v in snapshots if i > at[0])
+    moved = {name: after[name] - before[name] for name in before}
+    assert moved == pytest.approx({name: reward["blended"].get(name, 0.0) * amount for name in before}, abs=1e-6), \
+        (before, after, reward)
 
 
 def wait_for(process: subprocess.Popen, text: str, timeout: float) -> list[str]:
@@ -66,7 +92,7 @@ def test_the_exchange_colony_plays_fluidsynth_on_time_while_a_foreign_sender_pla
             before = synth.blocks
             silent_before = synth.loud_blocks()
             record = tmp_path / "sent.jsonl"
-            sender = send_notes(port, NOTES, NOTES / (SECONDS - 4.0), record)
+            sender = send_notes(port, NOTES, NOTES / (SECONDS - 4.0), record, reward=(REWARDED, REWARD_AFTER))
             sent = sent_notes(sender, record, timeout=SECONDS + 30)
             rest = colony.communicate(timeout=SECONDS + 90)[0]
         finally:
@@ -86,9 +112,12 @@ def test_the_exchange_colony_plays_fluidsynth_on_time_while_a_foreign_sender_pla
     assert timing["late_ticks"] <= 0.02 * timing["ticks"], timing
     # Every note the sender sent was heard, in order, with its arguments as sent.
     heard = [e for e in events if e["kind"] == "heard" and e["source"] == "visitor"]
-    assert len(sent) == NOTES
+    clicks = [m for m in sent if "reward" in m]
+    sent = [m for m in sent if "pitch" in m]
+    assert len(sent) == NOTES and len(clicks) == 1
     assert [e["pitch"] for e in heard] == [n["pitch"] for n in sent]
     assert [e["duration"] for e in heard] == pytest.approx([n["args"][2] for n in sent], abs=1e-6)  # OSC float32
+    assert_reward_applied(events, clicks[0]["amount"])
     # The creatures answered, and fluidsynth sounded their notes (silent before the colony played).
     played = [e for e in events if e["kind"] == "note"]
     assert len(played) >= 10

@@ -194,6 +194,10 @@ class Authored(CreatureKind):
     def rewardable(cls, spec: AuthoredSpec) -> bool:
         return True  # every authored creature has at least one group (the schema requires it)
 
+    @classmethod
+    def has_body(cls, spec: AuthoredSpec) -> bool:
+        return spec.body
+
     def reward_groups(self) -> list[ActionGroup]:
         """The clicker reaches every top-level group; each passes it to the groups it holds."""
         return list(self.top)

@@ -83,6 +83,13 @@ class CreatureKind(ABC):
         """Whether a creature of this spec has an action-group to reward."""
         return cls.REWARDABLE
 
+    @classmethod
+    def has_body(cls, spec: CreatureSpec) -> bool:
+        """Whether a creature of this spec has a body (``[[output.cc]]`` may read its
+        features): a kind that draws a :meth:`figure` has one (kinds whose body depends on
+        the spec override this)."""
+        return cls.figure is not CreatureKind.figure
+
     def reward_groups(self) -> list[ActionGroup]:
         """The action-groups a reward from outside reaches: ``group`` where the kind has one
         (a group tuple passes it on to its own group; kinds with several top-level groups
@@ -134,6 +141,14 @@ class CreatureKind(ABC):
     def figure(self) -> tuple[np.ndarray, np.ndarray] | None:
         """Joint positions ``(J, 3)`` and parents ``(J,)`` to draw, or None for no body."""
         return None
+
+    def effector(self) -> np.ndarray | None:
+        """World position ``(3,)`` of the body's (first) end-effector, as drawn by
+        :meth:`figure`, or None for no body: what ``[[output.cc]]`` body features read."""
+        figure, body = self.figure(), getattr(self, "body", None)
+        if figure is None or body is None or not body.skeleton.end_effectors:
+            return None
+        return figure[0][body.skeleton.index(body.skeleton.end_effectors[0])]
 
     def marks(self) -> list[tuple[tuple[float, float, float], int]]:
         """Note objects to draw in space as ``(position, pitch)``."""

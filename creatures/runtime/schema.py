@@ -17,6 +17,7 @@ from creatures.bounds import FINITE, LONGEST_OFFLINE, Bounded
 from creatures.authored.include import expand_includes, expand_likes
 from creatures.authored.plugins import load_plugins
 from creatures.authored.registry import PluginError
+from creatures.runtime.cc_sources import check_source
 from creatures.config import ConfigError, config_error, read_toml, validate
 from creatures.kinds import CreatureSpec, load_all
 
@@ -163,11 +164,14 @@ class InputSection(Strict):
 
 
 class CcSection(Strict):
-    """One ``[[output.cc]]`` stream: a creature's drive sent as a MIDI control change (live and
-    in ``out.mid``), e.g. boredom opening a synth's filter."""
+    """One ``[[output.cc]]`` stream: a creature's drive or body feature sent as a MIDI control
+    change (live and in ``out.mid``), e.g. boredom opening a synth's filter, or the hand's
+    height (``creatures/runtime/cc_sources.py``)."""
 
-    source: str = Field(pattern=r"^[A-Za-z0-9_\-]+\.[A-Za-z0-9_\-]+$",
-                        description="'<creature>.<drive>', e.g. 'ada.boredom'")
+    source: str = Field(pattern=r"^[A-Za-z0-9_\-]+(\.[A-Za-z0-9_\-]+){1,2}$",
+                        description="'<creature>.<drive>', e.g. 'ada.boredom', or, for a creature with a body, "
+                                    "'<creature>.body.<feature>': effector_x, effector_y, effector_z, "
+                                    "effector_height (= effector_y, up) or speed (the end-effector's, units/s)")
     controller: int = Field(ge=0, le=119, description="MIDI controller number (on the creature's channel)")
     range: tuple[Bounded, Bounded] = Field((0.0, 1.0), description="source values mapped to 0 and 127 (clipped)")
     rate: float = Field(10.0, gt=0, le=100, description="most messages a second (sent only when the value changes)")
@@ -287,12 +291,17 @@ def load_installation(path: str | Path) -> LoadedInstallation:
         problem = peer_problem(peer)
         if problem is not None:
             raise config_error(path, where, ("osc", "peers", i), problem)
+    by_name = {spec.name: spec for spec in specs}
     for i, stream in enumerate(settings.output.cc):
         creature = stream.source.split(".")[0]
         if creature not in names:
             close = difflib.get_close_matches(creature, sorted(names), n=1)
             hint = f" (did you mean {close[0]!r}?)" if close else f" (creatures: {sorted(names)})"
             raise config_error(path, where, ("output", "cc", i, "source"), f"no creature named {creature!r}{hint}")
+        kind = kinds[by_name[creature].kind]
+        problem = check_source(stream.source, kind.drive_names(by_name[creature]), kind.has_body(by_name[creature]))
+        if problem is not None:
+            raise config_error(path, where, ("output", "cc", i, "source"), problem)
     return _with_input_maps(path, settings, specs, where, ("input",) if isinstance(data.get("input"), list)
                             else ("input", "map"))
 

@@ -19,11 +19,11 @@ import numpy as np
 
 from audio.mixer import Mixer
 from audio.transcribe import WINDOW, Transcriber
-from creatures.behaviour.motivation import Motivation
 from creatures.clock import Clock
 from creatures.events import EventLog
 from creatures.kinds import KINDS
 from creatures.persist import StateFileError, json_text, load_json, write_json_text
+from creatures.runtime.cc_sources import Reader, parse, reader
 from creatures.runtime.input_map import InputRouter
 from creatures.runtime.schema import LoadedInstallation
 from creatures.runtime.world import World
@@ -97,8 +97,8 @@ class Session:
                 creature.listen(t, block, self.sample_rate)
         for creature in self.creatures:
             creature.tick(t)
-        for motivation, drive, stream in self._cc:
-            msg = stream.due(t, motivation.level(drive, max(t, motivation.time)))
+        for read, stream in self._cc:
+            msg = stream.due(t, read(t))
             if msg is not None:
                 self.scheduler.send_at(t, msg)
         self.scheduler.pump()
@@ -124,19 +124,14 @@ class Session:
             for msg in channel_setup(spec.channel, pan=spec.pan, **chosen):
                 self.scheduler.send_at(now, msg)
 
-    def _cc_streams(self) -> list[tuple[Motivation, str, CcStream]]:
-        """``[[output.cc]]``: each stream's creature motivation and drive, checked by name."""
-        streams = []
+    def _cc_streams(self) -> list[tuple[Reader, CcStream]]:
+        """``[[output.cc]]``: each stream's per-tick reading (a drive or a body feature, which
+        the config loader checked against the creature's kind) and its scaling."""
         by_name = {c.name: c for c in self.creatures}
-        for i, cc in enumerate(self.inst.settings.output.cc):
-            name, drive = cc.source.split(".")
-            creature = by_name[name]  # the config loader checked the creature's name
-            motivation = getattr(creature, "motivation", None)
-            drives = motivation.names if isinstance(motivation, Motivation) else []
-            if drive not in drives:
-                raise self.inst.error(("output", "cc", i, "source"),
-                                      f"{name} has no drive {drive!r} (drives: {drives or 'none'})")
-            streams.append((motivation, drive, CcStream(creature.spec.channel, cc.controller, *cc.range, cc.rate)))
+        streams = []
+        for cc in self.inst.settings.output.cc:
+            creature = by_name[parse(cc.source)[0]]
+            streams.append((reader(creature, cc.source), CcStream(creature.spec.channel, cc.controller, *cc.range, cc.rate)))
         return streams
 
     def _hear_notes(self, t: float, recorded: np.ndarray) -> None:
