@@ -30,7 +30,7 @@ from creatures.cli import main
 from creatures.events import EventLog, read_events
 from creatures.lock import LOCK_FILE, FolderLock, FolderLockedError
 from creatures.paths import UnsafePathError
-from creatures.persist import StateFileError, load_json, load_npz
+from creatures.persist import StateFileError, load_json, load_npz, save_json
 from creatures.runtime import live, outputs
 from creatures.runtime.offline import run_offline
 from creatures.runtime.outputs import JOURNAL, MANIFEST, MANIFEST_KIND, OutputDirectoryError
@@ -178,6 +178,40 @@ def test_a_publish_killed_half_way_is_undone_at_the_next_start(at, config, tmp_p
     with FolderLock(out, "output directory"):
         outputs.recover(out)  # what every run does first
     assert _tree(out) == before
+
+
+PLANTED = [  # a journal anyone could write into --out: each names something outside it
+    {"staged": "../sibling", "retired": ".creatures-old-x", "new": [], "old": []},
+    {"staged": ".creatures-run-x", "retired": "../sibling", "new": [], "old": []},
+    {"staged": ".creatures-run-x", "retired": ".creatures-old-x", "new": ["../sibling"], "old": []},
+    {"staged": ".creatures-run-x", "retired": ".creatures-old-x", "new": [], "old": ["/tmp"]},
+    {"staged": "sibling", "retired": ".creatures-old-x", "new": [], "old": []},  # not a staging folder
+]
+
+
+@pytest.mark.parametrize("journal", PLANTED, ids=range(len(PLANTED)))
+def test_a_planted_journal_or_manifest_never_touches_a_folder_outside_out(journal, config, tmp_path, capsys):
+    """A planted ``.creatures-publish.json`` made an offline run remove a folder beside
+    ``--out``: now the journal is refused (exit 2, one line) and everything is left; a
+    manifest naming ``../sibling`` owns nothing outside ``--out`` either."""
+    sibling = tmp_path / "sibling"
+    sibling.mkdir()
+    (sibling / "work.txt").write_text("an artist's work")
+    out = tmp_path / "out"
+    out.mkdir()
+    save_json(out / JOURNAL, journal, kind=outputs.JOURNAL_KIND)
+    before = _tree(tmp_path)
+    assert _offline(config, out) == 2
+    err = capsys.readouterr().err
+    assert "cannot finish an interrupted publish" in err and err.count("\n") == 1
+    assert _tree(tmp_path) == before and (sibling / "work.txt").read_text() == "an artist's work"
+
+    (out / JOURNAL).unlink()
+    save_json(out / MANIFEST, {"files": ["../sibling/", "../sibling/work.txt", "/tmp/", "events.jsonl"]},
+              kind=MANIFEST_KIND)
+    assert outputs.owned(out) == {"events.jsonl"}
+    assert _offline(config, out) == 0
+    assert (sibling / "work.txt").read_text() == "an artist's work"
 
 
 # -- defect 3: regular files only ---------------------------------------------------------
