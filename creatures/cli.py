@@ -162,7 +162,7 @@ def _run(args: argparse.Namespace) -> int:
     from creatures.lock import hold
     from creatures.paths import directory
     from creatures.persist import StateFileError
-    from creatures.runtime.live import run_live
+    from creatures.runtime.live import check_before_running, run_live
     from creatures.runtime.ticking import LATE_TICK
     from midi.sinks import LATE_NOTE
     from creatures.runtime.network import describe
@@ -173,6 +173,7 @@ def _run(args: argparse.Namespace) -> int:
         state = args.state or installation.resolve(installation.settings.state)
         if state is None:
             print(f"note: {NO_STATE}")
+        check_before_running(installation, state=state, log_path=args.log, pictures=args.frames)  # before a folder is made
         lock = hold(directory(state, "--state"), "state folder", print) if state is not None else None
         try:  # the state folder is this run's until it ends (creatures/lock.py)
             summary = run_live(installation, duration=args.duration, state=state, log_path=args.log,

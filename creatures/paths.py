@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 import stat
+import tempfile
 from pathlib import Path
 from typing import BinaryIO
 
@@ -85,3 +86,17 @@ def read_regular(path: str | os.PathLike, what: str, limit: int) -> bytes:
     if len(data) > limit:
         raise UnsafePathError(f"{what} {path}: larger than {limit} bytes; refused")
     return data
+
+
+def writable_directory(path: str | os.PathLike, what: str) -> Path:
+    """``path`` as a directory this process can write in, made if absent (:func:`directory`
+    first). A folder on a read-only disk is found here, with ``what`` (e.g. "--frames") in the
+    message, not half-way through a run by whichever file happens to be written first."""
+    path = directory(path, what)
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=path):
+            pass
+    except OSError as exc:
+        raise OSError(f"{what} {path}: cannot write there ({exc.strerror or exc})") from None
+    return path

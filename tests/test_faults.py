@@ -394,6 +394,24 @@ def test_read_only_output_directory_is_a_clear_error_and_keeps_the_previous_run(
     assert _tree(out) == before
 
 
+@pytest.mark.parametrize("made", [True, False], ids=["existing", "to be made"])
+@pytest.mark.parametrize("code", [errno.EROFS, errno.EACCES], ids=["EROFS", "EACCES"])
+def test_frames_on_a_read_only_disk_is_refused_naming_frames(made, code, colony, tmp_path, monkeypatch, capsys):
+    """``--frames`` on a read-only disk said only "Read-only file system" (or, for a folder
+    that existed, drew nothing in silence): it is refused before the run, naming ``--frames``."""
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    frames = disk / "frames"
+    if made:
+        frames.mkdir()
+    refused = _read_only(monkeypatch, disk, code)
+    assert main(["run", str(tmp_path / "colony.toml"), "--frames", str(frames), "--duration", "0.2"]) == 2
+    monkeypatch.undo()
+    err = capsys.readouterr().err
+    assert f"--frames {frames}: cannot write there ({os.strerror(code)})" in err and err.count("\n") == 1
+    assert refused and _tree(disk) == ({"frames": None} if made else {})
+
+
 def _full_wav(monkeypatch, out: Path) -> list[Path]:
     """The 20th audio block written fills the disk (libsndfile writes from C, beyond ``open``)."""
     real_write, failures, blocks = WavOutput._write, [], []

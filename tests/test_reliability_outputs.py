@@ -18,6 +18,7 @@ from __future__ import annotations
 import errno
 import os
 import signal
+import socket
 import stat
 import subprocess
 import sys
@@ -336,6 +337,23 @@ def test_state_arrays_manifest_and_journal_that_are_not_regular_files_are_refuse
     assert "cannot finish an interrupted publish" in capsys.readouterr().err
     os.replace(out / JOURNAL, out / MANIFEST)
     assert outputs.owned(out) == set()  # an unreadable manifest owns nothing
+
+
+@pytest.mark.parametrize("bad", ["--log", "--frames", "osc port"])
+def test_a_run_refused_for_its_log_frames_or_port_creates_no_state_folder(bad, config, tmp_path, capsys):
+    """``creatures run`` made an empty ``--state`` folder (locking it) before it refused a
+    bad ``--log``, ``--frames`` or a busy OSC port: now all three are checked first."""
+    state, extra = tmp_path / "state", []
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as busy:
+        busy.bind(("127.0.0.1", 0))
+        if bad == "osc port":
+            config.write_text(config.read_text() + f"[osc]\nport = {busy.getsockname()[1]}\n")
+        else:
+            extra = [bad, str(_special("FIFO" if bad == "--log" else "file", tmp_path / "special"))]
+        assert main(["run", str(config), "--state", str(state), "--duration", "0.2", *extra]) == 2
+    err = capsys.readouterr().err
+    assert ("already in use" if bad == "osc port" else bad) in err and err.count("\n") == 1
+    assert not state.exists()
 
 
 # -- defect 5: a full disk under the events log ------------------------------------------

@@ -34,10 +34,10 @@ from audio.resilient import ResilientInput, ResilientOutput
 from creatures import stop as stops
 from creatures.clock import Clock, SimulatedClock, WallClock
 from creatures.events import EventLog
-from creatures.paths import directory, regular_file
+from creatures.paths import directory, regular_file, writable_directory
 from creatures.runtime.bodies import FramesBeside
 from creatures.runtime.input_sources import SerialSource, open_sources
-from creatures.runtime.network import Network
+from creatures.runtime.network import Network, open_listener
 from creatures.runtime.schema import LoadedInstallation
 from creatures.runtime.session import Session, write_snapshot
 from creatures.runtime.ticking import TickLoop, TickTiming, realtime, setup_kept
@@ -253,6 +253,22 @@ class _Saver:
             _write_state(self.state_dir, pending[0], self.summary, self.say, pending[1])
 
 
+def check_before_running(inst: LoadedInstallation, *, state: Path | None, log_path: Path | None,
+                         pictures: Path | None) -> None:
+    """What a live run is given, checked before anything runs or is made (``creatures run``
+    calls it before it locks, and so makes, the state folder): the log a regular file or
+    absent, the state a folder or absent, the OSC port free, and last the ``--frames`` folder
+    made and written in. The first that fails raises, naming its option or config key."""
+    if log_path is not None:
+        regular_file(log_path, "--log")
+    if state is not None:
+        directory(state, "state folder")
+    if inst.settings.osc.port is not None:  # bound and let go: a port in use is said now
+        open_listener(inst.settings.osc, WallClock(), lambda key, message: inst.error(("osc", key), message)).close()
+    if pictures is not None:
+        writable_directory(pictures, "--frames")
+
+
 def run_live(
     inst: LoadedInstallation,
     *,
@@ -268,9 +284,7 @@ def run_live(
     settings = inst.settings
     summary = LiveSummary()
     state_dir = state or inst.resolve(settings.state)
-    for path, what in ((state_dir, "state folder"), (pictures, "--frames")):  # before anything runs
-        if path is not None:
-            directory(path, what)
+    check_before_running(inst, state=state_dir, log_path=log_path, pictures=pictures)
     rehearse(inst)
     wall = WallClock()
     clock = SimulatedClock(wall.now())  # the creatures' time, moved by the loop (ticking.py)
@@ -316,7 +330,6 @@ def run_live(
                        creatures=[c.name for c in session.creatures], restored=summary.restored)
     bodies = None
     if pictures is not None:
-        pictures.mkdir(parents=True, exist_ok=True)
         bodies = FramesBeside(settings.output, pictures, wall, summary.messages)
         for message in summary.messages:
             say(message)
