@@ -188,7 +188,8 @@ def _run(args: argparse.Namespace) -> int:
     network = f"; {describe(summary.network)}" if summary.network is not None else ""
     print(f"stopped after {summary.seconds:.1f} s: {summary.ticks} ticks, {summary.notes_played} notes, "
           f"{summary.late} late{restored}; sound {summary.sound}; {summary.underruns} audio underruns, "
-          f"{summary.overruns} input overruns{network}")
+          f"{summary.overruns} input overruns{network}"
+          + (f"; {summary.midi_dropped} MIDI messages dropped (no output port)" if summary.midi_dropped is not None else ""))
     if summary.inputs:
         print("outside input: " + ", ".join(f"{summary.inputs.get(what, 0)} {what}"
                                             for what in ("mapped", "unmapped", "malformed", "refused osc")))

@@ -412,6 +412,17 @@ def test_frames_on_a_read_only_disk_is_refused_naming_frames(made, code, colony,
     assert refused and _tree(disk) == ({"frames": None} if made else {})
 
 
+def test_midi_messages_with_no_output_port_are_counted_in_the_summary_and_the_log(colony, tmp_path, capsys):
+    """A synth that is never there: every message the run sent it was dropped in silence;
+    now the count ends the ``creatures run`` summary line and the events log."""
+    log = tmp_path / "events.jsonl"
+    assert main(["run", str(tmp_path / "colony.toml"), "--duration", "1", "--log", str(log)]) == 0
+    out = capsys.readouterr().out
+    (event,) = [e for e in read_events(log) if e["kind"] == "midi output"]
+    assert event["port"] == "Fake Synth" and event["dropped"] > 0  # at least the closing all-notes-off
+    assert f"; {event['dropped']} MIDI messages dropped (no output port)" in out
+
+
 def _full_wav(monkeypatch, out: Path) -> list[Path]:
     """The 20th audio block written fills the disk (libsndfile writes from C, beyond ``open``)."""
     real_write, failures, blocks = WavOutput._write, [], []

@@ -69,6 +69,7 @@ class LiveSummary:
     lateness_p99: float = 0.0  # seconds
     notes_played: int = 0
     late_notes: int = 0  # note-ons that reached the MIDI port more than sinks.LATE_NOTE late
+    midi_dropped: int | None = None  # MIDI messages that found no output port (None: no port configured)
     frames_dropped: int = 0  # frames the drawing process was too busy to take
     heard_between_ticks: int = 0  # notes heard (and answerable) at once, not at the next tick
     underruns: int = 0  # audio output callbacks that found no sound ready and played silence
@@ -294,6 +295,7 @@ def run_live(
     supervisor = Supervisor()  # started with the loop; until then devices are looked at here
 
     sink: PortSink | MemorySink = MemorySink()
+    port = None
     if settings.midi.output_port:
         port = ResilientPort(settings.midi.output_port, MidoOutputs(), wall,
                              report=lambda m: say(f"MIDI output: {m}; {HELP}"), supervisor=supervisor)
@@ -380,6 +382,9 @@ def run_live(
             timing.log_change(always=True)
             summary.underruns, summary.overruns = counters.now()
             inputs.tally()
+            if port is not None:  # what never reached the synth is said, not lost in silence
+                summary.midi_dropped = port.dropped
+                session.world.emit("midi output", port=settings.midi.output_port, dropped=port.dropped)
             session.close()
             if state_dir is not None:
                 _save(session, state_dir, summary, say, wall.now() - start, final=True)
