@@ -303,7 +303,7 @@ input_range = [0.0, 1e-300]
 def test_numbers_beyond_their_bounds_are_malformed_and_never_reach_a_value(tmp_path):
     """``/reward bo 1e308`` once crashed a live run. Every number read from a message meets
     its bound (readings and drives ±1e6, rewards ±1e3, a reading after its range scaling
-    finite): beyond, the message is counted malformed, no value moves, and the colony
+    finite, a note's duration an hour): beyond, the message is counted malformed, no value moves, and the colony
     still ticks and saves."""
     session, clock = colony(tmp_path, BOUND_MAPS)
     bo = session.world.creatures[0]
@@ -315,10 +315,10 @@ def test_numbers_beyond_their_bounds_are_malformed_and_never_reach_a_value(tmp_p
     router, t = session.inputs, clock.now()
     for address, args in (("/reward", ["bo", 1e308]), ("/reward", ["bo", "-1e308"]), ("/reward", ["bo", 2e3]),
                           ("/reward", ["bo", 10**400]), ("/lux", [1e308]), ("/lux", [-2e6]), ("/bored", [1e308]),
-                          ("/calm", []), ("/wide", [1.0])):
+                          ("/calm", []), ("/wide", [1.0]), ("/note", [60, 100, 1e5])):
         router.osc(address, args, t)
-    assert router.counts["malformed osc"] == 8 and router.counts["mapped osc"] == 1  # /calm: a constant level
-    assert not events(session, "reward") and len(session.world.sensor("lux")) == 0
+    assert router.counts["malformed osc"] == 9 and router.counts["mapped osc"] == 1  # /calm: a constant level
+    assert not events(session, "reward") and not events(session, "heard") and len(session.world.sensor("lux")) == 0
     assert len(session.world.sensor("wide")) == 0
     assert [tuple_.value.to_float() for tuple_ in bo.group.tuples] == values
     assert bo.motivation.level("boredom") == 0.0 != boredom  # only /calm's constant reached it

@@ -23,7 +23,8 @@ Both are counted and logged once per address and source (again at most every
 Every number read from a message meets a bound before it reaches a value, the way a config
 number does (:mod:`creatures.bounds`): a reading, a drive's amount or level, and a reading
 after its ``range`` scaling must be finite and within ±:data:`~creatures.bounds.LARGEST_RATE`;
-a reward's amount within ±:data:`REWARD_LIMIT`. Beyond, the message is refused as malformed,
+a reward's amount within ±:data:`REWARD_LIMIT`; a note's duration within
+:data:`~midi.notes.LONGEST_NOTE`. Beyond, the message is refused as malformed,
 not clamped: a sender that says 1e308 means something the map does not know, and a clamped
 value would credit a tuple with the largest reward there is for it.
 """
@@ -41,7 +42,7 @@ from creatures.behaviour.state_object import Habituation, StateObject
 from creatures.bounds import LARGEST_RATE
 from creatures.runtime.input_routes import MIDI, MIDI_KIND, MIDI_SPAN, Route
 from creatures.runtime.schema import Arg, InputMap, Number
-from midi.notes import NoteEvent, is_note_off
+from midi.notes import LONGEST_NOTE, NoteEvent, is_note_off
 
 if TYPE_CHECKING:
     from creatures.runtime.world import World
@@ -205,7 +206,7 @@ class InputRouter:
         midi_note = route.midi in ("note", "note_off", "polytouch")
         pitch = as_pitch(read(spec.pitch, args, Arg(arg=0)))
         velocity = round(as_number(read(spec.velocity, args, Arg(arg=1) if midi_note else 100.0), "velocity"))
-        duration = as_number(read(spec.duration, args, HEARD_LENGTH), "duration")
+        duration = as_number(read(spec.duration, args, HEARD_LENGTH), "duration", LONGEST_NOTE)
         if not 1 <= velocity <= 127 or duration < 0:
             raise Unreadable(f"velocity {velocity} (1..127) or duration {duration} (>= 0) out of range")
         channel = args[-1] if route.midi else 0
