@@ -162,7 +162,7 @@ def _run(args: argparse.Namespace) -> int:
     from creatures.lock import hold
     from creatures.paths import directory
     from creatures.persist import StateFileError
-    from creatures.runtime.live import run_live
+    from creatures.runtime.live import check_before_running, run_live
     from creatures.runtime.ticking import LATE_TICK
     from midi.sinks import LATE_NOTE
     from creatures.runtime.network import describe
@@ -173,6 +173,7 @@ def _run(args: argparse.Namespace) -> int:
         state = args.state or installation.resolve(installation.settings.state)
         if state is None:
             print(f"note: {NO_STATE}")
+        check_before_running(installation, state=state, log_path=args.log, pictures=args.frames)  # before a folder is made
         lock = hold(directory(state, "--state"), "state folder", print) if state is not None else None
         try:  # the state folder is this run's until it ends (creatures/lock.py)
             summary = run_live(installation, duration=args.duration, state=state, log_path=args.log,
@@ -187,7 +188,8 @@ def _run(args: argparse.Namespace) -> int:
     network = f"; {describe(summary.network)}" if summary.network is not None else ""
     print(f"stopped after {summary.seconds:.1f} s: {summary.ticks} ticks, {summary.notes_played} notes, "
           f"{summary.late} late{restored}; sound {summary.sound}; {summary.underruns} audio underruns, "
-          f"{summary.overruns} input overruns{network}")
+          f"{summary.overruns} input overruns{network}"
+          + (f"; {summary.midi_dropped} MIDI messages dropped (no output port)" if summary.midi_dropped is not None else ""))
     if summary.inputs:
         print("outside input: " + ", ".join(f"{summary.inputs.get(what, 0)} {what}"
                                             for what in ("mapped", "unmapped", "malformed", "refused osc")))

@@ -128,8 +128,9 @@ def read_toml(path: str | Path, *, _seen: tuple[Path, ...] = ()) -> tuple[dict[s
     base = path.parent / parent
     if not base.is_file():
         # Named here, at the including file's line: the base's own path alone would not say
-        # which config asked for it.
-        raise ConfigError(path, f"base config {parent!r} not found (looked for {base})", key="extends", line=line)
+        # which config asked for it. A FIFO or a folder there is said as what it is.
+        found = "not found" if not base.exists() else f"is {kind_of(base.stat().st_mode)}, not a regular file"
+        raise ConfigError(path, f"base config {parent!r} {found} (looked for {base})", key="extends", line=line)
     base_data, base_where = read_toml(base, _seen=(*_seen, path))
     return _merge(base_data, data), {**base_where, **where}
 

@@ -17,12 +17,11 @@ import math
 import os
 import stat
 import threading
-from pathlib import Path
 from typing import IO, Any, Callable
 
 import orjson
 
-from creatures.paths import UnsafePathError, kind_of, regular_file
+from creatures.paths import UnsafePathError, kind_of, open_regular, regular_file
 
 
 def _plain(value: Any) -> Any:
@@ -323,7 +322,7 @@ def read_events(path: str | os.PathLike) -> list[dict[str, Any]]:
     an event lacking what the readers take from it (:data:`FIELDS`) — raises ValueError
     naming file and line (issue 13: ``creatures inspect`` gave tracebacks on such logs)."""
     events = []
-    with Path(path).open("rb") as handle:
+    with open_regular(path, "events log") as handle:  # a FIFO would block inspect forever
         for lineno, raw in enumerate(handle, 1):
             if not raw.strip():
                 continue

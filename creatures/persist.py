@@ -23,6 +23,8 @@ from typing import Any, Callable
 
 import numpy as np
 
+from creatures.paths import UnsafePathError, open_regular, read_regular
+
 FORMAT_VERSION = 1
 MAX_STATE_BYTES = 256 * 1024 * 1024
 """Largest JSON state file, and largest total of unpacked NPZ arrays, that will be read."""
@@ -118,9 +120,11 @@ def load_json(path: str | os.PathLike, *, kind: str) -> dict[str, Any]:
     try:
         if path.stat().st_size > MAX_STATE_BYTES:
             raise StateFileError(f"{path}: state file larger than {MAX_STATE_BYTES} bytes; refused")
-        text = path.read_text(encoding="utf-8")
+        text = read_regular(path, "state file", MAX_STATE_BYTES).decode("utf-8")
     except FileNotFoundError:
         raise StateFileError(f"{path}: state file not found") from None
+    except UnsafePathError as exc:  # a FIFO or a device: it would block or never end
+        raise StateFileError(str(exc)) from None
     except (OSError, UnicodeDecodeError) as exc:
         raise StateFileError(f"{path}: cannot read state file ({exc})") from None
     try:
@@ -168,13 +172,15 @@ def load_npz(path: str | os.PathLike) -> dict[str, np.ndarray]:
     """Read an ``.npz`` written by :func:`save_npz`; object arrays are refused."""
     path = Path(path)
     try:
-        with np.load(path, allow_pickle=False) as data:
+        with open_regular(path, "array file") as handle, np.load(handle, allow_pickle=False) as data:
             unpacked = sum(info.file_size for info in data.zip.infolist())
             if unpacked > MAX_STATE_BYTES:  # checked before unpacking: a zip bomb stays packed
                 raise StateFileError(f"{path}: arrays unpack to {unpacked} bytes, more than {MAX_STATE_BYTES}; refused")
             return {name: data[name] for name in data.files}
     except FileNotFoundError:
         raise StateFileError(f"{path}: array file not found") from None
+    except UnsafePathError as exc:
+        raise StateFileError(str(exc)) from None
     # truncated: BadZipFile; a damaged header can claim a zip version zipfile lacks: NotImplementedError
     except (OSError, ValueError, EOFError, zipfile.BadZipFile, NotImplementedError) as exc:
         raise StateFileError(f"{path}: malformed array file ({exc})") from None

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
@@ -108,3 +109,12 @@ def test_missing_extends_file_names_the_key_and_the_including_line(tmp_path):
     assert (err.value.file.name, err.value.key, err.value.line) == ("child.toml", "extends", 3)
     assert "'bases/absent.toml' not found" in str(err.value)
     assert str(tmp_path.resolve() / "bases" / "absent.toml") in str(err.value)
+
+
+def test_a_fifo_as_extends_is_said_as_a_fifo_not_as_missing(tmp_path):
+    os.mkfifo(tmp_path / "base.toml")
+    child = write(tmp_path, "child.toml", 'extends = "base.toml"\n')
+    with pytest.raises(ConfigError) as err:
+        load_config(child, Installation)
+    assert (err.value.key, err.value.line) == ("extends", 1)
+    assert "'base.toml' is a FIFO (named pipe), not a regular file" in str(err.value)

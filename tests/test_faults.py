@@ -394,6 +394,35 @@ def test_read_only_output_directory_is_a_clear_error_and_keeps_the_previous_run(
     assert _tree(out) == before
 
 
+@pytest.mark.parametrize("made", [True, False], ids=["existing", "to be made"])
+@pytest.mark.parametrize("code", [errno.EROFS, errno.EACCES], ids=["EROFS", "EACCES"])
+def test_frames_on_a_read_only_disk_is_refused_naming_frames(made, code, colony, tmp_path, monkeypatch, capsys):
+    """``--frames`` on a read-only disk said only "Read-only file system" (or, for a folder
+    that existed, drew nothing in silence): it is refused before the run, naming ``--frames``."""
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    frames = disk / "frames"
+    if made:
+        frames.mkdir()
+    refused = _read_only(monkeypatch, disk, code)
+    assert main(["run", str(tmp_path / "colony.toml"), "--frames", str(frames), "--duration", "0.2"]) == 2
+    monkeypatch.undo()
+    err = capsys.readouterr().err
+    assert f"--frames {frames}: cannot write there ({os.strerror(code)})" in err and err.count("\n") == 1
+    assert refused and _tree(disk) == ({"frames": None} if made else {})
+
+
+def test_midi_messages_with_no_output_port_are_counted_in_the_summary_and_the_log(colony, tmp_path, capsys):
+    """A synth that is never there: every message the run sent it was dropped in silence;
+    now the count ends the ``creatures run`` summary line and the events log."""
+    log = tmp_path / "events.jsonl"
+    assert main(["run", str(tmp_path / "colony.toml"), "--duration", "1", "--log", str(log)]) == 0
+    out = capsys.readouterr().out
+    (event,) = [e for e in read_events(log) if e["kind"] == "midi output"]
+    assert event["port"] == "Fake Synth" and event["dropped"] > 0  # at least the closing all-notes-off
+    assert f"; {event['dropped']} MIDI messages dropped (no output port)" in out
+
+
 def _full_wav(monkeypatch, out: Path) -> list[Path]:
     """The 20th audio block written fills the disk (libsndfile writes from C, beyond ``open``)."""
     real_write, failures, blocks = WavOutput._write, [], []

@@ -313,6 +313,41 @@ def test_fuzz_random_osc_and_midi_never_crash_the_loop_and_all_is_counted(fuzzed
     assert counted(session, inputs) - before == sum(expected(p) for p in packets) + len(messages) + 1
 
 
+def test_numbers_beyond_their_bounds_sent_live_are_counted_and_the_colony_still_saves(tmp_path):
+    """``/reward bo 1e308`` over UDP once crashed ``creatures run`` (a traceback, exit 1):
+    through the live listener, each number beyond its bound is counted malformed, and the
+    creatures still tick and save."""
+    path = tmp_path / "live.toml"
+    path.write_text(CREATURES + f"[osc]\nport = {free_port()}\n" + MAPS.replace("[[input.map]]", "[[input]]"))
+    inst = load_installation(path)
+    clock = SimulatedClock()
+    session = Session(inst, clock, EventLog(), MemorySink())
+    inputs = LiveInputs(inst, session, clock, say=lambda m: None)
+    sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        for address, args in (("/reward", ["bo", 1e308]), ("/light/a", [1e308]), ("/bored", [-1e308]),
+                              ("/reward", ["bo", 1.0])):
+            message = OscMessageBuilder(address)
+            for arg in args:  # 64-bit doubles ('d', as `oscsend ... sd bo 1e308` sends them)
+                message.add_arg(arg, "s" if isinstance(arg, str) else "d")
+            sender.sendto(message.build().dgram, ("127.0.0.1", inputs.network.listener.port))
+        assert inputs.network.listener.wait(10.0)
+        ticks = session.ticks
+        for step in range(1, 101):
+            t = step * 0.02
+            clock.advance_to(t)
+            inputs.poll(t)
+            session.step(t, 441, None, audio=False)
+        counts = session.inputs.counts
+        assert counts["malformed osc"] == 3 and counts["mapped osc"] == 1, counts
+        assert session.ticks > ticks
+        session.save_state(tmp_path / "state")
+        assert (tmp_path / "state" / "bo.json").is_file()
+    finally:
+        sender.close()
+        inputs.close()
+
+
 def test_maps_no_port_can_reach_are_reported_at_start(tmp_path):
     config = tmp_path / "c.toml"
     config.write_text(CREATURES + MAPS)

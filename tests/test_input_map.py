@@ -290,6 +290,48 @@ def test_drive_perturbation_adds_or_sets_a_drive(tmp_path):
                                                                                  ("bo", "boredom")]
 
 
+BOUND_MAPS = MAPS + """
+[[input]]
+osc = "/wide"
+to = "sensor"
+name = "wide"
+range = [-1e6, 1e6]
+input_range = [0.0, 1e-300]
+"""
+
+
+def test_numbers_beyond_their_bounds_are_malformed_and_never_reach_a_value(tmp_path):
+    """``/reward bo 1e308`` once crashed a live run. Every number read from a message meets
+    its bound (readings and drives ±1e6, rewards ±1e3, a reading after its range scaling
+    finite, a note's duration an hour): beyond, the message is counted malformed, no value moves, and the colony
+    still ticks and saves."""
+    session, clock = colony(tmp_path, BOUND_MAPS)
+    bo = session.world.creatures[0]
+    for step in range(1, 51):  # bo has an active tuple for a reward to reach
+        clock.advance_to(step * 0.02)
+        session.step(step * 0.02, 441, None, audio=False)
+    values = [tuple_.value.to_float() for tuple_ in bo.group.tuples]
+    boredom = bo.motivation.level("boredom")
+    router, t = session.inputs, clock.now()
+    for address, args in (("/reward", ["bo", 1e308]), ("/reward", ["bo", "-1e308"]), ("/reward", ["bo", 2e3]),
+                          ("/reward", ["bo", 10**400]), ("/lux", [1e308]), ("/lux", [-2e6]), ("/bored", [1e308]),
+                          ("/calm", []), ("/wide", [1.0]), ("/note", [60, 100, 1e5])):
+        router.osc(address, args, t)
+    assert router.counts["malformed osc"] == 9 and router.counts["mapped osc"] == 1  # /calm: a constant level
+    assert not events(session, "reward") and not events(session, "heard") and len(session.world.sensor("lux")) == 0
+    assert len(session.world.sensor("wide")) == 0
+    assert [tuple_.value.to_float() for tuple_ in bo.group.tuples] == values
+    assert bo.motivation.level("boredom") == 0.0 != boredom  # only /calm's constant reached it
+    router.osc("/reward", ["bo", 1e3], t)  # at the bound: taken
+    router.osc("/lux", [1e6], t)
+    assert len(events(session, "reward")) == 1 and session.world.sensor("lux").data == [1e6]
+    for step in range(51, 101):
+        clock.advance_to(step * 0.02)
+        session.step(step * 0.02, 441, None, audio=False)
+    session.save_state(tmp_path / "state")
+    assert (tmp_path / "state" / "bo.json").is_file()
+
+
 # -- the clicker's window -------------------------------------------------------------------------
 def test_a_late_click_credits_the_tuple_that_just_ended_and_not_one_long_gone():
     rng = np.random.default_rng(3)

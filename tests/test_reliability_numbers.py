@@ -150,11 +150,13 @@ def test_a_device_as_config_is_refused_and_a_huge_config_read_no_further_than_th
 
 
 @pytest.mark.parametrize("value", ["nan", "inf", "-5", "0", "1e308", "soon"])
-@pytest.mark.parametrize("command", ["offline", "run"])
+@pytest.mark.parametrize("command", ["offline", "run", "demo"])
 def test_a_bad_duration_on_the_command_line_is_a_usage_error(tmp_path, capsys, command, value):
-    extra = ["--out", str(tmp_path / "out")] if command == "offline" else ["--state", str(tmp_path / "state")]
+    extra = {"offline": ["--out", str(tmp_path / "out")], "run": ["--state", str(tmp_path / "state")],
+             "demo": ["--out", str(tmp_path / "out")]}[command]
     with pytest.raises(SystemExit) as caught:
-        main([command, str(installations.path("exchange")), *extra, f"--duration={value}"])
+        main([command, "exchange" if command == "demo" else str(installations.path("exchange")), *extra,
+              f"--duration={value}"])
     assert caught.value.code == 2
     err = capsys.readouterr().err
     assert "--duration" in err and "Traceback" not in err

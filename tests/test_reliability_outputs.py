@@ -18,6 +18,7 @@ from __future__ import annotations
 import errno
 import os
 import signal
+import socket
 import stat
 import subprocess
 import sys
@@ -30,7 +31,7 @@ from creatures.cli import main
 from creatures.events import EventLog, read_events
 from creatures.lock import LOCK_FILE, FolderLock, FolderLockedError
 from creatures.paths import UnsafePathError
-from creatures.persist import load_json
+from creatures.persist import StateFileError, load_json, load_npz, save_json
 from creatures.runtime import live, outputs
 from creatures.runtime.offline import run_offline
 from creatures.runtime.outputs import JOURNAL, MANIFEST, MANIFEST_KIND, OutputDirectoryError
@@ -180,6 +181,40 @@ def test_a_publish_killed_half_way_is_undone_at_the_next_start(at, config, tmp_p
     assert _tree(out) == before
 
 
+PLANTED = [  # a journal anyone could write into --out: each names something outside it
+    {"staged": "../sibling", "retired": ".creatures-old-x", "new": [], "old": []},
+    {"staged": ".creatures-run-x", "retired": "../sibling", "new": [], "old": []},
+    {"staged": ".creatures-run-x", "retired": ".creatures-old-x", "new": ["../sibling"], "old": []},
+    {"staged": ".creatures-run-x", "retired": ".creatures-old-x", "new": [], "old": ["/tmp"]},
+    {"staged": "sibling", "retired": ".creatures-old-x", "new": [], "old": []},  # not a staging folder
+]
+
+
+@pytest.mark.parametrize("journal", PLANTED, ids=range(len(PLANTED)))
+def test_a_planted_journal_or_manifest_never_touches_a_folder_outside_out(journal, config, tmp_path, capsys):
+    """A planted ``.creatures-publish.json`` made an offline run remove a folder beside
+    ``--out``: now the journal is refused (exit 2, one line) and everything is left; a
+    manifest naming ``../sibling`` owns nothing outside ``--out`` either."""
+    sibling = tmp_path / "sibling"
+    sibling.mkdir()
+    (sibling / "work.txt").write_text("an artist's work")
+    out = tmp_path / "out"
+    out.mkdir()
+    save_json(out / JOURNAL, journal, kind=outputs.JOURNAL_KIND)
+    before = _tree(tmp_path)
+    assert _offline(config, out) == 2
+    err = capsys.readouterr().err
+    assert "cannot finish an interrupted publish" in err and err.count("\n") == 1
+    assert _tree(tmp_path) == before and (sibling / "work.txt").read_text() == "an artist's work"
+
+    (out / JOURNAL).unlink()
+    save_json(out / MANIFEST, {"files": ["../sibling/", "../sibling/work.txt", "/tmp/", "events.jsonl"]},
+              kind=MANIFEST_KIND)
+    assert outputs.owned(out) == {"events.jsonl"}
+    assert _offline(config, out) == 0
+    assert (sibling / "work.txt").read_text() == "an artist's work"
+
+
 # -- defect 3: regular files only ---------------------------------------------------------
 @pytest.fixture
 def device(tmp_path) -> Path:
@@ -259,6 +294,66 @@ def test_paths_that_are_not_regular_files_or_directories_are_refused_before_runn
     assert str(special) in done.stderr
     assert special.lstat().st_mode == mode and not (tmp_path / "special.1").exists()
     assert "running" not in done.stdout  # refused before anything ran
+
+
+def test_a_fifo_as_a_state_file_is_refused_with_one_line_not_a_hang(config, tmp_path):
+    """A FIFO as ``state/ada.json`` blocked ``creatures run`` forever at ``open`` (hence the
+    timeout): it is refused before it is opened, exit 2, one line naming the file."""
+    state = tmp_path / "state"
+    state.mkdir()
+    os.mkfifo(state / "ada.json")
+    done = subprocess.run([sys.executable, "-m", "creatures.cli", "run", str(config), "--state", str(state),
+                           "--duration", "0.2"], env=_env(), capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.count("\n") == 1 and "Traceback" not in done.stderr
+    assert str(state / "ada.json") in done.stderr and "is a FIFO (named pipe), not a regular file" in done.stderr
+    assert stat.S_ISFIFO((state / "ada.json").lstat().st_mode)
+
+
+def test_a_fifo_as_the_events_log_makes_inspect_exit_2(tmp_path, capsys):
+    """``inspect`` skipped an ``events.jsonl`` that was not a regular file in silence, and
+    ``read_events`` would have blocked on it: now one line, exit 2."""
+    os.mkfifo(tmp_path / "events.jsonl")
+    assert main(["inspect", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert str(tmp_path / "events.jsonl") in err and "is a FIFO (named pipe)" in err and err.count("\n") == 1
+    with pytest.raises(UnsafePathError, match="FIFO"):
+        read_events(tmp_path / "events.jsonl")
+
+
+@pytest.mark.parametrize("kind", ["FIFO", "device"])
+def test_state_arrays_manifest_and_journal_that_are_not_regular_files_are_refused_unread(kind, config, tmp_path,
+                                                                                        capsys):
+    """Every reader of a saved file refuses a FIFO or a device node before opening it (a
+    device node here is /dev/null's numbers, made in the test's folder, never read)."""
+    special = _special(kind, tmp_path / "special")
+    for read in (lambda: load_json(special, kind="creature state"), lambda: load_npz(special)):
+        with pytest.raises(StateFileError, match=f"{special}: is a"):
+            read()
+    out = tmp_path / "out"
+    out.mkdir()
+    os.replace(special, out / JOURNAL)
+    assert _offline(config, out) == 2  # the interrupted publish cannot be read: nothing is touched
+    assert "cannot finish an interrupted publish" in capsys.readouterr().err
+    os.replace(out / JOURNAL, out / MANIFEST)
+    assert outputs.owned(out) == set()  # an unreadable manifest owns nothing
+
+
+@pytest.mark.parametrize("bad", ["--log", "--frames", "osc port"])
+def test_a_run_refused_for_its_log_frames_or_port_creates_no_state_folder(bad, config, tmp_path, capsys):
+    """``creatures run`` made an empty ``--state`` folder (locking it) before it refused a
+    bad ``--log``, ``--frames`` or a busy OSC port: now all three are checked first."""
+    state, extra = tmp_path / "state", []
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as busy:
+        busy.bind(("127.0.0.1", 0))
+        if bad == "osc port":
+            config.write_text(config.read_text() + f"[osc]\nport = {busy.getsockname()[1]}\n")
+        else:
+            extra = [bad, str(_special("FIFO" if bad == "--log" else "file", tmp_path / "special"))]
+        assert main(["run", str(config), "--state", str(state), "--duration", "0.2", *extra]) == 2
+    err = capsys.readouterr().err
+    assert ("already in use" if bad == "osc port" else bad) in err and err.count("\n") == 1
+    assert not state.exists()
 
 
 # -- defect 5: a full disk under the events log ------------------------------------------

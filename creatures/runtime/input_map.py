@@ -19,6 +19,14 @@ cannot read (an argument missing or of the wrong type, a pitch out of range) is 
 Both are counted and logged once per address and source (again at most every
 :data:`LOG_EVERY` seconds, with the count), and the counters are logged at the end of the run
 (``inputs``). Every message is applied at the time it is polled, on the creature's thread.
+
+Every number read from a message meets a bound before it reaches a value, the way a config
+number does (:mod:`creatures.bounds`): a reading, a drive's amount or level, and a reading
+after its ``range`` scaling must be finite and within ±:data:`~creatures.bounds.LARGEST_RATE`;
+a reward's amount within ±:data:`REWARD_LIMIT`; a note's duration within
+:data:`~midi.notes.LONGEST_NOTE`. Beyond, the message is refused as malformed,
+not clamped: a sender that says 1e308 means something the map does not know, and a clamped
+value would credit a tuple with the largest reward there is for it.
 """
 
 from __future__ import annotations
@@ -31,9 +39,10 @@ from typing import TYPE_CHECKING, Any, Callable
 import mido
 
 from creatures.behaviour.state_object import Habituation, StateObject
+from creatures.bounds import LARGEST_RATE
 from creatures.runtime.input_routes import MIDI, MIDI_KIND, MIDI_SPAN, Route
 from creatures.runtime.schema import Arg, InputMap, Number
-from midi.notes import NoteEvent, is_note_off
+from midi.notes import LONGEST_NOTE, NoteEvent, is_note_off
 
 if TYPE_CHECKING:
     from creatures.runtime.world import World
@@ -51,6 +60,11 @@ SENSOR_LOG_EVERY = 0.1
 """Seconds between two ``sensor`` log lines of one sensor (a 100 Hz controller must not
 flood the events log; every reading still reaches the sensor)."""
 
+REWARD_LIMIT = 1e3
+"""Largest magnitude of one reward from outside. A click moves a credited value by at most
+``rate·amount``; at this bound a year of clicks every second stays far inside the
+:data:`~creatures.bounds.LARGEST_VALUE` that saved values are read back within."""
+
 _NOTE_NAME = re.compile(r"([A-Ga-g])([#b]?)(-?\d)")
 _STEPS = {"c": 0, "d": 2, "e": 4, "f": 5, "g": 7, "a": 9, "b": 11}
 
@@ -60,16 +74,28 @@ class Unreadable(ValueError):
 
 
 # -- reading values from a message ---------------------------------------------------------------
-def as_number(x: Any, what: str) -> float:
-    """An argument as a finite number: int, float, bool (1/0) or a numeric string."""
+def as_number(x: Any, what: str, bound: float = LARGEST_RATE) -> float:
+    """An argument as a finite number within ±``bound``: int, float, bool (1/0) or a
+    numeric string."""
     if isinstance(x, str):
         try:
             x = float(x)
         except ValueError:
             raise Unreadable(f"{what}: {x!r} is not a number") from None
-    if not isinstance(x, (int, float)) or not math.isfinite(x):
-        raise Unreadable(f"{what}: {x!r} is not a finite number")
-    return float(x)
+    if not isinstance(x, (int, float)):
+        raise Unreadable(f"{what}: {x!r} is not a number")
+    return within(x, what, bound)
+
+
+def within(x: float, what: str, bound: float = LARGEST_RATE) -> float:
+    """``x`` as a float if it is finite and within ±``bound``, else :class:`Unreadable`."""
+    try:
+        value = float(x)
+    except OverflowError:  # an integer beyond any float
+        value = math.inf
+    if not (math.isfinite(value) and abs(value) <= bound):
+        raise Unreadable(f"{what}: {str(x)[:40]} is not a finite number within ±{bound:g}")
+    return value
 
 
 def as_pitch(x: Any) -> int:
@@ -180,7 +206,7 @@ class InputRouter:
         midi_note = route.midi in ("note", "note_off", "polytouch")
         pitch = as_pitch(read(spec.pitch, args, Arg(arg=0)))
         velocity = round(as_number(read(spec.velocity, args, Arg(arg=1) if midi_note else 100.0), "velocity"))
-        duration = as_number(read(spec.duration, args, HEARD_LENGTH), "duration")
+        duration = as_number(read(spec.duration, args, HEARD_LENGTH), "duration", LONGEST_NOTE)
         if not 1 <= velocity <= 127 or duration < 0:
             raise Unreadable(f"velocity {velocity} (1..127) or duration {duration} (>= 0) out of range")
         channel = args[-1] if route.midi else 0
@@ -194,7 +220,7 @@ class InputRouter:
             lo, hi = spec.input_range or MIDI_SPAN.get(route.midi or "", (0.0, 127.0) if route.midi else (0.0, 1.0))
             if hi == lo:
                 raise Unreadable("input_range is empty")
-            value = spec.range[0] + (value - lo) / (hi - lo) * (spec.range[1] - spec.range[0])
+            value = within(spec.range[0] + (value - lo) / (hi - lo) * (spec.range[1] - spec.range[0]), "scaled value")
         sensor = self.world.sensors[spec.name]
         saliency = sensor.push(max(t, sensor.times_array[-1]) if len(sensor) else t, value)
         if t >= self._sensor_logged.get(spec.name, -math.inf) + SENSOR_LOG_EVERY:
@@ -203,7 +229,7 @@ class InputRouter:
         return 0
 
     def _reward(self, route: Route, args: tuple, t: float, via: str) -> int:
-        amount = as_number(read(route.spec.amount, args, 1.0), "amount")
+        amount = as_number(read(route.spec.amount, args, 1.0), "amount", REWARD_LIMIT)
         for creature in self._reached(route, args):
             creature.reward(amount, t, route.spec.window, route.spec.rate)
         return 0

@@ -229,7 +229,9 @@ def inspect(path: Path, out: Path, skipped: list[str] | None = None) -> Path:
     path = Path(path)
     skipped = [] if skipped is None else skipped
     events_path = path / "events.jsonl"
-    events = read_events(events_path) if events_path.is_file() else []
+    # exists(), not is_file(): an events.jsonl that is a FIFO or a device is refused by
+    # read_events, not skipped in silence
+    events = read_events(events_path) if events_path.exists() else []
     saved = path / "state" if (path / "state").is_dir() else path  # an offline run saves into DIR/state
     known = read_state(saved, skipped) if saved.is_dir() else []
     if not events and not known and skipped:

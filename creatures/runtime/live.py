@@ -34,10 +34,10 @@ from audio.resilient import ResilientInput, ResilientOutput
 from creatures import stop as stops
 from creatures.clock import Clock, SimulatedClock, WallClock
 from creatures.events import EventLog
-from creatures.paths import directory, regular_file
+from creatures.paths import directory, regular_file, writable_directory
 from creatures.runtime.bodies import FramesBeside
 from creatures.runtime.input_sources import SerialSource, open_sources
-from creatures.runtime.network import Network
+from creatures.runtime.network import Network, open_listener
 from creatures.runtime.schema import LoadedInstallation
 from creatures.runtime.session import Session, write_snapshot
 from creatures.runtime.ticking import TickLoop, TickTiming, realtime, setup_kept
@@ -69,6 +69,7 @@ class LiveSummary:
     lateness_p99: float = 0.0  # seconds
     notes_played: int = 0
     late_notes: int = 0  # note-ons that reached the MIDI port more than sinks.LATE_NOTE late
+    midi_dropped: int | None = None  # MIDI messages that found no output port (None: no port configured)
     frames_dropped: int = 0  # frames the drawing process was too busy to take
     heard_between_ticks: int = 0  # notes heard (and answerable) at once, not at the next tick
     underruns: int = 0  # audio output callbacks that found no sound ready and played silence
@@ -253,6 +254,22 @@ class _Saver:
             _write_state(self.state_dir, pending[0], self.summary, self.say, pending[1])
 
 
+def check_before_running(inst: LoadedInstallation, *, state: Path | None, log_path: Path | None,
+                         pictures: Path | None) -> None:
+    """What a live run is given, checked before anything runs or is made (``creatures run``
+    calls it before it locks, and so makes, the state folder): the log a regular file or
+    absent, the state a folder or absent, the OSC port free, and last the ``--frames`` folder
+    made and written in. The first that fails raises, naming its option or config key."""
+    if log_path is not None:
+        regular_file(log_path, "--log")
+    if state is not None:
+        directory(state, "state folder")
+    if inst.settings.osc.port is not None:  # bound and let go: a port in use is said now
+        open_listener(inst.settings.osc, WallClock(), lambda key, message: inst.error(("osc", key), message)).close()
+    if pictures is not None:
+        writable_directory(pictures, "--frames")
+
+
 def run_live(
     inst: LoadedInstallation,
     *,
@@ -268,9 +285,7 @@ def run_live(
     settings = inst.settings
     summary = LiveSummary()
     state_dir = state or inst.resolve(settings.state)
-    for path, what in ((state_dir, "state folder"), (pictures, "--frames")):  # before anything runs
-        if path is not None:
-            directory(path, what)
+    check_before_running(inst, state=state_dir, log_path=log_path, pictures=pictures)
     rehearse(inst)
     wall = WallClock()
     clock = SimulatedClock(wall.now())  # the creatures' time, moved by the loop (ticking.py)
@@ -280,6 +295,7 @@ def run_live(
     supervisor = Supervisor()  # started with the loop; until then devices are looked at here
 
     sink: PortSink | MemorySink = MemorySink()
+    port = None
     if settings.midi.output_port:
         port = ResilientPort(settings.midi.output_port, MidoOutputs(), wall,
                              report=lambda m: say(f"MIDI output: {m}; {HELP}"), supervisor=supervisor)
@@ -316,7 +332,6 @@ def run_live(
                        creatures=[c.name for c in session.creatures], restored=summary.restored)
     bodies = None
     if pictures is not None:
-        pictures.mkdir(parents=True, exist_ok=True)
         bodies = FramesBeside(settings.output, pictures, wall, summary.messages)
         for message in summary.messages:
             say(message)
@@ -367,6 +382,9 @@ def run_live(
             timing.log_change(always=True)
             summary.underruns, summary.overruns = counters.now()
             inputs.tally()
+            if port is not None:  # what never reached the synth is said, not lost in silence
+                summary.midi_dropped = port.dropped
+                session.world.emit("midi output", port=settings.midi.output_port, dropped=port.dropped)
             session.close()
             if state_dir is not None:
                 _save(session, state_dir, summary, say, wall.now() - start, final=True)

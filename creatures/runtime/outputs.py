@@ -70,7 +70,20 @@ def owned(out: Path) -> set[str]:
         files = load_json(out / MANIFEST, kind=MANIFEST_KIND).get("files")
     except StateFileError:
         return set()
-    return {f for f in files if isinstance(f, str)} if isinstance(files, list) else set()
+    return {f for f in files if isinstance(f, str) and inside(f)} if isinstance(files, list) else set()
+
+
+def inside(entry: str) -> bool:
+    """Whether a manifest entry names something inside ``--out``: relative, no ``..`` and no
+    empty part. A manifest or journal is a file anyone can plant; one naming ``../elsewhere``
+    must not make a run move or remove what lies outside its folder."""
+    parts = entry.removesuffix("/").split("/")
+    return not entry.startswith("/") and all(part not in ("", ".", "..") for part in parts) and "\0" not in entry
+
+
+def _part(name: str) -> bool:
+    """Whether ``name`` is one path part inside ``--out`` (a journal's entries are top-level)."""
+    return inside(name) and "/" not in name
 
 
 def foreign(out: Path, names: set[str], ours: set[str]) -> list[str]:
@@ -167,9 +180,13 @@ def recover(out: Path) -> None:
             done = load_json(journal, kind=JOURNAL_KIND)
             staged, retired = out / str(done["staged"]), out / str(done["retired"])
             new, old = [str(n) for n in done["new"]], [str(n) for n in done["old"]]
-        except (StateFileError, KeyError, TypeError) as exc:
+            names = [str(done["staged"]), str(done["retired"]), *new, *old]
+            if not (all(_part(n) for n in names) and names[0].startswith(STAGING) and names[1].startswith(RETIRED)):
+                raise ValueError(f"it names {next((n for n in names if not _part(n)), names[0])!r}, not a "
+                                 f"{STAGING}* and a {RETIRED}* folder and top-level entries inside {out}")
+        except (StateFileError, KeyError, TypeError, ValueError) as exc:
             raise OutputDirectoryError(f"{journal}: cannot finish an interrupted publish ({exc}); "
-                                       f"look inside {out} and remove the journal") from None
+                                       f"nothing was changed: look inside {out} and remove the journal") from None
         if not (out / MANIFEST).exists():  # killed before the commit: the previous run comes back
             _undo(out, staged, retired, new, old)
         _finish(out, staged, retired)

@@ -140,7 +140,8 @@ class InputMap(Strict):
                                                                 "reaches, or {arg = N} naming one; none = every "
                                                                 "creature that can take it")
     amount: Number | None = Field(None, description="to = 'reward': value of the reward (default 1.0; negative "
-                                                    "punishes); to = 'drive': added to the drive's level")
+                                                    "punishes; beyond ±1000 the message is malformed); "
+                                                    "to = 'drive': added to the drive's level")
     set: Number | None = Field(None, description="to = 'drive': the level the drive is set to (instead of amount)")
     drive: str | None = Field(None, description="to = 'drive': the drive's name (e.g. 'boredom')")
     window: float = Field(1.5, ge=0, le=10, description="to = 'reward': seconds before the click in which a tuple "
