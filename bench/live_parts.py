@@ -113,14 +113,17 @@ for i in range(count):
     pitch, velocity = 48 + (i * 7) % 36, 60 + i % 60
     # Max's and TouchDesigner's defaults send floats; others send ints: both where the protocol allows.
     args = [pitch, velocity, 0.2] if i % 2 == 0 else [pitch, velocity, 1, i % 16]
+    # Stamped just before the send: the receiver runs at real-time priority and can answer
+    # before this process runs again, so a stamp taken after the send may follow the answer.
+    sent = time.time()
     client.send_message(f"/creature/{name}/note", args)
-    print(json.dumps({"i": i, "pitch": pitch, "args": args, "sent": time.time()}), flush=True)
+    print(json.dumps({"i": i, "pitch": pitch, "args": args, "sent": sent}), flush=True)
 """
 
 
 def send_notes(port: int, count: int, rate: float, record: Path, name: str = "visitor") -> subprocess.Popen:
     """A foreign OSC sender (python-osc's client, its own process) sending ``count`` notes at
-    ``rate`` a second; it writes one JSON line per note sent (with its Unix send time) to
+    ``rate`` a second; it writes one JSON line per note sent (with its Unix time just before the send) to
     ``record`` (a file, not a pipe: a pipe nobody reads until the end fills and stops it)."""
     with open(record, "w") as out:
         return subprocess.Popen([sys.executable, "-c", SENDER, str(port), str(count), str(rate), name], stdout=out)
