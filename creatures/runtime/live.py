@@ -326,7 +326,7 @@ def run_live(
     supervisor.every(HOUSEKEEPING_EVERY, log.flush, name="events log flush")  # a tail -f shows the present
     saver = _Saver(supervisor, state_dir, summary, say, settings.save_every) if state_dir is not None else None
     supervisor.start()  # before the loop's thread turns real-time: the supervisor keeps ordinary scheduling
-    with setup_kept(), realtime(settings.realtime, say):
+    with setup_kept() as loop.collect, realtime(settings.realtime, say):
         start = wall.now()  # setting up took time; the run's ticks count from here
         next_save, next_housekeeping, frames_done = start + settings.save_every, start, int(round(start * sr))
 
