@@ -27,6 +27,7 @@ from typing import Callable, Iterator, Protocol
 
 import numpy as np
 
+from creatures.behaviour.motivation import between_ticks
 from creatures.clock import Clock, SimulatedClock
 from creatures.runtime.session import Session
 from midi.notes import NoteEvent
@@ -231,6 +232,9 @@ class TickLoop:
 
     def hear_now(self, t: float) -> None:
         """Deliver every note started by ``t`` (creatures hear it; reflexes answer) and send
-        every message due."""
-        self.session.world.deliver(t)
+        every message due. Their impulses land on their drives' last tick
+        (:func:`~creatures.behaviour.motivation.between_ticks`): no matrix exponential for a
+        step off the tick grid on the way to an answer."""
+        with between_ticks():
+            self.session.world.deliver(t)
         self.session.scheduler.pump()
