@@ -275,8 +275,9 @@ def run_live(
     wall = WallClock()
     clock = SimulatedClock(wall.now())  # the creatures' time, moved by the loop (ticking.py)
     epoch = time.time() - wall.now()
-    log = EventLog(regular_file(log_path, "--log"), keep_in_memory=0, report=say) if log_path \
-        else EventLog(keep_in_memory=1000)
+    # The supervisor flushes the log every HOUSEKEEPING_EVERY: the creature's thread never writes it.
+    log = EventLog(regular_file(log_path, "--log"), keep_in_memory=0, report=say, flushed_elsewhere=True) \
+        if log_path else EventLog(keep_in_memory=1000)
     supervisor = Supervisor()  # started with the loop; until then devices are looked at here
 
     sink: PortSink | MemorySink = MemorySink()
