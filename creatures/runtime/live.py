@@ -40,6 +40,7 @@ from creatures.runtime.input_sources import SerialSource, open_sources
 from creatures.runtime.network import Network
 from creatures.runtime.schema import LoadedInstallation
 from creatures.runtime.session import Session, write_snapshot
+from creatures.runtime import kernels
 from creatures.runtime.ticking import TickLoop, TickTiming, realtime, setup_kept
 from creatures.supervisor import Supervisor
 from midi.notes import NoteEvent
@@ -194,7 +195,9 @@ def rehearse(inst: LoadedInstallation) -> None:
     """A throwaway copy of the colony plays :data:`REHEARSAL` simulated seconds, hearing a few
     notes, before the show, so what loads at first use is loaded before the first real tick:
     numba's cached kernels load when first called (measured: exchange's first move took
-    100 ms, making the live run's first five ticks late). The real creatures are untouched."""
+    100 ms, making the live run's first five ticks late). The real creatures are untouched.
+    Then every kernel takes what its cache holds (:mod:`creatures.runtime.kernels`): the
+    paths one second does not take."""
     clock = SimulatedClock()
     session = Session(inst, clock, EventLog(keep_in_memory=0), MemorySink())
     for i, pitch in enumerate((60, 64, 67, 72)):
@@ -204,6 +207,7 @@ def rehearse(inst: LoadedInstallation) -> None:
         clock.advance_to(step * tick)
         session.step(clock.now(), int(round(tick * sr)), None)
     session.close()
+    kernels.warm(kernels.project_modules())
 
 
 def _save(session: Session, state_dir: Path, summary: LiveSummary, say: Callable[[str], None], at: float, *,
