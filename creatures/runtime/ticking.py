@@ -100,7 +100,6 @@ class IdleCollections:
         self.full_every = full_every
         self._next_full: float | None = None
         self._collected_before: float | None = None  # the deadline of the wait last collected in
-        self.young = self.full = 0
 
     def __call__(self, now: float, deadline: float) -> None:
         """Collect, if the wait until ``deadline`` (the next tick) allows and none has yet."""
@@ -112,10 +111,8 @@ class IdleCollections:
         if now >= self._next_full:
             self._next_full = now + self.full_every
             gc.collect()
-            self.full += 1
         else:
             gc.collect(1)
-            self.young += 1
 
 
 @contextmanager
