@@ -164,7 +164,7 @@ def _latency_rows(rng: np.random.Generator, n: int) -> list[Row]:
             session.step(t, 0, None, audio=False)
             ticks.append((began, wall.now()))
 
-        with setup_kept():
+        with setup_kept() as loop.collect:
             loop.run(tick, until=lambda t: t > due[-1] + 0.5)
         session.close()
         log.close()

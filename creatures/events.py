@@ -55,6 +55,10 @@ def _line(record: dict[str, Any]) -> bytes:
 BUFFER_BYTES = 64 * 1024
 """Events are gathered up to this many bytes and written at once (and at every flush)."""
 
+BACKLOG_BYTES = 64 * BUFFER_BYTES
+"""Pending bytes past which even a log flushed by another thread writes from the emitting one
+(that thread has stalled: the log must not grow without bound)."""
+
 RETRY_EVERY = 1.0
 """Clock seconds between attempts to write again once the log's file failed (a full disk)."""
 
@@ -73,6 +77,12 @@ class EventLog:
     off the file, which keeps only whole lines. Only a regular file is written and rotated:
     ``path`` naming a device, a FIFO or a directory is refused at once, and rotation renames
     only the very file the log has open and regular files beside it.
+
+    ``flushed_elsewhere``: another thread calls :meth:`flush` regularly (a live run's
+    supervisor), so :meth:`emit` never writes to disk itself (up to :data:`BACKLOG_BYTES`
+    pending): the creature's thread neither waits on the disk nor on a write under way,
+    since a write happens outside the lock that emitting takes (the pending lines are
+    swapped out under it).
     """
 
     def __init__(
@@ -83,6 +93,7 @@ class EventLog:
         backups: int = 5,
         keep_in_memory: int = 0,
         report: Callable[[str], None] | None = None,
+        flushed_elsewhere: bool = False,
     ) -> None:
         self.path = regular_file(path, "events log") if path is not None else None
         self.max_bytes = max_bytes
@@ -93,6 +104,7 @@ class EventLog:
         self.lost = 0
         self.error: str | None = None
         self.report = report
+        self.flushed_elsewhere = flushed_elsewhere
         self._handle: IO[bytes] | None = None
         self._size = 0  # bytes in the live file, counted here rather than asking tell() per event
         self._pending = bytearray()  # whole lines not yet written
@@ -104,8 +116,10 @@ class EventLog:
         self._closed = False
         # A live run flushes from its supervisor thread (creatures/supervisor.py) while the
         # creature's thread emits: the pending buffer and its line ends change under this lock.
-        # Reentrant, since ``report`` may itself log.
+        # Reentrant, since ``report`` may itself log. Writes hold ``_writing`` instead (one at
+        # a time, taken before ``_lock``, never while holding it).
         self._lock = threading.RLock()
+        self._writing = threading.RLock()
         if self.path is not None:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             self._open()
@@ -140,39 +154,61 @@ class EventLog:
             if self._handle is None and not self._reopen():
                 self.lost += 1
                 return
-            self._append(line)
-
-    def _append(self, line: bytes) -> None:
-        self._pending += line
-        self._ends.append(len(self._pending))
-        if len(self._pending) >= BUFFER_BYTES or self._size + len(self._pending) >= self.max_bytes:
+            due = self._append(line)
+        if due:
             self._drain()
 
+    def _append(self, line: bytes) -> bool:
+        """Add a line; whether the pending lines are now due to be written (by the caller,
+        once it has let go of the lock)."""
+        self._pending += line
+        self._ends.append(len(self._pending))
+        if self.flushed_elsewhere:
+            return len(self._pending) >= BACKLOG_BYTES
+        return len(self._pending) >= BUFFER_BYTES or self._size + len(self._pending) >= self.max_bytes
+
     def _drain(self) -> None:
-        """Write the pending lines; rotate past the bound. A failure counts what was lost."""
-        if self._handle is None or not self._pending:
-            return
-        if self._size >= self.max_bytes:  # reopened after an outage: rotate before writing more
-            try:
-                self._rotate()
-            except OSError as exc:
-                self._fail(exc)
-                return
-        data = bytes(self._pending)
+        """Write the pending lines; rotate past the bound. A failure counts what was lost.
+        The lines are taken under the lock and written outside it, so an emit meanwhile only
+        appends to a fresh buffer."""
+        with self._writing:
+            with self._lock:
+                if self._handle is None or not self._pending:
+                    return
+                if self._size >= self.max_bytes:  # reopened after an outage: rotate before writing more
+                    try:
+                        self._rotate()
+                    except OSError as exc:
+                        self._fail(exc)
+                        return
+                data, ends, handle = self._pending, self._ends, self._handle
+                self._pending, self._ends = bytearray(), []
+            failed = self._write(handle, bytes(data))
+            with self._lock:
+                if failed is not None:  # as if never taken: the failure counts these lines and the newer
+                    self._pending = data + self._pending
+                    self._ends = ends + [len(data) + end for end in self._ends]
+                    self._fail(failed)
+                    return
+                self._settle(len(data))
+
+    def _write(self, handle: IO[bytes], data: bytes) -> OSError | None:
+        """Write all of ``data``; the failure, if any."""
         try:
             written = 0
             while written < len(data):  # an unbuffered write may take part of it
-                taken = self._handle.write(data[written:])
+                taken = handle.write(data[written:])
                 if not taken:
                     raise OSError(errno.EIO, "the file took none of the write", str(self.path))
                 written += taken
         except OSError as exc:
-            self._fail(exc)
-            return
-        self._size += len(self._pending)
-        self._pending.clear()
-        self._ends.clear()
-        self._gap_pending = False
+            return exc
+        return None
+
+    def _settle(self, written: int) -> None:
+        """After ``written`` bytes reached the file: end an outage, rotate past the bound."""
+        self._size += written
+        self._gap_pending = False  # the gap record (only ever first) has been written
         if self._down:
             self._down = False
             if self.report is not None:
@@ -248,8 +284,7 @@ class EventLog:
         self._open()
 
     def flush(self) -> None:
-        with self._lock:
-            self._drain()
+        self._drain()
 
     @property
     def loss(self) -> str | None:
@@ -259,8 +294,8 @@ class EventLog:
         return f"events log {self.path}: {self.lost} events not written (last failure: {self.error})"
 
     def close(self) -> None:
+        self._drain()
         with self._lock:
-            self._drain()
             self._closed = True
         handle, self._handle = self._handle, None
         if handle is not None:

@@ -138,3 +138,33 @@ def test_bad_input_is_refused_by_name():
         Motivation.from_dict(data)
     with pytest.raises(KeyError, match="'ghost'"):
         m.importance({"eat": "ghost"})
+
+
+def test_an_impulse_between_live_ticks_lands_on_the_last_tick_without_a_new_step(monkeypatch):
+    """Between a live run's ticks (``between_ticks``) an impulse lands at the drives' last tick
+    and the next tick carries it with the step it knows: no matrix exponential for a step off
+    the grid; outside, the impulse is integrated to its own time as before."""
+    import creatures.behaviour.motivation as motivation_module
+
+    def drives() -> Motivation:
+        m = Motivation({"boredom": 1.0, "hunger": 0.5}, growth={"boredom": 0.3}, decay={"boredom": 0.5, "hunger": 0.2},
+                       coupling={("hunger", "boredom"): 0.1})
+        m.advance(0.04)
+        return m
+
+    live, offline, reference = drives(), drives(), drives()
+    reference.perturb(0.04, "boredom", -0.4)  # the impulse at the last tick, integrated offline
+    reference.advance(0.08)
+    computed: list[float] = []
+    real = Motivation._compute_propagator
+    monkeypatch.setattr(Motivation, "_compute_propagator", lambda self, dt: computed.append(dt) or real(self, dt))
+    with motivation_module.between_ticks():
+        live.perturb(0.0537, "boredom", -0.4)
+    live.advance(0.08)
+    assert computed == []  # the 0.04 s step was already known
+    np.testing.assert_array_equal(live.levels, reference.levels)
+    offline.perturb(0.0537, "boredom", -0.4)  # outside: at its own time, two new steps
+    offline.advance(0.08)
+    assert len(computed) == 2
+    assert not np.array_equal(offline.levels, live.levels)
+    assert offline.levels == pytest.approx(live.levels, abs=0.01)  # less than a tick's decay apart

@@ -20,16 +20,38 @@ creature ticks. Φ and Ψ depend on the step only (not on the inputs), so a crea
 re-sets its inputs every step (a sensed presence) still reuses them. Optional floor/ceiling
 clip afterwards (chemical concentrations do not go negative); clipping is the only
 non-linear step.
+
+A live run hears notes between its ticks (creatures/runtime/ticking.py), at times off the
+tick grid: integrating to such a time would need a matrix exponential for a step seen once
+(twice: the next tick's step from there is new too), on the way to a reflex answer. So inside
+:func:`between_ticks` an impulse lands at the drives' own time instead (their last tick) and
+the next tick carries it forward with the step it already knows: the impulse starts decaying
+less than a tick early. Offline runs never enter it and integrate as before.
 """
 
 from __future__ import annotations
 
+from contextlib import contextmanager
+from contextvars import ContextVar
 from typing import Any, Callable, Iterator, Mapping
 
 import numpy as np
 from scipy.linalg import expm
 
 from creatures import bounds
+
+_between_ticks: ContextVar[bool] = ContextVar("between_ticks", default=False)
+
+
+@contextmanager
+def between_ticks() -> Iterator[None]:
+    """Inside (on this thread): impulses land at each motivation's last tick (see the module
+    docstring); the live loop delivers the notes it hears between ticks in here."""
+    token = _between_ticks.set(True)
+    try:
+        yield
+    finally:
+        _between_ticks.reset(token)
 
 
 class Motivation:
@@ -143,8 +165,10 @@ class Motivation:
         self.inputs[self.index(name)] = float(rate)
 
     def perturb(self, t: float, name: str, amount: float) -> None:
-        """An impulse at ``t``: behaviour acting on state (eating: hunger − amount)."""
-        self.advance(t)
+        """An impulse at ``t``: behaviour acting on state (eating: hunger − amount); between
+        a live run's ticks, at the last tick (:func:`between_ticks`)."""
+        if not _between_ticks.get():
+            self.advance(t)
         i = self.index(name)
         self.levels[i] = self._clip(self.levels[i : i + 1] + float(amount))[0]
 

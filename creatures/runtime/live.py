@@ -40,6 +40,7 @@ from creatures.runtime.input_sources import SerialSource, open_sources
 from creatures.runtime.network import Network, open_listener
 from creatures.runtime.schema import LoadedInstallation
 from creatures.runtime.session import Session, write_snapshot
+from creatures.runtime import kernels
 from creatures.runtime.ticking import TickLoop, TickTiming, realtime, setup_kept
 from creatures.supervisor import Supervisor
 from midi.notes import NoteEvent
@@ -195,7 +196,9 @@ def rehearse(inst: LoadedInstallation) -> None:
     """A throwaway copy of the colony plays :data:`REHEARSAL` simulated seconds, hearing a few
     notes, before the show, so what loads at first use is loaded before the first real tick:
     numba's cached kernels load when first called (measured: exchange's first move took
-    100 ms, making the live run's first five ticks late). The real creatures are untouched."""
+    100 ms, making the live run's first five ticks late). The real creatures are untouched.
+    Then every kernel takes what its cache holds (:mod:`creatures.runtime.kernels`): the
+    paths one second does not take."""
     clock = SimulatedClock()
     session = Session(inst, clock, EventLog(keep_in_memory=0), MemorySink())
     for i, pitch in enumerate((60, 64, 67, 72)):
@@ -205,6 +208,7 @@ def rehearse(inst: LoadedInstallation) -> None:
         clock.advance_to(step * tick)
         session.step(clock.now(), int(round(tick * sr)), None)
     session.close()
+    kernels.warm(kernels.project_modules())
 
 
 def _save(session: Session, state_dir: Path, summary: LiveSummary, say: Callable[[str], None], at: float, *,
@@ -290,8 +294,9 @@ def run_live(
     wall = WallClock()
     clock = SimulatedClock(wall.now())  # the creatures' time, moved by the loop (ticking.py)
     epoch = time.time() - wall.now()
-    log = EventLog(regular_file(log_path, "--log"), keep_in_memory=0, report=say) if log_path \
-        else EventLog(keep_in_memory=1000)
+    # The supervisor flushes the log every HOUSEKEEPING_EVERY: the creature's thread never writes it.
+    log = EventLog(regular_file(log_path, "--log"), keep_in_memory=0, report=say, flushed_elsewhere=True) \
+        if log_path else EventLog(keep_in_memory=1000)
     supervisor = Supervisor()  # started with the loop; until then devices are looked at here
 
     sink: PortSink | MemorySink = MemorySink()
@@ -341,7 +346,7 @@ def run_live(
     supervisor.every(HOUSEKEEPING_EVERY, log.flush, name="events log flush")  # a tail -f shows the present
     saver = _Saver(supervisor, state_dir, summary, say, settings.save_every) if state_dir is not None else None
     supervisor.start()  # before the loop's thread turns real-time: the supervisor keeps ordinary scheduling
-    with setup_kept(), realtime(settings.realtime, say):
+    with setup_kept() as loop.collect, realtime(settings.realtime, say):
         start = wall.now()  # setting up took time; the run's ticks count from here
         next_save, next_housekeeping, frames_done = start + settings.save_every, start, int(round(start * sr))
 

@@ -27,6 +27,7 @@ from typing import Callable, Iterator, Protocol
 
 import numpy as np
 
+from creatures.behaviour.motivation import between_ticks
 from creatures.clock import Clock, SimulatedClock
 from creatures.runtime.session import Session
 from midi.notes import NoteEvent
@@ -73,17 +74,63 @@ class TickTiming:
         return float(np.percentile(kept, q)) if len(kept) else 0.0
 
 
+IDLE_COLLECT = 0.005
+"""Seconds to the next tick above which the loop may collect garbage while it waits."""
+
+FULL_COLLECT_EVERY = 600.0
+"""Seconds between the loop's full collections (each in the wait after a tick)."""
+
+HELD_OFF = 1 << 30
+"""The oldest generation's threshold while a run holds automatic full collections off."""
+
+
+class IdleCollections:
+    """The live loop's garbage collection, in the waits between ticks rather than on them.
+
+    Python starts a collection on whichever allocation crosses a threshold, so a full one
+    lands mid-tick; measured on the exchange colony even after :func:`setup_kept`'s freeze:
+    80–318 ms each, ticks and answers that late. While :func:`setup_kept` holds automatic full
+    collections off, this collects the young generations once in each wait longer than
+    :data:`IDLE_COLLECT` (cheap: only what the last ticks allocated), and everything every
+    :data:`FULL_COLLECT_EVERY` seconds, so cycles that reached the oldest generation are still
+    freed in a run of weeks (one tick in ten minutes may then start late; never a tick
+    interrupted by one)."""
+
+    def __init__(self, full_every: float = FULL_COLLECT_EVERY) -> None:
+        self.full_every = full_every
+        self._next_full: float | None = None
+        self._collected_before: float | None = None  # the deadline of the wait last collected in
+
+    def __call__(self, now: float, deadline: float) -> None:
+        """Collect, if the wait until ``deadline`` (the next tick) allows and none has yet."""
+        if deadline - now <= IDLE_COLLECT or deadline == self._collected_before:
+            return
+        self._collected_before = deadline
+        if self._next_full is None:
+            self._next_full = now + self.full_every
+        if now >= self._next_full:
+            self._next_full = now + self.full_every
+            gc.collect()
+        else:
+            gc.collect(1)
+
+
 @contextmanager
-def setup_kept() -> Iterator[None]:
+def setup_kept() -> Iterator[IdleCollections]:
     """Inside: everything built so far (modules, compiled code, motor graphs), which lives as
     long as the run, is out of the garbage collector's way, so a full collection no longer
     walks it (measured: 200 ms pauses with the exchange colony, each one a note answered
-    200 ms late). After: collected as before (a process that goes on: tests, benchmarks)."""
+    200 ms late), and automatic full collections are held off: the loop collects in its
+    waits instead (the :class:`IdleCollections` yielded, for :attr:`TickLoop.collect`).
+    After: collected as before (a process that goes on: tests, benchmarks)."""
     gc.collect()
     gc.freeze()
+    thresholds = gc.get_threshold()
+    gc.set_threshold(thresholds[0], thresholds[1], HELD_OFF)
     try:
-        yield
+        yield IdleCollections()
     finally:
+        gc.set_threshold(*thresholds)
         gc.unfreeze()
 
 
@@ -147,6 +194,7 @@ class TickLoop:
         self.skipped = 0  # times the loop fell BEHIND seconds behind and skipped ahead
         self.timing = TickTiming()
         self.heard_between = 0  # notes heard between ticks, at once
+        self.collect: Callable[[float, float], None] | None = None  # garbage collection in the waits (setup_kept)
         session.world.listeners.append(self._send_now)
 
     def _send_now(self, creature: str, note: NoteEvent) -> None:
@@ -175,10 +223,15 @@ class TickLoop:
             self.time.advance_to(max(now, self.time.now()))
             self.heard_between += self.inputs.poll(now)
             self.hear_now(now)
-            self.wait(min(POLL, deadline - now))
+            if self.collect is not None:
+                self.collect(self.wall.now(), deadline)
+            self.wait(max(0.0, min(POLL, deadline - self.wall.now())))
 
     def hear_now(self, t: float) -> None:
         """Deliver every note started by ``t`` (creatures hear it; reflexes answer) and send
-        every message due."""
-        self.session.world.deliver(t)
+        every message due. Their impulses land on their drives' last tick
+        (:func:`~creatures.behaviour.motivation.between_ticks`): no matrix exponential for a
+        step off the tick grid on the way to an answer."""
+        with between_ticks():
+            self.session.world.deliver(t)
         self.session.scheduler.pump()
