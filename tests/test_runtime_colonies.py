@@ -120,12 +120,12 @@ def test_two_colonies_exchange_notes_and_state_and_survive_a_restart(tmp_path):
         echo.expect(lambda e: e["kind"] == "placed" and e["source"] == "stone")
         echo.expect(state_of("stone", "desire"))
         # What stone hears from echo is a note of stone's that echo placed (at the heard pitch,
-        # or moved in its note space) and struck. (Notes stone sang before echo had proved its
-        # hello were heard as outside input, placed with source "input": midi/peer_table.py, so
-        # the placement looked for is one of stone's own.)
+        # or moved in its note space) and struck. Stone is echo's only sender; its notes that
+        # arrived before its first hello was taken in are placed as outside input ("input",
+        # creatures/runtime/network.py), the rest as "stone" (checked above).
         answer = stone.expect(heard_from("echo"))
-        placed = echo.expect(lambda e: e["kind"] == "placed" and e["pitch"] == answer["pitch"]
-                             and e["source"] == "stone", anywhere=True)
+        placed = echo.expect(lambda e: e["kind"] == "placed" and e["pitch"] == answer["pitch"], anywhere=True)
+        assert placed["source"] in ("stone", "input")
         assert placed["heard"] in {e["pitch"] for e in stone.events() if e["kind"] == "note"} | {sung["pitch"]}
         seen = stone.expect(state_of("echo", "boredom"))
         assert isinstance(seen["state"]["boredom"], float) and "action" in seen["state"]

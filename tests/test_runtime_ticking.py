@@ -132,3 +132,17 @@ def test_ticks_that_begin_late_are_counted_not_hidden(tmp_path):
     assert timing.ticks == 10 and rig.loop.skipped == 0
     assert timing.late == 9  # all but the first, each 10 ms later than the one before
     assert timing.worst == pytest.approx(0.09) and timing.percentile(50) == pytest.approx(0.045, abs=0.006)
+
+
+def test_inside_a_live_run_another_thread_holds_the_interpreter_at_most_a_millisecond():
+    """gil_handover: the supervisor's Python work cannot keep a tick waiting Python's default
+    5 ms; the default comes back afterwards, even when the run fails."""
+    import sys
+
+    from creatures.runtime.ticking import GIL_HANDOVER, gil_handover
+
+    before = sys.getswitchinterval()
+    with pytest.raises(RuntimeError), gil_handover():
+        assert sys.getswitchinterval() == pytest.approx(GIL_HANDOVER)
+        raise RuntimeError("the run failed")
+    assert sys.getswitchinterval() == before

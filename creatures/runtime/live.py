@@ -41,7 +41,7 @@ from creatures.runtime.network import Network, open_listener
 from creatures.runtime.schema import LoadedInstallation
 from creatures.runtime.session import Session, write_snapshot
 from creatures.runtime import kernels
-from creatures.runtime.ticking import TickLoop, TickTiming, realtime, setup_kept
+from creatures.runtime.ticking import TickLoop, TickTiming, gil_handover, realtime, setup_kept
 from creatures.supervisor import Supervisor
 from midi.notes import NoteEvent
 from midi.ports import MidoInputs, MidoOutputs, PortFactory, ResilientPort
@@ -346,7 +346,7 @@ def run_live(
     supervisor.every(HOUSEKEEPING_EVERY, log.flush, name="events log flush")  # a tail -f shows the present
     saver = _Saver(supervisor, state_dir, summary, say, settings.save_every) if state_dir is not None else None
     supervisor.start()  # before the loop's thread turns real-time: the supervisor keeps ordinary scheduling
-    with setup_kept() as loop.collect, realtime(settings.realtime, say):
+    with setup_kept() as loop.collect, realtime(settings.realtime, say), gil_handover():
         start = wall.now()  # setting up took time; the run's ticks count from here
         next_save, next_housekeeping, frames_done = start + settings.save_every, start, int(round(start * sr))
 
