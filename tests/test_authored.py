@@ -87,6 +87,7 @@ def test_a_small_authored_creature_plays_its_phrase_when_bored(tmp_path):
         ("until = { seconds = 2.0 }", "until = { }", "creature.0.tuples.rest.until", "needs at least one"),
         ("pitches = [60, 64, 67] }", "pitches = [60, 64, 67], loud = 1 }", "creature.0.tuples.sing.action.loud",
          "unknown key"),
+        ('drive = "boredom"', 'drive = "boredom"\nspread = inf', "creature.0.percepts.bored.spread", "finite number"),
     ],
 )
 def test_bad_names_and_structures_are_errors_at_their_line(tmp_path, old, new, key, message):

@@ -12,9 +12,9 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Callable, ClassVar, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, Field, model_validator
 
-from creatures.authored.registry import ACTIONS, Part
+from creatures.authored.registry import ACTIONS, Params, Part
 from creatures.behaviour.action_tuple import Action, ActionTuple
 from creatures.kinds.note_world import SeekNote, Wander
 from creatures.motor.programs import MotorProgramGraph, ProgramStack, Statement, parse_programs
@@ -23,10 +23,6 @@ from midi.notes import NoteEvent
 
 if TYPE_CHECKING:
     from creatures.authored.creature import Authored
-
-
-class Params(BaseModel):
-    model_config = ConfigDict(extra="forbid")
 
 
 class ActionPart(Part):

@@ -8,9 +8,9 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, Field
 
-from creatures.authored.registry import MODELS, Part
+from creatures.authored.registry import MODELS, Params, Part
 from creatures.behaviour.action_tuple import DurationModel
 from creatures.behaviour.models.gaussian import GaussianModel
 from creatures.runtime.pulse import PulseDuration
@@ -18,10 +18,6 @@ from creatures.temporal.durations import LowIntegerRatioModel
 
 if TYPE_CHECKING:
     from creatures.authored.creature import Authored
-
-
-class Params(BaseModel):
-    model_config = ConfigDict(extra="forbid")
 
 
 class ModelPart(Part):

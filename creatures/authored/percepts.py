@@ -11,10 +11,10 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING, ClassVar, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, Field, model_validator
 
 from creatures.authored.ear import DENSITY_WINDOW
-from creatures.authored.registry import PERCEPTS, Part
+from creatures.authored.registry import PERCEPTS, Params, Part
 from creatures.behaviour.models.activation import ActivationModel
 from creatures.behaviour.models.fuzzy import AndPercept, NotPercept, OrPercept
 from creatures.behaviour.models.gaussian import GaussianModel, GaussianPercept
@@ -23,10 +23,6 @@ from creatures.temporal.durations import SimpleDurationModel
 
 if TYPE_CHECKING:
     from creatures.authored.creature import Authored
-
-
-class Params(BaseModel):
-    model_config = ConfigDict(extra="forbid")
 
 
 class PerceptPart(Part):

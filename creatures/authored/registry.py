@@ -21,7 +21,9 @@ from importlib.metadata import entry_points
 from pathlib import Path
 from typing import Any, ClassVar, Generic, Iterator, TypeVar
 
-from pydantic import BaseModel, ConfigDict
+from pydantic import BaseModel
+
+from creatures.bounds import FINITE
 
 GROUPS = ("actions", "percepts", "models", "kinds")
 """Entry point groups are ``creature_music.<group>``; each entry names a module to import."""
@@ -41,8 +43,11 @@ class PluginError(Exception):
     """A plugin (entry point or ``plugins`` file) could not be imported or registered."""
 
 
-class NoParams(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+class Params(BaseModel):
+    """The keys of a part (subclassed by each part with its own fields): unknown keys and
+    non-finite numbers are errors, as everywhere in a config (creatures/bounds.py)."""
+
+    model_config = FINITE
 
 
 class Part:
@@ -50,7 +55,7 @@ class Part:
 
     name: ClassVar[str]
     thesis: ClassVar[str] = ""
-    Params: ClassVar[type[BaseModel]] = NoParams
+    Params: ClassVar[type[BaseModel]] = Params
     needs: ClassVar[str | None] = None
     """What of the creature the part uses beyond its ear and drives: "body" (``body = true``)
     or "space" (a ``[creature.space]`` table as well); checked at load."""
