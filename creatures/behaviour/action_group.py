@@ -354,6 +354,24 @@ class ActionGroup:
                 break
         self._emit("stop", t, tuple=tuple_.name, duration=duration, interrupted=interrupted)
 
+    def force(self, name: str, t: float) -> ActionTuple:
+        """Start tuple ``name`` at ``t`` whatever its expected value: an operator's choice
+        (the remote console's ``trigger``), not the group's. The weakest active tuple makes
+        room when every slot is taken (logged as an ``interruption``); the start is logged
+        as a ``selection`` and assigns credit as any start does. Between ticks only."""
+        tuple_ = self.find(name)
+        if tuple_ in self.active:
+            return tuple_
+        trig = self.triggers(t)
+        expected = self._expected(t, trig, self.values())
+        if len(self.active) >= self.max_active:
+            weakest = min(self.active, key=lambda tp: expected[self._position(tp)])
+            self._emit("interruption", t, tuple=weakest.name, by=name)
+            self._stop(weakest, t, interrupted=True)
+        self.record_base(expected)
+        self._start(tuple_, t, trig)
+        return tuple_
+
     def stop_all(self, t: float) -> None:
         """Stop every active tuple (the group itself is being deactivated)."""
         for tuple_ in list(self.active):

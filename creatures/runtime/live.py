@@ -30,6 +30,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
+import numpy as np
+
 from audio.resilient import ResilientInput, ResilientOutput
 from creatures import stop as stops
 from creatures.clock import Clock, SimulatedClock, WallClock
@@ -38,6 +40,7 @@ from creatures.paths import directory, regular_file, writable_directory
 from creatures.runtime.bodies import FramesBeside
 from creatures.runtime.input_sources import SerialSource, open_sources
 from creatures.runtime.network import Network, open_listener
+from creatures.runtime.outlets import Outlets, check_ports
 from creatures.runtime.schema import LoadedInstallation
 from creatures.runtime.session import Session, write_snapshot
 from creatures.runtime import kernels
@@ -85,6 +88,7 @@ class LiveSummary:
     messages: list[str] = field(default_factory=list)
     sound: str = ""  # where the mix went: "live at 44100 Hz (resampled from 22050 Hz)" or "silent: why"
     network: dict[str, object] | None = None  # the OSC counters (Network.counts) when [osc] port is set
+    outlets: dict[str, object] = field(default_factory=dict)  # body stream and console counters (Outlets.counts)
 
 
 class LiveInputs:
@@ -270,6 +274,7 @@ def check_before_running(inst: LoadedInstallation, *, state: Path | None, log_pa
         directory(state, "state folder")
     if inst.settings.osc.port is not None:  # bound and let go: a port in use is said now
         open_listener(inst.settings.osc, WallClock(), lambda key, message: inst.error(("osc", key), message)).close()
+    check_ports(inst)
     if pictures is not None:
         writable_directory(pictures, "--frames")
 
@@ -345,9 +350,32 @@ def run_live(
     timing = _Timing(session, loop.timing, sink)
     supervisor.every(HOUSEKEEPING_EVERY, log.flush, name="events log flush")  # a tail -f shows the present
     saver = _Saver(supervisor, state_dir, summary, say, settings.save_every) if state_dir is not None else None
+    start = wall.now()
+
+    def pause(on: bool) -> None:
+        """The console's pause: ticks skipped (silence plays), every note off; resume goes on."""
+        loop.paused = on
+        if on:
+            session.scheduler.all_notes_off()
+        session.world.emit("paused" if on else "resumed")
+
+    def save_now(t: float) -> str:
+        saver.save(session, t - start)
+        return str(state_dir)
+
+    def status() -> dict[str, object]:
+        underruns, overruns = counters.now()
+        return {"state": "paused" if loop.paused else "running", "title": settings.title, "ticks": session.ticks,
+                "late_ticks": loop.timing.late, "skipped": loop.skipped, "underruns": underruns,
+                "overruns": overruns, "notes_played": session.world.notes_played,
+                "creatures": [c.name for c in session.creatures], **outlets.counts()}
+
+    outlets = Outlets(inst, session, loop, supervisor, pause=pause, save=save_now if saver is not None else None,
+                      status=status)
     supervisor.start()  # before the loop's thread turns real-time: the supervisor keeps ordinary scheduling
     with setup_kept() as loop.collect, realtime(settings.realtime, say), gil_handover():
         start = wall.now()  # setting up took time; the run's ticks count from here
+        outlets.restart_stream(start)
         next_save, next_housekeeping, frames_done = start + settings.save_every, start, int(round(start * sr))
 
         def tick(t: float) -> None:
@@ -355,9 +383,9 @@ def run_live(
             frames = int(round(t * sr)) - frames_done
             frames_done += frames
             heard = microphone.read() if microphone is not None else None
-            mix = session.step(t, frames, heard, audio=output is not None)
+            mix = None if loop.paused else session.step(t, frames, heard, audio=output is not None)
             if output is not None:
-                output.write(mix)
+                output.write(mix if mix is not None else np.zeros((frames, 2), np.float32))
             if inputs.network is not None:
                 inputs.network.publish(t)
             if bodies is not None:
@@ -369,6 +397,7 @@ def run_live(
                 next_housekeeping = t + HOUSEKEEPING_EVERY
                 counters.log_change()
                 timing.log_change()
+                outlets.publish()
 
         try:
             # The first tick builds what creatures build on first use (their first course, the
@@ -383,6 +412,8 @@ def run_live(
         finally:
             signal.signal(signal.SIGTERM, previous)
             supervisor.stop()  # before what it watches closes
+            outlets.close()
+            summary.outlets = outlets.counts()
             counters.log_change(always=True)
             timing.log_change(always=True)
             summary.underruns, summary.overruns = counters.now()

@@ -57,10 +57,17 @@ def shown_state(creature: "CreatureKind", t: float) -> dict[str, float | str]:
     if isinstance(motivation, Motivation):
         levels = motivation.levels_at(max(t, motivation.time))
         state.update((name, round(float(level), 4)) for name, level in zip(motivation.names, levels))
-    group = getattr(creature, "group", None)
-    if isinstance(group, ActionGroup):
-        state["action"] = "+".join(tp.name for tp in group.active) or "none"
+    action = doing(creature)
+    if action is not None:
+        state["action"] = action or "none"
     return state
+
+
+def doing(creature: "CreatureKind") -> str | None:
+    """What a creature is doing: the names of the active tuples of its ``group`` joined by
+    ``+`` ("" when none is active), or None for a kind without an action-group."""
+    group = getattr(creature, "group", None)
+    return "+".join(tp.name for tp in group.active) if isinstance(group, ActionGroup) else None
 
 
 MAX_STATE_KEYS = 32

@@ -33,11 +33,13 @@ from creatures.events import EventLog
 from creatures.lock import FolderLock, FolderLockedError
 from creatures.paths import directory
 from creatures.runtime.bodies import BodyFrames
+from creatures.runtime.body_stream import BodyStream
 from creatures.runtime.input_sources import open_sources
 from creatures.runtime.inputs import phrase_notes, render_notes
 from creatures.runtime.outputs import OutputDirectoryError, discard, publish, recover, refuse_foreign, stage
 from creatures.runtime.schema import Installation, LoadedInstallation
 from creatures.runtime.speech_input import spoken_poem
+from creatures.runtime.stream_sinks import JsonLinesStreamSink
 from creatures.runtime.session import Session
 from creatures.runtime.score import write_score
 from midi.files import read_notes
@@ -65,7 +67,8 @@ def _planned(settings: Installation) -> set[str]:
     publishing): refused before running if anything else holds one."""
     output = settings.output
     wanted = {"events.jsonl": True, "state": True, "out.wav": output.wav, "out.mid": output.midi,
-              "report": output.report, "frames": output.frames, "out.mp4": output.frames and output.video}
+              "report": output.report, "frames": output.frames, "out.mp4": output.frames and output.video,
+              "stream.jsonl": settings.stream.file}
     return {name for name, on in wanted.items() if on}
 
 
@@ -156,6 +159,11 @@ def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path 
     sr, tick = settings.audio.sample_rate, settings.tick
     wav = WavOutput(out / "out.wav", sr, 2) if settings.output.wav else None
     bodies = BodyFrames(settings.output, out, clock, messages) if settings.output.frames else None
+    stream = None
+    if settings.stream.file:  # every frame time taken, in place: time waits for the file offline
+        stream = BodyStream(session.world, settings.stream.rate, threaded=False)
+        stream.subscribe(JsonLinesStreamSink(out / "stream.jsonl"))
+        stream.advance(0.0)  # frame 0: the bodies before the first tick
     steps = int(math.ceil(duration / tick - 1e-9))
     bar = None
     if progress:
@@ -171,7 +179,11 @@ def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path 
                 source.poll(t)
             a, b = int(round(t0 * sr)), int(round(t * sr))
             recorded = None if samples is None or a >= len(samples) else samples[a:min(b, len(samples))]
+            if stream is not None:  # frames between two ticks show the body the earlier one left
+                stream.advance(t, before=True)
             mix = session.step(t, b - a, recorded, audio=wav is not None)
+            if stream is not None:
+                stream.advance(t)
             if wav is not None:
                 wav.write(mix)
             if bodies is not None:
@@ -187,6 +199,8 @@ def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path 
             closing.callback(log.close)
             if bodies is not None:
                 closing.callback(bodies.close)
+            if stream is not None:
+                closing.callback(stream.close)
             if bar is not None:
                 closing.callback(bar.close)
             closing.callback(session.close)  # first: it logs the end and silences every note
@@ -202,6 +216,8 @@ def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path 
         files.update(creature.finish(out))
     session.save_state(out / "state")  # what the creatures learned: `creatures inspect DIR` shows it
     files["state"] = out / "state"
+    if stream is not None:
+        files["stream"] = out / "stream.jsonl"
     if bodies is not None and bodies.renderer is not None:
         files["frames"] = out / "frames"
         if settings.output.video:

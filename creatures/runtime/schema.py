@@ -78,6 +78,47 @@ class OscSection(Strict):
                                                                     "counted, and the creatures keep their time")
 
 
+class StreamSection(Strict):
+    """The body stream (``docs/stream.md``): each creature's joint positions and rotations, its
+    end-effector, note objects in space, drives and current action, and the notes played and
+    heard, at ``rate`` frames a second, for renderers (TouchDesigner, a browser view). Only a
+    snapshot is taken on the creature's thread; a thread of its own encodes and sends."""
+
+    rate: float = Field(30.0, gt=0, le=240, description="frames a second")
+    targets: list[str] = Field(default_factory=list, max_length=64,
+                               description="host:port of renderers a live run sends the stream to as OSC "
+                                           "(IPv4); none = no OSC stream")
+    file: bool = Field(False, description="offline runs write the stream into stream.jsonl beside out.mid")
+    queue: int = Field(64, ge=1, le=4096, description="frames waiting for the sender thread at most; a frame "
+                                                      "beyond is dropped and counted")
+
+
+class ConsoleSection(Strict):
+    """The remote console (``docs/stream.md``): OSC requests with ids, answered with replies,
+    to read drives, values, percept trees and state, set a creature's spec key, trigger a
+    tuple, reward, pause, resume and save. Off unless ``port`` is set."""
+
+    port: int | None = Field(None, ge=1024, le=65535, description="UDP port the console listens on; none = no console")
+    host: str = Field("127.0.0.1", description="address the console binds to (loopback by default)")
+    secret: str | None = Field(None, min_length=8, max_length=256,
+                               description="shared secret every request carries after its id; none = no secret")
+    max_rate: int = Field(1_000, ge=10, le=100_000, description="requests a second answered at most; beyond, "
+                                                                "they are counted and dropped unanswered")
+    queue: int = Field(64, ge=1, le=1024, description="requests waiting for the creatures' thread at most; "
+                                                      "beyond, answered 'busy' and counted")
+
+
+class HealthSection(Strict):
+    """How a run says it is alive: a JSON status over HTTP (``GET /health``) and an OSC
+    heartbeat (``/colony/heartbeat``), both from threads of their own."""
+
+    port: int | None = Field(None, ge=1024, le=65535, description="HTTP port of the health endpoint; none = none")
+    host: str = Field("127.0.0.1", description="address the health endpoint binds to (loopback by default)")
+    heartbeat: list[str] = Field(default_factory=list, max_length=64,
+                                 description="host:port the OSC heartbeat goes to (IPv4); none = no heartbeat")
+    every: float = Field(1.0, ge=0.1, le=3600, description="seconds between heartbeats")
+
+
 class Arg(Strict):
     """A value read from the message: argument ``arg`` (0 = the first), or ``default`` when
     the message has no such argument."""
@@ -207,6 +248,9 @@ class Installation(Strict):
     audio: AudioSection = AudioSection()
     midi: MidiSection = MidiSection()
     osc: OscSection = OscSection()
+    stream: StreamSection = StreamSection()
+    console: ConsoleSection = ConsoleSection()
+    health: HealthSection = HealthSection()
     input: InputSection = InputSection()
     output: OutputSection = OutputSection()
     include: list[str] = Field(default_factory=list, max_length=256, description="creature files ([[creature]] "
@@ -288,10 +332,16 @@ def load_installation(path: str | Path) -> LoadedInstallation:
             raise config_error(path, where, ("input", key), f"file not found: {file}")
     if settings.osc.port is not None and (problem := host_problem(settings.osc.host)) is not None:
         raise config_error(path, where, ("osc", "host"), problem)
-    for i, peer in enumerate(settings.osc.peers):
-        problem = peer_problem(peer)
-        if problem is not None:
-            raise config_error(path, where, ("osc", "peers", i), problem)
+    for section in ("console", "health"):
+        part = getattr(settings, section)
+        if part.port is not None and (problem := host_problem(part.host)) is not None:
+            raise config_error(path, where, (section, "host"), problem)
+    for loc, peers in ((("osc", "peers"), settings.osc.peers), (("stream", "targets"), settings.stream.targets),
+                       (("health", "heartbeat"), settings.health.heartbeat)):
+        for i, peer in enumerate(peers):
+            problem = peer_problem(peer)
+            if problem is not None:
+                raise config_error(path, where, (*loc, i), problem)
     by_name = {spec.name: spec for spec in specs}
     for i, stream in enumerate(settings.output.cc):
         creature = stream.source.split(".")[0]

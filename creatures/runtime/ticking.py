@@ -215,6 +215,10 @@ class TickLoop:
         self.timing = TickTiming()
         self.heard_between = 0  # notes heard between ticks, at once
         self.collect: Callable[[float, float], None] | None = None  # garbage collection in the waits (setup_kept)
+        # Work at tick boundaries, on this thread, after each tick and at each look between
+        # ticks (never mid-tick): body stream frames, remote console requests.
+        self.boundary: list[Callable[[float], None]] = []
+        self.paused = False  # the remote console's pause: notes heard wait, ticks are the caller's to skip
         session.world.listeners.append(self._send_now)
 
     def _send_now(self, creature: str, note: NoteEvent) -> None:
@@ -235,6 +239,8 @@ class TickLoop:
             self.time.advance_to(max(next_tick, self.time.now()))
             self.inputs.poll(next_tick)  # what arrived while the previous tick ran
             on_tick(next_tick)
+            for work in self.boundary:
+                work(next_tick)
             next_tick += self.tick
 
     def between(self, deadline: float) -> None:
@@ -242,7 +248,10 @@ class TickLoop:
         while (now := self.wall.now()) < deadline:
             self.time.advance_to(max(now, self.time.now()))
             self.heard_between += self.inputs.poll(now)
-            self.hear_now(now)
+            if not self.paused:
+                self.hear_now(now)
+            for work in self.boundary:
+                work(now)
             if self.collect is not None:
                 self.collect(self.wall.now(), deadline)
             self.wait(max(0.0, min(POLL, deadline - self.wall.now())))

@@ -45,6 +45,7 @@ class World:
         self.creatures: list[CreatureKind] = []
         self._pending: list[tuple[float, int, NoteEvent, str]] = []
         self.listeners: list[Callable[[str, NoteEvent], None]] = []  # e.g. OSC to other colonies
+        self.hearing: list[Callable[[str, NoteEvent], None]] = []  # (source, note) from outside, as it starts: the body stream
         # What creatures of other colonies last said of themselves over OSC, by creature then
         # key (creatures.runtime.network): e.g. peers["bo"]["boredom"], peers["bo"]["action"].
         self.peers: dict[str, dict[str, int | float | str]] = {}
@@ -112,6 +113,8 @@ class World:
             _, _, note, source = heapq.heappop(self._pending)
             if not any(creature.name == source for creature in self.creatures):
                 self.pulse.hear(note.time)  # the rhythm heard from outside, not the colony's own
+                for listener in self.hearing:
+                    listener(source, note)
             for creature in self.creatures:
                 if creature.name != source and (source != INPUT or creature.spec.hears_input):
                     creature.hear(note, source)

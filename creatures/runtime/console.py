@@ -1,0 +1,319 @@
+"""The remote console: a running colony asked and told over OSC, request by request.
+
+IViHumans' minds and graphics speak a request/reply protocol (its "sense"/"act" messages):
+every request carries an id the client chose, and is answered by exactly one reply carrying
+that id, with the values asked for or an error. The console does the same over OSC (UDP):
+
+``/console/<verb> id:int [secret:str] args...`` is answered to the address it came from with
+``/console/reply id:int json:str`` or ``/console/error id:int message:str`` (id -1 when the
+request had none). The verbs (``docs/stream.md`` lists their arguments): ``status``,
+``drives``, ``values``, ``percepts``, ``state``, ``set``, ``trigger``, ``reward``, ``pause``,
+``resume``, ``save``.
+
+Threads. A thread of the console's own reads the socket and checks each request's form
+(OSC, a known verb, an int id, the secret, the arguments' count and types); what fails is
+answered there with an error and counted, so a flood of garbage costs the creatures nothing
+but the interpreter's share. A well-formed request is queued (bounded: beyond ``queue`` it is
+answered ``busy``) and applied on the creatures' thread at a tick boundary
+(:attr:`TickLoop.boundary <creatures.runtime.ticking.TickLoop.boundary>`: after a tick, or at
+a look between two), where no tick is half done and no lock is needed. At most ``max_rate``
+requests a second are answered; beyond, they are counted and dropped (the network is no
+amplifier). Off unless ``[console] port`` is set; loopback unless ``host`` says otherwise.
+"""
+
+from __future__ import annotations
+
+import hmac
+import json
+import queue
+import select
+import socket
+import threading
+import time
+from collections import Counter
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Callable
+
+from pythonosc.osc_message import OscMessage
+
+from creatures.config import ConfigError, validate
+from creatures.runtime.inspect import Tree, knowledge
+from creatures.runtime.osc_wire import message
+from creatures.runtime.schema import ConsoleSection
+from midi.peer_table import Bucket
+
+if TYPE_CHECKING:
+    from creatures.kinds.base import CreatureKind
+    from creatures.runtime.session import Session
+
+PREFIX = "/console/"
+MAX_REQUEST = 4096
+"""Bytes a request may take (a datagram beyond is malformed): every request here is short."""
+
+MAX_REPLY = 60_000
+"""Bytes a reply may take (one UDP datagram); a larger answer is an error saying so."""
+
+REWARD_LIMIT = 1000.0
+"""Largest reward, either sign (as the input map's)."""
+
+REWARD_WINDOW, REWARD_RATE = 1.5, 0.2
+"""A console reward's window and blend rate: the input map's defaults (``[[input]]``)."""
+
+Arity = tuple[type, ...]
+VERBS: dict[str, Arity] = {
+    "status": (), "pause": (), "resume": (), "save": (),
+    "drives": (str,), "values": (str,), "percepts": (str,), "state": (str,),
+    "set": (str, str, object), "trigger": (str, str), "reward": (str, float),
+}
+"""Each verb's arguments after the id (and secret): a creature's name first where it takes one."""
+
+
+class Refused(Exception):
+    """A request the colony will not do; the message is the reply's."""
+
+
+class Malformed(Exception):
+    """A datagram that is no request: its id (-1 if it has none), the counter it goes to, why."""
+
+    def __init__(self, rid: int, cause: str, why: str) -> None:
+        super().__init__(why)
+        self.rid, self.cause, self.why = rid, cause, why
+
+
+@dataclass(frozen=True)
+class Request:
+    id: int
+    verb: str
+    args: tuple
+    sender: tuple[str, int]
+
+
+def _fits(value: Any, kind: type) -> bool:
+    if kind is object:
+        return isinstance(value, (int, float, str, bool))
+    if kind is float:
+        return isinstance(value, (int, float)) and not isinstance(value, bool)
+    return isinstance(value, kind)
+
+
+def parse(data: bytes, sender: tuple[str, int], secret: str | None) -> Request:
+    """A request from a datagram, or :class:`Malformed`."""
+    if len(data) > MAX_REQUEST:
+        raise Malformed(-1, "malformed", f"request larger than {MAX_REQUEST} bytes")
+    try:
+        msg = OscMessage(data)
+        params = list(msg.params)
+    except Exception:  # python-osc raises ParseError, and struct/index/unicode errors on garbage
+        raise Malformed(-1, "malformed", "not an OSC message (a request is /console/<verb> id ...)") from None
+    rid = params[0] if params and isinstance(params[0], int) and not isinstance(params[0], bool) else None
+    if rid is None:
+        raise Malformed(-1, "malformed", "a request's first argument is its id (an int)")
+    verb = msg.address[len(PREFIX):] if msg.address.startswith(PREFIX) else None
+    if verb not in VERBS:
+        raise Malformed(rid, "malformed", f"unknown request {msg.address!r} (verbs: {', '.join(sorted(VERBS))})")
+    args = params[1:]
+    if secret is not None:
+        given = args[0] if args and isinstance(args[0], str) else ""
+        if not hmac.compare_digest(given.encode(), secret.encode()):
+            raise Malformed(rid, "secret", "wrong or missing secret (it follows the id)")
+        args = args[1:]
+    arity = VERBS[verb]
+    if len(args) != len(arity) or not all(_fits(a, k) for a, k in zip(args, arity)):
+        names = " ".join(k.__name__ if k is not object else "value" for k in arity)
+        raise Malformed(rid, "malformed", f"{verb} takes: id{' secret' if secret else ''} {names}".rstrip())
+    return Request(rid, verb, tuple(args), sender)
+
+
+def tree_json(tree: Tree) -> dict:
+    return {"name": tree.name, "size": tree.size, "children": [tree_json(c) for c in tree.children]}
+
+
+def spec_value(text: Any) -> Any:
+    """A ``set`` value: a string that reads as JSON (``"[1, 2]"``, ``"true"``) is that value."""
+    if isinstance(text, str):
+        try:
+            return json.loads(text)
+        except ValueError:
+            return text
+    return text
+
+
+class Colony:
+    """What the console acts on: the session and the run's hands (pause, save, status)."""
+
+    def __init__(self, session: "Session", *, pause: Callable[[bool], None],
+                 save: Callable[[float], str] | None, status: Callable[[], dict]) -> None:
+        self.session, self.pause, self.save, self.status = session, pause, save, status
+        self.by_name = {c.name: (i, c) for i, c in enumerate(session.creatures)}
+
+    def creature(self, name: str) -> tuple[int, "CreatureKind"]:
+        try:
+            return self.by_name[name]
+        except KeyError:
+            raise Refused(f"no creature named {name!r} (creatures: {', '.join(self.by_name)})") from None
+
+    def apply(self, request: Request, t: float) -> Any:
+        """The answer to ``request`` at clock time ``t`` (on the creatures' thread), or :class:`Refused`."""
+        verb, args = request.verb, request.args
+        if verb == "status":
+            return self.status()
+        if verb in ("pause", "resume"):
+            self.pause(verb == "pause")
+            return {"paused": verb == "pause"}
+        if verb == "save":
+            if self.save is None:
+                raise Refused("this run keeps no state (set state = DIR or run with --state)")
+            return {"saving": self.save(t)}
+        index, creature = self.creature(args[0])
+        if verb == "drives":
+            motivation = getattr(creature, "motivation", None)
+            if motivation is None:
+                return {}
+            return dict(zip(motivation.names, motivation.levels_at(max(t, motivation.time)).tolist()))
+        if verb == "state":
+            return creature.state()
+        if verb in ("values", "percepts"):
+            known = knowledge(creature.name, creature.spec.kind, creature.state())
+            if verb == "values":
+                return {"values": known.values, "confidence": known.confidence}
+            return [tree_json(tree) for tree in known.trees]
+        if verb == "set":
+            return self.set(index, creature, args[1], spec_value(args[2]))
+        if verb == "trigger":
+            return self.trigger(creature, args[1], t)
+        amount = float(args[1])
+        if not abs(amount) <= REWARD_LIMIT:
+            raise Refused(f"reward {amount} is beyond ±{REWARD_LIMIT:g}")
+        if not creature.reward_groups():
+            raise Refused(f"{creature.name} has no action-group a reward can reach")
+        return {"credited": creature.reward(amount, t, REWARD_WINDOW, REWARD_RATE)}
+
+    def set(self, index: int, creature: "CreatureKind", key: str, value: Any) -> dict:
+        """Spec key ``key`` (dotted for a nested table: ``voice.gain``) set to ``value``,
+        validated by the kind's schema as a config would be; refused with the schema's message.
+        From then on the creature reads the new spec: what it reads as it runs (``gain``,
+        ``pan`` through the mixer, ``hears_input``, …) changes at once; what it built from its
+        spec at the start (a body, a voice) keeps until the run restarts."""
+        parts = key.split(".")
+        if parts[0] in ("name", "kind"):
+            raise Refused(f"{parts[0]} cannot change while the creature runs")
+        data = creature.spec.model_dump()
+        node = data
+        for part in parts[:-1]:
+            node = node.get(part) if isinstance(node, dict) else None
+            if not isinstance(node, dict):
+                raise Refused(f"{key}: {part!r} is not a table of {creature.spec.kind}'s spec")
+        node[parts[-1]] = value
+        try:
+            spec = validate(type(creature.spec), data, {}, Path(creature.name))
+        except ConfigError as exc:
+            raise Refused(f"{exc.key}: {exc.message}" if exc.key else exc.message) from None
+        creature.spec = spec
+        if parts[0] in ("gain", "pan"):
+            self.session.mixer.set(index, gain=spec.gain, pan=spec.pan)
+        creature.world.emit("console set", creature=creature.name, key=key, value=value)
+        return {"set": key, "value": value}
+
+    def trigger(self, creature: "CreatureKind", name: str, t: float) -> dict:
+        for group in creature.reward_groups():
+            if any(tp.name == name for tp in group.tuples):
+                group.force(name, t)
+                return {"active": [tp.name for tp in group.active]}
+        tuples = [tp.name for group in creature.reward_groups() for tp in group.tuples]
+        raise Refused(f"{creature.name} has no action-tuple named {name!r} (tuples: {', '.join(tuples) or 'none'})")
+
+
+class Console:
+    """The console's socket and thread; :meth:`serve` applies queued requests (creatures' thread)."""
+
+    def __init__(self, section: ConsoleSection, colony: Colony) -> None:
+        self.section = section
+        self.colony = colony
+        self.socket = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.socket.bind((section.host, section.port or 0))
+        self.socket.setblocking(False)
+        self.port: int = self.socket.getsockname()[1]
+        self.requests: queue.Queue[Request] = queue.Queue(section.queue)
+        self.counts: Counter[str] = Counter()
+        self._budget = Bucket(section.max_rate, section.max_rate)
+        self._running = True
+        self._thread = threading.Thread(target=self._read, name="remote console", daemon=True)
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def _read(self) -> None:
+        while self._running:
+            if not select.select([self.socket], [], [], 0.2)[0]:
+                continue
+            while True:
+                try:
+                    data, sender = self.socket.recvfrom(MAX_REQUEST + 1)
+                except (BlockingIOError, InterruptedError):
+                    break
+                except OSError:  # an ICMP error queued on the socket (a client gone); the next read is fine
+                    continue
+                self._take(data, sender)
+
+    def _take(self, data: bytes, sender: tuple[str, int]) -> None:
+        self.counts["received"] += 1
+        if not self._budget.take(time.monotonic()):
+            self.counts["over rate"] += 1
+            return
+        try:
+            request = parse(data, sender, self.section.secret)
+        except Malformed as bad:
+            self.counts[bad.cause] += 1
+            self._error(sender, bad.rid, bad.why)
+            return
+        try:
+            self.requests.put_nowait(request)
+        except queue.Full:
+            self.counts["busy"] += 1
+            self._error(sender, request.id, "busy: too many requests waiting for the creatures")
+
+    def serve(self, t: float) -> None:
+        """Apply every queued request at clock time ``t`` and answer it (a tick boundary)."""
+        while True:
+            try:
+                request = self.requests.get_nowait()
+            except queue.Empty:
+                return
+            try:
+                answer = self.colony.apply(request, t)
+                text = json.dumps(answer, allow_nan=False)
+            except Refused as refused:
+                self.counts["refused"] += 1
+                self._error(request.sender, request.id, str(refused))
+                continue
+            except (ValueError, TypeError) as exc:  # e.g. a state with a value JSON cannot hold
+                self.counts["refused"] += 1
+                self._error(request.sender, request.id, f"the answer cannot be sent ({exc})")
+                continue
+            reply = message("/console/reply", request.id, text)
+            if len(reply) > MAX_REPLY:
+                self.counts["refused"] += 1
+                self._error(request.sender, request.id, f"the answer takes {len(reply)} bytes, more than "
+                                                        f"{MAX_REPLY} (one datagram): ask for drives, values or percepts")
+                continue
+            self.counts["answered"] += 1
+            self._send(reply, request.sender)
+
+    def _error(self, sender: tuple[str, int], rid: int, why: str) -> None:
+        self._send(message("/console/error", rid, why), sender)
+
+    def _send(self, dgram: bytes, sender: tuple[str, int]) -> None:
+        try:
+            self.socket.sendto(dgram, sender)
+        except OSError:
+            self.counts["send errors"] += 1
+
+    def summary(self) -> dict[str, int]:
+        return dict(sorted(self.counts.items()))
+
+    def close(self) -> None:
+        self._running = False
+        if self._thread.is_alive():
+            self._thread.join(2)
+        self.socket.close()
