@@ -198,6 +198,8 @@ def _run(args: argparse.Namespace) -> int:
           f"{summary.skipped} skips ahead; {summary.late_notes} notes reached the MIDI port more than "
           f"{LATE_NOTE * 1e3:g} ms late" + (f"; {summary.frames_dropped} frames dropped (drawing too slow)"
                                             if summary.frames_dropped else ""))
+    for what, counts in summary.outlets.items():  # the body stream's and the console's counters
+        print(f"{what}: " + ", ".join(f"{n} {name.replace('_', ' ')}" for name, n in counts.items()))
     for line in log_limit.install().pending():
         print(line, file=sys.stderr)
     if summary.log_loss:

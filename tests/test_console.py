@@ -255,6 +255,7 @@ def test_health_endpoint_and_heartbeat(show):
 def test_console_set_and_pause_are_in_the_log(show):
     out = show.stop()
     assert show.process.returncode == 0, out
+    assert "console: " in out and "10000 malformed" in out  # the counters in the run's summary
     events = read_events(show.log)
     assert any(e["kind"] == "console set" and e["key"] == "gain" and e["value"] == 0.5 for e in events)
     assert {"paused", "resumed"} <= {e["kind"] for e in events}
