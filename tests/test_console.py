@@ -301,3 +301,57 @@ def test_a_status_not_renewed_says_stalled():
     assert health.status()["state"] == "running"
     health._published -= STALE + 1
     assert health.status()["state"] == "stalled"
+
+
+def test_busy_ports_and_bad_addresses_are_config_errors_before_the_run(tmp_path):
+    from creatures.config import ConfigError
+    from creatures.runtime.live import check_before_running
+
+    taken = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    taken.bind(("127.0.0.1", 0))
+    config = tmp_path / "busy.toml"
+    try:
+        config.write_text(f'title = "t"\n[console]\nport = {taken.getsockname()[1]}\n'
+                          '[[creature]]\nname = "ada"\nkind = "exchange"\n')
+        with pytest.raises(ConfigError) as busy:
+            check_before_running(load_installation(config), state=None, log_path=None, pictures=None)
+    finally:
+        taken.close()
+    assert busy.value.key == "console.port" and busy.value.line == 3 and "already in use" in str(busy.value)
+    config.write_text('title = "t"\n[stream]\ntargets = ["127.0.0.1:99999"]\n'
+                      '[[creature]]\nname = "ada"\nkind = "exchange"\n')
+    with pytest.raises(ConfigError) as bad:
+        load_installation(config)
+    assert bad.value.key == "stream.targets.0" and "out of range" in str(bad.value)
+    config.write_text('title = "t"\n[console]\nport = 9100\nsecret = "short"\n'
+                      '[[creature]]\nname = "ada"\nkind = "exchange"\n')
+    with pytest.raises(ConfigError, match="console.secret"):
+        load_installation(config)
+
+
+def test_requests_beyond_max_rate_are_counted_unanswered(tmp_path):
+    from creatures.runtime.console import Console
+    from creatures.runtime.schema import ConsoleSection
+
+    config = tmp_path / "c.toml"
+    config.write_text('title = "t"\n[[creature]]\nname = "ada"\nkind = "exchange"\n')
+    session = Session(load_installation(config), SimulatedClock(), EventLog(keep_in_memory=0), MemorySink())
+    console = Console(ConsoleSection(port=None, max_rate=10), Colony(session, pause=lambda on: None, save=None,
+                                                                     status=dict))
+    console.start()
+    client = SimpleUDPClient("127.0.0.1", console.port)
+    try:
+        for rid in range(50):
+            client.send_message("/console/drives", [rid, "ada"])
+        deadline = time.monotonic() + 20
+        while console.counts["received"] < 50:
+            assert time.monotonic() < deadline
+            time.sleep(0.01)
+        console.serve(0.0)
+        replies = []
+        while data := client.receive(0.5):
+            replies.append(OscMessage(data))
+    finally:
+        console.close()
+    assert 10 <= len(replies) <= 12 and all(r.address == "/console/reply" for r in replies)  # a burst of max_rate
+    assert console.counts["over rate"] == 50 - len(replies)

@@ -287,9 +287,9 @@ class Console:
                 self.counts["refused"] += 1
                 self._error(request.sender, request.id, str(refused))
                 continue
-            except (ValueError, TypeError) as exc:  # e.g. a state with a value JSON cannot hold
-                self.counts["refused"] += 1
-                self._error(request.sender, request.id, f"the answer cannot be sent ({exc})")
+            except Exception as exc:  # a kind's code that trips on a request must not stop the show
+                self.counts["failed"] += 1
+                self._error(request.sender, request.id, f"{request.verb} failed ({type(exc).__name__}: {exc})")
                 continue
             reply = message("/console/reply", request.id, text)
             if len(reply) > MAX_REPLY:

@@ -46,7 +46,8 @@ def check_ports(inst: LoadedInstallation) -> None:
         part = getattr(settings, section)
         if part.port is not None:
             with socket.socket(socket.AF_INET, kind) as probe:
-                probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+                if kind == socket.SOCK_STREAM:  # as http.server binds: a port in TIME_WAIT is free
+                    probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
                 _bound(inst, section, lambda: probe.bind((part.host, part.port)))
 
 
