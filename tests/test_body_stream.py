@@ -23,18 +23,9 @@ from creatures.runtime.schema import load_installation
 from creatures.runtime.session import Session
 from creatures.runtime.stream_sinks import MemoryStreamSink, OscStreamSink, read_stream
 from midi.sinks import MemorySink
+from colony_fixtures import creature_tables
 
-COLONY = """
-title = "stream"
-tick = 0.02
-seed = 5
-[[creature]]
-name = "ada"
-kind = "exchange"
-[[creature]]
-name = "bo"
-kind = "exchange"
-"""
+COLONY = 'title = "stream"\ntick = 0.02\nseed = 5\n' + creature_tables("ada", "bo")
 
 
 def _session(tmp_path, extra: str = "") -> Session:

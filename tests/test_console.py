@@ -35,6 +35,7 @@ from creatures.runtime.health import STALE, Health
 from creatures.runtime.schema import load_installation
 from creatures.runtime.session import Session
 from midi.sinks import MemorySink
+from colony_fixtures import creature_tables
 
 TICK = 0.02
 
@@ -64,13 +65,7 @@ max_rate = 100000
 [health]
 port = {health}
 heartbeat = ["127.0.0.1:{heartbeat}"]
-[[creature]]
-name = "ada"
-kind = "exchange"
-[[creature]]
-name = "bo"
-kind = "exchange"
-""")
+""" + creature_tables("ada", "bo"))
         self.process = subprocess.Popen(
             [sys.executable, "-m", "creatures.cli", "run", str(config), "--duration", "300",
              "--state", str(self.state), "--log", str(self.log)],
@@ -286,7 +281,7 @@ def test_requests_need_the_secret_and_their_form():
 
 def test_percept_trees_are_read_from_a_creature_that_grows_one(tmp_path):
     config = tmp_path / "sound.toml"
-    config.write_text('title = "t"\n[[creature]]\nname = "sc"\nkind = "soundcreature"\n')
+    config.write_text('title = "t"\n' + creature_tables("sc", kind="soundcreature"))
     session = Session(load_installation(config), SimulatedClock(), EventLog(keep_in_memory=0), MemorySink())
     colony = Colony(session, pause=lambda on: None, save=None, status=dict)
     trees = colony.apply(Request(1, "percepts", ("sc",), ("127.0.0.1", 9)), 0.0)
@@ -312,19 +307,19 @@ def test_busy_ports_and_bad_addresses_are_config_errors_before_the_run(tmp_path)
     config = tmp_path / "busy.toml"
     try:
         config.write_text(f'title = "t"\n[console]\nport = {taken.getsockname()[1]}\n'
-                          '[[creature]]\nname = "ada"\nkind = "exchange"\n')
+                          + creature_tables("ada"))
         with pytest.raises(ConfigError) as busy:
             check_before_running(load_installation(config), state=None, log_path=None, pictures=None)
     finally:
         taken.close()
     assert busy.value.key == "console.port" and busy.value.line == 3 and "already in use" in str(busy.value)
     config.write_text('title = "t"\n[stream]\ntargets = ["127.0.0.1:99999"]\n'
-                      '[[creature]]\nname = "ada"\nkind = "exchange"\n')
+                      + creature_tables("ada"))
     with pytest.raises(ConfigError) as bad:
         load_installation(config)
     assert bad.value.key == "stream.targets.0" and "out of range" in str(bad.value)
     config.write_text('title = "t"\n[console]\nport = 9100\nsecret = "short"\n'
-                      '[[creature]]\nname = "ada"\nkind = "exchange"\n')
+                      + creature_tables("ada"))
     with pytest.raises(ConfigError, match="console.secret"):
         load_installation(config)
 
@@ -334,7 +329,7 @@ def test_requests_beyond_max_rate_are_counted_unanswered(tmp_path):
     from creatures.runtime.schema import ConsoleSection
 
     config = tmp_path / "c.toml"
-    config.write_text('title = "t"\n[[creature]]\nname = "ada"\nkind = "exchange"\n')
+    config.write_text('title = "t"\n' + creature_tables("ada"))
     session = Session(load_installation(config), SimulatedClock(), EventLog(keep_in_memory=0), MemorySink())
     console = Console(ConsoleSection(port=None, max_rate=10), Colony(session, pause=lambda on: None, save=None,
                                                                      status=dict))
