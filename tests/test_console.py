@@ -30,7 +30,7 @@ from pythonosc.udp_client import SimpleUDPClient
 from creatures.clock import SimulatedClock
 from creatures.events import EventLog, read_events
 from creatures.kinds.exchange import Exchange
-from creatures.runtime.console import Colony, Malformed, Refused, Request, parse
+from creatures.runtime.console import ColonyHandle, Malformed, Refused, Request, parse
 from creatures.runtime.health import STALE, Health
 from creatures.runtime.schema import load_installation
 from creatures.runtime.session import Session
@@ -283,7 +283,7 @@ def test_percept_trees_are_read_from_a_creature_that_grows_one(tmp_path):
     config = tmp_path / "sound.toml"
     config.write_text('title = "t"\n' + creature_tables("sc", kind="soundcreature"))
     session = Session(load_installation(config), SimulatedClock(), EventLog(keep_in_memory=0), MemorySink())
-    colony = Colony(session, pause=lambda on: None, save=None, status=dict)
+    colony = ColonyHandle(session, pause=lambda on: None, save=None, status=dict)
     trees = colony.apply(Request(1, "percepts", ("sc",), ("127.0.0.1", 9)), 0.0)
     assert trees and trees[0]["size"] == 1 + sum(c["size"] for c in trees[0]["children"])
     with pytest.raises(Refused, match="keeps no state"):
@@ -331,7 +331,7 @@ def test_requests_beyond_max_rate_are_counted_unanswered(tmp_path):
     config = tmp_path / "c.toml"
     config.write_text('title = "t"\n' + creature_tables("ada"))
     session = Session(load_installation(config), SimulatedClock(), EventLog(keep_in_memory=0), MemorySink())
-    console = Console(ConsoleSection(port=None, max_rate=10), Colony(session, pause=lambda on: None, save=None,
+    console = Console(ConsoleSection(port=None, max_rate=10), ColonyHandle(session, pause=lambda on: None, save=None,
                                                                      status=dict))
     console.start()
     client = SimpleUDPClient("127.0.0.1", console.port)

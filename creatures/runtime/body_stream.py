@@ -189,6 +189,10 @@ class BodyStream:
             self._thread = threading.Thread(target=self._send, name="body stream", daemon=True)
             self._thread.start()
 
+    def begin(self, start: float) -> None:
+        """Frames count from clock time ``start`` (a live run's first tick: setting up took time)."""
+        self.start, self.next_index = float(start), 0
+
     def subscribe(self, sink: StreamSink) -> None:
         """``sink`` gets the skeletons now and every frame from the next on."""
         sink.hello(self.hellos, self.rate)

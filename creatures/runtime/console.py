@@ -139,7 +139,7 @@ def spec_value(text: Any) -> Any:
     return text
 
 
-class Colony:
+class ColonyHandle:
     """What the console acts on: the session and the run's hands (pause, save, status)."""
 
     def __init__(self, session: "Session", *, pause: Callable[[bool], None],
@@ -227,7 +227,7 @@ class Colony:
 class Console:
     """The console's socket and thread; :meth:`serve` applies queued requests (creatures' thread)."""
 
-    def __init__(self, section: ConsoleSection, colony: Colony) -> None:
+    def __init__(self, section: ConsoleSection, colony: ColonyHandle) -> None:
         self.section = section
         self.colony = colony
         self.socket = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)

@@ -375,7 +375,7 @@ def run_live(
     supervisor.start()  # before the loop's thread turns real-time: the supervisor keeps ordinary scheduling
     with setup_kept() as loop.collect, realtime(settings.realtime, say), gil_handover():
         start = wall.now()  # setting up took time; the run's ticks count from here
-        outlets.restart_stream(start)
+        outlets.begin(start)
         next_save, next_housekeeping, frames_done = start + settings.save_every, start, int(round(start * sr))
 
         def tick(t: float) -> None:
@@ -414,6 +414,8 @@ def run_live(
             supervisor.stop()  # before what it watches closes
             outlets.close()
             summary.outlets = outlets.counts()
+            for what, counts in summary.outlets.items():  # "stream" and "console" events: what each did
+                session.world.emit(what, **counts)
             counters.log_change(always=True)
             timing.log_change(always=True)
             summary.underruns, summary.overruns = counters.now()

@@ -14,7 +14,7 @@ import socket
 from typing import Any, Callable
 
 from creatures.runtime.body_stream import BodyStream
-from creatures.runtime.console import Colony, Console
+from creatures.runtime.console import ColonyHandle, Console
 from creatures.runtime.health import Health, HealthServer, Heartbeat
 from creatures.runtime.schema import LoadedInstallation
 from creatures.runtime.session import Session
@@ -74,7 +74,7 @@ class Outlets:
             loop.boundary.append(self.stream.advance)
         self.console: Console | None = None
         if settings.console.port is not None:
-            colony = Colony(session, pause=pause, save=save, status=status)
+            colony = ColonyHandle(session, pause=pause, save=save, status=status)
             self.console = _bound(inst, "console", lambda: Console(settings.console, colony))
             loop.boundary.append(self.console.serve)
             self.console.start()
@@ -88,10 +88,10 @@ class Outlets:
             self.heartbeat = Heartbeat(self.health, [address(t) for t in settings.health.heartbeat])
             supervisor.every(settings.health.every, self.heartbeat.beat, name="heartbeat")
 
-    def restart_stream(self, start: float) -> None:
-        """Frames count from ``start`` (the run's first tick: setting up took time)."""
+    def begin(self, start: float) -> None:
+        """The run's first tick is at ``start``: the stream's frames count from there."""
         if self.stream is not None:
-            self.stream.start, self.stream.next_index = start, 0
+            self.stream.begin(start)
 
     def publish(self) -> None:
         """The run's status to the health endpoint and heartbeat (creatures' thread, once a second)."""
