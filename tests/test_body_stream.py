@@ -186,3 +186,26 @@ def test_live_stream_arrives_at_its_rate(tmp_path):
     assert counts["frames"] == len(arrivals) + counts["dropped"]  # every frame taken arrived or was counted
     assert [e for e in read_events(log) if e["kind"] == "stream"][-1]["frames"] == counts["frames"]
     assert set(poses) == {"/body/ada/pose", "/body/bo/pose"}
+
+
+def test_a_creature_without_a_body_streams_its_drives_and_action(tmp_path):
+    config = tmp_path / "mixed.toml"
+    config.write_text('title = "mixed"\n' + creature_tables("ada") + creature_tables("stone", kind="sandstone"))
+    session = Session(load_installation(config), SimulatedClock(), EventLog(keep_in_memory=0), MemorySink())
+    receiver = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    receiver.bind(("127.0.0.1", 0))
+    receiver.setblocking(False)
+    stream = BodyStream(session.world, 30.0, threaded=False)
+    stream.subscribe(OscStreamSink([receiver.getsockname()]))
+    stream.advance(0.0)
+    stream.close()
+    addresses = set()
+    try:
+        while True:
+            addresses |= {timed.message.address for timed in OscPacket(receiver.recv(65536)).messages}
+    except BlockingIOError:
+        pass
+    receiver.close()
+    stone = {a for a in addresses if a.startswith("/body/stone/")}
+    assert stone == {"/body/stone/skeleton", "/body/stone/drive_names", "/body/stone/drives", "/body/stone/action"}
+    assert {"/body/ada/pose", "/body/ada/rotation", "/body/ada/effector"} <= addresses

@@ -350,3 +350,18 @@ def test_requests_beyond_max_rate_are_counted_unanswered(tmp_path):
         console.close()
     assert 10 <= len(replies) <= 12 and all(r.address == "/console/reply" for r in replies)  # a burst of max_rate
     assert console.counts["over rate"] == 50 - len(replies)
+
+
+def test_a_set_gain_reaches_the_mixer(tmp_path):
+    config = tmp_path / "c.toml"
+    config.write_text('title = "t"\n' + creature_tables("ada", "bo"))
+    session = Session(load_installation(config), SimulatedClock(), EventLog(keep_in_memory=0), MemorySink())
+    colony = ColonyHandle(session, pause=lambda on: None, save=None, status=dict)
+    assert colony.apply(Request(1, "set", ("bo", "pan", -0.5), ("127.0.0.1", 9)), 0.0) == {"set": "pan", "value": -0.5}
+    assert colony.apply(Request(2, "set", ("bo", "gain", "0.25"), ("127.0.0.1", 9)), 0.0)["value"] == 0.25
+    assert session.creatures[1].spec.gain == 0.25 and session.creatures[1].spec.pan == -0.5
+    assert session.mixer.gains[1] != session.mixer.gains[0]
+    before = session.mixer.gains.copy()
+    with pytest.raises(Refused, match="greater than or equal to -1"):
+        colony.apply(Request(3, "set", ("bo", "pan", -3.0), ("127.0.0.1", 9)), 0.0)
+    assert (session.mixer.gains == before).all() and session.creatures[1].spec.pan == -0.5  # refused: unchanged
