@@ -4,7 +4,9 @@ nothing (frames dropped and counted)."""
 
 from __future__ import annotations
 
+import shutil
 import socket
+import subprocess
 import threading
 import time
 
@@ -26,6 +28,12 @@ from midi.sinks import MemorySink
 from colony_fixtures import creature_tables
 
 COLONY = 'title = "stream"\ntick = 0.02\nseed = 5\n' + creature_tables("ada", "bo")
+
+
+def _free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
 
 
 def _session(tmp_path, extra: str = "") -> Session:
@@ -209,3 +217,40 @@ def test_a_creature_without_a_body_streams_its_drives_and_action(tmp_path):
     stone = {a for a in addresses if a.startswith("/body/stone/")}
     assert stone == {"/body/stone/skeleton", "/body/stone/drive_names", "/body/stone/drives", "/body/stone/action"}
     assert {"/body/ada/pose", "/body/ada/rotation", "/body/ada/effector"} <= addresses
+
+
+@pytest.mark.skipif(shutil.which("oscdump") is None, reason="liblo-tools' oscdump is not installed")
+def test_liblo_reads_the_stream(tmp_path):
+    """A foreign OSC library (liblo's oscdump) reads every message of a frame, with its types."""
+    port = _free_udp_port()
+    dump = subprocess.Popen(["oscdump", "-L", str(port)], stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True)
+    try:
+        session = _session(tmp_path)
+        stream = BodyStream(session.world, 30.0, threaded=False)
+        memory = MemoryStreamSink()
+        stream.subscribe(memory)
+        stream.subscribe(OscStreamSink([("127.0.0.1", port)]))
+        lines: list[str] = []
+        reader = threading.Thread(target=lambda: lines.extend(dump.stdout), daemon=True)
+        reader.start()
+        deadline = time.monotonic() + 30
+        step = 0
+        while not any(" /body/bo/pose " in line for line in lines):  # oscdump may still be starting
+            assert time.monotonic() < deadline and dump.poll() is None, lines
+            step += 1
+            session.clock.advance_to(step * 0.02)
+            session.step(step * 0.02, 441, None, audio=False)
+            stream.advance(step * 0.02)
+            time.sleep(0.02)
+    finally:
+        dump.terminate()
+        dump.wait(10)
+    reader.join(5)
+    messages = [line.split()[1:] for line in lines]  # oscdump: time tag, address, type tags, arguments
+    pose = next(m for m in messages if m[0] == "/body/bo/pose")
+    joints = len(memory.hellos[1].joints)
+    assert pose[1] == "d" + "f" * 3 * joints
+    frame = next(f for f in memory.frames if abs(f.time - float(pose[2])) < 1e-9)
+    np.testing.assert_allclose(np.array(pose[3:], float).reshape(-1, 3), frame.poses[1].positions, atol=1e-5)
+    assert any(m[:2] == ["/body/ada/action", "s"] for m in messages)
