@@ -365,3 +365,18 @@ def test_a_set_gain_reaches_the_mixer(tmp_path):
     with pytest.raises(Refused, match="greater than or equal to -1"):
         colony.apply(Request(3, "set", ("bo", "pan", -3.0), ("127.0.0.1", 9)), 0.0)
     assert (session.mixer.gains == before).all() and session.creatures[1].spec.pan == -0.5  # refused: unchanged
+
+
+def test_notes_heard_while_paused_are_forgotten_on_resume(tmp_path):
+    from midi.notes import NoteEvent
+
+    config = tmp_path / "c.toml"
+    config.write_text('title = "t"\n' + creature_tables("ada"))
+    session = Session(load_installation(config), SimulatedClock(), EventLog(keep_in_memory=0), MemorySink())
+    heard: list[int] = []
+    session.world.hearing.append(lambda source, note: heard.append(note.pitch))
+    for t, pitch in ((1.0, 60), (2.0, 62), (5.0, 64)):
+        session.world.inject(NoteEvent(t, pitch, 90, 0, 0.2))
+    assert session.world.forget(3.0) == 2
+    session.world.deliver(10.0)
+    assert heard == [64]

@@ -353,11 +353,14 @@ def run_live(
     start = wall.now()
 
     def pause(on: bool) -> None:
-        """The console's pause: ticks skipped (silence plays), every note off; resume goes on."""
+        """The console's pause: ticks skipped (silence plays), every note off; on resume the
+        notes heard meanwhile are forgotten (the past, not a burst to answer)."""
         loop.paused = on
         if on:
             session.scheduler.all_notes_off()
-        session.world.emit("paused" if on else "resumed")
+            session.world.emit("paused")
+        else:
+            session.world.emit("resumed", forgotten=session.world.forget(loop.time.now()))
 
     def save_now(t: float) -> str:
         saver.save(session, t - start)

@@ -22,6 +22,8 @@ from creatures.runtime.osc_wire import bundle, floats, head, message, osc_string
 HELLO_EVERY = 1.0
 """Seconds of stream time between two sayings of the skeletons (and at the first frame)."""
 
+FRAME = head("/colony/frame", "id")
+
 MARK = np.dtype([("x", ">f4"), ("y", ">f4"), ("z", ">f4"), ("pitch", ">i4")])
 
 
@@ -155,7 +157,7 @@ class OscStreamSink:
             self._send(self.colony_hello)
             for heads in self.heads.values():
                 self._send(heads.hello)
-        colony = [head("/colony/frame", "id") + struct.pack(">id", frame.index, frame.time)]
+        colony = [FRAME + struct.pack(">id", frame.index, frame.time)]
         colony += [message("/colony/heard", source, pitch, velocity, duration)
                    for source, pitch, velocity, duration in frame.heard]
         played: dict[str, list[bytes]] = {}

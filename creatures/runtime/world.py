@@ -106,6 +106,16 @@ class World:
             self.heard.append(note)
         heapq.heappush(self._pending, (note.time, next(self._seq), note, source))
 
+    def forget(self, until: float) -> int:
+        """Drop the notes that started before ``until`` and were never delivered (those heard
+        while the colony was paused: on resume they are the past, not a burst to answer);
+        how many."""
+        kept = [entry for entry in self._pending if entry[0] >= until]
+        dropped = len(self._pending) - len(kept)
+        heapq.heapify(kept)
+        self._pending = kept
+        return dropped
+
     def deliver(self, t: float) -> int:
         """Give every note that has started by ``t`` to every creature but its player."""
         count = 0
