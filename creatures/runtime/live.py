@@ -350,7 +350,6 @@ def run_live(
     timing = _Timing(session, loop.timing, sink)
     supervisor.every(HOUSEKEEPING_EVERY, log.flush, name="events log flush")  # a tail -f shows the present
     saver = _Saver(supervisor, state_dir, summary, say, settings.save_every) if state_dir is not None else None
-    start = wall.now()
 
     def pause(on: bool) -> None:
         """The console's pause: ticks skipped (silence plays), every note off; on resume the
@@ -362,7 +361,7 @@ def run_live(
         else:
             session.world.emit("resumed", forgotten=session.world.forget(loop.time.now()))
 
-    def save_now(t: float) -> str:
+    def save_now(t: float) -> str:  # the console's, so only once the loop runs: `start` is set
         saver.save(session, t - start)
         return str(state_dir)
 

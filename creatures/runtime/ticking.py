@@ -218,7 +218,7 @@ class TickLoop:
         # Work at tick boundaries, on this thread, after each tick and at each look between
         # ticks (never mid-tick): body stream frames, remote console requests.
         self.boundary: list[Callable[[float], None]] = []
-        self.paused = False  # the remote console's pause: notes heard wait, ticks are the caller's to skip
+        self.paused = False  # the remote console's pause: no notes delivered; the caller skips its ticks
         session.world.listeners.append(self._send_now)
 
     def _send_now(self, creature: str, note: NoteEvent) -> None:
