@@ -380,3 +380,12 @@ def test_notes_heard_while_paused_are_forgotten_on_resume(tmp_path):
     assert session.world.forget(3.0) == 2
     session.world.deliver(10.0)
     assert heard == [64]
+
+
+def test_console_and_health_are_off_and_loopback_by_default():
+    from creatures.runtime.schema import ConsoleSection, HealthSection, Installation
+
+    settings = Installation(title="t", creature=[{"name": "ada", "kind": "exchange"}])
+    assert settings.console.port is None and settings.health.port is None and not settings.health.heartbeat
+    assert ConsoleSection().host == HealthSection().host == "127.0.0.1" and ConsoleSection().secret is None
+    assert not settings.stream.targets and not settings.stream.file
