@@ -30,6 +30,7 @@ import numpy as np
 import soundfile
 
 from audio.device import AudioBackend, AudioDeviceUnavailable, device_rate, find_device, portaudio, start_stream
+from audio.lead import UNSEEN
 from audio.sources import RingBuffer
 from creatures.persist import file_mode
 
@@ -126,7 +127,9 @@ class LiveOutput(AudioOutput):
     ring is full, which paces an offline-speed producer to real time; without it a block that
     finds no room is dropped and counted in :attr:`overruns`, for a caller already paced by
     its clock that must never be held up by a stalled device. ``callbacks`` and
-    ``underruns`` (callbacks that had to pad with silence) can be read at any time.
+    ``underruns`` (callbacks that had to pad with silence) can be read at any time, and
+    ``lowest_spare`` (samples, all channels: the least any callback left in the ring since the writer
+    last reset it to :data:`audio.lead.UNSEEN`).
     """
 
     def __init__(self, sample_rate: int = 48000, channels: int = 2, *, blocksize: int = 512,
@@ -139,6 +142,7 @@ class LiveOutput(AudioOutput):
         self.ring = RingBuffer(max(int(buffer_seconds * sample_rate), 2 * blocksize) * channels)
         self.callbacks = 0
         self.underruns = 0
+        self.lowest_spare = UNSEEN  # samples: the least a callback left in the ring (audio/lead.py)
         self.pace = pace
         self._pause = blocksize / sample_rate / 2
         try:
@@ -165,6 +169,9 @@ class LiveOutput(AudioOutput):
         # Real-time thread: copy and count only.
         self.callbacks += 1
         flat = outdata.reshape(-1)
+        spare = self.ring.available() - len(flat)
+        if spare < self.lowest_spare:  # read and reset by the writer (ResilientOutput), one int
+            self.lowest_spare = spare
         copied = self.ring.read(flat)
         if copied < len(flat):
             flat[copied:] = 0.0
