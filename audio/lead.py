@@ -81,6 +81,7 @@ class Lead:
             raise ValueError(f"need 0 <= floor < target and window > 0, got {self}")
         self._sum = self._looks = self._seen = 0  # this window's lowest spares (summed, counted), frames
         self._excess = 0  # frames still to leave out, after a skip
+        self._last = 0  # the latest lowest spare seen
 
     def correct(self, lowest: int, frames: int) -> int:
         """``lowest``: the lowest spare any callback saw since the last block (negative: it
@@ -98,14 +99,15 @@ class Lead:
         if lowest != UNSEEN:
             self._sum += lowest
             self._looks += 1
+            self._last = lowest
         self._seen += frames
         if self._seen >= self.window:
             if self._looks:
                 mean = self._sum / self._looks
                 error = (mean - self.target) / self.window  # too much spare: stretch less
                 self.stretch = min(1 + MOST_STRETCH, max(1 - MOST_STRETCH, 1 - GAIN * error))
-                if mean > SKIP_ABOVE * self.target:
-                    self._excess = int(mean - self.target)
+                if mean > SKIP_ABOVE * self.target:  # what is too much is the spare now, not the window's
+                    self._excess = max(0, self._last - self.target)
                     self.skips += 1
             self._sum = self._looks = self._seen = 0
             if self._excess:

@@ -127,7 +127,8 @@ class LiveOutput(AudioOutput):
     ring is full, which paces an offline-speed producer to real time; without it a block that
     finds no room is dropped and counted in :attr:`overruns`, for a caller already paced by
     its clock that must never be held up by a stalled device. ``callbacks`` and
-    ``underruns`` (callbacks that had to pad with silence) can be read at any time, and
+    ``underruns`` (callbacks that had to pad with silence, once anything was written) can be
+    read at any time, and
     ``lowest_spare`` (samples, all channels: the least any callback left in the ring since the writer
     last reset it to :data:`audio.lead.UNSEEN`).
     """
@@ -175,7 +176,8 @@ class LiveOutput(AudioOutput):
         copied = self.ring.read(flat)
         if copied < len(flat):
             flat[copied:] = 0.0
-            self.underruns += 1
+            if self.frames_written:  # before the first block the silence is the show not yet begun
+                self.underruns += 1
 
     def _write(self, block: np.ndarray) -> None:
         samples = np.ascontiguousarray(block, dtype=np.float32).reshape(-1)

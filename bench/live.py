@@ -35,7 +35,7 @@ import numpy as np
 
 import installations
 from bench import Row
-from bench.live_parts import Synth, free_udp_port, missing_parts, send_notes, sent_notes
+from bench.live_parts import Synth, after_first_second, free_udp_port, missing_parts, send_notes, sent_notes
 from creatures.events import read_events
 from creatures.runtime import live
 from creatures.runtime.schema import load_installation
@@ -127,13 +127,7 @@ def run(quick: bool) -> list[Row]:
     # were never heard and are not counted (the heard ones are the first, in order).
     sent = sent[:len(heard)]
     latency_ms = answer_latencies(sent, arrivals, ada.channel)
-    # The counters are logged at the first tick and then once a second when they changed: what
-    # the record just after the first second holds happened within it (the device's start).
-    xruns = [e for e in events if e["kind"] == "xruns"]
-    start = xruns[0]["t"]
-    early = [e for e in xruns if e["t"] <= start + 1.0 + 2 * inst.settings.tick]
-    after = {k: count - early[-1][k] for k, count in (("underruns", summary.underruns),
-                                                      ("gaps", summary.audio_gaps), ("skips", summary.audio_skips))}
+    after = after_first_second(events, inst.settings.tick)
     what = f"{seconds:g} s on JACK, fluidsynth, OSC {RATE:g} notes/s"
     return [
         Row(f"live ({what}): tick lateness p99", summary.lateness_p99 * 1e3, "ms", target=2.0,
