@@ -10,7 +10,10 @@ printed. Audio underruns (the loudspeaker played silence: the mix came late) and
 overruns (input dropped: the loop read too slowly) are counted, logged when they change and
 reported at the end. With ``[osc] port`` set the colony speaks and listens on the network
 (:mod:`creatures.runtime.network`). Learned state is saved every ``save_every`` seconds and on
-exit (Ctrl-C or SIGTERM: every note off, state saved) and restored on the next start.
+exit (Ctrl-C or SIGTERM: every note off, state saved) and restored on the next start. The
+loudspeaker keeps a lead of spare sound that follows the device's clock (:mod:`audio.lead`),
+and with ``--out`` the run's ``out.mid`` is published when it stops
+(:mod:`creatures.runtime.live_score`).
 
 Nothing that can block runs on the creature's thread: looking for ports and devices, checking
 they are still there, reopening them and flushing the events log are jobs of a
