@@ -181,4 +181,8 @@ def test_a_live_run_with_frames_on_keeps_its_sound_whole_and_publishes_out_mid(t
     struck = sum(1 for name in ("ada", "bo", "cy") for m in tracks[name] if m.type == "note_on" and m.velocity > 0)
     assert struck >= len(played) > 0  # every note the log says they played (and their swells' restrikes)
     assert seconds - 2.0 < midi.length < seconds + 5.0, midi.length  # timed from the run's start
+    # the heard tempo: 120 bpm until the colony trusted the sender's pulse, then what it heard
+    tempos = [mido.tempo2bpm(m.tempo) for m in tracks["tempo"] if m.type == "set_tempo"]
+    heard_bpm = [e["bpm"] for e in events if e["kind"] == "tempo"]
+    assert heard_bpm and tempos[0] == 120 and tempos[-1] == pytest.approx(heard_bpm[-1], abs=0.01), (tempos, heard_bpm)
     assert "wrote " in output and "out.mid" in output
