@@ -29,6 +29,12 @@ there rather than an underrun a callback later; when the spare is far above the 
 device stalled while the mix kept coming) the surplus is left out at once (:data:`SKIP_ABOVE`).
 The resampler is soxr's variable-rate one,
 which also hands on every chunk whole (the steady one, above, is what chunked).
+
+Why the sound follows the device rather than the loop following it: the ticks also send MIDI
+(to a synth on its own clock), OSC time-tagged in Unix time, and hear notes stamped on the
+wall clock, so the creatures' time must stay the wall clock's; pacing the mix by the device's
+frames would put the voices and the notes apart by whatever the device drifted. Adapting the
+resampler to the device is what JACK's own bridges between clocks do (alsa_in, zita-ajbridge).
 """
 
 from __future__ import annotations
