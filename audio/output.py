@@ -9,7 +9,9 @@ base class whose subclasses fill in ``_write``/``_close``.
 * :class:`LiveOutput` — sounddevice callback stream. Blocks go, interleaved, into the
   preallocated lock-free :class:`audio.sources.RingBuffer` that live input uses too; the
   PortAudio callback only copies out of it (no allocation of buffers, no locks, no
-  logging) and counts underruns. Callback streams, never blocking ``write()``: under JACK
+  logging), counts underruns and keeps the lowest spare it found (for :mod:`audio.lead`).
+  Being Python it takes the interpreter's lock, which a live run hands over every
+  millisecond (:func:`creatures.runtime.ticking.gil_handover`). Callback streams, never blocking ``write()``: under JACK
   a blocking mono write aborted the process (ENVIRONMENT.md). A loudspeaker that survives
   its device vanishing and returning is :class:`audio.resilient.ResilientOutput`.
 * :class:`SilentOutput` — what :func:`open_output` returns when no device exists, so an
