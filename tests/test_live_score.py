@@ -14,7 +14,7 @@ import pytest
 from pythonosc.udp_client import SimpleUDPClient
 
 from bench.live_parts import free_udp_port
-from creatures.runtime import live
+from creatures.runtime import live, live_score
 from creatures.runtime.live_score import RecordingSink
 from creatures.runtime.outputs import MANIFEST, OutputDirectoryError
 from creatures.runtime.schema import load_installation
@@ -80,3 +80,22 @@ def test_the_record_is_bounded_and_sends_everything_on():
         recorded.send(i * 0.1, mido.Message("note_on", note=60 + i))
     assert len(inner.messages) == 5 and [m.note for _, m in recorded.messages] == [62, 63, 64]
     assert recorded.sent == 5
+
+
+def test_a_later_run_replaces_its_out_mid_and_one_that_cannot_write_keeps_the_last(tmp_path, monkeypatch):
+    out = tmp_path / "out"
+    said: list[str] = []
+    live.run_live(colony(tmp_path, free_udp_port()), duration=0.3, out=out, say=said.append)
+    live.run_live(colony(tmp_path, free_udp_port()), duration=0.3, out=out, say=said.append)  # ours: replaced
+    assert sum(f"wrote {out / 'out.mid'}" in m for m in said) == 2
+    kept = (out / "out.mid").read_bytes()
+
+    def full_disk(*args: object) -> None:
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(live_score, "write_score", full_disk)
+    said.clear()
+    live.run_live(colony(tmp_path, free_udp_port()), duration=0.3, out=out, say=said.append)
+    assert any("could not write" in m and "No space left" in m for m in said), said
+    assert (out / "out.mid").read_bytes() == kept and kept[:4] == b"MThd"
+    assert not list(out.glob(".creatures-run-*"))  # the staging folder went
