@@ -11,8 +11,8 @@ base class whose subclasses fill in ``_write``/``_close``.
   PortAudio callback only copies out of it (no allocation of buffers, no locks, no
   logging), counts underruns and keeps the lowest spare it found (for :mod:`audio.lead`).
   Being Python it takes the interpreter's lock, which a live run hands over every
-  millisecond (:func:`creatures.runtime.ticking.gil_handover`). Callback streams, never blocking ``write()``: under JACK
-  a blocking mono write aborted the process (ENVIRONMENT.md). A loudspeaker that survives
+  millisecond (:func:`creatures.runtime.ticking.gil_handover`). Callback streams, never
+  blocking ``write()``: under JACK a blocking mono write aborted the process (ENVIRONMENT.md). A loudspeaker that survives
   its device vanishing and returning is :class:`audio.resilient.ResilientOutput`.
 * :class:`SilentOutput` — what :func:`open_output` returns when no device exists, so an
   installation keeps running (and can still record) with a clear ``reason``.
@@ -128,11 +128,10 @@ class LiveOutput(AudioOutput):
     With ``pace`` (the default) ``write`` blocks (sleeping, on the caller's thread) while the
     ring is full, which paces an offline-speed producer to real time; without it a block that
     finds no room is dropped and counted in :attr:`overruns`, for a caller already paced by
-    its clock that must never be held up by a stalled device. ``callbacks`` and
-    ``underruns`` (callbacks that had to pad with silence, once anything was written) can be
-    read at any time, and
-    ``lowest_spare`` (samples, all channels: the least any callback left in the ring since the writer
-    last reset it to :data:`audio.lead.UNSEEN`).
+    its clock that must never be held up by a stalled device. ``callbacks``, ``underruns``
+    (callbacks that had to pad with silence, once anything was written) and ``lowest_spare``
+    (samples, all channels: the least any callback left in the ring since the writer last
+    reset it to :data:`audio.lead.UNSEEN`) can be read at any time.
     """
 
     def __init__(self, sample_rate: int = 48000, channels: int = 2, *, blocksize: int = 512,

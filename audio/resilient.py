@@ -40,8 +40,8 @@ SUPERVISED_CHECK = 0.25
 """Seconds between looks at a supervised stream (stopped? stalled?); listing stays at ``retry_interval``."""
 
 LEAD_WINDOW = 2.0
-"""Seconds of sound over which the lowest spare decides a gentle correction of the lead: more
-than the resampler's chunking cycle (0.64 s at a 40 ms tick, audio/lead.py)."""
+"""Seconds of sound over which the lowest spares, averaged, set the resampling ratio
+(audio/lead.py): 50 blocks at a 40 ms tick, enough for their jitter to average out."""
 
 
 class LiveStream(Protocol):

@@ -59,7 +59,7 @@ REHEARSAL = 1.0
 AUDIO_LEAD = 0.03
 """Seconds of spare sound kept ahead of the loudspeaker's next callback (audio/lead.py): a
 tick's mix written up to this late still plays whole. The sound is heard about this much, a
-device block and the resampler's chunk (up to 38 ms) after its tick."""
+device block and the resampler's delay (11 ms at 22050 → 44100 Hz) after its tick."""
 
 AUDIO_BUFFER = 1.0
 """Seconds the loudspeaker's ring holds: room for a device stall (JACK's dummy server, loaded,
@@ -168,7 +168,8 @@ class LiveInputs:
 
 
 class _Counters:
-    """Audio underruns, the output's gaps and microphone overruns: read, and logged whenever they change."""
+    """Audio underruns, the output's gaps and skips, and microphone overruns: read, and logged
+    whenever they change."""
 
     def __init__(self, session: Session, output: ResilientOutput | None, microphone: ResilientInput | None) -> None:
         self.session = session
