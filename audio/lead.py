@@ -13,10 +13,11 @@ bench live, issue 14):
   so a fixed lead written once at the start was played out as silence before any sound came,
   and the run went on with no spare at all: 0–4 underruns a minute, each where a write came
   a millisecond after a callback at the bottom of the resampler's chunking;
-* the device's clock against the wall clock: the dummy server's frame clock follows the
-  system clock, but on a loaded machine it loses the cycles it ran late and never makes them
-  up (19 ms lost in one 60 s run, none in another), so the ring fills; a real interface
-  drifts ~10–100 ppm either way, a second every few hours.
+* the device's clock against the wall clock: none on an idle dummy server (0.25 ms in 60 s),
+  whose frame clock follows the system clock; but on a loaded machine it loses the cycles it
+  ran late and never makes them up (19–110 ms in a 60 s run; a client alone on it lost 308 ms
+  in 30 s, in stalls of 25–73 ms), so the ring fills; a real interface drifts ~10–100 ppm
+  either way, a second every few hours. Drift was not what underran: it fills the ring.
 
 So the spare is measured where it matters, in the device's callback (the lowest seen, in the
 device's own frames, which counts the jitter and the drift alike), and :class:`Lead` keeps its
@@ -27,8 +28,8 @@ falls below ``floor`` all the same (each start, a device reopened, a stall longe
 lead) it puts silence ahead of the block at once, counted in :attr:`Lead.gaps`: a gap placed
 there rather than an underrun a callback later; when the spare is far above the target (the
 device stalled while the mix kept coming) the surplus is left out at once (:data:`SKIP_ABOVE`).
-The resampler is soxr's variable-rate one,
-which also hands on every chunk whole (the steady one, above, is what chunked).
+The resampler is soxr's variable-rate one, which also hands on every chunk whole (the steady
+one, above, is what chunked).
 
 Why the sound follows the device rather than the loop following it: the ticks also send MIDI
 (to a synth on its own clock), OSC time-tagged in Unix time, and hear notes stamped on the
