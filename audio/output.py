@@ -9,8 +9,10 @@ base class whose subclasses fill in ``_write``/``_close``.
 * :class:`LiveOutput` — sounddevice callback stream. Blocks go, interleaved, into the
   preallocated lock-free :class:`audio.sources.RingBuffer` that live input uses too; the
   PortAudio callback only copies out of it (no allocation of buffers, no locks, no
-  logging) and counts underruns. Callback streams, never blocking ``write()``: under JACK
-  a blocking mono write aborted the process (ENVIRONMENT.md). A loudspeaker that survives
+  logging), counts underruns and keeps the lowest spare it found (for :mod:`audio.lead`).
+  Being Python it takes the interpreter's lock, which a live run hands over every
+  millisecond (:func:`creatures.runtime.ticking.gil_handover`). Callback streams, never
+  blocking ``write()``: under JACK a blocking mono write aborted the process (ENVIRONMENT.md). A loudspeaker that survives
   its device vanishing and returning is :class:`audio.resilient.ResilientOutput`.
 * :class:`SilentOutput` — what :func:`open_output` returns when no device exists, so an
   installation keeps running (and can still record) with a clear ``reason``.
@@ -30,6 +32,7 @@ import numpy as np
 import soundfile
 
 from audio.device import AudioBackend, AudioDeviceUnavailable, device_rate, find_device, portaudio, start_stream
+from audio.lead import UNSEEN
 from audio.sources import RingBuffer
 from creatures.persist import file_mode
 
@@ -125,8 +128,10 @@ class LiveOutput(AudioOutput):
     With ``pace`` (the default) ``write`` blocks (sleeping, on the caller's thread) while the
     ring is full, which paces an offline-speed producer to real time; without it a block that
     finds no room is dropped and counted in :attr:`overruns`, for a caller already paced by
-    its clock that must never be held up by a stalled device. ``callbacks`` and
-    ``underruns`` (callbacks that had to pad with silence) can be read at any time.
+    its clock that must never be held up by a stalled device. ``callbacks``, ``underruns``
+    (callbacks that had to pad with silence, once anything was written) and ``lowest_spare``
+    (samples, all channels: the least any callback left in the ring since the writer last
+    reset it to :data:`audio.lead.UNSEEN`) can be read at any time.
     """
 
     def __init__(self, sample_rate: int = 48000, channels: int = 2, *, blocksize: int = 512,
@@ -139,6 +144,7 @@ class LiveOutput(AudioOutput):
         self.ring = RingBuffer(max(int(buffer_seconds * sample_rate), 2 * blocksize) * channels)
         self.callbacks = 0
         self.underruns = 0
+        self.lowest_spare = UNSEEN  # samples: the least a callback left in the ring (audio/lead.py)
         self.pace = pace
         self._pause = blocksize / sample_rate / 2
         try:
@@ -165,10 +171,14 @@ class LiveOutput(AudioOutput):
         # Real-time thread: copy and count only.
         self.callbacks += 1
         flat = outdata.reshape(-1)
+        spare = self.ring.available() - len(flat)
+        if spare < self.lowest_spare:  # read and reset by the writer (ResilientOutput), one int
+            self.lowest_spare = spare
         copied = self.ring.read(flat)
         if copied < len(flat):
             flat[copied:] = 0.0
-            self.underruns += 1
+            if self.frames_written:  # before the first block the silence is the show not yet begun
+                self.underruns += 1
 
     def _write(self, block: np.ndarray) -> None:
         samples = np.ascontiguousarray(block, dtype=np.float32).reshape(-1)

@@ -28,6 +28,7 @@ import numpy as np
 import soxr
 
 from audio.device import AudioBackend, device_rate, find_device, portaudio
+from audio.lead import UNSEEN, Lead
 from audio.output import AudioOutput, LiveOutput
 from audio.sources import ANALYSIS_RATE, AudioSource, LiveInput
 from creatures.clock import Clock
@@ -37,6 +38,10 @@ log = logging.getLogger(__name__)
 
 SUPERVISED_CHECK = 0.25
 """Seconds between looks at a supervised stream (stopped? stalled?); listing stays at ``retry_interval``."""
+
+LEAD_WINDOW = 2.0
+"""Seconds of sound over which the lowest spares, averaged, set the resampling ratio
+(audio/lead.py): 50 blocks at a 40 ms tick, enough for their jitter to average out."""
 
 
 class LiveStream(Protocol):
@@ -178,10 +183,14 @@ class ResilientOutput(AudioOutput):
     ``sample_rate``). Writing never waits: the caller is paced by its clock, and a block that
     finds the ring full is dropped and counted in :attr:`overruns`.
 
-    ``lead`` seconds of silence go ahead of the first block after each open: a caller that
-    writes a tick's audio once per tick, paced by its clock, leaves the ring near empty just
-    before each write, and any lateness of a write (a busy machine wakes a loop a few ms late)
-    would then be an underrun; the lead absorbs it, at the price of that much latency.
+    With ``lead`` (seconds) the spare sound the device finds at each callback is kept near
+    that much (:class:`audio.lead.Lead`): a caller that writes a tick's audio once per tick,
+    paced by its clock, would otherwise leave the ring near empty just before each write, and
+    any lateness of a write (a busy machine wakes a loop a few ms late), the resampler's
+    chunking or the device's clock drifting from the caller's would be an underrun. The
+    price is that much latency. :attr:`gaps` counts the silences put in when the spare ran
+    out all the same (each start, and any stall), :attr:`skips` the times sound was left out
+    when it was far too large (the device stalled while the mix kept coming).
     """
 
     def __init__(self, sample_rate: int, channels: int = 2, *, clock: Clock, device: str | int | None = None,
@@ -192,7 +201,8 @@ class ResilientOutput(AudioOutput):
         super().__init__(sample_rate, channels)
         self.device = device
         self.lead = lead
-        self._led = False  # the lead went ahead of this stream's first block
+        self.keeper: Lead | None = None  # the open stream's (audio/lead.py), with a lead
+        self._past_gaps = self._past_skips = 0  # of the streams let go
         self.blocksize = blocksize
         self.buffer_seconds = buffer_seconds
         self.backend = backend
@@ -229,6 +239,16 @@ class ResilientOutput(AudioOutput):
         return self._past_underruns + (live.underruns if live is not None else 0)
 
     @property
+    def gaps(self) -> int:
+        """Silences put ahead of a block because the spare ran out, over every stream."""
+        return self._past_gaps + (self.keeper.gaps if self.keeper is not None else 0)
+
+    @property
+    def skips(self) -> int:
+        """Times sound was left out because the spare was far too large, over every stream."""
+        return self._past_skips + (self.keeper.skips if self.keeper is not None else 0)
+
+    @property
     def overruns(self) -> int:
         """Blocks dropped because the device had not played the ones before, over every stream."""
         live = self.watch.stream
@@ -249,9 +269,17 @@ class ResilientOutput(AudioOutput):
         samples = np.asarray(block, dtype=np.float32)
         if self._resampler is not None:
             samples = self._resampler.resample_chunk(samples)
-        if not self._led:
-            self._led = True
-            live.write(np.zeros((int(self.lead * live.sample_rate), self.channels), dtype=np.float32))
+        if self.keeper is not None:
+            # a callback between the read and the reset loses its sample: one block's look, no more
+            lowest, live.lowest_spare = live.lowest_spare, UNSEEN
+            stretch = self.keeper.stretch
+            change = self.keeper.correct(lowest // self.channels if lowest != UNSEEN else UNSEEN, len(samples))
+            if change > 0:
+                live.write(np.zeros((change, self.channels), dtype=np.float32))
+            elif change < 0:
+                samples = samples[-change:]
+            if self.keeper.stretch != stretch:  # eased in over the next block
+                self._resampler.set_io_ratio(self.sample_rate, live.sample_rate * self.keeper.stretch, len(block))
         live.write(samples)
 
     def _close(self) -> None:
@@ -263,14 +291,22 @@ class ResilientOutput(AudioOutput):
         live = LiveOutput(rate, self.channels, blocksize=self.blocksize, device=self.device,
                           buffer_seconds=self.buffer_seconds, pace=False, backend=backend)
         self.device_rate = rate
-        self._led = False
-        self._resampler = (None if rate == self.sample_rate else
-                           soxr.ResampleStream(self.sample_rate, rate, self.channels, dtype="float32"))
+        if self.lead > 0:  # the variable-rate resampler, which keeps the lead when the clocks drift
+            target = int(self.lead * rate)
+            self.keeper = Lead(target=target, floor=target // 3, window=int(LEAD_WINDOW * rate))
+            self._resampler = soxr.ResampleStream(self.sample_rate, rate, self.channels, dtype="float32", vr=True)
+        else:
+            self._resampler = (None if rate == self.sample_rate else
+                               soxr.ResampleStream(self.sample_rate, rate, self.channels, dtype="float32"))
         return live
 
     def _let_go(self, live: LiveOutput) -> None:
         self._past_underruns += live.underruns
         self._past_overruns += live.overruns
+        if self.keeper is not None:
+            self._past_gaps += self.keeper.gaps
+            self._past_skips += self.keeper.skips
+            self.keeper = None
         self.device_rate = None
         live.close()
 

@@ -35,7 +35,7 @@ import numpy as np
 
 import installations
 from bench import Row
-from bench.live_parts import Synth, free_udp_port, missing_parts, send_notes, sent_notes
+from bench.live_parts import Synth, after_first_second, free_udp_port, missing_parts, send_notes, sent_notes
 from creatures.events import read_events
 from creatures.runtime import live
 from creatures.runtime.schema import load_installation
@@ -127,12 +127,7 @@ def run(quick: bool) -> list[Row]:
     # were never heard and are not counted (the heard ones are the first, in order).
     sent = sent[:len(heard)]
     latency_ms = answer_latencies(sent, arrivals, ada.channel)
-    # The counters are logged at the first tick and then once a second when they changed: what
-    # the record just after the first second holds happened within it (the device's start).
-    xruns = [e for e in events if e["kind"] == "xruns"]
-    start = xruns[0]["t"]
-    early = [e["underruns"] for e in xruns if e["t"] <= start + 1.0 + 2 * inst.settings.tick]
-    underruns_after = summary.underruns - early[-1]
+    after = after_first_second(events, inst.settings.tick)
     what = f"{seconds:g} s on JACK, fluidsynth, OSC {RATE:g} notes/s"
     return [
         Row(f"live ({what}): tick lateness p99", summary.lateness_p99 * 1e3, "ms", target=2.0,
@@ -145,7 +140,11 @@ def run(quick: bool) -> list[Row]:
             target=0.0, higher_is_better=False),
         Row("  sent notes heard, in order", 100.0 * (heard == [n["pitch"] for n in sent]), "%"),
         Row("  notes the sender got out while the colony ran", float(len(sent)), f"of {count}"),
-        Row("  audio underruns after the first second", float(underruns_after), "", target=0.0,
+        Row("  audio underruns after the first second", float(after["underruns"]), "", target=0.0,
+            higher_is_better=False),
+        Row("  audio gaps put in after the first second (the output's lead ran out)", float(after["gaps"]), "",
+            target=0.0, higher_is_better=False),
+        Row("  audio skips after the first second (JACK stalled, the surplus left out)", float(after["skips"]), "",
             higher_is_better=False),
         Row("  notes late at the MIDI port (> 10 ms)", float(summary.late_notes), "", higher_is_better=False),
     ]

@@ -140,3 +140,13 @@ def sent_notes(sender: subprocess.Popen, record: Path, timeout: float) -> list[d
     """What the sender sent, once it has finished (notes and rewards, in order)."""
     sender.wait(timeout)
     return [json.loads(line) for line in record.read_text().splitlines() if line.strip()]
+
+
+def after_first_second(events: list[dict], tick: float) -> dict[str, int]:
+    """The audio output's underruns, gaps and skips (audio/lead.py) after a live run's first
+    second, from its events log: the counters are logged at the first tick and then once a
+    second when they changed, so what the record just after the first second holds happened
+    within it (the device's start)."""
+    xruns = [e for e in events if e["kind"] == "xruns"]
+    early = [e for e in xruns if e["t"] <= xruns[0]["t"] + 1.0 + 2 * tick][-1]
+    return {key: xruns[-1][key] - early[key] for key in ("underruns", "gaps", "skips")}

@@ -149,6 +149,8 @@ def _run_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--duration", type=_seconds(LONGEST_SECONDS),
                         help="stop after this many seconds (default: run until Ctrl-C)")
     parser.add_argument("--frames", type=Path, help="draw the bodies into this directory (PNGs; a video if the config asks)")
+    parser.add_argument("--out", type=Path, help="write the run's out.mid here when it stops (published all or none, "
+                                                 "as `creatures offline` does; [output] midi = false turns it off)")
 
 
 NO_STATE = ("no state directory: learned state will not be kept (nothing is saved or restored); "
@@ -177,7 +179,7 @@ def _run(args: argparse.Namespace) -> int:
         lock = hold(directory(state, "--state"), "state folder", print) if state is not None else None
         try:  # the state folder is this run's until it ends (creatures/lock.py)
             summary = run_live(installation, duration=args.duration, state=state, log_path=args.log,
-                               pictures=args.frames)
+                               pictures=args.frames, out=args.out)
         finally:
             if lock is not None:
                 lock.release()
@@ -187,8 +189,8 @@ def _run(args: argparse.Namespace) -> int:
     restored = f", restored {', '.join(summary.restored)}" if summary.restored else ""
     network = f"; {describe(summary.network)}" if summary.network is not None else ""
     print(f"stopped after {summary.seconds:.1f} s: {summary.ticks} ticks, {summary.notes_played} notes, "
-          f"{summary.late} late{restored}; sound {summary.sound}; {summary.underruns} audio underruns, "
-          f"{summary.overruns} input overruns{network}"
+          f"{summary.late} late{restored}; sound {summary.sound}; {summary.audio_gaps} audio gaps put in and "
+          f"{summary.audio_skips} skips to keep its lead, {summary.underruns} audio underruns, {summary.overruns} input overruns{network}"
           + (f"; {summary.midi_dropped} MIDI messages dropped (no output port)" if summary.midi_dropped is not None else ""))
     if summary.inputs:
         print("outside input: " + ", ".join(f"{summary.inputs.get(what, 0)} {what}"

@@ -18,11 +18,14 @@ import os
 import subprocess
 import sys
 import time
+from pathlib import Path
 
+import mido
 import pytest
 
 import installations
-from bench.live_parts import Synth, free_udp_port, missing_parts, send_notes, sent_notes
+from bench.live_parts import Synth, after_first_second, free_udp_port, missing_parts, send_notes, sent_notes
+from midi.channel_setup import midi_pan
 
 SECONDS = 30.0
 NOTES = 60
@@ -32,9 +35,9 @@ REWARD_AFTER = 20
 
 
 def live_config(tmp_path, synth: Synth, port: int) -> str:
+    """The shipped exchange, its voices on JACK's audio device, its notes to fluidsynth."""
     config = tmp_path / "show.toml"
     config.write_text(f'extends = "{installations.path("exchange")}"\n'
-                      f'[audio]\noutput = false  # the sound is fluidsynth\'s\n'
                       f'[midi]\noutput_port = "{synth.midi_port}"\nprogram = 11\n'
                       f'[osc]\nport = {port}\n'
                       # the clicker: "/reward <creature> <amount>" (README, "The input map")
@@ -71,6 +74,46 @@ def wait_for(process: subprocess.Popen, text: str, timeout: float) -> list[str]:
     return lines
 
 
+def run_colony(tmp_path, config: str, port: int, seconds: float, notes: int, synth: Synth | None = None,
+               reward: tuple[str, int] | None = None) -> tuple[str, list[dict], list[dict], int, int]:
+    """``creatures run`` on ``config`` for ``seconds`` with frames drawn, the events log and
+    ``--out``, while the foreign sender plays it ``notes`` notes on OSC ``port``. Returns its
+    output (it exited 0), the events, what was sent, and (with ``synth``) fluidsynth's loud
+    blocks before the colony played and while it did."""
+    log = tmp_path / "events.jsonl"
+    colony = subprocess.Popen(
+        [sys.executable, "-m", "creatures.cli", "run", config, "--duration", str(seconds), "--log", str(log),
+         "--frames", str(tmp_path / "frames"), "--out", str(tmp_path / "out")],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+        # JACK's MIDI through rtmidi, as on any machine without ALSA MIDI (ENVIRONMENT.md)
+        env={**os.environ, "PYTHONUNBUFFERED": "1", "MIDO_BACKEND": "mido.backends.rtmidi/UNIX_JACK"})
+    try:
+        started = wait_for(colony, "running; Ctrl-C", 120)
+        before = synth.blocks if synth is not None else 0
+        silent_before = synth.loud_blocks() if synth is not None else 0
+        record = tmp_path / "sent.jsonl"
+        sender = send_notes(port, notes, notes / (seconds - 4.0), record, reward=reward)
+        sent = sent_notes(sender, record, timeout=seconds + 30)
+        rest = colony.communicate(timeout=seconds + 90)[0]
+    finally:
+        colony.kill()
+    sounding = synth.loud_blocks(since=before) if synth is not None else 0
+    output = "".join(started) + rest
+    assert colony.returncode == 0, output
+    events = [json.loads(line) for line in log.read_text().splitlines()]
+    return output, events, sent, silent_before, sounding
+
+
+def assert_sound_and_frames(events: list[dict], output: str, frames: Path, at_least: int) -> None:
+    """The loudspeaker (JACK's device) never waited for the mix after the first second: no
+    underrun, and no gap put in to keep the lead (audio/lead.py); and at least ``at_least``
+    frames were drawn, beside the loop in their own process, where a GL platform exists."""
+    after = after_first_second(events, 0.04)
+    assert after["underruns"] == 0 and after["gaps"] == 0, (after, [e for e in events if e["kind"] == "xruns"])
+    assert "sound live at" in output, output
+    assert "no frames:" in output or len(list((frames / "frames").glob("*.png"))) >= at_least, output
+
+
 @pytest.mark.jack
 @pytest.mark.slow
 def test_the_exchange_colony_plays_fluidsynth_on_time_while_a_foreign_sender_plays_it_notes(tmp_path):
@@ -80,30 +123,11 @@ def test_the_exchange_colony_plays_fluidsynth_on_time_while_a_foreign_sender_pla
     synth = Synth("creatures-show-")
     try:
         port = free_udp_port()
-        log = tmp_path / "events.jsonl"
-        colony = subprocess.Popen(
-            [sys.executable, "-m", "creatures.cli", "run", live_config(tmp_path, synth, port), "--duration",
-             str(SECONDS), "--log", str(log), "--frames", str(tmp_path / "frames")],
-            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-            # JACK's MIDI through rtmidi, as on any machine without ALSA MIDI (ENVIRONMENT.md)
-            env={**os.environ, "PYTHONUNBUFFERED": "1", "MIDO_BACKEND": "mido.backends.rtmidi/UNIX_JACK"})
-        try:
-            started = wait_for(colony, "running; Ctrl-C", 120)
-            before = synth.blocks
-            silent_before = synth.loud_blocks()
-            record = tmp_path / "sent.jsonl"
-            sender = send_notes(port, NOTES, NOTES / (SECONDS - 4.0), record, reward=(REWARDED, REWARD_AFTER))
-            sent = sent_notes(sender, record, timeout=SECONDS + 30)
-            rest = colony.communicate(timeout=SECONDS + 90)[0]
-        finally:
-            colony.kill()
-        sounding = synth.loud_blocks(since=before)
+        output, events, sent, silent_before, sounding = run_colony(
+            tmp_path, live_config(tmp_path, synth, port), port, SECONDS, NOTES, synth, reward=(REWARDED, REWARD_AFTER))
     finally:
         synth.close()
-    output = "".join(started) + rest
-    assert colony.returncode == 0, output
     assert "MIDI output" not in output, output  # the synth's port was found at once
-    events = [json.loads(line) for line in log.read_text().splitlines()]
     timing = [e for e in events if e["kind"] == "timing"][-1]
     print(output, timing, f"fluidsynth loud in {sounding} blocks", sep="\n")
 
@@ -123,5 +147,42 @@ def test_the_exchange_colony_plays_fluidsynth_on_time_while_a_foreign_sender_pla
     assert len(played) >= 10
     assert silent_before == 0 and sounding >= 100, sounding  # 100 blocks of 512 frames: > 1 s of sound
     assert timing["late_notes"] <= 1, timing
-    # Frames were on (drawn beside the loop, in their own process) where a GL platform exists.
-    assert "no frames:" in output or len(list((tmp_path / "frames" / "frames").glob("*.png"))) >= 100
+    # The sound was whole with frames on.
+    assert_sound_and_frames(events, output, tmp_path / "frames", 100)
+
+
+@pytest.mark.jack
+@pytest.mark.slow
+def test_a_live_run_with_frames_on_keeps_its_sound_whole_and_publishes_out_mid(tmp_path):
+    """Frames at 30 fps (drawn in their own process, fed through a bounded queue that drops
+    and counts what it cannot take) beside the mix on JACK: no underrun and no gap after the
+    first second; and the run's out.mid as offline writes it (creatures/runtime/live_score.py)."""
+    reason = missing_parts()
+    if reason:
+        pytest.skip(reason)
+    port = free_udp_port()
+    config = tmp_path / "frames.toml"
+    config.write_text(f'extends = "{installations.path("exchange")}"\n[midi]\nprogram = 11\n[osc]\nport = {port}\n'
+                      '[output]\nfps = 30\n')
+    seconds, notes = 20.0, 40
+    output, events, sent, _, _ = run_colony(tmp_path, str(config), port, seconds, notes)
+    print(output)
+    assert_sound_and_frames(events, output, tmp_path / "frames", int(0.5 * 30 * seconds))
+
+    midi = mido.MidiFile(tmp_path / "out" / "out.mid")
+    tracks = {track.name: track for track in midi.tracks}
+    assert list(tracks) == ["tempo", "input", "ada", "bo", "cy"]
+    heard = [m.note for m in tracks["input"] if m.type == "note_on" and m.velocity > 0]
+    assert heard == [n["pitch"] for n in sent] and len(heard) == notes
+    for name, pan in (("ada", -0.7), ("bo", 0.0), ("cy", 0.7)):
+        assert [m.program for m in tracks[name] if m.type == "program_change"] == [11]
+        assert [m.value for m in tracks[name] if m.type == "control_change" and m.control == 10] == [midi_pan(pan)]
+    played = [e for e in events if e["kind"] == "note"]
+    struck = sum(1 for name in ("ada", "bo", "cy") for m in tracks[name] if m.type == "note_on" and m.velocity > 0)
+    assert struck >= len(played) > 0  # every note the log says they played (and their swells' restrikes)
+    assert seconds - 2.0 < midi.length < seconds + 5.0, midi.length  # timed from the run's start
+    # the heard tempo: 120 bpm until the colony trusted the sender's pulse, then what it heard
+    tempos = [mido.tempo2bpm(m.tempo) for m in tracks["tempo"] if m.type == "set_tempo"]
+    heard_bpm = [e["bpm"] for e in events if e["kind"] == "tempo"]
+    assert heard_bpm and tempos[0] == 120 and tempos[-1] == pytest.approx(heard_bpm[-1], abs=0.01), (tempos, heard_bpm)
+    assert "wrote " in output and "out.mid" in output

@@ -128,6 +128,7 @@ def test_audio_underruns_and_input_overruns_are_counted_logged_and_reported(tmp_
 
         def __init__(self, sample_rate: int, channels: int, **kwargs: object) -> None:
             self.underruns = 0
+            self.gaps, self.skips = 1, 0  # its start
 
         def describe(self) -> str:
             return "live at 22050 Hz"
@@ -162,7 +163,7 @@ def test_audio_underruns_and_input_overruns_are_counted_logged_and_reported(tmp_
     assert ticks >= 5 and underruns == overruns == ticks
     xruns = [e for e in map(json.loads, log.read_text().splitlines()) if e["kind"] == "xruns"]
     assert len(xruns) >= 2  # logged while running (when they change) and at the end
-    assert (xruns[-1]["underruns"], xruns[-1]["overruns"]) == (ticks, ticks)
+    assert [xruns[-1][k] for k in ("underruns", "overruns", "gaps", "skips")] == [ticks, ticks, 1, 0]
 
 
 @pytest.mark.jack

@@ -10,7 +10,10 @@ printed. Audio underruns (the loudspeaker played silence: the mix came late) and
 overruns (input dropped: the loop read too slowly) are counted, logged when they change and
 reported at the end. With ``[osc] port`` set the colony speaks and listens on the network
 (:mod:`creatures.runtime.network`). Learned state is saved every ``save_every`` seconds and on
-exit (Ctrl-C or SIGTERM: every note off, state saved) and restored on the next start.
+exit (Ctrl-C or SIGTERM: every note off, state saved) and restored on the next start. The
+loudspeaker keeps a lead of spare sound that follows the device's clock (:mod:`audio.lead`),
+and with ``--out`` the run's ``out.mid`` is published when it stops
+(:mod:`creatures.runtime.live_score`).
 
 Nothing that can block runs on the creature's thread: looking for ports and devices, checking
 they are still there, reopening them and flushing the events log are jobs of a
@@ -39,6 +42,7 @@ from creatures.events import EventLog
 from creatures.paths import directory, regular_file, writable_directory
 from creatures.runtime.bodies import FramesBeside
 from creatures.runtime.input_sources import SerialSource, open_sources
+from creatures.runtime.live_score import KEPT, LiveScore, RecordingSink
 from creatures.runtime.network import Network, open_listener
 from creatures.runtime.outlets import Outlets, check_ports
 from creatures.runtime.schema import LoadedInstallation
@@ -55,9 +59,15 @@ HELP = "list devices with `creatures devices`"
 REHEARSAL = 1.0
 """Simulated seconds a throwaway copy of the colony plays before the show (:func:`rehearse`)."""
 
-AUDIO_LEAD = 0.05
-"""Seconds of audio kept ahead of the loudspeaker (audio/resilient.py): a tick's mix written up
-to this late still plays whole."""
+AUDIO_LEAD = 0.03
+"""Seconds of spare sound kept ahead of the loudspeaker's next callback (audio/lead.py): a
+tick's mix written up to this late still plays whole. The sound is heard about this much, a
+device block and the resampler's delay (11 ms at 22050 → 44100 Hz) after its tick."""
+
+AUDIO_BUFFER = 1.0
+"""Seconds the loudspeaker's ring holds: room for a device stall (JACK's dummy server, loaded,
+once called back not for 423 ms) to be left out as a skip (audio/lead.py), not lost block by
+block as the ring overflows. The latency is the lead's, not this."""
 
 HOUSEKEEPING_EVERY = 1.0
 """Seconds between flushes of the events log, checks of the audio counters and timing records."""
@@ -77,6 +87,8 @@ class LiveSummary:
     frames_dropped: int = 0  # frames the drawing process was too busy to take
     heard_between_ticks: int = 0  # notes heard (and answerable) at once, not at the next tick
     underruns: int = 0  # audio output callbacks that found no sound ready and played silence
+    audio_gaps: int = 0  # silences the output put in when its spare ran out (each start, any stall)
+    audio_skips: int = 0  # times the output left sound out: its spare was far too large (a device stall)
     overruns: int = 0  # microphone blocks lost: the loop read too slowly, or the driver overflowed
     failed_saves: int = 0
     saved_at: float | None = None  # seconds into the run of the last save that succeeded
@@ -160,24 +172,26 @@ class LiveInputs:
 
 
 class _Counters:
-    """Audio underruns and microphone overruns: read, and logged whenever they change."""
+    """Audio underruns, the output's gaps and skips, and microphone overruns: read, and logged
+    whenever they change."""
 
     def __init__(self, session: Session, output: ResilientOutput | None, microphone: ResilientInput | None) -> None:
         self.session = session
         self.output = output
         self.microphone = microphone
-        self.last = (0, 0)
+        self.last = (0, 0, 0, 0)
 
-    def now(self) -> tuple[int, int]:
-        underruns = self.output.underruns if self.output is not None else 0
-        mic = self.microphone
-        return underruns, (mic.overruns + mic.driver_overflows) if mic is not None else 0
+    def now(self) -> tuple[int, int, int, int]:
+        """Underruns, overruns, and the output's gaps and skips (audio/lead.py)."""
+        out, mic = self.output, self.microphone
+        underruns, gaps, skips = (out.underruns, out.gaps, out.skips) if out is not None else (0, 0, 0)
+        return underruns, (mic.overruns + mic.driver_overflows) if mic is not None else 0, gaps, skips
 
     def log_change(self, *, always: bool = False) -> None:
         counts = self.now()
         if always or counts != self.last:
             self.last = counts
-            self.session.world.emit("xruns", underruns=counts[0], overruns=counts[1])
+            self.session.world.emit("xruns", underruns=counts[0], overruns=counts[1], gaps=counts[2], skips=counts[3])
 
 
 class _Timing:
@@ -286,15 +300,22 @@ def run_live(
     state: Path | None = None,
     log_path: Path | None = None,
     pictures: Path | None = None,
+    out: Path | None = None,
     say: Callable[[str], None] = print,
 ) -> LiveSummary:
     """Run ``inst`` live until Ctrl-C/SIGTERM (or ``duration`` wall seconds); with
     ``pictures`` the bodies are drawn into that directory (PNGs, and a video if the config asks) at the
-    config's frame rate."""
+    config's frame rate; with ``out`` the run's ``out.mid`` is published there when it stops
+    (:mod:`creatures.runtime.live_score`)."""
     settings = inst.settings
     summary = LiveSummary()
     state_dir = state or inst.resolve(settings.state)
     check_before_running(inst, state=state_dir, log_path=log_path, pictures=pictures)
+    score = None
+    if out is not None and settings.output.midi:
+        score = LiveScore(out)  # held for the run, and refused now if it cannot be written
+    elif out is not None:
+        say(f"[output] midi = false: no out.mid is written to {out}")
     rehearse(inst)
     wall = WallClock()
     clock = SimulatedClock(wall.now())  # the creatures' time, moved by the loop (ticking.py)
@@ -311,8 +332,11 @@ def run_live(
                              report=lambda m: say(f"MIDI output: {m}; {HELP}"), supervisor=supervisor)
         sink = PortSink(port, wall)
     transcribe = settings.audio.transcribe
-    session = Session(inst, clock, log, sink,
+    recorded = RecordingSink(sink) if score is not None else None
+    session = Session(inst, clock, log, recorded or sink,
                       transcribe=transcribe if transcribe is not None else not settings.midi.input_port, say=say)
+    if score is not None:
+        session.world.record(KEPT)  # out.mid's input track and heard tempo
     if state_dir is not None:
         summary.restored = session.load_state(state_dir)
     inputs = LiveInputs(inst, session, clock, say, supervisor=supervisor, epoch=epoch)
@@ -324,7 +348,8 @@ def run_live(
     summary.sound = "off ([audio] output = false)"
     if settings.audio.output:
         output = ResilientOutput(sr, 2, clock=wall, device=settings.audio.output_device,
-                                 blocksize=settings.audio.block, report=say, supervisor=supervisor, lead=AUDIO_LEAD)
+                                 blocksize=settings.audio.block, report=say, supervisor=supervisor, lead=AUDIO_LEAD,
+                                 buffer_seconds=AUDIO_BUFFER)
         summary.sound = output.describe()
     microphone = None
     if settings.audio.input_device is not None:
@@ -420,12 +445,14 @@ def run_live(
                 session.world.emit(what, **counts)
             counters.log_change(always=True)
             timing.log_change(always=True)
-            summary.underruns, summary.overruns = counters.now()
+            summary.underruns, summary.overruns, summary.audio_gaps, summary.audio_skips = counters.now()
             inputs.tally()
             if port is not None:  # what never reached the synth is said, not lost in silence
                 summary.midi_dropped = port.dropped
                 session.world.emit("midi output", port=settings.midi.output_port, dropped=port.dropped)
             session.close()
+            if score is not None and recorded is not None:  # written beside the final save
+                score.finish(session.world, recorded, start, say)
             if state_dir is not None:
                 _save(session, state_dir, summary, say, wall.now() - start, final=True)
             if microphone is not None:
@@ -439,6 +466,8 @@ def run_live(
             if inputs.network is not None:
                 summary.network = inputs.network.counts()
             log.close()
+            if score is not None:
+                score.wait()
     summary.seconds = wall.now() - start
     summary.ticks = session.ticks
     summary.late, summary.skipped = loop.timing.late, loop.skipped

@@ -30,13 +30,11 @@ from creatures import stop
 from audio.transcribe import OFFLINE_WINDOW
 from creatures.clock import SimulatedClock
 from creatures.events import EventLog
-from creatures.lock import FolderLock, FolderLockedError
-from creatures.paths import directory
 from creatures.runtime.bodies import BodyFrames
 from creatures.runtime.body_stream import BodyStream
 from creatures.runtime.input_sources import open_sources
 from creatures.runtime.inputs import phrase_notes, render_notes
-from creatures.runtime.outputs import OutputDirectoryError, discard, publish, recover, refuse_foreign, stage
+from creatures.runtime.outputs import OutputDirectoryError, discard, hold, publish, recover, refuse_foreign, stage
 from creatures.runtime.schema import Installation, LoadedInstallation
 from creatures.runtime.speech_input import spoken_poem
 from creatures.runtime.stream_sinks import JsonLinesStreamSink
@@ -70,18 +68,6 @@ def _planned(settings: Installation) -> set[str]:
               "report": output.report, "frames": output.frames, "out.mp4": output.frames and output.video,
               "stream.jsonl": settings.stream.file}
     return {name for name, on in wanted.items() if on}
-
-
-def _lock(out: Path) -> FolderLock:
-    """Create and lock ``out``; a directory that cannot be written is an
-    :class:`OutputDirectoryError` before anything runs."""
-    try:
-        directory(out, "--out").mkdir(parents=True, exist_ok=True)
-        return FolderLock(out, "output directory").acquire()
-    except FolderLockedError:
-        raise
-    except OSError as exc:
-        raise OutputDirectoryError(f"cannot write outputs to {out}: {exc.strerror or exc}") from None
 
 
 def _inputs(inst: LoadedInstallation, audio: Path | None, midi: Path | None, duration: float,
@@ -119,7 +105,7 @@ def run_offline(
     """
     settings = inst.settings
     duration = float(duration if duration is not None else settings.duration)
-    with _lock(out):
+    with hold(out):
         recover(out)
         refuse_foreign(out, _planned(settings))
         try:

@@ -1,4 +1,4 @@
-"""An offline run's outputs: written aside, published all or none, never over what is not ours.
+"""A run's outputs: written aside, published all or none, never over what is not ours.
 
 ``--out DIR`` is a folder the artist owns, and may hold anything: their notes, a live run's
 state, an older run's outputs. An offline run therefore
@@ -32,6 +32,8 @@ import shutil
 import tempfile
 from pathlib import Path
 
+from creatures.lock import FolderLock, FolderLockedError
+from creatures.paths import directory
 from creatures.persist import StateFileError, load_json, save_json
 
 MANIFEST = ".creatures-manifest.json"
@@ -110,6 +112,18 @@ def refuse_foreign(out: Path, names: set[str]) -> None:
         raise OutputDirectoryError(
             f"{out}: not replacing {out / strangers[0]}{more}: no creatures run wrote it (it is not in "
             f"{MANIFEST}); nothing was changed. Move it away or choose another --out")
+
+
+def hold(out: Path) -> FolderLock:
+    """Create and lock ``out`` (the run's until released); a directory that cannot be written
+    is an :class:`OutputDirectoryError` before anything runs."""
+    try:
+        directory(out, "--out").mkdir(parents=True, exist_ok=True)
+        return FolderLock(out, "output directory").acquire()
+    except FolderLockedError:
+        raise
+    except OSError as exc:
+        raise OutputDirectoryError(f"cannot write outputs to {out}: {exc.strerror or exc}") from None
 
 
 def _hidden_dir(out: Path, prefix: str) -> Path:

@@ -11,6 +11,7 @@ the voice it had. Creatures that share a channel share a track (``ada+bo``).
 from __future__ import annotations
 
 import os
+from typing import Iterable
 
 from creatures.runtime.world import World
 from midi.files import TempoMap, write_tracks
@@ -19,20 +20,23 @@ from midi.notes import TimedMessage, to_messages
 TICKS_PER_BEAT = 480
 
 
-def heard_tempo(world: World) -> TempoMap:
-    """The tempo map of what the colony heard (120 bpm until its pulse was trusted)."""
-    return TempoMap.from_seconds(TICKS_PER_BEAT, world.tempo)
+def heard_tempo(world: World, origin: float = 0.0) -> TempoMap:
+    """The tempo map of what the colony heard (120 bpm until its pulse was trusted), its
+    times counted from ``origin``."""
+    return TempoMap.from_seconds(TICKS_PER_BEAT, [(max(0.0, t - origin), bpm) for t, bpm in world.tempo])
 
 
-def write_score(path: str | os.PathLike, world: World, played: list[TimedMessage]) -> None:
+def write_score(path: str | os.PathLike, world: World, played: Iterable[TimedMessage], origin: float = 0.0) -> None:
     """Write ``played`` (every message the colony sent, as its sink kept them) and the notes
-    the world heard to ``path``; the world must have been recording (``world.recording``)."""
+    the world heard to ``path``; the world must have been recording (``world.recording``).
+    Times count from ``origin`` (a live run's clock time when it began)."""
     names: dict[int, list[str]] = {}
     for creature in world.creatures:
         names.setdefault(creature.spec.channel, []).append(creature.name)
     parts: dict[int, list[TimedMessage]] = {channel: [] for channel in names}
-    for item in played:
-        parts.setdefault(getattr(item[1], "channel", 0), []).append(item)
-    tracks = [("input", to_messages(sorted(world.heard, key=lambda note: note.time)))]
+    for t, msg in played:
+        parts.setdefault(getattr(msg, "channel", 0), []).append((max(0.0, t - origin), msg))
+    heard = sorted(world.heard, key=lambda note: note.time)
+    tracks = [("input", [(max(0.0, t - origin), msg) for t, msg in to_messages(heard)])]
     tracks += [("+".join(names.get(channel, [f"channel {channel + 1}"])), parts[channel]) for channel in sorted(parts)]
-    write_tracks(path, tracks, tempo=heard_tempo(world))
+    write_tracks(path, tracks, tempo=heard_tempo(world, origin))

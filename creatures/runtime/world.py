@@ -16,6 +16,7 @@ from __future__ import annotations
 import dataclasses
 import heapq
 import itertools
+from collections import deque
 from typing import TYPE_CHECKING, Callable
 
 from creatures.behaviour.state_object import StateObject
@@ -56,8 +57,8 @@ class World:
         # A recording run (offline: out.mid) keeps every note heard from outside (the input
         # track) and every tempo change; a live run of weeks keeps only the latest tempo.
         self.recording = False
-        self.heard: list[NoteEvent] = []
-        self.tempo: list[tuple[float, float]] = []  # (time, bpm) whenever the heard tempo moved
+        self.heard: deque[NoteEvent] = deque()
+        self.tempo: deque[tuple[float, float]] = deque()  # (time, bpm) whenever the heard tempo moved
 
     def add(self, creature: "CreatureKind") -> None:
         self.creatures.append(creature)
@@ -92,6 +93,12 @@ class World:
     def scheduler_for(self, creature: "CreatureKind") -> "CreatureScheduler":
         """The shared scheduler as ``creature`` sees it: what it plays, the others hear."""
         return CreatureScheduler(self, creature)
+
+    def record(self, keep: int | None = None) -> None:
+        """Keep from now on what out.mid needs: the notes heard from outside and every tempo
+        change, the latest ``keep`` of each (a live run of weeks stays bounded)."""
+        self.recording = True
+        self.heard, self.tempo = deque(self.heard, maxlen=keep), deque(self.tempo, maxlen=keep)
 
     def inject(self, note: NoteEvent, source: str = INPUT, *, via: str | None = None) -> None:
         """A note from outside the colony, heard by every creature when it starts.
