@@ -391,10 +391,10 @@ def run_live(
         return str(state_dir)
 
     def status() -> dict[str, object]:
-        underruns, overruns = counters.now()
+        underruns, overruns, gaps, skips = counters.now()
         return {"state": "paused" if loop.paused else "running", "title": settings.title, "ticks": session.ticks,
                 "late_ticks": loop.timing.late, "skipped": loop.skipped, "underruns": underruns,
-                "overruns": overruns, "notes_played": session.world.notes_played,
+                "overruns": overruns, "audio_gaps": gaps, "audio_skips": skips, "notes_played": session.world.notes_played,
                 "creatures": [c.name for c in session.creatures], **outlets.counts()}
 
     outlets = Outlets(inst, session, loop, supervisor, pause=pause, save=save_now if saver is not None else None,
