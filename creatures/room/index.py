@@ -17,17 +17,12 @@ from scipy.spatial import cKDTree
 @dataclass(frozen=True)
 class Neighbourhood:
     """For M asking creatures: ``index`` (M, k) of neighbours in the crowd, padded with ``n``
-    (one past the end) where there are fewer than k, ``mask`` (M, k) of real ones, and their
-    ``distance`` (M, k; inf where padded)."""
+    (one past the end: index a crowd's rows with a zero row appended) where there are fewer
+    than k, ``mask`` (M, k) of real ones, and their ``distance`` (M, k; inf where padded)."""
 
     index: np.ndarray
     mask: np.ndarray
     distance: np.ndarray
-
-    def gather(self, rows: np.ndarray) -> np.ndarray:
-        """``rows`` (n, ...) of the crowd at each neighbour, zeros where padded: (M, k, ...)."""
-        padded = np.concatenate([rows, np.zeros((1, *rows.shape[1:]))], axis=0)
-        return padded[self.index]
 
 
 class Neighbours:
@@ -46,11 +41,13 @@ class Neighbours:
             return Neighbourhood(empty + self.n, empty.astype(bool), np.full((len(who), k), np.inf))
         dist, index = self.tree.query(pos, k=kk, distance_upper_bound=radius)
         dist, index = dist.reshape(len(who), kk), index.reshape(len(who), kk)
-        self_hit = index == who[:, None]
-        dist = np.where(self_hit, np.inf, dist)
-        order = np.argsort(dist, axis=1, kind="stable")[:, :k]
-        dist = np.take_along_axis(dist, order, axis=1)
-        index = np.take_along_axis(index, order, axis=1)
+        if (index[:, 0] == who).all():  # each is its own nearest (no two share a position)
+            dist, index = dist[:, 1:], index[:, 1:]
+        else:
+            dist = np.where(index == who[:, None], np.inf, dist)
+            order = np.argsort(dist, axis=1, kind="stable")[:, :k]
+            dist = np.take_along_axis(dist, order, axis=1)
+            index = np.take_along_axis(index, order, axis=1)
         mask = np.isfinite(dist)
         index = np.where(mask, index, self.n)
         if index.shape[1] < k:

@@ -67,21 +67,24 @@ class Crowd:
         who = (np.arange(len(v)) if self.lod is None else self.lod.due(self.steps, self._level, self._rank))
         if len(who):
             index = Neighbours(v.pos)
+            # The crowd's rows with one zero row after them, where padded neighbours point.
+            rows = tuple(np.concatenate([x, np.zeros((1, *x.shape[1:]))]) for x in (v.pos, v.vel, v.radius))
             for g, recipe in enumerate(self.recipes):
-                members = who[self.groups[who] == g]
+                members = who if len(self.recipes) == 1 else who[self.groups[who] == g]
                 if len(members):
-                    self.force[members] = self._steer(index, recipe, members)
+                    self.force[members] = self._steer(index, rows, recipe, members)
             self.steered += len(who)
         v.step(self.force, self.substep)
         self.room.contain(v.pos, v.vel, v.radius)
         self.t = (self.steps + 1) * self.substep  # by count, so no rounding drift over a night
         self.steps += 1
 
-    def _steer(self, index: Neighbours, recipe: Recipe, who: np.ndarray) -> np.ndarray:
+    def _steer(self, index: Neighbours, rows: tuple[np.ndarray, ...], recipe: Recipe, who: np.ndarray) -> np.ndarray:
         v = self.v
         near = index.near(who, v.pos[who], k=recipe.neighbours, radius=recipe.reach)
+        pos, vel, radius = (x[near.index] for x in rows)
         scene = Scene(who, v.pos[who], v.vel[who], v.heading[who], v.max_speed[who], v.radius[who], near,
-                      near.gather(v.pos), near.gather(v.vel), near.gather(v.radius), self.room)
+                      pos, vel, radius, self.room)
         step = Step(scene, v.pos, v.vel, v.heading, self.around, self.substep, self.rng, self.wander_angle)
         forces = [BEHAVIOURS[b.name](step, b.params) for b in recipe.behaviours]
         weights = [b.weight for b in recipe.behaviours]

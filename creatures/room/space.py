@@ -66,7 +66,7 @@ class Room:
     def _push_out(self, pos: np.ndarray, vel: np.ndarray, radius: np.ndarray) -> None:
         """Bodies overlapping an obstacle are moved to its rim and lose the velocity into it."""
         d = pos[:, None, :] - self.centres[None, :, :]  # (N, O, 2)
-        dist = np.sqrt((d * d).sum(-1))
+        dist = np.hypot(d[..., 0], d[..., 1])
         reach = radius[:, None] + self.radii[None, :]
         inside = dist < reach
         if not inside.any():

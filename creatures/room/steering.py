@@ -16,7 +16,7 @@ import numpy as np
 
 from creatures.room.index import Neighbourhood
 from creatures.room.space import Room
-from creatures.room.vehicle import EPS, norms, unit
+from creatures.room.vehicle import EPS, dot, norms, unit
 
 
 @dataclass
@@ -141,8 +141,8 @@ def obstacle_avoidance(s: Scene, *, lookahead: float = 1.5, margin: float = 0.2)
     fwd = s.forward()
     side = np.stack([-fwd[:, 1], fwd[:, 0]], axis=1)
     rel = room.centres[None, :, :] - s.pos[:, None, :]  # (M, O, 2)
-    along = (rel * fwd[:, None, :]).sum(-1)
-    lateral = (rel * side[:, None, :]).sum(-1)
+    along = dot(rel, fwd[:, None, :])
+    lateral = dot(rel, side[:, None, :])
     reach = room.radii[None, :] + s.radius[:, None] + margin
     span = np.maximum(norms(s.vel), 0.2 * s.max_speed)[:, None] * lookahead + reach
     threat = (along > -reach) & (along < span) & (np.abs(lateral) < reach)
@@ -172,7 +172,7 @@ def agent_avoidance(s: Scene, *, horizon: float = 2.0, margin: float = 0.1) -> n
     than the two radii plus ``margin``; steer away from where it will be then."""
     dp = s.nbr_pos - s.pos[:, None, :]
     dv = s.nbr_vel - s.vel[:, None, :]
-    t = np.clip(-(dp * dv).sum(-1) / np.maximum((dv * dv).sum(-1), EPS), 0.0, None)
+    t = np.clip(-dot(dp, dv) / np.maximum(dot(dv, dv), EPS), 0.0, None)
     miss = norms(dp + dv * t[..., None])
     threat = s.near.mask & (t < horizon) & (miss < s.radius[:, None] + s.nbr_radius + margin)
     first = np.argmin(np.where(threat, t, np.inf), axis=1)
@@ -244,7 +244,7 @@ def leader_following(s: Scene, leader: np.ndarray, leader_vel: np.ndarray, leade
     back = unit(np.where((norms(leader_vel) > 1e-6)[:, None], leader_vel, leader_heading))
     follow = arrival(s, leader - back * behind, slowing=slowing)
     rel = s.pos - leader
-    ahead = (rel * back).sum(-1)
+    ahead = dot(rel, back)
     lateral = norms(rel - back * ahead[:, None])
     in_way = (ahead > 0) & (ahead < clear) & (lateral < s.radius * 2 + clear / 2)
     return follow + np.where(in_way[:, None], evasion(s, leader, leader_vel), 0.0)
