@@ -1,13 +1,12 @@
 """The director's controls (REACT 3.3.5, "Control movement, behaviour, states and styles":
 explicit control laid over the agents' own choices): paths with a radius the crowd may
-deviate by (REACTPath), painted flow fields (REACTFlowfield), and zones that change a
-creature while it is inside them (REACTActionBox, :class:`Zone`).
+deviate by (REACTPath) and painted flow fields (REACTFlowfield); the zones that change a
+creature while it is inside them (REACTActionBox) are :mod:`.zones`.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import Any
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -45,22 +44,3 @@ class FlowField:
         rel = np.stack([(x + 0.5) * cell - room_size[0] / 2, (y + 0.5) * cell - room_size[1] / 2], axis=-1)
         tangent = np.stack([-rel[..., 1], rel[..., 0]], axis=-1) * (-1 if clockwise else 1)
         return cls(tangent / np.maximum(np.linalg.norm(tangent, axis=-1, keepdims=True), 1e-9), cell)
-
-
-@dataclass(frozen=True)
-class Zone:
-    """A rectangle of floor (``low``, ``high`` corners, m) that changes a creature while it
-    is inside (an ActionBox): ``drives`` set to levels, ``spec`` keys overridden, tuples
-    ``enable``d or ``disable``d. Leaving restores what was there before entering."""
-
-    name: str
-    low: tuple[float, float]
-    high: tuple[float, float]
-    drives: dict[str, float] = field(default_factory=dict)
-    spec: dict[str, Any] = field(default_factory=dict)
-    enable: tuple[str, ...] = ()
-    disable: tuple[str, ...] = ()
-
-    def contains(self, pos: np.ndarray) -> np.ndarray:
-        """Which of ``pos`` (N, 2) are inside, (N,) bool."""
-        return np.all((pos >= np.asarray(self.low)) & (pos <= np.asarray(self.high)), axis=1)

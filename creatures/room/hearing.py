@@ -68,9 +68,10 @@ class Arrival:
 
 
 def arrive(start: float, duration: float, db: float, pitch: float | None, what: object, distance: float,
-           law: DistanceLaw) -> Arrival:
-    """The sound emitted at ``start`` for ``duration`` s at ``db`` as heard ``distance`` m away."""
-    delay = distance / SPEED_OF_SOUND
+           law: DistanceLaw, *, delay: bool = True) -> Arrival:
+    """The sound emitted at ``start`` for ``duration`` s at ``db`` as heard ``distance`` m away
+    (``delay`` false: at once, as if sound were instantaneous)."""
+    delay = distance / SPEED_OF_SOUND if delay else 0.0
     return Arrival(start + delay, start + delay + duration, db + float(law.db(distance)), pitch, what)
 
 

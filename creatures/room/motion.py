@@ -38,6 +38,8 @@ class Crowd:
         self.rng = np.random.default_rng(seed)
         self.wander_angle = np.zeros(len(vehicles))
         self.force = np.zeros((len(vehicles), 2))
+        # Each creature's own multiplier of each behaviour's weight (a percept-gated `when`).
+        self.gain = np.ones((len(vehicles), max((len(r.behaviours) for r in recipes), default=0)))
         self.t = 0.0
         self.steps = 0
         self.steered = 0  # creature-steerings done, for the level-of-detail budget's accounting
@@ -81,12 +83,15 @@ class Crowd:
 
     def _steer(self, index: Neighbours, rows: tuple[np.ndarray, ...], recipe: Recipe, who: np.ndarray) -> np.ndarray:
         v = self.v
+        if not recipe.behaviours:  # a creature that stands where it was put
+            return np.zeros((len(who), 2))
         near = index.near(who, v.pos[who], k=recipe.neighbours, radius=recipe.reach)
         pos, vel, radius = (x[near.index] for x in rows)
         scene = Scene(who, v.pos[who], v.vel[who], v.heading[who], v.max_speed[who], v.radius[who], near,
                       pos, vel, radius, self.room)
         step = Step(scene, v.pos, v.vel, v.heading, self.around, self.substep, self.rng, self.wander_angle)
-        forces = [BEHAVIOURS[b.name](step, b.params) for b in recipe.behaviours]
+        forces = [BEHAVIOURS[b.name](step, b.params) * self.gain[who, k][:, None]
+                  for k, b in enumerate(recipe.behaviours)]
         weights = [b.weight for b in recipe.behaviours]
         policy = POLICIES[recipe.combine]
         if recipe.combine == "dithering":

@@ -18,8 +18,11 @@ from creatures.room import steering as st
 from creatures.room.director import FlowField, Path
 
 Target = str | int | tuple[float, float]
-"""What a behaviour aims at: 'visitor' (the nearest), 'loud' (the nearest loud sound),
-'centre' (of the room), an (x, y) point, or an int: another creature of the crowd."""
+"""What a behaviour aims at: 'visitor' (the nearest), 'player' (where the last note from
+outside came from, for a few seconds), 'loud' (the nearest loud sound), 'centre' (of the
+room), an (x, y) point, or an int: another creature of the crowd."""
+
+NAMED_TARGETS = ("visitor", "player", "loud", "centre")
 
 
 @dataclass(frozen=True)
@@ -50,11 +53,13 @@ class Recipe:
 
 @dataclass
 class Surroundings:
-    """What is in the room beside the crowd: visitors (positions, velocities), loud sounds
-    (positions), and the director's paths and flow fields by name."""
+    """What is in the room beside the crowd: visitors (positions, velocities), the player
+    (where outside notes came from lately; none or one), loud sounds (positions), and the
+    director's paths and flow fields by name."""
 
     visitors: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     visitor_vel: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    player: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     loud: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     paths: dict[str, Path] = field(default_factory=dict)
     fields: dict[str, FlowField] = field(default_factory=dict)
@@ -90,8 +95,9 @@ def target_of(step: Step, target: Target) -> tuple[np.ndarray, np.ndarray, np.nd
     s, m = step.scene, len(step.scene.pos)
     if target == "visitor":
         return _nearest(step.around.visitors, step.around.visitor_vel, s.pos)
-    if target == "loud":
-        return _nearest(step.around.loud, np.zeros_like(step.around.loud), s.pos)
+    if target in ("loud", "player"):
+        points = step.around.loud if target == "loud" else step.around.player
+        return _nearest(points, np.zeros_like(points), s.pos)
     if target == "centre":
         return np.tile(s.room.size / 2, (m, 1)), np.zeros((m, 2)), np.ones(m, dtype=bool)
     if isinstance(target, int):

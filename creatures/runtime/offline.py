@@ -154,7 +154,7 @@ def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path 
     session.transcribe_window = OFFLINE_WINDOW  # nobody waits offline: the longer look hears chords better
 
     sr, tick = settings.audio.sample_rate, settings.tick
-    wav = WavOutput(out / "out.wav", sr, 2) if settings.output.wav else None
+    wav = WavOutput(out / "out.wav", sr, session.channels) if settings.output.wav else None
     bodies = BodyFrames(settings.output, out, clock, messages) if settings.output.frames else None
     steps = int(math.ceil(duration / tick - 1e-9))
     bar = None

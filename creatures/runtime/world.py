@@ -27,6 +27,7 @@ from midi.scheduler import NoteHandle, NoteScheduler
 
 if TYPE_CHECKING:
     from creatures.kinds.base import CreatureKind
+    from creatures.room.stage import Stage
 
 INPUT = "input"
 """The source name of notes that come from outside the colony."""
@@ -57,6 +58,9 @@ class World:
         self.recording = False
         self.heard: list[NoteEvent] = []
         self.tempo: list[tuple[float, float]] = []  # (time, bpm) whenever the heard tempo moved
+        # With a [room] (creatures/room/stage.py), a note reaches each ear from where it was
+        # played, late and attenuated by distance, unless masked; without one, every ear at once.
+        self.room: Stage | None = None
 
     def add(self, creature: "CreatureKind") -> None:
         self.creatures.append(creature)
@@ -112,10 +116,18 @@ class World:
             _, _, note, source = heapq.heappop(self._pending)
             if not any(creature.name == source for creature in self.creatures):
                 self.pulse.hear(note.time)  # the rhythm heard from outside, not the colony's own
-            for creature in self.creatures:
-                if creature.name != source and (source != INPUT or creature.spec.hears_input):
-                    creature.hear(note, source)
+            if self.room is not None:
+                self.room.emit(note, source)
+            else:
+                for creature in self.creatures:
+                    if creature.name != source and (source != INPUT or creature.spec.hears_input):
+                        creature.hear(note, source)
             count += 1
+        if self.room is not None:
+            for i, heard, source in self.room.due(t):
+                creature = self.creatures[i]
+                if source != INPUT or creature.spec.hears_input:
+                    creature.hear(heard, source)
         surprises = self.pulse.settle()
         if surprises and self.pulse.ready:  # the heard rhythm changed: an expectation violated
             self.log.emit(t, "surprise", percept="pulse", count=surprises, pulse=self.pulse.model.pulse)
