@@ -6,6 +6,9 @@ random offsets).
 ``vary`` maps a dotted key of the table to a range: ``vary = {"vehicle.max_speed" = [0.8, 1.2],
 "channel" = [0, 3]}`` draws each clone's value uniformly from it (integers when both ends
 are). Draws come from the installation's seed, so a crowd is the same crowd every run.
+``cycle`` maps a dotted key to a list the clones take in turn (clone k gets item k mod its
+length): ``cycle = { channel = [0, 1, 2] }`` spreads a crowd over MIDI channels evenly, where
+random draws could put two on one channel.
 """
 
 from __future__ import annotations
@@ -70,16 +73,21 @@ def expand(tables: list[dict], seed: int) -> tuple[list[dict], list[int]]:
 
 def _clones(table: dict, rng: np.random.Generator) -> list[dict]:
     """The ``count`` creatures of one table, each with its draws from ``vary``."""
-    count, vary = table["count"], table.get("vary", {})
+    count, vary, cycle = table["count"], table.get("vary", {}), table.get("cycle", {})
     if isinstance(count, bool) or not isinstance(count, int) or not 1 <= count <= LARGEST_CROWD:
         raise CrowdError(("count",), f"count must be a whole number from 1 to {LARGEST_CROWD}, got {count!r}")
     if not isinstance(vary, dict):
         raise CrowdError(("vary",), f"vary must be a table of ranges, got {vary!r}")
-    base = {k: v for k, v in table.items() if k not in ("count", "vary")}
+    if not isinstance(cycle, dict) or not all(isinstance(v, list) and 0 < len(v) <= LARGEST_CROWD
+                                              for v in cycle.values()):
+        raise CrowdError(("cycle",), f"cycle must be a table of non-empty lists, got {cycle!r}")
+    base = {k: v for k, v in table.items() if k not in ("count", "vary", "cycle")}
     clones = []
     for k in range(count):
         clone = copy.deepcopy(base)
         clone["name"] = f"{base.get('name', 'creature')}-{k}"
+        for key in sorted(cycle):
+            _set(clone, key, copy.deepcopy(cycle[key][k % len(cycle[key])]))
         for key in sorted(vary):
             _set(clone, key, _draw(rng, vary[key], key))
         clones.append(clone)
