@@ -287,3 +287,22 @@ def test_a_pitch_above_nyquist_sounds_octaves_down_instead_of_crashing():
     pool = VoicePool(1, sample_rate=22050.0, block_size=256)
     i = pool.note_on(127, 1.0)
     assert pool.voices[i].frequency == pytest.approx(12543.85 / 2, rel=1e-3)
+
+
+def test_a_path_a_percept_gated_weight_and_level_of_detail_from_the_config(tmp_path):
+    room = """lod = { near = 3.0, levels = 2, budget = 2 }
+[[room.paths]]
+name = "aisle"
+points = [[1.0, 2.0], [9.0, 2.0]]
+radius = 0.3
+"""
+    follower = singer("f", 1.0, 2.5, vehicle='steer = [{ behaviour = "path_following", path = "aisle" }]')
+    # It seeks the room's corner only while its "heard" percept is salient: nothing is heard.
+    gated = singer("g", 5.0, 8.0, vehicle='steer = [{ behaviour = "seek", target = [9.5, 9.5], when = "heard" }]')
+    s, clock = session(tmp_path, room, follower, gated)
+    run(s, clock, 8.0)
+    f, g = s.stage.v.pos
+    assert f[0] > 7.0 and abs(f[1] - 2.0) < 0.35
+    assert np.allclose(g, [5.0, 8.0])  # its weight is 0 while it hears nothing
+    assert s.stage.crowd.gain[1, 0] == 0.0
+    assert s.stage.crowd.steered <= 2 * s.stage.crowd.steps  # the budget: two steerings per sub-step
