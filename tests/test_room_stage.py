@@ -62,6 +62,11 @@ alpha = 0.0
 """
 
 
+TRACKER = "".join(f'[[input]]\nosc = "/v"\nto = "sensor"\nname = "v{axis}"\nvalue = {{ arg = {i} }}\n'
+                  for i, axis in enumerate("xy"))
+"""A visitor tracker: OSC `/v x y` into the sensors vx and vy."""
+
+
 def singer(name: str, x: float, y: float, *, vehicle: str = "", extra: str = "", echo: float = 0.0) -> str:
     return SINGER.format(name=name, x=x, y=y, vehicle=vehicle, extra=extra, echo=echo)
 
@@ -217,18 +222,7 @@ disable = ["echo"]
 
 def test_a_visitor_from_the_tracker_is_sought_and_fled(tmp_path):
     room = 'visitors = [{ x = "vx", y = "vy" }]'
-    maps = """
-[[input]]
-osc = "/v"
-to = "sensor"
-name = "vx"
-value = { arg = 0 }
-[[input]]
-osc = "/v"
-to = "sensor"
-name = "vy"
-value = { arg = 1 }
-"""
+    maps = TRACKER
     near = singer("near", 2.0, 2.0, vehicle='steer = [{ behaviour = "arrival", target = "visitor", slowing = 1.0 }]')
     shy = singer("shy", 7.0, 7.0, vehicle='steer = [{ behaviour = "flee", target = "visitor", panic = 4.0 }]')
     inst = load_installation(write(tmp_path, HEADER.format(room=room) + maps + near + shy))
@@ -306,3 +300,44 @@ radius = 0.3
     assert np.allclose(g, [5.0, 8.0])  # its weight is 0 while it hears nothing
     assert s.stage.crowd.gain[1, 0] == 0.0
     assert s.stage.crowd.steered <= 2 * s.stage.crowd.steps  # the budget: two steerings per sub-step
+
+
+def test_room_percepts_read_distance_bearing_crowding_and_sight(tmp_path):
+    room = 'visitors = [{ x = "vx", y = "vy" }]\nobstacles = [{ at = [5.0, 8.0], radius = 0.5 }]'
+    maps = TRACKER
+    percepts = """
+[creature.percepts]
+close = { type = "proximity", near = 1.0, far = 5.0 }
+ahead = { type = "bearing", width = 90.0 }
+crowded = { type = "crowding", radius = 1.5, full = 2 }
+seen = { type = "sees" }
+[creature.percepts.heard]"""
+    me = singer("me", 2.0, 5.0, vehicle="heading = 0.0\nfov = 120.0").replace("[creature.percepts.heard]", percepts)
+    others = [singer("n1", 2.0, 6.0), singer("n2", 3.0, 8.0), singer("far", 8.0, 8.0)]
+    inst = load_installation(write(tmp_path, HEADER.format(room=room) + maps + me + "".join(others)))
+    clock = SimulatedClock()
+    s = Session(inst, clock, EventLog(), MemorySink())
+    t = clock.advance(TICK)
+    s.inputs.osc("/v", [5.0, 5.0], t)  # 3 m straight ahead
+    s.step(t, 0, None, audio=False)
+    c = s.creatures[0]
+
+    def value(name: str) -> float:
+        return c.percept(name).evaluate(t)
+
+    assert value("close") == pytest.approx(0.5)  # 3 m on the ramp from 5 m (0) to 1 m (1)
+    assert value("ahead") == pytest.approx(1.0)
+    assert value("crowded") == pytest.approx(0.5)  # n1 within 1.5 m; n2 and far are not
+    assert value("seen") == 1.0
+    t = clock.advance(TICK)
+    s.inputs.osc("/v", [2.0, 2.0], t)  # now 3 m to its right: 90° off its heading, outside the cone
+    s.step(t, 0, None, audio=False)
+    assert value("ahead") == 0.0 and value("seen") == 0.0 and value("close") == pytest.approx(0.5)
+    assert s.stage.sees("me", "creature") == 1  # 'far' (27° off); n1 (90°) and n2 (72°) are outside the cone
+
+
+def test_a_creature_behind_an_obstacle_is_not_seen_by_the_stage(tmp_path):
+    room = 'obstacles = [{ at = [5.0, 5.0], radius = 0.5 }]'
+    s, _ = session(tmp_path, room, singer("eye", 2.0, 5.0, vehicle="heading = 0.0"),
+                   singer("hidden", 8.0, 5.0), singer("open", 8.0, 6.5))
+    assert s.stage.sees("eye", "creature") == 1  # 'open' only

@@ -443,6 +443,16 @@ def _stage(creature: "Authored"):
     return creature.world.room
 
 
+def _ramped(name: str, measure, low: float, high: float) -> Percept:
+    """A percept of a room measure (``measure()``: a number, or None/inf when there is
+    nothing to measure, which reads 0) as a fuzzy ramp from ``low`` (0) to ``high`` (1)."""
+    def read(t: float) -> float:
+        x = measure()
+        return 0.0 if x is None or not math.isfinite(x) else ramp(x, low, high)
+
+    return FunctionPercept(name, read)
+
+
 class _ProximityParams(Params):
     of: Whom = Field("visitor", description="'visitor' (tracked), 'creature' (another), 'player' (where the "
                                             "last outside note came from) or 'loud' (a loud sound)")
@@ -460,11 +470,7 @@ class Proximity(PerceptPart):
     Params = _ProximityParams
 
     def build(self, params, creature, name):
-        def read(t: float) -> float:
-            d = _stage(creature).distance(creature.name, params.of)
-            return 0.0 if not math.isfinite(d) else ramp(d, params.far, params.near)
-
-        return FunctionPercept(name, read)
+        return _ramped(name, lambda: _stage(creature).distance(creature.name, params.of), params.far, params.near)
 
 
 class _BearingParams(Params):
@@ -482,11 +488,11 @@ class Bearing(PerceptPart):
     Params = _BearingParams
 
     def build(self, params, creature, name):
-        def read(t: float) -> float:
+        def off_ahead() -> float | None:
             b = _stage(creature).bearing(creature.name, params.of)
-            return 0.0 if b is None else ramp(abs(b), params.width, 0.0)
+            return None if b is None else abs(b)
 
-        return FunctionPercept(name, read)
+        return _ramped(name, off_ahead, params.width, 0.0)
 
 
 class _CrowdingParams(Params):
