@@ -341,3 +341,20 @@ def test_a_creature_behind_an_obstacle_is_not_seen_by_the_stage(tmp_path):
     s, _ = session(tmp_path, room, singer("eye", 2.0, 5.0, vehicle="heading = 0.0"),
                    singer("hidden", 8.0, 5.0), singer("open", 8.0, 6.5))
     assert s.stage.sees("eye", "creature") == 1  # 'open' only
+
+
+@pytest.mark.parametrize("room, creature, message", [
+    ("", 'at = [12.0, 5.0]', "outside the 10 x 10 m room"),
+    ('input_at = [5.0, 11.0]', "", "input_at \\[5.0, 11.0\\] is outside"),
+    ('[[room.zones]]\nname = "z"\nlow = [0.0, 0.0]\nhigh = [1.0, 1.0]\ndrives = { hungre = 1.0 }', "",
+     "no creature has a drive 'hungre'"),
+    ('[[room.zones]]\nname = "z"\nlow = [0.0, 0.0]\nhigh = [1.0, 1.0]\nenable = ["dance"]', "",
+     "no creature has a tuple 'dance'"),
+    ('[[room.zones]]\nname = "z"\nlow = [0.0, 0.0]\nhigh = [1.0, 1.0]\nspec = { colour = 1.0 }', "",
+     "not a body key"),
+])
+def test_places_and_zones_that_cannot_be_are_config_errors(tmp_path, room, creature, message):
+    text = HEADER.format(room=room) + singer("a", 1.0, 1.0).replace("at = [1.0, 1.0]", creature or "at = [1.0, 1.0]")
+    with pytest.raises(ConfigError, match=message) as info:
+        load_installation(write(tmp_path, text))
+    assert info.value.line is not None

@@ -26,8 +26,9 @@ class LevelOfDetail:
     budget: int | None = None
 
     def level(self, pos: np.ndarray, listeners: np.ndarray) -> np.ndarray:
-        """Each creature's level from its distance to the nearest listener (a visitor, or the
-        room's centre where there is no visitor; no one listens from nowhere)."""
+        """Each creature's level from its distance to the nearest listener (the visitors and
+        out.wav's listening point: a creature far from all of them is neither seen nor heard
+        closely); with no listener at all, every creature at the slowest level."""
         if len(listeners) == 0:
             return np.full(len(pos), self.levels, dtype=np.int64)
         d, _ = cKDTree(listeners).query(pos)

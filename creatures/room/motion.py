@@ -55,12 +55,12 @@ class Crowd:
             ran += 1
         return ran
 
-    def plan(self) -> None:
-        """Choose levels of detail from where the visitors are now (called by the caller each
-        tick: the levels change as slowly as people walk)."""
+    def plan(self, listeners: np.ndarray | None = None) -> None:
+        """Choose levels of detail from where the ``listeners`` (default: the visitors) are
+        now (called by the caller each tick: the levels change as slowly as people walk)."""
         if self.lod is None:
             return
-        self._level = self.lod.level(self.v.pos, self.around.visitors)
+        self._level = self.lod.level(self.v.pos, self.around.visitors if listeners is None else listeners)
         self._rank = np.argsort(np.argsort(self._level, kind="stable"), kind="stable")
 
     def step(self) -> None:

@@ -7,11 +7,11 @@ where a typo must be an error at its line, never a night of nonsense).
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, Field, model_validator
 
-from creatures.bounds import FINITE
+from creatures.bounds import FINITE, Bounded
 from creatures.room.recipe import BEHAVIOURS
 
 BODY_KEYS = ("max_speed", "max_force", "mass", "radius", "max_turn")
@@ -20,7 +20,10 @@ BODY_KEYS = ("max_speed", "max_force", "mass", "radius", "max_turn")
 LARGEST_ROOM = 1000.0
 """Metres: the longest side a room may have (a field, not a continent)."""
 
-Point = tuple[float, float]
+Metres = Annotated[float, Field(ge=0, le=LARGEST_ROOM)]
+"""A coordinate on the floor, m from the room's corner."""
+
+Point = tuple[Metres, Metres]
 
 
 class Strict(BaseModel):
@@ -30,7 +33,7 @@ class Strict(BaseModel):
 class ObstacleSpec(Strict):
     """A round obstacle: ``at`` [x, y] and ``radius``, metres."""
 
-    at: tuple[float, float] = Field(description="centre [x, y], m from the room's corner")
+    at: Point = Field(description="centre [x, y], m from the room's corner")
     radius: float = Field(gt=0, le=LARGEST_ROOM, description="radius, m")
 
 
@@ -49,9 +52,9 @@ class ZoneSpec(Strict):
     undoes the change when it leaves."""
 
     name: str = Field(pattern=r"^[A-Za-z0-9_\-]+$", description="the zone's name (in the events log)")
-    low: tuple[float, float] = Field(description="one corner [x, y], m")
-    high: tuple[float, float] = Field(description="the opposite corner [x, y], m")
-    drives: dict[str, float] = Field(default_factory=dict, max_length=64,
+    low: Point = Field(description="one corner [x, y], m")
+    high: Point = Field(description="the opposite corner [x, y], m")
+    drives: dict[str, Bounded] = Field(default_factory=dict, max_length=64,
                                      description="drives set to these levels on entry (restored on leaving)")
     spec: dict[str, float | int | str | bool] = Field(
         default_factory=dict, max_length=64,
@@ -74,7 +77,7 @@ class PathSpec(Strict):
     """A path (REACTPath) the crowd may follow: points and how far it may stray."""
 
     name: str = Field(pattern=r"^[A-Za-z0-9_\-]+$", description="named by `path = ` in a steer table")
-    points: list[tuple[float, float]] = Field(min_length=2, max_length=1024, description="[x, y] points, m")
+    points: list[Point] = Field(min_length=2, max_length=1024, description="[x, y] points, m")
     radius: float = Field(0.5, gt=0, le=LARGEST_ROOM, description="how far from the line it may stray, m")
 
 
@@ -84,7 +87,8 @@ class FlowSpec(Strict):
     name: str = Field(pattern=r"^[A-Za-z0-9_\-]+$", description="named by `field = ` in a steer table")
     shape: Literal["uniform", "vortex"] = Field("vortex", description="'uniform' (one direction) or 'vortex' "
                                                                       "(round the room's centre)")
-    direction: tuple[float, float] = Field((1.0, 0.0), description="shape = 'uniform': the direction")
+    direction: tuple[Annotated[float, Field(ge=-1, le=1)], Annotated[float, Field(ge=-1, le=1)]] = Field(
+        (1.0, 0.0), description="shape = 'uniform': the direction [dx, dy]")
     clockwise: bool = Field(False, description="shape = 'vortex': which way round")
     cell: float = Field(0.5, gt=0.01, le=LARGEST_ROOM, description="grid cell, m")
 
@@ -127,12 +131,12 @@ class RoomSection(Strict):
     obstacles: list[ObstacleSpec] = Field(default_factory=list, max_length=256, description="[[room.obstacles]]")
     substep: float = Field(0.01, ge=0.001, le=0.1, description="fixed integration step, s (the tick does "
                                                                "not change the paths)")
-    listener: tuple[float, float] | None = Field(None, description="where out.wav's listener stands [x, y] "
+    listener: Point | None = Field(None, description="where out.wav's listener stands [x, y] "
                                                                    "(default: the middle of the near wall, y = 0)")
     speakers: Literal["stereo", "ring"] = Field("stereo", description="out.wav and live output: a stereo pair "
                                                                       "or a ring of `channels` speakers (VBAP)")
     channels: int = Field(8, ge=2, le=64, description="speakers = 'ring': how many")
-    input_at: tuple[float, float] | None = Field(None, description="where input notes sound when no visitor "
+    input_at: Point | None = Field(None, description="where input notes sound when no visitor "
                                                                    "is tracked (default: the listener)")
     visitors: list[VisitorSpec] = Field(default_factory=list, max_length=64, description="[[room.visitors]]")
     hearing: HearingSpec = HearingSpec()
@@ -152,7 +156,7 @@ class SteerSpec(Strict):
     probability: float = Field(1.0, ge=0, le=1, description="combine = 'dithering': chance it is considered")
     when: str | None = Field(None, description="a percept of the creature whose value (0..1) scales the weight "
                                                "each tick (gathering only while someone plays)")
-    target: str | int | tuple[float, float] | None = Field(
+    target: str | Point | None = Field(
         None, description="seek, flee, arrival, pursuit, evasion, leader_following: 'visitor' (the nearest), "
                           "'player' (where the last note from outside came from, for 4 s), 'loud' (the nearest "
                           "loud sound), 'centre', [x, y], or another creature's name")
@@ -181,7 +185,7 @@ class SteerSpec(Strict):
 class VehicleSpec(Strict):
     """``[creature.vehicle]``: a creature's place and body in the room (REACT's vehicle)."""
 
-    at: tuple[float, float] | None = Field(None, description="start [x, y], m (default: a seeded random place)")
+    at: Point | None = Field(None, description="start [x, y], m (default: a seeded random place)")
     heading: float | None = Field(None, ge=-360, le=360, description="start heading, degrees (default: random)")
     mass: float = Field(1.0, gt=0, le=1000, description="kg")
     max_force: float = Field(2.0, gt=0, le=1000, description="largest steering force, N")

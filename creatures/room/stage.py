@@ -51,6 +51,43 @@ class StageError(ValueError):
         self.creature, self.key = creature, key
 
 
+class RoomError(ValueError):
+    """A ``[room]`` key that cannot work with these creatures; ``key`` is its path under room."""
+
+    def __init__(self, key: tuple, message: str) -> None:
+        super().__init__(message)
+        self.key = key
+
+
+def check_places(section: RoomSection, specs: list, drives: list[tuple[str, ...]]) -> None:
+    """Every place named is on the floor, and every zone's drives and tuples are some
+    creature's (:class:`StageError`, :class:`RoomError`; a zone's change to a creature without
+    that drive or tuple does nothing to it, but a name no creature has is a typo)."""
+    size = (section.width, section.depth)
+
+    def off(point: tuple[float, float] | None) -> bool:
+        return point is not None and not (0 <= point[0] <= size[0] and 0 <= point[1] <= size[1])
+
+    for i, spec in enumerate(specs):
+        if off(spec.vehicle.at):
+            raise StageError(i, ("vehicle", "at"), f"start {list(spec.vehicle.at)} is outside the "
+                             f"{size[0]:g} x {size[1]:g} m room")
+    for key in ("listener", "input_at"):
+        if off(getattr(section, key)):
+            raise RoomError((key,), f"{key} {list(getattr(section, key))} is outside the {size[0]:g} x {size[1]:g} m room")
+    all_drives = {d for names in drives for d in names}
+    all_tuples = {t for spec in specs for t in (getattr(spec, "tuples", None) or {})}
+    for z, zone in enumerate(section.zones):
+        for name in zone.drives:
+            if name not in all_drives:
+                raise RoomError(("zones", z, "drives", name), f"zone {zone.name!r}: no creature has a drive "
+                                f"{name!r} (drives: {sorted(all_drives)})")
+        for key in ("enable", "disable"):
+            for name in getattr(zone, key):
+                if name not in all_tuples:
+                    raise RoomError(("zones", z, key), f"zone {zone.name!r}: no creature has a tuple {name!r}")
+
+
 def recipes(section: RoomSection, specs: list, index: dict[str, int]
             ) -> tuple[list[Recipe], np.ndarray, list[tuple[int, int, str]]]:
     """One recipe per distinct steering (a crowd's clones share one, so they steer as one
@@ -171,7 +208,7 @@ class Stage:
         for i, b, name in self._when:
             self.crowd.gain[i, b] = min(max(percept(i, name), 0.0), 1.0)
         self.zones.update(t, self.v, emit)
-        self.crowd.plan()
+        self.crowd.plan(np.vstack([self.crowd.around.visitors, self.listener[None, :]]))  # who is heard, near
         self.crowd.advance_to(t)
         if t >= self._next_report:  # where everyone is, for the report and for tests
             self._next_report = t + self.section.report_every

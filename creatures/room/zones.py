@@ -67,6 +67,8 @@ class Zones:
             getattr(v, key)[i] = np.radians(value) if key == "max_turn" else value
         if motivation is not None:
             for name, level in zone.drives.items():
+                if name not in motivation.names:
+                    continue  # a zone sets the drives a creature has
                 saved["drives"][name] = motivation.level(name, t)
                 motivation.perturb(t, name, level - motivation.level(name, t))
         for group in groups_of(creature):

@@ -23,7 +23,7 @@ from creatures.kinds import CreatureSpec, load_all
 from creatures.authored.percepts import ROOM_PERCEPTS
 from creatures.room.crowd import CrowdError, expand as expand_crowds
 from creatures.room.spec import RoomSection
-from creatures.room.stage import StageError, recipes as room_recipes
+from creatures.room.stage import RoomError, StageError, check_places, recipes as room_recipes
 
 
 LONGEST_SEED = 2**63 - 1
@@ -303,8 +303,11 @@ def load_installation(path: str | Path) -> LoadedInstallation:
     if settings.room is not None:  # what the creatures' steering names must be in the room
         try:
             room_recipes(settings.room, specs, {spec.name: i for i, spec in enumerate(specs)})
+            check_places(settings.room, specs, [kinds[spec.kind].drive_names(spec) for spec in specs])
         except StageError as exc:
             raise config_error(path, where, ("creature", origin[exc.creature], *exc.key), str(exc)) from None
+        except RoomError as exc:
+            raise config_error(path, where, ("room", *exc.key), str(exc)) from None
     for key in ("audio", "midi"):
         file = getattr(settings.input, key)
         if file is not None and not (path.parent / file).exists():
