@@ -90,8 +90,8 @@ class Crowd:
         scene = Scene(who, v.pos[who], v.vel[who], v.heading[who], v.max_speed[who], v.radius[who], near,
                       pos, vel, radius, self.room)
         step = Step(scene, v.pos, v.vel, v.heading, self.around, self.substep, self.rng, self.wander_angle)
-        forces = [BEHAVIOURS[b.name](step, b.params) * self.gain[who, k][:, None]
-                  for k, b in enumerate(recipe.behaviours)]
+        gain = self.gain[who]  # each creature's multiplier of each behaviour's weight
+        forces = [BEHAVIOURS[b.name](step, b.params) * gain[:, k:k + 1] for k, b in enumerate(recipe.behaviours)]
         weights = [b.weight for b in recipe.behaviours]
         policy = POLICIES[recipe.combine]
         if recipe.combine == "dithering":
