@@ -110,22 +110,22 @@ def separation(s: Scene, *, reach: float = 3.0) -> np.ndarray:
     offset = s.pos[:, None, :] - s.nbr_pos
     d = norms(offset)
     personal = reach * (s.radius[:, None] + s.nbr_radius)
-    weight = np.where(s.near.mask & (d < personal), personal / np.maximum(d, EPS) - 1.0, 0.0)
-    push = (offset / np.maximum(d, EPS)[..., None] * weight[..., None]).sum(1)
-    return push * s.max_speed[:, None]
+    safe = np.maximum(d, EPS)
+    factor = np.where(s.near.mask & (d < personal), (personal / safe - 1.0) / safe, 0.0)  # weight / distance
+    return np.einsum("mkc,mk->mc", offset, factor) * s.max_speed[:, None]
 
 
 def cohesion(s: Scene) -> np.ndarray:
     """Seek the centre of the neighbours (REACT "Cohesion")."""
     n = s.near.mask.sum(1)
-    centre = (s.nbr_pos * s.near.mask[..., None]).sum(1) / np.maximum(n, 1)[:, None]
+    centre = np.einsum("mkc,mk->mc", s.nbr_pos, s.near.mask.astype(float)) / np.maximum(n, 1)[:, None]
     return np.where((n > 0)[:, None], seek(s, centre), 0.0)
 
 
 def alignment(s: Scene) -> np.ndarray:
     """Match the neighbours' mean direction of travel at full speed (REACT "Alignment")."""
     n = s.near.mask.sum(1)
-    mean = (unit(s.nbr_vel) * s.near.mask[..., None]).sum(1)
+    mean = np.einsum("mkc,mk->mc", unit(s.nbr_vel), s.near.mask.astype(float))
     return np.where((n > 0)[:, None] & (norms(mean) > EPS)[:, None], _desired(s, mean), 0.0)
 
 
@@ -148,9 +148,8 @@ def obstacle_avoidance(s: Scene, *, lookahead: float = 1.5, margin: float = 0.2)
     threat = (along > -reach) & (along < span) & (np.abs(lateral) < reach)
     nearest = np.argmin(np.where(threat, along, np.inf), axis=1)
     any_threat = threat.any(1)
-    lat = np.take_along_axis(lateral, nearest[:, None], 1)[:, 0]
-    alo = np.take_along_axis(along, nearest[:, None], 1)[:, 0]
-    spn = np.take_along_axis(span, nearest[:, None], 1)[:, 0]
+    rows = np.arange(len(nearest))
+    lat, alo, spn = lateral[rows, nearest], along[rows, nearest], span[rows, nearest]
     urgency = np.clip(1.0 - alo / spn, 0.2, 1.0)
     away = np.where(lat > 0, -1.0, 1.0)  # obstacle to our left: steer right
     return np.where(any_threat[:, None], side * (away * urgency * s.max_speed)[:, None], 0.0)
@@ -177,11 +176,12 @@ def agent_avoidance(s: Scene, *, horizon: float = 2.0, margin: float = 0.1) -> n
     threat = s.near.mask & (t < horizon) & (miss < s.radius[:, None] + s.nbr_radius + margin)
     first = np.argmin(np.where(threat, t, np.inf), axis=1)
     any_threat = threat.any(1)
-    tf = np.take_along_axis(t, first[:, None], 1)
-    me = s.pos + s.vel * tf
-    them = np.take_along_axis(s.nbr_pos + s.nbr_vel * t[..., None], first[:, None, None], 1)[:, 0]
+    rows = np.arange(len(first))
+    tf = t[rows, first]
+    me = s.pos + s.vel * tf[:, None]
+    them = s.nbr_pos[rows, first] + s.nbr_vel[rows, first] * tf[:, None]
     away = me - them
-    urgency = 1.0 - tf[:, 0] / horizon
+    urgency = 1.0 - tf / horizon
     return np.where(any_threat[:, None], unit(away) * (urgency * s.max_speed)[:, None], 0.0)
 
 
