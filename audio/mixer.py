@@ -21,13 +21,15 @@ class Mixer:
     >>> stereo = mixer.mix(np.zeros((2, 256)))  # (256, 2), a view of the mixer's buffer
     """
 
-    def __init__(self, n_sources: int, *, block_size: int = 1024) -> None:
-        if n_sources < 1 or block_size < 1:
-            raise ValueError(f"need n_sources ≥ 1 and block_size ≥ 1, got {n_sources}, {block_size}")
+    def __init__(self, n_sources: int, *, block_size: int = 1024, channels: int = 2) -> None:
+        if n_sources < 1 or block_size < 1 or channels < 2:
+            raise ValueError(f"need n_sources ≥ 1, block_size ≥ 1 and channels ≥ 2, got "
+                             f"{n_sources}, {block_size}, {channels}")
         self.gains = np.ones(n_sources)
         self.pans = np.zeros(n_sources)
-        self._weights = np.empty((n_sources, 2))
-        self._out = np.zeros((block_size, 2))
+        self._placed = np.zeros(n_sources, dtype=bool)  # rows set by place(), not by gain and pan
+        self._weights = np.zeros((n_sources, channels))
+        self._out = np.zeros((block_size, channels))
         self._update_weights()
 
     def set(self, source: int, *, gain: float | None = None, pan: float | None = None) -> None:
@@ -40,13 +42,23 @@ class Mixer:
             self.pans[source] = min(max(pan, -1.0), 1.0)
         self._update_weights()
 
+    def place(self, source: int, weights: np.ndarray) -> None:
+        """Set one source's gain on every output channel at once (a creature in a room,
+        panned by its position over a stereo pair or a ring: creatures/room/speakers.py)."""
+        weights = np.asarray(weights, dtype=float)
+        if weights.shape != (self._weights.shape[1],) or not (weights >= 0).all():
+            raise ValueError(f"weights must be {self._weights.shape[1]} gains ≥ 0, got {weights!r}")
+        self._weights[source] = weights
+        self._placed[source] = True
+
     def _update_weights(self) -> None:
         angle = (self.pans + 1.0) * (np.pi / 4.0)
-        self._weights[:, 0] = self.gains * np.cos(angle)
-        self._weights[:, 1] = self.gains * np.sin(angle)
+        free = ~self._placed
+        self._weights[free, 0] = self.gains[free] * np.cos(angle[free])
+        self._weights[free, 1] = self.gains[free] * np.sin(angle[free])
 
     def mix(self, blocks: np.ndarray) -> np.ndarray:
-        """Sum ``blocks`` ``(n_sources, frames)`` into the stereo buffer; returns ``(frames, 2)``."""
+        """Sum ``blocks`` ``(n_sources, frames)`` into the output buffer; returns ``(frames, channels)``."""
         sources, frames = blocks.shape
         if sources != len(self.gains) or frames > len(self._out):
             raise ValueError(

@@ -61,7 +61,10 @@ class VoicePool:
         index = int(free[0]) if len(free) else int(np.argmin(self.started))
         voice = self.voices[index]
         voice.silence()
-        voice.note_on(midi_to_hz(pitch), velocity)
+        hz = midi_to_hz(pitch)
+        while hz >= self.sample_rate / 2:  # MIDI 124+ at 22050 Hz: sounds octaves down rather than raise
+            hz /= 2
+        voice.note_on(hz, velocity)
         self._count += 1
         self.pitch[index], self.started[index] = pitch, self._count
         self.level[index], self.slope[index] = 1.0, 0.0

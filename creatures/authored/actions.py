@@ -89,6 +89,7 @@ class _PhraseParams(Params):
     pitches: list[int] = Field(min_length=1, description="MIDI pitches in order")
     durations: list[float] | float = Field(0.5, description="seconds per note (one for all, or one each)")
     velocity: int = Field(90, ge=1, le=127, description="MIDI velocity")
+    transpose: int = Field(0, ge=-48, le=48, description="semitones (a crowd's `vary` gives each its own key)")
 
     @model_validator(mode="after")
     def _lengths(self):
@@ -112,7 +113,7 @@ class PlayPhrase(ActionPart):
     def build(self, params, creature, name):
         durations = params.durations if isinstance(params.durations, list) else [params.durations] * len(params.pitches)
         onsets = np.concatenate(([0.0], np.cumsum(durations)[:-1]))
-        written = [NoteEvent(float(o), p, params.velocity, 0, 0.9 * d)
+        written = [NoteEvent(float(o), min(max(p + params.transpose, 0), 127), params.velocity, 0, 0.9 * d)
                    for o, p, d in zip(onsets, params.pitches, durations)]
 
         return Playing(name, creature, lambda t: written)
@@ -141,6 +142,8 @@ class _EchoParams(Params):
     mutation: float = Field(0.2, ge=0, le=1, description="chance each note moves by one of 'steps'")
     steps: list[int] = Field([-12, -7, -5, 5, 7, 12], min_length=1, description="semitone moves a note may make")
     jitter: float = Field(0.0, ge=0, le=1, description="seconds of timing variation per note (uniform ±)")
+    velocity: int | None = Field(None, ge=1, le=127, description="sing at this velocity; none = as heard "
+                                                                "(in a [room], as softly as it arrived)")
 
 
 @ACTIONS.register
@@ -163,7 +166,8 @@ class Echo(ActionPart):
                 if creature.rng.random() < params.mutation:
                     pitch = min(max(pitch + int(creature.rng.choice(steps)), 0), 127)
                 shift = float(creature.rng.uniform(-params.jitter, params.jitter)) if params.jitter else 0.0
-                out.append(NoteEvent(max(0.0, n.time + shift), pitch, n.velocity, 0, n.duration))
+                velocity = n.velocity if params.velocity is None else params.velocity
+                out.append(NoteEvent(max(0.0, n.time + shift), pitch, velocity, 0, n.duration))
             return out
 
         return Playing(name, creature, varied)

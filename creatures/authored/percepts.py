@@ -430,3 +430,103 @@ class Together(PerceptPart):
             return 1.0 - min(m.distance(params.of, n) for n in others) / m.max_distance
 
         return FunctionPercept(name, together)
+
+
+# -- where it is (the installation's [room]: creatures/room/stage.py) -----------------------
+ROOM_PERCEPTS = ("proximity", "bearing", "crowding", "sees")
+"""Percept types that need a ``[room]`` (the config loader refuses them without one)."""
+
+Whom = Literal["visitor", "creature", "player", "loud"]
+
+
+def _stage(creature: "Authored"):
+    return creature.world.room
+
+
+def _ramped(name: str, measure, low: float, high: float) -> Percept:
+    """A percept of a room measure (``measure()``: a number, or None/inf when there is
+    nothing to measure, which reads 0) as a fuzzy ramp from ``low`` (0) to ``high`` (1)."""
+    def read(t: float) -> float:
+        x = measure()
+        return 0.0 if x is None or not math.isfinite(x) else ramp(x, low, high)
+
+    return FunctionPercept(name, read)
+
+
+class _ProximityParams(Params):
+    of: Whom = Field("visitor", description="'visitor' (tracked), 'creature' (another), 'player' (where the "
+                                            "last outside note came from) or 'loud' (a loud sound)")
+    near: float = Field(1.0, ge=0, le=1000, description="metres at which it is fully salient")
+    far: float = Field(5.0, ge=0, le=1000, description="metres beyond which it is 0")
+
+
+@PERCEPTS.register
+class Proximity(PerceptPart):
+    """How near the nearest visitor, creature or loud sound is: 1 within ``near`` m, 0 beyond
+    ``far``, linear between (REACT: neighbourhood; IViHumans: proximity)."""
+
+    name = "proximity"
+    thesis = "percepts"
+    Params = _ProximityParams
+
+    def build(self, params, creature, name):
+        return _ramped(name, lambda: _stage(creature).distance(creature.name, params.of), params.far, params.near)
+
+
+class _BearingParams(Params):
+    of: Whom = Field("visitor", description="'visitor', 'creature', 'player' or 'loud'")
+    width: float = Field(90.0, gt=0, le=180, description="degrees either side of ahead at which it falls to 0")
+
+
+@PERCEPTS.register
+class Bearing(PerceptPart):
+    """How straight ahead the nearest visitor, creature or loud sound is: 1 dead ahead, 0 at
+    ``width`` degrees off the heading or more (facing someone, IViHumans)."""
+
+    name = "bearing"
+    thesis = "percepts"
+    Params = _BearingParams
+
+    def build(self, params, creature, name):
+        def off_ahead() -> float | None:
+            b = _stage(creature).bearing(creature.name, params.of)
+            return None if b is None else abs(b)
+
+        return _ramped(name, off_ahead, params.width, 0.0)
+
+
+class _CrowdingParams(Params):
+    radius: float = Field(2.0, gt=0, le=1000, description="metres around the creature counted")
+    full: int = Field(6, ge=1, le=10_000, description="others within `radius` at which it is fully salient")
+
+
+@PERCEPTS.register
+class Crowding(PerceptPart):
+    """Crowd density: others within ``radius`` m as a fraction of ``full`` (REACT's kd-tree
+    range search)."""
+
+    name = "crowding"
+    thesis = "percepts"
+    Params = _CrowdingParams
+
+    def build(self, params, creature, name):
+        return FunctionPercept(name, lambda t: min(_stage(creature).crowding(creature.name, params.radius)
+                                                   / params.full, 1.0))
+
+
+class _SeesParams(Params):
+    of: Literal["visitor", "creature"] = Field("visitor", description="'visitor' or 'creature'")
+    full: int = Field(1, ge=1, le=10_000, description="how many seen make it fully salient")
+
+
+@PERCEPTS.register
+class Sees(PerceptPart):
+    """What is in the creature's vision cone (``[creature.vehicle]`` fov and sight) and not behind
+    an obstacle, as a fraction of ``full`` (REACT: the range search over the vision cone)."""
+
+    name = "sees"
+    thesis = "percepts"
+    Params = _SeesParams
+
+    def build(self, params, creature, name):
+        return FunctionPercept(name, lambda t: min(_stage(creature).sees(creature.name, params.of) / params.full, 1.0))

@@ -155,6 +155,7 @@ class ActionGroup:
         self._base = np.zeros(0)
         self._interrupt_at = np.zeros(0)
         self._trigger_at_last_start = np.zeros(0)
+        self.disabled: set[str] = set()  # tuples that cannot trigger (a zone of the room turned them off)
         self._proximity: dict[ActionTuple, np.ndarray] = {}
         self._positions: dict[int, int] = {}
         self._ticking = False
@@ -236,7 +237,10 @@ class ActionGroup:
     def triggers(self, t: float) -> np.ndarray:
         """Every tuple's trigger saliency at ``t`` (each distinct percept evaluated once)."""
         saliency = np.fromiter((p.evaluate(t) for p in self._percepts), float, len(self._percepts))
-        return saliency[self._percept_index]
+        trig = saliency[self._percept_index]
+        if self.disabled:  # a director's zone has switched some off (creatures/room/zones.py)
+            trig *= np.fromiter((tp.name not in self.disabled for tp in self.tuples), float, len(self.tuples))
+        return trig
 
     def values(self) -> np.ndarray:
         return np.fromiter((tp.value.to_float() for tp in self.tuples), float, len(self.tuples))

@@ -15,6 +15,7 @@ import numpy as np
 from pydantic import BaseModel, Field
 
 from creatures.bounds import FINITE
+from creatures.room.spec import VehicleSpec
 
 from creatures.behaviour.action_group import ActionGroup
 
@@ -46,6 +47,8 @@ class CreatureSpec(BaseModel):
     hears_input: bool = Field(True, description="hear what comes from outside the colony (MIDI, OSC, the input "
                                                 "map's notes, the input audio and its notes); else only other "
                                                 "creatures (and, with [audio] air, the room)")
+    vehicle: VehicleSpec = Field(VehicleSpec(), description="[creature.vehicle]: its place, body and steering in the "
+                                                           "installation's [room] (ignored without one)")
 
 
 class CreatureKind(ABC):

@@ -347,7 +347,7 @@ def run_live(
     output = None
     summary.sound = "off ([audio] output = false)"
     if settings.audio.output:
-        output = ResilientOutput(sr, 2, clock=wall, device=settings.audio.output_device,
+        output = ResilientOutput(sr, session.channels, clock=wall, device=settings.audio.output_device,
                                  blocksize=settings.audio.block, report=say, supervisor=supervisor, lead=AUDIO_LEAD,
                                  buffer_seconds=AUDIO_BUFFER)
         summary.sound = output.describe()

@@ -143,7 +143,7 @@ def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path 
     session.transcribe_window = OFFLINE_WINDOW  # nobody waits offline: the longer look hears chords better
 
     sr, tick = settings.audio.sample_rate, settings.tick
-    wav = WavOutput(out / "out.wav", sr, 2) if settings.output.wav else None
+    wav = WavOutput(out / "out.wav", sr, session.channels) if settings.output.wav else None
     bodies = BodyFrames(settings.output, out, clock, messages) if settings.output.frames else None
     stream = None
     if settings.stream.file:  # every frame time taken, in place: time waits for the file offline

@@ -20,6 +20,10 @@ from creatures.authored.registry import PluginError
 from creatures.runtime.cc_sources import check_source
 from creatures.config import ConfigError, config_error, read_toml, validate
 from creatures.kinds import CreatureSpec, load_all
+from creatures.authored.percepts import ROOM_PERCEPTS
+from creatures.room.crowd import CrowdError, expand as expand_crowds
+from creatures.room.spec import RoomSection
+from creatures.room.stage import RoomError, StageError, check_places, recipes as room_recipes
 
 
 LONGEST_SEED = 2**63 - 1
@@ -253,12 +257,17 @@ class Installation(Strict):
     health: HealthSection = HealthSection()
     input: InputSection = InputSection()
     output: OutputSection = OutputSection()
+    room: RoomSection | None = Field(None, description="[room]: the floor the creatures move on, hear "
+                                                        "and sound from (see the room section of docs/config.md)")
     include: list[str] = Field(default_factory=list, max_length=256, description="creature files ([[creature]] "
                                                                  "tables) included, relative to this file")
     plugins: list[str] = Field(default_factory=list, max_length=256, description="Python files of actions, "
                                                                  "percepts, models or kinds to register, "
                                                                  "relative to this file")
-    creature: list[dict[str, Any]] = Field(min_length=1, max_length=256, description="the creatures, one [[creature]] table each")
+    creature: list[dict[str, Any]] = Field(min_length=1, max_length=256, description="the creatures, one [[creature]] "
+                                                                                     "table each (`count = N` makes a "
+                                                                                     "crowd of N from one, `vary` their "
+                                                                                     "ranges: creatures/room/crowd.py)")
 
     @model_validator(mode="before")
     @classmethod
@@ -312,7 +321,11 @@ def load_installation(path: str | Path) -> LoadedInstallation:
         raise ConfigError(path, str(exc)) from None
     specs: list[CreatureSpec] = []
     names: set[str] = set()
-    for i, table in enumerate(settings.creature):
+    try:
+        tables, origin = expand_crowds(settings.creature, settings.seed)
+    except CrowdError as exc:
+        raise config_error(path, where, ("creature", exc.index, *exc.key), str(exc)) from None
+    for table, i in zip(tables, origin):
         kind = table.get("kind")
         if not isinstance(kind, str) or kind not in kinds:  # kind = [] must not crash the lookup
             close = difflib.get_close_matches(str(kind), list(kinds), n=1)
@@ -326,6 +339,19 @@ def load_installation(path: str | Path) -> LoadedInstallation:
             raise config_error(path, where, ("creature", i, "name"), f"duplicate creature name {spec.name!r}")
         names.add(spec.name)
         specs.append(spec)
+    for spec, i in zip(specs, origin):
+        for name, percept in (getattr(spec, "percepts", None) or {}).items():
+            if percept.type in ROOM_PERCEPTS and settings.room is None:
+                raise config_error(path, where, ("creature", i, "percepts", name, "type"),
+                                   f"percept type {percept.type!r} needs a [room] (where would it be?)")
+    if settings.room is not None:  # what the creatures' steering names must be in the room
+        try:
+            room_recipes(settings.room, specs, {spec.name: i for i, spec in enumerate(specs)})
+            check_places(settings.room, specs, [kinds[spec.kind].drive_names(spec) for spec in specs])
+        except StageError as exc:
+            raise config_error(path, where, ("creature", origin[exc.creature], *exc.key), str(exc)) from None
+        except RoomError as exc:
+            raise config_error(path, where, ("room", *exc.key), str(exc)) from None
     for key in ("audio", "midi"):
         file = getattr(settings.input, key)
         if file is not None and not (path.parent / file).exists():

@@ -27,6 +27,7 @@ from creatures.runtime.cc_sources import Reader, parse, reader
 from creatures.runtime.input_map import InputRouter
 from creatures.runtime.schema import LoadedInstallation
 from creatures.runtime.world import World
+from creatures.room.stage import Stage
 from midi.channel_setup import CcStream, channel_setup
 from midi.scheduler import NoteScheduler
 from midi.sinks import NoteSink
@@ -65,7 +66,14 @@ class Session:
         self.creatures = self.world.creatures
         self.sample_rate = settings.audio.sample_rate
         block = int(math.ceil(settings.tick * self.sample_rate)) + 1
-        self.mixer = Mixer(len(self.creatures), block_size=block)
+        self.stage: Stage | None = None
+        if settings.room is not None:
+            self.stage = Stage(settings.room, self.creatures, np.random.default_rng(seeds[-1].spawn(1)[0]),
+                               self.world.sensors)
+            self.world.room = self.stage
+        self.channels = 2 if self.stage is None else self.stage.channels
+        """Output channels of the mix (out.wav, live): 2, or the room's ring of speakers."""
+        self.mixer = Mixer(len(self.creatures), block_size=block, channels=self.channels)
         for i, creature in enumerate(self.creatures):
             self.mixer.set(i, gain=creature.spec.gain, pan=creature.spec.pan)
         self._voices = np.zeros((len(self.creatures), block))
@@ -88,6 +96,10 @@ class Session:
         """
         if self.transcribe and recorded is not None:
             self._hear_notes(t, recorded)
+        if self.stage is not None:
+            self.stage.tick(t, self._percept, self.world.emit)
+            for i, (creature, gains) in enumerate(zip(self.creatures, self.stage.speaker_gains())):
+                self.mixer.place(i, creature.spec.gain * gains)
         self.world.deliver(t)
         heard = self._ears(recorded, frames)
         room = self._ears(None, frames) if self._deaf and recorded is not None else heard  # hears_input = false
@@ -111,6 +123,11 @@ class Session:
         if self.air:
             self._room = voices.T @ self.mixer.gains
         return self.mixer.mix(voices)
+
+    def _percept(self, i: int, name: str) -> float:
+        """Creature ``i``'s percept ``name`` now (a steer table's ``when``; the config loader
+        checked the creature has it)."""
+        return float(self.creatures[i].percept(name).evaluate(self.clock.now()))
 
     def _set_up_channels(self) -> None:
         """Each creature's channel in its voice before its first note (midi/channel_setup.py):

@@ -28,6 +28,7 @@ from midi.scheduler import NoteHandle, NoteScheduler
 
 if TYPE_CHECKING:
     from creatures.kinds.base import CreatureKind
+    from creatures.room.stage import Stage
 
 INPUT = "input"
 """The source name of notes that come from outside the colony."""
@@ -59,6 +60,9 @@ class World:
         self.recording = False
         self.heard: deque[NoteEvent] = deque()
         self.tempo: deque[tuple[float, float]] = deque()  # (time, bpm) whenever the heard tempo moved
+        # With a [room] (creatures/room/stage.py), a note reaches each ear from where it was
+        # played, late and attenuated by distance, unless masked; without one, every ear at once.
+        self.room: Stage | None = None
 
     def add(self, creature: "CreatureKind") -> None:
         self.creatures.append(creature)
@@ -132,10 +136,18 @@ class World:
                 self.pulse.hear(note.time)  # the rhythm heard from outside, not the colony's own
                 for listener in self.hearing:
                     listener(source, note)
-            for creature in self.creatures:
-                if creature.name != source and (source != INPUT or creature.spec.hears_input):
-                    creature.hear(note, source)
+            if self.room is not None:
+                self.room.emit(note, source)
+            else:
+                for creature in self.creatures:
+                    if creature.name != source and (source != INPUT or creature.spec.hears_input):
+                        creature.hear(note, source)
             count += 1
+        if self.room is not None:
+            for i, heard, source in self.room.due(t):
+                creature = self.creatures[i]
+                if source != INPUT or creature.spec.hears_input:
+                    creature.hear(heard, source)
         surprises = self.pulse.settle()
         if surprises and self.pulse.ready:  # the heard rhythm changed: an expectation violated
             self.log.emit(t, "surprise", percept="pulse", count=surprises, pulse=self.pulse.model.pulse)

@@ -1,0 +1,106 @@
+"""Creatures in a room (issue 21): crowd steering speed as a multiple of real time, and the
+spatial index's neighbour queries against brute force.
+
+- 200 flockers (wander, separation, alignment, cohesion, wall and obstacle avoidance) on one
+  core: target ≥ 10× real time, with the same crowd steered every sub-step.
+- 1,000 creatures with level of detail (four visitors; far creatures steer at ⅛ rate, at most
+  400 steerings per sub-step) ticked at 0.04 s: target ≥ 1× real time. Not pinned: "on 2
+  cores" is the machine the target names, and numpy's element-wise work here is one thread.
+- k-nearest queries (k = 8 within 3 m, one per creature) at 100, 1,000 and 10,000 creatures,
+  µs per query, beside brute force (every distance) over the same points; the growth row is
+  the 10,000 cost over the 100 cost, target ≤ 4 (log n grows 2×, brute force 100×).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from bench import Row, best_of
+from bench.voice import one_core
+from creatures.room.index import Neighbours
+from creatures.room.lod import LevelOfDetail
+from creatures.room.motion import Crowd
+from creatures.room.recipe import Behaviour, Recipe, Surroundings
+from creatures.room.space import Obstacle, Room
+from creatures.room.vehicle import Vehicles
+
+FLOCK = Recipe((Behaviour("wall_avoidance", 3.0), Behaviour("obstacle_avoidance", 2.0), Behaviour("separation", 1.0),
+                Behaviour("alignment", 2.0), Behaviour("cohesion", 1.0), Behaviour("wander", 0.1)),
+               reach=4.0, neighbours=8)
+
+
+def crowd(n: int, side: float, *, lod: LevelOfDetail | None = None, seed: int = 0) -> Crowd:
+    """``n`` flockers spread over a ``side`` m square room with four pillars and four visitors."""
+    rng = np.random.default_rng(seed)
+    room = Room(side, side, tuple(Obstacle(x * side, y * side, 0.5) for x, y in ((0.3, 0.3), (0.7, 0.3),
+                                                                                  (0.3, 0.7), (0.7, 0.7))))
+    v = Vehicles.at(rng.uniform(1, side - 1, (n, 2)), rng.normal(size=(n, 2)), radius=0.2)
+    visitors = rng.uniform(0, side, (4, 2))
+    c = Crowd(room, v, [FLOCK], seed=seed, lod=lod, around=Surroundings(visitors, np.zeros((4, 2))))
+    return c
+
+
+def speed(c: Crowd, seconds: float, tick: float, clock=time.process_time) -> float:
+    """Simulated seconds per second of ``clock``, ticking at ``tick`` (levels planned each
+    tick). CPU time by default: the bench machine is shared, and this process's CPU seconds
+    are what the crowd costs whatever else runs beside it."""
+    t0, t = clock(), c.t
+    end = t + seconds
+    while t < end - 1e-9:
+        t += tick
+        c.plan()
+        c.advance_to(t)
+    return seconds / (clock() - t0)
+
+
+def _crowd_rows(quick: bool) -> list[Row]:
+    seconds = 5.0 if quick else 30.0
+    with one_core():
+        small = crowd(200, 20.0)
+        speed(small, 1.0, 0.04)  # warm
+        x200 = speed(small, seconds, 0.04)
+    big = crowd(1000, 60.0, lod=LevelOfDetail(near=6.0, levels=3, budget=400))
+    speed(big, 1.0, 0.04)
+    x1000 = speed(big, seconds, 0.04)
+    wall = speed(big, seconds / 2, 0.04, clock=time.perf_counter)
+    full = crowd(1000, 60.0)
+    x1000_full = speed(full, 2.0 if quick else 5.0, 0.04)
+    return [
+        Row("200 flockers, one core, 0.04 s tick (0.01 s sub-steps)", x200, "× real time", target=10.0),
+        Row("1,000 flockers with level of detail, 0.04 s tick", x1000, "× real time", target=1.0,
+            baseline="same crowd, no LOD", ratio=x1000 / x1000_full),
+        Row("1,000 flockers with level of detail, wall clock (shared machine)", wall, "× real time"),
+        Row("1,000 flockers, every one steering every sub-step", x1000_full, "× real time"),
+    ]
+
+
+def _query_rows(quick: bool) -> list[Row]:
+    rows, per = [], {}
+    for n in (100, 1_000, 10_000):
+        rng = np.random.default_rng(n)
+        side = np.sqrt(n) * 1.5  # the same density at every size: about 12 within 3 m of each
+        pos = rng.uniform(0, side, (n, 2))
+        who = np.arange(n)
+        asked = min(n, 1_000)  # brute force over 10,000 × 10,000 would need 800 MB at once
+
+        def tree() -> None:  # as a sub-step does: build over all, every creature asks
+            Neighbours(pos).near(who, pos, k=8, radius=3.0)
+
+        def brute() -> None:
+            d = ((pos[:asked, None, :] - pos[None, :, :]) ** 2).sum(-1)
+            np.argpartition(d, 8, axis=1)
+
+        t_tree = best_of(tree, repeat=3 if quick else 7, clock=time.process_time) / n * 1e6
+        t_brute = best_of(brute, repeat=2 if quick else 3, clock=time.process_time) / asked * 1e6
+        per[n] = t_tree
+        rows.append(Row(f"neighbour query, {n:,} creatures (kd-tree build included)", t_tree, "µs/query",
+                        higher_is_better=False, baseline="brute force", ratio=t_brute / t_tree))
+    rows.append(Row("neighbour query cost, 10,000 / 100 creatures", per[10_000] / per[100], "×", target=4.0,
+                    higher_is_better=False))
+    return rows
+
+
+def run(quick: bool) -> list[Row]:
+    return _crowd_rows(quick) + _query_rows(quick)

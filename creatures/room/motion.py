@@ -1,0 +1,100 @@
+"""The crowd on clock time: fixed sub-steps, so that behaviour does not depend on the tick
+(DESIGN.md, "Time"; the WavesWorld lesson that machine-dependent time makes behaviour run
+faster on faster machines applies to ticks as much as to machines).
+
+:meth:`Crowd.advance_to` runs as many sub-steps of ``substep`` seconds as fit before the
+clock's time, carrying the remainder: a run ticked at 0.02 s and one ticked at 0.04 s take
+the same sub-steps and draw the same random numbers, so they trace the same paths (up to
+what their decisions, made at ticks, change).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from creatures.room.combine import POLICIES
+from creatures.room.index import Neighbours
+from creatures.room.lod import LevelOfDetail
+from creatures.room.recipe import BEHAVIOURS, Recipe, Step, Surroundings
+from creatures.room.space import Room
+from creatures.room.steering import Scene
+from creatures.room.vehicle import Vehicles
+
+SUBSTEP = 0.01
+"""Default sub-step, seconds: short enough for arrival's spring and for separation at 1 m/s
+to act before two 0.25 m bodies meet (0.01 m of travel per sub-step)."""
+
+
+class Crowd:
+    """Vehicles in a room, each in a ``group`` whose :class:`Recipe` steers it."""
+
+    def __init__(self, room: Room, vehicles: Vehicles, recipes: list[Recipe], groups: np.ndarray | None = None,
+                 *, substep: float = SUBSTEP, seed: int = 0, lod: LevelOfDetail | None = None,
+                 around: Surroundings | None = None) -> None:
+        self.room, self.v, self.recipes = room, vehicles, recipes
+        self.groups = np.zeros(len(vehicles), dtype=np.intp) if groups is None else np.asarray(groups, np.intp)
+        self.substep, self.lod = substep, lod
+        self.around = around or Surroundings()
+        self.rng = np.random.default_rng(seed)
+        self.wander_angle = np.zeros(len(vehicles))
+        self.force = np.zeros((len(vehicles), 2))
+        # Each creature's own multiplier of each behaviour's weight (a percept-gated `when`).
+        self.gain = np.ones((len(vehicles), max((len(r.behaviours) for r in recipes), default=0)))
+        self.t = 0.0
+        self.steps = 0
+        self.steered = 0  # creature-steerings done, for the level-of-detail budget's accounting
+        self._level = np.zeros(len(vehicles), dtype=np.int64)
+        self._rank = np.zeros(len(vehicles), dtype=np.int64)
+        room.contain(vehicles.pos, vehicles.vel, vehicles.radius)
+
+    def advance_to(self, t: float) -> int:
+        """Run every sub-step that ends by ``t``; returns how many ran."""
+        ran = 0
+        while self.t + self.substep <= t + 1e-9:
+            self.step()
+            ran += 1
+        return ran
+
+    def plan(self, listeners: np.ndarray | None = None) -> None:
+        """Choose levels of detail from where the ``listeners`` (default: the visitors) are
+        now (called by the caller each tick: the levels change as slowly as people walk)."""
+        if self.lod is None:
+            return
+        self._level = self.lod.level(self.v.pos, self.around.visitors if listeners is None else listeners)
+        self._rank = np.argsort(np.argsort(self._level, kind="stable"), kind="stable")
+
+    def step(self) -> None:
+        """One sub-step: who steers, their neighbours, their forces, then everyone moves."""
+        v = self.v
+        who = (np.arange(len(v)) if self.lod is None else self.lod.due(self.steps, self._level, self._rank))
+        if len(who):
+            index = Neighbours(v.pos)
+            # The crowd's rows with one zero row after them, where padded neighbours point.
+            rows = tuple(np.concatenate([x, np.zeros((1, *x.shape[1:]))]) for x in (v.pos, v.vel, v.radius))
+            for g, recipe in enumerate(self.recipes):
+                members = who if len(self.recipes) == 1 else who[self.groups[who] == g]
+                if len(members):
+                    self.force[members] = self._steer(index, rows, recipe, members)
+            self.steered += len(who)
+        v.step(self.force, self.substep)
+        self.room.contain(v.pos, v.vel, v.radius)
+        self.t = (self.steps + 1) * self.substep  # by count, so no rounding drift over a night
+        self.steps += 1
+
+    def _steer(self, index: Neighbours, rows: tuple[np.ndarray, ...], recipe: Recipe, who: np.ndarray) -> np.ndarray:
+        v = self.v
+        if not recipe.behaviours:  # a creature that stands where it was put
+            return np.zeros((len(who), 2))
+        near = index.near(who, v.pos[who], k=recipe.neighbours, radius=recipe.reach)
+        pos, vel, radius = (x[near.index] for x in rows)
+        scene = Scene(who, v.pos[who], v.vel[who], v.heading[who], v.max_speed[who], v.radius[who], near,
+                      pos, vel, radius, self.room)
+        step = Step(scene, v.pos, v.vel, v.heading, self.around, self.substep, self.rng, self.wander_angle)
+        gain = self.gain[who]  # each creature's multiplier of each behaviour's weight
+        forces = [BEHAVIOURS[b.name](step, b.params) * gain[:, k:k + 1] for k, b in enumerate(recipe.behaviours)]
+        weights = [b.weight for b in recipe.behaviours]
+        policy = POLICIES[recipe.combine]
+        if recipe.combine == "dithering":
+            uniform = self.rng.random((len(forces), len(who)))
+            return policy(forces, weights, v.max_force[who], [b.probability for b in recipe.behaviours], uniform)
+        return policy(forces, weights, v.max_force[who])

@@ -1,0 +1,202 @@
+"""The config of a room: the installation's ``[room]`` table and each creature's
+``[creature.vehicle]`` table (documented in docs/config.md from these field descriptions).
+
+Every number is bounded and every list has a maximum length (a config is read in a gallery,
+where a typo must be an error at its line, never a night of nonsense).
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, Field, model_validator
+
+from creatures.bounds import FINITE, Bounded
+from creatures.room.recipe import BEHAVIOURS
+
+BODY_KEYS = ("max_speed", "max_force", "mass", "radius", "max_turn")
+"""The ``[creature.vehicle]`` keys a zone's ``spec`` may override (the vehicle's columns)."""
+
+LARGEST_ROOM = 1000.0
+"""Metres: the longest side a room may have (a field, not a continent)."""
+
+Metres = Annotated[float, Field(ge=0, le=LARGEST_ROOM)]
+"""A coordinate on the floor, m from the room's corner."""
+
+Point = tuple[Metres, Metres]
+
+
+class Strict(BaseModel):
+    model_config = FINITE
+
+
+class ObstacleSpec(Strict):
+    """A round obstacle: ``at`` [x, y] and ``radius``, metres."""
+
+    at: Point = Field(description="centre [x, y], m from the room's corner")
+    radius: float = Field(gt=0, le=LARGEST_ROOM, description="radius, m")
+
+
+class VisitorSpec(Strict):
+    """A tracked visitor: two sensors of the input map (``[[input]]`` with ``to = "sensor"``,
+    e.g. an OSC tracker's ``/visitor/1 x y``) giving their position."""
+
+    x: str = Field(description="sensor holding x, m (scale a tracker's 0..1 with the map's `range`)")
+    y: str = Field(description="sensor holding y, m")
+    timeout: float = Field(2.0, gt=0, le=3600, description="seconds without a reading before the visitor "
+                                                           "counts as gone")
+
+
+class ZoneSpec(Strict):
+    """An ActionBox (REACT): a rectangle of floor that changes each creature inside it, and
+    undoes the change when it leaves."""
+
+    name: str = Field(pattern=r"^[A-Za-z0-9_\-]+$", description="the zone's name (in the events log)")
+    low: Point = Field(description="one corner [x, y], m")
+    high: Point = Field(description="the opposite corner [x, y], m")
+    drives: dict[str, Bounded] = Field(default_factory=dict, max_length=64,
+                                     description="drives set to these levels on entry (restored on leaving)")
+    spec: dict[str, float | int | str | bool] = Field(
+        default_factory=dict, max_length=64,
+        description="[creature.vehicle] keys overridden inside: max_speed, max_force, mass, radius, max_turn")
+    enable: list[str] = Field(default_factory=list, max_length=256, description="tuples enabled inside (and "
+                                                                            "off everywhere else)")
+    disable: list[str] = Field(default_factory=list, max_length=256, description="tuples disabled inside")
+
+    @model_validator(mode="after")
+    def _body_keys(self) -> "ZoneSpec":
+        for key, value in self.spec.items():
+            if key not in BODY_KEYS:
+                raise ValueError(f"zone {self.name!r}: spec key {key!r} is not a body key (choose from {BODY_KEYS})")
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value <= 36000:
+                raise ValueError(f"zone {self.name!r}: spec[{key!r}] = {value!r} must be a number in (0, 36000]")
+        return self
+
+
+class PathSpec(Strict):
+    """A path (REACTPath) the crowd may follow: points and how far it may stray."""
+
+    name: str = Field(pattern=r"^[A-Za-z0-9_\-]+$", description="named by `path = ` in a steer table")
+    points: list[Point] = Field(min_length=2, max_length=1024, description="[x, y] points, m")
+    radius: float = Field(0.5, gt=0, le=LARGEST_ROOM, description="how far from the line it may stray, m")
+
+
+class FlowSpec(Strict):
+    """A flow field (REACTFlowfield) over the room."""
+
+    name: str = Field(pattern=r"^[A-Za-z0-9_\-]+$", description="named by `field = ` in a steer table")
+    shape: Literal["uniform", "vortex"] = Field("vortex", description="'uniform' (one direction) or 'vortex' "
+                                                                      "(round the room's centre)")
+    direction: tuple[Annotated[float, Field(ge=-1, le=1)], Annotated[float, Field(ge=-1, le=1)]] = Field(
+        (1.0, 0.0), description="shape = 'uniform': the direction [dx, dy]")
+    clockwise: bool = Field(False, description="shape = 'vortex': which way round")
+    cell: float = Field(0.5, gt=0.01, le=LARGEST_ROOM, description="grid cell, m")
+
+
+class HearingSpec(Strict):
+    """How sound crosses the room: a distance law, the speed of sound, and masking."""
+
+    law: Literal["inverse", "inverse_square", "linear"] = Field(
+        "inverse", description="level against distance: 'inverse' (−6 dB per doubling), 'inverse_square' "
+                               "(−12 dB), 'linear' (amplitude to silence at `silent`)")
+    reference: float = Field(1.0, gt=0, le=LARGEST_ROOM, description="distance of full level, m")
+    silent: float = Field(20.0, gt=0, le=LARGEST_ROOM, description="law = 'linear': distance of silence, m")
+    delay: bool = Field(True, description="sound arrives distance/343 s late")
+    margin: float = Field(20.0, ge=0, le=120, description="a sound this many dB louder masks a quieter one "
+                                                         "overlapping it in time")
+    band: float = Field(12.0, ge=0, le=128, description="semitones within which a louder note masks")
+    threshold: float = Field(-60.0, ge=-200, le=0, description="dB (re velocity 127 at the reference "
+                                                               "distance) below which nothing is heard")
+    loud: float = Field(100.0, ge=1, le=127, description="velocity from which a note is a loud sound "
+                                                         "(steer target 'loud') for one second")
+
+
+class LodSpec(Strict):
+    """Level of detail: far creatures steer less often, within a budget per sub-step."""
+
+    near: float = Field(4.0, gt=0, le=LARGEST_ROOM, description="m from the nearest visitor (or the listener) "
+                                                               "within which a creature steers every sub-step; each "
+                                                               "further `near` halves its rate")
+    levels: int = Field(3, ge=0, le=8, description="slowest rate is one sub-step in 2**levels")
+    budget: int | None = Field(None, ge=1, le=1_000_000, description="most creatures steering in one sub-step")
+
+
+class RoomSection(Strict):
+    """``[room]``: the floor the creatures stand on (issue 21; REACT, IViHumans, WavesWorld's
+    raveWorld). With a room, each creature has a place (``[creature.vehicle]``), hears others
+    by distance and sounds from where it stands."""
+
+    width: float = Field(10.0, gt=0, le=LARGEST_ROOM, description="x extent, m")
+    depth: float = Field(10.0, gt=0, le=LARGEST_ROOM, description="y extent, m")
+    obstacles: list[ObstacleSpec] = Field(default_factory=list, max_length=256, description="[[room.obstacles]]")
+    substep: float = Field(0.01, ge=0.001, le=0.1, description="fixed integration step, s (the tick does "
+                                                               "not change the paths)")
+    listener: Point | None = Field(None, description="where out.wav's listener stands [x, y] "
+                                                                   "(default: the middle of the near wall, y = 0)")
+    speakers: Literal["stereo", "ring"] = Field("stereo", description="out.wav and live output: a stereo pair "
+                                                                      "or a ring of `channels` speakers (VBAP)")
+    channels: int = Field(8, ge=2, le=64, description="speakers = 'ring': how many")
+    input_at: Point | None = Field(None, description="where input notes sound when no visitor "
+                                                                   "is tracked (default: the listener)")
+    visitors: list[VisitorSpec] = Field(default_factory=list, max_length=64, description="[[room.visitors]]")
+    hearing: HearingSpec = HearingSpec()
+    lod: LodSpec | None = Field(None, description="[room.lod]; none = every creature steers every sub-step")
+    zones: list[ZoneSpec] = Field(default_factory=list, max_length=256, description="[[room.zones]]")
+    paths: list[PathSpec] = Field(default_factory=list, max_length=256, description="[[room.paths]]")
+    flows: list[FlowSpec] = Field(default_factory=list, max_length=64, description="[[room.flows]]")
+    report_every: float = Field(1.0, gt=0, le=3600, description="seconds between 'room' events (every "
+                                                                "creature's position and heading) in the log")
+
+
+class SteerSpec(Strict):
+    """One steering behaviour of a creature (``[[creature.vehicle.steer]]``), in priority order."""
+
+    behaviour: str = Field(description="one of: " + ", ".join(sorted(BEHAVIOURS)))
+    weight: float = Field(1.0, ge=0, le=100, description="its weight in the combination")
+    probability: float = Field(1.0, ge=0, le=1, description="combine = 'dithering': chance it is considered")
+    when: str | None = Field(None, description="a percept of the creature whose value (0..1) scales the weight "
+                                               "each tick (gathering only while someone plays)")
+    target: str | Point | None = Field(
+        None, description="seek, flee, arrival, pursuit, evasion, leader_following: 'visitor' (the nearest), "
+                          "'player' (where the last note from outside came from, for 4 s), 'loud' (the nearest "
+                          "loud sound), 'centre', [x, y], or another creature's name")
+    slowing: float | None = Field(None, gt=0, le=LARGEST_ROOM, description="arrival: slowing distance, m")
+    panic: float | None = Field(None, gt=0, le=LARGEST_ROOM, description="flee, evasion: only within this, m")
+    behind: float | None = Field(None, gt=0, le=LARGEST_ROOM, description="leader_following: distance behind, m")
+    path: str | None = Field(None, description="path_following: a [[room.paths]] name")
+    field: str | None = Field(None, description="flow_following: a [[room.flows]] name")
+    rate: float | None = Field(None, ge=0, le=100, description="wander: drift of the wander angle, rad/√s")
+
+    @model_validator(mode="after")
+    def _known(self) -> "SteerSpec":
+        if self.behaviour not in BEHAVIOURS:
+            import difflib
+            close = difflib.get_close_matches(self.behaviour, list(BEHAVIOURS), n=1)
+            raise ValueError(f"unknown steering behaviour {self.behaviour!r}"
+                             + (f" (did you mean {close[0]!r}?)" if close else f" (choose from {sorted(BEHAVIOURS)})"))
+        return self
+
+    def params(self) -> dict[str, Any]:
+        """The behaviour's keyword parameters (those set)."""
+        keys = ("target", "slowing", "panic", "behind", "path", "field", "rate")
+        return {k: getattr(self, k) for k in keys if getattr(self, k) is not None}
+
+
+class VehicleSpec(Strict):
+    """``[creature.vehicle]``: a creature's place and body in the room (REACT's vehicle)."""
+
+    at: Point | None = Field(None, description="start [x, y], m (default: a seeded random place)")
+    heading: float | None = Field(None, ge=-360, le=360, description="start heading, degrees (default: random)")
+    mass: float = Field(1.0, gt=0, le=1000, description="kg")
+    max_force: float = Field(2.0, gt=0, le=1000, description="largest steering force, N")
+    max_speed: float = Field(1.0, gt=0, le=100, description="m/s")
+    radius: float = Field(0.25, gt=0, le=LARGEST_ROOM, description="body radius, m")
+    max_turn: float = Field(360.0, gt=0, le=36000, description="fastest turn, degrees per second")
+    steer: list[SteerSpec] = Field(default_factory=list, max_length=32,
+                                   description="[[creature.vehicle.steer]] behaviours, most important first")
+    combine: Literal["weighted", "budget", "dithering"] = Field(
+        "weighted", description="'weighted' (truncated sum), 'budget' (prioritised), 'dithering' (prioritised)")
+    neighbours: int = Field(7, ge=1, le=64, description="neighbours the flocking behaviours see")
+    reach: float = Field(3.0, gt=0, le=LARGEST_ROOM, description="radius of the neighbourhood, m")
+    fov: float = Field(200.0, gt=0, le=360, description="vision cone, degrees")
+    sight: float = Field(10.0, gt=0, le=LARGEST_ROOM, description="how far it sees, m")

@@ -1,0 +1,352 @@
+"""A session's room (``[room]``): every creature's vehicle in one :class:`Crowd`, the
+visitors from the tracker's sensors, hearing across the room, and where each voice sounds.
+
+The :class:`~creatures.runtime.session.Session` builds one when the config has a ``[room]``
+and calls it on the one way through a tick: :meth:`Stage.tick` (visitors → zones → sub-steps
+of steering) before the world delivers notes, :meth:`Stage.emit` for each note that starts
+(instead of giving it to every ear at once), :meth:`Stage.due` for what each ear hears now,
+and :meth:`Stage.place` to set each voice's speaker gains.
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+import json
+from typing import TYPE_CHECKING, Callable
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from creatures.room.director import FlowField, Path
+from creatures.room.hearing import Arrival, DistanceLaw, Masking, arrive, db_velocity, velocity_db
+from creatures.room.lod import LevelOfDetail
+from creatures.room.motion import Crowd
+from creatures.room.recipe import NAMED_TARGETS, Behaviour, Recipe, Surroundings
+from creatures.room.space import Obstacle, Room
+from creatures.room.spec import RoomSection, VehicleSpec
+from creatures.room.speakers import azimuth, ring, stereo, vbap
+from creatures.room.vehicle import Vehicles, norms
+from creatures.room.vision import visible
+from creatures.room.zones import Zones
+from midi.notes import NoteEvent
+
+if TYPE_CHECKING:
+    from creatures.behaviour.state_object import StateObject
+    from creatures.kinds.base import CreatureKind
+
+LOUD_FOR = 1.0
+"""Seconds a loud note stays a 'loud' steering target after it starts."""
+
+PLAYER_FOR = 4.0
+"""Seconds the place an outside note came from stays the 'player' target after it starts
+(a phrase's gaps must not scatter a crowd gathered round whoever plays)."""
+
+
+class StageError(ValueError):
+    """A ``[creature.vehicle]`` that names what is not there; ``key`` is the path under the creature."""
+
+    def __init__(self, creature: int, key: tuple, message: str) -> None:
+        super().__init__(message)
+        self.creature, self.key = creature, key
+
+
+class RoomError(ValueError):
+    """A ``[room]`` key that cannot work with these creatures; ``key`` is its path under room."""
+
+    def __init__(self, key: tuple, message: str) -> None:
+        super().__init__(message)
+        self.key = key
+
+
+def check_places(section: RoomSection, specs: list, drives: list[tuple[str, ...]]) -> None:
+    """Every place named is on the floor, and every zone's drives and tuples are some
+    creature's (:class:`StageError`, :class:`RoomError`; a zone's change to a creature without
+    that drive or tuple does nothing to it, but a name no creature has is a typo)."""
+    size = (section.width, section.depth)
+
+    def off(point: tuple[float, float] | None) -> bool:
+        return point is not None and not (0 <= point[0] <= size[0] and 0 <= point[1] <= size[1])
+
+    for i, spec in enumerate(specs):
+        if off(spec.vehicle.at):
+            raise StageError(i, ("vehicle", "at"), f"start {list(spec.vehicle.at)} is outside the "
+                             f"{size[0]:g} x {size[1]:g} m room")
+    for key in ("listener", "input_at"):
+        if off(getattr(section, key)):
+            raise RoomError((key,), f"{key} {list(getattr(section, key))} is outside the {size[0]:g} x {size[1]:g} m room")
+    all_drives = {d for names in drives for d in names}
+    all_tuples = {t for spec in specs for t in (getattr(spec, "tuples", None) or {})}
+    for z, zone in enumerate(section.zones):
+        for name in zone.drives:
+            if name not in all_drives:
+                raise RoomError(("zones", z, "drives", name), f"zone {zone.name!r}: no creature has a drive "
+                                f"{name!r} (drives: {sorted(all_drives)})")
+        for key in ("enable", "disable"):
+            for name in getattr(zone, key):
+                if name not in all_tuples:
+                    raise RoomError(("zones", z, key), f"zone {zone.name!r}: no creature has a tuple {name!r}")
+
+
+def recipes(section: RoomSection, specs: list, index: dict[str, int]
+            ) -> tuple[list[Recipe], np.ndarray, list[tuple[int, int, str]]]:
+    """One recipe per distinct steering (a crowd's clones share one, so they steer as one
+    array), each creature's group, and the (creature, behaviour, percept) of every ``when``.
+    ``specs`` are the creatures' specs (``spec.vehicle``, and ``spec.percepts`` for ``when``);
+    :class:`StageError` for a name that is not there (checked when the config loads)."""
+    keys: dict[str, int] = {}
+    out: list[Recipe] = []
+    groups = np.zeros(len(specs), dtype=np.intp)
+    when: list[tuple[int, int, str]] = []
+    paths, flows = {p.name for p in section.paths}, {f.name for f in section.flows}
+    for i, spec in enumerate(specs):
+        s = spec.vehicle
+        behaviours = []
+        for b, steer in enumerate(s.steer):
+            params = steer.params()
+            target = params.get("target")
+            if isinstance(target, str) and target not in NAMED_TARGETS:
+                if target not in index:
+                    raise StageError(i, ("vehicle", "steer", b, "target"), f"no creature named {target!r} to steer "
+                                     f"by (or one of {NAMED_TARGETS}, or [x, y])")
+                params["target"] = index[target]
+            need = {"path_following": ("path", paths), "flow_following": ("field", flows)}.get(steer.behaviour)
+            if need is not None and params.get(need[0]) not in need[1]:
+                raise StageError(i, ("vehicle", "steer", b, need[0]), f"{steer.behaviour} needs {need[0]} = one of "
+                                 f"the room's [[room.{need[0]}s]] names {sorted(need[1])}, got {params.get(need[0])!r}")
+            if steer.when is not None:
+                percepts = getattr(spec, "percepts", None)
+                if percepts is None or steer.when not in percepts:
+                    raise StageError(i, ("vehicle", "steer", b, "when"), f"no percept {steer.when!r} "
+                                     f"(this creature's: {sorted(percepts or [])})")
+                when.append((i, b, steer.when))
+            behaviours.append(Behaviour(steer.behaviour, steer.weight, steer.probability, params))
+        key = json.dumps([[b.name, b.weight, b.probability, sorted(b.params.items())] for b in behaviours]
+                         + [s.combine, s.neighbours, s.reach], default=str)
+        if key not in keys:
+            keys[key] = len(out)
+            out.append(Recipe(tuple(behaviours), s.combine, s.neighbours, s.reach))
+        groups[i] = keys[key]
+    return out, groups, when
+
+
+class Stage:
+    """The room, the crowd in it, and what crosses it."""
+
+    def __init__(self, section: RoomSection, creatures: list["CreatureKind"], rng: np.random.Generator,
+                 sensors: dict[str, "StateObject"]) -> None:
+        self.section = section
+        self.creatures = creatures
+        self.index = {c.name: i for i, c in enumerate(creatures)}
+        self.room = Room(section.width, section.depth,
+                         tuple(Obstacle(o.at[0], o.at[1], o.radius) for o in section.obstacles))
+        self.sensors = sensors
+        specs = [c.spec.vehicle for c in creatures]
+        self.v = self._vehicles(specs, rng)
+        plans, groups, self._when = recipes(section, [c.spec for c in creatures], self.index)
+        around = Surroundings(paths={p.name: Path(np.array(p.points, float), p.radius) for p in section.paths},
+                              fields={f.name: self._field(f) for f in section.flows})
+        lod = None if section.lod is None else LevelOfDetail(section.lod.near, section.lod.levels, section.lod.budget)
+        self.crowd = Crowd(self.room, self.v, plans, groups, substep=section.substep,
+                           seed=int(rng.integers(2**32)), lod=lod, around=around)
+        self.zones = Zones(section.zones, creatures)
+        h = section.hearing
+        self.law = DistanceLaw(h.law, h.reference, h.silent)
+        self.masking = Masking(h.margin, h.band, h.threshold)
+        self.listener = np.array(section.listener if section.listener is not None else (section.width / 2, 0.0))
+        self.speakers = ring(section.channels, 0.0) if section.speakers == "ring" else None
+        self.channels = 2 if self.speakers is None else section.channels
+        self._loud: list[tuple[float, np.ndarray]] = []  # (until, where) of each loud note
+        self._player: tuple[float, np.ndarray] | None = None  # (until, where) of the last outside note
+        self._arrivals: list[tuple[float, int, int, Arrival, str]] = []
+        self._at_ear: list[list[Arrival]] = [[] for _ in creatures]
+        self._seq = itertools.count()
+        self.masked = 0  # arrivals a louder sound hid
+        self._tree: cKDTree | None = None
+        self._tree_at = -1
+        self._next_report = 0.0
+
+    # -- building ------------------------------------------------------------------------
+    def _vehicles(self, specs: list[VehicleSpec], rng: np.random.Generator) -> Vehicles:
+        """Each creature where its spec says, else at a seeded random free place."""
+        size = self.room.size
+        pos, heading = np.zeros((len(specs), 2)), np.zeros((len(specs), 2))
+        for i, s in enumerate(specs):
+            if s.at is not None:
+                pos[i] = s.at
+            else:
+                for _ in range(100):  # a free place (off the obstacles), else the last draw
+                    pos[i] = rng.uniform(s.radius, size - s.radius)
+                    if not len(self.room.obstacles) or (
+                            norms(self.room.centres - pos[i]) > self.room.radii + s.radius).all():
+                        break
+            angle = np.radians(s.heading) if s.heading is not None else rng.uniform(-np.pi, np.pi)
+            heading[i] = (np.cos(angle), np.sin(angle))
+
+        def col(key: str) -> np.ndarray:
+            return np.array([getattr(s, key) for s in specs], dtype=float)
+
+        v = Vehicles(pos, np.zeros_like(pos), heading, col("mass"), col("max_force"), col("max_speed"),
+                     col("radius"), np.radians(col("max_turn")))
+        return v
+
+    def _field(self, f) -> FlowField:
+        if f.shape == "uniform":
+            return FlowField.uniform(self.room.size, f.cell, f.direction)
+        return FlowField.vortex(self.room.size, f.cell, f.clockwise)
+
+    # -- each tick --------------------------------------------------------------------------
+    def tick(self, t: float, percept: Callable[[int, str], float], emit: Callable[..., None]) -> None:
+        """Visitors from the tracker, ``when`` weights from the creatures' percepts (``percept(i,
+        name)``), the zones, then the sub-steps up to ``t``."""
+        self._visitors(t)
+        self._loud = [(end, where) for end, where in self._loud if end > t]
+        self.crowd.around.loud = np.array([w for _, w in self._loud]).reshape(-1, 2)
+        if self._player is not None and self._player[0] <= t:
+            self._player = None
+        self.crowd.around.player = np.zeros((0, 2)) if self._player is None else self._player[1][None, :]
+        for i, b, name in self._when:
+            self.crowd.gain[i, b] = min(max(percept(i, name), 0.0), 1.0)
+        self.zones.update(t, self.v, emit)
+        self.crowd.plan(np.vstack([self.crowd.around.visitors, self.listener[None, :]]))  # who is heard, near
+        self.crowd.advance_to(t)
+        if t >= self._next_report:  # where everyone is, for the report and for tests
+            self._next_report = t + self.section.report_every
+            emit("room", pos=np.round(self.v.pos, 3).tolist(), heading=np.round(self.v.heading, 3).tolist(),
+                 visitors=np.round(self.crowd.around.visitors, 3).tolist(), masked=self.masked)
+
+    def _visitors(self, t: float) -> None:
+        seen, moving = [], []
+        for visitor in self.section.visitors:
+            x, y = self.sensors.get(visitor.x), self.sensors.get(visitor.y)
+            if x is None or y is None or not len(x) or not len(y):
+                continue
+            if min(x.times_array[-1], y.times_array[-1]) < t - visitor.timeout:
+                continue  # the tracker lost them: gone
+            seen.append((float(x.latest()), float(y.latest())))
+            moving.append(self._velocity(x, y))
+        room = self.crowd.around
+        room.visitors = np.clip(np.array(seen, float).reshape(-1, 2), 0.0, self.room.size)
+        room.visitor_vel = np.array(moving, float).reshape(-1, 2)
+
+    @staticmethod
+    def _velocity(x: "StateObject", y: "StateObject") -> tuple[float, float]:
+        """From the last two readings of each sensor (0 with fewer)."""
+        def rate(s: "StateObject") -> float:
+            times, data = s.times_array, s.data
+            if len(times) < 2 or times[-1] <= times[-2]:
+                return 0.0
+            return (float(data[-1]) - float(data[-2])) / (times[-1] - times[-2])
+        return rate(x), rate(y)
+
+    # -- hearing -----------------------------------------------------------------------------
+    def source_at(self, source: str) -> np.ndarray:
+        """Where a sound of ``source`` comes from: its creature, else (input) the first tracked
+        visitor, else ``input_at``, else the listener."""
+        if source in self.index:
+            return self.v.pos[self.index[source]].copy()
+        if len(self.crowd.around.visitors):
+            return self.crowd.around.visitors[0].copy()
+        return np.array(self.section.input_at if self.section.input_at is not None else self.listener, float)
+
+    def emit(self, note: NoteEvent, source: str) -> None:
+        """A note has started at its source: it reaches each other creature's ear after
+        distance/343 s, attenuated by the law."""
+        where = self.source_at(source)
+        if note.velocity >= self.section.hearing.loud:
+            self._loud.append((note.time + LOUD_FOR, where))
+        if source not in self.index:
+            self._player = (note.time + PLAYER_FOR, where)
+        distance = norms(self.v.pos - where)
+        me = self.index.get(source, -1)
+        for i, d in enumerate(distance):
+            if i == me:
+                continue
+            a = arrive(note.time, note.duration, velocity_db(note.velocity), note.pitch, note, float(d), self.law,
+                       delay=self.section.hearing.delay)
+            heapq.heappush(self._arrivals, (a.start, next(self._seq), i, a, source))
+
+    def due(self, t: float) -> list[tuple[int, NoteEvent, str]]:
+        """What each ear hears by ``t``: (creature index, the note as it arrives, its source),
+        leaving out what is masked by a louder sound already sounding at that ear."""
+        heard = []
+        while self._arrivals and self._arrivals[0][0] <= t:
+            _, _, i, a, source = heapq.heappop(self._arrivals)
+            ear = [b for b in self._at_ear[i] if b.end > a.start]
+            ear.append(a)
+            self._at_ear[i] = ear
+            if not self.masking.heard(ear)[-1]:
+                self.masked += 1
+                continue
+            note: NoteEvent = a.what  # type: ignore[assignment]
+            velocity = int(min(max(round(db_velocity(a.db)), 1), 127))
+            heard.append((i, NoteEvent(round(a.start, 6), note.pitch, velocity, note.channel, note.duration), source))
+        return heard
+
+    # -- where each voice sounds ---------------------------------------------------------------
+    def speaker_gains(self) -> np.ndarray:
+        """Every creature's amplitude gains on each output channel, (N, channels): its
+        direction from the listener panned over the speakers (stereo or VBAP), times the
+        distance law."""
+        pos = self.v.pos
+        az = np.atleast_1d(azimuth(pos, self.listener))
+        pan = stereo(az) if self.speakers is None else vbap(az, self.speakers)
+        return pan.reshape(len(pos), -1) * self.law.gain(norms(pos - self.listener))[:, None]
+
+    # -- what a creature perceives of the room (the percepts of creatures/authored/percepts.py) --
+    def _index(self) -> cKDTree:
+        """A kd-tree of the crowd as it stands now (rebuilt once per sub-step it is asked in)."""
+        if self._tree_at != self.crowd.steps:
+            self._tree, self._tree_at = cKDTree(self.v.pos), self.crowd.steps
+        return self._tree
+
+    def nearest(self, name: str, of: str) -> np.ndarray | None:
+        """Where the nearest visitor, other creature, player or loud sound to creature ``name``
+        is (None when there is none)."""
+        i = self.index[name]
+        here = self.v.pos[i]
+        if of == "creature":
+            if len(self.v) < 2:
+                return None
+            _, j = self._index().query(here, k=2)
+            return self.v.pos[j[1] if j[0] == i else j[0]]
+        around = self.crowd.around
+        points = {"visitor": around.visitors, "player": around.player, "loud": around.loud}[of]
+        if not len(points):
+            return None
+        return points[int(np.argmin(norms(points - here)))]
+
+    def distance(self, name: str, of: str) -> float:
+        """Metres to the nearest ``of`` (inf when there is none)."""
+        where = self.nearest(name, of)
+        return np.inf if where is None else float(norms(where - self.v.pos[self.index[name]]))
+
+    def bearing(self, name: str, of: str) -> float | None:
+        """Degrees from creature ``name``'s heading to the nearest ``of`` (0 ahead, ±180 behind,
+        positive to its left; None when there is none)."""
+        where = self.nearest(name, of)
+        if where is None:
+            return None
+        i = self.index[name]
+        rel = where - self.v.pos[i]
+        h = self.v.heading[i]
+        return float(np.degrees(np.arctan2(h[0] * rel[1] - h[1] * rel[0], h @ rel)))
+
+    def crowding(self, name: str, radius: float) -> int:
+        """How many other creatures are within ``radius`` m of creature ``name``."""
+        return int(self._index().query_ball_point(self.v.pos[self.index[name]], radius, return_length=True)) - 1
+
+    def sees(self, name: str, of: str) -> int:
+        """How many visitors or other creatures creature ``name`` sees (its cone, its range,
+        obstacles in the way: creatures/room/vision.py)."""
+        i = self.index[name]
+        spec = self.creatures[i].spec.vehicle
+        if of == "visitor":
+            things = self.crowd.around.visitors
+        else:
+            near = self._index().query_ball_point(self.v.pos[i], spec.sight)
+            things = self.v.pos[[j for j in near if j != i]]
+        if not len(things):
+            return 0
+        return int(visible(self.v.pos[i:i + 1], self.v.heading[i:i + 1], things, self.room, fov=spec.fov,
+                           range_=spec.sight).sum())

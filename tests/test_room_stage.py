@@ -1,0 +1,360 @@
+"""A room in a run (issue 21): notes crossing it late and softer, masking, crowds from one
+table, zones, visitors from the input map's sensors, speaker layouts in out.wav, and the
+shipped flock piece."""
+
+from __future__ import annotations
+
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+import soundfile
+
+import installations
+from creatures.clock import SimulatedClock
+from creatures.config import ConfigError
+from creatures.events import EventLog, read_events
+from creatures.room.hearing import SPEED_OF_SOUND, db_velocity, velocity_db
+from creatures.runtime.offline import run_offline
+from creatures.runtime.schema import load_installation
+from creatures.runtime.session import Session
+from midi.notes import NoteEvent
+from midi.sinks import MemorySink
+
+TICK = 0.02
+
+HEADER = """
+title = "room"
+seed = 3
+tick = 0.02
+[output]
+report = false
+[room]
+width = 10.0
+depth = 10.0
+listener = [5.0, 5.0]
+{room}
+"""
+
+SINGER = """
+[[creature]]
+name = "{name}"
+kind = "authored"
+{extra}
+[creature.vehicle]
+at = [{x}, {y}]
+{vehicle}
+[creature.percepts.heard]
+type = "heard"
+window = 0.2
+[creature.tuples.listen]
+action = "rest"
+until = {{ seconds = 1.0 }}
+[creature.tuples.echo]
+trigger = "heard"
+action = {{ type = "echo", count = 1, mutation = 0.0, velocity = 80 }}
+until = {{ done = true, seconds = 2.0 }}
+value = {echo}
+[creature.groups.main]
+tuples = ["listen", "echo"]
+alpha = 0.0
+"""
+
+
+TRACKER = "".join(f'[[input]]\nosc = "/v"\nto = "sensor"\nname = "v{axis}"\nvalue = {{ arg = {i} }}\n'
+                  for i, axis in enumerate("xy"))
+"""A visitor tracker: OSC `/v x y` into the sensors vx and vy."""
+
+
+def singer(name: str, x: float, y: float, *, vehicle: str = "", extra: str = "", echo: float = 0.0) -> str:
+    return SINGER.format(name=name, x=x, y=y, vehicle=vehicle, extra=extra, echo=echo)
+
+
+def write(tmp_path: Path, text: str) -> Path:
+    path = tmp_path / "room.toml"
+    path.write_text(textwrap.dedent(text))
+    return path
+
+
+def session(tmp_path: Path, room: str, *creatures: str) -> tuple[Session, SimulatedClock]:
+    inst = load_installation(write(tmp_path, HEADER.format(room=room) + "".join(creatures)))
+    clock = SimulatedClock()
+    return Session(inst, clock, EventLog(), MemorySink()), clock
+
+
+def run(s: Session, clock: SimulatedClock, until: float) -> None:
+    while clock.now() < until - 1e-9:
+        t = clock.advance(TICK)
+        s.step(t, 0, None, audio=False)
+
+
+def test_a_note_four_metres_away_arrives_late_and_softer(tmp_path):
+    s, clock = session(tmp_path, "", singer("a", 2.0, 5.0), singer("b", 6.0, 5.0))
+    a, b = s.creatures
+    run(s, clock, 0.98)
+    s.world.play(a, NoteEvent(1.0, 60, 100, 0, 0.5))
+    run(s, clock, 1.0)
+    assert b.ear.last(1) == []  # it has started at a; it has not crossed the room yet
+    run(s, clock, 1.02)
+    (heard,) = b.ear.last(1)
+    assert heard.time == pytest.approx(1.0 + 4.0 / SPEED_OF_SOUND, abs=1e-6)
+    assert heard.velocity == round(db_velocity(velocity_db(100) - 20 * np.log10(4.0)))  # inverse law, 1 m ref
+    assert b.ear.heard_at == pytest.approx(1.02)  # heard at the tick after it arrived
+
+
+def test_a_loud_near_note_masks_a_quiet_far_one(tmp_path):
+    room = "hearing = { margin = 20.0, band = 12.0, threshold = -90.0 }"
+    s, clock = session(tmp_path, room, singer("ear", 5.0, 5.0), singer("loud", 5.5, 5.0), singer("quiet", 9.5, 9.5))
+    ear, loud, quiet = s.creatures
+    run(s, clock, 0.98)
+    s.world.play(loud, NoteEvent(1.0, 60, 120, 0, 1.0))
+    s.world.play(quiet, NoteEvent(1.05, 62, 60, 0, 0.3))  # −13 dB at the source and 6.4 m away
+    run(s, clock, 1.5)
+    assert [n.pitch for n in ear.ear.last(4)] == [60]
+    assert s.stage.masked >= 1
+    run(s, clock, 2.98)
+    s.world.play(quiet, NoteEvent(3.0, 62, 60, 0, 0.3))  # the loud one is over: now it is heard
+    run(s, clock, 3.2)
+    assert [n.pitch for n in ear.ear.last(4)] == [60, 62]
+
+
+def test_a_phrase_passes_along_a_line_of_singers_hop_by_hop(tmp_path):
+    """Each singer hears only its neighbours 1.5 m away (velocity 80 is −8 dB; at 1.5 m −17.5
+    dB, at 3 m −23.6 dB, under the −20 dB threshold), and echoes what it hears at its own
+    level: the phrase reaches the far end of the line through every singer in turn."""
+    room = "hearing = { reference = 0.5, threshold = -20.0 }"
+    line = [singer(f"s{i}", 1.0 + 1.5 * i, 5.0, echo=50.0) for i in range(5)]
+    s, clock = session(tmp_path, room, *line)
+    run(s, clock, 0.5)
+    s.world.play(s.creatures[0], NoteEvent(0.52, 72, 80, 0, 0.3))
+    run(s, clock, 6.0)
+    first: dict[str, float] = {}
+    for n in s.log.records:
+        if n["kind"] == "note":
+            first.setdefault(n["creature"], n["time"])
+    times = [first.get(f"s{i}") for i in range(5)]
+    assert None not in times, first
+    assert times == sorted(times) and len(set(times)) == 5  # hop by hop down the line
+    heard_far = [n for n in s.creatures[2].ear.last(8) if n.time < times[1]]
+    assert heard_far == []  # s2 heard nothing of s0's own note: only s1's echo reached it
+
+
+def test_count_and_vary_make_a_seeded_crowd(tmp_path):
+    crowd = singer("bird", 5.0, 5.0).replace('name = "bird"', 'name = "bird"\ncount = 6\n'
+                                             'vary = { "vehicle.max_speed" = [0.5, 1.5], "channel" = [0, 3] }')
+    crowd = crowd.replace("at = [5.0, 5.0]", "")
+    inst = load_installation(write(tmp_path, HEADER.format(room="") + crowd))
+    assert [s.name for s in inst.specs] == [f"bird-{i}" for i in range(6)]
+    speeds = [s.vehicle.max_speed for s in inst.specs]
+    assert all(0.5 <= v <= 1.5 for v in speeds) and len(set(speeds)) == 6
+    assert {s.channel for s in inst.specs} <= {0, 1, 2, 3}
+    again = load_installation(write(tmp_path, HEADER.format(room="") + crowd))
+    assert [s.vehicle.max_speed for s in again.specs] == speeds
+    s = Session(inst, SimulatedClock(), EventLog(), MemorySink())
+    pos = s.stage.v.pos
+    assert len({tuple(p) for p in pos.round(6)}) == 6  # each placed apart, at seeded random
+
+
+@pytest.mark.parametrize("old, new, key, message", [
+    ('count = 6', 'count = 0', "count", "count must be a whole number"),
+    ('"vehicle.max_speed" = [0.5, 1.5]', '"vehicle.max_speed" = [1.5, 0.5]', "vary", "is not a range"),
+])
+def test_bad_crowds_are_errors_at_the_table(tmp_path, old, new, key, message):
+    crowd = singer("bird", 5.0, 5.0).replace('name = "bird"', 'name = "bird"\ncount = 6\n'
+                                             'vary = { "vehicle.max_speed" = [0.5, 1.5] }').replace(old, new)
+    with pytest.raises(ConfigError, match=message) as info:
+        load_installation(write(tmp_path, HEADER.format(room="") + crowd))
+    assert info.value.line is not None
+
+
+@pytest.mark.parametrize("steer, message", [
+    ('steer = [{ behaviour = "seek", target = "nobody" }]', "no creature named 'nobody'"),
+    ('steer = [{ behaviour = "seak" }]', "did you mean 'seek'"),
+    ('steer = [{ behaviour = "path_following", path = "aisle" }]', "path_following needs path"),
+    ('steer = [{ behaviour = "seek", when = "hungry" }]', "no percept 'hungry'"),
+])
+def test_steering_that_names_what_is_not_there_is_a_config_error(tmp_path, steer, message):
+    path = write(tmp_path, HEADER.format(room="") + singer("a", 1.0, 1.0, vehicle=steer))
+    with pytest.raises(ConfigError, match=message) as info:
+        load_installation(path)
+    assert info.value.line is not None
+
+
+def test_room_percepts_need_a_room(tmp_path):
+    text = HEADER.format(room="").replace("[room]\nwidth = 10.0\ndepth = 10.0\nlistener = [5.0, 5.0]\n", "")
+    text += singer("a", 1.0, 1.0).replace("[creature.percepts.heard]", "[creature.percepts.near]\ntype = "
+                                          "\"proximity\"\n[creature.percepts.heard]")
+    with pytest.raises(ConfigError, match="needs a \\[room\\]"):
+        load_installation(write(tmp_path, text))
+
+
+def test_a_zone_changes_a_creature_inside_and_puts_it_back_when_it_leaves(tmp_path):
+    room = """[[room.zones]]
+name = "slow"
+low = [4.5, 0.0]
+high = [5.5, 10.0]
+drives = { calm = 0.9 }
+spec = { max_speed = 0.25 }
+disable = ["echo"]
+"""
+    walker = singer("w", 1.0, 5.0, vehicle='steer = [{ behaviour = "seek", target = [9.5, 5.0] }]',
+                    extra="[creature.drives.calm]\nlevel = 0.1")
+    s, clock = session(tmp_path, room, walker)
+    w = s.creatures[0]
+    speeds, calm, disabled = [], [], []
+    while clock.now() < 12.0:
+        run(s, clock, clock.now() + 0.2)
+        x = s.stage.v.pos[0, 0]
+        speeds.append((x, s.stage.v.speed()[0]))
+        calm.append((x, w.motivation.level("calm", clock.now())))
+        disabled.append((x, "echo" in w.groups["main"].disabled))
+    inside = [v for x, v in speeds if 4.8 < x < 5.4]
+    after = [v for x, v in speeds if x > 7.5]
+    assert inside and max(inside) <= 0.25 + 1e-9
+    assert after and max(after) > 0.9  # its own max_speed back
+    assert all(c == pytest.approx(0.9, abs=0.05) for x, c in calm if 4.8 < x < 5.4)
+    assert all(c == pytest.approx(0.1, abs=0.05) for x, c in calm if x > 7.5)
+    assert all(d for x, d in disabled if 4.8 < x < 5.4) and not any(d for x, d in disabled if x > 7.5)
+    kinds = [(e["zone"], e["inside"]) for e in s.log.records if e["kind"] == "zone"]
+    assert kinds == [("slow", True), ("slow", False)]
+
+
+def test_a_visitor_from_the_tracker_is_sought_and_fled(tmp_path):
+    room = 'visitors = [{ x = "vx", y = "vy" }]'
+    maps = TRACKER
+    near = singer("near", 2.0, 2.0, vehicle='steer = [{ behaviour = "arrival", target = "visitor", slowing = 1.0 }]')
+    shy = singer("shy", 7.0, 7.0, vehicle='steer = [{ behaviour = "flee", target = "visitor", panic = 4.0 }]')
+    inst = load_installation(write(tmp_path, HEADER.format(room=room) + maps + near + shy))
+    clock = SimulatedClock()
+    s = Session(inst, clock, EventLog(), MemorySink())
+    for k in range(int(10.0 / TICK)):
+        t = clock.advance(TICK)
+        if k % 5 == 0:  # a tracker at 10 Hz
+            s.inputs.osc("/v", [6.0, 6.0], t)
+        s.step(t, 0, None, audio=False)
+    assert np.linalg.norm(s.stage.v.pos[0] - [6.0, 6.0]) < 0.1
+    assert np.linalg.norm(s.stage.v.pos[1] - [6.0, 6.0]) > 3.9
+
+
+def test_a_ring_of_speakers_writes_one_channel_each_panned_by_place(tmp_path):
+    room = 'speakers = "ring"\nchannels = 4'
+    caller = singer("east", 9.0, 5.0).replace("[creature.tuples.listen]", (
+        "[creature.tuples.call]\naction = { type = \"play_phrase\", pitches = [60, 64, 67], durations = 0.4 }\n"
+        "until = { done = true }\nvalue = 5.0\n[creature.tuples.listen]")).replace(
+        'tuples = ["listen", "echo"]', 'tuples = ["call", "listen", "echo"]')
+    inst = load_installation(write(tmp_path, HEADER.format(room=room) + caller))
+    run_offline(inst, tmp_path / "out", duration=3.0)
+    wav, _ = soundfile.read(tmp_path / "out" / "out.wav")
+    assert wav.shape[1] == 4
+    rms = np.sqrt((wav ** 2).mean(0))
+    assert rms[0] > 0.001  # speaker 0 at azimuth 0 (+x, east of the listener) carries it
+    assert rms[0] > 20 * max(rms[1:])
+
+
+@pytest.mark.slow
+def test_the_flock_gathers_round_whoever_plays_and_sings_along(tmp_path):
+    inst = load_installation(installations.path("flock"))
+    inst.settings.output.report = False
+    run_offline(inst, tmp_path, duration=60.0)
+    events = read_events(tmp_path / "events.jsonl")
+    rooms = {round(e["t"]): e for e in events if e["kind"] == "room"}
+    first, second = np.array([11.0, 3.0]), np.array([3.5, 7.5])  # flock-rehearsal.csv's visitor: 8-30 s, 34-60 s
+
+    def spread(t: int, visitor: np.ndarray) -> float:
+        return float(np.linalg.norm(np.array(rooms[t]["pos"]) - visitor, axis=1).mean())
+
+    assert spread(0, first) > 4.0
+    assert spread(26, first) < 2.5  # gathered round the player
+    assert spread(34, second) > 4.0 and spread(56, second) < 2.5  # and followed them across the room
+    gap = min(np.linalg.norm(np.array(rooms[t]["pos"]) - first, axis=1).min() for t in range(16, 30))
+    assert gap > 0.6  # leaving them their own space (flee within 0.8 m)
+    singers = {e["creature"] for e in events if e["kind"] == "note" and e["t"] > 10}
+    assert len(singers) == 15  # every singer took part
+
+
+def test_a_pitch_above_nyquist_sounds_octaves_down_instead_of_crashing():
+    """A phrase passed along a flock with mutations can drift to MIDI 127 (12.5 kHz), above
+    the 11.025 kHz Nyquist of a 22050 Hz run: the voice sounds it octaves down."""
+    from audio.voices import VoicePool
+
+    pool = VoicePool(1, sample_rate=22050.0, block_size=256)
+    i = pool.note_on(127, 1.0)
+    assert pool.voices[i].frequency == pytest.approx(12543.85 / 2, rel=1e-3)
+
+
+def test_a_path_a_percept_gated_weight_and_level_of_detail_from_the_config(tmp_path):
+    room = """lod = { near = 3.0, levels = 2, budget = 2 }
+[[room.paths]]
+name = "aisle"
+points = [[1.0, 2.0], [9.0, 2.0]]
+radius = 0.3
+"""
+    follower = singer("f", 1.0, 2.5, vehicle='steer = [{ behaviour = "path_following", path = "aisle" }]')
+    # It seeks the room's corner only while its "heard" percept is salient: nothing is heard.
+    gated = singer("g", 5.0, 8.0, vehicle='steer = [{ behaviour = "seek", target = [9.5, 9.5], when = "heard" }]')
+    s, clock = session(tmp_path, room, follower, gated)
+    run(s, clock, 8.0)
+    f, g = s.stage.v.pos
+    assert f[0] > 7.0 and abs(f[1] - 2.0) < 0.35
+    assert np.allclose(g, [5.0, 8.0])  # its weight is 0 while it hears nothing
+    assert s.stage.crowd.gain[1, 0] == 0.0
+    assert s.stage.crowd.steered <= 2 * s.stage.crowd.steps  # the budget: two steerings per sub-step
+
+
+def test_room_percepts_read_distance_bearing_crowding_and_sight(tmp_path):
+    room = 'visitors = [{ x = "vx", y = "vy" }]\nobstacles = [{ at = [5.0, 8.0], radius = 0.5 }]'
+    maps = TRACKER
+    percepts = """
+[creature.percepts]
+close = { type = "proximity", near = 1.0, far = 5.0 }
+ahead = { type = "bearing", width = 90.0 }
+crowded = { type = "crowding", radius = 1.5, full = 2 }
+seen = { type = "sees" }
+[creature.percepts.heard]"""
+    me = singer("me", 2.0, 5.0, vehicle="heading = 0.0\nfov = 120.0").replace("[creature.percepts.heard]", percepts)
+    others = [singer("n1", 2.0, 6.0), singer("n2", 3.0, 8.0), singer("far", 8.0, 8.0)]
+    inst = load_installation(write(tmp_path, HEADER.format(room=room) + maps + me + "".join(others)))
+    clock = SimulatedClock()
+    s = Session(inst, clock, EventLog(), MemorySink())
+    t = clock.advance(TICK)
+    s.inputs.osc("/v", [5.0, 5.0], t)  # 3 m straight ahead
+    s.step(t, 0, None, audio=False)
+    c = s.creatures[0]
+
+    def value(name: str) -> float:
+        return c.percept(name).evaluate(t)
+
+    assert value("close") == pytest.approx(0.5)  # 3 m on the ramp from 5 m (0) to 1 m (1)
+    assert value("ahead") == pytest.approx(1.0)
+    assert value("crowded") == pytest.approx(0.5)  # n1 within 1.5 m; n2 and far are not
+    assert value("seen") == 1.0
+    t = clock.advance(TICK)
+    s.inputs.osc("/v", [2.0, 2.0], t)  # now 3 m to its right: 90° off its heading, outside the cone
+    s.step(t, 0, None, audio=False)
+    assert value("ahead") == 0.0 and value("seen") == 0.0 and value("close") == pytest.approx(0.5)
+    assert s.stage.sees("me", "creature") == 1  # 'far' (27° off); n1 (90°) and n2 (72°) are outside the cone
+
+
+def test_a_creature_behind_an_obstacle_is_not_seen_by_the_stage(tmp_path):
+    room = 'obstacles = [{ at = [5.0, 5.0], radius = 0.5 }]'
+    s, _ = session(tmp_path, room, singer("eye", 2.0, 5.0, vehicle="heading = 0.0"),
+                   singer("hidden", 8.0, 5.0), singer("open", 8.0, 6.5))
+    assert s.stage.sees("eye", "creature") == 1  # 'open' only
+
+
+@pytest.mark.parametrize("room, creature, message", [
+    ("", 'at = [12.0, 5.0]', "outside the 10 x 10 m room"),
+    ('input_at = [5.0, 11.0]', "", "input_at \\[5.0, 11.0\\] is outside"),
+    ('[[room.zones]]\nname = "z"\nlow = [0.0, 0.0]\nhigh = [1.0, 1.0]\ndrives = { hungre = 1.0 }', "",
+     "no creature has a drive 'hungre'"),
+    ('[[room.zones]]\nname = "z"\nlow = [0.0, 0.0]\nhigh = [1.0, 1.0]\nenable = ["dance"]', "",
+     "no creature has a tuple 'dance'"),
+    ('[[room.zones]]\nname = "z"\nlow = [0.0, 0.0]\nhigh = [1.0, 1.0]\nspec = { colour = 1.0 }', "",
+     "not a body key"),
+])
+def test_places_and_zones_that_cannot_be_are_config_errors(tmp_path, room, creature, message):
+    text = HEADER.format(room=room) + singer("a", 1.0, 1.0).replace("at = [1.0, 1.0]", creature or "at = [1.0, 1.0]")
+    with pytest.raises(ConfigError, match=message) as info:
+        load_installation(write(tmp_path, text))
+    assert info.value.line is not None
