@@ -34,26 +34,44 @@ import math
 
 import numba
 import numpy as np
+from numba import types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
-from audio.scanned import ScannedString, StringParameters, default_trajectory
+from audio.scanned import ScannedString, StringParameters
 
 #: Layout of a string's ``state`` row: scan phase, haptic fraction, DC blocker x₁ and y₁,
 #: scan increment per sample (frequency / sample rate).
 PHASE, FRACTION, DC_X, DC_Y, INCREMENT = range(5)
 
+STACK = 8192
+LANES = 8
+MAX_GROUP = 64
+PER_VOICE = 8 * MAX_GROUP
 
-@numba.njit(cache=True, fastmath=False)
+
+@intrinsic
+def _stack_doubles(typingctx, count):
+    if not isinstance(count, types.IntegerLiteral):
+        return None
+    size = count.literal_value
+
+    def codegen(context, builder, signature, args):
+        return cgutils.alloca_once(builder, context.get_value_type(types.float64), size=size)
+
+    return types.CPointer(types.float64)(count), codegen
+
+
+@numba.njit(cache=True, fastmath=False, inline="always")
 def _step(x, v, x_prev, force, ring, k, c, damp, inv_m, h):
-    """One symplectic-Euler step (the reference's :func:`audio.scanned._haptic_step`), keeping
-    the frame it starts from in ``x_prev``."""
     n = x.shape[0]
     for i in range(n):
         x_prev[i] = x[i]
-    for i in range(1, n - 1):  # branch-free: vectorised
+    for i in range(1, n - 1):
         accel = inv_m * (k * (x_prev[i - 1] - 2.0 * x_prev[i] + x_prev[i + 1]) - c * x_prev[i] + force[i])
         v[i] = damp * v[i] + h * accel
         x[i] = x_prev[i] + h * v[i]
-    for i in (0, n - 1):
+    for i in range(0, n, max(n - 1, 1)):
         left = x_prev[i - 1] if i > 0 else (x_prev[n - 1] if ring else 0.0)
         right = x_prev[i + 1] if i < n - 1 else (x_prev[0] if ring else 0.0)
         accel = inv_m * (k * (left - 2.0 * x_prev[i] + right) - c * x_prev[i] + force[i])
@@ -61,83 +79,119 @@ def _step(x, v, x_prev, force, ring, k, c, damp, inv_m, h):
         x[i] = x_prev[i] + h * v[i]
 
 
-@numba.njit(cache=True, fastmath=False)
-def _lay_out(shape, delta, x_prev, x, lead):
-    """The previous frame and its change to the current one along the bank's trajectory
-    (:func:`~audio.scanned.default_trajectory`: ``lead`` = 1 fixed end, reading 0, before the
-    masses of a string; 0 for a ring), plus the first point again at the end. Contiguous
-    copies, so they vectorise."""
+@numba.njit(cache=True, fastmath=False, inline="always")
+def _lay_out(shape, delta, x_prev, x, lead, interpolate):
     n = x.shape[0]
-    if lead:
-        shape[0] = 0.0
-        delta[0] = 0.0
-    for m in range(n):
-        shape[lead + m] = x_prev[m]
-        delta[lead + m] = x[m] - x_prev[m]
-    shape[lead + n] = shape[0]
-    delta[lead + n] = delta[0]
+    if interpolate:
+        if lead:
+            shape[0] = 0.0
+            delta[0] = 0.0
+        for m in range(n):
+            shape[lead + m] = x_prev[m]
+            delta[lead + m] = x[m] - x_prev[m]
+        shape[lead + n] = shape[0]
+        delta[lead + n] = delta[0]
+    else:
+        if lead:
+            shape[0] = 0.0
+        for m in range(n):
+            shape[lead + m] = x[m]
+        shape[lead + n] = shape[0]
 
 
 @numba.njit(cache=True, fastmath=False)
-def _render(mix, voices, x, v, x_prev, force, state, level, slope, failed, trajectory, shape, delta,
-            scratch, ring, k, c, gamma, inv_m, h, haptic_per_sample, dc_pole, interpolate):
-    """Add every string in ``voices`` to ``mix``, each scaled by its envelope ``level`` moving
-    by ``slope`` per sample (clipped to [0, 1]); a string whose state stops being finite is
-    silenced, adds nothing, and is flagged in ``failed`` (the reference's reset)."""
-    n_points = trajectory.shape[0]
-    lead = n_points - x.shape[1]
+def _render(mix, voices, x, v, x_prev, force, state, level, slope, failed, out, ring, k, c, gamma, inv_m, h,
+            haptic_per_sample, dc_pole, interpolate):
+    n = x.shape[1]
+    lead = 0 if ring else 1
+    n_points = n + lead
+    width = n_points + 1
     frames = mix.shape[0]
     damp = 1.0 - gamma * h
-    for q in range(voices.shape[0]):
-        i = voices[q]
-        xi, vi, pi, fi = x[i], v[i], x_prev[i], force[i]
-        phase, frac, dc_x1, dc_y1, increment = state[i, 0], state[i, 1], state[i, 2], state[i, 3], state[i, 4]
-        _lay_out(shape, delta, pi, xi, lead)
+    layers = 2 if interpolate else 1
+    group = max(1, min(out.shape[1], STACK // (width * layers)))
+    stack = numba.carray(_stack_doubles(STACK), STACK)
+    shapes = stack[:group * width]
+    deltas = stack[group * width:2 * group * width] if interpolate else stack[:0]
+    per_voice = numba.carray(_stack_doubles(PER_VOICE), (8, MAX_GROUP))
+    phase, frac, dc_x, dc_y, increment, due, gain, fade = (per_voice[0], per_voice[1], per_voice[2], per_voice[3],
+                                                           per_voice[4], per_voice[5], per_voice[6], per_voice[7])
+    lane = numba.carray(_stack_doubles(LANES), LANES)
+    for first in range(0, voices.shape[0], group):
+        size = min(group, voices.shape[0] - first)
+        for q in range(size):
+            i = voices[first + q]
+            phase[q], frac[q], dc_x[q], dc_y[q], increment[q] = state[i, 0], state[i, 1], state[i, 2], state[i, 3], state[i, 4]
+            gain[q], fade[q] = level[i], slope[i]
+            _lay_out(shapes[q * width:(q + 1) * width], deltas[q * width:(q + 1) * width] if interpolate else deltas,
+                     x_prev[i], x[i], lead, interpolate)
         for s in range(frames):
-            frac += haptic_per_sample  # accumulated as the reference does: it decides the frame's sample
-            if frac >= 1.0:
-                frac -= 1.0
-                _step(xi, vi, pi, fi, ring, k, c, damp, inv_m, h)
-                _lay_out(shape, delta, pi, xi, lead)
-            pos = phase * n_points
-            j = int(pos)
-            if j >= n_points:  # phase just below 1 can round up to n_points
-                j -= n_points
-            if interpolate:
-                a = pos - j
-                y0 = shape[j] + frac * delta[j]
-                y1 = shape[j + 1] + frac * delta[j + 1]
-                y = y0 + a * (y1 - y0)
-            else:  # the node under the scan, current frame (to rounding: shape + delta is x)
-                y = shape[j] + delta[j]
-            dc_y1 = y - dc_x1 + dc_pole * dc_y1
-            dc_x1 = y
-            scratch[s] = dc_y1
-            phase += increment
-            if phase >= 1.0:
-                phase -= 1.0
-        total = dc_y1
-        for m in range(xi.shape[0]):
-            total += xi[m]
-        ok = math.isfinite(total)
-        if not ok:
-            failed[i] = True
-            xi[:] = 0.0
-            vi[:] = 0.0
-            pi[:] = 0.0
-            dc_x1 = dc_y1 = 0.0
-        state[i, 0], state[i, 1], state[i, 2], state[i, 3] = phase, frac, dc_x1, dc_y1
-        g, dg = level[i], slope[i]
-        if dg == 0.0:
-            if ok:
-                for s in range(frames):
-                    mix[s] += scratch[s]
-        else:
-            for s in range(frames):
-                envelope = min(max(g + dg * (s + 1), 0.0), 1.0)
-                if ok:
-                    mix[s] += envelope * scratch[s]
-            level[i] = min(max(g + dg * frames, 0.0), 1.0)
+            stepping = False
+            for q in range(size):
+                f = frac[q] + haptic_per_sample
+                d = f >= 1.0
+                frac[q] = f - 1.0 if d else f
+                due[q] = 1.0 if d else 0.0
+                stepping |= d
+            if stepping:
+                for q in range(size):
+                    if due[q] != 0.0:
+                        i = voices[first + q]
+                        _step(x[i], v[i], x_prev[i], force[i], ring, k, c, damp, inv_m, h)
+                        _lay_out(shapes[q * width:(q + 1) * width],
+                                 deltas[q * width:(q + 1) * width] if interpolate else deltas,
+                                 x_prev[i], x[i], lead, interpolate)
+            row = out[s]
+            for q in range(size):
+                pos = phase[q] * n_points
+                j = int(pos)
+                if j >= n_points:
+                    j -= n_points
+                b = q * width + j
+                if interpolate:
+                    a = pos - j
+                    y0 = shapes[b] + frac[q] * deltas[b]
+                    y1 = shapes[b + 1] + frac[q] * deltas[b + 1]
+                    y = y0 + a * (y1 - y0)
+                else:
+                    y = shapes[b]
+                blocked = y - dc_x[q] + dc_pole * dc_y[q]
+                dc_x[q] = y
+                dc_y[q] = blocked
+                row[q] = blocked * min(max(gain[q] + fade[q] * (s + 1), 0.0), 1.0)
+                p = phase[q] + increment[q]
+                phase[q] = p - 1.0 if p >= 1.0 else p
+        for q in range(size):
+            i = voices[first + q]
+            total = dc_y[q]
+            for m in range(n):
+                total += x[i, m]
+            if not math.isfinite(total):
+                failed[i] = True
+                out[:frames, q] = 0.0
+                x[i, :] = 0.0
+                v[i, :] = 0.0
+                x_prev[i, :] = 0.0
+                dc_x[q] = dc_y[q] = 0.0
+            state[i, 0], state[i, 1], state[i, 2], state[i, 3] = phase[q], frac[q], dc_x[q], dc_y[q]
+        for s in range(frames):
+            row = out[s]
+            for l in range(LANES):
+                lane[l] = 0.0
+            q = 0
+            while q + LANES <= size:
+                for l in range(LANES):
+                    lane[l] += row[q + l]
+                q += LANES
+            total = 0.0
+            for l in range(LANES):
+                total += lane[l]
+            while q < size:
+                total += row[q]
+                q += 1
+            mix[s] += total
+        for q in range(size):
+            level[voices[first + q]] = min(max(gain[q] + fade[q] * frames, 0.0), 1.0)
 
 
 class StringBank:
@@ -158,10 +212,8 @@ class StringBank:
         self.strings = [ScannedString(self.parameters, sample_rate=sample_rate) for _ in range(size)]
         for i, string in enumerate(self.strings):
             string.bind(self.x[i], self.v[i], self.x_prev[i], self.force[i], self.state[i])
-        self.trajectory = default_trajectory(n, ring=self.parameters.ring)
-        self._shape = np.zeros(len(self.trajectory) + 1)
-        self._delta = np.zeros(len(self.trajectory) + 1)
-        self.scratch = np.zeros(block_size)
+        self.block_size = int(block_size)
+        self._out = np.zeros((self.block_size, MAX_GROUP))
         self._failed = np.zeros(size, dtype=np.bool_)
         self.sample_rate = float(sample_rate)
 
@@ -177,12 +229,11 @@ class StringBank:
         """Add strings ``voices`` (indices) to ``mix`` (at most ``block_size`` samples), each
         times its envelope: ``level[i]`` now, moving by ``slope[i]`` per sample, clipped to
         [0, 1]; ``level`` is advanced to the end of the block."""
-        if len(mix) > len(self.scratch):
-            raise ValueError(f"block of {len(mix)} samples exceeds the bank's block_size {len(self.scratch)}")
+        if len(mix) > self.block_size:
+            raise ValueError(f"block of {len(mix)} samples exceeds the bank's block_size {self.block_size}")
         p = self.parameters
         _render(mix, np.asarray(voices, dtype=np.int64), self.x, self.v, self.x_prev, self.force, self.state,
-                level, slope, self._failed, self.trajectory, self._shape, self._delta, self.scratch,
-                p.ring, p.stiffness, p.centring, p.damping / p.mass, 1.0 / p.mass, 1.0 / p.haptic_rate,
+                level, slope, self._failed, self._out, p.ring, p.stiffness, p.centring, p.damping / p.mass, 1.0 / p.mass, 1.0 / p.haptic_rate,
                 p.haptic_rate / self.sample_rate, self.strings[0].dc_pole, p.interpolation == "linear")
         if self._failed.any():
             for i in np.flatnonzero(self._failed):
