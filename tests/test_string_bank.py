@@ -25,7 +25,8 @@ def excite(string: ScannedString, rng: np.random.Generator) -> None:
 
 @pytest.mark.parametrize("interpolation", ["linear", "none"])
 @pytest.mark.parametrize("ring", [False, True])
-@pytest.mark.parametrize("masses, haptic_rate", [(3, 1000.0), (64, 500.0), (128, 1000.0), (1024, 250.0)])
+@pytest.mark.parametrize("masses, haptic_rate", [(1, 1000.0), (2, 500.0), (3, 1000.0), (64, 500.0), (128, 1000.0),
+                                                  (1024, 250.0)])
 def test_bank_samples_are_the_reference_integrators(ring, masses, haptic_rate, interpolation):
     """Every string of a bank, excited and pushed between blocks of uneven length, scans the
     same samples as a lone ScannedString given the same history (to 1e-6)."""
