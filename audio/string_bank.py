@@ -155,6 +155,16 @@ def _step_across(x, v, x_prev, force, only, size, rows, group, ring, k, c, damp,
         _ends(x, q, group, rows, ring)
 
 
+@numba.njit(cache=True, fastmath=False, inline="always")
+def _tick(frac, q, haptic_per_sample):
+    """Advance string ``q``'s haptic clock by a sample as the reference does; 1 when a frame
+    falls due (the clock wrapped), else 0."""
+    f = frac[q] + haptic_per_sample
+    stepping = f >= 1.0
+    frac[q] = f - 1.0 if stepping else f
+    return 1 if stepping else 0
+
+
 @numba.njit(cache=True, fastmath=False)
 def _render(mix, voices, x, v, x_prev, force, state, level, slope, failed, out, ring, k, c, gamma, inv_m, h,
             haptic_per_sample, dc_pole, interpolate):
@@ -197,13 +207,12 @@ def _render(mix, voices, x, v, x_prev, force, state, level, slope, failed, out, 
             phase[q], frac[q], dc_x[q], dc_y[q], increment[q] = (state[i, 0], state[i, 1], state[i, 2], state[i, 3],
                                                                  state[i, 4])
             gain[q], fade[q] = level[i], slope[i]
+        enveloped = False
+        due = 0
+        for q in range(size):
+            enveloped |= fade[q] != 0.0 or gain[q] != 1.0
+            due += _tick(frac, q, haptic_per_sample)
         for s in range(frames):
-            due = 0
-            for q in range(size):  # each string's haptic clock, as the reference keeps it
-                f = frac[q] + haptic_per_sample
-                stepping = f >= 1.0
-                frac[q] = f - 1.0 if stepping else f
-                due += 1 if stepping else 0
             if across and due == size:
                 _step_across(sx, sv, sp, sf, -1, size, rows, group, ring, k, c, damp, inv_m, h)
             elif due:
@@ -218,6 +227,8 @@ def _render(mix, voices, x, v, x_prev, force, state, level, slope, failed, out, 
                             if interpolate:
                                 _to_stack(sp, x_prev[i], q * voice_step, point_step, rows, ring)
             row = out[s]
+            ticking = s + 1 < frames
+            due = 0
             for q in range(size):  # the scan, across the group: vectorised, the shapes gathered
                 pos = phase[q] * n_points
                 j = int(pos)
@@ -234,9 +245,11 @@ def _render(mix, voices, x, v, x_prev, force, state, level, slope, failed, out, 
                 blocked = y - dc_x[q] + dc_pole * dc_y[q]  # the reference's DC blocker
                 dc_x[q] = y
                 dc_y[q] = blocked
-                row[q] = blocked * min(max(gain[q] + fade[q] * (s + 1), 0.0), 1.0)
+                row[q] = blocked * min(max(gain[q] + fade[q] * (s + 1), 0.0), 1.0) if enveloped else blocked
                 p = phase[q] + increment[q]
                 phase[q] = p - 1.0 if p >= 1.0 else p
+                if ticking:  # the next sample's haptic clock, in the same pass
+                    due += _tick(frac, q, haptic_per_sample)
         for q in range(size):
             i = voices[first + q]
             if across:
