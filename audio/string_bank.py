@@ -56,15 +56,20 @@ bank's rows), which fill the vector by themselves. Measured crossover: at 16 mas
 1.4× along, at 32 even, at 64 along is 1.1× across, at 1,024 six times."""
 
 STACK = 8192
-"""Doubles in each of a group's stack arrays (64 KiB): positions and previous frame, and for
-short strings velocities and forces, as ``(masses + 2) × group`` arrays."""
+"""Doubles in each of a group's four stack arrays (64 KiB): positions and previous frame, and
+for short strings velocities and forces, ``masses + 2`` rows a string. The kernel takes about
+260 KiB of stack in all; it runs on a creature's thread (8 MiB), never on the audio callback."""
 
 MAX_GROUP = 64
 """Most strings rendered side by side: eight AVX-512 vectors across; a block's per-voice output
 (``block_size × MAX_GROUP``) stays in L2."""
 
 SCALARS = 8 * MAX_GROUP
+"""Per-string scan state of a group on the stack: phase, clock, DC blocker, increment, envelope."""
+
 LANES = 8
+"""Running sums the group's mix keeps (one AVX-512 vector), so its adds vectorise without
+``fastmath``."""
 
 
 @intrinsic
@@ -234,11 +239,13 @@ def _render(mix, voices, x, v, x_prev, force, state, level, slope, failed, out, 
                 j = int(pos)
                 if j >= n_points:  # phase just below 1 can round up to n_points
                     j -= n_points
-                r = (j + offset) * point_step + q * voice_step
+                # unsigned: numba then adds no negative-index test to the gather
+                r = np.uint64((j + offset) * point_step + q * voice_step)
                 if interpolate:
                     a = pos - j
+                    r1 = np.uint64((j + offset + 1) * point_step + q * voice_step)
                     y0 = sp[r] + frac[q] * (sx[r] - sp[r])
-                    y1 = sp[r + point_step] + frac[q] * (sx[r + point_step] - sp[r + point_step])
+                    y1 = sp[r1] + frac[q] * (sx[r1] - sp[r1])
                     y = y0 + a * (y1 - y0)
                 else:  # the node under the scan, current frame
                     y = sx[r]
@@ -325,8 +332,9 @@ class StringBank:
             raise ValueError(f"block of {len(mix)} samples exceeds the bank's block_size {self.block_size}")
         p = self.parameters
         _render(mix, np.asarray(voices, dtype=np.int64), self.x, self.v, self.x_prev, self.force, self.state,
-                level, slope, self._failed, self._out, p.ring, p.stiffness, p.centring, p.damping / p.mass, 1.0 / p.mass, 1.0 / p.haptic_rate,
-                p.haptic_rate / self.sample_rate, self.strings[0].dc_pole, p.interpolation == "linear")
+                level, slope, self._failed, self._out, p.ring, p.stiffness, p.centring, p.damping / p.mass,
+                1.0 / p.mass, 1.0 / p.haptic_rate, p.haptic_rate / self.sample_rate, self.strings[0].dc_pole,
+                p.interpolation == "linear")
         if self._failed.any():
             for i in np.flatnonzero(self._failed):
                 self.strings[i].resets += 1
