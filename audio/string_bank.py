@@ -279,17 +279,15 @@ def _render(mix, voices, x, v, x_prev, force, state, level, slope, failed, out, 
             row = out[s]
             for lane_ in range(LANES):
                 lane[lane_] = 0.0
-            q = 0
-            while q + LANES <= size:
+            whole = size - size % LANES
+            for chunk in range(0, whole, LANES):  # range loops: indices known ≥ 0, no negative-index test
                 for lane_ in range(LANES):
-                    lane[lane_] += row[q + lane_]
-                q += LANES
+                    lane[lane_] += row[chunk + lane_]
             total = 0.0
             for lane_ in range(LANES):
                 total += lane[lane_]
-            while q < size:
+            for q in range(whole, size):
                 total += row[q]
-                q += 1
             mix[s] += total
 
 
