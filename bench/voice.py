@@ -193,6 +193,11 @@ def _pool_seconds(masses: int, voices: int, seconds: float, repeat: int, interpo
     return best_cpu_of(play, repeat=repeat)
 
 
+REPEAT = 3
+"""Best of three for both sides of a row beside Csound: on a shared machine one run in two was
+disturbed (the same kernel measured 0.9 and 1.4 ns a string-sample minutes apart)."""
+
+
 def _peer_rows(quick: bool) -> list[Row]:
     """Ours beside Csound's scantable for each string size: at equal physics (no interpolation,
     as scantable), and at 128 masses also with ours' default linear interpolation."""
@@ -204,10 +209,10 @@ def _peer_rows(quick: bool) -> list[Row]:
         what = f"{masses}-mass strings in real time @48 kHz, 1 kHz physics"
         theirs = csound_string_seconds(voices=voices, seconds=seconds, masses=masses, sample_rate=SR,
                                        haptic_rate=int(PEER_PHYSICS["haptic_rate"]), mass=PEER_PHYSICS["mass"],
-                                       stiffness=PEER_PHYSICS["stiffness"], damp=damp, repeat=2)
+                                       stiffness=PEER_PHYSICS["stiffness"], damp=damp, repeat=REPEAT)
         peer = None if theirs is None else voices * seconds / theirs
         for interpolation in ("none", "linear") if masses == 128 else ("none",):
-            ours = voices * seconds / _pool_seconds(masses, voices, seconds, 2, interpolation)
+            ours = voices * seconds / _pool_seconds(masses, voices, seconds, REPEAT, interpolation)
             label = f"{what}, interpolation {interpolation} (VoicePool)"
             if peer is None:
                 rows.append(Row(label, ours, "voices"))
