@@ -66,6 +66,10 @@ class StringParameters:
     ``mass`` is per node; ``stiffness`` (between neighbours) and ``centring`` (to rest) are
     forces per unit displacement, ``damping`` a force per unit velocity. The defaults put
     the highest mode near 9 Hz, inside the thesis' gestural band (:data:`GESTURAL_LIMIT_HZ`).
+    A single mass is a string too: between the fixed ends a damped oscillator (ω² = (2k + c)/m,
+    inside the bound), scanned as a pulse wave it ring-modulates; on a ring it is its own
+    neighbour, so its spring pulls on nothing and only centring rings it (Csound's 1-point
+    ``scantable`` is that ring without centring).
     """
 
     n_masses: int = 128
