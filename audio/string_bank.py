@@ -190,7 +190,7 @@ def _render(mix, voices, x, v, x_prev, force, state, level, slope, failed, out, 
     frames = mix.shape[0]
     damp = 1.0 - gamma * h
     across = n <= ACROSS
-    group = max(1, min(MAX_GROUP, STACK // rows))
+    group = max(1, min(out.shape[1], STACK // rows))  # out is at most MAX_GROUP wide
     point_step, voice_step = (group, 1) if across else (1, rows)  # where row r of string q lives: r·point + q·voice
     # separate allocations, not one cut in four: LLVM then knows they never overlap
     sx, sp = numba.carray(_stack_doubles(STACK), STACK), numba.carray(_stack_doubles(STACK), STACK)
@@ -310,7 +310,7 @@ class StringBank:
         for i, string in enumerate(self.strings):
             string.bind(self.x[i], self.v[i], self.x_prev[i], self.force[i], self.state[i])
         self.block_size = int(block_size)
-        self._out = np.zeros((self.block_size, MAX_GROUP))
+        self._out = np.zeros((self.block_size, min(size, MAX_GROUP)))  # a group's samples, one column a string
         self._failed = np.zeros(size, dtype=np.bool_)
         self.sample_rate = float(sample_rate)
 
