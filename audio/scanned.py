@@ -66,6 +66,10 @@ class StringParameters:
     ``mass`` is per node; ``stiffness`` (between neighbours) and ``centring`` (to rest) are
     forces per unit displacement, ``damping`` a force per unit velocity. The defaults put
     the highest mode near 9 Hz, inside the thesis' gestural band (:data:`GESTURAL_LIMIT_HZ`).
+    A single mass is a string too: between the fixed ends a damped oscillator (ω² = (2k + c)/m,
+    inside the bound), scanned as a pulse wave it ring-modulates; on a ring it is its own
+    neighbour, so its spring pulls on nothing and only centring rings it (Csound's 1-point
+    ``scantable`` is that ring without centring).
     """
 
     n_masses: int = 128
@@ -80,8 +84,8 @@ class StringParameters:
     def __post_init__(self) -> None:
         if self.interpolation not in INTERPOLATIONS:
             raise UnstableStringError(f"interpolation must be one of {INTERPOLATIONS}, got {self.interpolation!r}")
-        if self.n_masses < 3:
-            raise UnstableStringError(f"a string needs at least 3 masses, got n_masses={self.n_masses}")
+        if self.n_masses < 1:
+            raise UnstableStringError(f"a string needs at least 1 mass, got n_masses={self.n_masses}")
         for name in ("mass", "haptic_rate"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
@@ -243,7 +247,7 @@ class ScannedString:
         self.frequency = frequency
         self.gain = float(gain)
         traj = default_trajectory(n, ring=self.parameters.ring) if trajectory is None else np.asarray(trajectory, dtype=np.int64)
-        if traj.ndim != 1 or len(traj) < 2 or traj.max() >= n or traj.min() < -1:
+        if traj.ndim != 1 or len(traj) < 1 or traj.max() >= n or traj.min() < -1:
             raise ValueError(f"trajectory must be a 1-D path of node indices in [-1, {n - 1}], got shape {traj.shape}")
         self.trajectory = traj
         self.x = np.zeros(n)

@@ -8,24 +8,29 @@ are rows of the bank's, so what it writes is what the kernel reads.
 
 Why a bank, measured in ``bench/voice.py`` against Csound's ``scantable`` at equal physics:
 calling :meth:`ScannedString.render_raw` once per voice per block costs a few microseconds
-of Python dispatch each time, a large part of the ~300 µs one voice may spend per second
-if a core is to run thousands. The kernel also does per block what the reference
-(:func:`audio.scanned._scan`) does per sample:
+of Python dispatch each time, and a string rendered alone is bound by its own per-sample
+recurrences (scan phase, haptic clock, DC blocker: ~6 cycles a sample, whatever the size).
+So the kernel renders up to :data:`MAX_GROUP` strings side by side, a sample at a time across
+the group: the recurrences of different strings are independent, and the loop over voices is
+vectorised (AVX2 / AVX-512), each string's shape read at its own scan position by a gather.
+LLVM vectorises that loop only when it can tell the shapes alias nothing the loop writes, which
+numba cannot say about arrays passed in; so a group's shapes live on the stack
+(:func:`_stack_doubles`), ``masses + 2`` rows a string (a row beyond each end: 0 for fixed ends,
+the far mass on a ring), and the trajectory's fixed end and wrap cost no branch.
 
-* each haptic frame, the shape and its change since the last frame are laid out along the
-  trajectory once (``shape``, ``delta``, one entry longer so the wrap needs no modulo), so
-  a sample reads four neighbouring floats instead of following the trajectory twice;
-* the physics step reads the previous frame (which the scanner keeps anyway) and writes the
-  new one in a single branch-free loop over the inner masses, which LLVM vectorises (AVX2 /
-  AVX-512 where the CPU has them; the two ends are done apart).
+Where the physics steps depends on the size (:data:`ACROSS`): a short string's whole state is
+on the stack too, voice-minor, and one step updates every string of the group mass by mass
+across the voices (at 3 masses, stepping a string alone cost more than scanning it); a long
+string steps along its own masses in the bank's rows, as the reference does, and copies each
+new frame over. Each string keeps its own haptic clock, so strings whose frames fall due apart
+step apart.
 
 The arithmetic is the reference's, term for term and in the same order, so the samples are
-the reference integrator's (``tests/test_string_bank.py`` holds them within 1e-6; in
-practice they are bitwise equal). float64 stays: the stability bound lets ``h²(4k + c)/m``
-come within a hair of ``4 − 2γh``, where float32 rounding would decide stability, and the
-per-sample scan is bound by its own recurrences (phase, DC blocker), not by SIMD width, so
-float32 would buy little. ``fastmath`` stays off for the same reason: reassociation would
-break the equality with the reference for no measured gain.
+the reference integrator's (``tests/test_string_bank.py`` holds them within 1e-6 at 1 to 1,024
+masses; only the mix adds the strings in another order). float64 stays: the stability bound
+lets ``h²(4k + c)/m`` come within a hair of ``4 − 2γh``, where float32 rounding would decide
+stability. ``fastmath`` stays off: reassociation would break the equality with the reference,
+and the one reduction (the mix) is written as eight running sums instead.
 """
 
 from __future__ import annotations
@@ -34,26 +39,67 @@ import math
 
 import numba
 import numpy as np
+from numba import types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
-from audio.scanned import ScannedString, StringParameters, default_trajectory
+from audio.scanned import ScannedString, StringParameters
 
 #: Layout of a string's ``state`` row: scan phase, haptic fraction, DC blocker x₁ and y₁,
 #: scan increment per sample (frequency / sample rate).
 PHASE, FRACTION, DC_X, DC_Y, INCREMENT = range(5)
 
+ACROSS = 32
+"""Strings of up to this many masses step across voices (:func:`_step_across`, the group's
+physics on the stack); longer ones step along their own masses (:func:`_step_along`, in the
+bank's rows), which fill the vector by themselves. Measured crossover: at 16 masses across is
+1.4× along, at 32 even, at 64 along is 1.1× across, at 1,024 six times."""
 
-@numba.njit(cache=True, fastmath=False)
-def _step(x, v, x_prev, force, ring, k, c, damp, inv_m, h):
-    """One symplectic-Euler step (the reference's :func:`audio.scanned._haptic_step`), keeping
-    the frame it starts from in ``x_prev``."""
+STACK = 8192
+"""Doubles in each of a group's four stack arrays (64 KiB): positions and previous frame, and
+for short strings velocities and forces, ``masses + 2`` rows a string. The kernel takes about
+260 KiB of stack in all; it runs on a creature's thread (8 MiB), never on the audio callback."""
+
+MAX_GROUP = 64
+"""Most strings rendered side by side: eight AVX-512 vectors across; a block's per-voice output
+(``block_size × MAX_GROUP``) stays in L2."""
+
+SCALARS = 8 * MAX_GROUP
+"""Per-string scan state of a group on the stack: phase, clock, DC blocker, increment, envelope."""
+
+LANES = 8
+"""Running sums the group's mix keeps (one AVX-512 vector), so its adds vectorise without
+``fastmath``."""
+
+
+@intrinsic
+def _stack_doubles(typingctx, count):
+    """A pointer to ``count`` (a compile-time constant) float64s on the kernel's stack. Arrays
+    there alias neither each other nor anything the caller passed, and LLVM knows it: only then
+    does it vectorise a loop that reads the strings' shapes at per-voice positions (a gather)."""
+    if not isinstance(count, types.IntegerLiteral):
+        return None
+    size = count.literal_value
+
+    def codegen(context, builder, signature, args):
+        return cgutils.alloca_once(builder, context.get_value_type(types.float64), size=size)
+
+    return types.CPointer(types.float64)(count), codegen
+
+
+@numba.njit(cache=True, fastmath=False, inline="always")
+def _step_along(x, v, x_prev, force, ring, k, c, damp, inv_m, h):
+    """One symplectic-Euler step of one string (:func:`audio.scanned._haptic_step`, same terms
+    in the same order), keeping the frame it starts from in ``x_prev``: one branch-free loop
+    over the inner masses, which LLVM vectorises, and the ends apart."""
     n = x.shape[0]
     for i in range(n):
         x_prev[i] = x[i]
-    for i in range(1, n - 1):  # branch-free: vectorised
+    for i in range(1, n - 1):
         accel = inv_m * (k * (x_prev[i - 1] - 2.0 * x_prev[i] + x_prev[i + 1]) - c * x_prev[i] + force[i])
         v[i] = damp * v[i] + h * accel
         x[i] = x_prev[i] + h * v[i]
-    for i in (0, n - 1):
+    for i in range(0, n, max(n - 1, 1)):  # the two ends, or the one mass
         left = x_prev[i - 1] if i > 0 else (x_prev[n - 1] if ring else 0.0)
         right = x_prev[i + 1] if i < n - 1 else (x_prev[0] if ring else 0.0)
         accel = inv_m * (k * (left - 2.0 * x_prev[i] + right) - c * x_prev[i] + force[i])
@@ -61,83 +107,188 @@ def _step(x, v, x_prev, force, ring, k, c, damp, inv_m, h):
         x[i] = x_prev[i] + h * v[i]
 
 
-@numba.njit(cache=True, fastmath=False)
-def _lay_out(shape, delta, x_prev, x, lead):
-    """The previous frame and its change to the current one along the bank's trajectory
-    (:func:`~audio.scanned.default_trajectory`: ``lead`` = 1 fixed end, reading 0, before the
-    masses of a string; 0 for a ring), plus the first point again at the end. Contiguous
-    copies, so they vectorise."""
-    n = x.shape[0]
-    if lead:
-        shape[0] = 0.0
-        delta[0] = 0.0
-    for m in range(n):
-        shape[lead + m] = x_prev[m]
-        delta[lead + m] = x[m] - x_prev[m]
-    shape[lead + n] = shape[0]
-    delta[lead + n] = delta[0]
+@numba.njit(cache=True, fastmath=False, inline="always")
+def _ends(stack, start, step, rows, ring):
+    """The rows beyond a string's ends (its masses at ``stack[start + (m + 1)·step]``): 0 for
+    fixed ends, on a ring copies of the far mass, so neighbours, the trajectory's fixed end and
+    its wrap need no branch."""
+    last = start + (rows - 1) * step
+    if ring:
+        stack[start] = stack[last - step]
+        stack[last] = stack[start + step]
+    else:
+        stack[start] = 0.0
+        stack[last] = 0.0
+
+
+@numba.njit(cache=True, fastmath=False, inline="always")
+def _to_stack(stack, values, start, step, rows, ring):
+    """A string's masses into rows 1…n of its place in a stack array, and its ends."""
+    for m in range(values.shape[0]):
+        stack[start + (m + 1) * step] = values[m]
+    _ends(stack, start, step, rows, ring)
+
+
+@numba.njit(cache=True, fastmath=False, inline="always")
+def _from_stack(values, stack, start, step):
+    for m in range(values.shape[0]):
+        values[m] = stack[start + (m + 1) * step]
+
+
+@numba.njit(cache=True, fastmath=False, inline="always")
+def _step_mass(x, v, x_prev, x_left, x_right, force, size, k, c, damp, inv_m, h):
+    """The step of one mass of the first ``size`` strings of a group, across the voices. Each
+    index is the loop's own, from 0, so numba adds no negative-index test and LLVM vectorises."""
+    for q in range(size):
+        accel = inv_m * (k * (x_left[q] - 2.0 * x_prev[q] + x_right[q]) - c * x_prev[q] + force[q])
+        v[q] = damp * v[q] + h * accel
+        x[q] = x_prev[q] + h * v[q]
+
+
+@numba.njit(cache=True, fastmath=False, inline="always")
+def _step_across(x, v, x_prev, force, only, size, rows, group, ring, k, c, damp, inv_m, h):
+    """The same step for the group's first ``size`` strings at once (their physics on the stack),
+    or with ``only`` ≥ 0 for that string alone, whose haptic frame came due apart from the others'."""
+    first, count = (0, size) if only < 0 else (only, 1)
+    for m in range(rows):
+        x_prev[m * group + first:m * group + first + count] = x[m * group + first:m * group + first + count]
+    for m in range(1, rows - 1):
+        at = m * group + first
+        _step_mass(x[at:at + count], v[at:at + count], x_prev[at:at + count], x_prev[at - group:at - group + count],
+                   x_prev[at + group:at + group + count], force[at:at + count], count, k, c, damp, inv_m, h)
+    for q in range(first, first + count):
+        _ends(x, q, group, rows, ring)
+
+
+@numba.njit(cache=True, fastmath=False, inline="always")
+def _tick(frac, q, haptic_per_sample):
+    """Advance string ``q``'s haptic clock by a sample as the reference does; 1 when a frame
+    falls due (the clock wrapped), else 0."""
+    f = frac[q] + haptic_per_sample
+    stepping = f >= 1.0
+    frac[q] = f - 1.0 if stepping else f
+    return 1 if stepping else 0
 
 
 @numba.njit(cache=True, fastmath=False)
-def _render(mix, voices, x, v, x_prev, force, state, level, slope, failed, trajectory, shape, delta,
-            scratch, ring, k, c, gamma, inv_m, h, haptic_per_sample, dc_pole, interpolate):
+def _render(mix, voices, x, v, x_prev, force, state, level, slope, failed, out, ring, k, c, gamma, inv_m, h,
+            haptic_per_sample, dc_pole, interpolate):
     """Add every string in ``voices`` to ``mix``, each scaled by its envelope ``level`` moving
     by ``slope`` per sample (clipped to [0, 1]); a string whose state stops being finite is
-    silenced, adds nothing, and is flagged in ``failed`` (the reference's reset)."""
-    n_points = trajectory.shape[0]
-    lead = n_points - x.shape[1]
+    silenced, adds nothing this block, and is flagged in ``failed`` (the reference's reset).
+
+    Strings go in groups of up to :data:`MAX_GROUP`, a sample at a time across the group. The
+    group's shapes (and previous frames) live on the stack, ``masses + 2`` rows per string,
+    trajectory point ``p`` in row ``p`` of a string (its fixed end in row 0) or ``p + 1`` of a
+    ring. Short strings keep their whole physics there, voice-minor so a step runs across the
+    voices (:data:`ACROSS`); long ones step in the bank's rows and copy each new frame over,
+    string-major so the copy is contiguous."""
+    n = x.shape[1]
+    rows = n + 2
+    offset = 1 if ring else 0
+    n_points = n + 1 - offset
     frames = mix.shape[0]
     damp = 1.0 - gamma * h
-    for q in range(voices.shape[0]):
-        i = voices[q]
-        xi, vi, pi, fi = x[i], v[i], x_prev[i], force[i]
-        phase, frac, dc_x1, dc_y1, increment = state[i, 0], state[i, 1], state[i, 2], state[i, 3], state[i, 4]
-        _lay_out(shape, delta, pi, xi, lead)
+    across = n <= ACROSS
+    group = max(1, min(out.shape[1], STACK // rows))  # out is at most MAX_GROUP wide
+    point_step, voice_step = (group, 1) if across else (1, rows)  # where row r of string q lives: r·point + q·voice
+    # separate allocations, not one cut in four: LLVM then knows they never overlap
+    sx, sp = numba.carray(_stack_doubles(STACK), STACK), numba.carray(_stack_doubles(STACK), STACK)
+    sv, sf = numba.carray(_stack_doubles(STACK), STACK), numba.carray(_stack_doubles(STACK), STACK)
+    scalars = numba.carray(_stack_doubles(SCALARS), (8, MAX_GROUP))
+    phase, frac, dc_x, dc_y, increment, gain, fade = (scalars[0], scalars[1], scalars[2], scalars[3],
+                                                      scalars[4], scalars[5], scalars[6])
+    lane = numba.carray(_stack_doubles(LANES), LANES)
+    for first in range(0, voices.shape[0], group):
+        size = min(group, voices.shape[0] - first)
+        for q in range(size):
+            i = voices[first + q]
+            at = q * voice_step
+            _to_stack(sx, x[i], at, point_step, rows, ring)
+            _to_stack(sp, x_prev[i], at, point_step, rows, ring)
+            if across:
+                _to_stack(sv, v[i], at, point_step, rows, ring)
+                _to_stack(sf, force[i], at, point_step, rows, ring)
+            phase[q], frac[q], dc_x[q], dc_y[q], increment[q] = (state[i, 0], state[i, 1], state[i, 2], state[i, 3],
+                                                                 state[i, 4])
+            gain[q], fade[q] = level[i], slope[i]
+        enveloped = False
+        due = 0
+        for q in range(size):
+            enveloped |= fade[q] != 0.0 or gain[q] != 1.0
+            due += _tick(frac, q, haptic_per_sample)
         for s in range(frames):
-            frac += haptic_per_sample  # accumulated as the reference does: it decides the frame's sample
-            if frac >= 1.0:
-                frac -= 1.0
-                _step(xi, vi, pi, fi, ring, k, c, damp, inv_m, h)
-                _lay_out(shape, delta, pi, xi, lead)
-            pos = phase * n_points
-            j = int(pos)
-            if j >= n_points:  # phase just below 1 can round up to n_points
-                j -= n_points
-            if interpolate:
-                a = pos - j
-                y0 = shape[j] + frac * delta[j]
-                y1 = shape[j + 1] + frac * delta[j + 1]
-                y = y0 + a * (y1 - y0)
-            else:  # the node under the scan, current frame (to rounding: shape + delta is x)
-                y = shape[j] + delta[j]
-            dc_y1 = y - dc_x1 + dc_pole * dc_y1
-            dc_x1 = y
-            scratch[s] = dc_y1
-            phase += increment
-            if phase >= 1.0:
-                phase -= 1.0
-        total = dc_y1
-        for m in range(xi.shape[0]):
-            total += xi[m]
-        ok = math.isfinite(total)
-        if not ok:
-            failed[i] = True
-            xi[:] = 0.0
-            vi[:] = 0.0
-            pi[:] = 0.0
-            dc_x1 = dc_y1 = 0.0
-        state[i, 0], state[i, 1], state[i, 2], state[i, 3] = phase, frac, dc_x1, dc_y1
-        g, dg = level[i], slope[i]
-        if dg == 0.0:
-            if ok:
-                for s in range(frames):
-                    mix[s] += scratch[s]
-        else:
-            for s in range(frames):
-                envelope = min(max(g + dg * (s + 1), 0.0), 1.0)
-                if ok:
-                    mix[s] += envelope * scratch[s]
-            level[i] = min(max(g + dg * frames, 0.0), 1.0)
+            if across and due == size:
+                _step_across(sx, sv, sp, sf, -1, size, rows, group, ring, k, c, damp, inv_m, h)
+            elif due:
+                for q in range(size):
+                    if frac[q] < haptic_per_sample:  # it just wrapped: f − 1 < haptic_per_sample ≤ f
+                        if across:
+                            _step_across(sx, sv, sp, sf, q, size, rows, group, ring, k, c, damp, inv_m, h)
+                        else:
+                            i = voices[first + q]
+                            _step_along(x[i], v[i], x_prev[i], force[i], ring, k, c, damp, inv_m, h)
+                            _to_stack(sx, x[i], q * voice_step, point_step, rows, ring)
+                            if interpolate:
+                                _to_stack(sp, x_prev[i], q * voice_step, point_step, rows, ring)
+            row = out[s]
+            ticking = s + 1 < frames
+            due = 0
+            for q in range(size):  # the scan, across the group: vectorised, the shapes gathered
+                pos = phase[q] * n_points
+                j = int(pos)
+                if j >= n_points:  # phase just below 1 can round up to n_points
+                    j -= n_points
+                # unsigned: numba then adds no negative-index test to the gather
+                r = np.uint64((j + offset) * point_step + q * voice_step)
+                if interpolate:
+                    a = pos - j
+                    r1 = np.uint64((j + offset + 1) * point_step + q * voice_step)
+                    y0 = sp[r] + frac[q] * (sx[r] - sp[r])
+                    y1 = sp[r1] + frac[q] * (sx[r1] - sp[r1])
+                    y = y0 + a * (y1 - y0)
+                else:  # the node under the scan, current frame
+                    y = sx[r]
+                blocked = y - dc_x[q] + dc_pole * dc_y[q]  # the reference's DC blocker
+                dc_x[q] = y
+                dc_y[q] = blocked
+                row[q] = blocked * min(max(gain[q] + fade[q] * (s + 1), 0.0), 1.0) if enveloped else blocked
+                p = phase[q] + increment[q]
+                phase[q] = p - 1.0 if p >= 1.0 else p
+                if ticking:  # the next sample's haptic clock, in the same pass
+                    due += _tick(frac, q, haptic_per_sample)
+        for q in range(size):
+            i = voices[first + q]
+            if across:
+                _from_stack(x[i], sx, q, group)
+                _from_stack(v[i], sv, q, group)
+                _from_stack(x_prev[i], sp, q, group)
+            total = dc_y[q]
+            for m in range(n):
+                total += x[i, m]
+            if not math.isfinite(total):
+                failed[i] = True
+                out[:frames, q] = 0.0
+                x[i, :] = 0.0
+                v[i, :] = 0.0
+                x_prev[i, :] = 0.0
+                dc_x[q] = dc_y[q] = 0.0
+            state[i, 0], state[i, 1], state[i, 2], state[i, 3] = phase[q], frac[q], dc_x[q], dc_y[q]
+            level[i] = min(max(gain[q] + fade[q] * frames, 0.0), 1.0)
+        for s in range(frames):  # the group's mix: eight running sums, so the adds vectorise
+            row = out[s]
+            for lane_ in range(LANES):
+                lane[lane_] = 0.0
+            whole = size - size % LANES
+            for chunk in range(0, whole, LANES):  # range loops: indices known ≥ 0, no negative-index test
+                for lane_ in range(LANES):
+                    lane[lane_] += row[chunk + lane_]
+            total = 0.0
+            for lane_ in range(LANES):
+                total += lane[lane_]
+            for q in range(whole, size):
+                total += row[q]
+            mix[s] += total
 
 
 class StringBank:
@@ -158,10 +309,8 @@ class StringBank:
         self.strings = [ScannedString(self.parameters, sample_rate=sample_rate) for _ in range(size)]
         for i, string in enumerate(self.strings):
             string.bind(self.x[i], self.v[i], self.x_prev[i], self.force[i], self.state[i])
-        self.trajectory = default_trajectory(n, ring=self.parameters.ring)
-        self._shape = np.zeros(len(self.trajectory) + 1)
-        self._delta = np.zeros(len(self.trajectory) + 1)
-        self.scratch = np.zeros(block_size)
+        self.block_size = int(block_size)
+        self._out = np.zeros((self.block_size, min(size, MAX_GROUP)))  # a group's samples, one column a string
         self._failed = np.zeros(size, dtype=np.bool_)
         self.sample_rate = float(sample_rate)
 
@@ -177,13 +326,13 @@ class StringBank:
         """Add strings ``voices`` (indices) to ``mix`` (at most ``block_size`` samples), each
         times its envelope: ``level[i]`` now, moving by ``slope[i]`` per sample, clipped to
         [0, 1]; ``level`` is advanced to the end of the block."""
-        if len(mix) > len(self.scratch):
-            raise ValueError(f"block of {len(mix)} samples exceeds the bank's block_size {len(self.scratch)}")
+        if len(mix) > self.block_size:
+            raise ValueError(f"block of {len(mix)} samples exceeds the bank's block_size {self.block_size}")
         p = self.parameters
         _render(mix, np.asarray(voices, dtype=np.int64), self.x, self.v, self.x_prev, self.force, self.state,
-                level, slope, self._failed, self.trajectory, self._shape, self._delta, self.scratch,
-                p.ring, p.stiffness, p.centring, p.damping / p.mass, 1.0 / p.mass, 1.0 / p.haptic_rate,
-                p.haptic_rate / self.sample_rate, self.strings[0].dc_pole, p.interpolation == "linear")
+                level, slope, self._failed, self._out, p.ring, p.stiffness, p.centring, p.damping / p.mass,
+                1.0 / p.mass, 1.0 / p.haptic_rate, p.haptic_rate / self.sample_rate, self.strings[0].dc_pole,
+                p.interpolation == "linear")
         if self._failed.any():
             for i in np.flatnonzero(self._failed):
                 self.strings[i].resets += 1

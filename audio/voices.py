@@ -84,7 +84,7 @@ class VoicePool:
         A block longer than ``block_size`` (a coarse behaviour tick at a high sample rate) is
         rendered in ``block_size`` pieces, so the scratch buffers stay preallocated and small."""
         out[:] = 0.0
-        size = len(self.bank.scratch)
+        size = self.bank.block_size
         for start in range(0, len(out), size):
             sounding = np.flatnonzero(self.pitch >= 0)
             self.bank.render(out[start:start + size], sounding, self.level, self.slope)

@@ -50,6 +50,39 @@ def test_note_event_sets_pitch_through_the_scan_rate():
     assert fundamental(string.render(SR)[SR // 10 :]) == pytest.approx(220.0, abs=2.0)
 
 
+def test_one_mass_is_a_damped_oscillator_scanned_as_a_pulse_wave():
+    """The smallest string: one mass on springs to two fixed ends rings at ω² = (2·stiffness +
+    centring)/mass (symplectic Euler: cos ωh = 1 − h²ω²/2), and the scan, passing the fixed end
+    and the mass once per period, is a pulse wave at the scan frequency times the ringing mass:
+    a ring modulation, its lowest partial at scan − ringing. On a ring the one mass is its own
+    neighbour: its spring pulls on nothing, so only centring rings it."""
+    def positions(parameters: StringParameters, frames: int) -> tuple[np.ndarray, np.ndarray]:
+        string = ScannedString(parameters, sample_rate=SR, frequency=220.0)
+        string.pluck(position=0.0, width=0.5, amplitude=1.0)  # the one mass, displaced 1
+        per_step = SR // int(parameters.haptic_rate)
+        blocks = [(string.render_raw(np.empty(per_step)), string.x[0]) for _ in range(frames)]
+        return np.array([x for _, x in blocks]), np.concatenate([audio for audio, _ in blocks])
+
+    def ringing_hz(x: np.ndarray, rate: float) -> float:
+        ups = np.flatnonzero((x[:-1] < 0) & (x[1:] >= 0))
+        return (len(ups) - 1) / ((ups[-1] - ups[0]) / rate)
+
+    fixed = StringParameters(n_masses=1, stiffness=800.0, centring=4.0, damping=0.0, haptic_rate=1000.0,
+                             interpolation="none")
+    x, audio = positions(fixed, 4000)
+    h = 1.0 / fixed.haptic_rate
+    expected = math.acos(1.0 - h * h * (2 * fixed.stiffness + fixed.centring) / 2.0) / h / (2 * math.pi)
+    assert ringing_hz(x, fixed.haptic_rate) == pytest.approx(expected, rel=0.01)
+    assert np.abs(x).max() == pytest.approx(1.0, abs=0.05)  # undamped: neither grows nor decays
+    assert fundamental(audio[SR // 10:], low=100.0) == pytest.approx(220.0 - expected, abs=1.0)
+    ring = dataclasses.replace(fixed, ring=True)
+    x_ring, _ = positions(ring, 8000)
+    x_slack, _ = positions(dataclasses.replace(ring, stiffness=0.0), 8000)
+    np.testing.assert_array_equal(x_ring, x_slack)  # no spring to pull on
+    centring_hz = math.acos(1.0 - h * h * ring.centring / 2.0) / h / (2 * math.pi)
+    assert ringing_hz(x_ring, ring.haptic_rate) == pytest.approx(centring_hz, rel=0.02)
+
+
 @pytest.mark.parametrize("damping", [0.5, 2.0])
 def test_energy_decays_and_faster_with_more_damping(damping):
     def energies(d):
@@ -86,7 +119,7 @@ def test_stiffer_string_struck_by_a_hammer_sounds_darker():
         ({"damping": 2000.0}, "damping/mass × step"),
         ({"mass": 0.0}, "mass must be a positive"),
         ({"centring": float("nan")}, "centring must be"),
-        ({"n_masses": 2}, "at least 3 masses"),
+        ({"n_masses": 0}, "at least 1 mass"),
     ],
 )
 def test_unstable_parameters_are_rejected_with_a_clear_error(changes, words):
@@ -124,7 +157,7 @@ def test_config_keeps_strings_gestural_and_the_haptic_rate_in_its_band():
 @st.composite
 def accepted_voices(draw: st.DrawFn) -> VoiceSpec:
     """A ``[creature.voice]`` the config accepts, each constant drawn across its whole range:
-    haptic rate 100–1000 Hz, masses 3–1024, mass over twelve decades (the config bounds it
+    haptic rate 100–1000 Hz, masses 1–1024, mass over twelve decades (the config bounds it
     to 0 < mass ≤ 1e6), centring and stiffness up to the gestural limit, damping up to the
     integrator's bound ``h²(4k + c)/m < 4 − 2·damping·h/m`` (audio/scanned.py)."""
     mass = draw(st.floats(1e-6, 1e6))
@@ -134,7 +167,7 @@ def accepted_voices(draw: st.DrawFn) -> VoiceSpec:
     stiffness = draw(st.floats(0.0, 0.999)) * rest.stiffness_for_highest_mode(GESTURAL_LIMIT_HZ)
     omega_h_squared = (4.0 * stiffness + centring) / mass / haptic_rate**2
     damping = draw(st.floats(0.0, 0.999)) * mass * haptic_rate * (4.0 - omega_h_squared) / 2.0
-    return VoiceSpec(masses=draw(st.integers(3, 1024)), mass=mass, stiffness=stiffness, centring=centring,
+    return VoiceSpec(masses=draw(st.integers(1, 1024)), mass=mass, stiffness=stiffness, centring=centring,
                      damping=damping, haptic_rate=haptic_rate)
 
 

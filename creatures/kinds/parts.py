@@ -40,7 +40,7 @@ class VoiceSpec(BaseModel):
     model_config = FINITE
 
     voices: int = Field(6, ge=1, le=32, description="polyphony (strings)")
-    masses: int = Field(64, ge=3, le=1024, description="masses per string")
+    masses: int = Field(64, ge=1, le=1024, description="masses per string")
     mass: float = Field(1.0, gt=0, le=1e6, description="mass of each node of the string")
     stiffness: float = Field(800.0, ge=0, le=1e12, description="spring between neighbouring masses")
     centring: float = Field(4.0, ge=0, le=1e12, description="spring of each mass to rest")
