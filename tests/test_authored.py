@@ -204,7 +204,7 @@ def test_like_starts_a_creature_from_an_earlier_one(tmp_path):
 def test_the_authored_exchange_runs_deterministically(tmp_path):
     import hashlib
 
-    config = Path(__file__).resolve().parents[1] / "installations" / "authored" / "exchange.toml"
+    config = Path(__file__).resolve().parents[1] / "installations" / "exchange.toml"
     digests = []
     for run in ("a", "b"):
         inst = load_installation(config)
@@ -360,7 +360,7 @@ window = 100.0""")
             world.inject(NoteEvent(t, 60, 90, 0, 0.2))
         world.deliver(t)
         c.tick(t)
-        level[round(t, 2)] = (c.drive("boredom", t), c.drive("calm", t), c.drive("tide", t))
+        level[round(t, 2)] = (c.level("boredom", t), c.level("calm", t), c.level("tide", t))
     assert level[10.0][0] == pytest.approx(1.0, abs=0.02)  # growth alone for 10 s
     # 10..20 s: growth 0.1 − 1.0 from hearing + the arc ramping 0 → 0.5: net −0.65 over 10 s, floored at 0
     assert level[20.0][0] == 0.0

@@ -157,6 +157,8 @@ def _needs(c: _Checker, cls, loc: tuple) -> None:
     """A part that uses the body or the note space needs the creature to have it."""
     if getattr(cls, "needs", None) in ("body", "space") and not c.spec.body:
         raise c.error(loc, f"{cls.name!r} uses the body: set 'body = true' on the creature")
+    if getattr(cls, "needs", None) == "hearing" and c.spec.hearing is None:
+        raise c.error(loc, f"{cls.name!r} hears sound: give the creature a [creature.hearing] table")
     if getattr(cls, "needs", None) == "space" and c.spec.space is None:
         raise c.error(loc, f"{cls.name!r} uses notes in space: give the creature a [creature.space] table")
 
@@ -204,6 +206,10 @@ def _groups(c: _Checker) -> None:
                                                 "(a tuple or group belongs to one group)")
             owner[member] = name
         c.need("percepts", g.trigger, (*loc, "trigger"))
+        for drive in g.heat:
+            c.need("drives", drive, (*loc, "heat", drive))
+        if g.heat and g.temperature is None:
+            raise c.error((*loc, "heat"), "heat raises the Boltzmann temperature: give the group a 'temperature'")
         for k, constraint in enumerate(g.constraints):
             for end in ("a", "b"):
                 c.need("tuples", getattr(constraint, end), (*loc, "constraints", k, end))
@@ -231,6 +237,13 @@ def _learning(c: _Checker) -> None:
     learning = c.spec.learning
     for k, group in enumerate(learning.groups):
         c.need("groups", group, ("learning", "groups", k))
+    for k, group in enumerate(learning.aural):
+        c.need("groups", group, ("learning", "aural", k))
+        if group in learning.groups:
+            raise c.error(("learning", "aural", k), f"group {group!r} learns one way: it is in 'groups' as well")
+        if not any(c.spec.percepts[p].type == "utterance" for p in c.spec.percepts):
+            raise c.error(("learning", "aural", k), "aural learning grows an 'utterance' percept's tree: "
+                                                    "declare one")
     ph = learning.phrases
     if ph is not None:
         loc = ("learning", "phrases")
