@@ -491,7 +491,7 @@ class Sing(ActionPart):
     name = "sing"
     thesis = "aural Ac percept trees"
     Params = _SingParams
-    refs = {"percept": "percepts"}
+    refs = {"percept": "utterances"}
     needs = "hearing"
 
     def build(self, params, creature, name):
@@ -514,7 +514,7 @@ class Attend(ActionPart):
     name = "attend"
     thesis = "soundcreatures (installation)"
     Params = _AttendParams
-    refs = {"percept": "percepts", "drive": "drives"}
+    refs = {"percept": "utterances", "drive": "drives"}
     needs = "hearing"
 
     def build(self, params, creature, name):

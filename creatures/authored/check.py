@@ -59,7 +59,14 @@ class _Checker:
     def references(self, cls, params, loc: tuple) -> list[str]:
         percepts = []
         for key, namespace, name in cls.references(params):
-            self.need(namespace, name, (*loc, key))
+            if namespace == "utterances":  # a percept that must be of the aural tree
+                self.need("percepts", name, (*loc, key))
+                if self.spec.percepts[name].type != "utterance":
+                    raise self.error((*loc, key), f"{name!r} is a {self.spec.percepts[name].type!r} percept; "
+                                                  f"{cls.name!r} needs an 'utterance' percept (the aural tree)")
+                namespace = "percepts"
+            else:
+                self.need(namespace, name, (*loc, key))
             if namespace == "percepts":
                 percepts.append(name)
         return percepts
@@ -82,6 +89,10 @@ def check(spec: "AuthoredSpec", file: Path, where: Where, prefix: tuple) -> None
 
 
 def _percepts(c: _Checker) -> None:
+    trees = [name for name, p in c.spec.percepts.items() if p.type == "utterance"]
+    if len(trees) > 1:
+        raise c.error(("percepts", trees[1], "type"), f"one 'utterance' percept per creature: it is the root of "
+                                                      f"its one aural tree, and {trees[0]!r} is already")
     edges: dict[str, list[str]] = {}
     for name, p in c.spec.percepts.items():
         loc = ("percepts", name)

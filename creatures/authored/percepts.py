@@ -474,7 +474,7 @@ class Repertoire(PerceptPart):
     name = "repertoire"
     thesis = "aural Ac percept trees"
     Params = _RepertoireParams
-    refs = {"of": "percepts"}
+    refs = {"of": "utterances"}
     needs = "hearing"
 
     def build(self, params, creature, name):
