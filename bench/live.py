@@ -99,7 +99,7 @@ def run(quick: bool) -> list[Row]:
     os.environ.setdefault("MIDO_BACKEND", "mido.backends.rtmidi/UNIX_JACK")
     inst = load_installation(installations.path("exchange"))
     ada = inst.specs[0]
-    ada.answer, ada.strike_interval, ada.refractory, ada.mutation = 1.0, 0.0, 0.0, 0.0
+    ada.space.answer, ada.space.strike_interval, ada.space.refractory, ada.space.mutation = 1.0, 0.0, 0.0, 0.0
     port = free_udp_port()
     inst.settings.osc.port = port
     synth = Synth("creatures-bench-")

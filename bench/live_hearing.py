@@ -37,9 +37,9 @@ output_port = "{port}"
 [[creature]]
 name = "ada"
 kind = "exchange"
-answer = 1.0
-refractory = 0.0
-strike_interval = 0.0
+space.answer = 1.0
+space.refractory = 0.0
+space.strike_interval = 0.0
 """
 
 

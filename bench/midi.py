@@ -142,7 +142,7 @@ def _latency_rows(rng: np.random.Generator, n: int) -> list[Row]:
     inst = load_installation(installations.path("exchange"))
     inst.settings.midi.input_port = "bench keys"
     ada = inst.specs[0]
-    ada.answer, ada.strike_interval, ada.refractory, ada.mutation = 1.0, 0.0, 0.0, 0.0
+    ada.space.answer, ada.space.strike_interval, ada.space.refractory, ada.space.mutation = 1.0, 0.0, 0.0, 0.0
     total = WARM_UP + n
     wall = _FastForward()
     clock = SimulatedClock(wall.now())

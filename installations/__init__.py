@@ -15,6 +15,16 @@ def names() -> list[str]:
     return sorted(p.stem for p in HERE.glob("*.toml") if not p.stem.startswith("_"))
 
 
+CREATURES = HERE / "creatures"
+"""Shipped creature documents: ``kind = "exchange"`` starts a ``[[creature]]`` table from
+``creatures/exchange.toml`` (creatures/authored/include.py, :func:`expand_kinds`)."""
+
+
+def creature_names() -> list[str]:
+    """Names of the shipped creature documents (usable as ``kind``)."""
+    return sorted(p.stem for p in CREATURES.glob("*.toml"))
+
+
 def path(name: str) -> Path:
     """The config file of a shipped installation, or a clear error listing the choices."""
     candidate = HERE / f"{name}.toml"

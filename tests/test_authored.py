@@ -204,7 +204,7 @@ def test_like_starts_a_creature_from_an_earlier_one(tmp_path):
 def test_the_authored_exchange_runs_deterministically(tmp_path):
     import hashlib
 
-    config = Path(__file__).resolve().parents[1] / "installations" / "authored" / "exchange.toml"
+    config = Path(__file__).resolve().parents[1] / "installations" / "exchange.toml"
     digests = []
     for run in ("a", "b"):
         inst = load_installation(config)
@@ -360,7 +360,7 @@ window = 100.0""")
             world.inject(NoteEvent(t, 60, 90, 0, 0.2))
         world.deliver(t)
         c.tick(t)
-        level[round(t, 2)] = (c.drive("boredom", t), c.drive("calm", t), c.drive("tide", t))
+        level[round(t, 2)] = (c.level("boredom", t), c.level("calm", t), c.level("tide", t))
     assert level[10.0][0] == pytest.approx(1.0, abs=0.02)  # growth alone for 10 s
     # 10..20 s: growth 0.1 − 1.0 from hearing + the arc ramping 0 → 0.5: net −0.65 over 10 s, floored at 0
     assert level[20.0][0] == 0.0
@@ -590,3 +590,35 @@ def test_learning_splits_a_percept_the_rewarded_data_shows_to_be_two_and_tries_e
     assert abs(low - 48) < 4 and abs(high - 72) < 8, fission["means"]
     names = {tp.name for tp in c.groups["main"].tuples}
     assert {"tone.1|answer", "tone.2|answer"} <= names
+
+
+AURAL = """
+[creature.hearing]
+
+[creature.percepts.sound]
+type = "utterance"
+
+[creature.tuples.song]
+trigger = "sound"
+action = { type = "sing", percept = "sound" }
+until = { seconds = 4.0 }
+"""
+
+
+@pytest.mark.parametrize("case, fragment, key, message", [
+    ("sing from a percept that is not the aural tree", ('percept = "sound" }', 'percept = "bored" }'),
+     "creature.0.tuples.song.action.percept", "'bored' is a 'drive' percept; 'sing' needs an 'utterance' percept"),
+    ("an ear-less creature", ("[creature.hearing]", ""), "creature.0.percepts.sound.type",
+     "'utterance' hears sound: give the creature a [creature.hearing] table"),
+    ("two aural trees", ('type = "utterance"', 'type = "utterance"\n[creature.percepts.other]\ntype = "utterance"'),
+     "creature.0.percepts.other.type", "one 'utterance' percept per creature"),
+    ("heat with no temperature", ("alpha = 0.0", "alpha = 0.0\nheat = { boredom = 1.0 }"),
+     "creature.0.groups.main.heat", "give the group a 'temperature'"),
+])
+def test_the_aural_parts_are_checked_at_load(tmp_path, case, fragment, key, message):
+    """sing/attend/repertoire name an 'utterance' percept, which needs an ear; one tree per creature."""
+    text = HEAD + CREATURE.replace('tuples = ["sing", "rest"]', 'tuples = ["sing", "rest", "song"]') + AURAL
+    path = write(tmp_path, text.replace(*fragment))
+    error = error_of(path)
+    assert error.key == key and message in str(error), (case, str(error))
+    assert error.line > 0

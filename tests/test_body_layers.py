@@ -61,7 +61,7 @@ def test_breathe_is_a_config_key_and_bad_joints_are_named(tmp_path):
     path.write_text(text)
     specs = load_installation(path).specs
     assert specs[0].body.breathe.depth == 0.05 and specs[0].body.breathe.period == 4.0
-    assert specs[1].body.breathe.depth == 0.0  # the other creature does not breathe
+    assert specs[1].body is True  # the other creature's body has no layers: it does not breathe
     path.write_text(text.replace("depth = 0.05}", 'depth = 0.05, joints = {ribs = [1, 0, 0]}}'))
     with pytest.raises(ConfigError, match=r"body.*no joint 'ribs'.*chest"):
         load_installation(path)
@@ -76,7 +76,7 @@ def voice_track(tmp_path: Path, depth: float) -> tuple[np.ndarray, np.ndarray, n
     inst = load_installation(CONFIG)
     inst.settings.output.report = False
     for spec in inst.specs:
-        spec.body.breathe = BreatheSpec(period=BREATH, depth=depth)
+        spec.body = BodySpec(breathe=BreatheSpec(period=BREATH, depth=depth))
     out = tmp_path / f"run-{depth}"
     run_offline(inst, out, audio=wav, duration=20.0)
     first = inst.specs[0].name
@@ -101,7 +101,7 @@ def test_soundcreatures_breathe_out_their_songs(tmp_path):
 def test_the_events_log_names_who_drives_the_body(tmp_path):
     inst = load_installation(CONFIG)
     inst.settings.output.report = False
-    inst.specs[0].body.breathe = BreatheSpec(period=BREATH, depth=0.1, fade=2.0)
+    inst.specs[0].body = BodySpec(breathe=BreatheSpec(period=BREATH, depth=0.1, fade=2.0))
     run_offline(inst, tmp_path / "out", duration=4.0)
     motor = [e for e in read_events(tmp_path / "out" / "events.jsonl") if e["kind"] == "motor"]
     layered = [e for e in motor if e["creature"] == inst.specs[0].name]
@@ -116,5 +116,5 @@ def test_the_shipped_exchange_layers_a_breath_over_one_wander():
 
     specs = {spec.name: spec for spec in load_installation(installations.path("exchange")).specs}
     assert specs["bo"].body.breathe.depth > 0.0
-    assert all(spec.body.breathe.depth == 0.0 for name, spec in specs.items() if name != "bo")
+    assert all(spec.body is True for name, spec in specs.items() if name != "bo")  # a body with no layers
     assert Body(np.random.default_rng(0), spec=specs["bo"].body).layers is not None

@@ -99,7 +99,7 @@ def test_a_creature_without_a_body_has_no_body_features(tmp_path):
 def test_an_authored_creature_streams_its_hand_when_it_has_a_body(tmp_path):
     """``body = true`` on an authored creature gives it the features (``Authored.has_body``)."""
     config = tmp_path / "authored.toml"
-    config.write_text(f'extends = "{installations.path("authored/exchange")}"\n'
+    config.write_text(f'extends = "{installations.path("exchange")}"\n'
                       '[[output.cc]]\nsource = "bo.body.speed"\ncontroller = 21\nrange = [0.0, 3.0]\n')
     sink, clock = MemorySink(), SimulatedClock()
     session = Session(load_installation(config), clock, EventLog(), sink)

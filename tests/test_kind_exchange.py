@@ -1,7 +1,7 @@
-"""exchange: notes fed to one creature reach the others, for the Exchange class and for the
-same colony written as authored creatures (installations/authored/exchange.toml); what a
-creature plays is tested for recognisable transformations (retrograde, swapped sub-segments)
-of what it heard against a shuffle of the same notes."""
+"""exchange: notes fed to one creature reach the others in the shipped colony, whose creatures
+are authored (installations/creatures/exchange.toml); what a creature plays is tested for
+recognisable transformations (retrograde, swapped sub-segments) of what it heard against a
+shuffle of the same notes."""
 
 from __future__ import annotations
 
@@ -21,9 +21,6 @@ from midi.files import write_notes
 from midi.notes import NoteEvent
 
 PHRASE = [60, 62, 64, 67, 69, 72, 74, 76]
-
-CONFIGS = {"class": installations.path("exchange"),
-           "authored": Path(installations.__file__).parent / "authored" / "exchange.toml"}
 
 
 SHUFFLES = 200
@@ -92,9 +89,9 @@ def test_transformation_detector():
     assert not recognisable(PHRASE, PHRASE)  # the passage passed on unchanged is no variation
 
 
-def run_exchange(tmp_path: Path, duration: float = 45.0, config: str = "class") -> list[dict]:
-    """The shipped exchange (or its authored twin), its first creature fed the phrase three times."""
-    inst = load_installation(CONFIGS[config])
+def run_exchange(tmp_path: Path, duration: float = 45.0) -> list[dict]:
+    """The shipped exchange, its first creature fed the phrase three times."""
+    inst = load_installation(installations.path("exchange"))
     inst.settings.output.wav = inst.settings.output.report = False
     phrase = tmp_path / "phrase.mid"
     write_notes(phrase, [NoteEvent(1.0 + 0.3 * i + 6.0 * r, p, 96, 0, 0.25)
@@ -107,9 +104,8 @@ def played_by(events: list[dict], creature: str) -> list[int]:
     return [e["pitch"] for e in events if e["kind"] == "note" and e["creature"] == creature]
 
 
-@pytest.mark.parametrize("config", CONFIGS)
-def test_notes_fed_to_one_creature_reach_another(tmp_path: Path, config: str):
-    events = run_exchange(tmp_path, config=config)
+def test_notes_fed_to_one_creature_reach_another(tmp_path: Path):
+    events = run_exchange(tmp_path)
     placed = {}
     for e in events:
         if e["kind"] == "placed":
@@ -150,23 +146,26 @@ def test_the_first_creature_plays_recognisable_variations_of_the_phrase(tmp_path
     assert recognisable(PHRASE, played_by(run_exchange(tmp_path, 90.0), "ada"))
 
 
-@pytest.mark.parametrize("config", CONFIGS)
-def test_ratio_metric_gives_a_body_on_the_exchange_graph(config: str):
+def test_ratio_metric_gives_a_body_on_the_exchange_graph():
     plain, ratios = shared_graph(False), shared_graph(True)
     assert not plain.weights.ratios and ratios.weights.ratios
     assert plain.edges() != ratios.edges()  # the perturbed time metric reshapes the topology
-    inst = load_installation(CONFIGS[config])
+    inst = load_installation(installations.path("exchange"))
     cy = next(spec for spec in inst.specs if spec.name == "cy")
     assert cy.ratio_metric
 
 
-def run_colony(out: Path, **fields: object) -> list[dict]:
-    """The shipped exchange, unfed, for 60 s with ``fields`` set on every creature's spec."""
+def run_colony(out: Path, *, ratio_metric: bool | None = None, graded: bool | None = None) -> list[dict]:
+    """The shipped exchange, unfed, for 60 s, with every creature's body on the ratio metric or
+    not, and its wander and rest Du graded or not (where given)."""
     inst = load_installation(installations.path("exchange"))
     inst.settings.output.wav = inst.settings.output.report = False
     for spec in inst.specs:
-        for name, value in fields.items():
-            setattr(spec, name, value)
+        if ratio_metric is not None:
+            spec.ratio_metric = ratio_metric
+        if graded is not None:
+            for name in ("wander", "rest"):
+                spec.tuples[name].until.graded = graded
     run_offline(inst, out, duration=60.0)
     return read_events(out / "events.jsonl")
 
@@ -204,11 +203,11 @@ def test_ratio_metric_favours_low_integer_ratio_jumps_on_the_paths_taken(tmp_pat
 
 
 def test_a_graded_du_lets_hunger_interrupt_wandering_and_resting_more(tmp_path: Path):
-    """``graded_du``: a wander's or rest's expected value declines as its planned time runs
+    """``until.graded``: a wander's or rest's expected value declines as its planned time runs
     out, so hunger for notes interrupts it more often (measured over 120 s, seed 7: 190
     interruptions against 55; seed 8: 206 against 48)."""
     counts = {}
     for graded in (False, True):
-        events = run_colony(tmp_path / str(graded), graded_du=graded)
+        events = run_colony(tmp_path / str(graded), graded=graded)
         counts[graded] = sum(e["kind"] == "interruption" and e["tuple"] in ("wander", "rest") for e in events)
     assert counts[True] >= 2 * counts[False] > 0, counts

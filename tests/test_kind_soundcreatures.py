@@ -153,18 +153,18 @@ def test_state_survives_a_save(talk, tmp_path):
         first.clock.advance_to(k * 0.02)
         first.step(k * 0.02, frames, x[(k - 1) * frames : k * frames])
     creature = first.creatures[0]
-    assert len(list(creature.root.walk())) > 1, "by now the tree has sound classes to save"
+    assert len(list(creature.aural.root.walk())) > 1, "by now the tree has sound classes to save"
     saved = json.loads(json.dumps(creature.state()))
     second = session()
     again = second.creatures[0]
     again.restore(saved)
     assert [tp.name for tp in again.group.tuples] == [tp.name for tp in creature.group.tuples]
     assert [tp.value.to_float() for tp in again.group.tuples] == [tp.value.to_float() for tp in creature.group.tuples]
-    assert [len(p.members) for p in again.root.walk()] == [len(p.members) for p in creature.root.walk()]
-    a, b = creature.root.members[0].samples, again.root.members[0].samples
+    assert [len(p.members) for p in again.aural.root.walk()] == [len(p.members) for p in creature.aural.root.walk()]
+    a, b = creature.aural.root.members[0].samples, again.aural.root.members[0].samples
     assert np.abs(a - b).max() < 1e-4  # 16-bit PCM in the state
     with pytest.raises(ValueError, match="malformed aural model"):
-        again.restore({**saved, "tree": {"root": {}}})
+        again.restore({**saved, "aural": {**saved["aural"], "tree": {"root": {}}}})
 
 
 @pytest.mark.xfail(strict=True, reason="issue 20: an unanswered song is credited toward β·V of the tuple "
@@ -211,7 +211,7 @@ def test_songs_that_are_answered_gain_value(tmp_path):
     worth: dict[str, list[float]] = {"ai": [], "oe": []}
     for tp in creature.group.tuples:
         percept = getattr(tp.action, "percept", None)
-        if percept is not None and percept is not creature.root and percept.members:
+        if percept is not None and percept is not creature.aural.root and percept.members:
             worth[kind_of(percept)].append(tp.value.to_float())
     assert songs.count("ai") == 20 and songs.count("oe") >= 5
     assert worth["ai"] and worth["oe"]

@@ -30,7 +30,7 @@ channel = 0
 pan = -0.7
 program = 48
 bank = 130
-answer = 1.0
+space.answer = 1.0
 [[creature]]
 name = "bo"
 kind = "exchange"

@@ -55,8 +55,8 @@ def _line_of(path: Path, key: str) -> int:
 @pytest.mark.parametrize("name, key, value", [
     ("curve", "place", "nan"),  # passed, and the first save died on NaN
     ("curve", "place", "1e308"),
-    ("exchange", "boredom_rate", "inf"),
-    ("exchange", "boredom_rate", "1e308"),
+    ("exchange", "drives.boredom.growth", "inf"),
+    ("exchange", "drives.boredom.growth", "1e308"),
     ("exchange", "duration", "inf"),
     ("exchange", "duration", "1e308"),
     ("exchange", "seed", "-1"),
@@ -123,10 +123,11 @@ def test_every_number_in_the_schema_is_finite_and_bounded():
 def test_a_seed_model_that_is_not_an_aural_model_is_a_config_error(tmp_path):
     for target in ("/etc/passwd", str(tmp_path / "other.json")):
         (tmp_path / "other.json").write_text('{"format": "something else"}')
-        path = _config(tmp_path, "soundcreatures", "seed_model", f'"{target}"')
+        key = 'percepts."any sound".seed_model'  # the aural tree's percept (installations/creatures/soundcreature.toml)
+        path = _config(tmp_path, "soundcreatures", key, f'"{target}"')
         with pytest.raises(ConfigError, match="aural model") as caught:
             load_installation(path)
-        assert caught.value.line == _line_of(path, "seed_model") and caught.value.key == "creature.0.seed_model"
+        assert caught.value.line == _line_of(path, key) and caught.value.key == "creature.0.percepts.any sound.seed_model"
 
 
 @pytest.mark.parametrize("nesting", ["[" * 1000 + "]" * 1000, "{a = " * 1000 + "1" + "}" * 1000, "[" * 20 + "]" * 20])
@@ -199,12 +200,12 @@ def _lived(path: Path, seconds: float, state: Path | None = None) -> Session:
 
 
 def test_an_edited_setting_wins_over_restored_state_and_learned_levels_are_kept(tmp_path):
-    """Defect 10: an edited ``boredom_rate`` was ignored after a restart (the saved drive
+    """Defect 10: an edited boredom growth (``boredom_rate`` then) was ignored after a restart (the saved drive
     rates replaced the config's). Rates are settings, levels are what the creature lived."""
     before = _lived(installations.path("exchange"), 5.0)
     before.save_state(tmp_path / "state")
     saved_levels = before.creatures[0].motivation.levels.copy()
-    edited = _config(tmp_path, "exchange", "boredom_rate", "0.5")
+    edited = _config(tmp_path, "exchange", "drives.boredom.growth", "0.5")
     after = _lived(edited, 0.0, state=tmp_path / "state")
     motivation = after.creatures[0].motivation
     assert motivation.growth[motivation.index("boredom")] == 0.5

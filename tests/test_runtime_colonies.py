@@ -40,9 +40,9 @@ peers = ["127.0.0.1:{peer}"]
 [[creature]]
 name = "echo"
 kind = "exchange"
-answer = 1.0  # strikes what it hears where it lands
-strike_interval = 0.05
-refractory = 0.5
+space.answer = 1.0  # strikes what it hears where it lands
+space.strike_interval = 0.05
+space.refractory = 0.5
 """
 
 

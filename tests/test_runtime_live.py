@@ -226,7 +226,7 @@ def test_a_port_listing_of_two_seconds_never_delays_a_tick_by_more_than_5_ms(tmp
     config = tmp_path / "live.toml"
     config.write_text(CONFIG.replace('output_device = "NoSuchCard"', "output = false")
                       .replace("NoSuchSynth", "Slow Synth").replace("[midi]", '[midi]\ninput_port = "keys"')
-                      + "answer = 1.0\n")  # ada strikes every note she hears, at once
+                      + "space.answer = 1.0\n")  # ada strikes every note she hears, at once
     inst = load_installation(config)
     grid: list[tuple[float, float]] = []  # (grid time, lateness) on the loop's own clock
     real_add = live.TickTiming.add

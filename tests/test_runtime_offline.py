@@ -49,8 +49,8 @@ def test_offline_is_deterministic(exchange_run, tmp_path):
 
 
 BAD_CONFIGS = {
-    "unknown key": ('title = "x"\n[[creature]]\nname = "a"\nkind = "exchange"\nstrike_radus = 0.2\n',
-                    "creature.0.strike_radus", 5, "did you mean 'strike_radius'"),
+    "unknown key": ('title = "x"\n[[creature]]\nname = "a"\nkind = "exchange"\nspace.strike_radus = 0.2\n',
+                    "creature.0.space.strike_radus", 5, "did you mean 'strike_radius'"),
     "wrong type": ('title = "x"\ntick = "fast"\n[[creature]]\nname = "a"\nkind = "exchange"\n', "tick", 2, "valid number"),
     "missing file": ('title = "x"\n[input]\nmidi = "nowhere.mid"\n[[creature]]\nname = "a"\nkind = "exchange"\n',
                      "input.midi", 3, "file not found"),

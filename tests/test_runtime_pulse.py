@@ -27,7 +27,7 @@ report = false
 [[creature]]
 name = "ada"
 kind = "exchange"
-rests_in_time = true
+tuples.rest.until.pulse = 2  # rests in the time of what it hears
 """
 
 

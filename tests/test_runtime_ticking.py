@@ -27,8 +27,8 @@ input_port = "keys"
 [[creature]]
 name = "ada"
 kind = "exchange"
-answer = 1.0
-strike_interval = 0.0  # answer every note, however close together
+space.answer = 1.0
+space.strike_interval = 0.0  # answer every note, however close together
 """
 
 

@@ -478,3 +478,59 @@ class StrikeNearby(MotorPart):
                 creature.notes.strike_nearby(t)
 
         return Strike(name)
+
+
+# -- sounds (thesis: "soundcreatures (installation)", "aural Ac percept trees") ---------------
+class _SingParams(Params):
+    percept: str = Field(description="an 'utterance' percept (or the tree's root, whose learnt classes become "
+                                     "new tuples singing each)")
+
+
+@ACTIONS.register
+class Sing(ActionPart):
+    """Sing from an aural percept: an exemplar drawn from the utterance class, sung through
+    the mouth (and the body, which moves across the graph while singing). Tuples singing one
+    class share one action, so credit flows between them."""
+
+    name = "sing"
+    thesis = "aural Ac percept trees"
+    Params = _SingParams
+    refs = {"percept": "utterances"}
+    needs = "hearing"
+
+    def build(self, params, creature, name):
+        return creature.aural.sing_from(creature.aural.percept(params.percept))
+
+
+class _AttendParams(Params):
+    percept: str = Field(description="the 'utterance' percept whose sound is attended")
+    drive: str | None = Field(None, description="a drive attending relieves (the motivation to hear)")
+    relief: float = Field(0.5, ge=0, le=1e3, description="taken off the drive each time")
+
+
+@ACTIONS.register
+class Attend(ActionPart):
+    """Turn to a heard sound: the consummatory act of the motivation to hear. The sound
+    attended joins the tree's exemplars now (by the time this activation's credit is assigned
+    the tree may hear a newer one), and ``drive`` falls by ``relief``. With a non-plastic
+    value it is the primary reinforcer: the perception of sound rewards what came before."""
+
+    name = "attend"
+    thesis = "soundcreatures (installation)"
+    Params = _AttendParams
+    refs = {"percept": "utterances", "drive": "drives"}
+    needs = "hearing"
+
+    def build(self, params, creature, name):
+        tree = creature.aural.percept(params.percept)
+
+        class AttendAction(Action):
+            def start(self, t, tuple_):
+                if params.drive is not None:
+                    creature.motivation.perturb(t, params.drive, -params.relief)
+                tree.update(t, tuple_.value.to_float())
+                heard = tree.heard(t)
+                creature.world.emit("attend", creature=creature.name, percept=tuple_.trigger.name,
+                                    heard_at=None if heard is None else heard.time)
+
+        return AttendAction(name)

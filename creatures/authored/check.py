@@ -59,7 +59,14 @@ class _Checker:
     def references(self, cls, params, loc: tuple) -> list[str]:
         percepts = []
         for key, namespace, name in cls.references(params):
-            self.need(namespace, name, (*loc, key))
+            if namespace == "utterances":  # a percept that must be of the aural tree
+                self.need("percepts", name, (*loc, key))
+                if self.spec.percepts[name].type != "utterance":
+                    raise self.error((*loc, key), f"{name!r} is a {self.spec.percepts[name].type!r} percept; "
+                                                  f"{cls.name!r} needs an 'utterance' percept (the aural tree)")
+                namespace = "percepts"
+            else:
+                self.need(namespace, name, (*loc, key))
             if namespace == "percepts":
                 percepts.append(name)
         return percepts
@@ -82,6 +89,10 @@ def check(spec: "AuthoredSpec", file: Path, where: Where, prefix: tuple) -> None
 
 
 def _percepts(c: _Checker) -> None:
+    trees = [name for name, p in c.spec.percepts.items() if p.type == "utterance"]
+    if len(trees) > 1:
+        raise c.error(("percepts", trees[1], "type"), f"one 'utterance' percept per creature: it is the root of "
+                                                      f"its one aural tree, and {trees[0]!r} is already")
     edges: dict[str, list[str]] = {}
     for name, p in c.spec.percepts.items():
         loc = ("percepts", name)
@@ -157,6 +168,8 @@ def _needs(c: _Checker, cls, loc: tuple) -> None:
     """A part that uses the body or the note space needs the creature to have it."""
     if getattr(cls, "needs", None) in ("body", "space") and not c.spec.body:
         raise c.error(loc, f"{cls.name!r} uses the body: set 'body = true' on the creature")
+    if getattr(cls, "needs", None) == "hearing" and c.spec.hearing is None:
+        raise c.error(loc, f"{cls.name!r} hears sound: give the creature a [creature.hearing] table")
     if getattr(cls, "needs", None) == "space" and c.spec.space is None:
         raise c.error(loc, f"{cls.name!r} uses notes in space: give the creature a [creature.space] table")
 
@@ -204,6 +217,10 @@ def _groups(c: _Checker) -> None:
                                                 "(a tuple or group belongs to one group)")
             owner[member] = name
         c.need("percepts", g.trigger, (*loc, "trigger"))
+        for drive in g.heat:
+            c.need("drives", drive, (*loc, "heat", drive))
+        if g.heat and g.temperature is None:
+            raise c.error((*loc, "heat"), "heat raises the Boltzmann temperature: give the group a 'temperature'")
         for k, constraint in enumerate(g.constraints):
             for end in ("a", "b"):
                 c.need("tuples", getattr(constraint, end), (*loc, "constraints", k, end))
@@ -231,6 +248,13 @@ def _learning(c: _Checker) -> None:
     learning = c.spec.learning
     for k, group in enumerate(learning.groups):
         c.need("groups", group, ("learning", "groups", k))
+    for k, group in enumerate(learning.aural):
+        c.need("groups", group, ("learning", "aural", k))
+        if group in learning.groups:
+            raise c.error(("learning", "aural", k), f"group {group!r} learns one way: it is in 'groups' as well")
+        if not any(c.spec.percepts[p].type == "utterance" for p in c.spec.percepts):
+            raise c.error(("learning", "aural", k), "aural learning grows an 'utterance' percept's tree: "
+                                                    "declare one")
     ph = learning.phrases
     if ph is not None:
         loc = ("learning", "phrases")

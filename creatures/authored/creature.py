@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from creatures.authored import registry
+from creatures.authored.aural import Aural
 from creatures.authored.check import ROOT
 from creatures.authored.ear import Ear
 from creatures.authored.spec import AuthoredSpec, PartSpec, TupleSpec, UntilSpec, ValueSpec
@@ -33,6 +34,7 @@ from creatures.behaviour.value import ChainValue, GaussianValue, ScalarValue, Va
 from creatures.config import ConfigError
 from creatures.kinds import register
 from creatures.kinds.base import CreatureKind
+from creatures.kinds.layers import BodySpec
 from creatures.kinds.note_world import NoteWorld
 from creatures.kinds.parts import Body, Voice, couple_to_hands
 from creatures.kinds.report_parts import MotorTrail, report_values, selection_logger
@@ -76,12 +78,14 @@ class Authored(CreatureKind):
     def __init__(self, spec: AuthoredSpec, world: "World", rng: np.random.Generator) -> None:
         super().__init__(spec, world, rng)
         registry.load_parts()
-        self.body = Body(rng, ratios=spec.ratio_metric) if spec.body else None  # motor actions hold it
+        self.body = (Body(rng, ratios=spec.ratio_metric, spec=spec.body if isinstance(spec.body, BodySpec) else None)
+                     if spec.body else None)  # motor actions hold it
         self.trail = MotorTrail(world, self.name, self.body) if self.body is not None else None
         self.notes = NoteWorld(spec.space, self, self.body, rng) if spec.space is not None else None
         learning = spec.learning
         self.ear = Ear(phrase_gap=learning.phrase_gap, max_phrases=learning.max_phrases)
         self.motivation = self._drives(spec)
+        self.aural = Aural(self) if spec.hearing is not None else None
         self.root = WhateverPercept(ROOT)
         self.percepts: dict[str, Percept] = {ROOT: self.root}
         for name in spec.percepts:
@@ -100,7 +104,10 @@ class Authored(CreatureKind):
         self.top = [self._group(name) for name in spec.groups if name not in members]
         self.voice: Voice | None = None
         self._learnt: list[int] = []  # phrase numbers that have a tuple of their own
+        self._heated = [(self.groups[n], g.temperature, [(self.motivation.index(d), k) for d, k in g.heat.items()])
+                        for n, g in spec.groups.items() if g.heat]
         self._next_report = 0.0
+        self._next_pose = 0.0
 
     # -- building ---------------------------------------------------------------------
     def _drives(self, spec: AuthoredSpec) -> Motivation | None:
@@ -123,7 +130,8 @@ class Authored(CreatureKind):
             cls = registry.PERCEPTS.get(p.type)
             percept = cls().build(cls.Params.model_validate(p.params()), self, name)
             self.percepts[name] = percept
-            self.percept(p.parent).add_child(percept)
+            if cls.joins_tree:
+                self.percept(p.parent).add_child(percept)
         return self.percepts[name]
 
     def _action(self, action: str | PartSpec, name: str, **extra: Any):
@@ -146,7 +154,7 @@ class Authored(CreatureKind):
         if until.done:
             stops.append(FunctionPercept(f"{action.name} done", action.done))
         stop = None if not stops else stops[0] if len(stops) == 1 else OrPercept(f"{action.name} stops", stops)
-        return DoUntil(duration, until=stop)
+        return DoUntil(duration, until=stop, graded=until.graded)
 
     def _tuple(self, name: str, tp: TupleSpec) -> ActionTuple:
         action = self._action(tp.action, name)
@@ -173,11 +181,12 @@ class Authored(CreatureKind):
             tuples.append(tuple_)
         learning = self.spec.learning
         learner = None
+        options = dict(statistics=learning.statistics, innovation=max(learning.innovation, learning.statistics),
+                       min_trigger=learning.min_trigger, on_event=selection_logger(self.world, self.name))
         if name in learning.groups:
-            learner = PerceptLearning(statistics=learning.statistics, innovation=max(learning.innovation,
-                                                                                     learning.statistics),
-                                      split_at=learning.split_at, fuse_below=learning.fuse_below,
-                                      on_event=selection_logger(self.world, self.name))
+            learner = PerceptLearning(split_at=learning.split_at, fuse_below=learning.fuse_below, **options)
+        elif name in learning.aural:
+            learner = self.aural.learning(**options)
         group = ActionGroup(name, tuples, rng=self.rng, alpha=g.alpha, discount=g.discount, multiple=g.multiple,
                             temperature=g.temperature, max_active=g.max_active, learning=learner,
                             on_event=selection_logger(self.world, self.name))
@@ -196,7 +205,13 @@ class Authored(CreatureKind):
 
     @classmethod
     def has_body(cls, spec: AuthoredSpec) -> bool:
-        return spec.body
+        return bool(spec.body)
+
+    @property
+    def group(self) -> ActionGroup:
+        """The first top-level group: what the kinds' shared readers take for "the" group (what
+        other colonies are shown it doing, creatures/runtime/network.py)."""
+        return self.top[0]
 
     def reward_groups(self) -> list[ActionGroup]:
         """The clicker reaches every top-level group; each passes it to the groups it holds."""
@@ -206,7 +221,8 @@ class Authored(CreatureKind):
     def now(self) -> float:
         return self.world.clock.now()
 
-    def drive(self, name: str, t: float) -> float:
+    def level(self, name: str, t: float) -> float:
+        """Drive ``name``'s level at ``t`` (``drive`` is the input map's perturbation, CreatureKind)."""
         return self.motivation.level(name, max(t, self.motivation.time))
 
     def tuple(self, name: str) -> ActionTuple:
@@ -229,6 +245,10 @@ class Authored(CreatureKind):
         self._impulse(t, "on_heard")
         if self.notes is not None:
             self.notes.hear(t, note, source)
+
+    def listen(self, t: float, block: np.ndarray, sample_rate: int) -> None:
+        if self.aural is not None:
+            self.aural.listen(t, block, sample_rate)
 
     def played(self, note: NoteEvent) -> None:
         self.ear.played.append(note)
@@ -273,7 +293,13 @@ class Authored(CreatureKind):
             self.motivation.advance(t)
             for i, inputs, arc in self._fed:
                 self.motivation.inputs[i] = sum(r * p.evaluate(t) for p, r in inputs) + _arc(arc, t)
-        if self.body is not None:
+            levels = self.motivation.levels
+            for group, base, heat in self._heated:
+                group.temperature = base * (1.0 + sum(k * float(levels[i]) for i, k in heat))
+        if self.aural is not None:
+            self.aural.tick(t)
+        if self.body is not None and t >= self._next_pose:
+            self._next_pose = t + (1.0 / self.spec.body_rate if self.spec.body_rate else 0.0)
             self.trail.follow(t)
             pose = self.body.update(t)
             if self.voice is not None:
@@ -289,10 +315,16 @@ class Authored(CreatureKind):
             if self.trail is not None:
                 self.trail.report(t)
             if self.motivation is not None:
+                heated = {} if not self._heated else {"temperature": self._heated[0][0].temperature}
                 self.world.log.emit(t, "motivation", creature=self.name,
-                                    drives=dict(zip(self.motivation.names, self.motivation.levels.tolist())))
+                                    drives=dict(zip(self.motivation.names, self.motivation.levels.tolist())), **heated)
+            if self.aural is not None:
+                self.aural.report(t)
 
     def sound(self, out: np.ndarray, sample_rate: int) -> None:
+        if self.aural is not None:  # a loudspeaker-as-mouth sings what it heard
+            self.aural.render(out, sample_rate)
+            return
         if self.voice is None:
             self.voice = Voice(self.spec.voice, sample_rate)
             if self.body is not None:
@@ -309,7 +341,11 @@ class Authored(CreatureKind):
 
     # -- persistence -------------------------------------------------------------------
     def state(self) -> dict[str, Any]:
+        aural = {}
+        if self.aural is not None and self.aural.root is not None:
+            aural = {"aural": self.aural.state([self.groups[n] for n in self.spec.learning.aural], set(self.tuples))}
         return {
+            **aural,
             "values": {name: g.value_state() for name, g in self.groups.items()},
             "motivation": None if self.motivation is None else self.motivation.to_dict(),
             "phrases": [[[n.time, n.pitch, n.velocity, n.duration] for n in p] for p in self.ear.phrases],
@@ -326,11 +362,14 @@ class Authored(CreatureKind):
         for number in state.get("learnt", []):
             if self.spec.learning.phrases is not None and int(number) not in self._learnt:
                 self._phrase_tuple(int(number))
+        if "aural" in state and self.aural is not None and self.aural.root is not None:
+            self.aural.restore(state["aural"], self.groups)
         for name, values in state.get("values", {}).items():
             if name in self.groups:
                 self.groups[name].restore_values(values)
         if state.get("motivation") and self.motivation is not None:
-            self.motivation = Motivation.from_dict(state["motivation"], now=self.now())
+            # Levels only: the rates are the config's, so an edited growth takes effect after a restart.
+            self.motivation.restore(state["motivation"], now=self.now())
 
 
 def _arc(points: list[tuple[float, float]], t: float) -> float:

@@ -10,6 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+import installations
 from creatures.config import ConfigError, _merge, config_error, read_toml
 
 Where = dict[tuple, tuple[Path, int]]
@@ -48,6 +49,29 @@ def expand_includes(data: dict[str, Any], where: Where, path: Path, *, _chain: t
         for loc, at in sub_where.items():
             if len(loc) >= 2 and loc[0] == "creature" and isinstance(loc[1], int):
                 where[("creature", loc[1] + offset, *loc[2:])] = at
+
+
+def expand_kinds(data: dict[str, Any], where: Where, path: Path) -> None:
+    """``kind = "exchange"``: a ``[[creature]]`` table whose kind names a shipped creature
+    document (``installations/creatures/exchange.toml``, one authored ``[[creature]]`` table)
+    starts from that table, its own keys merged over it key by key as with ``like``. The
+    shipped pieces are authored creatures; this is how an installation names one. Inherited
+    keys keep pointing at the lines of the document they were written in."""
+    tables = data.get("creature")
+    if not isinstance(tables, list):
+        return
+    shipped = set(installations.creature_names())
+    for i, table in enumerate(tables):
+        if not isinstance(table, dict) or not isinstance(table.get("kind"), str) or table["kind"] not in shipped:
+            continue
+        file = installations.CREATURES / f"{table['kind']}.toml"
+        doc, doc_where = read_toml(file)
+        base = doc["creature"][0]
+        own = {k: v for k, v in table.items() if k != "kind"}
+        tables[i] = _merge(base, own)
+        for loc, at in doc_where.items():
+            if loc[:2] == ("creature", 0) and ("creature", i, *loc[2:]) not in where:
+                where[("creature", i, *loc[2:])] = at
 
 
 def expand_likes(data: dict[str, Any], where: Where, path: Path) -> None:

@@ -15,6 +15,7 @@ from pydantic import BaseModel, Field, model_validator
 
 from creatures.authored.ear import DENSITY_WINDOW
 from creatures.authored.registry import PERCEPTS, Params, Part
+from creatures.kinds.hearing_parts import SeedModel
 from creatures.behaviour.models.activation import ActivationModel
 from creatures.behaviour.models.fuzzy import AndPercept, NotPercept, OrPercept
 from creatures.behaviour.models.gaussian import GaussianModel, GaussianPercept
@@ -26,7 +27,11 @@ if TYPE_CHECKING:
 
 
 class PerceptPart(Part):
-    """A percept type: ``build`` makes the percept for one creature."""
+    """A percept type: ``build`` makes the percept for one creature. ``joins_tree``: it is
+    placed under its ``parent`` in the creature's percept tree (false for the root of a tree
+    of its own, whose saliency depends on being a root)."""
+
+    joins_tree: ClassVar[bool] = True
 
     def build(self, params: BaseModel, creature: "Authored", name: str) -> Percept:  # pragma: no cover
         raise NotImplementedError
@@ -180,12 +185,12 @@ class DrivePercept(PerceptPart):
 
     def build(self, params, creature, name):
         if params.scale == "level":
-            return FunctionPercept(name, lambda t: creature.drive(params.drive, t))
-        model = GaussianModel(creature.drive(params.drive, creature.now()), params.spread, size=64)
+            return FunctionPercept(name, lambda t: creature.level(params.drive, t))
+        model = GaussianModel(creature.level(params.drive, creature.now()), params.spread, size=64)
         last = [-math.inf]
 
         def scale_free(t: float) -> float:
-            level = creature.drive(params.drive, t)
+            level = creature.level(params.drive, t)
             if t - last[0] >= 1.0:  # one sample a second: the model follows the drive's history
                 model.update(level)
                 last[0] = t
@@ -530,3 +535,65 @@ class Sees(PerceptPart):
 
     def build(self, params, creature, name):
         return FunctionPercept(name, lambda t: min(_stage(creature).sees(creature.name, params.of) / params.full, 1.0))
+# -- sounds heard, as utterance classes (thesis: "soundcreatures", "aural models") -----------
+class _UtteranceParams(Params):
+    seed_model: SeedModel = Field(None, description="an aural model (save_aural_model JSON, absolute or relative "
+                                                    "to the working directory) to start from instead of an "
+                                                    "empty repertoire (thesis: persistent aural models seed "
+                                                    "a creature)")
+
+
+@PERCEPTS.register
+class Utterances(PerceptPart):
+    """What is heard, as utterance classes: the root of the creature's one aural percept tree
+    (1 while a sound heard within ``hearing.memory`` is perceived). It keeps the sounds that
+    led to valued tuples; when a tuple on a class becomes valuable, fission clusters its
+    sounds into child classes by cepstral distance (each salient by similarity to its
+    exemplars), and children no longer distinct fuse back (``learning.aural``)."""
+
+    name = "utterance"
+    thesis = "aural models – cepstral models"
+    Params = _UtteranceParams
+    needs = "hearing"
+    joins_tree = False
+
+    def build(self, params, creature, name):
+        return creature.aural.tree(name, params.seed_model)
+
+
+class _RepertoireParams(Params):
+    of: str = Field(description="an 'utterance' percept")
+
+
+@PERCEPTS.register
+class Repertoire(PerceptPart):
+    """The utterance percept ``of`` holds sounds to sing (1), or none yet (0)."""
+
+    name = "repertoire"
+    thesis = "aural Ac percept trees"
+    Params = _RepertoireParams
+    refs = {"of": "utterances"}
+    needs = "hearing"
+
+    def build(self, params, creature, name):
+        tree = creature.aural.percept(params.of)
+        return FunctionPercept(name, lambda t: 1.0 if tree.members else 0.0)
+
+
+class _SungParams(Params):
+    wait: float = Field(1.0, ge=0, le=10, description="seconds after the song in which an answer is awaited")
+
+
+@PERCEPTS.register
+class Sung(PerceptPart):
+    """The creature's latest song is over, and ``wait`` seconds more (a Du for "until sung
+    and answered": a sound heard in the wait still rewards the song)."""
+
+    name = "sung"
+    thesis = "soundcreatures (installation)"
+    Params = _SungParams
+    needs = "hearing"
+
+    def build(self, params, creature, name):
+        mouth = creature.aural.mouth
+        return FunctionPercept(name, lambda t: 1.0 if t >= mouth.until + params.wait else 0.0)

@@ -17,6 +17,8 @@ from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, field_validator
 from creatures.bounds import FINITE, LARGEST_RATE, LONGEST_SECONDS, Bounded, Seconds
 
 from creatures.kinds.base import CreatureSpec
+from creatures.kinds.hearing_parts import HearingSpec, MouthSpec
+from creatures.kinds.layers import BodySpec
 from creatures.kinds.note_world import SpaceSpec
 from creatures.kinds.parts import VoiceSpec
 
@@ -85,6 +87,10 @@ class UntilSpec(Strict):
     done: bool = Field(False, description="until the action says it is finished (a phrase played out)")
     follow: bool = Field(False, description="forward transition model: record what follows, prime likely "
                                             "successors (thesis 'forward transition models')")
+    graded: bool = Field(False, description="Du ramps from 0 to 1 over the planned duration instead of stepping, "
+                                            "so the running tuple's expected value (1 − Du)·V declines as its time "
+                                            "runs out and an interruption competes with what is left (thesis "
+                                            "'computing expected values')")
 
 
 class ValueSpec(Strict):
@@ -130,6 +136,10 @@ class GroupSpec(Strict):
     innovation: float | None = Field(0.25, ge=0, le=LARGEST_RATE, description="value gap for forward-transition fission "
                                                               "(tuples with until.follow); none = never")
     constraints: list[ConstraintSpec] = Field(default_factory=list, max_length=1024, description="interval relations")
+    heat: dict[str, Bounded] = Field(default_factory=dict, max_length=64,
+                                     description="drive → gain: the temperature is temperature × (1 + Σ gain × "
+                                                 "level), so a creature curious for sound explores its repertoire "
+                                                 "rather than exploiting its best song")
     trigger: str = Field("whatever", description="as a member of another group: its Tr")
     value: float = Field(1.0, ge=-LARGEST_RATE, le=LARGEST_RATE, description="as a member of another group: its V")
 
@@ -155,6 +165,11 @@ class LearningSpec(Strict):
     innovation: float = Field(1.5, ge=0, le=1e3, description="× mean value above which its percept may split")
     split_at: float = Field(2.0, gt=0, le=1e3, description="Ashman's D that splits a percept")
     fuse_below: float = Field(1.0, ge=0, le=1e3, description="Ashman's D below which children fuse")
+    aural: list[str] = Field(default_factory=list, max_length=256,
+                             description="groups whose credit grows the 'utterance' percept's tree: fission into "
+                                         "sound classes, and new tuples triggered by each class and singing each "
+                                         "(thesis 'aural Ac percept trees')")
+    min_trigger: float = Field(0.1, ge=0, le=1, description="saliency a trigger must have had for its percept to learn")
     phrase_gap: float = Field(2.0, gt=0, le=3600, description="seconds of silence that end a heard phrase")
     max_phrases: int = Field(8, ge=1, le=256, description="phrases remembered")
     phrases: PhraseHypotheses | None = Field(None, description="a new tuple for every phrase heard "
@@ -176,12 +191,21 @@ class AuthoredSpec(CreatureSpec):
                                                                    "by the creature")
     learning: LearningSpec = LearningSpec()
     hears_input: bool = Field(True, description="hear notes from outside the colony")
-    body: bool = Field(False, description="a body on the shared motor graph (sway, reach, strike); motor "
-                                          "actions need it")
+    body: BodySpec | bool = Field(False, description="a body on the shared motor graph (sway, reach, strike); motor "
+                                                     "actions need it. true, or a [creature.body] table of the "
+                                                     "layers it blends over its course (breathe)")
     ratio_metric: bool = Field(False, description="its body's graph favours moves at low-integer ratios of the "
                                                   "source animation length (exchange's metric)")
     space: SpaceSpec | None = Field(None, description="heard notes placed in space for the hand to strike "
                                                       "([creature.space]; needs body = true)")
+    body_rate: float | None = Field(None, gt=0, le=1000, description="body poses per second (forward kinematics "
+                                                                      "is the costliest per-tick work); none = "
+                                                                      "every tick")
+    hearing: HearingSpec | None = Field(None, description="a microphone-as-ear: sound cut into utterances for "
+                                                          "'utterance' percepts ([creature.hearing]); its mouth "
+                                                          "sings them back")
+    mouth: MouthSpec = Field(MouthSpec(), description="how the body shapes what it sings ([creature.mouth]; with "
+                                                      "hearing)")
     report_every: float = Field(0.5, gt=0, le=3600, description="seconds between value/drive snapshots in the events log")
     voice: VoiceSpec = VoiceSpec()
     _file: Path | None = PrivateAttr(None)

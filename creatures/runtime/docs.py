@@ -15,6 +15,7 @@ import annotated_types
 from pydantic import BaseModel
 from pydantic.fields import FieldInfo
 
+import installations
 from creatures.kinds import load_all
 from creatures.runtime.schema import Installation, InputMap
 
@@ -87,4 +88,8 @@ def config_reference() -> str:
     for kind, cls in sorted(load_all().items()):
         doc = (sys.modules[cls.__module__].__doc__ or "").strip()
         lines += ["", f"### kind = \"{kind}\"", "", doc.split("\n\n")[0].replace("\n", " "), "", *_rows(cls.Spec, "")]
+        if kind == "authored":
+            shipped = ", ".join(f"`{name}`" for name in installations.creature_names())
+            lines += ["", f"Shipped authored creatures, named as a kind ({shipped}): the table starts from "
+                          "`installations/creatures/NAME.toml` and its own keys (those above) merge over it."]
     return "\n".join(lines) + "\n"

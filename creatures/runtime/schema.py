@@ -13,8 +13,10 @@ from typing import Annotated, Any
 
 from pydantic import BaseModel, Field, model_validator
 
+import installations
+
 from creatures.bounds import FINITE, LONGEST_OFFLINE, Bounded
-from creatures.authored.include import expand_includes, expand_likes
+from creatures.authored.include import expand_includes, expand_kinds, expand_likes
 from creatures.authored.plugins import load_plugins
 from creatures.authored.registry import PluginError
 from creatures.runtime.cc_sources import check_source
@@ -311,6 +313,7 @@ def load_installation(path: str | Path) -> LoadedInstallation:
     data, where = read_toml(path)
     includes = data.get("include", [])
     expand_includes(data, where, path)
+    expand_kinds(data, where, path)
     expand_likes(data, where, path)
     data["include"] = includes
     settings = validate(Installation, data, where, path)
@@ -328,8 +331,9 @@ def load_installation(path: str | Path) -> LoadedInstallation:
     for table, i in zip(tables, origin):
         kind = table.get("kind")
         if not isinstance(kind, str) or kind not in kinds:  # kind = [] must not crash the lookup
-            close = difflib.get_close_matches(str(kind), list(kinds), n=1)
-            hint = f" (did you mean {close[0]!r}?)" if close else f" (choose from {sorted(kinds)})"
+            known = sorted({*kinds, *installations.creature_names()})  # classes and shipped creature documents
+            close = difflib.get_close_matches(str(kind), known, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else f" (choose from {known})"
             raise config_error(path, where, ("creature", i, "kind"), f"unknown creature kind {kind!r}{hint}")
         spec = validate(kinds[kind].Spec, table, where, path, prefix=("creature", i))
         check = getattr(spec, "check_references", None)  # kinds that name parts resolve them now
