@@ -48,7 +48,7 @@ def test_the_dog_has_its_tricks_and_the_bird_its_moves():
     nose = dog.skeleton.index("front_paw_l")
     heights = dog.positions[dog.labelled("beg"), nose, 1]
     assert heights.max() - heights.min() > 0.2  # begs from low to high: a height to shape
-    assert dog.sources == ["stand", "walk", "sit", "lie down", "beg", "roll over"]
+    assert dog.sources == ["stand", "walk", "sit", "lie down", "sit to lie down", "beg", "roll over"]
 
 
 def contact_slides(paws: np.ndarray) -> np.ndarray:

@@ -29,8 +29,10 @@ from pathlib import Path
 from typing import Literal
 
 import numpy as np
+from pydantic import Field
 
 import installations
+from creatures.kinds.layers import BodySpec
 from creatures.motor.bvh import load_bvh_set
 from creatures.motor.graph import MotorGraph
 from creatures.motor.note_space import exchange_metric
@@ -38,6 +40,16 @@ from creatures.motor.pose import PoseSet
 
 Figure = Literal["stick", "dog", "bird"]
 """The names ``[creature.body] figure`` accepts."""
+
+
+class FigureBodySpec(BodySpec):
+    """``[creature.body]`` of a creature that may have any figure (``figure`` and the layers)."""
+
+    figure: Figure = Field("stick", description="the body: 'stick' (the procedural figure: sway, reach, "
+                                                "strike), 'dog' (stand, walk, sit, lie down, beg, roll over) "
+                                                "or 'bird' (perch, peck, flap, hop), the last two generated BVH "
+                                                "in installations/bodies/")
+
 
 EFFECTORS: dict[str, str] = {"stick": "hand_r", "dog": "nose_end", "bird": "beak_end"}
 """The joint that strikes notes on each figure: the stick figure's right hand, the dog's nose

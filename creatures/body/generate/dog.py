@@ -196,15 +196,18 @@ def walk(sk: Skeleton, cycles: int = 2) -> Clip:
 
 
 def clips(sk: Skeleton) -> list[Clip]:
-    """stand, walk, sit, lie down, beg, roll over (in that order in the file)."""
+    """stand, walk, sit, lie down, sit to lie down, beg, roll over (in that order in the file)."""
     stand = _clip(sk, "stand", [(0.0, STAND), (1.0, dict(STAND, look=0.4, wag=0.4)), (2.0, STAND)])
     _held(stand, "stand", 0.0, 2.0)
     sit = _clip(sk, "sit", [(0.0, STAND), (0.8, SIT), (2.0, SIT), (2.8, STAND)])
     _held(sit, "sit", 0.8, 2.0)
-    lie = _clip(sk, "lie down", [(0.0, STAND), (1.0, LIE), (2.4, LIE), (3.4, STAND)])
-    _held(lie, "lie down", 1.0, 2.4)
-    begging = _clip(sk, "beg", [(0.0, SIT), (0.6, beg(0.0)), (0.8, beg(0.0)), (2.8, beg(1.0)), (3.0, beg(1.0)),
-                                (3.6, SIT)])
+    lie = _clip(sk, "lie down", [(0.0, STAND), (0.8, LIE), (2.2, LIE), (3.2, STAND)])
+    _held(lie, "lie down", 0.8, 2.2)
+    down = _clip(sk, "sit to lie down", [(0.0, SIT), (0.8, LIE), (1.2, LIE)])  # front paws walk forward
+    _held(down, "sit", 0.0, 0.0)
+    _held(down, "lie down", 0.8, 1.2)
+    rise = [(0.8 + 2.0 * k / 8, beg(k / 8)) for k in range(9)]  # in eight short steps: heights evenly spread
+    begging = _clip(sk, "beg", [(0.0, SIT), (0.6, beg(0.0)), *rise, (3.0, beg(1.0)), (3.6, SIT)])
     _held(begging, "beg", 0.6, 3.0, rest=False)
     _held(begging, "sit", 0.0, 0.0)
     _held(begging, "sit", 3.6, 3.6)
@@ -214,7 +217,7 @@ def clips(sk: Skeleton) -> list[Clip]:
     _held(roll, "roll over", 1.5, 1.7, rest=False)
     _held(roll, "lie down", 0.0, 0.0)
     _held(roll, "lie down", 3.2, 3.2)
-    return [stand, walk(sk), sit, lie, begging, roll]
+    return [stand, walk(sk), sit, lie, down, begging, roll]
 
 
 ABOUT = """The shipped dog (creatures/body/generate/dog.py): stand, walk (root motion), sit, lie down,
