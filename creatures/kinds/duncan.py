@@ -44,6 +44,10 @@ when higher begs are what gets clicked. Design decisions:
   pose nearest ĥ; a click that credits the beg feeds ĥ back into the model. Clicking only
   the higher begs moves the model, and the begs, up.
 
+* **Tricks sound.** A trick the body gets to plays its note on the creature's voice (scanned
+  strings pushed by its nose) and MIDI channel, a beg up to ``beg_notes`` semitones higher
+  the higher it is: training the dog is playing it (thesis "'shaping' and music").
+
 Events logged: ``cue`` (an utterance heard and the class it joined), ``hypothesis`` (a new
 class and its tuples), ``trick`` (a trick started: name, tuple, beg height sampled) and
 ``trick held`` (the body got there: at what time, and the front paws' height for a beg), and
@@ -69,8 +73,9 @@ from creatures.kinds import register
 from creatures.kinds.base import CreatureKind, CreatureSpec
 from creatures.kinds.figures import FigureBodySpec, figure_material
 from creatures.kinds.hearing_parts import Ear, HearingSpec
-from creatures.kinds.parts import Body
+from creatures.kinds.parts import Body, Voice, VoiceSpec, couple_to_hands
 from creatures.kinds.report_parts import report_values, selection_logger
+from midi.notes import NoteEvent
 
 if TYPE_CHECKING:
     from creatures.runtime.world import World
@@ -118,6 +123,12 @@ class DuncanSpec(CreatureSpec):
                                                                 "of a sound (a sound it has heard says 1)")
     hearing: HearingSpec = HearingSpec(half_duplex=False, memory=1.0, radius=400.0)
     beg: BegSpec = BegSpec()
+    notes: dict[str, int] = Field({"sit": 60, "lie down": 55, "beg": 64, "roll over": 67, "stand": 48},
+                                  description="trick → the MIDI pitch it sounds when the body gets there")
+    beg_notes: int = Field(7, ge=0, le=24, description="semitones a beg's pitch rises from the lowest beg to the "
+                                                       "highest (shaping the beg shapes a melody)")
+    velocity: int = Field(90, ge=1, le=127, description="velocity of its notes")
+    voice: VoiceSpec = VoiceSpec()
 
     @model_validator(mode="after")
     def _labels_on_the_body(self) -> "DuncanSpec":
@@ -133,6 +144,11 @@ class DuncanSpec(CreatureSpec):
                 raise ValueError(f"offers: {offer!r} is not one of the tricks {self.tricks}")
         if self.beg.paw not in figure_material(figure).poses.skeleton.names:
             raise ValueError(f"the {figure} has no joint {self.beg.paw!r}")
+        for trick, pitch in self.notes.items():
+            if trick not in [*self.tricks, self.rest] or not 0 <= pitch + (self.beg_notes if trick == self.beg.label
+                                                                             else 0) <= 127:
+                raise ValueError(f"notes: {trick!r} = {pitch} must name a trick (or {self.rest!r}) and stay "
+                                 f"within MIDI pitches 0..127")
         return self
 
 
@@ -204,6 +220,7 @@ class Duncan(CreatureKind):
         self.group = ActionGroup("duncan", tuples, rng=rng, alpha=spec.alpha, discount=spec.discount,
                                  temperature=spec.temperature, on_event=selection_logger(world, self.name))
         self.doing: Trick | None = None
+        self.voice: Voice | None = None
         self._next_report = 0.0
 
     def _hypothesis(self, trigger, trick: str, value: ScalarValue | None = None) -> ActionTuple:
@@ -250,8 +267,24 @@ class Duncan(CreatureKind):
         self.world.emit("trick", creature=self.name, trick=trick.name, tuple=tuple_.name, height=trick.height)
 
     def trick_held(self, t: float, trick: Trick) -> None:
+        """The body got there: log it and sound the trick's note (a beg's higher the higher it is)."""
         paw = float(self.body.pose.positions[self._paw, 1]) if trick.height is not None else None
         self.world.emit("trick held", creature=self.name, trick=trick.name, paw=paw)
+        pitch = self.spec.notes.get(trick.name)
+        if pitch is not None:
+            rise = 0 if trick.height is None else round(trick.height * self.spec.beg_notes)
+            self.world.play(self, NoteEvent(round(t, 6), pitch + rise, self.spec.velocity, self.spec.channel,
+                                            self.spec.hold))
+
+    def played(self, note: NoteEvent) -> None:
+        if self.voice is not None:
+            self.voice.play(note.pitch, note.velocity, note.end)
+
+    def sound(self, out: np.ndarray, sample_rate: int) -> None:
+        if self.voice is None:
+            self.voice = Voice(self.spec.voice, sample_rate)
+            couple_to_hands(self.voice, self.body)  # the nose pushes the strings
+        self.voice.render(out, self.world.clock.now())
 
     def reward(self, amount: float, t: float, window: float, rate: float) -> list[str]:
         """The click: credit assignment as for any reward (:meth:`CreatureKind.reward`), and a
@@ -265,7 +298,9 @@ class Duncan(CreatureKind):
         return credited
 
     def tick(self, t: float) -> None:
-        self.body.update(t)
+        pose = self.body.update(t)
+        if self.voice is not None:
+            self.voice.feel(pose)
         self.group.tick(t)
         if t >= self._next_report:
             self._next_report = t + REPORT_EVERY
