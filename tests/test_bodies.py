@@ -170,3 +170,53 @@ def test_playback_of_a_walk_path_keeps_source_timing(clock):
     assert path.nodes == (first, first + 1, first + 2, first + 3)
     playback = Playback(body.graph, path, 0.0)
     assert playback.end_time == pytest.approx(0.2, abs=0.02)
+
+
+def test_the_wren_pecks_the_notes_it_hears_and_hops_without_sliding():
+    """The shipped bird installation, run as ``creatures offline`` runs it: its beak strikes
+    heard notes placed in space (A* in note space), it hops about by root motion, and no
+    planted foot moves more than 1 cm between two ticks of the run."""
+    from creatures.clock import SimulatedClock
+    from creatures.events import EventLog
+    from creatures.runtime.inputs import phrase_notes
+    from creatures.runtime.schema import load_installation
+    from creatures.runtime.session import Session
+    from midi.sinks import MemorySink
+
+    import installations
+
+    inst = load_installation(installations.path("wren"))
+    clock = SimulatedClock()
+    log = EventLog(keep_in_memory=100_000)
+    session = Session(inst, clock, log, MemorySink())
+    for note in phrase_notes(rng=session.input_rng):
+        session.world.inject(note)
+    wren = session.creatures[0]
+    feet = [wren.body.skeleton.index(name) for name in PAWS["bird"]]
+    tick, previous, shown = inst.settings.tick, None, []
+    for step in range(1, int(60.0 / tick)):
+        t = step * tick
+        clock.advance_to(t)
+        session.step(t, int(tick * inst.settings.audio.sample_rate), None, audio=False)
+        shown.append(wren.figure()[0][feet])
+    slides = contact_slides(np.array(shown))
+    played = [e for e in log.records if e["kind"] == "note" and e["creature"] == "wren"]
+    assert len(played) >= 10  # the pecks strike notes
+    assert wren.body.travelled[2] > 0.5  # it hopped
+    assert len(slides) > 500 and slides.max() <= SLIDE
+
+
+def test_an_authored_body_table_checks_labels_against_its_figure(tmp_path):
+    from creatures.config import ConfigError
+    from creatures.runtime.schema import load_installation
+
+    import installations
+
+    text = installations.path("wren").read_text(encoding="utf-8").replace('labels = ["flap"]', 'labels = ["sway left"]')
+    (tmp_path / "wren.toml").write_text(text, encoding="utf-8")
+    with pytest.raises(ConfigError, match="the body has no motor label 'sway left'"):
+        load_installation(tmp_path / "wren.toml")
+    text = text.replace('figure = "bird"', 'figure = "cat"')
+    (tmp_path / "wren.toml").write_text(text, encoding="utf-8")
+    with pytest.raises(ConfigError, match="figure"):
+        load_installation(tmp_path / "wren.toml")

@@ -36,7 +36,7 @@ from creatures.kinds.layers import BodySpec
 from creatures.motor.bvh import load_bvh_set
 from creatures.motor.graph import MotorGraph
 from creatures.motor.note_space import exchange_metric
-from creatures.motor.pose import PoseSet
+from creatures.motor.pose import LOW_ENERGY, PoseSet
 
 Figure = Literal["stick", "dog", "bird"]
 """The names ``[creature.body] figure`` accepts."""
@@ -151,6 +151,20 @@ def load_material(bvh: Path, labels: Path) -> Material:
 def figure_material(figure: str) -> Material:
     """The shipped material of a BVH figure (read once per process)."""
     return load_material(BODIES / f"{figure}.bvh", BODIES / f"{figure}.labels.toml")
+
+
+def figure_labels(figure: str) -> set[str]:
+    """Every motor label of a figure's body, read without building its graph (config checks)."""
+    if figure == "stick":
+        from creatures.kinds.parts import shared_graph
+
+        return set().union(*shared_graph().poses.labels)
+    return set().union(*figure_material(figure).poses.labels) | {LOW_ENERGY}
+
+
+def figure_of(body: object) -> Figure:
+    """The figure a creature's ``body`` key asks for (``true`` or a table without one: the stick)."""
+    return getattr(body, "figure", "stick")
 
 
 @functools.lru_cache(maxsize=8)
