@@ -193,7 +193,7 @@ def test_the_wren_pecks_the_notes_it_hears_and_hops_without_sliding():
         session.world.inject(note)
     wren = session.creatures[0]
     feet = [wren.body.skeleton.index(name) for name in PAWS["bird"]]
-    tick, previous, shown = inst.settings.tick, None, []
+    tick, shown = inst.settings.tick, []
     for step in range(1, int(60.0 / tick)):
         t = step * tick
         clock.advance_to(t)
