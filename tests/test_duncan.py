@@ -244,11 +244,10 @@ def test_the_clicks_as_a_rehearsal_file_replay_the_same_dog(trained, tmp_path):
 def test_live_clicks_from_a_foreign_osc_sender_reward_the_dog(tmp_path):
     """``creatures run`` on the shipped config (no microphone or sound card here): liblo's
     ``oscsend`` clicks, each reaching the dog as a reward that credits what it was doing."""
-    import os
-    import signal
     import socket
-    import sys
     import time
+
+    from input_fixtures import live_run
 
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
         s.bind(("127.0.0.1", 0))
@@ -257,32 +256,15 @@ def test_live_clicks_from_a_foreign_osc_sender_reward_the_dog(tmp_path):
         'input_device = "default"', 'output_device = "NoSuchCard"')
     (tmp_path / "duncan.toml").write_text(config, encoding="utf-8")
     log = tmp_path / "events.jsonl"
-    run = subprocess.Popen([sys.executable, "-m", "creatures.cli", "run", str(tmp_path / "duncan.toml"), "--log",
-                            str(log)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                           env={**os.environ, "PYTHONUNBUFFERED": "1"})
-    try:
-        lines = []
-        for line in run.stdout:
-            lines.append(line)
-            if "running; Ctrl-C or SIGTERM" in line:
-                break
-        else:
-            pytest.fail("".join(lines))
+
+    def click() -> None:
         deadline = time.monotonic() + 60.0  # the dog is doing something before it is clicked
         while '"kind":"trick"' not in (log.read_text() if log.exists() else "") and time.monotonic() < deadline:
             time.sleep(0.05)
         for _ in range(3):
             subprocess.run(["oscsend", "127.0.0.1", str(port), "/click"], check=True, timeout=30)
-        subprocess.run(["oscsend", "127.0.0.1", str(port), "/done"], check=True, timeout=30)
-        for line in run.stdout:  # /done is unmapped and reported: everything before it was heard
-            lines.append(line)
-            if "/done" in line:
-                break
-        run.send_signal(signal.SIGTERM)
-        out = run.communicate(timeout=60)[0]
-    finally:
-        run.kill()
-    assert run.returncode == 0, "".join(lines) + out
+
+    live_run(tmp_path / "duncan.toml", log, port, click)
     events = [json.loads(line) for line in log.read_text().splitlines()]
     rewards = [e for e in events if e["kind"] == "reward"]
     assert [(e["creature"], e["amount"]) for e in rewards] == [("duncan", 3.0)] * 3

@@ -273,12 +273,10 @@ class Duncan(CreatureKind):
         pitch = self.spec.notes.get(trick.name)
         if pitch is not None:
             rise = 0 if trick.height is None else round(trick.height * self.spec.beg_notes)
-            self.world.play(self, NoteEvent(round(t, 6), pitch + rise, self.spec.velocity, self.spec.channel,
-                                            self.spec.hold))
-
-    def played(self, note: NoteEvent) -> None:
-        if self.voice is not None:
-            self.voice.play(note.pitch, note.velocity, note.end)
+            note = NoteEvent(round(t, 6), pitch + rise, self.spec.velocity, self.spec.channel, self.spec.hold)
+            self.world.play(self, note)
+            if self.voice is not None:
+                self.voice.play(note.pitch, note.velocity, note.end)
 
     def sound(self, out: np.ndarray, sample_rate: int) -> None:
         if self.voice is None:

@@ -24,23 +24,15 @@ HOP = 0.12
 
 def skeleton() -> Skeleton:
     r = Rig()
-    r.joint("pelvis", None, (0.0, 0.0, 0.0))
-    r.joint("chest", "pelvis", (0.0, 0.02, 0.06))
-    r.joint("neck", "chest", (0.0, 0.04, 0.03))
-    r.joint("head", "neck", (0.0, 0.04, 0.01))
-    r.joint("beak", "head", (0.0, 0.0, 0.02))
-    r.joint("beak_end", "beak", (0.0, -0.005, 0.03))
-    r.joint("tail", "pelvis", (0.0, 0.01, -0.04))
-    r.joint("tail_end", "tail", (0.0, -0.01, -0.07))
+    r.chain(None, ("pelvis", (0.0, 0.0, 0.0)), ("chest", (0.0, 0.02, 0.06)), ("neck", (0.0, 0.04, 0.03)),
+            ("head", (0.0, 0.04, 0.01)), ("beak", (0.0, 0.0, 0.02)), ("beak_end", (0.0, -0.005, 0.03)))
+    r.chain("pelvis", ("tail", (0.0, 0.01, -0.04)), ("tail_end", (0.0, -0.01, -0.07)))
     for side, x in (("l", 0.025), ("r", -0.025)):
-        r.joint(f"shoulder_{side}", "chest", (x, 0.02, 0.0))
-        r.joint(f"wing_{side}", f"shoulder_{side}", (np.sign(x) * 0.05, 0.0, -0.02))
-        r.joint(f"wing_{side}_end", f"wing_{side}", (np.sign(x) * 0.06, 0.0, -0.04))
-        r.joint(f"hip_{side}", "pelvis", (x * 0.6, -0.01, 0.0))
-        r.joint(f"knee_{side}", f"hip_{side}", (0.0, -THIGH, 0.0))
-        r.joint(f"ankle_{side}", f"knee_{side}", (0.0, -SHIN, 0.0))
-        r.joint(f"foot_{side}", f"ankle_{side}", (0.0, -FOOT, 0.0))
-        r.joint(f"foot_{side}_end", f"foot_{side}", (0.0, 0.0, 0.03))
+        r.chain("chest", (f"shoulder_{side}", (x, 0.02, 0.0)), (f"wing_{side}", (np.sign(x) * 0.05, 0.0, -0.02)),
+                (f"wing_{side}_end", (np.sign(x) * 0.06, 0.0, -0.04)))
+        r.chain("pelvis", (f"hip_{side}", (x * 0.6, -0.01, 0.0)), (f"knee_{side}", (0.0, -THIGH, 0.0)),
+                (f"ankle_{side}", (0.0, -SHIN, 0.0)), (f"foot_{side}", (0.0, -FOOT, 0.0)),
+                (f"foot_{side}_end", (0.0, 0.0, 0.03)))
     return r.skeleton()
 
 

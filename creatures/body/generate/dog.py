@@ -50,24 +50,16 @@ def skeleton() -> Skeleton:
     """The dog: pelvis root, spine, chest, neck, head and nose; a tail of three; four legs of
     upper, middle and lower bone with a paw and its toe (end sites make the end-effectors)."""
     r = Rig()
-    r.joint("pelvis", None, (0.0, 0.0, 0.0))
-    r.joint("spine", "pelvis", (0.0, 0.02, 0.18))
-    r.joint("chest", "spine", (0.0, 0.0, 0.18))
-    r.joint("neck", "chest", (0.0, 0.06, 0.08))
-    r.joint("head", "neck", (0.0, 0.10, 0.05))
-    r.joint("nose", "head", (0.0, -0.02, 0.10))
-    r.joint("nose_end", "nose", (0.0, -0.01, 0.04))
-    r.joint("tail1", "pelvis", (0.0, 0.03, -0.05))
-    r.joint("tail2", "tail1", (0.0, 0.05, -0.06))
-    r.joint("tail3", "tail2", (0.0, 0.05, -0.06))
-    r.joint("tail3_end", "tail3", (0.0, 0.04, -0.05))
+    r.chain(None, ("pelvis", (0.0, 0.0, 0.0)), ("spine", (0.0, 0.02, 0.18)), ("chest", (0.0, 0.0, 0.18)),
+            ("neck", (0.0, 0.06, 0.08)), ("head", (0.0, 0.10, 0.05)), ("nose", (0.0, -0.02, 0.10)),
+            ("nose_end", (0.0, -0.01, 0.04)))
+    r.chain("pelvis", ("tail1", (0.0, 0.03, -0.05)), ("tail2", (0.0, 0.05, -0.06)), ("tail3", (0.0, 0.05, -0.06)),
+            ("tail3_end", (0.0, 0.04, -0.05)))
     for leg, (upper, middle, lower, paw, bones, _, torso) in LEGS.items():
         side = 0.07 if leg.endswith("l") else -0.07
-        r.joint(upper, torso, (side, -0.02, -0.02) if torso == "pelvis" else (side, -0.04, 0.04))
-        r.joint(middle, upper, (0.0, -bones[0], 0.0))
-        r.joint(lower, middle, (0.0, -bones[1], 0.0))
-        r.joint(paw, lower, (0.0, -bones[2], 0.0))
-        r.joint(f"{paw}_end", paw, (0.0, 0.0, 0.04))
+        r.chain(torso, (upper, (side, -0.02, -0.02) if torso == "pelvis" else (side, -0.04, 0.04)),
+                (middle, (0.0, -bones[0], 0.0)), (lower, (0.0, -bones[1], 0.0)), (paw, (0.0, -bones[2], 0.0)),
+                (f"{paw}_end", (0.0, 0.0, 0.04)))
     return r.skeleton()
 
 

@@ -62,6 +62,11 @@ class Rig:
         self.offsets.append(offset)
         return name
 
+    def chain(self, parent: str | None, *joints: tuple[str, tuple[float, float, float]]) -> None:
+        """Joints each the child of the one before, the first of ``parent``: a spine, a tail, a leg."""
+        for name, offset in joints:
+            parent = self.joint(name, parent, offset)
+
     def skeleton(self) -> Skeleton:
         parents = np.array(self.parents)
         effectors = tuple(n for n in self.names if n.endswith("_end"))
