@@ -6,10 +6,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from creatures.body.generate import BODIES as GENERATORS
 from creatures.body.generate import generate
-from creatures.kinds.figures import BODIES, BodyFileError, figure_material, load_material
+from creatures.kinds.figures import BODIES, BodyFileError, figure_material, load_material, read_labels
 from creatures.kinds.parts import Body
 from creatures.motor import quaternion as quat
 from creatures.motor.blend import Limits
@@ -220,3 +222,20 @@ def test_an_authored_body_table_checks_labels_against_its_figure(tmp_path):
     (tmp_path / "wren.toml").write_text(text, encoding="utf-8")
     with pytest.raises(ConfigError, match="figure"):
         load_installation(tmp_path / "wren.toml")
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.lists(st.sampled_from([
+    "[[clip]]", "[[label]]", 'name = "walk"', "name = 3", "frames = [0, 30]", "frames = [31, 260]",
+    "frames = [5, 2]", "frames = [0.5, 3]", "frames = 7", "frames = [-1, 4]", "root_motion = true",
+    'root_motion = "yes"', "clip = 3", "label = [1, 2]", "[clip]", "x = [", '"', "bvh = 1", ""]), max_size=14))
+def test_fuzzed_labels_files_are_read_or_refused_with_their_line(tmp_path, lines):
+    bad = tmp_path / "fuzz.labels.toml"
+    bad.write_text("\n".join(lines), encoding="utf-8")
+    try:
+        clips, labels = read_labels(bad, 261)
+    except BodyFileError as exc:
+        assert str(exc).startswith(f"{bad}:") and str(exc).split(":")[1].isdigit()
+    else:
+        assert sum(c.last - c.first + 1 for c in clips) == 261
+        assert all(0 <= m.first <= m.last < 261 for m in labels)

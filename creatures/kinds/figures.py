@@ -98,15 +98,17 @@ def read_labels(path: Path, frames: int) -> tuple[list[Range], list[Range]]:
         found[kind] = []
         for k, table in enumerate(tables):
             line = headers[kind][k] if k < len(headers[kind]) else 1
-            span = table.get("frames")
-            if not isinstance(table.get("name"), str) or not (
+            span = table.get("frames") if isinstance(table, dict) else None
+            if not isinstance(table, dict) or not isinstance(table.get("name"), str) or not (
                     isinstance(span, list) and len(span) == 2 and all(type(f) is int for f in span)):
                 raise BodyFileError(f"{path}:{line}: a [[{kind}]] needs a string 'name' and 'frames = [first, last]'")
+            if not isinstance(table.get("root_motion", False), bool):
+                raise BodyFileError(f"{path}:{line}: 'root_motion' must be true or false")
             first, last = span
             if not 0 <= first <= last < frames:
                 raise BodyFileError(f"{path}:{line}: {kind} {table['name']!r}: frames [{first}, {last}] are not "
                                     f"within the BVH's {frames} frames (0..{frames - 1})")
-            found[kind].append(Range(table["name"], first, last, line, bool(table.get("root_motion", False))))
+            found[kind].append(Range(table["name"], first, last, line, table.get("root_motion", False)))
     clips = found["clip"]
     expected = 0
     for clip in clips:
