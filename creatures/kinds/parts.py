@@ -241,7 +241,10 @@ class Body:
         self.effector_index = self.skeleton.names.index(self.effector)
         self.root_motion = RootMotion.of(figure, self.graph)
         self.travelled = np.zeros(3)
-        """Where root motion has taken the body (world offset of every pose it shows)."""
+        """Where root motion had taken the body when its last course began or ended."""
+        self.offset = np.zeros(3)
+        """Where root motion has taken the pose shown now: the world offset of the body's own
+        frame, in which its graph, its reach and the notes in its space are laid out."""
         self._trajectory: _Trajectory | None = None
         self._pose: BodyPose = self._rest_pose(start, 0.0)
         layers = (spec or BodySpec()).contributions(self.skeleton.names)
@@ -268,6 +271,7 @@ class Body:
                     self.travelled = self._trajectory.travel(t)
                 self._trajectory = _Trajectory(playback, self.skeleton, self.root_motion, self.travelled.copy())
             self._pose = self._trajectory.pose(t)
+        self.offset = self.travelled if self._trajectory is None else self._trajectory.travel(t)
         if self.layers is not None:
             self._pose = self.layers.shape(self._pose, t)
         return self._pose
@@ -278,6 +282,10 @@ class Body:
 
     def hand(self) -> np.ndarray:
         return self._pose.positions[self.effector_index]
+
+    def hand_in_place(self) -> np.ndarray:
+        """The effector in the body's own frame (where :meth:`reach` and its notes are)."""
+        return self.hand() - self.offset
 
     def reach(self) -> np.ndarray:
         """Every place the effector can be in the source material ``(N, 3)``."""
