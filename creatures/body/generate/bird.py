@@ -1,4 +1,4 @@
-"""A small bird: 20 joints and four clips — perch, peck, flap and hop (with root motion).
+"""A small bird: 24 joints and four clips — perch, peck, flap and hop (with root motion).
 
 The second shipped body beside the dog (issue 16). Its beak is the end-effector that strikes
 notes: a peck brings it to the ground in front of the feet. The hop is the root-motion clip:
