@@ -98,9 +98,12 @@ def beg(height: float) -> dict[str, float]:
                    front_r3=0.5 - 0.3 * height, front_z=0.36)
 
 
-TUCKED = {**LIE, **{k: v for k, v in posture(all_lift=1.0, all_r1=-1.5, all_r2=1.5, all_r3=0.0).items()
+TUCKED = {**LIE, **{k: v for k, v in posture(all_lift=1.0, front_r1=-1.3, front_r2=-1.5, hind_r1=-1.5, hind_r2=1.5,
+                                             all_r3=-1.5).items()
                     if k.endswith(("lift", "r1", "r2", "r3"))}, "y": 0.16}
-"""Lying with every leg folded flat against the body: the posture it rolls over in."""
+"""Lying with every leg flat along the body (front legs forward, hind legs folded, paws
+forward, as they already lie, so folding them never swings a paw through the ground): the
+posture it rolls over in."""
 
 
 def frame(sk: Skeleton, p: dict[str, float], t: float) -> Frame:
