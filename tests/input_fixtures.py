@@ -1,5 +1,17 @@
 """The colony the input-map tests feed: ``bo`` hears outside input, ``deaf`` (``hears_input =
-false``) only other creatures; both are exchange creatures, with drives and an action-group."""
+false``) only other creatures; both are exchange creatures, with drives and an action-group.
+And :func:`live_run`: ``creatures run`` in a subprocess, fed by foreign OSC senders."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+from typing import Callable
+
+import pytest
 
 COLONY = """
 title = "input map"
@@ -13,3 +25,32 @@ kind = "exchange"
 channel = 1
 hears_input = false
 """
+
+
+def live_run(config: Path, log: Path, port: int, send: Callable[[], None]) -> tuple[list[str], str]:
+    """``creatures run config --log log``; once it says it runs, ``send()``, then liblo's
+    ``oscsend`` of the unmapped ``/done``, whose report says everything before it was heard;
+    then SIGTERM. Returns the lines read while it ran and the rest of its output (it must exit 0)."""
+    run = subprocess.Popen([sys.executable, "-m", "creatures.cli", "run", str(config), "--log", str(log)],
+                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                           env={**os.environ, "PYTHONUNBUFFERED": "1"})
+    try:
+        lines = []
+        for line in run.stdout:  # the loop is listening once it says it runs
+            lines.append(line)
+            if "running; Ctrl-C or SIGTERM" in line:
+                break
+        else:
+            pytest.fail("".join(lines))
+        send()
+        subprocess.run(["oscsend", "127.0.0.1", str(port), "/done"], check=True, timeout=30)
+        for line in run.stdout:  # each unmapped address is reported once: /done says all was heard
+            lines.append(line)
+            if "/done" in line:
+                break
+        run.send_signal(signal.SIGTERM)
+        out = run.communicate(timeout=60)[0]
+    finally:
+        run.kill()
+    assert run.returncode == 0, "".join(lines) + out
+    return lines, out

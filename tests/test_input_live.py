@@ -6,9 +6,7 @@ MIDI bytes that never crashes the loop and leaves nothing uncounted."""
 from __future__ import annotations
 
 import json
-import os
 import shutil
-import signal
 import socket
 import subprocess
 import sys
@@ -23,7 +21,7 @@ from pythonosc.osc_message_builder import OscMessageBuilder
 from pythonosc.osc_packet import OscPacket
 from pythonosc.udp_client import SimpleUDPClient
 
-from input_fixtures import COLONY
+from input_fixtures import COLONY, live_run
 
 from creatures.clock import SimulatedClock
 from creatures.events import EventLog
@@ -99,30 +97,13 @@ def test_foreign_osc_senders_reach_a_live_run(tmp_path):
     config = tmp_path / "live.toml"
     config.write_text(CREATURES + f"[osc]\nport = {port}\n" + MAPS.replace("[[input.map]]", "[[input]]"))
     log = tmp_path / "events.jsonl"
-    run = subprocess.Popen([sys.executable, "-m", "creatures.cli", "run", str(config), "--log", str(log)],
-                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                           env={**os.environ, "PYTHONUNBUFFERED": "1"})
-    try:
-        lines = []
-        for line in run.stdout:  # the loop is listening once it says it runs
-            lines.append(line)
-            if "running; Ctrl-C or SIGTERM" in line:
-                break
-        else:
-            pytest.fail("".join(lines))
+
+    def send() -> None:
         subprocess.run([sys.executable, "-c", SENDER, str(port)], check=True, timeout=60)
-        for args in (["/note", "iif", "64", "100", "0.3"], ["/reward", "sf", "deaf", "0.5"], ["/bored", "f", "1.5"],
-                     ["/done"]):
+        for args in (["/note", "iif", "64", "100", "0.3"], ["/reward", "sf", "deaf", "0.5"], ["/bored", "f", "1.5"]):
             subprocess.run(["oscsend", "127.0.0.1", str(port), *args], check=True, timeout=30)
-        for line in run.stdout:  # each unmapped address is reported once: /done says all was heard
-            lines.append(line)
-            if "/done" in line:
-                break
-        run.send_signal(signal.SIGTERM)
-        out = run.communicate(timeout=60)[0]
-    finally:
-        run.kill()
-    assert run.returncode == 0, "".join(lines) + out
+
+    lines, out = live_run(config, log, port, send)
     events = records(log)
     heard = sorted((e["pitch"], e["velocity"], e["duration"], e["source"]) for e in events if e["kind"] == "heard")
     assert heard == [(60, 90, 0.5, "osc"), (61, 80, 0.25, "osc"), (62, 100, 0.25, "visitor"),

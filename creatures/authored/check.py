@@ -175,9 +175,9 @@ def _needs(c: _Checker, cls, loc: tuple) -> None:
 
 
 def _labels(c: _Checker, wanted: list[str], loc: tuple) -> None:
-    from creatures.kinds.parts import shared_graph
+    from creatures.kinds.figures import figure_labels, figure_of
 
-    known = sorted(set().union(*shared_graph().poses.labels))
+    known = sorted(figure_labels(figure_of(c.spec.body)))
     for label in wanted:
         if label not in known:
             close = difflib.get_close_matches(label, known, n=1)

@@ -17,8 +17,8 @@ from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, field_validator
 from creatures.bounds import FINITE, LARGEST_RATE, LONGEST_SECONDS, Bounded, Seconds
 
 from creatures.kinds.base import CreatureSpec
+from creatures.kinds.figures import FigureBodySpec
 from creatures.kinds.hearing_parts import HearingSpec, MouthSpec
-from creatures.kinds.layers import BodySpec
 from creatures.kinds.note_world import SpaceSpec
 from creatures.kinds.parts import VoiceSpec
 
@@ -191,9 +191,9 @@ class AuthoredSpec(CreatureSpec):
                                                                    "by the creature")
     learning: LearningSpec = LearningSpec()
     hears_input: bool = Field(True, description="hear notes from outside the colony")
-    body: BodySpec | bool = Field(False, description="a body on the shared motor graph (sway, reach, strike); motor "
-                                                     "actions need it. true, or a [creature.body] table of the "
-                                                     "layers it blends over its course (breathe)")
+    body: bool | FigureBodySpec = Field(False, description="a body on a motor graph; motor actions need it. "
+                                                           "true: the stick figure (sway, reach, strike); a "
+                                                           "[creature.body] table picks a figure (dog, bird)")
     ratio_metric: bool = Field(False, description="its body's graph favours moves at low-integer ratios of the "
                                                   "source animation length (exchange's metric)")
     space: SpaceSpec | None = Field(None, description="heard notes placed in space for the hand to strike "

@@ -139,7 +139,7 @@ class NoteWorld:
         ``refractory``, and no more often than ``strike_interval``: one note at a time)."""
         if t - self._last_strike < self.spec.strike_interval:
             return
-        for obj in self.space.within(self.body.hand(), self.spec.strike_radius):
+        for obj in self.space.within(self.body.hand_in_place(), self.spec.strike_radius):
             if t - self._struck_at.get(id(obj), -np.inf) >= self.spec.refractory:
                 self.strike(t, obj, 0.8)
                 return
@@ -159,7 +159,8 @@ class NoteWorld:
         return len(self.placed_at) + len(self._struck_at)
 
     def marks(self) -> list[tuple[tuple[float, float, float], int]]:
-        return [(tuple(o.position), o.pitch) for o in self.space.objects]
+        """Notes as drawn: a walking body's space goes with it (root motion moves its frame)."""
+        return [(tuple(o.position + self.body.offset), o.pitch) for o in self.space.objects]
 
 
 class Wander(Action):

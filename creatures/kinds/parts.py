@@ -17,6 +17,7 @@ from audio.coupling import BodyCoupling
 from audio.scanned import GESTURAL_LIMIT_HZ, StringParameters, UnstableStringError, soft_limit
 from audio.voices import VoicePool
 from creatures.bounds import FINITE
+from creatures.kinds.figures import EFFECTORS, Figure, RootMotion, figure_graph
 from creatures.kinds.layers import BodyLayers, BodySpec
 from creatures.motor import quaternion as quat
 from creatures.motor.animations import example_animations
@@ -128,11 +129,13 @@ class Voice:
 
 def couple_to_hands(voice: Voice, body: "Body") -> None:
     """Lay a voice's strings along the diagonal of the box the effector reaches, pushed by both
-    hands (so striking and reaching visibly shake what sounds)."""
+    hands (so striking and reaching visibly shake what sounds); a figure without a left hand
+    pushes them with its effector alone."""
     reach = body.reach()
     low, high = reach.min(axis=0), reach.max(axis=0)
     line = np.linspace(0.0, 1.0, voice.spec.masses)[:, None]
-    voice.couple(low + line * (high - low), [body.skeleton.names.index("hand_l"), body.effector_index])
+    joints = [body.skeleton.names.index("hand_l")] if "hand_l" in body.skeleton.names else []
+    voice.couple(low + line * (high - low), [*joints, body.effector_index])
 
 
 @functools.lru_cache(maxsize=1)
@@ -168,12 +171,26 @@ class _Trajectory:
 
     STEP = 1.0 / BODY_RATE
 
-    def __init__(self, playback: Playback, skeleton) -> None:
+    def __init__(self, playback: Playback, skeleton, travel: RootMotion | None = None,
+                 offset: np.ndarray | None = None) -> None:
         self.start = float(playback.key_times[0])
         self.count = int(np.ceil((playback.end_time - self.start) / self.STEP)) + 2
         self.playback = playback
         self.skeleton = skeleton
+        self.offset = np.zeros(3) if offset is None else offset
+        self._travel = None
+        if travel is not None:  # where the body has walked to at each key, from where this course began
+            start = playback.path.start
+            self._travel = self.offset + travel.along(start.node, playback.key_nodes,
+                                                      start.fraction if start.next is not None else 0.0)
         self._blocks: dict[int, tuple[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
+
+    def travel(self, t: float) -> np.ndarray:
+        """The body's walked offset at ``t`` (linear between keys, like the root)."""
+        if self._travel is None:
+            return self.offset
+        times = self.playback.key_times
+        return np.array([np.interp(t, times, self._travel[:, c]) for c in range(3)])
 
     def _block(self, block: int) -> tuple[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``(first, rotations, velocities, roots, positions)`` of samples ``first`` onwards
@@ -181,7 +198,13 @@ class _Trajectory:
         if block not in self._blocks:
             first = min(block * BODY_BLOCK, self.count - 2)
             indices = np.arange(first, min((block + 1) * BODY_BLOCK, self.count - 1) + 1)
-            rotations, roots = self.playback.sample_rotations(self.start + self.STEP * indices)
+            times = self.start + self.STEP * indices
+            rotations, roots = self.playback.sample_rotations(times)
+            if self._travel is not None:
+                roots = roots + np.stack([np.interp(times, self.playback.key_times, self._travel[:, c])
+                                          for c in range(3)], axis=1)
+            elif self.offset.any():
+                roots = roots + self.offset
             turn = quat.log(quat.multiply(rotations[1:], quat.conjugate(rotations[:-1]))) / self.STEP
             velocities = np.concatenate((turn, turn[-1:])) if indices[-1] == self.count - 1 else turn
             positions = self.skeleton.forward_kinematics(rotations, roots)
@@ -196,22 +219,32 @@ class _Trajectory:
 
 
 class Body:
-    """A creature's body on the shared motor graph, with its own position and course.
+    """A creature's body on its figure's motor graph, with its own position and course.
 
-    With layers in ``spec`` (``[creature.body]``) the course is one contributor among them
+    ``figure`` picks the body (:mod:`creatures.kinds.figures`: the stick figure, the dog, the
+    bird); ``effector`` defaults to the joint that figure strikes notes with. A figure with
+    root motion walks: the offset it has travelled is kept across courses. With layers in
+    ``spec`` (``[creature.body]``) the course is one contributor among them
     (:class:`~creatures.kinds.layers.BodyLayers`); without, the course alone is the pose.
     """
 
-    def __init__(self, rng: np.random.Generator, *, effector: str = "hand_r", ratios: bool = False,
-                 spec: BodySpec | None = None) -> None:
-        self.graph = shared_graph(ratios)
+    def __init__(self, rng: np.random.Generator, *, effector: str | None = None, ratios: bool = False,
+                 spec: BodySpec | None = None, figure: Figure = "stick") -> None:
+        self.figure = figure
+        self.graph = figure_graph(figure, ratios)
         self.finder = PathFinder(self.graph)
         self.finder.prepare()  # its landmark tables (~10 ms) before the first tick, not in it
         start = int(rng.integers(len(self.graph)))
         self.motor = MotorSystem(self.graph, start=start, finder=self.finder)
-        self.effector = effector
+        self.effector = effector or EFFECTORS[figure]
         self.skeleton = self.graph.skeleton
-        self.effector_index = self.skeleton.names.index(effector)
+        self.effector_index = self.skeleton.names.index(self.effector)
+        self.root_motion = RootMotion.of(figure, self.graph)
+        self.travelled = np.zeros(3)
+        """Where root motion had taken the body when its last course began or ended."""
+        self.offset = np.zeros(3)
+        """Where root motion has taken the pose shown now: the world offset of the body's own
+        frame, in which its graph, its reach and the notes in its space are laid out."""
         self._trajectory: _Trajectory | None = None
         self._pose: BodyPose = self._rest_pose(start, 0.0)
         layers = (spec or BodySpec()).contributions(self.skeleton.names)
@@ -219,20 +252,26 @@ class Body:
 
     def _rest_pose(self, node: int, t: float) -> BodyPose:
         poses = self.graph.poses
-        return BodyPose(poses.rotations[node], np.zeros_like(poses.velocities[node]), poses.roots[node],
-                        time=t, source="rest", labels=poses.labels[node], positions=poses.positions[node])
+        return BodyPose(poses.rotations[node], np.zeros_like(poses.velocities[node]), poses.roots[node] + self.travelled,
+                        time=t, source="rest", labels=poses.labels[node],
+                        positions=poses.positions[node] + self.travelled)
 
     def update(self, t: float) -> BodyPose:
         """Advance the body to clock time ``t`` and return the pose there."""
         self.motor.arrived(t)
         playback = self.motor.playback
         if playback is None:
+            if self._trajectory is not None:
+                self.travelled = self._trajectory.travel(t)
             self._trajectory = None
             self._pose = self._rest_pose(self.motor.position(t).node, t)
         else:
             if self._trajectory is None or self._trajectory.playback is not playback:
-                self._trajectory = _Trajectory(playback, self.skeleton)
+                if self._trajectory is not None:  # a course replaced mid-way walks on from where it was
+                    self.travelled = self._trajectory.travel(t)
+                self._trajectory = _Trajectory(playback, self.skeleton, self.root_motion, self.travelled.copy())
             self._pose = self._trajectory.pose(t)
+        self.offset = self.travelled if self._trajectory is None else self._trajectory.travel(t)
         if self.layers is not None:
             self._pose = self.layers.shape(self._pose, t)
         return self._pose
@@ -243,6 +282,10 @@ class Body:
 
     def hand(self) -> np.ndarray:
         return self._pose.positions[self.effector_index]
+
+    def hand_in_place(self) -> np.ndarray:
+        """The effector in the body's own frame (where :meth:`reach` and its notes are)."""
+        return self.hand() - self.offset
 
     def reach(self) -> np.ndarray:
         """Every place the effector can be in the source material ``(N, 3)``."""
