@@ -34,7 +34,6 @@ from creatures.behaviour.value import ChainValue, GaussianValue, ScalarValue, Va
 from creatures.config import ConfigError
 from creatures.kinds import register
 from creatures.kinds.base import CreatureKind
-from creatures.kinds.layers import BodySpec
 from creatures.kinds.note_world import NoteWorld
 from creatures.kinds.figures import FigureBodySpec, figure_of
 from creatures.kinds.parts import Body, Voice, couple_to_hands
