@@ -72,6 +72,7 @@ class LiveSummary:
     late_notes: int = 0  # note-ons that reached the MIDI port more than sinks.LATE_NOTE late
     midi_dropped: int | None = None  # MIDI messages that found no output port (None: no port configured)
     frames_dropped: int = 0  # frames the drawing process was too busy to take
+    view_dropped: int = 0  # live view snapshots its thread was too slow to take
     heard_between_ticks: int = 0  # notes heard (and answerable) at once, not at the next tick
     underruns: int = 0  # audio output callbacks that found no sound ready and played silence
     overruns: int = 0  # microphone blocks lost: the loop read too slowly, or the driver overflowed
@@ -259,17 +260,24 @@ class _Saver:
 
 
 def check_before_running(inst: LoadedInstallation, *, state: Path | None, log_path: Path | None,
-                         pictures: Path | None) -> None:
+                         pictures: Path | None, view: int | None = None) -> None:
     """What a live run is given, checked before anything runs or is made (``creatures run``
     calls it before it locks, and so makes, the state folder): the log a regular file or
-    absent, the state a folder or absent, the OSC port free, and last the ``--frames`` folder
-    made and written in. The first that fails raises, naming its option or config key."""
+    absent, the state a folder or absent, the OSC port and the view's port free, and last the
+    ``--frames`` folder made and written in. The first that fails raises, naming its option or
+    config key."""
     if log_path is not None:
         regular_file(log_path, "--log")
     if state is not None:
         directory(state, "state folder")
     if inst.settings.osc.port is not None:  # bound and let go: a port in use is said now
         open_listener(inst.settings.osc, WallClock(), lambda key, message: inst.error(("osc", key), message)).close()
+    if view is not None:
+        from creatures.view.server import port_problem
+
+        problem = port_problem(view)
+        if problem is not None:
+            raise inst.error(("view", "port"), problem)
     if pictures is not None:
         writable_directory(pictures, "--frames")
 
@@ -281,15 +289,17 @@ def run_live(
     state: Path | None = None,
     log_path: Path | None = None,
     pictures: Path | None = None,
+    view: int | None = None,
     say: Callable[[str], None] = print,
 ) -> LiveSummary:
     """Run ``inst`` live until Ctrl-C/SIGTERM (or ``duration`` wall seconds); with
     ``pictures`` the bodies are drawn into that directory (PNGs, and a video if the config asks) at the
-    config's frame rate."""
+    config's frame rate; with ``view`` (a port) the live view is served there
+    (:mod:`creatures.view`: its own thread; the tick only queues snapshots)."""
     settings = inst.settings
     summary = LiveSummary()
     state_dir = state or inst.resolve(settings.state)
-    check_before_running(inst, state=state_dir, log_path=log_path, pictures=pictures)
+    check_before_running(inst, state=state_dir, log_path=log_path, pictures=pictures, view=view)
     rehearse(inst)
     wall = WallClock()
     clock = SimulatedClock(wall.now())  # the creatures' time, moved by the loop (ticking.py)
@@ -340,6 +350,14 @@ def run_live(
         bodies = FramesBeside(settings.output, pictures, wall, summary.messages)
         for message in summary.messages:
             say(message)
+    feed = server = None
+    if view is not None:
+        from creatures.view.feed import Feed
+        from creatures.view.server import LiveSource, ViewServer
+
+        feed = Feed(settings.title, session.creatures, log, clock, settings.view.fps, sound=summary.sound)
+        server = ViewServer(LiveSource(feed, settings.view.fps), view).start()
+        say(f"view: open {server.url}")
     say(f"{len(session.creatures)} creature(s) running; Ctrl-C or SIGTERM stops cleanly")
     loop = TickLoop(session, inputs, wall, clock, settings.tick)
     timing = _Timing(session, loop.timing, sink)
@@ -362,6 +380,8 @@ def run_live(
                 inputs.network.publish(t)
             if bodies is not None:
                 bodies.draw(session.creatures)
+            if feed is not None:
+                feed.offer()
             if state_dir is not None and t >= next_save:
                 saver.save(session, t - start)
                 next_save += settings.save_every
@@ -400,6 +420,10 @@ def run_live(
             if bodies is not None:
                 bodies.close()
                 summary.frames_dropped = bodies.dropped
+            if server is not None:
+                server.close()
+                feed.close()
+                summary.view_dropped = feed.dropped
             inputs.close()
             if inputs.network is not None:
                 summary.network = inputs.network.counts()

@@ -1,0 +1,82 @@
+"""What a live run hands the view: snapshots taken on the creature's thread, cheaply.
+
+The creature's thread does only this (``[view] fps`` times a second, on a
+:class:`~creatures.body.frames.FrameClock`): copy every figure and note object into a
+:func:`~creatures.view.snapshot.frame` and put it into a bounded queue without waiting. The
+records the page shows reach it through the events log's tap (:attr:`EventLog.taps`), into a
+bounded deque. Encoding, websockets and every browser live on the view's own thread
+(:mod:`creatures.view.server`); if that thread falls behind, a full queue drops the frame and
+counts it (:attr:`Feed.dropped`), a full deque drops the oldest record and counts it
+(:attr:`Feed.events_dropped`): the creatures never wait for a browser.
+"""
+
+from __future__ import annotations
+
+import collections
+import queue
+from typing import Any
+
+from creatures.body.frames import FrameClock
+from creatures.clock import Clock
+from creatures.events import EventLog
+from creatures.kinds.base import CreatureKind
+from creatures.view.snapshot import SHOWN, Message, bodies, frame, hello
+
+QUEUED_FRAMES = 8
+"""Frames waiting for the view's thread; one more is dropped and counted."""
+
+QUEUED_EVENTS = 2048
+"""Shown records waiting for the view's thread; beyond, the oldest are dropped and counted."""
+
+
+class Feed:
+    """Snapshots of ``creatures`` for the view, at ``fps`` on ``clock``; ``log``'s shown records."""
+
+    def __init__(self, title: str, creatures: list[CreatureKind], log: EventLog, clock: Clock, fps: float,
+                 **status: Any) -> None:
+        self.creatures = creatures
+        self.hello = hello(title, "live", bodies(creatures), **status)
+        self.frames: queue.Queue[Message] = queue.Queue(QUEUED_FRAMES)
+        self.events: collections.deque[Message] = collections.deque()
+        self.clock = FrameClock(fps, clock)
+        self.dropped = 0
+        self.events_dropped = 0
+        self._log = log
+        log.taps.append(self.tap)
+
+    def tap(self, record: Message) -> None:
+        """An events-log record, on the emitting thread: kept if the page shows its kind."""
+        if record["kind"] in SHOWN:
+            if len(self.events) >= QUEUED_EVENTS:
+                self.events.popleft()
+                self.events_dropped += 1
+            self.events.append(record)
+
+    def offer(self) -> None:
+        """A frame, if one fell due, into the queue (dropped and counted when it is full)."""
+        if not self.clock.due():
+            return
+        try:
+            self.frames.put_nowait(frame(self.clock.clock.now(), self.creatures))
+        except queue.Full:
+            self.dropped += 1
+
+    def take(self) -> list[Message]:
+        """On the view's thread: the frames waiting, the shown records riding on the last."""
+        taken = []
+        while True:
+            try:
+                taken.append(self.frames.get_nowait())
+            except queue.Empty:
+                break
+        if taken:
+            events = []
+            while self.events:
+                events.append(self.events.popleft())
+            taken[-1]["events"] = events
+            taken[-1]["status"] = {"dropped": self.dropped, "events_dropped": self.events_dropped}
+        return taken
+
+    def close(self) -> None:
+        if self.tap in self._log.taps:
+            self._log.taps.remove(self.tap)
