@@ -259,7 +259,7 @@ def _inspect(args: argparse.Namespace) -> int:
 
 
 def _view_options(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("run", type=Path, help="an offline run's output directory (its events.jsonl)")
+    parser.add_argument("run_dir", type=Path, metavar="RUN", help="an offline run's output directory (its events.jsonl)")
     parser.add_argument("--port", type=_port, default=DEFAULT_VIEW_PORT, help="serve on http://127.0.0.1:PORT/")
     parser.add_argument("--speed", type=_seconds(1000.0), default=1.0, help="replay speed (× real time)")
 
@@ -272,7 +272,7 @@ def _view(args: argparse.Namespace) -> int:
     from creatures.view.server import ReplaySource, ViewServer
 
     try:
-        server = ViewServer(ReplaySource(load_replay(args.run), speed=args.speed), args.port).start()
+        server = ViewServer(ReplaySource(load_replay(args.run_dir), speed=args.speed), args.port).start()
     except (ValueError, OSError) as exc:  # ValueError: no poses, a malformed log line
         print(f"creatures: {exc}", file=sys.stderr)
         return 2
@@ -285,7 +285,7 @@ def _view(args: argparse.Namespace) -> int:
 
 
 def _render_options(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("run", type=Path, help="an offline run's output directory (its events.jsonl)")
+    parser.add_argument("run_dir", type=Path, metavar="RUN", help="an offline run's output directory (its events.jsonl)")
     parser.add_argument("--out", type=Path, help="where frames/ and out.mp4 go (default: RUN/render)")
     parser.add_argument("--width", type=int, default=640, choices=range(16, 3841), metavar="16…3840")
     parser.add_argument("--height", type=int, default=480, choices=range(16, 2161), metavar="16…2160")
@@ -303,13 +303,13 @@ def _render(args: argparse.Namespace) -> int:
     from creatures.body.render import RenderUnavailable
     from creatures.view.rerender import parse_orbit, render_run
 
-    out = args.out or args.run / "render"
+    out = args.out or args.run_dir / "render"
     try:
         camera = parse_orbit(args.camera) if args.camera is not None else None
         if args.no_pngs and not args.video:
             raise ValueError("--no-pngs without --video would draw nothing")
         t0 = time.perf_counter()
-        count = render_run(args.run, out, width=args.width, height=args.height, fps=args.fps, camera=camera,
+        count = render_run(args.run_dir, out, width=args.width, height=args.height, fps=args.fps, camera=camera,
                            pngs=not args.no_pngs, video=args.video)
     except (ValueError, OSError, RenderUnavailable) as exc:
         print(f"creatures: {exc}", file=sys.stderr)

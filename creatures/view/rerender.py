@@ -79,10 +79,11 @@ def sampled(frames: list[dict], fps: float) -> list[tuple[dict, int]]:
 
 
 def log_rate(frames: list[dict]) -> float:
-    """The rate the poses were logged at (the median spacing of their times)."""
-    if len(frames) < 2:
+    """The rate the poses were logged at, over the whole run (each pose falls on the tick
+    nearest its frame time, so neighbouring spacings vary by a tick): one output frame each."""
+    if len(frames) < 2 or frames[-1]["t"] <= frames[0]["t"]:
         return 1.0
-    return float(1.0 / np.median(np.diff([f["t"] for f in frames])))
+    return (len(frames) - 1) / (frames[-1]["t"] - frames[0]["t"])
 
 
 def render_run(run_dir: Path, out: Path, *, width: int = 640, height: int = 480, fps: float | None = None,

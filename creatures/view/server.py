@@ -164,7 +164,7 @@ class ViewServer:
         app.router.add_get("/", _page)
         app.router.add_get("/ws", self._socket)
         app.router.add_get("/status", self._status)
-        app.router.add_get("/favicon.ico", lambda _: web.Response(status=204))
+        app.router.add_get("/favicon.ico", _no_icon)
         app.router.add_static("/static/", STATIC)
         runner = web.AppRunner(app, access_log=None, handle_signals=False)
         await runner.setup()
@@ -218,6 +218,10 @@ class ViewServer:
 
 async def _page(_: web.Request) -> web.FileResponse:
     return web.FileResponse(STATIC / "index.html")
+
+
+async def _no_icon(_: web.Request) -> web.Response:
+    return web.Response(status=204)
 
 
 @web.middleware
