@@ -187,7 +187,7 @@ class ViewServer:
                                   "events_dropped": feed.events_dropped if feed is not None else 0})
 
     async def _socket(self, request: web.Request) -> web.WebSocketResponse:
-        ws = web.WebSocketResponse(heartbeat=20.0)
+        ws = web.WebSocketResponse(heartbeat=20.0, compress=False)  # loopback: deflate would only cost CPU
         await ws.prepare(request)
         client = Client()
         await ws.send_str(encode(self.source.hello()))
@@ -207,7 +207,10 @@ class ViewServer:
     async def _send(self, ws: web.WebSocketResponse, client: Client) -> None:
         while not ws.closed:
             text = await client.queue.get()
-            await ws.send_str(text)
+            try:
+                await ws.send_str(text)
+            except ConnectionError:  # the browser went away mid-frame: its socket handler ends it
+                return
             self.sent += 1
 
     def close(self) -> None:
