@@ -19,9 +19,10 @@ Run = Callable[[argparse.Namespace], int]
 COMMANDS: dict[str, tuple[str, Configure, Run]] = {}
 
 
-def _seconds(longest: float) -> Callable[[str], float]:
-    """An argparse ``type``: a finite number of seconds in (0, ``longest``]; anything else
-    (``nan``, ``inf``, ``-5``) is argparse's usage error, exit 2, naming the option."""
+def _seconds(longest: float, what: str = "a number of seconds") -> Callable[[str], float]:
+    """An argparse ``type``: a finite number (of seconds, unless ``what`` says otherwise) in
+    (0, ``longest``]; anything else (``nan``, ``inf``, ``-5``) is argparse's usage error, exit
+    2, naming the option."""
 
     def parse(text: str) -> float:
         try:
@@ -29,7 +30,7 @@ def _seconds(longest: float) -> Callable[[str], float]:
         except ValueError:
             value = 0.0
         if value == 0.0:
-            raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds in (0, {longest:g}]")
+            raise argparse.ArgumentTypeError(f"{text!r} is not {what} in (0, {longest:g}]")
         return value
 
     return parse
@@ -158,15 +159,22 @@ DEFAULT_VIEW_PORT = 8765
 """Where ``--view`` without a port serves when the config names none."""
 
 
-def _port(text: str) -> int:
-    """An argparse ``type``: a TCP port in 1024…65535."""
-    try:
-        port = int(text)
-    except ValueError:
-        port = 0
-    if not 1024 <= port <= 65535:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a port in 1024…65535")
-    return port
+def _integer(low: int, high: int, what: str) -> Callable[[str], int]:
+    """An argparse ``type``: an integer in ``low…high``; anything else is argparse's usage error."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = low - 1
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"{text!r} is not {what} in {low}…{high}")
+        return value
+
+    return parse
+
+
+_port = _integer(1024, 65535, "a port")
 
 
 def _view_port(given: int | None, configured: int | None) -> int | None:
@@ -261,7 +269,7 @@ def _inspect(args: argparse.Namespace) -> int:
 def _view_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("run_dir", type=Path, metavar="RUN", help="an offline run's output directory (its events.jsonl)")
     parser.add_argument("--port", type=_port, default=DEFAULT_VIEW_PORT, help="serve on http://127.0.0.1:PORT/")
-    parser.add_argument("--speed", type=_seconds(1000.0), default=1.0, help="replay speed (× real time)")
+    parser.add_argument("--speed", type=_seconds(1000.0, "a speed"), default=1.0, help="replay speed (× real time)")
 
 
 @command("view", "replay an offline run's bodies, notes and drives in the browser (Ctrl-C stops)", _view_options)
@@ -287,9 +295,10 @@ def _view(args: argparse.Namespace) -> int:
 def _render_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("run_dir", type=Path, metavar="RUN", help="an offline run's output directory (its events.jsonl)")
     parser.add_argument("--out", type=Path, help="where frames/ and out.mp4 go (default: RUN/render)")
-    parser.add_argument("--width", type=int, default=640, choices=range(16, 3841), metavar="16…3840")
-    parser.add_argument("--height", type=int, default=480, choices=range(16, 2161), metavar="16…2160")
-    parser.add_argument("--fps", type=_seconds(120.0), help="frames a second (default: the rate the poses were logged at)")
+    parser.add_argument("--width", type=_integer(16, 3840, "a width"), default=640, help="pixels (16…3840)")
+    parser.add_argument("--height", type=_integer(16, 2160, "a height"), default=480, help="pixels (16…2160)")
+    parser.add_argument("--fps", type=_seconds(120.0, "a frame rate"),
+                        help="frames a second (default: the rate the poses were logged at)")
     parser.add_argument("--camera", help="YAW,PITCH,DISTANCE[,X,Y,Z]: an orbit around a target, degrees and "
                                          "metres (default: framed on the first frame, as the view frames it)")
     parser.add_argument("--video", action="store_true", help="also encode out.mp4")
