@@ -22,15 +22,11 @@ import numpy as np
 
 import installations
 from bench import Row, best_of
+from bench._peers import skipped
 
 BODIES = 50
 STREAM_FPS = 60.0
 MEASURE_SECONDS = 4.0
-
-
-def skipped(name: str, why: str) -> Row:
-    print(f"view: {name} skipped: {why}")
-    return Row(f"{name} (skipped: {why[:60]})", float("nan"), "-")
 
 
 def _offline_run(out: Path, seconds: float) -> None:

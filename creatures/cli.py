@@ -276,11 +276,12 @@ def _view_options(parser: argparse.ArgumentParser) -> None:
 def _view(args: argparse.Namespace) -> int:
     import time
 
-    from creatures.view.rerender import load_replay
+    from creatures.view.rerender import learned, load_replay
     from creatures.view.server import ReplaySource, ViewServer
 
     try:
-        server = ViewServer(ReplaySource(load_replay(args.run_dir), speed=args.speed), args.port).start()
+        source = ReplaySource(load_replay(args.run_dir), speed=args.speed, learned=learned(args.run_dir))
+        server = ViewServer(source, args.port).start()
     except (ValueError, OSError) as exc:  # ValueError: no poses, a malformed log line
         print(f"creatures: {exc}", file=sys.stderr)
         return 2

@@ -116,21 +116,36 @@ def test_an_offline_run_replays_from_its_log(offline_run):
     assert positions[19:38] == pytest.approx(first["bodies"]["bo"] + place(1, 3))
 
 
-def test_a_log_without_poses_is_refused_with_what_to_do(tmp_path):
+def test_a_log_with_nothing_to_show_is_refused_and_one_without_bodies_replays_its_events(tmp_path):
     log = tmp_path / "events.jsonl"
-    log.write_text('{"t": 0, "kind": "run", "title": "x"}\n')
-    with pytest.raises(ValueError, match="log_fps"):
+    log.write_text('{"t": 0, "kind": "run", "title": "x", "creatures": ["a"]}\n')
+    with pytest.raises(ValueError, match="nothing to show"):
         load_replay(tmp_path)
     result = subprocess.run([sys.executable, "-m", "creatures.cli", "view", str(tmp_path)], capture_output=True,
                             text=True, timeout=60)
-    assert result.returncode == 2 and "no body poses" in result.stderr
+    assert result.returncode == 2 and "nothing to show" in result.stderr
     with pytest.raises(ValueError, match="no events log"):
         load_replay(tmp_path / "elsewhere")
+    with log.open("a") as more:  # a creature without a body: its notes and drives still replay
+        for t, pitch in ((0.03, 60), (0.05, 62), (0.31, 64)):
+            more.write(json.dumps({"t": t, "kind": "note", "creature": "a", "time": t, "pitch": pitch,
+                                   "duration": 0.2}) + "\n")
+    played = load_replay(tmp_path)
+    assert played.hello["creatures"] == [{"name": "a", "kind": "", "parents": None, "place": [0.0, 0.0, 0.0]}]
+    assert [(f["t"], [e["pitch"] for e in f["events"]]) for f in played.frames] == [(0.0, [60, 62]), (0.3, [64])]
+    result = subprocess.run([sys.executable, "-m", "creatures.cli", "render", str(tmp_path)], capture_output=True,
+                            text=True, timeout=60)
+    assert result.returncode == 2 and "no body poses" in result.stderr
 
 
-def test_a_malformed_pose_names_its_line(tmp_path):
-    (tmp_path / "events.jsonl").write_text('{"t": 0, "kind": "pose", "creature": "a", "joints": [[0, 1]], "marks": []}\n')
+def test_a_malformed_pose_names_its_line_and_one_off_its_skeleton_its_creature(tmp_path):
+    log = tmp_path / "events.jsonl"
+    log.write_text('{"t": 0, "kind": "pose", "creature": "a", "joints": [[0, 1]], "marks": []}\n')
     with pytest.raises(ValueError, match=r"events.jsonl:1: .*'joints'"):
+        load_replay(tmp_path)
+    log.write_text('{"t": 0, "kind": "skeleton", "creature": "a", "parents": [-1, 0], "place": [0, 0, 0]}\n'
+                   '{"t": 0.1, "kind": "pose", "creature": "a", "joints": [[0, 1, 0]], "marks": []}\n')
+    with pytest.raises(ValueError, match="'a' at 0.1 s does not fit its skeleton"):
         load_replay(tmp_path)
 
 
@@ -156,11 +171,16 @@ def test_the_feed_drops_and_counts_what_the_view_is_too_slow_to_take():
     assert feed.events[-1]["pitch"] == 60  # closed: the tap is gone
 
 
-async def _read(url: str, count: int, host: str | None = None) -> list[dict]:
-    headers = {"Host": host} if host else {}
+async def _read(url: str, count: int) -> list[dict]:
+    """The first ``count`` messages from the view's websocket, other than percept trees."""
+    got = []
     async with aiohttp.ClientSession() as client:
-        async with client.ws_connect(url + "ws", headers=headers) as ws:
-            return [json.loads((await ws.receive(timeout=10)).data) for _ in range(count)]
+        async with client.ws_connect(url + "ws") as ws:
+            while len(got) < count:
+                message = json.loads((await ws.receive(timeout=10)).data)
+                if message["type"] != "trees":
+                    got.append(message)
+    return got
 
 
 def test_the_server_sends_the_hello_then_the_feeds_frames_on_its_own_thread():
@@ -271,3 +291,39 @@ def test_render_draws_every_frame_at_the_size_and_camera_asked(offline_run, tmp_
     result = subprocess.run([sys.executable, "-m", "creatures.cli", "render", str(offline_run), "--camera", "0,95,1"],
                             capture_output=True, text=True, timeout=60)
     assert result.returncode == 2 and "YAW,PITCH,DISTANCE" in result.stderr
+
+
+def test_the_percept_trees_reach_the_page_live_and_replayed(tmp_path):
+    from creatures.view.rerender import learned
+
+    clock = SimulatedClock()
+    log = EventLog(keep_in_memory=10)
+    session = Session(load_installation(installations.path("ozymandias")), clock, log, MemorySink())
+    feed = Feed("ozymandias", session.creatures, log, clock, 25.0)
+    server = ViewServer(LiveSource(feed, 25.0)).start()
+    try:
+        async def until_trees(ws) -> dict:
+            while True:
+                message = json.loads((await ws.receive(timeout=10)).data)
+                if message["type"] == "trees":
+                    return message
+
+        async def scenario() -> tuple[dict, list[dict]]:
+            async with aiohttp.ClientSession() as client:
+                async with client.ws_connect(server.url + "ws") as ws:
+                    await ws.receive(timeout=10)  # hello
+                    step(session, clock, 1, feed.offer)
+                    live = await until_trees(ws)
+                async with client.ws_connect(server.url + "ws") as late:  # a browser opened later
+                    return live, [json.loads((await late.receive(timeout=10)).data) for _ in range(2)]
+
+        live, (hello, greeting) = asyncio.run(scenario())
+    finally:
+        server.close()
+        feed.close()
+    names = [c.name for c in session.creatures]
+    assert set(live["trees"]) == set(names) and live["t"] == pytest.approx(clock.now())
+    assert live["trees"][names[0]][0]["name"] == session.creatures[0].root.name
+    assert hello["type"] == "hello" and greeting == live  # sent at once, not in two seconds
+    session.save_state(tmp_path / "state")
+    assert learned(tmp_path)["trees"][names[0]] == live["trees"][names[0]]

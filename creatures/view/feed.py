@@ -16,6 +16,8 @@ import collections
 import queue
 from typing import Any
 
+import orjson
+
 from creatures.body.frames import FrameClock
 from creatures.clock import Clock
 from creatures.events import EventLog
@@ -28,6 +30,11 @@ QUEUED_FRAMES = 8
 QUEUED_EVENTS = 2048
 """Shown records waiting for the view's thread; beyond, the oldest are dropped and counted."""
 
+STATE_EVERY = 2.0
+"""Clock seconds between copies of the creatures' learned state (their percept trees, as the
+inspector reads them from a saved state): encoding it is the save's instant on the creature's
+thread (~0.1 ms for a colony), walking it is the view thread's work."""
+
 
 class Feed:
     """Snapshots of ``creatures`` for the view, at ``fps`` on ``clock``; ``log``'s shown records."""
@@ -37,27 +44,36 @@ class Feed:
         self.creatures = creatures
         self.hello = hello(title, "live", bodies(creatures), **status)
         self.frames: queue.Queue[Message] = queue.Queue(QUEUED_FRAMES)
-        self.events: collections.deque[Message] = collections.deque()
+        self.events: collections.deque[Message] = collections.deque(maxlen=QUEUED_EVENTS)
         self.clock = FrameClock(fps, clock)
         self.dropped = 0
         self.events_dropped = 0
+        self.states: tuple[float, list[tuple[str, str, bytes]]] | None = None
+        """The latest learned state: its clock time and ``(name, kind, JSON)`` per creature."""
+        self._next_state = clock.now()
         self._log = log
         log.taps.append(self.tap)
 
     def tap(self, record: Message) -> None:
         """An events-log record, on the emitting thread: kept if the page shows its kind."""
         if record["kind"] in SHOWN:
-            if len(self.events) >= QUEUED_EVENTS:
-                self.events.popleft()
+            if len(self.events) == QUEUED_EVENTS:  # a full deque drops its oldest as it appends
                 self.events_dropped += 1
             self.events.append(record)
 
     def offer(self) -> None:
-        """A frame, if one fell due, into the queue (dropped and counted when it is full)."""
+        """A frame, if one fell due, into the queue (dropped and counted when it is full); the
+        learned state every :data:`STATE_EVERY` seconds, encoded now (one consistent instant;
+        the view's thread reads only bytes)."""
+        now = self.clock.clock.now()
+        if now >= self._next_state:
+            self._next_state = now + STATE_EVERY
+            self.states = (now, [(c.name, c.spec.kind, orjson.dumps(c.state(), option=orjson.OPT_SERIALIZE_NUMPY))
+                                 for c in self.creatures])
         if not self.clock.due():
             return
         try:
-            self.frames.put_nowait(frame(self.clock.clock.now(), self.creatures))
+            self.frames.put_nowait(frame(now, self.creatures))
         except queue.Full:
             self.dropped += 1
 
@@ -71,8 +87,11 @@ class Feed:
                 break
         if taken:
             events = []
-            while self.events:
-                events.append(self.events.popleft())
+            while True:  # popleft, never a length check first: the creature's thread appends meanwhile
+                try:
+                    events.append(self.events.popleft())
+                except IndexError:
+                    break
             taken[-1]["events"] = events
             taken[-1]["status"] = {"dropped": self.dropped, "events_dropped": self.events_dropped}
         return taken

@@ -19,7 +19,7 @@ from typing import Callable
 import numpy as np
 
 from creatures.events import read_events
-from creatures.view.snapshot import Replay, replay, scene
+from creatures.view.snapshot import Replay, replay, scene, trees
 
 
 @dataclass(frozen=True)
@@ -52,6 +52,14 @@ def parse_orbit(text: str) -> Orbit:
         raise ValueError(f"{text!r}: a camera is YAW,PITCH,DISTANCE[,X,Y,Z] (degrees, |pitch| < 90, metres, "
                          "distance > 0)")
     return Orbit(*numbers[:3], target=tuple(numbers[3:]) if len(numbers) == 6 else (0.0, 1.0, 0.0))
+
+
+def learned(run_dir: Path) -> dict | None:
+    """A ``trees`` message of what the run's creatures knew at its end (``run_dir/state``), or None."""
+    from creatures.runtime.inspect import read_state
+
+    state = run_dir / "state"
+    return trees(None, read_state(state)) if state.is_dir() else None
 
 
 def load_replay(run_dir: Path) -> Replay:
@@ -95,6 +103,9 @@ def render_run(run_dir: Path, out: Path, *, width: int = 640, height: int = 480,
     from creatures.body.render import BodyRenderer, NoteMark
 
     played = load_replay(run_dir)
+    if not any(f["bodies"] for f in played.frames):
+        raise ValueError(f"{run_dir}: the events log holds no body poses (`pose` events) to draw: its creatures "
+                         "have no bodies, or it was run with [view] log_fps = 0")
     fps = fps or log_rate(played.frames)
     drawn = 0
     with BodyRenderer(width, height, camera_pose=None if camera is None else camera.pose()) as renderer, \

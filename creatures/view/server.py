@@ -21,10 +21,11 @@ import threading
 from pathlib import Path
 from typing import Protocol
 
+import orjson
 from aiohttp import WSMsgType, web
 
 from creatures.view.feed import Feed
-from creatures.view.snapshot import Message, Replay, encode
+from creatures.view.snapshot import Message, Replay, encode, trees
 
 STATIC = Path(__file__).with_name("static")
 HOST = "127.0.0.1"
@@ -63,6 +64,9 @@ class Source(Protocol):
 
     def hello(self) -> Message: ...
 
+    def greeting(self) -> list[str]:
+        """Encoded messages a new browser is sent after the hello (the latest percept trees)."""
+
     async def run(self, clients: set[Client]) -> None:
         """Feed every client (live: all alike, as frames arrive)."""
 
@@ -76,15 +80,28 @@ class LiveSource:
     def __init__(self, feed: Feed, fps: float) -> None:
         self.feed = feed
         self.period = 1.0 / fps
+        self.trees: str | None = None  # the latest trees message, encoded
+        self._states: object = None
 
     def hello(self) -> Message:
         return self.feed.hello
 
+    def greeting(self) -> list[str]:
+        return [self.trees] if self.trees is not None else []
+
     async def run(self, clients: set[Client]) -> None:
+        from creatures.runtime.inspect import knowledge  # matplotlib comes with it: here, not on the run's path
+
         while True:
             await asyncio.sleep(self.period / 2)
-            for message in self.feed.take():
-                text = encode(message)
+            texts = [encode(message) for message in self.feed.take()]
+            states = self.feed.states
+            if states is not None and states is not self._states:
+                self._states = states
+                known = [knowledge(name, kind, orjson.loads(state)) for name, kind, state in states[1]]
+                self.trees = encode(trees(states[0], known))
+                texts.append(self.trees)
+            for text in texts:
                 for client in clients:
                     client.offer(text)
 
@@ -96,13 +113,18 @@ class ReplaySource:
     """An offline run's frames at their clock times (× ``speed``), from the start for each
     browser, again and again (a ``restart`` message tells the page to clear its history)."""
 
-    def __init__(self, replay: Replay, speed: float = 1.0) -> None:
+    def __init__(self, replay: Replay, speed: float = 1.0, learned: Message | None = None) -> None:
+        """``learned``: a ``trees`` message of what the run's creatures knew at its end."""
         self.replay = replay
         self.speed = speed
         self.encoded = [encode(f) for f in replay.frames]
+        self.learned = None if learned is None else encode(learned)
 
     def hello(self) -> Message:
         return self.replay.hello
+
+    def greeting(self) -> list[str]:
+        return [self.learned] if self.learned is not None else []
 
     async def run(self, clients: set[Client]) -> None:
         pass
@@ -191,6 +213,8 @@ class ViewServer:
         await ws.prepare(request)
         client = Client()
         await ws.send_str(encode(self.source.hello()))
+        for text in self.source.greeting():
+            await ws.send_str(text)
         self.clients.add(client)
         feeding = asyncio.create_task(self.source.serve(client))
         sending = asyncio.create_task(self._send(ws, client))

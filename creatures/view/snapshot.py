@@ -14,13 +14,17 @@ stream (an OSC body stream) and this one stay one format.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import Any, Iterable
+import math
+from dataclasses import asdict, dataclass, field
+from typing import TYPE_CHECKING, Any, Iterable
 
 import numpy as np
 import orjson
 
 from creatures.kinds.base import CreatureKind
+
+if TYPE_CHECKING:
+    from creatures.runtime.inspect import Knowledge
 
 SPACING = 1.5
 """Metres between neighbouring creatures in the picture (the offscreen frames' layout too)."""
@@ -110,15 +114,24 @@ class Replay:
     frames: list[Message] = field(default_factory=list)
 
 
+STILL_EVERY = 0.1
+"""Seconds of clock time per frame when a run has no bodies to pace its replay."""
+
+
 def replay(events: list[Message]) -> Replay:
     """The view messages an offline run's events log holds: one frame per distinct ``pose``
     time, carrying the poses of that time (a creature without a pose there keeps its last) and
-    the shown events since the previous frame. Raises ValueError when the log has no poses
-    (a run without ``[view] log_fps``, or a live run's log)."""
+    the shown events since the previous frame; a run whose creatures have no bodies (or was
+    run with ``[view] log_fps = 0``) has a frame every :data:`STILL_EVERY` seconds, carrying
+    its events. Raises ValueError for a log with nothing to show, or a pose that does not fit
+    its skeleton (naming creature and time)."""
     run = next((e for e in events if e["kind"] == "run"), {})
-    found = [Body(e["creature"], e.get("kind_of", ""), list(e["parents"]), tuple(e["place"]))
-             for e in events if e["kind"] == "skeleton"]
-    result = Replay(hello(run.get("title", ""), "replay", found, creatures=len(run.get("creatures", found))))
+    skeletons = {e["creature"]: e for e in events if e["kind"] == "skeleton"}
+    names = [n for n in run.get("creatures", []) if isinstance(n, str)] or list(skeletons)
+    found = [Body(n, skeletons[n].get("kind_of", ""), list(skeletons[n]["parents"]), tuple(skeletons[n]["place"]))
+             if n in skeletons else Body(n, "", None, place(i, len(names))) for i, n in enumerate(names)]
+    result = Replay(hello(run.get("title", ""), "replay", found, creatures=len(names)))
+    posed = any(e["kind"] == "pose" for e in events)
     joints: dict[str, np.ndarray] = {}
     marks: dict[str, list] = {}
     shown: list[Message] = []
@@ -130,18 +143,26 @@ def replay(events: list[Message]) -> Replay:
         shown.clear()
 
     for event in events:
-        kind = event["kind"]
-        if kind == "pose":
-            if current is not None and event["t"] != current:
+        kind, t = event["kind"], event["t"]
+        if not posed and kind in SHOWN:
+            t = round(STILL_EVERY * math.floor(t / STILL_EVERY + 1e-9), DIGITS)
+            if current is not None and t > current:
                 close_frame()
-            current = event["t"]
-            joints[event["creature"]] = np.asarray(event["joints"], float)
-            marks[event["creature"]] = event.get("marks", [])
+            current = t
+            shown.append(event)
+        elif kind == "pose":
+            if current is not None and t != current:
+                close_frame()
+            current = t
+            who = event["creature"]
+            if who not in skeletons or len(skeletons[who]["parents"]) != len(event["joints"]):
+                raise ValueError(f"the pose of {who!r} at {t} s does not fit its skeleton (a damaged log)")
+            joints[who] = np.asarray(event["joints"], float)
+            marks[who] = event.get("marks", [])
         elif kind in SHOWN:
             shown.append(event)
     if current is None:
-        raise ValueError("the events log holds no body poses (`pose` events): run it offline with "
-                         "[view] log_fps > 0 (the default) to replay or re-render it")
+        raise ValueError("the events log holds nothing to show: no body poses and no notes, selections or drives")
     close_frame()
     return result
 
@@ -163,6 +184,13 @@ def scene(message: Message, hello_message: Message) -> tuple[np.ndarray, np.ndar
     if not positions:
         return np.zeros((0, 3)), np.zeros(0, int), marks
     return np.concatenate(positions), np.concatenate(parents), marks
+
+
+def trees(t: float | None, known: list["Knowledge"]) -> Message:
+    """A ``trees`` message: each creature's percept trees (name, size, children) as the
+    inspector finds them in its learned state (:func:`creatures.runtime.inspect.knowledge`);
+    ``t`` None for a finished run's saved state."""
+    return {"type": "trees", "t": t, "trees": {k.creature: [asdict(tree) for tree in k.trees] for k in known}}
 
 
 _OPTIONS = orjson.OPT_SERIALIZE_NUMPY | orjson.OPT_NON_STR_KEYS

@@ -8,7 +8,7 @@
 const YFOV = Math.PI / 3.5, ZNEAR = 0.05, HISTORY = 60, NOTES_SHOWN = 200;
 const view = window.__view = {
   hello: null, frame: null, first: null, frames: 0, drawn: 0, camera: null, screen: {},
-  drives: {}, values: {}, actions: {}, percepts: {}, notes: [], status: {}, errors: [],
+  drives: {}, values: {}, actions: {}, percepts: {}, trees: {}, notes: [], status: {}, errors: [],
   project: null, size: null, drawMs: 0,
 };
 window.addEventListener("error", (e) => view.errors.push(String(e.message)));
@@ -86,6 +86,9 @@ function paint() {
   const w = stage.width, h = stage.height;
   ctx.fillStyle = "#14141a";
   ctx.fillRect(0, 0, w, h);
+  if (view.frame && !view.camera) {
+    ctx.fillStyle = "#667"; ctx.font = "14px system-ui"; ctx.fillText("no bodies in this colony", 16, 28);
+  }
   if (!view.frame || !view.camera) return;
   const project = view.project = projector(view.camera, w, h);
   view.size = [w, h];
@@ -205,8 +208,11 @@ function refreshPanels() {
     p.action.textContent = view.actions[c.name] || "";
     plot(p.drives, p.driveLegend, view.drives[c.name] || []);
     plot(p.values, p.valueLegend, view.values[c.name] || []);
-    const sizes = view.percepts[c.name] || {};
-    p.percepts.textContent = Object.entries(sizes).map(([k, v]) => `${k}: ${v}`).join("\n");
+    const sizes = view.percepts[c.name] || {}, lines = [];
+    const walk = (node, depth) => { lines.push(`${"  ".repeat(depth)}${node.name} (${node.size})`); node.children.forEach((n) => walk(n, depth + 1)); };
+    for (const tree of view.trees[c.name] || []) walk(tree, 0);
+    p.percepts.textContent = (lines.length ? "percept trees\n" + lines.join("\n") + "\n" : "") +
+      (Object.keys(sizes).length ? "percepts now\n" : "") + Object.entries(sizes).map(([k, v]) => `  ${k}: ${v}`).join("\n");
   }
   const s = view.status, t = view.frame ? view.frame.t.toFixed(2) : "–";
   statusLine.textContent = `${view.hello.mode} · t ${t} s · ${view.frames} frames · dropped ${s.dropped ?? 0}` +
@@ -228,6 +234,8 @@ function connect() {
       view.hello = m;
       document.getElementById("title").textContent = m.title || "creatures";
       Object.assign(view.status, m.status || {});
+    } else if (m.type === "trees") {
+      view.trees = m.trees;
     } else if (m.type === "restart") {
       reset();
     } else if (m.type === "frame") {
