@@ -74,6 +74,33 @@ def _render_rows(run: Path, quick: bool) -> list[Row]:
     return rows
 
 
+def _feed_rows() -> list[Row]:
+    """What the view costs the creature's thread: one :meth:`Feed.offer` that takes a frame
+    (exchange's three bodies copied, their note objects, into the queue), emptied each time as
+    the view's thread empties it."""
+    from creatures.clock import SimulatedClock
+    from creatures.events import EventLog
+    from creatures.runtime.schema import load_installation
+    from creatures.runtime.session import Session
+    from creatures.view.feed import Feed
+    from midi.sinks import MemorySink
+
+    clock = SimulatedClock()
+    log = EventLog(keep_in_memory=10)
+    session = Session(load_installation(installations.path("exchange")), clock, log, MemorySink())
+    feed = Feed("bench", session.creatures, log, clock, 60.0)
+    frames = 2000
+
+    def offer_all() -> None:
+        for _ in range(frames):
+            clock.advance_to(clock.now() + 1 / 60.0)
+            feed.offer()
+            feed.take()
+
+    per = best_of(offer_all, repeat=3) / frames  # take() included: an upper bound on the tick's share
+    return [Row("live feed: a snapshot of 3 bodies on the creature's thread (with its take)", per * 1e6, "us")]
+
+
 def _synthetic_replay(seconds: float):
     """``BODIES`` exchange skeletons in a grid, each joint swaying on its own phase, at ``STREAM_FPS``."""
     from creatures.view.snapshot import Body, Replay, hello
@@ -137,4 +164,4 @@ def run(quick: bool) -> list[Row]:
         run_dir = Path(tmp)
         _offline_run(run_dir, 5.0 if quick else 20.0)
         rows = _render_rows(run_dir, quick)
-    return rows + _browser_rows(quick)
+    return rows + _feed_rows() + _browser_rows(quick)

@@ -8,6 +8,7 @@ import json
 import socket
 import subprocess
 import sys
+import time
 
 import aiohttp
 import numpy as np
@@ -327,3 +328,26 @@ def test_the_percept_trees_reach_the_page_live_and_replayed(tmp_path):
     assert hello["type"] == "hello" and greeting == live  # sent at once, not in two seconds
     session.save_state(tmp_path / "state")
     assert learned(tmp_path)["trees"][names[0]] == live["trees"][names[0]]
+
+
+def test_closing_the_view_closes_a_browser_still_connected():
+    """A kiosk's browser is still on the page when the run ends: its socket is closed as
+    "going away" and the server's thread ends (it once waited on the browser forever)."""
+    played = replay([{"t": 0.0, "kind": "run", "title": "x", "creatures": ["a"]},
+                     {"t": 0.01, "kind": "note", "creature": "a", "time": 0.01, "pitch": 60, "duration": 0.1}])
+    server = ViewServer(ReplaySource(played)).start()
+
+    async def scenario() -> tuple[aiohttp.WSMessage, float]:
+        async with aiohttp.ClientSession() as client:
+            async with client.ws_connect(server.url + "ws") as ws:
+                assert json.loads((await ws.receive(timeout=10)).data)["type"] == "hello"
+                started = time.perf_counter()
+                await asyncio.get_running_loop().run_in_executor(None, server.close)
+                took = time.perf_counter() - started
+                while (message := await ws.receive(timeout=10)).type == aiohttp.WSMsgType.TEXT:
+                    pass
+                return message, took
+
+    message, took = asyncio.run(scenario())
+    assert message.type in (aiohttp.WSMsgType.CLOSE, aiohttp.WSMsgType.CLOSED)
+    assert not server._thread.is_alive() and took < 5.0  # the join's own bound is 10 s

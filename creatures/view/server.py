@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Protocol
 
 import orjson
-from aiohttp import WSMsgType, web
+from aiohttp import WSCloseCode, WSMsgType, web
 
 from creatures.view.feed import Feed
 from creatures.view.snapshot import Message, Replay, encode, trees
@@ -150,6 +150,7 @@ class ViewServer:
         self.source = source
         self.port = port
         self.clients: set[Client] = set()
+        self._sockets: set[web.WebSocketResponse] = set()
         self.sent = 0
         self._loop: asyncio.AbstractEventLoop | None = None
         self._thread: threading.Thread | None = None
@@ -188,7 +189,9 @@ class ViewServer:
         app.router.add_get("/status", self._status)
         app.router.add_get("/favicon.ico", _no_icon)
         app.router.add_static("/static/", STATIC)
-        runner = web.AppRunner(app, access_log=None, handle_signals=False)
+        # A kiosk's browser stays connected when the run ends: its socket is closed ("going
+        # away"; the page reconnects when a run serves again) and what is left is given a second.
+        runner = web.AppRunner(app, access_log=None, handle_signals=False, shutdown_timeout=1.0)
         await runner.setup()
         try:
             site = web.TCPSite(runner, HOST, self.port, reuse_address=False)
@@ -198,6 +201,8 @@ class ViewServer:
             feeding = asyncio.create_task(self.source.run(self.clients))
             await self._stop.wait()
             feeding.cancel()
+            await asyncio.gather(*(ws.close(code=WSCloseCode.GOING_AWAY, message=b"the colony stopped")
+                                   for ws in list(self._sockets)), return_exceptions=True)
         finally:
             await runner.cleanup()
 
@@ -211,6 +216,7 @@ class ViewServer:
     async def _socket(self, request: web.Request) -> web.WebSocketResponse:
         ws = web.WebSocketResponse(heartbeat=20.0, compress=False)  # loopback: deflate would only cost CPU
         await ws.prepare(request)
+        self._sockets.add(ws)
         client = Client()
         await ws.send_str(encode(self.source.hello()))
         for text in self.source.greeting():
@@ -223,6 +229,7 @@ class ViewServer:
                 if message.type == WSMsgType.ERROR:
                     break
         finally:
+            self._sockets.discard(ws)
             self.clients.discard(client)
             feeding.cancel()
             sending.cancel()
