@@ -5,8 +5,9 @@ The creature's thread does only this (``[view] fps`` times a second, on a
 :func:`~creatures.view.snapshot.frame` and put it into a bounded queue without waiting. The
 records the page shows reach it through the events log's tap (:attr:`EventLog.taps`), into a
 bounded deque. Encoding, websockets and every browser live on the view's own thread
-(:mod:`creatures.view.server`); if that thread falls behind, a full queue drops the frame and
-counts it (:attr:`Feed.dropped`), a full deque drops the oldest record and counts it
+(:mod:`creatures.view.server`), which sends only the latest frame it finds (with every record
+since); if that thread falls behind, a full queue drops the frame and counts it
+(:attr:`Feed.dropped`), a full deque drops the oldest record and counts it
 (:attr:`Feed.events_dropped`): the creatures never wait for a browser.
 """
 
@@ -24,8 +25,9 @@ from creatures.events import EventLog
 from creatures.kinds.base import CreatureKind
 from creatures.view.snapshot import SHOWN, Message, bodies, frame, hello
 
-QUEUED_FRAMES = 8
-"""Frames waiting for the view's thread; one more is dropped and counted."""
+QUEUED_FRAMES = 32
+"""Frames waiting for the view's thread (about a second at 30 a second: a loaded machine left
+that thread without the CPU for a quarter of a second at a time); one more is dropped and counted."""
 
 QUEUED_EVENTS = 2048
 """Shown records waiting for the view's thread; beyond, the oldest are dropped and counted."""
@@ -47,6 +49,7 @@ class Feed:
         self.events: collections.deque[Message] = collections.deque(maxlen=QUEUED_EVENTS)
         self.clock = FrameClock(fps, clock)
         self.dropped = 0
+        self.superseded = 0  # frames the view's thread found older than another waiting
         self.events_dropped = 0
         self.states: tuple[float, list[tuple[str, str, bytes]]] | None = None
         """The latest learned state: its clock time and ``(name, kind, JSON)`` per creature."""
@@ -77,24 +80,30 @@ class Feed:
         except queue.Full:
             self.dropped += 1
 
-    def take(self) -> list[Message]:
-        """On the view's thread: the frames waiting, the shown records riding on the last."""
-        taken = []
+    def take(self) -> Message | None:
+        """On the view's thread: the latest frame waiting (the bodies of older ones are out of
+        date: they are skipped and counted in :attr:`superseded`, never sent), carrying every
+        shown record since the last take; None when no frame is waiting."""
+        latest, waiting = None, 0
         while True:
             try:
-                taken.append(self.frames.get_nowait())
+                latest = self.frames.get_nowait()
             except queue.Empty:
                 break
-        if taken:
-            events = []
-            while True:  # popleft, never a length check first: the creature's thread appends meanwhile
-                try:
-                    events.append(self.events.popleft())
-                except IndexError:
-                    break
-            taken[-1]["events"] = events
-            taken[-1]["status"] = {"dropped": self.dropped, "events_dropped": self.events_dropped}
-        return taken
+            waiting += 1
+        if latest is None:
+            return None
+        self.superseded += waiting - 1
+        events = []
+        while True:  # popleft, never a length check first: the creature's thread appends meanwhile
+            try:
+                events.append(self.events.popleft())
+            except IndexError:
+                break
+        latest["events"] = events
+        latest["status"] = {"dropped": self.dropped, "superseded": self.superseded,
+                            "events_dropped": self.events_dropped}
+        return latest
 
     def close(self) -> None:
         if self.tap in self._log.taps:

@@ -6,8 +6,8 @@ nothing fetched from elsewhere) and one websocket, ``/ws``, that sends the
 :mod:`~creatures.view.snapshot` messages: the hello, then frames. A :class:`LiveSource` takes
 what the run's :class:`~creatures.view.feed.Feed` queued; a :class:`ReplaySource` plays an
 offline run's frames at their own times (looping, so a kiosk keeps showing it). Each browser
-has a bounded queue of its own: a slow one drops frames (counted in ``/status``) and never
-holds up another, nor the creatures.
+has a bounded queue of its own: live, a slow one drops frames (counted in ``/status``) and
+never holds up another, nor the creatures; a replay waits for it instead (nothing is lost).
 
 Loopback only: the server binds 127.0.0.1 and answers only requests whose ``Host`` names a
 loopback address (a web page elsewhere cannot reach it through DNS rebinding).
@@ -94,7 +94,8 @@ class LiveSource:
 
         while True:
             await asyncio.sleep(self.period / 2)
-            texts = [encode(message) for message in self.feed.take()]
+            latest = self.feed.take()
+            texts = [] if latest is None else [encode(latest)]
             states = self.feed.states
             if states is not None and states is not self._states:
                 self._states = states
@@ -138,9 +139,9 @@ class ReplaySource:
                 delay = start + (message["t"] - t0) / self.speed - loop.time()
                 if delay > 0:
                     await asyncio.sleep(delay)
-                client.offer(text)
+                await client.queue.put(text)  # no creature waits on a replay: a slow browser slows it, loses nothing
             await asyncio.sleep(1.0)
-            client.offer(encode({"type": "restart"}))
+            await client.queue.put(encode({"type": "restart"}))
 
 
 class ViewServer:
