@@ -14,12 +14,15 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
+from typing import TYPE_CHECKING, Iterator
 
 import numpy as np
 
 from creatures.events import read_events
 from creatures.view.snapshot import Replay, replay, scene, trees
+
+if TYPE_CHECKING:
+    from creatures.body.render import BodyRenderer
 
 
 @dataclass(frozen=True)
@@ -94,13 +97,24 @@ def log_rate(frames: list[dict]) -> float:
     return (len(frames) - 1) / (frames[-1]["t"] - frames[0]["t"])
 
 
+def frames(played: Replay, renderer: "BodyRenderer", fps: float) -> Iterator[tuple[np.ndarray, int]]:
+    """Each frame of ``played`` at ``fps`` drawn by ``renderer`` (into one image, reused: copy
+    it to keep it), with how many output frames it fills."""
+    from creatures.body.render import NoteMark
+
+    image = np.empty((renderer.height, renderer.width, 3), np.uint8)
+    for message, repeat in sampled(played.frames, fps):
+        positions, parents, marks = scene(message, played.hello)
+        renderer.render(positions, parents, [NoteMark(p, pitch) for p, pitch in marks], out=image)
+        yield image, repeat
+
+
 def render_run(run_dir: Path, out: Path, *, width: int = 640, height: int = 480, fps: float | None = None,
-               camera: Orbit | None = None, pngs: bool = True, video: bool = False,
-               progress: Callable[[int], None] | None = None) -> int:
+               camera: Orbit | None = None, pngs: bool = True, video: bool = False) -> int:
     """Draw the run's frames into ``out/frames`` (PNGs) and/or ``out/out.mp4``; the count drawn.
     Raises :class:`~creatures.body.render.RenderUnavailable` without an offscreen GL platform."""
     from creatures.body.frames import FrameWriter
-    from creatures.body.render import BodyRenderer, NoteMark
+    from creatures.body.render import BodyRenderer
 
     played = load_replay(run_dir)
     if not any(f["bodies"] for f in played.frames):
@@ -111,12 +125,7 @@ def render_run(run_dir: Path, out: Path, *, width: int = 640, height: int = 480,
     with BodyRenderer(width, height, camera_pose=None if camera is None else camera.pose()) as renderer, \
             FrameWriter(directory=out / "frames" if pngs else None, video=out / "out.mp4" if video else None,
                         fps=fps) as writer:
-        image = np.empty((height, width, 3), np.uint8)
-        for message, repeat in sampled(played.frames, fps):
-            positions, parents, marks = scene(message, played.hello)
-            renderer.render(positions, parents, [NoteMark(p, pitch) for p, pitch in marks], out=image)
+        for image, repeat in frames(played, renderer, fps):
             writer.write(image, repeat=repeat)
             drawn += repeat
-            if progress is not None:
-                progress(repeat)
     return drawn
