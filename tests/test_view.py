@@ -352,3 +352,37 @@ def test_closing_the_view_closes_a_browser_still_connected():
     message, took = asyncio.run(scenario())
     assert message.type in (aiohttp.WSMsgType.CLOSE, aiohttp.WSMsgType.CLOSED)
     assert not server._thread.is_alive() and took < 5.0  # the join's own bound is 10 s
+
+
+def test_the_view_port_comes_from_the_option_then_the_config_then_the_default():
+    from creatures.cli import DEFAULT_VIEW_PORT, _view_port
+
+    assert _view_port(None, None) is None  # no --view, no [view] port: no view
+    assert _view_port(None, 9000) == 9000  # the config's port alone turns it on
+    assert _view_port(0, 9000) == 9000 and _view_port(0, None) == DEFAULT_VIEW_PORT  # a bare --view
+    assert _view_port(9100, 9000) == 9100
+
+
+def test_creatures_view_serves_a_run_until_stopped(offline_run):
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    viewer = subprocess.Popen([sys.executable, "-m", "creatures.cli", "view", str(offline_run), "--port", str(port)],
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert f"view: open http://127.0.0.1:{port}/" in viewer.stdout.readline()
+
+        async def fetch() -> tuple[int, dict]:
+            async with aiohttp.ClientSession() as client:
+                async with client.get(f"http://127.0.0.1:{port}/") as page, \
+                        client.get(f"http://127.0.0.1:{port}/status") as status:
+                    return page.status, await status.json()
+
+        status, counts = asyncio.run(fetch())
+        assert status == 200 and counts["clients"] == 0
+        messages = asyncio.run(_read(f"http://127.0.0.1:{port}/", 2))
+        assert messages[0]["title"] == "exchange" and messages[1]["type"] == "frame"
+    finally:
+        viewer.terminate()
+        _, err = viewer.communicate(timeout=30)
+    assert viewer.returncode == 128 + 15 and "stopped by SIGTERM; the view was closed" in err
