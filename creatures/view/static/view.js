@@ -140,9 +140,10 @@ function panel(name) {
   if (panels[name]) return panels[name];
   const box = document.createElement("div");
   box.className = "creature";
-  box.innerHTML = `<h2>${name} <span class="action"></span></h2><div class="legend drives"></div>` +
+  box.innerHTML = `<h2><span class="name"></span> <span class="action"></span></h2><div class="legend drives"></div>` +
     `<canvas class="drives"></canvas><div class="legend values"></div><canvas class="values"></canvas>` +
     `<div class="percepts"></div>`;
+  box.querySelector(".name").textContent = name;
   document.getElementById("creatures").appendChild(box);
   return (panels[name] = { box, action: box.querySelector(".action"), percepts: box.querySelector(".percepts"),
                            drives: box.querySelector("canvas.drives"), values: box.querySelector("canvas.values"),
@@ -169,7 +170,12 @@ function plot(canvas, legend, history) {
     });
     c.stroke();
   });
-  legend.innerHTML = names.map((n, k) => `<span style="color:${SERIES[k % SERIES.length]}">${n} ${fmt(history[history.length - 1][1][n])}</span>`).join("");
+  legend.replaceChildren(...names.map((n, k) => {  // names come from configs: text, never markup
+    const span = document.createElement("span");
+    span.style.color = SERIES[k % SERIES.length];
+    span.textContent = `${n} ${fmt(history[history.length - 1][1][n])}`;
+    return span;
+  }));
 }
 const fmt = (x) => (x == null ? "–" : Math.abs(x) >= 100 ? x.toFixed(0) : x.toFixed(3));
 
