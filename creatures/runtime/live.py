@@ -320,6 +320,13 @@ def run_live(
                       transcribe=transcribe if transcribe is not None else not settings.midi.input_port, say=say)
     if state_dir is not None:
         summary.restored = session.load_state(state_dir)
+    feed = server = None
+    if view is not None:  # before any device opens: a port taken since the check fails with nothing to close
+        from creatures.view.feed import Feed
+        from creatures.view.server import LiveSource, ViewServer
+
+        feed = Feed(settings.title, session.creatures, log, clock, settings.view.fps)
+        server = ViewServer(LiveSource(feed, settings.view.fps), view).start()
     inputs = LiveInputs(inst, session, clock, say, supervisor=supervisor, epoch=epoch)
     sr = settings.audio.sample_rate
     # Creatures synthesise at the config's rate; the device plays at its own (JACK will not
@@ -336,6 +343,9 @@ def run_live(
         device = None if settings.audio.input_device == "default" else settings.audio.input_device
         microphone = ResilientInput(device, clock=wall, samplerate=sr, report=say, supervisor=supervisor)
     counters = _Counters(session, output, microphone)
+    if feed is not None:
+        feed.hello["status"]["sound"] = summary.sound  # what the page's status line says of the loudspeaker
+        say(f"view: open {server.url}")
     stopping = False
 
     def stop(*_: object) -> None:
@@ -350,14 +360,6 @@ def run_live(
         bodies = FramesBeside(settings.output, pictures, wall, summary.messages)
         for message in summary.messages:
             say(message)
-    feed = server = None
-    if view is not None:
-        from creatures.view.feed import Feed
-        from creatures.view.server import LiveSource, ViewServer
-
-        feed = Feed(settings.title, session.creatures, log, clock, settings.view.fps, sound=summary.sound)
-        server = ViewServer(LiveSource(feed, settings.view.fps), view).start()
-        say(f"view: open {server.url}")
     say(f"{len(session.creatures)} creature(s) running; Ctrl-C or SIGTERM stops cleanly")
     loop = TickLoop(session, inputs, wall, clock, settings.tick)
     timing = _Timing(session, loop.timing, sink)

@@ -78,6 +78,12 @@ class LiveSource:
     """A live run's frames, taken from its feed ``poll`` times per frame period."""
 
     def __init__(self, feed: Feed, fps: float) -> None:
+        # The percept trees' reader brings matplotlib with it: imported here, before the run,
+        # not by the view's thread mid-run (it held the interpreter for a second there: late
+        # ticks, and the feed's queue full before the first take).
+        from creatures.runtime.inspect import knowledge
+
+        self.knowledge = knowledge
         self.feed = feed
         self.period = 1.0 / fps
         self.trees: str | None = None  # the latest trees message, encoded
@@ -90,8 +96,6 @@ class LiveSource:
         return [self.trees] if self.trees is not None else []
 
     async def run(self, clients: set[Client]) -> None:
-        from creatures.runtime.inspect import knowledge  # matplotlib comes with it: here, not on the run's path
-
         while True:
             await asyncio.sleep(self.period / 2)
             latest = self.feed.take()
@@ -99,7 +103,7 @@ class LiveSource:
             states = self.feed.states
             if states is not None and states is not self._states:
                 self._states = states
-                known = [knowledge(name, kind, orjson.loads(state)) for name, kind, state in states[1]]
+                known = [self.knowledge(name, kind, orjson.loads(state)) for name, kind, state in states[1]]
                 self.trees = encode(trees(states[0], known))
                 texts.append(self.trees)
             for text in texts:

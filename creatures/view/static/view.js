@@ -223,7 +223,8 @@ function refreshPanels() {
   const s = view.status, t = view.frame ? view.frame.t.toFixed(2) : "–";
   statusLine.textContent = `${view.hello.mode} · t ${t} s · ${view.frames} frames · dropped ${s.dropped ?? 0}` +
     (s.underruns != null ? ` · underruns ${s.underruns} overruns ${s.overruns}` : "") +
-    (s.late_ticks != null ? ` · late ticks ${s.late_ticks}/${s.ticks}` : "") + (view.closed ? " · disconnected" : "");
+    (s.late_ticks != null ? ` · late ticks ${s.late_ticks}/${s.ticks}` : "") + (s.sound ? ` · sound ${s.sound}` : "") +
+    (view.closed ? " · disconnected" : "");
 }
 
 // -- the websocket ------------------------------------------------------------------------
