@@ -8,8 +8,8 @@ as much about the others as about us; the
 full command with PNG or video encoding is printed beside it without a target, since encoding
 is the codec's cost, not drawing's); 50 bodies at ≥ 60 frames/s in the page, counted with
 requestAnimationFrame while a replay streams 60 frames a second, with the page's own time per
-draw printed too (headless Chromium paces rAF to its own display rate: the draw time says how
-much room is left beyond it).
+draw printed too: headless Chromium paces rAF to its 60 Hz display, so the frame rate cannot
+pass 60 whatever the drawing costs.
 """
 
 from __future__ import annotations
@@ -116,6 +116,21 @@ def _synthetic_replay(seconds: float):
     return Replay(hello("bench", "replay", found), frames)
 
 
+MEASURE = """(seconds) => new Promise((done) => {
+    const v = window.__view, drawn = v.drawn, ms = v.drawMs;
+    let ticks = 0; const start = performance.now();
+    const step = (now) => {
+        ticks += 1;
+        v.redraw();  // every animation frame draws all 50 bodies, as a moving camera would make it
+        if (now - start < seconds * 1000) requestAnimationFrame(step);
+        else { const s = (now - start) / 1000;
+               done({raf: ticks / s, draws: (v.drawn - drawn) / s, ms: (v.drawMs - ms) / Math.max(v.drawn - drawn, 1)}); }
+    };
+    requestAnimationFrame(step);
+})"""
+"""Animation frames and draws a second in the page, and the page's own time per draw."""
+
+
 def _browser_rows(quick: bool) -> list[Row]:
     import os
 
@@ -135,23 +150,14 @@ def _browser_rows(quick: bool) -> list[Row]:
             page = browser.new_page(viewport={"width": 1280, "height": 720})
             page.goto(server.url)
             page.wait_for_function("window.__view.frames > 30", timeout=60_000)
-            measured = page.evaluate("""(seconds) => new Promise((done) => {
-                const v = window.__view, drawn = v.drawn, ms = v.drawMs, frames = v.frames;
-                let ticks = 0; const start = performance.now();
-                const step = (now) => {
-                    ticks += 1;
-                    if (now - start < seconds * 1000) requestAnimationFrame(step);
-                    else { const s = (now - start) / 1000;
-                           done({raf: ticks / s, draws: (v.drawn - drawn) / s, received: (v.frames - frames) / s,
-                                 ms: (v.drawMs - ms) / Math.max(v.drawn - drawn, 1)}); }
-                };
-                requestAnimationFrame(step);
-            })""", MEASURE_SECONDS if not quick else 2.0)
+            measured = page.evaluate(MEASURE, MEASURE_SECONDS if not quick else 2.0)
             browser.close()
     finally:
         server.close()
-    return [Row(f"page: {BODIES} bodies, requestAnimationFrame callbacks", measured["raf"], "frames/s", target=60.0),
-            Row(f"page: {BODIES} bodies drawn (frames streamed at {STREAM_FPS:g}/s)", measured["draws"], "frames/s"),
+    # rAF runs at most at the headless display's 60 Hz (--disable-frame-rate-limit and
+    # --disable-gpu-vsync changed nothing here): the time per draw says what room is left.
+    return [Row(f"page: {BODIES} bodies drawn, one per requestAnimationFrame", measured["draws"], "frames/s",
+                target=60.0),
             Row(f"page: {BODIES} bodies, time per draw", measured["ms"], "ms", higher_is_better=False,
                 target=1000.0 / 60.0)]
 

@@ -14,6 +14,7 @@ const view = window.__view = {
 window.addEventListener("error", (e) => view.errors.push(String(e.message)));
 
 const stage = document.getElementById("stage"), ctx = stage.getContext("2d");
+view.redraw = () => { dirty = true; }; // the next animation frame draws, new frame or not (the bench's hook)
 const statusLine = document.getElementById("status"), notesList = document.getElementById("notes");
 let dirty = true, panels = {};
 
