@@ -29,7 +29,7 @@ from creatures.view.snapshot import Message, Replay, encode, trees
 
 STATIC = Path(__file__).with_name("static")
 HOST = "127.0.0.1"
-LOOPBACK_NAMES = frozenset({"127.0.0.1", "localhost", "[::1]"})
+LOOPBACK_NAMES = frozenset({"127.0.0.1", "localhost", "::1"})
 
 CLIENT_QUEUE = 16
 """Encoded frames waiting for one browser; more are dropped for it and counted."""
@@ -265,8 +265,7 @@ async def _no_icon(_: web.Request) -> web.Response:
 
 @web.middleware
 async def _loopback_only(request: web.Request, handler) -> web.StreamResponse:
-    host = (request.host or "").rsplit(":", 1)[0] if not (request.host or "").startswith("[") \
-        else (request.host or "").split("]")[0] + "]"
+    host = request.url.host or ""  # the Host header's name, without its port
     if host not in LOOPBACK_NAMES:
         raise web.HTTPForbidden(text=f"the creatures' view answers only on loopback, not for host {host!r}")
     return await handler(request)
