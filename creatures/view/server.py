@@ -75,7 +75,8 @@ class Source(Protocol):
 
 
 class LiveSource:
-    """A live run's frames, taken from its feed ``poll`` times per frame period."""
+    """A live run's frames, taken from its feed twice a frame period (the latest each time, with
+    the records since) and sent to every browser; its percept trees whenever new ones are copied."""
 
     def __init__(self, feed: Feed, fps: float) -> None:
         # The percept trees' reader brings matplotlib with it: imported here, before the run,
