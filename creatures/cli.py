@@ -19,9 +19,10 @@ Run = Callable[[argparse.Namespace], int]
 COMMANDS: dict[str, tuple[str, Configure, Run]] = {}
 
 
-def _seconds(longest: float) -> Callable[[str], float]:
-    """An argparse ``type``: a finite number of seconds in (0, ``longest``]; anything else
-    (``nan``, ``inf``, ``-5``) is argparse's usage error, exit 2, naming the option."""
+def _seconds(longest: float, what: str = "a number of seconds") -> Callable[[str], float]:
+    """An argparse ``type``: a finite number (of seconds, unless ``what`` says otherwise) in
+    (0, ``longest``]; anything else (``nan``, ``inf``, ``-5``) is argparse's usage error, exit
+    2, naming the option."""
 
     def parse(text: str) -> float:
         try:
@@ -29,7 +30,7 @@ def _seconds(longest: float) -> Callable[[str], float]:
         except ValueError:
             value = 0.0
         if value == 0.0:
-            raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds in (0, {longest:g}]")
+            raise argparse.ArgumentTypeError(f"{text!r} is not {what} in (0, {longest:g}]")
         return value
 
     return parse
@@ -151,6 +152,39 @@ def _run_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--frames", type=Path, help="draw the bodies into this directory (PNGs; a video if the config asks)")
     parser.add_argument("--out", type=Path, help="write the run's out.mid here when it stops (published all or none, "
                                                  "as `creatures offline` does; [output] midi = false turns it off)")
+    parser.add_argument("--view", type=_port, nargs="?", const=0, metavar="PORT",
+                        help=f"serve the live view on http://127.0.0.1:PORT/ (default: [view] port, else "
+                             f"{DEFAULT_VIEW_PORT}); docs/view.md")
+
+
+DEFAULT_VIEW_PORT = 8765
+"""Where ``--view`` without a port serves when the config names none."""
+
+
+def _integer(low: int, high: int, what: str) -> Callable[[str], int]:
+    """An argparse ``type``: an integer in ``low…high``; anything else is argparse's usage error."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = low - 1
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"{text!r} is not {what} in {low}…{high}")
+        return value
+
+    return parse
+
+
+_port = _integer(1024, 65535, "a port")
+
+
+def _view_port(given: int | None, configured: int | None) -> int | None:
+    """The live view's port: ``--view PORT``, else with a bare ``--view`` (0) the config's or
+    :data:`DEFAULT_VIEW_PORT`; without ``--view`` the config's (None: no view)."""
+    if given is None:
+        return configured
+    return given or configured or DEFAULT_VIEW_PORT
 
 
 NO_STATE = ("no state directory: learned state will not be kept (nothing is saved or restored); "
@@ -175,11 +209,13 @@ def _run(args: argparse.Namespace) -> int:
         state = args.state or installation.resolve(installation.settings.state)
         if state is None:
             print(f"note: {NO_STATE}")
-        check_before_running(installation, state=state, log_path=args.log, pictures=args.frames)  # before a folder is made
+        view = _view_port(args.view, installation.settings.view.port)
+        check_before_running(installation, state=state, log_path=args.log, pictures=args.frames,  # before a folder is made
+                             view=view)
         lock = hold(directory(state, "--state"), "state folder", print) if state is not None else None
         try:  # the state folder is this run's until it ends (creatures/lock.py)
             summary = run_live(installation, duration=args.duration, state=state, log_path=args.log,
-                               pictures=args.frames, out=args.out)
+                               pictures=args.frames, out=args.out, view=view)
         finally:
             if lock is not None:
                 lock.release()
@@ -191,7 +227,8 @@ def _run(args: argparse.Namespace) -> int:
     print(f"stopped after {summary.seconds:.1f} s: {summary.ticks} ticks, {summary.notes_played} notes, "
           f"{summary.late} late{restored}; sound {summary.sound}; {summary.audio_gaps} audio gaps put in and "
           f"{summary.audio_skips} skips to keep its lead, {summary.underruns} audio underruns, {summary.overruns} input overruns{network}"
-          + (f"; {summary.midi_dropped} MIDI messages dropped (no output port)" if summary.midi_dropped is not None else ""))
+          + (f"; {summary.midi_dropped} MIDI messages dropped (no output port)" if summary.midi_dropped is not None else "")
+          + (f"; view: {summary.view_dropped} snapshots dropped (its thread too slow)" if summary.view_dropped else ""))
     if summary.inputs:
         print("outside input: " + ", ".join(f"{summary.inputs.get(what, 0)} {what}"
                                             for what in ("mapped", "unmapped", "malformed", "refused osc")))
@@ -230,6 +267,69 @@ def _inspect(args: argparse.Namespace) -> int:
     for why in skipped:
         print(f"note: skipped {why}")
     print(f"open {page}")
+    return 0
+
+
+def _view_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("run_dir", type=Path, metavar="RUN", help="an offline run's output directory (its events.jsonl)")
+    parser.add_argument("--port", type=_port, default=DEFAULT_VIEW_PORT, help="serve on http://127.0.0.1:PORT/")
+    parser.add_argument("--speed", type=_seconds(1000.0, "a speed"), default=1.0, help="replay speed (× real time)")
+
+
+@command("view", "replay an offline run's bodies, notes and drives in the browser (Ctrl-C stops)", _view_options)
+def _view(args: argparse.Namespace) -> int:
+    import time
+
+    from creatures.view.rerender import learned, load_replay
+    from creatures.view.server import ReplaySource, ViewServer
+
+    try:
+        source = ReplaySource(load_replay(args.run_dir), speed=args.speed, learned=learned(args.run_dir))
+        server = ViewServer(source, args.port).start()
+    except (ValueError, OSError) as exc:  # ValueError: no poses, a malformed log line
+        print(f"creatures: {exc}", file=sys.stderr)
+        return 2
+    print(f"view: open {server.url} (Ctrl-C stops)", flush=True)
+    try:
+        while True:
+            time.sleep(1.0)
+    finally:
+        server.close()
+
+
+def _render_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("run_dir", type=Path, metavar="RUN", help="an offline run's output directory (its events.jsonl)")
+    parser.add_argument("--out", type=Path, help="where frames/ and out.mp4 go (default: RUN/render)")
+    parser.add_argument("--width", type=_integer(16, 3840, "a width"), default=640, help="pixels (16…3840)")
+    parser.add_argument("--height", type=_integer(16, 2160, "a height"), default=480, help="pixels (16…2160)")
+    parser.add_argument("--fps", type=_seconds(120.0, "a frame rate"),
+                        help="frames a second (default: the rate the poses were logged at)")
+    parser.add_argument("--camera", help="YAW,PITCH,DISTANCE[,X,Y,Z]: an orbit around a target, degrees and "
+                                         "metres (default: framed on the first frame, as the view frames it)")
+    parser.add_argument("--video", action="store_true", help="also encode out.mp4")
+    parser.add_argument("--no-pngs", action="store_true", help="no PNG frames (with --video: the video only)")
+
+
+@command("render", "draw a finished offline run's bodies again, at any size and camera", _render_options)
+def _render(args: argparse.Namespace) -> int:
+    import time
+
+    from creatures.body.render import RenderUnavailable
+    from creatures.view.rerender import parse_orbit, render_run
+
+    out = args.out or args.run_dir / "render"
+    try:
+        camera = parse_orbit(args.camera) if args.camera is not None else None
+        if args.no_pngs and not args.video:
+            raise ValueError("--no-pngs without --video would draw nothing")
+        t0 = time.perf_counter()
+        count = render_run(args.run_dir, out, width=args.width, height=args.height, fps=args.fps, camera=camera,
+                           pngs=not args.no_pngs, video=args.video)
+    except (ValueError, OSError, RenderUnavailable) as exc:
+        print(f"creatures: {exc}", file=sys.stderr)
+        return 2
+    wall = time.perf_counter() - t0
+    print(f"rendered {count} frames at {args.width}×{args.height} in {wall:.2f} s ({count / wall:.0f} frames/s) into {out}")
     return 0
 
 
@@ -315,6 +415,8 @@ STOPPED = {
     "demo": "nothing was published; the output directory holds the previous run's outputs as they were",
     "run": "stopped before the run began or while it saved; the state folder holds the last state saved",
     "inspect": "the page was not written",
+    "view": "the view was closed",
+    "render": "the frames drawn so far are in the output directory",
 }
 """What a command stopped by Ctrl-C or SIGTERM outside its own handling left behind."""
 

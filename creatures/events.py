@@ -114,6 +114,10 @@ class EventLog:
         self._down = False  # an outage is under way (reported once, and again when it ends)
         self._gap_pending = False  # the first pending line is the ``events lost`` record, not an event
         self._closed = False
+        self.taps: list[Callable[[dict[str, Any]], None]] = []
+        """Called with every record as emitted, on the emitting thread (the live view's feed,
+        :mod:`creatures.view.feed`): each must be quick and must not keep the record's fields
+        to change them."""
         # A live run flushes from its supervisor thread (creatures/supervisor.py) while the
         # creature's thread emits: the pending buffer and its line ends change under this lock.
         # Reentrant, since ``report`` may itself log. Writes hold ``_writing`` instead (one at
@@ -146,6 +150,8 @@ class EventLog:
                 del self.records[: len(self.records) - self.keep_in_memory]
         else:
             record = {"t": round(float(t), 6), "kind": kind, **fields}
+        for tap in self.taps:
+            tap(record)
         if self.path is None or self._closed:
             return
         line = _line(record)
@@ -325,6 +331,15 @@ def _hands(value: Any) -> bool:
     return isinstance(flat, list) and len(flat) % 3 == 0 and all(_number(x) for x in flat)
 
 
+def _points(value: Any) -> bool:
+    return isinstance(value, list) and all(isinstance(p, list) and len(p) == 3 and all(_number(x) for x in p)
+                                           for p in value)
+
+
+def _parents(value: Any) -> bool:
+    return isinstance(value, list) and all(isinstance(p, int) and -1 <= p < len(value) for p in value)
+
+
 _NOTE = {"time": _number, "pitch": _number, "duration": _number}
 FIELDS: dict[str, dict[str, Callable[[Any], bool]]] = {
     "": {"t": _number, "kind": lambda v: isinstance(v, str)},
@@ -332,6 +347,11 @@ FIELDS: dict[str, dict[str, Callable[[Any], bool]]] = {
     "heard": _NOTE,
     "selection": {"tuple": lambda v: isinstance(v, str)},
     "motor graph": {"hands": _hands, "edges": _edges},
+    "skeleton": {"creature": lambda v: isinstance(v, str), "parents": _parents,
+                 "place": lambda v: _points([v])},
+    "pose": {"creature": lambda v: isinstance(v, str), "joints": _points,
+             "marks": lambda v: isinstance(v, list) and all(isinstance(m, list) and len(m) == 4
+                                                            and all(_number(x) for x in m) for m in v)},
 }
 """The fields every event has (``""``) and those the readers (report, inspector) take from
 some kinds, with what each must be; ``creature`` and ``source`` are strings where present."""

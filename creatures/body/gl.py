@@ -193,6 +193,15 @@ class InstancedMeshes:
         GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, self._framebuffer)
         GL.glViewport(0, 0, self.width, self.height)
         GL.glEnable(GL.GL_DEPTH_TEST)
+        # Every mesh is closed and wound outward, and every instance transform keeps handedness
+        # (positive scales, right-handed bone frames): faces turned away are always hidden, so
+        # culling them halves what llvmpipe rasterises and changes nothing but ties (measured:
+        # CPU per frame of exchange's three bodies at 640×480 from 9.5 to 4.7 ms; 5 pixels of
+        # 1.8 million in six frames differed, by one level). A projection that flips y (as
+        # render.perspective does) turns the winding over.
+        GL.glEnable(GL.GL_CULL_FACE)
+        GL.glCullFace(GL.GL_BACK)
+        GL.glFrontFace(GL.GL_CW if projection[0, 0] * projection[1, 1] < 0 else GL.GL_CCW)
         GL.glClearColor(*background, 1.0)
         GL.glClear(GL.GL_COLOR_BUFFER_BIT | GL.GL_DEPTH_BUFFER_BIT)
         GL.glUseProgram(self._program)

@@ -26,21 +26,19 @@ from creatures.body.frames import FrameClock, FrameWriter
 from creatures.clock import Clock
 from creatures.kinds.base import CreatureKind
 from creatures.runtime.schema import OutputSection
-
-SPACING = 1.5
-"""Metres between neighbouring creatures in the picture."""
-
+from creatures.view.snapshot import place
 
 Scene = tuple[np.ndarray, np.ndarray, list[tuple[tuple[float, float, float], float]]]
 """Joint positions (J, 3), their parents (J,) and note marks (position, pitch): one frame's content."""
 
 
 def gather(creatures: list[CreatureKind]) -> Scene | None:
-    """Every creature's figure and note objects, side by side along x; None if no one has a body."""
+    """Every creature's figure and note objects, each at its :func:`~creatures.view.snapshot.place`
+    (as the live view and a replay place them); None if no one has a body."""
     positions, parents, marks = [], [], []
     offset = 0
     for i, creature in enumerate(creatures):
-        shift = np.array([(i - (len(creatures) - 1) / 2) * SPACING, 0.0, 0.0])
+        shift = np.array(place(i, len(creatures)))
         figure = creature.figure()
         if figure is not None:
             p, par = figure

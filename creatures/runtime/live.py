@@ -85,6 +85,7 @@ class LiveSummary:
     late_notes: int = 0  # note-ons that reached the MIDI port more than sinks.LATE_NOTE late
     midi_dropped: int | None = None  # MIDI messages that found no output port (None: no port configured)
     frames_dropped: int = 0  # frames the drawing process was too busy to take
+    view_dropped: int = 0  # live view snapshots its thread was too slow to take
     heard_between_ticks: int = 0  # notes heard (and answerable) at once, not at the next tick
     underruns: int = 0  # audio output callbacks that found no sound ready and played silence
     audio_gaps: int = 0  # silences the output put in when its spare ran out (each start, any stall)
@@ -277,11 +278,12 @@ class _Saver:
 
 
 def check_before_running(inst: LoadedInstallation, *, state: Path | None, log_path: Path | None,
-                         pictures: Path | None) -> None:
+                         pictures: Path | None, view: int | None = None) -> None:
     """What a live run is given, checked before anything runs or is made (``creatures run``
     calls it before it locks, and so makes, the state folder): the log a regular file or
-    absent, the state a folder or absent, the OSC port free, and last the ``--frames`` folder
-    made and written in. The first that fails raises, naming its option or config key."""
+    absent, the state a folder or absent, the OSC port and the view's port free, and last the
+    ``--frames`` folder made and written in. The first that fails raises, naming its option or
+    config key."""
     if log_path is not None:
         regular_file(log_path, "--log")
     if state is not None:
@@ -289,6 +291,12 @@ def check_before_running(inst: LoadedInstallation, *, state: Path | None, log_pa
     if inst.settings.osc.port is not None:  # bound and let go: a port in use is said now
         open_listener(inst.settings.osc, WallClock(), lambda key, message: inst.error(("osc", key), message)).close()
     check_ports(inst)
+    if view is not None:
+        from creatures.view.server import port_problem
+
+        problem = port_problem(view)
+        if problem is not None:
+            raise inst.error(("view", "port"), problem)
     if pictures is not None:
         writable_directory(pictures, "--frames")
 
@@ -301,16 +309,18 @@ def run_live(
     log_path: Path | None = None,
     pictures: Path | None = None,
     out: Path | None = None,
+    view: int | None = None,
     say: Callable[[str], None] = print,
 ) -> LiveSummary:
     """Run ``inst`` live until Ctrl-C/SIGTERM (or ``duration`` wall seconds); with
     ``pictures`` the bodies are drawn into that directory (PNGs, and a video if the config asks) at the
     config's frame rate; with ``out`` the run's ``out.mid`` is published there when it stops
-    (:mod:`creatures.runtime.live_score`)."""
+    (:mod:`creatures.runtime.live_score`); with ``view`` (a port) the live view is served there
+    (:mod:`creatures.view`: its own thread; the tick only queues snapshots)."""
     settings = inst.settings
     summary = LiveSummary()
     state_dir = state or inst.resolve(settings.state)
-    check_before_running(inst, state=state_dir, log_path=log_path, pictures=pictures)
+    check_before_running(inst, state=state_dir, log_path=log_path, pictures=pictures, view=view)
     score = None
     if out is not None and settings.output.midi:
         score = LiveScore(out)  # held for the run, and refused now if it cannot be written
@@ -339,6 +349,13 @@ def run_live(
         session.world.record(KEPT)  # out.mid's input track and heard tempo
     if state_dir is not None:
         summary.restored = session.load_state(state_dir)
+    feed = server = None
+    if view is not None:  # before any device opens: a port taken since the check fails with nothing to close
+        from creatures.view.feed import Feed
+        from creatures.view.server import LiveSource, ViewServer
+
+        feed = Feed(settings.title, session.creatures, log, clock, settings.view.fps)
+        server = ViewServer(LiveSource(feed, settings.view.fps), view).start()
     inputs = LiveInputs(inst, session, clock, say, supervisor=supervisor, epoch=epoch)
     sr = settings.audio.sample_rate
     # Creatures synthesise at the config's rate; the device plays at its own (JACK will not
@@ -356,6 +373,9 @@ def run_live(
         device = None if settings.audio.input_device == "default" else settings.audio.input_device
         microphone = ResilientInput(device, clock=wall, samplerate=sr, report=say, supervisor=supervisor)
     counters = _Counters(session, output, microphone)
+    if feed is not None:
+        feed.hello["status"]["sound"] = summary.sound  # what the page's status line says of the loudspeaker
+        say(f"view: open {server.url}")
     stopping = False
 
     def stop(*_: object) -> None:
@@ -417,6 +437,8 @@ def run_live(
                 inputs.network.publish(t)
             if bodies is not None:
                 bodies.draw(session.creatures)
+            if feed is not None:
+                feed.offer()
             if state_dir is not None and t >= next_save:
                 saver.save(session, t - start)
                 next_save += settings.save_every
@@ -462,6 +484,10 @@ def run_live(
             if bodies is not None:
                 bodies.close()
                 summary.frames_dropped = bodies.dropped
+            if server is not None:
+                server.close()
+                feed.close()
+                summary.view_dropped = feed.dropped
             inputs.close()
             if inputs.network is not None:
                 summary.network = inputs.network.counts()

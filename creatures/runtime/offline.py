@@ -40,6 +40,7 @@ from creatures.runtime.speech_input import spoken_poem
 from creatures.runtime.stream_sinks import JsonLinesStreamSink
 from creatures.runtime.session import Session
 from creatures.runtime.score import write_score
+from creatures.view.poses import PoseLog
 from midi.files import read_notes
 from midi.notes import NoteEvent
 from midi.sinks import MemorySink
@@ -135,6 +136,7 @@ def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path 
     sources = open_sources(inst, session.inputs, clock, messages.append, live=False)  # rehearsal files
     session.world.emit("run", title=settings.title, mode="offline", duration=duration, seed=settings.seed,
                        creatures=[c.name for c in session.creatures])
+    poses = PoseLog(settings.view.log_fps, session.world, messages.append) if settings.view.log_fps else None
     notes, samples = _inputs(inst, audio, midi, duration, session.input_rng)
     for note in notes:
         session.world.inject(note)
@@ -174,6 +176,8 @@ def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path 
                 wav.write(mix)
             if bodies is not None:
                 bodies.draw(session.creatures)
+            if poses is not None:
+                poses.write()
             if bar is not None:
                 bar.update(1)
     except BaseException:

@@ -240,6 +240,22 @@ class OutputSection(Strict):
                                                                   "table each")
 
 
+class ViewSection(Strict):
+    """The live view in a browser (``creatures run --view``) and the bodies an offline run keeps
+    in its events log for ``creatures view`` and ``creatures render`` (docs/view.md). The view
+    binds to loopback only: it shows a colony, it is no remote control."""
+
+    port: int | None = Field(None, ge=1024, le=65535, description="TCP port of the live view on 127.0.0.1 "
+                                                                 "(`creatures run --view [PORT]` sets or overrides "
+                                                                 "it); none = no view")
+    fps: float = Field(30.0, ge=1.0, le=60.0, description="snapshots a second the live view takes from the "
+                                                          "colony (bodies, notes, drives); more wait in a "
+                                                          "bounded queue, beyond it they are dropped and counted")
+    log_fps: float = Field(10.0, ge=0.0, le=60.0, description="body poses a second an offline run writes into "
+                                                              "events.jsonl (`pose` events) for replay and "
+                                                              "re-rendering; 0 = none")
+
+
 class Installation(Strict):
     title: str = Field(description="name of the installation")
     description: str = Field("", description="free text shown in reports")
@@ -261,6 +277,7 @@ class Installation(Strict):
     output: OutputSection = OutputSection()
     room: RoomSection | None = Field(None, description="[room]: the floor the creatures move on, hear "
                                                         "and sound from (see the room section of docs/config.md)")
+    view: ViewSection = ViewSection()
     include: list[str] = Field(default_factory=list, max_length=256, description="creature files ([[creature]] "
                                                                  "tables) included, relative to this file")
     plugins: list[str] = Field(default_factory=list, max_length=256, description="Python files of actions, "

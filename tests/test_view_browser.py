@@ -1,0 +1,162 @@
+"""The view in a real browser (issue 19): the OS's Chromium, driven by Playwright, shows a
+running colony's bodies moving, its drives changing and its note list growing with no console
+errors; and a replay's first frame puts every joint where the offscreen renderer puts it.
+
+Needs /usr/bin/chromium (apt) and Playwright (pip; no `playwright install`: the OS's browser is
+launched); skips with the reason otherwise.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import socket
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import installations
+from bench.live_parts import free_udp_port, send_notes
+
+CHROMIUM = os.environ.get("CREATURES_CHROMIUM", "/usr/bin/chromium")
+pytestmark = pytest.mark.browser
+
+
+def missing_browser() -> str | None:
+    """Why the browser tests cannot run here, or None."""
+    if not (Path(CHROMIUM).exists() or shutil.which(CHROMIUM)):
+        return f"no Chromium at {CHROMIUM} (apt-get install chromium, or set CREATURES_CHROMIUM)"
+    try:
+        import playwright.sync_api  # noqa: F401
+    except ImportError:
+        return "Playwright is not installed (pip install playwright; the OS's Chromium is used, no download)"
+    return None
+
+
+@pytest.fixture(scope="module")
+def browser():
+    reason = missing_browser()
+    if reason:
+        pytest.skip(reason)
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as p:
+        launched = p.chromium.launch(executable_path=CHROMIUM, args=["--no-sandbox"])
+        yield launched
+        launched.close()
+
+
+def open_page(browser, url: str):
+    """A page at ``url`` and the console errors and page errors it reports."""
+    page = browser.new_page(viewport={"width": 1000, "height": 600})
+    errors: list[str] = []
+    page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    page.goto(url)
+    return page, errors
+
+
+def free_tcp_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+def stage_pixels(page) -> np.ndarray:
+    import imageio.v3 as iio
+
+    box = page.locator("#stage").bounding_box()
+    return iio.imread(page.screenshot(clip=box))[..., :3].astype(int)
+
+
+@pytest.mark.slow
+def test_the_live_page_of_a_running_colony_moves_changes_and_grows(browser, tmp_path):
+    osc, view = free_udp_port(), free_tcp_port()
+    config = tmp_path / "show.toml"
+    config.write_text(f'extends = "{installations.path("exchange")}"\nrealtime = false\n'
+                      f'[audio]\noutput = false\n[osc]\nport = {osc}\n')
+    colony = subprocess.Popen([sys.executable, "-m", "creatures.cli", "run", str(config), "--view", str(view),
+                               "--duration", "60"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                              env={**os.environ, "PYTHONUNBUFFERED": "1"})
+    try:
+        for line in colony.stdout:
+            if "running; Ctrl-C" in line:
+                break
+        sender = send_notes(osc, 40, 4.0, tmp_path / "sent.jsonl")  # a visitor plays for 10 s
+        page, errors = open_page(browser, f"http://127.0.0.1:{view}/")
+        page.wait_for_function("window.__view.frames > 3 && window.__view.notes.length > 0", timeout=60_000)
+        first = stage_pixels(page)
+        before = page.evaluate("({frames: __view.frames, notes: __view.notes.length, screen: __view.screen,"
+                               " drives: __view.drives})")
+        page.wait_for_function(f"window.__view.frames > {before['frames'] + 40} && "
+                               f"window.__view.notes.length > {before['notes']}", timeout=60_000)
+        second = stage_pixels(page)
+        after = page.evaluate("({frames: __view.frames, notes: __view.notes.length, screen: __view.screen,"
+                              " drives: __view.drives, mode: __view.hello.mode, status: __view.status,"
+                              " listed: document.querySelectorAll('#notes li').length})")
+        seen_errors = list(errors)  # while the colony ran (once it stops, the page's reconnecting is refused)
+        sender.kill()
+    finally:
+        colony.terminate()
+        colony.wait(60)
+    assert after["mode"] == "live"
+    # Bodies that move between two screenshots: pixels of the stage changed, and so did the
+    # joints the page drew (its projected screen coordinates).
+    assert (np.abs(first - second).max(axis=2) > 40).sum() > 50
+    moved = [np.abs(np.array(after["screen"][n])[:, :2] - np.array(before["screen"][n])[:, :2]).max()
+             for n in ("ada", "bo", "cy")]
+    assert max(moved) > 2.0, moved
+    # Drives that change over time: some creature's drive took more than one value.
+    levels = [v for history in after["drives"].values() for _, d in history for v in d.values()]
+    assert len(set(np.round(levels, 6))) > 3, after["drives"]
+    # A note list that grows (heard from the visitor, played by the creatures).
+    assert after["notes"] > before["notes"] >= 1
+    assert after["listed"] == min(after["notes"], 200)
+    assert seen_errors == []
+
+
+@pytest.mark.gl
+def test_the_replay_shows_the_first_frame_the_offscreen_renderer_draws(browser, tmp_path):
+    from creatures.body.render import BodyRenderer, RenderUnavailable
+    from creatures.runtime.offline import run_offline
+    from creatures.runtime.schema import load_installation
+    from creatures.view.rerender import load_replay
+    from creatures.view.server import ReplaySource, ViewServer
+    from creatures.view.snapshot import scene
+
+    inst = load_installation(installations.path("exchange"))
+    inst.settings.output.report = False
+    run_offline(inst, tmp_path, duration=3.0)
+    played = load_replay(tmp_path)
+    positions, parents, _ = scene(played.frames[0], played.hello)
+    width, height = 640, 480
+    try:
+        renderer = BodyRenderer(width, height)
+    except RenderUnavailable as exc:
+        pytest.skip(f"no GL platform: {exc}")
+    with renderer:
+        renderer.render(positions, parents)  # frames its camera on this first frame, as `creatures render` does
+        camera = renderer.camera_pose
+        projection = renderer._projection
+    # Where the offscreen renderer puts each joint, in pixels (first row on top).
+    clip = (projection @ np.linalg.inv(camera) @ np.c_[positions, np.ones(len(positions))].T).T
+    ndc = clip[:, :3] / clip[:, 3:]
+    pixels = np.c_[(ndc[:, 0] + 1) / 2 * width, (ndc[:, 1] + 1) / 2 * height]
+
+    server = ViewServer(ReplaySource(played)).start()
+    try:
+        page, errors = open_page(browser, server.url)
+        page.wait_for_function("window.__view.first !== null && window.__view.camera !== null", timeout=30_000)
+        first = page.evaluate("__view.first")
+        shown = np.array(page.evaluate(
+            "([points, w, h]) => points.map(__view.projectorFor(w, h))", [positions.tolist(), width, height]))
+    finally:
+        server.close()
+    assert first["t"] == played.frames[0]["t"]
+    for name, joints in played.frames[0]["bodies"].items():  # the same joints…
+        assert np.array(first["bodies"][name]) == pytest.approx(joints, abs=1e-6)
+    assert shown[:, :2] == pytest.approx(pixels, abs=1e-3)  # …seen from the same camera
+    assert errors == []
