@@ -28,7 +28,7 @@ def colony(tmp_path, port: int):
     config = tmp_path / "live.toml"
     config.write_text(f'title = "live score"\ntick = 0.02\n[audio]\noutput = false\n[osc]\nport = {port}\n'
                       '[midi]\nprogram = 11\n'
-                      '[[creature]]\nname = "ada"\nkind = "exchange"\nchannel = 0\npan = -0.5\nanswer = 1.0\n'
+                      '[[creature]]\nname = "ada"\nkind = "exchange"\nchannel = 0\npan = -0.5\nspace.answer = 1.0\n'
                       '[[creature]]\nname = "bo"\nkind = "exchange"\nchannel = 1\nhears_input = false\n')
     return load_installation(config)
 
