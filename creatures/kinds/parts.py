@@ -132,7 +132,7 @@ def couple_to_hands(voice: Voice, body: "Body") -> None:
     reach = body.reach()
     low, high = reach.min(axis=0), reach.max(axis=0)
     line = np.linspace(0.0, 1.0, voice.spec.masses)[:, None]
-    voice.couple(low + line * (high - low), [body.skeleton.names.index("hand_l"), body.effector_index])
+    voice.couple(low + line * (high - low), body.touching)
 
 
 @functools.lru_cache(maxsize=1)
@@ -196,26 +196,37 @@ class _Trajectory:
 
 
 class Body:
-    """A creature's body on the shared motor graph, with its own position and course.
+    """A creature's body on a motor graph, with its own position and course.
 
-    With layers in ``spec`` (``[creature.body]``) the course is one contributor among them
+    The graph is the shared one of the shipped figure, or, when ``spec`` (``[creature.body]``)
+    names files, the body built from them at config load (:class:`~creatures.kinds.body_source.MaterialSpec`:
+    its effectors strike, and its joint limits always hold, so such a body is always layered).
+    With layers in ``spec`` the course is one contributor among them
     (:class:`~creatures.kinds.layers.BodyLayers`); without, the course alone is the pose.
     """
 
     def __init__(self, rng: np.random.Generator, *, effector: str = "hand_r", ratios: bool = False,
                  spec: BodySpec | None = None) -> None:
-        self.graph = shared_graph(ratios)
+        spec = spec or BodySpec()
+        own = spec.material() if spec.custom else None
+        self.graph = shared_graph(ratios) if own is None else own.graph
         self.finder = PathFinder(self.graph)
         self.finder.prepare()  # its landmark tables (~10 ms) before the first tick, not in it
         start = int(rng.integers(len(self.graph)))
         self.motor = MotorSystem(self.graph, start=start, finder=self.finder)
-        self.effector = effector
+        self.effectors = (effector,) if own is None else own.effectors
+        self.effector = self.effectors[0]
         self.skeleton = self.graph.skeleton
-        self.effector_index = self.skeleton.names.index(effector)
+        self.effector_index = self.skeleton.names.index(self.effector)
+        # The joints that push the voice's strings: both hands of the shipped figure, every effector of one's own.
+        self.touching = [self.skeleton.index(name) for name in (("hand_l", effector) if own is None else own.effectors)]
         self._trajectory: _Trajectory | None = None
         self._pose: BodyPose = self._rest_pose(start, 0.0)
-        layers = (spec or BodySpec()).contributions(self.skeleton.names)
-        self.layers = BodyLayers(self.graph, layers) if layers else None
+        layers = spec.contributions(self.skeleton.names)
+        if own is not None:
+            self.layers: BodyLayers | None = BodyLayers(self.graph, layers, joint_limits=own.limits)
+        else:
+            self.layers = BodyLayers(self.graph, layers) if layers else None
 
     def _rest_pose(self, node: int, t: float) -> BodyPose:
         poses = self.graph.poses

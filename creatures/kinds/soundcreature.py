@@ -131,6 +131,7 @@ class _Rest(Action):
 @register("soundcreature")
 class SoundCreature(CreatureKind):
     Spec = SoundCreatureSpec
+    FIGURE_ONLY = "its mouth reads the shipped figure's rib cage and back (elbows, pelvis, chest, head)"
     DRIVES = ("hear",)
 
     def __init__(self, spec: SoundCreatureSpec, world: "World", rng: np.random.Generator) -> None:

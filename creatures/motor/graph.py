@@ -170,6 +170,11 @@ class MotorGraph:
         self._complete()
         return new
 
+    def reconnect(self) -> None:
+        """After edits (a forbidden edge can cut an island off): reverse edges and bridges
+        again, never re-forging a forbidden edge (see :meth:`_complete`)."""
+        self._complete()
+
     def _complete(self) -> None:
         """Give every edge its reverse, then bridge islands until the graph is strongly connected.
 
@@ -299,6 +304,43 @@ class MotorGraph:
             "edges": edges,
             "forbidden": [f"{a} {b}" for a, b in sorted(self.forbidden)],
         }
+
+    def edges_arrays(self) -> dict[str, np.ndarray]:
+        """The edges as arrays (``edge_from``, ``edge_to``, ``edge_cost``, ``edge_scale``): the
+        binary cache's layout (:mod:`~creatures.motor.body_build`)."""
+        pairs = np.array(list(self._base), dtype=np.int64).reshape(-1, 2)
+        costs = np.fromiter(self._base.values(), dtype=float, count=len(self._base))
+        scales = np.array([self._scales.get(edge, 1.0) for edge in self._base], dtype=float)
+        return {"edge_from": pairs[:, 0], "edge_to": pairs[:, 1], "edge_cost": costs, "edge_scale": scales}
+
+    @classmethod
+    def from_arrays(cls, poses: PoseSet, data: Any, *, weights: MetricWeights | None = None) -> MotorGraph:
+        """A graph from :meth:`edges_arrays` plus ``favour`` and ``forbidden`` arrays, every
+        array checked (ValueError names the first problem): a damaged cache must not become
+        a wrong body."""
+        n, joints = len(poses), poses.skeleton.joint_count
+        if poses.rotations.shape != (n, joints, 4) or poses.velocities.shape != (n, joints, 3):
+            raise ValueError(f"pose arrays do not fit a {joints}-joint skeleton")
+        for name in ("rotations", "velocities", "roots", "times", "positions"):
+            if not np.all(np.isfinite(getattr(poses, name))):
+                raise ValueError(f"non-finite {name}")
+        a, b = np.asarray(data["edge_from"]), np.asarray(data["edge_to"])
+        costs, scales = np.asarray(data["edge_cost"], dtype=float), np.asarray(data["edge_scale"], dtype=float)
+        favour = np.asarray(data["favour"], dtype=float)
+        forbidden = np.asarray(data["forbidden"]).reshape(-1, 2)
+        if not (a.shape == b.shape == costs.shape == scales.shape and a.ndim == 1 and favour.shape == (n,)):
+            raise ValueError("edge arrays disagree in length")
+        for name, nodes in (("edge", np.concatenate((a, b))), ("forbidden", forbidden.ravel())):
+            if nodes.size and not (nodes.dtype.kind == "i" and nodes.min() >= 0 and nodes.max() < n):
+                raise ValueError(f"{name} names a node outside 0..{n - 1}")
+        if not (np.all(np.isfinite(costs) & (costs >= 0)) and np.all(np.isfinite(scales) & (scales > 0))
+                and np.all(np.isfinite(favour) & (favour > 0))):
+            raise ValueError("edge costs, scales or favours out of range")
+        pairs = list(zip(a.tolist(), b.tolist()))
+        scaled = scales != 1.0
+        return cls(poses, dict(zip(pairs, costs.tolist())), weights=weights,
+                   scales={pairs[i]: float(scales[i]) for i in np.flatnonzero(scaled)},
+                   forbidden={(int(x), int(y)) for x, y in forbidden.tolist()}, favour=favour)
 
     def save(self, path: str | os.PathLike) -> None:
         """Write the graph atomically as JSON (``creatures.persist``)."""

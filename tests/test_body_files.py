@@ -1,0 +1,68 @@
+"""A body from files (``[creature.body]`` skeleton, animations, limits; issue 16): a creature on a
+hand-written three-joint BVH body strikes notes by A*, renders, and stays within its limits."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from body_fixtures import heron_config
+from creatures.events import read_events
+from creatures.kinds.parts import Body
+from creatures.motor import quaternion as quat
+from creatures.runtime.offline import run_offline
+from creatures.runtime.schema import load_installation
+from midi.files import write_notes
+from midi.notes import NoteEvent
+
+
+def test_a_creature_on_a_bvh_body_strikes_notes_by_astar_within_its_limits(tmp_path: Path, monkeypatch):
+    inst = load_installation(heron_config(tmp_path, duration=30.0))
+    inst.settings.output.frames = True
+    shown: list = []
+    update = Body.update
+    monkeypatch.setattr(Body, "update", lambda self, t: shown.append(update(self, t)) or shown[-1])
+    phrase = tmp_path / "phrase.mid"
+    write_notes(phrase, [NoteEvent(1.0 + 0.4 * i + 8.0 * r, p, 96, 0, 0.25)
+                         for r in range(3) for i, p in enumerate([60, 64, 67, 72, 76])])
+    run_offline(inst, tmp_path / "out", midi=phrase, progress=False)
+    events = read_events(tmp_path / "out" / "events.jsonl")
+    graph = [e for e in events if e["kind"] == "motor graph"]
+    assert graph and graph[0]["effector"] == "head_end"
+    assert len(graph[0]["hands"]) == 241  # 240 frames of the take and the rest pose
+    seeks = [e for e in events if e["kind"] == "selection" and e.get("tuple") == "seek note"]
+    notes = [e for e in events if e["kind"] == "note" and e["creature"] == "heron"]
+    assert seeks and len(notes) >= 5, (len(seeks), len(notes))
+    placed = {round(e["position"][1], 6) for e in events if e["kind"] == "placed"}
+    assert len(placed) >= 3  # notes were placed where the beak (not a hand) reaches
+    assert sorted((tmp_path / "out" / "frames").glob("*.png"))
+    body = inst.specs[0].body.material()
+    rotations = np.array([p.rotations for p in shown])
+    times = np.array([p.time for p in shown])
+    assert len(rotations) > 500
+    turned = quat.angle_between(rotations, quat.identity(rotations.shape[1:2]))
+    source = quat.angle_between(body.graph.poses.rotations, quat.identity(rotations.shape[1:2])).max(axis=0)
+    assert np.all(turned <= np.minimum(body.limits, source) + 1e-9)
+    assert turned[:, 1].max() > 0.5  # the neck really moved
+    step = quat.angle_between(rotations[1:], rotations[:-1]) / np.maximum(np.diff(times), 1e-12)[:, None]
+    assert step[np.diff(times) > 0].max() <= body.graph.timing.max_speed * (1 + 1e-6)
+
+
+def test_joint_limits_hold_below_what_the_source_shows(tmp_path: Path):
+    """A limit tighter than the take itself clips the shown neck at the limit."""
+    inst = load_installation(heron_config(tmp_path))
+    spec = inst.specs[0].body.model_copy(update={"joint_limits": {"neck": 0.3}})
+    spec.resolve(tmp_path)
+    body = Body(np.random.default_rng(0), spec=spec)
+    angles = []
+    for t in np.arange(0.0, 20.0, 0.04):
+        if body.motor.arrived(t):
+            body.motor.set_course(t, body.motor.course(t, [int(np.random.default_rng(int(t * 25)).integers(241))]))
+        angles.append(quat.angle_between(body.update(t).rotations[1], quat.identity(())))
+    assert 0.29 < max(angles) <= 0.3 + 1e-9
+
+
+def test_without_body_keys_the_shipped_figure_is_unchanged():
+    body = Body(np.random.default_rng(4))
+    assert body.skeleton.joint_count == 19 and body.effector == "hand_r" and body.layers is None
