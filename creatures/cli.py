@@ -229,6 +229,33 @@ def _inspect(args: argparse.Namespace) -> int:
     return 0
 
 
+def _export_motion_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("path", type=Path, help="a run's output directory or a state directory (with events.jsonl)")
+    parser.add_argument("out", type=Path, help="the BVH file to write")
+    parser.add_argument("--creature", required=True, help="whose path to export")
+    parser.add_argument("--config", type=Path, help="the installation (default: the one the run's log names)")
+    parser.add_argument("--fps", type=float, default=30.0, help="frames per second of the BVH, 1..1000 (default 30)")
+
+
+@command("export-motion", "write the path a creature's body took as BVH (loads back as an animation)",
+         _export_motion_options)
+def _export_motion(args: argparse.Namespace) -> int:
+    from creatures.config import ConfigError
+    from creatures.motor.export import ExportError
+    from creatures.runtime.motion_export import export_motion_of_run
+
+    if not 1.0 <= args.fps <= 1000.0:  # also refuses nan
+        print(f"creatures: --fps {args.fps:g} is not a frame rate in 1..1000", file=sys.stderr)
+        return 2
+    try:
+        frames = export_motion_of_run(args.path, args.creature, args.out, config=args.config, fps=args.fps)
+    except (ConfigError, ExportError, ValueError, OSError) as exc:
+        print(f"creatures: {exc}", file=sys.stderr)
+        return 2
+    print(f"{args.creature}: {frames} frames at {args.fps:g} fps written to {args.out}")
+    return 0
+
+
 @command("config-docs", "print the reference of every config key (docs/config.md)", lambda parser: None)
 def _config_docs(_: argparse.Namespace) -> int:
     from creatures.runtime.docs import config_reference
@@ -311,6 +338,7 @@ STOPPED = {
     "demo": "nothing was published; the output directory holds the previous run's outputs as they were",
     "run": "stopped before the run began or while it saved; the state folder holds the last state saved",
     "inspect": "the page was not written",
+    "export-motion": "the BVH file was not written (or is the previous one)",
 }
 """What a command stopped by Ctrl-C or SIGTERM outside its own handling left behind."""
 

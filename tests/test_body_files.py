@@ -9,7 +9,10 @@ import numpy as np
 
 from body_fixtures import heron_config
 from creatures.events import read_events
+from creatures.cli import main
 from creatures.kinds.parts import Body
+from creatures.motor.export import played, taken_nodes
+from creatures.motor.material import Animation, Conventions, read_animation
 from creatures.motor import quaternion as quat
 from creatures.runtime.offline import run_offline
 from creatures.runtime.schema import load_installation
@@ -66,3 +69,39 @@ def test_joint_limits_hold_below_what_the_source_shows(tmp_path: Path):
 def test_without_body_keys_the_shipped_figure_is_unchanged():
     body = Body(np.random.default_rng(4))
     assert body.skeleton.joint_count == 19 and body.effector == "hand_r" and body.layers is None
+
+
+def test_export_motion_round_trips_and_loads_back_as_an_animation(tmp_path: Path):
+    """``creatures export-motion``: the path taken, as BVH; imported through the same body it gives
+    the same poses (1e-6 rad per joint) at the same frame times, and merges into the graph."""
+    config = heron_config(tmp_path, duration=20.0)
+    run_offline(load_installation(config), tmp_path / "out", progress=False)
+    out = tmp_path / "motion.bvh"
+    assert main(["export-motion", str(tmp_path / "out"), "--creature", "heron", str(out), "--fps", "40"]) == 0
+    graph = load_installation(config).specs[0].body.material().graph
+    nodes = taken_nodes(read_events(tmp_path / "out" / "events.jsonl"), "heron", len(graph))
+    assert len(nodes) >= 10
+    expected = played(graph, nodes, 40.0)
+    back, frame_time = read_animation(Animation(out), graph.skeleton, Conventions(scale=0.01))
+    assert frame_time == 1.0 / 40.0
+    assert len(back) == len(expected) > 40
+    np.testing.assert_allclose(back.times, expected.times, rtol=0, atol=1e-12)
+    assert quat.angle_between(back.rotations, expected.rotations).max() < 1e-6
+    # Loaded back as one more take of the body, its frames are nodes of the graph.
+    text = config.read_text() + '\n[[creature.body.animations]]\nfile = "motion.bvh"\n'
+    config.write_text(text)
+    merged = load_installation(config).specs[0].body.material().graph
+    assert len(merged) == len(graph) + len(expected)
+    assert "motion" in merged.poses.sources
+    motion = merged.poses.source_ids == merged.poses.sources.index("motion")
+    assert quat.angle_between(merged.poses.rotations[motion], expected.rotations).max() < 1e-6
+
+
+def test_export_motion_names_what_is_missing(tmp_path: Path, capsys):
+    assert main(["export-motion", str(tmp_path), "--creature", "heron", str(tmp_path / "x.bvh")]) == 2
+    assert "no events.jsonl" in capsys.readouterr().err
+    config = heron_config(tmp_path, duration=2.0)
+    run_offline(load_installation(config), tmp_path / "out", progress=False)
+    assert main(["export-motion", str(tmp_path / "out"), "--creature", "egret", str(tmp_path / "x.bvh")]) == 2
+    assert "no creature 'egret'" in capsys.readouterr().err
+    assert not (tmp_path / "x.bvh").exists()

@@ -145,7 +145,7 @@ def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path 
     session.world.recording = settings.output.midi  # out.mid's input track and heard tempo
     sources = open_sources(inst, session.inputs, clock, messages.append, live=False)  # rehearsal files
     session.world.emit("run", title=settings.title, mode="offline", duration=duration, seed=settings.seed,
-                       creatures=[c.name for c in session.creatures])
+                       creatures=[c.name for c in session.creatures], config=str(inst.path))
     notes, samples = _inputs(inst, audio, midi, duration, session.input_rng)
     for note in notes:
         session.world.inject(note)
