@@ -89,6 +89,11 @@ class _Tokens:
             raise self.error(f"expected a finite number within ±{LARGEST_VALUE:g} for {what}, found {token!r}", line)
         return value
 
+    @property
+    def last_line(self) -> int:
+        """Line of the token read last (a joint's name, once read)."""
+        return self.items[self.pos - 1][1] if self.pos else 1
+
     def peek(self) -> str | None:
         return self.items[self.pos][0] if self.pos < len(self.items) else None
 
@@ -97,7 +102,7 @@ def _parse_joint(tokens: _Tokens, joints: list[_Joint], name: str, parent: int, 
     """Parse one ``{ ... }`` joint body (recursively); returns the next channel column."""
     index = len(joints)
     if any(j.name == name for j in joints):
-        raise tokens.error(f"joint {name!r} is named twice (joint names must be unique)")
+        raise tokens.error(f"joint {name!r} is named twice (joint names must be unique)", tokens.last_line)
     joint = _Joint(name, parent, column=column)
     joints.append(joint)
     tokens.expect("{")

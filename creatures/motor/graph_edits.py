@@ -78,7 +78,11 @@ class Edit:
 
     op: str
     fields: dict[str, Any]
-    where: str  # "file:line"
+    where: str  # "file:line" of the table
+    lines: dict[str, str] = field(default_factory=dict)  # "file:line" of each field
+
+    def at(self, name: str) -> str:
+        return self.lines.get(name, self.where)
 
 
 @dataclass
@@ -129,8 +133,8 @@ def read_edits(path: Path) -> EditFile:
         if not isinstance(tables, list) or not all(isinstance(t, dict) for t in tables):
             raise EditError(f"{at(key)}: {key!r} must be tables [[{key}]]")
         for i, table in enumerate(tables):
-            result.edits.append(Edit(key, _checked(key, table, lambda *k, i=i, key=key: at(key, i, *k)),
-                                     at(key, i)))
+            fields = _checked(key, table, lambda *k, i=i, key=key: at(key, i, *k))
+            result.edits.append(Edit(key, fields, at(key, i), {name: at(key, i, name) for name in fields}))
     return result
 
 
@@ -256,7 +260,7 @@ def blended(material: Material, files: list[EditFile], skeleton: Skeleton, conve
     owner: dict[int, str] = {}
     for edit_file in files:
         for edit in edit_file.of("blend"):
-            targets = nodes(edit.fields["nodes"], edit.where)
+            targets = nodes(edit.fields["nodes"], edit.at("nodes"))
             animation = Animation(edit_file.path.parent / edit.fields["file"])
             take, _ = _read(edit, animation, skeleton, conventions)
             first, last = edit.fields["frames"]
@@ -300,8 +304,8 @@ def apply_edges(graph: MotorGraph, material: Material, files: list[EditFile]) ->
         return True
 
     def pairs(edit: Edit) -> list[tuple[int, int]]:
-        sources = nodes(edit.fields["from"], edit.where)
-        targets = nodes(edit.fields["to"], edit.where)
+        sources = nodes(edit.fields["from"], edit.at("from"))
+        targets = nodes(edit.fields["to"], edit.at("to"))
         return [(int(a), int(b)) for a in sources for b in targets if a != b]
 
     every = [edit for edit_file in files for edit in edit_file.edits]
@@ -324,6 +328,6 @@ def apply_edges(graph: MotorGraph, material: Material, files: list[EditFile]) ->
                 if decide(("scale", (a, b)), edit.fields["scale"], edit.where):
                     graph.reweight(a, b, edit.fields["scale"])
         elif edit.op == "favour":
-            for node in nodes(edit.fields["node"], edit.where).tolist():
+            for node in nodes(edit.fields["node"], edit.at("node")).tolist():
                 if decide(("favour", node), edit.fields["multiplier"], edit.where):
                     graph.set_favour(node, edit.fields["multiplier"])
