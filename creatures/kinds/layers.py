@@ -67,8 +67,10 @@ class BreatheSpec(BaseModel):
 
 
 class BodySpec(MaterialSpec):
-    """``[creature.body]``: the body's material (:class:`~creatures.kinds.body_source.MaterialSpec`;
-    none: the shipped figure) and the layers blended over the course it follows on the motor graph."""
+    """``[creature.body]``: a body of its own from files (no files: the shipped figure; docs/bodies.md) and layers over its course.
+
+    The material keys are :class:`~creatures.kinds.body_source.MaterialSpec`'s; the layers are
+    blended over the course the body follows on the motor graph."""
 
     breathe: BreatheSpec = BreatheSpec()
 
