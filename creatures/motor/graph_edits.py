@@ -39,22 +39,18 @@ that disagree about the same edge or node are a :class:`EditError` naming both p
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from creatures.config import key_lines
+from creatures.config import ConfigError, read_toml
 from creatures.motor import quaternion as quat
 from creatures.motor.graph import MotorGraph
 from creatures.motor.material import Animation, Conventions, Material, MaterialError, read_animation
 from creatures.motor.pose import PoseSet, estimate_velocities
 from creatures.motor.skeleton import Skeleton
-
-MAX_EDIT_BYTES = 4 * 1024 * 1024
-"""Largest edit file read (thousands of edits are a few hundred kilobytes)."""
 
 OPS = {
     "forbid": {"from": str, "to": str},
@@ -100,19 +96,10 @@ class EditFile:
 def read_edits(path: Path) -> EditFile:
     """Parse and check one edit file (shape only: nodes are resolved against the graph later)."""
     try:
-        with path.open("rb") as handle:
-            raw = handle.read(MAX_EDIT_BYTES + 1)
-        if len(raw) > MAX_EDIT_BYTES:
-            raise EditError(f"{path}: edit file larger than {MAX_EDIT_BYTES} bytes; refused")
-        text = raw.decode("utf-8")
-        data = tomllib.loads(text)
-    except (OSError, UnicodeDecodeError) as exc:
-        raise EditError(f"{path}: cannot read edit file ({exc})") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise EditError(f"{path}: invalid TOML ({exc})") from None
-    except RecursionError:
-        raise EditError(f"{path}: invalid TOML (nested too deeply)") from None
-    lines = key_lines(text)
+        data, where = read_toml(path)  # size cap, regular files only, UTF-8, nesting: as configs
+    except ConfigError as exc:
+        raise EditError(str(exc)) from None
+    lines = {key: line for key, (_, line) in where.items()}
 
     def at(*key: str | int) -> str:
         for end in range(len(key), 0, -1):
