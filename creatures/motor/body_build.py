@@ -35,7 +35,7 @@ from creatures.persist import atomic_write
 
 logger = logging.getLogger(__name__)
 
-CACHE_VERSION = 1
+CACHE_VERSION = 2
 """Bumped whenever the cache layout or the graph builder changes what a cache holds."""
 
 
@@ -144,10 +144,13 @@ def write_cache(path: Path, key: str, graph: MotorGraph) -> None:
     """The graph as NPZ arrays (atomic)."""
     p = graph.poses
     edges = graph.edges_arrays()
+    kinds = sorted({tuple(sorted(x)) for x in p.labels})  # few distinct label sets: one entry each
+    index = {k: i for i, k in enumerate(kinds)}
     arrays = {
         "key": np.array(key), "skeleton": np.array(json.dumps(graph.skeleton.to_dict())),
         "weights": np.array(json.dumps(graph.weights.to_dict())), "sources": np.array(json.dumps(p.sources)),
-        "labels": np.array(json.dumps([sorted(x) for x in p.labels])),
+        "label_sets": np.array(json.dumps(kinds)),
+        "label_ids": np.array([index[tuple(sorted(x))] for x in p.labels], dtype=np.int64),
         "rotations": p.rotations, "velocities": p.velocities, "roots": p.roots, "times": p.times,
         "source_ids": p.source_ids, "positions": p.positions, "favour": graph.favour,
         "forbidden": np.array(sorted(graph.forbidden), dtype=np.int64).reshape(-1, 2), **edges,
@@ -163,11 +166,12 @@ def read_cache(path: Path, key: str) -> MotorGraph | None:
                 logger.warning("%s: motor-graph cache is stale (its sources changed); rebuilding", path)
                 return None
             skeleton = Skeleton.from_dict(json.loads(str(data["skeleton"])), source=str(path))
+            sets = [frozenset(x) for x in json.loads(str(data["label_sets"]))]
+            labels = [sets[i] for i in data["label_ids"].tolist()]  # IndexError: a damaged cache
             poses = PoseSet(skeleton, data["rotations"], data["velocities"], data["roots"], data["times"],
-                            data["source_ids"], json.loads(str(data["sources"])),
-                            [frozenset(x) for x in json.loads(str(data["labels"]))], data["positions"])
+                            data["source_ids"], json.loads(str(data["sources"])), labels, data["positions"])
             graph = MotorGraph.from_arrays(poses, data, weights=MetricWeights.from_dict(json.loads(str(data["weights"]))))
-    except (OSError, KeyError, ValueError, TypeError, EOFError, zipfile.BadZipFile) as exc:
+    except (OSError, KeyError, IndexError, ValueError, TypeError, EOFError, zipfile.BadZipFile) as exc:
         logger.warning("%s: motor-graph cache is corrupt (%s); rebuilding", path, str(exc)[:200])
         return None
     return graph
