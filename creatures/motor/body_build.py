@@ -23,11 +23,10 @@ from typing import Callable
 
 import numpy as np
 
-from creatures.motor.bvh import BVHError, load_bvh_set
 from creatures.motor.graph import MotorGraph
 from creatures.motor.graph_edits import EditError, EditFile, added_material, apply_edges, blended, check_skeleton, read_edits
-from creatures.motor.material import (Animation, Conventions, Material, MaterialError, fingerprint, load_material,
-                                      load_skeleton, convert_skeleton)
+from creatures.motor.material import (Animation, Conventions, Material, MaterialError, convert_skeleton, fingerprint,
+                                      load_material, load_skeleton, read_take)
 from creatures.motor.metric import MetricWeights
 from creatures.motor.pose import LOW_ENERGY, PoseSet
 from creatures.motor.skeleton import Skeleton
@@ -35,7 +34,7 @@ from creatures.persist import atomic_write
 
 logger = logging.getLogger(__name__)
 
-CACHE_VERSION = 2
+CACHE_VERSION = 3
 """Bumped whenever the cache layout or the graph builder changes what a cache holds."""
 
 
@@ -75,16 +74,14 @@ class Sources:
 def build(sources: Sources, edit_files: list[EditFile]) -> MotorGraph:
     """Material → added takes → blends → graph → rest labels → edge edits (see :mod:`graph_edits`)."""
     conventions = sources.conventions
+    first = read_take(sources.animations[0], ("animations", 0))  # read once, for the skeleton too
     if sources.skeleton is not None:
         skeleton = load_skeleton(sources.skeleton, conventions)
     else:
-        try:
-            skeleton = convert_skeleton(load_bvh_set(sources.animations[0].file).skeleton, conventions)
-        except BVHError as exc:
-            raise MaterialError(str(exc), ("animations", 0, "file")) from None
+        skeleton = convert_skeleton(first.skeleton, conventions)
     material = load_material(skeleton, list(sources.animations), conventions,
                              rest=dict(sources.rest) if sources.rest is not None else None,
-                             rest_labels=sources.rest_labels)
+                             rest_labels=sources.rest_labels, first=first)
     expected = fingerprint(skeleton)
     for i, edit_file in enumerate(edit_files):
         _as_material_error(lambda: check_skeleton(edit_file, skeleton, expected), i)
@@ -154,6 +151,7 @@ def write_cache(path: Path, key: str, graph: MotorGraph) -> None:
         "rotations": p.rotations, "velocities": p.velocities, "roots": p.roots, "times": p.times,
         "source_ids": p.source_ids, "positions": p.positions, "favour": graph.favour,
         "forbidden": np.array(sorted(graph.forbidden), dtype=np.int64).reshape(-1, 2), **edges,
+        "speeds": np.array([graph.timing.typical_speed, graph.timing.max_speed]),
     }
     atomic_write(path, lambda handle: np.savez(handle, **arrays), "wb")
 

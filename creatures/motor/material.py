@@ -106,17 +106,23 @@ def convert_skeleton(skeleton: Skeleton, conventions: Conventions) -> Skeleton:
     return Skeleton(skeleton.names, skeleton.parents, offsets, skeleton.masses, skeleton.end_effectors)
 
 
+def read_take(animation: Animation, key: tuple[str | int, ...] = ()) -> PoseSet:
+    """The take's file as parsed (its own skeleton and frames); MaterialError at ``key``."""
+    try:
+        return load_bvh_set(animation.file)
+    except BVHError as exc:
+        raise MaterialError(str(exc), (*key, "file")) from None
+
+
 def read_animation(animation: Animation, skeleton: Skeleton, conventions: Conventions, *,
-                   key: tuple[str | int, ...] = ()) -> tuple[PoseSet, float]:
-    """One take as poses on ``skeleton`` (joints matched by name) and its frame time.
+                   key: tuple[str | int, ...] = (), parsed: PoseSet | None = None) -> tuple[PoseSet, float]:
+    """One take as poses on ``skeleton`` (joints matched by name) and its frame time
+    (``parsed``: the file already read, e.g. for its skeleton).
 
     The file's hierarchy must be the skeleton's: the same joints with the same parents
     (offsets come from the skeleton). Labels must name frames the file has.
     """
-    try:
-        take = load_bvh_set(animation.file)
-    except BVHError as exc:
-        raise MaterialError(str(exc), (*key, "file")) from None
+    take = read_take(animation, key) if parsed is None else parsed
     names = take.skeleton.names
     if set(names) != set(skeleton.names):
         missing = sorted(set(skeleton.names) - set(names))
@@ -174,8 +180,9 @@ def rest_pose(skeleton: Skeleton, turns: dict[str, tuple[float, float, float]], 
 
 def load_material(skeleton: Skeleton, animations: list[Animation], conventions: Conventions, *,
                   rest: dict[str, tuple[float, float, float]] | None = None,
-                  rest_labels: tuple[str, ...] = ()) -> Material:
-    """Every take (and the rest pose) on one skeleton; sources named twice are refused."""
+                  rest_labels: tuple[str, ...] = (), first: PoseSet | None = None) -> Material:
+    """Every take (and the rest pose) on one skeleton; sources named twice are refused.
+    ``first``: the first take's file, already parsed."""
     sets: list[PoseSet] = []
     frame_times: dict[str, float] = {}
     for i, animation in enumerate(animations):
@@ -183,7 +190,7 @@ def load_material(skeleton: Skeleton, animations: list[Animation], conventions: 
             raise MaterialError(f"two animations are named {animation.source!r} (give one a 'name')",
                                 ("animations", i, "name"))
         poses, frame_times[animation.source] = read_animation(animation, skeleton, conventions,
-                                                              key=("animations", i))
+                                                              key=("animations", i), parsed=first if i == 0 else None)
         sets.append(poses)
     if rest is not None:
         first = sets[0].roots[0] if sets else np.zeros(3)
