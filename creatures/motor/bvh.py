@@ -147,14 +147,39 @@ def _parse_joint(tokens: _Tokens, joints: list[_Joint], name: str, parent: int, 
             raise tokens.error(f"expected JOINT, End Site or '}}' in joint {name!r}, found {word!r}", line)
 
 
-def load_bvh_set(path: str | os.PathLike) -> PoseSet:
-    """Read a BVH file as a :class:`PoseSet` (source = file stem) ready for a motor graph."""
+@dataclass(frozen=True)
+class Take:
+    """A BVH file as read: its skeleton, each frame's joint rotations ``(F, J, 4)`` and root
+    position ``(F, 3)``, and the seconds per frame. A body from files re-poses these (its own
+    joint order, scale, up axis) before estimating velocities, so they are not estimated twice."""
+
+    skeleton: Skeleton
+    rotations: np.ndarray
+    roots: np.ndarray
+    frame_time: float
+
+    def __len__(self) -> int:
+        return len(self.rotations)
+
+    def poses(self, name: str) -> PoseSet:
+        """The frames as one source animation named ``name``."""
+        times = np.arange(len(self)) * self.frame_time
+        return PoseSet.animation(self.skeleton, self.rotations, self.roots, times, name)
+
+
+def read_bvh(path: str | os.PathLike) -> Take:
+    """Read a BVH file as a :class:`Take`."""
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise BVHError(f"{path}: cannot read BVH file ({exc})") from None
-    return parse_bvh(text, source=str(path), name=path.stem)
+    return parse_take(text, source=str(path))
+
+
+def load_bvh_set(path: str | os.PathLike) -> PoseSet:
+    """Read a BVH file as a :class:`PoseSet` (source = file stem) ready for a motor graph."""
+    return read_bvh(path).poses(Path(path).stem)
 
 
 def load_bvh(path: str | os.PathLike) -> tuple[Skeleton, list[BodyPose]]:
@@ -165,6 +190,11 @@ def load_bvh(path: str | os.PathLike) -> tuple[Skeleton, list[BodyPose]]:
 
 def parse_bvh(text: str, *, source: str = "<bvh>", name: str = "bvh") -> PoseSet:
     """Parse BVH text; ``source`` names it in errors, ``name`` becomes the pose source."""
+    return parse_take(text, source=source).poses(name)
+
+
+def parse_take(text: str, *, source: str = "<bvh>") -> Take:
+    """Parse BVH text as a :class:`Take`; ``source`` names it in errors."""
     lines = text.splitlines()
     # Only the header is tokenised (through the "Frame Time:" line): the frame rows, millions
     # of numbers in a long take, are read by numpy in _frame_rows.
@@ -195,7 +225,7 @@ def parse_bvh(text: str, *, source: str = "<bvh>", name: str = "bvh") -> PoseSet
     if available < frames:  # checked before allocating: "Frames: 1e12" must not exhaust memory
         raise BVHError(f"{source}:{len(lines)}: file ends after {available} of {int(frames)} frames")
     data = _frame_rows(rows, int(frames), columns, source, header + 1)
-    return _to_poses(joints, data, frame_time, name)
+    return _to_take(joints, data, frame_time)
 
 
 def _frame_rows(rows: list[str], frames: int, columns: int, source: str, first_line: int) -> np.ndarray:
@@ -228,7 +258,7 @@ def _frame_rows(rows: list[str], frames: int, columns: int, source: str, first_l
     return data
 
 
-def _to_poses(joints: list[_Joint], data: np.ndarray, frame_time: float, name: str) -> PoseSet:
+def _to_take(joints: list[_Joint], data: np.ndarray, frame_time: float) -> Take:
     parents = np.array([j.parent for j in joints])
     skeleton = Skeleton(
         names=tuple(j.name for j in joints),
@@ -249,8 +279,7 @@ def _to_poses(joints: list[_Joint], data: np.ndarray, frame_time: float, name: s
         for k, channel in enumerate(joint.channels):
             if channel in _POSITIONS:
                 roots[:, _POSITIONS.index(channel)] = data[:, joint.column + k]
-    times = np.arange(frames) * frame_time
-    return PoseSet.animation(skeleton, rotations, roots, times, name)
+    return Take(skeleton, rotations, roots, frame_time)
 
 
 @numba.njit(cache=True)

@@ -27,7 +27,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from creatures.motor import quaternion as quat
-from creatures.motor.bvh import BVHError, load_bvh_set
+from creatures.motor.bvh import BVHError, Take, read_bvh
 from creatures.motor.pose import LOW_ENERGY, PoseSet
 from creatures.motor.skeleton import Skeleton, SkeletonFileError
 
@@ -94,7 +94,7 @@ def fingerprint(skeleton: Skeleton) -> str:
 def load_skeleton(path: Path, conventions: Conventions) -> Skeleton:
     """A skeleton from a BVH file (its hierarchy) or a skeleton JSON/TOML file, in metres, y up."""
     try:
-        skeleton = load_bvh_set(path).skeleton if path.suffix.lower() == ".bvh" else Skeleton.load(path)
+        skeleton = read_bvh(path).skeleton if path.suffix.lower() == ".bvh" else Skeleton.load(path)
     except (BVHError, SkeletonFileError) as exc:
         raise MaterialError(str(exc), ("skeleton",)) from None
     return convert_skeleton(skeleton, conventions)
@@ -106,16 +106,16 @@ def convert_skeleton(skeleton: Skeleton, conventions: Conventions) -> Skeleton:
     return Skeleton(skeleton.names, skeleton.parents, offsets, skeleton.masses, skeleton.end_effectors)
 
 
-def read_take(animation: Animation, key: tuple[str | int, ...] = ()) -> PoseSet:
+def read_take(animation: Animation, key: tuple[str | int, ...] = ()) -> Take:
     """The take's file as parsed (its own skeleton and frames); MaterialError at ``key``."""
     try:
-        return load_bvh_set(animation.file)
+        return read_bvh(animation.file)
     except BVHError as exc:
         raise MaterialError(str(exc), (*key, "file")) from None
 
 
 def read_animation(animation: Animation, skeleton: Skeleton, conventions: Conventions, *,
-                   key: tuple[str | int, ...] = (), parsed: PoseSet | None = None) -> tuple[PoseSet, float]:
+                   key: tuple[str | int, ...] = (), parsed: Take | None = None) -> tuple[PoseSet, float]:
     """One take as poses on ``skeleton`` (joints matched by name) and its frame time
     (``parsed``: the file already read, e.g. for its skeleton).
 
@@ -139,7 +139,7 @@ def read_animation(animation: Animation, skeleton: Skeleton, conventions: Conven
             raise MaterialError(f"{animation.file}: joint {name!r} has parent {parent!r} here, not the skeleton's",
                                 (*key, "file"))
     count = len(take)
-    frame_time = float(take.times[1] - take.times[0]) if count > 1 else 1.0 / 30.0
+    frame_time = take.frame_time
     kept = set(range(0, count, animation.step))
     labels: list[set[str]] = [set() for _ in range(count)]
     for label, ranges in animation.labels.items():
@@ -180,7 +180,7 @@ def rest_pose(skeleton: Skeleton, turns: dict[str, tuple[float, float, float]], 
 
 def load_material(skeleton: Skeleton, animations: list[Animation], conventions: Conventions, *,
                   rest: dict[str, tuple[float, float, float]] | None = None,
-                  rest_labels: tuple[str, ...] = (), first: PoseSet | None = None) -> Material:
+                  rest_labels: tuple[str, ...] = (), first: Take | None = None) -> Material:
     """Every take (and the rest pose) on one skeleton; sources named twice are refused.
     ``first``: the first take's file, already parsed."""
     sets: list[PoseSet] = []

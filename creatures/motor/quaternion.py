@@ -183,6 +183,13 @@ def squad_control(prev: np.ndarray, q: np.ndarray, nxt: np.ndarray) -> np.ndarra
     return multiply(q, exp(-0.25 * tangent))
 
 
+def squad_control_at(q: np.ndarray, before: np.ndarray, after: np.ndarray) -> np.ndarray:
+    """:func:`squad_control` of every key ``q[n]`` (``(N, J, 4)``) between ``q[before[n]]`` and
+    ``q[after[n]]``, compiled: a whole pose set's controls without numpy's full-size temporaries."""
+    keys = np.ascontiguousarray(q, dtype=float)
+    return _controls_at(keys, np.ascontiguousarray(before, dtype=np.int64), np.ascontiguousarray(after, dtype=np.int64))
+
+
 def squad(
     q1: np.ndarray, q2: np.ndarray, s1: np.ndarray, s2: np.ndarray, alpha: np.ndarray | float
 ) -> np.ndarray:
@@ -443,6 +450,18 @@ def _squad_controls(q):  # pragma: no cover - compiled
             control = _control_one(_at(track, max(i - 1, 0)), _at(track, i), _at(track, min(i + 1, n - 1)))
             for c in range(4):
                 out[i, j, c] = control[c]
+    return out
+
+
+@numba.njit(cache=True)
+def _controls_at(q, before, after):  # pragma: no cover - compiled
+    """:func:`squad_control_at` of keys ``(N, J, 4)``."""
+    out = np.empty_like(q)
+    for n in range(q.shape[0]):
+        for j in range(q.shape[1]):
+            control = _control_one(_at(q[before[n]], j), _at(q[n], j), _at(q[after[n]], j))
+            for c in range(4):
+                out[n, j, c] = control[c]
     return out
 
 
