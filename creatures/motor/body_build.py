@@ -34,7 +34,7 @@ from creatures.persist import atomic_write
 
 logger = logging.getLogger(__name__)
 
-CACHE_VERSION = 3
+CACHE_VERSION = 4
 """Bumped whenever the cache layout or the graph builder changes what a cache holds."""
 
 
@@ -149,7 +149,7 @@ def write_cache(path: Path, key: str, graph: MotorGraph) -> None:
         "label_sets": np.array(json.dumps(kinds)),
         "label_ids": np.array([index[tuple(sorted(x))] for x in p.labels], dtype=np.int64),
         "rotations": p.rotations, "velocities": p.velocities, "roots": p.roots, "times": p.times,
-        "source_ids": p.source_ids, "positions": p.positions, "favour": graph.favour,
+        "source_ids": p.source_ids, "favour": graph.favour,
         "forbidden": np.array(sorted(graph.forbidden), dtype=np.int64).reshape(-1, 2), **edges,
         "speeds": np.array([graph.timing.typical_speed, graph.timing.max_speed]),
     }
@@ -167,7 +167,7 @@ def read_cache(path: Path, key: str) -> MotorGraph | None:
             sets = [frozenset(x) for x in json.loads(str(data["label_sets"]))]
             labels = [sets[i] for i in data["label_ids"].tolist()]  # IndexError: a damaged cache
             poses = PoseSet(skeleton, data["rotations"], data["velocities"], data["roots"], data["times"],
-                            data["source_ids"], json.loads(str(data["sources"])), labels, data["positions"])
+                            data["source_ids"], json.loads(str(data["sources"])), labels)  # positions: FK, faster than reading them
             graph = MotorGraph.from_arrays(poses, data, weights=MetricWeights.from_dict(json.loads(str(data["weights"]))))
     except (OSError, KeyError, IndexError, ValueError, TypeError, EOFError, zipfile.BadZipFile) as exc:
         logger.warning("%s: motor-graph cache is corrupt (%s); rebuilding", path, str(exc)[:200])
