@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from body_fixtures import heron_config
+from body_fixtures import BODY, heron_config
 from creatures.events import read_events
 from creatures.cli import main
 from creatures.kinds.parts import Body
@@ -105,3 +105,27 @@ def test_export_motion_names_what_is_missing(tmp_path: Path, capsys):
     assert main(["export-motion", str(tmp_path / "out"), "--creature", "egret", str(tmp_path / "x.bvh")]) == 2
     assert "no creature 'egret'" in capsys.readouterr().err
     assert not (tmp_path / "x.bvh").exists()
+
+
+def test_an_authored_creature_takes_a_body_from_files(tmp_path: Path):
+    """``body = true`` is the shipped figure; a ``[creature.body]`` table is a body of its own,
+    for authored creatures as for the kinds: ada strikes on the heron's beak."""
+    import installations
+
+    heron_config(tmp_path)  # writes heron.bvh
+    text = (Path(installations.__file__).parent / "authored" / "exchange.toml").read_text()
+    marker = "tuples.rest.until.pulse = 2"
+    line = next(row for row in text.splitlines() if row.startswith(marker))
+    config = tmp_path / "authored.toml"
+    config.write_text(text.replace(line, line + "\n" + BODY.format(extra="")))
+    phrase = tmp_path / "phrase.mid"
+    write_notes(phrase, [NoteEvent(1.0 + 0.4 * i + 8.0 * r, p, 96, 0, 0.25)
+                         for r in range(3) for i, p in enumerate([60, 64, 67, 72, 76])])
+    inst = load_installation(config)
+    assert inst.specs[1].body.material().effectors == ("head_end",)
+    run_offline(inst, tmp_path / "out", midi=phrase, duration=30.0, progress=False)
+    events = read_events(tmp_path / "out" / "events.jsonl")
+    graphs = {e["creature"]: e for e in events if e["kind"] == "motor graph"}
+    assert graphs["ada"]["effector"] == "head_end" and graphs["bo"]["effector"] == "hand_r"
+    assert len(graphs["ada"]["hands"]) == 241
+    assert sum(e["kind"] == "note" and e["creature"] == "ada" for e in events) >= 3

@@ -34,6 +34,7 @@ from creatures.config import ConfigError
 from creatures.kinds import register
 from creatures.kinds.base import CreatureKind
 from creatures.kinds.note_world import NoteWorld
+from creatures.kinds.layers import BodySpec
 from creatures.kinds.parts import Body, Voice, couple_to_hands
 from creatures.kinds.report_parts import MotorTrail, report_values, selection_logger
 from creatures.temporal import intervals
@@ -76,7 +77,8 @@ class Authored(CreatureKind):
     def __init__(self, spec: AuthoredSpec, world: "World", rng: np.random.Generator) -> None:
         super().__init__(spec, world, rng)
         registry.load_parts()
-        self.body = Body(rng, ratios=spec.ratio_metric) if spec.body else None  # motor actions hold it
+        own = spec.body if isinstance(spec.body, BodySpec) else None
+        self.body = Body(rng, ratios=spec.ratio_metric, spec=own) if spec.body else None  # motor actions hold it
         self.trail = MotorTrail(world, self.name, self.body) if self.body is not None else None
         self.notes = NoteWorld(spec.space, self, self.body, rng) if spec.space is not None else None
         learning = spec.learning
@@ -196,7 +198,7 @@ class Authored(CreatureKind):
 
     @classmethod
     def has_body(cls, spec: AuthoredSpec) -> bool:
-        return spec.body
+        return bool(spec.body)
 
     def reward_groups(self) -> list[ActionGroup]:
         """The clicker reaches every top-level group; each passes it to the groups it holds."""

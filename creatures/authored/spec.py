@@ -14,6 +14,7 @@ from pathlib import Path
 
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, field_validator
 
+from creatures.kinds.layers import BodySpec
 from creatures.bounds import FINITE, LARGEST_RATE, LONGEST_SECONDS, Bounded, Seconds
 
 from creatures.kinds.base import CreatureSpec
@@ -176,8 +177,9 @@ class AuthoredSpec(CreatureSpec):
                                                                    "by the creature")
     learning: LearningSpec = LearningSpec()
     hears_input: bool = Field(True, description="hear notes from outside the colony")
-    body: bool = Field(False, description="a body on the shared motor graph (sway, reach, strike); motor "
-                                          "actions need it")
+    body: bool | BodySpec = Field(False, description="a body: true for the shipped figure on the shared motor "
+                                                     "graph (sway, reach, strike), or a [creature.body] table of "
+                                                     "its own (docs/bodies.md); motor actions need one")
     ratio_metric: bool = Field(False, description="its body's graph favours moves at low-integer ratios of the "
                                                   "source animation length (exchange's metric)")
     space: SpaceSpec | None = Field(None, description="heard notes placed in space for the hand to strike "
