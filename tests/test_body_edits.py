@@ -193,3 +193,20 @@ def test_fuzzed_edit_files_are_read_or_refused_with_their_name(tmp_path_factory,
         read_edits(path)
     except EditError as exc:
         assert str(exc).startswith(str(path))
+
+
+def test_edits_written_in_the_config_apply_and_merge_with_edit_files(tmp_path: Path):
+    config = heron_config(tmp_path)
+    base = body_of(config).graph
+    (tmp_path / "a.toml").write_text(f'skeleton = "{fingerprint(base.skeleton)}"\n\n[[forbid]]\nfrom = "heron@10"\n'
+                                     'to = "heron@11"\n')
+    config.write_text(config.read_text().replace("[[creature.body.animations]]", '''graph_edits = ["a.toml"]
+edits.favour = [{ node = "peck", multiplier = 0.25 }]
+edits.forbid = [{ from = "heron@20", to = "heron@21" }]
+[[creature.body.animations]]'''))
+    edges, favour, labels = keyed(body_of(config).graph)
+    assert ("heron@10", "heron@11") not in edges and ("heron@20", "heron@21") not in edges
+    assert favour and set(favour.values()) == {0.25} and all("peck" in labels[k] for k in favour)
+    config.write_text(config.read_text().replace('node = "peck"', 'node = "preen"'))
+    with pytest.raises(ConfigError, match=r"\[creature\.body\] edits: favour\.0\.node: node 'preen'"):
+        load_installation(config)

@@ -11,10 +11,11 @@ and in docs/bodies.md.
 from __future__ import annotations
 
 import hashlib
+import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, Field, PrivateAttr, model_validator
@@ -40,7 +41,7 @@ class AnimationSpec(BaseModel):
                                                     "frames are always kept)")
 
 
-MATERIAL_KEYS = ("skeleton", "animations", "graph_edits", "effectors", "joint_limits", "rest_labels", "rest_pose",
+MATERIAL_KEYS = ("skeleton", "animations", "graph_edits", "edits", "effectors", "joint_limits", "rest_labels", "rest_pose",
                  "scale", "up_axis", "root_motion", "neighbours", "cache")
 
 
@@ -57,6 +58,10 @@ class MaterialSpec(BaseModel):
     graph_edits: list[str] = Field(default_factory=list, max_length=256,
                                    description="motor-graph edit files (TOML, see docs/bodies.md), applied as "
                                                "one set: their order does not matter")
+    edits: dict[str, list[dict[str, Any]]] = Field(
+        default_factory=dict, description="edits written in the config itself, as in an edit file without "
+                                          "its skeleton line: forbid, forge, reweight, favour, add, blend → "
+                                          "list of tables (docs/bodies.md); merged with graph_edits")
     effectors: list[str] = Field(default_factory=list, max_length=64,
                                  description="joints that strike notes; the first is the one A* takes to a "
                                              "note (default: the skeleton's first end site)")
@@ -106,7 +111,8 @@ class MaterialSpec(BaseModel):
             edits=tuple(base / p for p in self.graph_edits),
             conventions=Conventions(self.scale, self.up_axis, self.root_motion),
             rest=None if self.rest_pose is None else tuple(sorted(self.rest_pose.items())),
-            rest_labels=tuple(self.rest_labels), neighbours=self.neighbours)
+            rest_labels=tuple(self.rest_labels), neighbours=self.neighbours,
+            inline=json.dumps(self.edits, sort_keys=True) if self.edits else "", inline_base=base)
         where = hashlib.sha256("\0".join(str(a.file) for a in animations).encode()).hexdigest()[:16]
         graph = load_or_build(sources, (base / self.cache / f"body-{where}.npz").resolve())
         names = graph.skeleton.names

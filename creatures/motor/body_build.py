@@ -24,7 +24,8 @@ from typing import Callable
 import numpy as np
 
 from creatures.motor.graph import MotorGraph
-from creatures.motor.graph_edits import EditError, EditFile, added_material, apply_edges, blended, check_skeleton, read_edits
+from creatures.motor.graph_edits import (EditError, EditFile, added_material, apply_edges, blended, check_skeleton,
+                                         edits_from, read_edits)
 from creatures.motor.material import (Animation, Conventions, Material, MaterialError, convert_skeleton, fingerprint,
                                       load_material, load_skeleton, read_take)
 from creatures.motor.metric import MetricWeights
@@ -49,6 +50,8 @@ class Sources:
     rest: tuple[tuple[str, tuple[float, float, float]], ...] | None = None
     rest_labels: tuple[str, ...] = ()
     neighbours: int = 6
+    inline: str = ""  # the config's own edits as JSON, files they name relative to inline_base
+    inline_base: Path | None = None
 
     def key(self, edit_files: list[EditFile]) -> str:
         """Hash of the parameters and the bytes of every file the graph reads."""
@@ -57,7 +60,7 @@ class Sources:
             "version": CACHE_VERSION, "conventions": vars(self.conventions), "rest": self.rest,
             "rest_labels": self.rest_labels, "neighbours": self.neighbours,
             "animations": [(str(a.file), sorted(a.labels.items()), a.name, a.step) for a in self.animations],
-            "edits": [str(p) for p in self.edits],
+            "edits": [str(p) for p in self.edits], "inline": self.inline,
         }
         digest.update(json.dumps(parameters, sort_keys=True, default=str).encode())
         files = [*([self.skeleton] if self.skeleton else []), *(a.file for a in self.animations), *self.edits]
@@ -122,6 +125,12 @@ def load_or_build(sources: Sources, cache: Path | None) -> MotorGraph:
     edit_files = []
     for i, path in enumerate(sources.edits):
         edit_files.append(_as_material_error(lambda path=path: read_edits(path), i))
+    if sources.inline:
+        where = (sources.inline_base or Path(".")) / "[creature.body] edits"
+        try:
+            edit_files.append(edits_from(json.loads(sources.inline), where, {}, None))
+        except EditError as exc:
+            raise MaterialError(str(exc), ("edits",)) from None
     key = sources.key(edit_files)
     if cache is not None and cache.exists():
         graph = read_cache(cache, key)

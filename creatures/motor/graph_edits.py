@@ -86,7 +86,7 @@ class EditFile:
     """A parsed edit file: the skeleton it was written for and its edits in file order."""
 
     path: Path
-    skeleton: str
+    skeleton: str | None  # None: the config's own edits, written for this body
     edits: list[Edit] = field(default_factory=list)
 
     def of(self, op: str) -> list[Edit]:
@@ -100,21 +100,26 @@ def read_edits(path: Path) -> EditFile:
     except ConfigError as exc:
         raise EditError(str(exc)) from None
     lines = {key: line for key, (_, line) in where.items()}
+    skeleton = data.get("skeleton")
+    if not isinstance(skeleton, str):
+        raise EditError(f"{path}:{lines.get(('skeleton',), 1)}: an edit file starts with skeleton = \"<fingerprint>\" "
+                        "(the body it was written for)")
+    return edits_from({k: v for k, v in data.items() if k != "skeleton"}, path, lines, skeleton)
+
+
+def edits_from(data: dict[str, Any], path: Path, lines: dict[tuple, int], skeleton: str | None) -> EditFile:
+    """Edit tables (``forbid = [{...}]``, ...) as an :class:`EditFile`: from a file, or from the
+    config's own ``[creature.body] edits`` (``skeleton`` None: written for this very body; files
+    they name are relative to ``path``'s directory)."""
 
     def at(*key: str | int) -> str:
         for end in range(len(key), 0, -1):
             if key[:end] in lines:
                 return f"{path}:{lines[key[:end]]}"
-        return str(path)
+        return f"{path}: {'.'.join(map(str, key))}" if key else str(path)
 
-    skeleton = data.get("skeleton")
-    if not isinstance(skeleton, str):
-        raise EditError(f"{at('skeleton')}: an edit file starts with skeleton = \"<fingerprint>\" "
-                        "(the body it was written for)")
     result = EditFile(path, skeleton)
     for key, tables in data.items():
-        if key == "skeleton":
-            continue
         if key not in OPS:
             raise EditError(f"{at(key)}: unknown edit {key!r} (edits: {', '.join(OPS)})")
         if not isinstance(tables, list) or not all(isinstance(t, dict) for t in tables):
@@ -166,7 +171,7 @@ _HELP = {
 
 def check_skeleton(edits: EditFile, skeleton: Skeleton, expected: str) -> None:
     """Refuse a file written for another body (its joints would be other joints)."""
-    if edits.skeleton != expected:
+    if edits.skeleton is not None and edits.skeleton != expected:
         raise EditError(f"{edits.path}:1: edit file is for skeleton {edits.skeleton!r}, but this body's skeleton "
                         f"is {expected!r} ({skeleton.joint_count} joints: {', '.join(skeleton.names[:6])}...)")
 
