@@ -129,3 +129,29 @@ def test_an_authored_creature_takes_a_body_from_files(tmp_path: Path):
     assert graphs["ada"]["effector"] == "head_end" and graphs["bo"]["effector"] == "hand_r"
     assert len(graphs["ada"]["hands"]) == 241
     assert sum(e["kind"] == "note" and e["creature"] == "ada" for e in events) >= 3
+
+
+def test_scale_and_a_z_up_file_give_the_same_body_as_y_up_metres(tmp_path: Path):
+    """The heron written z-up in centimetres (up_axis = "z", scale = 0.01) is the heron in metres, y up."""
+    from body_fixtures import HIERARCHY, write_bvh
+    from creatures.motor.material import load_material, load_skeleton
+
+    z_up = (HIERARCHY.replace("OFFSET 0 50 0", "OFFSET 0 0 50").replace("OFFSET 0 40 0", "OFFSET 0 0 40")
+            .replace("OFFSET 0 0 30", "OFFSET 0 -30 0"))
+    metres = HIERARCHY.replace("OFFSET 0 50 0", "OFFSET 0 0.5 0").replace("OFFSET 0 40 0", "OFFSET 0 0.4 0") \
+        .replace("OFFSET 0 0 30", "OFFSET 0 0 0.3")
+    rows = np.zeros((3, 12))
+    rows[:, 3] = [0.0, 30.0, 60.0]  # the root turns about the file's up axis (Z channel z-up, Y channel y-up)
+    rows[:, 7] = [10.0, 20.0, 40.0]  # the neck pitches about x
+    y_rows = rows.copy()
+    y_rows[:, [3, 5]] = rows[:, [5, 3]]
+    y_rows[:, 1], rows[:, 2] = 0.1, 10.0
+    bodies = []
+    for name, text, table, conventions in (("z", z_up, rows, Conventions(scale=0.01, up_axis="z")),
+                                           ("y", metres, y_rows, Conventions())):
+        path = write_bvh(tmp_path / f"{name}.bvh", table, hierarchy=text)
+        skeleton = load_skeleton(path, conventions)
+        bodies.append(load_material(skeleton, [Animation(path)], Conventions(
+            conventions.scale, conventions.up_axis, root_motion=True)).poses.positions)
+    np.testing.assert_allclose(bodies[0], bodies[1], atol=1e-9)
+    assert bodies[1][:, 3, 1].min() > 0.5  # the beak is up in the air, not lying along z
