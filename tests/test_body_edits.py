@@ -210,3 +210,17 @@ edits.forbid = [{ from = "heron@20", to = "heron@21" }]
     config.write_text(config.read_text().replace('node = "peck"', 'node = "preen"'))
     with pytest.raises(ConfigError, match=r"\[creature\.body\] edits: favour\.0\.node: node 'preen'"):
         load_installation(config)
+
+
+def test_kinds_of_the_shipped_figure_and_bodies_without_rest_are_refused(tmp_path: Path):
+    with pytest.raises(ConfigError, match=r"heron\.toml:\d+: creature\.0\.body: kind 'curve' moves the shipped "
+                                          r"figure only"):
+        load_installation(heron_config(tmp_path, kind="curve"))
+    config = heron_config(tmp_path)
+    text = config.read_text()
+    config.write_text(text.replace("rest_pose = { neck = [20.0, 0.0, 0.0] }\n", ""))
+    with pytest.raises(ConfigError, match=r"creature\.0\.body\.rest_labels: the body has no pose to rest in"):
+        load_installation(config)
+    config.write_text(text.replace("effectors = [\"head_end\"]", "effectors = [\"tail\"]"))
+    with pytest.raises(ConfigError, match=r"creature\.0\.body\.effectors.*no joint 'tail'"):
+        load_installation(config)
