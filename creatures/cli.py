@@ -330,6 +330,30 @@ def _render(args: argparse.Namespace) -> int:
         return 2
     wall = time.perf_counter() - t0
     print(f"rendered {count} frames at {args.width}×{args.height} in {wall:.2f} s ({count / wall:.0f} frames/s) into {out}")
+def _export_motion_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("path", type=Path, help="a run's output directory or a state directory (with events.jsonl)")
+    parser.add_argument("out", type=Path, help="the BVH file to write")
+    parser.add_argument("--creature", required=True, help="whose path to export")
+    parser.add_argument("--config", type=Path, help="the installation (default: the one the run's log names)")
+    parser.add_argument("--fps", type=float, default=30.0, help="frames per second of the BVH, 1..1000 (default 30)")
+
+
+@command("export-motion", "write the path a creature's body took as BVH (loads back as an animation)",
+         _export_motion_options)
+def _export_motion(args: argparse.Namespace) -> int:
+    from creatures.config import ConfigError
+    from creatures.motor.export import ExportError
+    from creatures.runtime.motion_export import export_motion_of_run
+
+    if not 1.0 <= args.fps <= 1000.0:  # also refuses nan
+        print(f"creatures: --fps {args.fps:g} is not a frame rate in 1..1000", file=sys.stderr)
+        return 2
+    try:
+        frames = export_motion_of_run(args.path, args.creature, args.out, config=args.config, fps=args.fps)
+    except (ConfigError, ExportError, ValueError, OSError) as exc:
+        print(f"creatures: {exc}", file=sys.stderr)
+        return 2
+    print(f"{args.creature}: {frames} frames at {args.fps:g} fps written to {args.out}")
     return 0
 
 
@@ -417,6 +441,7 @@ STOPPED = {
     "inspect": "the page was not written",
     "view": "the view was closed",
     "render": "the frames drawn so far are in the output directory",
+    "export-motion": "the BVH file was not written (or is the previous one)",
 }
 """What a command stopped by Ctrl-C or SIGTERM outside its own handling left behind."""
 

@@ -52,6 +52,10 @@ def reference_rate(q1, q2, s1, s2, samples: int = 16) -> np.ndarray:
 def test_squad_controls_match_numpy(seed):
     for name, keys in key_sequences(seed).items():
         assert np.abs(quat.squad_controls(keys) - reference_controls(keys)).max() < TOLERANCE, name
+        q = quat.hemisphere_align(keys)
+        n = np.arange(len(q))
+        at = quat.squad_control_at(q, np.maximum(n - 1, 0), np.minimum(n + 1, len(q) - 1))
+        assert np.abs(at - reference_controls(keys)).max() < TOLERANCE, name
 
 
 @pytest.mark.parametrize("seed", range(5))
@@ -194,3 +198,23 @@ def test_a_body_looked_up_in_any_order_follows_its_course_on_the_grid():
         assert np.abs(pose.rotations - rotations[i]).max() < TOLERANCE
         assert np.abs(pose.velocities - turns[i]).max() < 1e-6
         assert np.abs(pose.positions - graph.skeleton.forward_kinematics(rotations[i], roots[i])).max() < TOLERANCE
+
+
+def test_nearest_costs_keep_each_rows_k_cheapest_exactly():
+    """The pruned costing (metric.nearest_costs) gives the full metric's k cheapest candidates
+    of every row, bit for bit, and skips others (which is what makes it worth having)."""
+    from creatures.kinds.parts import shared_material
+    from creatures.motor import metric
+
+    poses, weights = shared_material(), metric.MetricWeights()
+    following = metric.successors(poses)
+    rows = np.arange(len(poses))
+    candidates = np.random.default_rng(0).integers(len(poses), size=(len(poses), 19))
+    candidates[:, 0] = rows
+    full = metric.edge_costs(poses, rows[:, None], candidates, weights, following)
+    pruned = metric.nearest_costs(poses, rows, candidates, weights, following, 6)
+    for r in rows:
+        others = candidates[r] != r
+        assert np.array_equal(np.sort(full[r][others])[:6], np.sort(pruned[r][others])[:6])
+    evaluated = np.isfinite(pruned)
+    assert np.array_equal(pruned[evaluated], full[evaluated]) and evaluated.mean() < 0.8

@@ -35,7 +35,8 @@ from creatures.config import ConfigError
 from creatures.kinds import register
 from creatures.kinds.base import CreatureKind
 from creatures.kinds.note_world import NoteWorld
-from creatures.kinds.figures import FigureBodySpec, figure_of
+from creatures.kinds.figures import figure_of
+from creatures.kinds.layers import BodySpec
 from creatures.kinds.parts import Body, Voice, couple_to_hands
 from creatures.kinds.report_parts import MotorTrail, report_values, selection_logger
 from creatures.temporal import intervals
@@ -79,7 +80,7 @@ class Authored(CreatureKind):
         super().__init__(spec, world, rng)
         registry.load_parts()
         self.body = (Body(rng, ratios=spec.ratio_metric, figure=figure_of(spec.body),  # motor actions hold it
-                          spec=spec.body if isinstance(spec.body, FigureBodySpec) else None) if spec.body else None)
+                          spec=spec.body if isinstance(spec.body, BodySpec) else None) if spec.body else None)
         self.trail = MotorTrail(world, self.name, self.body) if self.body is not None else None
         self.notes = NoteWorld(spec.space, self, self.body, rng) if spec.space is not None else None
         learning = spec.learning

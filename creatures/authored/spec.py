@@ -191,9 +191,10 @@ class AuthoredSpec(CreatureSpec):
                                                                    "by the creature")
     learning: LearningSpec = LearningSpec()
     hears_input: bool = Field(True, description="hear notes from outside the colony")
-    body: bool | FigureBodySpec = Field(False, description="a body on a motor graph; motor actions need it. "
+    body: FigureBodySpec | bool = Field(False, description="a body on a motor graph; motor actions need it. "
                                                            "true: the stick figure (sway, reach, strike); a "
-                                                           "[creature.body] table picks a figure (dog, bird)")
+                                                           "[creature.body] table picks a shipped figure (dog, "
+                                                           "bird) or a body of its own from files (docs/bodies.md)")
     ratio_metric: bool = Field(False, description="its body's graph favours moves at low-integer ratios of the "
                                                   "source animation length (exchange's metric)")
     space: SpaceSpec | None = Field(None, description="heard notes placed in space for the hand to strike "

@@ -68,6 +68,9 @@ class CreatureKind(ABC):
     """The drives of the kind's ``motivation`` (a test checks them against a built creature)."""
     REWARDABLE: ClassVar[bool] = True
     """Whether the kind has an action-group (``group``) a reward can reach."""
+    FIGURE_ONLY: ClassVar[str] = ""
+    """Why the kind's body must be the shipped figure (it reads that figure's named joints);
+    empty: any ``[creature.body]`` from files will do."""
 
     def __init__(self, spec: CreatureSpec, world: "World", rng: np.random.Generator) -> None:
         self.spec = spec

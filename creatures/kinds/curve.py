@@ -168,6 +168,7 @@ class _Rest(Rest):
 @register("curve")
 class Curve(CreatureKind):
     Spec = CurveSpec
+    FIGURE_ONLY = "it mirrors and compares the shipped figure's named limbs (chest, elbows, wrists, hands)"
 
     def __init__(self, spec: CurveSpec, world: "World", rng: np.random.Generator) -> None:
         super().__init__(spec, world, rng)

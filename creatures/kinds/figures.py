@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Literal
 
 import numpy as np
-from pydantic import Field
+from pydantic import Field, model_validator
 
 import installations
 from creatures.kinds.layers import BodySpec
@@ -49,6 +49,14 @@ class FigureBodySpec(BodySpec):
                                                 "strike), 'dog' (stand, walk, sit, lie down, beg, roll over) "
                                                 "or 'bird' (perch, peck, flap, hop), the last two generated BVH "
                                                 "in installations/bodies/")
+
+    @model_validator(mode="after")
+    def _one_body(self) -> "FigureBodySpec":
+        """A shipped figure and a body from files are two answers to one question: give one."""
+        if self.figure != "stick" and self.custom:
+            raise ValueError(f"figure = {self.figure!r} and animations both name the body: give one "
+                             "(a shipped figure, or files of its own: docs/bodies.md)")
+        return self
 
 
 EFFECTORS: dict[str, str] = {"stick": "hand_r", "dog": "nose_end", "bird": "beak_end"}

@@ -12,14 +12,19 @@ resolves them each tick and keeps the frame within the source's joint range and 
 from __future__ import annotations
 
 import functools
+from pathlib import Path
 
-from pydantic import BaseModel, Field, field_validator
+import numpy as np
+
+from pydantic import BaseModel, Field, field_validator, model_validator
 
 from creatures.bounds import FINITE
+from creatures.kinds.body_source import BodyMaterial, MaterialSpec
 from creatures.motor import quaternion as quat
 from creatures.motor.animations import creature_skeleton
 from creatures.motor.blend import Blend, Contribution, Limits, Oscillator, Policy
 from creatures.motor.graph import MotorGraph
+from creatures.motor.material import MaterialError
 from creatures.motor.pose import BodyPose
 
 BREATHING_JOINTS = {"shoulder_l": (0.0, 0.0, 1.0), "shoulder_r": (0.0, 0.0, -1.0), "chest": (1.0, 0.0, 0.0)}
@@ -42,14 +47,17 @@ class BreatheSpec(BaseModel):
 
     @field_validator("joints")
     @classmethod
-    def _known_joints(cls, joints: dict[str, tuple[float, float, float]]) -> dict[str, tuple[float, float, float]]:
-        names = creature_skeleton().names
+    def _nonzero_axes(cls, joints: dict[str, tuple[float, float, float]]) -> dict[str, tuple[float, float, float]]:
         for name, axis in joints.items():
-            if name not in names:
-                raise ValueError(f"no joint {name!r} in the body (joints: {', '.join(names)})")
             if not any(axis):
                 raise ValueError(f"joint {name!r} needs a non-zero axis")
         return joints
+
+    def check_joints(self, names: tuple[str, ...]) -> None:
+        """Every breathing joint must be the body's (ValueError otherwise)."""
+        for name in self.joints:
+            if name not in names:
+                raise ValueError(f"no joint {name!r} in the body (joints: {', '.join(names)})")
 
     def contribution(self, names: tuple[str, ...]) -> Contribution:
         """The breathing layer for a skeleton with joints ``names``: an ``add`` offset masked
@@ -58,12 +66,30 @@ class BreatheSpec(BaseModel):
         return Contribution("breathe", breath, Policy.ADD, mask=breath.mask, fade=self.fade)
 
 
-class BodySpec(BaseModel):
-    """``[creature.body]``: layers blended over the course the body follows on the motor graph."""
+class BodySpec(MaterialSpec):
+    """``[creature.body]``: a body of its own from files (no files: the shipped figure; docs/bodies.md) and layers over its course.
 
-    model_config = FINITE
+    The material keys are :class:`~creatures.kinds.body_source.MaterialSpec`'s; the layers are
+    blended over the course the body follows on the motor graph."""
 
     breathe: BreatheSpec = BreatheSpec()
+
+    @model_validator(mode="after")
+    def _breathing_joints(self) -> "BodySpec":
+        """The shipped figure's joints are known now; a body from files is checked when it loads
+        (:meth:`resolve`), and only if it breathes."""
+        if not self.custom:
+            self.breathe.check_joints(creature_skeleton().names)
+        return self
+
+    def resolve(self, base: Path) -> BodyMaterial:
+        body = super().resolve(base)
+        if self.breathe.depth > 0.0:
+            try:
+                self.breathe.check_joints(body.graph.skeleton.names)
+            except ValueError as exc:
+                raise MaterialError(str(exc), ("breathe", "joints")) from None
+        return body
 
     def contributions(self, names: tuple[str, ...]) -> list[Contribution]:
         """The layers this spec asks for (none: the course alone drives the body, as before)."""
@@ -84,9 +110,12 @@ class BodyLayers:
     (:class:`~creatures.motor.blend.Limits`), measured from the frame shown before.
     """
 
-    def __init__(self, graph: MotorGraph, layers: list[Contribution], t: float = 0.0) -> None:
+    def __init__(self, graph: MotorGraph, layers: list[Contribution], t: float = 0.0, *,
+                 joint_limits: np.ndarray | None = None) -> None:
         self.skeleton = graph.skeleton
         self.limits = _limits(graph)
+        if joint_limits is not None:  # [creature.body] joint_limits narrow the source's own range
+            self.limits = Limits(np.minimum(self.limits.range, joint_limits), self.limits.max_speed)
         self.blend = Blend(self.skeleton.joint_count)
         self._course = quat.identity((self.skeleton.joint_count,))
         self.blend.start(Contribution("course", lambda _t: self._course, fade=0.0), t)

@@ -134,8 +134,7 @@ def couple_to_hands(voice: Voice, body: "Body") -> None:
     reach = body.reach()
     low, high = reach.min(axis=0), reach.max(axis=0)
     line = np.linspace(0.0, 1.0, voice.spec.masses)[:, None]
-    joints = [body.skeleton.names.index("hand_l")] if "hand_l" in body.skeleton.names else []
-    voice.couple(low + line * (high - low), [*joints, body.effector_index])
+    voice.couple(low + line * (high - low), body.touching)
 
 
 @functools.lru_cache(maxsize=1)
@@ -219,27 +218,37 @@ class _Trajectory:
 
 
 class Body:
-    """A creature's body on its figure's motor graph, with its own position and course.
+    """A creature's body on a motor graph, with its own position and course.
 
-    ``figure`` picks the body (:mod:`creatures.kinds.figures`: the stick figure, the dog, the
-    bird); ``effector`` defaults to the joint that figure strikes notes with. A figure with
-    root motion walks: the offset it has travelled is kept across courses. With layers in
-    ``spec`` (``[creature.body]``) the course is one contributor among them
-    (:class:`~creatures.kinds.layers.BodyLayers`); without, the course alone is the pose.
+    ``figure`` picks a shipped body (:mod:`creatures.kinds.figures`: the stick figure, the dog,
+    the bird); ``effector`` defaults to the joint that figure strikes notes with. A figure with
+    root motion walks: the offset it has travelled is kept across courses. When ``spec``
+    (``[creature.body]``) names files, the body is built from them at config load instead
+    (:class:`~creatures.kinds.body_source.MaterialSpec`: its effectors strike, and its joint
+    limits always hold, so such a body is always layered). With layers in ``spec`` the course
+    is one contributor among them (:class:`~creatures.kinds.layers.BodyLayers`); without, the
+    course alone is the pose.
     """
 
     def __init__(self, rng: np.random.Generator, *, effector: str | None = None, ratios: bool = False,
                  spec: BodySpec | None = None, figure: Figure = "stick") -> None:
+        spec = spec or BodySpec()
+        own = spec.material() if spec.custom else None
         self.figure = figure
-        self.graph = figure_graph(figure, ratios)
+        self.graph = figure_graph(figure, ratios) if own is None else own.graph
         self.finder = PathFinder(self.graph)
         self.finder.prepare()  # its landmark tables (~10 ms) before the first tick, not in it
         start = int(rng.integers(len(self.graph)))
         self.motor = MotorSystem(self.graph, start=start, finder=self.finder)
-        self.effector = effector or EFFECTORS[figure]
+        self.effectors = (effector or EFFECTORS[figure],) if own is None else own.effectors
+        self.effector = self.effectors[0]
         self.skeleton = self.graph.skeleton
         self.effector_index = self.skeleton.names.index(self.effector)
-        self.root_motion = RootMotion.of(figure, self.graph)
+        # The joints that push the voice's strings: the figure's free hand (if it has one) and
+        # its effector, or every effector of a body of one's own.
+        pushing = (("hand_l",) if "hand_l" in self.skeleton.names else ()) + self.effectors if own is None else own.effectors
+        self.touching = [self.skeleton.index(name) for name in dict.fromkeys(pushing)]
+        self.root_motion = RootMotion.of(figure, self.graph) if own is None else None
         self.travelled = np.zeros(3)
         """Where root motion had taken the body when its last course began or ended."""
         self.offset = np.zeros(3)
@@ -247,8 +256,11 @@ class Body:
         frame, in which its graph, its reach and the notes in its space are laid out."""
         self._trajectory: _Trajectory | None = None
         self._pose: BodyPose = self._rest_pose(start, 0.0)
-        layers = (spec or BodySpec()).contributions(self.skeleton.names)
-        self.layers = BodyLayers(self.graph, layers) if layers else None
+        layers = spec.contributions(self.skeleton.names)
+        if own is not None:
+            self.layers: BodyLayers | None = BodyLayers(self.graph, layers, joint_limits=own.limits)
+        else:
+            self.layers = BodyLayers(self.graph, layers) if layers else None
 
     def _rest_pose(self, node: int, t: float) -> BodyPose:
         poses = self.graph.poses

@@ -65,7 +65,8 @@ class MotorGraph:
     ) -> None:
         self.poses = poses
         self.weights = weights or MetricWeights()
-        self._base = dict(edges)
+        self._edge_dict: dict[tuple[int, int], float] | None = dict(edges)
+        self._edge_arrays: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
         self._scales = dict(scales or {})
         self.forbidden = set(forbidden or ())
         self.favour = np.ones(len(poses)) if favour is None else np.asarray(favour, dtype=float)
@@ -94,6 +95,21 @@ class MotorGraph:
         return graph
 
     @property
+    def _base(self) -> dict[tuple[int, int], float]:
+        """Base edge costs by ``(from, to)``. A graph read from the binary cache keeps its edges
+        as arrays until something asks for the dict (an edit, a listing): half a million edge
+        tuples were most of a cached reload, and search needs only the arrays."""
+        if self._edge_dict is None:
+            a, b, costs, _ = self._edge_arrays
+            self._edge_dict = dict(zip(zip(a.tolist(), b.tolist()), costs.tolist()))
+            self._edge_arrays = None
+        return self._edge_dict
+
+    @_base.setter
+    def _base(self, edges: dict[tuple[int, int], float]) -> None:
+        self._edge_dict, self._edge_arrays = edges, None
+
+    @property
     def skeleton(self) -> Skeleton:
         return self.poses.skeleton
 
@@ -102,7 +118,7 @@ class MotorGraph:
 
     @property
     def edge_count(self) -> int:
-        return len(self._base)
+        return len(self._edge_arrays[0]) if self._edge_dict is None else len(self._edge_dict)
 
     def edges(self) -> dict[tuple[int, int], float]:
         """Current edge costs (base metric × edge scale × node favour)."""
@@ -169,6 +185,11 @@ class MotorGraph:
         self._base.update({edge: cost for edge, cost in found.items() if edge not in self.forbidden})
         self._complete()
         return new
+
+    def reconnect(self) -> None:
+        """After edits (a forbidden edge can cut an island off): reverse edges and bridges
+        again, never re-forging a forbidden edge (see :meth:`_complete`)."""
+        self._complete()
 
     def _complete(self) -> None:
         """Give every edge its reverse, then bridge islands until the graph is strongly connected.
@@ -244,9 +265,13 @@ class MotorGraph:
     def adjacency(self) -> Adjacency:
         """CSR adjacency of the current edges (cached until the next edit)."""
         if self._adjacency is None:
-            edges = self.edges()
-            pairs = np.array(list(edges), dtype=np.int64).reshape(-1, 2)
-            costs = np.fromiter(edges.values(), dtype=float, count=len(edges))
+            if self._edge_dict is None:  # straight from the cached arrays
+                a, b, base, scales = self._edge_arrays
+                pairs, costs = np.stack((a, b), axis=1), base * scales * self.favour[a]
+            else:
+                edges = self.edges()
+                pairs = np.array(list(edges), dtype=np.int64).reshape(-1, 2)
+                costs = np.fromiter(edges.values(), dtype=float, count=len(edges))
             order = np.lexsort((pairs[:, 1], pairs[:, 0]))
             pairs, costs = pairs[order], costs[order]
             indptr = np.zeros(len(self.poses) + 1, dtype=np.int64)
@@ -299,6 +324,51 @@ class MotorGraph:
             "edges": edges,
             "forbidden": [f"{a} {b}" for a, b in sorted(self.forbidden)],
         }
+
+    def edges_arrays(self) -> dict[str, np.ndarray]:
+        """The edges as arrays (``edge_from``, ``edge_to``, ``edge_cost``, ``edge_scale``): the
+        binary cache's layout (:mod:`~creatures.motor.body_build`)."""
+        if self._edge_dict is None:
+            return dict(zip(("edge_from", "edge_to", "edge_cost", "edge_scale"), self._edge_arrays))
+        pairs = np.array(list(self._base), dtype=np.int64).reshape(-1, 2)
+        costs = np.fromiter(self._base.values(), dtype=float, count=len(self._base))
+        scales = np.array([self._scales.get(edge, 1.0) for edge in self._base], dtype=float)
+        return {"edge_from": pairs[:, 0], "edge_to": pairs[:, 1], "edge_cost": costs, "edge_scale": scales}
+
+    @classmethod
+    def from_arrays(cls, poses: PoseSet, data: Any, *, weights: MetricWeights | None = None) -> MotorGraph:
+        """A graph from :meth:`edges_arrays` plus ``favour``, ``forbidden`` and ``speeds``
+        (:attr:`timing`'s typical and top speed, which take seconds to measure on a long take)
+        arrays, every array checked (ValueError names the first problem): a damaged cache must
+        not become a wrong body."""
+        n, joints = len(poses), poses.skeleton.joint_count
+        if poses.rotations.shape != (n, joints, 4) or poses.velocities.shape != (n, joints, 3):
+            raise ValueError(f"pose arrays do not fit a {joints}-joint skeleton")
+        for name in ("rotations", "velocities", "roots", "times", "positions"):
+            if not np.all(np.isfinite(getattr(poses, name))):
+                raise ValueError(f"non-finite {name}")
+        a, b = np.asarray(data["edge_from"]), np.asarray(data["edge_to"])
+        costs, scales = np.asarray(data["edge_cost"], dtype=float), np.asarray(data["edge_scale"], dtype=float)
+        favour = np.asarray(data["favour"], dtype=float)
+        forbidden = np.asarray(data["forbidden"]).reshape(-1, 2)
+        if not (a.shape == b.shape == costs.shape == scales.shape and a.ndim == 1 and favour.shape == (n,)):
+            raise ValueError("edge arrays disagree in length")
+        for name, nodes in (("edge", np.concatenate((a, b))), ("forbidden", forbidden.ravel())):
+            if nodes.size and not (nodes.dtype.kind == "i" and nodes.min() >= 0 and nodes.max() < n):
+                raise ValueError(f"{name} names a node outside 0..{n - 1}")
+        if not (np.all(np.isfinite(costs) & (costs >= 0)) and np.all(np.isfinite(scales) & (scales > 0))
+                and np.all(np.isfinite(favour) & (favour > 0))):
+            raise ValueError("edge costs, scales or favours out of range")
+        scaled = np.flatnonzero(scales != 1.0)
+        graph = cls(poses, {}, weights=weights,
+                    scales={(int(a[i]), int(b[i])): float(scales[i]) for i in scaled},
+                    forbidden={(int(x), int(y)) for x, y in forbidden.tolist()}, favour=favour)
+        graph._edge_dict, graph._edge_arrays = None, (a.astype(np.int64), b.astype(np.int64), costs, scales)
+        speeds = np.asarray(data["speeds"], dtype=float)
+        if not (speeds.shape == (2,) and np.all(np.isfinite(speeds) & (speeds > 0))):
+            raise ValueError("speeds must be two positive numbers")
+        graph._timing = metric.Timing(metric.successors(poses), float(speeds[0]), float(speeds[1]))
+        return graph
 
     def save(self, path: str | os.PathLike) -> None:
         """Write the graph atomically as JSON (``creatures.persist``)."""

@@ -116,7 +116,8 @@ def _approximate(
     poses: PoseSet, rows: np.ndarray, cols: np.ndarray, k: int, weights: MetricWeights, next_frame: np.ndarray,
     oversample: int,
 ) -> Iterator[Pairs]:
-    """KD-tree candidates (``oversample × k`` per row) with their full costs."""
+    """KD-tree candidates (``oversample × k`` per row) with their full costs (``inf`` for those
+    that cannot be among a row's ``k`` nearest: :func:`metric.nearest_costs`)."""
     features = _features(poses)
     sample = features[cols[:: max(1, len(cols) // 2000)]]
     centre = sample.mean(axis=0)
@@ -133,7 +134,7 @@ def _approximate(
     for start in range(0, len(rows), block):
         a = rows[start : start + block]
         b = candidates[start : start + block]
-        yield np.repeat(a, count), b.ravel(), metric.edge_costs(poses, a[:, None], b, weights, next_frame).ravel()
+        yield np.repeat(a, count), b.ravel(), metric.nearest_costs(poses, a, b, weights, next_frame, k).ravel()
 
 
 def _features(poses: PoseSet) -> np.ndarray:

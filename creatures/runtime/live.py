@@ -384,7 +384,8 @@ def run_live(
 
     previous = signal.signal(signal.SIGTERM, stop)
     session.world.emit("run", title=settings.title, mode="live", seed=settings.seed,
-                       creatures=[c.name for c in session.creatures], restored=summary.restored)
+                       creatures=[c.name for c in session.creatures], restored=summary.restored,
+                       config=str(inst.path))
     bodies = None
     if pictures is not None:
         bodies = FramesBeside(settings.output, pictures, wall, summary.messages)

@@ -135,7 +135,7 @@ def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path 
     session.world.recording = settings.output.midi  # out.mid's input track and heard tempo
     sources = open_sources(inst, session.inputs, clock, messages.append, live=False)  # rehearsal files
     session.world.emit("run", title=settings.title, mode="offline", duration=duration, seed=settings.seed,
-                       creatures=[c.name for c in session.creatures])
+                       creatures=[c.name for c in session.creatures], config=str(inst.path))
     poses = PoseLog(settings.view.log_fps, session.world, messages.append) if settings.view.log_fps else None
     notes, samples = _inputs(inst, audio, midi, duration, session.input_rng)
     for note in notes:

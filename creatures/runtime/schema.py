@@ -26,6 +26,8 @@ from creatures.authored.percepts import ROOM_PERCEPTS
 from creatures.room.crowd import CrowdError, expand as expand_crowds
 from creatures.room.spec import RoomSection
 from creatures.room.stage import RoomError, StageError, check_places, recipes as room_recipes
+from creatures.kinds.body_source import MaterialSpec
+from creatures.motor.material import MaterialError
 
 
 LONGEST_SEED = 2**63 - 1
@@ -353,6 +355,7 @@ def load_installation(path: str | Path) -> LoadedInstallation:
             hint = f" (did you mean {close[0]!r}?)" if close else f" (choose from {known})"
             raise config_error(path, where, ("creature", i, "kind"), f"unknown creature kind {kind!r}{hint}")
         spec = validate(kinds[kind].Spec, table, where, path, prefix=("creature", i))
+        _resolve_body(kinds[kind], spec, path, where, ("creature", i))
         check = getattr(spec, "check_references", None)  # kinds that name parts resolve them now
         if check is not None:
             check(path, where, ("creature", i))
@@ -402,6 +405,24 @@ def load_installation(path: str | Path) -> LoadedInstallation:
             raise config_error(path, where, ("output", "cc", i, "source"), problem)
     return _with_input_maps(path, settings, specs, where, ("input",) if isinstance(data.get("input"), list)
                             else ("input", "map"))
+
+
+def _resolve_body(kind: type, spec: CreatureSpec, path: Path, where: dict[tuple, tuple[Path, int]],
+                  prefix: tuple[str | int, ...]) -> None:
+    """Build (or load from its cache) a ``[creature.body]`` from files, relative to the file that
+    names them (an included creature file's own directory); errors name the key's line and,
+    inside, the source file's own line."""
+    body = getattr(spec, "body", None)
+    if not isinstance(body, MaterialSpec) or not body.custom:
+        return
+    at = (*prefix, "body")
+    if kind.FIGURE_ONLY:
+        raise config_error(path, where, at, f"kind {spec.kind!r} moves the shipped figure only: {kind.FIGURE_ONLY}")
+    named = [file for key, (file, _) in where.items() if key[:len(at)] == at]
+    try:
+        body.resolve((named[0] if named else path).parent)
+    except MaterialError as exc:
+        raise config_error(path, where, (*at, *exc.key), str(exc)) from None
 
 
 def _with_input_maps(path: Path, settings: Installation, specs: list[CreatureSpec],

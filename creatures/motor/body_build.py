@@ -1,0 +1,184 @@
+"""Building a body's motor graph from its files, once: cached on disk by a hash of its sources.
+
+A graph from ten minutes of capture takes seconds to build (nearest poses, costs, the
+playback speed limit), and an installation restarts every morning. So the graph is built at
+config load and written to ``<cache>/<body>.npz`` with the hash of everything it was built
+from — the bytes of the skeleton, every animation, every edit file and every file those
+edits add or blend, and the parameters (labels, frame steps, scale, up axis, root motion,
+rest pose, neighbours). A restart whose sources hash the same loads the graph; a cache
+whose hash differs (a file changed: stale) or that does not read back (truncated, foreign,
+damaged: corrupt) is never trusted — the graph is rebuilt and the reason logged. The cache
+is NPZ (arrays plus JSON strings), written atomically, read with ``allow_pickle=False``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from creatures.motor.graph import MotorGraph
+from creatures.motor.graph_edits import (EditError, EditFile, added_material, apply_edges, blended, check_skeleton,
+                                         edits_from, read_edits)
+from creatures.motor.material import (Animation, Conventions, Material, MaterialError, convert_skeleton, fingerprint,
+                                      load_material, load_skeleton, read_take)
+from creatures.motor.metric import MetricWeights
+from creatures.motor.pose import LOW_ENERGY, PoseSet
+from creatures.motor.skeleton import Skeleton
+from creatures.persist import atomic_write
+
+logger = logging.getLogger(__name__)
+
+CACHE_VERSION = 4
+"""Bumped whenever the cache layout or the graph builder changes what a cache holds."""
+
+
+@dataclass(frozen=True)
+class Sources:
+    """Everything a body's graph is built from (resolved paths)."""
+
+    animations: tuple[Animation, ...]
+    skeleton: Path | None = None
+    edits: tuple[Path, ...] = ()
+    conventions: Conventions = Conventions()
+    rest: tuple[tuple[str, tuple[float, float, float]], ...] | None = None
+    rest_labels: tuple[str, ...] = ()
+    neighbours: int = 6
+    inline: str = ""  # the config's own edits as JSON, files they name relative to inline_base
+    inline_base: Path | None = None
+
+    def key(self, edit_files: list[EditFile]) -> str:
+        """Hash of the parameters and the bytes of every file the graph reads."""
+        digest = hashlib.sha256()
+        parameters = {
+            "version": CACHE_VERSION, "conventions": vars(self.conventions), "rest": self.rest,
+            "rest_labels": self.rest_labels, "neighbours": self.neighbours,
+            "animations": [(str(a.file), sorted(a.labels.items()), a.name, a.step) for a in self.animations],
+            "edits": [str(p) for p in self.edits], "inline": self.inline,
+        }
+        digest.update(json.dumps(parameters, sort_keys=True, default=str).encode())
+        files = [*([self.skeleton] if self.skeleton else []), *(a.file for a in self.animations), *self.edits]
+        files += [f.path.parent / e.fields["file"] for f in edit_files for e in f.edits if "file" in e.fields]
+        for path in files:
+            digest.update(str(path).encode() + b"\0")
+            try:
+                digest.update(path.read_bytes())
+            except OSError:
+                digest.update(b"<unreadable>")  # the build names the file when it reads it
+        return digest.hexdigest()
+
+
+def build(sources: Sources, edit_files: list[EditFile]) -> MotorGraph:
+    """Material → added takes → blends → graph → rest labels → edge edits (see :mod:`graph_edits`)."""
+    conventions = sources.conventions
+    first = read_take(sources.animations[0], ("animations", 0))  # read once, for the skeleton too
+    if sources.skeleton is not None:
+        skeleton = load_skeleton(sources.skeleton, conventions)
+    else:
+        skeleton = convert_skeleton(first.skeleton, conventions)
+    material = load_material(skeleton, list(sources.animations), conventions,
+                             rest=dict(sources.rest) if sources.rest is not None else None,
+                             rest_labels=sources.rest_labels, first=first)
+    expected = fingerprint(skeleton)
+    for i, edit_file in enumerate(edit_files):
+        _as_material_error(lambda: check_skeleton(edit_file, skeleton, expected), i)
+    takes = _as_material_error(lambda: added_material(edit_files, skeleton, conventions,
+                                                      set(material.poses.sources)), None)
+    if takes:
+        poses = PoseSet.concatenate([material.poses, *(t for t, _ in takes)])
+        material = Material(poses, {**material.frame_times,
+                                    **{t.sources[0]: ft for t, ft in takes}})
+    material = _as_material_error(lambda: blended(material, edit_files, skeleton, conventions), None)
+    graph = MotorGraph.build(material.poses, k=sources.neighbours)
+    graph.annotate_low_energy()
+    for label in sources.rest_labels:
+        nodes = material.poses.labelled(label)
+        if not nodes.size:
+            raise MaterialError(f"rest label {label!r} is on no frame of the animations", ("rest_labels",))
+        for node in nodes.tolist():
+            graph.label(node, LOW_ENERGY)
+    _as_material_error(lambda: apply_edges(graph, material, edit_files), None)
+    graph.reconnect()
+    if not graph.poses.labelled(LOW_ENERGY).size:
+        raise MaterialError("the body has no pose to rest in: no frame is still, so give rest_labels "
+                            "(labels of frames to rest in) or a rest_pose", ("rest_labels",))
+    return graph
+
+
+def _as_material_error(step: Callable, index: int | None):
+    """Run ``step``; an :class:`EditError` becomes a MaterialError at ``graph_edits`` (its message
+    names the edit file and line)."""
+    try:
+        return step()
+    except EditError as exc:
+        raise MaterialError(str(exc), ("graph_edits", *([index] if index is not None else []))) from None
+
+
+def load_or_build(sources: Sources, cache: Path | None) -> MotorGraph:
+    """The body's graph: from ``cache`` when its hash matches the sources, else built (and cached)."""
+    edit_files = []
+    for i, path in enumerate(sources.edits):
+        edit_files.append(_as_material_error(lambda path=path: read_edits(path), i))
+    if sources.inline:
+        where = (sources.inline_base or Path(".")) / "[creature.body] edits"
+        try:
+            edit_files.append(edits_from(json.loads(sources.inline), where, {}, None))
+        except EditError as exc:
+            raise MaterialError(str(exc), ("edits",)) from None
+    key = sources.key(edit_files)
+    if cache is not None and cache.exists():
+        graph = read_cache(cache, key)
+        if graph is not None:
+            return graph
+    graph = build(sources, edit_files)
+    if cache is not None:
+        try:
+            cache.parent.mkdir(parents=True, exist_ok=True)
+            write_cache(cache, key, graph)
+        except OSError as exc:  # a read-only installation directory: the body still works, rebuilt each start
+            logger.warning("%s: cannot write the motor-graph cache (%s); it will be rebuilt next start", cache, exc)
+    return graph
+
+
+def write_cache(path: Path, key: str, graph: MotorGraph) -> None:
+    """The graph as NPZ arrays (atomic)."""
+    p = graph.poses
+    edges = graph.edges_arrays()
+    kinds = sorted({tuple(sorted(x)) for x in p.labels})  # few distinct label sets: one entry each
+    index = {k: i for i, k in enumerate(kinds)}
+    arrays = {
+        "key": np.array(key), "skeleton": np.array(json.dumps(graph.skeleton.to_dict())),
+        "weights": np.array(json.dumps(graph.weights.to_dict())), "sources": np.array(json.dumps(p.sources)),
+        "label_sets": np.array(json.dumps(kinds)),
+        "label_ids": np.array([index[tuple(sorted(x))] for x in p.labels], dtype=np.int64),
+        "rotations": p.rotations, "velocities": p.velocities, "roots": p.roots, "times": p.times,
+        "source_ids": p.source_ids, "favour": graph.favour,
+        "forbidden": np.array(sorted(graph.forbidden), dtype=np.int64).reshape(-1, 2), **edges,
+        "speeds": np.array([graph.timing.typical_speed, graph.timing.max_speed]),
+    }
+    atomic_write(path, lambda handle: np.savez(handle, **arrays), "wb")
+
+
+def read_cache(path: Path, key: str) -> MotorGraph | None:
+    """The cached graph, or None (with a log line saying why) when it is stale or corrupt."""
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            if str(data["key"]) != key:
+                logger.warning("%s: motor-graph cache is stale (its sources changed); rebuilding", path)
+                return None
+            skeleton = Skeleton.from_dict(json.loads(str(data["skeleton"])), source=str(path))
+            sets = [frozenset(x) for x in json.loads(str(data["label_sets"]))]
+            labels = [sets[i] for i in data["label_ids"].tolist()]  # IndexError: a damaged cache
+            poses = PoseSet(skeleton, data["rotations"], data["velocities"], data["roots"], data["times"],
+                            data["source_ids"], json.loads(str(data["sources"])), labels)  # positions: FK, faster than reading them
+            graph = MotorGraph.from_arrays(poses, data, weights=MetricWeights.from_dict(json.loads(str(data["weights"]))))
+    except (OSError, KeyError, IndexError, ValueError, TypeError, EOFError, zipfile.BadZipFile) as exc:
+        logger.warning("%s: motor-graph cache is corrupt (%s); rebuilding", path, str(exc)[:200])
+        return None
+    return graph

@@ -1,0 +1,226 @@
+"""Motor-graph edit files and the body's cache (issue 16): edits keyed by labels and source
+frames merge whatever their order; bad files, bad takes and stale or corrupt caches are named."""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings, strategies as st
+
+from body_fixtures import HIERARCHY, heron_config, heron_frames, write_bvh
+from creatures.config import ConfigError
+from creatures.motor.bvh import BVHError, parse_bvh
+from creatures.motor.graph_edits import EditError, read_edits
+from creatures.motor.material import fingerprint
+from creatures.runtime.schema import load_installation
+
+
+def body_of(config: Path):
+    return load_installation(config).specs[0].body.material()
+
+
+def keyed(graph) -> tuple[dict, dict, dict]:
+    """The graph by node names (source@frame), not indices: edges with costs, favours, labels."""
+    p = graph.poses
+    frame = {s: 1.0 / 20.0 for s in p.sources}
+    frame["rest"] = 1.0
+    name = [f"{p.sources[s]}@{round(t / frame[p.sources[s]])}" for s, t in zip(p.source_ids, p.times)]
+    edges = {(name[a], name[b]): round(c, 9) for (a, b), c in graph.edges().items()}
+    return edges, {name[i]: f for i, f in enumerate(graph.favour) if f != 1.0}, {name[i]: l for i, l in enumerate(p.labels)}
+
+
+def test_two_edit_files_written_apart_merge_in_either_order(tmp_path: Path):
+    config = heron_config(tmp_path)
+    base = body_of(config).graph
+    stamp = fingerprint(base.skeleton)
+    write_bvh(tmp_path / "higher.bvh", heron_frames(2.0) * [1, 1, 1, 1, 1, 1, 1, 1.3, 1, 1, 1.5, 1])
+    (tmp_path / "alice.toml").write_text(f'''skeleton = "{stamp}"
+[[forbid]]
+from = "heron@10"
+to = "heron@11"
+[[favour]]
+node = "peck"
+multiplier = 0.5
+[[blend]]
+nodes = "heron@20..30"
+file = "higher.bvh"
+frames = [0, 10]
+weight = 0.5
+''')
+    (tmp_path / "bob.toml").write_text(f'''skeleton = "{stamp}"
+[[add]]
+file = "higher.bvh"
+labels = {{ stretch = [[5, 9]] }}
+[[forge]]
+from = "stretch"
+to = "rest@0"
+[[reweight]]
+from = "heron@50"
+to = "heron@51"
+scale = 3.0
+''')
+    text = config.read_text()
+    config.write_text(text.replace("[[creature.body.animations]]",
+                                   'graph_edits = ["alice.toml", "bob.toml"]\n[[creature.body.animations]]'))
+    forward = body_of(config).graph
+    config.write_text(text.replace("[[creature.body.animations]]",
+                                   'graph_edits = ["bob.toml", "alice.toml"]\n[[creature.body.animations]]'))
+    backward = body_of(config).graph
+    assert keyed(forward) == keyed(backward)
+    edges, favour, labels = keyed(forward)
+    assert ("heron@10", "heron@11") not in edges and ("heron@10", "heron@11") in keyed(base)[0]
+    assert favour and all(v == 0.5 and "peck" in labels[k] for k, v in favour.items())
+    assert ("higher@5", "rest@0") in edges  # bob's forged edge from alice-independent new material
+    assert len(forward) == len(base) + 40
+    p = forward.poses
+    blended = p.rotations[(p.source_ids == 0) & (p.times >= 1.0) & (p.times <= 1.5)]
+    original = base.poses.rotations[(base.poses.source_ids == 0) & (base.poses.times >= 1.0) & (base.poses.times <= 1.5)]
+    assert not np.allclose(blended, original)  # node contents pulled toward the new take
+
+
+def test_disagreeing_edits_are_a_conflict_naming_both(tmp_path: Path):
+    config = heron_config(tmp_path)
+    stamp = fingerprint(body_of(config).graph.skeleton)
+    for who, value in (("a", 0.5), ("b", 2.0)):
+        (tmp_path / f"{who}.toml").write_text(f'skeleton = "{stamp}"\n\n[[favour]]\nnode = "heron@3"\nmultiplier = {value}\n')
+    config.write_text(config.read_text().replace(
+        "[[creature.body.animations]]", 'graph_edits = ["a.toml", "b.toml"]\n[[creature.body.animations]]'))
+    with pytest.raises(ConfigError, match=r"b\.toml:3: conflicts with .*a\.toml:3"):
+        load_installation(config)
+
+
+@pytest.mark.parametrize("edit, message", [
+    ('skeleton = "000000000000"\n', r"edit file is for skeleton '000000000000'"),
+    ('skeleton = "{s}"\n[[forbid]]\nfrom = "heron@999"\nto = "peck"\n', r"x\.toml:3: node 'heron@999'.*frames 0\.\.239"),
+    ('skeleton = "{s}"\n[[favour]]\nnode = "nosuchlabel"\nmultiplier = 1\n', r"x\.toml:3: node 'nosuchlabel'"),
+    ('skeleton = "{s}"\n[[favour]]\nnode = "peck"\nmultiplier = -1\n', r"x\.toml:4: \[\[favour\]\] multiplier"),
+    ('skeleton = "{s}"\n[[smear]]\nnode = "peck"\n', r"unknown edit 'smear'"),
+])
+def test_bad_edit_files_are_named_with_their_line(tmp_path: Path, edit: str, message: str):
+    config = heron_config(tmp_path)
+    (tmp_path / "x.toml").write_text(edit.replace("{s}", fingerprint(body_of(config).graph.skeleton)))
+    config.write_text(config.read_text().replace(
+        "[[creature.body.animations]]", 'graph_edits = ["x.toml"]\n[[creature.body.animations]]'))
+    with pytest.raises(ConfigError, match=message) as error:
+        load_installation(config)
+    assert "graph_edits" in str(error.value)
+
+
+def _with_take(tmp_path: Path, text: str) -> Path:
+    config = heron_config(tmp_path)
+    (tmp_path / "heron.bvh").write_text(text)
+    return config
+
+
+FRAMES = "MOTION\nFrames: 2\nFrame Time: 0.05\n"
+ROW = "0 10 0 0 0 0 1 2 3 4 5 6\n"
+
+
+@pytest.mark.parametrize("text, message", [
+    (HIERARCHY + FRAMES + ROW, r"heron\.bvh:\d+: file ends after 1 of 2 frames"),
+    (HIERARCHY + "MOTION\nFrames: 0\nFrame Time: 0.05\n", r"heron\.bvh:22: frame count must be a positive"),
+    (HIERARCHY + FRAMES + ROW + "0 10 0 0 0 0 1 2 3 4 5\n", r"heron\.bvh:25: frame row has 11 values.*12 channels"),
+    (HIERARCHY + FRAMES + ROW + "0 10 0 0 0 0 1 nan 3 4 5 6\n", r"heron\.bvh:25: .*non-finite"),
+    (HIERARCHY + FRAMES + ROW + "0 10 0 0 0 0 1 1e300 3 4 5 6\n", r"heron\.bvh:25: .*beyond"),
+    (HIERARCHY.replace("JOINT head", "JOINT neck") + FRAMES + ROW * 2, r"heron\.bvh:10: joint 'neck' is named twice"),
+    (HIERARCHY[:200], r"heron\.bvh:\d+: unexpected end of file"),
+])
+def test_bad_takes_are_named_with_their_line(tmp_path: Path, text: str, message: str):
+    with pytest.raises(ConfigError, match=message) as error:
+        load_installation(_with_take(tmp_path, text))
+    assert "heron.toml" in str(error.value) and "animations" in str(error.value)
+
+
+def test_labels_for_frames_a_take_lacks_are_named(tmp_path: Path):
+    config = heron_config(tmp_path)
+    config.write_text(config.read_text().replace("[[100, 104]]", "[[100, 400]]"))
+    with pytest.raises(ConfigError, match=r"heron\.toml:\d+: creature\.0\.body\.animations\.0\.labels.*"
+                                          r"100\.\.400, but .*heron\.bvh has frames 0\.\.239"):
+        load_installation(config)
+
+
+def test_a_restart_loads_the_cache_and_a_stale_or_corrupt_one_is_rebuilt(tmp_path: Path, caplog, monkeypatch):
+    config = heron_config(tmp_path)
+    first = body_of(config).graph
+    (cache,) = (tmp_path / ".motor-cache").glob("*.npz")
+    import creatures.motor.body_build as body_build
+    built = []
+    real = body_build.build
+    monkeypatch.setattr(body_build, "build", lambda *a: built.append(1) or real(*a))
+    again = body_of(config).graph
+    assert not built and again.edges() == first.edges()  # a restart does not rebuild
+    caplog.set_level(logging.WARNING)
+    cache.write_bytes(cache.read_bytes()[:1000])  # truncated
+    assert body_of(config).graph.edges() == first.edges() and built == [1]
+    assert "corrupt" in caplog.text and str(cache) in caplog.text
+    rows = heron_frames()
+    rows[:, 10] *= 0.5
+    write_bvh(tmp_path / "heron.bvh", rows)  # a source changed: the cache is stale
+    changed = body_of(config).graph
+    assert built == [1, 1] and "stale" in caplog.text
+    assert not np.allclose(changed.poses.rotations, first.poses.rotations)
+
+
+_TOKENS = st.sampled_from(["HIERARCHY", "ROOT", "JOINT", "End", "Site", "{", "}", "OFFSET", "CHANNELS", "3", "6",
+                           "Xrotation", "Zposition", "MOTION", "Frames:", "Frame", "Time:", "0.1", "1", "-2",
+                           "nan", "1e308", "a", "\n"])
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.one_of(st.lists(_TOKENS, max_size=80).map(" ".join),
+                 st.integers(0, 600).map(lambda cut: (HIERARCHY + FRAMES + ROW * 2)[:cut]),
+                 st.text(max_size=200)))
+def test_fuzzed_bvh_is_parsed_or_refused_with_a_line(text: str):
+    try:
+        parse_bvh(text, source="fuzz.bvh")
+    except BVHError as exc:
+        assert str(exc).startswith("fuzz.bvh")
+
+
+@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.one_of(st.text(max_size=300),
+                 st.lists(st.sampled_from(['skeleton = "x"', "[[forbid]]", "[[favour]]", "[[add]]", "[[blend]]",
+                                           'from = "a@1"', 'to = "b"', "node = 3", "multiplier = -1", "weight = 2",
+                                           'frames = [3, 1]', "labels = { a = [[1]] }", 'file = ""', "x = 1",
+                                           "[forbid]", "scale = nan"]), max_size=20).map("\n".join)))
+def test_fuzzed_edit_files_are_read_or_refused_with_their_name(tmp_path_factory, text: str):
+    path = tmp_path_factory.mktemp("edits") / "e.toml"
+    path.write_text(text)
+    try:
+        read_edits(path)
+    except EditError as exc:
+        assert str(exc).startswith(str(path))
+
+
+def test_edits_written_in_the_config_apply_and_merge_with_edit_files(tmp_path: Path):
+    config = heron_config(tmp_path)
+    base = body_of(config).graph
+    (tmp_path / "a.toml").write_text(f'skeleton = "{fingerprint(base.skeleton)}"\n\n[[forbid]]\nfrom = "heron@10"\n'
+                                     'to = "heron@11"\n')
+    config.write_text(config.read_text().replace("[[creature.body.animations]]", '''graph_edits = ["a.toml"]
+edits.favour = [{ node = "peck", multiplier = 0.25 }]
+edits.forbid = [{ from = "heron@20", to = "heron@21" }]
+[[creature.body.animations]]'''))
+    edges, favour, labels = keyed(body_of(config).graph)
+    assert ("heron@10", "heron@11") not in edges and ("heron@20", "heron@21") not in edges
+    assert favour and set(favour.values()) == {0.25} and all("peck" in labels[k] for k in favour)
+    config.write_text(config.read_text().replace('node = "peck"', 'node = "preen"'))
+    with pytest.raises(ConfigError, match=r"\[creature\.body\] edits: favour\.0\.node: node 'preen'"):
+        load_installation(config)
+
+
+def test_kinds_of_the_shipped_figure_and_bodies_without_rest_are_refused(tmp_path: Path):
+    with pytest.raises(ConfigError, match=r"heron\.toml:\d+: creature\.0\.body: kind 'curve' moves the shipped "
+                                          r"figure only"):
+        load_installation(heron_config(tmp_path, kind="curve"))
+    config = heron_config(tmp_path)
+    text = config.read_text()
+    config.write_text(text.replace("rest_pose = { neck = [20.0, 0.0, 0.0] }\n", ""))
+    with pytest.raises(ConfigError, match=r"creature\.0\.body\.rest_labels: the body has no pose to rest in"):
+        load_installation(config)
+    config.write_text(text.replace("effectors = [\"head_end\"]", "effectors = [\"tail\"]"))
+    with pytest.raises(ConfigError, match=r"creature\.0\.body\.effectors.*no joint 'tail'"):
+        load_installation(config)

@@ -1,0 +1,157 @@
+"""A body from files (``[creature.body]`` skeleton, animations, limits; issue 16): a creature on a
+hand-written three-joint BVH body strikes notes by A*, renders, and stays within its limits."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from body_fixtures import BODY, heron_config
+from creatures.events import read_events
+from creatures.cli import main
+from creatures.kinds.parts import Body
+from creatures.motor.export import played, taken_nodes
+from creatures.motor.material import Animation, Conventions, read_animation
+from creatures.motor import quaternion as quat
+from creatures.runtime.offline import run_offline
+from creatures.runtime.schema import load_installation
+from midi.files import write_notes
+from midi.notes import NoteEvent
+
+
+def test_a_creature_on_a_bvh_body_strikes_notes_by_astar_within_its_limits(tmp_path: Path, monkeypatch):
+    inst = load_installation(heron_config(tmp_path, duration=30.0))
+    inst.settings.output.frames = True
+    shown: list = []
+    update = Body.update
+    monkeypatch.setattr(Body, "update", lambda self, t: shown.append(update(self, t)) or shown[-1])
+    phrase = tmp_path / "phrase.mid"
+    write_notes(phrase, [NoteEvent(1.0 + 0.4 * i + 8.0 * r, p, 96, 0, 0.25)
+                         for r in range(3) for i, p in enumerate([60, 64, 67, 72, 76])])
+    run_offline(inst, tmp_path / "out", midi=phrase, progress=False)
+    events = read_events(tmp_path / "out" / "events.jsonl")
+    graph = [e for e in events if e["kind"] == "motor graph"]
+    assert graph and graph[0]["effector"] == "head_end"
+    assert len(graph[0]["hands"]) == 241  # 240 frames of the take and the rest pose
+    seeks = [e for e in events if e["kind"] == "selection" and e.get("tuple") == "seek note"]
+    notes = [e for e in events if e["kind"] == "note" and e["creature"] == "heron"]
+    assert seeks and len(notes) >= 5, (len(seeks), len(notes))
+    placed = {round(e["position"][1], 6) for e in events if e["kind"] == "placed"}
+    assert len(placed) >= 3  # notes were placed where the beak (not a hand) reaches
+    assert sorted((tmp_path / "out" / "frames").glob("*.png"))
+    body = inst.specs[0].body.material()
+    rotations = np.array([p.rotations for p in shown])
+    times = np.array([p.time for p in shown])
+    assert len(rotations) > 500
+    turned = quat.angle_between(rotations, quat.identity(rotations.shape[1:2]))
+    source = quat.angle_between(body.graph.poses.rotations, quat.identity(rotations.shape[1:2])).max(axis=0)
+    assert np.all(turned <= np.minimum(body.limits, source) + 1e-9)
+    assert turned[:, 1].max() > 0.5  # the neck really moved
+    step = quat.angle_between(rotations[1:], rotations[:-1]) / np.maximum(np.diff(times), 1e-12)[:, None]
+    assert step[np.diff(times) > 0].max() <= body.graph.timing.max_speed * (1 + 1e-6)
+
+
+def test_joint_limits_hold_below_what_the_source_shows(tmp_path: Path):
+    """A limit tighter than the take itself clips the shown neck at the limit."""
+    inst = load_installation(heron_config(tmp_path))
+    spec = inst.specs[0].body.model_copy(update={"joint_limits": {"neck": 0.3}})
+    spec.resolve(tmp_path)
+    body = Body(np.random.default_rng(0), spec=spec)
+    angles = []
+    for t in np.arange(0.0, 20.0, 0.04):
+        if body.motor.arrived(t):
+            body.motor.set_course(t, body.motor.course(t, [int(np.random.default_rng(int(t * 25)).integers(241))]))
+        angles.append(quat.angle_between(body.update(t).rotations[1], quat.identity(())))
+    assert 0.29 < max(angles) <= 0.3 + 1e-9
+
+
+def test_without_body_keys_the_shipped_figure_is_unchanged():
+    body = Body(np.random.default_rng(4))
+    assert body.skeleton.joint_count == 19 and body.effector == "hand_r" and body.layers is None
+
+
+def test_export_motion_round_trips_and_loads_back_as_an_animation(tmp_path: Path):
+    """``creatures export-motion``: the path taken, as BVH; imported through the same body it gives
+    the same poses (1e-6 rad per joint) at the same frame times, and merges into the graph."""
+    config = heron_config(tmp_path, duration=20.0)
+    run_offline(load_installation(config), tmp_path / "out", progress=False)
+    out = tmp_path / "motion.bvh"
+    assert main(["export-motion", str(tmp_path / "out"), "--creature", "heron", str(out), "--fps", "40"]) == 0
+    graph = load_installation(config).specs[0].body.material().graph
+    nodes = taken_nodes(read_events(tmp_path / "out" / "events.jsonl"), "heron", len(graph))
+    assert len(nodes) >= 10
+    expected = played(graph, nodes, 40.0)
+    back, frame_time = read_animation(Animation(out), graph.skeleton, Conventions(scale=0.01))
+    assert frame_time == 1.0 / 40.0
+    assert len(back) == len(expected) > 40
+    np.testing.assert_allclose(back.times, expected.times, rtol=0, atol=1e-12)
+    assert quat.angle_between(back.rotations, expected.rotations).max() < 1e-6
+    # Loaded back as one more take of the body, its frames are nodes of the graph.
+    text = config.read_text() + '\n[[creature.body.animations]]\nfile = "motion.bvh"\n'
+    config.write_text(text)
+    merged = load_installation(config).specs[0].body.material().graph
+    assert len(merged) == len(graph) + len(expected)
+    assert "motion" in merged.poses.sources
+    motion = merged.poses.source_ids == merged.poses.sources.index("motion")
+    assert quat.angle_between(merged.poses.rotations[motion], expected.rotations).max() < 1e-6
+
+
+def test_export_motion_names_what_is_missing(tmp_path: Path, capsys):
+    assert main(["export-motion", str(tmp_path), "--creature", "heron", str(tmp_path / "x.bvh")]) == 2
+    assert "no events.jsonl" in capsys.readouterr().err
+    config = heron_config(tmp_path, duration=2.0)
+    run_offline(load_installation(config), tmp_path / "out", progress=False)
+    assert main(["export-motion", str(tmp_path / "out"), "--creature", "egret", str(tmp_path / "x.bvh")]) == 2
+    assert "no creature 'egret'" in capsys.readouterr().err
+    assert not (tmp_path / "x.bvh").exists()
+
+
+def test_an_authored_creature_takes_a_body_from_files(tmp_path: Path):
+    """``body = true`` is the shipped figure; a ``[creature.body]`` table is a body of its own,
+    for authored creatures as for the kinds: ada strikes on the heron's beak."""
+    import installations
+
+    heron_config(tmp_path)  # writes heron.bvh
+    text = (Path(installations.__file__).parent / "exchange.toml").read_text()  # authored creatures
+    marker = "tuples.rest.until.pulse = 2"
+    line = next(row for row in text.splitlines() if row.startswith(marker))
+    config = tmp_path / "authored.toml"
+    config.write_text(text.replace(line, line + "\n" + BODY.format(extra="")))
+    phrase = tmp_path / "phrase.mid"
+    write_notes(phrase, [NoteEvent(1.0 + 0.4 * i + 8.0 * r, p, 96, 0, 0.25)
+                         for r in range(3) for i, p in enumerate([60, 64, 67, 72, 76])])
+    inst = load_installation(config)
+    assert next(s for s in inst.specs if s.name == "ada").body.material().effectors == ("head_end",)
+    run_offline(inst, tmp_path / "out", midi=phrase, duration=30.0, progress=False)
+    events = read_events(tmp_path / "out" / "events.jsonl")
+    graphs = {e["creature"]: e for e in events if e["kind"] == "motor graph"}
+    assert graphs["ada"]["effector"] == "head_end" and graphs["bo"]["effector"] == "hand_r"
+    assert len(graphs["ada"]["hands"]) == 241
+    assert sum(e["kind"] == "note" and e["creature"] == "ada" for e in events) >= 3
+
+
+def test_scale_and_a_z_up_file_give_the_same_body_as_y_up_metres(tmp_path: Path):
+    """The heron written z-up in centimetres (up_axis = "z", scale = 0.01) is the heron in metres, y up."""
+    from body_fixtures import HIERARCHY, write_bvh
+    from creatures.motor.material import load_material, load_skeleton
+
+    z_up = (HIERARCHY.replace("OFFSET 0 50 0", "OFFSET 0 0 50").replace("OFFSET 0 40 0", "OFFSET 0 0 40")
+            .replace("OFFSET 0 0 30", "OFFSET 0 -30 0"))
+    metres = HIERARCHY.replace("OFFSET 0 50 0", "OFFSET 0 0.5 0").replace("OFFSET 0 40 0", "OFFSET 0 0.4 0") \
+        .replace("OFFSET 0 0 30", "OFFSET 0 0 0.3")
+    rows = np.zeros((3, 12))
+    rows[:, 3] = [0.0, 30.0, 60.0]  # the root turns about the file's up axis (Z channel z-up, Y channel y-up)
+    rows[:, 7] = [10.0, 20.0, 40.0]  # the neck pitches about x
+    y_rows = rows.copy()
+    y_rows[:, [3, 5]] = rows[:, [5, 3]]
+    y_rows[:, 1], rows[:, 2] = 0.1, 10.0
+    bodies = []
+    for name, text, table, conventions in (("z", z_up, rows, Conventions(scale=0.01, up_axis="z")),
+                                           ("y", metres, y_rows, Conventions())):
+        path = write_bvh(tmp_path / f"{name}.bvh", table, hierarchy=text)
+        skeleton = load_skeleton(path, conventions)
+        bodies.append(load_material(skeleton, [Animation(path)], Conventions(
+            conventions.scale, conventions.up_axis, root_motion=True)).poses.positions)
+    np.testing.assert_allclose(bodies[0], bodies[1], atol=1e-9)
+    assert bodies[1][:, 3, 1].min() > 0.5  # the beak is up in the air, not lying along z
