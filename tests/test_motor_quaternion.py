@@ -157,7 +157,9 @@ def test_squad_rate_bound_is_never_below_the_rate(raw, raw_controls, nudges):
     keys = quat.normalize(raw)
     for controls in (quat.squad_controls(keys), quat.multiply(keys, quat.exp(nudges)), quat.normalize(raw_controls)):
         rate = quat.squad_rate(keys[:-1], keys[1:], controls[:-1], controls[1:], samples=64)
-        assert np.all(rate <= quat.squad_rate_bound(keys[:-1], keys[1:], controls[:-1], controls[1:]) + 1e-6)
+        # arccos near 1 resolves a step to ~3e-8 rad and the rate is a step times 64: a
+        # segment that does not turn at all can read ~2e-6 (keys all (1, 1, 1, 1) did).
+        assert np.all(rate <= quat.squad_rate_bound(keys[:-1], keys[1:], controls[:-1], controls[1:]) + 5e-6)
 
 
 @given(unit)
