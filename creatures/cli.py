@@ -231,6 +231,52 @@ def _inspect(args: argparse.Namespace) -> int:
     return 0
 
 
+def _state_options(parser: argparse.ArgumentParser) -> None:
+    sub = parser.add_subparsers(dest="action", required=True, metavar="ACTION")
+    d = sub.add_parser("diff", help="what each creature learned between two state folders or snapshots")
+    d.add_argument("before", type=Path)
+    d.add_argument("after", type=Path)
+    r = sub.add_parser("rollback", help="put one creature's state back as a snapshot holds it, byte for byte")
+    r.add_argument("state", type=Path, help="the state folder")
+    r.add_argument("snapshot", type=Path, help="a snapshot folder, or its name in STATE/snapshots")
+    r.add_argument("--creature", required=True)
+    m = sub.add_parser("merge", help="add what one creature learned to another's repertoire (same kind)")
+    m.add_argument("source", type=Path, help="state folder or snapshot to take from")
+    m.add_argument("--creature", required=True, help="the creature of SOURCE")
+    m.add_argument("target", type=Path, help="state folder to merge into")
+    m.add_argument("--into", required=True, help="the creature of TARGET")
+    s = sub.add_parser("snapshots", help="list the dated snapshots of a state folder")
+    s.add_argument("state", type=Path)
+
+
+@command("state", "learned state over a long life: diff, rollback, merge, snapshots (docs/unattended.md)",
+         _state_options)
+def _state(args: argparse.Namespace) -> int:
+    from creatures.persist import StateFileError
+    from creatures.runtime import repertoire, snapshots
+
+    try:
+        if args.action == "diff":
+            changes = repertoire.diff(args.before, args.after)
+            for change in changes:
+                print(change)
+            print(f"{len(changes)} change(s)")
+        elif args.action == "rollback":
+            named = args.state / snapshots.FOLDER / args.snapshot
+            snapshot = named if not args.snapshot.is_dir() and named.is_dir() else args.snapshot
+            print(f"restored {repertoire.rollback(args.state, snapshot, args.creature)} from {snapshot}")
+        elif args.action == "merge":
+            added = repertoire.merge(args.source, args.creature, args.target, args.into)
+            print(f"{args.into}: added {', '.join(added) if added else 'nothing (it knew all of it)'}")
+        else:
+            for when, path in snapshots.listed(args.state):
+                print(f"{when:%Y-%m-%d %H:%M:%S} UTC  {path}")
+    except (StateFileError, OSError) as exc:  # OSError: a folder a run holds (creatures/lock.py)
+        print(f"creatures: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
 @command("config-docs", "print the reference of every config key (docs/config.md)", lambda parser: None)
 def _config_docs(_: argparse.Namespace) -> int:
     from creatures.runtime.docs import config_reference

@@ -27,6 +27,7 @@ from __future__ import annotations
 import signal
 import time
 from dataclasses import dataclass, field
+from datetime import datetime, timezone
 from pathlib import Path
 from typing import Callable
 
@@ -43,6 +44,7 @@ from creatures.runtime.network import Network, open_listener
 from creatures.runtime.outlets import Outlets, check_ports
 from creatures.runtime.schema import LoadedInstallation
 from creatures.runtime.session import Session, write_snapshot
+from creatures.runtime.snapshots import Snapshotter
 from creatures.runtime import kernels
 from creatures.runtime.ticking import TickLoop, TickTiming, gil_handover, realtime, setup_kept
 from creatures.supervisor import Supervisor
@@ -246,20 +248,27 @@ class _Saver:
     reports a failed write as :func:`_save` does. The save on exit stays :func:`_save`."""
 
     def __init__(self, supervisor: Supervisor, state_dir: Path, summary: LiveSummary,
-                 say: Callable[[str], None], every: float) -> None:
-        self.state_dir, self.summary, self.say = state_dir, summary, say
-        self.pending: tuple[list[tuple[str, str]], float] | None = None
+                 say: Callable[[str], None], every: float, snapshots: Snapshotter | None = None) -> None:
+        self.state_dir, self.summary, self.say, self.snapshots = state_dir, summary, say, snapshots
+        self.pending: tuple[list[tuple[str, str]], float, datetime] | None = None
         self.job = supervisor.every(every, self._write, name="state save")
 
     def save(self, session: Session, at: float) -> None:
         """Encode the state now (``at`` seconds into the run) and have it written."""
-        self.pending = (session.snapshot(), at)
+        self.pending = (session.snapshot(), at, datetime.now(timezone.utc))
         self.job.wake()
 
     def _write(self) -> None:
         pending, self.pending = self.pending, None
-        if pending is not None:
-            _write_state(self.state_dir, pending[0], self.summary, self.say, pending[1])
+        if pending is None:
+            return
+        files, at, when = pending
+        _write_state(self.state_dir, files, self.summary, self.say, at)
+        if self.snapshots is not None and self.summary.saved_at == at and self.snapshots.due(when):
+            try:  # the dated copy of what was just saved; a full disk is said, the run goes on
+                self.snapshots.take(files, when)
+            except OSError as exc:
+                self.say(f"could not take a snapshot of the creature state ({exc}); will try again")
 
 
 def check_before_running(inst: LoadedInstallation, *, state: Path | None, log_path: Path | None,
@@ -349,7 +358,11 @@ def run_live(
     loop = TickLoop(session, inputs, wall, clock, settings.tick)
     timing = _Timing(session, loop.timing, sink)
     supervisor.every(HOUSEKEEPING_EVERY, log.flush, name="events log flush")  # a tail -f shows the present
-    saver = _Saver(supervisor, state_dir, summary, say, settings.save_every) if state_dir is not None else None
+    snap = settings.snapshots
+    snapshots = Snapshotter(state_dir, every=snap.every, daily=snap.keep_daily, weekly=snap.keep_weekly) \
+        if state_dir is not None and snap.every is not None else None
+    saver = _Saver(supervisor, state_dir, summary, say, settings.save_every, snapshots) \
+        if state_dir is not None else None
 
     def pause(on: bool) -> None:
         """The console's pause: ticks skipped (silence plays), every note off; on resume the

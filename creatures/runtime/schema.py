@@ -119,6 +119,16 @@ class HealthSection(Strict):
     every: float = Field(1.0, ge=0.1, le=3600, description="seconds between heartbeats")
 
 
+class SnapshotSection(Strict):
+    """Dated snapshots of the learned state, beside it in ``STATE/snapshots/`` (live runs with a
+    state folder; creatures/runtime/snapshots.py): what the colony knew on any day of a long show."""
+
+    every: float | None = Field(None, ge=60, le=366 * 24 * 3600.0,
+                                description="seconds of the run's clock between snapshots (86400 = daily); none = none")
+    keep_daily: int = Field(7, ge=1, le=3660, description="keep the newest snapshot of each of this many last days")
+    keep_weekly: int = Field(8, ge=0, le=520, description="and of each of this many last ISO weeks")
+
+
 class Arg(Strict):
     """A value read from the message: argument ``arg`` (0 = the first), or ``default`` when
     the message has no such argument."""
@@ -251,6 +261,7 @@ class Installation(Strict):
     stream: StreamSection = StreamSection()
     console: ConsoleSection = ConsoleSection()
     health: HealthSection = HealthSection()
+    snapshots: SnapshotSection = SnapshotSection()
     input: InputSection = InputSection()
     output: OutputSection = OutputSection()
     include: list[str] = Field(default_factory=list, max_length=256, description="creature files ([[creature]] "
