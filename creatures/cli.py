@@ -149,6 +149,8 @@ def _run_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--duration", type=_seconds(LONGEST_SECONDS),
                         help="stop after this many seconds (default: run until Ctrl-C)")
     parser.add_argument("--frames", type=Path, help="draw the bodies into this directory (PNGs; a video if the config asks)")
+    parser.add_argument("--supervise", action="store_true",
+                        help="restart the run when it crashes, resuming its saved state (docs/unattended.md)")
 
 
 NO_STATE = ("no state directory: learned state will not be kept (nothing is saved or restored); "
@@ -168,6 +170,12 @@ def _run(args: argparse.Namespace) -> int:
     from creatures.runtime.network import describe
     from creatures.runtime.schema import load_installation
 
+    if args.supervise:
+        from creatures.runtime.keeper import supervise
+
+        again = [f"--{key}={value}" for key, value in vars(args).items()
+                 if key in ("state", "log", "duration", "frames") and value is not None]
+        return supervise([sys.executable, "-m", "creatures.cli", "run", str(args.config), *again])
     try:
         installation = load_installation(args.config)
         state = args.state or installation.resolve(installation.settings.state)
@@ -207,6 +215,36 @@ def _run(args: argparse.Namespace) -> int:
     if summary.unsaved:
         print(f"creatures: {summary.unsaved}", file=sys.stderr)
         return 1
+    return 0
+
+
+def _service_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("config", type=Path, help="installation config (TOML)")
+    parser.add_argument("--state", type=Path, help="directory for saved creature state (overrides the config)")
+    parser.add_argument("--watchdog", type=_seconds(3600.0), default=30.0,
+                        help="seconds without a tick before systemd restarts the run (default 30)")
+    parser.add_argument("--out", type=Path, help="write the unit here (default: print it)")
+
+
+@command("service", "write a systemd unit for an installation (restart on failure, watchdog)", _service_options)
+def _service(args: argparse.Namespace) -> int:
+    from creatures.config import ConfigError
+    from creatures.persist import write_json_text
+    from creatures.runtime.keeper import unit
+    from creatures.runtime.schema import load_installation
+
+    try:
+        load_installation(args.config)  # a unit for a config that does not load would only crash-loop
+        text = unit(args.config, args.state, watchdog=args.watchdog)
+        if args.out is None:
+            sys.stdout.write(text)
+        else:
+            write_json_text(args.out, text)  # atomic, as every file the project writes
+            print(f"wrote {args.out}; install: systemctl --user link {args.out.resolve()} && "
+                  f"systemctl --user enable --now {args.out.name}")
+    except (ConfigError, OSError) as exc:
+        print(f"creatures: {exc}", file=sys.stderr)
+        return 2
     return 0
 
 
