@@ -142,3 +142,63 @@ def test_notifier_speaks_to_abstract_sockets_and_reads_the_watchdog() -> None:
     assert not Notifier({}).ready("nowhere")
     assert watchdog_interval({"WATCHDOG_USEC": "30000000"}) == 15.0
     assert watchdog_interval({"WATCHDOG_USEC": "30000000", "WATCHDOG_PID": "1"}) is None
+
+
+def test_supervisor_restarts_a_killed_run_with_its_learned_state(tmp_path: Path) -> None:
+    """SIGKILL of the colony mid-run: a new one within 5 s, restoring what the first saved."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    config, state, log = tmp_path / "show.toml", tmp_path / "state", tmp_path / "events.jsonl"
+    config.write_text(COLONY)
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parent.parent)}
+    keeper = subprocess.Popen([sys.executable, "-m", "creatures.cli", "run", str(config), "--supervise",
+                               f"--state={state}", f"--log={log}"], env=env, stdout=subprocess.PIPE,
+                              stderr=subprocess.STDOUT, start_new_session=True)
+    try:
+        def runs() -> list[dict]:
+            lines = log.read_text().splitlines() if log.exists() else []
+            return [e for e in map(json.loads, filter(None, lines)) if e.get("kind") == "run"]
+
+        deadline = time.monotonic() + 120  # starting python and numba under load: slow, not timed
+        while not (state / "ada.json").exists() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert (state / "ada.json").exists(), "the first run never saved"
+        saved = json.loads((state / "ada.json").read_text())
+        child = int(subprocess.check_output(["pgrep", "-P", str(keeper.pid)]).split()[0])
+        os.kill(child, signal.SIGKILL)
+        killed = time.monotonic()
+        while time.monotonic() - killed < 5:
+            found = subprocess.run(["pgrep", "-P", str(keeper.pid)], capture_output=True, text=True).stdout.split()
+            if found and int(found[0]) != child:
+                break
+            time.sleep(0.05)
+        assert found and int(found[0]) != child, "not restarted within 5 s"
+        while not any(r["restored"] for r in runs()) and time.monotonic() < deadline:  # the new run's log
+            time.sleep(0.1)
+        assert [r["restored"] for r in runs()] == [["ada"]]
+        assert saved["kind"] == "exchange"
+    finally:
+        os.killpg(keeper.pid, signal.SIGTERM)
+        out = keeper.communicate(timeout=60)[0].decode()
+    assert "the run stopped (killed by SIGKILL); restart 1 in 1 s" in out
+
+
+def test_service_writes_a_notify_unit_with_restart_and_watchdog(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from creatures.cli import main
+
+    config = tmp_path / "show.toml"
+    config.write_text(COLONY)
+    unit = tmp_path / "show.service"
+    assert main(["service", str(config), "--state", str(tmp_path / "state"), "--watchdog", "20", "--out", str(unit)]) == 0
+    lines = unit.read_text().splitlines()
+    for wanted in ("Type=notify", "Restart=on-failure", "WatchdogSec=20", "NotifyAccess=main"):
+        assert wanted in lines
+    start = next(line for line in lines if line.startswith("ExecStart="))
+    assert start.endswith(f"-m creatures.cli run {config} --state {tmp_path / 'state'}")
+    config.write_text(COLONY + "tick = 9\n")
+    assert main(["service", str(config)]) == 2
+    assert "tick" in capsys.readouterr().err
