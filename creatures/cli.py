@@ -218,6 +218,31 @@ def _run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _check_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("config", type=Path, help="installation config (TOML)")
+    parser.add_argument("--state", type=Path, help="directory for saved creature state (overrides the config)")
+
+
+@command("check", "pre-flight of a live run: ports, devices, disk, state folder, GL, a tick's cost", _check_options)
+def _check(args: argparse.Namespace) -> int:
+    from creatures.config import ConfigError
+    from creatures.runtime.preflight import check, table
+    from creatures.runtime.schema import load_installation
+
+    try:
+        installation = load_installation(args.config)
+    except ConfigError as exc:
+        print(f"creatures: {exc}", file=sys.stderr)
+        return 2
+    rows = check(installation, args.state or installation.resolve(installation.settings.state))
+    print(table(rows))
+    failed = [what for what, ok, _ in rows if not ok]
+    if failed:
+        print(f"creatures: not ready: {', '.join(failed)}", file=sys.stderr)
+        return 1
+    return 0
+
+
 def _service_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("config", type=Path, help="installation config (TOML)")
     parser.add_argument("--state", type=Path, help="directory for saved creature state (overrides the config)")

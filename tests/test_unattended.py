@@ -202,3 +202,26 @@ def test_service_writes_a_notify_unit_with_restart_and_watchdog(tmp_path: Path, 
     config.write_text(COLONY + "tick = 9\n")
     assert main(["service", str(config)]) == 2
     assert "tick" in capsys.readouterr().err
+
+
+def test_check_prints_a_table_and_fails_with_the_reason(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from creatures.cli import main
+
+    config = tmp_path / "show.toml"
+    config.write_text(f'state = "{tmp_path / "state"}"\n' + COLONY)
+    assert main(["check", str(config)]) == 0
+    out = capsys.readouterr().out
+    assert {line.split("  ")[0].strip() for line in out.splitlines()} == {"ports free", "state folder", "disk",
+                                                                          "tick budget"}
+    assert "FAIL" not in out and "a tick costs" in out
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as taken:  # a port another program holds, and a MIDI port that is not there
+        taken.bind(("127.0.0.1", 0))
+        port = taken.getsockname()[1]
+        config.write_text(COLONY + f'[osc]\nport = {port}\n[midi]\noutput_port = "no-such-synth-xyz"\n')
+        assert main(["check", str(config)]) == 1
+    captured = capsys.readouterr()
+    rows = {line.split("  ")[0].strip(): line for line in captured.out.splitlines()}
+    assert "FAIL" in rows["ports free"] and "osc" in rows["ports free"]
+    assert "FAIL" in rows["MIDI output"]  # absent, or no MIDI backend at all here: either way said
+    assert "FAIL" in rows["state folder"]  # this config keeps no state
+    assert "not ready: ports free, MIDI output, state folder" in captured.err
