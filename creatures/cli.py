@@ -185,6 +185,8 @@ def _view_port(given: int | None, configured: int | None) -> int | None:
     if given is None:
         return configured
     return given or configured or DEFAULT_VIEW_PORT
+    parser.add_argument("--supervise", action="store_true",
+                        help="restart the run when it crashes, resuming its saved state (docs/unattended.md)")
 
 
 NO_STATE = ("no state directory: learned state will not be kept (nothing is saved or restored); "
@@ -204,6 +206,12 @@ def _run(args: argparse.Namespace) -> int:
     from creatures.runtime.network import describe
     from creatures.runtime.schema import load_installation
 
+    if args.supervise:
+        from creatures.runtime.keeper import supervise
+
+        again = [f"--{key}={value}" for key, value in vars(args).items()
+                 if key in ("state", "log", "duration", "frames") and value is not None]
+        return supervise([sys.executable, "-m", "creatures.cli", "run", str(args.config), *again])
     try:
         installation = load_installation(args.config)
         state = args.state or installation.resolve(installation.settings.state)
@@ -246,6 +254,61 @@ def _run(args: argparse.Namespace) -> int:
     if summary.unsaved:
         print(f"creatures: {summary.unsaved}", file=sys.stderr)
         return 1
+    return 0
+
+
+def _check_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("config", type=Path, help="installation config (TOML)")
+    parser.add_argument("--state", type=Path, help="directory for saved creature state (overrides the config)")
+
+
+@command("check", "pre-flight of a live run: ports, devices, disk, state folder, GL, a tick's cost", _check_options)
+def _check(args: argparse.Namespace) -> int:
+    from creatures.config import ConfigError
+    from creatures.runtime.preflight import check, table
+    from creatures.runtime.schema import load_installation
+
+    try:
+        installation = load_installation(args.config)
+    except ConfigError as exc:
+        print(f"creatures: {exc}", file=sys.stderr)
+        return 2
+    rows = check(installation, args.state or installation.resolve(installation.settings.state))
+    print(table(rows))
+    failed = [what for what, ok, _ in rows if not ok]
+    if failed:
+        print(f"creatures: not ready: {', '.join(failed)}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def _service_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("config", type=Path, help="installation config (TOML)")
+    parser.add_argument("--state", type=Path, help="directory for saved creature state (overrides the config)")
+    parser.add_argument("--watchdog", type=_seconds(3600.0), default=30.0,
+                        help="seconds without a tick before systemd restarts the run (default 30)")
+    parser.add_argument("--out", type=Path, help="write the unit here (default: print it)")
+
+
+@command("service", "write a systemd unit for an installation (restart on failure, watchdog)", _service_options)
+def _service(args: argparse.Namespace) -> int:
+    from creatures.config import ConfigError
+    from creatures.persist import write_json_text
+    from creatures.runtime.keeper import unit
+    from creatures.runtime.schema import load_installation
+
+    try:
+        load_installation(args.config)  # a unit for a config that does not load would only crash-loop
+        text = unit(args.config, args.state, watchdog=args.watchdog)
+        if args.out is None:
+            sys.stdout.write(text)
+        else:
+            write_json_text(args.out, text)  # atomic, as every file the project writes
+            print(f"wrote {args.out}; install: systemctl --user link {args.out.resolve()} && "
+                  f"systemctl --user enable --now {args.out.name}")
+    except (ConfigError, OSError) as exc:
+        print(f"creatures: {exc}", file=sys.stderr)
+        return 2
     return 0
 
 
@@ -330,6 +393,9 @@ def _render(args: argparse.Namespace) -> int:
         return 2
     wall = time.perf_counter() - t0
     print(f"rendered {count} frames at {args.width}×{args.height} in {wall:.2f} s ({count / wall:.0f} frames/s) into {out}")
+    return 0
+
+
 def _export_motion_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("path", type=Path, help="a run's output directory or a state directory (with events.jsonl)")
     parser.add_argument("out", type=Path, help="the BVH file to write")
@@ -354,6 +420,52 @@ def _export_motion(args: argparse.Namespace) -> int:
         print(f"creatures: {exc}", file=sys.stderr)
         return 2
     print(f"{args.creature}: {frames} frames at {args.fps:g} fps written to {args.out}")
+    return 0
+
+
+def _state_options(parser: argparse.ArgumentParser) -> None:
+    sub = parser.add_subparsers(dest="action", required=True, metavar="ACTION")
+    d = sub.add_parser("diff", help="what each creature learned between two state folders or snapshots")
+    d.add_argument("before", type=Path)
+    d.add_argument("after", type=Path)
+    r = sub.add_parser("rollback", help="put one creature's state back as a snapshot holds it, byte for byte")
+    r.add_argument("state", type=Path, help="the state folder")
+    r.add_argument("snapshot", type=Path, help="a snapshot folder, or its name in STATE/snapshots")
+    r.add_argument("--creature", required=True)
+    m = sub.add_parser("merge", help="add what one creature learned to another's repertoire (same kind)")
+    m.add_argument("source", type=Path, help="state folder or snapshot to take from")
+    m.add_argument("--creature", required=True, help="the creature of SOURCE")
+    m.add_argument("target", type=Path, help="state folder to merge into")
+    m.add_argument("--into", required=True, help="the creature of TARGET")
+    s = sub.add_parser("snapshots", help="list the dated snapshots of a state folder")
+    s.add_argument("state", type=Path)
+
+
+@command("state", "learned state over a long life: diff, rollback, merge, snapshots (docs/unattended.md)",
+         _state_options)
+def _state(args: argparse.Namespace) -> int:
+    from creatures.persist import StateFileError
+    from creatures.runtime import repertoire, snapshots
+
+    try:
+        if args.action == "diff":
+            changes = repertoire.diff(args.before, args.after)
+            for change in changes:
+                print(change)
+            print(f"{len(changes)} change(s)")
+        elif args.action == "rollback":
+            named = args.state / snapshots.FOLDER / args.snapshot
+            snapshot = named if not args.snapshot.is_dir() and named.is_dir() else args.snapshot
+            print(f"restored {repertoire.rollback(args.state, snapshot, args.creature)} from {snapshot}")
+        elif args.action == "merge":
+            added = repertoire.merge(args.source, args.creature, args.target, args.into)
+            print(f"{args.into}: added {', '.join(added) if added else 'nothing (it knew all of it)'}")
+        else:
+            for when, path in snapshots.listed(args.state):
+                print(f"{when:%Y-%m-%d %H:%M:%S} UTC  {path}")
+    except (StateFileError, OSError) as exc:  # OSError: a folder a run holds (creatures/lock.py)
+        print(f"creatures: {exc}", file=sys.stderr)
+        return 2
     return 0
 
 

@@ -30,6 +30,7 @@ from __future__ import annotations
 import signal
 import time
 from dataclasses import dataclass, field
+from datetime import datetime, timezone
 from pathlib import Path
 from typing import Callable
 
@@ -47,6 +48,9 @@ from creatures.runtime.network import Network, open_listener
 from creatures.runtime.outlets import Outlets, check_ports
 from creatures.runtime.schema import LoadedInstallation
 from creatures.runtime.session import Session, write_snapshot
+from creatures.runtime.opening import OpeningHours, Schedule
+from creatures.runtime.sd_notify import Notifier
+from creatures.runtime.snapshots import Snapshotter
 from creatures.runtime import kernels
 from creatures.runtime.ticking import TickLoop, TickTiming, gil_handover, realtime, setup_kept
 from creatures.supervisor import Supervisor
@@ -261,20 +265,27 @@ class _Saver:
     reports a failed write as :func:`_save` does. The save on exit stays :func:`_save`."""
 
     def __init__(self, supervisor: Supervisor, state_dir: Path, summary: LiveSummary,
-                 say: Callable[[str], None], every: float) -> None:
-        self.state_dir, self.summary, self.say = state_dir, summary, say
-        self.pending: tuple[list[tuple[str, str]], float] | None = None
+                 say: Callable[[str], None], every: float, snapshots: Snapshotter | None = None) -> None:
+        self.state_dir, self.summary, self.say, self.snapshots = state_dir, summary, say, snapshots
+        self.pending: tuple[list[tuple[str, str]], float, datetime] | None = None
         self.job = supervisor.every(every, self._write, name="state save")
 
     def save(self, session: Session, at: float) -> None:
         """Encode the state now (``at`` seconds into the run) and have it written."""
-        self.pending = (session.snapshot(), at)
+        self.pending = (session.snapshot(), at, datetime.now(timezone.utc))
         self.job.wake()
 
     def _write(self) -> None:
         pending, self.pending = self.pending, None
-        if pending is not None:
-            _write_state(self.state_dir, pending[0], self.summary, self.say, pending[1])
+        if pending is None:
+            return
+        files, at, when = pending
+        _write_state(self.state_dir, files, self.summary, self.say, at)
+        if self.snapshots is not None and self.summary.saved_at == at and self.snapshots.due(when):
+            try:  # the dated copy of what was just saved; a full disk is said, the run goes on
+                self.snapshots.take(files, when)
+            except OSError as exc:
+                self.say(f"could not take a snapshot of the creature state ({exc}); will try again")
 
 
 def check_before_running(inst: LoadedInstallation, *, state: Path | None, log_path: Path | None,
@@ -395,17 +406,39 @@ def run_live(
     loop = TickLoop(session, inputs, wall, clock, settings.tick)
     timing = _Timing(session, loop.timing, sink)
     supervisor.every(HOUSEKEEPING_EVERY, log.flush, name="events log flush")  # a tail -f shows the present
-    saver = _Saver(supervisor, state_dir, summary, say, settings.save_every) if state_dir is not None else None
+    snap = settings.snapshots
+    snapshots = Snapshotter(state_dir, every=snap.every, daily=snap.keep_daily, weekly=snap.keep_weekly) \
+        if state_dir is not None and snap.every is not None else None
+    saver = _Saver(supervisor, state_dir, summary, say, settings.save_every, snapshots) \
+        if state_dir is not None else None
 
-    def pause(on: bool) -> None:
-        """The console's pause: ticks skipped (silence plays), every note off; on resume the
-        notes heard meanwhile are forgotten (the past, not a burst to answer)."""
-        loop.paused = on
-        if on:
-            session.scheduler.all_notes_off()
-            session.world.emit("paused")
-        else:
-            session.world.emit("resumed", forgotten=session.world.forget(loop.time.now()))
+    held = {"console": False, "schedule": False}
+
+    def holder(by: str) -> Callable[[bool], None]:
+        """The console's pause, and the schedule's sleep: ticks skipped (silence plays), every
+        note off; once neither holds it, the notes heard meanwhile are forgotten (the past,
+        not a burst to answer)."""
+
+        def pause(on: bool) -> None:
+            was, held[by] = loop.paused, on
+            loop.paused = any(held.values())
+            if loop.paused and not was:
+                session.scheduler.all_notes_off()
+                session.world.emit("paused", by=by)
+            elif was and not loop.paused:
+                session.world.emit("resumed", by=by, forgotten=session.world.forget(loop.time.now()))
+
+        return pause
+
+    pause = holder("console")
+    hours = settings.schedule
+    schedule = None if hours.opens is None else Schedule(
+        OpeningHours(hours.days, hours.opens, hours.closes, hours.timezone), holder("schedule"),
+        lambda: datetime.now(timezone.utc))
+    notifier = Notifier()
+    beats = 0  # ticks of the loop, asleep or not: what the watchdog sees advance
+    if notifier.interval is not None:
+        supervisor.every(notifier.interval, notifier.pinger(lambda: beats), name="systemd watchdog")
 
     def save_now(t: float) -> str:  # the console's, so only once the loop runs: `start` is set
         saver.save(session, t - start)
@@ -427,7 +460,8 @@ def run_live(
         next_save, next_housekeeping, frames_done = start + settings.save_every, start, int(round(start * sr))
 
         def tick(t: float) -> None:
-            nonlocal next_save, next_housekeeping, frames_done
+            nonlocal next_save, next_housekeeping, frames_done, beats
+            beats += 1
             frames = int(round(t * sr)) - frames_done
             frames_done += frames
             heard = microphone.read() if microphone is not None else None
@@ -448,18 +482,24 @@ def run_live(
                 counters.log_change()
                 timing.log_change()
                 outlets.publish()
+                if schedule is not None:
+                    schedule.poll()
 
         try:
             # The first tick builds what creatures build on first use (their first course, the
             # motor graph's log record: ~130 ms for exchange's three); the grid starts after it.
             clock.advance_to(max(start, clock.now()))
             inputs.poll(start)
+            if schedule is not None:
+                schedule.poll()  # closed at start: asleep from the first tick
             tick(start)
+            notifier.ready(f"{len(session.creatures)} creature(s) running")
             loop.run(tick, until=lambda t: stopping or stops.requested is not None  # a Ctrl-C a finaliser swallowed
                      or (duration is not None and t - start > duration))
         except KeyboardInterrupt:
             pass
         finally:
+            notifier.stopping()
             signal.signal(signal.SIGTERM, previous)
             supervisor.stop()  # before what it watches closes
             outlets.close()

@@ -9,9 +9,9 @@ from __future__ import annotations
 import difflib
 import socket
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, Field, model_validator
+from pydantic import BaseModel, Field, field_validator, model_validator
 
 import installations
 
@@ -125,6 +125,48 @@ class HealthSection(Strict):
     heartbeat: list[str] = Field(default_factory=list, max_length=64,
                                  description="host:port the OSC heartbeat goes to (IPv4); none = no heartbeat")
     every: float = Field(1.0, ge=0.1, le=3600, description="seconds between heartbeats")
+
+
+class SnapshotSection(Strict):
+    """Dated snapshots of the learned state, beside it in ``STATE/snapshots/`` (live runs with a
+    state folder; creatures/runtime/snapshots.py): what the colony knew on any day of a long show."""
+
+    every: float | None = Field(None, ge=60, le=366 * 24 * 3600.0,
+                                description="seconds of the run's clock between snapshots (86400 = daily); none = none")
+    keep_daily: int = Field(7, ge=1, le=3660, description="keep the newest snapshot of each of this many last days")
+    keep_weekly: int = Field(8, ge=0, le=520, description="and of each of this many last ISO weeks")
+
+
+class ScheduleSection(Strict):
+    """Opening hours: outside them the colony sleeps — no sound, no selection, state kept — and
+    it wakes when they come round again (creatures/runtime/opening.py). Live runs only."""
+
+    days: list[Literal["mon", "tue", "wed", "thu", "fri", "sat", "sun"]] = Field(
+        ["mon", "tue", "wed", "thu", "fri", "sat", "sun"], min_length=1, max_length=7, description="days it opens")
+    opens: str | None = Field(None, description="time of day it opens, HH:MM; none = always open")
+    closes: str = Field("24:00", description="time of day it closes, HH:MM (before `opens`: past midnight)")
+    timezone: str | None = Field(None, description="IANA zone of the hours, e.g. Europe/Paris; none = the machine's")
+
+    @field_validator("opens", "closes")
+    @classmethod
+    def _time_of_day(cls, text: str | None) -> str | None:
+        from creatures.runtime.opening import clock_time
+
+        if text is not None:
+            clock_time(text)
+        return text
+
+    @field_validator("timezone")
+    @classmethod
+    def _zone(cls, zone: str | None) -> str | None:
+        from zoneinfo import ZoneInfo
+
+        if zone is not None:
+            try:
+                ZoneInfo(zone)
+            except (ValueError, OSError, KeyError):
+                raise ValueError(f"unknown time zone {zone!r} (an IANA name such as Europe/Paris)") from None
+        return zone
 
 
 class Arg(Strict):
@@ -275,6 +317,8 @@ class Installation(Strict):
     stream: StreamSection = StreamSection()
     console: ConsoleSection = ConsoleSection()
     health: HealthSection = HealthSection()
+    snapshots: SnapshotSection = SnapshotSection()
+    schedule: ScheduleSection = ScheduleSection()
     input: InputSection = InputSection()
     output: OutputSection = OutputSection()
     room: RoomSection | None = Field(None, description="[room]: the floor the creatures move on, hear "

@@ -1,0 +1,94 @@
+"""Keeping a show running unattended: a systemd unit, and a supervisor that restarts a crash.
+
+``creatures run CONFIG --supervise`` runs the colony as a child process and starts it again
+when it dies by a signal or a failure (a clean stop — Ctrl-C, SIGTERM, ``--duration`` reached —
+ends it). The child restores the learned state its last periodic save left in the state folder
+(``save_every``), so a crash loses at most that many seconds of learning. Restarts come
+:data:`RESTART_AFTER` seconds apart, slowing to :data:`SLOWEST` when the run keeps dying at
+once, so a broken config cannot spin a gallery machine. Under systemd the unit that
+``creatures service`` writes lets systemd do the restarting instead (``Restart=on-failure``)
+and adds its watchdog (creatures/runtime/sd_notify.py).
+"""
+
+from __future__ import annotations
+
+import shlex
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Callable
+
+RESTART_AFTER = 1.0
+"""Seconds between a crash and the restart."""
+
+SLOWEST = 30.0
+"""Longest wait between restarts of a run that keeps dying within :data:`STEADY` seconds."""
+
+STEADY = 60.0
+"""A run that lived this long was healthy: the next crash restarts it at once again."""
+
+
+def supervise(command: list[str], say: Callable[[str], None] = print, *,
+              launch: Callable[[list[str]], subprocess.Popen[bytes]] = subprocess.Popen) -> int:
+    """Run ``command`` until it ends cleanly; returns its last exit code. SIGTERM and SIGINT
+    are passed to the child, which then saves and stops as it would alone."""
+    stopping = False
+    child: subprocess.Popen[bytes] | None = None
+
+    def forward(signum: int, _: object) -> None:
+        nonlocal stopping
+        stopping = True
+        if child is not None and child.poll() is None:
+            child.send_signal(signum)
+
+    previous = {s: signal.signal(s, forward) for s in (signal.SIGTERM, signal.SIGINT)}
+    wait, restarts = RESTART_AFTER, 0
+    try:
+        while True:
+            began = time.monotonic()
+            child = launch(command)
+            code = child.wait()
+            if stopping or code in (0, 128 + signal.SIGINT, 128 + signal.SIGTERM):
+                return code
+            if time.monotonic() - began > STEADY:
+                wait = RESTART_AFTER
+            elif restarts:
+                wait = min(wait * 2, SLOWEST)
+            restarts += 1
+            why = f"killed by {signal.Signals(-code).name}" if code < 0 else f"exit code {code}"
+            say(f"creatures: the run stopped ({why}); restart {restarts} in {wait:g} s")
+            time.sleep(wait)
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+
+
+def unit(config: Path, state: Path | None, *, watchdog: float, python: str = sys.executable) -> str:
+    """A systemd service unit running ``config`` (``Type=notify``: started once the first tick
+    has played; restarted on failure and when the watchdog hears nothing for ``watchdog`` s)."""
+    command = [python, "-m", "creatures.cli", "run", str(config.resolve())]
+    if state is not None:
+        command += ["--state", str(state.resolve())]
+    return "\n".join([
+        "[Unit]",
+        f"Description=creature-music: {config.stem}",
+        "After=network.target sound.target",
+        "StartLimitIntervalSec=0",
+        "",
+        "[Service]",
+        "Type=notify",
+        "NotifyAccess=main",
+        f"ExecStart={shlex.join(command)}",
+        f"WorkingDirectory={config.resolve().parent}",
+        "Restart=on-failure",
+        f"RestartSec={RESTART_AFTER:g}",
+        f"WatchdogSec={watchdog:g}",
+        "TimeoutStopSec=30",
+        "KillSignal=SIGTERM",
+        "",
+        "[Install]",
+        "WantedBy=default.target",
+        "",
+    ])

@@ -1,0 +1,190 @@
+"""What a creature learned, between two saved states: diff, roll back, merge (``creatures state``).
+
+A state folder (or one of its snapshots, creatures/runtime/snapshots.py) holds one JSON file per
+creature. Reading two of them side by side answers the questions of a long show: what did the
+heron learn this week (:func:`diff`), take it back to Monday (:func:`rollback`), give the
+heron of one installation the phrases the heron of another learned (:func:`merge`).
+
+A diff reports the *repertoire*, what the thesis calls the creature's learned material
+("Learning", "Percept trees"): percepts grown, tuples and their values, phrases heard and kept,
+motor material. Drive levels (``motivation``) are what the creature feels now, not what it
+learned, and counters of time and numbering are bookkeeping: both are left out, so two
+snapshots of a creature that learned nothing differ by nothing.
+"""
+
+from __future__ import annotations
+
+import json
+from collections import Counter
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from creatures.lock import FolderLock
+from creatures.persist import StateFileError, atomic_write, json_text, load_json
+from creatures.runtime.session import COLONY_FILE, STATE_KIND
+
+SKIPPED = frozenset({"motivation", "time", "born", "next_id", "phrases_made", "learnt"})
+"""Keys a diff leaves out: drive levels and bookkeeping (``learnt`` is the phrase numbers that
+have tuples: each shows as its tuple's value appearing)."""
+
+LABELS = {"values": "value", "phrases": "phrase", "tree": "percept", "tuples": "tuple", "poses": "motor material",
+          "population": "phrase model", "memory": "sound", "expected match": "expectation"}
+"""What each section of a kind's state is, in the words of the thesis."""
+
+
+@dataclass(frozen=True)
+class Change:
+    """One difference: ``sign`` is ``+`` (new), ``-`` (gone) or ``~`` (changed)."""
+
+    creature: str
+    sign: str
+    path: tuple[str, ...]
+    old: Any = None
+    new: Any = None
+
+    @property
+    def what(self) -> str:
+        label = LABELS.get(self.path[0], self.path[0]) if self.path else "creature"
+        return {"+": "new ", "-": "lost ", "~": "changed "}[self.sign] + label
+
+    def __str__(self) -> str:
+        where = ".".join(self.path)
+        shown = _short(self.new if self.sign == "+" else self.old) if self.sign != "~" \
+            else f"{_short(self.old)} -> {_short(self.new)}"
+        return f"{self.creature}: {self.what} {where}: {shown}"
+
+
+def _short(value: Any, longest: int = 160) -> str:
+    text = json.dumps(value, sort_keys=True)
+    return text if len(text) <= longest else text[: longest - 1] + "…"
+
+
+def read_creatures(folder: Path) -> dict[str, dict[str, Any]]:
+    """``name -> {"kind", "state"}`` of every creature file in a state folder or snapshot."""
+    if not folder.is_dir():
+        raise StateFileError(f"{folder}: not a state folder or snapshot")
+    found = {}
+    for path in sorted(folder.glob("*.json")):
+        if path.name != COLONY_FILE:
+            document = load_json(path, kind=STATE_KIND)
+            found[path.stem] = {"kind": document.get("kind"), "state": document.get("state", {})}
+    return found
+
+
+def diff(before: Path, after: Path) -> list[Change]:
+    """What each creature learned between two state folders or snapshots."""
+    a, b = read_creatures(before), read_creatures(after)
+    changes: list[Change] = []
+    for name in sorted(set(a) | set(b)):
+        if name not in a or name not in b:
+            changes.append(Change(name, "+" if name in b else "-", (), new=(b.get(name) or {}).get("kind"),
+                                  old=(a.get(name) or {}).get("kind")))
+            continue
+        _walk(name, a[name]["state"], b[name]["state"], (), changes)
+    return changes
+
+
+def _walk(name: str, a: Any, b: Any, path: tuple[str, ...], out: list[Change]) -> None:
+    if isinstance(a, dict) and isinstance(b, dict):
+        for key in sorted(set(a) | set(b)):
+            if key in SKIPPED:
+                continue
+            if key not in a:
+                out.append(Change(name, "+", path + (key,), new=b[key]))
+            elif key not in b:
+                out.append(Change(name, "-", path + (key,), old=a[key]))
+            else:
+                _walk(name, a[key], b[key], path + (key,), out)
+    elif _is_collection(a) and _is_collection(b):
+        if _keyed(a) and _keyed(b):  # members with ids: compared member by member
+            _walk(name, {str(m["id"]): m for m in a}, {str(m["id"]): m for m in b}, path, out)
+            return
+        # Phrases, utterances, tuples: a collection, whatever order a bounded memory keeps.
+        old, new = Counter(map(_key, a)), Counter(map(_key, b))
+        for item in (new - old).elements():
+            out.append(Change(name, "+", path, new=json.loads(item)))
+        for item in (old - new).elements():
+            out.append(Change(name, "-", path, old=json.loads(item)))
+    elif a != b:
+        out.append(Change(name, "~", path, old=a, new=b))
+
+
+def _is_collection(value: Any) -> bool:
+    """A list of tables or lists (a vector of numbers is one value)."""
+    return isinstance(value, list) and any(isinstance(v, (list, dict)) for v in value)
+
+
+def _keyed(items: list[Any]) -> bool:
+    return all(isinstance(m, dict) and "id" in m for m in items)
+
+
+def _key(item: Any) -> str:
+    return json.dumps(item, sort_keys=True)
+
+
+def _creature_file(folder: Path, name: str) -> Path:
+    path = folder / f"{name}.json"
+    if not path.is_file():
+        known = ", ".join(sorted(read_creatures(folder))) or "none"
+        raise StateFileError(f"{folder}: no saved state for creature {name!r} (saved: {known})")
+    return path
+
+
+def rollback(state_dir: Path, snapshot: Path, name: str) -> Path:
+    """Put creature ``name``'s file from ``snapshot`` back into ``state_dir``, byte for byte,
+    atomically; refused while a run holds the state folder (it would overwrite it)."""
+    source = _creature_file(snapshot, name)
+    load_json(source, kind=STATE_KIND)  # a damaged snapshot is refused before anything changes
+    data = source.read_bytes()
+    target = state_dir / source.name
+    with FolderLock(state_dir, "state folder"):
+        atomic_write(target, lambda handle: handle.write(data), "wb")
+    return target
+
+
+def merge(source: Path, name: str, target: Path, into: str) -> list[str]:
+    """Add what creature ``name`` of ``source`` learned to creature ``into`` of ``target``
+    (same kind), keeping everything ``into`` knew; returns what was added."""
+    src = load_json(_creature_file(source, name), kind=STATE_KIND)
+    path = _creature_file(target, into)
+    dst = load_json(path, kind=STATE_KIND)
+    kind = dst.get("kind")
+    if src.get("kind") != kind:
+        raise StateFileError(f"cannot merge {name!r} ({src.get('kind')}) into {into!r} ({kind}): different kinds")
+    if kind not in MERGERS:
+        raise StateFileError(f"kind {kind!r} has no repertoire merge (kinds that have: {', '.join(sorted(MERGERS))})")
+    state, added = MERGERS[kind](src["state"], dst["state"])
+    text = json_text({"kind": kind, "state": state}, kind=STATE_KIND)
+    with FolderLock(target, "state folder"):
+        atomic_write(path, lambda handle: handle.write(text), "w")
+    return added
+
+
+def _merge_authored(src: dict[str, Any], dst: dict[str, Any]) -> tuple[dict[str, Any], list[str]]:
+    """An authored creature's heard phrases, each with its tuple's learned value: the source's
+    phrases the target lacks are appended under new numbers (``phrase N`` tuples renumbered);
+    the target's ``max_phrases`` keeps the newest when it restores."""
+    merged = json.loads(json.dumps(dst))
+    phrases, made = merged.setdefault("phrases", []), int(merged.get("phrases_made", len(merged.get("phrases", []))))
+    learnt, values = merged.setdefault("learnt", []), merged.setdefault("values", {})
+    first = int(src.get("phrases_made", len(src.get("phrases", [])))) - len(src.get("phrases", [])) + 1
+    added = []
+    for offset, phrase in enumerate(src.get("phrases", [])):
+        if phrase in phrases:
+            continue
+        made += 1
+        phrases.append(phrase)
+        number = first + offset
+        if number in src.get("learnt", []):
+            learnt.append(made)
+            for group, tuples in src.get("values", {}).items():
+                if f"phrase {number}" in tuples:
+                    values.setdefault(group, {})[f"phrase {made}"] = tuples[f"phrase {number}"]
+        added.append(f"phrase {made} (was phrase {number}: pitches {' '.join(str(n[1]) for n in phrase)})")
+    merged["phrases_made"] = made
+    return merged, added
+
+
+MERGERS = {"authored": _merge_authored}
+"""Kinds whose repertoire can be merged, and how."""

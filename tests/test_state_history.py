@@ -1,0 +1,130 @@
+"""Snapshots, diff, rollback and merge of learned state (creatures/runtime/snapshots.py,
+creatures/runtime/repertoire.py), on the tutorial heron, which keeps every phrase it hears."""
+
+from __future__ import annotations
+
+from datetime import datetime, timedelta, timezone
+from pathlib import Path
+
+import pytest
+
+from creatures.clock import SimulatedClock
+from creatures.cli import main
+from creatures.events import EventLog
+from creatures.persist import StateFileError
+from creatures.runtime import repertoire, snapshots
+from creatures.runtime.schema import load_installation
+from creatures.runtime.session import Session
+from midi.notes import NoteEvent
+from midi.sinks import MemorySink
+
+HERON = Path(__file__).resolve().parent.parent / "installations/tutorial/heron-4.toml"
+FIRST, SECOND = (60, 64, 67), (62, 65, 69)
+DAY = datetime(2026, 3, 2, 9, 0, tzinfo=timezone.utc)
+
+
+def live_for(state: Path | None, seconds: float, phrase: tuple[int, ...] = ()) -> tuple[Session, MemorySink]:
+    """The heron restored from ``state`` (if any), hearing ``phrase``, for ``seconds`` simulated."""
+    inst = load_installation(HERON)
+    clock, sink = SimulatedClock(), MemorySink()
+    session = Session(inst, clock, EventLog(keep_in_memory=0), sink)
+    if state is not None and state.exists():
+        session.load_state(state)
+    for i, pitch in enumerate(phrase):
+        session.world.inject(NoteEvent(0.5 + 0.3 * i, pitch, 90, 0, 0.2))
+    tick, sr = inst.settings.tick, inst.settings.audio.sample_rate
+    for step in range(1, int(seconds / tick) + 1):
+        clock.advance_to(step * tick)
+        session.step(clock.now(), int(round(tick * sr)), None, audio=False)
+    return session, sink
+
+
+def snapshot(state: Path, session: Session, at: datetime) -> Path:
+    session.save_state(state)
+    return snapshots.take(state, session.snapshot(), at)
+
+
+def test_diff_lists_exactly_the_phrase_taught(tmp_path: Path) -> None:
+    state = tmp_path / "state"
+    a = snapshot(state, live_for(None, 10, FIRST)[0], DAY)
+    b = snapshot(state, live_for(state, 10, SECOND)[0], DAY + timedelta(days=1))
+    changes = repertoire.diff(a, b)
+    new = [c for c in changes if c.sign == "+"]
+    assert [(c.what, c.path) for c in new] == [("new phrase", ("phrases",)), ("new value", ("values", "main", "phrase 2"))]
+    assert [note[1] for note in new[0].new] == list(SECOND)
+    assert not [c for c in changes if c.sign == "-"]
+    # What else changed is a learned value of a tuple it already had, never a drive level.
+    assert {c.path[:3] for c in changes if c.sign == "~"} <= {("values", "main", t) for t in ("listen", "rest", "phrase 1")}
+    assert repertoire.diff(a, a) == []
+
+
+def test_rollback_restores_one_creature_byte_for_byte(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    state = tmp_path / "state"
+    a = snapshot(state, live_for(None, 10, FIRST)[0], DAY)
+    live_for(state, 10, SECOND)[0].save_state(state)
+    assert (state / "heron.json").read_bytes() != (a / "heron.json").read_bytes()
+    assert main(["state", "rollback", str(state), a.name, "--creature", "heron"]) == 0
+    assert (state / "heron.json").read_bytes() == (a / "heron.json").read_bytes()
+    assert main(["state", "rollback", str(state), a.name, "--creature", "egret"]) == 2
+    assert "no saved state for creature 'egret' (saved: heron)" in capsys.readouterr().err
+
+
+def test_merged_repertoire_plays_the_phrases_of_both(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    one, two = tmp_path / "one", tmp_path / "two"
+    live_for(None, 10, FIRST)[0].save_state(one)
+    live_for(None, 10, SECOND)[0].save_state(two)
+    assert main(["state", "merge", str(one), "--creature", "heron", str(two), "--into", "heron"]) == 0
+    assert "phrase 2 (was phrase 1: pitches 60 64 67)" in capsys.readouterr().out
+    session, sink = live_for(two, 240)
+    played = [n.pitch for n in sink.notes()]
+    assert sum(played.count(p) for p in FIRST) >= 3 and sum(played.count(p) for p in SECOND) >= 3
+    assert set(played) <= set(FIRST) | set(SECOND)
+    # Alone, the second heron sings only its own phrase: the first's notes came with the merge.
+    _, alone = live_for(tmp_path / "absent", 240, SECOND)
+    assert not {n.pitch for n in alone.notes()} & set(FIRST)
+
+
+def test_retention_keeps_daily_and_weekly(tmp_path: Path) -> None:
+    stamps = [DAY + timedelta(hours=12 * i) for i in range(60)]  # a month, twice a day
+    keep = snapshots.kept(stamps, daily=3, weekly=3)
+    at = lambda day: datetime(2026, 3, day, 21, tzinfo=timezone.utc)  # noqa: E731
+    # The newest of Tue 31, Mon 30, Sun 29 (also the week before's newest) and of the week of the 16th.
+    assert keep == {at(31), at(30), at(29), at(22)}
+    for when in stamps[:3]:
+        snapshots.take(tmp_path, [("heron.json", "{}")], when)
+    assert [p.name for _, p in snapshots.listed(tmp_path)] == ["2026-03-02T090000Z", "2026-03-02T210000Z",
+                                                             "2026-03-03T090000Z"]
+    snapshots.prune(tmp_path, daily=1, weekly=0)
+    assert [p.name for _, p in snapshots.listed(tmp_path)] == ["2026-03-03T090000Z"]
+
+
+def test_snapshotter_is_due_on_the_run_clock(tmp_path: Path) -> None:
+    shots = snapshots.Snapshotter(tmp_path, every=86400, daily=7, weekly=0)
+    assert shots.due(DAY)
+    shots.take([("heron.json", "{}")], DAY)
+    assert not shots.due(DAY + timedelta(hours=23))
+    assert snapshots.Snapshotter(tmp_path, every=86400, daily=7, weekly=0).due(DAY + timedelta(days=1))
+
+
+def test_merge_refuses_kinds_that_differ(tmp_path: Path) -> None:
+    live_for(None, 1)[0].save_state(tmp_path)
+    text = (tmp_path / "heron.json").read_text().replace('"kind": "authored"', '"kind": "exchange"')
+    (tmp_path / "other").mkdir()
+    (tmp_path / "other" / "egret.json").write_text(text)
+    with pytest.raises(StateFileError, match="different kinds"):
+        repertoire.merge(tmp_path / "other", "egret", tmp_path, "heron")
+
+
+def test_a_live_run_takes_a_dated_snapshot_of_what_it_saved(tmp_path: Path) -> None:
+    from creatures.runtime import live
+
+    config = tmp_path / "live.toml"
+    config.write_text('title = "snap"\nsave_every = 0.1\n[snapshots]\nevery = 86400\n[audio]\noutput = false\n'
+                      '[[creature]]\nname = "ada"\nkind = "exchange"\n')
+    state = tmp_path / "state"
+    summary = live.run_live(load_installation(config), duration=1.0, state=state, say=lambda message: None)
+    assert summary.saved_at is not None and summary.failed_saves == 0
+    taken = snapshots.listed(state)
+    assert len(taken) == 1  # due at once, then not again for a day
+    assert abs((taken[0][0] - datetime.now(timezone.utc)).total_seconds()) < 600
+    assert repertoire.read_creatures(taken[0][1]).keys() == {"ada"}

@@ -1,0 +1,227 @@
+"""Unattended running: systemd's notify protocol, opening hours, the restarting supervisor."""
+
+from __future__ import annotations
+
+import json
+import socket
+import threading
+from datetime import datetime, timedelta, timezone
+from pathlib import Path
+
+import pytest
+
+from creatures.clock import SimulatedClock
+from creatures.config import ConfigError
+from creatures.events import EventLog
+from creatures.runtime import live
+from creatures.runtime.opening import DAYS, OpeningHours, Schedule
+from creatures.runtime.schema import load_installation
+from creatures.runtime.sd_notify import Notifier, watchdog_interval
+from creatures.runtime.session import Session
+from midi.notes import NoteEvent
+from midi.sinks import MemorySink
+
+MONDAY = datetime(2026, 3, 2, 9, 0, tzinfo=timezone.utc)
+COLONY = 'title = "unattended"\nsave_every = 0.2\n[audio]\noutput = false\n[[creature]]\nname = "ada"\nkind = "exchange"\n'
+
+
+def test_opening_hours_by_day_and_past_midnight() -> None:
+    day = OpeningHours(["mon", "tue"], "10:00", "18:00", "UTC")
+    assert not day.is_open(MONDAY) and day.is_open(MONDAY.replace(hour=10)) and not day.is_open(MONDAY.replace(hour=18))
+    assert not day.is_open(MONDAY.replace(hour=12) + timedelta(days=2))  # Wednesday
+    night = OpeningHours(["fri"], "20:00", "02:00", "UTC")
+    friday = MONDAY + timedelta(days=4)
+    assert night.is_open(friday.replace(hour=23)) and night.is_open(friday.replace(hour=1) + timedelta(days=1))
+    assert not night.is_open(friday.replace(hour=1))  # Friday 01:00 belongs to Thursday's night
+    paris = OpeningHours(["mon"], "10:00", "11:00", "Europe/Paris")
+    assert paris.is_open(MONDAY) and not paris.is_open(MONDAY.replace(hour=10))  # 09:00 UTC is 10:00 in Paris
+
+
+def test_a_schedule_closes_and_reopens_the_show_on_a_simulated_clock(tmp_path: Path) -> None:
+    """Open 09:00–09:01, closed till 09:02, open again: silent and unchanged while closed."""
+    config = tmp_path / "show.toml"
+    config.write_text(COLONY)
+    inst = load_installation(config)
+    clock, sink = SimulatedClock(), MemorySink()
+    session = Session(inst, clock, EventLog(keep_in_memory=0), sink)
+    ada = session.creatures[0]
+
+    class Hours(OpeningHours):
+        def is_open(self, when: datetime) -> bool:
+            return not (60 <= (when - MONDAY).total_seconds() < 120)
+
+    changes: list[tuple[float, bool]] = []
+
+    def sleep(on: bool) -> None:  # as the live run's: on waking, what was heard asleep is forgotten
+        changes.append((round(clock.now(), 6), on))
+        if not on:
+            session.world.forget(clock.now())
+
+    schedule = Schedule(Hours(list(DAYS), "00:00", "24:00"), sleep, lambda: MONDAY + timedelta(seconds=clock.now()))
+    tick, sr = inst.settings.tick, inst.settings.audio.sample_rate
+    played, learned = {"open": 0, "closed": 0, "reopened": 0}, {}
+    for step in range(1, int(180 / tick) + 1):
+        clock.advance_to(step * tick)
+        if step % 50 == 0:  # the live run looks once a second
+            schedule.poll()
+        if step % 100 == 0:  # a visitor plays a note every two seconds, open or not
+            session.world.inject(NoteEvent(clock.now(), 60 + step % 7, 90, 0, 0.2))
+        part = "open" if clock.now() < 60 else "closed" if clock.now() < 120 else "reopened"
+        before = len(sink.notes())
+        if not schedule.asleep:
+            session.step(clock.now(), int(round(tick * sr)), None, audio=False)
+        played[part] += len(sink.notes()) - before
+        if part == "closed":
+            learned.setdefault("closing", json.dumps(ada.state()))
+            learned["waking"] = json.dumps(ada.state())
+    assert changes == [(60.0, True), (120.0, False)]
+    assert (schedule.closings, schedule.openings) == (1, 1)
+    assert played["open"] > 0 and played["reopened"] > 0  # it played, and woke and played on
+    assert played["closed"] == 0  # not a note while closed
+    assert learned["closing"] == learned["waking"]  # its drives and values stood still asleep
+    assert json.dumps(ada.state()) != learned["waking"]  # and move again awake
+
+
+def test_a_live_run_outside_its_hours_sleeps_silently(tmp_path: Path) -> None:
+    today = DAYS[datetime.now(timezone.utc).weekday()]
+    other = DAYS[(DAYS.index(today) + 3) % 7]
+    config = tmp_path / "closed.toml"
+    log = tmp_path / "events.jsonl"
+    config.write_text(COLONY + f'[schedule]\ndays = ["{other}"]\nopens = "00:00"\ntimezone = "UTC"\n')
+    summary = live.run_live(load_installation(config), duration=1.0, log_path=log, say=lambda message: None)
+    assert summary.notes_played == 0 and summary.ticks == 0
+    events = [json.loads(line) for line in log.read_text().splitlines()]
+    assert [e["by"] for e in events if e["kind"] == "paused"] == ["schedule"]
+
+
+def test_schedule_keys_are_checked(tmp_path: Path) -> None:
+    config = tmp_path / "bad.toml"
+    config.write_text(COLONY + '[schedule]\nopens = "25:00"\n')
+    with pytest.raises(ConfigError, match="schedule.opens"):
+        load_installation(config)
+    config.write_text(COLONY + '[schedule]\nopens = "10:00"\ntimezone = "Mars/Olympus"\n')
+    with pytest.raises(ConfigError, match="unknown time zone"):
+        load_installation(config)
+
+
+def test_notify_datagrams_reach_a_socket_the_test_binds(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """READY=1 after the first tick, WATCHDOG=1 while ticks advance, STOPPING=1 at the end."""
+    path = tmp_path / "notify"
+    got: list[str] = []
+    with socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM) as sock:
+        sock.bind(str(path))
+        sock.settimeout(0.5)
+
+        def read() -> None:  # as systemd does, as they come
+            while True:
+                try:
+                    got.append(sock.recv(4096).decode())
+                except TimeoutError:
+                    if got and got[-1] == "STOPPING=1":
+                        return
+
+        reader = threading.Thread(target=read, daemon=True)
+        reader.start()
+        monkeypatch.setenv("NOTIFY_SOCKET", str(path))
+        monkeypatch.setenv("WATCHDOG_USEC", "200000")
+        config = tmp_path / "show.toml"
+        config.write_text(COLONY)
+        live.run_live(load_installation(config), duration=1.5, say=lambda message: None)
+        reader.join(10)
+    assert got[0].split("\n") == ["READY=1", "STATUS=1 creature(s) running"]
+    assert got[-1] == "STOPPING=1"
+    assert got.count("WATCHDOG=1") >= 3
+
+
+def test_notifier_speaks_to_abstract_sockets_and_reads_the_watchdog() -> None:
+    name = f"creatures-test-{id(object())}"
+    with socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM) as sock:
+        sock.bind("\0" + name)
+        assert Notifier({"NOTIFY_SOCKET": "@" + name}).send("STATUS=hello")
+        assert sock.recv(100) == b"STATUS=hello"
+    assert not Notifier({}).ready("nowhere")
+    assert watchdog_interval({"WATCHDOG_USEC": "30000000"}) == 15.0
+    assert watchdog_interval({"WATCHDOG_USEC": "30000000", "WATCHDOG_PID": "1"}) is None
+
+
+def test_supervisor_restarts_a_killed_run_with_its_learned_state(tmp_path: Path) -> None:
+    """SIGKILL of the colony mid-run: a new one within 5 s, restoring what the first saved."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    config, state, log = tmp_path / "show.toml", tmp_path / "state", tmp_path / "events.jsonl"
+    config.write_text(COLONY)
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parent.parent)}
+    keeper = subprocess.Popen([sys.executable, "-m", "creatures.cli", "run", str(config), "--supervise",
+                               f"--state={state}", f"--log={log}"], env=env, stdout=subprocess.PIPE,
+                              stderr=subprocess.STDOUT, start_new_session=True)
+    try:
+        def runs() -> list[dict]:
+            lines = log.read_text().splitlines() if log.exists() else []
+            return [e for e in map(json.loads, filter(None, lines)) if e.get("kind") == "run"]
+
+        deadline = time.monotonic() + 120  # starting python and numba under load: slow, not timed
+        while not (state / "ada.json").exists() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert (state / "ada.json").exists(), "the first run never saved"
+        saved = json.loads((state / "ada.json").read_text())
+        child = int(subprocess.check_output(["pgrep", "-P", str(keeper.pid)]).split()[0])
+        os.kill(child, signal.SIGKILL)
+        killed = time.monotonic()
+        while time.monotonic() - killed < 5:
+            found = subprocess.run(["pgrep", "-P", str(keeper.pid)], capture_output=True, text=True).stdout.split()
+            if found and int(found[0]) != child:
+                break
+            time.sleep(0.05)
+        assert found and int(found[0]) != child, "not restarted within 5 s"
+        while not any(r["restored"] for r in runs()) and time.monotonic() < deadline:  # the new run's log
+            time.sleep(0.1)
+        assert [r["restored"] for r in runs()] == [["ada"]]
+        assert saved["kind"] == "exchange"
+    finally:
+        os.killpg(keeper.pid, signal.SIGTERM)
+        out = keeper.communicate(timeout=60)[0].decode()
+    assert "the run stopped (killed by SIGKILL); restart 1 in 1 s" in out
+
+
+def test_service_writes_a_notify_unit_with_restart_and_watchdog(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from creatures.cli import main
+
+    config = tmp_path / "show.toml"
+    config.write_text(COLONY)
+    unit = tmp_path / "show.service"
+    assert main(["service", str(config), "--state", str(tmp_path / "state"), "--watchdog", "20", "--out", str(unit)]) == 0
+    lines = unit.read_text().splitlines()
+    for wanted in ("Type=notify", "Restart=on-failure", "WatchdogSec=20", "NotifyAccess=main"):
+        assert wanted in lines
+    start = next(line for line in lines if line.startswith("ExecStart="))
+    assert start.endswith(f"-m creatures.cli run {config} --state {tmp_path / 'state'}")
+    config.write_text(COLONY + "tick = 9\n")
+    assert main(["service", str(config)]) == 2
+    assert "tick" in capsys.readouterr().err
+
+
+def test_check_prints_a_table_and_fails_with_the_reason(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from creatures.cli import main
+
+    config = tmp_path / "show.toml"
+    config.write_text(f'state = "{tmp_path / "state"}"\n' + COLONY)
+    assert main(["check", str(config)]) == 0
+    out = capsys.readouterr().out
+    assert {line.split("  ")[0].strip() for line in out.splitlines()} == {"ports free", "state folder", "disk",
+                                                                          "tick budget"}
+    assert "FAIL" not in out and "a tick costs" in out
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as taken:  # a port another program holds, and a MIDI port that is not there
+        taken.bind(("127.0.0.1", 0))
+        port = taken.getsockname()[1]
+        config.write_text(COLONY + f'[osc]\nport = {port}\n[midi]\noutput_port = "no-such-synth-xyz"\n')
+        assert main(["check", str(config)]) == 1
+    captured = capsys.readouterr()
+    rows = {line.split("  ")[0].strip(): line for line in captured.out.splitlines()}
+    assert "FAIL" in rows["ports free"] and "osc" in rows["ports free"]
+    assert "FAIL" in rows["MIDI output"]  # absent, or no MIDI backend at all here: either way said
+    assert "FAIL" in rows["state folder"]  # this config keeps no state
+    assert "not ready: ports free, MIDI output, state folder" in captured.err
