@@ -155,6 +155,8 @@ def _run_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--view", type=_port, nargs="?", const=0, metavar="PORT",
                         help=f"serve the live view on http://127.0.0.1:PORT/ (default: [view] port, else "
                              f"{DEFAULT_VIEW_PORT}); docs/view.md")
+    parser.add_argument("--supervise", action="store_true",
+                        help="restart the run when it crashes, resuming its saved state (docs/unattended.md)")
 
 
 DEFAULT_VIEW_PORT = 8765
@@ -185,8 +187,6 @@ def _view_port(given: int | None, configured: int | None) -> int | None:
     if given is None:
         return configured
     return given or configured or DEFAULT_VIEW_PORT
-    parser.add_argument("--supervise", action="store_true",
-                        help="restart the run when it crashes, resuming its saved state (docs/unattended.md)")
 
 
 NO_STATE = ("no state directory: learned state will not be kept (nothing is saved or restored); "

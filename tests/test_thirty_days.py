@@ -15,6 +15,13 @@ test asserts on day 30:
   that grounds it) is exactly as written and every authored tuple is still worth at least
   ``FLOOR`` of the most valuable one (credit with nothing grounding it shrank lis's values
   geometrically, 3.0 → 7e-8 in one hour, before the loader refused such groups).
+
+What it found, and what was fixed (seed 15): curve's Du models learnt each fast-forwarded day
+as a duration (bow's 4 ± 1 s mirror had a mean of 70469 s by day 30 and held one mirror all
+the last day); an activation across a clock gap no longer teaches its model
+(``creatures.behaviour.action_group.CLOCK_GAP``). Ozymandias, grounded only by clicks that
+stop after the first minute, let ``read`` and ``listen`` fall to 1.8e-4 of the click's value;
+its ``listen`` is now a ground too (``creatures.kinds.ozymandias``).
 """
 
 from __future__ import annotations
@@ -57,20 +64,28 @@ def values(group: ActionGroup) -> dict[str, tuple[float, bool]]:
 
 
 FOUND = {
-    "curve": "a Du model learns from an activation's length with the clock gap in it: bow's mirror "
-             "(Gaussian 4 ± 1 s) ran across a fast-forwarded day and learnt a mean of 2433 s, 70469 s by "
-             "day 30, so bow holds one mirror through the whole last day (a machine suspended overnight "
-             "would do the same); its values hold (alpha = 0)",
-    "ozymandias": "silent decay in a learning group: grounded by 'clicked' (3, non-plastic) but never "
-                  "clicked here, 'read' and 'listen' are credited toward β × each other and fall to "
-                  "1.8e-4 of 'clicked' over 30 days of speech",
+    "soundcreatures": "silent decay that appears with the clock-gap rule (it passed while Du models "
+                      "learnt each night as a duration): parrot's 'sing' falls to 0.014 (< 1 % of "
+                      "'attend', 3.0) by day 30",
 }
-"""Pieces whose 30 days this test found wanting (measured, seed 15); each is a defect of its
-class, not of the test."""
+"""Pieces whose 30 days this test finds wanting (measured, seed 15): defects of the class."""
+
+NOT_LIVED = {
+    "flock": "not measured: fifteen singers steering in a room make the reduced month cost more than 20 "
+             "minutes here, past what CI can give one test; its soak belongs with the room's level of detail",
+}
+"""Pieces this reduced month is too slow for (said, not hidden: they are skipped with the reason)."""
 
 
-@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.xfail(strict=True, reason=FOUND[n]))
-                                  if n in FOUND else n for n in installations.names()])
+def _case(name: str):
+    if name in NOT_LIVED:
+        return pytest.param(name, marks=pytest.mark.skip(reason=NOT_LIVED[name]))
+    if name in FOUND:
+        return pytest.param(name, marks=pytest.mark.xfail(strict=True, reason=FOUND[name]))
+    return name
+
+
+@pytest.mark.parametrize("name", [_case(n) for n in installations.names()])
 def test_thirty_days_on_every_creature_still_selects_and_its_values_hold(name):
     inst = load_installation(installations.path(name))
     inst.settings.output.wav = inst.settings.output.report = False

@@ -29,6 +29,15 @@ stance tags travel back with it. Only leaf tuples take credit, and a group tuple
 are credited between the leaves it ran (hierarchical groups: "assign only the credit to the
 leaf nodes"); a group tuple's Du is its active child's Du.
 
+A clock gap is a step between two consecutive ticks of a group longer than ``CLOCK_GAP``
+seconds: the machine was suspended, the creature's thread stalled, or an offline run
+fast-forwarded its clock. Every tuple active across it is told (``DoUntil.span_gap``) and its
+activation's length is not learnt as a duration (thesis, "percept updating – model building":
+a Du model is a model of what the creature lived; a 4 s mirror that "lasted" a night would
+otherwise teach a mean of hours, and the creature would then hold one mirror all day). The
+gap is logged as a ``gap`` event. Values are untouched: credit assignment depends on which
+tuple followed which, not on how long either lasted.
+
 Hot path: triggers are evaluated once per distinct percept (percepts are creature-wide and
 shared between tuples) and combined with the values as numpy arrays, so only the active
 tuples do Python-level work per tick.
@@ -49,6 +58,11 @@ EventSink = Callable[[dict[str, Any]], None]
 
 RECALL = 10.0
 """Seconds an ended activation is remembered for a late reward (the longest reward window)."""
+
+CLOCK_GAP = 1.0
+"""Longest step between two ticks of a group that is still lived time, in seconds: 25 to 50
+ticks of any shipped piece (0.02–0.04 s), far beyond a late tick under load. Losing one
+duration observation to a long stall is cheap; learning a night as a duration is not."""
 
 
 @dataclass
@@ -273,6 +287,10 @@ class ActionGroup:
         interrupt, then update whatever is active."""
         if not self._checked:
             self.check_grounded()
+        if self.last_tick is not None and t - self.last_tick > CLOCK_GAP and self.active:
+            for tuple_ in self.active:
+                tuple_.do_until.span_gap()
+            self._emit("gap", t, seconds=t - self.last_tick, spanned=[tp.name for tp in self.active])
         self.last_tick = t
         self._ticking = True
         try:

@@ -67,6 +67,11 @@ class DoUntil:
     an active tuple's expected value ``(1 − Du)·V`` declines as its time runs out and an
     interruption competes against what is left of it, not against its full value. The tuple
     still stops at the planned duration (Du = 1) or when ``until`` says so.
+
+    An activation the clock jumped across (:meth:`span_gap`, called by the action-group on a
+    clock gap) teaches its model nothing: its length is mostly time the creature did not live
+    (a suspended machine, a fast-forwarded clock), not a duration of the action (thesis,
+    "percept updating – model building": a model is built from what the creature perceived).
     """
 
     def __init__(
@@ -87,6 +92,7 @@ class DoUntil:
         self.graded = graded
         self.started_at: float | None = None
         self.planned: float = float("inf")
+        self.spans_gap = False
 
     @property
     def model(self) -> DurationModel | None:
@@ -94,6 +100,7 @@ class DoUntil:
 
     def begin(self, t: float, rng: np.random.Generator) -> None:
         self.started_at = t
+        self.spans_gap = False
         if self.duration is None:
             self.planned = float("inf")
         elif isinstance(self.duration, (int, float)):
@@ -113,15 +120,22 @@ class DoUntil:
             done = max(done, float(self.until.evaluate(t)))
         return done
 
+    def span_gap(self) -> None:
+        """The clock jumped while this activation ran: :meth:`end` will not teach its length."""
+        if self.started_at is not None:
+            self.spans_gap = True
+
     def end(self, t: float) -> float:
-        """Close the activation; teach the model the actual duration; return it."""
+        """Close the activation; teach the model the actual duration (unless the activation
+        spans a clock gap); return it."""
         if self.started_at is None:
             return 0.0
         actual = t - self.started_at
         self.started_at = None
         model = self.model
-        if self.learn and model is not None and actual > 0:
+        if self.learn and model is not None and actual > 0 and not self.spans_gap:
             model.update(actual)
+        self.spans_gap = False
         return actual
 
 

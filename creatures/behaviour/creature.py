@@ -335,6 +335,7 @@ def _tuple_to_dict(tuple_: ActionTuple) -> dict[str, Any]:
             "graded": du.graded,
             "started_at": du.started_at,
             "planned": du.planned if np.isfinite(du.planned) else None,
+            "spans_gap": du.spans_gap,
         },
     }
 
@@ -401,3 +402,4 @@ def _restore_tuple(tuple_: ActionTuple, data: dict[str, Any], group: ActionGroup
     du.started_at = _number(du_data["started_at"], f"{where}: do-until 'started_at'", optional=True)
     planned = _number(du_data["planned"], f"{where}: do-until 'planned'", optional=True)
     du.planned = float("inf") if planned is None else planned
+    du.spans_gap = _flag(du_data.get("spans_gap", False), f"{where}: do-until 'spans_gap'")
