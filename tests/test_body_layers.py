@@ -61,7 +61,8 @@ def test_breathe_is_a_config_key_and_bad_joints_are_named(tmp_path):
     path.write_text(text)
     specs = load_installation(path).specs
     assert specs[0].body.breathe.depth == 0.05 and specs[0].body.breathe.period == 4.0
-    assert specs[1].body is True  # the other creature's body has no layers: it does not breathe
+    shipped = load_installation(CONFIG).specs[1].body.breathe
+    assert specs[1].body.breathe == shipped  # the other creature keeps the shipped creature's breath
     path.write_text(text.replace("depth = 0.05}", 'depth = 0.05, joints = {ribs = [1, 0, 0]}}'))
     with pytest.raises(ConfigError, match=r"body.*no joint 'ribs'.*chest"):
         load_installation(path)
@@ -102,6 +103,7 @@ def test_the_events_log_names_who_drives_the_body(tmp_path):
     inst = load_installation(CONFIG)
     inst.settings.output.report = False
     inst.specs[0].body = BodySpec(breathe=BreatheSpec(period=BREATH, depth=0.1, fade=2.0))
+    inst.specs[1].body = True  # a body with no layers logs none
     run_offline(inst, tmp_path / "out", duration=4.0)
     motor = [e for e in read_events(tmp_path / "out" / "events.jsonl") if e["kind"] == "motor"]
     layered = [e for e in motor if e["creature"] == inst.specs[0].name]
