@@ -180,7 +180,7 @@ def test_supervisor_restarts_a_killed_run_with_its_learned_state(tmp_path: Path)
         while not any(r["restored"] for r in runs()) and time.monotonic() < deadline:  # the new run's log
             time.sleep(0.1)
         assert [r["restored"] for r in runs()] == [["ada"]]
-        assert saved["kind"] == "exchange"
+        assert saved["kind"] == "authored"  # the shipped exchange creature is an authored one
     finally:
         os.killpg(keeper.pid, signal.SIGTERM)
         out = keeper.communicate(timeout=60)[0].decode()
