@@ -60,6 +60,9 @@ def _relative(notes: list[NoteEvent], transpose: int = 0) -> list[NoteEvent]:
     """Heard notes moved to start at 0 (their rhythm kept), transposed and kept in MIDI range."""
     if not notes:
         return []
+    # In time order: the ear keeps notes in the order they reached it, and in a room a nearer
+    # player's later note arrives before a farther one's (or a saved ear was edited).
+    notes = sorted(notes, key=lambda n: n.time)
     t0 = notes[0].time
     return [NoteEvent(n.time - t0, min(max(n.pitch + transpose, 0), 127), n.velocity, 0, n.duration) for n in notes]
 
