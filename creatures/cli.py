@@ -143,9 +143,14 @@ def _offline(args: argparse.Namespace) -> int:
                         progress=not args.no_progress, frames=args.frames, video=args.video)
 
 
-def _run_options(parser: argparse.ArgumentParser) -> None:
+def _config_and_state(parser: argparse.ArgumentParser) -> None:
+    """The config and ``--state`` that ``run``, ``check`` and ``service`` all take."""
     parser.add_argument("config", type=Path, help="installation config (TOML)")
     parser.add_argument("--state", type=Path, help="directory for saved creature state (overrides the config)")
+
+
+def _run_options(parser: argparse.ArgumentParser) -> None:
+    _config_and_state(parser)
     parser.add_argument("--log", type=Path, help="write the events log (JSONL) here")
     parser.add_argument("--duration", type=_seconds(LONGEST_SECONDS),
                         help="stop after this many seconds (default: run until Ctrl-C)")
@@ -258,8 +263,7 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _check_options(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("config", type=Path, help="installation config (TOML)")
-    parser.add_argument("--state", type=Path, help="directory for saved creature state (overrides the config)")
+    _config_and_state(parser)
 
 
 @command("check", "pre-flight of a live run: ports, devices, disk, state folder, GL, a tick's cost", _check_options)
@@ -283,8 +287,7 @@ def _check(args: argparse.Namespace) -> int:
 
 
 def _service_options(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("config", type=Path, help="installation config (TOML)")
-    parser.add_argument("--state", type=Path, help="directory for saved creature state (overrides the config)")
+    _config_and_state(parser)
     parser.add_argument("--watchdog", type=_seconds(3600.0), default=30.0,
                         help="seconds without a tick before systemd restarts the run (default 30)")
     parser.add_argument("--out", type=Path, help="write the unit here (default: print it)")
