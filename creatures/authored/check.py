@@ -86,6 +86,7 @@ def check(spec: "AuthoredSpec", file: Path, where: Where, prefix: tuple) -> None
     _tuples(c)
     _groups(c)
     _learning(c)
+    _expectations(c)
 
 
 def _percepts(c: _Checker) -> None:
@@ -197,6 +198,12 @@ def _tuples(c: _Checker) -> None:
         if not isinstance(tp.value, float | int):
             for drive in tp.value.serves.values():
                 c.need("drives", drive, (*loc, "value", "serves"))
+            for key in ("leak", "momentum"):
+                if getattr(tp.value, key) and tp.value.kind != "scalar":
+                    raise c.error((*loc, "value", key), f"'{key}' processes a scalar value; this one is "
+                                                        f"{tp.value.kind!r} (thesis 'value signal processing')")
+        if tp.until.fresh and tp.until.percept is None:
+            raise c.error((*loc, "until", "fresh"), "'fresh' is about the until-percept: give the Du a 'percept'")
 
 
 def _groups(c: _Checker) -> None:
@@ -268,6 +275,23 @@ def _learning(c: _Checker) -> None:
         if "phrase" not in cls.Params.model_fields:
             raise c.error((*loc, "action"), f"action {ph.action!r} has no 'phrase' key to sing a learnt phrase with")
         _until(c, ph.until, (*loc, "until"))
+
+
+def _expectations(c: _Checker) -> None:
+    """Expectation groups exist, and a surprise or confidence percept reads a tuple that
+    keeps expectations (else it would read 0 for ever)."""
+    groups = c.spec.expectations.groups
+    for k, group in enumerate(groups):
+        c.need("groups", group, ("expectations", "groups", k))
+    owner = {m: name for name, g in c.spec.groups.items() for m in g.tuples}
+    for name, p in c.spec.percepts.items():
+        if p.type not in ("surprise", "confidence"):
+            continue
+        tuple_ = p.params().get("tuple")
+        if not groups or (tuple_ is not None and owner.get(tuple_) not in groups):
+            where = f"tuple {tuple_!r}'s group {owner.get(tuple_)!r}" if tuple_ is not None else "a group"
+            raise c.error(("percepts", name, "type"), f"a {p.type!r} percept needs {where} in "
+                                                      f"[creature.expectations] groups = [...]")
 
 
 __all__ = ["ROOT", "check"]

@@ -25,12 +25,14 @@ from creatures.authored.ear import Ear
 from creatures.authored.spec import AuthoredSpec, PartSpec, TupleSpec, UntilSpec, ValueSpec
 from creatures.behaviour.action_group import ActionGroup, group_tuple
 from creatures.behaviour.action_tuple import ActionTuple, DoUntil
+from creatures.behaviour.expectation import Expectations
 from creatures.behaviour.learning import PerceptLearning
 from creatures.behaviour.models.fuzzy import OrPercept
 from creatures.behaviour.motivation import Motivation
 from creatures.behaviour.percept import FunctionPercept, Percept, WhateverPercept
 from creatures.behaviour.state_object import StateObject
-from creatures.behaviour.value import ChainValue, GaussianValue, ScalarValue, Value
+from creatures.behaviour.value import ChainValue, GaussianValue, ProcessedValue, ScalarValue, Value
+from creatures.clock import Clock
 from creatures.config import ConfigError
 from creatures.kinds import register
 from creatures.kinds.base import CreatureKind
@@ -56,9 +58,10 @@ def find_sensor(world: "World", name: str) -> StateObject:
     return sensors[name]
 
 
-def make_value(spec: float | ValueSpec, importance) -> Value:
+def make_value(spec: float | ValueSpec, importance, clock: Clock) -> Value:
     """V from its config: a number, or a scalar/chain/gaussian table (``plastic = false``
-    gives plasticity 0: a reward credit assignment cannot move)."""
+    gives plasticity 0: a reward credit assignment cannot move; a scalar with ``leak`` or
+    ``momentum`` is a :class:`ProcessedValue`, thesis "value signal processing")."""
     if isinstance(spec, int | float):
         return ScalarValue(float(spec))
     plasticity = 1.0 if spec.plastic else 0.0
@@ -67,6 +70,9 @@ def make_value(spec: float | ValueSpec, importance) -> Value:
                           importance=importance(spec.serves) if spec.serves else None)
     if spec.kind == "gaussian":
         return GaussianValue(spec.value, plasticity=plasticity, spread=spec.spread)
+    if spec.leak or spec.momentum:
+        return ProcessedValue(spec.value, plasticity=plasticity, leak=spec.leak, rest=spec.rest,
+                              momentum=spec.momentum, clock=clock)
     return ScalarValue(spec.value, plasticity=plasticity)
 
 
@@ -101,6 +107,7 @@ class Authored(CreatureKind):
                                                         **({"gap": constraint.gap} if constraint.relation == "before"
                                                            else {}))
         self.groups: dict[str, ActionGroup] = {}
+        self.expectations = self._expectations(spec)
         members = {m for g in spec.groups.values() for m in g.tuples}
         self.top = [self._group(name) for name in spec.groups if name not in members]
         self.voice: Voice | None = None
@@ -123,6 +130,14 @@ class Authored(CreatureKind):
             coupling={(n, other): rate for n, x in d.items() for other, rate in x.coupling.items()},
             floor=spec.drive_floor, ceiling=spec.drive_ceiling, start=self.now(),
         )
+
+    def _expectations(self, spec: AuthoredSpec) -> Expectations | None:
+        e = spec.expectations
+        if not e.groups:
+            return None
+        return Expectations(tolerance=e.tolerance, grace=e.grace, reliance=e.reliance, memory=e.memory,
+                            rigidity=e.rigidity, confident=e.confident, fission=e.fission, decay=e.decay,
+                            on_event=selection_logger(self.world, self.name))
 
     def percept(self, name: str) -> Percept:
         """The percept ``name``, built on first use (the loader excluded reference cycles)."""
@@ -155,12 +170,12 @@ class Authored(CreatureKind):
         if until.done:
             stops.append(FunctionPercept(f"{action.name} done", action.done))
         stop = None if not stops else stops[0] if len(stops) == 1 else OrPercept(f"{action.name} stops", stops)
-        return DoUntil(duration, until=stop, graded=until.graded)
+        return DoUntil(duration, until=stop, graded=until.graded, fresh=until.fresh)
 
     def _tuple(self, name: str, tp: TupleSpec) -> ActionTuple:
         action = self._action(tp.action, name)
         return ActionTuple(name, self.percept(tp.trigger), action, self._do_until(tp.until, action),
-                           make_value(tp.value, self._importance))
+                           make_value(tp.value, self._importance, self.world.clock))
 
     def _importance(self, serves: dict[str, str]):
         return self.motivation.importance(serves)
@@ -188,9 +203,10 @@ class Authored(CreatureKind):
             learner = PerceptLearning(split_at=learning.split_at, fuse_below=learning.fuse_below, **options)
         elif name in learning.aural:
             learner = self.aural.learning(**options)
+        expects = self.expectations if name in self.spec.expectations.groups else None
         group = ActionGroup(name, tuples, rng=self.rng, alpha=g.alpha, discount=g.discount, multiple=g.multiple,
-                            temperature=g.temperature, max_active=g.max_active, learning=learner,
-                            on_event=selection_logger(self.world, self.name))
+                            temperature=g.temperature, max_active=len(tuples) if g.perception else g.max_active,
+                            learning=learner, expectations=expects, on_event=selection_logger(self.world, self.name))
         self.groups[name] = group
         return group
 

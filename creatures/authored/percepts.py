@@ -19,6 +19,7 @@ from creatures.kinds.hearing_parts import SeedModel
 from creatures.behaviour.models.activation import ActivationModel
 from creatures.behaviour.models.fuzzy import AndPercept, NotPercept, OrPercept
 from creatures.behaviour.models.gaussian import GaussianModel, GaussianPercept
+from creatures.behaviour.perception import PerceivingPercept
 from creatures.behaviour.percept import FunctionPercept, Percept
 from creatures.temporal.durations import SimpleDurationModel
 
@@ -597,3 +598,78 @@ class Sung(PerceptPart):
     def build(self, params, creature, name):
         mouth = creature.aural.mouth
         return FunctionPercept(name, lambda t: 1.0 if t >= mouth.until + params.wait else 0.0)
+
+
+# -- expectations and perception as action ---------------------------------------------------
+class _SurpriseParams(Params):
+    tuple: str | None = Field(None, description="whose surprise (none: the creature's latest, any tuple's)")
+
+
+@PERCEPTS.register
+class Surprise(PerceptPart):
+    """How surprised the creature is: confidence × violation of the last expectation violated
+    (a Du's end or a value), fading over ``expectations.decay`` seconds; 0 while nothing has
+    surprised it. Needs ``[creature.expectations]``."""
+
+    name = "surprise"
+    thesis = "expectations about the consequences of actions"
+    Params = _SurpriseParams
+    refs = {"tuple": "tuples"}
+
+    def build(self, params, creature, name):
+        return FunctionPercept(name, lambda t: creature.expectations.surprise(t, params.tuple))
+
+
+class _ConfidenceParams(Params):
+    tuple: str = Field(description="whose confidence")
+
+
+@PERCEPTS.register
+class ConfidencePercept(PerceptPart):
+    """How much the creature trusts ``tuple``'s expectations now, in [0, 1]: falls when they
+    were recently wrong and while they go untested. Needs ``[creature.expectations]``."""
+
+    name = "confidence"
+    thesis = "expectations about value"
+    Params = _ConfidenceParams
+    refs = {"tuple": "tuples"}
+
+    def build(self, params, creature, name):
+        return FunctionPercept(name, lambda t: creature.expectations.confidence(t, params.tuple))
+
+
+class _PerceivingParams(Params):
+    tuple: str | None = Field(None, description="the perception action whose activity this models")
+    group: str | None = Field(None, description="… or a perception group: the strongest of its members")
+    trace: float = Field(0.0, ge=0, le=3600, description="seconds the activity lingers after the tuple stops "
+                                                         "(exp(−age/trace))")
+    valued: bool = Field(True, description="saliency is activity × the perception's value (its saliency)")
+    ground: float = Field(0.1, ge=0, le=1, description="rate at which the credit of tuples triggered by this "
+                                                       "percept grounds the perception's value "
+                                                       "(their group in learning.groups)")
+
+    @model_validator(mode="after")
+    def _one_source(self):
+        if (self.tuple is None) == (self.group is None):
+            raise ValueError("give either 'tuple' or 'group'")
+        return self
+
+
+@PERCEPTS.register
+class Perceiving(PerceptPart):
+    """The act of perceiving (a perception action, or a group of them, is active), valued:
+    a sub-tree of these models a perception group's activity for other tuples' Tr, and the
+    perceptions' values ground its saliency (see creatures/behaviour/perception.py)."""
+
+    name = "perceiving"
+    thesis = "perception as action"
+    Params = _PerceivingParams
+    refs = {"tuple": "tuples", "group": "groups"}
+
+    def build(self, params, creature, name):
+        def watched() -> list:
+            if params.tuple is not None:
+                return [creature.tuple(params.tuple)]
+            return creature.groups[params.group].tuples
+
+        return PerceivingPercept(name, watched, trace=params.trace, valued=params.valued, ground=params.ground)

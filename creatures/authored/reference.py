@@ -18,6 +18,7 @@ from creatures.authored import registry
 from creatures.authored.spec import (
     ConstraintSpec,
     DriveSpec,
+    ExpectationSpec,
     GroupSpec,
     LearningSpec,
     PhraseHypotheses,
@@ -80,6 +81,7 @@ def reference() -> str:
         ("Interval constraints — `constraints = [{ … }]` of a group", ConstraintSpec),
         ("Learning — `[creature.learning]`", LearningSpec),
         ("New hypotheses — `[creature.learning.phrases]`", PhraseHypotheses),
+        ("Expectations — `[creature.expectations]`", ExpectationSpec),
         ("Notes in space — `[creature.space]`", SpaceSpec),
     ):
         doc = " ".join((model.__doc__ or "").strip().split("\n\n")[0].split())

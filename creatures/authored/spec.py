@@ -91,6 +91,8 @@ class UntilSpec(Strict):
                                             "so the running tuple's expected value (1 − Du)·V declines as its time "
                                             "runs out and an interruption competes with what is left (thesis "
                                             "'computing expected values')")
+    fresh: bool = Field(False, description="the percept counts only once it has fallen below 1 since the start: "
+                                           "'until the next onset', not the onset that started the tuple")
 
 
 class ValueSpec(Strict):
@@ -103,6 +105,11 @@ class ValueSpec(Strict):
     serves: dict[str, str] = Field(default_factory=dict,
                                    description="chain: goal source → drive whose level is its importance")
     spread: float = Field(1.0, gt=0, le=LARGEST_RATE, description="gaussian: prior spread of the incoming values")
+    leak: float = Field(0.0, ge=0, le=LARGEST_RATE, description="per second: value leaks out toward 'rest' "
+                                                                "(thesis 'value signal processing')")
+    rest: float = Field(0.0, ge=-LARGEST_RATE, le=LARGEST_RATE, description="leak: the value it leaks toward")
+    momentum: float = Field(0.0, ge=0, lt=1, description="credit assignment keeps this share of the last change "
+                                                         "going (thesis 'value signal processing')")
 
 
 class TupleSpec(Strict):
@@ -142,6 +149,30 @@ class GroupSpec(Strict):
                                                  "rather than exploiting its best song")
     trigger: str = Field("whatever", description="as a member of another group: its Tr")
     value: float = Field(1.0, ge=-LARGEST_RATE, le=LARGEST_RATE, description="as a member of another group: its V")
+    perception: bool = Field(False, description="a group of perception actions (thesis 'perception as action'): "
+                                                "not mutually exclusive, every member whose Tr is salient is "
+                                                "active at once (max_active = its size)")
+
+
+class ExpectationSpec(Strict):
+    """``[creature.expectations]`` — surprise and confidence (thesis "expectations about value",
+    "expectations about the consequences of actions"): each tuple of the named groups expects
+    its Du's end and, with ``value.kind = "gaussian"``, the values that follow it."""
+
+    groups: list[str] = Field(default_factory=list, max_length=256, description="groups whose tuples keep expectations")
+    tolerance: float = Field(0.25, gt=0, le=1, description="violation p = 1 − Du.evaluate(end) at or above this "
+                                                           "is surprising")
+    grace: float = Field(0.25, ge=0, le=10, description="× the planned duration the until-percept may come late")
+    reliance: float = Field(0.2, gt=0, le=1, description="rate of the confidence's average of hits")
+    memory: float = Field(600.0, gt=0, le=LONGEST_SECONDS, description="seconds untested over which confidence "
+                                                                       "fades by 1/e")
+    rigidity: float = Field(0.5, ge=0, le=1, description="credit rate × (1 − rigidity × confidence): confident "
+                                                         "values change slower")
+    confident: float = Field(0.5, ge=0, le=1, description="confidence at which a violated expectation reviews "
+                                                          "the tuple's trigger for fission (its group in "
+                                                          "learning.groups)")
+    fission: bool = Field(True, description="a confident expectation violated may split the trigger percept")
+    decay: float = Field(1.0, gt=0, le=LONGEST_SECONDS, description="seconds a surprise stays salient as a percept")
 
 
 class PhraseHypotheses(Strict):
@@ -190,6 +221,7 @@ class AuthoredSpec(CreatureSpec):
                                                                    "a group named in no other group is ticked "
                                                                    "by the creature")
     learning: LearningSpec = LearningSpec()
+    expectations: ExpectationSpec = ExpectationSpec()
     hears_input: bool = Field(True, description="hear notes from outside the colony")
     body: FigureBodySpec | bool = Field(False, description="a body on a motor graph; motor actions need it. "
                                                            "true: the stick figure (sway, reach, strike); a "

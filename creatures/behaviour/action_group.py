@@ -46,13 +46,16 @@ tuples do Python-level work per tick.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Callable, Iterable, Protocol
+from typing import TYPE_CHECKING, Any, Callable, Iterable, Protocol
 
 import numpy as np
 
 from creatures.behaviour.action_tuple import Action, ActionTuple, DoUntil
 from creatures.behaviour.percept import Percept
-from creatures.behaviour.value import Value, value_from_dict
+from creatures.behaviour.value import Value, reattach, value_from_dict
+
+if TYPE_CHECKING:
+    from creatures.behaviour.expectation import Expectations
 
 EventSink = Callable[[dict[str, Any]], None]
 
@@ -145,6 +148,7 @@ class ActionGroup:
         on_event: EventSink | None = None,
         learning: Learner | None = None,
         grounded_by: str | None = None,
+        expectations: "Expectations | None" = None,
     ) -> None:
         if max_active < 1:
             raise ValueError(f"{name}: max_active must be at least 1 (got {max_active})")
@@ -160,6 +164,7 @@ class ActionGroup:
         self.on_event = on_event
         self.learning = learning
         self.grounded_by = grounded_by
+        self.expectations = expectations  # surprise and confidence (creatures/behaviour/expectation.py)
         self._checked = False
         self.tuples: list[ActionTuple] = []
         self.active: list[ActionTuple] = []
@@ -292,6 +297,8 @@ class ActionGroup:
                 tuple_.do_until.span_gap()
             self._emit("gap", t, seconds=t - self.last_tick, spanned=[tp.name for tp in self.active])
         self.last_tick = t
+        if self.expectations is not None:
+            self.expectations.tick(t)
         self._ticking = True
         try:
             for tuple_ in list(self.active):
@@ -368,6 +375,8 @@ class ActionGroup:
         self.recent.append(Activation(tuple_, t, self._trigger_at_last_start))
 
     def _stop(self, tuple_: ActionTuple, t: float, *, interrupted: bool) -> None:
+        if self.expectations is not None:
+            self.expectations.ended(self, tuple_, t, interrupted=interrupted)
         duration = tuple_.stop(t, interrupted=interrupted)
         self.active.remove(tuple_)
         for activation in reversed(self.recent):
@@ -415,6 +424,8 @@ class ActionGroup:
         last_leaf, new_leaf = leaf_of(last), leaf_of(new)
         target = discounted(new_leaf.value, self.discount)
         a = np.clip(self.alpha * self.proximity(last_leaf) * self._trigger_at_last_start, 0.0, 1.0)
+        if self.expectations is not None:
+            a = self.expectations.credit_rates(self, t, last_leaf, target, a)
         before = self.values() if self.learning is not None else None
         for i in np.flatnonzero(a):
             self.tuples[i].value.blend_to(target, float(a[i]))
@@ -505,7 +516,7 @@ class ActionGroup:
         """Take back values saved by :meth:`value_state`; tuples not saved keep theirs."""
         for tp in self.tuples:
             if tp.name in saved:
-                tp.value = value_from_dict(saved[tp.name])
+                tp.value = reattach(value_from_dict(saved[tp.name]), tp.value)
 
     def _emit(self, event: str, t: float, **fields: Any) -> None:
         if self.on_event is not None:

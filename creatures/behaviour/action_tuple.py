@@ -68,6 +68,13 @@ class DoUntil:
     interruption competes against what is left of it, not against its full value. The tuple
     still stops at the planned duration (Du = 1) or when ``until`` says so.
 
+    ``fresh``: the until-percept counts only once it has fallen below 1 since the start, so
+    "until the next onset" is not ended at once by the onset that triggered the tuple.
+
+    Du is two descriptions of the end, :meth:`timing` (the planned duration) and :meth:`world`
+    (the until-percept): the tuple stops when either says done; what the world should look
+    like when it does is the expectation :mod:`creatures.behaviour.expectation` checks.
+
     An activation the clock jumped across (:meth:`span_gap`, called by the action-group on a
     clock gap) teaches its model nothing: its length is mostly time the creature did not live
     (a suspended machine, a fast-forwarded clock), not a duration of the action (thesis,
@@ -81,6 +88,7 @@ class DoUntil:
         until: Percept | None = None,
         learn: bool = True,
         graded: bool = False,
+        fresh: bool = False,
     ) -> None:
         if duration is None and until is None:
             raise ValueError("a Do-until needs a duration, an until-percept, or both")
@@ -90,6 +98,8 @@ class DoUntil:
         self.until = until
         self.learn = learn
         self.graded = graded
+        self.fresh = fresh
+        self._armed = not fresh
         self.started_at: float | None = None
         self.planned: float = float("inf")
         self.spans_gap = False
@@ -101,6 +111,7 @@ class DoUntil:
     def begin(self, t: float, rng: np.random.Generator) -> None:
         self.started_at = t
         self.spans_gap = False
+        self._armed = not self.fresh
         if self.duration is None:
             self.planned = float("inf")
         elif isinstance(self.duration, (int, float)):
@@ -108,17 +119,30 @@ class DoUntil:
         else:
             self.planned = float(self.duration.sample(rng))
 
+    def timing(self, t: float) -> float | None:
+        """The planned-duration part of Du at ``t`` (a step, or the graded ramp), or None
+        when there is no plan (an until-percept alone, or not started)."""
+        if self.started_at is None or self.planned == float("inf"):
+            return None
+        elapsed = t - self.started_at
+        if elapsed >= self.planned:
+            return 1.0
+        return max(elapsed, 0.0) / self.planned if self.graded else 0.0
+
+    def world(self, t: float) -> float | None:
+        """The until-percept part of Du at ``t``, or None without one (``fresh``: 0 until
+        the percept has fallen below 1 since the start)."""
+        if self.until is None:
+            return None
+        w = float(self.until.evaluate(t))
+        if not self._armed:
+            self._armed = w < 1.0
+            return 0.0
+        return w
+
     def evaluate(self, t: float) -> float:
-        done = 0.0
-        if self.started_at is not None:
-            elapsed = t - self.started_at
-            if elapsed >= self.planned:
-                done = 1.0
-            elif self.graded and self.planned < float("inf"):
-                done = max(elapsed, 0.0) / self.planned
-        if self.until is not None:
-            done = max(done, float(self.until.evaluate(t)))
-        return done
+        timing, world = self.timing(t), self.world(t)
+        return max(0.0 if timing is None else timing, 0.0 if world is None else world)
 
     def span_gap(self) -> None:
         """The clock jumped while this activation ran: :meth:`end` will not teach its length."""

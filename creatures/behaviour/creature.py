@@ -42,7 +42,7 @@ from creatures.behaviour.models.transition import TransitionModel
 from creatures.behaviour.motivation import Motivation
 from creatures.behaviour.percept import Percept
 from creatures.behaviour.state_object import StateObject
-from creatures.behaviour.value import value_from_dict
+from creatures.behaviour.value import reattach, value_from_dict
 from creatures.clock import Clock
 from creatures.persist import StateFileError, load_json, load_npz, save_json, save_npz
 
@@ -333,6 +333,7 @@ def _tuple_to_dict(tuple_: ActionTuple) -> dict[str, Any]:
             "until": None if du.until is None else du.until.name,
             "learn": du.learn,
             "graded": du.graded,
+            "fresh": du.fresh,
             "started_at": du.started_at,
             "planned": du.planned if np.isfinite(du.planned) else None,
             "spans_gap": du.spans_gap,
@@ -359,7 +360,8 @@ def _restore_group(
                 tuple_data["name"],
                 _lookup(percepts, tuple_data["trigger"], "percept"),
                 action,
-                DoUntil(duration, until=until, learn=du_data["learn"], graded=du_data.get("graded", False)),
+                DoUntil(duration, until=until, learn=du_data["learn"], graded=du_data.get("graded", False),
+                        fresh=du_data.get("fresh", False)),
                 0.0,
             )
             group.add(tuple_)
@@ -380,12 +382,9 @@ def _restore_tuple(tuple_: ActionTuple, data: dict[str, Any], group: ActionGroup
         raise ValueError(f"tuple {tuple_.name!r}: saved action {data['action']!r}, built {tuple_.action.name!r}")
     if data["trigger"] != tuple_.trigger.name:
         raise ValueError(f"tuple {tuple_.name!r}: saved trigger {data['trigger']!r}, built {tuple_.trigger.name!r}")
-    fresh = value_from_dict(data["value"])
+    fresh = reattach(value_from_dict(data["value"]), tuple_.value)  # importance, clock: creature state
     if type(fresh) is type(tuple_.value):
-        importance = getattr(tuple_.value, "importance", None)  # creature state, not saved
         _refill(tuple_.value, fresh)
-        if importance is not None:
-            tuple_.value.importance = importance
     else:
         tuple_.value = fresh
     if data["action_state"] is not None:

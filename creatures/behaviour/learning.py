@@ -299,7 +299,7 @@ class PerceptLearning:
                 f"{child.name}|{tuple_.action.name}",
                 child,
                 tuple_.action,
-                DoUntil(du.duration, until=du.until, learn=du.learn, graded=du.graded),
+                DoUntil(du.duration, until=du.until, learn=du.learn, graded=du.graded, fresh=du.fresh),
                 copy_value(tuple_.value),
             )
             group.add(hypothesis)

@@ -1,5 +1,5 @@
 """The Value interface and its implementations (thesis: "complex value implementations",
-"value chaining", "expectations about value", "emotional tags").
+"value chaining", "expectations about value", "emotional tags", "value signal processing").
 
 Value gets its meaning only through action selection. The thesis asks only four operations of
 a value: ``toDouble``, ``compareTo``, ``distanceTo`` and ``blendTo``; anything richer (tracer
@@ -379,9 +379,88 @@ class StanceValue(ScalarValue):
         return f"StanceValue({self.value:.4g}, stance={self.stance:+.2f})"
 
 
+class ProcessedValue(ScalarValue):
+    """A scalar value with signal processing in its blend (thesis: "value signal processing":
+    "we can look at V₁.blendTo(V₂, α) as an opportunity to perform arbitrary signal processing").
+
+    - **Leaky**: value slowly leaks out toward ``rest``, V(t) = rest + (V − rest)·exp(−leak·Δt)
+      over the seconds Δt since it was last set, so what is not re-earned is forgotten. It
+      needs the creature's ``clock`` (not saved: re-attached after loading, like a chain
+      value's importance); without one nothing leaks.
+    - **Momentum**: credit assignment keeps going in the direction it has been going,
+      Δ = a·(V_n − V) + momentum·Δ_previous, so a run of credit in one direction moves the
+      value further than each step alone, and one contrary step only slows it.
+    """
+
+    kind = "processed"
+
+    def __init__(
+        self,
+        value: float,
+        *,
+        plasticity: float = 1.0,
+        leak: float = 0.0,
+        rest: float = 0.0,
+        momentum: float = 0.0,
+        velocity: float = 0.0,
+        clock: Clock | None = None,
+        set_at: float | None = None,
+    ) -> None:
+        super().__init__(value, plasticity=plasticity)
+        if not leak >= 0:
+            raise ValueError(f"leak must be a rate ≥ 0 per second (got {leak!r})")
+        if not 0.0 <= momentum < 1.0:
+            raise ValueError(f"momentum must be in [0, 1) (got {momentum!r})")
+        self.leak = float(leak)
+        self.rest = float(rest)
+        self.momentum = float(momentum)
+        self.velocity = float(velocity)
+        self.clock = clock
+        self.set_at = set_at if set_at is not None else (clock.now() if clock is not None else None)
+
+    def to_float(self) -> float:
+        if not self.leak or self.clock is None or self.set_at is None:
+            return self.value
+        dt = max(0.0, self.clock.now() - self.set_at)
+        return self.rest + (self.value - self.rest) * math.exp(-self.leak * dt)
+
+    def blend_to(self, other: Value, alpha: float) -> None:
+        self.value = self.to_float()  # what has leaked out is gone
+        if self.clock is not None:
+            self.set_at = self.clock.now()
+        a = self.rate(alpha)
+        if a == 0.0:
+            return
+        self.velocity = toward(self.value, _learned(other), a) - self.value + self.momentum * self.velocity
+        self.value += self.velocity
+
+    def to_dict(self) -> dict[str, Any]:
+        return {**super().to_dict(), "value": self.to_float(), "leak": self.leak, "rest": self.rest,
+                "momentum": self.momentum, "velocity": self.velocity}
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> "ProcessedValue":
+        return cls(data["value"], plasticity=data.get("plasticity", 1.0), leak=data["leak"], rest=data["rest"],
+                   momentum=data["momentum"], velocity=data.get("velocity", 0.0))
+
+    def __repr__(self) -> str:
+        return f"ProcessedValue({self.to_float():.4g}, leak={self.leak:g}, momentum={self.momentum:g})"
+
+
 VALUE_KINDS: dict[str, type] = {
-    cls.kind: cls for cls in (ScalarValue, ChainValue, GaussianValue, StanceValue)
+    cls.kind: cls for cls in (ScalarValue, ChainValue, GaussianValue, StanceValue, ProcessedValue)
 }
+
+
+def reattach(fresh: Value, old: Value) -> Value:
+    """``fresh`` (just loaded) given the creature state ``old`` held and values do not save:
+    a chain value's live ``importance`` map, a leaky or Gaussian value's ``clock``."""
+    for attr in ("importance", "clock"):
+        if getattr(old, attr, None) is not None and hasattr(fresh, attr):
+            setattr(fresh, attr, getattr(old, attr))
+    if isinstance(fresh, ProcessedValue) and fresh.clock is not None:
+        fresh.set_at = fresh.clock.now()
+    return fresh
 
 
 def value_from_dict(data: dict[str, Any]) -> Value:

@@ -39,3 +39,9 @@ class WrappedDoUntil(DoUntil):
 
     def end(self, t: float) -> float:
         return self.inner.end(t)
+
+    def timing(self, t: float) -> float | None:
+        return self.inner.timing(t)
+
+    def world(self, t: float) -> float | None:
+        return self.inner.world(t)

@@ -1,0 +1,228 @@
+"""Expectations of action-tuples: surprise and confidence (thesis: "expectations about
+value", "expectations about the consequences of actions", "surprise/confidence").
+
+An action-tuple carries two expectations. Its Du describes the state of the world when the
+action should finish, so the end is an expectation; the thesis reads it as an unnormalised
+likelihood p ∝ 1 − Du.evaluate(end) of the end being *out of the ordinary* ("at the very
+least characters can get surprised when they are interrupted"). Here:
+
+- an **interruption** is judged on the whole Du: p = 1 − Du.evaluate(end). With a graded Du
+  an interruption near the planned end is barely a violation, one just after the start is
+  nearly a full one;
+- a **natural end** is judged on the part of Du that did not end it (a Du of a duration and
+  an until-percept expects both to agree): ended by the until-percept before the plan,
+  p = 1 − timing(end) (the note came early); ended by the plan while the until-percept is
+  not yet salient, the world gets ``grace`` × the planned duration to catch up (the note is
+  a little late, as played notes are), after which p = 1 − until.evaluate(deadline).
+
+A p of at least ``tolerance`` is a violation. The second expectation is V's: at a credit
+assignment, a tuple whose value models the values that follow it (a
+:class:`~creatures.behaviour.value.GaussianValue`) finds β·V_n unexpected when its likelihood
+falls below the value's threshold ("surprise at an unexpected value"), p = 1 − likelihood.
+
+*How* surprising is the tuple's :class:`Confidence` times p. Confidence falls "if a model
+has been wrong recently" (an exponential average of hits) and "if a model has not been
+tested for a long time" (exp(−untested / memory)); a new tuple starts with none. Confidence
+is then used as the thesis proposes: credit assignment moves a confident tuple's value
+slower (a_i × (1 − rigidity·confidence_i)), and a *confident* expectation violated
+(confidence ≥ ``confident`` before the violation) promotes percept-tree growth — the group's
+learner reviews the tuple's trigger for fission whatever its value ("something in the world
+has changed, and we need to refine our assumptions"). Surprise and confidence are readable
+as percepts (``surprise``, ``confidence`` in the authored library), so other tuples can act
+on them.
+
+One :class:`Expectations` is creature-wide (like percepts) and is attached to each group
+that keeps expectations (``group.expectations``); the group calls :meth:`ended` before a
+tuple stops, :meth:`tick` at each tick and :meth:`credit_rates` at each credit assignment.
+Confidence is not saved: a restarted creature has tested nothing for a while, and the
+thesis's own rule makes it unconfident.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, Callable
+
+import numpy as np
+
+from creatures.behaviour.action_tuple import ActionTuple
+
+if TYPE_CHECKING:
+    from creatures.behaviour.action_group import ActionGroup
+    from creatures.behaviour.value import Value
+
+
+@dataclass
+class Confidence:
+    """Trust in a tuple's expectations: ``reliability`` (exponential average of hits, rate
+    ``reliance``) discounted by exp(−(t − tested_at) / ``memory``)."""
+
+    reliance: float = 0.2
+    memory: float = 600.0
+    reliability: float = 0.0
+    tested_at: float | None = None
+
+    def at(self, t: float) -> float:
+        if self.tested_at is None:
+            return self.reliability
+        return self.reliability * math.exp(-max(0.0, t - self.tested_at) / self.memory)
+
+    def record(self, hit: bool, t: float) -> None:
+        self.reliability += self.reliance * ((1.0 if hit else 0.0) - self.reliability)
+        self.tested_at = t
+
+
+@dataclass
+class TupleExpectation:
+    """What one tuple's expectations have met: its confidence and its last surprise."""
+
+    confidence: Confidence
+    surprise: float = 0.0
+    surprised_at: float = -math.inf
+    violations: int = 0
+    tests: int = 0
+
+
+@dataclass
+class _Pending:
+    """A tuple that ended on its plan before its until-percept: the world may still catch up."""
+
+    tuple_: ActionTuple
+    group: "ActionGroup"
+    deadline: float
+
+
+class Expectations:
+    """The expectation machinery of one creature (see the module docstring).
+
+    ``decay`` is how many seconds a surprise stays salient as a percept (it fades as
+    exp(−age / decay)). ``on_event`` receives ``surprise`` events (tuple, why, p, surprise,
+    confidence) and ``expectation review`` events (a confident violation reviewed the
+    tuple's trigger; ``children``: how many it gained).
+    """
+
+    def __init__(
+        self,
+        *,
+        tolerance: float = 0.25,
+        grace: float = 0.25,
+        reliance: float = 0.2,
+        memory: float = 600.0,
+        rigidity: float = 0.5,
+        confident: float = 0.5,
+        fission: bool = True,
+        decay: float = 1.0,
+        on_event: Callable[[dict[str, Any]], None] | None = None,
+    ) -> None:
+        if not 0.0 < tolerance <= 1.0:
+            raise ValueError(f"tolerance must be in (0, 1] (got {tolerance!r})")
+        if not 0.0 <= rigidity <= 1.0:
+            raise ValueError(f"rigidity must be in [0, 1] (got {rigidity!r})")
+        self.tolerance = float(tolerance)
+        self.grace = float(grace)
+        self.reliance = float(reliance)
+        self.memory = float(memory)
+        self.rigidity = float(rigidity)
+        self.confident = float(confident)
+        self.fission = fission
+        self.decay = float(decay)
+        self.on_event = on_event
+        self._of: dict[int, TupleExpectation] = {}
+        self._names: dict[str, TupleExpectation] = {}
+        self._pending: list[_Pending] = []
+        self.latest = (0.0, -math.inf)  # (surprise, when): the creature's most recent surprise
+
+    def of(self, tuple_: ActionTuple) -> TupleExpectation:
+        state = self._of.get(id(tuple_))
+        if state is None:
+            state = TupleExpectation(Confidence(self.reliance, self.memory))
+            self._of[id(tuple_)] = state
+            self._names[tuple_.name] = state
+        return state
+
+    # -- readings (the percepts) ------------------------------------------------------------
+    def surprise(self, t: float, name: str | None = None) -> float:
+        """The surprise of tuple ``name`` (or the creature's latest), fading with ``decay``."""
+        if name is None:
+            s, at = self.latest
+        else:
+            state = self._names.get(name)
+            if state is None:
+                return 0.0
+            s, at = state.surprise, state.surprised_at
+        return s * math.exp(-max(0.0, t - at) / self.decay) if s else 0.0
+
+    def confidence(self, t: float, name: str) -> float:
+        state = self._names.get(name)
+        return 0.0 if state is None else state.confidence.at(t)
+
+    # -- the group's hooks ------------------------------------------------------------------
+    def ended(self, group: "ActionGroup", tuple_: ActionTuple, t: float, *, interrupted: bool) -> None:
+        """``tuple_`` is about to stop at ``t``: judge its end against its Du."""
+        du = tuple_.do_until
+        if interrupted:
+            self._judge(group, tuple_, t, 1.0 - du.evaluate(t), "interrupted")
+            return
+        timing, world = du.timing(t), du.world(t)
+        if timing is None or world is None:  # one description only, and it ended the tuple
+            self._judge(group, tuple_, t, 0.0, "end")
+        elif world >= 1.0:
+            self._judge(group, tuple_, t, 1.0 - timing, "early")
+        else:
+            self._pending.append(_Pending(tuple_, group, t + self.grace * du.planned))
+
+    def tick(self, t: float) -> None:
+        """Settle the ends waiting for the world to catch up (called by each group's tick)."""
+        if not self._pending:
+            return
+        waiting = []
+        for pending in self._pending:
+            world = float(pending.tuple_.do_until.until.evaluate(t))
+            if world >= 1.0:
+                self._judge(pending.group, pending.tuple_, t, 0.0, "late")
+            elif t >= pending.deadline:
+                self._judge(pending.group, pending.tuple_, t, 1.0 - world, "missed")
+            else:
+                waiting.append(pending)
+        self._pending = waiting
+
+    def credit_rates(self, group: "ActionGroup", t: float, last: ActionTuple, target: "Value",
+                     a: np.ndarray) -> np.ndarray:
+        """Before credit assignment blends toward ``target``: judge ``last``'s value
+        expectation, then slow the confident (a_i × (1 − rigidity·confidence_i))."""
+        likelihood = getattr(last.value, "likelihood", None)
+        if likelihood is not None:
+            p = likelihood(target.to_float())
+            self._judge(group, last, t, 1.0 - p if p < last.value.threshold else 0.0, "value")
+        if self.rigidity:
+            a = a.copy()
+            for i in np.flatnonzero(a):
+                a[i] *= 1.0 - self.rigidity * self.of(group.tuples[i]).confidence.at(t)
+        return a
+
+    # -- judging ----------------------------------------------------------------------------
+    def _judge(self, group: "ActionGroup", tuple_: ActionTuple, t: float, p: float, why: str) -> None:
+        state = self.of(tuple_)
+        confidence = state.confidence.at(t)
+        violated = p >= self.tolerance
+        state.tests += 1
+        state.confidence.record(not violated, t)
+        if not violated:
+            return
+        state.violations += 1
+        state.surprise, state.surprised_at = confidence * p, t
+        if state.surprise >= self.latest[0] * math.exp(-max(0.0, t - self.latest[1]) / self.decay):
+            self.latest = (state.surprise, t)
+        self._emit("surprise", t, group=group.name, tuple=tuple_.name, why=why, p=p, surprise=state.surprise,
+                   confidence=confidence)
+        review = getattr(group.learning, "review", None)
+        if self.fission and confidence >= self.confident and review is not None:
+            before = len(tuple_.trigger.children)
+            review(group, tuple_, t)
+            self._emit("expectation review", t, group=group.name, tuple=tuple_.name, percept=tuple_.trigger.name,
+                       children=len(tuple_.trigger.children) - before)
+
+    def _emit(self, event: str, t: float, **fields: Any) -> None:
+        if self.on_event is not None:
+            self.on_event({"event": event, "t": t, **fields})

@@ -1,0 +1,269 @@
+"""Expectations (thesis: "expectations about value", "expectations about the consequences of
+actions"): an action-tuple's Du end and its value are expectations; violating them is a
+surprise scaled by a confidence that falls when the model was recently wrong and while it
+goes untested, slows credit assignment, and a confident violation splits a percept."""
+
+from __future__ import annotations
+
+import textwrap
+
+import numpy as np
+import pytest
+
+from creatures.behaviour.action_group import ActionGroup
+from creatures.behaviour.action_tuple import Action, ActionTuple, DoUntil
+from creatures.behaviour.expectation import Confidence, Expectations
+from creatures.behaviour.learning import PerceptLearning
+from creatures.behaviour.models.gaussian import GaussianModel, GaussianPercept
+from creatures.behaviour.percept import FunctionPercept
+from creatures.behaviour.state_object import StateObject
+from creatures.behaviour.value import GaussianValue, ScalarValue
+from creatures.kinds import KINDS
+from creatures.runtime.schema import load_installation
+from midi.notes import NoteEvent
+from tests.test_authored import _world_with
+
+DT = 0.01
+
+RHYTHM = """
+title = "rhythm"
+duration = 60.0
+
+[[creature]]
+name = "r"
+kind = "authored"
+
+[creature.percepts.onset]
+type = "onset"
+window = 0.05
+
+[creature.percepts.surprised]
+type = "surprise"
+tuple = "expect"
+
+[creature.percepts.sure]
+type = "confidence"
+tuple = "expect"
+
+[creature.tuples.expect]
+trigger = "onset"
+action = "rest"
+until = { gaussian = [0.5, 0.05], percept = "onset", fresh = true, graded = true }
+
+[creature.groups.beat]
+tuples = ["expect"]
+alpha = 0.0
+
+[creature.expectations]
+groups = ["beat"]
+memory = 30.0
+"""
+
+
+def rhythm_creature(tmp_path):
+    path = tmp_path / "rhythm.toml"
+    path.write_text(textwrap.dedent(RHYTHM))
+    spec = load_installation(path).specs[0]
+    clock, world = _world_with({})
+    creature = KINDS["authored"](spec, world, np.random.default_rng(3))
+    world.add(creature)
+    return clock, world, creature
+
+
+def play(clock, world, creature, intervals: list[float]) -> list[float]:
+    """Play notes at the given inter-onset intervals, ticking every DT; returns, per note,
+    the largest surprise percept reading in the interval that note ends (0: not surprised)."""
+    surprised = creature.percept("surprised")
+    t, per_note, best = clock.now(), [], 0.0
+    due = t
+    notes = iter(intervals)
+    nxt = due + next(notes)
+    while True:
+        clock.advance(DT)
+        t = clock.now()
+        if t >= nxt - 1e-9:
+            world.inject(NoteEvent(t, 60, 90, 0, 0.1))
+            per_note.append(best)
+            best = 0.0
+            step = next(notes, None)
+            if step is None:
+                return per_note
+            nxt += step
+        world.deliver(t)
+        creature.tick(t)
+        best = max(best, surprised.evaluate(t))
+
+
+def jittered(rng, ioi: float, n: int) -> list[float]:
+    return list(ioi * (1.0 + 0.03 * rng.standard_normal(n)))
+
+
+@pytest.mark.parametrize("new_ioi", [0.33, 0.75], ids=["faster", "slower"])
+def test_surprise_fires_within_four_notes_of_a_rhythm_change_and_rarely_on_a_steady_one(tmp_path, new_ioi):
+    rng = np.random.default_rng(7)
+    clock, world, creature = rhythm_creature(tmp_path)
+    steady = play(clock, world, creature, jittered(rng, 0.5, 200))
+    fired = [s > 0.1 for s in steady[20:]]  # after the first notes have made it confident
+    assert sum(fired) <= 0.05 * len(fired), f"surprised on {sum(fired)} of {len(fired)} steady notes"
+    confident = creature.percept("sure").evaluate(clock.now())
+    assert confident > 0.8
+    changed = play(clock, world, creature, jittered(rng, new_ioi, 12))
+    first = next(k for k, s in enumerate(changed) if s > 0.1)
+    assert first < 4, changed
+    # Recently wrong: the confidence fell, so being wrong again is less surprising.
+    assert creature.percept("sure").evaluate(clock.now()) < 0.5 * confident
+
+
+def test_surprise_at_interruption_follows_the_graded_du_and_is_scaled_by_confidence():
+    """p = 1 − Du.evaluate(end): interrupted 2 s into a 10 s graded tuple is p = 0.8."""
+    ex = Expectations(tolerance=0.25)
+    rng = np.random.default_rng(0)
+    rival = [0.0]
+    a = ActionTuple("a", FunctionPercept("always", lambda t: 1.0), Action("a"), DoUntil(10.0, graded=True), 1.0)
+    b = ActionTuple("b", FunctionPercept("rival", lambda t: rival[0]), Action("b"), DoUntil(0.5), 5.0)
+    g = ActionGroup("g", [a, b], rng=rng, alpha=0.0, multiple=1.2, expectations=ex)
+    t = 0.0
+    for _ in range(3):  # three full activations of a: tested and right
+        for _ in range(int(10.0 / 0.1) + 1):
+            g.tick(t)
+            t = round(t + 0.1, 6)
+    state = ex.of(a)
+    assert state.violations == 0 and state.tests >= 2
+    confidence = state.confidence.at(t)
+    assert confidence > 0.3
+    start = a.started_at
+    while t < start + 2.0:
+        g.tick(t)
+        t = round(t + 0.1, 6)
+    rival[0] = 1.0
+    now = state.confidence.at(t)  # a little less than before: untested for 2 s
+    g.tick(t)
+    assert g.active == [b]
+    assert state.violations == 1
+    assert state.surprise == pytest.approx(now * (1.0 - (t - start) / 10.0), rel=1e-9)
+    assert state.surprise == pytest.approx(0.8 * confidence, rel=0.01)
+
+
+def test_confidence_falls_when_recently_wrong_and_when_long_untested():
+    c = Confidence(reliance=0.2, memory=100.0)
+    for k in range(20):
+        c.record(True, float(k))
+    right = c.at(19.0)
+    assert right > 0.95
+    c.record(False, 20.0)
+    c.record(False, 21.0)
+    assert c.at(21.0) < 0.7 * right  # recently wrong
+    c2 = Confidence(reliance=0.2, memory=100.0)
+    for k in range(20):
+        c2.record(True, float(k))
+    assert c2.at(19.0 + 100.0) == pytest.approx(right / np.e)  # untested for 100 s
+    assert Confidence().at(0.0) == 0.0  # a new tuple has no confidence yet
+
+
+def _valued_pair(ex: Expectations | None, spread: float = 0.1):
+    """A tuple with a Gaussian value always followed by a fixed reward worth 1.0 (β = 1)."""
+    rng = np.random.default_rng(1)
+    first = ActionTuple("first", FunctionPercept("p", lambda t: 1.0), Action("first"), DoUntil(1.0),
+                        GaussianValue(1.0, spread=spread))
+    reward = ActionTuple("reward", FunctionPercept("q", lambda t: 1.0), Action("reward"), DoUntil(1.0),
+                         ScalarValue(1.0, plasticity=0.0))
+    g = ActionGroup("v", [first, reward], rng=rng, alpha=0.5, discount=1.0, expectations=ex)
+    g.tick(0.0)  # a first selection: both triggers (1) are recorded for credit
+    first.value.value = 1.0
+    return g, first, reward
+
+
+def test_an_unexpected_value_surprises_and_confidence_slows_credit_assignment():
+    ex = Expectations(rigidity=0.8)
+    g, first, reward = _valued_pair(ex)
+    for k in range(30):  # first → reward, reward as expected (1.0): confidence grows
+        g.assign_credit(float(k + 1), first, reward)
+    state = ex.of(first)
+    assert state.violations == 0 and state.confidence.at(30.0) > 0.9
+    reward.value.value = 5.0  # the world changed: the reward is worth five times as much
+    before = first.value.value
+    g.assign_credit(31.0, first, reward)
+    assert state.violations == 1 and state.surprise > 0.8
+    moved_confident = first.value.value - before
+    # The same step without expectations (no confidence) moves the value further.
+    g2, first2, reward2 = _valued_pair(None)
+    reward2.value.value = 5.0
+    g2.assign_credit(0.0, first2, reward2)
+    moved = first2.value.value - 1.0
+    assert moved_confident == pytest.approx(moved * (1.0 - 0.8 * state.confidence.at(31.0)))
+    assert moved_confident < 0.5 * moved
+
+
+def _bimodal_learning(confident: float):
+    """A tuple on a Gaussian percept whose buffer has become bimodal, worth less than the
+    innovation threshold (so value alone never reviews it), with a learner and expectations."""
+    state = StateObject("pitch")
+    model = GaussianModel(60.0, 3.0, size=32)
+    for k in range(32):
+        model.update(55.0 + (k % 2) * 10.0 + 0.3 * np.sin(k))  # two clusters, 55 and 65
+    percept = GaussianPercept("pitch", state, model)
+    events: list[dict] = []
+    learner = PerceptLearning(statistics=1.0, innovation=10.0, on_event=events.append)
+    ex = Expectations(confident=confident, on_event=events.append)
+    tp = ActionTuple("sing", percept, Action("sing"), DoUntil(4.0, graded=True), 1.0)
+    other = ActionTuple("rest", FunctionPercept("never", lambda t: 0.0), Action("rest"), DoUntil(1.0), 1.0)
+    g = ActionGroup("g", [tp, other], rng=np.random.default_rng(2), alpha=0.0, learning=learner, expectations=ex)
+    return g, tp, ex, percept, events
+
+
+def _earn_confidence(ex, tp, group, n: int = 10) -> None:
+    for k in range(n):
+        ex._judge(group, tp, float(k), 0.0, "end")
+
+
+def test_a_confident_expectation_violated_fissions_the_percept():
+    g, tp, ex, percept, events = _bimodal_learning(confident=0.5)
+    _earn_confidence(ex, tp, g)
+    assert ex.of(tp).confidence.at(10.0) > 0.5
+    ex.ended(g, tp, 10.0, interrupted=True)  # not started: Du says 0, p = 1
+    g.tick(10.0)  # the deferred hypotheses join the group
+    assert len(percept.children) == 2
+    assert [e["event"] for e in events].count("fission") == 1
+    assert {t.name for t in g.tuples} > {"sing", "rest"}  # new hypotheses on the children
+
+
+def test_without_a_confident_violated_expectation_the_percept_does_not_fission():
+    # Violated, but with no confidence (a new tuple): no fission.
+    g, tp, ex, percept, events = _bimodal_learning(confident=0.5)
+    ex.ended(g, tp, 10.0, interrupted=True)
+    assert ex.of(tp).violations == 1 and percept.children == []
+    # Confident, but the expectation held (a full, natural end): no fission either.
+    g, tp, ex, percept, events = _bimodal_learning(confident=0.5)
+    _earn_confidence(ex, tp, g)
+    tp.start(0.0, np.random.default_rng(0))
+    g.active.append(tp)
+    g.tick(4.0)  # ends on its plan
+    assert ex.of(tp).violations == 0 and percept.children == []
+    assert not any(e["event"] == "fission" for e in events)
+
+
+def test_surprise_and_confidence_are_percepts_other_tuples_act_on(tmp_path):
+    """A 'startle' tuple triggered by the surprise percept runs after the rhythm changes,
+    never while it is steady."""
+    text = RHYTHM + """
+[creature.groups.react]
+tuples = ["startle"]
+alpha = 0.0
+
+[creature.tuples.startle]
+trigger = "surprised"
+action = "rest"
+until = { seconds = 0.2 }
+"""
+    path = tmp_path / "startle.toml"
+    path.write_text(textwrap.dedent(text))
+    spec = load_installation(path).specs[0]
+    clock, world = _world_with({})
+    creature = KINDS["authored"](spec, world, np.random.default_rng(3))
+    world.add(creature)
+    startle = creature.tuple("startle")
+    rng = np.random.default_rng(5)
+    play(clock, world, creature, jittered(rng, 0.5, 60))
+    assert startle.started_at is None
+    play(clock, world, creature, jittered(rng, 0.3, 6))
+    assert startle.started_at is not None
