@@ -60,14 +60,20 @@ memory = 30.0
 """
 
 
-def rhythm_creature(tmp_path):
-    path = tmp_path / "rhythm.toml"
-    path.write_text(textwrap.dedent(RHYTHM))
+def authored(tmp_path, text: str, sensors: dict | None = None, seed: int = 3):
+    """(clock, world, creature) for the first creature of installation ``text``, in a world
+    on a simulated clock with ``sensors``."""
+    path = tmp_path / "creature.toml"
+    path.write_text(textwrap.dedent(text))
     spec = load_installation(path).specs[0]
-    clock, world = _world_with({})
-    creature = KINDS["authored"](spec, world, np.random.default_rng(3))
+    clock, world = _world_with(sensors or {})
+    creature = KINDS["authored"](spec, world, np.random.default_rng(seed))
     world.add(creature)
     return clock, world, creature
+
+
+def rhythm_creature(tmp_path):
+    return authored(tmp_path, RHYTHM)
 
 
 def play(clock, world, creature, intervals: list[float]) -> list[float]:
@@ -255,15 +261,29 @@ trigger = "surprised"
 action = "rest"
 until = { seconds = 0.2 }
 """
-    path = tmp_path / "startle.toml"
-    path.write_text(textwrap.dedent(text))
-    spec = load_installation(path).specs[0]
-    clock, world = _world_with({})
-    creature = KINDS["authored"](spec, world, np.random.default_rng(3))
-    world.add(creature)
+    clock, world, creature = authored(tmp_path, text)
     startle = creature.tuple("startle")
     rng = np.random.default_rng(5)
     play(clock, world, creature, jittered(rng, 0.5, 60))
     assert startle.started_at is None
     play(clock, world, creature, jittered(rng, 0.3, 6))
     assert startle.started_at is not None
+
+
+@pytest.mark.parametrize("old, new, key, message", [
+    ('groups = ["beat"]\nmemory', 'groups = ["bea"]\nmemory', "expectations.groups", "did you mean 'beat'"),
+    ('tuple = "expect"\n\n[creature.percepts.sure]', 'tuple = "expec"\n\n[creature.percepts.sure]',
+     "percepts.surprised.tuple", "did you mean 'expect'"),
+    ('[creature.expectations]\ngroups = ["beat"]', '[creature.expectations]\ngroups = []', "percepts.surprised.type",
+     "[creature.expectations] groups"),
+    ('percept = "onset", fresh = true', 'fresh = true', "tuples.expect.until.fresh", "give the Du a 'percept'"),
+])
+def test_bad_expectation_keys_are_errors_at_their_line(tmp_path, old, new, key, message):
+    from tests.test_authored import error_of
+
+    assert old in RHYTHM
+    path = tmp_path / "bad.toml"
+    path.write_text(textwrap.dedent(RHYTHM.replace(old, new)))
+    err = error_of(path)
+    assert key in str(err) and message in str(err), str(err)
+    assert err.line is not None

@@ -131,7 +131,9 @@ class ActionGroup:
     :meth:`tick`. ``on_event`` receives plain dicts for the events log: ``selection`` (a
     tuple became active), ``interruption``, ``reselection`` (an interruption chose the
     running tuple again), ``stop`` and ``credit``. ``max_active`` > 1 lets several tuples be
-    active at once (e.g. a non-exclusive group of perception actions).
+    active at once (e.g. a non-exclusive group of perception actions). ``expectations``
+    (:mod:`creatures.behaviour.expectation`) is told of every end before the tuple stops, of
+    every tick, and of every credit assignment (it may slow the confident).
     """
 
     def __init__(
