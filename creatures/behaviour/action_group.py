@@ -220,8 +220,8 @@ class ActionGroup:
         if self._ticking:
             self._deferred.append(lambda: self.remove(tuple_, t))
             return
-        if tuple_.active:
-            self._stop(tuple_, t, interrupted=True)
+        if tuple_.active:  # dropped, not interrupted: no expectation of it was violated
+            self._stop(tuple_, t, interrupted=True, judged=False)
         i = self._position(tuple_)
         del self.tuples[i]
         self.record_base(np.delete(self._base, i))
@@ -376,8 +376,8 @@ class ActionGroup:
         self.recent = [a for a in self.recent if a.ended is None or a.ended >= t - RECALL]
         self.recent.append(Activation(tuple_, t, self._trigger_at_last_start))
 
-    def _stop(self, tuple_: ActionTuple, t: float, *, interrupted: bool) -> None:
-        if self.expectations is not None:
+    def _stop(self, tuple_: ActionTuple, t: float, *, interrupted: bool, judged: bool = True) -> None:
+        if self.expectations is not None and judged:
             self.expectations.ended(self, tuple_, t, interrupted=interrupted)
         duration = tuple_.stop(t, interrupted=interrupted)
         self.active.remove(tuple_)

@@ -77,6 +77,7 @@ class Confidence:
 class TupleExpectation:
     """What one tuple's expectations have met: its confidence and its last surprise."""
 
+    tuple_: ActionTuple  # held, so its id is not reused for another tuple while this lives
     confidence: Confidence
     surprise: float = 0.0
     surprised_at: float = -math.inf
@@ -136,7 +137,7 @@ class Expectations:
     def of(self, tuple_: ActionTuple) -> TupleExpectation:
         state = self._of.get(id(tuple_))
         if state is None:
-            state = TupleExpectation(Confidence(self.reliance, self.memory))
+            state = TupleExpectation(tuple_, Confidence(self.reliance, self.memory))
             self._of[id(tuple_)] = state
             self._names[tuple_.name] = state
         return state
