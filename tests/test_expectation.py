@@ -200,52 +200,56 @@ def test_an_unexpected_value_surprises_and_confidence_slows_credit_assignment():
     assert moved_confident < 0.5 * moved
 
 
-def _bimodal_learning(confident: float):
-    """A tuple on a Gaussian percept whose buffer has become bimodal, worth less than the
-    innovation threshold (so value alone never reviews it), with a learner and expectations."""
+def _bimodal_learning():
+    """'sing' (a 4 s graded Du) on a Gaussian percept whose buffer has become bimodal, worth
+    less than the innovation threshold (so value alone never reviews it), and a rival that
+    interrupts it once ``rival[0]`` is set; the group has a learner and expectations."""
     state = StateObject("pitch")
+    state.push(0.0, 55.0)
     model = GaussianModel(60.0, 3.0, size=32)
     for k in range(32):
         model.update(55.0 + (k % 2) * 10.0 + 0.3 * np.sin(k))  # two clusters, 55 and 65
     percept = GaussianPercept("pitch", state, model)
     events: list[dict] = []
     learner = PerceptLearning(statistics=1.0, innovation=10.0, on_event=events.append)
-    ex = Expectations(confident=confident, on_event=events.append)
-    tp = ActionTuple("sing", percept, Action("sing"), DoUntil(4.0, graded=True), 1.0)
-    other = ActionTuple("rest", FunctionPercept("never", lambda t: 0.0), Action("rest"), DoUntil(1.0), 1.0)
-    g = ActionGroup("g", [tp, other], rng=np.random.default_rng(2), alpha=0.0, learning=learner, expectations=ex)
-    return g, tp, ex, percept, events
+    ex = Expectations(confident=0.5, on_event=events.append)
+    rival = [0.0]
+    sing = ActionTuple("sing", percept, Action("sing"), DoUntil(4.0, graded=True), 1.0)
+    other = ActionTuple("shout", FunctionPercept("rival", lambda t: rival[0]), Action("shout"), DoUntil(1.0), 10.0)
+    g = ActionGroup("g", [sing, other], rng=np.random.default_rng(2), alpha=0.0, learning=learner, expectations=ex)
+    return g, sing, ex, percept, events, rival
 
 
-def _earn_confidence(ex, tp, group, n: int = 10) -> None:
-    for k in range(n):
-        ex._judge(group, tp, float(k), 0.0, "end")
+def _run(group: ActionGroup, start: float, seconds: float) -> float:
+    t = start
+    while t < start + seconds - 1e-9:
+        group.tick(t)
+        t = round(t + 0.1, 6)
+    return t
 
 
-def test_a_confident_expectation_violated_fissions_the_percept():
-    g, tp, ex, percept, events = _bimodal_learning(confident=0.5)
-    _earn_confidence(ex, tp, g)
-    assert ex.of(tp).confidence.at(10.0) > 0.5
-    ex.ended(g, tp, 10.0, interrupted=True)  # not started: Du says 0, p = 1
-    g.tick(10.0)  # the deferred hypotheses join the group
+def test_a_confident_expectation_violated_fissions_the_percept_and_a_kept_one_does_not():
+    g, sing, ex, percept, events, rival = _bimodal_learning()
+    t = _run(g, 0.0, 41.0)  # ten full songs: each ends as its Du expected
+    assert ex.of(sing).tests >= 9 and ex.of(sing).violations == 0
+    assert percept.children == []  # confident, and never wrong: the tree stays as it is
+    assert ex.of(sing).confidence.at(t) > 0.5
+    t = _run(g, t, 1.0)  # 1 s into a song (the last one ended at 40 s)
+    rival[0] = 1.0
+    t = _run(g, t, 0.2)  # interrupted: p = 1 − Du.evaluate(end) ≈ 0.75, from a confident tuple
+    assert ex.of(sing).violations == 1
     assert len(percept.children) == 2
     assert [e["event"] for e in events].count("fission") == 1
-    assert {t.name for t in g.tuples} > {"sing", "rest"}  # new hypotheses on the children
+    assert len(g.tuples) == 4  # a hypothesis on each child
 
 
-def test_without_a_confident_violated_expectation_the_percept_does_not_fission():
-    # Violated, but with no confidence (a new tuple): no fission.
-    g, tp, ex, percept, events = _bimodal_learning(confident=0.5)
-    ex.ended(g, tp, 10.0, interrupted=True)
-    assert ex.of(tp).violations == 1 and percept.children == []
-    # Confident, but the expectation held (a full, natural end): no fission either.
-    g, tp, ex, percept, events = _bimodal_learning(confident=0.5)
-    _earn_confidence(ex, tp, g)
-    tp.start(0.0, np.random.default_rng(0))
-    g.active.append(tp)
-    g.tick(4.0)  # ends on its plan
-    assert ex.of(tp).violations == 0 and percept.children == []
-    assert not any(e["event"] == "fission" for e in events)
+def test_an_unconfident_expectation_violated_does_not_fission_the_percept():
+    g, sing, ex, percept, events, rival = _bimodal_learning()
+    t = _run(g, 0.0, 1.0)  # the first song: nothing is trusted yet
+    rival[0] = 1.0
+    _run(g, t, 0.2)
+    assert ex.of(sing).violations == 1 and ex.of(sing).surprise == 0.0
+    assert percept.children == [] and not any(e["event"] == "fission" for e in events)
 
 
 def test_surprise_and_confidence_are_percepts_other_tuples_act_on(tmp_path):
