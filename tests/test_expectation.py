@@ -12,7 +12,8 @@ import pytest
 
 from creatures.behaviour.action_group import ActionGroup
 from creatures.behaviour.action_tuple import Action, ActionTuple, DoUntil
-from creatures.behaviour.expectation import Confidence, Expectations
+from creatures.behaviour.confidence import Confidence
+from creatures.behaviour.expectation import Expectations
 from creatures.behaviour.learning import PerceptLearning
 from creatures.behaviour.models.gaussian import GaussianModel, GaussianPercept
 from creatures.behaviour.percept import FunctionPercept

@@ -47,30 +47,11 @@ from typing import TYPE_CHECKING, Any, Callable
 import numpy as np
 
 from creatures.behaviour.action_tuple import ActionTuple
+from creatures.behaviour.confidence import Confidence
 
 if TYPE_CHECKING:
     from creatures.behaviour.action_group import ActionGroup
     from creatures.behaviour.value import Value
-
-
-@dataclass
-class Confidence:
-    """Trust in a tuple's expectations: ``reliability`` (exponential average of hits, rate
-    ``reliance``) discounted by exp(−(t − tested_at) / ``memory``)."""
-
-    reliance: float = 0.2
-    memory: float = 600.0
-    reliability: float = 0.0
-    tested_at: float | None = None
-
-    def at(self, t: float) -> float:
-        if self.tested_at is None:
-            return self.reliability
-        return self.reliability * math.exp(-max(0.0, t - self.tested_at) / self.memory)
-
-    def record(self, hit: bool, t: float) -> None:
-        self.reliability += self.reliance * ((1.0 if hit else 0.0) - self.reliability)
-        self.tested_at = t
 
 
 @dataclass

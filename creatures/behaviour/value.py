@@ -16,6 +16,7 @@ from abc import ABC, abstractmethod
 from typing import Any, Mapping
 
 from creatures import bounds
+from creatures.behaviour.confidence import Confidence
 from creatures.behaviour.models.gaussian import GaussianModel
 from creatures.clock import Clock
 
@@ -259,11 +260,32 @@ class GaussianValue(ScalarValue):
             raise ValueError(f"memory must be a positive time in seconds (got {memory!r})")
         self.model = GaussianModel(value, spread, size=size, prior_weight=prior_weight)
         self.threshold = float(threshold)
-        self.reliance = float(reliance)
-        self.memory = float(memory)
-        self.reliability = 1.0
+        self.trust = Confidence(float(reliance), float(memory), 1.0, clock.now() if clock is not None else None)
         self.clock = clock
-        self.tested_at: float | None = clock.now() if clock is not None else None
+
+    @property
+    def reliance(self) -> float:
+        return self.trust.reliance
+
+    @property
+    def memory(self) -> float:
+        return self.trust.memory
+
+    @property
+    def reliability(self) -> float:
+        return self.trust.reliability
+
+    @reliability.setter
+    def reliability(self, r: float) -> None:
+        self.trust.reliability = r
+
+    @property
+    def tested_at(self) -> float | None:
+        return self.trust.tested_at
+
+    @tested_at.setter
+    def tested_at(self, t: float | None) -> None:
+        self.trust.tested_at = t
 
     def likelihood(self, v_n: float) -> float:
         """Unnormalised p(V_n) around the moving mean V_l with the model's σ."""
@@ -274,9 +296,7 @@ class GaussianValue(ScalarValue):
         """How much to trust the model now (see the class docstring)."""
         if t is None and self.clock is not None:
             t = self.clock.now()
-        if t is None or self.tested_at is None:
-            return self.reliability
-        return self.reliability * math.exp(-max(0.0, t - self.tested_at) / self.memory)
+        return self.trust.at(t)
 
     def surprise(self, v_n: float, t: float | None = None) -> float:
         """0 if V_n is expected; else confidence·(1 − p(V_n)) — how surprising it is."""
@@ -288,12 +308,10 @@ class GaussianValue(ScalarValue):
         if a == 0.0:
             return
         v_n = _learned(other)
-        hit = 1.0 if self.likelihood(v_n) >= self.threshold else 0.0
-        self.reliability += self.reliance * a * (hit - self.reliability)
+        hit = self.likelihood(v_n) >= self.threshold
+        self.trust.record(hit, self.clock.now() if self.clock is not None else None, weight=a)
         self.model.update(v_n, weight=a)
         self.value = toward(self.value, v_n, a)
-        if self.clock is not None:
-            self.tested_at = self.clock.now()
 
     def to_dict(self) -> dict[str, Any]:
         return {
