@@ -129,3 +129,78 @@ def test_the_credit_of_what_follows_a_perception_grounds_its_value():
     assert seeing.evaluate(0.5) == pytest.approx(lion.value.to_float())
     lion.stop(1.0)
     assert seeing.evaluate(3.0) == pytest.approx(lion.value.to_float() * np.exp(-1.0))  # the trace fades
+
+
+LION = """
+title = "lion"
+duration = 60.0
+
+[[creature]]
+name = "zebra"
+kind = "authored"
+
+[creature.percepts.lion]
+type = "sensor"
+sensor = "lion"
+
+[creature.percepts.no_lion]
+type = "not"
+of = "lion"
+
+[creature.percepts.seeing_lion]
+type = "perceiving"
+tuple = "see_lion"
+ground = GROUND
+
+[creature.tuples.see_lion]
+trigger = "lion"
+action = "rest"
+until = { percept = "no_lion" }
+value = 0.5
+
+[creature.tuples.flee]
+trigger = "seeing_lion"
+action = "rest"
+until = { seconds = 0.5 }
+
+[creature.tuples.safe]
+action = "rest"
+until = { seconds = 0.5 }
+value = { value = 3.0, plastic = false }
+
+[creature.groups.look]
+tuples = ["see_lion"]
+perception = true
+alpha = 0.0
+
+[creature.groups.act]
+tuples = ["flee", "safe"]
+alpha = 0.5
+discount = 1.0
+
+[creature.learning]
+groups = ["act"]
+statistics = 0.0
+innovation = 100.0
+"""
+
+
+@pytest.mark.parametrize("ground", [0.0, 0.5])
+def test_an_authored_perception_value_is_grounded_by_what_perceiving_leads_to(tmp_path, ground):
+    """Fleeing, triggered by perceiving the lion, is followed by safety (worth 3): with
+    ``ground`` the value of perceiving the lion (0.5) is drawn toward it, and so is its
+    saliency; without, it stays as authored."""
+    lion = StateObject("lion")
+    clock, world, zebra = authored(tmp_path, LION.replace("GROUND", str(ground)), {"lion": lion}, seed=4)
+    seeing = zebra.percept("seeing_lion")
+    for k in range(1, 1201):
+        t = round(k * 0.05, 2)
+        clock.advance(0.05)
+        lion.push(t, 1.0)
+        zebra.tick(t)
+    value = zebra.tuple("see_lion").value.to_float()
+    if ground:
+        assert value > 2.0
+    else:
+        assert value == 0.5
+    assert seeing.evaluate(clock.now()) == pytest.approx(value)  # perceiving it, as salient as it is worth
