@@ -399,6 +399,45 @@ def _render(args: argparse.Namespace) -> int:
     return 0
 
 
+def _images_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("run_dir", type=Path, metavar="RUN", help="an offline run of ozymandias (its <creature>.edl.json); "
+                                                                  "the video lasts to the end of its last entry")
+    parser.add_argument("--creature", required=True, help="whose edit decision list walks the footage")
+    parser.add_argument("--footage", default="cube", help='"cube", a directory of PNG frames (e.g. a run\'s '
+                                                         'frames/) or a video file (default: cube)')
+    parser.add_argument("--fps", type=_seconds(120.0, "a frame rate"), default=25.0,
+                        help="frames a second of the footage and the video (default 25)")
+    parser.add_argument("--out", type=Path, help="where <creature>.mp4 and .images.json go (default: RUN/images)")
+    parser.add_argument("--png", action="store_true", help="also write the frames as PNGs")
+
+
+@command("images", "make ozymandias's video again from a creature's EDL, with any footage (thesis: "
+         "off-line image processing)", _images_options)
+def _images(args: argparse.Namespace) -> int:
+    from creatures.image.spec import ImagesSpec, make_video
+    from creatures.kinds.ozymandias import read_edl
+    from creatures.persist import StateFileError
+
+    out = args.out or args.run_dir / "images"
+    try:
+        edl = read_edl(args.run_dir / f"{args.creature}.edl.json")
+        spec = ImagesSpec(footage=args.footage, fps=args.fps, png=args.png)
+        problem = spec.resolve(Path.cwd())
+        if problem is not None:
+            raise ValueError(problem)
+        rate = edl["sample_rate"]
+        last = max((e["output_frame"] + e["source_end_frame"] - e["source_start_frame"] for e in edl["entries"]),
+                   default=0)
+        out.mkdir(parents=True, exist_ok=True)
+        files = make_video(spec, args.creature, edl["entries"], rate, last / rate if rate else 0.0, out)
+    except (ValueError, OSError, StateFileError) as exc:  # FootageError is a ValueError
+        print(f"creatures: {exc}", file=sys.stderr)
+        return 2
+    for name, path in files.items():
+        print(f"  {name:<20} {path}")
+    return 0
+
+
 def _export_motion_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("path", type=Path, help="a run's output directory or a state directory (with events.jsonl)")
     parser.add_argument("out", type=Path, help="the BVH file to write")
@@ -557,6 +596,7 @@ STOPPED = {
     "view": "the view was closed",
     "render": "the frames drawn so far are in the output directory",
     "export-motion": "the BVH file was not written (or is the previous one)",
+    "images": "the video may be cut short; run it again",
 }
 """What a command stopped by Ctrl-C or SIGTERM outside its own handling left behind."""
 
