@@ -374,6 +374,8 @@ def _render_options(parser: argparse.ArgumentParser) -> None:
                                          "metres (default: framed on the first frame, as the view frames it)")
     parser.add_argument("--video", action="store_true", help="also encode out.mp4")
     parser.add_argument("--no-pngs", action="store_true", help="no PNG frames (with --video: the video only)")
+    parser.add_argument("--lines", choices=("svg", "ps"), help="draw the bodies as line drawings instead, one SVG "
+                                                               "or EPS file a frame in OUT/lines/ (no GL needed)")
 
 
 @command("render", "draw a finished offline run's bodies again, at any size and camera", _render_options)
@@ -384,6 +386,8 @@ def _render(args: argparse.Namespace) -> int:
     from creatures.view.rerender import parse_orbit, render_run
 
     out = args.out or args.run_dir / "render"
+    if args.lines:
+        return _render_lines(args, out)
     try:
         camera = parse_orbit(args.camera) if args.camera is not None else None
         if args.no_pngs and not args.video:
@@ -435,6 +439,24 @@ def _images(args: argparse.Namespace) -> int:
         return 2
     for name, path in files.items():
         print(f"  {name:<20} {path}")
+    return 0
+
+
+def _render_lines(args: argparse.Namespace, out: Path) -> int:
+    """``creatures render --lines``: the line renderer (creatures/body/lines.py)."""
+    from creatures.body.lines import render_lines
+    from creatures.view.rerender import parse_orbit
+
+    try:
+        orbit = parse_orbit(args.camera) if args.camera is not None else None
+        if args.video:
+            raise ValueError("--lines draws SVG or EPS files, not a video")
+        count = render_lines(args.run_dir, out, fmt=args.lines, width=args.width, height=args.height, fps=args.fps,
+                             yaw=orbit.yaw if orbit else 0.0, pitch=orbit.pitch if orbit else 0.0)
+    except (ValueError, OSError) as exc:
+        print(f"creatures: {exc}", file=sys.stderr)
+        return 2
+    print(f"drew {count} line frames ({args.lines}) at {args.width}×{args.height} into {out / 'lines'}")
     return 0
 
 
