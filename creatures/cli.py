@@ -374,6 +374,8 @@ def _render_options(parser: argparse.ArgumentParser) -> None:
                                          "metres (default: framed on the first frame, as the view frames it)")
     parser.add_argument("--video", action="store_true", help="also encode out.mp4")
     parser.add_argument("--no-pngs", action="store_true", help="no PNG frames (with --video: the video only)")
+    parser.add_argument("--lines", choices=("svg", "ps"), help="draw the bodies as line drawings instead, one SVG "
+                                                               "or EPS file a frame in OUT/lines/ (no GL needed)")
 
 
 @command("render", "draw a finished offline run's bodies again, at any size and camera", _render_options)
@@ -384,6 +386,8 @@ def _render(args: argparse.Namespace) -> int:
     from creatures.view.rerender import parse_orbit, render_run
 
     out = args.out or args.run_dir / "render"
+    if args.lines:
+        return _render_lines(args, out)
     try:
         camera = parse_orbit(args.camera) if args.camera is not None else None
         if args.no_pngs and not args.video:
@@ -396,6 +400,63 @@ def _render(args: argparse.Namespace) -> int:
         return 2
     wall = time.perf_counter() - t0
     print(f"rendered {count} frames at {args.width}×{args.height} in {wall:.2f} s ({count / wall:.0f} frames/s) into {out}")
+    return 0
+
+
+def _images_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("run_dir", type=Path, metavar="RUN", help="an offline run of ozymandias (its <creature>.edl.json); "
+                                                                  "the video lasts to the end of its last entry")
+    parser.add_argument("--creature", required=True, help="whose edit decision list walks the footage")
+    parser.add_argument("--footage", default="cube", help='"cube", a directory of PNG frames (e.g. a run\'s '
+                                                         'frames/) or a video file (default: cube)')
+    parser.add_argument("--fps", type=_seconds(120.0, "a frame rate"), default=25.0,
+                        help="frames a second of the footage and the video (default 25)")
+    parser.add_argument("--out", type=Path, help="where <creature>.mp4 and .images.json go (default: RUN/images)")
+    parser.add_argument("--png", action="store_true", help="also write the frames as PNGs")
+
+
+@command("images", "make ozymandias's video again from a creature's EDL, with any footage (thesis: "
+         "off-line image processing)", _images_options)
+def _images(args: argparse.Namespace) -> int:
+    from creatures.image.spec import ImagesSpec, make_video
+    from creatures.kinds.ozymandias import read_edl
+    from creatures.persist import StateFileError
+
+    out = args.out or args.run_dir / "images"
+    try:
+        edl = read_edl(args.run_dir / f"{args.creature}.edl.json")
+        spec = ImagesSpec(footage=args.footage, fps=args.fps, png=args.png)
+        problem = spec.resolve(Path.cwd())
+        if problem is not None:
+            raise ValueError(problem)
+        rate = edl["sample_rate"]
+        last = max((e["output_frame"] + e["source_end_frame"] - e["source_start_frame"] for e in edl["entries"]),
+                   default=0)
+        out.mkdir(parents=True, exist_ok=True)
+        files = make_video(spec, args.creature, edl["entries"], rate, last / rate if rate else 0.0, out)
+    except (ValueError, OSError, StateFileError) as exc:  # FootageError is a ValueError
+        print(f"creatures: {exc}", file=sys.stderr)
+        return 2
+    for name, path in files.items():
+        print(f"  {name:<20} {path}")
+    return 0
+
+
+def _render_lines(args: argparse.Namespace, out: Path) -> int:
+    """``creatures render --lines``: the line renderer (creatures/body/lines.py)."""
+    from creatures.body.lines import render_lines
+    from creatures.view.rerender import parse_orbit
+
+    try:
+        orbit = parse_orbit(args.camera) if args.camera is not None else None
+        if args.video:
+            raise ValueError("--lines draws SVG or EPS files, not a video")
+        count = render_lines(args.run_dir, out, fmt=args.lines, width=args.width, height=args.height, fps=args.fps,
+                             yaw=orbit.yaw if orbit else 0.0, pitch=orbit.pitch if orbit else 0.0)
+    except (ValueError, OSError) as exc:
+        print(f"creatures: {exc}", file=sys.stderr)
+        return 2
+    print(f"drew {count} line frames ({args.lines}) at {args.width}×{args.height} into {out / 'lines'}")
     return 0
 
 
@@ -557,6 +618,7 @@ STOPPED = {
     "view": "the view was closed",
     "render": "the frames drawn so far are in the output directory",
     "export-motion": "the BVH file was not written (or is the previous one)",
+    "images": "the video may be cut short; run it again",
 }
 """What a command stopped by Ctrl-C or SIGTERM outside its own handling left behind."""
 

@@ -35,7 +35,7 @@ WALKS = {
 def test_shipped_files_are_what_the_generator_makes(tmp_path):
     written = generate(tmp_path)
     assert sorted(p.name for p in written) == sorted(
-        f"{name}{suffix}" for name in GENERATORS for suffix in (".bvh", ".labels.toml"))
+        [f"{name}{suffix}" for name in GENERATORS for suffix in (".bvh", ".labels.toml")] + ["line.svg"])
     for path in written:
         assert path.read_bytes() == (BODIES / path.name).read_bytes(), f"{path.name} differs: regenerate it"
 

@@ -176,9 +176,9 @@ def _needs(c: _Checker, cls, loc: tuple) -> None:
 
 
 def _labels(c: _Checker, wanted: list[str], loc: tuple) -> None:
-    from creatures.kinds.figures import figure_labels, figure_of
+    from creatures.kinds.figures import body_labels
 
-    known = sorted(figure_labels(figure_of(c.spec.body)))
+    known = sorted(body_labels(c.spec.body))
     for label in wanted:
         if label not in known:
             close = difflib.get_close_matches(label, known, n=1)

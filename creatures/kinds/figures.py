@@ -172,6 +172,14 @@ def figure_labels(figure: str) -> set[str]:
     return set().union(*figure_material(figure).poses.labels) | {LOW_ENERGY}
 
 
+def body_labels(body: object) -> set[str]:
+    """Every motor label of a creature's ``body`` key: its own material's (files named in
+    ``[creature.body]``, resolved at config load) or its figure's."""
+    if isinstance(body, BodySpec) and body.custom:
+        return set().union(*body.material().graph.poses.labels) | {LOW_ENERGY}
+    return figure_labels(figure_of(body))
+
+
 def figure_of(body: object) -> Figure:
     """The figure a creature's ``body`` key asks for (``true`` or a table without one: the stick)."""
     return getattr(body, "figure", "stick")

@@ -78,6 +78,8 @@ from creatures.behaviour.percept import FunctionPercept
 from creatures.behaviour.value import ScalarValue, value_from_dict
 from creatures.kinds import register
 from creatures.bounds import LARGEST_RATE, LONGEST_SECONDS, Seconds
+from creatures.config import config_error
+from creatures.image.spec import ImagesSpec, make_video
 from creatures.kinds.base import CreatureKind, CreatureSpec
 from creatures.kinds.hearing_parts import AuralLearning, Ear, HearingSpec, SingFrom, tree_from_state, tree_state
 from creatures.persist import load_json, save_json
@@ -105,6 +107,16 @@ class OzymandiasSpec(CreatureSpec):
     loudness: float = Field(0.6, ge=0, le=2, description="gain of a part read at full excitement")
     innovation: float = Field(0.8, gt=0, le=1e3, description="value (× mean) above which a percept is clustered")
     hearing: HearingSpec = HearingSpec(half_duplex=False, memory=0.5)
+    images: ImagesSpec | None = Field(None, description="the image half: video walked out of a graph of frames "
+                                                        "by this creature's EDL (thesis, \"off-line image processing\")")
+
+    def check_references(self, file: Path, where: dict, prefix: tuple) -> None:
+        """Tie the footage to the directory of the file that names it."""
+        if self.images is not None:
+            at = (*prefix, "images", "footage")
+            problem = self.images.resolve(where.get(at, where.get(prefix, (file, 0)))[0].parent)
+            if problem is not None:
+                raise config_error(file, where, at, problem)
 
     @field_validator("clicks")
     @classmethod
@@ -252,7 +264,12 @@ class Ozymandias(CreatureKind):
         save_json(path, {"sample_rate": self.sample_rate or 0, "creature": self.name,
                          "mix": {"gain": self.spec.gain, "pan": self.spec.pan}, "entries": self.edl},
                   kind=EDL_KIND)  # stamps "format" and "version"
-        return {f"edl {self.name}": path}
+        files = {f"edl {self.name}": path}
+        if self.spec.images is not None:
+            rate = self.sample_rate or 0
+            files.update(make_video(self.spec.images, self.name, self.edl, rate,
+                                    self._frame / rate if rate else self.world.clock.now(), out))
+        return files
 
     # -- persistence ---------------------------------------------------------------------
     def state(self) -> dict[str, Any]:

@@ -28,6 +28,7 @@ from scipy.spatial.transform import Rotation
 
 from creatures.motor import quaternion as quat
 from creatures.motor.bvh import BVHError, Take, read_bvh
+from creatures.motor.drawing import is_drawing, read_drawing
 from creatures.motor.pose import LOW_ENERGY, PoseSet
 from creatures.motor.skeleton import Skeleton, SkeletonFileError
 
@@ -94,7 +95,10 @@ def fingerprint(skeleton: Skeleton) -> str:
 def load_skeleton(path: Path, conventions: Conventions) -> Skeleton:
     """A skeleton from a BVH file (its hierarchy) or a skeleton JSON/TOML file, in metres, y up."""
     try:
-        skeleton = read_bvh(path).skeleton if path.suffix.lower() == ".bvh" else Skeleton.load(path)
+        if is_drawing(path):
+            skeleton = read_drawing(path).skeleton
+        else:
+            skeleton = read_bvh(path).skeleton if path.suffix.lower() == ".bvh" else Skeleton.load(path)
     except (BVHError, SkeletonFileError) as exc:
         raise MaterialError(str(exc), ("skeleton",)) from None
     return convert_skeleton(skeleton, conventions)
@@ -107,9 +111,10 @@ def convert_skeleton(skeleton: Skeleton, conventions: Conventions) -> Skeleton:
 
 
 def read_take(animation: Animation, key: tuple[str | int, ...] = ()) -> Take:
-    """The take's file as parsed (its own skeleton and frames); MaterialError at ``key``."""
+    """The take's file as parsed (its own skeleton and frames): a BVH file, or a drawing
+    (:mod:`creatures.motor.drawing`); MaterialError at ``key``."""
     try:
-        return read_bvh(animation.file)
+        return read_drawing(animation.file) if is_drawing(animation.file) else read_bvh(animation.file)
     except BVHError as exc:
         raise MaterialError(str(exc), (*key, "file")) from None
 

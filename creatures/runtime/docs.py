@@ -43,14 +43,28 @@ def _range(field: FieldInfo) -> str:
     return f", {low}x{high}" if low or high else ""
 
 
+def _optional_model(annotation: object) -> object:
+    """``Model | None`` (an optional table, off unless written) as ``Model``; else unchanged."""
+    args = typing.get_args(annotation)
+    if typing.get_origin(annotation) in (typing.Union, types.UnionType) and len(args) == 2 and type(None) in args:
+        inner = next(a for a in args if a is not type(None))
+        if isinstance(inner, type) and issubclass(inner, BaseModel):
+            return inner
+    return annotation
+
+
 def _rows(model: type[BaseModel], prefix: str, section: str = "") -> list[str]:
     """The key table of ``model``, then one table per nested model (``section``: the dotted
     path of ``model`` itself, so a table two levels down is titled ``[body.breathe]``)."""
     rows, nested = [], []
     for name, field in model.model_fields.items():
-        annotation = field.annotation
+        annotation = _optional_model(field.annotation)
         if isinstance(annotation, type) and issubclass(annotation, BaseModel):
-            nested.append((f"{section}.{name}" if section else f"{prefix}{name}", annotation))
+            path = f"{section}.{name}" if section else f"{prefix}{name}"
+            nested.append((path, annotation))
+            if annotation is not field.annotation:  # optional: a row says it is off unless written
+                rows.append(f"| `{prefix}{name}` | table or None | `None` | {field.description or ''} "
+                            f"(its keys: `[{path}]` below) |")
             continue
         if name == "kind" and typing.get_origin(annotation) is typing.Literal:
             continue  # the discriminating ``kind`` key, documented by its section title

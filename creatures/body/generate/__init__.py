@@ -1,7 +1,7 @@
 """The project's own bodies, generated as BVH files (issue 16: no third-party motion data).
 
 ``python -m creatures.body.generate DIR`` writes ``dog.bvh``/``dog.labels.toml`` and
-``bird.bvh``/``bird.labels.toml`` into DIR (the shipped copies are in
+``bird.bvh``/``bird.labels.toml`` and the drawn line creature ``line.svg`` into DIR (the shipped copies are in
 ``installations/bodies/``; a test regenerates them byte for byte). Generation only writes
 files; :mod:`creatures.kinds.figures` reads them back like any user's BVH.
 """
@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from creatures.body.generate import bird, dog
+from creatures.body.generate import bird, dog, line
 from creatures.body.generate.rig import write_body
 
 BODIES = {"dog": dog, "bird": bird}
@@ -23,4 +23,5 @@ def generate(directory: Path) -> list[Path]:
     for name, module in BODIES.items():
         skeleton = module.skeleton()
         written += write_body(directory, name, skeleton, module.clips(skeleton), module.ABOUT)
+    written.append(line.write(directory))  # a drawing, not BVH: read back by creatures.motor.drawing
     return written
