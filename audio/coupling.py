@@ -89,6 +89,51 @@ class BodyCoupling:
         return self.gain * weights @ (velocity @ self.axis)
 
 
+class BodyShape:
+    """The body *as* the string (thesis, "artificial gestural control": "Secondly we can relate
+    the body of a creature to the body of the string itself through the *curve* extensions …
+    either directly or through a spring system. Thus our body pose representations become
+    timbral representations").
+
+    The body's line (``joints``, e.g. the chain from the root to the effector) is resampled
+    by arc length to the string's masses, and its bend — each point's distance from the chord
+    between its ends, along the line's main transverse direction, per unit length — becomes a
+    per-mass force of ``gain × centring``: with the string's own centring spring that is a
+    spring from each mass to the body's line (the string's rest shape *is* the body, ×
+    ``gain``), so the scan reads the body's shape and the timbre follows the pose. A straight
+    body leaves the string at rest; a bent one holds a steady, shaped waveform.
+    """
+
+    def __init__(self, joints: np.ndarray | list[int], n_masses: int, *, gain: float, centring: float) -> None:
+        self.joints = np.asarray(joints, dtype=np.int64)
+        if len(self.joints) < 2:
+            raise ValueError("a body's line needs at least two joints")
+        self.n = int(n_masses)
+        self.scale = float(gain) * float(centring)
+
+    def bend(self, positions: np.ndarray) -> np.ndarray:
+        """The line's transverse bend at each mass, per unit of its length ``(n,)``."""
+        points = np.asarray(positions, dtype=float)[self.joints]
+        along = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
+        if not along[-1] > 0:
+            return np.zeros(self.n)
+        at = np.linspace(0.0, along[-1], self.n)
+        line = np.stack([np.interp(at, along, points[:, k]) for k in range(3)], axis=1)
+        chord = line[-1] - line[0]
+        length = np.linalg.norm(chord)
+        u = chord / length if length > 1e-12 else np.array([1.0, 0.0, 0.0])
+        residual = (line - line[0]) - np.outer((line - line[0]) @ u, u)
+        if not np.abs(residual).max() > 1e-12:
+            return np.zeros(self.n)
+        _, _, axes = np.linalg.svd(residual, full_matrices=False)  # the main transverse direction
+        normal = axes[0] if axes[0] @ np.cross(u, [0.0, 0.0, 1.0]) >= 0 else -axes[0]  # one sign across poses
+        return residual @ normal / along[-1]
+
+    def forces(self, pose: PoseLike) -> np.ndarray:
+        """Per-mass force holding the string in the body's shape."""
+        return self.scale * self.bend(pose.positions)
+
+
 def joint_distance(a: int, b: int) -> Callable[[np.ndarray], float]:
     """Feature: distance between joints ``a`` and ``b`` (e.g. rib-cage expansion)."""
     return lambda positions: float(np.linalg.norm(positions[a] - positions[b]))

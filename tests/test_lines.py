@@ -194,3 +194,40 @@ def test_draw_puts_each_chain_in_one_stroke():
     page = Page.framing(positions, 100, 100)
     text = draw(page, positions, parents, [((0.0, 0.0, 0.0), 60.0)], "svg")
     assert text.count("<polyline") == 2 and text.count("<circle") == 1
+
+
+def held_spectrum(positions: np.ndarray, body_shape: float, seconds: float = 1.0) -> np.ndarray:
+    """Harmonic profile (first 8 partials of A3, summing to 1) of a string held for
+    ``seconds`` while the body stands in ``positions``; the second half is measured."""
+    from types import SimpleNamespace
+
+    from creatures.kinds.parts import Voice, VoiceSpec
+
+    rate, block = 22050, 512
+    voice = Voice(VoiceSpec(voices=1, body_shape=body_shape), rate)
+    voice.shape_as(list(range(len(positions))))
+    voice.play(57, 100, 100.0)
+    out = []
+    for b in range(int(seconds * rate / block)):
+        voice.feel(SimpleNamespace(positions=positions, time=b * block / rate))
+        buffer = np.zeros(block)
+        voice.render(buffer, b * block / rate)
+        out.append(buffer)
+    x = np.concatenate(out)[len(out) * block // 2:]
+    magnitude = np.abs(np.fft.rfft(x * np.hanning(len(x))))
+    bins = np.fft.rfftfreq(len(x), 1 / rate)
+    partials = np.array([magnitude[np.argmin(abs(bins - 220.0 * h))] for h in range(1, 9)])
+    return partials / partials.sum()
+
+
+def test_a_string_body_sounds_its_pose():
+    """The second connection: the string held in the drawn body's shape changes its spectrum
+    with the pose (lying low, waving, curled), and does not without body_shape."""
+    take = read_drawing(ROOT / "installations" / "bodies" / "line.svg")
+    poses = take.skeleton.forward_kinematics(take.rotations, take.roots) * 0.01
+    rest, wave, curl = (held_spectrum(poses[k], 10.0) for k in (0, 25, 47))
+    for a, b in ((rest, wave), (wave, curl), (rest, curl)):
+        assert np.abs(a - b).sum() > 0.3
+    assert np.allclose(held_spectrum(poses[25], 10.0), wave)  # the same pose, the same timbre
+    plain = [held_spectrum(poses[k], 0.0) for k in (0, 25, 47)]
+    assert np.abs(plain[0] - plain[1]).sum() < 1e-9 and np.abs(plain[1] - plain[2]).sum() < 1e-9

@@ -13,7 +13,7 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, Field, model_validator
 
-from audio.coupling import BodyCoupling
+from audio.coupling import BodyCoupling, BodyShape
 from audio.scanned import GESTURAL_LIMIT_HZ, StringParameters, UnstableStringError, soft_limit
 from audio.voices import VoicePool
 from creatures.bounds import FINITE
@@ -50,6 +50,10 @@ class VoiceSpec(BaseModel):
     release: float = Field(0.2, gt=0, le=10, description="fade after note-off, seconds")
     gain: float = Field(0.3, ge=0, le=4, description="output gain of the strings before the limiter")
     body_gain: float = Field(40.0, ge=0, le=1e4, description="force per unit joint velocity pushing the strings")
+    body_shape: float = Field(0.0, ge=0, le=1e3, description="the body as the string: each string held in the "
+                                                           "shape of the body's line (root to effector) × this, "
+                                                           "through a spring; 0 = off (thesis, 'artificial gestural "
+                                                           "control', the second connection)")
     interpolation: Literal["linear", "none"] = Field(
         "linear", description="how the scan reads the string: linear between masses and physics frames "
         "(smooth, like Csound's scans) or none, the nearest mass of the latest frame (brighter and "
@@ -98,6 +102,7 @@ class Voice:
         self.sample_rate = sample_rate
         self._ends: list[tuple[float, int]] = []
         self.coupling: BodyCoupling | None = None
+        self.shape: BodyShape | None = None
 
     def couple(self, node_positions: np.ndarray, joints: list[int]) -> None:
         """Lay the strings in space at ``node_positions`` so ``joints`` moving nearby push them."""
@@ -107,11 +112,18 @@ class Voice:
         self.pool.note_on(pitch, velocity / 127.0)
         self._ends.append((end, pitch))
 
+    def shape_as(self, joints: list[int]) -> None:
+        """Hold the strings in the shape of the body's line through ``joints`` (:class:`BodyShape`)."""
+        self.shape = BodyShape(joints, self.spec.masses, gain=self.spec.body_shape, centring=self.spec.centring)
+
     def feel(self, pose: BodyPose) -> None:
-        """Push every sounding string with the body's movement since the last pose."""
-        if self.coupling is None:
+        """Push every sounding string with the body's movement since the last pose (and hold it
+        in the body's shape, when the voice is the body)."""
+        if self.coupling is None and self.shape is None:
             return
-        force = self.coupling.forces(pose)
+        force = self.coupling.forces(pose) if self.coupling is not None else np.zeros(self.spec.masses)
+        if self.shape is not None:
+            force = force + self.shape.forces(pose)
         if force.any():
             self.pool.bank.push(np.flatnonzero(self.pool.pitch >= 0), force)
 
@@ -135,6 +147,8 @@ def couple_to_hands(voice: Voice, body: "Body") -> None:
     low, high = reach.min(axis=0), reach.max(axis=0)
     line = np.linspace(0.0, 1.0, voice.spec.masses)[:, None]
     voice.couple(low + line * (high - low), body.touching)
+    if voice.spec.body_shape > 0:
+        voice.shape_as(body.line())
 
 
 @functools.lru_cache(maxsize=1)
@@ -298,6 +312,13 @@ class Body:
     def hand_in_place(self) -> np.ndarray:
         """The effector in the body's own frame (where :meth:`reach` and its notes are)."""
         return self.hand() - self.offset
+
+    def line(self) -> list[int]:
+        """The body's line: joints from the root to the effector (a drawn body: all of it)."""
+        chain = [self.effector_index]
+        while self.skeleton.parents[chain[-1]] >= 0:
+            chain.append(int(self.skeleton.parents[chain[-1]]))
+        return chain[::-1]
 
     def reach(self) -> np.ndarray:
         """Every place the effector can be in the source material ``(N, 3)``."""
