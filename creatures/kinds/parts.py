@@ -14,6 +14,7 @@ import numpy as np
 from pydantic import BaseModel, Field, model_validator
 
 from audio.coupling import BodyCoupling, BodyShape
+from audio.flow import FlowCoupling
 from audio.scanned import GESTURAL_LIMIT_HZ, StringParameters, UnstableStringError, soft_limit
 from audio.voices import VoicePool
 from creatures.bounds import FINITE
@@ -50,6 +51,9 @@ class VoiceSpec(BaseModel):
     release: float = Field(0.2, gt=0, le=10, description="fade after note-off, seconds")
     gain: float = Field(0.3, ge=0, le=4, description="output gain of the strings before the limiter")
     body_gain: float = Field(40.0, ge=0, le=1e4, description="force per unit joint velocity pushing the strings")
+    flow: bool = Field(False, description="limbs push the strings through a motion flow field (movement spreads "
+                                          "and reaches farther strings later) instead of directly (thesis, "
+                                          "'artificial gestural control', the first connection)")
     body_shape: float = Field(0.0, ge=0, le=1e3, description="the body as the string: each string held in the "
                                                            "shape of the body's line (root to effector) × this, "
                                                            "through a spring; 0 = off (thesis, 'artificial gestural "
@@ -106,7 +110,8 @@ class Voice:
 
     def couple(self, node_positions: np.ndarray, joints: list[int]) -> None:
         """Lay the strings in space at ``node_positions`` so ``joints`` moving nearby push them."""
-        self.coupling = BodyCoupling(node_positions, radius=0.25, gain=self.spec.body_gain, joints=joints)
+        kind = FlowCoupling if self.spec.flow else BodyCoupling
+        self.coupling = kind(node_positions, radius=0.25, gain=self.spec.body_gain, joints=joints)
 
     def play(self, pitch: int, velocity: int, end: float) -> None:
         self.pool.note_on(pitch, velocity / 127.0)

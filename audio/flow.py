@@ -1,0 +1,102 @@
+"""A motion flow field between bodies and strings: the first of the thesis's two connections
+("artificial gestural control": "we can have the nearby movement of a character's limbs affect
+a number of synthetic strings … by embedding both character and string inside a motion flow
+simulation – a particularly cheap fluid dynamics system which discretely simulate a dispersion
+and propagation of movement throughout a plane"; figure 48).
+
+The field is the movement along the strings' transverse axis, on a grid over the plane the
+strings lie in (their length and that axis), a margin around them. Each limb drags the fluid
+where it is toward its own velocity (a Gaussian splat of ``radius``); the field diffuses
+(``diffusion`` m²/s: dispersion, so movement reaches farther strings later and weaker) and
+decays (half-life ``memory`` s), integrated on clock time in stable sub-steps; each string
+mass is pushed by the field where it lies. So a limb moving a metre away still moves a
+string, after the time the movement takes to spread there, where direct coupling
+(:class:`~audio.coupling.BodyCoupling`) reaches only ``radius``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from audio.coupling import BodyCoupling, PoseLike
+
+CELL = 0.05
+"""Grid spacing, metres."""
+MARGIN = 1.0
+"""Metres of field beyond the strings on every side."""
+
+
+class FlowCoupling(BodyCoupling):
+    """:class:`BodyCoupling`'s interface, with the limbs' movement carried by a flow field."""
+
+    def __init__(self, node_positions: np.ndarray, *, diffusion: float = 0.2, memory: float = 0.5,
+                 **kwargs) -> None:
+        super().__init__(node_positions, **kwargs)
+        if not (diffusion > 0 and memory > 0):
+            raise ValueError(f"diffusion and memory must be positive (got {diffusion}, {memory})")
+        self.diffusion, self.memory = float(diffusion), float(memory)
+        along = self.nodes[-1] - self.nodes[0]
+        norm = np.linalg.norm(along)
+        self.along = along / norm if norm > 1e-12 else np.cross(self.axis, [0.0, 0.0, 1.0])
+        plane = self._plane(self.nodes)
+        self.low = plane.min(axis=0) - MARGIN
+        size = np.ceil((plane.max(axis=0) + MARGIN - self.low) / CELL).astype(int) + 1
+        self.field = np.zeros((size[0], size[1]))  # movement along the axis, m/s
+        self._node_cells = (plane - self.low) / CELL
+
+    def _plane(self, points: np.ndarray) -> np.ndarray:
+        """Coordinates of ``points`` (N, 3) in the strings' plane: along them, along the axis."""
+        return np.stack([points @ self.along, points @ self.axis], axis=1)
+
+    def forces(self, pose: PoseLike) -> np.ndarray:
+        positions = np.asarray(pose.positions, dtype=float)
+        if self.joints is not None:
+            positions = positions[self.joints]
+        t = float(pose.time)
+        last, self._last = self._last, (positions.copy(), t)
+        if last is None or last[0].shape != positions.shape or not t > last[1]:
+            return np.zeros(len(self.nodes))
+        dt = t - last[1]
+        self._drag(self._plane(positions), (positions - last[0]) @ self.axis / dt)
+        self._spread(dt)
+        return self.gain * self._sample(self._node_cells)
+
+    def _drag(self, places: np.ndarray, speeds: np.ndarray) -> None:
+        """Each limb pulls the fluid near it toward its own speed."""
+        nx, ny = self.field.shape
+        xs = self.low[0] + CELL * np.arange(nx)
+        ys = self.low[1] + CELL * np.arange(ny)
+        for (x, y), speed in zip(places, speeds):
+            wx = np.exp(-0.5 * ((xs - x) / self.radius) ** 2)
+            wy = np.exp(-0.5 * ((ys - y) / self.radius) ** 2)
+            if wx.max() < 1e-3 or wy.max() < 1e-3:
+                continue  # outside the field
+            weight = np.outer(wx, wy)
+            self.field += weight * (speed - self.field)
+
+    def _spread(self, dt: float) -> None:
+        """Diffuse and decay over ``dt`` seconds (explicit, stable sub-steps; edges absorb)."""
+        steps = max(1, math.ceil(dt * self.diffusion / (0.2 * CELL * CELL)))
+        rate = self.diffusion * (dt / steps) / (CELL * CELL)
+        f = self.field
+        for _ in range(steps):
+            lap = -4.0 * f
+            lap[1:] += f[:-1]
+            lap[:-1] += f[1:]
+            lap[:, 1:] += f[:, :-1]
+            lap[:, :-1] += f[:, 1:]
+            f += rate * lap
+        f *= 0.5 ** (dt / self.memory)
+
+    def _sample(self, cells: np.ndarray) -> np.ndarray:
+        """The field at fractional grid cells (bilinear)."""
+        nx, ny = self.field.shape
+        i = np.clip(np.floor(cells[:, 0]).astype(int), 0, nx - 2)
+        j = np.clip(np.floor(cells[:, 1]).astype(int), 0, ny - 2)
+        a = np.clip(cells[:, 0] - i, 0, 1)
+        b = np.clip(cells[:, 1] - j, 0, 1)
+        f = self.field
+        return ((1 - a) * (1 - b) * f[i, j] + a * (1 - b) * f[i + 1, j] + (1 - a) * b * f[i, j + 1]
+                + a * b * f[i + 1, j + 1])
