@@ -145,6 +145,34 @@ def test_each_body_is_drawn():
             assert 0.005 < (depth > 0).mean() < 0.6, figure
 
 
+@pytest.mark.gl
+def test_the_camera_follows_a_walking_dog():
+    """Rendered frames of a dog walking 30 s (about 8 m): a camera that stays where it framed
+    the first frame loses it; the following camera (``[output] follow``, the default) keeps it
+    in the middle of the picture."""
+    from creatures.body.render import BodyRenderer, RenderUnavailable
+
+    _, _, poses = walk("dog", 30.0)
+    first, last = poses[0].positions, poses[-1].positions
+    parents = Body(np.random.default_rng(0), figure="dog").skeleton.parents
+    assert np.linalg.norm(last[0, [0, 2]] - first[0, [0, 2]]) > 4.0
+    seen = {}
+    for follow in (False, True):
+        try:
+            renderer = BodyRenderer(160, 120, joint_radius=0.015, follow=follow)
+        except RenderUnavailable as exc:
+            pytest.skip(f"no GL platform: {exc}")
+        with renderer:
+            _, depth = renderer.render_with_depth(first, parents)
+            assert (depth > 0).mean() > 0.01
+            _, depth = renderer.render_with_depth(last, parents)
+            rows, cols = np.nonzero(depth > 0)
+            seen[follow] = ((depth > 0).mean(), cols.mean() / 160 if len(cols) else None)
+    assert seen[False][0] < 0.002, "without following, the dog has walked out of the picture"
+    coverage, middle = seen[True]
+    assert coverage > 0.01 and 0.3 < middle < 0.7, seen
+
+
 @pytest.mark.parametrize("edit,message", [
     (("frames = [0, 30]", "frames = [0, 31]", 1), "clip 'walk' starts at frame 31, the clips before it end at 31"),
     (("frames = [0, 30]", "frames = [0, 9999]", 1), "not within the BVH's"),
@@ -174,10 +202,16 @@ def test_playback_of_a_walk_path_keeps_source_timing(clock):
     assert playback.end_time == pytest.approx(0.2, abs=0.02)
 
 
-def test_the_wren_pecks_the_notes_it_hears_and_hops_without_sliding():
-    """The shipped bird installation, run as ``creatures offline`` runs it: its beak strikes
-    heard notes placed in space (A* in note space), it hops about by root motion, and no
-    planted foot moves more than 1 cm between two ticks of the run."""
+@pytest.mark.parametrize("name,figure,travel,everywhere", [("wren", "bird", 0.5, True), ("fetch", "dog", 1.0, False)])
+def test_a_shipped_body_strikes_the_notes_it_hears_and_walks_without_sliding(name, figure, travel, everywhere):
+    """The shipped installation on each new body, run as ``creatures offline`` runs it: its
+    effector (the wren's beak, the dog's nose) strikes heard notes placed in space (A* in note
+    space), it walks about by root motion (the figure the run shows travels), no planted foot
+    of the shown figure moves more than 1 cm between two ticks of the run while it walks (two
+    ticks on steps of its gait), and no joint leaves the range of its source or turns faster than
+    the source's fastest joint. The bird's feet hold at any time; the dog's do not while it
+    changes between tricks off the gait (A* through "sit to lie down" drags the front paws up to
+    17 mm a tick, as the generated clip does, and a course into the gait from a sit slides)."""
     from creatures.clock import SimulatedClock
     from creatures.events import EventLog
     from creatures.runtime.inputs import phrase_notes
@@ -187,25 +221,62 @@ def test_the_wren_pecks_the_notes_it_hears_and_hops_without_sliding():
 
     import installations
 
-    inst = load_installation(installations.path("wren"))
+    inst = load_installation(installations.path(name))
     clock = SimulatedClock()
     log = EventLog(keep_in_memory=100_000)
     session = Session(inst, clock, log, MemorySink())
     for note in phrase_notes(rng=session.input_rng):
         session.world.inject(note)
-    wren = session.creatures[0]
-    feet = [wren.body.skeleton.index(name) for name in PAWS["bird"]]
-    tick, shown = inst.settings.tick, []
+    creature = session.creatures[0]
+    assert creature.body.figure == figure
+    feet = [creature.body.skeleton.index(foot) for foot in PAWS[figure]]
+    limits = Limits.of(creature.body.graph.poses, creature.body.graph.timing.max_speed)
+    graph = creature.body.graph
+    gait = graph.advances.any(axis=1)  # nodes whose next source frame carries the body on
+    tick, shown, turns, stepping = inst.settings.tick, [], [], []
     for step in range(1, int(60.0 / tick)):
         t = step * tick
         clock.advance_to(t)
         session.step(t, int(tick * inst.settings.audio.sample_rate), None, audio=False)
-        shown.append(wren.figure()[0][feet])
-    slides = contact_slides(np.array(shown))
-    played = [e for e in log.records if e["kind"] == "note" and e["creature"] == "wren"]
-    assert len(played) >= 10  # the pecks strike notes
-    assert wren.body.travelled[2] > 0.5  # it hopped
-    assert len(slides) > 500 and slides.max() <= SLIDE
+        shown.append(creature.figure()[0])
+        turns.append(creature.body.pose.rotations)
+        stepping.append(on_gait_step(creature.body.motor.playback, t, gait, graph.timing.next_frame))
+    shown, turns = np.array(shown), np.array(turns)
+    angles = quat.angle_between(turns, quat.identity(turns.shape[:2]))
+    assert np.all(angles <= limits.range + 1e-6), "a joint left the range its source material shows"
+    speeds = quat.angle_between(turns[1:], turns[:-1]) / tick
+    assert speeds.max() <= limits.max_speed * 1.01, "a joint outran the source's fastest joint"
+    played = [e for e in log.records if e["kind"] == "note" and e["creature"] == creature.name]
+    roots = shown[:, creature.body.skeleton.parents < 0][:, 0]
+    stepping = np.array(stepping)
+    walking = stepping[1:] & stepping[:-1]  # two ticks running in the gait
+    slides = np.concatenate([contact_slides(shown[[i, i + 1]][:, feet]) for i in np.flatnonzero(walking)] + [[]])
+    anywhere = contact_slides(shown[:, feet])
+    print(f"{name}: {len(played)} notes, travelled {np.linalg.norm(roots[-1] - roots[0]):.2f} m, "
+          f"{walking.sum()} of {len(walking)} ticks on gait steps; planted feet moved at most "
+          f"{slides.max(initial=0) * 1e3:.1f} mm a tick there ({len(slides)} contacts), "
+          f"{anywhere.max() * 1e3:.1f} mm at any time ({len(anywhere)} contacts)")
+    assert len(played) >= 10  # the effector strikes notes
+    assert np.linalg.norm((roots[:, [0, 2]] - roots[0, [0, 2]]), axis=1).max() > travel  # the shown body walked
+    assert walking.sum() > 100
+    if everywhere:  # the bird's hop lifts its feet: its contacts are all between hops
+        assert len(anywhere) > 500 and anywhere.max() <= SLIDE
+    else:
+        assert len(slides) > 100 and slides.max() <= SLIDE
+
+
+def on_gait_step(playback: Playback | None, t: float, gait: np.ndarray, following: np.ndarray) -> bool:
+    """Whether the course at ``t`` is on a step of the gait itself: between two keys that are
+    successive source frames of a node that carries the body on."""
+    if playback is None:
+        return False
+    segment = int(np.searchsorted(playback.key_times, t, side="left"))
+    if not 1 <= segment < len(playback.key_times):
+        return False
+    to = int(playback.key_nodes[segment - 1])
+    start = playback.path.start
+    before = (start.node if start.next is None else -1) if segment == 1 else int(playback.key_nodes[segment - 2])
+    return before >= 0 and bool(gait[before]) and int(following[before]) == to
 
 
 def test_an_authored_body_table_checks_labels_against_its_figure(tmp_path):

@@ -156,11 +156,19 @@ def test_a_restart_loads_the_cache_and_a_stale_or_corrupt_one_is_rebuilt(tmp_pat
     cache.write_bytes(cache.read_bytes()[:1000])  # truncated
     assert body_of(config).graph.edges() == first.edges() and built == [1]
     assert "corrupt" in caplog.text and str(cache) in caplog.text
+    with np.load(cache, allow_pickle=False) as data:  # well-formed, its own key, a node that does not exist
+        arrays = {name: data[name] for name in data.files}
+    arrays["edge_to"] = arrays["edge_to"].copy()
+    arrays["edge_to"][0] = len(first)
+    caplog.clear()
+    np.savez(cache, **arrays)
+    assert body_of(config).graph.edges() == first.edges() and built == [1, 1]
+    assert "corrupt" in caplog.text and "outside" in caplog.text
     rows = heron_frames()
     rows[:, 10] *= 0.5
     write_bvh(tmp_path / "heron.bvh", rows)  # a source changed: the cache is stale
     changed = body_of(config).graph
-    assert built == [1, 1] and "stale" in caplog.text
+    assert built == [1, 1, 1] and "stale" in caplog.text
     assert not np.allclose(changed.poses.rotations, first.poses.rotations)
 
 
@@ -224,3 +232,65 @@ def test_kinds_of_the_shipped_figure_and_bodies_without_rest_are_refused(tmp_pat
     config.write_text(text.replace("effectors = [\"head_end\"]", "effectors = [\"tail\"]"))
     with pytest.raises(ConfigError, match=r"creature\.0\.body\.effectors.*no joint 'tail'"):
         load_installation(config)
+
+
+@pytest.fixture(scope="module")
+def heron_take(tmp_path_factory) -> Path:
+    folder = tmp_path_factory.mktemp("heron")
+    write_bvh(folder / "heron.bvh", heron_frames(seconds=3.0))
+    return folder / "heron.bvh"
+
+
+_EDIT_LINES = ['skeleton = "{s}"', "[[forbid]]", "[[forge]]", "[[reweight]]", "[[favour]]", "[[add]]", "[[blend]]",
+               'from = "heron@3"', 'from = "heron@0..9"', 'to = "heron@4"', 'to = "peck"', 'to = "heron@59"',
+               'node = "peck"', 'node = "heron@99"', 'nodes = "peck"', "multiplier = 0.5", "multiplier = 0",
+               "scale = 2", "scale = 1e300", "cost = 0.1", "cost = -1", 'file = "heron.bvh"', 'file = "none.bvh"',
+               "weight = 0.5", "weight = 7", "frames = [0, 4]", "frames = [4, 0]", "labels = { peck = [[0, 3]] }",
+               "labels = { peck = [[0, 300]] }", 'name = "again"', 'name = "heron"']
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.lists(st.sampled_from(_EDIT_LINES), max_size=14).map(lambda lines: ['skeleton = "{s}"', *lines]))
+def test_fuzzed_edit_files_applied_to_a_graph_never_crash_the_loader(tmp_path_factory, heron_take, lines):
+    """Edit files the reader accepts, applied to a real body: each builds a graph or is a
+    MaterialError naming the edit file (never another exception)."""
+    from creatures.motor.body_build import Sources, build
+    from creatures.motor.material import Animation, Conventions, MaterialError, load_skeleton
+
+    skeleton = fingerprint(load_skeleton(heron_take, Conventions(scale=0.01)))
+    path = tmp_path_factory.mktemp("edits") / "e.toml"
+    (path.parent / "heron.bvh").write_bytes(heron_take.read_bytes())
+    path.write_text("\n".join(lines).replace("{s}", skeleton))
+    try:
+        edits = read_edits(path)
+    except EditError as exc:
+        assert str(exc).startswith(str(path))
+        return
+    sources = Sources((Animation(heron_take, {"peck": ((10, 14),)}),), conventions=Conventions(scale=0.01),
+                      rest=(("neck", (20.0, 0.0, 0.0)),), rest_labels=("rest",))
+    try:
+        graph = build(sources, [edits])
+    except MaterialError as exc:
+        assert str(path) in str(exc), exc
+    else:
+        assert len(graph) >= 61 and np.all(np.isfinite(graph.adjacency.costs))
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.integers(0, 900))
+def test_a_bvh_cut_anywhere_is_a_body_or_an_error_naming_it(tmp_path_factory, heron_take, cut):
+    """The whole loader (parse, conventions, labels, graph) on a take cut short at any byte."""
+    from creatures.motor.body_build import Sources, build
+    from creatures.motor.material import Animation, Conventions, MaterialError
+
+    path = tmp_path_factory.mktemp("cut") / "cut.bvh"
+    text = heron_take.read_text()
+    path.write_text(text[:len(HIERARCHY) + cut])
+    sources = Sources((Animation(path, {"peck": ((1, 2),)}),), conventions=Conventions(scale=0.01),
+                      rest=(("neck", (20.0, 0.0, 0.0)),), rest_labels=("rest",))
+    try:
+        graph = build(sources, [])
+    except MaterialError as exc:
+        assert str(path) in str(exc), exc
+    else:
+        assert len(graph) >= 4

@@ -155,3 +155,55 @@ def test_scale_and_a_z_up_file_give_the_same_body_as_y_up_metres(tmp_path: Path)
             conventions.scale, conventions.up_axis, root_motion=True)).poses.positions)
     np.testing.assert_allclose(bodies[0], bodies[1], atol=1e-9)
     assert bodies[1][:, 3, 1].min() > 0.5  # the beak is up in the air, not lying along z
+
+
+def test_a_walking_body_from_files_carries_its_root_motion(tmp_path: Path):
+    """``root_motion = true`` on a user's walking takes (the shipped dog's clips, each written
+    out as a BVH file of its own with its recorded travel): the body walks by the takes' own
+    steps, so it goes somewhere, its planted paws stay put (≤ 1 cm a frame once in its gait),
+    and every take's poses stand where the first began (no teleport to where a take was shot)."""
+    from test_bodies import PAWS, WALKS, contact_slides
+
+    from creatures.kinds.figures import BODIES, read_labels
+    from creatures.motor.bvh import load_bvh_set, save_bvh
+    from creatures.motor.programs import ProgramStack, parse_programs
+
+    whole = load_bvh_set(BODIES / "dog.bvh")
+    clips, marks = read_labels(BODIES / "dog.labels.toml", len(whole))
+    tables = []
+    for clip in clips:
+        frames = np.arange(clip.first, clip.last + 1)
+        save_bvh(tmp_path / f"{clip.name}.bvh", whole.subset(frames), frame_time=1.0 / 15.0)
+        labels = {m.name: [[max(m.first, clip.first) - clip.first, min(m.last, clip.last) - clip.first]]
+                  for m in marks if m.first <= clip.last and m.last >= clip.first}
+        labels.setdefault("rest", [[0, 0]])
+        rows = ", ".join(f'"{k}" = {v}' for k, v in labels.items())
+        tables.append(f'[[creature.body.animations]]\nfile = "{clip.name}.bvh"\nlabels = {{ {rows} }}\n')
+    (tmp_path / "walker.toml").write_text(f"""title = "walker"
+seed = 1
+[[creature]]
+name = "rex"
+kind = "exchange"
+[creature.body]
+effectors = ["nose_end"]
+root_motion = true
+rest_labels = ["rest"]
+{"".join(tables)}""", encoding="utf-8")
+    spec = load_installation(tmp_path / "walker.toml").specs[0].body
+    body = Body(np.random.default_rng(4), spec=spec)
+    graph = body.graph
+    assert body.root_motion is not None and graph.advances.any()
+    root = graph.skeleton.parents < 0
+    assert np.ptp(graph.poses.roots[:, [0, 2]], axis=0).max() < 1e-9  # in place: travel is in the steps
+    stack = ProgramStack(body.motor, parse_programs(WALKS["dog"])["walk"])
+    stack.start(0.0)
+    paws = [graph.skeleton.index(p) for p in PAWS["dog"]]
+    shown = []
+    for i in range(int(30.0 * 15)):
+        stack.update(i / 15.0)
+        shown.append(body.update(i / 15.0).positions)
+    shown = np.array(shown)
+    assert body.travelled[2] > 5.0 and shown[-1][root][0, 2] - shown[0][root][0, 2] > 5.0  # it walked on
+    slides = contact_slides(shown[5 * 15:, paws])
+    print(f"walked {body.travelled[2]:.2f} m; planted paws moved at most {slides.max() * 1e3:.1f} mm a frame")
+    assert len(slides) > 100 and slides.max() <= 0.01

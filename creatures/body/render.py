@@ -169,7 +169,9 @@ class BodyRenderer:
     """Offscreen renderer of skeletons (joint positions + parents) and note marks.
 
     The camera is framed on the first body drawn (or given as ``camera_pose``) and then
-    stays put, so a moving body moves on screen. Materials are pyrender's metallic-roughness
+    stays put, so a moving body moves on screen; with ``follow`` it moves along the ground with
+    the middle of the bodies' roots (a walking dog stays in the picture; a body with a fixed
+    root sees no difference). Materials are pyrender's metallic-roughness
     ones as the first renderer had them: the body metallic with roughness 0.7, notes glowing
     in their pitch colour.
 
@@ -185,7 +187,8 @@ class BodyRenderer:
 
     def __init__(self, width: int = 640, height: int = 480, *, joint_radius: float = 0.04,
                  bone_radius: float = 0.025, camera_pose: np.ndarray | None = None,
-                 body_colour: RGB = (0.85, 0.82, 0.75), background: RGB = (0.08, 0.08, 0.1)) -> None:
+                 body_colour: RGB = (0.85, 0.82, 0.75), background: RGB = (0.08, 0.08, 0.1),
+                 follow: bool = False) -> None:
         self._context = _context(width, height)
         import trimesh
 
@@ -206,6 +209,8 @@ class BodyRenderer:
         self._projection = perspective(self.YFOV, width / height, self.ZNEAR)
         self._camera = np.eye(4) if camera_pose is None else np.asarray(camera_pose, float)
         self._framed = camera_pose is not None
+        self.follow = follow
+        self._anchor: np.ndarray | None = None  # the roots' middle on the ground when first drawn
 
     @property
     def camera_pose(self) -> np.ndarray:
@@ -254,6 +259,12 @@ class BodyRenderer:
         counts = self._fill(positions, parents, notes)
         self._context.make_current()  # another renderer's context may have been current
         camera = self._camera
+        if self.follow:
+            middle = positions[parents < 0].mean(axis=0) * np.array([1.0, 0.0, 1.0])
+            if self._anchor is None:
+                self._anchor = middle
+            camera = camera.copy()
+            camera[:3, 3] += middle - self._anchor
         self._meshes.draw(counts, np.linalg.inv(camera), self._projection, camera[:3, 3],
                           -camera[:3, 2], np.full(3, self.LIGHT_INTENSITY), np.array(self.AMBIENT), self.background)
 

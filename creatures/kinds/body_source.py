@@ -77,8 +77,9 @@ class MaterialSpec(BaseModel):
                           "(axis × angle, in the joint's parent frame); joints not named at rest")
     scale: float = Field(1.0, gt=0, le=1e3, description="file units → metres (0.01 for centimetres)")
     up_axis: Literal["y", "z"] = Field("y", description="the files' up axis ('z' for z-up exports)")
-    root_motion: bool = Field(False, description="keep the root's recorded translation (walking bodies); "
-                                                 "false: the root stays where each take begins")
+    root_motion: bool = Field(False, description="the takes walk: each frame's horizontal step to the next moves "
+                                                 "the creature on (its poses stand in place, height kept); false: "
+                                                 "the root stays where each take begins")
     neighbours: int = Field(6, ge=1, le=64, description="nearest poses each node joins in the motor graph")
     cache: str = Field(".motor-cache", description="directory for the built motor graph, relative to the config "
                                                    "(rebuilt when any source changes)")

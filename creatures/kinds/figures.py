@@ -9,7 +9,7 @@ carry which label ("low energy" for rest, "sit", "beg", …).
 
 Root motion (thesis: walking creatures; the stick figure's root is fixed). A clip marked
 ``root_motion = true`` keeps its root's height but gives its horizontal travel to
-:class:`RootMotion`: the nodes stand in place, and each step to a node's successor in the
+:class:`~creatures.motor.root_motion.RootMotion`: the nodes stand in place, and each step to a node's successor in the
 source moves the body on by the step the source took (see
 :meth:`creatures.kinds.parts.Body.update`). A walk cycle's end and start are then the same
 pose, the graph joins them, and the body walks on through the seam as it does within a
@@ -35,6 +35,7 @@ import installations
 from creatures.kinds.layers import BodySpec
 from creatures.motor.bvh import load_bvh_set
 from creatures.motor.graph import MotorGraph
+from creatures.motor.material import WALKING_FAVOUR
 from creatures.motor.note_space import exchange_metric
 from creatures.motor.pose import LOW_ENERGY, PoseSet
 
@@ -63,11 +64,6 @@ EFFECTORS: dict[str, str] = {"stick": "hand_r", "dog": "nose_end", "bird": "beak
 """The joint that strikes notes on each figure: the stick figure's right hand, the dog's nose
 (thesis: "Duncan tries to get his nose near the red marker"), the bird's beak."""
 
-WALKING_FAVOUR = 0.1
-"""Scale of the cost of a root-motion clip's own frame-to-frame steps (a graph edit, thesis
-"re-editing"). A gait's successive frames differ a lot (the legs swing), so the metric alone
-would rather jump out of the walk and back; but only the source's own steps carry its travel,
-and any other route moves the legs while the body stands still, which is foot sliding."""
 
 BODIES = Path(installations.__file__).parent / "bodies"
 """Where the shipped BVH bodies and their labels files live."""
@@ -195,30 +191,8 @@ def figure_graph(figure: str, ratios: bool = False) -> MotorGraph:
     material = figure_material(figure)
     graph = MotorGraph.build(material.poses, k=6, weights=exchange_metric() if ratios else None)
     graph.annotate_low_energy()
+    graph.advances = material.advances
     successors = graph.timing.next_frame
     for node in np.flatnonzero(material.advances.any(axis=1)).tolist():
         graph.reweight(node, int(successors[node]), WALKING_FAVOUR)
     return graph
-
-
-@dataclass(frozen=True)
-class RootMotion:
-    """Where a body has walked to: steps along source successors add their source's travel."""
-
-    advances: np.ndarray  # (N, 3)
-    successors: np.ndarray  # (N,)
-
-    @classmethod
-    def of(cls, figure: str, graph: MotorGraph) -> "RootMotion | None":
-        """The figure's root motion on ``graph``, or None when nothing in it travels."""
-        if figure == "stick" or not figure_material(figure).advances.any():
-            return None
-        return cls(figure_material(figure).advances, graph.timing.next_frame)
-
-    def along(self, before: int, nodes: np.ndarray, fraction: float = 0.0) -> np.ndarray:
-        """Travel ``(K + 1, 3)`` at the start position (node ``before``, ``fraction`` on toward
-        ``nodes[0]``) and at each of the ``K`` path nodes, relative to the start."""
-        previous = np.concatenate(([before], nodes[:-1]))
-        steps = np.where((self.successors[previous] == nodes)[:, None], self.advances[previous], 0.0)
-        steps[0] *= 1.0 - fraction
-        return np.concatenate((np.zeros((1, 3)), np.cumsum(steps, axis=0)))

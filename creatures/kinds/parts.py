@@ -18,7 +18,7 @@ from audio.flow import FlowCoupling
 from audio.scanned import GESTURAL_LIMIT_HZ, StringParameters, UnstableStringError, soft_limit
 from audio.voices import VoicePool
 from creatures.bounds import FINITE
-from creatures.kinds.figures import EFFECTORS, Figure, RootMotion, figure_graph
+from creatures.kinds.figures import EFFECTORS, Figure, figure_graph
 from creatures.kinds.layers import BodyLayers, BodySpec
 from creatures.motor import quaternion as quat
 from creatures.motor.animations import example_animations
@@ -27,6 +27,7 @@ from creatures.motor.note_space import exchange_metric
 from creatures.motor.pose import BodyPose, PoseSet
 from creatures.motor.playback import Playback
 from creatures.motor.programs import MotorSystem
+from creatures.motor.root_motion import RootMotion
 from creatures.motor.search import PathFinder
 
 
@@ -244,8 +245,8 @@ class Body:
     root motion walks: the offset it has travelled is kept across courses. When ``spec``
     (``[creature.body]``) names files, the body is built from them at config load instead
     (:class:`~creatures.kinds.body_source.MaterialSpec`: its effectors strike, and its joint
-    limits always hold, so such a body is always layered). With layers in ``spec`` the course
-    is one contributor among them (:class:`~creatures.kinds.layers.BodyLayers`); without, the
+    limits always hold, so such a body is always layered, as are the dog and the bird). With
+    layers in ``spec`` the course is one contributor among them (:class:`~creatures.kinds.layers.BodyLayers`); without, the
     course alone is the pose.
     """
 
@@ -267,7 +268,7 @@ class Body:
         # its effector, or every effector of a body of one's own.
         pushing = (("hand_l",) if "hand_l" in self.skeleton.names else ()) + self.effectors if own is None else own.effectors
         self.touching = [self.skeleton.index(name) for name in dict.fromkeys(pushing)]
-        self.root_motion = RootMotion.of(figure, self.graph) if own is None else None
+        self.root_motion = RootMotion.of(self.graph)
         self.travelled = np.zeros(3)
         """Where root motion had taken the body when its last course began or ended."""
         self.offset = np.zeros(3)
@@ -278,8 +279,12 @@ class Body:
         layers = spec.contributions(self.skeleton.names)
         if own is not None:
             self.layers: BodyLayers | None = BodyLayers(self.graph, layers, joint_limits=own.limits)
+        elif layers or figure != "stick":
+            # The generated bodies are held to their source's range and top speed as a body from
+            # files is: a squad curve between two keys overshot a knee by 3 mrad in a hop.
+            self.layers = BodyLayers(self.graph, layers)
         else:
-            self.layers = BodyLayers(self.graph, layers) if layers else None
+            self.layers = None
 
     def _rest_pose(self, node: int, t: float) -> BodyPose:
         poses = self.graph.poses

@@ -26,16 +26,17 @@ import numpy as np
 from creatures.motor.graph import MotorGraph
 from creatures.motor.graph_edits import (EditError, EditFile, added_material, apply_edges, blended, check_skeleton,
                                          edits_from, read_edits)
-from creatures.motor.material import (Animation, Conventions, Material, MaterialError, convert_skeleton, fingerprint,
-                                      load_material, load_skeleton, read_take)
-from creatures.motor.metric import MetricWeights
+from creatures.motor.material import (WALKING_FAVOUR, Animation, Conventions, Material, MaterialError,
+                                      convert_skeleton, fingerprint, load_material, load_skeleton, read_take,
+                                      walking_in_place)
+from creatures.motor.metric import MetricWeights, successors
 from creatures.motor.pose import LOW_ENERGY, PoseSet
 from creatures.motor.skeleton import Skeleton
 from creatures.persist import atomic_write
 
 logger = logging.getLogger(__name__)
 
-CACHE_VERSION = 4
+CACHE_VERSION = 5
 """Bumped whenever the cache layout or the graph builder changes what a cache holds."""
 
 
@@ -54,8 +55,9 @@ class Sources:
     inline_base: Path | None = None
 
     def key(self, edit_files: list[EditFile]) -> str:
-        """Hash of the parameters and the bytes of every file the graph reads."""
-        digest = hashlib.sha256()
+        """Hash of the parameters and the bytes of every file the graph reads (BLAKE2b: a ten-minute
+        take is 70 MB of text, and SHA-256 of it was a third of a cached reload)."""
+        digest = hashlib.blake2b(digest_size=32)
         parameters = {
             "version": CACHE_VERSION, "conventions": vars(self.conventions), "rest": self.rest,
             "rest_labels": self.rest_labels, "neighbours": self.neighbours,
@@ -75,7 +77,8 @@ class Sources:
 
 
 def build(sources: Sources, edit_files: list[EditFile]) -> MotorGraph:
-    """Material → added takes → blends → graph → rest labels → edge edits (see :mod:`graph_edits`)."""
+    """Material → added takes → blends → root motion out of the poses → graph → rest labels →
+    edge edits (see :mod:`graph_edits`)."""
     conventions = sources.conventions
     first = read_take(sources.animations[0], ("animations", 0))  # read once, for the skeleton too
     if sources.skeleton is not None:
@@ -95,7 +98,13 @@ def build(sources: Sources, edit_files: list[EditFile]) -> MotorGraph:
         material = Material(poses, {**material.frame_times,
                                     **{t.sources[0]: ft for t, ft in takes}})
     material = _as_material_error(lambda: blended(material, edit_files, skeleton, conventions), None)
-    graph = MotorGraph.build(material.poses, k=sources.neighbours)
+    poses, advances = walking_in_place(material.poses) if conventions.root_motion else (material.poses, None)
+    graph = MotorGraph.build(poses, k=sources.neighbours)
+    if advances is not None:  # a walking body: its own steps carry it, so A* keeps to them
+        graph.advances = advances
+        following = successors(poses)  # not graph.timing: its speed limit is measured once, for the cache
+        for node in np.flatnonzero(advances.any(axis=1)).tolist():
+            graph.reweight(node, int(following[node]), WALKING_FAVOUR)
     graph.annotate_low_energy()
     for label in sources.rest_labels:
         nodes = material.poses.labelled(label)
@@ -158,7 +167,8 @@ def write_cache(path: Path, key: str, graph: MotorGraph) -> None:
         "label_sets": np.array(json.dumps(kinds)),
         "label_ids": np.array([index[tuple(sorted(x))] for x in p.labels], dtype=np.int64),
         "rotations": p.rotations, "velocities": p.velocities, "roots": p.roots, "times": p.times,
-        "source_ids": p.source_ids, "favour": graph.favour,
+        "positions": p.positions,
+        "source_ids": p.source_ids, "favour": graph.favour, "advances": graph.advances,
         "forbidden": np.array(sorted(graph.forbidden), dtype=np.int64).reshape(-1, 2), **edges,
         "speeds": np.array([graph.timing.typical_speed, graph.timing.max_speed]),
     }
@@ -175,10 +185,18 @@ def read_cache(path: Path, key: str) -> MotorGraph | None:
             skeleton = Skeleton.from_dict(json.loads(str(data["skeleton"])), source=str(path))
             sets = [frozenset(x) for x in json.loads(str(data["label_sets"]))]
             labels = [sets[i] for i in data["label_ids"].tolist()]  # IndexError: a damaged cache
-            poses = PoseSet(skeleton, data["rotations"], data["velocities"], data["roots"], data["times"],
-                            data["source_ids"], json.loads(str(data["sources"])), labels)  # positions: FK, faster than reading them
+            # Every member's CRC is checked as it is read (zipfile), so the arrays are the ones written:
+            # a damaged file fails here, and the pose set is not normalised nor its kinematics run again.
+            poses = PoseSet.from_checked(skeleton, _c(data["rotations"]), _c(data["velocities"]), _c(data["roots"]),
+                                         _c(data["times"]), data["source_ids"].astype(np.int64, copy=False),
+                                         json.loads(str(data["sources"])), labels, _c(data["positions"]))
             graph = MotorGraph.from_arrays(poses, data, weights=MetricWeights.from_dict(json.loads(str(data["weights"]))))
     except (OSError, KeyError, IndexError, ValueError, TypeError, EOFError, zipfile.BadZipFile) as exc:
         logger.warning("%s: motor-graph cache is corrupt (%s); rebuilding", path, str(exc)[:200])
         return None
     return graph
+
+
+def _c(array: np.ndarray) -> np.ndarray:
+    """A float array read from the cache, C order (as the compiled kernels read it)."""
+    return np.ascontiguousarray(array, dtype=float)

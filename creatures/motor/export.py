@@ -23,6 +23,7 @@ from creatures.motor.graph import MotorGraph
 from creatures.motor.material import UP, Conventions
 from creatures.motor.playback import Playback
 from creatures.motor.pose import PoseSet
+from creatures.motor.root_motion import RootMotion
 from creatures.motor.search import GraphPosition, Path as GraphPath
 from creatures.motor.skeleton import Skeleton
 
@@ -48,10 +49,15 @@ def taken_nodes(events: list[dict[str, Any]], creature: str, nodes: int) -> list
 
 
 def played(graph: MotorGraph, nodes: list[int], fps: float) -> PoseSet:
-    """The path played as a course from time 0 and sampled every ``1/fps`` seconds."""
+    """The path played as a course from time 0 and sampled every ``1/fps`` seconds (a walking
+    body's root carrying the travel its source steps add)."""
     playback = Playback(graph, GraphPath(GraphPosition(nodes[0]), tuple(nodes), 0.0), 0.0)
     times = np.arange(int(np.floor(playback.end_time * fps)) + 1) / fps
     rotations, roots = playback.sample_rotations(times)
+    motion = RootMotion.of(graph)
+    if motion is not None:  # a walking body's travel, as the body showed it (linear between keys)
+        travel = motion.along(nodes[0], playback.key_nodes)
+        roots = roots + np.stack([np.interp(times, playback.key_times, travel[:, c]) for c in range(3)], axis=1)
     return PoseSet.animation(graph.skeleton, rotations, roots, times, "motion")
 
 

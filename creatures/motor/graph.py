@@ -28,7 +28,7 @@ from scipy.sparse.csgraph import connected_components
 
 from creatures.motor import metric
 from creatures.motor.metric import MetricWeights
-from creatures.motor.neighbours import nearest_edges
+from creatures.motor.neighbours import nearest_edge_arrays, nearest_edges
 from creatures.motor.pose import LOW_ENERGY, PoseSet
 from creatures.motor.graph_file import read_graph
 from creatures.motor.skeleton import Skeleton
@@ -62,6 +62,7 @@ class MotorGraph:
         scales: dict[tuple[int, int], float] | None = None,
         forbidden: set[tuple[int, int]] | None = None,
         favour: np.ndarray | None = None,
+        advances: np.ndarray | None = None,
     ) -> None:
         self.poses = poses
         self.weights = weights or MetricWeights()
@@ -70,6 +71,9 @@ class MotorGraph:
         self._scales = dict(scales or {})
         self.forbidden = set(forbidden or ())
         self.favour = np.ones(len(poses)) if favour is None else np.asarray(favour, dtype=float)
+        self.advances = np.zeros((len(poses), 3)) if advances is None else np.asarray(advances, dtype=float)
+        """Per node, the horizontal step its source takes to its next frame: a walking body's
+        root motion (:func:`~creatures.motor.material.walking_in_place`); zero for a fixed root."""
         self._adjacency: Adjacency | None = None
         self._timing: metric.Timing | None = None
         self.version = 0
@@ -90,7 +94,8 @@ class MotorGraph:
         """
         weights = weights or MetricWeights()
         graph = cls(poses, {}, weights=weights)
-        graph._base = nearest_edges(poses, np.arange(len(poses)), np.arange(len(poses)), k, weights, oversample)
+        a, b, costs = nearest_edge_arrays(poses, np.arange(len(poses)), np.arange(len(poses)), k, weights, oversample)
+        graph._edge_dict, graph._edge_arrays = None, (a, b, costs, np.ones(len(a)))
         graph._complete()
         return graph
 
@@ -128,7 +133,19 @@ class MotorGraph:
         }
 
     def has_edge(self, a: int, b: int) -> bool:
+        if self._edge_dict is None:
+            return self._adjacent(a, b) is not None
         return (a, b) in self._base
+
+    def _adjacent(self, a: int, b: int) -> int | None:
+        """Where ``a → b`` is in the CSR adjacency (None: no such edge); a graph still in arrays
+        answers without a dict of its half-million edges."""
+        if not (0 <= a < len(self.poses)):
+            return None
+        adj = self.adjacency
+        lo = int(adj.indptr[a])
+        at = np.flatnonzero(adj.indices[lo:int(adj.indptr[a + 1])] == b)
+        return lo + int(at[0]) if at.size else None
 
     # --- editing ("re-editing animation data") --------------------------------------------
 
@@ -181,6 +198,7 @@ class MotorGraph:
         self._timing = None
         new = np.arange(first, len(self.poses))
         self.favour = np.concatenate((self.favour, np.ones(len(new))))
+        self.advances = np.concatenate((self.advances, np.zeros((len(new), 3))))
         found = nearest_edges(self.poses, new, np.arange(len(self.poses)), k, self.weights, oversample)
         self._base.update({edge: cost for edge, cost in found.items() if edge not in self.forbidden})
         self._complete()
@@ -199,11 +217,7 @@ class MotorGraph:
         the pose nearest to it (pose term, sampled) elsewhere, in both directions. Forbidden
         edges are never re-forged.
         """
-        missing = [(b, a) for (a, b) in self._base if (b, a) not in self._base and (b, a) not in self.forbidden]
-        missing = np.array(missing, dtype=np.int64).reshape(-1, 2)
-        if len(missing):
-            costs = metric.edge_costs(self.poses, missing[:, 0], missing[:, 1], self.weights)
-            self._base.update(zip(map(tuple, missing.tolist()), costs.tolist()))
+        self._add_reverses()
         self._changed()
         rng = np.random.default_rng(0)
         while True:
@@ -231,8 +245,44 @@ class MotorGraph:
                 raise ValueError("cannot connect the motor graph: every bridge is forbidden")
             pair = np.array([a, b])
             costs = metric.edge_costs(self.poses, pair, pair[::-1], self.weights)
-            self._base[(a, b)], self._base[(b, a)] = float(costs[0]), float(costs[1])
+            self._set_edge(a, b, float(costs[0]))
+            self._set_edge(b, a, float(costs[1]))
             self._changed()
+
+    def _add_reverses(self) -> None:
+        """Every edge's reverse (at the metric's cost) where it is missing and not forbidden."""
+        if self._edge_dict is not None:
+            missing = [(b, a) for (a, b) in self._base if (b, a) not in self._base and (b, a) not in self.forbidden]
+            missing = np.array(missing, dtype=np.int64).reshape(-1, 2)
+            if len(missing):
+                costs = metric.edge_costs(self.poses, missing[:, 0], missing[:, 1], self.weights)
+                self._base.update(zip(map(tuple, missing.tolist()), costs.tolist()))
+            return
+        # The same on the arrays (a freshly built or cached graph): edges as codes a·n + b.
+        a, b, costs, scales = self._edge_arrays
+        n = len(self.poses)
+        missing = ~np.isin(b * n + a, a * n + b)
+        if self.forbidden:
+            banned = np.array([x * n + y for x, y in self.forbidden], dtype=np.int64)
+            missing &= ~np.isin(b * n + a, banned)
+        if missing.any():
+            fresh = metric.edge_costs(self.poses, b[missing], a[missing], self.weights)
+            self._edge_arrays = (np.concatenate((a, b[missing])), np.concatenate((b, a[missing])),
+                                 np.concatenate((costs, fresh)), np.concatenate((scales, np.ones(len(fresh)))))
+
+    def _set_edge(self, a: int, b: int, cost: float) -> None:
+        """Base cost of ``a → b`` (a new edge, or a new cost for an existing one), in either store."""
+        if self._edge_dict is not None:
+            self._base[(a, b)] = cost
+            return
+        froms, tos, costs, scales = self._edge_arrays
+        at = np.flatnonzero((froms == a) & (tos == b))
+        if at.size:
+            costs = costs.copy()
+            costs[at] = cost
+            self._edge_arrays = (froms, tos, costs, scales)
+        else:
+            self._edge_arrays = (np.append(froms, a), np.append(tos, b), np.append(costs, cost), np.append(scales, 1.0))
 
     def label(self, node: int, label: str) -> None:
         """Attach ``label`` to ``node`` (e.g. an animator marking a low-energy state)."""
@@ -293,6 +343,11 @@ class MotorGraph:
 
     def edge_cost(self, a: int, b: int) -> float:
         """Current cost of ``a → b`` (KeyError when there is no such edge)."""
+        if self._edge_dict is None:
+            at = self._adjacent(a, b)
+            if at is None:
+                raise KeyError(f"no edge {a} → {b}")
+            return float(self.adjacency.costs[at])
         if (a, b) not in self._base:
             raise KeyError(f"no edge {a} → {b}")
         return self._base[(a, b)] * self._scales.get((a, b), 1.0) * float(self.favour[a])
@@ -337,7 +392,7 @@ class MotorGraph:
 
     @classmethod
     def from_arrays(cls, poses: PoseSet, data: Any, *, weights: MetricWeights | None = None) -> MotorGraph:
-        """A graph from :meth:`edges_arrays` plus ``favour``, ``forbidden`` and ``speeds``
+        """A graph from :meth:`edges_arrays` plus ``favour``, ``forbidden``, ``advances`` and ``speeds``
         (:attr:`timing`'s typical and top speed, which take seconds to measure on a long take)
         arrays, every array checked (ValueError names the first problem): a damaged cache must
         not become a wrong body."""
@@ -359,8 +414,11 @@ class MotorGraph:
         if not (np.all(np.isfinite(costs) & (costs >= 0)) and np.all(np.isfinite(scales) & (scales > 0))
                 and np.all(np.isfinite(favour) & (favour > 0))):
             raise ValueError("edge costs, scales or favours out of range")
+        advances = np.asarray(data["advances"], dtype=float)
+        if not (advances.shape == (n, 3) and np.all(np.isfinite(advances))):
+            raise ValueError("root-motion steps do not fit the poses")
         scaled = np.flatnonzero(scales != 1.0)
-        graph = cls(poses, {}, weights=weights,
+        graph = cls(poses, {}, weights=weights, advances=advances,
                     scales={(int(a[i]), int(b[i])): float(scales[i]) for i in scaled},
                     forbidden={(int(x), int(y)) for x, y in forbidden.tolist()}, favour=favour)
         graph._edge_dict, graph._edge_arrays = None, (a.astype(np.int64), b.astype(np.int64), costs, scales)

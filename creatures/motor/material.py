@@ -32,6 +32,12 @@ from creatures.motor.drawing import is_drawing, read_drawing
 from creatures.motor.pose import LOW_ENERGY, PoseSet
 from creatures.motor.skeleton import Skeleton, SkeletonFileError
 
+WALKING_FAVOUR = 0.1
+"""Scale of the cost of a walking take's own frame-to-frame steps (a graph edit, thesis
+"re-editing"). A gait's successive frames differ a lot (the legs swing), so the metric alone
+would rather jump out of the walk and back; but only the source's own steps carry its travel,
+and any other route moves the legs while the body stands still, which is foot sliding."""
+
 REST_SOURCE = "rest"
 """Source name of the rest pose added for material without a still frame."""
 
@@ -83,6 +89,27 @@ class Material:
         """Each node's frame number in its own source file."""
         step = np.array([self.frame_times[s] for s in self.poses.sources])[self.poses.source_ids]
         return np.rint(self.poses.times / step).astype(np.int64)
+
+
+def walking_in_place(poses: PoseSet) -> tuple[PoseSet, np.ndarray]:
+    """Root motion taken out of the poses and kept as steps (thesis "graph-based motor systems":
+    a node is a pose, wherever it was recorded): each node's horizontal step ``(N, 3)`` to its
+    source successor (zero at a take's last frame), and the poses with their horizontal root
+    where the first take began (height kept). A body then walks by adding the steps of the source
+    steps it takes (:class:`~creatures.motor.root_motion.RootMotion`), so any route through the
+    graph, and any jump between takes, starts from where the body stands instead of teleporting
+    it to where the take was recorded."""
+    from creatures.motor.metric import successors
+
+    following = successors(poses)
+    steps = np.zeros_like(poses.roots)
+    walking = np.flatnonzero(following >= 0)
+    for axis in (0, 2):
+        steps[walking, axis] = poses.roots[following[walking], axis] - poses.roots[walking, axis]
+    roots = poses.roots.copy()
+    roots[:, [0, 2]] = poses.roots[0, [0, 2]]
+    return PoseSet(poses.skeleton, poses.rotations, poses.velocities, roots, poses.times, poses.source_ids,
+                   list(poses.sources), list(poses.labels)), steps
 
 
 def fingerprint(skeleton: Skeleton) -> str:

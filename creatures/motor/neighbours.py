@@ -37,6 +37,15 @@ def nearest_edges(
     poses: PoseSet, rows: np.ndarray, cols: np.ndarray, k: int, weights: MetricWeights, oversample: int = 3
 ) -> dict[tuple[int, int], float]:
     """Edges from each ``rows`` node to its ``k`` metric-nearest ``cols`` nodes and its successor."""
+    a, b, cost = nearest_edge_arrays(poses, rows, cols, k, weights, oversample)
+    return dict(zip(zip(a.tolist(), b.tolist()), cost.tolist()))
+
+
+def nearest_edge_arrays(
+    poses: PoseSet, rows: np.ndarray, cols: np.ndarray, k: int, weights: MetricWeights, oversample: int = 3
+) -> Pairs:
+    """:func:`nearest_edges` as flat arrays (each edge once, by from-node): a whole take's
+    graph is built without a Python object per edge."""
     next_frame = metric.successors(poses)
     if len(cols) <= EXACT_BELOW:
         found = _exact(poses, rows, cols, k, weights, next_frame)
@@ -49,13 +58,16 @@ def nearest_edges(
     a, b, cost = a[order], b[order], cost[order]
     rank = np.arange(len(a)) - np.searchsorted(a, a)
     best = rank < k
-    edges = dict(zip(zip(a[best].tolist(), b[best].tolist()), cost[best].tolist()))
+    a, b, cost = a[best], b[best], cost[best]
     with_next = rows[next_frame[rows] >= 0]
-    if len(with_next):
+    if len(with_next):  # the successor edge at the metric's full cost, replacing a nearest one to it
         succ = next_frame[with_next]
         costs = metric.edge_costs(poses, with_next, succ, weights, next_frame)
-        edges.update(zip(zip(with_next.tolist(), succ.tolist()), costs.tolist()))
-    return edges
+        keep = next_frame[a] != b
+        a, b, cost = np.concatenate((a[keep], with_next)), np.concatenate((b[keep], succ)), np.concatenate((cost[keep], costs))
+        order = np.argsort(a, kind="stable")
+        a, b, cost = a[order], b[order], cost[order]
+    return a.astype(np.int64), b.astype(np.int64), cost.astype(float)
 
 
 def _exact(

@@ -33,8 +33,9 @@ def normalize(q: np.ndarray) -> np.ndarray:
 
     One copy divided in place, zeros fixed only where there are any: every pose set normalises
     its rotations, and the temporaries of a ``where`` over all of them were a second of a
-    72,000-frame body's cached reload."""
-    q = np.array(q, dtype=float)
+    72,000-frame body's cached reload. C order whatever the input's: the compiled metric
+    kernels read it node by node, and a strided copy here had every one of them copied again."""
+    q = np.array(q, dtype=float, order="C")
     norm = np.sqrt(np.einsum("...i,...i->...", q, q))[..., None]
     small = norm[..., 0] <= _EPS
     if small.any():

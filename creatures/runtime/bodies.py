@@ -58,7 +58,7 @@ class BodyFrames:
         from creatures.body.render import BodyRenderer, RenderUnavailable
 
         try:
-            self.renderer = BodyRenderer(output.width, output.height)
+            self.renderer = BodyRenderer(output.width, output.height, follow=output.follow)
         except RenderUnavailable as exc:
             messages.append(f"no frames: {exc}")
             self.renderer = None

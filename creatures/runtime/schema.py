@@ -279,6 +279,9 @@ class OutputSection(Strict):
     fps: float = Field(12.0, gt=0, le=120, description="frame rate of rendered frames")
     width: int = Field(320, ge=16, le=3840, description="frame width, pixels")
     height: int = Field(240, ge=16, le=2160, description="frame height, pixels")
+    follow: bool = Field(True, description="the camera follows walking bodies (it keeps the middle of their roots "
+                                           "where the first frame had it); false: it stays where it framed "
+                                           "the first frame, and a walking body walks out of the picture")
     report: bool = Field(True, description="write report/ (plots and index.html) after an offline run")
     cc: list[CcSection] = Field(default_factory=list, max_length=256, description="MIDI control-change streams, one [[output.cc]] "
                                                                   "table each")
