@@ -52,9 +52,13 @@ import numpy as np
 
 from creatures.behaviour.action_tuple import Action, ActionTuple, DoUntil
 from creatures.behaviour.percept import Percept
+from creatures.behaviour.proximity import Proximity
 from creatures.behaviour.value import Value, value_from_dict
 
 EventSink = Callable[[dict[str, Any]], None]
+CreditHook = Callable[["ActionGroup", float, "Activation"], None]
+"""Told ``(group, t, activation)`` when a leaf activation earned positive credit (complex
+shaping's gesture model learns what the body did during it)."""
 
 RECALL = 10.0
 """Seconds an ended activation is remembered for a late reward (the longest reward window)."""
@@ -145,6 +149,7 @@ class ActionGroup:
         on_event: EventSink | None = None,
         learning: Learner | None = None,
         grounded_by: str | None = None,
+        proximity: Proximity | None = None,
     ) -> None:
         if max_active < 1:
             raise ValueError(f"{name}: max_active must be at least 1 (got {max_active})")
@@ -170,7 +175,10 @@ class ActionGroup:
         self._interrupt_at = np.zeros(0)
         self._trigger_at_last_start = np.zeros(0)
         self.disabled: set[str] = set()  # tuples that cannot trigger (a zone of the room turned them off)
+        self.proximities = proximity or Proximity()
         self._proximity: dict[ActionTuple, np.ndarray] = {}
+        self._proximity_version = self.proximities.version
+        self.on_credit: list[CreditHook] = []  # told of every activation that earned positive credit
         self._positions: dict[int, int] = {}
         self._ticking = False
         self._deferred: list[Callable[[], object]] = []
@@ -401,12 +409,15 @@ class ActionGroup:
 
     # -- credit assignment ------------------------------------------------------------
     def proximity(self, leaf: ActionTuple) -> np.ndarray:
-        """``leaf.proximity_to(i)`` for every tuple (0 for group tuples), cached per leaf."""
+        """How much of ``leaf``'s credit reaches each tuple (0 for group tuples): the group's
+        :class:`~creatures.behaviour.proximity.Proximity` table, cached per leaf until it changes."""
+        if self._proximity_version != self.proximities.version:
+            self._proximity.clear()
+            self._proximity_version = self.proximities.version
         row = self._proximity.get(leaf)
         if row is None:
-            row = np.array(
-                [leaf.proximity_to(tp) if is_leaf else 0.0 for tp, is_leaf in zip(self.tuples, self._leaf)]
-            )
+            row = np.array([self.proximities.between(leaf.action, tp.action) if is_leaf else 0.0
+                            for tp, is_leaf in zip(self.tuples, self._leaf)])
             self._proximity[leaf] = row
         return row
 
@@ -416,6 +427,7 @@ class ActionGroup:
         target = discounted(new_leaf.value, self.discount)
         a = np.clip(self.alpha * self.proximity(last_leaf) * self._trigger_at_last_start, 0.0, 1.0)
         before = self.values() if self.learning is not None else None
+        raised = target.to_float() > last_leaf.value.to_float()  # what followed was worth more: a reward
         for i in np.flatnonzero(a):
             self.tuples[i].value.blend_to(target, float(a[i]))
         self._emit(
@@ -424,7 +436,18 @@ class ActionGroup:
         )
         if self.learning is not None:
             self.learning.after_credit(self, t, last_leaf, a, target, before)
+        if raised:
+            self._credited(t, [x for x in self.recent if x.tuple_ is last_leaf][-1:])
         return a
+
+    def _credited(self, t: float, activations: list[Activation]) -> None:
+        """These leaf activations were rewarded (what followed was worth more than the tuple,
+        or a reward from outside reached them): teach the proximity table what preceded
+        them, then tell the hooks."""
+        for activation in activations:
+            self.proximities.credited(activation.tuple_, self.tuples, self.recent, activation.started)
+            for hook in self.on_credit:
+                hook(self, t, activation)
 
     def reward(self, amount: float, t: float, window: float, *,
                rate: float | None = None) -> tuple[list[str], dict[str, float]]:
@@ -446,6 +469,7 @@ class ActionGroup:
         credited = [a for a in self.recent if a.started <= t and (a.ended is None or a.ended >= t - window)]
         names, moved = [c.tuple_.name for c in credited], {}
         a = np.zeros(len(self.tuples))
+        leaves: list[Activation] = []
         for activation in credited:
             tuple_ = activation.tuple_
             if isinstance(tuple_.action, GroupAction):
@@ -454,12 +478,15 @@ class ActionGroup:
                 moved.update(inner_moved)
             elif id(tuple_) in self._positions:
                 np.maximum(a, np.clip(rate * self.proximity(tuple_) * activation.triggers, 0.0, 1.0), out=a)
+                leaves.append(activation)
         for i in np.flatnonzero(a):
             value = self.tuples[i].value
             target = value.to_dict()
             target["value"] += amount
             value.blend_to(value_from_dict(target), float(a[i]))
             moved[self.tuples[i].name] = float(a[i])
+        if amount > 0.0:
+            self._credited(t, leaves)
         return names, moved
 
     # -- persistence ----------------------------------------------------------------------
