@@ -24,7 +24,10 @@ a new activation and discounts itself; an interruption that re-chooses the runni
 not): every tuple ``i`` is blended toward the discounted value of the newcomer,
 ``V_i ← (1 − a_i)V_i + a_i·β·V_n`` with ``a_i = α · proximity(last_active, i) · Tr_i``
 (clipped to [0, 1]) where ``Tr_i`` is tuple i's trigger saliency at the time the last active
-tuple became active. β·V_n is a value of V_n's own kind (:func:`discounted`), so tracer dye or
+tuple became active. Proximity is graded, per ordered pair of actions, and may be learnt
+(:mod:`creatures.behaviour.proximity`); an activation whose credit raised its value (what
+followed was worth more) or that a reward from outside reached counts as rewarded: the
+proximity table learns from it and the ``on_credit`` hooks are told (complex shaping). β·V_n is a value of V_n's own kind (:func:`discounted`), so tracer dye or
 stance tags travel back with it. Only leaf tuples take credit, and a group tuple's transitions
 are credited between the leaves it ran (hierarchical groups: "assign only the credit to the
 leaf nodes"); a group tuple's Du is its active child's Du.
@@ -57,8 +60,8 @@ from creatures.behaviour.value import Value, value_from_dict
 
 EventSink = Callable[[dict[str, Any]], None]
 CreditHook = Callable[["ActionGroup", float, "Activation"], None]
-"""Told ``(group, t, activation)`` when a leaf activation earned positive credit (complex
-shaping's gesture model learns what the body did during it)."""
+"""Told ``(group, t, activation)`` when a leaf activation was rewarded (complex shaping's
+gesture model learns what the body did during it)."""
 
 RECALL = 10.0
 """Seconds an ended activation is remembered for a late reward (the longest reward window)."""
@@ -178,7 +181,7 @@ class ActionGroup:
         self.proximities = proximity or Proximity()
         self._proximity: dict[ActionTuple, np.ndarray] = {}
         self._proximity_version = self.proximities.version
-        self.on_credit: list[CreditHook] = []  # told of every activation that earned positive credit
+        self.on_credit: list[CreditHook] = []  # told of every rewarded leaf activation
         self._positions: dict[int, int] = {}
         self._ticking = False
         self._deferred: list[Callable[[], object]] = []
