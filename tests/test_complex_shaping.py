@@ -14,10 +14,15 @@ import numpy as np
 import pytest
 
 from audio.cepstrum import dtw_distance
+from creatures.behaviour.action_group import ActionGroup
+from creatures.behaviour.action_tuple import Action, ActionTuple, DoUntil
+from creatures.behaviour.percept import WhateverPercept
+from creatures.behaviour.value import ScalarValue
 from creatures.clock import SimulatedClock
 from creatures.events import EventLog, read_events
 from creatures.kinds.parts import Body
-from creatures.kinds.shaping import GestureShaping, PerformGesture
+from creatures.kinds.shaping import Circle, GestureShaping, PerformGesture
+from creatures.motor.gesture import BodyMemory
 from creatures.persist import StateFileError
 from creatures.runtime.schema import load_installation
 from creatures.runtime.session import Session
@@ -89,6 +94,14 @@ def _random_walk(seed: int, seconds: float) -> np.ndarray:
     return np.array(path)
 
 
+def _winding(path: np.ndarray) -> float:
+    """Degrees the path turns about the stick circle's centre, in the circle's plane."""
+    circle = Circle.in_reach(Body(np.random.default_rng(0)).reach(), 1.0)
+    q = path - circle.center
+    angle = np.unwrap(np.arctan2(q @ circle.v, q @ circle.u))
+    return float(np.degrees(abs(angle[-1] - angle[0])))
+
+
 def test_a_circle_taught_under_a_guide_is_reproduced_without_it(trained):
     _, events, _ = trained
     gesture = [e for e in events if e["kind"] == "gesture"]
@@ -98,6 +111,7 @@ def test_a_circle_taught_under_a_guide_is_reproduced_without_it(trained):
     trials = [a for a in activations if a[0] == "follow" and a[2] <= dispatched]
     assert 5 <= len(trials) <= 20  # five rewarded runs taught it (dispatch_after = 5)
     taught = _hand(events, *trials[-1][1:])
+    assert _winding(taught) >= 300.0  # the hand went round the stick's circle
     alone = [a for a in activations if a[0] == "chase tail" and a[1] >= STICK_GONE]
     assert len(alone) >= 3  # with no stick, the new tuple is what the dog does
     walks = [dtw_distance(_random_walk(seed, 6.5), taught) for seed in range(5)]
@@ -105,6 +119,7 @@ def test_a_circle_taught_under_a_guide_is_reproduced_without_it(trained):
     print(f"trials {len(trials)}; DTW ratio to a random walk's: median {np.median(ratios):.3f}, "
           f"worst {max(ratios):.3f}")
     assert max(ratios) <= 0.25
+    assert min(_winding(_hand(events, *a[1:])) for a in alone) >= 300.0  # round the circle, with no stick
 
 
 def test_the_guide_credit_reached_the_shaping_tuple_at_proximity_one(trained):
@@ -164,3 +179,26 @@ def test_the_shaping_model_learns_only_from_rewarded_runs(trained):
                 and e["t"] <= shaping["t"]]
     assert len(credited) == 5  # the fifth treat dispatched it; unrewarded runs taught nothing
     assert not any(isinstance(tp.action, GestureShaping) for tp in session.creatures[0].groups["main"].tuples)
+
+
+@pytest.mark.parametrize("guide, treat, lessons", [
+    ("follow", 10.0, 1),   # proximity 1 to the guide, and the guide was rewarded: learnt
+    (None, 10.0, 0),       # no proximity to the guide: its credit does not reach the model
+    ("follow", 0.5, 0),    # what followed the guide was worth less than it: no reward
+])
+def test_the_gesture_model_learns_a_guided_run_only_through_proximity_and_reward(rng, guide, treat, lessons):
+    memory = BodyMemory()
+    for k, node in enumerate([4, 9, 2, 7, 5]):
+        memory.record(node, 0.5 + k)
+    shaping = GestureShaping("chase", None, memory, dispatch_after=100, gesture="chase tail", guide=guide)
+    tuples = [ActionTuple("follow", WhateverPercept(), Action("follow"), DoUntil(100.0), 1.0),
+              ActionTuple("chase", WhateverPercept(), shaping, DoUntil(100.0), 0.5),
+              ActionTuple("treat", WhateverPercept(), Action("treat"), DoUntil(1.0), ScalarValue(treat, plasticity=0.0))]
+    group = ActionGroup("dog", tuples, rng=rng, alpha=0.3, discount=0.8)
+    shaping.attach(group)
+    group.force("follow", 0.0)
+    group.force("treat", 5.0)
+    assert shaping.lessons == lessons
+    if lessons:
+        assert [shaping.model.states[s].node for s in shaping.model.core()] == [4, 9, 2, 7, 5]
+        assert group.find("chase").value.to_float() == pytest.approx(0.7 * 0.5 + 0.3 * 8.0)

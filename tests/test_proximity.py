@@ -166,3 +166,14 @@ alpha = 0.0
     text = text.replace('name = "p"\nkind = "authored"', 'name = "p"\nkind = "authored"\nbody = true')
     error = error_of(write(tmp_path, text))
     assert "the guide 'stray' is not a tuple of 'chase''s group 'main'" in error.message
+
+
+def test_a_learnt_gesture_named_like_a_tuple_is_refused(tmp_path):
+    text = LEARNS.replace('[creature.groups.main]', '''[creature.tuples.chase]
+action = { type = "shape_gesture", guide = "lure", gesture = "sit" }
+until = { done = true }
+
+[creature.groups.main]''').replace('tuples = ["lure", "sit", "treat"]', 'tuples = ["lure", "sit", "treat", "chase"]')
+    text = text.replace('name = "p"\nkind = "authored"', 'name = "p"\nkind = "authored"\nbody = true')
+    error = error_of(write(tmp_path, text))
+    assert "would be named 'sit'" in error.message and str(error).split(":")[1].strip().isdigit()

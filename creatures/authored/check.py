@@ -256,9 +256,16 @@ def _proximities(c: _Checker, name: str, g) -> None:
     for m in members:
         action = c.spec.tuples[m].action
         guide = None if isinstance(action, str) else action.params().get("guide")
-        if getattr(action, "type", None) == "shape_gesture" and guide not in members:
+        if getattr(action, "type", None) != "shape_gesture":
+            continue
+        if guide not in members:
             raise c.error(("tuples", m, "action", "guide"), f"the guide {guide!r} is not a tuple of {m!r}'s group "
                                                             f"{name!r} (its tuples: {members})")
+        gesture = action.params().get("gesture") or f"{m} gesture"
+        if gesture in c.spec.tuples or gesture in c.spec.groups:
+            raise c.error(("tuples", m, "action", "gesture"), f"the learnt gesture's tuple would be named {gesture!r}, "
+                                                              "which is already a tuple or group: give 'gesture' "
+                                                              "another name")
 
 
 def _grounded(c: _Checker, group) -> bool:
