@@ -177,3 +177,10 @@ until = { done = true }
     text = text.replace('name = "p"\nkind = "authored"', 'name = "p"\nkind = "authored"\nbody = true')
     error = error_of(write(tmp_path, text))
     assert "would be named 'sit'" in error.message and str(error).split(":")[1].strip().isdigit()
+
+
+def test_describe_shows_a_group_proximity_table(tmp_path):
+    from creatures.authored.describe import describe
+
+    text = describe(load_installation(write(tmp_path, LEARNS)))
+    assert "proximity learnt at 0.2 over 2 s" in text and "proximity sit → lure: 0.4" in text
