@@ -175,9 +175,9 @@ def test_a_gesture_saved_over_another_body_is_refused(trained, tmp_path):
 def test_the_shaping_model_learns_only_from_rewarded_runs(trained):
     session, events, _ = trained
     shaping = [e for e in events if e["kind"] == "gesture"][0]
-    credited = [e for e in events if e["kind"] == "credit" and e["last"] == "follow" and e["new"] == "treat"
-                and e["t"] <= shaping["t"]]
-    assert len(credited) == 5  # the fifth treat dispatched it; unrewarded runs taught nothing
+    credited = [e for e in events if e["kind"] == "credit" and e["last"] in ("follow", "chase")
+                and e["new"] in ("treat", "praise") and e["t"] <= shaping["t"]]
+    assert len(credited) == 5  # the fifth reward dispatched it; unrewarded runs taught nothing
     assert not any(isinstance(tp.action, GestureShaping) for tp in session.creatures[0].groups["main"].tuples)
 
 
@@ -201,4 +201,15 @@ def test_the_gesture_model_learns_a_guided_run_only_through_proximity_and_reward
     assert shaping.lessons == lessons
     if lessons:
         assert [shaping.model.states[s].node for s in shaping.model.core()] == [4, 9, 2, 7, 5]
+        assert shaping.match(list(memory)) == 1.0  # as a percept model: the taught run is certain
+        assert shaping.match(list(memory)[::-1]) == 0.0  # the same poses backwards were never seen
         assert group.find("chase").value.to_float() == pytest.approx(0.7 * 0.5 + 0.3 * 8.0)
+
+
+def test_without_the_stick_the_trainer_praises_the_movement_itself(trained):
+    _, events, _ = trained
+    praised = [e for e in events if e["kind"] == "credit" and e["last"] == "chase tail" and e["new"] == "praise"
+               and e["t"] >= STICK_GONE]
+    assert praised  # the 'shaped' percept saw the circle in the body's memory
+    later = [e["values"]["chase tail"] for e in events if e["kind"] == "values" and e["t"] >= STICK_GONE]
+    assert later[-1] > 6.0  # toward 0.8 × the praise's 10

@@ -85,7 +85,18 @@ def check(spec: "AuthoredSpec", file: Path, where: Where, prefix: tuple) -> None
     _drives(c)
     _tuples(c)
     _groups(c)
+    _shaped(c)
     _learning(c)
+
+
+def _shaped(c: _Checker) -> None:
+    """A 'shaped' percept judges with a shape_gesture tuple's model."""
+    for name, p in c.spec.percepts.items():
+        if p.type == "shaped":
+            action = c.spec.tuples[p.params()["shaping"]].action
+            if getattr(action, "type", action) != "shape_gesture":
+                raise c.error(("percepts", name, "shaping"), f"{p.params()['shaping']!r} is not a shape_gesture "
+                                                             "tuple: a 'shaped' percept judges with its gesture model")
 
 
 def _percepts(c: _Checker) -> None:

@@ -224,6 +224,7 @@ class Authored(CreatureKind):
         group = self._group_of(shaping)
         old = group.find(shaping)
         action = PerformGesture(gesture.name, self.body, gesture)
+        old.action.successor = action
         tuple_ = ActionTuple(gesture.name, old.trigger, action,
                              DoUntil(None, until=FunctionPercept(f"{gesture.name} done", action.done)),
                              copy_value(old.value))

@@ -25,18 +25,24 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any, Callable
 
+import math
+
 import numpy as np
 from scipy.spatial import cKDTree
 
 from creatures.behaviour.action_group import ActionGroup, Activation
 from creatures.behaviour.action_tuple import Action, ActionTuple
 from creatures.motor.dispatch import Gesture, dispatch
-from creatures.motor.gesture import BodyMemory, GestureModel
+from creatures.motor.gesture import BodyMemory, GestureModel, Observation
 from creatures.motor.programs import MotorProgram, ProgramStack
 from creatures.motor.search import NoPath
 
 if TYPE_CHECKING:
     from creatures.kinds.parts import Body
+
+
+MATCH_FLOOR = 1e-3
+"""Probability :meth:`GestureShaping.match` gives a transition the model never saw (score 0)."""
 
 
 class Circle:
@@ -113,11 +119,14 @@ class RunsProgram(Action):
         super().__init__(name)
         self.body = body
         self.stack: ProgramStack | None = None
+        self.began: float | None = None
+        self.performed: tuple[float, float] | None = None  # (start, stop) of the last run
 
     def program(self) -> MotorProgram | None:  # pragma: no cover - every subclass says
         raise NotImplementedError
 
     def start(self, t: float, tuple_: ActionTuple) -> None:
+        self.began = t
         program = self.program()
         self.stack = None if program is None else ProgramStack(self.body.motor, program)
         if self.stack is not None:
@@ -133,6 +142,8 @@ class RunsProgram(Action):
     def stop(self, t: float, *, interrupted: bool) -> None:
         if interrupted and self.stack is not None:
             self.stack.request_exit(t)
+        if self.began is not None:
+            self.performed = (self.began, t)
 
     def done(self, t: float) -> float:
         return 1.0 if self.stack is None or self.stack.done else 0.0
@@ -153,6 +164,7 @@ class GestureShaping(RunsProgram):
         self.model = GestureModel()
         self.lessons = 0
         self.dispatched: Gesture | None = None
+        self.successor: PerformGesture | None = None  # the tuple's Ac left behind after dispatch
         self._learnt: set[tuple[str, float]] = set()  # activations already taught (a reward and a credit)
 
     # -- as a percept model: learning from the body's memory ----------------------------------
@@ -192,6 +204,32 @@ class GestureShaping(RunsProgram):
         if self.on_dispatch is not None:
             self.on_dispatch(self.dispatched)
         return self.dispatched
+
+    def match(self, observations: list[Observation]) -> float:
+        """How well a stretch of body memory is explained by the model, in [0, 1]: the mean
+        log-probability per transition (:meth:`GestureModel.log_likelihood`) from 0 at the
+        floor of an unseen transition to 1 at certainty. A dispatched gesture's new nodes
+        count as the core nodes they copy (thesis: the models "can produce categorization
+        probabilities of incoming data (here data from a BodyMemory)")."""
+        copies = {} if self.dispatched is None else dict(zip(self.dispatched.nodes, self.dispatched.core))
+        nodes = [copies.get(o.node, o.node) for o in observations]
+        if len(nodes) < 2 or not self.model.states:
+            return 0.0
+        floor = math.log(MATCH_FLOOR)
+        return min(max((self.model.log_likelihood(nodes, floor=MATCH_FLOOR) - floor) / -floor, 0.0), 1.0)
+
+    def last_performance(self) -> tuple[float, float] | None:
+        """(start, stop) of the last run of the model or of the gesture left behind."""
+        runs = [r for r in (self.performed, None if self.successor is None else self.successor.performed) if r]
+        return max(runs, default=None)
+
+    def performance_match(self, t: float, window: float) -> float:
+        """:meth:`match` of the last performance, for ``window`` seconds after it ended (what a
+        trainer who saw it would reward); 0 otherwise."""
+        run = self.last_performance()
+        if run is None or not 0.0 <= t - run[1] <= window:
+            return 0.0
+        return self.match([o for o in self.memory.since(run[0]) if o.time <= run[1]])
 
     # -- as an action: performing the model --------------------------------------------------
     def program(self) -> MotorProgram | None:
