@@ -10,6 +10,7 @@ import json
 
 import pytest
 
+from creatures.authored.describe import describe
 from creatures.behaviour.action_group import ActionGroup
 from creatures.behaviour.action_tuple import Action, ActionTuple, DoUntil
 from creatures.behaviour.percept import WhateverPercept
@@ -180,7 +181,5 @@ until = { done = true }
 
 
 def test_describe_shows_a_group_proximity_table(tmp_path):
-    from creatures.authored.describe import describe
-
     text = describe(load_installation(write(tmp_path, LEARNS)))
     assert "proximity learnt at 0.2 over 2 s" in text and "proximity sit → lure: 0.4" in text

@@ -30,6 +30,7 @@ import math
 import numpy as np
 from scipy.spatial import cKDTree
 
+from creatures import bounds
 from creatures.behaviour.action_group import ActionGroup, Activation
 from creatures.behaviour.action_tuple import Action, ActionTuple
 from creatures.motor.dispatch import Gesture, dispatch
@@ -238,11 +239,12 @@ class GestureShaping(RunsProgram):
 
     # -- what lasts ------------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
+        """The model and how many lessons it has had (the body memory is not kept: a lesson is
+        learnt when it is rewarded, within seconds)."""
         return {"model": self.model.to_dict(), "lessons": self.lessons}
 
     def restore(self, data: dict[str, Any], where: str) -> None:
-        from creatures import bounds
-
+        """Take back :meth:`to_dict` (ValueError naming ``where`` on damaged data)."""
         self.model = GestureModel.from_dict(data["model"], nodes=len(self.body.graph), where=f"{where}.model")
         self.lessons = bounds.count(data["lessons"], f"{where}.lessons")
 

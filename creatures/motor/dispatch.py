@@ -20,6 +20,7 @@ from typing import Sequence
 
 import numpy as np
 
+from creatures import bounds
 from creatures.motor.graph import MotorGraph
 from creatures.motor.pose import PoseSet
 from creatures.motor.programs import MotorProgram, Statement, parse_programs
@@ -82,8 +83,6 @@ def redispatch(graph: MotorGraph, data: dict, where: str = "gesture") -> Gesture
     """A gesture saved by :meth:`Gesture.to_dict`, dispatched again; the saved program must be
     the one the new nodes give (ValueError naming ``where`` otherwise: a state saved over
     another body)."""
-    from creatures import bounds
-
     name = data["name"]
     if not isinstance(name, str) or not name:
         raise ValueError(f"{where}.name: must be a non-empty string")
