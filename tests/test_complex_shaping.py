@@ -160,6 +160,9 @@ def test_the_new_motor_program_survives_save_and_reload(trained, tmp_path):
     taught = _hand(events, *[a for a in _activations(events) if a[0] == "follow"][-1][1:])
     walk = np.mean([dtw_distance(_random_walk(seed, 6.5), taught) for seed in range(5)])
     assert dtw_distance(_hand(after, *runs[0][1:]), taught) / walk <= 0.25
+    # the gesture model came back too: the trainer's eye still sees the circle
+    assert any(e["kind"] == "credit" and e["last"] == "chase tail" and e["new"] == "praise" for e in after)
+    assert [e["restored"] for e in after if e["kind"] == "gesture"] == [True]
 
 
 def test_a_gesture_saved_over_another_body_is_refused(trained, tmp_path):

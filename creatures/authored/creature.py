@@ -217,7 +217,7 @@ class Authored(CreatureKind):
     def _group_of(self, tuple_name: str) -> ActionGroup:
         return next(g for g in self.groups.values() if any(tp.name == tuple_name for tp in g.tuples))
 
-    def leave_behind(self, shaping: str, gesture: Gesture) -> ActionTuple:
+    def leave_behind(self, shaping: str, gesture: Gesture, *, restored: bool = False) -> ActionTuple:
         """A shaping tuple's core was dispatched: in its place, ``whenever | perform the new
         gesture | until done | V`` (its trigger, its value), thesis "learning to chase your tail –
         part 2"."""
@@ -232,7 +232,7 @@ class Authored(CreatureKind):
         group.remove(old, self.now())
         self.gestures.append((shaping, gesture))
         self.world.emit("gesture", creature=self.name, tuple=gesture.name, replaces=shaping,
-                        core=list(gesture.core), nodes=list(gesture.nodes))
+                        core=list(gesture.core), nodes=list(gesture.nodes), restored=restored)
         return tuple_
 
     # -- what outside input reaches (the input map: creatures/runtime/input_map.py) ----------
@@ -386,8 +386,7 @@ class Authored(CreatureKind):
         aural = {}
         if self.aural is not None and self.aural.root is not None:
             aural = {"aural": self.aural.state([self.groups[n] for n in self.spec.learning.aural], set(self.tuples))}
-        shaping = {tp.name: tp.action.to_dict() for g in self.groups.values() for tp in g.tuples
-                   if isinstance(tp.action, GestureShaping)}
+        shaping = {name: tp.action.to_dict() for name, tp in self.tuples.items() if isinstance(tp.action, GestureShaping)}
         return {
             **aural,
             **({"shaping": shaping} if shaping else {}),
@@ -422,13 +421,13 @@ class Authored(CreatureKind):
             # Levels only: the rates are the config's, so an edited growth takes effect after a restart.
             self.motivation.restore(state["motivation"], now=self.now())
 
-
     def _restore_shaping(self, state: dict[str, Any]) -> None:
         """Gesture models, then the gestures dispatched from them, again into the body's own
         graph (same base graph, same order: the same new nodes), each left behind in its
         shaping tuple's place."""
-        shaping = {tp.name: tp.action for g in self.groups.values() for tp in g.tuples
-                   if isinstance(tp.action, GestureShaping)}
+        # every shaping tuple the config wrote, even one a dispatched gesture has replaced: its
+        # model still judges the gesture's performances (the 'shaped' percept)
+        shaping = {name: tp.action for name, tp in self.tuples.items() if isinstance(tp.action, GestureShaping)}
         for name, data in state.get("shaping", {}).items():
             if name in shaping:
                 shaping[name].restore(data, f"shaping.{name}")
@@ -440,7 +439,7 @@ class Authored(CreatureKind):
             if self.body is None:
                 raise ValueError(f"{where}: a gesture needs a body")
             shaping[name].dispatched = gesture = redispatch(self.body.own_graph(), data, where)
-            self.leave_behind(name, gesture)
+            self.leave_behind(name, gesture, restored=True)
 
 
 def _arc(points: list[tuple[float, float]], t: float) -> float:
