@@ -216,3 +216,21 @@ def test_without_the_stick_the_trainer_praises_the_movement_itself(trained):
     assert praised  # the 'shaped' percept saw the circle in the body's memory
     later = [e["values"]["chase tail"] for e in events if e["kind"] == "values" and e["t"] >= STICK_GONE]
     assert later[-1] > 6.0  # toward 0.8 × the praise's 10
+
+
+@pytest.mark.parametrize("damage, named", [
+    (lambda s: s["gestures"][0].update(core=[-1, 2]), "gestures.0.core"),
+    (lambda s: s["gestures"][0].update(dwell=[0.1]), "gestures.0.dwell"),
+    (lambda s: s["gestures"][0].update(shaping="idle"), "gestures.0.shaping"),
+    (lambda s: s["gestures"].append(dict(s["gestures"][0])), "already has material"),
+    (lambda s: s["shaping"]["chase"]["model"]["states"][0].update(node=10**9), "shaping.chase.model.states.0.node"),
+    (lambda s: s["proximity"]["main"]["table"].append(["a", "b", 2.0]), "proximity.main.table"),
+])
+def test_a_damaged_shaping_state_is_refused_naming_the_key(trained, tmp_path, damage, named):
+    _, _, state = trained
+    data = json.loads((state / "dog.json").read_text())
+    damage(data["state"])
+    (tmp_path / "dog.json").write_text(json.dumps(data))
+    fresh, _ = _session(EventLog())
+    with pytest.raises(StateFileError, match=named.replace(".", r"\.")):
+        fresh.load_state(tmp_path)
