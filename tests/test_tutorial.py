@@ -44,6 +44,12 @@ def test_the_tutorial_has_four_steps_and_the_page_shows_each_config_as_shipped()
         assert f"```toml\n{path.read_text()}```" in text, f"{path.name} differs from docs/authoring.md"
 
 
+def test_the_page_shows_the_complex_shaping_dog_as_shipped():
+    text = DOC.read_text()
+    for path in [TUTORIAL / "dog.toml", TUTORIAL / "creatures" / "dog.toml"]:
+        assert f"```toml\n{path.read_text()}```" in text, f"{path.name} differs from docs/authoring.md"
+
+
 def test_the_reference_is_current():
     assert DOC.read_text().split(MARKER)[1] == reference().split(MARKER)[1], \
         "run: python -m creatures.authored.reference docs/authoring.md"

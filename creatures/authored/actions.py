@@ -438,6 +438,64 @@ class RestPose(MotorPart):
         return rest
 
 
+# -- complex shaping (thesis "learning to chase your tail") ---------------------------------
+class _StickParams(Params):
+    period: float = Field(6.0, gt=0, le=3600, description="seconds the stick takes round its circle")
+    laps: float = Field(1.0, gt=0, le=1000, description="laps followed before the tuple is done")
+    size: float = Field(1.0, gt=0, le=10, description="radius as a multiple of the narrower spread of the "
+                                                       "effector's reach (the circle lies in the plane of its two "
+                                                       "widest directions, about its middle)")
+
+
+@ACTIONS.register
+class FollowStickPart(MotorPart):
+    """The guide of complex shaping, "follow stick with your nose": a training stick circles
+    through the effector's reach and the body keeps heading, by A*, for the pose that puts the
+    effector nearest it (done after ``laps``)."""
+
+    ends = True
+    name = "follow_stick"
+    thesis = "complex shaping"
+    Params = _StickParams
+
+    def build(self, params, creature, name):
+        from creatures.kinds.shaping import Circle, FollowStick
+
+        return FollowStick(name, creature.body, Circle.in_reach(creature.body.reach(), params.size),
+                           period=params.period, laps=params.laps)
+
+
+class _ShapeParams(Params):
+    guide: str = Field(description="the guide tuple (e.g. follow_stick): this tuple gets proximity 1 to it, "
+                                   "takes its credit and learns the body's memory of its rewarded runs")
+    dispatch_after: int = Field(8, ge=1, le=10_000, description="rewarded runs learnt before the model's core is "
+                                                                "dispatched into the motor graph")
+    gesture: str | None = Field(None, pattern=r"^[A-Za-z_][\w -]*$", max_length=64,
+                                description="name of the new material and of the tuple left behind that "
+                                            "performs it (default: '<tuple> gesture')")
+
+
+@ACTIONS.register
+class ShapeGesturePart(MotorPart):
+    """The Ac percept of complex shaping: a gesture model of the motor-graph nodes the body
+    passed in rewarded runs of ``guide`` (and of itself), performed as a motor program; after
+    ``dispatch_after`` lessons its core becomes new material in the body's graph and a new
+    tuple, ``gesture``, performs it without the guide in this tuple's place."""
+
+    ends = True
+    name = "shape_gesture"
+    thesis = "learning to chase your tail – part 2"
+    Params = _ShapeParams
+    refs = {"guide": "tuples"}
+
+    def build(self, params, creature, name):
+        from creatures.kinds.shaping import GestureShaping
+
+        gesture = params.gesture or f"{name} gesture"
+        return GestureShaping(name, creature.body, creature.body_memory(), dispatch_after=params.dispatch_after,
+                              gesture=gesture, guide=params.guide, on_dispatch=lambda g: creature.leave_behind(name, g))
+
+
 # -- notes in space (thesis: "musical worlds") ----------------------------------------------
 @ACTIONS.register
 class WanderSpace(MotorPart):

@@ -85,8 +85,19 @@ def check(spec: "AuthoredSpec", file: Path, where: Where, prefix: tuple) -> None
     _drives(c)
     _tuples(c)
     _groups(c)
+    _shaped(c)
     _learning(c)
     _expectations(c)
+
+
+def _shaped(c: _Checker) -> None:
+    """A 'shaped' percept judges with a shape_gesture tuple's model."""
+    for name, p in c.spec.percepts.items():
+        if p.type == "shaped":
+            action = c.spec.tuples[p.params()["shaping"]].action
+            if getattr(action, "type", action) != "shape_gesture":
+                raise c.error(("percepts", name, "shaping"), f"{p.params()['shaping']!r} is not a shape_gesture "
+                                                             "tuple: a 'shaped' percept judges with its gesture model")
 
 
 def _percepts(c: _Checker) -> None:
@@ -231,6 +242,7 @@ def _groups(c: _Checker) -> None:
         for k, constraint in enumerate(g.constraints):
             for end in ("a", "b"):
                 c.need("tuples", getattr(constraint, end), (*loc, "constraints", k, end))
+        _proximities(c, name, g)
     _acyclic(c, edges, "groups", "a group cannot contain itself")
     for name in c.spec.tuples:
         if name not in owner:
@@ -241,6 +253,37 @@ def _groups(c: _Checker) -> None:
             raise c.error(("groups", name, "alpha"), ungrounded_message(name, g.alpha, g.discount) +
                           ". Give a reward tuple 'value = { value = ..., plastic = false }', or set alpha = 0 "
                           "to keep the values as authored")
+
+
+def _proximities(c: _Checker, name: str, g) -> None:
+    """A proximity table names tuples of its own group; a gesture-shaping tuple's guide is in
+    its group (the guide's credit must reach it there)."""
+    members = sorted(m for m in g.tuples if m in c.spec.tuples)
+    loc = ("groups", name, "proximity")
+
+    def member(tuple_: str, where: tuple) -> None:
+        if tuple_ not in members:
+            close = difflib.get_close_matches(tuple_, members, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else f" (its tuples: {members})"
+            raise c.error(where, f"{tuple_!r} is not a tuple of group {name!r}{hint}")
+
+    for a, row in g.proximity.items():
+        member(a, (*loc, a))
+        for b in row:
+            member(b, (*loc, a, b))
+    for m in members:
+        action = c.spec.tuples[m].action
+        guide = None if isinstance(action, str) else action.params().get("guide")
+        if getattr(action, "type", None) != "shape_gesture":
+            continue
+        if guide not in members:
+            raise c.error(("tuples", m, "action", "guide"), f"the guide {guide!r} is not a tuple of {m!r}'s group "
+                                                            f"{name!r} (its tuples: {members})")
+        gesture = action.params().get("gesture") or f"{m} gesture"
+        if gesture in c.spec.tuples or gesture in c.spec.groups:
+            raise c.error(("tuples", m, "action", "gesture"), f"the learnt gesture's tuple would be named {gesture!r}, "
+                                                              "which is already a tuple or group: give 'gesture' "
+                                                              "another name")
 
 
 def _grounded(c: _Checker, group) -> bool:

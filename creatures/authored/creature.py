@@ -26,10 +26,11 @@ from creatures.authored.spec import AuthoredSpec, PartSpec, TupleSpec, UntilSpec
 from creatures.behaviour.action_group import ActionGroup, group_tuple
 from creatures.behaviour.action_tuple import ActionTuple, DoUntil
 from creatures.behaviour.expectation import Expectations
-from creatures.behaviour.learning import PerceptLearning
+from creatures.behaviour.learning import PerceptLearning, copy_value
 from creatures.behaviour.models.fuzzy import OrPercept
 from creatures.behaviour.motivation import Motivation
 from creatures.behaviour.percept import FunctionPercept, Percept, WhateverPercept
+from creatures.behaviour.proximity import Proximity
 from creatures.behaviour.state_object import StateObject
 from creatures.behaviour.value import ChainValue, GaussianValue, ProcessedValue, ScalarValue, Value
 from creatures.clock import Clock
@@ -41,6 +42,9 @@ from creatures.kinds.figures import figure_of
 from creatures.kinds.layers import BodySpec
 from creatures.kinds.parts import Body, Voice, couple_to_hands
 from creatures.kinds.report_parts import MotorTrail, report_values, selection_logger
+from creatures.kinds.shaping import GestureShaping, PerformGesture
+from creatures.motor.dispatch import Gesture, redispatch
+from creatures.motor.gesture import BodyMemory
 from creatures.temporal import intervals
 from creatures.temporal.transitions import Succession, follow
 from midi.notes import NoteEvent
@@ -89,6 +93,8 @@ class Authored(CreatureKind):
                           spec=spec.body if isinstance(spec.body, BodySpec) else None) if spec.body else None)
         self.trail = MotorTrail(world, self.name, self.body) if self.body is not None else None
         self.notes = NoteWorld(spec.space, self, self.body, rng) if spec.space is not None else None
+        self.memory: BodyMemory | None = None  # complex shaping's body memory, made when a tuple needs it
+        self.gestures: list[tuple[str, Gesture]] = []  # (shaping tuple, gesture) in dispatch order
         learning = spec.learning
         self.ear = Ear(phrase_gap=learning.phrase_gap, max_phrases=learning.max_phrases)
         self.motivation = self._drives(spec)
@@ -203,12 +209,48 @@ class Authored(CreatureKind):
             learner = PerceptLearning(split_at=learning.split_at, fuse_below=learning.fuse_below, **options)
         elif name in learning.aural:
             learner = self.aural.learning(**options)
+        learn = g.proximity_learning
+        proximity = Proximity({(a, b): p for a, row in g.proximity.items() for b, p in row.items()},
+                              **({} if learn is None else {"rate": learn.rate, "window": learn.window}))
         expects = self.expectations if name in self.spec.expectations.groups else None
         group = ActionGroup(name, tuples, rng=self.rng, alpha=g.alpha, discount=g.discount, multiple=g.multiple,
                             temperature=g.temperature, max_active=len(tuples) if g.perception else g.max_active,
-                            learning=learner, expectations=expects, on_event=selection_logger(self.world, self.name))
+                            learning=learner, expectations=expects, on_event=selection_logger(self.world, self.name),
+                            proximity=proximity)
+        for tuple_ in tuples:
+            if isinstance(tuple_.action, GestureShaping):
+                tuple_.action.attach(group)
         self.groups[name] = group
         return group
+
+    # -- complex shaping (creatures/kinds/shaping.py) -----------------------------------------
+    def body_memory(self) -> BodyMemory:
+        """The memory of motor-graph nodes the body passed, fed by its motor trail every tick."""
+        if self.memory is None:
+            self.memory = BodyMemory()
+            self.trail.memory = self.memory
+        return self.memory
+
+    def _group_of(self, tuple_name: str) -> ActionGroup:
+        return next(g for g in self.groups.values() if any(tp.name == tuple_name for tp in g.tuples))
+
+    def leave_behind(self, shaping: str, gesture: Gesture, *, restored: bool = False) -> ActionTuple:
+        """A shaping tuple's core was dispatched: in its place, ``whenever | perform the new
+        gesture | until done | V`` (its trigger, its value), thesis "learning to chase your tail –
+        part 2"."""
+        group = self._group_of(shaping)
+        old = group.find(shaping)
+        action = PerformGesture(gesture.name, self.body, gesture)
+        old.action.successor = action
+        tuple_ = ActionTuple(gesture.name, old.trigger, action,
+                             DoUntil(None, until=FunctionPercept(f"{gesture.name} done", action.done)),
+                             copy_value(old.value))
+        group.add(tuple_)
+        group.remove(old, self.now())
+        self.gestures.append((shaping, gesture))
+        self.world.emit("gesture", creature=self.name, tuple=gesture.name, replaces=shaping,
+                        core=list(gesture.core), nodes=list(gesture.nodes), restored=restored)
+        return tuple_
 
     # -- what outside input reaches (the input map: creatures/runtime/input_map.py) ----------
     @classmethod
@@ -361,8 +403,12 @@ class Authored(CreatureKind):
         aural = {}
         if self.aural is not None and self.aural.root is not None:
             aural = {"aural": self.aural.state([self.groups[n] for n in self.spec.learning.aural], set(self.tuples))}
+        shaping = {name: tp.action.to_dict() for name, tp in self.tuples.items() if isinstance(tp.action, GestureShaping)}
         return {
             **aural,
+            **({"shaping": shaping} if shaping else {}),
+            **({"gestures": [{"shaping": s, **g.to_dict()} for s, g in self.gestures]} if self.gestures else {}),
+            "proximity": {name: g.proximities.to_dict() for name, g in self.groups.items()},
             "values": {name: g.value_state() for name, g in self.groups.items()},
             "motivation": None if self.motivation is None else self.motivation.to_dict(),
             "phrases": [[[n.time, n.pitch, n.velocity, n.duration] for n in p] for p in self.ear.phrases],
@@ -381,12 +427,36 @@ class Authored(CreatureKind):
                 self._phrase_tuple(int(number))
         if "aural" in state and self.aural is not None and self.aural.root is not None:
             self.aural.restore(state["aural"], self.groups)
+        self._restore_shaping(state)
+        for name, data in state.get("proximity", {}).items():
+            if name in self.groups:
+                self.groups[name].proximities.restore(data, f"proximity.{name}")
         for name, values in state.get("values", {}).items():
             if name in self.groups:
                 self.groups[name].restore_values(values)
         if state.get("motivation") and self.motivation is not None:
             # Levels only: the rates are the config's, so an edited growth takes effect after a restart.
             self.motivation.restore(state["motivation"], now=self.now())
+
+    def _restore_shaping(self, state: dict[str, Any]) -> None:
+        """Gesture models, then the gestures dispatched from them, again into the body's own
+        graph (same base graph, same order: the same new nodes), each left behind in its
+        shaping tuple's place."""
+        # every shaping tuple the config wrote, even one a dispatched gesture has replaced: its
+        # model still judges the gesture's performances (the 'shaped' percept)
+        shaping = {name: tp.action for name, tp in self.tuples.items() if isinstance(tp.action, GestureShaping)}
+        for name, data in state.get("shaping", {}).items():
+            if name in shaping:
+                shaping[name].restore(data, f"shaping.{name}")
+        for k, data in enumerate(state.get("gestures", [])):
+            where = f"gestures.{k}"
+            name = data.get("shaping") if isinstance(data, dict) else None
+            if name not in shaping:
+                raise ValueError(f"{where}.shaping: no shape_gesture tuple named {name!r} in this creature")
+            if self.body is None:
+                raise ValueError(f"{where}: a gesture needs a body")
+            shaping[name].dispatched = gesture = redispatch(self.body.own_graph(), data, where)
+            self.leave_behind(name, gesture, restored=True)
 
 
 def _arc(points: list[tuple[float, float]], t: float) -> float:

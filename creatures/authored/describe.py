@@ -64,7 +64,11 @@ def _group(group: ActionGroup, label: str | None = None) -> tuple[str, list[Any]
     settings = f"max_active {group.max_active}, alpha {group.alpha:g}, discount {group.discount:g}"
     if group.temperature is not None:
         settings += f", temperature {group.temperature:g}"
-    return (f"{label or 'group ' + group.name} [{settings}]", [_tuple(tp) for tp in group.tuples])
+    p = group.proximities
+    if p.learning:
+        settings += f", proximity learnt at {p.rate:g} over {p.window:g} s"
+    near = [f"proximity {a} → {b}: {x:g}{' (fixed)' if (a, b) in p.fixed else ''}" for (a, b), x in sorted(p.table.items())]
+    return (f"{label or 'group ' + group.name} [{settings}]", [_tuple(tp) for tp in group.tuples] + near)
 
 
 def _percept(p: Percept, types: dict[str, str]) -> tuple[str, list[Any]] | str:

@@ -356,6 +356,27 @@ class Arrived(PerceptPart):
         return FunctionPercept(name, lambda t: 1.0 if creature.body.motor.arrived(t) else 0.0)
 
 
+class _ShapedParams(Params):
+    shaping: str = Field(description="a shape_gesture tuple: its gesture model judges the performance")
+    window: float = Field(1.0, gt=0, le=60, description="seconds after a performance ends that it is salient")
+
+
+@PERCEPTS.register
+class Shaped(PerceptPart):
+    """How well the body's last performance of a shaped gesture (the shape_gesture tuple's, or
+    the tuple left behind after dispatch) matches what the gesture model learnt, in [0, 1],
+    for ``window`` seconds after it ended: a trainer's eye for "it chased its tail"."""
+
+    name = "shaped"
+    thesis = "learning to chase your tail – part 2"
+    needs = "body"
+    Params = _ShapedParams
+    refs = {"shaping": "tuples"}
+
+    def build(self, params, creature, name):
+        return FunctionPercept(name, lambda t: creature.tuple(params.shaping).action.performance_match(t, params.window))
+
+
 @PERCEPTS.register
 class FreshNotes(PerceptPart):
     """There are notes in space not struck lately (something to eat): 1, else 0."""

@@ -8,7 +8,7 @@ error names file, key and line.
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 from pathlib import Path
 
@@ -130,6 +130,16 @@ class ConstraintSpec(Strict):
     gap: float = Field(0.0, ge=0, le=LONGEST_SECONDS, description="before: seconds between a's end and b's start")
 
 
+class ProximityLearningSpec(Strict):
+    """``proximity_learning`` of a group: learn how reliably one tuple precedes another's reward
+    (thesis "credit assignment": proximities "somewhere between 0 and 1")."""
+
+    rate: float = Field(0.1, gt=0, le=1, description="how far each rewarded activation moves a proximity toward "
+                                                     "whether the other tuple preceded it")
+    window: float = Field(5.0, gt=0, le=10, description="seconds before a rewarded activation began in which the "
+                                                        "other tuple counts as preceding it")
+
+
 class GroupSpec(Strict):
     """``[creature.groups.NAME]`` — an action-group (thesis "the action-group", "hierarchical
     action-groups"). A group named among another group's members becomes one of its tuples."""
@@ -149,6 +159,13 @@ class GroupSpec(Strict):
                                                  "rather than exploiting its best song")
     trigger: str = Field("whatever", description="as a member of another group: its Tr")
     value: float = Field(1.0, ge=-LARGEST_RATE, le=LARGEST_RATE, description="as a member of another group: its V")
+    proximity: dict[str, dict[str, Annotated[float, Field(ge=0, le=1)]]] = Field(
+        default_factory=dict, max_length=1024,
+        description="credited tuple → {other tuple → proximity in [0, 1]}: how much of the credit one earns also "
+                    "reaches the other (default 1 for the same action, 0 otherwise; thesis 'credit assignment')")
+    proximity_learning: ProximityLearningSpec | None = Field(
+        None, description="learn the proximities not fixed by complex shaping from what precedes rewards "
+                          "(none: as written)")
     perception: bool = Field(False, description="a group of perception actions (thesis 'perception as action'): "
                                                 "not mutually exclusive, every member whose Tr is salient is "
                                                 "active at once (max_active = its size)")

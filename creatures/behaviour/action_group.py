@@ -24,7 +24,10 @@ a new activation and discounts itself; an interruption that re-chooses the runni
 not): every tuple ``i`` is blended toward the discounted value of the newcomer,
 ``V_i ← (1 − a_i)V_i + a_i·β·V_n`` with ``a_i = α · proximity(last_active, i) · Tr_i``
 (clipped to [0, 1]) where ``Tr_i`` is tuple i's trigger saliency at the time the last active
-tuple became active. β·V_n is a value of V_n's own kind (:func:`discounted`), so tracer dye or
+tuple became active. Proximity is graded, per ordered pair of actions, and may be learnt
+(:mod:`creatures.behaviour.proximity`); an activation whose credit raised its value (what
+followed was worth more) or that a reward from outside reached counts as rewarded: the
+proximity table learns from it and the ``on_credit`` hooks are told (complex shaping). β·V_n is a value of V_n's own kind (:func:`discounted`), so tracer dye or
 stance tags travel back with it. Only leaf tuples take credit, and a group tuple's transitions
 are credited between the leaves it ran (hierarchical groups: "assign only the credit to the
 leaf nodes"); a group tuple's Du is its active child's Du.
@@ -52,12 +55,16 @@ import numpy as np
 
 from creatures.behaviour.action_tuple import Action, ActionTuple, DoUntil
 from creatures.behaviour.percept import Percept
+from creatures.behaviour.proximity import Proximity
 from creatures.behaviour.value import Value, reattach, value_from_dict
 
 if TYPE_CHECKING:
     from creatures.behaviour.expectation import Expectations
 
 EventSink = Callable[[dict[str, Any]], None]
+CreditHook = Callable[["ActionGroup", float, "Activation"], None]
+"""Told ``(group, t, activation)`` when a leaf activation was rewarded (complex shaping's
+gesture model learns what the body did during it)."""
 
 RECALL = 10.0
 """Seconds an ended activation is remembered for a late reward (the longest reward window)."""
@@ -151,6 +158,7 @@ class ActionGroup:
         learning: Learner | None = None,
         grounded_by: str | None = None,
         expectations: "Expectations | None" = None,
+        proximity: Proximity | None = None,
     ) -> None:
         if max_active < 1:
             raise ValueError(f"{name}: max_active must be at least 1 (got {max_active})")
@@ -177,7 +185,10 @@ class ActionGroup:
         self._interrupt_at = np.zeros(0)
         self._trigger_at_last_start = np.zeros(0)
         self.disabled: set[str] = set()  # tuples that cannot trigger (a zone of the room turned them off)
+        self.proximities = proximity or Proximity()
         self._proximity: dict[ActionTuple, np.ndarray] = {}
+        self._proximity_version = self.proximities.version
+        self.on_credit: list[CreditHook] = []  # told of every rewarded leaf activation
         self._positions: dict[int, int] = {}
         self._ticking = False
         self._deferred: list[Callable[[], object]] = []
@@ -412,12 +423,15 @@ class ActionGroup:
 
     # -- credit assignment ------------------------------------------------------------
     def proximity(self, leaf: ActionTuple) -> np.ndarray:
-        """``leaf.proximity_to(i)`` for every tuple (0 for group tuples), cached per leaf."""
+        """How much of ``leaf``'s credit reaches each tuple (0 for group tuples): the group's
+        :class:`~creatures.behaviour.proximity.Proximity` table, cached per leaf until it changes."""
+        if self._proximity_version != self.proximities.version:
+            self._proximity.clear()
+            self._proximity_version = self.proximities.version
         row = self._proximity.get(leaf)
         if row is None:
-            row = np.array(
-                [leaf.proximity_to(tp) if is_leaf else 0.0 for tp, is_leaf in zip(self.tuples, self._leaf)]
-            )
+            row = np.array([self.proximities.between(leaf.action, tp.action) if is_leaf else 0.0
+                            for tp, is_leaf in zip(self.tuples, self._leaf)])
             self._proximity[leaf] = row
         return row
 
@@ -429,6 +443,7 @@ class ActionGroup:
         if self.expectations is not None:
             a = self.expectations.credit_rates(self, t, last_leaf, target, a)
         before = self.values() if self.learning is not None else None
+        raised = target.to_float() > last_leaf.value.to_float()  # what followed was worth more: a reward
         for i in np.flatnonzero(a):
             self.tuples[i].value.blend_to(target, float(a[i]))
         self._emit(
@@ -437,7 +452,18 @@ class ActionGroup:
         )
         if self.learning is not None:
             self.learning.after_credit(self, t, last_leaf, a, target, before)
+        if raised:
+            self._credited(t, [x for x in self.recent if x.tuple_ is last_leaf][-1:])
         return a
+
+    def _credited(self, t: float, activations: list[Activation]) -> None:
+        """These leaf activations were rewarded (what followed was worth more than the tuple,
+        or a reward from outside reached them): teach the proximity table what preceded
+        them, then tell the hooks."""
+        for activation in activations:
+            self.proximities.credited(activation.tuple_, self.tuples, self.recent, activation.started)
+            for hook in self.on_credit:
+                hook(self, t, activation)
 
     def reward(self, amount: float, t: float, window: float, *,
                rate: float | None = None) -> tuple[list[str], dict[str, float]]:
@@ -459,6 +485,7 @@ class ActionGroup:
         credited = [a for a in self.recent if a.started <= t and (a.ended is None or a.ended >= t - window)]
         names, moved = [c.tuple_.name for c in credited], {}
         a = np.zeros(len(self.tuples))
+        leaves: list[Activation] = []
         for activation in credited:
             tuple_ = activation.tuple_
             if isinstance(tuple_.action, GroupAction):
@@ -467,12 +494,15 @@ class ActionGroup:
                 moved.update(inner_moved)
             elif id(tuple_) in self._positions:
                 np.maximum(a, np.clip(rate * self.proximity(tuple_) * activation.triggers, 0.0, 1.0), out=a)
+                leaves.append(activation)
         for i in np.flatnonzero(a):
             value = self.tuples[i].value
             target = value.to_dict()
             target["value"] += amount
             value.blend_to(value_from_dict(target), float(a[i]))
             moved[self.tuples[i].name] = float(a[i])
+        if amount > 0.0:
+            self._credited(t, leaves)
         return names, moved
 
     # -- persistence ----------------------------------------------------------------------

@@ -258,6 +258,7 @@ class Body:
         self.graph = figure_graph(figure, ratios) if own is None else own.graph
         self.finder = PathFinder(self.graph)
         self.finder.prepare()  # its landmark tables (~10 ms) before the first tick, not in it
+        self._owns_graph = False  # the figure's graph is shared until an edit (own_graph)
         start = int(rng.integers(len(self.graph)))
         self.motor = MotorSystem(self.graph, start=start, finder=self.finder)
         self.effectors = (effector or EFFECTORS[figure],) if own is None else own.effectors
@@ -285,6 +286,18 @@ class Body:
             self.layers = BodyLayers(self.graph, layers)
         else:
             self.layers = None
+
+    def own_graph(self) -> MotorGraph:
+        """The body's graph made its own before an edit (complex shaping dispatches new
+        material into it): the figure's graph is shared by every body of that figure."""
+        if not self._owns_graph:
+            self.graph = self.graph.copy()
+            self.finder = PathFinder(self.graph)
+            self.motor.graph, self.motor.finder = self.graph, self.finder
+            if self.motor.playback is not None:
+                self.motor.playback.graph = self.graph
+            self._owns_graph = True
+        return self.graph
 
     def _rest_pose(self, node: int, t: float) -> BodyPose:
         poses = self.graph.poses

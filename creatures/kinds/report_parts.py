@@ -17,6 +17,7 @@ if TYPE_CHECKING:
     from creatures.behaviour.action_group import ActionGroup
     from creatures.behaviour.motivation import Motivation
     from creatures.kinds.parts import Body
+    from creatures.motor.gesture import BodyMemory
     from creatures.motor.playback import Playback
     from creatures.runtime.world import World
 
@@ -61,6 +62,7 @@ class MotorTrail:
         self.creature = creature
         self.body = body
         self.reached: list[int] = []
+        self.memory: "BodyMemory | None" = None  # complex shaping's memory of the nodes passed
         self._last: int | None = None
         self._course: "Playback | None" = None
         self._seen = 0  # nodes of the current course already reached
@@ -71,19 +73,21 @@ class MotorTrail:
         motor = self.body.motor
         course = motor.playback
         if course is None:
-            self._reach(motor.position(t).node)
+            self._reach(motor.position(t).node, t)
             return
         if course is not self._course:
             self._course, self._seen = course, 0
         visited = course.visited(t)
         for node in visited[self._seen:]:
-            self._reach(node)
+            self._reach(node, t)
         self._seen = len(visited)
 
-    def _reach(self, node: int) -> None:
+    def _reach(self, node: int, t: float) -> None:
         if node != self._last:
             self.reached.append(node)
             self._last = node
+            if self.memory is not None:
+                self.memory.record(node, t)
 
     def report(self, t: float, *, shift: tuple[float, float, float] = (0.0, 0.0, 0.0), **fields: object) -> None:
         """The graph (first time only), then where the body is and what it reached since;

@@ -187,6 +187,17 @@ class MotorGraph:
         self.favour[node] = multiplier
         self._changed()
 
+    def copy(self) -> MotorGraph:
+        """An independent graph with the same nodes, edges and edits: a body that learns new
+        material at run time (complex shaping) edits its own copy, never a graph its kind shares."""
+        p = self.poses
+        poses = PoseSet(p.skeleton, p.rotations.copy(), p.velocities.copy(), p.roots.copy(), p.times.copy(),
+                        p.source_ids.copy(), list(p.sources), list(p.labels), p.positions.copy())
+        graph = MotorGraph(poses, self._base, weights=self.weights, scales=self._scales, forbidden=self.forbidden,
+                           favour=self.favour.copy())
+        graph._timing = self._timing
+        return graph
+
     def add_poses(self, material: PoseSet, *, k: int = 6, oversample: int = 3) -> np.ndarray:
         """Patch new material into the graph (edit form 4); returns the new node indices.
 
