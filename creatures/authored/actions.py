@@ -537,3 +537,65 @@ class Attend(ActionPart):
                                     heard_at=None if heard is None else heard.time)
 
         return AttendAction(name)
+
+
+# -- dancing what a model population hears (thesis: "listen (installation)") ---------------
+class _DanceParams(Params):
+    of: str = Field(description="a 'population' percept: its best model is danced")
+
+
+@ACTIONS.register
+class DanceAction(MotorPart):
+    """Dance to the music: every note heard while it runs sends the body, by A*, towards the
+    pose of the note the best model predicts next (notes are poses, one node per pitch).
+    Reactive in when it moves, predictive in where."""
+
+    name = "dance"
+    thesis = "listen (installation)"
+    Params = _DanceParams
+    refs = {"of": "populations"}
+
+    def build(self, params, creature, name):
+        listening = creature.percept(params.of)  # a 'population' percept (checked at load)
+
+        class Dancing(Action):
+            def start(self, t, tuple_):
+                listening.dancing = True
+
+            def update(self, t):
+                listening.step_with_music(t)
+
+            def stop(self, t, *, interrupted):
+                listening.dancing = False
+
+        return Dancing(name)
+
+
+class _AnticipateParams(Params):
+    of: str = Field(description="a 'population' percept: its best model is carried on")
+    velocity: float = Field(0.4, gt=0, le=1, description="velocity of a predicted note, relative to the notes it "
+                                                         "was learnt from")
+
+
+@ACTIONS.register
+class Anticipate(MotorPart):
+    """The music stopped: carry on through the best model at the timing stored in its
+    states, moving to each predicted pose and playing its note quietly (at most the
+    population's ``continuation`` notes; the ``predicts`` percept says when they are spent)."""
+
+    name = "anticipate"
+    thesis = "listen (installation)"
+    Params = _AnticipateParams
+    refs = {"of": "populations"}
+
+    def build(self, params, creature, name):
+        listening = creature.percept(params.of)  # a 'population' percept (checked at load)
+
+        class Anticipating(Action):
+            def start(self, t, tuple_):
+                listening.dance.at = t
+
+            def update(self, t):
+                listening.step_alone(t, params.velocity)
+
+        return Anticipating(name)

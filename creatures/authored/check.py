@@ -27,6 +27,9 @@ ROOT = "whatever"
 
 Where = dict[tuple, tuple[Path, int]]
 
+TYPED = {"utterances": ("utterance", "the aural tree"), "populations": ("population", "a model population")}
+"""``refs`` namespaces that name a percept of one type: namespace → (type, what it is)."""
+
 
 class _Checker:
     def __init__(self, spec: "AuthoredSpec", file: Path, where: Where, prefix: tuple) -> None:
@@ -59,11 +62,12 @@ class _Checker:
     def references(self, cls, params, loc: tuple) -> list[str]:
         percepts = []
         for key, namespace, name in cls.references(params):
-            if namespace == "utterances":  # a percept that must be of the aural tree
+            if namespace in TYPED:  # a percept that must be of one type (the aural tree, a population)
+                wanted, what = TYPED[namespace]
                 self.need("percepts", name, (*loc, key))
-                if self.spec.percepts[name].type != "utterance":
+                if self.spec.percepts[name].type != wanted:
                     raise self.error((*loc, key), f"{name!r} is a {self.spec.percepts[name].type!r} percept; "
-                                                  f"{cls.name!r} needs an 'utterance' percept (the aural tree)")
+                                                  f"{cls.name!r} needs {'an' if wanted[0] in 'aeiou' else 'a'} {wanted!r} percept ({what})")
                 namespace = "percepts"
             else:
                 self.need(namespace, name, (*loc, key))

@@ -14,6 +14,8 @@ from typing import TYPE_CHECKING, ClassVar, Literal
 from pydantic import BaseModel, Field, model_validator
 
 from creatures.authored.ear import DENSITY_WINDOW
+from creatures.bounds import LONGEST_SECONDS
+from creatures.kinds.model_population import MOST_MODELS, MOST_STATES
 from creatures.authored.registry import PERCEPTS, Params, Part
 from creatures.kinds.hearing_parts import SeedModel
 from creatures.behaviour.models.activation import ActivationModel
@@ -597,3 +599,87 @@ class Sung(PerceptPart):
     def build(self, params, creature, name):
         mouth = creature.aural.mouth
         return FunctionPercept(name, lambda t: 1.0 if t >= mouth.until + params.wait else 0.0)
+
+
+# -- a population of sequence models (thesis: "listen (installation)") ----------------------
+class _PopulationParams(Params):
+    memory: int = Field(16, ge=3, le=256, description="notes in the running memory buffer models are matched against")
+    analysis_every: float = Field(0.5, gt=0, le=10, description="seconds between analyses of the population "
+                                                                 "(matching, learning, maintenance)")
+    context: int = Field(4, ge=1, le=32, description="already-learnt notes put in front of new notes when a model "
+                                                     "learns them, so it can find where they go")
+    known: float = Field(0.2, ge=0, le=1, description="fraction of the arriving notes' transitions a model must "
+                                                      "already explain to learn them (else a growing model extends "
+                                                      "itself, or a new model is spawned)")
+    max_models: int = Field(6, ge=1, le=MOST_MODELS, description="most models in the population; the least useful "
+                                                                 "retires")
+    max_states: int = Field(96, ge=8, le=MOST_STATES, description="states a model may grow to before it is distilled "
+                                                                  "to its core")
+    forget: float = Field(120.0, gt=0, le=LONGEST_SECONDS, description="time constant (s) of a model's usefulness; "
+                                                                       "unused models retire")
+    continuation: int = Field(8, ge=0, le=256, description="predicted notes it may play when the music stops")
+
+    @model_validator(mode="after")
+    def _context_fits(self):
+        if self.context >= self.memory:
+            raise ValueError(f"context ({self.context}) must be smaller than memory ({self.memory}): "
+                             "the memory holds the context and the new notes")
+        return self
+
+
+@PERCEPTS.register
+class Population(PerceptPart):
+    """A population of sequence models of the heard notes, kept in a percept (figure 43):
+    models are spawned for material none explains, fused, distilled and retired, and the
+    best match is what ``dance`` and ``anticipate`` play out. Salient as the music is
+    familiar (exp of the best model's mean log-likelihood of the memory)."""
+
+    name = "population"
+    thesis = "listen (installation)"
+    Params = _PopulationParams
+    needs = "body"
+
+    def build(self, params, creature, name):
+        from creatures.authored.listening import Listening
+
+        return Listening(name, creature, params)
+
+
+class _LullParams(Params):
+    of: str = Field(description="a 'population' percept")
+    patience: float = Field(2.0, gt=1, le=10, description="silence, in multiples of the gap its model expects "
+                                                          "next, before the lull is salient")
+
+
+@PERCEPTS.register
+class Lull(PerceptPart):
+    """The music has stopped, by the model's own clock: 1 once nothing has been heard for
+    ``patience`` times the gap the played-out model expects next (after some music)."""
+
+    name = "lull"
+    thesis = "listen (installation)"
+    Params = _LullParams
+    refs = {"of": "populations"}
+
+    def build(self, params, creature, name):
+        listening = creature.percept(params.of)
+        return FunctionPercept(name, lambda t: listening.lull(t, params.patience))
+
+
+class _PredictsParams(Params):
+    of: str = Field(description="a 'population' percept")
+
+
+@PERCEPTS.register
+class Predicts(PerceptPart):
+    """The played-out model predicts a next note the creature may still play (1), or none /
+    its ``continuation`` is spent (0)."""
+
+    name = "predicts"
+    thesis = "listen (installation)"
+    Params = _PredictsParams
+    refs = {"of": "populations"}
+
+    def build(self, params, creature, name):
+        listening = creature.percept(params.of)
+        return FunctionPercept(name, lambda t: listening.predicts())
