@@ -12,7 +12,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Callable, ClassVar, Literal
 
 import numpy as np
-from pydantic import BaseModel, Field, model_validator
+from pydantic import BaseModel, Field, field_validator, model_validator
 
 from creatures.authored.registry import ACTIONS, Params, Part
 from creatures.behaviour.action_tuple import Action, ActionTuple
@@ -599,3 +599,52 @@ class Anticipate(MotorPart):
                 listening.step_alone(t, params.velocity)
 
         return Anticipating(name)
+
+
+# -- singing a precomposed song (thesis: "sand:stone (installation)") ---------------------
+class _SongParams(Params):
+    phrases: list[list[tuple[int, float]]] = Field(min_length=1, max_length=1024,
+                                                   description="precomposed segments, sung in order: each a list of "
+                                                               "[pitch, beats] notes (beats from this note's onset "
+                                                               "to the next)")
+    tempo: float = Field(96.0, ge=10, le=400, description="beats per minute of internal time at pulse 1 (at 10, the "
+                                                          "longest note lasts under 13 minutes)")
+    phrase_rest: float = Field(1.0, ge=0, le=64, description="beats of silence between the end of a segment and the "
+                                                            "next")
+    velocity: int = Field(96, ge=1, le=127, description="loudness of a fresh (unbored) creature")
+    timbre_depth: float = Field(0.5, ge=0, le=1, description="how much full boredom softens (velocity) and detaches "
+                                                             "(note length) the singing")
+    breath: str | None = Field(None, description="a drive: no note is begun that its level, drawn at its current "
+                                                 "input, cannot hold to the end; then the action is done")
+    boredom: str | None = Field(None, description="a drive whose level (to 1) dulls the timbre")
+    pulse: str | None = Field(None, description="a drive: internal time runs at tempo × its level (0.5–2)")
+
+    @field_validator("phrases")
+    @classmethod
+    def _notes(cls, phrases: list[list[tuple[int, float]]]) -> list[list[tuple[int, float]]]:
+        for p, phrase in enumerate(phrases):
+            if not phrase:
+                raise ValueError(f"phrase {p} is empty")
+            for n, (pitch, beats) in enumerate(phrase):
+                if not 0 <= pitch <= 127 or not 0 < beats <= 64:
+                    raise ValueError(f"phrase {p} note {n}: need pitch 0..127 and 0 < beats <= 64, "
+                                     f"got [{pitch}, {beats}]")
+        return phrases
+
+
+@ACTIONS.register
+class SingPhrases(ActionPart):
+    """Sing precomposed phrases, resuming where the song stopped: notes at the creature's
+    internal time (tempo × the ``pulse`` drive), softened and detached by ``boredom``, and
+    none begun that the ``breath`` drive cannot hold (done when out of breath)."""
+
+    ends = True
+    name = "sing_phrases"
+    thesis = "sand:stone (installation)"
+    Params = _SongParams
+    refs = {"breath": "drives", "boredom": "drives", "pulse": "drives"}
+
+    def build(self, params, creature, name):
+        from creatures.authored.song import Singing
+
+        return Singing(name, creature, params)

@@ -88,6 +88,7 @@ def check(spec: "AuthoredSpec", file: Path, where: Where, prefix: tuple) -> None
     _percepts(c)
     _drives(c)
     _tuples(c)
+    _sung_keys(c)
     _groups(c)
     _learning(c)
 
@@ -108,6 +109,19 @@ def _percepts(c: _Checker) -> None:
         c.need("percepts", p.parent, (*loc, "parent"))
         edges[name].append(p.parent)
     _acyclic(c, edges, "percepts", "a percept cannot be defined by itself")
+    for k, name in enumerate(c.spec.report_percepts):
+        c.need("percepts", name, ("report_percepts", k))
+
+
+def _sung_keys(c: _Checker) -> None:
+    """A 'discord' percept compares what it hears with the key of what a tuple sings."""
+    for name, p in c.spec.percepts.items():
+        sung = p.params().get("key_of") if p.type == "discord" else None
+        tp = c.spec.tuples.get(sung) if isinstance(sung, str) else None
+        action = None if tp is None else tp.action if isinstance(tp.action, str) else tp.action.type
+        if tp is not None and action != "sing_phrases":
+            raise c.error(("percepts", name, "key_of"), f"tuple {sung!r} sings no song (its action is {action!r}; "
+                                                        "'discord' needs a 'sing_phrases' tuple's key)")
 
 
 def _acyclic(c: _Checker, edges: dict[str, list[str]], section: str, why: str) -> None:

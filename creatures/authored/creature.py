@@ -89,6 +89,7 @@ class Authored(CreatureKind):
         self.aural = Aural(self) if spec.hearing is not None else None
         self._tickers: list[Callable[[float], None]] = []  # parts' own per-tick work (see 'parts with a life')
         self._listeners: list[Callable[[NoteEvent, str], None]] = []
+        self._readers: list[Callable[[NoteEvent, str], bool]] = []
         self._reporters: list[Callable[[float], None]] = []
         self._kept: dict[tuple[str, str], tuple[Callable[[], Any], Callable[[Any], None]]] = {}
         self.root = WhateverPercept(ROOT)
@@ -113,6 +114,8 @@ class Authored(CreatureKind):
                         for n, g in spec.groups.items() if g.heat]
         self._next_report = 0.0
         self._next_pose = 0.0
+        # The soft state's steps start at a random phase per creature (a colony's load spreads).
+        self._next_soft = float(rng.uniform(0.0, 1.0 / spec.soft_rate)) if spec.soft_rate else 0.0
 
     # -- building ---------------------------------------------------------------------
     def _drives(self, spec: AuthoredSpec) -> Motivation | None:
@@ -229,11 +232,15 @@ class Authored(CreatureKind):
         bulk of the creature's computation is spent maintaining a population of percepts")."""
         self._tickers.append(work)
 
-    def on_hear(self, hear: Callable[[NoteEvent, str], bool | None]) -> None:
-        """Tell ``hear(note, source)`` of every note that reaches the creature, before its ear:
-        one that returns True claims the note as a reading, not music (a rock sensor that
-        reports as notes), and nothing else hears it."""
+    def on_hear(self, hear: Callable[[NoteEvent, str], None]) -> None:
+        """Tell ``hear(note, source)`` of every note the creature hears (after its ear)."""
         self._listeners.append(hear)
+
+    def on_reading(self, read: Callable[[NoteEvent, str], bool]) -> None:
+        """Show ``read(note, source)`` every note that reaches the creature first: one that
+        returns True takes the note as a sensor reading, not music (a rock sensor that reports
+        as notes), and nothing of the creature hears it."""
+        self._readers.append(read)
 
     def feed(self, t: float) -> None:
         """The drives' step: advance them to ``t`` and set their percept inputs and arcs from
@@ -276,13 +283,15 @@ class Authored(CreatureKind):
     def hear(self, note: NoteEvent, source: str) -> None:
         if source == "input" and not self.spec.hears_input:
             return
-        if any([hear(note, source) for hear in self._listeners]):  # every listener is told; a reading is not music
+        if any([read(note, source) for read in self._readers]):  # every reader is shown it; a reading is not music
             return
         t = self.now()
         self.ear.hear(t, note, source)
         self._impulse(t, "on_heard")
         if self.notes is not None:
             self.notes.hear(t, note, source)
+        for hear in self._listeners:
+            hear(note, source)
 
     def listen(self, t: float, block: np.ndarray, sample_rate: int) -> None:
         if self.aural is not None:
@@ -327,7 +336,8 @@ class Authored(CreatureKind):
         self._learn_phrase(t)
         if self.notes is not None:
             self.notes.fade(t)
-        if self.motivation is not None:
+        soft = self._soft_step(t)
+        if self.motivation is not None and soft:
             self.feed(t)
             levels = self.motivation.levels
             for group, base, heat in self._heated:
@@ -343,7 +353,8 @@ class Authored(CreatureKind):
             if self.voice is not None:
                 self.voice.feel(pose)
         for group in self.top:
-            group.tick(t)
+            if soft or group.active:  # a new tuple is chosen on the soft state's steps
+                group.tick(t)
         if self.notes is not None:
             self.notes.space.tick()
         if t >= self._next_report:
@@ -360,6 +371,18 @@ class Authored(CreatureKind):
                 self.aural.report(t)
             for report in self._reporters:
                 report(t)
+            if self.spec.report_percepts:
+                self.world.log.emit(t, "percepts", creature=self.name,
+                                    levels={p: float(self.percepts[p].evaluate(t)) for p in self.spec.report_percepts})
+
+    def _soft_step(self, t: float) -> bool:
+        """Whether ``t`` is a step of the soft state (every tick without ``soft_rate``)."""
+        rate = self.spec.soft_rate
+        if rate is None or t < self._next_soft:
+            return rate is None
+        while self._next_soft <= t:
+            self._next_soft += 1.0 / rate
+        return True
 
     def sound(self, out: np.ndarray, sample_rate: int) -> None:
         if self.aural is not None:  # a loudspeaker-as-mouth sings what it heard

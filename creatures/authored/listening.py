@@ -190,7 +190,7 @@ class Listening(Percept):
         return 0.0 if self.population.best is None else math.exp(self.population.best_score)
 
     # -- hearing ------------------------------------------------------------------------
-    def hear(self, note: NoteEvent, source: str) -> None:  # music, never a reading: it claims nothing
+    def hear(self, note: NoteEvent, source: str) -> None:
         observation = Observation(self.poses.node(note.pitch), float(note.time), note)
         self.memory.append(observation)
         self.heard.append((self.creature.now(), observation))

@@ -64,3 +64,32 @@ def _listen(state: dict[str, Any], creature: "Authored") -> dict[str, Any]:
     heard = _part(creature, "population", "listen")
     return {"motivation": state.get("motivation"),
             "parts": {"percepts": {heard: {k: state[k] for k in ("poses", "population", "expected match") if k in state}}}}
+
+
+def _tuple(creature: "Authored", action: str, kind: str) -> str:
+    """The name of the creature's one tuple whose action is ``action``."""
+    def type_of(tp) -> str:
+        return tp.action if isinstance(tp.action, str) else tp.action.type
+
+    names = [name for name, tp in creature.spec.tuples.items() if type_of(tp) == action]
+    if len(names) != 1:
+        raise ValueError(f"it was saved by the class-based {kind!r}, whose song an authored creature sings with one "
+                         f"{action!r} tuple; this creature has {len(names) or 'no'} {action!r} tuples")
+    return names[0]
+
+
+@retired("sandstone")
+def _sandstone(state: dict[str, Any], creature: "Authored") -> dict[str, Any]:
+    """The class's values (sing, pause, listen: the same tuples) go to the group that holds
+    them, its drives (desire, boredom, breath, pulse) to the same drives, its place in the
+    song to the ``sing_phrases`` tuple, its ear to the ``discord`` percept and the last rock
+    reading to the ``script`` percept (the class refused a state missing any of them)."""
+    for key in ("values", "motivation", "song", "heard", "sensed"):
+        if key not in state:
+            raise ValueError(f"the class-based sandstone state is missing {key!r}")
+    song = _tuple(creature, "sing_phrases", "sandstone")
+    group = next(name for name, g in creature.spec.groups.items() if song in g.tuples)
+    return {"values": {group: state["values"]}, "motivation": state["motivation"],
+            "parts": {"tuples": {song: state["song"]},
+                      "percepts": {_part(creature, "discord", "sandstone"): state["heard"],
+                                   _part(creature, "script", "sandstone"): state["sensed"]}}}
