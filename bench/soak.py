@@ -61,7 +61,7 @@ import installations
 from bench import Row
 from creatures.clock import SimulatedClock
 from creatures.events import EventLog
-from creatures.kinds.listen import ListenSpec
+from creatures.authored.listening import Listening
 from creatures.runtime.inputs import phrase_notes
 from creatures.runtime.schema import Installation, LoadedInstallation, load_installation
 from creatures.runtime.session import Session
@@ -180,7 +180,8 @@ class SoakResult:
 def queue_sizes(session: Session, sink: CountingSink, log: EventLog) -> dict[str, int]:
     """Every container in a running colony that would betray a leak by growing."""
     world, scheduler, creatures = session.world, session.scheduler, session.creatures
-    populations = [c.population for c in creatures if hasattr(c, "population")]
+    listening = listeners(creatures)
+    populations = [p.population for p in listening]
     worlds = [c.notes for c in creatures if getattr(c, "notes", None) is not None]  # exchange's note worlds
     return {
         "world pending": len(world._pending),
@@ -191,7 +192,7 @@ def queue_sizes(session: Session, sink: CountingSink, log: EventLog) -> dict[str
         "motor arrivals": sum(len(c.body.motor.arrivals) for c in creatures if hasattr(c, "body")),
         "listen models": sum(len(p.members) for p in populations),
         "listen model states": sum(len(m.model.states) for p in populations for m in p.members),
-        "listen heard, undanced": sum(len(c.heard) for c in creatures if hasattr(c, "population")),
+        "listen heard, undanced": sum(len(p.heard) for p in listening),
         "sink hanging notes": sink.hanging,
         "log in memory": len(log.records),
     }
@@ -202,7 +203,20 @@ def state_bound(session: Session) -> int:
     models of at most ``max_states`` each. A lesson or a spawn may pass either bound, but
     the population's maintenance follows every lesson in the same analysis step and distils
     or retires back within them."""
-    return sum(c.spec.max_models * c.spec.max_states for c in session.creatures if hasattr(c, "population"))
+    return sum(p.params.max_models * p.params.max_states for p in listeners(session.creatures))
+
+
+def listeners(creatures: list) -> list[Listening]:
+    """The model populations the colony's creatures keep (their ``population`` percepts)."""
+    return [p for c in creatures for p in getattr(c, "percepts", {}).values() if isinstance(p, Listening)]
+
+
+def listener(channel: int):
+    """The shipped listen creature (installations/creatures/listen.toml), named lis."""
+    with tempfile.TemporaryDirectory() as folder:
+        config = Path(folder) / "lis.toml"
+        config.write_text(f'title = "lis"\n[[creature]]\nname = "lis"\nkind = "listen"\nchannel = {channel}\n')
+        return load_installation(config).specs[0]
 
 
 def colony(name: str, tick: float, learner: bool) -> LoadedInstallation:
@@ -213,7 +227,7 @@ def colony(name: str, tick: float, learner: bool) -> LoadedInstallation:
     inst.settings = Installation.model_validate({**inst.settings.model_dump(), "tick": tick})
     if learner:
         channel = max(spec.channel for spec in inst.specs) + 1
-        inst.specs.append(ListenSpec(name="lis", kind="listen", channel=channel))
+        inst.specs.append(listener(channel))
     return inst
 
 

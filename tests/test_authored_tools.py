@@ -35,9 +35,9 @@ def test_describe_prints_drives_percept_trees_groups_and_tuples(capsys):
 
 
 def test_describe_shows_class_based_kinds_and_nested_groups_too(tmp_path, capsys):
-    assert main(["describe", "sandstone"]) == 0
+    assert main(["describe", "curve"]) == 0
     out = capsys.readouterr().out
-    assert "(sandstone)" in out and "| sing |" in out
+    assert "(curve)" in out and "| mirror |" in out
     nested = tmp_path / "nested.toml"
     nested.write_text((TUTORIAL / "heron-1.toml").read_text().replace(
         '[creature.groups.main]      # the tuples compete here\ntuples = ["call", "rest"]',

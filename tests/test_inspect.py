@@ -132,9 +132,9 @@ def test_a_real_run_shows_the_colony_s_heard_pulse(listened):
 def test_a_real_run_shows_the_listener_s_confidence(listened):
     out, session, page, _ = listened
     lis = next(c for c in session.creatures if c.name == "lis")
-    saved = load_json(out / "lis.json", kind=STATE_KIND)["state"]["expected match"]
+    saved = load_json(out / "lis.json", kind=STATE_KIND)["state"]["parts"]["percepts"]["heard"]["expected match"]
     expected = GaussianValue.from_dict(saved)
-    assert expected.to_dict() == lis.expected_match.to_dict()
+    assert expected.to_dict() == lis.state()["parts"]["percepts"]["heard"]["expected match"]
     assert 0.5 < expected.confidence() <= 1.0  # a phrase heard over and over is expected
     assert f"<td>expected match</td><td>{expected.to_float():.4g}</td><td>{expected.confidence():.3f}</td>" in page
     for name in ("dance", "anticipate", "rest", "excitement"):

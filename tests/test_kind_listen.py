@@ -1,16 +1,25 @@
 """listen: a population of gesture models of heard notes converges to a repeated phrase, and
-the body's dance repeats with the phrase's period."""
+the body's dance repeats with the phrase's period. The creature is authored
+(installations/creatures/listen.toml); what it models is read from its ``percepts`` events,
+what the inspector shows."""
 
 from __future__ import annotations
 
 import json
+import tempfile
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+import installations
 from creatures.clock import SimulatedClock
+from creatures.config import ConfigError
 from creatures.events import EventLog
-from creatures.kinds import load_all
+from creatures.kinds import KINDS, load_all
+from creatures.persist import StateFileError
+from creatures.runtime.schema import load_installation
+from creatures.runtime.session import Session
 from creatures.runtime.world import World
 from midi.notes import NoteEvent
 from midi.scheduler import NoteScheduler
@@ -22,13 +31,28 @@ GAP = 0.35
 TICK = 0.02
 
 
+def listen_spec(**keys):
+    """The shipped listen creature named lis, ``keys`` set on its model population."""
+    lines = ['title = "t"', "[[creature]]", 'name = "lis"', 'kind = "listen"']
+    lines += [f"percepts.heard.{k} = {v!r}" for k, v in keys.items()]
+    with tempfile.TemporaryDirectory() as folder:
+        config = Path(folder) / "listen.toml"
+        config.write_text("\n".join(lines) + "\n")
+        return load_installation(config).specs[0]
+
+
 def colony(seed: int = 3, **keys):
     clock = SimulatedClock()
     world = World(clock, EventLog(None), NoteScheduler(MemorySink(), clock))
-    kind = load_all()["listen"]
-    creature = kind(kind.Spec(name="lis", kind="listen", **keys), world, np.random.default_rng(seed))
+    load_all()
+    creature = KINDS["authored"](listen_spec(**keys), world, np.random.default_rng(seed))
     world.add(creature)
     return world, creature
+
+
+def modelled(world: World) -> dict:
+    """The creature's last ``percepts`` record: its models, the best one's core, the match."""
+    return [e for e in world.log.records if e["kind"] == "percepts"][-1]
 
 
 def feed(world: World, phrase: list[int], repeats: int, start: float) -> float:
@@ -52,8 +76,8 @@ def run(world: World, creature, until: float, start: float = 0.0) -> np.ndarray:
     return np.array(hands)
 
 
-def core_pitches(creature) -> list[int]:
-    return [creature.poses.pitch(n) for n in creature.population.best.model.core_nodes()]
+def core_pitches(world: World) -> list[int]:
+    return modelled(world)["core"]
 
 
 def is_rotation(a: list[int], b: list[int]) -> bool:
@@ -68,9 +92,9 @@ def danced():
 
 
 def test_best_model_converges_to_the_repeated_phrase(danced):
-    _, creature, _, _ = danced
-    assert len(creature.population.members) == 1
-    assert is_rotation(core_pitches(creature), PHRASE)
+    world, _, _, _ = danced
+    assert modelled(world)["sizes"]["models"] == 1
+    assert is_rotation(core_pitches(world), PHRASE)
 
 
 def test_dance_repeats_with_the_phrase_period(danced):
@@ -91,7 +115,7 @@ def test_silence_after_the_phrase_is_filled_quietly_with_its_prediction(danced):
     world, creature, _, end = danced
     run(world, creature, end + 8.0, start=end)
     played = [e for e in world.log.records if e["kind"] == "note" and e["time"] > end]
-    assert 1 <= len(played) <= creature.spec.continuation
+    assert 1 <= len(played) <= creature.spec.percepts["heard"].params()["continuation"]
     pitches = [e["pitch"] for e in played]
     k = PHRASE.index(pitches[0])
     assert pitches == (PHRASE[k:] + PHRASE[:k])[: len(pitches)], "continuation does not follow the phrase"
@@ -104,11 +128,11 @@ def test_new_material_spawns_a_model_and_the_best_match_follows_the_music():
     t = feed(world, PHRASE, 5, 1.0)
     t = feed(world, OTHER, 5, t)
     run(world, creature, t)
-    assert len(creature.population.members) == 2
-    assert is_rotation(core_pitches(creature), OTHER)
+    assert modelled(world)["sizes"]["models"] == 2
+    assert is_rotation(core_pitches(world), OTHER)
     t2 = feed(world, PHRASE, 3, t + 0.5)
     run(world, creature, t2, start=t)
-    assert is_rotation(core_pitches(creature), PHRASE)
+    assert is_rotation(core_pitches(world), PHRASE)
     spawned = [e for e in world.log.records if e["kind"] == "model" and e["action"] == "spawn"]
     assert len(spawned) == 2
 
@@ -135,7 +159,7 @@ def test_population_stays_bounded_under_ever_new_material(rng):
     for _ in range(8):  # eight unrelated phrases, each repeated twice
         t = feed(world, [int(p) for p in rng.choice(np.arange(40, 90), 8, replace=False)], 2, t)
     run(world, creature, t)
-    assert len(creature.population.members) <= 3
+    assert max(e["sizes"]["models"] for e in world.log.records if e["kind"] == "percepts") <= 3
     retired = [e for e in world.log.records if e["kind"] == "model" and e["action"] == "retire"]
     assert len(retired) >= 5
 
@@ -148,25 +172,72 @@ def test_overgrown_model_is_distilled_to_its_core():
     t = feed(world, PHRASE, 3, t)
     run(world, creature, t)
     assert any(e["kind"] == "model" and e["action"] == "distil" for e in world.log.records)
-    assert all(len(m.model.states) <= 8 + creature.spec.memory for m in creature.population.members)
-    assert is_rotation(core_pitches(creature), PHRASE)
+    memory = creature.spec.percepts["heard"].params()["memory"]
+    assert all(e["sizes"]["states of best"] <= 8 + memory for e in world.log.records if e["kind"] == "percepts")
+    assert is_rotation(core_pitches(world), PHRASE)
 
 
 def test_state_round_trips_through_json(danced):
-    _, creature, _, _ = danced
+    world, creature, _, end = danced
     state = json.loads(json.dumps(creature.state()))
-    world, fresh = colony(seed=11)
+    other, fresh = colony(seed=11)
     fresh.restore(state)
-    assert fresh.poses.nodes == creature.poses.nodes
-    assert core_pitches(fresh) == core_pitches(creature)
-    assert [m.id for m in fresh.population.members] == [m.id for m in creature.population.members]
-    assert fresh.expected_match.to_dict() == creature.expected_match.to_dict()
-    assert fresh.expected_match.clock is world.clock  # confidence fades with the new run's time
+    again = json.loads(json.dumps(fresh.state()))["parts"]["percepts"]["heard"]
+    saved = state["parts"]["percepts"]["heard"]
+    assert again["poses"] == saved["poses"] and again["population"] == saved["population"]
+    assert again["expected match"] == saved["expected match"]
+    run(other, fresh, TICK)
+    assert modelled(other)["core"] == core_pitches(world)
+    assert modelled(other)["models"] == modelled(world)["models"]
+    # The expectation's confidence fades with the new run's time (its clock is this world's).
+    confident = modelled(other)["confidence"]
+    run(other, fresh, 600.0, start=TICK)
+    assert modelled(other)["confidence"] < 0.5 * confident
 
 
 def test_bad_config_is_rejected_with_the_key():
-    kind = load_all()["listen"]
-    with pytest.raises(ValueError, match="memory"):
-        kind.Spec(name="x", kind="listen", memory=1)
-    with pytest.raises(ValueError, match="context .* must be smaller than memory"):
-        kind.Spec(name="x", kind="listen", memory=8, context=8)
+    with pytest.raises(ConfigError, match="memory"):
+        listen_spec(memory=1)
+    with pytest.raises(ConfigError, match="context .* must be smaller than memory"):
+        listen_spec(memory=8, context=8)
+
+
+# -- a state folder saved by the class-based listen (tests/data/retired/listen, a real one) ---
+RETIRED = Path(__file__).parent / "data" / "retired" / "listen"
+
+
+def _session(config: Path | None = None) -> Session:
+    inst = load_installation(config or installations.path("listen"))
+    return Session(inst, SimulatedClock(), EventLog(), MemorySink())
+
+
+def test_a_state_saved_by_the_class_based_listen_loads_into_the_authored_one(tmp_path):
+    saved = json.loads((RETIRED / "lis.json").read_text())
+    assert saved["kind"] == "listen" and "population" in saved["state"]  # the class's own format
+    session = _session()
+    assert session.load_state(RETIRED) == ["ada", "lis", "bo"]
+    lis = next(c for c in session.creatures if c.name == "lis")
+    parts = lis.state()["parts"]["percepts"]["heard"]
+    assert parts["poses"] == saved["state"]["poses"]
+    assert parts["population"] == saved["state"]["population"]
+    assert parts["expected match"] == saved["state"]["expected match"]
+    assert lis.state()["motivation"]["levels"] == saved["state"]["motivation"]["levels"]
+    lis.tick(0.0)
+    members = [m["id"] for m in saved["state"]["population"]["members"]]
+    assert modelled(session.world)["models"] == members and modelled(session.world)["core"]
+    session.save_state(tmp_path)  # and it saves as the authored creature it now is
+    assert json.loads((tmp_path / "lis.json").read_text())["kind"] == "authored"
+
+
+def test_a_class_listen_state_is_refused_where_nothing_can_take_it(tmp_path):
+    config = tmp_path / "c.toml"
+    config.write_text('title = "t"\n[[creature]]\nname = "lis"\nkind = "exchange"\n')
+    with pytest.raises(StateFileError, match=r"lis.json: cannot take .* no 'population' percept.*move lis.json out"):
+        _session(config).load_state(RETIRED)
+    state = tmp_path / "state"
+    state.mkdir()
+    saved = json.loads((RETIRED / "lis.json").read_text())
+    saved["state"]["population"] = {"members": "many"}
+    (state / "lis.json").write_text(json.dumps(saved))
+    with pytest.raises(StateFileError, match="lis.json: malformed authored state"):
+        _session().load_state(state)

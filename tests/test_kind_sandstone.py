@@ -1,11 +1,14 @@
 """sand:stone: rock creatures that sing only their precomposed phrases, more when present,
-less when they hear music far away on the circle of fifths, and never longer than a breath."""
+less when they hear music far away on the circle of fifths, and never longer than a breath.
+The rock is an authored creature (installations/creatures/sandstone.toml); a run's keys are
+its authored keys (``drives.breath.inputs.singing`` is the breath singing uses a second)."""
 
 from __future__ import annotations
 
 import itertools
 import json
 import math
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -15,9 +18,11 @@ import installations
 from creatures.clock import SimulatedClock
 from creatures.config import ConfigError
 from creatures.events import EventLog, read_events
-from creatures.kinds.sandstone import DEFAULT_PHRASES, Sandstone, SandstoneSpec
+from creatures.kinds import KINDS, load_all
 from creatures.runtime.offline import run_offline
+from creatures.persist import StateFileError
 from creatures.runtime.schema import load_installation
+from creatures.runtime.session import Session
 from creatures.runtime.world import World
 from midi.fifths import circular_distance, fifths_distance, fifths_vector
 from midi.files import write_notes
@@ -129,6 +134,23 @@ def _activations(events: list[dict], tuple_: str, creature: str = "rock0") -> li
     return spans
 
 
+PRESENCE, PHRASES = "percepts.presence.points", "tuples.sing.action.phrases"
+EAGERNESS, SATIATION = 'drives.desire.inputs."eager presence"', "drives.desire.inputs.singing"
+HABITUATION, BREATH_USE = "drives.boredom.inputs.presence", "drives.breath.inputs.singing"
+
+
+def _phrases(spec) -> list:
+    return spec.tuples["sing"].action.params()["phrases"]
+
+
+def _spec(**keys):
+    """The shipped rock creature, named a, with ``keys`` merged over it."""
+    config = Path(tempfile.mkdtemp()) / "rock.toml"
+    lines = ['title = "x"', "[[creature]]", 'name = "a"', 'kind = "sandstone"']
+    config.write_text("\n".join(lines + [f"{k} = {v}" for k, v in keys.items()]) + "\n")
+    return load_installation(config).specs[0]
+
+
 def test_every_note_comes_from_the_phrases_in_order(tmp_path):
     """All six rocks of the shipped installation: each creature's whole note sequence is its
     phrases read in order (cycling), so it never skips, reorders or invents a note."""
@@ -139,7 +161,7 @@ def test_every_note_comes_from_the_phrases_in_order(tmp_path):
     singers = 0
     for spec in inst.specs:
         notes = _notes(events, spec.name)
-        song = itertools.cycle([pitch for phrase in spec.phrases for pitch, _ in phrase])
+        song = itertools.cycle([pitch for phrase in _phrases(spec) for pitch, _ in phrase])
         assert [n["pitch"] for n in notes] == [next(song) for _ in notes], spec.name
         onsets = [n["time"] for n in notes]
         assert onsets == sorted(onsets) and all(n["duration"] > 0 for n in notes)
@@ -150,7 +172,7 @@ def test_every_note_comes_from_the_phrases_in_order(tmp_path):
 def test_presence_makes_a_creature_sing_more(tmp_path):
     counts = []
     for level in (0.2, 0.5, 0.9):
-        events = _run(tmp_path / str(level), [{"presence": [[0.0, level]]}], duration=40.0)
+        events = _run(tmp_path / str(level), [{PRESENCE: [[0.0, level]]}], duration=40.0)
         counts.append(len(_notes(events)))
     assert counts[0] < counts[1] < counts[2], counts
     assert counts[2] >= 2 * counts[0] > 0
@@ -164,12 +186,13 @@ def _arpeggio_loop(root: int, duration: float) -> list[NoteEvent]:
 def test_uncorrelated_music_suppresses_singing(tmp_path):
     """The same creature (C major) under the same presence, hearing the same rhythm in G
     (a fifth away: correlated) or in F# (a tritone away: uncorrelated)."""
-    spec = SandstoneSpec(name="x", kind="sandstone")
-    key = fifths_vector(np.array([p for phrase in spec.phrases for p, _ in phrase]))
+    spec = _spec()
+    key = fifths_vector(np.array([p for phrase in _phrases(spec) for p, _ in phrase]))
+    within = spec.percepts["discord"].params()["within"]
     near, far = _arpeggio_loop(G, 40.0), _arpeggio_loop(FS, 40.0)
-    assert circular_distance(fifths_vector(np.array([n.pitch for n in near])), key) < spec.correlated_within
+    assert circular_distance(fifths_vector(np.array([n.pitch for n in near])), key) < within
     assert circular_distance(fifths_vector(np.array([n.pitch for n in far])), key) > 5.0
-    rock = [{"presence": [[0.0, 0.8]]}]
+    rock = [{PRESENCE: [[0.0, 0.8]]}]
     with_near = _run(tmp_path / "near", rock, duration=40.0, heard=near)
     with_far = _run(tmp_path / "far", rock, duration=40.0, heard=far)
     assert len(_notes(with_far)) <= 0.5 * len(_notes(with_near)), (len(_notes(with_far)), len(_notes(with_near)))
@@ -181,9 +204,9 @@ def test_uncorrelated_music_suppresses_singing(tmp_path):
 def test_breath_runs_out_and_forces_pauses(tmp_path):
     use, recovery = 0.3, 0.1
     longest = math.log(use / (use - recovery)) / recovery  # full breath to none, singing throughout
-    eager = {"presence": [[0.0, 1.0]], "eagerness": 1.0, "satiation": 0.0, "habituation": 0.0,
-             "breath_recovery": recovery, "phrases": [[[60 + i % 5, 0.5] for i in range(40)]]}
-    events = _run(tmp_path / "short", [{**eager, "breath_use": use}], duration=40.0)
+    eager = {PRESENCE: [[0.0, 1.0]], EAGERNESS: 1.0, SATIATION: 0.0, HABITUATION: 0.0,
+             "drives.breath.decay": recovery, PHRASES: [[[60 + i % 5, 0.5] for i in range(40)]]}
+    events = _run(tmp_path / "short", [{**eager, BREATH_USE: -use}], duration=40.0)
     sings, notes = _activations(events, "sing"), _notes(events)
     assert len(notes) > 40 and len(sings) >= 3
     for n in notes:  # every note starts inside a singing activation
@@ -205,13 +228,13 @@ def test_breath_runs_out_and_forces_pauses(tmp_path):
         pauses = [(a, b) for a, b in _activations(events, "pause") if a > t]
         assert pauses[0][1] - pauses[0][0] >= 0.5
     # with breath to spare, the same creature sings one long stretch instead
-    deep = _run(tmp_path / "deep", [{**eager, "breath_use": 0.01}], duration=40.0)
+    deep = _run(tmp_path / "deep", [{**eager, BREATH_USE: -0.01}], duration=40.0)
     assert max(b - a for a, b in _activations(deep, "sing")) > 3 * longest
     assert not any(e["kind"] == "breathless" for e in deep)
 
 
 def test_boredom_softens_and_detaches_the_singing(tmp_path):
-    events = _run(tmp_path, [{"presence": [[0.0, 1.0]], "habituation": 0.02}], duration=60.0)
+    events = _run(tmp_path, [{PRESENCE: [[0.0, 1.0]], HABITUATION: 0.02}], duration=60.0)
     notes = _notes(events)
     early = [n for n in notes if n["time"] < 15.0]
     late = [n for n in notes if n["time"] > 45.0]
@@ -222,24 +245,28 @@ def test_boredom_softens_and_detaches_the_singing(tmp_path):
 
 
 def test_pulse_governs_internal_time(tmp_path):
-    """With ``hurry`` 0 the pulse rests at 1 and every beat lasts exactly 60/tempo seconds;
-    with ``hurry`` the desire to sing presses internal time on."""
-    steady = {"presence": [[0.0, 1.0]], "eagerness": 1.0, "habituation": 0.0, "phrase_rest": 0.0,
-              "tempo": 96.0, "phrases": [[[60, 0.5], [64, 0.5], [67, 0.5], [72, 0.5]]]}
+    """With ``hurry`` (the pulse drive's coupling to desire and boredom) 0 the pulse rests at
+    1 and every beat lasts exactly 60/tempo seconds; with ``hurry`` the desire to sing presses
+    internal time on."""
+    steady = {PRESENCE: [[0.0, 1.0]], EAGERNESS: 1.0, HABITUATION: 0.0, "tuples.sing.action.phrase_rest": 0.0,
+              "tuples.sing.action.tempo": 96.0, PHRASES: [[[60, 0.5], [64, 0.5], [67, 0.5], [72, 0.5]]]}
+
+    def hurry(h: float) -> dict:
+        return {"drives.pulse.coupling.desire": h, "drives.pulse.coupling.boredom": -h}
     beat = 60.0 / 96.0
 
     def gaps(events):
         onsets = [n["time"] for n in _notes(events)]
         return np.diff(onsets)[np.diff(onsets) < 2 * 0.5 * beat]  # within a stretch of singing
 
-    calm = gaps(_run(tmp_path / "calm", [{**steady, "hurry": 0.0}], duration=30.0))
-    eager = gaps(_run(tmp_path / "eager", [{**steady, "hurry": 0.4}], duration=30.0))
+    calm = gaps(_run(tmp_path / "calm", [{**steady, **hurry(0.0)}], duration=30.0))
+    eager = gaps(_run(tmp_path / "eager", [{**steady, **hurry(0.4)}], duration=30.0))
     assert len(calm) > 20 and np.allclose(calm, 0.5 * beat, atol=2e-6)
     assert len(eager) > 20 and np.median(eager) < 0.85 * 0.5 * beat
 
 
 def test_a_rock_sensor_reading_sets_presence_and_is_not_music(tmp_path):
-    rock = {"presence": [[0.0, 0.0]], "rock": 40}
+    rock = {PRESENCE: [[0.0, 0.0]], "percepts.presence.rock": 40}
     reading = [NoteEvent(1.0, 40, 127, 15, 0.1), NoteEvent(1.5, 41, 127, 15, 0.1)]  # ours, another rock's
     sensed = _run(tmp_path / "sensed", [rock], duration=20.0, heard=reading)
     silent = _run(tmp_path / "silent", [rock], duration=20.0, heard=[NoteEvent(1.0, 40, 127, 14, 0.1)])
@@ -256,9 +283,10 @@ def _world() -> World:
 
 
 def test_state_round_trips_through_json():
-    spec = SandstoneSpec(name="a", kind="sandstone")
+    spec = _spec()
+    load_all()
     world = _world()
-    creature = Sandstone(spec, world, np.random.default_rng(0))
+    creature = KINDS["authored"](spec, world, np.random.default_rng(0))
     world.add(creature)
     for step in range(1, 500):
         world.clock.advance_to(step * TICK)
@@ -266,23 +294,25 @@ def test_state_round_trips_through_json():
         if step % 50 == 0:
             creature.hear(NoteEvent(world.clock.now(), 66, 90, 3, 0.4), "other")
     state = json.loads(json.dumps(creature.state()))
-    assert state["song"] != {"phrase": 0, "note": 0}  # it has sung; the position is saved
-    fresh = Sandstone(spec, _world(), np.random.default_rng(1))
+    assert state["parts"]["tuples"]["sing"] != {"phrase": 0, "note": 0}  # it has sung; the position is saved
+    assert state["parts"]["percepts"]["discord"]["weight"] > 0  # and it heard the other rock
+    fresh = KINDS["authored"](spec, _world(), np.random.default_rng(1))
     fresh.restore(state)
     again = fresh.state()
     # Levels and positions carry over exactly; times restart with the new run's clock.
-    assert again["motivation"].pop("time") == 0.0 and again["heard"].pop("time") == 0.0
-    state["motivation"].pop("time"), state["heard"].pop("time")
+    assert again["motivation"].pop("time") == 0.0
+    state["motivation"].pop("time")
     assert again == state
+    song = {"phrase": len(_phrases(spec)), "note": 0}
     with pytest.raises(ValueError, match="song position"):
-        fresh.restore({**state, "song": {"phrase": len(DEFAULT_PHRASES), "note": 0}})
+        fresh.restore({**state, "parts": {**state["parts"], "tuples": {"sing": song}}})
 
 
 @pytest.mark.parametrize("key, value, phrase", [
-    ("presence", "[[0.0, 0.5], [10.0, 1.0], [5.0, 0.0]]", "strictly increase"),
-    ("presence", "[[0.0, 1.5]]", "0..1"),
-    ("phrases", "[[[60, 1.0], [200, 0.5]]]", "phrase 0 note 1"),
-    ("phrases", "[[]]", "phrase 0 is empty"),
+    ("percepts.presence.points", "[[0.0, 0.5], [10.0, 1.0], [5.0, 0.0]]", "strictly increase"),
+    ("percepts.presence.points", "[[0.0, 1.5]]", "0..1"),
+    ("tuples.sing.action.phrases", "[[[60, 1.0], [200, 0.5]]]", "phrase 0 note 1"),
+    ("tuples.sing.action.phrases", "[[]]", "phrase 0 is empty"),
 ])
 def test_bad_scripts_and_phrases_are_named(tmp_path, key, value, phrase):
     config = tmp_path / "bad.toml"
@@ -290,3 +320,46 @@ def test_bad_scripts_and_phrases_are_named(tmp_path, key, value, phrase):
     with pytest.raises(ConfigError) as error:
         load_installation(config)
     assert f"bad.toml:5: creature.0.{key}" in str(error.value) and phrase in str(error.value)
+
+
+# -- a state folder saved by the class-based sandstone (tests/data/retired/sandstone, a real one)
+RETIRED = Path(__file__).parent / "data" / "retired" / "sandstone"
+
+
+def _session(config: Path | None = None) -> Session:
+    return Session(load_installation(config or installations.path("sandstone")), SimulatedClock(), EventLog(),
+                   MemorySink())
+
+
+def test_a_state_saved_by_the_class_based_sandstone_loads_into_the_authored_one(tmp_path):
+    session = _session()
+    assert sorted(session.load_state(RETIRED)) == sorted(c.name for c in session.creatures)
+    for creature in session.creatures:
+        saved = json.loads((RETIRED / f"{creature.name}.json").read_text())
+        assert saved["kind"] == "sandstone"
+        old, now = saved["state"], creature.state()
+        assert now["parts"]["tuples"]["sing"] == old["song"]
+        assert now["parts"]["percepts"]["discord"] == {k: old["heard"][k] for k in ("vector", "weight")}
+        assert now["parts"]["percepts"]["presence"] == old["sensed"]
+        assert now["motivation"]["levels"] == old["motivation"]["levels"]
+        assert now["values"]["main"] == old["values"]
+    session.save_state(tmp_path)
+    assert json.loads((tmp_path / "king.json").read_text())["kind"] == "authored"
+
+
+def test_a_class_sandstone_state_is_refused_where_nothing_can_take_it(tmp_path):
+    config = tmp_path / "c.toml"
+    config.write_text('title = "t"\n[[creature]]\nname = "king"\nkind = "exchange"\n')
+    with pytest.raises(StateFileError, match=r"king.json: cannot take .* no 'sing_phrases'.*move king.json out"):
+        _session(config).load_state(RETIRED)
+    state = tmp_path / "state"
+    state.mkdir()
+    saved = json.loads((RETIRED / "king.json").read_text())
+    del saved["state"]["song"]
+    (state / "king.json").write_text(json.dumps(saved))
+    with pytest.raises(StateFileError, match="king.json: cannot take .* missing 'song'"):
+        _session().load_state(state)
+    saved["state"]["song"] = {"phrase": 9, "note": 0}
+    (state / "king.json").write_text(json.dumps(saved))
+    with pytest.raises(StateFileError, match="king.json: malformed authored state .*song position 9/0"):
+        _session().load_state(state)

@@ -3,6 +3,8 @@ shipped pieces keep their authored values (and keep selecting) over hours."""
 
 from __future__ import annotations
 
+import json
+import shutil
 from collections import Counter, defaultdict
 from pathlib import Path
 
@@ -16,14 +18,13 @@ from creatures.behaviour.percept import WhateverPercept
 from creatures.behaviour.value import ScalarValue
 from creatures.clock import SimulatedClock
 from creatures.events import EventLog, read_events
-from creatures.kinds import KINDS
+from creatures.runtime.session import Session
 from creatures.runtime.offline import run_offline
 from creatures.runtime.schema import load_installation
-from creatures.runtime.world import World
-from midi.scheduler import NoteScheduler
 from midi.sinks import MemorySink
 
 HOURS = 2.0
+RETIRED = Path(__file__).parent / "data" / "retired"
 
 
 def _tuples(plasticity: float = 1.0) -> list[ActionTuple]:
@@ -85,14 +86,21 @@ def test_shipped_values_and_their_ratios_hold_for_hours_and_every_creature_selec
 
 
 def test_a_state_saved_while_values_decayed_does_not_bring_the_decay_back(tmp_path):
+    """A state folder the class-based listen saved while credit assignment decayed its values
+    (tests/data/retired: a real one, its values set to what an hour made of them) loads into
+    the authored listen with its values as authored."""
+    state = tmp_path / "state"
+    shutil.copytree(RETIRED / "listen", state)
+    saved = json.loads((state / "lis.json").read_text())
+    assert saved["kind"] == "listen"
+    saved["state"]["values"] = {name: {**v, "value": 7e-8} for name, v in saved["state"]["values"].items()}
+    (state / "lis.json").write_text(json.dumps(saved))
     inst = load_installation(installations.path("listen"))
     clock = SimulatedClock()
-    world = World(clock, EventLog(), NoteScheduler(MemorySink(), clock))
-    spec = next(s for s in inst.specs if s.kind == "listen")
-    lis = KINDS["listen"](spec, world, np.random.default_rng(0))
+    session = Session(inst, clock, EventLog(), MemorySink())
+    lis = next(c for c in session.creatures if c.name == "lis")
     authored = lis.group.value_state()
-    decayed = {name: {**v, "value": 7e-8} for name, v in authored.items()}
-    lis.restore({**lis.state(), "values": decayed})
+    assert "lis" in session.load_state(state)
     assert lis.group.value_state() == authored
 
 

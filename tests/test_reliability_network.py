@@ -85,8 +85,9 @@ def test_two_notes_of_1e308_seconds_leave_a_live_sandstone_colony_finite_and_sav
     heard = [e for e in session.log.records if e["kind"] == "heard" and e["source"] == "visitor"]
     assert [(e["pitch"], e["duration"]) for e in heard] == [(60, MAX_DURATION), (62, MAX_DURATION)]
     for creature in session.creatures:
-        assert math.isfinite(creature.heard.weight) and np.isfinite(creature.heard.vector).all()
-        assert 0.0 <= creature.heard.amount() < 1.0
+        ear = creature.state()["parts"]["percepts"]["discord"]  # what its ear on the circle of fifths holds
+        assert math.isfinite(ear["weight"]) and np.isfinite(ear["vector"]).all()
+        assert 0.0 <= creature.percept("heard amount").evaluate(clock.now()) < 1.0
     session.save_state(tmp_path / "state")  # refuses NaN and infinity: nothing unbounded got in
     assert session.load_state(tmp_path / "state")
 
@@ -105,8 +106,9 @@ def test_a_sandstone_ear_stays_finite_whatever_length_it_is_told(tmp_path):
     for step in range(1, 101):
         clock.advance_to(step * 0.02)
         session.step(step * 0.02, 0, None, audio=False)
-    ear = session.creatures[0].heard
-    assert math.isfinite(ear.weight) and ear.weight <= 3 * ear.memory
+    creature = session.creatures[0]
+    ear, memory = creature.state()["parts"]["percepts"]["discord"], creature.spec.percepts["discord"].params()["memory"]
+    assert math.isfinite(ear["weight"]) and ear["weight"] <= 3 * memory
     session.save_state(tmp_path)
 
 

@@ -63,8 +63,8 @@ def _line_of(path: Path, key: str) -> int:
     ("exchange", "seed", "100000000000000000000"),
     ("three_creatures", "latency", "[0.3, inf]"),
     ("ozymandias", "clicks", "[1.0, nan]"),
-    ("sandstone", "presence", "[[0.0, nan]]"),
-    ("sandstone", "eagerness", "1e308"),
+    ("sandstone", "percepts.presence.points", "[[0.0, nan]]"),
+    ("sandstone", "drives.desire.decay", "1e308"),
 ])
 def test_a_non_finite_or_huge_number_is_refused_at_its_key_and_line(tmp_path, name, key, value):
     path = _config(tmp_path, name, key, value)
@@ -75,9 +75,7 @@ def test_a_non_finite_or_huge_number_is_refused_at_its_key_and_line(tmp_path, na
     assert re.fullmatch(rf"(creature\.0\.)?{key}(\.\d+)*", error.key), error.key
 
 
-VALIDATED = {"SandstoneSpec.phrases": "pitch 0..127 and 0 < beats <= 64, by its validator",
-             "SandstoneSpec.presence": "levels 0..1, by its validator (times are Seconds)",
-             "AudioSection.input_device": "an index or name looked up among the devices present",
+VALIDATED = {"AudioSection.input_device": "an index or name looked up among the devices present",
              "AudioSection.output_device": "an index or name looked up among the devices present",
              "OscSection.peers": "host:port strings, no numbers (the network's own checks)"}
 

@@ -25,8 +25,8 @@ peers = ["127.0.0.1:{peer}"]
 [[creature]]
 name = "stone"
 kind = "sandstone"
-eagerness = 5.0  # sings at once
-suppression = 0.0  # and is not silenced by what it hears back
+drives.desire.inputs."eager presence" = 5.0  # sings at once
+drives.desire.inputs.discord = 0.0  # and is not silenced by what it hears back
 """
 
 ECHO = """

@@ -12,7 +12,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Callable, ClassVar, Literal
 
 import numpy as np
-from pydantic import BaseModel, Field, model_validator
+from pydantic import BaseModel, Field, field_validator, model_validator
 
 from creatures.authored.registry import ACTIONS, Params, Part
 from creatures.behaviour.action_tuple import Action, ActionTuple
@@ -595,3 +595,114 @@ class Attend(ActionPart):
                                     heard_at=None if heard is None else heard.time)
 
         return AttendAction(name)
+
+
+# -- dancing what a model population hears (thesis: "listen (installation)") ---------------
+class _DanceParams(Params):
+    of: str = Field(description="a 'population' percept: its best model is danced")
+
+
+@ACTIONS.register
+class DanceAction(MotorPart):
+    """Dance to the music: every note heard while it runs sends the body, by A*, towards the
+    pose of the note the best model predicts next (notes are poses, one node per pitch).
+    Reactive in when it moves, predictive in where."""
+
+    name = "dance"
+    thesis = "listen (installation)"
+    Params = _DanceParams
+    refs = {"of": "populations"}
+
+    def build(self, params, creature, name):
+        listening = creature.percept(params.of)  # a 'population' percept (checked at load)
+
+        class Dancing(Action):
+            def start(self, t, tuple_):
+                listening.dancing = True
+
+            def update(self, t):
+                listening.step_with_music(t)
+
+            def stop(self, t, *, interrupted):
+                listening.dancing = False
+
+        return Dancing(name)
+
+
+class _AnticipateParams(Params):
+    of: str = Field(description="a 'population' percept: its best model is carried on")
+    velocity: float = Field(0.4, gt=0, le=1, description="velocity of a predicted note, relative to the notes it "
+                                                         "was learnt from")
+
+
+@ACTIONS.register
+class Anticipate(MotorPart):
+    """The music stopped: carry on through the best model at the timing stored in its
+    states, moving to each predicted pose and playing its note quietly (at most the
+    population's ``continuation`` notes; the ``predicts`` percept says when they are spent)."""
+
+    name = "anticipate"
+    thesis = "listen (installation)"
+    Params = _AnticipateParams
+    refs = {"of": "populations"}
+
+    def build(self, params, creature, name):
+        listening = creature.percept(params.of)  # a 'population' percept (checked at load)
+
+        class Anticipating(Action):
+            def start(self, t, tuple_):
+                listening.dance.at = t
+
+            def update(self, t):
+                listening.step_alone(t, params.velocity)
+
+        return Anticipating(name)
+
+
+# -- singing a precomposed song (thesis: "sand:stone (installation)") ---------------------
+class _SongParams(Params):
+    phrases: list[list[tuple[int, float]]] = Field(min_length=1, max_length=1024,
+                                                   description="precomposed segments, sung in order: each a list of "
+                                                               "[pitch, beats] notes (beats from this note's onset "
+                                                               "to the next)")
+    tempo: float = Field(96.0, ge=10, le=400, description="beats per minute of internal time at pulse 1 (at 10, the "
+                                                          "longest note lasts under 13 minutes)")
+    phrase_rest: float = Field(1.0, ge=0, le=64, description="beats of silence between the end of a segment and the "
+                                                            "next")
+    velocity: int = Field(96, ge=1, le=127, description="loudness of a fresh (unbored) creature")
+    timbre_depth: float = Field(0.5, ge=0, le=1, description="how much full boredom softens (velocity) and detaches "
+                                                             "(note length) the singing")
+    breath: str | None = Field(None, description="a drive: no note is begun that its level, drawn at its current "
+                                                 "input, cannot hold to the end; then the action is done")
+    boredom: str | None = Field(None, description="a drive whose level (to 1) dulls the timbre")
+    pulse: str | None = Field(None, description="a drive: internal time runs at tempo × its level (0.5–2)")
+
+    @field_validator("phrases")
+    @classmethod
+    def _notes(cls, phrases: list[list[tuple[int, float]]]) -> list[list[tuple[int, float]]]:
+        for p, phrase in enumerate(phrases):
+            if not phrase:
+                raise ValueError(f"phrase {p} is empty")
+            for n, (pitch, beats) in enumerate(phrase):
+                if not 0 <= pitch <= 127 or not 0 < beats <= 64:
+                    raise ValueError(f"phrase {p} note {n}: need pitch 0..127 and 0 < beats <= 64, "
+                                     f"got [{pitch}, {beats}]")
+        return phrases
+
+
+@ACTIONS.register
+class SingPhrases(ActionPart):
+    """Sing precomposed phrases, resuming where the song stopped: notes at the creature's
+    internal time (tempo × the ``pulse`` drive), softened and detached by ``boredom``, and
+    none begun that the ``breath`` drive cannot hold (done when out of breath)."""
+
+    ends = True
+    name = "sing_phrases"
+    thesis = "sand:stone (installation)"
+    Params = _SongParams
+    refs = {"breath": "drives", "boredom": "drives", "pulse": "drives"}
+
+    def build(self, params, creature, name):
+        from creatures.authored.song import Singing
+
+        return Singing(name, creature, params)

@@ -27,6 +27,9 @@ ROOT = "whatever"
 
 Where = dict[tuple, tuple[Path, int]]
 
+TYPED = {"utterances": ("utterance", "the aural tree"), "populations": ("population", "a model population")}
+"""``refs`` namespaces that name a percept of one type: namespace → (type, what it is)."""
+
 
 class _Checker:
     def __init__(self, spec: "AuthoredSpec", file: Path, where: Where, prefix: tuple) -> None:
@@ -59,11 +62,12 @@ class _Checker:
     def references(self, cls, params, loc: tuple) -> list[str]:
         percepts = []
         for key, namespace, name in cls.references(params):
-            if namespace == "utterances":  # a percept that must be of the aural tree
+            if namespace in TYPED:  # a percept that must be of one type (the aural tree, a population)
+                wanted, what = TYPED[namespace]
                 self.need("percepts", name, (*loc, key))
-                if self.spec.percepts[name].type != "utterance":
+                if self.spec.percepts[name].type != wanted:
                     raise self.error((*loc, key), f"{name!r} is a {self.spec.percepts[name].type!r} percept; "
-                                                  f"{cls.name!r} needs an 'utterance' percept (the aural tree)")
+                                                  f"{cls.name!r} needs {'an' if wanted[0] in 'aeiou' else 'a'} {wanted!r} percept ({what})")
                 namespace = "percepts"
             else:
                 self.need(namespace, name, (*loc, key))
@@ -84,6 +88,7 @@ def check(spec: "AuthoredSpec", file: Path, where: Where, prefix: tuple) -> None
     _percepts(c)
     _drives(c)
     _tuples(c)
+    _sung_keys(c)
     _groups(c)
     _shaped(c)
     _learning(c)
@@ -116,6 +121,19 @@ def _percepts(c: _Checker) -> None:
         c.need("percepts", p.parent, (*loc, "parent"))
         edges[name].append(p.parent)
     _acyclic(c, edges, "percepts", "a percept cannot be defined by itself")
+    for k, name in enumerate(c.spec.report_percepts):
+        c.need("percepts", name, ("report_percepts", k))
+
+
+def _sung_keys(c: _Checker) -> None:
+    """A 'discord' percept compares what it hears with the key of what a tuple sings."""
+    for name, p in c.spec.percepts.items():
+        sung = p.params().get("key_of") if p.type == "discord" else None
+        tp = c.spec.tuples.get(sung) if isinstance(sung, str) else None
+        action = None if tp is None else tp.action if isinstance(tp.action, str) else tp.action.type
+        if tp is not None and action != "sing_phrases":
+            raise c.error(("percepts", name, "key_of"), f"tuple {sung!r} sings no song (its action is {action!r}; "
+                                                        "'discord' needs a 'sing_phrases' tuple's key)")
 
 
 def _acyclic(c: _Checker, edges: dict[str, list[str]], section: str, why: str) -> None:

@@ -14,7 +14,7 @@ selects (the groups inside them are ticked by their group tuples).
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
@@ -99,6 +99,11 @@ class Authored(CreatureKind):
         self.ear = Ear(phrase_gap=learning.phrase_gap, max_phrases=learning.max_phrases)
         self.motivation = self._drives(spec)
         self.aural = Aural(self) if spec.hearing is not None else None
+        self._tickers: list[Callable[[float], None]] = []  # parts' own per-tick work (see 'parts with a life')
+        self._listeners: list[Callable[[NoteEvent, str], None]] = []
+        self._readers: list[Callable[[NoteEvent, str], bool]] = []
+        self._reporters: list[Callable[[float], None]] = []
+        self._kept: dict[tuple[str, str], tuple[Callable[[], Any], Callable[[Any], None]]] = {}
         self.root = WhateverPercept(ROOT)
         self.percepts: dict[str, Percept] = {ROOT: self.root}
         for name in spec.percepts:
@@ -122,6 +127,8 @@ class Authored(CreatureKind):
                         for n, g in spec.groups.items() if g.heat]
         self._next_report = 0.0
         self._next_pose = 0.0
+        # The soft state's steps start at a random phase per creature (a colony's load spreads).
+        self._next_soft = float(rng.uniform(0.0, 1.0 / spec.soft_rate)) if spec.soft_rate else 0.0
 
     # -- building ---------------------------------------------------------------------
     def _drives(self, spec: AuthoredSpec) -> Motivation | None:
@@ -276,6 +283,41 @@ class Authored(CreatureKind):
         """The clicker reaches every top-level group; each passes it to the groups it holds."""
         return list(self.top)
 
+    # -- parts with a life of their own (a model population, a song's place) -------------
+    def each_tick(self, work: Callable[[float], None]) -> None:
+        """Run ``work(t)`` every tick, after the drives and before the body and the groups:
+        a percept that maintains a model at its own rate (thesis "listen (installation)": "the
+        bulk of the creature's computation is spent maintaining a population of percepts")."""
+        self._tickers.append(work)
+
+    def on_hear(self, hear: Callable[[NoteEvent, str], None]) -> None:
+        """Tell ``hear(note, source)`` of every note the creature hears (after its ear)."""
+        self._listeners.append(hear)
+
+    def on_reading(self, read: Callable[[NoteEvent, str], bool]) -> None:
+        """Show ``read(note, source)`` every note that reaches the creature first: one that
+        returns True takes the note as a sensor reading, not music (a rock sensor that reports
+        as notes), and nothing of the creature hears it."""
+        self._readers.append(read)
+
+    def feed(self, t: float) -> None:
+        """The drives' step: advance them to ``t`` and set their percept inputs and arcs from
+        now on. Every tick runs it; an action that changes what feeds a drive (singing draws
+        breath) runs it as it starts and stops, so the change counts from that instant."""
+        self.motivation.advance(t)
+        for i, inputs, arc in self._fed:
+            self.motivation.inputs[i] = sum(r * p.evaluate(t) for p, r in inputs) + _arc(arc, t)
+
+    def reporting(self, report: Callable[[float], None]) -> None:
+        """Call ``report(t)`` with every values snapshot (a part's own events-log record)."""
+        self._reporters.append(report)
+
+    def keep(self, section: str, name: str, state: Callable[[], Any], restore: Callable[[Any], None]) -> None:
+        """Save ``state()`` as ``parts.SECTION.NAME`` of the creature's state ("percepts" or
+        "tuples", and the part's name) and give it back to ``restore`` on reload: what a part
+        learnt or where it is lasts across restarts like the values do."""
+        self._kept[(section, name)] = (state, restore)
+
     # -- what the runtime calls ---------------------------------------------------------
     def now(self) -> float:
         return self.world.clock.now()
@@ -299,11 +341,15 @@ class Authored(CreatureKind):
     def hear(self, note: NoteEvent, source: str) -> None:
         if source == "input" and not self.spec.hears_input:
             return
+        if any([read(note, source) for read in self._readers]):  # every reader is shown it; a reading is not music
+            return
         t = self.now()
         self.ear.hear(t, note, source)
         self._impulse(t, "on_heard")
         if self.notes is not None:
             self.notes.hear(t, note, source)
+        for hear in self._listeners:
+            hear(note, source)
 
     def listen(self, t: float, block: np.ndarray, sample_rate: int) -> None:
         if self.aural is not None:
@@ -348,13 +394,14 @@ class Authored(CreatureKind):
         self._learn_phrase(t)
         if self.notes is not None:
             self.notes.fade(t)
-        if self.motivation is not None:
-            self.motivation.advance(t)
-            for i, inputs, arc in self._fed:
-                self.motivation.inputs[i] = sum(r * p.evaluate(t) for p, r in inputs) + _arc(arc, t)
+        soft = self._soft_step(t)
+        if self.motivation is not None and soft:
+            self.feed(t)
             levels = self.motivation.levels
             for group, base, heat in self._heated:
                 group.temperature = base * (1.0 + sum(k * float(levels[i]) for i, k in heat))
+        for work in self._tickers:
+            work(t)
         if self.aural is not None:
             self.aural.tick(t)
         if self.body is not None and t >= self._next_pose:
@@ -364,7 +411,8 @@ class Authored(CreatureKind):
             if self.voice is not None:
                 self.voice.feel(pose)
         for group in self.top:
-            group.tick(t)
+            if soft or group.active:  # a new tuple is chosen on the soft state's steps
+                group.tick(t)
         if self.notes is not None:
             self.notes.space.tick()
         if t >= self._next_report:
@@ -379,6 +427,20 @@ class Authored(CreatureKind):
                                     drives=dict(zip(self.motivation.names, self.motivation.levels.tolist())), **heated)
             if self.aural is not None:
                 self.aural.report(t)
+            for report in self._reporters:
+                report(t)
+            if self.spec.report_percepts:
+                self.world.log.emit(t, "percepts", creature=self.name,
+                                    levels={p: float(self.percepts[p].evaluate(t)) for p in self.spec.report_percepts})
+
+    def _soft_step(self, t: float) -> bool:
+        """Whether ``t`` is a step of the soft state (every tick without ``soft_rate``)."""
+        rate = self.spec.soft_rate
+        if rate is None or t < self._next_soft:
+            return rate is None
+        while self._next_soft <= t:
+            self._next_soft += 1.0 / rate
+        return True
 
     def sound(self, out: np.ndarray, sample_rate: int) -> None:
         if self.aural is not None:  # a loudspeaker-as-mouth sings what it heard
@@ -414,6 +476,7 @@ class Authored(CreatureKind):
             "phrases": [[[n.time, n.pitch, n.velocity, n.duration] for n in p] for p in self.ear.phrases],
             "phrases_made": self.ear.phrases_made,
             "learnt": list(self._learnt),
+            **({"parts": self._parts_state()} if self._kept else {}),
         }
 
     def restore(self, state: dict[str, Any]) -> None:
@@ -437,6 +500,21 @@ class Authored(CreatureKind):
         if state.get("motivation") and self.motivation is not None:
             # Levels only: the rates are the config's, so an edited growth takes effect after a restart.
             self.motivation.restore(state["motivation"], now=self.now())
+        parts = state.get("parts", {})
+        if not isinstance(parts, dict):
+            raise ValueError(f"parts must be a table, found {type(parts).__name__}")
+        for (section, name), (_, restore) in self._kept.items():
+            saved = parts.get(section, {})
+            if not isinstance(saved, dict):
+                raise ValueError(f"parts.{section} must be a table, found {type(saved).__name__}")
+            if name in saved:
+                restore(saved[name])
+
+    def _parts_state(self) -> dict[str, dict[str, Any]]:
+        out: dict[str, dict[str, Any]] = {}
+        for (section, name), (state, _) in self._kept.items():
+            out.setdefault(section, {})[name] = state()
+        return out
 
     def _restore_shaping(self, state: dict[str, Any]) -> None:
         """Gesture models, then the gestures dispatched from them, again into the body's own

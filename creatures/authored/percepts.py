@@ -11,9 +11,14 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING, ClassVar, Literal
 
-from pydantic import BaseModel, Field, model_validator
+from pydantic import BaseModel, Field, field_validator, model_validator
 
 from creatures.authored.ear import DENSITY_WINDOW
+import numpy as np
+
+from creatures import bounds
+from creatures.bounds import LONGEST_SECONDS, Seconds
+from creatures.kinds.model_population import MOST_MODELS, MOST_STATES
 from creatures.authored.registry import PERCEPTS, Params, Part
 from creatures.kinds.hearing_parts import SeedModel
 from creatures.behaviour.models.activation import ActivationModel
@@ -22,6 +27,7 @@ from creatures.behaviour.models.gaussian import GaussianModel, GaussianPercept
 from creatures.behaviour.perception import PerceivingPercept
 from creatures.behaviour.percept import FunctionPercept, Percept
 from creatures.temporal.durations import SimpleDurationModel
+from midi.fifths import STEPS
 
 if TYPE_CHECKING:
     from creatures.authored.creature import Authored
@@ -171,6 +177,16 @@ class _DriveParams(Params):
                                                                "it has had (a model of the drive); 'level': the "
                                                                "level itself")
     spread: float = Field(0.1, gt=0, description="free: the model's prior spread")
+    low: float | None = Field(None, description="level: a fuzzy ramp of it instead, saliency 0 here …")
+    high: float | None = Field(None, description="… and 1 here (either order; equal: a step)")
+
+    @model_validator(mode="after")
+    def _ramp(self):
+        if (self.low is None) != (self.high is None):
+            raise ValueError("give both 'low' and 'high' (a fuzzy ramp of the level), or neither")
+        if self.low is not None and self.scale != "level":
+            raise ValueError("'low' and 'high' ramp the level: set scale = \"level\"")
+        return self
 
 
 @PERCEPTS.register
@@ -185,6 +201,8 @@ class DrivePercept(PerceptPart):
     refs = {"drive": "drives"}
 
     def build(self, params, creature, name):
+        if params.scale == "level" and params.low is not None:
+            return FunctionPercept(name, lambda t: ramp(creature.level(params.drive, t), params.low, params.high))
         if params.scale == "level":
             return FunctionPercept(name, lambda t: creature.level(params.drive, t))
         model = GaussianModel(creature.level(params.drive, creature.now()), params.spread, size=64)
@@ -694,3 +712,220 @@ class Perceiving(PerceptPart):
             return creature.groups[params.group].tuples
 
         return PerceivingPercept(name, watched, trace=params.trace, valued=params.valued, ground=params.ground)
+
+
+# -- a population of sequence models (thesis: "listen (installation)") ----------------------
+class _PopulationParams(Params):
+    memory: int = Field(16, ge=3, le=256, description="notes in the running memory buffer models are matched against")
+    analysis_every: float = Field(0.5, gt=0, le=10, description="seconds between analyses of the population "
+                                                                 "(matching, learning, maintenance)")
+    context: int = Field(4, ge=1, le=32, description="already-learnt notes put in front of new notes when a model "
+                                                     "learns them, so it can find where they go")
+    known: float = Field(0.2, ge=0, le=1, description="fraction of the arriving notes' transitions a model must "
+                                                      "already explain to learn them (else a growing model extends "
+                                                      "itself, or a new model is spawned)")
+    max_models: int = Field(6, ge=1, le=MOST_MODELS, description="most models in the population; the least useful "
+                                                                 "retires")
+    max_states: int = Field(96, ge=8, le=MOST_STATES, description="states a model may grow to before it is distilled "
+                                                                  "to its core")
+    forget: float = Field(120.0, gt=0, le=LONGEST_SECONDS, description="time constant (s) of a model's usefulness; "
+                                                                       "unused models retire")
+    continuation: int = Field(8, ge=0, le=256, description="predicted notes it may play when the music stops")
+
+    @model_validator(mode="after")
+    def _context_fits(self):
+        if self.context >= self.memory:
+            raise ValueError(f"context ({self.context}) must be smaller than memory ({self.memory}): "
+                             "the memory holds the context and the new notes")
+
+
+@PERCEPTS.register
+class Population(PerceptPart):
+    """A population of sequence models of the heard notes, kept in a percept (figure 43):
+    models are spawned for material none explains, fused, distilled and retired, and the
+    best match is what ``dance`` and ``anticipate`` play out. Salient as the music is
+    familiar (exp of the best model's mean log-likelihood of the memory)."""
+
+    name = "population"
+    thesis = "listen (installation)"
+    Params = _PopulationParams
+    needs = "body"
+
+    def build(self, params, creature, name):
+        from creatures.authored.listening import Listening
+
+        return Listening(name, creature, params)
+
+
+class _LullParams(Params):
+    of: str = Field(description="a 'population' percept")
+    patience: float = Field(2.0, gt=1, le=10, description="silence, in multiples of the gap its model expects "
+                                                          "next, before the lull is salient")
+
+
+@PERCEPTS.register
+class Lull(PerceptPart):
+    """The music has stopped, by the model's own clock: 1 once nothing has been heard for
+    ``patience`` times the gap the played-out model expects next (after some music)."""
+
+    name = "lull"
+    thesis = "listen (installation)"
+    Params = _LullParams
+    refs = {"of": "populations"}
+
+    def build(self, params, creature, name):
+        listening = creature.percept(params.of)
+        return FunctionPercept(name, lambda t: listening.lull(t, params.patience))
+
+
+class _PredictsParams(Params):
+    of: str = Field(description="a 'population' percept")
+
+
+@PERCEPTS.register
+class Predicts(PerceptPart):
+    """The played-out model predicts a next note the creature may still play (1), or none /
+    its ``continuation`` is spent (0)."""
+
+    name = "predicts"
+    thesis = "listen (installation)"
+    Params = _PredictsParams
+    refs = {"of": "populations"}
+
+    def build(self, params, creature, name):
+        listening = creature.percept(params.of)
+        return FunctionPercept(name, lambda t: listening.predicts())
+
+
+# -- a rock on the sand (thesis: "sand:stone (installation)") ------------------------------
+class _ActiveParams(Params):
+    tuple: str = Field(description="a tuple")
+
+
+@PERCEPTS.register
+class Active(PerceptPart):
+    """The tuple is running (1) or not (0): what the creature is doing, as a percept (a drive
+    input for what singing draws, what inhaling restores)."""
+
+    name = "active"
+    thesis = "percepts"
+    Params = _ActiveParams
+    refs = {"tuple": "tuples"}
+
+    def build(self, params, creature, name):
+        return FunctionPercept(name, lambda t: 1.0 if creature.tuples[params.tuple].active else 0.0)
+
+
+class _ScriptParams(Params):
+    points: list[tuple[Seconds, float]] = Field(min_length=1, max_length=100_000,
+                                                description="[seconds, level 0..1] points, linearly interpolated and "
+                                                            "held beyond the ends")
+    rock: int | None = Field(None, ge=0, le=127, description="pitch a sensor sends on sensor_channel; its reading "
+                                                             "(velocity/127) overrides the script from then on")
+    sensor_channel: int = Field(15, ge=0, le=15, description="MIDI channel of sensor readings (never heard as music)")
+
+    @field_validator("points")
+    @classmethod
+    def _script(cls, points: list[tuple[float, float]]) -> list[tuple[float, float]]:
+        times = [t for t, _ in points]
+        if any(not 0.0 <= level <= 1.0 for _, level in points):
+            raise ValueError("levels must lie in 0..1")
+        if times[0] < 0 or any(b <= a for a, b in zip(times, times[1:])):
+            raise ValueError(f"times must start at >= 0 and strictly increase, got {times}")
+        return points
+
+
+@PERCEPTS.register
+class Script(PerceptPart):
+    """A level scripted over time (a visitor moving a rock in and out), which a sensor that
+    reports as notes takes over: notes from outside on ``sensor_channel`` are readings, not
+    music (nothing of the creature hears them), and one of pitch ``rock`` sets the level to
+    its velocity / 127 from then on (saved with the creature)."""
+
+    name = "script"
+    thesis = "sand:stone (installation)"
+    Params = _ScriptParams
+
+    def build(self, params, creature, name):
+        from creatures.runtime.world import INPUT
+
+        times = np.array([t for t, _ in params.points])
+        levels = np.array([level for _, level in params.points])
+        sensed: list[float | None] = [None]
+
+        def reading(note, source) -> bool:
+            if source != INPUT or note.channel != params.sensor_channel:
+                return False
+            if note.pitch == params.rock:
+                sensed[0] = note.velocity / 127.0
+            return True
+
+        def restore(state) -> None:
+            sensed[0] = None if state is None else bounds.number(state, "sensed", low=0.0, high=1.0)
+
+        creature.on_reading(reading)
+        creature.keep("percepts", name, lambda: sensed[0], restore)
+        return FunctionPercept(name, lambda t: sensed[0] if sensed[0] is not None else float(np.interp(t, times, levels)))
+
+
+class _DiscordParams(Params):
+    key_of: str = Field(description="a tuple whose action is 'sing_phrases': the key of the segment it sings")
+    within: float = Field(1.5, ge=0, lt=STEPS / 2, description="circle-of-fifths distance below which heard music "
+                                                                "is correlated")
+    memory: float = Field(4.0, gt=0, le=LONGEST_SECONDS, description="seconds over which heard music fades from the ear")
+
+
+@PERCEPTS.register
+class Discord(PerceptPart):
+    """Uncorrelated music: what was heard lately (one fading circle-of-fifths vector) far from
+    the key of the segment being sung — 0 within ``within`` fifths, rising to 1 at the
+    tritone, scaled by how much music is in the ear."""
+
+    name = "discord"
+    thesis = "sand:stone (installation)"
+    Params = _DiscordParams
+    refs = {"key_of": "tuples"}
+
+    def build(self, params, creature, name):
+        from creatures.authored.song import HeardMusic
+
+        heard = HeardMusic(params.memory)
+
+        def hear(note, source) -> None:
+            heard.hear(creature.now(), note.pitch, note.duration)
+
+        def discord(t: float) -> float:
+            heard.fade(t)
+            key = creature.tuples[params.key_of].action.song.key()
+            beyond = (heard.distance(key) - params.within) / (STEPS / 2 - params.within)
+            return heard.amount() * min(1.0, max(0.0, beyond))
+
+        creature.on_hear(hear)
+        creature.keep("percepts", name, heard.state, lambda s: heard.restore(s, creature.now()))
+        percept = FunctionPercept(name, discord)
+        percept.heard = heard  # the 'music heard' percept reads the same ear
+        return percept
+
+
+class _MusicHeardParams(Params):
+    of: str = Field(description="a 'discord' percept: its ear")
+
+
+@PERCEPTS.register
+class MusicHeard(PerceptPart):
+    """How much music is in a ``discord`` percept's ear, 0..1 (w / (w + 1) of its fading
+    duration-weighted notes)."""
+
+    name = "music_heard"
+    thesis = "sand:stone (installation)"
+    Params = _MusicHeardParams
+    refs = {"of": "percepts"}
+
+    def build(self, params, creature, name):
+        ear = creature.percept(params.of).heard
+
+        def amount(t: float) -> float:
+            ear.fade(t)
+            return ear.amount()
+
+        return FunctionPercept(name, amount)

@@ -257,6 +257,13 @@ class AuthoredSpec(CreatureSpec):
     mouth: MouthSpec = Field(MouthSpec(), description="how the body shapes what it sings ([creature.mouth]; with "
                                                       "hearing)")
     report_every: float = Field(0.5, gt=0, le=3600, description="seconds between value/drive snapshots in the events log")
+    soft_rate: float | None = Field(None, gt=0, le=1000, description="steps per second of the soft state: drive "
+                                                                    "inputs and the choice of a new tuple run at this "
+                                                                    "rate (every trigger reads soft state), a running "
+                                                                    "tuple still every tick; none = every tick")
+    report_percepts: list[str] = Field(default_factory=list, max_length=256,
+                                       description="percepts whose saliency each snapshot logs (a 'percepts' event "
+                                                   "with their 'levels')")
     voice: VoiceSpec = VoiceSpec()
     _file: Path | None = PrivateAttr(None)
 

@@ -6,7 +6,8 @@ The models are gesture models (:class:`~creatures.motor.gesture.GestureModel`) o
 identities whose states carry heard notes. The population spawns a model for material none
 explains (fission), fuses models whose cores are the same cycle, distils an overgrown model
 to its core, and retires models that stop being useful, so its size stays bounded however
-long the music goes on. :mod:`creatures.kinds.listen` keeps one and dances its best member.
+long the music goes on. The ``population`` percept of authored creatures keeps one
+(:mod:`creatures.authored.listening`) and ``dance`` dances its best member.
 """
 
 from __future__ import annotations

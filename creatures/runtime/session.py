@@ -21,6 +21,7 @@ from audio.mixer import Mixer
 from audio.transcribe import WINDOW, Transcriber
 from creatures.clock import Clock
 from creatures.events import EventLog
+from creatures.authored.migrate import from_retired
 from creatures.kinds import KINDS
 from creatures.persist import StateFileError, json_text, load_json, write_json_text
 from creatures.runtime.cc_sources import Reader, parse, reader
@@ -192,8 +193,10 @@ class Session:
     def load_state(self, directory: Path) -> list[str]:
         """Restore creatures from ``directory`` where a file exists; returns who was restored.
 
-        A file of another kind, or one whose content the kind cannot take back, raises
-        :class:`StateFileError` naming it (never a silent mix).
+        A file saved by a retired class-based kind is taken into the authored creature that
+        replaced it (:mod:`creatures.authored.migrate`); a file of another kind, or one whose
+        content the kind cannot take back, raises :class:`StateFileError` naming it (never a
+        silent mix).
         """
         restored = []
         for creature in self.creatures:
@@ -201,11 +204,11 @@ class Session:
             if not path.exists():
                 continue
             data = load_json(path, kind=STATE_KIND)
-            if data.get("kind") != creature.spec.kind:
-                raise StateFileError(f"{path}: saved for kind {data.get('kind')!r}, config says {creature.spec.kind!r}")
             state = data.get("state", {})
             if not isinstance(state, dict):
                 raise StateFileError(f"{path}: 'state' must be a table, found {type(state).__name__}")
+            if data.get("kind") != creature.spec.kind:  # a retired class's state, or refused naming both
+                state = from_retired(path, data.get("kind"), state, creature)
             try:
                 creature.restore(state)
                 # A state that loads is one that saves: what was taken back must write out again.
