@@ -59,17 +59,22 @@ class _Checker:
     def references(self, cls, params, loc: tuple) -> list[str]:
         percepts = []
         for key, namespace, name in cls.references(params):
-            if namespace == "utterances":  # a percept that must be of the aural tree
+            if namespace in TYPED_PERCEPTS:  # a percept that must be of one type
                 self.need("percepts", name, (*loc, key))
-                if self.spec.percepts[name].type != "utterance":
+                needed, what = TYPED_PERCEPTS[namespace]
+                if self.spec.percepts[name].type != needed:
                     raise self.error((*loc, key), f"{name!r} is a {self.spec.percepts[name].type!r} percept; "
-                                                  f"{cls.name!r} needs an 'utterance' percept (the aural tree)")
+                                                  f"{cls.name!r} needs an {needed!r} percept ({what})")
                 namespace = "percepts"
             else:
                 self.need(namespace, name, (*loc, key))
             if namespace == "percepts":
                 percepts.append(name)
         return percepts
+
+
+TYPED_PERCEPTS = {"utterances": ("utterance", "the aural tree"), "adverb models": ("adverb_model", "an Ac percept")}
+"""Reference namespaces that name a percept of one type: namespace → (type, what it is)."""
 
 
 def check(spec: "AuthoredSpec", file: Path, where: Where, prefix: tuple) -> None:
@@ -161,7 +166,21 @@ def _action(c: _Checker, action, loc: tuple):
     labels = getattr(cls, "labels", None)
     if labels is not None:
         _labels(c, labels(params), loc)
+    joints = getattr(cls, "joints", None)
+    if joints is not None and not getattr(c.spec.body, "custom", False):  # a body of files checks at load
+        _joints(c, joints(params), loc)
     return cls
+
+
+def _joints(c: _Checker, wanted: list[str], loc: tuple) -> None:
+    from creatures.kinds.figures import figure_joints, figure_of
+
+    known = figure_joints(figure_of(c.spec.body))
+    for joint in wanted:
+        if joint not in known:
+            close = difflib.get_close_matches(joint, known, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else f" (joints: {', '.join(known)})"
+            raise c.error(loc, f"the body has no joint {joint!r}{hint}")
 
 
 def _needs(c: _Checker, cls, loc: tuple) -> None:

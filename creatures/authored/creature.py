@@ -27,6 +27,7 @@ from creatures.behaviour.action_group import ActionGroup, group_tuple
 from creatures.behaviour.action_tuple import ActionTuple, DoUntil
 from creatures.behaviour.learning import PerceptLearning
 from creatures.behaviour.models.fuzzy import OrPercept
+from creatures.behaviour.models.gaussian import GaussianModel
 from creatures.behaviour.motivation import Motivation
 from creatures.behaviour.percept import FunctionPercept, Percept, WhateverPercept
 from creatures.behaviour.state_object import StateObject
@@ -218,6 +219,23 @@ class Authored(CreatureKind):
         """The clicker reaches every top-level group; each passes it to the groups it holds."""
         return list(self.top)
 
+    def reward(self, amount: float, t: float, window: float, rate: float) -> list[str]:
+        """The clicker's reward (CreatureKind.reward), and each credited tuple's action that
+        samples an Ac percept feeds its sample back into it (thesis "simple shaping")."""
+        credited = super().reward(amount, t, window, rate)
+        actions = {id(self.tuples[n].action): self.tuples[n].action for n in credited if n in self.tuples}
+        for action in actions.values():
+            shape = getattr(action, "shape", None)
+            if shape is not None:
+                shape(amount)
+        return credited
+
+    def _adverb_models(self) -> dict[str, Any]:
+        """The Ac percepts rewards shape, by name (what a reload must keep)."""
+        from creatures.authored.skills import AdverbModel
+
+        return {n: p for n, p in self.percepts.items() if isinstance(p, AdverbModel)}
+
     # -- what the runtime calls ---------------------------------------------------------
     def now(self) -> float:
         return self.world.clock.now()
@@ -352,6 +370,7 @@ class Authored(CreatureKind):
             "phrases": [[[n.time, n.pitch, n.velocity, n.duration] for n in p] for p in self.ear.phrases],
             "phrases_made": self.ear.phrases_made,
             "learnt": list(self._learnt),
+            "adverb_models": {n: p.model.to_dict() for n, p in self._adverb_models().items()},
         }
 
     def restore(self, state: dict[str, Any]) -> None:
@@ -368,6 +387,9 @@ class Authored(CreatureKind):
         for name, values in state.get("values", {}).items():
             if name in self.groups:
                 self.groups[name].restore_values(values)
+        for name, percept in self._adverb_models().items():
+            if name in state.get("adverb_models", {}):
+                percept.model = GaussianModel.from_dict(state["adverb_models"][name])
         if state.get("motivation") and self.motivation is not None:
             # Levels only: the rates are the config's, so an edited growth takes effect after a restart.
             self.motivation.restore(state["motivation"], now=self.now())

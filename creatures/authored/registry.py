@@ -61,7 +61,8 @@ class Part:
     or "space" (a ``[creature.space]`` table as well); checked at load."""
     refs: ClassVar[dict[str, str]] = {}
     """Params keys that name other things: key → "percepts", "drives" or "tuples" (a name or
-    a list of names), or "utterances" (a percept of type 'utterance'), checked at load and
+    a list of names), "utterances" (a percept of type 'utterance') or "adverb models" (of type
+    'adverb_model'), checked at load and
     followed for reference cycles."""
 
     @classmethod

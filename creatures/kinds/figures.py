@@ -172,6 +172,15 @@ def figure_labels(figure: str) -> set[str]:
     return set().union(*figure_material(figure).poses.labels) | {LOW_ENERGY}
 
 
+def figure_joints(figure: str) -> tuple[str, ...]:
+    """Every joint name of a figure's skeleton (config checks of joint variables)."""
+    if figure == "stick":
+        from creatures.motor.animations import creature_skeleton
+
+        return creature_skeleton().names
+    return figure_material(figure).poses.skeleton.names
+
+
 def figure_of(body: object) -> Figure:
     """The figure a creature's ``body`` key asks for (``true`` or a table without one: the stick)."""
     return getattr(body, "figure", "stick")
