@@ -46,11 +46,11 @@ def test_a_servo_follows_at_its_rate_and_gives_up_when_its_patience_runs_out():
     # A target running away faster than the servo can follow: it gives up after 2 s.
     for k in range(1, 60):
         t = 2.0 + 0.1 * k
-        servo.aim(np.array([5.0, -20.0 - 30.0 * 0.1 * k]), servo.set_at if k > 1 else t)
+        servo.aim(np.array([5.0, -20.0 - 30.0 * 0.1 * k]), t)
         servo.step(t)
         if servo.gave_up:
             break
-    assert servo.gave_up and 4.0 < t <= 4.3
+    assert servo.gave_up and 4.0 < t <= 4.3  # off target from 2.1 s, for 2 s on end
     frozen = servo.value.copy()
     assert servo.step(t + 1.0).tolist() == frozen.tolist()  # given up: it stops
 
@@ -96,6 +96,7 @@ alpha = 0.0
 name = "bird"
 kind = "authored"
 pan = 0.8
+{keys}
 
 [creature.body]
 figure = "bird"
@@ -125,11 +126,11 @@ alpha = 0.0
 """
 
 
-def session_of(tmp_path: Path, extra: str = "") -> Session:
+def session_of(tmp_path: Path, extra: str = "", *, keep: int = 0, keys: str = "") -> Session:
     tmp_path.mkdir(parents=True, exist_ok=True)
     path = tmp_path / "look.toml"
-    path.write_text(textwrap.dedent(LISTENER.format(tick=TICK, extra=extra)))
-    return Session(load_installation(path), SimulatedClock(), EventLog(keep_in_memory=0), MemorySink())
+    path.write_text(textwrap.dedent(LISTENER.format(tick=TICK, extra=extra, keys=keys)))
+    return Session(load_installation(path), SimulatedClock(), EventLog(keep_in_memory=keep), MemorySink())
 
 
 def run(session: Session, until: float, start: float = 0.0, each=None) -> None:
@@ -156,7 +157,7 @@ def head_yaw(body) -> float:
 
 
 def test_a_creature_turns_its_head_to_whoever_it_hears_within_limits_and_back(tmp_path):
-    session = session_of(tmp_path)
+    session = session_of(tmp_path, keep=100_000, keys="report_every = 0.25")
     bird = session.creatures[1]
     body = bird.body
     run(session, 1.0)
@@ -182,6 +183,14 @@ def test_a_creature_turns_its_head_to_whoever_it_hears_within_limits_and_back(tm
     assert "look" not in body.layers.blend
     assert np.allclose(body.pose.rotations, rest, atol=1e-12)
     assert head_yaw(body) == pytest.approx(rest_yaw, abs=1e-9)
+    # The events log names who drove each joint, at the creature's report_every.
+    motor = [e for e in session.world.log.records if e["kind"] == "motor" and e["creature"] == "bird"]
+    looking = [e for e in motor if 2.0 <= e["t"] <= 3.0]
+    gaps = np.diff([e["t"] for e in motor])
+    assert np.all((gaps >= 0.25 - 1e-9) & (gaps <= 0.25 + TICK + 1e-9))  # every 0.25 s (on the tick)
+    assert all(e["joints"]["head"] == {"course": 1.0, "look": 1.0} for e in looking)
+    assert set(looking[0]["joints"]) == {"head", "neck", "pelvis"}  # the look's joints (the bird's chest is held)
+    assert motor[-1]["joints"] == {} and motor[-1]["layers"] == {"course": 1.0}
 
 
 def test_the_heard_direction_is_the_room_bearing_or_the_stage_line(tmp_path):
@@ -349,3 +358,61 @@ def test_rewarding_high_begs_shapes_the_adverb_higher_within_40_rewards(tmp_path
     again = session_of(tmp_path / "again", SHAPED).creatures[1]
     again.restore(state)
     assert again.percepts["beg height"].model.mean == model.model.mean
+
+
+# -- oscillators and servos over joints and voice parameters -------------------------------
+def test_an_oscillator_swings_the_voice_gain_and_a_servo_follows_a_percept_until_it_gives_up(tmp_path):
+    extra = """
+[creature.drives.rising]
+growth = {growth}
+
+[creature.percepts.rising]
+type = "drive"
+drive = "rising"
+scale = "level"
+
+[creature.tuples.swell]
+action = {{ type = "oscillate", variables = {{ "voice.gain" = 0.5 }}, period = 1.0, fade = 0.0 }}
+until = {{ seconds = 30.0 }}
+
+[creature.tuples.follow]
+until = {{ seconds = 30.0, done = true }}
+
+[creature.tuples.follow.action]
+type = "servo"
+variables = {{ "neck.x" = [0.0, 40.0] }}
+percept = "rising"
+speed = 20.0
+tolerance = 1.0
+patience = 1.0
+
+[creature.groups.skills]
+tuples = ["swell", "follow"]
+max_active = 2
+alpha = 0.0
+"""
+    session = session_of(tmp_path, extra.format(growth=0.1))  # 4° a second: the servo keeps up
+    bird = session.creatures[1]
+    gains = []
+    run(session, 6.0, each=lambda t: gains.append((t, bird.voice_parameters().resolve(t)[0])))
+    times, gain = np.array(gains).T
+    started = bird.tuples["swell"].started_at
+    assert np.allclose(gain[times > started], 1.0 + 0.5 * np.sin(2 * np.pi * (times[times > started] - started)))
+    assert bird.tuples["follow"].active and "follow" in bird.body.layers.blend
+    neck = bird.body.layers.blend.channel_contributors(6.0)[bird.body.skeleton.index("neck")]
+    assert neck == {"course": 1.0, "follow": 1.0}
+    # The voice really is scaled: each block sounds at voice.gain, ramped from the last block's.
+    bird.voice = type("Steady", (), {"render": lambda self, o, t: o.fill(1.0)})()
+    out = np.zeros(100)
+    bird.sound(out, 22050)
+    now = bird.voice_parameters().resolve(session.clock.now())[0]
+    assert out[-1] == pytest.approx(now) and now != pytest.approx(1.0, abs=0.05)
+    bird.sound(out, 22050)
+    assert np.allclose(out, now)  # the same time again: a steady block
+    # A drive rising at 1 a second asks 40° a second of a servo of 20°: it lags, and after 1 s gives up.
+    session = session_of(tmp_path / "fast", extra.format(growth=1.0))
+    bird = session.creatures[1]
+    follow = bird.tuples["follow"]
+    starts = []
+    run(session, 3.0, each=lambda t: starts.append(follow.started_at) if follow.started_at not in starts else None)
+    assert 1.0 < starts[1] < 1.5  # off target for its patience (1 s) on end: done (and the group starts it again)

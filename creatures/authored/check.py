@@ -175,7 +175,9 @@ def _action(c: _Checker, action, loc: tuple):
 def _joints(c: _Checker, wanted: list[str], loc: tuple) -> None:
     from creatures.kinds.figures import figure_joints, figure_of
 
-    known = figure_joints(figure_of(c.spec.body))
+    if wanted and not c.spec.body:
+        raise c.error(loc, f"it moves the joint {wanted[0]!r}: set 'body = true' on the creature")
+    known = figure_joints(figure_of(c.spec.body)) if wanted else ()
     for joint in wanted:
         if joint not in known:
             close = difflib.get_close_matches(joint, known, n=1)

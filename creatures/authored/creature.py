@@ -40,6 +40,7 @@ from creatures.kinds.figures import figure_of
 from creatures.kinds.layers import BodySpec
 from creatures.kinds.parts import Body, Voice, couple_to_hands
 from creatures.kinds.report_parts import MotorTrail, report_values, selection_logger
+from creatures.motor.blend import Blend
 from creatures.temporal import intervals
 from creatures.temporal.transitions import Succession, follow
 from midi.notes import NoteEvent
@@ -110,6 +111,8 @@ class Authored(CreatureKind):
                         for n, g in spec.groups.items() if g.heat]
         self._next_report = 0.0
         self._next_pose = 0.0
+        self._voice_parameters: Blend | None = None
+        self._gain = 1.0  # voice.gain at the end of the last block sounded
 
     # -- building ---------------------------------------------------------------------
     def _drives(self, spec: AuthoredSpec) -> Motivation | None:
@@ -340,15 +343,28 @@ class Authored(CreatureKind):
             if self.aural is not None:
                 self.aural.report(t)
 
+    def voice_parameters(self) -> Blend:
+        """The voice parameters skills drive (creatures/authored/skills.py: ``voice.gain``),
+        blended as a body's joints are; made when a skill first needs them."""
+        if self._voice_parameters is None:
+            from creatures.authored.skills import VOICE_PARAMETERS
+
+            self._voice_parameters = Blend(len(VOICE_PARAMETERS), rotations=False, hold=np.ones(len(VOICE_PARAMETERS)))
+        return self._voice_parameters
+
     def sound(self, out: np.ndarray, sample_rate: int) -> None:
         if self.aural is not None:  # a loudspeaker-as-mouth sings what it heard
             self.aural.render(out, sample_rate)
-            return
-        if self.voice is None:
-            self.voice = Voice(self.spec.voice, sample_rate)
-            if self.body is not None:
-                couple_to_hands(self.voice, self.body)
-        self.voice.render(out, self.now())
+        else:
+            if self.voice is None:
+                self.voice = Voice(self.spec.voice, sample_rate)
+                if self.body is not None:
+                    couple_to_hands(self.voice, self.body)
+            self.voice.render(out, self.now())
+        if self._voice_parameters is not None:  # voice.gain, ramped across the block (no zipper steps)
+            gain = max(float(self._voice_parameters.resolve(self.now())[0]), 0.0)
+            out *= np.linspace(self._gain, gain, len(out))
+            self._gain = gain
 
     def marks(self) -> list[tuple[tuple[float, float, float], int]]:
         return [] if self.notes is None else self.notes.marks()

@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from pydantic import Field, model_validator
 
-from creatures.authored.actions import MotorPart
+from creatures.authored.actions import ActionPart, MotorPart
 from creatures.authored.percepts import PerceptPart
 from creatures.authored.registry import ACTIONS, PERCEPTS, Params
 from creatures.behaviour.action_tuple import Action, ActionTuple
@@ -144,9 +144,14 @@ class LookAt(MotorPart):
             j: limit for j, limit in LOOK_CHAIN.items() if j in body.skeleton.names}
         if not chain:
             raise ValueError(f"look_at: the body has none of the joints {', '.join(LOOK_CHAIN)}; name some in 'joints'")
-        offsets = JointOffsets(body, [f"{j}.{params.axis}" for j in chain])
-        held = np.degrees(source_limits(body.graph).range[offsets.joints])
-        limits = np.minimum(np.array(list(chain.values()), dtype=float), held)
+        held = np.degrees(source_limits(body.graph).range)
+        names = body.skeleton.names
+        limits = {j: min(limit, float(held[names.index(j)])) for j, limit in chain.items()}
+        turning = [j for j, limit in limits.items() if limit > 0.0]  # a joint the material never turns stays out
+        if not turning:
+            raise ValueError(f"look_at: none of {', '.join(chain)} ever turns in the body's material")
+        offsets = JointOffsets(body, [f"{j}.{params.axis}" for j in turning])
+        limits = np.array([limits[j] for j in turning])
         return LookAction(name, body, offsets, limits, lambda: heard_bearing(creature), params)
 
 
@@ -182,16 +187,84 @@ class LookAction(Action):
         return 1.0 if self.servo.gave_up else 0.0
 
 
-# -- sweeping -------------------------------------------------------------------------------
+# -- skills over named variables: sweeps, oscillators, servos --------------------------------
+VOICE_PARAMETERS = ("voice.gain",)
+"""Voice parameters a skill may drive: ``voice.gain`` multiplies what the creature sounds (1 at
+rest; a skill's numbers are offsets added to it)."""
+
+
+def _named(names) -> None:
+    """Every name is a joint variable or a voice parameter (ValueError for the config's line)."""
+    _joint_variables(n for n in names if not n.startswith("voice."))
+    for n in names:
+        if n.startswith("voice.") and n not in VOICE_PARAMETERS:
+            raise ValueError(f"{n!r}: the voice parameters are {', '.join(VOICE_PARAMETERS)}")
+
+
+def _joints_of(names) -> list[str]:
+    return [n.rpartition(".")[0] for n in names if not n.startswith("voice.")]
+
+
+class Variables:
+    """One action's layers over named variables: joint variables (degrees) as an ``add``
+    layer on the body, voice parameters as an ``add`` layer on the creature's voice
+    parameters; ``value(t)`` gives every variable's offset, in the order named."""
+
+    def __init__(self, creature: "Authored", name: str, names: list[str], value) -> None:
+        self.creature, self.name, self.value = creature, name, value
+        self._joints = np.array([i for i, n in enumerate(names) if not n.startswith("voice.")], dtype=int)
+        self._voice = [(i, VOICE_PARAMETERS.index(n)) for i, n in enumerate(names) if n.startswith("voice.")]
+        joints = [names[i] for i in self._joints]
+        if joints and creature.body is None:
+            raise ValueError(f"{name!r} moves {', '.join(joints)}: the creature needs a body")
+        self.offsets = JointOffsets(creature.body, joints) if joints else None
+
+    def _rotations(self, t: float) -> np.ndarray:
+        self.offsets.degrees = self.value(t)[self._joints]
+        return self.offsets(t)
+
+    def _parameters(self, t: float) -> np.ndarray:
+        out = np.zeros(len(VOICE_PARAMETERS))
+        values = self.value(t)
+        for i, p in self._voice:
+            out[p] = values[i]
+        return out
+
+    def start(self, t: float, fade: float) -> None:
+        if self.offsets is not None:
+            self.creature.body.layer(Contribution(self.name, self._rotations, Policy.ADD, mask=self.offsets.mask,
+                                                  fade=fade), t)
+        if self._voice:
+            mask = np.zeros(len(VOICE_PARAMETERS))
+            mask[[p for _, p in self._voice]] = 1.0
+            self.creature.voice_parameters().start(Contribution(self.name, self._parameters, Policy.ADD, mask=mask,
+                                                                fade=fade), t)
+
+    def stop(self, t: float) -> None:
+        if self.offsets is not None:
+            self.creature.body.unlayer(self.name, t)
+        if self._voice:
+            self.creature.voice_parameters().stop(self.name, t)
+
+
+class _SkillPart(ActionPart):
+    """A skill over named variables: joint variables need the body (checked at load)."""
+
+    @classmethod
+    def joints(cls, params):
+        return _joints_of(params.variables)
+
+
 class _SweepParams(Params):
-    variables: dict[str, tuple[float, float]] = Field(min_length=1, description="joint variable ('chest.y') → "
-                                                                               "[min, max] degrees of offset")
+    variables: dict[str, tuple[float, float]] = Field(min_length=1, description="joint variable ('chest.y', "
+                                                                               "degrees) or voice parameter "
+                                                                               "('voice.gain') → [min, max] offset")
     duration: float = Field(2.0, gt=0, le=3600, description="seconds for current→min→max→current")
     fade: float = Field(0.0, ge=0, le=60, description="seconds the layer eases in and out")
 
     @model_validator(mode="after")
     def _ordered(self):
-        _joint_variables(self.variables)
+        _named(self.variables)
         for name, (low, high) in self.variables.items():
             if low > high:
                 raise ValueError(f"{name!r}: min {low} is above max {high}")
@@ -199,8 +272,8 @@ class _SweepParams(Params):
 
 
 @ACTIONS.register
-class SweepVariables(MotorPart):
-    """Sweep joint variables current→min→max→current at constant velocity, all together over
+class SweepVariables(_SkillPart):
+    """Sweep named variables current→min→max→current at constant velocity, all together over
     ``duration`` (WavesWorld's ``currentMinMaxCurrent``; done when back)."""
 
     name = "sweep"
@@ -208,32 +281,116 @@ class SweepVariables(MotorPart):
     ends = True
     Params = _SweepParams
 
-    @classmethod
-    def joints(cls, params):
-        return [v.rpartition(".")[0] for v in params.variables]
-
     def build(self, params, creature, name):
-        body = creature.body
-        offsets = JointOffsets(body, list(params.variables))
         sweep = Sweep([lo for lo, _ in params.variables.values()], [hi for _, hi in params.variables.values()],
                       params.duration)
+        layers = Variables(creature, name, list(params.variables), sweep.value)
 
         class SweepAction(Action):
-            def _source(self, t: float) -> np.ndarray:
-                offsets.degrees = sweep.value(t)
-                return offsets(t)
-
             def start(self, t, tuple_):
                 sweep.start(np.zeros(len(params.variables)), t)  # the layer's own offsets start at 0
-                body.layer(Contribution(name, self._source, Policy.ADD, mask=offsets.mask, fade=params.fade), t)
+                layers.start(t, params.fade)
 
             def stop(self, t, *, interrupted):
-                body.unlayer(name, t)
+                layers.stop(t)
 
             def done(self, t):
                 return 1.0 if sweep.done(t) else 0.0
 
         return SweepAction(name)
+
+
+class _OscillateParams(Params):
+    variables: dict[str, float] = Field(min_length=1, description="joint variable (degrees) or voice parameter → "
+                                                                  "the depth it swings either side")
+    period: float = Field(2.0, gt=0, le=3600, description="seconds per cycle")
+    fade: float = Field(0.5, ge=0, le=60, description="seconds the layer eases in and out")
+
+    @model_validator(mode="after")
+    def _names(self):
+        _named(self.variables)
+        return self
+
+
+@ACTIONS.register
+class Oscillate(_SkillPart):
+    """Swing named variables sinusoidally by their depths (a central oscillator: WavesWorld,
+    after Gallistel), over the course, while the tuple runs."""
+
+    name = "oscillate"
+    thesis = "blend based motor systems"
+    Params = _OscillateParams
+
+    def build(self, params, creature, name):
+        depths = np.array(list(params.variables.values()), dtype=float)
+        began = [0.0]
+        layers = Variables(creature, name, list(params.variables),
+                           lambda t: depths * math.sin(2.0 * math.pi * (t - began[0]) / params.period))
+
+        class OscillateAction(Action):
+            def start(self, t, tuple_):
+                began[0] = t
+                layers.start(t, params.fade)
+
+            def stop(self, t, *, interrupted):
+                layers.stop(t)
+
+        return OscillateAction(name)
+
+
+class _ServoParams(Params):
+    variables: dict[str, tuple[float, float]] = Field(min_length=1, description="joint variable (degrees) or voice "
+                                                                               "parameter → [offset at 0, offset at "
+                                                                               "1] of the percept")
+    percept: str = Field(description="the percept whose saliency sets the target")
+    speed: float = Field(30.0, gt=0, le=1e6, description="units per second each variable moves at most")
+    tolerance: float = Field(1.0, ge=0, le=1e6, description="how close counts as there")
+    patience: float = Field(4.0, gt=0, le=3600, description="seconds to get within tolerance of a target before "
+                                                            "giving up (done)")
+    fade: float = Field(0.5, ge=0, le=60, description="seconds the layer eases in and out")
+
+    @model_validator(mode="after")
+    def _names(self):
+        _named(self.variables)
+        return self
+
+
+@ACTIONS.register
+class ServoVariables(_SkillPart):
+    """Servo named variables toward a target a percept sets (negative feedback at a bounded
+    speed), with patience: still off target ``patience`` seconds after it moved, it gives up
+    (done; WavesWorld's servomechanism skill agents)."""
+
+    name = "servo"
+    thesis = "blend based motor systems"
+    ends = True
+    Params = _ServoParams
+    refs = {"percept": "percepts"}
+
+    def build(self, params, creature, name):
+        ranges = np.array(list(params.variables.values()), dtype=float)
+        servo = Servo(len(ranges), rate=params.speed, tolerance=params.tolerance, patience=params.patience)
+        percept = creature.percept(params.percept)
+        layers = Variables(creature, name, list(params.variables), servo.step)
+
+        class ServoAction(Action):
+            def start(self, t, tuple_):
+                servo.patience, servo.gave_up = params.patience, False
+                layers.start(t, params.fade)
+                self.update(t)
+
+            def update(self, t):
+                u = min(max(percept.evaluate(t), 0.0), 1.0)
+                servo.aim(ranges[:, 0] + u * (ranges[:, 1] - ranges[:, 0]), t)
+
+            def stop(self, t, *, interrupted):
+                layers.stop(t)
+
+            def done(self, t):
+                servo.step(t)
+                return 1.0 if servo.gave_up else 0.0
+
+        return ServoAction(name)
 
 
 # -- adverbs and simple shaping -------------------------------------------------------------

@@ -144,6 +144,18 @@ class Blend:
         events log records of a blend."""
         return {c.name: c.weight * c.level(t) for c in self.contributions}
 
+    def channel_contributors(self, t: float) -> list[dict[str, float]]:
+        """Per channel, each contributor's weight there at ``t`` (weight × mask × crossfade),
+        those with none left out: who drives each joint or parameter, for the events log."""
+        out: list[dict[str, float]] = [{} for _ in range(self.channels)]
+        for c in self.contributions:
+            w = c.weight * c.level(t)
+            if w <= 0.0:
+                continue
+            for j in range(self.channels) if c.mask is None else np.flatnonzero(c.mask > 0.0):
+                out[j][c.name] = w if c.mask is None else w * float(c.mask[j])
+        return out
+
     def __contains__(self, name: str) -> bool:
         return any(c.name == name for c in self.contributions)
 

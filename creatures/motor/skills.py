@@ -53,8 +53,10 @@ def joint_turns(axes: np.ndarray, angles: np.ndarray) -> np.ndarray:
 
 class Servo:
     """Follows a target vector at up to ``rate`` units per second (per variable), measuring the
-    error; ``patience`` seconds after its target was set it gives up if any variable is still
-    further than ``tolerance`` from it (``gave_up``). ``patience`` ∞: it never gives up."""
+    error. Patience: once any variable has been further than ``tolerance`` from its target for
+    ``patience`` seconds on end (a target moving away faster than it can follow, or out of
+    reach), it gives up (``gave_up``) and stops; a new :meth:`aim` after that starts it again.
+    ``patience`` ∞: it never gives up."""
 
     def __init__(self, size: int, *, rate: float, tolerance: float = 1e-6, patience: float = math.inf) -> None:
         if not rate > 0.0:
@@ -62,16 +64,16 @@ class Servo:
         self.value = np.zeros(size)
         self.target = np.zeros(size)
         self.rate, self.tolerance, self.patience = float(rate), float(tolerance), float(patience)
-        self.set_at = -math.inf
+        self.within_at = -math.inf  # the last time the error was within tolerance
         self.time: float | None = None
         self.gave_up = False
 
     def aim(self, target: np.ndarray, t: float) -> None:
-        """A new target from ``t`` (its patience starts again when the target moves)."""
-        target = np.asarray(target, dtype=float)
-        if not np.array_equal(target, self.target) or self.gave_up:
-            self.set_at, self.gave_up = t, False
-        self.target = target.copy()
+        """Follow ``target`` from ``t`` (a servo that was on target, or had given up, starts
+        counting its patience now)."""
+        if self.reached or self.gave_up:
+            self.within_at, self.gave_up = t, False
+        self.target = np.asarray(target, dtype=float).copy()
 
     @property
     def error(self) -> float:
@@ -89,7 +91,9 @@ class Servo:
         """The value at clock time ``t`` (moved at most ``rate × dt`` toward the target)."""
         if self.time is not None and t > self.time and not self.gave_up:
             self.value += np.clip(self.target - self.value, -self.rate * (t - self.time), self.rate * (t - self.time))
-            if not self.reached and t - self.set_at > self.patience:
+            if self.reached:
+                self.within_at = t
+            elif t - self.within_at > self.patience:
                 self.gave_up = True
         self.time = t if self.time is None else max(self.time, t)
         return self.value
