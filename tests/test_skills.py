@@ -416,3 +416,36 @@ alpha = 0.0
     starts = []
     run(session, 3.0, each=lambda t: starts.append(follow.started_at) if follow.started_at not in starts else None)
     assert 1.0 < starts[1] < 1.5  # off target for its patience (1 s) on end: done (and the group starts it again)
+
+
+# -- the shipped piece -------------------------------------------------------------------------
+def test_the_shipped_exchange_looks_at_whom_it_hears_and_wanders_in_a_bored_manner():
+    import installations
+    from creatures.authored.skills import heard_bearing
+
+    inst = load_installation(installations.path("exchange"))
+    session = Session(inst, SimulatedClock(), EventLog(keep_in_memory=0), MemorySink())
+    for k in range(8):
+        session.world.inject(NoteEvent(0.5 + 0.4 * k, 60 + 2 * k, 90, 0, 0.3))  # a player, heard by ada
+    creatures = {c.name: c for c in session.creatures}
+    looked, manners = {name: [] for name in creatures}, {name: [] for name in creatures}
+    tick = inst.settings.tick
+
+    def each(t: float) -> None:
+        for name, c in creatures.items():
+            look = c.tuples["look"]
+            if look.active and look.action.servo.reached:  # settled on its source
+                looked[name].append((np.sign(heard_bearing(c)), np.sign(look.action.offsets.degrees.sum())))
+            if c.tuples["bored manner"].active and c.tuples["wander"].active:
+                manners[name].append(c.tuples["bored manner"].action.adverb)
+
+    for step in range(1, int(30.0 / tick) + 1):
+        t = step * tick
+        session.clock.advance_to(t)
+        session.step(t, 1, None, audio=False)
+        each(t)
+    for name in creatures:
+        assert looked[name], f"{name} never looked at anyone"
+        assert all(want == turned != 0 for want, turned in looked[name])  # toward whom it heard
+        assert manners[name]  # the bored manner layered over the wander
+    assert {s for s, _ in looked["bo"]} == {-1.0, 1.0}  # bo, in the middle, turns to ada and to cy
