@@ -255,7 +255,18 @@ class _SkillPart(ActionPart):
         return _joints_of(params.variables)
 
 
-class _SweepParams(Params):
+class _VariablesParams(Params):
+    """The keys every skill over named variables shares; ``variables`` is each one's own."""
+
+    fade: float = Field(0.5, ge=0, le=60, description="seconds the layer eases in and out")
+
+    @model_validator(mode="after")
+    def _names(self):
+        _named(self.variables)
+        return self
+
+
+class _SweepParams(_VariablesParams):
     variables: dict[str, tuple[float, float]] = Field(min_length=1, description="joint variable ('chest.y', "
                                                                                "degrees) or voice parameter "
                                                                                "('voice.gain') → [min, max] offset")
@@ -264,7 +275,6 @@ class _SweepParams(Params):
 
     @model_validator(mode="after")
     def _ordered(self):
-        _named(self.variables)
         for name, (low, high) in self.variables.items():
             if low > high:
                 raise ValueError(f"{name!r}: min {low} is above max {high}")
@@ -300,16 +310,10 @@ class SweepVariables(_SkillPart):
         return SweepAction(name)
 
 
-class _OscillateParams(Params):
+class _OscillateParams(_VariablesParams):
     variables: dict[str, float] = Field(min_length=1, description="joint variable (degrees) or voice parameter → "
                                                                   "the depth it swings either side")
     period: float = Field(2.0, gt=0, le=3600, description="seconds per cycle")
-    fade: float = Field(0.5, ge=0, le=60, description="seconds the layer eases in and out")
-
-    @model_validator(mode="after")
-    def _names(self):
-        _named(self.variables)
-        return self
 
 
 @ACTIONS.register
@@ -338,7 +342,7 @@ class Oscillate(_SkillPart):
         return OscillateAction(name)
 
 
-class _ServoParams(Params):
+class _ServoParams(_VariablesParams):
     variables: dict[str, tuple[float, float]] = Field(min_length=1, description="joint variable (degrees) or voice "
                                                                                "parameter → [offset at 0, offset at "
                                                                                "1] of the percept")
@@ -347,12 +351,6 @@ class _ServoParams(Params):
     tolerance: float = Field(1.0, ge=0, le=1e6, description="how close counts as there")
     patience: float = Field(4.0, gt=0, le=3600, description="seconds to get within tolerance of a target before "
                                                             "giving up (done)")
-    fade: float = Field(0.5, ge=0, le=60, description="seconds the layer eases in and out")
-
-    @model_validator(mode="after")
-    def _names(self):
-        _named(self.variables)
-        return self
 
 
 @ACTIONS.register
