@@ -544,7 +544,9 @@ class AdverbAction(Action):
     def start(self, t: float, tuple_: ActionTuple) -> None:
         if self.percept is not None:
             self.sampled = self.percept.sample(self.creature.rng)
-        self._cycle(t)
+        layers = self.creature.body.layers
+        if layers is None or self.name not in layers.blend:  # restarted while still in: the cycle goes on
+            self._cycle(t)
         self.creature.body.layer(Contribution(self.name, self._source, Policy.ADD, mask=self.mask,
                                               fade=self.params.fade), t)
         self.creature.world.emit("adverb", creature=self.creature.name, tuple=self.name, adverb=self.adverb)

@@ -120,14 +120,19 @@ class Blend:
         self._drop_at = math.inf  # when the next contributor has faded out (made with the arrays)
 
     def start(self, contribution: Contribution, t: float) -> Contribution:
-        """Add a contributor that eases in from ``t`` (replacing one of the same name)."""
+        """Add a contributor that eases in from ``t``, replacing one of the same name (and
+        going on from the level that one had at ``t``, so a layer restarted as it fades out
+        does not dip)."""
         if contribution.mask is not None:
             contribution.mask = np.clip(np.asarray(contribution.mask, dtype=float), 0.0, 1.0)
             if contribution.mask.shape != (self.channels,):
                 raise ValueError(f"contribution {contribution.name!r}: mask has shape {contribution.mask.shape},"
                                  f" the blend has {self.channels} channels")
+        before = next((c.level(t) for c in self.contributions if c.name == contribution.name), 0.0)
         self.contributions = [c for c in self.contributions if c.name != contribution.name]
-        contribution.started, contribution.stopped = t, math.inf
+        # Restarted while still (partly) in, it goes on from the level it had: no dip to 0 and back.
+        eased = 0.5 - math.sin(math.asin(1.0 - 2.0 * before) / 3.0) if 0.0 < before < 1.0 else float(before >= 1.0)
+        contribution.started, contribution.stopped = t - eased * contribution.fade, math.inf
         self.contributions.append(contribution)
         self._arrays = None
         return contribution
