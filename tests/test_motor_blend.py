@@ -180,3 +180,16 @@ def test_masks_confine_a_layer_and_oscillators_breathe():
     blend.start(Contribution("short", held(quat.identity((2,)))), 1.0)
     with pytest.raises(ValueError, match=r"'short' gave a value of shape \(2, 4\).*\(3, 4\)"):
         blend.resolve(1.5)
+
+
+def test_a_layer_restarted_as_it_fades_out_goes_on_from_its_level():
+    blend = Blend(1, rotations=False)
+    layer = held(np.array([1.0]))
+    blend.start(Contribution("sway", layer, Policy.ADD, fade=1.0), 0.0)
+    blend.stop("sway", 5.0)
+    fading = blend.resolve(5.3)[0]
+    assert 0.0 < fading < 1.0
+    blend.start(Contribution("sway", layer, Policy.ADD, fade=1.0), 5.3)  # its tuple starts again
+    assert blend.resolve(5.3)[0] == pytest.approx(fading, abs=1e-12)  # no dip to 0
+    levels = [blend.resolve(t)[0] for t in np.arange(5.3, 7.0, 0.01)]
+    assert np.all(np.diff(levels) >= -1e-12) and levels[-1] == 1.0  # and eases back in

@@ -252,6 +252,11 @@ class MotorPart(ActionPart):
     def labels(cls, params: BaseModel) -> list[str]:
         return []
 
+    @classmethod
+    def joints(cls, params: BaseModel) -> list[str]:
+        """The skeleton joints it names (checked against the body at load)."""
+        return []
+
 
 class _GoToParams(Params):
     labels: list[str] = Field(min_length=1, description="motor-graph labels; the nearest node with any of them")
@@ -706,3 +711,5 @@ class SingPhrases(ActionPart):
         from creatures.authored.song import Singing
 
         return Singing(name, creature, params)
+# The skills layered over the course (looking, sweeps, adverbs) register from their own module.
+from creatures.authored import skills as _skills  # noqa: E402, F401

@@ -27,7 +27,8 @@ ROOT = "whatever"
 
 Where = dict[tuple, tuple[Path, int]]
 
-TYPED = {"utterances": ("utterance", "the aural tree"), "populations": ("population", "a model population")}
+TYPED = {"utterances": ("utterance", "the aural tree"), "populations": ("population", "a model population"),
+         "adverb models": ("adverb_model", "an Ac percept")}
 """``refs`` namespaces that name a percept of one type: namespace → (type, what it is)."""
 
 
@@ -74,6 +75,9 @@ class _Checker:
             if namespace == "percepts":
                 percepts.append(name)
         return percepts
+
+
+"""Reference namespaces that name a percept of one type: namespace → (type, what it is)."""
 
 
 def check(spec: "AuthoredSpec", file: Path, where: Where, prefix: tuple) -> None:
@@ -191,7 +195,23 @@ def _action(c: _Checker, action, loc: tuple):
     labels = getattr(cls, "labels", None)
     if labels is not None:
         _labels(c, labels(params), loc)
+    joints = getattr(cls, "joints", None)
+    if joints is not None and not getattr(c.spec.body, "custom", False):  # a body of files checks at load
+        _joints(c, joints(params), loc)
     return cls
+
+
+def _joints(c: _Checker, wanted: list[str], loc: tuple) -> None:
+    from creatures.kinds.figures import figure_joints, figure_of
+
+    if wanted and not c.spec.body:
+        raise c.error(loc, f"it moves the joint {wanted[0]!r}: set 'body = true' on the creature")
+    known = figure_joints(figure_of(c.spec.body)) if wanted else ()
+    for joint in wanted:
+        if joint not in known:
+            close = difflib.get_close_matches(joint, known, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else f" (joints: {', '.join(known)})"
+            raise c.error(loc, f"the body has no joint {joint!r}{hint}")
 
 
 def _needs(c: _Checker, cls, loc: tuple) -> None:

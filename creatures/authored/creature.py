@@ -28,6 +28,7 @@ from creatures.behaviour.action_tuple import ActionTuple, DoUntil
 from creatures.behaviour.expectation import Expectations
 from creatures.behaviour.learning import PerceptLearning, copy_value
 from creatures.behaviour.models.fuzzy import OrPercept
+from creatures.behaviour.models.gaussian import GaussianModel
 from creatures.behaviour.motivation import Motivation
 from creatures.behaviour.percept import FunctionPercept, Percept, WhateverPercept
 from creatures.behaviour.proximity import Proximity
@@ -45,6 +46,7 @@ from creatures.kinds.report_parts import MotorTrail, report_values, selection_lo
 from creatures.kinds.shaping import GestureShaping, PerformGesture
 from creatures.motor.dispatch import Gesture, redispatch
 from creatures.motor.gesture import BodyMemory
+from creatures.motor.blend import Blend
 from creatures.temporal import intervals
 from creatures.temporal.transitions import Succession, follow
 from midi.notes import NoteEvent
@@ -129,6 +131,8 @@ class Authored(CreatureKind):
         self._next_pose = 0.0
         # The soft state's steps start at a random phase per creature (a colony's load spreads).
         self._next_soft = float(rng.uniform(0.0, 1.0 / spec.soft_rate)) if spec.soft_rate else 0.0
+        self._voice_parameters: Blend | None = None
+        self._gain = 1.0  # voice.gain at the end of the last block sounded
 
     # -- building ---------------------------------------------------------------------
     def _drives(self, spec: AuthoredSpec) -> Motivation | None:
@@ -317,6 +321,22 @@ class Authored(CreatureKind):
         "tuples", and the part's name) and give it back to ``restore`` on reload: what a part
         learnt or where it is lasts across restarts like the values do."""
         self._kept[(section, name)] = (state, restore)
+    def reward(self, amount: float, t: float, window: float, rate: float) -> list[str]:
+        """The clicker's reward (CreatureKind.reward), and each credited tuple's action that
+        samples an Ac percept feeds its sample back into it (thesis "simple shaping")."""
+        credited = super().reward(amount, t, window, rate)
+        actions = {id(self.tuples[n].action): self.tuples[n].action for n in credited if n in self.tuples}
+        for action in actions.values():
+            shape = getattr(action, "shape", None)
+            if shape is not None:
+                shape(amount)
+        return credited
+
+    def _adverb_models(self) -> dict[str, Any]:
+        """The Ac percepts rewards shape, by name (what a reload must keep)."""
+        from creatures.authored.skills import AdverbModel
+
+        return {n: p for n, p in self.percepts.items() if isinstance(p, AdverbModel)}
 
     # -- what the runtime calls ---------------------------------------------------------
     def now(self) -> float:
@@ -442,15 +462,28 @@ class Authored(CreatureKind):
             self._next_soft += 1.0 / rate
         return True
 
+    def voice_parameters(self) -> Blend:
+        """The voice parameters skills drive (creatures/authored/skills.py: ``voice.gain``),
+        blended as a body's joints are; made when a skill first needs them."""
+        if self._voice_parameters is None:
+            from creatures.authored.skills import VOICE_PARAMETERS
+
+            self._voice_parameters = Blend(len(VOICE_PARAMETERS), rotations=False, hold=np.ones(len(VOICE_PARAMETERS)))
+        return self._voice_parameters
+
     def sound(self, out: np.ndarray, sample_rate: int) -> None:
         if self.aural is not None:  # a loudspeaker-as-mouth sings what it heard
             self.aural.render(out, sample_rate)
-            return
-        if self.voice is None:
-            self.voice = Voice(self.spec.voice, sample_rate)
-            if self.body is not None:
-                couple_to_hands(self.voice, self.body)
-        self.voice.render(out, self.now())
+        else:
+            if self.voice is None:
+                self.voice = Voice(self.spec.voice, sample_rate)
+                if self.body is not None:
+                    couple_to_hands(self.voice, self.body)
+            self.voice.render(out, self.now())
+        if self._voice_parameters is not None:  # voice.gain, ramped across the block (no zipper steps)
+            gain = max(float(self._voice_parameters.resolve(self.now())[0]), 0.0)
+            out *= np.linspace(self._gain, gain, len(out))
+            self._gain = gain
 
     def marks(self) -> list[tuple[tuple[float, float, float], int]]:
         return [] if self.notes is None else self.notes.marks()
@@ -477,6 +510,7 @@ class Authored(CreatureKind):
             "phrases_made": self.ear.phrases_made,
             "learnt": list(self._learnt),
             **({"parts": self._parts_state()} if self._kept else {}),
+            "adverb_models": {n: p.model.to_dict() for n, p in self._adverb_models().items()},
         }
 
     def restore(self, state: dict[str, Any]) -> None:
@@ -497,6 +531,9 @@ class Authored(CreatureKind):
         for name, values in state.get("values", {}).items():
             if name in self.groups:
                 self.groups[name].restore_values(values)
+        for name, percept in self._adverb_models().items():
+            if name in state.get("adverb_models", {}):
+                percept.model = GaussianModel.from_dict(state["adverb_models"][name])
         if state.get("motivation") and self.motivation is not None:
             # Levels only: the rates are the config's, so an edited growth takes effect after a restart.
             self.motivation.restore(state["motivation"], now=self.now())

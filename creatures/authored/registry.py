@@ -61,8 +61,8 @@ class Part:
     or "space" (a ``[creature.space]`` table as well); checked at load."""
     refs: ClassVar[dict[str, str]] = {}
     """Params keys that name other things: key → "percepts", "drives" or "tuples" (a name or
-    a list of names), or "utterances" / "populations" (a percept of type 'utterance' /
-    'population'), checked at load and
+    a list of names), or "utterances" / "populations" / "adverb models" (a percept of type
+    'utterance' / 'population' / 'adverb_model'), checked at load and
     followed for reference cycles."""
 
     @classmethod

@@ -256,7 +256,8 @@ class AuthoredSpec(CreatureSpec):
                                                           "sings them back")
     mouth: MouthSpec = Field(MouthSpec(), description="how the body shapes what it sings ([creature.mouth]; with "
                                                       "hearing)")
-    report_every: float = Field(0.5, gt=0, le=3600, description="seconds between value/drive snapshots in the events log")
+    report_every: float = Field(0.5, gt=0, le=3600, description="seconds between value, drive and motor snapshots in "
+                                                                "the events log (a body's blend: who drives each joint)")
     soft_rate: float | None = Field(None, gt=0, le=1000, description="steps per second of the soft state: drive "
                                                                     "inputs and the choice of a new tuple run at this "
                                                                     "rate (every trigger reads soft state), a running "

@@ -174,6 +174,13 @@ def body_labels(body: object) -> set[str]:
     if isinstance(body, BodySpec) and body.custom:
         return set().union(*body.material().graph.poses.labels) | {LOW_ENERGY}
     return figure_labels(figure_of(body))
+def figure_joints(figure: str) -> tuple[str, ...]:
+    """Every joint name of a figure's skeleton (config checks of joint variables)."""
+    if figure == "stick":
+        from creatures.motor.animations import creature_skeleton
+
+        return creature_skeleton().names
+    return figure_material(figure).poses.skeleton.names
 
 
 def figure_of(body: object) -> Figure:

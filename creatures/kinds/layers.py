@@ -97,7 +97,9 @@ class BodySpec(MaterialSpec):
 
 
 @functools.lru_cache(maxsize=2)
-def _limits(graph: MotorGraph) -> Limits:
+def source_limits(graph: MotorGraph) -> Limits:
+    """The joint range and top speed of a graph's source material (what every blended frame
+    keeps within; a skill's own joint limits are held inside them too)."""
     return Limits.of(graph.poses, graph.timing.max_speed)
 
 
@@ -113,7 +115,7 @@ class BodyLayers:
     def __init__(self, graph: MotorGraph, layers: list[Contribution], t: float = 0.0, *,
                  joint_limits: np.ndarray | None = None) -> None:
         self.skeleton = graph.skeleton
-        self.limits = _limits(graph)
+        self.limits = source_limits(graph)
         if joint_limits is not None:  # [creature.body] joint_limits narrow the source's own range
             self.limits = Limits(np.minimum(self.limits.range, joint_limits), self.limits.max_speed)
         self.blend = Blend(self.skeleton.joint_count)
@@ -122,6 +124,14 @@ class BodyLayers:
         for layer in layers:
             self.blend.start(layer, t)
         self._shown: BodyPose | None = None
+
+    def start(self, layer: Contribution, t: float) -> Contribution:
+        """Add a layer from ``t`` (an action's skill: a look, an adverb, a sweep)."""
+        return self.blend.start(layer, t)
+
+    def stop(self, name: str, t: float) -> None:
+        """Ease the named layer out from ``t`` (dropped once faded)."""
+        self.blend.stop(name, t)
 
     def shape(self, course: BodyPose, t: float) -> BodyPose:
         """The pose shown at ``t`` given the course's own pose there."""

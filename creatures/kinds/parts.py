@@ -20,6 +20,7 @@ from audio.voices import VoicePool
 from creatures.bounds import FINITE
 from creatures.kinds.figures import EFFECTORS, Figure, figure_graph
 from creatures.kinds.layers import BodyLayers, BodySpec
+from creatures.motor.blend import Contribution
 from creatures.motor import quaternion as quat
 from creatures.motor.animations import example_animations
 from creatures.motor.graph import MotorGraph
@@ -328,6 +329,19 @@ class Body:
     @property
     def pose(self) -> BodyPose:
         return self._pose
+
+    def layer(self, contribution: Contribution, t: float) -> Contribution:
+        """Blend ``contribution`` over the course from ``t``: an action's layer (a look, an
+        adverb, a sweep; creatures/authored/skills.py). A body without layers gets them now,
+        so one that never layers anything pays nothing for blending."""
+        if self.layers is None:
+            self.layers = BodyLayers(self.graph, [], t)
+        return self.layers.start(contribution, t)
+
+    def unlayer(self, name: str, t: float) -> None:
+        """Ease the named layer out from ``t``."""
+        if self.layers is not None:
+            self.layers.stop(name, t)
 
     def hand(self) -> np.ndarray:
         return self._pose.positions[self.effector_index]

@@ -93,7 +93,8 @@ class MotorTrail:
         """The graph (first time only), then where the body is and what it reached since;
         ``shift`` moves the hand by where the whole body stands in the room (a walking
         creature), ``fields`` add kind-specific context to the ``motor`` event, and a body
-        with layers adds each contributor's weight (``layers``)."""
+        with layers adds each contributor's weight (``layers``) and, for every joint more than
+        one drives, each one's weight there (``joints``), at the creature's ``report_every``."""
         log = self.world.log
         if not self._graph_logged:
             graph = self.body.graph
@@ -103,7 +104,10 @@ class MotorTrail:
             self._graph_logged = True
         hand = self.body.hand() + np.asarray(shift)
         if self.body.layers is not None:  # who drives the joints (issue 17: contributors in the log)
-            fields = {**fields, "layers": self.body.layers.blend.contributors(t)}
+            blend = self.body.layers.blend
+            names = self.body.skeleton.names
+            shared = {names[j]: who for j, who in enumerate(blend.channel_contributors(t)) if len(who) > 1}
+            fields = {**fields, "layers": blend.contributors(t), "joints": shared}
         log.emit(t, "motor", creature=self.creature, node=self.body.motor.position(t).node,
                  position={"x": hand[0], "y": hand[1], "z": hand[2]}, reached=self.reached, **fields)
         self.reached = []

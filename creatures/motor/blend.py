@@ -120,14 +120,19 @@ class Blend:
         self._drop_at = math.inf  # when the next contributor has faded out (made with the arrays)
 
     def start(self, contribution: Contribution, t: float) -> Contribution:
-        """Add a contributor that eases in from ``t`` (replacing one of the same name)."""
+        """Add a contributor that eases in from ``t``, replacing one of the same name (and
+        going on from the level that one had at ``t``, so a layer restarted as it fades out
+        does not dip)."""
         if contribution.mask is not None:
             contribution.mask = np.clip(np.asarray(contribution.mask, dtype=float), 0.0, 1.0)
             if contribution.mask.shape != (self.channels,):
                 raise ValueError(f"contribution {contribution.name!r}: mask has shape {contribution.mask.shape},"
                                  f" the blend has {self.channels} channels")
+        before = next((c.level(t) for c in self.contributions if c.name == contribution.name), 0.0)
         self.contributions = [c for c in self.contributions if c.name != contribution.name]
-        contribution.started, contribution.stopped = t, math.inf
+        # Restarted while still (partly) in, it goes on from the level it had: no dip to 0 and back.
+        eased = 0.5 - math.sin(math.asin(1.0 - 2.0 * before) / 3.0) if 0.0 < before < 1.0 else float(before >= 1.0)
+        contribution.started, contribution.stopped = t - eased * contribution.fade, math.inf
         self.contributions.append(contribution)
         self._arrays = None
         return contribution
@@ -143,6 +148,18 @@ class Blend:
         """Each contributor's weight at ``t`` (its ``weight`` × crossfade level): what the
         events log records of a blend."""
         return {c.name: c.weight * c.level(t) for c in self.contributions}
+
+    def channel_contributors(self, t: float) -> list[dict[str, float]]:
+        """Per channel, each contributor's weight there at ``t`` (weight × mask × crossfade),
+        those with none left out: who drives each joint or parameter, for the events log."""
+        out: list[dict[str, float]] = [{} for _ in range(self.channels)]
+        for c in self.contributions:
+            w = c.weight * c.level(t)
+            if w <= 0.0:
+                continue
+            for j in range(self.channels) if c.mask is None else np.flatnonzero(c.mask > 0.0):
+                out[j][c.name] = w if c.mask is None else w * float(c.mask[j])
+        return out
 
     def __contains__(self, name: str) -> bool:
         return any(c.name == name for c in self.contributions)

@@ -325,8 +325,17 @@ class Stage:
         """Degrees from creature ``name``'s heading to the nearest ``of`` (0 ahead, ±180 behind,
         positive to its left; None when there is none)."""
         where = self.nearest(name, of)
-        if where is None:
-            return None
+        return None if where is None else self._bearing(name, where)
+
+    def toward(self, name: str, source: str) -> float | None:
+        """Degrees from creature ``name``'s heading to ``source`` as the world names who played
+        a note: another creature of the room, or ``input`` (the player, where the last outside
+        note came from); None when it is not placed."""
+        if source in self.index:
+            return self._bearing(name, self.v.pos[self.index[source]])
+        return self.bearing(name, "player")
+
+    def _bearing(self, name: str, where: np.ndarray) -> float:
         i = self.index[name]
         rel = where - self.v.pos[i]
         h = self.v.heading[i]

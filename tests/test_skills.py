@@ -1,0 +1,451 @@
+"""Skills over named parameters (issue 17): look-at, servos with patience, WavesWorld's
+current→min→max→current sweep, adverbs played by creatures, and simple shaping."""
+
+from __future__ import annotations
+
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from creatures.clock import SimulatedClock
+from creatures.config import ConfigError
+from creatures.events import EventLog
+from creatures.motor import quaternion as quat
+from creatures.motor.skills import Servo, Sweep, look_turns, shortest
+from creatures.runtime.schema import load_installation
+from creatures.runtime.session import Session
+from midi.notes import NoteEvent
+from midi.sinks import MemorySink
+
+TICK = 0.02
+
+
+# -- the skills alone ----------------------------------------------------------------------
+def test_look_turns_take_eyes_then_head_then_body_the_short_way_within_limits():
+    limits = [20.0, 60.0, 45.0, 90.0]  # eyes, head, neck, body
+    turns = look_turns(50.0, limits)
+    assert turns.tolist() == [20.0, 30.0, 0.0, 0.0]  # the eyes first, the head the rest
+    turns = look_turns(200.0, limits)  # 200° to the left is 160° to the right
+    assert turns.sum() == pytest.approx(-160.0) and (turns <= 0).all()
+    assert (np.abs(turns) <= limits).all() and turns.tolist()[:3] == [-20.0, -60.0, -45.0]
+    assert look_turns(-359.0, limits).tolist() == [1.0, 0.0, 0.0, 0.0]
+    assert look_turns(300.0, [10.0, 10.0]).tolist() == [-10.0, -10.0]  # beyond every limit: as far as they go
+    assert shortest(180.0) == -180.0 and shortest(-181.0) == 179.0
+
+
+def test_a_servo_follows_at_its_rate_and_gives_up_when_its_patience_runs_out():
+    servo = Servo(2, rate=10.0, tolerance=0.1, patience=2.0)
+    servo.step(0.0)
+    servo.aim(np.array([5.0, -20.0]), 0.0)
+    assert servo.step(1.0).tolist() == [5.0, -10.0]  # at most 10 per second each
+    assert servo.step(1.5).tolist() == [5.0, -15.0] and not servo.gave_up
+    assert servo.eta(1.5) == pytest.approx(2.0)
+    assert servo.step(2.0).tolist() == [5.0, -20.0] and servo.reached and not servo.gave_up
+    # A target running away faster than the servo can follow: it gives up after 2 s.
+    for k in range(1, 60):
+        t = 2.0 + 0.1 * k
+        servo.aim(np.array([5.0, -20.0 - 30.0 * 0.1 * k]), t)
+        servo.step(t)
+        if servo.gave_up:
+            break
+    assert servo.gave_up and 4.0 < t <= 4.3  # off target from 2.1 s, for 2 s on end
+    frozen = servo.value.copy()
+    assert servo.step(t + 1.0).tolist() == frozen.tolist()  # given up: it stops
+
+
+def test_sweep_goes_current_min_max_current_at_constant_velocity_over_a_list():
+    sweep = Sweep([-10.0, 0.0, -1.0], [30.0, 4.0, 1.0], duration=4.0)
+    sweep.start(np.array([0.0, 4.0, 0.0]), 10.0)
+    times = 10.0 + np.linspace(0.0, 4.0, 4001)
+    values = np.array([sweep.value(t) for t in times])
+    first = values[:, 0]
+    assert first.min() == pytest.approx(-10.0) and first.max() == pytest.approx(30.0)
+    assert np.argmin(first) < np.argmax(first)  # down to the min first, then up to the max
+    speed = np.abs(np.diff(first)) / np.diff(times)
+    assert speed.max() == pytest.approx(speed[speed > 0].min(), rel=1e-3)  # constant velocity: 80 units over 4 s
+    assert speed.max() == pytest.approx((10 + 40 + 30) / 4.0, rel=1e-3)
+    assert values[:, 1].min() == pytest.approx(0.0) and values[:, 2].max() == pytest.approx(1.0)
+    assert sweep.value(14.0).tolist() == [0.0, 4.0, 0.0] and sweep.done(14.0)  # back exactly, all together
+    assert not sweep.done(13.9)
+    with pytest.raises(ValueError, match="list length mismatch"):
+        Sweep([0.0], [1.0, 2.0], 1.0)
+
+
+# -- on a creature ---------------------------------------------------------------------------
+LISTENER = """
+title = "look"
+tick = {tick}
+duration = 20.0
+
+[[creature]]
+name = "caller"
+kind = "authored"
+pan = -0.8
+
+[creature.tuples.rest]
+action = "rest"
+until = {{ seconds = 5.0 }}
+
+[creature.groups.main]
+tuples = ["rest"]
+alpha = 0.0
+
+[[creature]]
+name = "bird"
+kind = "authored"
+pan = 0.8
+{keys}
+
+[creature.body]
+figure = "bird"
+
+[creature.percepts.heard]
+type = "heard"
+window = 0.5
+
+[creature.tuples.rest]
+action = "rest"
+until = {{ seconds = 5.0 }}
+
+[creature.tuples.look]
+trigger = "heard"
+action = {{ type = "look_at", speed = 90.0 }}
+until = {{ seconds = 1.0, done = true }}
+value = 2.0
+
+[creature.groups.main]
+tuples = ["rest"]
+alpha = 0.0
+
+[creature.groups.attention]
+tuples = ["look"]
+alpha = 0.0
+{extra}
+"""
+
+
+def session_of(tmp_path: Path, extra: str = "", *, keep: int = 0, keys: str = "") -> Session:
+    tmp_path.mkdir(parents=True, exist_ok=True)
+    path = tmp_path / "look.toml"
+    path.write_text(textwrap.dedent(LISTENER.format(tick=TICK, extra=extra, keys=keys)))
+    return Session(load_installation(path), SimulatedClock(), EventLog(keep_in_memory=keep), MemorySink())
+
+
+def run(session: Session, until: float, start: float = 0.0, each=None) -> None:
+    for step in range(int(round(start / TICK)) + 1, int(round(until / TICK)) + 1):
+        t = step * TICK
+        session.clock.advance_to(t)
+        session.step(t, 1, None, audio=False)
+        if each is not None:
+            each(t)
+
+
+def head_yaw(body) -> float:
+    """Degrees the head faces left of +z, from the shown pose's joint rotations."""
+    names, parents = body.skeleton.names, body.skeleton.parents
+    j, chain = names.index("head"), []
+    while j >= 0:
+        chain.append(j)
+        j = parents[j]
+    world = quat.identity()
+    for j in reversed(chain):
+        world = quat.multiply(world, body.pose.rotations[j])
+    forward = quat.rotate(world, np.array([0.0, 0.0, 1.0]))
+    return float(np.degrees(np.arctan2(forward[0], forward[2])))
+
+
+def test_a_creature_turns_its_head_to_whoever_it_hears_within_limits_and_back(tmp_path):
+    session = session_of(tmp_path, keep=100_000, keys="report_every = 0.25")
+    bird = session.creatures[1]
+    body = bird.body
+    run(session, 1.0)
+    rest_yaw, rest = head_yaw(body), body.pose.rotations.copy()
+    assert body.layers is None  # nothing layered until it hears someone
+    # The caller, at the audience's left (the bird's right, on the line across the stage), plays.
+    for k in range(6):
+        session.world.inject(NoteEvent(1.0 + 0.3 * k, 60 + k, 90, 0, 0.2), source="caller")
+    look = bird.tuples["look"].action
+    limits = look.limits
+    shown = []
+    run(session, 3.0, 1.0, each=lambda t: shown.append((t, head_yaw(body), look.offsets.degrees.copy())))
+    _, yaw, turns = shown[-1]
+    assert turns.sum() == pytest.approx(-90.0, abs=0.5)  # straight to its right: the short way, not 270° left
+    assert (np.abs(turns) <= limits + 1e-9).all() and abs(turns[0]) == pytest.approx(limits[0])  # the head first
+    assert yaw - rest_yaw < -45.0  # the head faces round to the right
+    speeds = np.abs(np.diff([s[2] for s in shown], axis=0)).max(axis=0) / TICK
+    assert speeds.max() <= 90.0 + 1e-6  # its servo's rate
+    frames = np.array([s[1] for s in shown])
+    assert np.all(np.diff(frames) <= 1e-6)  # it turns one way, steadily
+    # The caller stops: the look ends, turns back and leaves the blend; the pose is rest again.
+    run(session, 8.0, 3.0)
+    assert "look" not in body.layers.blend
+    assert np.allclose(body.pose.rotations, rest, atol=1e-12)
+    assert head_yaw(body) == pytest.approx(rest_yaw, abs=1e-9)
+    # The events log names who drove each joint, at the creature's report_every.
+    motor = [e for e in session.world.log.records if e["kind"] == "motor" and e["creature"] == "bird"]
+    looking = [e for e in motor if 2.0 <= e["t"] <= 3.0]
+    gaps = np.diff([e["t"] for e in motor])
+    assert np.all((gaps >= 0.25 - 1e-9) & (gaps <= 0.25 + TICK + 1e-9))  # every 0.25 s (on the tick)
+    assert all(e["joints"]["head"] == {"course": 1.0, "look": 1.0} for e in looking)
+    assert set(looking[0]["joints"]) == {"head", "neck", "pelvis"}  # the look's joints (the bird's chest is held)
+    assert motor[-1]["joints"] == {} and motor[-1]["layers"] == {"course": 1.0}
+
+
+def test_the_heard_direction_is_the_room_bearing_or_the_stage_line(tmp_path):
+    from creatures.authored.skills import heard_bearing
+
+    session = session_of(tmp_path)
+    bird = session.creatures[1]
+    assert heard_bearing(bird) is None
+    bird.ear.heard_from = "caller"
+    assert heard_bearing(bird) == pytest.approx(-90.0)
+    bird.ear.heard_from = "input"  # an outside player stands in front of the middle of the stage
+    assert heard_bearing(bird) == pytest.approx(np.degrees(np.arctan2(-1.6, 2.0)))
+    session.creatures[0].ear.heard_from = "bird"
+    assert heard_bearing(session.creatures[0]) == pytest.approx(90.0)
+
+
+def test_a_sweep_tuple_moves_named_joints_current_min_max_current(tmp_path):
+    extra = """
+[creature.tuples.nod]
+action = { type = "sweep", variables = { "neck.x" = [-20.0, 30.0], "head.x" = [-10.0, 10.0] }, duration = 2.0 }
+until = { done = true, seconds = 5.0 }
+
+[creature.groups.nodding]
+tuples = ["nod"]
+max_active = 1
+alpha = 0.0
+"""
+    session = session_of(tmp_path, extra)
+    bird = session.creatures[1]
+    nod = bird.tuples["nod"]
+    seen = []
+    run(session, 1.9, each=lambda t: seen.append(bird.body.pose.rotations[bird.body.skeleton.index("neck")].copy()))
+    assert nod.active and "nod" in bird.body.layers.blend
+    angles = quat.angle_between(np.array(seen), np.array(seen[:1]))
+    assert np.degrees(angles.max()) > 20.0  # the neck swept
+    run(session, 2.2, 1.9)
+    assert not nod.active or nod.started_at > 2.0  # done when back, at 2 s
+
+
+def test_sweep_names_must_be_joint_variables(tmp_path):
+    extra = """
+[creature.tuples.nod]
+action = { type = "sweep", variables = { "nekc.x" = [-20.0, 30.0] } }
+until = { done = true }
+
+[creature.groups.nodding]
+tuples = ["nod"]
+alpha = 0.0
+"""
+    with pytest.raises(ConfigError, match=r"look.toml:\d+: .*no joint 'nekc' \(did you mean 'neck'\?\)"):
+        session_of(tmp_path, extra)
+    with pytest.raises(ConfigError, match="a joint variable is 'joint.x'"):
+        session_of(tmp_path, extra.replace("nekc.x", "neck"))
+
+
+# -- adverbs ---------------------------------------------------------------------------------
+ADVERB = """
+[creature.drives.boredom]
+level = {level}
+
+[creature.tuples.manner]
+until = {{ seconds = 30.0 }}
+
+[creature.tuples.manner.action]
+type = "adverb"
+{source}
+examples = [
+    {{ at = 0.0, seconds = 2.0, keys = [{{ "neck.x" = 0.0 }}, {{ "neck.x" = 5.0 }}] }},
+    {{ at = 1.0, seconds = 4.0, keys = [{{ "neck.x" = 20.0 }}, {{ "neck.x" = 40.0 }}] }},
+]
+
+[creature.groups.manners]
+tuples = ["manner"]
+alpha = 0.0
+"""
+
+
+def neck_track(tmp_path: Path, level: float, source: str = 'drive = "boredom"') -> np.ndarray:
+    session = session_of(tmp_path, ADVERB.format(level=level, source=source))
+    bird = session.creatures[1]
+    neck = bird.body.skeleton.index("neck")
+    out = []
+    run(session, 12.0, each=lambda t: out.append(bird.body.pose.rotations[neck].copy()))
+    return np.degrees(quat.angle_between(np.array(out), np.array(out[:1])))
+
+
+def test_an_adverb_set_by_a_drive_plays_over_the_body_in_neutral_time(tmp_path):
+    alert, bored, half = neck_track(tmp_path, 0.0), neck_track(tmp_path, 1.0), neck_track(tmp_path, 0.5)
+    settled = slice(int(2.0 / TICK), None)  # after the layer's fade-in
+
+    def period(track: np.ndarray) -> float:
+        """The lag (s) of the highest autocorrelation peak past a second."""
+        x = track[settled] - track[settled].mean()
+        lags = np.arange(int(1.0 / TICK), len(x) // 2 + int(1.0 / TICK))
+        r = [x[:-k] @ x[k:] / (len(x) - k) for k in lags]
+        return float(lags[int(np.argmax(r))] * TICK)
+
+    assert np.ptp(bored[settled]) > 3 * np.ptp(alert[settled]) > 0  # the bored example sways further
+    assert period(alert) == pytest.approx(2.0, rel=0.15) and period(bored) == pytest.approx(4.0, rel=0.15)
+    assert period(half) == pytest.approx(3.0, rel=0.15)  # 50:50 lasts the mean of 2 s and 4 s
+
+
+def test_an_adverb_takes_exactly_one_source(tmp_path):
+    with pytest.raises(ConfigError, match="exactly one of drive, percept or value"):
+        session_of(tmp_path, ADVERB.format(level=0.0, source='drive = "boredom"\nvalue = 0.5'))
+    with pytest.raises(ConfigError, match="'adverb_model' percept"):
+        session_of(tmp_path, ADVERB.format(level=0.0, source='percept = "heard"'))
+
+
+# -- simple shaping ----------------------------------------------------------------------------
+SHAPED = """
+[creature.drives.boredom]
+level = 0.0
+
+[creature.percepts."beg height"]
+type = "adverb_model"
+prior_mean = 0.1
+
+[creature.tuples.beg]
+until = { seconds = 1.0 }
+
+[creature.tuples.beg.action]
+type = "adverb"
+percept = "beg height"
+fade = 0.2
+examples = [
+    { at = 0.0, seconds = 1.0, keys = [{ "neck.x" = 0.0 }] },
+    { at = 1.0, seconds = 1.0, keys = [{ "neck.x" = 40.0 }] },
+]
+
+[creature.tuples.sit]
+action = "rest"
+until = { seconds = 0.5 }
+value = 0.01
+
+[creature.groups.training]
+tuples = ["beg", "sit"]
+alpha = 0.0
+"""
+
+
+def test_rewarding_high_begs_shapes_the_adverb_higher_within_40_rewards(tmp_path):
+    session = session_of(tmp_path, SHAPED)
+    bird = session.creatures[1]
+    beg, model = bird.tuples["beg"], bird.percepts["beg height"]
+    start_mean, rewards, t, judged = model.model.mean, 0, 0.0, None
+    low, high = model.low, model.high
+    neck = bird.body.skeleton.index("neck")
+    heights = []  # (sampled ĥ, how far the neck rose)
+    while rewards < 40 and t < 400.0:
+        run(session, t + 0.5, t)
+        t += 0.5
+        if beg.active and beg.started_at != judged:
+            judged = beg.started_at
+            heights.append((beg.action.sampled, quat.angle_between(bird.body.pose.rotations[neck], quat.identity())))
+            if beg.action.sampled > model.model.mean:  # the trainer clicks for a beg above its usual
+                bird.reward(1.0, t, 0.5, 0.1)
+                rewards += 1
+    assert rewards <= 40
+    assert model.model.mean - start_mean >= 0.5 * (high - low)
+    sampled, raised = np.array(heights).T
+    assert np.corrcoef(sampled, raised)[0, 1] > 0.9  # the body shows what was sampled: higher ĥ, higher beg
+    # The model survives a save and reload.
+    state = bird.state()
+    again = session_of(tmp_path / "again", SHAPED).creatures[1]
+    again.restore(state)
+    assert again.percepts["beg height"].model.mean == model.model.mean
+
+
+# -- oscillators and servos over joints and voice parameters -------------------------------
+def test_an_oscillator_swings_the_voice_gain_and_a_servo_follows_a_percept_until_it_gives_up(tmp_path):
+    extra = """
+[creature.drives.rising]
+growth = {growth}
+
+[creature.percepts.rising]
+type = "drive"
+drive = "rising"
+scale = "level"
+
+[creature.tuples.swell]
+action = {{ type = "oscillate", variables = {{ "voice.gain" = 0.5 }}, period = 1.0, fade = 0.0 }}
+until = {{ seconds = 30.0 }}
+
+[creature.tuples.follow]
+until = {{ seconds = 30.0, done = true }}
+
+[creature.tuples.follow.action]
+type = "servo"
+variables = {{ "neck.x" = [0.0, 40.0] }}
+percept = "rising"
+speed = 20.0
+tolerance = 1.0
+patience = 1.0
+
+[creature.groups.skills]
+tuples = ["swell", "follow"]
+max_active = 2
+alpha = 0.0
+"""
+    session = session_of(tmp_path, extra.format(growth=0.1))  # 4° a second: the servo keeps up
+    bird = session.creatures[1]
+    gains = []
+    run(session, 6.0, each=lambda t: gains.append((t, bird.voice_parameters().resolve(t)[0])))
+    times, gain = np.array(gains).T
+    started = bird.tuples["swell"].started_at
+    assert np.allclose(gain[times > started], 1.0 + 0.5 * np.sin(2 * np.pi * (times[times > started] - started)))
+    assert bird.tuples["follow"].active and "follow" in bird.body.layers.blend
+    neck = bird.body.layers.blend.channel_contributors(6.0)[bird.body.skeleton.index("neck")]
+    assert neck == {"course": 1.0, "follow": 1.0}
+    # The voice really is scaled: each block sounds at voice.gain, ramped from the last block's.
+    bird.voice = type("Steady", (), {"render": lambda self, o, t: o.fill(1.0)})()
+    out = np.zeros(100)
+    bird.sound(out, 22050)
+    now = bird.voice_parameters().resolve(session.clock.now())[0]
+    assert out[-1] == pytest.approx(now) and now != pytest.approx(1.0, abs=0.05)
+    bird.sound(out, 22050)
+    assert np.allclose(out, now)  # the same time again: a steady block
+    # A drive rising at 1 a second asks 40° a second of a servo of 20°: it lags, and after 1 s gives up.
+    session = session_of(tmp_path / "fast", extra.format(growth=1.0))
+    bird = session.creatures[1]
+    follow = bird.tuples["follow"]
+    starts = []
+    run(session, 3.0, each=lambda t: starts.append(follow.started_at) if follow.started_at not in starts else None)
+    assert 1.0 < starts[1] < 1.5  # off target for its patience (1 s) on end: done (and the group starts it again)
+
+
+# -- the shipped piece -------------------------------------------------------------------------
+def test_the_shipped_exchange_looks_at_whom_it_hears_and_wanders_in_a_bored_manner():
+    import installations
+    from creatures.authored.skills import heard_bearing
+
+    inst = load_installation(installations.path("exchange"))
+    session = Session(inst, SimulatedClock(), EventLog(keep_in_memory=0), MemorySink())
+    for k in range(8):
+        session.world.inject(NoteEvent(0.5 + 0.4 * k, 60 + 2 * k, 90, 0, 0.3))  # a player, heard by ada
+    creatures = {c.name: c for c in session.creatures}
+    looked, manners = {name: [] for name in creatures}, {name: [] for name in creatures}
+    tick = inst.settings.tick
+
+    def each(t: float) -> None:
+        for name, c in creatures.items():
+            look = c.tuples["look"]
+            if look.active and look.action.servo.reached:  # settled on its source
+                looked[name].append((np.sign(heard_bearing(c)), np.sign(look.action.offsets.degrees.sum())))
+            if c.tuples["bored manner"].active and c.tuples["wander"].active:
+                manners[name].append(c.tuples["bored manner"].action.adverb)
+
+    for step in range(1, int(30.0 / tick) + 1):
+        t = step * tick
+        session.clock.advance_to(t)
+        session.step(t, 1, None, audio=False)
+        each(t)
+    for name in creatures:
+        assert looked[name], f"{name} never looked at anyone"
+        assert all(want == turned != 0 for want, turned in looked[name])  # toward whom it heard
+        assert manners[name]  # the bored manner layered over the wander
+    assert {s for s, _ in looked["bo"]} == {-1.0, 1.0}  # bo, in the middle, turns to ada and to cy
