@@ -23,21 +23,25 @@ import ctypes
 import numpy as np
 from OpenGL import GL
 
-VERTEX_SHADER = """
+INSTANCE_INPUTS = """
 #version 330 core
 layout(location = 0) in vec3 position;
-layout(location = 1) in vec3 normal;
 layout(location = 2) in mat4 inst_m;
 layout(location = 6) in vec3 inst_base;
 layout(location = 7) in vec3 inst_emissive;
 layout(location = 8) in vec2 inst_roughness_metallic;
 uniform mat4 V;
 uniform mat4 P;
-out vec3 frag_position;
-out vec3 frag_normal;
 flat out vec3 base_color;
 flat out vec3 emissive;
 flat out vec2 roughness_metallic;
+"""
+"""What both vertex shaders read of an instance (its row, :data:`ROW`) and pass on flat."""
+
+VERTEX_SHADER = INSTANCE_INPUTS + """
+layout(location = 1) in vec3 normal;
+out vec3 frag_position;
+out vec3 frag_normal;
 void main()
 {
     gl_Position = P * V * inst_m * vec4(position, 1);
@@ -52,22 +56,11 @@ void main()
 }
 """
 
-SPHERE_VERTEX_SHADER = """
-#version 330 core
-layout(location = 0) in vec3 position;
-layout(location = 2) in mat4 inst_m;
-layout(location = 6) in vec3 inst_base;
-layout(location = 7) in vec3 inst_emissive;
-layout(location = 8) in vec2 inst_roughness_metallic;
-uniform mat4 V;
-uniform mat4 P;
+SPHERE_VERTEX_SHADER = INSTANCE_INPUTS + """
 uniform vec3 cam_pos;
 out vec3 frag_position;
 flat out vec3 centre;
 flat out float radius;
-flat out vec3 base_color;
-flat out vec3 emissive;
-flat out vec2 roughness_metallic;
 void main()
 {
     // A square facing the camera through the sphere's centre, wide enough to hold its outline
