@@ -337,12 +337,13 @@ def _inspect(args: argparse.Namespace) -> int:
 
 
 def _view_options(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("run_dir", type=Path, metavar="RUN", help="an offline run's output directory (its events.jsonl)")
+    parser.add_argument("run_dir", type=Path, metavar="RUN", help="a run's output directory (its events.jsonl) or events log "
+                        "(a live run's --log)")
     parser.add_argument("--port", type=_port, default=DEFAULT_VIEW_PORT, help="serve on http://127.0.0.1:PORT/")
     parser.add_argument("--speed", type=_seconds(1000.0, "a speed"), default=1.0, help="replay speed (× real time)")
 
 
-@command("view", "replay an offline run's bodies, notes and drives in the browser (Ctrl-C stops)", _view_options)
+@command("view", "replay a run's bodies, notes and drives in the browser (Ctrl-C stops)", _view_options)
 def _view(args: argparse.Namespace) -> int:
     import time
 
@@ -364,7 +365,8 @@ def _view(args: argparse.Namespace) -> int:
 
 
 def _render_options(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("run_dir", type=Path, metavar="RUN", help="an offline run's output directory (its events.jsonl)")
+    parser.add_argument("run_dir", type=Path, metavar="RUN", help="a run's output directory (its events.jsonl) or events log "
+                        "(a live run's --log)")
     parser.add_argument("--out", type=Path, help="where frames/ and out.mp4 go (default: RUN/render)")
     parser.add_argument("--width", type=_integer(16, 3840, "a width"), default=640, help="pixels (16…3840)")
     parser.add_argument("--height", type=_integer(16, 2160, "a height"), default=480, help="pixels (16…2160)")
@@ -385,7 +387,7 @@ def _render(args: argparse.Namespace) -> int:
     from creatures.body.render import RenderUnavailable
     from creatures.view.rerender import parse_orbit, render_run
 
-    out = args.out or args.run_dir / "render"
+    out = args.out or (args.run_dir if args.run_dir.is_dir() else args.run_dir.parent) / "render"
     if args.lines:
         return _render_lines(args, out)
     try:

@@ -24,6 +24,7 @@ from creatures.runtime.offline import run_offline
 from creatures.runtime.schema import load_installation
 from creatures.runtime.session import Session
 from creatures.runtime.stream_sinks import MemoryStreamSink, OscStreamSink, read_stream
+from creatures.view.rerender import load_replay
 from midi.sinks import MemorySink
 from colony_fixtures import creature_tables
 
@@ -254,3 +255,20 @@ def test_liblo_reads_the_stream(tmp_path):
     frame = next(f for f in memory.frames if abs(f.time - float(pose[2])) < 1e-9)
     np.testing.assert_allclose(np.array(pose[3:], float).reshape(-1, 3), frame.poses[1].positions, atol=1e-5)
     assert any(m[:2] == ["/body/ada/action", "s"] for m in messages)
+
+
+def test_a_live_run_logs_poses_to_replay_and_render(tmp_path):
+    """A live run with --log writes its bodies as an offline run does (skeletons, then poses at
+    [view] log_fps), so `creatures view` and `creatures render` replay it: 2 s at 20 poses a
+    second are ~41 frames, each with both bodies, and the bodies moved."""
+    config = tmp_path / "live.toml"
+    config.write_text("realtime = false\n" + COLONY + "[audio]\noutput = false\n[view]\nlog_fps = 20\n")
+    log = tmp_path / "events.jsonl"
+    live.run_live(load_installation(config), duration=2.0, log_path=log, say=lambda m: None)
+    played = load_replay(tmp_path)
+    assert [c["name"] for c in played.hello["creatures"]] == ["ada", "bo"]
+    bodied = [f for f in played.frames if set(f["bodies"]) == {"ada", "bo"}]
+    assert 36 <= len(bodied) <= 44, len(bodied)
+    times = np.array([f["t"] for f in bodied])
+    assert np.median(np.diff(times)) == pytest.approx(0.05, abs=0.01)
+    assert np.abs(bodied[-1]["bodies"]["ada"] - bodied[0]["bodies"]["ada"]).max() > 1e-3

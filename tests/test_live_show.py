@@ -17,6 +17,7 @@ import json
 import os
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -186,3 +187,61 @@ def test_a_live_run_with_frames_on_keeps_its_sound_whole_and_publishes_out_mid(t
     heard_bpm = [e["bpm"] for e in events if e["kind"] == "tempo"]
     assert heard_bpm and tempos[0] == 120 and tempos[-1] == pytest.approx(heard_bpm[-1], abs=0.01), (tempos, heard_bpm)
     assert "wrote " in output and "out.mid" in output
+
+
+def _watch_the_view(port: int, frames: list[dict], stop: threading.Event) -> None:
+    """A browser's part, as a websocket client: read the live view's messages until told to stop."""
+    import asyncio
+
+    import aiohttp
+
+    async def watch() -> None:
+        async with aiohttp.ClientSession() as session:
+            for _ in range(600):  # the run starts its view after loading: retry until it answers
+                try:
+                    socket = await session.ws_connect(f"http://127.0.0.1:{port}/ws")
+                    break
+                except aiohttp.ClientError:
+                    await asyncio.sleep(0.2)
+            else:
+                return
+            async with socket:
+                while not stop.is_set():
+                    try:
+                        message = await socket.receive(timeout=1.0)
+                    except asyncio.TimeoutError:
+                        continue
+                    if message.type != aiohttp.WSMsgType.TEXT:
+                        return
+                    frames.append(json.loads(message.data))
+
+    asyncio.run(watch())
+
+
+@pytest.mark.jack
+@pytest.mark.slow
+def test_a_live_run_with_the_view_on_keeps_its_sound_whole(tmp_path):
+    """The live view served (`[view] port`) and watched by a websocket client all the run,
+    frames drawn as well, beside the mix on JACK: no underrun and no gap after the first
+    second, and the client received the colony's frames."""
+    import threading
+
+    reason = missing_parts()
+    if reason:
+        pytest.skip(reason)
+    port, view = free_udp_port(), free_udp_port()
+    config = tmp_path / "view.toml"
+    config.write_text(f'extends = "{installations.path("exchange")}"\n[osc]\nport = {port}\n'
+                      f'[output]\nfps = 30\n[view]\nport = {view}\n')
+    received: list[dict] = []
+    stop = threading.Event()
+    watcher = threading.Thread(target=_watch_the_view, args=(view, received, stop), daemon=True)
+    watcher.start()
+    try:
+        output, events, _, _, _ = run_colony(tmp_path, str(config), port, 15.0, 20)
+    finally:
+        stop.set()
+        watcher.join(timeout=10)
+    assert_sound_and_frames(events, output, tmp_path / "frames", int(0.5 * 30 * 15.0))
+    shown = [m for m in received if m.get("type") == "frame"]
+    assert len(shown) > 100 and {"ada", "bo", "cy"} <= set(shown[-1]["bodies"]), len(shown)

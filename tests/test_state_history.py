@@ -3,9 +3,11 @@ creatures/runtime/repertoire.py), on the tutorial heron, which keeps every phras
 
 from __future__ import annotations
 
+import json
 from datetime import datetime, timedelta, timezone
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from creatures.clock import SimulatedClock
@@ -128,3 +130,45 @@ def test_a_live_run_takes_a_dated_snapshot_of_what_it_saved(tmp_path: Path) -> N
     assert len(taken) == 1  # due at once, then not again for a day
     assert abs((taken[0][0] - datetime.now(timezone.utc)).total_seconds()) < 600
     assert repertoire.read_creatures(taken[0][1]).keys() == {"ada"}
+
+
+def test_three_creatures_merge_their_remembered_sounds(tmp_path: Path) -> None:
+    """A three_creatures creature's repertoire is its remembered sounds: merging one whose
+    memory holds a sound the other lacks appends it after the target's own, and the target
+    restores with both (its own first); the same merge again adds nothing."""
+    import installations
+
+    inst = load_installation(installations.path("three_creatures"))
+    session = Session(inst, SimulatedClock(), EventLog(keep_in_memory=0), MemorySink())
+    name = session.creatures[0].name
+    one, two = tmp_path / "one", tmp_path / "two"
+    session.save_state(one)
+    session.save_state(two)
+    from creatures.kinds.hearing_parts import pack_samples
+
+    for folder, origin, hz in ((one, "heard in the other room", 440.0), (two, "heard here", 330.0)):
+        path = folder / f"{name}.json"
+        document = json.loads(path.read_text())
+        tone = 0.5 * np.sin(2 * np.pi * hz * np.arange(8000) / 16000.0)
+        document["state"]["memory"] = [{"samples": pack_samples(tone.astype(np.float32)), "samplerate": 16000,
+                                        "time": 12.5, "origin": origin}]  # one sound each
+        path.write_text(json.dumps(document))
+    added = repertoire.merge(one, name, two, name)
+    assert len(added) == 1 and "heard in the other room" in added[0]
+    assert repertoire.merge(one, name, two, name) == []
+    restored = Session(inst, SimulatedClock(), EventLog(keep_in_memory=0), MemorySink())
+    restored.load_state(two)
+    creature = next(c for c in restored.creatures if c.name == name)
+    assert [m.origin for m in creature.memory] == ["heard here", "heard in the other room"]
+
+
+def test_a_kind_without_a_repertoire_merge_says_why(tmp_path: Path) -> None:
+    import installations
+
+    inst = load_installation(installations.path("ozymandias"))
+    session = Session(inst, SimulatedClock(), EventLog(keep_in_memory=0), MemorySink())
+    name = session.creatures[0].name
+    session.save_state(tmp_path / "a")
+    session.save_state(tmp_path / "b")
+    with pytest.raises(StateFileError, match="percept tree clusters"):
+        repertoire.merge(tmp_path / "a", name, tmp_path / "b", name)

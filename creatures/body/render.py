@@ -198,10 +198,11 @@ class BodyRenderer:
         self.width, self.height = width, height
         self.joint_radius, self.bone_radius = joint_radius, bone_radius
         self.body_colour, self.background = np.array(body_colour), np.array(background)
-        meshes = [trimesh.creation.icosphere(subdivisions=2, radius=1.0),
-                  trimesh.creation.cylinder(radius=1.0, height=1.0, sections=16)]
+        cylinder = trimesh.creation.cylinder(radius=1.0, height=1.0, sections=16)
         try:
-            self._meshes = gl.InstancedMeshes(width, height, [(m.vertices, m.vertex_normals, m.faces) for m in meshes],
+            self._meshes = gl.InstancedMeshes(width, height, [gl.SQUARE, (cylinder.vertices, cylinder.vertex_normals,
+                                                                          cylinder.faces)],
+                                              spheres=frozenset({self.SPHERE}),
                                               framebuffer=self._context.supports_framebuffers())
         except Exception as exc:  # a context without GL 3.3 core, or a driver refusing the shaders
             _release(self._context)

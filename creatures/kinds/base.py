@@ -151,7 +151,11 @@ class CreatureKind(ABC):
     def effector(self) -> np.ndarray | None:
         """World position ``(3,)`` of the body's (first) end-effector, as drawn by
         :meth:`figure`, or None for no body: what ``[[output.cc]]`` body features read."""
-        figure, body = self.figure(), getattr(self, "body", None)
+        return self.effector_of(self.figure())
+
+    def effector_of(self, figure: tuple[np.ndarray, np.ndarray] | None) -> np.ndarray | None:
+        """:meth:`effector` from a figure already drawn (the body stream's snapshot has one)."""
+        body = getattr(self, "body", None)
         if figure is None or body is None or not body.skeleton.end_effectors:
             return None
         return figure[0][body.skeleton.index(body.skeleton.end_effectors[0])]

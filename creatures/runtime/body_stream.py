@@ -134,7 +134,7 @@ def snapshot(creature: "CreatureKind") -> Pose:
             rotations = np.array(rotations, dtype=float)
         else:
             rotations = None
-        found = creature.effector()
+        found = creature.effector_of(figure)
         effector = None if found is None else np.array(found, dtype=float)
     marks = tuple((float(p[0]), float(p[1]), float(p[2]), int(pitch))
                   for p, pitch in creature.marks()[:MARKS_PER_FRAME])

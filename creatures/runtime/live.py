@@ -54,6 +54,7 @@ from creatures.runtime.snapshots import Snapshotter
 from creatures.runtime import kernels
 from creatures.runtime.ticking import TickLoop, TickTiming, gil_handover, realtime, setup_kept
 from creatures.supervisor import Supervisor
+from creatures.view.poses import PoseLog
 from midi.notes import NoteEvent
 from midi.ports import MidoInputs, MidoOutputs, PortFactory, ResilientPort
 from midi.sinks import MemorySink, PortSink
@@ -397,6 +398,10 @@ def run_live(
     session.world.emit("run", title=settings.title, mode="live", seed=settings.seed,
                        creatures=[c.name for c in session.creatures], restored=summary.restored,
                        config=str(inst.path))
+    # Poses into the events log as an offline run writes them, so `creatures view` and `creatures
+    # render` replay a live run too (bounded by POSE_BUDGET): at log_fps the tick rounds each body's
+    # joints into an event; the supervisor's thread writes the log, never the tick.
+    poses = PoseLog(settings.view.log_fps, session.world, say) if log_path and settings.view.log_fps else None
     bodies = None
     if pictures is not None:
         bodies = FramesBeside(settings.output, pictures, wall, summary.messages)
@@ -474,6 +479,8 @@ def run_live(
                 bodies.draw(session.creatures)
             if feed is not None:
                 feed.offer()
+            if poses is not None:
+                poses.write()
             if state_dir is not None and t >= next_save:
                 saver.save(session, t - start)
                 next_save += settings.save_every

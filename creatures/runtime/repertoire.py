@@ -153,7 +153,9 @@ def merge(source: Path, name: str, target: Path, into: str) -> list[str]:
     if src.get("kind") != kind:
         raise StateFileError(f"cannot merge {name!r} ({src.get('kind')}) into {into!r} ({kind}): different kinds")
     if kind not in MERGERS:
-        raise StateFileError(f"kind {kind!r} has no repertoire merge (kinds that have: {', '.join(sorted(MERGERS))})")
+        why = UNMERGED.get(kind, "its saved state is not a repertoire this command knows")
+        raise StateFileError(f"kind {kind!r} has no repertoire merge: {why} (kinds that merge: "
+                             f"{', '.join(sorted(MERGERS))})")
     state, added = MERGERS[kind](src["state"], dst["state"])
     text = json_text({"kind": kind, "state": state}, kind=STATE_KIND)
     with FolderLock(target, "state folder"):
@@ -186,5 +188,33 @@ def _merge_authored(src: dict[str, Any], dst: dict[str, Any]) -> tuple[dict[str,
     return merged, added
 
 
-MERGERS = {"authored": _merge_authored}
+def _merge_memories(src: dict[str, Any], dst: dict[str, Any]) -> tuple[dict[str, Any], list[str]]:
+    """A three_creatures creature's remembered sounds (its learned phrases, thesis *three
+    creatures*: the sounds it imitates): the source's sounds the target lacks are appended after
+    the target's own; its ``memory_size`` keeps the first ones when it restores, so what the
+    target knew stays before anything merged."""
+    merged = json.loads(json.dumps(dst))
+    memory = merged.setdefault("memory", [])
+    added = []
+    for sound in src.get("memory", []):
+        if sound not in memory:
+            memory.append(sound)
+            added.append(f"sound {len(memory) - 1} (from {sound.get('origin', '?')}, "
+                         f"{len(str(sound.get('samples', '')))} characters of samples)")
+    return merged, added
+
+
+MERGERS = {"authored": _merge_authored, "three_creatures": _merge_memories}
 """Kinds whose repertoire can be merged, and how."""
+
+UNMERGED = {
+    "curve": "it learns tuple values only (no percepts, phrases or motor material to carry)",
+    "duncan": "it learns tuple values and one begging strength only (no phrases or motor material)",
+    "sandstone": "its state is the song it is singing now and a running average of what it heard, not "
+                 "a repertoire",
+    "ozymandias": "its percept tree clusters its own utterances (members, radius, children); two trees "
+                  "merge only by clustering again, which a saved-state edit cannot do",
+    "listen": "its phrase population and pose models are fitted statistics of its own hearing; adding "
+              "another's would need refitting, not a union",
+}
+"""Kinds with no repertoire merge, and why (said when a merge of one is refused)."""

@@ -298,9 +298,10 @@ class ViewSection(Strict):
     fps: float = Field(30.0, ge=1.0, le=60.0, description="snapshots a second the live view takes from the "
                                                           "colony (bodies, notes, drives); more wait in a "
                                                           "bounded queue, beyond it they are dropped and counted")
-    log_fps: float = Field(10.0, ge=0.0, le=60.0, description="body poses a second an offline run writes into "
-                                                              "events.jsonl (`pose` events) for replay and "
-                                                              "re-rendering; 0 = none")
+    log_fps: float = Field(10.0, ge=0.0, le=60.0, description="body poses a second a run writes into its "
+                                                              "events log (offline: events.jsonl; live: --log) "
+                                                              "as `pose` events, for replay and re-rendering; "
+                                                              "0 = none")
 
 
 class Installation(Strict):
