@@ -95,6 +95,8 @@ def _aural_model(path: str | None) -> str | None:
 
 
 SeedModel = Annotated[str | None, AfterValidator(_aural_model)]
+AuralModelFile = Annotated[str, AfterValidator(_aural_model)]
+"""A required key naming an aural model (as :data:`SeedModel`, never absent)."""
 """A config key naming an aural model (:func:`audio.utterance.save_aural_model`'s JSON,
 absolute or relative to the working directory) to seed a creature with: "persistent aural
 models … offer an ability to seed the creatures with musical material" (soundcreatures)."""

@@ -34,9 +34,15 @@ Design:
   computer knows when they sing) — are remembered whatever the creature's interest.
   ``seed_model`` (an aural model saved by :func:`audio.utterance.save_aural_model`) fills
   the memory at the start: the pre-selected samples.
+* **The score** (``[[creature.score]]``, :class:`ScoreFlush`): "their memories were
+  periodically flushed with pre-selected samples by an external 'score providing' computer".
+  At ``at`` seconds the oldest ``slots`` memories are replaced by the first ``slots`` samples
+  of an aural model (origin ``score``), whatever the creature's interest: the score computer
+  decides what the creatures have to sing, the input only what moves them to sing it.
 
 Events: ``sound`` (heard: span, familiarity, remembered), ``selection`` (``remember`` /
-``ignore`` / ``sing``), ``sing`` (span and the memory's origin), ``flush``, and every
+``ignore`` / ``sing``), ``sing`` (span and the memory's origin), ``flush`` (with the memory
+after it: each sound's origin and the time it was heard), and every
 ``REPORT_EVERY`` s ``values`` (each memory's correlation with the latest sound),
 ``motivation`` and ``percepts`` (memory size by origin).
 """
@@ -49,15 +55,15 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import librosa
 import numpy as np
-from pydantic import Field, field_validator
+from pydantic import BaseModel, Field, field_validator
 
 from audio.utterance import Utterance, load_aural_model
 from creatures.behaviour.motivation import Motivation
 from creatures.kinds import register
 from creatures import bounds
-from creatures.bounds import LARGEST_RATE, LONGEST_SECONDS, Seconds
+from creatures.bounds import FINITE, LARGEST_RATE, LONGEST_SECONDS, Seconds
 from creatures.kinds.base import CreatureKind, CreatureSpec
-from creatures.kinds.hearing_parts import Ear, HearingSpec, Mouth, MouthSpec, SeedModel, pack_samples, utterance_from_state
+from creatures.kinds.hearing_parts import AuralModelFile, Ear, HearingSpec, Mouth, MouthSpec, SeedModel, pack_samples, utterance_from_state
 
 if TYPE_CHECKING:
     from creatures.runtime.world import World
@@ -106,11 +112,24 @@ class Memory:
 
     utterance: Utterance
     profile: np.ndarray
-    origin: str  # "seed", "heard" or "flush"
+    origin: str  # "seed", "heard", "flush" or "score"
 
 
 MOST_MEMORIES = 256
 """Most sounds a creature may remember (``memory_size``), and read back from a saved state."""
+
+
+class ScoreFlush(BaseModel):
+    """One of the score computer's flushes: at ``at`` s, ``slots`` memories become the first
+    ``slots`` samples of ``model`` (thesis, "three creatures (performance)": "pre-selected
+    samples by an external 'score providing' computer")."""
+
+    model_config = FINITE
+    at: Seconds = Field(description="clock time of the flush, s")
+    model: AuralModelFile = Field(description="aural model (save_aural_model JSON; absolute or relative to the "
+                                         "working directory) holding the pre-selected samples")
+    slots: int = Field(1, ge=1, le=MOST_MEMORIES, description="memory slots flushed (the oldest memories "
+                                                              "give way); at most the model's samples are used")
 
 
 class ThreeCreaturesSpec(CreatureSpec):
@@ -129,8 +148,20 @@ class ThreeCreaturesSpec(CreatureSpec):
                                                    "exp(in_kind × correlation with the sound just heard)")
     latency: tuple[Seconds, Seconds] = Field((0.3, 1.5), description="range of seconds between being moved "
                                                                   "to sing and singing")
+    score: list[ScoreFlush] = Field([], max_length=10_000, description="the score computer's pre-selected "
+                                    "flushes, in time order ([[creature.score]]: `at` s, `model` an aural "
+                                    "model file, `slots` memories replaced by its first samples, default 1)")
     hearing: HearingSpec = HearingSpec(hold=0.05)
     mouth: MouthSpec = MouthSpec()
+
+    @field_validator("score")
+    @classmethod
+    def _in_order(cls, score: list[ScoreFlush]) -> list[ScoreFlush]:
+        for i in range(1, len(score)):
+            if score[i].at <= score[i - 1].at:
+                raise ValueError(f"score times must increase: flush {i} at {score[i].at} s "
+                                 f"is not after flush {i - 1} at {score[i - 1].at} s")
+        return score
 
     @field_validator("latency")
     @classmethod
@@ -162,6 +193,10 @@ class ThreeCreature(CreatureKind):
         if spec.seed_model is not None:
             for u in load_aural_model(spec.seed_model).members[: spec.memory_size]:
                 self.memory.append(Memory(u, profile(u.samples, u.samplerate), "seed"))
+        # The score's samples, profiled once (each flush of one model sings the same samples).
+        self._score = [(f.at, [Memory(u, profile(u.samples, u.samplerate), "score")
+                               for u in load_aural_model(f.model).members[: min(f.slots, spec.memory_size)]])
+                       for f in spec.score]
 
     @property
     def _profiles(self) -> np.ndarray:
@@ -206,6 +241,8 @@ class ThreeCreature(CreatureKind):
         if t >= self._next_flush:
             self._next_flush = t + self.spec.flush_every
             self._flush(t)
+        while self._score and t >= self._score[0][0]:
+            self._scored(t, self._score.pop(0)[1])
         if self.memory and self._sing_at == np.inf and self.motivation.level("urge") >= 1.0:
             self._sing_at = t + self.rng.uniform(*self.spec.latency)
         if t >= self._sing_at and not self.mouth.sounding(t):
@@ -220,7 +257,18 @@ class ThreeCreature(CreatureKind):
         for u in fresh:
             self._remember(Memory(u, profile(u.samples, u.samplerate), "flush"))
         self.score = []
-        self.world.emit("flush", creature=self.name, sounds=len(fresh), heard_at=[u.time for u in fresh])
+        self._emit_flush(fresh, "input")
+
+    def _scored(self, t: float, samples: list[Memory]) -> None:
+        """The score computer's flush: the oldest memories give way to ``samples``."""
+        keep = self.spec.memory_size - len(samples)
+        self.memory = [*(self.memory[len(self.memory) - keep:] if keep > 0 else []), *samples]
+        self._emit_flush([m.utterance for m in samples], "score")
+
+    def _emit_flush(self, sounds: list[Utterance], source: str) -> None:
+        self.world.emit("flush", creature=self.name, source=source, sounds=len(sounds),
+                        heard_at=[u.time for u in sounds],
+                        memory=[[m.origin, m.utterance.time] for m in self.memory])
 
     def _sing(self, t: float) -> None:
         """Sing a memory: those like what was just heard are favoured (answering in kind),
@@ -243,7 +291,7 @@ class ThreeCreature(CreatureKind):
         log.emit(t, "motivation", creature=self.name,
                  drives=dict(zip(self.motivation.names, self.motivation.levels_at(t).tolist())))
         origins = [m.origin for m in self.memory]
-        log.emit(t, "percepts", creature=self.name, sizes={o: origins.count(o) for o in ("seed", "heard", "flush")})
+        log.emit(t, "percepts", creature=self.name, sizes={o: origins.count(o) for o in ("seed", "heard", "flush", "score")})
 
     def sound(self, out: np.ndarray, sample_rate: int) -> None:
         self.mouth.render(out, sample_rate)

@@ -1,0 +1,125 @@
+"""three creatures' score computer: "their memories were periodically flushed with
+pre-selected samples by an external 'score providing' computer" (thesis, "three creatures
+(performance)"). At each scripted time the memory holds the score's samples, and what the
+creatures sing afterwards is those samples."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import soundfile
+
+from audio.cepstrum import cepstra
+from audio.formants import word
+from audio.utterance import Utterance, UtterancePercept, save_aural_model
+from audio_fixtures import SR, warm_librosa  # noqa: F401
+from creatures.config import ConfigError
+from creatures.events import read_events
+from creatures.runtime.offline import run_offline
+from creatures.runtime.schema import load_installation
+from test_kind_three import performance
+
+pytestmark = pytest.mark.usefixtures("warm_librosa")
+
+FIRST, SECOND = 10.0, 22.0  # the scripted flushes' times
+SLOTS = 4
+
+CONFIG = """\
+title = "three creatures score test"
+seed = 2
+tick = 0.02
+duration = 34.0
+[audio]
+sample_rate = 22050
+air = true
+[output]
+report = false
+[[creature]]
+name = "a"
+kind = "three_creatures"
+pan = -1.0
+memory_size = {slots}
+flush_size = 0                # no flushes from the input: only the score's
+urge_gain = 2.5               # every sound heard moves it to sing
+interest_growth = 0.0         # interest, once spent, stays spent: nothing heard after
+interest_cost = 1.0           # the first sound is remembered, so songs after a flush are the score's
+[[creature.score]]
+at = {first}
+model = "{a}"
+slots = {slots}
+[[creature.score]]
+at = {second}
+model = "{b}"
+slots = {slots}
+"""
+
+
+def model(path: Path, vowel: str, first_time: float, rng: np.random.Generator) -> set[float]:
+    """Save an aural model of ``SLOTS`` ``vowel`` words heard at ``first_time`` + k; their times."""
+    tree = UtterancePercept()
+    for k in range(SLOTS):
+        w = word(vowel, rng, SR, stretch=rng.uniform(0.9, 1.1), rms=0.05).astype(np.float32)
+        tree.members.append(Utterance(w, SR, cepstra(w, SR), first_time + k))
+    save_aural_model(tree, path)
+    return {first_time + k for k in range(SLOTS)}
+
+
+@pytest.fixture(scope="module")
+def scored(tmp_path_factory) -> tuple[Path, list[dict], set[float], set[float]]:
+    base = tmp_path_factory.mktemp("score")
+    rng = np.random.default_rng(5)
+    a, b = model(base / "a.json", "oe", 1000.0, rng), model(base / "b.json", "ieu", 2000.0, rng)
+    soundfile.write(base / "performer.wav", performance(rng, 34.0), SR, subtype="FLOAT")
+    (base / "score.toml").write_text(CONFIG.format(slots=SLOTS, first=FIRST, second=SECOND,
+                                                   a=base / "a.json", b=base / "b.json"))
+    run_offline(load_installation(base / "score.toml"), base / "out", audio=base / "performer.wav")
+    return base, read_events(base / "out" / "events.jsonl"), a, b
+
+
+def test_the_memory_holds_the_scores_samples_right_after_each_flush(scored):
+    _, events, a, b = scored
+    flushes = [e for e in events if e["kind"] == "flush" and e["source"] == "score"]
+    assert [round(e["t"], 1) for e in flushes] == [FIRST, SECOND]
+    for flush, samples in zip(flushes, (a, b)):
+        assert {origin for origin, _ in flush["memory"]} == {"score"}
+        assert {time for _, time in flush["memory"]} == samples
+    before = [e for e in events if e["kind"] == "percepts" and e["t"] < FIRST - 1]
+    assert before and before[-1]["sizes"]["score"] == 0 and before[-1]["sizes"]["heard"] == 1
+
+
+def test_what_is_sung_after_a_flush_comes_from_it(scored):
+    """Until the creature next remembers a sound it hears (its spent interest still takes in
+    a sound less familiar than nothing: a negative correlation), it sings only the score's
+    samples; after that, only the score's samples and that sound."""
+    _, events, a, b = scored
+    songs = [e for e in events if e["kind"] == "sing"]
+    remembered = [e["end"] for e in events if e["kind"] == "sound" and e["remembered"]]
+    assert not any(e["origin"] == "score" for e in songs if e["start"] < FIRST)
+    for start, end, samples in ((FIRST, SECOND, a), (SECOND, np.inf, b)):
+        later = [r for r in remembered if start <= r < end]
+        until = min([*later, end])
+        pure = [e for e in songs if start <= e["start"] < until]
+        assert len(pure) >= 2, "the performer moves the creature to sing"
+        assert all(e["origin"] == "score" and e["heard_at"] in samples for e in pure)
+        rest = [e for e in songs if until <= e["start"] < end]
+        assert all(e["heard_at"] in {*samples, *later} for e in rest)
+
+
+@pytest.mark.parametrize("edit, message", [
+    (("at = 22.0", "at = 5.0"), r"score\.toml:\d+.*creature\.0\.score.*times must increase"),
+    (("at = 10.0", "at = -1.0"), r"score\.toml:\d+.*creature\.0\.score\.0\.at"),
+    (("b.json", "nowhere.json"), r"score\.toml:\d+.*creature\.0\.score\.1\.model.*file not found"),
+])
+def test_a_bad_score_is_a_config_error_with_file_and_line(scored, tmp_path, edit, message):
+    base = scored[0]
+    config = tmp_path / "score.toml"
+    config.write_text((base / "score.toml").read_text().replace(*edit))
+    with pytest.raises(ConfigError, match=message):
+        load_installation(config)
+    run = subprocess.run([sys.executable, "-m", "creatures.cli", "offline", str(config), "--out", str(tmp_path / "out")],
+                         capture_output=True, text=True)
+    assert run.returncode == 2 and "score" in run.stderr and "Traceback" not in run.stderr
