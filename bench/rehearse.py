@@ -4,7 +4,7 @@ Issue 20's target: a week of exchange rehearsed in ≤ 30 min on one core. The w
 rehearsal's default gallery (10:00–18:00, Tuesday to Sunday: 48 open hours) at exchange's
 ``[rehearse] tick``. Measuring it whole takes most of that half hour, longer than the whole
 suite may (10 minutes), so the suite rehearses ``HOURS`` open hours of the same week and
-projects the week from them: each open hour costs the same (the colony's state is bounded,
+projects the week from them (the colony's cold build once, then the hours): each open hour costs the same (the colony's state is bounded,
 as bench/soak.py shows over a day, and the nights are skipped, not ticked). ``python -m bench
 rehearse`` with ``REHEARSE_DAYS=6`` in the environment rehearses the whole week instead. The
 ratio is the week's wall time to the target.
@@ -17,8 +17,11 @@ import time
 
 import installations
 from bench import Row
-from creatures.runtime.rehearse import GALLERY, rehearse
+from creatures.clock import SimulatedClock
+from creatures.events import EventLog
+from creatures.runtime.rehearse import GALLERY, CountingSink, rehearse
 from creatures.runtime.schema import ScheduleSection, load_installation
+from creatures.runtime.session import Session
 
 TARGET = 1800.0
 """Wall seconds a rehearsed week of exchange may take (issue 20)."""
@@ -27,8 +30,17 @@ HOURS = 1
 """Open hours the suite rehearses (quick: a tenth of one)."""
 
 
+def setup_cost(inst) -> float:
+    """CPU seconds of building the colony once, cold (the motor material and graphs, which
+    later colonies of the process share): paid once a rehearsal, not once an hour."""
+    start = time.process_time()
+    Session(inst, SimulatedClock(), EventLog(), CountingSink())
+    return time.process_time() - start
+
+
 def run(quick: bool = False) -> list[Row]:
     inst = load_installation(installations.path("exchange"))
+    setup = setup_cost(inst)
     days = int(os.environ.get("REHEARSE_DAYS", "0"))
     week_hours = 8 * len(GALLERY.days)
     if days:
@@ -44,7 +56,8 @@ def run(quick: bool = False) -> list[Row]:
         rehearsal = rehearse(inst, 2)
         open_hours = rehearsal.open_seconds / 3600
     cpu = time.process_time() - start
-    week = cpu / open_hours * week_hours
-    return [Row(f"exchange, {open_hours:g} open h rehearsed (tick {rehearsal.tick:g} s), CPU", cpu, "s"),
+    week = setup + cpu / open_hours * week_hours
+    return [Row("exchange, building the colony (once a rehearsal), CPU", setup, "s"),
+            Row(f"exchange, {open_hours:g} open h rehearsed (tick {rehearsal.tick:g} s), CPU", cpu, "s"),
             Row(f"exchange, a rehearsed gallery week ({week_hours} open h){'' if days else ', projected'}", week, "s",
                 target=TARGET, higher_is_better=False, baseline="the 30-min target", ratio=week / TARGET)]
