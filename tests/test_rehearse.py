@@ -189,3 +189,14 @@ def test_every_shipped_installation_rehearsed_for_seven_days_is_never_silent_for
     assert max(r.longest_silence.values()) <= r.opening_day, r.longest_silence
     assert all(h.acts_per_minute > 0 and h.silence < 1.0 for h in r.hours), [h.acts for h in r.hours]
     assert r.visitors >= 20
+
+
+def test_a_silent_piece_fails_the_week(monkeypatch):
+    """The week's check bites: exchange whose strikes play nothing is silent for longer than an
+    opening day (two days of two minutes: four minutes) and acts in no hour."""
+    from creatures.kinds.note_world import NoteWorld
+
+    monkeypatch.setattr(NoteWorld, "strike", lambda self, t, obj, strength: None)
+    r = rehearse(short("exchange", 2), 2)
+    assert max(r.longest_silence.values()) == 240 > r.opening_day == 120
+    assert all(h.acts_per_minute == 0 and h.silence == 1.0 for h in r.hours)
