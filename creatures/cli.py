@@ -137,6 +137,37 @@ def _run_offline(config: Path, out: Path, *, audio: Path | None = None, midi: Pa
     return 0
 
 
+def _rehearse_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("config", type=Path, help="installation config (TOML), or a shipped installation's name")
+    parser.add_argument("--days", type=int, choices=range(1, 367), metavar="N",
+                        help="simulated days, 1-366 (default: [rehearse] days, 7)")
+    parser.add_argument("--compare", type=Path, metavar="OTHER", help="a second config rehearsed beside it, "
+                                                                     "side by side in one report")
+    parser.add_argument("--json", type=Path, metavar="FILE", help="also write every hour's measures as JSON")
+
+
+@command("rehearse", "a gallery week on the simulated clock, with visitors, measured hour by hour",
+         _rehearse_options)
+def _rehearse(args: argparse.Namespace) -> int:
+    import json
+
+    from creatures.config import ConfigError
+    from creatures.runtime.rehearse import rehearse, report
+    from creatures.runtime.schema import load_installation
+    from creatures.runtime.visitors import CorpusError
+
+    try:
+        configs = [args.config] + ([args.compare] if args.compare is not None else [])
+        runs = [rehearse(load_installation(_config_path(c)), args.days) for c in configs]
+        print(report(*runs))
+        if args.json is not None:
+            args.json.write_text(json.dumps([r.to_dict() for r in runs], indent=1), encoding="utf-8")
+    except (ConfigError, CorpusError, OSError) as exc:
+        print(f"creatures: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
 @command("offline", "run an installation on recorded input, faster than real time", _offline_options)
 def _offline(args: argparse.Namespace) -> int:
     return _run_offline(args.config, args.out, audio=args.audio, midi=args.midi, duration=args.duration,
@@ -613,6 +644,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 STOPPED = {
+    "rehearse": "no report was printed",
     "offline": "nothing was published; the output directory holds the previous run's outputs as they were",
     "demo": "nothing was published; the output directory holds the previous run's outputs as they were",
     "run": "stopped before the run began or while it saved; the state folder holds the last state saved",

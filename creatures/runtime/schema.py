@@ -169,6 +169,31 @@ class ScheduleSection(Strict):
         return zone
 
 
+class RehearseSection(Strict):
+    """``creatures rehearse``: a gallery week on the simulated clock, with visitors who come and
+    go over the opening hours, play or speak phrases from a corpus and answer what they hear
+    (creatures/runtime/rehearse.py, creatures/runtime/visitors.py)."""
+
+    days: int = Field(7, ge=1, le=366, description="simulated days rehearsed when `--days` is not given")
+    hours: ScheduleSection | None = Field(None, description="the gallery's hours for the rehearsal; none = "
+                                                            "`[schedule]`'s, or 10:00-18:00 Tuesday to Sunday if it has none")
+    tick: float | None = Field(None, gt=0.0005, le=0.5, description="behaviour tick of the rehearsal, seconds; "
+                                                                    "none = the installation's (every behaviour "
+                                                                    "advances from elapsed time, so a coarser "
+                                                                    "tick rehearses a week sooner)")
+    visitors_per_hour: float = Field(6.0, ge=0, le=600, description="mean arrivals an opening hour (Poisson)")
+    stay: float = Field(600.0, ge=10, le=8 * 3600.0, description="mean seconds a visitor stays (exponential)")
+    phrase_every: float = Field(20.0, ge=1, le=3600, description="mean seconds between one visitor's phrases; "
+                                                                 "an answered phrase is followed twice as soon")
+    patience: int = Field(3, ge=1, le=100, description="phrases left unanswered in a row before a visitor leaves")
+    answer_window: float = Field(8.0, gt=0, le=120, description="seconds after a phrase in which a creature's "
+                                                                "act answers it (for notes: on one of its pitch classes)")
+    corpus: str | None = Field(None, description="what visitors play: a MIDI file or folder of them (each file a "
+                                                 "phrase), or a text file whose lines they speak (relative to "
+                                                 "the config); none = the generated fragments, or the poem for "
+                                                 "`generate = \"speech\"`")
+
+
 class Arg(Strict):
     """A value read from the message: argument ``arg`` (0 = the first), or ``default`` when
     the message has no such argument."""
@@ -323,6 +348,7 @@ class Installation(Strict):
     health: HealthSection = HealthSection()
     snapshots: SnapshotSection = SnapshotSection()
     schedule: ScheduleSection = ScheduleSection()
+    rehearse: RehearseSection = RehearseSection()
     input: InputSection = InputSection()
     output: OutputSection = OutputSection()
     room: RoomSection | None = Field(None, description="[room]: the floor the creatures move on, hear "

@@ -1,0 +1,63 @@
+"""``creatures rehearse`` of exchange: how long a rehearsed gallery week takes on one core.
+
+Issue 20's target: a week of exchange rehearsed in ≤ 30 min on one core. The week is the
+rehearsal's default gallery (10:00–18:00, Tuesday to Sunday: 48 open hours) at exchange's
+``[rehearse] tick``. Measuring it whole takes most of that half hour, longer than the whole
+suite may (10 minutes), so the suite rehearses ``HOURS`` open hours of the same week and
+projects the week from them (the colony's cold build once, then the hours): each open hour costs the same (the colony's state is bounded,
+as bench/soak.py shows over a day, and the nights are skipped, not ticked). ``python -m bench
+rehearse`` with ``REHEARSE_DAYS=6`` in the environment rehearses the whole week instead. The
+ratio is the week's wall time to the target.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+
+import installations
+from bench import Row
+from creatures.clock import SimulatedClock
+from creatures.events import EventLog
+from creatures.runtime.rehearse import GALLERY, CountingSink, rehearse
+from creatures.runtime.schema import ScheduleSection, load_installation
+from creatures.runtime.session import Session
+
+TARGET = 1800.0
+"""Wall seconds a rehearsed week of exchange may take (issue 20)."""
+
+HOURS = 1
+"""Open hours the suite rehearses (quick: a tenth of one)."""
+
+
+def setup_cost(inst) -> float:
+    """CPU seconds of building the colony once, cold (the motor material and graphs, which
+    later colonies of the process share): paid once a rehearsal, not once an hour."""
+    start = time.process_time()
+    Session(inst, SimulatedClock(), EventLog(), CountingSink())
+    return time.process_time() - start
+
+
+def run(quick: bool = False) -> list[Row]:
+    inst = load_installation(installations.path("exchange"))
+    setup = setup_cost(inst)
+    days = int(os.environ.get("REHEARSE_DAYS", "0"))
+    week_hours = 8 * len(GALLERY.days)
+    if days:
+        inst.settings.rehearse.hours = GALLERY
+        start = time.process_time()
+        rehearsal = rehearse(inst, days + 1)  # Monday is closed: days open days follow it
+        open_hours = rehearsal.open_seconds / 3600
+    else:
+        minutes = 6 if quick else 60 * HOURS
+        inst.settings.rehearse.hours = ScheduleSection(days=["tue"], opens="10:00", closes=f"{10 + minutes // 60}:"
+                                                                                       f"{minutes % 60:02d}")
+        start = time.process_time()
+        rehearsal = rehearse(inst, 2)
+        open_hours = rehearsal.open_seconds / 3600
+    cpu = time.process_time() - start
+    week = setup + cpu / open_hours * week_hours
+    return [Row("exchange, building the colony (once a rehearsal), CPU", setup, "s"),
+            Row(f"exchange, {open_hours:g} open h rehearsed (tick {rehearsal.tick:g} s), CPU", cpu, "s"),
+            Row(f"exchange, a rehearsed gallery week ({week_hours} open h){'' if days else ', projected'}", week, "s",
+                target=TARGET, higher_is_better=False, baseline="the 30-min target", ratio=week / TARGET)]

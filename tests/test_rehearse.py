@@ -1,0 +1,223 @@
+"""``creatures rehearse``: a gallery week on the simulated clock with visitors, measured per hour
+(issue 20, "rehearsing a gallery week"). The measures are tested on made-up hours that must
+tell silence, repetition and variety apart; the visitors on their own rules; the rehearsal of
+every shipped installation over 7 simulated days, reduced to short opening days (the full
+gallery week of exchange is ``python -m bench rehearse``)."""
+
+from __future__ import annotations
+
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import installations
+from creatures.cli import main
+from creatures.config import ConfigError
+from creatures.runtime.measures import HourTally, Swings, repetition
+from creatures.runtime.rehearse import GALLERY, open_spans, rehearse, report
+from creatures.runtime.schema import RehearseSection, ScheduleSection, load_installation
+from creatures.runtime.session import Session
+from creatures.runtime.visitors import CorpusError, Phrase, Visitors, generated, load_corpus
+from midi.files import write_notes
+from midi.notes import NoteEvent
+
+
+def note(t: float, pitch: int, creature: str = "a") -> dict:
+    return {"t": t, "kind": "note", "creature": creature, "time": t, "pitch": pitch, "duration": 0.5}
+
+
+def test_the_default_gallery_opens_48_hours_a_week_and_the_schedule_is_taken():
+    spans = open_spans(GALLERY, 7)
+    assert len(spans) == 6 and sum(b - a for a, b in spans) == 48 * 3600
+    assert spans[0] == (86400 + 10 * 3600, 86400 + 18 * 3600)  # Monday is closed
+    night = open_spans(ScheduleSection(days=["fri"], opens="20:00", closes="02:00"), 7)
+    assert night == [(4 * 86400 + 20 * 3600, 5 * 86400 + 2 * 3600)]  # past midnight, one span
+
+
+def test_hour_measures_tell_silence_repetition_and_variety_apart():
+    def hour(records):
+        tally = HourTally(1, 10, ["a"])
+        tally.open.append((0.0, 3600.0))
+        for r in records:
+            tally.add(r)
+        return tally.finish(answered=3, unanswered=1, cycles=None, visitors=2)
+
+    silent = hour([])
+    assert silent.acts_per_minute == 0 and silent.silence == 1.0 and silent.pitch_entropy is None
+    loop = hour([note(k * 0.5, [60, 62, 64, 65][k % 4]) for k in range(7200)])
+    assert loop.silence == 0.0 and loop.acts_per_minute == 120.0
+    assert loop.repetition > 0.99 and loop.pitch_entropy == pytest.approx(2.0)
+    rng = np.random.default_rng(0)
+    wander = hour([note(k * 0.5, int(rng.integers(48, 84))) for k in range(7200)])
+    assert wander.repetition < loop.repetition and wander.pitch_entropy > 3.5
+    sparse = hour([note(k * 60.0, 60) for k in range(60)])  # half a second in every minute
+    assert sparse.silence == pytest.approx(1 - 30 / 3600) and loop.answer_rate == 0.75
+    assert repetition([1, 2, 3]) is None
+
+
+def test_boredom_cycles_count_rises_and_falls():
+    swings = Swings(0.25)
+    for x in [0.0, 0.3, 0.5, 0.2, 0.1, 0.4, 0.1, 0.12, 0.05]:
+        swings.update(x)
+    assert swings.cycles == 2
+
+
+def test_visitors_play_again_sooner_when_answered_and_leave_when_not():
+    params = RehearseSection(visitors_per_hour=60, stay=3600, phrase_every=20, patience=2, answer_window=5)
+
+    def crowd(answering: bool) -> Visitors:
+        v = Visitors(params, generated(False), np.random.default_rng(1))
+        v.open(0.0)
+        for k in range(1, 3600):
+            for start, phrase in v.play(k - 1.0, float(k)):
+                if answering:
+                    v.hear(start + phrase.length + 1.0, phrase.notes[0].pitch + 12)  # an octave up: its class
+        v.close(3600.0)
+        return v
+
+    answered, ignored = crowd(True), crowd(False)
+    assert answered.unanswered == 0 and ignored.answered == 0
+    assert answered.arrived > 40 and ignored.arrived > 40  # about 60 an hour
+    # ignored visitors leave after `patience` phrases; answered ones stay and play on
+    assert ignored.unanswered == 2 * ignored.arrived and answered.answered > 20 * answered.arrived
+
+
+def test_an_answer_must_share_a_pitch_class_unless_the_phrase_was_spoken():
+    v = Visitors(RehearseSection(answer_window=5), [Phrase((NoteEvent(0.0, 60, 90, 0, 0.5),))], np.random.default_rng(0))
+    v.present.append(_visitor())
+    v.play(0.0, 1.0)
+    v.hear(2.0, 61)
+    assert v.answered == 0
+    v.hear(3.0, 72)
+    assert v.answered == 1
+    spoken = Visitors(RehearseSection(), [Phrase(line="look on my works")], np.random.default_rng(0))
+    spoken.present.append(_visitor())
+    spoken.play(0.0, 1.0)
+    spoken.hear(2.0, None)
+    assert spoken.answered == 1
+
+
+def _visitor():
+    from creatures.runtime.visitors import Visitor
+
+    return Visitor(leaves=100.0, next_phrase=0.0)
+
+
+def test_a_corpus_is_read_and_a_bad_one_is_named(tmp_path: Path):
+    write_notes(tmp_path / "a.mid", [NoteEvent(5.0 + i, p, 90, 0, 0.5) for i, p in enumerate([60, 64, 67])])
+    (tmp_path / "lines.txt").write_text("look on my works\n\nye mighty\n")
+    [phrase] = load_corpus(tmp_path / "a.mid")
+    assert [n.pitch for n in phrase.notes] == [60, 64, 67] and phrase.notes[0].time == 0.0
+    assert [p.line for p in load_corpus(tmp_path / "lines.txt")] == ["look on my works", "ye mighty"]
+    assert len(load_corpus(tmp_path)) == 1
+    with pytest.raises(CorpusError, match=r"\[rehearse\] corpus .*nothing.mid"):
+        load_corpus(tmp_path / "nothing.mid")
+
+
+def test_the_rehearse_section_is_bounded():
+    bad = installations.path("exchange").read_text() + "\n[rehearse]\nvisitors_per_hour = 1e6\n"
+    path = Path(installations.path("exchange")).parent / ".bad-rehearse.toml"
+    try:
+        path.write_text(bad)
+        with pytest.raises(ConfigError, match="visitors_per_hour"):
+            load_installation(path)
+        path.write_text(installations.path("exchange").read_text() + "\n[rehearse]\nvisiters = 3\n")
+        with pytest.raises(ConfigError, match="visiters"):
+            load_installation(path)
+    finally:
+        path.unlink(missing_ok=True)
+
+
+def short(name: str, minutes: int = 5, tick: float = 0.5):
+    """A shipped installation with a short opening day and a busy door (the reduced week)."""
+    inst = load_installation(installations.path(name))
+    inst.settings.rehearse.hours = ScheduleSection(opens="10:00", closes=f"10:{minutes:02d}")
+    inst.settings.rehearse.visitors_per_hour = 60.0
+    inst.settings.rehearse.tick = tick
+    return inst
+
+
+def test_a_crash_loses_its_hour_and_the_colony_goes_on(monkeypatch):
+    real = Session.step
+    calls = Counter()
+
+    def flaky(self, t, *args, **kwargs):
+        calls["n"] += 1
+        if calls["n"] == 900:  # day 2 (600 ticks a day)
+            raise RuntimeError("a creature fell over")
+        return real(self, t, *args, **kwargs)
+
+    monkeypatch.setattr(Session, "step", flaky)
+    r = rehearse(short("exchange"), 3)
+    assert [h.crashed for h in r.hours] == [False, True, False] and r.crash_free == 2
+    assert "a creature fell over" in r.crashes[0]
+    assert r.hours[2].acts_per_minute > 0  # rebuilt from the hour's state, it plays on
+
+
+def test_compare_puts_two_rehearsals_side_by_side():
+    a, b = rehearse(short("exchange", 2), 1), rehearse(short("wren", 2), 1)
+    text = report(a, b)
+    assert "exchange: 1 days" in text and "wren: 1 days" in text
+    row = text.splitlines()[-1]
+    assert row.startswith("mon  10h") and row.count("|") == 6
+
+
+def test_the_command_rehearses_and_refuses_a_bad_corpus(tmp_path: Path, capsys):
+    config = tmp_path / "exchange.toml"
+    shipped = installations.path("exchange").read_text()
+    hours = '[rehearse]\nhours = { opens = "10:00", closes = "10:02" }'
+    config.write_text(shipped.replace("[rehearse]", hours, 1))
+    assert main(["rehearse", str(config), "--days", "1", "--json", str(tmp_path / "r.json")]) == 0
+    assert "acts/min" in capsys.readouterr().out and (tmp_path / "r.json").exists()
+    config.write_text(shipped.replace("[rehearse]", hours + '\ncorpus = "missing.mid"', 1))
+    assert main(["rehearse", str(config), "--days", "1"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "[rehearse] corpus" in err and "missing.mid" in err
+
+
+FOUND = {
+    "sandstone": "the pedestal never sings in the reduced week (silent 35 of 35 open minutes) and the king "
+                 "is silent 20 minutes; not yet told apart from the 0.5 s tick (seed 0, 34 visitors)",
+}
+"""Pieces whose reduced week this test finds wanting (measured): defects of the class."""
+
+NOT_LIVED = {
+    "flock": "not measured: fifteen singers steering in a room ran past 30 minutes of this loaded machine "
+             "without finishing the reduced week (as the thirty-day test skips it)",
+}
+"""Pieces the reduced week is too slow for (said, not hidden)."""
+
+
+def _case(name: str):
+    if name in NOT_LIVED:
+        return pytest.param(name, marks=pytest.mark.skip(reason=NOT_LIVED[name]))
+    if name in FOUND:
+        return pytest.param(name, marks=pytest.mark.xfail(strict=True, reason=FOUND[name]))
+    return name
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", [_case(n) for n in installations.names()])
+def test_every_shipped_installation_rehearsed_for_seven_days_is_never_silent_for_a_day(name):
+    """Seven simulated days, each open 5 minutes at a 0.5 s tick, a visitor a minute: every
+    creature acts within every opening day's length of open time, every open hour has its
+    measures, and no hour crashed."""
+    r = rehearse(short(name), 7)
+    assert [(h.day, h.hour) for h in r.hours] == [(d, 10) for d in range(7)]
+    assert all(h.open_seconds == 300 for h in r.hours) and r.crash_free == 7
+    assert max(r.longest_silence.values()) <= r.opening_day, r.longest_silence
+    assert all(h.acts_per_minute > 0 and h.silence < 1.0 for h in r.hours), [h.acts for h in r.hours]
+    assert r.visitors >= 20
+
+
+def test_a_silent_piece_fails_the_week(monkeypatch):
+    """The week's check bites: exchange whose strikes play nothing is silent for longer than an
+    opening day (two days of two minutes: four minutes) and acts in no hour."""
+    from creatures.kinds.note_world import NoteWorld
+
+    monkeypatch.setattr(NoteWorld, "strike", lambda self, t, obj, strength: None)
+    r = rehearse(short("exchange", 2), 2)
+    assert max(r.longest_silence.values()) == 240 > r.opening_day == 120
+    assert all(h.acts_per_minute == 0 and h.silence == 1.0 for h in r.hours)
