@@ -155,3 +155,21 @@ def test_the_colony_transcribes_notes_after_a_night_at_their_time():
     heard = [e["time"] for e in log.records if e["kind"] == "heard" and e["source"] == "audio"]
     assert len(heard) == 2 and heard[0] == pytest.approx(0.5, abs=0.1)
     assert heard[1] == pytest.approx(NIGHT + heard[0], abs=0.02)
+
+
+def test_a_crowd_stands_through_a_night_instead_of_living_its_sub_steps():
+    """A room integrated every 0.01 s of a night before: 8.6 million sub-steps, so a machine
+    waking from suspend (or the thirty-day run of flock) spent hours catching up."""
+    from creatures.room.motion import Crowd
+    from creatures.room.recipe import Behaviour, Recipe
+    from creatures.room.space import Room
+    from creatures.room.vehicle import Vehicles
+
+    crowd = Crowd(Room(10, 10), Vehicles.at([(2.0, 2.0), (6.0, 5.0)]), [Recipe((Behaviour("wander", 1.0),))], seed=2)
+    assert crowd.advance_to(1.0) == 100
+    where = crowd.v.pos.copy()
+    assert crowd.advance_to(1.0 + NIGHT) == 0  # the night is skipped, not lived
+    assert np.array_equal(crowd.v.pos, where)
+    assert crowd.advance_to(1.04 + NIGHT) == 4 and crowd.t == pytest.approx(1.04 + NIGHT)  # then it moves on
+    assert not np.array_equal(crowd.v.pos, where)
+    assert crowd.advance_to(1.04 + NIGHT + 0.9 * CLOCK_GAP) == 90  # a late tick is lived time
