@@ -744,3 +744,73 @@ def test_every_heard_percept_timer_schedule_or_and_perturb_read_what_happened(tm
     kicks = [e for e in log.records if e["kind"] == "selection" and e["tuple"] == "kick"]
     assert len(kicks) >= 2 and all(8.0 <= e["t"] <= 9.05 for e in kicks)  # while the cue lasted
     assert ear.level("boredom", 9.5) == pytest.approx(before + 2.0 * len(kicks))  # each start kicked it once
+
+
+FAVOURITE = HEAD.replace("duration = 30.0", "duration = 30.0\ntick = 0.05") + """
+[[creature]]
+name = "heron"
+kind = "authored"
+
+[creature.percepts.hearing]
+type = "heard"
+window = 1.5
+[creature.percepts.later]
+type = "schedule"
+times = [1000.0]
+
+[creature.tuples.listen]
+trigger = "hearing"
+action = "rest"
+until = { seconds = 1.0 }
+value = 2.0
+[creature.tuples.favourite]
+trigger = "later"
+action = { type = "play_learned", phrase = "best" }
+until = { done = true }
+value = 1.0
+
+[creature.groups.main]
+tuples = ["listen", "favourite"]
+alpha = 0.0
+
+[creature.learning.phrases]
+group = "main"
+trigger = "later"
+"""
+
+
+@pytest.mark.parametrize("favoured", [1, 2, 3])
+def test_the_best_learned_sequence_is_the_phrase_whose_tuple_is_worth_most(tmp_path, favoured):
+    from creatures.clock import SimulatedClock
+    from creatures.events import EventLog
+    from creatures.runtime.session import Session
+    from midi.notes import NoteEvent
+    from midi.sinks import MemorySink
+
+    inst = load_installation(write(tmp_path, FAVOURITE))
+    clock, log = SimulatedClock(), EventLog()
+    session = Session(inst, clock, log, MemorySink())
+    heron = session.creatures[0]
+    phrases = [[60, 62, 64], [67, 65, 64, 62], [72, 71, 69]]
+    for p, pitches in enumerate(phrases):
+        for k, pitch in enumerate(pitches):
+            session.world.inject(NoteEvent(round(1.0 + 4.0 * p + 0.3 * k, 6), pitch, 80, 0, 0.2))
+
+    def live_to(t_end: float) -> None:
+        t = clock.now()
+        while t < t_end - 1e-9:
+            t = round(t + 0.05, 6)
+            clock.advance_to(t)
+            session.step(t, 0, None, audio=False)
+
+    live_to(15.0)
+    group = heron.groups["main"]
+    assert [tp.name for tp in group.tuples] == ["listen", "favourite", "phrase 1", "phrase 2", "phrase 3"]
+    assert heron.best_phrase() in (1, 2, 3)
+    group.find(f"phrase {favoured}").value.value = 3.0  # what credit would have made of a rewarded phrase
+    assert heron.best_phrase() == favoured
+    group.force("favourite", clock.now())
+    start = clock.now()
+    live_to(20.0)
+    sung = [e["pitch"] for e in log.records if e["kind"] == "note" and e["t"] >= start]
+    assert sung[:len(phrases[favoured - 1])] == phrases[favoured - 1]
