@@ -54,8 +54,20 @@ def write(tmp_path: Path, text: str, name: str = "inst.toml") -> Path:
 
 
 def error_of(path: Path) -> ConfigError:
+    """The load error of ``path``; every one is also exit 2 from ``creatures offline``, on one
+    line naming the file and line, before anything is written (issue 15, "Bad input")."""
+    import contextlib
+    import io
+
+    from creatures.cli import main
+
     with pytest.raises(ConfigError) as info:
         load_installation(path)
+    out, err = path.parent / "refused-out", io.StringIO()
+    with contextlib.redirect_stderr(err):
+        assert main(["offline", str(path), "--out", str(out), "--no-progress"]) == 2
+    first = str(info.value).splitlines()[0]
+    assert first in err.getvalue() and not out.exists(), err.getvalue()
     return info.value
 
 
