@@ -90,6 +90,8 @@ def test_a_small_authored_creature_plays_its_phrase_when_bored(tmp_path):
     [
         ('action = "rest"', 'action = "rset"', "creature.0.tuples.rest.action", "did you mean 'rest'"),
         ('type = "drive"', 'type = "driv"', "creature.0.percepts.bored.type", "did you mean 'drive'"),
+        ("until = { seconds = 2.0 }", 'until = { model = { type = "gausian", mean = 1.0, std = 0.5 } }',
+         "creature.0.tuples.rest.until.model.type", "unknown model 'gausian' (did you mean 'gaussian'?)"),
         ('trigger = "bored"', 'trigger = "boredd"', "creature.0.tuples.sing.trigger", "no percept named 'boredd'"),
         ('drive = "boredom"', 'drive = "hunger"', "creature.0.percepts.bored.drive", "no drive named 'hunger'"),
         ('tuples = ["sing", "rest"]', 'tuples = ["sing"]', "creature.0.tuples.rest", "in no group"),
