@@ -158,18 +158,36 @@ def test_the_colony_transcribes_notes_after_a_night_at_their_time():
 
 
 def test_a_crowd_stands_through_a_night_instead_of_living_its_sub_steps():
-    """A room integrated every 0.01 s of a night before: 8.6 million sub-steps, so a machine
-    waking from suspend (or the thirty-day run of flock) spent hours catching up."""
-    from creatures.room.motion import Crowd
-    from creatures.room.recipe import Behaviour, Recipe
-    from creatures.room.space import Room
-    from creatures.room.vehicle import Vehicles
+    """flock's room integrated every 0.01 s of a night before: 8.6 million sub-steps, so a
+    machine waking from suspend (or the thirty-day run of flock) spent hours catching up."""
+    import installations
+    from creatures.clock import SimulatedClock
+    from creatures.events import EventLog
+    from creatures.runtime.schema import load_installation
+    from creatures.runtime.session import Session
+    from midi.sinks import MemorySink
 
-    crowd = Crowd(Room(10, 10), Vehicles.at([(2.0, 2.0), (6.0, 5.0)]), [Recipe((Behaviour("wander", 1.0),))], seed=2)
-    assert crowd.advance_to(1.0) == 100
+    inst = load_installation(installations.path("flock"))
+    clock = SimulatedClock()
+    session = Session(inst, clock, EventLog(), MemorySink())
+    crowd = session.stage.crowd
+    ran, step = [0], crowd.step
+
+    def counted() -> None:
+        ran[0] += 1
+        step()
+
+    crowd.step = counted
+
+    def tick(t: float) -> int:
+        before = ran[0]
+        clock.advance_to(t)
+        session.step(t, 0, None, audio=False)
+        return ran[0] - before
+
+    assert [tick(round(0.04 * k, 6)) for k in range(1, 26)] == [4] * 25  # a second lived: 100 sub-steps
     where = crowd.v.pos.copy()
-    assert crowd.advance_to(1.0 + NIGHT) == 0  # the night is skipped, not lived
-    assert np.array_equal(crowd.v.pos, where)
-    assert crowd.advance_to(1.04 + NIGHT) == 4 and crowd.t == pytest.approx(1.04 + NIGHT)  # then it moves on
+    assert tick(1.0 + NIGHT) == 0 and np.array_equal(crowd.v.pos, where)  # the night is skipped, not lived
+    assert tick(1.04 + NIGHT) == 4 and crowd.t == pytest.approx(1.04 + NIGHT)  # then it moves on
     assert not np.array_equal(crowd.v.pos, where)
-    assert crowd.advance_to(1.04 + NIGHT + 0.9 * CLOCK_GAP) == 90  # a late tick is lived time
+    assert tick(1.04 + NIGHT + 0.9 * CLOCK_GAP) == 90  # a late tick is lived time
