@@ -638,6 +638,27 @@ def test_the_aural_parts_are_checked_at_load(tmp_path, case, fragment, key, mess
     assert error.line > 0
 
 
+def lived(path: Path):
+    """A session of ``path`` on a simulated clock, its event log, and ``live_to(t)``, which
+    ticks it every 0.05 s up to ``t`` (no audio)."""
+    from creatures.clock import SimulatedClock
+    from creatures.events import EventLog
+    from creatures.runtime.session import Session
+    from midi.sinks import MemorySink
+
+    clock, log = SimulatedClock(), EventLog()
+    session = Session(load_installation(path), clock, log, MemorySink())
+
+    def live_to(t_end: float) -> None:
+        t = clock.now()
+        while t < t_end - 1e-9:
+            t = round(t + 0.05, 6)
+            clock.advance_to(t)
+            session.step(t, 0, None, audio=False)
+
+    return session, log, live_to
+
+
 HEARING = HEAD.replace("duration = 30.0", "duration = 12.0\ntick = 0.05") + """
 [[creature]]
 name = "ear"
@@ -711,26 +732,13 @@ def test_every_heard_percept_timer_schedule_or_and_perturb_read_what_happened(tm
     heard reads its own feature of them (issue 15: notes, pitch, interval, register,
     velocity, density, silence, onsets, the colony's pulse; timers, scripted events, fuzzy or),
     and the cue's tuple perturbs a drive."""
-    from creatures.clock import SimulatedClock
-    from creatures.events import EventLog
-    from creatures.runtime.session import Session
     from midi.notes import NoteEvent
-    from midi.sinks import MemorySink
 
-    inst = load_installation(write(tmp_path, HEARING))
-    clock, log = SimulatedClock(), EventLog()
-    session = Session(inst, clock, log, MemorySink())
+    session, log, live_to = lived(write(tmp_path, HEARING))
     ear = session.creatures[0]
     for k in range(10):
         session.world.inject(NoteEvent(round(1.0 + 0.3 * k, 6), 60 + k, 64, 0, 0.2))
     readings: dict[float, dict[str, float]] = {}
-
-    def live_to(t_end: float) -> None:
-        t = clock.now()
-        while t < t_end - 1e-9:
-            t = round(t + 0.05, 6)
-            clock.advance_to(t)
-            session.step(t, 0, None, audio=False)
 
     def read(t: float) -> dict[str, float]:
         live_to(t)
@@ -795,27 +803,14 @@ trigger = "later"
 
 @pytest.mark.parametrize("favoured", [1, 2, 3])
 def test_the_best_learned_sequence_is_the_phrase_whose_tuple_is_worth_most(tmp_path, favoured):
-    from creatures.clock import SimulatedClock
-    from creatures.events import EventLog
-    from creatures.runtime.session import Session
     from midi.notes import NoteEvent
-    from midi.sinks import MemorySink
 
-    inst = load_installation(write(tmp_path, FAVOURITE))
-    clock, log = SimulatedClock(), EventLog()
-    session = Session(inst, clock, log, MemorySink())
+    session, log, live_to = lived(write(tmp_path, FAVOURITE))
     heron = session.creatures[0]
     phrases = [[60, 62, 64], [67, 65, 64, 62], [72, 71, 69]]
     for p, pitches in enumerate(phrases):
         for k, pitch in enumerate(pitches):
             session.world.inject(NoteEvent(round(1.0 + 4.0 * p + 0.3 * k, 6), pitch, 80, 0, 0.2))
-
-    def live_to(t_end: float) -> None:
-        t = clock.now()
-        while t < t_end - 1e-9:
-            t = round(t + 0.05, 6)
-            clock.advance_to(t)
-            session.step(t, 0, None, audio=False)
 
     live_to(15.0)
     group = heron.groups["main"]
@@ -823,8 +818,8 @@ def test_the_best_learned_sequence_is_the_phrase_whose_tuple_is_worth_most(tmp_p
     assert heron.best_phrase() in (1, 2, 3)
     group.find(f"phrase {favoured}").value.value = 3.0  # what credit would have made of a rewarded phrase
     assert heron.best_phrase() == favoured
-    group.force("favourite", clock.now())
-    start = clock.now()
+    group.force("favourite", session.clock.now())
+    start = session.clock.now()
     live_to(20.0)
     sung = [e["pitch"] for e in log.records if e["kind"] == "note" and e["t"] >= start]
     assert sung[:len(phrases[favoured - 1])] == phrases[favoured - 1]
