@@ -127,6 +127,23 @@ class Segmenter:
         return self._close()
 
     @property
+    def fed_until(self) -> float:
+        """The time just after the last sample fed: where the next block begins, counted in samples."""
+        return self.t0 + (self._audio_at + len(self._audio)) / self.samplerate
+
+    def skip(self, seconds: float) -> list[SoundEvent]:
+        """The clock jumped ``seconds`` ahead between two blocks (a suspended machine, a
+        fast-forwarded offline run: ``creatures.clock.clock_gap``). Times are counted in
+        samples, so without this every later sound would be dated before the gap, as old as
+        the night is long, and a creature's memory of what it heard would never hold it. The
+        sound in progress ends where it was heard; the next sample is dated after the gap.
+        Returns the event that ended."""
+        events = self.flush()
+        self._above_off = 0
+        self.t0 += float(seconds)
+        return events
+
+    @property
     def reference_db(self) -> float:
         """The level that ``on_db``/``off_db`` are measured from (the noise floor if adaptive)."""
         if not self.adaptive or self._window_filled == 0:

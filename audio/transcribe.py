@@ -177,6 +177,21 @@ class Transcriber:
             self._end(pitch)
         return []
 
+    @property
+    def fed_until(self) -> float:
+        """The time just after the last sample fed: where the next block begins, counted in samples."""
+        return self.t0 + (self._stream_end + len(self._pending)) / RATE
+
+    def skip(self, seconds: float) -> None:
+        """The clock jumped ``seconds`` ahead between two blocks (``creatures.clock.clock_gap``):
+        times are counted in samples, so without this every note heard after a suspended night
+        would be dated before it. Notes sounding end where they were heard; an onset still
+        being analysed is dropped (one lost note is cheap, a note dated a night early is not);
+        the next sample is dated after the gap."""
+        self.flush()
+        self._due.clear()
+        self.t0 += float(seconds)
+
     # -- per frame ---------------------------------------------------------------------------
     def _time(self, frame: int) -> float:
         return self.t0 + (frame + 1) * HOP / RATE

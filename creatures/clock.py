@@ -12,6 +12,21 @@ import time
 from typing import Protocol
 
 
+CLOCK_GAP = 1.0
+"""Longest step of the clock between two ticks (or two audio blocks) that is still lived time,
+in seconds: 25 to 50 ticks of any shipped piece (0.02–0.04 s), far beyond a late tick under
+load. A longer step is a clock gap: the machine was suspended, a thread stalled, or an offline
+run fast-forwarded its clock (``creatures.behaviour.action_group``, ``audio.segment``)."""
+
+
+def clock_gap(expected: float, now: float) -> float:
+    """Seconds the clock has jumped past ``expected`` (where a stream of ticks or samples
+    would be by now), or 0 when it is within :data:`CLOCK_GAP` of it: what a stream that
+    counts its own time (an ear counting samples) must skip to stay on the clock."""
+    ahead = now - expected
+    return ahead if ahead > CLOCK_GAP else 0.0
+
+
 class Clock(Protocol):
     """Anything that can tell the current time in seconds since the run started."""
 

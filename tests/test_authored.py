@@ -54,8 +54,20 @@ def write(tmp_path: Path, text: str, name: str = "inst.toml") -> Path:
 
 
 def error_of(path: Path) -> ConfigError:
+    """The load error of ``path``; every one is also exit 2 from ``creatures offline``, on one
+    line naming the file and line, before anything is written (issue 15, "Bad input")."""
+    import contextlib
+    import io
+
+    from creatures.cli import main
+
     with pytest.raises(ConfigError) as info:
         load_installation(path)
+    out, err = path.parent / "refused-out", io.StringIO()
+    with contextlib.redirect_stderr(err):
+        assert main(["offline", str(path), "--out", str(out), "--no-progress"]) == 2
+    first = str(info.value).splitlines()[0]
+    assert first in err.getvalue() and not out.exists(), err.getvalue()
     return info.value
 
 
@@ -78,6 +90,8 @@ def test_a_small_authored_creature_plays_its_phrase_when_bored(tmp_path):
     [
         ('action = "rest"', 'action = "rset"', "creature.0.tuples.rest.action", "did you mean 'rest'"),
         ('type = "drive"', 'type = "driv"', "creature.0.percepts.bored.type", "did you mean 'drive'"),
+        ("until = { seconds = 2.0 }", 'until = { model = { type = "gausian", mean = 1.0, std = 0.5 } }',
+         "creature.0.tuples.rest.until.model.type", "unknown model 'gausian' (did you mean 'gaussian'?)"),
         ('trigger = "bored"', 'trigger = "boredd"', "creature.0.tuples.sing.trigger", "no percept named 'boredd'"),
         ('drive = "boredom"', 'drive = "hunger"', "creature.0.percepts.bored.drive", "no drive named 'hunger'"),
         ('tuples = ["sing", "rest"]', 'tuples = ["sing"]', "creature.0.tuples.rest", "in no group"),
@@ -622,3 +636,190 @@ def test_the_aural_parts_are_checked_at_load(tmp_path, case, fragment, key, mess
     error = error_of(path)
     assert error.key == key and message in str(error), (case, str(error))
     assert error.line > 0
+
+
+def lived(path: Path):
+    """A session of ``path`` on a simulated clock, its event log, and ``live_to(t)``, which
+    ticks it every 0.05 s up to ``t`` (no audio)."""
+    from creatures.clock import SimulatedClock
+    from creatures.events import EventLog
+    from creatures.runtime.session import Session
+    from midi.sinks import MemorySink
+
+    clock, log = SimulatedClock(), EventLog()
+    session = Session(load_installation(path), clock, log, MemorySink())
+
+    def live_to(t_end: float) -> None:
+        t = clock.now()
+        while t < t_end - 1e-9:
+            t = round(t + 0.05, 6)
+            clock.advance_to(t)
+            session.step(t, 0, None, audio=False)
+
+    return session, log, live_to
+
+
+HEARING = HEAD.replace("duration = 30.0", "duration = 12.0\ntick = 0.05") + """
+[[creature]]
+name = "ear"
+kind = "authored"
+
+[creature.drives.boredom]
+level = 0.0
+
+[creature.percepts.near69]
+type = "pitch"
+near = 69.0
+[creature.percepts.near40]
+type = "pitch"
+near = 40.0
+[creature.percepts.step]
+type = "interval"
+low = 0.0
+high = 12.0
+[creature.percepts.octave]
+type = "register"
+low = 4.0
+high = 6.0
+[creature.percepts.loud]
+type = "velocity"
+low = 0.0
+high = 128.0
+[creature.percepts.busy]
+type = "density"
+low = 0.0
+high = 5.0
+[creature.percepts.hush]
+type = "silence"
+after = 2.0
+ramp = 4.0
+[creature.percepts.now]
+type = "onset"
+[creature.percepts.beat]
+type = "pulse"
+width = 0.04
+[creature.percepts.clock]
+type = "timer"
+after = 5.0
+ramp = 5.0
+[creature.percepts.cue]
+type = "schedule"
+times = [8.0]
+width = 1.0
+[creature.percepts.either]
+type = "or"
+of = ["now", "hush"]
+
+[creature.tuples.kick]        # perturb a drive: the cue kicks boredom up by 2
+trigger = "cue"
+action = { type = "perturb", drive = "boredom", amount = 2.0 }
+until = { seconds = 0.5 }
+value = 5.0
+
+[creature.tuples.rest]
+action = "rest"
+until = { seconds = 0.5 }
+value = 0.1
+
+[creature.groups.main]
+tuples = ["kick", "rest"]
+alpha = 0.0
+"""
+
+
+def test_every_heard_percept_timer_schedule_or_and_perturb_read_what_happened(tmp_path):
+    """Ten notes, 60 … 69 at velocity 64, every 0.3 s from 1.0 s: each percept of what is
+    heard reads its own feature of them (issue 15: notes, pitch, interval, register,
+    velocity, density, silence, onsets, the colony's pulse; timers, scripted events, fuzzy or),
+    and the cue's tuple perturbs a drive."""
+    from midi.notes import NoteEvent
+
+    session, log, live_to = lived(write(tmp_path, HEARING))
+    ear = session.creatures[0]
+    for k in range(10):
+        session.world.inject(NoteEvent(round(1.0 + 0.3 * k, 6), 60 + k, 64, 0, 0.2))
+    readings: dict[float, dict[str, float]] = {}
+
+    def read(t: float) -> dict[str, float]:
+        live_to(t)
+        readings[t] = {name: ear.percept(name).evaluate(t) for name in ear.spec.percepts}
+        return readings[t]
+
+    last = read(3.75)  # just after the tenth note (69, 0.05 s ago)
+    assert last["near69"] > 0.9 and last["near40"] < 0.01  # Gaussian models of the pitch
+    assert last["step"] == pytest.approx(1 / 12)  # a semitone up
+    assert last["octave"] == pytest.approx(0.5)  # 69 // 12 = 5
+    assert last["loud"] == pytest.approx(0.5)
+    assert last["busy"] == pytest.approx(0.5)  # ten notes in the last 4 s: 2.5 a second
+    assert last["now"] == 1.0 and last["hush"] == 0.0 and last["either"] == 1.0
+    assert last["clock"] == 0.0 and last["cue"] == 0.0
+    assert session.world.pulse.ready and session.world.pulse.model.pulse == pytest.approx(0.3)
+    quiet = read(3.95)
+    assert quiet["now"] == 0.0 and quiet["either"] == 0.0  # no onset, not yet silence
+    assert quiet["beat"] == 0.0 and read(4.3)["beat"] == 1.0 and read(4.45)["beat"] == 0.0  # two beats on, half off
+    later = read(7.7)  # four seconds of silence
+    assert later["hush"] == pytest.approx(0.5) and later["either"] == pytest.approx(0.5)
+    assert later["clock"] == pytest.approx(0.54)  # 7.7 s since the start: (7.7 − 5) / 5
+    assert later["near69"] > 0.9 and later["step"] == pytest.approx(1 / 12)  # the last note's features persist
+    before = ear.level("boredom", 7.7)
+    assert read(8.5)["cue"] == 1.0 and read(9.5)["cue"] == 0.0
+    kicks = [e for e in log.records if e["kind"] == "selection" and e["tuple"] == "kick"]
+    assert len(kicks) >= 2 and all(8.0 <= e["t"] <= 9.05 for e in kicks)  # while the cue lasted
+    assert ear.level("boredom", 9.5) == pytest.approx(before + 2.0 * len(kicks))  # each start kicked it once
+
+
+FAVOURITE = HEAD.replace("duration = 30.0", "duration = 30.0\ntick = 0.05") + """
+[[creature]]
+name = "heron"
+kind = "authored"
+
+[creature.percepts.hearing]
+type = "heard"
+window = 1.5
+[creature.percepts.later]
+type = "schedule"
+times = [1000.0]
+
+[creature.tuples.listen]
+trigger = "hearing"
+action = "rest"
+until = { seconds = 1.0 }
+value = 2.0
+[creature.tuples.favourite]
+trigger = "later"
+action = { type = "play_learned", phrase = "best" }
+until = { done = true }
+value = 1.0
+
+[creature.groups.main]
+tuples = ["listen", "favourite"]
+alpha = 0.0
+
+[creature.learning.phrases]
+group = "main"
+trigger = "later"
+"""
+
+
+@pytest.mark.parametrize("favoured", [1, 2, 3])
+def test_the_best_learned_sequence_is_the_phrase_whose_tuple_is_worth_most(tmp_path, favoured):
+    from midi.notes import NoteEvent
+
+    session, log, live_to = lived(write(tmp_path, FAVOURITE))
+    heron = session.creatures[0]
+    phrases = [[60, 62, 64], [67, 65, 64, 62], [72, 71, 69]]
+    for p, pitches in enumerate(phrases):
+        for k, pitch in enumerate(pitches):
+            session.world.inject(NoteEvent(round(1.0 + 4.0 * p + 0.3 * k, 6), pitch, 80, 0, 0.2))
+
+    live_to(15.0)
+    group = heron.groups["main"]
+    assert [tp.name for tp in group.tuples] == ["listen", "favourite", "phrase 1", "phrase 2", "phrase 3"]
+    assert heron.best_phrase() in (1, 2, 3)
+    group.find(f"phrase {favoured}").value.value = 3.0  # what credit would have made of a rewarded phrase
+    assert heron.best_phrase() == favoured
+    group.force("favourite", session.clock.now())
+    start = session.clock.now()
+    live_to(20.0)
+    sung = [e["pitch"] for e in log.records if e["kind"] == "note" and e["t"] >= start]
+    assert sung[:len(phrases[favoured - 1])] == phrases[favoured - 1]

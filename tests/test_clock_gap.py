@@ -7,7 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from creatures.behaviour.action_group import CLOCK_GAP, ActionGroup
+from creatures.behaviour.action_group import ActionGroup
+from creatures.clock import CLOCK_GAP
 from creatures.behaviour.action_tuple import Action, ActionTuple, DoUntil
 from creatures.behaviour.models.gaussian import GaussianModel
 from creatures.behaviour.percept import FunctionPercept
@@ -90,3 +91,103 @@ def test_a_genuine_gradual_lengthening_is_still_learnt(rng):
         means.append(model.mean)
     assert means[-1] - means[9] > 3.0  # learnt the lengthening, 3 → 8 s
     assert model.buffer.max() < 8.0 + 2 * DT  # and no night
+
+
+# -- ears that count samples keep to the clock -------------------------------------------------
+SR = 22050
+BLOCK = 0.02
+
+
+def _tone_then_silence() -> np.ndarray:
+    """Two seconds: a 0.3 s tone at 0.5 s, silence around it (one utterance, one note)."""
+    from creatures.runtime.inputs import render_notes
+    from midi.notes import NoteEvent
+
+    return render_notes([NoteEvent(0.5, 69, 100, 0, 0.3)], SR, 2.0)
+
+
+def _listen(ear, start: float, sound: np.ndarray) -> list:
+    n = int(round(BLOCK * SR))
+    heard = []
+    for k in range(len(sound) // n):
+        heard += ear.listen(round(start + (k + 1) * BLOCK, 6), sound[k * n:(k + 1) * n], SR)
+    return heard
+
+
+def test_an_ear_dates_what_it_hears_after_a_night_on_the_clock():
+    """soundcreatures were deaf from the second day of the thirty-day run: the ear counted
+    time in samples, so each sound after a fast-forwarded night was dated a night early and
+    was never within the utterance percept's memory (0.25 s) of the clock."""
+    from audio.utterance import UtterancePercept
+    from creatures.kinds.hearing_parts import Ear, HearingSpec
+
+    ear, tree = Ear(HearingSpec()), UtterancePercept("any sound")
+    sound = _tone_then_silence()
+    first = _listen(ear, 0.0, sound)
+    night = _listen(ear, NIGHT, sound)
+    assert len(first) == len(night) == 1
+    assert night[0].time == pytest.approx(NIGHT + first[0].time, abs=0.02)
+    tree.hear(night[0])
+    assert tree.evaluate(night[0].time + 0.1) > 0.0  # perceived now, not a night ago
+    stalled = _listen(ear, NIGHT + 2.0 + 0.9 * CLOCK_GAP, sound)  # a late block is not a gap
+    assert stalled[0].time == pytest.approx(night[0].time + 2.0, abs=0.02)
+
+
+def test_the_colony_transcribes_notes_after_a_night_at_their_time():
+    """The same for the colony's transcription of the input audio (audio-only runs)."""
+    import installations
+    from creatures.clock import SimulatedClock
+    from creatures.events import EventLog
+    from creatures.runtime.schema import load_installation
+    from creatures.runtime.session import Session
+    from midi.sinks import MemorySink
+
+    inst = load_installation(installations.path("tutorial/heron-1"))
+    inst.settings.audio.sample_rate = SR
+    clock, log = SimulatedClock(), EventLog()
+    session = Session(inst, clock, log, MemorySink(), transcribe=True)
+    sound, n = _tone_then_silence(), int(round(BLOCK * SR))
+    for day in (0.0, NIGHT):
+        for k in range(len(sound) // n):
+            t = round(day + (k + 1) * BLOCK, 6)
+            clock.advance_to(t)
+            session.step(t, n, sound[k * n:(k + 1) * n])
+    heard = [e["time"] for e in log.records if e["kind"] == "heard" and e["source"] == "audio"]
+    assert len(heard) == 2 and heard[0] == pytest.approx(0.5, abs=0.1)
+    assert heard[1] == pytest.approx(NIGHT + heard[0], abs=0.02)
+
+
+def test_a_crowd_stands_through_a_night_instead_of_living_its_sub_steps():
+    """flock's room integrated every 0.01 s of a night before: 8.6 million sub-steps, so a
+    machine waking from suspend (or the thirty-day run of flock) spent hours catching up."""
+    import installations
+    from creatures.clock import SimulatedClock
+    from creatures.events import EventLog
+    from creatures.runtime.schema import load_installation
+    from creatures.runtime.session import Session
+    from midi.sinks import MemorySink
+
+    inst = load_installation(installations.path("flock"))
+    clock = SimulatedClock()
+    session = Session(inst, clock, EventLog(), MemorySink())
+    crowd = session.stage.crowd
+    ran, step = [0], crowd.step
+
+    def counted() -> None:
+        ran[0] += 1
+        step()
+
+    crowd.step = counted
+
+    def tick(t: float) -> int:
+        before = ran[0]
+        clock.advance_to(t)
+        session.step(t, 0, None, audio=False)
+        return ran[0] - before
+
+    assert [tick(round(0.04 * k, 6)) for k in range(1, 26)] == [4] * 25  # a second lived: 100 sub-steps
+    where = crowd.v.pos.copy()
+    assert tick(1.0 + NIGHT) == 0 and np.array_equal(crowd.v.pos, where)  # the night is skipped, not lived
+    assert tick(1.04 + NIGHT) == 4 and crowd.t == pytest.approx(1.04 + NIGHT)  # then it moves on
+    assert not np.array_equal(crowd.v.pos, where)
+    assert tick(1.04 + NIGHT + 0.9 * CLOCK_GAP) == 90  # a late tick is lived time

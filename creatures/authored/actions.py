@@ -177,16 +177,18 @@ class Echo(ActionPart):
 
 
 class _LearnedParams(Params):
-    phrase: int | Literal["latest", "most_heard"] = Field("latest", description="which remembered phrase: its "
-                                                                                 "number (1 = first heard), "
-                                                                                 "'latest' or 'most_heard'")
+    phrase: int | Literal["latest", "longest", "best"] = Field(
+        "latest", description="which remembered phrase: its number (1 = first heard), 'latest', 'longest', or "
+                              "'best': the one whose own tuple (learning.phrases) is worth the most, so credit "
+                              "chooses (the latest until there is one)")
     transpose: int = Field(0, ge=-48, le=48, description="semitones")
 
 
 @ACTIONS.register
 class PlayLearned(ActionPart):
     """Sing back a phrase the creature heard and remembered (the ear's phrase memory); with
-    ``learning.phrases`` each new phrase gets a tuple of its own, so credit can favour one."""
+    ``learning.phrases`` each new phrase gets a tuple of its own, so credit can favour one,
+    and ``phrase = "best"`` plays the favourite: the best learned sequence."""
 
     ends = True
     name = "play_learned"
@@ -196,12 +198,13 @@ class PlayLearned(ActionPart):
     def build(self, params, creature, name):
         def learned(t: float) -> list[NoteEvent]:
             ear = creature.ear
-            if params.phrase == "latest":
-                phrase = ear.phrases[-1] if ear.phrases else None
-            elif params.phrase == "most_heard":
+            number = creature.best_phrase() if params.phrase == "best" else params.phrase
+            if isinstance(number, int):
+                phrase = ear.phrase(number)
+            elif number == "longest":
                 phrase = max(ear.phrases, key=len, default=None)
             else:
-                phrase = ear.phrase(params.phrase)
+                phrase = ear.phrases[-1] if ear.phrases else None
             return _relative(phrase or [], params.transpose)
 
         return Playing(name, creature, learned)

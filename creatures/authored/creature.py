@@ -410,6 +410,16 @@ class Authored(CreatureKind):
                                               self._do_until(ph.until, action), ScalarValue(ph.value)))
         return name
 
+    def best_phrase(self) -> int | None:
+        """The number of the remembered phrase whose own tuple is worth the most (its value
+        learnt by credit assignment: ``learning.phrases``), or None while there is none."""
+        ph = self.spec.learning.phrases
+        if ph is None:
+            return None
+        worth = {tp.name: tp.value.to_float() for tp in self.groups[ph.group].tuples}
+        kept = [n for n in self._learnt if f"phrase {n}" in worth and self.ear.phrase(n) is not None]
+        return max(kept, key=lambda n: worth[f"phrase {n}"], default=None)
+
     def tick(self, t: float) -> None:
         self._learn_phrase(t)
         if self.notes is not None:

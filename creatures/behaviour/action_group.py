@@ -32,7 +32,7 @@ stance tags travel back with it. Only leaf tuples take credit, and a group tuple
 are credited between the leaves it ran (hierarchical groups: "assign only the credit to the
 leaf nodes"); a group tuple's Du is its active child's Du.
 
-A clock gap is a step between two consecutive ticks of a group longer than ``CLOCK_GAP``
+A clock gap is a step between two consecutive ticks of a group longer than ``creatures.clock.CLOCK_GAP``
 seconds: the machine was suspended, the creature's thread stalled, or an offline run
 fast-forwarded its clock. Every tuple active across it is told (``DoUntil.span_gap``) and its
 activation's length is not learnt as a duration (thesis, "percept updating – model building":
@@ -57,6 +57,7 @@ from creatures.behaviour.action_tuple import Action, ActionTuple, DoUntil
 from creatures.behaviour.percept import Percept
 from creatures.behaviour.proximity import Proximity
 from creatures.behaviour.value import Value, reattach, value_from_dict
+from creatures.clock import clock_gap
 
 if TYPE_CHECKING:
     from creatures.behaviour.expectation import Expectations
@@ -69,10 +70,6 @@ gesture model learns what the body did during it)."""
 RECALL = 10.0
 """Seconds an ended activation is remembered for a late reward (the longest reward window)."""
 
-CLOCK_GAP = 1.0
-"""Longest step between two ticks of a group that is still lived time, in seconds: 25 to 50
-ticks of any shipped piece (0.02–0.04 s), far beyond a late tick under load. Losing one
-duration observation to a long stall is cheap; learning a night as a duration is not."""
 
 
 @dataclass
@@ -305,7 +302,7 @@ class ActionGroup:
         interrupt, then update whatever is active."""
         if not self._checked:
             self.check_grounded()
-        if self.last_tick is not None and t - self.last_tick > CLOCK_GAP and self.active:
+        if self.last_tick is not None and clock_gap(self.last_tick, t) and self.active:
             for tuple_ in self.active:
                 tuple_.do_until.span_gap()
             self._emit("gap", t, seconds=t - self.last_tick, spanned=[tp.name for tp in self.active])

@@ -47,6 +47,7 @@ from creatures.behaviour.action_tuple import Action, ActionTuple, DoUntil
 from creatures.behaviour.learning import PerceptLearning, copy_value
 from creatures import bounds
 from creatures.bounds import FINITE
+from creatures.clock import clock_gap
 from creatures.kinds.parts import shared_graph
 from creatures.motor.pose import BodyPose
 from creatures.persist import StateFileError
@@ -111,15 +112,19 @@ class Ear:
         self.segmenter: Segmenter | None = None
 
     def listen(self, t: float, block: np.ndarray, sample_rate: int) -> list[Utterance]:
-        """Feed the block ending at clock time ``t``; return the utterances that ended."""
+        """Feed the block ending at clock time ``t``; return the utterances that ended. A
+        clock gap before the block (``Segmenter.skip``) keeps the ear on the creature's clock."""
+        start = t - len(block) / sample_rate
         if self.segmenter is None:
             s = self.spec
             self.segmenter = Segmenter(sample_rate, on_db=s.on_db, off_db=s.off_db, hold=s.hold,
-                                       min_length=s.min_length, max_length=s.max_length,
-                                       t0=t - len(block) / sample_rate)
+                                       min_length=s.min_length, max_length=s.max_length, t0=start)
             if s.half_duplex:
                 self.segmenter.hearing.inhibit_by(self.singing)
-        return [Utterance.from_event(e) for e in self.segmenter.feed(block)]
+        events = []
+        if jump := clock_gap(self.segmenter.fed_until, start):
+            events = self.segmenter.skip(jump)
+        return [Utterance.from_event(e) for e in [*events, *self.segmenter.feed(block)]]
 
 
 class MouthSpec(BaseModel):

@@ -47,6 +47,15 @@ class Crowd:
         self._rank = np.zeros(len(vehicles), dtype=np.int64)
         room.contain(vehicles.pos, vehicles.vel, vehicles.radius)
 
+    def skip_to(self, t: float) -> None:
+        """The clock jumped to ``t`` (a clock gap between two ticks, ``creatures.clock.clock_gap``:
+        a suspended machine, a fast-forwarded offline clock): the crowd stands where it was and
+        the gap's sub-steps are skipped, not run. A night is 8.6 million sub-steps, which a
+        machine waking from suspend would spend hours catching up on (the thirty-day test could
+        not live the flock for them)."""
+        self.steps = max(self.steps, int(np.floor(t / self.substep + 1e-9)))
+        self.t = self.steps * self.substep
+
     def advance_to(self, t: float) -> int:
         """Run every sub-step that ends by ``t``; returns how many ran."""
         ran = 0

@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Callable
 import numpy as np
 from scipy.spatial import cKDTree
 
+from creatures.clock import clock_gap
 from creatures.room.director import FlowField, Path
 from creatures.room.hearing import Arrival, DistanceLaw, Masking, arrive, db_velocity, velocity_db
 from creatures.room.lod import LevelOfDetail
@@ -209,6 +210,8 @@ class Stage:
             self.crowd.gain[i, b] = min(max(percept(i, name), 0.0), 1.0)
         self.zones.update(t, self.v, emit)
         self.crowd.plan(np.vstack([self.crowd.around.visitors, self.listener[None, :]]))  # who is heard, near
+        if clock_gap(self.crowd.t, t):
+            self.crowd.skip_to(t)  # a gap is not lived: the crowd stands through it
         self.crowd.advance_to(t)
         if t >= self._next_report:  # where everyone is, for the report and for tests
             self._next_report = t + self.section.report_every

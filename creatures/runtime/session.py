@@ -19,7 +19,7 @@ import numpy as np
 
 from audio.mixer import Mixer
 from audio.transcribe import WINDOW, Transcriber
-from creatures.clock import Clock
+from creatures.clock import Clock, clock_gap
 from creatures.events import EventLog
 from creatures.authored.migrate import from_retired
 from creatures.kinds import KINDS
@@ -153,10 +153,13 @@ class Session:
         return streams
 
     def _hear_notes(self, t: float, recorded: np.ndarray) -> None:
-        """Notes of the input audio join the note bus as they are recognised."""
-        if self._transcriber is None:  # the input's first sample sounded at the start of this tick
-            self._transcriber = Transcriber(self.sample_rate, t0=t - len(recorded) / self.sample_rate,
-                                            window=self.transcribe_window)
+        """Notes of the input audio join the note bus as they are recognised (dated on the
+        clock across a clock gap: ``Transcriber.skip``)."""
+        start = t - len(recorded) / self.sample_rate  # the input's first sample sounded at the start of this tick
+        if self._transcriber is None:
+            self._transcriber = Transcriber(self.sample_rate, t0=start, window=self.transcribe_window)
+        if jump := clock_gap(self._transcriber.fed_until, start):
+            self._transcriber.skip(jump)
         for note in self._transcriber.feed(recorded):
             self.world.inject(note, via="audio")
 
