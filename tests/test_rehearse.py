@@ -117,13 +117,14 @@ def test_a_corpus_is_read_and_a_bad_one_is_named(tmp_path: Path):
 
 
 def test_the_rehearse_section_is_bounded():
-    bad = installations.path("exchange").read_text() + "\n[rehearse]\nvisitors_per_hour = 1e6\n"
-    path = Path(installations.path("exchange")).parent / ".bad-rehearse.toml"
+    base = installations.path("curve").read_text()  # a shipped config without a [rehearse] of its own
+    assert "[rehearse]" not in base
+    path = Path(installations.path("curve")).parent / ".bad-rehearse.toml"
     try:
-        path.write_text(bad)
+        path.write_text(base + "\n[rehearse]\nvisitors_per_hour = 1e6\n")
         with pytest.raises(ConfigError, match="visitors_per_hour"):
             load_installation(path)
-        path.write_text(installations.path("exchange").read_text() + "\n[rehearse]\nvisiters = 3\n")
+        path.write_text(base + "\n[rehearse]\nvisiters = 3\n")
         with pytest.raises(ConfigError, match="visiters"):
             load_installation(path)
     finally:
@@ -180,6 +181,9 @@ def test_the_command_rehearses_and_refuses_a_bad_corpus(tmp_path: Path, capsys):
 FOUND = {
     "sandstone": "the pedestal never sings in the reduced week (silent 35 of 35 open minutes) and the king "
                  "is silent 20 minutes; not yet told apart from the 0.5 s tick (seed 0, 34 visitors)",
+    "three_creatures_compared": "the null-hypothesis creatures (left, right) never sing in the reduced week "
+                                "beside two behaviour creatures (silent 1800 of 1800 s), though alone in "
+                                "three_creatures they do: not yet told apart from the 0.5 s tick",
 }
 """Pieces whose reduced week this test finds wanting (measured): defects of the class."""
 

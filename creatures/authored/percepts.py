@@ -737,6 +737,7 @@ class _PopulationParams(Params):
         if self.context >= self.memory:
             raise ValueError(f"context ({self.context}) must be smaller than memory ({self.memory}): "
                              "the memory holds the context and the new notes")
+        return self
 
 
 @PERCEPTS.register

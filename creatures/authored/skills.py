@@ -486,6 +486,11 @@ class PlayAdverb(MotorPart):
     def build(self, params, creature, name):
         body = creature.body
         variables = list(dict.fromkeys(v for e in params.examples for key in e.keys for v in key))
+        missing = sorted({v for v in variables if v.rpartition(".")[0] not in body.skeleton.names})
+        if missing:  # a creature file written for the stick figure, on a body of one's own (checked at
+            # load for the shipped figures): the manner leaves those joints out, and the log says so
+            creature.world.emit("layer joints missing", creature=creature.name, tuple=name, variables=missing)
+            variables = [v for v in variables if v not in missing]
         offsets = JointOffsets(body, variables)
         examples = []
         for e in params.examples:

@@ -5,11 +5,11 @@ from __future__ import annotations
 
 import functools
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
-from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, field_validator
+from pydantic import BaseModel, Field, PrivateAttr
 
-from creatures.bounds import LONGEST_OFFLINE
+from creatures.bounds import FINITE, LONGEST_OFFLINE
 from creatures.image.footage import Footage, load_footage
 from creatures.image.image_graph import ImageGraph
 from creatures.image.video import write_video
@@ -22,12 +22,13 @@ IMAGES_KIND = "creature-music images"
 class ImagesSpec(BaseModel):
     """Video walked out of a graph of frames by the creature's EDL."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = FINITE
     footage: str = Field("cube", max_length=4096, description='"cube" (generated), a directory of PNG frames '
                                                               "(e.g. a run's frames/) or a video file, relative to "
                                                               "the config; frame f shows the recording's time f / fps")
     fps: float = Field(25.0, gt=0, le=120, description="frames a second, of the footage and of the video")
-    size: tuple[int, int] = Field((160, 120), description="width and height of the generated cube footage")
+    size: tuple[Annotated[int, Field(ge=16, le=4096)], Annotated[int, Field(ge=16, le=4096)]] = Field(
+        (160, 120), description="width and height of the generated cube footage, pixels (16…4096)")
     subsample: int = Field(10, ge=1, le=1000, description="every n-th frame is a key of the graph; the rest are "
                                                           "spokes between keys")
     jumps: int = Field(3, ge=0, le=32, description="jump edges kept from each key to the keys that look like its "
@@ -40,13 +41,6 @@ class ImagesSpec(BaseModel):
     video: bool = Field(True, description="encode <creature>.mp4 (else only <creature>.images.json)")
     png: bool = Field(False, description="also write the frames as PNGs in <creature>.frames/")
     _base: Path | None = PrivateAttr(None)
-
-    @field_validator("size")
-    @classmethod
-    def _sides(cls, size: tuple[int, int]) -> tuple[int, int]:
-        if not (16 <= size[0] <= 4096 and 16 <= size[1] <= 4096):
-            raise ValueError(f"size {size[0]}×{size[1]}: each side must be 16..4096 pixels")
-        return size
 
     def resolve(self, base: Path) -> str | None:
         """Tie ``footage`` to the config's directory; a problem as a message (None if fine)."""
