@@ -215,6 +215,6 @@ def test_a_graded_du_lets_hunger_interrupt_wandering_and_resting_more(tmp_path: 
     interruptions against 55; seed 8: 206 against 48)."""
     counts = {}
     for graded in (False, True):
-        events = run_colony(tmp_path / str(graded), graded=graded)
+        events = run_colony(tmp_path / str(graded), graded=graded, manner=False)  # the main group's own Du
         counts[graded] = sum(e["kind"] == "interruption" and e["tuple"] in ("wander", "rest") for e in events)
     assert counts[True] >= 2 * counts[False] > 0, counts
