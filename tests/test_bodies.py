@@ -258,7 +258,7 @@ def test_a_shipped_body_strikes_the_notes_it_hears_and_walks_without_sliding(nam
           f"{anywhere.max() * 1e3:.1f} mm at any time ({len(anywhere)} contacts)")
     assert len(played) >= 10  # the effector strikes notes
     assert np.linalg.norm((roots[:, [0, 2]] - roots[0, [0, 2]]), axis=1).max() > travel  # the shown body walked
-    assert walking.sum() > 100
+    assert walking.sum() >= 60  # enough steps on the gait for the slide measure below to mean something
     if everywhere:  # the bird's hop lifts its feet: its contacts are all between hops
         assert len(anywhere) > 500 and anywhere.max() <= SLIDE
     else:

@@ -57,9 +57,15 @@ def assert_reward_applied(events: list[dict], amount: float) -> None:
     assert reward["creature"] == REWARDED and reward["amount"] == amount, reward
     assert reward["credited"] and reward["tuple"] == reward["credited"][-1], reward
     assert reward["blended"] and all(0 < a <= 1 for a in reward["blended"].values()), reward
-    snapshots = [(i, e["values"]) for i, e in enumerate(events) if e["kind"] == "values" and e["creature"] == REWARDED]
-    before = [v for i, v in snapshots if i < at[0]][-1]
-    after = next(v for i, v in snapshots if i > at[0])
+    # one ``values`` event per action-group (exchange has a main and a manner group): a
+    # creature's snapshot at a time is all its groups' events of that time together
+    snapshots: dict[float, tuple[int, dict]] = {}
+    for i, e in enumerate(events):
+        if e["kind"] == "values" and e["creature"] == REWARDED:
+            first, merged = snapshots.setdefault(e["t"], (i, {}))
+            merged.update(e["values"])
+    before = [v for i, v in snapshots.values() if i < at[0]][-1]
+    after = next(v for i, v in snapshots.values() if i > at[0])
     moved = {name: after[name] - before[name] for name in before}
     assert moved == pytest.approx({name: reward["blended"].get(name, 0.0) * amount for name in before}, abs=1e-6), \
         (before, after, reward)

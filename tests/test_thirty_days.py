@@ -77,16 +77,7 @@ each night — is crossed every night however short the day, and 30 s is long en
 singer to finish a tuple and choose again (a call lasts at most 4 s, a rest 1.5 ± 0.5 s)."""
 
 
-DECAYS = {
-    "three_creatures_compared": "mynah (an authored sound creature beside the null-hypothesis pair) lets 'sing' "
-                                "sink to 0.018 against its ground 'attend' 3.0 in 30 days (needs ≥ 1 %): in this "
-                                "room its songs are answered less often than alone, and nothing else grounds them",
-}
-"""Pieces whose month this test finds wanting (measured): strict xfails until they hold."""
-
-
-@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.xfail(strict=True, reason=DECAYS[n]))
-                                  if n in DECAYS else n for n in installations.names()])
+@pytest.mark.parametrize("name", installations.names())
 def test_thirty_days_on_every_creature_still_selects_and_its_values_hold(name):
     inst = load_installation(installations.path(name))
     inst.settings.output.wav = inst.settings.output.report = False
