@@ -62,8 +62,7 @@ def assert_reward_applied(events: list[dict], amount: float) -> None:
     snapshots: dict[float, tuple[int, dict]] = {}
     for i, e in enumerate(events):
         if e["kind"] == "values" and e["creature"] == REWARDED:
-            first, merged = snapshots.setdefault(e["t"], (i, {}))
-            merged.update(e["values"])
+            snapshots.setdefault(e["t"], (i, {}))[1].update(e["values"])
     before = [v for i, v in snapshots.values() if i < at[0]][-1]
     after = next(v for i, v in snapshots.values() if i > at[0])
     moved = {name: after[name] - before[name] for name in before}

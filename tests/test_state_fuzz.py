@@ -6,16 +6,15 @@ one thing at a time, anywhere in any of its state files (every creature's and th
 a number made NaN, ±inf, ±1e308, ±1e12, 2^64, -1, 0 or 0.5; any value replaced by text,
 null, a list, a table or a 2,000-deep nesting; a list emptied, lengthened fifty-fold or cut
 short; a key dropped or an unknown key added; a flag flipped. Every mutant must either be
-refused at load with a :class:`StateFileError` naming the damaged file, or run ten simulated
-minutes (ticks of 0.5 s, a note heard every 1.5 s, audio rendered every tenth tick) and save
-again without error: two minutes, half of one for flock (fifteen singers steering in a room
-cost ~0.1 s of CPU a tick; ten minutes a mutant made this one test 25 minutes and CI overran).
-The exhaustive sweep below lived one simulated minute a mutant, and that minute found all 120 crashes.
+refused at load with a :class:`StateFileError` naming the damaged file, or run two simulated
+minutes (ticks of 0.5 s, a note heard every 1.5 s, audio rendered every tenth tick; flock half
+a minute, :data:`SHORTER`) and save again without error. Ten minutes a mutant made flock's case
+alone run past 25 minutes (fifteen singers steering in a room) and CI past its limit; the
+exhaustive sweep below lived one simulated minute a mutant, and that minute found all 120 crashes.
 
-Cases: :data:`EXAMPLES` mutants for each of the seven shipped installations (175 in all,
-drawn deterministically: tests/conftest.py's profile), each a full ten-minute run when it
-loads — about two minutes on one free core. During development the same mutations were also
-swept exhaustively over every leaf (4,806 mutants, one simulated minute each): 120 of them
+Cases: :data:`EXAMPLES` mutants for each shipped installation (325 for the thirteen, drawn
+deterministically: tests/conftest.py's profile), each a full run when it loads. During
+development the same mutations were also swept exhaustively over every leaf (4,806 mutants, one simulated minute each): 120 of them
 crashed on the code before this test's fixes (pulse size 1e12, drive rates 1e308, pose
 indices, zero transition counts, sample rates 0 …), none after.
 """
