@@ -85,9 +85,7 @@ class JointOffsets:
         self.degrees = np.zeros(len(pairs))
 
     def __call__(self, t: float) -> np.ndarray:
-        vectors = np.zeros((self.count, 3))
-        np.add.at(vectors, self.joints, self.axes * np.radians(self.degrees)[:, None])
-        return quat.exp(vectors)
+        return quat.turns_about(self.count, self.joints, self.axes, np.radians(self.degrees))
 
 
 def heard_bearing(creature: "Authored") -> float | None:
@@ -544,7 +542,7 @@ class AdverbAction(Action):
             self._cycle(t)
         u = (t - self._cycle_at) / self._length * (len(self._frames) - 1)
         i = min(int(u), len(self._frames) - 2)
-        return quat.slerp(self._frames[i], self._frames[i + 1], min(u - i, 1.0))
+        return quat.slerp_rows(self._frames[i], self._frames[i + 1], min(u - i, 1.0))
 
     def start(self, t: float, tuple_: ActionTuple) -> None:
         if self.percept is not None:

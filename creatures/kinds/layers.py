@@ -142,7 +142,7 @@ class BodyLayers:
         if previous is None or dt <= 0.0:
             velocities = course.velocities
         else:
-            velocities = quat.log(quat.multiply(rotations, quat.conjugate(previous.rotations))) / dt
+            velocities = quat.turn_rates(rotations, previous.rotations, dt)
         self._shown = BodyPose(rotations, velocities, course.root, time=t, source="blend", labels=course.labels,
                                positions=self.skeleton.forward_kinematics(rotations, course.root))
         return self._shown

@@ -159,6 +159,27 @@ def slerp(q1: np.ndarray, q2: np.ndarray, alpha: np.ndarray | float) -> np.ndarr
     return normalize(a * q1 + b * q2)
 
 
+def slerp_rows(q1: np.ndarray, q2: np.ndarray, alpha: float) -> np.ndarray:
+    """:func:`slerp` of two ``(J, 4)`` poses at one ``alpha``, compiled: a layer samples its
+    frames once per tick, where numpy's temporaries cost more than the arithmetic."""
+    return _slerp_rows(np.ascontiguousarray(q1, dtype=float), np.ascontiguousarray(q2, dtype=float), float(alpha))
+
+
+def turn_rates(q: np.ndarray, previous: np.ndarray, dt: float) -> np.ndarray:
+    """``log(q · previous⁻¹) / dt`` of two ``(J, 4)`` poses: the angular velocities ``(J, 3)``
+    that carried ``previous`` to ``q`` in ``dt`` seconds (the short way), compiled for the same
+    reason as :func:`slerp_rows`."""
+    return _turn_rates(np.ascontiguousarray(q, dtype=float), np.ascontiguousarray(previous, dtype=float), float(dt))
+
+
+def turns_about(count: int, joints: np.ndarray, axes: np.ndarray, angles: np.ndarray) -> np.ndarray:
+    """``count`` rotations, the identity except joint ``joints[k]`` turned ``angles[k]`` radians
+    about unit ``axes[k]`` (a joint named twice has its rotation vectors summed): named joint
+    variables as one pose, compiled (a skill's layer makes one per tick)."""
+    return _turns_about(int(count), np.ascontiguousarray(joints, dtype=np.int64),
+                        np.ascontiguousarray(axes, dtype=float), np.ascontiguousarray(angles, dtype=float))
+
+
 def squad_controls(q: np.ndarray) -> np.ndarray:
     """Shoemake's inner control quaternions for a key-frame sequence ``q`` of shape (N, ..., 4).
 
@@ -501,4 +522,39 @@ def _squad_rates(q1, q2, s1, s2, alphas, above):  # pragma: no cover - compiled
             peak = max(peak, angle_between_one(point, previous))
             previous = point
         out[m] = peak * alphas.shape[0]
+    return out
+
+
+@numba.njit(cache=True)
+def _slerp_rows(q1, q2, alpha):  # pragma: no cover - compiled
+    out = np.empty_like(q1)
+    for j in range(q1.shape[0]):
+        point = slerp_one(_at(q1, j), _at(q2, j), alpha)
+        for c in range(4):
+            out[j, c] = point[c]
+    return out
+
+
+@numba.njit(cache=True)
+def _turn_rates(q, previous, dt):  # pragma: no cover - compiled
+    out = np.empty((q.shape[0], 3))
+    for j in range(q.shape[0]):
+        p = _at(previous, j)
+        v = log_one(multiply_one(_at(q, j), (p[0], -p[1], -p[2], -p[3])))
+        for c in range(3):
+            out[j, c] = v[c] / dt
+    return out
+
+
+@numba.njit(cache=True)
+def _turns_about(count, joints, axes, angles):  # pragma: no cover - compiled
+    vectors = np.zeros((count, 3))
+    for k in range(joints.shape[0]):
+        for c in range(3):
+            vectors[joints[k], c] += axes[k, c] * angles[k]
+    out = np.empty((count, 4))
+    for j in range(count):
+        q = exp_one((vectors[j, 0], vectors[j, 1], vectors[j, 2]))
+        for c in range(4):
+            out[j, c] = q[c]
     return out
