@@ -4,14 +4,17 @@ The take is generated and written as BVH: 30 joints, each on its own cycle, the 
 commensurate (the whole body repeats every 4 s, as a dancer's ten minutes return to their moves)
 with amplitudes drifting slowly, so no pose recurs exactly. A take that never returns to a pose
 makes a chain of 72,000 nodes whose shortest paths are thousands of nodes long (measured: 18,000
-expanded per query, 25 ms), which no search answers in 2 ms; real capture is not like that. the build is timed from the BVH file to a
-graph (parse, topology, low-energy labels); the playback speed limit (the source's fastest joint
-along its squad curves, kept in the cache) and the cache write are their own rows, as
-bench/motor.py reports the speed limit apart from construction. Every row is this process's CPU
-time: the machine these run on is shared, and wall time there measures
-the neighbours. Reload is a second
-load of the same sources (the cache hit). A* is timed over random node pairs after the landmark
-tables exist (they are built once per graph, before the first tick).
+expanded per query, 25 ms), which no search answers in 2 ms; real capture is not like that.
+
+The issue's build is what a first start pays, from the BVH file to a body in the cache: parse,
+topology and low-energy labels, the playback speed limit (the source's fastest joint along its
+squad curves, which the cache keeps) and the cache write. That sum is the row held to 15 s; its
+three parts are printed beside it. The compiled kernels are loaded (or compiled, once per
+machine: numba's on-disk cache) by a build of a one-minute take first, so the row measures the
+build and not the compiler. Every row is this process's CPU time: the machine these run on is
+shared, and wall time there measures the neighbours. Reload is a second load of the same
+sources (the cache hit). A* is timed over random node pairs after the landmark tables exist
+(they are built once per graph, before the first tick).
 """
 
 from __future__ import annotations
@@ -49,6 +52,9 @@ def run(quick: bool) -> list[Row]:
     frames = 7_200 if quick else 72_000
     rng = np.random.default_rng(0)
     with tempfile.TemporaryDirectory() as folder:
+        warm = Path(folder) / "warm.bvh"
+        save_bvh(warm, take(7_200, 30, np.random.default_rng(1)), frame_time=1.0 / 120.0)
+        build(Sources((Animation(warm, {"rest": ((0, 0),)}),), rest_labels=("rest",)), []).timing  # noqa: B018
         bvh = Path(folder) / "take.bvh"
         save_bvh(bvh, take(frames, 30, rng), frame_time=1.0 / 120.0)
         sources = Sources((Animation(bvh, {"rest": ((0, 0),)}),), rest_labels=("rest",))
@@ -79,9 +85,11 @@ def run(quick: bool) -> list[Row]:
         per_query = (time.process_time() - t0) / len(pairs)
     size = f"{frames} frames × 30 joints"
     return [
-        Row(f"body graph build from BVH, {size} (CPU)", built, "s", 15.0 if not quick else None, higher_is_better=False),
-        Row(f"playback speed limit of the take, {size} (CPU)", speed_limit, "s", higher_is_better=False),
-        Row(f"cache write, {size} (CPU)", written, "s", higher_is_better=False),
+        Row(f"body graph build from BVH to the cache, {size} (CPU)", built + speed_limit + written, "s",
+            15.0 if not quick else None, higher_is_better=False),
+        Row(f"  of which parse, topology, labels, {size} (CPU)", built, "s", higher_is_better=False),
+        Row(f"  of which playback speed limit of the take, {size} (CPU)", speed_limit, "s", higher_is_better=False),
+        Row(f"  of which cache write, {size} (CPU)", written, "s", higher_is_better=False),
         Row(f"body graph cached reload, {size} (CPU)", reload, "s", 0.5 if not quick else None, higher_is_better=False),
         Row(f"A* mean per query, body graph of {size} (CPU)", per_query * 1e3, "ms", 2.0, higher_is_better=False),
         Row(f"A* nodes expanded per query, body graph of {size}", expanded / len(pairs), "nodes",

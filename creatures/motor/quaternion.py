@@ -515,14 +515,40 @@ def _squad_rates(q1, q2, s1, s2, alphas, above):  # pragma: no cover - compiled
         a, b, c, d = _at(q1, m), _at(q2, m), _at(s1, m), _at(s2, m)
         if above[m] > -np.inf and _squad_rate_bound_one(a, b, c, d) <= above[m]:
             continue
+        # The two inner arcs are fixed along the segment: their angles are taken once, not at
+        # every sample (squad_one's result, to rounding, at half the arc cosines).
+        # The widest step is the one whose ends are least aligned, so the steps' |cos| are
+        # compared and one arccos is taken, of the smallest.
+        first, second = _arc(a, b), _arc(c, d)
         previous = a
-        peak = 0.0
+        closest = 1.0
         for alpha in alphas:
-            point = squad_one(a, b, c, d, alpha)
-            peak = max(peak, angle_between_one(point, previous))
+            point = slerp_one(_on_arc(first, alpha), _on_arc(second, alpha), 2.0 * alpha * (1.0 - alpha))
+            closest = min(closest, abs(dot_one(point, previous)))
             previous = point
-        out[m] = peak * alphas.shape[0]
+        out[m] = 2.0 * math.acos(closest) * alphas.shape[0]
     return out
+
+
+@numba.njit(cache=True)
+def _arc(p, q):  # pragma: no cover - compiled
+    """What :func:`slerp_one` from ``p`` to ``q`` needs whatever its ``alpha``: ``q`` turned into
+    ``p``'s hemisphere, the arc's angle and its sine."""
+    c = dot_one(p, q)
+    sign = -1.0 if c < 0.0 else 1.0
+    phi = math.acos(min(abs(c), 1.0))
+    return p, (sign * q[0], sign * q[1], sign * q[2], sign * q[3]), phi, math.sin(phi)
+
+
+@numba.njit(cache=True)
+def _on_arc(arc, alpha):  # pragma: no cover - compiled
+    """The point ``alpha`` along an :func:`_arc` (:func:`slerp_one`'s arithmetic)."""
+    p, q, phi, s = arc
+    if s < 1e-6:
+        a, b = 1.0 - alpha, alpha
+    else:
+        a, b = math.sin((1.0 - alpha) * phi) / s, math.sin(alpha * phi) / s
+    return normalize_one(a * p[0] + b * q[0], a * p[1] + b * q[1], a * p[2] + b * q[2], a * p[3] + b * q[3])
 
 
 @numba.njit(cache=True)
