@@ -318,7 +318,9 @@ class Body:
         else:
             if self._trajectory is None or self._trajectory.playback is not playback:
                 if self._trajectory is not None:  # a course replaced mid-way walks on from where it was
-                    self.travelled = self._trajectory.travel(t)
+                    # when it was replaced (the new course's start), not at this tick: the old
+                    # course's keys walked on past it, and the paws planted there slid with it
+                    self.travelled = self._trajectory.travel(float(playback.key_times[0]))
                 self._trajectory = _Trajectory(playback, self.skeleton, self.root_motion, self.travelled.copy())
             self._pose = self._trajectory.pose(t)
         self.offset = self.travelled if self._trajectory is None else self._trajectory.travel(t)

@@ -357,6 +357,29 @@ def transit_time(
     return np.where(timing.next_frame[a] == b, poses.times[b] - poses.times[a], np.maximum(estimate, limited))
 
 
+CONTACT_HEIGHT = 0.005
+"""Metres above the ground (``y = 0`` of the body's frame) within which a joint touches it."""
+
+CONTACT_SPEED = 0.12
+"""Metres per second a joint touching the ground may slide over it while the body moves
+between poses that are not successive source frames.
+
+Such a move carries the root nowhere (root motion advances only along the source), so a paw
+planted at both ends slides by the difference of its places, however fast the move:
+playback lengthens the move until no planted joint slides faster than this. 0.12 m/s is
+8 mm a frame at the shipped bodies' 15 fps, under the 1 cm a frame a planted foot may move
+(issue 16), with room for the pace the sampled curve misses between its samples."""
+
+
+def contact_rate(at: np.ndarray) -> np.ndarray:
+    """Peak sliding rate of a joint in contact with the ground along each of ``M`` moves,
+    sampled at ``S + 1`` evenly spaced points ``at`` ``(M, S + 1, J, 3)``: metres per whole
+    move at its fastest step (0 where no joint touches the ground in two samples running)."""
+    planted = (at[:, 1:, :, 1] < CONTACT_HEIGHT) & (at[:, :-1, :, 1] < CONTACT_HEIGHT)
+    steps = np.where(planted, np.linalg.norm(np.diff(at, axis=1), axis=-1), 0.0)
+    return steps.reshape(len(at), -1).max(axis=-1, initial=0.0) * (at.shape[1] - 1)
+
+
 def typical_speed(poses: PoseSet) -> float:
     """Median mass-weighted joint angular speed over the pose set (rad/s, at least 0.1)."""
     masses = poses.skeleton.masses

@@ -20,6 +20,7 @@ import weakref
 import numba
 import numpy as np
 
+from creatures.motor import metric
 from creatures.motor import quaternion as quat
 from creatures.motor.graph import MotorGraph
 from creatures.motor.pose import BodyPose
@@ -69,7 +70,37 @@ class Playback:
         self.controls = quat.squad_controls(self.keys)
         self.roots = np.concatenate((root[None], graph.poses.roots[nodes]))
         gaps = np.maximum(durations, self._turns(durations, graph.timing.max_speed) / graph.timing.max_speed)
+        gaps = np.maximum(gaps, self._slides(graph, start, nodes) / metric.CONTACT_SPEED)
         self.key_times = start_time + np.concatenate(([0.0], np.cumsum(gaps / speed)))
+
+    SLIDE_SAMPLES = 8
+    """Points along each segment's squad curve at which :meth:`_slides` looks at the joints."""
+
+    def _slides(self, graph: MotorGraph, start: GraphPosition, nodes: np.ndarray) -> np.ndarray:
+        """Peak slide of a joint in contact with the ground along each segment that is not a
+        source step (metres per whole segment; 0 for source steps, whose root motion carries
+        the body over its planted feet, and where nothing touches the ground).
+
+        Sampled on the squad curve playback draws, not the straight slerp: next to a jump the
+        controls bend a folding leg so that its paw swings out and back, measured at twice the
+        straight pace on the dog between sit and walk."""
+        following = graph.timing.next_frame
+        before = np.concatenate(([start.node], nodes[:-1]))
+        moved = following[before] != nodes
+        # the first segment is no jump when it starts on its first node or along its source step
+        moved[0] &= nodes[0] != (start.node if start.next is None else -1) and not (
+            start.next == nodes[0] and following[start.node] == start.next)
+        out = np.zeros(len(nodes))
+        jumps = np.flatnonzero(moved)
+        if not len(jumps):
+            return out
+        u = np.tile(np.linspace(0.0, 1.0, self.SLIDE_SAMPLES + 1), len(jumps))
+        seg = np.repeat(jumps, self.SLIDE_SAMPLES + 1)
+        rotations = quat.squad_keys(self.keys, self.controls, seg, u)
+        roots = (1.0 - u[:, None]) * self.roots[seg] + u[:, None] * self.roots[seg + 1]
+        at = graph.skeleton.forward_kinematics(rotations, roots)
+        out[jumps] = metric.contact_rate(at.reshape(len(jumps), self.SLIDE_SAMPLES + 1, *at.shape[1:]))
+        return out
 
     def _turns(self, durations: np.ndarray, max_speed: float) -> np.ndarray:
         """Peak turning rate of each segment's squad curve, where it could break the limit.
