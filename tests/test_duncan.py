@@ -93,12 +93,15 @@ def recording(trials: list[Trial], rng: np.random.Generator, where: Path) -> np.
 
 @dataclass
 class Trainer:
-    """Watches the dog after each cue and clicks what it asked for (begs: only those that
-    reach the bar its recent clicks set, so the bar rises with the begs)."""
+    """Watches the dog after each cue and clicks what it asked for; begs on a percentile
+    schedule (Galbicka 1994, the trainer's rule of successive approximation): only those at
+    least as high as the median of the last five it offered, so the bar follows the dog up.
+    (The bar was the median of the last five *clicked*: one lucky high beg early then set a bar
+    no later beg reached, and the trainer stopped clicking for good.)"""
 
     trials: list[Trial]
     clicks: list[float] = field(default_factory=list)
-    begs: list[float] = field(default_factory=list)
+    begs: list[float] = field(default_factory=list)  # the heights of every beg offered
 
     def watch(self, t: float, dog: Duncan, next_tick: float) -> None:
         for trial in self.trials:
@@ -110,11 +113,12 @@ class Trainer:
             if doing is None or doing.name != wanted or doing.held_from is None:
                 continue
             trial.done = True
-            if wanted == "beg":  # the bar: as high as the median of the last five begs clicked
+            if wanted == "beg":  # the bar: as high as the median of the last five begs offered
                 trial.height = float(dog.body.pose.positions[dog.body.skeleton.index("front_paw_l"), 1])
-                if self.begs and trial.height < np.median(self.begs[-5:]):
-                    continue
+                bar = np.median(self.begs[-5:]) if self.begs else -np.inf
                 self.begs.append(trial.height)
+                if trial.height < bar:
+                    continue
             if trial.phase != "probe" and trial.word is not None:
                 trial.clicked = True
                 self.clicks.append(next_tick)

@@ -134,18 +134,57 @@ def frame(sk: Skeleton, p: dict[str, float], t: float) -> Frame:
         f.pitch(middle, w2 - w1)
         f.pitch(lower, w3 - w2)
         f.pitch(paw, -w3)
+    return grounded(sk, f, {LEGS[leg][3]: p[f"{leg}_lift"] for leg in LEGS})
+
+
+CLEARANCE = 0.01
+"""Metres a lifted paw keeps above the ground (twice what counts as touching it)."""
+
+
+def grounded(sk: Skeleton, f: Frame, lifts: dict[str, float]) -> Frame:
+    """``f`` raised until no joint is below the ground and no paw lifted out of contact lower
+    than its share of :data:`CLEARANCE` (all of it from a quarter lifted on, so a paw leaves
+    the ground as its leg begins to fold, not dragged along it): a dog rolling over rests on
+    its back, its tucked legs in the air (they otherwise swung 9 cm through the floor, and a
+    paw touching it swept 8 cm a frame)."""
+    rotations = quat.identity((sk.joint_count,))
+    for name, q in f.turns.items():
+        rotations[sk.index(name)] = q
+    heights = sk.forward_kinematics(rotations, f.root)[:, 1]
+    short = [CLEARANCE * min(1.0, 4.0 * lift) - heights[sk.index(paw)] for paw, lift in lifts.items() if lift > 0.0]
+    raise_by = max(-float(heights.min()), *short, 0.0)
+    if raise_by > 1e-6:
+        f.root = f.root + np.array([0.0, raise_by, 0.0])
     return f
 
 
+STEP = 0.02
+"""Metres a planted paw must move between two key postures to be stepped there, not slid."""
+STEP_LIFT = 0.04
+"""Metres such a paw rises at the middle of its step."""
+
+
+def stepped(a: dict[str, float], b: dict[str, float], u: float) -> dict[str, float]:
+    """:func:`blend` of two key postures, with every paw planted in both that moves at least
+    :data:`STEP` between them lifted on an arc: a dog lying down walks its front paws forward
+    rather than dragging them (1.5 cm a frame, before: over the 1 cm a planted paw may move)."""
+    p = blend(a, b, u)
+    for leg in LEGS:
+        if a[f"{leg}_lift"] == b[f"{leg}_lift"] == 0.0 and abs(b[f"{leg}_z"] - a[f"{leg}_z"]) >= STEP:
+            p[f"{leg}_y"] += STEP_LIFT * math.sin(math.pi * u)
+    return p
+
+
 def _clip(sk: Skeleton, name: str, keys: list[tuple[float, dict[str, float]]]) -> Clip:
-    """Frames at :data:`FPS` through key postures at the given seconds (eased between)."""
+    """Frames at :data:`FPS` through key postures at the given seconds (eased between, paws
+    that change place :func:`stepped`)."""
     times = [t for t, _ in keys]
     frames = []
     for i in range(int(round(times[-1] * FPS)) + 1):
         t = i / FPS
         k = min(int(np.searchsorted(times, t, side="right")) - 1, len(keys) - 2)
         (t0, a), (t1, b) = keys[k], keys[k + 1]
-        frames.append(frame(sk, blend(a, b, float(smooth((t - t0) / (t1 - t0)))), t))
+        frames.append(frame(sk, stepped(a, b, float(smooth((t - t0) / (t1 - t0)))), t))
     return Clip(name, frames)
 
 
