@@ -89,6 +89,7 @@ def _colony_rows(quick: bool) -> list[Row]:
         inst = load_installation(installations.path("exchange"))
         inst.settings.output.report = False
         inst.settings.output.frames = False
+        inst.settings.output.wav = False  # the creatures' ticks, not the mix both runs render alike
         if not layered:
             for spec in inst.specs:
                 spec.body = True

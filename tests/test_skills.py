@@ -13,7 +13,7 @@ from creatures.clock import SimulatedClock
 from creatures.config import ConfigError
 from creatures.events import EventLog
 from creatures.motor import quaternion as quat
-from creatures.motor.skills import Servo, Sweep, look_turns, shortest
+from creatures.motor.skills import Servo, Sweep, look_turns, paired_stages, shortest
 from creatures.runtime.schema import load_installation
 from creatures.runtime.session import Session
 from midi.notes import NoteEvent
@@ -32,6 +32,14 @@ def test_look_turns_take_eyes_then_head_then_body_the_short_way_within_limits():
     assert (np.abs(turns) <= limits).all() and turns.tolist()[:3] == [-20.0, -60.0, -45.0]
     assert look_turns(-359.0, limits).tolist() == [1.0, 0.0, 0.0, 0.0]
     assert look_turns(300.0, [10.0, 10.0]).tolist() == [-10.0, -10.0]  # beyond every limit: as far as they go
+
+
+def test_both_eyes_turn_together_and_take_their_share_of_a_look_once():
+    names = ["eye_l", "eye_r", "head", "chest"]
+    stages = paired_stages(names)
+    assert stages == [0, 0, 2, 3]
+    turns = look_turns(50.0, [30.0, 20.0, 70.0, 35.0], stages)
+    assert turns.tolist() == [20.0, 20.0, 30.0, 0.0]  # the eyes within the tighter limit, both alike
     assert shortest(180.0) == -180.0 and shortest(-181.0) == 179.0
 
 

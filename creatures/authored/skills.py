@@ -38,7 +38,7 @@ from creatures.motor.adverbs import AdverbBlend, Example
 from creatures.motor.blend import Contribution, Policy
 from creatures.motor.pose import PoseSet
 from creatures.motor import quaternion as quat
-from creatures.motor.skills import Servo, Sweep, look_turns
+from creatures.motor.skills import Servo, Sweep, look_turns, paired_stages
 
 if TYPE_CHECKING:
     from creatures.authored.creature import Authored
@@ -111,7 +111,8 @@ def heard_bearing(creature: "Authored") -> float | None:
 # -- looking --------------------------------------------------------------------------------
 class _LookParams(Params):
     joints: dict[str, float] | None = Field(None, description="joint → the most it turns (degrees), eyes first, "
-                                                              "then head, then body (default: those of "
+                                                              "then head, then body; a left/right pair (eye_l, "
+                                                              "eye_r) turns together (default: those of "
                                                               f"{', '.join(LOOK_CHAIN)} the body has); each is "
                                                               "also held within the source material's range")
     axis: str = Field("y", pattern="^[xyz]$", description="the joints' axis the look turns about (the "
@@ -150,15 +151,16 @@ class LookAt(MotorPart):
             raise ValueError(f"look_at: none of {', '.join(chain)} ever turns in the body's material")
         offsets = JointOffsets(body, [f"{j}.{params.axis}" for j in turning])
         limits = np.array([limits[j] for j in turning])
-        return LookAction(name, body, offsets, limits, lambda: heard_bearing(creature), params)
+        return LookAction(name, body, offsets, limits, paired_stages(turning), lambda: heard_bearing(creature), params)
 
 
 class LookAction(Action):
     """The look skill over one body (see :class:`LookAt`)."""
 
-    def __init__(self, name: str, body: "Body", offsets: JointOffsets, limits: np.ndarray, bearing, params) -> None:
+    def __init__(self, name: str, body: "Body", offsets: JointOffsets, limits: np.ndarray, stages: list[int], bearing,
+                 params) -> None:
         super().__init__(name)
-        self.body, self.offsets, self.limits, self.bearing = body, offsets, limits, bearing
+        self.body, self.offsets, self.limits, self.stages, self.bearing = body, offsets, limits, stages, bearing
         self.servo = Servo(len(limits), rate=params.speed, tolerance=0.5)
         self.patience = params.patience
 
@@ -174,7 +176,7 @@ class LookAction(Action):
     def update(self, t: float) -> None:
         bearing = self.bearing()
         if bearing is not None:
-            self.servo.aim(look_turns(bearing, self.limits), t)
+            self.servo.aim(look_turns(bearing, self.limits, self.stages), t)
 
     def stop(self, t: float, *, interrupted: bool) -> None:
         self.servo.patience, self.servo.gave_up = math.inf, False

@@ -33,16 +33,31 @@ def shortest(degrees: float) -> float:
     return (float(degrees) + 180.0) % 360.0 - 180.0
 
 
-def look_turns(bearing: float, limits: Sequence[float]) -> np.ndarray:
+def look_turns(bearing: float, limits: Sequence[float], stages: Sequence[int] | None = None) -> np.ndarray:
     """Each chain joint's turn (degrees) toward ``bearing`` (degrees, positive to the left):
-    the first joint (the eyes) takes what its limit allows, the next (the head) what is left
-    within its own, and so on to the body; the bearing is first taken the short way round."""
+    the first stage (the eyes) takes what its limit allows, the next (the head) what is left
+    within its own, and so on to the body; the bearing is first taken the short way round.
+
+    ``stages`` (one number per joint, default each its own) puts joints that move as one in
+    one stage: both eyes turn by the same angle, within the smaller of their limits, and take
+    their share of the bearing once (see :func:`paired_stages`)."""
     left = shortest(bearing)
+    stages = list(range(len(limits))) if stages is None else list(stages)
     turns = np.zeros(len(limits))
-    for i, limit in enumerate(limits):
-        turns[i] = min(max(left, -limit), limit)
-        left -= turns[i]
+    for stage in dict.fromkeys(stages):
+        members = [i for i, s in enumerate(stages) if s == stage]
+        limit = min(limits[i] for i in members)
+        turns[members] = min(max(left, -limit), limit)
+        left -= turns[members[0]]
     return turns
+
+
+def paired_stages(names: Sequence[str]) -> list[int]:
+    """A stage per joint of a look chain, a left/right pair (``eye_l`` and ``eye_r``) sharing
+    one: a pair turns together, as eyes do."""
+    stems = [name[:-2] if name.endswith(("_l", "_r")) else name for name in names]
+    first = {stem: i for i, stem in reversed(list(enumerate(stems)))}
+    return [first[stem] for stem in stems]
 
 
 def joint_turns(axes: np.ndarray, angles: np.ndarray) -> np.ndarray:
