@@ -3,6 +3,8 @@ current→min→max→current sweep, adverbs played by creatures, and simple sha
 
 from __future__ import annotations
 
+import math
+
 import textwrap
 from pathlib import Path
 
@@ -426,6 +428,48 @@ alpha = 0.0
     starts = []
     run(session, 3.0, each=lambda t: starts.append(follow.started_at) if follow.started_at not in starts else None)
     assert 1.0 < starts[1] < 1.5  # off target for its patience (1 s) on end: done (and the group starts it again)
+
+
+@pytest.mark.parametrize("policy,weight", [("exclusive", 1.0), ("mean", 3.0), ("add", 1.0)])
+def test_a_layers_policy_weight_and_priority_come_from_the_config(tmp_path, policy, weight):
+    """``blend = {policy, weight, priority}`` on a skill: ``exclusive`` holds the neck at the
+    layer's own turn over the course, ``mean`` weights it 3 : 1 against the course (the weighted
+    slerp), ``add`` composes it over the course; the voice parameters it drives (pan, push) are
+    blended alike, move the creature in the mix and are logged with who drives them."""
+    extra = f"""
+[creature.tuples.hold]
+action = {{ type = "oscillate", variables = {{ "neck.x" = 10.0, "voice.pan" = -0.5, "voice.push" = 1.0 }}, period = 4.0, fade = 0.0, blend = {{ policy = "{policy}", weight = {weight}, priority = 2.0 }} }}
+until = {{ seconds = 30.0 }}
+
+[creature.groups.skills]
+tuples = ["hold"]
+alpha = 0.0
+"""
+    session = session_of(tmp_path, extra, keep=10_000)
+    bird = session.creatures[1]
+    run(session, 2.0)
+    t = session.clock.now()
+    hold = bird.tuples["hold"]
+    assert hold.active
+    swing = math.sin(2 * math.pi * (t - hold.started_at) / 4.0)
+    neck = bird.body.skeleton.index("neck")
+    layer = quat.from_axis_angle(np.array([1.0, 0.0, 0.0]), math.radians(10.0 * swing))
+    course = bird.body.layers._course[neck]
+    expected = {"exclusive": layer, "mean": quat.slerp(course, layer, 0.75),
+                "add": quat.multiply(course, layer)}[policy]
+    shown = bird.body.pose.rotations[neck]
+    assert quat.angle_between(shown, expected) < 1e-9
+    assert quat.angle_between(course, layer) > 0.01  # the course and the layer differ: the policy chose
+    # The voice: pan and push are offsets over their rest (0 and 1) in add; in mean and exclusive
+    # the layer gives rest + offset as the value, and it is the only one driving them.
+    values = bird.voice_parameters().resolve(t)
+    assert values[1] == pytest.approx(-0.5 * swing, abs=1e-9)
+    assert values[2] == pytest.approx(1.0 + swing, abs=1e-9)
+    assert bird.pan() == pytest.approx(0.8 + values[1])
+    session.step(t, 64, None, audio=True)  # a block sounded: the mix has moved it
+    assert session.mixer.pans[1] == pytest.approx(bird.pan())
+    logged = [e for e in session.world.log.records if e["kind"] == "voice parameters" and e["creature"] == "bird"]
+    assert logged and logged[-1]["contributors"]["voice.pan"] == {"hold": weight}
 
 
 # -- the shipped piece -------------------------------------------------------------------------

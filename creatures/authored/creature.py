@@ -439,7 +439,7 @@ class Authored(CreatureKind):
             self.trail.follow(t)
             pose = self.body.update(t)
             if self.voice is not None:
-                self.voice.feel(pose)
+                self.voice.feel(pose, push=self._voice_now(t)[2])
         for group in self.top:
             if soft or group.active:  # a new tuple is chosen on the soft state's steps
                 group.tick(t)
@@ -457,6 +457,14 @@ class Authored(CreatureKind):
                                     drives=dict(zip(self.motivation.names, self.motivation.levels.tolist())), **heated)
             if self.aural is not None:
                 self.aural.report(t)
+            if self._voice_parameters is not None:  # who drives the voice (as "motor" says who drives the joints)
+                from creatures.authored.skills import VOICE_PARAMETERS
+
+                blend = self._voice_parameters
+                self.world.log.emit(t, "voice parameters", creature=self.name,
+                                    values=dict(zip(VOICE_PARAMETERS, blend.resolve(t).tolist())),
+                                    contributors={p: who for p, who in zip(VOICE_PARAMETERS, blend.channel_contributors(t))
+                                                  if who})
             for report in self._reporters:
                 report(t)
             if self.spec.report_percepts:
@@ -476,9 +484,9 @@ class Authored(CreatureKind):
         """The voice parameters skills drive (creatures/authored/skills.py: ``voice.gain``),
         blended as a body's joints are; made when a skill first needs them."""
         if self._voice_parameters is None:
-            from creatures.authored.skills import VOICE_PARAMETERS
+            from creatures.authored.skills import VOICE_PARAMETERS, VOICE_REST
 
-            self._voice_parameters = Blend(len(VOICE_PARAMETERS), rotations=False, hold=np.ones(len(VOICE_PARAMETERS)))
+            self._voice_parameters = Blend(len(VOICE_PARAMETERS), rotations=False, hold=VOICE_REST.copy())
         return self._voice_parameters
 
     def sound(self, out: np.ndarray, sample_rate: int) -> None:
@@ -491,9 +499,22 @@ class Authored(CreatureKind):
                     couple_to_hands(self.voice, self.body)
             self.voice.render(out, self.now())
         if self._voice_parameters is not None:  # voice.gain, ramped across the block (no zipper steps)
-            gain = max(float(self._voice_parameters.resolve(self.now())[0]), 0.0)
+            gain = max(float(self._voice_now(self.now())[0]), 0.0)
             out *= np.linspace(self._gain, gain, len(out))
             self._gain = gain
+
+    def _voice_now(self, t: float) -> np.ndarray:
+        """The voice parameters at ``t`` (creatures/authored/skills.py), at rest when no skill
+        has driven them."""
+        if self._voice_parameters is None:
+            from creatures.authored.skills import VOICE_REST
+
+            return VOICE_REST
+        return self._voice_parameters.resolve(t)
+
+    def pan(self) -> float:
+        """Where the mix places this creature now: its ``pan`` moved by ``voice.pan``."""
+        return min(max(self.spec.pan + float(self._voice_now(self.now())[1]), -1.0), 1.0)
 
     def marks(self) -> list[tuple[tuple[float, float, float], int]]:
         return [] if self.notes is None else self.notes.marks()

@@ -33,9 +33,8 @@ from creatures.authored.registry import ACTIONS, PERCEPTS, Params
 from creatures.behaviour.action_tuple import Action, ActionTuple
 from creatures.behaviour.models.gaussian import GaussianModel
 from creatures.behaviour.percept import FunctionPercept
-from creatures.kinds.layers import source_limits
+from creatures.kinds.layers import LayerSpec, source_limits
 from creatures.motor.adverbs import AdverbBlend, Example
-from creatures.motor.blend import Contribution, Policy
 from creatures.motor.pose import PoseSet
 from creatures.motor import quaternion as quat
 from creatures.motor.skills import Servo, Sweep, look_turns, paired_stages
@@ -120,6 +119,7 @@ class _LookParams(Params):
     speed: float = Field(120.0, gt=0, le=3600, description="degrees per second each joint turns at most")
     patience: float = Field(3.0, gt=0, le=3600, description="seconds the look may lag a moving source before "
                                                             "it gives up (done)")
+    blend: LayerSpec = LayerSpec()
 
 
 @ACTIONS.register
@@ -162,7 +162,7 @@ class LookAction(Action):
         super().__init__(name)
         self.body, self.offsets, self.limits, self.stages, self.bearing = body, offsets, limits, stages, bearing
         self.servo = Servo(len(limits), rate=params.speed, tolerance=0.5)
-        self.patience = params.patience
+        self.patience, self.blend = params.patience, params.blend
 
     def _source(self, t: float) -> np.ndarray:
         self.offsets.degrees = self.servo.step(t)
@@ -170,7 +170,7 @@ class LookAction(Action):
 
     def start(self, t: float, tuple_: ActionTuple) -> None:
         self.servo.patience = self.patience
-        self.body.layer(Contribution(self.name, self._source, Policy.ADD, mask=self.offsets.mask, fade=0.0), t)
+        self.body.layer(self.blend.contribution(self.name, self._source, self.offsets.mask, 0.0), t)
         self.update(t)
 
     def update(self, t: float) -> None:
@@ -188,9 +188,15 @@ class LookAction(Action):
 
 
 # -- skills over named variables: sweeps, oscillators, servos --------------------------------
-VOICE_PARAMETERS = ("voice.gain",)
-"""Voice parameters a skill may drive: ``voice.gain`` multiplies what the creature sounds (1 at
-rest; a skill's numbers are offsets added to it)."""
+VOICE_PARAMETERS = ("voice.gain", "voice.pan", "voice.push")
+"""Voice parameters a skill may drive, blended per tick as a body's joints are (a skill's
+numbers are offsets added to the rest value): ``voice.gain`` multiplies what the creature
+sounds (1 at rest), ``voice.pan`` moves it across the stereo pair from its ``pan`` (0 at rest;
+the sum held to [−1, 1]; a ``[room]`` places creatures by where they stand instead), and
+``voice.push`` scales how hard the body's movement pushes its scanned strings (1 at rest:
+``[creature.voice] body_gain``; thesis "artificial gestural control")."""
+VOICE_REST = np.array([1.0, 0.0, 1.0])
+"""Each voice parameter's value at rest (what the blend holds where no layer drives it)."""
 
 
 def _named(names) -> None:
@@ -210,8 +216,8 @@ class Variables:
     layer on the body, voice parameters as an ``add`` layer on the creature's voice
     parameters; ``value(t)`` gives every variable's offset, in the order named."""
 
-    def __init__(self, creature: "Authored", name: str, names: list[str], value) -> None:
-        self.creature, self.name, self.value = creature, name, value
+    def __init__(self, creature: "Authored", name: str, names: list[str], value, blend: LayerSpec) -> None:
+        self.creature, self.name, self.value, self.blend = creature, name, value, blend
         self._joints = np.array([i for i, n in enumerate(names) if not n.startswith("voice.")], dtype=int)
         self._voice = [(i, VOICE_PARAMETERS.index(n)) for i, n in enumerate(names) if n.startswith("voice.")]
         joints = [names[i] for i in self._joints]
@@ -224,21 +230,19 @@ class Variables:
         return self.offsets(t)
 
     def _parameters(self, t: float) -> np.ndarray:
-        out = np.zeros(len(VOICE_PARAMETERS))
+        out = np.zeros(len(VOICE_PARAMETERS)) if self.blend.offsets else VOICE_REST.copy()
         values = self.value(t)
         for i, p in self._voice:
-            out[p] = values[i]
+            out[p] += values[i]
         return out
 
     def start(self, t: float, fade: float) -> None:
         if self.offsets is not None:
-            self.creature.body.layer(Contribution(self.name, self._rotations, Policy.ADD, mask=self.offsets.mask,
-                                                  fade=fade), t)
+            self.creature.body.layer(self.blend.contribution(self.name, self._rotations, self.offsets.mask, fade), t)
         if self._voice:
             mask = np.zeros(len(VOICE_PARAMETERS))
             mask[[p for _, p in self._voice]] = 1.0
-            self.creature.voice_parameters().start(Contribution(self.name, self._parameters, Policy.ADD, mask=mask,
-                                                                fade=fade), t)
+            self.creature.voice_parameters().start(self.blend.contribution(self.name, self._parameters, mask, fade), t)
 
     def stop(self, t: float) -> None:
         if self.offsets is not None:
@@ -259,6 +263,7 @@ class _VariablesParams(Params):
     """The keys every skill over named variables shares; ``variables`` is each one's own."""
 
     fade: float = Field(0.5, ge=0, le=60, description="seconds the layer eases in and out")
+    blend: LayerSpec = LayerSpec()
 
     @model_validator(mode="after")
     def _names(self):
@@ -294,7 +299,7 @@ class SweepVariables(_SkillPart):
     def build(self, params, creature, name):
         sweep = Sweep([lo for lo, _ in params.variables.values()], [hi for _, hi in params.variables.values()],
                       params.duration)
-        layers = Variables(creature, name, list(params.variables), sweep.value)
+        layers = Variables(creature, name, list(params.variables), sweep.value, params.blend)
 
         class SweepAction(Action):
             def start(self, t, tuple_):
@@ -329,7 +334,7 @@ class Oscillate(_SkillPart):
         depths = np.array(list(params.variables.values()), dtype=float)
         began = [0.0]
         layers = Variables(creature, name, list(params.variables),
-                           lambda t: depths * math.sin(2.0 * math.pi * (t - began[0]) / params.period))
+                           lambda t: depths * math.sin(2.0 * math.pi * (t - began[0]) / params.period), params.blend)
 
         class OscillateAction(Action):
             def start(self, t, tuple_):
@@ -369,7 +374,7 @@ class ServoVariables(_SkillPart):
         ranges = np.array(list(params.variables.values()), dtype=float)
         servo = Servo(len(ranges), rate=params.speed, tolerance=params.tolerance, patience=params.patience)
         percept = creature.percept(params.percept)
-        layers = Variables(creature, name, list(params.variables), servo.step)
+        layers = Variables(creature, name, list(params.variables), servo.step, params.blend)
 
         class ServoAction(Action):
             def start(self, t, tuple_):
@@ -456,6 +461,7 @@ class _AdverbParams(Params):
                                                   "the tuple starts (and that rewards shape)")
     value: float | None = Field(None, ge=-1e6, le=1e6, description="a fixed adverb (neither drive nor percept)")
     fade: float = Field(1.0, ge=0, le=60, description="seconds the layer eases in and out")
+    blend: LayerSpec = LayerSpec()
 
     @model_validator(mode="after")
     def _one_source(self):
@@ -552,8 +558,7 @@ class AdverbAction(Action):
         layers = self.creature.body.layers
         if layers is None or self.name not in layers.blend:  # restarted while still in: the cycle goes on
             self._cycle(t)
-        self.creature.body.layer(Contribution(self.name, self._source, Policy.ADD, mask=self.mask,
-                                              fade=self.params.fade), t)
+        self.creature.body.layer(self.params.blend.contribution(self.name, self._source, self.mask, self.params.fade), t)
         self.creature.world.emit("adverb", creature=self.creature.name, tuple=self.name, adverb=self.adverb)
 
     def stop(self, t: float, *, interrupted: bool) -> None:

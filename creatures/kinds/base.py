@@ -144,6 +144,11 @@ class CreatureKind(ABC):
         """Fill ``out`` (mono, preallocated) with this creature's voice; default silent."""
         out[:] = 0.0
 
+    def pan(self) -> float:
+        """Where the stereo mix places this creature now (−1 left … 1 right): its ``pan``; an
+        authored creature's skills may move it (``voice.pan``)."""
+        return self.spec.pan
+
     def figure(self) -> tuple[np.ndarray, np.ndarray] | None:
         """Joint positions ``(J, 3)`` and parents ``(J,)`` to draw, or None for no body."""
         return None

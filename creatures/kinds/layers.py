@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import functools
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 
@@ -32,6 +33,35 @@ BREATHING_JOINTS = {"shoulder_l": (0.0, 0.0, 1.0), "shoulder_r": (0.0, 0.0, -1.0
 mouth reads, thesis "soundcreatures") and the chest lifts."""
 
 
+class LayerSpec(BaseModel):
+    """``blend = {policy, weight, priority}`` on any layer (a skill, an adverb, the breath): how it
+    counts among the others on the joints or voice parameters it drives (creatures/motor/blend.py).
+
+    ``add`` (the default) composes the layer's turns over what is below, as an offset; ``budget``
+    does so in falling ``priority`` within ``[creature.body] budget`` (IViHumans' truncated
+    running sum); ``mean`` and ``exclusive`` take the layer's values as the joints' own rotations
+    from rest (a voice parameter's as its rest value plus the offset): ``mean`` averages them with
+    the course by ``weight``, ``exclusive`` holds the joints over everything below, the highest
+    ``priority`` outright. ``weight`` scales the layer in every policy."""
+
+    model_config = FINITE
+
+    policy: Literal["add", "mean", "exclusive", "budget"] = Field("add", description="how the layer combines")
+    weight: float = Field(1.0, ge=0, le=100, description="how much the layer counts (its mean weight; its "
+                                                         "offset's scale)")
+    priority: float = Field(0.0, ge=-1e6, le=1e6, description="order among exclusive layers (higher on top) "
+                                                               "and budget layers (higher first)")
+
+    @property
+    def offsets(self) -> bool:
+        """Whether the layer's values are offsets over what is below (``add``, ``budget``)."""
+        return self.policy in ("add", "budget")
+
+    def contribution(self, name: str, source, mask: np.ndarray | None, fade: float) -> Contribution:
+        return Contribution(name, source, Policy[self.policy.upper()], weight=self.weight, priority=self.priority,
+                            mask=mask, fade=fade)
+
+
 class BreatheSpec(BaseModel):
     """``[creature.body] breathe = {...}``: an oscillator over named joints, added over the course."""
 
@@ -41,6 +71,7 @@ class BreatheSpec(BaseModel):
     depth: float = Field(0.0, ge=0, le=0.5, description="radians each breathing joint turns at the top of a "
                                                          "breath (0: no breathing layer)")
     fade: float = Field(1.0, ge=0, le=30, description="seconds the breathing eases in over (clock time)")
+    blend: LayerSpec = LayerSpec()
     joints: dict[str, tuple[float, float, float]] = Field(
         default_factory=lambda: dict(BREATHING_JOINTS),
         description="joint name → axis (in the joint's frame) it turns about as the breath fills")
@@ -63,7 +94,7 @@ class BreatheSpec(BaseModel):
         """The breathing layer for a skeleton with joints ``names``: an ``add`` offset masked
         to the breathing joints."""
         breath = Oscillator(names, self.joints, period=self.period, depth=self.depth)
-        return Contribution("breathe", breath, Policy.ADD, mask=breath.mask, fade=self.fade)
+        return self.blend.contribution("breathe", breath, breath.mask, self.fade)
 
 
 class BodySpec(MaterialSpec):
@@ -73,6 +104,8 @@ class BodySpec(MaterialSpec):
     blended over the course the body follows on the motor graph."""
 
     breathe: BreatheSpec = BreatheSpec()
+    budget: float | None = Field(None, gt=0, le=180, description="degrees each joint's budget layers share "
+                                                                 "(blend.policy = \"budget\"; none: unbounded)")
 
     @model_validator(mode="after")
     def _breathing_joints(self) -> "BodySpec":
@@ -113,12 +146,12 @@ class BodyLayers:
     """
 
     def __init__(self, graph: MotorGraph, layers: list[Contribution], t: float = 0.0, *,
-                 joint_limits: np.ndarray | None = None) -> None:
+                 joint_limits: np.ndarray | None = None, budget: float | None = None) -> None:
         self.skeleton = graph.skeleton
         self.limits = source_limits(graph)
         if joint_limits is not None:  # [creature.body] joint_limits narrow the source's own range
             self.limits = Limits(np.minimum(self.limits.range, joint_limits), self.limits.max_speed)
-        self.blend = Blend(self.skeleton.joint_count)
+        self.blend = Blend(self.skeleton.joint_count, budget=np.inf if budget is None else np.radians(budget))
         self._course = quat.identity((self.skeleton.joint_count,))
         self.blend.start(Contribution("course", lambda _t: self._course, fade=0.0), t)
         for layer in layers:

@@ -123,12 +123,13 @@ class Voice:
         """Hold the strings in the shape of the body's line through ``joints`` (:class:`BodyShape`)."""
         self.shape = BodyShape(joints, self.spec.masses, gain=self.spec.body_shape, centring=self.spec.centring)
 
-    def feel(self, pose: BodyPose) -> None:
-        """Push every sounding string with the body's movement since the last pose (and hold it
-        in the body's shape, when the voice is the body)."""
+    def feel(self, pose: BodyPose, *, push: float = 1.0) -> None:
+        """Push every sounding string with the body's movement since the last pose, ``push``
+        times as hard (a skill's ``voice.push``), and hold it in the body's shape, when the
+        voice is the body."""
         if self.coupling is None and self.shape is None:
             return
-        force = self.coupling.forces(pose) if self.coupling is not None else np.zeros(self.spec.masses)
+        force = self.coupling.forces(pose) * push if self.coupling is not None else np.zeros(self.spec.masses)
         if self.shape is not None:
             force = force + self.shape.forces(pose)
         if force.any():
@@ -260,6 +261,7 @@ class Body:
         self.finder = PathFinder(self.graph)
         self.finder.prepare()  # its landmark tables (~10 ms) before the first tick, not in it
         self._owns_graph = False  # the figure's graph is shared until an edit (own_graph)
+        self._budget = spec.budget  # [creature.body] budget, for layers made later (layer)
         start = int(rng.integers(len(self.graph)))
         self.motor = MotorSystem(self.graph, start=start, finder=self.finder)
         self.effectors = (effector or EFFECTORS[figure],) if own is None else own.effectors
@@ -280,11 +282,11 @@ class Body:
         self._pose: BodyPose = self._rest_pose(start, 0.0)
         layers = spec.contributions(self.skeleton.names)
         if own is not None:
-            self.layers: BodyLayers | None = BodyLayers(self.graph, layers, joint_limits=own.limits)
+            self.layers: BodyLayers | None = BodyLayers(self.graph, layers, joint_limits=own.limits, budget=spec.budget)
         elif layers or figure != "stick":
             # The generated bodies are held to their source's range and top speed as a body from
             # files is: a squad curve between two keys overshot a knee by 3 mrad in a hop.
-            self.layers = BodyLayers(self.graph, layers)
+            self.layers = BodyLayers(self.graph, layers, budget=spec.budget)
         else:
             self.layers = None
 
@@ -337,7 +339,7 @@ class Body:
         adverb, a sweep; creatures/authored/skills.py). A body without layers gets them now,
         so one that never layers anything pays nothing for blending."""
         if self.layers is None:
-            self.layers = BodyLayers(self.graph, [], t)
+            self.layers = BodyLayers(self.graph, [], t, budget=self._budget)
         return self.layers.start(contribution, t)
 
     def unlayer(self, name: str, t: float) -> None:
