@@ -472,6 +472,34 @@ alpha = 0.0
     assert logged and logged[-1]["contributors"]["voice.pan"] == {"hold": weight}
 
 
+def test_a_budget_layer_is_truncated_to_the_bodys_budget(tmp_path):
+    """``blend.policy = "budget"`` within ``[creature.body] budget`` degrees: a 10° swing over a
+    4° budget turns the neck 4° over the course at most (IViHumans' truncated running sum)."""
+    extra = """
+[creature.tuples.hold]
+action = { type = "oscillate", variables = { "neck.x" = 10.0 }, period = 4.0, fade = 0.0, blend = { policy = "budget" } }
+until = { seconds = 30.0 }
+
+[creature.groups.skills]
+tuples = ["hold"]
+alpha = 0.0
+"""
+    path = tmp_path / "look.toml"
+    path.write_text(textwrap.dedent(LISTENER.format(tick=TICK, extra=extra, keys="")).replace(
+        'figure = "bird"', 'figure = "bird"\nbudget = 4.0', 1))
+    session = Session(load_installation(path), SimulatedClock(), EventLog(keep_in_memory=0), MemorySink())
+    bird = session.creatures[1]
+    neck = bird.body.skeleton.index("neck")
+    turns = []
+    for step in range(1, int(round(3.0 / TICK)) + 1):
+        t = step * TICK
+        session.clock.advance_to(t)
+        session.step(t, 1, None, audio=False)
+        course = bird.body.layers._course[neck]
+        turns.append(math.degrees(quat.angle_between(bird.body.pose.rotations[neck], course)))
+    assert max(turns) == pytest.approx(4.0, abs=1e-6)  # the swing reached 10°: held to the budget
+
+
 # -- the shipped piece -------------------------------------------------------------------------
 def test_the_shipped_exchange_looks_at_whom_it_hears_and_wanders_in_a_bored_manner():
     import installations
