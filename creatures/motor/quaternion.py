@@ -36,6 +36,8 @@ def normalize(q: np.ndarray) -> np.ndarray:
     72,000-frame body's cached reload. C order whatever the input's: the compiled metric
     kernels read it node by node, and a strided copy here had every one of them copied again."""
     q = np.array(q, dtype=float, order="C")
+    if q.ndim == 2 and q.shape[1] == 4:  # one pose, the per-tick case: compiled, no temporaries
+        return _normalize_rows(q)
     norm = np.sqrt(np.einsum("...i,...i->...", q, q))[..., None]
     small = norm[..., 0] <= _EPS
     if small.any():
@@ -584,3 +586,16 @@ def _turns_about(count, joints, axes, angles):  # pragma: no cover - compiled
         for c in range(4):
             out[j, c] = q[c]
     return out
+
+
+@numba.njit(cache=True)
+def _normalize_rows(q):  # pragma: no cover - compiled
+    """:func:`normalize` of ``(N, 4)`` in place (the copy ``normalize`` made)."""
+    for i in range(q.shape[0]):
+        norm = math.sqrt(q[i, 0] * q[i, 0] + q[i, 1] * q[i, 1] + q[i, 2] * q[i, 2] + q[i, 3] * q[i, 3])
+        if norm <= _EPS:
+            q[i, 0], q[i, 1], q[i, 2], q[i, 3] = 1.0, 0.0, 0.0, 0.0
+        else:
+            for c in range(4):
+                q[i, c] /= norm
+    return q

@@ -42,14 +42,19 @@ def look_turns(bearing: float, limits: Sequence[float], stages: Sequence[int] | 
     one stage: both eyes turn by the same angle, within the smaller of their limits, and take
     their share of the bearing once (see :func:`paired_stages`)."""
     left = shortest(bearing)
-    stages = list(range(len(limits))) if stages is None else list(stages)
-    turns = np.zeros(len(limits))
-    for stage in dict.fromkeys(stages):
-        members = [i for i, s in enumerate(stages) if s == stage]
-        limit = min(limits[i] for i in members)
-        turns[members] = min(max(left, -limit), limit)
-        left -= turns[members[0]]
-    return turns
+    stages = range(len(limits)) if stages is None else stages
+    tightest: dict[int, float] = {}
+    for stage, limit in zip(stages, limits):
+        tightest[stage] = min(tightest.get(stage, math.inf), float(limit))
+    taken: dict[int, float] = {}
+    turns = []
+    for stage in stages:
+        if stage not in taken:
+            limit = tightest[stage]
+            taken[stage] = min(max(left, -limit), limit)
+            left -= taken[stage]
+        turns.append(taken[stage])
+    return np.array(turns)
 
 
 def paired_stages(names: Sequence[str]) -> list[int]:
