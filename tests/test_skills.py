@@ -254,6 +254,30 @@ alpha = 0.0
         session_of(tmp_path, extra)
     with pytest.raises(ConfigError, match="a joint variable is 'joint.x'"):
         session_of(tmp_path, extra.replace("nekc.x", "neck"))
+    # voice.cutoff is a mouth's low-pass: a creature that sings through strings has none
+    with pytest.raises(ConfigError, match=r"look.toml:\d+: .*voice.cutoff, a mouth's low-pass: the creature needs "
+                                          r"\[creature.hearing\]"):
+        session_of(tmp_path, extra.replace('"nekc.x" = [-20.0, 30.0]', '"voice.cutoff" = [-0.5, 0.0]'))
+
+
+def test_voice_cutoff_darkens_what_a_mouth_sings():
+    """``voice.cutoff`` scales the mouth's low-pass over what the body sets: a fifth of it
+    leaves a tenth as much of a bright sound above 4 kHz."""
+    from audio.self_hearing import SingingState
+    from audio.utterance import Utterance
+    from creatures.kinds.hearing_parts import Mouth, MouthSpec
+
+    sr = 22050
+    noise = np.random.default_rng(3).normal(0.0, 0.2, sr).astype(np.float32)
+    highs = []
+    for cutoff in (1.0, 0.2):
+        mouth = Mouth(MouthSpec(), SingingState())
+        mouth.sing(0.0, Utterance(noise, sr, np.zeros((1, 13)), 0.0))
+        out = np.zeros(8192)
+        mouth.render(out, sr, None, cutoff=cutoff)
+        spectrum = np.abs(np.fft.rfft(out)) ** 2
+        highs.append(spectrum[np.fft.rfftfreq(len(out), 1.0 / sr) > 4000.0].sum() / spectrum.sum())
+    assert highs[1] < 0.1 * highs[0]
 
 
 # -- adverbs ---------------------------------------------------------------------------------

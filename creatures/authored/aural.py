@@ -94,8 +94,9 @@ class Aural:
         self.mouth.tick(t)
 
     def render(self, out: np.ndarray, sample_rate: int) -> None:
-        body = self.creature.body
-        self.mouth.render(out, sample_rate, None if body is None else body.pose)
+        c = self.creature
+        self.mouth.render(out, sample_rate, None if c.body is None else c.body.pose,
+                          cutoff=max(float(c.voice_now(c.now())[3]), 0.0))
 
     def report(self, t: float) -> None:
         log, name = self.creature.world.log, self.creature.name

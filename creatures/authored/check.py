@@ -198,6 +198,10 @@ def _action(c: _Checker, action, loc: tuple):
     joints = getattr(cls, "joints", None)
     if joints is not None and not getattr(c.spec.body, "custom", False):  # a body of files checks at load
         _joints(c, joints(params), loc)
+    voice = getattr(cls, "voice_parameters", None)
+    if voice is not None and "voice.cutoff" in voice(params) and c.spec.hearing is None:
+        raise c.error(loc, "it moves voice.cutoff, a mouth's low-pass: the creature needs [creature.hearing] "
+                           "(it sings through a mouth)")
     return cls
 
 

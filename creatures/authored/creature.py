@@ -439,7 +439,7 @@ class Authored(CreatureKind):
             self.trail.follow(t)
             pose = self.body.update(t)
             if self.voice is not None:
-                self.voice.feel(pose, push=self._voice_now(t)[2])
+                self.voice.feel(pose, push=self.voice_now(t)[2])
         for group in self.top:
             if soft or group.active:  # a new tuple is chosen on the soft state's steps
                 group.tick(t)
@@ -499,11 +499,11 @@ class Authored(CreatureKind):
                     couple_to_hands(self.voice, self.body)
             self.voice.render(out, self.now())
         if self._voice_parameters is not None:  # voice.gain, ramped across the block (no zipper steps)
-            gain = max(float(self._voice_now(self.now())[0]), 0.0)
+            gain = max(float(self.voice_now(self.now())[0]), 0.0)
             out *= np.linspace(self._gain, gain, len(out))
             self._gain = gain
 
-    def _voice_now(self, t: float) -> np.ndarray:
+    def voice_now(self, t: float) -> np.ndarray:
         """The voice parameters at ``t`` (creatures/authored/skills.py), at rest when no skill
         has driven them."""
         if self._voice_parameters is None:
@@ -514,7 +514,7 @@ class Authored(CreatureKind):
 
     def pan(self) -> float:
         """Where the mix places this creature now: its ``pan`` moved by ``voice.pan``."""
-        return min(max(self.spec.pan + float(self._voice_now(self.now())[1]), -1.0), 1.0)
+        return min(max(self.spec.pan + float(self.voice_now(self.now())[1]), -1.0), 1.0)
 
     def marks(self) -> list[tuple[tuple[float, float, float], int]]:
         return [] if self.notes is None else self.notes.marks()

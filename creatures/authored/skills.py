@@ -188,14 +188,16 @@ class LookAction(Action):
 
 
 # -- skills over named variables: sweeps, oscillators, servos --------------------------------
-VOICE_PARAMETERS = ("voice.gain", "voice.pan", "voice.push")
+VOICE_PARAMETERS = ("voice.gain", "voice.pan", "voice.push", "voice.cutoff")
 """Voice parameters a skill may drive, blended per tick as a body's joints are (a skill's
 numbers are offsets added to the rest value): ``voice.gain`` multiplies what the creature
 sounds (1 at rest), ``voice.pan`` moves it across the stereo pair from its ``pan`` (0 at rest;
 the sum held to [−1, 1]; a ``[room]`` places creatures by where they stand instead), and
 ``voice.push`` scales how hard the body's movement pushes its scanned strings (1 at rest:
-``[creature.voice] body_gain``; thesis "artificial gestural control")."""
-VOICE_REST = np.array([1.0, 0.0, 1.0])
+``[creature.voice] body_gain``; thesis "artificial gestural control"), and ``voice.cutoff``
+scales the low-pass cutoff of a creature that sings through a mouth (1 at rest: what its back
+angle sets; thesis "soundcreatures")."""
+VOICE_REST = np.array([1.0, 0.0, 1.0, 1.0])
 """Each voice parameter's value at rest (what the blend holds where no layer drives it)."""
 
 
@@ -257,6 +259,11 @@ class _SkillPart(ActionPart):
     @classmethod
     def joints(cls, params):
         return _joints_of(params.variables)
+
+    @classmethod
+    def voice_parameters(cls, params) -> list[str]:
+        """The voice parameters it drives (a mouth's, checked against the creature at load)."""
+        return [n for n in params.variables if n.startswith("voice.")]
 
 
 class _VariablesParams(Params):

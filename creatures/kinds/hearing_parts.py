@@ -197,8 +197,9 @@ class Mouth:
         if not self.sounding(t):
             self.singing.silence(t)
 
-    def render(self, out: np.ndarray, sample_rate: int, pose: BodyPose | None = None) -> None:
-        """Fill ``out`` with the sung sounds shaped by ``pose`` (no body: loud and bright)."""
+    def render(self, out: np.ndarray, sample_rate: int, pose: BodyPose | None = None, *, cutoff: float = 1.0) -> None:
+        """Fill ``out`` with the sung sounds shaped by ``pose`` (no body: loud and bright), the
+        low-pass cutoff ``cutoff`` times what the body sets (a skill's ``voice.cutoff``)."""
         if self.sampler is None or (not self.sampler.playing and len(self._index) > 64):
             # A fresh sampler when idle keeps the stored sounds bounded over a long run.
             self.sampler, self._index = Sampler(sample_rate, block_size=2 * len(out) + 2), {}
@@ -213,9 +214,9 @@ class Mouth:
             self.sampler.play(self._index[key], gain=gain)
         self._queue.clear()
         if pose is None:
-            self.sampler.render(out, amplitude=self.spec.loud, cutoff_hz=self.spec.bright_hz)
+            self.sampler.render(out, amplitude=self.spec.loud, cutoff_hz=self.spec.bright_hz * cutoff)
         else:
-            self.sampler.render(out, amplitude=self.amplitude(pose), cutoff_hz=self.cutoff(pose))
+            self.sampler.render(out, amplitude=self.amplitude(pose), cutoff_hz=self.cutoff(pose) * cutoff)
 
 
 # -- an utterance tree as JSON ------------------------------------------------------------------
