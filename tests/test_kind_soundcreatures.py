@@ -220,3 +220,38 @@ def test_songs_that_are_answered_gain_value(tmp_path):
     assert songs.count("ai") == 20 and songs.count("oe") >= 5
     assert worth["ai"] and worth["oe"]
     assert np.mean(worth["ai"]) >= 2 * np.mean(worth["oe"])
+
+
+def test_a_mouth_sings_a_new_sound_whose_samples_reuse_a_freed_ones_address():
+    """The mouth finds a sound it already holds by its samples' identity: a new utterance whose
+    array lands where a freed one was is a new sound, not the old one's slot (that played an
+    old song, differently in a process that had freed other arrays first). Fixed by keeping the
+    samples with their slot, so the address is never free while the slot is; without the fix
+    the loop below finds the address reused and the mouth sang the old sound."""
+    import gc
+
+    from audio.self_hearing import SingingState
+    from audio.utterance import Utterance
+    from creatures.kinds.hearing_parts import Mouth, MouthSpec
+
+    sr = 22050
+    mouth = Mouth(MouthSpec(), SingingState())
+    old = np.full(2048, 0.5, dtype=np.float32)  # a loud constant
+    address = id(old)
+    mouth.sing(0.0, Utterance(old, sr, np.zeros((1, 13)), 0.0))
+    mouth.render(np.zeros(4096), sr)
+    del old
+    gc.collect()
+    kept, new = [], None
+    for _ in range(10_000):  # allocate until an array lands where the old one was
+        candidate = np.zeros(2048, dtype=np.float32)  # silence
+        if id(candidate) == address:
+            new = candidate
+            break
+        kept.append(candidate)
+    if new is None:  # the mouth still holds the old samples, so nothing can take their place
+        new = np.zeros(2048, dtype=np.float32)
+    mouth.sing(1.0, Utterance(new, sr, np.zeros((1, 13)), 1.0))
+    out = np.zeros(4096)
+    mouth.render(out, sr)
+    assert np.abs(out).max() < 1e-6  # it sang the silence it was given, not the old loud sound

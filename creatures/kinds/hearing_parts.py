@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import base64
 import functools
+import weakref
 from pathlib import Path
 from typing import Annotated, Any, Callable
 
@@ -167,7 +168,11 @@ class Mouth:
         self.amplitude = BodyControl(features["rib cage"], *body_range("rib cage"), spec.quiet, spec.loud)
         self.cutoff = BodyControl(features["back angle"], *body_range("back angle"), spec.dull_hz, spec.bright_hz)
         self.sampler: Sampler | None = None
-        self._index: dict[int, int] = {}
+        # the sampler's slot of each sound, by the identity of its samples; the samples are kept
+        # with it, so their id cannot be another sound's (a freed array's address is reused: a
+        # new utterance there played an old one's slot, a different song in a process that had
+        # freed other arrays first)
+        self._index: dict[int, tuple[np.ndarray, int]] = {}
         self._queue: list[tuple[np.ndarray, float]] = []
         self.since = self.until = -np.inf  # clock times the latest song began and ends
         self._idle = False  # a whole block rendered with nothing playing
@@ -178,12 +183,17 @@ class Mouth:
             self.since = t
         self.until = max(self.until, t + len(utterance.samples) / utterance.samplerate)
         self.singing.sing(t, 1.0)  # binary: a fraction would only partly deafen the ear
-        key = id(utterance.samples)
-        if self.sampler is not None and key in self._index:
-            self.sampler.play(self._index[key], gain=gain * self.spec.gain)
+        slot = self._slot(utterance.samples)
+        if slot is not None:
+            self.sampler.play(slot, gain=gain * self.spec.gain)
         else:
             self._queue.append((utterance.samples, gain * self.spec.gain))
         return self.until
+
+    def _slot(self, samples: np.ndarray) -> int | None:
+        """The sampler's slot holding ``samples`` (these very samples), if it has one."""
+        entry = self._index.get(id(samples)) if self.sampler is not None else None
+        return entry[1] if entry is not None and entry[0] is samples else None
 
     def sounding(self, t: float) -> bool:
         return t < self.until
@@ -208,10 +218,11 @@ class Mouth:
             return
         self._idle = not self._queue and not self.sampler.playing
         for samples, gain in self._queue:
-            key = id(samples)
-            if key not in self._index:
-                self._index[key] = self.sampler.add(samples)
-            self.sampler.play(self._index[key], gain=gain)
+            slot = self._slot(samples)
+            if slot is None:
+                slot = self.sampler.add(samples)
+                self._index[id(samples)] = (samples, slot)
+            self.sampler.play(slot, gain=gain)
         self._queue.clear()
         if pose is None:
             self.sampler.render(out, amplitude=self.spec.loud, cutoff_hz=self.spec.bright_hz * cutoff)
@@ -334,7 +345,9 @@ class AuralLearning(PerceptLearning):
         self.root = root
         self.sing_from = sing_from
         self.refission_every = float(refission_every)
-        self._clustered: dict[int, float] = {}
+        # when each percept last split, by the percept itself (weakly: one that fused away goes,
+        # and a new percept never inherits its time through a reused id)
+        self._clustered: weakref.WeakKeyDictionary[UtterancePercept, float] = weakref.WeakKeyDictionary()
 
     def thresholds(self, group: ActionGroup) -> tuple[float, float]:
         """As :meth:`PerceptLearning.thresholds`, over the *plastic* tuples only: a fixed,
@@ -352,9 +365,9 @@ class AuralLearning(PerceptLearning):
         for percept in (tuple_.trigger, sung):
             if not isinstance(percept, UtterancePercept) or not self._in_tree(percept):
                 continue
-            if t - self._clustered.get(id(percept), -np.inf) < self.refission_every:
+            if t - self._clustered.get(percept, -np.inf) < self.refission_every:
                 continue
-            self._clustered[id(percept)] = t
+            self._clustered[percept] = t
             before = {id(c) for c in self.root.walk()}
             born = percept.fission(worth, innovation)
             if born:
