@@ -166,3 +166,53 @@ def test_soundcreatures_sing_louder_as_the_rib_cage_opens(tmp_path):
           f"within a song r = {r:.2f}; a song swells by up to {np.exp(max(swell)):.1f}x")
     assert np.exp(max(swell)) > 1.5  # the breath is heard: a song swells and ebbs
     assert r >= 0.8
+
+
+def test_a_skill_on_voice_cutoff_darkens_what_soundcreatures_sing(tmp_path):
+    """``voice.cutoff`` from the config reaches the mouth in a run: parrot sings heard noise
+    back through a low-pass an oscillator swings between a fifth and nearly twice what its
+    back sets; the recording is brighter when the cutoff is high (spectral centroid while
+    singing, out.wav)."""
+    sr, seconds = 22050, 60.0
+    rng = np.random.default_rng(5)
+    t = np.arange(int(seconds * sr)) / sr
+    noise = 0.2 * rng.normal(size=len(t)) * ((t % 4.0) < 2.5) * (t > 1.0)
+    wav = tmp_path / "noise.wav"
+    soundfile.write(wav, noise.astype(np.float32), sr)
+    text = CONFIG.read_text().replace('kind = "soundcreature"\npan = -0.6\n', '''kind = "soundcreature"
+pan = -0.6
+report_every = 0.05
+
+[creature.tuples.darken]
+action = { type = "oscillate", variables = { "voice.cutoff" = 0.9 }, period = 5.0, fade = 0.0 }
+until = { seconds = 100.0 }
+
+[creature.groups.timbre]
+tuples = ["darken"]
+alpha = 0.0
+''', 1)
+    path = tmp_path / "darker.toml"
+    path.write_text(text)
+    inst = load_installation(path)
+    inst.settings.output.report = False
+    inst.specs[1].gain = 0.0  # mynah muted: the recording is parrot's
+    out = tmp_path / "run"
+    run_offline(inst, out, audio=wav, duration=seconds)
+    events = read_events(out / "events.jsonl")
+    sung = [(e["start"], e["end"]) for e in events if e["kind"] == "sing" and e["creature"] == inst.specs[0].name]
+    knob = [(e["t"], e["values"]["voice.cutoff"]) for e in events if e["kind"] == "voice parameters"]
+    recorded, rate = soundfile.read(out / "out.wav")
+    mono = recorded.mean(axis=1)
+    window = 512
+    freqs = np.fft.rfftfreq(window, 1.0 / rate)
+    dark, bright = [], []
+    for start, end in sung:
+        for a in range(int((start + 0.05) * rate), int((min(end, seconds) - 0.05) * rate) - window, window):
+            power = np.abs(np.fft.rfft(mono[a:a + window] * np.hanning(window))) ** 2
+            centroid = float((freqs * power).sum() / max(power.sum(), 1e-30))
+            k = float(np.interp((a + window / 2) / rate, *zip(*knob)))
+            (dark if k < 0.5 else bright if k > 1.5 else []).append(centroid)
+    print(f"centroid while singing: {np.mean(dark):.0f} Hz with voice.cutoff < 0.5 ({len(dark)} windows), "
+          f"{np.mean(bright):.0f} Hz above 1.5 ({len(bright)})")
+    assert len(dark) > 20 and len(bright) > 20
+    assert np.mean(bright) > 1.8 * np.mean(dark)

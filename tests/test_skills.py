@@ -524,6 +524,68 @@ alpha = 0.0
     assert max(turns) == pytest.approx(4.0, abs=1e-6)  # the swing reached 10°: held to the budget
 
 
+TWO_LAYERS = """
+[creature.tuples.high]
+action = {{ type = "oscillate", variables = {{ "neck.x" = {high} }}, period = 4.0, fade = 0.0, blend = {{ policy = "{policy}", priority = 2.0 }} }}
+until = {{ seconds = 30.0 }}
+
+[creature.tuples.low]
+action = {{ type = "oscillate", variables = {{ "neck.x" = {low} }}, period = 4.0, fade = 0.0, blend = {{ policy = "{policy}", priority = 1.0 }} }}
+until = {{ seconds = 30.0 }}
+
+[creature.groups.skills]
+tuples = ["high", "low"]
+max_active = 2
+alpha = 0.0
+"""
+
+
+def two_layer_session(tmp_path: Path, policy: str, high: float, low: float, body: str = "") -> Session:
+    tmp_path.mkdir(parents=True, exist_ok=True)
+    path = tmp_path / "look.toml"
+    path.write_text(textwrap.dedent(LISTENER.format(tick=TICK, extra=TWO_LAYERS.format(policy=policy, high=high, low=low),
+                                                    keys="")).replace('figure = "bird"', f'figure = "bird"\n{body}', 1))
+    return Session(load_installation(path), SimulatedClock(), EventLog(keep_in_memory=0), MemorySink())
+
+
+def test_two_layers_from_the_config_resolve_by_priority(tmp_path):
+    """Two ``exclusive`` layers on the neck: the higher priority holds it outright; two
+    ``budget`` layers within a 4° budget: the higher priority takes what it needs first, the
+    lower what is left."""
+    session = two_layer_session(tmp_path / "exclusive", "exclusive", 10.0, -10.0)
+    bird = session.creatures[1]
+    run(session, 1.0)
+    t, neck = session.clock.now(), bird.body.skeleton.index("neck")
+    high = bird.tuples["high"]
+    assert high.active and bird.tuples["low"].active
+    swing = math.sin(2 * math.pi * (t - high.started_at) / 4.0)
+    layer = quat.from_axis_angle(np.array([1.0, 0.0, 0.0]), math.radians(10.0 * swing))
+    assert quat.angle_between(bird.body.pose.rotations[neck], layer) < 1e-9
+    session = two_layer_session(tmp_path / "budget", "budget", 3.0, 3.0, "budget = 4.0")
+    bird = session.creatures[1]
+    run(session, 1.0)
+    blend, t = bird.body.layers.blend, session.clock.now()
+    swing = math.sin(2 * math.pi * (t - bird.tuples["high"].started_at) / 4.0)
+    turned = math.degrees(quat.angle_between(bird.body.pose.rotations[neck], bird.body.layers._course[neck]))
+    assert abs(3.0 * swing) > 2.0  # both want more than half the budget: the second is cut short
+    assert turned == pytest.approx(min(2 * abs(3.0 * swing), 4.0), abs=1e-6)
+    assert blend.contributors(t) == {"course": 1.0, "high": 1.0, "low": 1.0}
+
+
+def test_a_budget_layer_needs_a_budget_and_voice_parameters_have_none(tmp_path):
+    with pytest.raises(ConfigError, match=r"look.toml:\d+: .*'budget' shares each joint's budget: set \[creature.body\] budget"):
+        two_layer_session(tmp_path / "none", "budget", 3.0, 3.0)
+    extra = TWO_LAYERS.format(policy="budget", high=3.0, low=3.0)
+    extra = extra.replace('"neck.x" = 3.0 }, period = 4.0, fade = 0.0, blend = { policy = "budget", priority = 1.0',
+                          '"voice.gain" = 0.3 }, period = 4.0, fade = 0.0, blend = { policy = "budget", priority = 1.0')
+    assert '"voice.gain"' in extra
+    path = tmp_path / "look.toml"
+    path.write_text(textwrap.dedent(LISTENER.format(tick=TICK, extra=extra, keys="")).replace(
+        'figure = "bird"', 'figure = "bird"\nbudget = 4.0', 1))
+    with pytest.raises(ConfigError, match="voice parameters have none"):
+        load_installation(path)
+
+
 # -- the shipped piece -------------------------------------------------------------------------
 def test_the_shipped_exchange_looks_at_whom_it_hears_and_wanders_in_a_bored_manner():
     import installations

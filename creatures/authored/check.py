@@ -202,6 +202,14 @@ def _action(c: _Checker, action, loc: tuple):
     if voice is not None and "voice.cutoff" in voice(params) and c.spec.hearing is None:
         raise c.error(loc, "it moves voice.cutoff, a mouth's low-pass: the creature needs [creature.hearing] "
                            "(it sings through a mouth)")
+    blend = getattr(params, "blend", None)
+    if blend is not None and blend.policy == "budget":
+        if voice is not None and voice(params):
+            raise c.error(loc, "blend.policy 'budget' shares a joint's budget; voice parameters have none: "
+                               "blend them with 'add', 'mean' or 'exclusive'")
+        if getattr(c.spec.body, "budget", None) is None:
+            raise c.error(loc, "blend.policy 'budget' shares each joint's budget: set [creature.body] budget "
+                               "(degrees)")
     return cls
 
 

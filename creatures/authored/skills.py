@@ -119,6 +119,9 @@ class _LookParams(Params):
     speed: float = Field(120.0, gt=0, le=3600, description="degrees per second each joint turns at most")
     patience: float = Field(3.0, gt=0, le=3600, description="seconds the look may lag a moving source before "
                                                             "it gives up (done)")
+    fade: float = Field(0.0, ge=0, le=60, description="seconds the layer eases in and out (an add look is eased "
+                                                      "by its servo; a mean or exclusive one takes the joints "
+                                                      "from the course, so give it a fade)")
     blend: LayerSpec = LayerSpec()
 
 
@@ -162,7 +165,7 @@ class LookAction(Action):
         super().__init__(name)
         self.body, self.offsets, self.limits, self.stages, self.bearing = body, offsets, limits, stages, bearing
         self.servo = Servo(len(limits), rate=params.speed, tolerance=0.5)
-        self.patience, self.blend = params.patience, params.blend
+        self.patience, self.blend, self.fade = params.patience, params.blend, params.fade
 
     def _source(self, t: float) -> np.ndarray:
         self.offsets.degrees = self.servo.step(t)
@@ -170,7 +173,7 @@ class LookAction(Action):
 
     def start(self, t: float, tuple_: ActionTuple) -> None:
         self.servo.patience = self.patience
-        self.body.layer(self.blend.contribution(self.name, self._source, self.offsets.mask, 0.0), t)
+        self.body.layer(self.blend.contribution(self.name, self._source, self.offsets.mask, self.fade), t)
         self.update(t)
 
     def update(self, t: float) -> None:
@@ -181,7 +184,9 @@ class LookAction(Action):
     def stop(self, t: float, *, interrupted: bool) -> None:
         self.servo.patience, self.servo.gave_up = math.inf, False
         self.servo.aim(np.zeros(len(self.limits)), t)
-        self.body.unlayer(self.name, self.servo.eta(t))  # back at rest by then: the layer leaves exactly
+        # an offset is back at rest by the servo's eta, and the layer then leaves exactly; a look
+        # that holds the joints itself (mean, exclusive) eases back to the course from now
+        self.body.unlayer(self.name, self.servo.eta(t) if self.blend.offsets else t)
 
     def done(self, t: float) -> float:
         return 1.0 if self.servo.gave_up else 0.0

@@ -108,6 +108,12 @@ class BodySpec(MaterialSpec):
                                                                  "(blend.policy = \"budget\"; none: unbounded)")
 
     @model_validator(mode="after")
+    def _budgeted(self) -> "BodySpec":
+        if self.breathe.blend.policy == "budget" and self.budget is None:
+            raise ValueError("breathe.blend.policy 'budget' shares each joint's budget: set budget (degrees)")
+        return self
+
+    @model_validator(mode="after")
     def _breathing_joints(self) -> "BodySpec":
         """The shipped figure's joints are known now; a body from files is checked when it loads
         (:meth:`resolve`), and only if it breathes."""

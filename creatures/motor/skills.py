@@ -25,7 +25,6 @@ from typing import Sequence
 
 import numpy as np
 
-from creatures.motor import quaternion as quat
 
 
 def shortest(degrees: float) -> float:
@@ -63,12 +62,6 @@ def paired_stages(names: Sequence[str]) -> list[int]:
     stems = [name[:-2] if name.endswith(("_l", "_r")) else name for name in names]
     first = {stem: i for i, stem in reversed(list(enumerate(stems)))}
     return [first[stem] for stem in stems]
-
-
-def joint_turns(axes: np.ndarray, angles: np.ndarray) -> np.ndarray:
-    """Rotations ``(J, 4)``: each joint turned by ``angles[j]`` radians about its unit axis
-    ``axes[j]`` (a zero axis: the identity), the offset an ``add`` layer composes over a pose."""
-    return quat.exp(np.asarray(axes, dtype=float) * np.asarray(angles, dtype=float)[:, None])
 
 
 class Servo:
