@@ -166,6 +166,7 @@ class LookAction(Action):
         self.body, self.offsets, self.limits, self.stages, self.bearing = body, offsets, limits, stages, bearing
         self.servo = Servo(len(limits), rate=params.speed, tolerance=0.5)
         self.patience, self.blend, self.fade = params.patience, params.blend, params.fade
+        self._bearing, self._turns = None, np.zeros(len(limits))
 
     def _source(self, t: float) -> np.ndarray:
         self.offsets.degrees = self.servo.step(t)
@@ -179,7 +180,9 @@ class LookAction(Action):
     def update(self, t: float) -> None:
         bearing = self.bearing()
         if bearing is not None:
-            self.servo.aim(look_turns(bearing, self.limits, self.stages), t)
+            if bearing != self._bearing:  # the turns change only when the source moves
+                self._bearing, self._turns = bearing, look_turns(bearing, self.limits, self.stages)
+            self.servo.aim(self._turns, t)
 
     def stop(self, t: float, *, interrupted: bool) -> None:
         self.servo.patience, self.servo.gave_up = math.inf, False

@@ -182,7 +182,7 @@ class BodyLayers:
             velocities = course.velocities
         else:
             velocities = quat.turn_rates(rotations, previous.rotations, dt)
-        self._shown = BodyPose(rotations, velocities, course.root, time=t, source="blend", labels=course.labels,
-                               positions=self.skeleton.forward_kinematics(rotations, course.root))
+        self._shown = BodyPose.made(rotations, velocities, course.root, self.skeleton.forward_kinematics(rotations, course.root),
+                                    time=t, source="blend", labels=course.labels)
         return self._shown
 

@@ -18,6 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Sequence
 
+import numba
 import numpy as np
 from scipy.interpolate import RBFInterpolator
 
@@ -81,16 +82,10 @@ class AdverbBlend:
         w = self.weights(adverbs)
         times = np.asarray(times, dtype=float)
         neutral = np.interp(times, self._warped_knots(w), self._neutral)
-        reference = int(np.argmax(w))
-        ref_rot, _ = _at(self.examples[reference], neutral)
-        tangent = np.zeros((*ref_rot.shape[:-1], 3))
-        roots = np.zeros((len(times), 3))
-        inverse = quat.conjugate(ref_rot)
-        for weight, example in zip(w, self.examples):
-            rotations, root = _at(example, neutral)
-            tangent += weight * quat.log(quat.multiply(inverse, rotations))
-            roots += weight * root
-        return quat.multiply(ref_rot, quat.exp(tangent)), roots
+        at = [_at(example, neutral) for example in self.examples]
+        rotations = np.stack([r for r, _ in at])
+        roots = np.einsum("e,etc->tc", w, np.stack([root for _, root in at]))
+        return _tangent_mean(rotations, np.ascontiguousarray(w, dtype=float), int(np.argmax(w))), roots
 
     def animation(self, adverbs: Sequence[float], *, fps: float = 10.0, source: str | None = None) -> PoseSet:
         """The blended animation as key-frames, ready to be patched into a motor graph."""
@@ -110,6 +105,42 @@ def _at(example: Example, neutral: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     frames = np.clip(np.searchsorted(anim.times, local, side="right") - 1, 0, len(anim) - 2)
     span = anim.times[frames + 1] - anim.times[frames]
     u = np.clip((local - anim.times[frames]) / np.where(span > 0, span, 1.0), 0.0, 1.0)
-    rotations = quat.slerp(anim.rotations[frames], anim.rotations[frames + 1], u[:, None])
+    rotations = _slerp_frames(anim.rotations, frames.astype(np.int64), u)
     roots = (1.0 - u[:, None]) * anim.roots[frames] + u[:, None] * anim.roots[frames + 1]
     return rotations, roots
+
+
+# --- compiled kernels (a creature's adverb is resampled every cycle, on its tick) -------
+
+@numba.njit(cache=True)
+def _slerp_frames(rotations, frames, u):  # pragma: no cover - compiled
+    """``slerp(rotations[frames], rotations[frames + 1], u)`` per output time ``(T, J, 4)``."""
+    out = np.empty((frames.shape[0], rotations.shape[1], 4))
+    for i in range(frames.shape[0]):
+        for j in range(rotations.shape[1]):
+            q = quat.slerp_one(quat._at(rotations[frames[i]], j), quat._at(rotations[frames[i] + 1], j), u[i])
+            for c in range(4):
+                out[i, j, c] = q[c]
+    return out
+
+
+@numba.njit(cache=True)
+def _tangent_mean(rotations, weights, reference):  # pragma: no cover - compiled
+    """The examples' rotations ``(E, T, J, 4)`` blended by ``weights`` in the tangent space of
+    the heaviest: ``ref · exp(Σ w log(ref⁻¹ · q))`` per time and joint."""
+    e_count, t_count, j_count = rotations.shape[0], rotations.shape[1], rotations.shape[2]
+    out = np.empty((t_count, j_count, 4))
+    for t in range(t_count):
+        for j in range(j_count):
+            ref = quat._at(rotations[reference, t], j)
+            inverse = (ref[0], -ref[1], -ref[2], -ref[3])
+            x = y = z = 0.0
+            for e in range(e_count):
+                v = quat.log_one(quat.multiply_one(inverse, quat._at(rotations[e, t], j)))
+                x += weights[e] * v[0]
+                y += weights[e] * v[1]
+                z += weights[e] * v[2]
+            q = quat.multiply_one(ref, quat.exp_one((x, y, z)))
+            for c in range(4):
+                out[t, j, c] = q[c]
+    return out

@@ -175,6 +175,8 @@ class Blend:
                 if c.mask is not None:
                     masks[i] = c.mask
             self._drop_at = min((c.stopped + c.fade for c in cs), default=math.inf)
+            # the contributors' values each frame, filled in place (one array per set, not per frame)
+            self._values = np.empty((len(cs), self.channels, 4) if self.rotations else (len(cs), self.channels))
             self._arrays = (
                 np.array([int(c.policy) for c in cs], dtype=np.int64),
                 masks * np.array([c.weight for c in cs]).reshape(-1, 1),
@@ -191,13 +193,14 @@ class Blend:
             self.contributions = [c for c in self.contributions if not c.gone(t)]
             self._arrays = None
         policies, weights, started, stopped, fades = self._order()
-        shape = (len(self.contributions), self.channels, 4) if self.rotations else (len(self.contributions), self.channels)
-        values = np.empty(shape)
+        values = self._values
         for i, c in enumerate(self.contributions):
-            value = np.asarray(c.source(t), dtype=float)
-            if value.shape != shape[1:]:
+            value = c.source(t)
+            if not isinstance(value, np.ndarray):
+                value = np.asarray(value, dtype=float)
+            if value.shape != values.shape[1:]:
                 raise ValueError(f"contribution {c.name!r} gave a value of shape {value.shape}; the blend's"
-                                 f" channels are {shape[1:]}")
+                                 f" channels are {values.shape[1:]}")
             values[i] = value
         kernel = _blend_rotations if self.rotations else _blend_scalars
         return kernel(values, weights, policies, started, stopped, fades, float(t), self.budget, self.hold)

@@ -62,6 +62,18 @@ class BodyPose:
             self.positions = self.skeleton.forward_kinematics(self.rotations, self.root)
         self.positions = np.asarray(self.positions, dtype=float)
 
+    @classmethod
+    def made(cls, rotations: np.ndarray, velocities: np.ndarray, root: np.ndarray, positions: np.ndarray, *,
+             time: float, source: str, labels: frozenset[str]) -> "BodyPose":
+        """A pose from arrays a caller has just made right (unit float rotations ``(J, 4)``,
+        velocities ``(J, 3)``, positions by forward kinematics), without checking or copying
+        them again: a body's blended frame, once per tick, where the checks cost more than
+        the frame's own arithmetic."""
+        pose = object.__new__(cls)
+        pose.rotations, pose.velocities, pose.root, pose.positions = rotations, velocities, root, positions
+        pose.time, pose.source, pose.labels, pose.skeleton = time, source, labels, None
+        return pose
+
     def end_effector(self, name: str) -> np.ndarray:
         """World position of the named joint (usually one of ``skeleton.end_effectors``)."""
         if self.skeleton is None:

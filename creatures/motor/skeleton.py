@@ -108,6 +108,10 @@ class Skeleton:
         tick, where numpy's per-call overhead on a few joints cost more than the maths.
         """
         rotations = np.asarray(rotations, dtype=float)
+        if rotations.ndim == 2 and rotations.flags.c_contiguous:  # one pose (a tick's): no broadcasting
+            root = np.asarray(root, dtype=float)
+            if root.shape == (3,):
+                return _forward_kinematics(rotations[None], root[None], self.parents, self.offsets)[0]
         lead = rotations.shape[:-2]
         flat = np.ascontiguousarray(rotations).reshape(-1, self.joint_count, 4)
         roots = np.ascontiguousarray(np.broadcast_to(np.asarray(root, dtype=float), (*lead, 3))).reshape(-1, 3)

@@ -90,7 +90,8 @@ class Servo:
 
     @property
     def error(self) -> float:
-        return float(np.abs(self.target - self.value).max(initial=0.0))
+        # plain floats: a servo has a handful of variables and is asked every tick
+        return max(map(abs, (self.target - self.value).tolist()), default=0.0)
 
     @property
     def reached(self) -> bool:
@@ -103,7 +104,8 @@ class Servo:
     def step(self, t: float) -> np.ndarray:
         """The value at clock time ``t`` (moved at most ``rate × dt`` toward the target)."""
         if self.time is not None and t > self.time and not self.gave_up:
-            self.value += np.clip(self.target - self.value, -self.rate * (t - self.time), self.rate * (t - self.time))
+            most = self.rate * (t - self.time)
+            self.value += np.minimum(np.maximum(self.target - self.value, -most), most)
             if self.reached:
                 self.within_at = t
             elif t - self.within_at > self.patience:
