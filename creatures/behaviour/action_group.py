@@ -317,7 +317,9 @@ class ActionGroup:
             trig = self.triggers(t)
             expected = self._expected(t, trig, self.values())
             if len(self.active) < self.max_active:
-                self._fill(t, trig, expected)
+                running = sum(expected[self._position(tp)] > 0.0 for tp in self.active)
+                if np.count_nonzero(expected > 0.0) > running:  # something not running is worth starting
+                    self._fill(t, trig, expected)
             elif self._should_interrupt(expected):
                 self._reselect(t, trig, expected)
             for tuple_ in list(self.active):

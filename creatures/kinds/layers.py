@@ -177,12 +177,14 @@ class BodyLayers:
         self._course = course.rotations
         previous = self._shown
         dt = 0.0 if previous is None else t - previous.time
-        rotations = self.limits.apply(self.blend.resolve(t), None if previous is None else previous.rotations, dt)
+        blended = self.blend.resolve(t)
         if previous is None or dt <= 0.0:
-            velocities = course.velocities
+            rotations = self.limits.apply(blended, None if previous is None else previous.rotations, dt)
+            velocities, positions = course.velocities, self.skeleton.forward_kinematics(rotations, course.root)
         else:
-            velocities = quat.turn_rates(rotations, previous.rotations, dt)
-        self._shown = BodyPose.made(rotations, velocities, course.root, self.skeleton.forward_kinematics(rotations, course.root),
-                                    time=t, source="blend", labels=course.labels)
+            rotations, velocities, positions = self.limits.frame(blended, previous.rotations, dt, self.skeleton,
+                                                                 course.root)
+        self._shown = BodyPose.made(rotations, velocities, course.root, positions, time=t, source="blend",
+                                    labels=course.labels)
         return self._shown
 

@@ -48,6 +48,7 @@ import numpy as np
 
 from creatures.motor import quaternion as quat
 from creatures.motor.pose import PoseSet
+from creatures.motor.skeleton import Skeleton, _forward_kinematics
 
 
 class Policy(enum.IntEnum):
@@ -231,6 +232,17 @@ class Limits:
         prev = rotations if previous is None else previous
         return _limit(np.ascontiguousarray(rotations, dtype=float), np.ascontiguousarray(prev, dtype=float),
                       self.range, self.max_speed * max(dt, 0.0), previous is not None)
+
+
+    def frame(self, rotations: np.ndarray, previous: np.ndarray, dt: float, skeleton: Skeleton,
+              root: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """A body's shown frame from a blended pose and the frame before it, ``dt`` seconds
+        earlier (> 0): :meth:`apply`, the angular velocities that carried the frame before to
+        it, and its joint positions, in one compiled call (once a tick per body, where three
+        calls' overhead was a tenth of what a layer costs the tick)."""
+        return _frame(np.ascontiguousarray(rotations, dtype=float), np.ascontiguousarray(previous, dtype=float),
+                      self.range, self.max_speed * dt, float(dt), skeleton.parents, skeleton.offsets,
+                      np.asarray(root, dtype=float))
 
 
 class Oscillator:
@@ -479,3 +491,12 @@ def _limit(rotations, previous, limits, max_step, moving):  # pragma: no cover -
             for c in range(4):
                 out[j, c] = q[c]
     return out
+
+
+@numba.njit(cache=True)
+def _frame(rotations, previous, limits, max_step, dt, parents, offsets, root):  # pragma: no cover - compiled
+    """:meth:`Limits.frame`."""
+    shown = _limit(rotations, previous, limits, max_step, True)
+    velocities = quat._turn_rates(shown, previous, dt)
+    positions = _forward_kinematics(shown.reshape(1, shown.shape[0], 4), root.reshape(1, 3), parents, offsets)[0]
+    return shown, velocities, positions

@@ -167,13 +167,6 @@ def slerp_rows(q1: np.ndarray, q2: np.ndarray, alpha: float) -> np.ndarray:
     return _slerp_rows(np.ascontiguousarray(q1, dtype=float), np.ascontiguousarray(q2, dtype=float), float(alpha))
 
 
-def turn_rates(q: np.ndarray, previous: np.ndarray, dt: float) -> np.ndarray:
-    """``log(q · previous⁻¹) / dt`` of two ``(J, 4)`` poses: the angular velocities ``(J, 3)``
-    that carried ``previous`` to ``q`` in ``dt`` seconds (the short way), compiled for the same
-    reason as :func:`slerp_rows`."""
-    return _turn_rates(np.ascontiguousarray(q, dtype=float), np.ascontiguousarray(previous, dtype=float), float(dt))
-
-
 def turns_about(count: int, joints: np.ndarray, axes: np.ndarray, angles: np.ndarray) -> np.ndarray:
     """``count`` rotations, the identity except joint ``joints[k]`` turned ``angles[k]`` radians
     about unit ``axes[k]`` (a joint named twice has its rotation vectors summed): named joint
@@ -565,6 +558,9 @@ def _slerp_rows(q1, q2, alpha):  # pragma: no cover - compiled
 
 @numba.njit(cache=True)
 def _turn_rates(q, previous, dt):  # pragma: no cover - compiled
+    """``log(q · previous⁻¹) / dt`` of two ``(J, 4)`` poses: the angular velocities ``(J, 3)``
+    that carried ``previous`` to ``q`` in ``dt`` seconds, the short way (a shown frame's,
+    :meth:`creatures.motor.blend.Limits.frame`)."""
     out = np.empty((q.shape[0], 3))
     for j in range(q.shape[0]):
         p = _at(previous, j)
