@@ -40,7 +40,7 @@ frames: a 128-mass step is too small for numpy's per-call overhead to pay off.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numba
 import numpy as np
@@ -115,6 +115,18 @@ class StringParameters:
     def highest_mode_hz(self) -> float:
         """Upper bound on the chain's highest natural frequency (Hz), ignoring damping."""
         return math.sqrt((4.0 * self.stiffness + self.centring) / self.mass) / (2.0 * math.pi)
+
+    def retuned(self, tension: float, damping: float) -> "StringParameters":
+        """These strings with stiffness × ``tension`` and damping × ``damping`` (a performer's
+        or a skill's hand on the string), held within what a config may ask for: no mode above
+        :data:`GESTURAL_LIMIT_HZ` (or this string's own highest, if it was set above), and a
+        stable integrator (damping, then stiffness, kept a hundredth inside their bounds)."""
+        h = 1.0 / self.haptic_rate
+        cap = max(self.stiffness_for_highest_mode(GESTURAL_LIMIT_HZ), self.stiffness)
+        stiffness = min(max(self.stiffness * tension, 0.0), cap)
+        omega_h_sq = h * h * (4.0 * stiffness + self.centring) / self.mass
+        most = 0.99 * self.mass * min(4.0 - omega_h_sq, 4.0) / (2.0 * h)  # bound 4 − 2γh above ω²h², γh < 2
+        return replace(self, stiffness=stiffness, damping=min(max(self.damping * damping, 0.0), max(most, 0.0)))
 
     def stiffness_for_highest_mode(self, hz: float) -> float:
         """The stiffness that would put :attr:`highest_mode_hz` at ``hz`` with this mass and

@@ -238,3 +238,19 @@ def test_fastest_mode_is_gestural_and_independent_of_the_haptic_rate(haptic_rate
         middle[i] = string.x[p.n_masses // 2]
     crossings = np.count_nonzero(np.diff(np.signbit(middle)))
     assert crossings / 2 / 2.0 == pytest.approx(p.highest_mode_hz, rel=0.03)
+
+
+@pytest.mark.parametrize("tension,damping", [(0.0, 0.0), (0.5, 2.0), (3.0, 1.0), (1e6, 1e6), (-1.0, -1.0)])
+def test_retuned_strings_stay_gestural_and_stable(tension, damping):
+    """A hand on the string (a skill's voice.tension and voice.damping) never takes it past what
+    a config may ask for: every retuned parameter set passes the stability check it would fail
+    otherwise, and no mode rises above the gestural limit."""
+    from audio.scanned import GESTURAL_LIMIT_HZ, StringParameters
+
+    base = StringParameters(n_masses=64, stiffness=800.0, centring=4.0, damping=0.5, haptic_rate=500.0)
+    tuned = base.retuned(tension, damping)
+    StringParameters(**{**tuned.__dict__})  # the check a config's string passes
+    assert tuned.highest_mode_hz <= GESTURAL_LIMIT_HZ + 1e-9
+    assert 0.0 <= tuned.stiffness and 0.0 <= tuned.damping
+    if 0.0 <= tension <= 1.0 and 0.0 <= damping <= 2.0:
+        assert tuned.stiffness == pytest.approx(800.0 * tension) and tuned.damping == pytest.approx(0.5 * damping)

@@ -438,7 +438,7 @@ alpha = 0.0
     neck = bird.body.layers.blend.channel_contributors(6.0)[bird.body.skeleton.index("neck")]
     assert neck == {"course": 1.0, "follow": 1.0}
     # The voice really is scaled: each block sounds at voice.gain, ramped from the last block's.
-    bird.voice = type("Steady", (), {"render": lambda self, o, t: o.fill(1.0)})()
+    bird.voice = type("Steady", (), {"render": lambda self, o, t: o.fill(1.0), "retune": lambda self, *knobs: None})()
     out = np.zeros(100)
     bird.sound(out, 22050)
     now = bird.voice_parameters().resolve(session.clock.now())[0]
@@ -584,6 +584,56 @@ def test_a_budget_layer_needs_a_budget_and_voice_parameters_have_none(tmp_path):
         'figure = "bird"', 'figure = "bird"\nbudget = 4.0', 1))
     with pytest.raises(ConfigError, match="voice parameters have none"):
         load_installation(path)
+
+
+def test_voice_tension_and_damping_retune_the_scanned_strings(tmp_path):
+    """``voice.tension`` and ``voice.damping`` from the config scale the strings' stiffness and
+    damping each block the creature sounds, and the strings return to the config's when the
+    layer goes; a creature that sings through a mouth is refused them, naming the line."""
+    extra = """
+[creature.tuples.tune]
+action = { type = "oscillate", variables = { "voice.tension" = -0.6, "voice.damping" = 1.0 }, period = 8.0, fade = 0.0 }
+until = { seconds = 30.0 }
+
+[creature.groups.tuning]
+tuples = ["tune"]
+alpha = 0.0
+"""
+    session = session_of(tmp_path, extra)
+    bird = session.creatures[1]
+    run(session, 2.0)
+    t = session.clock.now()
+    swing = math.sin(2 * math.pi * (t - bird.tuples["tune"].started_at) / 8.0)
+    base = bird.spec.voice.parameters()
+    out = np.zeros(2048)
+    bird.sound(out, 22050)
+    strings = bird.voice.pool.bank.parameters
+    assert strings.stiffness == pytest.approx(base.stiffness * (1.0 - 0.6 * swing))
+    assert strings.damping == pytest.approx(base.damping * (1.0 + swing))
+    bird.voice_parameters().stop("tune", t)  # the layer gone (no fade): the strings as configured
+    session.clock.advance_to(t + 1e-3)
+    bird.sound(out, 22050)
+    assert bird.voice.pool.bank.parameters == base
+    with pytest.raises(ConfigError, match=r"look.toml:\d+: .*voice.tension, a scanned string's: this creature sings "
+                                          r"through a mouth"):
+        session_of(tmp_path / "mouth", extra, keys="[creature.hearing]")
+
+
+def test_retuned_strings_sing_differently():
+    """A fifth of the tension changes what a plucked scanned string sings (its shape, which is
+    its timbre, moves slower), by more than a tenth of its level."""
+    from creatures.kinds.parts import Voice, VoiceSpec
+
+    sung = []
+    for tension in (1.0, 0.2):
+        voice = Voice(VoiceSpec(), 22050)
+        voice.retune(tension, 1.0)
+        voice.play(60, 100, 10.0)
+        out = np.zeros(22050)
+        voice.render(out, 0.5)
+        sung.append(out)
+    level = np.sqrt(np.mean(sung[0] ** 2))
+    assert level > 1e-3 and np.sqrt(np.mean((sung[0] - sung[1]) ** 2)) > 0.1 * level
 
 
 # -- the shipped piece -------------------------------------------------------------------------

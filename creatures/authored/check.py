@@ -199,9 +199,16 @@ def _action(c: _Checker, action, loc: tuple):
     if joints is not None and not getattr(c.spec.body, "custom", False):  # a body of files checks at load
         _joints(c, joints(params), loc)
     voice = getattr(cls, "voice_parameters", None)
-    if voice is not None and "voice.cutoff" in voice(params) and c.spec.hearing is None:
+    named = voice(params) if voice is not None else []
+    if "voice.cutoff" in named and c.spec.hearing is None:
         raise c.error(loc, "it moves voice.cutoff, a mouth's low-pass: the creature needs [creature.hearing] "
                            "(it sings through a mouth)")
+    strings = [n for n in named if n in ("voice.push", "voice.tension", "voice.damping")]
+    if strings and c.spec.hearing is not None:
+        raise c.error(loc, f"it moves {strings[0]}, a scanned string's: this creature sings through a mouth "
+                           "([creature.hearing]), not strings")
+    if "voice.push" in named and not c.spec.body:
+        raise c.error(loc, "it moves voice.push, how hard the body pushes the strings: set 'body = true'")
     blend = getattr(params, "blend", None)
     if blend is not None and blend.policy == "budget":
         if voice is not None and voice(params):

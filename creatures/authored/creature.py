@@ -497,6 +497,9 @@ class Authored(CreatureKind):
                 self.voice = Voice(self.spec.voice, sample_rate)
                 if self.body is not None:
                     couple_to_hands(self.voice, self.body)
+            if self._voice_parameters is not None:  # voice.tension, voice.damping
+                knobs = self.voice_now(self.now())
+                self.voice.retune(float(knobs[4]), float(knobs[5]))
             self.voice.render(out, self.now())
         if self._voice_parameters is not None:  # voice.gain, ramped across the block (no zipper steps)
             gain = max(float(self.voice_now(self.now())[0]), 0.0)

@@ -196,7 +196,7 @@ class LookAction(Action):
 
 
 # -- skills over named variables: sweeps, oscillators, servos --------------------------------
-VOICE_PARAMETERS = ("voice.gain", "voice.pan", "voice.push", "voice.cutoff")
+VOICE_PARAMETERS = ("voice.gain", "voice.pan", "voice.push", "voice.cutoff", "voice.tension", "voice.damping")
 """Voice parameters a skill may drive, blended per tick as a body's joints are (a skill's
 numbers are offsets added to the rest value): ``voice.gain`` multiplies what the creature
 sounds (1 at rest), ``voice.pan`` moves it across the stereo pair from its ``pan`` (0 at rest;
@@ -204,8 +204,11 @@ the sum held to [−1, 1]; a ``[room]`` places creatures by where they stand ins
 ``voice.push`` scales how hard the body's movement pushes its scanned strings (1 at rest:
 ``[creature.voice] body_gain``; thesis "artificial gestural control"), and ``voice.cutoff``
 scales the low-pass cutoff of a creature that sings through a mouth (1 at rest: what its back
-angle sets; thesis "soundcreatures")."""
-VOICE_REST = np.array([1.0, 0.0, 1.0, 1.0])
+angle sets; thesis "soundcreatures"), and ``voice.tension`` and ``voice.damping`` scale its
+scanned strings' stiffness and damping (1 at rest: ``[creature.voice]``'s; held within the
+gestural limit and a stable integrator, :meth:`audio.scanned.StringParameters.retuned`): the
+timbre of a scanned string is its physics (thesis "scanned synthesis")."""
+VOICE_REST = np.array([1.0, 0.0, 1.0, 1.0, 1.0, 1.0])
 """Each voice parameter's value at rest (what the blend holds where no layer drives it)."""
 
 

@@ -105,6 +105,7 @@ class Voice:
         self.spec = spec
         self.pool = VoicePool(spec.voices, parameters, sample_rate=sample_rate, release=spec.release,
                               block_size=block_size)
+        self._strings, self._tuning = parameters, (1.0, 1.0)
         self.sample_rate = sample_rate
         self._ends: list[tuple[float, int]] = []
         self.coupling: BodyCoupling | None = None
@@ -134,6 +135,14 @@ class Voice:
             force = force + self.shape.forces(pose)
         if force.any():
             self.pool.bank.push(np.flatnonzero(self.pool.pitch >= 0), force)
+
+    def retune(self, tension: float, damping: float) -> None:
+        """The strings' stiffness × ``tension`` and damping × ``damping`` from the next block
+        (a skill's ``voice.tension`` and ``voice.damping``), within the bounds the config is held
+        to (:meth:`audio.scanned.StringParameters.retuned`)."""
+        if (tension, damping) != self._tuning:
+            self._tuning = (tension, damping)
+            self.pool.bank.parameters = self._strings.retuned(tension, damping)
 
     def render(self, out: np.ndarray, t: float) -> None:
         """Fill ``out`` with the voice up to clock time ``t`` (note-offs that fell due first)."""
