@@ -203,6 +203,75 @@ def test_a_creature_turns_its_head_to_whoever_it_hears_within_limits_and_back(tm
     assert motor[-1]["joints"] == {} and motor[-1]["layers"] == {"course": 1.0}
 
 
+EYED = """HIERARCHY
+ROOT base
+{
+  OFFSET 0 0 0
+  CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation
+  JOINT neck
+  {
+    OFFSET 0 50 0
+    CHANNELS 3 Zrotation Xrotation Yrotation
+    JOINT head
+    {
+      OFFSET 0 40 0
+      CHANNELS 3 Zrotation Xrotation Yrotation
+      JOINT eye_l
+      {
+        OFFSET 3 2 5
+        CHANNELS 3 Zrotation Xrotation Yrotation
+        End Site
+        {
+          OFFSET 0 0 1
+        }
+      }
+      JOINT eye_r
+      {
+        OFFSET -3 2 5
+        CHANNELS 3 Zrotation Xrotation Yrotation
+        End Site
+        {
+          OFFSET 0 0 1
+        }
+      }
+    }
+  }
+}
+"""
+
+
+def test_a_body_with_eyes_turns_both_together_when_it_looks(tmp_path):
+    """A body from files with two eyes (the heron's, given eyes that glance 25° and 18° in its
+    material): looking at a caller on its right, both eyes turn by the same angle, within the
+    tighter of their ranges, and the head and neck take the rest."""
+    from body_fixtures import heron_frames, write_bvh
+
+    rows = heron_frames()
+    eyes = np.zeros((len(rows), 6))
+    glance = np.sin(np.linspace(0.0, 6.0 * np.pi, len(rows)))
+    eyes[:, 2], eyes[:, 5] = 25.0 * glance, 18.0 * glance  # each eye's Y yaw
+    tmp_path.mkdir(parents=True, exist_ok=True)
+    write_bvh(tmp_path / "eyed.bvh", np.concatenate((rows, eyes), axis=1), hierarchy=EYED)
+    text = textwrap.dedent(LISTENER.format(tick=TICK, extra="", keys="")).replace(
+        '[creature.body]\nfigure = "bird"\n',
+        '[creature.body]\neffectors = ["head"]\nscale = 0.01\nrest_pose = { neck = [20.0, 0.0, 0.0] }\n\n'
+        '[[creature.body.animations]]\nfile = "eyed.bvh"\n', 1)
+    (tmp_path / "look.toml").write_text(text)
+    session = Session(load_installation(tmp_path / "look.toml"), SimulatedClock(), EventLog(keep_in_memory=0),
+                      MemorySink())
+    bird = session.creatures[1]
+    for k in range(6):
+        session.world.inject(NoteEvent(0.5 + 0.3 * k, 60 + k, 90, 0, 0.2), source="caller")
+    look = bird.tuples["look"].action
+    names = [bird.body.skeleton.names[j] for j in look.offsets.joints]
+    assert names[:2] == ["eye_l", "eye_r"]
+    run(session, 3.0)
+    turns = look.offsets.degrees
+    assert turns[0] == turns[1] != 0.0  # together
+    assert abs(turns[0]) == pytest.approx(min(look.limits[:2]), abs=1e-6)  # as far as the tighter eye goes
+    assert turns[0] + turns[2:].sum() == pytest.approx(-90.0, abs=0.5)  # the pair's share once, the rest by head and neck
+
+
 def test_the_heard_direction_is_the_room_bearing_or_the_stage_line(tmp_path):
     from creatures.authored.skills import heard_bearing
 
