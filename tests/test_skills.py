@@ -203,41 +203,15 @@ def test_a_creature_turns_its_head_to_whoever_it_hears_within_limits_and_back(tm
     assert motor[-1]["joints"] == {} and motor[-1]["layers"] == {"course": 1.0}
 
 
-EYED = """HIERARCHY
-ROOT base
-{
-  OFFSET 0 0 0
-  CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation
-  JOINT neck
-  {
-    OFFSET 0 50 0
-    CHANNELS 3 Zrotation Xrotation Yrotation
-    JOINT head
-    {
-      OFFSET 0 40 0
-      CHANNELS 3 Zrotation Xrotation Yrotation
-      JOINT eye_l
-      {
-        OFFSET 3 2 5
-        CHANNELS 3 Zrotation Xrotation Yrotation
-        End Site
-        {
-          OFFSET 0 0 1
-        }
-      }
-      JOINT eye_r
-      {
-        OFFSET -3 2 5
-        CHANNELS 3 Zrotation Xrotation Yrotation
-        End Site
-        {
-          OFFSET 0 0 1
-        }
-      }
-    }
-  }
-}
-"""
+def eyed_hierarchy() -> str:
+    """The heron of tests/body_fixtures.py with two eyes on its head instead of a beak tip."""
+    from body_fixtures import HIERARCHY
+
+    tip = "      End Site\n      {\n        OFFSET 0 0 30\n      }\n"
+    eye = ("      JOINT {name}\n      {{\n        OFFSET {x} 2 5\n        CHANNELS 3 Zrotation Xrotation Yrotation\n"
+           "        End Site\n        {{\n          OFFSET 0 0 1\n        }}\n      }}\n")
+    assert tip in HIERARCHY
+    return HIERARCHY.replace(tip, eye.format(name="eye_l", x=3) + eye.format(name="eye_r", x=-3))
 
 
 def test_a_body_with_eyes_turns_both_together_when_it_looks(tmp_path):
@@ -251,7 +225,7 @@ def test_a_body_with_eyes_turns_both_together_when_it_looks(tmp_path):
     glance = np.sin(np.linspace(0.0, 6.0 * np.pi, len(rows)))
     eyes[:, 2], eyes[:, 5] = 25.0 * glance, 18.0 * glance  # each eye's Y yaw
     tmp_path.mkdir(parents=True, exist_ok=True)
-    write_bvh(tmp_path / "eyed.bvh", np.concatenate((rows, eyes), axis=1), hierarchy=EYED)
+    write_bvh(tmp_path / "eyed.bvh", np.concatenate((rows, eyes), axis=1), hierarchy=eyed_hierarchy())
     text = textwrap.dedent(LISTENER.format(tick=TICK, extra="", keys="")).replace(
         '[creature.body]\nfigure = "bird"\n',
         '[creature.body]\neffectors = ["head"]\nscale = 0.01\nrest_pose = { neck = [20.0, 0.0, 0.0] }\n\n'
