@@ -97,6 +97,28 @@ def test_export_motion_round_trips_and_loads_back_as_an_animation(tmp_path: Path
     assert quat.angle_between(merged.poses.rotations[motion], expected.rotations).max() < 1e-6
 
 
+def test_export_motion_of_a_shipped_figure_is_that_figures_body(tmp_path: Path):
+    """fetch's dog: the exported take is the dog's path on the dog's graph (its 31 joints), not
+    the stick figure's; read back through the dog's skeleton it gives the same poses (1e-6 rad)
+    at the same frame times."""
+    import installations
+    from creatures.kinds.figures import figure_graph
+
+    inst = load_installation(installations.path("fetch"))
+    inst.settings.output.report = False
+    run_offline(inst, tmp_path / "out", duration=20.0, progress=False)
+    out = tmp_path / "rex.bvh"
+    assert main(["export-motion", str(tmp_path / "out"), "--creature", "rex", str(out), "--fps", "30"]) == 0
+    graph = figure_graph("dog")
+    nodes = taken_nodes(read_events(tmp_path / "out" / "events.jsonl"), "rex", len(graph))
+    expected = played(graph, nodes, 30.0)
+    back, frame_time = read_animation(Animation(out), graph.skeleton, Conventions())
+    assert graph.skeleton.joint_count == 31 and len(back) == len(expected) > 30
+    assert frame_time == 1.0 / 30.0
+    np.testing.assert_allclose(back.times, expected.times, rtol=0, atol=1e-12)
+    assert quat.angle_between(back.rotations, expected.rotations).max() < 1e-6
+
+
 def test_export_motion_names_what_is_missing(tmp_path: Path, capsys):
     assert main(["export-motion", str(tmp_path), "--creature", "heron", str(tmp_path / "x.bvh")]) == 2
     assert "no events.jsonl" in capsys.readouterr().err

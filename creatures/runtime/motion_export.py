@@ -11,7 +11,7 @@ from pathlib import Path
 
 from creatures.events import read_events
 from creatures.kinds.body_source import MaterialSpec
-from creatures.kinds.parts import shared_graph
+from creatures.kinds.figures import figure_graph, figure_of
 from creatures.motor.export import ExportError, export_motion, taken_nodes
 from creatures.motor.material import Conventions
 from creatures.runtime.schema import load_installation
@@ -38,8 +38,8 @@ def export_motion_of_run(path: Path, creature: str, out: Path, *, config: Path |
     body = getattr(spec, "body", None)
     if isinstance(body, MaterialSpec) and body.custom:
         graph, conventions = body.material().graph, Conventions(body.scale, body.up_axis, body.root_motion)
-    elif body:  # the shipped figure (an authored creature's body = true, or a kind's default)
-        graph, conventions = shared_graph(bool(getattr(spec, "ratio_metric", False))), Conventions()
+    elif body:  # a shipped figure (body = true: the stick figure; figure = "dog", "bird", ...)
+        graph, conventions = figure_graph(figure_of(body), bool(getattr(spec, "ratio_metric", False))), Conventions()
     else:
         raise ExportError(f"creature {creature!r} ({spec.kind}) has no body")
     poses = export_motion(graph, taken_nodes(events, creature, len(graph)), out, fps=fps, conventions=conventions)
