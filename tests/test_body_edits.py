@@ -172,6 +172,30 @@ def test_a_restart_loads_the_cache_and_a_stale_or_corrupt_one_is_rebuilt(tmp_pat
     assert not np.allclose(changed.poses.rotations, first.poses.rotations)
 
 
+def test_two_creatures_on_the_same_takes_with_other_edits_keep_their_own_caches(tmp_path: Path, monkeypatch):
+    """One cache file per body as configured: two creatures on the same take, one with an edit,
+    each load their own on a restart (they shared one file by the takes' names, and each start
+    found the other's there and rebuilt)."""
+    import creatures.motor.body_build as body_build
+
+    config = heron_config(tmp_path)
+    stamp = fingerprint(body_of(config).graph.skeleton)
+    (tmp_path / "cut.toml").write_text(f'skeleton = "{stamp}"\n[[forbid]]\nfrom = "heron@10"\nto = "heron@11"\n')
+    text = config.read_text()
+    second = text[text.index("[[creature]]"):].replace('name = "heron"', 'name = "egret"').replace(
+        "[[creature.body.animations]]", 'graph_edits = ["cut.toml"]\n[[creature.body.animations]]')
+    config.write_text(text + "\n" + second)
+    specs = load_installation(config).specs
+    plain, edited = (spec.body.material().graph for spec in specs)
+    assert len(list((tmp_path / ".motor-cache").glob("*.npz"))) == 2
+    built = []
+    real = body_build.build
+    monkeypatch.setattr(body_build, "build", lambda *a: built.append(1) or real(*a))
+    again = [spec.body.material().graph for spec in load_installation(config).specs]
+    assert not built  # a restart rebuilds neither
+    assert again[0].edges() == plain.edges() and again[1].edges() == edited.edges() != plain.edges()
+
+
 _TOKENS = st.sampled_from(["HIERARCHY", "ROOT", "JOINT", "End", "Site", "{", "}", "OFFSET", "CHANNELS", "3", "6",
                            "Xrotation", "Zposition", "MOTION", "Frames:", "Frame", "Time:", "0.1", "1", "-2",
                            "nan", "1e308", "a", "\n"])

@@ -114,7 +114,13 @@ class MaterialSpec(BaseModel):
             rest=None if self.rest_pose is None else tuple(sorted(self.rest_pose.items())),
             rest_labels=tuple(self.rest_labels), neighbours=self.neighbours,
             inline=json.dumps(self.edits, sort_keys=True) if self.edits else "", inline_base=base)
-        where = hashlib.sha256("\0".join(str(a.file) for a in animations).encode()).hexdigest()[:16]
+        # One cache file per body as configured (its files and every key that shapes its graph,
+        # not their contents: a changed take is rebuilt in place); two creatures on the same
+        # takes with different edits each keep their own instead of rebuilding each other's.
+        shaping = self.model_dump(mode="json", include={"skeleton", "animations", "graph_edits", "edits", "scale",
+                                                        "up_axis", "root_motion", "rest_pose", "rest_labels",
+                                                        "neighbours"})
+        where = hashlib.sha256(json.dumps([str(base.resolve()), shaping], sort_keys=True).encode()).hexdigest()[:16]
         graph = load_or_build(sources, (base / self.cache / f"body-{where}.npz").resolve())
         names = graph.skeleton.names
         self._check_joints(names, self.joint_limits, "joint_limits")
