@@ -14,6 +14,8 @@ from body_fixtures import HIERARCHY, heron_config, heron_frames, write_bvh
 from creatures.config import ConfigError
 from creatures.motor.bvh import BVHError, parse_bvh
 from creatures.motor.graph_edits import EditError, read_edits
+from creatures.motor import metric
+from creatures.motor.graph import MotorGraph
 from creatures.motor.material import fingerprint
 from creatures.runtime.schema import load_installation
 
@@ -170,6 +172,38 @@ def test_a_restart_loads_the_cache_and_a_stale_or_corrupt_one_is_rebuilt(tmp_pat
     changed = body_of(config).graph
     assert built == [1, 1, 1] and "stale" in caplog.text
     assert not np.allclose(changed.poses.rotations, first.poses.rotations)
+
+
+def test_an_add_in_one_file_keeps_the_edges_another_file_reweights(tmp_path: Path):
+    """Bob reweights an edge of the body's own graph; Alice adds a take whose poses are nearer to
+    its ends than they were to each other. Merged, the edge is still there, reweighted: adding
+    material adds edges, never takes the body's own away (it did: "graph has no edge")."""
+    config = heron_config(tmp_path)
+    base = body_of(config).graph
+    stamp = fingerprint(base.skeleton)
+    write_bvh(tmp_path / "near.bvh", heron_frames(6.0) * [1, 1, 1, 1, 1, 1, 1, 1.02, 1, 1, 1.02, 1])
+    (tmp_path / "alice.toml").write_text(f'skeleton = "{stamp}"\n[[add]]\nfile = "near.bvh"\n')
+    text = config.read_text()
+    config.write_text(text.replace("[[creature.body.animations]]",
+                                   'graph_edits = ["alice.toml"]\n[[creature.body.animations]]'))
+    frames = {s: 1.0 / 20.0 for s in base.poses.sources}
+    added = body_of(config).graph
+    crowded = MotorGraph.build(added.poses, k=6)  # the nearest poses alone, with the take among them
+    lost = [(a, b) for (a, b) in base.edges() if not crowded.has_edge(a, b)]
+    assert lost, "the take was meant to crowd some own edges out: make it nearer"
+    assert all(added.has_edge(x, y) for x, y in lost)
+    a, b = lost[0]
+    name = {n: f"{base.poses.sources[base.poses.source_ids[n]]}@{round(base.poses.times[n] / frames['heron'])}"
+            for n in (a, b)}
+    (tmp_path / "bob.toml").write_text(f'skeleton = "{stamp}"\n[[reweight]]\nfrom = "{name[a]}"\nto = "{name[b]}"\n'
+                                       'scale = 3.0\n')
+    config.write_text(text.replace("[[creature.body.animations]]",
+                                   'graph_edits = ["alice.toml", "bob.toml"]\n[[creature.body.animations]]'))
+    merged = body_of(config).graph
+    assert merged.has_edge(a, b)
+    assert merged.edge_cost(a, b) == pytest.approx(3.0 * float(metric.edge_costs(
+        merged.poses, np.array([a]), np.array([b]), merged.weights)[0]))
+    assert all(merged.has_edge(x, y) for x, y in base.edges())  # every own edge is kept
 
 
 def test_two_creatures_on_the_same_takes_with_other_edits_keep_their_own_caches(tmp_path: Path, monkeypatch):

@@ -36,7 +36,7 @@ from creatures.persist import atomic_write
 
 logger = logging.getLogger(__name__)
 
-CACHE_VERSION = 5
+CACHE_VERSION = 6
 """Bumped whenever the cache layout or the graph builder changes what a cache holds."""
 
 
@@ -76,6 +76,20 @@ class Sources:
         return digest.hexdigest()
 
 
+def keep_own_edges(graph: MotorGraph, own: PoseSet, k: int) -> None:
+    """Every edge the body's own takes make among themselves, kept in a graph that added or
+    blended material has reshaped (at the metric's cost between the poses as they are now).
+
+    An edit file is written against the body's graph, and another file's ``[[add]]`` or
+    ``[[blend]]`` moved some own poses' nearest neighbours: a reweight of an edge between two
+    of them then found no edge ("forge it first") though each file alone loaded (the audit
+    found 50 of 1,766 edges gone). Adding material adds; it never takes an edge away. The own
+    poses keep their indices (added takes come after them)."""
+    for a, b in MotorGraph.build(own, k=k).edges():
+        if not graph.has_edge(a, b):
+            graph.connect(a, b)
+
+
 def build(sources: Sources, edit_files: list[EditFile]) -> MotorGraph:
     """Material → added takes → blends → root motion out of the poses → graph → rest labels →
     edge edits (see :mod:`graph_edits`)."""
@@ -93,6 +107,7 @@ def build(sources: Sources, edit_files: list[EditFile]) -> MotorGraph:
         _as_material_error(lambda: check_skeleton(edit_file, skeleton, expected), i)
     takes = _as_material_error(lambda: added_material(edit_files, skeleton, conventions,
                                                       set(material.poses.sources)), None)
+    own = material.poses  # the body's own takes, before any edit file adds to or blends them
     if takes:
         poses = PoseSet.concatenate([material.poses, *(t for t, _ in takes)])
         material = Material(poses, {**material.frame_times,
@@ -100,6 +115,8 @@ def build(sources: Sources, edit_files: list[EditFile]) -> MotorGraph:
     material = _as_material_error(lambda: blended(material, edit_files, skeleton, conventions), None)
     poses, advances = walking_in_place(material.poses) if conventions.root_motion else (material.poses, None)
     graph = MotorGraph.build(poses, k=sources.neighbours)
+    if takes or any(f.of("blend") for f in edit_files):
+        keep_own_edges(graph, walking_in_place(own)[0] if conventions.root_motion else own, sources.neighbours)
     if advances is not None:  # a walking body: its own steps carry it, so A* keeps to them
         graph.advances = advances
         following = successors(poses)  # not graph.timing: its speed limit is measured once, for the cache
