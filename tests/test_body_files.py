@@ -6,6 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from body_fixtures import BODY, heron_config
 from creatures.events import read_events
@@ -97,23 +98,30 @@ def test_export_motion_round_trips_and_loads_back_as_an_animation(tmp_path: Path
     assert quat.angle_between(merged.poses.rotations[motion], expected.rotations).max() < 1e-6
 
 
-def test_export_motion_of_a_shipped_figure_is_that_figures_body(tmp_path: Path):
-    """fetch's dog: the exported take is the dog's path on the dog's graph (its 31 joints), not
-    the stick figure's; read back through the dog's skeleton it gives the same poses (1e-6 rad)
-    at the same frame times."""
+@pytest.mark.parametrize("name,creature,figure,joints", [("fetch", "rex", "dog", 31), ("duncan", "duncan", "dog", 31),
+                                                        ("wren", "wren", "bird", None)])
+def test_export_motion_of_a_shipped_figure_is_that_figures_body(tmp_path: Path, name, creature, figure, joints):
+    """A shipped figure's creature (fetch's terrier, Duncan, the wren): the exported take is its
+    path on its own figure's graph, not the stick figure's; read back through that figure's
+    skeleton it gives the same poses (1e-6 rad) at the same frame times."""
     import installations
     from creatures.kinds.figures import figure_graph
 
-    inst = load_installation(installations.path("fetch"))
+    inst = load_installation(installations.path(name))
     inst.settings.output.report = False
     run_offline(inst, tmp_path / "out", duration=20.0, progress=False)
-    out = tmp_path / "rex.bvh"
-    assert main(["export-motion", str(tmp_path / "out"), "--creature", "rex", str(out), "--fps", "30"]) == 0
-    graph = figure_graph("dog")
-    nodes = taken_nodes(read_events(tmp_path / "out" / "events.jsonl"), "rex", len(graph))
+    out = tmp_path / f"{creature}.bvh"
+    assert main(["export-motion", str(tmp_path / "out"), "--creature", creature, str(out), "--fps", "30"]) == 0
+    graph = figure_graph(figure)
+    nodes = taken_nodes(read_events(tmp_path / "out" / "events.jsonl"), creature, len(graph))
     expected = played(graph, nodes, 30.0)
     back, frame_time = read_animation(Animation(out), graph.skeleton, Conventions())
-    assert graph.skeleton.joint_count == 31 and len(back) == len(expected) > 30
+    assert graph.skeleton.joint_count == (joints or graph.skeleton.joint_count) != 19  # not the stick figure's
+    assert len(back) == len(expected) > 30
+    again = tmp_path / "from-log.bvh"  # the events log itself (a live run's --log) names the same path
+    assert main(["export-motion", str(tmp_path / "out" / "events.jsonl"), "--creature", creature, str(again),
+                 "--fps", "30"]) == 0
+    assert again.read_bytes() == out.read_bytes()
     assert frame_time == 1.0 / 30.0
     np.testing.assert_allclose(back.times, expected.times, rtol=0, atol=1e-12)
     assert quat.angle_between(back.rotations, expected.rotations).max() < 1e-6

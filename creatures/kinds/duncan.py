@@ -74,7 +74,7 @@ from creatures.kinds.base import CreatureKind, CreatureSpec
 from creatures.kinds.figures import FigureBodySpec, figure_material
 from creatures.kinds.hearing_parts import Ear, HearingSpec
 from creatures.kinds.parts import Body, Voice, VoiceSpec, couple_to_hands
-from creatures.kinds.report_parts import report_values, selection_logger
+from creatures.kinds.report_parts import MotorTrail, report_values, selection_logger
 from midi.notes import NoteEvent
 
 if TYPE_CHECKING:
@@ -198,6 +198,7 @@ class Duncan(CreatureKind):
     def __init__(self, spec: DuncanSpec, world: "World", rng: np.random.Generator) -> None:
         super().__init__(spec, world, rng)
         self.body = Body(rng, spec=spec.body, figure=spec.body.figure)
+        self.trail = MotorTrail(world, self.name, self.body)  # the path its body took (export-motion reads it)
         self.ear = Ear(spec.hearing)
         self.heard = UtterancePercept("heard", radius=spec.hearing.radius, memory=spec.hearing.memory,
                                       max_children=spec.classes, max_members=spec.hearing.keep)
@@ -296,6 +297,7 @@ class Duncan(CreatureKind):
         return credited
 
     def tick(self, t: float) -> None:
+        self.trail.follow(t)
         pose = self.body.update(t)
         if self.voice is not None:
             self.voice.feel(pose)
@@ -303,6 +305,7 @@ class Duncan(CreatureKind):
         if t >= self._next_report:
             self._next_report = t + REPORT_EVERY
             report_values(self.world, t, self.name, self.group)
+            self.trail.report(t)
 
     def figure(self) -> tuple[np.ndarray, np.ndarray] | None:
         return self.body.pose.positions, np.asarray(self.body.skeleton.parents)

@@ -19,11 +19,13 @@ from creatures.runtime.schema import load_installation
 
 def export_motion_of_run(path: Path, creature: str, out: Path, *, config: Path | None = None,
                          fps: float = 30.0) -> int:
-    """Write ``creature``'s path in the run at ``path`` (a run or state directory holding
-    ``events.jsonl``) to ``out``; returns the number of frames written."""
-    log = path / "events.jsonl"
+    """Write ``creature``'s path in the run at ``path`` (a run's or state directory holding
+    ``events.jsonl``, or the events log itself: a live run's ``--log``) to ``out``; returns the
+    number of frames written."""
+    log = path if path.is_file() else path / "events.jsonl"
     if not log.is_file():
-        raise ExportError(f"{path}: no events.jsonl (give a run's output directory or a state directory)")
+        raise ExportError(f"{path}: no events.jsonl (give a run's output directory, or the events log a live run "
+                          "wrote with --log: the path is in the log, not in the learned state)")
     events = read_events(log)
     if config is None:
         named = [e.get("config") for e in events if e.get("kind") == "run" and e.get("config")]
