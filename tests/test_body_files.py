@@ -237,3 +237,59 @@ rest_labels = ["rest"]
     slides = contact_slides(shown[5 * 15:, paws])
     print(f"walked {body.travelled[2]:.2f} m; planted paws moved at most {slides.max() * 1e3:.1f} mm a frame")
     assert len(slides) > 100 and slides.max() <= 0.01
+
+
+def dog_as_files(directory: Path, drop: str | None = None) -> str:
+    """The shipped dog as a user's files: its BVH copied beside the config, its labels written as
+    ``[[creature.body.animations]]`` labels over frame ranges (``drop`` one of them)."""
+    import shutil
+    import tomllib
+
+    from creatures.kinds.figures import BODIES
+
+    shutil.copy(BODIES / "dog.bvh", directory / "terrier.bvh")
+    labelled: dict[str, list[list[int]]] = {}
+    for label in tomllib.loads((BODIES / "dog.labels.toml").read_text())["label"]:
+        if label["name"] != drop:
+            labelled.setdefault(label["name"], []).append(label["frames"])
+    labels = ", ".join(f'"{name}" = {ranges}' for name, ranges in labelled.items())
+    return f"""
+[creature.body]
+effectors = ["nose_end"]
+rest_labels = ["low energy"]
+
+[[creature.body.animations]]
+file = "terrier.bvh"
+labels = {{ {labels} }}
+"""
+
+
+def test_duncan_takes_a_body_from_files_and_names_a_trick_it_lacks(tmp_path: Path):
+    """Duncan on a body of the user's own (the dog's take and labels, as files): it loads, offers
+    its tricks unbidden on that body; a body whose takes label no "beg" is refused at load,
+    naming the body's line and the label."""
+    import installations
+    from creatures.clock import SimulatedClock
+    from creatures.config import ConfigError
+    from creatures.events import EventLog
+    from creatures.runtime.session import Session
+    from midi.sinks import MemorySink
+
+    text = installations.path("duncan").read_text()
+    head, _, _ = text.partition("[creature.body]")
+    config = tmp_path / "terrier.toml"
+    config.write_text(head + dog_as_files(tmp_path))
+    inst = load_installation(config)
+    assert inst.specs[0].body.custom
+    session = Session(inst, SimulatedClock(), EventLog(keep_in_memory=100_000), MemorySink())
+    dog = session.creatures[0]
+    assert dog.body.graph is not None and dog.body.skeleton.joint_count == 31
+    for step in range(1, int(40.0 / inst.settings.tick)):
+        t = step * inst.settings.tick
+        session.clock.advance_to(t)
+        session.step(t, int(inst.settings.tick * inst.settings.audio.sample_rate), None, audio=False)
+    held = {e["trick"] for e in session.world.log.records if e["kind"] == "trick held"}
+    assert held & {"sit", "lie down", "beg"}, held  # it offers tricks unbidden on the body of files
+    config.write_text(head + dog_as_files(tmp_path, drop="beg"))
+    with pytest.raises(ConfigError, match=r"terrier.toml:\d+: .*the body has no motor label 'beg'"):
+        load_installation(config)

@@ -72,6 +72,12 @@ class CreatureKind(ABC):
     """Why the kind's body must be the shipped figure (it reads that figure's named joints);
     empty: any ``[creature.body]`` from files will do."""
 
+    @classmethod
+    def body_problem(cls, spec: CreatureSpec, labels: set[str], joints: tuple[str, ...]) -> str | None:
+        """What the kind needs of a body from files that this one lacks (a motor label, a joint),
+        checked once the body is built (its labels and joint names); None: it will do."""
+        return None
+
     def __init__(self, spec: CreatureSpec, world: "World", rng: np.random.Generator) -> None:
         self.spec = spec
         self.name = spec.name

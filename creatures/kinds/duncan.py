@@ -133,23 +133,33 @@ class DuncanSpec(CreatureSpec):
     @model_validator(mode="after")
     def _labels_on_the_body(self) -> "DuncanSpec":
         figure = self.body.figure
-        if figure == "stick":
-            raise ValueError("duncan needs a body with tricks: [creature.body] figure = \"dog\"")
-        known = set().union(*figure_material(figure).poses.labels)
-        for label in [*self.tricks, self.rest, self.beg.label]:
-            if label not in known:
-                raise ValueError(f"the {figure} has no motor label {label!r} (labels: {sorted(known)})")
+        if figure == "stick" and not self.body.custom:
+            raise ValueError("duncan needs a body with tricks: [creature.body] figure = \"dog\", or a body of "
+                             "its own whose takes label them")
+        if not self.body.custom:  # a body from files is checked once built (Duncan.body_problem)
+            poses = figure_material(figure).poses
+            problem = self.missing(set().union(*poses.labels), poses.skeleton.names, f"the {figure}")
+            if problem is not None:
+                raise ValueError(problem)
         for offer in self.offers:
             if offer not in self.tricks:
                 raise ValueError(f"offers: {offer!r} is not one of the tricks {self.tricks}")
-        if self.beg.paw not in figure_material(figure).poses.skeleton.names:
-            raise ValueError(f"the {figure} has no joint {self.beg.paw!r}")
         for trick, pitch in self.notes.items():
             if trick not in [*self.tricks, self.rest] or not 0 <= pitch + (self.beg_notes if trick == self.beg.label
                                                                              else 0) <= 127:
                 raise ValueError(f"notes: {trick!r} = {pitch} must name a trick (or {self.rest!r}) and stay "
                                  f"within MIDI pitches 0..127")
         return self
+
+
+    def missing(self, labels: set[str], joints: tuple[str, ...], body: str) -> str | None:
+        """What of the tricks, the rest and the beg ``body`` (its motor labels and joints) lacks."""
+        for label in [*self.tricks, self.rest, self.beg.label]:
+            if label not in labels:
+                return f"{body} has no motor label {label!r} (labels: {sorted(labels)})"
+        if self.beg.paw not in joints:
+            return f"{body} has no joint {self.beg.paw!r} (the beg's paw)"
+        return None
 
 
 class Trick(Action):
@@ -194,6 +204,10 @@ class Duncan(CreatureKind):
     """The clicker-trained dog (see the module docstring)."""
 
     Spec = DuncanSpec
+
+    @classmethod
+    def body_problem(cls, spec: DuncanSpec, labels: set[str], joints: tuple[str, ...]) -> str | None:
+        return spec.missing(labels, joints, "the body")
 
     def __init__(self, spec: DuncanSpec, world: "World", rng: np.random.Generator) -> None:
         super().__init__(spec, world, rng)

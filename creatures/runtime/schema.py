@@ -494,9 +494,13 @@ def _resolve_body(kind: type, spec: CreatureSpec, path: Path, where: dict[tuple,
         raise config_error(path, where, at, f"kind {spec.kind!r} moves the shipped figure only: {kind.FIGURE_ONLY}")
     named = [file for key, (file, _) in where.items() if key[:len(at)] == at]
     try:
-        body.resolve((named[0] if named else path).parent)
+        material = body.resolve((named[0] if named else path).parent)
     except MaterialError as exc:
         raise config_error(path, where, (*at, *exc.key), str(exc)) from None
+    poses = material.graph.poses
+    problem = kind.body_problem(spec, set().union(*poses.labels), poses.skeleton.names)
+    if problem is not None:
+        raise config_error(path, where, at, problem)
 
 
 def _with_input_maps(path: Path, settings: Installation, specs: list[CreatureSpec],
