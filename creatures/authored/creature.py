@@ -481,8 +481,9 @@ class Authored(CreatureKind):
         return True
 
     def voice_parameters(self) -> Blend:
-        """The voice parameters skills drive (creatures/authored/skills.py: ``voice.gain``),
-        blended as a body's joints are; made when a skill first needs them."""
+        """The voice parameters skills drive (creatures/authored/skills.py ``VOICE_PARAMETERS``:
+        gain, pan, push, cutoff, tension, damping), blended as a body's joints are; made when a
+        skill first needs them."""
         if self._voice_parameters is None:
             from creatures.authored.skills import VOICE_PARAMETERS, VOICE_REST
 
