@@ -16,6 +16,7 @@ from creatures.motor.bvh import BVHError, parse_bvh
 from creatures.motor.graph_edits import EditError, read_edits
 from creatures.motor import metric
 from creatures.motor.graph import MotorGraph
+from creatures.motor.search import PathFinder
 from creatures.motor.material import fingerprint
 from creatures.runtime.schema import load_installation
 
@@ -154,6 +155,12 @@ def test_a_restart_loads_the_cache_and_a_stale_or_corrupt_one_is_rebuilt(tmp_pat
     monkeypatch.setattr(body_build, "build", lambda *a: built.append(1) or real(*a))
     again = body_of(config).graph
     assert not built and again.edges() == first.edges()  # a restart does not rebuild
+    # nor search the graph for its A* landmarks: they come with it, as a fresh search makes them
+    kept = again.landmark_tables
+    assert kept is not None and kept.version == again.version
+    fresh = PathFinder(again.copy())
+    fresh.prepare()
+    assert np.array_equal(fresh.landmarks, kept.nodes) and np.allclose(fresh._forward, kept.forward)
     caplog.set_level(logging.WARNING)
     cache.write_bytes(cache.read_bytes()[:1000])  # truncated
     assert body_of(config).graph.edges() == first.edges() and built == [1]

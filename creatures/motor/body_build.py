@@ -31,12 +31,13 @@ from creatures.motor.material import (WALKING_FAVOUR, Animation, Conventions, Ma
                                       walking_in_place)
 from creatures.motor.metric import MetricWeights, successors
 from creatures.motor.pose import LOW_ENERGY, PoseSet
+from creatures.motor.search import LandmarkTables, PathFinder
 from creatures.motor.skeleton import Skeleton
 from creatures.persist import atomic_write
 
 logger = logging.getLogger(__name__)
 
-CACHE_VERSION = 6
+CACHE_VERSION = 7
 """Bumped whenever the cache layout or the graph builder changes what a cache holds."""
 
 
@@ -176,6 +177,8 @@ def write_cache(path: Path, key: str, graph: MotorGraph) -> None:
     """The graph as NPZ arrays (atomic)."""
     p = graph.poses
     edges = graph.edges_arrays()
+    PathFinder(graph).prepare()  # its A* landmark tables, kept beside it (a restart does not search the graph)
+    tables = graph.landmark_tables
     kinds = sorted({tuple(sorted(x)) for x in p.labels})  # few distinct label sets: one entry each
     index = {k: i for i, k in enumerate(kinds)}
     arrays = {
@@ -188,6 +191,8 @@ def write_cache(path: Path, key: str, graph: MotorGraph) -> None:
         "source_ids": p.source_ids, "favour": graph.favour, "advances": graph.advances,
         "forbidden": np.array(sorted(graph.forbidden), dtype=np.int64).reshape(-1, 2), **edges,
         "speeds": np.array([graph.timing.typical_speed, graph.timing.max_speed]),
+        "landmark_seed": np.array(tables.seed), "landmark_nodes": tables.nodes,
+        "landmark_forward": tables.forward, "landmark_backward": tables.backward,
     }
     atomic_write(path, lambda handle: np.savez(handle, **arrays), "wb")
 
@@ -208,6 +213,12 @@ def read_cache(path: Path, key: str) -> MotorGraph | None:
                                          _c(data["times"]), data["source_ids"].astype(np.int64, copy=False),
                                          json.loads(str(data["sources"])), labels, _c(data["positions"]))
             graph = MotorGraph.from_arrays(poses, data, weights=MetricWeights.from_dict(json.loads(str(data["weights"]))))
+            nodes, forward, backward = (_c(data[f"landmark_{x}"]) for x in ("nodes", "forward", "backward"))
+            if forward.shape != (len(poses), len(nodes)) or backward.shape != forward.shape or not (
+                    0 <= nodes.min(initial=0) and nodes.max(initial=0) < len(poses)):
+                raise ValueError(f"landmark tables of shape {forward.shape} for {len(poses)} nodes")
+            graph.landmark_tables = LandmarkTables(graph.version, int(data["landmark_seed"]), len(nodes),
+                                                   nodes.astype(np.int64, copy=False), forward, backward)
     except (OSError, KeyError, IndexError, ValueError, TypeError, EOFError, zipfile.BadZipFile) as exc:
         logger.warning("%s: motor-graph cache is corrupt (%s); rebuilding", path, str(exc)[:200])
         return None

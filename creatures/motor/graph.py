@@ -77,6 +77,10 @@ class MotorGraph:
         self._adjacency: Adjacency | None = None
         self._timing: metric.Timing | None = None
         self.version = 0
+        self.landmark_tables: Any = None
+        """A* landmark distances made for this graph (:class:`~creatures.motor.search.LandmarkTables`,
+        kept with it in a body's cache so a restart does not search the whole graph again);
+        valid for the version they name, so any edit retires them."""
 
     # --- construction ---------------------------------------------------------------------
 

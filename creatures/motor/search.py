@@ -67,12 +67,28 @@ class NoPath(LookupError):
     """No goal node is reachable from the start position."""
 
 
+@dataclass(frozen=True)
+class LandmarkTables:
+    """The landmark distances of one graph version, as :meth:`PathFinder.prepare` chose them with
+    ``seed`` and ``count``: the landmark nodes, and per node ``d(landmark, node)`` (forward) and
+    ``d(node, landmark)`` (backward), node-major ``(nodes, landmarks)``."""
+
+    version: int
+    seed: int
+    count: int
+    nodes: np.ndarray
+    forward: np.ndarray
+    backward: np.ndarray
+
+
 class PathFinder:
-    """A* searches on one :class:`MotorGraph`, with landmark distances cached per graph version."""
+    """A* searches on one :class:`MotorGraph`, with landmark distances cached per graph version
+    (on the graph, so a body's cache keeps them: :attr:`MotorGraph.landmark_tables`)."""
 
     def __init__(self, graph: MotorGraph, *, landmarks: int = 16, seed: int = 0) -> None:
         self.graph = graph
         self.landmark_count = landmarks
+        self._seed = seed
         self._rng = np.random.default_rng(seed)
         self._version = -1
         self._forward = np.zeros((0, 0))  # (nodes, landmarks): d(landmark, node)
@@ -89,8 +105,16 @@ class PathFinder:
         """
         if self._version == self.graph.version:
             return
-        adj = self.graph.adjacency
         n = len(self.graph)
+        kept = self.graph.landmark_tables
+        if (kept is not None and kept.version == self.graph.version and kept.seed == self._seed
+                and kept.count == min(self.landmark_count, n)):
+            self.landmarks, self._forward, self._backward = kept.nodes, kept.forward, kept.backward
+            self._scratch = (np.full(n, np.inf), np.full(n, -1, dtype=np.int64), np.full(n, -1.0),
+                             np.zeros(n, dtype=np.bool_), np.zeros(n, dtype=np.bool_))
+            self._version = self.graph.version
+            return
+        adj = self.graph.adjacency
         matrix = csr_matrix((adj.costs, adj.indices, adj.indptr), shape=(n, n))
         # Farthest-point choice spreads landmarks across the graph, which tightens the bound.
         chosen = [int(self._rng.integers(n))]
@@ -112,6 +136,8 @@ class PathFinder:
         self._scratch = (np.full(n, np.inf), np.full(n, -1, dtype=np.int64), np.full(n, -1.0),
                          np.zeros(n, dtype=np.bool_), np.zeros(n, dtype=np.bool_))
         self._version = self.graph.version
+        self.graph.landmark_tables = LandmarkTables(self._version, self._seed, len(self.landmarks), self.landmarks,
+                                                    self._forward, self._backward)
 
     def _goal_bounds(self, goals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Per landmark ``l``: ``min_g d(l, g)`` and ``max_g d(g, l)`` over the goal set."""
