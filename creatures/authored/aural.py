@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from audio.utterance import Utterance, UtterancePercept, load_aural_model
+from creatures.authored.skills import CUTOFF
 from creatures.behaviour.action_group import ActionGroup
 from creatures.behaviour.action_tuple import ActionTuple, DoUntil
 from creatures.config import ConfigError
@@ -96,7 +97,7 @@ class Aural:
     def render(self, out: np.ndarray, sample_rate: int) -> None:
         c = self.creature
         self.mouth.render(out, sample_rate, None if c.body is None else c.body.pose,
-                          cutoff=max(float(c.voice_now(c.now())[3]), 0.0))
+                          cutoff=max(float(c.voice_now(c.now())[CUTOFF]), 0.0))
 
     def report(self, t: float) -> None:
         log, name = self.creature.world.log, self.creature.name

@@ -211,7 +211,7 @@ def _action(c: _Checker, action, loc: tuple):
         raise c.error(loc, "it moves voice.push, how hard the body pushes the strings: set 'body = true'")
     blend = getattr(params, "blend", None)
     if blend is not None and blend.policy == "budget":
-        if voice is not None and voice(params):
+        if named:
             raise c.error(loc, "blend.policy 'budget' shares a joint's budget; voice parameters have none: "
                                "blend them with 'add', 'mean' or 'exclusive'")
         if getattr(c.spec.body, "budget", None) is None:

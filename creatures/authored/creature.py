@@ -22,6 +22,8 @@ from creatures.authored import registry
 from creatures.authored.aural import Aural
 from creatures.authored.check import ROOT
 from creatures.authored.ear import Ear
+from creatures.authored.skills import (DAMPING, GAIN, PAN, PUSH, TENSION, VOICE_PARAMETERS, VOICE_REST,
+                                       AdverbModel)
 from creatures.authored.spec import AuthoredSpec, PartSpec, TupleSpec, UntilSpec, ValueSpec
 from creatures.behaviour.action_group import ActionGroup, group_tuple
 from creatures.behaviour.action_tuple import ActionTuple, DoUntil
@@ -334,8 +336,6 @@ class Authored(CreatureKind):
 
     def _adverb_models(self) -> dict[str, Any]:
         """The Ac percepts rewards shape, by name (what a reload must keep)."""
-        from creatures.authored.skills import AdverbModel
-
         return {n: p for n, p in self.percepts.items() if isinstance(p, AdverbModel)}
 
     # -- what the runtime calls ---------------------------------------------------------
@@ -439,7 +439,7 @@ class Authored(CreatureKind):
             self.trail.follow(t)
             pose = self.body.update(t)
             if self.voice is not None:
-                self.voice.feel(pose, push=self.voice_now(t)[2])
+                self.voice.feel(pose, push=self.voice_now(t)[PUSH])
         for group in self.top:
             if soft or group.active:  # a new tuple is chosen on the soft state's steps
                 group.tick(t)
@@ -458,8 +458,6 @@ class Authored(CreatureKind):
             if self.aural is not None:
                 self.aural.report(t)
             if self._voice_parameters is not None:  # who drives the voice (as "motor" says who drives the joints)
-                from creatures.authored.skills import VOICE_PARAMETERS
-
                 blend = self._voice_parameters
                 self.world.log.emit(t, "voice parameters", creature=self.name,
                                     values=dict(zip(VOICE_PARAMETERS, blend.resolve(t).tolist())),
@@ -485,8 +483,6 @@ class Authored(CreatureKind):
         gain, pan, push, cutoff, tension, damping), blended as a body's joints are; made when a
         skill first needs them."""
         if self._voice_parameters is None:
-            from creatures.authored.skills import VOICE_PARAMETERS, VOICE_REST
-
             self._voice_parameters = Blend(len(VOICE_PARAMETERS), rotations=False, hold=VOICE_REST.copy())
         return self._voice_parameters
 
@@ -500,10 +496,10 @@ class Authored(CreatureKind):
                     couple_to_hands(self.voice, self.body)
             if self._voice_parameters is not None:  # voice.tension, voice.damping
                 knobs = self.voice_now(self.now())
-                self.voice.retune(float(knobs[4]), float(knobs[5]))
+                self.voice.retune(float(knobs[TENSION]), float(knobs[DAMPING]))
             self.voice.render(out, self.now())
         if self._voice_parameters is not None:  # voice.gain, ramped across the block (no zipper steps)
-            gain = max(float(self.voice_now(self.now())[0]), 0.0)
+            gain = max(float(self.voice_now(self.now())[GAIN]), 0.0)
             out *= np.linspace(self._gain, gain, len(out))
             self._gain = gain
 
@@ -511,14 +507,12 @@ class Authored(CreatureKind):
         """The voice parameters at ``t`` (creatures/authored/skills.py), at rest when no skill
         has driven them."""
         if self._voice_parameters is None:
-            from creatures.authored.skills import VOICE_REST
-
             return VOICE_REST
         return self._voice_parameters.resolve(t)
 
     def pan(self) -> float:
         """Where the mix places this creature now: its ``pan`` moved by ``voice.pan``."""
-        return min(max(self.spec.pan + float(self.voice_now(self.now())[1]), -1.0), 1.0)
+        return min(max(self.spec.pan + float(self.voice_now(self.now())[PAN]), -1.0), 1.0)
 
     def marks(self) -> list[tuple[tuple[float, float, float], int]]:
         return [] if self.notes is None else self.notes.marks()

@@ -210,6 +210,8 @@ gestural limit and a stable integrator, :meth:`audio.scanned.StringParameters.re
 timbre of a scanned string is its physics (thesis "scanned synthesis")."""
 VOICE_REST = np.array([1.0, 0.0, 1.0, 1.0, 1.0, 1.0])
 """Each voice parameter's value at rest (what the blend holds where no layer drives it)."""
+GAIN, PAN, PUSH, CUTOFF, TENSION, DAMPING = range(len(VOICE_PARAMETERS))
+"""Each voice parameter's channel in the blend (the order of :data:`VOICE_PARAMETERS`)."""
 
 
 def _named(names) -> None:

@@ -233,7 +233,6 @@ class Limits:
         return _limit(np.ascontiguousarray(rotations, dtype=float), np.ascontiguousarray(prev, dtype=float),
                       self.range, self.max_speed * max(dt, 0.0), previous is not None)
 
-
     def frame(self, rotations: np.ndarray, previous: np.ndarray, dt: float, skeleton: Skeleton,
               root: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """A body's shown frame from a blended pose and the frame before it, ``dt`` seconds

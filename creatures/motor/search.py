@@ -107,13 +107,17 @@ class PathFinder:
             return
         n = len(self.graph)
         kept = self.graph.landmark_tables
-        if (kept is not None and kept.version == self.graph.version and kept.seed == self._seed
+        if not (kept is not None and kept.version == self.graph.version and kept.seed == self._seed
                 and kept.count == min(self.landmark_count, n)):
-            self.landmarks, self._forward, self._backward = kept.nodes, kept.forward, kept.backward
-            self._scratch = (np.full(n, np.inf), np.full(n, -1, dtype=np.int64), np.full(n, -1.0),
-                             np.zeros(n, dtype=np.bool_), np.zeros(n, dtype=np.bool_))
-            self._version = self.graph.version
-            return
+            kept = self._landmarks(n)
+            self.graph.landmark_tables = kept
+        self.landmarks, self._forward, self._backward = kept.nodes, kept.forward, kept.backward
+        self._scratch = (np.full(n, np.inf), np.full(n, -1, dtype=np.int64), np.full(n, -1.0),
+                         np.zeros(n, dtype=np.bool_), np.zeros(n, dtype=np.bool_))
+        self._version = self.graph.version
+
+    def _landmarks(self, n: int) -> LandmarkTables:
+        """The landmark tables of the graph as it is: farthest-point landmarks, Dijkstra from each."""
         adj = self.graph.adjacency
         matrix = csr_matrix((adj.costs, adj.indices, adj.indptr), shape=(n, n))
         # Farthest-point choice spreads landmarks across the graph, which tightens the bound.
@@ -128,16 +132,11 @@ class PathFinder:
             nearest = np.minimum(nearest, reach)
             nearest[chosen] = -1.0
             chosen.append(int(np.argmax(nearest)))
-        self.landmarks = np.array(chosen[:-1])
         # Node-major: the bound of one node reads its landmarks from one cache line or two,
         # not one line per landmark (measured: a third of a query on 72,000 nodes).
-        self._forward = np.ascontiguousarray(np.array(forward_rows).T)
-        self._backward = np.ascontiguousarray(np.array(backward_rows).T)
-        self._scratch = (np.full(n, np.inf), np.full(n, -1, dtype=np.int64), np.full(n, -1.0),
-                         np.zeros(n, dtype=np.bool_), np.zeros(n, dtype=np.bool_))
-        self._version = self.graph.version
-        self.graph.landmark_tables = LandmarkTables(self._version, self._seed, len(self.landmarks), self.landmarks,
-                                                    self._forward, self._backward)
+        return LandmarkTables(self.graph.version, self._seed, len(chosen) - 1, np.array(chosen[:-1]),
+                              np.ascontiguousarray(np.array(forward_rows).T),
+                              np.ascontiguousarray(np.array(backward_rows).T))
 
     def _goal_bounds(self, goals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Per landmark ``l``: ``min_g d(l, g)`` and ``max_g d(g, l)`` over the goal set."""

@@ -121,8 +121,8 @@ class Session:
         voices = self._voices[:, :frames]
         for i, creature in enumerate(self.creatures):
             creature.sound(voices[i], self.sample_rate)
-            if self.stage is None and creature.pan() != self.mixer.pans[i]:  # a skill's voice.pan
-                self.mixer.set(i, pan=creature.pan())
+            if self.stage is None and (pan := creature.pan()) != self.mixer.pans[i]:  # a skill's voice.pan
+                self.mixer.set(i, pan=pan)
         if self.air:
             self._room = voices.T @ self.mixer.gains
         return self.mixer.mix(voices)

@@ -21,7 +21,6 @@ import math
 import numpy as np
 
 from creatures.body.generate.rig import FPS, Y, Z, Clip, Frame, Rig, planar_leg, smooth
-from creatures.motor import quaternion as quat
 from creatures.motor.pose import LOW_ENERGY
 from creatures.motor.skeleton import Skeleton
 
@@ -119,10 +118,7 @@ def frame(sk: Skeleton, p: dict[str, float], t: float) -> Frame:
     f.pitch("tail1", p["tail"])
     f.turn("tail1", Y, p["wag"] * math.sin(2.0 * math.pi * 2.0 * t))
     f.pitch("tail2", 0.3)
-    rotations = quat.identity((sk.joint_count,))
-    for name, q in f.turns.items():
-        rotations[sk.index(name)] = q
-    world = sk.forward_kinematics(rotations, f.root)
+    world = sk.forward_kinematics(f.rotations(sk), f.root)
     for leg, (upper, middle, lower, paw, bones, bend, torso) in LEGS.items():
         hip = world[sk.index(upper)][[1, 2]]
         w3 = p[f"{leg}_w3"]
@@ -147,10 +143,7 @@ def grounded(sk: Skeleton, f: Frame, lifts: dict[str, float]) -> Frame:
     the ground as its leg begins to fold, not dragged along it): a dog rolling over rests on
     its back, its tucked legs in the air (they otherwise swung 9 cm through the floor, and a
     paw touching it swept 8 cm a frame)."""
-    rotations = quat.identity((sk.joint_count,))
-    for name, q in f.turns.items():
-        rotations[sk.index(name)] = q
-    heights = sk.forward_kinematics(rotations, f.root)[:, 1]
+    heights = sk.forward_kinematics(f.rotations(sk), f.root)[:, 1]
     short = [CLEARANCE * min(1.0, 4.0 * lift) - heights[sk.index(paw)] for paw, lift in lifts.items() if lift > 0.0]
     raise_by = max(-float(heights.min()), *short, 0.0)
     if raise_by > 1e-6:

@@ -86,6 +86,13 @@ class Frame:
     def turn(self, joint: str, axis: np.ndarray, angle: float) -> None:
         self.turns[joint] = quat.multiply(self.turns.get(joint, quat.identity(())), about(axis, angle))
 
+    def rotations(self, skeleton: Skeleton) -> np.ndarray:
+        """Every joint's local rotation ``(J, 4)``: the turns set, the identity elsewhere."""
+        rotations = quat.identity((skeleton.joint_count,))
+        for name, q in self.turns.items():
+            rotations[skeleton.index(name)] = q
+        return rotations
+
 
 def planar_leg(hip: np.ndarray, target: np.ndarray, upper: float, lower: float, bend: float) -> tuple[float, float]:
     """World pitch angles of a two-bone leg from ``hip`` to ``target`` (``(y, z)`` points).
@@ -122,10 +129,7 @@ class Clip:
 def pose_set(skeleton: Skeleton, clips: list[Clip]) -> PoseSet:
     """Every clip's frames, end to end, as one pose set (the BVH file's MOTION)."""
     frames = [f for clip in clips for f in clip.frames]
-    rotations = quat.identity((len(frames), skeleton.joint_count))
-    for i, frame in enumerate(frames):
-        for name, q in frame.turns.items():
-            rotations[i, skeleton.index(name)] = q
+    rotations = np.array([frame.rotations(skeleton) for frame in frames]).reshape(len(frames), skeleton.joint_count, 4)
     roots = np.array([f.root for f in frames])
     return PoseSet.animation(skeleton, rotations, roots, np.arange(len(frames)) / FPS, "generated")
 
