@@ -170,12 +170,15 @@ def _fields_at(model: type[BaseModel], loc: tuple[str | int, ...]) -> list[str]:
 def _data_path(data: Any, loc: tuple[str | int, ...]) -> tuple[str | int, ...]:
     """The part of a pydantic error location that names real keys in ``data``.
 
-    Tagged unions add the tag to the location (``creature.0.exchange.hunger``); walking the
-    data drops such steps so the key path is the one the author wrote.
+    Tagged unions add the tag to the location (``creature.0.exchange.hunger``), and a model's
+    own validators their names (``function-after[_one_body(), …]``); walking the data drops such
+    steps so the key path is the one the author wrote.
     """
     path: list[str | int] = []
     node = data
     for part in loc:
+        if isinstance(part, str) and "[" in part and not (isinstance(node, dict) and part in node):
+            continue
         if isinstance(node, dict) and part in node:
             node = node[part]
         elif isinstance(node, list) and isinstance(part, int) and 0 <= part < len(node):
@@ -205,7 +208,8 @@ def validate(
         # ``[[input]]`` read as ``input.map``), else along the keys the author wrote (a tagged
         # union adds its tag to pydantic's).
         choices = _fields_at(model, tuple(error["loc"])) or _fields_at(model, loc[len(prefix):])
-        raise config_error(file, where, loc, error["msg"] if error["type"] != "extra_forbidden" else None,
+        message = error["msg"].removeprefix("Value error, ")  # a validator's own sentence, as it wrote it
+        raise config_error(file, where, loc, message if error["type"] != "extra_forbidden" else None,
                            choices=choices,
                            got=error.get("input") if error["type"] not in ("missing", "extra_forbidden") else None) from None
 
