@@ -11,10 +11,11 @@ from hypothesis import strategies as st
 
 from creatures.body.generate import BODIES as GENERATORS
 from creatures.body.generate import generate
-from creatures.kinds.figures import BODIES, BodyFileError, figure_material, load_material, read_labels
+from creatures.kinds.figures import BODIES, figure_graph
 from creatures.kinds.parts import Body
 from creatures.motor import quaternion as quat
 from creatures.motor.blend import Limits
+from creatures.motor.material import MaterialError, read_clips
 from creatures.motor.note_space import nearest_note
 from creatures.motor.playback import Playback
 from creatures.motor.programs import ProgramStack, parse_programs
@@ -41,7 +42,7 @@ def test_shipped_files_are_what_the_generator_makes(tmp_path):
 
 
 def test_the_dog_has_its_tricks_and_the_bird_its_moves():
-    dog, bird = figure_material("dog").poses, figure_material("bird").poses
+    dog, bird = figure_graph("dog").poses, figure_graph("bird").poses
     assert 25 <= dog.skeleton.joint_count <= 31
     for label in ("stand", "walk", "sit", "lie down", "beg", "roll over", "low energy"):
         assert len(dog.labelled(label)), label
@@ -61,7 +62,7 @@ def contact_slides(paws: np.ndarray) -> np.ndarray:
 
 @pytest.mark.parametrize("figure,clip", [("dog", "walk"), ("bird", "hop")])
 def test_generated_gait_does_not_slide(figure, clip):
-    material = figure_material(figure)
+    material = figure_graph(figure)
     poses = material.poses
     frames = np.flatnonzero(poses.source_ids == poses.sources.index(clip))
     travel = np.cumsum(np.concatenate((np.zeros((1, 3)), material.advances[frames][:-1])), axis=0)
@@ -175,17 +176,19 @@ def test_the_camera_follows_a_walking_dog():
 
 @pytest.mark.parametrize("edit,message", [
     (("frames = [0, 30]", "frames = [0, 31]", 1), "clip 'walk' starts at frame 31, the clips before it end at 31"),
-    (("frames = [0, 30]", "frames = [0, 9999]", 1), "not within the BVH's"),
+    (("frames = [0, 30]", "frames = [0, 9999]", 1), "not within dog.bvh's 271 frames"),
     (('name = "stand"', "name = 3", 1), "needs a string 'name'"),
-    (("[[clip]]", "[[clip]", 1), "cannot read labels file"),
+    (("[[clip]]", "[[clip]", 1), "cannot read clips file"),
+    (('bvh = "dog.bvh"', "bvh = 3", 1), "a clips file names its BVH"),
 ])
 def test_a_labels_file_that_does_not_fit_is_an_error_naming_its_line(tmp_path, edit, message):
     text = (BODIES / "dog.labels.toml").read_text(encoding="utf-8")
     old, new, count = edit
     bad = tmp_path / "dog.labels.toml"
     bad.write_text(text.replace(old, new, count), encoding="utf-8")
-    with pytest.raises(BodyFileError, match=message) as caught:
-        load_material(BODIES / "dog.bvh", bad)
+    (tmp_path / "dog.bvh").write_bytes((BODIES / "dog.bvh").read_bytes())
+    with pytest.raises(MaterialError, match=message) as caught:
+        read_clips(bad)
     assert str(caught.value).startswith(f"{bad}:")
     line = int(str(caught.value).split(":")[1])
     assert line >= 1
@@ -301,11 +304,13 @@ def test_an_authored_body_table_checks_labels_against_its_figure(tmp_path):
     'root_motion = "yes"', "clip = 3", "label = [1, 2]", "[clip]", "x = [", '"', "bvh = 1", ""]), max_size=14))
 def test_fuzzed_labels_files_are_read_or_refused_with_their_line(tmp_path, lines):
     bad = tmp_path / "fuzz.labels.toml"
-    bad.write_text("\n".join(lines), encoding="utf-8")
+    bad.write_text("\n".join(['bvh = "dog.bvh"', *lines]), encoding="utf-8")
+    if not (tmp_path / "dog.bvh").exists():
+        (tmp_path / "dog.bvh").write_bytes((BODIES / "dog.bvh").read_bytes())
     try:
-        clips, labels = read_labels(bad, 261)
-    except BodyFileError as exc:
+        clips = read_clips(bad)
+    except MaterialError as exc:
         assert str(exc).startswith(f"{bad}:") and str(exc).split(":")[1].isdigit()
     else:
-        assert sum(c.last - c.first + 1 for c in clips) == 261
-        assert all(0 <= m.first <= m.last < 261 for m in labels)
+        assert sum(c.frames[1] - c.frames[0] + 1 for c in clips) == 271
+        assert all(c.frames[0] <= a <= b <= c.frames[1] for c in clips for spans in c.labels.values() for a, b in spans)

@@ -125,6 +125,10 @@ def test_export_motion_of_a_shipped_figure_is_that_figures_body(tmp_path: Path, 
     assert frame_time == 1.0 / 30.0
     np.testing.assert_allclose(back.times, expected.times, rtol=0, atol=1e-12)
     assert quat.angle_between(back.rotations, expected.rotations).max() < 1e-6
+    # Its root too, travel and all: read as it was recorded (root "in place"), every joint is
+    # where the creature put it (a fixed-root read stands the take where it began).
+    placed, _ = read_animation(Animation(out, root="in place"), graph.skeleton, Conventions())
+    np.testing.assert_allclose(placed.positions, expected.positions, rtol=0, atol=1e-6)
 
 
 def test_export_motion_names_what_is_missing(tmp_path: Path, capsys):
@@ -194,18 +198,17 @@ def test_a_walking_body_from_files_carries_its_root_motion(tmp_path: Path):
     and every take's poses stand where the first began (no teleport to where a take was shot)."""
     from test_bodies import PAWS, WALKS, contact_slides
 
-    from creatures.kinds.figures import BODIES, read_labels
+    from creatures.kinds.figures import BODIES
     from creatures.motor.bvh import load_bvh_set, save_bvh
+    from creatures.motor.material import read_clips
     from creatures.motor.programs import ProgramStack, parse_programs
 
     whole = load_bvh_set(BODIES / "dog.bvh")
-    clips, marks = read_labels(BODIES / "dog.labels.toml", len(whole))
     tables = []
-    for clip in clips:
-        frames = np.arange(clip.first, clip.last + 1)
-        save_bvh(tmp_path / f"{clip.name}.bvh", whole.subset(frames), frame_time=1.0 / 15.0)
-        labels = {m.name: [[max(m.first, clip.first) - clip.first, min(m.last, clip.last) - clip.first]]
-                  for m in marks if m.first <= clip.last and m.last >= clip.first}
+    for clip in read_clips(BODIES / "dog.labels.toml"):
+        first, last = clip.frames
+        save_bvh(tmp_path / f"{clip.name}.bvh", whole.subset(np.arange(first, last + 1)), frame_time=1.0 / 15.0)
+        labels = {name: [[a - first, b - first] for a, b in spans] for name, spans in clip.labels.items()}
         labels.setdefault("rest", [[0, 0]])
         rows = ", ".join(f'"{k}" = {v}' for k, v in labels.items())
         tables.append(f'[[creature.body.animations]]\nfile = "{clip.name}.bvh"\nlabels = {{ {rows} }}\n')

@@ -15,7 +15,7 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, Field, PrivateAttr, model_validator
@@ -23,7 +23,11 @@ from pydantic import BaseModel, Field, PrivateAttr, model_validator
 from creatures.bounds import FINITE
 from creatures.motor.body_build import Sources, load_or_build
 from creatures.motor.graph import MotorGraph
-from creatures.motor.material import Animation, Conventions, MaterialError
+from creatures.motor.material import Animation, Conventions, MaterialError, RootMode, read_clips
+
+
+FrameNumber = Annotated[int, Field(ge=0, le=1_000_000_000)]
+"""A frame of a BVH file (0-based)."""
 
 
 class AnimationSpec(BaseModel):
@@ -39,9 +43,22 @@ class AnimationSpec(BaseModel):
                                                              "name@frame); default the file's stem")
     step: int = Field(1, ge=1, le=1000, description="keep every step-th frame as a node (labelled first "
                                                     "frames are always kept)")
+    frames: tuple[FrameNumber, FrameNumber] | None = Field(None, description="[first, last]: the take is these frames of the file "
+                                                             "(inclusive, 0-based; labels and edits still count the "
+                                                             "file's frames); default all")
+    root: RootMode | None = Field(None, description="'fixed' (the root stays where the take begins), 'in place' "
+                                                    "(moves as recorded, e.g. hips lowering to sit, but the creature "
+                                                    "goes nowhere) or 'walk' (its horizontal travel moves the "
+                                                    "creature on); default the body's root_motion: walk, else fixed")
+
+    @model_validator(mode="after")
+    def _frames_in_order(self) -> "AnimationSpec":
+        if self.frames is not None and self.frames[0] > self.frames[1]:
+            raise ValueError(f"frames = {list(self.frames)}: give [first, last] with first <= last")
+        return self
 
 
-MATERIAL_KEYS = ("skeleton", "animations", "graph_edits", "edits", "effectors", "joint_limits", "rest_labels", "rest_pose",
+MATERIAL_KEYS = ("skeleton", "animations", "clips", "graph_edits", "edits", "effectors", "joint_limits", "rest_labels", "rest_pose",
                  "scale", "up_axis", "root_motion", "neighbours", "cache")
 
 
@@ -55,6 +72,10 @@ class MaterialSpec(BaseModel):
     animations: list[AnimationSpec] = Field(default_factory=list, max_length=1024,
                                             description="BVH takes the motor graph is built from "
                                                         "([[creature.body.animations]] tables)")
+    clips: str | None = Field(None, description="a clips file (TOML, relative to the config): one BVH of many "
+                                                "clips, [[clip]] name and frames (root_motion per clip) and "
+                                                "[[label]] ranges, as installations/bodies/dog.labels.toml; "
+                                                "its takes come before any animations")
     graph_edits: list[str] = Field(default_factory=list, max_length=256,
                                    description="motor-graph edit files (TOML, see docs/bodies.md), applied as "
                                                "one set: their order does not matter")
@@ -88,44 +109,57 @@ class MaterialSpec(BaseModel):
 
     @property
     def custom(self) -> bool:
-        """True when the body comes from files rather than the shipped figure."""
-        return bool(self.animations)
+        """True when the body is built from files (its own, or a shipped figure's that these keys
+        edit) rather than taken as a shipped figure's shared graph."""
+        return bool(self.animations or self.clips)
+
+    def shipped_clips(self) -> Path | None:
+        """The clips file of the shipped figure these keys edit (none here: see FigureBodySpec)."""
+        return None
+
+    def default_effectors(self, graph: MotorGraph) -> tuple[str, ...]:
+        """The striking joint when ``effectors`` names none: the skeleton's first end site."""
+        return graph.skeleton.end_effectors[:1] or graph.skeleton.names[-1:]
 
     @model_validator(mode="after")
     def _needs_animations(self) -> "MaterialSpec":
         given = [k for k in MATERIAL_KEYS if k in self.model_fields_set and k not in ("cache", "neighbours")]
-        if given and not self.animations:
+        if given and not self.custom:
             raise ValueError(f"{', '.join(given)} describe a body of its own, which needs animations "
-                             "([[creature.body.animations]] with a BVH file); without them the shipped figure is used")
+                             "([[creature.body.animations]] with a BVH file) or clips; without them the shipped "
+                             "figure is used")
         for name, limit in self.joint_limits.items():
             if not 0 < limit <= math.pi:
                 raise ValueError(f"joint_limits.{name} = {limit:g}: a limit is a turn in (0, π] radians")
         return self
 
-    def resolve(self, base: Path) -> "BodyMaterial":
-        """Build (or load from cache) the body from files relative to ``base``; MaterialError names
-        the file (and line) and ``key`` the config key. Kept for :meth:`material`."""
-        animations = tuple(Animation(base / a.file, {k: tuple(map(tuple, v)) for k, v in a.labels.items()},
-                                     a.name, a.step) for a in self.animations)
+    def resolve(self, base: Path, *, ratios: bool = False) -> "BodyMaterial":
+        """Build (or load from cache) the body from files relative to ``base`` (``ratios``: on the
+        exchange metric); MaterialError names the file (and line) and ``key`` the config key. Kept
+        for :meth:`material`."""
+        clips = self.shipped_clips() or (base / self.clips if self.clips else None)
+        animations = (*(read_clips(clips) if clips else ()),
+                      *(Animation(base / a.file, {k: tuple(map(tuple, v)) for k, v in a.labels.items()}, a.name, a.step,
+                                  a.frames, a.root) for a in self.animations))
         sources = Sources(
             animations, skeleton=None if self.skeleton is None else base / self.skeleton,
             edits=tuple(base / p for p in self.graph_edits),
             conventions=Conventions(self.scale, self.up_axis, self.root_motion),
             rest=None if self.rest_pose is None else tuple(sorted(self.rest_pose.items())),
             rest_labels=tuple(self.rest_labels), neighbours=self.neighbours,
-            inline=json.dumps(self.edits, sort_keys=True) if self.edits else "", inline_base=base)
+            inline=json.dumps(self.edits, sort_keys=True) if self.edits else "", inline_base=base, ratios=ratios)
         # One cache file per body as configured (its files and every key that shapes its graph,
         # not their contents: a changed take is rebuilt in place); two creatures on the same
         # takes with different edits each keep their own instead of rebuilding each other's.
-        shaping = self.model_dump(mode="json", include={"skeleton", "animations", "graph_edits", "edits", "scale",
-                                                        "up_axis", "root_motion", "rest_pose", "rest_labels",
-                                                        "neighbours"})
-        where = hashlib.sha256(json.dumps([str(base.resolve()), shaping], sort_keys=True).encode()).hexdigest()[:16]
+        shaping = self.model_dump(mode="json", include={"skeleton", "animations", "clips", "graph_edits", "edits",
+                                                        "scale", "up_axis", "root_motion", "rest_pose", "rest_labels",
+                                                        "neighbours", "figure"})
+        where = hashlib.sha256(json.dumps([str(base.resolve()), shaping, ratios], sort_keys=True).encode()).hexdigest()[:16]
         graph = load_or_build(sources, (base / self.cache / f"body-{where}.npz").resolve())
         names = graph.skeleton.names
         self._check_joints(names, self.joint_limits, "joint_limits")
         self._check_joints(names, dict.fromkeys(self.effectors), "effectors")
-        effectors = tuple(self.effectors) or graph.skeleton.end_effectors[:1] or names[-1:]
+        effectors = tuple(self.effectors) or self.default_effectors(graph)
         limits = np.full(len(names), math.pi)
         for name, limit in self.joint_limits.items():
             limits[names.index(name)] = limit

@@ -71,7 +71,7 @@ from creatures.behaviour.value import ScalarValue
 from creatures.bounds import FINITE, LARGEST_RATE
 from creatures.kinds import register
 from creatures.kinds.base import CreatureKind, CreatureSpec
-from creatures.kinds.figures import FigureBodySpec, figure_material
+from creatures.kinds.figures import FigureBodySpec, figure_graph
 from creatures.kinds.hearing_parts import Ear, HearingSpec
 from creatures.kinds.parts import Body, Voice, VoiceSpec, couple_to_hands
 from creatures.kinds.report_parts import MotorTrail, report_values, selection_logger
@@ -137,7 +137,7 @@ class DuncanSpec(CreatureSpec):
             raise ValueError("duncan needs a body with tricks: [creature.body] figure = \"dog\", or a body of "
                              "its own whose takes label them")
         if not self.body.custom:  # a body from files is checked once built (Duncan.body_problem)
-            poses = figure_material(figure).poses
+            poses = figure_graph(figure).poses
             problem = self.missing(set().union(*poses.labels), poses.skeleton.names, f"the {figure}")
             if problem is not None:
                 raise ValueError(problem)

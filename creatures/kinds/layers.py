@@ -121,8 +121,8 @@ class BodySpec(MaterialSpec):
             self.breathe.check_joints(creature_skeleton().names)
         return self
 
-    def resolve(self, base: Path) -> BodyMaterial:
-        body = super().resolve(base)
+    def resolve(self, base: Path, *, ratios: bool = False) -> BodyMaterial:
+        body = super().resolve(base, ratios=ratios)
         if self.breathe.depth > 0.0:
             try:
                 self.breathe.check_joints(body.graph.skeleton.names)

@@ -30,6 +30,7 @@ from creatures.motor.material import (WALKING_FAVOUR, Animation, Conventions, Ma
                                       convert_skeleton, fingerprint, load_material, load_skeleton, read_take,
                                       walking_in_place)
 from creatures.motor.metric import MetricWeights, successors
+from creatures.motor.note_space import exchange_metric
 from creatures.motor.pose import LOW_ENERGY, PoseSet
 from creatures.motor.search import LandmarkTables, PathFinder
 from creatures.motor.skeleton import Skeleton
@@ -37,7 +38,7 @@ from creatures.persist import atomic_write
 
 logger = logging.getLogger(__name__)
 
-CACHE_VERSION = 7
+CACHE_VERSION = 8
 """Bumped whenever the cache layout or the graph builder changes what a cache holds."""
 
 
@@ -54,6 +55,7 @@ class Sources:
     neighbours: int = 6
     inline: str = ""  # the config's own edits as JSON, files they name relative to inline_base
     inline_base: Path | None = None
+    ratios: bool = False  # the exchange metric (moves at low-integer ratios of a take: note_space.exchange_metric)
 
     def key(self, edit_files: list[EditFile]) -> str:
         """Hash of the parameters and the bytes of every file the graph reads (BLAKE2b: a ten-minute
@@ -61,14 +63,15 @@ class Sources:
         digest = hashlib.blake2b(digest_size=32)
         parameters = {
             "version": CACHE_VERSION, "conventions": vars(self.conventions), "rest": self.rest,
-            "rest_labels": self.rest_labels, "neighbours": self.neighbours,
-            "animations": [(str(a.file), sorted(a.labels.items()), a.name, a.step) for a in self.animations],
+            "rest_labels": self.rest_labels, "neighbours": self.neighbours, "ratios": self.ratios,
+            "animations": [(str(a.file), sorted(a.labels.items()), a.name, a.step, a.frames, a.root)
+                           for a in self.animations],
             "edits": [str(p) for p in self.edits], "inline": self.inline,
         }
         digest.update(json.dumps(parameters, sort_keys=True, default=str).encode())
         files = [*([self.skeleton] if self.skeleton else []), *(a.file for a in self.animations), *self.edits]
         files += [f.path.parent / e.fields["file"] for f in edit_files for e in f.edits if "file" in e.fields]
-        for path in files:
+        for path in dict.fromkeys(files):  # a file of many clips is read once
             digest.update(str(path).encode() + b"\0")
             try:
                 digest.update(path.read_bytes())
@@ -77,7 +80,7 @@ class Sources:
         return digest.hexdigest()
 
 
-def keep_own_edges(graph: MotorGraph, own: PoseSet, k: int) -> None:
+def keep_own_edges(graph: MotorGraph, own: PoseSet, k: int, weights: MetricWeights | None = None) -> None:
     """Every edge the body's own takes make among themselves, kept in a graph that added or
     blended material has reshaped (at the metric's cost between the poses as they are now).
 
@@ -86,7 +89,7 @@ def keep_own_edges(graph: MotorGraph, own: PoseSet, k: int) -> None:
     of them then found no edge ("forge it first") though each file alone loaded (the audit
     found 50 of 1,766 edges gone). Adding material adds; it never takes an edge away. The own
     poses keep their indices (added takes come after them)."""
-    for a, b in MotorGraph.build(own, k=k).edges():
+    for a, b in MotorGraph.build(own, k=k, weights=weights).edges():
         if not graph.has_edge(a, b):
             graph.connect(a, b)
 
@@ -102,7 +105,7 @@ def build(sources: Sources, edit_files: list[EditFile]) -> MotorGraph:
         skeleton = convert_skeleton(first.skeleton, conventions)
     material = load_material(skeleton, list(sources.animations), conventions,
                              rest=dict(sources.rest) if sources.rest is not None else None,
-                             rest_labels=sources.rest_labels, first=first)
+                             rest_labels=sources.rest_labels, parsed={sources.animations[0].file: first})
     expected = fingerprint(skeleton)
     for i, edit_file in enumerate(edit_files):
         _as_material_error(lambda: check_skeleton(edit_file, skeleton, expected), i)
@@ -111,13 +114,16 @@ def build(sources: Sources, edit_files: list[EditFile]) -> MotorGraph:
     own = material.poses  # the body's own takes, before any edit file adds to or blends them
     if takes:
         poses = PoseSet.concatenate([material.poses, *(t for t, _ in takes)])
-        material = Material(poses, {**material.frame_times,
-                                    **{t.sources[0]: ft for t, ft in takes}})
+        added = frozenset(t.sources[0] for t, _ in takes) if conventions.root_motion else frozenset()
+        material = Material(poses, {**material.frame_times, **{t.sources[0]: ft for t, ft in takes}},
+                            material.walking | added)
     material = _as_material_error(lambda: blended(material, edit_files, skeleton, conventions), None)
-    poses, advances = walking_in_place(material.poses) if conventions.root_motion else (material.poses, None)
-    graph = MotorGraph.build(poses, k=sources.neighbours)
+    walking = material.walking
+    poses, advances = walking_in_place(material.poses, walking) if walking else (material.poses, None)
+    weights = exchange_metric() if sources.ratios else None
+    graph = MotorGraph.build(poses, k=sources.neighbours, weights=weights)
     if takes or any(f.of("blend") for f in edit_files):
-        keep_own_edges(graph, walking_in_place(own)[0] if conventions.root_motion else own, sources.neighbours)
+        keep_own_edges(graph, walking_in_place(own, walking)[0] if walking else own, sources.neighbours, weights)
     if advances is not None:  # a walking body: its own steps carry it, so A* keeps to them
         graph.advances = advances
         following = successors(poses)  # not graph.timing: its speed limit is measured once, for the cache

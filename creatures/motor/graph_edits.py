@@ -276,7 +276,7 @@ def blended(material: Material, files: list[EditFile], skeleton: Skeleton, conve
         velocities[members] = estimate_velocities(rotations[members], poses.times[members])
     changed = PoseSet(poses.skeleton, rotations, velocities, poses.roots, poses.times, poses.source_ids,
                       list(poses.sources), list(poses.labels))
-    return Material(changed, material.frame_times)
+    return Material(changed, material.frame_times, material.walking)
 
 
 def apply_edges(graph: MotorGraph, material: Material, files: list[EditFile]) -> None:

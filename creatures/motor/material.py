@@ -20,8 +20,10 @@ config's own line.
 from __future__ import annotations
 
 import hashlib
+import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -53,19 +55,37 @@ class MaterialError(ValueError):
         self.key = key
 
 
+RootMode = Literal["fixed", "in place", "walk"]
+"""What a take's recorded root does: ``fixed`` (the body stands where the take begins, as a
+fixed-root creature), ``in place`` (the root moves as recorded, a dog's hips lowering as it
+sits, but the creature goes nowhere) or ``walk`` (the height as recorded, the horizontal
+travel given to the creature: :func:`walking_in_place`)."""
+
+
 @dataclass(frozen=True)
 class Animation:
     """One BVH take: ``labels`` maps a label to inclusive ``(first, last)`` frame ranges;
-    ``step`` keeps every ``step``-th frame as a node (labelled frames are always kept)."""
+    ``step`` keeps every ``step``-th frame as a node (labelled frames are always kept).
+
+    ``frames`` makes the take a range of the file (an animator's one file of many clips, as
+    the shipped bodies are: :func:`read_clips`); frame numbers, in labels and in the
+    ``name@frame`` of edit files, are always the file's own. ``root`` is the take's
+    :data:`RootMode`; ``None`` takes the body's ``root_motion`` (walk, else fixed)."""
 
     file: Path
     labels: dict[str, tuple[tuple[int, int], ...]] = field(default_factory=dict)
     name: str | None = None
     step: int = 1
+    frames: tuple[int, int] | None = None
+    root: RootMode | None = None
 
     @property
     def source(self) -> str:
         return self.name or self.file.stem
+
+    def root_mode(self, conventions: "Conventions") -> RootMode:
+        """This take's root: its own, or the body's ``root_motion``."""
+        return self.root or ("walk" if conventions.root_motion else "fixed")
 
 
 @dataclass(frozen=True)
@@ -80,10 +100,12 @@ class Conventions:
 
 @dataclass
 class Material:
-    """Poses ready for a motor graph, with each source's seconds per file frame."""
+    """Poses ready for a motor graph, with each source's seconds per file frame and the
+    sources that walk (whose horizontal root travel is the creature's: root mode ``walk``)."""
 
     poses: PoseSet
     frame_times: dict[str, float]
+    walking: frozenset[str] = frozenset()
 
     def frames(self) -> np.ndarray:
         """Each node's frame number in its own source file."""
@@ -91,23 +113,25 @@ class Material:
         return np.rint(self.poses.times / step).astype(np.int64)
 
 
-def walking_in_place(poses: PoseSet) -> tuple[PoseSet, np.ndarray]:
-    """Root motion taken out of the poses and kept as steps (thesis "graph-based motor systems":
-    a node is a pose, wherever it was recorded): each node's horizontal step ``(N, 3)`` to its
-    source successor (zero at a take's last frame), and the poses with their horizontal root
-    where the first take began (height kept). A body then walks by adding the steps of the source
-    steps it takes (:class:`~creatures.motor.root_motion.RootMotion`), so any route through the
-    graph, and any jump between takes, starts from where the body stands instead of teleporting
-    it to where the take was recorded."""
+def walking_in_place(poses: PoseSet, walking: frozenset[str]) -> tuple[PoseSet, np.ndarray]:
+    """Root motion of the ``walking`` sources taken out of their poses and kept as steps (thesis
+    "graph-based motor systems": a node is a pose, wherever it was recorded): each of their nodes'
+    horizontal step ``(N, 3)`` to its source successor (zero at a take's last frame and on every
+    other source), and their poses with the horizontal root where the first take began (height
+    kept). A body then walks by adding the steps of the source steps it takes
+    (:class:`~creatures.motor.root_motion.RootMotion`), so any route through the graph, and any
+    jump between takes, starts from where the body stands instead of teleporting it to where the
+    take was recorded."""
     from creatures.motor.metric import successors
 
     following = successors(poses)
     steps = np.zeros_like(poses.roots)
-    walking = np.flatnonzero(following >= 0)
+    mine = np.isin(poses.source_ids, [i for i, s in enumerate(poses.sources) if s in walking])
+    moving = np.flatnonzero(mine & (following >= 0))
     for axis in (0, 2):
-        steps[walking, axis] = poses.roots[following[walking], axis] - poses.roots[walking, axis]
+        steps[moving, axis] = poses.roots[following[moving], axis] - poses.roots[moving, axis]
     roots = poses.roots.copy()
-    roots[:, [0, 2]] = poses.roots[0, [0, 2]]
+    roots[np.ix_(mine, [0, 2])] = poses.roots[0, [0, 2]]
     return PoseSet(poses.skeleton, poses.rotations, poses.velocities, roots, poses.times, poses.source_ids,
                    list(poses.sources), list(poses.labels)), steps
 
@@ -172,15 +196,21 @@ def read_animation(animation: Animation, skeleton: Skeleton, conventions: Conven
                                 (*key, "file"))
     count = len(take)
     frame_time = take.frame_time
-    kept = set(range(0, count, animation.step))
-    labels: list[set[str]] = [set() for _ in range(count)]
+    first, last = animation.frames if animation.frames is not None else (0, count - 1)
+    if not 0 <= first <= last < count:
+        raise MaterialError(f"frames {first}..{last} are not within {animation.file}'s frames 0..{count - 1}",
+                            (*key, "frames"))
+    kept = set(range(first, last + 1, animation.step))
+    labels: dict[int, set[str]] = {f: set() for f in range(first, last + 1)}
     for label, ranges in animation.labels.items():
-        for first, last in ranges:
-            if not 0 <= first <= last < count:
-                raise MaterialError(f"label {label!r} covers frames {first}..{last}, but {animation.file} has "
-                                    f"frames 0..{count - 1}", (*key, "labels", label))
-            kept.add(first)
-            for frame in range(first, last + 1):
+        for start, end in ranges:
+            if not first <= start <= end <= last:
+                take_is = (f"{animation.file} has frames" if animation.frames is None
+                           else f"the take is {animation.file}'s frames")
+                raise MaterialError(f"label {label!r} covers frames {start}..{end}, but {take_is} {first}..{last}",
+                                    (*key, "labels", label))
+            kept.add(start)
+            for frame in range(start, end + 1):
                 labels[frame].add(label)
     frames = np.array(sorted(kept))
     rotations = take.rotations[frames][:, order]
@@ -189,10 +219,10 @@ def read_animation(animation: Animation, skeleton: Skeleton, conventions: Conven
     root = np.flatnonzero(skeleton.parents < 0)
     rotations[:, root] = quat.multiply(up, rotations[:, root])
     roots = quat.rotate(up, roots)
-    if not conventions.root_motion:
+    if animation.root_mode(conventions) == "fixed":
         roots = np.broadcast_to(roots[0], roots.shape).copy()  # the body stands where its take began
     poses = PoseSet.animation(skeleton, rotations, roots, frames * frame_time, animation.source,
-                              [frozenset(labels[f]) for f in frames])
+                              [frozenset(labels[f]) for f in frames.tolist()])
     return poses, frame_time
 
 
@@ -212,17 +242,20 @@ def rest_pose(skeleton: Skeleton, turns: dict[str, tuple[float, float, float]], 
 
 def load_material(skeleton: Skeleton, animations: list[Animation], conventions: Conventions, *,
                   rest: dict[str, tuple[float, float, float]] | None = None,
-                  rest_labels: tuple[str, ...] = (), first: Take | None = None) -> Material:
+                  rest_labels: tuple[str, ...] = (), parsed: dict[Path, Take] | None = None) -> Material:
     """Every take (and the rest pose) on one skeleton; sources named twice are refused.
-    ``first``: the first take's file, already parsed."""
+    ``parsed``: files already read (each file is parsed once, however many takes it holds)."""
     sets: list[PoseSet] = []
     frame_times: dict[str, float] = {}
+    files = dict(parsed or {})
     for i, animation in enumerate(animations):
         if animation.source in frame_times or animation.source == REST_SOURCE:
             raise MaterialError(f"two animations are named {animation.source!r} (give one a 'name')",
                                 ("animations", i, "name"))
+        if animation.file not in files:
+            files[animation.file] = read_take(animation, ("animations", i))
         poses, frame_times[animation.source] = read_animation(animation, skeleton, conventions,
-                                                              key=("animations", i), parsed=first if i == 0 else None)
+                                                              key=("animations", i), parsed=files[animation.file])
         sets.append(poses)
     if rest is not None:
         first = sets[0].roots[0] if sets else np.zeros(3)
@@ -230,4 +263,78 @@ def load_material(skeleton: Skeleton, animations: list[Animation], conventions: 
         frame_times[REST_SOURCE] = 1.0
     if not sets:
         raise MaterialError("a body needs at least one animation", ("animations",))
-    return Material(PoseSet.concatenate(sets), frame_times)
+    walking = frozenset(a.source for a in animations if a.root_mode(conventions) == "walk")
+    return Material(PoseSet.concatenate(sets), frame_times, walking)
+
+
+def read_clips(path: Path) -> list[Animation]:
+    """The takes of a clips file: one BVH of many clips (``bvh``, relative to the file) and
+    ``[[clip]]`` tables (a name over inclusive ``frames``, optional ``root_motion``: walk, else
+    in place) that follow each other without gaps over every frame, and ``[[label]]`` tables over
+    any frames, each given to the clips it overlaps. The shipped bodies are written so
+    (installations/bodies/*.labels.toml), as an animator exports one file of named ranges.
+    MaterialError names the file and line."""
+    try:
+        text = path.read_text(encoding="utf-8")
+        data = tomllib.loads(text)
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise MaterialError(f"{path}:1: cannot read clips file ({exc})", ("clips",)) from None
+    if not isinstance(data.get("bvh"), str):
+        raise MaterialError(f"{path}:1: a clips file names its BVH: bvh = \"file.bvh\"", ("clips",))
+    bvh = path.parent / data["bvh"]
+    count = bvh_frame_count(bvh)
+    lines = text.splitlines()
+    found: dict[str, list[tuple[str, int, int, int, bool]]] = {}
+    for kind in ("clip", "label"):
+        headers = [n for n, line in enumerate(lines, 1) if line.strip() == f"[[{kind}]]"]
+        tables = data.get(kind, [])
+        if not isinstance(tables, list):
+            raise MaterialError(f"{path}:1: '{kind}' must be an array of tables ([[{kind}]])", ("clips",))
+        found[kind] = []
+        for k, table in enumerate(tables):
+            line = headers[k] if k < len(headers) else 1
+            span = table.get("frames") if isinstance(table, dict) else None
+            if not isinstance(table, dict) or not isinstance(table.get("name"), str) or not (
+                    isinstance(span, list) and len(span) == 2 and all(type(f) is int for f in span)):
+                raise MaterialError(f"{path}:{line}: a [[{kind}]] needs a string 'name' and 'frames = [first, last]'",
+                                    ("clips",))
+            if not isinstance(table.get("root_motion", False), bool):
+                raise MaterialError(f"{path}:{line}: 'root_motion' must be true or false", ("clips",))
+            first, last = span
+            if not 0 <= first <= last < count:
+                raise MaterialError(f"{path}:{line}: {kind} {table['name']!r}: frames [{first}, {last}] are not "
+                                    f"within {bvh.name}'s {count} frames (0..{count - 1})", ("clips",))
+            found[kind].append((table["name"], first, last, line, table.get("root_motion", False)))
+    expected = 0
+    for name, first, last, line, _ in found["clip"]:
+        if first != expected:
+            raise MaterialError(f"{path}:{line}: clip {name!r} starts at frame {first}, the clips before it end at "
+                                f"{expected - 1}", ("clips",))
+        expected = last + 1
+    if expected != count:
+        raise MaterialError(f"{path}:1: the clips cover frames 0..{expected - 1} of {bvh.name}'s {count}", ("clips",))
+    takes = []
+    for name, first, last, _, walks in found["clip"]:
+        labels: dict[str, list[tuple[int, int]]] = {}
+        for label, start, end, _, _ in found["label"]:
+            if start <= last and end >= first:
+                labels.setdefault(label, []).append((max(start, first), min(end, last)))
+        takes.append(Animation(bvh, {k: tuple(v) for k, v in labels.items()}, name, frames=(first, last),
+                               root="walk" if walks else "in place"))
+    return takes
+
+
+def bvh_frame_count(path: Path) -> int:
+    """The ``Frames:`` of a BVH file's header, read without its motion rows (a clips file is
+    checked against it at every start, also when the body's graph comes from its cache)."""
+    try:
+        with path.open(encoding="utf-8", errors="replace") as handle:
+            for number, line in enumerate(handle, 1):
+                words = line.split()
+                if words[:1] == ["Frames:"] and len(words) == 2 and words[1].isdigit():
+                    return int(words[1])
+                if words[:1] == ["Frame"] or number > 100_000:
+                    break
+    except OSError as exc:
+        raise MaterialError(f"{path}: cannot read ({exc.strerror})", ("clips",)) from None
+    raise MaterialError(f"{path}: no 'Frames: N' line in its MOTION header", ("clips",))

@@ -490,11 +490,9 @@ def _resolve_body(kind: type, spec: CreatureSpec, path: Path, where: dict[tuple,
     if not isinstance(body, MaterialSpec) or not body.custom:
         return
     at = (*prefix, "body")
-    if kind.FIGURE_ONLY:
-        raise config_error(path, where, at, f"kind {spec.kind!r} moves the shipped figure only: {kind.FIGURE_ONLY}")
     named = [file for key, (file, _) in where.items() if key[:len(at)] == at]
     try:
-        material = body.resolve((named[0] if named else path).parent)
+        material = body.resolve((named[0] if named else path).parent, ratios=bool(getattr(spec, "ratio_metric", False)))
     except MaterialError as exc:
         raise config_error(path, where, (*at, *exc.key), str(exc)) from None
     poses = material.graph.poses
