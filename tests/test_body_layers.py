@@ -10,7 +10,7 @@ import soundfile
 
 from creatures.config import ConfigError
 from creatures.events import read_events
-from creatures.kinds.hearing_parts import body_features
+from creatures.kinds.hearing_parts import BodyFeatures, MouthSpec
 from creatures.kinds.layers import BodySpec, BreatheSpec
 from creatures.kinds.parts import Body
 from creatures.motor import quaternion as quat
@@ -22,7 +22,7 @@ BREATH = 3.0  # seconds per breath in the soundcreatures runs
 
 
 def rib_cage_track(body: Body, times: np.ndarray, course_at: float | None = None) -> np.ndarray:
-    rib = body_features()["rib cage"]
+    rib = BodyFeatures.of(body.graph, MouthSpec()).controls()["rib cage"]
     out = []
     for t in times:
         if course_at is not None and abs(t - course_at) < 1e-9:

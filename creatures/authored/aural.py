@@ -36,7 +36,7 @@ class Aural:
         spec = creature.spec
         self.creature = creature
         self.ear = Ear(spec.hearing)
-        self.mouth = Mouth(spec.mouth, self.ear.singing)
+        self.mouth = Mouth(spec.mouth, self.ear.singing, None if creature.body is None else creature.body.graph)
         self.root: UtterancePercept | None = None
         self._singers: dict[int, SingFrom] = {}
 

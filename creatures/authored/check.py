@@ -93,10 +93,26 @@ def check(spec: "AuthoredSpec", file: Path, where: Where, prefix: tuple) -> None
     _drives(c)
     _tuples(c)
     _sung_keys(c)
+    _mouth(c)
     _groups(c)
     _shaped(c)
     _learning(c)
     _expectations(c)
+
+
+def _mouth(c: _Checker) -> None:
+    """A creature that sings through its body reads joints of that body (the rib cage, the back):
+    a body without them is named here, not met as the wrong joints' positions at run time."""
+    from creatures.kinds.figures import body_graph
+    from creatures.kinds.hearing_parts import BodyFeatures
+
+    if c.spec.hearing is None or not c.spec.body:
+        return
+    try:
+        BodyFeatures.of(body_graph(c.spec.body), c.spec.mouth)
+    except ValueError as exc:
+        key = str(exc).split(":", 1)[0].split(".")[-1]
+        raise c.error(("mouth", key), str(exc).split(": ", 1)[1]) from None
 
 
 def _shaped(c: _Checker) -> None:
@@ -221,11 +237,11 @@ def _action(c: _Checker, action, loc: tuple):
 
 
 def _joints(c: _Checker, wanted: list[str], loc: tuple) -> None:
-    from creatures.kinds.figures import figure_joints, figure_of
+    from creatures.kinds.figures import body_graph
 
     if wanted and not c.spec.body:
         raise c.error(loc, f"it moves the joint {wanted[0]!r}: set 'body = true' on the creature")
-    known = figure_joints(figure_of(c.spec.body)) if wanted else ()
+    known = body_graph(c.spec.body).skeleton.names if wanted else ()
     for joint in wanted:
         if joint not in known:
             close = difflib.get_close_matches(joint, known, n=1)

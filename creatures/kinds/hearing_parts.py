@@ -11,8 +11,9 @@ Thesis, "soundcreatures": each creature has "a microphone-as-ear and a loudspeak
   positions on the animated body control parameters such as amplitude modulation (e.g. rib
   cage) and a simple low-pass filter (e.g. here, back angle)". Here the rib cage is the
   distance between the elbows (arms opening as the chest fills) and the back angle is the
-  angle at the chest between pelvis and head; each is mapped from its 5–95 % range over the
-  shipped motor graph (:func:`body_range`) so any body sweeps the whole parameter range.
+  angle at the chest between pelvis and head (``[creature.mouth] rib_cage`` and ``back`` name
+  other joints; :class:`BodyFeatures`); each is mapped from its 5–95 % range over the body's
+  own motor graph so any body sweeps the whole parameter range.
   Singing is timed from the sample's length on the clock, not from rendering, so behaviour
   is the same whether or not audio is rendered (a run without out.wav or air).
 * :class:`SingFrom` and :class:`AuralLearning` — the *Ac* side of the shared aural tree
@@ -29,8 +30,9 @@ Thesis, "soundcreatures": each creature has "a microphone-as-ear and a loudspeak
 from __future__ import annotations
 
 import base64
-import functools
+import difflib
 import weakref
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Any, Callable
 
@@ -50,6 +52,7 @@ from creatures import bounds
 from creatures.bounds import FINITE
 from creatures.clock import clock_gap
 from creatures.kinds.parts import shared_graph
+from creatures.motor.graph import MotorGraph
 from creatures.motor.pose import BodyPose
 from creatures.persist import StateFileError
 
@@ -138,35 +141,85 @@ class MouthSpec(BaseModel):
     loud: float = Field(1.0, ge=0, le=2, description="amplitude with the rib cage open")
     dull_hz: float = Field(1500.0, ge=50, le=96000, description="low-pass cutoff with the back bent")
     bright_hz: float = Field(9000.0, ge=50, le=96000, description="low-pass cutoff with the back straight")
+    rib_cage: tuple[str, str] | None = Field(None, description="the two joints whose distance is the rib cage "
+                                                               "(amplitude); default elbow_l and elbow_r, else the "
+                                                               "left/right pair whose distance varies most in the "
+                                                               "body's material (a bird's wings)")
+    back: tuple[str, str, str] | None = Field(None, description="three joints whose angle at the middle one is the "
+                                                                "back (low-pass); default pelvis, chest, head")
 
 
-@functools.lru_cache(maxsize=8)
-def body_range(feature_name: str) -> tuple[float, float]:
-    """5th and 95th percentile of a named body feature over the shared motor graph."""
-    feature = body_features()[feature_name]
-    values = np.array([feature(p) for p in shared_graph().poses.positions])
+@dataclass(frozen=True)
+class BodyFeatures:
+    """The labelled body positions a mouth listens to, on one body: the rib cage (a distance
+    between two joints) and the back angle (at the middle of three), each with its 5th and
+    95th percentile over that body's motor graph, so any body sweeps the whole range."""
+
+    rib_cage: tuple[int, int]
+    back: tuple[int, int, int]
+    ranges: dict[str, tuple[float, float]]
+
+    @classmethod
+    def of(cls, graph: MotorGraph, spec: MouthSpec) -> "BodyFeatures":
+        """The features of ``graph``'s body; ValueError names a joint it lacks."""
+        names = graph.skeleton.names
+        back = spec.back or ("pelvis", "chest", "head")
+        rib = spec.rib_cage or (("elbow_l", "elbow_r") if {"elbow_l", "elbow_r"} <= set(names)
+                                else _widest_pair(graph))
+        for key, joints in (("rib_cage", rib), ("back", back)):
+            for joint in joints:
+                if joint not in names:
+                    close = difflib.get_close_matches(joint, names, n=1)
+                    hint = f"did you mean {close[0]!r}?" if close else f"joints: {', '.join(names)}"
+                    raise ValueError(f"mouth.{key}: the body has no joint {joint!r} ({hint}); name the body's "
+                                     f"own joints in [creature.mouth] {key}")
+        a, b = (names.index(j) for j in rib)
+        u, v, w = (names.index(j) for j in back)
+        positions = graph.poses.positions
+        values = {"rib cage": np.linalg.norm(positions[:, a] - positions[:, b], axis=-1),
+                  "back angle": _angles(positions[:, u] - positions[:, v], positions[:, w] - positions[:, v])}
+        return cls((a, b), (u, v, w), {k: _percentiles(x) for k, x in values.items()})
+
+    def controls(self) -> dict[str, Callable[[np.ndarray], float]]:
+        """Each feature of one pose's joint positions ``(J, 3)``."""
+        return {"rib cage": joint_distance(*self.rib_cage), "back angle": joint_angle(*self.back)}
+
+
+def _widest_pair(graph: MotorGraph) -> tuple[str, str]:
+    """The ``x_l``/``x_r`` joints whose distance varies most over the material (a bird's wing
+    tips open as its chest fills); ValueError if the body has no left/right pair."""
+    names = graph.skeleton.names
+    pairs = [(n, n[:-2] + "_r") for n in names if n.endswith("_l") and n[:-2] + "_r" in names]
+    if not pairs:
+        raise ValueError("mouth.rib_cage: the body has no left/right joint pair (x_l, x_r) to open as a rib cage; "
+                         "name two joints in [creature.mouth] rib_cage")
+    positions = graph.poses.positions
+    spread = [np.ptp(np.linalg.norm(positions[:, names.index(a)] - positions[:, names.index(b)], axis=-1))
+              for a, b in pairs]
+    return pairs[int(np.argmax(spread))]
+
+
+def _angles(u: np.ndarray, w: np.ndarray) -> np.ndarray:
+    cos = np.einsum("ij,ij->i", u, w) / np.maximum(np.linalg.norm(u, axis=-1) * np.linalg.norm(w, axis=-1), 1e-12)
+    return np.arccos(np.clip(cos, -1.0, 1.0))
+
+
+def _percentiles(values: np.ndarray) -> tuple[float, float]:
     low, high = np.percentile(values, [5.0, 95.0])
     return float(low), float(high) if high > low else float(low) + 1e-6
-
-
-def body_features() -> dict[str, Callable[[np.ndarray], float]]:
-    """The labelled body positions a mouth listens to: rib cage and back angle."""
-    index = shared_graph().skeleton.names.index
-    return {
-        "rib cage": joint_distance(index("elbow_l"), index("elbow_r")),
-        "back angle": joint_angle(index("pelvis"), index("chest"), index("head")),
-    }
 
 
 class Mouth:
     """Sings utterances through a body; tells the ear's singing flow while it sounds."""
 
-    def __init__(self, spec: MouthSpec, singing: SingingState) -> None:
+    def __init__(self, spec: MouthSpec, singing: SingingState, graph: MotorGraph | None = None) -> None:
+        """``graph``: the body it sings through (default the shipped figure's)."""
         self.spec = spec
         self.singing = singing
-        features = body_features()
-        self.amplitude = BodyControl(features["rib cage"], *body_range("rib cage"), spec.quiet, spec.loud)
-        self.cutoff = BodyControl(features["back angle"], *body_range("back angle"), spec.dull_hz, spec.bright_hz)
+        self.features = BodyFeatures.of(graph if graph is not None else shared_graph(), spec)
+        controls, ranges = self.features.controls(), self.features.ranges
+        self.amplitude = BodyControl(controls["rib cage"], *ranges["rib cage"], spec.quiet, spec.loud)
+        self.cutoff = BodyControl(controls["back angle"], *ranges["back angle"], spec.dull_hz, spec.bright_hz)
         self.sampler: Sampler | None = None
         # the sampler's slot of each sound, by the identity of its samples; the samples are kept
         # with it, so their id cannot be another sound's (a freed array's address is reused: a
