@@ -285,10 +285,12 @@ edits.forbid = [{ from = "heron@20", to = "heron@21" }]
         load_installation(config)
 
 
-def test_kinds_of_the_shipped_figure_and_bodies_without_rest_are_refused(tmp_path: Path):
-    with pytest.raises(ConfigError, match=r"heron\.toml:\d+: creature\.0\.body: kind 'curve' moves the shipped "
-                                          r"figure only"):
-        load_installation(heron_config(tmp_path, kind="curve"))
+def test_bodies_without_rest_or_a_curves_limbs_are_refused(tmp_path: Path):
+    config = heron_config(tmp_path, kind="curve")
+    assert load_installation(config).specs[0].body.custom  # curve takes a body of files like any kind
+    config.write_text(config.read_text().replace('kind = "curve"\n', 'kind = "curve"\nlimbs = ["wing_l"]\n'))
+    with pytest.raises(ConfigError, match=r"heron\.toml:\d+: creature\.0\.body: limbs: the body has no joint 'wing_l'"):
+        load_installation(config)
     config = heron_config(tmp_path)
     text = config.read_text()
     config.write_text(text.replace("rest_pose = { neck = [20.0, 0.0, 0.0] }\n", ""))

@@ -68,9 +68,6 @@ class CreatureKind(ABC):
     """The drives of the kind's ``motivation`` (a test checks them against a built creature)."""
     REWARDABLE: ClassVar[bool] = True
     """Whether the kind has an action-group (``group``) a reward can reach."""
-    FIGURE_ONLY: ClassVar[str] = ""
-    """Why the kind's body must be the shipped figure (it reads that figure's named joints);
-    empty: any ``[creature.body]`` from files will do."""
 
     @classmethod
     def body_problem(cls, spec: CreatureSpec, labels: set[str], joints: tuple[str, ...]) -> str | None:

@@ -6,8 +6,8 @@ other's shapes (thesis "curve (technology)", "scanned synthesis models (technolo
 synthesis model – to connect characters' bodies to such a synthesis technique." Design:
 
 * **Bodies in one room.** Every curve creature is a :class:`~creatures.kinds.parts.Body` on
-  the shared motor graph, standing at ``x`` along a room (the figure is drawn as lines: the
-  skeleton's bones). It walks along the room (``walk_speed``) as well as moving through the
+  its motor graph (the shipped figure's, or a ``[creature.body]`` of its own), standing at
+  ``x`` along a room (the figure is drawn as lines: the skeleton's bones). It walks along the room (``walk_speed``) as well as moving through the
   graph.
 * **Strings in space.** Each creature's :class:`~creatures.kinds.parts.Voice` is a scanned
   string stretched along x through the space its hands reach, carried with it. The *first*
@@ -30,11 +30,12 @@ synthesis model – to connect characters' bodies to such a synthesis technique.
 
 from __future__ import annotations
 
-import functools
+import weakref
 from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
-from pydantic import Field
+from pydantic import Field, model_validator
+from scipy.spatial import cKDTree
 
 from creatures.behaviour.action_group import ActionGroup
 from creatures.behaviour.action_tuple import Action, ActionTuple, DoUntil
@@ -43,8 +44,9 @@ from creatures.behaviour.percept import FunctionPercept, WhateverPercept
 from creatures.kinds import register
 from creatures.kinds.base import CreatureKind, CreatureSpec
 from creatures.kinds.moves import Rest, head_for
-from creatures.kinds.layers import BodySpec
+from creatures.kinds.figures import FigureBodySpec, figure_graph
 from creatures.kinds.parts import Body, Voice, VoiceSpec, shared_graph
+from creatures.motor.graph import MotorGraph
 from creatures.kinds.report_parts import MotorTrail, report_values, selection_logger
 from creatures.motor.note_space import NotePlacement
 from midi.notes import NoteEvent
@@ -70,29 +72,80 @@ class CurveSpec(CreatureSpec):
     note_length: float = Field(3.0, gt=0, le=30, description="seconds each note the creature sounds is held")
     temperature: float | None = Field(None, gt=0, le=1e3, description="Boltzmann temperature of action selection")
     voice: VoiceSpec = VoiceSpec(voices=3, body_gain=12.0)
-    body: BodySpec = BodySpec()
+    body: FigureBodySpec = FigureBodySpec()
+    limbs: list[str] | None = Field(None, max_length=256,
+                                    description="joints whose movement pushes the strings; default the elbows, "
+                                                "wrists and hands the body has, else its striking joints")
+
+    @model_validator(mode="after")
+    def _limbs_on_the_figure(self) -> "CurveSpec":
+        """A shipped figure's joints are known now; a body from files is checked once built."""
+        if not self.body.custom:
+            names = figure_graph(self.body.figure).skeleton.names
+            missing = [j for j in self.limbs or () if j not in names]
+            if missing:
+                raise ValueError(f"limbs: the {self.body.figure} has no joint {missing[0]!r} (joints: {', '.join(names)})")
+        return self
 
 
 MIRROR_TOLERANCE = 0.05
 """Mean joint distance (m) within which a pose counts as another's mirror image."""
 
+MIRROR_CANDIDATES = 32
+"""Nearest poses (as flat joint vectors) among which a mirror image is sought: exact for the
+shipped bodies' few hundred nodes, and a KD-tree's few microseconds on a large body."""
 
-@functools.lru_cache(maxsize=1)
-def mirror_nodes() -> np.ndarray:
-    """For every node of the shared graph, the node whose pose is its mirror image (x
-    negated, left and right joints swapped) — or, where the material has no such pose (the
-    shipped *reach* and *strike* are right-handed), the node itself: the creature then
-    copies the other's shape instead, the way dancers "mirror" a partner they stand beside.
-    """
-    graph = shared_graph()
-    names = list(graph.skeleton.names)
-    swap = [names.index(n[:-2] + {"_l": "_r", "_r": "_l"}[n[-2:]]) if n[-2:] in ("_l", "_r") else i
-            for i, n in enumerate(names)]
-    positions = graph.poses.positions  # (N, J, 3)
-    mirrored = positions[:, swap] * np.array([-1.0, 1.0, 1.0])
-    gap = np.linalg.norm(mirrored[:, None] - positions[None], axis=-1).mean(axis=-1)  # (N, N)
-    best = np.argmin(gap, axis=1)
-    return np.where(gap[np.arange(len(best)), best] <= MIRROR_TOLERANCE, best, np.arange(len(best)))
+
+class MirrorImages:
+    """The poses of one body's graph, to find the node nearest a pose and its mirror image (x
+    negated, left and right joints swapped: ``x_l`` ↔ ``x_r``)."""
+
+    def __init__(self, graph: MotorGraph) -> None:
+        names = list(graph.skeleton.names)
+        self.names = tuple(names)
+        self.swap = np.array([names.index(n[:-2] + {"_l": "_r", "_r": "_l"}[n[-2:]])
+                              if n[-2:] in ("_l", "_r") and n[:-2] + {"_l": "_r", "_r": "_l"}[n[-2:]] in names else i
+                              for i, n in enumerate(names)])
+        self.positions = graph.poses.positions  # (N, J, 3)
+        self.tree = cKDTree(self.positions.reshape(len(self.positions), -1))
+
+    def goals(self, positions: np.ndarray) -> np.ndarray:
+        """For poses ``(M, J, 3)`` of a body with these joints, the node whose pose is each one's
+        mirror image, or, where the material has none within :data:`MIRROR_TOLERANCE`, the node
+        nearest the pose itself: the creature then copies the other's shape instead, the way
+        dancers "mirror" a partner they stand beside."""
+        mirrored = positions[:, self.swap] * np.array([-1.0, 1.0, 1.0])
+        image, gap = self._nearest(mirrored)
+        copy, _ = self._nearest(positions)
+        return np.where(gap <= MIRROR_TOLERANCE, image, copy)
+
+    def _nearest(self, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Node of least mean joint distance to each pose, among its nearest flat candidates."""
+        k = min(MIRROR_CANDIDATES, len(self.positions))
+        _, candidates = self.tree.query(positions.reshape(len(positions), -1), k=k)
+        candidates = np.sort(candidates.reshape(len(positions), k), axis=1)  # ties: the lowest node, as ever
+        gaps = np.linalg.norm(self.positions[candidates] - positions[:, None], axis=-1).mean(axis=-1)
+        best = np.argmin(gaps, axis=1)
+        rows = np.arange(len(positions))
+        return candidates[rows, best], gaps[rows, best]
+
+
+_IMAGES: "weakref.WeakKeyDictionary[MotorGraph, MirrorImages]" = weakref.WeakKeyDictionary()
+
+
+def mirror_images(graph: MotorGraph) -> MirrorImages:
+    """One :class:`MirrorImages` per graph (the bodies of a room share their figure's)."""
+    if graph not in _IMAGES:
+        _IMAGES[graph] = MirrorImages(graph)
+    return _IMAGES[graph]
+
+
+def mirror_nodes(graph: MotorGraph | None = None) -> np.ndarray:
+    """For every node of ``graph`` (default the shared one), the node whose pose is its mirror
+    image, or the node itself where the material has no such pose (the shipped *reach* and
+    *strike* are right-handed)."""
+    images = mirror_images(graph if graph is not None else shared_graph())
+    return images.goals(images.positions)
 
 
 class _Wander(Action):
@@ -123,7 +176,7 @@ class _Approach(Action):
             return
         side = np.sign(other.x - c.x) or 1.0
         c.target_x = other.x - side * 0.8 * c.spec.near
-        chest = other.body.pose.positions[other.body.skeleton.names.index("chest")]
+        chest = other.body.pose.positions[other.centre]
         reach_for = chest + [other.x - c.target_x, 0.0, 0.0]  # where it will be, seen from where c goes
         head_for(c.body, t, c.body.finder.effector_goals(c.body.effector, reach_for).tolist())
         c.sound_hand(t)
@@ -147,7 +200,10 @@ class _Mirror(Action):
         other = c.nearest()
         if other is None:
             return
-        goal = int(mirror_nodes()[other.body.motor.position(t).node])
+        if other.body.skeleton.names != c.images.names:
+            return  # another skeleton: no pose of this body is its image
+        node = other.body.motor.position(t).node
+        goal = int(c.images.goals(other.body.graph.poses.positions[node][None])[0])
         if goal != self.goal:
             self.goal = goal
             head_for(c.body, t, [goal])
@@ -168,11 +224,20 @@ class _Rest(Rest):
 @register("curve")
 class Curve(CreatureKind):
     Spec = CurveSpec
-    FIGURE_ONLY = "it mirrors and compares the shipped figure's named limbs (chest, elbows, wrists, hands)"
+    @classmethod
+    def body_problem(cls, spec: CreatureSpec, labels: set[str], joints: tuple[str, ...]) -> str | None:
+        missing = [j for j in spec.limbs or () if j not in joints]
+        return f"limbs: the body has no joint {missing[0]!r} (joints: {', '.join(joints)})" if missing else None
 
     def __init__(self, spec: CurveSpec, world: "World", rng: np.random.Generator) -> None:
         super().__init__(spec, world, rng)
-        self.body = Body(rng, spec=spec.body)
+        self.body = Body(rng, spec=spec.body, figure=spec.body.figure)
+        names = self.body.skeleton.names
+        self.limbs = [names.index(j) for j in (spec.limbs or [j for j in LIMBS if j in names])] or self.body.touching
+        roots = np.flatnonzero(self.body.skeleton.parents < 0)
+        self.centre = names.index("chest") if "chest" in names else int(roots[0])
+        """The joint another creature reaches for (the chest, else the root)."""
+        self.images = mirror_images(self.body.graph)
         self.trail = MotorTrail(world, self.name, self.body)
         self.x = self.target_x = float(np.clip(spec.place, -spec.room, spec.room))
         self.placement = NotePlacement.around(self.body.reach())
@@ -251,9 +316,8 @@ class Curve(CreatureKind):
         coordinates)."""
         if self.voice is None:
             return
-        limbs = [self.body.skeleton.names.index(name) for name in LIMBS]
-        bodies = [self.body.pose.positions[limbs]] + [o.body.pose.positions[limbs] + [o.x - self.x, 0.0, 0.0]
-                                                      for o in self.others()]
+        bodies = [self.body.pose.positions[self.limbs]] + [o.body.pose.positions[o.limbs] + [o.x - self.x, 0.0, 0.0]
+                                                           for o in self.others()]
         self.voice.feel(_Bodies(np.concatenate(bodies), self._t))
 
     def tick(self, t: float) -> None:
