@@ -172,3 +172,49 @@ def test_a_kind_without_a_repertoire_merge_says_why(tmp_path: Path) -> None:
     session.save_state(tmp_path / "b")
     with pytest.raises(StateFileError, match="percept tree clusters"):
         repertoire.merge(tmp_path / "a", name, tmp_path / "b", name)
+
+
+def test_merged_sound_classes_are_sung_from_both_trees(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A sound creature taught "ai"/"oe" and one taught "ua"/"ieu" (each until its aural tree
+    splits into classes): merged, the second's tree holds the first's classes too, renumbered,
+    with their tuples, and in the silence after it sings exemplars heard by each."""
+    import installations
+    from audio_fixtures import SR, alternating_words
+    from creatures.kinds.hearing_parts import Mouth, pack_samples
+
+    config = installations.path("soundcreatures")
+
+    def taught(words: tuple[str, str], state: Path) -> None:
+        x, _ = alternating_words(words, 30.0, seed=1, length=60.0)
+        session = Session(load_installation(config), SimulatedClock(), EventLog(keep_in_memory=0), MemorySink())
+        frames, parrot = int(0.02 * SR), session.creatures[0]
+        for k in range(1, len(x) // frames + 1):
+            session.clock.advance_to(k * 0.02)
+            session.step(k * 0.02, frames, x[(k - 1) * frames:k * frames])
+            if k * 0.02 >= 30.0 and len(parrot.aural.root.utterance_children()) >= 2:
+                break
+        assert len(parrot.aural.root.utterance_children()) >= 2
+        session.save_state(state)
+
+    one, two = tmp_path / "one", tmp_path / "two"
+    taught(("ai", "oe"), one)
+    taught(("ua", "ieu"), two)
+    heard = {p: {u["samples"] for u in json.loads((p / "parrot.json").read_text())["state"]["aural"]["tree"]
+                 ["utterances"]} for p in (one, two)}
+    assert main(["state", "merge", str(one), "--creature", "parrot", str(two), "--into", "parrot"]) == 0
+    session = Session(load_installation(config), SimulatedClock(), EventLog(keep_in_memory=0), MemorySink())
+    session.load_state(two)
+    parrot = session.creatures[0]
+    classes = [p.name for p in parrot.aural.root.utterance_children()]
+    assert classes == ["any sound/1", "any sound/2", "any sound/3", "any sound/4"]
+    assert {"any sound/3|attend", "any sound/4|attend"} <= {tp.name for tp in parrot.group.tuples}
+    sung: list[str] = []
+    sing = Mouth.sing
+    monkeypatch.setattr(Mouth, "sing", lambda self, t, u, gain=1.0: sung.append(pack_samples(u.samples))
+                        or sing(self, t, u, gain))
+    frames = int(0.02 * SR)
+    for k in range(1, int(180.0 / 0.02)):
+        session.clock.advance_to(k * 0.02)
+        session.step(k * 0.02, frames, np.zeros(frames, np.float32))
+    only = {p: heard[p] - heard[q] for p, q in ((one, two), (two, one))}
+    assert sum(s in only[one] for s in sung) >= 5 and sum(s in only[two] for s in sung) >= 5

@@ -166,7 +166,8 @@ def merge(source: Path, name: str, target: Path, into: str) -> list[str]:
 def _merge_authored(src: dict[str, Any], dst: dict[str, Any]) -> tuple[dict[str, Any], list[str]]:
     """An authored creature's heard phrases, each with its tuple's learned value: the source's
     phrases the target lacks are appended under new numbers (``phrase N`` tuples renumbered);
-    the target's ``max_phrases`` keeps the newest when it restores."""
+    the target's ``max_phrases`` keeps the newest when it restores. Its sound classes are
+    grafted onto the target's aural tree (:func:`_merge_aural`)."""
     merged = json.loads(json.dumps(dst))
     phrases, made = merged.setdefault("phrases", []), int(merged.get("phrases_made", len(merged.get("phrases", []))))
     learnt, values = merged.setdefault("learnt", []), merged.setdefault("values", {})
@@ -185,7 +186,76 @@ def _merge_authored(src: dict[str, Any], dst: dict[str, Any]) -> tuple[dict[str,
                     values.setdefault(group, {})[f"phrase {made}"] = tuples[f"phrase {number}"]
         added.append(f"phrase {made} (was phrase {number}: pitches {' '.join(str(n[1]) for n in phrase)})")
     merged["phrases_made"] = made
+    if "aural" in src:
+        if "aural" not in merged:
+            raise StateFileError("the source creature hears sounds (an aural percept tree) and the target does "
+                                 "not: give the target a [creature.hearing] and an 'utterance' percept first")
+        added += _merge_aural(src["aural"], merged["aural"], src.get("values", {}), values)
     return merged, added
+
+
+def _merge_aural(src: dict[str, Any], dst: dict[str, Any], src_values: dict[str, Any],
+                 values: dict[str, Any]) -> list[str]:
+    """The source's sound classes grafted onto the target's aural tree (thesis "percept trees",
+    "aural Ac percept trees"): each class under the source's root becomes one more class under
+    the target's, renumbered as the target's root would have numbered it (its descendants' names
+    follow), with its exemplars; the root keeps the exemplars of both; the tuples learning made
+    on those classes come too, with their values. The tree's own settings are the target's, and
+    a root that would hold more classes than its ``max_children`` keeps its own first.
+    Changes ``dst`` and ``values`` in place; returns what was added."""
+    tree, theirs = dst["tree"], src["tree"]
+    utterances = tree.setdefault("utterances", [])
+    index = {u["samples"]: i for i, u in enumerate(utterances)}
+
+    def take(members: list[int]) -> list[int]:
+        kept = []
+        for i in members:
+            u = theirs["utterances"][i]
+            if u["samples"] not in index:
+                index[u["samples"]] = len(utterances)
+                utterances.append(u)
+            kept.append(index[u["samples"]])
+        return kept
+
+    root, their_root = tree["root"], theirs["root"]
+    rename = {their_root["name"]: root["name"]}
+    added = []
+    for child in their_root.get("children", []):
+        if len(root["children"]) >= int(tree.get("max_children", len(root["children"]) + 1)):
+            added.append(f"not added: sound class {child['name']} (the root holds its max_children classes)")
+            continue
+        root["born"] = int(root.get("born", 0)) + 1
+        new = f"{root['name']}/{root['born']}"
+
+        def graft(node: dict[str, Any], name: str) -> dict[str, Any]:
+            rename[node["name"]] = name
+            return {"name": name, "born": node.get("born", 0), "members": take(node.get("members", [])),
+                    "children": [graft(c, name + c["name"][len(node["name"]):]) for c in node.get("children", [])]}
+
+        root["children"].append(graft(child, new))
+        added.append(f"sound class {new} (was {child['name']}: {len(child.get('members', []))} exemplars)")
+    ours = set(root.get("members", []))
+    root["members"] = root.get("members", []) + [i for i in take(their_root.get("members", [])) if i not in ours]
+    renamed = lambda name: rename.get(name, name)  # noqa: E731 - a trigger outside the tree keeps its name
+    for group, tuples in src.get("tuples", {}).items():
+        if group not in dst.get("tuples", {}):
+            added.append(f"not added: the tuples of group {group!r}, which the target has not")
+            continue
+        names = {t[2] for t in dst["tuples"][group]} | set(values.get(group, {}))
+        for trigger, action, name in tuples:
+            if trigger not in rename and not (action.startswith("sing ") and action[5:] in rename):
+                continue  # it names no class the merge brought
+            trig = renamed(trigger)
+            act = "sing " + renamed(action[5:]) if action.startswith("sing ") else action
+            made = f"{trig}|{act}" if name == f"{trigger}|{action}" else name
+            while made in names:
+                made += " (merged)"
+            names.add(made)
+            dst["tuples"][group].append([trig, act, made])
+            if name in src_values.get(group, {}):
+                values.setdefault(group, {})[made] = src_values[group][name]
+            added.append(f"tuple {made} (was {name})")
+    return added
 
 
 def _merge_memories(src: dict[str, Any], dst: dict[str, Any]) -> tuple[dict[str, Any], list[str]]:
