@@ -218,3 +218,23 @@ def test_merged_sound_classes_are_sung_from_both_trees(tmp_path: Path, monkeypat
         session.step(k * 0.02, frames, np.zeros(frames, np.float32))
     only = {p: heard[p] - heard[q] for p, q in ((one, two), (two, one))}
     assert sum(s in only[one] for s in sung) >= 5 and sum(s in only[two] for s in sung) >= 5
+
+
+def test_a_full_aural_root_keeps_its_own_classes_and_says_what_it_left() -> None:
+    def tree(prefix: str, classes: int) -> dict:
+        utterances = [{"samples": f"{prefix}{i}", "samplerate": 22050, "time": float(i)} for i in range(classes)]
+        children = [{"name": f"any sound/{i + 1}", "born": 0, "members": [i], "children": []} for i in range(classes)]
+        return {"tree": {"max_children": 3, "utterances": utterances,
+                         "root": {"name": "any sound", "born": classes, "members": list(range(classes)),
+                                  "children": children}},
+                "tuples": {"main": [[f"any sound/{i + 1}", "attend", f"any sound/{i + 1}|attend"]
+                                    for i in range(classes)]}}
+
+    src, dst = tree("a", 2), tree("b", 2)
+    values = {"main": {}}
+    added = repertoire._merge_aural(src, dst, {"main": {"any sound/1|attend": 1.5}}, values)
+    assert [c["name"] for c in dst["tree"]["root"]["children"]] == ["any sound/1", "any sound/2", "any sound/3"]
+    assert dst["tree"]["root"]["children"][2]["members"] == [2]  # the source's exemplar, appended once
+    assert "not added: sound class any sound/2 (the root holds its max_children classes)" in added
+    assert values == {"main": {"any sound/3|attend": 1.5}}
+    assert [t[2] for t in dst["tuples"]["main"]] == ["any sound/1|attend", "any sound/2|attend", "any sound/3|attend"]
