@@ -234,3 +234,47 @@ def test_a_damaged_shaping_state_is_refused_naming_the_key(trained, tmp_path, da
     fresh, _ = _session(EventLog())
     with pytest.raises(StateFileError, match=named.replace(".", r"\.")):
         fresh.load_state(tmp_path)
+
+
+def test_a_merged_gesture_is_performed_by_a_dog_that_was_never_taught(trained, tmp_path):
+    """``creatures state merge``: the trained dog's dispatched gesture (motor material) into an
+    untaught dog's state; restored, the untaught dog has the new nodes and the 'chase tail'
+    tuple, and performs it without a stick."""
+    from creatures.cli import main
+
+    _, _, state = trained
+    pupil = tmp_path / "pupil"
+    session, clock = _session(EventLog())
+    _run(session, clock, 0.0, 5.0)
+    session.save_state(pupil)
+    assert "gestures" not in json.loads((pupil / "dog.json").read_text())["state"]
+    assert main(["state", "merge", str(state), "--creature", "dog", str(pupil), "--into", "dog"]) == 0
+    log = EventLog(tmp_path / "events.jsonl")
+    fresh, clock = _session(log)
+    assert fresh.load_state(pupil) == ["dog"]
+    dog = fresh.creatures[0]
+    assert isinstance(dog.groups["main"].find("chase tail").action, PerformGesture)
+    assert len(dog.body.graph) > len(Body(np.random.default_rng(0)).graph)
+    clock.advance_to(1000.0)
+    _run(fresh, clock, 1000.0, 60.0)
+    log.close()
+    assert [a for a in _activations(read_events(tmp_path / "events.jsonl")) if a[0] == "chase tail"]
+
+
+def test_merged_gestures_are_renumbered_after_the_targets_own():
+    from creatures.runtime import repertoire
+
+    def gesture(shaping: str, first: int, count: int) -> dict:
+        program = f"{shaping}: " + "; ".join(f"getTo {first + k}; wait" for k in range(count)) + "; end"
+        return {"shaping": shaping, "name": shaping, "core": list(range(count)), "dwell": [0.1] * count,
+                "program": program}
+
+    src = {"gestures": [gesture("spin", 100, 3), gesture("bow", 103, 4)], "shaping": {"spin": {}, "bow": {}}}
+    dst = {"gestures": [gesture("bow", 100, 5)], "shaping": {"spin": {}, "bow": {}}}
+    added = repertoire._merge_gestures(src, dst)
+    assert [g["shaping"] for g in dst["gestures"]] == ["bow", "spin"]
+    assert dst["gestures"][1]["program"] == "spin: getTo 105; wait; getTo 106; wait; getTo 107; wait; end"
+    assert "not added: gesture bow (the target dispatched its own from 'bow')" in added
+    other = {"gestures": [gesture("bow", 90, 5)], "shaping": {"spin": {}}}
+    with pytest.raises(StateFileError, match="different bodies"):
+        repertoire._merge_gestures(src, other)

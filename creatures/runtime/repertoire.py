@@ -15,6 +15,7 @@ snapshots of a creature that learned nothing differ by nothing.
 from __future__ import annotations
 
 import json
+import re
 from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
@@ -191,7 +192,54 @@ def _merge_authored(src: dict[str, Any], dst: dict[str, Any]) -> tuple[dict[str,
             raise StateFileError("the source creature hears sounds (an aural percept tree) and the target does "
                                  "not: give the target a [creature.hearing] and an 'utterance' percept first")
         added += _merge_aural(src["aural"], merged["aural"], src.get("values", {}), values)
+    added += _merge_gestures(src, merged)
     return merged, added
+
+
+def _merge_gestures(src: dict[str, Any], dst: dict[str, Any]) -> list[str]:
+    """The source's motor material: each gesture its complex shaping dispatched into the body's
+    graph (thesis "learning to chase your tail – part 2") whose shape_gesture tuple the target
+    has and has not dispatched itself is appended after the target's own. The target dispatches
+    it again on restore, after its own, so its new nodes come later by the nodes the target's
+    gestures added: its program is renumbered by that (the base graph's size cancels). A gesture
+    learnt over another gesture's nodes, or from a body whose base graph differs from the
+    target's, is not carried (said, or refused); a restore still checks every program against
+    the nodes it dispatches. Changes ``dst`` in place; returns what was added."""
+    theirs, ours = src.get("gestures", []), list(dst.get("gestures", []))
+    if not theirs:
+        return []
+    base = {who: min(_program_nodes(g[0]["program"])) for who, g in (("source", theirs), ("target", ours)) if g}
+    if len(set(base.values())) > 1:
+        raise StateFileError(f"cannot merge motor material: the source's body graph had {base['source']} nodes "
+                             f"before its gestures and the target's {base['target']} (different bodies)")
+    done, shaping = {g["shaping"] for g in ours}, set(dst.get("shaping", {}))
+    added, offset = [], sum(len(g["core"]) for g in ours)
+    for gesture in theirs:
+        name, count = gesture["shaping"], len(gesture["core"])
+        if name not in shaping:
+            added.append(f"not added: gesture {gesture['name']} (the target has no shape_gesture tuple {name!r})")
+        elif name in done:
+            added.append(f"not added: gesture {gesture['name']} (the target dispatched its own from {name!r})")
+        elif max(gesture["core"]) >= base["source"]:
+            added.append(f"not added: gesture {gesture['name']} (learnt over another gesture's nodes)")
+        else:
+            shift = offset - (min(_program_nodes(gesture["program"])) - base["source"])
+            program = re.sub(r"getTo (\d+)", lambda m: f"getTo {int(m.group(1)) + shift}", gesture["program"])
+            ours.append({**gesture, "program": program})
+            done.add(name)
+            offset += count
+            added.append(f"gesture {gesture['name']} ({count} new nodes, from shaping {name!r})")
+    if len(ours) > len(dst.get("gestures", [])):
+        dst["gestures"] = ours
+    return added
+
+
+def _program_nodes(program: str) -> list[int]:
+    """The nodes a dispatched gesture's program goes to (``name: getTo 12; wait; …``)."""
+    found = [int(n) for n in re.findall(r"getTo (\d+)", program)]
+    if not found:
+        raise StateFileError(f"a saved gesture's program goes to no node: {program[:80]!r}")
+    return found
 
 
 def _merge_aural(src: dict[str, Any], dst: dict[str, Any], src_values: dict[str, Any],
