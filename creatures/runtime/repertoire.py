@@ -30,7 +30,8 @@ SKIPPED = frozenset({"motivation", "time", "born", "next_id", "phrases_made", "l
 have tuples: each shows as its tuple's value appearing)."""
 
 LABELS = {"values": "value", "phrases": "phrase", "tree": "percept", "tuples": "tuple", "poses": "motor material",
-          "population": "phrase model", "memory": "sound", "expected match": "expectation"}
+          "population": "phrase model", "memory": "sound", "expected match": "expectation",
+          "gestures": "motor material", "shaping": "gesture model", "aural": "aural percept tree"}
 """What each section of a kind's state is, in the words of the thesis."""
 
 
