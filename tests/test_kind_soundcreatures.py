@@ -171,9 +171,6 @@ def test_state_survives_a_save(talk, tmp_path):
         again.restore({**saved, "aural": {**saved["aural"], "tree": {"root": {}}}})
 
 
-@pytest.mark.xfail(strict=True, reason="issue 20: an unanswered song is credited toward β·V of the tuple "
-                   "that follows it (often the answered song), so with β = 0.8 it settles near 1.2 "
-                   "against 2.1 for the answered one (34 songs: 1.24 vs 2.08, 1.7×)")
 def test_songs_that_are_answered_gain_value(tmp_path):
     """The thesis's claim ("soundcreatures": creatures learn which songs are followed by
     sound): after the talk, one creature alone in the room is answered (an "oe" played back
