@@ -126,7 +126,7 @@ def test_strikes_notes_by_a_star_within_limits_and_top_speed(figure, clock):
             previous = pose
         clock.advance(0.1)
         body.update(clock.now())
-        assert np.linalg.norm(body.hand_in_place() - note.position) < 0.08
+        assert np.linalg.norm(body.strikers_in_place()[0] - note.position) < 0.08
 
 
 @pytest.mark.gl

@@ -130,6 +130,7 @@ ROW = "0 10 0 0 0 0 1 2 3 4 5 6\n"
     (HIERARCHY + FRAMES + ROW + "0 10 0 0 0 0 1 1e300 3 4 5 6\n", r"heron\.bvh:25: .*beyond"),
     (HIERARCHY.replace("JOINT head", "JOINT neck") + FRAMES + ROW * 2, r"heron\.bvh:10: joint 'neck' is named twice"),
     (HIERARCHY[:200], r"heron\.bvh:\d+: unexpected end of file"),
+    (HIERARCHY + "MOTION\nFrames: 2\nFrame Time: 1e-300\n" + ROW * 2, r"heron\.bvh:23: frame time must be at least"),
 ])
 def test_bad_takes_are_named_with_their_line(tmp_path: Path, text: str, message: str):
     with pytest.raises(ConfigError, match=message) as error:
@@ -173,11 +174,21 @@ def test_a_restart_loads_the_cache_and_a_stale_or_corrupt_one_is_rebuilt(tmp_pat
     np.savez(cache, **arrays)
     assert body_of(config).graph.edges() == first.edges() and built == [1, 1]
     assert "corrupt" in caplog.text and "outside" in caplog.text
+    for name, bad in (("label_ids", -1), ("source_ids", 7)):  # well-formed numbers outside its own tables
+        with np.load(cache, allow_pickle=False) as data:
+            arrays = {k: data[k] for k in data.files}
+        arrays[name] = arrays[name].copy()
+        arrays[name][0] = bad
+        caplog.clear()
+        np.savez(cache, **arrays)
+        assert body_of(config).graph.poses.labels == first.poses.labels
+        assert "corrupt" in caplog.text and "outside the cache's own tables" in caplog.text
+    built.clear()
     rows = heron_frames()
     rows[:, 10] *= 0.5
     write_bvh(tmp_path / "heron.bvh", rows)  # a source changed: the cache is stale
     changed = body_of(config).graph
-    assert built == [1, 1, 1] and "stale" in caplog.text
+    assert built == [1] and "stale" in caplog.text
     assert not np.allclose(changed.poses.rotations, first.poses.rotations)
 
 
@@ -361,3 +372,46 @@ def test_a_bvh_cut_anywhere_is_a_body_or_an_error_naming_it(tmp_path_factory, he
         assert str(path) in str(exc), exc
     else:
         assert len(graph) >= 4
+
+
+def test_edits_that_strand_a_pose_or_disagree_are_named_not_raised(tmp_path: Path):
+    """Forbids that leave a pose no way out are a config error naming the edit file (it was a
+    traceback); a reweight of an edge another file forbids names that file; a mistake in the
+    config's own edits is named at the edits key's line."""
+    config = heron_config(tmp_path)
+    stamp = fingerprint(body_of(config).graph.skeleton)
+    (tmp_path / "strand.toml").write_text(f'skeleton = "{stamp}"\n[[forbid]]\nfrom = "heron@239"\nto = "heron@0..239"\n'
+                                          '[[forbid]]\nfrom = "heron@239"\nto = "rest@0"\n')
+    text = config.read_text()
+    config.write_text(text.replace("[[creature.body.animations]]", 'graph_edits = ["strand.toml"]\n'
+                                                                   "[[creature.body.animations]]"))
+    with pytest.raises(ConfigError, match=r"creature\.0\.body\.graph_edits: .*strand\.toml leave part of the graph "
+                                          r"with no way to the rest"):
+        load_installation(config)
+    (tmp_path / "a.toml").write_text(f'skeleton = "{stamp}"\n[[forbid]]\nfrom = "heron@10"\nto = "heron@11"\n')
+    (tmp_path / "b.toml").write_text(f'skeleton = "{stamp}"\n[[reweight]]\nfrom = "heron@10"\nto = "heron@11"\n'
+                                     'scale = 2.0\n')
+    config.write_text(text.replace("[[creature.body.animations]]", 'graph_edits = ["a.toml", "b.toml"]\n'
+                                                                   "[[creature.body.animations]]"))
+    with pytest.raises(ConfigError, match=r"b\.toml:\d+: \[\[reweight\]\].*conflicts with .*a\.toml:\d+, which forbids it"):
+        load_installation(config)
+    lines = text.replace("[[creature.body.animations]]", 'edits.favour = [{ node = "preen", multiplier = 0.5 }]\n'
+                                                           "[[creature.body.animations]]")
+    config.write_text(lines)
+    at = next(n for n, line in enumerate(lines.splitlines(), 1) if line.startswith("edits.favour"))
+    with pytest.raises(ConfigError, match=rf"heron\.toml:{at}: creature\.0\.body\.edits\.favour\.0\.node: .*'preen'"):
+        load_installation(config)
+
+
+def test_a_hierarchy_alone_is_a_skeleton_and_numbers_too_large_are_refused(tmp_path: Path):
+    config = heron_config(tmp_path)
+    (tmp_path / "rig.bvh").write_text(HIERARCHY)  # no MOTION: how a rig is handed over
+    text = config.read_text()
+    config.write_text(text.replace("[[creature.body.animations]]", 'skeleton = "rig.bvh"\n[[creature.body.animations]]'))
+    assert body_of(config).graph.skeleton.names == ("base", "neck", "head", "head_end")
+    config.write_text(text.replace("rest_pose = { neck = [20.0, 0.0, 0.0] }", "rest_pose = { neck = [1e300, 0.0, 0.0] }"))
+    with pytest.raises(ConfigError, match=r"creature\.0\.body\.rest_pose"):
+        load_installation(config)
+    config.write_text(text.replace("scale = 0.01", "scale = 1e-300"))
+    with pytest.raises(ConfigError, match=r"creature\.0\.body\.scale"):
+        load_installation(config)

@@ -12,7 +12,8 @@ from body_fixtures import BODY, heron_config
 from creatures.events import read_events
 from creatures.cli import main
 from creatures.kinds.parts import Body
-from creatures.motor.export import played, taken_nodes
+from creatures.motor.export import played, taken_path
+from creatures.runtime.motion_export import exported_body
 from creatures.motor.material import Animation, Conventions, read_animation
 from creatures.motor import quaternion as quat
 from creatures.runtime.offline import run_offline
@@ -79,10 +80,15 @@ def test_export_motion_round_trips_and_loads_back_as_an_animation(tmp_path: Path
     run_offline(load_installation(config), tmp_path / "out", progress=False)
     out = tmp_path / "motion.bvh"
     assert main(["export-motion", str(tmp_path / "out"), "--creature", "heron", str(out), "--fps", "40"]) == 0
-    graph = load_installation(config).specs[0].body.material().graph
-    nodes = taken_nodes(read_events(tmp_path / "out" / "events.jsonl"), "heron", len(graph))
+    spec = load_installation(config).specs[0]
+    graph, _, limits = exported_body(spec)
+    nodes, times = taken_path(read_events(tmp_path / "out" / "events.jsonl"), "heron", len(graph))
     assert len(nodes) >= 10
-    expected = played(graph, nodes, 40.0)
+    expected = played(graph, nodes, 40.0, times, limits)
+    # the take lasts as long as the body moved and waited, and never turns the neck past its limit
+    assert abs(expected.times[-1] - (times[-1] - times[0])) <= 0.2
+    neck = quat.angle_between(expected.rotations[:, 1], quat.identity(()))
+    assert neck.max() <= spec.body.joint_limits["neck"] + 1e-9
     back, frame_time = read_animation(Animation(out), graph.skeleton, Conventions(scale=0.01))
     assert frame_time == 1.0 / 40.0
     assert len(back) == len(expected) > 40
@@ -112,9 +118,11 @@ def test_export_motion_of_a_shipped_figure_is_that_figures_body(tmp_path: Path, 
     run_offline(inst, tmp_path / "out", duration=20.0, progress=False)
     out = tmp_path / f"{creature}.bvh"
     assert main(["export-motion", str(tmp_path / "out"), "--creature", creature, str(out), "--fps", "30"]) == 0
-    graph = figure_graph(figure)
-    nodes = taken_nodes(read_events(tmp_path / "out" / "events.jsonl"), creature, len(graph))
-    expected = played(graph, nodes, 30.0)
+    graph, _, limits = exported_body(inst.specs[[s.name for s in inst.specs].index(creature)])
+    assert graph is figure_graph(figure)
+    nodes, times = taken_path(read_events(tmp_path / "out" / "events.jsonl"), creature, len(graph))
+    expected = played(graph, nodes, 30.0, times, limits)
+    assert abs(expected.times[-1] - (times[-1] - times[0])) <= 0.2  # its waits too
     back, frame_time = read_animation(Animation(out), graph.skeleton, Conventions())
     assert graph.skeleton.joint_count == (joints or graph.skeleton.joint_count) != 19  # not the stick figure's
     assert len(back) == len(expected) > 30
@@ -296,3 +304,56 @@ def test_duncan_takes_a_body_from_files_and_names_a_trick_it_lacks(tmp_path: Pat
     config.write_text(head + dog_as_files(tmp_path, drop="beg"))
     with pytest.raises(ConfigError, match=r"terrier.toml:\d+: .*the body has no motor label 'beg'"):
         load_installation(config)
+
+
+def test_export_motion_from_a_state_folder_is_the_logged_path(tmp_path: Path):
+    """A live run that kept no events log still keeps its body's path beside its learned state:
+    exported from the state folder it is the take exported from the run's log, frame for frame;
+    a state file without one is refused naming it."""
+    from creatures.clock import SimulatedClock
+    from creatures.events import EventLog
+    from creatures.runtime.session import Session
+    from midi.sinks import MemorySink
+
+    config = heron_config(tmp_path, duration=20.0)
+    inst = load_installation(config)
+    log = EventLog(tmp_path / "events.jsonl")
+    log.emit(0.0, "run", config=str(config))
+    session = Session(inst, SimulatedClock(), log, MemorySink())
+    tick, rate = inst.settings.tick, inst.settings.audio.sample_rate
+    for step in range(1, int(20.0 / tick) + 1):
+        session.clock.advance_to(step * tick)
+        session.step(step * tick, int(tick * rate), None, audio=False)
+    session.save_state(tmp_path / "state")
+    log.close()
+    assert main(["export-motion", str(tmp_path / "events.jsonl"), "--creature", "heron", str(tmp_path / "a.bvh")]) == 0
+    assert main(["export-motion", str(tmp_path / "state"), "--creature", "heron", str(tmp_path / "b.bvh")]) == 0
+    logged, kept = ((tmp_path / f"{x}.bvh").read_text().split("MOTION")[1].splitlines()[3:] for x in "ab")
+    # the log notes the path every half second, so it ends up to one report short of the state's
+    assert len(logged) > 300 and len(logged) <= len(kept) <= len(logged) + 16
+    assert logged[:-2] == kept[:len(logged) - 2]
+    saved = tmp_path / "state" / "heron.json"
+    saved.write_text(saved.read_text().replace('"motion"', '"moved"'))
+    assert main(["export-motion", str(tmp_path / "state"), "--creature", "heron", str(tmp_path / "c.bvh")]) == 2
+
+
+def test_every_effector_strikes_a_note_it_passes(tmp_path: Path):
+    """``effectors = ["head_end", "neck"]``: the beak goes to notes by A*, and a note where the
+    neck is (far from the beak) is struck by the neck."""
+    from creatures.clock import SimulatedClock
+    from creatures.events import EventLog
+    from creatures.runtime.session import Session
+    from midi.sinks import MemorySink
+
+    config = heron_config(tmp_path)
+    config.write_text(config.read_text().replace('effectors = ["head_end"]', 'effectors = ["head_end", "neck"]'))
+    inst = load_installation(config)
+    inst.specs[0].space.strike_radius = 0.05  # a heron's beak and neck are 17 cm apart
+    session = Session(inst, SimulatedClock(), EventLog(keep_in_memory=100), MemorySink())
+    heron = session.creatures[0]
+    assert heron.body.effector == "head_end"
+    beak, neck = heron.body.strikers_in_place()
+    assert np.linalg.norm(beak - neck) > 2 * heron.notes.spec.strike_radius
+    obj = heron.notes.space.place(NoteEvent(0.0, 64, 90, 0, 0.5), neck.copy())
+    heron.notes.strike_nearby(1.0)
+    assert heron.notes._struck_at.get(id(obj)) == 1.0

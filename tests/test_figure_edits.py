@@ -110,6 +110,7 @@ def test_without_material_keys_the_figure_shares_its_graph(tmp_path: Path):
     ('figure = "dog"\nanimations = [{ file = "x.bvh" }]', r"body: .*figure = 'dog' and animations both name the body"),
     ('figure = "dog"\nroot_motion = true', r"body: root_motion: the dog's clips file says which of its clips walk"),
     ('joint_limits = { neck = 0.3 }', r"body: joint_limits describe a body of its own, which needs animations"),
+    ('figure = "dog"\nscale = 0.01', r"body: scale: the dog's own clips are in metres, y up"),
     ('figure = "dog"\neffectors = ["tail9"]', r"body\.effectors\.tail9: no joint 'tail9' in the body"),
     ('clips = "none.labels.toml"', r"body\.clips: .*none\.labels\.toml:1: cannot read clips file"),
 ])

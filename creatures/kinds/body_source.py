@@ -26,6 +26,9 @@ from creatures.motor.graph import MotorGraph
 from creatures.motor.material import Animation, Conventions, MaterialError, RootMode, read_clips
 
 
+Degrees = Annotated[float, Field(ge=-3600, le=3600)]
+"""A rotation-vector component of a rest pose, in degrees (ten turns either way at most)."""
+
 FrameNumber = Annotated[int, Field(ge=0, le=1_000_000_000)]
 """A frame of a BVH file (0-based)."""
 
@@ -93,10 +96,10 @@ class MaterialSpec(BaseModel):
     rest_labels: list[str] = Field(default_factory=list, max_length=64,
                                    description="labels of frames the body may rest in (low energy), besides "
                                                "frames found still")
-    rest_pose: dict[str, tuple[float, float, float]] | None = Field(
+    rest_pose: dict[str, tuple[Degrees, Degrees, Degrees]] | None = Field(
         None, description="a still pose to add for material without one: joint → rotation vector in degrees "
                           "(axis × angle, in the joint's parent frame); joints not named at rest")
-    scale: float = Field(1.0, gt=0, le=1e3, description="file units → metres (0.01 for centimetres)")
+    scale: float = Field(1.0, ge=1e-6, le=1e3, description="file units → metres (0.01 for centimetres)")
     up_axis: Literal["y", "z"] = Field("y", description="the files' up axis ('z' for z-up exports)")
     root_motion: bool = Field(False, description="the takes walk: each frame's horizontal step to the next moves "
                                                  "the creature on (its poses stand in place, height kept); false: "

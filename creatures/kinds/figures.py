@@ -73,6 +73,10 @@ class FigureBodySpec(BodySpec):
                              "own: docs/bodies.md)")
         if self.figure != "stick" and "root_motion" in self.model_fields_set:
             raise ValueError(f"root_motion: the {self.figure}'s clips file says which of its clips walk")
+        units = [k for k in ("scale", "up_axis") if k in self.model_fields_set]
+        if self.figure != "stick" and units:
+            raise ValueError(f"{' and '.join(units)}: the {self.figure}'s own clips are in metres, y up, and these keys "
+                             "would convert them too; give files an edit adds in metres, y up")
         return self
 
 

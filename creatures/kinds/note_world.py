@@ -135,14 +135,16 @@ class NoteWorld:
             self.on_strike(t)
 
     def strike_nearby(self, t: float) -> None:
-        """Strike the nearest note the hand passes through (not one struck within
-        ``refractory``, and no more often than ``strike_interval``: one note at a time)."""
+        """Strike the nearest note a striking joint passes through (the hand; every effector of
+        a body that names several), not one struck within ``refractory``, and no more often than
+        ``strike_interval``: one note at a time."""
         if t - self._last_strike < self.spec.strike_interval:
             return
-        for obj in self.space.within(self.body.hand_in_place(), self.spec.strike_radius):
-            if t - self._struck_at.get(id(obj), -np.inf) >= self.spec.refractory:
-                self.strike(t, obj, 0.8)
-                return
+        for striker in self.body.strikers_in_place():
+            for obj in self.space.within(striker, self.spec.strike_radius):
+                if t - self._struck_at.get(id(obj), -np.inf) >= self.spec.refractory:
+                    self.strike(t, obj, 0.8)
+                    return
 
     def _forget(self, obj: NoteObject) -> None:
         self.space.remove(obj)

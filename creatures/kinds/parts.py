@@ -277,6 +277,7 @@ class Body:
         self.effector = self.effectors[0]
         self.skeleton = self.graph.skeleton
         self.effector_index = self.skeleton.names.index(self.effector)
+        self._striking = [self.skeleton.names.index(name) for name in self.effectors]
         # The joints that push the voice's strings: the figure's free hand (if it has one) and
         # its effector, or every effector of a body of one's own.
         pushing = (("hand_l",) if "hand_l" in self.skeleton.names else ()) + self.effectors if own is None else own.effectors
@@ -359,9 +360,11 @@ class Body:
     def hand(self) -> np.ndarray:
         return self._pose.positions[self.effector_index]
 
-    def hand_in_place(self) -> np.ndarray:
-        """The effector in the body's own frame (where :meth:`reach` and its notes are)."""
-        return self.hand() - self.offset
+    def strikers_in_place(self) -> np.ndarray:
+        """Every striking joint (``[creature.body] effectors``; the first is the one A* takes to
+        a note) in the body's own frame (where :meth:`reach` and its notes are), ``(E, 3)``: any
+        of them passing a note strikes it."""
+        return self._pose.positions[self._striking] - self.offset
 
     def line(self) -> list[int]:
         """The body's line: joints from the root to the effector (a drawn body: all of it)."""

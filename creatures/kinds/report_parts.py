@@ -9,6 +9,7 @@ side by side.
 
 from __future__ import annotations
 
+from collections import deque
 from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
@@ -43,6 +44,11 @@ def report_values(world: "World", t: float, creature: str, group: "ActionGroup",
                        drives=dict(zip(motivation.names, motivation.levels_at(t).tolist())))
 
 
+PATH_KEPT = 36_000
+"""Nodes of a body's path kept for its state folder: an hour of a body crossing ten nodes a
+second (about 0.5 MB of JSON), the newest kept."""
+
+
 class MotorTrail:
     """Every motor-graph node a body reaches, in order, for the events log (thesis
     "graph-based motor systems": the body's path through its graph).
@@ -62,6 +68,8 @@ class MotorTrail:
         self.creature = creature
         self.body = body
         self.reached: list[int] = []
+        self.times: list[float] = []  # when each of ``reached`` was reached (clock time)
+        self.taken: deque[tuple[int, float]] = deque(maxlen=PATH_KEPT)  # the run's path, for the state folder
         self.memory: "BodyMemory | None" = None  # complex shaping's memory of the nodes passed
         self._last: int | None = None
         self._course: "Playback | None" = None
@@ -85,9 +93,17 @@ class MotorTrail:
     def _reach(self, node: int, t: float) -> None:
         if node != self._last:
             self.reached.append(node)
+            self.times.append(round(t, 4))
+            self.taken.append((node, round(t, 4)))
             self._last = node
             if self.memory is not None:
                 self.memory.record(node, t)
+
+    def path_state(self) -> dict[str, list]:
+        """The nodes the body reached this run and when (the last :data:`PATH_KEPT`): saved
+        beside the creature's learned state, so ``creatures export-motion STATE_DIR`` has the
+        path of a live run that kept no events log."""
+        return {"nodes": [n for n, _ in self.taken], "at": [t for _, t in self.taken]}
 
     def report(self, t: float, *, shift: tuple[float, float, float] = (0.0, 0.0, 0.0), **fields: object) -> None:
         """The graph (first time only), then where the body is and what it reached since;
@@ -109,5 +125,5 @@ class MotorTrail:
             shared = {names[j]: who for j, who in enumerate(blend.channel_contributors(t)) if len(who) > 1}
             fields = {**fields, "layers": blend.contributors(t), "joints": shared}
         log.emit(t, "motor", creature=self.creature, node=self.body.motor.position(t).node,
-                 position={"x": hand[0], "y": hand[1], "z": hand[2]}, reached=self.reached, **fields)
-        self.reached = []
+                 position={"x": hand[0], "y": hand[1], "z": hand[2]}, reached=self.reached, at=self.times, **fields)
+        self.reached, self.times = [], []

@@ -39,6 +39,9 @@ from creatures.persist import atomic_write
 logger = logging.getLogger(__name__)
 
 CACHE_VERSION = 8
+
+INLINE_EDITS = "[creature.body] edits"
+"""How errors name the edits written in the config itself (as if a file of that name)."""
 """Bumped whenever the cache layout or the graph builder changes what a cache holds."""
 
 
@@ -137,7 +140,15 @@ def build(sources: Sources, edit_files: list[EditFile]) -> MotorGraph:
         for node in nodes.tolist():
             graph.label(node, LOW_ENERGY)
     _as_material_error(lambda: apply_edges(graph, material, edit_files), None)
-    graph.reconnect()
+    try:
+        graph.reconnect()
+    except ValueError as exc:  # the forbids left a pose (or an island) with no way out
+        forbidding = [str(f.path) for f in edit_files if f.of("forbid")]
+        raise MaterialError(f"{exc}: the [[forbid]] edits of {', '.join(forbidding) or 'the edits'} leave part of "
+                            "the graph with no way to the rest; forbid fewer edges", ("graph_edits",)) from None
+    if not np.isfinite(graph.poses.positions).all():
+        raise MaterialError("the body's poses are not finite numbers (a rest_pose, scale or take too large to "
+                            "compute with)", ("rest_pose",) if sources.rest is not None else ("animations",))
     if not graph.poses.labelled(LOW_ENERGY).size:
         raise MaterialError("the body has no pose to rest in: no frame is still, so give rest_labels "
                             "(labels of frames to rest in) or a rest_pose", ("rest_labels",))
@@ -150,6 +161,11 @@ def _as_material_error(step: Callable, index: int | None):
     try:
         return step()
     except EditError as exc:
+        text = str(exc)
+        if INLINE_EDITS in text:  # an edit written in the config itself: at its own key's line
+            where = text.split(INLINE_EDITS + ": ", 1)[-1].split(":", 1)[0].split(".")
+            key = tuple(int(part) if part.isdigit() else part for part in where if part)
+            raise MaterialError(text, ("edits", *key)) from None
         raise MaterialError(str(exc), ("graph_edits", *([index] if index is not None else []))) from None
 
 
@@ -159,7 +175,7 @@ def load_or_build(sources: Sources, cache: Path | None) -> MotorGraph:
     for i, path in enumerate(sources.edits):
         edit_files.append(_as_material_error(lambda path=path: read_edits(path), i))
     if sources.inline:
-        where = (sources.inline_base or Path(".")) / "[creature.body] edits"
+        where = (sources.inline_base or Path(".")) / INLINE_EDITS
         try:
             edit_files.append(edits_from(json.loads(sources.inline), where, {}, None))
         except EditError as exc:
@@ -212,12 +228,17 @@ def read_cache(path: Path, key: str) -> MotorGraph | None:
                 return None
             skeleton = Skeleton.from_dict(json.loads(str(data["skeleton"])), source=str(path))
             sets = [frozenset(x) for x in json.loads(str(data["label_sets"]))]
-            labels = [sets[i] for i in data["label_ids"].tolist()]  # IndexError: a damaged cache
+            ids, source_ids = data["label_ids"], data["source_ids"]
+            sources = json.loads(str(data["sources"]))
+            if ids.size and (ids.min() < 0 or ids.max() >= len(sets)) or source_ids.size and (
+                    source_ids.min() < 0 or source_ids.max() >= len(sources)) or len(ids) != len(source_ids):
+                raise ValueError("label or source numbers outside the cache's own tables")
+            labels = [sets[i] for i in ids.tolist()]
             # Every member's CRC is checked as it is read (zipfile), so the arrays are the ones written:
             # a damaged file fails here, and the pose set is not normalised nor its kinematics run again.
             poses = PoseSet.from_checked(skeleton, _c(data["rotations"]), _c(data["velocities"]), _c(data["roots"]),
-                                         _c(data["times"]), data["source_ids"].astype(np.int64, copy=False),
-                                         json.loads(str(data["sources"])), labels, _c(data["positions"]))
+                                         _c(data["times"]), source_ids.astype(np.int64, copy=False),
+                                         sources, labels, _c(data["positions"]))
             graph = MotorGraph.from_arrays(poses, data, weights=MetricWeights.from_dict(json.loads(str(data["weights"]))))
             nodes, forward, backward = (_c(data[f"landmark_{x}"]) for x in ("nodes", "forward", "backward"))
             if forward.shape != (len(poses), len(nodes)) or backward.shape != forward.shape or not (

@@ -193,6 +193,36 @@ def parse_bvh(text: str, *, source: str = "<bvh>", name: str = "bvh") -> PoseSet
     return parse_take(text, source=source).poses(name)
 
 
+SHORTEST_FRAME = 1e-4
+"""Seconds: the shortest frame time a take may have (10,000 frames a second, beyond any
+capture); a smaller one (``Frame Time: 1e-300``) would make the source's top joint speed
+astronomical and so no speed limit at all."""
+
+
+def read_bvh_skeleton(path: str | os.PathLike) -> Skeleton:
+    """The skeleton of a BVH file's HIERARCHY, with or without MOTION after it (a hierarchy
+    on its own is how a rig is often handed over)."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise BVHError(f"{path}: cannot read BVH file ({exc})") from None
+    lines = text.splitlines()
+    end = next((n for n, row in enumerate(lines) if row.strip().startswith("MOTION")), len(lines))
+    tokens, joints = _Tokens(lines[:end], str(path)), []
+    _hierarchy(tokens, joints)
+    if tokens.peek() is not None:
+        raise tokens.error(f"unexpected {tokens.peek()!r} after the hierarchy (MOTION or the end of the file)")
+    return _skeleton(joints)
+
+
+def _hierarchy(tokens: "_Tokens", joints: list["_Joint"]) -> int:
+    """HIERARCHY and its joints, into ``joints``; returns the channel count."""
+    tokens.expect("HIERARCHY")
+    tokens.expect("ROOT")
+    return _parse_joint(tokens, joints, tokens.next("the root joint name"), -1, 0)
+
+
 def parse_take(text: str, *, source: str = "<bvh>") -> Take:
     """Parse BVH text as a :class:`Take`; ``source`` names it in errors."""
     lines = text.splitlines()
@@ -200,10 +230,8 @@ def parse_take(text: str, *, source: str = "<bvh>") -> Take:
     # of numbers in a long take, are read by numpy in _frame_rows.
     header = next((n + 1 for n, row in enumerate(lines) if row.lstrip().startswith("Frame Time")), len(lines))
     tokens = _Tokens(lines[:header], source)
-    tokens.expect("HIERARCHY")
-    tokens.expect("ROOT")
     joints: list[_Joint] = []
-    columns = _parse_joint(tokens, joints, tokens.next("the root joint name"), -1, 0)
+    columns = _hierarchy(tokens, joints)
     tokens.expect("MOTION")
     tokens.expect("Frames:")
     line = tokens.line
@@ -214,8 +242,9 @@ def parse_take(text: str, *, source: str = "<bvh>") -> Take:
     tokens.expect("Time:")
     line = tokens.line
     frame_time = tokens.number("the frame time")
-    if not frame_time > 0.0:
-        raise tokens.error(f"frame time must be positive, found {frame_time:g}", line)
+    if not frame_time >= SHORTEST_FRAME:
+        raise tokens.error(f"frame time must be at least {SHORTEST_FRAME:g} s (10,000 frames a second), found "
+                           f"{frame_time:g}", line)
     if tokens.peek() is not None:
         raise tokens.error(f"unexpected {tokens.peek()!r} after the frame time (frame rows start on the next line)")
     rows = lines[header:]
@@ -345,15 +374,19 @@ def _parse_rows(text, out):  # pragma: no cover - compiled
     return row == rows
 
 
-def _to_take(joints: list[_Joint], data: np.ndarray, frame_time: float) -> Take:
+def _skeleton(joints: list[_Joint]) -> Skeleton:
     parents = np.array([j.parent for j in joints])
-    skeleton = Skeleton(
+    return Skeleton(
         names=tuple(j.name for j in joints),
         parents=parents,
         offsets=np.array([j.offset for j in joints]),
         masses=subtree_sizes(parents),
         end_effectors=tuple(j.name for j in joints if j.end_site),
     )
+
+
+def _to_take(joints: list[_Joint], data: np.ndarray, frame_time: float) -> Take:
+    skeleton = _skeleton(joints)
     frames = len(data)
     rotations = np.zeros((frames, len(joints), 4))
     rotations[..., 0] = 1.0

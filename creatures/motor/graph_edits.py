@@ -315,8 +315,11 @@ def apply_edges(graph: MotorGraph, material: Material, files: list[EditFile]) ->
         if edit.op == "reweight":
             for a, b in pairs(edit):
                 if not graph.has_edge(a, b):
+                    forbidden = decided.get(("edge", (a, b)), (None, ""))
+                    why = (f"conflicts with {forbidden[1]}, which forbids it" if forbidden[0] == "forbidden"
+                           else "forge it first")
                     raise EditError(f"{edit.where}: [[reweight]] {edit.fields['from']} → {edit.fields['to']}: "
-                                    f"the graph has no edge {a} → {b} (forge it first)")
+                                    f"the graph has no edge {a} → {b} ({why})")
                 if decide(("scale", (a, b)), edit.fields["scale"], edit.where):
                     graph.reweight(a, b, edit.fields["scale"])
         elif edit.op == "favour":

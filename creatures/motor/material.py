@@ -29,7 +29,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from creatures.motor import quaternion as quat
-from creatures.motor.bvh import BVHError, Take, read_bvh
+from creatures.motor.bvh import BVHError, Take, read_bvh, read_bvh_skeleton
 from creatures.motor.drawing import is_drawing, read_drawing
 from creatures.motor.pose import LOW_ENERGY, PoseSet
 from creatures.motor.skeleton import Skeleton, SkeletonFileError
@@ -149,7 +149,7 @@ def load_skeleton(path: Path, conventions: Conventions) -> Skeleton:
         if is_drawing(path):
             skeleton = read_drawing(path).skeleton
         else:
-            skeleton = read_bvh(path).skeleton if path.suffix.lower() == ".bvh" else Skeleton.load(path)
+            skeleton = read_bvh_skeleton(path) if path.suffix.lower() == ".bvh" else Skeleton.load(path)
     except (BVHError, SkeletonFileError) as exc:
         raise MaterialError(str(exc), ("skeleton",)) from None
     return convert_skeleton(skeleton, conventions)

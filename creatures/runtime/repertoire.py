@@ -159,7 +159,8 @@ def merge(source: Path, name: str, target: Path, into: str) -> list[str]:
         raise StateFileError(f"kind {kind!r} has no repertoire merge: {why} (kinds that merge: "
                              f"{', '.join(sorted(MERGERS))})")
     state, added = MERGERS[kind](src["state"], dst["state"])
-    text = json_text({"kind": kind, "state": state}, kind=STATE_KIND)
+    text = json_text({**{k: v for k, v in dst.items() if k not in ("format", "version")}, "state": state},
+                     kind=STATE_KIND)  # what else the file keeps (the path its body took) stays
     with FolderLock(target, "state folder"):
         atomic_write(path, lambda handle: handle.write(text), "w")
     return added

@@ -13,7 +13,7 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
 
@@ -191,9 +191,18 @@ class Session:
     def snapshot(self) -> list[tuple[str, str]]:
         """What :meth:`save_state` writes, as ``(file name, JSON text)``, encoded now (a
         consistent instant of the colony); :func:`write_snapshot` does the slow part."""
-        files = [(f"{creature.name}.json", json_text({"kind": creature.spec.kind, "state": creature.state()},
-                                                     kind=STATE_KIND)) for creature in self.creatures]
+        files = [(f"{creature.name}.json", json_text({"kind": creature.spec.kind, "state": creature.state(),
+                                                      **self._motion(creature)}, kind=STATE_KIND))
+                 for creature in self.creatures]
         return files + [(COLONY_FILE, json_text(self.world.pulse.to_dict(), kind=COLONY_KIND))]
+
+    def _motion(self, creature: object) -> dict[str, Any]:
+        """The path its body took this run, beside its learned state (not learned: never
+        restored; ``creatures export-motion STATE_DIR`` reads it, with the config that ran)."""
+        trail = getattr(creature, "trail", None)
+        if trail is None:
+            return {}
+        return {"motion": {**trail.path_state(), "config": str(self.inst.path)}}
 
     def load_state(self, directory: Path) -> list[str]:
         """Restore creatures from ``directory`` where a file exists; returns who was restored.
