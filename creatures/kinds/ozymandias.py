@@ -169,7 +169,7 @@ class Ozymandias(CreatureKind):
         self.learning = AuralLearning(self.root, self.reader, statistics=0.5, innovation=spec.innovation,
                                       min_trigger=0.5, on_event=self._log)
         self.group = ActionGroup(
-            self.name, rng=self.rng, temperature=0.5, on_event=self._log, learning=self.learning, alpha=0.3, discount=0.5,
+            self.name, rng=self.rng, temperature=0.5, on_event=self._log, learning=self.learning,
             tuples=[
                 ActionTuple("clicked", clicked, _Clicked(self), DoUntil(0.1),
                             ScalarValue(spec.click_value, plasticity=0.0)),
