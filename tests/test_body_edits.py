@@ -81,7 +81,13 @@ scale = 3.0
     p = forward.poses
     blended = p.rotations[(p.source_ids == 0) & (p.times >= 1.0) & (p.times <= 1.5)]
     original = base.poses.rotations[(base.poses.source_ids == 0) & (base.poses.times >= 1.0) & (base.poses.times <= 1.5)]
-    assert not np.allclose(blended, original)  # node contents pulled toward the new take
+    assert not np.allclose(blended, original)  # node contents pulled toward the new take …
+    from creatures.motor import quaternion as quat
+    from creatures.motor.material import Animation, Conventions, read_animation
+
+    take, _ = read_animation(Animation(tmp_path / "higher.bvh"), base.skeleton, Conventions(scale=0.01))
+    expected = quat.slerp(original, take.rotations[:11], 0.5)  # … half way, node k toward frame k of 0..10
+    assert quat.angle_between(blended, expected).max() < 1e-6  # (arccos near 1: float32-level noise)
 
 
 def test_disagreeing_edits_are_a_conflict_naming_both(tmp_path: Path):
