@@ -274,3 +274,25 @@ def test_live_clicks_from_a_foreign_osc_sender_reward_the_dog(tmp_path):
     assert [(e["creature"], e["amount"]) for e in rewards] == [("duncan", 3.0)] * 3
     assert all(e["credited"] for e in rewards)  # each click landed on what the dog was doing
     assert any(e["kind"] == "trick" for e in events)
+
+
+def test_midi_clicks_offline_reward_the_dog(tmp_path):
+    """The shipped map's other clicker, MIDI note 36 (a drum pad), offline from a MIDI file: each
+    click is a reward that credits what the dog was doing."""
+    from midi.files import write_notes
+    from midi.notes import NoteEvent
+
+    write_notes(tmp_path / "clicks.mid", [NoteEvent(5.0 + 4.0 * k, 36, 100, 9, 0.1) for k in range(5)])
+    subprocess.run(["python", "-m", "creatures.cli", "offline", str(SHIPPED), "--midi", str(tmp_path / "clicks.mid"),
+                    "--out", str(tmp_path / "out"), "--duration", "30"], check=True, capture_output=True)
+    events = [json.loads(line) for line in (tmp_path / "out" / "events.jsonl").read_text().splitlines()]
+    rewards = [e for e in events if e["kind"] == "reward"]
+    assert [round(e["t"]) for e in rewards] == [5, 9, 13, 17, 21] and all(e["amount"] == 3.0 for e in rewards)
+
+
+def test_it_rolls_over_on_the_dog_skeleton(trained):
+    """Each of the four tricks is shown by the body: a roll over, unbidden or cued, brings the
+    dog's pose to the clip the shipped dog labels "roll over"."""
+    events = trained[4]
+    held = {e["trick"] for e in events if e["kind"] == "trick held"}
+    assert {"sit", "lie down", "beg", "roll over"} <= held, held
