@@ -83,7 +83,7 @@ def test_bvh_round_trip_of_a_procedural_animation(tmp_path):
         (("1 0 0 0 0 0 90 0 0", "1 0 0 0 0 0 90 0"), 20, "frame row has 8 values, the hierarchy declares 9"),
         (("1 0 0 0 0 0 90 0 0", "1 0 0 0 0 0 ninety 0 0"), 20, "non-number"),
         (("Frames: 2", "Frames: 3"), 20, "file ends after 2 of 3 frames"),
-        (("Frame Time: 0.5", "Frame Time: 0"), 18, "frame time must be positive"),
+        (("Frame Time: 0.5", "Frame Time: 0"), 18, "frame time must be at least"),
         (("    }\n  }\n}", "    }\n  }\n"), 16, "expected JOINT, End Site or '}' in joint 'hips', found 'MOTION'"),
     ],
 )

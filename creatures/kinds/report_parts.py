@@ -9,7 +9,6 @@ side by side.
 
 from __future__ import annotations
 
-from collections import deque
 from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
@@ -46,7 +45,7 @@ def report_values(world: "World", t: float, creature: str, group: "ActionGroup",
 
 PATH_KEPT = 36_000
 """Nodes of a body's path kept for its state folder: an hour of a body crossing ten nodes a
-second (about 0.5 MB of JSON), the newest kept."""
+second (432 kB of arrays per embodied creature; about 0.5 MB of JSON), the newest kept."""
 
 
 class MotorTrail:
@@ -69,7 +68,10 @@ class MotorTrail:
         self.body = body
         self.reached: list[int] = []
         self.times: list[float] = []  # when each of ``reached`` was reached (clock time)
-        self.taken: deque[tuple[int, float]] = deque(maxlen=PATH_KEPT)  # the run's path, for the state folder
+        # the run's path for the state folder: a ring of the newest PATH_KEPT, two arrays made at
+        # the first node reached (a list of tuples grew the heap by a block per node)
+        self._taken = (np.empty(0, np.int32), np.empty(0))
+        self._count = 0
         self.memory: "BodyMemory | None" = None  # complex shaping's memory of the nodes passed
         self._last: int | None = None
         self._course: "Playback | None" = None
@@ -94,7 +96,11 @@ class MotorTrail:
         if node != self._last:
             self.reached.append(node)
             self.times.append(round(t, 4))
-            self.taken.append((node, round(t, 4)))
+            nodes, times = self._taken
+            if not len(nodes):
+                nodes, times = self._taken = np.empty(PATH_KEPT, np.int32), np.empty(PATH_KEPT)
+            nodes[self._count % PATH_KEPT], times[self._count % PATH_KEPT] = node, round(t, 4)
+            self._count += 1
             self._last = node
             if self.memory is not None:
                 self.memory.record(node, t)
@@ -103,7 +109,10 @@ class MotorTrail:
         """The nodes the body reached this run and when (the last :data:`PATH_KEPT`): saved
         beside the creature's learned state, so ``creatures export-motion STATE_DIR`` has the
         path of a live run that kept no events log."""
-        return {"nodes": [n for n, _ in self.taken], "at": [t for _, t in self.taken]}
+        nodes, times = self._taken
+        kept = min(self._count, PATH_KEPT)
+        order = (np.arange(kept) + self._count - kept) % PATH_KEPT if kept else np.zeros(0, np.int64)
+        return {"nodes": nodes[order].tolist(), "at": times[order].tolist()}
 
     def report(self, t: float, *, shift: tuple[float, float, float] = (0.0, 0.0, 0.0), **fields: object) -> None:
         """The graph (first time only), then where the body is and what it reached since;
