@@ -302,82 +302,25 @@ edits.forbid = [{ from = "heron@20", to = "heron@21" }]
         load_installation(config)
 
 
-def test_bodies_without_rest_or_a_curves_limbs_are_refused(tmp_path: Path):
+def test_a_curves_limbs_are_checked_on_its_body_of_files(tmp_path: Path):
     config = heron_config(tmp_path, kind="curve")
     assert load_installation(config).specs[0].body.custom  # curve takes a body of files like any kind
     config.write_text(config.read_text().replace('kind = "curve"\n', 'kind = "curve"\nlimbs = ["wing_l"]\n'))
     with pytest.raises(ConfigError, match=r"heron\.toml:\d+: creature\.0\.body: limbs: the body has no joint 'wing_l'"):
         load_installation(config)
+
+
+@pytest.mark.parametrize("old, new, message", [
+    ("rest_pose = { neck = [20.0, 0.0, 0.0] }\n", "", r"body\.rest_labels: the body has no pose to rest in"),
+    ('effectors = ["head_end"]', 'effectors = ["tail"]', r"body\.effectors.*no joint 'tail'"),
+    ("rest_pose = { neck = [20.0, 0.0, 0.0] }", "rest_pose = { neck = [1e300, 0.0, 0.0] }", r"body\.rest_pose"),
+    ("scale = 0.01", "scale = 1e-300", r"body\.scale"),
+])
+def test_a_body_key_that_cannot_make_a_body_is_refused_at_its_line(tmp_path: Path, old: str, new: str, message: str):
     config = heron_config(tmp_path)
-    text = config.read_text()
-    config.write_text(text.replace("rest_pose = { neck = [20.0, 0.0, 0.0] }\n", ""))
-    with pytest.raises(ConfigError, match=r"creature\.0\.body\.rest_labels: the body has no pose to rest in"):
+    config.write_text(config.read_text().replace(old, new))
+    with pytest.raises(ConfigError, match=r"heron\.toml:\d+: creature\.0\." + message):
         load_installation(config)
-    config.write_text(text.replace("effectors = [\"head_end\"]", "effectors = [\"tail\"]"))
-    with pytest.raises(ConfigError, match=r"creature\.0\.body\.effectors.*no joint 'tail'"):
-        load_installation(config)
-
-
-@pytest.fixture(scope="module")
-def heron_take(tmp_path_factory) -> Path:
-    folder = tmp_path_factory.mktemp("heron")
-    write_bvh(folder / "heron.bvh", heron_frames(seconds=3.0))
-    return folder / "heron.bvh"
-
-
-_EDIT_LINES = ['skeleton = "{s}"', "[[forbid]]", "[[forge]]", "[[reweight]]", "[[favour]]", "[[add]]", "[[blend]]",
-               'from = "heron@3"', 'from = "heron@0..9"', 'to = "heron@4"', 'to = "peck"', 'to = "heron@59"',
-               'node = "peck"', 'node = "heron@99"', 'nodes = "peck"', "multiplier = 0.5", "multiplier = 0",
-               "scale = 2", "scale = 1e300", "cost = 0.1", "cost = -1", 'file = "heron.bvh"', 'file = "none.bvh"',
-               "weight = 0.5", "weight = 7", "frames = [0, 4]", "frames = [4, 0]", "labels = { peck = [[0, 3]] }",
-               "labels = { peck = [[0, 300]] }", 'name = "again"', 'name = "heron"']
-
-
-@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(st.lists(st.sampled_from(_EDIT_LINES), max_size=14).map(lambda lines: ['skeleton = "{s}"', *lines]))
-def test_fuzzed_edit_files_applied_to_a_graph_never_crash_the_loader(tmp_path_factory, heron_take, lines):
-    """Edit files the reader accepts, applied to a real body: each builds a graph or is a
-    MaterialError naming the edit file (never another exception)."""
-    from creatures.motor.body_build import Sources, build
-    from creatures.motor.material import Animation, Conventions, MaterialError, load_skeleton
-
-    skeleton = fingerprint(load_skeleton(heron_take, Conventions(scale=0.01)))
-    path = tmp_path_factory.mktemp("edits") / "e.toml"
-    (path.parent / "heron.bvh").write_bytes(heron_take.read_bytes())
-    path.write_text("\n".join(lines).replace("{s}", skeleton))
-    try:
-        edits = read_edits(path)
-    except EditError as exc:
-        assert str(exc).startswith(str(path))
-        return
-    sources = Sources((Animation(heron_take, {"peck": ((10, 14),)}),), conventions=Conventions(scale=0.01),
-                      rest=(("neck", (20.0, 0.0, 0.0)),), rest_labels=("rest",))
-    try:
-        graph = build(sources, [edits])
-    except MaterialError as exc:
-        assert str(path) in str(exc), exc
-    else:
-        assert len(graph) >= 61 and np.all(np.isfinite(graph.adjacency.costs))
-
-
-@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(st.integers(0, 900))
-def test_a_bvh_cut_anywhere_is_a_body_or_an_error_naming_it(tmp_path_factory, heron_take, cut):
-    """The whole loader (parse, conventions, labels, graph) on a take cut short at any byte."""
-    from creatures.motor.body_build import Sources, build
-    from creatures.motor.material import Animation, Conventions, MaterialError
-
-    path = tmp_path_factory.mktemp("cut") / "cut.bvh"
-    text = heron_take.read_text()
-    path.write_text(text[:len(HIERARCHY) + cut])
-    sources = Sources((Animation(path, {"peck": ((1, 2),)}),), conventions=Conventions(scale=0.01),
-                      rest=(("neck", (20.0, 0.0, 0.0)),), rest_labels=("rest",))
-    try:
-        graph = build(sources, [])
-    except MaterialError as exc:
-        assert str(path) in str(exc), exc
-    else:
-        assert len(graph) >= 4
 
 
 def test_edits_that_strand_a_pose_or_disagree_are_named_not_raised(tmp_path: Path):
@@ -409,15 +352,9 @@ def test_edits_that_strand_a_pose_or_disagree_are_named_not_raised(tmp_path: Pat
         load_installation(config)
 
 
-def test_a_hierarchy_alone_is_a_skeleton_and_numbers_too_large_are_refused(tmp_path: Path):
+def test_a_hierarchy_alone_is_a_skeleton(tmp_path: Path):
     config = heron_config(tmp_path)
     (tmp_path / "rig.bvh").write_text(HIERARCHY)  # no MOTION: how a rig is handed over
     text = config.read_text()
     config.write_text(text.replace("[[creature.body.animations]]", 'skeleton = "rig.bvh"\n[[creature.body.animations]]'))
     assert body_of(config).graph.skeleton.names == ("base", "neck", "head", "head_end")
-    config.write_text(text.replace("rest_pose = { neck = [20.0, 0.0, 0.0] }", "rest_pose = { neck = [1e300, 0.0, 0.0] }"))
-    with pytest.raises(ConfigError, match=r"creature\.0\.body\.rest_pose"):
-        load_installation(config)
-    config.write_text(text.replace("scale = 0.01", "scale = 1e-300"))
-    with pytest.raises(ConfigError, match=r"creature\.0\.body\.scale"):
-        load_installation(config)
