@@ -25,9 +25,17 @@ mean near ``target``: once a window it sets how much faster or slower than nomin
 turns the mix into the device's frames (:attr:`Lead.stretch`, at most :data:`MOST_STRETCH`
 off: a pitch change of 3.5 cents, which no listener hears on a held tone), and when the spare
 falls below ``floor`` all the same (each start, a device reopened, a stall longer than the
-lead) it puts silence ahead of the block at once, counted in :attr:`Lead.gaps`: a gap placed
-there rather than an underrun a callback later; when the spare is far above the target (the
-device stalled while the mix kept coming) the surplus is left out at once (:data:`SKIP_ABOVE`).
+lead) it puts silence ahead of the block at once, counted in :attr:`Lead.gaps`, so the lead
+is whole again at once rather than eased back over seconds; when the spare is far above the
+target (the device stalled while the mix kept coming) the surplus is left out at once
+(:data:`SKIP_ABOVE`).
+
+The live output's floor is 0 (:data:`audio.resilient.GAP_FLOOR`): silence goes in only where
+the device already ran dry. A floor above it put a gap where no sound was missing: on an idle
+machine the lowest spare before a write already spreads 15 ms below its mean (the device's
+callback falls anywhere in the tick, and JACK's dummy server jitters), and a floor at a third
+of a 30 ms lead left 3 ms of that margin, so a CI machine's busier scheduling put one
+self-made gap in each of two 30 s runs (stop 28), where the device still held 5–10 ms of sound.
 The resampler is soxr's variable-rate one, which also hands on every chunk whole (the steady
 one, above, is what chunked).
 

@@ -43,6 +43,11 @@ LEAD_WINDOW = 2.0
 """Seconds of sound over which the lowest spares, averaged, set the resampling ratio
 (audio/lead.py): 50 blocks at a 40 ms tick, enough for their jitter to average out."""
 
+GAP_FLOOR = 0
+"""Frames of spare below which silence goes ahead of a block (audio/lead.py): none, so a gap
+is put in only where the device already played silence (an underrun), never where a late
+write still found sound in the ring."""
+
 
 class LiveStream(Protocol):
     """What a :class:`DeviceWatch` looks at: the device's callbacks and PortAudio's state."""
@@ -293,7 +298,7 @@ class ResilientOutput(AudioOutput):
         self.device_rate = rate
         if self.lead > 0:  # the variable-rate resampler, which keeps the lead when the clocks drift
             target = int(self.lead * rate)
-            self.keeper = Lead(target=target, floor=target // 3, window=int(LEAD_WINDOW * rate))
+            self.keeper = Lead(target=target, floor=GAP_FLOOR, window=int(LEAD_WINDOW * rate))
             self._resampler = soxr.ResampleStream(self.sample_rate, rate, self.channels, dtype="float32", vr=True)
         else:
             self._resampler = (None if rate == self.sample_rate else

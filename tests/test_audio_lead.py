@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from audio.lead import GAIN, MOST_STRETCH, UNSEEN, Lead
+from audio import resilient
 from audio.resilient import ResilientOutput
 from creatures.clock import SimulatedClock
 from creatures.runtime.live import AUDIO_BUFFER
@@ -25,10 +26,11 @@ STEP = 0.001  # the simulation's resolution: the device runs, and writes fall, o
 
 
 def show(seconds: float, *, ppm: float = 0.0, stalls: tuple[float, ...] = (), first_write: float = 0.1,
-         seed: int = 0) -> tuple[ResilientOutput, dict[str, float]]:
-    """A live run's writes (one tick's mix a tick, up to 3 ms late) into a card twice the
-    mix's rate whose clock is ``ppm`` fast (negative: slow) and that loses 40 ms at each
-    time in ``stalls``. Returns the output and what was counted after the first second."""
+         seed: int = 0, late_once: tuple[float, float] = (np.inf, 0.0)) -> tuple[ResilientOutput, dict[str, float]]:
+    """A live run's writes (one tick's mix a tick, up to 3 ms late; the first due after
+    ``late_once[0]`` s, ``late_once[1]`` s late) into a card twice the mix's rate whose clock
+    is ``ppm`` fast (negative: slow) and that loses 40 ms at each time in ``stalls``. Returns
+    the output and what was counted after the first second."""
     rng = np.random.default_rng(seed)
     clock = SimulatedClock()
     card = FakeCard(clock, rate=2 * RATE, gone=(np.inf, np.inf))
@@ -49,6 +51,8 @@ def show(seconds: float, *, ppm: float = 0.0, stalls: tuple[float, ...] = (), fi
             written += frames
             next_write += TICK
             late = rng.uniform(0, 0.003)
+            if next_write >= late_once[0]:
+                late, late_once = late_once[1], (np.inf, 0.0)
             if t > 1.0:
                 lowest_spare = min(lowest_spare, stream_spare(out))
                 highest_spare = max(highest_spare, stream_spare(out))
@@ -73,6 +77,18 @@ def test_nothing_underruns_after_the_first_second_whichever_way_the_device_clock
     # 500 ppm is 30 ms in the minute, the whole lead: the resampler runs that much faster or slower
     assert out.keeper.stretch == pytest.approx(1 + ppm * 1e-6, abs=2e-4)
     assert LEAD / 3 < after["lowest spare"] and after["highest spare"] < 2 * LEAD + TICK + BLOCK / RATE, after
+
+
+def test_a_write_late_but_within_the_lead_plays_whole_with_no_gap_put_in(monkeypatch):
+    # 24 ms late in a 30 ms lead: the device still had sound
+    out, after = show(20.0, late_once=(10.0, 0.024))
+    assert after["underruns"] == 0 and after["gaps"] == 0 and after["overruns"] == 0, after
+    # a floor at a third of the lead (as shipped before stop 28) put a gap in where nothing was missing
+    with monkeypatch.context() as old:
+        old.setattr(resilient, "GAP_FLOOR", int(LEAD * 2 * RATE) // 3)
+        assert show(20.0, late_once=(10.0, 0.024))[1]["gaps"] == 1
+    out, after = show(20.0, late_once=(10.0, 0.06))  # later than the lead: the device ran dry
+    assert after["underruns"] >= 1 and after["gaps"] == 1, after
 
 
 def test_a_device_that_loses_time_gives_it_back_by_resampling_not_as_latency():
