@@ -608,6 +608,9 @@ class Attend(ActionPart):
 # -- dancing what a model population hears (thesis: "listen (installation)") ---------------
 class _DanceParams(Params):
     of: str = Field(description="a 'population' percept: its best model is danced")
+    poses: str | None = Field(None, description="a 'maps' percept: head for the pose its pose map holds where its "
+                                                "music map places the predicted note (thesis: listen, extensions); "
+                                                "none: each pitch's own pose")
 
 
 @ACTIONS.register
@@ -619,17 +622,18 @@ class DanceAction(MotorPart):
     name = "dance"
     thesis = "listen (installation)"
     Params = _DanceParams
-    refs = {"of": "populations"}
+    refs = {"of": "populations", "poses": "maps"}
 
     def build(self, params, creature, name):
         listening = creature.percept(params.of)  # a 'population' percept (checked at load)
+        maps = creature.percept(params.poses) if params.poses else None  # a 'maps' percept (checked at load)
 
         class Dancing(Action):
             def start(self, t, tuple_):
                 listening.dancing = True
 
             def update(self, t):
-                listening.step_with_music(t)
+                listening.step_with_music(t, maps)
 
             def stop(self, t, *, interrupted):
                 listening.dancing = False
@@ -639,6 +643,7 @@ class DanceAction(MotorPart):
 
 class _AnticipateParams(Params):
     of: str = Field(description="a 'population' percept: its best model is carried on")
+    poses: str | None = Field(None, description="a 'maps' percept: its poses, as dance's")
     velocity: float = Field(0.4, gt=0, le=1, description="velocity of a predicted note, relative to the notes it "
                                                          "was learnt from")
 
@@ -652,17 +657,18 @@ class Anticipate(MotorPart):
     name = "anticipate"
     thesis = "listen (installation)"
     Params = _AnticipateParams
-    refs = {"of": "populations"}
+    refs = {"of": "populations", "poses": "maps"}
 
     def build(self, params, creature, name):
         listening = creature.percept(params.of)  # a 'population' percept (checked at load)
+        maps = creature.percept(params.poses) if params.poses else None
 
         class Anticipating(Action):
             def start(self, t, tuple_):
                 listening.dance.at = t
 
             def update(self, t):
-                listening.step_alone(t, params.velocity)
+                listening.step_alone(t, params.velocity, maps)
 
         return Anticipating(name)
 

@@ -28,7 +28,7 @@ ROOT = "whatever"
 Where = dict[tuple, tuple[Path, int]]
 
 TYPED = {"utterances": ("utterance", "the aural tree"), "populations": ("population", "a model population"),
-         "adverb models": ("adverb_model", "an Ac percept")}
+         "adverb models": ("adverb_model", "an Ac percept"), "maps": ("maps", "listen's self-organising maps")}
 """``refs`` namespaces that name a percept of one type: namespace → (type, what it is)."""
 
 

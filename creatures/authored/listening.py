@@ -53,6 +53,7 @@ from midi.notes import NoteEvent
 
 if TYPE_CHECKING:
     from creatures.authored.creature import Authored
+    from creatures.authored.maps import MusicPoseMaps
 
 DEFAULT_GAP = 0.5
 """Seconds assumed between notes before any timing has been learnt."""
@@ -247,16 +248,16 @@ class Listening(Percept):
         self.expected_match.blend_to(ScalarValue(match), MATCH_RATE)
 
     # -- dancing -----------------------------------------------------------------------------
-    def step_with_music(self, t: float) -> None:
+    def step_with_music(self, t: float, maps: MusicPoseMaps | None = None) -> None:
         """Each note heard since the last step moves the dance on; the body heads for the
         pose of the note the model predicts next (or of the note itself, if none)."""
         while self.heard:
             _, observation = self.heard.popleft()
             self.dance.state = self.dance.locate(observation.node)
             self.dance.at = t
-            self._move_on(t, observation.node)
+            self._move_on(t, observation.node, maps)
 
-    def step_alone(self, t: float, velocity: float) -> bool:
+    def step_alone(self, t: float, velocity: float, maps: MusicPoseMaps | None = None) -> bool:
         """Without music: move to the predicted state when its time comes and play its note
         at ``velocity`` × the notes it was learnt from. Returns True when a note was played."""
         nxt = self.dance.predicted()
@@ -264,7 +265,7 @@ class Listening(Percept):
             return False
         self.dance.state, self.dance.at = nxt, t
         state = self.dance.model.states[nxt]
-        self._move_on(t, state.node)
+        self._move_on(t, state.node, maps)
         pitch = self.poses.pitch(state.node)
         if pitch is None:
             return False
@@ -273,10 +274,15 @@ class Listening(Percept):
         self.creature.play(pitch, max(1, int(heard * velocity)), min(max(state.dwell, 0.1), 2.0), at=t)
         return True
 
-    def _move_on(self, t: float, node: int) -> None:
-        """Head for the pose of the state predicted after the current one (else of ``node``)."""
+    def _move_on(self, t: float, node: int, maps: MusicPoseMaps | None) -> None:
+        """Head for the pose of the state predicted after the current one (else of ``node``):
+        the pitch's own pose, or with ``maps`` the pose the maps tie that note to."""
         nxt = self.dance.predicted()
-        head_for(self.creature.body, t, [self.dance.model.states[nxt].node if nxt is not None else node])
+        goal = self.dance.model.states[nxt].node if nxt is not None else node
+        pitch = self.poses.pitch(goal)
+        if maps is not None and pitch is not None:
+            goal = maps.node_for(pitch, self.poses.pitch(node), self.dance.gap(DEFAULT_GAP))
+        head_for(self.creature.body, t, [goal])
 
     # -- what it shows and keeps ---------------------------------------------------------------
     def core(self) -> list[int | None]:

@@ -758,6 +758,43 @@ class Population(PerceptPart):
         return Listening(name, creature, params)
 
 
+class _MapsParams(Params):
+    size: tuple[int, int] = Field((6, 6), description="rows and columns of the grid both maps share")
+    radius: float = Field(1.0, gt=0, le=16, description="neighbourhood radius in grid steps (a Gaussian's "
+                                                        "deviation); constant, so the maps track what is heard now")
+    rate: float = Field(0.5, gt=0, le=1, description="how far a note of velocity 127 moves its winner toward it "
+                                                     "(and the pose map's node there toward the pose); softer notes "
+                                                     "in proportion")
+    background: float = Field(0.02, ge=0, le=1, description="how far each tick's pose moves the pose map's winner "
+                                                            "toward it (the animation in the background)")
+
+    @field_validator("size")
+    @classmethod
+    def _grid(cls, size):
+        if not all(2 <= n <= 32 for n in size):
+            raise ValueError(f"size: rows and columns must be 2 to 32, found {list(size)}")
+        return size
+
+
+@PERCEPTS.register
+class Maps(PerceptPart):
+    """listen's two self-organising maps on one grid: music (pitch, interval, inter-onset
+    time of each heard note) and pose (the body's poses), tied by strict topology and made
+    plastic by each note's velocity; ``dance``/``anticipate`` with ``poses`` dance on them.
+    Salient as the music is familiar to the map (``exp`` of minus its running quantisation
+    error)."""
+
+    name = "maps"
+    thesis = "listen (installation): extensions"
+    Params = _MapsParams
+    needs = "body"
+
+    def build(self, params, creature, name):
+        from creatures.authored.maps import MusicPoseMaps
+
+        return MusicPoseMaps(name, creature, params)
+
+
 class _LullParams(Params):
     of: str = Field(description="a 'population' percept")
     patience: float = Field(2.0, gt=1, le=10, description="silence, in multiples of the gap its model expects "
