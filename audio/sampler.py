@@ -8,15 +8,16 @@ audio is kept here to be played back. It is the creature's *body* that produces 
 takes an ``amplitude`` and a ``cutoff_hz`` each block, typically from
 :class:`audio.coupling.BodyControl`.
 
-The low-pass is a 2nd-order Butterworth run by :func:`scipy.signal.lfilter` with its state
-carried from block to block, so block boundaries are inaudible; the amplitude ramps
-linearly across a block from the previous value, so body movement does not zipper.
+The low-pass is :class:`audio.lowpass.LowPass` (a 2nd-order Butterworth with its state carried
+from block to block, so block boundaries are inaudible); the amplitude ramps linearly across a
+block from the previous value, so body movement does not zipper.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from scipy.signal import butter, lfilter
+
+from audio.lowpass import LowPass
 
 
 class Sampler:
@@ -36,9 +37,7 @@ class Sampler:
         self.playing: list[list] = []  # [sound index, next frame, gain]
         self._mix = np.zeros(block_size)
         self._amplitude = 0.0
-        self._cutoff: float | None = None
-        self._ba: tuple[np.ndarray, np.ndarray] | None = None
-        self._zi: np.ndarray | None = None
+        self._lowpass = LowPass(self.sample_rate)
 
     def add(self, sound: np.ndarray) -> int:
         """Keep a heard sound (mono, at ``sample_rate``); returns its index for :meth:`play`."""
@@ -54,16 +53,6 @@ class Sampler:
             raise IndexError(f"no stored sound {index} (have {len(self.sounds)})")
         self.playing.append([index, 0, float(gain)])
 
-    def _set_cutoff(self, cutoff_hz: float) -> None:
-        nyquist = 0.5 * self.sample_rate
-        cutoff = min(max(cutoff_hz, 10.0), 0.99 * nyquist)
-        if cutoff == self._cutoff:
-            return
-        b, a = butter(2, cutoff, fs=self.sample_rate)
-        if self._zi is None:
-            self._zi = np.zeros(max(len(a), len(b)) - 1)  # the filter starts at rest
-        self._ba, self._cutoff = (b, a), cutoff
-
     def render(self, out: np.ndarray, *, amplitude: float = 1.0, cutoff_hz: float = 20000.0) -> np.ndarray:
         """Mix the playing sounds into ``out`` through the body's gain and low-pass."""
         frames = len(out)
@@ -77,8 +66,7 @@ class Sampler:
             mix[: len(part)] += voice[2] * part
             voice[1] += frames
         self.playing = [v for v in self.playing if v[1] < len(self.sounds[v[0]])]
-        self._set_cutoff(cutoff_hz)
-        filtered, self._zi = lfilter(*self._ba, mix, zi=self._zi)
+        filtered = self._lowpass.run(mix, cutoff_hz)
         ramp = np.arange(1, frames + 1) / frames
         out[:] = filtered * (self._amplitude + (amplitude - self._amplitude) * ramp)
         self._amplitude = amplitude

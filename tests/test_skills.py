@@ -297,9 +297,9 @@ alpha = 0.0
         session_of(tmp_path, extra)
     with pytest.raises(ConfigError, match="a joint variable is 'joint.x'"):
         session_of(tmp_path, extra.replace("nekc.x", "neck"))
-    # voice.cutoff is a mouth's low-pass: a creature that sings through strings has none
-    with pytest.raises(ConfigError, match=r"look.toml:\d+: .*voice.cutoff, a mouth's low-pass: the creature needs "
-                                          r"\[creature.hearing\]"):
+    # voice.cutoff is a low-pass's: a creature that sings through strings without bright_hz has none
+    with pytest.raises(ConfigError, match=r"look.toml:\d+: .*voice.cutoff, a low-pass: the creature needs one, "
+                                          r"a mouth's \(\[creature.hearing\].*\[creature.voice\] bright_hz"):
         session_of(tmp_path, extra.replace('"nekc.x" = [-20.0, 30.0]', '"voice.cutoff" = [-0.5, 0.0]'))
 
 
@@ -481,7 +481,7 @@ alpha = 0.0
     neck = bird.body.layers.blend.channel_contributors(6.0)[bird.body.skeleton.index("neck")]
     assert neck == {"course": 1.0, "follow": 1.0}
     # The voice really is scaled: each block sounds at voice.gain, ramped from the last block's.
-    bird.voice = type("Steady", (), {"render": lambda self, o, t: o.fill(1.0), "retune": lambda self, *knobs: None})()
+    bird.voice = type("Steady", (), {"render": lambda self, o, t, cutoff=1.0: o.fill(1.0), "retune": lambda self, *knobs: None})()
     out = np.zeros(100)
     bird.sound(out, 22050)
     now = bird.voice_parameters().resolve(session.clock.now())[0]

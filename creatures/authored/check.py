@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from creatures.authored.registry import ACTIONS, MODELS, PERCEPTS, PluginError, load_parts
+from creatures.authored.skills import VOICE_PARAMETERS
 from creatures.behaviour.action_group import ungrounded_message
 from creatures.config import ConfigError, config_error, validate
 
@@ -94,6 +95,7 @@ def check(spec: "AuthoredSpec", file: Path, where: Where, prefix: tuple) -> None
     _tuples(c)
     _sung_keys(c)
     _mouth(c)
+    _modulate(c)
     _groups(c)
     _shaped(c)
     _learning(c)
@@ -216,15 +218,7 @@ def _action(c: _Checker, action, loc: tuple):
         _joints(c, joints(params), loc)
     voice = getattr(cls, "voice_parameters", None)
     named = voice(params) if voice is not None else []
-    if "voice.cutoff" in named and c.spec.hearing is None:
-        raise c.error(loc, "it moves voice.cutoff, a mouth's low-pass: the creature needs [creature.hearing] "
-                           "(it sings through a mouth)")
-    strings = [n for n in named if n in ("voice.push", "voice.tension", "voice.damping")]
-    if strings and c.spec.hearing is not None:
-        raise c.error(loc, f"it moves {strings[0]}, a scanned string's: this creature sings through a mouth "
-                           "([creature.hearing]), not strings")
-    if "voice.push" in named and not c.spec.body:
-        raise c.error(loc, "it moves voice.push, how hard the body pushes the strings: set 'body = true'")
+    _voice_parameters(c, named, loc)
     blend = getattr(params, "blend", None)
     if blend is not None and blend.policy == "budget":
         if named:
@@ -247,6 +241,33 @@ def _joints(c: _Checker, wanted: list[str], loc: tuple) -> None:
             close = difflib.get_close_matches(joint, known, n=1)
             hint = f" (did you mean {close[0]!r}?)" if close else f" (joints: {', '.join(known)})"
             raise c.error(loc, f"the body has no joint {joint!r}{hint}")
+
+
+def _voice_parameters(c: _Checker, named: list[str], loc: tuple) -> None:
+    """The voice parameters a skill or ``[creature.modulate]`` moves are ones this creature has."""
+    if "voice.cutoff" in named and c.spec.hearing is None and c.spec.voice.bright_hz is None:
+        raise c.error(loc, "it moves voice.cutoff, a low-pass: the creature needs one, a mouth's "
+                           "([creature.hearing]: it sings through a mouth) or its strings' "
+                           "([creature.voice] bright_hz)")
+    strings = [n for n in named if n in ("voice.push", "voice.tension", "voice.damping")]
+    if strings and c.spec.hearing is not None:
+        raise c.error(loc, f"it moves {strings[0]}, a scanned string's: this creature sings through a mouth "
+                           "([creature.hearing]), not strings")
+    if "voice.push" in named and not c.spec.body:
+        raise c.error(loc, "it moves voice.push, how hard the body pushes the strings: set 'body = true'")
+
+
+def _modulate(c: _Checker) -> None:
+    """``[creature.modulate]``: voice parameters this creature has, each by percepts it has."""
+    for parameter, weights in c.spec.modulate.items():
+        loc = ("modulate", parameter)
+        if parameter not in VOICE_PARAMETERS:
+            close = difflib.get_close_matches(parameter, VOICE_PARAMETERS, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else f" (choose from {', '.join(VOICE_PARAMETERS)})"
+            raise c.error(loc, f"no voice parameter {parameter!r}{hint}")
+        _voice_parameters(c, [parameter], loc)
+        for name in weights:
+            c.need("percepts", name, (*loc, name))
 
 
 def _needs(c: _Checker, cls, loc: tuple) -> None:

@@ -14,6 +14,7 @@ selects (the groups inside them are ticked by their group tuples).
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
@@ -22,7 +23,7 @@ from creatures.authored import registry
 from creatures.authored.aural import Aural
 from creatures.authored.check import ROOT
 from creatures.authored.ear import Ear
-from creatures.authored.skills import (DAMPING, GAIN, PAN, PUSH, TENSION, VOICE_PARAMETERS, VOICE_REST,
+from creatures.authored.skills import (CUTOFF, DAMPING, GAIN, PAN, PUSH, TENSION, VOICE_PARAMETERS, VOICE_REST,
                                        AdverbModel)
 from creatures.authored.spec import AuthoredSpec, PartSpec, TupleSpec, UntilSpec, ValueSpec
 from creatures.behaviour.action_group import ActionGroup, group_tuple
@@ -134,6 +135,10 @@ class Authored(CreatureKind):
         # The soft state's steps start at a random phase per creature (a colony's load spreads).
         self._next_soft = float(rng.uniform(0.0, 1.0 / spec.soft_rate)) if spec.soft_rate else 0.0
         self._voice_parameters: Blend | None = None
+        # [creature.modulate]: (parameter's channel, [(percept, weight)]), read at each block
+        self._modulate = [(VOICE_PARAMETERS.index(p), [(self.percept(n), w) for n, w in weights.items()])
+                          for p, weights in spec.modulate.items()]
+        self._modulated: tuple[float, np.ndarray] = (math.nan, VOICE_REST)
         self._gain = 1.0  # voice.gain at the end of the last block sounded
 
     # -- building ---------------------------------------------------------------------
@@ -494,21 +499,34 @@ class Authored(CreatureKind):
                 self.voice = Voice(self.spec.voice, sample_rate)
                 if self.body is not None:
                     couple_to_hands(self.voice, self.body)
-            if self._voice_parameters is not None:  # voice.tension, voice.damping
+            cutoff = 1.0
+            if self._voiced:  # voice.tension, voice.damping, voice.cutoff
                 knobs = self.voice_now(self.now())
                 self.voice.retune(float(knobs[TENSION]), float(knobs[DAMPING]))
-            self.voice.render(out, self.now())
-        if self._voice_parameters is not None:  # voice.gain, ramped across the block (no zipper steps)
+                cutoff = max(float(knobs[CUTOFF]), 0.0)
+            self.voice.render(out, self.now(), cutoff=cutoff)
+        if self._voiced:  # voice.gain, ramped across the block (no zipper steps)
             gain = max(float(self.voice_now(self.now())[GAIN]), 0.0)
             out *= np.linspace(self._gain, gain, len(out))
             self._gain = gain
 
+    @property
+    def _voiced(self) -> bool:
+        """Whether anything moves its voice parameters (a skill, or [creature.modulate])."""
+        return self._voice_parameters is not None or bool(self._modulate)
+
     def voice_now(self, t: float) -> np.ndarray:
-        """The voice parameters at ``t`` (creatures/authored/skills.py), at rest when no skill
-        has driven them."""
-        if self._voice_parameters is None:
-            return VOICE_REST
-        return self._voice_parameters.resolve(t)
+        """The voice parameters at ``t`` (creatures/authored/skills.py): what skills set (at rest
+        when none has driven them), plus ``[creature.modulate]``'s weight × saliency of each
+        percept (read once per time: a block asks several times)."""
+        if not self._modulate:
+            return VOICE_REST if self._voice_parameters is None else self._voice_parameters.resolve(t)
+        if self._modulated[0] != t:
+            knobs = (VOICE_REST if self._voice_parameters is None else self._voice_parameters.resolve(t)).copy()
+            for channel, inputs in self._modulate:
+                knobs[channel] += sum(w * p.evaluate(t) for p, w in inputs)
+            self._modulated = (t, knobs)
+        return self._modulated[1]
 
     def pan(self) -> float:
         """Where the mix places this creature now: its ``pan`` moved by ``voice.pan``."""

@@ -906,6 +906,79 @@ class Script(PerceptPart):
         return FunctionPercept(name, lambda t: sensed[0] if sensed[0] is not None else float(np.interp(t, times, levels)))
 
 
+class _SensedParams(Params):
+    creature: str = Field(description="another creature of the installation, by name")
+    percept: str = Field(description="one of that creature's percepts, by name")
+
+
+@PERCEPTS.register
+class Sensed(PerceptPart):
+    """Another creature's percept, read as this one's own: sand:stone's statue is moved by
+    what each rock senses ("the proximity to the center of the bed of sand and the identity
+    of the rocks is sensed ... firstly by directly modulating the pose of the character on
+    screen, and secondly by controlling the colony of music creatures"). Both names are
+    checked when the installation loads."""
+
+    name = "sensed"
+    thesis = "sand:stone (installation)"
+    Params = _SensedParams
+
+    def build(self, params, creature, name):
+        found: list[Percept] = []
+
+        def read(t: float) -> float:
+            if not found:  # every creature is made by the first tick
+                other = next(c for c in creature.world.creatures if c.name == params.creature)
+                found.append(other.percept(params.percept))
+            return found[0].evaluate(t)
+
+        return FunctionPercept(name, read)
+
+
+class _DaylightParams(Params):
+    start: float | Literal["local"] = Field(10.0, description="the hour (0–24) of the installation world's day when "
+                                                              "the creature is made; 'local': the machine's local "
+                                                              "time then (a live show in the gallery's own day; a "
+                                                              "number keeps offline runs reproducible)")
+    day: float = Field(86_400.0, gt=1, le=LONGEST_SECONDS, description="seconds a day of the installation world "
+                                                                       "lasts (86400: the visitors' own)")
+    noon: float = Field(14.0, ge=0, lt=24, description="the brightest hour")
+
+    @field_validator("start")
+    @classmethod
+    def _hour(cls, start):
+        if start != "local" and not 0 <= start < 24:
+            raise ValueError(f"start: an hour in [0, 24) or 'local', found {start}")
+        return start
+
+
+@PERCEPTS.register
+class Daylight(PerceptPart):
+    """The time of day in the installation world, as its light: 1 at ``noon``, 0 twelve hours
+    from it, a cosine between (sand:stone: "timbre is modulated directly by the boredom model,
+    and by the time of day in the installation world")."""
+
+    name = "daylight"
+    thesis = "sand:stone (installation)"
+    Params = _DaylightParams
+
+    def build(self, params, creature, name):
+        import time
+
+        made = creature.now()
+        if params.start == "local":
+            now = time.localtime()
+            start = now.tm_hour + now.tm_min / 60 + now.tm_sec / 3600
+        else:
+            start = float(params.start)
+
+        def light(t: float) -> float:
+            hour = start + 24.0 * (t - made) / params.day
+            return 0.5 + 0.5 * math.cos(2 * math.pi * (hour - params.noon) / 24.0)
+
+        return FunctionPercept(name, light)
+
+
 class _DiscordParams(Params):
     key_of: str = Field(description="a tuple whose action is 'sing_phrases': the key of the segment it sings")
     within: float = Field(1.5, ge=0, lt=STEPS / 2, description="circle-of-fifths distance below which heard music "

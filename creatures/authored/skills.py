@@ -204,8 +204,9 @@ the sum held to [−1, 1]; a ``[room]`` places creatures by where they stand ins
 ``voice.push`` scales how hard the body's movement pushes its scanned strings (1 at rest:
 ``[creature.voice] body_gain``; thesis "artificial gestural control"), and ``voice.cutoff``
 scales the low-pass cutoff of a creature that sings through a mouth (1 at rest: what its back
-angle sets; thesis "soundcreatures"), and ``voice.tension`` and ``voice.damping`` scale its
-scanned strings' stiffness and damping (1 at rest: ``[creature.voice]``'s; held within the
+angle sets; thesis "soundcreatures") or through strings with ``[creature.voice] bright_hz``
+(1 at rest: that cutoff; thesis "sand:stone", a timbre the boredom model modulates), and
+``voice.tension`` and ``voice.damping`` scale its scanned strings' stiffness and damping (1 at rest: ``[creature.voice]``'s; held within the
 gestural limit and a stable integrator, :meth:`audio.scanned.StringParameters.retuned`): the
 timbre of a scanned string is its physics (thesis "scanned synthesis")."""
 VOICE_REST = np.array([1.0, 0.0, 1.0, 1.0, 1.0, 1.0])

@@ -266,6 +266,11 @@ class AuthoredSpec(CreatureSpec):
                                        description="percepts whose saliency each snapshot logs (a 'percepts' event "
                                                    "with their 'levels')")
     voice: VoiceSpec = VoiceSpec()
+    modulate: dict[str, dict[str, Annotated[float, Field(ge=-LARGEST_RATE, le=LARGEST_RATE)]]] = Field(
+        default_factory=dict, description="voice parameters modulated directly by percepts, no action between "
+                                          "(thesis 'sand:stone': 'timbre is modulated directly by the boredom "
+                                          "model'): [creature.modulate] \"voice.cutoff\" = { bored = -0.8 } adds "
+                                          "weight × saliency to the parameter (and to what skills set), each block")
     _file: Path | None = PrivateAttr(None)
 
     def check_references(self, file: Path, where: dict, prefix: tuple) -> None:

@@ -15,6 +15,7 @@ from pydantic import BaseModel, Field, model_validator
 
 from audio.coupling import BodyCoupling, BodyShape
 from audio.flow import FlowCoupling
+from audio.lowpass import LowPass
 from audio.scanned import GESTURAL_LIMIT_HZ, StringParameters, UnstableStringError, soft_limit
 from audio.voices import VoicePool
 from creatures.bounds import FINITE
@@ -60,6 +61,11 @@ class VoiceSpec(BaseModel):
                                                            "shape of the body's line (root to effector) × this, "
                                                            "through a spring; 0 = off (thesis, 'artificial gestural "
                                                            "control', the second connection)")
+    bright_hz: float | None = Field(None, ge=20, le=20_000, description="a low-pass on the strings' sound at "
+                                                                       "this cutoff (Hz), which a skill's "
+                                                                       "voice.cutoff scales (a timbre that follows "
+                                                                       "a drive: thesis 'sand:stone'); none: no "
+                                                                       "filter")
     interpolation: Literal["linear", "none"] = Field(
         "linear", description="how the scan reads the string: linear between masses and physics frames "
         "(smooth, like Csound's scans) or none, the nearest mass of the latest frame (brighter and "
@@ -110,6 +116,7 @@ class Voice:
         self._ends: list[tuple[float, int]] = []
         self.coupling: BodyCoupling | None = None
         self.shape: BodyShape | None = None
+        self.lowpass = LowPass(sample_rate) if spec.bright_hz is not None else None
 
     def couple(self, node_positions: np.ndarray, joints: list[int]) -> None:
         """Lay the strings in space at ``node_positions`` so ``joints`` moving nearby push them."""
@@ -144,14 +151,17 @@ class Voice:
             self._tuning = (tension, damping)
             self.pool.bank.parameters = self._strings.retuned(tension, damping)
 
-    def render(self, out: np.ndarray, t: float) -> None:
-        """Fill ``out`` with the voice up to clock time ``t`` (note-offs that fell due first)."""
+    def render(self, out: np.ndarray, t: float, *, cutoff: float = 1.0) -> None:
+        """Fill ``out`` with the voice up to clock time ``t`` (note-offs that fell due first),
+        through the ``bright_hz`` low-pass at ``cutoff`` × its cutoff (a skill's ``voice.cutoff``)."""
         due = [item for item in self._ends if item[0] <= t]
         if due:
             self._ends = [item for item in self._ends if item[0] > t]
             for _, pitch in due:
                 self.pool.note_off(pitch)
         self.pool.render(out)
+        if self.lowpass is not None:
+            out[:] = self.lowpass.run(out, self.spec.bright_hz * cutoff)  # (a silent block costs nothing)
         out *= self.spec.gain
         soft_limit(out, out=out)
 

@@ -400,6 +400,25 @@ class LoadedInstallation:
         return None if relative is None else (self.path.parent / relative).resolve()
 
 
+def _sensed(path: Path, where, loc: tuple, own: str, params: dict, by_name: dict) -> None:
+    """A 'sensed' percept names another creature of this installation and one of its percepts."""
+    whom, what = params.get("creature"), params.get("percept")
+    other = by_name.get(whom)
+    if other is None or whom == own:
+        others = sorted(n for n in by_name if n != own)
+        close = difflib.get_close_matches(str(whom), others, n=1)
+        hint = f" (did you mean {close[0]!r}?)" if close else f" (choose from {others})"
+        raise config_error(path, where, (*loc, "creature"), f"no other creature named {whom!r}{hint}")
+    percepts = getattr(other, "percepts", None)
+    if percepts is None:
+        raise config_error(path, where, (*loc, "creature"), f"{whom!r} is a {other.kind!r} creature: only an "
+                                                            "authored creature's percepts can be sensed")
+    if what not in percepts and what != "whatever":
+        close = difflib.get_close_matches(str(what), list(percepts), n=1)
+        hint = f" (did you mean {close[0]!r}?)" if close else f" (its percepts: {sorted(percepts)})"
+        raise config_error(path, where, (*loc, "percept"), f"{whom!r} has no percept {what!r}{hint}")
+
+
 def load_installation(path: str | Path) -> LoadedInstallation:
     """Read and validate an installation config; :class:`ConfigError` names key and line."""
     path = Path(path).resolve()
@@ -437,11 +456,14 @@ def load_installation(path: str | Path) -> LoadedInstallation:
             raise config_error(path, where, ("creature", i, "name"), f"duplicate creature name {spec.name!r}")
         names.add(spec.name)
         specs.append(spec)
+    by_name = {spec.name: spec for spec in specs}
     for spec, i in zip(specs, origin):
         for name, percept in (getattr(spec, "percepts", None) or {}).items():
             if percept.type in ROOM_PERCEPTS and settings.room is None:
                 raise config_error(path, where, ("creature", i, "percepts", name, "type"),
                                    f"percept type {percept.type!r} needs a [room] (where would it be?)")
+            if percept.type == "sensed":
+                _sensed(path, where, ("creature", i, "percepts", name), spec.name, percept.params(), by_name)
     if settings.room is not None:  # what the creatures' steering names must be in the room
         try:
             room_recipes(settings.room, specs, {spec.name: i for i, spec in enumerate(specs)})
@@ -466,7 +488,6 @@ def load_installation(path: str | Path) -> LoadedInstallation:
             problem = peer_problem(peer)
             if problem is not None:
                 raise config_error(path, where, (*loc, i), problem)
-    by_name = {spec.name: spec for spec in specs}
     for i, stream in enumerate(settings.output.cc):
         creature = stream.source.split(".")[0]
         if creature not in names:
