@@ -84,7 +84,9 @@ def test_two_notes_of_1e308_seconds_leave_a_live_sandstone_colony_finite_and_sav
     assert network.listener.received == 2 and network.listener.clamped == 2
     heard = [e for e in session.log.records if e["kind"] == "heard" and e["source"] == "visitor"]
     assert [(e["pitch"], e["duration"]) for e in heard] == [(60, MAX_DURATION), (62, MAX_DURATION)]
-    for creature in session.creatures:
+    rocks = [c for c in session.creatures if "discord" in c.percepts]  # not the statue: it only sees
+    assert len(rocks) == 6
+    for creature in rocks:
         ear = creature.state()["parts"]["percepts"]["discord"]  # what its ear on the circle of fifths holds
         assert math.isfinite(ear["weight"]) and np.isfinite(ear["vector"]).all()
         assert 0.0 <= creature.percept("heard amount").evaluate(clock.now()) < 1.0
