@@ -21,6 +21,7 @@ import tempfile
 import threading
 import time
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -42,6 +43,9 @@ space.refractory = 0.0
 space.strike_interval = 0.0
 """
 
+
+NOTE_ON, POLY_PRESSURE = 0x90, 0xA0
+"""The status nibbles that count as an answer."""
 
 RUN_CLIENT = "PortAudio"
 """The JACK client name of the run's microphone (PortAudio's): on a shared JACK server, other
@@ -69,12 +73,36 @@ def tone(pitch: int, rate: int, seconds: float = 0.3) -> np.ndarray:
     return (0.2 * x * np.exp(-6 * t) * np.minimum(1.0, (seconds - t) / 0.02)).astype(np.float32)
 
 
+class Heard(NamedTuple):
+    """What one :func:`measure` found."""
+
+    latencies: list[float]
+    """Seconds from each answered onset to the creature's first answer after it (before the next onset)."""
+    played: int
+    """Onsets played (``played - len(latencies)`` went unanswered)."""
+    unanswered: list[int]
+    """The indices of the onsets that went unanswered."""
+    output: str
+    """What the run printed."""
+
+    def summary(self) -> str:
+        if not self.latencies:
+            return f"answered 0/{self.played}"
+        ms = 1e3 * np.array(self.latencies)
+        missed = f"; unanswered onsets {self.unanswered}" if self.unanswered else ""
+        return (f"answered {len(ms)}/{self.played}; onset → answer p50 {np.median(ms):.1f} ms, "
+                f"p99 {np.percentile(ms, 99):.1f} ms{missed}")
+
+
 def measure(onsets: int = 40, gap: float = 0.5, *, warm_up: float = 6.0, timeout: float = 90.0,
-            log: Path | None = None) -> tuple[list[float], int, str]:
-    """Latencies (s) from each played onset to the first MIDI note-on after it, the number of
-    onsets played, and what the run printed. Onsets with no answer before the next one are
-    left out (so ``played - len(latencies)`` went unanswered). ``warm_up``: seconds the run is
-    given before the first onset (its first seconds compile and fill buffers)."""
+            log: Path | None = None) -> Heard:
+    """Play ``onsets`` tones ``gap`` seconds apart into a run and time its answers (:class:`Heard`).
+    ``warm_up``: seconds the run is given before the first onset (its first seconds compile and
+    fill buffers).
+
+    An answer is a note-on or a polyphonic pressure: the exchange's rule two (thesis "exchange
+    (installation)") strikes a note that still sounds by perturbing it, not by playing it again,
+    so a tone whose pitch the wandering hand has just struck is answered with pressure."""
     import jack
 
     name = f"hearing-probe-{os.getpid()}"
@@ -94,7 +122,7 @@ def measure(onsets: int = 40, gap: float = 0.5, *, warm_up: float = 6.0, timeout
         now = client.last_frame_time
         for offset, data in midi_in.incoming_midi_events():
             data = bytes(data)
-            if len(data) == 3 and data[0] & 0xF0 == 0x90 and data[2] > 0:
+            if len(data) == 3 and data[0] & 0xF0 in (NOTE_ON, POLY_PRESSURE) and data[2] > 0:
                 answer_frames.append(now + offset)
         if state["next"] is None:
             return
@@ -150,25 +178,27 @@ def measure(onsets: int = 40, gap: float = 0.5, *, warm_up: float = 6.0, timeout
             run.terminate()
             run.wait(timeout=20)
             reader.join(timeout=5)
-    latencies = []
+    latencies, unanswered = [], []
     for k, start in enumerate(start_frames):
         end = start_frames[k + 1] if k + 1 < len(start_frames) else start + int(gap * rate)
         after = [f for f in answer_frames if start <= f < end]
         if after:
             latencies.append((after[0] - start) / rate)
-    return latencies, len(start_frames), "".join(output)
+        else:
+            unanswered.append(k)
+    return Heard(latencies, len(start_frames), unanswered, "".join(output))
 
 
 def run(quick: bool) -> list[Row]:
     why = jack_available()
     if why is not None:
         return [Row(f"live onset → answer (skipped: {why})", 0.0, "")]
-    latencies, played, _ = measure(20 if quick else 60)
-    if not latencies:
-        return [Row(f"live onset → answer: none of {played} onsets answered", 0.0, "")]
-    ms = 1e3 * np.array(latencies)
+    heard = measure(20 if quick else 60)
+    if not heard.latencies:
+        return [Row(f"live onset → answer: none of {heard.played} onsets answered", 0.0, "")]
+    ms = 1e3 * np.array(heard.latencies)
     return [
-        Row(f"live onset → answering MIDI note, p50 ({len(ms)}/{played} answered)", float(np.median(ms)), "ms",
+        Row(f"live onset → answering MIDI note, p50 ({len(ms)}/{heard.played} answered)", float(np.median(ms)), "ms",
             higher_is_better=False),
         Row("live onset → answering MIDI note, p99 (through JACK)", float(np.percentile(ms, 99)), "ms",
             target=30.0, higher_is_better=False),
