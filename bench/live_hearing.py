@@ -78,12 +78,15 @@ class Heard(NamedTuple):
 
     latencies: list[float]
     """Seconds from each answered onset to the creature's first answer after it (before the next onset)."""
-    played: int
-    """Onsets played (``played - len(latencies)`` went unanswered)."""
     unanswered: list[int]
     """The indices of the onsets that went unanswered."""
     output: str
     """What the run printed."""
+
+    @property
+    def played(self) -> int:
+        """Onsets played: each was answered or not."""
+        return len(self.latencies) + len(self.unanswered)
 
     def summary(self) -> str:
         if not self.latencies:
@@ -186,7 +189,7 @@ def measure(onsets: int = 40, gap: float = 0.5, *, warm_up: float = 6.0, timeout
             latencies.append((after[0] - start) / rate)
         else:
             unanswered.append(k)
-    return Heard(latencies, len(start_frames), unanswered, "".join(output))
+    return Heard(latencies, unanswered, "".join(output))
 
 
 def run(quick: bool) -> list[Row]:

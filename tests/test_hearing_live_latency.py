@@ -49,7 +49,7 @@ def test_every_onset_is_answered_through_jack_within_the_bound() -> None:
     summary = f"{heard.summary()} (p99 bound {P99_BOUND_MS:.0f} ms)"
     print(summary)
     assert heard.played == ONSETS, heard.output
-    # Each answer is the first note-on after its onset and before the next one (GAP later): a
+    # Each answer is the first note-on or pressure after its onset and before the next one (GAP later): a
     # deaf or silent run answers none, one that loses onsets (a stalled loop) fewer than all.
     assert len(heard.latencies) == heard.played, f"{summary}\n{heard.output}"
     ms = 1e3 * np.array(heard.latencies)
