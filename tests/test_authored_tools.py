@@ -3,6 +3,7 @@ offline NAME`` for a shipped installation."""
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 from creatures.cli import main
@@ -32,6 +33,20 @@ def test_describe_prints_drives_percept_trees_groups_and_tuples(capsys):
     assert "│     ├─ bored (drive)" in out
     assert "└─ group main [max_active 1, alpha 0.2, discount 0.8]" in out
     assert "   └─ praised: praise | praised | 0.5 s | V 4, non-plastic" in out
+
+
+def test_describe_builds_a_real_visitors_praise_from_the_input_map(tmp_path, capsys):
+    """The tutorial's step 4 with the input-map praise its text shows (a sensor read by the
+    ``praise`` percept): describe knows the map's sensors, as a run does."""
+    shutil.copytree(TUTORIAL, tmp_path / "t")
+    heron = tmp_path / "t" / "creatures" / "heron.toml"
+    heron.write_text(heron.read_text().replace('type = "played"', 'type = "sensor"\nsensor = "praise"')
+                     .replace("pitches = [72]\nwindow = 1.0\n", ""))
+    config = tmp_path / "t" / "heron-4.toml"
+    config.write_text(config.read_text() + '\n[[input.map]]\nosc = "/praise"\nto = "sensor"\nname = "praise"\n'
+                      'value = 1.0\n')
+    assert main(["describe", str(config)]) == 0
+    assert "│     └─ praise (sensor)" in capsys.readouterr().out.splitlines()
 
 
 def test_describe_shows_class_based_kinds_and_nested_groups_too(tmp_path, capsys):

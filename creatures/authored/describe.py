@@ -21,6 +21,7 @@ from creatures.clock import SimulatedClock
 from creatures.events import EventLog
 from creatures.kinds import KINDS
 from creatures.runtime.schema import LoadedInstallation
+from creatures.runtime.input_map import InputRouter
 from creatures.runtime.world import World
 from midi.scheduler import NoteScheduler
 from midi.sinks import MemorySink
@@ -97,6 +98,7 @@ def describe(inst: LoadedInstallation) -> str:
     """The tree of every creature of ``inst``."""
     clock = SimulatedClock()
     world = World(clock, EventLog(), NoteScheduler(MemorySink(), clock))
+    InputRouter(inst.routes, world, lambda message: None)  # the [[input]] maps' sensors, which percepts read
     seeds = np.random.SeedSequence(inst.settings.seed).spawn(len(inst.specs))
     out = [inst.settings.title]
     for spec, seed in zip(inst.specs, seeds):

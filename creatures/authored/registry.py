@@ -29,10 +29,13 @@ GROUPS = ("actions", "percepts", "models", "kinds")
 """Entry point groups are ``creature_music.<group>``; each entry names a module to import."""
 
 BUILTIN = {
-    "actions": "creatures.authored.actions",
-    "percepts": "creatures.authored.percepts",
-    "models": "creatures.authored.models",
-    "kinds": "creatures.authored.creature",
+    "actions": ("creatures.authored.actions",),
+    "percepts": ("creatures.authored.percepts",),
+    "models": ("creatures.authored.models",),
+    # The authored creature, then the pieces still written as whole kinds (extension API: a
+    # kind as a small documented class; docs/authoring.md, "The shipped pieces, by behaviour").
+    "kinds": ("creatures.authored.creature", "creatures.kinds.curve", "creatures.kinds.duncan",
+              "creatures.kinds.ozymandias", "creatures.kinds.three_creatures"),
 }
 """The project's own entry points (pyproject.toml lists the same; a test keeps them equal).
 Imported directly as well, so a source checkout whose installed metadata is older still has
@@ -137,7 +140,8 @@ def _import(module: str, origin: str) -> None:
 def load_parts() -> None:
     """Import the built-in parts and every installed package's ``creature_music.*`` entry points."""
     for group in GROUPS:
-        _import(BUILTIN[group], f"built-in {group}")
+        for module in BUILTIN[group]:
+            _import(module, f"built-in {group}")
         for ep in entry_points(group=f"creature_music.{group}"):
             _import(ep.value.split(":")[0], f"entry point {ep.name!r} of creature_music.{group}")
 

@@ -1,15 +1,13 @@
 """Creature kinds, looked up by the ``kind`` key of a ``[[creature]]`` table.
 
 Each kind lives in its own module and registers itself with :func:`register`;
-:func:`load_all` imports every module of this package (a new kind is just a new file;
-modules of shared parts register nothing) and the modules named by ``creature_music.kinds``
-entry points, so a user's package adds kinds the same way.
+:func:`load_all` imports the modules named by ``creature_music.kinds`` entry points, the
+project's own (the authored creature and the pieces still written as classes) as a user's
+package's (:mod:`creatures.authored.registry`); modules of shared parts register nothing.
 """
 
 from __future__ import annotations
 
-import importlib
-import pkgutil
 from typing import Callable, TypeVar
 
 from creatures.kinds.base import CreatureKind, CreatureSpec
@@ -31,12 +29,10 @@ def register(kind: str) -> Callable[[Kind], Kind]:
 
 
 def load_all() -> dict[str, type[CreatureKind]]:
-    """Every kind: this package's modules, then the ``creature_music.kinds`` entry points
-    (the authored kind and any user package's kinds) through the parts registry."""
+    """Every kind: the ``creature_music.kinds`` entry points (the project's and any user
+    package's) through the parts registry."""
     from creatures.authored.registry import load_parts
 
-    for module in pkgutil.iter_modules(__path__):
-        importlib.import_module(f"creatures.kinds.{module.name}")
     load_parts()
     return KINDS
 
