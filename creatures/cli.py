@@ -273,6 +273,11 @@ def _run(args: argparse.Namespace) -> int:
           f"{summary.audio_skips} skips to keep its lead, {summary.underruns} audio underruns, {summary.overruns} input overruns{network}"
           + (f"; {summary.midi_dropped} MIDI messages dropped (no output port)" if summary.midi_dropped is not None else "")
           + (f"; view: {summary.view_dropped} snapshots dropped (its thread too slow)" if summary.view_dropped else ""))
+    if summary.room_share is not None:
+        r = summary.room_share
+        print(f"shared room: {r['remote']} creatures of {r['owners']} other processes at the end; {r['received']} "
+              f"datagrams taken, {sum(r['dropped'].values())} dropped {r['dropped'] or ''}, {r['sent']} sent "
+              f"({r['send_errors']} failed)")
     if summary.inputs:
         print("outside input: " + ", ".join(f"{summary.inputs.get(what, 0)} {what}"
                                             for what in ("mapped", "unmapped", "malformed", "refused osc")))
@@ -664,10 +669,14 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     restore = stop.install()
     try:
+        import scipy.linalg  # noqa: F401 - loads numpy's and scipy's BLAS, so the limit below reaches them
         from threadpoolctl import threadpool_limits
 
         # Creatures do many tiny matrix operations; multi-threaded BLAS only fights over the
         # cores for them (measured: scipy's expm on 5x5 went from 15 us to 2 ms under load).
+        # The limit reaches only libraries already loaded: until scipy.linalg was imported
+        # here it reached none, and four live processes of a shared room on 2 cores spent
+        # 68 ms per 2x2 expm in BLAS threads fighting each other (ticks 30 s late).
         threadpool_limits(limits=1)
         from creatures import log_limit
 
