@@ -76,10 +76,17 @@ class Crowd:
         """One sub-step: who steers, their neighbours, their forces, then everyone moves."""
         v = self.v
         who = (np.arange(len(v)) if self.lod is None else self.lod.due(self.steps, self._level, self._rank))
+        others = self.around.others
+        if len(others):  # a shared room's remote creatures move on by their velocity (dead reckoning)
+            others[:, :2] += others[:, 2:4] * self.substep
         if len(who):
-            index = Neighbours(v.pos)
-            # The crowd's rows with one zero row after them, where padded neighbours point.
-            rows = tuple(np.concatenate([x, np.zeros((1, *x.shape[1:]))]) for x in (v.pos, v.vel, v.radius))
+            # The crowd's rows, then the remote creatures' (neighbours too, after every own
+            # index, so a creature's own index still names it), then one zero row, where
+            # padded neighbours point.
+            mine = (v.pos, v.vel, v.radius)
+            theirs = (others[:, :2], others[:, 2:4], others[:, 6])
+            rows = tuple(np.concatenate([x, y, np.zeros((1, *x.shape[1:]))]) for x, y in zip(mine, theirs))
+            index = Neighbours(rows[0][:-1])
             for g, recipe in enumerate(self.recipes):
                 members = who if len(self.recipes) == 1 else who[self.groups[who] == g]
                 if len(members):

@@ -54,13 +54,16 @@ class Recipe:
 @dataclass
 class Surroundings:
     """What is in the room beside the crowd: visitors (positions, velocities), the player
-    (where outside notes came from lately; none or one), loud sounds (positions), and the
-    director's paths and flow fields by name."""
+    (where outside notes came from lately; none or one), loud sounds (positions), the creatures
+    of a shared room's other processes, and the director's paths and flow fields by name."""
 
     visitors: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     visitor_vel: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     player: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     loud: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    others: np.ndarray = field(default_factory=lambda: np.zeros((0, 7)))
+    """Creatures other processes own in a shared room (creatures/room/share.py), rows of x, y,
+    vx, vy, hx, hy, radius: neighbours to separate from and flock with, never steered here."""
     paths: dict[str, Path] = field(default_factory=dict)
     fields: dict[str, FlowField] = field(default_factory=dict)
 

@@ -121,6 +121,36 @@ class LodSpec(Strict):
     budget: int | None = Field(None, ge=1, le=1_000_000, description="most creatures steering in one sub-step")
 
 
+class ShareSpec(Strict):
+    """``[room.share]``: this process owns its creatures in a room that others share
+    (creatures/room/share.py): it sees and hears their creatures and they see and hear its."""
+
+    room: str = Field(pattern=r"^[A-Za-z0-9_.\-]{1,64}$", description="the shared room's name: processes "
+                      "with the same name (and the same room size) share one floor")
+    host: str = Field("127.0.0.1", description="address to listen on ('0.0.0.0' to be reached from other "
+                                               "machines)")
+    port: int = Field(0, ge=0, le=65535, description="UDP port to listen on (0: any free one; discovery tells "
+                                                     "the others)")
+    peers: list[str] = Field(default_factory=list, max_length=64, description="'host:port' of processes to reach "
+                             "without discovery")
+    discover: bool = Field(True, description="find the room's other processes by mDNS (zeroconf)")
+    link: bool = Field(False, description="keep one beat and tempo with the others over Ableton Link (aalink); "
+                                          "positions and notes are stamped on its timeline")
+    tempo: float = Field(120.0, ge=20, le=999, description="link = true: the tempo to start a Link session at "
+                                                           "(joining one takes its tempo)")
+    rate: float = Field(25.0, gt=0, le=200, description="position updates sent a second")
+    timeout: float = Field(2.0, gt=0, le=3600, description="seconds without a word before a process's creatures "
+                                                           "leave the room")
+
+    @model_validator(mode="after")
+    def _peers(self) -> "ShareSpec":
+        for peer in self.peers:
+            host, _, port = peer.rpartition(":")
+            if not host or not port.isdigit() or not 0 < int(port) < 65536:
+                raise ValueError(f"peer {peer!r} is not 'host:port'")
+        return self
+
+
 class RoomSection(Strict):
     """``[room]``: the floor the creatures stand on (issue 21; REACT, IViHumans, WavesWorld's
     raveWorld). With a room, each creature has a place (``[creature.vehicle]``), hears others
@@ -146,6 +176,8 @@ class RoomSection(Strict):
     flows: list[FlowSpec] = Field(default_factory=list, max_length=64, description="[[room.flows]]")
     report_every: float = Field(1.0, gt=0, le=3600, description="seconds between 'room' events (every "
                                                                 "creature's position and heading) in the log")
+    share: ShareSpec | None = Field(None, description="[room.share]: one room across processes and machines "
+                                                      "(live runs)")
 
 
 class SteerSpec(Strict):

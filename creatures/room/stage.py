@@ -13,11 +13,12 @@ from __future__ import annotations
 import heapq
 import itertools
 import json
-from typing import TYPE_CHECKING, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 from scipy.spatial import cKDTree
 
+from creatures import bounds
 from creatures.clock import clock_gap
 from creatures.room.director import FlowField, Path
 from creatures.room.hearing import Arrival, DistanceLaw, Masking, arrive, db_velocity, velocity_db
@@ -35,6 +36,8 @@ from midi.notes import NoteEvent
 if TYPE_CHECKING:
     from creatures.behaviour.state_object import StateObject
     from creatures.kinds.base import CreatureKind
+    from creatures.room.share import RoomShare
+    from creatures.runtime.world import World
 
 LOUD_FOR = 1.0
 """Seconds a loud note stays a 'loud' steering target after it starts."""
@@ -166,6 +169,18 @@ class Stage:
         self._tree: cKDTree | None = None
         self._tree_at = -1
         self._next_report = 0.0
+        self.share: RoomShare | None = None
+        self._world: World | None = None
+        self._remote: dict[str, int] = {}  # a shared room's remote creature -> its row in around.others
+        self._next_beat = np.inf
+
+    def attach(self, share: "RoomShare", world: "World") -> None:
+        """Share this room with other processes (``[room.share]``, a live run): their creatures
+        join the neighbours, the percepts and the ears; ours and our notes go to them."""
+        self.share, self._world = share, world
+        world.listeners.append(share.played)
+        if share.timeline is not None:
+            self._next_beat = -np.inf
 
     # -- building ------------------------------------------------------------------------
     def _vehicles(self, specs: list[VehicleSpec], rng: np.random.Generator) -> Vehicles:
@@ -209,14 +224,54 @@ class Stage:
         for i, b, name in self._when:
             self.crowd.gain[i, b] = min(max(percept(i, name), 0.0), 1.0)
         self.zones.update(t, self.v, emit)
+        if self.share is not None:
+            self._take_share(t, emit)
         self.crowd.plan(np.vstack([self.crowd.around.visitors, self.listener[None, :]]))  # who is heard, near
         if clock_gap(self.crowd.t, t):
             self.crowd.skip_to(t)  # a gap is not lived: the crowd stands through it
         self.crowd.advance_to(t)
+        shared: dict[str, object] = {}
+        if self.share is not None:
+            v = self.v
+            self.share.publish(self.crowd.t, [c.name for c in self.creatures],
+                               np.column_stack([v.pos, v.vel, v.heading, v.radius]))
+            others = self.crowd.around.others
+            shared = {"others": dict(zip(self._remote, np.round(others[:, :2], 4).tolist())),
+                      "unix": round(self.share.epoch + self.crowd.t, 6)}
+            if self.share.timeline is not None:
+                shared["beat"] = round(self.share.beat(self.crowd.t), 6)
         if t >= self._next_report:  # where everyone is, for the report and for tests
             self._next_report = t + self.section.report_every
-            emit("room", pos=np.round(self.v.pos, 3).tolist(), heading=np.round(self.v.heading, 3).tolist(),
-                 visitors=np.round(self.crowd.around.visitors, 3).tolist(), masked=self.masked)
+            emit("room", pos=np.round(self.v.pos, 3 + bool(shared)).tolist(),
+                 heading=np.round(self.v.heading, 3).tolist(),
+                 visitors=np.round(self.crowd.around.visitors, 3).tolist(), masked=self.masked, **shared)
+
+    def _take_share(self, t: float, emit: Callable[..., None]) -> None:
+        """What the room's other processes said: their notes into the note bus (heard from
+        where their creatures stand), their creatures placed as they stand at the crowd's time
+        (the sub-steps up to ``t`` move them on), who joined and left, and with Link each
+        shared beat heard by the colony's pulse (one beat and tempo for the whole room)."""
+        share, world = self.share, self._world
+        assert share is not None and world is not None
+        notes = share.poll(t)
+        names, rows = share.others(self.crowd.t)
+        self._remote = {name: i for i, name in enumerate(names)}
+        self.crowd.around.others = np.clip(rows, [0, 0, -np.inf, -np.inf, -1, -1, 0],
+                                           [*self.room.size, np.inf, np.inf, 1, 1, np.inf])
+        for name, note in notes:
+            world.inject(note, name)  # logged as heard from that creature, from where it stands
+        for owner in share.joined:
+            emit("room peer", owner=owner, creatures=sum(r.owner == owner for r in share.remote.values()))
+        for owner, why in share.left:
+            emit("room peer left", owner=owner, why=why)
+        share.joined, share.left = [], []
+        if share.timeline is not None:
+            beat = share.timeline.beat_at(share.epoch + t)
+            if self._next_beat == -np.inf:
+                self._next_beat = np.ceil(beat)
+            while self._next_beat <= beat:
+                world.pulse.hear(t - (beat - self._next_beat) * 60.0 / share.timeline.tempo)
+                self._next_beat += 1
 
     def _visitors(self, t: float) -> None:
         seen, moving = [], []
@@ -242,12 +297,33 @@ class Stage:
             return (float(data[-1]) - float(data[-2])) / (times[-1] - times[-2])
         return rate(x), rate(y)
 
+    # -- where each creature stood, across a restart ------------------------------------------
+    def placement(self, name: str) -> dict[str, list[float]]:
+        """Where creature ``name`` stands and how it moves, for its state file (a process of a
+        shared room that is killed and started again puts its creatures back where they were)."""
+        i = self.index[name]
+        return {"at": self.v.pos[i].tolist(), "velocity": self.v.vel[i].tolist(), "heading": self.v.heading[i].tolist()}
+
+    def put(self, name: str, place: dict[str, Any]) -> None:
+        """Take back a :meth:`placement` (ValueError/TypeError/KeyError on a damaged one; a place
+        off this room's floor is brought onto it, as a smaller room's config may have moved the walls)."""
+        i = self.index[name]
+        at, velocity, heading = (np.array([bounds.number(x, f"place.{key}") for x in bounds.items(
+            place[key], f"place.{key}", shortest=2, longest=2)]) for key in ("at", "velocity", "heading"))
+        if not np.hypot(*heading) > 0:
+            raise ValueError("place.heading: a heading of length 0")
+        self.v.pos[i] = np.clip(at, 0.0, self.room.size)
+        self.v.vel[i] = velocity if np.hypot(*velocity) <= self.v.max_speed[i] else np.zeros(2)
+        self.v.heading[i] = heading / np.hypot(*heading)
+
     # -- hearing -----------------------------------------------------------------------------
     def source_at(self, source: str) -> np.ndarray:
         """Where a sound of ``source`` comes from: its creature, else (input) the first tracked
         visitor, else ``input_at``, else the listener."""
         if source in self.index:
             return self.v.pos[self.index[source]].copy()
+        if source in self._remote:
+            return self.crowd.around.others[self._remote[source], :2].copy()
         if len(self.crowd.around.visitors):
             return self.crowd.around.visitors[0].copy()
         return np.array(self.section.input_at if self.section.input_at is not None else self.listener, float)
@@ -297,10 +373,15 @@ class Stage:
         return pan.reshape(len(pos), -1) * self.law.gain(norms(pos - self.listener))[:, None]
 
     # -- what a creature perceives of the room (the percepts of creatures/authored/percepts.py) --
+    def _everyone(self) -> np.ndarray:
+        """Where every creature stands: the crowd's, then a shared room's remote ones."""
+        others = self.crowd.around.others
+        return np.vstack([self.v.pos, others[:, :2]]) if len(others) else self.v.pos
+
     def _index(self) -> cKDTree:
-        """A kd-tree of the crowd as it stands now (rebuilt once per sub-step it is asked in)."""
+        """A kd-tree of every creature as it stands now (rebuilt once per sub-step it is asked in)."""
         if self._tree_at != self.crowd.steps:
-            self._tree, self._tree_at = cKDTree(self.v.pos), self.crowd.steps
+            self._tree, self._tree_at = cKDTree(self._everyone()), self.crowd.steps
         return self._tree
 
     def nearest(self, name: str, of: str) -> np.ndarray | None:
@@ -309,10 +390,11 @@ class Stage:
         i = self.index[name]
         here = self.v.pos[i]
         if of == "creature":
-            if len(self.v) < 2:
+            everyone = self._everyone()
+            if len(everyone) < 2:
                 return None
             _, j = self._index().query(here, k=2)
-            return self.v.pos[j[1] if j[0] == i else j[0]]
+            return everyone[j[1] if j[0] == i else j[0]]
         around = self.crowd.around
         points = {"visitor": around.visitors, "player": around.player, "loud": around.loud}[of]
         if not len(points):
@@ -334,8 +416,8 @@ class Stage:
         """Degrees from creature ``name``'s heading to ``source`` as the world names who played
         a note: another creature of the room, or ``input`` (the player, where the last outside
         note came from); None when it is not placed."""
-        if source in self.index:
-            return self._bearing(name, self.v.pos[self.index[source]])
+        if source in self.index or source in self._remote:
+            return self._bearing(name, self.source_at(source))
         return self.bearing(name, "player")
 
     def _bearing(self, name: str, where: np.ndarray) -> float:
@@ -357,7 +439,7 @@ class Stage:
             things = self.crowd.around.visitors
         else:
             near = self._index().query_ball_point(self.v.pos[i], spec.sight)
-            things = self.v.pos[[j for j in near if j != i]]
+            things = self._everyone()[[j for j in near if j != i]]
         if not len(things):
             return 0
         return int(visible(self.v.pos[i:i + 1], self.v.heading[i:i + 1], things, self.room, fov=spec.fov,

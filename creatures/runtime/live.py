@@ -45,6 +45,7 @@ from creatures.runtime.bodies import FramesBeside
 from creatures.runtime.input_sources import SerialSource, open_sources
 from creatures.runtime.live_score import KEPT, LiveScore, RecordingSink
 from creatures.runtime.network import Network, open_listener
+from creatures.runtime.shared_room import open_shared_room
 from creatures.runtime.outlets import Outlets, check_ports
 from creatures.runtime.schema import LoadedInstallation
 from creatures.runtime.session import Session, write_snapshot
@@ -106,6 +107,7 @@ class LiveSummary:
     messages: list[str] = field(default_factory=list)
     sound: str = ""  # where the mix went: "live at 44100 Hz (resampled from 22050 Hz)" or "silent: why"
     network: dict[str, object] | None = None  # the OSC counters (Network.counts) when [osc] port is set
+    room_share: dict[str, object] | None = None  # the shared room's counters (RoomShare.counts) with [room.share]
     outlets: dict[str, object] = field(default_factory=dict)  # body stream and console counters (Outlets.counts)
 
 
@@ -369,6 +371,7 @@ def run_live(
         feed = Feed(settings.title, session.creatures, log, clock, settings.view.fps)
         server = ViewServer(LiveSource(feed, settings.view.fps), view).start()
     inputs = LiveInputs(inst, session, clock, say, supervisor=supervisor, epoch=epoch)
+    shared = open_shared_room(inst, session, epoch, say)
     sr = settings.audio.sample_rate
     # Creatures synthesise at the config's rate; the device plays at its own (JACK will not
     # change it), so the mix is resampled on the way out. A device that is absent, or vanishes
@@ -539,6 +542,10 @@ def run_live(
             inputs.close()
             if inputs.network is not None:
                 summary.network = inputs.network.counts()
+            if shared is not None:
+                summary.room_share = shared.counts()
+                session.world.emit("room share", **summary.room_share)
+                shared.close()
             log.close()
             if score is not None:
                 score.wait()

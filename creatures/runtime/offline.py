@@ -40,6 +40,7 @@ from creatures.runtime.schema import Installation, LoadedInstallation
 from creatures.runtime.speech_input import spoken_poem
 from creatures.runtime.stream_sinks import JsonLinesStreamSink
 from creatures.runtime.session import Session
+from creatures.runtime.shared_room import offline_note
 from creatures.runtime.score import write_score
 from creatures.view.poses import PoseLog
 from midi.files import read_notes
@@ -138,6 +139,8 @@ def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path 
     messages: list[str] = []
     log = EventLog(out / "events.jsonl", report=messages.append)
     session = Session(inst, clock, log, sink, say=messages.append)
+    if (note := offline_note(inst)) is not None:
+        messages.append(note)
     session.world.recording = settings.output.midi  # out.mid's input track and heard tempo
     sources = open_sources(inst, session.inputs, clock, messages.append, live=False)  # rehearsal files
     session.world.emit("run", title=settings.title, mode="offline", duration=duration, seed=settings.seed,

@@ -192,7 +192,8 @@ class Session:
         """What :meth:`save_state` writes, as ``(file name, JSON text)``, encoded now (a
         consistent instant of the colony); :func:`write_snapshot` does the slow part."""
         files = [(f"{creature.name}.json", json_text({"kind": creature.spec.kind, "state": creature.state(),
-                                                      **self._motion(creature)}, kind=STATE_KIND))
+                                                      **self._motion(creature), **self._place(creature)},
+                                                     kind=STATE_KIND))
                  for creature in self.creatures]
         return files + [(COLONY_FILE, json_text(self.world.pulse.to_dict(), kind=COLONY_KIND))]
 
@@ -203,6 +204,11 @@ class Session:
         if trail is None:
             return {}
         return {"motion": {**trail.path_state(), "config": str(self.inst.path)}}
+
+    def _place(self, creature: Any) -> dict[str, Any]:
+        """Where it stands in the room (none without one): restored, so a restarted process's
+        creatures walk on from where they were (``Stage.placement``)."""
+        return {} if self.stage is None else {"place": self.stage.placement(creature.name)}
 
     def load_state(self, directory: Path) -> list[str]:
         """Restore creatures from ``directory`` where a file exists; returns who was restored.
@@ -225,6 +231,8 @@ class Session:
                 state = from_retired(path, data.get("kind"), state, creature)
             try:
                 creature.restore(state)
+                if self.stage is not None and "place" in data:
+                    self.stage.put(creature.name, data["place"])
                 # A state that loads is one that saves: what was taken back must write out again.
                 json.dumps(creature.state(), allow_nan=False)
             except RESTORE_ERRORS as exc:

@@ -1,0 +1,238 @@
+"""One room across processes and machines (``[room.share]``): each process owns some creatures,
+tells the others where they stand and what they play (:mod:`creatures.room.wire`), and sees
+and hears theirs (REACT: one organizer's room; IViHumans: minds that talk over a protocol).
+
+Design:
+
+* **Ownership.** Every process is an *owner* (host name and process id: a restarted process is
+  a new owner). A remote creature belongs to the owner that last spoke of it, so a process
+  that was killed and started again takes its creatures back at once, before the old owner's
+  silence times out. An owner not heard for ``timeout`` seconds leaves the room with every
+  creature still its own; a ``bye`` makes it leave at once.
+* **Time.** Positions are stamped with the sender's clock time as Unix time, and with the
+  beat of Ableton Link's shared timeline when ``link = true`` (:mod:`creatures.room.link`),
+  which needs no synchronised clocks across machines. A hearer places a remote creature where
+  it is *now*: the stamped position moved on by its velocity for the stamp's age (dead
+  reckoning), and every sub-step after that (:meth:`creatures.room.motion.Crowd.step`). At 25
+  updates a second the error is what a vehicle's force bends its path in 40 ms: millimetres.
+* **Notes** travel time-tagged with their start; the hearer injects them at that time from
+  the creature's remote place, so the room's distance law and delay apply as for its own.
+* **Bounds.** Every datagram is checked and bounded (:mod:`.wire`); at most
+  :data:`MOST_OWNERS` owners and :data:`MOST_REMOTE` remote creatures are kept; a remote name
+  that is one of this process's own creatures is refused; each refusal is counted by cause.
+* **Off the creature's thread.** The socket is non-blocking and read once a tick (a bounded
+  number of datagrams); discovery (:mod:`creatures.room.discovery`, mDNS) and Link run on
+  their own threads and hand over only a set of addresses and two numbers.
+"""
+
+from __future__ import annotations
+
+import os
+import socket
+from collections import Counter
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Callable, Protocol
+
+import numpy as np
+
+from creatures.room import wire
+from midi.notes import NoteEvent
+
+if TYPE_CHECKING:
+    from creatures.room.spec import ShareSpec
+
+MOST_OWNERS = 64
+"""Processes a room keeps track of (a gallery's machines, with room to spare)."""
+
+MOST_REMOTE = 10_000
+"""Remote creatures kept, all owners together."""
+
+READS_PER_TICK = 1024
+"""Datagrams read in one tick at most (the rest wait in the socket's buffer)."""
+
+
+class Timeline(Protocol):
+    """A shared beat (:class:`creatures.room.link.LinkBeat`)."""
+
+    def beat_at(self, unix: float) -> float: ...
+
+    @property
+    def tempo(self) -> float: ...
+
+
+@dataclass
+class Remote:
+    """One remote creature: who owns it, its row (x, y, vx, vy, hx, hy, radius) and when (local
+    clock time) that row was true."""
+
+    owner: str
+    row: np.ndarray
+    t: float
+
+
+class RoomShare:
+    """This process's side of a shared room.
+
+    ``epoch`` is the Unix time of clock time 0 (``t``); ``timeline`` a shared beat, or None;
+    ``peers`` the addresses discovery has found so far (called each time it is needed).
+    """
+
+    def __init__(self, spec: "ShareSpec", own: list[str], epoch: float, *,
+                 timeline: Timeline | None = None,
+                 peers: Callable[[], set[tuple[str, int]]] = set) -> None:
+        self.spec, self.own, self.epoch, self.timeline = spec, set(own), epoch, timeline
+        self.discovered = peers
+        self.owner = f"{socket.gethostname()[:64]}-{os.getpid()}"
+        self.configured = {_address(p) for p in spec.peers}
+        self.socket = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        try:
+            self.socket.bind((spec.host, spec.port))
+        except OSError:
+            self.socket.close()
+            raise
+        self.socket.setblocking(False)
+        self.port: int = self.socket.getsockname()[1]
+        self.remote: dict[str, Remote] = {}
+        self.owners: dict[str, float] = {}  # owner -> local time last heard
+        self.dropped: Counter[str] = Counter()
+        self.received = self.sent = self.send_errors = 0
+        self._seq = 0
+        self._next_send = -np.inf
+        self._notes: list[tuple[str, NoteEvent]] = []
+        self.joined: list[str] = []  # owners met since last asked (for the events log)
+        self.left: list[tuple[str, str]] = []  # (owner, why)
+
+    # -- time ------------------------------------------------------------------------------
+    def beat(self, t: float) -> float:
+        """Link's shared beat at clock time ``t`` (−1 without Link)."""
+        return -1.0 if self.timeline is None else self.timeline.beat_at(self.epoch + t)
+
+    def _local(self, at: float, beat: float, t: float) -> float:
+        """Local clock time of a stamp: by Link's beat when both sides have it, else by Unix
+        time, else (``at`` ≤ 0: a client that cannot say when) now."""
+        if self.timeline is not None and beat >= 0:
+            return t - (self.beat(t) - beat) * 60.0 / self.timeline.tempo
+        return at - self.epoch if at > 0 else t
+
+    # -- out -------------------------------------------------------------------------------
+    def targets(self) -> set[tuple[str, int]]:
+        here = {(self.spec.host, self.port), ("127.0.0.1", self.port)}
+        return (self.configured | self.discovered()) - here
+
+    def _send(self, datagrams: list[bytes]) -> None:
+        for address in self.targets():
+            for data in datagrams:
+                try:
+                    self.socket.sendto(data, address)
+                    self.sent += 1
+                except OSError:  # a peer that is gone must not stop the others hearing us
+                    self.send_errors += 1
+
+    def publish(self, t: float, names: list[str], rows: np.ndarray) -> None:
+        """Where this process's creatures stand at ``t`` (rows (n, COLUMNS)), at most ``rate`` times a second."""
+        if t < self._next_send:
+            return
+        self._next_send = t + 1.0 / self.spec.rate
+        self._seq += 1
+        self._send(wire.bodies(self.spec.room, self.owner, self._seq, self.epoch + t, self.beat(t), names, rows))
+
+    def played(self, creature: str, note: NoteEvent) -> None:
+        """A note one of this process's creatures plays, to every peer, stamped with its start."""
+        if creature in self.own:
+            self._send([wire.note(self.spec.room, self.owner, creature, note, self.epoch + note.time,
+                                  self.beat(note.time))])
+
+    # -- in --------------------------------------------------------------------------------
+    def poll(self, t: float) -> list[tuple[str, NoteEvent]]:
+        """Read what arrived; the remote notes (creature, note at local time) to inject."""
+        for _ in range(READS_PER_TICK):
+            try:
+                data = self.socket.recv(wire.MAX_PACKET + 1)
+            except (BlockingIOError, InterruptedError):
+                break
+            except OSError:  # an ICMP error queued on the socket: the next read is fine
+                continue
+            try:
+                heard = wire.decode(data)
+            except wire.Refused as refused:
+                self.dropped[refused.cause] += 1
+                continue
+            if heard.room != self.spec.room:
+                self.dropped["other room"] += 1
+            elif heard.owner == self.owner:
+                self.dropped["own"] += 1  # our own voice, sent back by a peer list naming us
+            elif self._meet(heard.owner, t):
+                self.received += 1
+                self._take(heard, t)
+        self._expire(t)
+        notes, self._notes = self._notes, []
+        return notes
+
+    def _meet(self, owner: str, t: float) -> bool:
+        if owner not in self.owners:
+            if len(self.owners) >= MOST_OWNERS:
+                self.dropped["owners full"] += 1
+                return False
+            self.joined.append(owner)
+        self.owners[owner] = t
+        return True
+
+    def _take(self, heard: wire.Bodies | wire.Note | wire.Bye, t: float) -> None:
+        if isinstance(heard, wire.Bye):
+            self._leave(heard.owner, "bye")
+            return
+        if isinstance(heard, wire.Note):
+            if heard.creature in self.own:
+                self.dropped["name clash"] += 1
+                return
+            start = self._local(heard.at, heard.beat, t)
+            self._notes.append((heard.creature, NoteEvent(round(start, 6), heard.note.pitch, heard.note.velocity,
+                                                          0, heard.note.duration)))
+            return
+        when = self._local(heard.at, heard.beat, t)
+        for name, row in zip(heard.names, heard.rows):
+            if name in self.own:
+                self.dropped["name clash"] += 1
+            elif name not in self.remote and len(self.remote) >= MOST_REMOTE:
+                self.dropped["creatures full"] += 1
+            else:
+                self.remote[name] = Remote(heard.owner, row, when)
+
+    def _expire(self, t: float) -> None:
+        for owner, last in list(self.owners.items()):
+            if t - last > self.spec.timeout:
+                self._leave(owner, "silent")
+
+    def _leave(self, owner: str, why: str) -> None:
+        self.owners.pop(owner, None)
+        self.remote = {name: r for name, r in self.remote.items() if r.owner != owner}
+        self.left.append((owner, why))
+
+    def others(self, t: float) -> tuple[list[str], np.ndarray]:
+        """Every remote creature's name and row as it stands at ``t`` (moved on by its velocity
+        since its stamp, at most ``timeout`` seconds of it)."""
+        names = list(self.remote)
+        if not names:
+            return names, np.zeros((0, wire.COLUMNS))
+        rows = np.array([r.row for r in self.remote.values()])
+        age = np.clip(t - np.array([r.t for r in self.remote.values()]), 0.0, self.spec.timeout)
+        rows[:, :2] += rows[:, 2:4] * age[:, None]
+        return names, rows
+
+    # -- accounting ----------------------------------------------------------------------
+    def counts(self) -> dict[str, object]:
+        """What came in (``received``, ``dropped`` by cause), who is here, what went out."""
+        return {"received": self.received, "dropped": dict(self.dropped), "owners": len(self.owners),
+                "remote": len(self.remote), "sent": self.sent, "send_errors": self.send_errors,
+                "port": self.port, "peers": len(self.targets())}
+
+    def close(self) -> None:
+        """Say goodbye (creatures leave the others' rooms at once), then close."""
+        self._send([wire.bye(self.spec.room, self.owner)])
+        self.socket.close()
+
+
+def _address(peer: str) -> tuple[str, int]:
+    """``host:port`` as an IPv4 address (the config loader checked the form)."""
+    host, _, port = peer.rpartition(":")
+    return socket.gethostbyname(host or "127.0.0.1"), int(port)

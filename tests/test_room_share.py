@@ -1,0 +1,224 @@
+"""A shared room's parts in one process (issue 21, "one room across machines"): the wire and its
+refusals, two shares on loopback with configured peers (no multicast), remote creatures as
+neighbours, percepts and sound sources on a stage, and places that survive a restart. The
+four-process run with mDNS and Link is tests/test_room_across_processes.py."""
+
+from __future__ import annotations
+
+import select
+import socket
+import textwrap
+
+import numpy as np
+import pytest
+from pythonosc.udp_client import SimpleUDPClient
+
+from creatures.clock import SimulatedClock
+from creatures.config import ConfigError
+from creatures.events import EventLog
+from creatures.persist import StateFileError
+from creatures.room.share import RoomShare
+from creatures.room.spec import ShareSpec
+from creatures.runtime.offline import run_offline
+from creatures.runtime.schema import load_installation
+from creatures.runtime.session import Session
+from creatures.runtime.shared_room import open_shared_room
+from midi.notes import NoteEvent
+from midi.sinks import MemorySink
+
+EPOCH = 1_800_000_000.0
+ROW = [2.0, 3.0, 0.5, 0.0, 1.0, 0.0, 0.25]  # at (2, 3), moving +x at 0.5 m/s, facing +x
+
+
+def shares(*own: list[str], room: str = "gallery") -> list[RoomShare]:
+    """Shares on loopback that know each other's ports (the port each got is only known once
+    bound, so the peers are set after)."""
+    made = [RoomShare(ShareSpec(room=room, discover=False), names, EPOCH) for names in own]
+    for i, s in enumerate(made):
+        s.owner += f"-{i}"  # one process here plays several: each its own owner
+        s.configured = {("127.0.0.1", o.port) for o in made if o is not s}
+    return made
+
+
+def wait_for(share: RoomShare, t: float) -> list:
+    """Poll until a datagram has been taken (loopback delivers in microseconds; the socket is
+    waited on, not slept on)."""
+    select.select([share.socket], [], [], 2.0)
+    return share.poll(t)
+
+
+def test_bodies_cross_and_are_placed_where_they_stand_now():
+    a, b = shares(["a-0", "a-1"], ["b-0"])
+    a.publish(1.0, ["a-0", "a-1"], np.array([ROW, [5, 5, 0, 0, 0, 1, 0.3]]))
+    wait_for(b, 1.0)
+    names, rows = b.others(1.4)  # 0.4 s after the stamp: moved on by its velocity
+    assert names == ["a-0", "a-1"]
+    assert rows[0, :2] == pytest.approx([2.2, 3.0], abs=1e-6)
+    assert rows[1, :2] == pytest.approx([5.0, 5.0]) and rows[1, 6] == pytest.approx(0.3)
+    assert b.joined == [a.owner] and b.counts()["remote"] == 2
+    for s in (a, b):
+        s.close()
+
+
+def test_a_process_leaves_by_bye_by_silence_and_is_taken_over_by_its_restart():
+    a, b = shares(["a-0"], ["b-0"])
+    a.publish(0.0, ["a-0"], np.array([ROW]))
+    wait_for(b, 0.0)
+    b.poll(b.spec.timeout + 0.5)  # nothing more from a: its creature leaves with it
+    assert b.others(3.0)[0] == [] and b.left == [(a.owner, "silent")]
+    a.publish(3.0, ["a-0"], np.array([ROW]))
+    wait_for(b, 3.0)
+    restarted = RoomShare(ShareSpec(room="gallery", discover=False), ["a-0"], EPOCH)
+    restarted.owner += "-again"  # a new process: a new owner, the same creature names
+    restarted.configured = {("127.0.0.1", b.port)}
+    moved = [9.0, 9.0, 0.0, 0.0, 1.0, 0.0, 0.25]
+    restarted.publish(3.1, ["a-0"], np.array([moved]))
+    wait_for(b, 3.1)
+    assert b.remote["a-0"].owner == restarted.owner and b.others(3.1)[1][0, :2] == pytest.approx([9.0, 9.0])
+    a.close()  # the old owner's bye takes nothing: a-0 is the new owner's now
+    wait_for(b, 3.2)
+    assert b.others(3.2)[0] == ["a-0"]
+    restarted.close()
+    wait_for(b, 3.3)
+    assert b.others(3.3)[0] == [] and (restarted.owner, "bye") in b.left
+    b.close()
+
+
+def test_notes_arrive_stamped_with_when_they_started():
+    a, b = shares(["a-0"], ["b-0"])
+    a.played("a-0", NoteEvent(2.5, 64, 90, 0, 0.3))
+    a.played("b-0", NoteEvent(2.5, 64, 90, 0, 0.3))  # not a's: never sent
+    (heard,) = wait_for(b, 2.6)
+    assert heard[0] == "a-0" and heard[1].time == pytest.approx(2.5) and heard[1].pitch == 64
+    for s in (a, b):
+        s.close()
+
+
+def test_a_foreign_osc_client_is_heard_and_junk_is_dropped_and_counted():
+    """python-osc's client (not our code) speaks the protocol with float32 numbers and at = 0
+    ("now"); every datagram that does not fit is dropped and counted by cause."""
+    (b,) = shares(["b-0"])
+    client = SimpleUDPClient("127.0.0.1", b.port)
+    row = np.array([ROW], "<f4").tobytes()
+    client.send_message("/room/bodies", ["gallery", "tracker", 1, 0.0, -1.0, "visitor-1", row])
+    wait_for(b, 5.0)
+    assert b.others(5.0)[1][0, :2] == pytest.approx([2.0, 3.0])  # stamped "now" by the hearer
+    junk = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    for data in (b"not osc at all", b"\x00" * 20000):  # not OSC; too large
+        junk.sendto(data, ("127.0.0.1", b.port))
+    client.send_message("/room/bodies", ["gallery", "t", 1, 0.0, -1.0, "x", b"\x00" * 5])  # rows of 5 bytes
+    client.send_message("/room/bodies", ["gallery", "t", 1, 0.0, -1.0, "x,x", row + row])  # a name twice
+    client.send_message("/room/bodies", ["gallery", "t", 1, 0.0, -1.0, "x",
+                                         np.array([[np.nan, 0, 0, 0, 1, 0, 0.2]], "<f4").tobytes()])
+    client.send_message("/room/bodies", ["gallery", "t", 1, 0.0, -1.0, "x",
+                                         np.array([[1, 1, 500, 0, 1, 0, 0.2]], "<f4").tobytes()])  # 500 m/s
+    client.send_message("/room/bodies", ["gallery", "t", 1, 0.0, -1.0, "b-0", row])  # one of b's own names
+    client.send_message("/room/bodies", ["elsewhere", "t", 1, 0.0, -1.0, "x", row])
+    client.send_message("/room/bodies", ["gallery", "t", 1, 0.0])  # too few arguments
+    client.send_message("/room/note", ["gallery", "t", "x", 60, 0, 0.5, 0.0, -1.0])  # velocity 0
+    client.send_message("/elsewhere", [1])
+    for _ in range(40):
+        wait_for(b, 5.0)
+        if sum(b.dropped.values()) >= 11:
+            break
+    assert dict(b.dropped) == {"not osc": 1, "oversize": 1, "arguments": 5, "name clash": 1, "other room": 1,
+                               "type tags": 1, "address": 1}
+    assert b.others(5.0)[0] == ["visitor-1"]
+    b.close()
+
+
+ROOM = """
+title = "shared"
+seed = 1
+tick = 0.02
+[output]
+report = false
+[room]
+width = 10.0
+depth = 10.0
+{share}
+[[creature]]
+name = "me"
+kind = "authored"
+[creature.vehicle]
+at = [5.0, 5.0]
+radius = 0.25
+max_speed = 1.0
+steer = [{{ behaviour = "separation", weight = 1.0 }}]
+neighbours = 4
+reach = 2.0
+[creature.percepts]
+crowded = {{ type = "crowding", radius = 1.0, full = 1 }}
+heard = {{ type = "heard", window = 0.5 }}
+[creature.tuples.listen]
+action = "rest"
+until = {{ seconds = 1.0 }}
+[creature.groups.main]
+tuples = ["listen"]
+alpha = 0.0
+"""
+
+
+def session(tmp_path, share: str = "") -> Session:
+    path = tmp_path / "shared.toml"
+    path.write_text(textwrap.dedent(ROOM.format(share=share)))
+    return Session(load_installation(path), SimulatedClock(), EventLog(), MemorySink())
+
+
+def test_a_remote_creature_is_a_neighbour_a_percept_and_a_sound_source(tmp_path):
+    """Beside a remote creature 0.5 m to its right, a creature that only separates moves away
+    from it, counts it in its crowd, and hears its note from there, late by the distance."""
+    s = session(tmp_path)
+    (sender,) = shares(["you"])
+    share = RoomShare(ShareSpec(room="gallery", discover=False), ["me"], EPOCH)
+    s.stage.attach(share, s.world)
+    sender.configured = {("127.0.0.1", share.port)}
+    sender.publish(0.0, ["you"], np.array([[5.5, 5.0, 0, 0, 1, 0, 0.25]]))
+    sender.played("you", NoteEvent(0.0, 67, 100, 0, 0.5))
+    select.select([share.socket], [], [], 2.0)
+    t = 0.0
+    for _ in range(50):
+        t = s.clock.advance(0.02)
+        s.step(t, 0, None, audio=False)
+    me = s.creatures[0]
+    assert s.stage.v.pos[0, 0] < 4.9  # pushed away from the remote creature, to its left
+    assert me.percept("crowded").evaluate(t) == 0.0  # moved out of the 1 m radius
+    assert s.stage.crowding("me", 2.0) == 1
+    heard = me.ear.last(1)
+    assert heard and heard[0].pitch == 67 and heard[0].time == pytest.approx(0.5 / 343, abs=1e-5)  # 0.5 m, within the 3 mm it moved
+    for x in (sender, share):
+        x.close()
+
+
+def test_places_survive_a_restart_and_a_damaged_one_names_its_file(tmp_path):
+    s = session(tmp_path)
+    for _ in range(30):
+        t = s.clock.advance(0.02)
+        s.step(t, 0, None, audio=False)
+    s.stage.v.pos[0] = [7.25, 1.5]
+    s.save_state(tmp_path / "state")
+    again = session(tmp_path)
+    assert again.load_state(tmp_path / "state") == ["me"]
+    assert again.stage.v.pos[0] == pytest.approx([7.25, 1.5])
+    path = tmp_path / "state" / "me.json"
+    path.write_text(path.read_text().replace('"at": [\n   7.25', '"at": [\n   "east"'))
+    with pytest.raises(StateFileError, match="me.json.*place.at"):
+        session(tmp_path).load_state(tmp_path / "state")
+
+
+def test_share_config_errors_and_an_offline_run_says_it_is_alone(tmp_path):
+    path = tmp_path / "shared.toml"
+    path.write_text(textwrap.dedent(ROOM.format(share='share = { room = "gallery", peers = ["nowhere"] }')))
+    with pytest.raises(ConfigError) as info:
+        load_installation(path)
+    assert info.value.line == 10 and "host:port" in info.value.message
+    busy = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    busy.bind(("127.0.0.1", 0))
+    port = busy.getsockname()[1]
+    s = session(tmp_path, f'share = {{ room = "gallery", port = {port}, discover = false }}')
+    with pytest.raises(ConfigError) as info:
+        open_shared_room(s.inst, s, EPOCH, print)
+    assert info.value.key == "room.share.port" and "in use" in info.value.message
+    busy.close()
+    summary = run_offline(s.inst, tmp_path / "out", duration=1.0)
+    assert any("[room.share] is for live runs" in m for m in summary.messages)
