@@ -62,3 +62,10 @@ class WallClock:
 
     def now(self) -> float:
         return time.monotonic() - self._t0
+
+
+def next_on_grid(due: float, period: float, t: float) -> float:
+    """When something done every ``period`` s is next due after being done at ``t``: on the grid
+    of its previous due time while it keeps up (``t + period`` from a tick a hair early would skip
+    every other 0.08 s report at a 0.04 s tick), from ``t`` after it fell behind or at the start."""
+    return due + period if due + period > t + 1e-9 else t + period

@@ -55,6 +55,9 @@ def test_bodies_cross_and_are_placed_where_they_stand_now():
     assert names == ["a-0", "a-1"]
     assert rows[0, :2] == pytest.approx([2.2, 3.0], abs=1e-6)
     assert rows[1, :2] == pytest.approx([5.0, 5.0]) and rows[1, 6] == pytest.approx(0.3)
+    # Asked for an instant before the stamp (the stage asks at its crowd's time, then sub-steps
+    # to now), it stands where it was then, not where the stamp has it a tick later.
+    assert b.others(0.8)[1][0, :2] == pytest.approx([1.9, 3.0], abs=1e-6)
     assert b.joined == [a.owner] and b.counts()["remote"] == 2
     for s in (a, b):
         s.close()
@@ -86,6 +89,7 @@ def test_a_process_leaves_by_bye_by_silence_and_is_taken_over_by_its_restart():
 
 def test_notes_arrive_stamped_with_when_they_started():
     a, b = shares(["a-0"], ["b-0"])
+    a.publish(2.5, ["a-0"], np.array([ROW]))  # it stands somewhere before it is heard
     a.played("a-0", NoteEvent(2.5, 64, 90, 0, 0.3))
     a.played("b-0", NoteEvent(2.5, 64, 90, 0, 0.3))  # not a's: never sent
     (heard,) = wait_for(b, 2.6)
@@ -222,3 +226,81 @@ def test_share_config_errors_and_an_offline_run_says_it_is_alone(tmp_path):
     busy.close()
     summary = run_offline(s.inst, tmp_path / "out", duration=1.0)
     assert any("[room.share] is for live runs" in m for m in summary.messages)
+
+
+def test_positions_go_out_on_the_rate_and_stale_or_unplaced_things_are_dropped():
+    """At a 0.04 s tick and 25 updates a second every tick sends (t + 1/rate from a tick a hair
+    early skipped one in six); a note from a creature not yet placed, or far off in time, is
+    dropped and counted; a creature its owner stops speaking of leaves after the timeout."""
+    a, b = shares(["a-0", "a-1"], ["b-0"])
+    ticks = [k * 0.04 for k in range(1, 101)]
+    for t in ticks:
+        a.publish(t, ["a-0", "a-1"], np.array([ROW, ROW]))
+    assert a.sent == len(ticks)
+    a.played("a-0", NoteEvent(3.5, 60, 90, 0, 0.2))  # b polls only now: a-0 was placed first
+    for _ in range(40):
+        wait_for(b, 4.0)
+        if b.received >= len(ticks) + 1:
+            break
+    c = RoomShare(ShareSpec(room="gallery", discover=False), ["c-0"], EPOCH)
+    c.owner += "-c"
+    c.configured = {("127.0.0.1", b.port)}
+    c.played("c-0", NoteEvent(4.0, 60, 90, 0, 0.2))  # c-0 has never said where it stands
+    wait_for(b, 4.0)
+    a.publish(4.04, ["a-0"], np.array([ROW]))  # a speaks only of a-0 from now on
+    a.played("a-0", NoteEvent(60.0, 60, 90, 0, 0.2))  # a minute ahead: not a note to keep
+    wait_for(b, 4.04)
+    assert b.dropped["unplaced"] == 1 and b.dropped["time"] == 1
+    a.publish(6.0, ["a-0"], np.array([ROW]))
+    wait_for(b, 6.1)
+    assert b.others(6.1)[0] == ["a-0"]  # a-1 unheard for 2.1 s > timeout
+    for s in (a, b, c):
+        s.close()
+
+
+def test_without_zeroconf_or_aalink_the_room_is_shared_with_configured_peers(tmp_path, monkeypatch):
+    monkeypatch.setitem(__import__("sys").modules, "zeroconf", None)  # `import zeroconf` raises ImportError
+    monkeypatch.setitem(__import__("sys").modules, "aalink", None)
+    s = session(tmp_path, 'share = { room = "gallery", link = true, peers = ["127.0.0.1:9"] }')
+    said: list[str] = []
+    shared = open_shared_room(s.inst, s, EPOCH, said.append)
+    assert shared is not None and shared.discovery is None and shared.link is None
+    assert any("pip install zeroconf" in m for m in said) and any("pip install aalink" in m for m in said)
+    assert shared.share.targets() == {("127.0.0.1", 9)}
+    shared.close()
+    bad = session(tmp_path, 'share = { room = "gallery", discover = false, peers = ["no-such-host.invalid:9000"] }')
+    with pytest.raises(ConfigError) as info:
+        open_shared_room(bad.inst, bad, EPOCH, said.append)
+    assert info.value.key == "room.share.peers.0" and "does not resolve" in info.value.message
+
+
+class Beat:
+    """A shared timeline that jumps (a Link session joined late, a machine that slept)."""
+
+    tempo = 120.0
+
+    def __init__(self) -> None:
+        self.offset = 0.0
+
+    def beat_at(self, unix: float) -> float:
+        return (unix - EPOCH) * 2.0 + self.offset
+
+
+def test_each_shared_beat_is_heard_once_and_a_jump_is_not_a_flood(tmp_path):
+    s = session(tmp_path)
+    timeline = Beat()
+    share = RoomShare(ShareSpec(room="gallery", discover=False), ["me"], EPOCH, timeline=timeline)
+    s.stage.attach(share, s.world)
+    heard: list[float] = []
+    s.world.pulse.hear = heard.append  # what the colony's pulse is told
+    for _ in range(100):  # 2 s at 120 BPM: four beats
+        t = s.clock.advance(0.02)
+        s.step(t, 0, None, audio=False)
+    assert heard == pytest.approx([0.5, 1.0, 1.5, 2.0], abs=1e-9) or heard == pytest.approx([0.0, 0.5, 1.0, 1.5, 2.0])
+    timeline.offset = 1e6  # a million beats ahead at once
+    del heard[:]
+    for _ in range(50):
+        t = s.clock.advance(0.02)
+        s.step(t, 0, None, audio=False)
+    assert 1 <= len(heard) <= 3  # on from the new beat, not a million beats at once
+    share.close()

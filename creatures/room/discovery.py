@@ -16,6 +16,8 @@ import threading
 
 SERVICE = "_creatures-room._udp.local."
 RESOLVE_MS = 1500
+MOST_FOUND = 64
+"""Peers kept (as many as a room keeps owners: creatures.room.share.MOST_OWNERS)."""
 
 
 class DiscoveryUnavailable(RuntimeError):
@@ -47,6 +49,14 @@ class Discovery:
             return set(self._found.values())
 
     def _run(self) -> None:
+        """Announce, then resolve what the browser finds until closed; any failure is kept in
+        :attr:`error` (the run's summary says it) and the room goes on with its configured peers."""
+        try:
+            self._serve()
+        except Exception as exc:  # noqa: BLE001 - a thread's failure must be said, never lost
+            self.error = f"mDNS discovery stopped ({type(exc).__name__}: {exc}); reaching only the configured peers"
+
+    def _serve(self) -> None:
         from zeroconf import IPVersion, ServiceBrowser, ServiceInfo, ServiceStateChange, Zeroconf
         try:
             zc = Zeroconf(ip_version=IPVersion.V4Only)
@@ -73,10 +83,11 @@ class Discovery:
                 found = zc.get_service_info(SERVICE, name, timeout=RESOLVE_MS)
                 if found is None or found.properties.get(b"room") != self.room.encode() or not found.port:
                     continue
-                addresses = found.parsed_addresses()
-                if addresses:
+                addresses = sorted(found.parsed_addresses(), key=lambda a: a.startswith("127."))
+                if addresses:  # another machine's own address before its loopback
                     with self._lock:
-                        self._found[name] = (addresses[0], found.port)
+                        if name in self._found or len(self._found) < MOST_FOUND:
+                            self._found[name] = (addresses[0], found.port)
         finally:
             browser.cancel()
             try:
@@ -95,4 +106,5 @@ def _addresses(host: str) -> list[str]:
         return [host]
     import ifaddr
     found = [ip.ip for adapter in ifaddr.get_adapters() for ip in adapter.ips if isinstance(ip.ip, str)]
-    return found or ["127.0.0.1"]
+    reachable = [a for a in found if not a.startswith("127.")]  # what another machine can reach
+    return reachable or found or ["127.0.0.1"]

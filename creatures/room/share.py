@@ -9,12 +9,14 @@ Design:
   that was killed and started again takes its creatures back at once, before the old owner's
   silence times out. An owner not heard for ``timeout`` seconds leaves the room with every
   creature still its own; a ``bye`` makes it leave at once.
-* **Time.** Positions are stamped with the sender's clock time as Unix time, and with the
-  beat of Ableton Link's shared timeline when ``link = true`` (:mod:`creatures.room.link`),
-  which needs no synchronised clocks across machines. A hearer places a remote creature where
-  it is *now*: the stamped position moved on by its velocity for the stamp's age (dead
-  reckoning), and every sub-step after that (:meth:`creatures.room.motion.Crowd.step`). At 25
-  updates a second the error is what a vehicle's force bends its path in 40 ms: millimetres.
+* **Time.** Positions and notes are stamped with the sender's clock time as Unix time (the
+  machines' clocks kept together by NTP: :meth:`RoomShare._local` says why not by Link), and
+  with its beat on Ableton Link's timeline when ``link = true`` (:mod:`creatures.room.link`),
+  which gives the colony one beat and tempo: each shared beat is heard by its pulse. A hearer
+  places a remote creature where it is *now*: the stamped position moved on by its velocity
+  for the stamp's age (dead reckoning), and every sub-step after that
+  (:meth:`creatures.room.motion.Crowd.step`). At 25 updates a second the error is what a
+  vehicle's force bends its path in 40 ms: millimetres.
 * **Notes** travel time-tagged with their start; the hearer injects them at that time from
   the creature's remote place, so the room's distance law and delay apply as for its own.
 * **Bounds.** Every datagram is checked and bounded (:mod:`.wire`); at most
@@ -35,6 +37,7 @@ from typing import TYPE_CHECKING, Callable, Protocol
 
 import numpy as np
 
+from creatures.clock import next_on_grid
 from creatures.room import wire
 from midi.notes import NoteEvent
 
@@ -83,7 +86,7 @@ class RoomShare:
         self.spec, self.own, self.epoch, self.timeline = spec, set(own), epoch, timeline
         self.discovered = peers
         self.owner = f"{socket.gethostname()[:64]}-{os.getpid()}"
-        self.configured = {_address(p) for p in spec.peers}
+        self.configured = {_address(i, p) for i, p in enumerate(spec.peers)}
         self.socket = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         try:
             self.socket.bind((spec.host, spec.port))
@@ -107,11 +110,15 @@ class RoomShare:
         """Link's shared beat at clock time ``t`` (−1 without Link)."""
         return -1.0 if self.timeline is None else self.timeline.beat_at(self.epoch + t)
 
-    def _local(self, at: float, beat: float, t: float) -> float:
-        """Local clock time of a stamp: by Link's beat when both sides have it, else by Unix
-        time, else (``at`` ≤ 0: a client that cannot say when) now."""
-        if self.timeline is not None and beat >= 0:
-            return t - (self.beat(t) - beat) * 60.0 / self.timeline.tempo
+    def _local(self, at: float, t: float) -> float:
+        """Local clock time of a stamp (``at``, Unix time), or now for a client that cannot say
+        when (``at`` ≤ 0).
+
+        Not by Link's beat: Link shares tempo and phase, not beat numbers (a peer that joins
+        late counts from its own start, 170 beats off in the four-process test), and a timeline
+        jumps while sessions merge (one process's beat strayed 23 ms rms from a straight line
+        of Unix time as the others joined), so the Unix clocks, kept together by NTP across
+        machines, are the steadier ruler for where a creature was."""
         return at - self.epoch if at > 0 else t
 
     # -- out -------------------------------------------------------------------------------
@@ -130,9 +137,9 @@ class RoomShare:
 
     def publish(self, t: float, names: list[str], rows: np.ndarray) -> None:
         """Where this process's creatures stand at ``t`` (rows (n, COLUMNS)), at most ``rate`` times a second."""
-        if t < self._next_send:
+        if t + 1e-9 < self._next_send:
             return
-        self._next_send = t + 1.0 / self.spec.rate
+        self._next_send = next_on_grid(self._next_send, 1.0 / self.spec.rate, t)
         self._seq += 1
         self._send(wire.bodies(self.spec.room, self.owner, self._seq, self.epoch + t, self.beat(t), names, rows))
 
@@ -185,11 +192,17 @@ class RoomShare:
             if heard.creature in self.own:
                 self.dropped["name clash"] += 1
                 return
-            start = self._local(heard.at, heard.beat, t)
+            if heard.creature not in self.remote:  # heard from nowhere: it must stand in the room first
+                self.dropped["unplaced"] += 1
+                return
+            start = self._local(heard.at, t)
+            if abs(start - t) > self.spec.timeout:  # a clock far off, or a note long past: never a pile-up
+                self.dropped["time"] += 1
+                return
             self._notes.append((heard.creature, NoteEvent(round(start, 6), heard.note.pitch, heard.note.velocity,
                                                           0, heard.note.duration)))
             return
-        when = self._local(heard.at, heard.beat, t)
+        when = self._local(heard.at, t)
         for name, row in zip(heard.names, heard.rows):
             if name in self.own:
                 self.dropped["name clash"] += 1
@@ -199,9 +212,13 @@ class RoomShare:
                 self.remote[name] = Remote(heard.owner, row, when)
 
     def _expire(self, t: float) -> None:
+        """Owners not heard for ``timeout`` leave with their creatures; so does each creature
+        its owner stopped speaking of (it left that process's config, or its datagram is lost)."""
         for owner, last in list(self.owners.items()):
             if t - last > self.spec.timeout:
                 self._leave(owner, "silent")
+        if any(t - r.t > self.spec.timeout for r in self.remote.values()):
+            self.remote = {name: r for name, r in self.remote.items() if t - r.t <= self.spec.timeout}
 
     def _leave(self, owner: str, why: str) -> None:
         self.owners.pop(owner, None)
@@ -209,13 +226,15 @@ class RoomShare:
         self.left.append((owner, why))
 
     def others(self, t: float) -> tuple[list[str], np.ndarray]:
-        """Every remote creature's name and row as it stands at ``t`` (moved on by its velocity
-        since its stamp, at most ``timeout`` seconds of it)."""
+        """Every remote creature's name and row as it stands at ``t`` (moved by its velocity from
+        its stamp to ``t``, at most ``timeout`` seconds of it)."""
         names = list(self.remote)
         if not names:
             return names, np.zeros((0, wire.COLUMNS))
         rows = np.array([r.row for r in self.remote.values()])
-        age = np.clip(t - np.array([r.t for r in self.remote.values()]), 0.0, self.spec.timeout)
+        # Negative when the stamp is newer than ``t`` (the stage asks at its crowd's time, the
+        # start of the sub-steps to come): moved back, so the sub-steps bring it to now.
+        age = np.clip(t - np.array([r.t for r in self.remote.values()]), -self.spec.timeout, self.spec.timeout)
         rows[:, :2] += rows[:, 2:4] * age[:, None]
         return names, rows
 
@@ -232,7 +251,18 @@ class RoomShare:
         self.socket.close()
 
 
-def _address(peer: str) -> tuple[str, int]:
+class PeerError(ValueError):
+    """A configured peer whose host does not resolve; ``index`` is its place in ``peers``."""
+
+    def __init__(self, index: int, message: str) -> None:
+        super().__init__(message)
+        self.index = index
+
+
+def _address(index: int, peer: str) -> tuple[str, int]:
     """``host:port`` as an IPv4 address (the config loader checked the form)."""
     host, _, port = peer.rpartition(":")
-    return socket.gethostbyname(host or "127.0.0.1"), int(port)
+    try:
+        return socket.gethostbyname(host or "127.0.0.1"), int(port)
+    except OSError as exc:
+        raise PeerError(index, f"peer {peer!r}: {host!r} does not resolve to an IPv4 address ({exc})") from None

@@ -19,7 +19,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from creatures import bounds
-from creatures.clock import clock_gap
+from creatures.clock import clock_gap, next_on_grid
 from creatures.room.director import FlowField, Path
 from creatures.room.hearing import Arrival, DistanceLaw, Masking, arrive, db_velocity, velocity_db
 from creatures.room.lod import LevelOfDetail
@@ -240,8 +240,8 @@ class Stage:
                       "unix": round(self.share.epoch + self.crowd.t, 6)}
             if self.share.timeline is not None:
                 shared["beat"] = round(self.share.beat(self.crowd.t), 6)
-        if t >= self._next_report:  # where everyone is, for the report and for tests
-            self._next_report = t + self.section.report_every
+        if t + 1e-9 >= self._next_report:  # where everyone is, for the report and for tests
+            self._next_report = next_on_grid(self._next_report, self.section.report_every, t)
             emit("room", pos=np.round(self.v.pos, 3 + bool(shared)).tolist(),
                  heading=np.round(self.v.heading, 3).tolist(),
                  visitors=np.round(self.crowd.around.visitors, 3).tolist(), masked=self.masked, **shared)
@@ -267,7 +267,7 @@ class Stage:
         share.joined, share.left = [], []
         if share.timeline is not None:
             beat = share.timeline.beat_at(share.epoch + t)
-            if self._next_beat == -np.inf:
+            if not self._next_beat - 2 <= beat <= self._next_beat + 4:  # joining, a suspend, a jump: start again
                 self._next_beat = np.ceil(beat)
             while self._next_beat <= beat:
                 world.pulse.hear(t - (beat - self._next_beat) * 60.0 / share.timeline.tempo)
@@ -334,7 +334,7 @@ class Stage:
         where = self.source_at(source)
         if note.velocity >= self.section.hearing.loud:
             self._loud.append((note.time + LOUD_FOR, where))
-        if source not in self.index:
+        if source not in self.index and source not in self._remote:  # a shared room's creatures are not players
             self._player = (note.time + PLAYER_FOR, where)
         distance = norms(self.v.pos - where)
         me = self.index.get(source, -1)

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Callable
 
 from creatures.room.discovery import Discovery, DiscoveryUnavailable
 from creatures.room.link import LinkBeat, LinkUnavailable
-from creatures.room.share import RoomShare
+from creatures.room.share import PeerError, RoomShare
 
 if TYPE_CHECKING:
     from creatures.config import ConfigError
@@ -56,9 +56,11 @@ def open_shared_room(inst: "LoadedInstallation", session: "Session", epoch: floa
             say(str(exc))
     try:
         share = RoomShare(spec, [c.name for c in session.creatures], epoch, timeline=link)
-    except OSError as exc:
+    except (OSError, PeerError) as exc:
         if link is not None:
             link.close()
+        if isinstance(exc, PeerError):
+            raise inst.error(("room", "share", "peers", exc.index), str(exc)) from None
         raise _where(inst, exc, spec.port) from None
     discovery = None
     if spec.discover:
