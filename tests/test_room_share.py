@@ -304,3 +304,19 @@ def test_each_shared_beat_is_heard_once_and_a_jump_is_not_a_flood(tmp_path):
         s.step(t, 0, None, audio=False)
     assert 1 <= len(heard) <= 3  # on from the new beat, not a million beats at once
     share.close()
+
+
+def test_a_paused_run_stays_in_the_room_standing_still(tmp_path):
+    s = session(tmp_path)
+    (peer,) = shares(["you"])
+    share = RoomShare(ShareSpec(room="gallery", discover=False), ["me"], EPOCH)
+    share.configured = {("127.0.0.1", peer.port)}
+    s.stage.attach(share, s.world)
+    s.stage.v.vel[0] = [0.5, 0.0]  # it was walking when the pause came
+    for k in range(1, 76):  # 3 s paused at a 0.04 s tick (each sends), past the 2 s timeout
+        s.stage.keep_sharing(k * 0.04)
+        wait_for(peer, k * 0.04)
+    names, rows = peer.others(3.0)
+    assert names == ["me"] and rows[0, :2] == pytest.approx(s.stage.v.pos[0]) and not rows[0, 2:4].any()
+    for x in (peer, share):
+        x.close()

@@ -246,6 +246,18 @@ class Stage:
                  heading=np.round(self.v.heading, 3).tolist(),
                  visitors=np.round(self.crowd.around.visitors, 3).tolist(), masked=self.masked, **shared)
 
+    def keep_sharing(self, t: float) -> None:
+        """A paused run (the console's pause, the schedule's night) stays in the shared room: its
+        creatures stand where they are (sent with no velocity, so no one's dead reckoning walks
+        them on), and what the others say is read and dropped (a paused colony forgets what it
+        heard, as ``World.forget`` does), so they do not time it out."""
+        if self.share is None:
+            return
+        self.share.poll(t)
+        v = self.v
+        self.share.publish(t, [c.name for c in self.creatures],
+                           np.column_stack([v.pos, np.zeros_like(v.vel), v.heading, v.radius]))
+
     def _take_share(self, t: float, emit: Callable[..., None]) -> None:
         """What the room's other processes said: their notes into the note bus (heard from
         where their creatures stand), their creatures placed as they stand at the crowd's time

@@ -474,6 +474,8 @@ def run_live(
             frames_done += frames
             heard = microphone.read() if microphone is not None else None
             mix = None if loop.paused else session.step(t, frames, heard, audio=output is not None)
+            if loop.paused and session.stage is not None:
+                session.stage.keep_sharing(t)  # still in the shared room, standing
             if output is not None:
                 output.write(mix if mix is not None else np.zeros((frames, 2), np.float32))
             if inputs.network is not None:
