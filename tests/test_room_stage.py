@@ -253,7 +253,7 @@ def test_a_ring_of_speakers_writes_one_channel_each_panned_by_place(tmp_path):
 
 
 @pytest.mark.slow
-def test_the_flock_gathers_round_whoever_plays_and_sings_along(tmp_path):
+def test_the_flock_gathers_round_whoever_plays_scatters_at_a_loud_chord_and_passes_phrases_along(tmp_path):
     inst = load_installation(installations.path("flock"))
     inst.settings.output.report = False
     run_offline(inst, tmp_path, duration=60.0)
@@ -271,6 +271,19 @@ def test_the_flock_gathers_round_whoever_plays_and_sings_along(tmp_path):
     assert gap > 0.6  # leaving them their own space (flee within 0.8 m)
     singers = {e["creature"] for e in events if e["kind"] == "note" and e["t"] > 10}
     assert len(singers) == 15  # every singer took part
+
+    def nearest(t: int) -> float:
+        return float(np.linalg.norm(np.array(rooms[t]["pos"]) - second, axis=1).min())
+
+    # The loud chord at 50 s (velocity 124, where the visitor stands) scatters the flock for a
+    # moment (flee from loud within 4 m), and it gathers again.
+    assert spread(51, second) > spread(49, second) + 0.4 and nearest(51) > nearest(49) + 0.25
+    assert spread(53, second) < spread(51, second)
+    # Phrases pass along the flock with no one playing: before the visitor comes in (8 s) the
+    # only notes are the singers' own, and many of them pass on what they heard of another.
+    passed = [e for e in events if e["kind"] == "selection" and e["tuple"] == "pass it on" and e["t"] < 8.0]
+    assert not [e for e in events if e["kind"] == "heard" and e["time"] < 8.0]
+    assert len({e["creature"] for e in passed}) >= 8
 
 
 def test_a_pitch_above_nyquist_sounds_octaves_down_instead_of_crashing():
