@@ -87,11 +87,12 @@ class Masking:
 
     def heard(self, arrivals: list[Arrival]) -> list[bool]:
         """Which of ``arrivals`` (at one ear) stand out: not masked and above threshold."""
-        out = []
-        for a in arrivals:
-            masked = a.db < self.threshold or any(
-                b is not a and b.start < a.end and a.start < b.end and b.db - a.db >= self.margin
-                and (a.pitch is None or b.pitch is None or abs(a.pitch - b.pitch) <= self.band)
-                for b in arrivals)
-            out.append(not masked)
-        return out
+        return [self.stands_out(a, arrivals) for a in arrivals]
+
+    def stands_out(self, a: Arrival, arrivals: list[Arrival]) -> bool:
+        """Whether ``a`` stands out among ``arrivals`` at its ear (one sound's answer in O(n):
+        the stage asks only of the sound arriving, not again of every sound sounding there)."""
+        return not (a.db < self.threshold or any(
+            b is not a and b.start < a.end and a.start < b.end and b.db - a.db >= self.margin
+            and (a.pitch is None or b.pitch is None or abs(a.pitch - b.pitch) <= self.band)
+            for b in arrivals))
