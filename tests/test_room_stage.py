@@ -371,3 +371,24 @@ def test_places_and_zones_that_cannot_be_are_config_errors(tmp_path, room, creat
     with pytest.raises(ConfigError, match=message) as info:
         load_installation(write(tmp_path, text))
     assert info.value.line is not None
+
+
+def test_far_creatures_decide_less_often_within_a_budget_and_still_hear(tmp_path):
+    """[room.lod] with decide: a creature 8 m from the listener (level 3) runs its behaviour one
+    tick in eight; two near ones sharing a budget of one decider a tick take turns (neither
+    starves); the far one still hears every note when it starts."""
+    room = "lod = { near = 2.0, levels = 3, decide_budget = 2 }"
+    s, clock = session(tmp_path, room, singer("a", 5.0, 5.0), singer("b", 5.5, 5.0), singer("c", 5.0, 5.5),
+                       singer("far", 9.9, 9.9))
+    ticks = {c.name: 0 for c in s.creatures}
+    for c in s.creatures:
+        def counted(t, c=c, tick=c.tick):
+            ticks[c.name] += 1
+            tick(t)
+        c.tick = counted
+    run(s, clock, 2.0)  # 100 ticks
+    assert 10 <= ticks["far"] <= 13  # one tick in eight, or a tick later when the budget is full
+    assert sum(ticks.values()) == 200 and min(ticks[n] for n in "abc") >= 55  # two a tick, shared
+    s.world.play(s.creatures[0], NoteEvent(2.0, 60, 127, 0, 0.5))
+    run(s, clock, 2.1)
+    assert s.creatures[3].ear.last(1)  # heard on the tick it arrived, deciding or not

@@ -5,6 +5,9 @@ and no more than a budget of creatures steer on one sub-step.
 A creature at level L steers (perceives its neighbours, decides its force) once every 2**L
 sub-steps and holds that force between; every creature still moves every sub-step, because
 the integrator's few array operations over the whole crowd cost less than sorting out who moves.
+With ``decide`` its behaviour (percepts, action selection, its actions' ticks) runs once every
+2**L ticks too, within ``decide_budget`` creatures a tick (:meth:`Stage.deciding`): hearing
+still reaches it every tick, so nothing it hears is lost, only answered later.
 """
 
 from __future__ import annotations
@@ -34,13 +37,15 @@ class LevelOfDetail:
         d, _ = cKDTree(listeners).query(pos)
         return np.clip((d // self.near).astype(np.int64), 0, self.levels)
 
-    def due(self, step: int, level: np.ndarray, distance_rank: np.ndarray) -> np.ndarray:
-        """Indices of the creatures that steer on sub-step ``step``: those whose phase comes
-        round (creature i at level L when (step + i) % 2**L == 0, so a level's creatures are
-        spread over its sub-steps), cut to the budget nearest first (``distance_rank``: lower
-        = nearer)."""
+    def due(self, step: int, level: np.ndarray, distance_rank: np.ndarray, *,
+            budget: int | None | str = "steer") -> np.ndarray:
+        """Indices of the creatures that act on step ``step``: those whose phase comes round
+        (creature i at level L when (step + i) % 2**L == 0, so a level's creatures are spread
+        over its steps), cut to ``budget`` (default: the steering ``budget``) nearest first
+        (``distance_rank``: lower = nearer)."""
+        budget = self.budget if budget == "steer" else budget
         period = np.left_shift(1, level)
         due = np.nonzero((step + np.arange(len(level))) % period == 0)[0]
-        if self.budget is not None and len(due) > self.budget:
-            due = np.sort(due[np.argsort(distance_rank[due], kind="stable")[: self.budget]])
+        if budget is not None and len(due) > budget:
+            due = np.sort(due[np.argsort(distance_rank[due], kind="stable")[:budget]])
         return due

@@ -119,6 +119,10 @@ class LodSpec(Strict):
                                                                "further `near` halves its rate")
     levels: int = Field(3, ge=0, le=8, description="slowest rate is one sub-step in 2**levels")
     budget: int | None = Field(None, ge=1, le=1_000_000, description="most creatures steering in one sub-step")
+    decide: bool = Field(True, description="far creatures also perceive and decide (their behaviour's tick) at "
+                                           "the lower rate")
+    decide_budget: int | None = Field(None, ge=1, le=1_000_000, description="decide = true: most creatures "
+                                      "deciding in one tick (the nearest due first; none = no limit)")
 
 
 class ShareSpec(Strict):

@@ -173,6 +173,8 @@ class Stage:
         self._world: World | None = None
         self._remote: dict[str, int] = {}  # a shared room's remote creature -> its row in around.others
         self._next_beat = np.inf
+        # The tick each last decided on; staggered so a level's creatures spread over its ticks.
+        self._decided = -1 - np.arange(len(creatures), dtype=np.int64) % 256
 
     def attach(self, share: "RoomShare", world: "World") -> None:
         """Share this room with other processes (``[room.share]``, a live run): their creatures
@@ -245,6 +247,29 @@ class Stage:
             emit("room", pos=np.round(self.v.pos, 3 + bool(shared)).tolist(),
                  heading=np.round(self.v.heading, 3).tolist(),
                  visitors=np.round(self.crowd.around.visitors, 3).tolist(), masked=self.masked, **shared)
+
+    def deciding(self, tick: int, dt: float) -> np.ndarray | None:
+        """Which creatures perceive and decide on tick number ``tick`` (``[room.lod] decide``),
+        None for all: a creature at level L once it has waited 2**L ticks, and of more than
+        ``decide_budget`` the most overdue (waited / period) first, the nearer on a tie, then in
+        turn, so a far creature cut one tick is first in line the next and none starves. A level's
+        period is capped so that a creature still decides at least every half second at a tick
+        of ``dt``: a longer wait would look like a clock gap (:data:`creatures.clock.CLOCK_GAP`)
+        to its action-groups."""
+        lod = self.section.lod
+        if lod is None or not lod.decide:
+            return None
+        cap = max(int(np.floor(np.log2(max(0.5 / dt, 1.0)))), 0)
+        period = np.left_shift(1, np.minimum(self.crowd.level, cap))
+        waited = tick - self._decided
+        due = np.nonzero(waited >= period)[0]
+        budget = lod.decide_budget
+        if budget is not None and len(due) > budget:
+            turn = (due + tick) % len(self._decided)  # ties taken in turn, not by index
+            order = np.lexsort((turn, self.crowd.level[due], -waited[due] / period[due]))
+            due = np.sort(due[order[:budget]])
+        self._decided[due] = tick
+        return due
 
     def keep_sharing(self, t: float) -> None:
         """A paused run (the console's pause, the schedule's night) stays in the shared room: its
@@ -366,7 +391,7 @@ class Stage:
             ear = [b for b in self._at_ear[i] if b.end > a.start]
             ear.append(a)
             self._at_ear[i] = ear
-            if not self.masking.heard(ear)[-1]:
+            if not self.masking.stands_out(a, ear):
                 self.masked += 1
                 continue
             note: NoteEvent = a.what  # type: ignore[assignment]

@@ -108,8 +108,9 @@ class Session:
             block = heard if creature.spec.hears_input else room
             if block is not None:
                 creature.listen(t, block, self.sample_rate)
-        for creature in self.creatures:
-            creature.tick(t)
+        deciding = None if self.stage is None else self.stage.deciding(self.ticks, self.inst.settings.tick)
+        for creature in self.creatures if deciding is None else [self.creatures[i] for i in deciding]:
+            creature.tick(t)  # far creatures of a room with level of detail decide less often
         for read, stream in self._cc:
             msg = stream.due(t, read(t))
             if msg is not None:
