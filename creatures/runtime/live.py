@@ -504,6 +504,8 @@ def run_live(
             inputs.poll(start)
             if schedule is not None:
                 schedule.poll()  # closed at start: asleep from the first tick
+            if session.stage is not None:  # the crowd stands through setting up, as a clock gap would have it
+                session.stage.begin(start)
             tick(start)
             notifier.ready(f"{len(session.creatures)} creature(s) running")
             loop.run(tick, until=lambda t: stopping or stops.requested is not None  # a Ctrl-C a finaliser swallowed
