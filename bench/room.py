@@ -31,22 +31,14 @@ from creatures.room.recipe import Behaviour, Recipe, Surroundings
 from creatures.room.space import Obstacle, Room
 from creatures.room.vehicle import Vehicles
 
-SINGERS = """
-title = "bench singers"
-seed = 1
-tick = 0.04
-[output]
-report = false
-[room]
-width = 40.0
-depth = 40.0
-report_every = 10.0
+SINGER = """
 [[creature]]
-name = "s"
+name = "{name}"
 count = {n}
 kind = "authored"
 [creature.vehicle]
 radius = 0.25
+max_speed = {max_speed}
 steer = [{{ behaviour = "wall_avoidance", weight = 3.0 }}, {{ behaviour = "separation", weight = 2.0 }},
          {{ behaviour = "wander", weight = 1.0 }}]
 [creature.drives.boredom]
@@ -59,7 +51,7 @@ drive = "boredom"
 scale = "level"
 [creature.tuples.call]
 trigger = "bored"
-action = {{ type = "play_note", pitch = 60, velocity = 80, duration = 0.2 }}
+action = {{ type = "play_note", pitch = {pitch}, velocity = 80, duration = 0.2 }}
 until = {{ done = true, seconds = 1.0 }}
 value = 1.0
 [creature.tuples.listen]
@@ -69,6 +61,20 @@ value = 0.5
 [creature.groups.song]
 tuples = ["call", "listen"]
 alpha = 0.0
+"""
+"""A crowd of ``n`` wandering singers that call when bored (the bench's and the shared room
+test's: tests/test_room_across_processes.py)."""
+
+SINGERS = """
+title = "bench singers"
+seed = 1
+tick = 0.04
+[output]
+report = false
+[room]
+width = 40.0
+depth = 40.0
+report_every = 10.0
 """
 
 FLOCK = Recipe((Behaviour("wall_avoidance", 3.0), Behaviour("obstacle_avoidance", 2.0), Behaviour("separation", 1.0),
@@ -131,7 +137,7 @@ def singers(n: int, seconds: float) -> float:
 
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "singers.toml"
-        path.write_text(SINGERS.format(n=n))
+        path.write_text(SINGERS + SINGER.format(name="s", n=n, max_speed=1.0, pitch=60))
         clock = SimulatedClock()
         session = Session(load_installation(path), clock, EventLog(keep_in_memory=0), MemorySink())
     for _ in range(25):

@@ -23,6 +23,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from bench.room import SINGER
+
 pytestmark = [pytest.mark.realtime, pytest.mark.slow]
 
 PROCESSES = 4
@@ -54,35 +56,6 @@ width = 20.0
 depth = 20.0
 report_every = 0.08
 share = {{ room = "gallery", link = true, tempo = 100.0, timeout = {timeout} }}
-[[creature]]
-name = "p{k}"
-count = {each}
-kind = "authored"
-[creature.vehicle]
-radius = 0.25
-max_speed = {max_speed}
-steer = [ {{ behaviour = "wall_avoidance", weight = 3.0 }}, {{ behaviour = "separation", weight = 2.0 }},
-          {{ behaviour = "wander", weight = 1.0 }} ]
-[creature.drives.boredom]
-level = 0.2
-growth = 0.04
-on_played = -0.6
-[creature.percepts.bored]
-type = "drive"
-drive = "boredom"
-scale = "level"
-[creature.tuples.call]
-trigger = "bored"
-action = {{ type = "play_note", pitch = {pitch}, velocity = 80, duration = 0.2 }}
-until = {{ done = true, seconds = 1.0 }}
-value = 1.0
-[creature.tuples.listen]
-action = "rest"
-until = {{ gaussian = [1.5, 0.5] }}
-value = 0.5
-[creature.groups.song]
-tuples = ["call", "listen"]
-alpha = 0.0
 """
 
 
@@ -149,8 +122,8 @@ def room(tmp_path_factory):
         configs = []
         for k in range(PROCESSES):
             path = root / f"p{k}.toml"
-            path.write_text(CONFIG.format(k=k, seed=k + 1, tick=TICK, save_every=SAVE_EVERY, timeout=TIMEOUT,
-                                          each=EACH, max_speed=MAX_SPEED, pitch=60 + 3 * k))
+            path.write_text(CONFIG.format(k=k, seed=k + 1, tick=TICK, save_every=SAVE_EVERY, timeout=TIMEOUT)
+                            + SINGER.format(name=f"p{k}", n=EACH, max_speed=MAX_SPEED, pitch=60 + 3 * k))
             configs.append(path)
         runs = [_start(namespace, configs[k], logs[k], root / f"state{k}") for k in range(PROCESSES)]
         _wait("every process sees the other 150", lambda: _all_seen(logs))

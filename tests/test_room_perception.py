@@ -48,9 +48,10 @@ def test_a_quiet_sound_under_a_loud_one_is_masked():
     quiet = arrive(1.2, 0.3, -20.0, 62, "quiet", 8.0, law)  # −38 dB at the ear, during the loud one
     later = arrive(3.0, 0.3, -20.0, 62, "later", 8.0, law)  # same, after the loud one ended
     far_pitch = arrive(1.2, 0.3, -20.0, 90, "high", 8.0, law)  # 30 semitones away: another band
-    heard = Masking(margin=20.0, band=12.0).heard([loud, quiet, later, far_pitch])
+    ear = [loud, quiet, later, far_pitch]
+    heard = [Masking(margin=20.0, band=12.0).stands_out(a, ear) for a in ear]
     assert heard == [True, False, True, True]
-    assert Masking(threshold=-30.0).heard([later]) == [False]  # below the threshold of hearing
+    assert Masking(threshold=-30.0).stands_out(later, [later]) is False  # below the threshold of hearing
 
 
 def test_vbap_pans_between_the_adjacent_pair_at_unit_power():

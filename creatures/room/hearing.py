@@ -85,10 +85,6 @@ class Masking:
     band: float = 12.0
     threshold: float = -60.0
 
-    def heard(self, arrivals: list[Arrival]) -> list[bool]:
-        """Which of ``arrivals`` (at one ear) stand out: not masked and above threshold."""
-        return [self.stands_out(a, arrivals) for a in arrivals]
-
     def stands_out(self, a: Arrival, arrivals: list[Arrival]) -> bool:
         """Whether ``a`` stands out among ``arrivals`` at its ear (one sound's answer in O(n):
         the stage asks only of the sound arriving, not again of every sound sounding there)."""

@@ -101,7 +101,6 @@ class RoomShare:
         self.received = self.sent = self.send_errors = 0
         self._seq = 0
         self._next_send = -np.inf
-        self._notes: list[tuple[str, NoteEvent]] = []
         self.joined: list[str] = []  # owners met since last asked (for the events log)
         self.left: list[tuple[str, str]] = []  # (owner, why)
 
@@ -152,6 +151,7 @@ class RoomShare:
     # -- in --------------------------------------------------------------------------------
     def poll(self, t: float) -> list[tuple[str, NoteEvent]]:
         """Read what arrived; the remote notes (creature, note at local time) to inject."""
+        notes = []
         for _ in range(READS_PER_TICK):
             try:
                 data = self.socket.recv(wire.MAX_PACKET + 1)
@@ -170,9 +170,9 @@ class RoomShare:
                 self.dropped["own"] += 1  # our own voice, sent back by a peer list naming us
             elif self._meet(heard.owner, t):
                 self.received += 1
-                self._take(heard, t)
+                if (note := self._take(heard, t)) is not None:
+                    notes.append(note)
         self._expire(t)
-        notes, self._notes = self._notes, []
         return notes
 
     def _meet(self, owner: str, t: float) -> bool:
@@ -184,24 +184,13 @@ class RoomShare:
         self.owners[owner] = t
         return True
 
-    def _take(self, heard: wire.Bodies | wire.Note | wire.Bye, t: float) -> None:
+    def _take(self, heard: wire.Bodies | wire.Note | wire.Bye, t: float) -> tuple[str, NoteEvent] | None:
+        """Take in one message; a note to inject is returned."""
         if isinstance(heard, wire.Bye):
             self._leave(heard.owner, "bye")
-            return
+            return None
         if isinstance(heard, wire.Note):
-            if heard.creature in self.own:
-                self.dropped["name clash"] += 1
-                return
-            if heard.creature not in self.remote:  # heard from nowhere: it must stand in the room first
-                self.dropped["unplaced"] += 1
-                return
-            start = self._local(heard.at, t)
-            if abs(start - t) > self.spec.timeout:  # a clock far off, or a note long past: never a pile-up
-                self.dropped["time"] += 1
-                return
-            self._notes.append((heard.creature, NoteEvent(round(start, 6), heard.note.pitch, heard.note.velocity,
-                                                          0, heard.note.duration)))
-            return
+            return self._note(heard, t)
         when = self._local(heard.at, t)
         for name, row in zip(heard.names, heard.rows):
             if name in self.own:
@@ -210,6 +199,20 @@ class RoomShare:
                 self.dropped["creatures full"] += 1
             else:
                 self.remote[name] = Remote(heard.owner, row, when)
+        return None
+
+    def _note(self, heard: wire.Note, t: float) -> tuple[str, NoteEvent] | None:
+        if heard.creature in self.own:
+            self.dropped["name clash"] += 1
+            return None
+        if heard.creature not in self.remote:  # heard from nowhere: it must stand in the room first
+            self.dropped["unplaced"] += 1
+            return None
+        start = self._local(heard.at, t)
+        if abs(start - t) > self.spec.timeout:  # a clock far off, or a note long past: never a pile-up
+            self.dropped["time"] += 1
+            return None
+        return heard.creature, NoteEvent(round(start, 6), heard.note.pitch, heard.note.velocity, 0, heard.note.duration)
 
     def _expire(self, t: float) -> None:
         """Owners not heard for ``timeout`` leave with their creatures; so does each creature

@@ -167,12 +167,13 @@ class Stage:
         self._seq = itertools.count()
         self.masked = 0  # arrivals a louder sound hid
         self._tree: cKDTree | None = None
+        self._points = np.zeros((0, 2))  # what the tree holds
         self._tree_at = -1
         self._next_report = 0.0
         self.share: RoomShare | None = None
         self._world: World | None = None
         self._remote: dict[str, int] = {}  # a shared room's remote creature -> its row in around.others
-        self._next_beat = np.inf
+        self._next_beat = -np.inf  # the next shared beat the pulse hears (counted from the first one seen)
         # The tick each last decided on; staggered so a level's creatures spread over its ticks.
         self._decided = -1 - np.arange(len(creatures), dtype=np.int64) % 256
 
@@ -181,8 +182,6 @@ class Stage:
         join the neighbours, the percepts and the ears; ours and our notes go to them."""
         self.share, self._world = share, world
         world.listeners.append(share.played)
-        if share.timeline is not None:
-            self._next_beat = -np.inf
 
     # -- building ------------------------------------------------------------------------
     def _vehicles(self, specs: list[VehicleSpec], rng: np.random.Generator) -> Vehicles:
@@ -232,21 +231,31 @@ class Stage:
         if clock_gap(self.crowd.t, t):
             self.crowd.skip_to(t)  # a gap is not lived: the crowd stands through it
         self.crowd.advance_to(t)
-        shared: dict[str, object] = {}
         if self.share is not None:
-            v = self.v
-            self.share.publish(self.crowd.t, [c.name for c in self.creatures],
-                               np.column_stack([v.pos, v.vel, v.heading, v.radius]))
-            others = self.crowd.around.others
-            shared = {"others": dict(zip(self._remote, np.round(others[:, :2], 4).tolist())),
-                      "unix": round(self.share.epoch + self.crowd.t, 6)}
-            if self.share.timeline is not None:
-                shared["beat"] = round(self.share.beat(self.crowd.t), 6)
+            self.share.publish(self.crowd.t, list(self.index), self._rows(self.v.vel))
         if t + 1e-9 >= self._next_report:  # where everyone is, for the report and for tests
             self._next_report = next_on_grid(self._next_report, self.section.report_every, t)
+            shared = {} if self.share is None else self._shared_report()
             emit("room", pos=np.round(self.v.pos, 3 + bool(shared)).tolist(),
                  heading=np.round(self.v.heading, 3).tolist(),
                  visitors=np.round(self.crowd.around.visitors, 3).tolist(), masked=self.masked, **shared)
+
+    def _rows(self, velocity: np.ndarray) -> np.ndarray:
+        """This process's creatures as a shared room's wire carries them (creatures/room/wire.py)."""
+        v = self.v
+        return np.column_stack([v.pos, velocity, v.heading, v.radius])
+
+    def _shared_report(self) -> dict[str, object]:
+        """What a ``room`` event adds in a shared room: where it sees the others' creatures, at
+        which Unix time (and Link beat), so processes' views can be checked against each other."""
+        share = self.share
+        assert share is not None
+        shared: dict[str, object] = {
+            "others": dict(zip(self._remote, np.round(self.crowd.around.others[:, :2], 4).tolist())),
+            "unix": round(share.epoch + self.crowd.t, 6)}
+        if share.timeline is not None:
+            shared["beat"] = round(share.beat(self.crowd.t), 6)
+        return shared
 
     def deciding(self, tick: int, dt: float) -> np.ndarray | None:
         """Which creatures perceive and decide on tick number ``tick`` (``[room.lod] decide``),
@@ -285,9 +294,7 @@ class Stage:
         if self.share is None:
             return
         self.share.poll(t)
-        v = self.v
-        self.share.publish(t, [c.name for c in self.creatures],
-                           np.column_stack([v.pos, np.zeros_like(v.vel), v.heading, v.radius]))
+        self.share.publish(t, list(self.index), self._rows(np.zeros_like(self.v.vel)))
 
     def _take_share(self, t: float, emit: Callable[..., None]) -> None:
         """What the room's other processes said: their notes into the note bus (heard from
@@ -417,14 +424,17 @@ class Stage:
 
     # -- what a creature perceives of the room (the percepts of creatures/authored/percepts.py) --
     def _everyone(self) -> np.ndarray:
-        """Where every creature stands: the crowd's, then a shared room's remote ones."""
-        others = self.crowd.around.others
-        return np.vstack([self.v.pos, others[:, :2]]) if len(others) else self.v.pos
+        """Where every creature stands now: the crowd's, then a shared room's remote ones (the
+        points of :meth:`_index`, built with it)."""
+        self._index()
+        return self._points
 
     def _index(self) -> cKDTree:
         """A kd-tree of every creature as it stands now (rebuilt once per sub-step it is asked in)."""
         if self._tree_at != self.crowd.steps:
-            self._tree, self._tree_at = cKDTree(self._everyone()), self.crowd.steps
+            others = self.crowd.around.others
+            self._points = np.vstack([self.v.pos, others[:, :2]]) if len(others) else self.v.pos.copy()
+            self._tree, self._tree_at = cKDTree(self._points), self.crowd.steps
         return self._tree
 
     def nearest(self, name: str, of: str) -> np.ndarray | None:
