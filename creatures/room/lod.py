@@ -37,15 +37,13 @@ class LevelOfDetail:
         d, _ = cKDTree(listeners).query(pos)
         return np.clip((d // self.near).astype(np.int64), 0, self.levels)
 
-    def due(self, step: int, level: np.ndarray, distance_rank: np.ndarray, *,
-            budget: int | None | str = "steer") -> np.ndarray:
-        """Indices of the creatures that act on step ``step``: those whose phase comes round
-        (creature i at level L when (step + i) % 2**L == 0, so a level's creatures are spread
-        over its steps), cut to ``budget`` (default: the steering ``budget``) nearest first
-        (``distance_rank``: lower = nearer)."""
-        budget = self.budget if budget == "steer" else budget
+    def due(self, step: int, level: np.ndarray, distance_rank: np.ndarray) -> np.ndarray:
+        """Indices of the creatures that steer on sub-step ``step``: those whose phase comes
+        round (creature i at level L when (step + i) % 2**L == 0, so a level's creatures are
+        spread over its sub-steps), cut to the budget nearest first (``distance_rank``: lower
+        = nearer)."""
         period = np.left_shift(1, level)
         due = np.nonzero((step + np.arange(len(level))) % period == 0)[0]
-        if budget is not None and len(due) > budget:
-            due = np.sort(due[np.argsort(distance_rank[due], kind="stable")[:budget]])
+        if self.budget is not None and len(due) > self.budget:
+            due = np.sort(due[np.argsort(distance_rank[due], kind="stable")[: self.budget]])
         return due

@@ -69,11 +69,6 @@ class Crowd:
         """Each creature's level of detail as last planned (0 without one)."""
         return self._level
 
-    @property
-    def rank(self) -> np.ndarray:
-        """Each creature's place nearest first by level (what a budget keeps)."""
-        return self._rank
-
     def plan(self, listeners: np.ndarray | None = None) -> None:
         """Choose levels of detail from where the ``listeners`` (default: the visitors) are
         now (called by the caller each tick: the levels change as slowly as people walk)."""
