@@ -156,12 +156,14 @@ def test_ratio_metric_gives_a_body_on_the_exchange_graph():
 
 
 def run_colony(out: Path, *, ratio_metric: bool | None = None, graded: bool | None = None,
-               manner: bool = True) -> list[dict]:
+               manner: bool = True, seed: int | None = None) -> list[dict]:
     """The shipped exchange, unfed, for 60 s, with every creature's body on the ratio metric or
     not, and its wander and rest Du graded or not (where given); without its manner layer
-    (looking, the bored adverb) when not ``manner``."""
+    (looking, the bored adverb) when not ``manner``; on another seed than the config's where given."""
     inst = load_installation(installations.path("exchange"))
     inst.settings.output.wav = inst.settings.output.report = False
+    if seed is not None:
+        inst.settings.seed = seed
     for spec in inst.specs:
         if not manner:
             del spec.groups["manner"], spec.tuples["look"], spec.tuples["bored manner"]
@@ -197,16 +199,26 @@ def test_ratio_metric_favours_low_integer_ratio_jumps_on_the_paths_taken(tmp_pat
     """The thesis's twist ("exchange (installation)": the animator can "carve the temporal
     equivalent of note triads out of animation material"): the same colony, same seed, with
     every body on the ratio metric makes more of its within-animation time jumps at
-    low-integer ratios than on the plain metric (measured, seed 7, 60 s: 35 % of 631 jumps
-    against 28 % of 667; seeds 8 and 9 give 30 vs 24 % and 35 vs 29 %). Measured on the
-    wander's own courses: the manner layer moves no course, but its selections draw from the
-    creature's generator and so reshuffle which courses seed 7 gives (31 % against 28 % with it)."""
-    fractions = {}
-    for ratios in (True, False):
-        jumps, fractions[ratios] = on_lattice(run_colony(tmp_path / str(ratios), ratio_metric=ratios, manner=False),
-                                              ratios)
-        assert jumps >= 300, "the bodies should have jumped often enough to count"
-    assert fractions[True] >= fractions[False] + 0.05, fractions
+    low-integer ratios than on the plain metric.
+
+    Measured over seeds 7–15 (60 s each): ahead on every seed, by 0.5 to 6.2 points (mean 3.7;
+    about 32 % of some 580 jumps against 28 % of 630). One seed is not enough: a run's path is
+    chaotic in the metric's last bits (an arc-cosine rounding, 1e-8 rad, moved seed 7 from 35 vs
+    26 % to 31 vs 27 %), so the test pools five seeds and asks every one of them to lean the same
+    way. The manner layer moves no course, but its selections draw from the creature's generator
+    and so reshuffle which courses a seed gives; it is left out."""
+    counts = {True: [0, 0], False: [0, 0]}
+    for seed in range(7, 12):
+        fractions = {}
+        for ratios in (True, False):
+            events = run_colony(tmp_path / f"{seed}-{ratios}", ratio_metric=ratios, manner=False, seed=seed)
+            jumps, fractions[ratios] = on_lattice(events, ratios)
+            assert jumps >= 300, "the bodies should have jumped often enough to count"
+            counts[ratios][0] += jumps
+            counts[ratios][1] += round(fractions[ratios] * jumps)
+        assert fractions[True] > fractions[False], (seed, fractions)
+    pooled = {ratios: on / jumps for ratios, (jumps, on) in counts.items()}
+    assert pooled[True] >= pooled[False] + 0.025, pooled
 
 
 def test_a_graded_du_lets_hunger_interrupt_wandering_and_resting_more(tmp_path: Path):
