@@ -220,6 +220,47 @@ disable = ["echo"]
     assert kinds == [("slow", True), ("slow", False)]
 
 
+def test_overlapping_zones_give_the_latest_zone_s_values_and_the_own_back_after_the_last(tmp_path):
+    """Zones "wide" (3–5 m) and "slow" (4–6 m) overlap: the walker entering wide then slow
+    keeps slow's speed and calm after leaving wide, and its own once out of slow; a tuple both
+    enable stays on across the overlap. (Each zone's own undo once put its own speed back at 5 m.)"""
+    room = """[[room.zones]]
+name = "wide"
+low = [3.0, 0.0]
+high = [5.0, 10.0]
+drives = { calm = 0.5 }
+spec = { max_speed = 0.5 }
+enable = ["echo"]
+
+[[room.zones]]
+name = "slow"
+low = [4.0, 0.0]
+high = [6.0, 10.0]
+drives = { calm = 0.9 }
+spec = { max_speed = 0.25 }
+enable = ["echo"]
+"""
+    walker = singer("w", 1.0, 5.0, vehicle='steer = [{ behaviour = "seek", target = [9.5, 5.0] }]',
+                    extra="[creature.drives.calm]\nlevel = 0.1")
+    s, clock = session(tmp_path, room, walker)
+    w = s.creatures[0]
+    track = []
+    while clock.now() < 20.0:
+        run(s, clock, clock.now() + 0.2)
+        track.append((s.stage.v.pos[0, 0], s.stage.v.speed()[0], w.motivation.level("calm", clock.now()),
+                      "echo" not in w.groups["main"].disabled))
+    def where(lo, hi):
+        return [(speed, calm, echo) for x, speed, calm, echo in track if lo < x < hi]
+    assert where(3.2, 3.8) and all(sp <= 0.5 + 1e-9 and c == pytest.approx(0.5, abs=0.05) and e
+                                   for sp, c, e in where(3.2, 3.8))
+    assert where(5.2, 5.8) and all(sp <= 0.25 + 1e-9 and c == pytest.approx(0.9, abs=0.05) and e
+                                   for sp, c, e in where(5.2, 5.8))  # out of wide, still in slow
+    after = where(7.5, 10.0)
+    assert after and max(sp for sp, _, _ in after) > 0.9
+    assert all(c == pytest.approx(0.1, abs=0.05) and not e for _, c, e in after)
+    assert not any(e for _, _, e in where(0.0, 2.8))  # enabled only inside its zones
+
+
 def test_a_visitor_from_the_tracker_is_sought_and_fled(tmp_path):
     room = 'visitors = [{ x = "vx", y = "vy" }]'
     maps = TRACKER

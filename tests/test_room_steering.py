@@ -262,3 +262,21 @@ def test_level_of_detail_steers_distant_creatures_less_often_within_a_budget():
     assert counts[near].min() >= 75  # every sub-step (a force unchanged by chance aside)
     assert counts[~near].mean() < 45
     assert c.steered <= 80 * 120
+
+
+def test_a_full_steering_budget_starves_no_creature():
+    """100 creatures all near the visitor (each due every sub-step) and a budget of 30: they
+    take turns, so each steers about 30 sub-steps in 100 (ranked by index, the last 70 never did)."""
+    rng = np.random.default_rng(3)
+    v = Vehicles.at(rng.uniform(4, 6, (100, 2)))
+    around = Surroundings(visitors=np.array([[5.0, 5.0]]), visitor_vel=np.zeros((1, 2)))
+    c = Crowd(Room(10, 10), v, [Recipe((Behaviour("wander"),))], lod=LevelOfDetail(near=5.0, budget=30),
+              around=around)
+    c.plan()
+    counts = np.zeros(100)
+    for _ in range(100):
+        before = c.force.copy()
+        c.step()
+        counts += np.any(c.force != before, axis=1)
+    assert c.steered == 100 * 30
+    assert counts.min() >= 28 and counts.max() <= 31

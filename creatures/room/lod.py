@@ -37,13 +37,25 @@ class LevelOfDetail:
         d, _ = cKDTree(listeners).query(pos)
         return np.clip((d // self.near).astype(np.int64), 0, self.levels)
 
-    def due(self, step: int, level: np.ndarray, distance_rank: np.ndarray) -> np.ndarray:
+    def due(self, step: int, level: np.ndarray, last: np.ndarray) -> np.ndarray:
         """Indices of the creatures that steer on sub-step ``step``: those whose phase comes
         round (creature i at level L when (step + i) % 2**L == 0, so a level's creatures are
-        spread over its sub-steps), cut to the budget nearest first (``distance_rank``: lower
-        = nearer)."""
+        spread over its sub-steps) and those a full budget made miss theirs (``last``: the
+        sub-step each last steered), cut to the budget by :func:`overdue_first`."""
         period = np.left_shift(1, level)
-        due = np.nonzero((step + np.arange(len(level))) % period == 0)[0]
-        if self.budget is not None and len(due) > self.budget:
-            due = np.sort(due[np.argsort(distance_rank[due], kind="stable")[: self.budget]])
+        waited = step - last
+        due = np.nonzero(((step + np.arange(len(level))) % period == 0) | (waited > period))[0]
+        return overdue_first(due, waited, period, level, step, self.budget)
+
+
+def overdue_first(due: np.ndarray, waited: np.ndarray, period: np.ndarray, level: np.ndarray, turn: int,
+                  budget: int | None) -> np.ndarray:
+    """The ``due`` creatures (sorted indices) cut to ``budget``: the most overdue (waited /
+    period) first, the nearer level on a tie, then in turn (``turn``, the step or tick number,
+    rotates who goes first among equals). So a creature cut once is first in line the next
+    time and none starves; ranking equals by index left the highest indices of a full
+    level waiting for ever."""
+    if budget is None or len(due) <= budget:
         return due
+    order = np.lexsort(((due + turn) % len(waited), level[due], -waited[due] / period[due]))
+    return np.sort(due[order[:budget]])

@@ -44,7 +44,7 @@ class Crowd:
         self.steps = 0
         self.steered = 0  # creature-steerings done, for the level-of-detail budget's accounting
         self._level = np.zeros(len(vehicles), dtype=np.int64)
-        self._rank = np.zeros(len(vehicles), dtype=np.int64)
+        self._last = np.zeros(len(vehicles), dtype=np.int64)  # the sub-step each last steered
         room.contain(vehicles.pos, vehicles.vel, vehicles.radius)
 
     def skip_to(self, t: float) -> None:
@@ -75,12 +75,12 @@ class Crowd:
         if self.lod is None:
             return
         self._level = self.lod.level(self.v.pos, self.around.visitors if listeners is None else listeners)
-        self._rank = np.argsort(np.argsort(self._level, kind="stable"), kind="stable")
 
     def step(self) -> None:
         """One sub-step: who steers, their neighbours, their forces, then everyone moves."""
         v = self.v
-        who = (np.arange(len(v)) if self.lod is None else self.lod.due(self.steps, self._level, self._rank))
+        who = (np.arange(len(v)) if self.lod is None else self.lod.due(self.steps, self._level, self._last))
+        self._last[who] = self.steps
         others = self.around.others
         if len(others):  # a shared room's remote creatures move on by their velocity (dead reckoning)
             others[:, :2] += others[:, 2:4] * self.substep

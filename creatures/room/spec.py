@@ -236,3 +236,6 @@ class VehicleSpec(Strict):
     reach: float = Field(3.0, gt=0, le=LARGEST_ROOM, description="radius of the neighbourhood, m")
     fov: float = Field(200.0, gt=0, le=360, description="vision cone, degrees")
     sight: float = Field(10.0, gt=0, le=LARGEST_ROOM, description="how far it sees, m")
+    gait: str | None = Field(None, max_length=200, description="the body's clip that walks with the vehicle, played "
+                                                              "by distance so its feet do not slide (e.g. the dog's "
+                                                              "'walk'; creatures/room/gait.py)")

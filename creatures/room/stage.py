@@ -20,9 +20,11 @@ from scipy.spatial import cKDTree
 
 from creatures import bounds
 from creatures.clock import clock_gap, next_on_grid
+from creatures.kinds.figures import body_graph
 from creatures.room.director import FlowField, Path
 from creatures.room.hearing import Arrival, DistanceLaw, Masking, arrive, db_velocity, velocity_db
-from creatures.room.lod import LevelOfDetail
+from creatures.room.gait import Gaits, Walk, in_room
+from creatures.room.lod import LevelOfDetail, overdue_first
 from creatures.room.motion import Crowd
 from creatures.room.recipe import NAMED_TARGETS, Behaviour, Recipe, Surroundings
 from creatures.room.space import Obstacle, Room
@@ -63,6 +65,19 @@ class RoomError(ValueError):
         self.key = key
 
 
+def walk(spec, i: int) -> Walk:
+    """Creature ``i``'s ``[creature.vehicle] gait`` on its body's graph (:class:`StageError`: no
+    body, or no such walking clip)."""
+    body = getattr(spec, "body", False)
+    if not body:
+        raise StageError(i, ("vehicle", "gait"), f"gait {spec.vehicle.gait!r} needs a body that walks "
+                         "([creature.body] figure = \"dog\", or files with a root_motion clip)")
+    try:
+        return Walk.of(body_graph(body), spec.vehicle.gait)
+    except ValueError as error:
+        raise StageError(i, ("vehicle", "gait"), str(error)) from None
+
+
 def check_places(section: RoomSection, specs: list, drives: list[tuple[str, ...]]) -> None:
     """Every place named is on the floor, and every zone's drives and tuples are some
     creature's (:class:`StageError`, :class:`RoomError`; a zone's change to a creature without
@@ -76,6 +91,8 @@ def check_places(section: RoomSection, specs: list, drives: list[tuple[str, ...]
         if off(spec.vehicle.at):
             raise StageError(i, ("vehicle", "at"), f"start {list(spec.vehicle.at)} is outside the "
                              f"{size[0]:g} x {size[1]:g} m room")
+        if spec.vehicle.gait is not None:
+            walk(spec, i)
     for key in ("listener", "input_at"):
         if off(getattr(section, key)):
             raise RoomError((key,), f"{key} {list(getattr(section, key))} is outside the {size[0]:g} x {size[1]:g} m room")
@@ -154,6 +171,9 @@ class Stage:
         self.crowd = Crowd(self.room, self.v, plans, groups, substep=section.substep,
                            seed=int(rng.integers(2**32)), lod=lod, around=around)
         self.zones = Zones(section.zones, creatures)
+        self.gaits = Gaits([None if c.spec.vehicle.gait is None else walk(c.spec, i) for i, c in enumerate(creatures)],
+                           self.v.pos, rng)
+        self._walked_at = 0.0
         h = section.hearing
         self.law = DistanceLaw(h.law, h.reference, h.silent)
         self.masking = Masking(h.margin, h.band, h.threshold)
@@ -231,6 +251,8 @@ class Stage:
         if clock_gap(self.crowd.t, t):
             self.crowd.skip_to(t)  # a gap is not lived: the crowd stands through it
         self.crowd.advance_to(t)
+        self.gaits.advance(self.v.pos, self.v.max_speed * max(t - self._walked_at, 0.0) + 1e-9)
+        self._walked_at = t
         if self.share is not None:
             self.share.publish(self.crowd.t, list(self.index), self._rows(self.v.vel))
         if t + 1e-9 >= self._next_report:  # where everyone is, for the report and for tests
@@ -271,12 +293,8 @@ class Stage:
         cap = max(int(np.floor(np.log2(max(0.5 / dt, 1.0)))), 0)
         period = np.left_shift(1, np.minimum(self.crowd.level, cap))
         waited = tick - self._decided
-        due = np.nonzero(waited >= period)[0]
-        budget = lod.decide_budget
-        if budget is not None and len(due) > budget:
-            turn = (due + tick) % len(self._decided)  # ties taken in turn, not by index
-            order = np.lexsort((turn, self.crowd.level[due], -waited[due] / period[due]))
-            due = np.sort(due[order[:budget]])
+        due = overdue_first(np.nonzero(waited >= period)[0], waited, period, self.crowd.level, tick,
+                            lod.decide_budget)
         self._decided[due] = tick
         return due
 
@@ -348,6 +366,21 @@ class Stage:
         return rate(x), rate(y)
 
     # -- where each creature stood, across a restart ------------------------------------------
+    def figure(self, creature: "CreatureKind") -> np.ndarray | None:
+        """``creature``'s joints where it stands in the room, facing its heading: its walk if it
+        has a gait, else its own pose (root motion's travel taken off: in a room the vehicle
+        carries the body). None without a body."""
+        i = self.index[creature.name]
+        own = creature.figure()
+        local = None if own is None else own[0] - _travel(creature)
+        return self.gaits.figure(i, local, self.v.pos[i], self.v.heading[i], float(np.hypot(*self.v.vel[i])))
+
+    def carry(self, creature: "CreatureKind", points: np.ndarray) -> np.ndarray:
+        """Points ``(K, 3)`` in ``creature``'s own space (its note objects) where it stands in the
+        room, turned with it."""
+        i = self.index[creature.name]
+        return in_room(points - _travel(creature), self.v.pos[i], self.v.heading[i])
+
     def placement(self, name: str) -> dict[str, list[float]]:
         """Where creature ``name`` stands and how it moves, for its state file (a process of a
         shared room that is killed and started again puts its creatures back where they were)."""
@@ -497,3 +530,11 @@ class Stage:
             return 0
         return int(visible(self.v.pos[i:i + 1], self.v.heading[i:i + 1], things, self.room, fov=spec.fov,
                            range_=spec.sight).sum())
+
+
+def _travel(creature: "CreatureKind") -> np.ndarray:
+    """The horizontal offset root motion has given ``creature``'s own pose (zero without a body)."""
+    body = getattr(creature, "body", None)
+    offset = np.zeros(3) if body is None else np.array(getattr(body, "offset", np.zeros(3)), dtype=float)
+    offset[1] = 0.0
+    return offset

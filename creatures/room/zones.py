@@ -5,6 +5,13 @@ there before.
 
 A tuple a zone ``enable``s is off everywhere else (the zone is where it can happen); one it
 ``disable``s is off inside it.
+
+Zones may overlap. A creature's zones are a stack in the order it entered them: a body key or
+a drive takes the value of the latest zone it is still in that sets it, and the value from
+before the first such zone once it has left them all, whatever order it leaves them in. A
+tuple is on where any of its zones enables it and off where any disables it. (Each zone once
+kept its own undo, so leaving the first of two overlapping zones put back the value from
+outside while the creature stood in the second.)
 """
 
 from __future__ import annotations
@@ -41,50 +48,64 @@ class Zones:
         self.zones = zones
         self.creatures = creatures
         self.inside = np.zeros((len(zones), len(creatures)), dtype=bool)
-        self._saved: dict[tuple[int, int], dict[str, Any]] = {}
-        for zone in zones:
-            for creature in creatures:
-                for group in groups_of(creature):
-                    group.disabled.update(zone.enable)
+        self._stack: list[list[int]] = [[] for _ in creatures]  # the zones each is in, in entry order
+        self._base: list[dict[str, dict[str, float]]] = [{"body": {}, "drives": {}} for _ in creatures]
+        self._enabled = {name for zone in zones for name in zone.enable}
+        self._managed = self._enabled | {name for zone in zones for name in zone.disable}
+        for i in range(len(creatures)):
+            self._switch(i)
 
     def update(self, t: float, v: Vehicles, emit) -> None:
         """Apply the zones entered and undo the ones left since the last update."""
         for z, zone in enumerate(self.zones):
             now = contains(zone, v.pos)
             for i in np.nonzero(now != self.inside[z])[0]:
-                if now[i]:
-                    self._enter(t, z, int(i), v)
-                else:
-                    self._leave(t, z, int(i), v)
+                (self._enter if now[i] else self._leave)(t, z, int(i), v)
                 emit("zone", zone=zone.name, creature=self.creatures[i].name, inside=bool(now[i]))
             self.inside[z] = now
 
     def _enter(self, t: float, z: int, i: int, v: Vehicles) -> None:
-        zone, creature = self.zones[z], self.creatures[i]
-        motivation = getattr(creature, "motivation", None)
-        saved: dict[str, Any] = {"body": {k: float(getattr(v, k)[i]) for k in zone.spec}, "drives": {}}
+        zone, stack, base = self.zones[z], self._stack[i], self._base[i]
+        motivation = getattr(self.creatures[i], "motivation", None)
         for key, value in zone.spec.items():
+            base["body"].setdefault(key, float(getattr(v, key)[i]))
             getattr(v, key)[i] = np.radians(value) if key == "max_turn" else value
         if motivation is not None:
             for name, level in zone.drives.items():
-                if name not in motivation.names:
-                    continue  # a zone sets the drives a creature has
-                saved["drives"][name] = motivation.level(name, t)
-                motivation.perturb(t, name, level - motivation.level(name, t))
-        for group in groups_of(creature):
-            group.disabled.difference_update(zone.enable)
-            group.disabled.update(zone.disable)
-        self._saved[(z, i)] = saved
+                if name in motivation.names:  # a zone sets the drives a creature has
+                    base["drives"].setdefault(name, motivation.level(name, t))
+                    motivation.perturb(t, name, level - motivation.level(name, t))
+        stack.append(z)
+        self._switch(i)
 
     def _leave(self, t: float, z: int, i: int, v: Vehicles) -> None:
-        zone, creature = self.zones[z], self.creatures[i]
-        saved = self._saved.pop((z, i), {"body": {}, "drives": {}})
-        for key, value in saved["body"].items():
-            getattr(v, key)[i] = value
-        motivation = getattr(creature, "motivation", None)
+        zone, stack, base = self.zones[z], self._stack[i], self._base[i]
+        on_top = {key: self._latest(stack, "spec", key) == z for key in zone.spec}
+        on_top.update({name: self._latest(stack, "drives", name) == z for name in zone.drives})
+        stack.remove(z)
+        for key in zone.spec:
+            if on_top[key]:
+                under = self._latest(stack, "spec", key)
+                value = base["body"].pop(key) if under is None else self.zones[under].spec[key]
+                getattr(v, key)[i] = np.radians(value) if key == "max_turn" and under is not None else value
+        motivation = getattr(self.creatures[i], "motivation", None)
         if motivation is not None:
-            for name, level in saved["drives"].items():
-                motivation.perturb(t, name, level - motivation.level(name, t))
-        for group in groups_of(creature):
-            group.disabled.update(zone.enable)
-            group.disabled.difference_update(zone.disable)
+            for name in zone.drives:
+                if on_top[name] and name in base["drives"]:
+                    under = self._latest(stack, "drives", name)
+                    level = base["drives"].pop(name) if under is None else self.zones[under].drives[name]
+                    motivation.perturb(t, name, level - motivation.level(name, t))
+        self._switch(i)
+
+    def _latest(self, stack: list[int], field: str, key: str) -> int | None:
+        """The last-entered zone of ``stack`` whose ``field`` (spec or drives) sets ``key``."""
+        return next((z for z in reversed(stack) if key in getattr(self.zones[z], field)), None)
+
+    def _switch(self, i: int) -> None:
+        """Creature ``i``'s zone-managed tuples on or off for the zones it is in now."""
+        inside = [self.zones[z] for z in self._stack[i]]
+        on = {name for zone in inside for name in zone.enable}
+        off = (self._enabled - on) | {name for zone in inside for name in zone.disable}
+        for group in groups_of(self.creatures[i]):
+            group.disabled.difference_update(self._managed)
+            group.disabled.update(off)
