@@ -7,7 +7,7 @@ import pytest
 
 from creatures.room.hearing import SPEED_OF_SOUND, DistanceLaw, Masking, arrive, db_velocity, velocity_db
 from creatures.room.space import Obstacle, Room
-from creatures.room.speakers import azimuth, ring, stereo, vbap
+from creatures.room.speakers import DOME, Dome, azimuth, direction, ring, stereo, vbap
 from creatures.room.vision import visible
 
 ROOM = Room(10, 10, (Obstacle(5.0, 5.0, 0.5),))
@@ -64,6 +64,20 @@ def test_vbap_pans_between_the_adjacent_pair_at_unit_power():
         v = (g[:, None] * np.stack([np.cos(np.radians(speakers)), np.sin(np.radians(speakers))], 1)).sum(0)
         assert np.degrees(np.arctan2(v[1], v[0])) % 360 == pytest.approx(az % 360, abs=1e-6)
     assert vbap(45.0, speakers)[1] == pytest.approx(1.0)  # on a speaker: that speaker alone
+
+
+def test_dome_vbap_pans_over_one_triangle_at_unit_power_pointing_at_the_source():
+    dome, rng = Dome(), np.random.default_rng(5)
+    for az, el in zip(rng.uniform(0, 360, 200), rng.uniform(0, 90, 200)):
+        g = dome.gains(az, el)[0]
+        assert np.sum(g ** 2) == pytest.approx(1.0)
+        assert np.count_nonzero(g > 1e-9) <= 3
+        v = g @ dome.speakers  # the gains' vector sum points at the source (VBAP's defining property)
+        assert v / np.linalg.norm(v) == pytest.approx(direction(np.array(az), np.array(el)), abs=1e-9)
+    assert dome.gains(0.0, 90.0)[0][12] == pytest.approx(1.0)  # overhead: the top speaker alone
+    below = dome.gains(200.0, -10.0)[0]  # under ear height: the ring pair, the nadir dropped
+    assert np.count_nonzero(below > 1e-9) == 2 and below[4] > 0 and below[5] > 0
+    assert len(DOME) == len(dome.speakers) == 13
 
 
 def test_stereo_pan_follows_position():

@@ -293,6 +293,36 @@ def test_a_ring_of_speakers_writes_one_channel_each_panned_by_place(tmp_path):
     assert rms[0] > 20 * max(rms[1:])
 
 
+def test_a_dome_writes_one_channel_per_speaker_near_overhead_far_at_ear_height(tmp_path):
+    """speakers = "dome": the floor is projected onto the dome, so a caller 0.5 m from the
+    listener sounds mostly from the top speaker and one 4 m off (dome_reach) from the ring."""
+    room = 'speakers = "dome"\ndome_reach = 4.0'
+    rms = {}
+    for where, (x, y) in {"near": (5.5, 5.0), "far": (9.0, 5.0)}.items():
+        caller = singer("east", x, y, vehicle="max_speed = 0.01").replace("[creature.tuples.listen]", (
+            "[creature.tuples.call]\naction = { type = \"play_phrase\", pitches = [60, 64, 67], durations = 0.4 }\n"
+            "until = { done = true }\nvalue = 5.0\n[creature.tuples.listen]")).replace(
+            'tuples = ["listen", "echo"]', 'tuples = ["call", "listen", "echo"]')
+        inst = load_installation(write(tmp_path, HEADER.format(room=room) + caller))
+        run_offline(inst, tmp_path / where, duration=3.0)
+        wav, _ = soundfile.read(tmp_path / where / "out.wav")
+        assert wav.shape[1] == 13
+        rms[where] = np.sqrt((wav ** 2).mean(0))
+    near, far = rms["near"], rms["far"]
+    assert near[12] > 0.001 and near[12] > 2 * max(near[:12])  # overhead: 83° up
+    assert far[0] > 0.001 and far[0] > 20 * max(np.delete(far, 0))  # east, at ear height: speaker 0 alone
+
+
+@pytest.mark.parametrize("room, message", [
+    ('speakers = "dome"\nchannels = 8', "a dome has one channel per speaker"),
+    ('dome = [[0.0, 0.0], [120.0, 0.0], [240.0, 0.0]]', "for speakers = \"dome\""),
+    ('speakers = "dome"\ndome = [[0.0, 100.0], [120.0, 0.0], [240.0, 0.0]]', "less than or equal to 90"),
+])
+def test_a_dome_that_cannot_be_is_a_config_error(tmp_path, room, message):
+    with pytest.raises(ConfigError, match=message):
+        load_installation(write(tmp_path, HEADER.format(room=room) + singer("a", 1.0, 1.0)))
+
+
 @pytest.mark.slow
 def test_the_flock_gathers_round_whoever_plays_scatters_at_a_loud_chord_and_passes_phrases_along(tmp_path):
     inst = load_installation(installations.path("flock"))

@@ -75,3 +75,50 @@ def azimuth(source: np.ndarray, listener: np.ndarray) -> float | np.ndarray:
     d = np.asarray(source, float) - np.asarray(listener, float)
     out = np.degrees(np.arctan2(d[..., 1], d[..., 0]))
     return float(out) if np.ndim(out) == 0 else out
+
+
+DOME = ((0.0, 0.0), (45.0, 0.0), (90.0, 0.0), (135.0, 0.0), (180.0, 0.0), (225.0, 0.0), (270.0, 0.0), (315.0, 0.0),
+        (45.0, 45.0), (135.0, 45.0), (225.0, 45.0), (315.0, 45.0), (0.0, 90.0))
+"""The default dome, (azimuth, elevation) degrees: a ring of eight at ear height, four at 45°
+and one overhead (13 channels, in this order)."""
+
+
+def direction(azimuth: np.ndarray, elevation: np.ndarray) -> np.ndarray:
+    """Unit vectors (N, 3) of directions in degrees (azimuth anticlockwise from +x, elevation up)."""
+    a, e = np.radians(azimuth), np.radians(elevation)
+    return np.stack([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)], axis=-1)
+
+
+class Dome:
+    """3-D VBAP (Pulkki 1997, triplet-wise) over a dome of speakers: the speakers' directions
+    are triangulated by their convex hull, with a virtual speaker at the nadir closing the
+    hull under the lowest ring (its triangles' gains on it are dropped, so a source at or below
+    ear height pans over the ring alone). Each source is written as g·L over the triangle whose
+    base gives no negative gain, normalised to unit power."""
+
+    def __init__(self, layout: tuple[tuple[float, float], ...] | list = DOME) -> None:
+        from scipy.spatial import ConvexHull
+
+        angles = np.asarray(layout, dtype=float).reshape(-1, 2)
+        if len(angles) < 3:
+            raise ValueError("a dome needs at least three speakers")
+        self.speakers = direction(angles[:, 0], angles[:, 1])
+        points = np.vstack([self.speakers, [[0.0, 0.0, -1.0]]])
+        hull = ConvexHull(points)
+        # Each triangle's inverse base: g = p · inv(L), rows of L its three speakers.
+        bases = points[hull.simplices]  # (T, 3, 3)
+        keep = np.abs(np.linalg.det(bases)) > 1e-9  # faces through the centre cannot place anything
+        self.triangles = hull.simplices[keep]
+        self.inverse = np.linalg.inv(bases[keep])
+
+    def gains(self, azimuth: np.ndarray, elevation: np.ndarray) -> np.ndarray:
+        """Amplitude gains (N, speakers) of sources at ``azimuth``, ``elevation`` degrees."""
+        p = direction(np.atleast_1d(azimuth), np.atleast_1d(elevation))
+        g = np.einsum("ni,tij->ntj", p, self.inverse)  # (N, T, 3) every triangle's gains
+        best = np.argmax(g.min(axis=2), axis=1)  # the triangle holding p: all its gains ≥ 0
+        rows = np.arange(len(p))
+        chosen = np.clip(g[rows, best], 0.0, None)
+        out = np.zeros((len(p), len(self.speakers) + 1))
+        np.add.at(out, (rows[:, None], self.triangles[best]), chosen)
+        out = out[:, :-1]  # the nadir is not a speaker
+        return out / np.maximum(np.linalg.norm(out, axis=1, keepdims=True), 1e-12)

@@ -25,6 +25,12 @@ Metres = Annotated[float, Field(ge=0, le=LARGEST_ROOM)]
 
 Point = tuple[Metres, Metres]
 
+Degrees = Annotated[float, Field(ge=-360, le=360)]
+"""An azimuth, anticlockwise from +x as seen from the listening point."""
+
+Elevation = Annotated[float, Field(ge=-90, le=90)]
+"""An elevation above the horizontal through the listener's ears."""
+
 
 class Strict(BaseModel):
     model_config = FINITE
@@ -167,9 +173,17 @@ class RoomSection(Strict):
                                                                "not change the paths)")
     listener: Point | None = Field(None, description="where out.wav's listener stands [x, y] "
                                                                    "(default: the middle of the near wall, y = 0)")
-    speakers: Literal["stereo", "ring"] = Field("stereo", description="out.wav and live output: a stereo pair "
-                                                                      "or a ring of `channels` speakers (VBAP)")
+    speakers: Literal["stereo", "ring", "dome"] = Field(
+        "stereo", description="out.wav and live output: a stereo pair, a ring of `channels` speakers (2-D VBAP) "
+                              "or a dome (3-D VBAP over `dome`)")
     channels: int = Field(8, ge=2, le=64, description="speakers = 'ring': how many")
+    dome: list[tuple[Degrees, Elevation]] | None = Field(
+        None, min_length=3, max_length=64, description="speakers = 'dome': each speaker's [azimuth, elevation] "
+                                                       "degrees, one channel each in this order (default: eight "
+                                                       "at ear height from 0°, four at 45° from 45°, one overhead)")
+    dome_reach: float | None = Field(None, gt=0, le=LARGEST_ROOM, description="speakers = 'dome': a creature at "
+                                     "the listener sounds overhead, one this far or further at ear height, "
+                                     "between them lower with distance, m (default: the farthest corner)")
     input_at: Point | None = Field(None, description="where input notes sound when no visitor "
                                                                    "is tracked (default: the listener)")
     visitors: list[VisitorSpec] = Field(default_factory=list, max_length=64, description="[[room.visitors]]")
@@ -178,6 +192,15 @@ class RoomSection(Strict):
     zones: list[ZoneSpec] = Field(default_factory=list, max_length=256, description="[[room.zones]]")
     paths: list[PathSpec] = Field(default_factory=list, max_length=256, description="[[room.paths]]")
     flows: list[FlowSpec] = Field(default_factory=list, max_length=64, description="[[room.flows]]")
+
+    @model_validator(mode="after")
+    def _layout(self) -> "RoomSection":
+        """A dome's channels are its speakers: ``channels`` beside it would be a second count."""
+        if self.speakers == "dome" and "channels" in self.model_fields_set:
+            raise ValueError("channels: a dome has one channel per speaker of `dome`; leave channels out")
+        if self.speakers != "dome" and ({"dome", "dome_reach"} & self.model_fields_set):
+            raise ValueError("dome and dome_reach are for speakers = \"dome\"")
+        return self
     report_every: float = Field(1.0, gt=0, le=3600, description="seconds between 'room' events (every "
                                                                 "creature's position and heading) in the log")
     share: ShareSpec | None = Field(None, description="[room.share]: one room across processes and machines "

@@ -29,7 +29,7 @@ from creatures.room.motion import Crowd
 from creatures.room.recipe import NAMED_TARGETS, Behaviour, Recipe, Surroundings
 from creatures.room.space import Obstacle, Room
 from creatures.room.spec import RoomSection, VehicleSpec
-from creatures.room.speakers import azimuth, ring, stereo, vbap
+from creatures.room.speakers import DOME, Dome, azimuth, ring, stereo, vbap
 from creatures.room.vehicle import Vehicles, norms
 from creatures.room.vision import visible
 from creatures.room.zones import Zones
@@ -179,7 +179,10 @@ class Stage:
         self.masking = Masking(h.margin, h.band, h.threshold)
         self.listener = np.array(section.listener if section.listener is not None else (section.width / 2, 0.0))
         self.speakers = ring(section.channels, 0.0) if section.speakers == "ring" else None
-        self.channels = 2 if self.speakers is None else section.channels
+        self.dome = Dome(section.dome or DOME) if section.speakers == "dome" else None
+        corners = np.array([[0.0, 0.0], [section.width, 0.0], [0.0, section.depth], [section.width, section.depth]])
+        self._reach = section.dome_reach or max(float(norms(corners - self.listener).max()), 1e-3)
+        self.channels = (2 if self.speakers is None else section.channels) if self.dome is None else len(self.dome.speakers)
         self._loud: list[tuple[float, np.ndarray]] = []  # (until, where) of each loud note
         self._player: tuple[float, np.ndarray] | None = None  # (until, where) of the last outside note
         self._arrivals: list[tuple[float, int, int, Arrival, str]] = []
@@ -449,11 +452,17 @@ class Stage:
     def speaker_gains(self) -> np.ndarray:
         """Every creature's amplitude gains on each output channel, (N, channels): its
         direction from the listener panned over the speakers (stereo or VBAP), times the
-        distance law."""
+        distance law. A dome has the floor projected onto it: a creature at the listener sounds
+        from overhead, one ``dome_reach`` away or further from ear height (the room's floor is
+        flat, and the dome's height would otherwise only ever carry the ring's sound)."""
         pos = self.v.pos
         az = np.atleast_1d(azimuth(pos, self.listener))
-        pan = stereo(az) if self.speakers is None else vbap(az, self.speakers)
-        return pan.reshape(len(pos), -1) * self.law.gain(norms(pos - self.listener))[:, None]
+        distance = norms(pos - self.listener)
+        if self.dome is not None:  # the floor mapped onto the dome: nearer is higher
+            pan = self.dome.gains(az, 90.0 * (1.0 - np.minimum(distance / self._reach, 1.0)))
+        else:
+            pan = stereo(az) if self.speakers is None else vbap(az, self.speakers)
+        return pan.reshape(len(pos), -1) * self.law.gain(distance)[:, None]
 
     # -- what a creature perceives of the room (the percepts of creatures/authored/percepts.py) --
     def _everyone(self) -> np.ndarray:
