@@ -13,6 +13,8 @@ import numpy as np
 import pytest
 
 import installations
+from test_installations import SEEN_NOT_HEARD
+
 from creatures.cli import main
 from creatures.config import ConfigError
 from creatures.runtime.measures import HourTally, Swings, repetition
@@ -179,8 +181,9 @@ def test_the_command_rehearses_and_refuses_a_bad_corpus(tmp_path: Path, capsys):
 
 
 FOUND = {
-    "sandstone": "the pedestal never sings in the reduced week (silent 35 of 35 open minutes) and the king "
-                 "is silent 20 minutes; not yet told apart from the 0.5 s tick (seed 0, 34 visitors)",
+    "sandstone": "the visitors move rocks (installations/sandstone-rocks: sensor readings), and the pedestal, "
+                 "whose rock is left away from the centre longest, is silent 355.5 s of open time, over the "
+                 "300 s opening day (the king 297 s; before the visitors moved rocks the pedestal never sang)",
 }
 """Pieces whose reduced week this test finds wanting (measured): defects of the class. (The flock,
 once skipped here as too slow, lives its week in about two minutes since a closed night is a
@@ -202,7 +205,8 @@ def test_every_shipped_installation_rehearsed_for_seven_days_is_never_silent_for
     r = rehearse(short(name), 7)
     assert [(h.day, h.hour) for h in r.hours] == [(d, 10) for d in range(7)]
     assert all(h.open_seconds == 300 for h in r.hours) and r.crash_free == 7
-    assert max(r.longest_silence.values()) <= r.opening_day, r.longest_silence
+    heard = {who: s for who, s in r.longest_silence.items() if (name, who) not in SEEN_NOT_HEARD}
+    assert max(heard.values()) <= r.opening_day, r.longest_silence  # a statue moves, never sounds
     assert all(h.acts_per_minute > 0 and h.silence < 1.0 for h in r.hours), [h.acts for h in r.hours]
     # the door is seeded Poisson at 60 an hour over 35 open minutes (mean 35); fewer than 15
     # would be a door that stopped opening (p < 1e-4), not chance (duncan, seed 0: 18)

@@ -225,8 +225,8 @@ def rehearse(inst: LoadedInstallation, days: int | None = None) -> Rehearsal:
                 continue
             for start, phrase in visitors.play(t0, t):
                 for note in phrase.notes:
-                    session.world.inject(NoteEvent(round(start + note.time, 6), note.pitch, note.velocity, 0,
-                                                   note.duration))
+                    session.world.inject(NoteEvent(round(start + note.time, 6), note.pitch, note.velocity,
+                                                   note.channel, note.duration))
                 if ears is not None:
                     ears.add(start, phrase)
             x0, x1 = int(round(t0 * sr)), int(round(t * sr))

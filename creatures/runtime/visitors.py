@@ -84,7 +84,9 @@ def load_corpus(path: Path) -> list[Phrase]:
                 raise CorpusError(f"[rehearse] corpus {file}: cannot read it ({exc})") from None
             if notes:
                 t0 = notes[0].time
-                phrases.append(Phrase(tuple(NoteEvent(round(n.time - t0, 6), n.pitch, n.velocity, 0, n.duration)
+                # Channels are kept: a note on a sensor's channel is a reading (a rock moved
+                # in sand:stone), which a visitor makes as surely as a played phrase.
+                phrases.append(Phrase(tuple(NoteEvent(round(n.time - t0, 6), n.pitch, n.velocity, n.channel, n.duration)
                                             for n in notes if n.time - t0 <= LONGEST_PHRASE)))
     if not phrases:
         raise CorpusError(f"[rehearse] corpus {path}: holds no phrase (a .txt of lines, a .mid, or a folder of .mid)")
