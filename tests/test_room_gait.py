@@ -47,9 +47,12 @@ def test_a_walk_is_one_travelling_clip_by_distance():
     assert walk.stride == pytest.approx(0.8)  # the generated walk: two 0.4 m cycles at 0.5 m/s
     assert np.allclose(walk.pose(0.0), walk.pose(walk.stride), atol=1e-6)  # the seam joins
     assert not np.allclose(walk.pose(0.0), walk.pose(0.2))
-    # Facing +z, turned to a heading along +x (room east) and put at (3, 4).
-    local = np.array([[0.0, 0.5, 1.0]])
-    assert np.allclose(in_room(local, np.array([3.0, 4.0]), np.array([1.0, 0.0])), [[4.0, 0.5, 4.0]])
+    # Facing +z with its left at +x, turned to a heading along +x (room east) and put at (3, 4):
+    # its nose east of it, its left hand north (room y is the world's −z).
+    nose, left = np.array([[0.0, 0.5, 1.0]]), np.array([[1.0, 0.5, 0.0]])
+    at, east = np.array([3.0, 4.0]), np.array([1.0, 0.0])
+    assert np.allclose(in_room(nose, at, east), [[4.0, 0.5, -4.0]])
+    assert np.allclose(in_room(left, at, east), [[3.0, 0.5, -5.0]])
 
 
 def slide(track: list[tuple[np.ndarray, float]], dt: float) -> float:
@@ -73,7 +76,7 @@ def test_a_walking_dog_keeps_its_paws_planted_where_played_by_time_they_slide(tm
         run(s, clock, clock.now() + dt)
         pos, heading = stage.v.pos[0], stage.v.heading[0]
         speeds.append(float(np.hypot(*stage.v.vel[0])))
-        by_distance.append((stage.figure(rex)[paws], speeds[-1]))
+        by_distance.append((stage.figure(rex, rex.figure()[0])[paws], speeds[-1]))
         phase += 0.5 * dt  # the clip at its own pace (0.5 m/s), whatever the vehicle does
         by_time.append((in_room(walk.pose(phase), pos, heading)[paws], speeds[-1]))
     speed = float(np.median(speeds))
@@ -103,7 +106,7 @@ def test_clones_step_out_of_phase_and_each_is_drawn_where_it_stands(tmp_path):
     positions, _, _ = gather(s.creatures, s.stage)
     joints = len(s.creatures[0].body.skeleton.names)
     roots = positions.reshape(6, joints, 3)[:, 0]
-    assert np.allclose(roots[:, [0, 2]], s.stage.v.pos, atol=0.15)  # the pelvis over the vehicle
+    assert np.allclose(roots[:, [0, 2]] * [1.0, -1.0], s.stage.v.pos, atol=0.15)  # the pelvis over the vehicle
     assert np.all(roots[:, 1] > 0.2)  # standing, not under the floor
 
 

@@ -15,7 +15,7 @@ import textwrap
 
 import numpy as np
 import pytest
-from test_room_stage import HEADER, singer
+from test_room_stage import HEADER, caller
 
 from bench.live_hearing import jack_available
 
@@ -24,12 +24,9 @@ SECONDS = 3.0
 
 
 def ring_config(tmp_path) -> str:
-    caller = singer("east", 9.0, 5.0, vehicle="max_speed = 0.01").replace("[creature.tuples.listen]", (
-        "[creature.tuples.call]\naction = { type = \"play_phrase\", pitches = [60, 64, 67], durations = 0.4 }\n"
-        "until = { done = true }\nvalue = 5.0\n[creature.tuples.listen]")).replace(
-        'tuples = ["listen", "echo"]', 'tuples = ["call", "listen", "echo"]')
     path = tmp_path / "ring.toml"
-    path.write_text(textwrap.dedent(HEADER.format(room='speakers = "ring"\nchannels = 4') + caller))
+    path.write_text(textwrap.dedent(HEADER.format(room='speakers = "ring"\nchannels = 4')
+                                    + caller("east", 9.0, 5.0, "max_speed = 0.01")))
     return str(path)
 
 

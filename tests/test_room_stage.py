@@ -71,6 +71,14 @@ def singer(name: str, x: float, y: float, *, vehicle: str = "", extra: str = "",
     return SINGER.format(name=name, x=x, y=y, vehicle=vehicle, extra=extra, echo=echo)
 
 
+def caller(name: str, x: float, y: float, vehicle: str = "") -> str:
+    """A singer that also calls a phrase of its own, over and over (for what the speakers carry)."""
+    return singer(name, x, y, vehicle=vehicle).replace("[creature.tuples.listen]", (
+        "[creature.tuples.call]\naction = { type = \"play_phrase\", pitches = [60, 64, 67], durations = 0.4 }\n"
+        "until = { done = true }\nvalue = 5.0\n[creature.tuples.listen]")).replace(
+        'tuples = ["listen", "echo"]', 'tuples = ["call", "listen", "echo"]')
+
+
 def write(tmp_path: Path, text: str) -> Path:
     path = tmp_path / "room.toml"
     path.write_text(textwrap.dedent(text))
@@ -280,11 +288,7 @@ def test_a_visitor_from_the_tracker_is_sought_and_fled(tmp_path):
 
 def test_a_ring_of_speakers_writes_one_channel_each_panned_by_place(tmp_path):
     room = 'speakers = "ring"\nchannels = 4'
-    caller = singer("east", 9.0, 5.0).replace("[creature.tuples.listen]", (
-        "[creature.tuples.call]\naction = { type = \"play_phrase\", pitches = [60, 64, 67], durations = 0.4 }\n"
-        "until = { done = true }\nvalue = 5.0\n[creature.tuples.listen]")).replace(
-        'tuples = ["listen", "echo"]', 'tuples = ["call", "listen", "echo"]')
-    inst = load_installation(write(tmp_path, HEADER.format(room=room) + caller))
+    inst = load_installation(write(tmp_path, HEADER.format(room=room) + caller("east", 9.0, 5.0)))
     run_offline(inst, tmp_path / "out", duration=3.0)
     wav, _ = soundfile.read(tmp_path / "out" / "out.wav")
     assert wav.shape[1] == 4
@@ -299,11 +303,7 @@ def test_a_dome_writes_one_channel_per_speaker_near_overhead_far_at_ear_height(t
     room = 'speakers = "dome"\ndome_reach = 4.0'
     rms = {}
     for where, (x, y) in {"near": (5.5, 5.0), "far": (9.0, 5.0)}.items():
-        caller = singer("east", x, y, vehicle="max_speed = 0.01").replace("[creature.tuples.listen]", (
-            "[creature.tuples.call]\naction = { type = \"play_phrase\", pitches = [60, 64, 67], durations = 0.4 }\n"
-            "until = { done = true }\nvalue = 5.0\n[creature.tuples.listen]")).replace(
-            'tuples = ["listen", "echo"]', 'tuples = ["call", "listen", "echo"]')
-        inst = load_installation(write(tmp_path, HEADER.format(room=room) + caller))
+        inst = load_installation(write(tmp_path, HEADER.format(room=room) + caller("east", x, y, "max_speed = 0.01")))
         run_offline(inst, tmp_path / where, duration=3.0)
         wav, _ = soundfile.read(tmp_path / where / "out.wav")
         assert wav.shape[1] == 13
@@ -317,6 +317,8 @@ def test_a_dome_writes_one_channel_per_speaker_near_overhead_far_at_ear_height(t
     ('speakers = "dome"\nchannels = 8', "a dome has one channel per speaker"),
     ('dome = [[0.0, 0.0], [120.0, 0.0], [240.0, 0.0]]', "for speakers = \"dome\""),
     ('speakers = "dome"\ndome = [[0.0, 100.0], [120.0, 0.0], [240.0, 0.0]]', "less than or equal to 90"),
+    ('speakers = "dome"\ndome = [[0.0, 0.0], [90.0, 0.0], [180.0, 0.0], [270.0, 0.0]]', "above ear height"),
+    ('speakers = "dome"\ndome = [[0.0, 0.0], [0.0, 0.0], [0.0, 0.0]]', "span no solid|above ear height"),
 ])
 def test_a_dome_that_cannot_be_is_a_config_error(tmp_path, room, message):
     with pytest.raises(ConfigError, match=message):

@@ -11,7 +11,7 @@ vehicle's speed and the clip's (tests/test_room_gait.py measures both).
 
 The walk's nodes stand in place facing +z (their travel is kept apart as per-node advances),
 so a pose is drawn by turning it to the vehicle's heading and putting it at its position:
-room (x, y) is the world's floor (x, z). Clones of one creature (``count = N``) start at
+room (x, y) is the world's floor (x, −z) (:func:`in_room`). Clones of one creature (``count = N``) start at
 seeded random phases, so a crowd does not step in lock-step. A creature standing still shows
 its own pose (its courses, its layers), and the walk fades in over the first few centimetres
 per second of speed.
@@ -71,12 +71,15 @@ class Walk:
 
 
 def in_room(local: np.ndarray, at: np.ndarray, heading: np.ndarray) -> np.ndarray:
-    """Body-frame joint positions ``(J, 3)`` (facing +z) turned to ``heading`` (a unit room
-    vector) and put at room point ``at``: room (x, y) is the world's (x, z)."""
+    """Body-frame joint positions ``(J, 3)`` (facing +z, its left +x, y up) turned to
+    ``heading`` (a unit room vector) and put at room point ``at``. Room (x, y) is the world's
+    (x, −z): with y up, that keeps the room's anticlockwise turns anticlockwise seen from above,
+    so a body's left is the left of its heading (a creature that turns its head to a sound on
+    its left, by :meth:`Stage._bearing`, is drawn looking at it)."""
     hx, hy = float(heading[0]), float(heading[1])
     x, z = local[:, 0], local[:, 2]
-    # The rotation about the vertical that takes +z to (hx, hy): x' = x·hy + z·hx, z' = −x·hx + z·hy.
-    return np.column_stack([x * hy + z * hx + at[0], local[:, 1], -x * hx + z * hy + at[1]])
+    # In room terms local +z goes to (hx, hy) and local +x to its left (−hy, hx).
+    return np.column_stack([-x * hy + z * hx + at[0], local[:, 1], -(x * hx + z * hy + at[1])])
 
 
 class Gaits:
@@ -88,20 +91,21 @@ class Gaits:
         self._last = pos.copy()
 
     def advance(self, pos: np.ndarray, largest: np.ndarray) -> None:
-        """The vehicles are now at ``pos``: each walk moves on by the distance covered, at most
-        ``largest`` (a vehicle's top speed over the time passed: a creature put back at its saved
-        place, or a clock gap, is not walked)."""
+        """The vehicles are now at ``pos``: each walk moves on by the distance covered (straight
+        between two ticks), at most ``largest`` (a vehicle's top speed over the time passed)."""
         self.phase += np.minimum(np.linalg.norm(pos - self._last, axis=1), largest)
         self._last = pos.copy()
 
-    def figure(self, i: int, own: np.ndarray | None, at: np.ndarray, heading: np.ndarray, speed: float) -> np.ndarray | None:
-        """Creature ``i``'s joints in the room: its walk (faded in with speed over its own
-        in-place pose ``own``, if it has one), turned to ``heading`` at ``at``."""
+    def moved(self, i: int, pos: np.ndarray) -> None:
+        """Creature ``i`` was put at ``pos`` (its saved place): that is no walk."""
+        self._last[i] = pos
+
+    def figure(self, i: int, own: np.ndarray, at: np.ndarray, heading: np.ndarray, speed: float) -> np.ndarray:
+        """Creature ``i``'s joints in the room: its walk faded in with speed over its own
+        in-place pose ``own`` (all of ``own`` without a gait), turned to ``heading`` at ``at``."""
         walk = self.walks[i]
-        if walk is None:
-            return None if own is None else in_room(own, at, heading)
-        weight = min(max((speed - STILL) / (WALKING - STILL), 0.0), 1.0)
-        local = walk.pose(self.phase[i])
-        if own is not None and weight < 1.0:
-            local = weight * local + (1.0 - weight) * own
+        local = own
+        if walk is not None:
+            weight = min(max((speed - STILL) / (WALKING - STILL), 0.0), 1.0)
+            local = weight * walk.pose(self.phase[i]) + (1.0 - weight) * own
         return in_room(local, at, heading)

@@ -94,7 +94,8 @@ class Dome:
     are triangulated by their convex hull, with a virtual speaker at the nadir closing the
     hull under the lowest ring (its triangles' gains on it are dropped, so a source at or below
     ear height pans over the ring alone). Each source is written as g·L over the triangle whose
-    base gives no negative gain, normalised to unit power."""
+    base gives no negative gain (one always does: a layout that leaves the listener outside its
+    hull is refused), normalised to unit power."""
 
     def __init__(self, layout: tuple[tuple[float, float], ...] | list = DOME) -> None:
         from scipy.spatial import ConvexHull
@@ -104,7 +105,16 @@ class Dome:
             raise ValueError("a dome needs at least three speakers")
         self.speakers = direction(angles[:, 0], angles[:, 1])
         points = np.vstack([self.speakers, [[0.0, 0.0, -1.0]]])
-        hull = ConvexHull(points)
+        try:
+            hull = ConvexHull(points)
+        except (ValueError, RuntimeError) as exc:  # scipy's QhullError is a RuntimeError
+            raise ValueError(f"the dome's speakers span no solid ({str(exc).splitlines()[0]})") from None
+        if not np.all(hull.equations[:, 3] < -1e-9):
+            # The listener must be inside the speakers' hull, or some directions lie in no
+            # triangle: a dome all at ear height (or all to one side) would put the sound of
+            # a creature above it nowhere, or on the wrong speaker.
+            raise ValueError("the dome's speakers must surround the listener above ear height (some above it, "
+                             "on every side)")
         # Each triangle's inverse base: g = p · inv(L), rows of L its three speakers.
         bases = points[hull.simplices]  # (T, 3, 3)
         keep = np.abs(np.linalg.det(bases)) > 1e-9  # faces through the centre cannot place anything

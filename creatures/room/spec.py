@@ -200,6 +200,10 @@ class RoomSection(Strict):
             raise ValueError("channels: a dome has one channel per speaker of `dome`; leave channels out")
         if self.speakers != "dome" and ({"dome", "dome_reach"} & self.model_fields_set):
             raise ValueError("dome and dome_reach are for speakers = \"dome\"")
+        if self.speakers == "dome" and self.dome is not None:
+            from creatures.room.speakers import Dome
+
+            Dome(self.dome)  # its ValueError is the config's: a layout that cannot pan is refused here
         return self
     report_every: float = Field(1.0, gt=0, le=3600, description="seconds between 'room' events (every "
                                                                 "creature's position and heading) in the log")

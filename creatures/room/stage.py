@@ -306,6 +306,7 @@ class Stage:
         second of it would be, as steps, and a restarted process's creatures would set off from
         their saved places before the first tick: 0.35 m in one CI run)."""
         self.crowd.skip_to(t)
+        self._walked_at = t
 
     def keep_sharing(self, t: float) -> None:
         """A paused run (the console's pause, the schedule's night) stays in the shared room: its
@@ -369,13 +370,12 @@ class Stage:
         return rate(x), rate(y)
 
     # -- where each creature stood, across a restart ------------------------------------------
-    def figure(self, creature: "CreatureKind") -> np.ndarray | None:
+    def figure(self, creature: "CreatureKind", own: np.ndarray) -> np.ndarray:
         """``creature``'s joints where it stands in the room, facing its heading: its walk if it
-        has a gait, else its own pose (root motion's travel taken off: in a room the vehicle
-        carries the body). None without a body."""
+        has a gait, else ``own`` (its figure's joints, root motion's travel taken off: in a room
+        the vehicle carries the body)."""
         i = self.index[creature.name]
-        own = creature.figure()
-        local = None if own is None else own[0] - _travel(creature)
+        local = own - _travel(creature)
         return self.gaits.figure(i, local, self.v.pos[i], self.v.heading[i], float(np.hypot(*self.v.vel[i])))
 
     def carry(self, creature: "CreatureKind", points: np.ndarray) -> np.ndarray:
@@ -401,6 +401,7 @@ class Stage:
         self.v.pos[i] = np.clip(at, 0.0, self.room.size)
         self.v.vel[i] = velocity if np.hypot(*velocity) <= self.v.max_speed[i] else np.zeros(2)
         self.v.heading[i] = heading / np.hypot(*heading)
+        self.gaits.moved(i, self.v.pos[i])
 
     # -- hearing -----------------------------------------------------------------------------
     def source_at(self, source: str) -> np.ndarray:

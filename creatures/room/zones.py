@@ -80,18 +80,18 @@ class Zones:
 
     def _leave(self, t: float, z: int, i: int, v: Vehicles) -> None:
         zone, stack, base = self.zones[z], self._stack[i], self._base[i]
-        on_top = {key: self._latest(stack, "spec", key) == z for key in zone.spec}
-        on_top.update({name: self._latest(stack, "drives", name) == z for name in zone.drives})
+        body_on_top = {key: self._latest(stack, "spec", key) == z for key in zone.spec}
+        drive_on_top = {name: self._latest(stack, "drives", name) == z for name in zone.drives}
         stack.remove(z)
         for key in zone.spec:
-            if on_top[key]:
+            if body_on_top[key]:
                 under = self._latest(stack, "spec", key)
                 value = base["body"].pop(key) if under is None else self.zones[under].spec[key]
                 getattr(v, key)[i] = np.radians(value) if key == "max_turn" and under is not None else value
         motivation = getattr(self.creatures[i], "motivation", None)
         if motivation is not None:
             for name in zone.drives:
-                if on_top[name] and name in base["drives"]:
+                if drive_on_top[name] and name in base["drives"]:
                     under = self._latest(stack, "drives", name)
                     level = base["drives"].pop(name) if under is None else self.zones[under].drives[name]
                     motivation.perturb(t, name, level - motivation.level(name, t))

@@ -49,7 +49,7 @@ def gather(creatures: list[CreatureKind], stage: "Stage | None" = None) -> Scene
         figure = creature.figure()
         if figure is not None:
             p, par = figure
-            positions.append(p + shift if stage is None else stage.figure(creature))
+            positions.append(p + shift if stage is None else stage.figure(creature, p))
             parents.append(np.where(par >= 0, par + offset, -1))
             offset += len(p)
         notes = creature.marks()
