@@ -465,3 +465,31 @@ def test_far_creatures_decide_less_often_within_a_budget_and_still_hear(tmp_path
     s.world.play(s.creatures[0], NoteEvent(2.0, 60, 127, 0, 0.5))
     run(s, clock, 2.1)
     assert s.creatures[3].ear.last(1)  # heard on the tick it arrived, deciding or not
+
+
+def test_a_creature_steers_to_a_note_object_and_strikes_it_once_per_stepping_on(tmp_path):
+    """[[room.notes]]: a note object on the floor. `target = "note"` brings the seeker to the
+    nearest one (the far one is never reached), it plays that note as its own on stepping
+    on, once while it stands there, and the frames draw the objects on the floor."""
+    room = ('[[room.notes]]\nat = [7.0, 5.0]\npitch = 67\n'
+            '[[room.notes]]\nat = [1.0, 9.0]\npitch = 48\n')
+    seeker = singer("s", 3.0, 5.0, vehicle='steer = [{ behaviour = "arrival", target = "note", slowing = 1.0 }]')
+    s, clock = session(tmp_path, room, seeker)
+    run(s, clock, 10.0)
+    assert np.hypot(*(s.stage.v.pos[0] - [7.0, 5.0])) < 0.1  # come to rest on it
+    struck = [e for e in s.log.records if e["kind"] == "struck"]
+    assert [(e["note"], e["pitch"]) for e in struck] == [(0, 67)]  # once, though it stands there
+    played = [e for e in s.log.records if e["kind"] == "note" and e["creature"] == "s"]
+    assert [e["pitch"] for e in played if e["pitch"] in (67, 48)][:1] == [67]
+    assert abs(next(e for e in played if e["pitch"] == 67)["t"] - struck[0]["t"]) < 1e-9
+    from creatures.runtime.bodies import gather
+
+    assert gather(s.creatures, s.stage) is None  # no body here, so nothing is drawn
+    assert s.stage.note_marks() == [((7.0, 0.0, -5.0), 67), ((1.0, 0.0, -9.0), 48)]
+
+
+def test_a_note_object_off_the_floor_is_a_config_error(tmp_path):
+    text = HEADER.format(room='[[room.notes]]\nat = [12.0, 5.0]\npitch = 60') + singer("a", 1.0, 1.0)
+    with pytest.raises(ConfigError, match="note object \\[12.0, 5.0\\] is outside") as info:
+        load_installation(write(tmp_path, text))
+    assert info.value.line is not None

@@ -19,10 +19,11 @@ from creatures.room.director import FlowField, Path
 
 Target = str | int | tuple[float, float]
 """What a behaviour aims at: 'visitor' (the nearest), 'player' (where the last note from
-outside came from, for a few seconds), 'loud' (the nearest loud sound), 'centre' (of the
-room), an (x, y) point, or an int: another creature of the crowd."""
+outside came from, for a few seconds), 'loud' (the nearest loud sound), 'note' (the nearest
+note object on the floor), 'centre' (of the room), an (x, y) point, or an int: another
+creature of the crowd."""
 
-NAMED_TARGETS = ("visitor", "player", "loud", "centre")
+NAMED_TARGETS = ("visitor", "player", "loud", "note", "centre")
 
 
 @dataclass(frozen=True)
@@ -61,6 +62,8 @@ class Surroundings:
     visitor_vel: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     player: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     loud: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    notes: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    """Where the room's note objects lie ([[room.notes]])."""
     others: np.ndarray = field(default_factory=lambda: np.zeros((0, 7)))
     """Creatures other processes own in a shared room (creatures/room/share.py), rows of x, y,
     vx, vy, hx, hy, radius: neighbours to separate from and flock with, never steered here."""
@@ -98,8 +101,8 @@ def target_of(step: Step, target: Target) -> tuple[np.ndarray, np.ndarray, np.nd
     s, m = step.scene, len(step.scene.pos)
     if target == "visitor":
         return _nearest(step.around.visitors, step.around.visitor_vel, s.pos)
-    if target in ("loud", "player"):
-        points = step.around.loud if target == "loud" else step.around.player
+    if target in ("loud", "player", "note"):
+        points = {"loud": step.around.loud, "player": step.around.player, "note": step.around.notes}[target]
         return _nearest(points, np.zeros_like(points), s.pos)
     if target == "centre":
         return np.tile(s.room.size / 2, (m, 1)), np.zeros((m, 2)), np.ones(m, dtype=bool)

@@ -87,6 +87,17 @@ class PathSpec(Strict):
     radius: float = Field(0.5, gt=0, le=LARGEST_ROOM, description="how far from the line it may stray, m")
 
 
+class NoteObjectSpec(Strict):
+    """A note object on the floor (thesis: exchange's and sand:stone's note objects, here in the
+    room): a creature that steps onto it plays its note, once per stepping on."""
+
+    at: Point = Field(description="where it lies [x, y], m")
+    pitch: int = Field(ge=0, le=127, description="MIDI pitch it sounds")
+    velocity: int = Field(90, ge=1, le=127, description="MIDI velocity")
+    duration: float = Field(0.5, gt=0, le=60, description="seconds it sounds")
+    radius: float = Field(0.3, gt=0, le=LARGEST_ROOM, description="how near counts as on it, m")
+
+
 class FlowSpec(Strict):
     """A flow field (REACTFlowfield) over the room."""
 
@@ -191,6 +202,9 @@ class RoomSection(Strict):
     lod: LodSpec | None = Field(None, description="[room.lod]; none = every creature steers every sub-step")
     zones: list[ZoneSpec] = Field(default_factory=list, max_length=256, description="[[room.zones]]")
     paths: list[PathSpec] = Field(default_factory=list, max_length=256, description="[[room.paths]]")
+    notes: list[NoteObjectSpec] = Field(default_factory=list, max_length=1024,
+                                        description="[[room.notes]]: note objects on the floor, struck by "
+                                                    "stepping on them; `target = \"note\"` steers to the nearest")
     flows: list[FlowSpec] = Field(default_factory=list, max_length=64, description="[[room.flows]]")
 
     @model_validator(mode="after")

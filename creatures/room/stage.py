@@ -93,6 +93,10 @@ def check_places(section: RoomSection, specs: list, drives: list[tuple[str, ...]
                              f"{size[0]:g} x {size[1]:g} m room")
         if spec.vehicle.gait is not None:
             walk(spec, i)
+    for n, note in enumerate(section.notes):
+        if off(note.at):
+            raise RoomError(("notes", n, "at"), f"note object {list(note.at)} is outside the "
+                            f"{size[0]:g} x {size[1]:g} m room")
     for key in ("listener", "input_at"):
         if off(getattr(section, key)):
             raise RoomError((key,), f"{key} {list(getattr(section, key))} is outside the {size[0]:g} x {size[1]:g} m room")
@@ -165,8 +169,10 @@ class Stage:
         specs = [c.spec.vehicle for c in creatures]
         self.v = self._vehicles(specs, rng)
         plans, groups, self._when = recipes(section, [c.spec for c in creatures], self.index)
+        self.notes = np.array([n.at for n in section.notes], dtype=float).reshape(-1, 2)
+        self._on_note = np.zeros((len(section.notes), len(creatures)), dtype=bool)  # who stands on which
         around = Surroundings(paths={p.name: Path(np.array(p.points, float), p.radius) for p in section.paths},
-                              fields={f.name: self._field(f) for f in section.flows})
+                              fields={f.name: self._field(f) for f in section.flows}, notes=self.notes)
         lod = None if section.lod is None else LevelOfDetail(section.lod.near, section.lod.levels, section.lod.budget)
         self.crowd = Crowd(self.room, self.v, plans, groups, substep=section.substep,
                            seed=int(rng.integers(2**32)), lod=lod, around=around)
@@ -236,9 +242,10 @@ class Stage:
         return FlowField.vortex(self.room.size, f.cell, f.clockwise)
 
     # -- each tick --------------------------------------------------------------------------
-    def tick(self, t: float, percept: Callable[[int, str], float], emit: Callable[..., None]) -> None:
+    def tick(self, t: float, percept: Callable[[int, str], float], emit: Callable[..., None]) -> list[tuple[int, NoteEvent]]:
         """Visitors from the tracker, ``when`` weights from the creatures' percepts (``percept(i,
-        name)``), the zones, then the sub-steps up to ``t``."""
+        name)``), the zones, then the sub-steps up to ``t``. Returns the note objects struck:
+        (creature index, note) for the caller to play as that creature's."""
         self._visitors(t)
         self._loud = [(end, where) for end, where in self._loud if end > t]
         self.crowd.around.loud = np.array([w for _, w in self._loud]).reshape(-1, 2)
@@ -256,6 +263,7 @@ class Stage:
         self.crowd.advance_to(t)
         self.gaits.advance(self.v.pos, self.v.max_speed * max(t - self._walked_at, 0.0) + 1e-9)
         self._walked_at = t
+        struck = self._strikes(t, emit)
         if self.share is not None:
             self.share.publish(self.crowd.t, list(self.index), self._rows(self.v.vel))
         if t + 1e-9 >= self._next_report:  # where everyone is, for the report and for tests
@@ -264,6 +272,26 @@ class Stage:
             emit("room", pos=np.round(self.v.pos, 3 + bool(shared)).tolist(),
                  heading=np.round(self.v.heading, 3).tolist(),
                  visitors=np.round(self.crowd.around.visitors, 3).tolist(), masked=self.masked, **shared)
+        return struck
+
+    def _strikes(self, t: float, emit: Callable[..., None]) -> list[tuple[int, NoteEvent]]:
+        """Creatures that stepped onto a note object since the last tick, with its note (a
+        creature standing on one strikes it once; stepping off and on again strikes again)."""
+        if not len(self.notes):
+            return []
+        radius = np.array([n.radius for n in self.section.notes])
+        on = norms(self.v.pos[None, :, :] - self.notes[:, None, :]) <= radius[:, None]
+        struck = []
+        for k, i in zip(*np.nonzero(on & ~self._on_note)):
+            spec = self.section.notes[k]
+            emit("struck", note=int(k), creature=self.creatures[i].name, pitch=spec.pitch)
+            struck.append((int(i), NoteEvent(round(t, 6), spec.pitch, spec.velocity, 0, spec.duration)))
+        self._on_note = on
+        return struck
+
+    def note_marks(self) -> list[tuple[tuple[float, float, float], int]]:
+        """The note objects as the frames draw them: on the floor, room (x, y) at world (x, 0, −y)."""
+        return [((float(n.at[0]), 0.0, -float(n.at[1])), n.pitch) for n in self.section.notes]
 
     def _rows(self, velocity: np.ndarray) -> np.ndarray:
         """This process's creatures as a shared room's wire carries them (creatures/room/wire.py)."""

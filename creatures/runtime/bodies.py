@@ -57,6 +57,8 @@ def gather(creatures: list[CreatureKind], stage: "Stage | None" = None) -> Scene
             points = np.array([position for position, _ in notes], dtype=float).reshape(-1, 3)
             points = points + shift if stage is None else stage.carry(creature, points)
             marks += [(tuple(float(x) for x in point), pitch) for point, (_, pitch) in zip(points, notes)]
+    if stage is not None:
+        marks += stage.note_marks()
     if not positions:
         return None
     return np.concatenate(positions), np.concatenate(parents), marks

@@ -98,7 +98,8 @@ class Session:
         if self.transcribe and recorded is not None:
             self._hear_notes(t, recorded)
         if self.stage is not None:
-            self.stage.tick(t, self._percept, self.world.emit)
+            for i, note in self.stage.tick(t, self._percept, self.world.emit):
+                self.world.play(self.creatures[i], note)  # a note object it stepped onto
             for i, (creature, gains) in enumerate(zip(self.creatures, self.stage.speaker_gains())):
                 self.mixer.place(i, creature.spec.gain * gains)
         self.world.deliver(t)
