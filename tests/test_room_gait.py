@@ -1,6 +1,7 @@
 """Walking bodies in the room (issue 21, creatures/room/gait.py): the dog's walk played by the
 distance its vehicle covers, so a paw on the floor stays put, where the clip played at its own
-pace slides; clones start at different phases; frames draw each body where its vehicle is."""
+pace slides; clones start at different phases; frames, the live view, pose events and the body
+stream draw each body where its vehicle is."""
 
 from __future__ import annotations
 
@@ -12,6 +13,8 @@ from creatures.config import ConfigError
 from creatures.kinds.figures import figure_graph
 from creatures.room.gait import Walk, in_room
 from creatures.runtime.bodies import gather
+from creatures.runtime.body_stream import snapshot
+from creatures.view.snapshot import bodies, frame, pose_event
 from creatures.runtime.schema import load_installation
 
 DOG = """
@@ -103,11 +106,18 @@ def test_clones_step_out_of_phase_and_each_is_drawn_where_it_stands(tmp_path):
     stride = s.stage.gaits.walks[0].stride
     assert len(set(np.round(phases, 6))) == 6 and np.ptp(phases) > stride / 3
     run(s, clock, 2.0)
-    positions, _, _ = gather(s.creatures, s.stage)
+    positions, _, _ = gather(s.creatures)
     joints = len(s.creatures[0].body.skeleton.names)
     roots = positions.reshape(6, joints, 3)[:, 0]
     assert np.allclose(roots[:, [0, 2]] * [1.0, -1.0], s.stage.v.pos, atol=0.15)  # the pelvis over the vehicle
     assert np.all(roots[:, 1] > 0.2)  # standing, not under the floor
+    # Every picture agrees: the live view's frame, the pose events and the body stream show
+    # the same joints, at the origin's place.
+    rex = s.creatures[0]
+    assert np.allclose(frame(2.0, s.creatures)["bodies"][rex.name], positions[:joints])
+    assert np.allclose(pose_event(rex)["joints"], positions[:joints], atol=1e-3)
+    assert np.allclose(snapshot(rex).positions, positions[:joints])
+    assert all(b.place == (0.0, 0.0, 0.0) for b in bodies(s.creatures))
 
 
 @pytest.mark.parametrize("gait, extra, message", [

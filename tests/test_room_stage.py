@@ -484,7 +484,7 @@ def test_a_creature_steers_to_a_note_object_and_strikes_it_once_per_stepping_on(
     assert abs(next(e for e in played if e["pitch"] == 67)["t"] - struck[0]["t"]) < 1e-9
     from creatures.runtime.bodies import gather
 
-    assert gather(s.creatures, s.stage) is None  # no body here, so nothing is drawn
+    assert gather(s.creatures) is None  # no body here, so nothing is drawn
     assert s.stage.note_marks() == [((7.0, 0.0, -5.0), 67), ((1.0, 0.0, -9.0), 48)]
 
 

@@ -172,6 +172,27 @@ class CreatureKind(ABC):
         """Note objects to draw in space as ``(position, pitch)``."""
         return []
 
+    # -- as drawn: every picture of the creature (frames, the live view, pose events, the body
+    # stream) asks these, so all of them agree on where it stands -------------------------
+    def shown(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """:meth:`figure` as drawn: in a room (``[room]``) where its vehicle stands, facing its
+        heading, walking if it has a gait (:meth:`creatures.room.stage.Stage.figure`); without a
+        room, its own figure (the view and the frames put it at its side-by-side place)."""
+        figure = self.figure()
+        room = getattr(self.world, "room", None)
+        if figure is None or room is None:
+            return figure
+        return room.figure(self, figure[0]), figure[1]
+
+    def shown_marks(self) -> list[tuple[tuple[float, float, float], int]]:
+        """:meth:`marks` as drawn: carried with the creature in a room, as :meth:`shown`."""
+        marks = self.marks()
+        room = getattr(self.world, "room", None)
+        if not marks or room is None:
+            return marks
+        points = room.carry(self, np.array([position for position, _ in marks], dtype=float).reshape(-1, 3))
+        return [(tuple(float(x) for x in point), pitch) for point, (_, pitch) in zip(points, marks)]
+
     def finish(self, out: "Path") -> dict[str, "Path"]:
         """The run is over: write any kind-specific outputs into ``out`` (e.g. an edit
         decision list) and return them by name; default none."""

@@ -20,7 +20,6 @@ import os
 import queue
 import signal
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -30,35 +29,30 @@ from creatures.kinds.base import CreatureKind
 from creatures.runtime.schema import OutputSection
 from creatures.view.snapshot import place
 
-if TYPE_CHECKING:
-    from creatures.room.stage import Stage
-
 Scene = tuple[np.ndarray, np.ndarray, list[tuple[tuple[float, float, float], float]]]
 """Joint positions (J, 3), their parents (J,) and note marks (position, pitch): one frame's content."""
 
 
-def gather(creatures: list[CreatureKind], stage: "Stage | None" = None) -> Scene | None:
-    """Every creature's figure and note objects, each at its :func:`~creatures.view.snapshot.place`
-    (as the live view and a replay place them), or in a room (``stage``) where its vehicle
-    stands, facing its heading, walking if it has a gait (:mod:`creatures.room.gait`), its note
-    objects carried with it; None if no one has a body."""
+def gather(creatures: list[CreatureKind]) -> Scene | None:
+    """Every creature's figure and note objects as drawn (:meth:`~creatures.kinds.base.CreatureKind.shown`),
+    each at its :func:`~creatures.view.snapshot.place` (as the live view and a replay place
+    them), which in a room is the origin: there each stands where its vehicle is, and the
+    room's own note objects lie on the floor. None if no one has a body."""
     positions, parents, marks = [], [], []
     offset = 0
     for i, creature in enumerate(creatures):
-        shift = np.array(place(i, len(creatures)))
-        figure = creature.figure()
+        shift = np.array(place(i, len(creatures), creature))
+        figure = creature.shown()
         if figure is not None:
             p, par = figure
-            positions.append(p + shift if stage is None else stage.figure(creature, p))
+            positions.append(p + shift)
             parents.append(np.where(par >= 0, par + offset, -1))
             offset += len(p)
-        notes = creature.marks()
-        if notes:
-            points = np.array([position for position, _ in notes], dtype=float).reshape(-1, 3)
-            points = points + shift if stage is None else stage.carry(creature, points)
-            marks += [(tuple(float(x) for x in point), pitch) for point, (_, pitch) in zip(points, notes)]
-    if stage is not None:
-        marks += stage.note_marks()
+        marks += [(tuple(float(x) for x in np.asarray(position) + shift), pitch)
+                  for position, pitch in creature.shown_marks()]
+    room = getattr(creatures[0].world, "room", None) if creatures else None
+    if room is not None:
+        marks += room.note_marks()
     if not positions:
         return None
     return np.concatenate(positions), np.concatenate(parents), marks
@@ -81,12 +75,12 @@ class BodyFrames:
         self.clock = FrameClock(output.fps, clock)  # frames count from when drawing can start
         self._frame = np.empty((output.height, output.width, 3), np.uint8)  # drawn into, frame after frame
 
-    def draw(self, creatures: list[CreatureKind], stage: "Stage | None" = None) -> None:
+    def draw(self, creatures: list[CreatureKind]) -> None:
         if self.renderer is None:
             return
         due = self.clock.due()
         if due:
-            scene = gather(creatures, stage)
+            scene = gather(creatures)
             if scene is not None:
                 self.paint(scene, due)
 
@@ -156,12 +150,12 @@ class FramesBeside:
             self.process.join(10)
         self.clock = FrameClock(output.fps, clock)
 
-    def draw(self, creatures: list[CreatureKind], stage: "Stage | None" = None) -> None:
+    def draw(self, creatures: list[CreatureKind]) -> None:
         if not self.drawing:
             return
         due = self.clock.due()
         if due:
-            scene = gather(creatures, stage)
+            scene = gather(creatures)
             if scene is not None:
                 try:
                     self.scenes.put_nowait((scene, due))

@@ -123,8 +123,9 @@ def hello_of(creature: "CreatureKind", index: int) -> Hello:
 
 
 def snapshot(creature: "CreatureKind") -> Pose:
-    """A creature as it is now, copied (the sender thread reads it while the creature moves on)."""
-    figure = creature.figure()
+    """A creature as it is now, copied (the sender thread reads it while the creature moves on);
+    in a room, where it stands there (:meth:`~creatures.kinds.base.CreatureKind.shown`)."""
+    figure = creature.shown()
     positions = rotations = effector = None
     if figure is not None:
         positions = np.array(figure[0], dtype=float)

@@ -481,7 +481,7 @@ def run_live(
             if inputs.network is not None:
                 inputs.network.publish(t)
             if bodies is not None:
-                bodies.draw(session.creatures, session.stage)
+                bodies.draw(session.creatures)
             if feed is not None:
                 feed.offer()
             if poses is not None:

@@ -190,7 +190,7 @@ def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path 
             if wav is not None:
                 wav.write(mix)
             if bodies is not None:
-                bodies.draw(session.creatures, session.stage)
+                bodies.draw(session.creatures)
             if poses is not None:
                 poses.write()
             if bar is not None:

@@ -39,8 +39,11 @@ DIGITS = 6
 Message = dict[str, Any]
 
 
-def place(index: int, count: int) -> tuple[float, float, float]:
-    """Where creature ``index`` of ``count`` stands: side by side along x, centred on 0."""
+def place(index: int, count: int, creature: CreatureKind | None = None) -> tuple[float, float, float]:
+    """Where creature ``index`` of ``count`` stands: side by side along x, centred on 0; at the
+    origin for a ``creature`` in a room, whose drawn joints are already where it stands."""
+    if creature is not None and getattr(creature.world, "room", None) is not None:
+        return (0.0, 0.0, 0.0)
     return ((index - (count - 1) / 2) * SPACING, 0.0, 0.0)
 
 
@@ -60,7 +63,7 @@ def bodies(creatures: list[CreatureKind]) -> list[Body]:
     for i, creature in enumerate(creatures):
         figure = creature.figure()
         parents = None if figure is None else [int(p) for p in figure[1]]
-        found.append(Body(creature.name, creature.spec.kind, parents, place(i, len(creatures))))
+        found.append(Body(creature.name, creature.spec.kind, parents, place(i, len(creatures), creature)))
     return found
 
 
@@ -72,8 +75,9 @@ def hello(title: str, mode: str, found: list[Body], **status: Any) -> Message:
 
 
 def marks_of(creature: CreatureKind) -> list[list[float]]:
-    """A creature's note objects as ``[x, y, z, pitch]`` rows (its own coordinates)."""
-    return [[float(x) for x in position] + [float(pitch)] for position, pitch in creature.marks()]
+    """A creature's note objects as ``[x, y, z, pitch]`` rows, as drawn (its own coordinates, or
+    the room's)."""
+    return [[float(x) for x in position] + [float(pitch)] for position, pitch in creature.shown_marks()]
 
 
 def frame(t: float, creatures: Iterable[CreatureKind], events: list[Message] | None = None) -> Message:
@@ -81,7 +85,7 @@ def frame(t: float, creatures: Iterable[CreatureKind], events: list[Message] | N
     state the next tick changes), every creature's note objects, and ``events``."""
     joints, marks = {}, {}
     for creature in creatures:
-        figure = creature.figure()
+        figure = creature.shown()
         if figure is not None:
             joints[creature.name] = np.array(figure[0], dtype=float)
         shown = marks_of(creature)
@@ -98,7 +102,7 @@ def skeleton_events(found: list[Body]) -> list[Message]:
 
 def pose_event(creature: CreatureKind) -> Message | None:
     """A ``pose`` event's fields: the creature's joints and note objects now, to :data:`DIGITS`."""
-    figure = creature.figure()
+    figure = creature.shown()
     if figure is None:
         return None
     marks = [[round(x, DIGITS) for x in mark] for mark in marks_of(creature)]
