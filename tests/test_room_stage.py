@@ -488,8 +488,31 @@ def test_a_creature_steers_to_a_note_object_and_strikes_it_once_per_stepping_on(
     assert s.stage.note_marks() == [((7.0, 0.0, -5.0), 67), ((1.0, 0.0, -9.0), 48)]
 
 
-def test_a_note_object_off_the_floor_is_a_config_error(tmp_path):
-    text = HEADER.format(room='[[room.notes]]\nat = [12.0, 5.0]\npitch = 60') + singer("a", 1.0, 1.0)
-    with pytest.raises(ConfigError, match="note object \\[12.0, 5.0\\] is outside") as info:
+@pytest.mark.parametrize("room, vehicle, message", [
+    ('[[room.notes]]\nat = [12.0, 5.0]\npitch = 60', "", "note object \\[12.0, 5.0\\] is outside"),
+    ("", 'steer = [{ behaviour = "seek", target = "note" }]', "the room has none"),
+])
+def test_a_note_object_off_the_floor_or_none_to_seek_is_a_config_error(tmp_path, room, vehicle, message):
+    text = HEADER.format(room=room) + singer("a", 1.0, 1.0, vehicle=vehicle)
+    with pytest.raises(ConfigError, match=message) as info:
         load_installation(write(tmp_path, text))
     assert info.value.line is not None
+
+
+def test_a_creature_put_on_a_note_object_strikes_it_only_by_stepping_on(tmp_path):
+    """Placed on a note object at the start (or put back there by its saved place), a creature
+    strikes nothing; it strikes when it steps off and on again."""
+    room = '[[room.notes]]\nat = [5.0, 5.0]\npitch = 67\nradius = 0.5'
+    s, clock = session(tmp_path, room, singer("a", 5.0, 5.0, vehicle="max_speed = 0.001"))
+    run(s, clock, 1.0)
+    assert not [e for e in s.log.records if e["kind"] == "struck"]
+    s.stage.put("a", {"at": [8.0, 8.0], "velocity": [0.0, 0.0], "heading": [1.0, 0.0]})
+    run(s, clock, 1.5)
+    s.stage.put("a", {"at": [5.0, 5.0], "velocity": [0.0, 0.0], "heading": [1.0, 0.0]})
+    run(s, clock, 2.0)
+    assert not [e for e in s.log.records if e["kind"] == "struck"]  # a place taken back is no step
+    s.stage.v.pos[0] = [8.0, 8.0]
+    run(s, clock, 2.5)
+    s.stage.v.pos[0] = [5.1, 5.0]  # walked back onto it (moved by hand, as steering would)
+    run(s, clock, 3.0)
+    assert [e["pitch"] for e in s.log.records if e["kind"] == "struck"] == [67]

@@ -157,12 +157,14 @@ class CreatureKind(ABC):
         return None
 
     def effector(self) -> np.ndarray | None:
-        """World position ``(3,)`` of the body's (first) end-effector, as drawn by
-        :meth:`figure`, or None for no body: what ``[[output.cc]]`` body features read."""
+        """Position ``(3,)`` of the body's (first) end-effector in its :meth:`figure` (its own
+        frame, also in a room, so a CC range set once holds wherever it walks), or None for no
+        body: what ``[[output.cc]]`` body features read."""
         return self.effector_of(self.figure())
 
     def effector_of(self, figure: tuple[np.ndarray, np.ndarray] | None) -> np.ndarray | None:
-        """:meth:`effector` from a figure already drawn (the body stream's snapshot has one)."""
+        """The end-effector of ``figure`` (joints in :meth:`figure`'s order: the body stream
+        passes the :meth:`shown` joints it sends, so its effector is where those put it)."""
         body = getattr(self, "body", None)
         if figure is None or body is None or not body.skeleton.end_effectors:
             return None

@@ -130,6 +130,9 @@ def recipes(section: RoomSection, specs: list, index: dict[str, int]
         for b, steer in enumerate(s.steer):
             params = steer.params()
             target = params.get("target")
+            if target == "note" and not section.notes:
+                raise StageError(i, ("vehicle", "steer", b, "target"), "target \"note\" steers to the nearest "
+                                 "note object, and the room has none ([[room.notes]])")
             if isinstance(target, str) and target not in NAMED_TARGETS:
                 if target not in index:
                     raise StageError(i, ("vehicle", "steer", b, "target"), f"no creature named {target!r} to steer "
@@ -170,7 +173,7 @@ class Stage:
         self.v = self._vehicles(specs, rng)
         plans, groups, self._when = recipes(section, [c.spec for c in creatures], self.index)
         self.notes = np.array([n.at for n in section.notes], dtype=float).reshape(-1, 2)
-        self._on_note = np.zeros((len(section.notes), len(creatures)), dtype=bool)  # who stands on which
+        self._on_note = self._standing()  # who stands on which: one put there strikes nothing
         around = Surroundings(paths={p.name: Path(np.array(p.points, float), p.radius) for p in section.paths},
                               fields={f.name: self._field(f) for f in section.flows}, notes=self.notes)
         lod = None if section.lod is None else LevelOfDetail(section.lod.near, section.lod.levels, section.lod.budget)
@@ -279,8 +282,7 @@ class Stage:
         creature standing on one strikes it once; stepping off and on again strikes again)."""
         if not len(self.notes):
             return []
-        radius = np.array([n.radius for n in self.section.notes])
-        on = norms(self.v.pos[None, :, :] - self.notes[:, None, :]) <= radius[:, None]
+        on = self._standing()
         struck = []
         for k, i in zip(*np.nonzero(on & ~self._on_note)):
             spec = self.section.notes[k]
@@ -288,6 +290,13 @@ class Stage:
             struck.append((int(i), NoteEvent(round(t, 6), spec.pitch, spec.velocity, 0, spec.duration)))
         self._on_note = on
         return struck
+
+    def _standing(self) -> np.ndarray:
+        """(notes, creatures) bool: who stands on which note object now (checked at ticks, so a
+        creature that crosses a small object within one tick, faster than radius × 2 / tick,
+        passes it by)."""
+        radius = np.array([n.radius for n in self.section.notes]).reshape(-1, 1)
+        return norms(self.v.pos[None, :, :] - self.notes[:, None, :]) <= radius
 
     def note_marks(self) -> list[tuple[tuple[float, float, float], int]]:
         """The note objects as the frames draw them: on the floor, room (x, y) at world (x, 0, −y)."""
@@ -430,6 +439,7 @@ class Stage:
         self.v.vel[i] = velocity if np.hypot(*velocity) <= self.v.max_speed[i] else np.zeros(2)
         self.v.heading[i] = heading / np.hypot(*heading)
         self.gaits.moved(i, self.v.pos[i])
+        self._on_note[:, i] = self._standing()[:, i]  # a place taken back strikes nothing
 
     # -- hearing -----------------------------------------------------------------------------
     def source_at(self, source: str) -> np.ndarray:

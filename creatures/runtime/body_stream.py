@@ -3,8 +3,9 @@
 DESIGN.md says a renderer is just another OSC client; IViHumans keeps its graphics and its
 minds in separate processes for the same reason (a picture must never hold up a mind). So
 the colony does not draw here: at a chosen frame rate it takes a *snapshot* of each creature
-— the joint positions :meth:`~creatures.kinds.base.CreatureKind.figure` draws, the joints'
-local rotations, the end-effector, the note objects in space, the drives, what it is doing —
+— the joint positions :meth:`~creatures.kinds.base.CreatureKind.shown` draws (in a room, where
+it stands there), the joints' local rotations, the end-effector, the note objects in space, the
+drives, what it is doing —
 and the notes played and heard since the last frame, and hands the :class:`Frame` to
 *sinks*: an OSC sender (:class:`~creatures.runtime.stream_sinks.OscStreamSink`, the address
 space in ``docs/stream.md``), a file of JSON lines (offline), memory (tests), or a live view
@@ -65,9 +66,11 @@ class Hello:
 
 @dataclass(frozen=True)
 class Pose:
-    """One creature at one frame. ``positions`` ``(J, 3)`` are exactly what ``figure()``
+    """One creature at one frame. ``positions`` ``(J, 3)`` are exactly what ``shown()``
     returned; ``rotations`` ``(J, 4)`` the joints' local unit quaternions ``(w, x, y, z)``
-    (None for a body without them); ``drives`` as of the creature's last tick."""
+    (None for a body without them, and in a room, where the joints are turned to the heading
+    and a gait replaces the course: forward kinematics from them would not give the pose);
+    ``drives`` as of the creature's last tick."""
 
     creature: str
     positions: np.ndarray | None
@@ -131,14 +134,14 @@ def snapshot(creature: "CreatureKind") -> Pose:
         positions = np.array(figure[0], dtype=float)
         pose = getattr(getattr(creature, "body", None), "pose", None)
         rotations = getattr(pose, "rotations", None)
-        if rotations is not None and len(rotations) == len(positions):
+        if rotations is not None and len(rotations) == len(positions) and getattr(creature.world, "room", None) is None:
             rotations = np.array(rotations, dtype=float)
         else:
             rotations = None
         found = creature.effector_of(figure)
         effector = None if found is None else np.array(found, dtype=float)
     marks = tuple((float(p[0]), float(p[1]), float(p[2]), int(pitch))
-                  for p, pitch in creature.marks()[:MARKS_PER_FRAME])
+                  for p, pitch in creature.shown_marks()[:MARKS_PER_FRAME])
     motivation = _motivation(creature)
     drives = motivation.levels.copy() if motivation is not None else np.zeros(0)
     return Pose(creature.name, positions, rotations, effector, marks, drives, doing(creature) or "none")

@@ -2,8 +2,8 @@
 
 One ``hello`` names the creatures, their skeletons (parent indices) and where each stands in
 the picture; then ``frame`` messages carry, at one clock time, every body's joint positions as
-:meth:`~creatures.kinds.base.CreatureKind.figure` gives them (the creature's own coordinates,
-unrounded), its note objects in space, and the events-log records the page shows that were
+:meth:`~creatures.kinds.base.CreatureKind.shown` gives them (the creature's own coordinates,
+or in a room the room's; unrounded), its note objects in space, and the events-log records the page shows that were
 emitted since the previous frame (notes played and heard, selections, drives, values, percept
 sizes, xruns). A live run builds these from its creatures and its log's tap
 (:mod:`creatures.view.feed`); a replay builds the very same messages from an offline run's
