@@ -516,3 +516,8 @@ def test_a_creature_put_on_a_note_object_strikes_it_only_by_stepping_on(tmp_path
     s.stage.v.pos[0] = [5.1, 5.0]  # walked back onto it (moved by hand, as steering would)
     run(s, clock, 3.0)
     assert [e["pitch"] for e in s.log.records if e["kind"] == "struck"] == [67]
+    s.stage.v.pos[0] = [5.0, 2.0]  # off it, then across it and beyond within one tick
+    run(s, clock, 3.5)
+    s.stage.v.pos[0] = [5.0, 8.0]
+    run(s, clock, 3.52)
+    assert [e["pitch"] for e in s.log.records if e["kind"] == "struck"] == [67, 67]  # struck in passing

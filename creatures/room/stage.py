@@ -174,6 +174,7 @@ class Stage:
         plans, groups, self._when = recipes(section, [c.spec for c in creatures], self.index)
         self.notes = np.array([n.at for n in section.notes], dtype=float).reshape(-1, 2)
         self._on_note = self._standing()  # who stands on which: one put there strikes nothing
+        self._was_at = self.v.pos.copy()  # where each stood at the last strike check
         around = Surroundings(paths={p.name: Path(np.array(p.points, float), p.radius) for p in section.paths},
                               fields={f.name: self._field(f) for f in section.flows}, notes=self.notes)
         lod = None if section.lod is None else LevelOfDetail(section.lod.near, section.lod.levels, section.lod.budget)
@@ -279,22 +280,34 @@ class Stage:
 
     def _strikes(self, t: float, emit: Callable[..., None]) -> list[tuple[int, NoteEvent]]:
         """Creatures that stepped onto a note object since the last tick, with its note (a
-        creature standing on one strikes it once; stepping off and on again strikes again)."""
+        creature standing on one strikes it once; stepping off and on again strikes again).
+        The way walked since the last tick counts, not only where it ends: one that crossed a
+        small object within a tick (faster than its width per tick) struck it in passing."""
         if not len(self.notes):
             return []
         on = self._standing()
+        crossed = self._crossed(self._was_at, self.v.pos)
         struck = []
-        for k, i in zip(*np.nonzero(on & ~self._on_note)):
+        for k, i in zip(*np.nonzero((on | crossed) & ~self._on_note)):
             spec = self.section.notes[k]
             emit("struck", note=int(k), creature=self.creatures[i].name, pitch=spec.pitch)
             struck.append((int(i), NoteEvent(round(t, 6), spec.pitch, spec.velocity, 0, spec.duration)))
         self._on_note = on
+        self._was_at = self.v.pos.copy()
         return struck
 
+    def _crossed(self, start: np.ndarray, end: np.ndarray) -> np.ndarray:
+        """(notes, creatures) bool: whose straight way from ``start`` to ``end`` passes within a
+        note object's radius."""
+        way = end - start  # (N, 2)
+        length = np.maximum((way ** 2).sum(axis=1), 1e-12)
+        along = np.clip(((self.notes[:, None, :] - start[None]) * way[None]).sum(axis=2) / length, 0.0, 1.0)
+        nearest = start[None] + along[..., None] * way[None]
+        radius = np.array([n.radius for n in self.section.notes]).reshape(-1, 1)
+        return norms(self.notes[:, None, :] - nearest) <= radius
+
     def _standing(self) -> np.ndarray:
-        """(notes, creatures) bool: who stands on which note object now (checked at ticks, so a
-        creature that crosses a small object within one tick, faster than radius × 2 / tick,
-        passes it by)."""
+        """(notes, creatures) bool: who stands on which note object now."""
         radius = np.array([n.radius for n in self.section.notes]).reshape(-1, 1)
         return norms(self.v.pos[None, :, :] - self.notes[:, None, :]) <= radius
 
@@ -440,6 +453,7 @@ class Stage:
         self.v.heading[i] = heading / np.hypot(*heading)
         self.gaits.moved(i, self.v.pos[i])
         self._on_note[:, i] = self._standing()[:, i]  # a place taken back strikes nothing
+        self._was_at[i] = self.v.pos[i]  # nor does the jump to it
 
     # -- hearing -----------------------------------------------------------------------------
     def source_at(self, source: str) -> np.ndarray:
