@@ -97,9 +97,8 @@ def heard_bearing(creature: "Authored") -> float | None:
     source = creature.ear.heard_from
     if not source:
         return None
-    room = getattr(creature.world, "room", None)
-    if room is not None:
-        return room.toward(creature.name, source)
+    if creature.stage is not None:
+        return creature.stage.toward(creature.name, source)
     pans = {c.name: c.spec.pan for c in creature.world.creatures}
     me = pans.get(creature.name, 0.0) * STAGE_HALF_WIDTH
     if source in pans:

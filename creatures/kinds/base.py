@@ -22,6 +22,8 @@ from creatures.behaviour.action_group import ActionGroup
 if TYPE_CHECKING:
     from pathlib import Path
 
+    from creatures.room.stage import Stage
+
     from creatures.runtime.world import World
     from midi.notes import NoteEvent
 
@@ -176,23 +178,26 @@ class CreatureKind(ABC):
 
     # -- as drawn: every picture of the creature (frames, the live view, pose events, the body
     # stream) asks these, so all of them agree on where it stands -------------------------
+    @property
+    def stage(self) -> "Stage | None":
+        """The room this creature stands in (its world's ``[room]``), or None."""
+        return getattr(self.world, "room", None)
+
     def shown(self) -> tuple[np.ndarray, np.ndarray] | None:
         """:meth:`figure` as drawn: in a room (``[room]``) where its vehicle stands, facing its
         heading, walking if it has a gait (:meth:`creatures.room.stage.Stage.figure`); without a
         room, its own figure (the view and the frames put it at its side-by-side place)."""
         figure = self.figure()
-        room = getattr(self.world, "room", None)
-        if figure is None or room is None:
+        if figure is None or self.stage is None:
             return figure
-        return room.figure(self, figure[0]), figure[1]
+        return self.stage.figure(self, figure[0]), figure[1]
 
     def shown_marks(self) -> list[tuple[tuple[float, float, float], int]]:
         """:meth:`marks` as drawn: carried with the creature in a room, as :meth:`shown`."""
         marks = self.marks()
-        room = getattr(self.world, "room", None)
-        if not marks or room is None:
+        if not marks or self.stage is None:
             return marks
-        points = room.carry(self, np.array([position for position, _ in marks], dtype=float).reshape(-1, 3))
+        points = self.stage.carry(self, np.array([position for position, _ in marks], dtype=float).reshape(-1, 3))
         return [(tuple(float(x) for x in point), pitch) for point, (_, pitch) in zip(points, marks)]
 
     def finish(self, out: "Path") -> dict[str, "Path"]:

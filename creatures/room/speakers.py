@@ -115,11 +115,10 @@ class Dome:
             # a creature above it nowhere, or on the wrong speaker.
             raise ValueError("the dome's speakers must surround the listener above ear height (some above it, "
                              "on every side)")
-        # Each triangle's inverse base: g = p · inv(L), rows of L its three speakers.
-        bases = points[hull.simplices]  # (T, 3, 3)
-        keep = np.abs(np.linalg.det(bases)) > 1e-9  # faces through the centre cannot place anything
-        self.triangles = hull.simplices[keep]
-        self.inverse = np.linalg.inv(bases[keep])
+        # Each triangle's inverse base: g = p · inv(L), rows of L its three speakers (no face
+        # passes through the listener, so every base inverts).
+        self.triangles = hull.simplices
+        self.inverse = np.linalg.inv(points[hull.simplices])  # (T, 3, 3)
 
     def gains(self, azimuth: np.ndarray, elevation: np.ndarray) -> np.ndarray:
         """Amplitude gains (N, speakers) of sources at ``azimuth``, ``elevation`` degrees."""
@@ -129,6 +128,6 @@ class Dome:
         rows = np.arange(len(p))
         chosen = np.clip(g[rows, best], 0.0, None)
         out = np.zeros((len(p), len(self.speakers) + 1))
-        np.add.at(out, (rows[:, None], self.triangles[best]), chosen)
+        out[rows[:, None], self.triangles[best]] = chosen
         out = out[:, :-1]  # the nadir is not a speaker
         return out / np.maximum(np.linalg.norm(out, axis=1, keepdims=True), 1e-12)

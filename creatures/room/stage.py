@@ -173,6 +173,7 @@ class Stage:
         self.v = self._vehicles(specs, rng)
         plans, groups, self._when = recipes(section, [c.spec for c in creatures], self.index)
         self.notes = np.array([n.at for n in section.notes], dtype=float).reshape(-1, 2)
+        self._note_radius = np.array([n.radius for n in section.notes]).reshape(-1, 1)
         self._on_note = self._standing()  # who stands on which: one put there strikes nothing
         self._was_at = self.v.pos.copy()  # where each stood at the last strike check
         around = Surroundings(paths={p.name: Path(np.array(p.points, float), p.radius) for p in section.paths},
@@ -192,7 +193,10 @@ class Stage:
         self.dome = Dome(section.dome or DOME) if section.speakers == "dome" else None
         corners = np.array([[0.0, 0.0], [section.width, 0.0], [0.0, section.depth], [section.width, section.depth]])
         self._reach = section.dome_reach or max(float(norms(corners - self.listener).max()), 1e-3)
-        self.channels = (2 if self.speakers is None else section.channels) if self.dome is None else len(self.dome.speakers)
+        if self.dome is not None:
+            self.channels = len(self.dome.speakers)
+        else:
+            self.channels = 2 if self.speakers is None else section.channels
         self._loud: list[tuple[float, np.ndarray]] = []  # (until, where) of each loud note
         self._player: tuple[float, np.ndarray] | None = None  # (until, where) of the last outside note
         self._arrivals: list[tuple[float, int, int, Arrival, str]] = []
@@ -285,14 +289,12 @@ class Stage:
         small object within a tick (faster than its width per tick) struck it in passing."""
         if not len(self.notes):
             return []
-        on = self._standing()
-        crossed = self._crossed(self._was_at, self.v.pos)
-        struck = []
-        for k, i in zip(*np.nonzero((on | crossed) & ~self._on_note)):
+        struck = []  # the way includes where it ends: standing on one now counts
+        for k, i in zip(*np.nonzero(self._crossed(self._was_at, self.v.pos) & ~self._on_note)):
             spec = self.section.notes[k]
             emit("struck", note=int(k), creature=self.creatures[i].name, pitch=spec.pitch)
             struck.append((int(i), NoteEvent(round(t, 6), spec.pitch, spec.velocity, 0, spec.duration)))
-        self._on_note = on
+        self._on_note = self._standing()
         self._was_at = self.v.pos.copy()
         return struck
 
@@ -303,13 +305,11 @@ class Stage:
         length = np.maximum((way ** 2).sum(axis=1), 1e-12)
         along = np.clip(((self.notes[:, None, :] - start[None]) * way[None]).sum(axis=2) / length, 0.0, 1.0)
         nearest = start[None] + along[..., None] * way[None]
-        radius = np.array([n.radius for n in self.section.notes]).reshape(-1, 1)
-        return norms(self.notes[:, None, :] - nearest) <= radius
+        return norms(self.notes[:, None, :] - nearest) <= self._note_radius
 
     def _standing(self) -> np.ndarray:
-        """(notes, creatures) bool: who stands on which note object now."""
-        radius = np.array([n.radius for n in self.section.notes]).reshape(-1, 1)
-        return norms(self.v.pos[None, :, :] - self.notes[:, None, :]) <= radius
+        """(notes, creatures) bool: who stands on which note object now (a way of no length)."""
+        return self._crossed(self.v.pos, self.v.pos)
 
     def note_marks(self) -> list[tuple[tuple[float, float, float], int]]:
         """The note objects as the frames draw them: on the floor, room (x, y) at world (x, 0, −y)."""

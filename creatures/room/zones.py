@@ -41,6 +41,12 @@ def contains(zone: ZoneSpec, pos: np.ndarray) -> np.ndarray:
     return np.all((pos >= low) & (pos <= high), axis=1)
 
 
+def _vehicle_unit(key: str, value: float) -> float:
+    """A zone's ``spec`` value in the vehicle's own unit (``max_turn`` is given in degrees per
+    second, kept in radians)."""
+    return float(np.radians(value)) if key == "max_turn" else value
+
+
 class Zones:
     """The zones of a room and who is inside each."""
 
@@ -69,7 +75,7 @@ class Zones:
         motivation = getattr(self.creatures[i], "motivation", None)
         for key, value in zone.spec.items():
             base["body"].setdefault(key, float(getattr(v, key)[i]))
-            getattr(v, key)[i] = np.radians(value) if key == "max_turn" else value
+            getattr(v, key)[i] = _vehicle_unit(key, value)
         if motivation is not None:
             for name, level in zone.drives.items():
                 if name in motivation.names:  # a zone sets the drives a creature has
@@ -86,8 +92,7 @@ class Zones:
         for key in zone.spec:
             if body_on_top[key]:
                 under = self._latest(stack, "spec", key)
-                value = base["body"].pop(key) if under is None else self.zones[under].spec[key]
-                getattr(v, key)[i] = np.radians(value) if key == "max_turn" and under is not None else value
+                getattr(v, key)[i] = base["body"].pop(key) if under is None else _vehicle_unit(key, self.zones[under].spec[key])
         motivation = getattr(self.creatures[i], "motivation", None)
         if motivation is not None:
             for name in zone.drives:

@@ -50,9 +50,8 @@ def gather(creatures: list[CreatureKind]) -> Scene | None:
             offset += len(p)
         marks += [(tuple(float(x) for x in np.asarray(position) + shift), pitch)
                   for position, pitch in creature.shown_marks()]
-    room = getattr(creatures[0].world, "room", None) if creatures else None
-    if room is not None:
-        marks += room.note_marks()
+    if creatures and creatures[0].stage is not None:
+        marks += creatures[0].stage.note_marks()
     if not positions:
         return None
     return np.concatenate(positions), np.concatenate(parents), marks

@@ -134,7 +134,7 @@ def snapshot(creature: "CreatureKind") -> Pose:
         positions = np.array(figure[0], dtype=float)
         pose = getattr(getattr(creature, "body", None), "pose", None)
         rotations = getattr(pose, "rotations", None)
-        if rotations is not None and len(rotations) == len(positions) and getattr(creature.world, "room", None) is None:
+        if rotations is not None and len(rotations) == len(positions) and creature.stage is None:
             rotations = np.array(rotations, dtype=float)
         else:
             rotations = None

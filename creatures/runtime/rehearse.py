@@ -17,6 +17,7 @@ complexity waxes and wanes with them; this is that week, heard in minutes.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import tempfile
 import time
@@ -38,7 +39,6 @@ from creatures.runtime.opening import DAYS, OpeningHours
 from creatures.runtime.schema import LoadedInstallation, ScheduleSection
 from creatures.runtime.session import Session, write_snapshot
 from creatures.runtime.visitors import Phrase, Visitors, generated, load_corpus
-from midi.notes import NoteEvent
 
 MONDAY = datetime(2029, 1, 1)
 """The rehearsed week's first day (a Monday, at midnight in the hours' zone)."""
@@ -225,8 +225,7 @@ def rehearse(inst: LoadedInstallation, days: int | None = None) -> Rehearsal:
                 continue
             for start, phrase in visitors.play(t0, t):
                 for note in phrase.notes:
-                    session.world.inject(NoteEvent(round(start + note.time, 6), note.pitch, note.velocity,
-                                                   note.channel, note.duration))
+                    session.world.inject(dataclasses.replace(note, time=round(start + note.time, 6)))
                 if ears is not None:
                     ears.add(start, phrase)
             x0, x1 = int(round(t0 * sr)), int(round(t * sr))

@@ -42,7 +42,7 @@ Message = dict[str, Any]
 def place(index: int, count: int, creature: CreatureKind | None = None) -> tuple[float, float, float]:
     """Where creature ``index`` of ``count`` stands: side by side along x, centred on 0; at the
     origin for a ``creature`` in a room, whose drawn joints are already where it stands."""
-    if creature is not None and getattr(creature.world, "room", None) is not None:
+    if creature is not None and creature.stage is not None:
         return (0.0, 0.0, 0.0)
     return ((index - (count - 1) / 2) * SPACING, 0.0, 0.0)
 
