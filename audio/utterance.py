@@ -3,9 +3,10 @@
 Thesis, "aural models – cepstral models": the aural branch of the percept tree starts with
 an "any sound" percept that responds to the presence of sound. Its model collects the
 utterances heard just before rewarded action-tuples, and when a tuple attached to it becomes
-important it clusters them (fixed cluster radius, time-warped cepstral distance) into child
-``UtterancePercept``'s: one per distinct sound, each of which the action-group can turn into
-new, more specific hypotheses. Children fuse back when they stop being distinct.
+important it clusters them (fixed cluster radius, time-warped cepstral distance:
+:func:`cluster_medoids`) into child ``UtterancePercept``'s: one per distinct sound, each of
+which the action-group can turn into new, more specific hypotheses. Children fuse back when
+they stop being distinct.
 
 Thesis, "soundcreatures": the same tree serves the *Tr* side (what sound triggers a tuple)
 and the *Ac* side (what sound to sing): cepstra cannot be turned back into sound, so each
@@ -22,21 +23,30 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import scipy.cluster.hierarchy
+import scipy.spatial.distance
 
-from audio.cepstrum import cepstra, distance_matrix, distances_to, dtw_distance
+from audio.cepstrum import FEATURES, N_CEPSTRA, WARPS, cepstra, distance_matrix, distances_to, utterance_distance
 from audio.segment import SoundEvent
 from creatures.behaviour.percept import Percept
 from creatures.persist import StateFileError, load_json, load_npz, save_json, save_npz
 
-DEFAULT_RADIUS = 250.0
-"""Cluster radius in :func:`audio.cepstrum.dtw_distance` units (liftered, CMN'd MFCCs).
+DEFAULT_RADIUS = 0.36
+"""Cluster radius in :func:`audio.cepstrum.utterance_distance` units: a class spans at most
+twice this (:func:`cluster_medoids`), and a sound this far from a class's nearest exemplar is
+½ like it.
 
-Measured on the synthetic words of the tests (gain ±12 dB, stretch 0.8–1.25×, 20 dB SNR):
-the same word lies within 225 of itself, different words at least 320 apart. Re-measured
-(``python -m bench sound_classes``, docs/hearing.md): it also holds a sampled instrument's
-phrase at three velocities and tempi (67 % in class; 284 would give 100 %), but not one
-word said by three espeak-ng voices (550–930 apart, so each is a class of its own); no radius
-separates words across speakers with these features (best 67 %)."""
+Chosen on tuning corpora and checked on held-out ones (``python -m bench sound_classes``;
+docs/hearing.md, "Sound classes on real voices"): 0.357 is the geometric centre of the radii
+0.32–0.40 that keep ≥ 90 % of every tuning corpus in its class — twelve espeak-ng words said
+by six voices at two speeds and pitches each (93 % at 0.36), the five synthetic words (gain
+±12 dB, stretch 0.8–1.25×, 20 dB SNR; 100 %), and five sampled instruments playing two
+phrases at three velocities and tempi (100 %). Held out, at 0.36: the same words by three
+other voices 97 % (≥ 90 % from 0.30 to 0.40), twelve other words by the six voices 92 %
+(from 0.35 to 0.45), synthetic words of another seed and the instruments' third phrase 100 %.
+Not held: twelve more words by the three other voices, 75 % at best 86 % — near-rhymes
+("purple"/"turtle" lie closer, 0.40, than "purple" said by two voices, 0.70) — and voices in
+other accents or by the Klatt synthesiser, 69 %."""
 
 KIND = "aural-model"
 
@@ -65,24 +75,31 @@ def cluster_medoids(
 ) -> list[np.ndarray]:
     """Fixed-radius clustering of a distance matrix; each cluster's medoid comes first.
 
-    Repeatedly takes the item with the most neighbours within ``radius``, makes those
-    neighbours a cluster and removes them, until ``max_clusters`` are made or no item has
-    ``min_members`` neighbours left (the rest stays unclustered). The medoid is the member
-    with the smallest summed distance to the others.
+    Complete linkage cut at twice ``radius``: no two members of a cluster lie more than
+    2 × ``radius`` apart. The largest clusters of at least ``min_members`` are kept, at most
+    ``max_clusters`` (the rest stays unclustered); the medoid is the member with the smallest
+    summed distance to the others.
+
+    Why complete linkage (docs/hearing.md, "Sound classes on real voices"): the thesis's fixed
+    radius was first read as "the neighbours within ``radius`` of the sound with most
+    neighbours", and that centre gathers the near edge of the next word as readily as the far
+    voices of its own. On twelve espeak-ng words said by three voices, the best such radius put
+    89 % of other words and 85 % of other voices' words in their class, complete linkage 100 %
+    of both (average and single linkage kept them over narrower ranges of radii, or not at all).
     """
-    remaining = np.arange(len(distances))
-    clusters: list[np.ndarray] = []
-    while len(remaining) and len(clusters) < max_clusters:
-        near = distances[np.ix_(remaining, remaining)] <= radius
-        counts = near.sum(axis=1)
-        centre = int(np.argmax(counts))
-        if counts[centre] < min_members:
-            break
-        members = remaining[near[centre]]
-        order = np.argsort(distances[np.ix_(members, members)].sum(axis=1), kind="stable")
-        clusters.append(members[order])
-        remaining = remaining[~near[centre]]
-    return clusters
+    if len(distances) < 2:
+        labels = np.ones(len(distances), dtype=int)
+    else:
+        tree = scipy.cluster.hierarchy.linkage(
+            scipy.spatial.distance.squareform(distances, checks=False), method="complete"
+        )
+        labels = scipy.cluster.hierarchy.fcluster(tree, t=2.0 * radius, criterion="distance")
+    groups = [np.flatnonzero(labels == k) for k in np.unique(labels)]
+    kept = sorted((g for g in groups if len(g) >= min_members), key=lambda g: (-len(g), g[0]))
+    return [
+        g[np.argsort(distances[np.ix_(g, g)].sum(axis=1), kind="stable")]
+        for g in kept[:max_clusters]
+    ]
 
 
 class UtterancePercept(Percept):
@@ -90,7 +107,8 @@ class UtterancePercept(Percept):
 
     The root ("any sound") says 1 while a sound was heard within ``memory`` seconds; a child
     says how much the latest sound resembles its exemplars: ``2 ** (−d / radius)`` for the
-    smallest time-warped distance ``d`` (1 for an exact match, ½ at the cluster radius).
+    smallest time-warped distance ``d`` (1 for an exact match, ½ at the cluster radius, half
+    the widest a class may span).
     """
 
     def __init__(
@@ -163,15 +181,18 @@ class UtterancePercept(Percept):
     def fission(self, value: float, innovation_threshold: float) -> list["UtterancePercept"]:
         """If ``value`` exceeds the threshold, cluster the collected utterances into children.
 
-        Returns the children made now (for new action-tuple hypotheses). Clusters that match
-        an existing child (medoids within ``radius``) refresh that child instead, so tuples
-        that refer to it keep their meaning. A single cluster with no children yet is not
-        split off: one kind of sound is what the parent already stands for. Afterwards
+        Returns the children made now (for new action-tuple hypotheses). A cluster that
+        continues an existing child (:meth:`_matching_child`) refreshes that child instead, so
+        tuples that refer to it keep their meaning. A single cluster with no children yet is not
+        split off when the sounds it leaves out are too few to make a class: one kind of sound is
+        what the parent already stands for. (One sound that recurs among many that do not is a
+        class: with complete linkage the words of a spoken poem gather that way.) Afterwards
         children that are no longer distinct fuse (:meth:`fusion`); a fused-away child is
         detached (its ``parent`` becomes None) so tuples holding it can notice.
 
-        Clustering costs n²/2 time warps of the n collected utterances (200: ~0.26 s here),
-        which is why it waits for a tuple to become important rather than running per sound.
+        Clustering costs n²/2 comparisons of the n collected utterances, five time warps each
+        (200 synthetic words: ~0.7 s here; the 60 the hearing keeps by default: ~0.08 s), which
+        is why it waits for a tuple to become important rather than running per sound.
         """
         if value <= innovation_threshold or len(self.members) < self.min_members:
             return []
@@ -181,12 +202,13 @@ class UtterancePercept(Percept):
             max_clusters=self.max_children,
             min_members=self.min_members,
         )
-        if len(clusters) < 2 and not self.children:
+        if not self.children and (not clusters or len(clusters) == 1
+                                  and len(self.members) - len(clusters[0]) < self.min_members):
             return []
         born = []
         for cluster in clusters:
             group = [self.members[i] for i in cluster]
-            child = self._matching_child(group[0])
+            child = self._matching_child(group)
             if child is None:
                 if len(self.children) >= self.max_children:
                     continue
@@ -198,7 +220,10 @@ class UtterancePercept(Percept):
         return [c for c in born if c.parent is self]
 
     def fusion(self) -> list["UtterancePercept"]:
-        """Merge children whose medoids are closer than ``radius``; returns those removed."""
+        """Merge children whose medoids are closer than ``radius``; returns those removed.
+
+        Half the widest a class may span: two classes whose most typical sounds are that close
+        could not have been kept apart by :func:`cluster_medoids`."""
         removed = []
         while (pair := self._indistinct_pair()) is not None:
             keep, lose = pair
@@ -212,15 +237,27 @@ class UtterancePercept(Percept):
         kids = self.utterance_children()
         for i, a in enumerate(kids):
             for b in kids[i + 1 :]:
-                if dtw_distance(a.medoid.features, b.medoid.features) < self.radius:
+                if utterance_distance(a.medoid.features, b.medoid.features) < self.radius:
                     return a, b
         return None
 
-    def _matching_child(self, medoid: Utterance) -> "UtterancePercept | None":
+    def _matching_child(self, group: list[Utterance]) -> "UtterancePercept | None":
+        """The child a new cluster (medoid first) continues: the one most of whose exemplars
+        it holds, else (a child whose exemplars are no longer collected) the nearest one whose
+        medoid lies within ``radius`` of the cluster's.
+
+        Exemplars first, because a class of several voices may span twice the radius: a
+        re-clustering can make another of its voices the medoid, farther than the radius from
+        the one before.
+        """
         kids = self.utterance_children()
         if not kids:
             return None
-        d = distances_to(medoid.features, [k.medoid.features for k in kids])
+        held = {id(u) for u in group}
+        for kid in kids:
+            if 2 * sum(id(u) in held for u in kid.members) > len(kid.members):
+                return kid
+        d = distances_to(group[0].features, [k.medoid.features for k in kids])
         i = int(np.argmin(d))
         return kids[i] if d[i] < self.radius else None
 
@@ -277,7 +314,9 @@ def _arrays_path(path: Path) -> Path:
 def save_aural_model(root: UtterancePercept, path: str | os.PathLike) -> None:
     """Save a tree as ``path`` (JSON structure) + ``path`` with ``.npz`` (samples, cepstra).
 
-    Utterances shared between nodes are stored once; nodes list them by index.
+    Utterances shared between nodes are stored once; nodes list them by index. The file names
+    the cepstral analysis (:data:`audio.cepstrum.FEATURES`): its radii are in that analysis's
+    units.
     """
     path = Path(path)
     pool: dict[int, int] = {}
@@ -310,30 +349,40 @@ def save_aural_model(root: UtterancePercept, path: str | os.PathLike) -> None:
             "samplerate": u.samplerate,
             "time": u.time,
             "n_samples": len(u.samples),
-            "n_frames": u.features.shape[0],
+            "n_frames": u.features.shape[1],
         }
         for u in table
     ]
     if table:
         samples = np.concatenate([u.samples for u in table])
-        features = np.concatenate([u.features for u in table])
+        features = np.concatenate([u.features for u in table], axis=1)
     else:
-        samples, features = np.zeros(0, np.float32), np.zeros((0, 0))
+        samples, features = np.zeros(0, np.float32), np.zeros((len(WARPS), 0, N_CEPSTRA))
     save_npz(_arrays_path(path), {"samples": samples, "features": features})
-    save_json(path, {"tree": tree, "utterances": utterances}, kind=KIND)
+    save_json(path, {"tree": tree, "utterances": utterances, "features": FEATURES}, kind=KIND)
 
 
 def load_aural_model(path: str | os.PathLike) -> UtterancePercept:
-    """Rebuild a tree saved by :func:`save_aural_model` (another creature's, perhaps)."""
+    """Rebuild a tree saved by :func:`save_aural_model` (another creature's, perhaps).
+
+    A model saved with another cepstral analysis is refused (:class:`StateFileError`): its
+    radii and cepstra are in other units, which no conversion makes right.
+    """
     path = Path(path)
     doc = load_json(path, kind=KIND)
+    if doc.get("features") != FEATURES:
+        raise StateFileError(
+            f"{path}: saved with another cepstral analysis ({doc.get('features', 'MFCC')!r}, this build"
+            f" hears with {FEATURES!r}): its radii and cepstra are in other units; grow the model again"
+        )
     arrays = load_npz(_arrays_path(path))
     try:
         meta, tree = doc["utterances"], doc["tree"]
         samples, features = arrays["samples"], arrays["features"]
         sample_ends = np.cumsum([u["n_samples"] for u in meta], dtype=int)
         frame_ends = np.cumsum([u["n_frames"] for u in meta], dtype=int)
-        if (sample_ends[-1:] != len(samples)).any() or (frame_ends[-1:] != len(features)).any():
+        if features.shape[::2] != (len(WARPS), N_CEPSTRA) or (sample_ends[-1:] != len(samples)).any() \
+                or (frame_ends[-1:] != features.shape[1]).any():
             raise StateFileError(
                 f"{_arrays_path(path)}: arrays do not match the {len(meta)} utterances in {path}"
             )
@@ -341,7 +390,7 @@ def load_aural_model(path: str | os.PathLike) -> UtterancePercept:
             Utterance(
                 samples=samples[s_end - u["n_samples"] : s_end],
                 samplerate=int(u["samplerate"]),
-                features=features[f_end - u["n_frames"] : f_end],
+                features=np.ascontiguousarray(features[:, f_end - u["n_frames"] : f_end]),
                 time=float(u["time"]),
             )
             for u, s_end, f_end in zip(meta, sample_ends, frame_ends)

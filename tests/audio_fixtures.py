@@ -26,13 +26,13 @@ SR = SAMPLE_RATE
 def warm_librosa() -> None:
     """librosa and the DTW kernel JIT-compile on first use (~15 s cold, a few seconds from
     numba's cache): pay it once, before the first test that times or loops over them."""
-    from audio.cepstrum import cepstra, dtw_distance
+    from audio.cepstrum import cepstra, utterance_distance
     from audio.pitch import note_events
     from audio.segment import SoundEvent
 
     x = tone(220.0, 0.3).astype(np.float32)
     c = cepstra(x, SR)
-    dtw_distance(c, c)
+    utterance_distance(c, c)
     note_events(SoundEvent(0.0, 0.3, x, SR, -20.0))
 
 

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from audio.cepstrum import N_CEPSTRA, WARPS
 from audio.segment import SoundEvent
 from audio.sources import load_audio
 from audio.utterance import (
@@ -129,6 +130,26 @@ def test_new_word_adds_a_child_and_old_children_keep_identity(speaker: Speaker) 
     assert all(c in root.children for c in first)
 
 
+def test_a_class_whose_medoid_moves_keeps_its_identity() -> None:
+    """A class may span twice the radius, so re-clustering can make a sound farther than the
+    radius from the old medoid the new one: the class is still the child most of whose
+    exemplars it holds. (Sounds here are points on a line: one frame, every warp alike.)"""
+
+    def sound(x: float) -> Utterance:
+        features = np.zeros((len(WARPS), 1, N_CEPSTRA))
+        features[:, :, 0] = x
+        return Utterance(np.zeros(64, np.float32), SR, features, 0.0)
+
+    root = UtterancePercept(radius=1.0)
+    root.members = [sound(x) for x in (0.0, 0.2, 0.4, 10.0, 10.2, 10.4)]
+    near, far = root.fission(1.0, 0.5)
+    old_medoid = near.medoid
+    root.members += [sound(x) for x in (1.2, 1.4, 1.6, 1.8)]
+    assert root.fission(1.0, 0.5) == [] and root.children == [near, far]
+    assert len(near.members) == 7 and near.medoid.features[0, 0, 0] == 1.2  # 1.0 from the old one
+    assert old_medoid in near.members
+
+
 def test_children_fuse_when_no_longer_distinct(speaker: Speaker) -> None:
     root, _ = grown_tree(speaker, ["ai", "ua"] * 6)
     assert len(root.fission(1.0, 0.5)) == 2
@@ -184,6 +205,23 @@ def test_an_empty_model_round_trips(tmp_path: Path) -> None:
     save_aural_model(UtterancePercept("quiet", radius=123.0), tmp_path / "blank.json")
     again = load_aural_model(tmp_path / "blank.json")
     assert (again.name, again.radius, again.members, again.children) == ("quiet", 123.0, [], [])
+
+
+def test_a_model_saved_with_another_analysis_is_refused(speaker: Speaker, tmp_path: Path) -> None:
+    """Distances and radii are in the units of the analysis that made them: a model saved with
+    the MFCC analysis (no "features" key) or any other is refused, saying why."""
+    root, _ = grown_tree(speaker, ["ai"] * 3)
+    path = tmp_path / "ear.json"
+    save_aural_model(root, path)
+    doc = json.loads(path.read_text())
+    for features in (None, "mfcc13-l22"):
+        if features is None:
+            doc.pop("features")
+        else:
+            doc["features"] = features
+        path.write_text(json.dumps(doc))
+        with pytest.raises(StateFileError, match="another cepstral analysis.*other units"):
+            load_aural_model(path)
 
 
 def test_damaged_model_files_are_named(speaker: Speaker, tmp_path: Path) -> None:

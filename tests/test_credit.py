@@ -129,3 +129,15 @@ def test_group_du_percolates_from_active_child(rng):
     g = outer.tuples[0]
     assert g.do_until.evaluate(0.25) == 0.0
     assert g.do_until.evaluate(0.5) == 1.0  # the child's Du says done, so the group is done
+
+
+def test_a_tuple_dropped_twice_in_one_tick_is_dropped_once(rng):
+    """Two fusions in one tick may each ask to drop the same tuple (issue 18: utterance trees
+    re-clustered by two reviewed tuples): removals wait for the tick's end, and the second
+    finds it gone."""
+    group, a, b, c = three_tuple_group(rng, [])
+    group.on_event = lambda event: [group.remove(c, 0.0) for _ in range(2)]  # asked twice while ticking
+    group.tick(0.0)
+    assert group.tuples == [a, b]
+    group.remove(c, 1.0)  # and once more outside a tick
+    assert group.tuples == [a, b]

@@ -224,9 +224,13 @@ class ActionGroup:
         return tuple_
 
     def remove(self, tuple_: ActionTuple, t: float) -> None:
-        """Drop a tuple (e.g. after percept fusion), stopping it first if active."""
+        """Drop a tuple (e.g. after percept fusion), stopping it first if active. One dropped
+        already is left alone: within a tick, removals wait for its end, and two fusions in one
+        tick (two tuples reviewed, each re-clustering the tree) may each ask for the same one."""
         if self._ticking:
             self._deferred.append(lambda: self.remove(tuple_, t))
+            return
+        if id(tuple_) not in self._positions:
             return
         if tuple_.active:  # dropped, not interrupted: no expectation of it was violated
             self._stop(tuple_, t, interrupted=True, judged=False)

@@ -8,14 +8,16 @@ when higher begs are what gets clicked. Design decisions:
   *soundcreatures*, :class:`~creatures.kinds.hearing_parts.Ear`). Each utterance joins the
   nearest sound class of the "heard" utterance percept (a child within the cluster radius
   of its medoid) or, if none is that close, starts a new class. A cue is such a class: the
-  dog never knows the word, only that this sound is not that one. The radius is 400, not
-  the 250 of *soundcreatures*: one espeak-ng voice saying "sit", "down" or "beg" at pitches
-  40–60 and speeds 140–175 lies within 258 of itself and at least 864 from the other words
-  (measured for tests/test_duncan.py), so 400 keeps a trainer's varied "sit" one cue. A cue's
-  percept then judges a sound by ``2 ** (−d / sharpness)`` with d its distance to the nearest
-  exemplar (1 for the sound just heard, which has joined its class): at sharpness 100 a "sit"
-  triggers the "down" tuples 0.3 % (at 400 it was 21 %, and every click on a sit also
-  taught "down | sit").
+  dog never knows the word, only that this sound is not that one. The radius is the ear's
+  shipped one (:data:`audio.utterance.DEFAULT_RADIUS`, 0.36): one espeak-ng voice saying
+  "sit", "down" or "beg" at pitches 40–60 and speeds 140–175 lies within 0.20 of itself and
+  at least 0.73 from the other words (measured for tests/test_duncan.py), so a trainer's
+  varied "sit" stays one cue. A cue's percept then judges a sound by ``2 ** (−d / sharpness)``
+  with d its distance to the nearest exemplar (1 for the sound just heard, which has joined
+  its class): at sharpness 0.09 a "sit" triggers the "down" tuples 2 ** (−0.73 / 0.09) ≈
+  0.4 % (at the radius it would be 24 %, and every click on a sit would also teach
+  "down | sit"). (With the MFCC analysis before, the same held at radius 400 and sharpness
+  100: distances 258 and 864.)
 * **New hypotheses.** A new sound class is a new distinction, and the action-group gets a new
   tuple for every trick on it ("heard/1 | sit", "heard/1 | lie down", …; thesis "percept
   trees": a new percept lets the group try new action-tuples); they start a little above
@@ -119,9 +121,9 @@ class DuncanSpec(CreatureSpec):
     alpha: float = Field(0.15, ge=0, le=1, description="credit assignment rate α")
     discount: float = Field(0.4, ge=0, le=1, description="credit discount β")
     classes: int = Field(8, ge=1, le=64, description="most sound classes (cues) the dog tells apart")
-    sharpness: float = Field(100.0, gt=0, le=1e5, description="cepstral distance at which a cue's percept says ½ "
+    sharpness: float = Field(0.09, gt=0, le=1e5, description="cepstral distance at which a cue's percept says ½ "
                                                                 "of a sound (a sound it has heard says 1)")
-    hearing: HearingSpec = HearingSpec(half_duplex=False, memory=1.0, radius=400.0)
+    hearing: HearingSpec = HearingSpec(half_duplex=False, memory=1.0)
     beg: BegSpec = BegSpec()
     notes: dict[str, int] = Field({"sit": 60, "lie down": 55, "beg": 64, "roll over": 67, "stand": 48},
                                   description="trick → the MIDI pitch it sounds when the body gets there")

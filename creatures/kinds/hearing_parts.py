@@ -67,10 +67,11 @@ class HearingSpec(BaseModel):
     hold: float = Field(0.08, ge=0, le=1, description="dips shorter than this (s) do not end a sound")
     min_length: float = Field(0.1, gt=0, le=2, description="shorter sounds are ignored (clicks), s")
     max_length: float = Field(2.0, gt=0, le=10, description="longer sounds are cut into pieces, s")
-    radius: float = Field(DEFAULT_RADIUS, gt=0, le=1e5, description="cepstral cluster radius of a sound class")
+    radius: float = Field(DEFAULT_RADIUS, gt=0, le=1e5, description="cepstral cluster radius of a sound class "
+                                                               "(audio.cepstrum.utterance_distance; a class spans at most twice it)")
     memory: float = Field(0.25, gt=0, le=5, description="seconds a heard sound stays perceived")
     keep: int = Field(60, ge=3, le=1000, description="most exemplars a sound percept keeps (the newest); "
-                                                      "clustering costs keep² time warps")
+                                                      "clustering compares keep²/2 pairs, five time warps each")
     half_duplex: bool = Field(True, description="deaf while singing (set false only to demonstrate why)")
     release: float = Field(0.3, ge=0, le=2, description="deafness held after singing stops (room echo), s")
 

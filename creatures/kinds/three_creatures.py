@@ -75,9 +75,14 @@ PROFILE = N_MELS - 1
 SAME = 0.7
 """Profiles correlated above this count as copies of one sound (same word ≈ 0.9, others ≈ 0.3).
 
-Re-measured (``python -m bench sound_classes``, docs/hearing.md): above it fall 60 % of
-same-word pairs of synthetic words, every same-phrase pair of one sampled instrument, no pair
-of one word said by two espeak-ng voices, and 4–11 % of different-class pairs."""
+Re-derived (``python -m bench sound_classes``; docs/hearing.md, "Sound classes on real
+voices"): the threshold with the largest Youden's J (same-class pairs above it minus
+other-class pairs above it) summed over the tuning corpora. Above 0.7 fall 94 % of pairs of
+one espeak-ng word said by one voice at two speeds and pitches (1.3 % of other words' pairs),
+every pair of one sampled instrument playing one phrase (6 % of others), and 79 % of pairs of
+one synthetic word (9 % of others); alone, those corpora would put it at 0.7, 0.9 and 0.6. One
+word said by two voices is a copy only 9 % of the time, and no threshold does better (J ≤
+0.20): the profile tells voices apart more than words."""
 
 
 @functools.lru_cache(maxsize=4)
