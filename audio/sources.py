@@ -23,6 +23,7 @@ import soundfile
 import soxr
 
 from audio.device import AudioBackend, AudioDeviceUnavailable, find_device, portaudio, start_stream
+from audio.resample import Resampler
 
 ANALYSIS_RATE = 22050
 """The rate every source delivers (librosa's default; enough for speech and song)."""
@@ -190,8 +191,9 @@ class LiveInput(AudioSource):
     """A microphone through sounddevice/PortAudio, resampled to the analysis rate.
 
     The stream runs at the device's own rate (JACK, for one, will not change it); blocks are
-    converted with a streaming soxr resampler on the reading side. Non-finite samples from a
-    misbehaving driver are replaced by zero and counted in :attr:`bad_samples` so the
+    converted on the reading side by :class:`audio.resample.Resampler`, which gives every
+    block's samples on at once (soxr's streaming "HQ" resampler held up to 38 ms back, in
+    bursts: most of a live ear's budget). Non-finite samples from a misbehaving driver are replaced by zero and counted in :attr:`bad_samples` so the
     creature's loop never dies on them; samples at full scale are counted in :attr:`clipped`
     (a microphone gain set too high in a gallery shows there, not only in what is heard).
     It can be started again after :meth:`stop` (on a device that came back); the counters
@@ -220,7 +222,7 @@ class LiveInput(AudioSource):
         self.ring: RingBuffer | None = None
         self._stream: Any = None
         self._scratch: np.ndarray | None = None
-        self._resampler: soxr.ResampleStream | None = None
+        self._resampler: Resampler | None = None
 
     @property
     def overruns(self) -> int:
@@ -237,7 +239,7 @@ class LiveInput(AudioSource):
         self._resampler = (
             None
             if self.device_rate == self.samplerate
-            else soxr.ResampleStream(self.device_rate, self.samplerate, 1, dtype="float32")
+            else Resampler(self.device_rate, self.samplerate)
         )
 
     def start(self) -> None:
@@ -295,7 +297,7 @@ class LiveInput(AudioSource):
             block[bad] = 0.0
         self.clipped += int(np.count_nonzero(np.abs(block) >= FULL_SCALE))
         if self._resampler is not None:
-            return self._resampler.resample_chunk(block)
+            return self._resampler(block)
         return block.copy()
 
     def __enter__(self) -> "LiveInput":

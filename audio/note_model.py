@@ -1,0 +1,189 @@
+"""A small learned note detector: log-frequency spectra in, note onsets and sounding pitches out.
+
+This is the "model made for it" of issue 18 (docs/hearing.md has the candidates measured side by
+side and why this one was chosen). Its shape follows what made basic-pitch (Bittner et al.,
+ICASSP 2022) small and general — *harmonic stacking*: for each candidate pitch ``p`` (MIDI
+21–108) the same weights look at the bands where ``p``'s partials lie (harmonics 1–8) and where
+a lower note would put ``p`` among its partials (sub-harmonics ½, ⅓, ¼), so what is learnt about
+a harmonic series at one pitch holds at every other, and a few thousand weights suffice.
+
+Three stages, each one cheap matrix product per hop:
+
+1. **Per pitch, per frame**: the 39 stacked band levels (11 harmonic positions × 3 long-spectrum
+   bands, 6 short-spectrum semitones) and how much each rose since the frame before (the
+   spectral flux of onset detectors, per partial: an organ's repeated note or a bowed swell
+   shows there first) → ``H1`` features, with a learnt bias per pitch (a low piano note's
+   fundamental is weak; a flute's upper partials are).
+2. **Per pitch, over time**: the last ``context`` frames of those features → ``H2``, and from
+   them two logits for the frame ``delay`` hops back: *a note began here* (onset) and *a note
+   sounds here* (frame). ``delay`` is how far the model may look past the frame it judges: the
+   live model looks 2 hops (23 ms), the offline one further (a bowed string's swell shows
+   later than a piano's hammer).
+3. **Across pitches**: each pitch's logits are revised from the logits at the intervals where
+   confusions live (octaves, twelfths, the 5th and 6th partials, fifths, fourths, thirds, the
+   semitone beside it) — an octave heard because the
+   note below is bright is withdrawn here.
+
+The weights are trained by ``tools/train_hearing.py`` on audio rendered by fluidsynth from
+three General MIDI soundfonts that are *not* the one the tests and the bench score on
+(FluidR3_GM), and loaded from a ``.npz`` of plain arrays (never a pickle).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numba
+import numpy as np
+
+from audio.logspectrum import LONG_LOW, LONG_STEP, SHORT_LOW, SHORT_STEP, LogSpectrum
+
+LOW, HIGH = 21, 108
+"""The pitches the model judges (the piano's compass)."""
+PITCHES = np.arange(LOW, HIGH + 1)
+HARMONICS = (1 / 4, 1 / 3, 1 / 2, 1, 2, 3, 4, 5, 6, 7, 8)
+"""Where a pitch's partials lie (1–8), and where a lower note would hold it as a partial."""
+SHORT_HARMONICS = (1, 2, 3, 4, 5, 6)
+CROSS = (-36, -28, -24, -19, -12, -7, -5, -4, -3, -1, 1, 3, 4, 5, 7, 12, 19, 24, 28, 31, 36)
+"""Intervals (semitones) whose logits each pitch's are revised from."""
+ABSENT = -8.0
+"""The logit of a pitch beyond the compass, for the across-pitch stage: surely no note."""
+MODELS = Path(__file__).with_name("models")
+
+
+def stack_index(width: int, harmonics: tuple[float, ...] = HARMONICS,
+                short_harmonics: tuple[float, ...] = SHORT_HARMONICS) -> np.ndarray:
+    """(pitches, 39) indices into a feature row (``width`` bands, then one zero at ``width``):
+    each pitch's harmonic positions in the long bands (±1 band each) and in the short ones."""
+    spectrum = LogSpectrum()
+    n_long, n_short = spectrum.long_bands.shape[0], spectrum.short_bands.shape[0]
+    assert n_long + n_short == width
+    rows = []
+    for p in PITCHES:
+        idx = []
+        for h in harmonics:
+            centre = int(round((p + 12 * np.log2(h) - LONG_LOW) / LONG_STEP))
+            idx += [c if 0 <= c < n_long else width for c in (centre - 1, centre, centre + 1)]
+        for h in short_harmonics:
+            c = int(round((p + 12 * np.log2(h) - SHORT_LOW) / SHORT_STEP))
+            idx.append(n_long + c if 0 <= c < n_short else width)
+        rows.append(idx)
+    return np.array(rows, dtype=np.intp)
+
+
+def cross_index(cross: tuple[int, ...] = CROSS) -> np.ndarray:
+    """(pitches, len(cross)) indices into a pitch axis padded by one absent pitch at the end."""
+    n = len(PITCHES)
+    k = np.arange(n)[:, None] + np.array(cross)[None, :]
+    return np.where((k >= 0) & (k < n), k, n)
+
+
+@dataclass
+class Judged:
+    """The model's judgement of frames ``frame``, ``frame + 1`` … (each ``delay`` hops before the
+    row that completed it): per frame and pitch, P(a note began) and P(a note sounds)."""
+
+    frame: int
+    onset: np.ndarray
+    sounding: np.ndarray
+
+
+class NoteModel:
+    """Runs trained weights over a stream of :class:`audio.logspectrum.LogSpectrum` rows."""
+
+    def __init__(self, path: Path | str) -> None:
+        with np.load(path, allow_pickle=False) as z:
+            w = {k: np.ascontiguousarray(z[k], dtype=np.float32) for k in z.files}
+            self.context, self.delay = int(z["context"]), int(z["delay"])
+            self.threshold = float(z["threshold"])
+            """P(onset) through which a rise is a note: tuned with the weights (tools/tune_hearing.py)."""
+            # The model's own layout, kept with its weights: a file trained with other
+            # intervals or harmonics runs as it was trained.
+            harmonics, short, cross = (tuple(z[k].tolist()) for k in ("harmonics", "short_harmonics", "cross"))
+        self._weights = tuple(w[k] for k in ("w1", "b1", "w2", "b2", "w3", "b3", "wc1", "bc1", "wc2", "bc2"))
+        self.width = LogSpectrum().width
+        self._stack = stack_index(self.width, harmonics, short)
+        self._cross = cross_index(cross)
+        # Stage 1's last ``context`` outputs, a ring (oldest at ``_head``), begun as silence.
+        b1 = w["b1"]
+        self._ring = np.repeat(np.maximum(b1, 0.0)[None], self.context, axis=0)
+        self._head = 0
+        self._previous = np.zeros(self.width, dtype=np.float32)  # the last row (silence before the first)
+        self.frames = 0
+
+    def __call__(self, rows: np.ndarray) -> Judged | None:
+        """Judge the frames ``delay`` hops before each of ``rows``' frames (``None`` if no rows)."""
+        n = len(rows)
+        if n == 0:
+            return None
+        onset = np.empty((n, len(PITCHES)), dtype=np.float32)
+        sounding = np.empty_like(onset)
+        self._head = _judge(np.ascontiguousarray(rows, dtype=np.float32), self._previous, self._stack, self._cross,
+                            self._ring, self._head, *self._weights, onset, sounding)
+        first = self.frames - self.delay
+        self.frames += n
+        return Judged(first, onset, sounding)
+
+
+@numba.njit(cache=True, nogil=True)
+def _judge(rows, previous, stack, cross, ring, head, w1, b1, w2, b2, w3, b3, wc1, bc1, wc2, bc2, onset,
+           sounding):  # pragma: no cover
+    """The three stages for each row, one frame at a time (the ring makes each frame's context).
+    Compiled: per frame it is four small matrix products and gathers, which numpy would spend
+    more time dispatching than computing (a 390-band row in, judged in ~50 µs)."""
+    pitches, k1 = stack.shape
+    frames, h1 = ring.shape[0], ring.shape[2]
+    width = rows.shape[1]
+    n_cross = cross.shape[1]
+    gathered = np.empty((pitches, 2 * k1), dtype=np.float32)
+    window = np.empty((pitches, frames * h1), dtype=np.float32)
+    revise = np.empty((pitches, 2 * n_cross + w2.shape[1]), dtype=np.float32)
+    for i in range(rows.shape[0]):
+        for p in range(pitches):
+            for k in range(k1):
+                j = stack[p, k]
+                if j < width:
+                    gathered[p, k] = rows[i, j]
+                    gathered[p, k1 + k] = max(rows[i, j] - previous[j], 0.0)
+                else:
+                    gathered[p, k] = gathered[p, k1 + k] = 0.0
+        previous[:] = rows[i]
+        first = np.dot(gathered, w1)
+        for p in range(pitches):
+            for j in range(h1):
+                ring[head, p, j] = max(first[p, j] + b1[p, j], 0.0)
+        head = (head + 1) % frames
+        for c in range(frames):  # oldest first, as trained
+            s = (head + c) % frames
+            for p in range(pitches):
+                for j in range(h1):
+                    window[p, c * h1 + j] = ring[s, p, j]
+        second = np.dot(window, w2)
+        for p in range(pitches):
+            for j in range(second.shape[1]):
+                second[p, j] = max(second[p, j] + b2[j], 0.0)
+        logits = np.dot(second, w3)
+        for p in range(pitches):
+            logits[p, 0] += b3[0]
+            logits[p, 1] += b3[1]
+        for p in range(pitches):
+            for c in range(n_cross):
+                q = cross[p, c]
+                revise[p, 2 * c] = logits[q, 0] if q < pitches else ABSENT
+                revise[p, 2 * c + 1] = logits[q, 1] if q < pitches else ABSENT
+            revise[p, 2 * n_cross:] = second[p]
+        hidden = np.dot(revise, wc1)
+        for p in range(pitches):
+            for j in range(hidden.shape[1]):
+                hidden[p, j] = max(hidden[p, j] + bc1[j], 0.0)
+        delta = np.dot(hidden, wc2)
+        for p in range(pitches):
+            onset[i, p] = 1.0 / (1.0 + np.exp(-(logits[p, 0] + delta[p, 0] + bc2[0])))
+            sounding[i, p] = 1.0 / (1.0 + np.exp(-(logits[p, 1] + delta[p, 1] + bc2[1])))
+    return head
+
+
+def default(look: str) -> Path:
+    """The shipped weights for ``look`` ("live" or "offline")."""
+    return MODELS / f"notes-{look}.npz"
