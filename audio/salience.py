@@ -9,7 +9,7 @@ spectrum (only their *smoothed* amplitudes, so a partial shared with another not
 for it), and the search repeats until the accumulated salience, discounted by the polyphony
 ``j ** γ``, stops growing.
 
-:mod:`audio.transcribe` calls it on the spectrum of what *began* at an onset (the positive
+:mod:`audio.onset_ear` calls it on the spectrum of what *began* at an onset (the positive
 difference between the spectrum just after and just before it), so notes still sounding from
 before are not found again. Everything per frame is one matrix–vector product over the
 whole candidate grid (MIDI 28–100 by default), a few dozen µs.

@@ -1,9 +1,11 @@
 """Hearing: offline analysis speed of a creature's ear (segmentation + cepstra + DTW against
 50 templates) as a multiple of real time on a synthetic recording, with librosa's bare MFCC
 over the same audio as the anchor; the numba DTW kernel against librosa.sequence.dtw; and
-streaming polyphonic transcription (audio/transcribe.py) of sampled piano at 44.1 kHz, with
-basic-pitch's published ONNX model (Spotify, Apache-2.0; ``pip install basic-pitch==0.4.0
---no-deps`` beside ``onnxruntime``) side by side on the same audio where it is installed.
+streaming polyphonic transcription (audio/transcribe.py, both looks) of sampled piano at
+44.1 kHz, with basic-pitch's published ONNX model (Spotify, Apache-2.0; ``pip install
+basic-pitch==0.4.0 --no-deps`` beside ``onnxruntime``) side by side on the same audio where it
+is installed, and (without ``--quick``) note F1 per instrument and texture, ours beside the
+model's: the table of docs/hearing.md.
 
 Everything is timed under :func:`bench.voice.one_core`: the target is "≥ 100× real time on
 one core", and the anchor ratio compares like with like only if librosa's MFCC (whose mel
@@ -21,7 +23,7 @@ from audio.formants import SAMPLE_RATE as SR
 from audio.formants import WORDS, word
 from audio.segment import segment
 from bench import Row, best_of
-from bench._sampled import chorale, have_sampler, note_f1, random_texture, render
+from bench._sampled import RANGES, chorale, have_sampler, note_f1, random_texture, render
 from bench.voice import one_core
 
 
@@ -141,9 +143,37 @@ def basic_pitch_notes(session: object, mono: np.ndarray, rate: int) -> list[tupl
     return [(float(times[a]), float(times[min(b, len(times) - 1)]), int(p)) for a, b, p, *_ in events]
 
 
+def _stream(ear: object, mono: np.ndarray, block: int = 512) -> list[tuple[float, float, int]]:
+    """Feed ``mono`` to a transcriber in ``block``-frame blocks (as a live input gives it); the notes it heard."""
+    ear.ended = type(ear.ended)()
+    for i in range(0, len(mono), block):
+        ear.feed(mono[i:i + block])
+    ear.flush()
+    return [(n.time, n.end, n.pitch) for n in ear.ended]
+
+
+def _basic_pitch_session() -> object | None:
+    model = basic_pitch_model()
+    if model is None:
+        return None
+    import onnxruntime
+
+    options = onnxruntime.SessionOptions()
+    options.intra_op_num_threads = options.inter_op_num_threads = 1
+    return onnxruntime.InferenceSession(model, options, providers=["CPUExecutionProvider"])
+
+
+TABLE = [("piano", 1, "random"), ("piano", 4, "random"), ("piano", 4, "chorale"), ("guitar", 1, "random"),
+         ("guitar", 3, "chorale"), ("flute", 1, "random"), ("strings", 1, "random"), ("strings", 3, "chorale"),
+         ("organ", 1, "random"), ("organ", 3, "chorale")]
+"""The side-by-side table of docs/hearing.md: instrument, voices, texture (FluidR3, 22.05 kHz)."""
+
+
 def _transcription_rows(quick: bool) -> list[Row]:
-    """Sampled piano (fluidsynth) at 44.1 kHz, streamed in 512-frame blocks as a live input gives it."""
-    from audio.transcribe import OFFLINE_WINDOW, WINDOW, Transcriber
+    """Sampled piano (fluidsynth) at 44.1 kHz, streamed in 512-frame blocks as a live input gives
+    it, both looks, with basic-pitch's published model on the same audio; then (not ``quick``)
+    note F1 per instrument and texture, ours beside the model's."""
+    from audio.transcribe import EARS, LIVE, OFFLINE, Transcriber
 
     if not have_sampler():
         return [Row("transcription (skipped: needs fluidsynth and fluid-soundfont-gm)", 0.0, "")]
@@ -154,45 +184,52 @@ def _transcription_rows(quick: bool) -> list[Row]:
               for n in chorale(rng, 4, seconds / 2, 36, 96)]
     mono = render(notes, "piano", rate).mean(axis=1)
     rows = []
-    for label, window in (("live, 46 ms look", WINDOW), ("offline, 93 ms look", OFFLINE_WINDOW)):
+    for look in (LIVE, OFFLINE):
         heard: list[tuple[float, float, int]] = []
 
         def stream() -> None:
-            ear = Transcriber(rate, window=window)
-            ear.ended = type(ear.ended)()
-            for i in range(0, len(mono), 512):
-                ear.feed(mono[i:i + 512])
-            ear.flush()
-            heard[:] = [(n.time, n.end, n.pitch) for n in ear.ended]
+            heard[:] = _stream(Transcriber(rate, look=look), mono)
 
-        speed = len(mono) / rate / best_of(stream, repeat=1 if quick else 2)
-        rows.append(Row(f"transcription, 4-voice piano 44.1 kHz ({label})", speed, "× real time", target=50.0))
-        rows.append(Row(f"  note F1 (mir_eval, onset 50 ms) ({label})", note_f1(notes, heard), "", target=0.75))
-    model = basic_pitch_model()
-    if model is None:
-        rows.append(Row("basic-pitch ONNX (not installed: pip install basic-pitch==0.4.0 --no-deps onnxruntime)",
-                        0.0, ""))
+        ear = Transcriber(rate, look=look)
+        speed = len(mono) / rate / best_of(stream, repeat=1 if quick else 2, clock=time.process_time)
+        rows.append(Row(f"transcription, 4-voice piano 44.1 kHz, {look} look ({1e3 * ear.latency:.0f} ms), "
+                        "one core", speed, "× real time", target=50.0))
+        rows.append(Row(f"  note F1 (mir_eval, onset 50 ms), {look} look", note_f1(notes, heard), "", target=0.75))
+    session = _basic_pitch_session()
+    if session is None:
+        rows.append(Row("basic-pitch ONNX (not installed: pip install basic-pitch==0.4.0 --no-deps onnxruntime "
+                        "pretty_midi 'resampy<0.4.3')", 0.0, ""))
         return rows
-    import onnxruntime
-
-    options = onnxruntime.SessionOptions()
-    options.intra_op_num_threads = options.inter_op_num_threads = 1
-    t0 = time.perf_counter()
-    session = onnxruntime.InferenceSession(model, options, providers=["CPUExecutionProvider"])
-    load = time.perf_counter() - t0
     theirs: list[tuple[float, float, int]] = []
 
     def infer() -> None:
         theirs[:] = basic_pitch_notes(session, mono, rate)
 
-    their_speed = len(mono) / rate / best_of(infer, repeat=1)
-    ours = rows[2].value  # the offline window's speed
-    rows[2].baseline, rows[2].ratio = "basic-pitch ONNX", ours / their_speed
+    their_speed = len(mono) / rate / best_of(infer, repeat=1, clock=time.process_time)
+    rows[2].baseline, rows[2].ratio = "basic-pitch ONNX", rows[2].value / their_speed
     rows += [
         Row("basic-pitch ONNX, same audio (offline, 2 s windows)", their_speed, "× real time"),
         Row("  note F1 (basic-pitch ONNX)", note_f1(notes, theirs), ""),
-        Row("  basic-pitch model load", load * 1e3, "ms"),
     ]
+    if quick:
+        return rows
+    for instrument, voices, texture in TABLE:
+        f1: dict[str, list[float]] = {}
+        for seed in (1, 2):
+            tune = (random_texture if texture == "random" else chorale)(np.random.default_rng([seed, voices]), voices,
+                                                                       20.0, *RANGES[instrument])
+            sound = render(tune, instrument, 22050).mean(axis=1)
+            for look in (OFFLINE, LIVE):
+                for ears in (("onsets",), ("model",), EARS):
+                    heard = _stream(Transcriber(22050, look=look, ears=ears), sound)
+                    f1.setdefault(f"{look} {'+'.join(ears)}", []).append(note_f1(tune, heard))
+            f1.setdefault("basic-pitch", []).append(note_f1(tune, basic_pitch_notes(session, sound, 22050)))
+        means = {k: float(np.mean(v)) for k, v in f1.items()}
+        ours, model = means[f"{OFFLINE} {'+'.join(EARS)}"], means["basic-pitch"]
+        detail = ", ".join(f"{k} {v:.2f}" for k, v in means.items() if k != "basic-pitch")
+        rows.append(Row(f"  F1 {instrument} {voices}v {texture}, two ears offline ({detail})", ours, "",
+                        baseline="basic-pitch", ratio=ours / max(model, 1e-9)))
+        rows.append(Row(f"  F1 {instrument} {voices}v {texture}, basic-pitch", model, ""))
     return rows
 
 

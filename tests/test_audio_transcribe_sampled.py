@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from audio.transcribe import OFFLINE_WINDOW, WINDOW, Transcriber
+from audio.transcribe import LIVE, OFFLINE, Transcriber
 from bench._sampled import RANGES, chorale, have_sampler, note_f1, random_texture, render, room
 
 pytest.importorskip("mir_eval")
@@ -21,8 +21,8 @@ pytestmark = pytest.mark.skipif(not have_sampler(), reason="needs fluidsynth and
 TEXTURES = {"random": random_texture, "chorale": chorale}
 
 
-def transcribe(audio: np.ndarray, rate: int, window: int = OFFLINE_WINDOW) -> list[tuple[float, float, int]]:
-    ear = Transcriber(rate, window=window)
+def transcribe(audio: np.ndarray, rate: int, look: str = OFFLINE) -> list[tuple[float, float, int]]:
+    ear = Transcriber(rate, look=look)
     ear.ended = type(ear.ended)()  # unbounded: the test wants every note
     block = rate // 50
     for i in range(0, len(audio), block):
@@ -32,29 +32,32 @@ def transcribe(audio: np.ndarray, rate: int, window: int = OFFLINE_WINDOW) -> li
 
 
 def score(instrument: str, voices: int, texture: str, rate: int, *, in_room: bool = False,
-          window: int = OFFLINE_WINDOW, seed: int = 0) -> float:
+          look: str = OFFLINE, seed: int = 0) -> float:
     low, high = RANGES[instrument]
     rng = np.random.default_rng([seed, voices, len(instrument), len(texture)])
     notes = TEXTURES[texture](rng, voices, 20.0, low, high)
     audio = render(notes, instrument, rate)
     if in_room:
         audio = room(audio, rate, rng)
-    return note_f1(notes, transcribe(audio, rate, window))
+    return note_f1(notes, transcribe(audio, rate, look))
 
 
 CASES = [
-    # instrument, voices, texture, rate, in a room, floor
-    ("piano", 1, "random", 22050, False, 0.9),
-    ("piano", 1, "random", 44100, True, 0.9),
-    ("piano", 4, "random", 44100, False, 0.75),
-    ("piano", 4, "random", 16000, True, 0.75),
-    ("piano", 4, "chorale", 22050, False, 0.6),
-    ("guitar", 1, "random", 48000, False, 0.8),
-    ("guitar", 3, "chorale", 22050, True, 0.7),
-    ("organ", 1, "random", 22050, False, 0.25),
-    ("organ", 3, "chorale", 96000, False, 0.2),
-    ("strings", 1, "random", 22050, False, 0.5),
-    ("flute", 1, "random", 44100, False, 0.4),
+    # instrument, voices, texture, rate, in a room, floor: the issue's target where it is met,
+    # else what was measured (deterministic: seeded MIDI, one soundfont, one model) less 0.05;
+    # docs/hearing.md has every texture beside each ear alone and basic-pitch's model.
+    ("piano", 1, "random", 22050, False, 0.9),  # measured 0.986
+    ("piano", 1, "random", 44100, True, 0.9),  # 1.000
+    ("piano", 4, "random", 44100, False, 0.75),  # 0.878
+    ("piano", 4, "random", 16000, True, 0.75),  # 0.887
+    ("piano", 4, "chorale", 22050, False, 0.6),  # 0.647 (target 0.75: below)
+    ("piano", 4, "chorale", 48000, True, 0.55),  # 0.612
+    ("guitar", 1, "random", 48000, False, 0.9),  # 0.911
+    ("guitar", 3, "chorale", 22050, True, 0.75),  # 0.839
+    ("flute", 1, "random", 44100, False, 0.75),  # 0.806 (target 0.9 for lines: below)
+    ("strings", 1, "random", 22050, False, 0.6),  # 0.806
+    ("organ", 1, "random", 22050, False, 0.3),  # 0.372 (target 0.6: below)
+    ("organ", 3, "chorale", 96000, False, 0.22),  # 0.286
 ]
 
 
@@ -68,13 +71,31 @@ def test_note_f1_on_sampled_instruments(instrument: str, voices: int, texture: s
     assert f1 >= floor
 
 
+UNMET = [
+    # the issue's targets not reached: strict, so one that starts to pass fails, to be moved up
+    ("piano", 4, "chorale", 22050, False, 0.75, "block chords with octave doublings: 0.647"),
+    ("flute", 1, "random", 44100, False, 0.9, "flute lines 0.806 (the onset ear alone 0.46)"),
+    ("strings", 3, "chorale", 44100, True, 0.6, "three bowed voices starting together: 0.135"),
+    ("organ", 1, "random", 22050, False, 0.6, "FluidR3's organ is 4'-heavy, its octave is heard: 0.372"),
+]
+
+
 @pytest.mark.slow
-def test_the_live_window_hears_piano_lines_and_chords() -> None:
-    """The live path's 46 ms look (≤ 60 ms onset → note event) still hears sampled piano."""
-    mono = score("piano", 1, "random", 44100, window=WINDOW)
-    four = score("piano", 4, "random", 44100, window=WINDOW)
-    print(f"live window: piano 1 voice F1 {mono:.3f}, 4 voices {four:.3f}")
-    assert mono >= 0.8 and four >= 0.65
+@pytest.mark.parametrize("instrument, voices, texture, rate, in_room, target", [
+    pytest.param(*case[:6], marks=pytest.mark.xfail(strict=True, reason=f"issue 18: {case[6]}"),
+                 id=f"{case[0]}-{case[1]}v-{case[2]}") for case in UNMET])
+def test_the_issue_s_targets_not_yet_met(instrument: str, voices: int, texture: str, rate: int, in_room: bool,
+                                         target: float) -> None:
+    assert score(instrument, voices, texture, rate, in_room=in_room) >= target
+
+
+@pytest.mark.slow
+def test_the_live_look_hears_piano_lines_and_chords() -> None:
+    """The live path's look (≤ 60 ms onset → note event) hears sampled piano too."""
+    mono = score("piano", 1, "random", 44100, look=LIVE)
+    four = score("piano", 4, "random", 44100, look=LIVE)
+    print(f"live look: piano 1 voice F1 {mono:.3f}, 4 voices {four:.3f}")
+    assert mono >= 0.9 and four >= 0.75  # measured 0.986 and 0.801
 
 
 def test_a_silent_or_random_transcriber_would_fail() -> None:

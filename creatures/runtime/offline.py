@@ -28,7 +28,7 @@ import numpy as np
 from audio.output import WavOutput
 from audio.sources import load_audio
 from creatures import stop
-from audio.transcribe import OFFLINE_WINDOW
+from audio.transcribe import OFFLINE
 from creatures.clock import SimulatedClock
 from creatures.events import EventLog
 from creatures.runtime.bodies import BodyFrames
@@ -157,7 +157,7 @@ def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path 
             session.world.inject(note)
     transcribe = settings.audio.transcribe
     session.transcribe = samples is not None and (transcribe if transcribe is not None else not notes)
-    session.transcribe_window = OFFLINE_WINDOW  # nobody waits offline: the longer look hears chords better
+    session.transcribe_look = OFFLINE  # nobody waits offline: the further look hears swells and chords better
 
     sr, tick = settings.audio.sample_rate, settings.tick
     wav = WavOutput(out / "out.wav", sr, session.channels) if settings.output.wav else None

@@ -18,7 +18,7 @@ from typing import Any, Callable
 import numpy as np
 
 from audio.mixer import Mixer
-from audio.transcribe import WINDOW, Transcriber
+from audio.transcribe import LIVE, Transcriber
 from creatures.clock import Clock, clock_gap
 from creatures.events import EventLog
 from creatures.authored.migrate import from_retired
@@ -82,7 +82,7 @@ class Session:
         self.air = settings.audio.air
         self._deaf = any(not creature.spec.hears_input for creature in self.creatures)
         self.transcribe = transcribe
-        self.transcribe_window = WINDOW  # live: ≤ 60 ms from an attack to its note; offline sets a longer one
+        self.transcribe_look = LIVE  # live: ≤ 60 ms from an attack to its note; offline looks further
         self._transcriber: Transcriber | None = None
         self.ticks = 0
         self._set_up_channels()
@@ -161,7 +161,7 @@ class Session:
         clock across a clock gap: ``Transcriber.skip``)."""
         start = t - len(recorded) / self.sample_rate  # the input's first sample sounded at the start of this tick
         if self._transcriber is None:
-            self._transcriber = Transcriber(self.sample_rate, t0=start, window=self.transcribe_window)
+            self._transcriber = Transcriber(self.sample_rate, t0=start, look=self.transcribe_look)
         if jump := clock_gap(self._transcriber.fed_until, start):
             self._transcriber.skip(jump)
         for note in self._transcriber.feed(recorded):
