@@ -159,10 +159,7 @@ def _judge(rows, previous, stack, cross, ring, head, w1, b1, w2, b2, w3, b3, wc1
             for p in range(pitches):
                 for j in range(h1):
                     window[p, c * h1 + j] = ring[s, p, j]
-        second = np.dot(window, w2)
-        for p in range(pitches):
-            for j in range(second.shape[1]):
-                second[p, j] = max(second[p, j] + b2[j], 0.0)
+        second = _biased_relu(np.dot(window, w2), b2)
         logits = np.dot(second, w3)
         for p in range(pitches):
             logits[p, 0] += b3[0]
@@ -173,15 +170,21 @@ def _judge(rows, previous, stack, cross, ring, head, w1, b1, w2, b2, w3, b3, wc1
                 revise[p, 2 * c] = logits[q, 0] if q < pitches else ABSENT
                 revise[p, 2 * c + 1] = logits[q, 1] if q < pitches else ABSENT
             revise[p, 2 * n_cross:] = second[p]
-        hidden = np.dot(revise, wc1)
-        for p in range(pitches):
-            for j in range(hidden.shape[1]):
-                hidden[p, j] = max(hidden[p, j] + bc1[j], 0.0)
+        hidden = _biased_relu(np.dot(revise, wc1), bc1)
         delta = np.dot(hidden, wc2)
         for p in range(pitches):
             onset[i, p] = 1.0 / (1.0 + np.exp(-(logits[p, 0] + delta[p, 0] + bc2[0])))
             sounding[i, p] = 1.0 / (1.0 + np.exp(-(logits[p, 1] + delta[p, 1] + bc2[1])))
     return head
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _biased_relu(x, bias):  # pragma: no cover
+    """``max(x + bias, 0)`` row by row, in place."""
+    for p in range(x.shape[0]):
+        for j in range(x.shape[1]):
+            x[p, j] = max(x[p, j] + bias[j], 0.0)
+    return x
 
 
 def default(look: str) -> Path:

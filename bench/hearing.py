@@ -107,7 +107,10 @@ def basic_pitch_model() -> str | None:
     from pathlib import Path
 
     needed = ("basic_pitch", "onnxruntime", "pretty_midi", "resampy")
-    if any(importlib.util.find_spec(name) is None for name in needed):
+    try:
+        if any(importlib.util.find_spec(name) is None for name in needed):
+            return None
+    except ImportError:  # installed but broken (resampy 0.4.2 imports pkg_resources, gone from setuptools 81)
         return None
     spec = importlib.util.find_spec("basic_pitch")
     model = Path(spec.submodule_search_locations[0]) / "saved_models" / "icassp_2022" / "nmp.onnx"
