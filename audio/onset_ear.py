@@ -28,7 +28,9 @@ import statistics
 from collections import deque
 from typing import NamedTuple
 
+import numba
 import numpy as np
+from scipy.fft import rfft
 
 from audio.logspectrum import HOP, RATE
 from audio.salience import HarmonicSalience
@@ -74,7 +76,7 @@ class OnsetEar:
         self._pending = np.zeros(0, dtype=np.float32)  # samples not yet a whole hop
         self._end = 0  # the current frame's end in the buffer, while a block is analysed
         self.frames = 0  # frames analysed so far; frame i ends at sample (i + 1) * HOP
-        self._previous: np.ndarray | None = None  # last short log spectrum
+        self._level = self._previous = np.zeros(0)  # this frame's short log spectrum, and the last one's
         # Noise floors: each bin's, learnt from the first frame on (a room is noisy from the start).
         self._noise_short: np.ndarray | None = None
         self._noise_long: np.ndarray | None = None
@@ -104,7 +106,7 @@ class OnsetEar:
         ends = len(stream) - HOP * np.arange(hops - 1, -1, -1)  # each frame's window ends there
         frames = stream[ends[:, None] + np.arange(-self.window_length, 0)[None, :]]
         long = self._spectra(frames)
-        short = np.abs(np.fft.rfft(frames[:, -SHORT:] * self._short_window, axis=1))
+        short = np.abs(rfft(frames[:, -SHORT:] * self._short_window, axis=1))
         found: list[Candidate] = []
         for i in range(hops):
             self._end = int(ends[i])
@@ -115,26 +117,21 @@ class OnsetEar:
     def _spectra(self, frames: np.ndarray) -> np.ndarray:
         """Magnitude spectra (zero-padded) of window-length frames, DC removed."""
         frames = frames - frames.mean(axis=-1, keepdims=True)  # DC offset is no sound
-        return np.abs(np.fft.rfft(frames * self._window, n=self.n_fft, axis=-1))
+        return np.abs(rfft(frames * self._window, n=self.n_fft, axis=-1))
 
     def _step(self, long: np.ndarray, short: np.ndarray) -> list[Candidate]:
         frame = self.frames
         self.frames += 1
-        if self._noise_short is None:
+        if self._noise_short is None:  # the first frame: the floors start from it, no flux yet
             self._noise_short, self._noise_long = np.maximum(short, 1e-7), np.maximum(long, 1e-7)
-        _track_noise(self._noise_short, short)
+            self._level, self._previous = np.zeros_like(short), np.zeros_like(short)
         _track_noise(self._noise_long, long)
-        energy = float(np.sum(short**2))
+        self._previous, self._level = self._level, self._previous  # the last frame's level is now the one before
+        energy, flux = _flux(short, self._noise_short, self._previous, self._level)
         falling = energy < self._energy[0]  # quieter than two frames ago: perhaps a note cut off
         self._energy.append(energy)
-        level = np.log1p(np.maximum(short - 2.0 * self._noise_short, 0.0) / (SHORT * 1e-4))
-        if self._previous is not None:
-            before = self._previous.copy()  # its 3-bin maximum, by shifted slices
-            np.maximum(before[1:], self._previous[:-1], out=before[1:])
-            np.maximum(before[:-1], self._previous[1:], out=before[:-1])
-            flux = float(np.maximum(level - before, 0.0).sum())
+        if frame > 0:
             self._detect(frame, flux, falling)
-        self._previous = level
         found = []
         while self._due and self._due[0][0] <= frame:
             _, onset = self._due.pop(0)
@@ -179,7 +176,31 @@ class OnsetEar:
         return found
 
 
-def _track_noise(floor: np.ndarray, spectrum: np.ndarray) -> None:
+@numba.njit(cache=True, nogil=True)
+def _track_noise(floor, spectrum):  # pragma: no cover
     """Each bin's noise floor: follows a fall at once, a rise by 1 % a frame (~ +7 dB/s), so a
     sustained note (seconds) is not mistaken for the room, but a fan is learnt."""
-    np.minimum(floor * 1.01, np.maximum(spectrum, 1e-7), out=floor)
+    for k in range(len(floor)):
+        floor[k] = min(floor[k] * 1.01, max(spectrum[k], 1e-7))
+
+
+@numba.njit(cache=True, nogil=True)
+def _flux(short, noise, previous, level):  # pragma: no cover
+    """A short spectrum's energy, and its flux: the summed rise of its log level above twice
+    each bin's noise floor (followed here) over the previous frame's 3-bin maximum (the
+    maximum so vibrato does not count). ``level`` becomes this frame's."""
+    _track_noise(noise, short)
+    energy = 0.0
+    for k in range(len(short)):
+        energy += short[k] * short[k]
+        level[k] = np.log1p(max(short[k] - 2.0 * noise[k], 0.0) / (SHORT * 1e-4))
+    flux = 0.0
+    n = len(level)
+    for k in range(n):
+        before = previous[k]
+        if k > 0:
+            before = max(before, previous[k - 1])
+        if k < n - 1:
+            before = max(before, previous[k + 1])
+        flux += max(level[k] - before, 0.0)
+    return energy, flux

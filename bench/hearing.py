@@ -156,10 +156,16 @@ def _stream(ear: object, mono: np.ndarray, block: int = 512) -> list[tuple[float
 
 
 def _basic_pitch_session() -> object | None:
+    """An onnxruntime session of basic-pitch's model on one thread, or None where it (or its note
+    creation, which imports pretty_midi) cannot be loaded."""
     model = basic_pitch_model()
     if model is None:
         return None
-    import onnxruntime
+    try:
+        import onnxruntime
+        from basic_pitch import note_creation  # noqa: F401
+    except ImportError:
+        return None
 
     options = onnxruntime.SessionOptions()
     options.intra_op_num_threads = options.inter_op_num_threads = 1
