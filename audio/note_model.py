@@ -1,7 +1,7 @@
 """A small learned note detector: log-frequency spectra in, note onsets and sounding pitches out.
 
-This is the "model made for it" of issue 18 (docs/hearing.md has the candidates measured side by
-side and why this one was chosen). Its shape follows what made basic-pitch (Bittner et al.,
+This is the "model made for it" of issue 18, one of hearing's two ears (audio/transcribe.py;
+docs/hearing.md has the candidates measured side by side and why both ears were chosen). Its shape follows what made basic-pitch (Bittner et al.,
 ICASSP 2022) small and general — *harmonic stacking*: for each candidate pitch ``p`` (MIDI
 21–108) the same weights look at the bands where ``p``'s partials lie (harmonics 1–8) and where
 a lower note would put ``p`` among its partials (sub-harmonics ½, ⅓, ¼), so what is learnt about
@@ -17,16 +17,16 @@ Three stages, each one cheap matrix product per hop:
 2. **Per pitch, over time**: the last ``context`` frames of those features → ``H2``, and from
    them two logits for the frame ``delay`` hops back: *a note began here* (onset) and *a note
    sounds here* (frame). ``delay`` is how far the model may look past the frame it judges: the
-   live model looks 2 hops (23 ms), the offline one further (a bowed string's swell shows
-   later than a piano's hammer).
+   live model looks 3 hops (35 ms), the offline one 6 (a bowed string's swell shows later than a
+   piano's hammer).
 3. **Across pitches**: each pitch's logits are revised from the logits at the intervals where
    confusions live (octaves, twelfths, the 5th and 6th partials, fifths, fourths, thirds, the
-   semitone beside it) — an octave heard because the
-   note below is bright is withdrawn here.
+   semitones beside it) — an octave heard because the note below is bright is withdrawn here.
 
-The weights are trained by ``tools/train_hearing.py`` on audio rendered by fluidsynth from
-three General MIDI soundfonts that are *not* the one the tests and the bench score on
-(FluidR3_GM), and loaded from a ``.npz`` of plain arrays (never a pickle).
+The weights (``audio/models/notes-{live,offline}.npz``: ~21 and ~24 thousand) are trained by
+``tools/train_hearing.py`` on audio rendered by fluidsynth from three General MIDI soundfonts —
+never a program that plays the samples of FluidR3_GM, the soundfont the tests and the bench
+score on — and loaded from a ``.npz`` of plain arrays with the model's layout (never a pickle).
 """
 
 from __future__ import annotations
@@ -50,6 +50,9 @@ CROSS = (-36, -28, -24, -19, -12, -7, -5, -4, -3, -1, 1, 3, 4, 5, 7, 12, 19, 24,
 ABSENT = -8.0
 """The logit of a pitch beyond the compass, for the across-pitch stage: surely no note."""
 MODELS = Path(__file__).with_name("models")
+WEIGHTS = ("w1", "b1", "w2", "b2", "w3", "b3", "wc1", "bc1", "wc2", "bc2")
+FILE_KEYS = WEIGHTS + ("context", "delay", "threshold", "harmonics", "short_harmonics", "cross")
+"""What a weights file holds: the three stages' weights, and the layout they were trained with."""
 
 
 def stack_index(width: int, harmonics: tuple[float, ...] = HARMONICS,
@@ -94,6 +97,9 @@ class NoteModel:
 
     def __init__(self, path: Path | str) -> None:
         with np.load(path, allow_pickle=False) as z:
+            missing = sorted(set(FILE_KEYS) - set(z.files))
+            if missing:
+                raise ValueError(f"{path}: not a note model's weights (no {', '.join(missing)})")
             w = {k: np.ascontiguousarray(z[k], dtype=np.float32) for k in z.files}
             self.context, self.delay = int(z["context"]), int(z["delay"])
             self.threshold = float(z["threshold"])
@@ -101,7 +107,7 @@ class NoteModel:
             # The model's own layout, kept with its weights: a file trained with other
             # intervals or harmonics runs as it was trained.
             harmonics, short, cross = (tuple(z[k].tolist()) for k in ("harmonics", "short_harmonics", "cross"))
-        self._weights = tuple(w[k] for k in ("w1", "b1", "w2", "b2", "w3", "b3", "wc1", "bc1", "wc2", "bc2"))
+        self._weights = tuple(w[k] for k in WEIGHTS)
         self.width = LogSpectrum().width
         self._stack = stack_index(self.width, harmonics, short)
         self._cross = cross_index(cross)

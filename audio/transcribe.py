@@ -155,21 +155,22 @@ class Transcriber:
         self._rate = samplerate
         self._resampler = Resampler(samplerate, RATE)
 
-    def _seam(self) -> None:
-        self._quiet_until = max(self._quiet_until, self.spectrum.frames + SEAM)
-        self.ear.seam(SEAM)
+    def _seam(self, frames: int = SEAM) -> None:
+        """No note from the next ``frames`` hops, in either ear: they hold a step, not an attack."""
+        self._quiet_until = max(self._quiet_until, self.spectrum.frames + frames)
+        self.ear.seam(frames)
 
     def feed(self, block: np.ndarray) -> list[NoteEvent]:
         """The notes recognised within ``block`` (any shape ``(frames,)`` or ``(frames, ch)``)."""
         x = np.asarray(block, dtype=np.float32)
         if x.ndim == 2:
             x = x.mean(axis=1)
+        hops = -(-len(x) * RATE // (self._rate * HOP))  # the hops this block reaches into
         bad = ~np.isfinite(x)
         if bad.any():
             # Each bad sample holds the last good one: a zero in a loud tone would be a click.
             self.bad_samples += int(bad.sum())
-            self._seam()
-            self._quiet_until += -(-len(x) * RATE // (self._rate * HOP))
+            self._seam(SEAM + hops)
             good = np.where(bad, 0, np.arange(len(x)))
             np.maximum.accumulate(good, out=good)
             x = np.where(bad[good], self._last_good, x[good]).astype(np.float32)
@@ -178,7 +179,7 @@ class Transcriber:
         clipped = int(np.count_nonzero(np.abs(x) >= 0.999))
         if clipped:
             self.clipped += clipped
-            self._clipping_until = self.spectrum.frames + -(-len(x) * RATE // (self._rate * HOP)) + 1
+            self._clipping_until = self.spectrum.frames + hops + 1
         x = self._resampler(x)
         if "onsets" in self.ears:
             self._candidates.extend(self.ear.feed(x))

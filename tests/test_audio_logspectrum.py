@@ -42,3 +42,10 @@ def test_the_shipped_models_hear_a_plain_chord_and_nothing_in_silence(look: str)
     assert {60, 64, 67} <= began and len(began) <= 4
     silent = judged.onset[: RATE // 2 // HOP - model.delay]
     assert silent.max() < model.threshold
+
+
+def test_a_file_that_is_not_a_note_model_is_refused_by_name(tmp_path) -> None:
+    path = tmp_path / "notes.npz"
+    np.savez(path, w1=np.zeros((78, 32)), context=np.array(8))
+    with pytest.raises(ValueError, match="not a note model's weights .*delay"):
+        NoteModel(path)
