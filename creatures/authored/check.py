@@ -93,6 +93,7 @@ def check(spec: "AuthoredSpec", file: Path, where: Where, prefix: tuple) -> None
     _percepts(c)
     _drives(c)
     _tuples(c)
+    _score(c)
     _sung_keys(c)
     _mouth(c)
     _modulate(c)
@@ -278,6 +279,46 @@ def _needs(c: _Checker, cls, loc: tuple) -> None:
         raise c.error(loc, f"{cls.name!r} hears sound: give the creature a [creature.hearing] table")
     if getattr(cls, "needs", None) == "space" and c.spec.space is None:
         raise c.error(loc, f"{cls.name!r} uses notes in space: give the creature a [creature.space] table")
+    if getattr(cls, "needs", None) == "score" and c.spec.score is None:
+        raise c.error(loc, f"{cls.name!r} steers a score: give the creature a [creature.score] table")
+
+
+def _score(c: _Checker) -> None:
+    """``[creature.score]``: its tile file loads (its own errors name that file), and every
+    layer, idle tag, part, percept and steered tag is one the tiles and the creature have."""
+    from creatures.score.tiles import load_tiles
+
+    score = c.spec.score
+    if score is None:
+        return
+    written = c.where.get((*c.prefix, "score", "tiles"), c.where.get((*c.prefix, "score"), (c.file, 0)))[0]
+    score.tiles = str((Path(written).parent / score.tiles).resolve())
+    if not Path(score.tiles).is_file():
+        raise c.error(("score", "tiles"), f"tile file not found: {score.tiles}")
+    tiles = load_tiles(score.tiles)
+
+    def known(what: str, name: str, choices: list[str], loc: tuple) -> None:
+        if name not in choices:
+            close = difflib.get_close_matches(name, choices, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else f" (there are: {choices})"
+            raise c.error(loc, f"no {what} named {name!r}{hint}")
+
+    for name, layer in score.layers.items():
+        known("layer in the tiles", name, tiles.layers, ("score", "layers", name))
+        known(f"tag on layer {name!r}'s tiles", layer.idle, tiles.tags(name), ("score", "layers", name, "idle"))
+    for name, part in score.parts.items():
+        known("part in the tiles", name, tiles.parts, ("score", "parts", name))
+        for key in ("stance", "visible"):
+            if getattr(part, key) is not None:
+                c.need("percepts", getattr(part, key), ("score", "parts", name, key))
+    for name, tp in c.spec.tuples.items():
+        if getattr(tp.action, "type", tp.action) != "score":
+            continue
+        params = tp.action.params()
+        loc = ("tuples", name, "action")
+        known("layer in [creature.score]", params["layer"], sorted(score.layers), (*loc, "layer"))
+        for tag in [params["toward"]] if params.get("toward") is not None else params.get("pattern", []):
+            known(f"tag on layer {params['layer']!r}'s tiles", tag, tiles.tags(params["layer"]), loc)
 
 
 def _labels(c: _Checker, wanted: list[str], loc: tuple) -> None:

@@ -50,6 +50,8 @@ from creatures.kinds.shaping import GestureShaping, PerformGesture
 from creatures.motor.dispatch import Gesture, redispatch
 from creatures.motor.gesture import BodyMemory
 from creatures.motor.blend import Blend
+from creatures.score.layout import ScoreLayout
+from creatures.score.tiles import load_tiles
 from creatures.temporal import intervals
 from creatures.temporal.transitions import Succession, follow
 from midi.notes import NoteEvent
@@ -109,6 +111,11 @@ class Authored(CreatureKind):
         self._readers: list[Callable[[NoteEvent, str], bool]] = []
         self._reporters: list[Callable[[float], None]] = []
         self._kept: dict[tuple[str, str], tuple[Callable[[], Any], Callable[[Any], None]]] = {}
+        # [creature.score]: its motor system lays out tiles of music, not poses (thesis "(void *)")
+        self.score = (ScoreLayout(spec.score, load_tiles(spec.score.tiles), self, rng)
+                      if spec.score is not None else None)
+        if self.score is not None:
+            self.on_hear(self.score.hear)
         self.root = WhateverPercept(ROOT)
         self.percepts: dict[str, Percept] = {ROOT: self.root}
         for name in spec.percepts:
@@ -360,8 +367,8 @@ class Authored(CreatureKind):
         except KeyError as exc:
             raise ConfigError(self.spec.source_file(), exc.args[0], key=f"creature {self.name}: sensor") from None
 
-    def play(self, pitch: int, velocity: int, duration: float, *, at: float) -> None:
-        self.world.play(self, NoteEvent(round(at, 6), pitch, velocity, self.spec.channel, duration))
+    def play(self, pitch: int, velocity: int, duration: float, *, at: float, channel: int | None = None) -> None:
+        self.world.play(self, NoteEvent(round(at, 6), pitch, velocity, self.spec.channel, duration), channel=channel)
 
     def hear(self, note: NoteEvent, source: str) -> None:
         if source == "input" and not self.spec.hears_input:
@@ -448,6 +455,8 @@ class Authored(CreatureKind):
         for group in self.top:
             if soft or group.active:  # a new tuple is chosen on the soft state's steps
                 group.tick(t)
+        if self.score is not None:  # after the groups: a course chosen now is laid before anything commits
+            self.score.tick(t)
         if self.notes is not None:
             self.notes.space.tick()
         if t >= self._next_report:

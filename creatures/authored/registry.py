@@ -29,7 +29,7 @@ GROUPS = ("actions", "percepts", "models", "kinds")
 """Entry point groups are ``creature_music.<group>``; each entry names a module to import."""
 
 BUILTIN = {
-    "actions": ("creatures.authored.actions",),
+    "actions": ("creatures.authored.actions", "creatures.score.action"),
     "percepts": ("creatures.authored.percepts",),
     "models": ("creatures.authored.models",),
     # The authored creature, then the pieces still written as whole kinds (extension API: a

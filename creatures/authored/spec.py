@@ -21,6 +21,7 @@ from creatures.kinds.figures import FigureBodySpec
 from creatures.kinds.hearing_parts import HearingSpec, MouthSpec
 from creatures.kinds.note_world import SpaceSpec
 from creatures.kinds.parts import VoiceSpec
+from creatures.score.spec import ScoreSpec
 
 
 class Strict(BaseModel):
@@ -248,6 +249,8 @@ class AuthoredSpec(CreatureSpec):
                                                   "source animation length (exchange's metric)")
     space: SpaceSpec | None = Field(None, description="heard notes placed in space for the hand to strike "
                                                       "([creature.space]; needs body = true)")
+    score: ScoreSpec | None = Field(None, description="a score of precomposed tiles laid out just in time, which "
+                                                      "'score' actions steer ([creature.score]; thesis '(void *)')")
     body_rate: float | None = Field(None, gt=0, le=1000, description="body poses per second (forward kinematics "
                                                                       "is the costliest per-tick work); none = "
                                                                       "every tick")

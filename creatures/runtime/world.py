@@ -78,12 +78,14 @@ class World:
         """Log an event at the present clock time."""
         self.log.emit(self.clock.now(), kind, **fields)
 
-    def play(self, creature: "CreatureKind", note: NoteEvent, *, hold: bool = False) -> NoteHandle:
-        """``creature`` plays ``note`` on its own channel; the others hear it when it starts.
+    def play(self, creature: "CreatureKind", note: NoteEvent, *, hold: bool = False,
+             channel: int | None = None) -> NoteHandle:
+        """``creature`` plays ``note`` on its own channel (or ``channel``: a score's part); the
+        others hear it when it starts.
 
         ``hold`` leaves it sounding until released (a stuck note object).
         """
-        note = dataclasses.replace(note, channel=creature.spec.channel)
+        note = dataclasses.replace(note, channel=creature.spec.channel if channel is None else channel)
         handle = self.scheduler.play(note, hold=hold)
         creature.played(note)
         for listener in self.listeners:

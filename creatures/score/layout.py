@@ -1,0 +1,278 @@
+"""The output layer: tiles laid out in time under behaviour control, just in time to be played
+(thesis, "(void *)", figure 36: "tiles get laid out in time, under behavior-system direction
+... just in time to get played"; "the behavior-system can also modulate the contents of the
+tiles (changing volume, and MIDI controllers)"; "pattern generators can be used to predict the
+future. Therefore conflicts can be 'reacted' to well before they get played").
+
+Each layer of the score is a walk through the tile graph, laid out in beats ahead of the clock:
+what a tuple asks for (:meth:`ScoreLayout.steer`: a tag, or a pattern of tags in order — a
+motor program as the thesis's pattern generator) is laid out at once, as far as it goes, so the
+score knows its future; between courses a layer walks through its ``idle`` tiles. Notes are
+handed to the output only ``commit`` seconds before they sound; until then a new course may
+replace the laid tiles from the next place the layer may cut (a beat, a bar line, a tile's
+end). Every tile starts on a beat of the :class:`~creatures.score.grid.Grid`, which follows the
+colony's heard pulse from the first beat not yet committed.
+
+Balance and timbre (thesis: "a character's stance towards the user's control is connected to
+the timbre of the characters' music"; "thematic balance is biased to take into account what
+characters are visible on screen"): each part's stance percept picks its program at each of its
+tiles and sets CC 74 every beat; its visibility percept sets CC 11 every beat.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import mido
+import numpy as np
+
+from creatures.motor.search import NoPath
+from creatures.runtime.world import INPUT
+from creatures.score.grid import BeatFollower, Grid, nearest_multiple
+from creatures.score.spec import ScoreSpec
+from creatures.score.tile_graph import TileGraph
+from creatures.score.tiles import TileSet
+from midi.notes import NoteEvent
+
+if TYPE_CHECKING:
+    from creatures.authored.creature import Authored
+
+SHIFT_TOLERANCE = 0.001
+"""Seconds: a heard beat this close to the grid's is left alone (no churn of the anchor)."""
+
+
+@dataclass
+class Laid:
+    """A tile laid on a layer from beat ``start`` to ``end`` (a cut shortens it); ``sent``: how
+    many of its notes went to the output; ``request``: the course that laid it (0: idling)."""
+
+    tile: int
+    start: float
+    end: float
+    request: int = 0
+    sent: int = 0
+    begun: bool = False
+
+
+@dataclass
+class Layer:
+    """One layer's laid tiles (in beat order) and what it is asked for."""
+
+    name: str
+    idle: str
+    cut: int
+    laid: list[Laid] = field(default_factory=list)
+    request: int = 0
+
+    @property
+    def end(self) -> float:
+        return self.laid[-1].end if self.laid else -math.inf
+
+
+class ScoreLayout:
+    """A creature's score: its tiles, their graph, the grid and the layers laid out on it."""
+
+    def __init__(self, spec: ScoreSpec, tiles: TileSet, creature: "Authored", rng: np.random.Generator) -> None:
+        self.spec, self.tiles, self.creature, self.rng = spec, tiles, creature, rng
+        self.graph = TileGraph(tiles)
+        self.beat_length = 60.0 / spec.tempo
+        self.grid: Grid | None = None
+        self.follower = BeatFollower()
+        self.layers = {name: Layer(name, ls.idle, ls.cut) for name, ls in spec.layers.items()}
+        self._requests = itertools.count(1)
+        self._goal_end: dict[int, float] = {}  # request → the beat its course ends
+        self._programs: dict[str, int] = {}
+        self._controls: dict[tuple[int, int], int] = {}
+        self._modulated = -math.inf  # the last beat whose controllers were sent
+        self._followed = -math.inf  # the last beat the heard pulse moved
+        self.scheduled = 0  # tiles begun, for the bench
+
+    # -- the behaviour system's side ------------------------------------------------------
+    def steer(self, t: float, layer: str, tags: list[str]) -> int:
+        """Lay out ``tags`` in order on ``layer`` from the next place it may cut; returns the
+        course's number (for :meth:`reached`)."""
+        grid = self._grid(t)
+        lay = self.layers[layer]
+        cut = self._cut_beat(lay, grid.beat(t + self.spec.commit))
+        if lay.request in self._goal_end:  # a course it replaces ends where this one cuts in
+            self._goal_end[lay.request] = min(self._goal_end[lay.request], cut)
+        request = lay.request = next(self._requests)
+        kept = []
+        for laid in lay.laid:
+            if laid.start < cut:
+                laid.end = min(laid.end, cut)
+                kept.append(laid)
+        lay.laid = kept
+        start = lay.laid[-1].tile if lay.laid else None
+        begin = cut
+        for tag in tags:
+            try:
+                walk = self.graph.path(start, tag) if start is not None else [self.graph.entry(layer, tag)]
+            except NoPath as exc:
+                self.creature.world.log.emit(t, "score", creature=self.creature.name, layer=layer, problem=str(exc))
+                continue
+            for node in walk:
+                end = begin + self.tiles.tiles[node].beats
+                lay.laid.append(Laid(node, begin, end, request))
+                begin, start = end, node
+        self._goal_end[request] = lay.end if lay.laid else cut
+        return request
+
+    def reached(self, request: int, t: float) -> float:
+        """1 once course ``request`` has been played out (or replaced by another), else 0."""
+        end = self._goal_end.get(request)
+        if end is None or self.grid is None:
+            return 1.0
+        return 1.0 if self.grid.beat(t) >= end - 1e-9 else 0.0
+
+    def _cut_beat(self, lay: Layer, frontier: float) -> float:
+        """The first beat at or after ``frontier`` where ``lay`` may change course."""
+        if lay.cut == 0:
+            playing = [laid for laid in lay.laid if laid.start < frontier]
+            return max([frontier, *(laid.end for laid in playing)])
+        return math.ceil(frontier / lay.cut - 1e-9) * lay.cut
+
+    # -- every tick ------------------------------------------------------------------------
+    def hear(self, note: NoteEvent, source: str) -> None:
+        if source == INPUT:
+            self.follower.hear(note.time)
+
+    def tick(self, t: float) -> None:
+        """Follow the heard beat, lay out what is due, commit what sounds soon, modulate."""
+        grid = self._grid(t)
+        horizon = t + self.spec.commit
+        if self.spec.follow:
+            self._follow(t, grid, horizon)
+        ahead = grid.beat(horizon) + self.spec.lookahead
+        for lay in self.layers.values():
+            while lay.end < ahead:
+                if not self._idle(t, lay, grid.beat(horizon)):
+                    break
+        self._modulate(t, grid, horizon)
+        for lay in self.layers.values():
+            self._commit(t, grid, lay, horizon)
+
+    def _grid(self, t: float) -> Grid:
+        if self.grid is None:
+            self.grid = Grid(self.beat_length, t + self.spec.commit)
+        return self.grid
+
+    def _follow(self, t: float, grid: Grid, horizon: float) -> None:
+        """Move the grid onto the heard pulse from the first beat not yet committed: the
+        tempo at once (time stretch), the phase by at most a quarter of a beat a beat (time
+        shift; a phase-locked loop, so no beat is squeezed and none moves into the past)."""
+        pulse = self.creature.world.pulse
+        guess = pulse.model.pulse if pulse.ready else None
+        found = self.follower.fit(t, guess) if guess else None
+        if found is None:
+            return
+        period = nearest_multiple(found[0], self.beat_length)
+        beat = math.ceil(grid.beat(horizon) + 1e-9)
+        if beat <= self._followed:  # each beat is moved once
+            return
+        was = grid.time(beat)
+        heard = found[1] + period * round((was - found[1]) / period)
+        at = was + min(max(heard - was, -period / 2), period / 2)
+        if at <= horizon:
+            return
+        if abs(at - was) > SHIFT_TOLERANCE or abs(period - grid.period) > SHIFT_TOLERANCE / 8:
+            self._followed = beat
+            grid.change(beat, period, at)
+            self.creature.world.log.emit(t, "score grid", creature=self.creature.name, beat=beat, time=at,
+                                         period=period)
+
+    def _idle(self, t: float, lay: Layer, frontier: float) -> bool:
+        """Lay the layer's next idle tile (a successor with its idle tag, chosen in proportion
+        to how smoothly it joins; else the way to the nearest one)."""
+        if not lay.laid:
+            try:
+                node = self.graph.entry(lay.name, lay.idle)
+            except NoPath:
+                return False
+            begin = math.ceil(frontier - 1e-9)
+            lay.laid.append(Laid(node, begin, begin + self.tiles.tiles[node].beats))
+            return True
+        last = lay.laid[-1]
+        options = [s for s in self.graph.successors[last.tile] if lay.idle in self.tiles.tiles[s].tags]
+        if options:
+            cost = self.graph.cost[last.tile, options]
+            weight = np.exp(-(cost - cost.min()) / 0.25)
+            walk = [int(self.rng.choice(options, p=weight / weight.sum()))]
+        else:
+            try:
+                walk = self.graph.path(last.tile, lay.idle)
+            except NoPath:
+                return False
+        begin = last.end
+        for node in walk:
+            lay.laid.append(Laid(node, begin, begin + self.tiles.tiles[node].beats))
+            begin += self.tiles.tiles[node].beats
+        return True
+
+    def _commit(self, t: float, grid: Grid, lay: Layer, horizon: float) -> None:
+        """Hand the notes that sound before ``horizon`` to the output; drop played tiles."""
+        for laid in lay.laid:
+            start_time = grid.time(laid.start)
+            if start_time > horizon:
+                break
+            tile = self.tiles.tiles[laid.tile]
+            if not laid.begun:
+                laid.begun = True
+                self.scheduled += 1
+                self._begin(t, grid, lay, laid, start_time)
+            part = self.spec.parts.get(tile.part)
+            while laid.sent < len(tile.onsets):
+                beat = laid.start + tile.onsets[laid.sent]
+                if beat >= laid.end - 1e-9:
+                    laid.sent = len(tile.onsets)
+                    break
+                at = grid.time(beat)
+                if at > horizon:
+                    break
+                length = min(tile.lengths[laid.sent], laid.end - beat)
+                self.creature.play(int(tile.pitches[laid.sent]), int(tile.velocities[laid.sent]),
+                                   grid.time(beat + length) - at, at=at,
+                                   channel=None if part is None else part.channel)
+                laid.sent += 1
+        # Played tiles go, but the last stays: the walk goes on from it.
+        while len(lay.laid) > 1 and lay.laid[0].begun and grid.time(lay.laid[0].end) <= t:
+            lay.laid.pop(0)
+
+    def _begin(self, t: float, grid: Grid, lay: Layer, laid: Laid, at: float) -> None:
+        """A tile starts: log it, and set its part's program from the stance."""
+        tile = self.tiles.tiles[laid.tile]
+        self.creature.world.log.emit(t, "tile", creature=self.creature.name, layer=lay.name, tile=tile.name,
+                                     part=tile.part, tags=sorted(tile.tags), beat=laid.start, time=at,
+                                     period=grid.period, steered=laid.request != 0)
+        part = self.spec.parts.get(tile.part)
+        if part is None or len(part.programs) < 1 or tile.silent:
+            return
+        glad = part.stance is not None and self._saliency(part.stance, t) >= 0.5
+        program = part.programs[min(int(glad), len(part.programs) - 1)]
+        if self._programs.get(tile.part) != program:
+            self._programs[tile.part] = program
+            self.creature.world.scheduler.send_at(at, mido.Message("program_change", channel=part.channel,
+                                                                  program=program))
+
+    def _modulate(self, t: float, grid: Grid, horizon: float) -> None:
+        """CC 74 from each part's stance and CC 11 from its visibility, once a beat."""
+        beat = math.floor(grid.beat(horizon) + 1e-9)
+        if beat <= self._modulated:
+            return
+        self._modulated = beat
+        at = max(t, grid.time(beat))
+        for part in self.spec.parts.values():
+            for control, percept, low, high in ((74, part.stance, 20, 120), (11, part.visible, 50, 127)):
+                if percept is None:
+                    continue
+                value = int(round(low + (high - low) * min(max(self._saliency(percept, t), 0.0), 1.0)))
+                if abs(self._controls.get((part.channel, control), -99) - value) >= 2:
+                    self._controls[(part.channel, control)] = value
+                    self.creature.world.scheduler.send_at(at, mido.Message("control_change", channel=part.channel,
+                                                                          control=control, value=value))
+
+    def _saliency(self, percept: str, t: float) -> float:
+        return float(self.creature.percept(percept).evaluate(t))
