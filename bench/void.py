@@ -1,0 +1,73 @@
+"""(void*): how fast the shipped installation runs offline, and what laying out a tile costs.
+
+Rows (``python -m bench void``):
+
+* the shipped installation (three characters with bodies, a camera, the score) offline with
+  its rehearsal visitors, without frames, with and without audio synthesis: target ≥ 20×
+  real time (issue 22);
+* one course laid out on the theme layer (:meth:`ScoreLayout.steer`: A* on the tile graph to
+  a leitmotif's head, then to its end, the laid future replaced from the next beat): target
+  ≤ 1 ms, beside the same course found by Dijkstra from scratch over the tile graph (what a
+  layout without the graph's distance table would pay).
+"""
+
+from __future__ import annotations
+
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import dijkstra
+
+import installations
+from bench import Row, best_of
+from creatures.clock import SimulatedClock
+from creatures.events import EventLog
+from creatures.runtime.offline import run_offline
+from creatures.runtime.schema import load_installation
+from creatures.runtime.session import Session
+from midi.sinks import MemorySink
+
+
+def _offline_speed(seconds: float, *, audio: bool) -> float:
+    inst = load_installation(installations.path("void"))
+    inst.settings.output.report = False
+    inst.settings.output.wav = audio
+    with tempfile.TemporaryDirectory() as out:
+        wall = best_of(lambda: run_offline(inst, Path(out), duration=seconds), repeat=2)
+    return seconds / wall
+
+
+def _steer_cost(courses: int) -> tuple[float, float]:
+    """Seconds per course laid by the score, and per the same walk found by plain Dijkstra."""
+    clock = SimulatedClock()
+    session = Session(load_installation(installations.path("void")), clock, EventLog(keep_in_memory=0),
+                      MemorySink())
+    score = next(c for c in session.creatures if c.name == "score").score
+    for _ in range(10):
+        session.step(clock.advance(0.02), 0, None, audio=False)
+    names = ("eddie", "elliot", "earl")
+    t0 = time.perf_counter()
+    for k in range(courses):
+        score.steer(clock.now(), "theme", [f"{names[k % 3]}-head", f"{names[k % 3]}-end"])
+    laid = (time.perf_counter() - t0) / courses
+    graph = score.graph
+    rows, cols = np.nonzero(np.isfinite(graph.cost))
+    matrix = csr_matrix((graph.cost[rows, cols], (rows, cols)), shape=graph.cost.shape)
+    t0 = time.perf_counter()
+    for k in range(courses):
+        dijkstra(matrix, indices=k % len(graph.tiles))
+    return laid, (time.perf_counter() - t0) / courses
+
+
+def run(quick: bool) -> list[Row]:
+    seconds = 30.0 if quick else 180.0
+    laid, plain = _steer_cost(300 if quick else 3000)
+    return [
+        Row("(void*) offline, with audio (no frames)", _offline_speed(seconds, audio=True), "× real time", 20.0),
+        Row("(void*) offline, behaviour and MIDI only", _offline_speed(seconds, audio=False), "× real time", 20.0),
+        Row("(void*) a course laid on the theme layer (A*, layout)", laid * 1e3, "ms", 1.0, higher_is_better=False,
+            baseline="Dijkstra from scratch, one source", ratio=plain / laid),
+    ]
