@@ -45,7 +45,7 @@ def _part(creature: "Authored", type_: str, kind: str) -> str:
 def from_retired(path: Path, saved_kind: object, state: dict[str, Any], creature: Any) -> dict[str, Any]:
     """``state`` (saved for ``saved_kind``) as ``creature``'s own, or :class:`StateFileError`
     naming the file and what to do."""
-    if saved_kind not in RETIRED or getattr(creature.spec, "kind", None) != "authored":
+    if not isinstance(saved_kind, str) or saved_kind not in RETIRED or getattr(creature.spec, "kind", None) != "authored":
         raise StateFileError(f"{path}: saved for kind {saved_kind!r}, config says {creature.spec.kind!r}")
     try:
         return RETIRED[saved_kind](state, creature)
