@@ -17,6 +17,10 @@ synthesis model – to connect characters' bodies to such a synthesis technique.
   moving through a string changes its shape, hence its timbre, while a still body leaves it
   to ring down. A creature sounds a note on its string each time it begins an action: the
   pitch its hand's place names (:class:`~creatures.motor.note_space.NotePlacement`).
+* **Spring bodies.** With ``springs`` the body others see and touch, that pushes the strings
+  and that is drawn is a spring system's realisation of the pose (:mod:`creatures.body.springs`:
+  joints pulled to the pose, bones and the floor as constraints): a fast move overshoots and
+  rings on, so the strings go on being pushed after the motor system has arrived.
 * **Perceiving shapes.** Percepts read the other bodies: the distance between the nearest
   joints of two bodies (*seen* within ``sense``, *close* within ``near``), and how much of
   the creature's string another body overlaps (logged).
@@ -38,6 +42,7 @@ from pydantic import Field, model_validator
 from scipy.spatial import cKDTree
 
 from creatures.behaviour.action_group import ActionGroup
+from creatures.body.springs import SpringBody, SpringSpec
 from creatures.behaviour.action_tuple import Action, ActionTuple, DoUntil
 from creatures.behaviour.models.gaussian import GaussianModel
 from creatures.behaviour.percept import FunctionPercept, WhateverPercept
@@ -73,6 +78,9 @@ class CurveSpec(CreatureSpec):
     temperature: float | None = Field(None, gt=0, le=1e3, description="Boltzmann temperature of action selection")
     voice: VoiceSpec = VoiceSpec(voices=3, body_gain=12.0)
     body: FigureBodySpec = FigureBodySpec()
+    springs: SpringSpec | None = Field(None, description="the body realised as a spring system: joints pulled to "
+                                                         "the pose by damped springs, bones and the floor as "
+                                                         "constraints (creatures/body/springs.py); none = the pose itself")
     limbs: list[str] | None = Field(None, max_length=256,
                                     description="joints whose movement pushes the strings; default the elbows, "
                                                 "wrists and hands the body has, else its striking joints")
@@ -176,7 +184,7 @@ class _Approach(Action):
             return
         side = np.sign(other.x - c.x) or 1.0
         c.target_x = other.x - side * 0.8 * c.spec.near
-        chest = other.body.pose.positions[other.centre]
+        chest = other.positions()[other.centre]
         reach_for = chest + [other.x - c.target_x, 0.0, 0.0]  # where it will be, seen from where c goes
         head_for(c.body, t, c.body.finder.effector_goals(c.body.effector, reach_for).tolist())
         c.sound_hand(t)
@@ -238,6 +246,9 @@ class Curve(CreatureKind):
         self.centre = names.index("chest") if "chest" in names else int(roots[0])
         """The joint another creature reaches for (the chest, else the root)."""
         self.images = mirror_images(self.body.graph)
+        self.springs = (SpringBody(spec.springs, self.body.skeleton.parents, self.body.pose.positions)
+                        if spec.springs is not None else None)
+        self._realised = self.body.pose.positions
         self.trail = MotorTrail(world, self.name, self.body)
         self.x = self.target_x = float(np.clip(spec.place, -spec.room, spec.room))
         self.placement = NotePlacement.around(self.body.reach())
@@ -267,13 +278,19 @@ class Curve(CreatureKind):
         self._next_report = 0.0
 
     # -- the room ------------------------------------------------------------------------------
+    def positions(self) -> np.ndarray:
+        """Where its joints are (its body's frame): the spring system's realisation of the
+        pose, or the pose itself. What others see and touch, what pushes the strings, what is
+        drawn."""
+        return self._realised
+
     def others(self) -> list["Curve"]:
         return [c for c in self.world.creatures if isinstance(c, Curve) and c is not self]
 
     def gap(self, other: "Curve") -> float:
         """Distance between the nearest joints of two bodies, in the room (m)."""
-        mine = self.body.pose.positions + [self.x, 0.0, 0.0]
-        theirs = other.body.pose.positions + [other.x, 0.0, 0.0]
+        mine = self.positions() + [self.x, 0.0, 0.0]
+        theirs = other.positions() + [other.x, 0.0, 0.0]
         return float(np.sqrt(((mine[:, None] - theirs[None]) ** 2).sum(axis=-1).min()))
 
     def look(self) -> None:
@@ -300,7 +317,7 @@ class Curve(CreatureKind):
         nodes = self.voice.coupling.nodes
         near = np.zeros(len(nodes), dtype=bool)
         for other in self.others():
-            theirs = other.body.pose.positions + [other.x - self.x, 0.0, 0.0]
+            theirs = other.positions() + [other.x - self.x, 0.0, 0.0]
             d = np.sqrt(((nodes[:, None] - theirs[None]) ** 2).sum(axis=-1)).min(axis=1)
             near |= d <= self.voice.coupling.radius
         return float(near.mean())
@@ -316,8 +333,8 @@ class Curve(CreatureKind):
         coordinates)."""
         if self.voice is None:
             return
-        bodies = [self.body.pose.positions[self.limbs]] + [o.body.pose.positions[o.limbs] + [o.x - self.x, 0.0, 0.0]
-                                                           for o in self.others()]
+        bodies = [self.positions()[self.limbs]] + [o.positions()[o.limbs] + [o.x - self.x, 0.0, 0.0]
+                                                   for o in self.others()]
         self.voice.feel(_Bodies(np.concatenate(bodies), self._t))
 
     def tick(self, t: float) -> None:
@@ -326,6 +343,8 @@ class Curve(CreatureKind):
         self.x = float(np.clip(self.x + np.clip(self.target_x - self.x, -step, step), -self.spec.room, self.spec.room))
         self.trail.follow(t)
         self.body.update(t)
+        self._realised = (self.body.pose.positions if self.springs is None
+                          else self.springs.follow(t, self.body.pose.positions).copy())
         self.look()
         self.group.tick(t)
         self.feel()
@@ -359,7 +378,7 @@ class Curve(CreatureKind):
         self.voice.render(out, self.world.clock.now())
 
     def figure(self) -> tuple[np.ndarray, np.ndarray] | None:
-        return self.body.pose.positions + [self.x, 0.0, 0.0], np.asarray(self.body.skeleton.parents)
+        return self.positions() + [self.x, 0.0, 0.0], np.asarray(self.body.skeleton.parents)
 
     # -- persistence ---------------------------------------------------------------------------
     def state(self) -> dict[str, Any]:
