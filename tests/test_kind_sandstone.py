@@ -314,6 +314,29 @@ def test_state_round_trips_through_json():
         fresh.restore({**state, "parts": {**state["parts"], "tuples": {"sing": song}}})
 
 
+def test_a_song_resumes_after_a_clock_gap_without_singing_the_gap():
+    """A rock still singing when the gallery closed sings on from where it stopped when it
+    opens, not every onset of the night at once (a rehearsed week once sent 97 050 notes on
+    one morning's first tick)."""
+    spec = _spec(**{PRESENCE: "[[0.0, 1.0]]", EAGERNESS: 1.0, SATIATION: 0.0, HABITUATION: 0.0, BREATH_USE: -0.001})
+    load_all()
+    world = _world()
+    creature = KINDS["authored"](spec, world, np.random.default_rng(0))
+    world.add(creature)
+    onsets: list[float] = []
+    world.log.taps.append(lambda record: onsets.append(record["time"]) if record["kind"] == "note" else None)
+    t = 0.0
+    while len(onsets) < 3:
+        t += TICK
+        world.clock.advance_to(t)
+        creature.tick(t)
+    sung, morning = len(onsets), t + 16 * 3600.0
+    world.clock.advance_to(morning)
+    creature.tick(morning)
+    assert creature.tuples["sing"].active
+    assert 1 <= len(onsets[sung:]) <= 2 and min(onsets[sung:]) >= morning
+
+
 @pytest.mark.parametrize("key, value, phrase", [
     ("percepts.presence.points", "[[0.0, 0.5], [10.0, 1.0], [5.0, 0.0]]", "strictly increase"),
     ("percepts.presence.points", "[[0.0, 1.5]]", "0..1"),
