@@ -207,6 +207,22 @@ def test_uncorrelated_music_suppresses_singing(tmp_path):
     assert any(e["kind"] == "selection" and e["tuple"] == "listen" for e in with_far)
 
 
+def test_a_rock_left_away_longs_to_sing_and_calls_out_over_discord(tmp_path):
+    """A rock away from the centre (presence 0) hearing music a tritone from its key all the
+    while: its desire drains under the discord, and without longing it never sings; with it,
+    silence breeds longing and the rock calls out a few notes once about every two minutes
+    (longing grows by 1 in 100 s, reaches desire from 1.0 and outweighs any discord by 1.5)."""
+    far = _arpeggio_loop(FS, 300.0)
+    away = _run(tmp_path / "away", [{PRESENCE: [[0.0, 0.0]]}], duration=300.0, heard=far)
+    onsets = np.array([n["time"] for n in _notes(away)])
+    calls = np.split(onsets, np.flatnonzero(np.diff(onsets) > 10.0) + 1)
+    assert len(calls) == 2 and all(3 <= len(call) <= 12 for call in calls), onsets
+    assert 100.0 < calls[0][0] < 150.0 and 100.0 < calls[1][0] - calls[0][-1] < 150.0
+    unmoved = _run(tmp_path / "unmoved", [{PRESENCE: [[0.0, 0.0]], "drives.desire.inputs.lonely": 0.0}],
+                   duration=300.0, heard=far)
+    assert _notes(unmoved) == []
+
+
 def test_breath_runs_out_and_forces_pauses(tmp_path):
     use, recovery = 0.3, 0.1
     longest = math.log(use / (use - recovery)) / recovery  # full breath to none, singing throughout
@@ -314,6 +330,29 @@ def test_state_round_trips_through_json():
         fresh.restore({**state, "parts": {**state["parts"], "tuples": {"sing": song}}})
 
 
+def test_a_song_resumes_after_a_clock_gap_without_singing_the_gap():
+    """A rock still singing when the gallery closed sings on from where it stopped when it
+    opens, not every onset of the night at once (a rehearsed week once sent 97 050 notes on
+    one morning's first tick)."""
+    spec = _spec(**{PRESENCE: "[[0.0, 1.0]]", EAGERNESS: 1.0, SATIATION: 0.0, HABITUATION: 0.0, BREATH_USE: -0.001})
+    load_all()
+    world = _world()
+    creature = KINDS["authored"](spec, world, np.random.default_rng(0))
+    world.add(creature)
+    onsets: list[float] = []
+    world.log.taps.append(lambda record: onsets.append(record["time"]) if record["kind"] == "note" else None)
+    t = 0.0
+    while len(onsets) < 3:
+        t += TICK
+        world.clock.advance_to(t)
+        creature.tick(t)
+    sung, morning = len(onsets), t + 16 * 3600.0
+    world.clock.advance_to(morning)
+    creature.tick(morning)
+    assert creature.tuples["sing"].active
+    assert 1 <= len(onsets[sung:]) <= 2 and min(onsets[sung:]) >= morning
+
+
 @pytest.mark.parametrize("key, value, phrase", [
     ("percepts.presence.points", "[[0.0, 0.5], [10.0, 1.0], [5.0, 0.0]]", "strictly increase"),
     ("percepts.presence.points", "[[0.0, 1.5]]", "0..1"),
@@ -348,7 +387,9 @@ def test_a_state_saved_by_the_class_based_sandstone_loads_into_the_authored_one(
         assert now["parts"]["tuples"]["sing"] == old["song"]
         assert now["parts"]["percepts"]["discord"] == {k: old["heard"][k] for k in ("vector", "weight")}
         assert now["parts"]["percepts"]["presence"] == old["sensed"]
-        assert now["motivation"]["levels"] == old["motivation"]["levels"]
+        levels = now["motivation"]["levels"]
+        assert levels.pop("longing") == 0.0  # the class had no longing: it starts as authored
+        assert levels == old["motivation"]["levels"]
         assert now["values"]["main"] == old["values"]
     session.save_state(tmp_path)
     assert json.loads((tmp_path / "king.json").read_text())["kind"] == "authored"

@@ -24,6 +24,7 @@ import numpy as np
 
 from creatures import bounds
 from creatures.behaviour.action_tuple import Action, ActionTuple
+from creatures.clock import clock_gap
 from midi.fifths import circular_distance, fifths_vector
 
 if TYPE_CHECKING:
@@ -156,8 +157,13 @@ class Singing(Action):
         return max(1, round(self.params.velocity * (1.0 - dull))), 0.9 * (1.0 - dull)
 
     def update(self, t: float) -> None:
-        """Play every note of the song whose onset has come, while breath lasts."""
+        """Play every note of the song whose onset has come, while breath lasts. Across a
+        clock gap (a night the gallery was closed, a pause: ``creatures.clock.clock_gap``)
+        the song resumes where it stopped, from now: that time was not lived, and singing
+        its onsets would send a night of notes at once."""
         m, p = self.creature.motivation, self.params
+        if clock_gap(self.next_onset, t):
+            self.next_onset = t
         i = self._drive["breath"]
         drawn = 0.0 if i is None else max(0.0, -float(m.inputs[i]))  # breath a second, singing
         while not self.breathless and self.next_onset <= t:
