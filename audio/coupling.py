@@ -22,6 +22,8 @@ from typing import Any, Callable, Protocol
 import numpy as np
 from numpy.typing import ArrayLike
 
+from creatures.motor.spline import catmull_rom, sample
+
 
 class PoseLike(Protocol):
     """What coupling needs of a BodyPose (see ``creatures/motor/pose.py``)."""
@@ -95,8 +97,9 @@ class BodyShape:
     either directly or through a spring system. Thus our body pose representations become
     timbral representations").
 
-    The body's line (``joints``, e.g. the chain from the root to the effector) is resampled
-    by arc length to the string's masses, and its bend — each point's distance from the chord
+    The body's line (``joints``, e.g. the chain from the root to the effector) is the spline
+    the line renderer draws through them (:mod:`creatures.motor.spline`), resampled by arc
+    length to the string's masses, and its bend — each point's distance from the chord
     between its ends, along the line's main transverse direction, per unit length — becomes a
     per-mass force of ``gain × centring``: with the string's own centring spring that is a
     spring from each mass to the body's line (the string's rest shape *is* the body, ×
@@ -113,7 +116,7 @@ class BodyShape:
 
     def bend(self, positions: np.ndarray) -> np.ndarray:
         """The line's transverse bend at each mass, per unit of its length ``(n,)``."""
-        points = np.asarray(positions, dtype=float)[self.joints]
+        points = sample(catmull_rom(np.asarray(positions, dtype=float)[self.joints]))  # the line as drawn: a spline
         along = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
         if not along[-1] > 0:
             return np.zeros(self.n)

@@ -16,7 +16,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy.spatial.distance import directed_hausdorff
 
-from creatures.body.lines import Page, draw, strokes
+from creatures.body.lines import Page, draw
+from creatures.motor.spline import SplinePose, catmull_rom, strokes
 from creatures.motor.drawing import DrawingError, drawing_lines, read_drawing, resample
 from creatures.runtime.offline import run_offline
 from creatures.runtime.schema import load_installation
@@ -149,9 +150,12 @@ def test_lines_render_as_svg_the_bodies_the_log_holds(scribbled, tmp_path):
     positions, parents, _ = scene(chosen[-1][0], played.hello)
     expected = page.project(positions)
     svg = svgelements.SVG.parse(files[-1])
-    polylines = [np.array([(p.x, p.y) for p in e.points]) for e in svg.elements() if isinstance(e, svgelements.Polyline)]
-    assert len(polylines) == len(strokes(parents)) == 1  # one pen line: the body is one unbroken line
-    assert np.abs(polylines[0] - expected[strokes(parents)[0]]).max() < 1e-3
+    paths = [e for e in svg.elements() if isinstance(e, svgelements.Path)]
+    assert len(paths) == len(strokes(parents)) == 1  # one pen line: the body is one unbroken line
+    curves = [seg for seg in paths[0] if isinstance(seg, svgelements.CubicBezier)]
+    assert len(curves) == len(strokes(parents)[0]) - 1  # a smooth segment between each two joints …
+    ends = np.array([(curves[0].start.x, curves[0].start.y)] + [(c.end.x, c.end.y) for c in curves])
+    assert np.abs(ends - expected[strokes(parents)[0]]).max() < 1e-3  # … through every joint
     assert (expected >= 0).all() and (expected[:, 0] <= 640).all() and (expected[:, 1] <= 480).all()
 
 
@@ -184,7 +188,7 @@ def test_lines_render_as_postscript(scribbled, tmp_path):
     eps = sorted((tmp_path / "lines").glob("*.eps"))
     text = eps[0].read_text()
     assert text.startswith("%!PS-Adobe-3.0 EPSF-3.0\n%%BoundingBox: 0 0 320 240") and text.rstrip().endswith("%%EOF")
-    assert text.count(" stroke") == 1 and text.count("lineto") == 47  # 48 joints, one line
+    assert text.count(" stroke") == 1 and text.count("curveto") == 47  # 48 joints, one line of 47 curves
 
 
 def test_draw_puts_each_chain_in_one_stroke():
@@ -193,7 +197,24 @@ def test_draw_puts_each_chain_in_one_stroke():
     positions = np.array([[0, 0, 0], [0, 1, 0], [0, 2, 0], [0, 3, 0], [1, 1, 0], [2, 1, 0]], float)
     page = Page.framing(positions, 100, 100)
     text = draw(page, positions, parents, [((0.0, 0.0, 0.0), 60.0)], "svg")
-    assert text.count("<polyline") == 2 and text.count("<circle") == 1
+    assert text.count("<path") == 2 and text.count("<circle") == 1
+
+
+def test_a_spline_pose_passes_smoothly_through_every_joint_in_3d():
+    """The 3-D spline representation: each chain's curve goes through its joints, in order,
+    with one tangent at each (C1: a limb bends, it does not kink), and straight bones stay
+    straight."""
+    rng = np.random.default_rng(3)
+    joints = np.cumsum(rng.normal(size=(7, 3)), axis=0)
+    segments = catmull_rom(joints)
+    assert np.allclose(segments[:, 0], joints[:-1]) and np.allclose(segments[:, 3], joints[1:])
+    out_tangent, in_tangent = segments[:-1, 3] - segments[:-1, 2], segments[1:, 1] - segments[1:, 0]
+    assert np.allclose(out_tangent, in_tangent)
+    line = np.outer(np.arange(5.0), [1.0, 2.0, -1.0])
+    sampled = SplinePose.of(line, np.array([-1, 0, 1, 2, 3])).points(per_segment=6)[0]
+    assert len(sampled) == 4 * 6 + 1 and np.allclose(np.cross(sampled, [1.0, 2.0, -1.0]), 0.0)
+    a_pose = SplinePose.of(joints, np.array([-1, 0, 1, 2, 1, 4, 5]))
+    assert [len(s) for s in a_pose.segments] == [3, 3]  # a trunk and a branch
 
 
 def held_spectrum(positions: np.ndarray, body_shape: float, seconds: float = 1.0) -> np.ndarray:

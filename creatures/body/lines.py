@@ -3,8 +3,10 @@
 the current 3 dimensional graphics system, a 2 dimensional Java 2D based system, or direct to
 Postscript").
 
-A body is its bones: each joint joined to its parent by a stroke, chains drawn as one
-polyline so a line creature is one unbroken line, as it was drawn. Note objects are small
+A body is its bones as 3-D splines (:class:`~creatures.motor.spline.SplinePose`: each chain a
+Catmull-Rom spline through its joints, drawn as one stroke of cubic Béziers, SVG's ``C`` and
+PostScript's ``curveto``), so a line creature is one unbroken, smoothly bending line, as it was
+drawn. Note objects are small
 circles in their pitch's colour (the mesh renderer's :func:`~creatures.body.render.pitch_colour`).
 The projection is orthographic, as a drawing on paper is: looking along the camera's axis
 (default the front, −z), framed once on every frame of the run so the drawing does not jump.
@@ -19,6 +21,8 @@ from pathlib import Path
 from typing import Literal
 
 import numpy as np
+
+from creatures.motor.spline import SplinePose
 
 Format = Literal["svg", "ps"]
 MARGIN = 0.06
@@ -58,41 +62,22 @@ class Page:
         return np.stack([self.width / 2 + plane[:, 0], self.height / 2 - plane[:, 1]], axis=1)
 
 
-def strokes(parents: np.ndarray) -> list[list[int]]:
-    """The bones as polylines of joint indices: each chain from a joint down its first child
-    as one line, every further child starting a line of its own at its parent."""
-    children: dict[int, list[int]] = {}
-    for j, p in enumerate(parents):
-        if p >= 0:
-            children.setdefault(int(p), []).append(j)
-    lines: list[list[int]] = []
-    starts = [(int(j), None) for j in np.flatnonzero(np.asarray(parents) < 0)]
-    while starts:
-        joint, parent = starts.pop(0)
-        line = [joint] if parent is None else [parent, joint]
-        while children.get(line[-1]):
-            first, *rest = children[line[-1]]
-            starts += [(c, line[-1]) for c in rest]
-            line.append(first)
-        if len(line) > 1:
-            lines.append(line)
-    return lines
-
-
 def draw(page: Page, positions: np.ndarray, parents: np.ndarray, marks: list[tuple[tuple, float]],
          fmt: Format) -> str:
     """One frame as an SVG document or an EPS file."""
     from creatures.body.render import pitch_colour
 
-    placed = page.project(positions) if len(positions) else np.zeros((0, 2))
-    lines = [placed[chain] for chain in strokes(parents)]
+    splines = SplinePose.of(positions, parents).segments if len(positions) else ()
+    lines = [page.project(seg.reshape(-1, 3)).reshape(-1, 4, 2) for seg in splines]  # a projected Bézier is one
     notes = [(page.project(np.array([m]))[0], pitch_colour(pitch)) for m, pitch in marks]
     radius = max(page.width, page.height) / 160
     return _svg(page, lines, notes, radius) if fmt == "svg" else _eps(page, lines, notes, radius)
 
 
 def _svg(page: Page, lines: list[np.ndarray], notes: list, radius: float) -> str:
-    body = [f'<polyline points="{" ".join(f"{x:.3f},{y:.3f}" for x, y in line)}"/>' for line in lines]
+    body = [f'<path d="M {line[0, 0, 0]:.3f},{line[0, 0, 1]:.3f} '
+            + " ".join("C " + " ".join(f"{x:.3f},{y:.3f}" for x, y in seg[1:]) for seg in line) + '"/>'
+            for line in lines]
     dots = [f'<circle cx="{x:.3f}" cy="{y:.3f}" r="{radius:.2f}" fill="{_hex(colour)}"/>' for (x, y), colour in notes]
     width = max(page.width, page.height) / 320
     return (f'<svg xmlns="http://www.w3.org/2000/svg" width="{page.width}" height="{page.height}" '
@@ -107,8 +92,8 @@ def _eps(page: Page, lines: list[np.ndarray], notes: list, radius: float) -> str
            "%%Creator: creature-music (creatures/body/lines.py)", "%%EndComments",
            f"1 setlinecap 1 setlinejoin {max(page.width, page.height) / 320:.2f} setlinewidth 0 setgray"]
     for line in lines:
-        points = [f"{x:.3f} {h - y:.3f}" for x, y in line]
-        out.append(f"newpath {points[0]} moveto " + " ".join(f"{p} lineto" for p in points[1:]) + " stroke")
+        curves = " ".join(" ".join(f"{x:.3f} {h - y:.3f}" for x, y in seg[1:]) + " curveto" for seg in line)
+        out.append(f"newpath {line[0, 0, 0]:.3f} {h - line[0, 0, 1]:.3f} moveto {curves} stroke")
     for (x, y), colour in notes:
         out.append(f"{colour[0]:.3f} {colour[1]:.3f} {colour[2]:.3f} setrgbcolor "
                    f"newpath {x:.3f} {h - y:.3f} {radius:.2f} 0 360 arc fill")
