@@ -161,6 +161,45 @@ def test_a_controller_changes_the_score_by_the_next_beat():
     assert np.median(delays) <= 0.6 * beat
 
 
+def test_a_controller_over_osc_from_python_osc_brings_in_a_live_leitmotif(tmp_path):
+    """``creatures run void`` live (no sound card here): python-osc's client possesses Earl;
+    Earl dances and his leitmotif comes in on the score's next beat."""
+    import socket
+    import time
+
+    from pythonosc.udp_client import SimpleUDPClient
+
+    from input_fixtures import live_run
+
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    text = (HERE / "void.toml").read_text().replace("port = 9030", f"port = {port}").replace(
+        "[audio]\n", '[audio]\noutput_device = "NoSuchCard"\n', 1).replace('file = "void/visitors.csv"', 'file = "none.csv"')
+    (tmp_path / "void").mkdir()
+    (tmp_path / "void" / "tiles.toml").write_text((HERE / "void" / "tiles.toml").read_text())
+    (tmp_path / "none.csv").write_text("")
+    (tmp_path / "void.toml").write_text(text)
+    log = tmp_path / "events.jsonl"
+
+    def possess() -> None:
+        client = SimpleUDPClient("127.0.0.1", port)
+        client.send_message("/void/earl/held", 1.0)
+        client.send_message("/void/earl/legs", 0.4)
+        deadline = time.monotonic() + 30.0
+        while '"earl-head"' not in (log.read_text() if log.exists() else "") and time.monotonic() < deadline:
+            time.sleep(0.05)
+        time.sleep(0.5)
+
+    live_run(tmp_path / "void.toml", log, port, possess)
+    events = [json.loads(line) for line in log.read_text().splitlines()]
+    held = next(e for e in events if e["kind"] == "sensor" and e["name"] == "earl_held")
+    assert held["via"] == "osc" and held["value"] == 1.0
+    head = next(e for e in events if e["kind"] == "tile" and "earl-head" in e["tags"])
+    assert any(e["kind"] == "selection" and e["creature"] == "earl" and e["tuple"] == "dance" for e in events)
+    assert 0.0 < head["time"] - held["t"] <= head["period"] + 0.05 + 0.05  # a beat, the commit, a tick
+
+
 def test_a_leitmotif_is_found_by_a_star_from_its_head_to_its_end():
     tiles = load_tiles(HERE / "void" / "tiles.toml")
     graph = TileGraph(tiles)
