@@ -72,10 +72,13 @@ class BeatFollower:
 
     def __init__(self) -> None:
         self.onsets: deque[float] = deque(maxlen=64)
+        self.heard = 0  # onsets heard in all
+        self._fitted: tuple[tuple, tuple[float, float] | None] = ((), None)
 
     def hear(self, t: float) -> None:
         if not self.onsets or t - self.onsets[-1] > 0.03:  # a chord is one event (runtime/pulse.py's CHORD_GAP)
             self.onsets.append(t)
+            self.heard += 1
 
     def fit(self, now: float, guess: float) -> tuple[float, float] | None:
         """(pulse, a pulse's time) from the most of the last :data:`RECENT` onsets (heard
@@ -87,6 +90,13 @@ class BeatFollower:
         fit within :data:`FIT` of it: the colony's pulse model learns a new tempo slowly, and an
         onset rounded to the old pulse would bend the line."""
         recent = np.array([x for x in list(self.onsets)[-RECENT:] if now - x <= WINDOW])
+        key = (self.heard, len(recent), guess)
+        if key != self._fitted[0]:  # a new onset, one aged out, a new guess: fit again
+            self._fitted = (key, self._fit(recent, guess))
+        return self._fitted[1]
+
+    @staticmethod
+    def _fit(recent: np.ndarray, guess: float) -> tuple[float, float] | None:
         if not guess > 0:
             return None
         for count in range(len(recent), LEAST_ONSETS - 1, -1):  # the most onsets one tempo explains

@@ -164,15 +164,14 @@ class ScoreLayout:
         """Move the grid onto the heard pulse from the first beat not yet committed: the
         tempo at once (time stretch), the phase by at most a quarter of a beat a beat (time
         shift; a phase-locked loop, so no beat is squeezed and none moves into the past)."""
-        pulse = self.creature.world.pulse
-        guess = pulse.model.pulse if pulse.ready else None
-        found = self.follower.fit(t, guess) if guess else None
-        if found is None:
-            return
-        period = nearest_multiple(found[0], self.beat_length)
         beat = math.ceil(grid.beat(horizon) + 1e-9)
         if beat <= self._followed:  # each beat is moved once
             return
+        pulse = self.creature.world.pulse
+        found = self.follower.fit(t, pulse.model.pulse) if pulse.ready else None
+        if found is None:
+            return
+        period = nearest_multiple(found[0], self.beat_length)
         was = grid.time(beat)
         heard = found[1] + period * round((was - found[1]) / period)
         at = was + min(max(heard - was, -period / 2), period / 2)
