@@ -204,11 +204,49 @@ def test_a_leitmotif_is_found_by_a_star_from_its_head_to_its_end():
     tiles = load_tiles(HERE / "void" / "tiles.toml")
     graph = TileGraph(tiles)
     names = [t.name for t in tiles.tiles]
+
+    def walk(start: str, *tags: str, furthest: bool = False) -> list[str]:
+        return [names[i] for i in graph.walk(tiles.index(start), "theme", list(tags), furthest=furthest)]
+
     for who in CHARACTERS:
-        assert [names[i] for i in graph.path(tiles.index("tacet-bar"), f"{who}-head")] == [f"{who}-1"]
-        assert [names[i] for i in graph.path(tiles.index(f"{who}-1"), f"{who}-end")] == [f"{who}-2", f"{who}-3"]
-    # a tacet joins every tile of its layer: from any theme into any other character's
-    assert [names[i] for i in graph.path(tiles.index("elliot-3"), "earl-head")][-1] == "earl-1"
+        assert walk("tacet-bar", f"{who}-head") == [f"{who}-1"]
+        assert walk(f"{who}-1", f"{who}-end") == [f"{who}-2", f"{who}-3"]  # the composer's succession
+    assert walk("elliot-3", "earl-head")[-1] == "earl-1"  # a tacet joins any theme to any other
+    assert walk("tacet-bar", "eddie-head", "earl-head") in (["eddie-1"], ["earl-1"])  # the nearer of two
+    assert walk("eddie-1", "eddie", furthest=True) != walk("eddie-1", "eddie")
+
+
+def test_a_pattern_generator_lays_a_cycling_program_only_as_far_ahead_as_the_score_looks():
+    """A motor program over tags (thesis: "pattern generators → motor programs") that cycles
+    keeps Eddie's theme going while the tuple runs, laid a few beats ahead at a time (it
+    predicts the future as far as ``lookahead``), and a course that replaces it cuts in."""
+    from creatures.motor.programs import parse_programs
+    from creatures.score.program import ScoreProgram
+
+    inst = load_installation(HERE / "void.toml")
+    clock = SimulatedClock()
+    session = Session(inst, clock, EventLog(keep_in_memory=10**6), MemorySink())
+    creature = next(c for c in session.creatures if c.name == "score")
+    creature.top = []  # no tuple of its own steers it: the test does
+    score = creature.score
+    session.step(clock.advance(0.02), 0, None, audio=False)
+    library = parse_programs("loop: getTo eddie-head; getTo eddie-end; cycle 0")
+    request = score.steer(clock.now(), "theme", ScoreProgram.start(library, "loop"))
+    theme = score.layers["theme"]
+    for _ in range(1500):  # 30 s
+        t = clock.advance(0.02)
+        session.step(t, 0, None, audio=False)
+        ahead = theme.end - score.grid.beat(t + score.spec.commit)
+        assert ahead <= score.spec.lookahead + 8  # never more than a leg (here ≤ 2 tiles) past what it looks ahead
+    log = [r for r in session.world.log.records if r["kind"] == "tile" and r["layer"] == "theme"]
+    eddie = [r["tile"] for r in log if r["part"] == "eddie"]
+    assert len(eddie) >= 11 and eddie[:6] == ["eddie-1", "eddie-2", "eddie-3"] * 2  # 30 s: 48 beats, 12 tiles
+    assert score.reached(request, clock.now()) == 0.0  # a cycle never ends on its own
+    other = score.steer(clock.now(), "theme", ScoreProgram.of_tags(["earl-head"]))
+    assert score.reached(request, clock.now() + 1.0) == 1.0  # replaced: it ends where the new one cut in
+    for _ in range(400):  # the next beat, a tacet between the themes, then earl-1's four beats
+        session.step(clock.advance(0.02), 0, None, audio=False)
+    assert score.reached(other, clock.now()) == 1.0
 
 
 def test_a_grid_change_leaves_the_beats_before_it_where_they_were():
@@ -263,7 +301,7 @@ def test_a_bad_tile_file_is_refused_naming_file_key_and_line(tmp_path, edit, key
 
 
 def test_a_score_action_naming_a_missing_tag_is_refused_with_the_nearest(tmp_path):
-    text = (HERE / "void.toml").read_text().replace('"eddie-head", "eddie-end"', '"eddie-haed", "eddie-end"')
+    text = (HERE / "void.toml").read_text().replace("getTo eddie-head", "getTo eddie-haed")
     (tmp_path / "void").mkdir()
     (tmp_path / "void" / "tiles.toml").write_text((HERE / "void" / "tiles.toml").read_text())
     (tmp_path / "void" / "visitors.csv").write_text("")

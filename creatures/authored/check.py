@@ -314,11 +314,11 @@ def _score(c: _Checker) -> None:
     for name, tp in c.spec.tuples.items():
         if getattr(tp.action, "type", tp.action) != "score":
             continue
-        params = tp.action.params()
+        params = ACTIONS.get("score").Params.model_validate(tp.action.params())  # checked by _tuples
         loc = ("tuples", name, "action")
-        known("layer in [creature.score]", params["layer"], sorted(score.layers), (*loc, "layer"))
-        for tag in [params["toward"]] if params.get("toward") is not None else params.get("pattern", []):
-            known(f"tag on layer {params['layer']!r}'s tiles", tag, tiles.tags(params["layer"]), loc)
+        known("layer in [creature.score]", params.layer, sorted(score.layers), (*loc, "layer"))
+        for tag in params.tags():
+            known(f"tag on layer {params.layer!r}'s tiles", tag, tiles.tags(params.layer), loc)
 
 
 def _labels(c: _Checker, wanted: list[str], loc: tuple) -> None:

@@ -32,6 +32,7 @@ import numpy as np
 from creatures.motor.search import NoPath
 from creatures.runtime.world import INPUT
 from creatures.score.grid import BeatFollower, Grid, nearest_multiple
+from creatures.score.program import ScoreProgram
 from creatures.score.spec import ScoreSpec
 from creatures.score.tile_graph import TileGraph
 from creatures.score.tiles import TileSet
@@ -66,6 +67,7 @@ class Layer:
     cut: int
     laid: list[Laid] = field(default_factory=list)
     request: int = 0
+    program: ScoreProgram | None = None  # the pattern generator steering it, if any
 
     @property
     def end(self) -> float:
@@ -91,9 +93,10 @@ class ScoreLayout:
         self.scheduled = 0  # tiles begun, for the bench
 
     # -- the behaviour system's side ------------------------------------------------------
-    def steer(self, t: float, layer: str, tags: list[str]) -> int:
-        """Lay out ``tags`` in order on ``layer`` from the next place it may cut; returns the
-        course's number (for :meth:`reached`)."""
+    def steer(self, t: float, layer: str, program: ScoreProgram) -> int:
+        """Let ``program`` lay ``layer`` out from the next place it may cut (legs as far ahead
+        as the layout looks, more as time goes on); returns the course's number (for
+        :meth:`reached`)."""
         grid = self._grid(t)
         lay = self.layers[layer]
         cut = self._cut_beat(lay, grid.beat(t + self.spec.commit))
@@ -106,20 +109,42 @@ class ScoreLayout:
                 laid.end = min(laid.end, cut)
                 kept.append(laid)
         lay.laid = kept
-        start = lay.laid[-1].tile if lay.laid else None
-        begin = cut
-        for tag in tags:
-            try:
-                walk = self.graph.path(start, tag) if start is not None else [self.graph.entry(layer, tag)]
-            except NoPath as exc:
-                self.creature.world.log.emit(t, "score", creature=self.creature.name, layer=layer, problem=str(exc))
-                continue
-            for node in walk:
-                end = begin + self.tiles.tiles[node].beats
-                lay.laid.append(Laid(node, begin, end, request))
-                begin, start = end, node
-        self._goal_end[request] = lay.end if lay.laid else cut
+        lay.program = program
+        self._goal_end[request] = math.inf
+        self._extend(t, lay, cut, grid.beat(t + self.spec.commit) + self.spec.lookahead)
         return request
+
+    def _leg(self, t: float, lay: Layer, begin: float) -> bool:
+        """Lay the program's next leg from ``begin``; False once the program has ended."""
+        stmt = lay.program.next_leg() if lay.program is not None else None
+        if stmt is None:
+            self._goal_end[lay.request] = max(begin, lay.end)
+            lay.program = None
+            return False
+        start = lay.laid[-1].tile if lay.laid else None
+        tags = [str(x) for x in stmt.targets]
+        try:
+            walk = self.graph.walk(start, lay.name, tags, furthest=stmt.op == "getToFurthest")
+        except NoPath as exc:  # the program cannot go on from here: it ends, the layer idles
+            self.creature.world.log.emit(t, "score", creature=self.creature.name, layer=lay.name, problem=str(exc))
+            self._goal_end[lay.request] = max(begin, lay.end)
+            lay.program = None
+            return False
+        for node in walk:
+            end = begin + self.tiles.tiles[node].beats
+            lay.laid.append(Laid(node, begin, end, lay.request))
+            begin = end
+        return True
+
+    def _extend(self, t: float, lay: Layer, frontier: float, ahead: float) -> None:
+        """Lay ``lay`` out to ``ahead``: its program's legs, else its idle tiles."""
+        while lay.end < ahead:
+            begin = max(lay.end, frontier) if lay.laid else math.ceil(frontier - 1e-9)
+            if lay.program is not None:
+                if self._leg(t, lay, begin):
+                    continue
+            if not self._idle(t, lay, frontier):
+                return
 
     def reached(self, request: int, t: float) -> float:
         """1 once course ``request`` has been played out (or replaced by another), else 0."""
@@ -148,9 +173,7 @@ class ScoreLayout:
             self._follow(t, grid, horizon)
         ahead = grid.beat(horizon) + self.spec.lookahead
         for lay in self.layers.values():
-            while lay.end < ahead:
-                if not self._idle(t, lay, grid.beat(horizon)):
-                    break
+            self._extend(t, lay, grid.beat(horizon), ahead)
         self._modulate(t, grid, horizon)
         for lay in self.layers.values():
             self._commit(t, grid, lay, horizon)

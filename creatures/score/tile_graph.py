@@ -65,7 +65,6 @@ class TileGraph:
         graph = csr_matrix((np.maximum(self.cost[rows, cols], 1e-9), (rows, cols)), shape=(n, n))
         self.distance = dijkstra(graph, directed=True)
         self._goals: dict[str, np.ndarray] = {}
-        self._bound: dict[str, np.ndarray] = {}
 
     @staticmethod
     def metric(a: Tile, b: Tile, key_a: np.ndarray, key_b: np.ndarray, key_weight: float,
@@ -78,29 +77,43 @@ class TileGraph:
         """The tiles that carry ``tag``."""
         if tag not in self._goals:
             self._goals[tag] = np.array([i for i, t in enumerate(self.tiles.tiles) if tag in t.tags], dtype=np.intp)
-            self._bound[tag] = (self.distance[:, self._goals[tag]].min(axis=1) if len(self._goals[tag])
-                                else np.full(len(self.tiles), np.inf))
         return self._goals[tag]
 
-    def path(self, start: int, tag: str) -> list[int]:
-        """The cheapest walk of at least one step from tile ``start`` to a tile tagged ``tag``
+    def walk(self, start: int | None, layer: str, tags: list[str], *, furthest: bool = False) -> list[int]:
+        """The tiles from ``start`` (excluded; None: a layer with nothing laid yet) to the
+        nearest tile of ``layer`` carrying any of ``tags`` — or, ``furthest``, to the one
+        farthest by the metric that can still be reached (the motor programs' getToFurthest)."""
+        goals = np.unique(np.concatenate([self.goals(tag) for tag in tags]))
+        goals = goals[[self.tiles.tiles[g].layer == layer for g in goals]] if len(goals) else goals
+        if not len(goals):
+            raise NoPath(f"layer {layer!r} has no tile tagged {' or '.join(map(repr, tags))}")
+        if start is None:
+            return [int(goals[0])]
+        if furthest:
+            reach = self.distance[start, goals]
+            if not np.isfinite(reach).any():
+                raise NoPath(f"no succession from tile {self.tiles.tiles[start].name!r} reaches {tags}")
+            goals = goals[[int(np.argmax(np.where(np.isfinite(reach), reach, -np.inf)))]]
+        return self.path(start, goals)
+
+    def path(self, start: int, goals: np.ndarray) -> list[int]:
+        """The cheapest walk of at least one step from tile ``start`` to any of ``goals``
         (its tiles after ``start``); :class:`~creatures.motor.search.NoPath` if there is none."""
-        goals = self.goals(tag)
-        bound = self._bound[tag]
+        bound = self.distance[:, goals].min(axis=1)
         is_goal = np.zeros(len(self.tiles), dtype=bool)
         is_goal[goals] = True
-        # The first step is taken before the goal test: a tile already tagged still moves on
-        # (a leitmotif asked for again is played again, not "already there").
-        frontier: list[tuple[float, float, int, int]] = []
+        # The first step is taken before the goal test: a tile already at a goal still moves
+        # on (a leitmotif asked for again is played again, not "already there").
+        frontier: list[tuple[float, float, int]] = []
         came: dict[int, int] = {}
         best: dict[int, float] = {}
         for s in self.successors[start]:
             g = float(self.cost[start, s])
             if g < best.get(s, np.inf):
                 best[s], came[s] = g, -1
-                heapq.heappush(frontier, (g + (0.0 if is_goal[s] else bound[s]), g, int(s), -1))
+                heapq.heappush(frontier, (g + (0.0 if is_goal[s] else bound[s]), g, int(s)))
         while frontier:
-            _, g, node, _ = heapq.heappop(frontier)
+            _, g, node = heapq.heappop(frontier)
             if g > best.get(node, np.inf):
                 continue
             if is_goal[node]:
@@ -112,12 +125,10 @@ class TileGraph:
                 gs = g + float(self.cost[node, s])
                 if gs < best.get(s, np.inf):
                     best[s], came[s] = gs, node
-                    heapq.heappush(frontier, (gs + (0.0 if is_goal[s] else bound[s]), gs, int(s), node))
-        raise NoPath(f"no succession from tile {self.tiles.tiles[start].name!r} reaches a tile tagged {tag!r}")
+                    heapq.heappush(frontier, (gs + (0.0 if is_goal[s] else bound[s]), gs, int(s)))
+        names = sorted({t for g in goals for t in self.tiles.tiles[g].tags})
+        raise NoPath(f"no succession from tile {self.tiles.tiles[start].name!r} reaches a tile tagged {names}")
 
     def entry(self, layer: str, tag: str) -> int:
         """Where a layer with nothing laid yet starts: its first tile tagged ``tag``."""
-        for i in self.goals(tag):
-            if self.tiles.tiles[i].layer == layer:
-                return int(i)
-        raise NoPath(f"layer {layer!r} has no tile tagged {tag!r}")
+        return self.walk(None, layer, [tag])[0]
