@@ -179,7 +179,8 @@ def test_without_clicks_reading_stays_even(tmp_path):
 
 def test_reading_narrows_toward_the_clicked_word_class(clicked_readings):
     """Clicked for "ai", the creature reads "ai" well above the even chance of a creature
-    reading the tree's root at random (measured: 352 of 526 late readings, 67 %)."""
+    reading the tree's root at random (measured: 398 of 587 late readings, 68 %; 341 of 529
+    while a click at saliency 1 could lose its interruption)."""
     assert len(clicked_readings) >= 100
     assert clicked_readings.count("ai") >= 0.6 * len(clicked_readings)
 

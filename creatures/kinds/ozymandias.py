@@ -19,9 +19,11 @@ Design decisions:
 * **The author's click is scripted, or live.** ``clicks`` lists the seconds at which the
   author clicks; a reward from outside (an ``[[input]]`` reward route) is a live click, the
   same percept (not a value added to whatever ran: the click tuple's credit assignment
-  decides what is trained). A click is a highly salient percept triggering a non-plastic,
-  highly valued ``clicked`` tuple (the clicker-training pattern of the thesis), so whatever the creature
-  was doing just before is credited toward the click's value. Valuable reading tuples
+  decides what is trained). A click is a highly salient percept (``CLICK_SALIENCE``, far
+  above 1, as the thesis's startling click) triggering a non-plastic, highly valued
+  ``clicked`` tuple (the clicker-training pattern of the thesis), so it always wins the
+  interruption it causes and whatever the creature was doing just before is credited toward
+  the click's value. Valuable reading tuples
   cluster their percept (:class:`AuralLearning`): the creature's reading narrows to the
   classes of words it was clicked for.
 * **Listening grounds the values between clicks.** ``listen`` (0.3) is non-plastic, like
@@ -90,6 +92,14 @@ if TYPE_CHECKING:
 EDL_KIND = "creature-music edl"
 CLICK_LENGTH = 0.1
 """Seconds a click lasts as a percept."""
+CLICK_SALIENCE = 10.0
+"""Saliency of the click percept while it lasts: far above 1 on purpose (thesis, "what is
+value?", the contrast problem: "extending the range of saliencies outward by allowing them to
+be greater than 1 enables the (highly) salient 'click'" to ensure the response to it always
+occurs). The interruption a click causes chooses again among every tuple; at saliency 1 the
+``clicked`` tuple (3.0) lost about one draw in four to the reading it interrupted or another
+(each worth about 2), and that reading was credited toward the next reading's value instead
+of the click's."""
 LISTEN_VALUE = 0.3
 """Worth of listening to the text again: a ground of the creature's values (see above)."""
 
@@ -181,9 +191,9 @@ class Ozymandias(CreatureKind):
         )
 
     def _clicked(self, t: float) -> float:
-        """The click percept: 1 for the tenth of a second after each click."""
+        """The click percept: ``CLICK_SALIENCE`` for the tenth of a second after each click."""
         i = bisect.bisect_right(self._clicks, t)
-        return 1.0 if i and t < self._clicks[i - 1] + CLICK_LENGTH else 0.0
+        return CLICK_SALIENCE if i and t < self._clicks[i - 1] + CLICK_LENGTH else 0.0
 
     def reward(self, amount: float, t: float, window: float, rate: float) -> list[str]:
         """A reward from outside (the input map's ``reward`` route) is the author clicking
