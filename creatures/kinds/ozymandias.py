@@ -23,9 +23,13 @@ Design decisions:
   above 1, as the thesis's startling click) triggering a non-plastic, highly valued
   ``clicked`` tuple (the clicker-training pattern of the thesis), so it always wins the
   interruption it causes and whatever the creature was doing just before is credited toward
-  the click's value. Valuable reading tuples
-  cluster their percept (:class:`AuralLearning`): the creature's reading narrows to the
-  classes of words it was clicked for.
+  the click's value. Valuable reading tuples cluster their percept (:class:`AuralLearning`)
+  and each class of words gets its own reading tuples; the tuple reading the split percept
+  gives way to them (``refine``: thesis, "aural Ac percept trees", tuples "slowly refine what
+  it is that they should be playing"), so the creature's reading narrows to the classes of
+  words it was clicked for. Left in place, ``read`` and ``echo`` read every class, were
+  clicked whenever their word fell in a clicked class, kept a value near the clicked class's
+  readers and took a third of the readings, half of them unclicked.
 * **Listening grounds the values between clicks.** ``listen`` (0.3) is non-plastic, like
   ``clicked``: hearing the text again is this creature's training and the act it returns to,
   so its worth is the author's, not learnt. Reading is appetitive (thesis, "credit
@@ -177,7 +181,7 @@ class Ozymandias(CreatureKind):
         self.part_read = FunctionPercept("part read", lambda t: 1.0 if t >= self._until else 0.0)
         read_any = self.reader(self.root)
         self.learning = AuralLearning(self.root, self.reader, statistics=0.5, innovation=spec.innovation,
-                                      min_trigger=0.5, on_event=self._log)
+                                      min_trigger=0.5, refine=True, on_event=self._log)
         self.group = ActionGroup(
             self.name, rng=self.rng, temperature=0.5, on_event=self._log, learning=self.learning,
             tuples=[
@@ -302,6 +306,9 @@ class Ozymandias(CreatureKind):
                     tuple_.value = value_from_dict(value)
         except KeyError as exc:
             raise ValueError(f"{self.name}: saved tuples name an unknown percept {exc}") from None
+        saved = {name for _, _, name, _ in state["tuples"]}
+        for tuple_ in [tp for tp in self.group.tuples if isinstance(tp.action, SingFrom) and tp.name not in saved]:
+            self.group.remove(tuple_, self.world.clock.now())  # a reading the learning had refined away
         self.motivation.restore(state["motivation"], now=self.world.clock.now())
 
 
