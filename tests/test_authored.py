@@ -628,6 +628,9 @@ until = { seconds = 4.0 }
      "creature.0.percepts.other.type", "one 'utterance' percept per creature"),
     ("heat with no temperature", ("alpha = 0.0", "alpha = 0.0\nheat = { boredom = 1.0 }"),
      "creature.0.groups.main.heat", "give the group a 'temperature'"),
+    ("refine with no aural group",
+     ("until = { seconds = 4.0 }", "until = { seconds = 4.0 }\n[creature.learning]\nrefine = true"),
+     "creature.0.learning.refine", "name them in learning.aural"),
 ])
 def test_the_aural_parts_are_checked_at_load(tmp_path, case, fragment, key, message):
     """sing/attend/repertoire name an 'utterance' percept, which needs an ear; one tree per creature."""

@@ -142,9 +142,14 @@ def test_does_not_trigger_on_its_own_singing(heard, talk, tmp_path):
     assert sum(own_triggers(control, spans, release, c) for c in ("parrot", "mynah")) >= 5
 
 
-def test_state_survives_a_save(talk, tmp_path):
+@pytest.mark.parametrize("refine", [False, True])
+def test_state_survives_a_save(talk, tmp_path, refine):
+    """Classes, learnt tuples and values come back; refined (``learning.refine``), so does
+    the authored ``sing`` having given way to the tuples singing the classes."""
     def session() -> Session:
         inst = load_installation(CONFIG)
+        for spec in inst.specs:
+            spec.learning.refine = refine
         return Session(inst, SimulatedClock(), EventLog(tmp_path / f"{len(list(tmp_path.iterdir()))}.jsonl"),
                        MemorySink())
 
@@ -159,6 +164,7 @@ def test_state_survives_a_save(talk, tmp_path):
             break
     assert len(list(creature.aural.root.walk())) > 1, "by now the tree has sound classes to save"
     saved = json.loads(json.dumps(creature.state()))
+    assert saved["aural"]["refined"] == {"main": ["sing"] if refine else []}
     second = session()
     again = second.creatures[0]
     again.restore(saved)

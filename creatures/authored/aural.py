@@ -111,14 +111,19 @@ class Aural:
 
     # -- persistence -----------------------------------------------------------------------
     def state(self, groups: list[ActionGroup], authored: set[str]) -> dict[str, Any]:
-        """The tree and the tuples learning added to ``groups`` (by trigger and action name)."""
+        """The tree, the tuples learning added to ``groups`` (by trigger and action name), and
+        the authored tuples it took away (``learning.refine``)."""
+        members = {g.name: [m for m in self.creature.spec.groups[g.name].tuples if m in authored] for g in groups}
         return {"tree": tree_state(self.root),
                 "tuples": {g.name: [[tp.trigger.name, tp.action.name, tp.name] for tp in g.tuples
-                                    if tp.name not in authored] for g in groups}}
+                                    if tp.name not in authored] for g in groups},
+                "refined": {g.name: [m for m in members[g.name] if all(tp.name != m for tp in g.tuples)]
+                            for g in groups}}
 
     def restore(self, state: dict[str, Any], groups: dict[str, ActionGroup]) -> None:
         """Take back the learnt classes in place (the tuples holding the root keep it), then
-        the tuples learning had made; each takes the Du of the authored tuple it came from."""
+        the tuples learning had made, each with the Du of the authored tuple it came from,
+        and take away again the authored tuples refinement had taken away."""
         saved = tree_from_state(state["tree"], like=self.root)
         for child in list(self.root.utterance_children()):
             self.root.remove_child(child)
@@ -141,6 +146,9 @@ class Aural:
                            else parent.action)
                     du = parent.do_until
                     group.add(ActionTuple(name, trig, act, DoUntil(du.duration, until=du.until, learn=du.learn), 0.0))
+            for group_name, names in state.get("refined", {}).items():
+                for name in names:  # after the learnt tuples, whose Du some of these lend
+                    groups[group_name].remove(groups[group_name].find(name), self.creature.now())
         except (KeyError, StopIteration, TypeError, ValueError) as exc:
             raise ValueError(f"{self.creature.name}: saved tuples name an unknown group, percept or action "
                              f"({type(exc).__name__}: {exc})") from None

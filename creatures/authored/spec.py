@@ -218,6 +218,10 @@ class LearningSpec(Strict):
                              description="groups whose credit grows the 'utterance' percept's tree: fission into "
                                          "sound classes, and new tuples triggered by each class and singing each "
                                          "(thesis 'aural Ac percept trees')")
+    refine: bool = Field(False, description="aural groups: a tuple singing a class that has split gives way to the "
+                                            "tuples singing its children, which inherit its review of the class and "
+                                            "give its later classes tuples too (thesis 'aural Ac percept trees': "
+                                            "tuples 'slowly refine what it is that they should be playing')")
     min_trigger: float = Field(0.1, ge=0, le=1, description="saliency a trigger must have had for its percept to learn")
     phrase_gap: float = Field(2.0, gt=0, le=3600, description="seconds of silence that end a heard phrase")
     max_phrases: int = Field(8, ge=1, le=256, description="phrases remembered")

@@ -19,9 +19,10 @@ Thesis, "soundcreatures": each creature has "a microphone-as-ear and a loudspeak
 * :class:`SingFrom` and :class:`AuralLearning` — the *Ac* side of the shared aural tree
   ("aural Ac percept trees"): a tuple's action sings an exemplar drawn from one percept;
   when such a tuple becomes valuable its percept is clustered (fission) and each new child
-  becomes a new, more specific action ``same Tr | sing child``; when a tuple *triggered* by
-  an aural percept becomes valuable, the same fission yields ``child | same Ac`` (new sounds
-  incorporated as triggers, figure 39). Children that fuse away take their tuples with them.
+  becomes a new, more specific action ``same Tr | sing child`` (with ``refine`` the tuple
+  then gives way to them); when a tuple *triggered* by an aural percept becomes valuable,
+  the same fission yields ``child | same Ac`` (new sounds incorporated as triggers, figure
+  39). Children that fuse away take their tuples with them.
 * :func:`tree_state` / :func:`tree_from_state` — an utterance percept tree as a JSON-able
   dict (samples as base64 16-bit PCM, cepstra recomputed on load) for ``state()``; the
   file format of :func:`audio.utterance.save_aural_model` stays the one for seeding.
@@ -48,6 +49,7 @@ from audio.utterance import DEFAULT_RADIUS, Utterance, UtterancePercept, load_au
 from creatures.behaviour.action_group import ActionGroup
 from creatures.behaviour.action_tuple import Action, ActionTuple, DoUntil
 from creatures.behaviour.learning import PerceptLearning, copy_value
+from creatures.behaviour.percept import Percept
 from creatures import bounds
 from creatures.bounds import FINITE
 from creatures.clock import clock_gap
@@ -391,14 +393,29 @@ class AuralLearning(PerceptLearning):
 
     Clustering costs n²/2 time warps, so one percept is re-clustered at most every
     ``refission_every`` seconds however often its tuples earn credit.
+
+    ``refine``: a tuple singing a class that has split gives way to the tuples singing its
+    children (thesis, "aural Ac percept trees": "Action-tuples start at the top of the tree,
+    carrying a payload that plays out a wide variety of sounds … and slowly refine what it is
+    that they should be playing on the basis value propagation"). Left beside them, the
+    parent tuple sings every child class in proportion to its exemplars, so its value is
+    their mean: credited in full whenever its exemplar happens to fall in a rewarded class, it
+    keeps a value near the best child's, and Boltzmann selection keeps choosing it and with it
+    the unrewarded classes. Refined, the tuples with one Tr that sing the children of one
+    class are that class's *family* and take over the refined tuple's duties: a valuable
+    member reviews the class's clustering as well as its own (the children of a class are
+    clustered at the class: thesis, "extending the percept tree", "the highest level percept
+    in this portion of the tree"), and a class it gains later is given a member (V copied
+    from the member reviewed), so the repertoire still grows with what the creature hears.
     """
 
     def __init__(self, root: UtterancePercept, sing_from: Callable[[UtterancePercept], SingFrom], *,
-                 refission_every: float = 10.0, **options: Any) -> None:
+                 refission_every: float = 10.0, refine: bool = False, **options: Any) -> None:
         super().__init__(**options)
         self.root = root
         self.sing_from = sing_from
         self.refission_every = float(refission_every)
+        self.refine = refine
         # when each percept last split, by the percept itself (weakly: one that fused away goes,
         # and a new percept never inherits its time through a reused id)
         self._clustered: weakref.WeakKeyDictionary[UtterancePercept, float] = weakref.WeakKeyDictionary()
@@ -416,7 +433,7 @@ class AuralLearning(PerceptLearning):
         _, innovation = self.thresholds(group)
         worth = tuple_.value.to_float()
         sung = tuple_.action.percept if isinstance(tuple_.action, SingFrom) else None
-        for percept in (tuple_.trigger, sung):
+        for percept in (tuple_.trigger, sung, self._family(group, tuple_)):
             if not isinstance(percept, UtterancePercept) or not self._in_tree(percept):
                 continue
             if t - self._clustered.get(percept, -np.inf) < self.refission_every:
@@ -437,12 +454,32 @@ class AuralLearning(PerceptLearning):
     def _in_tree(self, percept: UtterancePercept) -> bool:
         return percept.root() is self.root  # a fused-away child is the root of its own stump
 
+    @staticmethod
+    def _sings(group: ActionGroup, trigger: Percept, percept: UtterancePercept) -> bool:
+        """Whether a tuple of ``group`` with Tr ``trigger`` sings ``percept``."""
+        return any(tp.trigger is trigger and getattr(tp.action, "percept", None) is percept for tp in group.tuples)
+
+    def _family(self, group: ActionGroup, tuple_: ActionTuple) -> UtterancePercept | None:
+        """With ``refine``, the class whose family ``tuple_`` belongs to: the parent of the
+        class it sings when no tuple with its Tr sings that parent (refined away, or never
+        made); else None."""
+        if not self.refine or not isinstance(tuple_.action, SingFrom):
+            return None
+        parent = tuple_.action.percept.parent
+        if not isinstance(parent, UtterancePercept) or self._sings(group, tuple_.trigger, parent):
+            return None
+        return parent
+
     def spawn_actions(self, group: ActionGroup, tuple_: ActionTuple, t: float) -> list[ActionTuple]:
-        """``same Tr | sing child | same Du | V`` for each child of the sung percept."""
+        """``same Tr | sing child | same Du | V`` for each child of the sung percept; with
+        ``refine`` also for each class of the tuple's family that lacks one, and a tuple whose
+        class has children gives way to theirs."""
+        sung = tuple_.action.percept
+        family = self._family(group, tuple_)
+        classes = sung.utterance_children() + ([] if family is None else family.utterance_children())
         made = []
-        for child in tuple_.action.percept.utterance_children():
-            if any(tp.trigger is tuple_.trigger and getattr(tp.action, "percept", None) is child
-                   for tp in group.tuples):
+        for child in classes:
+            if self._sings(group, tuple_.trigger, child):
                 continue
             du = tuple_.do_until
             action = self.sing_from(child)
@@ -452,6 +489,10 @@ class AuralLearning(PerceptLearning):
             group.add(hypothesis)
             made.append(hypothesis)
             self._emit("hypothesis", t, tuple=hypothesis.name, parent=tuple_.name, side="Ac")
+        if self.refine and sung.utterance_children():
+            group.remove(tuple_, t)
+            self._emit("refinement", t, tuple=tuple_.name, percept=sung.name,
+                       children=[c.name for c in sung.utterance_children()])
         return made
 
     def prune(self, group: ActionGroup, t: float) -> None:
