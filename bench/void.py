@@ -28,6 +28,7 @@ from creatures.events import EventLog
 from creatures.runtime.offline import run_offline
 from creatures.runtime.schema import load_installation
 from creatures.runtime.session import Session
+from creatures.score.program import ScoreProgram
 from midi.sinks import MemorySink
 
 
@@ -51,7 +52,7 @@ def _steer_cost(courses: int) -> tuple[float, float]:
     names = ("eddie", "elliot", "earl")
     t0 = time.perf_counter()
     for k in range(courses):
-        score.steer(clock.now(), "theme", [f"{names[k % 3]}-head", f"{names[k % 3]}-end"])
+        score.steer(clock.now(), "theme", ScoreProgram.of_tags([f"{names[k % 3]}-head", f"{names[k % 3]}-end"]))
     laid = (time.perf_counter() - t0) / courses
     graph = score.graph
     rows, cols = np.nonzero(np.isfinite(graph.cost))

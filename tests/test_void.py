@@ -200,6 +200,41 @@ def test_a_controller_over_osc_from_python_osc_brings_in_a_live_leitmotif(tmp_pa
     assert 0.0 < head["time"] - held["t"] <= head["period"] + 0.05 + 0.05  # a beat, the commit, a tick
 
 
+def test_midi_controllers_possess_a_character_and_his_kicks_are_heard(tmp_path):
+    """The shipped map's MIDI side (the bytes a live port gives, played from a rehearsal file):
+    holding note 36 on channel 2 possesses Elliot and the mod wheel (CC 1) moves his legs; his
+    theme plays while the note is held, and high kicks play it louder than low ones (the part's
+    energy)."""
+    rows = [(4.0, 0x91, 36, 100)]  # note on, channel 2 (1 zero-based)
+    rows += [(4.0 + 0.25 * k, 0xB1, 1, 20 if k < 52 else 120) for k in range(104)]  # low kicks for 13 s, then high
+    rows += [(30.0, 0x81, 36, 0)]  # note off: he is let go
+    (tmp_path / "controllers.csv").write_text("".join(f"{t:g},midi,{a},{b},{c}\n" for t, a, b, c in rows))
+    (tmp_path / "void").mkdir()
+    (tmp_path / "void" / "tiles.toml").write_text((HERE / "void" / "tiles.toml").read_text())
+    (tmp_path / "void.toml").write_text((HERE / "void.toml").read_text().replace(
+        'file = "void/visitors.csv"', 'file = "controllers.csv"'))
+    assert main(["offline", str(tmp_path / "void.toml"), "--duration", "40", "--out", str(tmp_path / "run"),
+                 "--no-progress"]) == 0
+    log = records(tmp_path / "run")
+    held = [e for e in log if e["kind"] == "sensor" and e["name"] == "elliot_held"]
+    assert [(e["t"], e["value"]) for e in held] == [(4.0, 1.0), (30.0, 0.0)]
+    tiles = [e for e in log if e["kind"] == "tile" and e["part"] in CHARACTERS]
+    assert {e["part"] for e in tiles} == {"elliot"}
+    assert min(e["time"] for e in tiles) <= 5.0 and max(e["time"] for e in tiles) <= 30.0 + 7.5
+    notes = [e for e in log if e["kind"] == "note" and e["channel"] == CHARACTERS["elliot"]]
+    low = [e["velocity"] for e in notes if 6.0 <= e["time"] <= 16.0]
+    high = [e["velocity"] for e in notes if 19.0 <= e["time"] <= 29.0]
+    assert low and high and np.mean(high) > 1.4 * np.mean(low)
+
+
+def test_laying_a_course_costs_well_under_a_millisecond():
+    """The issue's budget for scheduling a tile (bench void measures it beside Dijkstra)."""
+    from bench.void import _steer_cost
+
+    laid, _ = _steer_cost(30)
+    assert laid < 1e-3
+
+
 def test_a_leitmotif_is_found_by_a_star_from_its_head_to_its_end():
     tiles = load_tiles(HERE / "void" / "tiles.toml")
     graph = TileGraph(tiles)

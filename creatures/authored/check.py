@@ -308,7 +308,7 @@ def _score(c: _Checker) -> None:
         known(f"tag on layer {name!r}'s tiles", layer.idle, tiles.tags(name), ("score", "layers", name, "idle"))
     for name, part in score.parts.items():
         known("part in the tiles", name, tiles.parts, ("score", "parts", name))
-        for key in ("stance", "visible"):
+        for key in ("stance", "visible", "energy"):
             if getattr(part, key) is not None:
                 c.need("percepts", getattr(part, key), ("score", "parts", name, key))
     for name, tp in c.spec.tuples.items():

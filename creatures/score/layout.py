@@ -16,7 +16,8 @@ colony's heard pulse from the first beat not yet committed.
 Balance and timbre (thesis: "a character's stance towards the user's control is connected to
 the timbre of the characters' music"; "thematic balance is biased to take into account what
 characters are visible on screen"): each part's stance percept picks its program at each of its
-tiles and sets CC 74 every beat; its visibility percept sets CC 11 every beat.
+tiles and sets CC 74 every beat; its visibility percept sets CC 11 every beat; its energy
+percept (how the character moves) sets the velocity its notes are played at.
 """
 
 from __future__ import annotations
@@ -90,7 +91,6 @@ class ScoreLayout:
         self._controls: dict[tuple[int, int], int] = {}
         self._modulated = -math.inf  # the last beat whose controllers were sent
         self._followed = -math.inf  # the last beat the heard pulse moved
-        self.scheduled = 0  # tiles begun, for the bench
 
     # -- the behaviour system's side ------------------------------------------------------
     def steer(self, t: float, layer: str, program: ScoreProgram) -> int:
@@ -243,7 +243,6 @@ class ScoreLayout:
             tile = self.tiles.tiles[laid.tile]
             if not laid.begun:
                 laid.begun = True
-                self.scheduled += 1
                 self._begin(t, grid, lay, laid, start_time)
             part = self.spec.parts.get(tile.part)
             while laid.sent < len(tile.onsets):
@@ -255,8 +254,10 @@ class ScoreLayout:
                 if at > horizon:
                     break
                 length = min(tile.lengths[laid.sent], laid.end - beat)
-                self.creature.play(int(tile.pitches[laid.sent]), int(tile.velocities[laid.sent]),
-                                   grid.time(beat + length) - at, at=at,
+                velocity = int(tile.velocities[laid.sent])
+                if part is not None and part.energy is not None:  # the character's movement in the music
+                    velocity = max(1, round(velocity * (0.55 + 0.45 * min(max(self._saliency(part.energy, t), 0.0), 1.0))))
+                self.creature.play(int(tile.pitches[laid.sent]), velocity, grid.time(beat + length) - at, at=at,
                                    channel=None if part is None else part.channel)
                 laid.sent += 1
         # Played tiles go, but the last stays: the walk goes on from it.

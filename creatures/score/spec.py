@@ -32,6 +32,9 @@ class ScorePartSpec(BaseModel):
                                                  "and CC 74 (brightness) every beat")
     visible: str | None = Field(None, description="percept of whether the character is seen: CC 11 (expression) "
                                                   "every beat, so what is on screen leads the balance")
+    energy: str | None = Field(None, description="percept of how the character moves (a possessed dancer's kick): "
+                                                 "each of the part's notes at 55 % of its written velocity at 0, "
+                                                 "as written at 1")
 
 
 class ScoreSpec(BaseModel):
