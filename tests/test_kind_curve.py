@@ -17,6 +17,7 @@ from creatures.kinds.moves import head_for
 from creatures.kinds.parts import shared_graph
 from creatures.runtime.world import World
 from midi.scheduler import NoteScheduler
+from midi.notes import NoteEvent
 from midi.sinks import MemorySink
 
 SR = 22050
@@ -90,6 +91,37 @@ def test_a_body_moving_through_the_string_changes_its_sound():
     assert shift > 0.3, f"the spectral centroid moved only {shift:.0%}"
     # In the first tick, before the body has moved far, the two runs sound alike.
     assert np.allclose(still[: int(TICK * SR)], moving[: int(TICK * SR)], atol=1e-4)
+
+
+def held_in_pose(highest: bool, body_shape: float) -> np.ndarray:
+    """A curve creature's string holding a note for 2 s while its body stands still in its
+    highest or lowest pose (its movement pushes nothing: body_gain 0)."""
+    from creatures.kinds.parts import VoiceSpec
+
+    world = colony(0.0, voice=VoiceSpec(voices=1, body_gain=0.0, body_shape=body_shape))
+    c = world.creatures[0]
+    c.group.stop_all(0.0)
+    c.group.tick = lambda t: None
+    c.sound(np.zeros(1), SR)
+    hands = shared_graph().poses.positions[:, c.body.effector_index, 1]
+    head_for(c.body, 0.0, [int(np.argmax(hands) if highest else np.argmin(hands))])
+    advance(world, 8.0)
+    world.play(c, NoteEvent(8.0, 57, 100, 0, 3.0))  # the same note in either pose
+    world.scheduler.pump()
+    sound = advance(world, 10.0, sound=True)
+    return np.abs(np.fft.rfft(sound[len(sound) // 2:] * np.hanning(len(sound) - len(sound) // 2)))
+
+
+def test_a_curve_creatures_strings_can_be_its_body():
+    """The second connection on a curve creature (``voice.body_shape``): standing still in two
+    poses it holds its string in two shapes, so the same note has two timbres; without it, one."""
+    def profile(spectrum: np.ndarray) -> np.ndarray:
+        return spectrum / spectrum.sum()
+
+    high, low = profile(held_in_pose(True, 10.0)), profile(held_in_pose(False, 10.0))
+    assert np.abs(high - low).sum() > 0.2
+    plain_high, plain_low = profile(held_in_pose(True, 0.0)), profile(held_in_pose(False, 0.0))
+    assert np.abs(plain_high - plain_low).sum() < 0.02
 
 
 def responses(distance: float, seconds: float = 40.0) -> tuple[dict[str, int], World]:

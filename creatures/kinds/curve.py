@@ -335,7 +335,7 @@ class Curve(CreatureKind):
             return
         bodies = [self.positions()[self.limbs]] + [o.positions()[o.limbs] + [o.x - self.x, 0.0, 0.0]
                                                    for o in self.others()]
-        self.voice.feel(_Bodies(np.concatenate(bodies), self._t))
+        self.voice.feel(_Bodies(np.concatenate(bodies), self._t), own=_Bodies(self.positions(), self._t))
 
     def tick(self, t: float) -> None:
         dt, self._t = t - self._t, t
@@ -375,6 +375,8 @@ class Curve(CreatureKind):
                                                np.full(self.spec.voice.masses, height),
                                                np.full(self.spec.voice.masses, float(np.median(reach[:, 2]))))),
                               joints=None)
+            if self.spec.voice.body_shape > 0:  # the second connection: its strings hold its body's shape
+                self.voice.shape_as(self.body.line())
         self.voice.render(out, self.world.clock.now())
 
     def figure(self) -> tuple[np.ndarray, np.ndarray] | None:

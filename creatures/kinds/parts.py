@@ -131,15 +131,15 @@ class Voice:
         """Hold the strings in the shape of the body's line through ``joints`` (:class:`BodyShape`)."""
         self.shape = BodyShape(joints, self.spec.masses, gain=self.spec.body_shape, centring=self.spec.centring)
 
-    def feel(self, pose: BodyPose, *, push: float = 1.0) -> None:
-        """Push every sounding string with the body's movement since the last pose, ``push``
-        times as hard (a skill's ``voice.push``), and hold it in the body's shape, when the
-        voice is the body."""
+    def feel(self, pose: BodyPose, *, push: float = 1.0, own: BodyPose | None = None) -> None:
+        """Push every sounding string with the movement since the last pose, ``push`` times as
+        hard (a skill's ``voice.push``), and hold it in the shape of the body (``own``, when the
+        pushing ``pose`` holds other bodies too: curve's room), when the voice is the body."""
         if self.coupling is None and self.shape is None:
             return
         force = self.coupling.forces(pose) * push if self.coupling is not None else np.zeros(self.spec.masses)
         if self.shape is not None:
-            force = force + self.shape.forces(pose)
+            force = force + self.shape.forces(pose if own is None else own)
         if force.any():
             self.pool.bank.push(np.flatnonzero(self.pool.pitch >= 0), force)
 
