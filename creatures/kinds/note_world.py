@@ -7,8 +7,9 @@ share.
   with probability ``mutation`` the copy moves a fourth, fifth or octave (circle-of-fifths
   neighbours, folded back into the placement's register), so passages mutate as they travel;
   hearing a pitch already in space renews that note instead of stacking a duplicate;
-* a struck note plays (and the colony hears it); a note is not struck again within
-  ``refractory`` seconds, nor any note within ``strike_interval`` of the last strike;
+* a struck note plays (and the colony hears it); no note is struck within ``strike_interval``
+  of the last strike, and none the hand passes or hunger seeks within ``refractory`` seconds of
+  its own last strike;
 * notes older than ``note_lifetime`` fade, and at most ``max_notes`` stay (oldest first);
 * with ``answer`` a note may be struck the moment it lands (a reflex, within the same limits).
 """
@@ -45,7 +46,7 @@ class SpaceSpec(BaseModel):
     note_lifetime: float = Field(45.0, gt=0, le=LONGEST_SECONDS, description="seconds a placed note stays in space")
     max_notes: int = Field(48, ge=1, le=4096, description="most notes in space; the oldest fade first")
     refractory: float = Field(20.0, ge=0, le=LONGEST_SECONDS, description="seconds before the same note is struck again")
-    strike_interval: float = Field(0.25, ge=0, le=3600, description="shortest time between two strikes while wandering (s)")
+    strike_interval: float = Field(0.25, ge=0, le=3600, description="shortest time between two strikes (s)")
     mutation: float = Field(0.08, ge=0, le=1, description="chance a placed copy is transposed")
     answer: float = Field(0.0, ge=0, le=1, description="chance of striking a heard note the moment it lands in "
                                                         "space (a reflex answer), within strike_interval and refractory")
@@ -102,8 +103,7 @@ class NoteWorld:
         ``answer``), if the hand's own limits allow."""
         if not self.spec.answer or self.rng.random() >= self.spec.answer:
             return  # no random draw at all when answering is off: seeded runs stay as they were
-        if (t - self._last_strike >= self.spec.strike_interval
-                and t - self._struck_at.get(id(obj), -np.inf) >= self.spec.refractory):
+        if self.ready(t) and t - self._struck_at.get(id(obj), -np.inf) >= self.spec.refractory:
             self.strike(t, obj, 1.0)
 
     def place(self, pitch: int, velocity: int) -> np.ndarray:
@@ -128,6 +128,10 @@ class NoteWorld:
             pitch -= 12
         return pitch
 
+    def ready(self, t: float) -> bool:
+        """The hand may strike again: ``strike_interval`` has passed since its last strike."""
+        return t - self._last_strike >= self.spec.strike_interval
+
     def strike(self, t: float, obj: NoteObject, strength: float) -> None:
         self._struck_at[id(obj)] = self._last_strike = t
         self.space.strike(obj, strength)
@@ -138,13 +142,25 @@ class NoteWorld:
         """Strike the nearest note a striking joint passes through (the hand; every effector of
         a body that names several), not one struck within ``refractory``, and no more often than
         ``strike_interval``: one note at a time."""
-        if t - self._last_strike < self.spec.strike_interval:
+        if not self.ready(t):
             return
         for striker in self.body.strikers_in_place():
             for obj in self.space.within(striker, self.spec.strike_radius):
                 if t - self._struck_at.get(id(obj), -np.inf) >= self.spec.refractory:
                     self.strike(t, obj, 0.8)
                     return
+
+    def reach(self, t: float, candidates: list[NoteObject]) -> NoteObject | None:
+        """Set the hand off for the nearest of ``candidates`` (one A* search over the poses that
+        put it on any of them); the note it heads for, or None when none can be reached."""
+        body = self.body
+        try:
+            target, path = nearest_note(body.finder, body.motor.position(t), body.effector, candidates,
+                                        tolerance=self.spec.strike_radius)
+        except NoPath:
+            return None
+        head_for(body, t, path)
+        return target
 
     def _forget(self, obj: NoteObject) -> None:
         self.space.remove(obj)
@@ -180,30 +196,45 @@ class Wander(Action):
         self.notes.strike_nearby(t)
 
 
-class SeekNote(Action):
-    """Hunger for notes: go to the nearest note not struck lately (one A* search over the poses
-    that put the hand on any of them) and strike it. ``done`` once struck (or unreachable)."""
+class StrikeCourse(Action):
+    """The hand heads for note objects one after another and strikes each as it arrives
+    (thesis "exchange (installation)": "having answered, the motor system knows how to take us
+    there"), though never sooner than ``strike_interval`` after the last strike; ``done`` once
+    there is no note left to head for. ``first`` and ``following`` say which notes, in which
+    order."""
 
-    def __init__(self, notes: NoteWorld, name: str = "seek note") -> None:
+    def __init__(self, notes: NoteWorld, name: str) -> None:
         super().__init__(name)
         self.notes = notes
         self.target: NoteObject | None = None
 
+    def first(self, t: float) -> NoteObject | None:
+        """The note to head for when the course starts (none: nothing to do)."""
+        raise NotImplementedError
+
+    def following(self, t: float) -> NoteObject | None:
+        """The note to head for once the target is struck (none: the course is over)."""
+        return None
+
     def start(self, t: float, tuple_: ActionTuple) -> None:
-        notes, body = self.notes, self.notes.body
-        self.target = None
-        try:
-            self.target, path = nearest_note(body.finder, body.motor.position(t), body.effector,
-                                             notes.unstruck(t), tolerance=notes.spec.strike_radius)
-        except NoPath:
-            return
-        head_for(body, t, path)
+        self.target = self.first(t)
 
     def update(self, t: float) -> None:
-        if self.target is not None and self.notes.body.motor.arrived(t):
+        if self.target is not None and self.notes.body.motor.arrived(t) and self.notes.ready(t):
             if self.target in self.notes.space.objects:
                 self.notes.strike(t, self.target, 1.0)
-            self.target = None
+            self.target = self.following(t)
 
     def done(self, t: float) -> float:
         return 1.0 if self.target is None else 0.0
+
+
+class SeekNote(StrikeCourse):
+    """Hunger for notes: go to the nearest note not struck lately (one A* search over the poses
+    that put the hand on any of them) and strike it. ``done`` once struck (or unreachable)."""
+
+    def __init__(self, notes: NoteWorld, name: str = "seek note") -> None:
+        super().__init__(notes, name)
+
+    def first(self, t: float) -> NoteObject | None:
+        return self.notes.reach(t, self.notes.unstruck(t))
