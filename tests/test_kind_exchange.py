@@ -11,14 +11,19 @@ import numpy as np
 import pytest
 
 import installations
-from creatures.events import read_events
-from creatures.kinds.note_world import NoteWorld
+from creatures.clock import SimulatedClock
+from creatures.events import EventLog, read_events
+from creatures.kinds import KINDS
+from creatures.kinds.note_world import NoteWorld, Vary
 from creatures.kinds.parts import shared_graph
 from creatures.motor.metric import source_lengths, successors
 from creatures.runtime.offline import run_offline
 from creatures.runtime.schema import load_installation
+from creatures.runtime.world import World
 from midi.files import write_notes
 from midi.notes import NoteEvent
+from midi.scheduler import NoteScheduler
+from midi.sinks import MemorySink
 
 PHRASE = [60, 62, 64, 67, 69, 72, 74, 76]
 
@@ -87,6 +92,53 @@ def test_transformation_detector():
     assert sum(recognisable(PHRASE, list(shuffles.permutation(varied))) for _ in range(100)) <= 3
     assert not recognisable(PHRASE, [])
     assert not recognisable(PHRASE, PHRASE)  # the passage passed on unchanged is no variation
+
+
+def hearing_ada(heard: list[tuple[float, str, int]]) -> tuple[SimulatedClock, NoteWorld]:
+    """The shipped colony's first creature alone, its copies never transposed, having heard
+    ``(time, player, pitch)``; its notes in space."""
+    spec = load_installation(installations.path("exchange")).specs[0]
+    spec.space.mutation = 0.0
+    clock = SimulatedClock()
+    world = World(clock, EventLog(None), NoteScheduler(MemorySink(), clock))
+    ada = KINDS["authored"](spec, world, np.random.default_rng(7))
+    world.add(ada)
+    for t, player, pitch in heard:
+        clock.advance_to(t)
+        ada.hear(NoteEvent(t, pitch, 96, 0, 0.25), player)
+    return clock, ada.notes
+
+
+def test_passages_are_each_players_notes_until_a_silence():
+    """Two players heard at once are two passages, and a player's silence longer than
+    ``space.passage_gap`` ends its passage; notes that left the space leave their passage."""
+    phrase = [(1.0 + 0.3 * i, "input", p) for i, p in enumerate(PHRASE)]
+    answer = [(1.15 + 0.6 * i, "bo", p) for i, p in enumerate([48, 50, 52])]  # between the phrase's notes
+    later = [(8.0 + 0.3 * i, "input", p) for i, p in enumerate([79, 81, 83])]  # after 5 s of silence
+    _, notes = hearing_ada(sorted(phrase + answer + later))
+    assert [[o.pitch for o in p] for p in notes.passages()] == [[48, 50, 52], PHRASE, [79, 81, 83]]
+    notes.fade(8.0 + notes.spec.note_lifetime - 3.0)  # the first two passages fade, the last stays
+    assert [[o.pitch for o in p] for p in notes.passages()] == [[79, 81, 83]]
+
+
+@pytest.mark.parametrize("transform", ["retrograde", "swap"])
+def test_vary_strikes_the_heard_passage_backwards_or_swapped(transform):
+    """``vary`` walks the hand to each note object of the passage in turn and strikes it, no
+    note it passes on the way: the phrase backwards, or its two halves about a cut that leaves
+    each at least ``segment`` notes swapped."""
+    clock, notes = hearing_ada([(1.0 + 0.3 * i, "input", p) for i, p in enumerate(PHRASE)])
+    struck = []
+    real = notes.strike
+    notes.strike = lambda t, obj, strength: (struck.append((t, obj.pitch)), real(t, obj, strength))
+    action = Vary(notes, transform, transform=transform, segment=3)
+    action.start(clock.now(), None)
+    while not action.done(clock.now()) and clock.now() < 60.0:
+        clock.advance(0.04)
+        action.update(clock.now())
+    times, played = zip(*struck)
+    expected = [PHRASE[::-1]] if transform == "retrograde" else [PHRASE[c:] + PHRASE[:c] for c in range(3, 6)]
+    assert list(played) in expected, played
+    assert min(np.diff(times)) >= notes.spec.strike_interval
 
 
 def run_exchange(tmp_path: Path, duration: float = 45.0) -> list[dict]:
