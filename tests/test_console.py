@@ -141,8 +141,10 @@ def test_a_query_is_answered_within_20_ms(show):
 
 def test_reads_values_state_and_percepts(show):
     kind, values = show.ask("values", "bo")
-    # Every group's tuples: the main group's, and the manner group's layers over its course.
-    assert kind == "reply" and set(values["values"]) == {"wander", "seek note", "rest", "look", "bored manner"}
+    # Every group's tuples: the main group's (its variations of what it heard among them), and the
+    # manner group's layers over its course.
+    assert kind == "reply" and set(values["values"]) == {"wander", "seek note", "rest", "retrograde", "swap", "look",
+                                                         "bored manner"}
     kind, state = show.ask("state", "bo")
     assert kind == "reply" and {"values", "motivation"} <= set(state)  # the authored creature also keeps what it learnt
     assert show.ask("percepts", "bo") == ("reply", [])  # exchange keeps no percept tree

@@ -16,7 +16,7 @@ from pydantic import BaseModel, Field, field_validator, model_validator
 
 from creatures.authored.registry import ACTIONS, Params, Part
 from creatures.behaviour.action_tuple import Action, ActionTuple
-from creatures.kinds.note_world import SeekNote, Wander
+from creatures.kinds.note_world import SeekNote, Vary, Variation, Wander
 from creatures.motor.programs import MotorProgramGraph, ProgramStack, Statement, parse_programs
 from creatures.motor.search import NoPath
 from midi.notes import NoteEvent
@@ -530,6 +530,31 @@ class SeekNoteSpace(MotorPart):
 
     def build(self, params, creature, name):
         return SeekNote(creature.notes, name)
+
+
+class _VaryParams(Params):
+    transform: Variation = Field(description="'retrograde' (the passage backwards) or 'swap' (two of its "
+                                             "sub-segments in the other order)")
+    passage: Literal["latest", "longest"] = Field("latest", description="which heard passage of those long enough "
+                                                                        "to vary (space.passage_gap splits them)")
+    segment: int = Field(3, ge=1, le=1024, description="fewest notes of a swapped sub-segment (a swap needs a "
+                                                       "passage of twice as many)")
+
+
+@ACTIONS.register
+class VaryPassage(MotorPart):
+    """Play a heard passage varied: the hand strikes its note objects in retrograde, or with
+    two sub-segments swapped at a random cut, walking from each to the next by A* (a pattern
+    generator as a motor program; done when the last is struck; needs ``[creature.space]``)."""
+
+    name = "vary"
+    thesis = "exchange (installation)"
+    needs = "space"
+    ends = True
+    Params = _VaryParams
+
+    def build(self, params, creature, name):
+        return Vary(creature.notes, name, transform=params.transform, passage=params.passage, segment=params.segment)
 
 
 @ACTIONS.register

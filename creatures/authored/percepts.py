@@ -407,6 +407,25 @@ class FreshNotes(PerceptPart):
         return FunctionPercept(name, lambda t: 1.0 if creature.notes.unstruck(t) else 0.0)
 
 
+class _PassageParams(Params):
+    notes: int = Field(3, ge=2, le=4096, description="fewest notes of a heard passage still in space that count")
+
+
+@PERCEPTS.register
+class PassagePercept(PerceptPart):
+    """A heard passage of at least ``notes`` notes is still in space (something to vary): 1,
+    else 0 (passages as ``vary`` finds them: ``space.passage_gap`` splits each player's)."""
+
+    name = "passage"
+    thesis = "exchange (installation)"
+    needs = "space"
+    Params = _PassageParams
+
+    def build(self, params, creature, name):
+        return FunctionPercept(name, lambda t: 1.0 if any(len(p) >= params.notes for p in creature.notes.passages())
+                               else 0.0)
+
+
 # -- temporal and activation models ---------------------------------------------------------
 class _DueParams(Params):
     mean: float = Field(1.0, gt=0, description="prior inter-onset interval, seconds")

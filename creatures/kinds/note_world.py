@@ -7,15 +7,22 @@ share.
   with probability ``mutation`` the copy moves a fourth, fifth or octave (circle-of-fifths
   neighbours, folded back into the placement's register), so passages mutate as they travel;
   hearing a pitch already in space renews that note instead of stacking a duplicate;
-* a struck note plays (and the colony hears it); a note is not struck again within
-  ``refractory`` seconds, nor any note within ``strike_interval`` of the last strike;
+* a struck note plays (and the colony hears it); no note is struck within ``strike_interval``
+  of the last strike, and none the hand passes or hunger seeks within ``refractory`` seconds of
+  its own last strike (a variation plays its passage whole);
 * notes older than ``note_lifetime`` fade, and at most ``max_notes`` stay (oldest first);
-* with ``answer`` a note may be struck the moment it lands (a reflex, within the same limits).
+* with ``answer`` a note may be struck the moment it lands (a reflex, within the same limits);
+* the space remembers what it heard as passages (:meth:`NoteWorld.passages`): each player's
+  notes, as the note objects they landed on, until ``passage_gap`` of silence from that player.
+  :class:`Vary` walks the hand through one of them in retrograde, or with two of its
+  sub-segments swapped: the distortions the thesis hears in exchange ("retrograde variations,
+  repeated subsegments are swapped back and forth in an accidental recombinant evolution").
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Callable
+from collections import deque
+from typing import TYPE_CHECKING, Callable, Literal, NamedTuple, TypeVar
 
 import numpy as np
 from pydantic import BaseModel, Field
@@ -44,11 +51,24 @@ class SpaceSpec(BaseModel):
     strike_radius: float = Field(0.15, gt=0, le=1.0, description="how close the hand must pass to strike a note (m)")
     note_lifetime: float = Field(45.0, gt=0, le=LONGEST_SECONDS, description="seconds a placed note stays in space")
     max_notes: int = Field(48, ge=1, le=4096, description="most notes in space; the oldest fade first")
-    refractory: float = Field(20.0, ge=0, le=LONGEST_SECONDS, description="seconds before the same note is struck again")
-    strike_interval: float = Field(0.25, ge=0, le=3600, description="shortest time between two strikes while wandering (s)")
+    refractory: float = Field(20.0, ge=0, le=LONGEST_SECONDS,
+                              description="seconds before the same note is struck again in passing or sought again "
+                                          "(a variation plays its passage whole)")
+    strike_interval: float = Field(0.25, ge=0, le=3600, description="shortest time between two strikes (s)")
     mutation: float = Field(0.08, ge=0, le=1, description="chance a placed copy is transposed")
     answer: float = Field(0.0, ge=0, le=1, description="chance of striking a heard note the moment it lands in "
                                                         "space (a reflex answer), within strike_interval and refractory")
+    passage_gap: float = Field(2.0, gt=0, le=LONGEST_SECONDS, description="seconds of silence from one player that "
+                                                                           "end a passage (what 'vary' plays)")
+
+
+class Heard(NamedTuple):
+    """One heard note as the space remembers it: when, from whom, and the note object it
+    landed on (placed, or renewed)."""
+
+    time: float
+    source: str
+    note: NoteObject
 
 
 class NoteWorld:
@@ -71,30 +91,30 @@ class NoteWorld:
         self.placement = NotePlacement.around(self._reach)
         self.space = NoteSpace(world.scheduler_for(creature), world.clock)
         self.placed_at: dict[int, float] = {}
+        self.heard: deque[Heard] = deque(maxlen=spec.max_notes)  # no more heard notes than the space holds
         self._struck_at: dict[int, float] = {}
         self._last_strike = -np.inf
 
     def hear(self, t: float, note: NoteEvent, source: str) -> None:
-        """Place a copy of a heard note (or renew the note of its pitch), then maybe answer it."""
+        """Place a copy of a heard note (or renew the note of its pitch), remember it in its
+        passage, then maybe answer it."""
         pitch = note.pitch
         if self.rng.random() < self.spec.mutation:
             pitch = self._in_register(pitch + int(self.rng.choice(MUTATIONS)))
-        for same in self.space.objects:
-            if same.pitch == pitch:
-                # Note objects are not independent (thesis "musical worlds"): hearing a pitch
-                # already in space renews that note rather than stacking a duplicate, so no
-                # single pitch can crowd the space however often the colony plays it.
-                self.placed_at[id(same)] = t
-                self._answer(t, same)
-                return
-        position = self.place(pitch, note.velocity)
-        copy = NoteEvent(note.time, pitch, note.velocity, self.creature.spec.channel, min(note.duration, 2.0))
-        obj = self.space.place(copy, position)
+        # Note objects are not independent (thesis "musical worlds"): hearing a pitch already
+        # in space renews that note rather than stacking a duplicate, so no single pitch can
+        # crowd the space however often the colony plays it.
+        obj = next((same for same in self.space.objects if same.pitch == pitch), None)
+        if obj is None:
+            position = self.place(pitch, note.velocity)
+            copy = NoteEvent(note.time, pitch, note.velocity, self.creature.spec.channel, min(note.duration, 2.0))
+            obj = self.space.place(copy, position)
+            self.creature.world.emit("placed", creature=self.creature.name, pitch=pitch, source=source,
+                                     heard=note.pitch, position=obj.position)
+            while len(self.space) > self.spec.max_notes:
+                self._forget(self.space.objects[0])
         self.placed_at[id(obj)] = t
-        self.creature.world.emit("placed", creature=self.creature.name, pitch=pitch, source=source,
-                                 heard=note.pitch, position=obj.position)
-        while len(self.space) > self.spec.max_notes:
-            self._forget(self.space.objects[0])
+        self.heard.append(Heard(t, source, obj))
         self._answer(t, obj)
 
     def _answer(self, t: float, obj: NoteObject) -> None:
@@ -102,8 +122,7 @@ class NoteWorld:
         ``answer``), if the hand's own limits allow."""
         if not self.spec.answer or self.rng.random() >= self.spec.answer:
             return  # no random draw at all when answering is off: seeded runs stay as they were
-        if (t - self._last_strike >= self.spec.strike_interval
-                and t - self._struck_at.get(id(obj), -np.inf) >= self.spec.refractory):
+        if self.ready(t) and t - self._struck_at.get(id(obj), -np.inf) >= self.spec.refractory:
             self.strike(t, obj, 1.0)
 
     def place(self, pitch: int, velocity: int) -> np.ndarray:
@@ -128,6 +147,10 @@ class NoteWorld:
             pitch -= 12
         return pitch
 
+    def ready(self, t: float) -> bool:
+        """The hand may strike again: ``strike_interval`` has passed since its last strike."""
+        return t - self._last_strike >= self.spec.strike_interval
+
     def strike(self, t: float, obj: NoteObject, strength: float) -> None:
         self._struck_at[id(obj)] = self._last_strike = t
         self.space.strike(obj, strength)
@@ -138,13 +161,45 @@ class NoteWorld:
         """Strike the nearest note a striking joint passes through (the hand; every effector of
         a body that names several), not one struck within ``refractory``, and no more often than
         ``strike_interval``: one note at a time."""
-        if t - self._last_strike < self.spec.strike_interval:
+        if not self.ready(t):
             return
         for striker in self.body.strikers_in_place():
             for obj in self.space.within(striker, self.spec.strike_radius):
                 if t - self._struck_at.get(id(obj), -np.inf) >= self.spec.refractory:
                     self.strike(t, obj, 0.8)
                     return
+
+    def reach(self, t: float, candidates: list[NoteObject]) -> NoteObject | None:
+        """Set the hand off for the nearest of ``candidates`` (one A* search over the poses that
+        put it on any of them); the note it heads for, or None when none can be reached."""
+        body = self.body
+        try:
+            target, path = nearest_note(body.finder, body.motor.position(t), body.effector, candidates,
+                                        tolerance=self.spec.strike_radius)
+        except NoPath:
+            return None
+        head_for(body, t, path)
+        return target
+
+    def passages(self) -> list[list[NoteObject]]:
+        """What the creature heard, as passages: each one player's notes with no more than
+        ``passage_gap`` seconds between them (another player's notes in between belong to that
+        player's passage: two players heard at once are two passages, not one interleaved), as
+        the note objects they landed on that are still in space, the latest heard last."""
+        live = {id(obj) for obj in self.space.objects}
+        notes: list[list[NoteObject]] = []  # in the order the passages began
+        last: list[float] = []  # when each was last heard
+        current: dict[str, int] = {}  # each player's passage still going on
+        for time, source, obj in self.heard:
+            k = current.get(source)
+            if k is None or time - last[k] > self.spec.passage_gap:
+                current[source] = k = len(notes)
+                notes.append([])
+                last.append(time)
+            last[k] = time
+            if id(obj) in live:
+                notes[k].append(obj)
+        return [notes[k] for k in sorted(range(len(notes)), key=last.__getitem__) if notes[k]]
 
     def _forget(self, obj: NoteObject) -> None:
         self.space.remove(obj)
@@ -180,30 +235,93 @@ class Wander(Action):
         self.notes.strike_nearby(t)
 
 
-class SeekNote(Action):
-    """Hunger for notes: go to the nearest note not struck lately (one A* search over the poses
-    that put the hand on any of them) and strike it. ``done`` once struck (or unreachable)."""
+class StrikeCourse(Action):
+    """The hand heads for note objects one after another and strikes each as it arrives
+    (thesis "exchange (installation)": "having answered, the motor system knows how to take us
+    there"), though never sooner than ``strike_interval`` after the last strike; ``done`` once
+    there is no note left to head for. ``first`` and ``following`` say which notes, in which
+    order."""
 
-    def __init__(self, notes: NoteWorld, name: str = "seek note") -> None:
+    def __init__(self, notes: NoteWorld, name: str) -> None:
         super().__init__(name)
         self.notes = notes
         self.target: NoteObject | None = None
 
+    def first(self, t: float) -> NoteObject | None:
+        """The note to head for when the course starts (none: nothing to do)."""
+        raise NotImplementedError
+
+    def following(self, t: float) -> NoteObject | None:
+        """The note to head for once the target is struck (none: the course is over)."""
+        return None
+
     def start(self, t: float, tuple_: ActionTuple) -> None:
-        notes, body = self.notes, self.notes.body
-        self.target = None
-        try:
-            self.target, path = nearest_note(body.finder, body.motor.position(t), body.effector,
-                                             notes.unstruck(t), tolerance=notes.spec.strike_radius)
-        except NoPath:
-            return
-        head_for(body, t, path)
+        self.target = self.first(t)
 
     def update(self, t: float) -> None:
-        if self.target is not None and self.notes.body.motor.arrived(t):
+        if self.target is not None and self.notes.body.motor.arrived(t) and self.notes.ready(t):
             if self.target in self.notes.space.objects:
                 self.notes.strike(t, self.target, 1.0)
-            self.target = None
+            self.target = self.following(t)
 
     def done(self, t: float) -> float:
         return 1.0 if self.target is None else 0.0
+
+
+class SeekNote(StrikeCourse):
+    """Hunger for notes: go to the nearest note not struck lately (one A* search over the poses
+    that put the hand on any of them) and strike it. ``done`` once struck (or unreachable)."""
+
+    def __init__(self, notes: NoteWorld, name: str = "seek note") -> None:
+        super().__init__(notes, name)
+
+    def first(self, t: float) -> NoteObject | None:
+        return self.notes.reach(t, self.notes.unstruck(t))
+
+
+Variation = Literal["retrograde", "swap"]
+T = TypeVar("T")
+
+
+def vary(passage: list[T], transform: Variation, cut: int = 0) -> list[T]:
+    """A passage distorted as the thesis hears exchange distort them ("exchange (installation)":
+    "retrograde variations, repeated subsegments are swapped back and forth"): ``retrograde``
+    plays it backwards; ``swap`` plays the sub-segment from ``cut`` on before the one up to it."""
+    if transform == "retrograde":
+        return passage[::-1]
+    return passage[cut:] + passage[:cut]
+
+
+class Vary(StrikeCourse):
+    """A pattern generator over the notes in space (thesis "(void *): a cast of characters":
+    "pattern generators → motor programs"; "exchange (installation)"): the hand strikes a heard
+    passage's note objects in a varied order, walking from each to the next by A*, and nothing
+    it passes on the way. The passage is the latest, or the longest, of those long enough to vary
+    (:meth:`NoteWorld.passages`); a swap's cut is drawn from the creature's generator so that
+    each sub-segment has at least ``segment`` notes. Done when the last note is struck (notes
+    that fade or cannot be reached on the way are skipped)."""
+
+    def __init__(self, notes: NoteWorld, name: str, *, transform: Variation,
+                 passage: Literal["latest", "longest"] = "latest", segment: int = 3) -> None:
+        super().__init__(notes, name)
+        self.transform = transform
+        self.passage = passage
+        self.segment = segment
+        self.fewest = 2 if transform == "retrograde" else 2 * segment  # to reverse; to swap two sub-segments
+        self.queue: deque[NoteObject] = deque()
+
+    def first(self, t: float) -> NoteObject | None:
+        fit = [p for p in self.notes.passages() if len(p) >= self.fewest]
+        if not fit:
+            return None
+        heard = fit[-1] if self.passage == "latest" else max(reversed(fit), key=len)  # the latest of the longest
+        cut = int(self.notes.rng.integers(self.segment, len(heard) - self.segment + 1)) if self.transform == "swap" else 0
+        self.queue = deque(vary(heard, self.transform, cut))
+        return self.following(t)
+
+    def following(self, t: float) -> NoteObject | None:
+        while self.queue:
+            obj = self.queue.popleft()
+            if obj in self.notes.space.objects and (target := self.notes.reach(t, [obj])) is not None:
+                return target
+        return None
