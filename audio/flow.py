@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 
 from audio.coupling import BodyCoupling, PoseLike
@@ -64,31 +65,19 @@ class FlowCoupling(BodyCoupling):
         return self.gain * self._sample(self._node_cells)
 
     def _drag(self, places: np.ndarray, speeds: np.ndarray) -> None:
-        """Each limb pulls the fluid near it toward its own speed."""
+        """Each limb pulls the fluid near it toward its own speed (compiled: a curve tick's
+        costliest part was this, one Gaussian over the field per limb)."""
         nx, ny = self.field.shape
         xs = self.low[0] + CELL * np.arange(nx)
         ys = self.low[1] + CELL * np.arange(ny)
-        for (x, y), speed in zip(places, speeds):
-            wx = np.exp(-0.5 * ((xs - x) / self.radius) ** 2)
-            wy = np.exp(-0.5 * ((ys - y) / self.radius) ** 2)
-            if wx.max() < 1e-3 or wy.max() < 1e-3:
-                continue  # outside the field
-            weight = np.outer(wx, wy)
-            self.field += weight * (speed - self.field)
+        _drag(self.field, xs, ys, np.ascontiguousarray(places, dtype=float), np.asarray(speeds, dtype=float),
+              self.radius)
 
     def _spread(self, dt: float) -> None:
         """Diffuse and decay over ``dt`` seconds (explicit, stable sub-steps; edges absorb)."""
         steps = max(1, math.ceil(dt * self.diffusion / (0.2 * CELL * CELL)))
         rate = self.diffusion * (dt / steps) / (CELL * CELL)
-        f = self.field
-        for _ in range(steps):
-            lap = -4.0 * f
-            lap[1:] += f[:-1]
-            lap[:-1] += f[1:]
-            lap[:, 1:] += f[:, :-1]
-            lap[:, :-1] += f[:, 1:]
-            f += rate * lap
-        f *= 0.5 ** (dt / self.memory)
+        _spread(self.field, steps, rate, 0.5 ** (dt / self.memory))
 
     def _sample(self, cells: np.ndarray) -> np.ndarray:
         """The field at fractional grid cells (bilinear)."""
@@ -100,3 +89,38 @@ class FlowCoupling(BodyCoupling):
         f = self.field
         return ((1 - a) * (1 - b) * f[i, j] + a * (1 - b) * f[i + 1, j] + (1 - a) * b * f[i, j + 1]
                 + a * b * f[i + 1, j + 1])
+
+
+@numba.njit(cache=True)
+def _drag(field, xs, ys, places, speeds, radius):  # pragma: no cover - compiled
+    """:meth:`FlowCoupling._drag`'s loop: field += exp(-½((x−xᵢ)² + (y−yᵢ)²)/r²) (speedᵢ − field)."""
+    for k in range(places.shape[0]):
+        wx = np.exp(-0.5 * ((xs - places[k, 0]) / radius) ** 2)
+        wy = np.exp(-0.5 * ((ys - places[k, 1]) / radius) ** 2)
+        if wx.max() < 1e-3 or wy.max() < 1e-3:
+            continue  # outside the field
+        for i in range(field.shape[0]):
+            for j in range(field.shape[1]):
+                field[i, j] += wx[i] * wy[j] * (speeds[k] - field[i, j])
+
+
+@numba.njit(cache=True)
+def _spread(field, steps, rate, decay):  # pragma: no cover - compiled
+    """Explicit 5-point diffusion ``steps`` times (edges absorb), then decay."""
+    nx, ny = field.shape
+    lap = np.empty_like(field)
+    for _ in range(steps):
+        for i in range(nx):
+            for j in range(ny):
+                value = -4.0 * field[i, j]
+                if i > 0:
+                    value += field[i - 1, j]
+                if i < nx - 1:
+                    value += field[i + 1, j]
+                if j > 0:
+                    value += field[i, j - 1]
+                if j < ny - 1:
+                    value += field[i, j + 1]
+                lap[i, j] = value
+        field += rate * lap
+    field *= decay

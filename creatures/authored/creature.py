@@ -516,7 +516,10 @@ class Authored(CreatureKind):
             self.voice.render(out, self.now(), cutoff=cutoff)
         if self._voiced:  # voice.gain, ramped across the block (no zipper steps)
             gain = max(float(self.voice_now(self.now())[GAIN]), 0.0)
-            out *= np.linspace(self._gain, gain, len(out))
+            if gain != self._gain:
+                out *= np.linspace(self._gain, gain, len(out))
+            elif gain != 1.0:
+                out *= gain
             self._gain = gain
 
     @property

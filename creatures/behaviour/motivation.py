@@ -89,6 +89,7 @@ class Motivation:
             self.coupling[self.index(to), self.index(frm)] = float(rate)
         self.inputs = np.zeros(n)
         self._propagators: dict[float, tuple[np.ndarray, np.ndarray]] = {}
+        self._last_levels: tuple[tuple, np.ndarray] | None = None
         self.floor = floor
         self.ceiling = ceiling
         self.time = float(start)
@@ -146,8 +147,16 @@ class Motivation:
             raise ValueError(f"motivation: time went backwards ({t} < {self.time})")
         if dt == 0:
             return self.levels.copy()
+        # Many percepts of one creature read its drives at one time in a tick: the last answer
+        # is kept for the same instant and the same state (levels and inputs, which a drive's
+        # percept inputs set in place).
+        key = (float(t), self.time, self.levels.tobytes(), self.inputs.tobytes(), self.growth.tobytes())
+        if self._last_levels is not None and self._last_levels[0] == key:
+            return self._last_levels[1].copy()
         phi, offset = self._propagator(dt)
-        return self._clip(phi @ self.levels + offset)
+        levels = self._clip(phi @ self.levels + offset)
+        self._last_levels = (key, levels)
+        return levels.copy()
 
     def advance(self, t: float) -> None:
         """Integrate exactly from the current time to clock time ``t``."""
