@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 
 import installations
-from bench import Row
+from bench import Row, best_of
 from creatures.runtime.offline import run_offline
 from creatures.runtime.schema import load_installation
 
@@ -43,6 +43,17 @@ def speed(name: str | Path, seconds: float, *, cpu: bool = False) -> float:
         t0 = time.process_time()
         summary = run_offline(inst, Path(out), duration=seconds)
         return seconds / (time.process_time() - t0) if cpu else summary.speed
+
+
+def offline_speed(name: str, seconds: float, *, audio: bool) -> float:
+    """A shipped installation's offline speed (best of two, wall clock), with or without its
+    audio synthesis (out.wav): a piece's own bench measures both."""
+    inst = load_installation(installations.path(name))
+    inst.settings.output.report = False
+    inst.settings.output.wav = audio
+    with tempfile.TemporaryDirectory() as out:
+        wall = best_of(lambda: run_offline(inst, Path(out), duration=seconds), repeat=2)
+    return seconds / wall
 
 
 def run(quick: bool = False) -> list[Row]:

@@ -12,25 +12,14 @@ Rows (``python -m bench sandstone``):
 
 from __future__ import annotations
 
-import tempfile
-from pathlib import Path
 
 import numpy as np
 
-import installations
 from bench import Row, best_of
+from bench.installations import offline_speed
 from creatures.behaviour.motivation import Motivation
-from creatures.runtime.offline import run_offline
-from creatures.runtime.schema import load_installation
 
 
-def _offline_speed(seconds: float, *, audio: bool) -> float:
-    inst = load_installation(installations.path("sandstone"))
-    inst.settings.output.report = False
-    inst.settings.output.wav = audio
-    with tempfile.TemporaryDirectory() as out:
-        wall = best_of(lambda: run_offline(inst, Path(out), duration=seconds), repeat=2)
-    return seconds / wall
 
 
 def _chemistry() -> Motivation:
@@ -55,8 +44,8 @@ def run(quick: bool) -> list[Row]:
     cached = best_of(lambda: _soft_steps(steps, fresh=False)) / steps
     fresh = best_of(lambda: _soft_steps(steps, fresh=True)) / steps
     return [
-        Row("sand:stone 6 rocks offline, with audio", _offline_speed(seconds, audio=True), "× real time", 20.0),
-        Row("sand:stone 6 rocks offline, behaviour and MIDI only", _offline_speed(seconds, audio=False),
+        Row("sand:stone 6 rocks offline, with audio", offline_speed("sandstone", seconds, audio=True), "× real time", 20.0),
+        Row("sand:stone 6 rocks offline, behaviour and MIDI only", offline_speed("sandstone", seconds, audio=False),
             "× real time", 20.0),
         Row("soft-state step, inputs changing, cached (Φ, Ψ)", cached * 1e6, "µs", 100.0, higher_is_better=False,
             baseline="fresh expm every step", ratio=fresh / cached),

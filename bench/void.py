@@ -13,32 +13,23 @@ Rows (``python -m bench void``):
 
 from __future__ import annotations
 
-import tempfile
 import time
-from pathlib import Path
 
 import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
 import installations
-from bench import Row, best_of
+from bench import Row
+from bench.installations import offline_speed
 from creatures.clock import SimulatedClock
 from creatures.events import EventLog
-from creatures.runtime.offline import run_offline
 from creatures.runtime.schema import load_installation
 from creatures.runtime.session import Session
 from creatures.score.program import ScoreProgram
 from midi.sinks import MemorySink
 
 
-def _offline_speed(seconds: float, *, audio: bool) -> float:
-    inst = load_installation(installations.path("void"))
-    inst.settings.output.report = False
-    inst.settings.output.wav = audio
-    with tempfile.TemporaryDirectory() as out:
-        wall = best_of(lambda: run_offline(inst, Path(out), duration=seconds), repeat=2)
-    return seconds / wall
 
 
 def _steer_cost(courses: int) -> tuple[float, float]:
@@ -67,8 +58,8 @@ def run(quick: bool) -> list[Row]:
     seconds = 30.0 if quick else 180.0
     laid, plain = _steer_cost(300 if quick else 3000)
     return [
-        Row("(void*) offline, with audio (no frames)", _offline_speed(seconds, audio=True), "× real time", 20.0),
-        Row("(void*) offline, behaviour and MIDI only", _offline_speed(seconds, audio=False), "× real time", 20.0),
+        Row("(void*) offline, with audio (no frames)", offline_speed("void", seconds, audio=True), "× real time", 20.0),
+        Row("(void*) offline, behaviour and MIDI only", offline_speed("void", seconds, audio=False), "× real time", 20.0),
         Row("(void*) a course laid on the theme layer (A*, layout)", laid * 1e3, "ms", 1.0, higher_is_better=False,
             baseline="Dijkstra from scratch, one source", ratio=plain / laid),
     ]

@@ -17,7 +17,7 @@ from pydantic import BaseModel, Field, field_validator, model_validator
 from creatures.authored.registry import ACTIONS, Params, Part
 from creatures.behaviour.action_tuple import Action, ActionTuple
 from creatures.kinds.note_world import SeekNote, Vary, Variation, Wander
-from creatures.motor.programs import MotorProgramGraph, ProgramStack, Statement, parse_programs
+from creatures.motor.programs import MotorProgramGraph, ProgramStack, Statement, chosen_program, parse_programs
 from creatures.motor.search import NoPath
 from midi.notes import NoteEvent
 
@@ -302,11 +302,7 @@ class _ProgramParams(Params):
 
     @model_validator(mode="after")
     def _parses(self):
-        programs = parse_programs(self.text, source="motor program")  # a ProgramSyntaxError is a ValueError
-        if not programs:
-            raise ValueError("the text holds no 'name:' program")
-        if self.program is not None and self.program not in programs:
-            raise ValueError(f"no program {self.program!r} in the text (programs: {sorted(programs)})")
+        chosen_program(self.text, self.program, source="motor program")
         return self
 
 

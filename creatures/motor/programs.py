@@ -365,6 +365,18 @@ def _parse_targets(args: str) -> tuple[Target, ...]:
     return tuple(targets)
 
 
+def chosen_program(text: str, run: str | None, *, source: str) -> tuple[dict[str, MotorProgram], str]:
+    """The programs of ``text`` and the name of the one that runs (``run``, default the first);
+    a ValueError (a ProgramSyntaxError among them) says what is wrong: a config's parameters
+    validate with it."""
+    programs = parse_programs(text, source=source)
+    if not programs:
+        raise ValueError("the text holds no 'name:' program")
+    if run is not None and run not in programs:
+        raise ValueError(f"no program {run!r} in the text (programs: {sorted(programs)})")
+    return programs, run or next(iter(programs))
+
+
 def parse_programs(text: str, *, source: str = "<motor program>") -> dict[str, MotorProgram]:
     """Parse ``name: statements`` blocks (``;`` or newlines between statements).
 

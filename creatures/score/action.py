@@ -20,7 +20,7 @@ from pydantic import Field, model_validator
 from creatures.authored.actions import ActionPart
 from creatures.authored.registry import ACTIONS, Params
 from creatures.behaviour.action_tuple import Action, ActionTuple
-from creatures.motor.programs import parse_programs
+from creatures.motor.programs import chosen_program
 from creatures.score.program import ScoreProgram
 
 if TYPE_CHECKING:
@@ -41,11 +41,7 @@ class _ScoreParams(Params):
         if sum((self.toward is not None, bool(self.pattern), self.program is not None)) != 1:
             raise ValueError("give one of 'toward' (a tag), 'pattern' (tags in turn) or 'program' (a pattern generator)")
         if self.program is not None:
-            programs = parse_programs(self.program, source="score program")  # a ProgramSyntaxError is a ValueError
-            if not programs:
-                raise ValueError("the program text holds no 'name:' program")
-            if self.run is not None and self.run not in programs:
-                raise ValueError(f"no program {self.run!r} in the text (programs: {sorted(programs)})")
+            chosen_program(self.program, self.run, source="score program")
         return self
 
     def generator(self) -> Callable[[], ScoreProgram]:
@@ -53,15 +49,14 @@ class _ScoreParams(Params):
         if self.program is None:
             tags = [self.toward] if self.toward is not None else list(self.pattern)
             return lambda: ScoreProgram.of_tags(tags)
-        library = parse_programs(self.program, source="score program")
-        first = self.run or next(iter(library))
+        library, first = chosen_program(self.program, self.run, source="score program")
         return lambda: ScoreProgram.start(library, first)
 
     def tags(self) -> list[str]:
         """Every tag it may walk to (the loader checks them against the tiles)."""
         if self.program is None:
             return [self.toward] if self.toward is not None else list(self.pattern)
-        library = parse_programs(self.program, source="score program")
+        library, _ = chosen_program(self.program, self.run, source="score program")
         return sorted({str(x) for p in library.values() for st in p.statements for x in st.targets
                        if str(x) not in library})
 
