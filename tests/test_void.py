@@ -227,6 +227,28 @@ def test_midi_controllers_possess_a_character_and_his_kicks_are_heard(tmp_path):
     assert low and high and np.mean(high) > 1.4 * np.mean(low)
 
 
+def test_a_rehearsed_week_possesses_every_character_through_the_pads():
+    """`creatures rehearse void`: the visitors take the characters' pads (void/pads, through
+    the MIDI maps as a live pad), so on every reduced opening day each character dances, the
+    camera cuts to him and his leitmotif is heard — the piece's interaction is lived, not only
+    its band."""
+    from test_rehearse import short
+
+    from creatures.runtime.rehearse import rehearse
+
+    seen: list[dict] = []
+    keep = {"selection", "tile", "sensor"}
+    report = rehearse(short("void"), 2, taps=(lambda r: seen.append(r) if r["kind"] in keep else None,))
+    assert report.crash_free == 2
+    for day in range(2):
+        today = [r for r in seen if day * 86400 <= r["t"] < (day + 1) * 86400]
+        for who in CHARACTERS:
+            assert any(r["kind"] == "selection" and r["creature"] == who and r["tuple"] == "dance" for r in today)
+            assert any(r["kind"] == "selection" and r["creature"] == "camera" and r["tuple"] == who for r in today)
+            assert any(r["kind"] == "tile" and r["part"] == who for r in today), (day, who)
+        assert any(r["kind"] == "sensor" and r["name"].endswith("_held") and r["via"] != "osc" for r in today)
+
+
 def test_laying_a_course_costs_well_under_a_millisecond():
     """The issue's budget for scheduling a tile (bench void measures it beside Dijkstra)."""
     from bench.void import _steer_cost

@@ -23,8 +23,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable
 
+import mido
+
 from creatures.clock import Clock
 from creatures.runtime.input_map import InputRouter
+from midi.notes import NoteEvent
 
 if TYPE_CHECKING:
     from creatures.runtime.schema import LoadedInstallation
@@ -109,6 +112,11 @@ def load_rehearsal(path: Path) -> list[Row]:
             raise RehearsalError(path, "time must be seconds >= 0 and address an OSC address or 'midi'", number)
         rows.append(Row(time, address, tuple(args)))
     return sorted(rows, key=lambda r: r.time)
+
+
+def note_on(note: NoteEvent) -> mido.Message:
+    """A recorded note as the note-on a live port would have sent."""
+    return mido.Message("note_on", channel=note.channel, note=note.pitch, velocity=max(note.velocity, 1))
 
 
 class Rehearsal:

@@ -22,7 +22,6 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import mido
 import numpy as np
 
 from audio.output import WavOutput
@@ -33,7 +32,7 @@ from creatures.clock import SimulatedClock
 from creatures.events import EventLog
 from creatures.runtime.bodies import BodyFrames
 from creatures.runtime.body_stream import BodyStream
-from creatures.runtime.input_sources import Rehearsal, Row, open_sources
+from creatures.runtime.input_sources import Rehearsal, Row, note_on, open_sources
 from creatures.runtime.inputs import phrase_notes, render_notes
 from creatures.runtime.outputs import OutputDirectoryError, discard, hold, publish, recover, refuse_foreign, stage
 from creatures.runtime.schema import Installation, LoadedInstallation
@@ -90,11 +89,6 @@ def _inputs(inst: LoadedInstallation, audio: Path | None, midi: Path | None, dur
     return [n for n in notes if n.time < duration], samples
 
 
-def _note_on(note: NoteEvent) -> mido.Message:
-    """A MIDI file's note as the note-on a live port would have sent."""
-    return mido.Message("note_on", channel=note.channel, note=note.pitch, velocity=max(note.velocity, 1))
-
-
 def run_offline(
     inst: LoadedInstallation,
     out: Path,
@@ -147,7 +141,7 @@ def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path 
                        creatures=[c.name for c in session.creatures], config=str(inst.path))
     poses = PoseLog(settings.view.log_fps, session.world, messages.append) if settings.view.log_fps else None
     notes, samples = _inputs(inst, audio, midi, duration, session.input_rng)
-    mapped = [_note_on(n) for n in notes]
+    mapped = [note_on(n) for n in notes]
     mapped = [m if any(r.matches_midi("note", m) for r in session.inputs.midi_routes) else None for m in mapped]
     if any(mapped):  # a recorded MIDI take goes through the [[input]] maps as a live one would (a click pad)
         sources.append(Rehearsal([Row(n.time, "midi", tuple(m.bytes())) for n, m in zip(notes, mapped) if m],

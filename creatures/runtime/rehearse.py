@@ -17,6 +17,7 @@ complexity waxes and wanes with them; this is that week, heard in minutes.
 
 from __future__ import annotations
 
+import bisect
 import dataclasses
 import math
 import tempfile
@@ -24,7 +25,7 @@ import time
 from dataclasses import dataclass, field
 from datetime import datetime, timedelta, timezone
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 from zoneinfo import ZoneInfo
 
 import mido
@@ -33,6 +34,8 @@ import numpy as np
 from audio.formants import speak
 from creatures.clock import SimulatedClock
 from creatures.events import EventLog
+from creatures.runtime.input_sources import Rehearsal as InputFile
+from creatures.runtime.input_sources import Row, note_on
 from creatures.runtime.inputs import render_notes
 from creatures.runtime.measures import ACTS, HourMeasures, HourTally, Swings
 from creatures.runtime.opening import DAYS, OpeningHours
@@ -143,8 +146,14 @@ def _boredom(session: Session) -> list[tuple[Any, Swings]]:
     return found
 
 
-def rehearse(inst: LoadedInstallation, days: int | None = None) -> Rehearsal:
-    """Rehearse ``inst`` for ``days`` simulated days (default ``[rehearse] days``)."""
+def _row_time(row: Row) -> float:
+    return row.time
+
+
+def rehearse(inst: LoadedInstallation, days: int | None = None, *,
+             taps: tuple[Callable[[dict[str, Any]], None], ...] = ()) -> Rehearsal:
+    """Rehearse ``inst`` for ``days`` simulated days (default ``[rehearse] days``); ``taps``
+    see every events-log record as it is written (nothing is kept for a week)."""
     settings = inst.settings
     params = settings.rehearse
     days = days or params.days
@@ -186,6 +195,11 @@ def rehearse(inst: LoadedInstallation, days: int | None = None) -> Rehearsal:
         visitors.hear(record["t"], record.get("pitch"))
 
     log.taps.append(heard)
+    log.taps.extend(taps)
+    # A visitor's note that an [[input]] MIDI map takes (a pad that possesses a character, a
+    # clicker) reaches the colony through the map, held for the note's length, as a live
+    # port's note-on and note-off would; any other note is heard as music.
+    pads = InputFile([], 0.0, session.inputs)
     rows: list[HourMeasures] = []
     crashes: list[str] = []
     boredom = _boredom(session)
@@ -225,9 +239,17 @@ def rehearse(inst: LoadedInstallation, days: int | None = None) -> Rehearsal:
                 continue
             for start, phrase in visitors.play(t0, t):
                 for note in phrase.notes:
-                    session.world.inject(dataclasses.replace(note, time=round(start + note.time, 6)))
+                    at, on = round(start + note.time, 6), note_on(note)
+                    if any(route.matches_midi("note", on) for route in session.inputs.midi_routes):
+                        off = mido.Message("note_off", channel=on.channel, note=on.note, velocity=0)
+                        for row in (Row(at, "midi", tuple(on.bytes())),
+                                    Row(at + note.duration, "midi", tuple(off.bytes()))):
+                            bisect.insort(pads.rows, row, lo=pads.next, key=_row_time)
+                    else:
+                        session.world.inject(dataclasses.replace(note, time=at))
                 if ears is not None:
                     ears.add(start, phrase)
+            pads.poll(t)
             x0, x1 = int(round(t0 * sr)), int(round(t * sr))
             try:
                 session.step(t, x1 - x0, ears.block(x0, x1) if ears is not None else None, audio=False)
@@ -235,6 +257,7 @@ def rehearse(inst: LoadedInstallation, days: int | None = None) -> Rehearsal:
                 tally.crashed = True
                 crashes.append(f"day {hour // 24 + 1} {hour % 24:02d}h: {type(exc).__name__}: {exc}")
                 session = _rebuilt(inst, clock, log, snapshot)
+                pads.router = session.inputs
                 boredom = _boredom(session) if boredom else boredom
                 down_until = (hour + 1) * 3600.0
                 continue
