@@ -76,6 +76,17 @@ def test_each_leitmotif_recurs_while_its_character_acts_and_only_then(shipped):
     assert quiet and all("tacet" in e["tags"] for e in quiet)
 
 
+def test_a_possessed_character_dances_and_a_free_one_sits(shipped):
+    """The controller moves the body: while a visitor holds Eddie his hand is thrown about (more
+    than 0.3 m from where it rests), while nobody holds him it stays within breathing."""
+    log, _ = shipped
+    poses = [(e["t"], np.array(e["joints"])) for e in log if e["kind"] == "pose" and e["creature"] == "eddie"]
+    rest = next(p for t, p in poses if t >= 5.0)[12]  # hand_r, sitting at the bar
+    held = [np.linalg.norm(p[12] - rest) for t, p in poses if 10.0 <= t <= 44.0]
+    free = [np.linalg.norm(p[12] - rest) for t, p in poses if 5.0 <= t <= 7.5 or 50.0 <= t <= 58.0]
+    assert max(held) > 0.3 and max(free) < 0.15  # measured: 0.77 m against 0.10 m
+
+
 def test_the_band_walks_while_anyone_dances(shipped):
     log, _ = shipped
     windows = [w for ws in possessions().values() for w in ws]
