@@ -260,6 +260,25 @@ def test_a_rehearsed_week_possesses_every_character_through_the_pads():
         assert any(r["kind"] == "sensor" and r["name"].endswith("_held") and r["via"] != "osc" for r in today)
 
 
+def test_the_score_goes_on_from_now_across_a_clock_gap():
+    """A closed night (the clock leaps 14 hours): the score resumes on a beat just after the
+    morning's first tick, and nothing of the night is played (no note dated before it)."""
+    inst = load_installation(HERE / "void.toml")
+    clock, log = SimulatedClock(), EventLog(keep_in_memory=10**6)
+    session = Session(inst, clock, log, MemorySink())
+    for _ in range(500):
+        session.step(clock.advance(0.02), 0, None, audio=False)
+    evening = len([r for r in log.records if r["kind"] == "note"])
+    morning = clock.advance(14 * 3600.0)
+    for _ in range(500):
+        session.step(clock.advance(0.02), 0, None, audio=False)
+    notes = [r for r in log.records if r["kind"] == "note"][evening:]
+    assert notes and min(r["time"] for r in notes) >= morning
+    assert len(notes) < 3 * evening  # ten seconds' music, not a night's
+    tiles = [r for r in log.records if r["kind"] == "tile" and r["t"] >= morning]
+    assert tiles and min(r["time"] for r in tiles) <= morning + 0.05 + 4 * 0.625
+
+
 def test_laying_a_course_costs_well_under_a_millisecond():
     """The issue's budget for scheduling a tile (bench void measures it beside Dijkstra)."""
     from bench.void import _steer_cost

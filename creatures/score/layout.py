@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING
 import mido
 import numpy as np
 
+from creatures.clock import clock_gap
 from creatures.motor.search import NoPath
 from creatures.runtime.world import INPUT
 from creatures.score.grid import BeatFollower, Grid, nearest_multiple
@@ -91,6 +92,7 @@ class ScoreLayout:
         self._controls: dict[tuple[int, int], int] = {}
         self._modulated = -math.inf  # the last beat whose controllers were sent
         self._followed = -math.inf  # the last beat the heard pulse moved
+        self._seen = -math.inf  # the clock time of the last tick or course (to see a clock gap)
 
     # -- the behaviour system's side ------------------------------------------------------
     def steer(self, t: float, layer: str, program: ScoreProgram) -> int:
@@ -181,7 +183,26 @@ class ScoreLayout:
     def _grid(self, t: float) -> Grid:
         if self.grid is None:
             self.grid = Grid(self.beat_length, t + self.spec.commit)
+        elif clock_gap(self._seen, t):
+            self._resume(t)
+        self._seen = t
         return self.grid
+
+    def _resume(self, t: float) -> None:
+        """Across a clock gap (a closed night, a suspended machine) the score goes on from now,
+        not through the gap: what was laid is abandoned (each layer's walk goes on from its last
+        tile) and the next beat after it sounds ``commit`` from now. Played through, a night's
+        tiles would all be committed on the morning's first tick (sand:stone's songs once sent
+        97,050 notes so)."""
+        beat = math.ceil(max([lay.end for lay in self.layers.values() if lay.laid], default=0.0) - 1e-9)
+        for lay in self.layers.values():
+            if lay.laid:
+                last = lay.laid[-1]
+                last.begun, last.sent = True, len(self.tiles.tiles[last.tile].onsets)
+                lay.laid = [last]
+        self.grid.change(beat, self.grid.period, t + self.spec.commit)
+        self.creature.world.log.emit(t, "score grid", creature=self.creature.name, beat=beat,
+                                     time=t + self.spec.commit, period=self.grid.period, resumed=True)
 
     def _follow(self, t: float, grid: Grid, horizon: float) -> None:
         """Move the grid onto the heard pulse from the first beat not yet committed: the
