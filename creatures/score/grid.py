@@ -58,6 +58,11 @@ class Grid:
         b, t, period = next((s for s in reversed(self.segments) if beat >= s[0]), self.segments[0])
         return t + (beat - b) * period
 
+    def seconds(self, beat: float, beats: float) -> float:
+        """How long ``beats`` beats from ``beat`` last at that beat's tempo (a note keeps the
+        length it began with across a later change, and across a gap the score resumed over)."""
+        return beats * next((s for s in reversed(self.segments) if beat >= s[0]), self.segments[0])[2]
+
     def beat(self, t: float) -> float:
         b, t0, period = next((s for s in reversed(self.segments) if t >= s[1]), self.segments[0])
         return b + (t - t0) / period

@@ -278,7 +278,7 @@ class ScoreLayout:
                 velocity = int(tile.velocities[laid.sent])
                 if part is not None and part.energy is not None:  # the character's movement in the music
                     velocity = max(1, round(velocity * (0.55 + 0.45 * min(max(self._saliency(part.energy, t), 0.0), 1.0))))
-                self.creature.play(int(tile.pitches[laid.sent]), velocity, grid.time(beat + length) - at, at=at,
+                self.creature.play(int(tile.pitches[laid.sent]), velocity, grid.seconds(beat, length), at=at,
                                    channel=None if part is None else part.channel)
                 laid.sent += 1
         # Played tiles go, but the last stays: the walk goes on from it.
