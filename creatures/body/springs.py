@@ -23,6 +23,7 @@ import numpy as np
 from pydantic import BaseModel, Field
 
 from creatures.bounds import FINITE
+from creatures.clock import clock_gap
 
 SUBSTEP = 0.002
 """Seconds per integration step: well inside the stability limit 2/√k of the stiffest spring
@@ -57,7 +58,14 @@ class SpringBody:
         self.free[self.roots] = 0.0
 
     def follow(self, t: float, pose: np.ndarray) -> np.ndarray:
-        """Integrate up to ``t`` toward ``pose`` (J, 3); returns the realised positions."""
+        """Integrate up to ``t`` toward ``pose`` (J, 3); returns the realised positions. Across a
+        clock gap (a night, a suspended machine) the body has long come to rest: it stands in
+        the pose, not integrated through hours of sub-steps."""
+        if clock_gap(self.t, t):
+            self.positions[:] = pose
+            self.velocities[:] = 0.0
+            self.t = float(t)
+            return self.positions
         steps = max(int(np.floor((t - self.t) / SUBSTEP + 1e-9)), 0)
         floor = self.spec.floor
         _integrate(self.positions, self.velocities, np.asarray(pose, dtype=float), self.bones, self.lengths,

@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+from typing import Annotated
+
 from pydantic import BaseModel, Field
 
 from creatures.bounds import FINITE
@@ -25,7 +27,7 @@ class ScorePartSpec(BaseModel):
     model_config = FINITE
 
     channel: int = Field(ge=0, le=15, description="MIDI channel of the part")
-    programs: list[int] = Field(default_factory=list, max_length=2,
+    programs: list[Annotated[int, Field(ge=0, le=127)]] = Field(default_factory=list, max_length=2,
                                 description="General MIDI programs [reluctant, glad]: the stance percept picks one "
                                             "at each of the part's tiles (timbre tied to the character's stance)")
     stance: str | None = Field(None, description="percept of the character's stance toward its visitor: the program, "
