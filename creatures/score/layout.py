@@ -153,7 +153,10 @@ class ScoreLayout:
         end = self._goal_end.get(request)
         if end is None or self.grid is None:
             return 1.0
-        return 1.0 if self.grid.beat(t) >= end - 1e-9 else 0.0
+        if self.grid.beat(t) < end - 1e-9:
+            return 0.0
+        del self._goal_end[request]  # played out: forgotten (a course a tile, over a month of runs)
+        return 1.0
 
     def _cut_beat(self, lay: Layer, frontier: float) -> float:
         """The first beat at or after ``frontier`` where ``lay`` may change course."""
