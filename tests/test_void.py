@@ -147,8 +147,9 @@ def test_tiles_start_on_the_heard_beat_across_a_change_of_tempo(tmp_path):
 
 def test_a_controller_changes_the_score_by_the_next_beat():
     """A visitor picks up Earl's controller (OSC, as the input map hears it) at 24 random
-    moments: his leitmotif's first note follows within one beat of the tick that hears it (plus
-    the score's 0.05 s commit: notes already handed to the output play on)."""
+    moments: his leitmotif's first note follows within one beat of the tick that hears it (the
+    theme layer rests in a tacet, so nothing committed holds the cue back; measured: median
+    0.32 s, max 0.615 s against a beat of 0.625 s)."""
     inst = load_installation(HERE / "void.toml")
     rng = np.random.default_rng(22)
     delays, beat = [], None
@@ -168,7 +169,7 @@ def test_a_controller_changes_the_score_by_the_next_beat():
         his = [r["time"] for r in log.records if r["kind"] == "note" and r.get("channel") == CHARACTERS["earl"]]
         assert his and min(his) >= told
         delays.append(min(his) - told)
-    assert max(delays) <= beat + 0.05 + 1e-6, delays
+    assert max(delays) <= beat + 1e-6, delays
     assert np.median(delays) <= 0.6 * beat
 
 

@@ -10,7 +10,9 @@ motor program as the thesis's pattern generator) is laid out at once, as far as 
 score knows its future; between courses a layer walks through its ``idle`` tiles. Notes are
 handed to the output only ``commit`` seconds before they sound; until then a new course may
 replace the laid tiles from the next place the layer may cut (a beat, a bar line, a tile's
-end). Every tile starts on a beat of the :class:`~creatures.score.grid.Grid`, which follows the
+end) after the layer's last committed note: a layer resting in a tacet has committed nothing,
+so a cue cuts in on the very next beat, and a visitor's controller changes the score within
+one beat (what the thesis's "just in time" is for). Every tile starts on a beat of the :class:`~creatures.score.grid.Grid`, which follows the
 colony's heard pulse from the first beat not yet committed.
 
 Balance and timbre (thesis: "a character's stance towards the user's control is connected to
@@ -70,6 +72,7 @@ class Layer:
     laid: list[Laid] = field(default_factory=list)
     request: int = 0
     program: ScoreProgram | None = None  # the pattern generator steering it, if any
+    committed: float = -math.inf  # clock time of the latest note handed to the output
 
     @property
     def end(self) -> float:
@@ -101,7 +104,7 @@ class ScoreLayout:
         :meth:`reached`)."""
         grid = self._grid(t)
         lay = self.layers[layer]
-        cut = self._cut_beat(lay, grid.beat(t + self.spec.commit))
+        cut = self._cut_beat(lay, grid.beat(max(t, lay.committed)) + 1e-6)
         if lay.request in self._goal_end:  # a course it replaces ends where this one cuts in
             self._goal_end[lay.request] = min(self._goal_end[lay.request], cut)
         request = lay.request = next(self._requests)
@@ -283,6 +286,7 @@ class ScoreLayout:
                     velocity = max(1, round(velocity * (0.55 + 0.45 * min(max(self._saliency(part.energy, t), 0.0), 1.0))))
                 self.creature.play(int(tile.pitches[laid.sent]), velocity, grid.seconds(beat, length), at=at,
                                    channel=None if part is None else part.channel)
+                lay.committed = max(lay.committed, at)
                 laid.sent += 1
         # Played tiles go, but the last stays: the walk goes on from it.
         while len(lay.laid) > 1 and lay.laid[0].begun and grid.time(lay.laid[0].end) <= t:
