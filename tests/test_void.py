@@ -23,8 +23,11 @@ from creatures.clock import SimulatedClock
 from creatures.config import ConfigError
 from creatures.events import EventLog
 from creatures.runtime.schema import load_installation
+from creatures.kinds.parts import VoiceSpec
 from creatures.runtime.session import Session
+from creatures.score.band import PartVoices
 from creatures.score.grid import BeatFollower, Grid
+from creatures.score.spec import ScorePartSpec
 from creatures.score.tile_graph import TileGraph
 from creatures.score.tiles import load_tiles
 from midi.files import read_messages, write_notes
@@ -124,6 +127,64 @@ def test_what_the_camera_shows_leads_the_balance(shipped):
 
     assert all(level(t) == 127 for t in np.arange(10.0, 44.0, 0.5))  # on screen while he dances
     assert min(level(t) for t in np.arange(62.0, 94.0, 0.5)) <= 60  # off screen while Elliot dances
+
+
+def sounded(band: PartVoices, control: int, value: int, sample_rate: int = 22050) -> np.ndarray:
+    """One second of a part's voice playing middle C (from 0.02 s), its ``control`` at ``value``."""
+    band.control(0.0, 1, control, value)
+    blocks = []
+    for i in range(50):
+        block = np.zeros(sample_rate // 50, np.float32)
+        band.render(block, i * 0.02, sample_rate)
+        if i == 0:
+            band.play(60, 100, 0.8, 1)
+        blocks.append(block)
+    return np.concatenate(blocks)
+
+
+def test_a_parts_voice_is_as_bright_as_its_stance_and_as_loud_as_it_is_seen():
+    """out.wav hears what the MIDI says: CC 74 (stance) moves the part's low-pass, CC 11
+    (visibility) its level by the General MIDI curve (measured: centroid 679 → 1097 Hz from
+    CC 74 = 20 to 120; level ratio 0.254 at CC 11 = 64, as (64/127)² says)."""
+    def centroid(x: np.ndarray) -> float:
+        spectrum = np.abs(np.fft.rfft(x))
+        return float((spectrum * np.fft.rfftfreq(len(x), 1 / 22050)).sum() / spectrum.sum())
+
+    def part() -> PartVoices:
+        return PartVoices(VoiceSpec(), {"eddie": ScorePartSpec(channel=1)})
+
+    dark, bright = sounded(part(), 74, 20), sounded(part(), 74, 120)
+    assert np.sqrt(np.mean(dark ** 2)) > 1e-3  # it sounds
+    assert centroid(bright) > 1.4 * centroid(dark)
+    seen, half = sounded(part(), 11, 127), sounded(part(), 11, 64)
+    ratio = np.sqrt(np.mean(half ** 2) / np.mean(seen ** 2))
+    assert abs(ratio - (64 / 127) ** 2) < 0.02
+    assert not part().play(60, 100, 1.0, channel=5)  # no part's channel: the creature's own voice
+
+
+def test_the_score_sounds_each_part_in_its_own_voice_following_its_controllers():
+    """A visitor holds Eddie (OSC) from 5 s to 25 s, with audio: his theme sounds in his part's
+    voice (not the band's), and at the end his voice's brightness and level are the last CC 74
+    and CC 11 the MIDI sent him."""
+    inst = load_installation(HERE / "void.toml")
+    clock, sink = SimulatedClock(), MemorySink()
+    session = Session(inst, clock, EventLog(keep_in_memory=0), sink)
+    score = next(c for c in session.creatures if c.name == "score")
+    frames, t, rang = round(inst.settings.tick * session.sample_rate), 0.0, 0
+    eddie, visits = CHARACTERS["eddie"], [(5.0, 1.0), (25.0, 0.0)]
+    while t < 30.0:
+        t = clock.advance(inst.settings.tick)
+        if visits and t >= visits[0][0]:
+            held = visits.pop(0)[1]
+            session.inputs.osc("/void/eddie/held", [held], t)
+            session.inputs.osc("/void/eddie/legs", [0.5 * held], t)
+        session.step(t, frames, None)
+        rang = max(rang, int((score.score.band.voices[eddie].pool.pitch >= 0).sum()))
+    assert rang >= 1
+    assert (score.voice.pool.pitch >= 0).sum() <= 4  # the band's own bed only
+    sent = {(m.channel, m.control): m.value for at, m in sink.messages if m.type == "control_change" and at <= t}
+    levels = score.score.band.levels[eddie]
+    assert levels[74] == sent[(eddie, 74)] and levels[11] == sent[(eddie, 11)]
 
 
 def test_tiles_start_on_the_heard_beat_across_a_change_of_tempo(tmp_path):

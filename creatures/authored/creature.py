@@ -390,6 +390,9 @@ class Authored(CreatureKind):
     def played(self, note: NoteEvent) -> None:
         self.ear.played.append(note)
         self._impulse(self.now(), "on_played")
+        band = self.score.band if self.score is not None else None
+        if band is not None and band.play(note.pitch, note.velocity, note.end, note.channel):
+            return  # a score's part sounds in its own voice
         if self.voice is not None:
             self.voice.play(note.pitch, note.velocity, note.end)
 
@@ -514,6 +517,8 @@ class Authored(CreatureKind):
                 self.voice.retune(float(knobs[TENSION]), float(knobs[DAMPING]))
                 cutoff = max(float(knobs[CUTOFF]), 0.0)
             self.voice.render(out, self.now(), cutoff=cutoff)
+            if self.score is not None and self.score.band is not None:
+                self.score.band.render(out, self.now(), sample_rate)
         if self._voiced:  # voice.gain, ramped across the block (no zipper steps)
             gain = max(float(self.voice_now(self.now())[GAIN]), 0.0)
             if gain != self._gain:

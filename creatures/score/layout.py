@@ -19,7 +19,9 @@ Balance and timbre (thesis: "a character's stance towards the user's control is 
 the timbre of the characters' music"; "thematic balance is biased to take into account what
 characters are visible on screen"): each part's stance percept picks its program at each of its
 tiles and sets CC 74 every beat; its visibility percept sets CC 11 every beat; its energy
-percept (how the character moves) sets the velocity its notes are played at.
+percept (how the character moves) sets the velocity its notes are played at. The creature's
+own sound (``out.wav``, live audio) plays each part in a voice of its own that follows the same
+CC 74 and CC 11 (:mod:`creatures.score.band`), so stance and balance are heard there too.
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ import numpy as np
 from creatures.clock import clock_gap
 from creatures.motor.search import NoPath
 from creatures.runtime.world import INPUT
+from creatures.score.band import PartVoices
 from creatures.score.grid import BeatFollower, Grid, nearest_multiple
 from creatures.score.program import ScoreProgram
 from creatures.score.spec import ScoreSpec
@@ -96,6 +99,7 @@ class ScoreLayout:
         self._modulated = -math.inf  # the last beat whose controllers were sent
         self._followed = -math.inf  # the last beat the heard pulse moved
         self._seen = -math.inf  # the clock time of the last tick or course (to see a clock gap)
+        self.band = PartVoices(creature.spec.voice, spec.parts) if spec.parts else None  # the parts as heard
 
     # -- the behaviour system's side ------------------------------------------------------
     def steer(self, t: float, layer: str, program: ScoreProgram) -> int:
@@ -324,6 +328,8 @@ class ScoreLayout:
                     self._controls[(part.channel, control)] = value
                     self.creature.world.scheduler.send_at(at, mido.Message("control_change", channel=part.channel,
                                                                           control=control, value=value))
+                    if self.band is not None:
+                        self.band.control(at, part.channel, control, value)
 
     def _saliency(self, percept: str, t: float) -> float:
         return float(self.creature.percept(percept).evaluate(t))
