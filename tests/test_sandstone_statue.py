@@ -12,12 +12,14 @@ from __future__ import annotations
 import json
 import math
 
+import imageio.v3 as iio
 import numpy as np
 import pytest
 import soundfile as sf
 from scipy.spatial.transform import Rotation
 
 import installations
+from creatures.cli import main
 from creatures.clock import SimulatedClock
 from creatures.config import ConfigError
 from creatures.events import EventLog
@@ -61,6 +63,25 @@ def test_the_statues_pose_follows_each_rocks_presence():
         r = np.corrcoef(presence[rock], turned[rock])[0, 1]
         assert r >= 0.8, (rock, r)
     assert max(turned["traveller"]) > 30 and max(turned["king"]) > 50  # visibly, not a tremor
+
+
+def test_the_statue_is_drawn_in_the_pose_the_rocks_set(tmp_path, capsys):
+    """The statue as the offline frames draw it (12 a second): it stands still while no rock
+    moves (6 → 9.5 s) and is drawn anew as rocks come to the centre (traveller 0.2 → 1 over
+    0–4 s; sculptor 0 → 0.9 over 10–14 s). Measured: 0 pixels changed between 6 and 9.5 s,
+    584 between 0 and 5 s, 150 between 8 and 15 s."""
+    assert main(["offline", "sandstone", "--duration", "16", "--frames", "--out", str(tmp_path),
+                 "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    if "no frames:" in out:  # this machine has no offscreen GL
+        pytest.skip(out[out.index("no frames:"):].splitlines()[0])
+
+    def changed(a: float, b: float) -> int:
+        frame = [iio.imread(tmp_path / "frames" / f"frame_{round(t * 12):06d}.png").astype(float) for t in (a, b)]
+        return int((np.abs(frame[0] - frame[1]).mean(axis=2) > 30).sum())
+
+    assert changed(6.0, 9.5) <= 5
+    assert changed(0.0, 5.0) >= 200 and changed(8.0, 15.0) >= 50
 
 
 ROCK = """title = "rock"
