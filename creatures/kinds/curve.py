@@ -8,7 +8,9 @@ synthesis model – to connect characters' bodies to such a synthesis technique.
 * **Bodies in one room.** Every curve creature is a :class:`~creatures.kinds.parts.Body` on
   its motor graph (the shipped figure's, or a ``[creature.body]`` of its own), standing at
   ``x`` along a room (the figure is drawn as lines: the skeleton's bones). It walks along the room (``walk_speed``) as well as moving through the
-  graph.
+  graph. With ``[creature.body] metric = "spline"`` (the shipped curve's three) that graph
+  measures poses as the lines they draw (:mod:`~creatures.motor.line_metric`), so what the
+  creature's moves are made of is the shapes others see.
 * **Strings in space.** Each creature's :class:`~creatures.kinds.parts.Voice` is a scanned
   string stretched along x through the space its hands reach, carried with it. The *first*
   of the thesis's two connections: the nearby movement of limbs — its own and every other
@@ -89,7 +91,7 @@ class CurveSpec(CreatureSpec):
     def _limbs_on_the_figure(self) -> "CurveSpec":
         """A shipped figure's joints are known now; a body from files is checked once built."""
         if not self.body.custom:
-            names = figure_graph(self.body.figure).skeleton.names
+            names = figure_graph(self.body.figure, metric=self.body.metric).skeleton.names
             missing = [j for j in self.limbs or () if j not in names]
             if missing:
                 raise ValueError(f"limbs: the {self.body.figure} has no joint {missing[0]!r} (joints: {', '.join(names)})")
