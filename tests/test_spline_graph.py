@@ -190,7 +190,18 @@ def test_curve_runs_offline_on_spline_graphs(tmp_path):
     assert summary.notes_played >= 3
 
 
-def test_the_metric_content_is_kept_with_the_graph_and_checked(tmp_path):
+def test_the_metric_content_is_kept_with_the_graph_and_checked(tmp_path, scribble):
+    """Saved and read back, a graph goes on adding poses on the lines; a wrong name is refused."""
+    _, graph = scribble
+    graph.save(tmp_path / "graph.json")
+    again = MotorGraph.load(tmp_path / "graph.json")
+    assert again.weights == graph.weights and again.weights.content == "spline"
+    assert again.edges() == pytest.approx(graph.edges())
+    (new,) = again.add_poses(graph.poses.subset([40])).tolist()
+    out = [(a, b) for a, b in again.edges() if a == new]
+    a, b = np.array(out).T
+    assert [again.edges()[e] for e in out] == pytest.approx(metric.edge_costs(again.poses, a, b, SPLINE).tolist())
+    assert not np.allclose(metric.edge_costs(again.poses, a, b, ROTATIONS), metric.edge_costs(again.poses, a, b, SPLINE))
     assert MetricWeights.from_dict(SPLINE.to_dict()) == SPLINE
     assert MetricWeights.from_dict({"pose": 1.0}).content == "rotations"  # graphs saved before the key
     with pytest.raises(WeightError, match="'splines' is not one of 'rotations', 'spline'") as err:
