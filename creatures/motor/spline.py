@@ -119,7 +119,7 @@ class LineShapes:
 def midpoints(segments: np.ndarray) -> np.ndarray:
     """The points (..., S · SAMPLES, 3) at the midpoints of :data:`SAMPLES` equal parameter steps
     of each Bézier of ``segments`` (..., S, 4, 3): a midpoint rule along the line."""
-    along = np.einsum("nk,...skd->...snd", bernstein((np.arange(SAMPLES) + 0.5) / SAMPLES), segments)
+    along = bernstein((np.arange(SAMPLES) + 0.5) / SAMPLES) @ segments  # (n, 4) @ (..., S, 4, 3)
     return along.reshape(*segments.shape[:-3], -1, 3)
 
 
@@ -127,7 +127,7 @@ def sample(segments: np.ndarray, per_segment: int = 8) -> np.ndarray:
     """Points along Bézier ``segments`` (..., S, 4, 3): ``per_segment`` a segment, then the end
     (leading axes are kept: a whole pose set's chains at once)."""
     u = np.linspace(0.0, 1.0, per_segment, endpoint=False)
-    along = np.einsum("nk,...skd->...snd", bernstein(u), segments)
+    along = bernstein(u) @ segments  # (n, 4) @ (..., S, 4, 3)
     return np.concatenate([along.reshape(*segments.shape[:-3], -1, 3), segments[..., -1:, 3, :]], axis=-2)
 
 
