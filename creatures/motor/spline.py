@@ -100,6 +100,8 @@ class LineShapes:
         """The lines of poses ``rotations`` (N, J, 4) turning at ``velocities`` (N, J, 3) (angular,
         parent frame, as a BodyPose's) on ``skeleton``."""
         chains = strokes(skeleton.parents)
+        if not chains:
+            raise ValueError("a skeleton of one joint draws no line: measure its poses on their rotations")
         root = int(np.flatnonzero(np.asarray(skeleton.parents) < 0)[0])
 
         def lines(rot: np.ndarray) -> np.ndarray:
@@ -110,7 +112,7 @@ class LineShapes:
         ahead, behind = (quat.multiply(quat.exp(velocities * step), rotations) for step in (STEP, -STEP))
         lengths = np.concatenate([np.repeat(np.linalg.norm(skeleton.offsets[chain[1:]], axis=-1), SAMPLES)
                                   for chain in chains])
-        weights = lengths / lengths.sum() if lengths.sum() > 0 else np.full(len(lengths), 1.0 / max(len(lengths), 1))
+        weights = lengths / lengths.sum() if lengths.sum() > 0 else np.full(len(lengths), 1.0 / len(lengths))
         rest = lines(quat.identity((skeleton.joint_count,)))
         return cls(lines(rotations), (lines(ahead) - lines(behind)) / (2 * STEP), weights,
                    float(max(np.linalg.norm(rest, axis=-1) @ weights, 1e-9)))
@@ -124,11 +126,10 @@ def midpoints(segments: np.ndarray) -> np.ndarray:
 
 
 def sample(segments: np.ndarray, per_segment: int = 8) -> np.ndarray:
-    """Points along Bézier ``segments`` (..., S, 4, 3): ``per_segment`` a segment, then the end
-    (leading axes are kept: a whole pose set's chains at once)."""
+    """Points along Bézier ``segments`` (S, 4, 3): ``per_segment`` a segment, then the end."""
     u = np.linspace(0.0, 1.0, per_segment, endpoint=False)
-    along = bernstein(u) @ segments  # (n, 4) @ (..., S, 4, 3)
-    return np.concatenate([along.reshape(*segments.shape[:-3], -1, 3), segments[..., -1:, 3, :]], axis=-2)
+    along = bernstein(u) @ segments  # (n, 4) @ (S, 4, 3)
+    return np.concatenate([along.reshape(-1, 3), segments[-1:, 3]])
 
 
 def bernstein(u: np.ndarray) -> np.ndarray:
