@@ -23,6 +23,7 @@ from pydantic import BaseModel, Field, PrivateAttr, model_validator
 from creatures.bounds import FINITE
 from creatures.motor.body_build import Sources, load_or_build
 from creatures.motor.graph import MotorGraph
+from creatures.motor.line_metric import Content
 from creatures.motor.material import Animation, Conventions, MaterialError, RootMode, read_clips
 
 
@@ -105,6 +106,10 @@ class MaterialSpec(BaseModel):
                                                  "the creature on (its poses stand in place, height kept); false: "
                                                  "the root stays where each take begins")
     neighbours: int = Field(6, ge=1, le=64, description="nearest poses each node joins in the motor graph")
+    metric: Content = Field(
+        "rotations", description="what the motor graph measures between poses: 'rotations' (the joint angles) or "
+                                 "'spline' (the line the body draws, for line bodies: curve's creatures, drawings; "
+                                 "creatures/motor/line_metric.py)")
     cache: str = Field(".motor-cache", description="directory for the built motor graph, relative to the config "
                                                    "(rebuilt when any source changes)")
 
@@ -150,13 +155,14 @@ class MaterialSpec(BaseModel):
             conventions=Conventions(self.scale, self.up_axis, self.root_motion),
             rest=None if self.rest_pose is None else tuple(sorted(self.rest_pose.items())),
             rest_labels=tuple(self.rest_labels), neighbours=self.neighbours,
-            inline=json.dumps(self.edits, sort_keys=True) if self.edits else "", inline_base=base, ratios=ratios)
+            inline=json.dumps(self.edits, sort_keys=True) if self.edits else "", inline_base=base, ratios=ratios,
+            metric=self.metric)
         # One cache file per body as configured (its files and every key that shapes its graph,
         # not their contents: a changed take is rebuilt in place); two creatures on the same
         # takes with different edits each keep their own instead of rebuilding each other's.
         shaping = self.model_dump(mode="json", include={"skeleton", "animations", "clips", "graph_edits", "edits",
                                                         "scale", "up_axis", "root_motion", "rest_pose", "rest_labels",
-                                                        "neighbours", "figure"})
+                                                        "neighbours", "figure", "metric"})
         where = hashlib.sha256(json.dumps([str(base.resolve()), shaping, ratios], sort_keys=True).encode()).hexdigest()[:16]
         graph = load_or_build(sources, (base / self.cache / f"body-{where}.npz").resolve())
         names = graph.skeleton.names

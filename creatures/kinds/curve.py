@@ -8,7 +8,9 @@ synthesis model – to connect characters' bodies to such a synthesis technique.
 * **Bodies in one room.** Every curve creature is a :class:`~creatures.kinds.parts.Body` on
   its motor graph (the shipped figure's, or a ``[creature.body]`` of its own), standing at
   ``x`` along a room (the figure is drawn as lines: the skeleton's bones). It walks along the room (``walk_speed``) as well as moving through the
-  graph.
+  graph. With ``[creature.body] metric = "spline"`` (the shipped curve's three) that graph
+  measures poses as the lines they draw (:mod:`~creatures.motor.line_metric`), so what the
+  creature's moves are made of is the shapes others see.
 * **Strings in space.** Each creature's :class:`~creatures.kinds.parts.Voice` is a scanned
   string stretched along x through the space its hands reach, carried with it. The *first*
   of the thesis's two connections: the nearby movement of limbs — its own and every other
@@ -54,6 +56,7 @@ from creatures.kinds.parts import Body, Voice, VoiceSpec, shared_graph
 from creatures.motor.graph import MotorGraph
 from creatures.kinds.report_parts import MotorTrail, report_values, selection_logger
 from creatures.motor.note_space import NotePlacement
+from creatures.motor.pose import PoseSet
 from midi.notes import NoteEvent
 
 if TYPE_CHECKING:
@@ -89,7 +92,7 @@ class CurveSpec(CreatureSpec):
     def _limbs_on_the_figure(self) -> "CurveSpec":
         """A shipped figure's joints are known now; a body from files is checked once built."""
         if not self.body.custom:
-            names = figure_graph(self.body.figure).skeleton.names
+            names = figure_graph(self.body.figure, metric=self.body.metric).skeleton.names
             missing = [j for j in self.limbs or () if j not in names]
             if missing:
                 raise ValueError(f"limbs: the {self.body.figure} has no joint {missing[0]!r} (joints: {', '.join(names)})")
@@ -116,6 +119,16 @@ class MirrorImages:
                               for i, n in enumerate(names)])
         self.positions = graph.poses.positions  # (N, J, 3)
         self.tree = cKDTree(self.positions.reshape(len(self.positions), -1))
+        self._known: "weakref.WeakKeyDictionary[PoseSet, dict[int, int]]" = weakref.WeakKeyDictionary()
+
+    def goal(self, poses: PoseSet, node: int) -> int:
+        """:meth:`goals` of one node of another body's ``poses``, found once and kept: a mirroring
+        creature asks every tick, while its partner passes through a few nodes (the two KD-tree
+        queries were an eighth of curve's time)."""
+        known = self._known.setdefault(poses, {})
+        if node not in known:
+            known[node] = int(self.goals(poses.positions[node][None])[0])
+        return known[node]
 
     def goals(self, positions: np.ndarray) -> np.ndarray:
         """For poses ``(M, J, 3)`` of a body with these joints, the node whose pose is each one's
@@ -211,7 +224,7 @@ class _Mirror(Action):
         if other.body.skeleton.names != c.images.names:
             return  # another skeleton: no pose of this body is its image
         node = other.body.motor.position(t).node
-        goal = int(c.images.goals(other.body.graph.poses.positions[node][None])[0])
+        goal = c.images.goal(other.body.graph.poses, node)
         if goal != self.goal:
             self.goal = goal
             head_for(c.body, t, [goal])

@@ -34,6 +34,7 @@ from creatures.kinds.body_source import MATERIAL_KEYS
 from creatures.kinds.layers import BodySpec
 from creatures.motor.body_build import Sources, load_or_build
 from creatures.motor.graph import MotorGraph
+from creatures.motor.line_metric import Content
 from creatures.motor.material import read_clips
 from creatures.motor.pose import LOW_ENERGY
 
@@ -89,10 +90,10 @@ BODIES = Path(installations.__file__).parent / "bodies"
 """Where the shipped BVH bodies and their labels files live."""
 
 
-def figure_sources(figure: str, ratios: bool = False) -> Sources:
+def figure_sources(figure: str, ratios: bool = False, metric: Content = "rotations") -> Sources:
     """A BVH figure's material as a body from files: its clips file's takes (the same path a
     user's own ``clips`` or ``animations`` take; :func:`creatures.motor.material.read_clips`)."""
-    return Sources(tuple(read_clips(BODIES / f"{figure}.labels.toml")), ratios=ratios)
+    return Sources(tuple(read_clips(BODIES / f"{figure}.labels.toml")), ratios=ratios, metric=metric)
 
 
 def body_graph(body: object) -> MotorGraph:
@@ -100,7 +101,7 @@ def body_graph(body: object) -> MotorGraph:
     ``[creature.body]``, resolved at config load) or its figure's (config checks)."""
     if isinstance(body, BodySpec) and body.custom:
         return body.material().graph
-    return figure_graph(figure_of(body))
+    return figure_graph(figure_of(body), metric=metric_of(body))
 
 
 def body_labels(body: object) -> set[str]:
@@ -111,15 +112,21 @@ def figure_of(body: object) -> Figure:
     return getattr(body, "figure", "stick")
 
 
-def figure_graph(figure: str, ratios: bool = False) -> MotorGraph:
-    """One motor graph per figure and metric, built once from its material (read-only)."""
-    return _figure_graph(figure, bool(ratios))  # one cache key however it is called
+def metric_of(body: object) -> Content:
+    """What a creature's ``body`` key has its graph measure between poses (``metric``; none: the rotations)."""
+    return getattr(body, "metric", "rotations")
 
 
-@functools.lru_cache(maxsize=8)
-def _figure_graph(figure: str, ratios: bool) -> MotorGraph:
+def figure_graph(figure: str, ratios: bool = False, metric: Content = "rotations") -> MotorGraph:
+    """One motor graph per figure and metric (``ratios``: exchange's time term; ``metric``: the
+    pose content measured, ``MetricWeights.content``), built once from its material (read-only)."""
+    return _figure_graph(figure, bool(ratios), metric)  # one cache key however it is called
+
+
+@functools.lru_cache(maxsize=12)
+def _figure_graph(figure: str, ratios: bool, metric: Content) -> MotorGraph:
     if figure == "stick":
         from creatures.kinds.parts import shared_graph
 
-        return shared_graph(ratios)
-    return load_or_build(figure_sources(figure, ratios), None)
+        return shared_graph(ratios, metric)
+    return load_or_build(figure_sources(figure, ratios, metric), None)

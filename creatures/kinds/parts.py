@@ -25,6 +25,8 @@ from creatures.motor.blend import Contribution
 from creatures.motor import quaternion as quat
 from creatures.motor.animations import example_animations
 from creatures.motor.graph import MotorGraph
+from creatures.motor.line_metric import Content
+from creatures.motor.metric import MetricWeights
 from creatures.motor.note_space import exchange_metric
 from creatures.motor.pose import BodyPose, PoseSet
 from creatures.motor.playback import Playback
@@ -184,12 +186,14 @@ def shared_material() -> PoseSet:
     return PoseSet.concatenate(example_animations())
 
 
-@functools.lru_cache(maxsize=2)
-def shared_graph(ratios: bool = False) -> MotorGraph:
+@functools.lru_cache(maxsize=4)
+def shared_graph(ratios: bool = False, metric: Content = "rotations") -> MotorGraph:
     """One motor graph per process (and per metric), built once from the shipped animations
     (read-only). ``ratios`` builds it with the *exchange* metric, whose time term favours
-    jumps at low-integer ratios of the source animation's length (thesis "exchange")."""
-    graph = MotorGraph.build(shared_material(), k=6, weights=exchange_metric() if ratios else None)
+    jumps at low-integer ratios of the source animation's length (thesis "exchange");
+    ``metric = "spline"`` measures the poses as the lines they draw (curve's creatures)."""
+    weights = MetricWeights(content=metric)
+    graph = MotorGraph.build(shared_material(), k=6, weights=exchange_metric(weights) if ratios else weights)
     graph.annotate_low_energy()
     return graph
 
@@ -276,7 +280,7 @@ class Body:
         spec = spec or BodySpec()
         own = spec.material() if spec.custom else None
         self.figure = figure
-        self.graph = figure_graph(figure, ratios) if own is None else own.graph
+        self.graph = figure_graph(figure, ratios, spec.metric) if own is None else own.graph
         self.finder = PathFinder(self.graph)
         self.finder.prepare()  # its landmark tables (~10 ms) before the first tick, not in it
         self._owns_graph = False  # the figure's graph is shared until an edit (own_graph)

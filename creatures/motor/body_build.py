@@ -29,6 +29,7 @@ from creatures.motor.graph_edits import (EditError, EditFile, added_material, ap
 from creatures.motor.material import (WALKING_FAVOUR, Animation, Conventions, Material, MaterialError,
                                       convert_skeleton, fingerprint, load_material, load_skeleton, read_take,
                                       walking_in_place)
+from creatures.motor.line_metric import Content
 from creatures.motor.metric import MetricWeights, successors
 from creatures.motor.note_space import exchange_metric
 from creatures.motor.pose import LOW_ENERGY, PoseSet
@@ -59,6 +60,7 @@ class Sources:
     inline: str = ""  # the config's own edits as JSON, files they name relative to inline_base
     inline_base: Path | None = None
     ratios: bool = False  # the exchange metric (moves at low-integer ratios of a take: note_space.exchange_metric)
+    metric: Content = "rotations"  # what the metric measures between poses (MetricWeights.content)
 
     def key(self, edit_files: list[EditFile]) -> str:
         """Hash of the parameters and the bytes of every file the graph reads (BLAKE2b: a ten-minute
@@ -66,7 +68,7 @@ class Sources:
         digest = hashlib.blake2b(digest_size=32)
         parameters = {
             "version": CACHE_VERSION, "conventions": vars(self.conventions), "rest": self.rest,
-            "rest_labels": self.rest_labels, "neighbours": self.neighbours, "ratios": self.ratios,
+            "rest_labels": self.rest_labels, "neighbours": self.neighbours, "ratios": self.ratios, "metric": self.metric,
             "animations": [(str(a.file), sorted(a.labels.items()), a.name, a.step, a.frames, a.root)
                            for a in self.animations],
             "edits": [str(p) for p in self.edits], "inline": self.inline,
@@ -123,7 +125,8 @@ def build(sources: Sources, edit_files: list[EditFile]) -> MotorGraph:
     material = _as_material_error(lambda: blended(material, edit_files, skeleton, conventions), None)
     walking = material.walking
     poses, advances = walking_in_place(material.poses, walking) if walking else (material.poses, None)
-    weights = exchange_metric() if sources.ratios else None
+    weights = MetricWeights(content=sources.metric)
+    weights = exchange_metric(weights) if sources.ratios else weights
     graph = MotorGraph.build(poses, k=sources.neighbours, weights=weights)
     if takes or any(f.of("blend") for f in edit_files):
         keep_own_edges(graph, walking_in_place(own, walking)[0] if walking else own, sources.neighbours, weights)

@@ -229,8 +229,8 @@ class MotorGraph:
 
         The thesis notes a missing connection "might not be *that* bad" because the body can
         always interpolate across it; bridging makes that edge explicit. Each island joins
-        the pose nearest to it (pose term, sampled) elsewhere, in both directions. Forbidden
-        edges are never re-forged.
+        the pose nearest to it (pose term on the metric's content, sampled) elsewhere, in both
+        directions. Forbidden edges are never re-forged.
         """
         self._add_reverses()
         self._changed()
@@ -248,9 +248,7 @@ class MotorGraph:
             outside = np.flatnonzero(component != smallest)
             inside = rng.choice(inside, min(len(inside), 200), replace=False)
             outside = rng.choice(outside, min(len(outside), 2000), replace=False)
-            gap = metric.pose_difference(
-                self.poses.rotations[inside][:, None], self.poses.rotations[outside][None], self.skeleton.masses
-            )
+            gap = metric.pose_gap(self.poses, inside, outside, self.weights)
             for flat in np.argsort(gap, axis=None):
                 i, j = np.unravel_index(flat, gap.shape)
                 a, b = int(inside[i]), int(outside[j])

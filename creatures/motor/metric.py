@@ -17,6 +17,12 @@ joints with per-joint mass weights ("weight joints that move more body mass"):
 
 All functions broadcast over leading axes, so a whole edge list or a block of all pairs
 is one call.
+
+The pose and transit terms read the BodyPose's *content*: the joint rotations (above, the
+default) or, for a body that is a line (curve's creatures, a drawing read from SVG), its 3-D
+splines (``MetricWeights.content = "spline"``: :mod:`~creatures.motor.line_metric`). The time
+term, the transit *time* playback paces a move by and the speed limits stay on the rotations,
+which are what playback interpolates on either content.
 """
 
 from __future__ import annotations
@@ -29,7 +35,8 @@ from typing import Any
 import numba
 import numpy as np
 
-from creatures.motor import quaternion as quat
+from creatures.motor import line_metric, quaternion as quat
+from creatures.motor.line_metric import CONTENTS, Content
 from creatures.motor.pose import PoseSet
 
 
@@ -52,6 +59,8 @@ class MetricWeights:
     ``horizon`` is the look-ahead (seconds) along the velocity tangent for the transit
     term; ``inhibition_width`` (seconds) is how far local inhibition reaches;
     ``ratios`` switches the time term to the *exchange* low-integer-ratio curve.
+    ``content`` is what the pose and transit terms measure: ``"rotations"`` (the joint
+    angles, figure 28) or ``"spline"`` (the line the body draws; :mod:`~creatures.motor.line_metric`).
     """
 
     pose: float = 1.0
@@ -62,6 +71,7 @@ class MetricWeights:
     inhibition_width: float = 0.3
     ratios: tuple[Fraction, ...] = field(default=())
     ratio_tolerance: float = 0.05
+    content: Content = "rotations"
 
     def __post_init__(self) -> None:
         """Refuse weights that would break the graph: a negative cost scale can make an edge
@@ -75,6 +85,9 @@ class MetricWeights:
         for ratio in self.ratios:
             if not (isinstance(ratio, Fraction) and 0 < ratio <= 1):
                 raise WeightError("ratios", f"ratio {ratio!r} must be a fraction in (0, 1]")
+        if self.content not in CONTENTS:
+            raise WeightError("content", f"metric content {self.content!r:.40} is not one of "
+                                         f"{', '.join(map(repr, CONTENTS))}")
 
     def to_dict(self) -> dict:
         return {
@@ -86,6 +99,7 @@ class MetricWeights:
             "inhibition_width": self.inhibition_width,
             "ratios": [str(r) for r in self.ratios],
             "ratio_tolerance": self.ratio_tolerance,
+            "content": self.content,
         }
 
     @classmethod
@@ -120,6 +134,14 @@ def low_integer_ratios(limit: int = 4) -> tuple[Fraction, ...]:
 def pose_difference(rot_a: np.ndarray, rot_b: np.ndarray, masses: np.ndarray) -> np.ndarray:
     """Mass-weighted sum of joint rotation angles between poses ``(..., J, 4)``."""
     return quat.angle_between(rot_a, rot_b) @ masses
+
+
+def pose_gap(poses: PoseSet, rows: np.ndarray, cols: np.ndarray, weights: MetricWeights) -> np.ndarray:
+    """The pose term between every ``rows`` pose and every ``cols`` pose (``rows × cols``) on the
+    content ``weights`` measure (the nearest pose across two islands of a graph)."""
+    if weights.content == "spline":
+        return line_metric.pose_difference(poses, rows, cols)
+    return pose_difference(poses.rotations[rows][:, None], poses.rotations[cols][None], poses.skeleton.masses)
 
 
 def closest_transit(
@@ -205,7 +227,7 @@ def edge_costs(
 
     Edges are costed ``chunk`` at a time; the pose and transit terms run compiled
     (:func:`_pose_and_transit`: as numpy, their per-joint temporaries made a 72,000-frame
-    build take a minute).
+    build take a minute), on the rotations or the lines (``weights.content``).
     """
     a, b = np.broadcast_arrays(np.asarray(a), np.asarray(b))
     if next_frame is None:
@@ -216,12 +238,13 @@ def edge_costs(
     rotations = np.ascontiguousarray(poses.rotations)
     velocities = np.ascontiguousarray(poses.velocities)
     for start in range(0, len(flat_a), chunk):
-        i = flat_a[start : start + chunk]
-        j = flat_b[start : start + chunk]
-        out[start : start + chunk] = _pose_and_transit(
-            rotations, velocities, np.ascontiguousarray(i, dtype=np.int64), np.ascontiguousarray(j, dtype=np.int64),
-            masses, weights.horizon, weights.pose, weights.transit,
-        ) + weights.time * time_term(poses, i, j, weights, next_frame)
+        i = np.ascontiguousarray(flat_a[start : start + chunk], dtype=np.int64)
+        j = np.ascontiguousarray(flat_b[start : start + chunk], dtype=np.int64)
+        if weights.content == "spline":
+            terms = line_metric.edge_terms(poses, i, j, weights.horizon, weights.pose, weights.transit)
+        else:
+            terms = _pose_and_transit(rotations, velocities, i, j, masses, weights.horizon, weights.pose, weights.transit)
+        out[start : start + chunk] = terms + weights.time * time_term(poses, i, j, weights, next_frame)
     return out.reshape(a.shape)
 
 
@@ -255,8 +278,11 @@ def nearest_costs(
     Every cost is at least its pose and time terms (the transit residual is never negative),
     so candidates are costed in order of that bound and a row stops once the bound passes
     its k-th best full cost: the closest-transit term, four fifths of the metric's work, is
-    evaluated only where it can matter.
+    evaluated only where it can matter. On the lines (``weights.content = "spline"``) both terms
+    cost about the same, so every candidate is costed in full.
     """
+    if weights.content == "spline":
+        return edge_costs(poses, np.asarray(rows)[:, None], candidates, weights, next_frame)
     rows = np.ascontiguousarray(rows, dtype=np.int64)
     candidates = np.ascontiguousarray(candidates, dtype=np.int64)
     time = np.ascontiguousarray(weights.time * time_term(poses, rows[:, None], candidates, weights, next_frame))

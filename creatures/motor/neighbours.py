@@ -11,17 +11,21 @@ answers "k nearest" for it directly. Two searches serve:
   KD-tree on a PCA projection of the mass-weighted quaternions proposes ``oversample × k``
   candidates per pose, re-ranked with the full metric (near ``O(N log N)``; it misses a
   few true neighbours, ~4% at 2,000 nodes).
+
+Both read the BodyPose content the metric measures (``weights.content``): on a line body's
+splines the bound is the pose term itself and the KD-tree's points are the lines' points
+(:mod:`~creatures.motor.line_metric`).
 """
 
 from __future__ import annotations
 
-from typing import Iterator
+from typing import Callable, Iterator
 
 import numba
 import numpy as np
 from scipy.spatial import cKDTree
 
-from creatures.motor import metric
+from creatures.motor import line_metric, metric
 from creatures.motor.metric import MetricWeights
 from creatures.motor.pose import PoseSet
 
@@ -79,16 +83,12 @@ def _exact(
     fall as more are costed, so every column whose bound is below it is costed too, and
     no other column can be among the nearest.
     """
-    rotations, masses = poses.rotations, poses.skeleton.masses
-    moving = np.flatnonzero(np.ptp(rotations, axis=0).max(axis=-1) > 0.0)  # the others add nothing
-    # The bound's dot products are summed in another order than the metric's, and near
-    # |q·p| = 1 the square root magnifies a rounding of 1e-16 to ~3e-8 rad per joint.
-    slack = 1e-7 * weights.pose * masses[moving].sum()
+    pose_bound, slack = _pose_bound_of(poses, weights)
     first = min(len(cols), 2 * k + 1)
     block = max(1, 1_000_000 // len(cols))  # rows per block: ~8 MB per (rows × cols) array
     for start in range(0, len(rows), block):
         a = rows[start : start + block]
-        bound = weights.pose * _pose_bound(rotations[a][:, moving], rotations[cols][:, moving], masses[moving])
+        bound = weights.pose * pose_bound(a, cols)
         bound += weights.time * metric.time_term(poses, a[:, None], cols[None], weights, next_frame)
         bound[cols[None] == a[:, None]] = np.inf
         lowest = np.argpartition(bound, first - 1, axis=1)[:, :first]
@@ -100,6 +100,20 @@ def _exact(
         np.put_along_axis(rest, lowest, False, axis=1)
         row, col = np.nonzero(rest)
         yield a[row], cols[col], metric.edge_costs(poses, a[row], cols[col], weights, next_frame)
+
+
+def _pose_bound_of(poses: PoseSet, weights: MetricWeights) -> tuple[Callable[[np.ndarray, np.ndarray], np.ndarray], float]:
+    """A lower bound on the pose term between ``rows × cols`` poses, and the slack to allow its
+    rounding: on the lines the term itself (:func:`line_metric.pose_difference`, cheap as the
+    rotations' bound); on the rotations the chord bound over the joints that move."""
+    if weights.content == "spline":
+        return (lambda a, cols: line_metric.pose_difference(poses, a, cols)), 1e-9 * weights.pose * line_metric.scale(poses)
+    rotations, masses = poses.rotations, poses.skeleton.masses
+    moving = np.flatnonzero(np.ptp(rotations, axis=0).max(axis=-1) > 0.0)  # the others add nothing
+    # The bound's dot products are summed in another order than the metric's, and near
+    # |q·p| = 1 the square root magnifies a rounding of 1e-16 to ~3e-8 rad per joint.
+    slack = 1e-7 * weights.pose * masses[moving].sum()
+    return (lambda a, cols: _pose_bound(rotations[a][:, moving], rotations[cols][:, moving], masses[moving])), slack
 
 
 @numba.njit(cache=True)
@@ -130,7 +144,7 @@ def _approximate(
 ) -> Iterator[Pairs]:
     """KD-tree candidates (``oversample × k`` per row) with their full costs (``inf`` for those
     that cannot be among a row's ``k`` nearest: :func:`metric.nearest_costs`)."""
-    features = _features(poses)
+    features = line_metric.features(poses) if weights.content == "spline" else _features(poses)
     sample = features[cols[:: max(1, len(cols) // 2000)]]
     centre = sample.mean(axis=0)
     # Principal axes from the small covariance matrix (eigh): LAPACK's SVD of the tall

@@ -5,7 +5,9 @@ quaternions, the key-frames interpolated at run time), joint velocities (for the
 closest-transit term and higher-order interpolation), a time and source label (so timing
 between key-frames can be recaptured from the source animation), and optional labels plus
 precalculated world-space joint positions (for end-effector goals such as "get my hand to
-that note").
+that note"). A line body's poses also carry the lines they draw (:attr:`PoseSet.lines`: 3-D
+splines and how they move, thesis "curve (technology)"), which its metric measures instead of
+the joint angles.
 
 :class:`PoseSet` is the same data for many poses stacked into arrays, which is what the
 metric, the graph and A* work on.
@@ -14,12 +16,14 @@ metric, the graph and A* work on.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Iterable, Sequence
 
 import numpy as np
 
 from creatures.motor import quaternion as quat
 from creatures.motor.skeleton import Skeleton
+from creatures.motor.spline import LineShapes
 
 LOW_ENERGY = "low energy"
 """Label of poses the body can rest in (thesis "enforcing physical constraints")."""
@@ -155,6 +159,13 @@ class PoseSet:
 
     def __len__(self) -> int:
         return len(self.rotations)
+
+    @cached_property
+    def lines(self) -> LineShapes:
+        """Every pose as its line (the splines through its chains, and how they move): what a
+        line body's metric measures (``MetricWeights.content = "spline"``). Made on first use
+        from the rotations and velocities, which a pose set never changes in place."""
+        return LineShapes.of(self.skeleton, self.rotations, self.velocities)
 
     @classmethod
     def from_poses(cls, skeleton: Skeleton, poses: Iterable[BodyPose]) -> PoseSet:

@@ -13,7 +13,7 @@ import numpy as np
 
 from creatures.events import read_events
 from creatures.kinds.body_source import MaterialSpec
-from creatures.kinds.figures import figure_graph, figure_of
+from creatures.kinds.figures import figure_graph, figure_of, metric_of
 from creatures.kinds.layers import source_limits
 from creatures.motor.blend import Limits
 from creatures.motor.export import ExportError, export_motion, taken_path
@@ -74,6 +74,6 @@ def exported_body(spec: object) -> tuple[MotorGraph, Conventions, Limits | None]
                 Limits(np.minimum(own.range, material.limits), own.max_speed))
     if body:  # a shipped figure (body = true: the stick figure; figure = "dog", "bird", ...)
         figure = figure_of(body)
-        graph = figure_graph(figure, bool(getattr(spec, "ratio_metric", False)))
+        graph = figure_graph(figure, bool(getattr(spec, "ratio_metric", False)), metric_of(body))
         return graph, Conventions(), source_limits(graph) if figure != "stick" else None
     raise ExportError(f"creature {getattr(spec, 'name', '?')!r} ({getattr(spec, 'kind', '?')}) has no body")
