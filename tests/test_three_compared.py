@@ -35,6 +35,7 @@ import numpy as np
 import pytest
 
 from audio.formants import word
+from audio.utterance import Utterance
 from audio_fixtures import SR, warm_librosa  # noqa: F401
 from creatures.clock import SimulatedClock
 from creatures.events import EventLog, read_events
@@ -84,8 +85,9 @@ def kind_of(samples: np.ndarray, templates: np.ndarray) -> int:
 
 @dataclass
 class Played:
-    """One run: the performer's calls (start, end, kind), every word it said (end, profile,
-    answer or call), and each creature's songs (start, kind, profile)."""
+    """One run: the performer's calls (start, end, kind), every word it said, calls and
+    answers (end, profile), each creature's songs (start, kind, profile), and how often each
+    behaviour creature selected each tuple."""
 
     calls: list[tuple[float, float, int]] = field(default_factory=list)
     selected: dict[tuple[str, str], int] = field(default_factory=dict)  # (creature, tuple): selections
@@ -138,7 +140,7 @@ def play(seed: int, templates: np.ndarray, tmp: Path) -> Played:
     names = {id(getattr(c, "mouth", None) or c.aural.mouth): c.name for c in session.creatures}
     original = Mouth.sing
 
-    def sing(self, t, utterance, gain=1.0):  # what each mouth sings, by its creature
+    def sing(self: Mouth, t: float, utterance: Utterance, gain: float = 1.0) -> float:  # each mouth's songs
         end = original(self, t, utterance, gain)
         performer.sang(names[id(self)], t, end, utterance.samples)
         return end
