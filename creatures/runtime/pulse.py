@@ -9,10 +9,19 @@ onsets into inter-onset intervals with the same helper both listening paths use
 count once) and teaches them to a :class:`LowIntegerRatioModel`. A Du that rests "in time"
 samples it (:class:`PulseDuration`), so what the colony plays falls on the ratio lattice of
 what it hears.
+
+The pulse keeps competing metrical readings (:class:`~creatures.temporal.readings.
+PulseReadings`, thesis: "a population of (possibly competing) views and interpretations"):
+every reading hears every interval, and ``model`` is the best-scoring reading's, so every
+Du, percept and tempo map of the colony follows the reading that explains the music best.
+A config names its readings in ``[pulse] readings`` (one, ``simple``, by default: the
+colony's pulse as it always was). :meth:`HeardPulse.next_beat` gives the colony one grid:
+a phrase that starts there shares the beat of every other creature's.
 """
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -21,6 +30,7 @@ from creatures import bounds
 from creatures.behaviour.models.gaussian import GaussianModel
 from creatures.temporal.durations import LowIntegerRatioModel
 from creatures.temporal.onsets import inter_onset_intervals
+from creatures.temporal.readings import PulseReadings
 
 CHORD_GAP = 0.03
 """Seconds: onsets closer than this are one rhythmic event."""
@@ -35,11 +45,23 @@ READY_AFTER = 8
 class HeardPulse:
     """Onsets in, a pulse (and rhythmic durations to sample) out."""
 
-    def __init__(self, prior_pulse: float = 0.5) -> None:
-        self.model = LowIntegerRatioModel(prior_pulse)
+    def __init__(self, prior_pulse: float = 0.5, readings: list[str] | tuple[str, ...] = ("simple",)) -> None:
+        self.readings = PulseReadings(readings, prior_pulse)
         self.heard = 0  # intervals taught to the model
         self._last: float | None = None
         self._onsets: list[float] = []
+
+    @property
+    def model(self) -> LowIntegerRatioModel:
+        """The best reading's model: the pulse the colony plays by."""
+        return self.readings.best.model
+
+    def next_beat(self, t: float, subdivision: float = 1.0) -> float:
+        """The first point at or after ``t`` of the colony's grid: ``subdivision`` × the pulse,
+        counted from the last onset heard from outside (from 0 before any)."""
+        step = subdivision * self.model.pulse
+        anchor = self._last if self._last is not None else 0.0
+        return anchor + math.ceil((t - anchor) / step - 1e-9) * step
 
     @property
     def ready(self) -> bool:
@@ -50,17 +72,22 @@ class HeardPulse:
         return 60.0 / self.model.pulse if self.ready else None
 
     def to_dict(self) -> dict[str, Any]:
-        return {"pulse": self.model.to_dict(), "heard": self.heard}
+        return {"pulse": self.model.to_dict(), "heard": self.heard, **self.readings.to_dict()}
 
     def restore(self, data: dict[str, Any]) -> None:
         """Take back a saved pulse in place (Du durations hold this object, not a copy). The
         last onset before the save is not kept: the gap across a restart is no duration.
         The model's settings are this pulse's (the code's); only what it learnt is taken.
         Raises KeyError/TypeError/ValueError/ArithmeticError on malformed data."""
-        saved = bounds.table(data["pulse"], "pulse")
+        heard = bounds.count(data["heard"], "heard")
+        saved = bounds.table(data["pulse"], "pulse")  # the best reading's model, as older files keep it alone
         LowIntegerRatioModel.from_dict(saved)  # a damaged file is refused, even in parts not read
-        model = self.model.learned(saved)
-        self.model, self.heard = model, bounds.count(data["heard"], "heard")
+        if "readings" in data:
+            self.readings.restore(data)
+        else:  # saved before the pulse kept readings: the one pulse is the first reading's
+            first = self.readings.readings[0]
+            first.model = first.model.learned(saved)
+        self.heard = heard
 
     def hear(self, onset: float) -> None:
         """A note started at ``onset`` (seconds); learnt at the next :meth:`settle`."""
@@ -84,7 +111,7 @@ class HeardPulse:
         surprises = 0
         for interval in inter_onset_intervals(onsets, min_gap=CHORD_GAP):
             if interval <= LONGEST_INTERVAL:
-                self.model.update(float(interval))
+                self.readings.hear(float(interval))
                 self.heard += 1
                 surprises += self.model.surprised
         return surprises
