@@ -59,6 +59,7 @@ class World:
         # Forward transition models the colony shares by name ([creature.groups.NAME]
         # succession): what usually follows what, learnt and followed by several creatures.
         self.successions: dict[str, Succession] = {}
+        self._metre: str | None = None  # the best reading last logged
         # A recording run (offline: out.mid) keeps every note heard from outside (the input
         # track) and every tempo change; a live run of weeks keeps only the latest tempo.
         self.recording = False
@@ -158,6 +159,10 @@ class World:
         if surprises and self.pulse.ready:  # the heard rhythm changed: an expectation violated
             self.log.emit(t, "surprise", percept="pulse", count=surprises, pulse=self.pulse.model.pulse)
         self._follow_tempo(t)
+        metre = self.pulse.readings.best.metre
+        if self.pulse.ready and metre != self._metre:  # a competing reading took over (or the first is trusted)
+            self._metre = metre
+            self.log.emit(t, "reading", metre=metre, pulse=self.pulse.model.pulse, scores=self.pulse.readings.scores())
         return count
 
     def _follow_tempo(self, t: float) -> None:
