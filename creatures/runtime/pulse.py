@@ -5,7 +5,7 @@ one coherent pulse. Here the world hears every note from outside the colony that
 (from a MIDI port or file, pitch-tracked audio, another colony over OSC) and, once a tick,
 turns the new
 onsets into inter-onset intervals with the same helper both listening paths use
-(:func:`creatures.temporal.onsets.inter_onset_intervals`: near-simultaneous onsets, a chord,
+(:func:`creatures.temporal.onsets.merge_onsets`: near-simultaneous onsets, a chord,
 count once) and teaches them to a :class:`LowIntegerRatioModel`. A Du that rests "in time"
 samples it (:class:`PulseDuration`), so what the colony plays falls on the ratio lattice of
 what it hears.
@@ -29,7 +29,7 @@ import numpy as np
 from creatures import bounds
 from creatures.behaviour.models.gaussian import GaussianModel
 from creatures.temporal.durations import LowIntegerRatioModel
-from creatures.temporal.onsets import inter_onset_intervals
+from creatures.temporal.onsets import merge_onsets
 from creatures.temporal.readings import PulseReadings
 
 CHORD_GAP = 0.03
@@ -41,6 +41,13 @@ LONGEST_INTERVAL = 3.0
 READY_AFTER = 8
 """Intervals heard before the pulse is trusted over a Du's own fallback."""
 
+GRID_PULL = 0.25
+"""Share of a heard beat's distance from the colony's grid that moves the grid toward it."""
+
+ON_THE_BEAT = 0.2
+"""× the pulse: an onset this close to a grid point is a beat (nearer the middle it is an
+off-beat note, which says nothing about where the beats are)."""
+
 
 class HeardPulse:
     """Onsets in, a pulse (and rhythmic durations to sample) out."""
@@ -48,6 +55,7 @@ class HeardPulse:
     def __init__(self, prior_pulse: float = 0.5, readings: list[str] | tuple[str, ...] = ("simple",)) -> None:
         self.readings = PulseReadings(readings, prior_pulse)
         self.heard = 0  # intervals taught to the model
+        self.grid: float | None = None  # a point of the colony's grid (see next_beat)
         self._last: float | None = None
         self._onsets: list[float] = []
 
@@ -57,11 +65,27 @@ class HeardPulse:
         return self.readings.best.model
 
     def next_beat(self, t: float, subdivision: float = 1.0) -> float:
-        """The first point at or after ``t`` of the colony's grid: ``subdivision`` × the pulse,
-        counted from the last onset heard from outside (from 0 before any)."""
+        """The first point at or after ``t`` of the colony's grid: ``subdivision`` × the pulse
+        from a grid point (0 before anything is heard).
+
+        The grid is phase-locked to what is heard: until the pulse is trusted each onset is a
+        grid point; after, an onset within :data:`ON_THE_BEAT` of the grid pulls it
+        :data:`GRID_PULL` of the way. So creatures starting phrases seconds apart share one
+        grid, which a performer's jitter nudges but does not jolt (anchoring on the last raw
+        onset put two creatures' notes 20-50 ms apart)."""
         step = subdivision * self.model.pulse
-        anchor = self._last if self._last is not None else 0.0
+        anchor = self.grid if self.grid is not None else 0.0
         return anchor + math.ceil((t - anchor) / step - 1e-9) * step
+
+    def _lock(self, onset: float) -> None:
+        """Move the grid toward a heard onset (see :meth:`next_beat`)."""
+        if self.grid is None or not self.ready:
+            self.grid = onset
+            return
+        beat = self.model.pulse
+        error = onset - (self.grid + round((onset - self.grid) / beat) * beat)
+        if abs(error) <= ON_THE_BEAT * beat:
+            self.grid = onset - (1.0 - GRID_PULL) * error
 
     @property
     def ready(self) -> bool:
@@ -108,12 +132,16 @@ class HeardPulse:
         if self._last is not None:
             onsets = onsets[onsets >= self._last]
         self._last = float(onsets.max())
+        onsets = merge_onsets(onsets, min_gap=CHORD_GAP)
         surprises = 0
-        for interval in inter_onset_intervals(onsets, min_gap=CHORD_GAP):
+        if self.grid is None:
+            self._lock(float(onsets[0]))
+        for onset, interval in zip(onsets[1:].tolist(), np.diff(onsets).tolist()):
             if interval <= LONGEST_INTERVAL:
-                self.readings.hear(float(interval))
+                self.readings.hear(interval)
                 self.heard += 1
                 surprises += self.model.surprised
+            self._lock(onset)
         return surprises
 
 
