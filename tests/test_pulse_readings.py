@@ -61,15 +61,19 @@ def test_an_ambiguous_rhythm_does_not_flip_the_metre_back_and_forth():
     assert set(bests) == {"duple"}
 
 
+def heard(style: list[float], n: int, seed: int) -> HeardPulse:
+    """A colony pulse of duple and triple readings that has heard ``n`` intervals of ``style``."""
+    pulse = HeardPulse(0.5, ("duple", "triple"))
+    for onset in np.cumsum([0.0, *performance(style, n, seed)]):
+        pulse.hear(float(onset))
+    pulse.settle()
+    return pulse
+
+
 def test_the_heard_pulse_plays_by_its_best_reading():
     """A Du resting on the colony's pulse samples the triple reading's lattice once triplets
     are heard: durations at 1/3 and 2/3 of the beat, never the duple 1/2."""
-    pulse = HeardPulse(0.5, ("duple", "triple"))
-    t = 0.0
-    for d in performance(TRIPLE, 120, 1):
-        t += d
-        pulse.hear(t)
-    pulse.settle()
+    pulse = heard(TRIPLE, 120, 1)
     assert pulse.model is pulse.readings.best.model and pulse.readings.best.metre == "triple"
     draws = np.array([PulseDuration(pulse, GaussianModel(2.0, 0.5), beats=1).sample(np.random.default_rng(i))
                       for i in range(300)]) / pulse.model.pulse
@@ -79,24 +83,30 @@ def test_the_heard_pulse_plays_by_its_best_reading():
     assert (np.abs(draws - 0.5) > 0.05).all()
 
 
-def test_the_colony_grid_counts_from_the_last_heard_onset():
+def test_the_colony_grid_is_locked_to_the_heard_beats():
     pulse = HeardPulse(0.5)
     assert pulse.next_beat(0.7) == pytest.approx(1.0)  # from 0 before anything is heard
-    for onset in (10.0, 10.5, 11.0, 11.5):
+    for onset in (10.0, 10.5, 11.0, 11.5):  # not trusted yet: each onset is a grid point
         pulse.hear(onset)
     pulse.settle()
     assert pulse.next_beat(11.6) == pytest.approx(11.5 + pulse.model.pulse)
     assert pulse.next_beat(11.6, 0.5) == pytest.approx(11.5 + pulse.model.pulse / 2)
     assert pulse.next_beat(11.5) == pytest.approx(11.5)
+    for k in range(1, 10):  # trusted from here on
+        pulse.hear(11.5 + 0.5 * k)
+    pulse.settle()
+    beat, grid = pulse.model.pulse, pulse.next_beat(16.0)
+    pulse.hear(grid + 0.04)  # a beat played 40 ms late pulls the grid a quarter of the way
+    pulse.settle()
+    assert pulse.grid == pytest.approx(grid + 0.01, abs=1e-9)
+    pulse.hear(grid + 1.5 * beat)  # an off-beat note says nothing of where the beats are
+    pulse.settle()
+    assert pulse.grid == pytest.approx(grid + 0.01, abs=1e-9)
+    assert pulse.next_beat(grid + 0.5 * beat) == pytest.approx(grid + 0.01 + pulse.model.pulse)
 
 
 def test_readings_are_saved_and_taken_back():
-    pulse = HeardPulse(0.5, ("duple", "triple"))
-    t = 0.0
-    for d in performance(TRIPLE, 80, 2):
-        t += d
-        pulse.hear(t)
-    pulse.settle()
+    pulse = heard(TRIPLE, 80, 2)
     fresh = HeardPulse(0.5, ("duple", "triple"))
     fresh.restore(json.loads(json.dumps(pulse.to_dict())))
     assert fresh.readings.best.metre == "triple"

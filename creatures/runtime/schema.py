@@ -170,9 +170,11 @@ class ScheduleSection(Strict):
 
 
 class PulseSection(Strict):
-    """``[pulse]`` — the colony's heard pulse: the competing metrical readings it keeps of the
-    rhythm heard from outside (creatures/temporal/readings.py; thesis "exotic duration
-    models": "a population of (possibly competing) views and interpretations")."""
+    """The colony's heard pulse, as competing metrical readings of what it hears.
+
+    Every reading hears the rhythm from outside and is scored; the best is the pulse
+    (creatures/temporal/readings.py; thesis "exotic duration models": "a population of
+    (possibly competing) views and interpretations")."""
 
     readings: list[Literal["simple", "duple", "triple"]] = Field(
         ["simple"], min_length=1, max_length=3,
