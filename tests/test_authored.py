@@ -102,6 +102,14 @@ def test_a_small_authored_creature_plays_its_phrase_when_bored(tmp_path):
         ("pitches = [60, 64, 67] }", "pitches = [60, 64, 67], loud = 1 }", "creature.0.tuples.sing.action.loud",
          "unknown key"),
         ('drive = "boredom"', 'drive = "boredom"\nspread = inf', "creature.0.percepts.bored.spread", "finite number"),
+        ("until = { done = true }", 'until = { done = true, follow_as = "a" }', "creature.0.tuples.sing.until.follow_as",
+         "set until.follow = true"),
+        ("alpha = 0.0", 'alpha = 0.0\nsuccession = "style"', "creature.0.groups.main.succession",
+         "no tuple of group 'main' has until.follow"),
+        ("until = { done = true }", "until = { done = true, follow = true, priming = -1 }",
+         "creature.0.tuples.sing.until.priming", "greater than or equal to 0"),
+        ('pitches = [60, 64, 67] }', 'pitches = [60, 64, 67], beats = [1, 1] }', "creature.0.tuples.sing.action",
+         "beats must be one per pitch"),
     ],
 )
 def test_bad_names_and_structures_are_errors_at_their_line(tmp_path, old, new, key, message):
@@ -382,6 +390,40 @@ window = 100.0""")
     assert level[5.0][1] < np.exp(-0.5 * 5.0) + 1e-9  # calm decays, and boredom pulls it down further
     # The tide follows its scripted input: ∫ t/10 dt = 5 by t = 10 (inputs held per 0.05 s tick), then +1/s.
     assert level[10.0][2] == pytest.approx(5.0, abs=0.03) and level[20.0][2] == pytest.approx(15.0, abs=0.06)
+
+
+def test_a_repeating_arc_waxes_and_wanes_for_the_whole_run(tmp_path):
+    """``arc_repeat``: the arc starts again from its first point every cycle (thesis
+    "exchange": a waxing and waning of complexity scripted over time)."""
+    import numpy as np
+
+    from creatures.kinds import KINDS
+
+    text = HEAD + CREATURE.replace("[creature.drives.boredom]\ngrowth = 0.1", """[creature.drives.boredom]
+growth = 0.1
+
+[creature.drives.swell]
+arc = [[0.0, 1.0], [5.0, 0.0]]
+arc_repeat = 10.0""")
+    spec = load_installation(write(tmp_path, text)).specs[0]
+    clock, world = _world_with({})
+    c = KINDS["authored"](spec, world, np.random.default_rng(0))
+    level = {}
+    for k in range(1, 501):
+        t = k * 0.05
+        clock.advance(0.05)
+        c.tick(t)
+        level[round(t, 2)] = c.level("swell", t)
+    # Each cycle adds ∫ (1 − t/5) dt over 5 s = 2.5, then holds 0 until the cycle restarts.
+    assert level[10.0] == pytest.approx(2.5, abs=0.06) and level[20.0] == pytest.approx(5.0, abs=0.1)
+    assert level[12.5] == pytest.approx(2.5 + 2.5 - 0.625, abs=0.06)
+    assert level[25.0] == pytest.approx(7.5, abs=0.15)  # not held at the arc's end: a third cycle
+    bad = HEAD + CREATURE.replace("[creature.drives.boredom]\ngrowth = 0.1", """[creature.drives.boredom]
+growth = 0.1
+arc = [[0.0, 1.0], [20.0, 0.0]]
+arc_repeat = 10.0""")
+    with pytest.raises(ConfigError, match="arc_repeat"):
+        load_installation(write(tmp_path, bad))
 
 
 def test_an_authored_creature_keeps_what_it_learnt_across_a_restart(tmp_path):

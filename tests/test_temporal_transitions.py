@@ -60,7 +60,7 @@ def test_likely_successors_are_primed():
     a, b, c = tuples(succession)
     for _ in range(10):
         succession.model.record("A", "B")
-    succession.observe("A", 1.0)  # A has played and is not active: what follows A is primed
+    succession.observe(a)  # A has played and is not active: what follows A is primed
     assert b.trigger.evaluate(0.0) > 1.0 > c.trigger.evaluate(0.0)
     assert b.trigger.evaluate(0.0) == pytest.approx(3 * (1 + 0.1) / (1 + 0.3))
     a.start(1.0, np.random.default_rng(0))  # while A plays again, A's predecessor (A) still primes...
@@ -171,3 +171,35 @@ def test_no_automatic_fission_below_the_innovation_threshold(values, innovation)
     group = ActionGroup("g", valued(succession, values), rng=np.random.default_rng(0), alpha=0.0)
     assert len(set(selections(group, 60.0))) == 3
     assert succession.fissioned == {} and [tp.name for tp in group.tuples] == list(values)
+
+
+def test_a_shared_succession_keeps_a_stream_for_each_group():
+    """Several groups (creatures) share one model: each records from, and is primed by, its
+    own last start; a stream that only follows teaches the model nothing; labels let a
+    perception tuple and a playing tuple be one phrase."""
+    shared = Succession(innovation=None)
+
+    def member(name: str, label: str, stream: str, record: bool = True) -> ActionTuple:
+        tuple_ = ActionTuple(name, WhateverPercept(), Action(name), DoUntil(0.5), 1.0)
+        return follow(tuple_, shared, label=label, stream=stream, record=record)
+
+    heard = {n: member(f"hear {n}", n, "ear") for n in "ABC"}
+    x = {n: member(n, n, "x", record=False) for n in "ABC"}
+    y = {n: member(n, n, "y", record=False) for n in "ABC"}
+    rng = np.random.default_rng(0)
+    t = 0.0
+    for n in "ABC" * 5:  # the ear hears A B C A B C ...: a clean succession, one row each
+        heard[n].start(t, rng)
+        heard[n].stop(t + 0.5)
+        t += 1.0
+    counts = shared.model.counts.copy()
+    assert counts[shared.model.index("A"), shared.model.index("B")] == 5
+    x["A"].start(t, rng)
+    x["A"].stop(t + 0.5)
+    y["B"].start(t, rng)
+    y["B"].stop(t + 0.5)
+    t += 1.0
+    assert (shared.model.counts == counts).all()  # following without recording
+    assert x["B"].trigger.evaluate(t) > 2.0 > x["C"].trigger.evaluate(t)  # after x's A: B
+    assert y["C"].trigger.evaluate(t) > 2.0 > y["B"].trigger.evaluate(t)  # after y's B: C
+    assert heard["A"].trigger.evaluate(t) > 2.0  # the ear's last was C: A is what follows it

@@ -93,6 +93,11 @@ class _PhraseParams(Params):
     durations: list[float] | float = Field(0.5, description="seconds per note (one for all, or one each)")
     velocity: int = Field(90, ge=1, le=127, description="MIDI velocity")
     transpose: int = Field(0, ge=-48, le=48, description="semitones (a crowd's `vary` gives each its own key)")
+    beats: list[float] | None = Field(None, max_length=4096,
+                                      description="the rhythm in beats of the colony's heard pulse instead of "
+                                                  "seconds, one per pitch: the phrase starts on the colony's next "
+                                                  "beat and keeps its tempo (thesis 'temporal models': a coherent "
+                                                  "pulse across action-tuples)")
 
     @model_validator(mode="after")
     def _lengths(self):
@@ -101,6 +106,9 @@ class _PhraseParams(Params):
         durations = self.durations if isinstance(self.durations, list) else [self.durations] * len(self.pitches)
         if len(durations) != len(self.pitches) or any(not d > 0 for d in durations):
             raise ValueError("durations must be positive seconds, one for all notes or one per pitch")
+        if self.beats is not None and (len(self.beats) != len(self.pitches)
+                                       or any(not 0 < b <= 64 for b in self.beats)):
+            raise ValueError("beats must be one per pitch, each above 0 and at most 64")
         return self
 
 
@@ -114,12 +122,27 @@ class PlayPhrase(ActionPart):
     Params = _PhraseParams
 
     def build(self, params, creature, name):
+        pitches = [min(max(p + params.transpose, 0), 127) for p in params.pitches]
+        if params.beats is not None:
+            return Playing(name, creature, lambda t: _on_the_beat(creature, pitches, params.beats,
+                                                                  params.velocity, t))
         durations = params.durations if isinstance(params.durations, list) else [params.durations] * len(params.pitches)
         onsets = np.concatenate(([0.0], np.cumsum(durations)[:-1]))
-        written = [NoteEvent(float(o), min(max(p + params.transpose, 0), 127), params.velocity, 0, 0.9 * d)
-                   for o, p, d in zip(onsets, params.pitches, durations)]
+        written = [NoteEvent(float(o), p, params.velocity, 0, 0.9 * d) for o, p, d in zip(onsets, pitches, durations)]
 
         return Playing(name, creature, lambda t: written)
+
+
+def _on_the_beat(creature: "Authored", pitches: list[int], beats: list[float], velocity: int,
+                 t: float) -> list[NoteEvent]:
+    """``pitches`` in the rhythm of ``beats`` at the colony's heard pulse (its best reading),
+    from the colony's next beat after ``t``: every creature's phrase shares one grid, so what
+    the colony plays together stays on the ratio lattice of what it heard."""
+    pulse = creature.world.pulse
+    beat = pulse.model.pulse
+    start = max(pulse.next_beat(t) - t, 0.0)  # rounding may put the beat a hair before t
+    onsets = start + beat * np.concatenate(([0.0], np.cumsum(beats)[:-1]))
+    return [NoteEvent(float(o), p, velocity, 0, 0.9 * b * beat) for o, p, b in zip(onsets, pitches, beats)]
 
 
 class _HeardParams(Params):

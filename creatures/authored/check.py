@@ -350,6 +350,10 @@ def _tuples(c: _Checker) -> None:
                                                         f"{tp.value.kind!r} (thesis 'value signal processing')")
         if tp.until.fresh and tp.until.percept is None:
             raise c.error((*loc, "until", "fresh"), "'fresh' is about the until-percept: give the Du a 'percept'")
+        for key in ("follow_as", "priming", "record"):
+            if key in tp.until.model_fields_set and not tp.until.follow:
+                raise c.error((*loc, "until", key), f"'{key}' is about the forward transition model: "
+                                                    "set until.follow = true")
 
 
 def _groups(c: _Checker) -> None:
@@ -378,6 +382,10 @@ def _groups(c: _Checker) -> None:
             for end in ("a", "b"):
                 c.need("tuples", getattr(constraint, end), (*loc, "constraints", k, end))
         _proximities(c, name, g)
+        if g.succession is not None and not any(m in c.spec.tuples and c.spec.tuples[m].until.follow
+                                                for m in g.tuples):
+            raise c.error((*loc, "succession"), f"no tuple of group {name!r} has until.follow = true: nothing "
+                                                f"would record into or be primed by {g.succession!r}")
     _acyclic(c, edges, "groups", "a group cannot contain itself")
     for name in c.spec.tuples:
         if name not in owner:

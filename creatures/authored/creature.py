@@ -121,8 +121,8 @@ class Authored(CreatureKind):
         for name in spec.percepts:
             self.percept(name)
         # Drives fed by percepts or scripted arcs (the others need no work per tick).
-        self._fed = [(self.motivation.index(name), [(self.percept(p), r) for p, r in d.inputs.items()], d.arc)
-                     for name, d in spec.drives.items() if d.inputs or d.arc]
+        self._fed = [(self.motivation.index(name), [(self.percept(p), r) for p, r in d.inputs.items()],
+                      (d.arc, d.arc_repeat)) for name, d in spec.drives.items() if d.inputs or d.arc]
         self.tuples = {name: self._tuple(name, tp) for name, tp in spec.tuples.items()}
         for group in spec.groups.values():
             for constraint in group.constraints:
@@ -222,9 +222,13 @@ class Authored(CreatureKind):
                 tuples.append(group_tuple(child, self.percept(child_spec.trigger), child_spec.value))
                 continue
             tuple_ = self.tuples[member]
-            if self.spec.tuples[member].until.follow:
+            until = self.spec.tuples[member].until
+            if until.follow:
+                if succession is None and g.succession is not None:  # the colony's, one stream a group
+                    succession = self.world.successions.setdefault(g.succession, Succession(innovation=None))
                 succession = succession or Succession(innovation=g.innovation)
-                follow(tuple_, succession)
+                follow(tuple_, succession, strength=until.priming, label=until.follow_as,
+                       stream=None if g.succession is None else f"{self.name}.{name}", record=until.record)
             tuples.append(tuple_)
         learning = self.spec.learning
         learner = None
@@ -324,7 +328,7 @@ class Authored(CreatureKind):
         breath) runs it as it starts and stops, so the change counts from that instant."""
         self.motivation.advance(t)
         for i, inputs, arc in self._fed:
-            self.motivation.inputs[i] = sum(r * p.evaluate(t) for p, r in inputs) + _arc(arc, t)
+            self.motivation.inputs[i] = sum(r * p.evaluate(t) for p, r in inputs) + _arc(*arc, t)
 
     def reporting(self, report: Callable[[float], None]) -> None:
         """Call ``report(t)`` with every values snapshot (a part's own events-log record)."""
@@ -638,9 +642,12 @@ class Authored(CreatureKind):
             self.leave_behind(name, gesture, restored=True)
 
 
-def _arc(points: list[tuple[float, float]], t: float) -> float:
-    """The scripted input rate at ``t``: linear between the points, held outside them."""
+def _arc(points: list[tuple[float, float]], repeat: float | None, t: float) -> float:
+    """The scripted input rate at ``t``: linear between the points, held outside them; with
+    ``repeat``, ``t`` counts from the start of the current cycle."""
     if not points:
         return 0.0
+    if repeat is not None:
+        t = math.fmod(t, repeat)
     times, rates = zip(*points)
     return float(np.interp(t, times, rates))

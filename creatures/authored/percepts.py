@@ -9,6 +9,7 @@ that table's keys. ``build`` returns a library :class:`~creatures.behaviour.perc
 from __future__ import annotations
 
 import math
+from collections import deque
 from typing import TYPE_CHECKING, ClassVar, Literal
 
 from pydantic import BaseModel, Field, field_validator, model_validator
@@ -405,6 +406,41 @@ class FreshNotes(PerceptPart):
 
     def build(self, params, creature, name):
         return FunctionPercept(name, lambda t: 1.0 if creature.notes.unstruck(t) else 0.0)
+
+
+class _MotifParams(Params):
+    pitches: list[int] = Field(min_length=2, max_length=64, description="MIDI pitches of the phrase, in order")
+    window: float = Field(0.1, gt=0, le=60, description="seconds it stays salient after the phrase's last note")
+
+
+@PERCEPTS.register
+class Motif(PerceptPart):
+    """A phrase of the style was just heard from outside the colony: the last notes heard from
+    outside are ``pitches``, in order; 1 for ``window`` seconds after the last of them. The
+    trigger of a perception tuple that records the phrase in a forward transition model
+    (thesis "perception as action": "*Du* percepts equipped with forward transition models
+    ... can simulate and learn priming effects"). Only notes from outside count: what the
+    colony plays is recorded by the tuples that play it, so it is not heard twice."""
+
+    name = "motif"
+    thesis = "perception as action"
+    Params = _MotifParams
+
+    def build(self, params, creature, name):
+        from creatures.runtime.world import INPUT
+
+        heard: deque[int] = deque(maxlen=len(params.pitches))
+        matched = [-math.inf]
+
+        def hear(note, source) -> None:
+            if source != INPUT:
+                return
+            heard.append(note.pitch)
+            if list(heard) == params.pitches:
+                matched[0] = creature.now()
+
+        creature.on_hear(hear)
+        return FunctionPercept(name, lambda t: 1.0 if t - matched[0] <= params.window else 0.0)
 
 
 class _PassageParams(Params):

@@ -12,7 +12,7 @@ from typing import Annotated, Any, Literal
 
 from pathlib import Path
 
-from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, field_validator
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, field_validator, model_validator
 
 from creatures.bounds import FINITE, LARGEST_RATE, LONGEST_SECONDS, Bounded, Seconds
 
@@ -45,12 +45,26 @@ class DriveSpec(Strict):
                                            description="scripted arc: [seconds, input rate] points, linear "
                                                        "between them, held after the last")
 
+    arc_repeat: Seconds | None = Field(None, gt=0, description="seconds after which the arc starts again from its "
+                                                               "first point: a cycle that waxes and wanes for as "
+                                                               "long as the run lasts (thesis 'exchange': 'script "
+                                                               "this linkage over time to create a waxing and "
+                                                               "waning of a creature's musical complexity'); none "
+                                                               "= held after the last point")
+
     @field_validator("arc")
     @classmethod
     def _in_time_order(cls, arc: list[tuple[float, float]]) -> list[tuple[float, float]]:
         if any(b[0] <= a[0] for a, b in zip(arc, arc[1:])):
             raise ValueError("arc points must be in increasing time order")
         return arc
+
+    @model_validator(mode="after")
+    def _cycle(self) -> "DriveSpec":
+        if self.arc_repeat is not None and (not self.arc or self.arc[-1][0] > self.arc_repeat):
+            raise ValueError(f"arc_repeat ({self.arc_repeat:g} s) repeats an arc: give 'arc' points, the last at "
+                             "or before it")
+        return self
 
 
 class PerceptSpec(Strict):
@@ -88,6 +102,17 @@ class UntilSpec(Strict):
     done: bool = Field(False, description="until the action says it is finished (a phrase played out)")
     follow: bool = Field(False, description="forward transition model: record what follows, prime likely "
                                             "successors (thesis 'forward transition models')")
+    follow_as: str | None = Field(None, min_length=1, max_length=256,
+                                  description="follow: the name its activations are recorded and primed under "
+                                              "(default: the tuple's own); a perception tuple hearing phrase 'a' "
+                                              "and a tuple playing it both say 'a', so what is heard primes what "
+                                              "is played")
+    record: bool = Field(True, description="follow: teach the model this tuple's starts (false: only primed by "
+                                           "it, e.g. a colony that walks the order its perception tuples heard; "
+                                           "thesis 'perception as action')")
+    priming: float = Field(1.0, ge=0, le=16, description="follow: the trigger × (N·p(last → this))^priming: 0 "
+                                                        "ignores the model, 1 weighs by the transition "
+                                                        "probability itself, more sharpens it")
     graded: bool = Field(False, description="Du ramps from 0 to 1 over the planned duration instead of stepping, "
                                             "so the running tuple's expected value (1 − Du)·V declines as its time "
                                             "runs out and an interruption competes with what is left (thesis "
@@ -153,6 +178,12 @@ class GroupSpec(Strict):
     multiple: float = Field(1.5, ge=1, le=1e3, description="interruption hysteresis")
     innovation: float | None = Field(0.25, ge=0, le=LARGEST_RATE, description="value gap for forward-transition fission "
                                                               "(tuples with until.follow); none = never")
+    succession: str | None = Field(None, min_length=1, max_length=256,
+                                   description="the colony's forward transition model of this name: the group's "
+                                               "until.follow tuples record into, and are primed by, one model "
+                                               "every creature's groups of that name share (no fission: a "
+                                               "sub-hypothesis would belong to one creature); none = the "
+                                               "group's own")
     constraints: list[ConstraintSpec] = Field(default_factory=list, max_length=1024, description="interval relations")
     heat: dict[str, Bounded] = Field(default_factory=dict, max_length=64,
                                      description="drive → gain: the temperature is temperature × (1 + Σ gain × "

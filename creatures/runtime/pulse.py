@@ -5,14 +5,23 @@ one coherent pulse. Here the world hears every note from outside the colony that
 (from a MIDI port or file, pitch-tracked audio, another colony over OSC) and, once a tick,
 turns the new
 onsets into inter-onset intervals with the same helper both listening paths use
-(:func:`creatures.temporal.onsets.inter_onset_intervals`: near-simultaneous onsets, a chord,
+(:func:`creatures.temporal.onsets.merge_onsets`: near-simultaneous onsets, a chord,
 count once) and teaches them to a :class:`LowIntegerRatioModel`. A Du that rests "in time"
 samples it (:class:`PulseDuration`), so what the colony plays falls on the ratio lattice of
 what it hears.
+
+The pulse keeps competing metrical readings (:class:`~creatures.temporal.readings.
+PulseReadings`, thesis: "a population of (possibly competing) views and interpretations"):
+every reading hears every interval, and ``model`` is the best-scoring reading's, so every
+Du, percept and tempo map of the colony follows the reading that explains the music best.
+A config names its readings in ``[pulse] readings`` (one, ``simple``, by default: the
+colony's pulse as it always was). :meth:`HeardPulse.next_beat` gives the colony one grid:
+a phrase that starts there shares the beat of every other creature's.
 """
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -20,7 +29,8 @@ import numpy as np
 from creatures import bounds
 from creatures.behaviour.models.gaussian import GaussianModel
 from creatures.temporal.durations import LowIntegerRatioModel
-from creatures.temporal.onsets import inter_onset_intervals
+from creatures.temporal.onsets import merge_onsets
+from creatures.temporal.readings import PulseReadings
 
 CHORD_GAP = 0.03
 """Seconds: onsets closer than this are one rhythmic event."""
@@ -31,15 +41,51 @@ LONGEST_INTERVAL = 3.0
 READY_AFTER = 8
 """Intervals heard before the pulse is trusted over a Du's own fallback."""
 
+GRID_PULL = 0.25
+"""Share of a heard beat's distance from the colony's grid that moves the grid toward it."""
+
+ON_THE_BEAT = 0.2
+"""× the pulse: an onset this close to a grid point is a beat (nearer the middle it is an
+off-beat note, which says nothing about where the beats are)."""
+
 
 class HeardPulse:
     """Onsets in, a pulse (and rhythmic durations to sample) out."""
 
-    def __init__(self, prior_pulse: float = 0.5) -> None:
-        self.model = LowIntegerRatioModel(prior_pulse)
+    def __init__(self, prior_pulse: float = 0.5, readings: list[str] | tuple[str, ...] = ("simple",)) -> None:
+        self.readings = PulseReadings(readings, prior_pulse)
         self.heard = 0  # intervals taught to the model
+        self.grid: float | None = None  # a point of the colony's grid (see next_beat)
         self._last: float | None = None
         self._onsets: list[float] = []
+
+    @property
+    def model(self) -> LowIntegerRatioModel:
+        """The best reading's model: the pulse the colony plays by."""
+        return self.readings.best.model
+
+    def next_beat(self, t: float, subdivision: float = 1.0) -> float:
+        """The first point at or after ``t`` of the colony's grid: ``subdivision`` × the pulse
+        from a grid point (0 before anything is heard).
+
+        The grid is phase-locked to what is heard: until the pulse is trusted each onset is a
+        grid point; after, an onset within :data:`ON_THE_BEAT` of the grid pulls it
+        :data:`GRID_PULL` of the way. So creatures starting phrases seconds apart share one
+        grid, which a performer's jitter nudges but does not jolt (anchoring on the last raw
+        onset put two creatures' notes 20-50 ms apart)."""
+        step = subdivision * self.model.pulse
+        anchor = self.grid if self.grid is not None else 0.0
+        return anchor + math.ceil((t - anchor) / step - 1e-9) * step
+
+    def _lock(self, onset: float) -> None:
+        """Move the grid toward a heard onset (see :meth:`next_beat`)."""
+        if self.grid is None or not self.ready:
+            self.grid = onset
+            return
+        beat = self.model.pulse
+        error = onset - (self.grid + round((onset - self.grid) / beat) * beat)
+        if abs(error) <= ON_THE_BEAT * beat:
+            self.grid = onset - (1.0 - GRID_PULL) * error
 
     @property
     def ready(self) -> bool:
@@ -50,17 +96,22 @@ class HeardPulse:
         return 60.0 / self.model.pulse if self.ready else None
 
     def to_dict(self) -> dict[str, Any]:
-        return {"pulse": self.model.to_dict(), "heard": self.heard}
+        return {"pulse": self.model.to_dict(), "heard": self.heard, **self.readings.to_dict()}
 
     def restore(self, data: dict[str, Any]) -> None:
         """Take back a saved pulse in place (Du durations hold this object, not a copy). The
         last onset before the save is not kept: the gap across a restart is no duration.
         The model's settings are this pulse's (the code's); only what it learnt is taken.
         Raises KeyError/TypeError/ValueError/ArithmeticError on malformed data."""
-        saved = bounds.table(data["pulse"], "pulse")
+        heard = bounds.count(data["heard"], "heard")
+        saved = bounds.table(data["pulse"], "pulse")  # the best reading's model, as older files keep it alone
         LowIntegerRatioModel.from_dict(saved)  # a damaged file is refused, even in parts not read
-        model = self.model.learned(saved)
-        self.model, self.heard = model, bounds.count(data["heard"], "heard")
+        if "readings" in data:
+            self.readings.restore(data)
+        else:  # saved before the pulse kept readings: the one pulse is the first reading's
+            first = self.readings.readings[0]
+            first.model = first.model.learned(saved)
+        self.heard = heard
 
     def hear(self, onset: float) -> None:
         """A note started at ``onset`` (seconds); learnt at the next :meth:`settle`."""
@@ -81,12 +132,16 @@ class HeardPulse:
         if self._last is not None:
             onsets = onsets[onsets >= self._last]
         self._last = float(onsets.max())
+        onsets = merge_onsets(onsets, min_gap=CHORD_GAP)
         surprises = 0
-        for interval in inter_onset_intervals(onsets, min_gap=CHORD_GAP):
+        if self.grid is None:
+            self._lock(float(onsets[0]))
+        for onset, interval in zip(onsets[1:].tolist(), np.diff(onsets).tolist()):
             if interval <= LONGEST_INTERVAL:
-                self.model.update(float(interval))
+                self.readings.hear(interval)
                 self.heard += 1
                 surprises += self.model.surprised
+            self._lock(onset)
         return surprises
 
 

@@ -169,6 +169,28 @@ class ScheduleSection(Strict):
         return zone
 
 
+class PulseSection(Strict):
+    """The colony's heard pulse, as competing metrical readings of what it hears.
+
+    Every reading hears the rhythm from outside and is scored; the best is the pulse
+    (creatures/temporal/readings.py; thesis "exotic duration models": "a population of
+    (possibly competing) views and interpretations")."""
+
+    readings: list[Literal["simple", "duple", "triple"]] = Field(
+        ["simple"], min_length=1, max_length=3,
+        description="metres read at once, each a low-integer-ratio model of its own ratios ('simple': every ratio "
+                    "of 1-4; 'duple': 1/4, 1/2, 1, 2, 4; 'triple': 1/3, 2/3, 1, 2, 3); the best-scoring one is the "
+                    "pulse every Du, percept and phrase of the colony follows")
+    prior: float = Field(0.5, ge=0.05, le=3.0, description="seconds: the pulse assumed before any is heard")
+
+    @field_validator("readings")
+    @classmethod
+    def _once(cls, readings: list[str]) -> list[str]:
+        if len(set(readings)) != len(readings):
+            raise ValueError(f"each metre is read once (got {readings})")
+        return readings
+
+
 class RehearseSection(Strict):
     """``creatures rehearse``: a gallery week on the simulated clock, with visitors who come and
     go over the opening hours, play or speak phrases from a corpus and answer what they hear
@@ -349,6 +371,7 @@ class Installation(Strict):
     snapshots: SnapshotSection = SnapshotSection()
     schedule: ScheduleSection = ScheduleSection()
     rehearse: RehearseSection = RehearseSection()
+    pulse: PulseSection = PulseSection()
     input: InputSection = InputSection()
     output: OutputSection = OutputSection()
     room: RoomSection | None = Field(None, description="[room]: the floor the creatures move on, hear "

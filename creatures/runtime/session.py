@@ -26,6 +26,7 @@ from creatures.kinds import KINDS
 from creatures.persist import StateFileError, json_text, load_json, write_json_text
 from creatures.runtime.cc_sources import Reader, parse, reader
 from creatures.runtime.input_map import InputRouter
+from creatures.runtime.pulse import HeardPulse
 from creatures.runtime.schema import LoadedInstallation
 from creatures.runtime.world import World
 from creatures.room.stage import Stage
@@ -57,7 +58,7 @@ class Session:
         self.clock = clock
         self.log = log
         self.scheduler = NoteScheduler(sink, clock)
-        self.world = World(clock, log, self.scheduler)
+        self.world = World(clock, log, self.scheduler, HeardPulse(settings.pulse.prior, settings.pulse.readings))
         # The [[input]] maps; their sensors exist before the creatures, which may model them.
         self.inputs = InputRouter(inst.routes, self.world, say)
         seeds = np.random.SeedSequence(settings.seed).spawn(len(inst.specs) + 1)

@@ -23,6 +23,7 @@ from creatures.behaviour.state_object import StateObject
 from creatures.clock import Clock
 from creatures.events import EventLog
 from creatures.runtime.pulse import HeardPulse
+from creatures.temporal.transitions import Succession
 from midi.notes import NoteEvent
 from midi.scheduler import NoteHandle, NoteScheduler
 
@@ -40,7 +41,7 @@ TEMPO_STEP = 0.02
 class World:
     """Routes notes between creatures and to the output; every note is logged."""
 
-    def __init__(self, clock: Clock, log: EventLog, scheduler: NoteScheduler) -> None:
+    def __init__(self, clock: Clock, log: EventLog, scheduler: NoteScheduler, pulse: HeardPulse | None = None) -> None:
         self.clock = clock
         self.log = log
         self.scheduler = scheduler
@@ -54,7 +55,11 @@ class World:
         self._seq = itertools.count()
         self.sensors: dict[str, StateObject] = {}  # by name, fed by the input map
         self.notes_played = 0
-        self.pulse = HeardPulse()  # the rhythm of the notes heard from outside the colony
+        self.pulse = pulse or HeardPulse()  # the rhythm of the notes heard from outside the colony ([pulse])
+        # Forward transition models the colony shares by name ([creature.groups.NAME]
+        # succession): what usually follows what, learnt and followed by several creatures.
+        self.successions: dict[str, Succession] = {}
+        self._metre: str | None = None  # the best reading last logged
         # A recording run (offline: out.mid) keeps every note heard from outside (the input
         # track) and every tempo change; a live run of weeks keeps only the latest tempo.
         self.recording = False
@@ -154,6 +159,10 @@ class World:
         if surprises and self.pulse.ready:  # the heard rhythm changed: an expectation violated
             self.log.emit(t, "surprise", percept="pulse", count=surprises, pulse=self.pulse.model.pulse)
         self._follow_tempo(t)
+        metre = self.pulse.readings.best.metre
+        if self.pulse.ready and metre != self._metre:  # a competing reading took over (or the first is trusted)
+            self._metre = metre
+            self.log.emit(t, "reading", metre=metre, pulse=self.pulse.model.pulse, scores=self.pulse.readings.scores())
         return count
 
     def _follow_tempo(self, t: float) -> None:

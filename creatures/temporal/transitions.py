@@ -49,6 +49,25 @@ class Succession:
     One succession serves one group; with several active slots, ``current`` is simply the
     latest start.
 
+    **Shared by a colony.** The thesis keeps these models "privately (local only to a
+    particular action-tuple) or ... shared between a group of action-tuples"; a succession
+    may also be shared by the groups of several creatures (``World.successions``, named by a
+    group's ``succession`` key), so the colony learns one "what usually happens next". Each
+    group is a *stream* of its own: a transition is recorded from the group's own last start
+    and its candidates are primed by it (everything above, per stream), so three creatures
+    playing at once teach the model three clean successions, not the interleaving of their
+    parts, and a listener's perception group teaches it the visitor's. Tuples record under
+    a *label* (their name by default): a perception tuple hearing phrase ``a`` and the
+    tuples playing ``a`` all say ``a``, so what is heard shapes what is played. Fission is
+    for a group's own succession (its sub-hypothesis joins that group): a shared one is made
+    with ``innovation=None``. A stream may also only *follow* without recording
+    (``record=False``): its tuples are primed by what usually follows their own last start
+    but teach the model nothing. A colony that learns its order from the visitors it hears
+    is built so: in ten minutes of a visitor keeping one order, three creatures teaching
+    the model their own choices as well (a window of ten transitions a row, mostly theirs)
+    let it drift from the visitor's order back to chance (phrase entropy 0.9 → 1.5 bits);
+    primed but not teaching, they walk the order the visitor keeps.
+
     **Fission.** After recording a valued transition out of a tuple, the succession tries
     :func:`fission` on it with ``innovation`` as the value gap: the best successor's
     transitions must carry at least ``innovation`` more value than the tuple's transitions
@@ -73,52 +92,74 @@ class Succession:
         self.innovation = innovation
         self.tuples: dict[str, ActionTuple] = {}
         self.fissioned: dict[str, str] = {}
-        self.current: str | None = None
-        self.previous: str | None = None
+        # Per stream (a group; None for a succession of one group): [previous, current, the
+        # tuple that started last].
+        self._streams: dict[str | None, list] = {}
 
-    def join(self, tuple_: ActionTuple) -> None:
-        self.tuples[tuple_.name] = tuple_
-        self.model.add(tuple_.name)
+    @property
+    def current(self) -> str | None:
+        """The label that started last (in the default stream)."""
+        return self._streams.get(None, [None, None, None])[1]
 
-    def observe(self, name: str, value: float) -> ActionTuple | None:
-        """``name`` became active carrying ``value``: record current → name, and return the
-        sub-hypothesis that transition grounded, if any (see the class notes)."""
-        source = self.current
-        self.previous, self.current = source, name
-        if source is None:
+    @property
+    def previous(self) -> str | None:
+        """The label ``current`` followed (in the default stream)."""
+        return self._streams.get(None, [None, None, None])[0]
+
+    def join(self, tuple_: ActionTuple, label: str | None = None) -> None:
+        label = tuple_.name if label is None else label
+        self.tuples[label] = tuple_
+        self.model.add(label)
+
+    def observe(self, tuple_: ActionTuple, label: str | None = None, stream: str | None = None, *,
+                record: bool = True) -> ActionTuple | None:
+        """``tuple_`` became active in ``stream`` (as ``label``, its name by default),
+        carrying its value: record the stream's current → label (unless not ``record``), and
+        return the sub-hypothesis that transition grounded, if any (see the class notes)."""
+        name = tuple_.name if label is None else label
+        state = self._streams.setdefault(stream, [None, None, None])
+        source = state[1]
+        state[:] = [source, name, tuple_]
+        if source is None or not record:
             return None
-        self.model.record(source, name, value)
+        self.model.record(source, name, tuple_.value.to_float())
         tuple_ = self.tuples.get(source)
         if self.innovation is None or tuple_ is None or not isinstance(tuple_.trigger, LikelySuccessor):
             return None
         return fission(tuple_, self, min_gap=self.innovation)
 
-    def source(self, t: float) -> str | None:
-        """The tuple a candidate starting at ``t`` would follow (see the class notes)."""
-        current = self.tuples.get(self.current) if self.current is not None else None
-        if current is None or not current.active or current.do_until.evaluate(t) >= 1.0:
-            return self.current
-        return self.previous
+    def source(self, t: float, stream: str | None = None) -> str | None:
+        """The label a candidate of ``stream`` starting at ``t`` would follow (see the class notes)."""
+        previous, current, started = self._streams.get(stream, [None, None, None])
+        if started is None or not started.active or started.do_until.evaluate(t) >= 1.0:
+            return current
+        return previous
 
-    def likelihood(self, name: str, t: float) -> float:
+    def likelihood(self, name: str, t: float, stream: str | None = None) -> float:
         """N·p(source → name): 1 for a chance successor (or with no history), >1 for a likely one."""
-        source = self.source(t)
+        source = self.source(t, stream)
         if source is None:
             return 1.0
         return len(self.model.names) * self.model.probability(source, name)
 
 
 class TransitionDoUntil(WrappedDoUntil):
-    """Du of ``tuple_`` that records each of its activations in the shared succession."""
+    """Du of ``tuple_`` that records each of its activations in the shared succession, as
+    ``label`` (its name by default), in ``stream`` (see :class:`Succession`); with ``record``
+    false it only keeps the stream's place (what its candidates are primed by)."""
 
-    def __init__(self, inner: DoUntil, tuple_: ActionTuple, succession: Succession) -> None:
+    def __init__(self, inner: DoUntil, tuple_: ActionTuple, succession: Succession, label: str | None = None,
+                 stream: str | None = None, record: bool = True) -> None:
         super().__init__(inner)
         self.tuple = tuple_
         self.succession = succession
-        succession.join(tuple_)
+        self.label = tuple_.name if label is None else label
+        self.stream = stream
+        self.record = record
+        succession.join(tuple_, self.label)
 
     def begin(self, t: float, rng: np.random.Generator) -> None:
-        child = self.succession.observe(self.tuple.name, self.tuple.value.to_float())
+        child = self.succession.observe(self.tuple, self.label, self.stream, record=self.record)
         group = self.tuple.context.get("group")  # the group that is starting this tuple
         if child is not None and group is not None:
             group.add(child)
@@ -132,7 +173,8 @@ class LikelySuccessor(Percept):
     itself (relative to chance), which is how "what usually happens next" primes selection.
     """
 
-    def __init__(self, trigger: Percept, name: str, succession: Succession, *, strength: float = 1.0) -> None:
+    def __init__(self, trigger: Percept, name: str, succession: Succession, *, strength: float = 1.0,
+                 stream: str | None = None) -> None:
         if not strength >= 0.0:
             raise ValueError(f"strength must be non-negative (got {strength!r})")
         super().__init__(f"{trigger.name} · likely after last")
@@ -140,18 +182,25 @@ class LikelySuccessor(Percept):
         self.tuple_name = name
         self.succession = succession
         self.strength = float(strength)
+        self.stream = stream
 
     def evaluate(self, t: float) -> float:
-        return self.trigger.evaluate(t) * self.succession.likelihood(self.tuple_name, t) ** self.strength
+        likely = self.succession.likelihood(self.tuple_name, t, self.stream)
+        return self.trigger.evaluate(t) * likely**self.strength
 
 
-def follow(tuple_: ActionTuple, succession: Succession, *, strength: float = 1.0) -> ActionTuple:
-    """Give ``tuple_`` a transition-modelling Du and a trigger primed by likely transitions.
+def follow(tuple_: ActionTuple, succession: Succession, *, strength: float = 1.0,
+           label: str | None = None, stream: str | None = None, record: bool = True) -> ActionTuple:
+    """Give ``tuple_`` a transition-modelling Du and a trigger primed by likely transitions,
+    recorded (unless not ``record``) and primed as ``label`` (its name by default) in
+    ``stream`` (its group's, when several groups share the succession; see
+    :class:`Succession`).
 
     Apply before adding the tuple to its group (a group indexes triggers when tuples join).
     """
-    tuple_.do_until = TransitionDoUntil(tuple_.do_until, tuple_, succession)
-    tuple_.trigger = LikelySuccessor(tuple_.trigger, tuple_.name, succession, strength=strength)
+    tuple_.do_until = TransitionDoUntil(tuple_.do_until, tuple_, succession, label, stream, record)
+    tuple_.trigger = LikelySuccessor(tuple_.trigger, tuple_.do_until.label, succession, strength=strength,
+                                     stream=stream)
     return tuple_
 
 

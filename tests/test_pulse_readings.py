@@ -1,0 +1,130 @@
+"""The colony's pulse keeps competing metrical readings (creatures/temporal/readings.py):
+each reading hears every interval and is scored; the best one is the pulse the colony plays by."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from creatures.behaviour.models.gaussian import GaussianModel
+from creatures.config import ConfigError
+from creatures.runtime.pulse import HeardPulse, PulseDuration
+from creatures.runtime.schema import load_installation
+from creatures.temporal.readings import METRES, PulseReadings
+
+DUPLE = [0.5, 0.5, 1.0, 1.0, 2.0]  # eighths, quarters, halves (in beats)
+TRIPLE = [1 / 3, 1 / 3, 2 / 3, 1.0, 2.0]  # triplet eighths and quarters, quarters, halves
+
+
+def performance(style: list[float], n: int, seed: int, beat: float = 0.6, jitter: float = 0.03) -> list[float]:
+    """``n`` intervals drawn from ``style`` (beats) at ``beat`` seconds, played with ±3 % jitter."""
+    rng = np.random.default_rng(seed)
+    return [b * beat * (1.0 + rng.normal(0.0, jitter)) for b in rng.choice(style, n)]
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_each_metre_wins_on_its_own_rhythm_and_the_other_stays_scored(seed):
+    for style, metre, other in ((DUPLE, "duple", "triple"), (TRIPLE, "triple", "duple")):
+        readings = PulseReadings(["duple", "triple"], 0.5)
+        for d in performance(style, 120, seed):
+            readings.hear(d)
+        scores = readings.scores()
+        assert readings.best.metre == metre, (style, scores)
+        assert scores[metre] > scores[other] + 0.2  # a clear lead, not a tie broken by order
+        assert np.isfinite(scores[other])  # the losing hypothesis is still kept, and scored
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_the_best_reading_changes_when_the_metre_does(seed):
+    readings = PulseReadings(["duple", "triple"], 0.5)
+    for d in performance(DUPLE, 100, seed):
+        readings.hear(d)
+    assert readings.best.metre == "duple"
+    switched = None
+    for i, d in enumerate(performance(TRIPLE, 100, seed + 100)):
+        readings.hear(d)
+        if readings.best.metre == "triple":
+            switched = i
+            break
+    assert switched is not None and switched < 40
+
+
+def test_an_ambiguous_rhythm_does_not_flip_the_metre_back_and_forth():
+    """Quarters alone fit both metres: the first reading keeps the colony's metre."""
+    readings = PulseReadings(["duple", "triple"], 0.5)
+    bests = []
+    for d in performance([1.0], 200, 3):
+        readings.hear(d)
+        bests.append(readings.best.metre)
+    assert set(bests) == {"duple"}
+
+
+def heard(style: list[float], n: int, seed: int) -> HeardPulse:
+    """A colony pulse of duple and triple readings that has heard ``n`` intervals of ``style``."""
+    pulse = HeardPulse(0.5, ("duple", "triple"))
+    for onset in np.cumsum([0.0, *performance(style, n, seed)]):
+        pulse.hear(float(onset))
+    pulse.settle()
+    return pulse
+
+
+def test_the_heard_pulse_plays_by_its_best_reading():
+    """A Du resting on the colony's pulse samples the triple reading's lattice once triplets
+    are heard: durations at 1/3 and 2/3 of the beat, never the duple 1/2."""
+    pulse = heard(TRIPLE, 120, 1)
+    assert pulse.model is pulse.readings.best.model and pulse.readings.best.metre == "triple"
+    draws = np.array([PulseDuration(pulse, GaussianModel(2.0, 0.5), beats=1).sample(np.random.default_rng(i))
+                      for i in range(300)]) / pulse.model.pulse
+    ratios = np.array([float(r) for r in METRES["triple"]])
+    nearest = ratios[np.abs(np.log(draws[:, None] / ratios)).argmin(axis=1)]
+    assert (np.abs(np.log(draws / nearest)) < 0.08).all()
+    assert (np.abs(draws - 0.5) > 0.05).all()
+
+
+def test_the_colony_grid_is_locked_to_the_heard_beats():
+    pulse = HeardPulse(0.5)
+    assert pulse.next_beat(0.7) == pytest.approx(1.0)  # from 0 before anything is heard
+    for onset in (10.0, 10.5, 11.0, 11.5):  # not trusted yet: each onset is a grid point
+        pulse.hear(onset)
+    pulse.settle()
+    assert pulse.next_beat(11.6) == pytest.approx(11.5 + pulse.model.pulse)
+    assert pulse.next_beat(11.6, 0.5) == pytest.approx(11.5 + pulse.model.pulse / 2)
+    assert pulse.next_beat(11.5) == pytest.approx(11.5)
+    for k in range(1, 10):  # trusted from here on
+        pulse.hear(11.5 + 0.5 * k)
+    pulse.settle()
+    beat, grid = pulse.model.pulse, pulse.next_beat(16.0)
+    pulse.hear(grid + 0.04)  # a beat played 40 ms late pulls the grid a quarter of the way
+    pulse.settle()
+    assert pulse.grid == pytest.approx(grid + 0.01, abs=1e-9)
+    pulse.hear(grid + 1.5 * beat)  # an off-beat note says nothing of where the beats are
+    pulse.settle()
+    assert pulse.grid == pytest.approx(grid + 0.01, abs=1e-9)
+    assert pulse.next_beat(grid + 0.5 * beat) == pytest.approx(grid + 0.01 + pulse.model.pulse)
+
+
+def test_readings_are_saved_and_taken_back():
+    pulse = heard(TRIPLE, 80, 2)
+    fresh = HeardPulse(0.5, ("duple", "triple"))
+    fresh.restore(json.loads(json.dumps(pulse.to_dict())))
+    assert fresh.readings.best.metre == "triple"
+    assert fresh.readings.scores() == pulse.readings.scores()
+    assert fresh.model.to_dict() == pulse.model.to_dict()
+    damaged = pulse.to_dict()
+    damaged["readings"]["duple"]["score"] = "high"
+    before = fresh.readings.scores()
+    with pytest.raises(ValueError):
+        fresh.restore(damaged)
+    assert fresh.readings.scores() == before  # nothing taken from a damaged file
+
+
+def test_an_unknown_metre_is_a_config_error_at_its_line(tmp_path):
+    path = tmp_path / "a.toml"
+    path.write_text('title = "x"\n[pulse]\nreadings = ["duple", "quintuple"]\n'
+                    '[[creature]]\nname = "a"\nkind = "exchange"\n')
+    with pytest.raises(ConfigError) as err:
+        load_installation(path)
+    assert err.value.line == 3 and "pulse.readings" in err.value.key
+    assert "'triple'" in str(err.value)  # the valid names are listed
