@@ -97,7 +97,10 @@ class Masking:
     def stands_out(self, a: Arrival, arrivals: list[Arrival]) -> bool:
         """Whether ``a`` stands out among ``arrivals`` at its ear (one sound's answer in O(n):
         the stage asks only of the sound arriving, not again of every sound sounding there)."""
-        return not (a.db < self.threshold or any(
-            b is not a and b.start < a.end and a.start < b.end and b.db - a.db >= self.margin
-            and (a.pitch is None or b.pitch is None or abs(a.pitch - b.pitch) <= self.band)
-            for b in arrivals))
+        if a.db < self.threshold:
+            return False
+        for b in arrivals:  # a plain loop, the level test first: every note at every ear asks
+            if (b.db - a.db >= self.margin and b is not a and b.start < a.end and a.start < b.end
+                    and (a.pitch is None or b.pitch is None or abs(a.pitch - b.pitch) <= self.band)):
+                return False
+        return True
