@@ -72,6 +72,11 @@ class Habituation:
         self.z = z_eq + (self.z - z_eq) * math.exp(-dt / self.calm)
 
 
+def magnitude(datum: Any) -> float:
+    """A flow's default raw saliency: the size of its datum, whatever its sign."""
+    return abs(float(datum))
+
+
 class StateObject:
     """A bounded history of samples of one data flow, with a computed saliency.
 
@@ -96,7 +101,7 @@ class StateObject:
             raise ValueError(f"history must hold at least one sample (got {history})")
         self.name = name
         self.history = int(history)
-        self.saliency_fn = saliency_fn or (lambda datum: abs(float(datum)))
+        self.saliency_fn = saliency_fn or magnitude
         self.habituation = habituation
         self.inhibitors: list[tuple[StateObject, float]] = []
         self.modulators: list[Callable[[float], float]] = []
@@ -159,7 +164,8 @@ class StateObject:
         t = float(t)
         if self._end > self._start and t < self._last:
             raise ValueError(f"{self.name}: time went backwards ({t} < {self._last})")
-        stimulus = float(self.saliency_fn(datum))
+        fn = self.saliency_fn
+        stimulus = abs(float(datum)) if fn is magnitude else float(fn(datum))  # the default, without a call
         if self.inhibitors:
             stimulus *= self._inhibition(t)
         saliency = stimulus
