@@ -45,11 +45,21 @@ class Mixer:
     def place(self, source: int, weights: np.ndarray) -> None:
         """Set one source's gain on every output channel at once (a creature in a room,
         panned by its position over a stereo pair or a ring: creatures/room/speakers.py)."""
-        weights = np.asarray(weights, dtype=float)
-        if weights.shape != (self._weights.shape[1],) or not (weights >= 0).all():
-            raise ValueError(f"weights must be {self._weights.shape[1]} gains ≥ 0, got {weights!r}")
-        self._weights[source] = weights
+        self._weights[source] = self._gains_of(weights, (self._weights.shape[1],))
         self._placed[source] = True
+
+    def place_all(self, weights: np.ndarray) -> None:
+        """:meth:`place` every source at once, ``weights`` ``(n_sources, channels)``: a room
+        places every creature every tick, and one array assignment costs what one of 200
+        calls did."""
+        self._weights[:] = self._gains_of(weights, self._weights.shape)
+        self._placed[:] = True
+
+    def _gains_of(self, weights: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+        weights = np.asarray(weights, dtype=float)
+        if weights.shape != shape or not (weights >= 0).all():
+            raise ValueError(f"weights must be {shape} gains ≥ 0, got {weights!r}")
+        return weights
 
     def _update_weights(self) -> None:
         angle = (self.pans + 1.0) * (np.pi / 4.0)

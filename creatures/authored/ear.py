@@ -28,6 +28,7 @@ class Ear:
 
     def __init__(self, *, phrase_gap: float = 2.0, max_phrases: int = 8, history: int = 256) -> None:
         self.flows = {name: StateObject(name, history=history) for name in FEATURES}
+        self._flows = tuple(self.flows.values())  # in FEATURES order: a heard note pushes each
         self.phrase_gap = float(phrase_gap)
         self.phrases: deque[list[NoteEvent]] = deque(maxlen=max_phrases)
         self.phrases_made = 0  # phrases begun so far (numbers stay unique as old ones leave)
@@ -48,9 +49,12 @@ class Ear:
             self._recent.popleft()
         interval = 0 if self._last_pitch is None else note.pitch - self._last_pitch
         self._last_pitch = note.pitch
-        for name, datum in (("pitch", note.pitch), ("velocity", note.velocity), ("interval", interval),
-                            ("register", note.pitch // 12), ("density", len(self._recent) / DENSITY_WINDOW)):
-            self.flows[name].push(t, float(datum))
+        pitch, velocity, interval_, register, density = self._flows
+        pitch.push(t, float(note.pitch))
+        velocity.push(t, float(note.velocity))
+        interval_.push(t, float(interval))
+        register.push(t, float(note.pitch // 12))
+        density.push(t, len(self._recent) / DENSITY_WINDOW)
 
     def phrase(self, number: int) -> list[NoteEvent] | None:
         """Phrase ``number`` (1 = the first ever heard) if still remembered and complete."""

@@ -346,9 +346,11 @@ class ActionGroup:
         self._interrupt_at = np.where(self._base > 0.0, self.multiple * self._base, self._base)
 
     def _should_interrupt(self, expected: np.ndarray) -> bool:
-        weakest = min(expected[self._position(tp)] for tp in self.active)
+        active = [self._position(tp) for tp in self.active]
+        weakest = min(expected[active].tolist())  # in active order, as the tuples were asked
         grown = (expected > 0.0) & (expected >= self._interrupt_at) & (expected >= weakest)
-        return bool((grown & self._inactive_mask()).any())
+        grown[active] = False  # only an inactive tuple interrupts
+        return bool(grown.any())
 
     def _choose(self, expected: np.ndarray, allowed: np.ndarray) -> int | None:
         p = selection_probabilities(np.where(allowed, expected, 0.0), self.temperature)

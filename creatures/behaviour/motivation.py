@@ -136,8 +136,12 @@ class Motivation:
         return e[:n, :n], e[:n, n:]
 
     def _clip(self, x: np.ndarray) -> np.ndarray:
-        if self.floor is None and self.ceiling is None:
-            return x
+        # The ufunc np.clip itself resolves to for a one-sided bound, called directly: every
+        # tick clips each creature's drives, and np.clip's dispatch cost more than the clip.
+        if self.ceiling is None:
+            return x if self.floor is None else np.maximum(x, self.floor)
+        if self.floor is None:
+            return np.minimum(x, self.ceiling)
         return np.clip(x, self.floor, self.ceiling)
 
     def levels_at(self, t: float) -> np.ndarray:

@@ -72,6 +72,11 @@ class Habituation:
         self.z = z_eq + (self.z - z_eq) * math.exp(-dt / self.calm)
 
 
+def magnitude(datum: Any) -> float:
+    """A flow's default raw saliency: the size of its datum, whatever its sign."""
+    return abs(float(datum))
+
+
 class StateObject:
     """A bounded history of samples of one data flow, with a computed saliency.
 
@@ -96,15 +101,17 @@ class StateObject:
             raise ValueError(f"history must hold at least one sample (got {history})")
         self.name = name
         self.history = int(history)
-        self.saliency_fn = saliency_fn or (lambda datum: abs(float(datum)))
+        self.saliency_fn = saliency_fn or magnitude
         self.habituation = habituation
         self.inhibitors: list[tuple[StateObject, float]] = []
         self.modulators: list[Callable[[float], float]] = []
-        self._times = np.empty(2 * self.history)
+        self._capacity = 2 * self.history
+        self._times = np.empty(self._capacity)
         self._saliencies = np.empty(2 * self.history)
         self._data: list[Any] = [None] * (2 * self.history)
         self._start = 0
         self._end = 0
+        self._last = -math.inf  # the newest sample's time (valid while the history holds one)
         self._stimulus = 0.0  # last stimulus, held until the next push (for habituation)
 
     # -- the history, oldest first ------------------------------------------------------------
@@ -149,22 +156,29 @@ class StateObject:
         self.modulators.append(gain)
 
     def push(self, t: float, datum: Any) -> float:
-        """Record a datum at time ``t``; returns the saliency stored with it."""
+        """Record a datum at time ``t``; returns the saliency stored with it.
+
+        Hot path (every heard note pushes five flows at every ear): a flow with no
+        inhibitors, habituation or modulators skips their factors, each of which would be
+        exactly 1.0 (x·1.0 is x, bit for bit), and the newest time is kept as a float."""
         t = float(t)
-        if len(self) and t < self._times[self._end - 1]:
-            raise ValueError(
-                f"{self.name}: time went backwards ({t} < {self._times[self._end - 1]})"
-            )
-        stimulus = float(self.saliency_fn(datum)) * self._inhibition(t)
-        gain = 1.0
-        if self.habituation is not None:
-            if len(self):
-                self.habituation.advance(t - self._times[self._end - 1], self._stimulus)
-            gain = self.habituation.gain
-        for modulator in self.modulators:
-            gain *= float(modulator(t))
+        if self._end > self._start and t < self._last:
+            raise ValueError(f"{self.name}: time went backwards ({t} < {self._last})")
+        fn = self.saliency_fn
+        stimulus = abs(float(datum)) if fn is magnitude else float(fn(datum))  # the default, without a call
+        if self.inhibitors:
+            stimulus *= self._inhibition(t)
+        saliency = stimulus
+        if self.habituation is not None or self.modulators:
+            gain = 1.0
+            if self.habituation is not None:
+                if self._end > self._start:
+                    self.habituation.advance(t - self._last, self._stimulus)
+                gain = self.habituation.gain
+            for modulator in self.modulators:
+                gain *= float(modulator(t))
+            saliency = stimulus * gain
         self._stimulus = stimulus
-        saliency = stimulus * gain
         self._append(t, datum, saliency)
         return saliency
 
@@ -175,18 +189,21 @@ class StateObject:
         return gain
 
     def _append(self, t: float, datum: Any, saliency: float) -> None:
-        if self._end == len(self._times):  # slide the live window back to the front
-            n = len(self)
-            self._times[:n] = self._times[self._start : self._end]
-            self._saliencies[:n] = self._saliencies[self._start : self._end]
-            self._data[:n] = self._data[self._start : self._end]
-            self._data[n:] = [None] * (len(self._data) - n)
-            self._start, self._end = 0, n
-        self._times[self._end] = t
-        self._saliencies[self._end] = saliency
-        self._data[self._end] = datum
-        self._end += 1
-        if len(self) > self.history:
+        end = self._end
+        if end == self._capacity:  # slide the live window back to the front
+            start = self._start
+            n = end - start
+            self._times[:n] = self._times[start:end]
+            self._saliencies[:n] = self._saliencies[start:end]
+            self._data[:n] = self._data[start:end]
+            self._data[n:] = [None] * (self._capacity - n)
+            self._start, end = 0, n
+        self._times[end] = t
+        self._saliencies[end] = saliency
+        self._data[end] = datum
+        self._last = t
+        self._end = end = end + 1
+        if end - self._start > self.history:
             self._data[self._start] = None
             self._start += 1
 

@@ -21,6 +21,7 @@ share.
 
 from __future__ import annotations
 
+import operator
 from collections import deque
 from typing import TYPE_CHECKING, Callable, Literal, NamedTuple, TypeVar
 
@@ -94,6 +95,7 @@ class NoteWorld:
         self.heard: deque[Heard] = deque(maxlen=spec.max_notes)  # no more heard notes than the space holds
         self._struck_at: dict[int, float] = {}
         self._last_strike = -np.inf
+        self._passages: tuple[Heard | None, tuple[NoteObject, ...], list[list[NoteObject]]] | None = None
 
     def hear(self, t: float, note: NoteEvent, source: str) -> None:
         """Place a copy of a heard note (or renew the note of its pitch), remember it in its
@@ -185,7 +187,19 @@ class NoteWorld:
         """What the creature heard, as passages: each one player's notes with no more than
         ``passage_gap`` seconds between them (another player's notes in between belong to that
         player's passage: two players heard at once are two passages, not one interleaved), as
-        the note objects they landed on that are still in space, the latest heard last."""
+        the note objects they landed on that are still in space, the latest heard last.
+
+        Kept until what it depends on changes (the newest heard entry, the objects in space:
+        both compared by identity, and held so no id is reused): a percept asks every tick
+        (exchange's ``passage``), a note is heard less often."""
+        newest, objects = self.heard[-1] if self.heard else None, tuple(self.space.objects)
+        cached = self._passages
+        if not (cached is not None and cached[0] is newest and len(cached[1]) == len(objects)
+                and all(map(operator.is_, cached[1], objects))):
+            cached = self._passages = (newest, objects, self._find_passages())
+        return [list(p) for p in cached[2]]
+
+    def _find_passages(self) -> list[list[NoteObject]]:
         live = {id(obj) for obj in self.space.objects}
         notes: list[list[NoteObject]] = []  # in the order the passages began
         last: list[float] = []  # when each was last heard

@@ -71,8 +71,17 @@ def arrive(start: float, duration: float, db: float, pitch: float | None, what: 
            law: DistanceLaw, *, delay: bool = True) -> Arrival:
     """The sound emitted at ``start`` for ``duration`` s at ``db`` as heard ``distance`` m away
     (``delay`` false: at once, as if sound were instantaneous)."""
-    delay = distance / SPEED_OF_SOUND if delay else 0.0
-    return Arrival(start + delay, start + delay + duration, db + float(law.db(distance)), pitch, what)
+    return arrive_all(start, duration, db, pitch, what, np.array([distance], dtype=float), law, delay=delay)[0]
+
+
+def arrive_all(start: float, duration: float, db: float, pitch: float | None, what: object,
+               distances: np.ndarray, law: DistanceLaw, *, delay: bool = True) -> list[Arrival]:
+    """:func:`arrive` at every one of ``distances`` at once: a note crossing the room reaches
+    every ear, and the law's logarithm over all of them is one numpy call, not one per ear
+    (element-wise, so each arrival is bit for bit what :func:`arrive` alone would give)."""
+    delays = (distances / SPEED_OF_SOUND).tolist() if delay else [0.0] * len(distances)
+    return [Arrival(start + d, start + d + duration, db + level, pitch, what)
+            for d, level in zip(delays, law.db(distances).tolist())]
 
 
 @dataclass(frozen=True)
@@ -88,7 +97,10 @@ class Masking:
     def stands_out(self, a: Arrival, arrivals: list[Arrival]) -> bool:
         """Whether ``a`` stands out among ``arrivals`` at its ear (one sound's answer in O(n):
         the stage asks only of the sound arriving, not again of every sound sounding there)."""
-        return not (a.db < self.threshold or any(
-            b is not a and b.start < a.end and a.start < b.end and b.db - a.db >= self.margin
-            and (a.pitch is None or b.pitch is None or abs(a.pitch - b.pitch) <= self.band)
-            for b in arrivals))
+        if a.db < self.threshold:
+            return False
+        for b in arrivals:  # a plain loop, the level test first: every note at every ear asks
+            if (b.db - a.db >= self.margin and b is not a and b.start < a.end and a.start < b.end
+                    and (a.pitch is None or b.pitch is None or abs(a.pitch - b.pitch) <= self.band)):
+                return False
+        return True

@@ -22,7 +22,7 @@ from creatures import bounds
 from creatures.clock import clock_gap, next_on_grid
 from creatures.kinds.figures import body_graph
 from creatures.room.director import FlowField, Path
-from creatures.room.hearing import Arrival, DistanceLaw, Masking, arrive, db_velocity, velocity_db
+from creatures.room.hearing import Arrival, DistanceLaw, Masking, arrive_all, db_velocity, velocity_db
 from creatures.room.gait import Gaits, Walk, in_room
 from creatures.room.lod import LevelOfDetail, overdue_first
 from creatures.room.motion import Crowd
@@ -475,14 +475,12 @@ class Stage:
             self._loud.append((note.time + LOUD_FOR, where))
         if source not in self.index and source not in self._remote:  # a shared room's creatures are not players
             self._player = (note.time + PLAYER_FOR, where)
-        distance = norms(self.v.pos - where)
         me = self.index.get(source, -1)
-        for i, d in enumerate(distance):
-            if i == me:
-                continue
-            a = arrive(note.time, note.duration, velocity_db(note.velocity), note.pitch, note, float(d), self.law,
-                       delay=self.section.hearing.delay)
-            heapq.heappush(self._arrivals, (a.start, next(self._seq), i, a, source))
+        arrivals = arrive_all(note.time, note.duration, velocity_db(note.velocity), note.pitch, note,
+                              norms(self.v.pos - where), self.law, delay=self.section.hearing.delay)
+        for i, a in enumerate(arrivals):
+            if i != me:
+                heapq.heappush(self._arrivals, (a.start, next(self._seq), i, a, source))
 
     def due(self, t: float) -> list[tuple[int, NoteEvent, str]]:
         """What each ear hears by ``t``: (creature index, the note as it arrives, its source),

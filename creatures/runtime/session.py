@@ -101,8 +101,8 @@ class Session:
         if self.stage is not None:
             for i, note in self.stage.tick(t, self._percept, self.world.emit):
                 self.world.play(self.creatures[i], note)  # a note object it stepped onto
-            for i, (creature, gains) in enumerate(zip(self.creatures, self.stage.speaker_gains())):
-                self.mixer.place(i, creature.spec.gain * gains)
+            gains = np.fromiter((creature.spec.gain for creature in self.creatures), float, len(self.creatures))
+            self.mixer.place_all(gains[:, None] * self.stage.speaker_gains())  # spec.gain: the console may set it
         self.world.deliver(t)
         heard = self._ears(recorded, frames)
         room = self._ears(None, frames) if self._deaf and recorded is not None else heard  # hears_input = false
