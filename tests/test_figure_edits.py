@@ -194,8 +194,8 @@ def test_curve_creatures_on_a_body_of_their_own_approach_and_mirror(tmp_path: Pa
 
     for name in ("dog.bvh", "dog.labels.toml"):
         (tmp_path / name).write_bytes((BODIES / name).read_bytes())
-    text = installations.path("curve").read_text(encoding="utf-8")
-    body = '[creature.body]\nclips = "dog.labels.toml"\neffectors = ["nose_end"]\n'
+    text = installations.path("curve").read_text(encoding="utf-8").replace('body = { metric = "spline" }\n', "")
+    body = '[creature.body]\nclips = "dog.labels.toml"\neffectors = ["nose_end"]\nmetric = "spline"\n'
     parts = text.split("[[creature]]")
     config = tmp_path / "curve.toml"
     config.write_text(parts[0] + "".join("[[creature]]" + p.rstrip("\n") + "\n" + body + "\n" for p in parts[1:3]),
