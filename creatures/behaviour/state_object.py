@@ -107,8 +107,8 @@ class StateObject:
         self.modulators: list[Callable[[float], float]] = []
         self._capacity = 2 * self.history
         self._times = np.empty(self._capacity)
-        self._saliencies = np.empty(2 * self.history)
-        self._data: list[Any] = [None] * (2 * self.history)
+        self._saliencies = np.empty(self._capacity)
+        self._data: list[Any] = [None] * self._capacity
         self._start = 0
         self._end = 0
         self._last = -math.inf  # the newest sample's time (valid while the history holds one)

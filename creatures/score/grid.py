@@ -55,13 +55,17 @@ class Grid:
         return self.segments[-1][2]
 
     def time(self, beat: float) -> float:
-        b, t, period = next((s for s in reversed(self.segments) if beat >= s[0]), self.segments[0])
+        b, t, period = self._segment(beat)
         return t + (beat - b) * period
 
     def seconds(self, beat: float, beats: float) -> float:
         """How long ``beats`` beats from ``beat`` last at that beat's tempo (a note keeps the
         length it began with across a later change, and across a gap the score resumed over)."""
-        return beats * next((s for s in reversed(self.segments) if beat >= s[0]), self.segments[0])[2]
+        return beats * self._segment(beat)[2]
+
+    def _segment(self, beat: float) -> tuple[float, float, float]:
+        """The segment ``beat`` falls in (the first, for a beat before it)."""
+        return next((s for s in reversed(self.segments) if beat >= s[0]), self.segments[0])
 
     def beat(self, t: float) -> float:
         b, t0, period = next((s for s in reversed(self.segments) if t >= s[1]), self.segments[0])
