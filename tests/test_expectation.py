@@ -275,6 +275,107 @@ until = { seconds = 0.2 }
     assert startle.started_at is not None
 
 
+KEEP_TIME = """
+title = "keep time"
+duration = 60.0
+
+[[creature]]
+name = "r"
+kind = "authored"
+
+[creature.percepts.visitor]
+type = "onset"
+window = 0.01
+outside = true
+
+[creature.percepts."in time"]
+type = "in_time"
+level = "division"
+
+[creature.percepts.surprised]
+type = "surprise"
+tuple = "keep time"
+low = 0.2
+high = 0.4
+
+[creature.tuples."keep time"]
+trigger = "visitor"
+action = "rest"
+until = { seconds = 0.01, percept = "in time" }
+
+[creature.groups.time]
+tuples = ["keep time"]
+alpha = 0.0
+
+[creature.expectations]
+groups = ["time"]
+tolerance = 0.5
+grace = 0.0
+
+[[creature]]
+name = "s"
+kind = "authored"
+
+[creature.tuples.idle]
+action = "rest"
+until = { seconds = 1.0 }
+
+[creature.groups.main]
+tuples = ["idle"]
+alpha = 0.0
+"""
+
+
+def test_a_note_off_the_heard_metre_is_a_surprise_and_a_colony_note_is_not_judged(tmp_path):
+    """Perception as action with an expectation: hearing a visitor's note ends with its fit to
+    the division of the heard metre (``in_time``, on the best reading's pulse tree). Eighths
+    and quarters in duple fit; the first swung eighth (2/3 + 1/3 of a beat) does not, and
+    surprises; a colony creature's note, however far off, is not the visitor's to judge."""
+    from creatures.runtime.pulse import HeardPulse
+
+    path = tmp_path / "keep.toml"
+    path.write_text(KEEP_TIME)
+    clock, world = _world_with({})
+    world.pulse = HeardPulse(0.5, ("duple", "triple"))
+    rng = np.random.default_rng(8)
+    r, s = (KINDS["authored"](spec, world, rng) for spec in load_installation(path).specs)
+    world.add(r)
+    world.add(s)
+    state = r.expectations.of(r.tuple("keep time"))
+    surprised = r.percept("surprised")
+
+    played = [0.0]  # when the last note was played
+
+    def play(beats: list[float], source: str = "input") -> list[float]:
+        """The visitor (or ``source``) plays notes ``beats`` apart at 100 bpm (±1 % jitter);
+        per note, the most surprised ``r`` was before the next."""
+        per_note = []  # the most surprised r was on the way to each note: that judges the last
+        for k, beat in enumerate([*beats, 0.2]):  # and a moment after the last, while it is judged
+            due = played[0] = played[0] + beat * 0.6 * (1.0 + 0.01 * rng.standard_normal())
+            if k < len(beats):
+                world.inject(NoteEvent(due, 60, 90, 0, 0.1), source)
+            most = 0.0
+            while clock.now() < due:
+                clock.advance(DT)
+                world.deliver(clock.now())
+                r.tick(clock.now())
+                most = max(most, surprised.evaluate(clock.now()))
+            per_note.append(most)
+        return per_note[1:]
+
+    steady = play(list(rng.choice([0.5, 0.5, 1.0, 2.0], 80)))
+    # The first notes, before the pulse is trusted, are out of time and untrusted (no surprise).
+    assert max(steady) == 0.0 and state.confidence.at(clock.now()) > 0.8
+    violations = state.violations
+    tests = state.tests
+    play([0.5, 1.0 / 3.0, 0.5], source="s")  # the colony's own notes, off the division
+    assert state.tests == tests
+    assert max(play([1.0, 0.5, 0.5, 1.0])) == 0.0  # the visitor again, in time
+    swung = play([2 / 3, 1 / 3] * 4)
+    assert max(swung[:2]) == 1.0, swung  # the first swung eighth startles at once
+    assert state.violations >= violations + 3
+
+
 @pytest.mark.parametrize("old, new, key, message", [
     ('groups = ["beat"]\nmemory', 'groups = ["bea"]\nmemory', "expectations.groups", "did you mean 'beat'"),
     ('tuple = "expect"\n\n[creature.percepts.sure]', 'tuple = "expec"\n\n[creature.percepts.sure]',
@@ -282,6 +383,8 @@ until = { seconds = 0.2 }
     ('[creature.expectations]\ngroups = ["beat"]', '[creature.expectations]\ngroups = []', "percepts.surprised.type",
      "[creature.expectations] groups"),
     ('percept = "onset", fresh = true', 'fresh = true', "tuples.expect.until.fresh", "give the Du a 'percept'"),
+    ('tuple = "expect"\n\n[creature.percepts.sure]', 'tuple = "expect"\nlow = 0.2\n\n[creature.percepts.sure]',
+     "percepts.surprised", "give both 'low' and 'high'"),
 ])
 def test_bad_expectation_keys_are_errors_at_their_line(tmp_path, old, new, key, message):
     from tests.test_authored import error_of

@@ -10,9 +10,9 @@ import pytest
 
 from creatures.behaviour.models.gaussian import GaussianModel
 from creatures.config import ConfigError
-from creatures.runtime.pulse import HeardPulse, PulseDuration
+from creatures.runtime.pulse import LONGEST_INTERVAL, HeardPulse, PulseDuration
 from creatures.runtime.schema import load_installation
-from creatures.temporal.readings import METRES, PulseReadings
+from creatures.temporal.readings import LEVELS, METRES, PulseReadings
 
 DUPLE = [0.5, 0.5, 1.0, 1.0, 2.0]  # eighths, quarters, halves (in beats)
 TRIPLE = [1 / 3, 1 / 3, 2 / 3, 1.0, 2.0]  # triplet eighths and quarters, quarters, halves
@@ -81,6 +81,35 @@ def test_the_heard_pulse_plays_by_its_best_reading():
     nearest = ratios[np.abs(np.log(draws[:, None] / ratios)).argmin(axis=1)]
     assert (np.abs(np.log(draws / nearest)) < 0.08).all()
     assert (np.abs(draws - 0.5) > 0.05).all()
+
+
+@pytest.mark.parametrize("style, metre, division", [(DUPLE, "duple", 1 / 2), (TRIPLE, "triple", 1 / 3)])
+def test_each_reading_is_a_pulse_tree_and_a_note_is_placed_on_the_heard_metre(style, metre, division):
+    """Every reading is a tree of levels on its own model (beat, division, bar); the heard
+    metre's division is two halves or three thirds, so a note a third of a beat after the last
+    is in time (phase 0) only in triple, and one a half after only in duple."""
+    pulse = heard(style, 120, 4)
+    assert pulse.readings.best.metre == metre
+    beat = pulse.model.pulse
+    for reading in pulse.readings.readings:
+        levels = reading.levels
+        assert levels["beat"].model is reading.model  # the root is the reading's own model
+        assert levels["division"].parent is levels["beat"] is levels["bar"].parent
+        assert levels["bar"].pulse == pytest.approx(float(LEVELS[reading.metre]["bar"]) * reading.model.pulse)
+    assert pulse.readings.level("division").pulse == pytest.approx(division * beat)
+    last = pulse.readings.level("beat").anchor  # entrained on the last onset heard
+    assert last == pytest.approx(float(np.cumsum(performance(style, 120, 4))[-1]))
+    for step, wanted in ((division, 0.0), (2 * division, 0.0), (1.0, 0.0), (0.5 if metre == "triple" else 1 / 3, None)):
+        phase = pulse.phase(last + step * beat, "division")
+        if wanted is None:  # the other metre's division: well off this one's grid
+            assert 0.2 < phase < 0.8, (step, phase)
+        else:
+            assert min(phase, 1.0 - phase) < 1e-6, (step, phase)
+    assert pulse.phase(last + LONGEST_INTERVAL + 0.1, "division") is None  # after a pause: no expectation
+    assert HeardPulse(0.5).phase(1.0, "beat") is None  # nothing trusted yet
+    saved = HeardPulse(0.5, ("duple", "triple"))
+    saved.restore(json.loads(json.dumps(pulse.to_dict())))
+    assert saved.readings.level("division").pulse == pytest.approx(pulse.readings.level("division").pulse)  # the trees regrow
 
 
 def test_the_colony_grid_is_locked_to_the_heard_beats():

@@ -55,6 +55,8 @@ def ramp(x: float, low: float, high: float) -> float:
 # -- what is heard --------------------------------------------------------------------------
 class _HeardParams(Params):
     window: float = Field(1.0, gt=0, description="seconds a heard onset stays salient")
+    outside: bool = Field(False, description="count only notes from outside the colony (a visitor's: what the "
+                                             "pulse hears), not the creatures'")
 
 
 @PERCEPTS.register
@@ -66,7 +68,16 @@ class Heard(PerceptPart):
     Params = _HeardParams
 
     def build(self, params, creature, name):
-        return FunctionPercept(name, lambda t: 1.0 if creature.ear.since_heard(t) <= params.window else 0.0)
+        if not params.outside:
+            return FunctionPercept(name, lambda t: 1.0 if creature.ear.since_heard(t) <= params.window else 0.0)
+        heard_at = [-math.inf]
+
+        def hear(note, source) -> None:
+            if creature.world.outside(source):
+                heard_at[0] = creature.now()
+
+        creature.on_hear(hear)
+        return FunctionPercept(name, lambda t: 1.0 if t - heard_at[0] <= params.window else 0.0)
 
 
 class _OnsetParams(_HeardParams):
@@ -169,6 +180,46 @@ class OnPulse(PerceptPart):
             return 1.0 if min(phase, beat - phase) <= params.width else 0.0
 
         return FunctionPercept(name, on_beat)
+
+
+class _InTimeParams(Params):
+    level: Literal["beat", "division", "bar"] = Field(
+        "division", description="the level of the heard metre's pulse tree: 'beat', 'division' (halves of the beat "
+                                "in a duple reading, thirds in a triple one) or 'bar'")
+    sharpness: float = Field(1.0, gt=0, le=100, description="κ: a note at phase φ of the level's grid is "
+                                                            "exp(κ(cos 2πφ − 1)) in time: 1 on a grid point, "
+                                                            "e^(−2κ) half way between")
+
+
+@PERCEPTS.register
+class InTime(PerceptPart):
+    """How well the last note heard from outside the colony sat on a level of the heard metre,
+    counted from the note before it (the interval, on that level of the best reading's pulse
+    tree): exp(κ(cos 2πφ − 1)) at its phase φ; 1 after a pause (the time starts afresh), 0
+    until the pulse is trusted.
+    The until-percept of a tuple that hears a note: its Du then expects the note in time, and
+    a note off the metre is a surprise (thesis "perception as action": "more sophisticated
+    expectations about those perceptions")."""
+
+    name = "in_time"
+    thesis = "exotic duration models"
+    Params = _InTimeParams
+
+    def build(self, params, creature, name):
+        pulse = creature.world.pulse
+        fit = [0.0]
+
+        def hear(note, source) -> None:
+            if not creature.world.outside(source):
+                return
+            phase = pulse.phase(note.time, params.level)
+            if phase is None:
+                fit[0] = 0.0 if not pulse.ready else 1.0
+            else:
+                fit[0] = math.exp(params.sharpness * (math.cos(2.0 * math.pi * phase) - 1.0))
+
+        creature.on_hear(hear)
+        return FunctionPercept(name, lambda t: fit[0])
 
 
 # -- drives, time, sensors, the creature's own playing --------------------------------------
@@ -697,6 +748,15 @@ class Sung(PerceptPart):
 # -- expectations and perception as action ---------------------------------------------------
 class _SurpriseParams(Params):
     tuple: str | None = Field(None, description="whose surprise (none: the creature's latest, any tuple's)")
+    low: float | None = Field(None, ge=0, le=1, description="a fuzzy ramp of the surprise instead: saliency 0 "
+                                                            "here (a faded surprise startles nothing) …")
+    high: float | None = Field(None, ge=0, le=1, description="… and 1 here")
+
+    @model_validator(mode="after")
+    def _ramp(self):
+        if (self.low is None) != (self.high is None):
+            raise ValueError("give both 'low' and 'high' (a fuzzy ramp of the surprise), or neither")
+        return self
 
 
 @PERCEPTS.register
@@ -711,7 +771,10 @@ class Surprise(PerceptPart):
     refs = {"tuple": "tuples"}
 
     def build(self, params, creature, name):
-        return FunctionPercept(name, lambda t: creature.expectations.surprise(t, params.tuple))
+        if params.low is None:
+            return FunctionPercept(name, lambda t: creature.expectations.surprise(t, params.tuple))
+        return FunctionPercept(name, lambda t: ramp(creature.expectations.surprise(t, params.tuple), params.low,
+                                                    params.high))
 
 
 class _ConfidenceParams(Params):

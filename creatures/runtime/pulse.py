@@ -17,6 +17,12 @@ Du, percept and tempo map of the colony follows the reading that explains the mu
 A config names its readings in ``[pulse] readings`` (one, ``simple``, by default: the
 colony's pulse as it always was). :meth:`HeardPulse.next_beat` gives the colony one grid:
 a phrase that starts there shares the beat of every other creature's.
+
+Each reading is also a pulse tree (its beat, the division of the beat, the bar:
+:data:`~creatures.temporal.readings.LEVELS`), entrained on every onset heard, so
+:meth:`HeardPulse.phase` says where a new note falls on a level of the heard metre counted
+from the note before it: the interval the readings themselves judge, whatever the
+performer's slow drift against the colony's grid.
 """
 
 from __future__ import annotations
@@ -87,6 +93,16 @@ class HeardPulse:
         if abs(error) <= ON_THE_BEAT * beat:
             self.grid = onset - (1.0 - GRID_PULL) * error
 
+    def phase(self, t: float, level: str) -> float | None:
+        """Where an onset at ``t`` falls between two points of ``level`` (``beat``,
+        ``division`` or ``bar``) of the best reading's tree, in [0, 1), counted from the last
+        onset heard; None until the pulse is trusted, and after a pause (nothing heard for
+        longer than :data:`LONGEST_INTERVAL`: the time starts afresh)."""
+        grid = self.readings.level(level)
+        if not self.ready or t - grid.anchor > LONGEST_INTERVAL:
+            return None
+        return grid.phase(t)
+
     @property
     def ready(self) -> bool:
         return self.heard >= READY_AFTER
@@ -142,6 +158,7 @@ class HeardPulse:
                 self.heard += 1
                 surprises += self.model.surprised
             self._lock(onset)
+        self.readings.entrain(float(onsets[-1]))
         return surprises
 
 

@@ -134,12 +134,17 @@ class World:
         self._pending = kept
         return dropped
 
+    def outside(self, source: str) -> bool:
+        """Whether a note from ``source`` comes from outside the colony (a visitor, another
+        colony): what the pulse hears, not what a creature of this world played."""
+        return not any(creature.name == source for creature in self.creatures)
+
     def deliver(self, t: float) -> int:
         """Give every note that has started by ``t`` to every creature but its player."""
         count = 0
         while self._pending and self._pending[0][0] <= t:
             _, _, note, source = heapq.heappop(self._pending)
-            if not any(creature.name == source for creature in self.creatures):
+            if self.outside(source):
                 self.pulse.hear(note.time)  # the rhythm heard from outside, not the colony's own
                 for listener in self.hearing:
                     listener(source, note)

@@ -20,6 +20,15 @@ ratio distribution and its tolerance band, with an unexplained interval costing 
 model's own re-anchoring charges — and the best-scoring reading is the one the colony plays
 by. Switching is damped by ``margin`` (nats a challenger must lead by), so a passage that
 fits both readings alike does not flip the colony's metre back and forth.
+
+Each reading is a duration percept *tree* (thesis: the tree "can directly represent
+(through it's hierarchy) the hierarchical structures that are undeniably useful for
+music"): its model is the root (the beat) of a :class:`~creatures.temporal.tree.PulsePercept`
+whose children are the metre's levels (:data:`LEVELS`: the division of its beat and its
+bar), every level a grid at a fixed ratio of the root's pulse, all anchored on the last
+onset heard. A piece asks for a level by name (``division``), so a duple reading answers
+with its half-beat and a triple one with its third: what a tuple keeps time with follows the
+metre the colony hears.
 """
 
 from __future__ import annotations
@@ -30,6 +39,7 @@ from typing import Any
 
 from creatures import bounds
 from creatures.temporal.durations import DEFAULT_RATIOS, LowIntegerRatioModel
+from creatures.temporal.tree import PulsePercept
 
 METRES: dict[str, dict[Fraction, float]] = {
     "simple": DEFAULT_RATIOS,
@@ -38,6 +48,15 @@ METRES: dict[str, dict[Fraction, float]] = {
 }
 """The metres a reading may take, by the name a config gives (``[pulse] readings``): the
 ratios (duration : pulse) each allows, with their prior preferences."""
+
+LEVELS: dict[str, dict[str, Fraction]] = {
+    "simple": {"beat": Fraction(1), "division": Fraction(1, 2), "bar": Fraction(4)},
+    "duple": {"beat": Fraction(1), "division": Fraction(1, 2), "bar": Fraction(4)},
+    "triple": {"beat": Fraction(1), "division": Fraction(1, 3), "bar": Fraction(3)},
+}
+"""Each metre's levels (ratio to its pulse), by the name a piece gives: its beat, the
+division of the beat it hears (two halves, or three thirds) and its bar (the largest ratio
+of a duple reading; three beats in triple)."""
 
 RATE = 0.05
 """Weight of each new interval in a reading's score (a memory of about twenty intervals)."""
@@ -55,10 +74,21 @@ class Reading:
         self.metre = metre
         self.model = LowIntegerRatioModel(prior_pulse, ratios=METRES[metre])
         self.score = 0.0
+        self.levels: dict[str, PulsePercept] = {}
+        self.grow()
         # The model's own scoring rule: ½(residual/σ)² with σ = tolerance/2, and an
         # unexplained duration charged as the least likely ratio at twice the band's edge.
         self._inv_var = 2.0 / self.model.tolerance**2
         self._unexplained = math.log(float(self.model.prior.min())) - 4.0
+
+    def grow(self) -> None:
+        """(Re)build the reading's pulse tree on its model: the root is the beat, its children
+        the metre's other levels (:data:`LEVELS`), on the anchor the tree had."""
+        anchor = self.levels["beat"].anchor if self.levels else 0.0
+        root = PulsePercept(f"{self.metre} beat", self.model)
+        root.entrain(anchor)
+        self.levels = {name: root if ratio == 1 else root.level(ratio, f"{self.metre} {name}")
+                       for name, ratio in LEVELS[self.metre].items()}
 
     def hear(self, interval: float) -> float:
         """Learn ``interval`` and return its log-likelihood under this reading as it stood
@@ -100,6 +130,16 @@ class PulseReadings:
         if leader.score > self.best.score + self.margin:
             self.best = leader
 
+    def entrain(self, onset: float) -> None:
+        """Put a grid point of every reading's tree at ``onset`` (a note just heard)."""
+        for reading in self.readings:
+            reading.levels["beat"].entrain(onset)
+
+    def level(self, name: str) -> PulsePercept:
+        """Level ``name`` (:data:`LEVELS`) of the best reading's tree: the metre the colony
+        hears, at that level."""
+        return self.best.levels[name]
+
     def scores(self) -> dict[str, float]:
         """Each reading's score, by metre."""
         return {r.metre: r.score for r in self.readings}
@@ -123,5 +163,6 @@ class PulseReadings:
                 taken.append((reading, reading.model.learned(model), score))
         for reading, model, score in taken:
             reading.model, reading.score = model, score
+            reading.grow()
         best = data.get("best")
         self.best = next((r for r in self.readings if r.metre == best), self.readings[0])
