@@ -112,6 +112,21 @@ def test_each_reading_is_a_pulse_tree_and_a_note_is_placed_on_the_heard_metre(st
     assert saved.readings.level("division").pulse == pytest.approx(pulse.readings.level("division").pulse)  # the trees regrow
 
 
+@pytest.mark.parametrize("style, bar, division", [(DUPLE, 4.0, 1 / 2), (TRIPLE, 3.0, 1 / 3)])
+def test_a_du_samples_a_level_of_the_heard_metre(style, bar, division):
+    """``until = { model = { type = "pulse", level = "bar" } }`` rests a bar of the best
+    reading: four beats of duple, three of triple; a division is a half or a third."""
+    pulse = heard(style, 120, 6)
+    rng = np.random.default_rng(0)
+    fallback = GaussianModel(2.0, 0.5)
+    for level, steps in (("bar", bar), ("division", division), ("beat", 1.0)):
+        draws = np.array([PulseDuration(pulse, fallback, beats=2, level=level).sample(rng) for _ in range(200)])
+        assert np.allclose(draws / pulse.model.pulse, 2 * steps, rtol=0.1), (level, draws.min(), draws.max())  # ± the heard jitter
+    # Without a level the Du draws the reading's ratios instead: not one length.
+    ratios = np.array([PulseDuration(pulse, fallback, beats=1).sample(rng) for _ in range(200)]) / pulse.model.pulse
+    assert ratios.max() / ratios.min() > 2.5
+
+
 def test_the_colony_grid_is_locked_to_the_heard_beats():
     pulse = HeardPulse(0.5)
     assert pulse.next_beat(0.7) == pytest.approx(1.0)  # from 0 before anything is heard

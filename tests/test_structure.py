@@ -22,7 +22,8 @@ When the visitor starts to swing (the same phrases, each pair of eighths on a be
 long-short, 2:1, and three-beat gaps: a triple metre), she is surprised within four notes
 of the first swung one and cries out; on the steady rhythm before, and over the whole of the
 steady run (the control: the same performer, who never swings), she is surprised on at
-most 5 % of the notes and cries out rarely."""
+most 5 % of the notes and cries out rarely. The colony's rests, a bar of the best reading,
+go from four beats to three once the triple reading wins."""
 
 from __future__ import annotations
 
@@ -258,6 +259,12 @@ def cries(events: list[dict], pitches: set[int]) -> np.ndarray:
                      if e["kind"] == "note" and e["creature"] == "ada" and e["pitch"] in pitches])
 
 
+def rest_beats(events: list[dict], since: float, until: float) -> float:
+    """The colony's median rest between ``since`` and ``until``, in the visitor's beats."""
+    return float(np.median([e["duration"] for e in events if e["kind"] == "stop" and e["tuple"] == "rest"
+                            and since <= e["t"] < until])) / BEAT
+
+
 def test_a_change_of_metre_surprises_ada_within_four_notes_and_startles_her(steady, tmp_path):
     seed, calm, calm_notes = steady
     swinging = SWING + 120.0
@@ -288,3 +295,9 @@ def test_a_change_of_metre_surprises_ada_within_four_notes_and_startles_her(stea
     minutes = (onsets[change] - trusted) / 60.0
     assert ((cried >= trusted) & (cried < onsets[change])).sum() / len(pitches) <= minutes
     assert (calm_cried >= trusted).sum() / len(pitches) <= (SECONDS - trusted) / 60.0
+    # The colony hears the new metre: once the triple reading is the best its rests, a bar of
+    # it, are three beats long, not four (as they stay in the steady run).
+    triple = next(e["t"] for e in events if e["kind"] == "reading" and e["t"] > SWING and e["metre"] == "triple")
+    assert rest_beats(events, trusted, onsets[change]) == pytest.approx(4.0, abs=0.25)
+    assert rest_beats(events, triple + 5.0, swinging) == pytest.approx(3.0, abs=0.25)
+    assert rest_beats(calm, triple + 5.0, swinging) == pytest.approx(4.0, abs=0.25)

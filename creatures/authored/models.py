@@ -6,7 +6,7 @@ samples the one :class:`~creatures.runtime.pulse.HeardPulse` of its world, so th
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Literal
 
 from pydantic import BaseModel, Field
 
@@ -45,22 +45,28 @@ class Gaussian(ModelPart):
 
 
 class _PulseParams(Params):
-    beats: int = Field(2, ge=1, le=64, description="durations of the heard pulse")
+    beats: int = Field(2, ge=1, le=64, description="durations of the heard pulse (or steps of its 'level')")
     mean: float = Field(2.0, gt=0, description="fallback seconds until the pulse is trusted")
     std: float = Field(0.5, gt=0, description="fallback spread")
+    level: Literal["beat", "division", "bar"] | None = Field(
+        None, description="steps of this level of the heard metre's pulse tree instead of the reading's ratios: "
+                          "'bar' rests a bar of four in duple, of three in triple (thesis 'exotic duration "
+                          "models'); none: durations drawn from the best reading's low-integer ratios")
 
 
 @MODELS.register
 class Pulse(ModelPart):
     """``beats`` durations sampled from the colony's heard pulse (a low-integer-ratio model of
-    what it hears): rests in the time of the music. Learns only from hearing."""
+    what it hears), or ``beats`` steps of one level of its best reading's pulse tree: rests in
+    the time of the music. Learns only from hearing."""
 
     name = "pulse"
     thesis = "low-integer-ratio duration models"
     Params = _PulseParams
 
     def build(self, params, creature):
-        return PulseDuration(creature.world.pulse, GaussianModel(params.mean, params.std), beats=params.beats)
+        return PulseDuration(creature.world.pulse, GaussianModel(params.mean, params.std), beats=params.beats,
+                             level=params.level)
 
 
 class _RatioParams(Params):

@@ -28,6 +28,7 @@ from creatures.behaviour.models.gaussian import GaussianModel, GaussianPercept
 from creatures.behaviour.perception import PerceivingPercept
 from creatures.behaviour.percept import FunctionPercept, Percept
 from creatures.temporal.durations import SimpleDurationModel
+from creatures.temporal.tree import on_grid
 from midi.fifths import STEPS
 
 if TYPE_CHECKING:
@@ -216,7 +217,7 @@ class InTime(PerceptPart):
             if phase is None:
                 fit[0] = 0.0 if not pulse.ready else 1.0
             else:
-                fit[0] = math.exp(params.sharpness * (math.cos(2.0 * math.pi * phase) - 1.0))
+                fit[0] = on_grid(phase, params.sharpness)
 
         creature.on_hear(hear)
         return FunctionPercept(name, lambda t: fit[0])

@@ -164,18 +164,22 @@ class HeardPulse:
 
 class PulseDuration:
     """A Du duration: ``beats`` times a duration sampled from the heard pulse (so it lies on the
-    pulse's low-integer-ratio lattice), or a fallback model's sample until the pulse is ready.
-    It learns only from hearing: the length an action happened to last says nothing about
-    the music, so ``update`` leaves the pulse alone."""
+    pulse's low-integer-ratio lattice) or, with ``level``, ``beats`` steps of that level of the
+    best reading's pulse tree (a bar: four beats in duple, three in triple); a fallback model's
+    sample until the pulse is ready. It learns only from hearing: the length an action
+    happened to last says nothing about the music, so ``update`` leaves the pulse alone."""
 
-    def __init__(self, pulse: HeardPulse, fallback: GaussianModel, beats: int = 2) -> None:
+    def __init__(self, pulse: HeardPulse, fallback: GaussianModel, beats: int = 2, level: str | None = None) -> None:
         self.pulse = pulse
         self.fallback = fallback
         self.beats = beats
+        self.level = level
 
     def sample(self, rng: np.random.Generator) -> float:
         if not self.pulse.ready:
             return self.fallback.sample(rng)
+        if self.level is not None:
+            return self.beats * self.pulse.readings.level(self.level).model.sample_pulse(rng)
         return self.beats * self.pulse.model.sample(rng)
 
     def update(self, duration: float) -> None:

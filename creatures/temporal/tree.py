@@ -30,6 +30,12 @@ from creatures.behaviour.percept import Percept
 from creatures.temporal.durations import LowIntegerRatioModel, PulseModel, check_duration
 
 
+def on_grid(phase: float, sharpness: float) -> float:
+    """How near phase φ of a grid is to a grid point: exp(κ·(cos 2πφ − 1)), 1 on it and
+    e^(−2κ) half way between (``sharpness`` κ)."""
+    return math.exp(sharpness * (math.cos(2.0 * math.pi * phase) - 1.0))
+
+
 class Subdivision:
     """A metrical level at ``ratio`` × a parent pulse, with a model of its own.
 
@@ -135,7 +141,7 @@ class PulsePercept(Percept):
         return ((t - self.anchor) / self.pulse) % 1.0
 
     def evaluate(self, t: float) -> float:
-        return math.exp(self.sharpness * (math.cos(2.0 * math.pi * self.phase(t)) - 1.0))
+        return on_grid(self.phase(t), self.sharpness)
 
     def level(self, ratio: Fraction | int, name: str | None = None) -> "PulsePercept":
         """A child metrical level at ``ratio`` × this pulse (e.g. 1/2, 3 or 4)."""
