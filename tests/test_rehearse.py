@@ -1,8 +1,9 @@
 """``creatures rehearse``: a gallery week on the simulated clock with visitors, measured per hour
 (issue 20, "rehearsing a gallery week"). The measures are tested on made-up hours that must
 tell silence, repetition and variety apart; the visitors on their own rules; the rehearsal of
-every shipped installation over 7 simulated days, reduced to short opening days (the full
-gallery week of exchange is ``python -m bench rehearse``)."""
+every shipped installation over 7 simulated days, reduced to short opening days, and one
+whole 8-hour opening day of structure (the full gallery week of exchange is ``python -m bench
+rehearse``)."""
 
 from __future__ import annotations
 
@@ -201,6 +202,24 @@ def test_every_shipped_installation_rehearsed_for_seven_days_is_never_silent_for
     # the door is seeded Poisson at 60 an hour over 35 open minutes (mean 35); fewer than 15
     # would be a door that stopped opening (p < 1e-4), not chance (duncan, seed 0: 18)
     assert r.visitors >= 15
+
+
+@pytest.mark.slow
+def test_a_whole_gallery_day_of_structure_hears_every_creature_every_few_minutes():
+    """The week above shortens each opening day to 5 minutes, so "never silent for a day" is
+    checked against 5 minutes of open time; what a short day cannot show is a slow change over
+    a long one. One real opening day (10:00-18:00) of structure at its own visitor rate (6 an
+    hour; tick 0.5 s, 70 s of CPU), whose complexity arc runs 24 cycles of 20 minutes: every
+    hour acts, and no creature is silent for more than 3 minutes of it (longest: bo 58.5 s, ada
+    45.5 s, cy 80.5 s), a long way under the day."""
+    inst = load_installation(installations.path("structure"))
+    inst.settings.rehearse.hours = ScheduleSection(opens="10:00", closes="18:00")
+    inst.settings.rehearse.tick = 0.5
+    r = rehearse(inst, 1)
+    assert [(h.day, h.hour) for h in r.hours] == [(0, hour) for hour in range(10, 18)]
+    assert r.opening_day == 8 * 3600 and r.crash_free == 8
+    assert max(r.longest_silence.values()) <= 180.0, r.longest_silence
+    assert all(h.acts_per_minute > 0 and h.silence < 0.5 for h in r.hours), [h.silence for h in r.hours]
 
 
 def test_a_silent_piece_fails_the_week(monkeypatch):
