@@ -131,3 +131,91 @@ def test_every_constraint_yields_its_relation(rel):
         log = run([first, second], seconds=15.0)
         count += holds(rel, log.get(gated.name, []), log[reference.name], gated_is_x=gated is x)
     assert count >= 10
+
+
+AUTHORED = """
+title = "relations"
+duration = 60.0
+
+[[creature]]
+name = "r"
+kind = "authored"
+
+[creature.tuples.x]
+action = "rest"
+until = {{ seconds = {x} }}
+
+[creature.tuples.y]
+action = "rest"
+until = {{ seconds = {y} }}
+
+[creature.tuples.rest1]
+action = "rest"
+until = {{ seconds = 0.5 }}
+
+[creature.tuples.rest2]
+action = "rest"
+until = {{ seconds = 0.4 }}
+
+[creature.groups.first]
+tuples = ["{reference}", "rest1"]
+alpha = 0.0
+multiple = 1000.0
+
+[creature.groups.second]
+tuples = ["{gated}", "rest2"]
+alpha = 0.0
+multiple = 1000.0
+constraints = [{{ relation = "{relation}", a = "x", b = "y"{gap} }}]
+"""
+
+
+@pytest.mark.parametrize("rel", list(Relation), ids=[r.value for r in Relation])
+def test_every_relation_is_authored_as_a_group_constraint(tmp_path, rel):
+    """``constraints = [{ relation = "...", a = "x", b = "y" }]`` makes x's activations stand in
+    that relation to y's in an authored creature, for each of the thirteen relations (the
+    gated tuple in the group that ticks second, as the reference says)."""
+    from creatures.kinds import KINDS
+    from creatures.runtime.schema import load_installation
+    from tests.test_authored import _world_with
+
+    x, y = tuple_("x", 1.0), tuple_("y", 1.0)
+    constrain(x, rel, y)
+    gated = "x" if isinstance(x.trigger, GatedTrigger) else "y"
+    count = 0
+    for seed in range(3):
+        rng = np.random.default_rng(seed)
+        path = tmp_path / f"{seed}.toml"
+        gap = ", gap = 0.3" if rel in (R.BEFORE, R.AFTER) else ""
+        path.write_text(AUTHORED.format(x=round(rng.uniform(0.3, 1.2), 2), y=round(rng.uniform(0.3, 1.2), 2),
+                                        gated=gated, reference="y" if gated == "x" else "x", relation=rel.value,
+                                        gap=gap))
+        clock, world = _world_with({})
+        spec = load_installation(path).specs[0]  # registers the authored kind
+        creature = KINDS["authored"](spec, world, rng)
+        open_: dict[str, float] = {}
+        log: Activations = {}
+
+        def emit(t, kind, **fields):
+            if kind == "selection":
+                open_[fields["tuple"]] = t
+            elif kind == "stop":
+                log.setdefault(fields["tuple"], []).append((open_.pop(fields["tuple"]), t))
+
+        world.log.emit = emit
+        for k in range(1, 300):
+            creature.tick(clock.advance_to(k * 0.05))
+        for name, start in open_.items():
+            log.setdefault(name, []).append((start, None))
+        count += holds(rel, log.get(gated, []), log["y" if gated == "x" else "x"], gated_is_x=gated == "x")
+    assert count >= 5
+
+
+def test_a_gap_is_only_for_before_and_after(tmp_path):
+    from creatures.config import ConfigError
+    from creatures.runtime.schema import load_installation
+
+    path = tmp_path / "bad.toml"
+    path.write_text(AUTHORED.format(x=1.0, y=1.0, gated="y", reference="x", relation="meets", gap=", gap = 0.3"))
+    with pytest.raises(ConfigError, match="'gap' is for 'before' and 'after'"):
+        load_installation(path)

@@ -126,9 +126,8 @@ class Authored(CreatureKind):
         self.tuples = {name: self._tuple(name, tp) for name, tp in spec.tuples.items()}
         for group in spec.groups.values():
             for constraint in group.constraints:
-                getattr(intervals, constraint.relation)(self.tuples[constraint.a], self.tuples[constraint.b],
-                                                        **({"gap": constraint.gap} if constraint.relation == "before"
-                                                           else {}))
+                intervals.constrain(self.tuples[constraint.a], intervals.Relation(constraint.relation),
+                                    self.tuples[constraint.b], gap=constraint.gap)
         self.groups: dict[str, ActionGroup] = {}
         self.expectations = self._expectations(spec)
         members = {m for g in spec.groups.values() for m in g.tuples}

@@ -148,12 +148,25 @@ class TupleSpec(Strict):
 
 
 class ConstraintSpec(Strict):
-    """An interval relation between two tuples (thesis "interval constraints")."""
+    """An interval relation between two tuples (thesis "temporal logics": all thirteen of
+    Allen's relations, made by gating Tr and Du): a's activations stand in ``relation`` to b's.
+    Where the constraint gates a tuple's start on the other's start or end in the same tick
+    (meets, starts, equals and their inverses), put the gated tuple in a group that ticks
+    after the other's (a later top-level group)."""
 
-    relation: Literal["before", "meets", "overlaps", "starts", "during"] = Field(description="Allen relation")
+    relation: Literal["before", "after", "meets", "met_by", "overlaps", "overlapped_by", "starts", "started_by",
+                      "during", "contains", "finishes", "finished_by", "equals"] = Field(
+        description="Allen relation of a to b")
     a: str = Field(description="first tuple")
     b: str = Field(description="second tuple")
-    gap: float = Field(0.0, ge=0, le=LONGEST_SECONDS, description="before: seconds between a's end and b's start")
+    gap: float = Field(0.0, ge=0, le=LONGEST_SECONDS, description="before/after: seconds between the earlier one's "
+                                                                  "end and the later one's start")
+
+    @model_validator(mode="after")
+    def _gap(self):
+        if self.gap and self.relation not in ("before", "after"):
+            raise ValueError(f"'gap' is for 'before' and 'after', not {self.relation!r}")
+        return self
 
 
 class ProximityLearningSpec(Strict):

@@ -282,7 +282,7 @@ def finished_by(x: ActionTuple, y: ActionTuple) -> None:
     finishes(y, x)
 
 
-CONSTRAINTS: dict[Relation, Callable[[ActionTuple, ActionTuple], None]] = {
+CONSTRAINTS: dict[Relation, Callable[..., None]] = {
     Relation.BEFORE: before,
     Relation.AFTER: after,
     Relation.MEETS: meets,
@@ -299,6 +299,12 @@ CONSTRAINTS: dict[Relation, Callable[[ActionTuple, ActionTuple], None]] = {
 }
 
 
-def constrain(x: ActionTuple, rel: Relation, y: ActionTuple) -> None:
-    """Make x's activations stand in ``rel`` to y's (``constrain(c, Relation.DURING, a)``)."""
-    CONSTRAINTS[rel](x, y)
+def constrain(x: ActionTuple, rel: Relation, y: ActionTuple, *, gap: float = 0.0) -> None:
+    """Make x's activations stand in ``rel`` to y's (``constrain(c, Relation.DURING, a)``);
+    ``gap`` is the seconds between the earlier's end and the later's start of BEFORE and AFTER."""
+    if rel in (Relation.BEFORE, Relation.AFTER):
+        CONSTRAINTS[rel](x, y, gap=gap)
+    elif gap:
+        raise ValueError(f"a gap is for before and after, not {rel.value}")
+    else:
+        CONSTRAINTS[rel](x, y)
