@@ -4,6 +4,7 @@ each reading hears every interval and is scored; the best one is the pulse the c
 from __future__ import annotations
 
 import json
+from typing import get_args
 
 import numpy as np
 import pytest
@@ -12,7 +13,7 @@ from creatures.behaviour.models.gaussian import GaussianModel
 from creatures.config import ConfigError
 from creatures.runtime.pulse import LONGEST_INTERVAL, HeardPulse, PulseDuration
 from creatures.runtime.schema import load_installation
-from creatures.temporal.readings import LEVELS, METRES, PulseReadings
+from creatures.temporal.readings import LEVELS, METRES, Level, PulseReadings
 
 DUPLE = [0.5, 0.5, 1.0, 1.0, 2.0]  # eighths, quarters, halves (in beats)
 TRIPLE = [1 / 3, 1 / 3, 2 / 3, 1.0, 2.0]  # triplet eighths and quarters, quarters, halves
@@ -90,6 +91,7 @@ def test_each_reading_is_a_pulse_tree_and_a_note_is_placed_on_the_heard_metre(st
     is in time (phase 0) only in triple, and one a half after only in duple."""
     pulse = heard(style, 120, 4)
     assert pulse.readings.best.metre == metre
+    assert all(set(levels) == set(get_args(Level)) for levels in LEVELS.values())  # every metre names each level
     beat = pulse.model.pulse
     for reading in pulse.readings.readings:
         levels = reading.levels

@@ -6,7 +6,7 @@ samples the one :class:`~creatures.runtime.pulse.HeardPulse` of its world, so th
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING
 
 from pydantic import BaseModel, Field
 
@@ -15,6 +15,7 @@ from creatures.behaviour.action_tuple import DurationModel
 from creatures.behaviour.models.gaussian import GaussianModel
 from creatures.runtime.pulse import PulseDuration
 from creatures.temporal.durations import LowIntegerRatioModel
+from creatures.temporal.readings import Level
 
 if TYPE_CHECKING:
     from creatures.authored.creature import Authored
@@ -48,7 +49,7 @@ class _PulseParams(Params):
     beats: int = Field(2, ge=1, le=64, description="durations of the heard pulse (or steps of its 'level')")
     mean: float = Field(2.0, gt=0, description="fallback seconds until the pulse is trusted")
     std: float = Field(0.5, gt=0, description="fallback spread")
-    level: Literal["beat", "division", "bar"] | None = Field(
+    level: Level | None = Field(
         None, description="steps of this level of the heard metre's pulse tree instead of the reading's ratios: "
                           "'bar' rests a bar of four in duple, of three in triple (thesis 'exotic duration "
                           "models'); none: durations drawn from the best reading's low-integer ratios")

@@ -28,6 +28,7 @@ from creatures.behaviour.models.gaussian import GaussianModel, GaussianPercept
 from creatures.behaviour.perception import PerceivingPercept
 from creatures.behaviour.percept import FunctionPercept, Percept
 from creatures.temporal.durations import SimpleDurationModel
+from creatures.temporal.readings import Level
 from creatures.temporal.tree import on_grid
 from midi.fifths import STEPS
 
@@ -184,7 +185,7 @@ class OnPulse(PerceptPart):
 
 
 class _InTimeParams(Params):
-    level: Literal["beat", "division", "bar"] = Field(
+    level: Level = Field(
         "division", description="the level of the heard metre's pulse tree: 'beat', 'division' (halves of the beat "
                                 "in a duple reading, thirds in a triple one) or 'bar'")
     sharpness: float = Field(1.0, gt=0, le=100, description="κ: a note at phase φ of the level's grid is "

@@ -36,7 +36,7 @@ from creatures import bounds
 from creatures.behaviour.models.gaussian import GaussianModel
 from creatures.temporal.durations import LowIntegerRatioModel
 from creatures.temporal.onsets import merge_onsets
-from creatures.temporal.readings import PulseReadings
+from creatures.temporal.readings import Level, PulseReadings
 
 CHORD_GAP = 0.03
 """Seconds: onsets closer than this are one rhythmic event."""
@@ -93,7 +93,7 @@ class HeardPulse:
         if abs(error) <= ON_THE_BEAT * beat:
             self.grid = onset - (1.0 - GRID_PULL) * error
 
-    def phase(self, t: float, level: str) -> float | None:
+    def phase(self, t: float, level: Level) -> float | None:
         """Where an onset at ``t`` falls between two points of ``level`` (``beat``,
         ``division`` or ``bar``) of the best reading's tree, in [0, 1), counted from the last
         onset heard; None until the pulse is trusted, and after a pause (nothing heard for
@@ -169,7 +169,7 @@ class PulseDuration:
     sample until the pulse is ready. It learns only from hearing: the length an action
     happened to last says nothing about the music, so ``update`` leaves the pulse alone."""
 
-    def __init__(self, pulse: HeardPulse, fallback: GaussianModel, beats: int = 2, level: str | None = None) -> None:
+    def __init__(self, pulse: HeardPulse, fallback: GaussianModel, beats: int = 2, level: Level | None = None) -> None:
         self.pulse = pulse
         self.fallback = fallback
         self.beats = beats

@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import math
 from fractions import Fraction
-from typing import Any
+from typing import Any, Literal
 
 from creatures import bounds
 from creatures.temporal.durations import DEFAULT_RATIOS, LowIntegerRatioModel
@@ -49,7 +49,10 @@ METRES: dict[str, dict[Fraction, float]] = {
 """The metres a reading may take, by the name a config gives (``[pulse] readings``): the
 ratios (duration : pulse) each allows, with their prior preferences."""
 
-LEVELS: dict[str, dict[str, Fraction]] = {
+Level = Literal["beat", "division", "bar"]
+"""The name of a level of a reading's pulse tree, as a piece gives it."""
+
+LEVELS: dict[str, dict[Level, Fraction]] = {
     "simple": {"beat": Fraction(1), "division": Fraction(1, 2), "bar": Fraction(4)},
     "duple": {"beat": Fraction(1), "division": Fraction(1, 2), "bar": Fraction(4)},
     "triple": {"beat": Fraction(1), "division": Fraction(1, 3), "bar": Fraction(3)},
@@ -74,7 +77,7 @@ class Reading:
         self.metre = metre
         self.model = LowIntegerRatioModel(prior_pulse, ratios=METRES[metre])
         self.score = 0.0
-        self.levels: dict[str, PulsePercept] = {}
+        self.levels: dict[Level, PulsePercept] = {}
         self.grow()
         # The model's own scoring rule: ½(residual/σ)² with σ = tolerance/2, and an
         # unexplained duration charged as the least likely ratio at twice the band's edge.
@@ -135,7 +138,7 @@ class PulseReadings:
         for reading in self.readings:
             reading.levels["beat"].entrain(onset)
 
-    def level(self, name: str) -> PulsePercept:
+    def level(self, name: Level) -> PulsePercept:
         """Level ``name`` (:data:`LEVELS`) of the best reading's tree: the metre the colony
         hears, at that level."""
         return self.best.levels[name]
