@@ -16,6 +16,7 @@ from creatures.clock import SimulatedClock
 from creatures.config import ConfigError
 from creatures.events import EventLog, read_events
 from creatures.room.hearing import SPEED_OF_SOUND, db_velocity, velocity_db
+from creatures.room.vehicle import norms
 from creatures.runtime.offline import run_offline
 from creatures.runtime.schema import load_installation
 from creatures.runtime.session import Session
@@ -91,9 +92,9 @@ def session(tmp_path: Path, room: str, *creatures: str) -> tuple[Session, Simula
     return Session(inst, clock, EventLog(), MemorySink()), clock
 
 
-def run(s: Session, clock: SimulatedClock, until: float) -> None:
+def run(s: Session, clock: SimulatedClock, until: float, tick: float = TICK) -> None:
     while clock.now() < until - 1e-9:
-        t = clock.advance(TICK)
+        t = clock.advance(tick)
         s.step(t, 0, None, audio=False)
 
 
@@ -465,6 +466,28 @@ def test_far_creatures_decide_less_often_within_a_budget_and_still_hear(tmp_path
     s.world.play(s.creatures[0], NoteEvent(2.0, 60, 127, 0, 0.5))
     run(s, clock, 2.1)
     assert s.creatures[3].ear.last(1)  # heard on the tick it arrived, deciding or not
+
+
+def test_with_level_of_detail_a_run_ticked_at_0_02_s_and_one_at_0_04_s_walk_the_same_paths(tmp_path):
+    """Eight wandering singers, [room.lod] near 2 m, three levels, deciding by level: every
+    0.04 s for 10 s, the two runs' creatures stand within 1e-9 m of each other (the levels are
+    planned on the sub-step grid; planned each tick, they ended up to 9.2 m apart)."""
+    rng = np.random.default_rng(5)
+    wander = 'steer = [{ behaviour = "wander" }, { behaviour = "wall_avoidance", weight = 2.0 }]'
+    singers = [singer(f"s{i}", *rng.uniform(1, 9, 2).round(2), vehicle=wander) for i in range(8)]
+
+    def trace(tick: float) -> tuple[np.ndarray, float]:
+        s, clock = session(tmp_path, "lod = { near = 2.0, levels = 3 }", *singers)
+        where = []
+        for k in range(250):
+            run(s, clock, 0.04 * (k + 1), tick)
+            where.append(s.stage.v.pos.copy())
+        return np.array(where), s.stage.crowd.steered / (8 * s.stage.crowd.steps)
+
+    (fine, steered), (coarse, _) = trace(0.02), trace(0.04)
+    assert np.abs(fine - coarse).max() < 1e-9
+    assert norms(fine[-1] - fine[0]).min() > 1.0  # every one wandered
+    assert steered < 0.8  # far ones steered less often: the levels did act
 
 
 def test_a_creature_steers_to_a_note_object_and_strikes_it_once_per_stepping_on(tmp_path):

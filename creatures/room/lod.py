@@ -28,6 +28,13 @@ class LevelOfDetail:
     levels: int = 3
     budget: int | None = None
 
+    @property
+    def replan(self) -> int:
+        """Sub-steps between two plannings of the levels: the slowest level's period, so every
+        creature is due at least once under each plan (the levels change as slowly as people
+        walk; a tree query of every creature per sub-step would cost more than it buys)."""
+        return 1 << self.levels
+
     def level(self, pos: np.ndarray, listeners: np.ndarray) -> np.ndarray:
         """Each creature's level from its distance to the nearest listener (the visitors and
         out.wav's listening point: a creature far from all of them is neither seen nor heard

@@ -265,7 +265,7 @@ class Stage:
         self.zones.update(t, self.v, emit)
         if self.share is not None:
             self._take_share(t, emit)
-        self.crowd.plan(np.vstack([self.crowd.around.visitors, self.listener[None, :]]))  # who is heard, near
+        self.crowd.listeners = np.vstack([self.crowd.around.visitors, self.listener[None, :]])  # who is heard, near
         if clock_gap(self.crowd.t, t):
             self.crowd.skip_to(t)  # a gap is not lived: the crowd stands through it
         self.crowd.advance_to(t)
