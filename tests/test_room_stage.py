@@ -229,6 +229,72 @@ disable = ["echo"]
     assert kinds == [("slow", True), ("slow", False)]
 
 
+def test_a_zone_s_gain_makes_a_creature_quieter_inside_and_its_own_gain_returns(tmp_path):
+    """A caller walks through a zone with spec { gain = 0.1 } (its own is 0.8): while inside,
+    its share of the mix is 1/8 of the same walk's without the zone, and once out it is the
+    same again (the spec key set and put back as the console's set would)."""
+    hush = """[[room.zones]]
+name = "hush"
+low = [4.0, 0.0]
+high = [6.0, 10.0]
+spec = { gain = 0.1 }
+"""
+    seek = 'steer = [{ behaviour = "seek", target = [9.5, 5.0] }]'
+
+    def walk(room: str) -> tuple[list[float], list[float], list[float]]:
+        s, clock = session(tmp_path, room, caller("c", 1.0, 5.0, seek))
+        frames = round(TICK * s.sample_rate)
+        xs, rms, gain = [], [], []
+        while clock.now() < 10.0 - 1e-9:
+            t = clock.advance(TICK)
+            mix = s.step(t, frames, None)
+            xs.append(float(s.stage.v.pos[0, 0]))
+            rms.append(float(np.sqrt((mix ** 2).mean())))
+            gain.append(s.creatures[0].spec.gain)
+        return xs, rms, gain
+
+    xs, quiet, gain = walk(hush)
+    _, loud, _ = walk("")
+    inside = [q / lo for x, q, lo in zip(xs, quiet, loud) if 4.3 < x < 5.7 and lo > 1e-4]
+    after = [(q, lo) for x, q, lo in zip(xs, quiet, loud) if x > 6.5]
+    assert len(inside) > 10 and all(r == pytest.approx(0.1 / 0.8, rel=0.02) for r in inside)
+    assert after and all(q == pytest.approx(lo, rel=1e-6) for q, lo in after) and max(lo for _, lo in after) > 1e-3
+    assert {g for x, g in zip(xs, gain) if 4.3 < x < 5.7} == {0.1} and gain[-1] == 0.8
+
+
+def test_a_zone_with_hears_input_false_shuts_out_the_input_inside_only(tmp_path):
+    """spec { hears_input = false } inside a zone: a walker crossing it hears the player's
+    notes (input, ten a second) before and after the zone and none inside, while it still
+    hears another creature's notes there."""
+    deaf = """input_at = [5.0, 9.0]
+[[room.zones]]
+name = "deaf"
+low = [4.0, 0.0]
+high = [6.0, 10.0]
+spec = { hears_input = false }
+"""
+    walker = singer("w", 1.0, 5.0, vehicle='steer = [{ behaviour = "seek", target = [9.5, 5.0] }]')
+    s, clock = session(tmp_path, deaf, walker, singer("other", 5.0, 3.0, vehicle="max_speed = 0.01"))
+    w, other = s.creatures
+    heard: list[tuple[float, str]] = []
+    hear = w.hear
+    w.hear = lambda note, source: (heard.append((float(s.stage.v.pos[0, 0]), source)), hear(note, source))
+    k = 0
+    while clock.now() < 10.0 - 1e-9:
+        t = clock.advance(TICK)
+        if k % 5 == 0:
+            s.world.inject(NoteEvent(round(t, 6), 60 + k % 12, 100, 0, 0.05))
+            s.world.play(other, NoteEvent(round(t, 6), 48, 100, 0, 0.05))
+        s.step(t, 0, None, audio=False)
+        k += 1
+    def sources(lo: float, hi: float) -> set[str]:
+        return {source for x, source in heard if lo < x < hi}
+    assert sources(0.0, 3.9) == {"input", "other"}
+    assert sources(4.1, 5.9) == {"other"}  # inside: the other creature, not the player
+    assert sources(6.1, 10.0) == {"input", "other"}
+    assert w.spec.hears_input
+
+
 def test_overlapping_zones_give_the_latest_zone_s_values_and_the_own_back_after_the_last(tmp_path):
     """Zones "wide" (3–5 m) and "slow" (4–6 m) overlap: the walker entering wide then slow
     keeps slow's speed and calm after leaving wide, and its own once out of slow; a tuple both
@@ -437,14 +503,21 @@ def test_a_creature_behind_an_obstacle_is_not_seen_by_the_stage(tmp_path):
      "no creature has a drive 'hungre'"),
     ('[[room.zones]]\nname = "z"\nlow = [0.0, 0.0]\nhigh = [1.0, 1.0]\nenable = ["dance"]', "",
      "no creature has a tuple 'dance'"),
-    ('[[room.zones]]\nname = "z"\nlow = [0.0, 0.0]\nhigh = [1.0, 1.0]\nspec = { colour = 1.0 }', "",
-     "not a body key"),
+    ('[[room.zones]]\nname = "z"\nlow = [0.0, 0.0]\nhigh = [1.0, 1.0]\nspec = { gian = 0.5 }', "",
+     "spec key 'gian' is neither a vehicle key .* nor any creature's spec key \\(did you mean 'gain'\\?\\)"),
+    ('[[room.zones]]\nname = "z"\nlow = [0.0, 0.0]\nhigh = [1.0, 1.0]\nspec = { gain = 9.0 }', "",
+     "creature 'a': gain: Input should be less than or equal to 4"),
+    ('[[room.zones]]\nname = "z"\nlow = [0.0, 0.0]\nhigh = [1.0, 1.0]\nspec = { name = "b" }', "",
+     "name cannot change while the creature runs"),
+    ('[[room.zones]]\nname = "z"\nlow = [0.0, 0.0]\nhigh = [1.0, 1.0]\nspec = { "vehicle.max_speed" = 0.5 }', "",
+     "set by their own names"),
 ])
 def test_places_and_zones_that_cannot_be_are_config_errors(tmp_path, room, creature, message):
     text = HEADER.format(room=room) + singer("a", 1.0, 1.0).replace("at = [1.0, 1.0]", creature or "at = [1.0, 1.0]")
     with pytest.raises(ConfigError, match=message) as info:
         load_installation(write(tmp_path, text))
     assert info.value.line is not None
+    assert info.value.file.name == "room.toml"
 
 
 def test_far_creatures_decide_less_often_within_a_budget_and_still_hear(tmp_path):

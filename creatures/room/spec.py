@@ -15,7 +15,8 @@ from creatures.bounds import FINITE, Bounded
 from creatures.room.recipe import BEHAVIOURS
 
 BODY_KEYS = ("max_speed", "max_force", "mass", "radius", "max_turn")
-"""The ``[creature.vehicle]`` keys a zone's ``spec`` may override (the vehicle's columns)."""
+"""The ``[creature.vehicle]`` keys a zone's ``spec`` may override (the vehicle's columns; its
+other keys are read when the room is built)."""
 
 LARGEST_ROOM = 1000.0
 """Metres: the longest side a room may have (a field, not a continent)."""
@@ -64,16 +65,20 @@ class ZoneSpec(Strict):
                                      description="drives set to these levels on entry (restored on leaving)")
     spec: dict[str, float | int | str | bool] = Field(
         default_factory=dict, max_length=64,
-        description="[creature.vehicle] keys overridden inside: max_speed, max_force, mass, radius, max_turn")
+        description="keys overridden inside: the vehicle's max_speed, max_force, mass, radius, max_turn, or any "
+                    "key of the creature's spec the remote console may set (gain, hears_input, voice.gain, …; "
+                    "dotted for a nested table)")
     enable: list[str] = Field(default_factory=list, max_length=256, description="tuples enabled inside (and "
                                                                             "off everywhere else)")
     disable: list[str] = Field(default_factory=list, max_length=256, description="tuples disabled inside")
 
     @model_validator(mode="after")
     def _body_keys(self) -> "ZoneSpec":
+        """The vehicle's keys are numbers here; a creature's spec keys are checked against the
+        creatures' specs when the room is (creatures.room.stage.check_places)."""
         for key, value in self.spec.items():
             if key not in BODY_KEYS:
-                raise ValueError(f"zone {self.name!r}: spec key {key!r} is not a body key (choose from {BODY_KEYS})")
+                continue
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value <= 36000:
                 raise ValueError(f"zone {self.name!r}: spec[{key!r}] = {value!r} must be a number in (0, 36000]")
         return self

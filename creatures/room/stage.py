@@ -32,7 +32,7 @@ from creatures.room.spec import RoomSection, VehicleSpec
 from creatures.room.speakers import DOME, Dome, azimuth, ring, stereo, vbap
 from creatures.room.vehicle import Vehicles, norms
 from creatures.room.vision import visible
-from creatures.room.zones import Zones
+from creatures.room.zones import Zones, spec_problem
 from midi.notes import NoteEvent
 
 if TYPE_CHECKING:
@@ -79,9 +79,10 @@ def walk(spec, i: int) -> Walk:
 
 
 def check_places(section: RoomSection, specs: list, drives: list[tuple[str, ...]]) -> None:
-    """Every place named is on the floor, and every zone's drives and tuples are some
-    creature's (:class:`StageError`, :class:`RoomError`; a zone's change to a creature without
-    that drive or tuple does nothing to it, but a name no creature has is a typo)."""
+    """Every place named is on the floor, and every zone's drives, tuples and spec keys are some
+    creature's, with values its schema takes (:class:`StageError`, :class:`RoomError`; a
+    zone's change to a creature without that drive, tuple or key does nothing to it, but a name
+    no creature has is a typo)."""
     size = (section.width, section.depth)
 
     def off(point: tuple[float, float] | None) -> bool:
@@ -111,6 +112,8 @@ def check_places(section: RoomSection, specs: list, drives: list[tuple[str, ...]
             for name in getattr(zone, key):
                 if name not in all_tuples:
                     raise RoomError(("zones", z, key), f"zone {zone.name!r}: no creature has a tuple {name!r}")
+        if (problem := spec_problem(zone, specs)) is not None:
+            raise RoomError(("zones", z, "spec", problem[0]), problem[1])
 
 
 def recipes(section: RoomSection, specs: list, index: dict[str, int]
