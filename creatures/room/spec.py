@@ -144,7 +144,8 @@ class LodSpec(Strict):
     decide: bool = Field(True, description="far creatures also perceive and decide (their behaviour's tick) at "
                                            "the lower rate")
     decide_budget: int | None = Field(None, ge=1, le=1_000_000, description="decide = true: most creatures "
-                                      "deciding in one tick (the nearest due first; none = no limit)")
+                                      "deciding in one tick (the most overdue first, the nearer on a tie, so none "
+                                      "starves; none = no limit)")
 
 
 class ShareSpec(Strict):
@@ -184,7 +185,7 @@ class RoomSection(Strict):
 
     width: float = Field(10.0, gt=0, le=LARGEST_ROOM, description="x extent, m")
     depth: float = Field(10.0, gt=0, le=LARGEST_ROOM, description="y extent, m")
-    obstacles: list[ObstacleSpec] = Field(default_factory=list, max_length=256, description="[[room.obstacles]]")
+    obstacles: list[ObstacleSpec] = Field(default_factory=list, max_length=256, description="round obstacles on the floor")
     substep: float = Field(0.01, ge=0.001, le=0.1, description="fixed integration step, s (the tick does "
                                                                "not change the paths)")
     listener: Point | None = Field(None, description="where out.wav's listener stands [x, y] "
@@ -202,15 +203,15 @@ class RoomSection(Strict):
                                      "between them lower with distance, m (default: the farthest corner)")
     input_at: Point | None = Field(None, description="where input notes sound when no visitor "
                                                                    "is tracked (default: the listener)")
-    visitors: list[VisitorSpec] = Field(default_factory=list, max_length=64, description="[[room.visitors]]")
+    visitors: list[VisitorSpec] = Field(default_factory=list, max_length=64, description="visitors tracked through the input map's sensors")
     hearing: HearingSpec = HearingSpec()
     lod: LodSpec | None = Field(None, description="[room.lod]; none = every creature steers every sub-step")
-    zones: list[ZoneSpec] = Field(default_factory=list, max_length=256, description="[[room.zones]]")
-    paths: list[PathSpec] = Field(default_factory=list, max_length=256, description="[[room.paths]]")
+    zones: list[ZoneSpec] = Field(default_factory=list, max_length=256, description="zones (REACT's ActionBoxes) that change the creatures inside")
+    paths: list[PathSpec] = Field(default_factory=list, max_length=256, description="paths for path_following")
     notes: list[NoteObjectSpec] = Field(default_factory=list, max_length=1024,
-                                        description="[[room.notes]]: note objects on the floor, struck by "
-                                                    "stepping on them; `target = \"note\"` steers to the nearest")
-    flows: list[FlowSpec] = Field(default_factory=list, max_length=64, description="[[room.flows]]")
+                                        description="note objects on the floor, struck by stepping on them; "
+                                                    "`target = \"note\"` steers to the nearest")
+    flows: list[FlowSpec] = Field(default_factory=list, max_length=64, description="flow fields for flow_following")
 
     @model_validator(mode="after")
     def _layout(self) -> "RoomSection":
@@ -241,7 +242,8 @@ class SteerSpec(Strict):
     target: str | Point | None = Field(
         None, description="seek, flee, arrival, pursuit, evasion, leader_following: 'visitor' (the nearest), "
                           "'player' (where the last note from outside came from, for 4 s), 'loud' (the nearest "
-                          "loud sound), 'centre', [x, y], or another creature's name")
+                          "loud sound), 'note' (the nearest [[room.notes]] object), 'centre', [x, y], or another "
+                          "creature's name")
     slowing: float | None = Field(None, gt=0, le=LARGEST_ROOM, description="arrival: slowing distance, m")
     panic: float | None = Field(None, gt=0, le=LARGEST_ROOM, description="flee, evasion: only within this, m")
     behind: float | None = Field(None, gt=0, le=LARGEST_ROOM, description="leader_following: distance behind, m")
@@ -275,7 +277,7 @@ class VehicleSpec(Strict):
     radius: float = Field(0.25, gt=0, le=LARGEST_ROOM, description="body radius, m")
     max_turn: float = Field(360.0, gt=0, le=36000, description="fastest turn, degrees per second")
     steer: list[SteerSpec] = Field(default_factory=list, max_length=32,
-                                   description="[[creature.vehicle.steer]] behaviours, most important first")
+                                   description="steering behaviours, most important first")
     combine: Literal["weighted", "budget", "dithering"] = Field(
         "weighted", description="'weighted' (truncated sum), 'budget' (prioritised), 'dithering' (prioritised)")
     neighbours: int = Field(7, ge=1, le=64, description="neighbours the flocking behaviours see")
