@@ -153,6 +153,48 @@ def test_obstacle_avoidance_goes_around_a_pillar():
     assert v.pos[0, 0] > 10.0  # and got past
 
 
+@pytest.mark.parametrize("avoid", [False, True])
+def test_agent_avoidance_lets_two_walkers_pass_head_on(avoid):
+    """Two walkers seek each other's start along one line (1 cm apart sideways): without agent
+    avoidance they pass through each other (their centres 1.2 cm apart at the closest); with
+    it they pass two radii and its 0.1 m margin apart, and both still get where they go."""
+    v = Vehicles.at([(1.0, 5.0), (9.0, 5.01)], heading=[(1.0, 0.0), (-1.0, 0.0)], radius=0.25)
+    dodge = (Behaviour("agent_avoidance", 2.0),) if avoid else ()
+    recipes = [Recipe((Behaviour("seek", params={"target": target}), *dodge)) for target in ((9.5, 5.0), (0.5, 5.01))]
+    c = Crowd(Room(10, 10), v, recipes, np.array([0, 1]))
+    closest = np.inf
+    for _ in range(1200):  # 12 s
+        c.step()
+        closest = min(closest, float(norms(v.pos[0] - v.pos[1])))
+    if avoid:
+        assert closest >= 0.59
+    else:
+        assert closest < 0.05
+    assert v.pos[0, 0] > 9.0 and v.pos[1, 0] < 1.0
+
+
+@pytest.mark.parametrize("avoid", [False, True])
+def test_wall_avoidance_turns_a_walker_before_the_wall(avoid):
+    """A walker heading for the east wall at 0.95 m/s (and 0.3 m/s north), nothing else
+    steering it: without wall avoidance it walks into the wall and stays pressed against it
+    (the walls' contact rule stops it); with it, it turns along the wall while its body is
+    still more than 0.4 m off, and walks on north."""
+    v = Vehicles.at([(5.0, 5.0)], radius=0.25)
+    v.vel[0] = (0.95, 0.3)
+    c = Crowd(Room(10, 10), v, [Recipe((Behaviour("wall_avoidance"),) if avoid else ())])
+    reach = 0.0  # the furthest east the body's edge got
+    for _ in range(600):  # 6 s
+        c.step()
+        reach = max(reach, float(v.pos[0, 0] + v.radius[0]))
+    if avoid:
+        assert reach < 9.6
+        assert v.vel[0, 0] <= 0.0 and v.vel[0, 1] > 0.25  # along the wall, northward
+        assert abs(v.heading[0, 0]) < 0.1
+    else:
+        assert reach == pytest.approx(10.0)
+        assert v.vel[0, 0] == 0.0
+
+
 def test_path_following_stays_within_the_path():
     path = Path(np.array([[1.0, 1.0], [9.0, 1.0], [9.0, 9.0]]), radius=0.5)
     c = one("path_following", (1.0, 1.6), around=Surroundings(paths={"p": path}), path="p")
