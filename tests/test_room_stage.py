@@ -563,6 +563,33 @@ def test_with_level_of_detail_a_run_ticked_at_0_02_s_and_one_at_0_04_s_walk_the_
     assert steered < 0.8  # far ones steered less often: the levels did act
 
 
+def test_an_unheard_creature_decides_less_often_than_a_sounding_one_beside_it(tmp_path):
+    """[room.lod] unheard = 2: two creatures 1 m from the listener (level 0 by distance), one
+    calling phrases, one silent. The silent one is never heard, so it stays at level 2 and
+    decides one tick in four; the caller is at level 0 while a note of it sounds (and 2 between
+    phrases), so it decides more often; without unheard both decide every tick."""
+    def decisions(room: str) -> tuple[dict[str, int], set[tuple[int, int]]]:
+        s, clock = session(tmp_path, room, caller("loud", 5.0, 4.0, "max_speed = 0.01"),
+                           singer("quiet", 5.0, 6.0, vehicle="max_speed = 0.01"))
+        ticks = {c.name: 0 for c in s.creatures}
+        for c in s.creatures:
+            def counted(t, c=c, tick=c.tick):
+                ticks[c.name] += 1
+                tick(t)
+            c.tick = counted
+        levels = set()
+        while clock.now() < 4.0 - 1e-9:  # 200 ticks
+            run(s, clock, clock.now() + TICK)
+            levels.add(tuple(int(x) for x in s.stage.crowd.level))
+        return ticks, levels
+
+    ticks, levels = decisions("lod = { near = 3.0, levels = 3, unheard = 2 }")
+    assert 48 <= ticks["quiet"] <= 52
+    assert ticks["loud"] >= ticks["quiet"] + 15
+    assert levels == {(0, 2), (2, 2)}
+    assert decisions("lod = { near = 3.0, levels = 3 }")[0] == {"loud": 200, "quiet": 200}
+
+
 def test_a_creature_steers_to_a_note_object_and_strikes_it_once_per_stepping_on(tmp_path):
     """[[room.notes]]: a note object on the floor. `target = "note"` brings the seeker to the
     nearest one (the far one is never reached), it plays that note as its own on stepping

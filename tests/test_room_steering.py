@@ -10,7 +10,8 @@ from scipy.spatial.distance import pdist
 from creatures.room.combine import prioritised_budget, prioritised_dithering, weighted_truncated_sum
 from creatures.room.director import FlowField, Path
 from creatures.room.index import Neighbours
-from creatures.room.lod import LevelOfDetail
+from creatures.room.hearing import DistanceLaw
+from creatures.room.lod import Audibility, LevelOfDetail, Sounding
 from creatures.room.motion import Crowd
 from creatures.room.recipe import Behaviour, Recipe, Surroundings
 from creatures.room.space import Obstacle, Room
@@ -307,6 +308,26 @@ def test_level_of_detail_steers_distant_creatures_less_often_within_a_budget():
     assert counts[near].min() >= 75  # every sub-step (a force unchanged by chance aside)
     assert counts[~near].mean() < 45
     assert c.steered <= 80 * 120
+
+
+def test_an_unheard_creature_is_ranked_further_than_its_distance():
+    """unheard = 2 with the inverse law and a -60 dB threshold: near the listener, the silent
+    creature is at level 2 and the sounding one at 0; 12 m off (level 2 by distance), a note
+    at -40 dB arrives at -61.6 dB, unheard (level 4, clipped to 3), one at 0 dB is heard (2)."""
+    lod = LevelOfDetail(near=5.0, levels=3, unheard=2, audibility=Audibility(DistanceLaw("inverse"), -60.0))
+    pos = np.array([[1.0, 0.0], [1.0, 0.0], [12.0, 0.0], [12.0, 0.0]])
+    listener = np.zeros((1, 2))
+    loudness = np.array([-np.inf, -10.0, -40.0, 0.0])
+    assert lod.level(pos, listener, loudness).tolist() == [2, 0, 3, 2]
+    assert lod.level(pos, listener).tolist() == [0, 0, 2, 2]  # loudness not asked: by distance
+
+
+def test_sounding_is_the_latest_note_while_it_lasts():
+    sounding = Sounding(2)
+    sounding.play(0, 1.0, 1.5, -6.0)
+    assert sounding.loudness(0.9).tolist() == [-np.inf, -np.inf]  # not yet started
+    assert sounding.loudness(1.2).tolist() == [-6.0, -np.inf]
+    assert sounding.loudness(1.5).tolist() == [-np.inf, -np.inf]  # over
 
 
 def test_a_full_steering_budget_starves_no_creature():

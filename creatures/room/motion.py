@@ -38,8 +38,10 @@ class Crowd:
         self.groups = np.zeros(len(vehicles), dtype=np.intp) if groups is None else np.asarray(groups, np.intp)
         self.substep, self.lod = substep, lod
         self.around = around or Surroundings()
-        # Where the levels are planned from (None: the visitors); the caller sets it each tick.
+        # Where the levels are planned from (None: the visitors), and how loud each creature
+        # sounds now (dB, -inf silent; None: levels by distance alone); the caller sets them each tick.
         self.listeners: np.ndarray | None = None
+        self.loudness: np.ndarray | None = None
         self.rng = np.random.default_rng(seed)
         self.wander_angle = np.zeros(len(vehicles))
         self.force = np.zeros((len(vehicles), 2))
@@ -82,7 +84,7 @@ class Crowd:
         them who steers when, are the same at any tick."""
         assert self.lod is not None
         listeners = self.around.visitors if self.listeners is None else self.listeners
-        self._level = self.lod.level(self.v.pos, listeners)
+        self._level = self.lod.level(self.v.pos, listeners, self.loudness)
         self._next_plan = (self.steps // self.lod.replan + 1) * self.lod.replan
 
     def step(self) -> None:

@@ -140,6 +140,9 @@ class LodSpec(Strict):
                                                                "within which a creature steers every sub-step; each "
                                                                "further `near` halves its rate")
     levels: int = Field(3, ge=0, le=8, description="slowest rate is one sub-step in 2**levels")
+    unheard: int = Field(0, ge=0, le=8, description="levels added for a creature the nearest visitor or listener "
+                                                    "does not hear: not sounding, or its note under [room.hearing] "
+                                                    "threshold there (0: levels by distance alone)")
     budget: int | None = Field(None, ge=1, le=1_000_000, description="most creatures steering in one sub-step")
     decide: bool = Field(True, description="far creatures also perceive and decide (their behaviour's tick) at "
                                            "the lower rate")

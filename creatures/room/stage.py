@@ -24,7 +24,7 @@ from creatures.kinds.figures import body_graph
 from creatures.room.director import FlowField, Path
 from creatures.room.hearing import Arrival, DistanceLaw, Masking, arrive_all, db_velocity, velocity_db
 from creatures.room.gait import Gaits, Walk, in_room
-from creatures.room.lod import LevelOfDetail, overdue_first
+from creatures.room.lod import Audibility, LevelOfDetail, Sounding, overdue_first
 from creatures.room.motion import Crowd
 from creatures.room.recipe import NAMED_TARGETS, Behaviour, Recipe, Surroundings
 from creatures.room.space import Obstacle, Room
@@ -181,15 +181,20 @@ class Stage:
         self._was_at = self.v.pos.copy()  # where each stood at the last strike check
         around = Surroundings(paths={p.name: Path(np.array(p.points, float), p.radius) for p in section.paths},
                               fields={f.name: self._field(f) for f in section.flows}, notes=self.notes)
-        lod = None if section.lod is None else LevelOfDetail(section.lod.near, section.lod.levels, section.lod.budget)
+        h = section.hearing
+        self.law = DistanceLaw(h.law, h.reference, h.silent)
+        lod = None if section.lod is None else LevelOfDetail(section.lod.near, section.lod.levels, section.lod.budget,
+                                                             section.lod.unheard, Audibility(self.law, h.threshold))
+        # What each creature sounds now, for [room.lod] unheard (None: levels by distance alone).
+        self.sounding = Sounding(len(creatures)) if lod is not None and lod.unheard and creatures else None
+        if self.sounding is not None:
+            creatures[0].world.listeners.append(self._played)
         self.crowd = Crowd(self.room, self.v, plans, groups, substep=section.substep,
                            seed=int(rng.integers(2**32)), lod=lod, around=around)
         self.zones = Zones(section.zones, creatures)
         self.gaits = Gaits([None if c.spec.vehicle.gait is None else walk(c.spec, i) for i, c in enumerate(creatures)],
                            self.v.pos, rng)
         self._walked_at = 0.0
-        h = section.hearing
-        self.law = DistanceLaw(h.law, h.reference, h.silent)
         self.masking = Masking(h.margin, h.band, h.threshold)
         self.listener = np.array(section.listener if section.listener is not None else (section.width / 2, 0.0))
         self.speakers = ring(section.channels, 0.0) if section.speakers == "ring" else None
@@ -222,6 +227,12 @@ class Stage:
         join the neighbours, the percepts and the ears; ours and our notes go to them."""
         self.share, self._world = share, world
         world.listeners.append(share.played)
+
+    def _played(self, creature: str, note: NoteEvent) -> None:
+        """One of the room's creatures plays ``note`` (a world listener): it sounds, this loud,
+        until the note ends (level of detail's ``unheard``)."""
+        assert self.sounding is not None
+        self.sounding.play(self.index[creature], note.time, note.time + note.duration, velocity_db(note.velocity))
 
     # -- building ------------------------------------------------------------------------
     def _vehicles(self, specs: list[VehicleSpec], rng: np.random.Generator) -> Vehicles:
@@ -269,6 +280,8 @@ class Stage:
         if self.share is not None:
             self._take_share(t, emit)
         self.crowd.listeners = np.vstack([self.crowd.around.visitors, self.listener[None, :]])  # who is heard, near
+        if self.sounding is not None:
+            self.crowd.loudness = self.sounding.loudness(t)
         if clock_gap(self.crowd.t, t):
             self.crowd.skip_to(t)  # a gap is not lived: the crowd stands through it
         self.crowd.advance_to(t)
