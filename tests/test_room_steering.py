@@ -314,11 +314,11 @@ def test_an_unheard_creature_is_ranked_further_than_its_distance():
     """unheard = 2 with the inverse law and a -60 dB threshold: near the listener, the silent
     creature is at level 2 and the sounding one at 0; 12 m off (level 2 by distance), a note
     at -40 dB arrives at -61.6 dB, unheard (level 4, clipped to 3), one at 0 dB is heard (2)."""
-    lod = LevelOfDetail(near=5.0, levels=3, unheard=2, audibility=Audibility(DistanceLaw("inverse"), -60.0))
+    lod, audibility = LevelOfDetail(near=5.0, levels=3, unheard=2), Audibility(DistanceLaw("inverse"), -60.0)
     pos = np.array([[1.0, 0.0], [1.0, 0.0], [12.0, 0.0], [12.0, 0.0]])
     listener = np.zeros((1, 2))
     loudness = np.array([-np.inf, -10.0, -40.0, 0.0])
-    assert lod.level(pos, listener, loudness).tolist() == [2, 0, 3, 2]
+    assert lod.level(pos, listener, loudness, audibility).tolist() == [2, 0, 3, 2]
     assert lod.level(pos, listener).tolist() == [0, 0, 2, 2]  # loudness not asked: by distance
 
 

@@ -58,15 +58,14 @@ class Sounding:
 @dataclass(frozen=True)
 class LevelOfDetail:
     """``near`` m: within it a creature steers every sub-step; each further ``near`` m halves
-    its rate, down to once in 2**``levels`` sub-steps. ``unheard``: levels added for a creature
-    the nearest listener does not hear (by ``audibility``; 0 = by distance alone). ``budget``:
-    most creatures steering per sub-step (the farthest due ones wait; None = no limit)."""
+    its rate, down to once in 2**``levels`` sub-steps. ``budget``: most creatures steering per
+    sub-step (the farthest due ones wait; None = no limit). ``unheard``: levels added for a
+    creature the nearest listener does not hear (0 = by distance alone)."""
 
     near: float = 4.0
     levels: int = 3
     budget: int | None = None
     unheard: int = 0
-    audibility: Audibility | None = None
 
     @property
     def replan(self) -> int:
@@ -75,18 +74,19 @@ class LevelOfDetail:
         walk; a tree query of every creature per sub-step would cost more than it buys)."""
         return 1 << self.levels
 
-    def level(self, pos: np.ndarray, listeners: np.ndarray, loudness: np.ndarray | None = None) -> np.ndarray:
+    def level(self, pos: np.ndarray, listeners: np.ndarray, loudness: np.ndarray | None = None,
+              audibility: Audibility | None = None) -> np.ndarray:
         """Each creature's level from its distance to the nearest listener (the visitors and
         out.wav's listening point: a creature far from all of them is neither seen nor heard
-        closely), ``unheard`` levels more where that listener does not hear it (``loudness``:
-        each one's note now, dB, −inf when silent; None: not asked); with no listener at all,
-        every creature at the slowest level."""
+        closely), ``unheard`` levels more where that listener does not hear it by
+        ``audibility`` (``loudness``: each one's note now, dB, −inf when silent; None: not
+        asked); with no listener at all, every creature at the slowest level."""
         if len(listeners) == 0:
             return np.full(len(pos), self.levels, dtype=np.int64)
         d, _ = cKDTree(listeners).query(pos)
         level = (d // self.near).astype(np.int64)
-        if self.unheard and self.audibility is not None and loudness is not None:
-            level += self.unheard * ~self.audibility.heard(loudness, d)
+        if self.unheard and audibility is not None and loudness is not None:
+            level += self.unheard * ~audibility.heard(loudness, d)
         return np.clip(level, 0, self.levels)
 
     def due(self, step: int, level: np.ndarray, last: np.ndarray) -> np.ndarray:

@@ -17,7 +17,7 @@ import numpy as np
 
 from creatures.room.combine import POLICIES
 from creatures.room.index import Neighbours
-from creatures.room.lod import LevelOfDetail
+from creatures.room.lod import Audibility, LevelOfDetail
 from creatures.room.recipe import BEHAVIOURS, Recipe, Step, Surroundings
 from creatures.room.space import Room
 from creatures.room.steering import Scene
@@ -39,9 +39,11 @@ class Crowd:
         self.substep, self.lod = substep, lod
         self.around = around or Surroundings()
         # Where the levels are planned from (None: the visitors), and how loud each creature
-        # sounds now (dB, -inf silent; None: levels by distance alone); the caller sets them each tick.
+        # sounds now (dB, -inf silent) and how that is heard (None: levels by distance alone);
+        # the caller sets them (listeners and loudness each tick).
         self.listeners: np.ndarray | None = None
         self.loudness: np.ndarray | None = None
+        self.audibility: Audibility | None = None
         self.rng = np.random.default_rng(seed)
         self.wander_angle = np.zeros(len(vehicles))
         self.force = np.zeros((len(vehicles), 2))
@@ -84,7 +86,7 @@ class Crowd:
         them who steers when, are the same at any tick."""
         assert self.lod is not None
         listeners = self.around.visitors if self.listeners is None else self.listeners
-        self._level = self.lod.level(self.v.pos, listeners, self.loudness)
+        self._level = self.lod.level(self.v.pos, listeners, self.loudness, self.audibility)
         self._next_plan = (self.steps // self.lod.replan + 1) * self.lod.replan
 
     def step(self) -> None:

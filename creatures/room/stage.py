@@ -181,20 +181,16 @@ class Stage:
         self._was_at = self.v.pos.copy()  # where each stood at the last strike check
         around = Surroundings(paths={p.name: Path(np.array(p.points, float), p.radius) for p in section.paths},
                               fields={f.name: self._field(f) for f in section.flows}, notes=self.notes)
-        h = section.hearing
-        self.law = DistanceLaw(h.law, h.reference, h.silent)
         lod = None if section.lod is None else LevelOfDetail(section.lod.near, section.lod.levels, section.lod.budget,
-                                                             section.lod.unheard, Audibility(self.law, h.threshold))
-        # What each creature sounds now, for [room.lod] unheard (None: levels by distance alone).
-        self.sounding = Sounding(len(creatures)) if lod is not None and lod.unheard and creatures else None
-        if self.sounding is not None:
-            creatures[0].world.listeners.append(self._played)
+                                                             section.lod.unheard)
         self.crowd = Crowd(self.room, self.v, plans, groups, substep=section.substep,
                            seed=int(rng.integers(2**32)), lod=lod, around=around)
         self.zones = Zones(section.zones, creatures)
         self.gaits = Gaits([None if c.spec.vehicle.gait is None else walk(c.spec, i) for i, c in enumerate(creatures)],
                            self.v.pos, rng)
         self._walked_at = 0.0
+        h = section.hearing
+        self.law = DistanceLaw(h.law, h.reference, h.silent)
         self.masking = Masking(h.margin, h.band, h.threshold)
         self.listener = np.array(section.listener if section.listener is not None else (section.width / 2, 0.0))
         self.speakers = ring(section.channels, 0.0) if section.speakers == "ring" else None
@@ -221,6 +217,12 @@ class Stage:
         self._next_beat = -np.inf  # the next shared beat the pulse hears (counted from the first one seen)
         # The tick each last decided on; staggered so a level's creatures spread over its ticks.
         self._decided = -1 - np.arange(len(creatures), dtype=np.int64) % 256
+        # What each creature sounds now, for [room.lod] unheard (None: levels by distance alone).
+        self.sounding: Sounding | None = None
+        if lod is not None and lod.unheard and creatures:
+            self.sounding = Sounding(len(creatures))
+            self.crowd.audibility = Audibility(self.law, h.threshold)
+            creatures[0].world.listeners.append(self._played)
 
     def attach(self, share: "RoomShare", world: "World") -> None:
         """Share this room with other processes (``[room.share]``, a live run): their creatures
