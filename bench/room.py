@@ -94,14 +94,13 @@ def crowd(n: int, side: float, *, lod: LevelOfDetail | None = None, seed: int = 
 
 
 def speed(c: Crowd, seconds: float, tick: float, clock=time.process_time) -> float:
-    """Simulated seconds per second of ``clock``, ticking at ``tick`` (levels planned each
-    tick). CPU time by default: the bench machine is shared, and this process's CPU seconds
-    are what the crowd costs whatever else runs beside it."""
+    """Simulated seconds per second of ``clock``, ticking at ``tick`` (the crowd plans its
+    levels on its sub-step grid). CPU time by default: the bench machine is shared, and this
+    process's CPU seconds are what the crowd costs whatever else runs beside it."""
     t0, t = clock(), c.t
     end = t + seconds
     while t < end - 1e-9:
         t += tick
-        c.plan()
         c.advance_to(t)
     return seconds / (clock() - t0)
 

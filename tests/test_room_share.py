@@ -98,6 +98,40 @@ def test_notes_arrive_stamped_with_when_they_started():
         s.close()
 
 
+class Skewed:
+    """A Link timeline at 120 BPM as a process sees it whose Unix clock is ``fast`` seconds
+    ahead and whose beats count ``ahead`` more (Link shares phase, not beat numbers)."""
+
+    tempo = 120.0
+
+    def __init__(self, fast: float = 0.0, ahead: float = 0.0) -> None:
+        self.fast, self.ahead = fast, ahead
+
+    def beat_at(self, unix: float) -> float:
+        return (unix - self.fast - EPOCH) * 2.0 + self.ahead
+
+
+@pytest.mark.parametrize("sender, hearer, heard_at", [
+    (Skewed(0.08, 170.0), Skewed(), 2.5),  # both have Link: placed by the beat's phase
+    (Skewed(-0.2, 3.0), Skewed(), 2.5),  # a slow clock, nearly half a beat
+    (Skewed(0.08, 170.0), None, 2.58),  # the hearer has no Link: by the Unix stamp
+    (None, Skewed(), 2.58),  # the sender has none (beat -1): by the Unix stamp
+])
+def test_a_note_is_placed_by_its_link_beat_when_both_sides_have_link(sender, hearer, heard_at):
+    """The sender's Unix clock is 80 ms fast (-200 ms slow in the second case) and its Link
+    beats are numbered differently, at the same phase: a note it plays at 2.5 s is heard at
+    2.5 s on the hearer's clock when both have Link, at its Unix stamp (2.58 s) otherwise."""
+    a, b = shares(["a-0"], ["b-0"])
+    a.timeline, b.timeline = sender, hearer
+    a.epoch = EPOCH + (0.08 if sender is None else sender.fast)  # its Unix clock, as its timeline's
+    a.publish(2.5, ["a-0"], np.array([ROW]))
+    a.played("a-0", NoteEvent(2.5, 64, 90, 0, 0.3))
+    (heard,) = wait_for(b, 2.6)
+    assert heard[1].time == pytest.approx(heard_at, abs=1e-6)
+    for s in (a, b):
+        s.close()
+
+
 def test_a_foreign_osc_client_is_heard_and_junk_is_dropped_and_counted():
     """python-osc's client (not our code) speaks the protocol with float32 numbers and at = 0
     ("now"); every datagram that does not fit is dropped and counted by cause."""

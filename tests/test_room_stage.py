@@ -16,6 +16,7 @@ from creatures.clock import SimulatedClock
 from creatures.config import ConfigError
 from creatures.events import EventLog, read_events
 from creatures.room.hearing import SPEED_OF_SOUND, db_velocity, velocity_db
+from creatures.room.vehicle import norms
 from creatures.runtime.offline import run_offline
 from creatures.runtime.schema import load_installation
 from creatures.runtime.session import Session
@@ -91,9 +92,9 @@ def session(tmp_path: Path, room: str, *creatures: str) -> tuple[Session, Simula
     return Session(inst, clock, EventLog(), MemorySink()), clock
 
 
-def run(s: Session, clock: SimulatedClock, until: float) -> None:
+def run(s: Session, clock: SimulatedClock, until: float, tick: float = TICK) -> None:
     while clock.now() < until - 1e-9:
-        t = clock.advance(TICK)
+        t = clock.advance(tick)
         s.step(t, 0, None, audio=False)
 
 
@@ -226,6 +227,72 @@ disable = ["echo"]
     assert all(d for x, d in disabled if 4.8 < x < 5.4) and not any(d for x, d in disabled if x > 7.5)
     kinds = [(e["zone"], e["inside"]) for e in s.log.records if e["kind"] == "zone"]
     assert kinds == [("slow", True), ("slow", False)]
+
+
+def test_a_zone_s_gain_makes_a_creature_quieter_inside_and_its_own_gain_returns(tmp_path):
+    """A caller walks through a zone with spec { gain = 0.1 } (its own is 0.8): while inside,
+    its share of the mix is 1/8 of the same walk's without the zone, and once out it is the
+    same again (the spec key set and put back as the console's set would)."""
+    hush = """[[room.zones]]
+name = "hush"
+low = [4.0, 0.0]
+high = [6.0, 10.0]
+spec = { gain = 0.1 }
+"""
+    seek = 'steer = [{ behaviour = "seek", target = [9.5, 5.0] }]'
+
+    def walk(room: str) -> tuple[list[float], list[float], list[float]]:
+        s, clock = session(tmp_path, room, caller("c", 1.0, 5.0, seek))
+        frames = round(TICK * s.sample_rate)
+        xs, rms, gain = [], [], []
+        while clock.now() < 10.0 - 1e-9:
+            t = clock.advance(TICK)
+            mix = s.step(t, frames, None)
+            xs.append(float(s.stage.v.pos[0, 0]))
+            rms.append(float(np.sqrt((mix ** 2).mean())))
+            gain.append(s.creatures[0].spec.gain)
+        return xs, rms, gain
+
+    xs, quiet, gain = walk(hush)
+    _, loud, _ = walk("")
+    inside = [q / lo for x, q, lo in zip(xs, quiet, loud) if 4.3 < x < 5.7 and lo > 1e-4]
+    after = [(q, lo) for x, q, lo in zip(xs, quiet, loud) if x > 6.5]
+    assert len(inside) > 10 and all(r == pytest.approx(0.1 / 0.8, rel=0.02) for r in inside)
+    assert after and all(q == pytest.approx(lo, rel=1e-6) for q, lo in after) and max(lo for _, lo in after) > 1e-3
+    assert {g for x, g in zip(xs, gain) if 4.3 < x < 5.7} == {0.1} and gain[-1] == 0.8
+
+
+def test_a_zone_with_hears_input_false_shuts_out_the_input_inside_only(tmp_path):
+    """spec { hears_input = false } inside a zone: a walker crossing it hears the player's
+    notes (input, ten a second) before and after the zone and none inside, while it still
+    hears another creature's notes there."""
+    deaf = """input_at = [5.0, 9.0]
+[[room.zones]]
+name = "deaf"
+low = [4.0, 0.0]
+high = [6.0, 10.0]
+spec = { hears_input = false }
+"""
+    walker = singer("w", 1.0, 5.0, vehicle='steer = [{ behaviour = "seek", target = [9.5, 5.0] }]')
+    s, clock = session(tmp_path, deaf, walker, singer("other", 5.0, 3.0, vehicle="max_speed = 0.01"))
+    w, other = s.creatures
+    heard: list[tuple[float, str]] = []
+    hear = w.hear
+    w.hear = lambda note, source: (heard.append((float(s.stage.v.pos[0, 0]), source)), hear(note, source))
+    k = 0
+    while clock.now() < 10.0 - 1e-9:
+        t = clock.advance(TICK)
+        if k % 5 == 0:
+            s.world.inject(NoteEvent(round(t, 6), 60 + k % 12, 100, 0, 0.05))
+            s.world.play(other, NoteEvent(round(t, 6), 48, 100, 0, 0.05))
+        s.step(t, 0, None, audio=False)
+        k += 1
+    def sources(lo: float, hi: float) -> set[str]:
+        return {source for x, source in heard if lo < x < hi}
+    assert sources(0.0, 3.9) == {"input", "other"}
+    assert sources(4.1, 5.9) == {"other"}  # inside: the other creature, not the player
+    assert sources(6.1, 10.0) == {"input", "other"}
+    assert w.spec.hears_input
 
 
 def test_overlapping_zones_give_the_latest_zone_s_values_and_the_own_back_after_the_last(tmp_path):
@@ -436,14 +503,21 @@ def test_a_creature_behind_an_obstacle_is_not_seen_by_the_stage(tmp_path):
      "no creature has a drive 'hungre'"),
     ('[[room.zones]]\nname = "z"\nlow = [0.0, 0.0]\nhigh = [1.0, 1.0]\nenable = ["dance"]', "",
      "no creature has a tuple 'dance'"),
-    ('[[room.zones]]\nname = "z"\nlow = [0.0, 0.0]\nhigh = [1.0, 1.0]\nspec = { colour = 1.0 }', "",
-     "not a body key"),
+    ('[[room.zones]]\nname = "z"\nlow = [0.0, 0.0]\nhigh = [1.0, 1.0]\nspec = { gian = 0.5 }', "",
+     "spec key 'gian' is neither a vehicle key .* nor any creature's spec key \\(did you mean 'gain'\\?\\)"),
+    ('[[room.zones]]\nname = "z"\nlow = [0.0, 0.0]\nhigh = [1.0, 1.0]\nspec = { gain = 9.0 }', "",
+     "creature 'a': gain: Input should be less than or equal to 4"),
+    ('[[room.zones]]\nname = "z"\nlow = [0.0, 0.0]\nhigh = [1.0, 1.0]\nspec = { name = "b" }', "",
+     "name cannot change while the creature runs"),
+    ('[[room.zones]]\nname = "z"\nlow = [0.0, 0.0]\nhigh = [1.0, 1.0]\nspec = { "vehicle.max_speed" = 0.5 }', "",
+     "set by their own names"),
 ])
 def test_places_and_zones_that_cannot_be_are_config_errors(tmp_path, room, creature, message):
     text = HEADER.format(room=room) + singer("a", 1.0, 1.0).replace("at = [1.0, 1.0]", creature or "at = [1.0, 1.0]")
     with pytest.raises(ConfigError, match=message) as info:
         load_installation(write(tmp_path, text))
     assert info.value.line is not None
+    assert info.value.file.name == "room.toml"
 
 
 def test_far_creatures_decide_less_often_within_a_budget_and_still_hear(tmp_path):
@@ -465,6 +539,55 @@ def test_far_creatures_decide_less_often_within_a_budget_and_still_hear(tmp_path
     s.world.play(s.creatures[0], NoteEvent(2.0, 60, 127, 0, 0.5))
     run(s, clock, 2.1)
     assert s.creatures[3].ear.last(1)  # heard on the tick it arrived, deciding or not
+
+
+def test_with_level_of_detail_a_run_ticked_at_0_02_s_and_one_at_0_04_s_walk_the_same_paths(tmp_path):
+    """Eight wandering singers, [room.lod] near 2 m, three levels, deciding by level: every
+    0.04 s for 10 s, the two runs' creatures stand within 1e-9 m of each other (the levels are
+    planned on the sub-step grid; planned each tick, they ended up to 9.2 m apart)."""
+    rng = np.random.default_rng(5)
+    wander = 'steer = [{ behaviour = "wander" }, { behaviour = "wall_avoidance", weight = 2.0 }]'
+    singers = [singer(f"s{i}", *rng.uniform(1, 9, 2).round(2), vehicle=wander) for i in range(8)]
+
+    def trace(tick: float) -> tuple[np.ndarray, float]:
+        s, clock = session(tmp_path, "lod = { near = 2.0, levels = 3 }", *singers)
+        where = []
+        for k in range(250):
+            run(s, clock, 0.04 * (k + 1), tick)
+            where.append(s.stage.v.pos.copy())
+        return np.array(where), s.stage.crowd.steered / (8 * s.stage.crowd.steps)
+
+    (fine, steered), (coarse, _) = trace(0.02), trace(0.04)
+    assert np.abs(fine - coarse).max() < 1e-9
+    assert norms(fine[-1] - fine[0]).min() > 1.0  # every one wandered
+    assert steered < 0.8  # far ones steered less often: the levels did act
+
+
+def test_an_unheard_creature_decides_less_often_than_a_sounding_one_beside_it(tmp_path):
+    """[room.lod] unheard = 2: two creatures 1 m from the listener (level 0 by distance), one
+    calling phrases, one silent. The silent one is never heard, so it stays at level 2 and
+    decides one tick in four; the caller is at level 0 while a note of it sounds (and 2 between
+    phrases), so it decides more often; without unheard both decide every tick."""
+    def decisions(room: str) -> tuple[dict[str, int], set[tuple[int, int]]]:
+        s, clock = session(tmp_path, room, caller("loud", 5.0, 4.0, "max_speed = 0.01"),
+                           singer("quiet", 5.0, 6.0, vehicle="max_speed = 0.01"))
+        ticks = {c.name: 0 for c in s.creatures}
+        for c in s.creatures:
+            def counted(t, c=c, tick=c.tick):
+                ticks[c.name] += 1
+                tick(t)
+            c.tick = counted
+        levels = set()
+        while clock.now() < 4.0 - 1e-9:  # 200 ticks
+            run(s, clock, clock.now() + TICK)
+            levels.add(tuple(int(x) for x in s.stage.crowd.level))
+        return ticks, levels
+
+    ticks, levels = decisions("lod = { near = 3.0, levels = 3, unheard = 2 }")
+    assert 48 <= ticks["quiet"] <= 52
+    assert ticks["loud"] >= ticks["quiet"] + 15
+    assert levels == {(0, 2), (2, 2)}
+    assert decisions("lod = { near = 3.0, levels = 3 }")[0] == {"loud": 200, "quiet": 200}
 
 
 def test_a_creature_steers_to_a_note_object_and_strikes_it_once_per_stepping_on(tmp_path):

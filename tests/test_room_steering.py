@@ -10,7 +10,8 @@ from scipy.spatial.distance import pdist
 from creatures.room.combine import prioritised_budget, prioritised_dithering, weighted_truncated_sum
 from creatures.room.director import FlowField, Path
 from creatures.room.index import Neighbours
-from creatures.room.lod import LevelOfDetail
+from creatures.room.hearing import DistanceLaw
+from creatures.room.lod import Audibility, LevelOfDetail, Sounding
 from creatures.room.motion import Crowd
 from creatures.room.recipe import Behaviour, Recipe, Surroundings
 from creatures.room.space import Obstacle, Room
@@ -92,14 +93,18 @@ def test_nothing_leaves_the_room_or_enters_an_obstacle():
     assert (v.pos[:, 0] > 5.7).sum() > 20  # they did press against the far wall
 
 
-def test_trajectories_do_not_depend_on_the_tick():
-    """Ticks of 0.02 s and 0.04 s run the same sub-steps: positions agree within 1e-9 m."""
+@pytest.mark.parametrize("lod", [None, LevelOfDetail(near=2.0, levels=3, budget=12)], ids=["full", "lod"])
+def test_trajectories_do_not_depend_on_the_tick(lod):
+    """Ticks of 0.02 s and 0.04 s run the same sub-steps: positions agree within 1e-9 m, with
+    level of detail and a budget too (the levels planned on the sub-step grid; planned before
+    each tick, one of these 20 wanderers ended 5.6 m from itself at the other tick after 10 s)."""
     def run(tick: float) -> np.ndarray:
         rng = np.random.default_rng(9)
         v = Vehicles.at(rng.uniform(1, 9, (20, 2)), radius=0.25)
         recipe = Recipe((Behaviour("wall_avoidance", 2.0), Behaviour("separation", 2.0), Behaviour("wander", 1.0),
                          Behaviour("cohesion", 0.3)))
-        c = Crowd(Room(10, 10), v, [recipe], seed=9)
+        c = Crowd(Room(10, 10), v, [recipe], seed=9, lod=lod)
+        c.listeners = np.array([[5.0, 5.0]])
         trace, t = [], 0.0
         for _ in range(int(round(10.0 / tick))):
             t += tick
@@ -147,6 +152,48 @@ def test_obstacle_avoidance_goes_around_a_pillar():
         closest = min(closest, float(norms(v.pos[0] - [6.0, 3.0])) - 0.8 - 0.25)
     assert closest > 0.0  # never touched it (the walls' contact rule never had to act)
     assert v.pos[0, 0] > 10.0  # and got past
+
+
+@pytest.mark.parametrize("avoid", [False, True])
+def test_agent_avoidance_lets_two_walkers_pass_head_on(avoid):
+    """Two walkers seek each other's start along one line (1 cm apart sideways): without agent
+    avoidance they pass through each other (their centres 1.2 cm apart at the closest); with
+    it they pass two radii and its 0.1 m margin apart, and both still get where they go."""
+    v = Vehicles.at([(1.0, 5.0), (9.0, 5.01)], heading=[(1.0, 0.0), (-1.0, 0.0)], radius=0.25)
+    dodge = (Behaviour("agent_avoidance", 2.0),) if avoid else ()
+    recipes = [Recipe((Behaviour("seek", params={"target": target}), *dodge)) for target in ((9.5, 5.0), (0.5, 5.01))]
+    c = Crowd(Room(10, 10), v, recipes, np.array([0, 1]))
+    closest = np.inf
+    for _ in range(1200):  # 12 s
+        c.step()
+        closest = min(closest, float(norms(v.pos[0] - v.pos[1])))
+    if avoid:
+        assert closest >= 0.59
+    else:
+        assert closest < 0.05
+    assert v.pos[0, 0] > 9.0 and v.pos[1, 0] < 1.0
+
+
+@pytest.mark.parametrize("avoid", [False, True])
+def test_wall_avoidance_turns_a_walker_before_the_wall(avoid):
+    """A walker heading for the east wall at 0.95 m/s (and 0.3 m/s north), nothing else
+    steering it: without wall avoidance it walks into the wall and stays pressed against it
+    (the walls' contact rule stops it); with it, it turns along the wall while its body is
+    still more than 0.4 m off, and walks on north."""
+    v = Vehicles.at([(5.0, 5.0)], radius=0.25)
+    v.vel[0] = (0.95, 0.3)
+    c = Crowd(Room(10, 10), v, [Recipe((Behaviour("wall_avoidance"),) if avoid else ())])
+    reach = 0.0  # the furthest east the body's edge got
+    for _ in range(600):  # 6 s
+        c.step()
+        reach = max(reach, float(v.pos[0, 0] + v.radius[0]))
+    if avoid:
+        assert reach < 9.6
+        assert v.vel[0, 0] <= 0.0 and v.vel[0, 1] > 0.25  # along the wall, northward
+        assert abs(v.heading[0, 0]) < 0.1
+    else:
+        assert reach == pytest.approx(10.0)
+        assert v.vel[0, 0] == 0.0
 
 
 def test_path_following_stays_within_the_path():
@@ -252,7 +299,6 @@ def test_level_of_detail_steers_distant_creatures_less_often_within_a_budget():
     around = Surroundings(visitors=np.array([[5.0, 5.0]]), visitor_vel=np.zeros((1, 2)))
     lod = LevelOfDetail(near=5.0, levels=3, budget=120)
     c = Crowd(Room(40, 40), v, [Recipe((Behaviour("wander"),))], lod=lod, around=around)
-    c.plan()
     counts = np.zeros(400)
     for _ in range(80):
         before = c.force.copy()
@@ -264,6 +310,26 @@ def test_level_of_detail_steers_distant_creatures_less_often_within_a_budget():
     assert c.steered <= 80 * 120
 
 
+def test_an_unheard_creature_is_ranked_further_than_its_distance():
+    """unheard = 2 with the inverse law and a -60 dB threshold: near the listener, the silent
+    creature is at level 2 and the sounding one at 0; 12 m off (level 2 by distance), a note
+    at -40 dB arrives at -61.6 dB, unheard (level 4, clipped to 3), one at 0 dB is heard (2)."""
+    lod, audibility = LevelOfDetail(near=5.0, levels=3, unheard=2), Audibility(DistanceLaw("inverse"), -60.0)
+    pos = np.array([[1.0, 0.0], [1.0, 0.0], [12.0, 0.0], [12.0, 0.0]])
+    listener = np.zeros((1, 2))
+    loudness = np.array([-np.inf, -10.0, -40.0, 0.0])
+    assert lod.level(pos, listener, loudness, audibility).tolist() == [2, 0, 3, 2]
+    assert lod.level(pos, listener).tolist() == [0, 0, 2, 2]  # loudness not asked: by distance
+
+
+def test_sounding_is_the_latest_note_while_it_lasts():
+    sounding = Sounding(2)
+    sounding.play(0, 1.0, 1.5, -6.0)
+    assert sounding.loudness(0.9).tolist() == [-np.inf, -np.inf]  # not yet started
+    assert sounding.loudness(1.2).tolist() == [-6.0, -np.inf]
+    assert sounding.loudness(1.5).tolist() == [-np.inf, -np.inf]  # over
+
+
 def test_a_full_steering_budget_starves_no_creature():
     """100 creatures all near the visitor (each due every sub-step) and a budget of 30: they
     take turns, so each steers about 30 sub-steps in 100 (ranked by index, the last 70 never did)."""
@@ -272,7 +338,6 @@ def test_a_full_steering_budget_starves_no_creature():
     around = Surroundings(visitors=np.array([[5.0, 5.0]]), visitor_vel=np.zeros((1, 2)))
     c = Crowd(Room(10, 10), v, [Recipe((Behaviour("wander"),))], lod=LevelOfDetail(near=5.0, budget=30),
               around=around)
-    c.plan()
     counts = np.zeros(100)
     for _ in range(100):
         before = c.force.copy()

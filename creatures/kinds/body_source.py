@@ -74,8 +74,7 @@ class MaterialSpec(BaseModel):
     skeleton: str | None = Field(None, description="skeleton file: a BVH file (its hierarchy) or skeleton JSON/TOML; "
                                                    "default the first animation's hierarchy")
     animations: list[AnimationSpec] = Field(default_factory=list, max_length=1024,
-                                            description="BVH takes the motor graph is built from "
-                                                        "([[creature.body.animations]] tables)")
+                                            description="BVH takes the motor graph is built from")
     clips: str | None = Field(None, description="a clips file (TOML, relative to the config): one BVH of many "
                                                 "clips, [[clip]] name and frames (root_motion per clip) and "
                                                 "[[label]] ranges, as installations/bodies/dog.labels.toml; "

@@ -154,8 +154,7 @@ class ThreeCreaturesSpec(CreatureSpec):
     latency: tuple[Seconds, Seconds] = Field((0.3, 1.5), description="range of seconds between being moved "
                                                                   "to sing and singing")
     score: list[ScoreFlush] = Field([], max_length=10_000, description="the score computer's pre-selected "
-                                    "flushes, in time order ([[creature.score]]: `at` s, `model` an aural "
-                                    "model file, `slots` memories replaced by its first samples, default 1)")
+                                    "flushes, in time order")
     hearing: HearingSpec = HearingSpec(hold=0.05)
     mouth: MouthSpec = MouthSpec()
 

@@ -10,15 +10,18 @@ Design:
   silence times out. An owner not heard for ``timeout`` seconds leaves the room with every
   creature still its own; a ``bye`` makes it leave at once.
 * **Time.** Positions and notes are stamped with the sender's clock time as Unix time (the
-  machines' clocks kept together by NTP: :meth:`RoomShare._local` says why not by Link), and
-  with its beat on Ableton Link's timeline when ``link = true`` (:mod:`creatures.room.link`),
-  which gives the colony one beat and tempo: each shared beat is heard by its pulse. A hearer
+  machines' clocks kept together by NTP), and with its beat on Ableton Link's timeline when
+  ``link = true`` (:mod:`creatures.room.link`), which gives the colony one beat and tempo:
+  each shared beat is heard by its pulse. A note from a process with Link is placed by its
+  beat's phase on the hearer's timeline (:meth:`RoomShare._on_beat`), the Unix time only
+  choosing which beat; positions by Unix time (:meth:`RoomShare._local` says why). A hearer
   places a remote creature where it is *now*: the stamped position moved on by its velocity
   for the stamp's age (dead reckoning), and every sub-step after that
   (:meth:`creatures.room.motion.Crowd.step`). At 25 updates a second the error is what a
   vehicle's force bends its path in 40 ms: millimetres.
-* **Notes** travel time-tagged with their start; the hearer injects them at that time from
-  the creature's remote place, so the room's distance law and delay apply as for its own.
+* **Notes** travel time-tagged with their start (Unix time and Link beat); the hearer injects
+  them at that time from the creature's remote place, so the room's distance law and delay
+  apply as for its own.
 * **Bounds.** Every datagram is checked and bounded (:mod:`.wire`); at most
   :data:`MOST_OWNERS` owners and :data:`MOST_REMOTE` remote creatures are kept; a remote name
   that is one of this process's own creatures is refused; each refusal is counted by cause.
@@ -113,12 +116,25 @@ class RoomShare:
         """Local clock time of a stamp (``at``, Unix time), or now for a client that cannot say
         when (``at`` ≤ 0).
 
-        Not by Link's beat: Link shares tempo and phase, not beat numbers (a peer that joins
-        late counts from its own start, 170 beats off in the four-process test), and a timeline
-        jumps while sessions merge (one process's beat strayed 23 ms rms from a straight line
-        of Unix time as the others joined), so the Unix clocks, kept together by NTP across
-        machines, are the steadier ruler for where a creature was."""
+        Not by Link's beat alone: Link shares tempo and phase, not beat numbers (a peer that
+        joins late counts from its own start, 170 beats off in the four-process test), so a
+        beat says where in a beat, not which beat (:meth:`_on_beat`); and a timeline jumps
+        while sessions merge (one process's beat strayed 23 ms rms from a straight line of Unix
+        time as the others joined), so for where a creature was (dead reckoning at 25 updates
+        a second) the Unix clocks, kept together by NTP across machines, are the steadier ruler."""
         return at - self.epoch if at > 0 else t
+
+    def _on_beat(self, start: float, beat: float) -> float:
+        """Local clock time of a note the sender tagged with Link ``beat``, near ``start`` (its
+        Unix stamp, or now): the moment within half a beat of ``start`` at which the local
+        timeline is at the same phase (Link keeps the peers' phases together, not their beat
+        counts; the issue: notes time-tagged against the shared beat). So two machines whose
+        Unix clocks disagree by less than half a beat (250 ms at 120 BPM; NTP keeps them within
+        milliseconds) place a note on the same instant of the shared beat; the price is that a
+        note sent while Link merges sessions is placed by a timeline still moving."""
+        assert self.timeline is not None
+        off = (beat - self.timeline.beat_at(self.epoch + start) + 0.5) % 1.0 - 0.5  # beats, in [-0.5, 0.5)
+        return start + off * 60.0 / self.timeline.tempo
 
     # -- out -------------------------------------------------------------------------------
     def targets(self) -> set[tuple[str, int]]:
@@ -209,6 +225,8 @@ class RoomShare:
             self.dropped["unplaced"] += 1
             return None
         start = self._local(heard.at, t)
+        if self.timeline is not None and heard.beat >= 0:  # both sides have Link
+            start = self._on_beat(start, heard.beat)
         if abs(start - t) > self.spec.timeout:  # a clock far off, or a note long past: never a pile-up
             self.dropped["time"] += 1
             return None

@@ -1,7 +1,9 @@
 """Where a creature's sound comes from: pan and gain by position, for a stereo pair or a
 ring of loudspeakers (2-D pairwise VBAP, Pulkki 1997, "Virtual sound source positioning
-using vector base amplitude panning"; no well-kept Python VBAP library exists, and the 2-D
-case is a 2×2 inverse per speaker pair).
+using vector base amplitude panning"; the 2-D case is a 2×2 inverse per speaker pair).
+spaudiopy's VBAP is 3-D only (a ring's hull is flat), loops in Python over sources and
+triangles, and imports matplotlib and h5py with the package: a live tick pans every voice here
+in a few numpy calls instead (README, "Creatures in a room").
 
 A speaker layout is a list of azimuths (degrees, anticlockwise from +x as seen from the
 listening point); gains are amplitude gains normalised to unit power, so a voice moving

@@ -15,7 +15,8 @@ from creatures.bounds import FINITE, Bounded
 from creatures.room.recipe import BEHAVIOURS
 
 BODY_KEYS = ("max_speed", "max_force", "mass", "radius", "max_turn")
-"""The ``[creature.vehicle]`` keys a zone's ``spec`` may override (the vehicle's columns)."""
+"""The ``[creature.vehicle]`` keys a zone's ``spec`` may override (the vehicle's columns; its
+other keys are read when the room is built)."""
 
 LARGEST_ROOM = 1000.0
 """Metres: the longest side a room may have (a field, not a continent)."""
@@ -64,16 +65,20 @@ class ZoneSpec(Strict):
                                      description="drives set to these levels on entry (restored on leaving)")
     spec: dict[str, float | int | str | bool] = Field(
         default_factory=dict, max_length=64,
-        description="[creature.vehicle] keys overridden inside: max_speed, max_force, mass, radius, max_turn")
+        description="keys overridden inside: the vehicle's max_speed, max_force, mass, radius, max_turn, or any "
+                    "key of the creature's spec the remote console may set (gain, hears_input, voice.gain, …; "
+                    "dotted for a nested table)")
     enable: list[str] = Field(default_factory=list, max_length=256, description="tuples enabled inside (and "
                                                                             "off everywhere else)")
     disable: list[str] = Field(default_factory=list, max_length=256, description="tuples disabled inside")
 
     @model_validator(mode="after")
     def _body_keys(self) -> "ZoneSpec":
+        """The vehicle's keys are numbers here; a creature's spec keys are checked against the
+        creatures' specs when the room is (creatures.room.stage.check_places)."""
         for key, value in self.spec.items():
             if key not in BODY_KEYS:
-                raise ValueError(f"zone {self.name!r}: spec key {key!r} is not a body key (choose from {BODY_KEYS})")
+                continue
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value <= 36000:
                 raise ValueError(f"zone {self.name!r}: spec[{key!r}] = {value!r} must be a number in (0, 36000]")
         return self
@@ -135,11 +140,15 @@ class LodSpec(Strict):
                                                                "within which a creature steers every sub-step; each "
                                                                "further `near` halves its rate")
     levels: int = Field(3, ge=0, le=8, description="slowest rate is one sub-step in 2**levels")
+    unheard: int = Field(0, ge=0, le=8, description="levels added for a creature the nearest visitor or listener "
+                                                    "does not hear: not sounding, or its note under [room.hearing] "
+                                                    "threshold there (0: levels by distance alone)")
     budget: int | None = Field(None, ge=1, le=1_000_000, description="most creatures steering in one sub-step")
     decide: bool = Field(True, description="far creatures also perceive and decide (their behaviour's tick) at "
                                            "the lower rate")
     decide_budget: int | None = Field(None, ge=1, le=1_000_000, description="decide = true: most creatures "
-                                      "deciding in one tick (the nearest due first; none = no limit)")
+                                      "deciding in one tick (the most overdue first, the nearer on a tie, so none "
+                                      "starves; none = no limit)")
 
 
 class ShareSpec(Strict):
@@ -179,7 +188,7 @@ class RoomSection(Strict):
 
     width: float = Field(10.0, gt=0, le=LARGEST_ROOM, description="x extent, m")
     depth: float = Field(10.0, gt=0, le=LARGEST_ROOM, description="y extent, m")
-    obstacles: list[ObstacleSpec] = Field(default_factory=list, max_length=256, description="[[room.obstacles]]")
+    obstacles: list[ObstacleSpec] = Field(default_factory=list, max_length=256, description="round obstacles on the floor")
     substep: float = Field(0.01, ge=0.001, le=0.1, description="fixed integration step, s (the tick does "
                                                                "not change the paths)")
     listener: Point | None = Field(None, description="where out.wav's listener stands [x, y] "
@@ -197,15 +206,15 @@ class RoomSection(Strict):
                                      "between them lower with distance, m (default: the farthest corner)")
     input_at: Point | None = Field(None, description="where input notes sound when no visitor "
                                                                    "is tracked (default: the listener)")
-    visitors: list[VisitorSpec] = Field(default_factory=list, max_length=64, description="[[room.visitors]]")
+    visitors: list[VisitorSpec] = Field(default_factory=list, max_length=64, description="visitors tracked through the input map's sensors")
     hearing: HearingSpec = HearingSpec()
     lod: LodSpec | None = Field(None, description="[room.lod]; none = every creature steers every sub-step")
-    zones: list[ZoneSpec] = Field(default_factory=list, max_length=256, description="[[room.zones]]")
-    paths: list[PathSpec] = Field(default_factory=list, max_length=256, description="[[room.paths]]")
+    zones: list[ZoneSpec] = Field(default_factory=list, max_length=256, description="zones (REACT's ActionBoxes) that change the creatures inside")
+    paths: list[PathSpec] = Field(default_factory=list, max_length=256, description="paths for path_following")
     notes: list[NoteObjectSpec] = Field(default_factory=list, max_length=1024,
-                                        description="[[room.notes]]: note objects on the floor, struck by "
-                                                    "stepping on them; `target = \"note\"` steers to the nearest")
-    flows: list[FlowSpec] = Field(default_factory=list, max_length=64, description="[[room.flows]]")
+                                        description="note objects on the floor, struck by stepping on them; "
+                                                    "`target = \"note\"` steers to the nearest")
+    flows: list[FlowSpec] = Field(default_factory=list, max_length=64, description="flow fields for flow_following")
 
     @model_validator(mode="after")
     def _layout(self) -> "RoomSection":
@@ -236,7 +245,8 @@ class SteerSpec(Strict):
     target: str | Point | None = Field(
         None, description="seek, flee, arrival, pursuit, evasion, leader_following: 'visitor' (the nearest), "
                           "'player' (where the last note from outside came from, for 4 s), 'loud' (the nearest "
-                          "loud sound), 'centre', [x, y], or another creature's name")
+                          "loud sound), 'note' (the nearest [[room.notes]] object), 'centre', [x, y], or another "
+                          "creature's name")
     slowing: float | None = Field(None, gt=0, le=LARGEST_ROOM, description="arrival: slowing distance, m")
     panic: float | None = Field(None, gt=0, le=LARGEST_ROOM, description="flee, evasion: only within this, m")
     behind: float | None = Field(None, gt=0, le=LARGEST_ROOM, description="leader_following: distance behind, m")
@@ -270,7 +280,7 @@ class VehicleSpec(Strict):
     radius: float = Field(0.25, gt=0, le=LARGEST_ROOM, description="body radius, m")
     max_turn: float = Field(360.0, gt=0, le=36000, description="fastest turn, degrees per second")
     steer: list[SteerSpec] = Field(default_factory=list, max_length=32,
-                                   description="[[creature.vehicle.steer]] behaviours, most important first")
+                                   description="steering behaviours, most important first")
     combine: Literal["weighted", "budget", "dithering"] = Field(
         "weighted", description="'weighted' (truncated sum), 'budget' (prioritised), 'dithering' (prioritised)")
     neighbours: int = Field(7, ge=1, le=64, description="neighbours the flocking behaviours see")

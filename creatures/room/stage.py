@@ -24,7 +24,7 @@ from creatures.kinds.figures import body_graph
 from creatures.room.director import FlowField, Path
 from creatures.room.hearing import Arrival, DistanceLaw, Masking, arrive_all, db_velocity, velocity_db
 from creatures.room.gait import Gaits, Walk, in_room
-from creatures.room.lod import LevelOfDetail, overdue_first
+from creatures.room.lod import Audibility, LevelOfDetail, Sounding, overdue_first
 from creatures.room.motion import Crowd
 from creatures.room.recipe import NAMED_TARGETS, Behaviour, Recipe, Surroundings
 from creatures.room.space import Obstacle, Room
@@ -32,7 +32,7 @@ from creatures.room.spec import RoomSection, VehicleSpec
 from creatures.room.speakers import DOME, Dome, azimuth, ring, stereo, vbap
 from creatures.room.vehicle import Vehicles, norms
 from creatures.room.vision import visible
-from creatures.room.zones import Zones
+from creatures.room.zones import Zones, spec_problem
 from midi.notes import NoteEvent
 
 if TYPE_CHECKING:
@@ -79,9 +79,10 @@ def walk(spec, i: int) -> Walk:
 
 
 def check_places(section: RoomSection, specs: list, drives: list[tuple[str, ...]]) -> None:
-    """Every place named is on the floor, and every zone's drives and tuples are some
-    creature's (:class:`StageError`, :class:`RoomError`; a zone's change to a creature without
-    that drive or tuple does nothing to it, but a name no creature has is a typo)."""
+    """Every place named is on the floor, and every zone's drives, tuples and spec keys are some
+    creature's, with values its schema takes (:class:`StageError`, :class:`RoomError`; a
+    zone's change to a creature without that drive, tuple or key does nothing to it, but a name
+    no creature has is a typo)."""
     size = (section.width, section.depth)
 
     def off(point: tuple[float, float] | None) -> bool:
@@ -111,6 +112,8 @@ def check_places(section: RoomSection, specs: list, drives: list[tuple[str, ...]
             for name in getattr(zone, key):
                 if name not in all_tuples:
                     raise RoomError(("zones", z, key), f"zone {zone.name!r}: no creature has a tuple {name!r}")
+        if (problem := spec_problem(zone, specs)) is not None:
+            raise RoomError(("zones", z, "spec", problem[0]), problem[1])
 
 
 def recipes(section: RoomSection, specs: list, index: dict[str, int]
@@ -178,7 +181,8 @@ class Stage:
         self._was_at = self.v.pos.copy()  # where each stood at the last strike check
         around = Surroundings(paths={p.name: Path(np.array(p.points, float), p.radius) for p in section.paths},
                               fields={f.name: self._field(f) for f in section.flows}, notes=self.notes)
-        lod = None if section.lod is None else LevelOfDetail(section.lod.near, section.lod.levels, section.lod.budget)
+        lod = None if section.lod is None else LevelOfDetail(section.lod.near, section.lod.levels, section.lod.budget,
+                                                             section.lod.unheard)
         self.crowd = Crowd(self.room, self.v, plans, groups, substep=section.substep,
                            seed=int(rng.integers(2**32)), lod=lod, around=around)
         self.zones = Zones(section.zones, creatures)
@@ -213,12 +217,24 @@ class Stage:
         self._next_beat = -np.inf  # the next shared beat the pulse hears (counted from the first one seen)
         # The tick each last decided on; staggered so a level's creatures spread over its ticks.
         self._decided = -1 - np.arange(len(creatures), dtype=np.int64) % 256
+        # What each creature sounds now, for [room.lod] unheard (None: levels by distance alone).
+        self.sounding: Sounding | None = None
+        if lod is not None and lod.unheard and creatures:
+            self.sounding = Sounding(len(creatures))
+            self.crowd.audibility = Audibility(self.law, h.threshold)
+            creatures[0].world.listeners.append(self._played)
 
     def attach(self, share: "RoomShare", world: "World") -> None:
         """Share this room with other processes (``[room.share]``, a live run): their creatures
         join the neighbours, the percepts and the ears; ours and our notes go to them."""
         self.share, self._world = share, world
         world.listeners.append(share.played)
+
+    def _played(self, creature: str, note: NoteEvent) -> None:
+        """One of the room's creatures plays ``note`` (a world listener): it sounds, this loud,
+        until the note ends (level of detail's ``unheard``)."""
+        assert self.sounding is not None
+        self.sounding.play(self.index[creature], note.time, note.time + note.duration, velocity_db(note.velocity))
 
     # -- building ------------------------------------------------------------------------
     def _vehicles(self, specs: list[VehicleSpec], rng: np.random.Generator) -> Vehicles:
@@ -265,7 +281,9 @@ class Stage:
         self.zones.update(t, self.v, emit)
         if self.share is not None:
             self._take_share(t, emit)
-        self.crowd.plan(np.vstack([self.crowd.around.visitors, self.listener[None, :]]))  # who is heard, near
+        self.crowd.listeners = np.vstack([self.crowd.around.visitors, self.listener[None, :]])  # who is heard, near
+        if self.sounding is not None:
+            self.crowd.loudness = self.sounding.loudness(t)
         if clock_gap(self.crowd.t, t):
             self.crowd.skip_to(t)  # a gap is not lived: the crowd stands through it
         self.crowd.advance_to(t)

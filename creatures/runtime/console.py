@@ -32,12 +32,11 @@ import threading
 import time
 from collections import Counter
 from dataclasses import dataclass
-from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable
 
 from pythonosc.osc_message import OscMessage
 
-from creatures.config import ConfigError, validate
+from creatures.kinds.spec_keys import SpecKeyError, with_key
 from creatures.runtime.inspect import Tree, knowledge
 from creatures.runtime.osc_wire import message
 from creatures.runtime.schema import ConsoleSection
@@ -191,26 +190,14 @@ class ColonyHandle:
 
     def set(self, index: int, creature: "CreatureKind", key: str, value: Any) -> dict:
         """Spec key ``key`` (dotted for a nested table: ``voice.gain``) set to ``value``,
-        validated by the kind's schema as a config would be; refused with the schema's message.
-        From then on the creature reads the new spec: what it reads as it runs (``gain``,
-        ``pan`` through the mixer, ``hears_input``, …) changes at once; what it built from its
-        spec at the start (a body, a voice) keeps until the run restarts."""
-        parts = key.split(".")
-        if parts[0] in ("name", "kind"):
-            raise Refused(f"{parts[0]} cannot change while the creature runs")
-        data = creature.spec.model_dump()
-        node = data
-        for part in parts[:-1]:
-            node = node.get(part) if isinstance(node, dict) else None
-            if not isinstance(node, dict):
-                raise Refused(f"{key}: {part!r} is not a table of {creature.spec.kind}'s spec")
-        node[parts[-1]] = value
+        validated by the kind's schema as a config would be; refused with the schema's message
+        (:func:`creatures.kinds.spec_keys.with_key`, which says what changes at once)."""
         try:
-            spec = validate(type(creature.spec), data, {}, Path(creature.name))
-        except ConfigError as exc:
-            raise Refused(f"{exc.key}: {exc.message}" if exc.key else exc.message) from None
+            spec = with_key(creature.spec, key, value, creature.name)
+        except SpecKeyError as exc:
+            raise Refused(str(exc)) from None
         creature.spec = spec
-        if parts[0] in ("gain", "pan"):
+        if key in ("gain", "pan"):
             self.session.mixer.set(index, gain=spec.gain, pan=spec.pan)
         creature.world.emit("console set", creature=creature.name, key=key, value=value)
         return {"set": key, "value": value}

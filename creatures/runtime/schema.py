@@ -330,8 +330,7 @@ class OutputSection(Strict):
                                            "where the first frame had it); false: it stays where it framed "
                                            "the first frame, and a walking body walks out of the picture")
     report: bool = Field(True, description="write report/ (plots and index.html) after an offline run")
-    cc: list[CcSection] = Field(default_factory=list, max_length=256, description="MIDI control-change streams, one [[output.cc]] "
-                                                                  "table each")
+    cc: list[CcSection] = Field(default_factory=list, max_length=256, description="MIDI control-change streams")
 
 
 class ViewSection(Strict):
