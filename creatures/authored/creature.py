@@ -105,6 +105,10 @@ class Authored(CreatureKind):
         learning = spec.learning
         self.ear = Ear(phrase_gap=learning.phrase_gap, max_phrases=learning.max_phrases)
         self.motivation = self._drives(spec)
+        # Each drive's impulse per note heard and per note played, the non-zero ones (every
+        # note reaches every ear of a crowd: the spec is not searched for them each time).
+        self._impulses = {which: [(name, getattr(d, which)) for name, d in spec.drives.items() if getattr(d, which)]
+                          for which in ("on_heard", "on_played")}
         self.aural = Aural(self) if spec.hearing is not None else None
         self._tickers: list[Callable[[float], None]] = []  # parts' own per-tick work (see 'parts with a life')
         self._listeners: list[Callable[[NoteEvent, str], None]] = []
@@ -401,10 +405,8 @@ class Authored(CreatureKind):
             self.voice.play(note.pitch, note.velocity, note.end)
 
     def _impulse(self, t: float, which: str) -> None:
-        for name, drive in self.spec.drives.items():
-            amount = getattr(drive, which)
-            if amount:
-                self.motivation.perturb(t, name, amount)
+        for name, amount in self._impulses[which]:
+            self.motivation.perturb(t, name, amount)
 
     def _learn_phrase(self, t: float) -> None:
         """A new hypothesis for the last phrase heard, once it is over (``phrase_gap`` of

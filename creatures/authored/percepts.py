@@ -120,7 +120,7 @@ class _Feature(PerceptPart):
     flow: ClassVar[str]
 
     def build(self, params, creature, name):
-        state = creature.ear.flows[self.flow]
+        state = creature.ear.flow(self.flow)
         if params.near is not None:
             # A model, not a threshold: learning (fission) may split it into children.
             return GaussianPercept(name, state, GaussianModel(params.near, params.spread), lookback=params.lookback)
