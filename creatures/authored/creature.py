@@ -15,7 +15,7 @@ selects (the groups inside them are ticked by their group tuples).
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any, Callable
+from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 import numpy as np
 
@@ -26,7 +26,7 @@ from creatures.authored.ear import Ear
 from creatures.authored.skills import (CUTOFF, DAMPING, GAIN, PAN, PUSH, TENSION, VOICE_PARAMETERS, VOICE_REST,
                                        AdverbModel)
 from creatures.authored.spec import AuthoredSpec, PartSpec, TupleSpec, UntilSpec, ValueSpec
-from creatures.behaviour.action_group import ActionGroup, group_tuple
+from creatures.behaviour.action_group import ActionGroup, CrowdTick, group_tuple
 from creatures.behaviour.action_tuple import ActionTuple, DoUntil
 from creatures.behaviour.expectation import Expectations
 from creatures.behaviour.learning import PerceptLearning, copy_value
@@ -151,6 +151,14 @@ class Authored(CreatureKind):
                           for p, weights in spec.modulate.items()]
         self._modulated: tuple[float, np.ndarray] = (math.nan, VOICE_REST)
         self._gain = 1.0  # voice.gain at the end of the last block sounded
+        # Whether its tick may be worked out with a crowd's (tick_many): only drives, one group
+        # and reports (no body, notes in space, ear of sounds, score or phrases learnt), no
+        # transitions followed (a colony's succession is what the others' ticks change), and
+        # only percepts that read nothing another creature's tick changes (PerceptPart.pure).
+        self._shares = (self.body is None and self.notes is None and self.aural is None and self.score is None
+                        and spec.learning.phrases is None and len(self.top) == 1
+                        and not any(tp.until.follow for tp in spec.tuples.values())
+                        and all(registry.PERCEPTS.get(p.type).pure for p in spec.percepts.values()))
 
     # -- building ---------------------------------------------------------------------
     def _drives(self, spec: AuthoredSpec) -> Motivation | None:
@@ -446,6 +454,46 @@ class Authored(CreatureKind):
         if self.notes is not None:
             self.notes.fade(t)
         soft = self._soft_step(t)
+        self._prepare(t, soft)
+        for group in self.top:
+            if soft or group.active:  # a new tuple is chosen on the soft state's steps
+                group.tick(t)
+        self._conclude(t)
+
+    @classmethod
+    def tick_many(cls, creatures: Sequence[CreatureKind], t: float) -> None:
+        """Every creature's :meth:`tick`, a crowd's selection worked out together: those that
+        may share (:attr:`_shares`) have their drives advanced as one array
+        (:meth:`Motivation.advance_all`) and their group's triggers, expected values and
+        whether selection has work as arrays across them (:class:`CrowdTick`); then each
+        creature, the others among them in their turn, finishes its tick in order (starts,
+        stops, notes and events as one by one)."""
+        shares = [creature._shares and not creature._tickers for creature in creatures]  # type: ignore[attr-defined]
+        if sum(shares) < 2:
+            super().tick_many(creatures, t)
+            return
+        crowd: list[Authored] = [creature for creature, share in zip(creatures, shares) if share]  # type: ignore[misc]
+        soft = [creature._soft_step(t) for creature in crowd]  # phrases and notes in space they have none of
+        Motivation.advance_all([c.motivation for c, s in zip(crowd, soft) if s and c.motivation is not None], t)
+        for creature, s in zip(crowd, soft):
+            creature._prepare(t, s)
+        ticks = [s or creature.group.active for creature, s in zip(crowd, soft)]
+        together = CrowdTick([creature.group for creature, tick in zip(crowd, ticks) if tick], t)
+        shared = iter(zip(crowd, ticks))
+        k = 0
+        for creature, share in zip(creatures, shares):
+            if not share:
+                creature.tick(t)
+                continue
+            me, tick = next(shared)
+            if tick:
+                together.finish(me.group, k)
+                k += 1
+            me._conclude(t)
+
+    def _prepare(self, t: float, soft: bool) -> None:
+        """A tick's work before the groups select: on a step of the soft state the drives'
+        step and the heat they give groups; the parts' own work, what is heard, the body."""
         if self.motivation is not None and soft:
             self.feed(t)
             levels = self.motivation.levels
@@ -461,9 +509,9 @@ class Authored(CreatureKind):
             pose = self.body.update(t)
             if self.voice is not None:
                 self.voice.feel(pose, push=self.voice_now(t)[PUSH])
-        for group in self.top:
-            if soft or group.active:  # a new tuple is chosen on the soft state's steps
-                group.tick(t)
+
+    def _conclude(self, t: float) -> None:
+        """A tick's work after the groups: the score and the notes in space, then the reports."""
         if self.score is not None:  # after the groups: a course chosen now is laid before anything commits
             self.score.tick(t)
         if self.notes is not None:

@@ -40,6 +40,12 @@ class PerceptPart(Part):
     of its own, whose saliency depends on being a root)."""
 
     joins_tree: ClassVar[bool] = True
+    pure: ClassVar[bool] = False
+    """Its saliency reads only the creature's own state (its drives, ear, tuples) or what no
+    creature's tick changes (the room's places, sensors, the colony's pulse): a crowd of
+    creatures with only such percepts has its triggers read together before each finishes
+    its tick (Authored.tick_many), which a percept reading another creature (``sensed``) or
+    what the colony learns as it goes would see out of turn."""
 
     def build(self, params: BaseModel, creature: "Authored", name: str) -> Percept:  # pragma: no cover
         raise NotImplementedError
@@ -61,6 +67,7 @@ class _HeardParams(Params):
 class Heard(PerceptPart):
     """A note was heard within the last ``window`` seconds (1), else 0."""
 
+    pure = True
     name = "heard"
     thesis = "percepts"
     Params = _HeardParams
@@ -90,6 +97,7 @@ class _SilenceParams(Params):
 class Silence(PerceptPart):
     """How long nothing has been heard, as a fuzzy ramp from ``after`` to ``after + ramp`` seconds."""
 
+    pure = True
     name = "silence"
     thesis = "percepts"
     Params = _SilenceParams
@@ -116,6 +124,7 @@ class _FeatureParams(Params):
 
 class _Feature(PerceptPart):
     thesis = "percept trees"
+    pure = True
     Params = _FeatureParams
     flow: ClassVar[str]
 
@@ -154,6 +163,7 @@ class OnPulse(PerceptPart):
     """On a beat of the colony's heard pulse (its low-integer-ratio model), counted from the
     last heard onset; 0 until the pulse is trusted."""
 
+    pure = True
     name = "pulse"
     thesis = "temporal models"
     Params = _PulseParams
@@ -196,6 +206,7 @@ class DrivePercept(PerceptPart):
     had, read as its cumulative probability, so "bored" means bored for this creature
     whatever units the author chose (a model of the drive, not a threshold)."""
 
+    pure = True
     name = "drive"
     thesis = "soft state"
     Params = _DriveParams
@@ -229,6 +240,7 @@ class _TimerParams(Params):
 class Timer(PerceptPart):
     """Time since the start, or since a tuple last stopped, as a fuzzy ramp."""
 
+    pure = True
     name = "timer"
     thesis = "percepts"
     Params = _TimerParams
@@ -257,6 +269,7 @@ class _SensorParams(Params):
 class Sensor(PerceptPart):
     """A sensor of the installation's input map, by name (a StateObject in the World), as a ramp."""
 
+    pure = True
     name = "sensor"
     thesis = "state objects and decaying memory traces"
     Params = _SensorParams
@@ -280,6 +293,7 @@ class _ScheduleParams(Params):
 class Schedule(PerceptPart):
     """Scripted events at given times (a visitor's rewards, a cue): 1 for ``width`` seconds after each."""
 
+    pure = True
     name = "schedule"
     thesis = "percepts"
     Params = _ScheduleParams
@@ -299,6 +313,7 @@ class Played(PerceptPart):
     """The creature itself played one of ``pitches`` within ``window`` seconds (what it just
     did, e.g. what a scripted visitor likes to hear)."""
 
+    pure = True
     name = "played"
     thesis = "percepts"
     Params = _PlayedParams
@@ -327,6 +342,7 @@ class _OfParams(Params):
 class And(PerceptPart):
     """Fuzzy and of other percepts."""
 
+    pure = True
     name = "and"
     thesis = "percepts"
     Params = _OfParams
@@ -353,6 +369,7 @@ class _NotParams(Params):
 class Not(PerceptPart):
     """Fuzzy not (1 − saliency) of another percept."""
 
+    pure = True
     name = "not"
     thesis = "percepts"
     Params = _NotParams
@@ -565,6 +582,7 @@ class Proximity(PerceptPart):
     """How near the nearest visitor, creature or loud sound is: 1 within ``near`` m, 0 beyond
     ``far``, linear between (REACT: neighbourhood; IViHumans: proximity)."""
 
+    pure = True
     name = "proximity"
     thesis = "percepts"
     Params = _ProximityParams
@@ -583,6 +601,7 @@ class Bearing(PerceptPart):
     """How straight ahead the nearest visitor, creature or loud sound is: 1 dead ahead, 0 at
     ``width`` degrees off the heading or more (facing someone, IViHumans)."""
 
+    pure = True
     name = "bearing"
     thesis = "percepts"
     Params = _BearingParams
@@ -605,6 +624,7 @@ class Crowding(PerceptPart):
     """Crowd density: others within ``radius`` m as a fraction of ``full`` (REACT's kd-tree
     range search)."""
 
+    pure = True
     name = "crowding"
     thesis = "percepts"
     Params = _CrowdingParams
@@ -624,6 +644,7 @@ class Sees(PerceptPart):
     """What is in the creature's vision cone (``[creature.vehicle]`` fov and sight) and not behind
     an obstacle, as a fraction of ``full`` (REACT: the range search over the vision cone)."""
 
+    pure = True
     name = "sees"
     thesis = "percepts"
     Params = _SeesParams

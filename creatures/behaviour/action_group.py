@@ -70,6 +70,10 @@ gesture model learns what the body did during it)."""
 RECALL = 10.0
 """Seconds an ended activation is remembered for a late reward (the longest reward window)."""
 
+Ready = bool | tuple[np.ndarray, np.ndarray, bool]
+"""A group's tick as :class:`CrowdTick` worked it out: True (its one active tuple is done), or
+its triggers, its expected values and whether selection has work (:meth:`ActionGroup.wants`)."""
+
 
 
 @dataclass
@@ -301,9 +305,13 @@ class ActionGroup:
         return expected
 
     # -- the selection loop -------------------------------------------------------------
-    def tick(self, t: float) -> None:
+    def tick(self, t: float, ready: "Ready | None" = None) -> None:
         """One step of the baseline mechanism: stop what is done, fill free slots or
-        interrupt, then update whatever is active."""
+        interrupt, then update whatever is active.
+
+        ``ready``: this step as :class:`CrowdTick` worked it out with a crowd's arrays, the
+        evaluations it made not made again: True (the active tuple is done), or this tick's
+        triggers, expected values and whether selection has work to do."""
         if not self._checked:
             self.check_grounded()
         if self.last_tick is not None and clock_gap(self.last_tick, t) and self.active:
@@ -315,23 +323,58 @@ class ActionGroup:
             self.expectations.tick(t)
         self._ticking = True
         try:
-            for tuple_ in list(self.active):
-                if tuple_.do_until.evaluate(t) >= 1.0:
-                    self._stop(tuple_, t, interrupted=False)
-            trig = self.triggers(t)
-            expected = self._expected(t, trig, self.values())
-            if len(self.active) < self.max_active:
-                running = sum(expected[self._position(tp)] > 0.0 for tp in self.active)
-                if np.count_nonzero(expected > 0.0) > running:  # something not running is worth starting
-                    self._fill(t, trig, expected)
-            elif self._should_interrupt(expected):
-                self._reselect(t, trig, expected)
-            for tuple_ in list(self.active):
-                tuple_.update(t)
+            if ready is None:
+                for tuple_ in list(self.active):
+                    if tuple_.do_until.evaluate(t) >= 1.0:
+                        self._stop(tuple_, t, interrupted=False)
+            elif ready is True:
+                self._stop(self.active[0], t, interrupted=False)
+            if ready is None or ready is True:
+                trig = self.triggers(t)
+                self._decide(t, trig, self._expected(t, trig, self.values()))
+            else:
+                self._decide(t, *ready)
         finally:
             self._ticking = False
         while self._deferred:
             self._deferred.pop(0)()
+
+    def _decide(self, t: float, trig: np.ndarray, expected: np.ndarray, wants: bool | None = None) -> None:
+        """Fill a free slot or interrupt when selection has work (``wants``, else asked of
+        :meth:`wants` here), then update whatever is active."""
+        free = len(self.active) < self.max_active
+        if wants is None:
+            active = ~self._inactive_mask()
+            weakest = min(expected[[self._position(tp) for tp in self.active]].tolist(), default=0.0)  # as asked
+            wants = bool(self.wants(expected[None], active[None], np.array([free]), self._interrupt_at[None],
+                                    np.array([weakest]))[0])
+        if wants:
+            if free:
+                self._fill(t, trig, expected)
+            else:
+                self._reselect(t, trig, expected)
+        for tuple_ in list(self.active):
+            tuple_.update(t)
+
+    @staticmethod
+    def wants(expected: np.ndarray, active: np.ndarray, free: np.ndarray, interrupt_at: np.ndarray,
+              weakest: np.ndarray) -> np.ndarray:
+        """For each row (a group: its tuples' expected values, which are ``active``, whether it
+        has a ``free`` slot, its interruption thresholds and its ``weakest`` active tuple's
+        expected value), whether selection has work: with a slot free, some tuple not running
+        is worth starting; with every slot taken, a tuple not running has grown to its
+        threshold and to the weakest running one (then :meth:`_reselect` chooses again)."""
+        idle = (expected > 0.0) & ~active
+        grown = idle & (expected >= interrupt_at) & (expected >= weakest[:, None])
+        return np.where(free, idle.any(axis=1), grown.any(axis=1))
+
+    def shares_tick(self, t: float) -> bool:
+        """Whether :class:`CrowdTick` may work out this group's tick at ``t`` with others': at
+        most one tuple active (several are stopped one after another, each stop before the
+        next is asked), no clock gap to report, no expectations to tell, no zone switching
+        tuples off, grounding checked."""
+        return (self._checked and self.expectations is None and not self.disabled and len(self.active) <= 1
+                and not (self.active and self.last_tick is not None and clock_gap(self.last_tick, t)))
 
     def _inactive_mask(self) -> np.ndarray:
         mask = np.ones(len(self.tuples), dtype=bool)
@@ -344,13 +387,6 @@ class ActionGroup:
         thresholds: ``multiple`` × a positive base value, the base itself otherwise."""
         self._base = np.array(expected, dtype=float)
         self._interrupt_at = np.where(self._base > 0.0, self.multiple * self._base, self._base)
-
-    def _should_interrupt(self, expected: np.ndarray) -> bool:
-        active = [self._position(tp) for tp in self.active]
-        weakest = min(expected[active].tolist())  # in active order, as the tuples were asked
-        grown = (expected > 0.0) & (expected >= self._interrupt_at) & (expected >= weakest)
-        grown[active] = False  # only an inactive tuple interrupts
-        return bool(grown.any())
 
     def _choose(self, expected: np.ndarray, allowed: np.ndarray) -> int | None:
         p = selection_probabilities(np.where(allowed, expected, 0.0), self.temperature)
@@ -561,6 +597,63 @@ class ActionGroup:
 
     def __repr__(self) -> str:
         return f"ActionGroup({self.name!r}, {len(self.tuples)} tuples, active={[tp.name for tp in self.active]})"
+
+
+class CrowdTick:
+    """One tick of many action-groups (a crowd's creatures, each its own group), the
+    arithmetic of selection done as arrays across them.
+
+    Each group's Du of its active tuple, its triggers (percept by percept down the crowd),
+    values and Du again are evaluated once, in the order its own tick would evaluate them;
+    the expected values and whether selection has work (:meth:`ActionGroup.wants`) are
+    arrays over every group of one shape (same tuples, same triggers). A group then finishes
+    its tick in the crowd's order with :meth:`finish` (an ordinary tick given what was
+    worked out), so every start, stop, note and event happens as the groups one by one
+    would have made them. A group that may not share (:meth:`ActionGroup.shares_tick`)
+    ticks on its own in its turn. What a percept of one creature reads must not be what
+    another creature's tick changes (their triggers are read before the others finish).
+    """
+
+    def __init__(self, groups: list[ActionGroup], t: float) -> None:
+        self.t = t
+        self.ready: list[Ready | None] = [None] * len(groups)
+        shapes: dict[tuple[int, bytes], list[int]] = {}
+        for k, group in enumerate(groups):
+            if not group.shares_tick(t):
+                continue
+            if group.active and group.active[0].do_until.evaluate(t) >= 1.0:
+                self.ready[k] = True
+            else:
+                shapes.setdefault((len(group.tuples), group._percept_index.tobytes()), []).append(k)
+        for members in shapes.values():
+            self._work_out([groups[k] for k in members], members)
+
+    def _work_out(self, groups: list[ActionGroup], members: list[int]) -> None:
+        """Triggers, values, expected values and selection's work of groups of one shape."""
+        t, n, first = self.t, len(groups), groups[0]
+        saliency = np.empty((n, len(first._percepts)))
+        for p in range(len(first._percepts)):
+            saliency[:, p] = [group._percepts[p].evaluate(t) for group in groups]
+        trig = saliency[:, first._percept_index]
+        values = np.array([tp.value.to_float() for group in groups for tp in group.tuples]).reshape(n, -1)
+        expected = trig * values
+        rows = [r for r, group in enumerate(groups) if group.active]
+        at = [group._position(group.active[0]) for group in groups if group.active]
+        done = np.array([group.active[0].do_until.evaluate(t) for group in groups if group.active])
+        expected[rows, at] = (1.0 - done) * values[rows, at]
+        active = np.zeros(expected.shape, dtype=bool)
+        active[rows, at] = True
+        weakest = np.zeros(n)
+        weakest[rows] = expected[rows, at]
+        free = np.array([len(group.active) < group.max_active for group in groups])
+        wants = ActionGroup.wants(expected, active, free, np.array([group._interrupt_at for group in groups]),
+                                  weakest).tolist()
+        for r, k in enumerate(members):
+            self.ready[k] = (trig[r], expected[r], wants[r])
+
+    def finish(self, group: ActionGroup, k: int) -> None:
+        """Group ``k`` (in the order given) ticks, from what was worked out for it."""
+        group.tick(self.t, self.ready[k])
 
 
 # -- hierarchical action-groups ------------------------------------------------------------
