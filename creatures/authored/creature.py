@@ -475,19 +475,21 @@ class Authored(CreatureKind):
         crowd: list[Authored] = [creature for creature, share in zip(creatures, shares) if share]  # type: ignore[misc]
         soft = [creature._soft_step(t) for creature in crowd]  # phrases and notes in space they have none of
         Motivation.advance_all([c.motivation for c, s in zip(crowd, soft) if s and c.motivation is not None], t)
+        ticking: list[ActionGroup | None] = []  # each one's group, if it ticks now
         for creature, s in zip(crowd, soft):
             creature._prepare(t, s)
-        ticks = [s or creature.group.active for creature, s in zip(crowd, soft)]
-        together = CrowdTick([creature.group for creature, tick in zip(crowd, ticks) if tick], t)
-        shared = iter(zip(crowd, ticks))
+            group = creature.top[0]
+            ticking.append(group if s or group.active else None)
+        together = CrowdTick([group for group in ticking if group is not None], t)
+        shared = iter(zip(crowd, ticking))
         k = 0
         for creature, share in zip(creatures, shares):
             if not share:
                 creature.tick(t)
                 continue
-            me, tick = next(shared)
-            if tick:
-                together.finish(me.group, k)
+            me, group = next(shared)
+            if group is not None:
+                together.finish(group, k)
                 k += 1
             me._conclude(t)
 

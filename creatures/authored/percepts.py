@@ -25,6 +25,7 @@ from creatures.kinds.hearing_parts import SeedModel
 from creatures.behaviour.models.activation import ActivationModel
 from creatures.behaviour.models.fuzzy import AndPercept, NotPercept, OrPercept
 from creatures.behaviour.models.gaussian import GaussianModel, GaussianPercept
+from creatures.behaviour.motivation import Motivation
 from creatures.behaviour.perception import PerceivingPercept
 from creatures.behaviour.percept import FunctionPercept, Percept
 from creatures.temporal.durations import SimpleDurationModel
@@ -216,7 +217,7 @@ class DrivePercept(PerceptPart):
         if params.scale == "level" and params.low is not None:
             return FunctionPercept(name, lambda t: ramp(creature.level(params.drive, t), params.low, params.high))
         if params.scale == "level":
-            return FunctionPercept(name, lambda t: creature.level(params.drive, t))
+            return DriveLevel(name, creature.motivation, params.drive)
         model = GaussianModel(creature.level(params.drive, creature.now()), params.spread, size=64)
         last = [-math.inf]
 
@@ -228,6 +229,20 @@ class DrivePercept(PerceptPart):
             return 0.5 * (1.0 + math.erf((level - model.mean) / (math.sqrt(2.0) * model.std)))
 
         return FunctionPercept(name, scale_free)
+
+
+class DriveLevel(Percept):
+    """A drive's level (``scale = "level"``) read from the drives themselves, as
+    :meth:`Authored.level` reads it: a crowd's triggers ask it of every creature every tick."""
+
+    def __init__(self, name: str, motivation: Motivation, drive: str) -> None:
+        super().__init__(name)
+        self.motivation = motivation
+        self.drive = motivation.index(drive)
+
+    def evaluate(self, t: float) -> float:
+        m = self.motivation
+        return float(m.levels[self.drive] if t <= m.time else m.levels_at(t)[self.drive])
 
 
 class _TimerParams(Params):

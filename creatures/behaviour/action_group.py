@@ -71,8 +71,9 @@ RECALL = 10.0
 """Seconds an ended activation is remembered for a late reward (the longest reward window)."""
 
 Ready = bool | tuple[np.ndarray, np.ndarray, bool]
-"""A group's tick as :class:`CrowdTick` worked it out: True (its one active tuple is done), or
-its triggers, its expected values and whether selection has work (:meth:`ActionGroup.wants`)."""
+"""A group's tick as :class:`CrowdTick` worked it out: True (its one active tuple is done), False
+(nothing to do), or its triggers, its expected values and whether selection has work
+(:meth:`ActionGroup.wants`)."""
 
 
 
@@ -195,6 +196,7 @@ class ActionGroup:
         self._deferred: list[Callable[[], object]] = []
         self._percepts: list[Percept] = []
         self._percept_index = np.zeros(0, dtype=np.intp)
+        self._shape: tuple[int, bytes] = (0, b"")
         self._leaf = np.zeros(0, dtype=bool)
         self.recent: list[Activation] = []  # activations that may still take a late reward
         for tuple_ in tuples:
@@ -267,6 +269,7 @@ class ActionGroup:
                 index[id(tuple_.trigger)] = len(self._percepts)
                 self._percepts.append(tuple_.trigger)
         self._percept_index = np.array([index[id(tp.trigger)] for tp in self.tuples], dtype=np.intp)
+        self._shape = (len(self.tuples), self._percept_index.tobytes())  # groups alike for CrowdTick
         self._leaf = np.array([not isinstance(tp.action, GroupAction) for tp in self.tuples], dtype=bool)
         self._proximity.clear()
 
@@ -310,8 +313,12 @@ class ActionGroup:
         interrupt, then update whatever is active.
 
         ``ready``: this step as :class:`CrowdTick` worked it out with a crowd's arrays, the
-        evaluations it made not made again: True (the active tuple is done), or this tick's
-        triggers, expected values and whether selection has work to do."""
+        evaluations it made not made again: True (the active tuple is done), False (nothing
+        to do and nothing running acts each tick: the step only notes the time), or this
+        tick's triggers, expected values and whether selection has work to do."""
+        if ready is False:  # shares_tick held: no grounding to check, no gap, no expectations
+            self.last_tick = t
+            return
         if not self._checked:
             self.check_grounded()
         if self.last_tick is not None and clock_gap(self.last_tick, t) and self.active:
@@ -604,11 +611,12 @@ class CrowdTick:
     arithmetic of selection done as arrays across them.
 
     Each group's Du of its active tuple, its triggers (percept by percept down the crowd),
-    values and Du again are evaluated once, in the order its own tick would evaluate them;
-    the expected values and whether selection has work (:meth:`ActionGroup.wants`) are
-    arrays over every group of one shape (same tuples, same triggers). A group then finishes
-    its tick in the crowd's order with :meth:`finish` (an ordinary tick given what was
-    worked out), so every start, stop, note and event happens as the groups one by one
+    values and Du again (unless a second evaluation must give the first's answer:
+    :attr:`DoUntil.settled`) are evaluated once, in the order its own tick would evaluate
+    them; the expected values and whether selection has work (:meth:`ActionGroup.wants`)
+    are arrays over every group of one shape (same tuples, same triggers). A group then
+    finishes its tick in the crowd's order with :meth:`finish` (an ordinary tick given what
+    was worked out), so every start, stop, note and event happens as the groups one by one
     would have made them. A group that may not share (:meth:`ActionGroup.shares_tick`)
     ticks on its own in its turn. What a percept of one creature reads must not be what
     another creature's tick changes (their triggers are read before the others finish).
@@ -617,18 +625,25 @@ class CrowdTick:
     def __init__(self, groups: list[ActionGroup], t: float) -> None:
         self.t = t
         self.ready: list[Ready | None] = [None] * len(groups)
-        shapes: dict[tuple[int, bytes], list[int]] = {}
+        shapes: dict[tuple[int, bytes], list[tuple[int, float | None]]] = {}
         for k, group in enumerate(groups):
             if not group.shares_tick(t):
                 continue
-            if group.active and group.active[0].do_until.evaluate(t) >= 1.0:
-                self.ready[k] = True
-            else:
-                shapes.setdefault((len(group.tuples), group._percept_index.tobytes()), []).append(k)
+            done = None  # the active tuple's Du, when asking again now would give it
+            if group.active:
+                du = group.active[0].do_until
+                settled = du.settled
+                done = du.evaluate(t)
+                if done >= 1.0:
+                    self.ready[k] = True
+                    continue
+                if not settled:
+                    done = None
+            shapes.setdefault(group._shape, []).append((k, done))
         for members in shapes.values():
-            self._work_out([groups[k] for k in members], members)
+            self._work_out([groups[k] for k, _ in members], members)
 
-    def _work_out(self, groups: list[ActionGroup], members: list[int]) -> None:
+    def _work_out(self, groups: list[ActionGroup], members: list[tuple[int, float | None]]) -> None:
         """Triggers, values, expected values and selection's work of groups of one shape."""
         t, n, first = self.t, len(groups), groups[0]
         saliency = np.empty((n, len(first._percepts)))
@@ -637,10 +652,13 @@ class CrowdTick:
         trig = saliency[:, first._percept_index]
         values = np.array([tp.value.to_float() for group in groups for tp in group.tuples]).reshape(n, -1)
         expected = trig * values
-        rows = [r for r, group in enumerate(groups) if group.active]
-        at = [group._position(group.active[0]) for group in groups if group.active]
-        done = np.array([group.active[0].do_until.evaluate(t) for group in groups if group.active])
-        expected[rows, at] = (1.0 - done) * values[rows, at]
+        rows, at, done = [], [], []
+        for r, (group, (_, du)) in enumerate(zip(groups, members)):
+            if group.active:
+                rows.append(r)
+                at.append(group._position(group.active[0]))
+                done.append(group.active[0].do_until.evaluate(t) if du is None else du)
+        expected[rows, at] = (1.0 - np.array(done, dtype=float)) * values[rows, at]
         active = np.zeros(expected.shape, dtype=bool)
         active[rows, at] = True
         weakest = np.zeros(n)
@@ -648,8 +666,10 @@ class CrowdTick:
         free = np.array([len(group.active) < group.max_active for group in groups])
         wants = ActionGroup.wants(expected, active, free, np.array([group._interrupt_at for group in groups]),
                                   weakest).tolist()
-        for r, k in enumerate(members):
-            self.ready[k] = (trig[r], expected[r], wants[r])
+        for r, ((k, _), group) in enumerate(zip(members, groups)):
+            acts = group.active and type(group.active[0].action).update is not Action.update
+            # False: nothing to do, and nothing running acts each tick
+            self.ready[k] = (trig[r], expected[r], wants[r]) if wants[r] or acts else False
 
     def finish(self, group: ActionGroup, k: int) -> None:
         """Group ``k`` (in the order given) ticks, from what was worked out for it."""

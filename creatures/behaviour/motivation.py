@@ -167,9 +167,11 @@ class Motivation:
         return levels.copy()
 
     def advance(self, t: float) -> None:
-        """Integrate exactly from the current time to clock time ``t``."""
-        self.levels = self.levels_at(t)
-        self.time = float(t)
+        """Integrate exactly from the current time to clock time ``t`` (nothing to do at the
+        drives' own time: a crowd's were advanced together before each creature's feed)."""
+        if float(t) != self.time:
+            self.levels = self.levels_at(t)
+            self.time = float(t)
 
     @staticmethod
     def advance_all(motivations: Sequence["Motivation"], t: float) -> None:
