@@ -8,7 +8,6 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from creatures.authored.creature import Authored
@@ -200,28 +199,3 @@ def test_only_creatures_whose_percepts_read_their_own_state_tick_together(tmp_pa
     shares = {c.name: c._shares for c in session.creatures}
     assert shares["s-0"] and shares["slow-0"]
     assert not shares["odd"]  # it reads another creature's percept
-
-
-def test_drives_advanced_together_are_each_as_advanced_alone():
-    """Motivation.advance_all: the stacked products give every creature's drives bit for bit
-    what its own advance gives, with coupling, inputs, bounds and steps of several sizes."""
-    from creatures.behaviour.motivation import Motivation
-
-    rng = np.random.default_rng(2)
-    for drives in (1, 2, 3, 5):
-        names = [f"d{i}" for i in range(drives)]
-        made = []
-        for k in range(40):
-            m = Motivation({n: rng.uniform(0, 1) for n in names}, growth={n: rng.normal(0, 0.2) for n in names},
-                           decay={n: rng.uniform(0, 0.3) for n in names},
-                           coupling={(a, b): rng.normal(0, 0.1) for a in names for b in names if a != b},
-                           floor=None if k % 3 == 0 else 0.0, ceiling=1.0 if k % 2 else None,
-                           start=float(rng.choice([0.0, 0.013])))
-            m.inputs[:] = rng.normal(0, 0.1, drives)
-            made.append((m, Motivation.from_dict(m.to_dict())))
-        for t in (0.04, 0.08, 0.5, 0.5, 3.0):
-            Motivation.advance_all([a for a, _ in made], t)
-            for _, b in made:
-                b.advance(t)
-            for a, b in made:
-                assert a.levels.tobytes() == b.levels.tobytes() and a.time == b.time

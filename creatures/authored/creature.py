@@ -9,7 +9,9 @@ The config names the parts; this module only composes the library's own: drives 
 with :class:`~creatures.behaviour.learning.PerceptLearning`, ``follow`` Du from
 :mod:`creatures.temporal.transitions`, constraints from :mod:`creatures.temporal.intervals`).
 One tick: drives advance with their percept inputs and arcs, then every top-level group
-selects (the groups inside them are ticked by their group tuples).
+selects (the groups inside them are ticked by their group tuples). A crowd's creatures tick
+together (:meth:`Authored.tick_many`): their drives and their selection's arithmetic as arrays
+across them, each then finishing its own tick in turn.
 """
 
 from __future__ import annotations

@@ -6,9 +6,10 @@ Every heard note pushes its pitch, velocity, interval from the previous note, re
 :class:`StateObject` each, so percepts read one flow by name (:meth:`Ear.flow`) and learning
 can look back at what led up to an action. A flow no percept has asked for yet keeps its
 last samples in a buffer and takes them when first asked (in a crowd every note reaches
-every ear, and most creatures read none of the five flows). Notes separated by more than ``phrase_gap`` seconds of silence
-start a new phrase; :class:`Ear` keeps the last ``max_phrases`` (the material a creature
-sings back). The creature's own notes go to ``played`` (a percept of what it just did).
+every ear, and most creatures read none of the five flows). Notes separated by more than
+``phrase_gap`` seconds of silence start a new phrase; :class:`Ear` keeps the last
+``max_phrases`` (the material a creature sings back). The creature's own notes go to
+``played`` (a percept of what it just did).
 """
 
 from __future__ import annotations

@@ -43,7 +43,9 @@ tuple followed which, not on how long either lasted.
 
 Hot path: triggers are evaluated once per distinct percept (percepts are creature-wide and
 shared between tuples) and combined with the values as numpy arrays, so only the active
-tuples do Python-level work per tick.
+tuples do Python-level work per tick. A crowd's groups (one per creature) go further:
+:class:`CrowdTick` works out their expected values and whether selection has work as arrays
+across the crowd, and only a group with something to do runs its own Python.
 """
 
 from __future__ import annotations
