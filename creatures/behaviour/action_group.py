@@ -75,7 +75,7 @@ RECALL = 10.0
 Ready = bool | tuple[np.ndarray, np.ndarray, bool]
 """A group's tick as :class:`CrowdTick` worked it out: True (its one active tuple is done), False
 (nothing to do), or its triggers, its expected values and whether selection has work
-(:meth:`ActionGroup.wants`)."""
+(:meth:`ActionGroup.idle`, :meth:`ActionGroup.grown`)."""
 
 
 
@@ -349,14 +349,14 @@ class ActionGroup:
             self._deferred.pop(0)()
 
     def _decide(self, t: float, trig: np.ndarray, expected: np.ndarray, wants: bool | None = None) -> None:
-        """Fill a free slot or interrupt when selection has work (``wants``, else asked of
-        :meth:`wants` here), then update whatever is active."""
+        """Fill a free slot or interrupt when selection has work (``wants``, else asked here of
+        :meth:`idle` or :meth:`grown`), then update whatever is active."""
         free = len(self.active) < self.max_active
-        if wants is None:
-            active = ~self._inactive_mask()
-            weakest = min(expected[[self._position(tp) for tp in self.active]].tolist(), default=0.0)  # as asked
-            wants = bool(self.wants(expected[None], active[None], np.array([free]), self._interrupt_at[None],
-                                    np.array([weakest]))[0])
+        if wants is None and free:
+            wants = np.count_nonzero(self.idle(expected, self._active_mask())) > 0
+        elif wants is None:
+            weakest = min(expected[[self._position(tp) for tp in self.active]].tolist())  # in active order, as asked
+            wants = np.count_nonzero(self.grown(expected, self._active_mask(), self._interrupt_at, weakest)) > 0
         if wants:
             if free:
                 self._fill(t, trig, expected)
@@ -366,16 +366,18 @@ class ActionGroup:
             tuple_.update(t)
 
     @staticmethod
-    def wants(expected: np.ndarray, active: np.ndarray, free: np.ndarray, interrupt_at: np.ndarray,
-              weakest: np.ndarray) -> np.ndarray:
-        """For each row (a group: its tuples' expected values, which are ``active``, whether it
-        has a ``free`` slot, its interruption thresholds and its ``weakest`` active tuple's
-        expected value), whether selection has work: with a slot free, some tuple not running
-        is worth starting; with every slot taken, a tuple not running has grown to its
-        threshold and to the weakest running one (then :meth:`_reselect` chooses again)."""
-        idle = (expected > 0.0) & ~active
-        grown = idle & (expected >= interrupt_at) & (expected >= weakest[:, None])
-        return np.where(free, idle.any(axis=1), grown.any(axis=1))
+    def idle(expected: np.ndarray, active: np.ndarray) -> np.ndarray:
+        """The tuples not running (``active`` false) that are worth starting (the last axis: a
+        group's tuples): with a slot free, selection has work when there is one."""
+        return (expected > 0.0) & ~active
+
+    @staticmethod
+    def grown(expected: np.ndarray, active: np.ndarray, interrupt_at: np.ndarray,
+              weakest: np.ndarray | float) -> np.ndarray:
+        """The tuples not running that have grown to their interruption threshold and to the
+        ``weakest`` running tuple's expected value: with every slot taken, selection has work
+        when there is one (:meth:`_reselect` chooses again)."""
+        return ActionGroup.idle(expected, active) & (expected >= interrupt_at) & (expected >= weakest)
 
     def shares_tick(self, t: float) -> bool:
         """Whether :class:`CrowdTick` may work out this group's tick at ``t`` with others': at
@@ -385,11 +387,14 @@ class ActionGroup:
         return (self._checked and self.expectations is None and not self.disabled and len(self.active) <= 1
                 and not (self.active and self.last_tick is not None and clock_gap(self.last_tick, t)))
 
-    def _inactive_mask(self) -> np.ndarray:
-        mask = np.ones(len(self.tuples), dtype=bool)
+    def _active_mask(self) -> np.ndarray:
+        mask = np.zeros(len(self.tuples), dtype=bool)  # zeros: np.ones is a Python wrapper, several times slower
         for tuple_ in self.active:
-            mask[self._position(tuple_)] = False
+            mask[self._position(tuple_)] = True
         return mask
+
+    def _inactive_mask(self) -> np.ndarray:
+        return ~self._active_mask()
 
     def record_base(self, expected: np.ndarray) -> None:
         """Remember every tuple's expected value at a selection, and from it the interruption
@@ -615,8 +620,9 @@ class CrowdTick:
     Each group's Du of its active tuple, its triggers (percept by percept down the crowd),
     values and Du again (unless a second evaluation must give the first's answer:
     :attr:`DoUntil.settled`) are evaluated once, in the order its own tick would evaluate
-    them; the expected values and whether selection has work (:meth:`ActionGroup.wants`)
-    are arrays over every group of one shape (same tuples, same triggers). A group then
+    them; the expected values and whether selection has work (:meth:`ActionGroup.idle`,
+    :meth:`ActionGroup.grown`) are arrays over every group of one shape (same tuples, same
+    triggers). A group then
     finishes its tick in the crowd's order with :meth:`finish` (an ordinary tick given what
     was worked out), so every start, stop, note and event happens as the groups one by one
     would have made them. A group that may not share (:meth:`ActionGroup.shares_tick`)
@@ -663,11 +669,12 @@ class CrowdTick:
         expected[rows, at] = (1.0 - np.array(done, dtype=float)) * values[rows, at]
         active = np.zeros(expected.shape, dtype=bool)
         active[rows, at] = True
-        weakest = np.zeros(n)
-        weakest[rows] = expected[rows, at]
+        weakest = np.zeros((n, 1))
+        weakest[rows, 0] = expected[rows, at]
         free = np.array([len(group.active) < group.max_active for group in groups])
-        wants = ActionGroup.wants(expected, active, free, np.array([group._interrupt_at for group in groups]),
-                                  weakest).tolist()
+        interrupt_at = np.array([group._interrupt_at for group in groups])
+        wants = np.where(free, ActionGroup.idle(expected, active).any(axis=1),
+                         ActionGroup.grown(expected, active, interrupt_at, weakest).any(axis=1)).tolist()
         for r, ((k, _), group) in enumerate(zip(members, groups)):
             acts = group.active and type(group.active[0].action).update is not Action.update
             # False: nothing to do, and nothing running acts each tick
