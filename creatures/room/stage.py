@@ -204,6 +204,7 @@ class Stage:
         # number in ``_sounds``, (note, source), in the order they were emitted).
         self._flying = {key: np.zeros(0) for key in ("start", "end", "db", "pitch")}
         self._flying.update(ear=np.zeros(0, dtype=np.int64), note=np.zeros(0, dtype=np.int64))
+        self._new_rows: list[dict[str, np.ndarray]] = []  # joined to _flying once a tick (a burst stays linear)
         self._sounds: dict[int, tuple[NoteEvent, str]] = {}
         self._emitted = itertools.count()
         self.masked = 0  # arrivals a louder sound hid
@@ -489,12 +490,16 @@ class Stage:
         self._sounds[number] = (note, source)
         row = {"start": starts, "end": ends, "db": dbs, "pitch": np.full(len(ears), float(note.pitch)), "ear": ears,
                "note": np.full(len(ears), number)}
-        self._flying = {key: np.concatenate([self._flying[key], row[key]]) for key in self._flying}
+        self._new_rows.append(row)
 
     def due(self, t: float) -> list[tuple[int, NoteEvent, str]]:
         """What each ear hears by ``t``: (creature index, the note as it arrives, its source), in
         the order the sounds arrive (start, then the order the notes were emitted, then ear),
         leaving out what is masked by a louder sound already sounding at that ear."""
+        if self._new_rows:
+            self._flying = {key: np.concatenate([x, *(row[key] for row in self._new_rows)])
+                            for key, x in self._flying.items()}
+            self._new_rows = []
         flying = self._flying
         now = flying["start"] <= t
         if not now.any():
@@ -511,7 +516,7 @@ class Stage:
             note, source = self._sounds[k]
             velocity = int(min(max(round(db_velocity(level)), 1), 127))
             out.append((i, NoteEvent(round(at, 6), note.pitch, velocity, note.channel, note.duration), source))
-        for k in set(number.tolist()) - set(self._flying["note"].tolist()):
+        for k in np.setdiff1d(number, self._flying["note"]).tolist():
             del self._sounds[k]  # every ear has it
         return out
 
