@@ -14,8 +14,8 @@ spatial index's neighbour queries against brute force.
   at every ear in one compiled pass (``Ears``); what is left is each creature's own Python
   (its group finishing its tick, a stop and a new choice ~130 µs each, ~3 % of its ticks),
   each heard note made and given to its ear (~1.35 a creature a tick), and the steering's
-  four sub-steps a tick (~0.5 ms each for the crowd, ~10 µs a creature a tick: the 10× alone
-  would leave ~10 µs a creature a tick for everything else).
+  four sub-steps a tick (~0.37 ms each for the crowd, 9–12 µs a creature a tick of the 20 µs
+  the 10× allows).
 - The same singers with ``[room.lod]`` (the issue's level of detail: far from the listener
   they steer and decide at down to ⅛ rate; every ear still hears every note on time), beside
   the first row: what level of detail buys a crowd whose cost is its hearing and its choices.
