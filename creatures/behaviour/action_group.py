@@ -672,7 +672,7 @@ class CrowdTick:
         weakest = np.zeros((n, 1))
         weakest[rows, 0] = expected[rows, at]
         free = np.array([len(group.active) < group.max_active for group in groups])
-        interrupt_at = np.array([group._interrupt_at for group in groups])
+        interrupt_at = np.concatenate([group._interrupt_at for group in groups]).reshape(n, -1)
         wants = np.where(free, ActionGroup.idle(expected, active).any(axis=1),
                          ActionGroup.grown(expected, active, interrupt_at, weakest).any(axis=1)).tolist()
         for r, ((k, _), group) in enumerate(zip(members, groups)):

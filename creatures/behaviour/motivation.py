@@ -187,13 +187,15 @@ class Motivation:
                 if t < m.time:
                     m.advance(t)
                 alike.setdefault((len(m.names), m.floor, m.ceiling), []).append(m)
-        for ms in alike.values():
-            phi, psi = zip(*(m._step(t - m.time) for m in ms))
-            rates = (np.array([m.growth for m in ms]) + np.array([m.decay for m in ms]) * np.array([m.equilibrium for m in ms])
-                     + np.array([m.inputs for m in ms]))
-            offset = np.matmul(np.array(psi), rates[:, :, None])
-            levels = ms[0]._clip((np.matmul(np.array(phi), np.array([m.levels for m in ms])[:, :, None]) + offset)[:, :, 0])
-            for m, row in zip(ms, levels):
+        join = np.concatenate  # of the motivations' own vectors and matrices, then shaped (faster than np.array)
+        for (d, _, _), ms in alike.items():
+            n = len(ms)
+            steps = [m._step(t - m.time) for m in ms]
+            rates = (join([m.growth for m in ms]) + join([m.decay for m in ms]) * join([m.equilibrium for m in ms])
+                     + join([m.inputs for m in ms])).reshape(n, d, 1)
+            offset = np.matmul(join([psi for _, psi in steps]).reshape(n, d, d), rates)
+            levels = np.matmul(join([phi for phi, _ in steps]).reshape(n, d, d), join([m.levels for m in ms]).reshape(n, d, 1))
+            for m, row in zip(ms, ms[0]._clip((levels + offset)[:, :, 0])):
                 m.levels, m.time = row, t
 
     def level(self, name: str, t: float | None = None) -> float:
