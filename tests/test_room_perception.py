@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from creatures.room.hearing import SPEED_OF_SOUND, DistanceLaw, Masking, arrive, db_velocity, velocity_db
+from creatures.room.hearing import SPEED_OF_SOUND, DistanceLaw, Ears, Masking, arrive, db_velocity, velocity_db
 from creatures.room.space import Obstacle, Room
 from creatures.room.speakers import DOME, Dome, azimuth, direction, ring, stereo, vbap
 from creatures.room.vision import visible
@@ -48,10 +48,37 @@ def test_a_quiet_sound_under_a_loud_one_is_masked():
     quiet = arrive(1.2, 0.3, -20.0, 62, "quiet", 8.0, law)  # −38 dB at the ear, during the loud one
     later = arrive(3.0, 0.3, -20.0, 62, "later", 8.0, law)  # same, after the loud one ended
     far_pitch = arrive(1.2, 0.3, -20.0, 90, "high", 8.0, law)  # 30 semitones away: another band
-    ear = [loud, quiet, later, far_pitch]
-    heard = [Masking(margin=20.0, band=12.0).stands_out(a, ear) for a in ear]
+    heard = _hear([loud, quiet, far_pitch, later], Masking(margin=20.0, band=12.0))  # in the order they arrive
     assert heard == [True, False, True, True]
-    assert Masking(threshold=-30.0).stands_out(later, [later]) is False  # below the threshold of hearing
+    assert _hear([later], Masking(threshold=-30.0)) == [False]  # below the threshold of hearing
+
+
+def _hear(sounds: list, masking: Masking, ears: list[int] | None = None) -> list[bool]:
+    """Whether each of ``sounds`` (in arrival order) stands out at its ear (all at ear 0 unless given)."""
+    ear = np.zeros(len(sounds), dtype=np.int64) if ears is None else np.array(ears)
+    pitch = np.array([np.nan if a.pitch is None else a.pitch for a in sounds], dtype=float)
+    return Ears(int(ear.max()) + 1, masking).hear(ear, np.array([a.start for a in sounds]), np.array([a.end for a in sounds]),
+                                                 np.array([a.db for a in sounds]), pitch).tolist()
+
+
+def test_masking_is_per_ear_and_by_what_sounds_there_when_a_sound_begins():
+    """A loud sound masks only at its own ear; a sound that ended before another began masks
+    nothing (it has left the ear), an unpitched one masks every band, and a faint sound masks a
+    fainter one as a loud one does a quiet one."""
+    law = DistanceLaw("inverse")
+    loud = arrive(1.0, 1.0, 0.0, 60, "loud", 1.0, law)
+    quiet = arrive(1.2, 0.3, -20.0, 62, "quiet", 8.0, law)
+    assert _hear([loud, quiet], Masking(), ears=[0, 1]) == [True, True]  # at two ears
+    short = arrive(1.0, 0.1, 0.0, 60, "short", 1.0, law)
+    assert _hear([short, quiet], Masking()) == [True, True]  # over before the quiet one began
+    noise = arrive(1.0, 1.0, 0.0, None, "noise", 1.0, law)
+    high = arrive(1.2, 0.3, -20.0, 100, "high", 8.0, law)
+    assert _hear([noise, high], Masking(band=12.0)) == [True, False]
+    faint = arrive(1.0, 1.0, -40.0, 60, "faint", 1.0, law)
+    fainter = arrive(1.2, 0.3, -60.0, 60, "fainter", 1.0, law)  # above the threshold, 20 dB under the faint one
+    assert _hear([faint, fainter], Masking(margin=20.0, threshold=-70.0)) == [True, False]
+    many = [arrive(1.0 + 0.01 * k, 2.0, 0.0, 60 + k, k, 1.0, law) for k in range(12)]  # an ear's store grows
+    assert _hear(many, Masking()) == [True] * 12
 
 
 def test_vbap_pans_between_the_adjacent_pair_at_unit_power():

@@ -527,13 +527,19 @@ def test_far_creatures_decide_less_often_within_a_budget_and_still_hear(tmp_path
     room = "lod = { near = 2.0, levels = 3, decide_budget = 2 }"
     s, clock = session(tmp_path, room, singer("a", 5.0, 5.0), singer("b", 5.5, 5.0), singer("c", 5.0, 5.5),
                        singer("far", 9.9, 9.9))
-    ticks = {c.name: 0 for c in s.creatures}
-    for c in s.creatures:
-        def counted(t, c=c, tick=c.tick):
-            ticks[c.name] += 1
-            tick(t)
-        c.tick = counted
+    ticks, when = {c.name: 0 for c in s.creatures}, {}
+    chosen = s.stage.deciding
+
+    def counted(tick: int, dt: float) -> np.ndarray:
+        due = chosen(tick, dt)
+        for i in due:
+            ticks[s.creatures[i].name] += 1
+            when[s.creatures[i].name] = clock.now()
+        return due
+
+    s.stage.deciding = counted  # the session ticks whom the stage chose (a crowd of them together)
     run(s, clock, 2.0)  # 100 ticks
+    assert all(c.group.last_tick == when[c.name] for c in s.creatures)  # each decided when chosen, no later
     assert 10 <= ticks["far"] <= 13  # one tick in eight, or a tick later when the budget is full
     assert sum(ticks.values()) == 200 and min(ticks[n] for n in "abc") >= 55  # two a tick, shared
     s.world.play(s.creatures[0], NoteEvent(2.0, 60, 127, 0, 0.5))

@@ -9,13 +9,15 @@ The config names the parts; this module only composes the library's own: drives 
 with :class:`~creatures.behaviour.learning.PerceptLearning`, ``follow`` Du from
 :mod:`creatures.temporal.transitions`, constraints from :mod:`creatures.temporal.intervals`).
 One tick: drives advance with their percept inputs and arcs, then every top-level group
-selects (the groups inside them are ticked by their group tuples).
+selects (the groups inside them are ticked by their group tuples). A crowd's creatures tick
+together (:meth:`Authored.tick_many`): their drives and their selection's arithmetic as arrays
+across them, each then finishing its own tick in turn.
 """
 
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any, Callable
+from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 import numpy as np
 
@@ -26,7 +28,7 @@ from creatures.authored.ear import Ear
 from creatures.authored.skills import (CUTOFF, DAMPING, GAIN, PAN, PUSH, TENSION, VOICE_PARAMETERS, VOICE_REST,
                                        AdverbModel)
 from creatures.authored.spec import AuthoredSpec, PartSpec, TupleSpec, UntilSpec, ValueSpec
-from creatures.behaviour.action_group import ActionGroup, group_tuple
+from creatures.behaviour.action_group import ActionGroup, CrowdTick, group_tuple
 from creatures.behaviour.action_tuple import ActionTuple, DoUntil
 from creatures.behaviour.expectation import Expectations
 from creatures.behaviour.learning import PerceptLearning, copy_value
@@ -105,6 +107,10 @@ class Authored(CreatureKind):
         learning = spec.learning
         self.ear = Ear(phrase_gap=learning.phrase_gap, max_phrases=learning.max_phrases)
         self.motivation = self._drives(spec)
+        # Each drive's impulse per note heard and per note played, the non-zero ones (every
+        # note reaches every ear of a crowd: the spec is not searched for them each time).
+        self._impulses = {which: [(name, getattr(d, which)) for name, d in spec.drives.items() if getattr(d, which)]
+                          for which in ("on_heard", "on_played")}
         self.aural = Aural(self) if spec.hearing is not None else None
         self._tickers: list[Callable[[float], None]] = []  # parts' own per-tick work (see 'parts with a life')
         self._listeners: list[Callable[[NoteEvent, str], None]] = []
@@ -146,6 +152,14 @@ class Authored(CreatureKind):
                           for p, weights in spec.modulate.items()]
         self._modulated: tuple[float, np.ndarray] = (math.nan, VOICE_REST)
         self._gain = 1.0  # voice.gain at the end of the last block sounded
+        # Whether its tick may be worked out with a crowd's (tick_many): only drives, one group
+        # and reports (no body, notes in space, ear of sounds, score or phrases learnt), no
+        # transitions followed (a colony's succession is what the others' ticks change), and
+        # only percepts that read nothing another creature's tick changes (PerceptPart.pure).
+        self._shares = (self.body is None and self.notes is None and self.aural is None and self.score is None
+                        and spec.learning.phrases is None and len(self.top) == 1
+                        and not any(tp.until.follow for tp in spec.tuples.values())
+                        and all(registry.PERCEPTS.get(p.type).pure for p in spec.percepts.values()))
 
     # -- building ---------------------------------------------------------------------
     def _drives(self, spec: AuthoredSpec) -> Motivation | None:
@@ -400,10 +414,8 @@ class Authored(CreatureKind):
             self.voice.play(note.pitch, note.velocity, note.end)
 
     def _impulse(self, t: float, which: str) -> None:
-        for name, drive in self.spec.drives.items():
-            amount = getattr(drive, which)
-            if amount:
-                self.motivation.perturb(t, name, amount)
+        for name, amount in self._impulses[which]:
+            self.motivation.perturb(t, name, amount)
 
     def _learn_phrase(self, t: float) -> None:
         """A new hypothesis for the last phrase heard, once it is over (``phrase_gap`` of
@@ -443,6 +455,48 @@ class Authored(CreatureKind):
         if self.notes is not None:
             self.notes.fade(t)
         soft = self._soft_step(t)
+        self._prepare(t, soft)
+        for group in self.top:
+            if soft or group.active:  # a new tuple is chosen on the soft state's steps
+                group.tick(t)
+        self._conclude(t)
+
+    @classmethod
+    def tick_many(cls, creatures: Sequence[CreatureKind], t: float) -> None:
+        """Every creature's :meth:`tick`, a crowd's selection worked out together: those that
+        may share (:attr:`_shares`) have their drives advanced as one array
+        (:meth:`Motivation.advance_all`) and their group's triggers, expected values and
+        whether selection has work as arrays across them (:class:`CrowdTick`); then each
+        creature, the others among them in their turn, finishes its tick in order (starts,
+        stops, notes and events as one by one)."""
+        shares = [creature._shares and not creature._tickers for creature in creatures]  # type: ignore[attr-defined]
+        if sum(shares) < 2:
+            super().tick_many(creatures, t)
+            return
+        crowd: list[Authored] = [creature for creature, share in zip(creatures, shares) if share]  # type: ignore[misc]
+        soft = [creature._soft_step(t) for creature in crowd]  # phrases and notes in space they have none of
+        Motivation.advance_all([c.motivation for c, s in zip(crowd, soft) if s and c.motivation is not None], t)
+        ticking: list[ActionGroup | None] = []  # each one's group, if it ticks now
+        for creature, s in zip(crowd, soft):
+            creature._prepare(t, s)
+            group = creature.top[0]
+            ticking.append(group if s or group.active else None)
+        together = CrowdTick([group for group in ticking if group is not None], t)
+        shared = iter(zip(crowd, ticking))
+        k = 0
+        for creature, share in zip(creatures, shares):
+            if not share:
+                creature.tick(t)
+                continue
+            me, group = next(shared)
+            if group is not None:
+                together.finish(group, k)
+                k += 1
+            me._conclude(t)
+
+    def _prepare(self, t: float, soft: bool) -> None:
+        """A tick's work before the groups select: on a step of the soft state the drives'
+        step and the heat they give groups; the parts' own work, what is heard, the body."""
         if self.motivation is not None and soft:
             self.feed(t)
             levels = self.motivation.levels
@@ -458,9 +512,9 @@ class Authored(CreatureKind):
             pose = self.body.update(t)
             if self.voice is not None:
                 self.voice.feel(pose, push=self.voice_now(t)[PUSH])
-        for group in self.top:
-            if soft or group.active:  # a new tuple is chosen on the soft state's steps
-                group.tick(t)
+
+    def _conclude(self, t: float) -> None:
+        """A tick's work after the groups: the score and the notes in space, then the reports."""
         if self.score is not None:  # after the groups: a course chosen now is laid before anything commits
             self.score.tick(t)
         if self.notes is not None:

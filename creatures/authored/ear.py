@@ -3,10 +3,13 @@ memory traces"), and the phrases it remembers.
 
 Every heard note pushes its pitch, velocity, interval from the previous note, register
 (octave) and the note density of the last :data:`DENSITY_WINDOW` seconds into one
-:class:`StateObject` each, so percepts read one flow by name and learning can look back at
-what led up to an action. Notes separated by more than ``phrase_gap`` seconds of silence
-start a new phrase; :class:`Ear` keeps the last ``max_phrases`` (the material a creature
-sings back). The creature's own notes go to ``played`` (a percept of what it just did).
+:class:`StateObject` each, so percepts read one flow by name (:meth:`Ear.flow`) and learning
+can look back at what led up to an action. A flow no percept has asked for yet keeps its
+last samples in a buffer and takes them when first asked (in a crowd every note reaches
+every ear, and most creatures read none of the five flows). Notes separated by more than
+``phrase_gap`` seconds of silence start a new phrase; :class:`Ear` keeps the last
+``max_phrases`` (the material a creature sings back). The creature's own notes go to
+``played`` (a percept of what it just did).
 """
 
 from __future__ import annotations
@@ -27,8 +30,11 @@ class Ear:
     """Heard notes in, flows and remembered phrases out."""
 
     def __init__(self, *, phrase_gap: float = 2.0, max_phrases: int = 8, history: int = 256) -> None:
-        self.flows = {name: StateObject(name, history=history) for name in FEATURES}
-        self._flows = tuple(self.flows.values())  # in FEATURES order: a heard note pushes each
+        self._flows = tuple(StateObject(name, history=history) for name in FEATURES)
+        self._asked: list[int] = []  # the flows handed out (FEATURES positions): pushed as notes come
+        # (time, sample) of the last notes heard, for the flows not asked for yet; a flow keeps
+        # only its last ``history`` samples, so these are all it would hold when it is asked.
+        self._unread: deque[tuple[float, tuple[float, ...]]] = deque(maxlen=history)
         self.phrase_gap = float(phrase_gap)
         self.phrases: deque[list[NoteEvent]] = deque(maxlen=max_phrases)
         self.phrases_made = 0  # phrases begun so far (numbers stay unique as old ones leave)
@@ -49,12 +55,22 @@ class Ear:
             self._recent.popleft()
         interval = 0 if self._last_pitch is None else note.pitch - self._last_pitch
         self._last_pitch = note.pitch
-        pitch, velocity, interval_, register, density = self._flows
-        pitch.push(t, float(note.pitch))
-        velocity.push(t, float(note.velocity))
-        interval_.push(t, float(interval))
-        register.push(t, float(note.pitch // 12))
-        density.push(t, len(self._recent) / DENSITY_WINDOW)
+        sample = (float(note.pitch), float(note.velocity), float(interval), float(note.pitch // 12),
+                  len(self._recent) / DENSITY_WINDOW)  # in FEATURES order
+        for k in self._asked:
+            self._flows[k].push(t, sample[k])
+        if len(self._asked) < len(FEATURES):
+            self._unread.append((t, sample))
+
+    def flow(self, name: str) -> StateObject:
+        """The flow ``name`` (one of :data:`FEATURES`), from now on fed every note heard; the
+        first time, it takes the samples it would have been pushed (the last ``history``)."""
+        k = FEATURES.index(name)
+        if k not in self._asked:
+            for t, sample in self._unread:
+                self._flows[k].push(t, sample[k])
+            self._asked.append(k)
+        return self._flows[k]
 
     def phrase(self, number: int) -> list[NoteEvent] | None:
         """Phrase ``number`` (1 = the first ever heard) if still remembered and complete."""

@@ -25,6 +25,7 @@ from creatures.kinds.hearing_parts import SeedModel
 from creatures.behaviour.models.activation import ActivationModel
 from creatures.behaviour.models.fuzzy import AndPercept, NotPercept, OrPercept
 from creatures.behaviour.models.gaussian import GaussianModel, GaussianPercept
+from creatures.behaviour.motivation import Motivation
 from creatures.behaviour.perception import PerceivingPercept
 from creatures.behaviour.percept import FunctionPercept, Percept
 from creatures.temporal.durations import SimpleDurationModel
@@ -42,6 +43,12 @@ class PerceptPart(Part):
     of its own, whose saliency depends on being a root)."""
 
     joins_tree: ClassVar[bool] = True
+    pure: ClassVar[bool] = False
+    """Its saliency reads only the creature's own state (its drives, ear, tuples) or what no
+    creature's tick changes (the room's places, sensors, the colony's pulse): a crowd of
+    creatures with only such percepts has its triggers read together before each finishes
+    its tick (Authored.tick_many), which a percept reading another creature (``sensed``) or
+    what the colony learns as it goes would see out of turn."""
 
     def build(self, params: BaseModel, creature: "Authored", name: str) -> Percept:  # pragma: no cover
         raise NotImplementedError
@@ -65,6 +72,7 @@ class _HeardParams(Params):
 class Heard(PerceptPart):
     """A note was heard within the last ``window`` seconds (1), else 0."""
 
+    pure = True
     name = "heard"
     thesis = "percepts"
     Params = _HeardParams
@@ -103,6 +111,7 @@ class _SilenceParams(Params):
 class Silence(PerceptPart):
     """How long nothing has been heard, as a fuzzy ramp from ``after`` to ``after + ramp`` seconds."""
 
+    pure = True
     name = "silence"
     thesis = "percepts"
     Params = _SilenceParams
@@ -129,11 +138,12 @@ class _FeatureParams(Params):
 
 class _Feature(PerceptPart):
     thesis = "percept trees"
+    pure = True
     Params = _FeatureParams
     flow: ClassVar[str]
 
     def build(self, params, creature, name):
-        state = creature.ear.flows[self.flow]
+        state = creature.ear.flow(self.flow)
         if params.near is not None:
             # A model, not a threshold: learning (fission) may split it into children.
             return GaussianPercept(name, state, GaussianModel(params.near, params.spread), lookback=params.lookback)
@@ -167,6 +177,7 @@ class OnPulse(PerceptPart):
     """On a beat of the colony's heard pulse (its low-integer-ratio model), counted from the
     last heard onset; 0 until the pulse is trusted."""
 
+    pure = True
     name = "pulse"
     thesis = "temporal models"
     Params = _PulseParams
@@ -249,6 +260,7 @@ class DrivePercept(PerceptPart):
     had, read as its cumulative probability, so "bored" means bored for this creature
     whatever units the author chose (a model of the drive, not a threshold)."""
 
+    pure = True
     name = "drive"
     thesis = "soft state"
     Params = _DriveParams
@@ -258,7 +270,7 @@ class DrivePercept(PerceptPart):
         if params.scale == "level" and params.low is not None:
             return FunctionPercept(name, lambda t: ramp(creature.level(params.drive, t), params.low, params.high))
         if params.scale == "level":
-            return FunctionPercept(name, lambda t: creature.level(params.drive, t))
+            return DriveLevel(name, creature.motivation, params.drive)
         model = GaussianModel(creature.level(params.drive, creature.now()), params.spread, size=64)
         last = [-math.inf]
 
@@ -272,6 +284,20 @@ class DrivePercept(PerceptPart):
         return FunctionPercept(name, scale_free)
 
 
+class DriveLevel(Percept):
+    """A drive's level (``scale = "level"``) read from the drives themselves, as
+    :meth:`Authored.level` reads it: a crowd's triggers ask it of every creature every tick."""
+
+    def __init__(self, name: str, motivation: Motivation, drive: str) -> None:
+        super().__init__(name)
+        self.motivation = motivation
+        self.drive = motivation.index(drive)
+
+    def evaluate(self, t: float) -> float:
+        m = self.motivation
+        return float(m.levels[self.drive] if t <= m.time else m.levels_at(t)[self.drive])
+
+
 class _TimerParams(Params):
     after: float = Field(gt=0, description="seconds before the timer starts to rise")
     ramp: float = Field(0.0, ge=0, description="seconds more until fully salient")
@@ -282,6 +308,7 @@ class _TimerParams(Params):
 class Timer(PerceptPart):
     """Time since the start, or since a tuple last stopped, as a fuzzy ramp."""
 
+    pure = True
     name = "timer"
     thesis = "percepts"
     Params = _TimerParams
@@ -310,6 +337,7 @@ class _SensorParams(Params):
 class Sensor(PerceptPart):
     """A sensor of the installation's input map, by name (a StateObject in the World), as a ramp."""
 
+    pure = True
     name = "sensor"
     thesis = "state objects and decaying memory traces"
     Params = _SensorParams
@@ -333,6 +361,7 @@ class _ScheduleParams(Params):
 class Schedule(PerceptPart):
     """Scripted events at given times (a visitor's rewards, a cue): 1 for ``width`` seconds after each."""
 
+    pure = True
     name = "schedule"
     thesis = "percepts"
     Params = _ScheduleParams
@@ -352,6 +381,7 @@ class Played(PerceptPart):
     """The creature itself played one of ``pitches`` within ``window`` seconds (what it just
     did, e.g. what a scripted visitor likes to hear)."""
 
+    pure = True
     name = "played"
     thesis = "percepts"
     Params = _PlayedParams
@@ -380,6 +410,7 @@ class _OfParams(Params):
 class And(PerceptPart):
     """Fuzzy and of other percepts."""
 
+    pure = True
     name = "and"
     thesis = "percepts"
     Params = _OfParams
@@ -406,6 +437,7 @@ class _NotParams(Params):
 class Not(PerceptPart):
     """Fuzzy not (1 − saliency) of another percept."""
 
+    pure = True
     name = "not"
     thesis = "percepts"
     Params = _NotParams
@@ -618,6 +650,7 @@ class Proximity(PerceptPart):
     """How near the nearest visitor, creature or loud sound is: 1 within ``near`` m, 0 beyond
     ``far``, linear between (REACT: neighbourhood; IViHumans: proximity)."""
 
+    pure = True
     name = "proximity"
     thesis = "percepts"
     Params = _ProximityParams
@@ -636,6 +669,7 @@ class Bearing(PerceptPart):
     """How straight ahead the nearest visitor, creature or loud sound is: 1 dead ahead, 0 at
     ``width`` degrees off the heading or more (facing someone, IViHumans)."""
 
+    pure = True
     name = "bearing"
     thesis = "percepts"
     Params = _BearingParams
@@ -658,6 +692,7 @@ class Crowding(PerceptPart):
     """Crowd density: others within ``radius`` m as a fraction of ``full`` (REACT's kd-tree
     range search)."""
 
+    pure = True
     name = "crowding"
     thesis = "percepts"
     Params = _CrowdingParams
@@ -677,6 +712,7 @@ class Sees(PerceptPart):
     """What is in the creature's vision cone (``[creature.vehicle]`` fov and sight) and not behind
     an obstacle, as a fraction of ``full`` (REACT: the range search over the vision cone)."""
 
+    pure = True
     name = "sees"
     thesis = "percepts"
     Params = _SeesParams

@@ -43,7 +43,9 @@ tuple followed which, not on how long either lasted.
 
 Hot path: triggers are evaluated once per distinct percept (percepts are creature-wide and
 shared between tuples) and combined with the values as numpy arrays, so only the active
-tuples do Python-level work per tick.
+tuples do Python-level work per tick. A crowd's groups (one per creature) go further:
+:class:`CrowdTick` works out their expected values and whether selection has work as arrays
+across the crowd, and only a group with something to do runs its own Python.
 """
 
 from __future__ import annotations
@@ -69,6 +71,11 @@ gesture model learns what the body did during it)."""
 
 RECALL = 10.0
 """Seconds an ended activation is remembered for a late reward (the longest reward window)."""
+
+Ready = bool | tuple[np.ndarray, np.ndarray, bool]
+"""A group's tick as :class:`CrowdTick` worked it out: True (its one active tuple is done), False
+(nothing to do), or its triggers, its expected values and whether selection has work
+(:meth:`ActionGroup.idle`, :meth:`ActionGroup.grown`)."""
 
 
 
@@ -191,6 +198,7 @@ class ActionGroup:
         self._deferred: list[Callable[[], object]] = []
         self._percepts: list[Percept] = []
         self._percept_index = np.zeros(0, dtype=np.intp)
+        self._shape: tuple[int, bytes] = (0, b"")
         self._leaf = np.zeros(0, dtype=bool)
         self.recent: list[Activation] = []  # activations that may still take a late reward
         for tuple_ in tuples:
@@ -263,6 +271,7 @@ class ActionGroup:
                 index[id(tuple_.trigger)] = len(self._percepts)
                 self._percepts.append(tuple_.trigger)
         self._percept_index = np.array([index[id(tp.trigger)] for tp in self.tuples], dtype=np.intp)
+        self._shape = (len(self.tuples), self._percept_index.tobytes())  # groups alike for CrowdTick
         self._leaf = np.array([not isinstance(tp.action, GroupAction) for tp in self.tuples], dtype=bool)
         self._proximity.clear()
 
@@ -301,9 +310,17 @@ class ActionGroup:
         return expected
 
     # -- the selection loop -------------------------------------------------------------
-    def tick(self, t: float) -> None:
+    def tick(self, t: float, ready: "Ready | None" = None) -> None:
         """One step of the baseline mechanism: stop what is done, fill free slots or
-        interrupt, then update whatever is active."""
+        interrupt, then update whatever is active.
+
+        ``ready``: this step as :class:`CrowdTick` worked it out with a crowd's arrays, the
+        evaluations it made not made again: True (the active tuple is done), False (nothing
+        to do and nothing running acts each tick: the step only notes the time), or this
+        tick's triggers, expected values and whether selection has work to do."""
+        if ready is False:  # shares_tick held: no grounding to check, no gap, no expectations
+            self.last_tick = t
+            return
         if not self._checked:
             self.check_grounded()
         if self.last_tick is not None and clock_gap(self.last_tick, t) and self.active:
@@ -315,42 +332,75 @@ class ActionGroup:
             self.expectations.tick(t)
         self._ticking = True
         try:
-            for tuple_ in list(self.active):
-                if tuple_.do_until.evaluate(t) >= 1.0:
-                    self._stop(tuple_, t, interrupted=False)
-            trig = self.triggers(t)
-            expected = self._expected(t, trig, self.values())
-            if len(self.active) < self.max_active:
-                running = sum(expected[self._position(tp)] > 0.0 for tp in self.active)
-                if np.count_nonzero(expected > 0.0) > running:  # something not running is worth starting
-                    self._fill(t, trig, expected)
-            elif self._should_interrupt(expected):
-                self._reselect(t, trig, expected)
-            for tuple_ in list(self.active):
-                tuple_.update(t)
+            if ready is None:
+                for tuple_ in list(self.active):
+                    if tuple_.do_until.evaluate(t) >= 1.0:
+                        self._stop(tuple_, t, interrupted=False)
+            elif ready is True:
+                self._stop(self.active[0], t, interrupted=False)
+            if ready is None or ready is True:
+                trig = self.triggers(t)
+                self._decide(t, trig, self._expected(t, trig, self.values()))
+            else:
+                self._decide(t, *ready)
         finally:
             self._ticking = False
         while self._deferred:
             self._deferred.pop(0)()
 
-    def _inactive_mask(self) -> np.ndarray:
-        mask = np.ones(len(self.tuples), dtype=bool)
+    def _decide(self, t: float, trig: np.ndarray, expected: np.ndarray, wants: bool | None = None) -> None:
+        """Fill a free slot or interrupt when selection has work (``wants``, else asked here of
+        :meth:`idle` or :meth:`grown`), then update whatever is active."""
+        free = len(self.active) < self.max_active
+        if wants is None and free:
+            wants = np.count_nonzero(self.idle(expected, self._active_mask())) > 0
+        elif wants is None:
+            weakest = min(expected[[self._position(tp) for tp in self.active]].tolist())  # in active order, as asked
+            wants = np.count_nonzero(self.grown(expected, self._active_mask(), self._interrupt_at, weakest)) > 0
+        if wants:
+            if free:
+                self._fill(t, trig, expected)
+            else:
+                self._reselect(t, trig, expected)
+        for tuple_ in list(self.active):
+            tuple_.update(t)
+
+    @staticmethod
+    def idle(expected: np.ndarray, active: np.ndarray) -> np.ndarray:
+        """The tuples not running (``active`` false) that are worth starting (the last axis: a
+        group's tuples): with a slot free, selection has work when there is one."""
+        return (expected > 0.0) & ~active
+
+    @staticmethod
+    def grown(expected: np.ndarray, active: np.ndarray, interrupt_at: np.ndarray,
+              weakest: np.ndarray | float) -> np.ndarray:
+        """The tuples not running that have grown to their interruption threshold and to the
+        ``weakest`` running tuple's expected value: with every slot taken, selection has work
+        when there is one (:meth:`_reselect` chooses again)."""
+        return ActionGroup.idle(expected, active) & (expected >= interrupt_at) & (expected >= weakest)
+
+    def shares_tick(self, t: float) -> bool:
+        """Whether :class:`CrowdTick` may work out this group's tick at ``t`` with others': at
+        most one tuple active (several are stopped one after another, each stop before the
+        next is asked), no clock gap to report, no expectations to tell, no zone switching
+        tuples off, grounding checked."""
+        return (self._checked and self.expectations is None and not self.disabled and len(self.active) <= 1
+                and not (self.active and self.last_tick is not None and clock_gap(self.last_tick, t)))
+
+    def _active_mask(self) -> np.ndarray:
+        mask = np.zeros(len(self.tuples), dtype=bool)  # zeros: np.ones is a Python wrapper, several times slower
         for tuple_ in self.active:
-            mask[self._position(tuple_)] = False
+            mask[self._position(tuple_)] = True
         return mask
+
+    def _inactive_mask(self) -> np.ndarray:
+        return ~self._active_mask()
 
     def record_base(self, expected: np.ndarray) -> None:
         """Remember every tuple's expected value at a selection, and from it the interruption
         thresholds: ``multiple`` × a positive base value, the base itself otherwise."""
         self._base = np.array(expected, dtype=float)
         self._interrupt_at = np.where(self._base > 0.0, self.multiple * self._base, self._base)
-
-    def _should_interrupt(self, expected: np.ndarray) -> bool:
-        active = [self._position(tp) for tp in self.active]
-        weakest = min(expected[active].tolist())  # in active order, as the tuples were asked
-        grown = (expected > 0.0) & (expected >= self._interrupt_at) & (expected >= weakest)
-        grown[active] = False  # only an inactive tuple interrupts
-        return bool(grown.any())
 
     def _choose(self, expected: np.ndarray, allowed: np.ndarray) -> int | None:
         p = selection_probabilities(np.where(allowed, expected, 0.0), self.temperature)
@@ -561,6 +611,78 @@ class ActionGroup:
 
     def __repr__(self) -> str:
         return f"ActionGroup({self.name!r}, {len(self.tuples)} tuples, active={[tp.name for tp in self.active]})"
+
+
+class CrowdTick:
+    """One tick of many action-groups (a crowd's creatures, each its own group), the
+    arithmetic of selection done as arrays across them.
+
+    Each group's Du of its active tuple, its triggers (percept by percept down the crowd),
+    values and Du again (unless a second evaluation must give the first's answer:
+    :attr:`DoUntil.settled`) are evaluated once, in the order its own tick would evaluate
+    them; the expected values and whether selection has work (:meth:`ActionGroup.idle`,
+    :meth:`ActionGroup.grown`) are arrays over every group of one shape (same tuples, same
+    triggers). A group then
+    finishes its tick in the crowd's order with :meth:`finish` (an ordinary tick given what
+    was worked out), so every start, stop, note and event happens as the groups one by one
+    would have made them. A group that may not share (:meth:`ActionGroup.shares_tick`)
+    ticks on its own in its turn. What a percept of one creature reads must not be what
+    another creature's tick changes (their triggers are read before the others finish).
+    """
+
+    def __init__(self, groups: list[ActionGroup], t: float) -> None:
+        self.t = t
+        self.ready: list[Ready | None] = [None] * len(groups)
+        shapes: dict[tuple[int, bytes], list[tuple[int, float | None]]] = {}
+        for k, group in enumerate(groups):
+            if not group.shares_tick(t):
+                continue
+            done = None  # the active tuple's Du, when asking again now would give it
+            if group.active:
+                du = group.active[0].do_until
+                settled = du.settled
+                done = du.evaluate(t)
+                if done >= 1.0:
+                    self.ready[k] = True
+                    continue
+                if not settled:
+                    done = None
+            shapes.setdefault(group._shape, []).append((k, done))
+        for members in shapes.values():
+            self._work_out([groups[k] for k, _ in members], members)
+
+    def _work_out(self, groups: list[ActionGroup], members: list[tuple[int, float | None]]) -> None:
+        """Triggers, values, expected values and selection's work of groups of one shape."""
+        t, n, first = self.t, len(groups), groups[0]
+        saliency = np.empty((n, len(first._percepts)))
+        for p in range(len(first._percepts)):
+            saliency[:, p] = [group._percepts[p].evaluate(t) for group in groups]
+        trig = saliency[:, first._percept_index]
+        values = np.array([tp.value.to_float() for group in groups for tp in group.tuples]).reshape(n, -1)
+        expected = trig * values
+        rows, at, done = [], [], []
+        for r, (group, (_, du)) in enumerate(zip(groups, members)):
+            if group.active:
+                rows.append(r)
+                at.append(group._position(group.active[0]))
+                done.append(group.active[0].do_until.evaluate(t) if du is None else du)
+        expected[rows, at] = (1.0 - np.array(done, dtype=float)) * values[rows, at]
+        active = np.zeros(expected.shape, dtype=bool)
+        active[rows, at] = True
+        weakest = np.zeros((n, 1))
+        weakest[rows, 0] = expected[rows, at]
+        free = np.array([len(group.active) < group.max_active for group in groups])
+        interrupt_at = np.concatenate([group._interrupt_at for group in groups]).reshape(n, -1)
+        wants = np.where(free, ActionGroup.idle(expected, active).any(axis=1),
+                         ActionGroup.grown(expected, active, interrupt_at, weakest).any(axis=1)).tolist()
+        for r, ((k, _), group) in enumerate(zip(members, groups)):
+            acts = group.active and type(group.active[0].action).update is not Action.update
+            # False: nothing to do, and nothing running acts each tick
+            self.ready[k] = (trig[r], expected[r], wants[r]) if wants[r] or acts else False
+
+    def finish(self, group: ActionGroup, k: int) -> None:
+        """Group ``k`` (in the order given) ticks, from what was worked out for it."""
+        group.tick(self.t, self.ready[k])
 
 
 # -- hierarchical action-groups ------------------------------------------------------------

@@ -140,6 +140,12 @@ class DoUntil:
             return 0.0
         return w
 
+    @property
+    def settled(self) -> bool:
+        """Whether evaluating it twice at one time gives one answer: not while a ``fresh``
+        until-percept waits for its first fall below 1 (the first evaluation may see it)."""
+        return self._armed
+
     def evaluate(self, t: float) -> float:
         timing, world = self.timing(t), self.world(t)
         return max(0.0 if timing is None else timing, 0.0 if world is None else world)

@@ -9,7 +9,7 @@ cycle for everything).
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar, Sequence
 
 import numpy as np
 from pydantic import BaseModel, Field
@@ -144,6 +144,15 @@ class CreatureKind(ABC):
     @abstractmethod
     def tick(self, t: float) -> None:
         """Perceive, select actions, move: one behaviour tick at clock time ``t``."""
+
+    @classmethod
+    def tick_many(cls, creatures: Sequence["CreatureKind"], t: float) -> None:
+        """:meth:`tick` of each of ``creatures`` (all of this kind) in turn, at one time: a kind
+        whose crowds can share the work of a tick across creatures (arrays over the crowd
+        instead of a loop of small ones) does so here, with the same effects in the same
+        order as ticking them one by one."""
+        for creature in creatures:
+            creature.tick(t)
 
     def sound(self, out: np.ndarray, sample_rate: int) -> None:
         """Fill ``out`` (mono, preallocated) with this creature's voice; default silent."""

@@ -13,6 +13,7 @@ import math
 from dataclasses import dataclass
 from typing import Literal
 
+import numba
 import numpy as np
 
 SPEED_OF_SOUND = 343.0
@@ -71,17 +72,17 @@ def arrive(start: float, duration: float, db: float, pitch: float | None, what: 
            law: DistanceLaw, *, delay: bool = True) -> Arrival:
     """The sound emitted at ``start`` for ``duration`` s at ``db`` as heard ``distance`` m away
     (``delay`` false: at once, as if sound were instantaneous)."""
-    return arrive_all(start, duration, db, pitch, what, np.array([distance], dtype=float), law, delay=delay)[0]
+    starts, ends, dbs = arrivals(start, duration, db, np.array([distance], dtype=float), law, delay=delay)
+    return Arrival(float(starts[0]), float(ends[0]), float(dbs[0]), pitch, what)
 
 
-def arrive_all(start: float, duration: float, db: float, pitch: float | None, what: object,
-               distances: np.ndarray, law: DistanceLaw, *, delay: bool = True) -> list[Arrival]:
-    """:func:`arrive` at every one of ``distances`` at once: a note crossing the room reaches
-    every ear, and the law's logarithm over all of them is one numpy call, not one per ear
-    (element-wise, so each arrival is bit for bit what :func:`arrive` alone would give)."""
-    delays = (distances / SPEED_OF_SOUND).tolist() if delay else [0.0] * len(distances)
-    return [Arrival(start + d, start + d + duration, db + level, pitch, what)
-            for d, level in zip(delays, law.db(distances).tolist())]
+def arrivals(start: float, duration: float, db: float, distances: np.ndarray, law: DistanceLaw, *,
+             delay: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """When a sound emitted at ``start`` begins and ends at every one of ``distances``, and its
+    level there: a note crossing the room reaches every ear, so each is one array operation,
+    not one per ear (element-wise, so each ear's numbers are what one ear alone would get)."""
+    starts = start + distances / SPEED_OF_SOUND if delay else np.full(len(distances), float(start))
+    return starts, starts + duration, db + law.db(distances)
 
 
 @dataclass(frozen=True)
@@ -94,13 +95,61 @@ class Masking:
     band: float = 12.0
     threshold: float = -60.0
 
-    def stands_out(self, a: Arrival, arrivals: list[Arrival]) -> bool:
-        """Whether ``a`` stands out among ``arrivals`` at its ear (one sound's answer in O(n):
-        the stage asks only of the sound arriving, not again of every sound sounding there)."""
-        if a.db < self.threshold:
-            return False
-        for b in arrivals:  # a plain loop, the level test first: every note at every ear asks
-            if (b.db - a.db >= self.margin and b is not a and b.start < a.end and a.start < b.end
-                    and (a.pitch is None or b.pitch is None or abs(a.pitch - b.pitch) <= self.band)):
-                return False
-        return True
+
+class Ears:
+    """What is sounding at each of ``n`` ears, and whether each sound arriving stands out there.
+
+    Sounds must be given in the order they arrive (their start, then the order they were
+    emitted): a sound is judged against those that reached its ear before it and still sound
+    when it begins, and it joins them (masked or not, it can mask the next). Each ear keeps
+    its sounds in a row of one array, so a tick's arrivals at the whole crowd are judged in
+    one compiled pass rather than a Python loop over every note at every ear.
+    """
+
+    def __init__(self, n: int, masking: Masking) -> None:
+        self.masking = masking
+        self._count = np.zeros(n, dtype=np.int64)
+        self._sounding = np.zeros((4, n, 4))  # (start, end, dB, pitch or NaN) × ear × slot
+
+    def hear(self, ear: np.ndarray, start: np.ndarray, end: np.ndarray, db: np.ndarray,
+             pitch: np.ndarray) -> np.ndarray:
+        """Whether each arriving sound stands out at its ``ear`` (arrays in arrival order;
+        ``pitch`` NaN for an unpitched sound)."""
+        ear = np.asarray(ear, dtype=np.int64)
+        most = int((self._count + np.bincount(ear, minlength=len(self._count))).max(initial=0))
+        if most > self._sounding.shape[2]:  # room for every ear's sounds, were none to end
+            grown = np.zeros((4, len(self._count), max(most, 2 * self._sounding.shape[2])))
+            grown[:, :, :self._sounding.shape[2]] = self._sounding
+            self._sounding = grown
+        m = self.masking
+        return _stand_out(ear, np.asarray(start, float), np.asarray(end, float), np.asarray(db, float),
+                          np.asarray(pitch, float), self._sounding, self._count, m.margin, m.band, m.threshold)
+
+
+@numba.njit(cache=True)
+def _stand_out(ear, start, end, db, pitch, sounding, count, margin, band, threshold):  # pragma: no cover - compiled
+    """:meth:`Ears.hear`: for each sound in turn, its ear keeps what still sounds when it
+    begins (in order), takes the sound, and hears it unless it is below ``threshold`` or an
+    earlier sound there overlaps it ``margin`` dB louder within ``band`` semitones."""
+    heard = np.empty(len(ear), dtype=np.bool_)
+    for k in range(len(ear)):
+        e = ear[k]
+        a_start, a_end, a_db, a_pitch = start[k], end[k], db[k], pitch[k]
+        n = 0
+        for j in range(count[e]):
+            if sounding[1, e, j] > a_start:
+                for f in range(4):
+                    sounding[f, e, n] = sounding[f, e, j]
+                n += 1
+        sounding[0, e, n], sounding[1, e, n], sounding[2, e, n], sounding[3, e, n] = a_start, a_end, a_db, a_pitch
+        count[e] = n + 1
+        out = not a_db < threshold
+        j = 0
+        while out and j < n:
+            b_pitch = sounding[3, e, j]
+            if (sounding[2, e, j] - a_db >= margin and sounding[0, e, j] < a_end and a_start < sounding[1, e, j]
+                    and (np.isnan(a_pitch) or np.isnan(b_pitch) or abs(a_pitch - b_pitch) <= band)):
+                out = False
+            j += 1
+        heard[k] = out
+    return heard

@@ -124,12 +124,15 @@ class Crowd:
         v = self.v
         if not recipe.behaviours:  # a creature that stands where it was put
             return np.zeros((len(who), 2))
-        near = index.near(who, v.pos[who], k=recipe.neighbours, radius=recipe.reach)
-        pos, vel, radius = (x[near.index] for x in rows)
-        scene = Scene(who, v.pos[who], v.vel[who], v.heading[who], v.max_speed[who], v.radius[who], near,
-                      pos, vel, radius, self.room)
+        # Rows gathered with take: numpy's fancy indexing of whole rows costs several times more
+        # for the same copy (14 against 1 µs for 200 creatures' 7 neighbours), every sub-step.
+        here = v.pos.take(who, axis=0)
+        near = index.near(who, here, k=recipe.neighbours, radius=recipe.reach)
+        pos, vel, radius = (x.take(near.index, axis=0) for x in rows)
+        scene = Scene(who, here, v.vel.take(who, axis=0), v.heading.take(who, axis=0), v.max_speed[who],
+                      v.radius[who], near, pos, vel, radius, self.room)
         step = Step(scene, v.pos, v.vel, v.heading, self.around, self.substep, self.rng, self.wander_angle)
-        gain = self.gain[who]  # each creature's multiplier of each behaviour's weight
+        gain = self.gain.take(who, axis=0)  # each creature's multiplier of each behaviour's weight
         forces = [BEHAVIOURS[b.name](step, b.params) * gain[:, k:k + 1] for k, b in enumerate(recipe.behaviours)]
         weights = [b.weight for b in recipe.behaviours]
         policy = POLICIES[recipe.combine]

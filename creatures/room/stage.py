@@ -10,7 +10,6 @@ and :meth:`Stage.place` to set each voice's speaker gains.
 
 from __future__ import annotations
 
-import heapq
 import itertools
 import json
 from typing import TYPE_CHECKING, Any, Callable
@@ -22,7 +21,7 @@ from creatures import bounds
 from creatures.clock import clock_gap, next_on_grid
 from creatures.kinds.figures import body_graph
 from creatures.room.director import FlowField, Path
-from creatures.room.hearing import Arrival, DistanceLaw, Masking, arrive_all, db_velocity, velocity_db
+from creatures.room.hearing import DistanceLaw, Ears, Masking, arrivals, db_velocity, velocity_db
 from creatures.room.gait import Gaits, Walk, in_room
 from creatures.room.lod import Audibility, LevelOfDetail, Sounding, overdue_first
 from creatures.room.motion import Crowd
@@ -203,9 +202,15 @@ class Stage:
             self.channels = 2 if self.speakers is None else section.channels
         self._loud: list[tuple[float, np.ndarray]] = []  # (until, where) of each loud note
         self._player: tuple[float, np.ndarray] | None = None  # (until, where) of the last outside note
-        self._arrivals: list[tuple[float, int, int, Arrival, str]] = []
-        self._at_ear: list[list[Arrival]] = [[] for _ in creatures]
-        self._seq = itertools.count()
+        self._ears = Ears(len(creatures), self.masking)
+        # Every note's arrivals still on their way, one row per ear it is yet to reach: when
+        # it starts there, where it ends, its level, its pitch, which ear, which note (its
+        # number in ``_sounds``, (note, source), in the order they were emitted).
+        self._flying = {key: np.zeros(0) for key in ("start", "end", "db", "pitch")}
+        self._flying.update(ear=np.zeros(0, dtype=np.int64), note=np.zeros(0, dtype=np.int64))
+        self._new_rows: list[dict[str, np.ndarray]] = []  # joined to _flying once a tick (a burst stays linear)
+        self._sounds: dict[int, tuple[NoteEvent, str]] = {}
+        self._emitted = itertools.count()
         self.masked = 0  # arrivals a louder sound hid
         self._tree: cKDTree | None = None
         self._points = np.zeros((0, 2))  # what the tree holds
@@ -494,28 +499,44 @@ class Stage:
         if source not in self.index and source not in self._remote:  # a shared room's creatures are not players
             self._player = (note.time + PLAYER_FOR, where)
         me = self.index.get(source, -1)
-        arrivals = arrive_all(note.time, note.duration, velocity_db(note.velocity), note.pitch, note,
-                              norms(self.v.pos - where), self.law, delay=self.section.hearing.delay)
-        for i, a in enumerate(arrivals):
-            if i != me:
-                heapq.heappush(self._arrivals, (a.start, next(self._seq), i, a, source))
+        starts, ends, dbs = arrivals(note.time, note.duration, velocity_db(note.velocity), norms(self.v.pos - where),
+                                     self.law, delay=self.section.hearing.delay)
+        ears = np.arange(len(starts))
+        if me >= 0:  # not its own ear
+            starts, ends, dbs, ears = (np.delete(x, me) for x in (starts, ends, dbs, ears))
+        number = next(self._emitted)
+        self._sounds[number] = (note, source)
+        row = {"start": starts, "end": ends, "db": dbs, "pitch": np.full(len(ears), float(note.pitch)), "ear": ears,
+               "note": np.full(len(ears), number)}
+        self._new_rows.append(row)
 
     def due(self, t: float) -> list[tuple[int, NoteEvent, str]]:
-        """What each ear hears by ``t``: (creature index, the note as it arrives, its source),
+        """What each ear hears by ``t``: (creature index, the note as it arrives, its source), in
+        the order the sounds arrive (start, then the order the notes were emitted, then ear),
         leaving out what is masked by a louder sound already sounding at that ear."""
-        heard = []
-        while self._arrivals and self._arrivals[0][0] <= t:
-            _, _, i, a, source = heapq.heappop(self._arrivals)
-            ear = [b for b in self._at_ear[i] if b.end > a.start]
-            ear.append(a)
-            self._at_ear[i] = ear
-            if not self.masking.stands_out(a, ear):
-                self.masked += 1
-                continue
-            note: NoteEvent = a.what  # type: ignore[assignment]
-            velocity = int(min(max(round(db_velocity(a.db)), 1), 127))
-            heard.append((i, NoteEvent(round(a.start, 6), note.pitch, velocity, note.channel, note.duration), source))
-        return heard
+        if self._new_rows:
+            self._flying = {key: np.concatenate([x, *(row[key] for row in self._new_rows)])
+                            for key, x in self._flying.items()}
+            self._new_rows = []
+        flying = self._flying
+        now = flying["start"] <= t
+        if not now.any():
+            return []
+        taken = np.flatnonzero(now)
+        taken = taken[np.lexsort((flying["ear"][taken], flying["note"][taken], flying["start"][taken]))]
+        ear, start, db, number = (flying[key][taken] for key in ("ear", "start", "db", "note"))
+        heard = self._ears.hear(ear, start, flying["end"][taken], db, flying["pitch"][taken])
+        self.masked += len(taken) - int(np.count_nonzero(heard))
+        self._flying = {key: x[~now] for key, x in flying.items()}
+        out = []
+        for i, at, level, k in zip(ear[heard].tolist(), start[heard].tolist(), db[heard].tolist(),
+                                   number[heard].tolist()):
+            note, source = self._sounds[k]
+            velocity = int(min(max(round(db_velocity(level)), 1), 127))
+            out.append((i, NoteEvent(round(at, 6), note.pitch, velocity, note.channel, note.duration), source))
+        for k in np.setdiff1d(number, self._flying["note"]).tolist():
+            del self._sounds[k]  # every ear has it
+        return out
 
     # -- where each voice sounds ---------------------------------------------------------------
     def speaker_gains(self) -> np.ndarray:
