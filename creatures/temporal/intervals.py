@@ -10,15 +10,14 @@ Two halves:
   a Do-until that says *when it must end* or *holds the other open*. Seven relations are made
   directly (:func:`before`, :func:`meets`, :func:`overlaps`, :func:`starts`, :func:`during`,
   :func:`finishes`, :func:`equals`); the other six are their :attr:`Relation.inverse` with
-  the tuples swapped. A piece names them in a group's ``constraints`` (structure: ada's cry
-  *meets* her sigh).
+  the tuples swapped. A piece names them in a group's ``constraints``.
 * :func:`relation` classifies two ``(start, end)`` intervals. It is kept as the constraint
   machinery's own check, and only that: a constraint is built from percepts and tick order
   (a gate on the same tick only works if the gated tuple's group ticks later), so whether
   it holds is a fact about a run, read from its activations (``selection`` and ``stop``
-  events) with this classifier — tests/test_temporal_intervals.py for every relation,
-  tests/test_structure.py for the shipped piece. No creature perceives or plays by a
-  relation it recognises (no piece here has needed one), so nothing else calls it.
+  events) with this classifier (tests/test_temporal_intervals.py, for every relation).
+  No creature perceives or plays by a relation it recognises (no piece here has needed
+  one), so nothing else calls it.
 
 Activations are intervals ``[started_at, stopped_at]`` of clock time; "equal" times are the
 same tick. Constraints are wired into tuples' ``trigger`` and ``do_until``, so apply them
