@@ -110,6 +110,8 @@ def test_a_small_authored_creature_plays_its_phrase_when_bored(tmp_path):
          "creature.0.tuples.sing.until.priming", "greater than or equal to 0"),
         ('pitches = [60, 64, 67] }', 'pitches = [60, 64, 67], beats = [1, 1] }', "creature.0.tuples.sing.action",
          "beats must be one per pitch"),
+        ('pitches = [60, 64, 67] }', 'pitches = [60, 64, 67], level = "division" }', "creature.0.tuples.sing.action",
+         "give beats too"),
     ],
 )
 def test_bad_names_and_structures_are_errors_at_their_line(tmp_path, old, new, key, message):

@@ -121,9 +121,19 @@ def test_a_du_samples_a_level_of_the_heard_metre(style, bar, division):
     pulse = heard(style, 120, 6)
     rng = np.random.default_rng(0)
     fallback = GaussianModel(2.0, 0.5)
-    for level, steps in (("bar", bar), ("division", division), ("beat", 1.0)):
+    for level, steps in (("bar", bar), ("beat", 1.0)):
         draws = np.array([PulseDuration(pulse, fallback, beats=2, level=level).sample(rng) for _ in range(200)])
         assert np.allclose(draws / pulse.model.pulse, 2 * steps, rtol=0.1), (level, draws.min(), draws.max())  # ± the heard jitter
+    # The division plays steps of its grid as the beat was heard filled: duple's in two even
+    # halves; triple's in three thirds, or two and one (the style's triplet quarter and eighth).
+    grid = pulse.readings.level("division").pulse
+    assert grid == pytest.approx(division * pulse.model.pulse)
+    steps = np.array([PulseDuration(pulse, fallback, beats=1, level="division").sample(rng) for _ in range(400)]) / grid
+    one, two = (np.abs(steps - k) < 0.1 * k for k in (1, 2))
+    if division == 1 / 2:
+        assert one.mean() > 0.9, steps
+    else:
+        assert one.mean() > 0.3 and two.mean() > 0.3 and (one | two).mean() > 0.9, steps
     # Without a level the Du draws the reading's ratios instead: not one length.
     ratios = np.array([PulseDuration(pulse, fallback, beats=1).sample(rng) for _ in range(200)]) / pulse.model.pulse
     assert ratios.max() / ratios.min() > 2.5
@@ -158,12 +168,20 @@ def test_readings_are_saved_and_taken_back():
     assert fresh.readings.best.metre == "triple"
     assert fresh.readings.scores() == pulse.readings.scores()
     assert fresh.model.to_dict() == pulse.model.to_dict()
-    damaged = pulse.to_dict()
-    damaged["readings"]["duple"]["score"] = "high"
+    division = pulse.readings.best.division
+    assert division.heard > 0 and fresh.readings.best.division.to_dict() == division.to_dict()  # how the beat is filled
     before = fresh.readings.scores()
-    with pytest.raises(ValueError):
-        fresh.restore(damaged)
-    assert fresh.readings.scores() == before  # nothing taken from a damaged file
+    for key, bad in (("score", "high"), ("division", {"own": division.own.to_dict(), "heard": -1})):
+        damaged = pulse.to_dict()
+        damaged["readings"]["duple"][key] = bad
+        with pytest.raises(ValueError):
+            fresh.restore(damaged)
+        assert fresh.readings.scores() == before  # nothing taken from a damaged file
+    older = pulse.to_dict()  # saved before the division learnt: it starts afresh
+    for entry in older["readings"].values():
+        del entry["division"]
+    fresh.restore(older)
+    assert fresh.readings.best.division.heard == 0
 
 
 def test_an_unknown_metre_is_a_config_error_at_its_line(tmp_path):
@@ -174,3 +192,33 @@ def test_an_unknown_metre_is_a_config_error_at_its_line(tmp_path):
         load_installation(path)
     assert err.value.line == 3 and "pulse.readings" in err.value.key
     assert "'triple'" in str(err.value)  # the valid names are listed
+
+
+def swing_ratio(pulse: HeardPulse, rng: np.random.Generator, n: int = 2000) -> float:
+    """The division Du's durations split at their median: the mean of the longer half over the
+    mean of the shorter (2 for a division played long-short 2:1, 1 for an even one)."""
+    du = PulseDuration(pulse, GaussianModel(2.0, 0.5), beats=1, level="division")
+    draws = np.sort([du.sample(rng) for _ in range(n)])
+    return float(draws[n // 2:].mean() / draws[:n // 2].mean())
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_heard_swing_makes_the_division_long_short_and_a_straight_rhythm_keeps_it_even(seed):
+    """Quarters, halves and pairs of eighths at 100 bpm, heard straight (the control) or swung
+    (each pair 2/3 + 1/3 of the beat): a Du that keeps time on the division plays as it heard."""
+    rng = np.random.default_rng(seed)
+    ratios = {}
+    for feel, pair in (("straight", [0.5, 0.5]), ("swung", [2 / 3, 1 / 3])):
+        pulse = HeardPulse(0.5, ("duple", "triple"))
+        t = 0.0
+        for u in rng.random(160):
+            for beats in [1.0] if u < 0.6 else [2.0] if u < 0.75 else pair:
+                pulse.hear(t)
+                t += 0.6 * beats * (1.0 + rng.normal(0.0, 0.015))
+        pulse.hear(t)
+        pulse.settle()
+        assert pulse.model.pulse == pytest.approx(0.6, rel=0.03)
+        assert pulse.readings.best.division.heard > 0  # even because it heard even pairs, not untaught
+        ratios[feel] = swing_ratio(pulse, rng)
+    assert ratios["swung"] == pytest.approx(2.0, rel=0.1), ratios
+    assert ratios["straight"] < 1.1, ratios

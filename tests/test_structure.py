@@ -23,7 +23,9 @@ long-short, 2:1, and three-beat gaps: a triple metre), she is surprised within f
 of the first swung one and cries out; on the steady rhythm before, and over the whole of the
 steady run (the control: the same performer, who never swings), she is surprised on at
 most 5 % of the notes and cries out rarely. The colony's rests, a bar of the best reading,
-go from four beats to three once the triple reading wins."""
+go from four beats to three once the triple reading wins; cy, who keeps her run of eighths in
+steps of the heard division, plays them even before the swing and long-short 2:1 once the
+triple reading has heard it (the steady run, over the same minutes: even)."""
 
 from __future__ import annotations
 
@@ -265,10 +267,20 @@ def rest_beats(events: list[dict], since: float, until: float) -> float:
                             and since <= e["t"] < until])) / BEAT
 
 
-def test_a_change_of_metre_surprises_ada_within_four_notes_and_startles_her(steady, tmp_path):
-    seed, calm, calm_notes = steady
-    swinging = SWING + 120.0
-    events, notes = run(tmp_path, "swing", seed=seed, seconds=swinging, swing_from=SWING)
+SWUNG = SWING + 120.0
+"""The end of the run that changes metre: two minutes of swing."""
+
+
+@pytest.fixture(scope="module")
+def swinging(steady, tmp_path_factory) -> tuple[list[dict], list[NoteEvent]]:
+    """(events, the visitor's notes) of the run whose visitor starts to swing at SWING: the
+    steady run's visitor until then."""
+    return run(tmp_path_factory.mktemp("swing"), "swing", seed=steady[0], seconds=SWUNG, swing_from=SWING)
+
+
+def test_a_change_of_metre_surprises_ada_within_four_notes_and_startles_her(steady, swinging):
+    _, calm, calm_notes = steady
+    events, notes = swinging
     onsets = np.array([n.time for n in notes])
     change = first_swung(notes)
     trusted = next(e["t"] for e in events if e["kind"] == "reading") + 10.0
@@ -299,5 +311,42 @@ def test_a_change_of_metre_surprises_ada_within_four_notes_and_startles_her(stea
     # it, are three beats long, not four (as they stay in the steady run).
     triple = next(e["t"] for e in events if e["kind"] == "reading" and e["t"] > SWING and e["metre"] == "triple")
     assert rest_beats(events, trusted, onsets[change]) == pytest.approx(4.0, abs=0.25)
-    assert rest_beats(events, triple + 5.0, swinging) == pytest.approx(3.0, abs=0.25)
-    assert rest_beats(calm, triple + 5.0, swinging) == pytest.approx(4.0, abs=0.25)
+    assert rest_beats(events, triple + 5.0, SWUNG) == pytest.approx(3.0, abs=0.25)
+    assert rest_beats(calm, triple + 5.0, SWUNG) == pytest.approx(4.0, abs=0.25)
+
+
+def division_run(events: list[dict], since: float, until: float) -> np.ndarray:
+    """The inter-onset intervals of cy's run of eighths (the four notes of her phrase b that
+    she keeps in steps of the heard division) in the phrases she starts between ``since``
+    and ``until``."""
+    inst = load_installation(installations.path("structure"))
+    pitches = phrases(inst)["b"][0]
+    notes = sorted((e["time"], e["pitch"]) for e in events if e["kind"] == "note" and e["creature"] == "cy")
+    out = []
+    for start in (e["t"] for e in events if e["kind"] == "selection" and e["creature"] == "cy"
+                  and e["tuple"] == "b" and since <= e["t"] < until):
+        phrase = [(t, p) for t, p in notes if t >= start][:len(pitches)]
+        assert [p for _, p in phrase] == pitches  # the phrase, played out
+        out.extend(np.diff([t for t, _ in phrase[:5]]))
+    return np.array(out)
+
+
+def unevenness(intervals: np.ndarray) -> float:
+    """The 90th over the 10th percentile of ``intervals``: 1 for an even run, 2 for one whose
+    notes are long and short, 2:1."""
+    assert intervals.size >= 8
+    return float(np.percentile(intervals, 90) / np.percentile(intervals, 10))
+
+
+def test_cy_keeps_time_on_the_division_and_swings_when_the_visitor_does(steady, swinging):
+    """cy's eighths are steps of the division of the best reading as the colony hears the beat
+    filled: even while the visitor plays straight, long-short 2:1 once the visitor swings
+    and the triple reading has heard it; in the steady run, over the same minutes, even."""
+    _, calm, _ = steady
+    events, _ = swinging
+    trusted = next(e["t"] for e in events if e["kind"] == "reading") + 10.0
+    triple = next(e["t"] for e in events if e["kind"] == "reading" and e["t"] > SWING and e["metre"] == "triple")
+    before = division_run(events, trusted, SWING)
+    assert unevenness(before) < 1.1 and np.median(before) == pytest.approx(BEAT / 2, rel=0.05)
+    assert unevenness(division_run(events, triple + 5.0, SWUNG)) == pytest.approx(2.0, rel=0.1)
+    assert unevenness(division_run(calm, triple + 5.0, SWUNG)) < 1.1

@@ -19,6 +19,7 @@ from creatures.behaviour.action_tuple import Action, ActionTuple
 from creatures.kinds.note_world import SeekNote, Vary, Variation, Wander
 from creatures.motor.programs import MotorProgramGraph, ProgramStack, Statement, chosen_program, parse_programs
 from creatures.motor.search import NoPath
+from creatures.temporal.readings import Level
 from midi.notes import NoteEvent
 
 if TYPE_CHECKING:
@@ -98,6 +99,11 @@ class _PhraseParams(Params):
                                                   "seconds, one per pitch: the phrase starts on the colony's next "
                                                   "beat and keeps its tempo (thesis 'temporal models': a coherent "
                                                   "pulse across action-tuples)")
+    level: Level | None = Field(None, description="with beats: each beat is a step of this level of the heard "
+                                                  "metre (beat, division, bar) as the colony hears it filled: a "
+                                                  "run written in divisions is played straight while the visitor "
+                                                  "plays straight and long-short once the visitor swings (thesis "
+                                                  "'exotic duration models': a level of a duration percept tree)")
 
     @model_validator(mode="after")
     def _lengths(self):
@@ -109,6 +115,8 @@ class _PhraseParams(Params):
         if self.beats is not None and (len(self.beats) != len(self.pitches)
                                        or any(not 0 < b <= 64 for b in self.beats)):
             raise ValueError("beats must be one per pitch, each above 0 and at most 64")
+        if self.level is not None and self.beats is None:
+            raise ValueError("level counts the beats in steps of the heard metre: give beats too")
         return self
 
 
@@ -125,7 +133,7 @@ class PlayPhrase(ActionPart):
         pitches = [min(max(p + params.transpose, 0), 127) for p in params.pitches]
         if params.beats is not None:
             return Playing(name, creature, lambda t: _on_the_beat(creature, pitches, params.beats,
-                                                                  params.velocity, t))
+                                                                  params.velocity, t, params.level))
         durations = params.durations if isinstance(params.durations, list) else [params.durations] * len(params.pitches)
         onsets = np.concatenate(([0.0], np.cumsum(durations)[:-1]))
         written = [NoteEvent(float(o), p, params.velocity, 0, 0.9 * d) for o, p, d in zip(onsets, pitches, durations)]
@@ -134,15 +142,19 @@ class PlayPhrase(ActionPart):
 
 
 def _on_the_beat(creature: "Authored", pitches: list[int], beats: list[float], velocity: int,
-                 t: float) -> list[NoteEvent]:
+                 t: float, level: Level | None = None) -> list[NoteEvent]:
     """``pitches`` in the rhythm of ``beats`` at the colony's heard pulse (its best reading),
     from the colony's next beat after ``t``: every creature's phrase shares one grid, so what
-    the colony plays together stays on the ratio lattice of what it heard."""
+    the colony plays together stays on the ratio lattice of what it heard. With ``level``
+    each beat is one step of that level as the colony hears it filled (:meth:`HeardPulse.step`)."""
     pulse = creature.world.pulse
-    beat = pulse.model.pulse
     start = max(pulse.next_beat(t) - t, 0.0)  # rounding may put the beat a hair before t
-    onsets = start + beat * np.concatenate(([0.0], np.cumsum(beats)[:-1]))
-    return [NoteEvent(float(o), p, velocity, 0, 0.9 * b * beat) for o, p, b in zip(onsets, pitches, beats)]
+    if level is None:
+        lengths = np.array(beats) * pulse.model.pulse
+    else:
+        lengths = np.array([b * pulse.step(level, creature.rng) for b in beats])
+    onsets = start + np.concatenate(([0.0], np.cumsum(lengths)[:-1]))
+    return [NoteEvent(float(o), p, velocity, 0, 0.9 * d) for o, p, d in zip(onsets, pitches, lengths)]
 
 
 class _HeardParams(Params):

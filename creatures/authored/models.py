@@ -51,8 +51,10 @@ class _PulseParams(Params):
     std: float = Field(0.5, gt=0, description="fallback spread")
     level: Level | None = Field(
         None, description="steps of this level of the heard metre's pulse tree instead of the reading's ratios: "
-                          "'bar' rests a bar of four in duple, of three in triple (thesis 'exotic duration "
-                          "models'); none: durations drawn from the best reading's low-integer ratios")
+                          "'bar' rests a bar of four in duple, of three in triple; a 'division' step is drawn as "
+                          "the colony hears the beat filled (even halves, or long-short once the music swings) "
+                          "(thesis 'exotic duration models'); none: durations drawn from the best reading's "
+                          "low-integer ratios")
 
 
 @MODELS.register

@@ -37,6 +37,7 @@ from creatures.behaviour.models.gaussian import GaussianModel
 from creatures.temporal.durations import LowIntegerRatioModel
 from creatures.temporal.onsets import merge_onsets
 from creatures.temporal.readings import Level, PulseReadings
+from creatures.temporal.tree import Subdivision
 
 CHORD_GAP = 0.03
 """Seconds: onsets closer than this are one rhythmic event."""
@@ -103,6 +104,13 @@ class HeardPulse:
             return None
         return grid.phase(t)
 
+    def step(self, level: Level, rng: np.random.Generator) -> float:
+        """One step of ``level`` of the best reading, as the level is heard to fill its grid
+        (:meth:`~creatures.temporal.tree.Subdivision.sample`: a division long-short once the
+        visitor swings, even while the visitor plays straight); a beat is the pulse itself."""
+        model = self.readings.level(level).model
+        return model.sample(rng) if isinstance(model, Subdivision) else model.sample_pulse(rng)
+
     @property
     def ready(self) -> bool:
         return self.heard >= READY_AFTER
@@ -165,8 +173,9 @@ class HeardPulse:
 class PulseDuration:
     """A Du duration: ``beats`` times a duration sampled from the heard pulse (so it lies on the
     pulse's low-integer-ratio lattice) or, with ``level``, ``beats`` steps of that level of the
-    best reading's pulse tree (a bar: four beats in duple, three in triple); a fallback model's
-    sample until the pulse is ready. It learns only from hearing: the length an action
+    best reading's pulse tree (a bar: four beats in duple, three in triple), each step as the
+    level is heard to fill its grid (:meth:`HeardPulse.step`); a fallback model's sample until
+    the pulse is ready. It learns only from hearing: the length an action
     happened to last says nothing about the music, so ``update`` leaves the pulse alone."""
 
     def __init__(self, pulse: HeardPulse, fallback: GaussianModel, beats: int = 2, level: Level | None = None) -> None:
@@ -179,7 +188,7 @@ class PulseDuration:
         if not self.pulse.ready:
             return self.fallback.sample(rng)
         if self.level is not None:
-            return self.beats * self.pulse.readings.level(self.level).model.sample_pulse(rng)
+            return self.beats * self.pulse.step(self.level, rng)
         return self.beats * self.pulse.model.sample(rng)
 
     def update(self, duration: float) -> None:

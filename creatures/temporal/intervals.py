@@ -5,12 +5,19 @@ conditions (Tr) and ending conditions (Du)").
 
 Two halves:
 
-* :func:`relation` classifies two ``(start, end)`` intervals — a pure function, for
-  recognising structure in logs and for checking generated behaviour;
-* :func:`constrain` (and one function per relation: ``meets(a, b)``, ``during(c, a)``, …)
-  makes one tuple's activations obey a relation to another's, using only percepts that
-  watch the other tuple's activity: a Trigger gate on *when it may start*, and a Do-until
-  that says *when it must end* or *holds the other open*.
+* :func:`constrain` makes one tuple's activations obey a relation to another's, using only
+  percepts that watch the other tuple's activity: a Trigger gate on *when it may start*, and
+  a Do-until that says *when it must end* or *holds the other open*. Seven relations are made
+  directly (:func:`before`, :func:`meets`, :func:`overlaps`, :func:`starts`, :func:`during`,
+  :func:`finishes`, :func:`equals`); the other six are their :attr:`Relation.inverse` with
+  the tuples swapped. A piece names them in a group's ``constraints``.
+* :func:`relation` classifies two ``(start, end)`` intervals. It is kept as the constraint
+  machinery's own check, and only that: a constraint is built from percepts and tick order
+  (a gate on the same tick only works if the gated tuple's group ticks later), so whether
+  it holds is a fact about a run, read from its activations (``selection`` and ``stop``
+  events) with this classifier (tests/test_temporal_intervals.py, for every relation).
+  No creature perceives or plays by a relation it recognises (no piece here has needed
+  one), so nothing else calls it.
 
 Activations are intervals ``[started_at, stopped_at]`` of clock time; "equal" times are the
 same tick. Constraints are wired into tuples' ``trigger`` and ``do_until``, so apply them
@@ -252,59 +259,26 @@ def equals(x: ActionTuple, y: ActionTuple) -> None:
     _end_with(y, x)
 
 
-def after(x: ActionTuple, y: ActionTuple, *, gap: float = 0.0) -> None:
-    """x after y: the inverse of :func:`before`."""
-    before(y, x, gap=gap)
-
-
-def met_by(x: ActionTuple, y: ActionTuple) -> None:
-    """x met by y: x starts in the tick y ends."""
-    meets(y, x)
-
-
-def overlapped_by(x: ActionTuple, y: ActionTuple) -> None:
-    """x overlapped by y: the inverse of :func:`overlaps`."""
-    overlaps(y, x)
-
-
-def started_by(x: ActionTuple, y: ActionTuple) -> None:
-    """x started by y: the inverse of :func:`starts`."""
-    starts(y, x)
-
-
-def contains(x: ActionTuple, y: ActionTuple) -> None:
-    """x contains y: y runs during x (the inverse of :func:`during`)."""
-    during(y, x)
-
-
-def finished_by(x: ActionTuple, y: ActionTuple) -> None:
-    """x finished by y: the inverse of :func:`finishes`."""
-    finishes(y, x)
-
-
-CONSTRAINTS: dict[Relation, Callable[..., None]] = {
-    Relation.BEFORE: before,
-    Relation.AFTER: after,
+MADE: dict[Relation, Callable[[ActionTuple, ActionTuple], None]] = {
     Relation.MEETS: meets,
-    Relation.MET_BY: met_by,
     Relation.OVERLAPS: overlaps,
-    Relation.OVERLAPPED_BY: overlapped_by,
     Relation.STARTS: starts,
-    Relation.STARTED_BY: started_by,
     Relation.DURING: during,
-    Relation.CONTAINS: contains,
     Relation.FINISHES: finishes,
-    Relation.FINISHED_BY: finished_by,
     Relation.EQUALS: equals,
 }
+"""The relations made by gating Tr and Du directly (with :func:`before`, which takes a gap);
+each of the other six is its inverse with the tuples swapped (x after y is y before x)."""
 
 
 def constrain(x: ActionTuple, rel: Relation, y: ActionTuple, *, gap: float = 0.0) -> None:
     """Make x's activations stand in ``rel`` to y's (``constrain(c, Relation.DURING, a)``);
     ``gap`` is the seconds between the earlier's end and the later's start of BEFORE and AFTER."""
-    if rel in (Relation.BEFORE, Relation.AFTER):
-        CONSTRAINTS[rel](x, y, gap=gap)
-    elif gap:
+    if gap and rel not in (Relation.BEFORE, Relation.AFTER):
         raise ValueError(f"a gap is for before and after, not {rel.value}")
+    if rel is not Relation.BEFORE and rel not in MADE:
+        x, rel, y = y, rel.inverse, x
+    if rel is Relation.BEFORE:
+        before(x, y, gap=gap)
     else:
-        CONSTRAINTS[rel](x, y)
+        MADE[rel](x, y)

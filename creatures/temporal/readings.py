@@ -28,7 +28,10 @@ whose children are the metre's levels (:data:`LEVELS`: the division of its beat 
 bar), every level a grid at a fixed ratio of the root's pulse, all anchored on the last
 onset heard. A piece asks for a level by name (``division``), so a duple reading answers
 with its half-beat and a triple one with its third: what a tuple keeps time with follows the
-metre the colony hears.
+metre the colony hears. The division level learns from the heard rhythm how it fills its
+grid (:meth:`~creatures.temporal.tree.Subdivision.hear`: each run of notes that fills a
+beat), so a division played by the colony is straight while the visitor plays straight
+eighths and long-short once the visitor swings.
 """
 
 from __future__ import annotations
@@ -39,7 +42,7 @@ from typing import Any, Literal
 
 from creatures import bounds
 from creatures.temporal.durations import DEFAULT_RATIOS, LowIntegerRatioModel
-from creatures.temporal.tree import PulsePercept
+from creatures.temporal.tree import PulsePercept, Subdivision
 
 METRES: dict[str, dict[Fraction, float]] = {
     "simple": DEFAULT_RATIOS,
@@ -93,9 +96,17 @@ class Reading:
         self.levels = {name: root if ratio == 1 else root.level(ratio, f"{self.metre} {name}")
                        for name, ratio in LEVELS[self.metre].items()}
 
+    @property
+    def division(self) -> Subdivision:
+        """The division level's model: how this reading hears the beat filled."""
+        division = self.levels["division"].model
+        assert isinstance(division, Subdivision)  # every level but the beat is one (grow)
+        return division
+
     def hear(self, interval: float) -> float:
-        """Learn ``interval`` and return its log-likelihood under this reading as it stood
-        before hearing it (the surprise of a good reading is small)."""
+        """Learn ``interval`` (the beat hears it, and the division if it fills a beat with
+        its neighbours) and return its log-likelihood under this reading as it stood before
+        hearing it (the surprise of a good reading is small)."""
         model = self.model
         log_d = math.log(interval)
         label = int(model.interpret([interval])[0])
@@ -105,6 +116,7 @@ class Reading:
             residual = log_d - math.log(model.pulse) - math.log(float(model.ratios[label]))
             fit = math.log(float(model.ratio_distribution()[label])) - self._inv_var * residual * residual
         model.update(interval)
+        self.division.hear(interval)
         return fit
 
 
@@ -149,7 +161,8 @@ class PulseReadings:
 
     def to_dict(self) -> dict[str, Any]:
         return {"best": self.best.metre,
-                "readings": {r.metre: {"score": r.score, "model": r.model.to_dict()} for r in self.readings}}
+                "readings": {r.metre: {"score": r.score, "model": r.model.to_dict(), "division": r.division.to_dict()}
+                             for r in self.readings}}
 
     def restore(self, data: dict[str, Any]) -> None:
         """Take back what saved readings learnt. Readings the config no longer names are
@@ -163,9 +176,15 @@ class PulseReadings:
                 model = bounds.table(entry["model"], f"readings.{reading.metre}.model")
                 LowIntegerRatioModel.from_dict(model)  # refused if damaged, even in parts not read
                 score = bounds.number(entry["score"], f"readings.{reading.metre}.score", low=-1e6, high=1e6)
-                taken.append((reading, reading.model.learned(model), score))
-        for reading, model, score in taken:
+                division = entry.get("division")  # files saved before the division learnt have none
+                if division is not None:  # refused if damaged, on a scratch level
+                    Subdivision(reading.model, LEVELS[reading.metre]["division"]).restore(
+                        bounds.table(division, f"readings.{reading.metre}.division"))
+                taken.append((reading, reading.model.learned(model), score, division))
+        for reading, model, score, division in taken:
             reading.model, reading.score = model, score
             reading.grow()
+            if division is not None:
+                reading.division.restore(division)
         best = data.get("best")
         self.best = next((r for r in self.readings if r.metre == best), self.readings[0])

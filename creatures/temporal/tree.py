@@ -7,10 +7,12 @@ A :class:`PulsePercept` holds one pulse model (a :class:`~creatures.temporal.dur
 LowIntegerRatioModel` or :class:`~creatures.temporal.durations.SimpleDurationModel`).
 Every tuple whose Du is ``DoUntil(beat.model)`` samples the same pulse and teaches it
 what it actually did, so the tuples keep one time. Children are metrical levels at fixed
-ratios of their parent — ``beat.subdivide(2)`` is the half-beat, ``beat.group(4)`` the
-bar — whose grid is the parent's pulse at that ratio, and whose models learn on their own
-how the level fills that grid (:class:`Subdivision`: a swung half-beat is long-short, not
-two halves), while a half-beat tuple's durations teach the beat too.
+ratios of their parent (``beat.level(Fraction(1, 2))`` is the half-beat, ``beat.level(4)``
+a bar of four) whose grid is the parent's pulse at that ratio, and whose models learn on
+their own, from the heard notes that fill the level's cycles, how the level fills that grid
+(:class:`Subdivision`: a swung half-beat is long-short, not two halves). The metrical
+readings (:mod:`creatures.temporal.readings`) are such trees, and a piece keeps time on a
+level of the best one.
 
 As a percept, ``evaluate(t)`` says how close ``t`` is to a point of the level's grid
 (1 on the grid, falling off between), so the same node serves as a "on the (half-)beat"
@@ -20,12 +22,12 @@ trigger.
 from __future__ import annotations
 
 import math
-from collections import deque
 from fractions import Fraction
 from typing import Any
 
 import numpy as np
 
+from creatures import bounds
 from creatures.behaviour.percept import Percept
 from creatures.temporal.durations import LowIntegerRatioModel, PulseModel, check_duration
 
@@ -40,34 +42,39 @@ class Subdivision:
     """A metrical level at ``ratio`` × a parent pulse, with a model of its own.
 
     **Tied to the parent.** The level's grid step (``pulse``) is always ``ratio`` × the
-    parent's pulse, so every level keeps the parent's time and follows its tempo.
+    parent's pulse, so every level keeps the parent's time and follows its tempo. The parent
+    learns only from what it hears itself: a level never teaches it (a reading's beat hears
+    every interval already, and a level's notes taught twice would weigh twice).
 
-    **Its own model.** ``own`` (a :class:`LowIntegerRatioModel`) hears each of the level's
-    durations in units of the grid step it was played against, so it learns how the level
+    **Its own model.** ``own`` (a :class:`LowIntegerRatioModel`) hears the level's
+    durations in units of the grid step they were played against, so it learns how the level
     fills its grid: a half-beat level played swung (long-short, 2:1 within the beat) learns
     4/3 and 2/3 of its grid instead of averaging them to one grid step. Sampling draws from
     that, times the current grid step — the swing is kept, at whatever tempo the parent has
-    reached since. A level that has heard nothing samples its grid step.
+    reached since. A level that has heard nothing samples its grid step. The model learns
+    the proportions of the pattern, not their order: a swung level draws long and short
+    notes about equally often, in no fixed order. It remembers the last :data:`MEMORY`
+    durations, so a change of feel is followed within a few bars.
 
-    **Teaching the parent.** The level's durations average to its grid step over whole
-    cycles of its pattern (long + short = two half-beats), whatever the pattern, so the
-    parent is taught the mean of the level's last ``CYCLES`` × (the ratio's denominator)
-    durations — four cycles of a pattern that repeats every parent pulse, the last eight
-    half-beats — divided by the ratio: swung half-beats of 0.4 and 0.2 s say the beat is
-    0.6 s, where each alone would say 0.8 or 0.4 s. (A level that plays only the long notes
-    of its pattern cannot be told from one with a longer grid; the parent's own durations
-    settle that.)
+    **Which heard notes are the level's** (:meth:`hear`). A *cell* is a run of consecutive
+    heard intervals, each shorter than one cycle of the level (its ratio's denominator in
+    grid steps: the beat, for a division of it), that together fill one cycle within the
+    own model's tolerance: two straight eighths or a swung long-short pair fill a beat, a
+    quarter note does not. Only the notes of cells are the level's.
     """
 
-    CYCLES = 4  #: cycles of the level's pattern averaged when teaching the parent
+    MEMORY = 16  #: durations of the level's own pattern remembered (eight swung pairs)
+    PRIOR = 0.01  #: pseudo-counts of the ratio prior: a level plays what it heard, not the prior's ratios
 
-    def __init__(self, parent: PulseModel, ratio: Fraction, own: LowIntegerRatioModel | None = None) -> None:
+    def __init__(self, parent: PulseModel, ratio: Fraction) -> None:
         if not ratio > 0:
             raise ValueError(f"a metrical level needs a positive ratio (got {ratio})")
         self.parent = parent
         self.ratio = Fraction(ratio)
-        self.own = own if own is not None else LowIntegerRatioModel(prior_pulse=1.0)
-        self._recent: deque[float] = deque(maxlen=self.CYCLES * self.ratio.denominator)
+        self.own = LowIntegerRatioModel(prior_pulse=1.0, size=self.MEMORY, recency=self.MEMORY,
+                                        prior_strength=self.PRIOR)
+        self.heard = 0  # durations the own model has learnt
+        self._cell: list[float] = []
 
     @property
     def pulse(self) -> float:
@@ -79,17 +86,42 @@ class Subdivision:
 
     def sample(self, rng: np.random.Generator) -> float:
         """A duration of this level: its own learned pattern (in grid steps) × the grid step."""
-        if not self._recent:
+        if not self.heard:
             return self.sample_pulse(rng)
         return self.own.sample(rng) * self.pulse
 
     def update(self, duration: float) -> None:
-        """Learn where ``duration`` falls on the grid, and teach the parent the pulse the
-        level's recent durations imply (a half-beat of 0.31 s says the beat is 0.62 s)."""
-        d = check_duration(duration)
-        self.own.update(d / self.pulse)
-        self._recent.append(d)
-        self.parent.update(sum(self._recent) / len(self._recent) / float(self.ratio))
+        """Learn ``duration`` as one of the level's notes: where it falls on the grid."""
+        self.own.update(check_duration(duration) / self.pulse)
+        self.heard += 1
+
+    def hear(self, interval: float) -> None:
+        """A heard inter-onset interval: learn the notes of the cell it completes, if any
+        (see the class notes); a note as long as a cycle breaks the run."""
+        d = check_duration(interval)
+        cycle = self.ratio.denominator * self.pulse
+        band = math.exp(self.own.tolerance)
+        if d * band >= cycle:
+            self._cell.clear()
+            return
+        self._cell.append(d)
+        while sum(self._cell) > cycle * band:
+            self._cell.pop(0)
+        if sum(self._cell) * band >= cycle:
+            for note in self._cell:
+                self.update(note)
+            self._cell.clear()
+
+    def to_dict(self) -> dict[str, Any]:
+        """What the level learnt (its own model and how much it heard), JSON-ready."""
+        return {"own": self.own.to_dict(), "heard": self.heard}
+
+    def restore(self, data: dict[str, Any]) -> None:
+        """Take back what a saved level learnt (the settings stay the code's: see
+        :meth:`LowIntegerRatioModel.learned`). Raises on malformed data, changing nothing."""
+        own = self.own.learned(bounds.table(data["own"], "own"))
+        self.heard = bounds.count(data["heard"], "heard")
+        self.own = own
 
     def __repr__(self) -> str:
         return f"Subdivision({self.ratio} × {self.parent!r}, own={self.own!r})"
@@ -152,20 +184,3 @@ class PulsePercept(Percept):
             parent=self,
             sharpness=self.sharpness,
         )
-
-    def subdivide(self, n: int, name: str | None = None) -> "PulsePercept":
-        """The level ``n`` times faster: ``beat.subdivide(2)`` is the half-beat."""
-        return self.level(Fraction(1, n), name or f"{self.name}/{n}")
-
-    def group(self, n: int, name: str | None = None) -> "PulsePercept":
-        """The level ``n`` times slower: ``beat.group(4)`` is a bar of four."""
-        return self.level(Fraction(n), name or f"{self.name}*{n}")
-
-    def to_dict(self) -> dict[str, Any]:
-        data = {**super().to_dict(), "pulse": self.pulse, "anchor": self.anchor, "sharpness": self.sharpness}
-        if isinstance(self.model, Subdivision):
-            data["ratio"] = [self.model.ratio.numerator, self.model.ratio.denominator]
-            data["own"] = self.model.own.to_dict()
-        elif hasattr(self.model, "to_dict"):
-            data["model"] = self.model.to_dict()
-        return data
