@@ -870,3 +870,17 @@ def test_the_best_learned_sequence_is_the_phrase_whose_tuple_is_worth_most(tmp_p
     live_to(20.0)
     sung = [e["pitch"] for e in log.records if e["kind"] == "note" and e["t"] >= start]
     assert sung[:len(phrases[favoured - 1])] == phrases[favoured - 1]
+
+
+def test_an_ear_s_memory_is_bounded_when_what_it_hears_never_pauses():
+    """A crowd hears a note every tick, so no phrase gap ever comes: a phrase still ends at
+    PHRASE_NOTES notes, and the ear holds at most max_phrases of them (it grew without end)."""
+    from creatures.authored.ear import PHRASE_NOTES, Ear
+    from midi.notes import NoteEvent
+
+    ear = Ear(phrase_gap=2.0, max_phrases=8)
+    for k in range(20 * PHRASE_NOTES):
+        ear.hear(k * 0.04, NoteEvent(k * 0.04, 60 + k % 12, 90, 0, 0.1), "crowd")
+    assert sum(len(p) for p in ear.phrases) == 8 * PHRASE_NOTES
+    assert ear.phrases_made == 20 and [n.pitch for n in ear.last(3)] == [60 + k % 12 for k in range(1277, 1280)]
+    assert ear.phrase(20) == list(ear.phrases[-1]) and ear.phrase(12) is None

@@ -7,8 +7,10 @@ Every heard note pushes its pitch, velocity, interval from the previous note, re
 can look back at what led up to an action. A flow no percept has asked for yet keeps its
 last samples in a buffer and takes them when first asked (in a crowd every note reaches
 every ear, and most creatures read none of the five flows). Notes separated by more than
-``phrase_gap`` seconds of silence start a new phrase; :class:`Ear` keeps the last
-``max_phrases`` (the material a creature sings back). The creature's own notes go to
+``phrase_gap`` seconds of silence start a new phrase, and so does a phrase reaching
+:data:`PHRASE_NOTES` notes (in a crowd that hears a note every tick no silence ever comes, and
+one unending phrase grew by ~50 notes a second for as long as the installation ran);
+:class:`Ear` keeps the last ``max_phrases`` (the material a creature sings back). The creature's own notes go to
 ``played`` (a percept of what it just did).
 """
 
@@ -21,6 +23,10 @@ from midi.notes import NoteEvent
 
 FEATURES = ("pitch", "velocity", "interval", "register", "density")
 """The flows a heard note feeds; each is a percept type of the same name."""
+
+PHRASE_NOTES = 64
+"""The most notes one phrase holds: the next note heard begins a new phrase, so an ear's memory
+is bounded however continuous what it hears."""
 
 DENSITY_WINDOW = 4.0
 """Seconds over which ``density`` counts notes (notes per second)."""
@@ -45,7 +51,7 @@ class Ear:
         self._last_pitch: int | None = None
 
     def hear(self, t: float, note: NoteEvent, source: str) -> None:
-        if t - self.heard_at > self.phrase_gap or not self.phrases:
+        if t - self.heard_at > self.phrase_gap or not self.phrases or len(self.phrases[-1]) >= PHRASE_NOTES:
             self.phrases.append([])
             self.phrases_made += 1
         self.phrases[-1].append(note)

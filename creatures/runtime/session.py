@@ -82,7 +82,6 @@ class Session:
         self._voices = np.zeros((len(self.creatures), block))
         self._room = np.zeros(0)
         self.air = settings.audio.air
-        self._deaf = any(not creature.spec.hears_input for creature in self.creatures)
         self.transcribe = transcribe
         self.transcribe_look = LIVE  # live: ≤ 60 ms from an attack to its note; offline looks further
         self._transcriber: Transcriber | None = None
@@ -106,7 +105,9 @@ class Session:
             self.mixer.place_all(gains[:, None] * self.stage.speaker_gains())  # spec.gain: the console may set it
         self.world.deliver(t)
         heard = self._ears(recorded, frames)
-        room = self._ears(None, frames) if self._deaf and recorded is not None else heard  # hears_input = false
+        # hears_input = false: asked each tick, since the console or a zone may set it in a run
+        deaf = recorded is not None and not all(creature.spec.hears_input for creature in self.creatures)
+        room = self._ears(None, frames) if deaf else heard
         for creature in self.creatures:
             block = heard if creature.spec.hears_input else room
             if block is not None:
