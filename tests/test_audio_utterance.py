@@ -114,6 +114,26 @@ def test_distinct_words_grow_one_child_each(speaker: Speaker) -> None:
         assert 0.5 < max(scores) <= 1.0 and sorted(scores)[-2] < 0.5
 
 
+def test_a_nearest_tree_hears_each_sound_as_one_class_or_none(speaker: Speaker) -> None:
+    """``nearest``: only the class a sound is nearest is salient (as much as without it), and
+    only if the sound lies within the class's radius of an exemplar; a word of no class is
+    heard by the root alone. Graded, the same words make every class somewhat salient."""
+    root, truth = grown_tree(speaker, [WORDS[i % 3] for i in range(18)])
+    born = root.fission(value=0.9, innovation_threshold=0.5)
+    for t, name in enumerate([*WORDS[:3], "eao"], start=100):
+        root.hear(heard(name, speaker, float(t)))
+        root.nearest = False
+        graded = [c.evaluate(t + 0.2) for c in born]
+        root.nearest = True
+        classified = [c.evaluate(t + 0.2) for c in born]
+        assert root.evaluate(t + 0.2) == 1.0 and all(s > 0.0 for s in graded)
+        if name == "eao":
+            assert classified == [0.0, 0.0, 0.0] and max(graded) < 0.5
+        else:
+            own = next(k for k, c in enumerate(born) if word_of(c.medoid, truth) == name)
+            assert classified == [graded[own] if k == own else 0.0 for k in range(3)]
+
+
 def test_one_word_does_not_split(speaker: Speaker) -> None:
     root, _ = grown_tree(speaker, ["ieu"] * 15)
     assert root.fission(value=1.0, innovation_threshold=0.5) == []

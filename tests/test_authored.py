@@ -675,6 +675,12 @@ until = { seconds = 4.0 }
     ("refine with no aural group",
      ("until = { seconds = 4.0 }", "until = { seconds = 4.0 }\n[creature.learning]\nrefine = true"),
      "creature.0.learning.refine", "name them in learning.aural"),
+    ("in_kind with no aural group",
+     ("until = { seconds = 4.0 }", "until = { seconds = 4.0 }\n[creature.learning]\nin_kind = true"),
+     "creature.0.learning.in_kind", "name them in learning.aural"),
+    ("unattended of a percept that is not the aural tree",
+     ('type = "utterance"', 'type = "utterance"\n[creature.percepts.new]\ntype = "unattended"\nof = "bored"'),
+     "creature.0.percepts.new.of", "'unattended' needs an 'utterance' percept"),
 ])
 def test_the_aural_parts_are_checked_at_load(tmp_path, case, fragment, key, message):
     """sing/attend/repertoire name an 'utterance' percept, which needs an ear; one tree per creature."""
@@ -683,6 +689,66 @@ def test_the_aural_parts_are_checked_at_load(tmp_path, case, fragment, key, mess
     error = error_of(path)
     assert error.key == key and message in str(error), (case, str(error))
     assert error.line > 0
+
+
+def test_attending_takes_each_sound_once_and_the_sound_stays_heard(tmp_path):
+    """``unattended`` is salient from a sound's arrival until an ``attend`` takes it, while the
+    tree (``hearing.memory`` 0.6 s) still hears it: attending once per sound, with time after
+    it to answer. ``nearest`` reaches the tree."""
+    import numpy as np
+
+    from audio_fixtures import SR, word
+    from creatures.clock import SimulatedClock
+    from creatures.events import EventLog
+    from creatures.runtime.session import Session
+    from midi.sinks import MemorySink
+
+    text = HEAD + textwrap.dedent("""
+        [[creature]]
+        name = "c"
+        kind = "authored"
+        [creature.hearing]
+        memory = 0.6
+        [creature.percepts."any sound"]
+        type = "utterance"
+        nearest = true
+        [creature.percepts."new sound"]
+        type = "unattended"
+        of = "any sound"
+        [creature.tuples.attend]
+        trigger = "new sound"
+        action = { type = "attend", percept = "any sound" }
+        until = { seconds = 0.3 }
+        value = { value = 3.0, plastic = false }
+        [creature.tuples.rest]
+        action = "rest"
+        until = { seconds = 2.0 }
+        value = 0.3
+        [creature.groups.main]
+        tuples = ["attend", "rest"]
+        """)
+    session = Session(load_installation(write(tmp_path, text)), SimulatedClock(), EventLog(), MemorySink())
+    creature = session.creatures[0]
+    assert creature.aural.root.nearest
+    x = np.zeros(4 * SR, np.float32)
+    for start in (0.5, 2.5):
+        w = word("ai", np.random.default_rng(int(start)), SR, rms=0.05).astype(np.float32)
+        x[int(start * SR): int(start * SR) + len(w)] += w
+    frames, seen = int(0.02 * SR), []
+    for k in range(1, len(x) // frames + 1):
+        t = round(k * 0.02, 6)
+        session.clock.advance_to(t)
+        session.step(t, frames, x[(k - 1) * frames: k * frames])
+        seen.append((creature.percept("any sound").evaluate(t), creature.percept("new sound").evaluate(t),
+                     creature.group.find("attend").active))
+    attending = [k for k, (_, _, active) in enumerate(seen) if active]
+    starts = [k for k in attending if k - 1 not in attending]
+    # One attend per word (on "any sound" it would start again when its 0.3 s end within the
+    # 0.6 s the word is heard); its start took the word, which the tree hears on after it.
+    assert len(starts) == 2
+    for k in starts:
+        assert seen[k][:2] == (1.0, 0.0)
+        assert seen[k + 15][:2] == (1.0, 0.0) and not seen[k + 15][2]
 
 
 def lived(path: Path):

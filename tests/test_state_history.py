@@ -207,7 +207,8 @@ def test_merged_sound_classes_are_sung_from_both_trees(tmp_path: Path, monkeypat
     parrot = session.creatures[0]
     classes = [p.name for p in parrot.aural.root.utterance_children()]
     assert classes == ["any sound/1", "any sound/2", "any sound/3", "any sound/4"]
-    assert {"any sound/3|attend", "any sound/4|attend"} <= {tp.name for tp in parrot.group.tuples}
+    sung_classes = {tp.action.percept.name for tp in parrot.group.tuples if hasattr(tp.action, "percept")}
+    assert {"any sound/3", "any sound/4"} <= sung_classes  # the first's classes came with tuples singing them
     sung: list[str] = []
     sing = Mouth.sing
     monkeypatch.setattr(Mouth, "sing", lambda self, t, u, gain=1.0: sung.append(pack_samples(u.samples))

@@ -638,7 +638,9 @@ class Attend(ActionPart):
     """Turn to a heard sound: the consummatory act of the motivation to hear. The sound
     attended joins the tree's exemplars now (by the time this activation's credit is assigned
     the tree may hear a newer one), and ``drive`` falls by ``relief``. With a non-plastic
-    value it is the primary reinforcer: the perception of sound rewards what came before."""
+    value it is the primary reinforcer: the perception of sound rewards what came before.
+    The sound is then attended: an ``unattended`` percept, its trigger, falls while the sound
+    is still heard, so what follows may answer it."""
 
     name = "attend"
     thesis = "soundcreatures (installation)"
@@ -655,6 +657,7 @@ class Attend(ActionPart):
                     creature.motivation.perturb(t, params.drive, -params.relief)
                 tree.update(t, tuple_.value.to_float())
                 heard = tree.heard(t)
+                creature.aural.attended = heard  # taken: an 'unattended' percept of it falls
                 creature.world.emit("attend", creature=creature.name, percept=tuple_.trigger.name,
                                     heard_at=None if heard is None else heard.time)
 

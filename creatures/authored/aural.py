@@ -38,10 +38,12 @@ class Aural:
         self.ear = Ear(spec.hearing)
         self.mouth = Mouth(spec.mouth, self.ear.singing, None if creature.body is None else creature.body.graph)
         self.root: UtterancePercept | None = None
+        self.attended: Utterance | None = None  # the sound an ``attend`` last took
         self._singers: dict[int, SingFrom] = {}
 
-    def tree(self, name: str, seed_model: str | None) -> UtterancePercept:
-        """The creature's utterance tree, named ``name`` (one per creature: Tr and Ac share it)."""
+    def tree(self, name: str, seed_model: str | None, *, nearest: bool = False) -> UtterancePercept:
+        """The creature's utterance tree, named ``name`` (one per creature: Tr and Ac share it);
+        ``nearest``: its classes classify each sound (:class:`UtterancePercept`)."""
         if self.root is not None:
             raise ConfigError(self.creature.spec.source_file(), f"creature {self.creature.name}: one 'utterance' "
                               f"percept per creature (it is the root of its one aural tree; {self.root.name!r} "
@@ -50,6 +52,7 @@ class Aural:
         self.root = (load_aural_model(seed_model) if seed_model else
                      UtterancePercept(name, radius=h.radius, memory=h.memory, max_members=h.keep))
         self.root.name = name
+        self.root.nearest = nearest
         return self.root
 
     def percept(self, name: str) -> UtterancePercept:
@@ -68,6 +71,12 @@ class Aural:
             self.creature.world.emit("sound", creature=self.creature.name,
                                      start=utterance.time - len(utterance.samples) / sample_rate,
                                      end=utterance.time, singing=self.mouth.sounding(t))
+
+    def unattended(self, tree: UtterancePercept, t: float) -> float:
+        """1 while ``tree`` hears a sound (within ``hearing.memory``) that no ``attend`` has
+        taken yet, else 0."""
+        heard = tree.heard(t)
+        return 1.0 if heard is not None and heard is not self.attended else 0.0
 
     def sing_from(self, percept: UtterancePercept) -> SingFrom:
         """The one singing action of ``percept``, shared by every tuple that sings it (credit

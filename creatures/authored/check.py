@@ -448,9 +448,9 @@ def _learning(c: _Checker) -> None:
         if not any(c.spec.percepts[p].type == "utterance" for p in c.spec.percepts):
             raise c.error(("learning", "aural", k), "aural learning grows an 'utterance' percept's tree: "
                                                     "declare one")
-    if learning.refine and not learning.aural:
-        raise c.error(("learning", "refine"), "refine refines the singing tuples of aural groups: name them in "
-                                              "learning.aural")
+    for key, what in (("refine", "refines the singing tuples"), ("in_kind", "answers in kind in the tuples")):
+        if getattr(learning, key) and not learning.aural:
+            raise c.error(("learning", key), f"{key} {what} of aural groups: name them in learning.aural")
     ph = learning.phrases
     if ph is not None:
         loc = ("learning", "phrases")

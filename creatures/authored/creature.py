@@ -250,7 +250,7 @@ class Authored(CreatureKind):
         if name in learning.groups:
             learner = PerceptLearning(split_at=learning.split_at, fuse_below=learning.fuse_below, **options)
         elif name in learning.aural:
-            learner = self.aural.learning(refine=learning.refine, **options)
+            learner = self.aural.learning(refine=learning.refine, in_kind=learning.in_kind, **options)
         learn = g.proximity_learning
         proximity = Proximity({(a, b): p for a, row in g.proximity.items() for b, p in row.items()},
                               **({} if learn is None else {"rate": learn.rate, "window": learn.window}))

@@ -725,6 +725,9 @@ class _UtteranceParams(Params):
                                                     "to the working directory) to start from instead of an "
                                                     "empty repertoire (thesis: persistent aural models seed "
                                                     "a creature)")
+    nearest: bool = Field(False, description="each sound is heard as one class: a class is salient only while the "
+                                             "sound resembles it more than its sibling classes and lies within its "
+                                             "radius of an exemplar (false: each as much as the sound resembles it)")
 
 
 @PERCEPTS.register
@@ -733,7 +736,8 @@ class Utterances(PerceptPart):
     (1 while a sound heard within ``hearing.memory`` is perceived). It keeps the sounds that
     led to valued tuples; when a tuple on a class becomes valuable, fission clusters its
     sounds into child classes by cepstral distance (each salient by similarity to its
-    exemplars), and children no longer distinct fuse back (``learning.aural``)."""
+    exemplars, or with ``nearest`` only the class the sound is nearest, within its radius),
+    and children no longer distinct fuse back (``learning.aural``)."""
 
     name = "utterance"
     thesis = "aural models – cepstral models"
@@ -742,7 +746,7 @@ class Utterances(PerceptPart):
     joins_tree = False
 
     def build(self, params, creature, name):
-        return creature.aural.tree(name, params.seed_model)
+        return creature.aural.tree(name, params.seed_model, nearest=params.nearest)
 
 
 class _RepertoireParams(Params):
@@ -762,6 +766,24 @@ class Repertoire(PerceptPart):
     def build(self, params, creature, name):
         tree = creature.aural.percept(params.of)
         return FunctionPercept(name, lambda t: 1.0 if tree.members else 0.0)
+
+
+@PERCEPTS.register
+class Unattended(PerceptPart):
+    """A sound of ``of`` is heard (within ``hearing.memory``) that no ``attend`` has taken yet
+    (1), else 0. The trigger of an ``attend`` that takes each sound once: the sound stays
+    heard after it, so the tuples its classes trigger (an answer in kind) can follow
+    attending instead of losing to it again."""
+
+    name = "unattended"
+    thesis = "soundcreatures (installation)"
+    Params = _RepertoireParams
+    refs = {"of": "utterances"}
+    needs = "hearing"
+
+    def build(self, params, creature, name):
+        tree = creature.aural.percept(params.of)
+        return FunctionPercept(name, lambda t: creature.aural.unattended(tree, t))
 
 
 class _SungParams(Params):

@@ -266,6 +266,11 @@ class LearningSpec(Strict):
                                             "tuples singing its children, which inherit its review of the class and "
                                             "give its later classes tuples too (thesis 'aural Ac percept trees': "
                                             "tuples 'slowly refine what it is that they should be playing')")
+    in_kind: bool = Field(False, description="aural groups: a tuple whose Tr and Ac are one 'utterance' percept (it "
+                                             "answers a sound by singing one) gets, for each class of it, a tuple "
+                                             "triggered by the class and singing the class: an answer in kind "
+                                             "(with refine it gives way to them; thesis 'soundcreatures': one tree "
+                                             "'shared in both Tr and Ac areas')")
     min_trigger: float = Field(0.1, ge=0, le=1, description="saliency a trigger must have had for its percept to learn")
     phrase_gap: float = Field(2.0, gt=0, le=3600, description="seconds of silence that end a heard phrase")
     max_phrases: int = Field(8, ge=1, le=256, description="phrases remembered")

@@ -22,7 +22,8 @@ Thesis, "soundcreatures": each creature has "a microphone-as-ear and a loudspeak
   becomes a new, more specific action ``same Tr | sing child`` (with ``refine`` the tuple
   then gives way to them); when a tuple *triggered* by an aural percept becomes valuable,
   the same fission yields ``child | same Ac`` (new sounds incorporated as triggers, figure
-  39). Children that fuse away take their tuples with them.
+  39); a tuple hearing and singing one percept may instead answer each of its classes in
+  kind, ``child | sing child`` (``in_kind``). Children that fuse away take their tuples with them.
 * :func:`tree_state` / :func:`tree_from_state` — an utterance percept tree as a JSON-able
   dict (samples as base64 16-bit PCM, cepstra recomputed on load) for ``state()``; the
   file format of :func:`audio.utterance.save_aural_model` stays the one for seeding.
@@ -407,15 +408,24 @@ class AuralLearning(PerceptLearning):
     clustered at the class: thesis, "extending the percept tree", "the highest level percept
     in this portion of the tree"), and a class it gains later is given a member (V copied
     from the member reviewed), so the repertoire still grows with what the creature hears.
+
+    ``in_kind``: a tuple whose Tr and Ac are one percept (it answers a sound of that percept
+    by singing one) refines both sides together: each class of the percept gets a tuple
+    ``class | sing class``, an answer in kind, instead of the class as a new trigger of the same
+    song and as a new song on the same trigger (thesis, "soundcreatures": "This common tree is
+    shared in both *Tr* and *Ac* areas"). With ``refine`` it gives way to them as a singing
+    tuple does, and its family is the answers to the classes of one class.
     """
 
     def __init__(self, root: UtterancePercept, sing_from: Callable[[UtterancePercept], SingFrom], *,
-                 refission_every: float = 10.0, refine: bool = False, **options: Any) -> None:
+                 refission_every: float = 10.0, refine: bool = False, in_kind: bool = False,
+                 **options: Any) -> None:
         super().__init__(**options)
         self.root = root
         self.sing_from = sing_from
         self.refission_every = float(refission_every)
         self.refine = refine
+        self.in_kind = in_kind
         # when each percept last split, by the percept itself (weakly: one that fused away goes,
         # and a new percept never inherits its time through a reused id)
         self._clustered: weakref.WeakKeyDictionary[UtterancePercept, float] = weakref.WeakKeyDictionary()
@@ -446,7 +456,7 @@ class AuralLearning(PerceptLearning):
                            members=[len(c.members) for c in born])
             if len({id(c) for c in self.root.walk()}) < len(before) + len(born):
                 self.prune(group, t)
-        if isinstance(tuple_.trigger, UtterancePercept):
+        if isinstance(tuple_.trigger, UtterancePercept) and not self._answers(tuple_):
             self.spawn_hypotheses(group, tuple_, t)
         if sung is not None:
             self.spawn_actions(group, tuple_, t)
@@ -459,36 +469,43 @@ class AuralLearning(PerceptLearning):
         """Whether a tuple of ``group`` with Tr ``trigger`` sings ``percept``."""
         return any(tp.trigger is trigger and getattr(tp.action, "percept", None) is percept for tp in group.tuples)
 
+    def _answers(self, tuple_: ActionTuple) -> bool:
+        """Whether ``tuple_`` answers in kind: ``in_kind``, and it sings the percept it hears."""
+        return self.in_kind and isinstance(tuple_.action, SingFrom) and tuple_.trigger is tuple_.action.percept
+
     def _family(self, group: ActionGroup, tuple_: ActionTuple) -> UtterancePercept | None:
         """With ``refine``, the class whose family ``tuple_`` belongs to: the parent of the
-        class it sings when no tuple with its Tr sings that parent (refined away, or never
-        made); else None."""
+        class it sings when no tuple with its Tr (an answer in kind: the parent's answer)
+        sings that parent (refined away, or never made); else None."""
         if not self.refine or not isinstance(tuple_.action, SingFrom):
             return None
         parent = tuple_.action.percept.parent
-        if not isinstance(parent, UtterancePercept) or self._sings(group, tuple_.trigger, parent):
+        if not isinstance(parent, UtterancePercept) \
+                or self._sings(group, parent if self._answers(tuple_) else tuple_.trigger, parent):
             return None
         return parent
 
     def spawn_actions(self, group: ActionGroup, tuple_: ActionTuple, t: float) -> list[ActionTuple]:
-        """``same Tr | sing child | same Du | V`` for each child of the sung percept; with
-        ``refine`` also for each class of the tuple's family that lacks one, and a tuple whose
-        class has children gives way to theirs."""
+        """``same Tr | sing child | same Du | V`` for each child of the sung percept (an answer
+        in kind: ``child | sing child``); with ``refine`` also for each class of the tuple's
+        family that lacks one, and a tuple whose class has children gives way to theirs."""
         sung = tuple_.action.percept
         family = self._family(group, tuple_)
         classes = sung.utterance_children() + ([] if family is None else family.utterance_children())
+        answers = self._answers(tuple_)
         made = []
         for child in classes:
-            if self._sings(group, tuple_.trigger, child):
+            trigger = child if answers else tuple_.trigger
+            if self._sings(group, trigger, child):
                 continue
             du = tuple_.do_until
             action = self.sing_from(child)
-            hypothesis = ActionTuple(f"{tuple_.trigger.name}|{action.name}", tuple_.trigger, action,
+            hypothesis = ActionTuple(f"{trigger.name}|{action.name}", trigger, action,
                                      DoUntil(du.duration, until=du.until, learn=du.learn),
                                      copy_value(tuple_.value))
             group.add(hypothesis)
             made.append(hypothesis)
-            self._emit("hypothesis", t, tuple=hypothesis.name, parent=tuple_.name, side="Ac")
+            self._emit("hypothesis", t, tuple=hypothesis.name, parent=tuple_.name, side="in kind" if answers else "Ac")
         if self.refine and sung.utterance_children():
             group.remove(tuple_, t)
             self._emit("refinement", t, tuple=tuple_.name, percept=sung.name,
