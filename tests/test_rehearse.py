@@ -175,6 +175,12 @@ def test_the_command_rehearses_and_refuses_a_bad_corpus(tmp_path: Path, capsys):
     config.write_text(shipped.replace("[rehearse]", hours, 1))
     assert main(["rehearse", str(config), "--days", "1", "--json", str(tmp_path / "r.json")]) == 0
     assert "acts/min" in capsys.readouterr().out and (tmp_path / "r.json").exists()
+    other = tmp_path / "wren.toml"  # --compare: the second config rehearsed beside it, one table
+    other.write_text(installations.path("wren").read_text() + "\n" + hours)  # wren has no [rehearse] of its own
+    assert main(["rehearse", str(config), "--days", "1", "--compare", str(other)]) == 0
+    text = capsys.readouterr().out
+    assert "exchange: 1 days" in text and "wren: 1 days" in text, text
+    assert text.splitlines()[-1].startswith("mon  10h") and text.splitlines()[-1].count("|") == 6
     config.write_text(shipped.replace("[rehearse]", hours + '\ncorpus = "missing.mid"', 1))
     assert main(["rehearse", str(config), "--days", "1"]) == 2
     err = capsys.readouterr().err
