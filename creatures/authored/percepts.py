@@ -749,7 +749,7 @@ class Utterances(PerceptPart):
         return creature.aural.tree(name, params.seed_model, nearest=params.nearest)
 
 
-class _RepertoireParams(Params):
+class _OfUtterancesParams(Params):
     of: str = Field(description="an 'utterance' percept")
 
 
@@ -759,7 +759,7 @@ class Repertoire(PerceptPart):
 
     name = "repertoire"
     thesis = "aural Ac percept trees"
-    Params = _RepertoireParams
+    Params = _OfUtterancesParams
     refs = {"of": "utterances"}
     needs = "hearing"
 
@@ -777,7 +777,7 @@ class Unattended(PerceptPart):
 
     name = "unattended"
     thesis = "soundcreatures (installation)"
-    Params = _RepertoireParams
+    Params = _OfUtterancesParams
     refs = {"of": "utterances"}
     needs = "hearing"
 
