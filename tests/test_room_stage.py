@@ -654,3 +654,17 @@ def test_a_creature_put_on_a_note_object_strikes_it_only_by_stepping_on(tmp_path
     s.stage.v.pos[0] = [5.0, 8.0]
     run(s, clock, 3.52)
     assert [e["pitch"] for e in s.log.records if e["kind"] == "struck"] == [67, 67]  # struck in passing
+
+
+def test_a_lone_caller_s_notes_are_not_kept_for_ears_that_are_not_there(tmp_path):
+    """A room of one: its notes reach no other ear, so none is kept for an arrival that will
+    never land (they were, one per note, for the whole run). With a second creature every
+    note is kept only while in flight, and heard."""
+    s, clock = session(tmp_path, "", caller("loud", 5.0, 5.0))
+    run(s, clock, 10.0)
+    played = sum(e["kind"] == "note" for e in s.log.records)
+    assert played > 5 and not s.stage._sounds
+    s, clock = session(tmp_path, "", caller("loud", 5.0, 5.0), singer("ear", 6.0, 5.0))
+    run(s, clock, 10.0)
+    assert s.stage.masked + sum(1 for _ in s.creatures[1].ear.last(1000)) > 5
+    assert all(k in set(s.stage._flying["note"].tolist()) for k in s.stage._sounds)

@@ -504,6 +504,8 @@ class Stage:
         ears = np.arange(len(starts))
         if me >= 0:  # not its own ear
             starts, ends, dbs, ears = (np.delete(x, me) for x in (starts, ends, dbs, ears))
+        if len(ears) == 0:  # no other ear in the room: nothing to fly, and nothing to keep (due forgets
+            return          # a note only when its last arrival lands, which it would never have)
         number = next(self._emitted)
         self._sounds[number] = (note, source)
         row = {"start": starts, "end": ends, "db": dbs, "pitch": np.full(len(ears), float(note.pitch)), "ear": ears,
