@@ -53,11 +53,16 @@ class LowPass:
         if self._zi is None:  # the filter starts at rest
             self._zi = np.zeros(2)
 
+    @property
+    def resting(self) -> bool:
+        """Whether the filter's ringing has died (below :data:`AT_REST`): silence in is silence out."""
+        return self._zi is None or float(np.abs(self._zi).max()) < AT_REST
+
     def run(self, block: np.ndarray, cutoff_hz: float) -> np.ndarray:
         """``block`` (frames) through the filter at ``cutoff_hz``. A silent block after the
         filter's ringing has died (below :data:`AT_REST`) is passed through as it is: a
         voice that sings now and then filters only while it sounds."""
-        if self._zi is not None and not block.any() and np.abs(self._zi).max() < AT_REST:
+        if self._zi is not None and not block.any() and self.resting:
             return block
         self.set(cutoff_hz)
         filtered, self._zi = lfilter(*self._ba, block, zi=self._zi)

@@ -38,6 +38,9 @@ from creatures.persist import file_mode
 
 log = logging.getLogger(__name__)
 
+BUFFER_FRAMES = 16384
+"""Frames a :class:`WavOutput` gathers before writing them to its file."""
+
 
 class AudioOutput:
     """Base class: checks block shapes, holds rate and channel count, closes once."""
@@ -96,11 +99,28 @@ class WavOutput(AudioOutput):
         self._tmp = Path(tmp)
         self._file = soundfile.SoundFile(self._tmp, mode="w", samplerate=self.sample_rate,
                                          channels=self.channels, format="WAV", subtype=subtype)
+        self._buffer = np.zeros((BUFFER_FRAMES, self.channels))
+        self._held = 0
 
     def _write(self, block: np.ndarray) -> None:
-        self._file.write(block)
+        # A run writes one short block a tick; soundfile's per-call cost outweighed the copy,
+        # so blocks gather in a preallocated buffer and reach the file a buffer at a time.
+        n = len(block)
+        if self._held + n > len(self._buffer):
+            self._drain()
+            if n > len(self._buffer):
+                self._file.write(block)
+                return
+        self._buffer[self._held:self._held + n] = block
+        self._held += n
+
+    def _drain(self) -> None:
+        if self._held:
+            self._file.write(self._buffer[:self._held])
+            self._held = 0
 
     def _close(self) -> None:
+        self._drain()
         self._file.flush()
         self._file.close()  # writes the final header
         with open(self._tmp, "rb+") as handle:

@@ -161,6 +161,9 @@ class Voice:
             self._ends = [item for item in self._ends if item[0] > t]
             for _, pitch in due:
                 self.pool.note_off(pitch)
+        if not self.pool.active and (self.lowpass is None or self.lowpass.resting):
+            out[:] = 0.0  # most of a colony's voices are silent most ticks: nothing to render, filter or limit
+            return
         self.pool.render(out)
         if self.lowpass is not None:
             out[:] = self.lowpass.run(out, self.spec.bright_hz * cutoff)  # (a silent block costs nothing)
