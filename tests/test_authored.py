@@ -85,6 +85,43 @@ def test_a_small_authored_creature_plays_its_phrase_when_bored(tmp_path):
     assert Counter(e["tuple"] for e in events if e["kind"] == "selection")["sing"] >= 2
 
 
+SOFT = """
+[[creature]]
+name = "c"
+kind = "authored"
+soft_rate = 2.0
+[creature.percepts.call]
+type = "script"
+points = [[0.0, 0.0], [1.13, 0.0], [1.131, 1.0]]
+[creature.tuples.answer]
+trigger = "call"
+action = { type = "play_note", pitch = 72 }
+until = { done = true }
+value = 5.0
+[creature.tuples.rest]
+action = "rest"
+until = { seconds = 10.0 }
+value = 0.5
+[creature.groups.main]
+tuples = ["answer", "rest"]
+alpha = 0.0
+"""
+
+
+@pytest.mark.parametrize(("soft", "at"), [("soft_rate = 2.0", (1.16, 1.631)), ("", (1.14, 1.14))])
+def test_a_running_tuple_is_interrupted_on_a_soft_state_step_only(tmp_path, soft, at):
+    """``soft_rate``: triggers read soft state, so a new choice (here an interruption of a
+    long rest by a call that rises at 1.131 s) waits for the soft state's next step (2 a
+    second, at a phase of its own: later than the next tick, within 0.5 s); without it, the
+    next tick (0.02 s) chooses."""
+    inst = load_installation(write(tmp_path, 'title = "t"\nduration = 3.0\ntick = 0.02\n' + SOFT.replace("soft_rate = 2.0", soft)))
+    inst.settings.output.wav = inst.settings.output.report = False
+    run_offline(inst, tmp_path / "out", duration=3.0)
+    events = read_events(tmp_path / "out" / "events.jsonl")
+    stops = [e["t"] for e in events if e["kind"] == "interruption" and e["tuple"] == "rest"]
+    assert stops and at[0] - 1e-6 <= stops[0] <= at[1] + 1e-6, stops
+
+
 @pytest.mark.parametrize(
     ("old", "new", "key", "message"),
     [

@@ -458,7 +458,7 @@ class Authored(CreatureKind):
         self._prepare(t, soft)
         for group in self.top:
             if soft or group.active:  # a new tuple is chosen on the soft state's steps
-                group.tick(t)
+                group.tick(t, choose=soft)
         self._conclude(t)
 
     @classmethod
@@ -480,7 +480,7 @@ class Authored(CreatureKind):
         for creature, s in zip(crowd, soft):
             creature._prepare(t, s)
             group = creature.top[0]
-            ticking.append(group if s or group.active else None)
+            ticking.append(group if s else None)  # between soft steps a running group ticks alone, choosing nothing
         together = CrowdTick([group for group in ticking if group is not None], t)
         shared = iter(zip(crowd, ticking))
         k = 0
@@ -492,6 +492,8 @@ class Authored(CreatureKind):
             if group is not None:
                 together.finish(group, k)
                 k += 1
+            elif me.top[0].active:
+                me.top[0].tick(t, choose=False)
             me._conclude(t)
 
     def _prepare(self, t: float, soft: bool) -> None:

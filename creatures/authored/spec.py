@@ -315,9 +315,10 @@ class AuthoredSpec(CreatureSpec):
     report_every: float = Field(0.5, gt=0, le=3600, description="seconds between value, drive and motor snapshots in "
                                                                 "the events log (a body's blend: who drives each joint)")
     soft_rate: float | None = Field(None, gt=0, le=1000, description="steps per second of the soft state: drive "
-                                                                    "inputs and the choice of a new tuple run at this "
-                                                                    "rate (every trigger reads soft state), a running "
-                                                                    "tuple still every tick; none = every tick")
+                                                                    "inputs and every choice (a new tuple, an "
+                                                                    "interruption) run at this rate, since every "
+                                                                    "trigger reads soft state; a running tuple acts "
+                                                                    "and ends every tick; none = every tick")
     report_percepts: list[str] = Field(default_factory=list, max_length=256,
                                        description="percepts whose saliency each snapshot logs (a 'percepts' event "
                                                    "with their 'levels')")

@@ -310,9 +310,14 @@ class ActionGroup:
         return expected
 
     # -- the selection loop -------------------------------------------------------------
-    def tick(self, t: float, ready: "Ready | None" = None) -> None:
+    def tick(self, t: float, ready: "Ready | None" = None, *, choose: bool = True) -> None:
         """One step of the baseline mechanism: stop what is done, fill free slots or
         interrupt, then update whatever is active.
+
+        ``choose`` False: a step between two of the soft state's (a creature's ``soft_rate``),
+        whose triggers read soft state that has not stepped: what is running acts and stops
+        when done (a freed slot is filled at once), but no trigger is asked and nothing
+        interrupts until the next soft step (thesis "soft state").
 
         ``ready``: this step as :class:`CrowdTick` worked it out with a crowd's arrays, the
         evaluations it made not made again: True (the active tuple is done), False (nothing
@@ -336,9 +341,13 @@ class ActionGroup:
                 for tuple_ in list(self.active):
                     if tuple_.do_until.evaluate(t) >= 1.0:
                         self._stop(tuple_, t, interrupted=False)
+                        choose = True
             elif ready is True:
                 self._stop(self.active[0], t, interrupted=False)
-            if ready is None or ready is True:
+            if not choose:
+                for tuple_ in list(self.active):
+                    tuple_.update(t)
+            elif ready is None or ready is True:
                 trig = self.triggers(t)
                 self._decide(t, trig, self._expected(t, trig, self.values()))
             else:
