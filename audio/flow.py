@@ -45,7 +45,7 @@ class FlowCoupling(BodyCoupling):
         self.low = plane.min(axis=0) - MARGIN
         size = np.ceil((plane.max(axis=0) + MARGIN - self.low) / CELL).astype(int) + 1
         self.field = np.zeros((size[0], size[1]))  # movement along the axis, m/s
-        self._node_cells = (plane - self.low) / CELL
+        self._nodes_in_field = self._bilinear((plane - self.low) / CELL)  # the strings never move in it
 
     def _plane(self, points: np.ndarray) -> np.ndarray:
         """Coordinates of ``points`` (N, 3) in the strings' plane: along them, along the axis."""
@@ -62,7 +62,10 @@ class FlowCoupling(BodyCoupling):
         dt = t - last[1]
         self._drag(self._plane(positions), (positions - last[0]) @ self.axis / dt)
         self._spread(dt)
-        return self.gain * self._sample(self._node_cells)
+        i, j, weights = self._nodes_in_field
+        f = self.field
+        return self.gain * (weights[0] * f[i, j] + weights[1] * f[i + 1, j] + weights[2] * f[i, j + 1]
+                            + weights[3] * f[i + 1, j + 1])
 
     def _drag(self, places: np.ndarray, speeds: np.ndarray) -> None:
         """Each limb pulls the fluid near it toward its own speed (compiled: a curve tick's
@@ -79,16 +82,15 @@ class FlowCoupling(BodyCoupling):
         rate = self.diffusion * (dt / steps) / (CELL * CELL)
         _spread(self.field, steps, rate, 0.5 ** (dt / self.memory))
 
-    def _sample(self, cells: np.ndarray) -> np.ndarray:
-        """The field at fractional grid cells (bilinear)."""
+    def _bilinear(self, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Where fractional grid ``cells`` read the field: each one's lower corner ``(i, j)`` and
+        its four corners' bilinear weights ``(4, N)`` (in the order i,j; i+1,j; i,j+1; i+1,j+1)."""
         nx, ny = self.field.shape
         i = np.clip(np.floor(cells[:, 0]).astype(int), 0, nx - 2)
         j = np.clip(np.floor(cells[:, 1]).astype(int), 0, ny - 2)
         a = np.clip(cells[:, 0] - i, 0, 1)
         b = np.clip(cells[:, 1] - j, 0, 1)
-        f = self.field
-        return ((1 - a) * (1 - b) * f[i, j] + a * (1 - b) * f[i + 1, j] + (1 - a) * b * f[i, j + 1]
-                + a * b * f[i + 1, j + 1])
+        return i, j, np.stack([(1 - a) * (1 - b), a * (1 - b), (1 - a) * b, a * b])
 
 
 @numba.njit(cache=True)

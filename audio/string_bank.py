@@ -320,7 +320,9 @@ class StringBank:
         force = np.asarray(force, dtype=float)
         if force.shape != (self.parameters.n_masses,):
             raise ValueError(f"force must have shape ({self.parameters.n_masses},), got {force.shape}")
-        self.force[voices] = np.nan_to_num(force, nan=0.0, posinf=0.0, neginf=0.0)
+        if not np.isfinite(force).all():
+            force = np.nan_to_num(force, nan=0.0, posinf=0.0, neginf=0.0)
+        self.force[voices] = force
 
     def render(self, mix: np.ndarray, voices: np.ndarray, level: np.ndarray, slope: np.ndarray) -> None:
         """Add strings ``voices`` (indices) to ``mix`` (at most ``block_size`` samples), each

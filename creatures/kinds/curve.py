@@ -36,6 +36,7 @@ synthesis model – to connect characters' bodies to such a synthesis technique.
 
 from __future__ import annotations
 
+import math
 import weakref
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -302,9 +303,9 @@ class Curve(CreatureKind):
 
     def gap(self, other: "Curve") -> float:
         """Distance between the nearest joints of two bodies, in the room (m)."""
-        mine = self.positions() + [self.x, 0.0, 0.0]
-        theirs = other.positions() + [other.x, 0.0, 0.0]
-        return float(np.sqrt(((mine[:, None] - theirs[None]) ** 2).sum(axis=-1).min()))
+        apart = self.positions()[:, None] - other.positions()[None]
+        apart[..., 0] += self.x - other.x
+        return math.sqrt(float(np.einsum("ijk,ijk->ij", apart, apart).min()))
 
     def look(self) -> None:
         """Find the nearest other body (once a tick; the percepts read what was seen)."""
@@ -318,7 +319,7 @@ class Curve(CreatureKind):
 
     def seen(self, t: float) -> float:
         """Saliency of the nearest other body: 1 at touching, falling to 0 at ``sense``."""
-        return float(np.clip(1.0 - self.distance / self.spec.sense, 0.0, 1.0))
+        return min(max(1.0 - self.distance / self.spec.sense, 0.0), 1.0)
 
     def close(self, t: float) -> float:
         return 1.0 if self.distance <= self.spec.near else 0.0
@@ -353,7 +354,7 @@ class Curve(CreatureKind):
     def tick(self, t: float) -> None:
         dt, self._t = t - self._t, t
         step = self.spec.walk_speed * dt
-        self.x = float(np.clip(self.x + np.clip(self.target_x - self.x, -step, step), -self.spec.room, self.spec.room))
+        self.x = min(max(self.x + min(max(self.target_x - self.x, -step), step), -self.spec.room), self.spec.room)
         self.trail.follow(t)
         self.body.update(t)
         self._realised = (self.body.pose.positions if self.springs is None
