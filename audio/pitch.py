@@ -14,7 +14,9 @@ at ~30×, with all 51 test tones (MIDI 40–90) still within 0.3 semitone.
 
 from __future__ import annotations
 
-import librosa
+# by name: librosa's lazy parts load at import, not at a creature's first pitch track
+from librosa import hz_to_midi, midi_to_hz, yin
+from librosa.util import frame
 import numpy as np
 
 from audio.segment import SoundEvent
@@ -60,19 +62,19 @@ def note_events(
     y = np.asarray(event.samples, dtype=np.float32)
     if len(y) < frame_length:
         y = np.pad(y, (0, frame_length - len(y)))
-    f0 = librosa.yin(
+    f0 = yin(
         y,
-        fmin=float(librosa.midi_to_hz(midi_range[0])),
-        fmax=float(librosa.midi_to_hz(midi_range[1])),
+        fmin=float(midi_to_hz(midi_range[0])),
+        fmax=float(midi_to_hz(midi_range[1])),
         sr=sr,
         frame_length=frame_length,
         hop_length=hop_length,
         center=True,
     )
     half = frame_length // 2
-    frames = librosa.util.frame(np.pad(y, half), frame_length=frame_length, hop_length=hop_length)
+    frames = frame(np.pad(y, half), frame_length=frame_length, hop_length=hop_length)
     voiced = periodicity(frames, np.round(sr / f0).astype(int), window=half) >= voicing
-    midi = librosa.hz_to_midi(f0)
+    midi = hz_to_midi(f0)
     label = np.where(voiced, np.round(midi), -1).astype(int)
     centres = frames[half - hop_length // 2 : half + hop_length // 2]
     levels = 10.0 * np.log10(np.maximum(np.mean(centres**2, axis=0), 1e-10))

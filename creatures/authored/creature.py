@@ -24,6 +24,7 @@ import numpy as np
 from creatures.authored import registry
 from creatures.authored.aural import Aural
 from creatures.authored.check import ROOT
+from creatures.authored.scripted import Scripted
 from creatures.authored.ear import Ear
 from creatures.authored.skills import (CUTOFF, DAMPING, GAIN, PAN, PUSH, TENSION, VOICE_PARAMETERS, VOICE_REST,
                                        AdverbModel)
@@ -128,7 +129,7 @@ class Authored(CreatureKind):
             self.percept(name)
         # Drives fed by percepts or scripted arcs (the others need no work per tick).
         self._fed = [(self.motivation.index(name), [(self.percept(p), r) for p, r in d.inputs.items()],
-                      (d.arc, d.arc_repeat)) for name, d in spec.drives.items() if d.inputs or d.arc]
+                      _Arc(d.arc, d.arc_repeat)) for name, d in spec.drives.items() if d.inputs or d.arc]
         self.tuples = {name: self._tuple(name, tp) for name, tp in spec.tuples.items()}
         for group in spec.groups.values():
             for constraint in group.constraints:
@@ -341,7 +342,7 @@ class Authored(CreatureKind):
         breath) runs it as it starts and stops, so the change counts from that instant."""
         self.motivation.advance(t)
         for i, inputs, arc in self._fed:
-            self.motivation.inputs[i] = sum(r * p.evaluate(t) for p, r in inputs) + _arc(*arc, t)
+            self.motivation.inputs[i] = sum(r * p.evaluate(t) for p, r in inputs) + arc(t)
 
     def reporting(self, report: Callable[[float], None]) -> None:
         """Call ``report(t)`` with every values snapshot (a part's own events-log record)."""
@@ -697,12 +698,15 @@ class Authored(CreatureKind):
             self.leave_behind(name, gesture, restored=True)
 
 
-def _arc(points: list[tuple[float, float]], repeat: float | None, t: float) -> float:
-    """The scripted input rate at ``t``: linear between the points, held outside them; with
-    ``repeat``, ``t`` counts from the start of the current cycle."""
-    if not points:
-        return 0.0
-    if repeat is not None:
-        t = math.fmod(t, repeat)
-    times, rates = zip(*points)
-    return float(np.interp(t, times, rates))
+class _Arc:
+    """A drive's scripted input rate (``arc``): linear between the points, held outside them,
+    0 with none; with ``repeat``, ``t`` counts from the start of the current cycle."""
+
+    def __init__(self, points: list[tuple[float, float]], repeat: float | None) -> None:
+        self.script = Scripted(points) if points else None
+        self.repeat = repeat
+
+    def __call__(self, t: float) -> float:
+        if self.script is None:
+            return 0.0
+        return self.script(t if self.repeat is None else math.fmod(t, self.repeat))

@@ -15,12 +15,12 @@ from typing import TYPE_CHECKING, ClassVar, Literal
 from pydantic import BaseModel, Field, field_validator, model_validator
 
 from creatures.authored.ear import DENSITY_WINDOW
-import numpy as np
 
 from creatures import bounds
 from creatures.bounds import LONGEST_SECONDS, Seconds
 from creatures.kinds.model_population import MOST_MODELS, MOST_STATES
 from creatures.authored.registry import PERCEPTS, Params, Part
+from creatures.authored.scripted import Scripted
 from creatures.kinds.hearing_parts import SeedModel
 from creatures.behaviour.models.activation import ActivationModel
 from creatures.behaviour.models.fuzzy import AndPercept, NotPercept, OrPercept
@@ -1065,8 +1065,7 @@ class Script(PerceptPart):
     def build(self, params, creature, name):
         from creatures.runtime.world import INPUT
 
-        times = np.array([t for t, _ in params.points])
-        levels = np.array([level for _, level in params.points])
+        script = Scripted(params.points)
         sensed: list[float | None] = [None]
 
         def reading(note, source) -> bool:
@@ -1081,7 +1080,7 @@ class Script(PerceptPart):
 
         creature.on_reading(reading)
         creature.keep("percepts", name, lambda: sensed[0], restore)
-        return FunctionPercept(name, lambda t: sensed[0] if sensed[0] is not None else float(np.interp(t, times, levels)))
+        return FunctionPercept(name, lambda t: sensed[0] if sensed[0] is not None else script(t))
 
 
 class _SensedParams(Params):

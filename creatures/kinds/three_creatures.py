@@ -53,7 +53,9 @@ import functools
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Literal
 
-import librosa
+# by name: librosa's lazy parts load at import, not at a creature's first heard word
+from librosa import stft
+from librosa.filters import mel
 import numpy as np
 from pydantic import BaseModel, Field, field_validator
 
@@ -87,7 +89,7 @@ word said by two voices is a copy only 9 % of the time, and no threshold does be
 
 @functools.lru_cache(maxsize=4)
 def _mel(sample_rate: int, n_fft: int) -> np.ndarray:
-    return librosa.filters.mel(sr=sample_rate, n_fft=n_fft, n_mels=N_MELS)
+    return mel(sr=sample_rate, n_fft=n_fft, n_mels=N_MELS)
 
 
 def profile(samples: np.ndarray, sample_rate: int, *, n_fft: int = 512) -> np.ndarray:
@@ -101,7 +103,7 @@ def profile(samples: np.ndarray, sample_rate: int, *, n_fft: int = 512) -> np.nd
     y = np.asarray(samples, dtype=np.float32)
     if len(y) < n_fft:
         y = np.pad(y, (0, n_fft - len(y)))
-    power = np.abs(librosa.stft(y, n_fft=n_fft, hop_length=n_fft // 2, center=False)) ** 2
+    power = np.abs(stft(y, n_fft=n_fft, hop_length=n_fft // 2, center=False)) ** 2
     slope = np.diff(np.log10(_mel(sample_rate, n_fft) @ power.mean(axis=1) + 1e-10))
     return (slope - slope.mean()) / max(slope.std(), 1e-12)
 
