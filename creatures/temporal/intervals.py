@@ -10,7 +10,8 @@ Two halves:
   a Do-until that says *when it must end* or *holds the other open*. Seven relations are made
   directly (:func:`before`, :func:`meets`, :func:`overlaps`, :func:`starts`, :func:`during`,
   :func:`finishes`, :func:`equals`); the other six are their :attr:`Relation.inverse` with
-  the tuples swapped. A piece names them in a group's ``constraints``.
+  the tuples swapped. A piece names them in a group's ``constraints`` (installations/wren.toml:
+  its call meets its peck).
 * :func:`relation` classifies two ``(start, end)`` intervals. It is kept as the constraint
   machinery's own check, and only that: a constraint is built from percepts and tick order
   (a gate on the same tick only works if the gated tuple's group ticks later), so whether
