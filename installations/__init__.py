@@ -31,3 +31,12 @@ def path(name: str) -> Path:
     if not candidate.is_file():
         raise FileNotFoundError(f"no shipped installation {name!r}; choose from {names()}")
     return candidate
+
+
+SEEN_NOT_HEARD = {("sandstone", "ozymandias"): "the statue: the rocks' presence moves it; the rocks sing",
+                  ("void", "eddie"): "a diner character: visitors make him dance; the score plays for him",
+                  ("void", "elliot"): "a diner character", ("void", "earl"): "a diner character"}
+"""Creatures whose part in a piece is to be seen: they act by moving, not by sounding."""
+
+CUTTING = {("void", "camera"): "the camera creature: its acts are its cuts, which the score's balance follows"}
+"""Creatures whose acts are choices others perceive: each selection of a tuple is an act."""

@@ -14,6 +14,7 @@ import pytest
 import soundfile
 
 import installations
+from installations import CUTTING, SEEN_NOT_HEARD
 from creatures.events import read_events
 from creatures.runtime.offline import run_offline
 from creatures.runtime.schema import load_installation
@@ -28,13 +29,6 @@ measures 0.019 over 60 s; a silent one 0."""
 ACTS = ("note", "sing", "read")
 """Events that are a creature making sound: a MIDI note, a sung utterance, a part read back."""
 
-SEEN_NOT_HEARD = {("sandstone", "ozymandias"): "the statue: the rocks' presence moves it; the rocks sing",
-                  ("void", "eddie"): "a diner character: visitors make him dance; the score plays for him",
-                  ("void", "elliot"): "a diner character", ("void", "earl"): "a diner character"}
-"""Creatures whose part in a piece is to be seen: they act by moving, not by sounding."""
-
-CUTTING = {("void", "camera"): "the camera creature: its acts are its cuts, which the score's balance follows"}
-"""Creatures whose acts are choices others perceive: each selection of a tuple is an act."""
 
 ACTS_PER_MINUTE = 2.0
 """Least acts per minute of every creature: the sparsest shipped creature (sandstone's king,

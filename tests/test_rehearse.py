@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import installations
-from test_installations import CUTTING, SEEN_NOT_HEARD
+from installations import CUTTING, SEEN_NOT_HEARD
 
 from creatures.cli import main
 from creatures.config import ConfigError
