@@ -50,7 +50,7 @@ WEEK_TICK = 0.5
 
 def week_rows(names: list[str]) -> list[Row]:
     """Each named installation's gallery week: the longest silence of a creature that sounds
-    (not one whose part is to be seen or to cut: installations.SEEN_NOT_HEARD, CUTTING), as a
+    (not one whose acts make no sound: installations.UNHEARD), as a
     fraction of the opening day, target ≤ 1, and the hours without a crash."""
     rows = []
     for name in names:
@@ -60,8 +60,7 @@ def week_rows(names: list[str]) -> list[Row]:
         start = time.process_time()
         r = rehearse(inst, 7)
         cpu = time.process_time() - start
-        sounding = {who: s for who, s in r.longest_silence.items()
-                    if (name, who) not in {**installations.SEEN_NOT_HEARD, **installations.CUTTING}}
+        sounding = {who: s for who, s in r.longest_silence.items() if (name, who) not in installations.UNHEARD}
         who = max(sounding, key=sounding.get)
         rows.append(Row(f"{name}, a gallery week: longest silence ({who}, {sounding[who]:.0f} s) / opening day, "
                         f"{r.crash_free}/{len(r.hours)} hours crash-free, {cpu:.0f} s CPU",

@@ -40,3 +40,6 @@ SEEN_NOT_HEARD = {("sandstone", "ozymandias"): "the statue: the rocks' presence 
 
 CUTTING = {("void", "camera"): "the camera creature: its acts are its cuts, which the score's balance follows"}
 """Creatures whose acts are choices others perceive: each selection of a tuple is an act."""
+
+UNHEARD = {**SEEN_NOT_HEARD, **CUTTING}
+"""Creatures whose acts make no sound: a silence of theirs is no silence of the piece."""
