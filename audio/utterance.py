@@ -313,6 +313,19 @@ class UtterancePercept(Percept):
         }
 
 
+def aural_model_of(sounds: list[np.ndarray], samplerate: int) -> UtterancePercept:
+    """A tree whose memory is ``sounds``, one utterance each, in order: pre-selected samples
+    made into an aural model (three creatures' score computer flushed the creatures' memories
+    with "pre-selected samples"; a persistent aural model seeds a creature). Each is stamped
+    with the time it would end were the sounds played one after another from 0 s."""
+    tree = UtterancePercept()
+    ends = np.cumsum([len(s) for s in sounds]) / samplerate
+    for sound, end in zip(sounds, ends):
+        sound = np.ascontiguousarray(sound, dtype=np.float32)
+        tree.members.append(Utterance(sound, samplerate, cepstra(sound, samplerate), float(end)))
+    return tree
+
+
 def _by_medoid(members: list[Utterance]) -> list[Utterance]:
     d = distance_matrix([m.features for m in members])
     return [members[i] for i in np.argsort(d.sum(axis=1), kind="stable")]

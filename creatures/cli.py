@@ -572,6 +572,43 @@ def _state(args: argparse.Namespace) -> int:
     return 0
 
 
+def _aural_model_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("out", type=Path, help="the aural model to write (.json, and its .npz beside it)")
+    parser.add_argument("sounds", type=Path, nargs="+", help="sound files, one sample each, in memory order")
+    parser.add_argument("--rate", type=int, default=22050, choices=(16000, 22050, 44100, 48000),
+                        help="sample rate of the creatures that will hear and sing them (their [audio] sample_rate)")
+    parser.add_argument("--top-db", type=float, default=40.0,
+                        help="trim each file's leading and trailing sound quieter than its peak by this (dB; 0: keep all)")
+
+
+@command("aural-model", "make an aural model from sound files: pre-selected samples to seed a creature's memory "
+                        "or to flush it by a score (seed_model, [[creature.score]])", _aural_model_options)
+def _aural_model(args: argparse.Namespace) -> int:
+    from librosa.effects import trim
+
+    import numpy as np
+
+    from audio.sources import AudioFileError, load_audio
+    from audio.utterance import aural_model_of, save_aural_model
+
+    if args.out.suffix != ".json":
+        print(f"creatures: {args.out}: an aural model is written as a .json file (and its .npz)", file=sys.stderr)
+        return 2
+    try:
+        sounds = [load_audio(path, samplerate=args.rate) for path in args.sounds]
+        if args.top_db > 0:
+            sounds = [trim(sound, top_db=args.top_db)[0] for sound in sounds]
+        silent = [str(path) for path, sound in zip(args.sounds, sounds) if not np.any(sound)]
+        if silent:
+            raise AudioFileError(f"{', '.join(silent)}: silent: nothing to remember")
+        save_aural_model(aural_model_of(sounds, args.rate), args.out)
+    except (AudioFileError, OSError) as exc:
+        print(f"creatures: {exc}", file=sys.stderr)
+        return 2
+    print(f"{args.out}: {len(sounds)} samples, {sum(map(len, sounds)) / args.rate:.2f} s")
+    return 0
+
+
 @command("config-docs", "print the reference of every config key (docs/config.md)", lambda parser: None)
 def _config_docs(_: argparse.Namespace) -> int:
     from creatures.runtime.docs import config_reference

@@ -40,6 +40,9 @@ def recording(tmp_path_factory: pytest.TempPathFactory) -> tuple[object, np.ndar
 
 def answered(name: str, wav: object, out: object, **audio: object) -> list[int]:
     inst = load_installation(installation_path(name))
+    for spec in inst.specs:  # three creatures' score flushes spoken words in: not what they heard
+        if spec.kind == "three_creatures":
+            spec.score = []
     for key, value in audio.items():
         setattr(inst.settings.audio, key, value)
     inst.settings.output.report = False

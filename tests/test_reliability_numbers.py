@@ -128,6 +128,27 @@ def test_a_seed_model_that_is_not_an_aural_model_is_a_config_error(tmp_path):
         assert caught.value.line == _line_of(path, key) and caught.value.key == "creature.0.percepts.any sound.seed_model"
 
 
+def test_a_seed_model_is_found_beside_the_config_that_names_it(tmp_path, monkeypatch):
+    """Paths in a config are relative to the config file, not to where the show was started."""
+    import shutil
+
+    from creatures.clock import SimulatedClock
+    from creatures.events import EventLog
+    from creatures.runtime.session import Session
+    from midi.sinks import MemorySink
+
+    (tmp_path / "words").mkdir()
+    for suffix in (".json", ".npz"):
+        shutil.copy(installations.path("three_creatures").parent / "three_creatures" / f"score-a{suffix}",
+                    tmp_path / "words" / f"model{suffix}")
+    path = _config(tmp_path, "soundcreatures", 'percepts."any sound".seed_model', '"words/model.json"')
+    monkeypatch.chdir("/")
+    installation = load_installation(path)
+    creature = Session(installation, SimulatedClock(), EventLog(), MemorySink()).creatures[0]
+    tree = creature.percept("any sound")
+    assert len(tree.members) == 4
+
+
 @pytest.mark.parametrize("nesting", ["[" * 1000 + "]" * 1000, "{a = " * 1000 + "1" + "}" * 1000, "[" * 20 + "]" * 20])
 def test_deeply_nested_toml_is_a_config_error_not_a_recursion_error(tmp_path, nesting):
     path = tmp_path / "deep.toml"

@@ -15,12 +15,13 @@ import soundfile
 
 from audio.cepstrum import cepstra
 from audio.formants import word
-from audio.utterance import Utterance, UtterancePercept, save_aural_model
+from audio.utterance import Utterance, UtterancePercept, load_aural_model, save_aural_model
 from audio_fixtures import SR, warm_librosa  # noqa: F401
 from creatures.config import ConfigError
 from creatures.events import read_events
 from creatures.runtime.offline import run_offline
 from creatures.runtime.schema import load_installation
+from installations import path as installation_path
 from test_kind_three import performance
 
 pytestmark = pytest.mark.usefixtures("warm_librosa")
@@ -123,3 +124,69 @@ def test_a_bad_score_is_a_config_error_with_file_and_line(scored, tmp_path, edit
     run = subprocess.run([sys.executable, "-m", "creatures.cli", "offline", str(config), "--out", str(tmp_path / "out")],
                          capture_output=True, text=True)
     assert run.returncode == 2 and "score" in run.stderr and "Traceback" not in run.stderr
+
+
+# -- the shipped piece's score (installations/three_creatures.toml) -------------------------
+
+SHIPPED = installation_path("three_creatures").parent / "three_creatures"
+
+
+def _model_times(name: str) -> set[float]:
+    return {u.time for u in load_aural_model(SHIPPED / name).members}
+
+
+@pytest.fixture(scope="module")
+def shipped(tmp_path_factory) -> list[dict]:
+    out = tmp_path_factory.mktemp("shipped") / "out"
+    run_offline(load_installation(installation_path("three_creatures")), out)
+    return read_events(out / "events.jsonl")
+
+
+def test_the_shipped_score_flushes_each_creature_with_its_words_and_they_sing_them(shipped):
+    """At 12 s each creature is given its own four spoken words, at 24 s the other's; from
+    the first flush on, each sings words of the score the performer moved it to sing."""
+    a, b = _model_times("score-a.json"), _model_times("score-b.json")
+    given = {"left": (a, b), "right": (b, a)}
+    for name, models in given.items():
+        flushes = [e for e in shipped if e["kind"] == "flush" and e["source"] == "score" and e["creature"] == name]
+        assert [round(e["t"], 2) for e in flushes] == [12.0, 24.0]
+        for flush, model in zip(flushes, models):
+            assert model <= {time for origin, time in flush["memory"] if origin == "score"}
+        sung = [e for e in shipped if e["kind"] == "sing" and e["creature"] == name and e["origin"] == "score"]
+        assert sung, f"{name} never sang the score"
+        assert all(e["start"] >= 12.0 and e["heard_at"] in models[0] | (models[1] if e["start"] >= 24 else set())
+                   for e in sung)
+
+
+def test_the_shipped_score_models_are_what_aural_model_makes_of_the_shipped_words(tmp_path):
+    """The models are reproducible from the samples by the command the config's header gives."""
+    for model, prefix in (("score-a.json", "a-"), ("score-b.json", "b-")):
+        out = tmp_path / model
+        run = subprocess.run([sys.executable, "-m", "creatures.cli", "aural-model", str(out),
+                              *map(str, sorted(SHIPPED.glob(f"{prefix}*.wav")))], capture_output=True, text=True)
+        assert run.returncode == 0, run.stderr
+        made, shipped_model = load_aural_model(out), load_aural_model(SHIPPED / model)
+        assert [u.time for u in made.members] == [u.time for u in shipped_model.members]
+        for mine, theirs in zip(made.members, shipped_model.members):
+            np.testing.assert_array_equal(mine.samples, theirs.samples)
+            np.testing.assert_allclose(mine.features, theirs.features, atol=1e-9)
+
+
+def test_the_score_model_is_found_beside_the_config_from_any_working_directory(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    inst = load_installation(installation_path("three_creatures"))
+    assert [Path(flush.model) for flush in inst.specs[0].score] == [SHIPPED / "score-a.json", SHIPPED / "score-b.json"]
+
+
+@pytest.mark.parametrize("arguments, message", [
+    (["model.txt", "{wav}"], "written as a .json file"),
+    (["model.json", "missing.wav"], "missing.wav: no such sound file"),
+    (["model.json", "{silent}"], "silent.wav: silent: nothing to remember"),
+])
+def test_aural_model_refuses_bad_input_with_a_clear_error_and_writes_nothing(tmp_path, arguments, message):
+    soundfile.write(tmp_path / "silent.wav", np.zeros(SR, np.float32), SR)
+    filled = [a.format(wav=SHIPPED / "a-again.wav", silent=tmp_path / "silent.wav") for a in arguments]
+    run = subprocess.run([sys.executable, "-m", "creatures.cli", "aural-model", *filled],
+                         capture_output=True, text=True, cwd=tmp_path)
+    assert run.returncode == 2 and message in run.stderr and "Traceback" not in run.stderr
+    assert not list(tmp_path.glob("model.*"))

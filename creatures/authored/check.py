@@ -139,6 +139,8 @@ def _percepts(c: _Checker) -> None:
         if name == ROOT:
             raise c.error(loc, f"{ROOT!r} is the root of every percept tree; give this percept another name")
         cls, params = c.part(PERCEPTS, p.type, p.params(), loc)
+        if getattr(params, "seed_model", None) is not None:
+            _seed_model(c, p, (*loc, "seed_model"))
         _needs(c, cls, (*loc, "type"))
         edges[name] = c.references(cls, params, loc)
         c.need("percepts", p.parent, (*loc, "parent"))
@@ -146,6 +148,18 @@ def _percepts(c: _Checker) -> None:
     _acyclic(c, edges, "percepts", "a percept cannot be defined by itself")
     for k, name in enumerate(c.spec.report_percepts):
         c.need("percepts", name, ("report_percepts", k))
+
+
+def _seed_model(c: _Checker, percept, loc: tuple) -> None:
+    """An aural model named by a percept: relative to the file that wrote the key, loaded now
+    (a wrong file is a config error at its key), kept absolute for the build."""
+    from creatures.kinds.hearing_parts import resolve_aural_model
+
+    written = c.where.get((*c.prefix, *loc), (c.file, 0))[0]
+    try:
+        percept.model_extra["seed_model"] = resolve_aural_model(percept.model_extra["seed_model"], Path(written).parent)
+    except ValueError as exc:
+        raise c.error(loc, str(exc)) from None
 
 
 def _sung_keys(c: _Checker) -> None:

@@ -721,8 +721,8 @@ class Sees(PerceptPart):
         return FunctionPercept(name, lambda t: min(_stage(creature).sees(creature.name, params.of) / params.full, 1.0))
 # -- sounds heard, as utterance classes (thesis: "soundcreatures", "aural models") -----------
 class _UtteranceParams(Params):
-    seed_model: SeedModel = Field(None, description="an aural model (save_aural_model JSON, absolute or relative "
-                                                    "to the working directory) to start from instead of an "
+    seed_model: SeedModel = Field(None, description="an aural model (save_aural_model JSON, or `creatures aural-model` "
+                                                    "from sound files; relative to the config) to start from instead of an "
                                                     "empty repertoire (thesis: persistent aural models seed "
                                                     "a creature)")
     nearest: bool = Field(False, description="each sound is heard as one class: a class is salient only while the "

@@ -88,27 +88,34 @@ class HearingSpec(BaseModel):
 
 
 def _aural_model(path: str | None) -> str | None:
-    """``path`` if it names an aural model that loads, read now so that a wrong file
-    (``/etc/passwd``) is a config error at its key, not a crash when the creature is built."""
-    if path is None:
-        return None
-    if not Path(path).is_file():
-        raise ValueError(f"file not found: {path}")
-    if Path(path).suffix != ".json":
+    """``path`` if it names an aural model file (``.json``). Whether it exists and loads is
+    asked by :func:`resolve_aural_model` once the loader knows the directory of the config
+    file that wrote the key (paths in a config are relative to that file, as every path is)."""
+    if path is not None and Path(path).suffix != ".json":
         raise ValueError(f"not an aural model (save_aural_model writes a .json file): {path}")
-    try:
-        load_aural_model(path)
-    except (StateFileError, ValueError, ArithmeticError) as exc:
-        raise ValueError(f"not a loadable aural model ({exc})") from None
     return path
 
 
+def resolve_aural_model(path: str, base: Path) -> str:
+    """``path`` (relative to ``base``, the directory of the file that names it) made absolute,
+    if it names an aural model that loads: read now, so that a wrong file (``/etc/passwd``) is
+    a config error at its key, not a crash when the creature is built. Raises ValueError."""
+    resolved = (base / path).resolve()
+    if not resolved.is_file():
+        raise ValueError(f"file not found: {path}" + ("" if Path(path).is_absolute() else f" (looked in {base})"))
+    try:
+        load_aural_model(resolved)
+    except (StateFileError, ValueError, ArithmeticError) as exc:
+        raise ValueError(f"not a loadable aural model ({exc})") from None
+    return str(resolved)
+
+
 SeedModel = Annotated[str | None, AfterValidator(_aural_model)]
+"""A config key naming an aural model (:func:`audio.utterance.save_aural_model`'s JSON,
+absolute or relative to the config file that names it) to seed a creature with: "persistent
+aural models … offer an ability to seed the creatures with musical material" (soundcreatures)."""
 AuralModelFile = Annotated[str, AfterValidator(_aural_model)]
 """A required key naming an aural model (as :data:`SeedModel`, never absent)."""
-"""A config key naming an aural model (:func:`audio.utterance.save_aural_model`'s JSON,
-absolute or relative to the working directory) to seed a creature with: "persistent aural
-models … offer an ability to seed the creatures with musical material" (soundcreatures)."""
 
 
 class Ear:

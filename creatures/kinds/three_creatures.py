@@ -51,6 +51,7 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
 # by name: librosa's lazy parts load at import, not at a creature's first heard word
@@ -64,8 +65,10 @@ from creatures.behaviour.motivation import Motivation
 from creatures.kinds import register
 from creatures import bounds
 from creatures.bounds import FINITE, LARGEST_RATE, LONGEST_SECONDS, Seconds
+from creatures.config import config_error
 from creatures.kinds.base import CreatureKind, CreatureSpec
-from creatures.kinds.hearing_parts import AuralModelFile, Ear, HearingSpec, Mouth, MouthSpec, SeedModel, pack_samples, utterance_from_state
+from creatures.kinds.hearing_parts import (AuralModelFile, Ear, HearingSpec, Mouth, MouthSpec, SeedModel, pack_samples,
+                                              resolve_aural_model, utterance_from_state)
 
 if TYPE_CHECKING:
     from creatures.runtime.world import World
@@ -133,8 +136,8 @@ class ScoreFlush(BaseModel):
 
     model_config = FINITE
     at: Seconds = Field(description="clock time of the flush, s")
-    model: AuralModelFile = Field(description="aural model (save_aural_model JSON; absolute or relative to the "
-                                         "working directory) holding the pre-selected samples")
+    model: AuralModelFile = Field(description="aural model (save_aural_model JSON, or `creatures aural-model` "
+                                              "from sound files; relative to the config) holding the pre-selected samples")
     slots: int = Field(1, ge=1, le=MOST_MEMORIES, description="memory slots flushed (the oldest memories "
                                                               "give way); at most the model's samples are used")
 
@@ -149,8 +152,8 @@ class ThreeCreaturesSpec(CreatureSpec):
     urge_decay: float = Field(0.05, ge=0, le=LARGEST_RATE, description="rate per second at which the urge to sing fades")
     flush_every: float = Field(15.0, gt=0, le=LONGEST_SECONDS, description="seconds between the score computer's flushes")
     flush_size: int = Field(2, ge=0, le=256, description="memory slots re-seeded from the input per flush")
-    seed_model: SeedModel = Field(None, description="aural model (save_aural_model JSON; absolute or "
-                                                    "relative to the working directory) seeding the memory")
+    seed_model: SeedModel = Field(None, description="aural model (save_aural_model JSON; relative to the "
+                                                    "config) seeding the memory")
     in_kind: float = Field(1.0, ge=0, le=100, description="how strongly a song answers in kind: memories weigh "
                                                    "exp(in_kind × correlation with the sound just heard)")
     latency: tuple[Seconds, Seconds] = Field((0.3, 1.5), description="range of seconds between being moved "
@@ -159,6 +162,17 @@ class ThreeCreaturesSpec(CreatureSpec):
                                     "flushes, in time order")
     hearing: HearingSpec = HearingSpec(hold=0.05)
     mouth: MouthSpec = MouthSpec()
+
+    def check_references(self, file: Path, where: dict, prefix: tuple) -> None:
+        """Tie the aural models to the directory of the file that names each (and load them)."""
+        keys = [(("seed_model",), self, "seed_model")] if self.seed_model is not None else []
+        keys += [(("score", i, "model"), flush, "model") for i, flush in enumerate(self.score)]
+        for key, holder, attr in keys:
+            at = (*prefix, *key)
+            try:
+                setattr(holder, attr, resolve_aural_model(getattr(holder, attr), where.get(at, (file, 0))[0].parent))
+            except ValueError as exc:
+                raise config_error(file, where, at, str(exc)) from None
 
     @field_validator("score")
     @classmethod
