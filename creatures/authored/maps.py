@@ -22,9 +22,10 @@ The percept type ``maps`` (:mod:`creatures.authored.percepts`) builds one :class
   music-pose mapping" (:meth:`MusicPoseMaps.node_for`).
 
 Its salience is how familiar the music is to the map: ``exp(-e)`` of the running mean
-quantisation error ``e`` of the notes heard (1 for music the map knows exactly). Both errors
-are logged in ``maps`` events at every values snapshot, and the maps are saved with the
-creature's state (JSON lists, checked on reload).
+quantisation error ``e`` of the notes heard (1 for music the map knows exactly). Both errors,
+and how far heard notes moved each map (``moved``, ``poses_moved``), are logged in ``maps``
+events at every values snapshot, and the maps are saved with the creature's state (JSON
+lists, checked on reload).
 """
 
 from __future__ import annotations
@@ -86,7 +87,9 @@ class MusicPoseMaps(Percept):
         self.last: NoteEvent | None = None
         self.heard = 0
         self.music_error = self.pose_error = 0.0  # running means (exponential over ERROR_MEMORY)
+        self.posed = 0  # ticks the background has trained the pose map (its error's mean starts at the first)
         self.moved = 0.0  # how far the music map moved in all
+        self.poses_moved = 0.0  # how far heard notes moved the pose map in all (not the background)
         creature.on_hear(self.hear)
         creature.each_tick(self.tick)
         creature.reporting(self.report)
@@ -110,13 +113,14 @@ class MusicPoseMaps(Percept):
         self.music_error = self._mean(self.music_error, error)
         rate = self.params.rate * note.velocity / 127.0
         self.moved += self.music.train(x, rate, at)
-        self.poses.train(self.creature.body.pose.rotations, rate, at)
+        self.poses_moved += self.poses.train(self.creature.body.pose.rotations, rate, at)
 
     def tick(self, t: float) -> None:
         """The background: the body's pose now trains the pose map at its own winner."""
         rotations = self.creature.body.pose.rotations
         at, error = self.poses.winner(rotations)
-        self.pose_error += (error - self.pose_error) / ERROR_MEMORY
+        self.posed += 1
+        self.pose_error += (error - self.pose_error) / min(self.posed, ERROR_MEMORY)
         self.poses.train(rotations, self.params.background, at)
 
     def node_for(self, pitch: int, before: int | None, gap: float) -> int:
@@ -128,7 +132,7 @@ class MusicPoseMaps(Percept):
     def report(self, t: float) -> None:
         self.creature.world.emit("maps", creature=self.creature.name, percept=self.name, notes=self.heard,
                                  music_error=round(self.music_error, 6), pose_error=round(self.pose_error, 6),
-                                 moved=round(self.moved, 6))
+                                 moved=round(self.moved, 6), poses_moved=round(self.poses_moved, 6))
 
     def state(self) -> dict[str, Any]:
         return {"music": self.music.vectors.tolist(), "poses": self.poses.rotations.tolist(),
@@ -153,3 +157,4 @@ class MusicPoseMaps(Percept):
         self.heard = bounds.count(state.get("heard", 0), f"{self.name}.heard")
         self.music_error = bounds.number(state.get("music error", 0.0), f"{self.name}.music error", low=0)
         self.pose_error = bounds.number(state.get("pose error", 0.0), f"{self.name}.pose error", low=0)
+        self.posed = ERROR_MEMORY if "pose error" in state else 0  # a saved mean goes on as one
