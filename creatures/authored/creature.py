@@ -405,6 +405,10 @@ class Authored(CreatureKind):
         if self.aural is not None:
             self.aural.listen(t, block, sample_rate)
 
+    @property
+    def hears_audio(self) -> bool:
+        return self.aural is not None
+
     def played(self, note: NoteEvent) -> None:
         self.ear.played.append(note)
         self._impulse(self.now(), "on_played")

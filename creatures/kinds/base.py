@@ -141,6 +141,12 @@ class CreatureKind(ABC):
     def listen(self, t: float, block: np.ndarray, sample_rate: int) -> None:
         """A block of audio input (mono float32) ending at clock time ``t``."""
 
+    @property
+    def hears_audio(self) -> bool:
+        """Whether :meth:`listen` takes anything in: a room gathers an ear's block of sound
+        across it (creatures/room/air.py) only for the creatures that listen."""
+        return type(self).listen is not CreatureKind.listen
+
     @abstractmethod
     def tick(self, t: float) -> None:
         """Perceive, select actions, move: one behaviour tick at clock time ``t``."""

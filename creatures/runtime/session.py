@@ -29,7 +29,8 @@ from creatures.runtime.cc_sources import Reader, parse, reader
 from creatures.runtime.input_map import InputRouter
 from creatures.runtime.pulse import HeardPulse
 from creatures.runtime.schema import LoadedInstallation
-from creatures.runtime.world import World
+from creatures.runtime.world import INPUT, World
+from creatures.room.air import RoomAir
 from creatures.room.stage import Stage
 from midi.channel_setup import CcStream, channel_setup
 from midi.scheduler import NoteScheduler
@@ -82,6 +83,14 @@ class Session:
         self._voices = np.zeros((len(self.creatures), block))
         self._room = np.zeros(0)
         self.air = settings.audio.air
+        self.room_air: RoomAir | None = None
+        """Sound across the room (a ``[room]``): each listening ear hears the input and the
+        voices by distance, late by distance/343 s, not the same mix as every other ear."""
+        if self.stage is not None:
+            room = settings.room
+            self.room_air = RoomAir(self.stage.law, delay=room.hearing.delay, sample_rate=self.sample_rate,
+                                    voices=len(self.creatures), diagonal=math.hypot(room.width, room.depth),
+                                    longest_block=block)
         self.transcribe = transcribe
         self.transcribe_look = LIVE  # live: ≤ 60 ms from an attack to its note; offline looks further
         self._transcriber: Transcriber | None = None
@@ -104,14 +113,17 @@ class Session:
             gains = np.fromiter((creature.spec.gain for creature in self.creatures), float, len(self.creatures))
             self.mixer.place_all(gains[:, None] * self.stage.speaker_gains())  # spec.gain: the console may set it
         self.world.deliver(t)
-        heard = self._ears(recorded, frames)
-        # hears_input = false: asked each tick, since the console or a zone may set it in a run
-        deaf = recorded is not None and not all(creature.spec.hears_input for creature in self.creatures)
-        room = self._ears(None, frames) if deaf else heard
-        for creature in self.creatures:
-            block = heard if creature.spec.hears_input else room
-            if block is not None:
-                creature.listen(t, block, self.sample_rate)
+        if self.room_air is not None:
+            self._listen_in_room(t, recorded, frames)
+        else:
+            heard = self._ears(recorded, frames)
+            # hears_input = false: asked each tick, since the console or a zone may set it in a run
+            deaf = recorded is not None and not all(creature.spec.hears_input for creature in self.creatures)
+            room = self._ears(None, frames) if deaf else heard
+            for creature in self.creatures:
+                block = heard if creature.spec.hears_input else room
+                if block is not None:
+                    creature.listen(t, block, self.sample_rate)
         deciding = None if self.stage is None else self.stage.deciding(self.ticks, self.inst.settings.tick)
         # far creatures of a room with level of detail decide less often; a kind ticks each run
         # of its creatures together (an authored crowd shares its selection's arrays)
@@ -131,7 +143,9 @@ class Session:
             creature.sound(voices[i], self.sample_rate)
             if self.stage is None and (pan := creature.pan()) != self.mixer.pans[i]:  # a skill's voice.pan
                 self.mixer.set(i, pan=pan)
-        if self.air:
+        if self.room_air is not None and self.air:
+            self.room_air.hear_voices(voices)
+        elif self.air:
             self._room = voices.T @ self.mixer.gains
         return self.mixer.mix(voices)
 
@@ -172,6 +186,19 @@ class Session:
             self._transcriber.skip(jump)
         for note in self._transcriber.feed(recorded):
             self.world.inject(note, via="audio")
+
+    def _listen_in_room(self, t: float, recorded: np.ndarray | None, frames: int) -> None:
+        """Each creature that listens hears its own block of the room's sound (RoomAir)."""
+        self.room_air.hear_input(recorded, frames)
+        if recorded is None and not self.air:
+            return  # nothing sounds in the room's air: no ear is fed, as without a room
+        listeners = np.array([i for i, creature in enumerate(self.creatures) if creature.hears_audio], dtype=np.intp)
+        hears_input = np.array([recorded is not None and self.creatures[i].spec.hears_input for i in listeners], float)
+        gains = np.fromiter((creature.spec.gain for creature in self.creatures), float, len(self.creatures))
+        blocks = self.room_air.ears(listeners, self.stage.v.pos, gains, self.stage.source_at(INPUT),
+                                    hears_input, frames, voices=self.air)
+        for i, block in zip(listeners.tolist(), blocks):
+            self.creatures[i].listen(t, block, self.sample_rate)
 
     def _ears(self, recorded: np.ndarray | None, frames: int) -> np.ndarray | None:
         """The input, plus the room's sound (every voice of the previous tick) with air on."""
