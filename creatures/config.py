@@ -12,6 +12,7 @@ import difflib
 import re
 import stat
 import tomllib
+import typing
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -149,17 +150,24 @@ def _too_deep(node: Any, loc: tuple[str | int, ...]) -> tuple[str | int, ...] | 
 
 
 def _fields_at(model: type[BaseModel], loc: tuple[str | int, ...]) -> list[str]:
-    """Valid key names at the table that holds ``loc``'s last key (for suggestions)."""
+    """Valid key names at the table that holds ``loc``'s last key (for suggestions). A table
+    of named tables (``dict[str, Model]``: ``[creature.drives.boredom]``) has names of the
+    author's choosing at its first level, so that step of ``loc`` is passed over."""
     current: Any = model
+    named = False  # the next key is a name in a table of named tables
     for part in loc[:-1]:
         if isinstance(part, int):
+            continue
+        if named:
+            named = False
             continue
         fields = getattr(current, "model_fields", None)
         if not fields or part not in fields:
             return []
         annotation = fields[part].annotation
-        args = getattr(annotation, "__args__", ()) or ()
-        args = (*args, *(a for arg in args for a in getattr(arg, "__args__", ())))  # list[Model] | None
+        args = typing.get_args(annotation)
+        args = (*args, *(a for arg in args for a in typing.get_args(arg)))  # list[Model] | None
+        named = any(typing.get_origin(a) is dict for a in (annotation, *args))
         candidates = [annotation, *args]
         current = next((c for c in candidates if isinstance(c, type) and issubclass(c, BaseModel)), None)
         if current is None:
@@ -177,6 +185,8 @@ def _data_path(data: Any, loc: tuple[str | int, ...]) -> tuple[str | int, ...]:
     path: list[str | int] = []
     node = data
     for part in loc:
+        if not isinstance(node, (dict, list)):
+            continue  # below a value the author wrote: the names of pydantic's own type branches
         if isinstance(part, str) and "[" in part and not (isinstance(node, dict) and part in node):
             continue
         if isinstance(node, dict) and part in node:
@@ -209,9 +219,12 @@ def validate(
         # union adds its tag to pydantic's).
         choices = _fields_at(model, tuple(error["loc"])) or _fields_at(model, loc[len(prefix):])
         message = error["msg"].removeprefix("Value error, ")  # a validator's own sentence, as it wrote it
+        got = error.get("input") if error["type"] not in ("missing", "extra_forbidden") else None
+        if error["type"] == "list_type" and isinstance(got, dict):  # [creature] for [[creature]]
+            header = ".".join(str(part) for part in loc if isinstance(part, str))
+            message, got = f"a list of tables: write [[{header}]] (two brackets) before each one", None
         raise config_error(file, where, loc, message if error["type"] != "extra_forbidden" else None,
-                           choices=choices,
-                           got=error.get("input") if error["type"] not in ("missing", "extra_forbidden") else None) from None
+                           choices=choices, got=got) from None
 
 
 def config_error(

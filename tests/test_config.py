@@ -118,3 +118,28 @@ def test_a_fifo_as_extends_is_said_as_a_fifo_not_as_missing(tmp_path):
         load_config(child, Installation)
     assert (err.value.key, err.value.line) == ("extends", 1)
     assert "'base.toml' is a FIFO (named pipe), not a regular file" in str(err.value)
+
+
+@pytest.mark.parametrize("edit, key, message", [
+    (("growth = 0.05", "growht = 0.05"), "creature.0.drives.boredom.growht", "did you mean 'growth'"),
+    (('trigger = "bored"', 'triger = "bored"'), "creature.0.tuples.sing.triger", "did you mean 'trigger'"),
+    (("alpha = 0.0", "alph = 0.0"), "creature.0.groups.main.alph", "did you mean 'alpha'"),
+    (("until = { pulse = 2 }", "until = { puls = 2 }"), "creature.0.tuples.rest.until.puls", "did you mean 'pulse'"),
+    (("value = 1.0", 'value = "high"'), "creature.0.tuples.sing.value", "valid number"),
+    (("[[creature]]", "[creature]"), "creature", "write [[creature]] (two brackets)"),
+])
+def test_a_typo_in_a_starting_piece_is_named_at_its_key_with_the_nearest_valid_one(tmp_path, edit, key, message):
+    """The mistakes a new author makes in `creatures new`'s piece: a key inside a named table
+    (a drive, a tuple, a group) gets its suggestion like any other, the key path holds only
+    keys the author wrote, and a table written for a list of tables says so (not a dump)."""
+    from creatures.authored.scaffold import new_installation
+    from creatures.runtime.schema import load_installation
+
+    path = new_installation("piece", tmp_path)
+    text = path.read_text()
+    assert edit[0] in text
+    path.write_text(text.replace(edit[0], edit[1], 1))
+    with pytest.raises(ConfigError) as err:
+        load_installation(path)
+    assert err.value.key == key and message in str(err.value)
+    assert err.value.line is not None and len(str(err.value)) < 300
