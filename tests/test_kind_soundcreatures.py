@@ -273,3 +273,25 @@ def test_a_mouth_sings_a_new_sound_whose_samples_reuse_a_freed_ones_address():
     out = np.zeros(4096)
     mouth.render(out, sr)
     assert np.abs(out).max() < 1e-6  # it sang the silence it was given, not the old loud sound
+
+
+def test_a_sound_made_at_another_rate_is_sung_at_its_own_pitch_and_length():
+    """An aural model made at 44.1 kHz (`creatures aural-model --rate 44100`) seeding a piece
+    at 22.05 kHz: its samples are resampled into the mouth, so a 440 Hz half second is sung
+    as 440 Hz for half a second (played as they were, it was 220 Hz for a whole second)."""
+    from audio.self_hearing import SingingState
+    from audio.utterance import Utterance
+    from creatures.kinds.hearing_parts import Mouth, MouthSpec
+
+    made, piece = 44100, 22050
+    tone = (0.5 * np.sin(2 * np.pi * 440.0 * np.arange(made // 2) / made)).astype(np.float32)
+    mouth = Mouth(MouthSpec(), SingingState())
+    until = mouth.sing(0.0, Utterance(tone, made, np.zeros((1, 13)), 0.0))
+    assert until == 0.5
+    out = np.zeros((piece // 512 + 1) * 512)
+    for i in range(0, len(out), 512):
+        mouth.render(out[i:i + 512], piece)
+    loud = np.flatnonzero(np.abs(out) > 0.05)
+    assert abs(loud[-1] / piece - 0.5) < 0.02
+    spectrum = np.abs(np.fft.rfft(out[: piece // 2]))
+    assert abs(np.argmax(spectrum) * piece / (piece // 2) - 440.0) < 4.0

@@ -39,6 +39,7 @@ from pathlib import Path
 from typing import Annotated, Any, Callable
 
 import numpy as np
+import soxr
 from pydantic import AfterValidator, BaseModel, Field, model_validator
 
 from audio.cepstrum import cepstra
@@ -237,7 +238,7 @@ class Mouth:
         # new utterance there played an old one's slot, a different song in a process that had
         # freed other arrays first)
         self._index: dict[int, tuple[np.ndarray, int]] = {}
-        self._queue: list[tuple[np.ndarray, float]] = []
+        self._queue: list[tuple[np.ndarray, float, int]] = []  # samples, gain, their rate
         self.since = self.until = -np.inf  # clock times the latest song began and ends
         self._idle = False  # a whole block rendered with nothing playing
 
@@ -251,7 +252,7 @@ class Mouth:
         if slot is not None:
             self.sampler.play(slot, gain=gain * self.spec.gain)
         else:
-            self._queue.append((utterance.samples, gain * self.spec.gain))
+            self._queue.append((utterance.samples, gain * self.spec.gain, utterance.samplerate))
         return self.until
 
     def _slot(self, samples: np.ndarray) -> int | None:
@@ -281,10 +282,10 @@ class Mouth:
             out[:] = 0.0  # nothing sounding and the filter's tail has died: skip the filter
             return
         self._idle = not self._queue and not self.sampler.playing
-        for samples, gain in self._queue:
+        for samples, gain, rate in self._queue:
             slot = self._slot(samples)
-            if slot is None:
-                slot = self.sampler.add(samples)
+            if slot is None:  # a sound heard (or a model made) at another rate sounds at its own pitch
+                slot = self.sampler.add(samples if rate == sample_rate else soxr.resample(samples, rate, sample_rate))
                 self._index[id(samples)] = (samples, slot)
             self.sampler.play(slot, gain=gain)
         self._queue.clear()
