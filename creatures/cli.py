@@ -36,6 +36,22 @@ def _seconds(longest: float, what: str = "a number of seconds") -> Callable[[str
     return parse
 
 
+def _bounded(low: float, high: float) -> Callable[[str], float]:
+    """An argparse ``type``: a finite number in [``low``, ``high``]; anything else is argparse's
+    usage error, exit 2, naming the option."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = float("nan")
+        if not low <= value <= high:  # NaN fails both
+            raise argparse.ArgumentTypeError(f"{text!r} is not a number in [{low:g}, {high:g}]")
+        return value
+
+    return parse
+
+
 def command(name: str, help_text: str, configure: Configure) -> Callable[[Run], Run]:
     """Register ``fn(args) -> exit code`` as ``creatures NAME``."""
 
@@ -577,8 +593,10 @@ def _aural_model_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("sounds", type=Path, nargs="+", help="sound files, one sample each, in memory order")
     parser.add_argument("--rate", type=int, default=22050, choices=(16000, 22050, 44100, 48000),
                         help="sample rate of the creatures that will hear and sing them (their [audio] sample_rate)")
-    parser.add_argument("--top-db", type=float, default=40.0,
-                        help="trim each file's leading and trailing sound quieter than its peak by this (dB; 0: keep all)")
+    parser.add_argument("--top-db", type=_bounded(0.0, 120.0), default=40.0,
+                        help="trim each file's leading and trailing sound quieter than its peak by this (dB, "
+                             "0–120; 0: keep all)")
+    parser.add_argument("--force", action="store_true", help="replace OUT if it exists")
 
 
 @command("aural-model", "make an aural model from sound files: pre-selected samples to seed a creature's memory "
@@ -591,8 +609,12 @@ def _aural_model(args: argparse.Namespace) -> int:
     from audio.sources import AudioFileError, load_audio
     from audio.utterance import aural_model_of, save_aural_model
 
-    if args.out.suffix != ".json":
-        print(f"creatures: {args.out}: an aural model is written as a .json file (and its .npz)", file=sys.stderr)
+    refused = (f"{args.out}: an aural model is written as a .json file (and its .npz)" if args.out.suffix != ".json"
+               else f"{args.out.parent}: no such folder" if not args.out.parent.is_dir()
+               else f"{args.out} exists: give --force to replace it" if args.out.exists() and not args.force
+               else None)
+    if refused:
+        print(f"creatures: {refused}", file=sys.stderr)
         return 2
     try:
         sounds = [load_audio(path, samplerate=args.rate) for path in args.sounds]

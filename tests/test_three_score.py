@@ -182,6 +182,8 @@ def test_the_score_model_is_found_beside_the_config_from_any_working_directory(t
     (["model.txt", "{wav}"], "written as a .json file"),
     (["model.json", "missing.wav"], "missing.wav: no such sound file"),
     (["model.json", "{silent}"], "silent.wav: silent: nothing to remember"),
+    (["nowhere/model.json", "{wav}"], "nowhere: no such folder"),
+    (["--top-db", "nan", "model.json", "{wav}"], "'nan' is not a number in [0, 120]"),
 ])
 def test_aural_model_refuses_bad_input_with_a_clear_error_and_writes_nothing(tmp_path, arguments, message):
     soundfile.write(tmp_path / "silent.wav", np.zeros(SR, np.float32), SR)
@@ -190,3 +192,16 @@ def test_aural_model_refuses_bad_input_with_a_clear_error_and_writes_nothing(tmp
                          capture_output=True, text=True, cwd=tmp_path)
     assert run.returncode == 2 and message in run.stderr and "Traceback" not in run.stderr
     assert not list(tmp_path.glob("model.*"))
+
+
+def test_aural_model_replaces_a_model_only_when_told_to(tmp_path):
+    made = [sys.executable, "-m", "creatures.cli", "aural-model"]
+    first = subprocess.run([*made, "model.json", str(SHIPPED / "a-again.wav"), str(SHIPPED / "a-answer.wav")],
+                           capture_output=True, text=True, cwd=tmp_path)
+    again = subprocess.run([*made, "model.json", str(SHIPPED / "a-again.wav")], capture_output=True, text=True,
+                           cwd=tmp_path)
+    assert first.returncode == 0 and again.returncode == 2 and "give --force" in again.stderr
+    assert len(load_aural_model(tmp_path / "model.json").members) == 2  # kept as it was
+    forced = subprocess.run([*made, "--force", "model.json", str(SHIPPED / "a-again.wav")], capture_output=True,
+                            text=True, cwd=tmp_path)
+    assert forced.returncode == 0 and len(load_aural_model(tmp_path / "model.json").members) == 1

@@ -93,7 +93,8 @@ def _aural_model(path: str | None) -> str | None:
     asked by :func:`resolve_aural_model` once the loader knows the directory of the config
     file that wrote the key (paths in a config are relative to that file, as every path is)."""
     if path is not None and Path(path).suffix != ".json":
-        raise ValueError(f"not an aural model (save_aural_model writes a .json file): {path}")
+        raise ValueError("not an aural model (a .json file with its .npz: `creatures aural-model` makes one "
+                         "from sound files)")
     return path
 
 
