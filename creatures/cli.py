@@ -165,6 +165,7 @@ def _rehearse_options(parser: argparse.ArgumentParser) -> None:
 @command("rehearse", "a gallery week on the simulated clock, with visitors, measured hour by hour",
          _rehearse_options)
 def _rehearse(args: argparse.Namespace) -> int:
+    import dataclasses
     import json
 
     from creatures.config import ConfigError
@@ -175,6 +176,8 @@ def _rehearse(args: argparse.Namespace) -> int:
     try:
         configs = [args.config] + ([args.compare] if args.compare is not None else [])
         runs = [rehearse(load_installation(_config_path(c)), args.days) for c in configs]
+        if len(runs) == 2 and runs[0].title == runs[1].title:  # two versions of one piece: name them by file
+            runs = [dataclasses.replace(r, title=f"{r.title} ({c.name})") for r, c in zip(runs, configs)]
         print(report(*runs))
         if args.json is not None:
             args.json.write_text(json.dumps([r.to_dict() for r in runs], indent=1), encoding="utf-8")

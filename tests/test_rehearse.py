@@ -181,6 +181,12 @@ def test_the_command_rehearses_and_refuses_a_bad_corpus(tmp_path: Path, capsys):
     text = capsys.readouterr().out
     assert "exchange: 1 days" in text and "wren: 1 days" in text, text
     assert text.splitlines()[-1].startswith("mon  10h") and text.splitlines()[-1].count("|") == 6
+    assert main(["rehearse", str(config), "--days", "1", "--compare", str(config)]) == 0  # one piece twice
+    assert "exchange (exchange.toml): 1 days" in capsys.readouterr().out
+    config.write_text(shipped.replace("[rehearse]", '[rehearse]\nhours = { days = ["tue"], opens = "10:00", '
+                                                    'closes = "10:02" }', 1))
+    assert main(["rehearse", str(config), "--days", "1"]) == 2  # Monday alone: nothing open to rehearse
+    assert "1 day(s) from Monday hold no opening hours (open tue)" in capsys.readouterr().err
     config.write_text(shipped.replace("[rehearse]", hours + '\ncorpus = "missing.mid"', 1))
     assert main(["rehearse", str(config), "--days", "1"]) == 2
     err = capsys.readouterr().err

@@ -158,6 +158,10 @@ def rehearse(inst: LoadedInstallation, days: int | None = None, *,
     params = settings.rehearse
     days = days or params.days
     hours = params.hours or (settings.schedule if settings.schedule.opens is not None else GALLERY)
+    if not open_spans(hours, days):  # e.g. one day: a rehearsal begins on a Monday, a gallery's day off
+        raise inst.error(("rehearse", "days"), f"{days} day(s) from Monday hold no opening hours (open "
+                                               f"{', '.join(hours.days)}): rehearse more days (--days, "
+                                               "[rehearse] days) or set [rehearse] hours")
     tick = params.tick or settings.tick
     sr = settings.audio.sample_rate
     hearing = settings.input.generate != "none" or settings.input.audio is not None

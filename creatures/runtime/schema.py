@@ -138,8 +138,9 @@ class SnapshotSection(Strict):
 
 
 class ScheduleSection(Strict):
-    """Opening hours: outside them the colony sleeps — no sound, no selection, state kept — and
-    it wakes when they come round again (creatures/runtime/opening.py). Live runs only."""
+    """Opening hours. A live run sleeps outside them — no sound, no selection, state kept — and
+    wakes when they come round again (creatures/runtime/opening.py); a rehearsal
+    (``[rehearse] hours``) brings its visitors only within them."""
 
     days: list[Literal["mon", "tue", "wed", "thu", "fri", "sat", "sun"]] = Field(
         ["mon", "tue", "wed", "thu", "fri", "sat", "sun"], min_length=1, max_length=7, description="days it opens")
