@@ -147,7 +147,8 @@ def _run_offline(config: Path, out: Path, *, audio: Path | None = None, midi: Pa
     for message in summary.messages:
         print(f"note: {message}")
     print(f"{installation.settings.title}: {summary.simulated:.1f} simulated s in {summary.wall:.2f} wall s "
-          f"({summary.speed:.1f}x real time), {summary.notes_played} notes played")
+          f"({summary.speed:.1f}x real time), {summary.notes_played} notes played"
+          + (f", {summary.sounds_made} sounds sung or words read" if summary.sounds_made else ""))
     for name, file in summary.files.items():
         print(f"  {name:<7} {file}")
     return 0
@@ -287,7 +288,8 @@ def _run(args: argparse.Namespace) -> int:
         return 2
     restored = f", restored {', '.join(summary.restored)}" if summary.restored else ""
     network = f"; {describe(summary.network)}" if summary.network is not None else ""
-    print(f"stopped after {summary.seconds:.1f} s: {summary.ticks} ticks, {summary.notes_played} notes, "
+    sounds = f", {summary.sounds_made} sounds sung or words read" if summary.sounds_made else ""
+    print(f"stopped after {summary.seconds:.1f} s: {summary.ticks} ticks, {summary.notes_played} notes{sounds}, "
           f"{summary.late} late{restored}; sound {summary.sound}; {summary.audio_gaps} audio gaps put in and "
           f"{summary.audio_skips} skips to keep its lead, {summary.underruns} audio underruns, {summary.overruns} input overruns{network}"
           + (f"; {summary.midi_dropped} MIDI messages dropped (no output port)" if summary.midi_dropped is not None else "")

@@ -205,3 +205,12 @@ def test_aural_model_replaces_a_model_only_when_told_to(tmp_path):
     forced = subprocess.run([*made, "--force", "model.json", str(SHIPPED / "a-again.wav")], capture_output=True,
                             text=True, cwd=tmp_path)
     assert forced.returncode == 0 and len(load_aural_model(tmp_path / "model.json").members) == 1
+
+
+def test_the_run_summary_counts_the_sounds_they_sing(tmp_path):
+    """Creatures that sing sounds play no notes: the summary says what they did instead."""
+    run = subprocess.run([sys.executable, "-m", "creatures.cli", "offline", "three_creatures", "--duration", "20",
+                          "--out", str(tmp_path / "out"), "--no-progress"], capture_output=True, text=True)
+    sung = sum(e["kind"] == "sing" for e in read_events(tmp_path / "out" / "events.jsonl"))
+    assert run.returncode == 0 and sung > 0
+    assert f"0 notes played, {sung} sounds sung or words read" in run.stdout

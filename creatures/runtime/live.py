@@ -88,6 +88,7 @@ class LiveSummary:
     worst_lateness: float = 0.0  # seconds, the latest a tick began
     lateness_p99: float = 0.0  # seconds
     notes_played: int = 0
+    sounds_made: int = 0  # sounds sung and words read (creatures that play no notes)
     late_notes: int = 0  # note-ons that reached the MIDI port more than sinks.LATE_NOTE late
     midi_dropped: int | None = None  # MIDI messages that found no output port (None: no port configured)
     frames_dropped: int = 0  # frames the drawing process was too busy to take
@@ -559,7 +560,7 @@ def run_live(
     summary.worst_lateness, summary.lateness_p99 = loop.timing.worst, loop.timing.percentile(99)
     summary.late_notes = getattr(sink, "late", 0)
     summary.heard_between_ticks = loop.heard_between
-    summary.notes_played = session.world.notes_played
+    summary.notes_played, summary.sounds_made = session.world.notes_played, session.world.sounds_made
     summary.inputs = session.inputs.summary()
     summary.events_lost, summary.log_loss = log.lost, log.loss
     return summary

@@ -55,6 +55,7 @@ class OfflineSummary:
     files: dict[str, Path] = field(default_factory=dict)
     messages: list[str] = field(default_factory=list)
     events_lost: int = 0  # events the log could not write (a full disk): counted, never fatal
+    sounds_made: int = 0  # sounds sung and words read (creatures that play no notes)
 
     @property
     def speed(self) -> float:
@@ -224,7 +225,7 @@ def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path 
     if log.loss:
         messages.append(log.loss)
     summary = OfflineSummary(duration, time.perf_counter() - wall0, session.world.notes_played, files, messages,
-                             events_lost=log.lost)
+                             events_lost=log.lost, sounds_made=session.world.sounds_made)
     if settings.output.report:
         from creatures.runtime.report import write_report
 

@@ -32,6 +32,8 @@ if TYPE_CHECKING:
     from creatures.room.stage import Stage
 
 INPUT = "input"
+SOUNDS = ("sing", "read")
+"""Events that are a creature sounding something other than a note: a sound sung back, a word read."""
 """The source name of notes that come from outside the colony."""
 
 TEMPO_STEP = 0.02
@@ -55,6 +57,7 @@ class World:
         self._seq = itertools.count()
         self.sensors: dict[str, StateObject] = {}  # by name, fed by the input map
         self.notes_played = 0
+        self.sounds_made = 0  # sung sounds and read words (SOUNDS), the acts that are not notes
         self.pulse = pulse or HeardPulse()  # the rhythm of the notes heard from outside the colony ([pulse])
         # Forward transition models the colony shares by name ([creature.groups.NAME]
         # succession): what usually follows what, learnt and followed by several creatures.
@@ -80,7 +83,10 @@ class World:
             raise KeyError(f"no sensor named {name!r} (sensors: {sorted(self.sensors) or 'none'})") from None
 
     def emit(self, kind: str, **fields: object) -> None:
-        """Log an event at the present clock time."""
+        """Log an event at the present clock time (a sound sung or a word read is counted: the
+        acts of creatures that play no notes)."""
+        if kind in SOUNDS:
+            self.sounds_made += 1
         self.log.emit(self.clock.now(), kind, **fields)
 
     def play(self, creature: "CreatureKind", note: NoteEvent, *, hold: bool = False,
