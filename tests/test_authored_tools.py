@@ -64,6 +64,16 @@ def test_describe_shows_class_based_kinds_and_nested_groups_too(tmp_path, capsys
     assert any("call: bored | call | until call done | V 1" in line for line in out)
 
 
+def test_describe_shows_a_kinds_own_parts_and_no_empty_percept_tree(capsys):
+    """three creatures have no action-groups: their memory and the score computer's flushes
+    are what an author configured, so they are what the tree shows."""
+    assert main(["describe", "three_creatures"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert "├─ memory [8 sounds]" in out and "│  └─ the input's latest 2 sounds flushed in every 20 s" in out
+    assert "   ├─ at 12 s: 4 slots ← score-a.json" in out and "   └─ at 24 s: 4 slots ← score-b.json" in out
+    assert not any(line.endswith("percepts") for line in out)
+
+
 def test_describe_of_a_bad_config_is_exit_2(tmp_path, capsys):
     bad = tmp_path / "bad.toml"
     bad.write_text((TUTORIAL / "heron-1.toml").read_text().replace('action = "rest"', 'action = "rset"'))

@@ -114,7 +114,8 @@ def describe(inst: LoadedInstallation) -> str:
         if motivations:
             children.append(("drives", _drives(motivations[0])))
         types = {name: p.type for name, p in getattr(spec, "percepts", {}).items()}
-        children.append(("percepts", [_percept(r, types) for r in _roots(top)]))
-        children += [_group(g) for g in top]
+        roots = [_percept(r, types) for r in _roots(top)]
+        children += [("percepts", roots)] if roots else []
+        children += [_group(g) for g in top] + creature.described()
         out += _tree(f"{spec.name} ({spec.kind})", children)
     return "\n".join(out) + "\n"

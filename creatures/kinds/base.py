@@ -141,6 +141,11 @@ class CreatureKind(ABC):
     def listen(self, t: float, block: np.ndarray, sample_rate: int) -> None:
         """A block of audio input (mono float32) ending at clock time ``t``."""
 
+    def described(self) -> list[Any]:
+        """What else this creature is made of, for ``creatures describe``'s tree (labels, or
+        ``(label, children)``): a kind whose parts are not action-groups and percepts shows them."""
+        return []
+
     @property
     def hears_audio(self) -> bool:
         """Whether :meth:`listen` takes anything in: a room gathers an ear's block of sound

@@ -218,6 +218,13 @@ class ThreeCreature(CreatureKind):
                                for u in load_aural_model(f.model).members[: min(f.slots, spec.memory_size)]])
                        for f in spec.score]
 
+    def described(self) -> list[Any]:
+        s = self.spec
+        memory = [f"seeded from {s.seed_model}: {len(self.memory)} sounds"] if s.seed_model is not None else []
+        memory.append(f"the input's latest {s.flush_size} sounds flushed in every {s.flush_every:g} s")
+        score = [f"at {f.at:g} s: {len(samples)} slots ← {Path(f.model).name}" for f, (_, samples) in zip(s.score, self._score)]
+        return [(f"memory [{s.memory_size} sounds]", memory), *([("score", score)] if score else [])]
+
     @property
     def _profiles(self) -> np.ndarray:
         return np.array([m.profile for m in self.memory]).reshape(len(self.memory), PROFILE)
