@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import difflib
 import signal
 import sys
 from pathlib import Path
@@ -110,15 +111,23 @@ def _offline_options(parser: argparse.ArgumentParser) -> None:
 
 
 def _config_path(config: Path) -> Path:
-    """A config path, or the name of a shipped installation (as ``demo`` takes)."""
+    """A config path, ``NAME`` for ``NAME.toml`` here, or the name of a shipped installation
+    (as ``demo`` takes). A name that is none of these is a :class:`ConfigError` naming the
+    nearest shipped installation, if one is near."""
     import installations
+    from creatures.config import ConfigError
 
     if config.exists() or config.suffix == ".toml":
         return config
+    if config.with_name(config.name + ".toml").is_file():
+        return config.with_name(config.name + ".toml")
     try:
         return installations.path(str(config))
     except FileNotFoundError:
-        return config  # the loader reports it as a missing config file
+        close = difflib.get_close_matches(str(config), installations.names(), n=1)
+        raise ConfigError(config.resolve(), "config file not found" + (
+            f" (did you mean the shipped {close[0]!r}?)" if close else
+            f", nor {config.name}.toml, nor a shipped installation ({', '.join(installations.names())})")) from None
 
 
 def _run_offline(config: Path, out: Path, *, audio: Path | None = None, midi: Path | None = None,

@@ -81,6 +81,17 @@ def test_describe_of_a_bad_config_is_exit_2(tmp_path, capsys):
     assert "did you mean 'rest'" in capsys.readouterr().err
 
 
+def test_a_config_named_without_toml_is_found_and_a_misspelt_shipped_one_is_suggested(tmp_path, monkeypatch,
+                                                                                      capsys):
+    monkeypatch.chdir(tmp_path)
+    shutil.copy(TUTORIAL / "heron-1.toml", tmp_path / "mine.toml")
+    shutil.copytree(TUTORIAL / "creatures", tmp_path / "creatures")
+    assert main(["describe", "mine"]) == 0 and "heron (authored)" in capsys.readouterr().out
+    assert main(["offline", "exchang", "--out", str(tmp_path / "o")]) == 2
+    assert "config file not found (did you mean the shipped 'exchange'?)" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+
+
 def test_offline_takes_a_shipped_installations_name(tmp_path):
     assert main(["offline", "tutorial/heron-1", "--out", str(tmp_path / "h"), "--duration", "5", "--no-progress"]) == 0
     assert main(["offline", "exchange", "--out", str(tmp_path / "e"), "--duration", "1", "--no-progress"]) == 0
