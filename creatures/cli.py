@@ -82,7 +82,8 @@ def _devices(_: argparse.Namespace) -> int:
     try:
         sd = sounddevice_module()
         devices = sd.query_devices()
-        print("audio devices:" if len(devices) else "audio devices: none found")
+        print("audio devices:" if len(devices) else "audio devices: none found (PortAudio sees no sound card and "
+                                                     "no JACK server): plug one in or start a JACK server")
         for d in devices:
             print(f"  [{d['index']}] {d['name']} (in {d['max_input_channels']}, out {d['max_output_channels']})")
     except AudioDeviceUnavailable as exc:

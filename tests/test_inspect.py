@@ -54,6 +54,7 @@ def test_inspect_an_offline_run(offline_run, tmp_path, capsys):
     # Self-contained: every plot is embedded, byte for byte, and nothing is linked.
     assert sorted(_images(page)) == sorted(p.read_bytes() for p in pngs)
     assert ".png\"" not in page
+    assert "3 creature(s) and the colony from saved state" in page  # ada, bo, cy: the colony is not a creature
     for name in ("ada", "bo", "cy", "wander", "seek note", "rest", "boredom", "hunger"):
         assert f"<td>{name}</td>" in page or f"<h3>{name} " in page, name
     # The run saved what its creatures learned into DIR/state, and the page is drawn from it.

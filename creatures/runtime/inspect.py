@@ -261,7 +261,9 @@ def inspect(path: Path, out: Path, skipped: list[str] | None = None) -> Path:
     figures = "".join(f'<h2>{html.escape(name)}</h2><img src="{_embed(p)}" alt="{html.escape(name)}">'
                       for name, p in plots)
     unread = "".join(f"<li>{html.escape(s)}</li>" for s in skipped)
-    page = html_page(title, f"<p>{len(events)} events, {len(known)} creature(s) from {html.escape(what)}.</p>"
+    creatures = sum(k.creature != COLONY for k in known)  # the colony's own knowledge is not a creature
+    colony = " and the colony" if creatures < len(known) else ""
+    page = html_page(title, f"<p>{len(events)} events, {creatures} creature(s){colony} from {html.escape(what)}.</p>"
                             f"{f'<p>State files skipped:</p><ul>{unread}</ul>' if unread else ''}"
                             f"{counts_table(events) if events else ''}"
                             f"<h2>What each creature knows</h2>{''.join(_creature_html(k) for k in known)}{figures}")
