@@ -753,8 +753,10 @@ def main(argv: list[str] | None = None) -> int:
         # 68 ms per 2x2 expm in BLAS threads fighting each other (ticks 30 s late).
         threadpool_limits(limits=1)
         from creatures import log_limit
+        from midi import alsa
 
         log_limit.install()  # a library that logs per bad packet must not flood stderr
+        alsa.quiet()  # libasound's own stderr lines: the errors they precede are reported once, in words
         return int(args.run(args))
     except KeyboardInterrupt as stopped:  # creatures/stop.py: SIGTERM is raised as Ctrl-C is
         term = isinstance(stopped, stop.Terminated)

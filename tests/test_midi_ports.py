@@ -223,3 +223,18 @@ def test_alsa_sequencer_virtual_port(clock):
         player.close()
         ear.close()
     assert heard == [mido.Message("note_on", note=60)]
+
+
+@pytest.mark.skipif(os.path.exists("/dev/snd/seq"), reason="an ALSA sequencer here: libasound has nothing to complain of")
+def test_without_a_sequencer_the_devices_listing_says_why_once_and_libasound_says_nothing(tmp_path):
+    """libasound prints its own line for a missing /dev/snd/seq below any Python; the run's
+    stderr would repeat it at every port lookup. Only our sentence, with what to do, remains."""
+    import ctypes.util
+    import subprocess
+    import sys
+
+    if ctypes.util.find_library("asound") is None:
+        pytest.skip("no libasound here")
+    run = subprocess.run([sys.executable, "-m", "creatures.cli", "devices"], capture_output=True, text=True)
+    assert run.returncode == 0 and "MIDI devices: unavailable" in run.stdout and "JACK" in run.stdout
+    assert "ALSA lib" not in run.stderr, run.stderr
