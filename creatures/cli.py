@@ -186,7 +186,8 @@ def _rehearse(args: argparse.Namespace) -> int:
 
     try:
         configs = [args.config] + ([args.compare] if args.compare is not None else [])
-        runs = [rehearse(load_installation(_config_path(c)), args.days) for c in configs]
+        runs = [rehearse(load_installation(_config_path(c)), args.days,
+                         progress=lambda line: print(line, file=sys.stderr, flush=True)) for c in configs]
         if len(runs) == 2 and runs[0].title == runs[1].title:  # two versions of one piece: name them by file
             runs = [dataclasses.replace(r, title=f"{r.title} ({c.name})") for r, c in zip(runs, configs)]
         print(report(*runs))

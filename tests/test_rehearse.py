@@ -174,7 +174,9 @@ def test_the_command_rehearses_and_refuses_a_bad_corpus(tmp_path: Path, capsys):
     hours = '[rehearse]\nhours = { opens = "10:00", closes = "10:02" }'
     config.write_text(shipped.replace("[rehearse]", hours, 1))
     assert main(["rehearse", str(config), "--days", "1", "--json", str(tmp_path / "r.json")]) == 0
-    assert "acts/min" in capsys.readouterr().out and (tmp_path / "r.json").exists()
+    said = capsys.readouterr()
+    assert "acts/min" in said.out and (tmp_path / "r.json").exists()
+    assert said.err == "exchange: mon 10h rehearsed (1 of 1 opening hours)\n"  # progress, hour by hour
     other = tmp_path / "wren.toml"  # --compare: the second config rehearsed beside it, one table
     other.write_text(installations.path("wren").read_text() + "\n" + hours)  # wren has no [rehearse] of its own
     assert main(["rehearse", str(config), "--days", "1", "--compare", str(other)]) == 0

@@ -151,9 +151,11 @@ def _row_time(row: Row) -> float:
 
 
 def rehearse(inst: LoadedInstallation, days: int | None = None, *,
-             taps: tuple[Callable[[dict[str, Any]], None], ...] = ()) -> Rehearsal:
+             taps: tuple[Callable[[dict[str, Any]], None], ...] = (),
+             progress: Callable[[str], None] | None = None) -> Rehearsal:
     """Rehearse ``inst`` for ``days`` simulated days (default ``[rehearse] days``); ``taps``
-    see every events-log record as it is written (nothing is kept for a week)."""
+    see every events-log record as it is written (nothing is kept for a week); ``progress``
+    is told each opening hour as it is done (a week takes minutes)."""
     settings = inst.settings
     params = settings.rehearse
     days = days or params.days
@@ -176,6 +178,8 @@ def rehearse(inst: LoadedInstallation, days: int | None = None, *,
     session = Session(inst, clock, log, CountingSink())
     names = [c.name for c in session.creatures]
     spans = open_spans(hours, days)
+    hours_open = len({int(t // 3600) for a, b in spans for t in np.arange(a, b, 3600.0)} |
+                     {int((b - 1e-6) // 3600) for a, b in spans})
     per_day: dict[int, float] = {}
     for a, b in spans:
         per_day[int(a // 86400)] = per_day.get(int(a // 86400), 0.0) + b - a
@@ -217,6 +221,9 @@ def rehearse(inst: LoadedInstallation, days: int | None = None, *,
                                  visitors=visitors.arrived - counted["arrived"]))
         counted.update(answered=visitors.answered, unanswered=visitors.unanswered, arrived=visitors.arrived,
                        cycles=cycles)
+        if progress is not None:
+            progress(f"{settings.title}: {DAYS[tally.day % 7]} {tally.hour:02d}h rehearsed ({len(rows)} of "
+                     f"{hours_open} opening hours)")
 
     snapshot = session.snapshot()
     down_until = -math.inf
