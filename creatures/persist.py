@@ -138,9 +138,9 @@ def load_json(path: str | os.PathLike, *, kind: str) -> dict[str, Any]:
     if not isinstance(document, dict):
         raise StateFileError(f"{path}: expected a JSON object at the top level")
     if document.get("format") != kind:
-        raise StateFileError(
-            f"{path}: not a {kind!r} file (format={document.get('format')!r})"
-        )
+        said = document.get("format")
+        raise StateFileError(f"{path}: not a {kind!r} file (" + (f"it says it is a {said!r} file)" if said else
+                                                                   "a JSON file with no 'format' of this program's)"))
     if document.get("version") != FORMAT_VERSION:
         raise StateFileError(
             f"{path}: unsupported {kind} version {document.get('version')!r}"
