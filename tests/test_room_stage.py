@@ -262,6 +262,22 @@ spec = { gain = 0.1 }
     assert {g for x, g in zip(xs, gain) if 4.3 < x < 5.7} == {0.1} and gain[-1] == 0.8
 
 
+def test_a_zone_sets_a_key_of_a_creature_with_a_figure_body(tmp_path):
+    """A dog (``body = { figure = "dog" }``) walks into a zone with spec { gain = 0.1 }: the
+    key is set as for any creature (the spec once re-validated with every default as if
+    written, and a figure body with files beside it was refused)."""
+    hush = "[[room.zones]]\nname = \"hush\"\nlow = [4.0, 0.0]\nhigh = [6.0, 10.0]\nspec = { gain = 0.1 }\n"
+    dog = caller("d", 1.0, 5.0, 'steer = [{ behaviour = "seek", target = [9.5, 5.0] }]').replace(
+        'kind = "authored"', 'kind = "authored"\nbody = { figure = "dog" }', 1)
+    s, clock = session(tmp_path, hush, dog)
+    gains = []
+    while clock.now() < 10.0 - 1e-9:
+        s.step(clock.advance(TICK), round(TICK * s.sample_rate), None, audio=False)
+        gains.append((float(s.stage.v.pos[0, 0]), s.creatures[0].spec.gain))
+    assert {g for x, g in gains if 4.3 < x < 5.7} == {0.1} and gains[-1][1] == 0.8
+    assert s.creatures[0].spec.body.figure == "dog"
+
+
 def test_a_zone_with_hears_input_false_shuts_out_the_input_inside_only(tmp_path):
     """spec { hears_input = false } inside a zone: a walker crossing it hears the player's
     notes (input, ten a second) before and after the zone and none inside, while it still

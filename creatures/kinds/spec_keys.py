@@ -63,12 +63,15 @@ def with_key(spec: Spec, key: str, value: Any, name: str) -> Spec:
     parts = key.split(".")
     if parts[0] in FIXED:
         raise SpecKeyError(f"{parts[0]} cannot change while the creature runs")
-    data = spec.model_dump()
+    # What the config set, not every default: a validator that asks which keys were given
+    # (a body by figure or by files, never both) must see the spec as it was written.
+    data, whole = spec.model_dump(exclude_unset=True), spec.model_dump()
     node = data
     for part in parts[:-1]:
-        node = node.get(part) if isinstance(node, dict) else None
-        if not isinstance(node, dict):
+        whole = whole.get(part) if isinstance(whole, dict) else None
+        if not isinstance(whole, dict):
             raise SpecKeyError(f"{key}: {part!r} is not a table of {data.get('kind', 'the')}'s spec")
+        node = node.setdefault(part, {})
     node[parts[-1]] = value
     try:
         return validate(type(spec), data, {}, Path(name))
