@@ -187,6 +187,26 @@ def test_supervisor_restarts_a_killed_run_with_its_learned_state(tmp_path: Path)
     assert "the run stopped (killed by SIGKILL); restart 1 in 1 s" in out
 
 
+def test_supervisor_does_not_restart_a_run_refused_before_it_began() -> None:
+    """A config or state file that does not load exits 2 before the run begins: the same files
+    would be refused again, so the supervisor says so once and stops (it restarted every
+    half minute for as long as no one looked)."""
+    import subprocess
+    import sys
+
+    from creatures.runtime.keeper import supervise
+
+    said: list[str] = []
+    launched: list[list[str]] = []
+
+    def launch(command: list[str]) -> subprocess.Popen[bytes]:
+        launched.append(command)
+        return subprocess.Popen([sys.executable, "-c", "import sys; sys.exit(2)"])
+
+    assert supervise(["refused"], said.append, launch=launch) == 2
+    assert launched == [["refused"]] and len(said) == 1 and "not restarting" in said[0]
+
+
 def test_service_writes_a_notify_unit_with_restart_and_watchdog(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     from creatures.cli import main
 
@@ -195,7 +215,8 @@ def test_service_writes_a_notify_unit_with_restart_and_watchdog(tmp_path: Path, 
     unit = tmp_path / "show.service"
     assert main(["service", str(config), "--state", str(tmp_path / "state"), "--watchdog", "20", "--out", str(unit)]) == 0
     lines = unit.read_text().splitlines()
-    for wanted in ("Type=notify", "Restart=on-failure", "WatchdogSec=20", "NotifyAccess=main"):
+    for wanted in ("Type=notify", "Restart=on-failure", "RestartPreventExitStatus=2", "WatchdogSec=20",
+                   "NotifyAccess=main"):
         assert wanted in lines
     start = next(line for line in lines if line.startswith("ExecStart="))
     assert start.endswith(f"-m creatures.cli run {config} --state {tmp_path / 'state'}")

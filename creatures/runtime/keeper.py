@@ -5,9 +5,12 @@ when it dies by a signal or a failure (a clean stop — Ctrl-C, SIGTERM, ``--dur
 ends it). The child restores the learned state its last periodic save left in the state folder
 (``save_every``), so a crash loses at most that many seconds of learning. Restarts come
 :data:`RESTART_AFTER` seconds apart, slowing to :data:`SLOWEST` when the run keeps dying at
-once, so a broken config cannot spin a gallery machine. Under systemd the unit that
-``creatures service`` writes lets systemd do the restarting instead (``Restart=on-failure``)
-and adds its watchdog (creatures/runtime/sd_notify.py).
+once. A run refused before it began — exit code :data:`REFUSED`, a config or a state file
+that does not load, already said why — is not restarted: the same files would be refused
+again, and a gallery machine would say so every half minute for as long as no one looks.
+Under systemd the unit that ``creatures service`` writes lets systemd do the restarting
+instead (``Restart=on-failure``, ``RestartPreventExitStatus`` the same code) and adds its
+watchdog (creatures/runtime/sd_notify.py).
 """
 
 from __future__ import annotations
@@ -28,6 +31,9 @@ SLOWEST = 30.0
 
 STEADY = 60.0
 """A run that lived this long was healthy: the next crash restarts it at once again."""
+
+REFUSED = 2
+"""The exit code of a run refused before it began (a config or state that does not load)."""
 
 
 def supervise(command: list[str], say: Callable[[str], None] = print, *,
@@ -51,6 +57,10 @@ def supervise(command: list[str], say: Callable[[str], None] = print, *,
             child = launch(command)
             code = child.wait()
             if stopping or code in (0, 128 + signal.SIGINT, 128 + signal.SIGTERM):
+                return code
+            if code == REFUSED:
+                say("creatures: the run was refused before it began (above: why); not restarting, since the "
+                    "same files would be refused again: fix them and start it again")
                 return code
             if time.monotonic() - began > STEADY:
                 wait = RESTART_AFTER
@@ -83,6 +93,7 @@ def unit(config: Path, state: Path | None, *, watchdog: float, python: str = sys
         f"ExecStart={shlex.join(command)}",
         f"WorkingDirectory={config.resolve().parent}",
         "Restart=on-failure",
+        f"RestartPreventExitStatus={REFUSED}",
         f"RestartSec={RESTART_AFTER:g}",
         f"WatchdogSec={watchdog:g}",
         "TimeoutStopSec=30",
