@@ -281,7 +281,7 @@ def _run(args: argparse.Namespace) -> int:
         return supervise([sys.executable, "-m", "creatures.cli", "run", str(args.config), *again])
     try:
         installation = load_installation(args.config)
-        state = args.state or installation.resolve(installation.settings.state)
+        state = args.state or installation.resolve(installation.settings.state, ("state",))
         if state is None:
             print(f"note: {NO_STATE}")
         view = _view_port(args.view, installation.settings.view.port)
@@ -345,7 +345,7 @@ def _check(args: argparse.Namespace) -> int:
     except ConfigError as exc:
         print(f"creatures: {exc}", file=sys.stderr)
         return 2
-    rows = check(installation, args.state or installation.resolve(installation.settings.state))
+    rows = check(installation, args.state or installation.resolve(installation.settings.state, ("state",)))
     print(table(rows))
     failed = [what for what, ok, _ in rows if not ok]
     if failed:

@@ -143,3 +143,23 @@ def test_a_typo_in_a_starting_piece_is_named_at_its_key_with_the_nearest_valid_o
         load_installation(path)
     assert err.value.key == key and message in str(err.value)
     assert err.value.line is not None and len(str(err.value)) < 300
+
+
+def test_an_extends_bases_paths_are_relative_to_the_base(tmp_path, monkeypatch):
+    """A base config in another folder names its rehearsal file and its state folder relative
+    to itself; a child that extends it from elsewhere finds them there (they were looked for
+    beside the child)."""
+    from creatures.runtime.schema import load_installation
+
+    (tmp_path / "base").mkdir()
+    (tmp_path / "pieces").mkdir()
+    (tmp_path / "base" / "visit.csv").write_text("time,address,args\n1.0,/play,60\n")
+    (tmp_path / "base" / "show.toml").write_text(
+        'title = "base"\nstate = "saved"\n[[input]]\nosc = "/play"\nto = "note"\npitch = { arg = 0 }\n'
+        '[[input]]\nfile = "visit.csv"\n[[creature]]\nname = "a"\nkind = "exchange"\n')
+    child = tmp_path / "pieces" / "child.toml"
+    child.write_text('extends = "../base/show.toml"\ntitle = "child"\n')
+    monkeypatch.chdir("/")
+    inst = load_installation(child)
+    assert [row.address for row in inst.rehearsals[1]] == ["/play"]
+    assert inst.resolve(inst.settings.state, ("state",)) == tmp_path / "base" / "saved"

@@ -334,7 +334,7 @@ def run_live(
     (:mod:`creatures.view`: its own thread; the tick only queues snapshots)."""
     settings = inst.settings
     summary = LiveSummary()
-    state_dir = state or inst.resolve(settings.state)
+    state_dir = state or inst.resolve(settings.state, ("state",))
     check_before_running(inst, state=state_dir, log_path=log_path, pictures=pictures, view=view)
     score = None
     if out is not None and settings.output.midi:

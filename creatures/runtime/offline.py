@@ -78,8 +78,8 @@ def _inputs(inst: LoadedInstallation, audio: Path | None, midi: Path | None, dur
     """Notes and mono audio to feed: the given files, the config's files, or generated."""
     settings = inst.settings
     sr = settings.audio.sample_rate
-    audio = audio or inst.resolve(settings.input.audio)
-    midi = midi or inst.resolve(settings.input.midi)
+    audio = audio or inst.resolve(settings.input.audio, ("input", "audio"))
+    midi = midi or inst.resolve(settings.input.midi, ("input", "midi"))
     notes = read_notes(midi) if midi is not None else []
     samples = load_audio(audio, samplerate=sr) if audio is not None else None
     if midi is None and audio is None and settings.input.generate == "phrase":

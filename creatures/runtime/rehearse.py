@@ -167,7 +167,7 @@ def rehearse(inst: LoadedInstallation, days: int | None = None, *,
     tick = params.tick or settings.tick
     sr = settings.audio.sample_rate
     hearing = settings.input.generate != "none" or settings.input.audio is not None
-    corpus = load_corpus(inst.resolve(params.corpus)) if params.corpus else generated(settings.input.generate == "speech")
+    corpus = load_corpus(inst.resolve(params.corpus, ("rehearse", "corpus"))) if params.corpus else generated(settings.input.generate == "speech")
     rng = np.random.default_rng([settings.seed, 20])
     visitors = Visitors(params, corpus, rng)
     ears = _Ears(sr, rng) if hearing else None

@@ -418,9 +418,10 @@ class LoadedInstallation:
         """A :class:`ConfigError` at key path ``loc`` of this config, with its line."""
         return config_error(self.path, self.where, loc, message)
 
-    def resolve(self, relative: str | None) -> Path | None:
-        """A path from the config, relative to the config's own directory."""
-        return None if relative is None else (self.path.parent / relative).resolve()
+    def resolve(self, relative: str | None, key: tuple[str | int, ...] = ()) -> Path | None:
+        """A path from the config at ``key``, relative to the directory of the file that wrote
+        it (an ``extends`` base's paths are its own, not the including file's)."""
+        return None if relative is None else (written_in(self.where, key, self.path).parent / relative).resolve()
 
 
 def _sensed(path: Path, where, loc: tuple, own: str, params: dict, by_name: dict) -> None:
@@ -559,10 +560,15 @@ def _with_input_maps(path: Path, settings: Installation, specs: list[CreatureSpe
     for i, spec in enumerate(settings.input.map):
         if spec.file is not None:
             try:
-                inst.rehearsals[i] = load_rehearsal(path.parent / spec.file)
+                inst.rehearsals[i] = load_rehearsal(written_in(where, (*prefix, i, "file"), path).parent / spec.file)
             except RehearsalError as exc:
                 raise config_error(path, where, (*prefix, i, "file"), str(exc)) from None
     return inst
+
+
+def written_in(where: dict[tuple, tuple[Path, int]], key: tuple[str | int, ...], config: Path) -> Path:
+    """The file that wrote ``key`` (an ``extends`` base, an included file), else ``config``."""
+    return where.get(key, (config, 0))[0]
 
 
 def host_problem(host: str) -> str | None:
