@@ -357,3 +357,20 @@ def test_every_effector_strikes_a_note_it_passes(tmp_path: Path):
     obj = heron.notes.space.place(NoteEvent(0.0, 64, 90, 0, 0.5), neck.copy())
     heron.notes.strike_nearby(1.0)
     assert heron.notes._struck_at.get(id(obj)) == 1.0
+
+
+def test_frames_asked_of_creatures_without_bodies_say_so_and_list_no_frames(tmp_path: Path):
+    """`--frames`/`--video` on a piece none of whose creatures has a body: the run says there
+    was nothing to draw, and lists no frames folder or video (it listed both, empty and absent)."""
+    from creatures.authored.scaffold import new_installation
+    from creatures.body.render import BodyRenderer, RenderUnavailable
+
+    try:
+        BodyRenderer(64, 48).close()
+    except RenderUnavailable as exc:
+        pytest.skip(f"no GL platform: {exc}")
+    inst = load_installation(new_installation("plain", tmp_path))
+    inst.settings.output.frames = inst.settings.output.video = True
+    summary = run_offline(inst, tmp_path / "out", duration=2.0, progress=False)
+    assert not {"frames", "video"} & set(summary.files)
+    assert any("no creature of this installation has a body" in m for m in summary.messages)

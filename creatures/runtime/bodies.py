@@ -73,6 +73,7 @@ class BodyFrames:
                                   fps=output.fps)
         self.clock = FrameClock(output.fps, clock)  # frames count from when drawing can start
         self._frame = np.empty((output.height, output.width, 3), np.uint8)  # drawn into, frame after frame
+        self.painted = 0  # scenes drawn: none when no creature has a body
 
     def draw(self, creatures: list[CreatureKind]) -> None:
         if self.renderer is None:
@@ -90,6 +91,7 @@ class BodyFrames:
         positions, parents, marks = scene
         frame = self.renderer.render(positions, parents, [NoteMark(p, pitch) for p, pitch in marks], out=self._frame)
         self.writer.write(frame, repeat=repeat)
+        self.painted += 1
 
     def close(self) -> None:
         if self.renderer is not None:

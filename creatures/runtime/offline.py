@@ -218,7 +218,10 @@ def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path 
     files["state"] = out / "state"
     if stream is not None:
         files["stream"] = out / "stream.jsonl"
-    if bodies is not None and bodies.renderer is not None:
+    if bodies is not None and bodies.renderer is not None and not bodies.painted:
+        messages.append("no frames: no creature of this installation has a body to draw (`body = true` or a "
+                        "[creature.body] gives one)")
+    elif bodies is not None and bodies.renderer is not None:
         files["frames"] = out / "frames"
         if settings.output.video:
             files["video"] = out / "out.mp4"
