@@ -293,6 +293,11 @@ def test_render_draws_every_frame_at_the_size_and_camera_asked(offline_run, tmp_
     result = subprocess.run([sys.executable, "-m", "creatures.cli", "render", str(offline_run), "--camera", "0,95,1"],
                             capture_output=True, text=True, timeout=60)
     assert result.returncode == 2 and "YAW,PITCH,DISTANCE" in result.stderr
+    video = tmp_path / "new" / "folder"  # the video alone, into a folder not made yet
+    result = subprocess.run([sys.executable, "-m", "creatures.cli", "render", str(offline_run), "--out", str(video),
+                             "--video", "--no-pngs"], capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr
+    assert (video / "out.mp4").stat().st_size > 1000 and not (video / "frames").exists()
 
 
 def test_the_percept_trees_reach_the_page_live_and_replayed(tmp_path):

@@ -49,6 +49,8 @@ class FrameWriter:
         self.directory = None if directory is None else Path(directory)
         if self.directory is not None:
             self.directory.mkdir(parents=True, exist_ok=True)
+        if video is not None:
+            Path(video).parent.mkdir(parents=True, exist_ok=True)  # a video alone (--no-pngs) has its folder too
         self._video = None if video is None else imageio_v2.get_writer(
             video, fps=fps, codec="libx264", quality=7, macro_block_size=8)
         self.count = 0
