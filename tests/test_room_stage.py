@@ -527,6 +527,8 @@ def test_a_creature_behind_an_obstacle_is_not_seen_by_the_stage(tmp_path):
      "name cannot change while the creature runs"),
     ('[[room.zones]]\nname = "z"\nlow = [0.0, 0.0]\nhigh = [1.0, 1.0]\nspec = { "vehicle.max_speed" = 0.5 }', "",
      "set by their own names"),
+    ('visitors = [{ x = "vxx", y = "vy" }]\n' + TRACKER, "", "no input map writes a sensor 'vxx' \\(did you mean 'vx'"),
+    ('visitors = [{ x = "vx", y = "vy" }]', "", "no input map writes a sensor 'vx' \\(no \\[\\[input\\]\\] map"),
 ])
 def test_places_and_zones_that_cannot_be_are_config_errors(tmp_path, room, creature, message):
     text = HEADER.format(room=room) + singer("a", 1.0, 1.0).replace("at = [1.0, 1.0]", creature or "at = [1.0, 1.0]")

@@ -496,9 +496,20 @@ def load_installation(path: str | Path) -> LoadedInstallation:
             raise config_error(path, where, ("creature", origin[exc.creature], *exc.key), str(exc)) from None
         except RoomError as exc:
             raise config_error(path, where, ("room", *exc.key), str(exc)) from None
+    if settings.room is not None:  # a visitor is tracked through sensors the input map writes
+        sensors = sorted({m.name for m in settings.input.map if m.to == "sensor" and m.name})
+        for k, visitor in enumerate(settings.room.visitors):
+            for axis in ("x", "y"):
+                name = getattr(visitor, axis)
+                if name not in sensors:
+                    close = difflib.get_close_matches(name, sensors, n=1)
+                    hint = (f"did you mean {close[0]!r}?" if close else f"the sensors: {sensors}" if sensors else
+                            "no [[input]] map has to = \"sensor\"")
+                    raise config_error(path, where, ("room", "visitors", k, axis),
+                                       f"no input map writes a sensor {name!r} ({hint})")
     for key in ("audio", "midi"):
         file = getattr(settings.input, key)
-        if file is not None and not (path.parent / file).exists():
+        if file is not None and not (written_in(where, ("input", key), path).parent / file).exists():
             raise config_error(path, where, ("input", key), f"file not found: {file}")
     if settings.osc.port is not None and (problem := host_problem(settings.osc.host)) is not None:
         raise config_error(path, where, ("osc", "host"), problem)
