@@ -596,8 +596,13 @@ def _state(args: argparse.Namespace) -> int:
             added = repertoire.merge(args.source, args.creature, args.target, args.into)
             print(f"{args.into}: added {', '.join(added) if added else 'nothing (it knew all of it)'}")
         else:
-            for when, path in snapshots.listed(args.state):
+            if not args.state.is_dir():
+                raise StateFileError(f"{args.state}: no such state folder")
+            found = snapshots.listed(args.state)
+            for when, path in found:
                 print(f"{when:%Y-%m-%d %H:%M:%S} UTC  {path}")
+            if not found:
+                print(f"{args.state}: no snapshots yet (a live run with [snapshots] every = N takes them)")
     except (StateFileError, OSError) as exc:  # OSError: a folder a run holds (creatures/lock.py)
         print(f"creatures: {exc}", file=sys.stderr)
         return 2
@@ -724,6 +729,11 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+PRINTING = {"version", "devices", "config-docs", "describe", "state"}
+"""Commands that only print: a reader that stops reading (``| head``) ends them silently. Not
+the shows, whose sockets must never end a run by a signal."""
+
+
 STOPPED = {
     "rehearse": "no report was printed",
     "offline": "nothing was published; the output directory holds the previous run's outputs as they were",
@@ -742,6 +752,9 @@ def main(argv: list[str] | None = None) -> int:
     from creatures import stop
 
     args = build_parser().parse_args(argv)
+    piped = args.command in PRINTING and hasattr(signal, "SIGPIPE")
+    if piped:  # `creatures state diff … | head` ends quietly, as cat does
+        sigpipe = signal.signal(signal.SIGPIPE, signal.SIG_DFL)
     restore = stop.install()
     try:
         import scipy.linalg  # noqa: F401 - loads numpy's and scipy's BLAS, so the limit below reaches them
@@ -767,6 +780,8 @@ def main(argv: list[str] | None = None) -> int:
         return 128 + (signal.SIGTERM if term else signal.SIGINT)
     finally:
         restore()
+        if piped:
+            signal.signal(signal.SIGPIPE, sigpipe)
 
 
 if __name__ == "__main__":

@@ -239,3 +239,26 @@ def test_a_full_aural_root_keeps_its_own_classes_and_says_what_it_left() -> None
     assert "not added: sound class any sound/2 (the root holds its max_children classes)" in added
     assert values == {"main": {"any sound/3|attend": 1.5}}
     assert [t[2] for t in dst["tuples"]["main"]] == ["any sound/1|attend", "any sound/2|attend", "any sound/3|attend"]
+
+
+def test_snapshots_of_a_missing_folder_is_an_error_and_of_an_empty_one_says_none(tmp_path: Path, capsys) -> None:
+    from creatures.cli import main
+
+    assert main(["state", "snapshots", str(tmp_path / "nowhere")]) == 2
+    assert "no such state folder" in capsys.readouterr().err
+    assert main(["state", "snapshots", str(tmp_path)]) == 0
+    assert "no snapshots yet" in capsys.readouterr().out
+
+
+def test_a_printing_command_whose_reader_stops_ends_without_a_word() -> None:
+    """`creatures config-docs | head -1`: the pipe closes after one line; the command ends by
+    SIGPIPE as cat would, with nothing on stderr (it printed '[Errno 32] Broken pipe')."""
+    import subprocess
+    import sys
+
+    run = subprocess.Popen([sys.executable, "-m", "creatures.cli", "config-docs"], stdout=subprocess.PIPE,
+                           stderr=subprocess.PIPE, bufsize=0)
+    assert run.stdout.readline().startswith(b"# ")
+    run.stdout.close()
+    _, err = run.communicate(timeout=60)
+    assert err == b"" and run.returncode in (-13, 0)  # 0: it had written everything before the close
