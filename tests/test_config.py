@@ -163,3 +163,19 @@ def test_an_extends_bases_paths_are_relative_to_the_base(tmp_path, monkeypatch):
     inst = load_installation(child)
     assert [row.address for row in inst.rehearsals[1]] == ["/play"]
     assert inst.resolve(inst.settings.state, ("state",)) == tmp_path / "base" / "saved"
+
+
+def test_an_offline_run_says_it_does_not_read_the_live_state_folder(tmp_path):
+    """`state = "DIR"` in a config is a live run's: an offline run starts fresh, and says so
+    (it started fresh in silence, and an author expected it to resume)."""
+    from creatures.authored.scaffold import new_installation
+    from creatures.runtime.offline import run_offline
+    from creatures.runtime.schema import load_installation
+
+    path = new_installation("piece", tmp_path)
+    path.write_text(path.read_text().replace('title = "piece"', 'title = "piece"\nstate = "saved"', 1))
+    inst = load_installation(path)
+    assert inst.settings.state == "saved"
+    summary = run_offline(inst, tmp_path / "out", duration=1.0, progress=False)
+    assert any(m.startswith("state = 'saved' is for live runs") for m in summary.messages)
+    assert not (tmp_path / "saved").exists()

@@ -136,6 +136,9 @@ def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path 
     session = Session(inst, clock, log, sink, say=messages.append)
     if (note := offline_note(inst)) is not None:
         messages.append(note)
+    if settings.state is not None:  # an offline run is a reproducible take: it starts from nothing
+        messages.append(f"state = {settings.state!r} is for live runs: offline, the creatures start fresh "
+                        "and what they learn is saved into the output's state/ folder")
     session.world.recording = settings.output.midi  # out.mid's input track and heard tempo
     sources = open_sources(inst, session.inputs, clock, messages.append, live=False)  # rehearsal files
     session.world.emit("run", title=settings.title, mode="offline", duration=duration, seed=settings.seed,
