@@ -56,10 +56,13 @@ def test_the_reference_is_current():
 
 
 def test_step_1_the_bored_heron_calls(tmp_path):
+    """As the text says: calls about twice as often as it rests (65 and 25 over 120 s)."""
     events = _run("heron-1", tmp_path)
     calls = [e for e in events if e["kind"] == "selection" and e["tuple"] == "call"]
+    rests = [e for e in events if e["kind"] == "selection" and e["tuple"] == "rest"]
     sung = [e["pitch"] for e in events if e["kind"] == "note"]
     assert len(calls) >= 5 and sung[:3] == [76, 72, 76]
+    assert 1.5 * len(rests) <= len(calls) <= 4 * len(rests), (len(calls), len(rests))
 
 
 @pytest.mark.parametrize("step", ["heron-2", "heron-3", "heron-4"])
