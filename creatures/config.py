@@ -113,7 +113,8 @@ def read_toml(path: str | Path, *, _seen: tuple[Path, ...] = ()) -> tuple[dict[s
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         match = re.search(r"line (\d+)", str(exc))
-        raise ConfigError(path, f"invalid TOML ({exc})", line=int(match.group(1)) if match else None) from None
+        raise ConfigError(path, f"invalid TOML ({exc}){_both_forms(text)}",
+                          line=int(match.group(1)) if match else None) from None
     except RecursionError:  # tomllib parses nested arrays and tables recursively
         raise ConfigError(path, f"invalid TOML (nested too deeply; at most {MAX_CONFIG_DEPTH} levels of tables and arrays)") from None
     where = {loc: (path, line) for loc, line in key_lines(text).items()}
@@ -147,6 +148,19 @@ def _too_deep(node: Any, loc: tuple[str | int, ...]) -> tuple[str | int, ...] | 
         if found is not None:
             return found
     return None
+
+
+def _both_forms(text: str) -> str:
+    """A hint for TOML that writes one name both as a list of tables and as a table (``[[input]]``
+    maps beside an ``[input]`` table: tomllib says only that a value cannot be overwritten)."""
+    lists = set(re.findall(r"^\s*\[\[\s*([\w.\-]+)\s*\]\]", text, re.M))
+    tables = set(re.findall(r"^\s*\[\s*([\w.\-]+)\s*\](?!\])", text, re.M))
+    both = sorted(lists & tables)
+    if not both:
+        return ""
+    name = both[0]
+    return (f"; [[{name}]] and [{name}] are both written: a name is a list of tables or a table, not both"
+            + (" — write the input maps as [[input.map]]" if name == "input" else ""))
 
 
 def _fields_at(model: type[BaseModel], loc: tuple[str | int, ...]) -> list[str]:

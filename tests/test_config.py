@@ -179,3 +179,11 @@ def test_an_offline_run_says_it_does_not_read_the_live_state_folder(tmp_path):
     summary = run_offline(inst, tmp_path / "out", duration=1.0, progress=False)
     assert any(m.startswith("state = 'saved' is for live runs") for m in summary.messages)
     assert not (tmp_path / "saved").exists()
+
+
+def test_input_maps_as_a_list_beside_an_input_table_is_explained(tmp_path):
+    """tomllib says only "Cannot overwrite a value"; the author wrote [[input]] maps and an
+    [input] table (generate = "none"), so the message says to write [[input.map]]."""
+    path = write(tmp_path, "a.toml", 'title = "x"\n[[input]]\nosc = "/a"\nto = "note"\n[input]\ngenerate = "none"\n')
+    with pytest.raises(ConfigError, match=r"\[\[input\]\] and \[input\] are both written.*\[\[input\.map\]\]"):
+        load_config(path, Installation)
