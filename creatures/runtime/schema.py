@@ -297,9 +297,11 @@ class InputSection(Strict):
     audio: str | None = Field(None, description="recorded audio fed offline (path relative to the config)")
     midi: str | None = Field(None, description="recorded MIDI fed offline (path relative to the config)")
     generate: str = Field("phrase", pattern="^(phrase|speech|none)$",
-                          description="input generated when no file is given: 'phrase' (three note "
-                                      "fragments, as notes and as tones), 'speech' (the poem Ozymandias "
-                                      "read by formant voices, audio only) or 'none'")
+                          description="input generated when no recording is given (--audio, --midi, or "
+                                      "`audio`/`midi` here): 'phrase' (three note fragments, as notes and as "
+                                      "tones), 'speech' (the poem Ozymandias read by formant voices, audio only) "
+                                      "or 'none'. An input map's rehearsal `file` plays beside it: 'none' to "
+                                      "hear the rehearsal alone")
     map: list[InputMap] = Field(default_factory=list, max_length=1024, description="the input maps (see `[[input]]`)")
 
 
