@@ -207,7 +207,7 @@ def _offline(args: argparse.Namespace) -> int:
 
 def _config_and_state(parser: argparse.ArgumentParser) -> None:
     """The config and ``--state`` that ``run``, ``check`` and ``service`` all take."""
-    parser.add_argument("config", type=Path, help="installation config (TOML)")
+    parser.add_argument("config", type=Path, help="installation config (TOML), or a shipped installation's name")
     parser.add_argument("--state", type=Path, help="directory for saved creature state (overrides the config)")
 
 
@@ -280,7 +280,7 @@ def _run(args: argparse.Namespace) -> int:
                  if key in ("state", "log", "duration", "frames") and value is not None]
         return supervise([sys.executable, "-m", "creatures.cli", "run", str(args.config), *again])
     try:
-        installation = load_installation(args.config)
+        installation = load_installation(_config_path(args.config))
         state = args.state or installation.resolve(installation.settings.state, ("state",))
         if state is None:
             print(f"note: {NO_STATE}")
@@ -341,7 +341,7 @@ def _check(args: argparse.Namespace) -> int:
     from creatures.runtime.schema import load_installation
 
     try:
-        installation = load_installation(args.config)
+        installation = load_installation(_config_path(args.config))
     except ConfigError as exc:
         print(f"creatures: {exc}", file=sys.stderr)
         return 2
@@ -369,8 +369,9 @@ def _service(args: argparse.Namespace) -> int:
     from creatures.runtime.schema import load_installation
 
     try:
-        load_installation(args.config)  # a unit for a config that does not load would only crash-loop
-        text = unit(args.config, args.state, watchdog=args.watchdog)
+        config = _config_path(args.config)
+        load_installation(config)  # a unit for a config that does not load would only crash-loop
+        text = unit(config, args.state, watchdog=args.watchdog)
         if args.out is None:
             sys.stdout.write(text)
         else:
