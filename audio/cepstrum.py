@@ -242,6 +242,13 @@ def distance_matrix(items: list[np.ndarray]) -> np.ndarray:
     return out
 
 
+def pair_distances(items: list[np.ndarray], pairs: list[tuple[int, int]]) -> np.ndarray:
+    """:func:`utterance_distance` of ``items[i]`` and ``items[j]`` for each ``(i, j)`` of
+    ``pairs`` (the pairs a cache of them has not seen: :class:`audio.utterance.PairDistances`)."""
+    items = _checked(*items, dims=3) if items else []
+    return np.array([_warped(items[i], items[j]) for i, j in pairs], dtype=float)
+
+
 def nearest(query: np.ndarray, templates: list[np.ndarray]) -> tuple[int, float]:
     """Index of and distance to the template closest to ``query``."""
     d = distances_to(query, templates)

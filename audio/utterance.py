@@ -26,7 +26,7 @@ import numpy as np
 import scipy.cluster.hierarchy
 import scipy.spatial.distance
 
-from audio.cepstrum import FEATURES, N_CEPSTRA, WARPS, cepstra, distance_matrix, distances_to, utterance_distance
+from audio.cepstrum import FEATURES, N_CEPSTRA, WARPS, cepstra, distances_to, pair_distances, utterance_distance
 from audio.segment import SoundEvent
 from creatures.behaviour.percept import Percept
 from creatures.persist import StateFileError, load_json, load_npz, save_json, save_npz
@@ -102,6 +102,40 @@ def cluster_medoids(
     ]
 
 
+class PairDistances:
+    """Time-warped distances between utterances, each pair warped once.
+
+    Clustering asks for the distance matrix of a node's members at every fission, and most of
+    its pairs were in the last one's (a rehearsed hour of ozymandias spent a third of its CPU
+    warping the same pairs again). Pairs are keyed by the utterances themselves (compared by
+    identity, and kept alive by the key, so no freed id is ever another sound's); after each
+    matrix only the pairs of sounds the tree still holds are kept, so the cache is bounded by
+    the tree's ``max_members``. The numbers are the ones :func:`audio.cepstrum.distance_matrix`
+    gives."""
+
+    def __init__(self) -> None:
+        self._known: dict[tuple[Utterance, Utterance], float] = {}
+
+    def matrix(self, members: list[Utterance], held: set[Utterance]) -> np.ndarray:
+        """The symmetric distance matrix of ``members``; ``held``: every sound the tree holds now."""
+        n = len(members)
+        out = np.zeros((n, n))
+        todo: list[tuple[int, int]] = []
+        for i in range(n):
+            for j in range(i + 1, n):
+                d = self._known.get((members[i], members[j]))
+                if d is None:
+                    todo.append((i, j))
+                else:
+                    out[i, j] = out[j, i] = d
+        found = pair_distances([m.features for m in members], todo) if todo else []
+        for (i, j), d in zip(todo, found):
+            out[i, j] = out[j, i] = d
+            self._known[members[i], members[j]] = self._known[members[j], members[i]] = float(d)
+        self._known = {pair: d for pair, d in self._known.items() if pair[0] in held and pair[1] in held}
+        return out
+
+
 class UtterancePercept(Percept):
     """A percept whose model is a set of utterances (exemplars) and their medoid.
 
@@ -141,6 +175,7 @@ class UtterancePercept(Percept):
         self.nearest = False  # only the root's is used: its children classify (see the class docstring)
         self._similarity: tuple[Utterance, float] | None = None
         self._born = 0  # children made so far, for unique names
+        self._pairs = PairDistances()  # only the root's is used
 
     # -- hearing and evaluating -------------------------------------------------------------
 
@@ -211,7 +246,7 @@ class UtterancePercept(Percept):
         if value <= innovation_threshold or len(self.members) < self.min_members:
             return []
         clusters = cluster_medoids(
-            distance_matrix([m.features for m in self.members]),
+            self._distances(self.members),
             self.radius,
             max_clusters=self.max_children,
             min_members=self.min_members,
@@ -233,6 +268,21 @@ class UtterancePercept(Percept):
         self.fusion()
         return [c for c in born if c.parent is self]
 
+    def _distances(self, members: list[Utterance]) -> np.ndarray:
+        """The distance matrix of ``members``, through the root's cache of warped pairs."""
+        root = self.root()
+        held: set[Utterance] = set()
+        stack: list[UtterancePercept] = [root]
+        while stack:
+            node = stack.pop()
+            held.update(node.members)
+            stack += node.utterance_children()
+        return root._pairs.matrix(members, held)
+
+    def _by_medoid(self, members: list[Utterance]) -> list[Utterance]:
+        d = self._distances(members)
+        return [members[i] for i in np.argsort(d.sum(axis=1), kind="stable")]
+
     def fusion(self) -> list["UtterancePercept"]:
         """Merge children whose medoids are closer than ``radius``; returns those removed.
 
@@ -241,7 +291,7 @@ class UtterancePercept(Percept):
         removed = []
         while (pair := self._indistinct_pair()) is not None:
             keep, lose = pair
-            keep.members = _by_medoid(keep.members + lose.members)
+            keep.members = self._by_medoid(keep.members + lose.members)
             keep._similarity = None
             self.remove_child(lose)
             removed.append(lose)
@@ -324,11 +374,6 @@ def aural_model_of(sounds: list[np.ndarray], samplerate: int) -> UtterancePercep
         sound = np.ascontiguousarray(sound, dtype=np.float32)
         tree.members.append(Utterance(sound, samplerate, cepstra(sound, samplerate), float(end)))
     return tree
-
-
-def _by_medoid(members: list[Utterance]) -> list[Utterance]:
-    d = distance_matrix([m.features for m in members])
-    return [members[i] for i in np.argsort(d.sum(axis=1), kind="stable")]
 
 
 # -- persistence ------------------------------------------------------------------------------

@@ -256,3 +256,24 @@ def test_damaged_model_files_are_named(speaker: Speaker, tmp_path: Path) -> None
     path.with_suffix(".npz").unlink()
     with pytest.raises(StateFileError, match="ear.npz.*not found"):
         load_aural_model(path)
+
+
+def test_pair_distances_warp_each_pair_once_and_keep_only_what_the_tree_holds(speaker, monkeypatch):
+    """The cache of warped pairs gives distance_matrix's numbers, warps a pair seen before no
+    more, and forgets pairs of sounds the tree no longer holds."""
+    import audio.utterance as utterance
+    from audio.cepstrum import distance_matrix
+
+    sounds = [heard(name, speaker, 1.0 + k) for k, name in enumerate(["ai", "oe", "ai", "ieu", "oe"])]
+    warped: list[int] = []
+    pair_distances = utterance.pair_distances
+    monkeypatch.setattr(utterance, "pair_distances",
+                        lambda items, pairs: warped.append(len(pairs)) or pair_distances(items, pairs))
+    cache = utterance.PairDistances()
+    first = cache.matrix(sounds[:4], set(sounds))
+    np.testing.assert_array_equal(first, distance_matrix([s.features for s in sounds[:4]]))
+    again = cache.matrix(sounds, set(sounds))  # one new sound: its 4 pairs only
+    np.testing.assert_array_equal(again, distance_matrix([s.features for s in sounds]))
+    assert warped == [6, 4]
+    cache.matrix(sounds[1:3], set(sounds[1:]))  # the first sound is gone from the tree
+    assert warped == [6, 4] and all(sounds[0] not in pair for pair in cache._known)
