@@ -43,12 +43,9 @@ def _bounded(low: float, high: float) -> Callable[[str], float]:
 
     def parse(text: str) -> float:
         try:
-            value = float(text)
+            return number(float(text), "value", low=low, high=high)
         except ValueError:
-            value = float("nan")
-        if not low <= value <= high:  # NaN fails both
-            raise argparse.ArgumentTypeError(f"{text!r} is not a number in [{low:g}, {high:g}]")
-        return value
+            raise argparse.ArgumentTypeError(f"{text!r} is not a number in [{low:g}, {high:g}]") from None
 
     return parse
 

@@ -241,6 +241,12 @@ def validate(
                            choices=choices, got=got) from None
 
 
+def written_in(where: dict[tuple, tuple[Path, int]], key: tuple[str | int, ...], config: Path) -> Path:
+    """The file that wrote ``key`` (an ``extends`` base, an included file), else ``config``:
+    a path in a config is relative to the file that writes it."""
+    return where.get(key, (config, 0))[0]
+
+
 def config_error(
     file: Path,
     where: dict[tuple, tuple[Path, int]],

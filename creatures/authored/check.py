@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any
 from creatures.authored.registry import ACTIONS, MODELS, PERCEPTS, PluginError, load_parts
 from creatures.authored.skills import VOICE_PARAMETERS
 from creatures.behaviour.action_group import ungrounded_message
-from creatures.config import ConfigError, config_error, validate
+from creatures.config import ConfigError, config_error, validate, written_in
 
 if TYPE_CHECKING:
     from creatures.authored.spec import AuthoredSpec
@@ -155,9 +155,9 @@ def _seed_model(c: _Checker, percept, loc: tuple) -> None:
     (a wrong file is a config error at its key), kept absolute for the build."""
     from creatures.kinds.hearing_parts import resolve_aural_model
 
-    written = c.where.get((*c.prefix, *loc), (c.file, 0))[0]
+    written = written_in(c.where, (*c.prefix, *loc), c.file)
     try:
-        percept.model_extra["seed_model"] = resolve_aural_model(percept.model_extra["seed_model"], Path(written).parent)
+        percept.model_extra["seed_model"] = resolve_aural_model(percept.model_extra["seed_model"], written.parent)
     except ValueError as exc:
         raise c.error(loc, str(exc)) from None
 

@@ -65,7 +65,7 @@ from creatures.behaviour.motivation import Motivation
 from creatures.kinds import register
 from creatures import bounds
 from creatures.bounds import FINITE, LARGEST_RATE, LONGEST_SECONDS, Seconds
-from creatures.config import config_error
+from creatures.config import config_error, written_in
 from creatures.kinds.base import CreatureKind, CreatureSpec
 from creatures.kinds.hearing_parts import (AuralModelFile, Ear, HearingSpec, Mouth, MouthSpec, SeedModel, pack_samples,
                                               resolve_aural_model, utterance_from_state)
@@ -170,7 +170,7 @@ class ThreeCreaturesSpec(CreatureSpec):
         for key, holder, attr in keys:
             at = (*prefix, *key)
             try:
-                setattr(holder, attr, resolve_aural_model(getattr(holder, attr), where.get(at, (file, 0))[0].parent))
+                setattr(holder, attr, resolve_aural_model(getattr(holder, attr), written_in(where, at, file).parent))
             except ValueError as exc:
                 raise config_error(file, where, at, str(exc)) from None
 

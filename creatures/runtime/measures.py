@@ -15,7 +15,9 @@ from collections import Counter
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-ACTS = ("note", "sing", "read")
+SOUNDS = ("sing", "read")
+"""Events that are a creature sounding something other than a note: a sound sung back, a word read."""
+ACTS = ("note", *SOUNDS)
 """Events that are a creature making sound (as tests/test_installations.py counts them)."""
 
 GRAM = 4

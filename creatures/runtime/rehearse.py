@@ -178,8 +178,7 @@ def rehearse(inst: LoadedInstallation, days: int | None = None, *,
     session = Session(inst, clock, log, CountingSink())
     names = [c.name for c in session.creatures]
     spans = open_spans(hours, days)
-    hours_open = len({int(t // 3600) for a, b in spans for t in np.arange(a, b, 3600.0)} |
-                     {int((b - 1e-6) // 3600) for a, b in spans})
+    hours_open = len({hour for a, b in spans for hour in range(int(a // 3600), math.ceil(b / 3600))})
     per_day: dict[int, float] = {}
     for a, b in spans:
         per_day[int(a // 86400)] = per_day.get(int(a // 86400), 0.0) + b - a

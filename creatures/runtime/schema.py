@@ -20,7 +20,7 @@ from creatures.authored.include import expand_includes, expand_kinds, expand_lik
 from creatures.authored.plugins import load_plugins
 from creatures.authored.registry import PluginError
 from creatures.runtime.cc_sources import check_source
-from creatures.config import ConfigError, config_error, read_toml, validate
+from creatures.config import ConfigError, config_error, read_toml, validate, written_in
 from creatures.kinds import CreatureSpec, load_all
 from creatures.authored.percepts import ROOM_PERCEPTS
 from creatures.room.crowd import CrowdError, expand as expand_crowds
@@ -577,11 +577,6 @@ def _with_input_maps(path: Path, settings: Installation, specs: list[CreatureSpe
             except RehearsalError as exc:
                 raise config_error(path, where, (*prefix, i, "file"), str(exc)) from None
     return inst
-
-
-def written_in(where: dict[tuple, tuple[Path, int]], key: tuple[str | int, ...], config: Path) -> Path:
-    """The file that wrote ``key`` (an ``extends`` base, an included file), else ``config``."""
-    return where.get(key, (config, 0))[0]
 
 
 def host_problem(host: str) -> str | None:

@@ -114,7 +114,7 @@ class Session:
             self.mixer.place_all(gains[:, None] * self.stage.speaker_gains())  # spec.gain: the console may set it
         self.world.deliver(t)
         if self.room_air is not None:
-            self._listen_in_room(t, recorded, frames)
+            self._listen_in_room(t, recorded, frames, gains)
         else:
             heard = self._ears(recorded, frames)
             # hears_input = false: asked each tick, since the console or a zone may set it in a run
@@ -187,14 +187,14 @@ class Session:
         for note in self._transcriber.feed(recorded):
             self.world.inject(note, via="audio")
 
-    def _listen_in_room(self, t: float, recorded: np.ndarray | None, frames: int) -> None:
-        """Each creature that listens hears its own block of the room's sound (RoomAir)."""
+    def _listen_in_room(self, t: float, recorded: np.ndarray | None, frames: int, gains: np.ndarray) -> None:
+        """Each creature that listens hears its own block of the room's sound (RoomAir);
+        ``gains``: each creature's own level this tick."""
         self.room_air.hear_input(recorded, frames)
         if recorded is None and not self.air:
             return  # nothing sounds in the room's air: no ear is fed, as without a room
         listeners = np.array([i for i, creature in enumerate(self.creatures) if creature.hears_audio], dtype=np.intp)
         hears_input = np.array([recorded is not None and self.creatures[i].spec.hears_input for i in listeners], float)
-        gains = np.fromiter((creature.spec.gain for creature in self.creatures), float, len(self.creatures))
         blocks = self.room_air.ears(listeners, self.stage.v.pos, gains, self.stage.source_at(INPUT),
                                     hears_input, frames, voices=self.air)
         for i, block in zip(listeners.tolist(), blocks):

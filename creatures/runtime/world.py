@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Callable
 from creatures.behaviour.state_object import StateObject
 from creatures.clock import Clock
 from creatures.events import EventLog
+from creatures.runtime.measures import SOUNDS
 from creatures.runtime.pulse import HeardPulse
 from creatures.temporal.transitions import Succession
 from midi.notes import NoteEvent
@@ -32,8 +33,6 @@ if TYPE_CHECKING:
     from creatures.room.stage import Stage
 
 INPUT = "input"
-SOUNDS = ("sing", "read")
-"""Events that are a creature sounding something other than a note: a sound sung back, a word read."""
 """The source name of notes that come from outside the colony."""
 
 TEMPO_STEP = 0.02
