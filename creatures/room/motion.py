@@ -17,6 +17,7 @@ import numpy as np
 
 from creatures.room.combine import POLICIES
 from creatures.room.index import Neighbours
+from creatures.room.kernel import Program, draws, substeps
 from creatures.room.lod import Audibility, LevelOfDetail
 from creatures.room.recipe import BEHAVIOURS, Recipe, Step, Surroundings
 from creatures.room.space import Room
@@ -55,6 +56,7 @@ class Crowd:
         self._level = np.zeros(len(vehicles), dtype=np.int64)
         self._last = np.zeros(len(vehicles), dtype=np.int64)  # the sub-step each last steered
         self._next_plan = 0  # the sub-step on which the levels are planned next
+        self.compiled = Program.of(recipes)  # None: a recipe steers by the director's paths (numpy)
         room.contain(vehicles.pos, vehicles.vel, vehicles.radius)
 
     def skip_to(self, t: float) -> None:
@@ -69,10 +71,48 @@ class Crowd:
     def advance_to(self, t: float) -> int:
         """Run every sub-step that ends by ``t``; returns how many ran."""
         ran = 0
-        while self.t + self.substep <= t + 1e-9:
-            self.step()
+        while (self.steps + ran) * self.substep + self.substep <= t + 1e-9:
             ran += 1
+        if self.compiled is None:
+            for _ in range(ran):
+                self.step()
+        else:
+            self._run(ran)
         return ran
+
+    def _run(self, count: int) -> None:
+        """``count`` sub-steps compiled (:mod:`.kernel`), in runs between two plannings of the
+        levels of detail: the same sub-steps, levels and random numbers as :meth:`step`."""
+        v, p, room, around = self.v, self.compiled, self.room, self.around
+        for name in ("pos", "vel", "heading"):  # the kernel writes the rows in place
+            setattr(v, name, np.ascontiguousarray(getattr(v, name), dtype=float))
+        if len(around.others):
+            around.others = np.ascontiguousarray(around.others, dtype=float)
+        surroundings = [np.ascontiguousarray(x, dtype=float).reshape(-1, 2)
+                        for x in (around.visitors, around.visitor_vel, around.player, around.loud, around.notes)]
+        while count:
+            run = count
+            if self.lod is None:
+                steer = np.ones((run, len(v)), dtype=bool)
+                self._last[:] = self.steps + run - 1
+            else:
+                if self.steps >= self._next_plan:
+                    self._plan()
+                run = min(run, self._next_plan - self.steps)
+                steer = np.zeros((run, len(v)), dtype=bool)
+                for s in range(run):
+                    who = self.lod.due(self.steps + s, self._level, self._last)
+                    self._last[who] = self.steps + s
+                    steer[s, who] = True
+            self.steered += int(steer.sum())
+            substeps(self.substep, steer, draws(p, self.groups, steer, self.rng), v.pos, v.vel, v.heading, v.mass,
+                     v.max_force, v.max_speed, v.radius, v.max_turn, self.force, self.wander_angle, self.gain,
+                     self.groups, around.others, room.size, room.centres, room.radii, p.start, p.count, p.policy,
+                     p.k, p.reach, p.wanders, p.code, p.weight, p.probability, p.target, p.creature, p.point, p.par,
+                     p.ordinal, *surroundings)
+            self.steps += run
+            self.t = self.steps * self.substep
+            count -= run
 
     @property
     def level(self) -> np.ndarray:

@@ -25,6 +25,9 @@ creature of the crowd."""
 
 NAMED_TARGETS = ("visitor", "player", "loud", "note", "centre")
 
+WANDER_RATE = 2.0
+"""Wander's default drift of its angle, rad/√s."""
+
 
 @dataclass(frozen=True)
 class Behaviour:
@@ -124,7 +127,7 @@ def _aimed(fn: Callable[..., np.ndarray], with_vel: bool) -> Callable[[Step, dic
 
 def _wander(step: Step, params: dict) -> np.ndarray:
     s = step.scene
-    rate = params.get("rate", 2.0) * np.sqrt(step.dt)  # a random walk in angle: tick-independent
+    rate = params.get("rate", WANDER_RATE) * np.sqrt(step.dt)  # a random walk in angle: tick-independent
     force, angle = st.wander(s, step.wander_angle[s.who], step.rng.standard_normal(len(s.who)), rate=rate,
                              radius=params.get("radius", 0.5), distance=params.get("distance", 1.0))
     step.wander_angle[s.who] = angle
