@@ -196,8 +196,8 @@ def _grid(px: np.ndarray, py: np.ndarray, cell: float, nx: int, ny: int) -> tupl
 def _nearest_k(i: int, px: np.ndarray, py: np.ndarray, order: np.ndarray, first: np.ndarray, where: np.ndarray,
                nx: int, ny: int, k: int, reach: float, index: np.ndarray, dist: np.ndarray) -> int:
     """The ``k`` nearest of the points to point ``i`` within ``reach``, nearest first, into
-    ``index`` and ``dist``; returns how many."""
-    found = 0
+    ``index`` (and their squared distances into ``dist``); returns how many."""
+    found, reach2 = 0, reach * reach
     if k == 0:
         return 0
     c = where[i]
@@ -209,8 +209,9 @@ def _nearest_k(i: int, px: np.ndarray, py: np.ndarray, order: np.ndarray, first:
                 j = order[r]
                 if j == i:
                     continue
-                d = math.hypot(px[j] - px[i], py[j] - py[i])
-                if d >= reach or (found == k and d >= dist[k - 1]):
+                dx, dy = px[j] - px[i], py[j] - py[i]
+                d = dx * dx + dy * dy  # squared: the order is the same, without hypot's care
+                if d >= reach2 or (found == k and d >= dist[k - 1]):
                     continue
                 slot = min(found, k - 1)
                 while slot > 0 and dist[slot - 1] > d:
