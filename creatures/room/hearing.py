@@ -25,7 +25,7 @@ def velocity_db(velocity: float) -> float:
     return 40.0 * math.log10(max(velocity, 1e-3) / 127.0)
 
 
-def db_velocity(db: float) -> float:
+def db_velocity(db: float | np.ndarray) -> float | np.ndarray:
     """A level (dB re velocity 127) as a MIDI velocity (unclipped)."""
     return 127.0 * 10.0 ** (db / 40.0)
 

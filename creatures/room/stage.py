@@ -531,10 +531,10 @@ class Stage:
         self.masked += len(taken) - int(np.count_nonzero(heard))
         self._flying = {key: x[~now] for key, x in flying.items()}
         out = []
-        for i, at, level, k in zip(ear[heard].tolist(), start[heard].tolist(), db[heard].tolist(),
-                                   number[heard].tolist()):
+        velocities = np.clip(np.round(db_velocity(db[heard])), 1, 127).astype(np.int64)  # round half to even, as round()
+        for i, at, velocity, k in zip(ear[heard].tolist(), start[heard].tolist(), velocities.tolist(),
+                                      number[heard].tolist()):
             note, source = self._sounds[k]
-            velocity = int(min(max(round(db_velocity(level)), 1), 127))
             out.append((i, NoteEvent(round(at, 6), note.pitch, velocity, note.channel, note.duration), source))
         for k in np.setdiff1d(number, self._flying["note"]).tolist():
             del self._sounds[k]  # every ear has it
