@@ -173,8 +173,7 @@ def rehearse(inst: LoadedInstallation, days: int | None = None, *,
     ears = _Ears(sr, rng) if hearing else None
     wall0 = time.perf_counter()
 
-    clock, log = SimulatedClock(), EventLog(keep_in_memory=1)
-    log.keep_in_memory = 0  # the taps see every record; nothing is kept for a week
+    clock, log = SimulatedClock(), EventLog(keep_in_memory=0)  # the taps see every record; none is kept
     session = Session(inst, clock, log, CountingSink())
     names = [c.name for c in session.creatures]
     spans = open_spans(hours, days)
