@@ -463,9 +463,14 @@ radius = 0.3
     # It seeks the room's corner only while its "heard" percept is salient: nothing is heard.
     gated = singer("g", 5.0, 8.0, vehicle='steer = [{ behaviour = "seek", target = [9.5, 9.5], when = "heard" }]')
     s, clock = session(tmp_path, room, follower, gated)
-    run(s, clock, 8.0)
+    joined, worst = None, 0.0
+    while clock.now() < 8.0 - 1e-9:
+        run(s, clock, clock.now() + TICK)
+        off = abs(s.stage.v.pos[0, 1] - 2.0) if 1.0 <= s.stage.v.pos[0, 0] <= 9.0 else np.inf
+        joined = clock.now() if joined is None and off <= 0.3 else joined
+        worst = max(worst, off) if joined is not None else worst
     f, g = s.stage.v.pos
-    assert f[0] > 7.0 and abs(f[1] - 2.0) < 0.35
+    assert f[0] > 7.0 and joined is not None and worst <= 0.3  # on the aisle from when it joined it
     assert np.allclose(g, [5.0, 8.0])  # its weight is 0 while it hears nothing
     assert s.stage.crowd.gain[1, 0] == 0.0
     assert s.stage.crowd.steered <= 2 * s.stage.crowd.steps  # the budget: two steerings per sub-step

@@ -170,7 +170,7 @@ class Crowd:
         near = index.near(who, here, k=recipe.neighbours, radius=recipe.reach)
         pos, vel, radius = (x.take(near.index, axis=0) for x in rows)
         scene = Scene(who, here, v.vel.take(who, axis=0), v.heading.take(who, axis=0), v.max_speed[who],
-                      v.radius[who], near, pos, vel, radius, self.room)
+                      v.radius[who], near, pos, vel, radius, self.room, v.max_force[who] / v.mass[who])
         step = Step(scene, v.pos, v.vel, v.heading, self.around, self.substep, self.rng, self.wander_angle)
         gain = self.gain.take(who, axis=0)  # each creature's multiplier of each behaviour's weight
         forces = [BEHAVIOURS[b.name](step, b.params) * gain[:, k:k + 1] for k, b in enumerate(recipe.behaviours)]
