@@ -691,3 +691,52 @@ def test_a_lone_caller_s_notes_are_not_kept_for_ears_that_are_not_there(tmp_path
     run(s, clock, 10.0)
     assert s.stage.masked + sum(1 for _ in s.creatures[1].ear.last(1000)) > 5
     assert all(k in set(s.stage._flying["note"].tolist()) for k in s.stage._sounds)
+
+
+PAINTED = """[[room.flows]]
+name = "round"
+shape = "painted"
+rows = [">>>>v",
+        "^...v",
+        "^...v",
+        "^...v",
+        "^<<<<"]
+[[room.flows]]
+name = "mill"
+shape = "vortex"
+cell = 0.5
+"""
+"""A director's painted field (the room from above, the back wall first): round the walls
+clockwise; and a vortex, anticlockwise round the centre."""
+
+
+def test_flow_fields_from_the_config_steer_the_crowd(tmp_path):
+    """A painted field carries a creature round the room's edge, side by side in the order its
+    arrows say (west along the front, up the west side, east along the back, down the east),
+    and a vortex carries another round the centre anticlockwise, both from [[room.flows]]."""
+    follow = 'steer = [{ behaviour = "flow_following", field = "%s" }]'
+    s, clock = session(tmp_path, PAINTED, singer("edge", 7.0, 1.0, vehicle=follow % "round"),
+                       singer("mill", 8.0, 5.0, vehicle=follow % "mill"))
+    sides, turned = [], 0.0
+    while clock.now() < 40.0 - 1e-9:
+        before = np.arctan2(*(s.stage.v.pos[1] - 5.0)[::-1])
+        run(s, clock, clock.now() + 0.1)
+        turned += (np.arctan2(*(s.stage.v.pos[1] - 5.0)[::-1]) - before + np.pi) % (2 * np.pi) - np.pi
+        x, y = s.stage.v.pos[0]
+        side = "front" if y < 2 else "west" if x < 2 else "back" if y > 8 else "east" if x > 8 else None
+        if side is not None and (not sides or sides[-1] != side):
+            sides.append(side)
+    assert sides[:5] == ["front", "west", "back", "east", "front"]
+    assert turned > 2 * np.pi  # the vortex's creature went all the way round the centre, anticlockwise
+
+
+@pytest.mark.parametrize("flow, message", [
+    ('[[room.flows]]\nname = "f"\nshape = "painted"\nrows = [">>", ">>>"]', "as long as the first"),
+    ('[[room.flows]]\nname = "f"\nshape = "painted"\nrows = [">x"]', "rows"),
+    ('[[room.flows]]\nname = "f"\nshape = "painted"', "needs rows"),
+    ('[[room.flows]]\nname = "f"\nrows = [">"]', "shape = 'painted'"),
+])
+def test_a_badly_painted_field_is_a_config_error(tmp_path, flow, message):
+    with pytest.raises(ConfigError, match=message) as info:
+        load_installation(write(tmp_path, HEADER.format(room=flow) + singer("a", 1.0, 1.0)))
+    assert info.value.line is not None

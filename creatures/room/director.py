@@ -28,13 +28,23 @@ class FlowField:
     """Directions over a grid of ``cell``-metre squares from the room's corner, (rows, cols, 2)."""
 
     directions: np.ndarray
-    cell: float
+    cell: float | tuple[float, float]
+    """A square cell's side, or (across, deep) for a painted field stretched over the room."""
 
     @classmethod
     def uniform(cls, room_size: np.ndarray, cell: float, direction: tuple[float, float]) -> "FlowField":
         """One direction everywhere."""
         rows, cols = (int(np.ceil(room_size[1] / cell)), int(np.ceil(room_size[0] / cell)))
         return cls(np.broadcast_to(np.asarray(direction, float), (rows, cols, 2)).copy(), cell)
+
+    @classmethod
+    def painted(cls, room_size: np.ndarray, rows: list[str]) -> "FlowField":
+        """A director's plan of the room in arrows (``FlowSpec.rows``: the first row along the
+        back wall), stretched over the floor: REACTFlowfield's painted field, written as text
+        so that it reads like the room seen from above with the audience at the bottom."""
+        arrows = {">": (1.0, 0.0), "<": (-1.0, 0.0), "^": (0.0, 1.0), "v": (0.0, -1.0), ".": (0.0, 0.0)}
+        grid = np.array([[arrows[c] for c in row] for row in reversed(rows)], dtype=float)  # row 0 at y = 0
+        return cls(grid, (float(room_size[0]) / grid.shape[1], float(room_size[1]) / grid.shape[0]))
 
     @classmethod
     def vortex(cls, room_size: np.ndarray, cell: float, clockwise: bool = False) -> "FlowField":

@@ -107,12 +107,29 @@ class FlowSpec(Strict):
     """A flow field (REACTFlowfield) over the room."""
 
     name: str = Field(pattern=r"^[A-Za-z0-9_\-]+$", description="named by `field = ` in a steer table")
-    shape: Literal["uniform", "vortex"] = Field("vortex", description="'uniform' (one direction) or 'vortex' "
-                                                                      "(round the room's centre)")
+    shape: Literal["uniform", "vortex", "painted"] = Field(
+        "vortex", description="'uniform' (one direction), 'vortex' (round the room's centre) or 'painted' (`rows`)")
     direction: tuple[Annotated[float, Field(ge=-1, le=1)], Annotated[float, Field(ge=-1, le=1)]] = Field(
         (1.0, 0.0), description="shape = 'uniform': the direction [dx, dy]")
     clockwise: bool = Field(False, description="shape = 'vortex': which way round")
-    cell: float = Field(0.5, gt=0.01, le=LARGEST_ROOM, description="grid cell, m")
+    cell: float = Field(0.5, gt=0.01, le=LARGEST_ROOM, description="grid cell, m (uniform, vortex)")
+    rows: list[Annotated[str, Field(min_length=1, max_length=1000, pattern=r"^[<>^v.]+$")]] | None = Field(
+        None, min_length=1, max_length=1000,
+        description="shape = 'painted': the room as a plan, one string per row of cells, the first along the back "
+                    "wall (y = depth), the last along the front (y = 0): '>' east (+x), '<' west, '^' toward the "
+                    "back (+y), 'v' toward the front, '.' no flow; the rows are stretched over the room")
+
+    @model_validator(mode="after")
+    def _painted(self) -> "FlowSpec":
+        if self.shape == "painted":
+            if not self.rows:
+                raise ValueError("shape = 'painted' needs rows (strings of > < ^ v and .)")
+            if len({len(r) for r in self.rows}) > 1:
+                raise ValueError(f"every row of a painted field must be as long as the first "
+                                 f"({len(self.rows[0])} cells); got lengths {[len(r) for r in self.rows]}")
+        elif self.rows is not None:
+            raise ValueError(f"rows paint a field: shape = 'painted', not {self.shape!r}")
+        return self
 
 
 class HearingSpec(Strict):

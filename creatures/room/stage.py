@@ -268,6 +268,8 @@ class Stage:
     def _field(self, f) -> FlowField:
         if f.shape == "uniform":
             return FlowField.uniform(self.room.size, f.cell, f.direction)
+        if f.shape == "painted":
+            return FlowField.painted(self.room.size, f.rows)
         return FlowField.vortex(self.room.size, f.cell, f.clockwise)
 
     # -- each tick --------------------------------------------------------------------------

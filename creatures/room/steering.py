@@ -253,14 +253,16 @@ def along_path(points: np.ndarray, seg: np.ndarray, at: np.ndarray, lead: float)
     return points[i] + (points[i + 1] - points[i]) * frac[:, None]
 
 
-def flow_following(s: Scene, field: np.ndarray, cell: float, *, lookahead: float = 0.5) -> np.ndarray:
+def flow_following(s: Scene, field: np.ndarray, cell: float | tuple[float, float], *,
+                   lookahead: float = 0.5) -> np.ndarray:
     """Match the flow field's direction where we will be in ``lookahead`` s (REACT
     "Flow field following"; REACTFlowfield, painted by the director). ``field`` is (rows,
-    cols, 2) of directions over cells ``cell`` m square from the room's corner."""
+    cols, 2) of directions over cells ``cell`` m square (or (across, deep) m) from the room's corner."""
     future = s.pos + s.vel * lookahead
     rows, cols = field.shape[:2]
-    j = np.clip((future[:, 0] / cell).astype(int), 0, cols - 1)
-    i = np.clip((future[:, 1] / cell).astype(int), 0, rows - 1)
+    across, deep = np.broadcast_to(np.asarray(cell, dtype=float), (2,))
+    j = np.clip((future[:, 0] / across).astype(int), 0, cols - 1)
+    i = np.clip((future[:, 1] / deep).astype(int), 0, rows - 1)
     direction = field[i, j]
     return np.where((norms(direction) > EPS)[:, None], _desired(s, direction), 0.0)
 
