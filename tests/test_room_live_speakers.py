@@ -1,9 +1,11 @@
 """A room's speaker layout on the live path (issue 21, "for out.wav and live output"): a live run
 (``creatures run``) of a ring of four opens four output ports on JACK, and a JACK client of the
-test's own, recording them, hears the creature east of the listener on speaker 0 alone.
+test's own, recording them, hears the creature east of the listener on speaker 0 alone; a run
+with the default dome opens its thirteen, and what each carries is the dome's 3-D VBAP gain
+for where the creature stands (east, and high, since nearer the listener sounds higher).
 
-Needs a JACK server with at least four playback ports (CI starts the dummy one with 16:
-``jackd --no-realtime -d dummy -r 44100 -p 512 -P 16``); skips with the reason otherwise."""
+Needs a JACK server with at least as many playback ports as speakers (CI starts the dummy one
+with 16: ``jackd --no-realtime -d dummy -r 44100 -p 512 -P 16``); skips with the reason otherwise."""
 
 from __future__ import annotations
 
@@ -18,32 +20,48 @@ import pytest
 from test_room_stage import HEADER, caller
 
 from bench.live_hearing import jack_available
+from creatures.room.speakers import DOME, Dome
 
 SECONDS = 3.0
 """Recorded once the run is up."""
 
 
-def ring_config(tmp_path) -> str:
-    path = tmp_path / "ring.toml"
-    path.write_text(textwrap.dedent(HEADER.format(room='speakers = "ring"\nchannels = 4')
+LAYOUTS = {"ring": ('speakers = "ring"\nchannels = 4', 4), "dome": ('speakers = "dome"', len(DOME))}
+"""Each layout's [room] lines and its speakers."""
+
+
+def layout_config(tmp_path, layout: str) -> str:
+    path = tmp_path / f"{layout}.toml"
+    path.write_text(textwrap.dedent(HEADER.format(room=LAYOUTS[layout][0])
                                     + caller("east", 9.0, 5.0, "max_speed = 0.01")))
     return str(path)
 
 
+def expected(layout: str) -> np.ndarray:
+    """What each speaker should carry of the creature 4 m east of the listener (5, 5): speaker 0
+    of the ring alone; over the dome, its VBAP gains at azimuth 0 and the elevation the floor
+    maps to (90° × (1 − 4 m / the farthest corner's 7.07 m))."""
+    if layout == "ring":
+        return np.eye(4)[0]
+    return Dome(DOME).gains(0.0, 90.0 * (1.0 - 4.0 / np.hypot(5.0, 5.0)))[0]
+
+
 @pytest.mark.jack
-def test_a_live_ring_of_four_sounds_on_four_jack_ports_panned_by_place(tmp_path):
+@pytest.mark.parametrize("layout", sorted(LAYOUTS))
+def test_a_live_speaker_layout_sounds_on_its_jack_ports_panned_by_place(tmp_path, layout):
     why = jack_available()
     if why:
         pytest.skip(why)
     import jack
 
+    count = LAYOUTS[layout][1]
     probe = jack.Client(f"speakers-probe-{os.getpid()}", no_start_server=True)
-    if len(probe.get_ports("system:playback", is_audio=True)) < 4:
+    if len(probe.get_ports("system:playback", is_audio=True)) < count:
         probe.close()
-        pytest.skip("the JACK server has fewer than four playback ports (start it with -P 16)")
-    inputs = [probe.inports.register(f"in_{k}") for k in range(4)]
+        pytest.skip(f"the JACK server has fewer than {count} playback ports (start it with -P 16)")
+    inputs = [probe.inports.register(f"in_{k}") for k in range(count)]
     frames = int(SECONDS * probe.samplerate)
-    recorded = np.zeros((4, frames), np.float32)
+    recorded = np.zeros((count, frames), np.float32)
     state = {"at": 0, "on": False}
     full = threading.Event()
 
@@ -59,7 +77,8 @@ def test_a_live_ring_of_four_sounds_on_four_jack_ports_panned_by_place(tmp_path)
             full.set()
 
     before = {p.name for p in probe.get_ports(is_audio=True, is_output=True)}
-    colony = subprocess.Popen([sys.executable, "-m", "creatures.cli", "run", ring_config(tmp_path), "--duration", "30",
+    colony = subprocess.Popen([sys.executable, "-m", "creatures.cli", "run", layout_config(tmp_path, layout),
+                               "--duration", "30",
                                "--out", str(tmp_path / "out")], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                               text=True, env={**os.environ, "PYTHONUNBUFFERED": "1"})
     try:
@@ -71,7 +90,7 @@ def test_a_live_ring_of_four_sounds_on_four_jack_ports_panned_by_place(tmp_path)
                     break
             ours = sorted((p for p in probe.get_ports(is_audio=True, is_output=True) if p.name not in before),
                           key=lambda p: (len(p.name), p.name))
-            assert len(ours) == 4, ("".join(lines), [p.name for p in ours])
+            assert len(ours) == count, ("".join(lines), [p.name for p in ours])
             for port, mine in zip(ours, inputs):
                 probe.connect(port, mine)
             state["on"] = True
@@ -81,5 +100,8 @@ def test_a_live_ring_of_four_sounds_on_four_jack_ports_panned_by_place(tmp_path)
         output = colony.communicate(timeout=60)[0]
     assert colony.returncode == 0, "".join(lines) + output
     rms = np.sqrt((recorded.astype(float) ** 2).mean(axis=1))
-    assert rms[0] > 0.001, rms  # speaker 0 at azimuth 0 (+x, east of the listener) carries it
-    assert rms[0] > 20 * rms[1:].max(), rms
+    want = expected(layout)
+    assert rms.max() > 0.001, rms
+    silent = want < 1e-6
+    assert silent.any() and rms[silent].max() < rms.max() / 20, (rms, want)  # the others carry nothing of it
+    np.testing.assert_allclose(rms[~silent] / rms.max(), want[~silent] / want.max(), atol=0.1)  # in the VBAP ratio
