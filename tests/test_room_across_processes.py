@@ -186,8 +186,9 @@ def test_every_process_hears_the_others_notes(room):
 def test_positions_agree_within_one_ticks_travel(room):
     """Where a process sees another's creature is where that creature stands (the owner's own
     record at the same Unix time), before the kill and after the restart, the restarted process
-    seeing and seen too: 99 % within one tick's travel (max_speed × tick), never beyond two,
-    after each process's first two seconds (start-up compiles make its first ticks late)."""
+    seeing and seen too: every view within one tick's travel (max_speed × tick), after each
+    process's first two seconds (start-up compiles make its first ticks late). Measured with
+    the compiled crowd: 74,650 views, p99 2.6 mm, worst 14.9 mm of the 40 mm."""
     errors = []
     tracks = [_owner_track(log) for log in room["logs"]]
     for k, log in enumerate(room["logs"]):
@@ -207,8 +208,7 @@ def test_positions_agree_within_one_ticks_travel(room):
     assert len(errors) > 10_000
     print(f"{len(errors)} views: p50 {np.median(errors) * 1e3:.2f} mm, p99 {np.percentile(errors, 99) * 1e3:.2f} mm, "
           f"worst {errors.max() * 1e3:.2f} mm (one tick's travel {TRAVEL * 1e3:.0f} mm)")
-    assert np.percentile(errors, 99) <= TRAVEL
-    assert errors.max() <= 2 * TRAVEL
+    assert errors.max() <= TRAVEL
 
 
 def test_a_killed_process_leaves_and_rejoins(room):
@@ -251,3 +251,44 @@ def test_one_beat_across_the_room(room):
     phase = (beats - beats[0] + 0.5) % 1.0 - 0.5  # each against the first, in (-1/2, 1/2] of a beat
     spread = (phase.max(axis=0) - phase.min(axis=0)) * 60.0 / 100.0
     assert spread.max() <= 0.005, spread.max()
+
+
+def test_notes_land_on_the_senders_beat(room):
+    """A note crossing processes is placed by its Link beat (issue 21: "notes are time-tagged
+    against it"): where each process heard another's note start (its "heard" event, on its own
+    clock) is, on its own Link timeline, the phase of the beat the sender played it on (its
+    "note" event, on the sender's clock and timeline) within 5 ms, for 95 % of the notes and
+    within 20 ms for all of them. Each side's beat is read off its own track of (Unix time,
+    beat) in its room events; each clock is put on Unix time by its run's epoch. (Here the
+    processes share one machine's clock, so placing by Unix time would land there too; that
+    the beat places a note when two machines' clocks disagree is tests/test_room_share.py's.)
+    Measured: 775 notes, worst 0.03 ms."""
+    def track(log: list[dict]) -> tuple[float, np.ndarray, np.ndarray]:
+        epoch = next(e for e in log if e["kind"] == "run")["epoch"]
+        rooms = [e for e in _rooms(log) if e["t"] > 3.0]
+        return epoch, np.array([e["unix"] for e in rooms]), np.array([e["beat"] for e in rooms])
+
+    tracks = [track(log) for log in room["logs"][:-1]]
+    played: dict[str, list[tuple[float, float]]] = {}  # each creature's notes: (Unix time, beat) as sent
+    for (epoch, unix, beat), log in zip(tracks, room["logs"][:-1]):
+        for e in log:
+            if e["kind"] == "note" and unix[0] < epoch + e["time"] < unix[-1]:
+                u = epoch + e["time"]
+                played.setdefault(e["creature"], []).append((u, np.interp(u, unix, beat)))
+    offsets = []
+    for (epoch, unix, beat), log in zip(tracks, room["logs"][:-1]):
+        for e in log:
+            u = epoch + e["time"] if e["kind"] == "heard" else None
+            if u is None or not unix[0] < u < unix[-1] or e["source"] not in played:
+                continue
+            sent_at, sent_beat = min(played[e["source"]], key=lambda note: abs(note[0] - u))  # the note it is
+            if abs(sent_at - u) > 0.25:  # not one the sender logged in its window
+                continue
+            phase = (sent_beat - np.interp(u, unix, beat) + 0.5) % 1.0 - 0.5  # beats
+            offsets.append(abs(phase) * 60.0 / 100.0)  # seconds at the room's 100 BPM
+    offsets = np.array(offsets)
+    assert len(offsets) > 100
+    print(f"{len(offsets)} notes: p50 {np.median(offsets) * 1e3:.2f} ms, p95 {np.percentile(offsets, 95) * 1e3:.2f} ms, "
+          f"worst {offsets.max() * 1e3:.2f} ms")
+    assert np.percentile(offsets, 95) <= 0.005
+    assert offsets.max() <= 0.020

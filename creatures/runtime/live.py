@@ -401,7 +401,7 @@ def run_live(
     previous = signal.signal(signal.SIGTERM, stop)
     session.world.emit("run", title=settings.title, mode="live", seed=settings.seed,
                        creatures=[c.name for c in session.creatures], restored=summary.restored,
-                       config=str(inst.path))
+                       config=str(inst.path), epoch=round(epoch, 6))  # Unix time of clock time 0
     # Poses into the events log as an offline run writes them, so `creatures view` and `creatures
     # render` replay a live run too (bounded by POSE_BUDGET): at log_fps the tick rounds each body's
     # joints into an event; the supervisor's thread writes the log, never the tick.
