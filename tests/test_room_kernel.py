@@ -110,3 +110,19 @@ def test_the_kernel_is_many_times_faster() -> None:
             c.advance_to(t)
         cost[compiled] = time.process_time() - start
     assert cost[False] > 10 * cost[True], cost
+
+
+@pytest.mark.parametrize("n", [1, 9, 300])
+def test_the_kernels_grid_finds_the_kd_trees_neighbours(n: int) -> None:
+    """The compiled crowd's neighbours (a grid of cells one reach wide) are the kd-tree's: the
+    same k nearest within reach, in the same order, for a sparse, a small and a dense crowd."""
+    from creatures.room.index import Neighbours
+    from creatures.room.kernel import nearest
+
+    rng = np.random.default_rng(n)
+    pos = rng.uniform(0, [12.0, 9.0], (n, 2))
+    who = np.arange(n)
+    for k, reach in ((7, 3.0), (3, 0.8), (12, 20.0)):
+        ours = nearest(pos, k, reach, np.array([12.0, 9.0]))
+        theirs = Neighbours(pos).near(who, pos, k=k, radius=reach).index
+        np.testing.assert_array_equal(ours, theirs)

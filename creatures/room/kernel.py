@@ -500,3 +500,26 @@ def substeps(dt: float, steer: np.ndarray, noise: np.ndarray, pos: np.ndarray, v
                 new = have + min(max(turn, -limit), limit)
                 heading[i, 0], heading[i, 1] = math.cos(new), math.sin(new)
             _contain(i, pos, vel, radius[i], size, centres, radii)
+
+
+@numba.njit(cache=True)
+def _all_nearest(px: np.ndarray, py: np.ndarray, k: int, reach: float, size_x: float, size_y: float,
+                 index: np.ndarray) -> None:
+    cell = max(reach, 1e-3)
+    nx, ny = max(int(math.ceil(size_x / cell)), 1), max(int(math.ceil(size_y / cell)), 1)
+    order, first, where = _grid(px, py, cell, nx, ny)
+    near, dist = np.empty(k, np.int64), np.empty(k)
+    for i in range(len(px)):
+        found = _nearest_k(i, px, py, order, first, where, nx, ny, k, reach, near, dist)
+        index[i, :found] = near[:found]
+        index[i, found:] = len(px)
+
+
+def nearest(pos: np.ndarray, k: int, reach: float, size: np.ndarray) -> np.ndarray:
+    """Each point's ``k`` nearest others within ``reach`` by the kernel's grid, nearest first,
+    padded with ``len(pos)`` (:class:`creatures.room.index.Neighbourhood`'s convention): what
+    a sub-step asks of it, for the benchmark and the tests to hold against the kd-tree."""
+    pos = np.ascontiguousarray(pos, dtype=float)
+    index = np.empty((len(pos), k), np.int64)
+    _all_nearest(pos[:, 0].copy(), pos[:, 1].copy(), k, reach, float(size[0]), float(size[1]), index)
+    return index
