@@ -9,6 +9,7 @@ import time
 import numpy as np
 import pytest
 
+from creatures.room.director import FlowField, Path
 from creatures.room.lod import LevelOfDetail
 from creatures.room.motion import Crowd
 from creatures.room.recipe import Behaviour, Recipe, Surroundings
@@ -32,6 +33,12 @@ RECIPES = {
                         Behaviour("seek", 0.5, params={"target": "note"}),
                         Behaviour("wander", params={"rate": 4.0, "radius": 0.3}),
                         Behaviour("agent_avoidance", 2.0), Behaviour("wall_avoidance")), "weighted")],
+    "the director's": [Recipe((Behaviour("path_following", params={"path": "aisle"}),
+                               Behaviour("flow_following", 0.5, params={"field": "round"}),
+                               Behaviour("separation")), "budget"),
+                       Recipe((Behaviour("leader_following", params={"target": 0, "behind": 1.5}),
+                               Behaviour("leader_following", 0.5, params={"target": "visitor"}),
+                               Behaviour("wall_avoidance")), "weighted")],
     "two groups": [Recipe(FLOCK[:5] + (Behaviour("wander"),), "budget"),
                    Recipe((Behaviour("agent_avoidance", 2.0), Behaviour("wander", params={"rate": 1.0}),
                            Behaviour("seek", params={"target": "visitor"}), Behaviour("wall_avoidance")),
@@ -47,6 +54,8 @@ def _crowd(recipes: list[Recipe], *, compiled: bool, lod: LevelOfDetail | None =
     around = Surroundings(visitors=np.array([[3.0, 2.0], [9.0, 7.0]]), visitor_vel=np.array([[0.2, 0.0], [0, -0.1]]),
                           player=np.array([[6.0, 4.5]]), loud=np.array([[10.0, 2.0]]),
                           notes=np.array([[1.0, 1.0], [11.0, 8.0]]),
+                          paths={"aisle": Path(np.array([[1.0, 1.0], [11.0, 1.0], [6.0, 8.0], [1.0, 5.0]]), 0.5)},
+                          fields={"round": FlowField.painted(np.array([12.0, 9.0]), [">>>v", "^..v", "^<<<"])},
                           others=np.column_stack([rng.uniform(1, 8, (others, 2)), rng.normal(0, 0.3, (others, 2)),
                                                   np.ones((others, 1)), np.zeros((others, 1)),
                                                   np.full((others, 1), 0.25)]))
@@ -86,14 +95,13 @@ def test_the_kernel_traces_the_numpy_crowds_paths(name: str, lod: LevelOfDetail 
     assert a.rng.random() == b.rng.random()  # the same random numbers drawn, no more, no fewer
 
 
-def test_the_directors_paths_still_steer_in_numpy() -> None:
-    from creatures.room.director import Path
-    recipe = Recipe((Behaviour("path_following", params={"path": "p"}),))
-    c = Crowd(Room(10, 10), Vehicles.at([[1.0, 1.0]]), [recipe],
-              around=Surroundings(paths={"p": Path(np.array([[1.0, 1.0], [9.0, 9.0]]), 0.5)}))
+def test_a_path_the_room_does_not_have_steers_in_numpy_and_says_so() -> None:
+    """The kernel compiles only what it can resolve; numpy's call names what is missing."""
+    recipe = Recipe((Behaviour("path_following", params={"path": "nowhere"}),))
+    c = Crowd(Room(10, 10), Vehicles.at([[1.0, 1.0]]), [recipe])
     assert c.compiled is None
-    c.advance_to(3.0)
-    assert c.v.pos[0, 0] > 2.0  # along the path, from rest
+    with pytest.raises(KeyError, match="nowhere"):
+        c.advance_to(1.0)
 
 
 def test_the_kernel_is_many_times_faster() -> None:

@@ -8,9 +8,9 @@ tick of a rehearsed week): flock's gallery week cost ~3 hours of CPU in numpy. T
 functions of :mod:`.steering`, :mod:`.combine`, :mod:`.vehicle` and :mod:`.space` stay the
 reference, documented and tested one by one against REACT's descriptions; this is the same
 arithmetic per creature, in the same order, and ``tests/test_room_kernel.py`` holds it to the
-numpy crowd's paths (within 1e-9 m) for every behaviour it compiles, every policy, level of
-detail and a shared room's remote creatures. Recipes with a behaviour it does not compile
-(path, flow field and leader following: the director's) run in numpy (:meth:`Program.of`).
+numpy crowd's paths (within 1e-9 m) for every behaviour, every policy, level of detail and a
+shared room's remote creatures. A recipe naming a path or field the room does not have runs in
+numpy, whose call says what is missing (:meth:`Program.of`; the config loader refuses it first).
 
 Neighbours come from a grid of cells one ``reach`` wide rebuilt each sub-step (a counting
 sort: O(n)), searched 3 × 3 cells round each creature: the ``k`` nearest within ``reach``, as
@@ -31,7 +31,8 @@ import numba
 import numpy as np
 
 from creatures.room import steering as st
-from creatures.room.recipe import NAMED_TARGETS, WANDER_RATE, Recipe
+from creatures.room.director import FlowField, Path
+from creatures.room.recipe import NAMED_TARGETS, WANDER_RATE, Recipe, Surroundings
 from creatures.room.vehicle import EPS
 
 PARAMS: dict[str, tuple[str, ...]] = {
@@ -39,12 +40,17 @@ PARAMS: dict[str, tuple[str, ...]] = {
     "evasion": ("horizon", "panic"), "wander": ("rate", "radius", "distance"), "separation": ("reach",),
     "cohesion": (), "alignment": (), "obstacle_avoidance": ("lookahead", "margin"),
     "wall_avoidance": ("lookahead", "margin"), "agent_avoidance": ("horizon", "margin"),
+    "path_following": ("lead", "response"), "flow_following": ("lookahead",),
+    "leader_following": ("behind", "slowing", "clear"),
 }
 """The compiled behaviours, by code (their order), and each one's parameters in the slots the
 kernel reads; their defaults are :mod:`.steering`'s (``wander``'s rate: the recipe's)."""
 
 CODES = {name: code for code, name in enumerate(PARAMS)}
-SEEK, FLEE, ARRIVAL, PURSUIT, EVASION, WANDER, SEPARATION, COHESION, ALIGNMENT, OBSTACLE, WALL, AGENT = range(12)
+(SEEK, FLEE, ARRIVAL, PURSUIT, EVASION, WANDER, SEPARATION, COHESION, ALIGNMENT, OBSTACLE, WALL, AGENT, PATH, FLOW,
+ LEADER) = range(15)
+DIRECTOR = {"path_following": "path", "flow_following": "field"}
+"""The behaviours that follow what the director laid down, and the parameter naming it."""
 POLICIES = {"weighted": 0, "budget": 1, "dithering": 2}
 POINT, CREATURE = len(NAMED_TARGETS), len(NAMED_TARGETS) + 1
 """Target kinds beyond the named ones (visitor, player, loud, note, centre: 0–4)."""
@@ -76,10 +82,23 @@ class Program:
     point: np.ndarray
     par: np.ndarray
     ordinal: np.ndarray
+    data: np.ndarray
+    """Per behaviour: which of the director's paths or fields it follows (-1: none)."""
+    paths: tuple[np.ndarray, ...]
+    """Every path's points (P, 2), where each starts in them (paths + 1), the distance along its
+    path of each point, each path's radius, its bends' distance along it and what fits there
+    (steering._bends), and where each path's bends start in those (paths + 1)."""
+    fields: tuple[np.ndarray, ...]
+    """Every flow field's cells' directions, one after another (cells, 2), where each starts,
+    its rows and columns, and its cells' size across and deep."""
 
     @classmethod
-    def of(cls, recipes: list[Recipe]) -> "Program | None":
-        """The recipes compiled, or None when one has a behaviour only numpy steers by."""
+    def of(cls, recipes: list[Recipe], around: Surroundings | None = None) -> "Program | None":
+        """The recipes compiled (``around``: where the director's paths and fields are), or None
+        when one has a behaviour only numpy steers by."""
+        around = around or Surroundings()
+        path_names, field_names = list(around.paths), list(around.fields)
+        data: list[int] = []
         rows: list[tuple] = []
         start, count, policy, k, reach, wanders = [], [], [], [], [], []
         for recipe in recipes:
@@ -94,8 +113,11 @@ class Program:
                     return None
                 params = dict(b.params)
                 target = params.pop("target", "visitor")
-                if set(params) - set(PARAMS[b.name]):
-                    return None  # numpy's call names the stray parameter
+                named = params.pop(DIRECTOR[b.name], None) if b.name in DIRECTOR else None
+                names = path_names if b.name == "path_following" else field_names
+                if set(params) - set(PARAMS[b.name]) or (b.name in DIRECTOR and named not in names):
+                    return None  # numpy's call names the stray parameter or the missing path
+                data.append(names.index(named) if b.name in DIRECTOR else -1)
                 values = [float(params.get(p, d)) for p, d in zip(PARAMS[b.name], _defaults(b.name))]
                 if isinstance(target, str):
                     kind, who, point = NAMED_TARGETS.index(target), -1, (0.0, 0.0)
@@ -111,11 +133,33 @@ class Program:
         i64 = lambda x: np.array(x, dtype=np.int64)  # noqa: E731
         return cls(i64(start), i64(count), i64(policy), i64(k), np.array(reach, float), i64(wanders),
                    i64(col[0]), np.array(col[1], float), np.array(col[2], float), i64(col[3]), i64(col[4]),
-                   np.array(col[5], float).reshape(-1, 2), np.array(col[6], float).reshape(-1, 3), i64(col[7]))
+                   np.array(col[5], float).reshape(-1, 2), np.array(col[6], float).reshape(-1, 3), i64(col[7]),
+                   i64(data), _paths([around.paths[n] for n in path_names]),
+                   _fields([around.fields[n] for n in field_names]))
 
     @property
     def dithers(self) -> np.ndarray:
         return self.policy == POLICIES["dithering"]
+
+
+def _paths(paths: list[Path]) -> tuple[np.ndarray, ...]:
+    points = [np.asarray(p.points, float) for p in paths]
+    bends = [st._bends(p) for p in points]
+    along = [np.concatenate([[0.0], np.cumsum(st.norms(p[1:] - p[:-1]))]) for p in points]
+    ends = lambda parts: np.concatenate([[0], np.cumsum([len(x) for x in parts])]).astype(np.int64)  # noqa: E731
+    return (np.concatenate(points or [np.zeros((0, 2))]), ends(points), np.concatenate(along or [np.zeros(0)]),
+            np.array([p.radius for p in paths], float), np.concatenate([w for w, _ in bends] or [np.zeros(0)]),
+            np.concatenate([f for _, f in bends] or [np.zeros(0)]), ends([w for w, _ in bends]))
+
+
+def _fields(fields: list[FlowField]) -> tuple[np.ndarray, ...]:
+    cells = [np.broadcast_to(np.asarray(f.cell, float), (2,)) for f in fields]
+    flat = [np.asarray(f.directions, float).reshape(-1, 2) for f in fields]
+    return (np.concatenate(flat or [np.zeros((0, 2))]),
+            np.concatenate([[0], np.cumsum([len(x) for x in flat])]).astype(np.int64),
+            np.array([f.directions.shape[0] for f in fields], np.int64),
+            np.array([f.directions.shape[1] for f in fields], np.int64),
+            np.array([c[0] for c in cells], float), np.array([c[1] for c in cells], float))
 
 
 def draws(program: Program, groups: np.ndarray, steer: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -365,6 +409,81 @@ def _steer(code: int, x: float, y: float, vx: float, vy: float, hx: float, hy: f
     return ux * (urgency * speed), uy * (urgency * speed), angle
 
 
+@numba.njit(cache=True)
+def _follow_path(x: float, y: float, vx: float, vy: float, speed: float, accel: float, lead: float, response: float,
+                 p: int, paths: tuple) -> tuple[float, float]:
+    """steering.path_following for one creature on path ``p`` of :attr:`Program.paths`."""
+    points, starts, along, radii, where, fits, bend_starts = paths
+    a0, a1 = starts[p], starts[p + 1]
+    radius = radii[p]
+    best, seg, fx, fy = np.inf, 0, x, y
+    for k in range(a0, a1 - 1):  # steering.project
+        ax, ay = points[k, 0], points[k, 1]
+        abx, aby = points[k + 1, 0] - ax, points[k + 1, 1] - ay
+        t = min(max(((x - ax) * abx + (y - ay) * aby) / max(abx * abx + aby * aby, EPS), 0.0), 1.0)
+        footx, footy = ax + t * abx, ay + t * aby
+        d = math.hypot(x - footx, y - footy)
+        if d < best:
+            best, seg, fx, fy = d, k, footx, footy
+    total = along[a1 - 1]
+    walked = min(max(along[seg] + math.hypot(fx - points[seg, 0], fy - points[seg, 1]) + lead, 0.0), total)
+    i = a0  # steering.along_path: the segment the walked distance ends on
+    while i < a1 - 2 and along[i + 1] <= walked:
+        i += 1
+    frac = (walked - along[i]) / max(math.hypot(points[i + 1, 0] - points[i, 0], points[i + 1, 1] - points[i, 1]),
+                                     EPS)
+    hx = points[i, 0] + (points[i + 1, 0] - points[i, 0]) * frac
+    hy = points[i, 1] + (points[i + 1, 1] - points[i, 1]) * frac
+    at = along[seg + 1] - math.hypot(points[seg + 1, 0] - fx, points[seg + 1, 1] - fy)
+    limit = np.inf
+    b0, b1 = bend_starts[p], bend_starts[p + 1]
+    for b in range(b0, b1):
+        to_bend = where[b] - at
+        if b == b1 - 1:  # the end: back to it from past it
+            to_bend = max(to_bend, math.hypot(points[a1 - 1, 0] - x, points[a1 - 1, 1] - y))
+        braking = max(to_bend - 2 * lead if fits[b] > 0 else to_bend, 0.0)
+        if to_bend > -radius:
+            limit = min(limit, math.sqrt(accel * fits[b] * radius / 2 + accel * braking))
+    ax, ay = _desired(hx - x, hy - y, min(speed, limit), vx, vy)
+    return ax / response, ay / response
+
+
+@numba.njit(cache=True)
+def _follow_field(x: float, y: float, vx: float, vy: float, speed: float, lookahead: float, f: int,
+                  fields: tuple) -> tuple[float, float]:
+    """steering.flow_following for one creature on field ``f`` of :attr:`Program.fields`."""
+    flat, starts, rows, cols, across, deep = fields
+    gx, gy = x + vx * lookahead, y + vy * lookahead
+    j = min(max(int(gx / across[f]), 0), cols[f] - 1)
+    i = min(max(int(gy / deep[f]), 0), rows[f] - 1)
+    c = starts[f] + i * cols[f] + j
+    dx, dy = flat[c, 0], flat[c, 1]
+    if math.hypot(dx, dy) > EPS:
+        return _desired(dx, dy, speed, vx, vy)
+    return 0.0, 0.0
+
+
+@numba.njit(cache=True)
+def _follow_leader(x: float, y: float, vx: float, vy: float, speed: float, r: float, lx: float, ly: float,
+                   lvx: float, lvy: float, hx: float, hy: float, behind: float, slowing: float,
+                   clear: float) -> tuple[float, float]:
+    """steering.leader_following for one creature (arrival behind the leader, evasion from its way)."""
+    bx, by = _unit(lvx, lvy) if math.hypot(lvx, lvy) > 1e-6 else _unit(hx, hy)
+    ox, oy = lx - bx * behind - x, ly - by * behind - y  # arrival, response 0.25
+    d = math.hypot(ox, oy)
+    want = speed * min(d / slowing, 1.0)
+    m = max(d, EPS)
+    fx, fy = (ox / m * want - vx) / 0.25, (oy / m * want - vy) / 0.25
+    rx, ry = x - lx, y - ly
+    ahead = rx * bx + ry * by
+    lateral = math.hypot(rx - bx * ahead, ry - by * ahead)
+    if ahead > 0 and ahead < clear and lateral < r * 2 + clear / 2:  # evasion: horizon 2 s, no panic distance
+        t = min(math.hypot(lx - x, ly - y) / max(speed, EPS), 2.0)
+        ex, ey = _flee(x, y, lx + lvx * t, ly + lvy * t, np.inf, speed, vx, vy)
+        fx, fy = fx + ex, fy + ey
+    return fx, fy
+
+
 @numba.njit(cache=True, inline="always")
 def _contain(i: int, pos: np.ndarray, vel: np.ndarray, r: float, size: np.ndarray, centres: np.ndarray,
              radii: np.ndarray) -> None:
@@ -405,8 +524,8 @@ def substeps(dt: float, steer: np.ndarray, noise: np.ndarray, pos: np.ndarray, v
              g_start: np.ndarray, g_count: np.ndarray, g_policy: np.ndarray, g_k: np.ndarray, g_reach: np.ndarray,
              g_wanders: np.ndarray, code: np.ndarray, weight: np.ndarray, probability: np.ndarray,
              tkind: np.ndarray, twho: np.ndarray, tpoint: np.ndarray, par: np.ndarray, ordinal: np.ndarray,
-             visitors: np.ndarray, visitor_vel: np.ndarray, player: np.ndarray, loud: np.ndarray,
-             notes: np.ndarray) -> None:
+             data: np.ndarray, paths: tuple, fields: tuple, visitors: np.ndarray, visitor_vel: np.ndarray,
+             player: np.ndarray, loud: np.ndarray, notes: np.ndarray) -> None:
     """``len(steer)`` sub-steps of ``dt``: on each, the remote ``others`` move on by their
     velocity, the creatures ``steer[s]`` marks steer (the rest keep their last ``force``),
     then every creature moves and is kept in the room (Crowd.step, Vehicles.step, Room.contain)."""
@@ -456,14 +575,28 @@ def substeps(dt: float, steer: np.ndarray, noise: np.ndarray, pos: np.ndarray, v
                     b = g_start[g] + k
                     z = noise[s, base[g] + ordinal[b] * m + j] if ordinal[b] >= 0 else 0.0
                     present, tx, ty, tvx, tvy = True, 0.0, 0.0, 0.0, 0.0
-                    if code[b] <= EVASION:
+                    if code[b] <= EVASION or code[b] == LEADER:
                         present, tx, ty, tvx, tvy = _target(tkind[b], twho[b], tpoint[b, 0], tpoint[b, 1], i,
                                                             pos[i, 0], pos[i, 1], pos, vel, size, visitors,
                                                             visitor_vel, player, loud, notes)
-                    fx, fy, angle[i] = _steer(code[b], pos[i, 0], pos[i, 1], vel[i, 0], vel[i, 1], heading[i, 0],
-                                              heading[i, 1], max_speed[i], radius[i], dt, par[b, 0], par[b, 1],
-                                              par[b, 2], present, tx, ty, tvx, tvy, z, angle[i], rows, near,
-                                              found, size, centres, radii)
+                    if code[b] == PATH:
+                        fx, fy = _follow_path(pos[i, 0], pos[i, 1], vel[i, 0], vel[i, 1], max_speed[i],
+                                              max_force[i] / mass[i], par[b, 0], par[b, 1], data[b], paths)
+                    elif code[b] == FLOW:
+                        fx, fy = _follow_field(pos[i, 0], pos[i, 1], vel[i, 0], vel[i, 1], max_speed[i], par[b, 0],
+                                               data[b], fields)
+                    elif code[b] == LEADER:
+                        fx, fy = 0.0, 0.0
+                        if present:
+                            hx, hy = (heading[twho[b], 0], heading[twho[b], 1]) if tkind[b] == CREATURE else (1.0, 0.0)
+                            fx, fy = _follow_leader(pos[i, 0], pos[i, 1], vel[i, 0], vel[i, 1], max_speed[i],
+                                                    radius[i], tx, ty, tvx, tvy, hx, hy, par[b, 0], par[b, 1],
+                                                    par[b, 2])
+                    else:
+                        fx, fy, angle[i] = _steer(code[b], pos[i, 0], pos[i, 1], vel[i, 0], vel[i, 1],
+                                                  heading[i, 0], heading[i, 1], max_speed[i], radius[i], dt,
+                                                  par[b, 0], par[b, 1], par[b, 2], present, tx, ty, tvx, tvy, z,
+                                                  angle[i], rows, near, found, size, centres, radii)
                     forces[k, 0], forces[k, 1] = fx * gain[i, k], fy * gain[i, k]
                 policy = g_policy[g]
                 tx, ty, left, open_ = 0.0, 0.0, max_force[i], True

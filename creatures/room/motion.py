@@ -56,7 +56,7 @@ class Crowd:
         self._level = np.zeros(len(vehicles), dtype=np.int64)
         self._last = np.zeros(len(vehicles), dtype=np.int64)  # the sub-step each last steered
         self._next_plan = 0  # the sub-step on which the levels are planned next
-        self.compiled = Program.of(recipes)  # None: a recipe steers by the director's paths (numpy)
+        self.compiled = Program.of(recipes, self.around)  # None: a recipe the kernel cannot run (numpy)
         room.contain(vehicles.pos, vehicles.vel, vehicles.radius)
 
     def skip_to(self, t: float) -> None:
@@ -109,7 +109,7 @@ class Crowd:
                      v.max_force, v.max_speed, v.radius, v.max_turn, self.force, self.wander_angle, self.gain,
                      self.groups, around.others, room.size, room.centres, room.radii, p.start, p.count, p.policy,
                      p.k, p.reach, p.wanders, p.code, p.weight, p.probability, p.target, p.creature, p.point, p.par,
-                     p.ordinal, *surroundings)
+                     p.ordinal, p.data, p.paths, p.fields, *surroundings)
             self.steps += run
             self.t = self.steps * self.substep
             count -= run
