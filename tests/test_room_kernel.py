@@ -95,6 +95,15 @@ def test_the_kernel_traces_the_numpy_crowds_paths(name: str, lod: LevelOfDetail 
     assert a.rng.random() == b.rng.random()  # the same random numbers drawn, no more, no fewer
 
 
+def test_every_steering_behaviour_is_compiled() -> None:
+    from creatures.room.kernel import PARAMS
+    from creatures.room.recipe import BEHAVIOURS
+
+    assert set(PARAMS) == set(BEHAVIOURS)
+    covered = {b.name for recipes in RECIPES.values() for r in recipes for b in r.behaviours}
+    assert covered == set(BEHAVIOURS)  # and each is held to numpy's paths above
+
+
 def test_a_path_the_room_does_not_have_steers_in_numpy_and_says_so() -> None:
     """The kernel compiles only what it can resolve; numpy's call names what is missing."""
     recipe = Recipe((Behaviour("path_following", params={"path": "nowhere"}),))

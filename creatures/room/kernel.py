@@ -109,8 +109,6 @@ class Program:
             reach.append(recipe.reach)
             ordinal = 0
             for b in recipe.behaviours:
-                if b.name not in CODES:
-                    return None
                 params = dict(b.params)
                 target = params.pop("target", "visitor")
                 named = params.pop(DIRECTOR[b.name], None) if b.name in DIRECTOR else None
