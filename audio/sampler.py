@@ -35,6 +35,7 @@ class Sampler:
         self.sample_rate = float(sample_rate)
         self.sounds: list[np.ndarray] = []
         self.playing: list[list] = []  # [sound index, next frame, gain]
+        self._free: list[int] = []  # slots of sounds let go, taken by the next ones added
         self._mix = np.zeros(block_size)
         self._amplitude = 0.0
         self._lowpass = LowPass(self.sample_rate)
@@ -44,13 +45,26 @@ class Sampler:
         sound = np.asarray(sound, dtype=float)
         if sound.ndim != 1 or not len(sound) or not np.isfinite(sound).all():
             raise ValueError(f"a sound must be a non-empty finite mono array, got shape {sound.shape}")
+        if self._free:
+            index = self._free.pop()
+            self.sounds[index] = sound
+            return index
         self.sounds.append(sound)
         return len(self.sounds) - 1
 
+    def forget(self, index: int) -> None:
+        """Let stored sound ``index`` go (a long run hears without end; what it keeps must not
+        grow with it); its slot is taken by the next :meth:`add`. Not while it plays."""
+        if any(voice[0] == index for voice in self.playing):
+            raise ValueError(f"stored sound {index} is playing")
+        if 0 <= index < len(self.sounds) and len(self.sounds[index]):
+            self.sounds[index] = np.zeros(0)
+            self._free.append(index)
+
     def play(self, index: int, *, gain: float = 1.0) -> None:
         """Start sound ``index`` from its beginning (several may overlap)."""
-        if not 0 <= index < len(self.sounds):
-            raise IndexError(f"no stored sound {index} (have {len(self.sounds)})")
+        if not 0 <= index < len(self.sounds) or not len(self.sounds[index]):
+            raise IndexError(f"no stored sound {index} (have {len(self.sounds) - len(self._free)})")
         self.playing.append([index, 0, float(gain)])
 
     def render(self, out: np.ndarray, *, amplitude: float = 1.0, cutoff_hz: float = 20000.0) -> np.ndarray:

@@ -295,3 +295,40 @@ def test_a_sound_made_at_another_rate_is_sung_at_its_own_pitch_and_length():
     assert abs(loud[-1] / piece - 0.5) < 0.02
     spectrum = np.abs(np.fft.rfft(out[: piece // 2]))
     assert abs(np.argmax(spectrum) * piece / (piece // 2) - 440.0) < 4.0
+
+
+def test_a_mouth_that_never_falls_silent_keeps_a_bounded_store():
+    """A mouth singing a new sound every block, never idle (a gallery week of
+    three_creatures_compared): it keeps at most KEPT_SOUNDS stored, the oldest not sounding let
+    go, and still sings each new sound as given. It used to keep every one while it sang (1.8 GB
+    after a rehearsed week)."""
+    from audio.self_hearing import SingingState
+    from audio.utterance import Utterance
+    from creatures.kinds.hearing_parts import KEPT_SOUNDS, Mouth, MouthSpec
+
+    sr, block = 22050, 512
+    mouth = Mouth(MouthSpec(), SingingState())
+    out = np.zeros(block)
+    for k in range(500):
+        level = 0.1 + 0.8 * (k % 7) / 7
+        mouth.sing(k * block / sr, Utterance(np.full(4 * block, level, dtype=np.float32), sr, np.zeros((1, 13)),
+                                             k * block / sr))
+        mouth.render(out, sr)
+        assert mouth.sampler.playing  # never idle: the old way never renewed its sampler
+    stored = sum(1 for s in mouth.sampler.sounds if len(s))
+    assert stored <= KEPT_SOUNDS and len(mouth.sampler.sounds) <= KEPT_SOUNDS + 8
+    assert np.abs(out).max() > 0.05  # still singing
+
+
+def test_a_sampler_lets_a_sound_go_and_reuses_its_slot():
+    from audio.sampler import Sampler
+
+    sampler = Sampler(22050.0, block_size=64)
+    a, b = sampler.add(np.ones(10)), sampler.add(np.ones(20))
+    sampler.play(b)
+    with pytest.raises(ValueError, match="playing"):
+        sampler.forget(b)
+    sampler.forget(a)
+    with pytest.raises(IndexError):
+        sampler.play(a)
+    assert sampler.add(np.full(5, 0.5)) == a and len(sampler.sounds) == 2

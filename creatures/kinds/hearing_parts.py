@@ -222,6 +222,11 @@ def _percentiles(values: np.ndarray) -> tuple[float, float]:
     return float(low), float(high) if high > low else float(low) + 1e-6
 
 
+KEPT_SOUNDS = 64
+"""Sounds a mouth keeps in its sampler, ready to sing again without copying (the oldest not
+sounding go first)."""
+
+
 class Mouth:
     """Sings utterances through a body; tells the ear's singing flow while it sounds."""
 
@@ -261,6 +266,22 @@ class Mouth:
         entry = self._index.get(id(samples)) if self.sampler is not None else None
         return entry[1] if entry is not None and entry[0] is samples else None
 
+    def _forget_old(self) -> None:
+        """Keep at most :data:`KEPT_SOUNDS` stored, letting the oldest go that are not sounding.
+        The sampler used to be replaced when idle with more than that kept, so a mouth that
+        was never idle kept every sound it sang: a rehearsed week of three_creatures_compared
+        grew to 1.8 GB."""
+        if len(self._index) <= KEPT_SOUNDS:
+            return
+        assert self.sampler is not None
+        playing = {voice[0] for voice in self.sampler.playing}
+        for key, (_, slot) in list(self._index.items()):  # oldest first
+            if len(self._index) <= KEPT_SOUNDS:
+                break
+            if slot not in playing:
+                del self._index[key]
+                self.sampler.forget(slot)
+
     def sounding(self, t: float) -> bool:
         return t < self.until
 
@@ -276,9 +297,8 @@ class Mouth:
     def render(self, out: np.ndarray, sample_rate: int, pose: BodyPose | None = None, *, cutoff: float = 1.0) -> None:
         """Fill ``out`` with the sung sounds shaped by ``pose`` (no body: loud and bright), the
         low-pass cutoff ``cutoff`` times what the body sets (a skill's ``voice.cutoff``)."""
-        if self.sampler is None or (not self.sampler.playing and len(self._index) > 64):
-            # A fresh sampler when idle keeps the stored sounds bounded over a long run.
-            self.sampler, self._index = Sampler(sample_rate, block_size=2 * len(out) + 2), {}
+        if self.sampler is None:
+            self.sampler = Sampler(sample_rate, block_size=2 * len(out) + 2)
         if not self._queue and not self.sampler.playing and self._idle:
             out[:] = 0.0  # nothing sounding and the filter's tail has died: skip the filter
             return
@@ -290,6 +310,7 @@ class Mouth:
                 self._index[id(samples)] = (samples, slot)
             self.sampler.play(slot, gain=gain)
         self._queue.clear()
+        self._forget_old()
         if pose is None:
             self.sampler.render(out, amplitude=self.spec.loud, cutoff_hz=self.spec.bright_hz * cutoff)
         else:
