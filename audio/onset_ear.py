@@ -47,6 +47,13 @@ NEWNESS = 0.4
 sounding already, and only fluctuated)."""
 REFRACTORY = 0.05
 """Seconds after an onset in which no second onset is taken (one attack's flux lasts that long)."""
+RISE = 1.01
+"""A noise floor's rise per hop (~ +7 dB/s): a sustained note (seconds) is not mistaken for the
+room, but a fan is learnt."""
+NOISE_EVERY = 4
+"""Hops between two looks at the long spectrum for its noise floor (46 ms). A room's noise
+changes over seconds; the long spectrum (a 4096-point FFT offline) was the ear's largest cost
+when taken every hop, and the floor it gives the salience is as good taken every 4th."""
 
 
 class Candidate(NamedTuple):
@@ -103,14 +110,17 @@ class OnsetEar:
             return []
         stream = np.concatenate([self._buffer, x[: hops * HOP]])
         self._buffer = stream  # the whole block while its frames are analysed, then trimmed
-        ends = len(stream) - HOP * np.arange(hops - 1, -1, -1)  # each frame's window ends there
-        frames = stream[ends[:, None] + np.arange(-self.window_length, 0)[None, :]]
-        long = self._spectra(frames)
-        short = np.abs(rfft(frames[:, -SHORT:] * self._short_window, axis=1))
+        ends = [len(stream) - HOP * (hops - 1 - i) for i in range(hops)]  # each frame's window ends there
+        looked = [i for i in range(hops) if (self.frames + i) % NOISE_EVERY == 0]
+        long = {}
+        if looked:
+            frames = np.stack([stream[ends[i] - self.window_length:ends[i]] for i in looked])
+            long = dict(zip(looked, self._spectra(frames)))
+        short = np.abs(rfft(np.stack([stream[end - SHORT:end] for end in ends]) * self._short_window, axis=1))
         found: list[Candidate] = []
         for i in range(hops):
-            self._end = int(ends[i])
-            found.extend(self._step(long[i], short[i]))
+            self._end = ends[i]
+            found.extend(self._step(long.get(i), short[i]))
         self._buffer = stream[-self._keep:]
         return found
 
@@ -119,13 +129,15 @@ class OnsetEar:
         frames = frames - frames.mean(axis=-1, keepdims=True)  # DC offset is no sound
         return np.abs(rfft(frames * self._window, n=self.n_fft, axis=-1))
 
-    def _step(self, long: np.ndarray, short: np.ndarray) -> list[Candidate]:
+    def _step(self, long: np.ndarray | None, short: np.ndarray) -> list[Candidate]:
+        """One hop; ``long`` is its long spectrum on every NOISE_EVERY-th hop, else ``None``."""
         frame = self.frames
         self.frames += 1
         if self._noise_short is None:  # the first frame: the floors start from it, no flux yet
             self._noise_short, self._noise_long = np.maximum(short, 1e-7), np.maximum(long, 1e-7)
             self._level, self._previous = np.zeros_like(short), np.zeros_like(short)
-        _track_noise(self._noise_long, long)
+        if long is not None:
+            _track_noise(self._noise_long, long, RISE ** NOISE_EVERY)
         self._previous, self._level = self._level, self._previous  # the last frame's level is now the one before
         energy, flux = _flux(short, self._noise_short, self._previous, self._level)
         falling = energy < self._energy[0]  # quieter than two frames ago: perhaps a note cut off
@@ -177,11 +189,10 @@ class OnsetEar:
 
 
 @numba.njit(cache=True, nogil=True)
-def _track_noise(floor, spectrum):  # pragma: no cover
-    """Each bin's noise floor: follows a fall at once, a rise by 1 % a frame (~ +7 dB/s), so a
-    sustained note (seconds) is not mistaken for the room, but a fan is learnt."""
+def _track_noise(floor, spectrum, rise):  # pragma: no cover
+    """Each bin's noise floor: follows a fall at once, a rise by ``rise`` a look."""
     for k in range(len(floor)):
-        floor[k] = min(floor[k] * 1.01, max(spectrum[k], 1e-7))
+        floor[k] = min(floor[k] * rise, max(spectrum[k], 1e-7))
 
 
 @numba.njit(cache=True, nogil=True)
@@ -189,7 +200,7 @@ def _flux(short, noise, previous, level):  # pragma: no cover
     """A short spectrum's energy, and its flux: the summed rise of its log level above twice
     each bin's noise floor (followed here) over the previous frame's 3-bin maximum (the
     maximum so vibrato does not count). ``level`` becomes this frame's."""
-    _track_noise(noise, short)
+    _track_noise(noise, short, RISE)
     energy = 0.0
     for k in range(len(short)):
         energy += short[k] * short[k]

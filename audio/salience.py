@@ -12,11 +12,13 @@ for it), and the search repeats until the accumulated salience, discounted by th
 :mod:`audio.onset_ear` calls it on the spectrum of what *began* at an onset (the positive
 difference between the spectrum just after and just before it), so notes still sounding from
 before are not found again. Everything per frame is one matrix–vector product over the
-whole candidate grid (MIDI 28–100 by default), a few dozen µs.
+whole candidate grid (MIDI 28–100 by default): each harmonic's search range is a few bins, so
+a compiled gather of the largest peak in each range (``_partials``) is the search.
 """
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 from scipy.ndimage import maximum_filter1d
 
@@ -59,9 +61,10 @@ class HarmonicSalience:
         self.bins = np.minimum(np.round(freqs / df).astype(int), n_bins - 1)
         low = self.bins - 1
         high = np.maximum(self.bins + 1, np.round(freqs * (1 + STRETCH) / df).astype(int))
-        k = np.arange(n_bins)
-        # reach[p, m, b]: bin b is where harmonic m of pitch p may lie.
-        self.reach = (k >= low[..., None]) & (k <= high[..., None]) & self.valid[..., None]
+        # Harmonic m of pitch p may lie in bins low[p, m] … high[p, m] (an empty range if it
+        # is above the band).
+        self.low = np.where(self.valid, np.maximum(low, 0), 1).astype(np.int64)
+        self.high = np.where(self.valid, np.minimum(high, n_bins - 1), 0).astype(np.int64)
         # Partials among the first six a note must show: three; two above 500 Hz and one above
         # 1 kHz, where fewer fall below the band's edge, a piano's run sharpest and a flute has
         # little but its fundamental.
@@ -84,16 +87,18 @@ class HarmonicSalience:
         local = maximum_filter1d(spectrum, size=5, mode="nearest")
         top = spectrum.max() * 10 ** (-self.range_db / 20)
         at = np.flatnonzero((spectrum >= local) & (spectrum > floor) & (spectrum > top))
-        residual = spectrum[at] ** self.power  # the peaks' compressed magnitudes
-        reach = self.reach[:, :, at]  # (pitches, harmonics, peaks)
+        compressed = spectrum[at] ** self.power
+        residual = np.zeros(len(spectrum), dtype=compressed.dtype)  # the peaks' compressed magnitudes, 0 between
+        residual[at] = compressed
         found: list[tuple[int, float]] = []
         total, best = 0.0, 0.0
         taken = np.zeros(len(self.pitches), dtype=bool)
+        partials = np.empty(self.low.shape, dtype=residual.dtype)  # (pitches, harmonics): the largest peak in each range
+        peaks = np.empty(self.low.shape, dtype=np.int64)  # and its bin
         for _ in range(2 * max_polyphony):
             if len(found) == max_polyphony or not len(at):
                 break
-            heard = np.where(reach, residual, 0.0)
-            partials = heard.max(axis=2)  # (pitches, harmonics)
+            _partials(residual, self.low, self.high, partials, peaks)
             salience = (self.weights * partials).sum(axis=1)
             salience[taken] = -np.inf  # a pitch, or its semitone neighbours, found already
             k = int(np.argmax(salience))
@@ -118,6 +123,19 @@ class HarmonicSalience:
             smooth = np.convolve(np.pad(amps, 1, mode="edge"), np.ones(3) / 3, mode="valid")
             cancel = np.minimum(amps, smooth)
             for m in np.flatnonzero(amps > 0):
-                peak = int(np.argmax(heard[k, m]))
+                peak = peaks[k, m]
                 residual[peak] = max(residual[peak] - cancel[m], 0.0)
         return found
+
+
+@numba.njit(cache=True, nogil=True)
+def _partials(residual, low, high, partials, peaks):  # pragma: no cover
+    """For each pitch and harmonic, the largest residual in its bin range (0 if none) and the
+    first bin holding it."""
+    for p in range(low.shape[0]):
+        for m in range(low.shape[1]):
+            value, where = 0.0, low[p, m]
+            for b in range(low[p, m], high[p, m] + 1):
+                if residual[b] > value:
+                    value, where = residual[b], b
+            partials[p, m], peaks[p, m] = value, where
