@@ -150,10 +150,11 @@ def _rocks(specs) -> list:
 
 def _spec(**keys):
     """The shipped rock creature, named a, with ``keys`` merged over it."""
-    config = Path(tempfile.mkdtemp()) / "rock.toml"
     lines = ['title = "x"', "[[creature]]", 'name = "a"', 'kind = "sandstone"']
-    config.write_text("\n".join(lines + [f"{k} = {v}" for k, v in keys.items()]) + "\n")
-    return load_installation(config).specs[0]
+    with tempfile.TemporaryDirectory() as folder:
+        config = Path(folder) / "rock.toml"
+        config.write_text("\n".join(lines + [f"{k} = {v}" for k, v in keys.items()]) + "\n")
+        return load_installation(config).specs[0]
 
 
 def test_every_note_comes_from_the_phrases_in_order(tmp_path):
