@@ -108,6 +108,9 @@ class Authored(CreatureKind):
         learning = spec.learning
         self.ear = Ear(phrase_gap=learning.phrase_gap, max_phrases=learning.max_phrases)
         self.motivation = self._drives(spec)
+        self.unplaced: dict[str, dict[str, Any]] = {}
+        """Saved tuple values (by group, then tuple) that no tuple of this config is named for:
+        kept and saved again, so a tuple renamed by mistake and named back gets its value back."""
         # Each drive's impulse per note heard and per note played, the non-zero ones (every
         # note reaches every ear of a crowd: the spec is not searched for them each time).
         self._impulses = {which: [(name, getattr(d, which)) for name, d in spec.drives.items() if getattr(d, which)]
@@ -632,7 +635,8 @@ class Authored(CreatureKind):
             **({"shaping": shaping} if shaping else {}),
             **({"gestures": [{"shaping": s, **g.to_dict()} for s, g in self.gestures]} if self.gestures else {}),
             "proximity": {name: g.proximities.to_dict() for name, g in self.groups.items()},
-            "values": {name: g.value_state() for name, g in self.groups.items()},
+            "values": {**self.unplaced, **{name: {**self.unplaced.get(name, {}), **g.value_state()}
+                                           for name, g in self.groups.items()}},
             "motivation": None if self.motivation is None else self.motivation.to_dict(),
             "phrases": [[[n.time, n.pitch, n.velocity, n.duration] for n in p] for p in self.ear.phrases],
             "phrases_made": self.ear.phrases_made,
@@ -656,9 +660,11 @@ class Authored(CreatureKind):
         for name, data in state.get("proximity", {}).items():
             if name in self.groups:
                 self.groups[name].proximities.restore(data, f"proximity.{name}")
+        self.unplaced = {}
         for name, values in state.get("values", {}).items():
-            if name in self.groups:
-                self.groups[name].restore_values(values)
+            left = self.groups[name].restore_values(values) if name in self.groups else dict(values)
+            if left:
+                self.unplaced[name] = left
         for name, percept in self._adverb_models().items():
             if name in state.get("adverb_models", {}):
                 percept.model = GaussianModel.from_dict(state["adverb_models"][name])

@@ -56,6 +56,7 @@ class Session:
         """``transcribe``: the input audio's pitched notes are heard as notes (audio-only runs);
         ``say`` reports to the person running it (e.g. the first unmapped input)."""
         settings = inst.settings
+        self.say = say
         self.inst = inst
         self.clock = clock
         self.log = log
@@ -276,8 +277,18 @@ class Session:
                 # Each kind checks bounds with creatures.bounds, whose messages name the key.
                 raise StateFileError(f"{path}: malformed {creature.spec.kind} state ({type(exc).__name__}: {exc})") from None
             restored.append(creature.name)
+            self._report_unplaced(path, creature)
         self._load_colony(directory / COLONY_FILE)
         return restored
+
+    def _report_unplaced(self, path: Path, creature: Any) -> None:
+        """Say which saved values no tuple of the config takes (a tuple renamed or removed):
+        they are kept in the state, not lost, but the creature starts those tuples afresh."""
+        unplaced = getattr(creature, "unplaced", {})
+        if unplaced:
+            names = ", ".join(f"{group}.{name}" for group, values in unplaced.items() for name in values)
+            self.say(f"{path}: saved values of {names} match no tuple in {self.inst.path.name} (renamed or removed?); "
+                     "kept in the state file, and taken back if a tuple of that name returns")
 
     def _load_colony(self, path: Path) -> None:
         """The colony's heard pulse, if a file was saved (older state directories have none)."""

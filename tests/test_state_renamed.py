@@ -1,0 +1,72 @@
+"""A tuple renamed in the config (or removed) while a state folder holds its learned value: the
+value is neither lost nor silently dropped. The run says which saved values match no tuple, keeps
+them in the state it saves, and a tuple given that name again takes its value back."""
+
+from __future__ import annotations
+
+import json
+
+import installations
+from creatures.clock import SimulatedClock
+from creatures.events import EventLog
+from creatures.runtime.schema import load_installation
+from creatures.runtime.session import Session
+from midi.sinks import MemorySink
+
+LEARNT = {"kind": "scalar", "plasticity": 1.0, "value": 2.5}
+
+
+def _session(said: list[str]) -> Session:
+    return Session(load_installation(installations.path("exchange")), SimulatedClock(), EventLog(), MemorySink(),
+                   say=said.append)
+
+
+def _values(path) -> dict:
+    return json.loads(path.read_text())["state"]["values"]
+
+
+def _rename(path, old: str, new: str, value: dict) -> None:
+    data = json.loads(path.read_text())
+    main = data["state"]["values"]["main"]
+    del main[old]
+    main[new] = value
+    path.write_text(json.dumps(data))
+
+
+def test_a_saved_value_no_tuple_takes_is_reported_and_kept(tmp_path):
+    _session([]).save_state(tmp_path)
+    # The state was saved when the tuple was called "stroll"; the config now calls it "wander".
+    _rename(tmp_path / "ada.json", "wander", "stroll", LEARNT)
+    said: list[str] = []
+    session = _session(said)
+    assert session.load_state(tmp_path) == ["ada", "bo", "cy"]
+    assert len(said) == 1 and "ada.json" in said[0] and "main.stroll" in said[0] and "exchange.toml" in said[0]
+    ada = session.world.creatures[0]
+    assert [tp.value.to_dict() for tp in ada.groups["main"].tuples if tp.name == "wander"] != [LEARNT]
+    session.save_state(tmp_path)
+    assert _values(tmp_path / "ada.json")["main"]["stroll"] == LEARNT  # kept, not lost
+    assert "wander" in _values(tmp_path / "ada.json")["main"]
+    # Named back (as if the config called it "stroll" again): the kept value is taken back.
+    _rename(tmp_path / "ada.json", "wander", "wander", _values(tmp_path / "ada.json")["main"]["stroll"])
+    data = json.loads((tmp_path / "ada.json").read_text())
+    del data["state"]["values"]["main"]["stroll"]
+    (tmp_path / "ada.json").write_text(json.dumps(data))
+    said.clear()
+    again = _session(said)
+    again.load_state(tmp_path)
+    assert said == []
+    wander = [tp for tp in again.world.creatures[0].groups["main"].tuples if tp.name == "wander"]
+    assert wander[0].value.to_dict() == LEARNT
+
+
+def test_a_group_no_longer_in_the_config_is_kept_too(tmp_path):
+    _session([]).save_state(tmp_path)
+    data = json.loads((tmp_path / "bo.json").read_text())
+    data["state"]["values"]["dance"] = {"spin": LEARNT}
+    (tmp_path / "bo.json").write_text(json.dumps(data))
+    said: list[str] = []
+    session = _session(said)
+    session.load_state(tmp_path)
+    assert len(said) == 1 and "bo.json" in said[0] and "dance.spin" in said[0]
+    session.save_state(tmp_path)
+    assert _values(tmp_path / "bo.json")["dance"] == {"spin": LEARNT}
