@@ -134,9 +134,10 @@ def test_osc_int_float_string_and_two_argument_notes_are_heard_by_those_that_hea
     assert router.osc("/note", [62.0, 80.0], 1.0) == 1  # floats, two arguments: the duration's default
     assert router.osc("/note", ["C#4"], 1.0) == 1  # a string: a note name; velocity's default
     assert router.osc("/note", ["64", True], 1.0) == 1  # a numeric string, a bool (velocity 1)
+    assert not events(session, "heard")  # logged as the creatures hear them, when they start
+    session.world.deliver(1.0)
     heard = [(e["pitch"], e["velocity"], e["duration"], e["source"]) for e in events(session, "heard")]
     assert heard == [(60, 90, 0.5, "osc"), (62, 80, 0.25, "osc"), (61, 100, 0.25, "osc"), (64, 1, 0.25, "osc")]
-    session.world.deliver(1.0)
     placed = {(e["creature"], e["source"]) for e in session.log.records if e["kind"] == "placed"}
     assert placed == {("bo", "input")}  # `deaf` (hears_input = false) hears none of them
     assert router.counts["mapped"] == 4 and router.counts["malformed"] == 0
@@ -275,6 +276,7 @@ def test_midi_note_rewards_the_tuple_that_was_active_and_a_string_names_the_crea
     router.osc("/reward", ["nobody"], t)  # names no creature: malformed, not a crash
     assert [e["creature"] for e in events(session, "reward")] == ["bo", "deaf"]
     assert router.counts["malformed osc"] == 1
+    session.world.deliver(t)
     assert [e["pitch"] for e in events(session, "heard")] == [36]
 
 
@@ -439,6 +441,7 @@ def test_serial_lines_from_a_pseudo_terminal_are_heard_as_osc(tmp_path):
         os.close(slave)
     assert session.world.sensor("lux").data == [0.5]
     assert session.world.sensor("count").data == [4.0]
+    session.world.deliver(2.0)
     assert [e["pitch"] for e in events(session, "heard")] == [60]
     counts = session.inputs.counts
     assert counts["unmapped serial"] == 1  # /fader 1 (the fader is a MIDI map)

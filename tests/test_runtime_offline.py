@@ -38,6 +38,16 @@ def test_offline_outputs_are_valid(exchange_run):
     assert (exchange_run / "report" / "index.html").read_text().count("<img") >= 4
 
 
+def test_input_notes_are_logged_when_they_are_heard(exchange_run):
+    """The generated input is injected ahead of time; its notes are logged as the creatures
+    hear them (a replay used to show every one of them heard at 0 s)."""
+    events = read_events(exchange_run / "events.jsonl")
+    tick = load_installation(EXCHANGE).settings.tick
+    heard = [e for e in events if e["kind"] == "heard"]
+    assert len(heard) > 10 and heard[-1]["t"] > 10.0
+    assert all(0.0 <= e["t"] - e["time"] < tick + 1e-9 for e in heard)
+
+
 def test_offline_is_deterministic(exchange_run, tmp_path):
     assert main(["offline", str(EXCHANGE), "--out", str(tmp_path), "--duration", "20", "--no-progress"]) == 0
     first = (exchange_run / "events.jsonl").read_text()

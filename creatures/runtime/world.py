@@ -47,7 +47,9 @@ class World:
         self.log = log
         self.scheduler = scheduler
         self.creatures: list[CreatureKind] = []
-        self._pending: list[tuple[float, int, NoteEvent, str]] = []
+        self._pending: list[tuple[float, int, NoteEvent, str, str | None]] = []
+        """Notes until they start: (start, order, note, who played it, how it came in from
+        outside — ``None`` for a creature's own)."""
         self.listeners: list[Callable[[str, NoteEvent], None]] = []  # e.g. OSC to other colonies
         self.hearing: list[Callable[[str, NoteEvent], None]] = []  # (source, note) from outside, as it starts: the body stream
         # What creatures of other colonies last said of themselves over OSC, by creature then
@@ -103,7 +105,7 @@ class World:
         self.notes_played += 1
         self.log.emit(self.clock.now(), "note", creature=creature.name, time=note.time, pitch=note.pitch,
                       velocity=note.velocity, duration=note.duration, channel=note.channel)
-        heapq.heappush(self._pending, (note.time, next(self._seq), note, creature.name))
+        heapq.heappush(self._pending, (note.time, next(self._seq), note, creature.name, None))
         return handle
 
     def scheduler_for(self, creature: "CreatureKind") -> "CreatureScheduler":
@@ -121,13 +123,13 @@ class World:
 
         ``source`` is who played it as the creatures see it (:data:`INPUT` for anything from
         outside the colony, else a remote creature's name); ``via`` names the channel it came
-        through (``"midi"``, ``"audio"``) for the events log.
+        through (``"midi"``, ``"audio"``) for the events log. The log's ``heard`` record is
+        written when the creatures hear it (:meth:`deliver`), not now: a generated input's notes
+        are injected ahead of time, and a replay showed them all heard at once at its start.
         """
-        self.log.emit(self.clock.now(), "heard", source=via or source, time=note.time, pitch=note.pitch,
-                      velocity=note.velocity, duration=note.duration)
         if self.recording:
             self.heard.append(note)
-        heapq.heappush(self._pending, (note.time, next(self._seq), note, source))
+        heapq.heappush(self._pending, (note.time, next(self._seq), note, source, via or source))
 
     def forget(self, until: float) -> int:
         """Drop the notes that started before ``until`` and were never delivered (those heard
@@ -148,7 +150,10 @@ class World:
         """Give every note that has started by ``t`` to every creature but its player."""
         count = 0
         while self._pending and self._pending[0][0] <= t:
-            _, _, note, source = heapq.heappop(self._pending)
+            _, _, note, source, via = heapq.heappop(self._pending)
+            if via is not None:
+                self.log.emit(t, "heard", source=via, time=note.time, pitch=note.pitch, velocity=note.velocity,
+                              duration=note.duration)
             if self.outside(source):
                 self.pulse.hear(note.time)  # the rhythm heard from outside, not the colony's own
                 for listener in self.hearing:
