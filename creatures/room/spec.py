@@ -245,8 +245,10 @@ class RoomSection(Strict):
 
             Dome(self.dome)  # its ValueError is the config's: a layout that cannot pan is refused here
         return self
-    report_every: float = Field(1.0, gt=0, le=3600, description="seconds between 'room' events (every "
-                                                                "creature's position and heading) in the log")
+    report_every: float = Field(1.0, gt=0, le=3600, description="seconds between 'room' events in the log: "
+                                                                "every creature's position and heading, the visitors', "
+                                                                "and 'masked', the notes a louder sound has hidden at "
+                                                                "some ear since the run began (cumulative)")
     share: ShareSpec | None = Field(None, description="[room.share]: one room across processes and machines "
                                                       "(live runs)")
 
