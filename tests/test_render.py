@@ -209,6 +209,20 @@ def test_frame_writer_writes_pngs_and_a_video(tmp_path, rng):
     assert len(decoded) == 5 and decoded[0].shape == (48, 64, 3)
 
 
+def test_a_video_of_odd_size_is_padded_to_even_not_rescaled(tmp_path, caplog):
+    """H.264 needs even sizes: 201×301 frames make a 202×302 video, the picture unscaled."""
+    frame = np.zeros((301, 201, 3), dtype=np.uint8)
+    frame[:, 100:] = 255  # a vertical edge, which a rescale would move
+    with FrameWriter(video=tmp_path / "odd.mp4", fps=10) as writer:
+        writer.write(frame, repeat=2)
+    with imageio_v2.get_reader(tmp_path / "odd.mp4") as video:
+        decoded = [f for f in video]
+    assert len(decoded) == 2 and decoded[0].shape == (302, 202, 3)
+    row = decoded[0][150, :, 0].astype(int)
+    assert row[:98].max() < 40 and row[102:].min() > 215  # the edge stays at column 100
+    assert "macro_block_size" not in caplog.text  # imageio resized with a logged warning
+
+
 @pytest.mark.gl
 def test_renders_a_motor_system_body_pose(renderer):
     """Cross-check against the motor system's own types: a BodyPose's FK positions + parents."""

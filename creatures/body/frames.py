@@ -40,7 +40,11 @@ class FrameClock:
 
 
 class FrameWriter:
-    """Writes RGB frames as numbered PNGs into ``directory`` and/or a ``video`` (imageio-ffmpeg)."""
+    """Writes RGB frames as numbered PNGs into ``directory`` and/or a ``video`` (imageio-ffmpeg).
+
+    H.264 in yuv420p (what players play) needs even sizes: a frame of odd width or height goes
+    into the video with its last column or row repeated (201×301 → 202×301 → 202×302), never
+    rescaled; imageio's own fix scaled it up to a multiple of 8 (208×304), with a warning."""
 
     def __init__(self, *, directory: str | os.PathLike | None = None, video: str | os.PathLike | None = None,
                  fps: float = 30.0) -> None:
@@ -52,7 +56,7 @@ class FrameWriter:
         if video is not None:
             Path(video).parent.mkdir(parents=True, exist_ok=True)  # a video alone (--no-pngs) has its folder too
         self._video = None if video is None else imageio_v2.get_writer(
-            video, fps=fps, codec="libx264", quality=7, macro_block_size=8)
+            video, fps=fps, codec="libx264", quality=7, macro_block_size=1)
         self.count = 0
 
     def write(self, frame: np.ndarray, *, repeat: int = 1) -> None:
@@ -61,7 +65,7 @@ class FrameWriter:
             if self.directory is not None:
                 iio.imwrite(self.directory / f"frame_{self.count:06d}.png", frame)
             if self._video is not None:
-                self._video.append_data(frame)
+                self._video.append_data(_even(frame))
             self.count += 1
 
     def close(self) -> None:
@@ -74,3 +78,11 @@ class FrameWriter:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def _even(frame: np.ndarray) -> np.ndarray:
+    """``frame`` with its last row and/or column repeated to make both sizes even."""
+    h, w = frame.shape[:2]
+    if h % 2 == 0 and w % 2 == 0:
+        return frame
+    return np.pad(frame, ((0, h % 2), (0, w % 2)) + ((0, 0),) * (frame.ndim - 2), mode="edge")
