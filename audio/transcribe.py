@@ -17,7 +17,8 @@ one stream (measured against each ear alone and basic-pitch's published model in
    before, finds notes where an attack is, by what began there: exact on struck sounds, deaf to
    swells. Its candidates are notes if the model hears their pitch sound (:data:`VERIFY`).
 4. **Notes.** The onset ear's notes come first; the model's own — a pitch whose onset
-   probability rises through ``threshold`` (the model's own, tuned with its weights) — follow,
+   probability rises through ``threshold`` (the model's own, tuned with its weights), or that
+   begins to sound after a faint onset (a swell: :data:`SWELL`) — follow,
    unless the onset ear gave that pitch, or a note it is a partial of, within :data:`NEAR` hops.
    A model's note must also stand clear of its bands' noise floors (:data:`CLEAR`): what a
    model hears in a fan's noise is not played. Live, every note is given ≤ 60 ms after its
@@ -39,6 +40,7 @@ from __future__ import annotations
 from collections import deque
 from pathlib import Path
 
+import numba
 import numpy as np
 
 from audio.logspectrum import HOP, LONG_LOW, LONG_STEP, RATE, SCALE, LogSpectrum
@@ -67,8 +69,19 @@ guitar lines went from 0.89–0.94 to 0.97–1.00, and both ears hear piano line
 NEAR = 4
 """Hops (46 ms) within which two notes of one pitch are one note, and a model's note at a partial
 of an onset-ear note is that note's partial."""
+SWELL = 0.7
+"""A pitch whose P(sounding) rises through this, with no note of it followed, begins a note if
+its P(onset) reached :data:`SWELL_ONSET` in the last 4 hops: a flute's or a string's soft
+attack, which the model hears sound but names an onset only faintly (FluidR3's high flute notes
+peaked at P(onset) 0.27–0.7 against a threshold of 0.7, then sounded at 0.97). The note is
+dated at the hop its P(onset) peaked. Chosen on TimGM6mb renders (tools-style tuning, never on
+FluidR3): the eight tuning textures' mean F1 0.825 → 0.847 offline, 0.786 → 0.809 live, among
+0.5–0.9 and 0.1–0.45."""
+SWELL_ONSET = 0.3
 RELEASE = 0.3
 """A followed note ends when the model's P(sounding) for it falls below this."""
+F32_RELEASE, F32_SWELL = np.float32(RELEASE), np.array([SWELL, SWELL_ONSET], dtype=np.float32)
+"""As the model's float32 probabilities are compared (numpy compared them so)."""
 CLEAR = 16.0
 """How many times its band's noise floor a note's strongest partial (of its first four) must be:
 a gate for what the model hears in noise. Measured on the current weights: notes heard in a
@@ -120,6 +133,10 @@ class Transcriber:
         # The latest rows and their bands' noise floors, for a note's level and clearance.
         self._rows: deque[tuple[np.ndarray, np.ndarray]] = deque(maxlen=self.model.delay + 1)
         self._previous = np.zeros(len(PITCHES), dtype=np.float32)  # last judged frame's P(onset)
+        self._previous_sounding = np.zeros(len(PITCHES), dtype=np.float32)  # and its P(sounding)
+        # Per judged frame, per pitch: a followed note ends, a note begins (either way), by a swell.
+        self._ending, self._rising, self._swelling = (np.zeros(len(PITCHES), dtype=bool) for _ in range(3))
+        self._onsets = np.zeros((4, len(PITCHES)), dtype=np.float32)  # the last 4 judged frames' P(onset), a ring
         self._quiet_until = WARM_UP  # no note is taken from a judged frame before this one
         self._clipping_until = -1  # frames up to this one were heard through clipping
         # Notes followed until they end, per pitch: whether one is, when it began, its velocity.
@@ -226,9 +243,8 @@ class Transcriber:
         frame = judged.frame + i
         onset, sounding = judged.onset[i], judged.sounding[i]
         t = self._time(frame)
-        ending = self._held & ((sounding < RELEASE) | (self._began < t - self.max_length))
-        if ending.any():
-            for k in np.flatnonzero(ending):
+        if _ending(self._held, sounding, self._began, t - self.max_length, F32_RELEASE, self._ending):
+            for k in np.flatnonzero(self._ending):
                 self._end(k, t)
         self._recent.append((frame, sounding))
         notes = []
@@ -240,16 +256,23 @@ class Transcriber:
             if c.frame >= self._quiet_until and verified and not self._near(c.frame, c.pitch):
                 notes.append(self._give(k, c.frame, c.level_db, by_ear=True))
         # The model's own onsets wait for the onset ear's; those it explains are not notes again.
-        rising = (onset >= self.threshold) & (self._previous < self.threshold)
-        self._previous = onset
-        if frame >= self._quiet_until and rising.any() and "model" in self.ears:
+        rising, swelling = self._rising, self._swelling
+        began = _beginning(onset, sounding, self._previous, self._previous_sounding, self._held,
+                           np.float32(self.threshold), F32_SWELL, self._onsets, frame % len(self._onsets), rising,
+                           swelling)
+        if frame >= self._quiet_until and began and "model" in self.ears:
             if frame <= self._clipping_until:
                 rising = self._undistorted(rising)
             levels = np.max([level for level, _ in self._rows], axis=0)  # (pitches, 4)
             clear = np.max([self.spectrum.above_floor(*kept) for kept in self._rows], axis=0).max(axis=1) >= CLEAR
             for k in np.flatnonzero(rising & clear):
                 level_db = 20.0 * np.log10(max(float(np.expm1(levels[k].max())) / SCALE, 1e-10))
-                self._waiting.append((frame, int(k), level_db))
+                at = frame
+                if swelling[k]:  # dated where its onset peaked (the earliest, if tied)
+                    ring = len(self._onsets)
+                    oldest_first = [self._onsets[(frame - back) % ring, k] for back in range(ring - 1, -1, -1)]
+                    at -= ring - 1 - int(np.argmax(oldest_first))
+                self._waiting.append((at, int(k), level_db))
         while self._waiting and self._waiting[0][0] <= frame - self._hold:
             f, k, level_db = self._waiting.popleft()
             if not self._near(f, int(PITCHES[k]), partials=True):
@@ -292,3 +315,38 @@ class Transcriber:
         began = float(self._began[k])
         self._held[k] = False
         self.ended.append(NoteEvent(began, int(PITCHES[k]), int(self._velocity[k]), 0, max(at - began, 0.0)))
+
+
+@numba.njit(cache=True, nogil=True)
+def _ending(held, sounding, began, horizon, release, ending):  # pragma: no cover
+    """Which followed notes end this frame (the model stops hearing them sound, or they began
+    before ``horizon``), into ``ending``; whether any does. Compiled with :func:`_beginning`:
+    a dozen numpy operations on 88 pitches a hop cost more than the rest of the note logic."""
+    any_ending = False
+    for k in range(len(held)):
+        ending[k] = held[k] and (sounding[k] < release or began[k] < horizon)
+        any_ending |= ending[k]
+    return any_ending
+
+
+@numba.njit(cache=True, nogil=True)
+def _beginning(onset, sounding, previous, previous_sounding, held, threshold, swell, ring, slot, rising,
+               swelling):  # pragma: no cover
+    """Which pitches begin a note this frame: P(onset) rising through ``threshold``, or a swell
+    (``swell``: :data:`SWELL`, :data:`SWELL_ONSET`; marked in ``swelling`` too); whether any does. Keeps this frame's
+    probabilities as the previous ones and its P(onset) in ``ring`` at ``slot``."""
+    any_beginning = False
+    for k in range(len(onset)):
+        ring[slot, k] = onset[k]
+        rising[k] = onset[k] >= threshold and previous[k] < threshold
+        swelling[k] = False
+        if not rising[k] and not held[k] and sounding[k] >= swell[0] and previous_sounding[k] < swell[0]:
+            peak = ring[0, k]
+            for j in range(1, ring.shape[0]):
+                peak = max(peak, ring[j, k])
+            swelling[k] = peak >= swell[1]
+        rising[k] |= swelling[k]
+        any_beginning |= rising[k]
+        previous[k] = onset[k]
+        previous_sounding[k] = sounding[k]
+    return any_beginning
