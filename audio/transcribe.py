@@ -78,6 +78,13 @@ dated at the hop its P(onset) peaked. Chosen on TimGM6mb renders (tools-style tu
 FluidR3): the eight tuning textures' mean F1 0.825 → 0.847 offline, 0.786 → 0.809 live, among
 0.5–0.9 and 0.1–0.45."""
 SWELL_ONSET = 0.3
+RESTRIKE = 0.3
+"""An onset-ear candidate at a pitch whose note is still followed (sounding) is that note struck
+again only if the model gave the pitch P(onset) ≥ this within a hop before to two after: a
+flute's breath or a bow's change lets the onset ear see an attack in a note that goes on.
+Chosen on TimGM6mb renders as :data:`SWELL` was (0.1–0.5 alike): tuning mean F1 0.847 → 0.856
+offline, 0.809 → 0.813 live; held out (FluidR3), flute lines 0.923 → 0.973, a string line
+0.841 → 0.879."""
 RELEASE = 0.3
 """A followed note ends when the model's P(sounding) for it falls below this."""
 F32_RELEASE, F32_SWELL = np.float32(RELEASE), np.array([SWELL, SWELL_ONSET], dtype=np.float32)
@@ -126,7 +133,7 @@ class Transcriber:
         self._hold = max(1, self.ear.delay_frames + 1 - self.model.delay) + self._verify_after
         self._candidates: deque[Candidate] = deque()
         self._waiting: deque[tuple[int, int, float]] = deque()  # the model's notes: (frame, pitch index, level)
-        self._recent: deque[tuple[int, np.ndarray]] = deque(maxlen=2 * NEAR + 4)  # (frame, P(sounding))
+        self._recent: deque[tuple[int, np.ndarray, np.ndarray]] = deque(maxlen=2 * NEAR + 4)  # (frame, P(sounding), P(onset))
         self._given: deque[tuple[int, int, bool]] = deque(maxlen=64)  # (frame, pitch, by the onset ear)
         n_long = self.spectrum.long_bands.shape[0]
         self._level_bands = np.minimum(_level_bands(), n_long - 1)
@@ -246,7 +253,7 @@ class Transcriber:
         if _ending(self._held, sounding, self._began, t - self.max_length, F32_RELEASE, self._ending):
             for k in np.flatnonzero(self._ending):
                 self._end(k, t)
-        self._recent.append((frame, sounding))
+        self._recent.append((frame, sounding, onset))
         notes = []
         # The onset ear's candidates, if the model hears their pitch sound.
         while self._candidates and self._candidates[0].frame <= frame - self._verify_after:
@@ -282,8 +289,13 @@ class Transcriber:
         return notes
 
     def _verified(self, frame: int, k: int) -> bool:
-        """Whether the model heard pitch index ``k`` sound from two hops before ``frame`` on."""
-        return 0 <= k < len(PITCHES) and any(s[k] >= VERIFY for f, s in self._recent if f >= frame - 2)
+        """Whether the model heard pitch index ``k`` sound from two hops before ``frame`` on (and,
+        if a note of it is followed, begin again: :data:`RESTRIKE`)."""
+        if not (0 <= k < len(PITCHES) and any(s[k] >= VERIFY for f, s, _ in self._recent if f >= frame - 2)):
+            return False
+        if self._held[k]:  # struck again, or a fluctuation of the note sounding
+            return any(o[k] >= RESTRIKE for f, _, o in self._recent if frame - 1 <= f <= frame + 2)
+        return True
 
     def _near(self, frame: int, pitch: int, *, partials: bool = False) -> bool:
         """Whether a note of ``pitch`` was given within NEAR hops of ``frame`` — or, with
