@@ -12,7 +12,7 @@ is below what this configuration can give; a JACK period of 128 frames, a 5.8 ms
 tick would be the way there.
 
 Measured 2026-12-04 on the 2-core machine, JACK dummy at 44.1 kHz / 512 frames, 20 onsets, two
-runs: p50 54.1 and 54.2 ms, p99 63.6 and 67.0 ms (the model alone, its notes not waiting: p50
+runs: p50 54.1 and 54.2 ms, p99 63.6 and 67.0 ms (2026-12-05: p50 51.8 and 54.4, p99 59.4 and 59.5 ms) (the model alone, its notes not waiting: p50
 42.6, p99 51.4 ms; the onset ear alone, 2026-12-01: p50 71–81 ms, p99 93–225 ms, the tail a
 loaded machine: in the 225 ms run the run's ticks began up to 100 ms late, with 128 input
 overruns). Hence 300 ms: it still fails a run that loses onsets or stalls for the gap between
