@@ -61,11 +61,12 @@ class FrameWriter:
 
     def write(self, frame: np.ndarray, *, repeat: int = 1) -> None:
         """Write ``frame`` ``repeat`` times (as :meth:`FrameClock.due` asks)."""
+        video = None if self._video is None else _even(frame)  # padded once, however often repeated
         for _ in range(repeat):
             if self.directory is not None:
                 iio.imwrite(self.directory / f"frame_{self.count:06d}.png", frame)
-            if self._video is not None:
-                self._video.append_data(_even(frame))
+            if video is not None:
+                self._video.append_data(video)
             self.count += 1
 
     def close(self) -> None:
