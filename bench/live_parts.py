@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+import random
 import shutil
 import socket
 import subprocess
@@ -43,6 +44,22 @@ def free_udp_port() -> int:
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
         probe.bind(("127.0.0.1", 0))
         return probe.getsockname()[1]
+
+
+def free_listening_port(first: int = 20000, last: int = 32000) -> int:
+    """A free TCP port for a server that a client polls before it listens.
+
+    Below the kernel's ephemeral range on purpose: a client retrying ``connect`` to a port in
+    that range can be given that same port as its own source and connect to itself (TCP's
+    simultaneous open), and then the server finds its port taken. A CI run lost a test to it."""
+    for candidate in random.Random().sample(range(first, last), 200):
+        with socket.socket() as probe:
+            try:
+                probe.bind(("127.0.0.1", candidate))
+            except OSError:
+                continue
+            return candidate
+    raise OSError(f"no free TCP port in {first}-{last}")
 
 
 class Synth:

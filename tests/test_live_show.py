@@ -25,7 +25,8 @@ import mido
 import pytest
 
 import installations
-from bench.live_parts import Synth, after_first_second, free_udp_port, missing_parts, send_notes, sent_notes
+from bench.live_parts import (Synth, after_first_second, free_listening_port, free_udp_port, missing_parts, send_notes,
+                              sent_notes)
 from midi.channel_setup import midi_pan
 
 SECONDS = 30.0
@@ -234,7 +235,7 @@ def test_a_live_run_with_the_view_on_keeps_its_sound_whole(tmp_path):
     reason = missing_parts()
     if reason:
         pytest.skip(reason)
-    port, view = free_udp_port(), free_udp_port()
+    port, view = free_udp_port(), free_listening_port()
     config = tmp_path / "view.toml"
     config.write_text(f'extends = "{installations.path("exchange")}"\n[osc]\nport = {port}\n'
                       f'[output]\nfps = 30\n[view]\nport = {view}\n')

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import os
 import shutil
-import socket
 import subprocess
 import sys
 from pathlib import Path
@@ -19,7 +18,7 @@ import numpy as np
 import pytest
 
 import installations
-from bench.live_parts import free_udp_port, send_notes
+from bench.live_parts import free_listening_port, free_udp_port, send_notes
 
 CHROMIUM = os.environ.get("CREATURES_CHROMIUM", "/usr/bin/chromium")
 pytestmark = pytest.mark.browser
@@ -59,12 +58,6 @@ def open_page(browser, url: str):
     return page, errors
 
 
-def free_tcp_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return probe.getsockname()[1]
-
-
 def stage_pixels(page) -> np.ndarray:
     import imageio.v3 as iio
 
@@ -74,7 +67,7 @@ def stage_pixels(page) -> np.ndarray:
 
 @pytest.mark.slow
 def test_the_live_page_of_a_running_colony_moves_changes_and_grows(browser, tmp_path):
-    osc, view = free_udp_port(), free_tcp_port()
+    osc, view = free_udp_port(), free_listening_port()
     config = tmp_path / "show.toml"
     config.write_text(f'extends = "{installations.path("exchange")}"\nrealtime = false\n'
                       f'[audio]\noutput = false\n[osc]\nport = {osc}\n')
