@@ -235,7 +235,12 @@ class UtterancePercept(Percept):
         tuples that refer to it keep their meaning. A single cluster with no children yet is not
         split off when the sounds it leaves out are too few to make a class: one kind of sound is
         what the parent already stands for. (One sound that recurs among many that do not is a
-        class: with complete linkage the words of a spoken poem gather that way.) Afterwards
+        class: with complete linkage the words of a spoken poem gather that way.) Below the
+        root a lone cluster is never split off: the node is a class already, and its tighter
+        core is not a new one. (Allowed, a reading of ozymandias refined itself into the core
+        of its class, and that core into its own, every few minutes: a chain 16 classes deep
+        after two rehearsed gallery days, each holding nearly its parent's exemplars, and each
+        hour's CPU growing with it.) Afterwards
         children that are no longer distinct fuse (:meth:`fusion`); a fused-away child is
         detached (its ``parent`` becomes None) so tuples holding it can notice.
 
@@ -251,8 +256,9 @@ class UtterancePercept(Percept):
             max_clusters=self.max_children,
             min_members=self.min_members,
         )
-        if not self.children and (not clusters or len(clusters) == 1
-                                  and len(self.members) - len(clusters[0]) < self.min_members):
+        if not self.children and (not clusters or len(clusters) == 1 and (
+                isinstance(self.parent, UtterancePercept)
+                or len(self.members) - len(clusters[0]) < self.min_members)):
             return []
         born = []
         for cluster in clusters:

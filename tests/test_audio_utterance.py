@@ -140,6 +140,19 @@ def test_one_word_does_not_split(speaker: Speaker) -> None:
     assert root.children == []
 
 
+def test_a_recurring_word_is_a_class_at_the_root_and_no_new_class_below_it(speaker: Speaker) -> None:
+    """One word heard again and again among others heard once: the root splits it off, a
+    class of the same sounds does not split off its core (a chain of ever tighter cores grew
+    16 classes deep in a rehearsed week of ozymandias)."""
+    names = ["ai"] * 6 + ["ua", "ieu", "eao"]
+    root, truth = grown_tree(speaker, names)
+    (born,) = root.fission(1.0, 0.5)
+    assert {word_of(u, truth) for u in born.members} == {"ai"}
+    rewarded(born, names[6:] * 2, speaker, start=100.0)  # the class hears the other words too
+    assert len(born.members) == 12
+    assert born.fission(1.0, 0.5) == [] and born.children == []
+
+
 def test_new_word_adds_a_child_and_old_children_keep_identity(speaker: Speaker) -> None:
     root, truth = grown_tree(speaker, ["ai", "oe"] * 5)
     first = root.fission(1.0, 0.5)
