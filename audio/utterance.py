@@ -108,13 +108,18 @@ class PairDistances:
     Clustering asks for the distance matrix of a node's members at every fission, and most of
     its pairs were in the last one's (a rehearsed hour of ozymandias spent a third of its CPU
     warping the same pairs again). Pairs are keyed by the utterances themselves (compared by
-    identity, and kept alive by the key, so no freed id is ever another sound's); after each
-    matrix only the pairs of sounds the tree still holds are kept, so the cache is bounded by
-    the tree's ``max_members``. The numbers are the ones :func:`audio.cepstrum.distance_matrix`
-    gives."""
+    identity, and kept alive by the key, so no freed id is ever another sound's). Pairs of
+    sounds the tree no longer holds are forgotten once the cache has grown past twice what it
+    kept the last time, plus ``slack`` pairs: so it stays within about twice the pairs of the
+    sounds the tree holds, bounded by the tree's ``max_members``, and the forgetting costs
+    little a matrix. (Forgetting after every matrix took a sixth of ozymandias's CPU by the
+    second rehearsed day, its tree holding some 10,000 pairs.) The numbers are the ones
+    :func:`audio.cepstrum.distance_matrix` gives."""
 
-    def __init__(self) -> None:
+    def __init__(self, slack: int = 4096) -> None:
         self._known: dict[tuple[Utterance, Utterance], float] = {}
+        self.slack = slack
+        self._limit = slack
 
     def matrix(self, members: list[Utterance], held: set[Utterance]) -> np.ndarray:
         """The symmetric distance matrix of ``members``; ``held``: every sound the tree holds now."""
@@ -132,7 +137,9 @@ class PairDistances:
         for (i, j), d in zip(todo, found):
             out[i, j] = out[j, i] = d
             self._known[members[i], members[j]] = self._known[members[j], members[i]] = float(d)
-        self._known = {pair: d for pair, d in self._known.items() if pair[0] in held and pair[1] in held}
+        if len(self._known) > self._limit:
+            self._known = {pair: d for pair, d in self._known.items() if pair[0] in held and pair[1] in held}
+            self._limit = 2 * len(self._known) + self.slack
         return out
 
 

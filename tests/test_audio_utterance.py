@@ -273,7 +273,8 @@ def test_damaged_model_files_are_named(speaker: Speaker, tmp_path: Path) -> None
 
 def test_pair_distances_warp_each_pair_once_and_keep_only_what_the_tree_holds(speaker, monkeypatch):
     """The cache of warped pairs gives distance_matrix's numbers, warps a pair seen before no
-    more, and forgets pairs of sounds the tree no longer holds."""
+    more, and forgets pairs of sounds the tree no longer holds once it has grown (here at
+    once: no slack)."""
     import audio.utterance as utterance
     from audio.cepstrum import distance_matrix
 
@@ -282,11 +283,15 @@ def test_pair_distances_warp_each_pair_once_and_keep_only_what_the_tree_holds(sp
     pair_distances = utterance.pair_distances
     monkeypatch.setattr(utterance, "pair_distances",
                         lambda items, pairs: warped.append(len(pairs)) or pair_distances(items, pairs))
-    cache = utterance.PairDistances()
+    cache = utterance.PairDistances(slack=0)
     first = cache.matrix(sounds[:4], set(sounds))
     np.testing.assert_array_equal(first, distance_matrix([s.features for s in sounds[:4]]))
     again = cache.matrix(sounds, set(sounds))  # one new sound: its 4 pairs only
     np.testing.assert_array_equal(again, distance_matrix([s.features for s in sounds]))
     assert warped == [6, 4]
     cache.matrix(sounds[1:3], set(sounds[1:]))  # the first sound is gone from the tree
-    assert warped == [6, 4] and all(sounds[0] not in pair for pair in cache._known)
+    assert warped == [6, 4]  # kept (20 pairs) until the cache passes twice what it kept (12)
+    later = heard("ua", speaker, 7.0)
+    cache.matrix([*sounds[1:], later], {*sounds[1:], later})  # 4 new pairs: 28, forgotten now
+    assert warped == [6, 4, 4] and all(sounds[0] not in pair for pair in cache._known)
+    assert len(cache._known) == 20  # the 10 pairs of the 5 sounds held, both ways
