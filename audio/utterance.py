@@ -48,6 +48,11 @@ Not held: twelve more words by the three other voices, 75 % at best 86 % — nea
 ("purple"/"turtle" lie closer, 0.40, than "purple" said by two voices, 0.70) — and voices in
 other accents or by the Klatt synthesiser, 69 %."""
 
+MAX_CLASSES = 24
+"""Most classes a tree holds below its root (:meth:`UtterancePercept.fission`): a spoken
+poem's tree in ozymandias held 9–14 after its first rehearsed hours, a gallery week's
+soundcreatures far fewer."""
+
 KIND = "aural-model"
 
 
@@ -168,6 +173,7 @@ class UtterancePercept(Percept):
         max_children: int = 8,
         min_members: int = 3,
         max_members: int = 200,
+        max_classes: int = MAX_CLASSES,
         memory: float = 1.0,
         parent: "UtterancePercept | None" = None,
     ) -> None:
@@ -176,6 +182,7 @@ class UtterancePercept(Percept):
         self.max_children = int(max_children)
         self.min_members = int(min_members)
         self.max_members = int(max_members)
+        self.max_classes = int(max_classes)  # only the root's is used (see :meth:`fission`)
         self.memory = float(memory)
         self.members: list[Utterance] = []
         self.latest: Utterance | None = None  # only the root's is used
@@ -251,6 +258,13 @@ class UtterancePercept(Percept):
         children that are no longer distinct fuse (:meth:`fusion`); a fused-away child is
         detached (its ``parent`` becomes None) so tuples holding it can notice.
 
+        A tree that holds its root's ``max_classes`` classes grows no new one: its clusters
+        refresh the classes they continue. A creature's hypotheses pair the classes it hears
+        with those it sings, so they grow as the square of the tree, and each tick's choice
+        and credit with them: in a rehearsed gallery week ozymandias's tree went on growing
+        (30 classes and 800 tuples by the second day, each hour costing more than the last),
+        as sounds at the edge of a class drew new ones in beside it.
+
         Clustering costs n²/2 comparisons of the n collected utterances, five time warps each
         (200 synthetic words: ~0.7 s here; the 60 the hearing keeps by default: ~0.08 s), which
         is why it waits for a tuple to become important rather than running per sound.
@@ -268,11 +282,13 @@ class UtterancePercept(Percept):
                 or len(self.members) - len(clusters[0]) < self.min_members)):
             return []
         born = []
+        root = self.root()
+        room = root.max_classes - (sum(1 for _ in root.walk()) - 1)
         for cluster in clusters:
             group = [self.members[i] for i in cluster]
             child = self._matching_child(group)
             if child is None:
-                if len(self.children) >= self.max_children:
+                if len(self.children) >= self.max_children or len(born) >= room:
                     continue
                 child = self._new_child()
                 born.append(child)
@@ -346,6 +362,7 @@ class UtterancePercept(Percept):
             max_children=self.max_children,
             min_members=self.min_members,
             max_members=self.max_members,
+            max_classes=self.max_classes,
             memory=self.memory,
             parent=self,
         )
@@ -420,6 +437,7 @@ def save_aural_model(root: UtterancePercept, path: str | os.PathLike) -> None:
             "max_children": p.max_children,
             "min_members": p.min_members,
             "max_members": p.max_members,
+            "max_classes": p.max_classes,
             "memory": p.memory,
             "born": p._born,
             "members": [index(u) for u in p.members],
@@ -488,6 +506,7 @@ def load_aural_model(path: str | os.PathLike) -> UtterancePercept:
                 max_children=d["max_children"],
                 min_members=d["min_members"],
                 max_members=d["max_members"],
+                max_classes=d.get("max_classes", MAX_CLASSES),  # files saved before the bound: the default
                 memory=d["memory"],
                 parent=parent,
             )

@@ -153,6 +153,18 @@ def test_a_recurring_word_is_a_class_at_the_root_and_no_new_class_below_it(speak
     assert born.fission(1.0, 0.5) == [] and born.children == []
 
 
+def test_a_full_tree_grows_no_new_class_and_refreshes_those_it_has(speaker: Speaker) -> None:
+    """``max_classes`` bounds the whole tree: three words make two classes, and a later
+    clustering refreshes them but adds none."""
+    root = UtterancePercept(max_classes=2)
+    rewarded(root, [WORDS[i % 3] for i in range(18)], speaker)
+    born = root.fission(value=0.9, innovation_threshold=0.5)
+    assert len(born) == 2 and root.children == born
+    rewarded(root, [WORDS[i % 3] for i in range(9)], speaker, start=100.0)
+    assert root.fission(value=0.9, innovation_threshold=0.5) == [] and root.children == born
+    assert [len(c.members) for c in born] == [9, 9]  # each class took its word's 3 new sounds
+
+
 def test_new_word_adds_a_child_and_old_children_keep_identity(speaker: Speaker) -> None:
     root, truth = grown_tree(speaker, ["ai", "oe"] * 5)
     first = root.fission(1.0, 0.5)

@@ -50,7 +50,8 @@ class Aural:
                               f"is already)", key=f"percepts.{name}")
         h = self.creature.spec.hearing
         self.root = (load_aural_model(seed_model) if seed_model else
-                     UtterancePercept(name, radius=h.radius, memory=h.memory, max_members=h.keep))
+                     UtterancePercept(name, radius=h.radius, memory=h.memory, max_members=h.keep,
+                                      max_classes=h.classes))
         self.root.name = name
         self.root.nearest = nearest
         return self.root

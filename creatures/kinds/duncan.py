@@ -217,7 +217,8 @@ class Duncan(CreatureKind):
         self.trail = MotorTrail(world, self.name, self.body)  # the path its body took (export-motion reads it)
         self.ear = Ear(spec.hearing)
         self.heard = UtterancePercept("heard", radius=spec.hearing.radius, memory=spec.hearing.memory,
-                                      max_children=spec.classes, max_members=spec.hearing.keep)
+                                      max_children=spec.classes, max_members=spec.hearing.keep,
+                                      max_classes=spec.hearing.classes)
         b = spec.beg
         self.beg_height = GaussianModel(b.prior_mean, b.prior_std, size=b.size, prior_weight=b.prior_weight)
         beg_nodes = self.body.graph.poses.labelled(b.label)

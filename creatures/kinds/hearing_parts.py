@@ -47,7 +47,7 @@ from audio.coupling import BodyControl, joint_angle, joint_distance
 from audio.sampler import Sampler
 from audio.segment import Segmenter
 from audio.self_hearing import SingingState
-from audio.utterance import DEFAULT_RADIUS, Utterance, UtterancePercept, load_aural_model
+from audio.utterance import DEFAULT_RADIUS, MAX_CLASSES, Utterance, UtterancePercept, load_aural_model
 from creatures.behaviour.action_group import ActionGroup
 from creatures.behaviour.action_tuple import Action, ActionTuple, DoUntil
 from creatures.behaviour.learning import PerceptLearning, copy_value
@@ -76,6 +76,9 @@ class HearingSpec(BaseModel):
     memory: float = Field(0.25, gt=0, le=5, description="seconds a heard sound stays perceived")
     keep: int = Field(60, ge=3, le=1000, description="most exemplars a sound percept keeps (the newest); "
                                                       "clustering compares keep²/2 pairs, five time warps each")
+    classes: int = Field(MAX_CLASSES, ge=1, le=1000, description="most sound classes the tree holds below its "
+                                                                   "root; tuples pair heard and sung classes, so "
+                                                                   "they grow as its square")
     half_duplex: bool = Field(True, description="deaf while singing (set false only to demonstrate why)")
     release: float = Field(0.3, ge=0, le=2, description="deafness held after singing stops (room echo), s")
 
@@ -346,7 +349,8 @@ def tree_state(root: UtterancePercept) -> dict[str, Any]:
                 "children": [node(c) for c in p.utterance_children()]}
 
     return {"radius": root.radius, "max_children": root.max_children, "min_members": root.min_members,
-            "max_members": root.max_members, "memory": root.memory, "root": node(root),
+            "max_members": root.max_members, "max_classes": root.max_classes, "memory": root.memory,
+            "root": node(root),
             "utterances": utterances}
 
 
@@ -379,7 +383,7 @@ def tree_from_state(state: dict[str, Any], like: UtterancePercept) -> UtteranceP
         saved = bounds.items(state["utterances"], "tree.utterances", longest=100_000)
         table = [utterance_from_state(u, f"tree.utterances.{i}") for i, u in enumerate(saved)]
         options = {"radius": like.radius, "max_children": like.max_children, "min_members": like.min_members,
-                   "max_members": like.max_members, "memory": like.memory}
+                   "max_members": like.max_members, "max_classes": like.max_classes, "memory": like.memory}
 
         def build(d: dict[str, Any], parent: UtterancePercept | None, where: str) -> UtterancePercept:
             if not isinstance(d.get("name"), str):

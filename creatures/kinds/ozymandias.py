@@ -160,7 +160,8 @@ class Ozymandias(CreatureKind):
         super().__init__(spec, world, rng)
         self.ear = Ear(spec.hearing)
         self.root = UtterancePercept("any sound", radius=spec.hearing.radius, memory=spec.hearing.memory,
-                                     max_members=spec.hearing.keep)
+                                     max_members=spec.hearing.keep,
+                                     max_classes=spec.hearing.classes)
         self.motivation = Motivation({"excitement": 0.0}, decay={"excitement": np.log(2.0) / spec.calm},
                                      equilibrium={"excitement": 0.0}, ceiling=1.0)
         self._readers: dict[int, SingFrom] = {}
