@@ -222,12 +222,15 @@ class PerceptLearning:
                 if tuple_ is last and isinstance(tuple_.action, ParametrisedAction):
                     tuple_.action.learn()
             if tuple_.value.to_float() > innovation:
-                self.review(group, tuple_, t)
+                self.review(group, tuple_, t, innovation)
 
     # -- extending the percept tree -------------------------------------------------------
-    def review(self, group: ActionGroup, tuple_: ActionTuple, t: float) -> None:
+    def review(self, group: ActionGroup, tuple_: ActionTuple, t: float, innovation: float | None = None) -> None:
         """Fission of the tuple's trigger if bimodal, fusion of its children if they merged,
-        and hypotheses for children that have no tuple yet."""
+        and hypotheses for children that have no tuple yet. ``innovation``: the threshold in
+        value units, when the caller has it (the group's values are the same for every tuple
+        one credit assignment reviews; a learner that weighs worth against it need not sum
+        them again for each)."""
         percept = tuple_.trigger
         if isinstance(percept, GaussianPercept):
             if not percept.children:

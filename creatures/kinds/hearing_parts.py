@@ -473,8 +473,9 @@ class AuralLearning(PerceptLearning):
         mean = float(np.mean(values)) if values else 0.0
         return self.statistics * mean, self.innovation * mean
 
-    def review(self, group: ActionGroup, tuple_: ActionTuple, t: float) -> None:
-        _, innovation = self.thresholds(group)
+    def review(self, group: ActionGroup, tuple_: ActionTuple, t: float, innovation: float | None = None) -> None:
+        if innovation is None:
+            _, innovation = self.thresholds(group)
         worth = tuple_.value.to_float()
         sung = tuple_.action.percept if isinstance(tuple_.action, SingFrom) else None
         for percept in (tuple_.trigger, sung, self._family(group, tuple_)):
@@ -528,10 +529,12 @@ class AuralLearning(PerceptLearning):
         classes = sung.utterance_children() + ([] if family is None else family.utterance_children())
         answers = self._answers(tuple_)
         made = []
+        sung_by = {(id(tp.trigger), id(getattr(tp.action, "percept", None))) for tp in group.tuples}
         for child in classes:
             trigger = child if answers else tuple_.trigger
-            if self._sings(group, trigger, child):
+            if (id(trigger), id(child)) in sung_by:  # as _sings, once for all the classes
                 continue
+            sung_by.add((id(trigger), id(child)))
             du = tuple_.do_until
             action = self.sing_from(child)
             hypothesis = ActionTuple(f"{trigger.name}|{action.name}", trigger, action,
