@@ -24,6 +24,7 @@ import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 from pythonosc.osc_message_builder import OscMessageBuilder
@@ -76,14 +77,16 @@ def packets(seed: int = 13, n: int = 4096) -> list[bytes]:
     return out
 
 
-def send(port: int, seconds: float, seed: int = 13) -> dict[str, int]:
+def send(port: int, seconds: float, seed: int = 13, ready: Callable[[], None] = lambda: None) -> dict[str, int]:
     """Send :func:`packets` round and round to 127.0.0.1:``port`` for ``seconds``, flat out.
 
     The flooder also plays the cleverest attacker on loopback: first it gets itself asked (its
     socket is where its hellos say it listens) and keeps the token; then after every round of
     the pool it adds 64 hellos from new names carrying it, so the colony's table of proved
-    peers is pushed to its bound too."""
+    peers is pushed to its bound too. ``ready()`` is called once the pool is made, and the
+    flood starts when it returns."""
     pool = packets(seed)
+    ready()
     target = ("127.0.0.1", port)
     count = total = 0
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
@@ -166,20 +169,27 @@ def flood_colony(folder: Path, *, seconds: float = SECONDS, installation: str = 
     config.write_text(installations.path(installation).read_text()
                       + f'\n[osc]\nport = {port}\npeers = ["127.0.0.1:{probe.getsockname()[1]}"]\n')
     log = folder / "events.jsonl"
+    # A flooder on the network spends its own CPU, not the colony's; on loopback the two share
+    # this machine, so the flooder runs niced: it still sends as fast as a core left idle allows.
+    # It is started first and floods when told: niced on a busy machine, its start-up (imports,
+    # the pool) once took longer than the colony's run, which then heard nothing (a CI run).
+    flooder = subprocess.Popen([sys.executable, "-m", "bench.flood", str(port), str(seconds)], stdin=subprocess.PIPE,
+                               stdout=subprocess.PIPE, text=True, preexec_fn=lambda: os.nice(19))
+    if flooder.stdout.readline().strip() != "ready":
+        raise RuntimeError(f"the flooder did not start (exit {flooder.wait()})")
     colony = subprocess.Popen(
         [sys.executable, "-m", "creatures.cli", "run", str(config), "--duration", str(seconds + 2 * WARMUP),
          "--log", str(log), "--state", str(folder / "state")],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        probe.recvfrom(2048)  # its first hello: the loop is running
+        try:
+            probe.recvfrom(2048)  # its first hello: the loop is running
+        finally:
+            probe.close()
+        time.sleep(WARMUP)
+        sent = json.loads(flooder.communicate("go\n", timeout=seconds + 60)[0])
     finally:
-        probe.close()
-    time.sleep(WARMUP)
-    # A flooder on the network spends its own CPU, not the colony's; on loopback the two share
-    # this machine, so the flooder runs niced: it still sends as fast as a core left idle allows.
-    flooder = subprocess.run([sys.executable, "-m", "bench.flood", str(port), str(seconds)],
-                             capture_output=True, text=True, check=True, preexec_fn=lambda: os.nice(19))
-    sent = json.loads(flooder.stdout)
+        flooder.kill()
     out, err = colony.communicate(timeout=120)
     if colony.returncode != 0:
         raise RuntimeError(f"the flooded colony exited {colony.returncode}: {err[-2000:]}")
@@ -211,5 +221,11 @@ def run(quick: bool) -> list[Row]:
     ]
 
 
+def _told() -> None:
+    """Say the pool is made, and wait to be told to flood (:func:`flood_colony`)."""
+    print("ready", flush=True)
+    sys.stdin.readline()
+
+
 if __name__ == "__main__":
-    print(json.dumps(send(int(sys.argv[1]), float(sys.argv[2]))))
+    print(json.dumps(send(int(sys.argv[1]), float(sys.argv[2]), ready=_told)))
