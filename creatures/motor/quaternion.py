@@ -406,7 +406,11 @@ def angle_between_one(p, q):  # pragma: no cover - compiled
     return 4.0 * math.asin(min(0.5 * math.sqrt(chord), 1.0))
 
 
-@numba.guvectorize(["void(float64[:], float64[:], float64[:])"], "(n),(n)->()", cache=True)
+# Not cached: numba's cache of this generalised ufunc, written while two processes compiled
+# the functions it calls, loaded as a call through a null pointer, and every later process
+# that drew a motor graph crashed (a CI run's fresh cache, 14 tests). Compiled per process it
+# costs ~90 ms once, what it calls coming from the cache.
+@numba.guvectorize(["void(float64[:], float64[:], float64[:])"], "(n),(n)->()")
 def _angles(p, q, out):  # pragma: no cover - compiled
     out[0] = angle_between_one(p, q)
 
