@@ -12,6 +12,13 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 os.environ.setdefault("NUMBA_CACHE_DIR", os.path.join(os.path.dirname(__file__), "..", ".numba_cache"))
+# Each xdist worker (and the runs it starts) compiles into a cache of its own. Numba caches a
+# generalised ufunc as two entries, its kernel and its wrapper; two processes compiling one at
+# once can leave a wrapper beside the other's kernel, and every process that loads the pair
+# crashes (SIGSEGV in librosa's yin and in our own gufunc: two fresh-clone CI runs, 6 and 14
+# tests). Numba is imported below this line, after which the variable is read.
+if os.environ.get("PYTEST_XDIST_WORKER"):
+    os.environ["NUMBA_CACHE_DIR"] = os.path.join(os.environ["NUMBA_CACHE_DIR"], os.environ["PYTEST_XDIST_WORKER"])
 
 from hypothesis import settings  # noqa: E402
 
