@@ -307,3 +307,27 @@ def test_pair_distances_warp_each_pair_once_and_keep_only_what_the_tree_holds(sp
     cache.matrix([*sounds[1:], later], {*sounds[1:], later})  # 4 new pairs: 28, forgotten now
     assert warped == [6, 4, 4] and all(sounds[0] not in pair for pair in cache._known)
     assert len(cache._known) == 20  # the 10 pairs of the 5 sounds held, both ways
+
+
+def test_a_heard_sound_is_warped_once_against_each_exemplar_of_the_tree(speaker, monkeypatch):
+    """Every class of a tree judges a heard sound against its exemplars, and a class holds
+    exemplars of the class above: each exemplar is warped against the sound once, and each
+    class's similarity is the one its own exemplars give (as :func:`distances_to` alone would)."""
+    import audio.utterance as utterance
+    from audio.cepstrum import distances_to
+
+    root, _ = grown_tree(speaker, [WORDS[i % 3] for i in range(18)])
+    born = root.fission(value=0.9, innovation_threshold=0.5)
+    inner = born[0]._new_child()  # a refinement of the first class: half its exemplars
+    inner.members = born[0].members[:3]
+    warped: list[int] = []
+    monkeypatch.setattr(utterance, "distances_to",
+                        lambda q, ts: warped.append(len(ts)) or distances_to(q, ts))
+    for t, name in enumerate(WORDS[:3], start=100):
+        sound = heard(name, speaker, float(t))
+        root.hear(sound)
+        for node in [inner, *born]:
+            nearest = distances_to(sound.features, [m.features for m in node.members]).min()
+            assert node.evaluate(t + 0.2) == 2.0 ** (-nearest / node.radius)
+    members = {m for c in born for m in c.members}
+    assert sum(warped) == 3 * len(members)  # never the same exemplar twice for one sound

@@ -16,6 +16,7 @@ from __future__ import annotations
 import json
 import shutil
 import subprocess
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -228,7 +229,7 @@ def test_the_clicks_as_a_rehearsal_file_replay_the_same_dog(trained, tmp_path):
     config = SHIPPED.read_text(encoding="utf-8").replace(
         '[[input.map]]\nosc = "/click"', '[[input.map]]\nfile = "clicks.csv"\n\n[[input.map]]\nosc = "/click"', 1)
     (tmp_path / "duncan.toml").write_text(config, encoding="utf-8")
-    subprocess.run(["python", "-m", "creatures.cli", "offline", str(tmp_path / "duncan.toml"), "--audio",
+    subprocess.run([sys.executable, "-m", "creatures.cli", "offline", str(tmp_path / "duncan.toml"), "--audio",
                     str(tmp_path / "cues.wav"), "--out", str(tmp_path / "out"),
                     "--duration", f"{(int(len(audio) / SR / 0.05) - 1) * 0.05:.2f}"], check=True, capture_output=True)
     replay = [json.loads(line) for line in (tmp_path / "out" / "events.jsonl").read_text().splitlines()]
@@ -283,7 +284,7 @@ def test_midi_clicks_offline_reward_the_dog(tmp_path):
     from midi.notes import NoteEvent
 
     write_notes(tmp_path / "clicks.mid", [NoteEvent(5.0 + 4.0 * k, 36, 100, 9, 0.1) for k in range(5)])
-    subprocess.run(["python", "-m", "creatures.cli", "offline", str(SHIPPED), "--midi", str(tmp_path / "clicks.mid"),
+    subprocess.run([sys.executable, "-m", "creatures.cli", "offline", str(SHIPPED), "--midi", str(tmp_path / "clicks.mid"),
                     "--out", str(tmp_path / "out"), "--duration", "30"], check=True, capture_output=True)
     events = [json.loads(line) for line in (tmp_path / "out" / "events.jsonl").read_text().splitlines()]
     rewards = [e for e in events if e["kind"] == "reward"]

@@ -63,7 +63,6 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 from pydantic import BaseModel, Field, model_validator
 
-from audio.cepstrum import distances_to
 from audio.utterance import Utterance, UtterancePercept
 from creatures.behaviour.action_group import ActionGroup
 from creatures.behaviour.action_tuple import Action, ActionTuple, DoUntil
@@ -261,7 +260,7 @@ class Duncan(CreatureKind):
         """Add ``utterance`` to the nearest sound class within the radius, or start a class."""
         classes = self.heard.utterance_children()
         if classes:
-            d = distances_to(utterance.features, [c.medoid.features for c in classes])
+            d = self.heard.distances_from(utterance, [c.medoid for c in classes])
             nearest = int(np.argmin(d))
             if d[nearest] <= self.heard.radius:
                 cls = classes[nearest]
