@@ -179,7 +179,31 @@ def _named(kind: str, device: str | int | None) -> str:
     return f"audio {kind} {device if device is not None else '(default)'}"
 
 
-class ResilientOutput(AudioOutput):
+class Watched(Generic[S]):
+    """What a device kept by a :class:`DeviceWatch` tells of itself, the same for a loudspeaker
+    and a microphone (the status line and the events log read these)."""
+
+    watch: DeviceWatch[S]
+
+    @property
+    def connected(self) -> bool:
+        return self.watch.stream is not None
+
+    @property
+    def faults(self) -> int:
+        return self.watch.faults
+
+    @property
+    def reopened(self) -> int:
+        return self.watch.reopened
+
+    @property
+    def reason(self) -> str:
+        """Why there is no stream (no sound out, or none heard), while there is none."""
+        return self.watch.reason
+
+
+class ResilientOutput(AudioOutput, Watched[LiveOutput]):
     """The loudspeaker, kept across device faults; ``write`` never raises for the device.
 
     Blocks come at ``sample_rate`` and are resampled to the rate the device runs at each time
@@ -219,23 +243,6 @@ class ResilientOutput(AudioOutput):
             _named("output", device), "output", device, clock, start=self._open, stop=self._let_go,
             backend=backend, retry_interval=retry_interval, stall_timeout=stall_timeout, report=report,
             supervisor=supervisor)
-
-    @property
-    def connected(self) -> bool:
-        return self.watch.stream is not None
-
-    @property
-    def faults(self) -> int:
-        return self.watch.faults
-
-    @property
-    def reopened(self) -> int:
-        return self.watch.reopened
-
-    @property
-    def reason(self) -> str:
-        """Why there is no sound, while there is none."""
-        return self.watch.reason
 
     @property
     def underruns(self) -> int:
@@ -316,7 +323,7 @@ class ResilientOutput(AudioOutput):
         live.close()
 
 
-class ResilientInput(AudioSource):
+class ResilientInput(AudioSource, Watched[LiveInput]):
     """A microphone kept across device faults; ``read`` never raises for the device.
 
     Reads give what arrived since the last one (resampled to ``samplerate``, see
@@ -337,18 +344,6 @@ class ResilientInput(AudioSource):
             backend=backend, retry_interval=retry_interval, stall_timeout=stall_timeout, report=report,
             supervisor=supervisor)
         self._nothing = np.zeros(0, dtype=np.float32)
-
-    @property
-    def connected(self) -> bool:
-        return self.watch.stream is not None
-
-    @property
-    def faults(self) -> int:
-        return self.watch.faults
-
-    @property
-    def reopened(self) -> int:
-        return self.watch.reopened
 
     @property
     def overruns(self) -> int:
