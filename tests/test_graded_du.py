@@ -52,3 +52,30 @@ def test_interruption_competes_against_a_declining_expected_value(rng):
     with the step Du it never does, the active tuple is worth its full 1.0 to the end."""
     assert interrupted_at(False, rng) is None
     assert interrupted_at(True, rng) == pytest.approx(4.0, abs=DT + 1e-9)
+
+
+def test_a_graded_tuple_left_near_its_end_does_not_take_its_place_back(rng):
+    """A tuple interrupted near the end of a graded Du was worth little as it ran; as a
+    candidate again it is worth Tr·V. Its base value for the next interruption is the larger,
+    so it must grow past that to come back, not merely back to its own value: without it the
+    two tuples would take turns tick after tick (every tick an interruption)."""
+    always = FunctionPercept("always", lambda t: 1.0)
+    events: list[dict] = []
+    a = ActionTuple("a", always, Action("a"), DoUntil(2.0, graded=True), 1.0)
+    b = ActionTuple("b", FunctionPercept("later", lambda t: 0.0 if t < 1.5 else 1.0), Action("b"),
+                    DoUntil(10.0, graded=True), 0.9)
+    group = ActionGroup("g", [a, b], rng=rng, alpha=0.0, multiple=1.5, on_event=events.append)
+    clock = SimulatedClock()
+    group.tick(0.0)
+    while clock.now() < 1.5:
+        clock.advance(DT)
+        group.tick(clock.now())
+    # At 1.5 s a is worth (1 − 0.75)·1.0 = 0.25 and b, triggered, 0.9: b interrupts (or the
+    # re-choice confirms a; the seed decides). Then nothing more for the rest of b's run.
+    taken = [e for e in events if e["event"] == "interruption"]
+    assert [(e["tuple"], e["by"]) for e in taken] == [("a", "b")]
+    while clock.now() < 5.0:
+        clock.advance(DT)
+        group.tick(clock.now())
+    assert [e for e in events if e["event"] == "interruption"] == taken
+    assert group.active == [b]

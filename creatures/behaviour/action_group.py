@@ -431,13 +431,30 @@ class ActionGroup:
         allowed = self._inactive_mask()
         allowed[self._position(weakest)] = True
         i = self._choose(expected, allowed)
-        self.record_base(expected)
         if i is None or self.tuples[i] is weakest:
+            self.record_base(expected)
             self._emit("reselection", t, tuple=weakest.name)  # the interruption confirmed it
             return
+        self.record_base(self._as_candidate(expected, trig, weakest))
         self._emit("interruption", t, tuple=weakest.name, by=self.tuples[i].name)
         self._stop(weakest, t, interrupted=True)
         self._start(self.tuples[i], t, trig)
+
+    def _as_candidate(self, expected: np.ndarray, trig: np.ndarray, stopped: ActionTuple) -> np.ndarray:
+        """``expected`` with the tuple being stopped counted as a candidate again (Tr·V), when
+        that is more than what was left of it: its base value for the next interruption.
+
+        A graded Du (thesis "computing expected values") leaves a running tuple worth
+        little near its end; a base recorded from that would let it interrupt its successor
+        in the next tick, having "grown" only back to its own value, and the creature would
+        dither. With a stepped Du the running tuple's (1 − Du)·V = V is already the larger."""
+        i = self._position(stopped)
+        candidate = float(trig[i]) * stopped.value.to_float()
+        if candidate <= expected[i]:
+            return expected
+        out = expected.copy()
+        out[i] = candidate
+        return out
 
     def _start(self, tuple_: ActionTuple, t: float, trig: np.ndarray) -> None:
         tuple_.start(t, self.rng, group=self)
@@ -476,6 +493,7 @@ class ActionGroup:
             weakest = min(self.active, key=lambda tp: expected[self._position(tp)])
             self._emit("interruption", t, tuple=weakest.name, by=name)
             self._stop(weakest, t, interrupted=True)
+            expected = self._as_candidate(expected, trig, weakest)
         self.record_base(expected)
         self._start(tuple_, t, trig)
         return tuple_
