@@ -122,6 +122,48 @@ def test_a_running_tuple_is_interrupted_on_a_soft_state_step_only(tmp_path, soft
     assert stops and at[0] - 1e-6 <= stops[0] <= at[1] + 1e-6, stops
 
 
+CUT = """
+[[creature]]
+name = "c"
+kind = "authored"
+[creature.percepts.call]
+type = "script"
+points = [[0.0, 0.0], [1.5, 0.0], [1.501, 1.0], [1.6, 1.0], [1.601, 0.0]]
+[creature.tuples.run]
+action = { type = "play_phrase", pitches = [60, 62, 64, 65, 67, 69, 71, 72], durations = 0.4 }
+until = { done = true }
+value = 1.0
+[creature.tuples.answer]
+trigger = "call"
+action = { type = "play_note", pitch = 84 }
+until = { done = true }
+value = 5.0
+[creature.groups.main]
+tuples = ["run", "answer"]
+alpha = 0.0
+"""
+
+
+def test_an_interrupted_phrase_stops_where_the_creature_turned(tmp_path):
+    """A phrase whose tuple is interrupted is cut (thesis "a baseline action selection
+    mechanism": the interrupted action ends): its notes go to the scheduler just ahead of
+    their time (``AHEAD``), so after the answer at 1.5 s no note of the run is played later
+    than that, and the run sung again after the answer is whole."""
+    from creatures.authored.actions import AHEAD
+
+    inst = load_installation(write(tmp_path, 'title = "t"\nduration = 8.0\ntick = 0.05\n' + CUT))
+    inst.settings.output.wav = inst.settings.output.report = False
+    run_offline(inst, tmp_path / "out", duration=8.0)
+    events = read_events(tmp_path / "out" / "events.jsonl")
+    cut = next(e for e in events if e["kind"] == "interruption")
+    assert (cut["tuple"], cut["by"]) == ("run", "answer") and cut["t"] == pytest.approx(1.55)
+    notes = [(e["time"], e["pitch"]) for e in events if e["kind"] == "note"]
+    first = [(t, p) for t, p in notes if t < cut["t"] + AHEAD and p != 84]
+    assert [p for _, p in first] == [60, 62, 64, 65, 67]  # 0.0 … 1.6 s: up to half a second on
+    again = [p for t, p in notes if t >= cut["t"] + AHEAD and p != 84]
+    assert again[:8] == [60, 62, 64, 65, 67, 69, 71, 72]
+
+
 @pytest.mark.parametrize(
     ("old", "new", "key", "message"),
     [

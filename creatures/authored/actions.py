@@ -36,22 +36,52 @@ class ActionPart(Part):
         raise NotImplementedError
 
 
+AHEAD = 0.5
+"""Seconds ahead of each note that a playing action hands it to the scheduler: a live creature
+whose tick comes this late still plays on time, and an interruption cuts the phrase within
+this much of the moment it came."""
+
+
 class Playing(Action):
     """An action that plays notes from its start: ``notes(t)`` gives them (times relative to
-    the start); ``done(t)`` is 1 once the last has ended (for ``until.done``)."""
+    the start); ``done(t)`` is 1 once the last has ended (for ``until.done``).
+
+    The notes go to the scheduler :data:`AHEAD` of their time (or two of the creature's ticks,
+    if those are longer), not all at the start: an interrupted tuple stops playing (thesis "a
+    baseline action selection mechanism": the interrupted action ends), so the phrase it was
+    playing is cut where the creature turned to something else, and no one (the colony, a
+    peer, the room) ever hears the notes it did not play. A tuple that ends by its Du plays its
+    phrase out, as it always has: its Du said the tuple was done, not that the phrase stops."""
 
     def __init__(self, name: str, creature: "Authored", notes: Callable[[float], list[NoteEvent]]) -> None:
         super().__init__(name)
         self.creature = creature
         self.notes = notes
         self.ends_at = -np.inf
+        self._due: list[NoteEvent] = []  # not yet handed over, absolute times, latest first
+        self._last = -np.inf
 
     def start(self, t: float, tuple_: ActionTuple) -> None:
-        notes = self.notes(t)
-        self.ends_at = t
-        for note in notes:
-            self.creature.play(note.pitch, note.velocity, note.duration, at=t + note.time)
-            self.ends_at = max(self.ends_at, t + note.time + note.duration)
+        notes = [NoteEvent(t + n.time, n.pitch, n.velocity, n.channel, n.duration) for n in self.notes(t)]
+        self.ends_at = max((n.end for n in notes), default=t)
+        self._due = sorted(notes, key=lambda n: n.time, reverse=True)
+        self._last = t
+        self._hand_over(t + AHEAD)
+
+    def update(self, t: float) -> None:
+        step, self._last = t - self._last, t
+        self._hand_over(t + max(AHEAD, 2.0 * step))
+
+    def stop(self, t: float, *, interrupted: bool) -> None:
+        if interrupted:
+            self._due.clear()
+        else:
+            self._hand_over(np.inf)
+
+    def _hand_over(self, until: float) -> None:
+        while self._due and self._due[-1].time <= until:
+            note = self._due.pop()
+            self.creature.play(note.pitch, note.velocity, note.duration, at=note.time)
 
     def done(self, t: float) -> float:
         return 1.0 if t >= self.ends_at else 0.0
