@@ -53,6 +53,14 @@ def write(tmp_path: Path, text: str, name: str = "inst.toml") -> Path:
     return path
 
 
+def ran(tmp_path: Path, path: Path, duration: float) -> list[dict]:
+    """The events of an offline run of the config at ``path`` (no audio, no report)."""
+    inst = load_installation(path)
+    inst.settings.output.wav = inst.settings.output.report = False
+    run_offline(inst, tmp_path / "out", duration=duration)
+    return read_events(tmp_path / "out" / "events.jsonl")
+
+
 def error_of(path: Path) -> ConfigError:
     """The load error of ``path``; every one is also exit 2 from ``creatures offline``, on one
     line naming the file and line, before anything is written (issue 15, "Bad input")."""
@@ -76,10 +84,7 @@ def line_of(path: Path, fragment: str) -> int:
 
 
 def test_a_small_authored_creature_plays_its_phrase_when_bored(tmp_path):
-    inst = load_installation(write(tmp_path, HEAD + CREATURE))
-    inst.settings.output.wav = inst.settings.output.report = False
-    run_offline(inst, tmp_path / "out", duration=30.0)
-    events = read_events(tmp_path / "out" / "events.jsonl")
+    events = ran(tmp_path, write(tmp_path, HEAD + CREATURE), 30.0)
     sung = [e["pitch"] for e in events if e["kind"] == "note" and e["creature"] == "c"]
     assert sung[:3] == [60, 64, 67] and len(sung) >= 6
     assert Counter(e["tuple"] for e in events if e["kind"] == "selection")["sing"] >= 2
@@ -114,10 +119,7 @@ def test_a_running_tuple_is_interrupted_on_a_soft_state_step_only(tmp_path, soft
     long rest by a call that rises at 1.131 s) waits for the soft state's next step (2 a
     second, at a phase of its own: later than the next tick, within 0.5 s); without it, the
     next tick (0.02 s) chooses."""
-    inst = load_installation(write(tmp_path, 'title = "t"\nduration = 3.0\ntick = 0.02\n' + SOFT.replace("soft_rate = 2.0", soft)))
-    inst.settings.output.wav = inst.settings.output.report = False
-    run_offline(inst, tmp_path / "out", duration=3.0)
-    events = read_events(tmp_path / "out" / "events.jsonl")
+    events = ran(tmp_path, write(tmp_path, 'title = "t"\nduration = 3.0\ntick = 0.02\n' + SOFT.replace("soft_rate = 2.0", soft)), 3.0)
     stops = [e["t"] for e in events if e["kind"] == "interruption" and e["tuple"] == "rest"]
     assert stops and at[0] - 1e-6 <= stops[0] <= at[1] + 1e-6, stops
 
@@ -151,10 +153,7 @@ def test_an_interrupted_phrase_stops_where_the_creature_turned(tmp_path):
     than that, and the run sung again after the answer is whole."""
     from creatures.authored.actions import AHEAD
 
-    inst = load_installation(write(tmp_path, 'title = "t"\nduration = 8.0\ntick = 0.05\n' + CUT))
-    inst.settings.output.wav = inst.settings.output.report = False
-    run_offline(inst, tmp_path / "out", duration=8.0)
-    events = read_events(tmp_path / "out" / "events.jsonl")
+    events = ran(tmp_path, write(tmp_path, 'title = "t"\nduration = 8.0\ntick = 0.05\n' + CUT), 8.0)
     cut = next(e for e in events if e["kind"] == "interruption")
     assert (cut["tuple"], cut["by"]) == ("run", "answer") and cut["t"] == pytest.approx(1.55)
     notes = [(e["time"], e["pitch"]) for e in events if e["kind"] == "note"]
@@ -262,10 +261,7 @@ alpha = 0.0
 def test_motor_programs_and_labels_move_the_body_there(tmp_path):
     from creatures.kinds.parts import shared_graph
 
-    inst = load_installation(write(tmp_path, HEAD + DANCER))
-    inst.settings.output.wav = inst.settings.output.report = False
-    run_offline(inst, tmp_path / "out", duration=30.0)
-    events = read_events(tmp_path / "out" / "events.jsonl")
+    events = ran(tmp_path, write(tmp_path, HEAD + DANCER), 30.0)
     reached = [n for e in events if e["kind"] == "motor" for n in e["reached"]]
     selected = Counter(e["tuple"] for e in events if e["kind"] == "selection")
     labels = shared_graph().poses.labels
@@ -642,10 +638,7 @@ value = 0.9
 tuples = ["walk", "point"]
 alpha = 0.0
 """
-    inst = load_installation(write(tmp_path, text))
-    inst.settings.output.wav = inst.settings.output.report = False
-    run_offline(inst, tmp_path / "out", duration=40.0)
-    events = read_events(tmp_path / "out" / "events.jsonl")
+    events = ran(tmp_path, write(tmp_path, text), 40.0)
     reached = [n for e in events if e["kind"] == "motor" for n in e["reached"]]
     hands = graph.poses.positions[reached, graph.skeleton.index("hand_r")]
     assert {"sway left", "sway right"} <= {label for n in reached for label in graph.poses.labels[n]}

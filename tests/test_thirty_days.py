@@ -64,7 +64,10 @@ def groups_of(creature) -> list[ActionGroup]:
 
 
 def values(group: ActionGroup) -> dict[str, tuple[float, bool]]:
-    return {tp.name: (tp.value.to_float(), getattr(tp.value, "plasticity", 1.0) == 0.0) for tp in group.tuples}
+    """Each tuple's learned value (a chained value's scalar, not modulated by the drives its
+    goals serve: a month of moods must not read as drift) and whether it is fixed."""
+    return {tp.name: (tp.value.to_dict()["value"], getattr(tp.value, "plasticity", 1.0) == 0.0)
+            for tp in group.tuples}
 
 
 SHORTER = {"flock": (3.0, 30.0)}
