@@ -163,6 +163,35 @@ def test_an_interrupted_phrase_stops_where_the_creature_turned(tmp_path):
     assert again[:8] == [60, 62, 64, 65, 67, 69, 71, 72]
 
 
+def test_a_phrase_playing_across_a_clock_gap_is_not_played_in_a_burst_on_waking(tmp_path):
+    """A run paused one second into the run phrase and woken an hour later: the phrase's
+    notes that would have sounded in the gap are not handed over late, all at once."""
+    session, log, live_to = lived(write(tmp_path, 'title = "t"\nduration = 8.0\ntick = 0.05\n' + CUT))
+    live_to(1.0)
+    clock = session.world.clock
+    clock.advance_to(3600.0)
+    session.step(3600.0, 0, None, audio=False)
+    late = [e for e in log.records if e["kind"] == "note" and e["t"] >= 3600.0 and e["time"] < 3600.0]
+    assert late == []
+    assert [e["pitch"] for e in log.records if e["kind"] == "note" and e["t"] < 2.0] == [60, 62, 64, 65]
+
+
+def test_a_note_handed_over_ahead_sounds_in_the_voice_at_its_time():
+    """The scanned strings start a note when the audio reaches its time, not when a playing
+    action handed it to the creature (half a second ahead)."""
+    import numpy as np
+
+    from creatures.kinds.parts import Voice, VoiceSpec
+
+    voice = Voice(VoiceSpec(), sample_rate=22050, block_size=512)
+    voice.play(60, 100, end=1.0, start=0.5)
+    block = np.zeros(512)
+    voice.render(block, 0.45)
+    assert not voice.pool.active and not block.any()
+    voice.render(block, 0.5 + 512 / 22050)
+    assert voice.pool.active and np.abs(block).max() > 0.0
+
+
 @pytest.mark.parametrize(
     ("old", "new", "key", "message"),
     [

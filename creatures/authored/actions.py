@@ -66,22 +66,26 @@ class Playing(Action):
         self.ends_at = max((n.end for n in notes), default=t)
         self._due = sorted(notes, key=lambda n: n.time, reverse=True)
         self._last = t
-        self._hand_over(t + AHEAD)
+        self._hand_over(t, t + AHEAD)
 
     def update(self, t: float) -> None:
         step, self._last = t - self._last, t
-        self._hand_over(t + max(AHEAD, 2.0 * step))
+        self._hand_over(t, t + max(AHEAD, 2.0 * step))
 
     def stop(self, t: float, *, interrupted: bool) -> None:
         if interrupted:
             self._due.clear()
         else:
-            self._hand_over(np.inf)
+            self._hand_over(t, np.inf)
 
-    def _hand_over(self, until: float) -> None:
+    def _hand_over(self, now: float, until: float) -> None:
+        """Hand over the notes due by ``until``, except those that would have ended by
+        ``now``: across a clock gap (a night's closing, a pause, a suspended machine) the
+        rest of a phrase is not played in a burst on waking, as nothing else is."""
         while self._due and self._due[-1].time <= until:
             note = self._due.pop()
-            self.creature.play(note.pitch, note.velocity, note.duration, at=note.time)
+            if note.end > now:
+                self.creature.play(note.pitch, note.velocity, note.duration, at=note.time)
 
     def done(self, t: float) -> float:
         return 1.0 if t >= self.ends_at else 0.0

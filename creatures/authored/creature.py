@@ -419,7 +419,7 @@ class Authored(CreatureKind):
         if band is not None and band.play(note.pitch, note.velocity, note.end, note.channel):
             return  # a score's part sounds in its own voice
         if self.voice is not None:
-            self.voice.play(note.pitch, note.velocity, note.end)
+            self.voice.play(note.pitch, note.velocity, note.end, start=note.time)
 
     def _impulse(self, t: float, which: str) -> None:
         for name, amount in self._impulses[which]:

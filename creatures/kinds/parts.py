@@ -116,6 +116,7 @@ class Voice:
         self._strings, self._tuning = parameters, (1.0, 1.0)
         self.sample_rate = sample_rate
         self._ends: list[tuple[float, int]] = []
+        self._starts: list[tuple[float, int, int, float]] = []  # (start, pitch, velocity, end), not yet sounding
         self.coupling: BodyCoupling | None = None
         self.shape: BodyShape | None = None
         self.lowpass = LowPass(sample_rate) if spec.bright_hz is not None else None
@@ -125,9 +126,14 @@ class Voice:
         kind = FlowCoupling if self.spec.flow else BodyCoupling
         self.coupling = kind(node_positions, radius=0.25, gain=self.spec.body_gain, joints=joints)
 
-    def play(self, pitch: int, velocity: int, end: float) -> None:
-        self.pool.note_on(pitch, velocity / 127.0)
-        self._ends.append((end, pitch))
+    def play(self, pitch: int, velocity: int, end: float, *, start: float | None = None) -> None:
+        """Sound ``pitch`` until clock time ``end``: at once, or from ``start`` (a note handed
+        over ahead of its time starts in the block that reaches it, not when it was handed over)."""
+        if start is None:
+            self.pool.note_on(pitch, velocity / 127.0)
+            self._ends.append((end, pitch))
+        else:
+            self._starts.append((start, pitch, velocity, end))
 
     def shape_as(self, joints: list[int]) -> None:
         """Hold the strings in the shape of the body's line through ``joints`` (:class:`BodyShape`)."""
@@ -161,6 +167,11 @@ class Voice:
             self._ends = [item for item in self._ends if item[0] > t]
             for _, pitch in due:
                 self.pool.note_off(pitch)
+        starting = [item for item in self._starts if item[0] <= t]  # after the note-offs: each sounds a block at least
+        if starting:
+            self._starts = [item for item in self._starts if item[0] > t]
+            for _, pitch, velocity, end in starting:
+                self.play(pitch, velocity, end)
         if not self.pool.active and (self.lowpass is None or self.lowpass.resting):
             out[:] = 0.0  # most of a colony's voices are silent most ticks: nothing to render, filter or limit
             return
