@@ -3,23 +3,23 @@ shipped piece (issue 20: "value chaining ... library code no installation uses";
 step"). Each claim is measured on the piece as shipped, for three seeds, beside a control that
 fails it:
 
-* **the tracer dye** (thesis "value chaining – the *precedes* relationship"): after twenty
-  minutes each phrase knows how far it usually is from each goal: the dominant one step from
-  home, the predominant nearer home than the summit, the climb nearer the summit than home;
-* **cadence and climax take turns**: each goal quenches the drive that values it, and through
-  the dye the whole path to it loses its pull at once, so the next goal reached is the other
-  one (≥ 65 % of successive goals differ). With the same piece's values plain scalars (no
-  dye, no drive modulating them) the singer settles into one loop and the turns vanish; the
-  same goals in shuffled order take turns about half the time;
-* **the path follows the drive**: at a free choice between the two ways on (the predominant
-  toward home, the climb toward the summit), the singer takes the predominant ≥ 2× as often
-  while its longing leads as while its daring does, and ≥ 0.3 more often in share; with plain
-  scalars it does not;
+* **the tracer dye** (thesis "value chaining – the *precedes* relationship"): over the second
+  ten minutes each phrase knows how far it usually is from each goal: the dominant about one
+  step from home, the predominant nearer home than the summit, the climb nearer the summit
+  than home, the free phrases far from both;
+* **cadence and climax take turns**: each goal is worth its drive and quenches it, so the
+  next goal reached is mostly the other one (≥ 65 % of successive goals differ). With the
+  piece's values plain scalars (no dye, no drive modulating them) the singer settles into a
+  loop (≥ 0.3 fewer turns); the same goals in shuffled order take turns about half the time;
+* **the way taken follows the drive** (the dye's own work): at a free choice between the two
+  ways on (the predominant toward home, the climb toward the summit), the singer takes the
+  predominant ≥ 2× as often while its longing leads as while its daring does, and ≥ 0.3 more
+  often in share. With plain scalars it does not, nor with the goals worth their drives but
+  the ways undyed (then the turns come from the goals alone, and the ways are taken blind);
 * **graded Du** (thesis "computing expected values"): a running phrase is worth what is left
-  of it, so when the singer's desire turns it leaves the phrase it is in near its end (median
-  ≥ 60 % of the phrase played, under 5 % of the cuts in its first quarter) for the way to what
-  it now wants, ≥ 2.5× as often as with a stepped Du, which must be outgrown whole and is
-  then cut anywhere;
+  of it, so a phrase that has come to be worth more takes over near the running one's end
+  (median ≥ 60 % of the phrase played, under 5 % of the cuts in its first quarter), ≥ 2.5× as
+  often as with a stepped Du, which must be outgrown whole and is then cut anywhere;
 * **it answers a visitor**: a seeded visitor's phrases are echoed after each pause (≥ 75 %
   within five seconds of the phrase's last note), in the visitor's own pitches.
 """
@@ -63,17 +63,20 @@ def visitor(seed: int) -> list[NoteEvent]:
     return notes
 
 
-def run(tmp_path: Path, seed: int, *, chain: bool = True, graded: bool = True,
+def run(tmp_path: Path, seed: int, *, chain: str = "all", graded: bool = True,
         midi: list[NoteEvent] | None = None) -> tuple[list[dict], dict]:
     """(events, the singer's saved values) of twenty minutes of the piece as shipped but for its
-    seed; ``chain`` False makes every chained value a plain scalar of the same starting value
-    (the goals still ground the others, unmodulated), ``graded`` False steps every Du."""
+    seed. ``chain``: "all" as shipped; "goals" keeps only the goals chained (worth their drives)
+    and makes every other value a plain scalar (no dye: nothing knows where it leads); "none"
+    makes every value a plain scalar of the same starting value (the goals still ground the
+    others, unmodulated). ``graded`` False steps every Du."""
     inst = load_installation(installations.path("cadence"))
     inst.settings.seed = seed
     inst.settings.output.report = False
     inst.settings.output.wav = False
     for tp in inst.specs[0].tuples.values():
-        if not chain and not isinstance(tp.value, int | float) and tp.value.kind == "chain":
+        if (not isinstance(tp.value, int | float) and tp.value.kind == "chain"
+                and (chain == "none" or chain == "goals" and tp.value.source is None)):
             tp.value.kind = "scalar"
         tp.until.graded = tp.until.graded and graded
     played = None
@@ -97,7 +100,7 @@ def shipped(seed, tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def scalar(seed, tmp_path_factory):
-    return run(tmp_path_factory.mktemp("scalar"), seed, chain=False)
+    return run(tmp_path_factory.mktemp("scalar"), seed, chain="none")
 
 
 def selections(events: list[dict]) -> list[dict]:
@@ -114,17 +117,30 @@ def later_goals(events: list[dict]) -> list[str]:
     return [e["tuple"] for e in selections(events) if e["tuple"] in GOALS and e["t"] >= SECONDS / 2]
 
 
+def dye(events: list[dict]) -> dict[str, dict[str, float]]:
+    """Each chained phrase's steps from each goal, the mean of the run's ``dye`` reports (every
+    half second) over its second ten minutes: the dye moves a little at every transition, so
+    one moment of it says less than ten minutes."""
+    reports = [e["distances"] for e in events if e["kind"] == "dye" and e["t"] >= SECONDS / 2]
+    assert len(reports) >= 1000
+    return {name: {goal: float(np.mean([r[name][goal] for r in reports])) for goal in GOALS}
+            for name in reports[0]}
+
+
 def test_each_phrase_learns_how_far_it_is_from_each_goal(shipped):
-    _, values = shipped
+    events, values = shipped
     far = values["wander"]["max_distance"]
-    dye = {name: v["distances"] for name, v in values.items() if v["kind"] == "chain"}
-    assert dye["home"]["home"] == 0.0 and dye["summit"]["summit"] == 0.0  # the sources
-    assert dye["dominant"]["home"] <= 1.5 and dye["dominant"]["summit"] >= far - 1.0
-    assert dye["predominant"]["home"] <= dye["predominant"]["summit"] - 2.0
-    assert dye["climb"]["summit"] <= dye["climb"]["home"] - 4.0
-    # The dye is learnt, not written: every phrase starts the run equally far from both goals.
-    inst = load_installation(installations.path("cadence"))
-    assert all(tp.value.source is None for name, tp in inst.specs[0].tuples.items() if name in ("dominant", *WAYS))
+    steps = dye(events)
+    assert steps["home"]["home"] == 0.0 and steps["summit"]["summit"] == 0.0  # the sources
+    assert steps["dominant"]["home"] <= 2.5 and steps["dominant"]["summit"] >= far - 1.0, steps["dominant"]
+    assert steps["predominant"]["home"] <= steps["predominant"]["summit"] - 1.0, steps["predominant"]
+    assert steps["climb"]["summit"] <= steps["climb"]["home"] - 4.0, steps["climb"]
+    # The free phrases lead to neither goal more than the ways do: the dye is far from both.
+    assert min(steps[name][goal] for name in ("wander", "stray") for goal in GOALS) >= 7.0, steps
+    # The dye is learnt, not written: every phrase starts the run equally far from both goals
+    # (the first report, before any credit, says so).
+    first = next(e["distances"] for e in events if e["kind"] == "dye")
+    assert all(first[name] == {} or set(first[name].values()) == {far} for name in ("dominant", *WAYS))
 
 
 def test_cadence_and_climax_take_turns(shipped, scalar):
@@ -134,9 +150,9 @@ def test_cadence_and_climax_take_turns(shipped, scalar):
     # The check bites: the same goals in a shuffled order take turns about half the time ...
     shuffled = [alternation(random.Random(k).sample(goals, len(goals))) for k in range(20)]
     assert np.mean(shuffled) < 0.6, np.mean(shuffled)
-    # ... and without the dye the singer settles into one loop, and the turns vanish.
+    # ... and with plain scalar values the singer settles into a loop, and the turns mostly vanish.
     plain = later_goals(scalar[0])
-    assert alternation(plain) <= 0.3, alternation(plain)
+    assert alternation(plain) <= 0.5 and alternation(goals) - alternation(plain) >= 0.3, alternation(plain)
 
 
 def drive_at(events: list[dict]):
@@ -160,17 +176,20 @@ def homeward_share(events: list[dict]) -> tuple[float, float]:
     return share[0], share[1]
 
 
-def test_the_way_taken_follows_the_drive(shipped, scalar):
+def test_the_way_taken_follows_the_drive(shipped, scalar, seed, tmp_path):
     longing, daring = homeward_share(shipped[0])
     assert longing >= 2.0 * daring and longing - daring >= 0.3, (longing, daring)
     plain_longing, plain_daring = homeward_share(scalar[0])
     assert plain_longing - plain_daring < 0.3, (plain_longing, plain_daring)
+    # It is the dye that ties a way to its goal's drive: with the goals worth their drives but
+    # the ways plain scalars, the way taken does not follow the longing.
+    undyed_longing, undyed_daring = homeward_share(run(tmp_path, seed, chain="goals")[0])
+    assert undyed_longing - undyed_daring < 0.3, (undyed_longing, undyed_daring)
 
 
 def cuts(events: list[dict], planned: dict[str, float]) -> np.ndarray:
     """How much of each phrase had been played when the singer left it for another of its
-    phrases (not for an answer to a visitor: there is no visitor here), as a share of its
-    planned length."""
+    phrases (not for an answer to a visitor), as a share of its planned length."""
     interrupted = {(e["t"], e["tuple"]) for e in events if e["kind"] == "interruption" and e["by"] != "answer"}
     return np.array([e["duration"] / planned[e["tuple"]] for e in events
                      if e["kind"] == "stop" and e["interrupted"] and (e["t"], e["tuple"]) in interrupted])

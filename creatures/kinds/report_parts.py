@@ -13,6 +13,8 @@ from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
+from creatures.behaviour.value import ChainValue
+
 if TYPE_CHECKING:
     from creatures.behaviour.action_group import ActionGroup
     from creatures.behaviour.motivation import Motivation
@@ -36,8 +38,13 @@ def selection_logger(world: "World", creature: str) -> Callable[[dict[str, Any]]
 
 def report_values(world: "World", t: float, creature: str, group: "ActionGroup",
                   motivation: "Motivation | None" = None) -> None:
-    """One ``values`` (and ``motivation``) snapshot of ``group``'s tuples at time ``t``."""
+    """One ``values`` (and ``motivation``) snapshot of ``group``'s tuples at time ``t``, and of
+    the tracer dye of its chained values (``dye``: tuple → goal → steps, thesis "value
+    chaining"), which the values themselves do not show: what each tuple has learnt it leads to."""
     world.log.emit(t, "values", creature=creature, values={tp.name: tp.value.to_float() for tp in group.tuples})
+    dye = {tp.name: dict(tp.value.distances) for tp in group.tuples if isinstance(tp.value, ChainValue)}
+    if dye:
+        world.log.emit(t, "dye", creature=creature, distances=dye)
     if motivation is not None:
         world.log.emit(t, "motivation", creature=creature,
                        drives=dict(zip(motivation.names, motivation.levels_at(t).tolist())))
