@@ -35,6 +35,16 @@ def test_describe_prints_drives_percept_trees_groups_and_tuples(capsys):
     assert "   └─ praised: praise | praised | 0.5 s | V 4, non-plastic" in out
 
 
+def test_describe_shows_graded_du_and_chained_values(capsys):
+    """A chained value says which goal it is (or none yet), its learnt value and the goals it
+    serves, beside what it is worth now; a graded Du says so."""
+    assert main(["describe", "cadence"]) == 0
+    out = capsys.readouterr().out
+    assert ("home: whatever if ending(dominant) | home | 3 s graded until home done | V 0.8, non-plastic, "
+            "chained = home (learnt 4; serves home)") in out
+    assert "wander: whatever | wander | 2.4 s graded until wander done | V 0.5, chained (learnt 1; serves home, summit)" in out
+
+
 def test_describe_builds_a_real_visitors_praise_from_the_input_map(tmp_path, capsys):
     """The tutorial's step 4 with the input-map praise its text shows (a sensor read by the
     ``praise`` percept): describe knows the map's sensors, as a run does."""

@@ -17,6 +17,7 @@ from creatures.behaviour.action_group import ActionGroup, GroupAction
 from creatures.behaviour.action_tuple import ActionTuple, DoUntil
 from creatures.behaviour.motivation import Motivation
 from creatures.behaviour.percept import Percept
+from creatures.behaviour.value import ChainValue
 from creatures.clock import SimulatedClock
 from creatures.events import EventLog
 from creatures.kinds import KINDS
@@ -48,6 +49,8 @@ def _du(du: DoUntil) -> str:
         length = f"{du.duration:g} s"
     else:
         length = type(du.duration).__name__
+    if length and du.graded:
+        length += " graded"
     until = f"until {du.until.name}" if du.until is not None else ""
     return " ".join(x for x in (length, until) if x) or "—"
 
@@ -55,6 +58,10 @@ def _du(du: DoUntil) -> str:
 def _tuple(tp: ActionTuple) -> tuple[str, list[Any]] | str:
     value = tp.value
     plastic = "" if getattr(value, "plasticity", 1.0) else ", non-plastic"
+    if isinstance(value, ChainValue):  # what it is worth now is its learnt value × the drives its goals serve
+        goal = f" = {value.source}" if value.source is not None else ""
+        serves = ", ".join(sorted(value.importance)) if value.importance is not None else ""
+        plastic += f", chained{goal} (learnt {value.value:.3g}{'; serves ' + serves if serves else ''})"
     label = f"{tp.name}: {tp.trigger.name} | {tp.action.name} | {_du(tp.do_until)} | V {value.to_float():.3g}{plastic}"
     if isinstance(tp.action, GroupAction):
         return _group(tp.action.group, label)
