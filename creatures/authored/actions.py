@@ -9,6 +9,7 @@ the tuple when the phrase has been played out.
 
 from __future__ import annotations
 
+import dataclasses
 from typing import TYPE_CHECKING, Callable, ClassVar, Literal
 
 import numpy as np
@@ -62,7 +63,7 @@ class Playing(Action):
         self._last = -np.inf
 
     def start(self, t: float, tuple_: ActionTuple) -> None:
-        notes = [NoteEvent(t + n.time, n.pitch, n.velocity, n.channel, n.duration) for n in self.notes(t)]
+        notes = [dataclasses.replace(n, time=t + n.time) for n in self.notes(t)]
         self.ends_at = max((n.end for n in notes), default=t)
         self._due = sorted(notes, key=lambda n: n.time, reverse=True)
         self._last = t
