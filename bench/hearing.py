@@ -102,7 +102,8 @@ def _dtw_rows(quick: bool) -> list[Row]:
 
 def basic_pitch_model() -> str | None:
     """Where basic-pitch's ONNX model is, if the package (``--no-deps``, with ``onnxruntime``,
-    ``pretty_midi`` and ``resampy<0.4.3`` for its note creation) is installed."""
+    ``pretty_midi``, ``resampy<0.4.3`` and, for pretty_midi 0.2.11, ``importlib_resources``, for its
+    note creation) is installed."""
     import importlib.util
     from pathlib import Path
 
@@ -207,7 +208,7 @@ def _transcription_rows(quick: bool) -> list[Row]:
     session = _basic_pitch_session()
     if session is None:
         rows.append(Row("basic-pitch ONNX (not installed: pip install basic-pitch==0.4.0 --no-deps onnxruntime "
-                        "pretty_midi 'resampy<0.4.3')", 0.0, ""))
+                        "pretty_midi 'resampy<0.4.3' importlib_resources)", 0.0, ""))
         return rows
     theirs: list[tuple[float, float, int]] = []
 
