@@ -21,9 +21,10 @@ one stream (measured against each ear alone and basic-pitch's published model in
    begins to sound after a faint onset (a swell: :data:`SWELL`) — follow,
    unless the onset ear gave that pitch, or a note it is a partial of, within :data:`NEAR` hops.
    A model's note must also stand clear of its bands' noise floors (:data:`CLEAR`): what a
-   model hears in a fan's noise is not played. Live, every note is given ≤ 60 ms after its
-   attack (4 hops and a block), with the provisional duration ``heard_length`` (as the live MIDI
-   input gives a note-on, whose length is not known until it ends); its velocity is its level.
+   model hears in a fan's noise is not played. Live, every note is given ≤ 50 ms after its
+   attack (3 hops after the hop it lands in, and a block), with the provisional duration
+   ``heard_length`` (as the live MIDI input gives a note-on, whose length is not known until it
+   ends); its velocity is its level.
    It is followed until the model stops hearing it sound (or it is struck again) and its
    measured duration goes to :attr:`Transcriber.ended`.
 
@@ -84,7 +85,16 @@ again only if the model gave the pitch P(onset) ≥ this within a hop before to 
 flute's breath or a bow's change lets the onset ear see an attack in a note that goes on.
 Chosen on TimGM6mb renders as :data:`SWELL` was (0.1–0.5 alike): tuning mean F1 0.847 → 0.856
 offline, 0.809 → 0.813 live; held out (FluidR3), flute lines 0.923 → 0.973, a string line
-0.841 → 0.879."""
+0.841 → 0.879.
+
+In a chord (:data:`CHORD`), a note still followed is struck again too when the model's P(onset)
+for it rises through this, short of its threshold: a chorale's common tone, held from one chord
+into the next and struck with it, shows the model only a faint onset (0.06–0.6 on FluidR3's
+piano) and the onset ear, busy with the chord's new notes, often none. Chosen on the TimGM6mb
+tuning renders (seeds 201–202) among 0.05–0.5, 0.2–0.5 alike: mean F1 offline 0.8656 → 0.8676
+(the piano chorale 0.877 → 0.888, a guitar chorale 0.904 → 0.909), live 0.8343 → 0.8347;
+held out (FluidR3), the tests' chorale 0.711 → 0.720 and 0.674 → 0.679 in a room, a guitar
+chorale in a room 0.880 → 0.889, live the chorale 0.657 → 0.654."""
 CHORD = 2
 """Onset-ear notes within NEAR hops that make a chord. In a chord, a model's note at a partial of
 an onset-ear note is a note of its own (a chorale's octave doublings, a voice a twelfth above the
@@ -92,10 +102,39 @@ bass); outside one it is that note's partial (a guitar's bright 2nd partial). Ch
 TimGM6mb renders as :data:`SWELL` was (2 against 3 and against no chord rule): tuning mean F1
 0.856 → 0.873 offline, 0.813 → 0.817 live, the piano chorale 0.763 → 0.846; held out (FluidR3),
 the piano chorale 0.649 → 0.702, a guitar chorale 0.849 → 0.876, guitar lines unchanged (0.900),
-a string line 0.879 → 0.866, the organ chorale 0.329 → 0.294."""
+a string line 0.879 → 0.866, the organ chorale 0.329 → 0.294.
+
+A chord is also where the notes given (by either ear) or waiting within NEAR hops hold two roots
+(pitches not at a partial of a lower one): a bass, its octave and a third above are a chord; a
+note and its bright octave and twelfth are not. Live, the onset ear's notes often come after
+the model's (its look is a hop longer), so its own count alone missed chords. Chosen on TimGM6mb
+renders with :data:`OWN_PARTIAL`: the tuning mean F1 live 0.827 → 0.832 (the piano chorale 0.777
+→ 0.811, a guitar chorale 0.802 → 0.827), offline 0.8646 → 0.8656."""
+LATE = 1
+"""Offline, the model's notes wait this many hops more than the onset ear's look, in case its
+onset is a hop late. Live they do not (since 2026-12-05, with :data:`OWN_PARTIAL`): every note is
+given 3 hops (35 ms) after its attack's hop instead of 4. On the TimGM6mb tuning renders the live
+mean F1 went 0.832 → 0.834; held out (FluidR3, the bench's seeds) 0.715 → 0.713, guitar lines
+0.905 → 0.899. Offline it is kept: there the tuning renders rose (0.866 → 0.872) but FluidR3
+fell (0.799 → 0.797, piano and guitar lines 0.992 → 0.984 and 0.930 → 0.912), and nobody
+waits offline."""
+OWN_PARTIAL = 20.0 / (20.0 * np.log10(np.e))
+"""Live, a model's note at a partial (2–8) of a lower model note given within NEAR hops, outside
+a chord, is that note's partial if the lower note's fundamental band stands no more than 20 dB
+(this, in the spectrum's natural-log units) below its own. Live, the model's notes cannot wait
+for the onset ear's (60 ms), so a bright attack's octave or twelfth was given beside its note
+before the onset ear's note came to explain it: piano and guitar lines were heard worse with
+both ears than with the onset ear alone. The margin keeps a flute's faint sub-octave (the model
+sometimes names a note an octave low, where the band is nearly empty) from silencing the note
+above it. Chosen on TimGM6mb renders as :data:`SWELL` was: the eight tuning textures' mean F1
+live 0.822 → 0.827, piano lines 0.961 → 0.973, guitar lines 0.960 → 0.986 (the onset ear alone
+0.971 and 0.979); 0, 10 and 20 dB gave the same mean, 30 dB let the flute's sub-octave through
+(flute 0.905 → 0.881). Offline, where the onset ear's notes are waited for, it lost the organ
+0.365 → 0.317, so the offline look keeps the rule to onset-ear notes."""
 RELEASE = 0.3
 """A followed note ends when the model's P(sounding) for it falls below this."""
-F32_RELEASE, F32_SWELL = np.float32(RELEASE), np.array([SWELL, SWELL_ONSET], dtype=np.float32)
+F32_RELEASE, F32_RESTRIKE = np.float32(RELEASE), np.float32(RESTRIKE)
+F32_SWELL = np.array([SWELL, SWELL_ONSET], dtype=np.float32)
 """As the model's float32 probabilities are compared (numpy compared them so)."""
 CLEAR = 16.0
 """How many times its band's noise floor a note's strongest partial (of its first four) must be:
@@ -134,15 +173,20 @@ class Transcriber:
         self.ear = OnsetEar(LIVE_WINDOW if look == LIVE else OFFLINE_WINDOW)
         # The onset ear's candidates wait until the model has judged a few hops past their
         # attack (offline, where nobody waits; live, their attack's own hop), and the model's
-        # notes until the onset ear's have been given, and a hop more (the ear's onset may be
+        # notes until the onset ear's have been given (offline a hop more: the ear's onset may be
         # a hop late): its notes come first, the model adds what it alone heard. Live, that is
-        # 4 hops after the attack's: ≤ 58 ms, and a block.
+        # 3 hops after the attack's: ≤ 47 ms, and a block (see LATE).
         self._verify_after = 0 if look == LIVE else NEAR
-        self._hold = max(1, self.ear.delay_frames + 1 - self.model.delay) + self._verify_after
+        late = 0 if look == LIVE else LATE
+        self._hold = max(0, self.ear.delay_frames + late - self.model.delay) + self._verify_after
         self._candidates: deque[Candidate] = deque()
-        self._waiting: deque[tuple[int, int, float]] = deque()  # the model's notes: (frame, pitch index, level)
+        # The model's notes: (frame, pitch index, level, root, struck again: a note only in a chord).
+        self._waiting: deque[tuple[int, int, float, float, bool]] = deque()
         self._recent: deque[tuple[int, np.ndarray, np.ndarray]] = deque(maxlen=2 * NEAR + 4)  # (frame, P(sounding), P(onset))
-        self._given: deque[tuple[int, int, bool]] = deque(maxlen=64)  # (frame, pitch, by the onset ear)
+        # (frame, pitch, by the onset ear, its root: the level of its fundamental's band; an
+        # onset-ear note's is taken as infinite, it explains its partials whatever their level)
+        self._given: deque[tuple[int, int, bool, float]] = deque(maxlen=64)
+        self._own_partials = look == LIVE
         n_long = self.spectrum.long_bands.shape[0]
         self._level_bands = np.minimum(_level_bands(), n_long - 1)
         # The latest rows and their bands' noise floors, for a note's level and clearance.
@@ -150,7 +194,8 @@ class Transcriber:
         self._previous = np.zeros(len(PITCHES), dtype=np.float32)  # last judged frame's P(onset)
         self._previous_sounding = np.zeros(len(PITCHES), dtype=np.float32)  # and its P(sounding)
         # Per judged frame, per pitch: a followed note ends, a note begins (either way), by a swell.
-        self._ending, self._rising, self._swelling = (np.zeros(len(PITCHES), dtype=bool) for _ in range(3))
+        self._ending, self._rising, self._swelling, self._again = (np.zeros(len(PITCHES), dtype=bool)
+                                                                   for _ in range(4))
         self._onsets = np.zeros((4, len(PITCHES)), dtype=np.float32)  # the last 4 judged frames' P(onset), a ring
         self._quiet_until = WARM_UP  # no note is taken from a judged frame before this one
         self._clipping_until = -1  # frames up to this one were heard through clipping
@@ -271,27 +316,28 @@ class Transcriber:
             if c.frame >= self._quiet_until and verified and not self._near(c.frame, c.pitch):
                 notes.append(self._give(k, c.frame, c.level_db, by_ear=True))
         # The model's own onsets wait for the onset ear's; those it explains are not notes again.
-        rising, swelling = self._rising, self._swelling
+        rising, swelling, again = self._rising, self._swelling, self._again
         began = _beginning(onset, sounding, self._previous, self._previous_sounding, self._held,
-                           np.float32(self.threshold), F32_SWELL, self._onsets, frame % len(self._onsets), rising,
-                           swelling)
+                           np.float32(self.threshold), F32_RESTRIKE, F32_SWELL,
+                           self._onsets, frame % len(self._onsets), rising, swelling, again)
         if frame >= self._quiet_until and began and "model" in self.ears:
             if frame <= self._clipping_until:
                 rising = self._undistorted(rising)
             levels = np.max([level for level, _ in self._rows], axis=0)  # (pitches, 4)
             clear = np.max([self.spectrum.above_floor(*kept) for kept in self._rows], axis=0).max(axis=1) >= CLEAR
-            for k in np.flatnonzero(rising & clear):
+            for k in np.flatnonzero((rising | again) & clear):
                 level_db = 20.0 * np.log10(max(float(np.expm1(levels[k].max())) / SCALE, 1e-10))
                 at = frame
                 if swelling[k]:  # dated where its onset peaked (the earliest, if tied)
                     ring = len(self._onsets)
                     oldest_first = [self._onsets[(frame - back) % ring, k] for back in range(ring - 1, -1, -1)]
                     at -= ring - 1 - int(np.argmax(oldest_first))
-                self._waiting.append((at, int(k), level_db))
+                self._waiting.append((at, int(k), level_db, float(levels[k, 0]), bool(again[k])))
         while self._waiting and self._waiting[0][0] <= frame - self._hold:
-            f, k, level_db = self._waiting.popleft()
-            if not self._near(f, int(PITCHES[k]), partials=not self._in_chord(f)):
-                notes.append(self._give(k, f, level_db, by_ear=False))
+            f, k, level_db, root, struck_again = self._waiting.popleft()
+            chord = self._in_chord(f)
+            if (chord or not struck_again) and not self._near(f, int(PITCHES[k]), partials=not chord, root=root):
+                notes.append(self._give(k, f, level_db, by_ear=False, root=root))
         self.onsets += bool(notes)
         self.notes += len(notes)
         return notes
@@ -306,23 +352,36 @@ class Transcriber:
         return True
 
     def _in_chord(self, frame: int) -> bool:
-        """Whether the onset ear gave :data:`CHORD` notes or more within NEAR hops of ``frame``."""
-        return sum(1 for f, _, by_ear in self._given if by_ear and abs(f - frame) <= NEAR) >= CHORD
+        """Whether a chord began within NEAR hops of ``frame``: the onset ear gave :data:`CHORD`
+        notes or more there, or the other notes given or waiting there hold CHORD roots (pitches
+        not at a partial, 2–8, of a lower one)."""
+        near = [(p, by_ear) for f, p, by_ear, _ in self._given if abs(f - frame) <= NEAR]
+        if sum(by_ear for _, by_ear in near) >= CHORD:
+            return True
+        waiting = {int(PITCHES[k]) for f, k, _, _, again in self._waiting if abs(f - frame) <= NEAR and not again}
+        pitches = sorted({p for p, _ in near} | waiting)
+        roots: list[int] = []
+        for p in pitches:
+            if not any(p - q in PARTIALS for q in roots):
+                roots.append(p)
+        return len(roots) >= CHORD
 
-    def _near(self, frame: int, pitch: int, *, partials: bool = False) -> bool:
+    def _near(self, frame: int, pitch: int, *, partials: bool = False, root: float = np.inf) -> bool:
         """Whether a note of ``pitch`` was given within NEAR hops of ``frame`` — or, with
-        ``partials``, an onset-ear note it is a partial of."""
-        return any(abs(f - frame) <= NEAR and (p == pitch or (partials and by_ear and pitch - p in PARTIALS))
-                   for f, p, by_ear in self._given)
+        ``partials``, a note it is a partial of: an onset-ear note, or live a model's note whose
+        root stands at most :data:`OWN_PARTIAL` below ``root`` (this note's)."""
+        return any(abs(f - frame) <= NEAR and (p == pitch or (
+            partials and pitch - p in PARTIALS and (by_ear or (self._own_partials and r >= root - OWN_PARTIAL))))
+            for f, p, by_ear, r in self._given)
 
-    def _give(self, k: int, frame: int, level_db: float, *, by_ear: bool) -> NoteEvent:
+    def _give(self, k: int, frame: int, level_db: float, *, by_ear: bool, root: float = np.inf) -> NoteEvent:
         """A note of pitch index ``k`` begins at ``frame``'s hop: given, and followed."""
         t = self._time(frame)
         if self._held[k]:
             self._end(k, t)  # struck again
         note = NoteEvent(max(t, 0.0), int(PITCHES[k]), velocity_from_level(level_db), 0, self.heard_length)
         self._held[k], self._began[k], self._velocity[k] = True, note.time, note.velocity
-        self._given.append((frame, note.pitch, by_ear))
+        self._given.append((frame, note.pitch, by_ear, np.inf if by_ear else root))
         return note
 
     @staticmethod
@@ -354,15 +413,19 @@ def _ending(held, sounding, began, horizon, release, ending):  # pragma: no cove
 
 
 @numba.njit(cache=True, nogil=True)
-def _beginning(onset, sounding, previous, previous_sounding, held, threshold, swell, ring, slot, rising,
-               swelling):  # pragma: no cover
+def _beginning(onset, sounding, previous, previous_sounding, held, threshold, restrike, swell, ring, slot,
+               rising, swelling, again):  # pragma: no cover
     """Which pitches begin a note this frame: P(onset) rising through ``threshold``, or a swell
-    (``swell``: :data:`SWELL`, :data:`SWELL_ONSET`; marked in ``swelling`` too); whether any does. Keeps this frame's
-    probabilities as the previous ones and its P(onset) in ``ring`` at ``slot``."""
+    (``swell``: :data:`SWELL`, :data:`SWELL_ONSET`; marked in ``swelling`` too); whether any does;
+    in ``again``, followed notes whose P(onset) rose through ``restrike`` (struck again, if in a
+    chord: :data:`RESTRIKE`). Keeps this frame's probabilities as the previous ones and its
+    P(onset) in ``ring`` at ``slot``."""
     any_beginning = False
     for k in range(len(onset)):
         ring[slot, k] = onset[k]
         rising[k] = onset[k] >= threshold and previous[k] < threshold
+        again[k] = held[k] and not rising[k] and onset[k] >= restrike and previous[k] < restrike
+        any_beginning |= again[k]
         swelling[k] = False
         if not rising[k] and not held[k] and sounding[k] >= swell[0] and previous_sounding[k] < swell[0]:
             peak = ring[0, k]

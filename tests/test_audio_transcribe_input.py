@@ -94,8 +94,9 @@ def test_a_rate_change_mid_stream_keeps_the_timeline() -> None:
     assert abs(heard[1].time - 1.3) < 0.03 and abs(heard[2].time - 2.1) < 0.03
 
 
-def test_live_look_answers_within_60_ms() -> None:
-    """The note event of an attack is given by the block that holds onset + 60 ms."""
+def test_live_look_answers_within_50_ms() -> None:
+    """The note event of an attack is given by the block that holds onset + 50 ms (the issue asks 60):
+    3 hops after the hop it lands in (measured at most 38.9 ms with 64-frame blocks)."""
     rate = 22050
     played = phrase_notes(start=0.5, gap=4.0)
     x = render_notes(played, rate, 13.0)
@@ -106,7 +107,8 @@ def test_live_look_answers_within_60_ms() -> None:
         given += [((i + block) / rate, note) for note in ear.feed(x[i:i + block])]
     assert [n.pitch for _, n in given] == [n.pitch for n in played]
     delays = [out - note.time for (out, _), note in zip(given, played)]
-    assert max(delays) <= 0.06, delays
+    print(f"onset → note event: max {1e3 * max(delays):.1f} ms")
+    assert max(delays) <= 0.05, delays
 
 
 def room_noise(seconds: float, rate: int, rng: np.random.Generator, dbfs: float) -> np.ndarray:

@@ -50,10 +50,10 @@ CASES = [
     ("piano", 1, "random", 44100, True, 0.9),  # 1.000
     ("piano", 4, "random", 44100, False, 0.75),  # 0.896
     ("piano", 4, "random", 16000, True, 0.75),  # 0.899
-    ("piano", 4, "chorale", 22050, False, 0.65),  # 0.702 (target 0.75: below)
-    ("piano", 4, "chorale", 48000, True, 0.62),  # 0.669
+    ("piano", 4, "chorale", 22050, False, 0.67),  # 0.720 (target 0.75: below)
+    ("piano", 4, "chorale", 48000, True, 0.62),  # 0.679
     ("guitar", 1, "random", 48000, False, 0.9),  # 0.900
-    ("guitar", 3, "chorale", 22050, True, 0.75),  # 0.876
+    ("guitar", 3, "chorale", 22050, True, 0.75),  # 0.889
     ("flute", 1, "random", 44100, False, 0.9),  # 0.973
     ("strings", 1, "random", 22050, False, 0.6),  # 0.866
     ("organ", 1, "random", 22050, False, 0.33),  # 0.383 (target 0.6: below)
@@ -73,7 +73,7 @@ def test_note_f1_on_sampled_instruments(instrument: str, voices: int, texture: s
 
 UNMET = [
     # the issue's targets not reached: strict, so one that starts to pass fails, to be moved up
-    ("piano", 4, "chorale", 22050, False, 0.75, "block chords with octave doublings: 0.702"),
+    ("piano", 4, "chorale", 22050, False, 0.75, "block chords with octave doublings: 0.720"),
     ("strings", 3, "chorale", 44100, True, 0.6, "three bowed voices starting together: 0.374"),
     ("organ", 1, "random", 22050, False, 0.6, "FluidR3's organ is 4'-heavy, its octave is heard: 0.383"),
 ]
@@ -95,7 +95,19 @@ def test_the_live_look_hears_piano_lines_and_chords_and_a_flute() -> None:
     four = score("piano", 4, "random", 44100, look=LIVE)
     flute = score("flute", 1, "random", 44100, look=LIVE)
     print(f"live look: piano 1 voice F1 {mono:.3f}, 4 voices {four:.3f}, flute {flute:.3f}")
-    assert mono >= 0.9 and four >= 0.75 and flute >= 0.9  # measured 1.000, 0.824 and 0.947
+    assert mono >= 0.9 and four >= 0.75 and flute >= 0.9  # measured 1.000, 0.826 and 0.947
+
+
+@pytest.mark.slow
+def test_the_live_look_does_not_give_a_bright_note_s_partials_as_notes() -> None:
+    """Live, the model's notes cannot wait for the onset ear's, so a guitar's octave and twelfth
+    were given beside its note; a model's note at a partial of its own lower note is now that
+    note's partial (``OWN_PARTIAL``) unless a chord began (``CHORD``)."""
+    line = score("guitar", 1, "random", 48000, look=LIVE)
+    chorale = score("guitar", 3, "chorale", 22050, in_room=True, look=LIVE)
+    print(f"live look: guitar line F1 {line:.3f}, guitar chorale in a room {chorale:.3f}")
+    assert line >= 0.82  # measured 0.857 (0.766 before the rule; the onset ear alone 0.873)
+    assert chorale >= 0.78  # measured 0.809 (0.778 before): its chords are kept
 
 
 def test_a_silent_or_random_transcriber_would_fail() -> None:

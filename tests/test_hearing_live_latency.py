@@ -5,14 +5,15 @@ frame times).
 
 Every onset must be answered, and the p99 must stay under :data:`P99_BOUND_MS`, a bound for a
 loaded 2-core CI, not the issue's benchmark target (≤ 30 ms, `python -m bench live_hearing`). The
-transcriber gives a note 4 hops (46 ms) after the hop an attack lands in (``audio/transcribe.py``,
-the live look: the model judges 3 hops back, and its notes wait a hop for the onset ear's), and a
-JACK period of 512 frames (11.6 ms) on the way in and the run's 10 ms tick come on top, so 30 ms
-is below what this configuration can give; a JACK period of 128 frames, a 5.8 ms hop and a 5 ms
-tick would be the way there.
+transcriber gives a note 3 hops (35 ms) after the hop an attack lands in (``audio/transcribe.py``,
+the live look: the model judges 3 hops back; before 2026-12-05 its notes waited a hop more for
+the onset ear's), and the block comes on top, so 30 ms is below what this configuration can
+give: a model trained for a smaller hop and a shorter look would be the way there (a JACK period
+of 128 frames and a 5 ms tick alone did not shorten it: docs/hearing.md).
 
 Measured 2026-12-04 on the 2-core machine, JACK dummy at 44.1 kHz / 512 frames, 20 onsets, two
-runs: p50 54.1 and 54.2 ms, p99 63.6 and 67.0 ms (2026-12-05: p50 51.8 and 54.4, p99 59.4 and 59.5 ms) (the model alone, its notes not waiting: p50
+runs: p50 54.1 and 54.2 ms, p99 63.6 and 67.0 ms (2026-12-05: p50 51.8 and 54.4, p99 59.4 and 59.5 ms;
+with the 3-hop look, 60 onsets: p50 41.3 and 41.0, p99 47.6 and 47.9 ms) (the model alone, its notes not waiting: p50
 42.6, p99 51.4 ms; the onset ear alone, 2026-12-01: p50 71–81 ms, p99 93–225 ms, the tail a
 loaded machine: in the 225 ms run the run's ticks began up to 100 ms late, with 128 input
 overruns). Hence 300 ms: it still fails a run that loses onsets or stalls for the gap between
