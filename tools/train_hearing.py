@@ -136,7 +136,7 @@ def main() -> None:
     parser.add_argument("out", type=Path)
     parser.add_argument("--delay", type=int, default=6)
     parser.add_argument("--context", type=int, default=10)
-    parser.add_argument("--h1", type=int, default=24)
+    parser.add_argument("--h1", type=int, default=32)  # the shipped weights' shape (both looks)
     parser.add_argument("--h2", type=int, default=48)
     parser.add_argument("--hc", type=int, default=32)
     parser.add_argument("--steps", type=int, default=30000)
