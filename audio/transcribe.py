@@ -381,7 +381,7 @@ class Transcriber:
             self._end(k, t)  # struck again
         note = NoteEvent(max(t, 0.0), int(PITCHES[k]), velocity_from_level(level_db), 0, self.heard_length)
         self._held[k], self._began[k], self._velocity[k] = True, note.time, note.velocity
-        self._given.append((frame, note.pitch, by_ear, np.inf if by_ear else root))
+        self._given.append((frame, note.pitch, by_ear, root))
         return note
 
     @staticmethod

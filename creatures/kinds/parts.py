@@ -102,6 +102,12 @@ def _round_down(value: float, digits: int = 4) -> float:
     return math.floor(value * scale) / scale
 
 
+def _fall_due(items: list[tuple], t: float) -> tuple[list[tuple], list[tuple]]:
+    """``items`` (each timed by its first field) split into those due by ``t`` and the rest."""
+    due = [item for item in items if item[0] <= t]
+    return due, [item for item in items if item[0] > t] if due else items
+
+
 class Voice:
     """A creature's scanned strings: notes start them, the body pushes them, a limiter ends them."""
 
@@ -162,16 +168,12 @@ class Voice:
     def render(self, out: np.ndarray, t: float, *, cutoff: float = 1.0) -> None:
         """Fill ``out`` with the voice up to clock time ``t`` (note-offs that fell due first),
         through the ``bright_hz`` low-pass at ``cutoff`` × its cutoff (a skill's ``voice.cutoff``)."""
-        due = [item for item in self._ends if item[0] <= t]
-        if due:
-            self._ends = [item for item in self._ends if item[0] > t]
-            for _, pitch in due:
-                self.pool.note_off(pitch)
-        starting = [item for item in self._starts if item[0] <= t]  # after the note-offs: each sounds a block at least
-        if starting:
-            self._starts = [item for item in self._starts if item[0] > t]
-            for _, pitch, velocity, end in starting:
-                self.play(pitch, velocity, end)
+        due, self._ends = _fall_due(self._ends, t)
+        for _, pitch in due:
+            self.pool.note_off(pitch)
+        starting, self._starts = _fall_due(self._starts, t)  # after the note-offs: each sounds a block at least
+        for _, pitch, velocity, end in starting:
+            self.play(pitch, velocity, end)
         if not self.pool.active and (self.lowpass is None or self.lowpass.resting):
             out[:] = 0.0  # most of a colony's voices are silent most ticks: nothing to render, filter or limit
             return
