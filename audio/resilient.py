@@ -333,7 +333,7 @@ class ResilientInput(AudioSource, Watched[LiveInput]):
     """
 
     def __init__(self, device: str | int | None = None, *, clock: Clock, samplerate: int = ANALYSIS_RATE,
-                 block_size: int = 512, buffer_seconds: float = 2.0, retry_interval: float = 2.0,
+                 block_size: int = 0, buffer_seconds: float = 2.0, retry_interval: float = 2.0,
                  stall_timeout: float = 2.0, backend: AudioBackend | None = None,
                  report: Callable[[str], None] = log.warning, supervisor: Supervisor | None = None) -> None:
         self.samplerate = int(samplerate)

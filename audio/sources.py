@@ -196,6 +196,11 @@ class LiveInput(AudioSource):
     bursts: most of a live ear's budget). Non-finite samples from a misbehaving driver are replaced by zero and counted in :attr:`bad_samples` so the
     creature's loop never dies on them; samples at full scale are counted in :attr:`clipped`
     (a microphone gain set too high in a gallery shows there, not only in what is heard).
+    ``block_size`` 0 (the default) takes each host buffer as it comes (JACK's period): a fixed
+    512 on a 128-frame JACK period made PortAudio hold four periods before calling back
+    (measured through JACK, bench/live_hearing.py, 2026-12-05: onset → answer p50 43.2 → 35.2
+    ms, p99 54.4 → 46.7 ms; unchanged at a 512-frame period). The callback only copies into
+    the ring, so any size costs nothing there.
     It can be started again after :meth:`stop` (on a device that came back); the counters
     carry on.
     """
@@ -205,7 +210,7 @@ class LiveInput(AudioSource):
         device: str | int | None = None,
         *,
         samplerate: int = ANALYSIS_RATE,
-        block_size: int = 512,
+        block_size: int = 0,
         buffer_seconds: float = 2.0,
         backend: AudioBackend | None = None,
     ) -> None:
