@@ -160,10 +160,12 @@ def test_audio_underruns_and_input_overruns_are_counted_logged_and_reported(tmp_
     assert main(["run", str(config), "--duration", "0.3", "--log", str(log)]) == 0
     summary = re.search(r"(\d+) ticks, .* (\d+) audio underruns, (\d+) input overruns", capsys.readouterr().out)
     ticks, underruns, overruns = map(int, summary.groups())
-    assert ticks >= 5 and underruns == overruns == ticks
+    # the microphone is read at every look between ticks too (its notes are heard at once:
+    # creatures/runtime/microphone_notes.py), so a block is lost at least once a tick
+    assert ticks >= 5 and underruns == ticks and overruns > ticks
     xruns = [e for e in map(json.loads, log.read_text().splitlines()) if e["kind"] == "xruns"]
     assert len(xruns) >= 2  # logged while running (when they change) and at the end
-    assert [xruns[-1][k] for k in ("underruns", "overruns", "gaps", "skips")] == [ticks, ticks, 1, 0]
+    assert [xruns[-1][k] for k in ("underruns", "overruns", "gaps", "skips")] == [ticks, overruns, 1, 0]
 
 
 @pytest.mark.jack

@@ -52,3 +52,46 @@ def test_runs_that_are_given_notes_do_not_also_transcribe_them(tmp_path):
     run_offline(inst, tmp_path / "out", duration=20.0)
     heard = [e for e in read_events(tmp_path / "out" / "events.jsonl") if e["kind"] == "heard"]
     assert heard and {e["source"] for e in heard} == {"input"}
+
+
+class _Microphone:
+    """A live microphone's twin: each read gives what arrived since the last, ``chunk`` samples."""
+
+    def __init__(self, audio: np.ndarray, chunk: int) -> None:
+        self.audio, self.chunk, self.at = audio, chunk, 0
+
+    def read(self) -> np.ndarray:
+        block = self.audio[self.at:self.at + self.chunk]
+        self.at += len(block)
+        return block.copy()
+
+
+def test_notes_in_the_microphone_are_heard_between_ticks_and_the_tick_still_hears_all_the_audio():
+    """Read at every look of the live loop (here every 128 samples, 5.8 ms, with no tick at all),
+    each note joins the note bus within the transcriber's look of its attack, not at the next
+    tick; the tick then gets every sample read since the last one, transcribed once."""
+    from creatures.clock import SimulatedClock
+    from creatures.events import EventLog
+    from creatures.runtime.microphone_notes import MicrophoneNotes
+    from creatures.runtime.session import Session
+    from midi.sinks import MemorySink
+
+    notes, audio = _phrase()
+    session = Session(load_installation(installation_path("exchange")), SimulatedClock(), EventLog(), MemorySink(),
+                      transcribe=True)
+    microphone = _Microphone(audio, 128)
+    heard = MicrophoneNotes(microphone, session)
+    when = []  # (the look that heard it, how many notes joined the bus)
+    for look in range(1, len(audio) // 128 + 1):
+        if count := heard.poll(look * 128 / SR):
+            when.append((look * 128 / SR, count))
+    given = sorted(session.world._pending)
+    assert [entry[2].pitch for entry in given] == [n.pitch for n in notes]
+    assert sum(count for _, count in when) == len(notes)
+    lags = [t - n.time for (t, _), n in zip(when, notes)]
+    assert max(lags) <= 0.05, lags  # the live look (3 hops after the attack's) and one read, no tick
+    block = heard.take(len(audio) / SR)
+    assert np.array_equal(block, audio[:len(block)]) and len(block) == microphone.at
+    assert len(heard.take(len(audio) / SR)) == 0  # taken once
+    session.step(len(audio) / SR, len(block), block, transcribed=True)
+    assert session._transcriber.notes == len(notes)  # not transcribed again

@@ -48,6 +48,7 @@ from creatures.runtime.network import Network, open_listener
 from creatures.runtime.shared_room import open_shared_room
 from creatures.runtime.outlets import Outlets, check_ports
 from creatures.runtime.schema import LoadedInstallation
+from creatures.runtime.microphone_notes import MicrophoneNotes
 from creatures.runtime.session import Session, write_snapshot
 from creatures.runtime.opening import OpeningHours, Schedule
 from creatures.runtime.sd_notify import Notifier
@@ -136,6 +137,7 @@ class LiveInputs:
             self.network = Network(settings.osc, session.world, clock, say, elsewhere=self.router, epoch=epoch,
                                    where=lambda key, message: inst.error(("osc", key), message))
         self.sources = open_sources(inst, self.router, clock, say, live=True)
+        self.microphone: MicrophoneNotes | None = None  # notes in the microphone, heard between ticks too
         reached = "only the config's serial devices and rehearsal files" if self.sources else "nothing"
         for routes, source, key in ((self.router.osc_routes, self.network, "[osc] port"),
                                     (self.router.midi_routes, self.midi, "[midi] input_port")):
@@ -145,7 +147,7 @@ class LiveInputs:
 
     def poll(self, t: float) -> int:
         """What arrived is heard at time ``t``; returns how many notes joined the note bus."""
-        heard = 0
+        heard = self.microphone.poll(t) if self.microphone is not None else 0
         if self.midi is not None:
             for msg in self.midi.pending():
                 heard += self.router.midi(msg, t)
@@ -388,6 +390,8 @@ def run_live(
     if settings.audio.input_device is not None:
         device = None if settings.audio.input_device == "default" else settings.audio.input_device
         microphone = ResilientInput(device, clock=wall, samplerate=sr, report=say, supervisor=supervisor)
+        if session.transcribe:
+            inputs.microphone = MicrophoneNotes(microphone, session)
     counters = _Counters(session, output, microphone)
     if feed is not None:
         feed.hello["status"]["sound"] = summary.sound  # what the page's status line says of the loudspeaker
@@ -473,8 +477,12 @@ def run_live(
             beats += 1
             frames = int(round(t * sr)) - frames_done
             frames_done += frames
-            heard = microphone.read() if microphone is not None else None
-            mix = None if loop.paused else session.step(t, frames, heard, audio=output is not None)
+            if inputs.microphone is not None:  # read at every look: its notes are heard already
+                heard = inputs.microphone.take(t)
+            else:
+                heard = microphone.read() if microphone is not None else None
+            mix = None if loop.paused else session.step(t, frames, heard, audio=output is not None,
+                                                        transcribed=inputs.microphone is not None)
             if loop.paused and session.stage is not None:
                 session.stage.keep_sharing(t)  # still in the shared room, standing
             if output is not None:

@@ -99,15 +99,17 @@ class Session:
         self._set_up_channels()
         self._cc = self._cc_streams()
 
-    def step(self, t: float, frames: int, recorded: np.ndarray | None, *, audio: bool = True) -> np.ndarray | None:
+    def step(self, t: float, frames: int, recorded: np.ndarray | None, *, audio: bool = True,
+             transcribed: bool = False) -> np.ndarray | None:
         """One behaviour tick at clock time ``t`` covering ``frames`` audio frames.
 
-        ``recorded`` is what the microphone (or file) gave for those frames. Returns the
-        stereo mix ``(frames, 2)`` (a view, valid until the next step), or None when
+        ``recorded`` is what the microphone (or file) gave for those frames; ``transcribed``:
+        its notes were heard already, as it arrived (:mod:`creatures.runtime.microphone_notes`).
+        Returns the stereo mix ``(frames, 2)`` (a view, valid until the next step), or None when
         ``audio`` is off and no creature hears the room.
         """
-        if self.transcribe and recorded is not None:
-            self._hear_notes(t, recorded)
+        if self.transcribe and recorded is not None and not transcribed:
+            self.hear_notes(t, recorded)
         if self.stage is not None:
             for i, note in self.stage.tick(t, self._percept, self.world.emit):
                 self.world.play(self.creatures[i], note)  # a note object it stepped onto
@@ -177,16 +179,18 @@ class Session:
             streams.append((reader(creature, cc.source), CcStream(creature.spec.channel, cc.controller, *cc.range, cc.rate)))
         return streams
 
-    def _hear_notes(self, t: float, recorded: np.ndarray) -> None:
-        """Notes of the input audio join the note bus as they are recognised (dated on the
-        clock across a clock gap: ``Transcriber.skip``)."""
-        start = t - len(recorded) / self.sample_rate  # the input's first sample sounded at the start of this tick
+    def hear_notes(self, t: float, recorded: np.ndarray) -> int:
+        """Notes of the input audio that ends at ``t`` join the note bus as they are recognised
+        (dated on the clock across a clock gap: ``Transcriber.skip``); how many."""
+        start = t - len(recorded) / self.sample_rate  # the block's first sample sounded this long before t
         if self._transcriber is None:
             self._transcriber = Transcriber(self.sample_rate, t0=start, look=self.transcribe_look)
         if jump := clock_gap(self._transcriber.fed_until, start):
             self._transcriber.skip(jump)
-        for note in self._transcriber.feed(recorded):
+        notes = self._transcriber.feed(recorded)
+        for note in notes:
             self.world.inject(note, via="audio")
+        return len(notes)
 
     def _listen_in_room(self, t: float, recorded: np.ndarray | None, frames: int, gains: np.ndarray) -> None:
         """Each creature that listens hears its own block of the room's sound (RoomAir);
