@@ -9,8 +9,9 @@ transcriber gives a note 3 hops (35 ms) after the hop an attack lands in (``audi
 the live look: the model judges 3 hops back; before 2026-12-05 its notes waited a hop more for
 the onset ear's), and the block comes on top, so 30 ms is below what this configuration can
 give: a model trained for a smaller hop and a shorter look would be the way there (a JACK period
-of 128 frames and a 5 ms tick shorten it to p99 42.3 ms; a model judging 1 hop back reached 28–29
-ms but did not hear the generated phrases exactly: docs/hearing.md).
+of 128 frames, with the microphone read between ticks, shortens it to p99 39.2 ms; models judging
+1 and 2 hops back reached 28–29 ms without hearing the generated phrases exactly, and 33.5 ms
+hearing them: docs/hearing.md).
 
 Measured 2026-12-04 on the 2-core machine, JACK dummy at 44.1 kHz / 512 frames, 20 onsets, two
 runs: p50 54.1 and 54.2 ms, p99 63.6 and 67.0 ms (2026-12-05: p50 51.8 and 54.4, p99 59.4 and 59.5 ms;
