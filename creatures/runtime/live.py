@@ -115,7 +115,8 @@ class LiveSummary:
 
 class LiveInputs:
     """Live inputs feeding the colony: a MIDI port, the OSC network, serial devices and
-    rehearsal files, every message through the session's input map (:mod:`creatures.runtime.input_map`).
+    rehearsal files, every message through the session's input map (:mod:`creatures.runtime.input_map`),
+    and the notes in the microphone (:attr:`microphone`, set when the run transcribes one).
 
     ``ports`` is where the configured MIDI input is looked for (mido's backend unless given;
     tests and the benchmark pass :class:`midi.ports.MemoryPorts`).
