@@ -79,6 +79,38 @@ dated at the hop its P(onset) peaked. Chosen on TimGM6mb renders (tools-style tu
 FluidR3): the eight tuning textures' mean F1 0.825 → 0.847 offline, 0.786 → 0.809 live, among
 0.5–0.9 and 0.1–0.45."""
 SWELL_ONSET = 0.3
+SLOW_SWELL = 10
+"""A pitch whose P(sounding) rises through :data:`SWELL` within this many hops (116 ms) of last
+being below :data:`RELEASE`, its P(onset) short of :data:`SWELL_ONSET` in the last 4 hops,
+begins a note too: a *slow swell*, the bow of a string section starting a chord, which the
+model hears sound but never calls an onset (FluidR3's strings on the validation seeds 101–102,
+in a room: of a chorale's notes missed, most sounded at P 0.6–0.95 with P(onset) below 0.3,
+first sounding ≥ 0.3 0–9 hops after their attack). Live it is given when so heard, up to
+SLOW_SWELL hops later than a struck note would be: a bowed chord heard late is better than one
+not heard (dated at its attack, as every note is). It must
+also have been quiet for :data:`QUIET` hops first and brought :data:`SLOW_RISE` to its partials,
+and is dated :data:`SLOW_BACK` hops before it first sounded. Chosen on TimGM6mb renders (seeds
+201–202) of the eight tuning textures and six more (string and organ chords; string, piano and
+guitar chords and a flute in a room), never on FluidR3, among windows 6, 10, 16, quiets 4–24,
+rises 0.35–2.1 and 0–3 hops back: the fourteen's mean F1 offline 0.792 → 0.818 (string chords
+0.56 → 0.70, in a room 0.46 → 0.64; the eight 0.8676 → 0.8706), live 0.717 → 0.767 (string
+chords 0.35 → 0.59, in a room 0.20 → 0.53; the eight 0.835 → 0.840). A rule against a slow
+swell at a partial of a note followed moved the mean by −0.003 and was not taken."""
+QUIET = 8
+"""Hops (93 ms) P(sounding) must have stayed below :data:`RELEASE` before a slow swell: a note
+whose P(sounding) dipped for a hop or two (and so ended) and came back is not begun again. On
+the tuning renders, a slow swell after any dip took the mean 0.818 → 0.815 (string chords in a
+room 0.64 → 0.62)."""
+SLOW_RISE = 1.4
+"""How much (natural-log units of the spectrum, ≈ 12 dB) the strongest of a slow swell's first
+four partials must have risen since the last hop it was quiet: a new note brings its own
+energy. A piano note ended and heard sounding again 0.3 s later, while a high note sounded over
+it, had partials decaying, not rising. Without this gate the tuning renders' mean was 0.783
+(piano lines 0.98 → 0.92, flute lines 0.96 → 0.80); 0.7–1.4 alike, 2.1 lost string chords."""
+SLOW_BACK = 2
+"""Hops before a slow swell first sounded (P ≥ :data:`RELEASE`) that its note is dated: the bow's
+attack comes before the model hears it sound. 1–3 were alike on the tuning renders; 0 took their
+mean 0.818 → 0.806 (string chords in a room 0.64 → 0.58)."""
 RESTRIKE = 0.3
 """An onset-ear candidate at a pitch whose note is still followed (sounding) is that note struck
 again only if the model gave the pitch P(onset) ≥ this within a hop before to two after: a
@@ -135,6 +167,7 @@ RELEASE = 0.3
 """A followed note ends when the model's P(sounding) for it falls below this."""
 F32_RELEASE, F32_RESTRIKE = np.float32(RELEASE), np.float32(RESTRIKE)
 F32_SWELL = np.array([SWELL, SWELL_ONSET], dtype=np.float32)
+SLOW_RULE = np.array([SLOW_SWELL, QUIET], dtype=np.int64)
 """As the model's float32 probabilities are compared (numpy compared them so)."""
 CLEAR = 16.0
 """How many times its band's noise floor a note's strongest partial (of its first four) must be:
@@ -189,14 +222,20 @@ class Transcriber:
         self._own_partials = look == LIVE
         n_long = self.spectrum.long_bands.shape[0]
         self._level_bands = np.minimum(_level_bands(), n_long - 1)
-        # The latest rows and their bands' noise floors, for a note's level and clearance.
+        # The latest rows and their bands' noise floors, for a note's level and clearance; and
+        # each row's levels by its frame, back as far as a slow swell may have begun.
         self._rows: deque[tuple[np.ndarray, np.ndarray]] = deque(maxlen=self.model.delay + 1)
+        self._levels: deque[tuple[int, np.ndarray]] = deque(maxlen=self.model.delay + SLOW_SWELL + 2)
         self._previous = np.zeros(len(PITCHES), dtype=np.float32)  # last judged frame's P(onset)
         self._previous_sounding = np.zeros(len(PITCHES), dtype=np.float32)  # and its P(sounding)
         # Per judged frame, per pitch: a followed note ends, a note begins (either way), by a swell.
         self._ending, self._rising, self._swelling, self._again = (np.zeros(len(PITCHES), dtype=bool)
                                                                    for _ in range(4))
         self._onsets = np.zeros((4, len(PITCHES)), dtype=np.float32)  # the last 4 judged frames' P(onset), a ring
+        self._slowing = np.zeros(len(PITCHES), dtype=bool)  # a note begins by a slow swell
+        # Per pitch, the last frame its P(sounding) was below RELEASE, and for how many frames it had been.
+        self._quiet_at = np.zeros(len(PITCHES), dtype=np.int64)
+        self._quiet_for = np.zeros(len(PITCHES), dtype=np.int64)
         self._quiet_until = WARM_UP  # no note is taken from a judged frame before this one
         self._clipping_until = -1  # frames up to this one were heard through clipping
         # Notes followed until they end, per pitch: whether one is, when it began, its velocity.
@@ -267,6 +306,7 @@ class Transcriber:
         notes: list[NoteEvent] = []
         for i, (row, floor) in enumerate(zip(rows, self.spectrum.floors)):
             self._rows.append((row[self._level_bands], floor[self._level_bands]))
+            self._levels.append((judged.frame + i + self.model.delay, self._rows[-1][0]))
             notes.extend(self._judge(judged, i))
         return notes
 
@@ -319,19 +359,24 @@ class Transcriber:
         rising, swelling, again = self._rising, self._swelling, self._again
         began = _beginning(onset, sounding, self._previous, self._previous_sounding, self._held,
                            np.float32(self.threshold), F32_RESTRIKE, F32_SWELL,
-                           self._onsets, frame % len(self._onsets), rising, swelling, again)
+                           self._onsets, frame % len(self._onsets), rising, swelling, again,
+                           frame, F32_RELEASE, SLOW_RULE, self._quiet_at, self._quiet_for, self._slowing)
         if frame >= self._quiet_until and began and "model" in self.ears:
             if frame <= self._clipping_until:
                 rising = self._undistorted(rising)
             levels = np.max([level for level, _ in self._rows], axis=0)  # (pitches, 4)
             clear = np.max([self.spectrum.above_floor(*kept) for kept in self._rows], axis=0).max(axis=1) >= CLEAR
             for k in np.flatnonzero((rising | again) & clear):
+                if self._slowing[k] and not self._rose(k, levels[k]):
+                    continue
                 level_db = 20.0 * np.log10(max(float(np.expm1(levels[k].max())) / SCALE, 1e-10))
                 at = frame
                 if swelling[k]:  # dated where its onset peaked (the earliest, if tied)
                     ring = len(self._onsets)
                     oldest_first = [self._onsets[(frame - back) % ring, k] for back in range(ring - 1, -1, -1)]
                     at -= ring - 1 - int(np.argmax(oldest_first))
+                elif self._slowing[k]:
+                    at = int(self._quiet_at[k]) + 1 - SLOW_BACK
                 self._waiting.append((at, int(k), level_db, float(levels[k, 0]), bool(again[k])))
         while self._waiting and self._waiting[0][0] <= frame - self._hold:
             f, k, level_db, root, struck_again = self._waiting.popleft()
@@ -341,6 +386,12 @@ class Transcriber:
         self.onsets += bool(notes)
         self.notes += len(notes)
         return notes
+
+    def _rose(self, k: int, levels: np.ndarray) -> bool:
+        """Whether pitch index ``k``'s first four partials (``levels``, now) rose by
+        :data:`SLOW_RISE` since the last frame it was quiet: a slow swell that brought its own energy."""
+        before = [level[k] for f, level in self._levels if f <= self._quiet_at[k]]
+        return not before or float(np.max(levels - before[-1])) >= SLOW_RISE
 
     def _verified(self, frame: int, k: int) -> bool:
         """Whether the model heard pitch index ``k`` sound from two hops before ``frame`` on (and,
@@ -414,25 +465,32 @@ def _ending(held, sounding, began, horizon, release, ending):  # pragma: no cove
 
 @numba.njit(cache=True, nogil=True)
 def _beginning(onset, sounding, previous, previous_sounding, held, threshold, restrike, swell, ring, slot,
-               rising, swelling, again):  # pragma: no cover
+               rising, swelling, again, frame, release, slow, quiet_at, quiet_for, slowing):  # pragma: no cover
     """Which pitches begin a note this frame: P(onset) rising through ``threshold``, or a swell
-    (``swell``: :data:`SWELL`, :data:`SWELL_ONSET`; marked in ``swelling`` too); whether any does;
+    (``swell``: :data:`SWELL`, :data:`SWELL_ONSET`; marked in ``swelling`` too), or a slow swell
+    (``slow``: :data:`SLOW_SWELL`, :data:`QUIET`; marked in ``slowing``: whether it rose enough
+    is judged after); whether any does;
     in ``again``, followed notes whose P(onset) rose through ``restrike`` (struck again, if in a
     chord: :data:`RESTRIKE`). Keeps this frame's probabilities as the previous ones and its
-    P(onset) in ``ring`` at ``slot``."""
+    P(onset) in ``ring`` at ``slot``, and per pitch the last ``frame`` its P(sounding) was below
+    ``release`` in ``quiet_at``, how many frames running in ``quiet_for``."""
     any_beginning = False
     for k in range(len(onset)):
         ring[slot, k] = onset[k]
         rising[k] = onset[k] >= threshold and previous[k] < threshold
         again[k] = held[k] and not rising[k] and onset[k] >= restrike and previous[k] < restrike
         any_beginning |= again[k]
-        swelling[k] = False
+        swelling[k] = slowing[k] = False
+        if sounding[k] < release:
+            quiet_for[k] = quiet_for[k] + 1 if quiet_at[k] == frame - 1 else 1
+            quiet_at[k] = frame
         if not rising[k] and not held[k] and sounding[k] >= swell[0] and previous_sounding[k] < swell[0]:
             peak = ring[0, k]
             for j in range(1, ring.shape[0]):
                 peak = max(peak, ring[j, k])
             swelling[k] = peak >= swell[1]
-        rising[k] |= swelling[k]
+            slowing[k] = not swelling[k] and frame - quiet_at[k] <= slow[0] and quiet_for[k] >= slow[1]
+        rising[k] |= swelling[k] | slowing[k]
         any_beginning |= rising[k]
         previous[k] = onset[k]
         previous_sounding[k] = sounding[k]

@@ -48,16 +48,17 @@ CASES = [
     # docs/hearing.md has every texture beside each ear alone and basic-pitch's model.
     ("piano", 1, "random", 22050, False, 0.9),  # measured 0.986
     ("piano", 1, "random", 44100, True, 0.9),  # 1.000
-    ("piano", 4, "random", 44100, False, 0.75),  # 0.896
-    ("piano", 4, "random", 16000, True, 0.75),  # 0.899
-    ("piano", 4, "chorale", 22050, False, 0.67),  # 0.720 (target 0.75: below)
-    ("piano", 4, "chorale", 48000, True, 0.62),  # 0.679
-    ("guitar", 1, "random", 48000, False, 0.9),  # 0.900
-    ("guitar", 3, "chorale", 22050, True, 0.75),  # 0.889
-    ("flute", 1, "random", 44100, False, 0.9),  # 0.973
-    ("strings", 1, "random", 22050, False, 0.6),  # 0.866
-    ("organ", 1, "random", 22050, False, 0.33),  # 0.383 (target 0.6: below)
-    ("organ", 3, "chorale", 96000, False, 0.24),  # 0.294
+    ("piano", 4, "random", 44100, False, 0.75),  # 0.894
+    ("piano", 4, "random", 16000, True, 0.75),  # 0.887
+    ("piano", 4, "chorale", 22050, False, 0.67),  # 0.708 (target 0.75: below)
+    ("piano", 4, "chorale", 48000, True, 0.62),  # 0.677
+    ("guitar", 1, "random", 48000, False, 0.9),  # 0.923
+    ("guitar", 3, "chorale", 22050, True, 0.75),  # 0.897
+    ("flute", 1, "random", 44100, False, 0.9),  # 1.000
+    ("strings", 1, "random", 22050, False, 0.6),  # 0.899
+    ("strings", 3, "chorale", 44100, True, 0.54),  # 0.593 (target 0.6: below; 0.374 before the slow swell)
+    ("organ", 1, "random", 22050, False, 0.32),  # 0.377 (target 0.6: below)
+    ("organ", 3, "chorale", 96000, False, 0.33),  # 0.388
 ]
 
 
@@ -73,9 +74,9 @@ def test_note_f1_on_sampled_instruments(instrument: str, voices: int, texture: s
 
 UNMET = [
     # the targets not reached: strict, so one that starts to pass fails, to be moved up
-    ("piano", 4, "chorale", 22050, False, 0.75, "block chords with octave doublings: 0.720"),
-    ("strings", 3, "chorale", 44100, True, 0.6, "three bowed voices starting together: 0.374"),
-    ("organ", 1, "random", 22050, False, 0.6, "FluidR3's organ is 4'-heavy, its octave is heard: 0.383"),
+    ("piano", 4, "chorale", 22050, False, 0.75, "block chords with octave doublings: 0.708"),
+    ("strings", 3, "chorale", 44100, True, 0.6, "three bowed voices starting together, in a room: 0.593"),
+    ("organ", 1, "random", 22050, False, 0.6, "FluidR3's organ is 4'-heavy, its octave is heard: 0.377"),
 ]
 
 
@@ -95,7 +96,7 @@ def test_the_live_look_hears_piano_lines_and_chords_and_a_flute() -> None:
     four = score("piano", 4, "random", 44100, look=LIVE)
     flute = score("flute", 1, "random", 44100, look=LIVE)
     print(f"live look: piano 1 voice F1 {mono:.3f}, 4 voices {four:.3f}, flute {flute:.3f}")
-    assert mono >= 0.9 and four >= 0.75 and flute >= 0.9  # measured 1.000, 0.826 and 0.947
+    assert mono >= 0.9 and four >= 0.75 and flute >= 0.9  # measured 1.000, 0.868 and 0.973
 
 
 @pytest.mark.slow
@@ -106,8 +107,10 @@ def test_the_live_look_does_not_give_a_bright_note_s_partials_as_notes() -> None
     line = score("guitar", 1, "random", 48000, look=LIVE)
     chorale = score("guitar", 3, "chorale", 22050, in_room=True, look=LIVE)
     print(f"live look: guitar line F1 {line:.3f}, guitar chorale in a room {chorale:.3f}")
-    assert line >= 0.82  # measured 0.857 (0.766 before the rule; the onset ear alone 0.873)
-    assert chorale >= 0.78  # measured 0.809 (0.778 before): its chords are kept
+    # measured 0.960: the 0.9 for a line, met live since the live threshold was tuned again
+    # with the slow swell (2026-12-06; 0.857 before, 0.766 before the rule; the onset ear alone 0.873)
+    assert line >= 0.9
+    assert chorale >= 0.78  # measured 0.884 (0.778 before the rule): its chords are kept
 
 
 def test_a_silent_or_random_transcriber_would_fail() -> None:
