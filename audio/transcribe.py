@@ -18,11 +18,13 @@ one stream (measured against each ear alone and basic-pitch's published model in
    swells. Its candidates are notes if the model hears their pitch sound (:data:`VERIFY`).
 4. **Notes.** The onset ear's notes come first; the model's own — a pitch whose onset
    probability rises through ``threshold`` (the model's own, tuned with its weights), or that
-   begins to sound after a faint onset (a swell: :data:`SWELL`) — follow,
+   begins to sound after a faint onset (a swell: :data:`SWELL`) or after none, quiet before
+   (a slow swell: :data:`SLOW_SWELL`) — follow,
    unless the onset ear gave that pitch, or a note it is a partial of, within :data:`NEAR` hops.
    A model's note must also stand clear of its bands' noise floors (:data:`CLEAR`): what a
-   model hears in a fan's noise is not played. Live, every note is given ≤ 50 ms after its
-   attack (3 hops after the hop it lands in, and a block), with the provisional duration
+   model hears in a fan's noise is not played. Live, every struck note is given ≤ 50 ms after
+   its attack (3 hops after the hop it lands in, and a block; a bowed swell when it is heard to
+   sound, later), with the provisional duration
    ``heard_length`` (as the live MIDI input gives a note-on, whose length is not known until it
    ends); its velocity is its level.
    It is followed until the model stops hearing it sound (or it is struck again) and its
@@ -52,7 +54,7 @@ from audio.resample import Resampler
 from midi.notes import NoteEvent
 
 LIVE, OFFLINE = "live", "offline"
-"""The two looks: the live one answers within 60 ms of an attack, the offline one hears more."""
+"""The two looks: the live one answers within 60 ms of a struck attack, the offline one hears more."""
 EARS = ("onsets", "model")
 WARM_UP = 8
 """Frames (93 ms) heard before the first note may be taken: the noise floors are learnt first."""
@@ -87,7 +89,7 @@ model hears sound but never calls an onset (FluidR3's strings on the validation 
 in a room: of a chorale's notes missed, most sounded at P 0.6–0.95 with P(onset) below 0.3,
 first sounding ≥ 0.3 0–9 hops after their attack). Live it is given when so heard, up to
 SLOW_SWELL hops later than a struck note would be: a bowed chord heard late is better than one
-not heard (dated at its attack, as every note is). It must
+not heard (dated, as every note is, where its attack was heard: see :data:`SLOW_BACK`). It must
 also have been quiet for :data:`QUIET` hops first and brought :data:`SLOW_RISE` to its partials,
 and is dated :data:`SLOW_BACK` hops before it first sounded. Chosen on TimGM6mb renders (seeds
 201–202) of the eight tuning textures and six more (string and organ chords; string, piano and
@@ -144,7 +146,7 @@ renders with :data:`OWN_PARTIAL`: the tuning mean F1 live 0.827 → 0.832 (the p
 → 0.811, a guitar chorale 0.802 → 0.827), offline 0.8646 → 0.8656."""
 LATE = 1
 """Offline, the model's notes wait this many hops more than the onset ear's look, in case its
-onset is a hop late. Live they do not (since 2026-12-05, with :data:`OWN_PARTIAL`): every note is
+onset is a hop late. Live they do not (since 2026-12-05, with :data:`OWN_PARTIAL`): every struck note is
 given 3 hops (35 ms) after its attack's hop instead of 4. On the TimGM6mb tuning renders the live
 mean F1 went 0.832 → 0.834; held out (FluidR3, the bench's seeds) 0.715 → 0.713, guitar lines
 0.905 → 0.899. Offline it is kept: there the tuning renders rose (0.866 → 0.872) but FluidR3
