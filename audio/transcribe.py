@@ -169,8 +169,9 @@ RELEASE = 0.3
 """A followed note ends when the model's P(sounding) for it falls below this."""
 F32_RELEASE, F32_RESTRIKE = np.float32(RELEASE), np.float32(RESTRIKE)
 F32_SWELL = np.array([SWELL, SWELL_ONSET], dtype=np.float32)
-SLOW_RULE = np.array([SLOW_SWELL, QUIET], dtype=np.int64)
 """As the model's float32 probabilities are compared (numpy compared them so)."""
+SLOW_RULE = np.array([SLOW_SWELL, QUIET], dtype=np.int64)
+"""The slow swell's hops, as the compiled :func:`_beginning` takes them."""
 CLEAR = 16.0
 """How many times its band's noise floor a note's strongest partial (of its first four) must be:
 a gate for what the model hears in noise. Measured on the current weights: notes heard in a
@@ -224,10 +225,9 @@ class Transcriber:
         self._own_partials = look == LIVE
         n_long = self.spectrum.long_bands.shape[0]
         self._level_bands = np.minimum(_level_bands(), n_long - 1)
-        # The latest rows and their bands' noise floors, for a note's level and clearance; and
-        # each row's levels by its frame, back as far as a slow swell may have begun.
-        self._rows: deque[tuple[np.ndarray, np.ndarray]] = deque(maxlen=self.model.delay + 1)
-        self._levels: deque[tuple[int, np.ndarray]] = deque(maxlen=self.model.delay + SLOW_SWELL + 2)
+        # The latest rows' frames, levels and bands' noise floors: the last delay + 1 for a note's
+        # level and clearance, back as far as a slow swell may have begun for its rise.
+        self._rows: deque[tuple[int, np.ndarray, np.ndarray]] = deque(maxlen=self.model.delay + SLOW_SWELL + 2)
         self._previous = np.zeros(len(PITCHES), dtype=np.float32)  # last judged frame's P(onset)
         self._previous_sounding = np.zeros(len(PITCHES), dtype=np.float32)  # and its P(sounding)
         # Per judged frame, per pitch: a followed note ends, a note begins (either way), by a swell.
@@ -307,8 +307,7 @@ class Transcriber:
             return []
         notes: list[NoteEvent] = []
         for i, (row, floor) in enumerate(zip(rows, self.spectrum.floors)):
-            self._rows.append((row[self._level_bands], floor[self._level_bands]))
-            self._levels.append((judged.frame + i + self.model.delay, self._rows[-1][0]))
+            self._rows.append((judged.frame + i + self.model.delay, row[self._level_bands], floor[self._level_bands]))
             notes.extend(self._judge(judged, i))
         return notes
 
@@ -366,8 +365,10 @@ class Transcriber:
         if frame >= self._quiet_until and began and "model" in self.ears:
             if frame <= self._clipping_until:
                 rising = self._undistorted(rising)
-            levels = np.max([level for level, _ in self._rows], axis=0)  # (pitches, 4)
-            clear = np.max([self.spectrum.above_floor(*kept) for kept in self._rows], axis=0).max(axis=1) >= CLEAR
+            latest = list(self._rows)[-(self.model.delay + 1):]  # the rows that judged this frame
+            levels = np.max([level for _, level, _ in latest], axis=0)  # (pitches, 4)
+            clear = np.max([self.spectrum.above_floor(level, floor) for _, level, floor in latest],
+                           axis=0).max(axis=1) >= CLEAR
             for k in np.flatnonzero((rising | again) & clear):
                 if self._slowing[k] and not self._rose(k, levels[k]):
                     continue
@@ -392,7 +393,7 @@ class Transcriber:
     def _rose(self, k: int, levels: np.ndarray) -> bool:
         """Whether pitch index ``k``'s first four partials (``levels``, now) rose by
         :data:`SLOW_RISE` since the last frame it was quiet: a slow swell that brought its own energy."""
-        before = [level[k] for f, level in self._levels if f <= self._quiet_at[k]]
+        before = [level[k] for f, level, _ in self._rows if f <= self._quiet_at[k]]
         return not before or float(np.max(levels - before[-1])) >= SLOW_RISE
 
     def _verified(self, frame: int, k: int) -> bool:

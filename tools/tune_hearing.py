@@ -3,8 +3,8 @@
 The threshold is chosen on renders through TimGM6mb — a soundfont the model learnt from — of the
 bench's textures (piano lines and chords, a guitar chorale, strings, organ and flute; seeds 201
 and 202; string and organ chords, and four textures in a room since 2026-12-06, when the slow
-swell of ``audio/transcribe.py`` was chosen on them too), and on the project's own generated input (``creatures.runtime.inputs``, which must be
-heard note for note): never on FluidR3, which the tests and the bench score on. The threshold
+swell of ``audio/transcribe.py`` was chosen on them too), and on the project's own generated
+input (``creatures.runtime.inputs``, which must be heard note for note): never on FluidR3, which the tests and the bench score on. The threshold
 with the best mean note F1 over the textures (both ears heard, as the product hears) wins, among
 those that hear the generated phrases exactly::
 
