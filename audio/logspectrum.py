@@ -38,6 +38,7 @@ TOP = 124.0
 SCALE = 1000.0
 """Magnitudes (a sine's is its amplitude) are compressed as ``log1p(SCALE m)``."""
 FLOOR_RISE = 1.01
+"""The noise floor's rise a :data:`HOP` (~7 dB/s); a finer hop rises by its share."""
 FLOOR_MARGIN = 2.0
 
 
@@ -70,20 +71,26 @@ def bands(n_fft: int, low: float, step: float, top: float = TOP) -> np.ndarray:
 class LogSpectrum:
     """Samples at :data:`RATE` in, one feature row per hop out: ``[long bands | short bands]``."""
 
-    def __init__(self) -> None:
+    def __init__(self, hop: int = HOP) -> None:
+        """``hop``: samples between rows (the same windows and bands on a finer grid hear an
+        attack sooner: a live look's model, docs/hearing.md); the floors rise as fast a second."""
+        if not 0 < hop <= SHORT:
+            raise ValueError(f"hop must be 1–{SHORT} samples, not {hop}")
+        self.hop = int(hop)
+        self._rise = FLOOR_RISE ** (self.hop / HOP)  # a float64, as FLOOR_RISE was compiled in
         self.long_window, self.short_window = window(LONG, LONG_FALL), window(SHORT, SHORT_FALL)
         self.long_bands = csr_array(bands(LONG, LONG_LOW, LONG_STEP))  # a few bins a band: sparse
         self.short_bands = csr_array(bands(SHORT, SHORT_LOW, SHORT_STEP))
         self._long = (self.long_bands.indptr, self.long_bands.indices, self.long_bands.data)
         self._short = (self.short_bands.indptr, self.short_bands.indices, self.short_bands.data)
         self.width = self.long_bands.shape[0] + self.short_bands.shape[0]
-        self._tail = np.zeros(LONG - HOP, dtype=np.float32)  # the samples before the next hop
+        self._tail = np.zeros(LONG - self.hop, dtype=np.float32)  # the samples before the next hop
         self._pending = np.zeros(0, dtype=np.float32)
         self._floor: np.ndarray | None = None
         self.floors = np.zeros((0, self.width), dtype=np.float32)
         """Each band's noise floor at each of the rows :meth:`feed` last gave."""
         self.frames = 0
-        """Frames given so far; frame ``i`` ends at sample ``(i + 1) * HOP``."""
+        """Frames given so far; frame ``i`` ends at sample ``(i + 1) * hop``."""
 
     @staticmethod
     def above_floor(levels: np.ndarray, floors: np.ndarray) -> np.ndarray:
@@ -100,33 +107,34 @@ class LogSpectrum:
     def feed(self, x: np.ndarray) -> np.ndarray:
         """The feature rows of the hops that ``x`` (float32 at :data:`RATE`) completes."""
         x = np.concatenate([self._pending, np.asarray(x, dtype=np.float32)])
-        hops = len(x) // HOP
-        self._pending = x[hops * HOP:]
+        hop = self.hop
+        hops = len(x) // hop
+        self._pending = x[hops * hop:]
         if hops == 0:
             self.floors = np.zeros((0, self.width), dtype=np.float32)
             return np.zeros((0, self.width), dtype=np.float32)
-        stream = np.concatenate([self._tail, x[: hops * HOP]])
-        self._tail = stream[len(stream) - (LONG - HOP):]
+        stream = np.concatenate([self._tail, x[: hops * hop]])
+        self._tail = stream[len(stream) - (LONG - hop):]
         self.frames += hops
         long, short = np.empty((hops, LONG), np.float32), np.empty((hops, SHORT), np.float32)
-        _windowed(stream, self.long_window, long)
-        _windowed(stream, self.short_window, short)
+        _windowed(stream, self.long_window, long, hop)
+        _windowed(stream, self.short_window, short, hop)
         rows = np.empty((hops, self.width), dtype=np.float32)
         self.floors = np.empty_like(rows)
         if self._floor is None:
             self._floor = np.zeros(self.width, dtype=np.float32)  # the first frame sets it
         _pool(np.abs(rfft(long, axis=1, overwrite_x=True)), np.abs(rfft(short, axis=1, overwrite_x=True)), *self._long, *self._short,
-              self._floor, self.frames == hops, rows, self.floors)
+              self._floor, self._rise, self.frames == hops, rows, self.floors)
         return rows
 
 
 @numba.njit(cache=True, nogil=True)
-def _windowed(stream, window, out):  # pragma: no cover
+def _windowed(stream, window, out, hop):  # pragma: no cover
     """Each hop's frame — the ``len(window)`` samples ending on it — less its mean (DC is no
     sound), windowed, into ``out``: one pass, where numpy took six calls a frame."""
     n = len(window)
     for i in range(out.shape[0]):
-        end = LONG - HOP + HOP * (i + 1)
+        end = LONG - hop + hop * (i + 1)
         mean = 0.0
         for k in range(end - n, end):
             mean += stream[k]
@@ -136,9 +144,9 @@ def _windowed(stream, window, out):  # pragma: no cover
 
 
 @numba.njit(cache=True, nogil=True)
-def _pool(long, short, l_ptr, l_idx, l_w, s_ptr, s_idx, s_w, floor, first, rows, floors):  # pragma: no cover
+def _pool(long, short, l_ptr, l_idx, l_w, s_ptr, s_idx, s_w, floor, rise, first, rows, floors):  # pragma: no cover
     """Each frame's magnitudes pooled into bands (two CSR matrices), less twice each band's noise
-    floor (which follows a fall at once and a rise by FLOOR_RISE a frame), compressed."""
+    floor (which follows a fall at once and a rise by ``rise`` a frame), compressed."""
     n_long = len(l_ptr) - 1
     for i in range(rows.shape[0]):
         for b in range(rows.shape[1]):
@@ -152,6 +160,6 @@ def _pool(long, short, l_ptr, l_idx, l_w, s_ptr, s_idx, s_w, floor, first, rows,
             level = max(m, 1e-7)
             if first and i == 0:
                 floor[b] = level
-            floor[b] = min(floor[b] * FLOOR_RISE, level)
+            floor[b] = min(floor[b] * rise, level)
             floors[i, b] = floor[b]
             rows[i, b] = np.log1p(SCALE * max(m - FLOOR_MARGIN * floor[b], 0.0))

@@ -37,7 +37,7 @@ from pathlib import Path
 import numba
 import numpy as np
 
-from audio.logspectrum import LONG_LOW, LONG_STEP, SHORT_LOW, SHORT_STEP, LogSpectrum
+from audio.logspectrum import HOP, LONG_LOW, LONG_STEP, SHORT_LOW, SHORT_STEP, LogSpectrum
 
 LOW, HIGH = 21, 108
 """The pitches the model judges (the piano's compass)."""
@@ -102,6 +102,8 @@ class NoteModel:
                 raise ValueError(f"{path}: not a note model's weights (no {', '.join(missing)})")
             w = {k: np.ascontiguousarray(z[k], dtype=np.float32) for k in z.files}
             self.context, self.delay = int(z["context"]), int(z["delay"])
+            self.hop = int(z["hop"]) if "hop" in z.files else HOP
+            """Samples between the rows it hears (files before the finer live hop have none: 256)."""
             self.threshold = float(z["threshold"])
             """P(onset) through which a rise is a note: tuned with the weights (tools/tune_hearing.py)."""
             # The model's own layout, kept with its weights: a file trained with other
@@ -194,5 +196,5 @@ def _biased_relu(x, bias):  # pragma: no cover
 
 
 def default(look: str) -> Path:
-    """The shipped weights for ``look`` ("live" or "offline")."""
+    """The shipped weights for ``look`` ("live", "quick" or "offline")."""
     return MODELS / f"notes-{look}.npz"

@@ -14,6 +14,11 @@ chorales, arpeggios, melody over chords, isolated notes), not the tests' generat
 Used by ``tools/train_hearing.py``; run alone it renders a set::
 
     python -m tools.hearing_data OUT_DIR --segments 600 --seed 1
+
+or, with ``--from DIR``, gives the sets rendered there the features of another hop (their audio
+is kept for that): the live look's model hears on a finer grid than the offline one::
+
+    python -m tools.hearing_data OUT_DIR --from DIR --hop 128
 """
 
 from __future__ import annotations
@@ -335,6 +340,28 @@ def shared_programs(soundfont: Path, pitches: tuple[int, ...] = (48, 67, 84)) ->
     return shared
 
 
+def features(audio: np.ndarray, hop: int = HOP) -> np.ndarray:
+    """The model's feature rows of ``audio`` (float32 at :data:`RATE`), as float16 (half the memory
+    in training; the rows are log-compressed, so float16's 3 digits lose nothing the model uses)."""
+    spectrum = LogSpectrum(hop)
+    return np.concatenate([spectrum.feed(audio[i:i + (1 << 18)]) for i in range(0, len(audio), 1 << 18)]).astype(np.float16)
+
+
+def save(path: Path, audio: np.ndarray, notes: np.ndarray, hop: int = HOP) -> None:
+    """A set as training reads it: features, the notes (onset, offset, pitch), the hop (seconds)
+    and the audio (16-bit, for other front-ends)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savez(path, features=features(audio, hop), notes=notes, hop=np.array(hop / RATE),
+             audio=np.round(audio * 32767).astype(np.int16))
+
+
+def refeature(source: Path, out: Path, hop: int) -> None:
+    """``source``'s set with the features of ``hop``: written as ``out/<its name>``."""
+    with np.load(source) as z:
+        audio, notes = z["audio"].astype(np.float32) / 32767, z["notes"]
+    save(out / source.name, audio, notes, hop)
+
+
 def render_set(out: Path, source: str, segments: int, seed: int) -> None:
     """Render ``segments`` segments through ``source`` (a soundfont's name or "additive") and
     write ``out/<source>-<seed>.npz``: features (float16), the notes (onset, offset, pitch) and
@@ -361,12 +388,8 @@ def render_set(out: Path, source: str, segments: int, seed: int) -> None:
         if rng.random() < 0.5:
             part = thumps(part, onsets[(onsets >= i * step / RATE) & (onsets < (i + 1) * step / RATE)] - i * step / RATE, rng)
         audio[i * step:(i + 1) * step] = room(part, rng)
-    spectrum = LogSpectrum()
-    features = np.concatenate([spectrum.feed(audio[i:i + (1 << 18)]) for i in range(0, len(audio), 1 << 18)])
     table = np.array([(n.onset, n.offset, n.pitch) for n in notes], dtype=np.float64)
-    out.mkdir(parents=True, exist_ok=True)
-    np.savez(out / f"{source}-{seed}.npz", features=features.astype(np.float16), notes=table,
-             hop=np.array(HOP / RATE), audio=np.round(audio * 32767).astype(np.int16))
+    save(out / f"{source}-{seed}.npz", audio, table)
 
 
 def main() -> None:
@@ -375,7 +398,14 @@ def main() -> None:
     parser.add_argument("--segments", type=int, default=300)
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--sources", default="timgm,csound,musescore,additive")
+    parser.add_argument("--from", dest="source", type=Path, help="a directory of rendered sets: give them --hop's features")
+    parser.add_argument("--hop", type=int, default=HOP)
     args = parser.parse_args()
+    if args.source is not None:
+        for path in sorted(args.source.glob("*.npz")):
+            refeature(path, args.out, args.hop)
+            print(f"{path.name}: features every {args.hop} samples", flush=True)
+        return
     for source in args.sources.split(","):
         render_set(args.out, source, args.segments, args.seed)
         print(f"rendered {source} seed {args.seed}", flush=True)

@@ -31,9 +31,9 @@ from audio.logspectrum import HOP, RATE
 from audio.note_model import CROSS, HARMONICS, PITCHES, SHORT_HARMONICS, cross_index, stack_index
 
 
-def labels(notes: np.ndarray, frames: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per frame and pitch: a note began (1), the frame after a beginning (masked out of the
-    onset loss: an attack late in a hop shows mostly in the next), a note sounds."""
+def labels(notes: np.ndarray, frames: int, hop: float = HOP / RATE) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per frame (``hop`` seconds apart) and pitch: a note began (1), the frame after a beginning
+    (masked out of the onset loss: an attack late in a hop shows mostly in the next), a note sounds."""
     onset = np.zeros((frames, len(PITCHES)), np.uint8)  # bytes until batched
     mask = np.ones_like(onset)
     sounding = np.zeros_like(onset)
@@ -41,7 +41,7 @@ def labels(notes: np.ndarray, frames: int) -> tuple[np.ndarray, np.ndarray, np.n
         k = int(p) - PITCHES[0]
         if not 0 <= k < len(PITCHES):
             continue
-        i, j = int(a * RATE / HOP), int(b * RATE / HOP)
+        i, j = int(a / hop), int(b / hop)
         if i >= frames:
             continue
         onset[i, k] = 1
@@ -91,11 +91,11 @@ class Net(nn.Module):
             for parameter, value in pairs:
                 parameter.copy_(torch.as_tensor(value))
 
-    def export(self, path: Path, delay: int, threshold: float = 0.5) -> None:
+    def export(self, path: Path, delay: int, hop: int = HOP, threshold: float = 0.5) -> None:
         def a(t: torch.Tensor) -> np.ndarray:
             return t.detach().cpu().numpy().astype(np.float32)
 
-        np.savez(path, context=np.array(self.context), delay=np.array(delay), threshold=np.array(threshold),
+        np.savez(path, context=np.array(self.context), delay=np.array(delay), hop=np.array(hop), threshold=np.array(threshold),
                  harmonics=np.array(HARMONICS),
                  short_harmonics=np.array(SHORT_HARMONICS), cross=np.array(CROSS),
                  w1=a(self.w1.weight.T), b1=a(self.b1), w2=a(self.w2.weight.T), b2=a(self.w2.bias),
@@ -142,23 +142,28 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=30000)
     parser.add_argument("--batch", type=int, default=128)
     parser.add_argument("--lr", type=float, default=3e-3)
-    parser.add_argument("--every", type=int, default=5000)
+    parser.add_argument("--every", type=int, default=5000, help="steps between validations (0: none, the latest weights written every 5000)")
+    parser.add_argument("--look", choices=("live", "offline"), help="the look the weights serve (default: live if --delay ≤ 3)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--init", type=Path, help="weights to start from (an earlier export of the same shape)")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
-    look = "live" if args.delay <= 3 else "offline"
     torch.manual_seed(args.seed)
     rng = np.random.default_rng(args.seed)
 
-    sets = []
+    sets, hops = [], set()
     for f in sorted(args.data.glob("*.npz")):
         with np.load(f) as z:
             rows = torch.as_tensor(z["features"])  # float16 until batched: seven sets are ~6 GB
-            onset, mask, sounding = (torch.as_tensor(a) for a in labels(z["notes"], len(rows)))
+            hops.add(round(float(z["hop"]) * RATE))
+            onset, mask, sounding = (torch.as_tensor(a) for a in labels(z["notes"], len(rows), float(z["hop"])))
         sets.append((rows, onset, mask, sounding))
         print(f"{f.name}: {len(rows)} frames, {int(onset.sum())} onsets", flush=True)
+    if len(hops) != 1:
+        raise SystemExit(f"{args.data}: sets of different hops {sorted(hops)}: one model hears one grid")
+    hop = hops.pop()
+    look = args.look or ("live" if args.delay * hop <= 3 * HOP else "offline")  # ≤ 35 ms past an attack
     sizes = np.array([len(s[0]) - args.context for s in sets], dtype=float)
     width = sets[0][0].shape[1]
     net = Net(width, args.context, args.h1, args.h2, args.hc)
@@ -193,17 +198,19 @@ def main() -> None:
             running = 0.98 * running + 0.02 * float(loss.detach())
             if step % 500 == 0:
                 print(f"step {step} loss {running:.4f} ({time.time() - t0:.0f} s)", flush=True)
-            if step % args.every == 0 or step == args.steps:
+            if not args.every and (step % 5000 == 0 or step == args.steps):
+                net.export(args.out, args.delay, hop)  # the latest, to try while it trains
+            elif args.every and (step % args.every == 0 or step == args.steps):
                 trial = Path(tmp) / "trial.npz"
-                net.export(trial, args.delay)
+                net.export(trial, args.delay, hop)
                 scores = validate(trial, look)
                 mean = float(np.mean(list(scores.values())))
                 print(f"step {step}: validation mean F1 {mean:.3f} " + " ".join(f"{k} {v:.2f}" for k, v in scores.items()),
                       flush=True)
                 if mean > best:
                     best = mean
-                    net.export(args.out, args.delay)
-    print(f"best validation mean F1 {best:.3f}; weights in {args.out}")
+                    net.export(args.out, args.delay, hop)
+    print(f"best validation mean F1 {best:.3f}; weights in {args.out}" if args.every else f"weights in {args.out}")
 
 
 if __name__ == "__main__":
