@@ -11,8 +11,9 @@ one stream (measured against each ear alone and basic-pitch's published model in
 2. **The model.** :class:`audio.note_model.NoteModel`, a small network trained on sampled
    instruments, judges each hop a few hops back: per pitch (MIDI 21–108), did a note begin
    there, and does one sound there. The live look judges 3 hops back, the offline look 6
-   (nobody waits offline, and a bowed or blown swell is heard better). It hears swells, winds,
-   strings and chords; on a bright struck note it also hears partials as notes.
+   (nobody waits offline, and a bowed or blown swell is heard better); the quick look's model
+   hears a finer hop (128 samples) and judges 4 of them back, 23 ms (:data:`QUICK`). It hears
+   swells, winds, strings and chords; on a bright struck note it also hears partials as notes.
 3. **The onset ear.** :class:`audio.onset_ear.OnsetEar`, the hand-built method heard with
    before, finds notes where an attack is, by what began there: exact on struck sounds, deaf to
    swells. Its candidates are notes if the model hears their pitch sound (:data:`VERIFY`).
@@ -24,7 +25,7 @@ one stream (measured against each ear alone and basic-pitch's published model in
    A model's note must also stand clear of its bands' noise floors (:data:`CLEAR`): what a
    model hears in a fan's noise is not played. Live, every struck note is given ≤ 50 ms after
    its attack (3 hops after the hop it lands in, and a block; a bowed swell when it is heard to
-   sound, later), with the provisional duration
+   sound, later; the quick look ≤ 30 ms), with the provisional duration
    ``heard_length`` (as the live MIDI input gives a note-on, whose length is not known until it
    ends); its velocity is its level.
    It is followed until the model stops hearing it sound (or it is struck again) and its
@@ -53,8 +54,12 @@ from audio.pitch import velocity_from_level
 from audio.resample import Resampler
 from midi.notes import NoteEvent
 
-LIVE, OFFLINE = "live", "offline"
-"""The two looks: the live one answers within 60 ms of a struck attack, the offline one hears more."""
+LIVE, QUICK, OFFLINE = "live", "quick", "offline"
+"""The looks: the live one answers within 60 ms of a struck attack (p99 39 ms through JACK), the
+quick one sooner (its model hears a finer hop, 128 samples, and judges 4 of them back: p99 ≤ 30
+ms) but hears bowed and blown notes and chords worse, the offline one hears more
+(docs/hearing.md has each measured)."""
+LOOKS = (LIVE, QUICK, OFFLINE)
 EARS = ("onsets", "model")
 WARM_UP = 8
 """Frames (93 ms) heard before the first note may be taken: the noise floors are learnt first."""
@@ -173,6 +178,15 @@ F32_SWELL = np.array([SWELL, SWELL_ONSET], dtype=np.float32)
 SLOW_RULE = np.array([SLOW_SWELL, QUIET], dtype=np.int64)
 """The slow swell's hops, as the compiled :func:`_beginning` takes them."""
 CLEAR = 16.0
+RIVAL = 0.3
+"""A short look (the quick one: the model judges 23 ms past an attack) often names a note falling
+a semitone a semitone too low in its first frame, while the old note still rings: at its attack
+the fine model gave the lower neighbour P(onset) 0.53 and P(sounding) 0.73 (a swell), the true
+pitch 0.42 and 0.59, and a frame later 0.18/0.19 against 0.70/0.97. So a quick look's note whose
+semitone neighbour has P(onset) ≥ this in its frame is judged again a frame (5.8 ms) later and
+given only if it sounds at least as surely as its neighbours. Without it the generated phrases
+were not heard note for note at any threshold (tools/tune_hearing.py); the live and offline
+looks, which judge 35 ms and more past an attack, never needed it and do not use it."""
 """How many times its band's noise floor a note's strongest partial (of its first four) must be:
 a gate for what the model hears in noise. Measured on the current weights: notes heard in a
 minute of brown room noise at −40 dBFS and in white noise at −20 dBFS stood 3–14 times their
@@ -194,8 +208,8 @@ class Transcriber:
                  ears: tuple[str, ...] = EARS) -> None:
         """``ears``: both by default; one alone (``("onsets",)`` or ``("model",)``) is how the bench
         measures what each adds (the model still follows the notes' durations)."""
-        if look not in (LIVE, OFFLINE):
-            raise ValueError(f"look must be {LIVE!r} or {OFFLINE!r}, not {look!r}")
+        if look not in LOOKS:
+            raise ValueError(f"look must be one of {', '.join(map(repr, LOOKS))}, not {look!r}")
         if not ears or set(ears) - set(EARS):
             raise ValueError(f"ears must be some of {EARS}, not {ears!r}")
         self.ears = tuple(ears)
@@ -203,42 +217,55 @@ class Transcriber:
         self.look = look
         self.heard_length = float(heard_length)
         self.max_length = float(max_length)
-        self.spectrum = LogSpectrum()
         self.model = NoteModel(model if model is not None else default(look))
+        if HOP % self.model.hop:
+            raise ValueError(f"a note model's hop must divide {HOP} samples, not {self.model.hop}")
+        self.hop = self.model.hop
+        """Samples between the frames the model judges (the live look's model hears on a finer
+        grid than the onset ear's :data:`HOP`: an attack is named sooner)."""
+        # The note logic's spans (NEAR, QUIET …) are in HOPs (11.6 ms) whatever the model's grid;
+        # counted in the model's frames, there are ``per`` to a HOP. The onset ear keeps its grid.
+        per = self._per = HOP // self.hop
+        self.spectrum = LogSpectrum(self.hop)
         self.threshold = self.model.threshold if threshold is None else float(threshold)
-        self.ear = OnsetEar(LIVE_WINDOW if look == LIVE else OFFLINE_WINDOW)
+        live = look != OFFLINE  # the live and the quick look give each note as soon as it is named
+        self.ear = OnsetEar(LIVE_WINDOW if live else OFFLINE_WINDOW)
         # The onset ear's candidates wait until the model has judged a few hops past their
-        # attack (offline, where nobody waits; live, their attack's own hop), and the model's
-        # notes until the onset ear's have been given (offline a hop more: the ear's onset may be
-        # a hop late): its notes come first, the model adds what it alone heard. Live, that is
-        # 3 hops after the attack's: ≤ 47 ms, and a block (see LATE).
-        self._verify_after = 0 if look == LIVE else NEAR
-        late = 0 if look == LIVE else LATE
-        self._hold = max(0, self.ear.delay_frames + late - self.model.delay) + self._verify_after
+        # attack (offline, where nobody waits; live, their attack's own hop), and offline the
+        # model's notes wait until the onset ear's have been given (a hop more: the ear's onset
+        # may be a hop late): its notes come first, the model adds what it alone heard. Live the
+        # model's notes do not wait: a struck note is given when the model names it, 3 hops after
+        # its attack's (the quick look: 4 of its 128-sample hops), and a block (see LATE).
+        self._verify_after = 0 if live else NEAR * per
+        self._hold = 0 if live else max(0, (self.ear.delay_frames + LATE) * per - self.model.delay) + self._verify_after
+        self._near_frames, self._slow_back, self._slow_rule = NEAR * per, SLOW_BACK * per, SLOW_RULE * per
         self._candidates: deque[Candidate] = deque()
         # The model's notes: (frame, pitch index, level, root, struck again: a note only in a chord).
         self._waiting: deque[tuple[int, int, float, float, bool]] = deque()
-        self._recent: deque[tuple[int, np.ndarray, np.ndarray]] = deque(maxlen=2 * NEAR + 4)  # (frame, P(sounding), P(onset))
+        # A short look's notes whose semitone neighbour began with them: judged again a frame later (RIVAL).
+        self._rivals = self.model.delay * self.hop < 3 * HOP
+        self._doubted: list[tuple[int, int, float, float, bool]] = []
+        self._recent: deque[tuple[int, np.ndarray, np.ndarray]] = deque(maxlen=(2 * NEAR + 4) * per)  # (frame, P(sounding), P(onset))
         # (frame, pitch, by the onset ear, its root: the level of its fundamental's band; an
         # onset-ear note's is taken as infinite, it explains its partials whatever their level)
         self._given: deque[tuple[int, int, bool, float]] = deque(maxlen=64)
-        self._own_partials = look == LIVE
+        self._own_partials = live
         n_long = self.spectrum.long_bands.shape[0]
         self._level_bands = np.minimum(_level_bands(), n_long - 1)
         # The latest rows' frames, levels and bands' noise floors: the last delay + 1 for a note's
         # level and clearance, back as far as a slow swell may have begun for its rise.
-        self._rows: deque[tuple[int, np.ndarray, np.ndarray]] = deque(maxlen=self.model.delay + SLOW_SWELL + 2)
+        self._rows: deque[tuple[int, np.ndarray, np.ndarray]] = deque(maxlen=self.model.delay + (SLOW_SWELL + 2) * per)
         self._previous = np.zeros(len(PITCHES), dtype=np.float32)  # last judged frame's P(onset)
         self._previous_sounding = np.zeros(len(PITCHES), dtype=np.float32)  # and its P(sounding)
         # Per judged frame, per pitch: a followed note ends, a note begins (either way), by a swell.
         self._ending, self._rising, self._swelling, self._again = (np.zeros(len(PITCHES), dtype=bool)
                                                                    for _ in range(4))
-        self._onsets = np.zeros((4, len(PITCHES)), dtype=np.float32)  # the last 4 judged frames' P(onset), a ring
+        self._onsets = np.zeros((4 * per, len(PITCHES)), dtype=np.float32)  # the last 4 hops' P(onset), a ring
         self._slowing = np.zeros(len(PITCHES), dtype=bool)  # a note begins by a slow swell
         # Per pitch, the last frame its P(sounding) was below RELEASE, and for how many frames it had been.
         self._quiet_at = np.zeros(len(PITCHES), dtype=np.int64)
         self._quiet_for = np.zeros(len(PITCHES), dtype=np.int64)
-        self._quiet_until = WARM_UP  # no note is taken from a judged frame before this one
+        self._quiet_until = WARM_UP * per  # no note is taken from a judged frame before this one
         self._clipping_until = -1  # frames up to this one were heard through clipping
         # Notes followed until they end, per pitch: whether one is, when it began, its velocity.
         self._held = np.zeros(len(PITCHES), dtype=bool)
@@ -259,7 +286,7 @@ class Transcriber:
     def latency(self) -> float:
         """Seconds from the end of an attack's hop until its note is given (the model's judgement,
         then the hops its notes wait for the onset ear's)."""
-        return (self.model.delay + self._hold) * HOP / RATE
+        return (self.model.delay + self._hold) * self.hop / RATE
 
     def set_rate(self, samplerate: int) -> None:
         """The input's rate from now on (a live device reopened at another rate)."""
@@ -275,7 +302,7 @@ class Transcriber:
 
     def _seam(self, frames: int = SEAM) -> None:
         """No note from the next ``frames`` hops, in either ear: they hold a step, not an attack."""
-        self._quiet_until = max(self._quiet_until, self.spectrum.frames + frames)
+        self._quiet_until = max(self._quiet_until, self.spectrum.frames + frames * self._per)
         self.ear.seam(frames)
 
     def feed(self, block: np.ndarray) -> list[NoteEvent]:
@@ -297,10 +324,10 @@ class Transcriber:
         clipped = int(np.count_nonzero(np.abs(x) >= 0.999))
         if clipped:
             self.clipped += clipped
-            self._clipping_until = self.spectrum.frames + hops + 1
+            self._clipping_until = self.spectrum.frames + (hops + 1) * self._per
         x = self._resampler(x)
         if "onsets" in self.ears:
-            self._candidates.extend(self.ear.feed(x))
+            self._candidates.extend(c._replace(frame=c.frame * self._per) for c in self.ear.feed(x))
         rows = self.spectrum.feed(x)
         judged = self.model(rows)
         if judged is None:
@@ -321,7 +348,7 @@ class Transcriber:
     @property
     def fed_until(self) -> float:
         """The time just after the last sample fed: where the next block begins, counted in samples."""
-        return self.t0 + (self.spectrum.frames * HOP + self.spectrum.pending) / RATE
+        return self.t0 + (self.spectrum.frames * self.hop + self.spectrum.pending) / RATE
 
     def skip(self, seconds: float) -> None:
         """The clock jumped ``seconds`` ahead between two blocks (``creatures.clock.clock_gap``):
@@ -338,7 +365,7 @@ class Transcriber:
     # -- per judged frame --------------------------------------------------------------------
     def _time(self, frame: int) -> float:
         """The middle of frame ``frame``'s hop: where in it an attack lies, ± 5.8 ms."""
-        return self.t0 + (frame + 0.5) * HOP / RATE
+        return self.t0 + (frame + 0.5) * self.hop / RATE
 
     def _judge(self, judged: Judged, i: int) -> list[NoteEvent]:
         frame = judged.frame + i
@@ -361,7 +388,10 @@ class Transcriber:
         began = _beginning(onset, sounding, self._previous, self._previous_sounding, self._held,
                            np.float32(self.threshold), F32_RESTRIKE, F32_SWELL,
                            self._onsets, frame % len(self._onsets), rising, swelling, again,
-                           frame, F32_RELEASE, SLOW_RULE, self._quiet_at, self._quiet_for, self._slowing)
+                           frame, F32_RELEASE, self._slow_rule, self._quiet_at, self._quiet_for, self._slowing)
+        if self._doubted:  # a frame later: a note if it sounds at least as surely as its semitone neighbours
+            self._waiting.extend(w for w in self._doubted if sounding[w[1]] >= sounding[max(w[1] - 1, 0):w[1] + 2].max())
+            self._doubted.clear()
         if frame >= self._quiet_until and began and "model" in self.ears:
             if frame <= self._clipping_until:
                 rising = self._undistorted(rising)
@@ -379,8 +409,10 @@ class Transcriber:
                     oldest_first = [self._onsets[(frame - back) % ring, k] for back in range(ring - 1, -1, -1)]
                     at -= ring - 1 - int(np.argmax(oldest_first))
                 elif self._slowing[k]:
-                    at = int(self._quiet_at[k]) + 1 - SLOW_BACK
-                self._waiting.append((at, int(k), level_db, float(levels[k, 0]), bool(again[k])))
+                    at = int(self._quiet_at[k]) + 1 - self._slow_back
+                note = (at, int(k), level_db, float(levels[k, 0]), bool(again[k]))
+                neighbours = onset[[j for j in (k - 1, k + 1) if 0 <= j < len(onset)]]
+                (self._doubted if self._rivals and neighbours.max() >= RIVAL else self._waiting).append(note)
         while self._waiting and self._waiting[0][0] <= frame - self._hold:
             f, k, level_db, root, struck_again = self._waiting.popleft()
             chord = self._in_chord(f)
@@ -399,20 +431,21 @@ class Transcriber:
     def _verified(self, frame: int, k: int) -> bool:
         """Whether the model heard pitch index ``k`` sound from two hops before ``frame`` on (and,
         if a note of it is followed, begin again: :data:`RESTRIKE`)."""
-        if not (0 <= k < len(PITCHES) and any(s[k] >= VERIFY for f, s, _ in self._recent if f >= frame - 2)):
+        per = self._per
+        if not (0 <= k < len(PITCHES) and any(s[k] >= VERIFY for f, s, _ in self._recent if f >= frame - 2 * per)):
             return False
         if self._held[k]:  # struck again, or a fluctuation of the note sounding
-            return any(o[k] >= RESTRIKE for f, _, o in self._recent if frame - 1 <= f <= frame + 2)
+            return any(o[k] >= RESTRIKE for f, _, o in self._recent if frame - per <= f <= frame + 2 * per)
         return True
 
     def _in_chord(self, frame: int) -> bool:
         """Whether a chord began within NEAR hops of ``frame``: the onset ear gave :data:`CHORD`
         notes or more there, or the other notes given or waiting there hold CHORD roots (pitches
         not at a partial, 2–8, of a lower one)."""
-        near = [(p, by_ear) for f, p, by_ear, _ in self._given if abs(f - frame) <= NEAR]
+        near = [(p, by_ear) for f, p, by_ear, _ in self._given if abs(f - frame) <= self._near_frames]
         if sum(by_ear for _, by_ear in near) >= CHORD:
             return True
-        waiting = {int(PITCHES[k]) for f, k, _, _, again in self._waiting if abs(f - frame) <= NEAR and not again}
+        waiting = {int(PITCHES[k]) for f, k, _, _, again in self._waiting if abs(f - frame) <= self._near_frames and not again}
         pitches = sorted({p for p, _ in near} | waiting)
         roots: list[int] = []
         for p in pitches:
@@ -424,7 +457,7 @@ class Transcriber:
         """Whether a note of ``pitch`` was given within NEAR hops of ``frame`` — or, with
         ``partials``, a note it is a partial of: an onset-ear note, or live a model's note whose
         root stands at most :data:`OWN_PARTIAL` below ``root`` (this note's)."""
-        return any(abs(f - frame) <= NEAR and (p == pitch or (
+        return any(abs(f - frame) <= self._near_frames and (p == pitch or (
             partials and pitch - p in PARTIALS and (by_ear or (self._own_partials and r >= root - OWN_PARTIAL))))
             for f, p, by_ear, r in self._given)
 

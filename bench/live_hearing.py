@@ -33,6 +33,7 @@ tick = 0.01
 sample_rate = 22050
 block = 512
 input_device = "system"
+look = "{look}"
 [midi]
 output_port = "{port}"
 [[creature]]
@@ -98,10 +99,10 @@ class Heard(NamedTuple):
 
 
 def measure(onsets: int = 40, gap: float = 0.5, *, warm_up: float = 6.0, timeout: float = 90.0,
-            log: Path | None = None) -> Heard:
+            log: Path | None = None, look: str = "live") -> Heard:
     """Play ``onsets`` tones ``gap`` seconds apart into a run and time its answers (:class:`Heard`).
     ``warm_up``: seconds the run is given before the first onset (its first seconds compile and
-    fill buffers).
+    fill buffers); ``look``: the run's ``[audio] look``.
 
     An answer is a note-on or a polyphonic pressure: the exchange's rule two (thesis "exchange
     (installation)") strikes a note that still sounds by perturbing it, not by playing it again,
@@ -153,7 +154,7 @@ def measure(onsets: int = 40, gap: float = 0.5, *, warm_up: float = 6.0, timeout
     with tempfile.TemporaryDirectory() as tmp, client:
         before = set(p.name for p in client.get_ports(is_audio=True, is_input=True))
         config = Path(tmp) / "latency.toml"
-        config.write_text(CONFIG.format(port=name))
+        config.write_text(CONFIG.format(port=name, look=look))
         env = {**os.environ, "MIDO_BACKEND": "mido.backends.rtmidi/UNIX_JACK", "JACK_NO_START_SERVER": "1"}
         run = subprocess.Popen([sys.executable, "-m", "creatures.cli", "run", str(config), "--duration",
                                 str(warm_up + 2.0 + onsets * gap + 2.0)] + (["--log", str(log)] if log else []), env=env, stdout=subprocess.PIPE,
@@ -196,13 +197,17 @@ def run(quick: bool) -> list[Row]:
     why = jack_available()
     if why is not None:
         return [Row(f"live onset → answer (skipped: {why})", 0.0, "")]
-    heard = measure(20 if quick else 60)
-    if not heard.latencies:
-        return [Row(f"live onset → answer: none of {heard.played} onsets answered", 0.0, "")]
-    ms = 1e3 * np.array(heard.latencies)
-    return [
-        Row(f"live onset → answering MIDI note, p50 ({len(ms)}/{heard.played} answered)", float(np.median(ms)), "ms",
-            higher_is_better=False),
-        Row("live onset → answering MIDI note, p99 (through JACK)", float(np.percentile(ms, 99)), "ms",
-            target=30.0, higher_is_better=False),
-    ]
+    rows = []
+    for look in ("live", "quick"):  # the quick look is the one made for the 30 ms
+        heard = measure(20 if quick else 60, look=look)
+        if not heard.latencies:
+            rows.append(Row(f"{look} look: onset → answer: none of {heard.played} onsets answered", 0.0, ""))
+            continue
+        ms = 1e3 * np.array(heard.latencies)
+        rows += [
+            Row(f"{look} look: onset → answering MIDI note, p50 ({len(ms)}/{heard.played} answered)",
+                float(np.median(ms)), "ms", higher_is_better=False),
+            Row(f"{look} look: onset → answering MIDI note, p99 (through JACK)", float(np.percentile(ms, 99)), "ms",
+                target=30.0 if look == "quick" else None, higher_is_better=False),
+        ]
+    return rows

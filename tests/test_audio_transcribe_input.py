@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from audio.transcribe import LIVE, OFFLINE, Transcriber
+from audio.transcribe import LIVE, OFFLINE, QUICK, Transcriber
 from creatures.runtime.inputs import phrase_notes, render_notes
 
 PITCHES = [60, 64, 67]
@@ -94,13 +94,15 @@ def test_a_rate_change_mid_stream_keeps_the_timeline() -> None:
     assert abs(heard[1].time - 1.3) < 0.03 and abs(heard[2].time - 2.1) < 0.03
 
 
-def test_live_look_answers_within_50_ms() -> None:
+@pytest.mark.parametrize("look, bound", [(LIVE, 0.05), (QUICK, 0.03)])
+def test_the_live_looks_answer_in_time(look: str, bound: float) -> None:
     """The note event of an attack is given by the block that holds onset + 50 ms (the issue asks 60):
-    3 hops after the hop it lands in (measured at most 38.9 ms with 64-frame blocks)."""
+    3 hops after the hop it lands in (measured at most 38.9 ms with 64-frame blocks); the quick look
+    within 30 ms (4 of its 128-sample hops: measured at most 23.3 ms), every note heard as played."""
     rate = 22050
     played = phrase_notes(start=0.5, gap=4.0)
     x = render_notes(played, rate, 13.0)
-    ear = Transcriber(rate, look=LIVE)
+    ear = Transcriber(rate, look=look)
     block = 64
     given = []  # (when the note event came out, the note)
     for i in range(0, len(x), block):
@@ -108,7 +110,7 @@ def test_live_look_answers_within_50_ms() -> None:
     assert [n.pitch for _, n in given] == [n.pitch for n in played]
     delays = [out - note.time for (out, _), note in zip(given, played)]
     print(f"onset → note event: max {1e3 * max(delays):.1f} ms")
-    assert max(delays) <= 0.05, delays
+    assert max(delays) <= bound, delays
 
 
 def room_noise(seconds: float, rate: int, rng: np.random.Generator, dbfs: float) -> np.ndarray:

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from audio.transcribe import LIVE, OFFLINE, Transcriber
+from audio.transcribe import LIVE, OFFLINE, QUICK, Transcriber
 from bench._sampled import RANGES, chorale, have_sampler, note_f1, random_texture, render, room
 
 pytest.importorskip("mir_eval")
@@ -97,6 +97,17 @@ def test_the_live_look_hears_piano_lines_and_chords_and_a_flute() -> None:
     flute = score("flute", 1, "random", 44100, look=LIVE)
     print(f"live look: piano 1 voice F1 {mono:.3f}, 4 voices {four:.3f}, flute {flute:.3f}")
     assert mono >= 0.9 and four >= 0.75 and flute >= 0.9  # measured 1.000, 0.868 and 0.973
+
+
+@pytest.mark.slow
+def test_the_quick_look_hears_piano_lines_and_chords() -> None:
+    """The quick look (≤ 30 ms from a struck onset to its note event, a model on a finer hop) is
+    made for struck instruments: it hears sampled piano lines and chords to the issue's targets.
+    (It hears flute and guitar lines below 0.9 and string chords poorly: docs/hearing.md.)"""
+    mono = score("piano", 1, "random", 44100, look=QUICK)
+    four = score("piano", 4, "random", 44100, look=QUICK)
+    print(f"quick look: piano 1 voice F1 {mono:.3f}, 4 voices {four:.3f}")
+    assert mono >= 0.9 and four >= 0.75  # measured 0.987 and 0.797
 
 
 @pytest.mark.slow

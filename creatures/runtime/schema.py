@@ -53,6 +53,10 @@ class AudioSection(Strict):
     transcribe: bool | None = Field(None, description="hear the pitched notes of the input audio (file or "
                                                       "microphone) as note events; unset = only when the "
                                                       "run has no MIDI note input")
+    look: Literal["live", "quick"] = Field("live", description="how a live run hears notes in audio: 'live' "
+                                             "answers a struck note within ~40 ms and hears bowed, blown "
+                                             "and chorded notes best; 'quick' within ~25 ms, hearing those "
+                                             "worse (docs/hearing.md); an offline run always looks further")
 
 
 class MidiSection(Strict):

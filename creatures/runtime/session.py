@@ -19,7 +19,7 @@ from typing import Any, Callable
 import numpy as np
 
 from audio.mixer import Mixer
-from audio.transcribe import LIVE, Transcriber
+from audio.transcribe import Transcriber
 from creatures.clock import Clock, clock_gap
 from creatures.events import EventLog
 from creatures.authored.migrate import from_retired
@@ -93,7 +93,7 @@ class Session:
                                     voices=len(self.creatures), diagonal=math.hypot(room.width, room.depth),
                                     longest_block=block)
         self.transcribe = transcribe
-        self.transcribe_look = LIVE  # live: ≤ 60 ms from an attack to its note; offline looks further
+        self.transcribe_look = settings.audio.look  # live or quick (≤ 60 and ≤ 30 ms from an attack to its note); offline looks further
         self._transcriber: Transcriber | None = None
         self.ticks = 0
         self._set_up_channels()
