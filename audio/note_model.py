@@ -103,7 +103,7 @@ class NoteModel:
             w = {k: np.ascontiguousarray(z[k], dtype=np.float32) for k in z.files}
             self.context, self.delay = int(z["context"]), int(z["delay"])
             self.hop = int(z["hop"]) if "hop" in z.files else HOP
-            """Samples between the rows it hears (files before the finer live hop have none: 256)."""
+            """Samples between the rows it hears (files before the quick look's finer hop have none: 256)."""
             self.threshold = float(z["threshold"])
             """P(onset) through which a rise is a note: tuned with the weights (tools/tune_hearing.py)."""
             # The model's own layout, kept with its weights: a file trained with other

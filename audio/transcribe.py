@@ -6,7 +6,7 @@ one stream (measured against each ear alone and basic-pitch's published model in
 ``docs/hearing.md``):
 
 1. **Spectra.** Input of any rate and any number of channels is mixed and resampled to 22.05
-   kHz; every hop (11.6 ms) :class:`audio.logspectrum.LogSpectrum` gives the log-frequency
+   kHz; every hop (11.6 ms; the quick look's 5.8 ms) :class:`audio.logspectrum.LogSpectrum` gives the log-frequency
    spectrum of the samples that end there (a long and a short window).
 2. **The model.** :class:`audio.note_model.NoteModel`, a small network trained on sampled
    instruments, judges each hop a few hops back: per pitch (MIDI 21–108), did a note begin
@@ -56,16 +56,17 @@ from midi.notes import NoteEvent
 
 LIVE, QUICK, OFFLINE = "live", "quick", "offline"
 """The looks: the live one answers within 60 ms of a struck attack (p99 39 ms through JACK), the
-quick one sooner (its model hears a finer hop, 128 samples, and judges 4 of them back: p99 ≤ 30
-ms) but hears bowed and blown notes and chords worse, the offline one hears more
-(docs/hearing.md has each measured)."""
+quick one sooner (its model hears a finer hop, 128 samples, and judges 4 of them back: through
+JACK at a 128-frame period p99 22.6 ms against the live look's 38.6) but hears bowed and blown
+notes and chords worse, the offline one hears more (docs/hearing.md has each measured)."""
 LOOKS = (LIVE, QUICK, OFFLINE)
 EARS = ("onsets", "model")
 WARM_UP = 8
-"""Frames (93 ms) heard before the first note may be taken: the noise floors are learnt first."""
+"""Hops (93 ms) heard before the first note may be taken: the noise floors are learnt first.
+This and every span below is in hops of :data:`HOP` (11.6 ms) whatever the model's grid."""
 SEAM = 12
-"""Frames after a repaired sample, a rate change or a clock gap in which no note is taken
-(the model's context, 8–12 hops, still holds the step)."""
+"""Hops (139 ms) after a repaired sample, a rate change or a clock gap in which no note is taken
+(the model's context, 70–116 ms, still holds the step)."""
 PARTIALS = np.round(12 * np.log2(np.arange(2, 9))).astype(int)
 """Intervals (semitones) of partials 2–8 above a note: where a bright note's partials and
 clipping's distortion land."""
@@ -178,20 +179,20 @@ F32_SWELL = np.array([SWELL, SWELL_ONSET], dtype=np.float32)
 SLOW_RULE = np.array([SLOW_SWELL, QUIET], dtype=np.int64)
 """The slow swell's hops, as the compiled :func:`_beginning` takes them."""
 CLEAR = 16.0
+"""How many times its band's noise floor a note's strongest partial (of its first four) must be:
+a gate for what the model hears in noise. Measured on the current weights: notes heard in a
+minute of brown room noise at −40 dBFS and in white noise at −20 dBFS stood 3–14 times their
+floors; true notes of sampled piano, guitar, strings, organ and flute in a room (noise 30 dB
+below the music) at least 26 times (their 1st percentile)."""
 RIVAL = 0.3
-"""A short look (the quick one: the model judges 23 ms past an attack) often names a note falling
-a semitone a semitone too low in its first frame, while the old note still rings: at its attack
+"""A short look (the quick one: the model judges 23 ms past an attack) often names a note that
+falls a semitone as the semitone below it in its first frame, while the old note rings: at its attack
 the fine model gave the lower neighbour P(onset) 0.53 and P(sounding) 0.73 (a swell), the true
 pitch 0.42 and 0.59, and a frame later 0.18/0.19 against 0.70/0.97. So a quick look's note whose
 semitone neighbour has P(onset) ≥ this in its frame is judged again a frame (5.8 ms) later and
 given only if it sounds at least as surely as its neighbours. Without it the generated phrases
 were not heard note for note at any threshold (tools/tune_hearing.py); the live and offline
 looks, which judge 35 ms and more past an attack, never needed it and do not use it."""
-"""How many times its band's noise floor a note's strongest partial (of its first four) must be:
-a gate for what the model hears in noise. Measured on the current weights: notes heard in a
-minute of brown room noise at −40 dBFS and in white noise at −20 dBFS stood 3–14 times their
-floors; true notes of sampled piano, guitar, strings, organ and flute in a room (noise 30 dB
-below the music) at least 26 times (their 1st percentile)."""
 
 
 def _level_bands() -> np.ndarray:
@@ -221,7 +222,7 @@ class Transcriber:
         if HOP % self.model.hop:
             raise ValueError(f"a note model's hop must divide {HOP} samples, not {self.model.hop}")
         self.hop = self.model.hop
-        """Samples between the frames the model judges (the live look's model hears on a finer
+        """Samples between the frames the model judges (the quick look's model hears on a finer
         grid than the onset ear's :data:`HOP`: an attack is named sooner)."""
         # The note logic's spans (NEAR, QUIET …) are in HOPs (11.6 ms) whatever the model's grid;
         # counted in the model's frames, there are ``per`` to a HOP. The onset ear keeps its grid.
@@ -327,6 +328,7 @@ class Transcriber:
             self._clipping_until = self.spectrum.frames + (hops + 1) * self._per
         x = self._resampler(x)
         if "onsets" in self.ears:
+            # On a finer model grid a candidate takes its hop's first frame (dated 2.9 ms before its middle).
             self._candidates.extend(c._replace(frame=c.frame * self._per) for c in self.ear.feed(x))
         rows = self.spectrum.feed(x)
         judged = self.model(rows)
@@ -360,6 +362,7 @@ class Transcriber:
         self.ear.skip()
         self._candidates.clear()
         self._waiting.clear()
+        self._doubted.clear()
         self.t0 += float(seconds)
 
     # -- per judged frame --------------------------------------------------------------------
@@ -383,7 +386,7 @@ class Transcriber:
             verified = self._verified(c.frame, k) or "model" not in self.ears
             if c.frame >= self._quiet_until and verified and not self._near(c.frame, c.pitch):
                 notes.append(self._give(k, c.frame, c.level_db, by_ear=True))
-        # The model's own onsets wait for the onset ear's; those it explains are not notes again.
+        # The model's own onsets (offline they wait for the onset ear's; those it explains are not notes again).
         rising, swelling, again = self._rising, self._swelling, self._again
         began = _beginning(onset, sounding, self._previous, self._previous_sounding, self._held,
                            np.float32(self.threshold), F32_RESTRIKE, F32_SWELL,

@@ -67,12 +67,12 @@ class _Microphone:
         return block.copy()
 
 
-@pytest.mark.parametrize("look, bound", [("live", 0.05), ("quick", 0.035)])
+@pytest.mark.parametrize("look, bound", [("live", 0.05), ("quick", 0.03)])
 def test_notes_in_the_microphone_are_heard_between_ticks_and_the_tick_still_hears_all_the_audio(look, bound):
     """Read at every look of the live loop (here every 128 samples, 5.8 ms, with no tick at all),
     each note joins the note bus within the transcriber's look of its attack, not at the next
     tick; the tick then gets every sample read since the last one, transcribed once. The config's
-    ``[audio] look`` chooses the transcriber's look (the quick one answers sooner)."""
+    ``[audio] look`` chooses the transcriber's look (measured at most 39.5 ms live, 29.5 ms quick)."""
     from creatures.clock import SimulatedClock
     from creatures.events import EventLog
     from creatures.runtime.microphone_notes import MicrophoneNotes
@@ -93,6 +93,7 @@ def test_notes_in_the_microphone_are_heard_between_ticks_and_the_tick_still_hear
     assert [entry[2].pitch for entry in given] == [n.pitch for n in notes]
     assert sum(count for _, count in when) == len(notes)
     lags = [t - n.time for (t, _), n in zip(when, notes)]
+    print(f"{look}: max lag {1e3 * max(lags):.1f} ms")
     assert max(lags) <= bound, lags  # the look (3 hops after the attack's, quick 4 of 128 samples) and one read, no tick
     assert session._transcriber.look == look
     block = heard.take(len(audio) / SR)

@@ -16,7 +16,7 @@ Used by ``tools/train_hearing.py``; run alone it renders a set::
     python -m tools.hearing_data OUT_DIR --segments 600 --seed 1
 
 or, with ``--from DIR``, gives the sets rendered there the features of another hop (their audio
-is kept for that): the live look's model hears on a finer grid than the offline one::
+is kept for that): the quick look's model hears on a finer grid than the others::
 
     python -m tools.hearing_data OUT_DIR --from DIR --hop 128
 """
@@ -401,6 +401,8 @@ def main() -> None:
     parser.add_argument("--from", dest="source", type=Path, help="a directory of rendered sets: give them --hop's features")
     parser.add_argument("--hop", type=int, default=HOP)
     args = parser.parse_args()
+    if args.hop <= 0 or HOP % args.hop:
+        parser.error(f"--hop must divide {HOP} (the onset ear's hop, which a transcriber's model grid refines), not {args.hop}")
     if args.source is not None:
         for path in sorted(args.source.glob("*.npz")):
             refeature(path, args.out, args.hop)

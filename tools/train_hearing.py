@@ -6,7 +6,9 @@ Needs PyTorch (a development tool only: the project runs the weights in numpy)::
     python -m tools.hearing_data /tmp/hearing --segments 300 --seed 1     # and --seed 2, …
     python -m tools.train_hearing /tmp/hearing audio/models/notes-offline.npz --delay 6 --context 10
     python -m tools.train_hearing /tmp/hearing audio/models/notes-live.npz --delay 3 --context 8
-    python -m tools.tune_hearing audio/models/notes-offline.npz audio/models/notes-live.npz
+    python -m tools.hearing_data /tmp/hearing128 --from /tmp/hearing --hop 128   # the quick look's grid
+    python -m tools.train_hearing /tmp/hearing128 audio/models/notes-quick.npz --delay 4 --context 12 --h1 24
+    python -m tools.tune_hearing audio/models/notes-offline.npz audio/models/notes-live.npz audio/models/notes-quick.npz
 
 Every few thousand steps the weights are exported and scored exactly as they will run — the numpy
 model behind :class:`audio.transcribe.Transcriber`, streaming — on FluidR3_GM renders (the
@@ -136,14 +138,16 @@ def main() -> None:
     parser.add_argument("out", type=Path)
     parser.add_argument("--delay", type=int, default=6)
     parser.add_argument("--context", type=int, default=10)
-    parser.add_argument("--h1", type=int, default=32)  # the shipped weights' shape (both looks)
+    parser.add_argument("--h1", type=int, default=32)  # the live and offline weights' shape (the quick look's: 24)
     parser.add_argument("--h2", type=int, default=48)
     parser.add_argument("--hc", type=int, default=32)
     parser.add_argument("--steps", type=int, default=30000)
     parser.add_argument("--batch", type=int, default=128)
     parser.add_argument("--lr", type=float, default=3e-3)
     parser.add_argument("--every", type=int, default=5000, help="steps between validations (0: none, the latest weights written every 5000)")
-    parser.add_argument("--look", choices=("live", "offline"), help="the look the weights serve (default: live if --delay ≤ 3)")
+    parser.add_argument("--look", choices=("live", "quick", "offline"),
+                        help="the look the weights serve (default: offline if they judge more than 3 hops of 256 samples "
+                             "back, else quick on a finer hop, else live)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--init", type=Path, help="weights to start from (an earlier export of the same shape)")
@@ -160,10 +164,12 @@ def main() -> None:
             onset, mask, sounding = (torch.as_tensor(a) for a in labels(z["notes"], len(rows), float(z["hop"])))
         sets.append((rows, onset, mask, sounding))
         print(f"{f.name}: {len(rows)} frames, {int(onset.sum())} onsets", flush=True)
+    if not sets:
+        raise SystemExit(f"{args.data}: no sets (*.npz); render some with tools.hearing_data")
     if len(hops) != 1:
         raise SystemExit(f"{args.data}: sets of different hops {sorted(hops)}: one model hears one grid")
     hop = hops.pop()
-    look = args.look or ("live" if args.delay * hop <= 3 * HOP else "offline")  # ≤ 35 ms past an attack
+    look = args.look or ("offline" if args.delay * hop > 3 * HOP else "quick" if hop < HOP else "live")
     sizes = np.array([len(s[0]) - args.context for s in sets], dtype=float)
     width = sets[0][0].shape[1]
     net = Net(width, args.context, args.h1, args.h2, args.hc)

@@ -54,9 +54,11 @@ class AudioSection(Strict):
                                                       "microphone) as note events; unset = only when the "
                                                       "run has no MIDI note input")
     look: Literal["live", "quick"] = Field("live", description="how a live run hears notes in audio: 'live' "
-                                             "answers a struck note within ~40 ms and hears bowed, blown "
-                                             "and chorded notes best; 'quick' within ~25 ms, hearing those "
-                                             "worse (docs/hearing.md); an offline run always looks further")
+                                             "names a struck note 35 ms past its attack's hop (p99 39 ms "
+                                             "through JACK at 128 frames) and hears bowed, blown and "
+                                             "chorded notes best; 'quick' 23 ms past it (p99 23 ms), "
+                                             "hearing those worse (docs/hearing.md); an offline run "
+                                             "always looks further")
 
 
 class MidiSection(Strict):
