@@ -119,6 +119,14 @@ SLOW_BACK = 2
 """Hops before a slow swell first sounded (P ≥ :data:`RELEASE`) that its note is dated: the bow's
 attack comes before the model hears it sound. 1–3 were alike on the tuning renders; 0 took their
 mean 0.818 → 0.806 (string chords in a room 0.64 → 0.58)."""
+RISE_FROM = SLOW_BACK
+"""Live (both looks that give a note as soon as it is named), a slow swell's rise
+(:data:`SLOW_RISE`) is measured from this many hops before the pitch was last quiet: a model that
+judges with a shorter look hears a bow sound later, so its last quiet frame already holds the
+bow's first energy. On the TimGM6mb tuning renders (the fourteen textures, seeds 201–202), 0 → 1
+→ 2 hops: the live look's mean F1 0.7793 → 0.7855 → 0.7840, the quick look's 0.7405 → 0.7558 →
+0.7602 (string chords 0.45 → 0.50, in a room 0.41 → 0.48, a string line 0.76 → 0.81); the
+offline look's fell (0.8204 → 0.8187 → 0.8168), so it measures from the quiet frame itself."""
 RESTRIKE = 0.3
 """An onset-ear candidate at a pitch whose note is still followed (sounding) is that note struck
 again only if the model gave the pitch P(onset) ≥ this within a hop before to two after: a
@@ -251,11 +259,12 @@ class Transcriber:
         # onset-ear note's is taken as infinite, it explains its partials whatever their level)
         self._given: deque[tuple[int, int, bool, float]] = deque(maxlen=64)
         self._own_partials = live
+        self._rise_from = RISE_FROM * per if live else 0
         n_long = self.spectrum.long_bands.shape[0]
         self._level_bands = np.minimum(_level_bands(), n_long - 1)
         # The latest rows' frames, levels and bands' noise floors: the last delay + 1 for a note's
         # level and clearance, back as far as a slow swell may have begun for its rise.
-        self._rows: deque[tuple[int, np.ndarray, np.ndarray]] = deque(maxlen=self.model.delay + (SLOW_SWELL + 2) * per)
+        self._rows: deque[tuple[int, np.ndarray, np.ndarray]] = deque(maxlen=self.model.delay + (SLOW_SWELL + 2 + RISE_FROM) * per)
         self._previous = np.zeros(len(PITCHES), dtype=np.float32)  # last judged frame's P(onset)
         self._previous_sounding = np.zeros(len(PITCHES), dtype=np.float32)  # and its P(sounding)
         # Per judged frame, per pitch: a followed note ends, a note begins (either way), by a swell.
@@ -428,7 +437,7 @@ class Transcriber:
     def _rose(self, k: int, levels: np.ndarray) -> bool:
         """Whether pitch index ``k``'s first four partials (``levels``, now) rose by
         :data:`SLOW_RISE` since the last frame it was quiet: a slow swell that brought its own energy."""
-        before = [level[k] for f, level, _ in self._rows if f <= self._quiet_at[k]]
+        before = [level[k] for f, level, _ in self._rows if f <= self._quiet_at[k] - self._rise_from]
         return not before or float(np.max(levels - before[-1])) >= SLOW_RISE
 
     def _verified(self, frame: int, k: int) -> bool:
