@@ -104,6 +104,8 @@ class NoteModel:
             self.context, self.delay = int(z["context"]), int(z["delay"])
             self.hop = int(z["hop"]) if "hop" in z.files else HOP
             """Samples between the rows it hears (files before the quick look's finer hop have none: 256)."""
+            self.reach = self.delay * self.hop
+            """Samples it hears past the frame it judges: a live look's model reaches at most 3 :data:`HOP`."""
             self.threshold = float(z["threshold"])
             """P(onset) through which a rise is a note: tuned with the weights (tools/tune_hearing.py)."""
             # The model's own layout, kept with its weights: a file trained with other

@@ -252,7 +252,7 @@ class Transcriber:
         # The model's notes: (frame, pitch index, level, root, struck again: a note only in a chord).
         self._waiting: deque[tuple[int, int, float, float, bool]] = deque()
         # A short look's notes whose semitone neighbour began with them: judged again a frame later (RIVAL).
-        self._rivals = self.model.delay * self.hop < 3 * HOP
+        self._rivals = self.model.reach < 3 * HOP
         self._doubted: list[tuple[int, int, float, float, bool]] = []
         self._recent: deque[tuple[int, np.ndarray, np.ndarray]] = deque(maxlen=(2 * NEAR + 4) * per)  # (frame, P(sounding), P(onset))
         # (frame, pitch, by the onset ear, its root: the level of its fundamental's band; an

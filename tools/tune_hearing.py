@@ -20,6 +20,7 @@ import numpy as np
 
 import bench._sampled as sampled
 from audio.logspectrum import HOP
+from audio.note_model import NoteModel
 from audio.transcribe import Transcriber
 from creatures.runtime.inputs import phrase_notes, render_notes
 
@@ -35,8 +36,7 @@ TUNING_SOUNDFONT = Path("/usr/share/sounds/sf2/TimGM6mb.sf2")
 
 def heard(model: Path, threshold: float, audio: np.ndarray) -> tuple[list[int], list[tuple[float, float, int]]]:
     """The pitches given, in the order given, and the notes with their measured ends."""
-    with np.load(model) as z:  # a live model looks at most 3 hops of 256 samples (35 ms) past an attack
-        look = "live" if int(z["delay"]) * int(z["hop"] if "hop" in z.files else HOP) <= 3 * HOP else "offline"
+    look = "live" if NoteModel(model).reach <= 3 * HOP else "offline"  # a live look hears ≤ 35 ms past an attack
     ear = Transcriber(22050, look=look, model=model, threshold=threshold)
     ear.ended = type(ear.ended)()
     given = [n.pitch for i in range(0, len(audio), 2048) for n in ear.feed(audio[i:i + 2048])]
