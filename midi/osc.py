@@ -261,6 +261,7 @@ class OscListener:
         self.received_bytes = 0  # every datagram read, taken or not (an oversize one: what was read of it)
         self.clamped = 0
         self.sent_bytes = 0  # asks (answers to hellos, midi.peer_table)
+        self.send_errors = 0  # asks the kernel would not send (a loaded machine's full queue)
         self.dropped: Counter[str] = Counter()
         self._budget = Bucket(max_rate, max(BURST, max_rate / 4))
 
@@ -349,20 +350,23 @@ class OscListener:
         self._budget.tokens -= taken
         return heard
 
-    def ask(self, address: tuple[str, int], name: str, token: int, *, at_most: int) -> bool:
+    def ask(self, address: tuple[str, int], name: str, token: int, *, at_most: int) -> str:
         """Ask ``address``, as creature ``name``, to say hello with ``token``: from this socket,
         so the asked colony knows where we listen; only if that takes no more than ``at_most``
-        bytes (the size of the hello that provoked it). True if sent."""
+        bytes (the size of the hello that provoked it). ``"sent"``, ``"large"`` (not sent), or
+        ``"failed"``: the kernel refused the send (counted in :attr:`send_errors`; a loaded
+        machine's full queue, not a fault of the hello's, so not a refusal of it)."""
         builder = OscMessageBuilder(f"/creature/{name}/ask")
         builder.add_arg(token, "i")
         dgram = builder.build().dgram
         if len(dgram) > at_most:
-            return False
+            return "large"
         try:
             self.sent_bytes += self.socket.sendto(dgram, address)
         except OSError:
-            return False
-        return True
+            self.send_errors += 1
+            return "failed"
+        return "sent"
 
     def counts(self) -> dict[str, object]:
         """The counters, for the events log and the end-of-run summary."""
@@ -452,8 +456,9 @@ def answer_hello(table: PeerTable, listener: OscListener, name: str, heard: Hear
     address = (heard.sender[0], heard.args[0])
     verdict = table.hello(heard.creature, address, heard.args[1] if len(heard.args) == 2 else None, t)
     if verdict == "ask":
-        if listener.ask(address, name, table.token(address), at_most=heard.size):
+        asked = listener.ask(address, name, table.token(address), at_most=heard.size)
+        if asked == "sent":
             table.asked += 1
-        else:
+        elif asked == "large":
             table.refused["large"] += 1
     return verdict

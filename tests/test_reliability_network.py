@@ -249,7 +249,10 @@ def test_hellos_from_addresses_that_do_not_hear_us_earn_an_ask_no_larger_than_th
     counts = network.counts()
     assert counts["peers"] == 0 and network.table.targets == {}
     assert counts["asked"] <= ASK_RATE * 31  # a burst, then ASK_RATE a second
-    assert counts["asked"] + counts["refused"]["rate"] == 3000
+    # every hello is accounted for: asked, refused as too fast, or its ask refused by a loaded
+    # kernel (one of 3,000 once, on a CI run sharing two cores: counted, not lost)
+    assert counts["asked"] + counts["refused"]["rate"] + counts["send_errors"] == 3000
+    assert counts["send_errors"] <= 30
     assert counts["received_bytes"] == sent
     assert counts["sent_bytes"] <= counts["received_bytes"] / 4  # the asks, each ≤ its hello
     assert not [e for e in session.log.records if e["kind"] == "peer"]

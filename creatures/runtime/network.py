@@ -224,7 +224,7 @@ class Network:
         return {**self.listener.counts(), "refused": refused, "asked": self.table.asked,
                 "peers": len(self.table.where),
                 "sent_bytes": self.listener.sent_bytes + sum(s.sent_bytes for s in self.senders.values()),
-                "send_errors": sum(s.send_errors for s in self.senders.values()),
+                "send_errors": self.listener.send_errors + sum(s.send_errors for s in self.senders.values()),
                 "log_suppressed": log_limit.suppressed()}
 
     def log_counts(self) -> None:
