@@ -97,7 +97,7 @@ first sounding ≥ 0.3 0–9 hops after their attack). Live it is given when so 
 SLOW_SWELL hops later than a struck note would be: a bowed chord heard late is better than one
 not heard (dated, as every note is, where its attack was heard: see :data:`SLOW_BACK`). It must
 also have been quiet for :data:`QUIET` hops first and brought :data:`SLOW_RISE` to its partials,
-and is dated :data:`SLOW_BACK` hops before it first sounded. Chosen on TimGM6mb renders (seeds
+and is dated :data:`SLOW_BACK` hops before it first sounded (live, :data:`SLOW_BACK_LIVE`). Chosen on TimGM6mb renders (seeds
 201–202) of the eight tuning textures and six more (string and organ chords; string, piano and
 guitar chords and a flute in a room), never on FluidR3, among windows 6, 10, 16, quiets 4–24,
 rises 0.35–2.1 and 0–3 hops back: the fourteen's mean F1 offline 0.792 → 0.818 (string chords
@@ -116,10 +116,23 @@ energy. A piano note ended and heard sounding again 0.3 s later, while a high no
 it, had partials decaying, not rising. Without this gate the tuning renders' mean was 0.783
 (piano lines 0.98 → 0.92, flute lines 0.96 → 0.80); 0.7–1.4 alike, 2.1 lost string chords."""
 SLOW_BACK = 2
-"""Hops before a slow swell first sounded (P ≥ :data:`RELEASE`) that its note is dated: the bow's
-attack comes before the model hears it sound. 1–3 were alike on the tuning renders; 0 took their
-mean 0.818 → 0.806 (string chords in a room 0.64 → 0.58)."""
-RISE_FROM = SLOW_BACK
+"""Hops before a slow swell first sounded (P ≥ :data:`RELEASE`) that its note is dated offline:
+the bow's attack comes before the model hears it sound. 1–3 were alike on the tuning renders; 0
+took their mean 0.818 → 0.806 (string chords in a room 0.64 → 0.58). Chosen again with the
+thresholds and :data:`RISE_FROM` of 2026-12-06, 2 → 3 → 4 hops: 0.8204 → 0.8247 → 0.8246, on
+validation (FluidR3, seeds 101–102) 0.7857 → 0.7866 → 0.7853, and on the tests' seed guitar
+lines 0.923 → 0.911 at 3: within the noise, so 2 was kept."""
+SLOW_BACK_LIVE = 4
+""":data:`SLOW_BACK` for the looks that give a note as soon as it is named: a model that judges
+with a shorter look hears a bow sound later (as :data:`RISE_FROM` says), so its note is dated
+further back. On the tuning renders 2 → 3 → 4 → 5 hops: the live look's mean F1 0.7840 → 0.7920
+→ 0.7962 → 0.7951 (string chords 0.62 → 0.66, in a room 0.55 → 0.62), the quick look's 0.7602 →
+0.7647 → 0.7703 → 0.7672; on validation (FluidR3, seeds 101–102, eleven textures) live 0.7405
+→ 0.7568 (string chords in a room 0.568 → 0.639, the organ chorale 0.416 → 0.470), quick 0.686
+→ 0.722 (0.425 → 0.574). Dating by where the partials' rise crossed a tenth of its height did
+no better (tuning, live 0.7948). On the tests' seed the live look's 4-voice piano fell 0.867 →
+0.847, its string chords in a room rose 0.415 → 0.523."""
+RISE_FROM = 2
 """Live (both looks that give a note as soon as it is named), a slow swell's rise
 (:data:`SLOW_RISE`) is measured from this many hops before the pitch was last quiet: a model that
 judges with a shorter look hears a bow sound later, so its last quiet frame already holds the
@@ -247,7 +260,7 @@ class Transcriber:
         # its attack's (the quick look: 4 of its 128-sample hops), and a block (see LATE).
         self._verify_after = 0 if live else NEAR * per
         self._hold = 0 if live else max(0, (self.ear.delay_frames + LATE) * per - self.model.delay) + self._verify_after
-        self._near_frames, self._slow_back, self._slow_rule = NEAR * per, SLOW_BACK * per, SLOW_RULE * per
+        self._near_frames, self._slow_rule = NEAR * per, SLOW_RULE * per
         self._candidates: deque[Candidate] = deque()
         # The model's notes: (frame, pitch index, level, root, struck again: a note only in a chord).
         self._waiting: deque[tuple[int, int, float, float, bool]] = deque()
@@ -260,6 +273,7 @@ class Transcriber:
         self._given: deque[tuple[int, int, bool, float]] = deque(maxlen=64)
         self._own_partials = live
         self._rise_from = RISE_FROM * per if live else 0
+        self._slow_back = (SLOW_BACK_LIVE if live else SLOW_BACK) * per
         n_long = self.spectrum.long_bands.shape[0]
         self._level_bands = np.minimum(_level_bands(), n_long - 1)
         # The latest rows' frames, levels and bands' noise floors: the last delay + 1 for a note's

@@ -96,7 +96,7 @@ def test_the_live_look_hears_piano_lines_and_chords_and_a_flute() -> None:
     four = score("piano", 4, "random", 44100, look=LIVE)
     flute = score("flute", 1, "random", 44100, look=LIVE)
     print(f"live look: piano 1 voice F1 {mono:.3f}, 4 voices {four:.3f}, flute {flute:.3f}")
-    assert mono >= 0.9 and four >= 0.75 and flute >= 0.9  # measured 1.000, 0.867 and 0.973
+    assert mono >= 0.9 and four >= 0.75 and flute >= 0.9  # measured 1.000, 0.847 and 0.973
 
 
 @pytest.mark.slow
@@ -121,7 +121,7 @@ def test_the_live_look_does_not_give_a_bright_note_s_partials_as_notes() -> None
     # measured 0.960: the 0.9 for a line, met live since the live threshold was tuned again
     # with the slow swell (2026-12-06; 0.857 before, 0.766 before the rule; the onset ear alone 0.873)
     assert line >= 0.9
-    assert chorale >= 0.78  # measured 0.906 (0.778 before the rule): its chords are kept
+    assert chorale >= 0.78  # measured 0.902 (0.778 before the rule): its chords are kept
 
 
 def test_a_silent_or_random_transcriber_would_fail() -> None:
