@@ -115,6 +115,15 @@ four partials must have risen since the last hop it was quiet: a new note brings
 energy. A piano note ended and heard sounding again 0.3 s later, while a high note sounded over
 it, had partials decaying, not rising. Without this gate the tuning renders' mean was 0.783
 (piano lines 0.98 → 0.92, flute lines 0.96 → 0.80); 0.7–1.4 alike, 2.1 lost string chords."""
+SLOW_RISE_SHORT = 1.0
+""":data:`SLOW_RISE` for a model that judges less than 3 hops (35 ms) past a frame (the quick
+look, 23 ms): the level a rise is measured to is the loudest of the rows that judged the frame,
+and a shorter look's rows have heard less of a bow's swell. On the tuning renders (seeds
+201–202, the fourteen textures, with :data:`SLOW_BACK_LIVE`) 0.7 → 0.85 → 1.0 → 1.2 → 1.4 gave the
+quick look's mean F1 0.7753 → 0.7773 → 0.7772 → 0.7743 → 0.7703 (a string line 0.82 → 0.86); on
+validation (FluidR3 101–102, eleven textures) 1.4 → 1.0: 0.722 → 0.735 (flute 0.865 → 0.888,
+string chords in a room 0.574 → 0.610). The live look's tuning mean moved by 0.0015 (0.7962 →
+0.7977), within the noise, so it keeps 1.4."""
 SLOW_BACK = 2
 """Hops before a slow swell first sounded (P ≥ :data:`RELEASE`) that its note is dated offline:
 the bow's attack comes before the model hears it sound. 1–3 were alike on the tuning renders; 0
@@ -265,7 +274,9 @@ class Transcriber:
         # The model's notes: (frame, pitch index, level, root, struck again: a note only in a chord).
         self._waiting: deque[tuple[int, int, float, float, bool]] = deque()
         # A short look's notes whose semitone neighbour began with them: judged again a frame later (RIVAL).
-        self._rivals = self.model.reach < 3 * HOP
+        short = self.model.reach < 3 * HOP
+        self._rivals = short
+        self._slow_rise = SLOW_RISE_SHORT if short else SLOW_RISE
         self._doubted: list[tuple[int, int, float, float, bool]] = []
         self._recent: deque[tuple[int, np.ndarray, np.ndarray]] = deque(maxlen=(2 * NEAR + 4) * per)  # (frame, P(sounding), P(onset))
         # (frame, pitch, by the onset ear, its root: the level of its fundamental's band; an
@@ -450,9 +461,10 @@ class Transcriber:
 
     def _rose(self, k: int, levels: np.ndarray) -> bool:
         """Whether pitch index ``k``'s first four partials (``levels``, now) rose by
-        :data:`SLOW_RISE` since the last frame it was quiet: a slow swell that brought its own energy."""
+        :data:`SLOW_RISE` (:data:`SLOW_RISE_SHORT`) since the last frame it was quiet: a slow swell that
+        brought its own energy."""
         before = [level[k] for f, level, _ in self._rows if f <= self._quiet_at[k] - self._rise_from]
-        return not before or float(np.max(levels - before[-1])) >= SLOW_RISE
+        return not before or float(np.max(levels - before[-1])) >= self._slow_rise
 
     def _verified(self, frame: int, k: int) -> bool:
         """Whether the model heard pitch index ``k`` sound from two hops before ``frame`` on (and,
