@@ -224,7 +224,25 @@ def check_wire(data: bytes, depth: int = 0, *, elsewhere: bool = False) -> None:
         raise Refused("type tags", f"more than {MAX_ELSEWHERE_ARGS} arguments, or a type python-osc cannot read")
 
 
-class OscListener:
+class _Sends:
+    """A UDP socket's sends, counted: the bytes that left and the sends that raised (a peer that
+    is gone, a send the kernel refused). One failed send must not stop the others, nor be lost."""
+
+    socket: socket.socket
+    sent_bytes: int
+    send_errors: int
+
+    def _send_to(self, dgram: bytes, address: tuple[str, int]) -> bool:
+        """Send ``dgram`` to ``address``; whether it left."""
+        try:
+            self.sent_bytes += self.socket.sendto(dgram, address)
+        except OSError:
+            self.send_errors += 1
+            return False
+        return True
+
+
+class OscListener(_Sends):
     """A non-blocking UDP socket read once a tick; never raises on what arrives.
 
     ``dropped`` counts what was not taken, by cause: ``oversize``, ``not osc``, ``address``
@@ -361,12 +379,7 @@ class OscListener:
         dgram = builder.build().dgram
         if len(dgram) > at_most:
             return "large"
-        try:
-            self.sent_bytes += self.socket.sendto(dgram, address)
-        except OSError:
-            self.send_errors += 1
-            return "failed"
-        return "sent"
+        return "sent" if self._send_to(dgram, address) else "failed"
 
     def counts(self) -> dict[str, object]:
         """The counters, for the events log and the end-of-run summary."""
@@ -377,7 +390,7 @@ class OscListener:
         self.socket.close()
 
 
-class OscSender:
+class OscSender(_Sends):
     """Speaks for creature ``name`` to its peers, keyed by peer name.
 
     ``peers`` may be a table shared by several senders (the creatures of one colony speak to
@@ -403,7 +416,6 @@ class OscSender:
         for peer, address in self.peers.items():
             token = tokens.get(peer) if tokens else None
             self._send_to(plain if token is None else self._message("hello", [port, token]).dgram, address)
-
 
     def note(self, note: NoteEvent, *, at: float | None = None) -> None:
         """Say ``note``; with ``at`` (when it sounds, seconds since the Unix epoch) the message
@@ -439,12 +451,6 @@ class OscSender:
     def _deliver(self, dgram: bytes) -> None:
         for address in self.peers.values():
             self._send_to(dgram, address)
-
-    def _send_to(self, dgram: bytes, address: tuple[str, int]) -> None:
-        try:
-            self.sent_bytes += self.socket.sendto(dgram, address)
-        except OSError:  # a peer that is gone must not stop the others hearing us
-            self.send_errors += 1
 
     def close(self) -> None:
         self.socket.close()
