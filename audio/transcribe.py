@@ -273,10 +273,10 @@ class Transcriber:
         self._candidates: deque[Candidate] = deque()
         # The model's notes: (frame, pitch index, level, root, struck again: a note only in a chord).
         self._waiting: deque[tuple[int, int, float, float, bool]] = deque()
-        # A short look's notes whose semitone neighbour began with them: judged again a frame later (RIVAL).
-        short = self.model.reach < 3 * HOP
-        self._rivals = short
-        self._slow_rise = SLOW_RISE_SHORT if short else SLOW_RISE
+        # A short look (the model judges < 3 HOPs back): a note whose semitone neighbour began with
+        # it is judged again a frame later (RIVAL), and a slow swell need rise less (SLOW_RISE_SHORT).
+        self._short = self.model.reach < 3 * HOP
+        self._slow_rise = SLOW_RISE_SHORT if self._short else SLOW_RISE
         self._doubted: list[tuple[int, int, float, float, bool]] = []
         self._recent: deque[tuple[int, np.ndarray, np.ndarray]] = deque(maxlen=(2 * NEAR + 4) * per)  # (frame, P(sounding), P(onset))
         # (frame, pitch, by the onset ear, its root: the level of its fundamental's band; an
@@ -449,7 +449,7 @@ class Transcriber:
                     at = int(self._quiet_at[k]) + 1 - self._slow_back
                 note = (at, int(k), level_db, float(levels[k, 0]), bool(again[k]))
                 neighbours = onset[[j for j in (k - 1, k + 1) if 0 <= j < len(onset)]]
-                (self._doubted if self._rivals and neighbours.max() >= RIVAL else self._waiting).append(note)
+                (self._doubted if self._short and neighbours.max() >= RIVAL else self._waiting).append(note)
         while self._waiting and self._waiting[0][0] <= frame - self._hold:
             f, k, level_db, root, struck_again = self._waiting.popleft()
             chord = self._in_chord(f)
