@@ -23,7 +23,8 @@ Three stages, each one cheap matrix product per hop:
    confusions live (octaves, twelfths, the 5th and 6th partials, fifths, fourths, thirds, the
    semitones beside it) — an octave heard because the note below is bright is withdrawn here.
 
-The weights (``audio/models/notes-{live,offline}.npz``: ~21 and ~24 thousand) are trained by
+The weights (``audio/models/notes-{live,offline}.npz``: ~21 thousand, and a committee of two
+models of ~24 thousand each offline) are trained by
 ``tools/train_hearing.py`` on audio rendered by fluidsynth from three General MIDI soundfonts —
 never a program that plays the samples of FluidR3_GM, the soundfont the tests and the bench
 score on — and loaded from a ``.npz`` of plain arrays with the model's layout (never a pickle).
@@ -93,33 +94,40 @@ class Judged:
 
 
 class NoteModel:
-    """Runs trained weights over a stream of :class:`audio.logspectrum.LogSpectrum` rows."""
+    """Runs trained weights over a stream of :class:`audio.logspectrum.LogSpectrum` rows.
+
+    A file may hold a *committee*: several sets of weights trained apart (another seed, another
+    shape of look) that judge the same rows, their probabilities averaged. Two models err on
+    different notes more than on the same ones, so the mean is surer than either: measured on the
+    offline look, 2026-12-06 (docs/hearing.md, "A committee"). The first set's keys are plain
+    (``w1`` …, so a one-model file is a committee of one); the others' carry ``m1.``, ``m2.`` …
+    (:func:`join`, ``tools/committee.py``, joins exports). All hear one grid (one ``hop``); a
+    member that looks less far past the frame it judges (a smaller ``delay``) is held back to
+    judge the frame the others judge."""
 
     def __init__(self, path: Path | str) -> None:
         with np.load(path, allow_pickle=False) as z:
-            missing = sorted(set(FILE_KEYS) - set(z.files))
+            files = {k: z[k] for k in z.files}
+        members = [files] + [{k[len(f"m{i}."):]: v for k, v in files.items() if k.startswith(f"m{i}.")}
+                             for i in range(1, 1 + sum(k.startswith("m") and k.endswith(".w1") for k in files))]
+        for i, member in enumerate(members):
+            missing = sorted(set(FILE_KEYS) - set(member))
             if missing:
-                raise ValueError(f"{path}: not a note model's weights (no {', '.join(missing)})")
-            w = {k: np.ascontiguousarray(z[k], dtype=np.float32) for k in z.files}
-            self.context, self.delay = int(z["context"]), int(z["delay"])
-            self.hop = int(z["hop"]) if "hop" in z.files else HOP
-            """Samples between the rows it hears (files before the quick look's finer hop have none: 256)."""
-            self.reach = self.delay * self.hop
-            """Samples it hears past the frame it judges: a live look's model reaches at most 3 :data:`HOP`."""
-            self.threshold = float(z["threshold"])
-            """P(onset) through which a rise is a note: tuned with the weights (tools/tune_hearing.py)."""
-            # The model's own layout, kept with its weights: a file trained with other
-            # intervals or harmonics runs as it was trained.
-            harmonics, short, cross = (tuple(z[k].tolist()) for k in ("harmonics", "short_harmonics", "cross"))
-        self._weights = tuple(w[k] for k in WEIGHTS)
-        self.width = LogSpectrum().width
-        self._stack = stack_index(self.width, harmonics, short)
-        self._cross = cross_index(cross)
-        # Stage 1's last ``context`` outputs, a ring (oldest at ``_head``), begun as silence.
-        b1 = w["b1"]
-        self._ring = np.repeat(np.maximum(b1, 0.0)[None], self.context, axis=0)
-        self._head = 0
-        self._previous = np.zeros(self.width, dtype=np.float32)  # the last row (silence before the first)
+                whose = "" if i == 0 else f" (member {i})"
+                raise ValueError(f"{path}: not a note model's weights{whose} (no {', '.join(missing)})")
+        self._members = [_Member(m) for m in members]
+        if len({m.hop for m in self._members}) > 1:
+            raise ValueError(f"{path}: a committee's members must hear one grid, not hops of "
+                             f"{sorted({m.hop for m in self._members})} samples")
+        self.hop = self._members[0].hop
+        self.delay = max(m.delay for m in self._members)
+        for member in self._members:  # a member that looks less far ahead is heard later, with the others
+            member.hold(self.delay - member.delay)
+        self.context = max(m.context for m in self._members)
+        self.reach = self.delay * self.hop
+        """Samples it hears past the frame it judges: a live look's model reaches at most 3 :data:`HOP`."""
+        self.threshold = float(members[0]["threshold"])
+        """P(onset) through which a rise is a note: tuned with the weights (tools/tune_hearing.py)."""
         self.frames = 0
 
     def __call__(self, rows: np.ndarray) -> Judged | None:
@@ -127,13 +135,60 @@ class NoteModel:
         n = len(rows)
         if n == 0:
             return None
-        onset = np.empty((n, len(PITCHES)), dtype=np.float32)
-        sounding = np.empty_like(onset)
-        self._head = _judge(np.ascontiguousarray(rows, dtype=np.float32), self._previous, self._stack, self._cross,
-                            self._ring, self._head, *self._weights, onset, sounding)
+        rows = np.ascontiguousarray(rows, dtype=np.float32)
+        onset = np.zeros((n, len(PITCHES)), dtype=np.float32)
+        sounding = np.zeros_like(onset)
+        for member in self._members:
+            member.judge(rows, onset, sounding)
+        if len(self._members) > 1:
+            onset /= len(self._members)
+            sounding /= len(self._members)
         first = self.frames - self.delay
         self.frames += n
         return Judged(first, onset, sounding)
+
+
+class _Member:
+    """One set of weights of a :class:`NoteModel` and its stream's state (its context ring and
+    the row before), adding its judgement to the committee's sums."""
+
+    def __init__(self, w: dict[str, np.ndarray]) -> None:
+        self.context, self.delay = int(w["context"]), int(w["delay"])
+        self.hop = int(w["hop"]) if "hop" in w else HOP
+        """Samples between the rows it hears (files before the quick look's finer hop have none: 256)."""
+        # The model's own layout, kept with its weights: a file trained with other
+        # intervals or harmonics runs as it was trained.
+        harmonics, short, cross = (tuple(w[k].tolist()) for k in ("harmonics", "short_harmonics", "cross"))
+        self._weights = tuple(np.ascontiguousarray(w[k], dtype=np.float32) for k in WEIGHTS)
+        width = LogSpectrum().width
+        self._stack = stack_index(width, harmonics, short)
+        self._cross = cross_index(cross)
+        # Stage 1's last ``context`` outputs, a ring (oldest at ``_head``), begun as silence.
+        b1 = self._weights[WEIGHTS.index("b1")]
+        self._ring = np.repeat(np.maximum(b1, 0.0)[None], self.context, axis=0)
+        self._head = 0
+        self._previous = np.zeros(width, dtype=np.float32)  # the last row (silence before the first)
+        self._onset = self._sounding = np.empty((0, len(PITCHES)), dtype=np.float32)
+        self.hold(0)
+
+    def hold(self, rows: int) -> None:
+        """Hold its judgements back ``rows`` rows: the committee looks further ahead than it."""
+        self.lag = rows
+        self._held = (np.zeros((rows, len(PITCHES)), np.float32),) * 2  # before the stream: nothing sounds
+
+    def judge(self, rows: np.ndarray, onset: np.ndarray, sounding: np.ndarray) -> None:
+        """Add this member's P(onset) and P(sounding) for ``rows``' judged frames to the sums."""
+        n = len(rows)
+        if len(self._onset) < n:
+            self._onset, self._sounding = np.empty_like(onset), np.empty_like(sounding)
+        mine, also = self._onset[:n], self._sounding[:n]
+        self._head = _judge(rows, self._previous, self._stack, self._cross, self._ring, self._head,
+                            *self._weights, mine, also)
+        if self.lag:  # its judgements of the committee's frames came ``lag`` rows ago
+            mine, also = np.concatenate([self._held[0], mine]), np.concatenate([self._held[1], also])
+            self._held = (mine[n:].copy(), also[n:].copy())
+        onset += mine[:n]
+        sounding += also[:n]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -195,6 +250,28 @@ def _biased_relu(x, bias):  # pragma: no cover
         for j in range(x.shape[1]):
             x[p, j] = max(x[p, j] + bias[j], 0.0)
     return x
+
+
+def join(out: Path | str, members: list[Path | str]) -> None:
+    """Write single models' exports as one committee file (see :class:`NoteModel`), atomically.
+    Its onset threshold is reset to 0.5: a committee's is its own (tools/tune_hearing.py)."""
+    keys: dict[str, np.ndarray] = {}
+    for i, path in enumerate(members):
+        with np.load(path, allow_pickle=False) as z:
+            if any(k.startswith("m1.") for k in z.files):
+                raise ValueError(f"{path}: already a committee; join single models")
+            prefix = "" if i == 0 else f"m{i}."
+            keys.update({prefix + k: z[k] for k in z.files if k in FILE_KEYS or k == "hop"})
+    keys["threshold"] = np.array(0.5)
+    out = Path(out)
+    part = out.with_name(out.name + ".part.npz")
+    np.savez(part, **keys)
+    try:
+        NoteModel(part)  # refuses members that hear different grids, before anything is replaced
+    except ValueError:
+        part.unlink()
+        raise
+    part.replace(out)
 
 
 def default(look: str) -> Path:

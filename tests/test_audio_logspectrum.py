@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from audio.logspectrum import HOP, RATE, LogSpectrum, midi_hz
-from audio.note_model import NoteModel, default
+from audio.note_model import NoteModel, default, join
 from audio.transcribe import Transcriber
 
 
@@ -70,3 +70,37 @@ def test_a_file_that_is_not_a_note_model_is_refused_by_name(tmp_path) -> None:
     np.savez(path, w1=np.zeros((78, 32)), context=np.array(8))
     with pytest.raises(ValueError, match="not a note model's weights .*delay"):
         NoteModel(path)
+
+
+def _chord_rows() -> np.ndarray:
+    t = np.arange(RATE) / RATE
+    chord = sum(np.sin(2 * np.pi * midi_hz(p) * k * t) / k for p in (48, 55, 64) for k in range(1, 5))
+    return LogSpectrum().feed(np.r_[np.zeros(RATE // 4), 0.05 * chord].astype(np.float32))
+
+
+def test_a_committee_averages_its_members_and_holds_back_one_that_looks_less_far(tmp_path) -> None:
+    """A committee (audio/note_model.py, ``join``) of one model and the same weights told to judge
+    2 hops further back: its judgement of a frame is the mean of the model's judgement of that
+    frame and of the frame 2 hops later (what the second member, looking 2 hops less far past the
+    frame it names, said), so each member judges the committee's frame."""
+    live = default("live")
+    with np.load(live) as z:
+        later = {k: z[k] for k in z.files}
+    later["delay"] = np.array(int(later["delay"]) + 2)
+    np.savez(tmp_path / "later.npz", **later)
+    join(tmp_path / "both.npz", [live, tmp_path / "later.npz"])
+    rows = _chord_rows()
+    alone, both = NoteModel(live)(rows), NoteModel(tmp_path / "both.npz")(rows)
+    assert both.frame == alone.frame - 2 and NoteModel(tmp_path / "both.npz").threshold == 0.5
+    for mine, ours in ((alone.onset, both.onset), (alone.sounding, both.sounding)):
+        np.testing.assert_allclose(ours[2:], (mine[:-2] + mine[2:]) / 2, atol=1e-6)
+        np.testing.assert_allclose(ours[:2], mine[:2] / 2, atol=1e-6)  # nothing was held before the stream
+    assert alone.sounding.max() > 0.9  # the chord sounds: the means above are of something
+
+
+def test_a_committee_of_models_on_different_grids_or_of_committees_is_refused(tmp_path) -> None:
+    with pytest.raises(ValueError, match="one grid"):
+        join(tmp_path / "mixed.npz", [default("live"), default("quick")])
+    assert not list(tmp_path.iterdir())  # nothing half-written is left
+    with pytest.raises(ValueError, match="already a committee"):
+        join(tmp_path / "twice.npz", [default("offline"), default("live")])

@@ -4,7 +4,9 @@ Needs PyTorch (a development tool only: the project runs the weights in numpy)::
 
     pip install torch
     python -m tools.hearing_data /tmp/hearing --segments 300 --seed 1     # and --seed 2, …
-    python -m tools.train_hearing /tmp/hearing audio/models/notes-offline.npz --delay 6 --context 10
+    python -m tools.train_hearing /tmp/hearing first.npz --delay 6 --context 10
+    python -m tools.train_hearing /tmp/hearing second.npz --delay 6 --context 10 --seed 1 --threads 1
+    python -m tools.committee audio/models/notes-offline.npz first.npz second.npz   # offline: a committee of two
     python -m tools.train_hearing /tmp/hearing audio/models/notes-live.npz --delay 3 --context 8
     python -m tools.hearing_data /tmp/hearing128 --from /tmp/hearing --hop 128   # the quick look's grid
     python -m tools.train_hearing /tmp/hearing128 audio/models/notes-quick.npz --delay 4 --context 12 --h1 24
@@ -15,7 +17,9 @@ model behind :class:`audio.transcribe.Transcriber`, streaming — on FluidR3_GM 
 soundfont held out of training) of the tests' textures (other seeds than the tests' and the
 bench's), with mir_eval's note F1; the best export is kept. ``--init`` continues from an export
 (the shipped weights had a first round of 12,000 steps at 3e-3, then rounds at 1e-3 and 7e-4
-with material added: organ registrations and plain tones, then clipped rooms).
+with material added: organ registrations and plain tones, then clipped rooms; the offline
+committee's second member, 2026-12-06, is one round of 30,000 steps from scratch, seed 1, its
+last weights).
 """
 
 from __future__ import annotations
