@@ -81,7 +81,7 @@ def _plot_selections(events: list[dict], path: Path) -> Path | None:
         return None
     rows = sorted({(e.get("creature", ""), e["tuple"]) for e in chosen})
     index = {row: i for i, row in enumerate(rows)}
-    fig, ax = plt.subplots(figsize=(9, 0.6 + 0.22 * len(rows)))
+    fig, ax = plt.subplots(figsize=(9, 1.4 + 0.22 * len(rows)))  # 1.4 in: the title and the time axis, for one row too
     ax.scatter([e["t"] for e in chosen], [index[(e.get("creature", ""), e["tuple"])] for e in chosen], s=6, marker="|")
     ax.set_yticks(range(len(rows)), [f"{c}: {t}" for c, t in rows], fontsize=6)
     ax.set_xlabel("time (s)")
