@@ -113,15 +113,25 @@ def cache_dir() -> Path:
     return path
 
 
+def fluidsynth(soundfont: Path, mid: Path, wav: Path, rate: int) -> None:
+    """``mid`` rendered by fluidsynth through ``soundfont`` into ``wav``. A missing soundfont is
+    an error here: fluidsynth itself says so on stderr and renders through its default soundfont
+    instead, so a tuning or training set would be made, silently, of another sampler's sound."""
+    if not soundfont.is_file():
+        raise FileNotFoundError(f"{soundfont}: no such soundfont (Debian packages: fluid-soundfont-gm, "
+                                "timgm6mb-soundfont, csound-soundfont, musescore-general-soundfont)")
+    subprocess.run(["fluidsynth", "-ni", "-g", "0.8", "-F", str(wav), "-r", str(rate), str(soundfont), str(mid)],
+                   check=True, capture_output=True, timeout=600)
+
+
 def render(notes: list[Note], instrument: str, rate: int) -> np.ndarray:
     """Stereo float32 (frames, 2) at ``rate``: ``notes`` played by fluidsynth on ``instrument``."""
-    key = hashlib.sha1(repr((notes, instrument, rate)).encode()).hexdigest()[:16]
+    key = hashlib.sha1(repr((notes, instrument, rate, SOUNDFONT)).encode()).hexdigest()[:16]  # tune_hearing renders another soundfont
     wav = cache_dir() / f"{key}.wav"
     if not wav.exists():
         mid = cache_dir() / f"{key}.mid"
         write_midi(notes, PROGRAMS[instrument], mid)
-        subprocess.run(["fluidsynth", "-ni", "-g", "0.8", "-F", str(wav), "-r", str(rate), str(SOUNDFONT), str(mid)],
-                       check=True, capture_output=True, timeout=120)
+        fluidsynth(SOUNDFONT, mid, wav, rate)
     audio, sr = sf.read(wav, dtype="float32", always_2d=True)
     assert sr == rate
     return audio

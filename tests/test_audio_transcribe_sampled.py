@@ -135,3 +135,16 @@ def test_a_silent_or_random_transcriber_would_fail() -> None:
     guesses = [(n.onset, n.offset, int(rng.integers(40, 80))) for n in notes]
     assert note_f1(notes, guesses) < 0.2
     assert note_f1(notes, [(n.onset + 0.01, n.offset, n.pitch) for n in notes]) == 1.0
+
+
+def test_a_missing_soundfont_is_an_error_not_another_sampler_s_sound(monkeypatch: pytest.MonkeyPatch,
+                                                                       tmp_path) -> None:
+    """fluidsynth renders a missing soundfont's MIDI through its default one (FluidR3 here) and
+    says so only on stderr; a tuning set made so would be the tests' sampler. Nor may a render
+    through one soundfont be served from the cache for another."""
+    notes = random_texture(np.random.default_rng(5), 1, 2.0, 60, 72)
+    assert np.abs(render(notes, "piano", 16000)).max() > 0.01
+    missing = tmp_path / "TimGM6mb.sf2"
+    monkeypatch.setattr("bench._sampled.SOUNDFONT", missing)
+    with pytest.raises(FileNotFoundError, match="TimGM6mb.sf2: no such soundfont"):
+        render(notes, "piano", 16000)

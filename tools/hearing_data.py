@@ -24,7 +24,6 @@ is kept for that): the quick look's model hears on a finer grid than the others:
 from __future__ import annotations
 
 import argparse
-import subprocess
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,6 +35,8 @@ from scipy import signal
 
 from audio.logspectrum import HOP, RATE, LogSpectrum
 from audio.note_model import HIGH, LOW
+from bench._sampled import SOUNDFONT as FLUIDR3  # the tests' and the bench's sampler, never trained on
+from bench._sampled import fluidsynth
 
 SOUNDFONTS = {
     "timgm": Path("/usr/share/sounds/sf2/TimGM6mb.sf2"),
@@ -304,7 +305,6 @@ def room(x: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     return np.clip(x, -1.0, 1.0).astype(np.float32)
 
 
-FLUIDR3 = Path("/usr/share/sounds/sf2/FluidR3_GM.sf2")
 SAME_SAMPLES = 0.97
 """Spectral correlation (a note's magnitude spectrum, its first 0.5 s, at any of three pitches)
 above which a program counts as played with FluidR3's samples. Measured: MuseScore General's
@@ -327,8 +327,7 @@ def shared_programs(soundfont: Path, pitches: tuple[int, ...] = (48, 67, 84)) ->
         mid.save(Path(tmp) / "all.mid")
         for font in (FLUIDR3, soundfont):
             wav = Path(tmp) / "all.wav"
-            subprocess.run(["fluidsynth", "-ni", "-F", str(wav), "-r", str(RATE), str(font), str(Path(tmp) / "all.mid")],
-                           check=True, capture_output=True)
+            fluidsynth(font, Path(tmp) / "all.mid", wav, RATE)
             renders.append(sf.read(wav, dtype="float32", always_2d=True)[0].mean(axis=1))
     shared = set()
     for program in range(128):
@@ -377,8 +376,7 @@ def render_set(out: Path, source: str, segments: int, seed: int) -> None:
             audio = additive(notes, seconds, rng)
         else:
             wav = Path(tmp) / "set.wav"
-            subprocess.run(["fluidsynth", "-ni", "-g", "0.8", "-F", str(wav), "-r", str(RATE), str(SOUNDFONTS[source]),
-                            str(mid)], check=True, capture_output=True)
+            fluidsynth(SOUNDFONTS[source], mid, wav, RATE)
             audio = sf.read(wav, dtype="float32", always_2d=True)[0].mean(axis=1)
     audio = np.r_[audio, np.zeros(max(0, int(seconds * RATE) - len(audio)), np.float32)][: int(seconds * RATE)]
     step = int((SEGMENT + GAP) * RATE)
