@@ -1,6 +1,7 @@
 """Choose each note model's onset threshold and write it into its weights file.
 
-The threshold is chosen on renders through TimGM6mb — a soundfont the model learnt from — of the
+The threshold is chosen on renders through TimGM6mb (Debian: ``timgm6mb-soundfont``; without it
+the first render stops, naming it) — a soundfont the model learnt from — of the
 bench's textures (piano lines and chords, a guitar chorale, strings, organ and flute; seeds 201
 and 202; string and organ chords, and four textures in a room since 2026-12-06, when the slow
 swell of ``audio/transcribe.py`` was chosen on them too), and on the project's own generated
