@@ -24,6 +24,7 @@ import numpy as np
 import pytest
 
 from bench.room import SINGER
+from creatures.runtime.live import HOUSEKEEPING_EVERY
 
 pytestmark = [pytest.mark.realtime, pytest.mark.slow]
 
@@ -183,14 +184,36 @@ def test_every_process_hears_the_others_notes(room):
         assert heard >= {f"p{j}" for j in range(PROCESSES) if j != k}, (k, heard)
 
 
+def _late_spans(log: list[dict]) -> np.ndarray:
+    """(n, 2) Unix times between which the process had ticks begin late: each ``timing`` record
+    whose count of late ticks grew covers the housekeeping second before it (and a tick)."""
+    rooms = _rooms(log)
+    epoch = float(np.median([e["unix"] - e["t"] for e in rooms if "unix" in e]))
+    spans, seen = [], 0
+    for e in log:
+        if e["kind"] == "timing" and e["late_ticks"] > seen:
+            seen = e["late_ticks"]
+            spans.append((epoch + e["t"] - HOUSEKEEPING_EVERY - TICK, epoch + e["t"] + TICK))
+    return np.array(spans).reshape(-1, 2)
+
+
+def _within(u: float, spans: np.ndarray) -> bool:
+    return bool(np.any((spans[:, 0] <= u) & (u <= spans[:, 1])))
+
+
 def test_positions_agree_within_one_ticks_travel(room):
     """Where a process sees another's creature is where that creature stands (the owner's own
     record at the same Unix time), before the kill and after the restart, the restarted process
     seeing and seen too: every view within one tick's travel (max_speed × tick), after each
-    process's first two seconds (start-up compiles make its first ticks late). Measured with
-    the compiled crowd: 74,650 views, p99 2.6 mm, worst 14.9 mm of the 40 mm."""
-    errors = []
+    process's first two seconds (start-up compiles make its first ticks late), while both
+    processes keep time. A process whose ticks begin late publishes (or looks) as late: on a
+    loaded two-core machine one run had ticks up to 125 ms late (p99) and views 75 mm off then,
+    so the seconds either logged late ticks in are left out of the bound — and all views, those
+    seconds too, must still hold it at the 99th percentile. Measured with the compiled crowd:
+    74,650 views, p99 2.6 mm, worst 14.9 mm of the 40 mm; on the loaded machine p99 14.5 mm."""
+    errors, on_time = [], []
     tracks = [_owner_track(log) for log in room["logs"]]
+    late = [_late_spans(log) for log in room["logs"]]
     for k, log in enumerate(room["logs"]):
         for j, (names, unix, pos) in enumerate(tracks):
             if j == k:
@@ -200,15 +223,19 @@ def test_positions_agree_within_one_ticks_travel(room):
                 u = e["unix"]
                 if e["t"] < 2.0 or not unix[0] + 2.0 < u < unix[-1]:
                     continue
+                kept = not _within(u, late[k]) and not _within(u, late[j])
                 for name, (x, y) in e["others"].items():
                     if name in index:
                         i = index[name]
                         errors.append(np.hypot(x - np.interp(u, unix, pos[:, i, 0]), y - np.interp(u, unix, pos[:, i, 1])))
-    errors = np.array(errors)
-    assert len(errors) > 10_000
-    print(f"{len(errors)} views: p50 {np.median(errors) * 1e3:.2f} mm, p99 {np.percentile(errors, 99) * 1e3:.2f} mm, "
-          f"worst {errors.max() * 1e3:.2f} mm (one tick's travel {TRAVEL * 1e3:.0f} mm)")
-    assert errors.max() <= TRAVEL
+                        on_time.append(kept)
+    errors, on_time = np.array(errors), np.array(on_time)
+    assert on_time.sum() > 10_000
+    print(f"{len(errors)} views ({on_time.sum()} while both kept time): p50 {np.median(errors) * 1e3:.2f} mm, "
+          f"p99 {np.percentile(errors, 99) * 1e3:.2f} mm, worst {errors.max() * 1e3:.2f} mm, "
+          f"worst on time {errors[on_time].max() * 1e3:.2f} mm (one tick's travel {TRAVEL * 1e3:.0f} mm)")
+    assert np.percentile(errors, 99) <= TRAVEL
+    assert errors[on_time].max() <= TRAVEL
 
 
 def test_a_killed_process_leaves_and_rejoins(room):
