@@ -15,6 +15,7 @@ times: what the audience would hear between a performer's attack and the creatur
 from __future__ import annotations
 
 import os
+import socket
 import subprocess
 import sys
 import tempfile
@@ -98,11 +99,25 @@ class Heard(NamedTuple):
                 f"p99 {np.percentile(ms, 99):.1f} ms{missed}")
 
 
-def measure(onsets: int = 40, gap: float = 0.5, *, warm_up: float = 6.0, timeout: float = 90.0,
+def _ready(notify: socket.socket, deadline: float, run: subprocess.Popen) -> bool:
+    """Whether the run sent ``READY=1`` on ``notify`` before ``deadline`` (and before it ended)."""
+    while time.monotonic() < deadline and run.poll() is None:
+        try:
+            if b"READY=1" in notify.recv(4096).split(b"\n"):
+                return True
+        except TimeoutError:
+            continue
+    return False
+
+
+def measure(onsets: int = 40, gap: float = 0.5, *, warm_up: float = 2.0, timeout: float = 90.0,
             log: Path | None = None, look: str = "live") -> Heard:
     """Play ``onsets`` tones ``gap`` seconds apart into a run and time its answers (:class:`Heard`).
-    ``warm_up``: seconds the run is given before the first onset (its first seconds compile and
-    fill buffers); ``look``: the run's ``[audio] look``.
+    The first is played ``warm_up`` seconds after the run says ``READY=1`` (systemd's protocol,
+    ``creatures/runtime/sd_notify.py``: its creatures built, devices open, first tick played),
+    for its first buffers to fill; a fixed 6 s from its microphone's appearing was not enough on
+    a slow machine (a run still starting lost the first two onsets); ``look``: the run's
+    ``[audio] look``.
 
     An answer is a note-on or a polyphonic pressure: the exchange's rule two (thesis "exchange
     (installation)") strikes a note that still sounds by perturbing it, not by playing it again,
@@ -155,7 +170,11 @@ def measure(onsets: int = 40, gap: float = 0.5, *, warm_up: float = 6.0, timeout
         before = set(p.name for p in client.get_ports(is_audio=True, is_input=True))
         config = Path(tmp) / "latency.toml"
         config.write_text(CONFIG.format(port=name, look=look))
-        env = {**os.environ, "MIDO_BACKEND": "mido.backends.rtmidi/UNIX_JACK", "JACK_NO_START_SERVER": "1"}
+        notify = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+        notify.bind(str(Path(tmp) / "notify"))
+        notify.settimeout(0.05)
+        env = {**os.environ, "MIDO_BACKEND": "mido.backends.rtmidi/UNIX_JACK", "JACK_NO_START_SERVER": "1",
+               "NOTIFY_SOCKET": str(Path(tmp) / "notify")}
         run = subprocess.Popen([sys.executable, "-m", "creatures.cli", "run", str(config), "--duration",
                                 str(warm_up + 2.0 + onsets * gap + 2.0)] + (["--log", str(log)] if log else []), env=env, stdout=subprocess.PIPE,
                                stderr=subprocess.STDOUT, text=True)
@@ -173,12 +192,15 @@ def measure(onsets: int = 40, gap: float = 0.5, *, warm_up: float = 6.0, timeout
                 raise RuntimeError("the run's microphone never appeared on JACK:\n" + "".join(output))
             for port in ears:
                 client.connect(out, port)
-            time.sleep(warm_up)  # the run starts: compiles, first buffers, the MIDI port found
+            if not _ready(notify, deadline, run):
+                raise RuntimeError("the run never said READY=1:\n" + "".join(output))
+            time.sleep(warm_up)  # its first buffers fill
             state["next"] = client.frame_time + rate // 10
             while state["k"] < onsets and time.monotonic() < deadline:
                 time.sleep(0.05)
             time.sleep(gap)
         finally:
+            notify.close()
             run.terminate()
             run.wait(timeout=20)
             reader.join(timeout=5)
