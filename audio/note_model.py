@@ -39,6 +39,7 @@ import numba
 import numpy as np
 
 from audio.logspectrum import HOP, LONG_LOW, LONG_STEP, SHORT_LOW, SHORT_STEP, LogSpectrum
+from creatures.persist import save_npz
 
 LOW, HIGH = 21, 108
 """The pitches the model judges (the piano's compass)."""
@@ -256,6 +257,9 @@ def join(out: Path | str, members: list[Path | str]) -> None:
     """Write single models' exports as one committee file (see :class:`NoteModel`), atomically.
     Its onset threshold is reset to 0.5: a committee's is its own (tools/tune_hearing.py)."""
     keys: dict[str, np.ndarray] = {}
+    hops = {NoteModel(path).hop for path in members}  # a file not a note model's weights is refused by name
+    if len(hops) > 1:
+        raise ValueError(f"{out}: a committee's members must hear one grid, not hops of {sorted(hops)} samples")
     for i, path in enumerate(members):
         with np.load(path, allow_pickle=False) as z:
             if any(k.startswith("m1.") for k in z.files):
@@ -263,15 +267,7 @@ def join(out: Path | str, members: list[Path | str]) -> None:
             prefix = "" if i == 0 else f"m{i}."
             keys.update({prefix + k: z[k] for k in z.files if k in FILE_KEYS or k == "hop"})
     keys["threshold"] = np.array(0.5)
-    out = Path(out)
-    part = out.with_name(out.name + ".part.npz")
-    np.savez(part, **keys)
-    try:
-        NoteModel(part)  # refuses members that hear different grids, before anything is replaced
-    except ValueError:
-        part.unlink()
-        raise
-    part.replace(out)
+    save_npz(out, keys)
 
 
 def default(look: str) -> Path:

@@ -23,6 +23,7 @@ import bench._sampled as sampled
 from audio.logspectrum import HOP
 from audio.note_model import NoteModel
 from audio.transcribe import Transcriber
+from creatures.persist import save_npz
 from creatures.runtime.inputs import phrase_notes, render_notes
 
 # instrument, voices, texture, in a room (bench._sampled.room)
@@ -68,7 +69,7 @@ def tune(model: Path) -> float:
     with np.load(model) as z:
         weights = {k: z[k] for k in z.files if k != "partial_bar"}
     weights["threshold"] = np.array(chosen)
-    np.savez(model, **weights)
+    save_npz(model, weights)  # the shipped weights: never left half-written
     print(f"{model.name}: threshold {chosen} (mean F1 {best:.3f})")
     return chosen
 
