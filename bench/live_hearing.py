@@ -175,9 +175,13 @@ def measure(onsets: int = 40, gap: float = 0.5, *, warm_up: float = 2.0, timeout
         notify.settimeout(0.05)
         env = {**os.environ, "MIDO_BACKEND": "mido.backends.rtmidi/UNIX_JACK", "JACK_NO_START_SERVER": "1",
                "NOTIFY_SOCKET": str(Path(tmp) / "notify")}
+        # The probe stops the run once its last onset's answer window has passed on JACK's clock;
+        # ``--duration`` is only a net should the probe die. A duration sized to the onsets ended a
+        # run before its last onset on a loaded machine, where JACK's dummy driver (one period
+        # per cycle, late cycles not caught up) counts frames slower than the run's wall clock.
         run = subprocess.Popen([sys.executable, "-m", "creatures.cli", "run", str(config), "--duration",
-                                str(warm_up + 2.0 + onsets * gap + 2.0)] + (["--log", str(log)] if log else []), env=env, stdout=subprocess.PIPE,
-                               stderr=subprocess.STDOUT, text=True)
+                                str(timeout)] + (["--log", str(log)] if log else []), env=env,
+                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         output: list[str] = []
         reader = threading.Thread(target=lambda: output.extend(run.stdout), daemon=True)
         reader.start()
@@ -196,9 +200,9 @@ def measure(onsets: int = 40, gap: float = 0.5, *, warm_up: float = 2.0, timeout
                 raise RuntimeError("the run never said READY=1:\n" + "".join(output))
             time.sleep(warm_up)  # its first buffers fill
             state["next"] = client.frame_time + rate // 10
-            while state["k"] < onsets and time.monotonic() < deadline:
+            while time.monotonic() < deadline and (state["k"] < onsets
+                                                    or client.frame_time < start_frames[-1] + int(gap * rate)):
                 time.sleep(0.05)
-            time.sleep(gap)
         finally:
             notify.close()
             run.terminate()
