@@ -462,3 +462,30 @@ def test_a_score_action_naming_a_missing_tag_is_refused_with_the_nearest(tmp_pat
     (tmp_path / "void.toml").write_text(missing)
     with pytest.raises(ConfigError, match="tile file not found"):
         load_installation(tmp_path / "void.toml")
+
+
+def test_a_layer_with_one_idle_tile_rests_in_it_and_comes_back_to_it(tmp_path):
+    """One tacet tile (the docs' ``idle = "tacet"``) and a hook asked for once: the tacet is
+    held on (the graph never follows a tile with itself; this crashed), the hook sounds when its
+    tuple asks, and the layer goes back to resting."""
+    (tmp_path / "tiles.toml").write_text(
+        '[tiles.tacet]\nlayer = "top"\nbeats = 2\ntags = ["tacet"]\nnotes = []\n'
+        '[tiles.hook]\nlayer = "top"\nbeats = 2\ntags = ["hook"]\n'
+        'notes = [[0, 72, 90, 0.5], [0.5, 74, 90, 0.5], [1, 76, 90, 1]]\n')
+    (tmp_path / "s.toml").write_text(
+        'title = "one idle tile"\nduration = 20.0\n[output]\nwav = false\nreport = false\n'
+        '[[creature]]\nname = "band"\nkind = "authored"\n'
+        '[creature.score]\ntiles = "tiles.toml"\n[creature.score.layers.top]\nidle = "tacet"\n'
+        '[creature.percepts.cue]\ntype = "schedule"\ntimes = [8.0]\nwidth = 0.5\n'
+        '[creature.tuples.hook]\ntrigger = "cue"\n'
+        'action = { type = "score", layer = "top", toward = "hook" }\nuntil = { done = true }\nvalue = 4.0\n'
+        '[creature.tuples.wait]\naction = "rest"\nuntil = { seconds = 1.0 }\nvalue = 0.1\n'
+        '[creature.groups.main]\ntuples = ["hook", "wait"]\nalpha = 0.0\n')
+    assert main(["offline", str(tmp_path / "s.toml"), "--out", str(tmp_path / "run"), "--no-progress"]) == 0
+    tiles = [(e["time"], e["tags"]) for e in records(tmp_path / "run") if e["kind"] == "tile"]
+    hooks = [t for t, tags in tiles if "hook" in tags]
+    assert len(hooks) == 1 and 8.0 <= hooks[0] <= 8.0 + 2 * 60 / 96 * 2, tiles  # by the next cut
+    assert sum(1 for t, tags in tiles if "tacet" in tags and t < hooks[0]) >= 3
+    assert sum(1 for t, tags in tiles if "tacet" in tags and t > hooks[0]) >= 3
+    notes = [e for e in records(tmp_path / "run") if e["kind"] == "note"]
+    assert [n["pitch"] for n in notes] == [72, 74, 76] and notes[0]["time"] == pytest.approx(hooks[0], abs=1e-6)

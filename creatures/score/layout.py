@@ -239,7 +239,8 @@ class ScoreLayout:
 
     def _idle(self, t: float, lay: Layer, frontier: float) -> bool:
         """Lay the layer's next idle tile (a successor with its idle tag, chosen in proportion
-        to how smoothly it joins; else the way to the nearest one)."""
+        to how smoothly it joins; else the idle tile just laid again, when it is the only one;
+        else the way to the nearest one)."""
         if not lay.laid:
             try:
                 node = self.graph.entry(lay.name, lay.idle)
@@ -254,9 +255,11 @@ class ScoreLayout:
             cost = self.graph.cost[last.tile, options]
             weight = np.exp(-(cost - cost.min()) / 0.25)
             walk = [int(self.rng.choice(options, p=weight / weight.sum()))]
+        elif lay.idle in self.tiles.tiles[last.tile].tags:
+            walk = [last.tile]  # the layer's one idle tile (no tile follows itself in the graph): held on
         else:
             try:
-                walk = self.graph.path(last.tile, lay.idle)
+                walk = self.graph.walk(last.tile, lay.name, [lay.idle])
             except NoPath:
                 return False
         begin = last.end
