@@ -743,7 +743,7 @@ STOPPED = {
     "export-motion": "the BVH file was not written (or is the previous one)",
     "images": "the video may be cut short; run it again",
 }
-"""What a command stopped by Ctrl-C or SIGTERM outside its own handling left behind."""
+"""What a command stopped by Ctrl-C, SIGTERM or SIGHUP outside its own handling left behind."""
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -770,12 +770,12 @@ def main(argv: list[str] | None = None) -> int:
         log_limit.install()  # a library that logs per bad packet must not flood stderr
         alsa.quiet()  # libasound's own stderr lines: the errors they precede are reported once, in words
         return int(args.run(args))
-    except KeyboardInterrupt as stopped:  # creatures/stop.py: SIGTERM is raised as Ctrl-C is
-        term = isinstance(stopped, stop.Terminated)
+    except KeyboardInterrupt as stopped:  # creatures/stop.py: SIGTERM and SIGHUP are raised as Ctrl-C is
+        signum = stopped.signum if isinstance(stopped, stop.Terminated) else signal.SIGINT
         left = STOPPED.get(args.command)
-        print(f"creatures {args.command}: stopped by {'SIGTERM' if term else 'Ctrl-C'}" + (f"; {left}" if left else ""),
-              file=sys.stderr)
-        return 128 + (signal.SIGTERM if term else signal.SIGINT)
+        how = "Ctrl-C" if signum == signal.SIGINT else signal.Signals(signum).name
+        print(f"creatures {args.command}: stopped by {how}" + (f"; {left}" if left else ""), file=sys.stderr)
+        return 128 + signum
     finally:
         restore()
         if piped:

@@ -1,4 +1,9 @@
-"""Ctrl-C and SIGTERM stop a command wherever it is, and only once.
+"""Ctrl-C, SIGTERM and SIGHUP stop a command wherever it is, and only once.
+
+SIGHUP is what a closed terminal or a dropped SSH session sends: the run stops as on SIGTERM
+(state saved, outputs published), not killed where it stands with its learning since the last
+save lost, as Python's default action had it. Its terminal is gone, so what the run would
+print from then on goes to /dev/null (:func:`hung_up`) rather than failing on the dead tty.
 
 Both raise an exception where the program is, so every command unwinds as on Ctrl-C:
 staging folders go, locks are let go, and the CLI says so in one line (issue 13: SIGTERM
@@ -16,12 +21,44 @@ from __future__ import annotations
 
 import os
 import signal
+import stat
 import sys
 from typing import Any, Callable
 
 
 class Terminated(KeyboardInterrupt):
-    """SIGTERM, raised as Ctrl-C's KeyboardInterrupt is."""
+    """SIGTERM or SIGHUP, raised as Ctrl-C's KeyboardInterrupt is."""
+
+    def __init__(self, signum: int = signal.SIGTERM) -> None:
+        super().__init__()
+        self.signum = signum
+
+
+STOPPING = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+"""The signals that stop a command cleanly."""
+
+
+def hung_up(signum: int) -> None:
+    """On SIGHUP, point stdout and stderr at /dev/null where they were the lost terminal, so
+    the stop's last lines (and a save's) do not fail on it with EIO; a file or pipe stays.
+    A terminal is known by being a character device: a hung-up one is no longer a tty to
+    ``isatty`` (its tcgetattr fails with EIO)."""
+    if signum != signal.SIGHUP:
+        return
+    null = os.open(os.devnull, os.O_WRONLY)
+    try:
+        for fd in (1, 2):
+            try:
+                if stat.S_ISCHR(os.fstat(fd).st_mode):
+                    os.dup2(null, fd)
+            except OSError:  # already closed
+                continue
+    finally:
+        os.close(null)
+
+
+def _raised(signum: int) -> KeyboardInterrupt:
+    return KeyboardInterrupt() if signum == signal.SIGINT else Terminated(signum)
 
 
 requested: int | None = None
@@ -45,24 +82,25 @@ def _stop(signum: int, frame: Any) -> None:
     if requested is not None:  # a second Ctrl-C while the first unwinds: one stop is enough
         return
     requested = signum
+    hung_up(signum)
     if _in_native(frame):  # compiling: raised at the next check() instead
         return
-    raise Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
+    raise _raised(signum)
 
 
 def check() -> None:
     """Raise the stop a finaliser swallowed, if one was asked for."""
     if requested is not None:
-        raise Terminated() if requested == signal.SIGTERM else KeyboardInterrupt()
+        raise _raised(requested)
 
 
 def install() -> Callable[[], None]:
-    """Stop on SIGINT and SIGTERM from now on; returns what puts the previous handlers back.
+    """Stop on SIGINT, SIGTERM and SIGHUP from now on; returns what puts the previous handlers back.
     A stop swallowed by a finaliser is not reported as "Exception ignored" with a traceback
     (it is raised again by :func:`check`); anything else unraisable still is."""
     global requested
     requested = None
-    previous = {sig: signal.signal(sig, _stop) for sig in (signal.SIGINT, signal.SIGTERM)}
+    previous = {sig: signal.signal(sig, _stop) for sig in STOPPING}
     hook = sys.unraisablehook
 
     def unraisable(info: Any) -> None:

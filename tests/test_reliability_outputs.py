@@ -578,7 +578,7 @@ def _signal_inside(monkeypatch, target, name: str, sig: int) -> None:
     monkeypatch.setattr(target, name, interrupted)
 
 
-@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["Ctrl-C", "SIGTERM"])
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP], ids=["Ctrl-C", "SIGTERM", "SIGHUP"])
 @pytest.mark.parametrize("command", ["offline", "demo", "inspect", "run"])
 def test_ctrl_c_and_sigterm_end_every_command_with_one_line(command, sig, config, tmp_path, monkeypatch, capsys):
     from creatures.runtime import inspect as inspector
@@ -599,7 +599,7 @@ def test_ctrl_c_and_sigterm_end_every_command_with_one_line(command, sig, config
     capsys.readouterr()
     assert main(argv) == 128 + sig
     err = capsys.readouterr().err
-    how = "Ctrl-C" if sig == signal.SIGINT else "SIGTERM"
+    how = "Ctrl-C" if sig == signal.SIGINT else signal.Signals(sig).name
     assert err.startswith(f"creatures {command}: stopped by {how}") and err.count("\n") == 1
     if command in ("offline", "demo"):
         assert _hidden(out) == [] and not (out / "events.jsonl").exists()  # staging gone, nothing published

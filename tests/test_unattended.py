@@ -246,3 +246,58 @@ def test_check_prints_a_table_and_fails_with_the_reason(tmp_path: Path, capsys: 
     assert "FAIL" in rows["MIDI output"]  # absent, or no MIDI backend at all here: either way said
     assert "FAIL" in rows["state folder"]  # this config keeps no state
     assert "not ready: ports free, MIDI output, state folder" in captured.err
+
+
+def _running_on_a_terminal(tmp_path: Path, *flags: str):
+    """A real ``creatures run`` (saving only when it stops) whose output is a terminal, once it
+    says READY=1; returns the process and the terminal's master side."""
+    import os
+    import pty
+    import subprocess
+    import sys
+
+    config = tmp_path / "show.toml"
+    config.write_text(COLONY.replace("save_every = 0.2", "save_every = 3600"))
+    notify = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+    notify.bind(str(tmp_path / "notify"))
+    notify.settimeout(180)  # starting python and numba under load: slow, not timed
+    master, slave = pty.openpty()
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parent.parent),
+           "NOTIFY_SOCKET": str(tmp_path / "notify")}
+    run = subprocess.Popen([sys.executable, "-m", "creatures.cli", "run", str(config), f"--state={tmp_path / 'state'}",
+                            "--duration", "600", *flags], stdin=slave, stdout=slave, stderr=slave, env=env,
+                           start_new_session=True)
+    os.close(slave)
+    try:
+        while b"READY=1" not in notify.recv(4096).split(b"\n"):
+            pass
+    except BaseException:
+        run.kill()
+        raise
+    finally:
+        notify.close()
+    return run, master
+
+
+@pytest.mark.parametrize("flags", [(), ("--supervise",)], ids=["run", "supervised"])
+def test_a_closed_terminal_stops_the_run_cleanly_and_its_learning_is_saved(tmp_path: Path, flags) -> None:
+    """SIGHUP (the terminal or SSH session closed) killed a live run where it stood, nothing
+    saved since the last periodic save; under ``--supervise`` it killed the keeper and left its
+    child running, holding the state folder. Now it stops as SIGTERM does: state saved, exit 0,
+    no process left, though the terminal it would print its summary on is gone."""
+    import os
+    import signal
+    import subprocess
+
+    run, master = _running_on_a_terminal(tmp_path, *flags)
+    try:
+        os.close(master)  # the terminal is gone: writing to it now fails (EIO)
+        run.send_signal(signal.SIGHUP)
+        assert run.wait(timeout=120) == 0
+    finally:
+        run.kill()
+        run.wait()
+    assert (tmp_path / "state" / "ada.json").exists()  # only the stop saves (save_every 3600 s)
+    assert not [p for p in (tmp_path / "state").iterdir() if p.name.startswith(".")]  # lock let go, no temp file
+    left = subprocess.run(["pgrep", "-f", str(tmp_path / "state")], capture_output=True, text=True).stdout.split()
+    assert not left

@@ -23,6 +23,8 @@ import time
 from pathlib import Path
 from typing import Callable
 
+from creatures.stop import STOPPING, hung_up
+
 RESTART_AFTER = 1.0
 """Seconds between a crash and the restart."""
 
@@ -38,25 +40,27 @@ REFUSED = 2
 
 def supervise(command: list[str], say: Callable[[str], None] = print, *,
               launch: Callable[[list[str]], subprocess.Popen[bytes]] = subprocess.Popen) -> int:
-    """Run ``command`` until it ends cleanly; returns its last exit code. SIGTERM and SIGINT
-    are passed to the child, which then saves and stops as it would alone."""
+    """Run ``command`` until it ends cleanly; returns its last exit code. SIGTERM, SIGINT and
+    SIGHUP are passed to the child, which then saves and stops as it would alone (a SIGHUP the
+    keeper died of left its child running, holding the state folder's lock)."""
     stopping = False
     child: subprocess.Popen[bytes] | None = None
 
     def forward(signum: int, _: object) -> None:
         nonlocal stopping
         stopping = True
+        hung_up(signum)
         if child is not None and child.poll() is None:
             child.send_signal(signum)
 
-    previous = {s: signal.signal(s, forward) for s in (signal.SIGTERM, signal.SIGINT)}
+    previous = {s: signal.signal(s, forward) for s in STOPPING}
     wait, restarts = RESTART_AFTER, 0
     try:
         while True:
             began = time.monotonic()
             child = launch(command)
             code = child.wait()
-            if stopping or code in (0, 128 + signal.SIGINT, 128 + signal.SIGTERM):
+            if stopping or code == 0 or code - 128 in STOPPING:
                 return code
             if code == REFUSED:
                 say("creatures: the run was refused before it began (above: why); not restarting, since the "

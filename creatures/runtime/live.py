@@ -10,7 +10,7 @@ printed. Audio underruns (the loudspeaker played silence: the mix came late) and
 overruns (input dropped: the loop read too slowly) are counted, logged when they change and
 reported at the end. With ``[osc] port`` set the colony speaks and listens on the network
 (:mod:`creatures.runtime.network`). Learned state is saved every ``save_every`` seconds and on
-exit (Ctrl-C or SIGTERM: every note off, state saved) and restored on the next start. The
+exit (Ctrl-C, SIGTERM or SIGHUP: every note off, state saved) and restored on the next start. The
 loudspeaker keeps a lead of spare sound that follows the device's clock (:mod:`audio.lead`),
 and with ``--out`` the run's ``out.mid`` is published when it stops
 (:mod:`creatures.runtime.live_score`).
@@ -399,11 +399,12 @@ def run_live(
         say(f"view: open {server.url}")
     stopping = False
 
-    def stop(*_: object) -> None:
+    def stop(signum: int, _: object) -> None:
         nonlocal stopping
         stopping = True
+        stops.hung_up(signum)  # a closed terminal: stop as on SIGTERM, printing nowhere
 
-    previous = signal.signal(signal.SIGTERM, stop)
+    previous = {sig: signal.signal(sig, stop) for sig in (signal.SIGTERM, signal.SIGHUP)}
     session.world.emit("run", title=settings.title, mode="live", seed=settings.seed,
                        creatures=[c.name for c in session.creatures], restored=summary.restored,
                        config=str(inst.path), epoch=round(epoch, 6))  # Unix time of clock time 0
@@ -416,7 +417,7 @@ def run_live(
         bodies = FramesBeside(settings.output, pictures, wall, summary.messages)
         for message in summary.messages:
             say(message)
-    say(f"{len(session.creatures)} creature(s) running; Ctrl-C or SIGTERM stops cleanly")
+    say(f"{len(session.creatures)} creature(s) running; Ctrl-C or SIGTERM stops cleanly")  # SIGHUP too
     loop = TickLoop(session, inputs, wall, clock, settings.tick)
     timing = _Timing(session, loop.timing, sink)
     supervisor.every(HOUSEKEEPING_EVERY, log.flush, name="events log flush")  # a tail -f shows the present
@@ -524,7 +525,8 @@ def run_live(
             pass
         finally:
             notifier.stopping()
-            signal.signal(signal.SIGTERM, previous)
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
             supervisor.stop()  # before what it watches closes
             outlets.close()
             summary.outlets = outlets.counts()
