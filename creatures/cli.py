@@ -712,8 +712,9 @@ def _demo(args: argparse.Namespace) -> int:
         print(f"creatures: {exc}", file=sys.stderr)
         return 2
     code = _run_offline(config, args.out, duration=args.duration, frames=True, video=True)
-    if code == 0:
-        print(f"open {args.out / 'report' / 'index.html'} to see what the creatures did")
+    report = args.out / "report" / "index.html"
+    if code == 0 and report.exists():  # an installation may write none (`[output] report = false`)
+        print(f"open {report} to see what the creatures did")
     return code
 
 

@@ -733,3 +733,39 @@ def test_only_names_a_run_wrote_may_be_replaced(config, tmp_path):
     outputs.refuse_foreign(out, {"events.jsonl", "state", "out.wav"})  # the previous run's: fine
     with pytest.raises(OutputDirectoryError, match="mine.txt"):
         outputs.refuse_foreign(out, {"mine.txt"})
+
+
+@pytest.mark.parametrize("input_flag", ["--midi", "--audio"])
+def test_a_run_refused_for_its_input_leaves_no_folder_it_made(input_flag, config, tmp_path, capsys):
+    """A text file given as MIDI or audio is refused in one line; the --out folder the run made
+    for it is not left behind empty (a folder the user had is kept, with what it held)."""
+    bad = tmp_path / "notes.txt"
+    bad.write_text("not a recording\n")
+    out = tmp_path / "out"
+    assert _offline(config, out, 1.0, input_flag, str(bad)) == 2
+    assert not out.exists()
+    kept = tmp_path / "kept"
+    kept.mkdir()
+    (kept / "mine.txt").write_text("the artist's")
+    assert _offline(config, kept, 1.0, input_flag, str(bad)) == 2
+    assert sorted(p.name for p in kept.iterdir()) == ["mine.txt"]
+    assert "Traceback" not in capsys.readouterr().err
+
+
+def test_frames_asked_of_bodiless_creatures_leave_no_empty_frames_folder(tmp_path, capsys):
+    """`--video` (or a demo) on a creature with no body (the tutorial's heron) says "no frames"
+    and publishes no empty frames/ beside it."""
+    out = tmp_path / "out"
+    assert main(["offline", str(ROOT / "installations" / "tutorial" / "heron-1.toml"), "--out", str(out),
+                 "--duration", "1", "--no-progress", "--video"]) == 0
+    assert "no frames" in capsys.readouterr().out
+    assert not (out / "frames").exists() and not (out / "out.mp4").exists()
+
+
+def test_demo_points_to_its_report_only_when_it_wrote_one(tmp_path, capsys):
+    """The tutorial's heron writes no report (`[output] report = false`): the demo must not
+    send the user to a page that is not there; exchange's report is pointed to."""
+    assert main(["demo", "tutorial/heron-1", "--out", str(tmp_path / "heron"), "--duration", "1"]) == 0
+    assert "index.html" not in capsys.readouterr().out
+    assert main(["demo", "exchange", "--out", str(tmp_path / "exchange"), "--duration", "1"]) == 0
+    assert f"open {tmp_path / 'exchange' / 'report' / 'index.html'}" in capsys.readouterr().out

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import shutil
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -108,18 +109,25 @@ def run_offline(
     """
     settings = inst.settings
     duration = float(duration if duration is not None else settings.duration)
-    with hold(out):
-        recover(out)
-        refuse_foreign(out, _planned(settings))
-        try:
-            staged = stage(out)
-        except OSError as exc:
-            raise OutputDirectoryError(f"cannot write outputs to {out}: {exc.strerror or exc}") from None
-        try:
-            summary = _run(inst, staged, audio=audio, midi=midi, duration=duration, progress=progress)
-            publish(staged, out, events_lost=summary.events_lost)
-        finally:
-            discard(staged)
+    made = not out.exists()
+    try:
+        with hold(out):
+            recover(out)
+            refuse_foreign(out, _planned(settings))
+            try:
+                staged = stage(out)
+            except OSError as exc:
+                raise OutputDirectoryError(f"cannot write outputs to {out}: {exc.strerror or exc}") from None
+            try:
+                summary = _run(inst, staged, audio=audio, midi=midi, duration=duration, progress=progress)
+                publish(staged, out, events_lost=summary.events_lost)
+            finally:
+                discard(staged)
+    except BaseException:
+        if made:  # a run that failed (a bad input file, Ctrl-C) leaves no empty folder it made
+            with contextlib.suppress(OSError):
+                out.rmdir()
+        raise
     summary.files = {name: out / path.relative_to(staged) for name, path in summary.files.items()}
     return summary
 
@@ -224,6 +232,7 @@ def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path 
     if bodies is not None and bodies.renderer is not None and not bodies.painted:
         messages.append("no frames: no creature of this installation has a body to draw (`body = true` or a "
                         "[creature.body] gives one)")
+        shutil.rmtree(out / "frames", ignore_errors=True)  # not published empty
     elif bodies is not None and bodies.renderer is not None:
         files["frames"] = out / "frames"
         if settings.output.video:
