@@ -213,6 +213,17 @@ def _data_path(data: Any, loc: tuple[str | int, ...]) -> tuple[str | int, ...]:
     return tuple(path)
 
 
+SCALAR_ERRORS = frozenset({"float_type", "float_parsing", "int_type", "int_parsing", "string_type", "bool_type",
+                           "bool_parsing", "literal_error"})
+"""Pydantic's errors for a value that is not the number, string or name its field wants."""
+
+
+def _scalar_of_table(error: Any) -> bool:
+    """Whether ``error`` says a table the author wrote is not a scalar: one branch of a union
+    of a scalar and a table, the branch the author did not mean."""
+    return error["type"] in SCALAR_ERRORS and isinstance(error.get("input"), dict)
+
+
 def validate(
     model: type[Model],
     data: Any,
@@ -225,8 +236,10 @@ def validate(
     try:
         return model.model_validate(data)
     except ValidationError as exc:
-        # An unknown key usually explains a "missing" one (a typo), so report it first.
-        error = min(exc.errors(), key=lambda e: e["type"] != "extra_forbidden")
+        # An unknown key usually explains a "missing" one (a typo), so report it first. Where a
+        # value may be a number or a table (``value = 4.0`` or ``value = { kind = … }``) and the
+        # author wrote a table, the table's own error is the one meant, not "should be a number".
+        error = min(exc.errors(), key=lambda e: (e["type"] != "extra_forbidden", _scalar_of_table(e)))
         loc = (*prefix, *_data_path(data, tuple(error["loc"])))
         # Valid keys are found along pydantic's own location (where a validator moved a table:
         # ``[[input]]`` read as ``input.map``), else along the keys the author wrote (a tagged
@@ -234,6 +247,10 @@ def validate(
         choices = _fields_at(model, tuple(error["loc"])) or _fields_at(model, loc[len(prefix):])
         message = error["msg"].removeprefix("Value error, ")  # a validator's own sentence, as it wrote it
         got = error.get("input") if error["type"] not in ("missing", "extra_forbidden") else None
+        if error["type"] == "literal_error" and isinstance(got, str):  # kind = "gausian"
+            close = difflib.get_close_matches(got, re.findall(r"'([^']*)'", str(error["ctx"]["expected"])), n=1)
+            message += f" (got {got!r}" + (f"; did you mean {close[0]!r}?)" if close else ")")
+            got = None
         if error["type"] == "list_type" and isinstance(got, dict):  # [creature] for [[creature]]
             header = ".".join(str(part) for part in loc if isinstance(part, str))
             message, got = f"a list of tables: write [[{header}]] (two brackets) before each one", None

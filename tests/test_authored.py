@@ -219,6 +219,11 @@ def test_a_note_handed_over_ahead_sounds_in_the_voice_at_its_time():
          "beats must be one per pitch"),
         ('pitches = [60, 64, 67] }', 'pitches = [60, 64, 67], level = "division" }', "creature.0.tuples.sing.action",
          "give beats too"),
+        # a table where a number may stand: the table's own error, not "should be a valid number"
+        ("value = 0.3", 'value = { value = 0.3, kind = "gausian" }', "creature.0.tuples.rest.value.kind",
+         "(got 'gausian'; did you mean 'gaussian'?)"),
+        ("value = 0.3", 'value = { value = 0.3, kind = "chained" }', "creature.0.tuples.rest.value.kind",
+         "should be 'scalar', 'chain' or 'gaussian' (got 'chained'; did you mean 'chain'?)"),
     ],
 )
 def test_bad_names_and_structures_are_errors_at_their_line(tmp_path, old, new, key, message):
