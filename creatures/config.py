@@ -134,7 +134,37 @@ def read_toml(path: str | Path, *, _seen: tuple[Path, ...] = ()) -> tuple[dict[s
         found = "not found" if not base.exists() else f"is {kind_of(base.stat().st_mode)}, not a regular file"
         raise ConfigError(path, f"base config {parent!r} {found} (looked for {base})", key="extends", line=line)
     base_data, base_where = read_toml(base, _seen=(*_seen, path))
-    return _merge(base_data, data), {**base_where, **where}
+    return _extend(base_data, base_where, data, where)
+
+
+BY_NAME = ("creature",)
+"""The lists of tables an ``extends`` merges by ``name``: a ``[[creature]]`` named as one of the
+base's is merged over it (this file wins), any other is added after the base's. Other lists are
+replaced, as values are: a base's creatures dropped by a file that meant to add one, silently,
+was what an artist met."""
+
+
+def _extend(base: dict[str, Any], base_where: dict[tuple, tuple[Path, int]], data: dict[str, Any],
+            where: dict[tuple, tuple[Path, int]]) -> tuple[dict[str, Any], dict[tuple, tuple[Path, int]]]:
+    """``data`` over its ``extends`` base, with each key's file and line (renumbered where a
+    table of :data:`BY_NAME` lands at another index)."""
+    merged, moved = _merge(base, data), {}
+    for key in BY_NAME:
+        old, new = base.get(key), data.get(key)
+        if not (isinstance(old, list) and isinstance(new, list)):
+            continue
+        tables = list(old)
+        named = {t["name"]: i for i, t in enumerate(old) if isinstance(t, dict) and isinstance(t.get("name"), str)}
+        for j, table in enumerate(new):
+            i = named.get(table.get("name")) if isinstance(table, dict) else None
+            if i is None:
+                i = len(tables)
+                tables.append(table)
+            else:
+                tables[i] = _merge(tables[i], table)
+            moved[(key, j)] = (key, i)
+        merged[key] = tables
+    return merged, {**base_where, **{(*moved.get(loc[:2], loc[:2]), *loc[2:]): at for loc, at in where.items()}}
 
 
 def _too_deep(node: Any, loc: tuple[str | int, ...]) -> tuple[str | int, ...] | None:

@@ -1056,3 +1056,31 @@ def test_an_ear_s_memory_is_bounded_when_what_it_hears_never_pauses():
     assert sum(len(p) for p in ear.phrases) == 8 * PHRASE_NOTES
     assert ear.phrases_made == 20 and [n.pitch for n in ear.last(3)] == [60 + k % 12 for k in range(1277, 1280)]
     assert ear.phrase(20) == list(ear.phrases[-1]) and ear.phrase(12) is None
+
+
+def test_extends_keeps_the_bases_creatures_tunes_one_by_name_and_adds_a_new_one(tmp_path):
+    """A config extending the tutorial's heron tunes it by name and adds a crow: the heron is
+    kept (a new ``[[creature]]`` list replaced the base's, silently), its untouched keys keep
+    their base's file and line, and an error in the added crow is at the extending file's line."""
+    heron = TUTORIAL / "heron-1.toml"
+    child = write(tmp_path, f'''
+        extends = "{heron}"
+        title = "extended"
+        [[creature]]
+        name = "heron"
+        drives.boredom.growth = 0.5
+        [[creature]]
+        name = "crow"
+        like = "heron"
+        channel = 1
+        ''')
+    inst = load_installation(child)
+    assert [s.name for s in inst.specs] == ["heron", "crow"]
+    assert [s.drives["boredom"].growth for s in inst.specs] == [0.5, 0.5]
+    assert load_installation(heron).specs[0].drives["boredom"].growth == 0.05
+    bad = write(tmp_path, child.read_text().replace("channel = 1", "channel = 99"), "bad.toml")
+    error = error_of(bad)
+    assert (error.file, error.line, error.key) == (bad, line_of(bad, "channel = 99"), "creature.1.channel"), str(error)
+    typo = write(tmp_path, child.read_text().replace("growth = 0.5", "growth = 0.5\nx = 1"), "x.toml")
+    error = error_of(typo)  # in the heron, as tuned here
+    assert (error.file, error.line, error.key) == (typo, line_of(typo, "x = 1"), "creature.0.x"), str(error)
