@@ -1,5 +1,5 @@
 """``kind = "authored"``: a creature built from its config (thesis: "motivation-based
-authoring"; DESIGN.md "Authored creatures").
+authoring"; docs/DESIGN.md "Authored creatures").
 
 The config names the parts; this module only composes the library's own: drives are one
 :class:`~creatures.behaviour.motivation.Motivation`, percepts come from

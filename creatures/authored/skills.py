@@ -33,7 +33,7 @@ from creatures.authored.registry import ACTIONS, PERCEPTS, Params
 from creatures.behaviour.action_tuple import Action, ActionTuple
 from creatures.behaviour.models.gaussian import GaussianModel
 from creatures.behaviour.percept import FunctionPercept
-from creatures.kinds.layers import LayerSpec, source_limits
+from creatures.kinds.layers import LayerSpec, blend_field, source_limits
 from creatures.motor.adverbs import AdverbBlend, Example
 from creatures.motor.pose import PoseSet
 from creatures.motor import quaternion as quat
@@ -121,7 +121,7 @@ class _LookParams(Params):
     fade: float = Field(0.0, ge=0, le=60, description="seconds the layer eases in and out (an add look is eased "
                                                       "by its servo; a mean or exclusive one takes the joints "
                                                       "from the course, so give it a fade)")
-    blend: LayerSpec = LayerSpec()
+    blend: LayerSpec = blend_field()
 
 
 @ACTIONS.register
@@ -283,7 +283,7 @@ class _VariablesParams(Params):
     """The keys every skill over named variables shares; ``variables`` is each one's own."""
 
     fade: float = Field(0.5, ge=0, le=60, description="seconds the layer eases in and out")
-    blend: LayerSpec = LayerSpec()
+    blend: LayerSpec = blend_field()
 
     @model_validator(mode="after")
     def _names(self):
@@ -481,7 +481,7 @@ class _AdverbParams(Params):
                                                   "the tuple starts (and that rewards shape)")
     value: float | None = Field(None, ge=-1e6, le=1e6, description="a fixed adverb (neither drive nor percept)")
     fade: float = Field(1.0, ge=0, le=60, description="seconds the layer eases in and out")
-    blend: LayerSpec = LayerSpec()
+    blend: LayerSpec = blend_field()
 
     @model_validator(mode="after")
     def _one_source(self):

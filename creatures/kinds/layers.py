@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import functools
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
@@ -62,6 +62,13 @@ class LayerSpec(BaseModel):
                             mask=mask, fade=fade)
 
 
+def blend_field() -> Any:
+    """The ``blend`` key of a layer's table, described once for every layer that has one."""
+    return Field(LayerSpec(), description="{policy (add, budget, mean or exclusive), weight, priority}: "
+                                          "how this layer counts among the others on the joints it drives "
+                                          "(docs/authoring.md, 'Layers over the course')")
+
+
 class BreatheSpec(BaseModel):
     """``[creature.body] breathe = {...}``: an oscillator over named joints, added over the course."""
 
@@ -71,7 +78,7 @@ class BreatheSpec(BaseModel):
     depth: float = Field(0.0, ge=0, le=0.5, description="radians each breathing joint turns at the top of a "
                                                          "breath (0: no breathing layer)")
     fade: float = Field(1.0, ge=0, le=30, description="seconds the breathing eases in over (clock time)")
-    blend: LayerSpec = LayerSpec()
+    blend: LayerSpec = blend_field()
     joints: dict[str, tuple[float, float, float]] = Field(
         default_factory=lambda: dict(BREATHING_JOINTS),
         description="joint name → axis (in the joint's frame) it turns about as the breath fills")
