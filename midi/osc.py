@@ -44,8 +44,9 @@ above :data:`MAX_DURATION`, a state number beyond :data:`MAX_STATE_VALUE`); what
 refused and counted (a pitch or channel out of range, a velocity of 0 — a note-off —, a
 negative or non-finite number, a name or text longer than :data:`MAX_TEXT`). A listener reads
 at most ``max_rate`` packets a second (a flood must not starve the creatures; the kernel drops
-the rest, and those are counted too), and checks each packet's type tags before python-osc
-sees it (python-osc logs a warning per unknown tag: one 1 KB packet made 1,000 lines).
+the rest, and those are counted too), and checks each packet's type tags and lengths before python-osc
+sees it (python-osc logs a warning per unknown tag: one 1 KB packet made 1,000 lines; it
+zero-pads an argument cut short, so a cut packet would be heard with made-up numbers).
 """
 
 from __future__ import annotations
@@ -195,33 +196,79 @@ def check_wire(data: bytes, depth: int = 0, *, elsewhere: bool = False) -> None:
     With ``elsewhere`` (an input map takes the other addresses) a message at any other address
     may carry up to :data:`MAX_ELSEWHERE_ARGS` arguments of any type python-osc decodes.
 
-    Cheap (no parsing of arguments), so a flood of junk costs little; and python-osc never
+    Every length is checked too: python-osc zero-pads an argument cut short, so a note cut to
+    38 of its 40 bytes was heard with its duration's low bytes made up; a datagram whose
+    strings are not NUL-terminated and padded, whose length is not a multiple of 4, or whose
+    arguments are not exactly what its type tags say is ``not osc``, and so is a bundle with no
+    element. (A bundle cut exactly between two elements is a smaller bundle: OSC gives a bundle
+    no length of its own, so that cut cannot be seen.)
+
+    Cheap (no decoding of arguments), so a flood of junk costs little; and python-osc never
     meets an unknown type tag, on which it logs a warning per tag."""
+    if len(data) % 4:
+        raise Refused("not osc", f"{len(data)} bytes: not a multiple of 4")
     if data.startswith(_BUNDLE):
-        if depth >= 4 or len(data) < 16:
-            raise Refused("not osc", "bundle nested too deep or shorter than its header")
+        if depth >= 4 or len(data) <= 16:  # nothing in it to take: a bundle cut to its header is counted
+            raise Refused("not osc", "bundle nested too deep, or no element after its header")
         index = 16
         while index < len(data):
-            size = struct.unpack_from(">i", data, index)[0] if index + 4 <= len(data) else -1
+            size = struct.unpack_from(">i", data, index)[0]  # index + 4 <= len(data): both multiples of 4
             index += 4
             if size <= 0 or size % 4 or index + size > len(data):
                 raise Refused("not osc", "bundle element of an impossible size")
             check_wire(data[index:index + size], depth + 1, elsewhere=elsewhere)
             index += size
         return
-    ours = data.startswith(b"/creature/")
-    if not ours and not (elsewhere and data[:1] == b"/"):
-        raise Refused("address" if data[:1] == b"/" else "not osc", "not in the creature address space")
-    end = data.find(b"\x00")
-    tags = (end + 4) & ~3
-    if end < 0 or data[tags:tags + 1] != b",":
+    if data[:1] != b"/":
+        raise Refused("not osc", "neither a message nor a bundle")
+    tags = _string_end(data, 0)
+    if data[tags:tags + 1] != b",":
         raise Refused("not osc", "no type tag string")
-    stop = data.find(b"\x00", tags)
-    if ours:
-        if stop < 0 or stop - tags > 5 or not _TAGS.issuperset(data[tags + 1:stop]):
+    arguments = _string_end(data, tags)
+    types = data[tags + 1:data.index(b"\x00", tags)]
+    if data.startswith(b"/creature/"):
+        if len(types) > 4 or not _TAGS.issuperset(types):
             raise Refused("type tags", "more than 4 arguments, or a type this protocol never sends")
-    elif stop < 0 or stop - tags > MAX_ELSEWHERE_ARGS + 1 or not _ANY_TAGS.issuperset(data[tags + 1:stop]):
+    elif not elsewhere:
+        raise Refused("address", "not in the creature address space")
+    elif len(types) > MAX_ELSEWHERE_ARGS or not _ANY_TAGS.issuperset(types):
         raise Refused("type tags", f"more than {MAX_ELSEWHERE_ARGS} arguments, or a type python-osc cannot read")
+    if _arguments_end(data, types, arguments) != len(data):
+        raise Refused("not osc", "arguments not the length their type tags say")
+
+
+_FIXED = {ord("i"): 4, ord("f"): 4, ord("r"): 4, ord("m"): 4, ord("d"): 8, ord("h"): 8, ord("t"): 8}
+"""Bytes of each fixed-size OSC argument (``T F N [ ]`` take none)."""
+
+
+def _string_end(data: bytes, start: int) -> int:
+    """Where the OSC string at ``start`` ends: after its NUL and the NULs that pad it to a
+    multiple of 4; :class:`Refused` if it has no NUL or its padding is cut or not NULs."""
+    end = data.find(b"\x00", start)
+    padded = (end + 4) & ~3
+    if end < 0 or padded > len(data) or data[end:padded].strip(b"\x00"):
+        raise Refused("not osc", "a string not NUL-terminated and padded to 4 bytes")
+    return padded
+
+
+def _arguments_end(data: bytes, types: bytes, index: int) -> int:
+    """Where the arguments that ``types`` describe, starting at ``index``, end (beyond
+    ``len(data)`` if the datagram is cut short of them)."""
+    for tag in types:
+        if tag in _FIXED:
+            index += _FIXED[tag]
+        elif tag == ord("s"):
+            index = _string_end(data, index)
+        elif tag == ord("b"):
+            if index + 4 > len(data):
+                return index + 4
+            size = struct.unpack_from(">i", data, index)[0]
+            if size < 0:
+                raise Refused("not osc", "a blob of negative size")
+            index += 4 + ((size + 3) & ~3)
+        if index > len(data):
+            return index
+    return index
 
 
 class _Sends:
