@@ -102,7 +102,10 @@ _ANY_TAGS = frozenset(b"ifsdhbrmtTFN[]")  # every type python-osc decodes (it lo
 MAX_ELSEWHERE_ARGS = 64
 """Arguments a message for the input map may carry (``[[input]] args`` goes up to 64)."""
 _BUNDLE = b"#bundle\x00"
+_NOT_MALFORMED = ("oversize", "kernel", "at stop")  # drops that say nothing of what was sent
 _RXQ_OVFL = getattr(socket, "SO_RXQ_OVFL", 40)  # Linux: count of datagrams the kernel dropped
+_SO_MEMINFO = getattr(socket, "SO_MEMINFO", 55)  # Linux: the socket's memory and drop counters (u32s)
+_SK_MEMINFO_DROPS = 8  # SK_MEMINFO_DROPS: the index of the drop count in SO_MEMINFO's array
 
 
 class Refused(ValueError):
@@ -295,8 +298,12 @@ class OscListener(_Sends):
     ``dropped`` counts what was not taken, by cause: ``oversize``, ``not osc``, ``address``
     (outside the creature address space), ``type tags``, ``arguments`` (out of bounds) and
     ``kernel`` (datagrams the kernel dropped because the socket's buffer was full: beyond
-    ``max_rate`` or between slow polls). ``clamped`` counts messages taken with an argument
-    brought into bounds.
+    ``max_rate`` or between slow polls) and ``at stop`` (datagrams still queued when the listener
+    closed). ``clamped`` counts messages taken with an argument brought into bounds.
+
+    The kernel's count comes with each datagram read (``SO_RXQ_OVFL``), so drops after the last
+    read would go unsaid: :meth:`close` reads the final count (``SO_MEMINFO``) and counts what is
+    still queued (a flood stopped 0.2 s after its start said 53,445 of 142,526 drops).
     """
 
     def __init__(
@@ -349,7 +356,7 @@ class OscListener(_Sends):
     @property
     def malformed(self) -> int:
         """Packets or messages dropped as not OSC or not this protocol (all causes but size)."""
-        return sum(n for cause, n in self.dropped.items() if cause not in ("oversize", "kernel"))
+        return sum(n for cause, n in self.dropped.items() if cause not in _NOT_MALFORMED)
 
     @property
     def oversize(self) -> int:
@@ -434,7 +441,39 @@ class OscListener(_Sends):
                 "dropped": dict(sorted(self.dropped.items()))}
 
     def close(self) -> None:
+        """Close the socket, first counting what it will never read: the datagrams still queued
+        (``at stop``) and the kernel's final drop count (``kernel``), so that what was taken and
+        what was dropped add up to what arrived. A flood that goes on while this drains is read
+        at most a full buffer's worth more; what lands between the last read and the close is
+        not seen by anyone."""
+        if self.socket.fileno() < 0:
+            return
+        queued = 0
+        for _ in range(BURST + self.receive_buffer // 64):  # a datagram takes far more than 64 bytes of it
+            try:
+                self.socket.recv(1)
+            except (BlockingIOError, InterruptedError):
+                break
+            except OSError:  # an ICMP error queued on the socket
+                continue
+            queued += 1
+        if queued:
+            self.dropped["at stop"] += queued
+        drops = self._kernel_drops()
+        if drops is not None and drops > self.dropped["kernel"]:
+            self.dropped["kernel"] = drops
         self.socket.close()
+
+    def _kernel_drops(self) -> int | None:
+        """The kernel's count of datagrams it dropped for this socket (Linux ``SO_MEMINFO``);
+        None where it cannot say (then the last count read with a datagram stands)."""
+        try:
+            meminfo = self.socket.getsockopt(socket.SOL_SOCKET, _SO_MEMINFO, 4 * (_SK_MEMINFO_DROPS + 1))
+        except OSError:
+            return None
+        if len(meminfo) < 4 * (_SK_MEMINFO_DROPS + 1):
+            return None
+        return struct.unpack_from("=I", meminfo, 4 * _SK_MEMINFO_DROPS)[0]
 
 
 class OscSender(_Sends):

@@ -239,12 +239,13 @@ class Network:
         self.listener.wait(timeout)
 
     def close(self) -> None:
-        """Every creature says goodbye; sockets close."""
+        """Every creature says goodbye; sockets close, the listener first so that the last
+        counts logged hold its final drops (:meth:`OscListener.close`)."""
         for sender in self.senders.values():
             sender.bye()
             sender.close()
-        self.log_counts()
         self.listener.close()
+        self.log_counts()
 
 
 def describe(counts: dict[str, object]) -> str:
