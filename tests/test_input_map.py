@@ -143,7 +143,7 @@ def test_osc_int_float_string_and_two_argument_notes_are_heard_by_those_that_hea
     assert router.counts["mapped"] == 4 and router.counts["malformed"] == 0
 
 
-def test_unreadable_and_unmapped_messages_are_counted_and_logged_once_per_address(tmp_path):
+def test_unreadable_and_unmapped_messages_are_counted_and_logged_once_per_cause(tmp_path):
     session, clock = colony(tmp_path)
     router = session.inputs
     said: list[str] = []
@@ -156,12 +156,30 @@ def test_unreadable_and_unmapped_messages_are_counted_and_logged_once_per_addres
     assert router.counts["malformed"] == 9 and router.counts["unmapped"] == 3
     assert router.counts["malformed osc"] == 9 and router.counts["mapped"] == 0
     logged = [(e["kind"], e["address"], e["count"]) for e in session.log.records if e["kind"] in ("unmapped", "malformed")]
-    assert logged == [("malformed", "/note", 1), ("unmapped", "/synth/freq", 1)]  # rate limited per address
+    assert logged == [("malformed", "/note", 1), ("unmapped", "/synth/freq", 1)]  # rate limited per cause
     assert len(said) == 2 and "/synth/freq" in said[1]
     router.osc("/synth/freq", [1.0], 70.0)  # a minute later: logged again, with the count since
     assert [e["count"] for e in events(session, "unmapped")] == [1, 3]
     session.close()
     assert events(session, "inputs")[-1]["unmapped"] == 4
+
+
+def test_two_thousand_distinct_unmapped_addresses_are_one_cause_logged_at_most_every_ten_seconds(tmp_path):
+    """One line per distinct address (up to 1,024) made 1,023 lines in under a second for
+    2,000 ``/probe/<i>``: unmapped is one cause, whatever the address."""
+    session, clock = colony(tmp_path)
+    router = session.inputs
+    said: list[str] = []
+    router.say = said.append
+    for i in range(2000):
+        router.osc(f"/probe/{i}", [i], 1.0 + i / 2000)
+    assert len(said) == 1 and "/probe/0" in said[0] and router.counts["unmapped osc"] == 2000
+    router.osc("/probe/again", [], 11.5)  # 10 s on: one line with the count since and a few addresses
+    assert len(said) == 2 and "2000 messages" in said[1] and "'/probe/1', '/probe/2', '/probe/3'" in said[1]
+    assert [(e["count"], e["examples"]) for e in events(session, "unmapped")] == [
+        (1, ["/probe/0"]), (2000, ["/probe/1", "/probe/2", "/probe/3"])]
+    session.close()
+    assert events(session, "inputs")[-1]["unmapped"] == 2001
 
 
 def test_wildcard_any_arity_and_bool_readings_reach_named_sensors(tmp_path):

@@ -16,9 +16,11 @@ becomes (``to``):
 
 Nothing is dropped in silence. A message no map takes is *unmapped*; one a map takes but
 cannot read (an argument missing or of the wrong type, a pitch out of range) is *malformed*.
-Both are counted and logged once per address and source (again at most every
-:data:`LOG_EVERY` seconds, with the count), and the counters are logged at the end of the run
-(``inputs``). Every message is applied at the time it is polled, on the creature's thread.
+Both are counted, and logged as one cause per source: a line (and an event) the first time,
+then at most every :data:`LOG_EVERY` seconds with the count since and a few of the addresses
+(2,000 distinct addresses once made 1,023 lines in under a second: one per address); the
+counters are logged at the end of the run (``inputs``). Every message is applied at the time
+it is polled, on the creature's thread.
 
 Every number read from a message meets a bound before it reaches a value, the way a config
 number does (:mod:`creatures.bounds`): a reading, a drive's amount or level, and a reading
@@ -50,11 +52,12 @@ if TYPE_CHECKING:
 HEARD_LENGTH = 0.25
 """Seconds assumed for a heard note whose length is not known (a MIDI note heard at its note-on)."""
 
-LOG_EVERY = 60.0
-"""Seconds between two log lines for the same unmapped or malformed address."""
+LOG_EVERY = 10.0
+"""Seconds between two log lines of one cause (unmapped, or malformed, from one source): the
+rule of every log line here (:mod:`creatures.log_limit`)."""
 
-MAX_ADDRESSES = 1024
-"""Distinct addresses whose log lines are rate limited one by one; beyond them, one for all."""
+EXAMPLES = 3
+"""Distinct addresses a cause's log line names (of those seen since its last line)."""
 
 SENSOR_LOG_EVERY = 0.1
 """Seconds between two ``sensor`` log lines of one sensor (a 100 Hz controller must not
@@ -132,7 +135,8 @@ class InputRouter:
         self.world = world
         self.say = say
         self.counts: Counter[str] = Counter()  # mapped / unmapped / malformed, and by source
-        self._logged: dict[tuple[str, str, str], tuple[float, int]] = {}  # -> (last logged, count since)
+        # (what, via) -> when last logged, messages since, a few of their addresses
+        self._logged: dict[tuple[str, str], tuple[float, int, tuple[str, ...]]] = {}
         self._sensor_logged: dict[str, float] = {}
         for route in routes:
             if route.spec.to == "sensor":
@@ -259,20 +263,25 @@ class InputRouter:
 
     # -- what nothing takes ----------------------------------------------------------------
     def miss(self, what: str, via: str, address: str, t: float, why: str) -> None:
-        """Count an unmapped or malformed message; log it the first time its address is seen
-        from this source, then at most every :data:`LOG_EVERY` seconds with the count."""
+        """Count an unmapped or malformed message; log its cause (``what`` from ``via``) the
+        first time, then at most every :data:`LOG_EVERY` seconds with the count since and up
+        to :data:`EXAMPLES` of the addresses, however many distinct addresses there are."""
         self.counts[what] += 1
         self.counts[f"{what} {via}"] += 1
-        key = (what, via, address if len(self._logged) < MAX_ADDRESSES or (what, via, address) in self._logged
-               else "(other addresses)")
-        last, since = self._logged.get(key, (-math.inf, 0))
+        last, since, examples = self._logged.get((what, via), (-math.inf, 0, ()))
+        address = address[:80]
+        if address not in examples and len(examples) < EXAMPLES:
+            examples += (address,)
         if t - last < LOG_EVERY:
-            self._logged[key] = (last, since + 1)
+            self._logged[(what, via)] = (last, since + 1, examples)
             return
-        self._logged[key] = (t, 0)
-        self.world.emit(what, via=via, address=key[2], why=why, count=since + 1)
+        self._logged[(what, via)] = (t, 0, ())
+        self.world.emit(what, via=via, address=address, why=why, count=since + 1, examples=list(examples))
         if last == -math.inf:
-            self.say(f"{via} input {key[2][:80]!r} {what} ({why}); counted, logged at most every {LOG_EVERY:.0f} s")
+            self.say(f"{via} input {address!r} {what} ({why}); counted, logged at most every {LOG_EVERY:.0f} s")
+        else:
+            self.say(f"{via} input {what}: {since + 1} messages in {t - last:.0f} s, e.g. "
+                     f"{', '.join(map(repr, examples))} (last: {why})")
 
     def summary(self) -> dict[str, int]:
         """The counters, for the run's summary and its last ``inputs`` event."""
