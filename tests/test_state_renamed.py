@@ -70,3 +70,15 @@ def test_a_group_no_longer_in_the_config_is_kept_too(tmp_path):
     assert len(said) == 1 and "bo.json" in said[0] and "dance.spin" in said[0]
     session.save_state(tmp_path)
     assert _values(tmp_path / "bo.json")["dance"] == {"spin": LEARNT}
+
+
+def test_a_saved_creature_no_creature_takes_is_reported_and_left_as_it_is(tmp_path):
+    """ada renamed ann in the config: the run said "restored bo, cy" and nothing of ada.json.
+    Now it names the file's creature, and the file is left for a creature of that name."""
+    _session([]).save_state(tmp_path)
+    (tmp_path / "ada.json").rename(tmp_path / "ann.json")
+    before = (tmp_path / "ann.json").read_bytes()
+    said: list[str] = []
+    assert _session(said).load_state(tmp_path) == ["bo", "cy"]
+    assert len(said) == 1 and "saved state of ann matches no creature in exchange.toml" in said[0], said
+    assert (tmp_path / "ann.json").read_bytes() == before

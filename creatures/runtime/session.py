@@ -282,8 +282,20 @@ class Session:
                 raise StateFileError(f"{path}: malformed {creature.spec.kind} state ({type(exc).__name__}: {exc})") from None
             restored.append(creature.name)
             self._report_unplaced(path, creature)
+        self._report_strangers(directory)
         self._load_colony(directory / COLONY_FILE)
         return restored
+
+    def _report_strangers(self, directory: Path) -> None:
+        """Say which saved creatures no creature of the config takes (one renamed or removed):
+        their files are left as they are, and taken back if a creature of that name returns."""
+        names = {creature.name for creature in self.creatures}
+        strangers = sorted(p.stem for p in directory.glob("[!.]*.json")  # a creature's NAME.json, no colony.state.json
+                           if "." not in p.stem and p.stem not in names)
+        if strangers:
+            self.say(f"{directory}: saved state of {', '.join(strangers)} matches no creature in "
+                     f"{self.inst.path.name} (renamed or removed?); left as it is, and taken back if a creature "
+                     "of that name returns")
 
     def _report_unplaced(self, path: Path, creature: Any) -> None:
         """Say which saved values no tuple of the config takes (a tuple renamed or removed):
