@@ -183,6 +183,16 @@ def test_a_bad_duration_on_the_command_line_is_a_usage_error(tmp_path, capsys, c
     assert not (tmp_path / "out").exists() and not (tmp_path / "state").exists()
 
 
+@pytest.mark.parametrize("value", ["0", "367", "1.5", "week"])
+def test_a_bad_number_of_days_is_one_usage_line_naming_the_range(capsys, value):
+    """``--days 0`` printed all 366 allowed values (argparse's ``choices``)."""
+    with pytest.raises(SystemExit) as caught:
+        main(["rehearse", "exchange", f"--days={value}"])
+    assert caught.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].endswith(f"argument --days: {value!r} is not a whole number in [1, 366]") and len(err[-1]) < 120
+
+
 def test_a_midi_file_note_held_absurdly_long_is_held_at_most_the_longest_note(tmp_path):
     """A file note whose note-off lies 2^27 ticks on at the slowest tempo (about 2,000
     years) is heard as one long note, not as a duration no clock can reach."""
