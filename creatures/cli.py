@@ -138,9 +138,11 @@ def _config_path(config: Path) -> Path:
     try:
         return installations.path(str(config))
     except FileNotFoundError:
-        close = difflib.get_close_matches(str(config), installations.names(), n=1)
+        beside = difflib.get_close_matches(config.name, [p.stem for p in config.parent.glob("*.toml")], n=1)
+        close = installations.nearest(str(config))
         raise ConfigError(config.resolve(), "config file not found" + (
-            f" (did you mean the shipped {close[0]!r}?)" if close else
+            f" (did you mean {config.with_name(beside[0] + '.toml')}?)" if beside else
+            f" (did you mean the shipped {close!r}?)" if close else
             f", nor {config.name}.toml, nor a shipped installation ({', '.join(installations.names())})")) from None
 
 

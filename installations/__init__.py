@@ -5,6 +5,7 @@ This folder is a package only so the configs install with the code; ``path(name)
 
 from __future__ import annotations
 
+import difflib
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
@@ -25,11 +26,26 @@ def creature_names() -> list[str]:
     return sorted(p.stem for p in CREATURES.glob("*.toml"))
 
 
+TUTORIAL = "tutorial"
+"""The folder of the tutorial's steps, run by name too: ``creatures demo tutorial/heron-1``."""
+
+
+def nearest(name: str) -> str | None:
+    """The shipped installation (or tutorial step) whose name is nearest ``name``, if one is near."""
+    steps = [f"{TUTORIAL}/{p.stem}" for p in (HERE / TUTORIAL).glob("*.toml")]
+    close = difflib.get_close_matches(name, [*names(), *steps], n=1)
+    return close[0] if close else None
+
+
 def path(name: str) -> Path:
-    """The config file of a shipped installation, or a clear error listing the choices."""
+    """The config file of a shipped installation, or a clear error naming the nearest one and
+    listing the choices."""
     candidate = HERE / f"{name}.toml"
     if not candidate.is_file():
-        raise FileNotFoundError(f"no shipped installation {name!r}; choose from {names()}")
+        close = nearest(name)
+        hint = f" (did you mean {close!r}?)" if close else ""
+        raise FileNotFoundError(f"no shipped installation {name!r}{hint}; choose from {names()} "
+                                f"or a step of {TUTORIAL}/")
     return candidate
 
 

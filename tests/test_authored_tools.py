@@ -100,6 +100,13 @@ def test_a_config_named_without_toml_is_found_and_a_misspelt_shipped_one_is_sugg
     assert main(["offline", "exchang", "--out", str(tmp_path / "o")]) == 2
     assert "config file not found (did you mean the shipped 'exchange'?)" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()
+    # a file beside it before a shipped piece; a tutorial step; the demo's own name lookup
+    assert main(["describe", "mie"]) == 2
+    assert f"config file not found (did you mean {tmp_path / 'mine.toml'}?)" in capsys.readouterr().err
+    assert main(["describe", "tutorial/heron1"]) == 2
+    assert "(did you mean the shipped 'tutorial/heron-1'?)" in capsys.readouterr().err
+    assert main(["demo", "exchang", "--out", str(tmp_path / "d")]) == 2
+    assert "no shipped installation 'exchang' (did you mean 'exchange'?)" in capsys.readouterr().err
 
 
 def test_offline_takes_a_shipped_installations_name(tmp_path):
