@@ -50,22 +50,6 @@ def _bounded(low: float, high: float) -> Callable[[str], float]:
     return parse
 
 
-def _whole(low: int, high: int) -> Callable[[str], int]:
-    """An argparse ``type``: a whole number in [``low``, ``high``], said as that range when it
-    is not (``choices=range(…)`` listed all 366 days)."""
-
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            value = low - 1
-        if not low <= value <= high:
-            raise argparse.ArgumentTypeError(f"{text!r} is not a whole number in [{low}, {high}]")
-        return value
-
-    return parse
-
-
 def command(name: str, help_text: str, configure: Configure) -> Callable[[Run], Run]:
     """Register ``fn(args) -> exit code`` as ``creatures NAME``."""
 
@@ -181,7 +165,7 @@ def _run_offline(config: Path, out: Path, *, audio: Path | None = None, midi: Pa
 
 def _rehearse_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("config", type=Path, help="installation config (TOML), or a shipped installation's name")
-    parser.add_argument("--days", type=_whole(1, 366), metavar="N",
+    parser.add_argument("--days", type=_integer(1, 366, "a whole number of days"), metavar="N",
                         help="simulated days, 1-366 (default: [rehearse] days, 7)")
     parser.add_argument("--compare", type=Path, metavar="OTHER", help="a second config rehearsed beside it, "
                                                                      "side by side in one report")

@@ -190,7 +190,7 @@ def test_a_bad_number_of_days_is_one_usage_line_naming_the_range(capsys, value):
         main(["rehearse", "exchange", f"--days={value}"])
     assert caught.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert err[-1].endswith(f"argument --days: {value!r} is not a whole number in [1, 366]") and len(err[-1]) < 120
+    assert err[-1].endswith(f"argument --days: {value!r} is not a whole number of days in 1…366") and len(err[-1]) < 120
 
 
 def test_a_midi_file_note_held_absurdly_long_is_held_at_most_the_longest_note(tmp_path):
