@@ -35,6 +35,14 @@ MIN_FILE_RATE = 1000
 FULL_SCALE = 0.999
 """A live sample this loud (or louder) is counted as clipped."""
 
+LARGEST_SAMPLE = 1e3
+"""The largest magnitude a sample may have: 1000 × full scale, +60 dB. Float recordings may
+legally go a little past ±1.0 (a mix summed without limiting), never this far; beyond it a
+sample is garbage (a wrong byte order, a corrupt float file, a driver writing junk), and at
+±1e18 the spectra's squares overflow float32 to inf, which crashed the offline ear in scipy's
+clustering. A file holding such samples is refused like one holding NaN/inf; live, they are
+counted and zeroed like non-finite ones."""
+
 __all__ = [
     "ANALYSIS_RATE",
     "ArraySource",
@@ -45,11 +53,35 @@ __all__ = [
     "LiveInput",
     "RingBuffer",
     "load_audio",
+    "unusable",
 ]
 
 
 class AudioFileError(ValueError):
     """A sound file cannot be heard (unreadable, empty, non-finite); the message names it."""
+
+
+def unusable(samples: np.ndarray) -> np.ndarray:
+    """Mask of the samples no ear can take: NaN, ±inf, or beyond :data:`LARGEST_SAMPLE`.
+
+    One test (``not |x| <= bound``, false for NaN) so file and live input agree on what is garbage.
+    """
+    return ~(np.abs(samples) <= LARGEST_SAMPLE)
+
+
+def _refuse_unusable(path: Path, data: np.ndarray, rate: int) -> None:
+    """Raise :class:`AudioFileError` naming ``path``, the count and the first place of bad samples.
+
+    NaN/inf and samples past :data:`LARGEST_SAMPLE` are told apart: the fix differs (a broken
+    writer versus a wrong scale or format).
+    """
+    for bad, what in (
+        (~np.isfinite(data), "NaN/inf samples"),
+        (unusable(data), f"samples beyond ±{LARGEST_SAMPLE:g}, +60 dB over full scale"),
+    ):
+        if bad.any():
+            frame = int(np.argmax(bad.any(axis=1)))
+            raise AudioFileError(f"{path}: {int(bad.sum())} {what} (first at {frame / rate:.3f} s)")
 
 
 class AudioSource(ABC):
@@ -98,7 +130,8 @@ def load_audio(path: str | os.PathLike, *, samplerate: int = ANALYSIS_RATE) -> n
     Any format libsndfile reads (WAV 8/16/24/32-bit and float, FLAC, OGG, ...) at any rate;
     channels are averaged, the rate is converted with soxr. Raises :class:`AudioFileError`
     naming the file when it is unreadable, truncated beyond use, empty, or holds NaN/inf
-    samples (silently zeroing those would hide a broken recording).
+    samples or samples beyond :data:`LARGEST_SAMPLE` (silently zeroing those would hide a
+    broken recording).
     """
     path = Path(path)
     if not path.is_file():
@@ -113,12 +146,7 @@ def load_audio(path: str | os.PathLike, *, samplerate: int = ANALYSIS_RATE) -> n
         raise AudioFileError(f"{path}: contains no samples (zero-length recording)")
     if rate < MIN_FILE_RATE:
         raise AudioFileError(f"{path}: sample rate {rate} Hz is below {MIN_FILE_RATE} Hz (a damaged header?)")
-    bad = ~np.isfinite(data)
-    if bad.any():
-        frame = int(np.argmax(bad.any(axis=1)))
-        raise AudioFileError(
-            f"{path}: {int(bad.sum())} NaN/inf samples (first at {frame / rate:.3f} s)"
-        )
+    _refuse_unusable(path, data, rate)
     mono = data.mean(axis=1) if data.shape[1] > 1 else data[:, 0]
     if rate != samplerate:
         mono = soxr.resample(mono, rate, samplerate)
@@ -193,8 +221,9 @@ class LiveInput(AudioSource):
     The stream runs at the device's own rate (JACK, for one, will not change it); blocks are
     converted on the reading side by :class:`audio.resample.Resampler`, which gives every
     block's samples on at once (soxr's streaming "HQ" resampler held up to 38 ms back, in
-    bursts: most of a live ear's budget). Non-finite samples from a misbehaving driver are replaced by zero and counted in :attr:`bad_samples` so the
-    creature's loop never dies on them; samples at full scale are counted in :attr:`clipped`
+    bursts: most of a live ear's budget). Non-finite samples from a misbehaving driver, and
+    finite ones beyond :data:`LARGEST_SAMPLE` (junk that overflows the ear's spectra), are
+    replaced by zero and counted in :attr:`bad_samples` so the creature's loop never dies on them; samples at full scale are counted in :attr:`clipped`
     (a microphone gain set too high in a gallery shows there, not only in what is heard).
     ``block_size`` 0 (the default) takes each host buffer as it comes (JACK's period): a fixed
     512 on a 128-frame JACK period made PortAudio hold four periods before calling back
@@ -296,7 +325,7 @@ class LiveInput(AudioSource):
             raise AudioDeviceUnavailable("live input not started: call start() first")
         n = self.ring.read(self._scratch)
         block = self._scratch[:n]
-        bad = ~np.isfinite(block)
+        bad = unusable(block)
         if bad.any():
             self.bad_samples += int(bad.sum())
             block[bad] = 0.0

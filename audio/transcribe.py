@@ -31,7 +31,8 @@ one stream (measured against each ear alone and basic-pitch's published model in
    It is followed until the model stops hearing it sound (or it is struck again) and its
    measured duration goes to :attr:`Transcriber.ended`.
 
-Non-finite samples hold the last good one and are counted (:attr:`Transcriber.bad_samples`),
+Non-finite samples, and finite ones beyond :data:`audio.sources.LARGEST_SAMPLE` (junk whose
+squares overflow the spectra), hold the last good one and are counted (:attr:`Transcriber.bad_samples`),
 clipped ones are counted (:attr:`Transcriber.clipped`), and no note is taken from the frames a
 repair, a change of input rate (:meth:`Transcriber.set_rate`) or a clock gap
 (:meth:`Transcriber.skip`) touched: each leaves a step in the stream that is not an attack.
@@ -52,6 +53,7 @@ from audio.note_model import PITCHES, Judged, NoteModel, default
 from audio.onset_ear import LIVE_WINDOW, OFFLINE_WINDOW, Candidate, OnsetEar
 from audio.pitch import velocity_from_level
 from audio.resample import Resampler
+from audio.sources import unusable
 from midi.notes import NoteEvent
 
 LIVE, QUICK, OFFLINE = "live", "quick", "offline"
@@ -310,7 +312,7 @@ class Transcriber:
         """Notes that ended, with their measured durations (the latest 1024)."""
         self.onsets = 0  # frames in which a note began
         self.notes = 0  # notes given
-        self.bad_samples = 0  # non-finite samples replaced
+        self.bad_samples = 0  # non-finite or out-of-range samples replaced
         self.clipped = 0  # samples at or beyond full scale
         self._last_good = 0.0
         self._rate = 0
@@ -346,7 +348,7 @@ class Transcriber:
         if x.ndim == 2:
             x = x.mean(axis=1)
         hops = -(-len(x) * RATE // (self._rate * HOP))  # the hops this block reaches into
-        bad = ~np.isfinite(x)
+        bad = unusable(x)
         if bad.any():
             # Each bad sample holds the last good one: a zero in a loud tone would be a click.
             self.bad_samples += int(bad.sum())

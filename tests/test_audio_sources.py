@@ -61,6 +61,33 @@ def test_nan_and_inf_samples_are_refused_with_their_count_and_place(tmp_path: Pa
         load_audio(path)
 
 
+@pytest.mark.parametrize("scale", [1e4, 1e18, 1e30])
+def test_samples_far_beyond_full_scale_are_refused_with_their_count_and_place(tmp_path: Path, scale: float) -> None:
+    # Finite junk past +60 dB overflowed the offline ear's spectra (×1e18: a scipy traceback).
+    x = tone(440, 1.0).astype(np.float32)
+    x[11025:11035] = scale
+    path = write_wav(tmp_path / "loud.wav", x, subtype="FLOAT")
+    with pytest.raises(AudioFileError, match=r"loud\.wav: 10 samples beyond ±1000, \+60 dB over full scale \(first at 0\.500 s\)"):
+        load_audio(path)
+
+
+def test_a_float_file_a_little_past_full_scale_is_heard(tmp_path: Path) -> None:
+    x = (tone(440, 1.0) * 900.0).astype(np.float32)  # loud, but within the +60 dB bound
+    np.testing.assert_allclose(load_audio(write_wav(tmp_path / "hot.wav", x, subtype="FLOAT")), x, atol=1e-2)
+
+
+def test_the_offline_run_refuses_a_far_too_loud_file_in_one_line(tmp_path: Path, capsys) -> None:
+    from creatures.cli import main
+
+    x = np.zeros(SR, np.float32)
+    x[SR // 2:] = 1e30 * np.sin(2 * np.pi * 300 * np.arange(SR - SR // 2) / SR)
+    path = write_wav(tmp_path / "loud.wav", x, subtype="FLOAT")
+    code = main(["offline", "soundcreatures", "--audio", str(path), "--out", str(tmp_path / "o"), "--duration", "1"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2
+    assert len(err) == 1 and "loud.wav" in err[0] and "beyond ±1000" in err[0]
+
+
 def test_file_cut_inside_the_data_keeps_what_was_recorded(tmp_path: Path) -> None:
     x = tone(440, 1.0)
     data = write_wav(tmp_path / "full.wav", x).read_bytes()
@@ -148,6 +175,20 @@ def test_live_loop_survives_bad_blocks() -> None:
     assert live.overruns > 0  # 0.1 s of ring cannot hold four 2048-frame blocks
     assert live.driver_overflows == 4
     assert heard > 0
+
+
+@pytest.mark.parametrize("junk", [1e4, -1e30, 3e38])
+def test_live_samples_far_beyond_full_scale_are_zeroed_and_counted(junk: float) -> None:
+    """A driver writing junk (finite but huge) is treated like one writing NaN: the creature's
+    thread never sees it, so its spectra cannot overflow."""
+    live = LiveInput(buffer_seconds=0.1)
+    live.prepare(ANALYSIS_RATE)  # no resampling: exact counts
+    block = np.full((256, 1), 0.5, np.float32)
+    block[::4] = junk
+    live.callback(block, len(block), None, None)
+    out = live.read()
+    assert live.bad_samples == 64
+    assert np.abs(out).max() <= 1.0 and np.count_nonzero(out == 0.0) == 64
 
 
 def test_unknown_device_is_named() -> None:

@@ -3,6 +3,8 @@ no crash, no phantom notes — and the notes that are there still heard."""
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -49,6 +51,18 @@ def test_non_finite_samples_are_counted_and_repaired() -> None:
     for start, value in ((int(0.9 * 22050), np.nan), (int(1.6 * 22050), np.inf), (int(2.5 * 22050), -np.inf)):
         x[start:start + 100] = value
     ear, notes = hear(x, 22050)
+    assert ear.bad_samples == 300
+    assert [n.pitch for n in notes] == PITCHES
+
+
+def test_samples_far_beyond_full_scale_are_counted_and_repaired() -> None:
+    """Finite junk (a driver writing garbage) is repaired like NaN: ×1e30 overflowed the spectra."""
+    x = chord_line(22050)
+    for start, value in ((int(0.9 * 22050), 1e30), (int(1.6 * 22050), -1e18), (int(2.5 * 22050), 1e4)):
+        x[start:start + 100] = value
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no overflow on the way
+        ear, notes = hear(x, 22050)
     assert ear.bad_samples == 300
     assert [n.pitch for n in notes] == PITCHES
 
