@@ -111,9 +111,21 @@ def _load(path: Path) -> smf.Events | mido.MidiFile:
         raw = b""  # missing, a directory, unreadable: mido says which
     events = smf.parse(raw)
     midi = _open(path) if events is None else events
-    if midi.ticks_per_beat <= 0:
-        raise MidiFileError(f"{path}: SMPTE time division is not supported")
+    _check_division(path, midi.ticks_per_beat)
     return midi
+
+
+def _check_division(path: Path, division: int) -> None:
+    """Refuse a header division no tick can be timed by, saying which of two faults it is.
+
+    Both readers unpack the division as a signed short: SMPTE time codes (top bit set) come out
+    negative. A division of 0 is not SMPTE but a broken header (0 ticks per beat), and saying
+    "SMPTE" sent its author looking for the wrong fault.
+    """
+    if division < 0:
+        raise MidiFileError(f"{path}: SMPTE time division is not supported")
+    if division == 0:
+        raise MidiFileError(f"{path}: ticks per beat 0 in the header (must be 1..32767)")
 
 
 def _tempo_map(path: Path, ticks_per_beat: int, changes: Iterable[tuple[int, int]]) -> TempoMap:

@@ -110,6 +110,19 @@ def test_missing_and_garbage_files_name_the_file(tmp_path):
         read_messages(tmp_path / "junk.mid")
 
 
+@pytest.mark.parametrize("division, message", [
+    ("0000", r"zero\.mid: ticks per beat 0 in the header \(must be 1\.\.32767\)"),
+    ("E728", r"zero\.mid: SMPTE time division is not supported"),  # -25 fps, 40 ticks per frame
+])
+def test_a_division_no_tick_can_be_timed_by_is_named_for_what_it_is(tmp_path, division, message):
+    track = bytes.fromhex("00 90 3C 40 83 60 3C 00 00 FF 2F 00")
+    data = b"MThd" + (6).to_bytes(4, "big") + bytes.fromhex("0001 0001" + division)
+    (tmp_path / "zero.mid").write_bytes(data + b"MTrk" + len(track).to_bytes(4, "big") + track)
+    for read in (read_notes, read_messages):
+        with pytest.raises(MidiFileError, match=message):
+            read(tmp_path / "zero.mid")
+
+
 def test_failed_write_leaves_previous_file_intact(rng, tmp_path):
     path = tmp_path / "keep.mid"
     notes = random_notes(rng, 20)
