@@ -104,12 +104,16 @@ def _open(path: Path) -> mido.MidiFile:
 
 def _load(path: Path) -> smf.Events | mido.MidiFile:
     """The file parsed by :mod:`midi.smf` (arrays, no message objects), or by mido where that
-    reader declines it (then every error is mido's, turned into a MidiFileError as before)."""
+    reader declines it (then every error is mido's, turned into a MidiFileError as before).
+    The one fault :mod:`midi.smf` names itself (:class:`midi.smf.TrackError`) is told with the path."""
     try:
         raw = path.read_bytes()
     except OSError:
         raw = b""  # missing, a directory, unreadable: mido says which
-    events = smf.parse(raw)
+    try:
+        events = smf.parse(raw)
+    except smf.TrackError as exc:
+        raise MidiFileError(f"{path}: {exc}") from None
     midi = _open(path) if events is None else events
     _check_division(path, midi.ticks_per_beat)
     return midi

@@ -7,12 +7,19 @@ channel message; position of every meta event), and notes are paired from the ar
 (:func:`pair_notes`) without a message object in between.
 
 The reader accepts exactly what mido accepts and reads it the same way, or declines: any
-file it is not sure of (an undefined or system status byte, running status after a sysex,
-a message running past its chunk, a delta longer than four bytes, a data byte above 127, a
+file it is not sure of (an undefined or system status byte, a message running past its chunk, a delta longer than four bytes, a data byte above 127, a
 meta event mido would not decode, a truncated chunk…) makes :func:`parse` return None and
 :mod:`midi.files` reads that file with mido as before, so every error message stays mido's
 (``tests/test_midi_files.py``, ``tests/test_fuzz_parsers.py``) and every accepted file
 gives what mido gives (``tests/test_midi_smf.py`` compares both on fuzzed and written files).
+
+One fault it names itself, as :class:`TrackError`: a data byte with no status after a sysex
+event. The SMF spec says sysex and meta events cancel running status; mido took the byte as
+running status *of the sysex* and read the next data byte as a sysex length, which ended in
+"truncated MIDI file" for a whole chunk (or, worse, in a sysex of garbage and a misaligned
+track). A meta event is let through, as mido lets it: many sequencers resume running status
+after a tempo or text meta, and readers (mido's among them) accept those files, so refusing
+them would refuse real music for a rule no reader enforces.
 Meta events are few in a file (names, tempo, time and key signatures, end of track), so
 each is decoded by mido's own ``build_meta_message``: its rules need no second copy here.
 """
@@ -31,7 +38,11 @@ from midi.notes import LONGEST_NOTE
 MAX_MESSAGE_LENGTH = 1_000_000
 """mido's limit on a meta or sysex event's length (``mido.midifiles.midifiles``)."""
 
-_OK, _DECLINE = 0, 1
+_OK, _DECLINE, _NO_STATUS = 0, 1, 2
+
+
+class TrackError(ValueError):
+    """A track fault this reader names itself (the caller adds the file's name)."""
 
 
 @dataclass
@@ -84,9 +95,10 @@ def _byte(data, pos):
 
 @numba.njit(cache=True)
 def _walk(data, starts, ends, track, tick, status, data1, data2, meta_track, meta_tick, meta_kind, meta_start,
-          meta_length):
+          meta_length, fault):
     """Walk every track chunk as mido's ``read_track`` does, filling the arrays; returns
-    (channel messages, meta events, _OK or _DECLINE)."""
+    (channel messages, meta events, _OK, _DECLINE or _NO_STATUS). On _NO_STATUS ``fault`` holds
+    the track and the file offset of the data byte that had no status."""
     n = data.shape[0]
     k = 0
     m = 0
@@ -105,6 +117,9 @@ def _walk(data, starts, ends, track, tick, status, data1, data2, meta_track, met
             pos += 1
             first = -1
             if byte < 0x80:  # running status
+                if last == 0xF0 or last == 0xF7:  # a sysex cancelled it (a meta does not: see above)
+                    fault[0], fault[1] = t, pos - 1
+                    return k, m, _NO_STATUS
                 if last < 0 or last >= 0xF0:
                     return k, m, _DECLINE
                 first = byte
@@ -148,7 +163,10 @@ def _walk(data, starts, ends, track, tick, status, data1, data2, meta_track, met
 
 
 def parse(raw: bytes) -> Events | None:
-    """The file's channel messages and tempo changes, or None where mido must read it."""
+    """The file's channel messages and tempo changes, or None where mido must read it.
+
+    Raises :class:`TrackError` for a data byte with no running status after a sysex event.
+    """
     if len(raw) < 8:
         return None
     name, size = struct.unpack(">4sL", raw[:8])
@@ -171,8 +189,11 @@ def parse(raw: bytes) -> Events | None:
     track, tick = np.empty(capacity, np.int64), np.empty(capacity, np.int64)
     status, data1, data2 = (np.empty(capacity, np.uint8) for _ in range(3))
     meta_track, meta_tick, meta_kind, meta_start, meta_length = (np.empty(capacity, np.int64) for _ in range(5))
+    fault = np.zeros(2, np.int64)
     k, m, verdict = _walk(data, np.array(starts, np.int64), np.array(ends, np.int64), track, tick, status,
-                          data1, data2, meta_track, meta_tick, meta_kind, meta_start, meta_length)
+                          data1, data2, meta_track, meta_tick, meta_kind, meta_start, meta_length, fault)
+    if verdict == _NO_STATUS:
+        raise _no_status(raw, int(fault[0]), int(fault[1]))
     if verdict != _OK:
         return None
     tempos: list[tuple[int, int, int]] = []
@@ -188,6 +209,12 @@ def parse(raw: bytes) -> Events | None:
     tempo_track, tempo_tick, tempo = (np.array(column, np.int64) for column in (zip(*tempos) if tempos else ([], [], [])))
     return Events(file_type, ticks_per_beat, max(n_tracks, 0), track[:k], tick[:k], status[:k], data1[:k], data2[:k],
                   tempo_track, tempo_tick, tempo)
+
+
+def _no_status(raw: bytes, track: int, at: int) -> TrackError:
+    """The error for data byte ``raw[at]`` of track ``track`` (from 0) left without a status."""
+    return TrackError(f"track {track + 1}, byte {at}: data byte 0x{raw[at]:02X} with no running status "
+                      "(a sysex event cancels it)")
 
 
 @numba.njit(cache=True)
