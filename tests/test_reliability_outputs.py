@@ -769,3 +769,22 @@ def test_demo_points_to_its_report_only_when_it_wrote_one(tmp_path, capsys):
     assert "index.html" not in capsys.readouterr().out
     assert main(["demo", "exchange", "--out", str(tmp_path / "exchange"), "--duration", "1"]) == 0
     assert f"open {tmp_path / 'exchange' / 'report' / 'index.html'}" in capsys.readouterr().out
+
+
+def test_a_midi_file_the_run_hears_nothing_of_is_said(config, tmp_path, capsys):
+    """A file of no tracks, and one whose notes all lie past the run's end, ran with exit 0
+    and no word: the user took the creatures' silence for theirs."""
+    import mido
+
+    empty = tmp_path / "empty.mid"
+    mido.MidiFile(type=1).save(empty)
+    late = tmp_path / "late.mid"
+    track = mido.MidiTrack([mido.Message("note_on", note=60, velocity=90, time=480 * 10),
+                            mido.Message("note_off", note=60, velocity=0, time=480)])
+    mido.MidiFile(type=0, tracks=[track], ticks_per_beat=480).save(late)  # 120 bpm: the note at 5 s
+    assert _offline(config, tmp_path / "a", 1.0, "--midi", str(empty)) == 0
+    assert f"{empty}: holds no notes" in capsys.readouterr().out
+    assert _offline(config, tmp_path / "b", 1.0, "--midi", str(late)) == 0
+    assert f"{late}: none of its 1 notes falls within the run's 1 s (the first at 5.0 s)" in capsys.readouterr().out
+    assert _offline(config, tmp_path / "c", 6.0, "--midi", str(late)) == 0
+    assert "late.mid" not in capsys.readouterr().out.split("wrote")[0]

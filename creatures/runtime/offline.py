@@ -22,6 +22,7 @@ import shutil
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -75,8 +76,10 @@ def _planned(settings: Installation) -> set[str]:
 
 
 def _inputs(inst: LoadedInstallation, audio: Path | None, midi: Path | None, duration: float,
-            rng: np.random.Generator) -> tuple[list[NoteEvent], np.ndarray | None]:
-    """Notes and mono audio to feed: the given files, the config's files, or generated."""
+            rng: np.random.Generator, say: Callable[[str], None]) -> tuple[list[NoteEvent], np.ndarray | None]:
+    """Notes and mono audio to feed: the given files, the config's files, or generated. A MIDI
+    file the run will hear nothing of (no notes, or all past ``duration``) is said, not run
+    through in silence as if the creatures had ignored it."""
     settings = inst.settings
     sr = settings.audio.sample_rate
     audio = audio or inst.resolve(settings.input.audio, ("input", "audio"))
@@ -88,7 +91,12 @@ def _inputs(inst: LoadedInstallation, audio: Path | None, midi: Path | None, dur
         samples = render_notes(notes, sr, duration)
     elif midi is None and audio is None and settings.input.generate == "speech":
         samples = spoken_poem(duration, sr, rng)
-    return [n for n in notes if n.time < duration], samples
+    heard = [n for n in notes if n.time < duration]
+    if midi is not None and not heard:
+        say(f"{midi}: holds no notes; the creatures hear nothing from it" if not notes else
+            f"{midi}: none of its {len(notes)} notes falls within the run's {duration:g} s (the first at "
+            f"{min(n.time for n in notes):,.1f} s); give --duration to hear them")
+    return heard, samples
 
 
 def run_offline(
@@ -152,7 +160,7 @@ def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path 
     session.world.emit("run", title=settings.title, mode="offline", duration=duration, seed=settings.seed,
                        creatures=[c.name for c in session.creatures], config=str(inst.path))
     poses = PoseLog(settings.view.log_fps, session.world, messages.append) if settings.view.log_fps else None
-    notes, samples = _inputs(inst, audio, midi, duration, session.input_rng)
+    notes, samples = _inputs(inst, audio, midi, duration, session.input_rng, messages.append)
     mapped = [note_on(n) for n in notes]
     mapped = [m if any(r.matches_midi("note", m) for r in session.inputs.midi_routes) else None for m in mapped]
     if any(mapped):  # a recorded MIDI take goes through the [[input]] maps as a live one would (a click pad)
