@@ -65,7 +65,10 @@ def _env() -> dict[str, str]:
 
 
 def _hidden(out: Path) -> list[str]:
-    """Staging, set-aside, journal and lock files a run leaves in ``out`` (none, after it ends)."""
+    """Staging, set-aside, journal and lock files a run leaves in ``out`` (none, after it ends;
+    a stopped run that made ``out`` removes it, empty)."""
+    if not out.exists():
+        return []
     return sorted(p.name for p in out.iterdir() if p.name.startswith(".") and p.name != MANIFEST)
 
 
