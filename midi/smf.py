@@ -7,8 +7,9 @@ channel message; position of every meta event), and notes are paired from the ar
 (:func:`pair_notes`) without a message object in between.
 
 The reader accepts exactly what mido accepts and reads it the same way, or declines: any
-file it is not sure of (an undefined or system status byte, a message running past its chunk, a delta longer than four bytes, a data byte above 127, a
-meta event mido would not decode, a truncated chunk…) makes :func:`parse` return None and
+file it is not sure of (an undefined or system status byte, a message running past its chunk,
+a delta longer than four bytes, a data byte above 127, a meta event mido would not decode, a
+truncated chunk…) makes :func:`parse` return None and
 :mod:`midi.files` reads that file with mido as before, so every error message stays mido's
 (``tests/test_midi_files.py``, ``tests/test_fuzz_parsers.py``) and every accepted file
 gives what mido gives (``tests/test_midi_smf.py`` compares both on fuzzed and written files).

@@ -42,6 +42,7 @@ import mido
 
 from creatures.behaviour.state_object import Habituation, StateObject
 from creatures.bounds import LARGEST_RATE
+from creatures.log_limit import INTERVAL
 from creatures.runtime.input_routes import MIDI, MIDI_KIND, MIDI_SPAN, Route
 from creatures.runtime.schema import Arg, InputMap, Number
 from midi.notes import LONGEST_NOTE, NoteEvent, is_note_off
@@ -52,9 +53,9 @@ if TYPE_CHECKING:
 HEARD_LENGTH = 0.25
 """Seconds assumed for a heard note whose length is not known (a MIDI note heard at its note-on)."""
 
-LOG_EVERY = 10.0
+LOG_EVERY = INTERVAL
 """Seconds between two log lines of one cause (unmapped, or malformed, from one source): the
-rule of every log line here (:mod:`creatures.log_limit`)."""
+rule of every rate-limited log line (:data:`creatures.log_limit.INTERVAL`), not a second one."""
 
 EXAMPLES = 3
 """Distinct addresses a cause's log line names (of those seen since its last line)."""
