@@ -264,7 +264,7 @@ def validate(
 ) -> Model:
     """Validate ``data`` (found at key path ``prefix`` of ``file``) or raise :class:`ConfigError`."""
     try:
-        return model.model_validate(data)
+        valid = model.model_validate(data)
     except ValidationError as exc:
         # An unknown key usually explains a "missing" one (a typo), so report it first. Where a
         # value may be a number or a table (``value = 4.0`` or ``value = { kind = … }``) and the
@@ -286,6 +286,61 @@ def validate(
             message, got = f"a list of tables: write [[{header}]] (two brackets) before each one", None
         raise config_error(file, where, loc, message if error["type"] != "extra_forbidden" else None,
                            choices=choices, got=got) from None
+    quoted = _quoted_scalar(valid, data)
+    if quoted is not None:
+        at, written, message = quoted
+        raise config_error(file, where, (*prefix, *at), message, got=written)
+    return valid
+
+
+QUOTES = ", not text: write it without quotes"
+
+
+def _numeral(data: Any) -> bool:
+    """Whether ``data`` is a truth value or text that reads as a number (``"0.5"``), which lax
+    mode takes for a number; other text that became a number is a name a field's validator
+    reads (a note name, ``"F2"``)."""
+    if isinstance(data, bool):
+        return True
+    if not isinstance(data, str):
+        return False
+    try:
+        float(data)
+    except ValueError:
+        return False
+    return True
+
+
+def _quoted_scalar(valid: Any, data: Any, at: tuple[str | int, ...] = ()) -> tuple[tuple, Any, str] | None:
+    """The first number or truth value the author wrote as something else (``alpha = "0"``,
+    ``midi = 1``), as ``(key path, what was written, the error's message)``, else ``None``.
+
+    Pydantic's lax mode, which the schema needs (TOML arrays fill tuple fields), reads text as
+    a number and 0/1 as a truth value; a config is a program the artist wrote, and a number in
+    quotes is a slip to point at, not a value to guess. Strict mode cannot be used instead: it
+    refuses an array for a tuple field. So the validated values are walked beside the data:
+    where a number came from text, or a truth value from anything but ``true``/``false``.
+    """
+    if isinstance(valid, bool):
+        return None if isinstance(data, bool) else (at, data, "should be true or false" + QUOTES * isinstance(data, str))
+    if isinstance(valid, (int, float)):
+        return (at, data, "should be a number" + QUOTES * isinstance(data, str)) if _numeral(data) else None
+    if isinstance(valid, BaseModel):
+        if isinstance(data, list):  # a before-validator moved a list into a field (``[[input]]``)
+            nested = [getattr(valid, name) for name in type(valid).model_fields]
+            return next((found for value in nested if isinstance(value, list) and len(value) == len(data)
+                         if (found := _quoted_scalar(value, data, at)) is not None), None)
+        if not isinstance(data, dict):
+            return None
+        pairs = [(name, getattr(valid, name)) for name in type(valid).model_fields if name in data]
+    elif isinstance(valid, dict) and isinstance(data, dict):
+        pairs = [(key, valid[key]) for key in valid if key in data]
+    elif isinstance(valid, (list, tuple)) and isinstance(data, list) and len(valid) == len(data):
+        pairs = list(zip(range(len(data)), valid))
+    else:
+        return None
+    return next((found for key, value in pairs if (found := _quoted_scalar(value, data[key], (*at, key))) is not None),
+                None)
 
 
 def written_in(where: dict[tuple, tuple[Path, int]], key: tuple[str | int, ...], config: Path) -> Path:

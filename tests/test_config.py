@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 from pydantic import BaseModel, ConfigDict
 
+import installations
 from creatures.config import ConfigError, key_lines, load_config
 
 
@@ -179,6 +180,43 @@ def test_an_offline_run_says_it_does_not_read_the_live_state_folder(tmp_path):
     summary = run_offline(inst, tmp_path / "out", duration=1.0, progress=False)
     assert any(m.startswith("state = 'saved' is for live runs") for m in summary.messages)
     assert not (tmp_path / "saved").exists()
+
+
+MAPS = "\n[[input]]\nosc = \"/knob\"\nto = \"drive\"\ncreatures = [\"ada\"]\ndrive = \"boredom\"\nset = 0.5\n"
+
+
+@pytest.mark.parametrize("edit, key, got", [
+    (("tick = 0.04", 'tick = "0.04"'), "tick", "'0.04'"),
+    (("size = [6, 6]", 'size = [6, "6"]'), "creature.1.percepts.maps.size.1", "'6'"),  # a tuple's entry
+    (("velocity = 0.4", 'velocity = "0.4"'), "creature.1.tuples.anticipate.action.velocity", "'0.4'"),
+    (("hears_input = false", 'hears_input = "false"'), "creature.2.hears_input", "'false'"),
+    (("hears_input = false", "hears_input = 0"), "creature.2.hears_input", "0"),
+    (("set = 0.5", 'set = "0.5"'), "input.0.set", "'0.5'"),  # [[input]], read into [input] map
+])
+def test_a_number_or_truth_value_in_quotes_is_refused_at_its_key(tmp_path, edit, key, got):
+    """Pydantic's lax mode (which fills tuple fields from TOML arrays) would read "0.04" as
+    0.04 and 0 as false; an artist's slip is pointed at, at its line, like any other."""
+    from creatures.runtime.schema import load_installation
+
+    path = tmp_path / "maps.toml"
+    text = (Path(installations.__file__).parent / "listen_maps.toml").read_text() + MAPS
+    assert edit[0] in text
+    path.write_text(text.replace(edit[0], edit[1], 1))
+    with pytest.raises(ConfigError) as err:
+        load_installation(path)
+    assert err.value.key == key and f"(got {got})" in str(err.value)
+    assert ("without quotes" in str(err.value)) == got.startswith("'")
+    assert err.value.line == next(n for n, line in enumerate(path.read_text().splitlines(), 1) if edit[1] in line)
+
+
+def test_a_note_name_a_field_reads_is_not_a_number_in_quotes(tmp_path):
+    """Text that a field's validator reads as a number (a tile's note name, "F2") is no slip."""
+    from creatures.runtime.schema import load_installation
+
+    path = tmp_path / "maps.toml"
+    path.write_text((Path(installations.__file__).parent / "listen_maps.toml").read_text() + MAPS)
+    assert load_installation(path).settings.input.map[0].set == 0.5
+    assert load_installation(installations.path("void")).specs
 
 
 def test_input_maps_as_a_list_beside_an_input_table_is_explained(tmp_path):

@@ -128,6 +128,8 @@ def config_reference() -> str:
         "by key, other values and lists are replaced, and a `[[creature]]` named as one of the base's is merged "
         "over it while one of a new name is added after the base's creatures.",
         "Errors name the file, the key path and the line, and suggest the nearest valid key.",
+        "A number or a truth value is written bare: `tick = \"0.04\"` and `midi = 1` are errors "
+        "(write `tick = 0.04`, `midi = true`).",
         "Every number must be finite (`nan` and `inf` are refused) and lie in the range its type shows.",
         "",
         "## Top level",
