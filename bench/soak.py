@@ -27,7 +27,7 @@ keeps counts) and, with ``trace=True``, tracemalloc's traced bytes (tracing star
 module is imported, before the colony is built: what it sees is the colony and whatever it
 builds, 1–20 MB depending on what the process had cached; it slows the run about threefold, so
 the tests trace a short run and the benchmark runs hours without it). Growth compares the median of the
-last three samples with the median of the three after warm-up (the first 10 %). The size of
+last three samples with the median of the three after warm-up (the first 10 %, or ``warm``). The size of
 every container that could grow (world pending notes, scheduler heap and note tables, note
 spaces, placed/struck tables, motor arrivals, hanging notes, the in-memory log, the listen
 population and its memory) is read every tick and its maximum reported.
@@ -156,12 +156,13 @@ class SoakResult:
     sink: CountingSink
     max_queues: dict[str, int] = field(default_factory=dict)
     state_bound: int = 0  # most states the listen populations may hold (see :func:`state_bound`)
+    warm: float = 0.1  # the share of the samples that is warm-up (see :meth:`medians`)
 
     def medians(self, what: str) -> tuple[float, float]:
         """Median of a :class:`Sample` field (``rss``, ``blocks``, ``traced``, ``t``) over the
-        three samples after warm-up (the first 10 %) and over the last three."""
+        three samples after warm-up (the first ``warm`` of them) and over the last three."""
         values = [getattr(s, what) for s in self.samples]
-        warm = max(1, len(values) // 10)
+        warm = max(1, int(len(values) * self.warm))
         return float(np.median(values[warm:warm + 3])), float(np.median(values[-3:]))
 
     def growth(self, what: str) -> float:
@@ -211,23 +212,26 @@ def listeners(creatures: list) -> list[Listening]:
     return [p for c in creatures for p in getattr(c, "percepts", {}).values() if isinstance(p, Listening)]
 
 
-def listener(channel: int):
-    """The shipped listen creature (installations/creatures/listen.toml), named lis."""
+def listener(channel: int, bounds: tuple[int, int] | None = None):
+    """The shipped listen creature (installations/creatures/listen.toml), named lis; with
+    ``bounds``, its population's ``(max_models, max_states)`` instead of the shipped 6 and 96."""
+    keys = "" if bounds is None else (f"percepts.heard.max_models = {bounds[0]}\n"
+                                      f"percepts.heard.max_states = {bounds[1]}\n")
     with tempfile.TemporaryDirectory() as folder:
         config = Path(folder) / "lis.toml"
-        config.write_text(f'title = "lis"\n[[creature]]\nname = "lis"\nkind = "listen"\nchannel = {channel}\n')
+        config.write_text(f'title = "lis"\n[[creature]]\nname = "lis"\nkind = "listen"\nchannel = {channel}\n{keys}')
         return load_installation(config).specs[0]
 
 
-def colony(name: str, tick: float, learner: bool) -> LoadedInstallation:
+def colony(name: str, tick: float, learner: bool, bounds: tuple[int, int] | None = None) -> LoadedInstallation:
     """Installation ``name`` at behaviour tick ``tick`` (validated by the config schema, so the
     soak cannot run at a tick a real config would be refused), with a *listen* creature that
-    hears the whole room added when ``learner``."""
+    hears the whole room added when ``learner`` (its population's ``bounds``: :func:`listener`)."""
     inst = load_installation(installations.path(name))
     inst.settings = Installation.model_validate({**inst.settings.model_dump(), "tick": tick})
     if learner:
         channel = max(spec.channel for spec in inst.specs) + 1
-        inst.specs.append(listener(channel))
+        inst.specs.append(listener(channel, bounds))
     return inst
 
 
@@ -254,11 +258,14 @@ def soak(
     log_bytes: int = 1 << 20,
     samples: int = 24,
     trace: bool = False,
+    bounds: tuple[int, int] | None = None,
+    warm: float = 0.1,
 ) -> SoakResult:
-    """Run installation ``name`` (plus a listen creature with ``learner``) for ``seconds``
-    simulated seconds writing its log into ``out``; return memory samples and container
-    sizes (see the module docstring)."""
-    inst = colony(name, tick, learner)  # every kind's module imported: not counted as the colony's
+    """Run installation ``name`` (plus a listen creature with ``learner``, its population
+    within ``bounds``: :func:`listener`) for ``seconds`` simulated seconds writing its log into
+    ``out``; return memory samples and container sizes (see the module docstring), growth
+    counted after the first ``warm`` of the run."""
+    inst = colony(name, tick, learner, bounds)  # every kind's module imported: not counted as the colony's
     started_tracing = trace and not tracemalloc.is_tracing()
     if started_tracing:  # before the colony is built, so its whole state is the baseline
         tracemalloc.start()
@@ -298,7 +305,7 @@ def soak(
     files = sorted(out.glob("events.jsonl*"))
     bound = state_bound(session)
     return SoakResult(seconds, tick, len(session.creatures), wall, taken, session.world.notes_played, heard,
-                      log.count, log.tally, files, [f.stat().st_size for f in files], sink, biggest, bound)
+                      log.count, log.tally, files, [f.stat().st_size for f in files], sink, biggest, bound, warm)
 
 
 def rows(result: SoakResult, log_bytes: int, hours_target: float = DAY) -> list[Row]:

@@ -17,6 +17,8 @@ from creatures.clock import SimulatedClock
 from creatures.config import ConfigError
 from creatures.events import EventLog
 from creatures.kinds import KINDS, load_all
+from creatures.kinds.model_population import ModelPopulation
+from creatures.motor.gesture import Observation
 from creatures.persist import StateFileError
 from creatures.runtime.schema import load_installation
 from creatures.runtime.session import Session
@@ -175,6 +177,16 @@ def test_overgrown_model_is_distilled_to_its_core():
     memory = creature.spec.percepts["heard"].params()["memory"]
     assert all(e["sizes"]["states of best"] <= 8 + memory for e in world.log.records if e["kind"] == "percepts")
     assert is_rotation(core_pitches(world), PHRASE)
+
+
+def test_a_model_whose_core_is_all_of_it_is_distilled_within_max_states():
+    """A long path, each step repeated, is a core as long as the model: distilling it to that
+    core kept every state, and the population passed its bound (the soak saw 19 of 16)."""
+    population = ModelPopulation(known=0.2, evidence=4, max_models=2, max_states=8, forget=120.0)
+    member = population.learn(0.0, [], [Observation(node, float(i)) for i, node in enumerate(list(range(12)) * 3)])
+    assert len(member.model.core()) == len(member.model.states) > 8
+    population.maintain(1.0)
+    assert [len(m.model.states) for m in population.members] == [8]
 
 
 def test_state_round_trips_through_json(danced):

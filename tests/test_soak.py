@@ -1,7 +1,14 @@
 """A reduced soak (5 simulated minutes of the 3-creature exchange colony and a listen creature,
 at the schema's coarsest tick, 0.5 s, with a visitor playing all along): nothing that could grow
 for weeks grows — containers stay bounded, the learner's models are pruned, memory is flat after
-warm-up, the events log rotates and every note is closed. ``python -m bench soak`` runs hours."""
+warm-up, the events log rotates and every note is closed. ``python -m bench soak`` runs hours.
+
+Five minutes is not long enough for the shipped bounds to fill (the listen population's 6 × 96
+states reach some 200 by then, and memory still grows with them, rightly), so the soak gives its
+learner and the motor arrivals small bounds that fill within the first half and measures growth
+over the second: a leak shows there, bounded learning does not. The absolute measures (blocks and
+traced bytes gained) do not depend on what the process held before, which a relative one did: the
+same run passed beside other tests and failed alone."""
 
 from __future__ import annotations
 
@@ -19,7 +26,7 @@ def test_five_minutes_of_exchange_with_a_listener_stay_bounded(tmp_path, monkeyp
     # A small cap shows the arrival log (the leak this soak found) filling up and stopping.
     monkeypatch.setattr(MotorSystem, "ARRIVALS_KEPT", 8)
     result = soak(tmp_path, seconds=300.0, tick=0.5, visit_every=60.0, log_bytes=32 * 1024, samples=20,
-                  trace=True)
+                  trace=True, bounds=(2, 8), warm=0.5)
 
     assert result.creatures == 4 and result.tick == 0.5
     assert result.notes_heard == 5 * 21  # five visits of the three fragments, note by note
@@ -35,17 +42,17 @@ def test_five_minutes_of_exchange_with_a_listener_stay_bounded(tmp_path, monkeyp
     # The learner grew models by fission and was pruned back to its bounds.
     assert result.tally["model spawn"] > 6
     assert result.tally["model retire"] + result.tally["model distil"] > 0
-    assert result.max_queues["listen models"] <= 6 + 1  # max_models, plus one spawned before maintenance
-    assert result.state_bound == 6 * 96  # max_models × max_states
-    assert result.max_queues["listen model states"] <= result.state_bound  # distilled past max_states
+    assert result.max_queues["listen models"] <= 2  # max_models: maintenance follows every lesson
+    assert result.state_bound == 2 * 8  # max_models × max_states
+    assert result.max_queues["listen model states"] == result.state_bound  # filled, distilled, never passed
 
-    # The issue's measure: the process's memory grows < 5 % after warm-up.
+    # The issue's measure: the process's memory grows < 5 % after warm-up; over the second half
+    # (measured: some 600 blocks and 50 kB of the colony's 4.7 MB traced, from full bounds).
     assert result.growth("rss") < 0.05, [s.rss for s in result.samples]
-    assert result.growth("blocks") < 0.01, [s.blocks for s in result.samples]
-    # tracemalloc sees only the colony (1–20 MB, depending on what the process cached before):
-    # after warm-up it grows by what the listen population learns on its way to its bounds.
-    before, after = result.medians("traced")
-    assert 0 < before and after - before < 512 * 1024, [s.traced for s in result.samples]
+    before, after = result.medians("blocks")
+    assert after - before < 4000, [s.blocks for s in result.samples]
+    before, after = result.medians("traced")  # tracemalloc sees only the colony
+    assert 0 < before and after - before < 256 * 1024, [s.traced for s in result.samples]
 
     # Rotation: the live file plus two backups, each near the bound, all valid JSONL.
     names = sorted(p.name for p in result.log_files)

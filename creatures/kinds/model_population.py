@@ -151,9 +151,11 @@ class ModelPopulation:
             self._retire(min(spare, key=lambda m: (m.usefulness, -m.id)), "population full")
 
     def _distil(self, member: Member) -> None:
-        """Replace a model overgrown with noise by one learnt from its core alone."""
+        """Replace a model overgrown with noise by one learnt from its core alone. A core may
+        be the whole model (one long path, each step repeated): then its first ``max_states``
+        states are kept, so that a distilled model is always within the bound."""
         old = member.model
-        core = old.core()
+        core = old.core()[: self.max_states]
         fresh = GestureModel(entropy_weight=old.entropy_weight, threshold=old.threshold)
         times = np.concatenate(([0.0], np.cumsum([old.states[s].dwell for s in core[:-1]])))
         fresh.learn([Observation(old.states[s].node, float(u)) for s, u in zip(core, times)])
