@@ -261,8 +261,10 @@ def validate(
     file: Path,
     *,
     prefix: tuple[str | int, ...] = (),
+    literal: bool = True,
 ) -> Model:
-    """Validate ``data`` (found at key path ``prefix`` of ``file``) or raise :class:`ConfigError`."""
+    """Validate ``data`` (found at key path ``prefix`` of ``file``) or raise :class:`ConfigError`;
+    with ``literal``, numbers and truth values must be written as such (:func:`_quoted_scalar`)."""
     try:
         valid = model.model_validate(data)
     except ValidationError as exc:
@@ -286,7 +288,7 @@ def validate(
             message, got = f"a list of tables: write [[{header}]] (two brackets) before each one", None
         raise config_error(file, where, loc, message if error["type"] != "extra_forbidden" else None,
                            choices=choices, got=got) from None
-    quoted = _quoted_scalar(valid, data)
+    quoted = _quoted_scalar(valid, data) if literal else None
     if quoted is not None:
         at, written, message = quoted
         raise config_error(file, where, (*prefix, *at), message, got=written)

@@ -162,6 +162,14 @@ def test_an_out_of_range_set_is_refused_with_the_schemas_message(show):
     assert show.ask("set", "ada", "gain", 0.5) == ("reply", {"set": "gain", "value": 0.5})
 
 
+def test_a_toggles_zero_or_one_sets_a_truth_value(show):
+    """A Max or Pd toggle sends 0/1, not a truth value: the console reads it as one (a config,
+    written by hand, must say true or false)."""
+    for sent, taken in ((0, False), (1, True)):
+        kind, reply = show.ask("set", "bo", "hears_input", sent)
+        assert kind == "reply" and reply == {"set": "hears_input", "value": taken} and reply["value"] is taken
+
+
 def test_trigger_and_reward(show):
     assert show.ask("trigger", "ada", "rest") == ("reply", {"active": ["rest"]})
     kind, credited = show.ask("reward", "ada", 1.0)

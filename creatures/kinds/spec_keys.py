@@ -56,10 +56,12 @@ def has(spec: BaseModel, key: str) -> bool:
     return True
 
 
-def with_key(spec: Spec, key: str, value: Any, name: str) -> Spec:
+def with_key(spec: Spec, key: str, value: Any, name: str, *, literal: bool = True) -> Spec:
     """A copy of ``spec`` with ``key`` set to ``value``, validated by its own schema as a
     config would be (:class:`SpecKeyError` with the schema's message; ``name`` is the
-    creature's, for the message's file)."""
+    creature's, for the message's file). ``literal=False`` reads 0/1 as a truth value and
+    text as a number, as pydantic's lax mode does: an OSC controller (a Max or Pd toggle)
+    has no truth values and sends what it has."""
     parts = key.split(".")
     if parts[0] in FIXED:
         raise SpecKeyError(f"{parts[0]} cannot change while the creature runs")
@@ -74,6 +76,6 @@ def with_key(spec: Spec, key: str, value: Any, name: str) -> Spec:
         node = node.setdefault(part, {})
     node[parts[-1]] = value
     try:
-        return validate(type(spec), data, {}, Path(name))
+        return validate(type(spec), data, {}, Path(name), literal=literal)
     except ConfigError as exc:
         raise SpecKeyError(f"{exc.key}: {exc.message}" if exc.key else exc.message) from None

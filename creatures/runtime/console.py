@@ -36,7 +36,7 @@ from typing import TYPE_CHECKING, Any, Callable
 
 from pythonosc.osc_message import OscMessage
 
-from creatures.kinds.spec_keys import SpecKeyError, with_key
+from creatures.kinds.spec_keys import SpecKeyError, read, with_key
 from creatures.runtime.inspect import Tree, knowledge
 from creatures.runtime.osc_wire import message
 from creatures.runtime.schema import ConsoleSection
@@ -193,14 +193,15 @@ class ColonyHandle:
         validated by the kind's schema as a config would be; refused with the schema's message
         (:func:`creatures.kinds.spec_keys.with_key`, which says what changes at once)."""
         try:
-            spec = with_key(creature.spec, key, value, creature.name)
+            spec = with_key(creature.spec, key, value, creature.name, literal=False)  # a toggle's 0/1
         except SpecKeyError as exc:
             raise Refused(str(exc)) from None
         creature.spec = spec
         if key in ("gain", "pan"):
             self.session.mixer.set(index, gain=spec.gain, pan=spec.pan)
-        creature.world.emit("console set", creature=creature.name, key=key, value=value)
-        return {"set": key, "value": value}
+        taken = read(spec, key)  # as the schema took it: a toggle's 1 is true, "0.5" is 0.5
+        creature.world.emit("console set", creature=creature.name, key=key, value=taken)
+        return {"set": key, "value": taken}
 
     def trigger(self, creature: "CreatureKind", name: str, t: float) -> dict:
         for group in creature.reward_groups():
