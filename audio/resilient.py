@@ -118,12 +118,14 @@ class DeviceWatch(Generic[S]):
         return self.stream
 
     def lose(self, why: str) -> None:
-        """Let the stream go, count the fault and say so once."""
-        self._let_go()
+        """Count the fault, say so once, and let the stream go: in that order, since letting go
+        may never return (PortAudio stopping a stream whose JACK server died waits for a
+        callback that never comes), and the loss must be said all the same."""
         self.faults += 1
         self.reason = why
         self._told_missing = True
         self.report(f"{self.what} lost ({why}); will reopen it when it returns")
+        self._let_go()
 
     def close(self) -> None:
         if self._supervised:

@@ -52,6 +52,7 @@ class Supervisor:
         self.now = now
         self.jobs: list[Job] = []
         self.failures = 0  # jobs that raised (logged; the job runs again at its next time)
+        self.busy: tuple[str, float] | None = None  # (job, monotonic start) while one runs
         self._lock = threading.Lock()
         self._wakeup = threading.Event()
         self._stopping = False
@@ -79,13 +80,28 @@ class Supervisor:
             due = [job for job in self.jobs if job.next <= now]
         for job in due:
             job.next = now + job.interval
+            self.busy = (job.name, time.monotonic())
             try:
                 job.work()
             except Exception:  # a job's failure must not end the supervision of the others
                 self.failures += 1
                 logger.exception("supervised job %s failed", job.name)
+            finally:
+                self.busy = None
             job.runs += 1
         return len(due)
+
+    def stuck(self, longer_than: float) -> tuple[str, float] | None:
+        """``(job name, seconds)`` when the job running now has run longer than ``longer_than``
+        seconds (a device call that never returns: PortAudio stopping a stream whose JACK
+        server died waits for a callback that never comes), else None. Every other job (state
+        saves, the log's flush, device checks, the heartbeat) waits behind it, so a run whose
+        supervisor is stuck is not well however its ticks go."""
+        busy = self.busy
+        if busy is None:
+            return None
+        seconds = time.monotonic() - busy[1]
+        return (busy[0], seconds) if seconds > longer_than else None
 
     def start(self) -> Supervisor:
         if self._thread is None:

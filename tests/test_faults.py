@@ -535,3 +535,23 @@ def test_killed_during_state_saves_the_files_always_load(sig, colony, tmp_path, 
         reader.save_state(out)  # the next good saves clear such leftovers
         save_json(out / "big.json", big, kind="soak payload")
         assert list(out.glob(".*.tmp")) == []
+
+
+def test_the_health_status_says_the_synth_is_gone_and_what_it_dropped(colony, tmp_path, monkeypatch):
+    """A watchdog reading /health saw ``"state": "running"`` and ``notes_played`` growing while
+    every note went nowhere (fluidsynth killed mid-run): the status now says whether the
+    synth's port is there, how often it was lost and what found no port."""
+    from creatures.runtime.health import Health
+
+    published: list[dict] = []
+    real = Health.publish
+
+    def keep(self, **status):
+        published.append(status)
+        real(self, **status)
+
+    monkeypatch.setattr(Health, "publish", keep)
+    assert main(["run", str(tmp_path / "colony.toml"), "--duration", "2.5"]) == 0
+    assert published, "the run published no status"
+    midi = published[-1]["midi_output"]
+    assert midi["connected"] is False and midi["dropped"] >= 0 and midi["lost"] == 0

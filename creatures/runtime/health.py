@@ -6,7 +6,9 @@ housekeeping second: :meth:`Health.publish`); the HTTP server runs on a thread o
 (stdlib ``http.server``) and the heartbeat is a supervisor job, so neither a slow client nor a
 dead heartbeat target can touch a tick. ``GET /health`` answers ``200`` with the status while
 the status is fresh, ``503`` once it is older than :data:`STALE` seconds (the creatures'
-thread has stopped publishing: a stalled run), so a watchdog needs no parsing to act.
+thread has stopped publishing: a stalled run) or once the supervisor's thread has been in one
+job longer than :data:`STUCK` seconds (a stuck run: nothing is saved any more), so a watchdog
+needs no parsing to act.
 
 The heartbeat is ``/colony/heartbeat ticks:int late:int underruns:int uptime:float`` every
 ``[health] every`` seconds to each ``[health] heartbeat`` address.
@@ -19,18 +21,27 @@ import socket
 import threading
 import time
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from creatures.runtime.osc_wire import message
 
+if TYPE_CHECKING:
+    from creatures.supervisor import Supervisor
+
 STALE = 5.0
 """Seconds after which a status not renewed means the run has stalled (``503``)."""
+
+STUCK = 30.0
+"""Seconds one supervisor job may run before the run is said ``stuck`` (``503``): saves, the
+log's flush, device checks and the heartbeat all wait behind it (a periodic save of a large
+colony takes well under a second)."""
 
 
 class Health:
     """The latest status of a run, readable from any thread."""
 
-    def __init__(self) -> None:
+    def __init__(self, supervisor: "Supervisor | None" = None) -> None:
+        self.supervisor = supervisor
         self.started = time.monotonic()
         self._status: dict[str, Any] = {"ticks": 0, "late_ticks": 0, "underruns": 0}
         self._published = self.started
@@ -40,11 +51,16 @@ class Health:
         self._status, self._published = status, time.monotonic()
 
     def status(self) -> dict[str, Any]:
-        """The status with its age and the run's uptime, and ``state``: ``stalled`` when stale."""
+        """The status with its age and the run's uptime, and ``state``: ``stalled`` when stale,
+        ``stuck`` when the supervisor's thread has been in one job longer than :data:`STUCK`."""
         now = time.monotonic()
         status = dict(self._status)
         age = now - self._published
         status.setdefault("state", "running")
+        stuck = self.supervisor.stuck(STUCK) if self.supervisor is not None else None
+        if stuck is not None:
+            status["state"] = "stuck"
+            status["stuck"] = {"job": stuck[0], "seconds": round(stuck[1], 1)}
         if age > STALE:
             status["state"] = "stalled"
         return {**status, "uptime": round(now - self.started, 3), "age": round(age, 3)}
@@ -59,7 +75,7 @@ class _Handler(BaseHTTPRequestHandler):
             return
         status = self.health.status()
         body = json.dumps(status).encode()
-        self.send_response(503 if status["state"] == "stalled" else 200)
+        self.send_response(503 if status["state"] in ("stalled", "stuck") else 200)
         self.send_header("Content-Type", "application/json")
         self.send_header("Content-Length", str(len(body)))
         self.end_headers()

@@ -464,7 +464,17 @@ def run_live(
         return {"state": "paused" if loop.paused else "running", "title": settings.title, "ticks": session.ticks,
                 "late_ticks": loop.timing.late, "skipped": loop.skipped, "underruns": underruns,
                 "overruns": overruns, "audio_gaps": gaps, "audio_skips": skips, "notes_played": session.world.notes_played,
-                "creatures": [c.name for c in session.creatures], **outlets.counts()}
+                "creatures": [c.name for c in session.creatures], **devices(), **outlets.counts()}
+
+    def devices() -> dict[str, object]:
+        """Whether the synth's port and the loudspeaker are there now: a watchdog reading only
+        ``notes_played`` would not see that every note since the synth went away was dropped."""
+        parts: dict[str, object] = {}
+        if port is not None:
+            parts["midi_output"] = {"connected": port.connected, "lost": port.faults, "dropped": port.dropped}
+        if output is not None and hasattr(output, "connected"):  # a watched device (audio/resilient.py)
+            parts["audio_output"] = {"connected": output.connected, "lost": output.faults}
+        return parts
 
     outlets = Outlets(inst, session, loop, supervisor, pause=pause, save=save_now if saver is not None else None,
                       status=status)

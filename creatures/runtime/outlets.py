@@ -78,7 +78,7 @@ class Outlets:
             self.console = _bound(inst, "console", lambda: Console(settings.console, colony))
             loop.boundary.append(self.console.serve)
             self.console.start()
-        self.health = Health()
+        self.health = Health(supervisor)
         self.server: HealthServer | None = None
         if settings.health.port is not None:
             self.server = _bound(inst, "health", lambda: HealthServer(self.health, settings.health.host,
