@@ -117,17 +117,22 @@ def _budget(inst: LoadedInstallation) -> tuple[bool, str]:
     from creatures.runtime.live import rehearse
 
     rehearse(inst)
-    clock = SimulatedClock()
-    session = Session(inst, clock, EventLog(keep_in_memory=0), MemorySink())
-    for i, pitch in enumerate((60, 64, 67, 72, 65, 62)):
-        session.world.inject(NoteEvent(0.1 + 0.2 * i, pitch, 90, 0, 0.2))
     tick, sr = inst.settings.tick, inst.settings.audio.sample_rate
-    costs = []
-    for step in range(1, TICKS + 1):
-        clock.advance_to(step * tick)
-        began = time.perf_counter()
-        session.step(clock.now(), int(round(tick * sr)), None)
-        costs.append(time.perf_counter() - began)
+    # Twice, the first pass not counted: on a fresh install (numba's cache empty) a path the
+    # rehearsal did not take compiles in its first call, one tick of ~7 s that made the mean
+    # 77 ms (p99 11 ms) and failed the check, where a live run compiles during its own warm-up
+    # and kept every tick (measured: exchange, 0 late ticks on a cold cache).
+    for _ in range(2):
+        clock = SimulatedClock()
+        session = Session(inst, clock, EventLog(keep_in_memory=0), MemorySink())
+        for i, pitch in enumerate((60, 64, 67, 72, 65, 62)):
+            session.world.inject(NoteEvent(0.1 + 0.2 * i, pitch, 90, 0, 0.2))
+        costs = []
+        for step in range(1, TICKS + 1):
+            clock.advance_to(step * tick)
+            began = time.perf_counter()
+            session.step(clock.now(), int(round(tick * sr)), None)
+            costs.append(time.perf_counter() - began)
     costs.sort()
     mean, p99 = sum(costs) / len(costs), costs[int(0.99 * (len(costs) - 1))]
     return mean <= BUDGET * tick, (f"a tick costs {mean * 1e3:.2f} ms on average (p99 {p99 * 1e3:.2f} ms) of "
