@@ -12,6 +12,8 @@ returns on a simulated clock.
 
 from __future__ import annotations
 
+import atexit
+import sys
 import weakref
 from types import ModuleType
 from typing import Any, Protocol
@@ -63,6 +65,15 @@ class AudioBackend(Protocol):
 
 _streams: weakref.WeakSet = weakref.WeakSet()
 """Every stream opened through :class:`PortAudio` in this process (see :meth:`PortAudio.refresh`)."""
+
+
+def abandoned() -> None:
+    """A stream was abandoned, PortAudio never returning from stopping it (its JACK server
+    died): ``Pa_Terminate``, which sounddevice calls at exit, would wait for it the same way, so
+    that exit handler is dropped and the process can end once it has saved what it keeps."""
+    sd = sys.modules.get("sounddevice")
+    if sd is not None:
+        atexit.unregister(sd._exit_handler)
 
 
 class PortAudio:

@@ -10,7 +10,13 @@ was dropped while the device was gone.
 A stream is taken as lost when PortAudio stops it (a failed device, or a callback that raised
 ``CallbackAbort``), when asking whether it is active raises, when no callback has come for
 ``stall_timeout`` seconds (a stream whose server died can stay "active"), or when the device
-is no longer listed. Device access goes through :class:`audio.device.AudioBackend`, so tests
+is no longer listed. A lost stream is let go on a thread of its own, given
+:data:`LET_GO_TIMEOUT`: PortAudio stopping a stream whose JACK server died waits for a callback
+that never comes, and PortAudio cannot open another stream in that process after it (its JACK
+client died with the server), so such a stream is abandoned and the watch is *wedged*: it looks
+for the device no more, says so, and the live run ends with :data:`creatures.runtime.keeper.AFRESH`
+for its keeper to start it afresh (measured with a real JACK dummy server killed mid-run: the
+stop never returned, and the process then hung at exit in ``Pa_Terminate``). Device access goes through :class:`audio.device.AudioBackend`, so tests
 drive a fake device on a simulated clock. The real-time callbacks stay those of
 :class:`audio.output.LiveOutput` and :class:`audio.sources.LiveInput` (copy and count only).
 Checks run on the creature's thread at a bounded rate, or, given a
@@ -22,12 +28,13 @@ far longer than a tick.
 from __future__ import annotations
 
 import logging
+import threading
 from typing import Callable, Generic, Protocol, TypeVar
 
 import numpy as np
 import soxr
 
-from audio.device import AudioBackend, device_rate, find_device, portaudio
+from audio.device import AudioBackend, abandoned, device_rate, find_device, portaudio
 from audio.lead import UNSEEN, Lead
 from audio.output import AudioOutput, LiveOutput
 from audio.sources import ANALYSIS_RATE, AudioSource, LiveInput
@@ -35,6 +42,10 @@ from creatures.clock import Clock
 from creatures.supervisor import Supervisor
 
 log = logging.getLogger(__name__)
+
+LET_GO_TIMEOUT = 2.0
+"""Seconds a lost stream is given to stop and close before it is abandoned (a sound card's
+takes milliseconds; one whose JACK server died never returns)."""
 
 SUPERVISED_CHECK = 0.25
 """Seconds between looks at a supervised stream (stopped? stalled?); listing stays at ``retry_interval``."""
@@ -84,6 +95,7 @@ class DeviceWatch(Generic[S]):
         self.faults = 0  # times the device was lost
         self.reopened = 0  # times it came back (or first appeared after being missing)
         self.reason = ""  # why there is no stream, while there is none
+        self.wedged = ""  # why no stream can open in this process any more (see the module docstring)
         self._start, self._stop = start, stop
         self._told_missing = False
         self._looked = False
@@ -105,6 +117,8 @@ class DeviceWatch(Generic[S]):
 
     def check(self) -> S | None:
         """Is the stream still well, or the device back? (Blocking: see the module docstring.)"""
+        if self.wedged:
+            return None
         now = self.clock.now()
         due = now - self._last_look >= self.retry_interval
         if due:
@@ -170,11 +184,22 @@ class DeviceWatch(Generic[S]):
 
     def _let_go(self) -> None:
         stream, self.stream = self.stream, None
-        if stream is not None:
-            try:
-                self._stop(stream)
-            except Exception as exc:
-                log.debug("closing a lost %s failed: %s", self.what, exc)
+        if stream is None:
+            return
+        closing = threading.Thread(target=self._stop_quietly, args=(stream,), name=f"closing {self.what}",
+                                   daemon=True)
+        closing.start()
+        closing.join(LET_GO_TIMEOUT)
+        if closing.is_alive():
+            abandoned()
+            self.wedged = f"PortAudio did not let go of the lost {self.what} in {LET_GO_TIMEOUT:g} s (its JACK server died?)"
+            self.report(f"{self.wedged}: no stream can open in this process any more")
+
+    def _stop_quietly(self, stream: S) -> None:
+        try:
+            self._stop(stream)
+        except Exception as exc:
+            log.debug("closing a lost %s failed: %s", self.what, exc)
 
 
 def _named(kind: str, device: str | int | None) -> str:
@@ -203,6 +228,11 @@ class Watched(Generic[S]):
     def reason(self) -> str:
         """Why there is no stream (no sound out, or none heard), while there is none."""
         return self.watch.reason
+
+    @property
+    def wedged(self) -> str:
+        """Why the device cannot come back in this process (empty while it can)."""
+        return self.watch.wedged
 
 
 class ResilientOutput(AudioOutput, Watched[LiveOutput]):
@@ -322,6 +352,7 @@ class ResilientOutput(AudioOutput, Watched[LiveOutput]):
             self._past_skips += self.keeper.skips
             self.keeper = None
         self.device_rate = None
+        self._resampler = None  # not kept alive by a close that never returns (audio/resilient.py)
         live.close()
 
 

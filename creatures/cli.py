@@ -269,6 +269,7 @@ def _run(args: argparse.Namespace) -> int:
     from creatures.runtime.live import check_before_running, run_live
     from creatures.runtime.ticking import LATE_TICK
     from midi.sinks import LATE_NOTE
+    from creatures.runtime.keeper import AFRESH
     from creatures.runtime.network import describe
     from creatures.runtime.schema import load_installation
 
@@ -326,6 +327,10 @@ def _run(args: argparse.Namespace) -> int:
     if summary.unsaved:
         print(f"creatures: {summary.unsaved}", file=sys.stderr)
         return 1
+    if summary.afresh:
+        print(f"creatures: stopped to be started afresh, exit status {AFRESH} ({summary.afresh}): --supervise "
+              "or systemd starts it again, and the new process opens the device when it is back", file=sys.stderr)
+        return AFRESH
     return 0
 
 

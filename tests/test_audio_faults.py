@@ -5,18 +5,24 @@ card with a microphone and two loudspeaker channels, gone between ``gone[0]`` an
 seconds. Like PortAudio it lists the devices it saw when its list was last re-read, and a
 stream whose device died stays dead. How it dies is chosen: its streams stop (``stops``),
 asking them anything raises (``errors``), or they stay "active" without callbacks
-(``stalls``, a JACK server gone). ``run(seconds)`` is the device's own time: it calls the
+(``stalls``), and stopping one may then never return (``wedges``, until ``release`` is set:
+PortAudio's on a JACK server that died). ``run(seconds)`` is the device's own time: it calls the
 callbacks of every live stream for that many seconds of frames.
 """
 
 from __future__ import annotations
 
+import subprocess
+import sys
+import threading
 import tracemalloc
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
+from audio import resilient
 from audio.device import PortAudio, start_stream
 from audio.output import LiveOutput
 from audio.resilient import ResilientInput, ResilientOutput
@@ -60,6 +66,8 @@ class FakeStream:
     def stop(self) -> None:
         if self.dead and self.card.dies == "errors":
             raise FakePortAudioError("Unanticipated host error")
+        if self.dead and self.card.dies == "wedges":
+            self.card.release.wait()
         self.started = False
 
     def close(self) -> None:
@@ -98,6 +106,7 @@ class FakeCard:
                      "default_samplerate": float(rate)}
         self.listed = True if not relists else self.present()
         self.refreshes = 0
+        self.release = threading.Event()  # lets a wedged stream's stop return
         self.attempts = 0  # streams asked for
         self.streams: list[FakeStream] = []
         self._heard = 0
@@ -217,6 +226,47 @@ def test_output_stream_left_active_without_callbacks_is_taken_as_lost():
     assert out.overruns > 0  # what went into the stalled ring before the stall was seen
     after = np.concatenate([b for t, b in written if t >= back_at]).astype(np.float32)
     np.testing.assert_array_equal(sounding(card.streams[-1].blocks), after)
+
+
+def test_a_stream_portaudio_never_lets_go_of_wedges_the_output_and_that_is_said(monkeypatch):
+    """PortAudio stopping a stream whose JACK server died never returns, and nothing opens in
+    that process after it: the stream is abandoned (so is ``Pa_Terminate`` at exit), the loss
+    and the wedge are said, the device is not looked for again, and writing never waits."""
+    monkeypatch.setattr(resilient, "LET_GO_TIMEOUT", 0.05)
+    given_up: list[bool] = []
+    monkeypatch.setattr(resilient, "abandoned", lambda: given_up.append(True))
+    clock = SimulatedClock()
+    card = FakeCard(clock, dies="wedges")
+    reports: list[str] = []
+    out = ResilientOutput(RATE, 2, clock=clock, blocksize=BLOCK, retry_interval=1.0, stall_timeout=0.5,
+                          backend=card, report=reports.append)
+    try:
+        written, _ = run_output(card, out, 15.0)
+        assert (out.faults, out.reopened) == (1, 0) and not out.connected and given_up == [True]
+        lost, wedged = reports
+        assert "lost (no callback for 0.5 s)" in lost
+        assert wedged == f"{out.wedged}: no stream can open in this process any more"
+        assert out.wedged == "PortAudio did not let go of the lost audio output (default) in 0.05 s (its JACK server died?)"
+        assert card.attempts == 1 and card.refreshes == 0  # not looked for again, back at 10 s or not
+        assert out.dropped == sum(len(b) for t, b in written if t >= 5.5)  # every block since, none waited for
+        out.close()  # the abandoned stream is not waited for again
+    finally:
+        card.release.set()
+
+
+def test_an_abandoned_stream_drops_sounddevices_exit_handler():
+    """Its ``Pa_Terminate`` would wait for the abandoned stream as its stop did: the process
+    could save, and never end."""
+    script = ("import atexit, sys, types\n"
+              "sd = types.ModuleType('sounddevice'); sd._exit_handler = lambda: print('Pa_Terminate')\n"
+              "sys.modules['sounddevice'] = sd; atexit.register(sd._exit_handler)\n"
+              "from audio.device import abandoned\n"
+              "atexit.register(lambda: print('other handlers run'))\n"
+              "abandoned() if sys.argv[1] == 'abandoned' else None\n")
+    ends = {how: subprocess.run([sys.executable, "-c", script, how], capture_output=True, text=True, timeout=60,
+                                cwd=Path(__file__).parent.parent).stdout.split()
+            for how in ("abandoned", "kept")}
+    assert ends == {"abandoned": ["other", "handlers", "run"], "kept": ["other", "handlers", "run", "Pa_Terminate"]}
 
 
 def test_output_reopens_when_the_device_list_cannot_be_reread():

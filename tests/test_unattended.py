@@ -207,6 +207,26 @@ def test_supervisor_does_not_restart_a_run_refused_before_it_began() -> None:
     assert launched == [["refused"]] and len(said) == 1 and "not restarting" in said[0]
 
 
+def test_supervisor_starts_afresh_a_run_that_asks_for_it(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A run whose JACK server died under it saves and exits AFRESH (PortAudio cannot open a
+    stream in that process again): the keeper starts it again, saying why in words."""
+    import subprocess
+    import sys
+
+    from creatures.runtime import keeper
+
+    monkeypatch.setattr(keeper, "RESTART_AFTER", 0.0)
+    said: list[str] = []
+    codes = iter([keeper.AFRESH, 0])
+
+    def launch(command: list[str]) -> subprocess.Popen[bytes]:
+        return subprocess.Popen([sys.executable, "-c", f"import sys; sys.exit({next(codes)})"])
+
+    assert keeper.supervise(["run"], said.append, launch=launch) == 0
+    assert said == ["creatures: the run stopped (to be started afresh, its audio device lost for that process); "
+                    "restart 1 in 0 s"]
+
+
 def test_service_writes_a_notify_unit_with_restart_and_watchdog(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     from creatures.cli import main
 

@@ -8,6 +8,8 @@ ends it). The child restores the learned state its last periodic save left in th
 once. A run refused before it began — exit code :data:`REFUSED`, a config or a state file
 that does not load, already said why — is not restarted: the same files would be refused
 again, and a gallery machine would say so every half minute for as long as no one looks.
+A run that ends with :data:`AFRESH` asks for a new process (its audio device cannot come back
+in this one: audio/resilient.py) and is restarted like a crash.
 Under systemd the unit that ``creatures service`` writes lets systemd do the restarting
 instead (``Restart=on-failure``, ``RestartPreventExitStatus`` the same code) and adds its
 watchdog (creatures/runtime/sd_notify.py).
@@ -36,6 +38,11 @@ STEADY = 60.0
 
 REFUSED = 2
 """The exit code of a run refused before it began (a config or state that does not load)."""
+
+AFRESH = 75
+"""The exit code of a run that saved and stopped to be started afresh: PortAudio could not let
+go of a stream whose JACK server died, and no stream can open in that process after it
+(``EX_TEMPFAIL``: systemd's ``Restart=on-failure`` restarts it too)."""
 
 
 def supervise(command: list[str], say: Callable[[str], None] = print, *,
@@ -71,7 +78,8 @@ def supervise(command: list[str], say: Callable[[str], None] = print, *,
             elif restarts:
                 wait = min(wait * 2, SLOWEST)
             restarts += 1
-            why = f"killed by {signal.Signals(-code).name}" if code < 0 else f"exit code {code}"
+            why = (f"killed by {signal.Signals(-code).name}" if code < 0 else "to be started afresh, its audio device "
+                   "lost for that process" if code == AFRESH else f"exit code {code}")
             say(f"creatures: the run stopped ({why}); restart {restarts} in {wait:g} s")
             time.sleep(wait)
     finally:

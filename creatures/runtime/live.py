@@ -36,7 +36,7 @@ from typing import Callable
 
 import numpy as np
 
-from audio.resilient import ResilientInput, ResilientOutput
+from audio.resilient import ResilientInput, ResilientOutput, Watched
 from creatures import stop as stops
 from creatures.clock import Clock, SimulatedClock, WallClock
 from creatures.events import EventLog
@@ -102,6 +102,7 @@ class LiveSummary:
     failed_saves: int = 0
     saved_at: float | None = None  # seconds into the run of the last save that succeeded
     unsaved: str | None = None  # the final save failed: what was not kept, in words
+    afresh: str | None = None  # the run stopped to be started afresh (keeper.AFRESH): why, in words
     events_lost: int = 0  # events the log could not write (a full disk): counted, the run went on
     log_loss: str | None = None  # the same in words, naming the log and the last failure
     restored: list[str] = field(default_factory=list)
@@ -404,6 +405,16 @@ def run_live(
         stopping = True
         stops.hung_up(signum)  # a closed terminal: stop as on SIGTERM, printing nowhere
 
+    def wedged() -> bool:
+        """A device that cannot come back in this process (audio/resilient.py) ends the run,
+        saved, to be started afresh by its keeper (a new process opens the device when the
+        server is back); the device watch has said why."""
+        why = next((device.wedged for device in (output, microphone) if getattr(device, "wedged", "")), "")
+        if why and summary.afresh is None:
+            summary.afresh = why
+            session.world.emit("afresh", why=why)
+        return bool(why)
+
     previous = {sig: signal.signal(sig, stop) for sig in (signal.SIGTERM, signal.SIGHUP)}
     session.world.emit("run", title=settings.title, mode="live", seed=settings.seed,
                        creatures=[c.name for c in session.creatures], restored=summary.restored,
@@ -530,7 +541,7 @@ def run_live(
             tick(start)
             notifier.ready(f"{len(session.creatures)} creature(s) running")
             loop.run(tick, until=lambda t: stopping or stops.requested is not None  # a Ctrl-C a finaliser swallowed
-                     or (duration is not None and t - start > duration))
+                     or (duration is not None and t - start > duration) or wedged())
         except KeyboardInterrupt:
             pass
         finally:
@@ -582,6 +593,11 @@ def run_live(
     summary.late_notes = getattr(sink, "late", 0)
     summary.heard_between_ticks = loop.heard_between
     summary.notes_played, summary.sounds_made = session.world.notes_played, session.world.sounds_made
+    if isinstance(output, Watched):  # said when the run began: where the sound goes now
+        if output.connected and output.reopened:
+            summary.sound = f"{output.describe()} once it came back"
+        elif output.faults and not output.connected:
+            summary.sound = f"lost mid-run ({output.wedged or output.reason})"
     summary.inputs = session.inputs.summary()
     summary.events_lost, summary.log_loss = log.lost, log.loss
     return summary
