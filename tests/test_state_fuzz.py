@@ -12,7 +12,7 @@ a minute, :data:`SHORTER`) and save again without error. Ten minutes a mutant ma
 alone run past 25 minutes (fifteen singers steering in a room) and CI past its limit; the
 exhaustive sweep below lived one simulated minute a mutant, and that minute found all 120 crashes.
 
-Cases: :data:`EXAMPLES` mutants for each shipped installation (325 for the thirteen, drawn
+Cases: :data:`EXAMPLES` mutants for each shipped installation (425 for the seventeen, drawn
 deterministically: tests/conftest.py's profile), each a full run when it loads. During
 development the same mutations were also swept exhaustively over every leaf (4,806 mutants, one simulated minute each): 120 of them
 crashed on the code before this test's fixes (pulse size 1e12, drive rates 1e308, pose

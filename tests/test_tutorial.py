@@ -56,7 +56,7 @@ def test_the_reference_is_current():
 
 
 def test_step_1_the_bored_heron_calls(tmp_path):
-    """As the text says: calls about twice as often as it rests (65 and 25 over 120 s)."""
+    """As the text says: calls about twice as often as it rests (63 and 28 over 120 s)."""
     events = _run("heron-1", tmp_path)
     calls = [e for e in events if e["kind"] == "selection" and e["tuple"] == "call"]
     rests = [e for e in events if e["kind"] == "selection" and e["tuple"] == "rest"]
