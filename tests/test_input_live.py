@@ -116,7 +116,7 @@ def test_foreign_osc_senders_reach_a_live_run(tmp_path):
     counts = [e for e in events if e["kind"] == "inputs"][-1]
     assert counts["unmapped osc"] == 2 and counts["mapped osc"] == 7 and "malformed" not in counts
     assert counts["refused osc"] == 1
-    assert "outside input: 7 mapped, 2 unmapped, 0 malformed, 1 refused osc" in out
+    assert "outside input: 7 mapped, 2 unmapped, 0 malformed, 0 throttled, 1 refused osc" in out
     assert any("/no/such/map" in line and "unmapped" in line for line in lines + out.splitlines())
 
 
@@ -294,7 +294,8 @@ def fuzzed(tmp_path_factory):
 def counted(session: Session, inputs: LiveInputs) -> int:
     ear, counts = inputs.network.listener, session.inputs.counts
     return (ear.received + ear.malformed + ear.oversize
-            + sum(counts[f"{what} {via}"] for what in ("mapped", "unmapped", "malformed") for via in ("osc", "midi")))
+            + sum(counts[f"{what} {via}"] for what in ("mapped", "unmapped", "malformed", "throttled")
+                  for via in ("osc", "midi")))
 
 
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])

@@ -298,6 +298,38 @@ def test_midi_note_rewards_the_tuple_that_was_active_and_a_string_names_the_crea
     assert [e["pitch"] for e in events(session, "heard")] == [36]
 
 
+def test_a_flood_of_clicks_is_throttled_and_counted_not_a_retraining(tmp_path):
+    """10,000 ``/reward`` messages in 10 s (a bouncing switch, a stuck sender) once took an
+    audited colony's values from about 2 to 370. A reward map takes 10 a second unless its
+    ``limit`` says otherwise (a burst of 10, then 10 a second); the rest are counted as
+    throttled and logged as one cause."""
+    session, clock = colony(tmp_path, MAPS + '[[input]]\nosc = "/lux/fast"\nto = "sensor"\nname = "fast"\nlimit = 2\n')
+    bo = session.world.creatures[0]
+    for step in range(1, 51):  # bo selects something to credit
+        clock.advance_to(step * 0.02)
+        session.step(step * 0.02, 441, None, audio=False)
+    running = {tp.name: tp for group in bo.reward_groups() for tp in group.active}
+    before = {name: tp.value.to_float() for name, tp in running.items()}
+    said: list[str] = []
+    session.inputs.say = said.append
+    t0 = clock.now()
+    for k in range(1000):  # 1,000 a second for a second
+        session.inputs.osc("/reward", ["bo", 1.0], t0 + k / 1000)
+        session.inputs.osc("/lux/fast", [0.5], t0 + k / 1000)  # a sensor held to 2 a second
+        session.inputs.osc("/lux", [0.5], t0 + k / 1000)  # no limit: every reading taken
+    counts = session.inputs.counts
+    taken = len(events(session, "reward"))
+    assert taken == 10 + 10 - 1  # the burst, then one every 0.1 s of the second (the last one at 1.0 s is not in it)
+    assert len(session.world.sensors["fast"]) == 2 + 2 - 1 and len(session.world.sensors["lux"]) == 1000
+    assert counts["throttled osc"] == (1000 - taken) + (1000 - 3)
+    assert counts["mapped osc"] == taken + 3 + 1000
+    gained = max(running[name].value.to_float() - before[name] for name in before)
+    assert 0 < gained <= taken * 0.2 * 1.0 + 1e-9  # at most rate·amount a click taken: not 1,000 clicks' worth
+    throttled = [line for line in said if "throttled" in line]
+    assert throttled == ["osc input '/lux/fast' throttled (over its map's limit of 2 a second); counted, logged at "
+                         "most every 10 s"]  # one cause: the first throttled message's line, then a count
+
+
 def test_drive_perturbation_adds_or_sets_a_drive(tmp_path):
     session, clock = colony(tmp_path)
     bo, deaf = session.world.creatures

@@ -15,7 +15,9 @@ becomes (``to``):
 * ``drive``: an impulse to, or a new level of, a drive of the creatures' motivation.
 
 Nothing is dropped in silence. A message no map takes is *unmapped*; one a map takes but
-cannot read (an argument missing or of the wrong type, a pitch out of range) is *malformed*.
+cannot read (an argument missing or of the wrong type, a pitch out of range) is *malformed*;
+one over its map's ``limit`` of messages a second (10 for rewards unless set: a flood of clicks
+is a retraining, :data:`creatures.runtime.input_routes.CLICKS`) is *throttled*.
 Both are counted, and logged as one cause per source: a line (and an event) the first time,
 then at most every :data:`LOG_EVERY` seconds with the count since and a few of the addresses
 (2,000 distinct addresses once made 1,023 lines in under a second: one per address); the
@@ -188,16 +190,18 @@ class InputRouter:
 
     # -- targets ----------------------------------------------------------------------------
     def _apply(self, routes: list[Route], args: tuple, t: float, via: str, address: str) -> int:
-        """Every matching route takes the message; it counts once: mapped, or malformed if
-        any route could not read it."""
-        notes, failed = 0, None
-        for route in routes:
+        """Every matching route within its ``limit`` takes the message; it counts once: mapped,
+        malformed if any route could not read it, or throttled if every route was over its limit."""
+        notes, failed, taken = 0, None, [route for route in routes if route.take(t)]
+        for route in taken:
             try:
                 notes += getattr(self, f"_{route.spec.to}")(route, args, t, via)
             except Unreadable as exc:
                 failed = failed or str(exc)
         if failed is not None:
             self.miss("malformed", via, address, t, failed)
+        elif not taken:
+            self.miss("throttled", via, address, t, f"over its map's limit of {routes[0].limit:g} a second")
         else:
             self.mapped(via)
         return notes
@@ -264,7 +268,7 @@ class InputRouter:
 
     # -- what nothing takes ----------------------------------------------------------------
     def miss(self, what: str, via: str, address: str, t: float, why: str) -> None:
-        """Count an unmapped or malformed message; log its cause (``what`` from ``via``) the
+        """Count an unmapped, malformed or throttled message; log its cause (``what`` from ``via``) the
         first time, then at most every :data:`LOG_EVERY` seconds with the count since and up
         to :data:`EXAMPLES` of the addresses, however many distinct addresses there are."""
         self.counts[what] += 1

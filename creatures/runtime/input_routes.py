@@ -118,11 +118,20 @@ class Colony:
     rewardable: bool
 
 
+CLICKS = 10.0
+"""Rewards a second a ``to = "reward"`` map takes unless its ``limit`` says otherwise: more than
+a visitor's clicker gives. A reward adds to the credited values (``V += rate·trigger·amount``),
+so a flood is a retraining: 10,000 ``/reward`` messages in 10 s (a bouncing switch, a stuck
+sender) took an audited colony's values from about 2 to 370, saved, and it then played nothing."""
+
+
 class Route:
     """One ``[[input]]`` table, checked against the colony and compiled for matching."""
 
     def __init__(self, spec: InputMap, colony: dict[str, Colony]) -> None:
         self.spec = spec
+        self.limit = spec.limit if spec.limit is not None else CLICKS if spec.to == "reward" else None
+        self._tokens, self._filled = max(1.0, self.limit or 0.0), None  # a full bucket
         self.pattern: re.Pattern[str] | None = None
         self.midi: str | None = None
         if spec.osc is not None:
@@ -148,6 +157,19 @@ class Route:
                 what = f"midi = {self.midi!r}" if self.midi else f"args = {arity}"
                 raise MapError(key, f"argument {index} is beyond the {arity} argument(s) of {what}")
         self.creatures = self._creatures(colony)
+
+    def take(self, t: float) -> bool:
+        """Whether the map takes a message at ``t``: within its :attr:`limit`, a bucket of
+        ``limit`` messages (at least one) refilled at ``limit`` a second of the run's clock."""
+        if self.limit is None:
+            return True
+        if self._filled is not None:
+            self._tokens = min(max(1.0, self.limit), self._tokens + max(0.0, t - self._filled) * self.limit)
+        self._filled = t
+        if self._tokens < 1.0:
+            return False
+        self._tokens -= 1.0
+        return True
 
     def _check_filters(self) -> None:
         spec = self.spec

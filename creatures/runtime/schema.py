@@ -295,6 +295,11 @@ class InputMap(Strict):
     rate: float = Field(0.2, ge=0, le=1, description="to = 'reward': how far one reward moves a credited tuple's "
                                                      "value, V += rate x trigger x amount (its own credit "
                                                      "assignment's blend parameter, whatever the creature's alpha)")
+    limit: float | None = Field(None, gt=0, le=10_000, description="most messages a second the map takes (a "
+                                "burst of `limit` passes, then `limit` a second); more are dropped, counted as "
+                                "`throttled` and logged: a stuck sensor or a flooding sender cannot retrain the "
+                                "colony or swamp a drive. Default: 10 for to = 'reward' (a visitor's clicks), "
+                                "none otherwise")
 
 
 class InputSection(Strict):
