@@ -13,12 +13,21 @@ through one probe client kept open (a fraction of a millisecond), and a live run
 :class:`ResilientPort` a :class:`~creatures.supervisor.Supervisor`: presence checks and
 reopening then run on the supervisor's thread, and the creature's thread only sends (a send
 that fails hands the port to the supervisor, which looks again at once).
+
+A JACK server that dies takes every rtmidi client of the process with it, silently: the kept
+client still lists the old ports, a send still succeeds, the port still says it is open. A
+:class:`JackPulse` notices (a message of our own round the server's graph stops coming back),
+and a client of the lost server is then abandoned, never closed (see :func:`abandon`).
 """
 
 from __future__ import annotations
 
+import ctypes
+import itertools
 import logging
+import os
 import re
+import time
 from typing import Callable, Protocol
 
 import mido
@@ -75,11 +84,102 @@ class MemoryPorts:
 
 
 class PortFactory(Protocol):
-    """Lists and opens ports of one direction; mido's backends or a fake one in tests."""
+    """Lists and opens ports of one direction; mido's backends or a fake one in tests. A
+    factory may also say which of its ports are ``stale(port)``: lost with their server, to
+    be abandoned rather than closed (:class:`MidoInputs` under JACK)."""
 
     def names(self) -> list[str]: ...
 
     def open(self, name: str, *, virtual: bool = False) -> BasePort: ...
+
+
+def abandon(obj: object) -> None:
+    """Keep ``obj`` (an rtmidi client, or a port holding one) whose JACK server died, for the
+    life of the process, never closed nor freed.
+
+    Once a JACK server has gone, the next client the process opens makes libjack free every
+    client of the dead one; closing or deleting one of those afterwards crashed the process
+    (segfault, 3 of 3 trials), and closing an output before that waited 1 s. Python would close
+    it when collecting it, even at exit, so one reference is leaked on purpose: a few hundred
+    bytes per server restart.
+    """
+    ctypes.pythonapi.Py_IncRef(ctypes.py_object(obj))
+
+
+class JackPulse:
+    """Whether the JACK server behind this process's rtmidi clients still runs.
+
+    A client of a server that died still lists the old ports, takes every message and says its
+    port is open; only a new client finds the server gone, and making one holds the GIL ~45 ms
+    (measured: too long to do every second beside a creature's tick). So two clients of our
+    own pass an active-sensing byte round the server's graph (one cycle, ~12 ms) from one look
+    to the next; one not back after ``patience`` seconds means the server is gone. Every rtmidi
+    client made before is then stale: :attr:`generation` counts the servers lost, and a client
+    stamped with an older one must be neither used nor closed (:func:`abandon`). While the
+    server is away each look tries a new pair, which fails in ~4 ms.
+    """
+
+    _tags = itertools.count()
+
+    def __init__(self, api: str = "UNIX_JACK", *, patience: float = 0.5,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        self.api = api
+        self.patience = patience
+        self.clock = clock
+        self.generation = 0  # servers lost so far
+        self._pair = None  # (MidiOut, MidiIn) connected through the server
+        self._sent: float | None = None  # when the pulse still out was sent
+
+    def alive(self) -> bool:
+        """Look once (never waits): False from the look that finds a pulse lost until a new
+        pair of clients can be made."""
+        if self._pair is None:
+            try:
+                self._pair = self._open_pair()
+            except Exception as exc:
+                logger.debug("no JACK server: %s", exc)
+                return False
+            self._sent = None
+        out, ear = self._pair
+        while ear.get_message() is not None:
+            self._sent = None
+        now = self.clock()
+        if self._sent is None:
+            out.send_message([0xFE])
+            self._sent = now
+        elif now - self._sent >= self.patience:
+            for client in self._pair:
+                abandon(client)
+            self._pair = None
+            self.generation += 1
+            return False
+        return True
+
+    def _open_pair(self):
+        import rtmidi
+
+        tag = f"pulse-{os.getpid()}-{next(self._tags)}"
+        made = []
+        try:
+            made.append(rtmidi.MidiOut(rtapi=api_id(self.api), name="creatures-pulse"))
+            made[0].open_virtual_port(tag)
+            made.append(rtmidi.MidiIn(rtapi=api_id(self.api), name="creatures-pulse", queue_size_limit=64))
+            made[1].ignore_types(sysex=True, timing=True, active_sense=False)
+            names = made[1].get_ports()
+            made[1].open_port(next(i for i, n in enumerate(names) if n.endswith(":" + tag)))
+        except Exception:
+            for client in made:  # the server may have died meanwhile: closing is not safe
+                abandon(client)
+            raise
+        return tuple(made)
+
+
+_pulses: dict[str, JackPulse] = {}
+
+
+def jack_pulse(api: str = "UNIX_JACK") -> JackPulse:
+    """The process's one :class:`JackPulse` for ``api`` (libjack's state is the process's)."""
+    return _pulses.setdefault(api, JackPulse(api))
 
 
 class MidoInputs:
@@ -88,30 +188,61 @@ class MidoInputs:
 
     rtmidi inputs open as :class:`midi.polled.PolledInput` (no Python on the driver's thread);
     other backends open as mido opens them. With rtmidi, names are listed by one probe client
-    made on the first listing and kept (see the module docstring for why).
+    made on the first listing and kept (see the module docstring for why). Under JACK, a
+    listing while the server is gone raises, and :meth:`stale` says which ports it took with
+    it; ``pulse`` is the process's :func:`jack_pulse` unless a test gives its own.
     """
 
-    def __init__(self, backend: mido.Backend | None = None) -> None:
+    def __init__(self, backend: mido.Backend | None = None, *, pulse: JackPulse | None = None) -> None:
         self.backend = backend or mido.backend
         self._probe = None
+        self._probe_generation = 0
+        self._pulse = pulse
 
     def names(self) -> list[str]:
         probe = self._rtmidi_probe()
         return list(probe.get_ports()) if probe is not None else list(self.backend.get_input_names())
 
+    def stale(self, port: BasePort) -> bool:
+        """Whether ``port``'s JACK server is gone: it must be neither used nor closed."""
+        pulse = self._jack()
+        return pulse is not None and getattr(port, "jack_generation", pulse.generation) != pulse.generation
+
+    def _jack(self) -> JackPulse | None:
+        if self.backend.name != "mido.backends.rtmidi" or self.backend.api != "UNIX_JACK":
+            return None
+        if self._pulse is None:
+            self._pulse = jack_pulse()
+        return self._pulse
+
+    def _stamp(self, port: BasePort) -> BasePort:
+        pulse = self._jack()
+        if pulse is not None:
+            port.jack_generation = pulse.generation
+        return port
+
     def _rtmidi_probe(self, kind: str = "MidiIn"):
-        """The kept rtmidi client that lists ports, or None for other backends."""
+        """The kept rtmidi client that lists ports, or None for other backends; under JACK, a
+        new one once the server it listed went away."""
         if self.backend.name != "mido.backends.rtmidi":
             return None
+        pulse = self._jack()
+        if pulse is not None:
+            if not pulse.alive():
+                raise OSError("the JACK server is not running")
+            if self._probe is not None and self._probe_generation != pulse.generation:
+                abandon(self._probe)
+                self._probe = None
         if self._probe is None:
             import rtmidi
 
             self._probe = getattr(rtmidi, kind)(rtapi=api_id(self.backend.api), name="creatures-probe")
+            self._probe_generation = pulse.generation if pulse is not None else 0
         return self._probe
 
     def open(self, name: str, *, virtual: bool = False) -> BasePort:
         if self.backend.name == "mido.backends.rtmidi":
-            return PolledInput(name, api=self.backend.api, virtual=virtual)
+            return self._stamp(PolledInput(name, api=self.backend.api, virtual=virtual))
         return self.backend.open_input(name, virtual=virtual)
 
 
@@ -123,7 +254,7 @@ class MidoOutputs(MidoInputs):
         return list(probe.get_ports()) if probe is not None else list(self.backend.get_output_names())
 
     def open(self, name: str, *, virtual: bool = False) -> BasePort:
-        return self.backend.open_output(name, virtual=virtual)
+        return self._stamp(self.backend.open_output(name, virtual=virtual))
 
 
 def match_port(names: list[str], pattern: str) -> str | None:
@@ -235,16 +366,16 @@ class ResilientPort:
 
     def _check_now(self) -> None:
         try:
-            names = self.factory.names()
+            names, why = self.factory.names(), "it is no longer listed"
         except Exception as exc:
-            names = []
+            names, why = [], f"{exc}"
             logger.debug("listing MIDI ports failed: %s", exc)
         self._let_go_broken()  # after the listing: a send may have failed while it ran
         port = self.port
         if port is not None:
-            if port.name not in names:
+            if port.name not in names or self._stale(port):
                 self.port = None
-                self._lose(port, "it is no longer listed")
+                self._lose(port, why if port.name not in names else "its JACK server went away")
             return
         name = match_port(names, self.pattern)
         if name is None:
@@ -276,8 +407,14 @@ class ResilientPort:
         self._missing_reported = True
         self.report(f"MIDI port {port.name!r} lost ({why}); will reopen it when it returns")
 
-    @staticmethod
-    def _close_quietly(port: BasePort) -> None:
+    def _stale(self, port: BasePort) -> bool:
+        stale = getattr(self.factory, "stale", None)
+        return stale is not None and stale(port)
+
+    def _close_quietly(self, port: BasePort) -> None:
+        if self._stale(port):
+            abandon(port)  # closing it could crash the process
+            return
         try:
             port.close()
         except Exception as exc:

@@ -1,0 +1,264 @@
+"""A JACK server that dies under a run's MIDI output and comes back: the loss is said once, the
+port is opened again on the new server, and a note sent afterwards arrives.
+
+Before, the kept rtmidi client of the dead server still listed the old ports and took every
+message, so the run said nothing, /health said connected, and nothing was ever sent again.
+
+The run's side is a child process of its own: once a JACK server has died, libjack frees every
+client of the process the next time one opens, so the scenario must share its libjack with no
+other test's clients. Its server is named (``JACK_DEFAULT_SERVER``), started, killed and started
+again by the child; the default server the other JACK tests use is never touched. The receiver
+is ``jack_midi_dump`` (a real JACK client in its own process, as fluidsynth would be)."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+import uuid
+from pathlib import Path
+
+import pytest
+
+from creatures.clock import SimulatedClock
+from midi.ports import JackPulse, ResilientPort
+
+ROOT = Path(__file__).resolve().parents[1]
+RECEIVER = "midi-monitor:input"  # jack_midi_dump's port
+
+
+class _Backend:
+    """A pair of rtmidi clients looping through a server that can die, without JACK: what is
+    sent comes back while ``up``, and never once the server ``died``."""
+
+    def __init__(self) -> None:
+        self.up = True
+        self.opened = 0
+
+    def pair(self):
+        if not self.up:
+            raise SystemError("MidiOutJack::initialize: JACK server not running?")
+        self.opened += 1
+        backend, generation, queue = self, self.opened, []
+
+        class Out:
+            def send_message(self, msg):
+                if backend.up and backend.opened == generation:
+                    queue.append(msg)
+
+        class Ear:
+            def get_message(self):
+                return (queue.pop(0), 0.0) if queue else None
+
+        return Out(), Ear()
+
+
+def test_pulse_says_a_server_lost_from_the_first_look_past_patience_and_back_when_a_pair_opens():
+    clock, server = SimulatedClock(), _Backend()
+    pulse = JackPulse(patience=0.5, clock=clock.now)
+    pulse._open_pair = server.pair
+    assert pulse.alive() and pulse.alive()  # two ports looking at once: the pulse is on its way
+    for _ in range(3):
+        clock.advance(1.0)
+        assert pulse.alive() and pulse.generation == 0  # each came back
+    server.up = False
+    clock.advance(1.0)
+    assert pulse.alive()  # the last pulse came back before the server died; a new one goes out
+    clock.advance(0.4)
+    assert pulse.alive()  # not yet past patience
+    clock.advance(0.6)
+    assert not pulse.alive() and pulse.generation == 1
+    clock.advance(1.0)
+    assert not pulse.alive() and pulse.generation == 1  # no new pair while the server is away
+    server.up = True
+    clock.advance(1.0)
+    assert pulse.alive() and pulse.generation == 1 and server.opened == 2
+
+
+class _StalePorts:
+    """A factory whose port goes stale with its server, as :class:`MidoOutputs` under JACK."""
+
+    def __init__(self) -> None:
+        self.generation = 0
+        self.up = True
+        self.closed = []
+
+    def names(self) -> list[str]:
+        if not self.up:
+            raise OSError("the JACK server is not running")
+        return ["synth:midi_in"]
+
+    def open(self, name, *, virtual=False):
+        from midi.ports import MemoryOutput
+
+        port = MemoryOutput(name)
+        port.jack_generation = self.generation
+        port.close = lambda p=port: self.closed.append(p)  # closing a stale one would crash
+        return port
+
+    def stale(self, port) -> bool:
+        return port.jack_generation != self.generation
+
+
+def test_a_port_lost_with_its_server_is_said_once_abandoned_not_closed_and_reopened(clock):
+    import mido
+
+    factory, reports = _StalePorts(), []
+    port = ResilientPort("synth", factory, clock, retry_interval=1.0, report=reports.append)
+    first = port.port
+    factory.up, factory.generation = False, 1  # the server died; the pulse said so
+    for _ in range(3):
+        clock.advance(1.0)
+        assert not port.send(mido.Message("note_on"))
+    assert reports == ["MIDI port 'synth:midi_in' lost (the JACK server is not running); "
+                       "will reopen it when it returns"]
+    assert (port.faults, port.dropped, factory.closed) == (1, 3, [])
+    factory.up = True
+    clock.advance(1.0)
+    assert port.send(mido.Message("note_on"))
+    second = port.port
+    assert second is not first
+    assert reports[-1] == "MIDI port 'synth:midi_in' is back" and port.reopened == 1
+    port.close()
+    assert factory.closed == [second]  # the live one closes as usual; the stale one never
+
+
+# --- the same with a real JACK server, in a child process ---------------------------------
+
+
+def _wait(predicate, what: str, timeout: float = 10.0):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if result := predicate():
+            return result
+        time.sleep(0.02)  # polling a real process; the deadline bounds the wait
+    raise AssertionError(f"timed out waiting for {what}")
+
+
+class _Child:
+    """The child's JACK server and receiver: each a real process, started and stopped here."""
+
+    def __init__(self, server: str) -> None:
+        self.server = server
+        self.jackd: subprocess.Popen | None = None
+        self.dump: subprocess.Popen | None = None
+        self.heard = Path(os.environ["CREATURES_TEST_DUMP"])
+
+    def start(self) -> None:
+        self.jackd = subprocess.Popen(["jackd", "-n", self.server, "--no-realtime", "-d", "dummy", "-r", "44100",
+                                       "-p", "512"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        subprocess.run(["jack_wait", "-w", "-t", "10"], check=True, capture_output=True)  # a process of its own
+        self.heard.write_text("")
+        self.dump = subprocess.Popen(["stdbuf", "-oL", "jack_midi_dump"], stdout=self.heard.open("a"),
+                                     stderr=subprocess.DEVNULL)
+        _wait(lambda: RECEIVER in subprocess.run(["jack_lsp"], capture_output=True, text=True).stdout,
+              "jack_midi_dump's port")
+
+    def kill_server(self) -> None:
+        self.jackd.send_signal(signal.SIGKILL)  # as a crash: no goodbye to the clients
+        self.jackd.wait(timeout=10)
+        self.dump.send_signal(signal.SIGTERM)  # the receiver goes with its server
+        self.dump.wait(timeout=10)
+
+    def stop(self) -> None:
+        for proc in (self.dump, self.jackd):  # SIGTERM: jackd then frees its name in JACK's registry
+            if proc is not None and proc.poll() is None:
+                proc.terminate()
+                try:
+                    proc.wait(timeout=10)
+                except subprocess.TimeoutExpired:
+                    proc.kill()
+                    proc.wait()
+
+    def heard_notes(self) -> list[int]:
+        """Pitches of the note-ons jack_midi_dump printed (``   0: 90 3c 64 note on ...``)."""
+        return [int(line.split()[2], 16) for line in self.heard.read_text().splitlines() if "note on" in line]
+
+
+def _scenario(server: str) -> dict:
+    """Run in the child: a ResilientPort to jack_midi_dump, the server killed and restarted."""
+    import mido
+
+    from midi.ports import MidoOutputs
+
+    os.environ["JACK_DEFAULT_SERVER"] = server
+    os.environ["JACK_NO_START_SERVER"] = "1"
+    child, clock, reports, seen = _Child(server), SimulatedClock(), [], {}
+    try:
+        child.start()
+        backend = mido.Backend("mido.backends.rtmidi/UNIX_JACK", load=True)
+        outputs = MidoOutputs(backend, pulse=JackPulse(clock=clock.now))
+        port = ResilientPort(RECEIVER, outputs, clock, retry_interval=1.0, report=reports.append)
+        seen["connected_at_start"] = port.connected
+        port.send(mido.Message("note_on", note=60, velocity=100))
+        seen["heard_before"] = _wait(child.heard_notes, "the first note")
+
+        child.kill_server()
+        looks = 0
+        while port.connected and looks < 5:  # the port's own checks, one simulated second apart
+            clock.advance(1.0)
+            port.send(mido.Message("note_on", note=61, velocity=100))
+            looks += 1
+        seen["looks_to_loss"] = looks
+        seen["dropped"] = port.dropped
+        seen["reports_while_down"] = list(reports)
+
+        child.start()
+        looks = 0
+        while not port.connected and looks < 5:
+            clock.advance(1.0)
+            port.send(mido.Message("note_on", note=62, velocity=100))
+            looks += 1
+        seen["looks_to_reconnect"] = looks
+        sent = port.send(mido.Message("note_on", note=63, velocity=100))
+        seen["sent_after"] = sent
+        try:
+            _wait(lambda: 63 in child.heard_notes(), "the note sent after the restart", 5.0)
+            seen["heard_after"] = True
+        except AssertionError:
+            seen["heard_after"] = False
+        seen["reports"] = reports
+        seen["faults"], seen["reopened"] = port.faults, port.reopened
+        port.close()
+    finally:
+        child.stop()
+    return seen
+
+
+@pytest.mark.jack
+@pytest.mark.realtime
+def test_jack_server_restart_is_reported_and_the_port_reconnects_and_delivers(tmp_path):
+    missing = [tool for tool in ("jackd", "jack_wait", "jack_lsp", "jack_midi_dump", "stdbuf") if not shutil.which(tool)]
+    if missing:
+        pytest.skip(f"needs JACK's tools ({', '.join(missing)} not found; apt-get install jackd2)")
+    server = f"creatures-test-{uuid.uuid4().hex[:8]}"
+    env = dict(os.environ, CREATURES_TEST_DUMP=str(tmp_path / "heard.txt"),
+               PYTHONPATH=os.pathsep.join([str(ROOT), str(ROOT / "tests")]))
+    code = (f"import json, test_midi_jack_restart as t; print('RESULT', json.dumps(t._scenario({server!r})))")
+    run = subprocess.Popen([sys.executable, "-c", code], cwd=ROOT, env=env, stdout=subprocess.PIPE,
+                           stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        out, err = run.communicate(timeout=120)
+    except subprocess.TimeoutExpired:
+        os.killpg(run.pid, signal.SIGKILL)  # the child's session: its jackd and receiver too
+        out, err = run.communicate()
+    print(out, err[-3000:], sep="\n")
+    assert run.returncode == 0, f"the child failed (exit {run.returncode})"
+    seen = json.loads(next(line for line in out.splitlines() if line.startswith("RESULT "))[7:])
+
+    assert seen["connected_at_start"] and seen["heard_before"] == [60]
+    # The loss is said once, within two looks (the pulse out when the server died is judged
+    # at the next look), and the notes meanwhile are dropped and counted.
+    assert seen["looks_to_loss"] <= 2, seen
+    lost = [r for r in seen["reports"] if " lost " in r]
+    assert lost == [f"MIDI port {RECEIVER!r} lost (the JACK server is not running); will reopen it when it returns"]
+    assert seen["reports_while_down"] == lost and seen["dropped"] >= 1 and seen["faults"] == 1
+    # With the server and the receiver back, the next look reopens the port and says so; a note
+    # sent then arrives at the receiver.
+    assert seen["looks_to_reconnect"] <= 2, seen
+    assert seen["reports"][-1] == f"MIDI port {RECEIVER!r} is back" and seen["reopened"] == 1
+    assert seen["sent_after"] and seen["heard_after"], seen
