@@ -22,7 +22,7 @@ from creatures.clock import SimulatedClock
 from creatures.config import ConfigError
 from creatures.events import EventLog
 from creatures.kinds import load_all
-from creatures.runtime.input_map import as_pitch
+from creatures.runtime.input_map import Unreadable, as_pitch
 from creatures.runtime.input_routes import address_pattern
 from creatures.runtime.input_sources import RETRY, SerialSource, line_message, value_of
 from creatures.runtime.schema import load_installation
@@ -548,6 +548,9 @@ def test_serial_line_forms(line, message):
 def test_values_and_note_names():
     assert [value_of(x) for x in ("3", "2.5", "TRUE", "C4")] == [3, 2.5, True, "C4"]
     assert [as_pitch(x) for x in ("C4", "c-1", "Bb3", "F#5", 69.4)] == [60, 0, 58, 78, 69]
+    for truth in (True, False):  # OSC's T and F: a sensor reads them as 1 and 0, no note is meant by them
+        with pytest.raises(Unreadable, match="a truth value is not a pitch"):
+            as_pitch(truth)
 
 
 def test_maps_inside_an_input_table_and_extends(tmp_path):

@@ -105,7 +105,10 @@ def within(x: float, what: str, bound: float = LARGEST_RATE) -> float:
 
 
 def as_pitch(x: Any) -> int:
-    """A MIDI pitch from a number or a note name (``C4`` = 60, ``F#3``, ``Bb2``)."""
+    """A MIDI pitch from a number or a note name (``C4`` = 60, ``F#3``, ``Bb2``); not from an
+    OSC truth value (``T`` was heard as pitch 1), which a sensor reads as 1 or 0."""
+    if isinstance(x, bool):
+        raise Unreadable(f"pitch: a truth value is not a pitch ({x})")
     if isinstance(x, str) and (name := _NOTE_NAME.fullmatch(x.strip())):
         accidental = {"#": 1, "b": -1}.get(name[2], 0)
         x = 12 * (int(name[3]) + 1) + _STEPS[name[1].lower()] + accidental
