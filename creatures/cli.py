@@ -600,6 +600,9 @@ def _state(args: argparse.Namespace) -> int:
         elif args.action == "merge":
             added = repertoire.merge(args.source, args.creature, args.target, args.into)
             print(f"{args.into}: added {', '.join(added) if added else 'nothing (it knew all of it)'}")
+            left = repertoire.not_carried(args.source, args.creature)
+            if left:
+                print(f"note: not carried: {', '.join(left)} (a part's own learning: {args.into} keeps its own)")
         else:
             if not args.state.is_dir():
                 raise StateFileError(f"{args.state}: no such state folder")

@@ -162,6 +162,24 @@ def test_three_creatures_merge_their_remembered_sounds(tmp_path: Path) -> None:
     assert [m.origin for m in creature.memory] == ["heard here", "heard in the other room"]
 
 
+def test_a_merge_says_which_parts_learning_it_does_not_carry(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """listen's model population is its ``heard`` part's own learning, with no phrase or class to
+    graft: the merge said only "added nothing" and left it, silently."""
+    import installations
+
+    from creatures.cli import main
+
+    inst = load_installation(installations.path("listen"))
+    session = Session(inst, SimulatedClock(), EventLog(keep_in_memory=0), MemorySink())
+    session.save_state(tmp_path / "a")
+    session.save_state(tmp_path / "b")
+    assert repertoire.not_carried(tmp_path / "a", "lis") == ["parts.percepts.heard"]
+    assert main(["state", "merge", str(tmp_path / "a"), "--creature", "lis", str(tmp_path / "b"), "--into", "lis"]) == 0
+    assert capsys.readouterr().out.splitlines()[-1] == ("note: not carried: parts.percepts.heard (a part's own "
+                                                         "learning: lis keeps its own)")
+    assert repertoire.not_carried(tmp_path / "a", "ada") == []  # exchange's creatures keep no part of their own
+
+
 def test_a_kind_without_a_repertoire_merge_says_why(tmp_path: Path) -> None:
     import installations
 

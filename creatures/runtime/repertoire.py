@@ -166,6 +166,16 @@ def merge(source: Path, name: str, target: Path, into: str) -> list[str]:
     return added
 
 
+def not_carried(source: Path, name: str) -> list[str]:
+    """What a merge of creature ``name`` of ``source`` leaves behind: an authored creature's
+    parts' own learning (``parts.<section>.<name>``: a model population, a percept's memory),
+    which is the part's and has no phrase or class to graft, so the target keeps its own."""
+    state = load_json(_creature_file(source, name), kind=STATE_KIND).get("state", {})
+    parts = state.get("parts", {}) if isinstance(state, dict) else {}
+    return [f"parts.{section}.{part}" for section, kept in sorted(parts.items()) if isinstance(kept, dict)
+            for part in sorted(kept)]
+
+
 def _merge_authored(src: dict[str, Any], dst: dict[str, Any]) -> tuple[dict[str, Any], list[str]]:
     """An authored creature's heard phrases, each with its tuple's learned value: the source's
     phrases the target lacks are appended under new numbers (``phrase N`` tuples renumbered);
