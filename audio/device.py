@@ -71,9 +71,9 @@ def abandoned() -> None:
     """A stream was abandoned, PortAudio never returning from stopping it (its JACK server
     died): ``Pa_Terminate``, which sounddevice calls at exit, would wait for it the same way, so
     that exit handler is dropped and the process can end once it has saved what it keeps."""
-    sd = sys.modules.get("sounddevice")
-    if sd is not None:
-        atexit.unregister(sd._exit_handler)
+    handler = getattr(sys.modules.get("sounddevice"), "_exit_handler", None)  # sounddevice's own, since 0.3
+    if handler is not None:
+        atexit.unregister(handler)
 
 
 class PortAudio:

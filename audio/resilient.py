@@ -191,9 +191,9 @@ class DeviceWatch(Generic[S]):
         closing.start()
         closing.join(LET_GO_TIMEOUT)
         if closing.is_alive():
-            abandoned()
             self.wedged = f"PortAudio did not let go of the lost {self.what} in {LET_GO_TIMEOUT:g} s (its JACK server died?)"
             self.report(f"{self.wedged}: no stream can open in this process any more")
+            abandoned()
 
     def _stop_quietly(self, stream: S) -> None:
         try:
@@ -310,20 +310,22 @@ class ResilientOutput(AudioOutput, Watched[LiveOutput]):
         if live is None:
             self.dropped += len(block)
             return
+        # read once: a lost stream is let go on another thread, which drops them meanwhile
+        resampler, keeper = self._resampler, self.keeper
         samples = np.asarray(block, dtype=np.float32)
-        if self._resampler is not None:
-            samples = self._resampler.resample_chunk(samples)
-        if self.keeper is not None:
+        if resampler is not None:
+            samples = resampler.resample_chunk(samples)
+        if keeper is not None and resampler is not None:
             # a callback between the read and the reset loses its sample: one block's look, no more
             lowest, live.lowest_spare = live.lowest_spare, UNSEEN
-            stretch = self.keeper.stretch
-            change = self.keeper.correct(lowest // self.channels if lowest != UNSEEN else UNSEEN, len(samples))
+            stretch = keeper.stretch
+            change = keeper.correct(lowest // self.channels if lowest != UNSEEN else UNSEEN, len(samples))
             if change > 0:
                 live.write(np.zeros((change, self.channels), dtype=np.float32))
             elif change < 0:
                 samples = samples[-change:]
-            if self.keeper.stretch != stretch:  # eased in over the next block
-                self._resampler.set_io_ratio(self.sample_rate, live.sample_rate * self.keeper.stretch, len(block))
+            if keeper.stretch != stretch:  # eased in over the next block
+                resampler.set_io_ratio(self.sample_rate, live.sample_rate * keeper.stretch, len(block))
         live.write(samples)
 
     def _close(self) -> None:

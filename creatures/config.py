@@ -295,7 +295,9 @@ def validate(
     return valid
 
 
-QUOTES = ", not text: write it without quotes"
+def _wanted(what: str, data: Any) -> str:
+    """The message for ``data`` written where ``what`` is wanted."""
+    return f"should be {what}, not text: write it without quotes" if isinstance(data, str) else f"should be {what}"
 
 
 def _numeral(data: Any) -> bool:
@@ -324,9 +326,9 @@ def _quoted_scalar(valid: Any, data: Any, at: tuple[str | int, ...] = ()) -> tup
     where a number came from text, or a truth value from anything but ``true``/``false``.
     """
     if isinstance(valid, bool):
-        return None if isinstance(data, bool) else (at, data, "should be true or false" + QUOTES * isinstance(data, str))
+        return None if isinstance(data, bool) else (at, data, _wanted("true or false", data))
     if isinstance(valid, (int, float)):
-        return (at, data, "should be a number" + QUOTES * isinstance(data, str)) if _numeral(data) else None
+        return (at, data, _wanted("a number", data)) if _numeral(data) else None
     if isinstance(valid, BaseModel):
         if isinstance(data, list):  # a before-validator moved a list into a field (``[[input]]``)
             nested = [getattr(valid, name) for name in type(valid).model_fields]

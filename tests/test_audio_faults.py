@@ -28,6 +28,7 @@ from audio.output import LiveOutput
 from audio.resilient import ResilientInput, ResilientOutput
 from audio.sources import LiveInput
 from creatures.clock import SimulatedClock
+from creatures.runtime.live import _sound_at_end
 
 RATE = 8000
 TICK = 0.02
@@ -267,6 +268,18 @@ def test_an_abandoned_stream_drops_sounddevices_exit_handler():
                                 cwd=Path(__file__).parent.parent).stdout.split()
             for how in ("abandoned", "kept")}
     assert ends == {"abandoned": ["other", "handlers", "run"], "kept": ["other", "handlers", "run", "Pa_Terminate"]}
+
+
+@pytest.mark.parametrize("gone, said", [((5.0, 10.0), f"live at {RATE} Hz once it came back"),
+                                        ((5.0, 1e9), "lost mid-run (no audio output devices found")])
+def test_the_run_says_where_the_sound_went_at_the_end(gone, said):
+    """The summary's sound was what the run began with ("live at …"), whatever happened since."""
+    clock = SimulatedClock()
+    card = FakeCard(clock, gone=gone)
+    out = ResilientOutput(RATE, 2, clock=clock, blocksize=BLOCK, retry_interval=1.0, backend=card, report=print)
+    run_output(card, out, 15.0)
+    assert _sound_at_end(out, f"live at {RATE} Hz").startswith(said)
+    out.close()
 
 
 def test_output_reopens_when_the_device_list_cannot_be_reread():

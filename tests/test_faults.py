@@ -554,4 +554,5 @@ def test_the_health_status_says_the_synth_is_gone_and_what_it_dropped(colony, tm
     assert main(["run", str(tmp_path / "colony.toml"), "--duration", "2.5"]) == 0
     assert published, "the run published no status"
     midi = published[-1]["midi_output"]
-    assert midi["connected"] is False and midi["dropped"] >= 0 and midi["lost"] == 0
+    # (the colony plays nothing in 2.5 s unheard: what the port drops is counted by its own tests)
+    assert set(midi) == {"connected", "lost", "dropped"} and midi["connected"] is False and midi["lost"] == 0

@@ -330,6 +330,19 @@ def test_a_flood_of_clicks_is_throttled_and_counted_not_a_retraining(tmp_path):
                          "most every 10 s"]  # one cause: the first throttled message's line, then a count
 
 
+def test_each_session_has_its_own_allowance_of_clicks(tmp_path):
+    """The routes are the installation's, shared by every session built from it (a rehearsal,
+    the check's passes, the run): a session's clicks at 300 s must not empty the allowance of
+    the next, whose clock starts at 0."""
+    first, _ = colony(tmp_path)
+    for k in range(20):
+        first.inputs.osc("/reward", ["bo", 1.0], 300.0)
+    assert first.inputs.counts["throttled osc"] == 10
+    second = Session(first.inst, SimulatedClock(), EventLog(), MemorySink())
+    second.inputs.osc("/reward", ["bo", 1.0], 0.0)
+    assert second.inputs.counts["mapped osc"] == 1 and second.inputs.counts["throttled osc"] == 0
+
+
 def test_drive_perturbation_adds_or_sets_a_drive(tmp_path):
     session, clock = colony(tmp_path)
     bo, deaf = session.world.creatures

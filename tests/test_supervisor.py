@@ -41,9 +41,10 @@ def test_unstarted_jobs_run_when_due_on_the_callers_thread_and_failures_are_coun
 
 
 def test_a_job_that_never_returns_makes_the_health_status_stuck(monkeypatch):
-    """PortAudio stopping a stream whose JACK server died never returns: the supervisor's
-    thread then runs nothing else (no saves, no log flush, no heartbeat) while the ticks go
-    on, and /health said "running" with 200. Now it says "stuck", naming the job, with 503."""
+    """A job that never returns (PortAudio stopping a stream whose JACK server died was one):
+    the supervisor's thread then runs nothing else (no saves, no log flush, no heartbeat) while
+    the ticks go on, and /health said "running" with 200. Now it says "stuck", naming the job,
+    with 503."""
     import json
     import urllib.error
     import urllib.request

@@ -17,7 +17,7 @@ becomes (``to``):
 Nothing is dropped in silence. A message no map takes is *unmapped*; one a map takes but
 cannot read (an argument missing or of the wrong type, a pitch out of range) is *malformed*;
 one over its map's ``limit`` of messages a second (10 for rewards unless set: a flood of clicks
-is a retraining, :data:`creatures.runtime.input_routes.CLICKS`) is *throttled*.
+is a retraining, :data:`creatures.runtime.input_routes.CLICKS_PER_SECOND`) is *throttled*.
 Both are counted, and logged as one cause per source: a line (and an event) the first time,
 then at most every :data:`LOG_EVERY` seconds with the count since and a few of the addresses
 (2,000 distinct addresses once made 1,023 lines in under a second: one per address); the
@@ -45,7 +45,7 @@ import mido
 from creatures.behaviour.state_object import Habituation, StateObject
 from creatures.bounds import LARGEST_RATE
 from creatures.log_limit import INTERVAL
-from creatures.runtime.input_routes import MIDI, MIDI_KIND, MIDI_SPAN, Route
+from creatures.runtime.input_routes import MIDI, MIDI_KIND, MIDI_SPAN, Route, Throttle
 from creatures.runtime.schema import Arg, InputMap, Number
 from midi.notes import LONGEST_NOTE, NoteEvent, is_note_off
 
@@ -144,6 +144,7 @@ class InputRouter:
         # (what, via) -> when last logged, messages since, a few of their addresses
         self._logged: dict[tuple[str, str], tuple[float, int, tuple[str, ...]]] = {}
         self._sensor_logged: dict[str, float] = {}
+        self._throttles = {id(route): Throttle(route.limit) for route in routes if route.limit is not None}
         for route in routes:
             if route.spec.to == "sensor":
                 self._make_sensor(route.spec)
@@ -195,7 +196,8 @@ class InputRouter:
     def _apply(self, routes: list[Route], args: tuple, t: float, via: str, address: str) -> int:
         """Every matching route within its ``limit`` takes the message; it counts once: mapped,
         malformed if any route could not read it, or throttled if every route was over its limit."""
-        notes, failed, taken = 0, None, [route for route in routes if route.take(t)]
+        # a message spends its map's allowance before it is read: a flood of unreadable ones is a flood all the same
+        notes, failed, taken = 0, None, [route for route in routes if self._within(route, t)]
         for route in taken:
             try:
                 notes += getattr(self, f"_{route.spec.to}")(route, args, t, via)
@@ -208,6 +210,10 @@ class InputRouter:
         else:
             self.mapped(via)
         return notes
+
+    def _within(self, route: Route, t: float) -> bool:
+        throttle = self._throttles.get(id(route))
+        return throttle is None or throttle.take(t)
 
     def mapped(self, via: str) -> None:
         self.counts["mapped"] += 1

@@ -118,11 +118,33 @@ class Colony:
     rewardable: bool
 
 
-CLICKS = 10.0
+CLICKS_PER_SECOND = 10.0
 """Rewards a second a ``to = "reward"`` map takes unless its ``limit`` says otherwise: more than
 a visitor's clicker gives. A reward adds to the credited values (``V += rate·trigger·amount``),
 so a flood is a retraining: 10,000 ``/reward`` messages in 10 s (a bouncing switch, a stuck
 sender) took an audited colony's values from about 2 to 370, saved, and it then played nothing."""
+
+
+class Throttle:
+    """A map's ``limit``: a bucket of ``limit`` messages (at least one), refilled at ``limit`` a
+    second of the run's clock. Kept by the session's router, not by the :class:`Route` (the
+    installation's, shared by every session built from it: a rehearsal's clicks must not empty
+    the live run's bucket)."""
+
+    def __init__(self, limit: float) -> None:
+        self.limit = limit
+        self.tokens = self.size = max(1.0, limit)
+        self.filled: float | None = None
+
+    def take(self, t: float) -> bool:
+        """Whether a message at ``t`` is within the limit (a time before the last refills nothing)."""
+        if self.filled is not None:
+            self.tokens = min(self.size, self.tokens + max(0.0, t - self.filled) * self.limit)
+        self.filled = t if self.filled is None else max(self.filled, t)
+        if self.tokens < 1.0:
+            return False
+        self.tokens -= 1.0
+        return True
 
 
 class Route:
@@ -130,8 +152,7 @@ class Route:
 
     def __init__(self, spec: InputMap, colony: dict[str, Colony]) -> None:
         self.spec = spec
-        self.limit = spec.limit if spec.limit is not None else CLICKS if spec.to == "reward" else None
-        self._tokens, self._filled = max(1.0, self.limit or 0.0), None  # a full bucket
+        self.limit = spec.limit if spec.limit is not None else CLICKS_PER_SECOND if spec.to == "reward" else None
         self.pattern: re.Pattern[str] | None = None
         self.midi: str | None = None
         if spec.osc is not None:
@@ -157,19 +178,6 @@ class Route:
                 what = f"midi = {self.midi!r}" if self.midi else f"args = {arity}"
                 raise MapError(key, f"argument {index} is beyond the {arity} argument(s) of {what}")
         self.creatures = self._creatures(colony)
-
-    def take(self, t: float) -> bool:
-        """Whether the map takes a message at ``t``: within its :attr:`limit`, a bucket of
-        ``limit`` messages (at least one) refilled at ``limit`` a second of the run's clock."""
-        if self.limit is None:
-            return True
-        if self._filled is not None:
-            self._tokens = min(max(1.0, self.limit), self._tokens + max(0.0, t - self._filled) * self.limit)
-        self._filled = t
-        if self._tokens < 1.0:
-            return False
-        self._tokens -= 1.0
-        return True
 
     def _check_filters(self) -> None:
         spec = self.spec

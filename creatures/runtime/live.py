@@ -80,6 +80,14 @@ HOUSEKEEPING_EVERY = 1.0
 """Seconds between flushes of the events log, checks of the audio counters and timing records."""
 
 
+def _sound_at_end(output: ResilientOutput, began: str) -> str:
+    """Where the sound went at the end of the run (before the loudspeaker is closed): what the
+    summary said when the run began, unless the device was lost since, or came back."""
+    if output.connected:
+        return f"{output.describe()} once it came back" if output.reopened else began
+    return f"lost mid-run ({output.wedged or output.reason})" if output.faults else began
+
+
 @dataclass
 class LiveSummary:
     seconds: float = 0.0
@@ -567,6 +575,8 @@ def run_live(
                 _save(session, state_dir, summary, say, wall.now() - start, final=True)
             if microphone is not None:
                 microphone.stop()
+            if isinstance(output, Watched):  # said when the run began: where the sound went at the end
+                summary.sound = _sound_at_end(output, summary.sound)
             if output is not None:
                 output.close()
             if bodies is not None:
@@ -593,11 +603,6 @@ def run_live(
     summary.late_notes = getattr(sink, "late", 0)
     summary.heard_between_ticks = loop.heard_between
     summary.notes_played, summary.sounds_made = session.world.notes_played, session.world.sounds_made
-    if isinstance(output, Watched):  # said when the run began: where the sound goes now
-        if output.connected and output.reopened:
-            summary.sound = f"{output.describe()} once it came back"
-        elif output.faults and not output.connected:
-            summary.sound = f"lost mid-run ({output.wedged or output.reason})"
     summary.inputs = session.inputs.summary()
     summary.events_lost, summary.log_loss = log.lost, log.loss
     return summary

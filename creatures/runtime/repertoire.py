@@ -170,8 +170,10 @@ def not_carried(source: Path, name: str) -> list[str]:
     """What a merge of creature ``name`` of ``source`` leaves behind: an authored creature's
     parts' own learning (``parts.<section>.<name>``: a model population, a percept's memory),
     which is the part's and has no phrase or class to graft, so the target keeps its own."""
-    state = load_json(_creature_file(source, name), kind=STATE_KIND).get("state", {})
-    parts = state.get("parts", {}) if isinstance(state, dict) else {}
+    state = load_json(_creature_file(source, name), kind=STATE_KIND).get("state")
+    parts = state.get("parts") if isinstance(state, dict) else None
+    if not isinstance(parts, dict):  # none kept, or damaged: the merge itself has said what it could
+        return []
     return [f"parts.{section}.{part}" for section, kept in sorted(parts.items()) if isinstance(kept, dict)
             for part in sorted(kept)]
 
