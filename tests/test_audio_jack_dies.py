@@ -14,6 +14,7 @@ and stops it cleanly at the end, leaving the table as it found it.
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import signal
@@ -49,7 +50,8 @@ def test_a_run_whose_jack_server_dies_saves_and_ends_to_be_started_afresh(tmp_pa
         notify.bind(str(tmp_path / "n"))
         notify.settimeout(180)  # starting python and numba under load: slow, not timed
         run = subprocess.Popen([sys.executable, "-m", "creatures.cli", "run", str(config),
-                                f"--state={tmp_path / 'state'}", "--duration", "600"],
+                                f"--state={tmp_path / 'state'}", f"--log={tmp_path / 'events.jsonl'}",
+                                "--duration", "600"],
                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
         try:
             while b"READY=1" not in notify.recv(4096).split(b"\n"):
@@ -69,6 +71,10 @@ def test_a_run_whose_jack_server_dies_saves_and_ends_to_be_started_afresh(tmp_pa
     assert "audio output (default) lost" in out and "did not let go of the lost audio output" in out
     assert f"stopped to be started afresh, exit status {AFRESH}" in out
     assert (tmp_path / "state" / "ada.json").exists()  # only the stop saves (save_every 3600 s)
+    events = [json.loads(line) for line in (tmp_path / "events.jsonl").read_text().splitlines()]
+    device = [e["message"] for e in events if e["kind"] == "device"]  # the weekend's log says it too
+    assert len(device) == 2 and "lost" in device[0] and "did not let go" in device[1]
+    assert [e["why"] for e in events if e["kind"] == "afresh"] == [device[1].split(":")[0]]
 
 
 def _free_the_name(env: dict[str, str]) -> None:

@@ -80,6 +80,17 @@ HOUSEKEEPING_EVERY = 1.0
 """Seconds between flushes of the events log, checks of the audio counters and timing records."""
 
 
+def logged(log: EventLog, clock: Clock, say: Callable[[str], None]) -> Callable[[str], None]:
+    """A device's report (missing, lost, back, wedged) said with ``say`` and kept in the events
+    log as a ``device`` event, so a weekend's log shows when the synth went and came back. It
+    comes from the supervisor's thread; the log takes an emit from any thread (a lock), and the
+    creatures' clock is read, not moved."""
+    def report(message: str) -> None:
+        say(message)
+        log.emit(clock.now(), "device", message=message)
+    return report
+
+
 def _sound_at_end(output: ResilientOutput, began: str) -> str:
     """Where the sound went at the end of the run (before the loudspeaker is closed): what the
     summary said when the run began, unless the device was lost since, or came back."""
@@ -141,7 +152,8 @@ class LiveInputs:
         self.midi = None
         if settings.midi.input_port:
             self.midi = ResilientPort(settings.midi.input_port, ports or MidoInputs(), clock,
-                                      report=lambda m: say(f"MIDI input: {m}; {HELP}"), supervisor=supervisor)
+                                      report=logged(session.world.log, clock, lambda m: say(f"MIDI input: {m}; {HELP}")),
+                                      supervisor=supervisor)
         self.network = None
         if settings.osc.port is not None:
             self.network = Network(settings.osc, session.world, clock, say, elsewhere=self.router, epoch=epoch,
@@ -366,7 +378,7 @@ def run_live(
     port = None
     if settings.midi.output_port:
         port = ResilientPort(settings.midi.output_port, MidoOutputs(), wall,
-                             report=lambda m: say(f"MIDI output: {m}; {HELP}"), supervisor=supervisor)
+                             report=logged(log, clock, lambda m: say(f"MIDI output: {m}; {HELP}")), supervisor=supervisor)
         sink = PortSink(port, wall)
     transcribe = settings.audio.transcribe
     recorded = RecordingSink(sink) if score is not None else None
@@ -393,13 +405,15 @@ def run_live(
     summary.sound = "off ([audio] output = false)"
     if settings.audio.output:
         output = ResilientOutput(sr, session.channels, clock=wall, device=settings.audio.output_device,
-                                 blocksize=settings.audio.block, report=say, supervisor=supervisor, lead=AUDIO_LEAD,
+                                 blocksize=settings.audio.block, report=logged(log, clock, say), supervisor=supervisor,
+                                 lead=AUDIO_LEAD,
                                  buffer_seconds=AUDIO_BUFFER)
         summary.sound = output.describe()
     microphone = None
     if settings.audio.input_device is not None:
         device = None if settings.audio.input_device == "default" else settings.audio.input_device
-        microphone = ResilientInput(device, clock=wall, samplerate=sr, report=say, supervisor=supervisor)
+        microphone = ResilientInput(device, clock=wall, samplerate=sr, report=logged(log, clock, say),
+                                    supervisor=supervisor)
         if session.transcribe:
             inputs.microphone = MicrophoneNotes(microphone, session)
     counters = _Counters(session, output, microphone)
