@@ -16,8 +16,9 @@ that never comes, and PortAudio cannot open another stream in that process after
 client died with the server), so such a stream is abandoned and the watch is *wedged*: it looks
 for the device no more, says so, and the live run ends with :data:`creatures.runtime.keeper.AFRESH`
 for its keeper to start it afresh (measured with a real JACK dummy server killed mid-run: the
-stop never returned, and the process then hung at exit in ``Pa_Terminate``). Device access goes through :class:`audio.device.AudioBackend`, so tests
-drive a fake device on a simulated clock. The real-time callbacks stay those of
+stop never returned, and the process then hung at exit in ``Pa_Terminate``). Device access
+goes through :class:`audio.device.AudioBackend`, so tests drive a fake device on a simulated
+clock. The real-time callbacks stay those of
 :class:`audio.output.LiveOutput` and :class:`audio.sources.LiveInput` (copy and count only).
 Checks run on the creature's thread at a bounded rate, or, given a
 :class:`~creatures.supervisor.Supervisor` (as a live run does), on the supervisor's thread:
@@ -354,7 +355,7 @@ class ResilientOutput(AudioOutput, Watched[LiveOutput]):
             self._past_skips += self.keeper.skips
             self.keeper = None
         self.device_rate = None
-        self._resampler = None  # not kept alive by a close that never returns (audio/resilient.py)
+        self._resampler = None  # not kept alive by a stop that never returns (a wedge)
         live.close()
 
 

@@ -95,9 +95,8 @@ class Supervisor:
         """``(job name, seconds)`` when the job running now has run longer than ``longer_than``
         seconds (a backstop for a call that never returns: PortAudio stopping a stream whose
         JACK server died was one, before audio/resilient.py gave it a thread and a time limit),
-        else None. Every other job (state
-        saves, the log's flush, device checks, the heartbeat) waits behind it, so a run whose
-        supervisor is stuck is not well however its ticks go."""
+        else None. Every other job (state saves, the log's flush, device checks, the heartbeat)
+        waits behind it, so a run whose supervisor is stuck is not well however its ticks go."""
         busy = self.busy
         if busy is None:
             return None

@@ -81,17 +81,17 @@ class JackPulse:
         now = self.clock()
         if self._sent is not None and now - self._sent >= self.patience:
             self._missed += 1
-            self._sent = None if self._missed < MISSED else self._sent
+            if self._missed >= MISSED:
+                self._missed = 0
+                for client in self._pair:
+                    abandon(client)
+                self._pair = None
+                self.generation += 1
+                return False
+            self._sent = None  # late: another goes out
         if self._sent is None:
             out.send_message([0xFE])
             self._sent = now
-        elif self._missed >= MISSED:
-            self._missed = 0
-            for client in self._pair:
-                abandon(client)
-            self._pair = None
-            self.generation += 1
-            return False
         return True
 
     def _open_pair(self):

@@ -59,10 +59,11 @@ class Bucket:
         self._filled: float | None = None
 
     def fill(self, t: float) -> float:
-        """The tokens held at ``t`` (seconds on any clock that does not go back)."""
+        """The tokens held at ``t`` (seconds; a time before the last one seen refills nothing
+        and is not remembered, so out-of-order times cannot refill the bucket twice)."""
         if self._filled is not None:
             self.tokens = min(self.burst, self.tokens + max(0.0, t - self._filled) * self.rate)
-        self._filled = t
+        self._filled = t if self._filled is None else max(self._filled, t)
         return self.tokens
 
     def take(self, t: float) -> bool:

@@ -45,9 +45,10 @@ import mido
 from creatures.behaviour.state_object import Habituation, StateObject
 from creatures.bounds import LARGEST_RATE
 from creatures.log_limit import INTERVAL
-from creatures.runtime.input_routes import MIDI, MIDI_KIND, MIDI_SPAN, Route, Throttle
+from creatures.runtime.input_routes import MIDI, MIDI_KIND, MIDI_SPAN, Route
 from creatures.runtime.schema import Arg, InputMap, Number
 from midi.notes import LONGEST_NOTE, NoteEvent, is_note_off
+from midi.peer_table import Bucket
 
 if TYPE_CHECKING:
     from creatures.runtime.world import World
@@ -144,7 +145,11 @@ class InputRouter:
         # (what, via) -> when last logged, messages since, a few of their addresses
         self._logged: dict[tuple[str, str], tuple[float, int, tuple[str, ...]]] = {}
         self._sensor_logged: dict[str, float] = {}
-        self._throttles = {id(route): Throttle(route.limit) for route in routes if route.limit is not None}
+        # each map's ``limit``: a bucket of ``limit`` messages (at least one) refilled at ``limit`` a
+        # second of the run's clock; the session's, not the Route's (the installation's routes are
+        # shared by every session built from it: a rehearsal's clicks must not empty the run's)
+        self._throttles = {id(route): Bucket(route.limit, max(1.0, route.limit)) for route in routes
+                           if route.limit is not None}
         for route in routes:
             if route.spec.to == "sensor":
                 self._make_sensor(route.spec)

@@ -125,28 +125,6 @@ so a flood is a retraining: 10,000 ``/reward`` messages in 10 s (a bouncing swit
 sender) took an audited colony's values from about 2 to 370, saved, and it then played nothing."""
 
 
-class Throttle:
-    """A map's ``limit``: a bucket of ``limit`` messages (at least one), refilled at ``limit`` a
-    second of the run's clock. Kept by the session's router, not by the :class:`Route` (the
-    installation's, shared by every session built from it: a rehearsal's clicks must not empty
-    the live run's bucket)."""
-
-    def __init__(self, limit: float) -> None:
-        self.limit = limit
-        self.tokens = self.size = max(1.0, limit)
-        self.filled: float | None = None
-
-    def take(self, t: float) -> bool:
-        """Whether a message at ``t`` is within the limit (a time before the last refills nothing)."""
-        if self.filled is not None:
-            self.tokens = min(self.size, self.tokens + max(0.0, t - self.filled) * self.limit)
-        self.filled = t if self.filled is None else max(self.filled, t)
-        if self.tokens < 1.0:
-            return False
-        self.tokens -= 1.0
-        return True
-
-
 class Route:
     """One ``[[input]]`` table, checked against the colony and compiled for matching."""
 

@@ -431,7 +431,8 @@ def run_live(
         """A device that cannot come back in this process (audio/resilient.py) ends the run,
         saved, to be started afresh by its keeper (a new process opens the device when the
         server is back); the device watch has said why."""
-        why = next((device.wedged for device in (output, microphone) if getattr(device, "wedged", "")), "")
+        why = next((device.wedged for device in (output, microphone) if isinstance(device, Watched) and device.wedged),
+                   "")
         if why and summary.afresh is None:
             summary.afresh = why
             session.world.emit("afresh", why=why)
@@ -505,7 +506,7 @@ def run_live(
         parts: dict[str, object] = {}
         if port is not None:
             parts["midi_output"] = {"connected": port.connected, "lost": port.faults, "dropped": port.dropped}
-        if output is not None and hasattr(output, "connected"):  # a watched device (audio/resilient.py)
+        if isinstance(output, Watched):  # a device kept across faults (audio/resilient.py)
             parts["audio_output"] = {"connected": output.connected, "lost": output.faults}
         return parts
 
