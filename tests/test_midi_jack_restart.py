@@ -150,10 +150,11 @@ def _wait(predicate, what: str, timeout: float = 10.0):
 
 
 class _Child:
-    """The child's JACK server and receiver: each a real process, started and stopped here."""
+    """The child's JACK server and its peer (a receiver, or a source): each a real process,
+    started and stopped here. The peer's standard output goes to ``CREATURES_TEST_DUMP``."""
 
-    def __init__(self, server: str) -> None:
-        self.server = server
+    def __init__(self, server: str, peer: list[str], port: str) -> None:
+        self.server, self.peer, self.port = server, peer, port
         self.jackd: subprocess.Popen | None = None
         self.dump: subprocess.Popen | None = None
         self.heard = Path(os.environ["CREATURES_TEST_DUMP"])
@@ -163,15 +164,14 @@ class _Child:
                                        "-p", "512"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         subprocess.run(["jack_wait", "-w", "-t", "10"], check=True, capture_output=True)  # a process of its own
         self.heard.write_text("")
-        self.dump = subprocess.Popen(["stdbuf", "-oL", "jack_midi_dump"], stdout=self.heard.open("a"),
-                                     stderr=subprocess.DEVNULL)
-        _wait(lambda: RECEIVER in subprocess.run(["jack_lsp"], capture_output=True, text=True).stdout,
-              "jack_midi_dump's port")
+        self.dump = subprocess.Popen(self.peer, stdout=self.heard.open("a"), stderr=subprocess.DEVNULL)
+        _wait(lambda: self.port in subprocess.run(["jack_lsp"], capture_output=True, text=True).stdout,
+              f"the port {self.port}")
 
     def kill_server(self) -> None:
         self.jackd.send_signal(signal.SIGKILL)  # as a crash: no goodbye to the clients
         self.jackd.wait(timeout=10)
-        self.dump.send_signal(signal.SIGTERM)  # the receiver goes with its server
+        self.dump.send_signal(signal.SIGTERM)  # the peer goes with its server
         self.dump.wait(timeout=10)
 
     def stop(self) -> None:
@@ -197,7 +197,8 @@ def _scenario(server: str) -> dict:
 
     os.environ["JACK_DEFAULT_SERVER"] = server
     os.environ["JACK_NO_START_SERVER"] = "1"
-    child, clock, reports, seen = _Child(server), SimulatedClock(), [], {}
+    child = _Child(server, ["stdbuf", "-oL", "jack_midi_dump"], RECEIVER)
+    clock, reports, seen = SimulatedClock(), [], {}
     try:
         child.start()
         backend = mido.Backend("mido.backends.rtmidi/UNIX_JACK", load=True)
@@ -239,26 +240,85 @@ def _scenario(server: str) -> dict:
     return seen
 
 
-@pytest.mark.jack
-@pytest.mark.realtime
-def test_jack_server_restart_is_reported_and_the_port_reconnects_and_delivers(tmp_path):
-    missing = [tool for tool in ("jackd", "jack_wait", "jack_lsp", "jack_midi_dump", "stdbuf") if not shutil.which(tool)]
+SOURCE = "creatures-seq:out"  # jack_midiseq's port
+
+
+def _input_scenario(server: str) -> dict:
+    """Run in the child: a ResilientPort listening to jack_midiseq (a real JACK client playing a
+    note every quarter second), the server killed and restarted with it."""
+    import mido
+
+    from midi.ports import MidoInputs
+
+    os.environ["JACK_DEFAULT_SERVER"] = server
+    os.environ["JACK_NO_START_SERVER"] = "1"
+    child = _Child(server, ["jack_midiseq", "creatures-seq", "11025", "0", "64", "2000"], SOURCE)
+    clock, reports, seen = SimulatedClock(), [], {}
+
+    def notes(port: ResilientPort) -> list[int]:
+        return [m.note for m in port.pending() if m.type == "note_on" and m.velocity]
+
+    try:
+        child.start()
+        backend = mido.Backend("mido.backends.rtmidi/UNIX_JACK", load=True)
+        inputs = MidoInputs(backend, pulse=JackPulse(clock=clock.now))
+        port = ResilientPort(SOURCE, inputs, clock, retry_interval=1.0, report=reports.append)
+        seen["connected_at_start"] = port.connected
+        seen["heard_before"] = _wait(lambda: notes(port), "the sequencer's first note")
+
+        child.kill_server()
+        looks = 0
+        while port.connected and looks < 5:  # the port's own checks, one simulated second apart
+            clock.advance(1.0)
+            port.pending()  # a poll of a client whose server died: nothing, and no exception
+            looks += 1
+        seen["looks_to_loss"] = looks
+        seen["reports_while_down"] = list(reports)
+
+        child.start()
+        looks = 0
+        while not port.connected and looks < 5:
+            clock.advance(1.0)
+            port.pending()
+            looks += 1
+        seen["looks_to_reconnect"] = looks
+        try:
+            seen["heard_after"] = _wait(lambda: notes(port), "a note from the restarted sequencer", 5.0)
+        except AssertionError:
+            seen["heard_after"] = []
+        seen["reports"] = reports
+        seen["faults"], seen["reopened"] = port.faults, port.reopened
+        port.close()
+    finally:
+        child.stop()
+    return seen
+
+
+def _in_a_child(scenario: str, tools: tuple[str, ...], tmp_path: Path) -> dict:
+    """Run ``scenario`` of this file in a child process on a JACK server of its own; what it saw."""
+    missing = [tool for tool in ("jackd", "jack_wait", "jack_lsp", *tools) if not shutil.which(tool)]
     if missing:
         pytest.skip(f"needs JACK's tools ({', '.join(missing)} not found; apt-get install jackd2)")
     server = f"creatures-test-{uuid.uuid4().hex[:8]}"
     env = dict(os.environ, CREATURES_TEST_DUMP=str(tmp_path / "heard.txt"),
                PYTHONPATH=os.pathsep.join([str(ROOT), str(ROOT / "tests")]))
-    code = (f"import json, test_midi_jack_restart as t; print('RESULT', json.dumps(t._scenario({server!r})))")
+    code = f"import json, test_midi_jack_restart as t; print('RESULT', json.dumps(t.{scenario}({server!r})))"
     run = subprocess.Popen([sys.executable, "-c", code], cwd=ROOT, env=env, stdout=subprocess.PIPE,
                            stderr=subprocess.PIPE, text=True, start_new_session=True)
     try:
         out, err = run.communicate(timeout=120)
     except subprocess.TimeoutExpired:
-        os.killpg(run.pid, signal.SIGKILL)  # the child's session: its jackd and receiver too
+        os.killpg(run.pid, signal.SIGKILL)  # the child's session: its jackd and peer too
         out, err = run.communicate()
     print(out, err[-3000:], sep="\n")
     assert run.returncode == 0, f"the child failed (exit {run.returncode})"
-    seen = json.loads(next(line for line in out.splitlines() if line.startswith("RESULT "))[7:])
+    return json.loads(next(line for line in out.splitlines() if line.startswith("RESULT "))[7:])
+
+
+@pytest.mark.jack
+@pytest.mark.realtime
+def test_jack_server_restart_is_reported_and_the_port_reconnects_and_delivers(tmp_path):
+    seen = _in_a_child("_scenario", ("jack_midi_dump", "stdbuf"), tmp_path)
 
     assert seen["connected_at_start"] and seen["heard_before"] == [60]
     # The loss is said once, within three looks (the pulse out when the server died is missed
@@ -273,3 +333,20 @@ def test_jack_server_restart_is_reported_and_the_port_reconnects_and_delivers(tm
     assert seen["looks_to_reconnect"] <= 2, seen
     assert seen["reports"][-1] == f"MIDI port {RECEIVER!r} is back" and seen["reopened"] == 1
     assert seen["sent_after"] and seen["heard_after"], seen
+
+
+@pytest.mark.jack
+@pytest.mark.realtime
+def test_jack_server_restart_under_a_midi_input_is_reported_and_it_listens_again(tmp_path):
+    """A performer's keyboard on JACK: after the server dies and returns (with the keyboard's
+    client), the input is said lost once, reopened, and hears the keyboard again."""
+    seen = _in_a_child("_input_scenario", ("jack_midiseq",), tmp_path)
+
+    assert seen["connected_at_start"] and set(seen["heard_before"]) == {64}
+    assert seen["looks_to_loss"] <= 3, seen  # two pulses in a row missed, as for an output
+    lost = [r for r in seen["reports"] if " lost " in r]
+    assert lost == [f"MIDI port {SOURCE!r} lost (the JACK server is not running); will reopen it when it returns"]
+    assert seen["reports_while_down"] == lost and seen["faults"] == 1
+    assert seen["looks_to_reconnect"] <= 2, seen
+    assert seen["reports"][-1] == f"MIDI port {SOURCE!r} is back" and seen["reopened"] == 1
+    assert set(seen["heard_after"]) == {64}, seen
