@@ -95,9 +95,10 @@ class MidoInputs:
 
     rtmidi inputs open as :class:`midi.polled.PolledInput` (no Python on the driver's thread);
     other backends open as mido opens them. With rtmidi, names are listed by one probe client
-    made on the first listing and kept (see the module docstring for why). Under JACK, a
-    listing while the server is gone raises, and :meth:`stale` says which ports it took with
-    it; ``pulse`` is the process's :func:`jack_pulse` unless a test gives its own.
+    made on the first listing and kept (see the module docstring for why). Under JACK (named,
+    or the API RtMidi took when told none), a listing while the server is gone raises, and
+    :meth:`stale` says which ports it took with it; ``pulse`` is the process's
+    :func:`jack_pulse` unless a test gives its own.
     """
 
     def __init__(self, backend: mido.Backend | None = None, *, pulse: JackPulse | None = None) -> None:
@@ -105,6 +106,7 @@ class MidoInputs:
         self._probe = None
         self._probe_generation = 0
         self._pulse = pulse
+        self._chose_jack = False  # rtmidi, told no API, took JACK's
 
     def names(self) -> list[str]:
         probe = self._rtmidi_probe()
@@ -116,7 +118,9 @@ class MidoInputs:
         return pulse is not None and getattr(port, "jack_generation", pulse.generation) != pulse.generation
 
     def _jack(self) -> JackPulse | None:
-        if self.backend.name != "mido.backends.rtmidi" or self.backend.api != "UNIX_JACK":
+        if self.backend.name != "mido.backends.rtmidi":
+            return None
+        if self.backend.api != "UNIX_JACK" and not (self.backend.api is None and self._chose_jack):
             return None
         if self._pulse is None:
             self._pulse = jack_pulse()
@@ -145,6 +149,11 @@ class MidoInputs:
 
             self._probe = getattr(rtmidi, kind)(rtapi=api_id(self.backend.api), name="creatures-probe")
             self._probe_generation = pulse.generation if pulse is not None else 0
+            # Told no API, RtMidi takes the first that has ports: JACK's where ALSA's sequencer
+            # offers none (no sound card's, no Midi Through), and the ports opened then are JACK's.
+            self._chose_jack = self._probe.get_current_api() == rtmidi.API_UNIX_JACK
+            if pulse is None and self._chose_jack:
+                self._jack().alive()  # its pulse starts with the first listing, as under a named JACK
         return self._probe
 
     def open(self, name: str, *, virtual: bool = False) -> BasePort:

@@ -137,6 +137,55 @@ def test_a_port_lost_with_its_server_is_said_once_abandoned_not_closed_and_reope
     assert factory.closed == [second]  # the live one closes as usual; the stale one never
 
 
+class _Took:
+    """An rtmidi client told no API, which took ``api``'s: RtMidi takes the first API that has
+    ports, so JACK's where ALSA's sequencer offers none."""
+
+    api = 0
+
+    def __init__(self, rtapi: int, name: str) -> None:
+        import rtmidi
+
+        assert rtapi == rtmidi.API_UNSPECIFIED
+
+    def get_current_api(self) -> int:
+        return self.api
+
+    def get_ports(self) -> list[str]:
+        return ["synth:midi_in"]
+
+
+@pytest.mark.parametrize("took", ["UNIX_JACK", "LINUX_ALSA"])
+def test_rtmidi_told_no_api_is_watched_by_the_pulse_where_it_took_jack(monkeypatch, took):
+    import mido
+    import rtmidi
+
+    from midi.ports import MemoryOutput, MidoOutputs
+
+    clock, server = SimulatedClock(), _Backend()
+    pulse = JackPulse(patience=0.5, clock=clock.now)
+    pulse._open_pair = server.pair
+    monkeypatch.setattr(_Took, "api", getattr(rtmidi, f"API_{took}"))
+    monkeypatch.setattr(rtmidi, "MidiOut", _Took)
+    backend = mido.Backend("mido.backends.rtmidi", load=False)  # MIDO_BACKEND without an API
+    monkeypatch.setattr(backend, "open_output", lambda name, virtual=False: MemoryOutput(name))
+    outputs = MidoOutputs(backend, pulse=pulse)
+    assert outputs.names() == ["synth:midi_in"]
+    port = outputs.open("synth:midi_in")
+    server.up = False  # the server dies
+    said = []
+    for _ in range(4):
+        clock.advance(1.0)
+        try:
+            said.append(outputs.names())
+        except OSError as exc:
+            said.append(str(exc))
+    if took == "UNIX_JACK":
+        assert said[-1] == "the JACK server is not running" and outputs.stale(port)
+    else:  # ALSA's ports are not JACK's: no pulse is sent, and nothing goes stale
+        assert said == [["synth:midi_in"]] * 4 and not outputs.stale(port) and server.opened == 0
+
+
 # --- the same with a real JACK server, in a child process ---------------------------------
 
 
