@@ -23,11 +23,12 @@ one stream (measured against each ear alone and basic-pitch's published model in
    (a slow swell: :data:`SLOW_SWELL`) — follow,
    unless the onset ear gave that pitch, or a note it is a partial of, within :data:`NEAR` hops.
    A model's note must also stand clear of its bands' noise floors (:data:`CLEAR`): what a
-   model hears in a fan's noise is not played. Live, every struck note is given ≤ 50 ms after
-   its attack (3 hops after the hop it lands in, and a block; a bowed swell when it is heard to
-   sound, later; the quick look ≤ 30 ms), with the provisional duration
-   ``heard_length`` (as the live MIDI input gives a note-on, whose length is not known until it
-   ends); its velocity is its level.
+   model hears in a fan's noise is not played. Live, a struck note is given 3 hops after the
+   hop the model names it in, its attack's mostly (≤ 50 ms with a block on the generated
+   phrases, the quick look ≤ 30 ms; on a sampled piano line p90 58 ms, a chord's notes later:
+   docs/hearing.md, "Live latency"; a bowed swell when it is heard to sound), with the
+   provisional duration ``heard_length`` (as the live MIDI input gives a note-on, whose length
+   is not known until it ends); its velocity is its level.
    It is followed until the model stops hearing it sound (or it is struck again) and its
    measured duration goes to :attr:`Transcriber.ended`.
 
@@ -57,7 +58,7 @@ from audio.sources import unusable
 from midi.notes import NoteEvent
 
 LIVE, QUICK, OFFLINE = "live", "quick", "offline"
-"""The looks: the live one answers within 60 ms of a struck attack (p99 39 ms through JACK), the
+"""The looks: the live one answers a line's struck attack within 60 ms (p99 39 ms through JACK), the
 quick one sooner (its model hears a finer hop, 128 samples, and judges 4 of them back: through
 JACK at a 128-frame period p99 22.6 ms against the live look's 38.6) but hears bowed and blown
 notes and chords worse, the offline one hears more (docs/hearing.md has each measured)."""

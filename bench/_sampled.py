@@ -152,19 +152,48 @@ def room(audio: np.ndarray, rate: int, rng: np.random.Generator, *, snr_db: floa
     return (wet + level * hum).astype(np.float32)
 
 
+def _hz(p) -> np.ndarray:
+    return 440.0 * 2.0 ** ((np.asarray(p, dtype=float) - 69.0) / 12.0)
+
+
+def _reference(reference: list[Note]) -> tuple[np.ndarray, np.ndarray]:
+    """mir_eval's intervals and pitches (Hz) of ``reference``."""
+    return (np.array([[n.onset, max(n.offset, n.onset + 0.01)] for n in reference]).reshape(-1, 2),
+            _hz([n.pitch for n in reference]))
+
+
 def note_f1(reference: list[Note], estimated: list[tuple[float, float, int]]) -> float:
     """mir_eval note F1: onset within 50 ms, pitch within 50 cents, offsets ignored."""
     import mir_eval
 
-    def hz(p: np.ndarray) -> np.ndarray:
-        return 440.0 * 2.0 ** ((np.asarray(p, dtype=float) - 69.0) / 12.0)
-
-    ref_i = np.array([[n.onset, max(n.offset, n.onset + 0.01)] for n in reference]).reshape(-1, 2)
-    ref_p = hz([n.pitch for n in reference])
     if not estimated:
         return 0.0
     est_i = np.array([[a, max(b, a + 0.01)] for a, b, _ in estimated])
-    est_p = hz([p for _, _, p in estimated])
-    _, _, f1, _ = mir_eval.transcription.precision_recall_f1_overlap(ref_i, ref_p, est_i, est_p,
+    _, _, f1, _ = mir_eval.transcription.precision_recall_f1_overlap(*_reference(reference), est_i,
+                                                                    _hz([p for _, _, p in estimated]),
                                                                     onset_tolerance=0.05, offset_ratio=None)
     return float(f1)
+
+
+def answer_delays(reference: list[Note], given: list[tuple[float, int, float]]) -> np.ndarray:
+    """Seconds from each heard note's MIDI onset to when its note event was given: ``given`` is
+    (the note's time, pitch, the stream time it was given at), matched as :func:`note_f1` matches
+    (mir_eval, onset within 50 ms, pitch within 50 cents); notes not heard are not counted."""
+    import mir_eval
+
+    if not given:
+        return np.zeros(0)
+    est_i = np.array([[t, t + 0.01] for t, _, _ in given])
+    pairs = mir_eval.transcription.match_notes(*_reference(reference), est_i, _hz([p for _, p, _ in given]),
+                                               onset_tolerance=0.05, offset_ratio=None)
+    return np.array([given[e][2] - reference[r].onset for r, e in pairs])
+
+
+def given_times(ear: object, mono: np.ndarray, rate: int, block: int = 64) -> list[tuple[float, int, float]]:
+    """Each note event's (time, pitch, and the stream's time when it was given), ``mono`` fed in
+    ``block``-frame blocks (64: 1.5 ms at 44.1 kHz, a short JACK period's wait)."""
+    given = []
+    for i in range(0, len(mono), block):
+        end = min(i + block, len(mono)) / rate
+        given += [(n.time, n.pitch, end) for n in ear.feed(mono[i:i + block])]
+    return given
