@@ -238,42 +238,58 @@ class _Child:
         return [int(line.split()[2], 16) for line in self.heard.read_text().splitlines() if "note on" in line]
 
 
+def _looks(port: ResilientPort, clock: SimulatedClock, act, *, while_connected: bool) -> int:
+    """The port's own checks, one simulated second apart, ``act`` at each, while it is (or is
+    not) connected, five at most: how many it took."""
+    looks = 0
+    while port.connected == while_connected and looks < 5:
+        clock.advance(1.0)
+        act()
+        looks += 1
+    return looks
+
+
+def _on(server: str) -> None:
+    """This process's rtmidi clients on ``server``, never starting one of their own."""
+    os.environ["JACK_DEFAULT_SERVER"] = server
+    os.environ["JACK_NO_START_SERVER"] = "1"
+
+
+def _watched(factory: type, pattern: str, clock: SimulatedClock, reports: list[str]) -> ResilientPort:
+    """A :class:`ResilientPort` of ``factory`` (MidoInputs or MidoOutputs) on JACK, with a pulse
+    of its own on the simulated clock."""
+    import mido
+
+    backend = mido.Backend("mido.backends.rtmidi/UNIX_JACK", load=True)
+    return ResilientPort(pattern, factory(backend, pulse=JackPulse(clock=clock.now)), clock, retry_interval=1.0,
+                         report=reports.append)
+
+
 def _scenario(server: str) -> dict:
     """Run in the child: a ResilientPort to jack_midi_dump, the server killed and restarted."""
     import mido
 
     from midi.ports import MidoOutputs
 
-    os.environ["JACK_DEFAULT_SERVER"] = server
-    os.environ["JACK_NO_START_SERVER"] = "1"
+    _on(server)
     child = _Child(server, ["stdbuf", "-oL", "jack_midi_dump"], RECEIVER)
     clock, reports, seen = SimulatedClock(), [], {}
     try:
         child.start()
-        backend = mido.Backend("mido.backends.rtmidi/UNIX_JACK", load=True)
-        outputs = MidoOutputs(backend, pulse=JackPulse(clock=clock.now))
-        port = ResilientPort(RECEIVER, outputs, clock, retry_interval=1.0, report=reports.append)
+        port = _watched(MidoOutputs, RECEIVER, clock, reports)
         seen["connected_at_start"] = port.connected
         port.send(mido.Message("note_on", note=60, velocity=100))
         seen["heard_before"] = _wait(child.heard_notes, "the first note")
 
         child.kill_server()
-        looks = 0
-        while port.connected and looks < 5:  # the port's own checks, one simulated second apart
-            clock.advance(1.0)
-            port.send(mido.Message("note_on", note=61, velocity=100))
-            looks += 1
-        seen["looks_to_loss"] = looks
+        seen["looks_to_loss"] = _looks(port, clock, lambda: port.send(mido.Message("note_on", note=61, velocity=100)),
+                                       while_connected=True)
         seen["dropped"] = port.dropped
         seen["reports_while_down"] = list(reports)
 
         child.start()
-        looks = 0
-        while not port.connected and looks < 5:
-            clock.advance(1.0)
-            port.send(mido.Message("note_on", note=62, velocity=100))
-            looks += 1
-        seen["looks_to_reconnect"] = looks
+        seen["looks_to_reconnect"] = _looks(port, clock, lambda: port.send(mido.Message("note_on", note=62, velocity=100)),
+                                            while_connected=False)
         sent = port.send(mido.Message("note_on", note=63, velocity=100))
         seen["sent_after"] = sent
         try:
@@ -295,12 +311,10 @@ SOURCE = "creatures-seq:out"  # jack_midiseq's port
 def _input_scenario(server: str) -> dict:
     """Run in the child: a ResilientPort listening to jack_midiseq (a real JACK client playing a
     note every quarter second), the server killed and restarted with it."""
-    import mido
 
     from midi.ports import MidoInputs
 
-    os.environ["JACK_DEFAULT_SERVER"] = server
-    os.environ["JACK_NO_START_SERVER"] = "1"
+    _on(server)
     child = _Child(server, ["jack_midiseq", "creatures-seq", "11025", "0", "64", "2000"], SOURCE)
     clock, reports, seen = SimulatedClock(), [], {}
 
@@ -309,28 +323,16 @@ def _input_scenario(server: str) -> dict:
 
     try:
         child.start()
-        backend = mido.Backend("mido.backends.rtmidi/UNIX_JACK", load=True)
-        inputs = MidoInputs(backend, pulse=JackPulse(clock=clock.now))
-        port = ResilientPort(SOURCE, inputs, clock, retry_interval=1.0, report=reports.append)
+        port = _watched(MidoInputs, SOURCE, clock, reports)
         seen["connected_at_start"] = port.connected
         seen["heard_before"] = _wait(lambda: notes(port), "the sequencer's first note")
 
-        child.kill_server()
-        looks = 0
-        while port.connected and looks < 5:  # the port's own checks, one simulated second apart
-            clock.advance(1.0)
-            port.pending()  # a poll of a client whose server died: nothing, and no exception
-            looks += 1
-        seen["looks_to_loss"] = looks
+        child.kill_server()  # a poll of a client whose server died: nothing, and no exception
+        seen["looks_to_loss"] = _looks(port, clock, port.pending, while_connected=True)
         seen["reports_while_down"] = list(reports)
 
         child.start()
-        looks = 0
-        while not port.connected and looks < 5:
-            clock.advance(1.0)
-            port.pending()
-            looks += 1
-        seen["looks_to_reconnect"] = looks
+        seen["looks_to_reconnect"] = _looks(port, clock, port.pending, while_connected=False)
         try:
             seen["heard_after"] = _wait(lambda: notes(port), "a note from the restarted sequencer", 5.0)
         except AssertionError:
