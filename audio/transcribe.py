@@ -51,7 +51,7 @@ import numpy as np
 
 from audio.logspectrum import HOP, LONG_LOW, LONG_STEP, RATE, SCALE, LogSpectrum
 from audio.note_model import PITCHES, Judged, NoteModel, default
-from audio.onset_ear import LIVE_WINDOW, OFFLINE_WINDOW, Candidate, OnsetEar
+from audio.onset_ear import LEAD, LIVE_WINDOW, OFFLINE_WINDOW, Candidate, OnsetEar
 from audio.pitch import velocity_from_level
 from audio.resample import Resampler
 from audio.sources import unusable
@@ -503,8 +503,9 @@ class Transcriber:
             for f, p, by_ear, r in self._given)
 
     def _give(self, k: int, frame: int, level_db: float, *, by_ear: bool, root: float = np.inf) -> NoteEvent:
-        """A note of pitch index ``k`` begins at ``frame``'s hop: given, and followed."""
-        t = self._time(frame)
+        """A note of pitch index ``k`` begins at ``frame``'s hop (an onset-ear note, :data:`LEAD`
+        hop before its onset's): given, and followed."""
+        t = self._time(frame - LEAD * self._per if by_ear else frame)
         if self._held[k]:
             self._end(k, t)  # struck again
         note = NoteEvent(max(t, 0.0), int(PITCHES[k]), velocity_from_level(level_db), 0, self.heard_length)
