@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 from creatures.motor import quaternion as quat
 from creatures.motor.animations import creature_skeleton, strike
-from creatures.motor.bvh import BVHError, load_bvh, load_bvh_set, parse_bvh, save_bvh
+from creatures.motor.bvh import BVHError, load_bvh, load_bvh_set, parse_bvh, read_bvh_skeleton, save_bvh
 from creatures.motor.graph import MotorGraph
 from creatures.motor.skeleton import Skeleton, SkeletonFileError
 from creatures.persist import StateFileError
@@ -96,6 +96,17 @@ def test_malformed_bvh_names_file_and_line(tmp_path, edit, line, message):
         load_bvh(path)
     assert str(caught.value).startswith(f"{path}:{line}: ")
     assert message in str(caught.value)
+
+
+def test_a_windows_export_with_a_byte_order_mark_reads_as_the_plain_file(tmp_path):
+    """A BOM, CRLF line ends and tabs, as a Windows exporter writes: the same take and rig."""
+    windows = "\ufeff" + GOOD_BVH.replace("  ", "\t").replace("\n", "\r\n")
+    (tmp_path / "plain.bvh").write_text(GOOD_BVH, encoding="utf-8")
+    (tmp_path / "windows.bvh").write_bytes(windows.encode("utf-8"))
+    plain, exported = load_bvh_set(tmp_path / "plain.bvh"), load_bvh_set(tmp_path / "windows.bvh")
+    assert exported.skeleton.names == plain.skeleton.names
+    assert np.array_equal(exported.rotations, plain.rotations) and np.array_equal(exported.roots, plain.roots)
+    assert read_bvh_skeleton(tmp_path / "windows.bvh").names == plain.skeleton.names
 
 
 def test_missing_bvh_file_is_named(tmp_path):

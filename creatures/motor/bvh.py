@@ -167,14 +167,19 @@ class Take:
         return PoseSet.animation(self.skeleton, self.rotations, self.roots, times, name)
 
 
+def _read_text(path: Path) -> str:
+    """A BVH file's text. A UTF-8 byte-order mark is dropped: Windows tools write one before
+    ``HIERARCHY``, and it is no part of the first word."""
+    try:
+        return path.read_text(encoding="utf-8-sig")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise BVHError(f"{path}: cannot read BVH file ({exc})") from None
+
+
 def read_bvh(path: str | os.PathLike) -> Take:
     """Read a BVH file as a :class:`Take`."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise BVHError(f"{path}: cannot read BVH file ({exc})") from None
-    return parse_take(text, source=str(path))
+    return parse_take(_read_text(path), source=str(path))
 
 
 def load_bvh_set(path: str | os.PathLike) -> PoseSet:
@@ -203,11 +208,7 @@ def read_bvh_skeleton(path: str | os.PathLike) -> Skeleton:
     """The skeleton of a BVH file's HIERARCHY, with or without MOTION after it (a hierarchy
     on its own is how a rig is often handed over)."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise BVHError(f"{path}: cannot read BVH file ({exc})") from None
-    lines = text.splitlines()
+    lines = _read_text(path).splitlines()
     end = next((n for n, row in enumerate(lines) if row.strip().startswith("MOTION")), len(lines))
     tokens, joints = _Tokens(lines[:end], str(path)), []
     _hierarchy(tokens, joints)
