@@ -11,6 +11,7 @@ import pytest
 from body_fixtures import BODY, heron_config
 from creatures.events import read_events
 from creatures.cli import main
+from creatures.config import ConfigError
 from creatures.kinds.parts import Body
 from creatures.motor.export import played, taken_path
 from creatures.runtime.motion_export import exported_body
@@ -374,3 +375,29 @@ def test_frames_asked_of_creatures_without_bodies_say_so_and_list_no_frames(tmp_
     summary = run_offline(inst, tmp_path / "out", duration=2.0, progress=False)
     assert not {"frames", "video"} & set(summary.files)
     assert any("no creature of this installation has a body" in m for m in summary.messages)
+
+
+@pytest.mark.parametrize("action", [
+    '{ type = "oscillate", variables = { "nek.x" = 20.0 }, period = 2.0 }',
+    '{ type = "sweep", variables = { "nek.x" = [-20.0, 30.0] } }',
+    '{ type = "look_at", joints = { nek = 40.0 } }',
+])
+def test_a_layer_on_a_body_from_files_names_a_joint_it_lacks_at_load(tmp_path: Path, action: str):
+    """A skill's joints are checked against a body of files as against a shipped figure: a typo is
+    a config error at the action's line with the nearest joint (it was a traceback at build). An
+    adverb leaves out what the body lacks instead (PlayAdverb.leaves_out_joints)."""
+    config = heron_config(tmp_path, kind="authored")
+    with config.open("a") as handle:
+        handle.write(f"""
+[creature.tuples.nod]
+action = {action}
+until = {{ seconds = 4.0 }}
+
+[creature.groups.layer]
+tuples = ["nod"]
+alpha = 0.0
+""")
+    line = config.read_text().splitlines().index(f"action = {action}") + 1
+    with pytest.raises(ConfigError, match=rf"heron.toml:{line}: creature\.0\.tuples\.nod\.action: "
+                                          r"the body has no joint 'nek' \(did you mean 'neck'\?\)"):
+        load_installation(config)

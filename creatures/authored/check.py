@@ -229,8 +229,8 @@ def _action(c: _Checker, action, loc: tuple):
     if labels is not None:
         _labels(c, labels(params), loc)
     joints = getattr(cls, "joints", None)
-    if joints is not None and not getattr(c.spec.body, "custom", False):  # a body of files checks at load
-        _joints(c, joints(params), loc)
+    if joints is not None and not (getattr(c.spec.body, "custom", False) and getattr(cls, "leaves_out_joints", False)):
+        _joints(c, joints(params), loc)  # a body of files is built before this check (schema._resolve_body)
     voice = getattr(cls, "voice_parameters", None)
     named = voice(params) if voice is not None else []
     _voice_parameters(c, named, loc)

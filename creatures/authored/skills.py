@@ -504,6 +504,10 @@ class PlayAdverb(MotorPart):
     thesis = "general layering – adverb parameters"
     Params = _AdverbParams
     refs = {"drive": "drives", "percept": "adverb models"}
+    leaves_out_joints = True
+    """On a body of files the joints it names that the body lacks are left out (logged), not
+    refused: a creature file written for the stick figure (exchange's bored manner) keeps its
+    manner on a body of one's own."""
 
     @classmethod
     def joints(cls, params):
