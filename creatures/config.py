@@ -347,6 +347,14 @@ def _quoted_scalar(valid: Any, data: Any, at: tuple[str | int, ...] = ()) -> tup
                 None)
 
 
+def nearest(name: object, choices: typing.Iterable[str], what: str) -> str:
+    """The end of an error about a name that is not there: `` (did you mean 'neck'?)``, else
+    every valid one (`` (joints: base, neck, head)``), so a typo's fix is in the message."""
+    choices = list(choices)
+    close = difflib.get_close_matches(str(name), choices, n=1)
+    return f" (did you mean {close[0]!r}?)" if close else f" ({what}: {', '.join(choices) or 'none'})"
+
+
 def written_in(where: dict[tuple, tuple[Path, int]], key: tuple[str | int, ...], config: Path) -> Path:
     """The file that wrote ``key`` (an ``extends`` base, an included file), else ``config``:
     a path in a config is relative to the file that writes it."""

@@ -401,3 +401,23 @@ alpha = 0.0
     with pytest.raises(ConfigError, match=rf"heron.toml:{line}: creature\.0\.tuples\.nod\.action: "
                                           r"the body has no joint 'nek' \(did you mean 'neck'\?\)"):
         load_installation(config)
+
+
+@pytest.mark.parametrize("extra, key, message", [  # (the rest pose carries the first rest label)
+    ('joint_limits = { nek = 1.0 }', "joint_limits.nek", "no joint 'nek' in the body (did you mean 'neck'?)"),
+    ('effectors = ["hed_end"]', "effectors.hed_end", "no joint 'hed_end' in the body (did you mean 'head_end'?)"),
+    ('rest_pose = { nek = [10.0, 0.0, 0.0] }', "rest_pose.nek", "no joint 'nek' in the body (did you mean 'neck'?)"),
+    ('rest_labels = ["still", "pek"]', "rest_labels", "rest label 'pek' is on no frame of the animations (did you mean 'peck'?)"),
+    ('edits.favour = [{ node = "pek", multiplier = 0.5 }]', "edits.favour.0.node",
+     "no node carries that label (and it is not source@frame) (did you mean 'peck'?)"),
+])
+def test_a_name_the_body_lacks_is_an_error_with_the_nearest_one(tmp_path: Path, extra: str, key: str, message: str):
+    """A typo'd joint or label in [creature.body] says what was meant, at the key's line."""
+    config = heron_config(tmp_path)
+    written = [row for row in config.read_text().splitlines() if not row.startswith(extra.split(" = ")[0] + " = ")]
+    config.write_text("\n".join(written).replace("[creature.body]", f"[creature.body]\n{extra}") + "\n")
+    line = config.read_text().splitlines().index(extra) + 1
+    with pytest.raises(ConfigError) as caught:
+        load_installation(config)
+    assert str(caught.value).startswith(f"{config}:{line}: creature.0.body.{key}: ")
+    assert str(caught.value).endswith(message)

@@ -21,6 +21,7 @@ import numpy as np
 from pydantic import BaseModel, Field, PrivateAttr, model_validator
 
 from creatures.bounds import FINITE
+from creatures.config import nearest
 from creatures.motor.body_build import Sources, load_or_build
 from creatures.motor.graph import MotorGraph
 from creatures.motor.line_metric import Content
@@ -178,7 +179,7 @@ class MaterialSpec(BaseModel):
     def _check_joints(names: tuple[str, ...], given: dict, key: str) -> None:
         for name in given:
             if name not in names:
-                raise MaterialError(f"no joint {name!r} in the body (joints: {', '.join(names)})", (key, name))
+                raise MaterialError(f"no joint {name!r} in the body{nearest(name, names, 'joints')}", (key, name))
 
     def material(self) -> "BodyMaterial":
         """The body resolved at config load (RuntimeError if it never was)."""

@@ -20,6 +20,7 @@ import numpy as np
 from pydantic import BaseModel, Field, field_validator, model_validator
 
 from creatures.bounds import FINITE
+from creatures.config import nearest
 from creatures.kinds.body_source import BodyMaterial, MaterialSpec
 from creatures.motor import quaternion as quat
 from creatures.motor.animations import creature_skeleton
@@ -95,7 +96,7 @@ class BreatheSpec(BaseModel):
         """Every breathing joint must be the body's (ValueError otherwise)."""
         for name in self.joints:
             if name not in names:
-                raise ValueError(f"no joint {name!r} in the body (joints: {', '.join(names)})")
+                raise ValueError(f"no joint {name!r} in the body{nearest(name, names, 'joints')}")
 
     def contribution(self, names: tuple[str, ...]) -> Contribution:
         """The breathing layer for a skeleton with joints ``names``: an ``add`` offset masked

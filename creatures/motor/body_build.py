@@ -23,6 +23,7 @@ from typing import Callable
 
 import numpy as np
 
+from creatures.config import nearest
 from creatures.motor.graph import MotorGraph
 from creatures.motor.graph_edits import (EditError, EditFile, added_material, apply_edges, blended, check_skeleton,
                                          edits_from, read_edits)
@@ -139,7 +140,9 @@ def build(sources: Sources, edit_files: list[EditFile]) -> MotorGraph:
     for label in sources.rest_labels:
         nodes = material.poses.labelled(label)
         if not nodes.size:
-            raise MaterialError(f"rest label {label!r} is on no frame of the animations", ("rest_labels",))
+            known = sorted(set().union(*material.poses.labels))
+            raise MaterialError(f"rest label {label!r} is on no frame of the animations"
+                                f"{nearest(label, known, 'labels')}", ("rest_labels",))
         for node in nodes.tolist():
             graph.label(node, LOW_ENERGY)
     _as_material_error(lambda: apply_edges(graph, material, edit_files), None)

@@ -45,7 +45,7 @@ from typing import Any
 
 import numpy as np
 
-from creatures.config import ConfigError, read_toml
+from creatures.config import ConfigError, nearest, read_toml
 from creatures.motor import quaternion as quat
 from creatures.motor.graph import MotorGraph
 from creatures.motor.material import Animation, Conventions, Material, MaterialError, read_animation
@@ -238,7 +238,8 @@ class Nodes:
             return found
         found = poses.labelled(reference)
         if not found.size:
-            raise EditError(f"{where}: node {reference!r}: no node carries that label (and it is not source@frame)")
+            raise EditError(f"{where}: node {reference!r}: no node carries that label (and it is not source@frame)"
+                            f"{nearest(reference, sorted(set().union(*poses.labels)), 'labels')}")
         return found
 
 

@@ -28,6 +28,7 @@ from typing import Literal
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from creatures.config import nearest
 from creatures.motor import quaternion as quat
 from creatures.motor.bvh import BVHError, Take, read_bvh, read_bvh_skeleton
 from creatures.motor.drawing import is_drawing, read_drawing
@@ -233,7 +234,7 @@ def rest_pose(skeleton: Skeleton, turns: dict[str, tuple[float, float, float]], 
     rotations = quat.identity((1, skeleton.joint_count))
     for name, vector in turns.items():
         if name not in skeleton.names:
-            raise MaterialError(f"no joint {name!r} in the body (joints: {', '.join(skeleton.names)})",
+            raise MaterialError(f"no joint {name!r} in the body{nearest(name, skeleton.names, 'joints')}",
                                 ("rest_pose", name))
         xyzw = Rotation.from_rotvec(np.radians(vector)).as_quat()
         rotations[0, skeleton.index(name)] = xyzw[[3, 0, 1, 2]]
