@@ -421,3 +421,20 @@ def test_a_name_the_body_lacks_is_an_error_with_the_nearest_one(tmp_path: Path, 
         load_installation(config)
     assert str(caught.value).startswith(f"{config}:{line}: creature.0.body.{key}: ")
     assert str(caught.value).endswith(message)
+
+
+@pytest.mark.parametrize("old, new, key, message", [
+    ("joint_limits = { neck = 1.2, head = 1.3 }", "joint_limits = { neck = 1.2, head = 4.0 }", "joint_limits.head",
+     "a limit is a turn from rest in (0, π] radians (got 4.0)"),
+    ('file = "heron.bvh"', 'file = "heron.bvh"\nframes = [200, 100]', "animations.0.frames",
+     "give [first, last] with first <= last (got [200, 100])"),
+])
+def test_a_value_out_of_range_is_named_at_its_own_key(tmp_path: Path, old: str, new: str, key: str, message: str):
+    """An out-of-range limit or a reversed range is an error at its own key and line, not at the
+    table's header with the whole table quoted."""
+    config = heron_config(tmp_path)
+    config.write_text(config.read_text().replace(old, new))
+    line = config.read_text().splitlines().index(new.splitlines()[-1]) + 1
+    with pytest.raises(ConfigError) as caught:
+        load_installation(config)
+    assert str(caught.value) == f"{config}:{line}: creature.0.body.{key}: {message}"

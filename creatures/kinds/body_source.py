@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, Field, PrivateAttr, model_validator
+from pydantic import AfterValidator, BaseModel, Field, PrivateAttr, field_validator, model_validator
 
 from creatures.bounds import FINITE
 from creatures.config import nearest
@@ -33,6 +33,17 @@ Degrees = Annotated[float, Field(ge=-3600, le=3600)]
 
 FrameNumber = Annotated[int, Field(ge=0, le=1_000_000_000)]
 """A frame of a BVH file (0-based)."""
+
+
+def _turn(limit: float) -> float:
+    if not 0 < limit <= math.pi:
+        raise ValueError("a limit is a turn from rest in (0, π] radians")
+    return limit
+
+
+JointLimit = Annotated[float, AfterValidator(_turn)]
+"""A joint's largest turn from rest, checked where it is written: an error names the joint's own
+key and line, not the whole [creature.body] table."""
 
 
 class AnimationSpec(BaseModel):
@@ -56,11 +67,12 @@ class AnimationSpec(BaseModel):
                                                     "goes nowhere) or 'walk' (its horizontal travel moves the "
                                                     "creature on); default the body's root_motion: walk, else fixed")
 
-    @model_validator(mode="after")
-    def _frames_in_order(self) -> "AnimationSpec":
-        if self.frames is not None and self.frames[0] > self.frames[1]:
-            raise ValueError(f"frames = {list(self.frames)}: give [first, last] with first <= last")
-        return self
+    @field_validator("frames")
+    @classmethod
+    def _frames_in_order(cls, frames: tuple[int, int] | None) -> tuple[int, int] | None:
+        if frames is not None and frames[0] > frames[1]:
+            raise ValueError("give [first, last] with first <= last")
+        return frames
 
 
 MATERIAL_KEYS = ("skeleton", "animations", "clips", "graph_edits", "edits", "effectors", "joint_limits", "rest_labels", "rest_pose",
@@ -90,7 +102,7 @@ class MaterialSpec(BaseModel):
     effectors: list[str] = Field(default_factory=list, max_length=64,
                                  description="joints that strike notes; the first is the one A* takes to a "
                                              "note (default: the skeleton's first end site)")
-    joint_limits: dict[str, float] = Field(default_factory=dict,
+    joint_limits: dict[str, JointLimit] = Field(default_factory=dict,
                                            description="joint → largest turn from its rest orientation, radians "
                                                        "(0 < limit ≤ π); the body never shows more (nor more than "
                                                        "the source material does)")
@@ -136,9 +148,6 @@ class MaterialSpec(BaseModel):
             raise ValueError(f"{', '.join(given)} describe a body of its own, which needs animations "
                              "([[creature.body.animations]] with a BVH file) or clips; without them the shipped "
                              "figure is used")
-        for name, limit in self.joint_limits.items():
-            if not 0 < limit <= math.pi:
-                raise ValueError(f"joint_limits.{name} = {limit:g}: a limit is a turn in (0, π] radians")
         return self
 
     def resolve(self, base: Path, *, ratios: bool = False) -> "BodyMaterial":
