@@ -302,6 +302,20 @@ edits.forbid = [{ from = "heron@20", to = "heron@21" }]
         load_installation(config)
 
 
+@pytest.mark.parametrize("written, key", [
+    ('edits.favour = [{ node = "peck", multiplier = -0.5 }]', "edits.favour.0.multiplier"),
+    ('edits.favor = [{ node = "peck", multiplier = 0.5 }]', "edits.favor"),
+])
+def test_a_malformed_edit_in_the_config_is_named_at_its_own_line(tmp_path: Path, written: str, key: str):
+    """An edit the config writes that cannot be read (a bad value, an unknown operation) is an error
+    at its own key's line, as one that names a missing node is (it was the [creature.body] line)."""
+    config = heron_config(tmp_path)
+    config.write_text(config.read_text().replace("[[creature.body.animations]]", f"{written}\n[[creature.body.animations]]"))
+    line = config.read_text().splitlines().index(written) + 1
+    with pytest.raises(ConfigError, match=rf"heron\.toml:{line}: creature\.0\.body\.{key.replace('.', '[.]')}: "):
+        load_installation(config)
+
+
 def test_a_curves_limbs_are_checked_on_its_body_of_files(tmp_path: Path):
     config = heron_config(tmp_path, kind="curve")
     assert load_installation(config).specs[0].body.custom  # curve takes a body of files like any kind

@@ -182,10 +182,7 @@ def load_or_build(sources: Sources, cache: Path | None) -> MotorGraph:
         edit_files.append(_as_material_error(lambda path=path: read_edits(path), i))
     if sources.inline:
         where = (sources.inline_base or Path(".")) / INLINE_EDITS
-        try:
-            edit_files.append(edits_from(json.loads(sources.inline), where, {}, None))
-        except EditError as exc:
-            raise MaterialError(str(exc), ("edits",)) from None
+        edit_files.append(_as_material_error(lambda: edits_from(json.loads(sources.inline), where, {}, None), None))
     key = sources.key(edit_files)
     if cache is not None and cache.exists():
         graph = read_cache(cache, key)
