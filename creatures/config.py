@@ -104,7 +104,7 @@ def read_toml(path: str | Path, *, _seen: tuple[Path, ...] = ()) -> tuple[dict[s
             raw = handle.read(MAX_CONFIG_BYTES + 1)
         if len(raw) > MAX_CONFIG_BYTES:
             raise ConfigError(path, f"config file larger than {MAX_CONFIG_BYTES} bytes; refused")
-        text = raw.decode("utf-8")
+        text = raw.decode("utf-8-sig")  # a byte-order mark (Windows editors write one) is no TOML
     except FileNotFoundError:
         raise ConfigError(path, "config file not found") from None
     except (OSError, UnicodeDecodeError) as exc:

@@ -316,6 +316,25 @@ def test_a_malformed_edit_in_the_config_is_named_at_its_own_line(tmp_path: Path,
         load_installation(config)
 
 
+def test_files_written_with_a_byte_order_mark_read_as_without(tmp_path: Path):
+    """The config, its clips file and its edit file saved by a Windows editor (a UTF-8 BOM first)
+    make the same body as without: the BOM was 'invalid TOML (Invalid statement)' at line 1."""
+    graphs = []
+    for bom in ("", "\ufeff"):
+        (tmp_path / f"bom{len(bom)}").mkdir()
+        config = heron_config(tmp_path / f"bom{len(bom)}")
+        skeleton = fingerprint(body_of(config).graph.skeleton)
+        (config.parent / "heron.labels.toml").write_text(
+            f'{bom}bvh = "heron.bvh"\n[[clip]]\nname = "heron"\nframes = [0, 239]\n'
+            '[[label]]\nname = "peck"\nframes = [100, 104]\n', encoding="utf-8")
+        (config.parent / "e.toml").write_text(f'{bom}skeleton = "{skeleton}"\n[[favour]]\nnode = "peck"\n'
+                                              'multiplier = 0.5\n', encoding="utf-8")
+        text = config.read_text().split("[[creature.body.animations]]")[0]
+        config.write_text(f'{bom}{text}clips = "heron.labels.toml"\ngraph_edits = ["e.toml"]\n', encoding="utf-8")
+        graphs.append(keyed(body_of(config).graph))
+    assert graphs[1] == graphs[0] and set(graphs[0][1].values()) == {0.5}
+
+
 def test_a_curves_limbs_are_checked_on_its_body_of_files(tmp_path: Path):
     config = heron_config(tmp_path, kind="curve")
     assert load_installation(config).specs[0].body.custom  # curve takes a body of files like any kind

@@ -125,6 +125,8 @@ def test_shipped_skeleton_loads_as_json_and_toml(tmp_path):
     path.write_text("\n".join(lines) + "\n")
     small = Skeleton.load(path)
     assert small.names == ("root", "hand") and small.masses.tolist() == [2.0, 0.5]
+    path.write_text("\ufeff" + "\n".join(lines) + "\n", encoding="utf-8")  # as a Windows editor saves it
+    assert Skeleton.load(path).names == ("root", "hand")
     round_trip = Skeleton.from_dict(skeleton.to_dict())
     assert round_trip.names == skeleton.names and np.allclose(round_trip.offsets, skeleton.offsets)
 

@@ -276,7 +276,7 @@ def read_clips(path: Path) -> list[Animation]:
     (installations/bodies/*.labels.toml), as an animator exports one file of named ranges.
     MaterialError names the file and line."""
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")  # as configs: a byte-order mark is dropped
         data = tomllib.loads(text)
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise MaterialError(f"{path}:1: cannot read clips file ({exc})", ("clips",)) from None

@@ -197,7 +197,7 @@ class Skeleton:
         """Read a JSON (``.json``) or TOML (any other suffix) skeleton description."""
         path = Path(path)
         try:
-            text = path.read_text(encoding="utf-8")
+            text = path.read_text(encoding="utf-8-sig")  # as configs: a byte-order mark is dropped
         except (OSError, UnicodeDecodeError) as exc:
             raise SkeletonFileError(f"{path}: cannot read skeleton file ({exc})") from None
         if path.suffix.lower() == ".json":
