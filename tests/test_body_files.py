@@ -438,3 +438,16 @@ def test_a_value_out_of_range_is_named_at_its_own_key(tmp_path: Path, old: str, 
     with pytest.raises(ConfigError) as caught:
         load_installation(config)
     assert str(caught.value) == f"{config}:{line}: creature.0.body.{key}: {message}"
+
+
+def test_a_take_in_rest_bvh_is_told_the_name_is_the_rest_poses(tmp_path: Path):
+    """'rest' is the rest pose's source name, so a take of that stem must be renamed; it was told
+    that two animations were named 'rest' when there was one."""
+    config = heron_config(tmp_path)
+    (tmp_path / "heron.bvh").rename(tmp_path / "rest.bvh")
+    config.write_text(config.read_text().replace('file = "heron.bvh"', 'file = "rest.bvh"'))
+    with pytest.raises(ConfigError, match=r"creature\.0\.body\.animations\.0\.name: 'rest' names the rest pose's "
+                                          r"nodes .*give this take another 'name'"):
+        load_installation(config)
+    config.write_text(config.read_text().replace('file = "rest.bvh"', 'file = "rest.bvh"\nname = "heron"'))
+    assert "heron" in load_installation(config).specs[0].body.material().graph.poses.sources

@@ -250,7 +250,10 @@ def load_material(skeleton: Skeleton, animations: list[Animation], conventions: 
     frame_times: dict[str, float] = {}
     files = dict(parsed or {})
     for i, animation in enumerate(animations):
-        if animation.source in frame_times or animation.source == REST_SOURCE:
+        if animation.source == REST_SOURCE:  # a take in rest.bvh is no second animation, but the name is kept
+            raise MaterialError(f"{REST_SOURCE!r} names the rest pose's nodes (rest_pose; 'rest@0' in edits): "
+                                "give this take another 'name'", ("animations", i, "name"))
+        if animation.source in frame_times:
             raise MaterialError(f"two animations are named {animation.source!r} (give one a 'name')",
                                 ("animations", i, "name"))
         if animation.file not in files:
