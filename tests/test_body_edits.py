@@ -97,7 +97,12 @@ def test_disagreeing_edits_are_a_conflict_naming_both(tmp_path: Path):
         (tmp_path / f"{who}.toml").write_text(f'skeleton = "{stamp}"\n\n[[favour]]\nnode = "heron@3"\nmultiplier = {value}\n')
     config.write_text(config.read_text().replace(
         "[[creature.body.animations]]", 'graph_edits = ["a.toml", "b.toml"]\n[[creature.body.animations]]'))
-    with pytest.raises(ConfigError, match=r"b\.toml:3: conflicts with .*a\.toml:3"):
+    with pytest.raises(ConfigError, match=r"b\.toml:3: conflicts with .*a\.toml:3 about the favour of heron@3$"):
+        load_installation(config)  # the node as the edits name it (it was the graph's index: 'favour 3')
+    for who in ("a", "b"):  # a forge of a forbidden edge
+        (tmp_path / f"{who}.toml").write_text(f'skeleton = "{stamp}"\n\n[[{"forbid" if who == "a" else "forge"}]]\n'
+                                             'from = "heron@3"\nto = "heron@200"\n')
+    with pytest.raises(ConfigError, match=r"b\.toml:3: conflicts with .*a\.toml:3 about the edge heron@3 → heron@200$"):
         load_installation(config)
 
 

@@ -217,6 +217,12 @@ class Nodes:
         self._at = {(poses.sources[s], int(f)): i for i, (s, f) in enumerate(zip(poses.source_ids.tolist(), frames))}
         self._frames = frames
 
+    def name(self, node: int) -> str:
+        """A node as an edit names it (``walk@12``): errors never show the graph's indices, which
+        no author sees and which change when a take is added."""
+        poses = self.material.poses
+        return f"{poses.sources[poses.source_ids[node]]}@{int(self._frames[node])}"
+
     def __call__(self, reference: str, where: str) -> np.ndarray:
         poses = self.material.poses
         if "@" in reference:
@@ -291,7 +297,10 @@ def apply_edges(graph: MotorGraph, material: Material, files: list[EditFile]) ->
         """Record one decision; False when the same one is already recorded."""
         if key in decided:
             if decided[key][0] != value:
-                raise EditError(f"{where}: conflicts with {decided[key][1]} about {key[0]} {key[1]}")
+                what, at = key
+                about = f"{nodes.name(at[0])} → {nodes.name(at[1])}" if isinstance(at, tuple) else nodes.name(at)
+                about = f"the edge {about}" if what == "edge" else f"the {what} of {about}"
+                raise EditError(f"{where}: conflicts with {decided[key][1]} about {about}")
             return False
         decided[key] = (value, where)
         return True
@@ -320,7 +329,7 @@ def apply_edges(graph: MotorGraph, material: Material, files: list[EditFile]) ->
                     why = (f"conflicts with {forbidden[1]}, which forbids it" if forbidden[0] == "forbidden"
                            else "forge it first")
                     raise EditError(f"{edit.where}: [[reweight]] {edit.fields['from']} → {edit.fields['to']}: "
-                                    f"the graph has no edge {a} → {b} ({why})")
+                                    f"the graph has no edge {nodes.name(a)} → {nodes.name(b)} ({why})")
                 if decide(("scale", (a, b)), edit.fields["scale"], edit.where):
                     graph.reweight(a, b, edit.fields["scale"])
         elif edit.op == "favour":
