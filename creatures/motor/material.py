@@ -250,7 +250,7 @@ def load_material(skeleton: Skeleton, animations: list[Animation], conventions: 
     frame_times: dict[str, float] = {}
     files = dict(parsed or {})
     for i, animation in enumerate(animations):
-        if animation.source == REST_SOURCE:  # a take in rest.bvh is no second animation, but the name is kept
+        if animation.source == REST_SOURCE:  # reserved for the rest pose, so a take in rest.bvh is renamed
             raise MaterialError(f"{REST_SOURCE!r} names the rest pose's nodes (rest_pose; 'rest@0' in edits): "
                                 "give this take another 'name'", ("animations", i, "name"))
         if animation.source in frame_times:
