@@ -106,7 +106,7 @@ class MidoInputs:
         self._probe = None
         self._probe_generation = 0
         self._pulse = pulse
-        self._chose_jack = False  # rtmidi, told no API, took JACK's
+        self._chose_jack = False  # rtmidi, told no API, took JACK's (:meth:`_took_jack`)
 
     def names(self) -> list[str]:
         probe = self._rtmidi_probe()
@@ -149,16 +149,31 @@ class MidoInputs:
 
             self._probe = getattr(rtmidi, kind)(rtapi=api_id(self.backend.api), name="creatures-probe")
             self._probe_generation = pulse.generation if pulse is not None else 0
-            # Told no API, RtMidi takes the first that has ports: JACK's where ALSA's sequencer
-            # offers none (no sound card's, no Midi Through), and the ports opened then are JACK's.
-            self._chose_jack = self._probe.get_current_api() == rtmidi.API_UNIX_JACK
-            if pulse is None and self._chose_jack:
-                self._jack().alive()  # its pulse starts with the first listing, as under a named JACK
+        if self.backend.api is None and not self._chose_jack:
+            self._took_jack(self._probe)
         return self._probe
+
+    def _took_jack(self, probe) -> None:
+        """Told no API, RtMidi takes the first that has ports: JACK's where ALSA's sequencer
+        offers none (no sound card's, no Midi Through). Where no API has any, it keeps the last
+        it tried, JACK's perhaps with no server, which says nothing: JACK is taken to be chosen
+        once the probe lists JACK ports, its pulse starting then, and ports open on JACK's API."""
+        import rtmidi
+
+        if probe.get_current_api() != rtmidi.API_UNIX_JACK or not probe.get_port_count():
+            return
+        self._chose_jack = True
+        pulse = self._jack()
+        pulse.alive()  # the pulse starts with the first listing of ports, as under a named JACK
+        self._probe_generation = pulse.generation
+
+    def _api(self) -> str | None:
+        """The RtMidi API ports open on: the backend's, or JACK's where RtMidi took it."""
+        return self.backend.api or ("UNIX_JACK" if self._chose_jack else None)
 
     def open(self, name: str, *, virtual: bool = False) -> BasePort:
         if self.backend.name == "mido.backends.rtmidi":
-            return self._stamp(PolledInput(name, api=self.backend.api, virtual=virtual))
+            return self._stamp(PolledInput(name, api=self._api(), virtual=virtual))
         return self.backend.open_input(name, virtual=virtual)
 
 
@@ -170,7 +185,8 @@ class MidoOutputs(MidoInputs):
         return list(probe.get_ports()) if probe is not None else list(self.backend.get_output_names())
 
     def open(self, name: str, *, virtual: bool = False) -> BasePort:
-        return self._stamp(self.backend.open_output(name, virtual=virtual))
+        took = {"api": self._api()} if self.backend.api is None and self._chose_jack else {}
+        return self._stamp(self.backend.open_output(name, virtual=virtual, **took))
 
 
 def match_port(names: list[str], pattern: str) -> str | None:

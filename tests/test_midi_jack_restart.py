@@ -148,15 +148,23 @@ class _Took:
 
         assert rtapi == rtmidi.API_UNSPECIFIED
 
+    ports = ["synth:midi_in"]
+
     def get_current_api(self) -> int:
         return self.api
 
     def get_ports(self) -> list[str]:
-        return ["synth:midi_in"]
+        return list(self.ports)
+
+    def get_port_count(self) -> int:
+        return len(self.ports)
 
 
-@pytest.mark.parametrize("took", ["UNIX_JACK", "LINUX_ALSA"])
-def test_rtmidi_told_no_api_is_watched_by_the_pulse_where_it_took_jack(monkeypatch, took):
+@pytest.mark.parametrize("took, ports", [("UNIX_JACK", ["synth:midi_in"]), ("LINUX_ALSA", ["synth:midi_in"]),
+                                         ("UNIX_JACK", [])])
+def test_rtmidi_told_no_api_is_watched_by_the_pulse_where_it_took_jack(monkeypatch, took, ports):
+    """Where RtMidi took JACK's API for its ports, they are watched and opened as JACK's; ALSA's
+    are not, nor is JACK's API kept only because no API had ports (no server, perhaps)."""
     import mido
     import rtmidi
 
@@ -166,11 +174,14 @@ def test_rtmidi_told_no_api_is_watched_by_the_pulse_where_it_took_jack(monkeypat
     pulse = JackPulse(patience=0.5, clock=clock.now)
     pulse._open_pair = server.pair
     monkeypatch.setattr(_Took, "api", getattr(rtmidi, f"API_{took}"))
+    monkeypatch.setattr(_Took, "ports", ports)
     monkeypatch.setattr(rtmidi, "MidiOut", _Took)
     backend = mido.Backend("mido.backends.rtmidi", load=False)  # MIDO_BACKEND without an API
-    monkeypatch.setattr(backend, "open_output", lambda name, virtual=False: MemoryOutput(name))
+    opened_on = []
+    monkeypatch.setattr(backend, "open_output",
+                        lambda name, virtual=False, **api: opened_on.append(api) or MemoryOutput(name))
     outputs = MidoOutputs(backend, pulse=pulse)
-    assert outputs.names() == ["synth:midi_in"]
+    assert outputs.names() == ports
     port = outputs.open("synth:midi_in")
     server.up = False  # the server dies
     said = []
@@ -180,10 +191,11 @@ def test_rtmidi_told_no_api_is_watched_by_the_pulse_where_it_took_jack(monkeypat
             said.append(outputs.names())
         except OSError as exc:
             said.append(str(exc))
-    if took == "UNIX_JACK":
+    if took == "UNIX_JACK" and ports:
         assert said[-1] == "the JACK server is not running" and outputs.stale(port)
-    else:  # ALSA's ports are not JACK's: no pulse is sent, and nothing goes stale
-        assert said == [["synth:midi_in"]] * 4 and not outputs.stale(port) and server.opened == 0
+        assert opened_on == [{"api": "UNIX_JACK"}]  # its own client takes JACK's too, whatever ALSA has by then
+    else:  # ALSA's ports are not JACK's, and no port at all says nothing: no pulse, nothing goes stale
+        assert said == [ports] * 4 and not outputs.stale(port) and server.opened == 0 and opened_on == [{}]
 
 
 # --- the same with a real JACK server, in a child process ---------------------------------
