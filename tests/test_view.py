@@ -359,6 +359,32 @@ def test_closing_the_view_closes_a_browser_still_connected():
     assert not server._thread.is_alive() and took < 5.0  # the join's own bound is 10 s
 
 
+def test_a_run_restarted_at_once_serves_the_port_its_browser_was_on():
+    """A browser left the page (or the run ended under a kiosk's): the server closed the
+    connection, which leaves the port in TIME_WAIT for a minute on its side; that must not
+    stop the next run serving there (a restarted show once exited with 'port in use' for that
+    minute, and the kiosk's page had nothing to reconnect to)."""
+    played = replay([{"t": 0.0, "kind": "run", "title": "x", "creatures": ["a"]},
+                     {"t": 0.01, "kind": "note", "creature": "a", "time": 0.01, "pitch": 60, "duration": 0.1}])
+    server = ViewServer(ReplaySource(played)).start()
+    with socket.create_connection(("127.0.0.1", server.port), timeout=10) as browser:
+        browser.sendall(f"GET /ws HTTP/1.1\r\nHost: 127.0.0.1:{server.port}\r\nUpgrade: websocket\r\n"
+                        "Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
+                        "Sec-WebSocket-Version: 13\r\n\r\n".encode())
+        browser.sendall(b"\x88\x80\x00\x00\x00\x00")  # a close frame (masked, empty): the page goes away
+        while browser.recv(65536):  # the server answers and closes first: its side is in TIME_WAIT
+            pass
+    server.close()
+    assert port_problem(server.port) is None
+    ViewServer(ReplaySource(played), server.port).start().close()
+    with socket.socket() as taken:  # a port another program listens on is still refused
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        assert port_problem(taken.getsockname()[1]) is not None
+        with pytest.raises(OSError):
+            ViewServer(ReplaySource(played), taken.getsockname()[1]).start()
+
+
 def test_the_view_port_comes_from_the_option_then_the_config_then_the_default():
     from creatures.cli import DEFAULT_VIEW_PORT, _view_port
 

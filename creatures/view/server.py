@@ -36,8 +36,11 @@ CLIENT_QUEUE = 16
 
 
 def port_problem(port: int) -> str | None:
-    """Why the view cannot serve on ``port`` (in use), or None: asked before a run starts."""
+    """Why the view cannot serve on ``port`` (in use), or None: asked before a run starts, and
+    bound as the server binds (``SO_REUSEADDR``: a port whose last browser left it in TIME_WAIT
+    is free, one another program listens on is not)."""
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         try:
             probe.bind((HOST, port))
         except OSError as exc:
@@ -200,7 +203,10 @@ class ViewServer:
         runner = web.AppRunner(app, access_log=None, handle_signals=False, shutdown_timeout=1.0)
         await runner.setup()
         try:
-            site = web.TCPSite(runner, HOST, self.port, reuse_address=False)
+            # SO_REUSEADDR: the connections a browser left in TIME_WAIT (a minute, on the server's
+            # side, which closes first) must not keep a restarted run off its port; on Linux it
+            # still refuses a port another socket listens on.
+            site = web.TCPSite(runner, HOST, self.port, reuse_address=True)
             await site.start()
             self.port = runner.addresses[0][1]
             self._ready.set()
