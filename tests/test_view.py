@@ -359,6 +359,56 @@ def test_closing_the_view_closes_a_browser_still_connected():
     assert not server._thread.is_alive() and took < 5.0  # the join's own bound is 10 s
 
 
+class _Flood:
+    """A live source of large frames, as fast as the loop goes: a browser that stops reading
+    soon has its socket and its queue full."""
+
+    def hello(self) -> dict:
+        return {"type": "hello", "title": "flood", "mode": "live", "creatures": []}
+
+    def greeting(self) -> list[str]:
+        return []
+
+    async def run(self, clients) -> None:
+        text = json.dumps({"type": "frame", "t": 0.0, "pad": "x" * 200_000})
+        while True:
+            await asyncio.sleep(0.002)
+            for client in clients:
+                client.offer(text)
+
+    async def serve(self, client) -> None:
+        pass
+
+
+def _open_socket(port: int, receive_buffer: int | None = None) -> socket.socket:
+    """A websocket opened by hand (the handshake sent, nothing read): a browser we control."""
+    browser = socket.socket()
+    if receive_buffer is not None:
+        browser.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, receive_buffer)
+    browser.settimeout(10)
+    browser.connect(("127.0.0.1", port))
+    browser.sendall(f"GET /ws HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nUpgrade: websocket\r\n"
+                    "Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
+                    "Sec-WebSocket-Version: 13\r\n\r\n".encode())
+    return browser
+
+
+def test_a_browser_that_stopped_reading_does_not_hold_the_view_open():
+    """A frozen kiosk tab keeps its connection but reads nothing: its frames are dropped and
+    counted, and when the run stops the view's thread still ends at once (closing it once
+    waited for room in that browser's socket until the 10 s join gave up on the thread)."""
+    server = ViewServer(_Flood()).start()
+    with _open_socket(server.port, receive_buffer=4096):
+        deadline = time.monotonic() + 30
+        while not any(c.dropped for c in list(server.clients)) and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert any(c.dropped for c in list(server.clients))  # its socket is full: it is stuck
+        started = time.perf_counter()
+        server.close()
+        took = time.perf_counter() - started
+    assert not server._thread.is_alive() and took < 5.0
+
+
 def test_a_run_restarted_at_once_serves_the_port_its_browser_was_on():
     """A browser left the page (or the run ended under a kiosk's): the server closed the
     connection, which leaves the port in TIME_WAIT for a minute on its side; that must not
@@ -367,10 +417,7 @@ def test_a_run_restarted_at_once_serves_the_port_its_browser_was_on():
     played = replay([{"t": 0.0, "kind": "run", "title": "x", "creatures": ["a"]},
                      {"t": 0.01, "kind": "note", "creature": "a", "time": 0.01, "pitch": 60, "duration": 0.1}])
     server = ViewServer(ReplaySource(played)).start()
-    with socket.create_connection(("127.0.0.1", server.port), timeout=10) as browser:
-        browser.sendall(f"GET /ws HTTP/1.1\r\nHost: 127.0.0.1:{server.port}\r\nUpgrade: websocket\r\n"
-                        "Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
-                        "Sec-WebSocket-Version: 13\r\n\r\n".encode())
+    with _open_socket(server.port) as browser:
         browser.sendall(b"\x88\x80\x00\x00\x00\x00")  # a close frame (masked, empty): the page goes away
         while browser.recv(65536):  # the server answers and closes first: its side is in TIME_WAIT
             pass

@@ -34,6 +34,11 @@ LOOPBACK_NAMES = frozenset({"127.0.0.1", "localhost", "::1"})
 CLIENT_QUEUE = 16
 """Encoded frames waiting for one browser; more are dropped for it and counted."""
 
+CLOSE_WAIT = 1.0
+"""Seconds a browser is given to take the closing message when the view stops: one that has
+stopped reading (a frozen kiosk tab, a stalled network) would keep the close waiting for room
+in its socket for ever."""
+
 
 def port_problem(port: int) -> str | None:
     """Why the view cannot serve on ``port`` (in use), or None: asked before a run starts, and
@@ -213,7 +218,8 @@ class ViewServer:
             feeding = asyncio.create_task(self.source.run(self.clients))
             await self._stop.wait()
             feeding.cancel()
-            await asyncio.gather(*(ws.close(code=WSCloseCode.GOING_AWAY, message=b"the colony stopped")
+            await asyncio.gather(*(asyncio.wait_for(ws.close(code=WSCloseCode.GOING_AWAY, message=b"the colony stopped"),
+                                                    CLOSE_WAIT)
                                    for ws in list(self._sockets)), return_exceptions=True)
         finally:
             await runner.cleanup()
