@@ -5,9 +5,12 @@ from __future__ import annotations
 
 import asyncio
 import json
+import logging
 import socket
+import struct
 import subprocess
 import sys
+import threading
 import time
 
 import aiohttp
@@ -407,6 +410,50 @@ def test_a_browser_that_stopped_reading_does_not_hold_the_view_open():
         server.close()
         took = time.perf_counter() - started
     assert not server._thread.is_alive() and took < 5.0
+
+
+class _Gated:
+    """A source whose hello waits until the test lets it go: the browser can leave between
+    its handshake and its greeting, as one does in a storm of reloads."""
+
+    def __init__(self) -> None:
+        self.asked, self.go = threading.Event(), threading.Event()
+
+    def hello(self) -> dict:
+        self.asked.set()
+        self.go.wait(10)
+        return {"type": "hello", "title": "gated", "mode": "live", "creatures": []}
+
+    def greeting(self) -> list[str]:
+        return [json.dumps({"type": "trees", "t": 0.0, "trees": {}})]
+
+    async def run(self, clients) -> None:
+        pass
+
+    async def serve(self, client) -> None:
+        pass
+
+
+def test_a_browser_gone_before_its_greeting_is_let_go_quietly(caplog):
+    """A page reloaded many times leaves sockets closed before the hello reaches them: each is
+    let go like one that leaves later (it once raised out of the handler: a traceback in the
+    run's output per reload, and the socket kept in the server's set for the rest of the run)."""
+    source = _Gated()
+    server = ViewServer(source).start()
+    try:
+        with caplog.at_level(logging.ERROR, logger="aiohttp"):
+            browser = _open_socket(server.port)
+            assert source.asked.wait(10)  # the handshake is done, the hello not yet sent
+            browser.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+            browser.close()  # reset, before the hello
+            source.go.set()
+            deadline = time.monotonic() + 5
+            while server._sockets and time.monotonic() < deadline:
+                time.sleep(0.01)
+        assert not server._sockets and not server.clients
+        assert not [r for r in caplog.records if r.levelno >= logging.ERROR]
+    finally:
+        server.close()
 
 
 def test_a_run_restarted_at_once_serves_the_port_its_browser_was_on():

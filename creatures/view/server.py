@@ -236,9 +236,10 @@ class ViewServer:
         await ws.prepare(request)
         self._sockets.add(ws)
         client = Client()
-        await ws.send_str(encode(self.source.hello()))
-        for text in self.source.greeting():
-            await ws.send_str(text)
+        # The greeting goes first into the browser's own queue (room for it: the queue is new),
+        # so one sender writes to it and a browser gone before its hello is let go like any other.
+        for text in (encode(self.source.hello()), *self.source.greeting()):
+            client.offer(text)
         self.clients.add(client)
         feeding = asyncio.create_task(self.source.serve(client))
         sending = asyncio.create_task(self._send(ws, client))
