@@ -8,6 +8,7 @@ launched); skips with the reason otherwise.
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import subprocess
@@ -153,3 +154,64 @@ def test_the_replay_shows_the_first_frame_the_offscreen_renderer_draws(browser, 
         assert np.array(first["bodies"][name]) == pytest.approx(joints, abs=1e-6)
     assert shown[:, :2] == pytest.approx(pixels, abs=1e-3)  # …seen from the same camera
     assert errors == []
+
+
+class _Scripted:
+    """A view source that sends each browser its hello and then ``messages``, once."""
+
+    def __init__(self, hello: dict, messages: list[dict]) -> None:
+        self._hello, self.messages = hello, messages
+
+    def hello(self) -> dict:
+        return self._hello
+
+    def greeting(self) -> list[str]:
+        return []
+
+    async def run(self, clients) -> None:
+        pass
+
+    async def serve(self, client) -> None:
+        for message in self.messages:
+            await client.queue.put(json.dumps(message))
+
+
+def _run(title: str, name: str, t: float, status: dict) -> _Scripted:
+    """A run of one creature without a body whose frame at ``t`` says its drive and a note."""
+    events = [{"t": t, "kind": "motivation", "creature": name, "drives": {"hunger": 0.5}},
+              {"t": t, "kind": "note", "creature": name, "pitch": 60, "velocity": 90, "duration": 0.5}]
+    return _Scripted({"type": "hello", "title": title, "mode": "live", "status": status,
+                      "creatures": [{"name": name, "kind": "authored", "parents": None, "place": [0, 0, 0]}]},
+                     [{"type": "frame", "t": t, "bodies": {}, "marks": {}, "events": events, "status": {}}])
+
+
+def test_a_kiosk_page_that_reconnects_to_the_next_run_shows_only_that_run(browser):
+    """The run ends under a kiosk's page (a restart, a new config) and the next serves on the
+    same port: the page reconnects and shows the new colony alone (it kept the old run's
+    creatures' panels, notes and status, and its drive histories at the old run's times, so the
+    new run's plotted off the scale for as long as the old one had run)."""
+    from creatures.view.server import ViewServer
+
+    first = ViewServer(_run("first run", "ada", 5000.0, {"sound": "on"})).start()
+    try:
+        page, errors = open_page(browser, first.url)
+        page.wait_for_function("window.__view.notes.length === 1", timeout=30_000)
+    finally:
+        first.close()
+    second = ViewServer(_run("second run", "bo", 1.0, {}), first.port).start()
+    try:
+        page.wait_for_function("window.__view.hello.title === 'second run' && window.__view.notes.length > 0 "
+                               "&& !window.__view.closed", timeout=30_000)
+        page.wait_for_function("[...document.querySelectorAll('#creatures .creature .name')]"
+                               ".some((e) => e.textContent === 'bo')", timeout=30_000)  # its panel is drawn
+        shown = page.evaluate("({drives: __view.drives, notes: __view.notes.map((n) => n.creature),"
+                              " status: __view.status, listed: document.querySelectorAll('#notes li').length,"
+                              " panels: [...document.querySelectorAll('#creatures .creature .name')]"
+                              ".map((e) => e.textContent)})")
+    finally:
+        second.close()
+    assert list(shown["drives"]) == ["bo"] and shown["drives"]["bo"] == [[1.0, {"hunger": 0.5}]]
+    assert shown["notes"] == ["bo"] and shown["listed"] == 1
+    assert shown["panels"] == ["bo"]
+    assert "sound" not in shown["status"]
+    assert errors == [] or all("WebSocket" in e for e in errors)  # the refused reconnects while no run served

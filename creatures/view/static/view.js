@@ -234,11 +234,23 @@ function reset() {
   notesList.textContent = "";
 }
 
+function newRun(hello) {
+  // A hello after another is the next run (the page reconnects when a run serves again): its
+  // clock starts anew and its colony may differ, so nothing of the last one is kept but the
+  // camera, and that only for the same colony (a projector's framing survives a restart).
+  reset();
+  if (JSON.stringify(hello.creatures) !== JSON.stringify(view.hello.creatures)) view.camera = null;
+  view.frame = null; view.trees = {}; view.status = {};
+  for (const p of Object.values(panels)) p.box.remove();
+  panels = {};
+}
+
 function connect() {
   const socket = new WebSocket(`ws://${location.host}/ws`);
   socket.onmessage = (e) => {
     const m = JSON.parse(e.data);
     if (m.type === "hello") {
+      if (view.hello) newRun(m);
       view.hello = m;
       document.getElementById("title").textContent = m.title || "creatures";
       Object.assign(view.status, m.status || {});
