@@ -349,6 +349,22 @@ def test_busy_ports_and_bad_addresses_are_config_errors_before_the_run(tmp_path)
         load_installation(config)
 
 
+@pytest.mark.parametrize("section", ["console", "health"])
+def test_a_host_not_of_this_machine_is_said_at_its_host(tmp_path, section):
+    """A console or health endpoint set to listen on an address this machine does not have (a
+    typo'd LAN address, a config copied from the gallery's machine) is the host's error: it was
+    said at the port, with 'choose another port', which could never help."""
+    from creatures.config import ConfigError
+    from creatures.runtime.live import check_before_running
+
+    config = tmp_path / "elsewhere.toml"
+    config.write_text(f'title = "t"\n[{section}]\nport = 9100\nhost = "192.0.2.1"\n' + creature_tables("ada"))
+    with pytest.raises(ConfigError) as elsewhere:
+        check_before_running(load_installation(config), state=None, log_path=None, pictures=None)
+    assert elsewhere.value.key == f"{section}.host" and elsewhere.value.line == 4
+    assert "192.0.2.1" in str(elsewhere.value) and f"choose another [{section}] host" in str(elsewhere.value)
+
+
 def test_requests_beyond_max_rate_are_counted_unanswered(tmp_path):
     from creatures.runtime.console import Console
     from creatures.runtime.schema import ConsoleSection

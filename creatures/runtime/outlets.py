@@ -30,13 +30,18 @@ def address(peer: str) -> tuple[str, int]:
 
 
 def _bound(inst: LoadedInstallation, section: str, open_it: Callable[[], Any]) -> Any:
-    """``open_it()``, a port in use said as a :class:`ConfigError` at ``[section] port``."""
+    """``open_it()``, a port in use said as a :class:`ConfigError` at ``[section] port``; any
+    other failure to bind is the host's (the host resolved at load, so it is no address of this
+    machine: another port would fail alike), said at ``[section] host``."""
     try:
         return open_it()
     except OSError as exc:
-        port = getattr(inst.settings, section).port
-        why = "is already in use" if exc.errno == errno.EADDRINUSE else f"cannot be opened ({exc.strerror or exc})"
-        raise inst.error((section, "port"), f"port {port} {why}; choose another [{section}] port") from None
+        part = getattr(inst.settings, section)
+        if exc.errno == errno.EADDRINUSE:
+            raise inst.error((section, "port"), f"port {part.port} is already in use; "
+                                                f"choose another [{section}] port") from None
+        raise inst.error((section, "host"), f"cannot listen on {part.host}:{part.port} ({exc.strerror or exc}): "
+                                            f"choose another [{section}] host, an address of this machine") from None
 
 
 def check_ports(inst: LoadedInstallation) -> None:
