@@ -323,6 +323,25 @@ def test_a_status_not_renewed_says_stalled():
     assert health.status()["state"] == "stalled"
 
 
+def test_a_client_that_never_asks_is_let_go(monkeypatch):
+    """A connection to the health endpoint that sends no request (a watchdog's machine gone
+    mid-request, a port scan, a slow client) is closed after IDLE seconds: each held a thread
+    and a file descriptor of the run for as long as it stayed, and enough of them leave the
+    run no descriptor to save its state with."""
+    from creatures.runtime import health as healths
+
+    monkeypatch.setattr(healths, "IDLE", 0.2)
+    server = healths.HealthServer(Health(), "127.0.0.1", 0)
+    try:
+        with socket.create_connection(("127.0.0.1", server.port), timeout=10) as idle:
+            idle.sendall(b"GET /hea")  # half a request, and then nothing
+            assert idle.recv(4096) == b""  # closed by the server, before our 10 s
+        with urllib.request.urlopen(f"http://127.0.0.1:{server.port}/health", timeout=10) as response:
+            assert response.status == 200  # a watchdog that asks is answered as before
+    finally:
+        server.close()
+
+
 def test_busy_ports_and_bad_addresses_are_config_errors_before_the_run(tmp_path):
     from creatures.config import ConfigError
     from creatures.runtime.live import check_before_running

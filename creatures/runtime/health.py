@@ -31,6 +31,11 @@ if TYPE_CHECKING:
 STALE = 5.0
 """Seconds after which a status not renewed means the run has stalled (``503``)."""
 
+IDLE = 10.0
+"""Seconds a connection may take to send its request before it is closed: each open one holds
+a thread and a file descriptor of the run (a watchdog's machine gone mid-request, a port scan),
+and a run out of descriptors cannot save its state."""
+
 STUCK = 30.0
 """Seconds one supervisor job may run before the run is said ``stuck`` (``503``): saves, the
 log's flush, device checks and the heartbeat all wait behind it (a periodic save of a large
@@ -89,7 +94,7 @@ class HealthServer:
     """``GET /health`` on ``host:port`` (port 0: any free one, read back as :attr:`port`)."""
 
     def __init__(self, health: Health, host: str, port: int) -> None:
-        handler = type("HealthHandler", (_Handler,), {"health": health})
+        handler = type("HealthHandler", (_Handler,), {"health": health, "timeout": IDLE})  # IDLE read here, not at import
         self.server = ThreadingHTTPServer((host, port), handler)
         self.server.daemon_threads = True
         self.port: int = self.server.server_address[1]
