@@ -19,7 +19,7 @@ from pythonosc.osc_server import ThreadingOSCUDPServer
 from creatures.clock import SimulatedClock
 from creatures.events import EventLog, read_events
 from creatures.runtime import live
-from creatures.runtime.body_stream import BodyStream
+from creatures.runtime.body_stream import BodyStream, Frame, hello_of, snapshot
 from creatures.runtime.offline import run_offline
 from creatures.runtime.schema import load_installation
 from creatures.runtime.session import Session
@@ -130,6 +130,27 @@ def test_osc_frames_are_read_by_python_osc(tmp_path):
                                memory.frames[-1].poses[1].rotations, atol=1e-6)
     np.testing.assert_allclose(messages["/body/ada/drives"][-1], memory.frames[-1].poses[0].drives, atol=1e-6)
     assert messages["/body/ada/action"][-1] == [memory.frames[-1].poses[0].action]
+
+
+def test_the_frame_index_wraps_where_osc_ints_end_and_the_stream_goes_on(tmp_path):
+    """``/colony/frame index:i`` is an OSC int32: at 240 frames a second the index passes it
+    after 103 days (at 60, 414), and every frame from then on raised in the sender (counted
+    as sink errors; nothing reached a renderer again). It wraps; the time goes on."""
+    session = _session(tmp_path)
+    receiver = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    receiver.bind(("127.0.0.1", 0))
+    receiver.settimeout(5)
+    sink = OscStreamSink([receiver.getsockname()])
+    sink.hello([hello_of(c, i) for i, c in enumerate(session.creatures)], 240.0)
+    late = 2**31 + 5
+    sink.frame(Frame(late, late / 240.0, tuple(snapshot(c) for c in session.creatures)))
+    sink.close()
+    addresses = []
+    while not any(a == "/body/bo/action" for a, _ in addresses):
+        addresses += [(t.message.address, t.message.params) for t in OscPacket(receiver.recv(65536)).messages]
+    receiver.close()
+    assert dict(addresses)["/colony/frame"] == [5, late / 240.0]
+    assert "/body/ada/pose" in dict(addresses)
 
 
 class _Stuck:

@@ -24,6 +24,10 @@ HELLO_EVERY = 1.0
 
 FRAME = head("/colony/frame", "id")
 
+INDEX_WRAP = 2**31
+"""The frame index is an OSC int32: it wraps to 0 here (after 103 days at 240 frames a second,
+414 at 60) rather than stopping the stream; the frame's time goes on."""
+
 MARK = np.dtype([("x", ">f4"), ("y", ">f4"), ("z", ">f4"), ("pitch", ">i4")])
 
 
@@ -157,7 +161,7 @@ class OscStreamSink:
             self._send(self.colony_hello)
             for heads in self.heads.values():
                 self._send(heads.hello)
-        colony = [FRAME + struct.pack(">id", frame.index, frame.time)]
+        colony = [FRAME + struct.pack(">id", frame.index % INDEX_WRAP, frame.time)]
         colony += [message("/colony/heard", source, pitch, velocity, duration)
                    for source, pitch, velocity, duration in frame.heard]
         played: dict[str, list[bytes]] = {}
