@@ -384,6 +384,25 @@ def test_a_host_not_of_this_machine_is_said_at_its_host(tmp_path, section):
     assert "192.0.2.1" in str(elsewhere.value) and f"choose another [{section}] host" in str(elsewhere.value)
 
 
+def test_two_listeners_of_a_run_on_one_port_are_a_config_error_before_it_runs(tmp_path):
+    """The OSC listener and the console (UDP), the health endpoint and the view (TCP) set to
+    one port: each was bound and let go alone before the run, so the clash was found only once
+    the run had opened its devices, and said as 'already in use' (by the run itself)."""
+    from creatures.config import ConfigError
+    from creatures.runtime.live import check_before_running
+
+    config = tmp_path / "clash.toml"
+    config.write_text('title = "t"\n[osc]\nport = 9112\n[console]\nport = 9112\n' + creature_tables("ada"))
+    with pytest.raises(ConfigError) as udp:
+        check_before_running(load_installation(config), state=None, log_path=None, pictures=None)
+    assert udp.value.key == "console.port" and udp.value.line == 5 and "[osc] port" in str(udp.value)
+    config.write_text('title = "t"\n[health]\nport = 9111\n[console]\nport = 9111\n' + creature_tables("ada"))
+    check_before_running(load_installation(config), state=None, log_path=None, pictures=None)  # UDP and TCP: apart
+    with pytest.raises(ConfigError) as tcp:
+        check_before_running(load_installation(config), state=None, log_path=None, pictures=None, view=9111)
+    assert tcp.value.key == "view.port" and "[health] port" in str(tcp.value)
+
+
 def test_requests_beyond_max_rate_are_counted_unanswered(tmp_path):
     from creatures.runtime.console import Console
     from creatures.runtime.schema import ConsoleSection

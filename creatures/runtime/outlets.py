@@ -44,6 +44,32 @@ def _bound(inst: LoadedInstallation, section: str, open_it: Callable[[], Any]) -
                                             f"choose another [{section}] host, an address of this machine") from None
 
 
+def check_apart(inst: LoadedInstallation, view: int | None = None) -> None:
+    """No two of the run's listeners on one port: the OSC listener and the console (UDP), the
+    health endpoint and the view on ``view`` (TCP, on 127.0.0.1), where their addresses meet
+    (the same one, or one of them every address, 0.0.0.0). Each port's own check binds it and
+    lets it go, so such a clash would first be met by the run itself, its devices open."""
+    settings = inst.settings
+    listeners = [("osc", socket.SOCK_DGRAM, settings.osc.host, settings.osc.port),
+                 ("console", socket.SOCK_DGRAM, settings.console.host, settings.console.port),
+                 ("health", socket.SOCK_STREAM, settings.health.host, settings.health.port)]
+    if view is not None:  # the view's module (aiohttp) imported only for a run that has one
+        from creatures.view.server import HOST as VIEW_HOST
+
+        listeners.append(("view", socket.SOCK_STREAM, VIEW_HOST, view))
+    seen: list[tuple[str, int, str, int]] = []
+    for section, kind, host, port in listeners:
+        if port is None:
+            continue
+        address = socket.gethostbyname(host)  # resolved at load: a host that does not was said there
+        for other, other_kind, other_address, other_port in seen:
+            meet = address == other_address or "0.0.0.0" in (address, other_address)
+            if (kind, port) == (other_kind, other_port) and meet:
+                raise inst.error((section, "port"), f"port {port} is [{other}] port too: each listens on a "
+                                                    f"port of its own; choose another [{section}] port")
+        seen.append((section, kind, address, port))
+
+
 def check_ports(inst: LoadedInstallation) -> None:
     """The console's and health endpoint's ports bound and let go: one in use is said before the run."""
     settings = inst.settings
