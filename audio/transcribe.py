@@ -58,8 +58,9 @@ from audio.sources import unusable
 from midi.notes import NoteEvent
 
 LIVE, QUICK, OFFLINE = "live", "quick", "offline"
-"""The looks: the live one answers a line's struck attack within 60 ms (p99 39 ms through JACK), the
-quick one sooner (its model hears a finer hop, 128 samples, and judges 4 of them back: through
+"""The looks: the live one answers a struck attack within 60 ms (p99 39 ms through JACK on probe
+tones; nine in ten of a sampled piano line's notes, a chord's fewer: docs/hearing.md, "Live
+latency"), the quick one sooner (its model hears a finer hop, 128 samples, and judges 4 of them back: through
 JACK at a 128-frame period p99 22.6 ms against the live look's 38.6) but hears bowed and blown
 notes and chords worse, the offline one hears more (docs/hearing.md has each measured)."""
 LOOKS = (LIVE, QUICK, OFFLINE)
@@ -74,7 +75,7 @@ PARTIALS = np.round(12 * np.log2(np.arange(2, 9))).astype(int)
 """Intervals (semitones) of partials 2–8 above a note: where a bright note's partials and
 clipping's distortion land."""
 VERIFY = 0.2
-"""P(sounding) the model must give an onset-ear candidate's pitch, from two hops before its attack
+"""P(sounding) the model must give an onset-ear candidate's pitch, from two hops before its onset frame
 on, for it to be a note. Chosen among 0.1, 0.2 and 0.3 on the tests' own FluidR3 renders (seeds
 0–1; one number, which moves no texture's F1 by more than 0.05): so judged, the onset ear's
 guitar lines went from 0.89–0.94 to 0.97–1.00, and both ears hear piano lines 1.00 offline."""
@@ -185,8 +186,8 @@ renders with :data:`OWN_PARTIAL`: the tuning mean F1 live 0.827 → 0.832 (the p
 → 0.811, a guitar chorale 0.802 → 0.827), offline 0.8646 → 0.8656."""
 LATE = 1
 """Offline, the model's notes wait this many hops more than the onset ear's look, in case its
-onset is a hop late. Live they do not (since 2026-12-05, with :data:`OWN_PARTIAL`): every struck note is
-given 3 hops (35 ms) after its attack's hop instead of 4. On the TimGM6mb tuning renders the live
+onset is a hop late. Live they do not (since 2026-12-05, with :data:`OWN_PARTIAL`): a struck note the
+model names outright is given 3 hops (35 ms) after the hop it names it in instead of 4. On the TimGM6mb tuning renders the live
 mean F1 went 0.832 → 0.834; held out (FluidR3, the bench's seeds) 0.715 → 0.713, guitar lines
 0.905 → 0.899. Offline it is kept: there the tuning renders rose (0.866 → 0.872) but FluidR3
 fell (0.799 → 0.797, piano and guitar lines 0.992 → 0.984 and 0.930 → 0.912), and nobody
@@ -265,7 +266,7 @@ class Transcriber:
         live = look != OFFLINE  # the live and the quick look give each note as soon as it is named
         self.ear = OnsetEar(LIVE_WINDOW if live else OFFLINE_WINDOW)
         # The onset ear's candidates wait until the model has judged a few hops past their
-        # attack (offline, where nobody waits; live, their attack's own hop), and offline the
+        # onset frame (offline, where nobody waits; live, that frame), and offline the
         # model's notes wait until the onset ear's have been given (a hop more: the ear's onset
         # may be a hop late): its notes come first, the model adds what it alone heard. Live the
         # model's notes do not wait: a struck note is given when the model names it, 3 hops after

@@ -152,7 +152,7 @@ def room(audio: np.ndarray, rate: int, rng: np.random.Generator, *, snr_db: floa
     return (wet + level * hum).astype(np.float32)
 
 
-def _hz(p) -> np.ndarray:
+def _hz(p: np.ndarray | list[int]) -> np.ndarray:
     return 440.0 * 2.0 ** ((np.asarray(p, dtype=float) - 69.0) / 12.0)
 
 

@@ -107,7 +107,8 @@ def test_the_issue_s_targets_not_yet_met(instrument: str, voices: int, texture: 
 
 @pytest.mark.slow
 def test_the_live_look_hears_piano_lines_and_chords_and_a_flute() -> None:
-    """The live path's look (≤ 60 ms from a struck onset to its note event) hears sampled piano and a flute too."""
+    """The live path's look (a struck note 3 hops past the hop it is named in) hears sampled piano
+    and a flute too."""
     mono = score("piano", 1, "random", 44100, look=LIVE)
     four = score("piano", 4, "random", 44100, look=LIVE)
     flute = score("flute", 1, "random", 44100, look=LIVE)
@@ -117,9 +118,9 @@ def test_the_live_look_hears_piano_lines_and_chords_and_a_flute() -> None:
 
 @pytest.mark.slow
 def test_the_quick_look_hears_piano_lines_and_chords_and_a_flute() -> None:
-    """The quick look (≤ 30 ms from a struck onset to its note event, a model on a finer hop) is
-    made for struck instruments: it hears sampled piano lines and chords to the issue's targets,
-    and a flute line too. (It hears string chords poorly: docs/hearing.md.)"""
+    """The quick look (≤ 30 ms from a struck onset to its note event on the generated phrases, a
+    model on a finer hop) is made for struck instruments: it hears sampled piano lines and chords
+    to the issue's targets, and a flute line too. (It hears string chords poorly: docs/hearing.md.)"""
     mono = score("piano", 1, "random", 44100, look=QUICK)
     four = score("piano", 4, "random", 44100, look=QUICK)
     flute = score("flute", 1, "random", 44100, look=QUICK)
@@ -129,7 +130,21 @@ def test_the_quick_look_hears_piano_lines_and_chords_and_a_flute() -> None:
 
 
 @pytest.mark.slow
-def test_the_live_look_gives_struck_notes_of_a_line_within_60_ms_of_their_onset() -> None:
+def test_either_ear_dates_a_note_in_the_hop_its_attack_began() -> None:
+    """The two ears tell one rhythm in one time: the onset ear's notes are dated a hop before
+    its onset frame (``audio.onset_ear.LEAD``), where the attack began, as the model's are.
+    Dated at the onset frame they were 15.8, 16.0 and 17.1 ms after their MIDI onsets (p50)."""
+    for instrument, voices, texture, rate in (("piano", 1, "random", 22050), ("guitar", 1, "random", 48000),
+                                              ("piano", 4, "chorale", 22050)):
+        notes, audio = played(instrument, voices, texture, rate)
+        dated = 1e3 * answer_delays(notes, [(t, p, t) for t, _, p in transcribe(audio, rate)])
+        print(f"{instrument} {voices}v {texture}: dated p50 {np.median(dated):.1f} ms after the onset")
+        assert len(dated) >= 0.5 * len(notes)  # heard, and so dated
+        assert abs(np.median(dated)) <= 10  # measured 4.2, 4.4 and 6.2 ms
+
+
+@pytest.mark.slow
+def test_the_live_look_gives_nine_in_ten_struck_notes_of_a_line_within_60_ms() -> None:
     """The issue's ≤ 60 ms from an onset to its note event, on sampled lines: a struck note is
     given 3 hops after the hop the model names it in (its attack's, mostly; a hop or two later
     for a few notes), the time measured from the MIDI onset to the block that gave the note."""
@@ -144,12 +159,16 @@ def test_the_live_look_gives_struck_notes_of_a_line_within_60_ms_of_their_onset(
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="issue 18: a chord's notes come later (4 voices: 77 % within "
-                                       "60 ms, p90 63.9 ms, the latest 124.2 ms)")
+@pytest.mark.xfail(strict=True, raises=AssertionError,
+                   reason="issue 18: a chord's notes come later (4 voices: 77 % within 60 ms, p90 63.9 ms, "
+                          "the latest 124.2 ms)")
 def test_the_live_look_gives_every_note_of_a_chord_within_60_ms() -> None:
-    """Not met: in chords the model names some notes a hop or two after their attack, and those it
-    misses come from the onset ear, whose look is a hop longer (docs/hearing.md, "Live latency")."""
-    four, _ = delays("piano", 4, "random")
+    """Not met: in chords the model gives some notes by its swell rules, hops after their attack,
+    and those it does not name come from the onset ear, whose look is a hop longer
+    (docs/hearing.md, "Live latency")."""
+    four, played_four = delays("piano", 4, "random")
+    if len(four) < 0.75 * played_four:  # measured 127 of 158; not the failure expected
+        raise RuntimeError(f"heard {len(four)} of {played_four} notes: too few to time")
     assert four.max() <= 60
 
 

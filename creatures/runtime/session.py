@@ -93,7 +93,7 @@ class Session:
                                     voices=len(self.creatures), diagonal=math.hypot(room.width, room.depth),
                                     longest_block=block)
         self.transcribe = transcribe
-        self.transcribe_look = settings.audio.look  # live or quick (≤ 60 and ≤ 30 ms from an attack to its note); offline looks further
+        self.transcribe_look = settings.audio.look  # live or quick (about 35 and 23 ms past a struck attack's hop; docs/hearing.md); offline looks further
         self._transcriber: Transcriber | None = None
         self.ticks = 0
         self._set_up_channels()
