@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 
 from creatures.authored.registry import ACTIONS, MODELS, PERCEPTS, PluginError, load_parts
 from creatures.authored.skills import VOICE_PARAMETERS
+from creatures.config import nearest
 from creatures.behaviour.action_group import ungrounded_message
 from creatures.config import ConfigError, config_error, validate, written_in
 
@@ -253,9 +254,7 @@ def _joints(c: _Checker, wanted: list[str], loc: tuple) -> None:
     known = body_graph(c.spec.body).skeleton.names if wanted else ()
     for joint in wanted:
         if joint not in known:
-            close = difflib.get_close_matches(joint, known, n=1)
-            hint = f" (did you mean {close[0]!r}?)" if close else f" (joints: {', '.join(known)})"
-            raise c.error(loc, f"the body has no joint {joint!r}{hint}")
+            raise c.error(loc, f"the body has no joint {joint!r}{nearest(joint, known, 'joints')}")
 
 
 def _voice_parameters(c: _Checker, named: list[str], loc: tuple) -> None:

@@ -32,7 +32,6 @@ Thesis, "soundcreatures": each creature has "a microphone-as-ear and a loudspeak
 from __future__ import annotations
 
 import base64
-import difflib
 import weakref
 from dataclasses import dataclass
 from pathlib import Path
@@ -55,6 +54,7 @@ from creatures.behaviour.percept import Percept
 from creatures import bounds
 from creatures.bounds import FINITE
 from creatures.clock import clock_gap
+from creatures.config import nearest
 from creatures.kinds.parts import shared_graph
 from creatures.motor.graph import MotorGraph
 from creatures.motor.pose import BodyPose
@@ -185,10 +185,8 @@ class BodyFeatures:
         for key, joints in (("rib_cage", rib), ("back", back)):
             for joint in joints:
                 if joint not in names:
-                    close = difflib.get_close_matches(joint, names, n=1)
-                    hint = f"did you mean {close[0]!r}?" if close else f"joints: {', '.join(names)}"
-                    raise ValueError(f"mouth.{key}: the body has no joint {joint!r} ({hint}); name the body's "
-                                     f"own joints in [creature.mouth] {key}")
+                    raise ValueError(f"mouth.{key}: the body has no joint {joint!r}{nearest(joint, names, 'joints')}; "
+                                     f"name the body's own joints in [creature.mouth] {key}")
         a, b = (names.index(j) for j in rib)
         u, v, w = (names.index(j) for j in back)
         positions = graph.poses.positions

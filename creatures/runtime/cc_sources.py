@@ -9,10 +9,11 @@ checks it at load (the creature's kind says which drives it has and whether it h
 
 from __future__ import annotations
 
-import difflib
 from typing import TYPE_CHECKING, Callable
 
 import numpy as np
+
+from creatures.config import nearest
 
 if TYPE_CHECKING:
     from creatures.kinds.base import CreatureKind
@@ -39,13 +40,13 @@ def check_source(source: str, drives: tuple[str, ...], has_body: bool) -> str | 
     if body is None:
         if what in drives:
             return None
-        return f"{name} has no drive {what!r}{_nearest(what, drives)}"
+        return f"{name} has no drive {what!r}{nearest(what, drives, 'drives')}"
     if body != "body":
         return f"{body!r} is not 'body': use '<creature>.<drive>' or '<creature>.body.<feature>'"
     if not has_body:
         return f"{name} has no body (its kind draws none); a stream may read its drives ({', '.join(drives) or 'none'})"
     if what not in BODY_FEATURES:
-        return f"no body feature {what!r}{_nearest(what, BODY_FEATURES)}"
+        return f"no body feature {what!r}{nearest(what, BODY_FEATURES, 'body features')}"
     return None
 
 
@@ -81,11 +82,3 @@ def _effector(creature: "CreatureKind") -> np.ndarray:
     if here is None:  # check_source passed it: the kind said it has a body
         raise RuntimeError(f"{creature.name} reports no end-effector although its kind has a body")
     return here
-
-
-def _nearest(name: str, choices: tuple[str, ...]) -> str:
-    close = difflib.get_close_matches(name, choices, n=1)
-    if close:
-        return f" (did you mean {close[0]!r}?)"
-    return f" (choose from {', '.join(choices)})" if choices else " (it has none)"
-

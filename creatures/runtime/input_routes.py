@@ -9,13 +9,12 @@ messages against.
 
 from __future__ import annotations
 
-import difflib
 import re
 from dataclasses import dataclass
-from typing import Any
 
 import mido
 
+from creatures.config import nearest
 from creatures.runtime.schema import Arg, InputMap
 
 SOURCES = ("osc", "midi", "serial", "file")
@@ -140,13 +139,13 @@ class Route:
                 raise MapError("osc", f"bad OSC address pattern: {exc}") from None
         if spec.midi is not None:
             if spec.midi not in MIDI:
-                raise MapError("midi", f"unknown MIDI message {spec.midi!r}{_nearest(spec.midi, MIDI)}")
+                raise MapError("midi", f"unknown MIDI message {spec.midi!r}{nearest(spec.midi, sorted(MIDI), 'MIDI messages')}")
             self.midi = spec.midi
         self._check_filters()
         if spec.to is None:
             raise MapError("to", f"a map needs to = {' / '.join(repr(t) for t in TARGETS)}")
         if spec.to not in TARGETS:
-            raise MapError("to", f"unknown target {spec.to!r}{_nearest(spec.to, TARGETS)}")
+            raise MapError("to", f"unknown target {spec.to!r}{nearest(spec.to, sorted(TARGETS), 'targets')}")
         for key in sorted({k for keys in TARGET_KEYS.values() for k in keys} - set(TARGET_KEYS[spec.to])):
             if key in spec.model_fields_set:
                 raise MapError(key, f"not a key of to = {spec.to!r} (its keys: {', '.join(TARGET_KEYS[spec.to])})")
@@ -180,7 +179,7 @@ class Route:
             return None
         for name in spec.creatures or ():
             if name not in colony:
-                raise MapError("creatures", f"no creature named {name!r}{_nearest(name, colony)}")
+                raise MapError("creatures", f"no creature named {name!r}{nearest(name, sorted(colony), 'creatures')}")
             if name not in can:
                 why = ("has no action-group to reward" if spec.to == "reward" else
                        f"has no drive {spec.drive!r} (its drives: {', '.join(colony[name].drives) or 'none'})")
@@ -189,7 +188,7 @@ class Route:
             drives = sorted({d for c in colony.values() for d in c.drives})
             raise MapError("creatures" if spec.to == "reward" else "drive",
                            "no creature has an action-group to reward" if spec.to == "reward"
-                           else f"no creature has a drive {spec.drive!r}{_nearest(spec.drive, drives)}")
+                           else f"no creature has a drive {spec.drive!r}{nearest(spec.drive, sorted(drives), 'drives')}")
         return list(spec.creatures) if spec.creatures is not None else can
 
     def matches_osc(self, address: str, args: tuple) -> bool:
@@ -201,11 +200,6 @@ class Route:
         return (kind == self.midi and (spec.channel is None or msg.channel == spec.channel)
                 and (spec.control is None or msg.control == spec.control)
                 and (spec.note is None or msg.note == spec.note))
-
-
-def _nearest(name: str, choices: Any) -> str:
-    close = difflib.get_close_matches(str(name), list(choices), n=1)
-    return f" (did you mean {close[0]!r}?)" if close else f" (choose from {', '.join(sorted(choices))})"
 
 
 def compile_maps(maps: list[InputMap], colony: dict[str, Colony]) -> list[Route]:
