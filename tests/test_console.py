@@ -368,6 +368,27 @@ def test_busy_ports_and_bad_addresses_are_config_errors_before_the_run(tmp_path)
         load_installation(config)
 
 
+@pytest.mark.parametrize("host, secret, refused", [("0.0.0.0", None, True), ("0.0.0.0", "long words", False),
+                                                   ("127.0.0.1", None, False), ("localhost", None, False)])
+def test_a_console_open_to_the_network_needs_a_secret(tmp_path, host, secret, refused):
+    """Without a secret a request's sender cannot be told from a forged one: a 40-byte request
+    for a creature's state drew up to 60,000 bytes at the address it named (an amplifier, the
+    rate limit counting requests, not bytes), and anyone on the network could pause the show.
+    Loopback is this machine's own programs."""
+    from creatures.config import ConfigError
+
+    config = tmp_path / "open.toml"
+    written = f'secret = "{secret}"\n' if secret else ""
+    config.write_text(f'title = "t"\n[console]\nport = 9100\nhost = "{host}"\n{written}' + creature_tables("ada"))
+    if not refused:
+        assert load_installation(config).settings.console.host == host
+        return
+    with pytest.raises(ConfigError) as open_console:
+        load_installation(config)
+    assert open_console.value.key == "console.host" and open_console.value.line == 4
+    assert "needs a secret" in str(open_console.value) and "amplifier" in str(open_console.value)
+
+
 @pytest.mark.parametrize("section", ["console", "health"])
 def test_a_host_not_of_this_machine_is_said_at_its_host(tmp_path, section):
     """A console or health endpoint set to listen on an address this machine does not have (a
@@ -377,7 +398,8 @@ def test_a_host_not_of_this_machine_is_said_at_its_host(tmp_path, section):
     from creatures.runtime.live import check_before_running
 
     config = tmp_path / "elsewhere.toml"
-    config.write_text(f'title = "t"\n[{section}]\nport = 9100\nhost = "192.0.2.1"\n' + creature_tables("ada"))
+    secret = 'secret = "long words"\n' if section == "console" else ""  # open to the network: a secret
+    config.write_text(f'title = "t"\n[{section}]\nport = 9100\nhost = "192.0.2.1"\n{secret}' + creature_tables("ada"))
     with pytest.raises(ConfigError) as elsewhere:
         check_before_running(load_installation(config), state=None, log_path=None, pictures=None)
     assert elsewhere.value.key == f"{section}.host" and elsewhere.value.line == 4

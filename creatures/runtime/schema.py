@@ -7,6 +7,7 @@ of that page. Unknown keys are errors (a typo must never be silently ignored in 
 from __future__ import annotations
 
 import difflib
+import ipaddress
 import socket
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -113,9 +114,11 @@ class ConsoleSection(Strict):
     tuple, reward, pause, resume and save. Off unless ``port`` is set."""
 
     port: int | None = Field(None, ge=1024, le=65535, description="UDP port the console listens on; none = no console")
-    host: str = Field("127.0.0.1", description="address the console binds to (loopback by default)")
+    host: str = Field("127.0.0.1", description="address the console binds to (loopback by default; beyond "
+                                               "loopback a secret is needed)")
     secret: str | None = Field(None, min_length=8, max_length=256,
-                               description="shared secret every request carries after its id; none = no secret")
+                               description="shared secret every request carries after its id; none = no secret "
+                                           "(only on loopback)")
     max_rate: int = Field(1_000, ge=10, le=100_000, description="requests a second answered at most; beyond, "
                                                                 "they are counted and dropped unanswered")
     queue: int = Field(64, ge=1, le=1024, description="requests waiting for the creatures' thread at most; "
@@ -526,10 +529,13 @@ def load_installation(path: str | Path) -> LoadedInstallation:
             raise config_error(path, where, ("input", key), f"file not found: {file}")
     if settings.osc.port is not None and (problem := host_problem(settings.osc.host)) is not None:
         raise config_error(path, where, ("osc", "host"), problem)
-    for section in ("console", "health"):
+    for section, what in (("console", "console"), ("health", "health endpoint")):
         part = getattr(settings, section)
-        if part.port is not None and (problem := host_problem(part.host)) is not None:
+        if part.port is not None and (problem := host_problem(part.host, what)) is not None:
             raise config_error(path, where, (section, "host"), problem)
+    console = settings.console
+    if console.port is not None and console.secret is None and not loopback(console.host):
+        raise config_error(path, where, ("console", "host"), OPEN_CONSOLE.format(host=console.host))
     for loc, peers in ((("osc", "peers"), settings.osc.peers), (("stream", "targets"), settings.stream.targets),
                        (("health", "heartbeat"), settings.health.heartbeat)):
         for i, peer in enumerate(peers):
@@ -590,18 +596,33 @@ def _with_input_maps(path: Path, settings: Installation, specs: list[CreatureSpe
     return inst
 
 
-def host_problem(host: str) -> str | None:
-    """Why the colony cannot listen on ``host`` ([osc] host), or None: a host that does not
-    resolve, or one that is IPv6 (refused: every socket here is IPv4, and a colony on ::1 that
-    peers on 127.0.0.1 would hear nothing). Checked at load, before anything runs or is made."""
+def host_problem(host: str, what: str = "OSC") -> str | None:
+    """Why the colony cannot listen on ``host`` ([osc] host; ``what`` names the listener), or
+    None: a host that does not resolve, or one that is IPv6 (refused: every socket here is IPv4,
+    and a colony on ::1 that peers on 127.0.0.1 would hear nothing). Checked at load, before
+    anything runs or is made."""
     try:
         family = socket.getaddrinfo(host, None, type=socket.SOCK_DGRAM)[0][0]
     except (OSError, UnicodeError) as exc:
-        return f"OSC host {host!r} does not resolve ({exc})"
+        return f"{what} host {host!r} does not resolve ({exc})"
     if family != socket.AF_INET:
-        return (f"OSC host {host!r} is not IPv4: OSC here speaks IPv4 only "
+        return (f"{what} host {host!r} is not IPv4: every socket here speaks IPv4 only "
                 "(use 127.0.0.1, 0.0.0.0 or an IPv4 address of this machine)")
     return None
+
+
+OPEN_CONSOLE = ("a console open to the network (host {host!r}) needs a secret: a request without one may come "
+                "from a forged address, and its reply (up to 60,000 bytes for a 40-byte request) goes to that "
+                "address, so the colony would be an amplifier aimed at whomever a stranger names, and anyone "
+                "on the network could pause it or set its creatures; set [console] secret (every request "
+                "carries it after its id), or keep host = \"127.0.0.1\"")
+"""Why a console bound beyond loopback must have a secret (docs/stream.md, "The remote console")."""
+
+
+def loopback(host: str) -> bool:
+    """Whether ``host`` (already known to resolve) is this machine's loopback: only this
+    machine's programs can send to it, so no one forges a sender there."""
+    return ipaddress.ip_address(socket.getaddrinfo(host, None, type=socket.SOCK_DGRAM)[0][4][0]).is_loopback
 
 
 def peer_problem(peer: str) -> str | None:
