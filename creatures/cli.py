@@ -421,8 +421,11 @@ def _view(args: argparse.Namespace) -> int:
     import time
 
     from creatures.view.rerender import learned, load_replay
-    from creatures.view.server import ReplaySource, ViewServer
+    from creatures.view.server import ReplaySource, ViewServer, port_problem
 
+    if (problem := port_problem(args.port)) is not None:  # said as a run's --view says it
+        print(f"creatures: {problem.replace('--view PORT', '--port PORT')}", file=sys.stderr)
+        return 2
     try:
         source = ReplaySource(load_replay(args.run_dir), speed=args.speed, learned=learned(args.run_dir))
         server = ViewServer(source, args.port).start()

@@ -479,6 +479,20 @@ def test_a_run_restarted_at_once_serves_the_port_its_browser_was_on():
             ViewServer(ReplaySource(played), taken.getsockname()[1]).start()
 
 
+def test_creatures_view_on_a_port_in_use_says_so_in_a_sentence(tmp_path, capsys):
+    """``creatures view RUN --port P`` where another program listens on P: a sentence naming
+    the port and the option, exit 2 (it printed the bare OSError)."""
+    from creatures.cli import main
+
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        assert main(["view", str(tmp_path), "--port", str(port)]) == 2
+    said = capsys.readouterr().err
+    assert f"the view's port {port}" in said and "choose another with --port PORT" in said
+
+
 def test_the_view_port_comes_from_the_option_then_the_config_then_the_default():
     from creatures.cli import DEFAULT_VIEW_PORT, _view_port
 
