@@ -183,8 +183,8 @@ TABLE = [("piano", 1, "random"), ("piano", 4, "random"), ("piano", 4, "chorale")
 def _transcription_rows(quick: bool) -> list[Row]:
     """Sampled piano (fluidsynth) at 44.1 kHz, streamed in 512-frame blocks as a live input gives
     it, each look, with basic-pitch's published model on the same audio, and how long after its
-    onset each note heard live was given (fed in 64-frame blocks, a short JACK period); then (not ``quick``) note F1 per instrument and
-    texture, ours beside the model's."""
+    onset each note heard live was given (fed in 64-frame blocks, a short JACK period); then
+    (not ``quick``) note F1 per instrument and texture, ours beside the model's."""
     from audio.transcribe import EARS, LIVE, OFFLINE, QUICK, Transcriber
 
     if not have_sampler():

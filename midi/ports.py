@@ -118,9 +118,7 @@ class MidoInputs:
         return pulse is not None and getattr(port, "jack_generation", pulse.generation) != pulse.generation
 
     def _jack(self) -> JackPulse | None:
-        if self.backend.name != "mido.backends.rtmidi":
-            return None
-        if self.backend.api != "UNIX_JACK" and not (self.backend.api is None and self._chose_jack):
+        if self.backend.name != "mido.backends.rtmidi" or self._api() != "UNIX_JACK":
             return None
         if self._pulse is None:
             self._pulse = jack_pulse()
