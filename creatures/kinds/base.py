@@ -72,7 +72,7 @@ class CreatureKind(ABC):
     """Whether the kind has an action-group (``group``) a reward can reach."""
 
     @classmethod
-    def body_problem(cls, spec: CreatureSpec, labels: set[str], joints: tuple[str, ...]) -> str | None:
+    def body_problem(cls, spec: CreatureSpec, labels: frozenset[str], joints: tuple[str, ...]) -> str | None:
         """What the kind needs of a body from files that this one lacks (a motor label, a joint),
         checked once the body is built (its labels and joint names); None: it will do."""
         return None

@@ -247,7 +247,7 @@ class _Rest(Rest):
 class Curve(CreatureKind):
     Spec = CurveSpec
     @classmethod
-    def body_problem(cls, spec: CreatureSpec, labels: set[str], joints: tuple[str, ...]) -> str | None:
+    def body_problem(cls, spec: CreatureSpec, labels: frozenset[str], joints: tuple[str, ...]) -> str | None:
         missing = [j for j in spec.limbs or () if j not in joints]
         return f"limbs: the body has no joint {missing[0]!r} (joints: {', '.join(joints)})" if missing else None
 

@@ -139,7 +139,7 @@ class DuncanSpec(CreatureSpec):
                              "its own whose takes label them")
         if not self.body.custom:  # a body from files is checked once built (Duncan.body_problem)
             poses = figure_graph(figure).poses
-            problem = self.missing(set().union(*poses.labels), poses.skeleton.names, f"the {figure}")
+            problem = self.missing(poses.every_label, poses.skeleton.names, f"the {figure}")
             if problem is not None:
                 raise ValueError(problem)
         for offer in self.offers:
@@ -153,7 +153,7 @@ class DuncanSpec(CreatureSpec):
         return self
 
 
-    def missing(self, labels: set[str], joints: tuple[str, ...], body: str) -> str | None:
+    def missing(self, labels: frozenset[str], joints: tuple[str, ...], body: str) -> str | None:
         """What of the tricks, the rest and the beg ``body`` (its motor labels and joints) lacks."""
         for label in [*self.tricks, self.rest, self.beg.label]:
             if label not in labels:
@@ -207,7 +207,7 @@ class Duncan(CreatureKind):
     Spec = DuncanSpec
 
     @classmethod
-    def body_problem(cls, spec: DuncanSpec, labels: set[str], joints: tuple[str, ...]) -> str | None:
+    def body_problem(cls, spec: DuncanSpec, labels: frozenset[str], joints: tuple[str, ...]) -> str | None:
         return spec.missing(labels, joints, "the body")
 
     def __init__(self, spec: DuncanSpec, world: "World", rng: np.random.Generator) -> None:

@@ -106,7 +106,9 @@ def body_graph(body: object) -> MotorGraph:
 
 def body_labels(body: object) -> set[str]:
     """Every motor label of a creature's ``body`` key."""
-    return set().union(*body_graph(body).poses.labels) | {LOW_ENERGY}
+    return set(body_graph(body).poses.every_label) | {LOW_ENERGY}
+
+
 def figure_of(body: object) -> Figure:
     """The figure a creature's ``body`` key asks for (``true`` or a table without one: the stick)."""
     return getattr(body, "figure", "stick")

@@ -140,7 +140,7 @@ def build(sources: Sources, edit_files: list[EditFile]) -> MotorGraph:
     for label in sources.rest_labels:
         nodes = material.poses.labelled(label)
         if not nodes.size:
-            known = sorted(set().union(*material.poses.labels))
+            known = sorted(material.poses.every_label)
             raise MaterialError(f"rest label {label!r} is on no frame of the animations"
                                 f"{nearest(label, known, 'labels')}", ("rest_labels",))
         for node in nodes.tolist():

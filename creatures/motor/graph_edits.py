@@ -245,7 +245,7 @@ class Nodes:
         found = poses.labelled(reference)
         if not found.size:
             raise EditError(f"{where}: node {reference!r}: no node carries that label (and it is not source@frame)"
-                            f"{nearest(reference, sorted(set().union(*poses.labels)), 'labels')}")
+                            f"{nearest(reference, sorted(poses.every_label), 'labels')}")
         return found
 
 

@@ -139,6 +139,12 @@ class PoseSet:
         ):
             raise ValueError("PoseSet arrays must all have one entry per pose")
 
+    @property
+    def every_label(self) -> frozenset[str]:
+        """Every motor label some pose carries: what a label named in a config, a program or an
+        edit must be one of."""
+        return frozenset().union(*self.labels)
+
     @classmethod
     def from_checked(cls, skeleton: Skeleton, rotations: np.ndarray, velocities: np.ndarray, roots: np.ndarray,
                      times: np.ndarray, source_ids: np.ndarray, sources: list[str],

@@ -216,7 +216,7 @@ class MotorProgramGraph:
         options = self.edges.get(cursor, [])
         if not options:
             return None
-        labels = _labels(motor)
+        labels = motor.graph.poses.every_label
 
         def cost(name: str) -> float:
             stmt = self.vertices[name]
@@ -247,10 +247,6 @@ class MotorProgramGraph:
                     parents[nxt] = name
                     queue.append(nxt)
         return None
-
-
-def _labels(motor: MotorSystem) -> set[str]:
-    return set().union(*motor.graph.poses.labels)
 
 
 # --- the stack machine ------------------------------------------------------------------

@@ -571,7 +571,7 @@ def _resolve_body(kind: type, spec: CreatureSpec, path: Path, where: dict[tuple,
     except MaterialError as exc:
         raise config_error(path, where, (*at, *exc.key), str(exc)) from None
     poses = material.graph.poses
-    problem = kind.body_problem(spec, set().union(*poses.labels), poses.skeleton.names)
+    problem = kind.body_problem(spec, poses.every_label, poses.skeleton.names)
     if problem is not None:
         raise config_error(path, where, at, problem)
 
