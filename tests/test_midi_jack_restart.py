@@ -378,24 +378,27 @@ def _in_a_child(scenario: str, tools: tuple[str, ...], tmp_path: Path) -> dict:
     return json.loads(next(line for line in out.splitlines() if line.startswith("RESULT "))[7:])
 
 
+def _lost_once_and_back(seen: dict, name: str) -> None:
+    """The loss is said once, within three looks (the pulse out when the server died is missed at
+    the next look, a second at the one after: two in a row); with the server and the peer back,
+    the next look reopens the port and says so."""
+    assert seen["looks_to_loss"] <= 3, seen
+    lost = [r for r in seen["reports"] if " lost " in r]
+    assert lost == [f"MIDI port {name!r} lost (the JACK server is not running); will reopen it when it returns"]
+    assert seen["reports_while_down"] == lost and seen["faults"] == 1
+    assert seen["looks_to_reconnect"] <= 2, seen
+    assert seen["reports"][-1] == f"MIDI port {name!r} is back" and seen["reopened"] == 1
+
+
 @pytest.mark.jack
 @pytest.mark.realtime
 def test_jack_server_restart_is_reported_and_the_port_reconnects_and_delivers(tmp_path):
     seen = _in_a_child("_scenario", ("jack_midi_dump", "stdbuf"), tmp_path)
 
     assert seen["connected_at_start"] and seen["heard_before"] == [60]
-    # The loss is said once, within three looks (the pulse out when the server died is missed
-    # at the next look, a second at the one after: two in a row), and the notes meanwhile are
-    # dropped and counted.
-    assert seen["looks_to_loss"] <= 3, seen
-    lost = [r for r in seen["reports"] if " lost " in r]
-    assert lost == [f"MIDI port {RECEIVER!r} lost (the JACK server is not running); will reopen it when it returns"]
-    assert seen["reports_while_down"] == lost and seen["dropped"] >= 1 and seen["faults"] == 1
-    # With the server and the receiver back, the next look reopens the port and says so; a note
-    # sent then arrives at the receiver.
-    assert seen["looks_to_reconnect"] <= 2, seen
-    assert seen["reports"][-1] == f"MIDI port {RECEIVER!r} is back" and seen["reopened"] == 1
-    assert seen["sent_after"] and seen["heard_after"], seen
+    _lost_once_and_back(seen, RECEIVER)
+    assert seen["dropped"] >= 1  # the notes sent meanwhile are dropped and counted
+    assert seen["sent_after"] and seen["heard_after"], seen  # a note sent once it is back arrives
 
 
 @pytest.mark.jack
@@ -406,10 +409,5 @@ def test_jack_server_restart_under_a_midi_input_is_reported_and_it_listens_again
     seen = _in_a_child("_input_scenario", ("jack_midiseq",), tmp_path)
 
     assert seen["connected_at_start"] and set(seen["heard_before"]) == {64}
-    assert seen["looks_to_loss"] <= 3, seen  # two pulses in a row missed, as for an output
-    lost = [r for r in seen["reports"] if " lost " in r]
-    assert lost == [f"MIDI port {SOURCE!r} lost (the JACK server is not running); will reopen it when it returns"]
-    assert seen["reports_while_down"] == lost and seen["faults"] == 1
-    assert seen["looks_to_reconnect"] <= 2, seen
-    assert seen["reports"][-1] == f"MIDI port {SOURCE!r} is back" and seen["reopened"] == 1
+    _lost_once_and_back(seen, SOURCE)
     assert set(seen["heard_after"]) == {64}, seen
