@@ -73,20 +73,29 @@ class BodyCoupling:
         t = np.linspace(0.0, 1.0, n_masses)[:, None]
         return cls((1.0 - t) * np.asarray(start, float) + t * np.asarray(end, float), **kwargs)
 
-    def forces(self, pose: PoseLike) -> np.ndarray:
-        """Per-node force ``(N,)`` from the joints' motion since the previous pose.
-
-        Velocities are differences of ``positions`` over elapsed ``pose.time`` (clock time,
-        never tick counts); the first pose, or one at the same time, pushes nothing.
-        """
+    def _motion(self, pose: PoseLike) -> tuple[np.ndarray, np.ndarray, float] | None:
+        """The coupled joints' positions ``(J, 3)``, their step since the previous pose and the
+        clock time between; ``None`` for the first pose, one at the same time, or a changed body."""
         positions = np.asarray(pose.positions, dtype=float)
         if self.joints is not None:
             positions = positions[self.joints]
         t = float(pose.time)
         last, self._last = self._last, (positions.copy(), t)
         if last is None or last[0].shape != positions.shape or not t > last[1]:
+            return None
+        return positions, positions - last[0], t - last[1]
+
+    def forces(self, pose: PoseLike) -> np.ndarray:
+        """Per-node force ``(N,)`` from the joints' motion since the previous pose.
+
+        Velocities are differences of ``positions`` over elapsed ``pose.time`` (clock time,
+        never tick counts); the first pose, or one at the same time, pushes nothing.
+        """
+        moved = self._motion(pose)
+        if moved is None:
             return np.zeros(len(self.nodes))
-        velocity = (positions - last[0]) / (t - last[1])  # (J, 3)
+        positions, step, dt = moved
+        velocity = step / dt  # (J, 3)
         offsets = positions[None, :, :] - self.nodes[:, None, :]  # (N, J, 3)
         weights = np.exp(-0.5 * np.einsum("njk,njk->nj", offsets, offsets) / self.radius**2)
         return self.gain * weights @ (velocity @ self.axis)

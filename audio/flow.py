@@ -52,15 +52,11 @@ class FlowCoupling(BodyCoupling):
         return np.stack([points @ self.along, points @ self.axis], axis=1)
 
     def forces(self, pose: PoseLike) -> np.ndarray:
-        positions = np.asarray(pose.positions, dtype=float)
-        if self.joints is not None:
-            positions = positions[self.joints]
-        t = float(pose.time)
-        last, self._last = self._last, (positions.copy(), t)
-        if last is None or last[0].shape != positions.shape or not t > last[1]:
+        moved = self._motion(pose)
+        if moved is None:
             return np.zeros(len(self.nodes))
-        dt = t - last[1]
-        self._drag(self._plane(positions), (positions - last[0]) @ self.axis / dt)
+        positions, step, dt = moved
+        self._drag(self._plane(positions), step @ self.axis / dt)
         self._spread(dt)
         i, j, weights = self._nodes_in_field
         f = self.field
