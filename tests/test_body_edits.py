@@ -11,6 +11,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
 from body_fixtures import HIERARCHY, heron_config, heron_frames, write_bvh
+import installations
 from creatures.config import ConfigError
 from creatures.motor.bvh import BVHError, parse_bvh
 from creatures.motor.graph_edits import EditError, read_edits
@@ -340,11 +341,21 @@ def test_files_written_with_a_byte_order_mark_read_as_without(tmp_path: Path):
     assert graphs[1] == graphs[0] and set(graphs[0][1].values()) == {0.5}
 
 
+def test_a_curves_limbs_are_checked_on_its_shipped_figure(tmp_path: Path):
+    text = installations.path("curve").read_text(encoding="utf-8")
+    config = tmp_path / "curve.toml"
+    config.write_text(text.replace('kind = "curve"\n', 'kind = "curve"\nlimbs = ["wrist_k"]\n', 1), encoding="utf-8")
+    with pytest.raises(ConfigError, match=r"curve\.toml:\d+: creature\.0: .*limbs: the \w+ has no joint 'wrist_k' "
+                                          r"\(did you mean 'wrist_\w'\?\)"):
+        load_installation(config)
+
+
 def test_a_curves_limbs_are_checked_on_its_body_of_files(tmp_path: Path):
     config = heron_config(tmp_path, kind="curve")
     assert load_installation(config).specs[0].body.custom  # curve takes a body of files like any kind
-    config.write_text(config.read_text().replace('kind = "curve"\n', 'kind = "curve"\nlimbs = ["wing_l"]\n'))
-    with pytest.raises(ConfigError, match=r"heron\.toml:\d+: creature\.0\.body: limbs: the body has no joint 'wing_l'"):
+    config.write_text(config.read_text().replace('kind = "curve"\n', 'kind = "curve"\nlimbs = ["nek"]\n'))
+    with pytest.raises(ConfigError, match=r"heron\.toml:\d+: creature\.0\.body: limbs: the body has no joint 'nek' "
+                                          r"\(did you mean 'neck'\?\)"):
         load_installation(config)
 
 

@@ -49,6 +49,7 @@ from creatures.body.springs import SpringBody, SpringSpec
 from creatures.behaviour.action_tuple import Action, ActionTuple, DoUntil
 from creatures.behaviour.models.gaussian import GaussianModel
 from creatures.behaviour.percept import FunctionPercept, WhateverPercept
+from creatures.config import nearest
 from creatures.kinds import register
 from creatures.kinds.base import CreatureKind, CreatureSpec
 from creatures.kinds.moves import Rest, head_for
@@ -94,10 +95,15 @@ class CurveSpec(CreatureSpec):
         """A shipped figure's joints are known now; a body from files is checked once built."""
         if not self.body.custom:
             names = figure_graph(self.body.figure, metric=self.body.metric).skeleton.names
-            missing = [j for j in self.limbs or () if j not in names]
-            if missing:
-                raise ValueError(f"limbs: the {self.body.figure} has no joint {missing[0]!r} (joints: {', '.join(names)})")
+            problem = self.missing_limb(names, f"the {self.body.figure}")
+            if problem is not None:
+                raise ValueError(problem)
         return self
+
+    def missing_limb(self, joints: tuple[str, ...], body: str) -> str | None:
+        """The first of :attr:`limbs` that ``body`` has no joint of, said with its nearest name."""
+        missing = [j for j in self.limbs or () if j not in joints]
+        return f"limbs: {body} has no joint {missing[0]!r}{nearest(missing[0], joints, 'joints')}" if missing else None
 
 
 MIRROR_TOLERANCE = 0.05
@@ -248,8 +254,7 @@ class Curve(CreatureKind):
     Spec = CurveSpec
     @classmethod
     def body_problem(cls, spec: CreatureSpec, labels: frozenset[str], joints: tuple[str, ...]) -> str | None:
-        missing = [j for j in spec.limbs or () if j not in joints]
-        return f"limbs: the body has no joint {missing[0]!r} (joints: {', '.join(joints)})" if missing else None
+        return spec.missing_limb(joints, "the body")
 
     def __init__(self, spec: CurveSpec, world: "World", rng: np.random.Generator) -> None:
         super().__init__(spec, world, rng)
