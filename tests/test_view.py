@@ -412,6 +412,34 @@ def test_a_browser_that_stopped_reading_does_not_hold_the_view_open():
     assert not server._thread.is_alive() and took < 5.0
 
 
+def test_the_frames_a_browser_lost_stay_counted_after_it_leaves():
+    """/status counts the frames dropped for slow browsers; a browser that stopped reading and
+    then went away (a frozen kiosk tab, reloaded) keeps its count there (it once fell to 0)."""
+    server = ViewServer(_Flood()).start()
+    try:
+        with _open_socket(server.port, receive_buffer=4096) as browser:
+            deadline = time.monotonic() + 30
+            while not any(c.dropped for c in list(server.clients)) and time.monotonic() < deadline:
+                time.sleep(0.01)
+            lost = sum(c.dropped for c in list(server.clients))
+            assert lost > 0
+            browser.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+        deadline = time.monotonic() + 10
+        while server.clients and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert not server.clients
+
+        async def status() -> dict:
+            async with aiohttp.ClientSession() as client:
+                async with client.get(f"{server.url}status") as answer:
+                    return await answer.json()
+
+        reported = asyncio.run(status())
+        assert reported["clients"] == 0 and reported["client_dropped"] >= lost
+    finally:
+        server.close()
+
+
 class _Gated:
     """A source whose hello waits until the test lets it go: the browser can leave between
     its handshake and its greeting, as one does in a storm of reloads."""

@@ -166,6 +166,9 @@ class ViewServer:
         self.clients: set[Client] = set()
         self._sockets: set[web.WebSocketResponse] = set()
         self.sent = 0
+        self.left_dropped = 0
+        """Frames dropped for browsers since gone: /status's count of a browser's drops must not
+        fall when that browser leaves (a kiosk that reloads would hide what it lost)."""
         self._loop: asyncio.AbstractEventLoop | None = None
         self._thread: threading.Thread | None = None
         self._stop: asyncio.Event | None = None
@@ -227,7 +230,7 @@ class ViewServer:
     async def _status(self, _: web.Request) -> web.Response:
         feed = getattr(self.source, "feed", None)
         return web.json_response({"clients": len(self.clients), "sent": self.sent,
-                                  "client_dropped": sum(c.dropped for c in self.clients),
+                                  "client_dropped": self.left_dropped + sum(c.dropped for c in self.clients),
                                   "dropped": feed.dropped if feed is not None else 0,
                                   "events_dropped": feed.events_dropped if feed is not None else 0})
 
@@ -250,6 +253,7 @@ class ViewServer:
         finally:
             self._sockets.discard(ws)
             self.clients.discard(client)
+            self.left_dropped += client.dropped
             feeding.cancel()
             sending.cancel()
         return ws
