@@ -20,13 +20,15 @@ base class whose subclasses fill in ``_write``/``_close``.
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import logging
 import os
 import tempfile
 import time
 from pathlib import Path
 from types import TracebackType
-from typing import Any, Self
+from typing import Any, Iterator, Self
 
 import numpy as np
 import soundfile
@@ -97,8 +99,13 @@ class WavOutput(AudioOutput):
         finally:
             os.close(fd)
         self._tmp = Path(tmp)
-        self._file = soundfile.SoundFile(self._tmp, mode="w", samplerate=self.sample_rate,
-                                         channels=self.channels, format="WAV", subtype=subtype)
+        try:
+            with self._said_as_os_error():
+                self._file = soundfile.SoundFile(self._tmp, mode="w", samplerate=self.sample_rate,
+                                                 channels=self.channels, format="WAV", subtype=subtype)
+        except BaseException:
+            self._tmp.unlink(missing_ok=True)
+            raise
         self._buffer = np.zeros((BUFFER_FRAMES, self.channels))
         self._held = 0
 
@@ -109,29 +116,52 @@ class WavOutput(AudioOutput):
         if self._held + n > len(self._buffer):
             self._drain()
             if n > len(self._buffer):
-                self._file.write(block)
+                with self._said_as_os_error():
+                    self._file.write(block)
                 return
         self._buffer[self._held:self._held + n] = block
         self._held += n
 
     def _drain(self) -> None:
         if self._held:
-            self._file.write(self._buffer[:self._held])
+            with self._said_as_os_error():
+                self._file.write(self._buffer[:self._held])
             self._held = 0
 
+    @contextlib.contextmanager
+    def _said_as_os_error(self) -> Iterator[None]:
+        """libsndfile's failures as the :class:`OSError` they are, naming the file.
+
+        libsndfile writes from C, so a full disk reaches Python as ``LibsndfileError: System
+        error.``, a RuntimeError: no caller's ``except OSError`` took it, and an offline run on a
+        full disk ended in a traceback. The errno libsndfile's write failed with is cffi's, read
+        straight after the failed call (EIO when it cannot be read)."""
+        try:
+            yield
+        except soundfile.SoundFileRuntimeError as exc:
+            code = getattr(getattr(soundfile, "_ffi", None), "errno", 0) or errno.EIO
+            raise OSError(code, f"{os.strerror(code)} (libsndfile: {exc})", str(self.path)) from None
+
     def _close(self) -> None:
-        self._drain()
-        self._file.flush()
-        self._file.close()  # writes the final header
-        with open(self._tmp, "rb+") as handle:
-            os.fsync(handle.fileno())
-        os.replace(self._tmp, self.path)
+        try:
+            self._drain()
+            with self._said_as_os_error():
+                self._file.flush()
+                self._file.close()  # writes the final header
+            with open(self._tmp, "rb+") as handle:
+                os.fsync(handle.fileno())
+            os.replace(self._tmp, self.path)
+        except BaseException:  # a full disk at the end: no half recording is left beside the file
+            self.closed = False
+            self.abandon()
+            raise
 
     def abandon(self) -> None:
         """Drop the partial recording; whatever was at ``path`` before stays untouched."""
         if not self.closed:
             self.closed = True
-            self._file.close()
+            with contextlib.suppress(soundfile.SoundFileError, OSError):  # its header on a full disk
+                self._file.close()
             self._tmp.unlink(missing_ok=True)
 
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,

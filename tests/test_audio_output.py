@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
+import textwrap
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -38,6 +42,39 @@ def test_wav_output_failure_keeps_the_previous_file(tmp_path):
             raise RuntimeError("boom")
     assert soundfile.info(path).frames == 100
     assert not list(tmp_path.glob(".*.tmp"))
+
+
+FULL_DISK = textwrap.dedent("""
+    import errno, resource, signal, sys
+    from pathlib import Path
+    import numpy as np
+    import soundfile
+    from audio.output import WavOutput
+
+    path = Path(sys.argv[1])
+    soundfile.write(path, np.zeros(100), 48000)  # the previous take
+    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # past the limit a write fails with EFBIG
+    resource.setrlimit(resource.RLIMIT_FSIZE, (64 * 1024, resource.getrlimit(resource.RLIMIT_FSIZE)[1]))
+    try:
+        with WavOutput(path, 48000, channels=2) as wav:
+            for _ in range(20):
+                wav.write(np.zeros((16384, 2)))
+    except OSError as exc:
+        print("OSError", errno.errorcode[exc.errno], exc.filename)
+""")
+
+
+def test_a_wav_the_disk_cannot_hold_is_an_os_error_naming_it_and_the_previous_take_stays(tmp_path):
+    """libsndfile writes from C: a write the file system refuses (a full disk; here a file-size
+    limit, EFBIG) came out as ``LibsndfileError: System error.``, which no ``except OSError``
+    took, and an offline run on a full disk ended in a traceback."""
+    path = tmp_path / "take.wav"
+    done = subprocess.run([sys.executable, "-c", FULL_DISK, str(path)], capture_output=True, text=True,
+                          timeout=120, cwd=Path(__file__).resolve().parents[1])
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["OSError", "EFBIG", str(path)]
+    assert soundfile.info(path).frames == 100  # the previous take, untouched
+    assert not list(tmp_path.glob(".*.tmp"))  # nothing of the failed one left
 
 
 def test_output_rejects_wrong_channel_count(tmp_path):
