@@ -255,6 +255,22 @@ def _view_port(given: int | None, configured: int | None) -> int | None:
     return given or configured or DEFAULT_VIEW_PORT
 
 
+def _supervised(args: argparse.Namespace) -> list[str]:
+    """The options ``run --supervise`` gives each child it starts: every one given but
+    ``--supervise`` itself. Only four were passed on (the state, log, duration and frames): a
+    supervised run given ``--out`` wrote no ``out.mid`` and one given ``--view`` served no view,
+    both without a word."""
+    options = []
+    for key, value in vars(args).items():
+        if key in ("command", "run", "config", "supervise") or value is None:
+            continue
+        if key == "view" and value == 0:  # a bare --view: the config's port, else the default
+            options.append("--view")
+        else:
+            options.append(f"--{key.replace('_', '-')}={value}")
+    return options
+
+
 NO_STATE = ("no state directory: learned state will not be kept (nothing is saved or restored); "
             "use --state DIR or `state = \"DIR\"` in the config")
 
@@ -276,9 +292,7 @@ def _run(args: argparse.Namespace) -> int:
     if args.supervise:
         from creatures.runtime.keeper import supervise
 
-        again = [f"--{key}={value}" for key, value in vars(args).items()
-                 if key in ("state", "log", "duration", "frames") and value is not None]
-        return supervise([sys.executable, "-m", "creatures.cli", "run", str(args.config), *again])
+        return supervise([sys.executable, "-m", "creatures.cli", "run", str(args.config), *_supervised(args)])
     try:
         installation = load_installation(_config_path(args.config))
         state = args.state or installation.resolve(installation.settings.state, ("state",))

@@ -351,3 +351,23 @@ def test_a_one_time_compile_does_not_fail_the_tick_budget(tmp_path: Path, capsys
     config.write_text(f'state = "{tmp_path / "state"}"\n' + COLONY)
     assert main(["check", str(config)]) == 0
     assert "FAIL" not in capsys.readouterr().out
+
+
+def test_a_supervised_run_passes_every_option_on_to_its_child(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    """``run --supervise`` passed only --state, --log, --duration and --frames on: a supervised
+    run given --out wrote no out.mid and one given --view served no view, without a word."""
+    from creatures import cli
+    from creatures.runtime import keeper
+
+    given = ["run", "show.toml", "--state", str(tmp_path / "my state"), "--log", str(tmp_path / "ë.jsonl"),
+             "--duration", "5", "--frames", str(tmp_path / "frames"), "--out", str(tmp_path / "out"),
+             "--view", "9123", "--supervise"]
+    commands: list[list[str]] = []
+    monkeypatch.setattr(keeper, "supervise", lambda command: commands.append(command) or 0)
+    for argv in (given, given[:-3] + ["--view", "--supervise"]):  # a bare --view too
+        assert cli.main(argv) == 0
+        child = commands.pop()
+        assert child[1:4] == ["-m", "creatures.cli", "run"]
+        parent, again = vars(cli.build_parser().parse_args(argv)), vars(cli.build_parser().parse_args(child[3:]))
+        assert again.pop("supervise") is False and parent.pop("supervise") is True
+        assert again == parent
