@@ -108,6 +108,22 @@ def test_snapshotter_is_due_on_the_run_clock(tmp_path: Path) -> None:
     assert snapshots.Snapshotter(tmp_path, every=86400, daily=7, weekly=0).due(DAY + timedelta(days=1))
 
 
+def test_snapshots_go_on_after_the_clock_is_set_back(tmp_path: Path) -> None:
+    """A machine whose clock ran years ahead (a wrong RTC, set right by NTP later) left a
+    snapshot stamped in the future. Counting from it, no snapshot fell due for years; and as
+    the newest of all it was the one retention kept, so the snapshot just taken was removed."""
+    ahead = DAY + timedelta(days=3 * 365)
+    snapshots.take(tmp_path, [("heron.json", '{"n": 0}')], ahead)
+    shots = snapshots.Snapshotter(tmp_path, every=86400, daily=1, weekly=0)
+    assert shots.due(DAY)  # the clock is behind the newest snapshot: take one now
+    taken = shots.take([("heron.json", '{"n": 1}')], DAY)
+    assert taken.is_dir() and (taken / "heron.json").read_text() == '{"n": 1}'
+    assert not shots.due(DAY + timedelta(hours=23))  # then on the run's clock, as ever
+    shots.take([("heron.json", '{"n": 2}')], DAY + timedelta(days=1))
+    names = [p.name for _, p in snapshots.listed(tmp_path)]
+    assert names == ["2026-03-03T090000Z", "2029-03-01T090000Z"]  # the future one is left as it is
+
+
 def test_merge_refuses_kinds_that_differ(tmp_path: Path) -> None:
     live_for(None, 1)[0].save_state(tmp_path)
     text = (tmp_path / "heron.json").read_text().replace('"kind": "authored"', '"kind": "exchange"')

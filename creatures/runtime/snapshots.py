@@ -70,9 +70,11 @@ def kept(stamps: list[datetime], *, daily: int, weekly: int) -> set[datetime]:
     return keep
 
 
-def prune(state_dir: Path, *, daily: int, weekly: int) -> list[Path]:
-    """Remove the snapshots the rule does not keep; returns those removed."""
-    snaps = listed(state_dir)
+def prune(state_dir: Path, *, daily: int, weekly: int, now: datetime | None = None) -> list[Path]:
+    """Remove the snapshots the rule does not keep; returns those removed. With ``now``, only
+    those taken up to it are weighed: one stamped later was taken while the clock ran ahead,
+    and as the newest of all it would be the one kept while each snapshot taken now went."""
+    snaps = [(when, path) for when, path in listed(state_dir) if now is None or when <= now]
     keep = kept([when for when, _ in snaps], daily=daily, weekly=weekly)
     removed = [path for when, path in snaps if when not in keep]
     for path in removed:
@@ -90,11 +92,14 @@ class Snapshotter:
         self.last: datetime | None = snaps[-1][0] if snaps else None
 
     def due(self, at: datetime) -> bool:
-        return self.last is None or (at - self.last).total_seconds() >= self.every
+        """Whether a snapshot falls due at ``at``: ``every`` seconds after the last, or at once
+        when the clock is behind the last (set back: counting from a snapshot stamped in the
+        future, none would fall due until the clock reached it, years after a wrong RTC)."""
+        return self.last is None or at < self.last or (at - self.last).total_seconds() >= self.every
 
     def take(self, files: list[tuple[str, str]], at: datetime) -> Path:
         """Take the snapshot and apply the retention rule."""
         path = take(self.state_dir, files, at)
         self.last = at
-        prune(self.state_dir, daily=self.daily, weekly=self.weekly)
+        prune(self.state_dir, daily=self.daily, weekly=self.weekly, now=at)
         return path
