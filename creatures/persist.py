@@ -176,6 +176,8 @@ def load_npz(path: str | os.PathLike) -> dict[str, np.ndarray]:
             unpacked = sum(info.file_size for info in data.zip.infolist())
             if unpacked > MAX_STATE_BYTES:  # checked before unpacking: a zip bomb stays packed
                 raise StateFileError(f"{path}: arrays unpack to {unpacked} bytes, more than {MAX_STATE_BYTES}; refused")
+            for info in data.zip.infolist():
+                _holds_what_it_claims(path, data.zip, info)
             return {name: data[name] for name in data.files}
     except FileNotFoundError:
         raise StateFileError(f"{path}: array file not found") from None
@@ -184,3 +186,22 @@ def load_npz(path: str | os.PathLike) -> dict[str, np.ndarray]:
     # truncated: BadZipFile; a damaged header can claim a zip version zipfile lacks: NotImplementedError
     except (OSError, ValueError, EOFError, zipfile.BadZipFile, NotImplementedError) as exc:
         raise StateFileError(f"{path}: malformed array file ({exc})") from None
+
+
+def _holds_what_it_claims(path: Path, archive: zipfile.ZipFile, info: zipfile.ZipInfo) -> None:
+    """Refuse an array whose header claims more bytes than its member holds.
+
+    numpy allocates the whole array its header's shape claims before reading a byte of it: a
+    90-byte ``.npy`` claiming 10**13 floats raised MemoryError (no :class:`StateFileError`, a
+    traceback) however small the archive, and the unpacked-size bound above, which reads the
+    zip's sizes, never saw it."""
+    if not info.filename.endswith(".npy"):
+        return
+    with archive.open(info) as member:
+        version = np.lib.format.read_magic(member)
+        read_header = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
+        shape, _, dtype = read_header(member)
+        claimed = math.prod(shape) * dtype.itemsize
+        if claimed > info.file_size - member.tell():
+            raise StateFileError(f"{path}: array {info.filename[:-4]!r} claims {claimed} bytes ({shape} of "
+                                 f"{dtype}) and holds {info.file_size - member.tell()}; refused")

@@ -129,6 +129,31 @@ def test_an_npz_that_unpacks_beyond_the_bound_stays_packed(tmp_path, monkeypatch
         load_npz(path)
 
 
+def test_an_npz_whose_array_claims_more_than_it_holds_is_refused_before_allocating(tmp_path):
+    """numpy allocates what a ``.npy`` header's shape claims before reading the data: 90 bytes
+    claiming 10**13 floats raised MemoryError (a traceback, no StateFileError); a claim within
+    memory would have been allocated in full, however few bytes followed."""
+    path = tmp_path / "liar.npz"
+    for shape in [(10**13,), (1 << 16,)]:
+        header = io.BytesIO()
+        np.lib.format.write_array_header_1_0(header, {"descr": "<f8", "fortran_order": False, "shape": shape})
+        with zipfile.ZipFile(path, "w") as archive:
+            archive.writestr("ok.npy", _npy(np.arange(3.0)))
+            archive.writestr("samples.npy", header.getvalue() + bytes(64))
+        with pytest.raises(StateFileError, match=rf"liar.npz: array 'samples' claims {shape[0] * 8} bytes .* holds 64"):
+            load_npz(path)
+    with zipfile.ZipFile(path, "w") as archive:  # what it claims, held: read as ever
+        archive.writestr("ok.npy", _npy(np.arange(3.0)))
+        archive.writestr("empty.npy", _npy(np.zeros((4, 0))))
+    assert {name: array.shape for name, array in load_npz(path).items()} == {"ok": (3,), "empty": (4, 0)}
+
+
+def _npy(array: np.ndarray) -> bytes:
+    buffer = io.BytesIO()
+    np.save(buffer, array)
+    return buffer.getvalue()
+
+
 def test_a_sound_file_claiming_a_tiny_rate_is_refused_not_inflated(tmp_path):
     path = tmp_path / "one-hertz.wav"
     soundfile.write(path, np.zeros(22050, dtype=np.float32), 1)  # 44 kB that would become 2 GB
