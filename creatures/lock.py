@@ -21,6 +21,9 @@ from creatures.paths import UnsafePathError, kind_of
 
 LOCK_FILE = ".creatures.lock"
 
+_HELD: dict[tuple[int, int], str] = {}
+"""The lock files this process holds ((device, inode) → what it holds the folder as)."""
+
 
 class FolderLockedError(OSError):
     """Another running process holds the folder; the message names it and its pid."""
@@ -45,6 +48,11 @@ class FolderLock:
                 mode = os.fstat(fd).st_mode
                 if not stat.S_ISREG(mode):
                     raise UnsafePathError(f"{self.path}: is {kind_of(mode)}, not a regular file")
+                ours = _HELD.get(_key(fd))
+                if ours is not None:  # flock tells no holder apart: it would blame "another run", pid ours
+                    raise FolderLockedError(
+                        f"{self.directory}: already this run's {ours}; one folder cannot be both its {ours} and "
+                        f"its {self.what}: choose another folder for one of them")
                 try:
                     fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
                 except BlockingIOError:
@@ -61,12 +69,14 @@ class FolderLock:
         os.ftruncate(fd, 0)
         os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
         self._fd = fd
+        _HELD[_key(fd)] = self.what
         return self
 
     def release(self) -> None:
         fd, self._fd = self._fd, None
         if fd is None:
             return
+        _HELD.pop(_key(fd), None)
         with contextlib.suppress(OSError):
             if _same_file(fd, self.path):  # unlinked while still locked: no one can take a ghost
                 os.unlink(self.path)
@@ -85,6 +95,11 @@ def _holder(fd: int) -> int | None:
         return int(os.pread(fd, 32, 0).decode("ascii", "replace").strip())
     except ValueError:
         return None
+
+
+def _key(fd: int) -> tuple[int, int]:
+    here = os.fstat(fd)
+    return here.st_dev, here.st_ino
 
 
 def _same_file(fd: int, path: Path) -> bool:

@@ -513,6 +513,21 @@ def test_two_runs_cannot_share_one_state_folder(config, tmp_path, holder, capsys
     assert "two runs cannot share one output directory" in capsys.readouterr().err
 
 
+def test_one_folder_as_a_runs_state_and_its_out_is_said_as_such_not_as_another_run(config, tmp_path, capsys):
+    """flock cannot tell its holders apart: a live run given one folder as --state and --out
+    was refused as 'in use by another run (pid N)', N its own pid, sending the artist to look
+    for a run that did not exist."""
+    both = tmp_path / "show"
+    assert main(["run", str(config), "--state", str(both), "--out", str(both), "--duration", "0.2"]) == 2
+    err = capsys.readouterr().err
+    assert "another run" not in err and str(os.getpid()) not in err and err.count("\n") == 1
+    assert f"{both}: already this run's state folder; one folder cannot be both its state folder and its " \
+           "output directory" in err
+    assert list(both.iterdir()) == []  # nothing saved, the lock let go
+    with FolderLock(both, "state folder"):  # a lock let go is not held again in this process's name
+        pass
+
+
 def test_a_stale_lock_of_a_dead_run_is_taken_over(config, tmp_path, holder, capsys):
     state = tmp_path / "state"
     dead = holder(state)
