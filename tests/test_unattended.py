@@ -371,3 +371,43 @@ def test_a_supervised_run_passes_every_option_on_to_its_child(monkeypatch: pytes
         parent, again = vars(cli.build_parser().parse_args(argv)), vars(cli.build_parser().parse_args(child[3:]))
         assert again.pop("supervise") is False and parent.pop("supervise") is True
         assert again == parent
+
+
+def test_a_periodic_save_still_writing_at_exit_never_lands_over_the_final_one(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The supervisor is given 5 s to finish its job at exit (a device check stuck in
+    PortAudio, a slow card's fsync); a periodic save still writing then, or still pending in its
+    batch, wrote its older state after the final save: the learning of the run's last seconds
+    lost without a word (and each write's clearing of stale temporary files could take the
+    other's, failing the final save)."""
+    import threading
+
+    from creatures.runtime.session import write_snapshot
+    from creatures.supervisor import Supervisor
+
+    config = tmp_path / "show.toml"
+    config.write_text(COLONY)
+    state = tmp_path / "state"
+    final_written = threading.Event()
+    written: dict[str, list[list[tuple[str, str]]]] = {"main": [], "supervisor": []}
+
+    def writes(directory: Path, snapshot: list[tuple[str, str]]) -> None:
+        if threading.current_thread() is threading.main_thread():
+            write_snapshot(directory, snapshot)
+            written["main"].append(snapshot)
+            final_written.set()
+        else:  # the supervisor's first periodic write is slow: it ends after the run has stopped
+            if not written["supervisor"]:
+                final_written.wait(3.0)
+            write_snapshot(directory, snapshot)
+            written["supervisor"].append(snapshot)
+
+    monkeypatch.setattr(live, "write_snapshot", writes)
+    stop = Supervisor.stop
+    monkeypatch.setattr(Supervisor, "stop", lambda self, timeout=5.0: stop(self, 0.1))
+    summary = live.run_live(load_installation(config), duration=0.6, state=state, say=lambda message: None)
+    for thread in threading.enumerate():
+        if thread.name == "creatures-supervisor":
+            thread.join(10.0)
+    assert summary.unsaved is None and len(written["main"]) == 1 and written["supervisor"]
+    assert {p.name: p.read_text() for p in state.glob("*.json")} == dict(written["main"][0])

@@ -28,6 +28,7 @@ audio device is opened at all.
 from __future__ import annotations
 
 import signal
+import threading
 import time
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
@@ -290,24 +291,38 @@ def _write_state(state_dir: Path, snapshot: list[tuple[str, str]], summary: Live
 class _Saver:
     """Periodic saves: the colony's state is encoded on the creature's thread (one instant,
     ~0.1 ms), and written (an fsync per file: 25–40 ms measured) by a supervisor job, which
-    reports a failed write as :func:`_save` does. The save on exit stays :func:`_save`."""
+    reports a failed write as :func:`_save` does. The save on exit is :meth:`final`."""
 
     def __init__(self, supervisor: Supervisor, state_dir: Path, summary: LiveSummary,
                  say: Callable[[str], None], every: float, snapshots: Snapshotter | None = None) -> None:
         self.state_dir, self.summary, self.say, self.snapshots = state_dir, summary, say, snapshots
         self.pending: tuple[list[tuple[str, str]], float, datetime] | None = None
         self.job = supervisor.every(every, self._write, name="state save")
+        self._writing = threading.Lock()
+        self._closed = False
 
     def save(self, session: Session, at: float) -> None:
         """Encode the state now (``at`` seconds into the run) and have it written."""
         self.pending = (session.snapshot(), at, datetime.now(timezone.utc))
         self.job.wake()
 
+    def final(self, session: Session, at: float) -> None:
+        """The save on exit (:func:`_save`), after any periodic write still under way, and with
+        none after it. The supervisor is given 5 s to end at exit; one stuck longer (a device
+        check, a slow card's fsync) went on to write its older state over the final save."""
+        with self._writing:
+            self._closed = True
+            self.pending = None
+            _save(session, self.state_dir, self.summary, self.say, at, final=True)
+
     def _write(self) -> None:
-        pending, self.pending = self.pending, None
-        if pending is None:
-            return
-        files, at, when = pending
+        with self._writing:
+            pending, self.pending = self.pending, None
+            if pending is None or self._closed:
+                return
+            self._write_pending(*pending)
+
+    def _write_pending(self, files: list[tuple[str, str]], at: float, when: datetime) -> None:
         _write_state(self.state_dir, files, self.summary, self.say, at)
         if self.snapshots is not None and self.summary.saved_at == at and self.snapshots.due(when):
             try:  # the dated copy of what was just saved; a full disk is said, the run goes on
@@ -587,8 +602,8 @@ def run_live(
             session.close()
             if score is not None and recorded is not None:  # written beside the final save
                 score.finish(session.world, recorded, start, say)
-            if state_dir is not None:
-                _save(session, state_dir, summary, say, wall.now() - start, final=True)
+            if saver is not None:
+                saver.final(session, wall.now() - start)
             if microphone is not None:
                 microphone.stop()
             if isinstance(output, Watched):  # said when the run began: where the sound went at the end
