@@ -49,9 +49,17 @@ def regular_file(path: str | os.PathLike, what: str) -> Path:
 
 
 def directory(path: str | os.PathLike, what: str) -> Path:
-    """``path`` if it is a directory or absent; else :class:`UnsafePathError`."""
+    """``path`` if it is a directory or absent; else :class:`UnsafePathError`.
+
+    A symbolic link to nothing (a state folder on a disk not mounted) is not absent: no
+    directory can be made where it stands. Taken for absent, a live run went on for weeks
+    with every save failing ('File exists'), and ``creatures check`` said the folder was
+    writable."""
     path = Path(path)
     mode = _mode(path)
+    if mode is None and os.path.islink(path):
+        raise UnsafePathError(f"{what} {path}: is a symbolic link to {os.readlink(path)}, which does not exist "
+                              "(a disk not mounted?)")
     if mode is not None and not stat.S_ISDIR(mode):
         raise UnsafePathError(f"{what} {path}: is {kind_of(mode)}, not a directory")
     return path

@@ -255,6 +255,8 @@ def _special(kind: str, path: Path) -> Path:
         path.mkdir()
     elif kind == "file":
         path.write_text("a plain file")
+    elif kind == "link to nothing":
+        path.symlink_to(path.parent / "unmounted" / "state")
     else:
         try:
             os.mknod(path, stat.S_IFCHR | 0o666, os.makedev(1, 3))
@@ -272,6 +274,9 @@ REFUSED = [  # (argument, what it names, what the message says it is)
     ("--frames", "device", "is a character device, not a directory"),
     ("--out", "FIFO", "is a FIFO (named pipe), not a directory"),
     ("--out", "device", "is a character device, not a directory"),
+    ("--state", "link to nothing", "is a symbolic link to "),  # state on a disk not mounted: every save failed
+    ("--out", "link to nothing", "which does not exist (a disk not mounted?)"),
+    ("--frames", "link to nothing", "which does not exist (a disk not mounted?)"),
     ("config", "FIFO", "is a FIFO (named pipe), not a regular file"),
     ("config", "directory", "is a directory, not a regular file"),
 ]

@@ -411,3 +411,17 @@ def test_a_periodic_save_still_writing_at_exit_never_lands_over_the_final_one(
             thread.join(10.0)
     assert summary.unsaved is None and len(written["main"]) == 1 and written["supervisor"]
     assert {p.name: p.read_text() for p in state.glob("*.json")} == dict(written["main"][0])
+
+
+def test_check_fails_a_state_folder_that_is_a_link_to_nothing(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A state folder linked to a disk not mounted was 'ok … writable' (its parent was tried),
+    and the run then failed every save for as long as it ran."""
+    from creatures.runtime.preflight import _state
+
+    state = tmp_path / "state"
+    state.symlink_to(tmp_path / "usb" / "state")
+    (row, *others) = _state(state)
+    assert row[:2] == ("state folder", False) and f"{state}: is a symbolic link to {tmp_path / 'usb' / 'state'}" in row[2]
+    assert not others
+    deep = tmp_path / "new" / "deeper" / "state"  # made with its parents by the run: writable where they start
+    assert _state(deep)[0] == ("state folder", True, f"{deep} writable")

@@ -18,6 +18,7 @@ from typing import Callable
 
 from creatures.clock import SimulatedClock
 from creatures.events import EventLog
+from creatures.paths import directory
 from creatures.runtime.schema import LoadedInstallation
 from creatures.runtime.session import Session
 from midi.notes import NoteEvent
@@ -91,7 +92,11 @@ def _audio(inst: LoadedInstallation) -> tuple[bool, str]:
 def _state(state: Path | None) -> list[Row]:
     if state is None:
         return [("state folder", False, "none: nothing learned would be kept (state = \"DIR\" or --state DIR)")]
-    where = state if state.exists() else state.parent
+    try:
+        directory(state, "state folder")
+    except OSError as exc:  # a file, or a link to nothing: a run would be refused
+        return [("state folder", False, str(exc))]
+    where = next(folder for folder in (state, *state.parents) if folder.exists())  # where a run makes it
     rows = []
     try:
         with tempfile.NamedTemporaryFile(dir=where, prefix=".check."):
