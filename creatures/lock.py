@@ -23,6 +23,8 @@ LOCK_FILE = ".creatures.lock"
 
 _HELD: dict[tuple[int, int], str] = {}
 """The lock files this process holds ((device, inode) → what it holds the folder as)."""
+_LOCKS: dict[str, "FolderLock"] = {}
+"""This process's locks by their folder's absolute path, for :func:`retake`."""
 
 
 class FolderLockedError(OSError):
@@ -70,13 +72,29 @@ class FolderLock:
         os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
         self._fd = fd
         _HELD[_key(fd)] = self.what
+        _LOCKS[os.path.abspath(self.directory)] = self
         return self
+
+    def retake(self) -> bool:
+        """Lock the folder again if its lock file is no longer this lock's (the folder was
+        removed, or the file, while the run used it); whether it had to. A save makes a removed
+        folder again, and without its lock a second run could take the folder and share it
+        unnoticed; another run that took it meanwhile raises :class:`FolderLockedError`."""
+        if self._fd is None or _same_file(self._fd, self.path):
+            return False
+        old, self._fd = self._fd, None
+        _HELD.pop(_key(old), None)
+        os.close(old)
+        self.acquire()
+        return True
 
     def release(self) -> None:
         fd, self._fd = self._fd, None
         if fd is None:
             return
         _HELD.pop(_key(fd), None)
+        if _LOCKS.get(os.path.abspath(self.directory)) is self:
+            del _LOCKS[os.path.abspath(self.directory)]
         with contextlib.suppress(OSError):
             if _same_file(fd, self.path):  # unlinked while still locked: no one can take a ghost
                 os.unlink(self.path)
@@ -108,6 +126,12 @@ def _same_file(fd: int, path: Path) -> bool:
     except FileNotFoundError:
         return False
     return (here.st_dev, here.st_ino) == (there.st_dev, there.st_ino)
+
+
+def retake(directory: Path) -> bool:
+    """:meth:`FolderLock.retake` for this process's lock on ``directory``, if it holds one."""
+    lock = _LOCKS.get(os.path.abspath(directory))
+    return lock is not None and lock.retake()
 
 
 def hold(directory: Path, what: str, say: Callable[[str], None]) -> FolderLock | None:

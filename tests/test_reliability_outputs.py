@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import errno
 import os
+import shutil
 import signal
 import socket
 import stat
@@ -531,6 +532,38 @@ def test_one_folder_as_a_runs_state_and_its_out_is_said_as_such_not_as_another_r
     assert list(both.iterdir()) == []  # nothing saved, the lock let go
     with FolderLock(both, "state folder"):  # a lock let go is not held again in this process's name
         pass
+
+
+def test_a_state_folder_removed_mid_run_is_locked_again_by_the_save_that_makes_it_again(tmp_path, holder):
+    """Someone removes a live run's state folder (a clean-up script, a wrong ``rm -rf``): the
+    next save makes it again, and must lock it again, or a second run could take the folder and
+    share it unnoticed (both once ran, each saving over the other). A run that took the folder
+    meanwhile keeps it: the save is refused and said, and nothing is written over its state."""
+    from creatures.lock import hold
+    from creatures.runtime.live import LiveSummary, _write_state
+
+    state, said = tmp_path / "state", []
+    ours = hold(state, "state folder", said.append)
+    try:
+        shutil.rmtree(state)
+        summary = LiveSummary()
+        _write_state(state, [("ada.json", "{}")], summary, said.append, 1.0)
+        assert (state / "ada.json").read_text() == "{}" and summary.saved_at == 1.0
+        assert (state / LOCK_FILE).read_text() == f"{os.getpid()}\n"
+        assert said == [f"state folder {state} was removed while the run used it: made again and locked again"]
+        other = subprocess.run([sys.executable, "-c", HOLDER, str(state)], env=_env(), input="", text=True,
+                               capture_output=True)
+        assert other.returncode != 0 and "in use by another run" in other.stderr  # the second run is refused
+
+        shutil.rmtree(state)
+        taker = holder(state)  # removed again, and this time another run takes it first
+        _write_state(state, [("ada.json", "{}")], summary, said.append, 2.0)
+        assert summary.failed_saves == 1 and summary.saved_at == 1.0
+        assert f"in use by another run (pid {taker.pid})" in said[-1] and "previous state is kept" in said[-1]
+        assert sorted(p.name for p in state.iterdir()) == [LOCK_FILE]
+    finally:
+        if ours is not None:
+            ours.release()
 
 
 def test_a_stale_lock_of_a_dead_run_is_taken_over(config, tmp_path, holder, capsys):

@@ -38,7 +38,7 @@ from typing import Callable
 import numpy as np
 
 from audio.resilient import ResilientInput, ResilientOutput, Watched
-from creatures import stop as stops
+from creatures import lock, stop as stops
 from creatures.clock import Clock, SimulatedClock, WallClock
 from creatures.events import EventLog
 from creatures.paths import directory, regular_file, writable_directory
@@ -274,8 +274,10 @@ def _save(session: Session, state_dir: Path, summary: LiveSummary, say: Callable
 def _write_state(state_dir: Path, snapshot: list[tuple[str, str]], summary: LiveSummary,
                  say: Callable[[str], None], at: float, *, final: bool = False) -> None:
     try:
+        if lock.retake(state_dir):
+            say(f"state folder {state_dir} was removed while the run used it: made again and locked again")
         write_snapshot(state_dir, snapshot)
-    except OSError as exc:
+    except OSError as exc:  # a full disk, or another run took the folder while it was gone
         summary.failed_saves += 1
         say(f"could not save creature state ({exc}); the previous state is kept"
             + ("" if final else ", will try again"))
