@@ -262,10 +262,10 @@ def _supervised(args: argparse.Namespace) -> list[str]:
     both without a word."""
     options = []
     for key, value in vars(args).items():
-        if key in ("command", "run", "config", "supervise") or value is None:
+        if key in ("command", "run", "config", "supervise") or value is None or value is False:
             continue
-        if key == "view" and value == 0:  # a bare --view: the config's port, else the default
-            options.append("--view")
+        if value is True or (key == "view" and value == 0):  # a flag; a bare --view: the config's port
+            options.append(f"--{key.replace('_', '-')}")
         else:
             options.append(f"--{key.replace('_', '-')}={value}")
     return options

@@ -62,3 +62,15 @@ def test_live_run_says_when_learned_state_will_not_be_kept(state, tmp_path, caps
     else:
         assert NO_STATE not in out
         assert (tmp_path / ("s" if state == "option" else "kept") / "ada.json").is_file()
+
+
+def test_python_dash_m_creatures_is_the_creatures_command():
+    """Where the ``creatures`` script is not on PATH (a venv not activated), ``python -m
+    creatures`` runs the same command (it once said 'No module named creatures.__main__')."""
+    import subprocess
+    import sys
+
+    root = str(Path(__file__).resolve().parents[1])
+    done = subprocess.run([sys.executable, "-m", "creatures", "version"], cwd=root, capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 0 and done.stdout.startswith("creature-music "), done.stderr
