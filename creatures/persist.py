@@ -176,8 +176,7 @@ def load_npz(path: str | os.PathLike) -> dict[str, np.ndarray]:
             unpacked = sum(info.file_size for info in data.zip.infolist())
             if unpacked > MAX_STATE_BYTES:  # checked before unpacking: a zip bomb stays packed
                 raise StateFileError(f"{path}: arrays unpack to {unpacked} bytes, more than {MAX_STATE_BYTES}; refused")
-            for info in data.zip.infolist():
-                _holds_what_it_claims(path, data.zip, info)
+            each_holds_what_it_claims(path, data.zip)
             return {name: data[name] for name in data.files}
     except FileNotFoundError:
         raise StateFileError(f"{path}: array file not found") from None
@@ -188,15 +187,20 @@ def load_npz(path: str | os.PathLike) -> dict[str, np.ndarray]:
         raise StateFileError(f"{path}: malformed array file ({exc})") from None
 
 
-def _holds_what_it_claims(path: Path, archive: zipfile.ZipFile, info: zipfile.ZipInfo) -> None:
-    """Refuse an array whose header claims more bytes than its member holds.
+def each_holds_what_it_claims(path: Path, archive: zipfile.ZipFile) -> None:
+    """Refuse an ``.npz`` (:class:`StateFileError`) with an array whose header claims more bytes
+    than its member holds.
 
     numpy allocates the whole array its header's shape claims before reading a byte of it: a
     90-byte ``.npy`` claiming 10**13 floats raised MemoryError (no :class:`StateFileError`, a
     traceback) however small the archive, and the unpacked-size bound above, which reads the
-    zip's sizes, never saw it."""
-    if not info.filename.endswith(".npy"):
-        return
+    zip's sizes, never saw it. The motor-graph cache is read through this too."""
+    for info in archive.infolist():
+        if info.filename.endswith(".npy"):
+            _holds_what_it_claims(path, archive, info)
+
+
+def _holds_what_it_claims(path: Path, archive: zipfile.ZipFile, info: zipfile.ZipInfo) -> None:
     with archive.open(info) as member:
         version = np.lib.format.read_magic(member)
         read_header = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0

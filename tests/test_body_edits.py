@@ -3,7 +3,9 @@ frames merge whatever their order; bad files, bad takes and stale or corrupt cac
 
 from __future__ import annotations
 
+import io
 import logging
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -195,6 +197,17 @@ def test_a_restart_loads_the_cache_and_a_stale_or_corrupt_one_is_rebuilt(tmp_pat
         np.savez(cache, **arrays)
         assert body_of(config).graph.poses.labels == first.poses.labels
         assert "corrupt" in caplog.text and "outside the cache's own tables" in caplog.text
+    with zipfile.ZipFile(cache) as archive:  # a damaged shape: numpy would ask for terabytes before reading
+        members = {info.filename: archive.read(info) for info in archive.infolist()}
+    header = io.BytesIO()
+    np.lib.format.write_array_header_1_0(header, {"descr": "<f8", "fortran_order": False, "shape": (10**12, 4)})
+    members["rotations.npy"] = header.getvalue() + bytes(64)
+    with zipfile.ZipFile(cache, "w") as archive:
+        for name, data in members.items():
+            archive.writestr(name, data)
+    caplog.clear()
+    assert body_of(config).graph.poses.labels == first.poses.labels and built == [1, 1, 1, 1, 1]
+    assert "corrupt" in caplog.text and "claims" in caplog.text
     built.clear()
     rows = heron_frames()
     rows[:, 10] *= 0.5

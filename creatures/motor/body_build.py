@@ -36,7 +36,7 @@ from creatures.motor.note_space import exchange_metric
 from creatures.motor.pose import LOW_ENERGY, PoseSet
 from creatures.motor.search import LandmarkTables, PathFinder
 from creatures.motor.skeleton import Skeleton
-from creatures.persist import atomic_write
+from creatures.persist import StateFileError, atomic_write, each_holds_what_it_claims
 
 logger = logging.getLogger(__name__)
 
@@ -226,6 +226,7 @@ def read_cache(path: Path, key: str) -> MotorGraph | None:
     """The cached graph, or None (with a log line saying why) when it is stale or corrupt."""
     try:
         with np.load(path, allow_pickle=False) as data:
+            each_holds_what_it_claims(path, data.zip)  # a damaged shape would ask for terabytes
             if str(data["key"]) != key:
                 logger.warning("%s: motor-graph cache is stale (its sources changed); rebuilding", path)
                 return None
@@ -249,7 +250,7 @@ def read_cache(path: Path, key: str) -> MotorGraph | None:
                 raise ValueError(f"landmark tables of shape {forward.shape} for {len(poses)} nodes")
             graph.landmark_tables = LandmarkTables(graph.version, int(data["landmark_seed"]), len(nodes),
                                                    nodes.astype(np.int64, copy=False), forward, backward)
-    except (OSError, KeyError, IndexError, ValueError, TypeError, EOFError, zipfile.BadZipFile) as exc:
+    except (OSError, KeyError, IndexError, ValueError, TypeError, EOFError, zipfile.BadZipFile, StateFileError) as exc:
         logger.warning("%s: motor-graph cache is corrupt (%s); rebuilding", path, str(exc)[:200])
         return None
     return graph
