@@ -474,6 +474,24 @@ def test_a_full_disk_under_an_offline_log_is_counted_printed_and_recorded(config
     assert {"out.wav", "out.mid", "state/"} <= set(manifest["files"])  # the rest of the run was kept
 
 
+def test_a_report_picture_the_disk_cannot_hold_is_said_with_its_file(tmp_path):
+    """A full disk under the report's pictures: the error names the picture (from inside
+    matplotlib it named no file, and the run's last line said only 'No space left on device').
+    /dev/full answers every write with ENOSPC, as a full disk does."""
+    from creatures.runtime.report import write_report
+
+    events = tmp_path / "events.jsonl"
+    events.write_text('{"t": 0.0, "kind": "run", "title": "x", "creatures": ["a"]}\n'
+                      '{"t": 0.1, "kind": "note", "creature": "a", "time": 0.1, "pitch": 60, "duration": 0.2}\n')
+    report = tmp_path / "report"
+    report.mkdir()
+    (report / "notes.png").symlink_to("/dev/full")
+    with pytest.raises(OSError) as raised:
+        write_report(events, report, title="x")
+    assert raised.value.errno == errno.ENOSPC and raised.value.filename == str(report / "notes.png")
+    assert str(report / "notes.png") in str(raised.value)
+
+
 # -- defect 10: one run per folder ---------------------------------------------------------
 HOLDER = r"""
 import sys

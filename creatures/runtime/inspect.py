@@ -33,7 +33,7 @@ from typing import Any
 from creatures.behaviour.value import value_from_dict
 from creatures.events import read_events
 from creatures.persist import StateFileError, load_json
-from creatures.runtime.report import counts_table, event_plots, html_page, plot_bars, plt
+from creatures.runtime.report import counts_table, event_plots, html_page, plot_bars, plt, saved
 from creatures.runtime.session import COLONY_FILE, COLONY_KIND, STATE_KIND
 from creatures.temporal.durations import LowIntegerRatioModel, SimpleDurationModel
 
@@ -175,10 +175,7 @@ def _plot_durations(known: list[Knowledge], path: Path) -> Path | None:
         else:
             ax.bar(["mean"], [model.pulse], color="C2")
             ax.set_title(f"{creature} · {where}: mean duration {model.pulse:.3f} s", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-    return path
+    return saved(fig, path)
 
 
 def _tree_html(tree: Tree) -> str:

@@ -21,6 +21,7 @@ import numpy as np
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.collections import LineCollection  # noqa: E402
+from matplotlib.figure import Figure  # noqa: E402
 
 from creatures.events import read_events  # noqa: E402
 
@@ -36,6 +37,20 @@ def _series(events: list[dict], kind: str, key: str) -> dict[str, dict[str, list
     return out
 
 
+def saved(fig: Figure, path: Path) -> Path:
+    """Lay ``fig`` out, write it to ``path`` (PNG) and let it go. A write that fails (a full
+    disk) is an :class:`OSError` naming the file: from inside matplotlib it named none, and a
+    run's last line said only "No space left on device"."""
+    fig.tight_layout()
+    try:
+        fig.savefig(path, dpi=90)
+    except OSError as exc:
+        raise OSError(exc.errno, exc.strerror or str(exc), str(path)) from None
+    finally:
+        plt.close(fig)
+    return path
+
+
 def _plot_series(series: dict, title: str, ylabel: str, path: Path) -> Path | None:
     if not series:
         return None
@@ -48,10 +63,7 @@ def _plot_series(series: dict, title: str, ylabel: str, path: Path) -> Path | No
         ax.set_ylabel(ylabel)
         ax.legend(fontsize=6, loc="upper left", ncol=4)
     axes[-1, 0].set_xlabel("time (s)")
-    fig.tight_layout()
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-    return path
+    return saved(fig, path)
 
 
 def _plot_notes(events: list[dict], path: Path) -> Path | None:
@@ -69,10 +81,7 @@ def _plot_notes(events: list[dict], path: Path) -> Path | None:
     ax.set_ylabel("MIDI pitch")
     ax.set_title("notes heard and played", fontsize=9)
     ax.legend(fontsize=7, loc="upper right")
-    fig.tight_layout()
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-    return path
+    return saved(fig, path)
 
 
 def _plot_selections(events: list[dict], path: Path) -> Path | None:
@@ -86,10 +95,7 @@ def _plot_selections(events: list[dict], path: Path) -> Path | None:
     ax.set_yticks(range(len(rows)), [f"{c}: {t}" for c, t in rows], fontsize=6)
     ax.set_xlabel("time (s)")
     ax.set_title("action selections", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-    return path
+    return saved(fig, path)
 
 
 def event_plots(events: list[dict], out: Path) -> list[tuple[str, Path]]:
@@ -175,10 +181,7 @@ def plot_motor_graph(events: list[dict], path: Path) -> Path | None:
         ax.set_xlabel("hand x (m)")
         ax.set_ylabel("hand height (m)")
         ax.autoscale_view()
-    fig.tight_layout()
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-    return path
+    return saved(fig, path)
 
 
 def plot_bars(groups: dict[str, dict[str, float]], title: str, xlabel: str, path: Path,
@@ -200,10 +203,7 @@ def plot_bars(groups: dict[str, dict[str, float]], title: str, xlabel: str, path
         ax.set_yticks(range(len(names)), names, fontsize=7)
         ax.set_title(f"{group}: {title}", fontsize=9)
         ax.set_xlabel(xlabel)
-    fig.tight_layout()
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-    return path
+    return saved(fig, path)
 
 
 def counts_table(events: list[dict]) -> str:
