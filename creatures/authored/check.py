@@ -11,7 +11,6 @@ values (thesis "credit assignment": without a non-plastic value every value only
 
 from __future__ import annotations
 
-import difflib
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -50,11 +49,8 @@ class _Checker:
     def need(self, namespace: str, name: Any, loc: tuple) -> None:
         if name in self.names[namespace]:
             return
-        what = namespace[:-1]
-        close = difflib.get_close_matches(str(name), sorted(self.names[namespace]), n=1)
-        hint = f" (did you mean {close[0]!r}?)" if close else (
-            f" (declared: {sorted(self.names[namespace])})" if self.names[namespace] else f" (no {namespace} declared)")
-        raise self.error(loc, f"no {what} named {name!r}{hint}")
+        raise self.error(loc, f"no {namespace[:-1]} named {name!r}"
+                              f"{nearest(name, sorted(self.names[namespace]), f'{namespace} declared')}")
 
     def part(self, registry, type_: Any, params: dict[str, Any], loc: tuple):
         cls = registry.get(type_) if isinstance(type_, str) else None
@@ -276,9 +272,7 @@ def _modulate(c: _Checker) -> None:
     for parameter, weights in c.spec.modulate.items():
         loc = ("modulate", parameter)
         if parameter not in VOICE_PARAMETERS:
-            close = difflib.get_close_matches(parameter, VOICE_PARAMETERS, n=1)
-            hint = f" (did you mean {close[0]!r}?)" if close else f" (choose from {', '.join(VOICE_PARAMETERS)})"
-            raise c.error(loc, f"no voice parameter {parameter!r}{hint}")
+            raise c.error(loc, f"no voice parameter {parameter!r}{nearest(parameter, VOICE_PARAMETERS, 'voice parameters')}")
         _voice_parameters(c, [parameter], loc)
         for name in weights:
             c.need("percepts", name, (*loc, name))
@@ -312,9 +306,7 @@ def _score(c: _Checker) -> None:
 
     def known(what: str, name: str, choices: list[str], loc: tuple) -> None:
         if name not in choices:
-            close = difflib.get_close_matches(name, choices, n=1)
-            hint = f" (did you mean {close[0]!r}?)" if close else f" (there are: {choices})"
-            raise c.error(loc, f"no {what} named {name!r}{hint}")
+            raise c.error(loc, f"no {what} named {name!r}{nearest(name, choices, 'there are')}")
 
     for name, layer in score.layers.items():
         known("layer in the tiles", name, tiles.layers, ("score", "layers", name))
@@ -340,9 +332,7 @@ def _labels(c: _Checker, wanted: list[str], loc: tuple) -> None:
     known = sorted(body_labels(c.spec.body))
     for label in wanted:
         if label not in known:
-            close = difflib.get_close_matches(label, known, n=1)
-            hint = f" (did you mean {close[0]!r}?)" if close else f" (labels: {known})"
-            raise c.error(loc, f"the body has no motor label {label!r}{hint}")
+            raise c.error(loc, f"the body has no motor label {label!r}{nearest(label, known, 'labels')}")
 
 
 def _tuples(c: _Checker) -> None:
@@ -419,9 +409,7 @@ def _proximities(c: _Checker, name: str, g) -> None:
 
     def member(tuple_: str, where: tuple) -> None:
         if tuple_ not in members:
-            close = difflib.get_close_matches(tuple_, members, n=1)
-            hint = f" (did you mean {close[0]!r}?)" if close else f" (its tuples: {members})"
-            raise c.error(where, f"{tuple_!r} is not a tuple of group {name!r}{hint}")
+            raise c.error(where, f"{tuple_!r} is not a tuple of group {name!r}{nearest(tuple_, members, 'its tuples')}")
 
     for a, row in g.proximity.items():
         member(a, (*loc, a))
