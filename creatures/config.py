@@ -51,6 +51,9 @@ def key_lines(text: str) -> dict[tuple[str | int, ...], int]:
 
     Arrays of tables get integer indices (``creature.0.name``) in the order they appear, so a
     validation error at ``("creature", 1, "kind")`` finds the second ``[[creature]]`` block.
+    A table a header or a dotted key defines implicitly (``group`` in ``[creature.group.mood]``,
+    ``edits`` in ``edits.favour = …``) is at the first line that writes it: an unknown key
+    there is a typo on that line, not on the line of the table around it.
     """
     lines: dict[tuple[str | int, ...], int] = {}
     prefix: tuple[str | int, ...] = ()
@@ -65,6 +68,7 @@ def key_lines(text: str) -> dict[tuple[str | int, ...], int]:
                 path = (*path, name)
                 if path in counters:
                     path = (*path, counters[path])
+                lines.setdefault(path, lineno)
             path = (*path, names[-1])
             if header.group(1) == "[[":
                 index = counters.get(path, -1) + 1
@@ -76,7 +80,9 @@ def key_lines(text: str) -> dict[tuple[str | int, ...], int]:
             continue
         assign = _ASSIGN.match(raw)
         if assign:
-            lines.setdefault((*prefix, *_split_key(assign.group(1))), lineno)
+            keys = _split_key(assign.group(1))
+            for n in range(1, len(keys) + 1):
+                lines.setdefault((*prefix, *keys[:n]), lineno)
     return lines
 
 

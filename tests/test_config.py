@@ -103,6 +103,26 @@ def test_key_lines_handles_dotted_and_quoted_keys():
     assert lines[("arr", 1, "y")] == 8
 
 
+def test_a_table_a_header_or_dotted_key_implies_is_at_the_line_that_writes_it(tmp_path):
+    """``[creature.group.mood]`` (for ``groups``) is a typo on its own line; it was said at the
+    ``[[creature]]`` line, which holds no ``group``, dozens of lines above in a real piece."""
+    lines = key_lines('[[creature]]\nname = "a"\n[creature.group.mood]\nalpha = 0\nedits.favour.x = 1\n')
+    assert lines[("creature", 0, "group")] == 3
+    assert lines[("creature", 0, "group", "mood")] == 3
+    assert lines[("creature", 0, "group", "mood", "edits")] == 5
+    assert lines[("creature", 0)] == 1
+    from creatures.runtime.schema import load_installation
+
+    heron = (Path(installations.__file__).parent / "tutorial" / "heron-1.toml").read_text()
+    assert "[creature.groups.main]" in heron
+    path = write(tmp_path, "heron.toml", heron.replace("[creature.groups.main]", "[creature.group.main]"))
+    with pytest.raises(ConfigError) as err:
+        load_installation(path)
+    typo = next(n for n, line in enumerate(path.read_text().splitlines(), 1) if "[creature.group.main]" in line)
+    assert (err.value.key, err.value.line) == ("creature.0.group", typo)
+    assert "did you mean 'groups'" in str(err.value)
+
+
 def test_missing_extends_file_names_the_key_and_the_including_line(tmp_path):
     child = write(tmp_path, "child.toml", 'title = "child"\n\nextends = "bases/absent.toml"\n')
     with pytest.raises(ConfigError) as err:
