@@ -447,6 +447,24 @@ def test_sensors_models_follow_nested_groups_constraints_and_learning_run_togeth
     assert any(p == 48 for _, p in played)  # 'after' runs when 'rest' ends (meets), inside 'inner'
 
 
+@pytest.mark.parametrize("percept, pitches, bad", [("played", "[72, 720]", 720), ("motif", "[60, -5]", -5)])
+def test_a_percept_waiting_for_a_pitch_past_midi_is_refused_at_its_line(tmp_path, percept, pitches, bad):
+    """A ``played`` or ``motif`` percept given a pitch past 0-127 waits for a note no one can
+    play: the creature was silently never triggered; now it is said like play_phrase's."""
+    text = HEAD + CREATURE.replace('[creature.tuples.sing]', f"""[creature.percepts.wait]
+type = "{percept}"
+pitches = {pitches}
+
+[creature.tuples.sing]""")
+    path = write(tmp_path, text)
+    with pytest.raises(ConfigError) as err:
+        load_installation(path)
+    line = next(n for n, row in enumerate(path.read_text().splitlines(), 1) if row.startswith("pitches = ["))
+    assert err.value.key == "creature.0.percepts.wait.pitches.1" and err.value.line == line
+    assert f"(got {bad})" in str(err.value)
+    load_installation(write(tmp_path, text.replace(pitches, "[72, 60]"), "fine.toml"))
+
+
 def test_a_missing_sensor_is_a_config_error_naming_it(tmp_path):
     import numpy as np
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from typing import TYPE_CHECKING, ClassVar, Literal
+from typing import TYPE_CHECKING, Annotated, ClassVar, Literal
 
 from pydantic import BaseModel, Field, field_validator, model_validator
 
@@ -35,6 +35,11 @@ from midi.fifths import STEPS
 
 if TYPE_CHECKING:
     from creatures.authored.creature import Authored
+
+MidiPitch = Annotated[int, Field(ge=0, le=127)]
+"""A MIDI note number. A percept that waits for pitches (``played``, ``motif``) and is given one
+past 0–127 would wait for a note no one can play: silent, with nothing said, so it is refused
+at its line like a ``play_phrase``'s."""
 
 
 class PerceptPart(Part):
@@ -372,7 +377,7 @@ class Schedule(PerceptPart):
 
 
 class _PlayedParams(Params):
-    pitches: list[int] = Field(min_length=1, description="the pitches that count")
+    pitches: list[MidiPitch] = Field(min_length=1, description="the pitches that count")
     window: float = Field(1.0, gt=0, description="seconds after the note started")
 
 
@@ -494,7 +499,7 @@ class FreshNotes(PerceptPart):
 
 
 class _MotifParams(Params):
-    pitches: list[int] = Field(min_length=2, max_length=64, description="MIDI pitches of the phrase, in order")
+    pitches: list[MidiPitch] = Field(min_length=2, max_length=64, description="MIDI pitches of the phrase, in order")
     window: float = Field(0.1, gt=0, le=60, description="seconds it stays salient after the phrase's last note")
 
 
