@@ -182,6 +182,10 @@ def test_bad_crowds_are_errors_at_the_table(tmp_path, old, new, key, message):
     ('steer = [{ behaviour = "seak" }]', "did you mean 'seek'"),
     ('steer = [{ behaviour = "path_following", path = "aisle" }]', "path_following needs path"),
     ('steer = [{ behaviour = "seek", when = "hungry" }]', "no percept 'hungry'"),
+    # a slip is said with the nearest name, as everywhere else in a config
+    ('steer = [{ behaviour = "seek", target = "visiter" }]', "no creature named 'visiter' .*did you mean 'visitor'"),
+    ('steer = [{ behaviour = "seek", target = "b" }]', "no creature named 'b' .*or one of .*'centre'"),
+    ('steer = [{ behaviour = "seek", when = "heardd" }]', "no percept 'heardd' \\(did you mean 'heard'"),
 ])
 def test_steering_that_names_what_is_not_there_is_a_config_error(tmp_path, steer, message):
     path = write(tmp_path, HEADER.format(room="") + singer("a", 1.0, 1.0, vehicle=steer))
@@ -524,6 +528,8 @@ def test_a_creature_behind_an_obstacle_is_not_seen_by_the_stage(tmp_path):
      "no creature has a drive 'hungre'"),
     ('[[room.zones]]\nname = "z"\nlow = [0.0, 0.0]\nhigh = [1.0, 1.0]\nenable = ["dance"]', "",
      "no creature has a tuple 'dance'"),
+    ('[[room.zones]]\nname = "z"\nlow = [0.0, 0.0]\nhigh = [1.0, 1.0]\nenable = ["ech"]', "",
+     "no creature has a tuple 'ech' \\(did you mean 'echo'"),
     ('[[room.zones]]\nname = "z"\nlow = [0.0, 0.0]\nhigh = [1.0, 1.0]\nspec = { gian = 0.5 }', "",
      "spec key 'gian' is neither a vehicle key .* nor any creature's spec key \\(did you mean 'gain'\\?\\)"),
     ('[[room.zones]]\nname = "z"\nlow = [0.0, 0.0]\nhigh = [1.0, 1.0]\nspec = { gain = 9.0 }', "",

@@ -10,6 +10,7 @@ and :meth:`Stage.place` to set each voice's speaker gains.
 
 from __future__ import annotations
 
+import difflib
 import itertools
 import json
 from typing import TYPE_CHECKING, Any, Callable
@@ -19,6 +20,7 @@ from scipy.spatial import cKDTree
 
 from creatures import bounds
 from creatures.clock import clock_gap, next_on_grid
+from creatures.config import nearest
 from creatures.kinds.figures import body_graph
 from creatures.room.director import FlowField, Path
 from creatures.room.hearing import DistanceLaw, Ears, Masking, arrivals, db_velocity, velocity_db
@@ -106,11 +108,12 @@ def check_places(section: RoomSection, specs: list, drives: list[tuple[str, ...]
         for name in zone.drives:
             if name not in all_drives:
                 raise RoomError(("zones", z, "drives", name), f"zone {zone.name!r}: no creature has a drive "
-                                f"{name!r} (drives: {sorted(all_drives)})")
+                                f"{name!r}{nearest(name, sorted(all_drives), 'drives')}")
         for key in ("enable", "disable"):
             for name in getattr(zone, key):
                 if name not in all_tuples:
-                    raise RoomError(("zones", z, key), f"zone {zone.name!r}: no creature has a tuple {name!r}")
+                    raise RoomError(("zones", z, key), f"zone {zone.name!r}: no creature has a tuple "
+                                    f"{name!r}{nearest(name, sorted(all_tuples), 'tuples')}")
         if (problem := spec_problem(zone, specs)) is not None:
             raise RoomError(("zones", z, "spec", problem[0]), problem[1])
 
@@ -136,19 +139,22 @@ def recipes(section: RoomSection, specs: list, index: dict[str, int]
                 raise StageError(i, ("vehicle", "steer", b, "target"), "target \"note\" steers to the nearest "
                                  "note object, and the room has none ([[room.notes]])")
             if isinstance(target, str) and target not in NAMED_TARGETS:
-                if target not in index:
-                    raise StageError(i, ("vehicle", "steer", b, "target"), f"no creature named {target!r} to steer "
-                                     f"by (or one of {NAMED_TARGETS}, or [x, y])")
+                if target not in index:  # a slip of a named target ("visiter") or of a creature's name
+                    close = difflib.get_close_matches(target, [*NAMED_TARGETS, *index], n=1)
+                    hint = f"did you mean {close[0]!r}?" if close else f"or one of {NAMED_TARGETS}, or [x, y]"
+                    raise StageError(i, ("vehicle", "steer", b, "target"),
+                                     f"no creature named {target!r} to steer by ({hint})")
                 params["target"] = index[target]
             need = {"path_following": ("path", paths), "flow_following": ("field", flows)}.get(steer.behaviour)
             if need is not None and params.get(need[0]) not in need[1]:
                 raise StageError(i, ("vehicle", "steer", b, need[0]), f"{steer.behaviour} needs {need[0]} = one of "
-                                 f"the room's [[room.{need[0]}s]] names {sorted(need[1])}, got {params.get(need[0])!r}")
+                                 f"the room's [[room.{need[0]}s]] names, got {params.get(need[0])!r}"
+                                 f"{nearest(params.get(need[0]), sorted(need[1]), f'[[room.{need[0]}s]]')}")
             if steer.when is not None:
                 percepts = getattr(spec, "percepts", None)
                 if percepts is None or steer.when not in percepts:
-                    raise StageError(i, ("vehicle", "steer", b, "when"), f"no percept {steer.when!r} "
-                                     f"(this creature's: {sorted(percepts or [])})")
+                    raise StageError(i, ("vehicle", "steer", b, "when"), f"no percept {steer.when!r}"
+                                     f"{nearest(steer.when, sorted(percepts or []), 'its percepts')}")
                 when.append((i, b, steer.when))
             behaviours.append(Behaviour(steer.behaviour, steer.weight, steer.probability, params))
         key = json.dumps([[b.name, b.weight, b.probability, sorted(b.params.items())] for b in behaviours]
