@@ -350,7 +350,10 @@ def test_the_authored_exchange_runs_deterministically(tmp_path):
     assert set(played) == {"ada", "bo", "cy"}
 
 
-PARTS = HEAD + """
+DOOR = '[[input]]\nosc = "/door"\nto = "sensor"\nname = "door"\n'
+"""The input map that writes the sensor PARTS's door percept reads."""
+
+PARTS = HEAD + DOOR + """
 [[creature]]
 name = "p"
 kind = "authored"
@@ -465,15 +468,18 @@ pitches = {pitches}
     load_installation(write(tmp_path, text.replace(pitches, "[72, 60]"), "fine.toml"))
 
 
-def test_a_missing_sensor_is_a_config_error_naming_it(tmp_path):
-    import numpy as np
-
-    from creatures.kinds import KINDS
-
-    spec = load_installation(write(tmp_path, PARTS)).specs[0]
-    _, world = _world_with({})
-    with pytest.raises(ConfigError, match="no sensor named 'door'"):
-        KINDS["authored"](spec, world, np.random.default_rng(1))
+@pytest.mark.parametrize("maps, hint", [
+    ("", 'no \\[\\[input\\]\\] map has to = "sensor"'),
+    (DOOR.replace('"door"', '"doors"'), "did you mean 'doors'"),
+])
+def test_a_sensor_no_input_map_writes_is_a_config_error_at_its_line(tmp_path, maps, hint):
+    """Said when the config loads, at the percept's line with the nearest sensor; it was said
+    only as the creature was built (a live run's start), naming no line and no nearest name."""
+    path = write(tmp_path, PARTS.replace(DOOR, maps))
+    with pytest.raises(ConfigError, match=f"no input map writes a sensor 'door' \\({hint}") as err:
+        load_installation(path)
+    line = next(n for n, row in enumerate(path.read_text().splitlines(), 1) if row == 'sensor = "door"')
+    assert (err.value.key, err.value.line) == ("creature.0.percepts.door.sensor", line)
 
 
 def test_drives_grow_decay_couple_take_percept_inputs_and_follow_scripted_arcs(tmp_path):

@@ -65,7 +65,8 @@ def authored(tmp_path, text: str, sensors: dict | None = None, seed: int = 3):
     """(clock, world, creature) for the first creature of installation ``text``, in a world
     on a simulated clock with ``sensors``."""
     path = tmp_path / "creature.toml"
-    path.write_text(textwrap.dedent(text))
+    maps = "".join(f'\n[[input]]\nosc = "/{name}"\nto = "sensor"\nname = "{name}"\n' for name in sensors or {})
+    path.write_text(textwrap.dedent(text) + maps)  # the maps that write the sensors its percepts read
     spec = load_installation(path).specs[0]
     clock, world = _world_with(sensors or {})
     creature = KINDS["authored"](spec, world, np.random.default_rng(seed))

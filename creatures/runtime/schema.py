@@ -459,6 +459,19 @@ def _sensed(path: Path, where, loc: tuple, own: str, params: dict, by_name: dict
         raise config_error(path, where, (*loc, "percept"), f"{whom!r} has no percept {what!r}{hint}")
 
 
+def _sensor(path: Path, where, loc: tuple, params: dict, sensors: list[str]) -> None:
+    """A 'sensor' percept (or a tracked visitor) reads a sensor an ``[[input]]`` map writes
+    (``to = "sensor"``), the only thing that makes one: named nowhere, it is a slip to say at
+    its line with the nearest name before anything runs (a percept's was found only as the
+    creature was built, with no line and no nearest name)."""
+    name = params.get("sensor")
+    if name not in sensors:
+        close = difflib.get_close_matches(str(name), sensors, n=1)
+        hint = (f"did you mean {close[0]!r}?" if close else f"the sensors: {sensors}" if sensors else
+                'no [[input]] map has to = "sensor"')
+        raise config_error(path, where, loc, f"no input map writes a sensor {name!r} ({hint})")
+
+
 def load_installation(path: str | Path) -> LoadedInstallation:
     """Read and validate an installation config; :class:`ConfigError` names key and line."""
     path = Path(path).resolve()
@@ -497,6 +510,7 @@ def load_installation(path: str | Path) -> LoadedInstallation:
         names.add(spec.name)
         specs.append(spec)
     by_name = {spec.name: spec for spec in specs}
+    sensors = sorted({m.name for m in settings.input.map if m.to == "sensor" and m.name})
     for spec, i in zip(specs, origin):
         for name, percept in (getattr(spec, "percepts", None) or {}).items():
             if percept.type in ROOM_PERCEPTS and settings.room is None:
@@ -504,6 +518,8 @@ def load_installation(path: str | Path) -> LoadedInstallation:
                                    f"percept type {percept.type!r} needs a [room] (where would it be?)")
             if percept.type == "sensed":
                 _sensed(path, where, ("creature", i, "percepts", name), spec.name, percept.params(), by_name)
+            if percept.type == "sensor":
+                _sensor(path, where, ("creature", i, "percepts", name, "sensor"), percept.params(), sensors)
     if settings.room is not None:  # what the creatures' steering names must be in the room
         try:
             room_recipes(settings.room, specs, {spec.name: i for i, spec in enumerate(specs)})
@@ -513,16 +529,9 @@ def load_installation(path: str | Path) -> LoadedInstallation:
         except RoomError as exc:
             raise config_error(path, where, ("room", *exc.key), str(exc)) from None
     if settings.room is not None:  # a visitor is tracked through sensors the input map writes
-        sensors = sorted({m.name for m in settings.input.map if m.to == "sensor" and m.name})
         for k, visitor in enumerate(settings.room.visitors):
             for axis in ("x", "y"):
-                name = getattr(visitor, axis)
-                if name not in sensors:
-                    close = difflib.get_close_matches(name, sensors, n=1)
-                    hint = (f"did you mean {close[0]!r}?" if close else f"the sensors: {sensors}" if sensors else
-                            "no [[input]] map has to = \"sensor\"")
-                    raise config_error(path, where, ("room", "visitors", k, axis),
-                                       f"no input map writes a sensor {name!r} ({hint})")
+                _sensor(path, where, ("room", "visitors", k, axis), {"sensor": getattr(visitor, axis)}, sensors)
     for key in ("audio", "midi"):
         file = getattr(settings.input, key)
         if file is not None and not (written_in(where, ("input", key), path).parent / file).exists():
