@@ -419,6 +419,16 @@ def test_a_late_click_credits_the_tuple_that_just_ended_and_not_one_long_gone():
     assert credited == ["roll"] and "sit" not in moved
 
 
+def test_a_note_map_takes_a_note_name_for_its_constant_pitch(tmp_path):
+    """``pitch = "F#3"``, as docs/config.md offers ("MIDI pitch, or a note name such as 'C4'"),
+    was refused as "not a valid number"; it is the note's number."""
+    session, clock = colony(tmp_path, '[[input]]\nosc = "/bell"\nto = "note"\npitch = "F#3"\nvelocity = 90\n')
+    clock.advance_to(1.0)
+    assert session.inputs.osc("/bell", [], 1.0) == 1
+    session.world.deliver(1.0)
+    assert [(e["pitch"], e["velocity"]) for e in events(session, "heard")] == [(54, 90)]
+
+
 # -- config errors -----------------------------------------------------------------------------
 @pytest.mark.parametrize("table,key,message", [
     ('osc = "/a/[bc"\nto = "note"', "input.0.osc", "bad OSC address pattern"),
@@ -437,6 +447,9 @@ def test_a_late_click_credits_the_tuple_that_just_ended_and_not_one_long_gone():
     ('osc = "/a"\nto = "note"\nbaud = 9600', "input.0.baud", "only with serial"),
     ('file = "missing.csv"', "input.0.file", "cannot read rehearsal file"),
     ('osc = "/a"\nto = "note"\npitchh = 3', "input.0.pitchh", "did you mean 'pitch'"),
+    # a constant no note can have made every note the map heard malformed, and the config loaded
+    ('osc = "/a"\nto = "note"\npitch = 200', "input.0.pitch", "a pitch is a MIDI number 0-127"),
+    ('osc = "/a"\nto = "note"\nvelocity = 0', "input.0.velocity", "a velocity is a MIDI number 1-127"),
 ])
 def test_a_bad_input_map_names_key_and_line(tmp_path, table, key, message):
     path = tmp_path / "bad.toml"

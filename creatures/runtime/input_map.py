@@ -36,7 +36,6 @@ value would credit a tuple with the largest reward there is for it.
 from __future__ import annotations
 
 import math
-import re
 from collections import Counter
 from typing import TYPE_CHECKING, Any, Callable
 
@@ -46,7 +45,7 @@ from creatures.behaviour.state_object import Habituation, StateObject
 from creatures.bounds import LARGEST_RATE
 from creatures.log_limit import INTERVAL
 from creatures.runtime.input_routes import MIDI, MIDI_KIND, MIDI_SPAN, Route
-from creatures.runtime.schema import Arg, InputMap, Number
+from creatures.runtime.schema import Arg, InputMap, Number, named_pitch
 from midi.notes import LONGEST_NOTE, NoteEvent, is_note_off
 from midi.peer_table import Bucket
 
@@ -71,10 +70,6 @@ REWARD_LIMIT = 1e3
 """Largest magnitude of one reward from outside. A click moves a credited value by at most
 ``rate·amount``; at this bound a year of clicks every second stays far inside the
 :data:`~creatures.bounds.LARGEST_VALUE` that saved values are read back within."""
-
-_NOTE_NAME = re.compile(r"([A-Ga-g])([#b]?)(-?\d)")
-_STEPS = {"c": 0, "d": 2, "e": 4, "f": 5, "g": 7, "a": 9, "b": 11}
-
 
 class Unreadable(ValueError):
     """A message a map matched but cannot read (counted as malformed)."""
@@ -110,9 +105,8 @@ def as_pitch(x: Any) -> int:
     OSC truth value (``T`` was heard as pitch 1), which a sensor reads as 1 or 0."""
     if isinstance(x, bool):
         raise Unreadable(f"pitch: a truth value is not a pitch ({x})")
-    if isinstance(x, str) and (name := _NOTE_NAME.fullmatch(x.strip())):
-        accidental = {"#": 1, "b": -1}.get(name[2], 0)
-        x = 12 * (int(name[3]) + 1) + _STEPS[name[1].lower()] + accidental
+    if isinstance(x, str) and (number := named_pitch(x)) is not None:
+        x = number
     pitch = round(as_number(x, "pitch"))
     if not 0 <= pitch <= 127:
         raise Unreadable(f"pitch {pitch} is outside 0..127")

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import difflib
 import ipaddress
+import re
 import socket
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -237,6 +238,18 @@ class Arg(Strict):
 Number = Bounded | Arg
 """A constant, or ``{arg = N, default = X}``: read from the message."""
 
+_NOTE_NAME = re.compile(r"([A-Ga-g])([#b]?)(-?\d)")
+_STEPS = {"c": 0, "d": 2, "e": 4, "f": 5, "g": 7, "a": 9, "b": 11}
+
+
+def named_pitch(text: str) -> int | None:
+    """The MIDI number of a note name (``C4`` = 60, ``F#3``, ``Bb2``), else ``None``: a note
+    map's ``pitch`` may be written either way, as may the message's argument it reads."""
+    name = _NOTE_NAME.fullmatch(text.strip())
+    if name is None:
+        return None
+    return 12 * (int(name[3]) + 1) + _STEPS[name[1].lower()] + {"#": 1, "b": -1}.get(name[2], 0)
+
 
 class InputMap(Strict):
     """One `[[input]]` table: an outside source mapped to what the creatures take in
@@ -274,6 +287,26 @@ class InputMap(Strict):
     velocity: Number | None = Field(None, description="to = 'note': velocity 1-127 (default: the MIDI note's, "
                                                       "else 100)")
     duration: Number | None = Field(None, description="to = 'note': seconds (default 0.25)")
+
+    @field_validator("pitch", mode="before")
+    @classmethod
+    def _named_pitch(cls, value: Any) -> Any:
+        """``pitch = "C4"``, as the description offers, is read as its number here; it was
+        refused as "not a valid number". Other text is left to the number's own error."""
+        if isinstance(value, str) and (number := named_pitch(value)) is not None:
+            return number
+        return value
+
+    @field_validator("pitch", "velocity")
+    @classmethod
+    def _midi_number(cls, value: Any, info: Any) -> Any:
+        """A constant pitch or velocity is a MIDI number: one beyond it (``pitch = 200``) made
+        every note the map heard malformed, counted and dropped, and the config loaded."""
+        low = 0 if info.field_name == "pitch" else 1
+        if isinstance(value, int | float) and not low <= value <= 127:
+            raise ValueError(f"a {info.field_name} is a MIDI number {low}-127"
+                             + (" or a note name such as 'C4'" if info.field_name == "pitch" else ""))
+        return value
     name: str | None = Field(None, pattern=r"^[A-Za-z0-9_.\-]+$", description="to = 'sensor': the sensor's name "
                                                                              "(world.sensors[name], a StateObject: "
                                                                              "saliency = |reading|, habituating "
