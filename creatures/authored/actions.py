@@ -367,7 +367,9 @@ class GoTo(MotorPart):
 
 
 class _ProgramParams(Params):
-    text: str = Field(description="motor programs in the thesis's language ('name: getTo {...}; wait; cycle')")
+    text: str = Field(description="motor programs in the thesis's language ('name: getTo {...}; wait; cycle'); "
+                                  "each program begins a line of its own, so a text of several is a TOML "
+                                  "multi-line string ('''...''')")
     program: str | None = Field(None, description="which program of the text runs (default: the first)")
 
     @model_validator(mode="after")

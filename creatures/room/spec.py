@@ -265,7 +265,7 @@ class SteerSpec(Strict):
         None, description="seek, flee, arrival, pursuit, evasion, leader_following: 'visitor' (the nearest), "
                           "'player' (where the last note from outside came from, for 4 s), 'loud' (the nearest "
                           "loud sound), 'note' (the nearest [[room.notes]] object), 'centre', [x, y], or another "
-                          "creature's name")
+                          "creature's name; none: 'visitor'")
     slowing: float | None = Field(None, gt=0, le=LARGEST_ROOM, description="arrival: slowing distance, m")
     panic: float | None = Field(None, gt=0, le=LARGEST_ROOM, description="flee, evasion: only within this, m")
     behind: float | None = Field(None, gt=0, le=LARGEST_ROOM, description="leader_following: distance behind, m")
