@@ -249,6 +249,17 @@ def _data_path(data: Any, loc: tuple[str | int, ...]) -> tuple[str | int, ...]:
     return tuple(path)
 
 
+def _at(data: Any, path: tuple[str | int, ...]) -> Any:
+    """The value at key path ``path`` of ``data`` (as :func:`_data_path` gives it), else ``None``."""
+    for part in path:
+        if isinstance(data, dict) and part in data or isinstance(data, list) and isinstance(part, int) \
+                and 0 <= part < len(data):
+            data = data[part]
+        else:
+            return None
+    return data
+
+
 SCALAR_ERRORS = frozenset({"float_type", "float_parsing", "int_type", "int_parsing", "string_type", "bool_type",
                            "bool_parsing", "literal_error"})
 """Pydantic's errors for a value that is not the number, string or name its field wants."""
@@ -292,6 +303,10 @@ def validate(
         if error["type"] == "list_type" and isinstance(got, dict):  # [creature] for [[creature]]
             header = ".".join(str(part) for part in loc if isinstance(part, str))
             message, got = f"a list of tables: write [[{header}]] (two brackets) before each one", None
+        if error["type"] == "missing" and len(loc) > len(prefix) and isinstance(loc[-1], int):
+            short = _at(data, loc[len(prefix):-1])  # a pair written with one value: at = [1.0]
+            if isinstance(short, list):
+                loc, message, got = loc[:-1], f"too few values: a value is wanted at position {loc[-1] + 1}", short
         raise config_error(file, where, loc, message if error["type"] != "extra_forbidden" else None,
                            choices=choices, got=got) from None
     quoted = _quoted_scalar(valid, data) if literal else None

@@ -148,6 +148,9 @@ def test_a_fifo_as_extends_is_said_as_a_fifo_not_as_missing(tmp_path):
     (("until = { pulse = 2 }", "until = { puls = 2 }"), "creature.0.tuples.rest.until.puls", "did you mean 'pulse'"),
     (("value = 1.0", 'value = "high"'), "creature.0.tuples.sing.value", "valid number"),
     (("[[creature]]", "[creature]"), "creature", "write [[creature]] (two brackets)"),
+    # a pair written with one value was 'creature.0.tuples.rest.until.gaussian.1: Field required'
+    (("until = { pulse = 2 }", "until = { gaussian = [2.0] }"), "creature.0.tuples.rest.until.gaussian",
+     "too few values: a value is wanted at position 2 (got [2.0])"),
 ])
 def test_a_typo_in_a_starting_piece_is_named_at_its_key_with_the_nearest_valid_one(tmp_path, edit, key, message):
     """The mistakes a new author makes in `creatures new`'s piece: a key inside a named table
