@@ -184,7 +184,7 @@ def test_bad_crowds_are_errors_at_the_table(tmp_path, old, new, key, message):
     ('steer = [{ behaviour = "seek", when = "hungry" }]', "no percept 'hungry'"),
     # a slip is said with the nearest name, as everywhere else in a config
     ('steer = [{ behaviour = "seek", target = "visiter" }]', "no creature named 'visiter' .*did you mean 'visitor'"),
-    ('steer = [{ behaviour = "seek", target = "b" }]', "no creature named 'b' .*or one of .*'centre'"),
+    ('steer = [{ behaviour = "seek", target = "b" }]', "no creature named 'b' to steer by \\(targets: .*centre.*\\[x, y\\]\\)"),
     ('steer = [{ behaviour = "seek", when = "heardd" }]', "no percept 'heardd' \\(did you mean 'heard'"),
 ])
 def test_steering_that_names_what_is_not_there_is_a_config_error(tmp_path, steer, message):

@@ -13,7 +13,6 @@ is a :class:`PluginError` naming it.
 
 from __future__ import annotations
 
-import difflib
 import importlib
 import importlib.util
 import sys
@@ -24,6 +23,7 @@ from typing import Any, ClassVar, Generic, Iterator, TypeVar
 from pydantic import BaseModel
 
 from creatures.bounds import FINITE
+from creatures.config import nearest
 
 GROUPS = ("actions", "percepts", "models", "kinds")
 """Entry point groups are ``creature_music.<group>``; each entry names a module to import."""
@@ -109,9 +109,7 @@ class Registry(Generic[P]):
 
     def unknown(self, name: object) -> str:
         """The message for a name that is not registered, with the nearest valid one."""
-        close = difflib.get_close_matches(str(name), self.names(), n=1)
-        hint = f" (did you mean {close[0]!r}?)" if close else f" (choose from {self.names()})"
-        return f"unknown {self.what} {name!r}{hint}"
+        return f"unknown {self.what} {name!r}{nearest(name, self.names(), 'choose from')}"
 
     def __iter__(self) -> Iterator[P]:
         return iter(self._parts[n] for n in self.names())

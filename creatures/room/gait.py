@@ -19,11 +19,11 @@ per second of speed.
 
 from __future__ import annotations
 
-import difflib
 from dataclasses import dataclass
 
 import numpy as np
 
+from creatures.config import nearest
 from creatures.motor.graph import MotorGraph
 
 STILL = 0.02
@@ -50,9 +50,7 @@ class Walk:
         or a clip that does not travel)."""
         poses = graph.poses
         if clip not in poses.sources:
-            near = difflib.get_close_matches(clip, poses.sources, n=1)
-            hint = f" (did you mean {near[0]!r}?)" if near else f" (the body's clips: {', '.join(poses.sources)})"
-            raise ValueError(f"gait {clip!r} is not a clip of the body{hint}")
+            raise ValueError(f"gait {clip!r} is not a clip of the body{nearest(clip, poses.sources, 'its clips')}")
         nodes = np.nonzero(poses.source_ids == poses.sources.index(clip))[0]
         nodes = nodes[np.argsort(poses.times[nodes], kind="stable")]
         steps = np.linalg.norm(graph.advances[nodes[:-1]][:, [0, 2]], axis=1)

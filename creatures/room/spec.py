@@ -12,6 +12,7 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, Field, model_validator
 
 from creatures.bounds import FINITE, Bounded
+from creatures.config import nearest
 from creatures.room.recipe import BEHAVIOURS
 
 BODY_KEYS = ("max_speed", "max_force", "mass", "radius", "max_turn")
@@ -276,10 +277,8 @@ class SteerSpec(Strict):
     @model_validator(mode="after")
     def _known(self) -> "SteerSpec":
         if self.behaviour not in BEHAVIOURS:
-            import difflib
-            close = difflib.get_close_matches(self.behaviour, list(BEHAVIOURS), n=1)
             raise ValueError(f"unknown steering behaviour {self.behaviour!r}"
-                             + (f" (did you mean {close[0]!r}?)" if close else f" (choose from {sorted(BEHAVIOURS)})"))
+                             f"{nearest(self.behaviour, sorted(BEHAVIOURS), 'behaviours')}")
         return self
 
     def params(self) -> dict[str, Any]:

@@ -10,7 +10,6 @@ and :meth:`Stage.place` to set each voice's speaker gains.
 
 from __future__ import annotations
 
-import difflib
 import itertools
 import json
 from typing import TYPE_CHECKING, Any, Callable
@@ -140,10 +139,8 @@ def recipes(section: RoomSection, specs: list, index: dict[str, int]
                                  "note object, and the room has none ([[room.notes]])")
             if isinstance(target, str) and target not in NAMED_TARGETS:
                 if target not in index:  # a slip of a named target ("visiter") or of a creature's name
-                    close = difflib.get_close_matches(target, [*NAMED_TARGETS, *index], n=1)
-                    hint = f"did you mean {close[0]!r}?" if close else f"or one of {NAMED_TARGETS}, or [x, y]"
-                    raise StageError(i, ("vehicle", "steer", b, "target"),
-                                     f"no creature named {target!r} to steer by ({hint})")
+                    raise StageError(i, ("vehicle", "steer", b, "target"), f"no creature named {target!r} to steer "
+                                     f"by{nearest(target, [*NAMED_TARGETS, *index, '[x, y]'], 'targets')}")
                 params["target"] = index[target]
             need = {"path_following": ("path", paths), "flow_following": ("field", flows)}.get(steer.behaviour)
             if need is not None and params.get(need[0]) not in need[1]:

@@ -22,7 +22,7 @@ from creatures.authored.include import expand_includes, expand_kinds, expand_lik
 from creatures.authored.plugins import load_plugins
 from creatures.authored.registry import PluginError
 from creatures.runtime.cc_sources import check_source
-from creatures.config import ConfigError, config_error, read_toml, validate, written_in
+from creatures.config import ConfigError, config_error, nearest, read_toml, validate, written_in
 from creatures.kinds import CreatureSpec, load_all
 from creatures.authored.percepts import ROOM_PERCEPTS
 from creatures.room.crowd import CrowdError, expand as expand_crowds
@@ -288,25 +288,6 @@ class InputMap(Strict):
                                                       "else 100)")
     duration: Number | None = Field(None, description="to = 'note': seconds (default 0.25)")
 
-    @field_validator("pitch", mode="before")
-    @classmethod
-    def _named_pitch(cls, value: Any) -> Any:
-        """``pitch = "C4"``, as the description offers, is read as its number here; it was
-        refused as "not a valid number". Other text is left to the number's own error."""
-        if isinstance(value, str) and (number := named_pitch(value)) is not None:
-            return number
-        return value
-
-    @field_validator("pitch", "velocity")
-    @classmethod
-    def _midi_number(cls, value: Any, info: Any) -> Any:
-        """A constant pitch or velocity is a MIDI number: one beyond it (``pitch = 200``) made
-        every note the map heard malformed, counted and dropped, and the config loaded."""
-        low = 0 if info.field_name == "pitch" else 1
-        if isinstance(value, int | float) and not low <= value <= 127:
-            raise ValueError(f"a {info.field_name} is a MIDI number {low}-127"
-                             + (" or a note name such as 'C4'" if info.field_name == "pitch" else ""))
-        return value
     name: str | None = Field(None, pattern=r"^[A-Za-z0-9_.\-]+$", description="to = 'sensor': the sensor's name "
                                                                              "(world.sensors[name], a StateObject: "
                                                                              "saliency = |reading|, habituating "
@@ -336,6 +317,26 @@ class InputMap(Strict):
                                 "`throttled` and logged: a stuck sensor or a flooding sender cannot retrain the "
                                 "colony or swamp a drive. Default: 10 for to = 'reward' (a visitor's clicks), "
                                 "none otherwise")
+
+    @field_validator("pitch", mode="before")
+    @classmethod
+    def _named_pitch(cls, value: Any) -> Any:
+        """``pitch = "C4"``, as the description offers, is read as its number here; it was
+        refused as "not a valid number". Other text is left to the number's own error."""
+        if isinstance(value, str) and (number := named_pitch(value)) is not None:
+            return number
+        return value
+
+    @field_validator("pitch", "velocity")
+    @classmethod
+    def _midi_number(cls, value: Any, info: Any) -> Any:
+        """A constant pitch or velocity is a MIDI number: one beyond it (``pitch = 200``) made
+        every note the map heard malformed, counted and dropped, and the config loaded."""
+        low = 0 if info.field_name == "pitch" else 1
+        if isinstance(value, int | float) and not low <= value <= 127:
+            raise ValueError(f"a {info.field_name} is a MIDI number {low}-127"
+                             + (" or a note name such as 'C4'" if info.field_name == "pitch" else ""))
+        return value
 
 
 class InputSection(Strict):
@@ -479,17 +480,15 @@ def _sensed(path: Path, where, loc: tuple, own: str, params: dict, by_name: dict
     other = by_name.get(whom)
     if other is None or whom == own:
         others = sorted(n for n in by_name if n != own)
-        close = difflib.get_close_matches(str(whom), others, n=1)
-        hint = f" (did you mean {close[0]!r}?)" if close else f" (choose from {others})"
-        raise config_error(path, where, (*loc, "creature"), f"no other creature named {whom!r}{hint}")
+        raise config_error(path, where, (*loc, "creature"),
+                           f"no other creature named {whom!r}{nearest(whom, others, 'the others')}")
     percepts = getattr(other, "percepts", None)
     if percepts is None:
         raise config_error(path, where, (*loc, "creature"), f"{whom!r} is a {other.kind!r} creature: only an "
                                                             "authored creature's percepts can be sensed")
     if what not in percepts and what != "whatever":
-        close = difflib.get_close_matches(str(what), list(percepts), n=1)
-        hint = f" (did you mean {close[0]!r}?)" if close else f" (its percepts: {sorted(percepts)})"
-        raise config_error(path, where, (*loc, "percept"), f"{whom!r} has no percept {what!r}{hint}")
+        raise config_error(path, where, (*loc, "percept"),
+                           f"{whom!r} has no percept {what!r}{nearest(what, sorted(percepts), 'its percepts')}")
 
 
 def _sensor(path: Path, where, loc: tuple, params: dict, sensors: list[str]) -> None:
@@ -530,9 +529,8 @@ def load_installation(path: str | Path) -> LoadedInstallation:
         kind = table.get("kind")
         if not isinstance(kind, str) or kind not in kinds:  # kind = [] must not crash the lookup
             known = sorted({*kinds, *installations.creature_names()})  # classes and shipped creature documents
-            close = difflib.get_close_matches(str(kind), known, n=1)
-            hint = f" (did you mean {close[0]!r}?)" if close else f" (choose from {known})"
-            raise config_error(path, where, ("creature", i, "kind"), f"unknown creature kind {kind!r}{hint}")
+            raise config_error(path, where, ("creature", i, "kind"),
+                               f"unknown creature kind {kind!r}{nearest(kind, known, 'choose from')}")
         spec = validate(kinds[kind].Spec, table, where, path, prefix=("creature", i))
         _resolve_body(kinds[kind], spec, path, where, ("creature", i))
         check = getattr(spec, "check_references", None)  # kinds that name parts resolve them now
@@ -587,9 +585,8 @@ def load_installation(path: str | Path) -> LoadedInstallation:
     for i, stream in enumerate(settings.output.cc):
         creature = stream.source.split(".")[0]
         if creature not in names:
-            close = difflib.get_close_matches(creature, sorted(names), n=1)
-            hint = f" (did you mean {close[0]!r}?)" if close else f" (creatures: {sorted(names)})"
-            raise config_error(path, where, ("output", "cc", i, "source"), f"no creature named {creature!r}{hint}")
+            raise config_error(path, where, ("output", "cc", i, "source"),
+                               f"no creature named {creature!r}{nearest(creature, sorted(names), 'creatures')}")
         kind = kinds[by_name[creature].kind]
         problem = check_source(stream.source, kind.drive_names(by_name[creature]), kind.has_body(by_name[creature]))
         if problem is not None:

@@ -20,7 +20,6 @@ Every problem names the file, the key and its line (and the nearest valid key or
 
 from __future__ import annotations
 
-import difflib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -28,7 +27,7 @@ import numpy as np
 from pydantic import BaseModel, Field, field_validator, model_validator
 
 from creatures.bounds import FINITE
-from creatures.config import config_error, read_toml, validate
+from creatures.config import config_error, nearest, read_toml, validate
 from creatures.runtime.input_map import Unreadable, as_pitch
 from midi.fifths import fifths_vector
 
@@ -149,9 +148,8 @@ def load_tiles(path: str | Path) -> TileSet:
     for name, table in spec.tiles.items():
         for k, other in enumerate(table.follows):
             if other not in spec.tiles:
-                close = difflib.get_close_matches(other, names, n=1)
-                hint = f" (did you mean {close[0]!r}?)" if close else ""
-                raise config_error(path, where, ("tiles", name, "follows", k), f"no tile {other!r}{hint}")
+                raise config_error(path, where, ("tiles", name, "follows", k),
+                                   f"no tile {other!r}{nearest(other, names, 'tiles')}")
             if spec.tiles[other].layer != table.layer:
                 raise config_error(path, where, ("tiles", name, "follows", k),
                                    f"{other!r} is in layer {spec.tiles[other].layer!r}, not {table.layer!r}: "
