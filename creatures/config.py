@@ -204,12 +204,16 @@ def _fields_at(model: type[BaseModel], loc: tuple[str | int, ...]) -> list[str]:
     of named tables (``dict[str, Model]``: ``[creature.drives.boredom]``) has names of the
     author's choosing at its first level, so that step of ``loc`` is passed over."""
     current: Any = model
+    branches: dict[str, Any] = {}  # a union's models by the class name pydantic puts in a location
     named = False  # the next key is a name in a table of named tables
     for part in loc[:-1]:
         if isinstance(part, int):
             continue
         if named:
             named = False
+            continue
+        if part in branches:  # pitch = { ar = 0 }: ('pitch', 'Arg', 'ar'), the branch meant
+            current, branches = branches[part], {}
             continue
         fields = getattr(current, "model_fields", None)
         if not fields or part not in fields:
@@ -219,7 +223,8 @@ def _fields_at(model: type[BaseModel], loc: tuple[str | int, ...]) -> list[str]:
         args = (*args, *(a for arg in args for a in typing.get_args(arg)))  # list[Model] | None
         named = any(typing.get_origin(a) is dict for a in (annotation, *args))
         candidates = [annotation, *args]
-        current = next((c for c in candidates if isinstance(c, type) and issubclass(c, BaseModel)), None)
+        branches = {c.__name__: c for c in candidates if isinstance(c, type) and issubclass(c, BaseModel)}
+        current = next(iter(branches.values()), None)
         if current is None:
             return []
     return list(getattr(current, "model_fields", {}))
@@ -300,6 +305,11 @@ def validate(
             close = difflib.get_close_matches(got, re.findall(r"'([^']*)'", str(error["ctx"]["expected"])), n=1)
             message += f" (got {got!r}" + (f"; did you mean {close[0]!r}?)" if close else ")")
             got = None
+        if error["type"] == "model_type" and not isinstance(got, dict):  # body = "stick"
+            header = ".".join(str(part) for part in loc if isinstance(part, str))
+            truth = any(e["type"] == "bool_parsing" and e["loc"][:-1] == error["loc"][:-1] for e in exc.errors())
+            message = (("true, false or " if truth else "") + f"a table is wanted here: {loc[-1]} = {{ … }} or a "
+                       f"[{header}] table (docs/config.md)")
         if error["type"] == "list_type" and isinstance(got, dict):  # [creature] for [[creature]]
             header = ".".join(str(part) for part in loc if isinstance(part, str))
             message, got = f"a list of tables: write [[{header}]] (two brackets) before each one", None

@@ -151,6 +151,9 @@ def test_a_fifo_as_extends_is_said_as_a_fifo_not_as_missing(tmp_path):
     # a pair written with one value was 'creature.0.tuples.rest.until.gaussian.1: Field required'
     (("until = { pulse = 2 }", "until = { gaussian = [2.0] }"), "creature.0.tuples.rest.until.gaussian",
      "too few values: a value is wanted at position 2 (got [2.0])"),
+    # a figure's name where a table is wanted named an internal class: 'instance of FigureBodySpec'
+    (('kind = "authored"', 'kind = "authored"\nbody = "stick"'), "creature.0.body",
+     "true, false or a table is wanted here: body = { … } or a [creature.body] table (docs/config.md) (got 'stick')"),
 ])
 def test_a_typo_in_a_starting_piece_is_named_at_its_key_with_the_nearest_valid_one(tmp_path, edit, key, message):
     """The mistakes a new author makes in `creatures new`'s piece: a key inside a named table
