@@ -365,7 +365,7 @@ def test_counters_go_into_the_events_log_and_the_summary_line(tmp_path):
     assert events[0]["dropped"] == {"arguments": 1, "not osc": 1} and events[0]["clamped"] == 1
     assert events[-1]["sent_bytes"] > events[0]["sent_bytes"]  # the byes
     line = describe(network.counts())
-    assert "1 messages taken (1 clamped), 2 dropped (1 arguments, 1 not osc)" in line
+    assert "1 messages between creatures taken (1 clamped), 2 dropped (1 arguments, 1 not osc)" in line
     assert f"{network.counts()['received_bytes']} bytes in" in line
 
 

@@ -253,7 +253,7 @@ def describe(counts: dict[str, object]) -> str:
     dropped = counts["dropped"]
     refused = counts["refused"]
     causes = ", ".join(f"{n} {cause}" for cause, n in dropped.items() if n)
-    return (f"OSC {counts['received']} messages taken ({counts['clamped']} clamped), "
+    return (f"OSC {counts['received']} messages between creatures taken ({counts['clamped']} clamped), "
             f"{sum(dropped.values())} dropped{f' ({causes})' if causes else ''}, "
             f"{counts['asked']} asked, {sum(refused.values())} refused, {counts['peers']} peers; "
             f"{counts['received_bytes']} bytes in, {counts['sent_bytes']} out; "
