@@ -86,16 +86,29 @@ class TempoMap:
         return np.rint(self.ticks[i] + (seconds - self.seconds[i]) / seconds_per_tick).astype(np.int64)
 
 
-def _open(path: Path) -> mido.MidiFile:
+def _read_capped(path: Path) -> bytes:
+    """The file's bytes, refused past :data:`MAX_MIDI_BYTES` having read at most one byte more.
+
+    Both readers take these bytes: :mod:`midi.smf` read the whole file by itself, so a valid
+    header and track followed by gigabytes (a runaway recorder, a sparse file) were read into
+    memory, and accepted, past the cap mido's path kept.
+    """
     try:
-        # At most one byte past the cap is read: a device or a runaway file cannot fill memory.
         with open(path, "rb") as handle:
-            data = handle.read(MAX_MIDI_BYTES + 1)
-        if len(data) > MAX_MIDI_BYTES:
-            raise MidiFileError(f"{path}: MIDI file larger than {MAX_MIDI_BYTES} bytes; refused")
-        return mido.MidiFile(file=io.BytesIO(data))
+            raw = handle.read(MAX_MIDI_BYTES + 1)
     except FileNotFoundError:
         raise MidiFileError(f"{path}: MIDI file not found") from None
+    except OSError as exc:
+        raise MidiFileError(f"{path}: cannot read the MIDI file ({exc.strerror or exc})") from None
+    if len(raw) > MAX_MIDI_BYTES:
+        raise MidiFileError(f"{path}: MIDI file larger than {MAX_MIDI_BYTES} bytes; refused")
+    return raw
+
+
+def _open(path: Path, data: bytes) -> mido.MidiFile:
+    """``data`` (the file's bytes) read by mido, every error of its turned into a MidiFileError."""
+    try:
+        return mido.MidiFile(file=io.BytesIO(data))
     except EOFError:
         raise MidiFileError(f"{path}: truncated MIDI file (ended inside a chunk)") from None
     except (OSError, ValueError, KeyError, IndexError, TypeError) as exc:
@@ -106,15 +119,12 @@ def _load(path: Path) -> smf.Events | mido.MidiFile:
     """The file parsed by :mod:`midi.smf` (arrays, no message objects), or by mido where that
     reader declines it (then every error is mido's, turned into a MidiFileError as before).
     The one fault :mod:`midi.smf` names itself (:class:`midi.smf.TrackError`) is told with the path."""
-    try:
-        raw = path.read_bytes()
-    except OSError:
-        raw = b""  # missing, a directory, unreadable: mido says which
+    raw = _read_capped(path)
     try:
         events = smf.parse(raw)
     except smf.TrackError as exc:
         raise MidiFileError(f"{path}: {exc}") from None
-    midi = _open(path) if events is None else events
+    midi = _open(path, raw) if events is None else events
     _check_division(path, midi.ticks_per_beat)
     return midi
 

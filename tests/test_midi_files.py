@@ -143,3 +143,27 @@ def test_zero_tempo_in_a_file_is_a_clear_error(tmp_path):
         read_notes(tmp_path / "stopped.mid")
     with pytest.raises(ValueError, match="bpm must be > 0"):
         TempoMap.from_seconds(480, [(1.0, 0.0)])
+
+
+def test_a_valid_file_padded_past_the_size_cap_is_refused(tmp_path):
+    """The compiled reader read the whole file itself and ignored bytes after the last track, so
+    a good header and track followed by 64 MB (sparse here) were read and their notes played."""
+    from midi.files import MAX_MIDI_BYTES
+
+    track = bytes.fromhex("00 90 3C 40 83 60 3C 00 00 FF 2F 00")
+    path = tmp_path / "padded.mid"
+    with open(path, "wb") as handle:
+        handle.write(b"MThd" + (6).to_bytes(4, "big") + bytes.fromhex("0000 0001 01E0"))
+        handle.write(b"MTrk" + len(track).to_bytes(4, "big") + track)
+        handle.truncate(MAX_MIDI_BYTES + 1)
+    for read in (read_notes, read_messages):
+        with pytest.raises(MidiFileError, match=r"padded\.mid: MIDI file larger than"):
+            read(path)
+    with open(path, "r+b") as handle:  # at the cap it is read
+        handle.truncate(MAX_MIDI_BYTES)
+    assert read_notes(path) == [NoteEvent(0.0, 60, 64, 0, 0.5)]
+
+
+def test_a_directory_or_unreadable_path_is_named(tmp_path):
+    with pytest.raises(MidiFileError, match=r"folder\.mid: cannot read the MIDI file \(Is a directory\)"):
+        read_notes((tmp_path / "folder.mid").mkdir() or tmp_path / "folder.mid")
