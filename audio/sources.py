@@ -13,6 +13,7 @@ and returning is :class:`audio.resilient.ResilientInput`.
 
 from __future__ import annotations
 
+import math
 import os
 from abc import ABC, abstractmethod
 from pathlib import Path
@@ -31,6 +32,11 @@ ANALYSIS_RATE = 22050
 MIN_FILE_RATE = 1000
 """Lowest sample rate a sound file may declare. Resampling multiplies a file's size by
 ``samplerate / rate``: a 44 kB file claiming 1 Hz would unpack to 2 GB at 22.05 kHz."""
+
+RESAMPLE_MARGIN = 1.0
+"""Seconds read past the part of a file that is wanted (:func:`load_audio`'s ``seconds``): soxr's
+filter looks ahead a few milliseconds, and with this margin the wanted samples come out exactly
+as the whole file's would (measured: 1000 samples at 44.1 kHz suffice)."""
 
 FULL_SCALE = 0.999
 """A live sample this loud (or louder) is counted as clipped."""
@@ -124,7 +130,8 @@ class ArraySource(AudioSource):
         return block
 
 
-def load_audio(path: str | os.PathLike, *, samplerate: int = ANALYSIS_RATE) -> np.ndarray:
+def load_audio(path: str | os.PathLike, *, samplerate: int = ANALYSIS_RATE,
+               seconds: float | None = None) -> np.ndarray:
     """Read a sound file as mono float32 at ``samplerate``.
 
     Any format libsndfile reads (WAV 8/16/24/32-bit and float, FLAC, OGG, ...) at any rate;
@@ -132,20 +139,29 @@ def load_audio(path: str | os.PathLike, *, samplerate: int = ANALYSIS_RATE) -> n
     naming the file when it is unreadable, truncated beyond use, empty, or holds NaN/inf
     samples or samples beyond :data:`LARGEST_SAMPLE` (silently zeroing those would hide a
     broken recording).
+
+    ``seconds`` reads no further than that much of the file (plus :data:`RESAMPLE_MARGIN`, so
+    the samples up to it are exactly those of the whole file resampled); only what is read is
+    checked. An offline run hears only its duration, and reading the whole file first made a
+    5-second run of a one-hour stereo recording take 27 s and 3.3 GB, and a 4 GB WAV more
+    memory than a gallery machine has.
     """
     path = Path(path)
     if not path.is_file():
         raise AudioFileError(f"{path}: no such sound file")
     try:
-        data, rate = soundfile.read(path, dtype="float32", always_2d=True)
+        with soundfile.SoundFile(path) as sound:
+            rate = sound.samplerate
+            if rate < MIN_FILE_RATE:
+                raise AudioFileError(f"{path}: sample rate {rate} Hz is below {MIN_FILE_RATE} Hz (a damaged header?)")
+            frames = -1 if seconds is None else math.ceil((seconds + RESAMPLE_MARGIN) * rate)
+            data = sound.read(frames, dtype="float32", always_2d=True)
     except (soundfile.LibsndfileError, RuntimeError, OSError) as exc:
         if path.stat().st_size == 0:
             raise AudioFileError(f"{path}: empty file (0 bytes)") from None
         raise AudioFileError(f"{path}: unreadable or corrupt ({exc})") from None
     if data.shape[0] == 0:
         raise AudioFileError(f"{path}: contains no samples (zero-length recording)")
-    if rate < MIN_FILE_RATE:
-        raise AudioFileError(f"{path}: sample rate {rate} Hz is below {MIN_FILE_RATE} Hz (a damaged header?)")
     _refuse_unusable(path, data, rate)
     mono = data.mean(axis=1) if data.shape[1] > 1 else data[:, 0]
     if rate != samplerate:

@@ -98,6 +98,18 @@ def test_file_cut_inside_the_data_keeps_what_was_recorded(tmp_path: Path) -> Non
     np.testing.assert_allclose(y, x[: len(y)], atol=1 / 2**15)
 
 
+def test_a_part_of_a_long_file_is_read_exactly_as_the_whole_would_give_it(tmp_path: Path) -> None:
+    """``seconds`` bounds what is read (an offline run of 5 s read a whole hour first), and the
+    samples up to it are those of the whole file, resampled (44.1 kHz in)."""
+    rng = np.random.default_rng(3)
+    x = 0.1 * rng.standard_normal(44100 * 12)
+    path = write_wav(tmp_path / "long.wav", x, 44100)
+    whole, part = load_audio(path), load_audio(path, seconds=2.0)
+    assert 2 * ANALYSIS_RATE <= len(part) <= 3.01 * ANALYSIS_RATE < len(whole)
+    np.testing.assert_array_equal(part[: 2 * ANALYSIS_RATE], whole[: 2 * ANALYSIS_RATE])
+    assert len(load_audio(path, seconds=60.0)) == len(whole)  # a file shorter than asked: all of it
+
+
 @pytest.mark.parametrize(
     "subtype, tolerance", [("PCM_U8", 1 / 2**7), ("PCM_24", 1e-6), ("PCM_16", 1 / 2**15)]
 )

@@ -103,6 +103,28 @@ def test_recorded_midi_input_overrides_generated(tmp_path):
     assert heard == [50 + i for i in range(8)]
 
 
+def test_an_offline_run_reads_no_more_of_a_long_recording_than_it_hears(tmp_path):
+    """A 5 s run of a one-hour stereo recording read all of it first (27 s, 3.3 GB at 44.1
+    kHz; a 4 GB WAV, more memory than the machine had). Here 10 minutes at 8 kHz (sparse)."""
+    import struct
+
+    import numpy as np
+
+    from creatures.runtime.offline import _inputs
+
+    rate, frames = 8000, 8000 * 600
+    path = tmp_path / "hour.wav"
+    with open(path, "wb") as handle:
+        handle.write(b"RIFF" + struct.pack("<I", 36 + 2 * frames) + b"WAVEfmt "
+                     + struct.pack("<IHHIIHH", 16, 1, 1, rate, 2 * rate, 2, 16)
+                     + b"data" + struct.pack("<I", 2 * frames))
+        handle.truncate(44 + 2 * frames)
+    inst = load_installation(EXCHANGE)
+    sr = inst.settings.audio.sample_rate
+    _, samples = _inputs(inst, path, None, 5.0, np.random.default_rng(0), print)
+    assert samples is not None and 5 * sr <= len(samples) <= 6.01 * sr
+
+
 def test_a_finished_run_replaces_every_output_of_the_previous_one(tmp_path):
     inst = load_installation(EXCHANGE)
     out = tmp_path / "out"
