@@ -155,7 +155,10 @@ def load_audio(path: str | os.PathLike, *, samplerate: int = ANALYSIS_RATE,
             if rate < MIN_FILE_RATE:
                 raise AudioFileError(f"{path}: sample rate {rate} Hz is below {MIN_FILE_RATE} Hz (a damaged header?)")
             frames = -1 if seconds is None else math.ceil((seconds + RESAMPLE_MARGIN) * rate)
-            data = sound.read(frames, dtype="float32", always_2d=True)
+            # A double file is checked before it is narrowed: 1e300 (a wrong scale) cast to
+            # float32 is inf, and was refused as "NaN/inf", whose cause and fix differ.
+            wide = sound.subtype == "DOUBLE"
+            data = sound.read(frames, dtype="float64" if wide else "float32", always_2d=True)
     except (soundfile.LibsndfileError, RuntimeError, OSError) as exc:
         if path.stat().st_size == 0:
             raise AudioFileError(f"{path}: empty file (0 bytes)") from None
@@ -163,6 +166,7 @@ def load_audio(path: str | os.PathLike, *, samplerate: int = ANALYSIS_RATE,
     if data.shape[0] == 0:
         raise AudioFileError(f"{path}: contains no samples (zero-length recording)")
     _refuse_unusable(path, data, rate)
+    data = data.astype(np.float32, copy=False)
     mono = data.mean(axis=1) if data.shape[1] > 1 else data[:, 0]
     if rate != samplerate:
         mono = soxr.resample(mono, rate, samplerate)

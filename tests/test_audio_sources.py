@@ -71,6 +71,22 @@ def test_samples_far_beyond_full_scale_are_refused_with_their_count_and_place(tm
         load_audio(path)
 
 
+def test_a_double_file_far_past_full_scale_is_told_from_nan(tmp_path: Path) -> None:
+    """1e300 in a 64-bit float file became inf when read as float32, and was refused as NaN/inf."""
+    x = tone(440, 1.0)
+    x[11025:11028] = 1e300
+    x[15000] = np.nan
+    path = write_wav(tmp_path / "double.wav", x, subtype="DOUBLE")
+    with pytest.raises(AudioFileError, match=r"double\.wav: 1 NaN/inf samples \(first at 0\.680 s\)"):
+        load_audio(path)
+    x[15000] = 0.0
+    write_wav(path, x, subtype="DOUBLE")
+    with pytest.raises(AudioFileError, match=r"double\.wav: 3 samples beyond ±1000, .* \(first at 0\.500 s\)"):
+        load_audio(path)
+    x[11025:11028] = 0.5
+    assert load_audio(write_wav(path, x, subtype="DOUBLE")).dtype == np.float32
+
+
 def test_a_float_file_a_little_past_full_scale_is_heard(tmp_path: Path) -> None:
     x = (tone(440, 1.0) * 900.0).astype(np.float32)  # loud, but within the +60 dB bound
     np.testing.assert_allclose(load_audio(write_wav(tmp_path / "hot.wav", x, subtype="FLOAT")), x, atol=1e-2)
