@@ -21,6 +21,7 @@ from typing import Iterable
 import mido
 import numpy as np
 
+from creatures.bounds import LATEST_TIME
 from creatures.persist import atomic_write
 from midi import smf
 from midi.notes import NoteEvent, TimedMessage, from_messages, to_messages
@@ -169,7 +170,22 @@ def _events_in_time(path: Path, events: smf.Events) -> tuple[np.ndarray, np.ndar
     order = np.concatenate([o for o, _ in parts] or [np.zeros(0, np.int64)])
     seconds = np.concatenate([t for _, t in parts] or [np.zeros(0)])
     by_time = np.argsort(seconds, kind="stable")
+    _check_latest(path, seconds[by_time])
     return order[by_time], seconds[by_time]
+
+
+def _check_latest(path: Path, seconds: np.ndarray) -> None:
+    """Refuse a file with a message past :data:`creatures.bounds.LATEST_TIME` (``seconds`` in
+    time order), saying when it falls.
+
+    Deltas of up to 2^28 ticks at one tick a beat and 16.7 s a beat reach 4.5e9 s each, and
+    :class:`midi.notes.NoteEvent` refused such a note with a ValueError that no caller of
+    :func:`read_notes` expects: ``creatures offline --midi`` ended in a traceback.
+    """
+    if len(seconds) and not seconds[-1] <= LATEST_TIME:
+        late = int(np.argmax(~(seconds <= LATEST_TIME)))
+        raise MidiFileError(f"{path}: {len(seconds) - late} messages fall past {LATEST_TIME:g} s, the latest time a "
+                            f"run can hear (the first at {seconds[late]:.4g} s): a damaged delta time or tempo?")
 
 
 def read_messages(path: str | os.PathLike) -> list[TimedMessage]:
@@ -205,6 +221,7 @@ def _mido_messages(path: Path, midi: mido.MidiFile) -> list[TimedMessage]:
                 msg.time = 0  # the time is the pair's first element; the file's own copy is ours
                 timed.append((t, msg))
     timed.sort(key=lambda item: item[0])  # stable: type 2 tracks interleave by time only
+    _check_latest(path, np.array([t for t, _ in timed]))
     return timed
 
 

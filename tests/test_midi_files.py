@@ -167,3 +167,21 @@ def test_a_valid_file_padded_past_the_size_cap_is_refused(tmp_path):
 def test_a_directory_or_unreadable_path_is_named(tmp_path):
     with pytest.raises(MidiFileError, match=r"folder\.mid: cannot read the MIDI file \(Is a directory\)"):
         read_notes((tmp_path / "folder.mid").mkdir() or tmp_path / "folder.mid")
+
+
+@pytest.mark.parametrize("reader", ["compiled", "mido"])
+def test_a_note_past_the_latest_time_is_a_clear_error_not_a_traceback(tmp_path, reader):
+    """300 deltas of 2^28 - 1 ticks at one tick a beat and 16.7 s a beat put a note at 1.35e12 s:
+    NoteEvent raised a ValueError and `creatures offline --midi` ended in a traceback. A system
+    real-time byte (which only mido reads) sends the file down mido's path."""
+    far = b"\xff\xff\xff\x7f\xff\x01\x00" * 300  # each: the longest delta, an empty text event
+    track = (bytes.fromhex("00 FF 51 03 FF FF FF") + (bytes.fromhex("00 F8") if reader == "mido" else b"")
+             + bytes.fromhex("00 90 40 50 60 80 40 00") + far + bytes.fromhex("00 90 3C 50 60 80 3C 00 00 FF 2F 00"))
+    data = b"MThd" + (6).to_bytes(4, "big") + bytes.fromhex("0000 0001 0001")
+    (tmp_path / "far.mid").write_bytes(data + b"MTrk" + len(track).to_bytes(4, "big") + track)
+    for read in (read_notes, read_messages):
+        with pytest.raises(MidiFileError, match=r"far\.mid: 2 messages fall past 1e\+12 s, .*first at 1\.351e\+12 s"):
+            read(tmp_path / "far.mid")
+    track = track.replace(far, far[:7 * 200])  # 200 of them: 9.0e11 s, within
+    (tmp_path / "far.mid").write_bytes(data + b"MTrk" + len(track).to_bytes(4, "big") + track)
+    assert [n.pitch for n in read_notes(tmp_path / "far.mid")] == [64, 60]
