@@ -103,6 +103,8 @@ def _read_capped(path: Path) -> bytes:
         raise MidiFileError(f"{path}: cannot read the MIDI file ({exc.strerror or exc})") from None
     if len(raw) > MAX_MIDI_BYTES:
         raise MidiFileError(f"{path}: MIDI file larger than {MAX_MIDI_BYTES} bytes; refused")
+    if not raw:  # mido says "truncated … inside a chunk" of a file that has no chunk
+        raise MidiFileError(f"{path}: empty file (0 bytes)")
     return raw
 
 

@@ -185,3 +185,11 @@ def test_a_note_past_the_latest_time_is_a_clear_error_not_a_traceback(tmp_path, 
     track = track.replace(far, far[:7 * 200])  # 200 of them: 9.0e11 s, within
     (tmp_path / "far.mid").write_bytes(data + b"MTrk" + len(track).to_bytes(4, "big") + track)
     assert [n.pitch for n in read_notes(tmp_path / "far.mid")] == [64, 60]
+
+
+def test_an_empty_file_is_said_to_be_empty(tmp_path):
+    """As an empty sound file is; mido called it 'truncated MIDI file (ended inside a chunk)'."""
+    (tmp_path / "none.mid").write_bytes(b"")
+    for read in (read_notes, read_messages):
+        with pytest.raises(MidiFileError, match=r"none\.mid: empty file \(0 bytes\)"):
+            read(tmp_path / "none.mid")
