@@ -215,3 +215,36 @@ def test_a_kiosk_page_that_reconnects_to_the_next_run_shows_only_that_run(browse
     assert shown["panels"] == ["bo"]
     assert "sound" not in shown["status"]
     assert errors == [] or all("WebSocket" in e for e in errors)  # the refused reconnects while no run served
+
+
+def test_creatures_named_like_an_objects_members_are_shown_as_any_other(browser):
+    """A creature may be called ``constructor``, ``toString`` or ``__proto__`` (letters, digits, _
+    and -): the page looked names up in plain objects, found Object.prototype's members there
+    and threw on every message and every refresh (no panels, no notes, nothing drawn)."""
+    from creatures.view.server import ViewServer
+
+    names = ["constructor", "__proto__", "toString", "ada"]
+    events = [e for n in names for e in (
+        {"t": 1.0, "kind": "motivation", "creature": n, "drives": {"hunger": 0.5}},
+        {"t": 1.0, "kind": "selection", "creature": n, "tuple": f"{n} sings"},
+        {"t": 1.0, "kind": "note", "creature": n, "pitch": 60, "velocity": 90, "duration": 0.5})]
+    hello = {"type": "hello", "title": "members", "mode": "live", "status": {},
+             "creatures": [{"name": n, "kind": "authored", "parents": [-1, 0], "place": [i * 1.5, 0, 0]}
+                           for i, n in enumerate(names)]}
+    frame = {"type": "frame", "t": 1.0, "bodies": {n: [[0, 1, 0], [0, 0, 0]] for n in names}, "marks": {},
+             "events": events, "status": {}}
+    server = ViewServer(_Scripted(hello, [{"type": "trees", "t": None, "trees": {"ada": []}}, frame])).start()
+    try:
+        page, errors = open_page(browser, server.url)
+        page.wait_for_function("window.__view.notes.length === 4 && window.__view.drawn > 0 && "
+                               "document.querySelectorAll('#creatures .creature .action').length === 4 && "
+                               "[...document.querySelectorAll('#creatures .creature .action')]"
+                               ".every((e) => e.textContent.endsWith(' sings'))", timeout=30_000)
+        shown = page.evaluate("({panels: [...document.querySelectorAll('#creatures .creature .name')]"
+                              ".map((e) => e.textContent), screen: Object.keys(__view.screen),"
+                              " drives: Object.keys(__view.drives), errors: __view.errors})")
+    finally:
+        server.close()
+    assert shown["panels"] == names
+    assert sorted(shown["screen"]) == sorted(names) and sorted(shown["drives"]) == sorted(names)
+    assert shown["errors"] == [] and errors == []

@@ -6,9 +6,15 @@
 "use strict";
 
 const YFOV = Math.PI / 3.5, ZNEAR = 0.05, HISTORY = 60, NOTES_SHOWN = 200;
+// Tables keyed by a creature's (or a drive's) name, which a config chooses: no prototype, and
+// read from a received message only through own(), so a creature called "constructor" or
+// "__proto__" (a valid name) is a name like any other, not Object.prototype's member.
+const byName = () => Object.create(null);
+const own = (table, key) => (table != null && Object.hasOwn(table, key) ? table[key] : undefined);
 const view = window.__view = {
-  hello: null, frame: null, first: null, frames: 0, drawn: 0, camera: null, screen: {},
-  drives: {}, values: {}, actions: {}, percepts: {}, trees: {}, notes: [], status: {}, errors: [],
+  hello: null, frame: null, first: null, frames: 0, drawn: 0, camera: null, screen: byName(),
+  drives: byName(), values: byName(), actions: byName(), percepts: byName(), trees: byName(), notes: [], status: {},
+  errors: [],
   project: null, size: null, drawMs: 0,
 };
 window.addEventListener("error", (e) => view.errors.push(String(e.message)));
@@ -16,7 +22,7 @@ window.addEventListener("error", (e) => view.errors.push(String(e.message)));
 const stage = document.getElementById("stage"), ctx = stage.getContext("2d");
 view.redraw = () => { dirty = true; }; // the next animation frame draws, new frame or not (the bench's hook)
 const statusLine = document.getElementById("status"), notesList = document.getElementById("notes");
-let dirty = true, panels = {};
+let dirty = true, panels = byName();
 
 // -- vectors and the camera --------------------------------------------------------------
 const sub = (a, b) => [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
@@ -64,9 +70,9 @@ function pitchColour(pitch, alpha = 1) {
 function scene(frame) {
   const bodies = [], marks = [];
   for (const c of view.hello.creatures) {
-    const joints = frame.bodies[c.name];
+    const joints = own(frame.bodies, c.name);
     if (joints && c.parents) bodies.push({ name: c.name, parents: c.parents, joints: joints.map((p) => add(p, c.place)) });
-    for (const m of frame.marks[c.name] || []) marks.push({ at: add(m.slice(0, 3), c.place), pitch: m[3] });
+    for (const m of own(frame.marks, c.name) || []) marks.push({ at: add(m.slice(0, 3), c.place), pitch: m[3] });
   }
   return { bodies, marks };
 }
@@ -97,7 +103,7 @@ function paint() {
   // One path for a body's bones and one for its joints, bodies far to near (2,000 single
   // strokes for 50 bodies cost ~17 ms a frame; a hundred paths a few).
   const { bodies, marks } = scene(view.frame), scale = h / (2 * Math.tan(YFOV / 2)), items = [];
-  view.screen = {};
+  view.screen = byName();
   for (const body of bodies) {
     const screen = body.joints.map(project), seen = screen.filter((s) => s);
     view.screen[body.name] = screen;
@@ -161,12 +167,12 @@ function plot(canvas, legend, history) {
   const names = Object.keys(history[history.length - 1][1]), t1 = history[history.length - 1][0];
   const t0 = Math.max(history[0][0], t1 - HISTORY), span = Math.max(t1 - t0, 1);
   let low = Infinity, high = -Infinity;
-  for (const [, v] of history) for (const n of names) if (v[n] != null) { low = Math.min(low, v[n]); high = Math.max(high, v[n]); }
+  for (const [, v] of history) for (const n of names) if (own(v, n) != null) { low = Math.min(low, v[n]); high = Math.max(high, v[n]); }
   if (high - low < 1e-9) { high += 0.5; low -= 0.5; }
   names.forEach((n, k) => {
     c.strokeStyle = SERIES[k % SERIES.length]; c.beginPath();
     history.forEach(([t, v], i) => {
-      const x = (t - t0) / span * w, y = h - 2 - (v[n] - low) / (high - low) * (h - 4);
+      const x = (t - t0) / span * w, y = h - 2 - (own(v, n) - low) / (high - low) * (h - 4);
       i ? c.lineTo(x, y) : c.moveTo(x, y);
     });
     c.stroke();
@@ -217,7 +223,7 @@ function refreshPanels() {
     plot(p.values, p.valueLegend, view.values[c.name] || []);
     const sizes = view.percepts[c.name] || {}, lines = [];
     const walk = (node, depth) => { lines.push(`${"  ".repeat(depth)}${node.name} (${node.size})`); node.children.forEach((n) => walk(n, depth + 1)); };
-    for (const tree of view.trees[c.name] || []) walk(tree, 0);
+    for (const tree of own(view.trees, c.name) || []) walk(tree, 0);
     p.percepts.textContent = (lines.length ? "percept trees\n" + lines.join("\n") + "\n" : "") +
       (Object.keys(sizes).length ? "percepts now\n" : "") + Object.entries(sizes).map(([k, v]) => `  ${k}: ${v}`).join("\n");
   }
@@ -230,7 +236,7 @@ function refreshPanels() {
 
 // -- the websocket ------------------------------------------------------------------------
 function reset() {
-  view.drives = {}; view.values = {}; view.actions = {}; view.percepts = {}; view.notes = []; view.first = null;
+  view.drives = byName(); view.values = byName(); view.actions = byName(); view.percepts = byName(); view.notes = []; view.first = null;
   notesList.textContent = "";
 }
 
@@ -240,9 +246,9 @@ function newRun(hello) {
   // camera, and that only for the same colony (a projector's framing survives a restart).
   reset();
   if (JSON.stringify(hello.creatures) !== JSON.stringify(view.hello.creatures)) view.camera = null;
-  view.frame = null; view.trees = {}; view.status = {};
+  view.frame = null; view.trees = byName(); view.status = {};
   for (const p of Object.values(panels)) p.box.remove();
-  panels = {};
+  panels = byName();
 }
 
 function connect() {
