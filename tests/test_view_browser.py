@@ -81,14 +81,14 @@ def test_the_live_page_of_a_running_colony_moves_changes_and_grows(browser, tmp_
                 break
         sender = send_notes(osc, 40, 4.0, tmp_path / "sent.jsonl")  # a visitor plays for 10 s
         page, errors = open_page(browser, f"http://127.0.0.1:{view}/")
-        page.wait_for_function("window.__view.frames > 3 && window.__view.notes.length > 0", timeout=60_000)
+        page.wait_for_function("window.__view.frames > 3 && window.__view.notesSeen > 0", timeout=60_000)
         first = stage_pixels(page)
-        before = page.evaluate("({frames: __view.frames, notes: __view.notes.length, screen: __view.screen,"
+        before = page.evaluate("({frames: __view.frames, notes: __view.notesSeen, screen: __view.screen,"
                                " drives: __view.drives})")
         page.wait_for_function(f"window.__view.frames > {before['frames'] + 40} && "
-                               f"window.__view.notes.length > {before['notes']}", timeout=60_000)
+                               f"window.__view.notesSeen > {before['notes']}", timeout=60_000)
         second = stage_pixels(page)
-        after = page.evaluate("({frames: __view.frames, notes: __view.notes.length, screen: __view.screen,"
+        after = page.evaluate("({frames: __view.frames, notes: __view.notesSeen, screen: __view.screen,"
                               " drives: __view.drives, mode: __view.hello.mode, status: __view.status,"
                               " listed: document.querySelectorAll('#notes li').length})")
         seen_errors = list(errors)  # while the colony ran (once it stops, the page's reconnecting is refused)
@@ -248,3 +248,28 @@ def test_creatures_named_like_an_objects_members_are_shown_as_any_other(browser)
     assert shown["panels"] == names
     assert sorted(shown["screen"]) == sorted(names) and sorted(shown["drives"]) == sorted(names)
     assert shown["errors"] == [] and errors == []
+
+
+def test_a_page_left_open_on_a_live_run_keeps_only_the_notes_it_lists(browser):
+    """A live run never restarts: the page kept every note it was sent in ``__view.notes`` while
+    listing only the last 200, so a kiosk's tab grew for as long as the run played (weeks)."""
+    from creatures.view.server import ViewServer
+
+    count = 600
+    frames = [{"type": "frame", "t": 0.1 * i, "bodies": {}, "marks": {}, "status": {},
+               "events": [{"t": 0.1 * i, "kind": "note", "creature": "ada", "pitch": 60 + i % 12, "velocity": 90,
+                           "duration": 0.25}]} for i in range(count)]
+    hello = {"type": "hello", "title": "long", "mode": "live", "status": {},
+             "creatures": [{"name": "ada", "kind": "authored", "parents": None, "place": [0, 0, 0]}]}
+    server = ViewServer(_Scripted(hello, frames)).start()
+    try:
+        page, errors = open_page(browser, server.url)
+        page.wait_for_function(f"window.__view.frames === {count}", timeout=60_000)
+        shown = page.evaluate("({kept: __view.notes.length, last: __view.notes[__view.notes.length - 1].t,"
+                              " seen: __view.notesSeen, listed: document.querySelectorAll('#notes li').length})")
+    finally:
+        server.close()
+    assert shown["kept"] == shown["listed"] == 200
+    assert shown["seen"] == count
+    assert shown["last"] == pytest.approx(0.1 * (count - 1))
+    assert errors == []

@@ -13,7 +13,7 @@ const byName = () => Object.create(null);
 const own = (table, key) => (table != null && Object.hasOwn(table, key) ? table[key] : undefined);
 const view = window.__view = {
   hello: null, frame: null, first: null, frames: 0, drawn: 0, camera: null, screen: byName(),
-  drives: byName(), values: byName(), actions: byName(), percepts: byName(), trees: byName(), notes: [], status: {},
+  drives: byName(), values: byName(), actions: byName(), percepts: byName(), trees: byName(), notes: [], notesSeen: 0, status: {},
   errors: [],
   project: null, size: null, drawMs: 0,
 };
@@ -200,7 +200,8 @@ function take(event) {
     case "selection": view.actions[who] = event.tuple; break;
     case "percepts": view.percepts[who] = event.sizes; break;
     case "note": case "heard": {
-      view.notes.push(event);
+      view.notes.push(event); view.notesSeen += 1;  // the last NOTES_SHOWN kept, as listed: a live run never restarts
+      if (view.notes.length > NOTES_SHOWN) view.notes.splice(0, view.notes.length - NOTES_SHOWN);
       const li = document.createElement("li");
       li.textContent = `${event.t.toFixed(2)} s  ${event.kind === "note" ? who + " played" : "heard from " + event.source}  ` +
         `pitch ${event.pitch} vel ${event.velocity ?? ""} dur ${Number(event.duration).toFixed(2)}`;
@@ -236,7 +237,7 @@ function refreshPanels() {
 
 // -- the websocket ------------------------------------------------------------------------
 function reset() {
-  view.drives = byName(); view.values = byName(); view.actions = byName(); view.percepts = byName(); view.notes = []; view.first = null;
+  view.drives = byName(); view.values = byName(); view.actions = byName(); view.percepts = byName(); view.notes = []; view.notesSeen = 0; view.first = null;
   notesList.textContent = "";
 }
 
