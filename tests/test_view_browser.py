@@ -273,3 +273,20 @@ def test_a_page_left_open_on_a_live_run_keeps_only_the_notes_it_lists(browser):
     assert shown["seen"] == count
     assert shown["last"] == pytest.approx(0.1 * (count - 1))
     assert errors == []
+
+
+def test_a_page_left_open_keeps_a_bounded_list_of_its_errors(browser):
+    """``__view.errors`` took every uncaught error: one that recurs on each refresh (four a
+    second) grew it without end on a kiosk left open for weeks. It keeps the first ones (the
+    cause) and counts the rest."""
+    from creatures.view.server import ViewServer
+
+    server = ViewServer(_run("errors", "ada", 1.0, {})).start()
+    try:
+        page, _ = open_page(browser, server.url)
+        page.wait_for_function("window.__view.notesSeen === 1", timeout=30_000)
+        page.evaluate("for (let i = 0; i < 1000; i++) window.dispatchEvent(new ErrorEvent('error', {message: `e${i}`}))")
+        shown = page.evaluate("({kept: __view.errors.length, first: __view.errors[0], seen: __view.errorsSeen})")
+    finally:
+        server.close()
+    assert shown["kept"] == 100 and shown["first"] == "e0" and shown["seen"] == 1000

@@ -14,10 +14,14 @@ const own = (table, key) => (table != null && Object.hasOwn(table, key) ? table[
 const view = window.__view = {
   hello: null, frame: null, first: null, frames: 0, drawn: 0, camera: null, screen: byName(),
   drives: byName(), values: byName(), actions: byName(), percepts: byName(), trees: byName(), notes: [], notesSeen: 0, status: {},
-  errors: [],
+  errors: [], errorsSeen: 0,
   project: null, size: null, drawMs: 0,
 };
-window.addEventListener("error", (e) => view.errors.push(String(e.message)));
+const ERRORS_KEPT = 100; // the first ones (the cause); one that recurs each refresh must not grow a kiosk's tab
+window.addEventListener("error", (e) => {
+  view.errorsSeen += 1;
+  if (view.errors.length < ERRORS_KEPT) view.errors.push(String(e.message));
+});
 
 const stage = document.getElementById("stage"), ctx = stage.getContext("2d");
 view.redraw = () => { dirty = true; }; // the next animation frame draws, new frame or not (the bench's hook)
