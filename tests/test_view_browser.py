@@ -205,6 +205,7 @@ def test_a_kiosk_page_that_reconnects_to_the_next_run_shows_only_that_run(browse
         page.wait_for_function("[...document.querySelectorAll('#creatures .creature .name')]"
                                ".some((e) => e.textContent === 'bo')", timeout=30_000)  # its panel is drawn
         shown = page.evaluate("({drives: __view.drives, notes: __view.notes.map((n) => n.creature),"
+                              " frames: __view.frames,"
                               " status: __view.status, listed: document.querySelectorAll('#notes li').length,"
                               " panels: [...document.querySelectorAll('#creatures .creature .name')]"
                               ".map((e) => e.textContent)})")
@@ -212,6 +213,7 @@ def test_a_kiosk_page_that_reconnects_to_the_next_run_shows_only_that_run(browse
         second.close()
     assert list(shown["drives"]) == ["bo"] and shown["drives"]["bo"] == [[1.0, {"hunger": 0.5}]]
     assert shown["notes"] == ["bo"] and shown["listed"] == 1
+    assert shown["frames"] == 1  # this run's one frame: the status line's count went on from the last run's
     assert shown["panels"] == ["bo"]
     assert "sound" not in shown["status"]
     assert errors == [] or all("WebSocket" in e for e in errors)  # the refused reconnects while no run served

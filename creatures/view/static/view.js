@@ -251,7 +251,7 @@ function newRun(hello) {
   // camera, and that only for the same colony (a projector's framing survives a restart).
   reset();
   if (JSON.stringify(hello.creatures) !== JSON.stringify(view.hello.creatures)) view.camera = null;
-  view.frame = null; view.trees = byName(); view.status = {};
+  view.frame = null; view.frames = 0; view.trees = byName(); view.status = {};  // the status line counts this run's
   for (const p of Object.values(panels)) p.box.remove();
   panels = byName();
 }
