@@ -88,6 +88,9 @@ def test_no_phantom_notes_from_silence_noise_or_steps(rng: np.random.Generator, 
         "dither": rng.integers(-1, 2, 10 * rate) / 32768.0,  # ±1 LSB of 16-bit audio
         "white noise at -20 dBFS": 0.1 * rng.standard_normal(10 * rate),
         "DC switched on": np.r_[np.zeros(rate), np.full(9 * rate, 0.5)],
+        # noise after silence: for seconds it stands far above the floors learnt in silence (FLOOR_RISE)
+        "white noise at -20 dBFS switched on": np.r_[np.zeros(2 * rate), 0.1 * rng.standard_normal(8 * rate)],
+        "room noise at -40 dBFS switched on": np.r_[np.zeros(2 * rate), room_noise(8.0, rate, rng, -40.0)],
     }
     for name, x in cases.items():
         ear, notes = hear(x.astype(np.float32), rate, look=look)

@@ -61,20 +61,21 @@ CASES = [
     # instrument, voices, texture, rate, in a room, floor: the issue's target where it is met,
     # else what was measured (deterministic: seeded MIDI, one soundfont, one model) less 0.05;
     # docs/hearing.md has every texture beside each ear alone and basic-pitch's model.
-    # Measured with the offline committee of two models (2026-12-06; one model before: in brackets).
-    ("piano", 1, "random", 22050, False, 0.9),  # measured 1.000 (0.986)
-    ("piano", 1, "random", 44100, True, 0.9),  # 0.986 (1.000)
-    ("piano", 4, "random", 44100, False, 0.75),  # 0.913 (0.894)
-    ("piano", 4, "random", 16000, True, 0.75),  # 0.908 (0.887)
-    ("piano", 4, "chorale", 22050, False, 0.67),  # 0.721 (0.708; target 0.75: below)
-    ("piano", 4, "chorale", 48000, True, 0.65),  # 0.706 (0.677)
-    ("guitar", 1, "random", 48000, False, 0.9),  # 0.960 (0.923)
-    ("guitar", 3, "chorale", 22050, True, 0.75),  # 0.906 (0.897)
+    # Measured with the offline committee of two models and the noise floor's slower rise
+    # (audio/logspectrum.FLOOR_RISE 1.0025, 2026-12-07; before it, with 1.01: in brackets).
+    ("piano", 1, "random", 22050, False, 0.9),  # measured 1.000 (1.000)
+    ("piano", 1, "random", 44100, True, 0.9),  # 0.986 (0.986)
+    ("piano", 4, "random", 44100, False, 0.75),  # 0.899 (0.913)
+    ("piano", 4, "random", 16000, True, 0.75),  # 0.904 (0.908)
+    ("piano", 4, "chorale", 22050, False, 0.67),  # 0.726 (0.721; target 0.75: below)
+    ("piano", 4, "chorale", 48000, True, 0.65),  # 0.718 (0.706)
+    ("guitar", 1, "random", 48000, False, 0.9),  # 0.960 (0.960)
+    ("guitar", 3, "chorale", 22050, True, 0.75),  # 0.914 (0.906)
     ("flute", 1, "random", 44100, False, 0.9),  # 1.000 (1.000)
-    ("strings", 1, "random", 22050, False, 0.6),  # 0.912 (0.899)
-    ("strings", 3, "chorale", 44100, True, 0.55),  # 0.599 (0.593; target 0.6: below; 0.374 before the slow swell)
-    ("organ", 1, "random", 22050, False, 0.36),  # 0.417 (0.377; target 0.6: below)
-    ("organ", 3, "chorale", 96000, False, 0.39),  # 0.448 (0.388)
+    ("strings", 1, "random", 22050, False, 0.6),  # 0.912 (0.912)
+    ("strings", 3, "chorale", 44100, True, 0.6),  # 0.636 (0.599, below the target; 0.374 before the slow swell)
+    ("organ", 1, "random", 22050, False, 0.36),  # 0.413 (0.417; target 0.6: below)
+    ("organ", 3, "chorale", 96000, False, 0.39),  # 0.484 (0.448)
 ]
 
 
@@ -90,9 +91,8 @@ def test_note_f1_on_sampled_instruments(instrument: str, voices: int, texture: s
 
 UNMET = [
     # the issue's targets not reached: strict, so one that starts to pass fails, to be moved up
-    ("piano", 4, "chorale", 22050, False, 0.75, "block chords with octave doublings: 0.721"),
-    ("strings", 3, "chorale", 44100, True, 0.6, "three bowed voices starting together, in a room: 0.599"),
-    ("organ", 1, "random", 22050, False, 0.6, "FluidR3's organ is 4'-heavy, its octave is heard: 0.417"),
+    ("piano", 4, "chorale", 22050, False, 0.75, "block chords with octave doublings: 0.726"),
+    ("organ", 1, "random", 22050, False, 0.6, "FluidR3's organ is 4'-heavy, its octave is heard: 0.413"),
 ]
 
 
@@ -113,7 +113,7 @@ def test_the_live_look_hears_piano_lines_and_chords_and_a_flute() -> None:
     four = score("piano", 4, "random", 44100, look=LIVE)
     flute = score("flute", 1, "random", 44100, look=LIVE)
     print(f"live look: piano 1 voice F1 {mono:.3f}, 4 voices {four:.3f}, flute {flute:.3f}")
-    assert mono >= 0.9 and four >= 0.75 and flute >= 0.9  # measured 1.000, 0.847 and 0.973
+    assert mono >= 0.9 and four >= 0.75 and flute >= 0.9  # measured 1.000, 0.855 and 0.973 (0.847 at FLOOR_RISE 1.01)
 
 
 @pytest.mark.slow
@@ -125,7 +125,7 @@ def test_the_quick_look_hears_piano_lines_and_chords_and_a_flute() -> None:
     four = score("piano", 4, "random", 44100, look=QUICK)
     flute = score("flute", 1, "random", 44100, look=QUICK)
     print(f"quick look: piano 1 voice F1 {mono:.3f}, 4 voices {four:.3f}, flute {flute:.3f}")
-    assert mono >= 0.9 and four >= 0.75  # measured 0.987 and 0.807
+    assert mono >= 0.9 and four >= 0.75  # measured 0.987 and 0.830 (0.807 at FLOOR_RISE 1.01)
     assert flute >= 0.9  # measured 0.930 (0.866 before SLOW_RISE_SHORT)
 
 
@@ -160,8 +160,8 @@ def test_the_live_look_gives_nine_in_ten_struck_notes_of_a_line_within_60_ms() -
 
 @pytest.mark.slow
 @pytest.mark.xfail(strict=True, raises=AssertionError,
-                   reason="issue 18: a chord's notes come later (4 voices: 77 % within 60 ms, p90 63.9 ms, "
-                          "the latest 124.2 ms)")
+                   reason="issue 18: a chord's notes come later (4 voices: 81 % within 60 ms, p90 63.8 ms, "
+                          "the latest 116.6 ms)")
 def test_the_live_look_gives_every_note_of_a_chord_within_60_ms() -> None:
     """Not met: in chords the model gives some notes by its swell rules, hops after their attack,
     and those it does not name come from the onset ear, whose look is a hop longer
@@ -183,7 +183,7 @@ def test_the_live_look_does_not_give_a_bright_note_s_partials_as_notes() -> None
     # measured 0.960: the issue's 0.9 for a line, met live since the live threshold was tuned again
     # with the slow swell (2026-12-06; 0.857 before, 0.766 before the rule; the onset ear alone 0.873)
     assert line >= 0.9
-    assert chorale >= 0.78  # measured 0.902 (0.778 before the rule): its chords are kept
+    assert chorale >= 0.78  # measured 0.909 (0.902 at FLOOR_RISE 1.01, 0.778 before the rule): its chords are kept
 
 
 def test_a_silent_or_random_transcriber_would_fail() -> None:
