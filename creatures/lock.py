@@ -21,10 +21,9 @@ from creatures.paths import UnsafePathError, kind_of
 
 LOCK_FILE = ".creatures.lock"
 
-_HELD: dict[tuple[int, int], str] = {}
-"""The lock files this process holds ((device, inode) → what it holds the folder as)."""
 _LOCKS: dict[str, "FolderLock"] = {}
-"""This process's locks by their folder's absolute path, for :func:`retake`."""
+"""The locks this process holds, by their folder's absolute path (for :func:`retake`, and to
+tell one folder given twice from another run's)."""
 
 
 class FolderLockedError(OSError):
@@ -50,7 +49,8 @@ class FolderLock:
                 mode = os.fstat(fd).st_mode
                 if not stat.S_ISREG(mode):
                     raise UnsafePathError(f"{self.path}: is {kind_of(mode)}, not a regular file")
-                ours = _HELD.get(_key(fd))
+                ours = next((lock.what for lock in _LOCKS.values() if lock._fd is not None
+                             and _key(lock._fd) == _key(fd)), None)
                 if ours is not None:  # flock tells no holder apart: it would blame "another run", pid ours
                     raise FolderLockedError(
                         f"{self.directory}: already this run's {ours}; one folder cannot be both its {ours} and "
@@ -71,7 +71,6 @@ class FolderLock:
         os.ftruncate(fd, 0)
         os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
         self._fd = fd
-        _HELD[_key(fd)] = self.what
         _LOCKS[os.path.abspath(self.directory)] = self
         return self
 
@@ -83,7 +82,6 @@ class FolderLock:
         if self._fd is None or _same_file(self._fd, self.path):
             return False
         old, self._fd = self._fd, None
-        _HELD.pop(_key(old), None)
         os.close(old)
         self.acquire()
         return True
@@ -92,7 +90,6 @@ class FolderLock:
         fd, self._fd = self._fd, None
         if fd is None:
             return
-        _HELD.pop(_key(fd), None)
         if _LOCKS.get(os.path.abspath(self.directory)) is self:
             del _LOCKS[os.path.abspath(self.directory)]
         with contextlib.suppress(OSError):

@@ -205,7 +205,7 @@ def _holds_what_it_claims(path: Path, archive: zipfile.ZipFile, info: zipfile.Zi
         version = np.lib.format.read_magic(member)
         read_header = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
         shape, _, dtype = read_header(member)
-        claimed = math.prod(shape) * dtype.itemsize
-        if claimed > info.file_size - member.tell():
+        claimed, held = math.prod(shape) * dtype.itemsize, info.file_size - member.tell()
+        if claimed > held:
             raise StateFileError(f"{path}: array {info.filename[:-4]!r} claims {claimed} bytes ({shape} of "
-                                 f"{dtype}) and holds {info.file_size - member.tell()}; refused")
+                                 f"{dtype}) and holds {held}; refused")
