@@ -40,6 +40,11 @@ Bounded = Annotated[float, Field(ge=-LARGEST_RATE, le=LARGEST_RATE)]
 """A number with no natural bound of its own (a reading, a reward, a range's end, a drive's
 level), bounded all the same."""
 
+MidiPitch = Annotated[int, Field(ge=0, le=127)]
+"""A MIDI note number. A phrase to play, or a percept waiting for pitches (``played``,
+``motif``), given one past 0–127 would wait for a note no one can play: silent, with nothing
+said, so each is refused at its own key and line."""
+
 LARGEST_VALUE = 1e12
 """Largest magnitude of a learned value or model sample read back (squares stay far from
 overflow, and no value a creature learns comes near it)."""

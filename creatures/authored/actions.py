@@ -17,6 +17,7 @@ from pydantic import BaseModel, Field, field_validator, model_validator
 
 from creatures.authored.registry import ACTIONS, Params, Part
 from creatures.behaviour.action_tuple import Action, ActionTuple
+from creatures.bounds import MidiPitch
 from creatures.kinds.note_world import SeekNote, Vary, Variation, Wander
 from creatures.motor.programs import MotorProgramGraph, ProgramStack, Statement, chosen_program, parse_programs
 from creatures.motor.search import NoPath
@@ -125,7 +126,7 @@ class PlayNote(ActionPart):
 
 
 class _PhraseParams(Params):
-    pitches: list[int] = Field(min_length=1, description="MIDI pitches in order")
+    pitches: list[MidiPitch] = Field(min_length=1, description="MIDI pitches in order")
     durations: list[float] | float = Field(0.5, description="seconds per note (one for all, or one each)")
     velocity: int = Field(90, ge=1, le=127, description="MIDI velocity")
     transpose: int = Field(0, ge=-48, le=48, description="semitones (a crowd's `vary` gives each its own key)")
@@ -142,8 +143,6 @@ class _PhraseParams(Params):
 
     @model_validator(mode="after")
     def _lengths(self):
-        if any(not 0 <= p <= 127 for p in self.pitches):
-            raise ValueError("pitches must be MIDI numbers 0–127")
         durations = self.durations if isinstance(self.durations, list) else [self.durations] * len(self.pitches)
         if len(durations) != len(self.pitches) or any(not d > 0 for d in durations):
             raise ValueError("durations must be positive seconds, one for all notes or one per pitch")

@@ -10,14 +10,14 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from typing import TYPE_CHECKING, Annotated, ClassVar, Literal
+from typing import TYPE_CHECKING, ClassVar, Literal
 
 from pydantic import BaseModel, Field, field_validator, model_validator
 
 from creatures.authored.ear import DENSITY_WINDOW
 
 from creatures import bounds
-from creatures.bounds import LONGEST_SECONDS, Seconds
+from creatures.bounds import LONGEST_SECONDS, MidiPitch, Seconds
 from creatures.kinds.model_population import MOST_MODELS, MOST_STATES
 from creatures.authored.registry import PERCEPTS, Params, Part
 from creatures.authored.scripted import Scripted
@@ -35,11 +35,6 @@ from midi.fifths import STEPS
 
 if TYPE_CHECKING:
     from creatures.authored.creature import Authored
-
-MidiPitch = Annotated[int, Field(ge=0, le=127)]
-"""A MIDI note number. A percept that waits for pitches (``played``, ``motif``) and is given one
-past 0–127 would wait for a note no one can play: silent, with nothing said, so it is refused
-at its line like a ``play_phrase``'s."""
 
 
 class PerceptPart(Part):
