@@ -11,6 +11,7 @@ import textwrap
 
 import numpy as np
 import pytest
+from pythonosc.osc_message_builder import OscMessageBuilder
 from pythonosc.udp_client import SimpleUDPClient
 
 from creatures.clock import SimulatedClock
@@ -165,6 +166,39 @@ def test_a_foreign_osc_client_is_heard_and_junk_is_dropped_and_counted():
     b.close()
 
 
+def test_positions_stamped_far_from_now_are_dropped_and_counted_not_kept_for_ever():
+    """A process whose clock is 100 s off (NTP not running there), its Unix stamps sent as
+    doubles by python-osc's client: a stamp 100 s slow once left the room unsaid (placed, then
+    timed out in the same poll, nothing counted); one 100 s fast was never timed out, so a
+    creature its owner stopped naming stayed in the room for as long as its owner spoke."""
+    (b,) = shares(["b-0"])
+    client = SimpleUDPClient("127.0.0.1", b.port)
+
+    def bodies(owner: str, at: float, *names: str) -> None:
+        builder = OscMessageBuilder("/room/bodies")
+        for kind, value in (("s", "gallery"), ("s", owner), ("i", 1), ("d", EPOCH + at), ("d", -1.0),
+                            ("s", ",".join(names)), ("b", np.array([ROW] * len(names), "<f4").tobytes())):
+            builder.add_arg(value, kind)
+        client.send(builder.build())
+
+    bodies("slow", 10.0 - 100.0, "slowpoke")
+    wait_for(b, 10.0)
+    assert b.others(10.0)[0] == [] and b.dropped["time"] == 1
+    bodies("fast", 10.0 + 100.0, "fast-0", "fast-1")
+    wait_for(b, 10.0)
+    for t in (10.5, 11.0, 13.0, 14.5):  # fast-0 named only in the first
+        bodies("fast", t + 100.0, "fast-1")
+        wait_for(b, t)
+    assert b.others(14.5)[0] == [] and b.dropped["time"] == 6
+    bodies("fast", 15.0 + 1.5, "fast-0", "fast-1")  # 1.5 s ahead: within the 2 s timeout, taken
+    wait_for(b, 15.0)
+    for t in (16.0, 17.0, 18.0, 19.0):
+        bodies("fast", t + 1.5, "fast-1")
+        wait_for(b, t)
+    assert b.others(19.0)[0] == ["fast-1"] and b.dropped["time"] == 6  # fast-0 gone after the timeout
+    b.close()
+
+
 ROOM = """
 title = "shared"
 seed = 1
@@ -284,7 +318,8 @@ def test_positions_go_out_on_the_rate_and_stale_or_unplaced_things_are_dropped()
     a.publish(4.04, ["a-0"], np.array([ROW]))  # a speaks only of a-0 from now on
     a.played("a-0", NoteEvent(60.0, 60, 90, 0, 0.2))  # a minute ahead: not a note to keep
     wait_for(b, 4.04)
-    assert b.dropped["unplaced"] == 1 and b.dropped["time"] == 1
+    stale = sum(4.0 - t > b.spec.timeout for t in ticks)  # positions b read more than the timeout late
+    assert b.dropped["unplaced"] == 1 and b.dropped["time"] == stale + 1 and stale == 49
     a.publish(6.0, ["a-0"], np.array([ROW]))
     wait_for(b, 6.1)
     assert b.others(6.1)[0] == ["a-0"]  # a-1 unheard for 2.1 s > timeout

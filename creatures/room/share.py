@@ -24,7 +24,8 @@ Design:
   apply as for its own.
 * **Bounds.** Every datagram is checked and bounded (:mod:`.wire`); at most
   :data:`MOST_OWNERS` owners and :data:`MOST_REMOTE` remote creatures are kept; a remote name
-  that is one of this process's own creatures is refused; each refusal is counted by cause.
+  that is one of this process's own creatures is refused, and so is a datagram stamped more
+  than ``timeout`` from now (a clock far off); each refusal is counted by cause.
 * **Off the creature's thread.** The socket is non-blocking and read once a tick (a bounded
   number of datagrams); discovery (:mod:`creatures.room.discovery`, mDNS) and Link run on
   their own threads and hand over only a set of addresses and two numbers.
@@ -208,6 +209,12 @@ class RoomShare:
         if isinstance(heard, wire.Note):
             return self._note(heard, t)
         when = self._local(heard.at, t)
+        if abs(when - t) > self.spec.timeout:
+            # A clock far off (NTP not running there): a stamp long past would leave the room at
+            # once unsaid, one far ahead would never time out, so the datagram is dropped, as a
+            # note so stamped is.
+            self.dropped["time"] += 1
+            return None
         for name, row in zip(heard.names, heard.rows):
             if name in self.own:
                 self.dropped["name clash"] += 1
