@@ -413,9 +413,11 @@ def test_an_osc_port_in_use_is_one_config_error(tmp_path, capsys):
     ("127.0.0.1:99999", "a port in 1..65535"),
     ("127.0.0.1", "a port in 1..65535"),
     ("::1:9000", "is IPv6: OSC here speaks IPv4 only"),
+    ("127.0.0.1:\u00b2", "port '\u00b2' is not a number"),
 ])
 def test_a_peer_that_no_socket_could_send_to_is_a_config_error(tmp_path, peer, why):
-    """Before, a port of 99999 passed and every send raised OverflowError mid-run."""
+    """Before, a port of 99999 passed and every send raised OverflowError mid-run; a port of
+    '²' (a digit to str.isdigit, not to int) raised ValueError out of the loader, a traceback."""
     config = tmp_path / "c.toml"
     config.write_text(f'title = "t"\n[osc]\nport = 9000\npeers = ["{peer}"]\n[[creature]]\nname = "ada"\nkind = "exchange"\n')
     with pytest.raises(ConfigError, match=why) as error:

@@ -296,6 +296,51 @@ def test_share_config_errors_and_an_offline_run_says_it_is_alone(tmp_path):
     assert any("[room.share] is for live runs" in m for m in summary.messages)
 
 
+@pytest.mark.parametrize("share, key, why", [
+    ('host = "::1"', "room.share.host", "room share host '::1' is not IPv4"),
+    ('host = "no-such-host.invalid"', "room.share.host", "does not resolve"),
+    ('peers = ["127.0.0.1:40000", "[::1]:40000"]', "room.share.peers.1", "is IPv6"),
+    ('peers = ["no-such-host.invalid:40000"]', "room.share.peers.0", "cannot be resolved"),
+    ('peers = ["127.0.0.1:0"]', "room.share.peers.0", "a port in 1..65535"),
+    ('peers = ["127.0.0.1:\u00b2"]', "room.share.peers.0", "a port in 1..65535"),
+])
+def test_a_share_host_or_peer_no_socket_could_use_is_a_config_error_at_load(tmp_path, share, key, why):
+    """As [osc]'s host and peers are: an IPv6 or unresolvable host or peer loaded, and was said
+    only once a live run had set up its session and its devices; a bad peer's error named
+    [room.share], not the peer, and quoted the whole table."""
+    path = tmp_path / "shared.toml"
+    path.write_text(textwrap.dedent(ROOM.format(share=f'share = {{ room = "gallery", {share} }}')))
+    with pytest.raises(ConfigError, match=why) as info:
+        load_installation(path)
+    assert (info.value.key, info.value.line) == (key, 10) and "{" not in info.value.message
+
+
+def test_a_share_port_in_use_or_another_listeners_refuses_the_run_before_its_state_folder(tmp_path, capsys):
+    """``creatures run`` made and locked the state folder, loaded the creatures and opened the
+    devices before it found the [room.share] port taken; one the [osc] listener also names
+    was found only by the share's own bind, said as "another program"."""
+    from creatures import cli
+
+    path, state = tmp_path / "shared.toml", tmp_path / "state"
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as busy:
+        busy.bind(("127.0.0.1", 0))
+        port = busy.getsockname()[1]
+        path.write_text(textwrap.dedent(ROOM.format(share=f'share = {{ room = "gallery", port = {port} }}')))
+        assert cli.main(["run", str(path), "--state", str(state), "--duration", "0.2"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "room.share.port" in err and "already in use" in err
+    assert not state.exists()
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as free:
+        free.bind(("127.0.0.1", 0))
+        port = free.getsockname()[1]
+    path.write_text(textwrap.dedent(ROOM.format(share=f'share = {{ room = "gallery", port = {port} }}'))
+                    + f"[osc]\nport = {port}\n")
+    assert cli.main(["run", str(path), "--state", str(state), "--duration", "0.2"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"room.share.port: port {port} is [osc] port too" in err
+    assert not state.exists()
+
+
 def test_positions_go_out_on_the_rate_and_stale_or_unplaced_things_are_dropped():
     """At a 0.04 s tick and 25 updates a second every tick sends (t + 1/rate from a tick a hair
     early skipped one in six); a note from a creature not yet placed, or far off in time, is
@@ -337,7 +382,11 @@ def test_without_zeroconf_or_aalink_the_room_is_shared_with_configured_peers(tmp
     assert any("pip install zeroconf" in m for m in said) and any("pip install aalink" in m for m in said)
     assert shared.share.targets() == {("127.0.0.1", 9)}
     shared.close()
-    bad = session(tmp_path, 'share = { room = "gallery", discover = false, peers = ["no-such-host.invalid:9000"] }')
+    with pytest.raises(ConfigError) as info:  # said at load (test_a_share_host_or_peer_…_at_load)
+        session(tmp_path, 'share = { room = "gallery", discover = false, peers = ["no-such-host.invalid:9000"] }')
+    assert info.value.key == "room.share.peers.0" and "cannot be resolved" in info.value.message
+    bad = session(tmp_path, 'share = { room = "gallery", discover = false, peers = ["127.0.0.1:9000"] }')
+    bad.inst.settings.room.share.peers = ["no-such-host.invalid:9000"]  # a name that stopped resolving since
     with pytest.raises(ConfigError) as info:
         open_shared_room(bad.inst, bad, EPOCH, said.append)
     assert info.value.key == "room.share.peers.0" and "does not resolve" in info.value.message

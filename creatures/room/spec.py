@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, Field, model_validator
+from pydantic import AfterValidator, BaseModel, Field, model_validator
 
 from creatures.bounds import FINITE, Bounded
 from creatures.config import nearest
@@ -169,6 +169,19 @@ class LodSpec(Strict):
                                       "starves; none = no limit)")
 
 
+def _peer(peer: str) -> str:
+    """A ``[room.share]`` peer in the form ``host:port``, checked on its own so that an error
+    names its place in the list (that the host resolves, and to IPv4, is checked at load:
+    creatures.runtime.schema.peer_problem)."""
+    host, _, port = peer.rpartition(":")
+    if not host or not (port.isascii() and port.isdigit()) or not 0 < int(port) < 65536:
+        raise ValueError(f"peer {peer!r} is not 'host:port' (a port in 1..65535)")
+    return peer
+
+
+Peer = Annotated[str, AfterValidator(_peer)]
+
+
 class ShareSpec(Strict):
     """``[room.share]``: this process owns its creatures in a room that others share
     (creatures/room/share.py): it sees and hears their creatures and they see and hear its."""
@@ -179,8 +192,8 @@ class ShareSpec(Strict):
                                                "machines)")
     port: int = Field(0, ge=0, le=65535, description="UDP port to listen on (0: any free one; discovery tells "
                                                      "the others)")
-    peers: list[str] = Field(default_factory=list, max_length=64, description="'host:port' of processes to reach "
-                             "without discovery")
+    peers: list[Peer] = Field(default_factory=list, max_length=64, description="'host:port' of processes to reach "
+                              "without discovery")
     discover: bool = Field(True, description="find the room's other processes by mDNS (zeroconf)")
     link: bool = Field(False, description="keep one beat and tempo with the others over Ableton Link (aalink); "
                                           "positions and notes are stamped on its timeline")
@@ -189,14 +202,6 @@ class ShareSpec(Strict):
     rate: float = Field(25.0, gt=0, le=200, description="position updates sent a second")
     timeout: float = Field(2.0, gt=0, le=3600, description="seconds without a word before a process's creatures "
                                                            "leave the room")
-
-    @model_validator(mode="after")
-    def _peers(self) -> "ShareSpec":
-        for peer in self.peers:
-            host, _, port = peer.rpartition(":")
-            if not host or not port.isdigit() or not 0 < int(port) < 65536:
-                raise ValueError(f"peer {peer!r} is not 'host:port'")
-        return self
 
 
 class RoomSection(Strict):

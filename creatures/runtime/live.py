@@ -46,7 +46,7 @@ from creatures.runtime.bodies import FramesBeside
 from creatures.runtime.input_sources import SerialSource, open_sources
 from creatures.runtime.live_score import KEPT, LiveScore, RecordingSink
 from creatures.runtime.network import Network, open_listener
-from creatures.runtime.shared_room import open_shared_room
+from creatures.runtime.shared_room import check_share_port, open_shared_room
 from creatures.runtime.outlets import Outlets, check_apart, check_ports
 from creatures.runtime.schema import LoadedInstallation
 from creatures.runtime.microphone_notes import MicrophoneNotes
@@ -337,9 +337,9 @@ def check_before_running(inst: LoadedInstallation, *, state: Path | None, log_pa
                          pictures: Path | None, view: int | None = None) -> None:
     """What a live run is given, checked before anything runs or is made (``creatures run``
     calls it before it locks, and so makes, the state folder): the log a regular file or
-    absent, the state a folder or absent, no two listeners on one port, the OSC port and the
-    view's port free, and last the ``--frames`` folder made and written in. The first that
-    fails raises, naming its option or config key."""
+    absent, the state a folder or absent, no two listeners on one port, the OSC, console,
+    health, shared room and view ports free, and last the ``--frames`` folder made and written
+    in. The first that fails raises, naming its option or config key."""
     if log_path is not None:
         regular_file(log_path, "--log")
     if state is not None:
@@ -348,6 +348,7 @@ def check_before_running(inst: LoadedInstallation, *, state: Path | None, log_pa
     if inst.settings.osc.port is not None:  # bound and let go: a port in use is said now
         open_listener(inst.settings.osc, WallClock(), lambda key, message: inst.error(("osc", key), message)).close()
     check_ports(inst)
+    check_share_port(inst)
     if view is not None:
         from creatures.view.server import port_problem
 

@@ -45,14 +45,17 @@ def _bound(inst: LoadedInstallation, section: str, open_it: Callable[[], Any]) -
 
 
 def check_apart(inst: LoadedInstallation, view: int | None = None) -> None:
-    """No two of the run's listeners on one port: the OSC listener and the console (UDP), the
-    health endpoint and the view on ``view`` (TCP, on 127.0.0.1), where their addresses meet
+    """No two of the run's listeners on one port: the OSC listener, the console and the shared
+    room (UDP), the health endpoint and the view on ``view`` (TCP, on 127.0.0.1), where their addresses meet
     (the same one, or one of them every address, 0.0.0.0). Each port's own check binds it and
     lets it go, so such a clash would first be met by the run itself, its devices open."""
     settings = inst.settings
+    share = settings.room.share if settings.room is not None else None
     listeners = [("osc", socket.SOCK_DGRAM, settings.osc.host, settings.osc.port),
                  ("console", socket.SOCK_DGRAM, settings.console.host, settings.console.port),
                  ("health", socket.SOCK_STREAM, settings.health.host, settings.health.port)]
+    if share is not None and share.port:  # port 0 takes any free one: it meets no other
+        listeners.append(("room.share", socket.SOCK_DGRAM, share.host, share.port))
     if view is not None:  # the view's module (aiohttp) imported only for a run that has one
         from creatures.view.server import HOST as VIEW_HOST
 
@@ -65,8 +68,8 @@ def check_apart(inst: LoadedInstallation, view: int | None = None) -> None:
         for other, other_kind, other_address, other_port in seen:
             meet = address == other_address or "0.0.0.0" in (address, other_address)
             if (kind, port) == (other_kind, other_port) and meet:
-                raise inst.error((section, "port"), f"port {port} is [{other}] port too: each listens on a "
-                                                    f"port of its own; choose another [{section}] port")
+                raise inst.error((*section.split("."), "port"), f"port {port} is [{other}] port too: each listens "
+                                                                f"on a port of its own; choose another [{section}] port")
         seen.append((section, kind, address, port))
 
 

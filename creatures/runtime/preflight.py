@@ -62,7 +62,7 @@ def _ports(inst: LoadedInstallation) -> tuple[bool, str]:
     from creatures.runtime.live import check_before_running
 
     check_before_running(inst, state=None, log_path=None, pictures=None)  # raises naming the key
-    return True, "OSC, console, health and stream ports can be bound"
+    return True, "OSC, console, health, shared room and stream ports can be bound"
 
 
 def _midi(inst: LoadedInstallation) -> list[Row]:

@@ -572,6 +572,13 @@ def load_installation(path: str | Path) -> LoadedInstallation:
         part = getattr(settings, section)
         if part.port is not None and (problem := host_problem(part.host, what)) is not None:
             raise config_error(path, where, (section, "host"), problem)
+    share = settings.room.share if settings.room is not None else None
+    if share is not None:  # as [osc]'s: an IPv6 or typo'd host once passed, said only once the run was set up
+        if (problem := host_problem(share.host, "room share")) is not None:
+            raise config_error(path, where, ("room", "share", "host"), problem)
+        for i, peer in enumerate(share.peers):
+            if (problem := peer_problem(peer)) is not None:
+                raise config_error(path, where, ("room", "share", "peers", i), problem)
     console = settings.console
     if console.port is not None and console.secret is None and not loopback(console.host):
         raise config_error(path, where, ("console", "host"), OPEN_CONSOLE.format(host=console.host))
@@ -670,7 +677,9 @@ def peer_problem(peer: str) -> str | None:
     host, colon, port = peer.rpartition(":")
     if not colon:
         return f"peer {peer!r} is not host:port (no port: a port in 1..65535)"
-    if not port.isdigit() or not 0 < int(port) < 65536:
+    if not (port.isascii() and port.isdigit()):  # str.isdigit() takes '²', which int() refuses
+        return f"peer {peer!r} is not host:port (port {port!r} is not a number: a port in 1..65535)"
+    if not 0 < int(port) < 65536:
         return f"peer {peer!r} is not host:port (port {port} is out of range: a port in 1..65535)"
     if ":" in host or host.startswith("["):
         return f"peer {peer!r} is IPv6: OSC here speaks IPv4 only"

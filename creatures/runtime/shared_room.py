@@ -6,6 +6,7 @@ last. Offline runs have no shared room: their clock is not the others' (:func:`o
 from __future__ import annotations
 
 import errno
+import socket
 from typing import TYPE_CHECKING, Callable
 
 from creatures.room.discovery import Discovery, DiscoveryUnavailable
@@ -73,6 +74,21 @@ def open_shared_room(inst: "LoadedInstallation", session: "Session", epoch: floa
     say(f"room {spec.room!r} shared on {spec.host}:{share.port} as {share.owner}"
         f"{' (Ableton Link)' if link is not None else ''}")
     return SharedRoom(share, discovery, link)
+
+
+def check_share_port(inst: "LoadedInstallation") -> None:
+    """The ``[room.share]`` port bound and let go, so that one in use is said before ``creatures
+    run`` makes and locks the state folder (it was said only once the run had set up its
+    session, its devices and the folder); port 0 takes any free one and is not checked."""
+    room = inst.settings.room
+    spec = room.share if room is not None else None
+    if spec is None or not spec.port:
+        return
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        try:
+            probe.bind((spec.host, spec.port))
+        except OSError as exc:
+            raise _where(inst, exc, spec.port) from None
 
 
 def _where(inst: "LoadedInstallation", exc: OSError, port: int) -> "ConfigError":
