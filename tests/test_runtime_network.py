@@ -96,3 +96,44 @@ def test_what_another_colony_says_is_heard_kept_for_the_creatures_and_logged(tmp
         net_b.poll(0.0)
     net_b.close()
     assert [e for e in b.log.records if e["kind"] == "peer left"][0]["creature"] == "ada"
+
+
+def test_another_colony_with_a_creature_of_our_name_is_said_and_counted_not_silent(tmp_path):
+    """Two machines running one config: each colony's "ada" took the other's every message
+    for its own voice sent back and dropped it, counted nowhere, so neither heard the other
+    and nothing said why. Now a message under our name from another colony's socket is
+    counted (``name clash``) and said once; our own voice sent back (a peer list naming this
+    colony) is counted apart (``own voice``), and neither is counted as taken."""
+    port_a, port_b = free_port(), free_port()
+    a, net_a = colony(tmp_path, "ada", port_a, [port_b])
+    config = tmp_path / "b.toml"
+    config.write_text('title = "b"\n[[creature]]\nname = "ada"\nkind = "exchange"\n')
+    clock = SimulatedClock()
+    b = Session(load_installation(config), clock, EventLog(), MemorySink())
+    said: list[str] = []
+    net_b = Network(OscSection(port=port_b, peers=[f"127.0.0.1:{port_a}", f"127.0.0.1:{port_b}"]),
+                    b.world, clock, say=said.append)
+    try:
+        net_a.publish(0.0)
+        a.world.play(a.creatures[0], NoteEvent(0.0, 67, 80, 0, 0.5))
+        net_b.publish(0.0)  # to itself too: its own voice comes back
+        deadline = time.monotonic() + 5.0
+        while net_b.name_clash < 3 or net_b.own_voice < 2:  # a's hello, state and note; b's hello and state
+            assert time.monotonic() < deadline, f"heard {net_b.counts()}"
+            net_b.wait(0.05)
+            net_b.poll(0.0)
+        net_a.publish(0.5)
+        while net_b.name_clash < 5:
+            assert time.monotonic() < deadline, f"heard {net_b.counts()}"
+            net_b.wait(0.05)
+            net_b.poll(0.5)
+    finally:
+        net_a.close()
+        net_b.close()
+    assert not any(e["kind"] == "heard" for e in b.log.records) and "ada" not in b.world.peers
+    (clash,) = [e for e in b.log.records if e["kind"] == "peer name clash"]  # said once, counted each time
+    assert clash["creature"] == "ada" and clash["address"].startswith("127.0.0.1:")
+    assert len(said) == 1 and "'ada'" in said[0] and "another name" in said[0]
+    counts = net_b.counts()
+    assert counts["dropped"]["name clash"] == net_b.name_clash and counts["dropped"]["own voice"] == net_b.own_voice
+    assert counts["received"] == net_b.listener.received - net_b.name_clash - net_b.own_voice

@@ -12,6 +12,10 @@ table is bounded in size and rate (:mod:`midi.peer_table`: the network is not an
 and the counters of what was dropped, refused and sent are logged (``network``) and shown at
 the end of a run.
 
+A message under one of this colony's own creatures' names is not heard: it is our own voice
+sent back (counted ``own voice``) or another colony's creature of the same name (``name
+clash``, said once per name: rename one).
+
 A note from a sender that never said hello (``oscsend``, a Max patch speaking the creature
 protocol) is outside input, like a keyboard's: creatures with ``hears_input = false`` do not
 hear it. Every message outside ``/creature/…`` goes to the colony's input map.
@@ -128,6 +132,10 @@ class Network:
         self.senders = {c.name: OscSender(c.name, peers=self.peers) for c in world.creatures}
         self._asker = min(self.senders, key=len)  # the shortest name makes the shortest ask
         self.refused_state = 0  # state values refused: too many remote creatures or keys
+        self.say = say
+        self.own_voice = 0  # messages under our creatures' names from our own sockets (a peer list naming us)
+        self.name_clash = 0  # messages under our creatures' names from another colony: not heard
+        self._clashed: set[str] = set()  # our names another colony was found using (said once each)
         self._next_state = -float("inf")
         self._next_counts = 0.0
         self._last_counts: dict[str, object] = {}
@@ -166,7 +174,8 @@ class Network:
         said: dict[str, dict[str, int | float | str]] = {}
         for heard in self.listener.poll():
             if heard.creature in self.senders:
-                continue  # our own voice, sent back to us by a peer list that names this colony
+                self._own_name(heard)
+                continue
             if heard.kind == "note":
                 known = heard.creature in self.where  # a creature of a colony that said hello
                 self.world.inject(dataclasses.replace(heard.note, time=t), heard.creature if known else INPUT,
@@ -191,6 +200,23 @@ class Network:
             notes += self.elsewhere.osc(address, args, t)
         return notes
 
+    def _own_name(self, heard: Heard) -> None:
+        """A message under one of our creatures' names: our own voice, sent back by a peer list
+        that names this colony (it comes from our senders' sockets), or another colony with a
+        creature of the same name (two machines running one config), whose every message
+        would be taken for our own and not heard: counted, and said once per name, since
+        renaming one is the cure."""
+        if heard.sender[1] in {s.socket.getsockname()[1] for s in self.senders.values()}:
+            self.own_voice += 1
+            return
+        self.name_clash += 1
+        if heard.creature not in self._clashed:
+            self._clashed.add(heard.creature)
+            where = f"{heard.sender[0]}:{heard.sender[1]}"
+            self.world.emit("peer name clash", creature=heard.creature, address=where)
+            self.say(f"OSC: a creature named {heard.creature!r} speaks from {where}, another colony: its messages "
+                     "are not heard (as this colony's own); give one of them another name")
+
     def _keep_state(self, creature: str, key: str, value: int | float | str) -> bool:
         """Keep a remote creature's state value unless that would grow ``world.peers`` past
         ``max_peers`` creatures or :data:`MAX_STATE_KEYS` keys (state needs no hello: any OSC
@@ -214,14 +240,20 @@ class Network:
 
     def counts(self) -> dict[str, object]:
         """Every network counter: what came in (``received``, bytes, ``clamped``, ``dropped``
-        by cause), whom it asked to prove a hello (``asked``) and refused (``refused``: hellos
+        by cause, ``own voice`` and ``name clash`` among them: messages under our creatures'
+        names, from us or from another colony), whom it asked to prove a hello (``asked``) and refused (``refused``: hellos
         when full or too fast, asks too large, state values),
         how many peers it has, what went out (``sent_bytes``, ``send_errors``), and how many
         library log lines were left out (:mod:`creatures.log_limit`)."""
         refused = dict(self.table.refused)
         if self.refused_state:
             refused["state"] = self.refused_state
-        return {**self.listener.counts(), "refused": refused, "asked": self.table.asked,
+        heard = self.listener.counts()
+        if self.own_voice or self.name_clash:  # under our own names: not heard, so dropped, not taken
+            heard["received"] -= self.own_voice + self.name_clash
+            heard["dropped"] = dict(sorted({**heard["dropped"], "own voice": self.own_voice,
+                                            "name clash": self.name_clash}.items()))
+        return {**heard, "refused": refused, "asked": self.table.asked,
                 "peers": len(self.table.where),
                 "sent_bytes": self.listener.sent_bytes + sum(s.sent_bytes for s in self.senders.values()),
                 "send_errors": self.listener.send_errors + sum(s.send_errors for s in self.senders.values()),
