@@ -88,6 +88,30 @@ def test_a_process_leaves_by_bye_by_silence_and_is_taken_over_by_its_restart():
     b.close()
 
 
+def test_two_live_processes_claiming_one_creature_are_counted_and_said_not_a_jumping_creature():
+    a, twin, b = shares(["a-0"], ["a-0"], ["b-0"])  # one config run twice: both own "a-0"
+    here, there = np.array([[1.0, 1.0, 0, 0, 1, 0, 0.25]]), np.array([[9.0, 9.0, 0, 0, 1, 0, 0.25]])
+    seen = []
+    for step in range(6):
+        t = 0.1 * step
+        for share, row in ((a, here), (twin, there)):
+            share.publish(t, ["a-0"], row)
+            wait_for(b, t)
+            seen.append(tuple(b.others(t)[1][0, :2]))
+    # The twin took it once (as a restart would) and keeps it: the first owner speaking of it
+    # again is the clash, dropped and counted, not a creature at (1, 1) and (9, 9) in turn.
+    assert seen == [(1.0, 1.0)] + [(9.0, 9.0)] * 11
+    assert b.remote["a-0"].owner == twin.owner and b.dropped["owner clash"] == 5
+    assert b.clashes == [("a-0", twin.owner, a.owner)]  # said once for the name
+    twin.close()  # the holder leaves: the name is the other's again
+    wait_for(b, 0.6)
+    a.publish(0.7, ["a-0"], here)
+    wait_for(b, 0.7)
+    assert b.remote["a-0"].owner == a.owner and b.others(0.7)[1][0, :2] == pytest.approx([1.0, 1.0])
+    for s in (a, b):
+        s.close()
+
+
 def test_notes_arrive_stamped_with_when_they_started():
     a, b = shares(["a-0"], ["b-0"])
     a.publish(2.5, ["a-0"], np.array([ROW]))  # it stands somewhere before it is heard

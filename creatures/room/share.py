@@ -7,8 +7,12 @@ Design:
 * **Ownership.** Every process is an *owner* (host name and process id: a restarted process is
   a new owner). A remote creature belongs to the owner that last spoke of it, so a process
   that was killed and started again takes its creatures back at once, before the old owner's
-  silence times out. An owner not heard for ``timeout`` seconds leaves the room with every
-  creature still its own; a ``bye`` makes it leave at once.
+  silence times out. The owner it was taken from does not take it back while the new one
+  speaks of it: if it does speak of it again, two live processes claim one name (a config run
+  twice), and its rows are dropped, counted (``owner clash``) and said once per name, rather
+  than the creature jumping between two places with every datagram. An owner not heard for
+  ``timeout`` seconds leaves the room with every creature still its own; a ``bye`` makes it
+  leave at once.
 * **Time.** Positions and notes are stamped with the sender's clock time as Unix time (the
   machines' clocks kept together by NTP), and with its beat on Ableton Link's timeline when
   ``link = true`` (:mod:`creatures.room.link`), which gives the colony one beat and tempo:
@@ -107,6 +111,9 @@ class RoomShare:
         self._next_send = -np.inf
         self.joined: list[str] = []  # owners met since last asked (for the events log)
         self.left: list[tuple[str, str]] = []  # (owner, why)
+        self.clashes: list[tuple[str, str, str]] = []  # (creature, its owner, the other claimant), once a name
+        self._taken_from: dict[str, str] = {}  # creature -> the owner it was last taken from
+        self._clashed: set[str] = set()  # creatures whose clash was said
 
     # -- time ------------------------------------------------------------------------------
     def beat(self, t: float) -> float:
@@ -220,9 +227,25 @@ class RoomShare:
                 self.dropped["name clash"] += 1
             elif name not in self.remote and len(self.remote) >= MOST_REMOTE:
                 self.dropped["creatures full"] += 1
-            else:
+            elif not self._claimed(name, heard.owner):
                 self.remote[name] = Remote(heard.owner, row, when)
         return None
+
+    def _claimed(self, name: str, owner: str) -> bool:
+        """Whether ``name`` is another live owner's, so ``owner``'s row for it is dropped: the
+        owner it was last taken from speaks of it again (two processes claim one name). A new
+        owner takes it (a restart), and so does anyone once its holder has left or gone silent."""
+        held = self.remote.get(name)
+        if held is None or held.owner == owner:
+            return False
+        if self._taken_from.get(name) != owner:
+            self._taken_from[name] = held.owner
+            return False
+        self.dropped["owner clash"] += 1
+        if name not in self._clashed:
+            self._clashed.add(name)
+            self.clashes.append((name, held.owner, owner))
+        return True
 
     def _note(self, heard: wire.Note, t: float) -> tuple[str, NoteEvent] | None:
         if heard.creature in self.own:
@@ -247,11 +270,18 @@ class RoomShare:
                 self._leave(owner, "silent")
         if any(t - r.t > self.spec.timeout for r in self.remote.values()):
             self.remote = {name: r for name, r in self.remote.items() if t - r.t <= self.spec.timeout}
+            self._forget()
 
     def _leave(self, owner: str, why: str) -> None:
         self.owners.pop(owner, None)
         self.remote = {name: r for name, r in self.remote.items() if r.owner != owner}
+        self._forget()
         self.left.append((owner, why))
+
+    def _forget(self) -> None:
+        """Handovers of creatures no longer in the room are forgotten: a name that comes back
+        is anyone's to take again."""
+        self._taken_from = {name: was for name, was in self._taken_from.items() if name in self.remote}
 
     def others(self, t: float) -> tuple[list[str], np.ndarray]:
         """Every remote creature's name and row as it stands at ``t`` (moved by its velocity from

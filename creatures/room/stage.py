@@ -414,7 +414,9 @@ class Stage:
             emit("room peer", owner=owner, creatures=sum(r.owner == owner for r in share.remote.values()))
         for owner, why in share.left:
             emit("room peer left", owner=owner, why=why)
-        share.joined, share.left = [], []
+        for name, owner, other in share.clashes:
+            emit("room owner clash", creature=name, owner=owner, other=other)
+        share.joined, share.left, share.clashes = [], [], []
         if share.timeline is not None:
             beat = share.timeline.beat_at(share.epoch + t)
             if not self._next_beat - 2 <= beat <= self._next_beat + 4:  # joining, a suspend, a jump: start again
