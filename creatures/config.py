@@ -13,7 +13,7 @@ import re
 import stat
 import tomllib
 import typing
-from pathlib import Path
+from pathlib import Path, PurePath
 from typing import Any, TypeVar
 
 from pydantic import BaseModel, ValidationError
@@ -138,7 +138,8 @@ def read_toml(path: str | Path, *, _seen: tuple[Path, ...] = ()) -> tuple[dict[s
         # Named here, at the including file's line: the base's own path alone would not say
         # which config asked for it. A FIFO or a folder there is said as what it is.
         found = "not found" if not base.exists() else f"is {kind_of(base.stat().st_mode)}, not a regular file"
-        raise ConfigError(path, f"base config {parent!r} {found} (looked for {base})", key="extends", line=line)
+        near = nearest_file(parent, path.parent) if not base.exists() else ""
+        raise ConfigError(path, f"base config {parent!r} {found} (looked for {base}){near}", key="extends", line=line)
     base_data, base_where = read_toml(base, _seen=(*_seen, path))
     return _extend(base_data, base_where, data, where)
 
@@ -384,6 +385,24 @@ def nearest(name: object, choices: typing.Iterable[str], what: str) -> str:
     choices = list(choices)
     close = difflib.get_close_matches(str(name), choices, n=1)
     return f" (did you mean {close[0]!r}?)" if close else f" ({what}: {', '.join(choices) or 'none'})"
+
+
+def nearest_file(name: str, base: Path) -> str:
+    """The end of an error about a file a config names (relative to ``base``) that is not
+    there, as :func:`nearest` ends one about a key: the nearest file in the folder it points
+    into, written as the config would write it (`` (did you mean 'creatures/heron.toml'?)``),
+    else the files of its suffix there. Names are compared without the folder, which every
+    candidate shares (with it, any name was "near"). Nothing when the folder is absent too."""
+    written = PurePath(name)
+    folder = base / written.parent
+    if not written.name or not folder.is_dir():
+        return ""
+    files = sorted(p.name for p in folder.iterdir() if p.is_file())
+    close = difflib.get_close_matches(written.name, files, n=1)
+    if close:
+        return f" (did you mean {written.with_name(close[0]).as_posix()!r}?)"
+    alike = [written.with_name(f).as_posix() for f in files if PurePath(f).suffix == written.suffix]
+    return f" ({written.suffix or 'such'} files there: {', '.join(alike)})" if alike else ""
 
 
 def written_in(where: dict[tuple, tuple[Path, int]], key: tuple[str | int, ...], config: Path) -> Path:

@@ -265,6 +265,18 @@ def test_missing_and_circular_includes_are_errors(tmp_path):
     assert "circular include" in error.message
 
 
+def test_a_mistyped_include_names_the_nearest_file_as_it_would_be_written(tmp_path):
+    """docs/authoring.md: a missing include is an error "with the nearest valid name", as a key is."""
+    write(tmp_path, CREATURE, "creatures/heron.toml")
+    write(tmp_path, CREATURE.replace('name = "c"', 'name = "d"'), "creatures/dog.toml")
+    error = error_of(write(tmp_path, HEAD + 'include = ["creatures/heorn.toml"]\n'))
+    assert error.key == "include.0" and "(did you mean 'creatures/heron.toml'?)" in error.message
+    error = error_of(write(tmp_path, HEAD + 'include = ["creatures/zzzzzz.toml"]\n'))  # nothing near: what is there
+    assert "(.toml files there: creatures/dog.toml, creatures/heron.toml)" in error.message
+    error = error_of(write(tmp_path, HEAD + 'include = ["nowhere/heron.toml"]\n'))  # no such folder: nothing to offer
+    assert error.message.endswith("nowhere/heron.toml)")
+
+
 def test_an_included_creature_runs_like_an_inline_one(tmp_path):
     write(tmp_path, CREATURE, "creatures/c.toml")
     inst = load_installation(write(tmp_path, HEAD + 'include = ["creatures/c.toml"]\n'))

@@ -210,6 +210,15 @@ def test_a_plugin_that_fails_to_import_is_exit_2_naming_it(tmp_path, capsys):
     assert not (tmp_path / "out").exists()
 
 
+def test_a_mistyped_plugins_file_names_the_nearest_one(tmp_path):
+    (tmp_path / "my_actions.py").write_text(CROAK.replace("{name}", "ribbit"))
+    config = tmp_path / "frog.toml"
+    config.write_text(CONFIG.format(top='plugins = ["my_actons.py"]', name="ribbit"))
+    with pytest.raises(ConfigError) as info:
+        load_installation(config)
+    assert info.value.key == "plugins.0" and "(did you mean 'my_actions.py'?)" in info.value.message
+
+
 def test_the_builtin_parts_register_through_the_projects_own_entry_points():
     project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["entry-points"]
     declared = {group.removeprefix("creature_music."): sorted(eps.values()) for group, eps in project.items()

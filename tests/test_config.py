@@ -132,6 +132,15 @@ def test_missing_extends_file_names_the_key_and_the_including_line(tmp_path):
     assert str(tmp_path.resolve() / "bases" / "absent.toml") in str(err.value)
 
 
+def test_a_mistyped_extends_names_the_nearest_file(tmp_path):
+    (tmp_path / "bases").mkdir()
+    write(tmp_path, "bases/gallery.toml", 'title = "base"\n')
+    child = write(tmp_path, "child.toml", 'extends = "bases/galery.toml"\n')
+    with pytest.raises(ConfigError) as err:
+        load_config(child, Installation)
+    assert "(did you mean 'bases/gallery.toml'?)" in str(err.value)
+
+
 def test_a_fifo_as_extends_is_said_as_a_fifo_not_as_missing(tmp_path):
     os.mkfifo(tmp_path / "base.toml")
     child = write(tmp_path, "child.toml", 'extends = "base.toml"\n')

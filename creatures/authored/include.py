@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 import installations
-from creatures.config import ConfigError, _merge, config_error, read_toml
+from creatures.config import ConfigError, _merge, config_error, nearest_file, read_toml
 
 Where = dict[tuple, tuple[Path, int]]
 
@@ -33,7 +33,8 @@ def expand_includes(data: dict[str, Any], where: Where, path: Path, *, _chain: t
             loop = " -> ".join(p.name for p in (*chain, file))
             raise config_error(path, where, ("include", k), f"circular include ({loop})")
         if not file.is_file():
-            raise config_error(path, where, ("include", k), f"included file {name!r} not found (looked for {file})")
+            raise config_error(path, where, ("include", k), f"included file {name!r} not found (looked for {file})"
+                               + nearest_file(name, path.parent))
         sub, sub_where = read_toml(file)
         expand_includes(sub, sub_where, file, _chain=chain)
         extra = set(sub) - {"creature"}

@@ -8,7 +8,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from creatures.authored.registry import PluginError, load_plugin_file
-from creatures.config import config_error
+from creatures.config import config_error, nearest_file
 
 
 def load_plugins(files: list[str], config: Path, where: dict) -> None:
@@ -16,4 +16,6 @@ def load_plugins(files: list[str], config: Path, where: dict) -> None:
         try:
             load_plugin_file(config.parent / name)
         except PluginError as exc:
-            raise config_error(config, where, ("plugins", k), str(exc)) from None
+            missing = not (config.parent / name).is_file()  # a typo: offer the nearest file there
+            raise config_error(config, where, ("plugins", k),
+                               str(exc) + (nearest_file(name, config.parent) if missing else "")) from None
