@@ -341,6 +341,9 @@ def test_like_starts_a_creature_from_an_earlier_one(tmp_path):
     path = write(tmp_path, twin.replace('like = "c"', 'like = "d"'))
     error = error_of(path)
     assert error.key == "creature.1.like" and "no earlier creature named 'd'" in error.message
+    assert "(earlier creatures: c)" in error.message
+    error = error_of(write(tmp_path, twin.replace('name = "c"', 'name = "heron"').replace('like = "c"', 'like = "heorn"')))
+    assert "no earlier creature named 'heorn' to be like (did you mean 'heron'?)" in error.message
     path = write(tmp_path, twin.replace("tuples.rest.value = 0.5", 'tuples.sing.trigger = "boredd"'))
     error = error_of(path)
     assert error.key == "creature.1.tuples.sing.trigger" and error.line == line_of(path, '"boredd"')

@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 import installations
-from creatures.config import ConfigError, _merge, config_error, nearest_file, read_toml
+from creatures.config import ConfigError, _merge, config_error, nearest, nearest_file, read_toml
 
 Where = dict[tuple, tuple[Path, int]]
 
@@ -91,7 +91,8 @@ def expand_likes(data: dict[str, Any], where: Where, path: Path) -> None:
         if like is not None:
             if not isinstance(like, str) or like not in seen:
                 raise config_error(path, where, ("creature", i, "like"),
-                                   f"no earlier creature named {like!r} to be like (earlier: {sorted(seen)})")
+                                   f"no earlier creature named {like!r} to be like"
+                                   + nearest(like, sorted(seen), "earlier creatures"))
             j = seen[like]
             tables[i] = _merge(tables[j], table)
             for loc, at in list(where.items()):
