@@ -88,12 +88,13 @@ def _devices(_: argparse.Namespace) -> int:
     try:
         import mido
 
+        from midi.ports import BACKEND_HINT
+
         inputs, outputs = mido.get_input_names(), mido.get_output_names()
         print(f"MIDI inputs ({mido.backend.name}): {inputs or 'none'}")
         print(f"MIDI outputs: {outputs or 'none'}")
     except Exception as exc:  # any backend failure is reported, never fatal here
-        print(f"MIDI devices: unavailable ({exc}); on Linux without ALSA start a JACK server and set "
-              "MIDO_BACKEND=mido.backends.rtmidi/UNIX_JACK")
+        print(f"MIDI devices: unavailable ({exc}); {BACKEND_HINT}")
     return 0
 
 

@@ -35,6 +35,10 @@ from midi.polled import PolledInput, api_id
 
 logger = logging.getLogger(__name__)
 
+BACKEND_HINT = "on Linux without ALSA start a JACK server and set MIDO_BACKEND=mido.backends.rtmidi/UNIX_JACK"
+"""What to do when the backend cannot list ports at all (rtmidi with no ALSA sequencer: a
+container, a machine with JACK MIDI only), where its own error names only a C++ call."""
+
 
 class MemoryInput(BaseInput):
     """An input port whose messages are put there by a :class:`MemoryOutput` (or a test)."""

@@ -425,3 +425,34 @@ def test_check_fails_a_state_folder_that_is_a_link_to_nothing(tmp_path: Path, ca
     assert not others
     deep = tmp_path / "new" / "deeper" / "state"  # made with its parents by the run: writable where they start
     assert _state(deep)[0] == ("state folder", True, f"{deep} writable")
+
+
+def test_check_says_what_to_do_when_no_midi_backend_or_sound_card_is_there(tmp_path: Path,
+                                                                           monkeypatch: pytest.MonkeyPatch) -> None:
+    """Without ALSA's sequencer rtmidi's error names only a C++ call, and with no sound card at
+    all the row said "no such output device": each now says why and what to do, as `creatures
+    devices` and a live run do."""
+    import audio.device
+    import midi.ports
+    from creatures.runtime.preflight import _audio, _midi
+
+    class NoSequencer:
+        def names(self) -> list[str]:
+            raise RuntimeError("MidiOutAlsa::initialize: error creating ALSA sequencer client object.")
+
+    class NoCards:
+        PortAudioError = OSError
+
+        def query_devices(self, device=None, kind=None):
+            return []
+
+    monkeypatch.setattr(midi.ports, "MidoOutputs", NoSequencer)
+    monkeypatch.setattr(audio.device, "portaudio", NoCards)
+    config = tmp_path / "show.toml"
+    config.write_text(COLONY.replace("output = false", "output = true") + '[midi]\noutput_port = "FLUID"\n')
+    inst = load_installation(config)
+    [(what, ok, detail)] = _midi(inst)
+    assert (what, ok) == ("MIDI output", False) and "MIDO_BACKEND=mido.backends.rtmidi/UNIX_JACK" in detail
+    assert detail.startswith("'FLUID': MIDI ports cannot be listed (MidiOutAlsa::initialize")
+    ok, detail = _audio(inst)
+    assert not ok and detail.startswith("default: no audio output devices found") and "creatures devices" in detail

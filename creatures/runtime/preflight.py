@@ -73,7 +73,10 @@ def _midi(inst: LoadedInstallation) -> list[Row]:
             def present(name: str = name, ports: str = ports) -> tuple[bool, str]:
                 from midi import ports as backends  # MIDO_BACKEND's ports, as the run opens them
 
-                found = getattr(backends, ports)().names()
+                try:
+                    found = getattr(backends, ports)().names()
+                except Exception as exc:  # no backend at all: its error names a C++ call, so say what to do
+                    return False, f"{name!r}: MIDI ports cannot be listed ({exc}); {backends.BACKEND_HINT}"
                 hit = [n for n in found if name in n]
                 return bool(hit), f"{name!r}: " + (f"found {hit[0]!r}" if hit else f"absent (there are {found or 'none'})")
 
@@ -82,10 +85,15 @@ def _midi(inst: LoadedInstallation) -> list[Row]:
 
 
 def _audio(inst: LoadedInstallation) -> tuple[bool, str]:
-    from audio.device import device_rate
+    from audio.device import AudioDeviceUnavailable, device_rate, find_device
 
     device = inst.settings.audio.output_device
     rate = device_rate(device, kind="output")
+    if rate is None:
+        try:  # why not, in the words a live run uses: PortAudio missing, no device at all, or the ones there are
+            find_device(device, kind="output")
+        except AudioDeviceUnavailable as exc:
+            return False, f"{device or 'default'}: {exc}"
     return rate is not None, f"{device or 'default'}: " + (f"{rate} Hz" if rate else "no such output device")
 
 
