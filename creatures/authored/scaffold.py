@@ -65,7 +65,7 @@ alpha = 0.0
 def new_installation(name: str, directory: Path) -> Path:
     """Write ``directory/NAME.toml``; refuses a bad name or an existing file."""
     if not re.fullmatch(r"[A-Za-z0-9_\-]+", name):
-        raise ValueError(f"{name!r}: a name is letters, digits, _ and - (it names the file and the creature)")
+        raise ValueError(f"{name!r}: a name is ASCII letters, digits, _ and - (it names the file and the creature, and goes into OSC addresses)")
     path = directory / f"{name}.toml"
     if path.exists():
         raise FileExistsError(f"{path} exists; not overwritten")

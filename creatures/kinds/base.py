@@ -33,7 +33,7 @@ class CreatureSpec(BaseModel):
 
     model_config = FINITE
 
-    name: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_\-]+$", description="unique name (letters, digits, _ and -)")
+    name: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_\-]+$", description="unique name (ASCII letters, digits, _ and -: it goes into OSC addresses and file names)")
     kind: str = Field(description="which creature kind (the sections below)")
     channel: int = Field(0, ge=0, le=15, description="MIDI channel this creature plays on")
     gain: float = Field(0.8, ge=0.0, le=4.0, description="linear gain of its voice in the mix")
