@@ -556,7 +556,8 @@ def _render_lines(args: argparse.Namespace, out: Path) -> int:
 def _export_motion_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("path", type=Path, help="a run's output directory or a state directory (with events.jsonl), "
                                                "or an events log (a live run's --log)")
-    parser.add_argument("out", type=Path, help="the BVH file to write")
+    parser.add_argument("out", type=Path, help="the BVH file to write (one that exists and is not a BVH "
+                                               "is refused, kept as it was)")
     parser.add_argument("--creature", required=True, help="whose path to export")
     parser.add_argument("--config", type=Path, help="the installation (default: the one the run's log names)")
     parser.add_argument("--fps", type=float, default=30.0, help="frames per second of the BVH, 1..1000 (default 30)")

@@ -27,6 +27,7 @@ from scipy.spatial.transform import Rotation
 from creatures.motor import quaternion as quat
 from creatures.motor.pose import BodyPose, PoseSet
 from creatures.motor.skeleton import Skeleton, subtree_sizes
+from creatures.persist import atomic_write
 
 _AXES = {"Xrotation": "X", "Yrotation": "Y", "Zrotation": "Z"}
 _POSITIONS = ("Xposition", "Yposition", "Zposition")
@@ -461,4 +462,6 @@ def save_bvh(path: str | os.PathLike, poses: PoseSet, *, frame_time: float | Non
     table = np.concatenate((poses.roots, angles), axis=1)
     lines += ["MOTION", f"Frames: {len(poses)}", f"Frame Time: {float(frame_time)!r}"]
     lines += [" ".join(f"{x:.9f}" for x in row) for row in table]
-    Path(path).write_text("\n".join(lines) + "\n", encoding="utf-8")
+    text = "\n".join(lines) + "\n"
+    # atomic: a take cut short (Ctrl-C, a full disk) leaves the previous file, never half a take
+    atomic_write(Path(path), lambda handle: handle.write(text), "w")

@@ -19,6 +19,7 @@ from creatures.motor.blend import Limits
 from creatures.motor.export import ExportError, export_motion, taken_path
 from creatures.motor.graph import MotorGraph
 from creatures.motor.material import Conventions
+from creatures.paths import open_regular
 from creatures.persist import load_json
 from creatures.runtime.schema import load_installation
 from creatures.runtime.session import STATE_KIND
@@ -30,6 +31,7 @@ def export_motion_of_run(path: Path, creature: str, out: Path, *, config: Path |
     written. ``path`` is a run's output directory (its ``events.jsonl``), the events log itself
     (a live run's ``--log``), or a state folder (each creature's file keeps the path its body
     took in the run that saved it, and the config that ran)."""
+    refuse_to_lose(out)
     log = path if path.is_file() else path / "events.jsonl"
     saved = path / f"{creature}.json"
     if log.is_file():
@@ -61,6 +63,28 @@ def export_motion_of_run(path: Path, creature: str, out: Path, *, config: Path |
     nodes, times = taken_path(events, creature, len(graph))
     poses = export_motion(graph, nodes, out, fps=fps, conventions=conventions, times=times, limits=limits)
     return len(poses)
+
+
+BVH_START = b"HIERARCHY"
+"""How every BVH file begins: an ``out`` that exists and begins otherwise is not an earlier take."""
+
+
+def refuse_to_lose(out: Path) -> None:
+    """Raise :class:`ExportError` when writing the take to ``out`` would lose something: a
+    folder, or a file that is not a BVH. ``OUT`` is the second path on the command line, and
+    one word swapped (the run's ``events.jsonl`` or a creature's state file given as ``OUT``)
+    replaced the log or the learned state with a take, with nothing said."""
+    if out.is_dir():
+        raise ExportError(f"{out}: is a folder; give the BVH file to write (e.g. {out / 'motion.bvh'})")
+    try:
+        with open_regular(out, "OUT") as handle:  # a FIFO or a device: refused, never opened blocking
+            start = handle.read(len(BVH_START))
+    except FileNotFoundError:
+        return
+    except OSError as exc:
+        raise ExportError(f"{out}: cannot tell what it holds ({exc.strerror or exc}); not replaced") from None
+    if start != BVH_START:
+        raise ExportError(f"{out}: exists and is not a BVH file (it would be lost); give another file to write")
 
 
 def exported_body(spec: object) -> tuple[MotorGraph, Conventions, Limits | None]:
