@@ -613,8 +613,7 @@ def _state(args: argparse.Namespace) -> int:
                 print(change)
             print(f"{len(changes)} change(s)")
         elif args.action == "rollback":
-            named = args.state / snapshots.FOLDER / args.snapshot
-            snapshot = named if not args.snapshot.is_dir() and named.is_dir() else args.snapshot
+            snapshot = snapshots.find(args.state, args.snapshot)
             print(f"restored {repertoire.rollback(args.state, snapshot, args.creature)} from {snapshot}")
         elif args.action == "merge":
             added = repertoire.merge(args.source, args.creature, args.target, args.into)

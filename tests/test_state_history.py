@@ -296,3 +296,45 @@ def test_a_printing_command_whose_reader_stops_ends_without_a_word() -> None:
     run.stdout.close()
     _, err = run.communicate(timeout=60)
     assert err == b"" and run.returncode in (-13, 0)  # 0: it had written everything before the close
+
+
+def test_a_rollback_names_what_it_cannot_find_and_changes_nothing(tmp_path: Path, capsys) -> None:
+    """A mistyped snapshot, state folder or creature: each refused with the nearest valid name,
+    nothing written. Before, a missing STATE was made (a new folder no run reads, "restored"),
+    a stamp one digit off said only "not a state folder or snapshot", and ``--creature`` took a
+    path out of the folder."""
+    state = tmp_path / "state"
+    a = snapshot(state, live_for(None, 2, FIRST)[0], DAY)
+    before = (state / "heron.json").read_bytes()
+    (tmp_path / "outside.json").write_bytes(before)
+
+    def refused(*argv: str) -> str:
+        assert main(["state", "rollback", *argv]) == 2
+        err = capsys.readouterr().err
+        assert "Traceback" not in err
+        return err
+
+    assert "(did you mean '2026-03-02T090000Z'?)" in refused(str(state), "2026-03-02T090001Z", "--creature", "heron")
+    assert "(snapshots: none)" in refused(str(tmp_path), a.name, "--creature", "heron")
+    assert f"{tmp_path / 'stat'}: no such state folder" in refused(str(tmp_path / "stat"), str(a), "--creature", "heron")
+    assert not (tmp_path / "stat").exists()
+    assert "(did you mean 'heron'?)" in refused(str(state), a.name, "--creature", "heon")
+    assert "no saved state for creature '../../../outside'" in refused(str(state), a.name, "--creature",
+                                                                         "../../../outside")
+    assert not (state / "outside.json").exists()
+    assert (state / "heron.json").read_bytes() == before
+
+
+def test_a_rollback_over_a_creature_of_another_kind_is_refused(tmp_path: Path, capsys) -> None:
+    """A snapshot of another installation whose creature has the name but not the kind: the run
+    would refuse the file at its next start (exit 2, not restarted), so the rollback refuses it."""
+    state = tmp_path / "state"
+    a = snapshot(state, live_for(None, 2, FIRST)[0], DAY)
+    document = json.loads((a / "heron.json").read_text())
+    (a / "heron.json").write_text(json.dumps({**document, "kind": "curve"}))
+    before = (state / "heron.json").read_bytes()
+    assert main(["state", "rollback", str(state), a.name, "--creature", "heron"]) == 2
+    assert "kind 'curve'" in capsys.readouterr().err
+    assert (state / "heron.json").read_bytes() == before
+    (state / "heron.json").write_text("{damaged")  # a damaged file is what a rollback is for
+    assert main(["state", "rollback", str(state), a.name, "--creature", "heron"]) == 0

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from creatures.config import nearest
 from creatures.lock import FolderLock
 from creatures.persist import StateFileError, atomic_write, json_text, load_json
 from creatures.runtime.session import COLONY_FILE, STATE_KIND
@@ -125,21 +126,42 @@ def _key(item: Any) -> str:
     return json.dumps(item, sort_keys=True)
 
 
+def _saved_names(folder: Path) -> list[str]:
+    """The creatures a state folder or snapshot keeps a file for (``NAME.json``), unread."""
+    return sorted(p.stem for p in folder.glob("[!.]*.json") if p.name != COLONY_FILE)
+
+
 def _creature_file(folder: Path, name: str) -> Path:
-    path = folder / f"{name}.json"
-    if not path.is_file():
-        known = ", ".join(sorted(read_creatures(folder))) or "none"
-        raise StateFileError(f"{folder}: no saved state for creature {name!r} (saved: {known})")
-    return path
+    """``folder``'s file of creature ``name``. Only a name the folder keeps a file for is one:
+    ``--creature ../other/x`` read (and a merge wrote) a file outside the folder, and the
+    colony's own file was taken for a creature's."""
+    if not folder.is_dir():
+        raise StateFileError(f"{folder}: not a state folder or snapshot")
+    names = _saved_names(folder)
+    if name not in names:
+        raise StateFileError(f"{folder}: no saved state for creature {name!r}{nearest(name, names, 'saved')}")
+    return folder / f"{name}.json"
 
 
 def rollback(state_dir: Path, snapshot: Path, name: str) -> Path:
     """Put creature ``name``'s file from ``snapshot`` back into ``state_dir``, byte for byte,
-    atomically; refused while a run holds the state folder (it would overwrite it)."""
+    atomically; refused while a run holds the state folder (it would overwrite it), into a
+    folder that does not exist (a typo made a new folder no run reads, and said it restored),
+    and over a file of another kind (a snapshot of another installation: the run would refuse
+    it at its next start, and not be restarted)."""
+    if not state_dir.is_dir():
+        raise StateFileError(f"{state_dir}: no such state folder" + (" (it is a file)" if state_dir.exists() else ""))
     source = _creature_file(snapshot, name)
-    load_json(source, kind=STATE_KIND)  # a damaged snapshot is refused before anything changes
+    kind = load_json(source, kind=STATE_KIND).get("kind")  # a damaged snapshot is refused before anything changes
     data = source.read_bytes()
     target = state_dir / source.name
+    try:
+        now = load_json(target, kind=STATE_KIND).get("kind")
+    except StateFileError:  # none, or damaged: what a rollback is for
+        now = kind
+    if now != kind:
+        raise StateFileError(f"{source} holds a creature of kind {kind!r} and {target} one of kind {now!r}: a "
+                             f"snapshot of another installation? (nothing changed)")
     with FolderLock(state_dir, "state folder"):
         atomic_write(target, lambda handle: handle.write(data), "wb")
     return target

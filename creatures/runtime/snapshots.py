@@ -15,7 +15,8 @@ import shutil
 from datetime import datetime, timezone
 from pathlib import Path
 
-from creatures.persist import write_json_text
+from creatures.config import nearest
+from creatures.persist import StateFileError, write_json_text
 
 FOLDER = "snapshots"
 STAMP = "%Y-%m-%dT%H%M%SZ"
@@ -37,6 +38,20 @@ def listed(state_dir: Path) -> list[tuple[datetime, Path]]:
         return []
     found = [(stamp_of(p), p) for p in root.iterdir() if p.is_dir()]
     return sorted((when, p) for when, p in found if when is not None)
+
+
+def find(state_dir: Path, given: Path) -> Path:
+    """The snapshot ``given`` names: a folder, else the one of that name in ``STATE/snapshots``.
+    Neither is a :class:`StateFileError` that names the nearest snapshot (or lists them): a
+    mistyped stamp said only "not a state folder or snapshot"."""
+    if given.is_dir():
+        return given
+    named = state_dir / FOLDER / given
+    if named.is_dir():
+        return named
+    names = [path.name for _, path in listed(state_dir)]
+    raise StateFileError(f"{given}: no such snapshot (not a folder, nor a snapshot in {state_dir / FOLDER})"
+                         f"{nearest(str(given), names, 'snapshots')}")
 
 
 def take(state_dir: Path, files: list[tuple[str, str]], at: datetime) -> Path:
