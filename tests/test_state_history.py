@@ -338,3 +338,40 @@ def test_a_rollback_over_a_creature_of_another_kind_is_refused(tmp_path: Path, c
     assert (state / "heron.json").read_bytes() == before
     (state / "heron.json").write_text("{damaged")  # a damaged file is what a rollback is for
     assert main(["state", "rollback", str(state), a.name, "--creature", "heron"]) == 0
+
+
+@pytest.mark.parametrize("edit, key", [
+    (lambda d: d["state"].update(phrases="abc"), "phrases: must be a list"),
+    (lambda d: d["state"].update(phrases=[[[1.0, 60, 90]]]), "phrases.0.0: must be a note"),
+    (lambda d: d["state"].update(values=[]), "values: must be a table"),
+    (lambda d: d["state"].update(phrases_made="x"), "phrases_made: must be a whole number"),
+    (lambda d: d["state"].update(learnt=None), "learnt: must be a list"),
+    (lambda d: d["state"].update(gestures=[{}]), "gestures.0.shaping: must be text"),
+    (lambda d: d["state"].update(aural={"tree": {"root": {"name": "any sound", "members": [3], "children": []}}}),
+     "aural.tree.root.members.0: must be a whole number"),
+    (lambda d: d.update(state=[]), "state: must be a table"),
+])
+@pytest.mark.parametrize("damaged", ["source", "target"])
+def test_a_merge_of_a_damaged_state_names_the_file_and_key_and_writes_nothing(
+        tmp_path: Path, capsys, edit, key: str, damaged: str) -> None:
+    """A hand-edited state file on either side of a merge: refused naming that file and the key,
+    both files as they were. Before, each of these ended in a traceback, and a damaged target
+    was written back merged."""
+    one, two = tmp_path / "one", tmp_path / "two"
+    live_for(None, 2, FIRST)[0].save_state(one)
+    live_for(None, 2, SECOND)[0].save_state(two)
+    path = (one if damaged == "source" else two) / "heron.json"
+    document = json.loads(path.read_text())
+    edit(document)
+    path.write_text(json.dumps(document))
+    kept = {p: p.read_bytes() for p in (one / "heron.json", two / "heron.json")}
+    assert main(["state", "merge", str(one), "--creature", "heron", str(two), "--into", "heron"]) == 2
+    err = capsys.readouterr().err
+    assert f"creatures: {path}: malformed authored state ({key}" in err and "Traceback" not in err
+    assert {p: p.read_bytes() for p in kept} == kept
+
+
+def test_every_kind_that_merges_has_its_shape_checked() -> None:
+    from creatures.runtime.repertoire_shape import SHAPES
+
+    assert set(SHAPES) == set(repertoire.MERGERS)

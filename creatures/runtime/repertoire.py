@@ -21,10 +21,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from creatures.bounds import table
 from creatures.config import nearest
 from creatures.lock import FolderLock
 from creatures.persist import StateFileError, atomic_write, json_text, load_json
-from creatures.runtime.session import COLONY_FILE, STATE_KIND
+from creatures.runtime.repertoire_shape import SHAPES
+from creatures.runtime.session import COLONY_FILE, RESTORE_ERRORS, STATE_KIND
 
 SKIPPED = frozenset({"motivation", "time", "born", "next_id", "phrases_made", "learnt"})
 """Keys a diff leaves out: drive levels and bookkeeping (``learnt`` is the phrase numbers that
@@ -180,7 +182,16 @@ def merge(source: Path, name: str, target: Path, into: str) -> list[str]:
         why = UNMERGED.get(kind, "its saved state is not a repertoire this command knows")
         raise StateFileError(f"kind {kind!r} has no repertoire merge: {why} (kinds that merge: "
                              f"{', '.join(sorted(MERGERS))})")
-    state, added = MERGERS[kind](src["state"], dst["state"])
+    for document, file in ((src, source / f"{name}.json"), (dst, path)):
+        try:
+            SHAPES[kind](table(document.get("state"), "state"))
+        except ValueError as exc:
+            raise StateFileError(f"{file}: malformed {kind} state ({exc}); nothing merged") from None
+    try:
+        state, added = MERGERS[kind](src["state"], dst["state"])
+    except RESTORE_ERRORS as exc:  # what the checks above do not reach: said, naming both files
+        raise StateFileError(f"cannot merge {source / f'{name}.json'} into {path}: malformed {kind} state "
+                             f"({type(exc).__name__}: {exc}); nothing merged") from None
     text = json_text({**{k: v for k, v in dst.items() if k not in ("format", "version")}, "state": state},
                      kind=STATE_KIND)  # what else the file keeps (the path its body took) stays
     with FolderLock(target, "state folder"):
