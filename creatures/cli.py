@@ -517,7 +517,7 @@ def _images(args: argparse.Namespace) -> int:
 
     out = args.out or args.run_dir / "images"
     try:
-        edl = read_edl(args.run_dir / f"{args.creature}.edl.json")
+        edl = read_edl(_edl_of(args.run_dir, args.creature))
         spec = ImagesSpec(footage=args.footage, fps=args.fps, png=args.png)
         problem = spec.resolve(Path.cwd())
         if problem is not None:
@@ -533,6 +533,19 @@ def _images(args: argparse.Namespace) -> int:
     for name, path in files.items():
         print(f"  {name:<20} {path}")
     return 0
+
+
+def _edl_of(run_dir: Path, creature: str) -> Path:
+    """``RUN/<creature>.edl.json``; ValueError naming the nearest creature with one (a typo said
+    only "state file not found")."""
+    from creatures.config import nearest
+
+    path = run_dir / f"{creature}.edl.json"
+    if not path.is_file():
+        names = sorted(p.name.removesuffix(".edl.json") for p in run_dir.glob("*.edl.json"))
+        raise ValueError(f"{run_dir}: no edit decision list of creature {creature!r} ({path.name})"
+                         f"{nearest(creature, names, 'creatures with one')}")
+    return path
 
 
 def _render_lines(args: argparse.Namespace, out: Path) -> int:

@@ -110,6 +110,35 @@ def test_bad_edl_is_a_clear_error(tmp_path):
         read_edl(path)
 
 
+@pytest.mark.parametrize("edit, message", [
+    ({"sample_rate": None}, "sample_rate: must be a whole number in [8000, 192000], found None"),
+    ({"sample_rate": "22050"}, "sample_rate: must be a whole number"),
+    ({"entries": "x"}, "entries: must be a list, found str"),
+    ({"entries": [{"source_start_frame": 0, "source_end_frame": 5, "output_frame": 1e15, "gain": 1}]},
+     "entry 0 is malformed (ValueError: output_frame: must be a whole number"),
+])
+def test_a_hand_edited_edl_is_refused_naming_its_key(tmp_path, edit, message):
+    """``creatures images`` on an EDL with no rate, a rate in words or an entry a billion years
+    out: a traceback (TypeError, KeyError), or numpy asked for 811 GiB of frames, before."""
+    path = tmp_path / "bad.edl.json"
+    document = {"sample_rate": SR, "creature": "x", "mix": {"gain": 1, "pan": 0},
+                "entries": [{"source_start_frame": 0, "source_end_frame": 5, "output_frame": 0, "gain": 1}]}
+    save_json(path, {**document, **edit}, kind="creature-music edl")
+    with pytest.raises(ValueError) as caught:
+        read_edl(path)
+    assert str(caught.value).startswith(f"{path}: ") and message in str(caught.value)
+
+
+def test_images_of_a_creature_without_an_edl_names_the_nearest(tmp_path, capsys):
+    from creatures.cli import main
+
+    save_json(tmp_path / "king.edl.json", {"sample_rate": SR, "creature": "king", "entries": []},
+              kind="creature-music edl")
+    assert main(["images", str(tmp_path), "--creature", "kin"]) == 2
+    assert f"{tmp_path}: no edit decision list of creature 'kin' (kin.edl.json) (did you mean 'king'?)" in \
+        capsys.readouterr().err
+
+
 def test_state_survives_a_save(reading, tmp_path):
     inst = load_installation(CONFIG)
     session = Session(inst, SimulatedClock(), EventLog(tmp_path / "a.jsonl"), MemorySink())

@@ -83,7 +83,7 @@ from creatures.behaviour.motivation import Motivation
 from creatures.behaviour.percept import FunctionPercept
 from creatures.behaviour.value import ScalarValue, value_from_dict
 from creatures.kinds import register
-from creatures.bounds import LARGEST_RATE, LONGEST_SECONDS, Seconds
+from creatures.bounds import LARGEST_RATE, LONGEST_OFFLINE, LONGEST_SECONDS, Seconds, count
 from creatures.config import config_error
 from creatures.image.spec import ImagesSpec, make_video
 from creatures.kinds.base import CreatureKind, CreatureSpec
@@ -327,10 +327,20 @@ def read_edl(path: str | Path) -> dict[str, Any]:
     """Load an EDL written by :meth:`Ozymandias.finish`; raises ValueError naming the entry
     that is malformed (missing field, end before start, negative frame)."""
     doc = load_json(path, kind=EDL_KIND)
-    for i, e in enumerate(doc.get("entries", [])):
+    try:  # a run writes its own rate and frames within its length; a hand-edited file may not
+        rate = count(doc.get("sample_rate"), "sample_rate", low=8000, high=192000)  # as [audio] sample_rate
+        entries = doc.get("entries", [])
+        if not isinstance(entries, list):
+            raise ValueError(f"entries: must be a list, found {type(entries).__name__}")
+    except ValueError as exc:
+        raise ValueError(f"{path}: {exc}") from None
+    last = int(LONGEST_OFFLINE * rate)  # the longest offline run's frames: a video is made as long as its EDL
+    for i, e in enumerate(entries):
         try:
             ok = 0 <= e["source_start_frame"] <= e["source_end_frame"] and e["output_frame"] >= 0
             float(e["gain"])
+            for key in ("source_start_frame", "source_end_frame", "output_frame"):
+                count(e[key], key, high=last)
         except (KeyError, TypeError, ValueError) as exc:
             raise ValueError(f"{path}: entry {i} is malformed ({type(exc).__name__}: {exc})") from None
         if not ok:
