@@ -210,3 +210,26 @@ def test_nothing_to_inspect_is_a_clear_error(tmp_path, capsys):
         inspect(tmp_path, tmp_path / "seen")
     assert main(["inspect", str(tmp_path)]) == 2
     assert "no events.jsonl" in capsys.readouterr().err
+
+
+def test_a_tree_node_without_children_is_a_leaf_and_the_page_is_written_whole(tmp_path, monkeypatch):
+    """A hand-edited tree whose leaf lost its ``children``: shown as a leaf (a KeyError traceback
+    before). And a page that fails to write (a full disk, Ctrl-C) leaves the previous one whole."""
+    import os
+
+    state = tmp_path / "state"
+    state.mkdir()
+    save_json(state / "lark.json", {"kind": "authored", "state": {"tree": {
+        "name": "whatever", "children": [{"name": "high call"}, {"name": "low", "children": "x"}]}}}, kind=STATE_KIND)
+    page = inspect(state, tmp_path / "seen")
+    before = page.read_bytes()
+    assert b"whatever <small>(3 nodes)" in before and b"high call <small>(1 node)" in before
+
+    def full(fd: int) -> None:
+        raise OSError(28, "No space left on device")
+
+    save_json(state / "wren.json", {"kind": "authored", "state": {}}, kind=STATE_KIND)
+    monkeypatch.setattr(os, "fsync", full)
+    with pytest.raises(OSError, match="No space left"):
+        inspect(state, tmp_path / "seen")
+    assert page.read_bytes() == before

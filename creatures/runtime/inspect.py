@@ -32,7 +32,7 @@ from typing import Any
 
 from creatures.behaviour.value import value_from_dict
 from creatures.events import read_events
-from creatures.persist import StateFileError, load_json
+from creatures.persist import StateFileError, atomic_write, load_json
 from creatures.runtime.report import counts_table, event_plots, html_page, plot_bars, plt, saved
 from creatures.runtime.session import COLONY_FILE, COLONY_KIND, STATE_KIND
 from creatures.temporal.durations import LowIntegerRatioModel, SimpleDurationModel
@@ -68,7 +68,10 @@ class Knowledge:
 
 
 def _tree(node: dict[str, Any]) -> Tree:
-    children = [_tree(c) for c in node["children"] if isinstance(c, dict)]
+    # a node whose children are not a list (a hand-edited leaf without its "children") is a
+    # leaf: it raised KeyError, a traceback for the whole page
+    below = node.get("children")
+    children = [_tree(c) for c in below if isinstance(c, dict)] if isinstance(below, list) else []
     return Tree(str(node.get("name", "?")), 1 + sum(c.size for c in children), children)
 
 
@@ -265,5 +268,6 @@ def inspect(path: Path, out: Path, skipped: list[str] | None = None) -> Path:
                             f"{counts_table(events) if events else ''}"
                             f"<h2>What each creature knows</h2>{''.join(_creature_html(k) for k in known)}{figures}")
     page_path = out / "index.html"
-    page_path.write_text(page, encoding="utf-8")
+    # atomic: a Ctrl-C or a full disk leaves the previous page whole, not half of this one
+    atomic_write(page_path, lambda handle: handle.write(page.encode("utf-8")), "wb")
     return page_path
