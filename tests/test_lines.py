@@ -252,3 +252,17 @@ def test_a_string_body_sounds_its_pose():
     assert np.allclose(held_spectrum(poses[25], 10.0), wave)  # the same pose, the same timbre
     plain = [held_spectrum(poses[k], 0.0) for k in (0, 25, 47)]
     assert np.abs(plain[0] - plain[1]).sum() < 1e-9 and np.abs(plain[1] - plain[2]).sum() < 1e-9
+
+
+def test_a_render_again_into_its_folder_leaves_no_frames_of_the_last(scribbled, tmp_path):
+    """Drawn at 5 fps, then again into the same folder at 1 fps: the folder holds the second
+    render's frames only (it kept the first's after them: a sequence of both), and a file that
+    is not a frame stays."""
+    from creatures.body.lines import render_lines
+
+    first = render_lines(scribbled, tmp_path, fps=5.0)
+    (tmp_path / "lines" / "notes.txt").write_text("mine")
+    second = render_lines(scribbled, tmp_path, fps=1.0)
+    assert first > second > 0
+    files = sorted(p.name for p in (tmp_path / "lines").iterdir())
+    assert files == [f"frame_{n:06d}.svg" for n in range(second)] + ["notes.txt"]

@@ -81,6 +81,20 @@ class FrameWriter:
         self.close()
 
 
+def drop_stale(directory: Path, suffix: str, count: int) -> int:
+    """Remove ``frame_NNNNNN.<suffix>`` files numbered ``count`` and up from ``directory``: what
+    an earlier, longer render left. Drawn again into the same folder at a lower rate, a render
+    of 30 frames left 271 of the last one's after them, and a sequence made of the folder
+    showed both. Only files named as frames are touched; returns how many went."""
+    gone = 0
+    for path in directory.glob(f"frame_*.{suffix}"):
+        number = path.name[len("frame_"):-len(suffix) - 1]
+        if number.isdigit() and int(number) >= count and path.is_file():
+            path.unlink(missing_ok=True)
+            gone += 1
+    return gone
+
+
 def _even(frame: np.ndarray) -> np.ndarray:
     """``frame`` with its last row and/or column repeated to make both sizes even."""
     h, w = frame.shape[:2]

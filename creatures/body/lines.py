@@ -110,6 +110,7 @@ def render_lines(run_dir: Path, out: Path, *, fmt: Format = "svg", width: int = 
     """Draw a finished run's bodies (its log's poses) as ``out/lines/frame_NNNNNN.svg`` (or
     ``.eps``) at ``fps``; the count of files written (a frame that fills several output frames
     is written once per output frame, as the PNG frames are)."""
+    from creatures.body.frames import drop_stale
     from creatures.view.rerender import load_replay, log_rate, sampled
     from creatures.view.snapshot import scene
 
@@ -129,4 +130,5 @@ def render_lines(run_dir: Path, out: Path, *, fmt: Format = "svg", width: int = 
         for _ in range(repeat):
             (directory / f"frame_{count:06d}.{suffix}").write_text(text)
             count += 1
+    drop_stale(directory, suffix, count)
     return count

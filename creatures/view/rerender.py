@@ -113,7 +113,7 @@ def render_run(run_dir: Path, out: Path, *, width: int = 640, height: int = 480,
                camera: Orbit | None = None, pngs: bool = True, video: bool = False) -> int:
     """Draw the run's frames into ``out/frames`` (PNGs) and/or ``out/out.mp4``; the count drawn.
     Raises :class:`~creatures.body.render.RenderUnavailable` without an offscreen GL platform."""
-    from creatures.body.frames import FrameWriter
+    from creatures.body.frames import FrameWriter, drop_stale
     from creatures.body.render import BodyRenderer
 
     played = load_replay(run_dir)
@@ -128,4 +128,6 @@ def render_run(run_dir: Path, out: Path, *, width: int = 640, height: int = 480,
         for image, repeat in frames(played, renderer, fps):
             writer.write(image, repeat=repeat)
             drawn += repeat
+    if pngs:
+        drop_stale(out / "frames", "png", drawn)
     return drawn
