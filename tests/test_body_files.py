@@ -147,6 +147,8 @@ def test_export_motion_names_what_is_missing(tmp_path: Path, capsys):
     run_offline(load_installation(config), tmp_path / "out", progress=False)
     assert main(["export-motion", str(tmp_path / "out"), "--creature", "egret", str(tmp_path / "x.bvh")]) == 2
     assert "no creature 'egret'" in capsys.readouterr().err
+    assert main(["export-motion", str(tmp_path / "out"), "--creature", "heon", str(tmp_path / "x.bvh")]) == 2
+    assert "no creature 'heon' (did you mean 'heron'?)" in capsys.readouterr().err
     assert not (tmp_path / "x.bvh").exists()
 
 

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from creatures.config import nearest
 from creatures.events import read_events
 from creatures.kinds.body_source import MaterialSpec
 from creatures.kinds.figures import figure_graph, figure_of, metric_of
@@ -57,8 +58,8 @@ def export_motion_of_run(path: Path, creature: str, out: Path, *, config: Path |
     installation = load_installation(config)
     spec = next((s for s in installation.specs if s.name == creature), None)
     if spec is None:
-        raise ExportError(f"{config}: no creature {creature!r} (creatures: "
-                          f"{', '.join(s.name for s in installation.specs)})")
+        raise ExportError(f"{config}: no creature {creature!r}"
+                          f"{nearest(creature, [s.name for s in installation.specs], 'creatures')}")
     graph, conventions, limits = exported_body(spec)
     nodes, times = taken_path(events, creature, len(graph))
     poses = export_motion(graph, nodes, out, fps=fps, conventions=conventions, times=times, limits=limits)
