@@ -81,6 +81,13 @@ def items(value: Any, what: str, *, longest: int, shortest: int = 0) -> list[Any
     return value
 
 
+def text(value: Any, what: str) -> str:
+    """``value`` as a string, or :class:`ValueError` naming ``what``."""
+    if not isinstance(value, str):
+        raise ValueError(f"{what}: must be text, found {_shown(value)}")
+    return value
+
+
 def table(value: Any, what: str) -> dict[str, Any]:
     """``value`` as a JSON object, or :class:`ValueError` naming ``what``."""
     if not isinstance(value, dict):

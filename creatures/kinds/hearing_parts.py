@@ -384,9 +384,7 @@ def tree_from_state(state: dict[str, Any], like: UtterancePercept) -> UtteranceP
                    "max_members": like.max_members, "max_classes": like.max_classes, "memory": like.memory}
 
         def build(d: dict[str, Any], parent: UtterancePercept | None, where: str) -> UtterancePercept:
-            if not isinstance(d.get("name"), str):
-                raise ValueError(f"{where}.name: must be text")
-            p = UtterancePercept(d["name"], parent=parent, **options)
+            p = UtterancePercept(bounds.text(d.get("name"), f"{where}.name"), parent=parent, **options)
             p._born = bounds.count(d.get("born"), f"{where}.born")
             members = bounds.items(d.get("members"), f"{where}.members", longest=len(table))
             p.members = [table[bounds.count(i, f"{where}.members", high=len(table) - 1)] for i in members]

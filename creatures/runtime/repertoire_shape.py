@@ -12,18 +12,12 @@ from __future__ import annotations
 
 from typing import Any, Callable
 
-from creatures.bounds import LARGEST_COUNT, count, table
-
-
-def _text(value: Any, what: str) -> str:
-    if not isinstance(value, str):
-        raise ValueError(f"{what}: must be text, found {type(value).__name__}")
-    return value
+from creatures.bounds import LARGEST_COUNT, count, table, text
 
 
 def _list(value: Any, what: str, *, shortest: int = 0) -> list[Any]:
-    """``value`` as a list of at least ``shortest`` entries (no upper bound of its own here: the
-    file's size bound, ``MAX_STATE_BYTES``, is the bound)."""
+    """``value`` as a list of at least ``shortest`` entries (no upper bound of its own here, as
+    :func:`creatures.bounds.items` asks: the file's size bound, ``MAX_STATE_BYTES``, is the bound)."""
     if not isinstance(value, list):
         raise ValueError(f"{what}: must be a list, found {type(value).__name__}")
     if len(value) < shortest:
@@ -53,7 +47,7 @@ def authored(state: dict[str, Any]) -> None:
     for k, gesture in enumerate(_list(state.get("gestures", []), "gestures")):
         table(gesture, f"gestures.{k}")
         for key in ("shaping", "program", "name"):
-            _text(gesture.get(key), f"gestures.{k}.{key}")
+            text(gesture.get(key), f"gestures.{k}.{key}")
         _counts(gesture.get("core"), f"gestures.{k}.core", shortest=1)
     if "aural" in state:
         _aural(table(state["aural"], "aural"))
@@ -65,12 +59,12 @@ def _aural(aural: dict[str, Any]) -> None:
         count(tree["max_children"], "aural.tree.max_children")
     utterances = _list(tree.get("utterances", []), "aural.tree.utterances")
     for i, utterance in enumerate(utterances):
-        _text(table(utterance, f"aural.tree.utterances.{i}").get("samples"), f"aural.tree.utterances.{i}.samples")
+        text(table(utterance, f"aural.tree.utterances.{i}").get("samples"), f"aural.tree.utterances.{i}.samples")
     nodes = [(tree.get("root"), "aural.tree.root")]
     while nodes:  # a stack, not recursion: a hand-made tree may nest deeper than Python recurses
         node, where = nodes.pop()
         table(node, where)
-        _text(node.get("name"), f"{where}.name")
+        text(node.get("name"), f"{where}.name")
         if "born" in node:
             count(node["born"], f"{where}.born")
         _counts(node.get("members", []), f"{where}.members", below=len(utterances))
@@ -81,7 +75,7 @@ def _aural(aural: dict[str, Any]) -> None:
             if not isinstance(row, list) or len(row) != 3:
                 raise ValueError(f"aural.tuples.{group}.{i}: must be [trigger, action, name], found {str(row)[:40]}")
             for j, part in enumerate(row):
-                _text(part, f"aural.tuples.{group}.{i}.{j}")
+                text(part, f"aural.tuples.{group}.{i}.{j}")
 
 
 def three_creatures(state: dict[str, Any]) -> None:
