@@ -325,6 +325,22 @@ def test_a_rollback_names_what_it_cannot_find_and_changes_nothing(tmp_path: Path
     assert (state / "heron.json").read_bytes() == before
 
 
+def test_a_snapshot_is_never_written_by_a_merge_or_a_rollback(tmp_path: Path, capsys) -> None:
+    """A snapshot is history: merged into (or rolled back into, its stamp taken for the state
+    folder), it would no longer be the colony as it was that day, and nothing said so."""
+    state = tmp_path / "state"
+    a = snapshot(state, live_for(None, 2, FIRST)[0], DAY)
+    b = snapshot(state, live_for(state, 2, SECOND)[0], DAY + timedelta(days=1))
+    kept = (a / "heron.json").read_bytes()
+    assert main(["state", "merge", str(b), "--creature", "heron", str(a), "--into", "heron"]) == 2
+    assert f"{a}: is a snapshot, kept as the colony was then; merge into the state folder ({state})" \
+        in capsys.readouterr().err
+    assert main(["state", "rollback", str(a), str(b), "--creature", "heron"]) == 2
+    assert "is a snapshot" in capsys.readouterr().err
+    assert (a / "heron.json").read_bytes() == kept
+    assert main(["state", "merge", str(b), "--creature", "heron", str(state), "--into", "heron"]) == 0  # read, not written
+
+
 def test_a_rollback_over_a_creature_of_another_kind_is_refused(tmp_path: Path, capsys) -> None:
     """A snapshot of another installation whose creature has the name but not the kind: the run
     would refuse the file at its next start (exit 2, not restarted), so the rollback refuses it."""

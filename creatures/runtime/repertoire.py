@@ -25,6 +25,7 @@ from creatures.bounds import table
 from creatures.config import nearest
 from creatures.lock import FolderLock
 from creatures.persist import StateFileError, atomic_write, json_text, load_json
+from creatures.runtime import snapshots
 from creatures.runtime.repertoire_shape import SHAPES
 from creatures.runtime.session import COLONY_FILE, RESTORE_ERRORS, STATE_KIND
 
@@ -153,6 +154,7 @@ def rollback(state_dir: Path, snapshot: Path, name: str) -> Path:
     it at its next start, and not be restarted)."""
     if not state_dir.is_dir():
         raise StateFileError(f"{state_dir}: no such state folder" + (" (it is a file)" if state_dir.exists() else ""))
+    snapshots.refuse_to_change(state_dir, "roll back")
     source = _creature_file(snapshot, name)
     kind = load_json(source, kind=STATE_KIND).get("kind")  # a damaged snapshot is refused before anything changes
     data = source.read_bytes()
@@ -171,7 +173,9 @@ def rollback(state_dir: Path, snapshot: Path, name: str) -> Path:
 
 def merge(source: Path, name: str, target: Path, into: str) -> list[str]:
     """Add what creature ``name`` of ``source`` learned to creature ``into`` of ``target``
-    (same kind), keeping everything ``into`` knew; returns what was added."""
+    (same kind), keeping everything ``into`` knew; returns what was added. A snapshot is read
+    as a source, never written as a target."""
+    snapshots.refuse_to_change(target, "merge into")
     src = load_json(_creature_file(source, name), kind=STATE_KIND)
     path = _creature_file(target, into)
     dst = load_json(path, kind=STATE_KIND)

@@ -31,6 +31,15 @@ def stamp_of(path: Path) -> datetime | None:
         return None
 
 
+def refuse_to_change(folder: Path, what: str) -> None:
+    """A :class:`StateFileError` when ``folder`` is a snapshot (``STATE/snapshots/<stamp>``):
+    a snapshot is the colony as it was on that day, which a rollback reads back; a merge or a
+    rollback written into one changed that history, with nothing said."""
+    if folder.resolve().parent.name == FOLDER and stamp_of(folder.resolve()) is not None:
+        raise StateFileError(f"{folder}: is a snapshot, kept as the colony was then; {what} the state folder "
+                             f"({folder.resolve().parent.parent}), and its next snapshot keeps that (nothing changed)")
+
+
 def listed(state_dir: Path) -> list[tuple[datetime, Path]]:
     """The snapshots of ``state_dir``, oldest first."""
     root = state_dir / FOLDER
