@@ -121,6 +121,34 @@ def test_hierarchical_credit_reaches_leaves_only(rng):
     assert play.value.to_float() == pytest.approx(10.0)  # inside another group: shielded
 
 
+def test_a_group_tuple_starting_again_credits_the_child_it_ran_and_ends_it_as_done(rng):
+    """A group tuple ends when its child does and, still triggered, starts again choosing a
+    new child as it starts. The outer group credits the transition from the leaf that ran
+    (thesis "hierarchical action-groups": credit between the leaves), not from the child just
+    chosen; and the child whose Du ended the group stopped as done, not interrupted."""
+    events: list[dict] = []
+    low = ActionTuple("low", FunctionPercept("early", lambda t: 1.0 if t < 0.5 else 0.0), TableAction("low"),
+                      DoUntil(1.0), 10.0)
+    high = ActionTuple("high", FunctionPercept("late", lambda t: 1.0 if t >= 0.5 else 0.0), TableAction("high"),
+                       DoUntil(1.0), 10.0)
+    inner = ActionGroup("songs", [low, high], rng=rng, alpha=0.0, on_event=events.append)
+    songs = group_tuple(inner, WhateverPercept(), 3.0)
+    # An outer leaf doing what "low" does (proximity 1) but worth nothing: never chosen itself.
+    twin = ActionTuple("twin", WhateverPercept(), TableAction("low"), DoUntil(5.0), 0.0)
+    outer = ActionGroup("main", [songs, twin], rng=rng, alpha=0.5, discount=0.5, on_event=events.append,
+                        grounded_by="the credit arithmetic under test")
+    outer.tick(0.0)
+    assert inner.active == [low]
+    outer.tick(1.0)  # low is done, so the group tuple is; it starts again and its group chooses high
+    assert outer.active == [songs] and inner.active == [high]
+    credit = [e for e in events if e["event"] == "credit" and e["group"] == "main"][-1]
+    assert (credit["last"], credit["new"]) == ("low", "high")
+    # low → high reaches low's twin: a = 0.5 · 1 · Tr 1, toward β·V_high = 5.
+    assert twin.value.to_float() == pytest.approx(2.5)
+    stop = next(e for e in events if e["event"] == "stop" and e["tuple"] == "low")
+    assert stop["interrupted"] is False
+
+
 def test_group_du_percolates_from_active_child(rng):
     short = ActionTuple("whatever|bark", WhateverPercept(), TableAction("bark"), DoUntil(0.5), 10.0)
     inner = ActionGroup("noise", [short], rng=rng, alpha=0.0)

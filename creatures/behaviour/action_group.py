@@ -457,11 +457,14 @@ class ActionGroup:
         return out
 
     def _start(self, tuple_: ActionTuple, t: float, trig: np.ndarray) -> None:
+        # The leaf that ran last, read before the start: a group tuple starting again chooses
+        # its new child as it starts, and the transition to credit is from the child it ran.
+        previous = None if self.last_active is None else leaf_of(self.last_active)
         tuple_.start(t, self.rng, group=self)
         self.active.append(tuple_)
         self._emit("selection", t, tuple=tuple_.name, value=tuple_.value.to_float())
-        if self.last_active is not None:  # a tuple restarting after it finished counts too
-            self.assign_credit(t, self.last_active, tuple_)
+        if previous is not None:  # a tuple restarting after it finished counts too
+            self.assign_credit(t, previous, tuple_)
         self.last_active = tuple_
         self.last_started_at = t
         self._trigger_at_last_start = trig.copy()
@@ -499,9 +502,12 @@ class ActionGroup:
         return tuple_
 
     def stop_all(self, t: float) -> None:
-        """Stop every active tuple (the group itself is being deactivated)."""
+        """Stop every active tuple (the group itself is being deactivated). One whose Du says
+        done ends as done, not interrupted: its end is what ended the group tuple (thesis
+        "hierarchical action-groups": the Du of the action selected within percolates
+        upward), and a phrase ended on its plan still hands over its last notes."""
         for tuple_ in list(self.active):
-            self._stop(tuple_, t, interrupted=True)
+            self._stop(tuple_, t, interrupted=tuple_.do_until.evaluate(t) < 1.0)
 
     # -- credit assignment ------------------------------------------------------------
     def proximity(self, leaf: ActionTuple) -> np.ndarray:
