@@ -98,6 +98,7 @@ def check(spec: "AuthoredSpec", file: Path, where: Where, prefix: tuple) -> None
     _shaped(c)
     _learning(c)
     _expectations(c)
+    _mood(c)
 
 
 def _mouth(c: _Checker) -> None:
@@ -351,6 +352,9 @@ def _tuples(c: _Checker) -> None:
                 if getattr(tp.value, key) and tp.value.kind != "scalar":
                     raise c.error((*loc, "value", key), f"'{key}' processes a scalar value; this one is "
                                                         f"{tp.value.kind!r} (thesis 'value signal processing')")
+            if tp.value.stance is not None and tp.value.kind != "stance":
+                raise c.error((*loc, "value", "stance"), f"'stance' is the tag of a stance value; this one is "
+                                                         f"{tp.value.kind!r}: set kind = \"stance\"")
         if tp.until.fresh and tp.until.percept is None:
             raise c.error((*loc, "until", "fresh"), "'fresh' is about the until-percept: give the Du a 'percept'")
         for key in ("follow_as", "priming", "record"):
@@ -482,6 +486,27 @@ def _expectations(c: _Checker) -> None:
             where = f"tuple {tuple_!r}'s group {owner.get(tuple_)!r}" if tuple_ is not None else "a group"
             raise c.error(("percepts", name, "type"), f"a {p.type!r} percept needs {where} in "
                                                       f"[creature.expectations] groups = [...]")
+
+
+def _mood(c: _Checker) -> None:
+    """Stance values have a mood to perturb, a drive that can reach every stance (thesis
+    "emotional tags": a stance −1 under a drive_floor of 0 would be clipped to 0)."""
+    mood, spec = c.spec.mood, c.spec
+    if mood is not None:
+        c.need("drives", mood.drive, ("mood", "drive"))
+    for name, tp in spec.tuples.items():
+        if isinstance(tp.value, float | int) or tp.value.kind != "stance":
+            continue
+        loc = ("tuples", name, "value")
+        if mood is None:
+            raise c.error((*loc, "kind"), "a stance value perturbs the creature's mood when the tuple starts: "
+                                          "name the drive that is the mood in [creature.mood] drive = \"…\"")
+        stance = tp.value.stance or 0.0
+        for key, bound, out in (("drive_floor", spec.drive_floor, "below"), ("drive_ceiling", spec.drive_ceiling, "above")):
+            if bound is not None and (stance < bound if out == "below" else stance > bound):
+                raise c.error((*loc, "stance"), f"stance {stance:g} is {out} {key} = {bound:g}: the mood drive "
+                                                f"{mood.drive!r} could never reach it (set {key} = "
+                                                f"{-1 if out == 'below' else 1}, or none)")
 
 
 __all__ = ["ROOT", "check"]

@@ -31,6 +31,7 @@ from creatures.authored.skills import (CUTOFF, DAMPING, GAIN, PAN, PUSH, TENSION
 from creatures.authored.spec import AuthoredSpec, PartSpec, TupleSpec, UntilSpec, ValueSpec
 from creatures.behaviour.action_group import ActionGroup, CrowdTick, group_tuple
 from creatures.behaviour.action_tuple import ActionTuple, DoUntil
+from creatures.behaviour.emotion import Mood
 from creatures.behaviour.expectation import Expectations
 from creatures.behaviour.learning import PerceptLearning, copy_value
 from creatures.behaviour.models.fuzzy import OrPercept
@@ -39,7 +40,7 @@ from creatures.behaviour.motivation import Motivation
 from creatures.behaviour.percept import FunctionPercept, Percept, WhateverPercept
 from creatures.behaviour.proximity import Proximity
 from creatures.behaviour.state_object import StateObject
-from creatures.behaviour.value import ChainValue, GaussianValue, ProcessedValue, ScalarValue, Value
+from creatures.behaviour.value import ChainValue, GaussianValue, ProcessedValue, ScalarValue, StanceValue, Value
 from creatures.clock import Clock
 from creatures.config import ConfigError
 from creatures.kinds import register
@@ -73,12 +74,14 @@ def find_sensor(world: "World", name: str) -> StateObject:
 
 
 def make_value(spec: float | ValueSpec, importance, clock: Clock) -> Value:
-    """V from its config: a number, or a scalar/chain/gaussian table (``plastic = false``
+    """V from its config: a number, or a scalar/chain/gaussian/stance table (``plastic = false``
     gives plasticity 0: a reward credit assignment cannot move; a scalar with ``leak`` or
     ``momentum`` is a :class:`ProcessedValue`, thesis "value signal processing")."""
     if isinstance(spec, int | float):
         return ScalarValue(float(spec))
     plasticity = 1.0 if spec.plastic else 0.0
+    if spec.kind == "stance":
+        return StanceValue(spec.value, plasticity=plasticity, stance=spec.stance or 0.0)
     if spec.kind == "chain":
         return ChainValue(spec.value, plasticity=plasticity, source=spec.source,
                           importance=importance(spec.serves) if spec.serves else None)
@@ -142,6 +145,11 @@ class Authored(CreatureKind):
         self.expectations = self._expectations(spec)
         members = {m for g in spec.groups.values() for m in g.tuples}
         self.top = [self._group(name) for name in spec.groups if name not in members]
+        self.mood = (Mood(self.motivation, spec.mood.drive, strength=spec.mood.strength,
+                          on_event=selection_logger(world, self.name)) if spec.mood is not None else None)
+        if self.mood is not None:  # every group: a stance tuple inside a group tuple moves it too
+            for group in self.groups.values():
+                group.on_start.append(self.mood.felt)
         self.voice: Voice | None = None
         self._learnt: list[int] = []  # phrase numbers that have a tuple of their own
         self._heated = [(self.groups[n], g.temperature, [(self.motivation.index(d), k) for d, k in g.heat.items()])

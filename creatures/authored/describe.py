@@ -17,7 +17,7 @@ from creatures.behaviour.action_group import ActionGroup, GroupAction
 from creatures.behaviour.action_tuple import ActionTuple, DoUntil
 from creatures.behaviour.motivation import Motivation
 from creatures.behaviour.percept import Percept
-from creatures.behaviour.value import ChainValue
+from creatures.behaviour.value import ChainValue, StanceValue
 from creatures.clock import SimulatedClock
 from creatures.events import EventLog
 from creatures.kinds import KINDS
@@ -62,6 +62,8 @@ def _tuple(tp: ActionTuple) -> tuple[str, list[Any]] | str:
         goal = f" = {value.source}" if value.source is not None else ""
         serves = ", ".join(sorted(value.importance)) if value.importance is not None else ""
         plastic += f", chained{goal} (learnt {value.value:.3g}{'; serves ' + serves if serves else ''})"
+    if isinstance(value, StanceValue):  # the emotional tag each start pulls the mood toward
+        plastic += f", stance {value.stance:+.2g}"
     label = f"{tp.name}: {tp.trigger.name} | {tp.action.name} | {_du(tp.do_until)} | V {value.to_float():.3g}{plastic}"
     if isinstance(tp.action, GroupAction):
         return _group(tp.action.group, label)

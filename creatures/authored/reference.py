@@ -21,6 +21,7 @@ from creatures.authored.spec import (
     ExpectationSpec,
     GroupSpec,
     LearningSpec,
+    MoodSpec,
     PhraseHypotheses,
     ProximityLearningSpec,
     TupleSpec,
@@ -84,6 +85,7 @@ def reference() -> str:
         ("Learning — `[creature.learning]`", LearningSpec),
         ("New hypotheses — `[creature.learning.phrases]`", PhraseHypotheses),
         ("Expectations — `[creature.expectations]`", ExpectationSpec),
+        ("Mood — `[creature.mood]`", MoodSpec),
         ("Notes in space — `[creature.space]`", SpaceSpec),
     ):
         doc = " ".join((model.__doc__ or "").strip().split("\n\n")[0].split())

@@ -122,10 +122,11 @@ class UntilSpec(Strict):
 
 
 class ValueSpec(Strict):
-    """V: what the tuple is worth (thesis "computing expected values", "value chaining")."""
+    """V: what the tuple is worth (thesis "computing expected values", "value chaining",
+    "emotional tags")."""
 
     value: float = Field(1.0, ge=-LARGEST_RATE, le=LARGEST_RATE, description="the starting value")
-    kind: Literal["scalar", "chain", "gaussian"] = Field("scalar", description="value type")
+    kind: Literal["scalar", "chain", "gaussian", "stance"] = Field("scalar", description="value type")
     plastic: bool = Field(True, description="credit assignment may change it (false: a grounding reward)")
     source: str | None = Field(None, description="chain: this tuple is a goal (distance 0 from itself)")
     serves: dict[str, str] = Field(default_factory=dict,
@@ -136,6 +137,11 @@ class ValueSpec(Strict):
     rest: float = Field(0.0, ge=-LARGEST_RATE, le=LARGEST_RATE, description="leak: the value it leaks toward")
     momentum: float = Field(0.0, ge=0, lt=1, description="credit assignment keeps this share of the last change "
                                                          "going (thesis 'value signal processing')")
+    stance: float | None = Field(None, ge=-1, le=1, description="stance: its emotional tag, −1 (run away) to 1 "
+                                                                "(glad), blended by credit assignment toward "
+                                                                "the stance of the stance values that follow; "
+                                                                "each start pulls the [creature.mood] drive "
+                                                                "toward it (thesis 'emotional tags')")
 
 
 class TupleSpec(Strict):
@@ -237,6 +243,16 @@ class ExpectationSpec(Strict):
     decay: float = Field(1.0, gt=0, le=LONGEST_SECONDS, description="seconds a surprise stays salient as a percept")
 
 
+class MoodSpec(Strict):
+    """``[creature.mood]`` — the character-wide emotional state that ``kind = "stance"`` values
+    perturb (thesis "emotional tags"): one of the creature's drives, pulled toward a tuple's
+    stance each time the tuple becomes active; its decay returns it to its equilibrium."""
+
+    drive: str = Field(description="the drive that is the mood")
+    strength: float = Field(0.25, gt=0, le=1, description="how far each start moves the mood toward the tuple's "
+                                                          "stance (1: all the way)")
+
+
 class PhraseHypotheses(Strict):
     """``[creature.learning.phrases]`` — a new hypothesis tuple for every phrase heard
     (thesis "percept trees": a new distinction lets the group try a new action-tuple)."""
@@ -293,6 +309,8 @@ class AuthoredSpec(CreatureSpec):
                                                                    "by the creature")
     learning: LearningSpec = LearningSpec()
     expectations: ExpectationSpec = ExpectationSpec()
+    mood: MoodSpec | None = Field(None, description="the drive stance values perturb ([creature.mood]; thesis "
+                                                    "'emotional tags')")
     hears_input: bool = Field(True, description="hear notes from outside the colony")
     body: FigureBodySpec | bool = Field(False, description="a body on a motor graph; motor actions need it. "
                                                            "true: the stick figure (sway, reach, strike); a "

@@ -5,6 +5,7 @@ thesis's vocabulary."""
 from creatures.behaviour.action_group import ActionGroup, group_tuple
 from creatures.behaviour.action_tuple import Action, ActionTuple, DoUntil, DurationModel
 from creatures.behaviour.creature import Creature
+from creatures.behaviour.emotion import Mood
 from creatures.behaviour.learning import ParametrisedAction, PerceptLearning
 from creatures.behaviour.models.activation import ActivationModel
 from creatures.behaviour.models.fuzzy import AndPercept, NotPercept, OrPercept
@@ -39,6 +40,7 @@ __all__ = [
     "GaussianPercept",
     "GaussianValue",
     "Habituation",
+    "Mood",
     "Motivation",
     "NotPercept",
     "OrPercept",

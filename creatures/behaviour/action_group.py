@@ -68,6 +68,9 @@ EventSink = Callable[[dict[str, Any]], None]
 CreditHook = Callable[["ActionGroup", float, "Activation"], None]
 """Told ``(group, t, activation)`` when a leaf activation was rewarded (complex shaping's
 gesture model learns what the body did during it)."""
+StartHook = Callable[["ActionGroup", float, ActionTuple], None]
+"""Told ``(group, t, tuple)`` when a tuple becomes active (a stance value perturbs the
+creature's mood: :mod:`creatures.behaviour.emotion`)."""
 
 RECALL = 10.0
 """Seconds an ended activation is remembered for a late reward (the longest reward window)."""
@@ -193,6 +196,7 @@ class ActionGroup:
         self._proximity: dict[ActionTuple, np.ndarray] = {}
         self._proximity_version = self.proximities.version
         self.on_credit: list[CreditHook] = []  # told of every rewarded leaf activation
+        self.on_start: list[StartHook] = []  # told of every tuple that becomes active
         self._positions: dict[int, int] = {}
         self._ticking = False
         self._deferred: list[Callable[[], object]] = []
@@ -463,6 +467,8 @@ class ActionGroup:
         tuple_.start(t, self.rng, group=self)
         self.active.append(tuple_)
         self._emit("selection", t, tuple=tuple_.name, value=tuple_.value.to_float())
+        for hook in self.on_start:
+            hook(self, t, tuple_)
         if previous is not None:  # a tuple restarting after it finished counts too
             self.assign_credit(t, previous, tuple_)
         self.last_active = tuple_

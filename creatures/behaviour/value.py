@@ -364,8 +364,9 @@ class StanceValue(ScalarValue):
 
     The stance is blended by the same α as the scalar (toward the stance of a following
     StanceValue; other values carry no tag and leave it alone). When the owning tuple becomes
-    active, :meth:`perturb` pulls a character-wide mood toward this stance, so a startle that
-    has come to predict food stops being frightening.
+    active, :meth:`perturb` pulls a character-wide mood toward this stance
+    (:class:`creatures.behaviour.emotion.Mood`), so a startle that has come to predict food
+    stops being frightening.
     """
 
     kind = "stance"

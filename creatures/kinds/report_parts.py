@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
-from creatures.behaviour.value import ChainValue
+from creatures.behaviour.value import ChainValue, StanceValue
 
 if TYPE_CHECKING:
     from creatures.behaviour.action_group import ActionGroup
@@ -40,11 +40,15 @@ def report_values(world: "World", t: float, creature: str, group: "ActionGroup",
                   motivation: "Motivation | None" = None) -> None:
     """One ``values`` (and ``motivation``) snapshot of ``group``'s tuples at time ``t``, and of
     the tracer dye of its chained values (``dye``: tuple → goal → steps, thesis "value
-    chaining"), which the values themselves do not show: what each tuple has learnt it leads to."""
+    chaining"), which the values themselves do not show: what each tuple has learnt it leads to;
+    and of its stance tags (``stance``: tuple → stance, thesis "emotional tags")."""
     world.log.emit(t, "values", creature=creature, values={tp.name: tp.value.to_float() for tp in group.tuples})
     dye = {tp.name: dict(tp.value.distances) for tp in group.tuples if isinstance(tp.value, ChainValue)}
     if dye:
         world.log.emit(t, "dye", creature=creature, distances=dye)
+    stance = {tp.name: tp.value.stance for tp in group.tuples if isinstance(tp.value, StanceValue)}
+    if stance:  # the emotional tags credit assignment carries (thesis "emotional tags")
+        world.log.emit(t, "stance", creature=creature, stances=stance)
     if motivation is not None:
         world.log.emit(t, "motivation", creature=creature,
                        drives=dict(zip(motivation.names, motivation.levels_at(t).tolist())))
