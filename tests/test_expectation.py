@@ -386,6 +386,8 @@ def test_a_note_off_the_heard_metre_is_a_surprise_and_a_colony_note_is_not_judge
     ('percept = "onset", fresh = true', 'fresh = true', "tuples.expect.until.fresh", "give the Du a 'percept'"),
     ('tuple = "expect"\n\n[creature.percepts.sure]', 'tuple = "expect"\nlow = 0.2\n\n[creature.percepts.sure]',
      "percepts.surprised", "give both 'low' and 'high'"),
+    ('groups = ["beat"]\nmemory', 'groups = ["beat"]\ntransitions = true\nmemory', "expectations.transitions",
+     "tuples with until.follow"),
 ])
 def test_bad_expectation_keys_are_errors_at_their_line(tmp_path, old, new, key, message):
     from tests.test_authored import error_of
@@ -396,3 +398,86 @@ def test_bad_expectation_keys_are_errors_at_their_line(tmp_path, old, new, key, 
     err = error_of(path)
     assert key in str(err) and message in str(err), str(err)
     assert err.line is not None
+
+
+SUCCESSION = """
+title = "t"
+duration = 30.0
+
+[[creature]]
+name = "c"
+kind = "authored"
+
+[creature.percepts.a_cue]
+type = "schedule"
+times = [0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20]
+width = 0.5
+
+[creature.percepts.b_cue]
+type = "schedule"
+times = [1, 3, 5, 7, 9, 11, 13, 15, 17, 19]
+width = 0.5
+
+[creature.percepts.c_cue]
+type = "schedule"
+times = [21]
+width = 0.5
+
+[creature.percepts.surprised]
+type = "surprise"
+tuple = "a"
+
+[creature.tuples.a]
+trigger = "a_cue"
+action = "rest"
+until = { seconds = 1.0, follow = true }
+
+[creature.tuples.b]
+trigger = "b_cue"
+action = "rest"
+until = { seconds = 1.0, follow = true }
+
+[creature.tuples.c]
+trigger = "c_cue"
+action = "rest"
+until = { seconds = 1.0, follow = true }
+
+[creature.groups.main]
+tuples = ["a", "b", "c"]
+alpha = 0.0
+
+[creature.expectations]
+groups = ["main"]
+transitions = TRANSITIONS
+decay = 5.0
+"""
+
+
+@pytest.mark.parametrize("transitions", [True, False])
+def test_an_unexpected_successor_surprises_the_tuple_whose_forward_model_it_violates(tmp_path, transitions):
+    """a is always followed by b for 20 s, then by c, which it has never been followed by
+    (thesis "expectations about the consequences of actions": with forward transition
+    models "surprise can be the result of a character being able to perform an unexpected
+    action"). Without ``transitions`` only the Du ends are judged, and none is violated."""
+    clock, world, c = authored(tmp_path, SUCCESSION.replace("TRANSITIONS", str(transitions).lower()))
+    surprises: list[dict] = []
+    emit = world.log.emit
+    world.log.emit = lambda t, kind, **f: surprises.append({"t": t, **f}) if kind == "surprise" else emit(t, kind, **f)
+    before = 0.0
+    for k in range(1, 500):  # 25 s
+        t = round(k * 0.05, 2)
+        clock.advance(0.05)
+        c.tick(t)
+        if t < 21.0:
+            before = max(before, c.percept("surprised").evaluate(t))
+    after = c.percept("surprised").evaluate(clock.now())
+    if not transitions:
+        assert surprises == [] and after == 0.0
+        return
+    assert before == 0.0  # a → b, as a has always been followed
+    (surprise,) = surprises
+    assert (surprise["tuple"], surprise["why"]) == ("a", "unexpected successor") and 21.0 <= surprise["t"] < 21.5
+    # N·p(a → c) = 3 · 0.1 / 1.3 over a window of ten a → b: p = 1 − 0.23, from a confident a
+    assert surprise["p"] == pytest.approx(1.0 - 3 * 0.1 / 1.3)
+    assert surprise["confidence"] > 0.9 and surprise["surprise"] == pytest.approx(surprise["confidence"] * surprise["p"])
+    assert after > 0.3  # the surprise percept of a, fading over ``decay``

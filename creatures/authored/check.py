@@ -477,6 +477,10 @@ def _expectations(c: _Checker) -> None:
     groups = c.spec.expectations.groups
     for k, group in enumerate(groups):
         c.need("groups", group, ("expectations", "groups", k))
+    followed = [m for g in groups for m in c.spec.groups[g].tuples if m in c.spec.tuples and c.spec.tuples[m].until.follow]
+    if c.spec.expectations.transitions and not followed:
+        raise c.error(("expectations", "transitions"), "'transitions' judges the starts of tuples with until.follow: "
+                                                       "none is in the expectation groups")
     owner = {m: name for name, g in c.spec.groups.items() for m in g.tuples}
     for name, p in c.spec.percepts.items():
         if p.type not in ("surprise", "confidence"):

@@ -193,6 +193,7 @@ class Authored(CreatureKind):
             return None
         return Expectations(tolerance=e.tolerance, grace=e.grace, reliance=e.reliance, memory=e.memory,
                             rigidity=e.rigidity, confident=e.confident, fission=e.fission, decay=e.decay,
+                            transitions=e.transitions,
                             on_event=selection_logger(self.world, self.name))
 
     def percept(self, name: str) -> Percept:

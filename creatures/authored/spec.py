@@ -241,6 +241,11 @@ class ExpectationSpec(Strict):
                                                           "learning.groups)")
     fission: bool = Field(True, description="a confident expectation violated may split the trigger percept")
     decay: float = Field(1.0, gt=0, le=LONGEST_SECONDS, description="seconds a surprise stays salient as a percept")
+    transitions: bool = Field(False, description="forward transition models are expectations too: a tuple with "
+                                                 "until.follow starting less likely than chance after the one "
+                                                 "before it violates that one's expectation, p = 1 − N·p(last → "
+                                                 "it) (thesis 'expectations about the consequences of actions': "
+                                                 "surprise at 'an unexpected action')")
 
 
 class MoodSpec(Strict):

@@ -146,8 +146,8 @@ class ActionGroup:
     tuple became active), ``interruption``, ``reselection`` (an interruption chose the
     running tuple again), ``stop`` and ``credit``. ``max_active`` > 1 lets several tuples be
     active at once (e.g. a non-exclusive group of perception actions). ``expectations``
-    (:mod:`creatures.behaviour.expectation`) is told of every end before the tuple stops, of
-    every tick, and of every credit assignment (it may slow the confident).
+    (:mod:`creatures.behaviour.expectation`) is told of every start and end before they
+    happen, of every tick, and of every credit assignment (it may slow the confident).
     """
 
     def __init__(
@@ -464,6 +464,8 @@ class ActionGroup:
         # The leaf that ran last, read before the start: a group tuple starting again chooses
         # its new child as it starts, and the transition to credit is from the child it ran.
         previous = None if self.last_active is None else leaf_of(self.last_active)
+        if self.expectations is not None:
+            self.expectations.starting(self, previous, tuple_, t)
         tuple_.start(t, self.rng, group=self)
         self.active.append(tuple_)
         self._emit("selection", t, tuple=tuple_.name, value=tuple_.value.to_float())

@@ -15,6 +15,13 @@ least characters can get surprised when they are interrupted"). Here:
   not yet salient, the world gets ``grace`` × the planned duration to catch up (the note is
   a little late, as played notes are), after which p = 1 − until.evaluate(deadline).
 
+With ``transitions``, forward transition models are expectations too: a tuple expects to be
+followed by its likely successors, so when a tuple whose Du models transitions starts
+(``expected``: N·p(last → it), :mod:`creatures.temporal.transitions`) less likely than
+chance after the one before it, that one is judged p = 1 − N·p (a successor it has never
+had, nearly 1) — as the thesis has it, "surprise can be the result of a character being able
+to perform an unexpected action".
+
 A p of at least ``tolerance`` is a violation. The second expectation is V's: at a credit
 assignment, a tuple whose value models the values that follow it (a
 :class:`~creatures.behaviour.value.GaussianValue`) finds β·V_n unexpected when its likelihood
@@ -32,8 +39,9 @@ as percepts (``surprise``, ``confidence`` in the authored library), so other tup
 on them.
 
 One :class:`Expectations` is creature-wide (like percepts) and is attached to each group
-that keeps expectations (``group.expectations``); the group calls :meth:`ended` before a
-tuple stops, :meth:`tick` at each tick and :meth:`credit_rates` at each credit assignment.
+that keeps expectations (``group.expectations``); the group calls :meth:`starting` before a
+tuple starts, :meth:`ended` before a tuple stops, :meth:`tick` at each tick and
+:meth:`credit_rates` at each credit assignment.
 Confidence is not saved: a restarted creature has tested nothing for a while, and the
 thesis's own rule makes it unconfident.
 """
@@ -95,6 +103,7 @@ class Expectations:
         confident: float = 0.5,
         fission: bool = True,
         decay: float = 1.0,
+        transitions: bool = False,
         on_event: Callable[[dict[str, Any]], None] | None = None,
     ) -> None:
         if not 0.0 < tolerance <= 1.0:
@@ -109,6 +118,7 @@ class Expectations:
         self.confident = float(confident)
         self.fission = fission
         self.decay = float(decay)
+        self.transitions = transitions
         self.on_event = on_event
         self._of: dict[int, TupleExpectation] = {}
         self._names: dict[str, TupleExpectation] = {}
@@ -140,6 +150,13 @@ class Expectations:
         return 0.0 if state is None else state.confidence.at(t)
 
     # -- the group's hooks ------------------------------------------------------------------
+    def starting(self, group: "ActionGroup", previous: ActionTuple | None, tuple_: ActionTuple, t: float) -> None:
+        """``tuple_`` is about to start at ``t`` after ``previous``: with ``transitions``,
+        judge ``previous``'s expectation of its successor (before the start teaches the model)."""
+        expected = getattr(tuple_.do_until, "expected", None) if self.transitions and previous is not None else None
+        if expected is not None:
+            self._judge(group, previous, t, max(0.0, 1.0 - expected(t)), "unexpected successor")
+
     def ended(self, group: "ActionGroup", tuple_: ActionTuple, t: float, *, interrupted: bool) -> None:
         """``tuple_`` is about to stop at ``t``: judge its end against its Du."""
         du = tuple_.do_until

@@ -158,6 +158,14 @@ class TransitionDoUntil(WrappedDoUntil):
         self.record = record
         succession.join(tuple_, self.label)
 
+    def expected(self, t: float) -> float:
+        """How expected a start of the tuple at ``t`` is, before :meth:`begin` records it:
+        N·p(source → it), 1 for a chance successor (or with no history), below 1 for one less
+        likely than chance (thesis "expectations about the consequences of actions": with
+        forward transition models, "surprise can be the result of a character being able to
+        perform an unexpected action")."""
+        return self.succession.likelihood(self.label, t, self.stream)
+
     def begin(self, t: float, rng: np.random.Generator) -> None:
         child = self.succession.observe(self.tuple, self.label, self.stream, record=self.record)
         group = self.tuple.context.get("group")  # the group that is starting this tuple
