@@ -223,7 +223,7 @@ def test_a_note_handed_over_ahead_sounds_in_the_voice_at_its_time():
         ("value = 0.3", 'value = { value = 0.3, kind = "gausian" }', "creature.0.tuples.rest.value.kind",
          "(got 'gausian'; did you mean 'gaussian'?)"),
         ("value = 0.3", 'value = { value = 0.3, kind = "chained" }', "creature.0.tuples.rest.value.kind",
-         "should be 'scalar', 'chain' or 'gaussian' (got 'chained'; did you mean 'chain'?)"),
+         "should be 'scalar', 'chain', 'gaussian' or 'stance' (got 'chained'; did you mean 'chain'?)"),
     ],
 )
 def test_bad_names_and_structures_are_errors_at_their_line(tmp_path, old, new, key, message):
