@@ -222,6 +222,8 @@ def test_a_note_handed_over_ahead_sounds_in_the_voice_at_its_time():
         # a table where a number may stand: the table's own error, not "should be a valid number"
         ("value = 0.3", 'value = { value = 0.3, kind = "gausian" }', "creature.0.tuples.rest.value.kind",
          "(got 'gausian'; did you mean 'gaussian'?)"),
+        ("value = 0.3", "value = { value = 0.3, plastic = false, plasticity = 0.1 }",
+         "creature.0.tuples.rest.value.plasticity", "give one or the other"),
         ("value = 0.3", 'value = { value = 0.3, kind = "chained" }', "creature.0.tuples.rest.value.kind",
          "should be 'scalar', 'chain', 'gaussian' or 'stance' (got 'chained'; did you mean 'chain'?)"),
     ],

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from creatures.behaviour.action_group import ActionGroup, group_tuple, leaf_of
@@ -91,6 +92,26 @@ def test_low_plasticity_value_moves_less(rng):
     group.tick(0.0)
     group.tick(1.0)
     assert sit.value.to_float() == pytest.approx(10.0 + 0.05 * 90.0)
+
+
+def test_an_authored_plasticity_scales_what_credit_assignment_moves(rng):
+    """``plasticity`` in a tuple's value table (thesis "what is value?": an innate value "with
+    a far lower plasticity") reaches the value: the same credit moves it a tenth as far."""
+    from creatures.authored.creature import make_value
+    from creatures.authored.spec import ValueSpec
+    from creatures.clock import SimulatedClock
+
+    moved = {}
+    for share in (None, 0.1):
+        food = FunctionPercept("food", lambda t: 1.0 if t >= 1.0 else 0.0)
+        value = make_value(ValueSpec(value=10.0, plasticity=share), None, SimulatedClock())
+        sit = ActionTuple("whatever|sit", WhateverPercept(), TableAction("sit"), DoUntil(5.0), value)
+        eat = ActionTuple("food|eat", food, TableAction("eat"), DoUntil(1.0), 100.0)
+        group = ActionGroup("dog", [sit, eat], rng=np.random.default_rng(0), alpha=0.5, discount=1.0)
+        group.tick(0.0)
+        group.tick(1.0)
+        moved[share] = sit.value.to_float() - 10.0
+    assert moved[None] == pytest.approx(45.0) and moved[0.1] == pytest.approx(4.5)
 
 
 def test_hierarchical_credit_reaches_leaves_only(rng):

@@ -352,6 +352,10 @@ def _tuples(c: _Checker) -> None:
                 if getattr(tp.value, key) and tp.value.kind != "scalar":
                     raise c.error((*loc, "value", key), f"'{key}' processes a scalar value; this one is "
                                                         f"{tp.value.kind!r} (thesis 'value signal processing')")
+            if tp.value.plasticity is not None and not tp.value.plastic:
+                raise c.error((*loc, "value", "plasticity"), "'plasticity' is how much a plastic value learns; "
+                                                             "this one is plastic = false (it learns nothing): "
+                                                             "give one or the other")
             if tp.value.stance is not None and tp.value.kind != "stance":
                 raise c.error((*loc, "value", "stance"), f"'stance' is the tag of a stance value; this one is "
                                                          f"{tp.value.kind!r}: set kind = \"stance\"")
@@ -437,7 +441,7 @@ def _proximities(c: _Checker, name: str, g) -> None:
 def _grounded(c: _Checker, group) -> bool:
     for member in group.tuples:
         tp = c.spec.tuples.get(member)
-        if tp is not None and not isinstance(tp.value, float | int) and not tp.value.plastic:
+        if tp is not None and not isinstance(tp.value, float | int) and (not tp.value.plastic or tp.value.plasticity == 0):
             return True
     return False
 

@@ -75,11 +75,12 @@ def find_sensor(world: "World", name: str) -> StateObject:
 
 def make_value(spec: float | ValueSpec, importance, clock: Clock) -> Value:
     """V from its config: a number, or a scalar/chain/gaussian/stance table (``plastic = false``
-    gives plasticity 0: a reward credit assignment cannot move; a scalar with ``leak`` or
+    gives plasticity 0: a reward credit assignment cannot move; ``plasticity`` a share of each
+    blend, a value that learns slowly; a scalar with ``leak`` or
     ``momentum`` is a :class:`ProcessedValue`, thesis "value signal processing")."""
     if isinstance(spec, int | float):
         return ScalarValue(float(spec))
-    plasticity = 1.0 if spec.plastic else 0.0
+    plasticity = (1.0 if spec.plasticity is None else spec.plasticity) if spec.plastic else 0.0
     if spec.kind == "stance":
         return StanceValue(spec.value, plasticity=plasticity, stance=spec.stance or 0.0)
     if spec.kind == "chain":

@@ -128,6 +128,9 @@ class ValueSpec(Strict):
     value: float = Field(1.0, ge=-LARGEST_RATE, le=LARGEST_RATE, description="the starting value")
     kind: Literal["scalar", "chain", "gaussian", "stance"] = Field("scalar", description="value type")
     plastic: bool = Field(True, description="credit assignment may change it (false: a grounding reward)")
+    plasticity: float | None = Field(None, ge=0, le=1, description="how much of each credit assignment's blend "
+                                     "reaches it (1: all; a small share, a value that learns slowly: thesis "
+                                     "'what is value?', an innate value 'with a far lower plasticity')")
     source: str | None = Field(None, description="chain: this tuple is a goal (distance 0 from itself)")
     serves: dict[str, str] = Field(default_factory=dict,
                                    description="chain: goal source → drive whose level is its importance")
