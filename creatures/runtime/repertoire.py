@@ -176,7 +176,8 @@ def merge(source: Path, name: str, target: Path, into: str) -> list[str]:
     (same kind), keeping everything ``into`` knew; returns what was added. A snapshot is read
     as a source, never written as a target."""
     snapshots.refuse_to_change(target, "merge into")
-    src = load_json(_creature_file(source, name), kind=STATE_KIND)
+    src_path = _creature_file(source, name)
+    src = load_json(src_path, kind=STATE_KIND)
     path = _creature_file(target, into)
     dst = load_json(path, kind=STATE_KIND)
     kind = dst.get("kind")
@@ -186,7 +187,7 @@ def merge(source: Path, name: str, target: Path, into: str) -> list[str]:
         why = UNMERGED.get(kind, "its saved state is not a repertoire this command knows")
         raise StateFileError(f"kind {kind!r} has no repertoire merge: {why} (kinds that merge: "
                              f"{', '.join(sorted(MERGERS))})")
-    for document, file in ((src, source / f"{name}.json"), (dst, path)):
+    for document, file in ((src, src_path), (dst, path)):
         try:
             SHAPES[kind](table(document.get("state"), "state"))
         except ValueError as exc:
@@ -194,7 +195,7 @@ def merge(source: Path, name: str, target: Path, into: str) -> list[str]:
     try:
         state, added = MERGERS[kind](src["state"], dst["state"])
     except RESTORE_ERRORS as exc:  # what the checks above do not reach: said, naming both files
-        raise StateFileError(f"cannot merge {source / f'{name}.json'} into {path}: malformed {kind} state "
+        raise StateFileError(f"cannot merge {src_path} into {path}: malformed {kind} state "
                              f"({type(exc).__name__}: {exc}); nothing merged") from None
     text = json_text({**{k: v for k, v in dst.items() if k not in ("format", "version")}, "state": state},
                      kind=STATE_KIND)  # what else the file keeps (the path its body took) stays
