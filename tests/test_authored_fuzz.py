@@ -73,7 +73,8 @@ until = st.fixed_dictionaries({"seconds": pos}, optional={
     "percept": names, "done": st.booleans(), "follow": st.booleans(),
     "model": st.fixed_dictionaries({"type": st.sampled_from(MODELS.names() + ["gauss"])})})
 value = st.floats(-2, 5) | st.fixed_dictionaries({}, optional={
-    "value": st.floats(-2, 5), "plastic": st.booleans(), "kind": st.sampled_from(["scalar", "chain", "gaussian"]),
+    "value": st.floats(-2, 5), "plastic": st.booleans(), "plasticity": st.floats(-0.5, 1.5),
+    "kind": st.sampled_from(["scalar", "chain", "gaussian", "stance"]), "stance": st.floats(-1.5, 1.5),
     "serves": st.dictionaries(st.sampled_from(["eat"]), st.sampled_from(DRIVES + ["thirst"]), max_size=1)})
 tuple_ = st.fixed_dictionaries({"action": action, "until": until}, optional={"trigger": names, "value": value})
 members = st.lists(st.sampled_from(TUPLE_NAMES + GROUP_NAMES), min_size=1, max_size=4)
@@ -89,6 +90,8 @@ near_valid = st.fixed_dictionaries(
     optional={"drives": st.dictionaries(st.sampled_from(DRIVES), drive, max_size=2),
               "percepts": st.dictionaries(st.sampled_from(PERCEPT_NAMES), percept, max_size=3),
               "body": st.booleans(),
+              "mood": st.fixed_dictionaries({"drive": st.sampled_from(DRIVES + ["thirst"])},
+                                            optional={"strength": st.floats(-0.5, 1.5)}),
               "learning": st.fixed_dictionaries({}, optional={"phrases": st.fixed_dictionaries(
                   {"group": st.sampled_from(GROUP_NAMES)}, optional={"trigger": names})})})
 
@@ -109,7 +112,7 @@ def _toml(creature: dict) -> str:
     for section, entries in creature.items():
         if not isinstance(entries, dict):
             continue
-        if section == "learning" or section not in ("drives", "percepts", "tuples", "groups"):
+        if section in ("learning", "mood") or section not in ("drives", "percepts", "tuples", "groups"):
             lines += ["", f"[creature.{section}]", *(f"{json.dumps(k)} = {_value(v)}" for k, v in entries.items())]
             continue
         for name, table in entries.items():
@@ -145,6 +148,41 @@ def test_the_heron_with_any_numbers_or_a_line_missing_loads_and_builds_or_fails_
         text = text.replace(f"= {old}", f"= {json.dumps(new)}", 1)
     if drop:
         text = "\n".join(line for line in text.splitlines() if not line.startswith(drop)) + "\n"
+    path = tmp_path / "fuzz.toml"
+    path.write_text(text)
+    try:
+        inst = load_installation(path)
+    except ConfigError as exc:
+        assert exc.file == path and exc.line is not None, str(exc)
+        return
+    assert describe(inst).startswith("fuzz")
+
+
+MOOD = """
+drive_floor = -1.0
+
+[creature.drives.mood]
+decay = 0.05
+
+[creature.mood]
+drive = {drive}
+strength = {strength}
+"""
+
+
+@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(drive=st.sampled_from(["mood", "boredom", "moood"]), strength=st.floats(-0.5, 1.5) | st.integers(-1, 2),
+       stance=st.floats(-1.5, 1.5) | st.integers(-2, 2), plasticity=st.floats(-0.5, 1.5) | st.booleans(),
+       plastic=st.booleans())
+def test_a_heron_with_a_mood_and_any_stance_loads_and_builds_or_fails_at_a_line(tmp_path: Path, drive, strength,
+                                                                                 stance, plasticity, plastic):
+    """Emotional tags (thesis "emotional tags"): the stance keys an author types, in every
+    combination, including those that contradict each other (a plasticity with plastic = false)."""
+    value = (f'{{ kind = "stance", value = 2.0, stance = {_value(stance)}, plasticity = {_value(plasticity)}, '
+             f"plastic = {_value(plastic)} }}")
+    heron = HERON.replace("value = 2.0", f"value = {value}", 1)
+    head, tail = heron.split("\n# -- drives", 1)
+    text = 'title = "fuzz"\n' + head + MOOD.format(drive=json.dumps(drive), strength=_value(strength)) + "\n# -- drives" + tail
     path = tmp_path / "fuzz.toml"
     path.write_text(text)
     try:
