@@ -489,3 +489,25 @@ def test_a_layer_with_one_idle_tile_rests_in_it_and_comes_back_to_it(tmp_path):
     assert sum(1 for t, tags in tiles if "tacet" in tags and t > hooks[0]) >= 3
     notes = [e for e in records(tmp_path / "run") if e["kind"] == "note"]
     assert [n["pitch"] for n in notes] == [72, 74, 76] and notes[0]["time"] == pytest.approx(hooks[0], abs=1e-6)
+
+
+def test_a_tile_written_to_follow_itself_repeats(tmp_path):
+    """``follows = ["vamp"]`` on the vamp itself: the composer's repeat. It was an edge of
+    infinite cost, so a walk went round another tile instead, and a layer idling on it drew
+    from NaN weights and crashed the run."""
+    (tmp_path / "tiles.toml").write_text(
+        '[tiles.vamp]\nlayer = "top"\nbeats = 2\ntags = ["idle"]\nfollows = ["vamp"]\nnotes = [[0, 60, 80, 1]]\n'
+        '[tiles.hook]\nlayer = "top"\nbeats = 2\ntags = ["hook"]\nnotes = [[0, 72, 90, 1]]\n')
+    tiles = load_tiles(tmp_path / "tiles.toml")
+    graph = TileGraph(tiles)
+    vamp = tiles.index("vamp")
+    assert np.isfinite(graph.cost[vamp, vamp]) and graph.walk(vamp, "top", ["idle"]) == [vamp]
+    (tmp_path / "s.toml").write_text(
+        'title = "a vamp"\nduration = 6.0\n[output]\nwav = false\nreport = false\n'
+        '[[creature]]\nname = "band"\nkind = "authored"\n'
+        '[creature.score]\ntiles = "tiles.toml"\ntempo = 120.0\n[creature.score.layers.top]\nidle = "idle"\n'
+        '[creature.tuples.wait]\naction = "rest"\nuntil = { seconds = 1.0 }\nvalue = 0.1\n'
+        '[creature.groups.main]\ntuples = ["wait"]\nalpha = 0.0\n')
+    assert main(["offline", str(tmp_path / "s.toml"), "--out", str(tmp_path / "run"), "--no-progress"]) == 0
+    tiles_played = [e["tile"] for e in records(tmp_path / "run") if e["kind"] == "tile"]
+    assert len(tiles_played) >= 5 and set(tiles_played) == {"vamp"}  # 6 s at 120: a tile a second

@@ -256,7 +256,7 @@ class ScoreLayout:
             weight = np.exp(-(cost - cost.min()) / 0.25)
             walk = [int(self.rng.choice(options, p=weight / weight.sum()))]
         elif lay.idle in self.tiles.tiles[last.tile].tags:
-            walk = [last.tile]  # the layer's one idle tile (no tile follows itself in the graph): held on
+            walk = [last.tile]  # the layer's one idle tile (no tile follows itself unless written to): held on
         else:
             try:
                 walk = self.graph.walk(last.tile, lay.name, [lay.idle])

@@ -9,7 +9,8 @@ plus how far its opening notes lie from this one's closing notes (``voice_weight
 of mean movement). A succession the composer wrote (``follows``) costs ``favour`` times as
 much. Each tile keeps its ``k`` cheapest successors in its layer and every written one, so the
 graph stays sparse and a walk prefers smooth joins, as the motor graph keeps only its
-k nearest transitions; a silent tile (a tacet) joins every tile of its layer both ways.
+k nearest transitions; a silent tile (a tacet) joins every tile of its layer both ways. A tile
+follows itself only where the composer wrote so (``follows`` naming it: a vamp, a held bar).
 
 A tile file is small (tens to hundreds of tiles), so the exact distances between every pair
 are computed once (scipy's Dijkstra) and serve A* as its heuristic: admissible and exact, A*
@@ -47,7 +48,7 @@ class TileGraph:
         cost = np.full((n, n), np.inf)
         for a, ta in enumerate(tiles.tiles):
             for b, tb in enumerate(tiles.tiles):
-                if a != b and ta.layer == tb.layer:
+                if ta.layer == tb.layer and (a != b or ta.name in ta.follows):
                     cost[a, b] = self.metric(ta, tb, keys[a], keys[b], key_weight, voice_weight)
         # A silence joins anything: after a tacet any tile may start, and any may stop into one.
         silent = np.array([t.silent for t in tiles.tiles])
