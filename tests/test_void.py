@@ -511,3 +511,31 @@ def test_a_tile_written_to_follow_itself_repeats(tmp_path):
     assert main(["offline", str(tmp_path / "s.toml"), "--out", str(tmp_path / "run"), "--no-progress"]) == 0
     tiles_played = [e["tile"] for e in records(tmp_path / "run") if e["kind"] == "tile"]
     assert len(tiles_played) >= 5 and set(tiles_played) == {"vamp"}  # 6 s at 120: a tile a second
+
+
+def test_a_cycling_course_ends_with_its_tuple_and_is_forgotten(tmp_path):
+    """A tuple running ``cycle 0`` for three seconds: the hook stops coming once the tuple
+    stops (it went on for good, the layer never idled again), and the courses of tuples
+    that stopped are not kept (each one cut short was, a few a minute for a month)."""
+    (tmp_path / "tiles.toml").write_text(
+        '[tiles.tacet]\nlayer = "top"\nbeats = 2\ntags = ["tacet"]\n'
+        '[tiles.hook]\nlayer = "top"\nbeats = 2\ntags = ["hook"]\nnotes = [[0, 72, 90, 1]]\n')
+    (tmp_path / "s.toml").write_text(
+        'title = "a cycle"\ntick = 0.02\n[output]\nwav = false\nreport = false\n'
+        '[[creature]]\nname = "band"\nkind = "authored"\n'
+        '[creature.score]\ntiles = "tiles.toml"\ntempo = 120.0\n[creature.score.layers.top]\nidle = "tacet"\n'
+        '[creature.percepts.cue]\ntype = "schedule"\ntimes = [2.0]\nwidth = 0.2\n'
+        '[creature.tuples.hook]\ntrigger = "cue"\n'
+        'action = { type = "score", layer = "top", program = "p: getTo hook; getTo tacet; cycle 0" }\n'
+        'until = { seconds = 3.0 }\nvalue = 4.0\n'
+        '[creature.tuples.wait]\naction = "rest"\nuntil = { seconds = 0.5 }\nvalue = 0.1\n'
+        '[creature.groups.main]\ntuples = ["hook", "wait"]\nalpha = 0.0\n')
+    clock = SimulatedClock()
+    session = Session(load_installation(tmp_path / "s.toml"), clock, EventLog(keep_in_memory=10**6), MemorySink())
+    score = session.creatures[0].score
+    for _ in range(500):  # 10 s
+        session.step(clock.advance(0.02), 0, None, audio=False)
+    hooks = [r["time"] for r in session.world.log.records if r["kind"] == "tile" and r["tile"] == "hook"]
+    stopped = next(r["t"] for r in session.world.log.records if r["kind"] == "stop" and r["tuple"] == "hook")
+    assert stopped == pytest.approx(5.0, abs=0.05) and len(hooks) == 2 and max(hooks) < stopped, hooks
+    assert score.layers["top"].program is None and not score._goal_end

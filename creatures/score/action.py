@@ -62,7 +62,8 @@ class _ScoreParams(Params):
 
 
 class Steering(Action):
-    """Lays its course on the layer when the tuple starts; done once it has been played."""
+    """Lays its course on the layer when the tuple starts; done once it has been played; lays
+    no more of it once the tuple stops."""
 
     def __init__(self, name: str, creature: "Authored", layer: str, generator: Callable[[], ScoreProgram]) -> None:
         super().__init__(name)
@@ -74,6 +75,9 @@ class Steering(Action):
 
     def done(self, t: float) -> float:
         return self.creature.score.reached(self.request, t)
+
+    def stop(self, t: float, *, interrupted: bool) -> None:
+        self.creature.score.release(self.layer, self.request)
 
 
 @ACTIONS.register

@@ -165,6 +165,15 @@ class ScoreLayout:
         del self._goal_end[request]  # played out: forgotten (a course a tile, over a month of runs)
         return 1.0
 
+    def release(self, layer: str, request: int) -> None:
+        """Course ``request``'s tuple has stopped: its program lays no more legs (what is laid
+        plays out, then ``layer`` idles; a cycling program went on for good), and nothing asks
+        any more whether it was played out (a course cut short was kept here for good)."""
+        lay = self.layers[layer]
+        if lay.request == request:
+            lay.program = None
+        self._goal_end.pop(request, None)
+
     def _cut_beat(self, lay: Layer, frontier: float) -> float:
         """The first beat at or after ``frontier`` where ``lay`` may change course."""
         if lay.cut == 0:
