@@ -199,6 +199,11 @@ def test_a_note_handed_over_ahead_sounds_in_the_voice_at_its_time():
         ('type = "drive"', 'type = "driv"', "creature.0.percepts.bored.type", "did you mean 'drive'"),
         ("until = { seconds = 2.0 }", 'until = { model = { type = "gausian", mean = 1.0, std = 0.5 } }',
          "creature.0.tuples.rest.until.model.type", "unknown model 'gausian' (did you mean 'gaussian'?)"),
+        # the models' own seconds bounded as until's are (each crashed a run with a traceback)
+        ("until = { seconds = 2.0 }", 'until = { model = { type = "ratio", pulse = 1e300 } }',
+         "creature.0.tuples.rest.until.model.pulse", "less than or equal to 3600"),
+        ("until = { seconds = 2.0 }", 'until = { model = { type = "gaussian", mean = 1.0, std = 1e300 } }',
+         "creature.0.tuples.rest.until.model.std", "less than or equal to 31622400"),
         ('trigger = "bored"', 'trigger = "boredd"', "creature.0.tuples.sing.trigger", "no percept named 'boredd'"),
         ('drive = "boredom"', 'drive = "hunger"', "creature.0.percepts.bored.drive", "no drive named 'hunger'"),
         ('tuples = ["sing", "rest"]', 'tuples = ["sing"]', "creature.0.tuples.rest", "in no group"),

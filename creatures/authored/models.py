@@ -13,8 +13,9 @@ from pydantic import BaseModel, Field
 from creatures.authored.registry import MODELS, Params, Part
 from creatures.behaviour.action_tuple import DurationModel
 from creatures.behaviour.models.gaussian import GaussianModel
+from creatures.bounds import LONGEST_SECONDS
 from creatures.runtime.pulse import PulseDuration
-from creatures.temporal.durations import LowIntegerRatioModel
+from creatures.temporal.durations import MAX_DURATION, LowIntegerRatioModel
 from creatures.temporal.readings import Level
 
 if TYPE_CHECKING:
@@ -29,8 +30,9 @@ class ModelPart(Part):
 
 
 class _GaussianParams(Params):
-    mean: float = Field(gt=0, description="seconds")
-    std: float = Field(gt=0, description="seconds")
+    # bounded as ``until.gaussian`` is: a spread of 1e300 overflowed the first sample's update
+    mean: float = Field(gt=0, le=LONGEST_SECONDS, description="seconds")
+    std: float = Field(gt=0, le=LONGEST_SECONDS, description="seconds")
 
 
 @MODELS.register
@@ -47,8 +49,8 @@ class Gaussian(ModelPart):
 
 class _PulseParams(Params):
     beats: int = Field(2, ge=1, le=64, description="durations of the heard pulse (or steps of its 'level')")
-    mean: float = Field(2.0, gt=0, description="fallback seconds until the pulse is trusted")
-    std: float = Field(0.5, gt=0, description="fallback spread")
+    mean: float = Field(2.0, gt=0, le=LONGEST_SECONDS, description="fallback seconds until the pulse is trusted")
+    std: float = Field(0.5, gt=0, le=LONGEST_SECONDS, description="fallback spread")
     level: Level | None = Field(
         None, description="steps of this level of the heard metre's pulse tree instead of the reading's ratios: "
                           "'bar' rests a bar of four in duple, of three in triple; a 'division' step is drawn as "
@@ -73,7 +75,8 @@ class Pulse(ModelPart):
 
 
 class _RatioParams(Params):
-    pulse: float = Field(0.5, gt=0, description="prior pulse, seconds")
+    pulse: float = Field(0.5, gt=0, le=MAX_DURATION, description="prior pulse, seconds (the model's longest "
+                                                                 "duration at most: more crashed the build)")
 
 
 @MODELS.register
