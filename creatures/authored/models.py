@@ -75,8 +75,8 @@ class Pulse(ModelPart):
 
 
 class _RatioParams(Params):
-    pulse: float = Field(0.5, gt=0, le=MAX_DURATION, description="prior pulse, seconds (the model's longest "
-                                                                 "duration at most: more crashed the build)")
+    pulse: float = Field(0.5, gt=0, le=MAX_DURATION, description="prior pulse, seconds (at most an hour: "
+                                                                 "the model's longest duration)")
 
 
 @MODELS.register
