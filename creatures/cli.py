@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import difflib
+import os
 import signal
 import sys
 from pathlib import Path
@@ -180,19 +181,28 @@ def _rehearse(args: argparse.Namespace) -> int:
     import json
 
     from creatures.config import ConfigError
+    from creatures.persist import atomic_write
     from creatures.runtime.rehearse import rehearse, report
     from creatures.runtime.schema import load_installation
     from creatures.runtime.visitors import CorpusError
 
     try:
+        # Every config is read, and the --json folder looked at, before a week is rehearsed: a
+        # typo in --compare's config, or a missing folder, was found after minutes of the first.
         configs = [args.config] + ([args.compare] if args.compare is not None else [])
-        runs = [rehearse(load_installation(_config_path(c)), args.days,
-                         progress=lambda line: print(line, file=sys.stderr, flush=True)) for c in configs]
+        loaded = [load_installation(_config_path(c)) for c in configs]
+        folder = None if args.json is None else args.json.parent
+        if folder is not None and not (folder.is_dir() and os.access(folder, os.W_OK)):
+            raise OSError(f"--json {args.json}: " + (f"{folder} is not writable" if folder.is_dir()
+                                                      else f"there is no folder {folder}"))
+        runs = [rehearse(inst, args.days, progress=lambda line: print(line, file=sys.stderr, flush=True))
+                for inst in loaded]
         if len(runs) == 2 and runs[0].title == runs[1].title:  # two versions of one piece: name them by file
             runs = [dataclasses.replace(r, title=f"{r.title} ({c.name})") for r, c in zip(runs, configs)]
         print(report(*runs))
         if args.json is not None:
-            args.json.write_text(json.dumps([r.to_dict() for r in runs], indent=1), encoding="utf-8")
+            text = json.dumps([r.to_dict() for r in runs], indent=1)
+            atomic_write(args.json, lambda handle: handle.write(text), "w")
     except (ConfigError, CorpusError, OSError) as exc:
         print(f"creatures: {exc}", file=sys.stderr)
         return 2

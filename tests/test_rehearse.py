@@ -245,3 +245,23 @@ def test_a_silent_piece_fails_the_week(monkeypatch):
     r = rehearse(short("exchange", 2), 2)
     assert max(r.longest_silence.values()) == 240 > r.opening_day == 120
     assert all(h.acts_per_minute == 0 and h.silence == 1.0 for h in r.hours)
+
+
+def test_the_command_reads_every_config_and_its_json_folder_before_rehearsing(tmp_path: Path, capsys):
+    """A typo in --compare's config, or --json into a folder that is not there, was found only
+    after the first config's week had been rehearsed (minutes; a quarter of an hour for
+    exchange's); the JSON is written whole or not at all."""
+    config = tmp_path / "exchange.toml"
+    hours = '[rehearse]\nhours = { opens = "10:00", closes = "10:02" }'
+    config.write_text(installations.path("exchange").read_text().replace("[rehearse]", hours, 1))
+    other = tmp_path / "other.toml"
+    other.write_text(config.read_text().replace("[rehearse]", "[rehearse]\nday = 2", 1))
+    assert main(["rehearse", str(config), "--days", "1", "--compare", str(other)]) == 2
+    said = capsys.readouterr()
+    assert "other.toml" in said.err and "day" in said.err and "rehearsed" not in said.err, said.err
+    missing = tmp_path / "no" / "r.json"
+    assert main(["rehearse", str(config), "--days", "1", "--json", str(missing)]) == 2
+    said = capsys.readouterr()
+    assert f"there is no folder {missing.parent}" in said.err and "rehearsed" not in said.err, said.err
+    assert main(["rehearse", str(config), "--days", "1", "--json", str(tmp_path / "r.json")]) == 0
+    assert [p.name for p in tmp_path.glob("*.json*")] == ["r.json"]  # no temporary file left beside it
