@@ -200,3 +200,15 @@ def test_the_colonys_own_renders_as_footage_through_the_cli(run, tmp_path):
     bad = subprocess.run([sys.executable, "-m", "creatures.cli", "images", str(out), "--creature", "nobody"],
                          capture_output=True, text=True, cwd=ROOT)
     assert bad.returncode == 2 and "nobody.edl.json" in bad.stderr
+
+
+def test_frames_made_again_shorter_leave_none_of_the_longer_behind(tmp_path):
+    """``creatures images --png`` at a lower ``--fps`` into the same folder: the frames of the
+    earlier, longer video stayed after the new ones, and a sequence made of the folder showed both."""
+    from creatures.image.spec import ImagesSpec, make_video
+
+    entries = [{"output_frame": 0, "source_start_frame": 8000, "source_end_frame": 16000}]
+    for fps, count in ((10.0, 20), (5.0, 10)):
+        spec = ImagesSpec(fps=fps, png=True, video=False, size=(32, 24))
+        make_video(spec, "oz", entries, 8000, 2.0, tmp_path)
+        assert len(list((tmp_path / "oz.frames").glob("frame_*.png"))) == count

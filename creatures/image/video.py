@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from creatures.body.frames import FrameWriter
+from creatures.body.frames import FrameWriter, drop_stale
 from creatures.image.footage import Footage
 from creatures.image.walker import Shot
 
@@ -75,4 +75,6 @@ def write_video(footage: Footage, shots: list[Shot], *, fps: float, blur: float,
     finally:
         if writer is not None:
             writer.close()
+    if frames is not None:  # a shorter video made again into the folder (``creatures images --fps``) left the rest
+        drop_stale(frames, "png", len(record))
     return record
