@@ -212,3 +212,27 @@ def test_frames_made_again_shorter_leave_none_of_the_longer_behind(tmp_path):
         spec = ImagesSpec(fps=fps, png=True, video=False, size=(32, 24))
         make_video(spec, "oz", entries, 8000, 2.0, tmp_path)
         assert len(list((tmp_path / "oz.frames").glob("frame_*.png"))) == count
+
+
+def test_a_video_made_again_and_stopped_leaves_the_earlier_one_whole(tmp_path, monkeypatch):
+    """``creatures images`` writes into a finished run: stopped part way (Ctrl-C, a full disk),
+    it had already cut the run's video short; now the new one replaces it only once whole."""
+    from creatures.image import video as video_module
+    from creatures.image.spec import ImagesSpec, make_video
+
+    entries = [{"output_frame": 0, "source_start_frame": 8000, "source_end_frame": 16000}]
+    spec = ImagesSpec(fps=10.0, size=(32, 24))
+    make_video(spec, "oz", entries, 8000, 2.0, tmp_path)
+    before = (tmp_path / "oz.mp4").read_bytes()
+    composed = video_module.Blur.compose
+
+    def stopped(self, shot):
+        if shot.time > 1.0:
+            raise KeyboardInterrupt
+        return composed(self, shot)
+
+    monkeypatch.setattr(video_module.Blur, "compose", stopped)
+    with pytest.raises(KeyboardInterrupt):
+        make_video(spec, "oz", entries, 8000, 2.0, tmp_path)
+    assert (tmp_path / "oz.mp4").read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["oz.images.json", "oz.mp4"]

@@ -4,6 +4,7 @@ video from the EDL when the run is over (thesis: "off-line image processing").""
 from __future__ import annotations
 
 import functools
+import os
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -80,8 +81,16 @@ def make_video(spec: ImagesSpec, name: str, entries: list[dict[str, Any]], sampl
     files: dict[str, Path] = {}
     video = out / f"{name}.mp4" if spec.video else None
     frames = out / f"{name}.frames" if spec.png else None
-    record = write_video(footage, shots, fps=spec.fps, blur=spec.blur, max_blur=spec.max_blur, video=video,
-                         frames=frames)
+    # Encoded beside it and renamed over it once whole: ``creatures images`` writes into a
+    # finished run, and one stopped (Ctrl-C, a full disk) left the run's video cut short.
+    partial = out / f".{name}.part.mp4"
+    try:
+        record = write_video(footage, shots, fps=spec.fps, blur=spec.blur, max_blur=spec.max_blur,
+                             video=partial if video is not None else None, frames=frames)
+        if video is not None:
+            os.replace(partial, video)
+    finally:
+        partial.unlink(missing_ok=True)
     images = out / f"{name}.images.json"
     save_json(images, {"creature": name, "fps": spec.fps, "footage": str(spec.footage),
                        "footage_frames": len(footage), "graph": {"keys": len(graph.keys), "jumps": graph.jumps},
