@@ -287,7 +287,9 @@ def validate(
     literal: bool = True,
 ) -> Model:
     """Validate ``data`` (found at key path ``prefix`` of ``file``) or raise :class:`ConfigError`;
-    with ``literal``, numbers and truth values must be written as such (:func:`_quoted_scalar`)."""
+    with ``literal``, numbers and truth values must be written as such, and without it (a
+    console's or a controller's value) a number may come as text and a truth value as 0 or 1,
+    but never as other text (:func:`_quoted_scalar`)."""
     try:
         valid = model.model_validate(data)
     except ValidationError as exc:
@@ -301,6 +303,8 @@ def validate(
         # union adds its tag to pydantic's).
         choices = _fields_at(model, tuple(error["loc"])) or _fields_at(model, loc[len(prefix):])
         message = error["msg"].removeprefix("Value error, ")  # a validator's own sentence, as it wrote it
+        if error["type"] in ("bool_type", "bool_parsing"):  # "unable to interpret input" names no spelling
+            message = _truth(literal)
         got = error.get("input") if error["type"] not in ("missing", "extra_forbidden") else None
         if error["type"] == "literal_error" and isinstance(got, str):  # kind = "gausian"
             close = difflib.get_close_matches(got, re.findall(r"'([^']*)'", str(error["ctx"]["expected"])), n=1)
@@ -320,11 +324,23 @@ def validate(
                 loc, message, got = loc[:-1], f"too few values: a value is wanted at position {loc[-1] + 1}", short
         raise config_error(file, where, loc, message if error["type"] != "extra_forbidden" else None,
                            choices=choices, got=got) from None
-    quoted = _quoted_scalar(valid, data) if literal else None
+    quoted = _quoted_scalar(valid, data, toggles=not literal)
     if quoted is not None:
         at, written, message = quoted
         raise config_error(file, where, (*prefix, *at), message, got=written)
     return valid
+
+
+def _truth(literal: bool) -> str:
+    """What a truth value may be written as: ``true``/``false`` in a config; a toggle's 0/1 too
+    where a controller sends it (:func:`validate` without ``literal``)."""
+    return "should be true or false" if literal else "should be true, false, 0 or 1"
+
+
+def _toggle(data: Any) -> bool:
+    """Whether ``data`` is a number, as a Max or Pd toggle sends for a truth value (0 or 1:
+    pydantic refuses any other for a truth value)."""
+    return isinstance(data, (int, float)) and not isinstance(data, bool)
 
 
 def _wanted(what: str, data: Any) -> str:
@@ -347,9 +363,13 @@ def _numeral(data: Any) -> bool:
     return True
 
 
-def _quoted_scalar(valid: Any, data: Any, at: tuple[str | int, ...] = ()) -> tuple[tuple, Any, str] | None:
+def _quoted_scalar(valid: Any, data: Any, at: tuple[str | int, ...] = (), *,
+                   toggles: bool = False) -> tuple[tuple, Any, str] | None:
     """The first number or truth value the author wrote as something else (``alpha = "0"``,
     ``midi = 1``), as ``(key path, what was written, the error's message)``, else ``None``.
+    With ``toggles`` (a value sent, not written: the console's ``set``) a number may be text
+    and a truth value 0 or 1, but a truth value is still never text: lax mode would take
+    "yes", "on", "t" or "off" for one, which no config takes.
 
     Pydantic's lax mode, which the schema needs (TOML arrays fill tuple fields), reads text as
     a number and 0/1 as a truth value; a config is a program the artist wrote, and a number in
@@ -358,14 +378,16 @@ def _quoted_scalar(valid: Any, data: Any, at: tuple[str | int, ...] = ()) -> tup
     where a number came from text, or a truth value from anything but ``true``/``false``.
     """
     if isinstance(valid, bool):
-        return None if isinstance(data, bool) else (at, data, _wanted("true or false", data))
+        if isinstance(data, bool) or toggles and _toggle(data):
+            return None
+        return at, data, _truth(False) if toggles else _wanted("true or false", data)
     if isinstance(valid, (int, float)):
-        return (at, data, _wanted("a number", data)) if _numeral(data) else None
+        return (at, data, _wanted("a number", data)) if not toggles and _numeral(data) else None
     if isinstance(valid, BaseModel):
         if isinstance(data, list):  # a before-validator moved a list into a field (``[[input]]``)
             nested = [getattr(valid, name) for name in type(valid).model_fields]
             return next((found for value in nested if isinstance(value, list) and len(value) == len(data)
-                         if (found := _quoted_scalar(value, data, at)) is not None), None)
+                         if (found := _quoted_scalar(value, data, at, toggles=toggles)) is not None), None)
         if not isinstance(data, dict):
             return None
         pairs = [(name, getattr(valid, name)) for name in type(valid).model_fields if name in data]
@@ -375,8 +397,8 @@ def _quoted_scalar(valid: Any, data: Any, at: tuple[str | int, ...] = ()) -> tup
         pairs = list(zip(range(len(data)), valid))
     else:
         return None
-    return next((found for key, value in pairs if (found := _quoted_scalar(value, data[key], (*at, key))) is not None),
-                None)
+    return next((found for key, value in pairs
+                 if (found := _quoted_scalar(value, data[key], (*at, key), toggles=toggles)) is not None), None)
 
 
 def nearest(name: object, choices: typing.Iterable[str], what: str) -> str:

@@ -468,6 +468,27 @@ def test_a_set_gain_reaches_the_mixer(tmp_path):
     assert (session.mixer.gains == before).all() and session.creatures[1].spec.pan == -0.5  # refused: unchanged
 
 
+@pytest.mark.parametrize("sent", ["yes", "on", "off", "T", "n", 2, 0.5, '{"x": 1}'])
+def test_a_truth_value_is_set_only_as_a_config_or_a_toggle_says_it(tmp_path, sent):
+    """Lax mode read "yes", "on", "off", "t" or "n" as a truth value, which no config takes
+    (``hears_input = "yes"`` is refused at load): the console takes true/false (an OSC truth
+    value, or that text as JSON) and a toggle's 0/1, and refuses the rest naming the key and
+    what it takes, changing nothing."""
+    config = tmp_path / "c.toml"
+    config.write_text('title = "t"\n' + creature_tables("ada", "bo"))
+    session = Session(load_installation(config), SimulatedClock(), EventLog(keep_in_memory=0), MemorySink())
+    colony = ColonyHandle(session, pause=lambda on: None, save=None, status=dict)
+    bo = session.creatures[1]
+    before = bo.spec
+    with pytest.raises(Refused) as refused:
+        colony.apply(Request(1, "set", ("bo", "hears_input", sent), ("127.0.0.1", 9)), 0.0)
+    assert str(refused.value).startswith("hears_input: should be true, false, 0 or 1 (got ")
+    assert bo.spec is before
+    for taken, value in (("false", False), (1.0, True), ("0", False), (True, True)):  # what a config or toggle says
+        assert colony.apply(Request(2, "set", ("bo", "hears_input", taken), ("127.0.0.1", 9)), 0.0)["value"] is value
+        assert bo.spec.hears_input is value
+
+
 def test_notes_heard_while_paused_are_forgotten_on_resume(tmp_path):
     from midi.notes import NoteEvent
 

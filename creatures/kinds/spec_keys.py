@@ -61,7 +61,8 @@ def with_key(spec: Spec, key: str, value: Any, name: str, *, literal: bool = Tru
     config would be (:class:`SpecKeyError` with the schema's message; ``name`` is the
     creature's, for the message's file). ``literal=False`` reads 0/1 as a truth value and
     text as a number, as pydantic's lax mode does: an OSC controller (a Max or Pd toggle)
-    has no truth values and sends what it has."""
+    has no truth values and sends what it has. Lax mode's other truth values ("yes", "on",
+    "t" …) are refused still, as a config refuses them."""
     parts = key.split(".")
     if parts[0] in FIXED:
         raise SpecKeyError(f"{parts[0]} cannot change while the creature runs")
