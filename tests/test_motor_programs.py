@@ -186,3 +186,36 @@ def test_a_cycle_that_never_moves_is_reported(graph, clock):
     stack.start(clock.now())
     with pytest.raises(RuntimeError, match="without the body moving"):
         stack.update(clock.now())
+
+
+def test_a_program_at_its_target_holds_there_without_running_again(graph, clock):
+    """``getTo "reach"; wait; cycle 0`` once at a reach pose: every course leads where the body
+    rests. It spun to MAX_STEPS and raised (ending the run), logging an arrival per lap; now
+    it holds, not run again each tick, until the body is moved, then it takes it back."""
+    stack = ProgramStack(MotorSystem(graph, start=0), parse_programs('stay: getTo "reach"; wait; cycle 0')["stay"])
+    motor = stack.motor
+    stack.start(clock.now())
+    assert run(stack, clock, until=10.0) is Status.RUNNING  # travelled there, then held
+    assert len(motor.arrivals) == 1 and "reach" in graph.poses.labels[motor.arrivals[0][1]]
+    held_at, ran = motor.resting(clock.now()), len(stack.trace)
+    assert held_at is not None and stack.cycles >= 1
+    for _ in range(30):  # held: no statement runs, no course is searched, the pose is the node's
+        assert stack.update(clock.now()) is Status.RUNNING
+        assert motor.pose(clock.now()).rotations == pytest.approx(graph.poses.pose(held_at).rotations)
+        clock.advance(1.0 / 30.0)
+    assert len(stack.trace) == ran and len(motor.arrivals) == 1
+    elsewhere = int(graph.poses.labelled("strike")[0])  # another action moves the body
+    motor.set_course(clock.now(), motor.course(clock.now(), [elsewhere]))
+    run(stack, clock, until=clock.now() + 10.0)
+    arrived = [node for _, node in motor.arrivals]
+    assert len(arrived) == 3 and arrived[1] == elsewhere and "reach" in graph.poses.labels[arrived[2]]
+    assert motor.resting(clock.now()) == arrived[2]  # back at its target, holding again
+    stack.request_exit(clock.now())  # no forced statement: it ends
+    assert stack.update(clock.now()) is Status.DONE
+
+
+def test_a_course_to_where_the_body_rests_goes_nowhere(graph, clock):
+    node = int(graph.poses.labelled("reach")[3])
+    motor = MotorSystem(graph, start=node)
+    motor.set_course(clock.now(), motor.course(clock.now(), ["reach"]))
+    assert motor.playback is None and motor.arrived(clock.now()) and not motor.arrivals

@@ -92,6 +92,10 @@ class MotorSystem:
         self.playback = None
         return True
 
+    def resting(self, t: float) -> int | None:
+        """The node the body rests on at ``t``, or None while it travels."""
+        return self._rest.node if self.arrived(t) else None
+
     def goals(self, target: Target) -> list[int]:
         """Nodes a target names: a node index or every node with that label."""
         if isinstance(target, (int, np.integer)):
@@ -110,7 +114,11 @@ class MotorSystem:
         return max(paths, key=lambda p: p.cost)
 
     def set_course(self, t: float, path: Path) -> None:
-        """Follow ``path`` from time ``t`` (it starts where the body is, even mid-edge)."""
+        """Follow ``path`` from time ``t`` (it starts where the body is, even mid-edge). A path
+        to the node the body rests on goes nowhere: the body stays, and logs no arrival (a
+        program holding at its target would fill :attr:`arrivals` with it)."""
+        if self.resting(t) == path.goal and len(path.nodes) == 1:
+            return
         origin = None
         if self.playback is not None and not self.arrived(t):
             rotations, roots = self.playback.sample_rotations(np.array([t]))
@@ -274,6 +282,7 @@ class ProgramStack:
         self.stack: list[_Frame] = []
         self.cycles = 0
         self.trace: list[tuple[float, str, str]] = []
+        self._held: tuple[int, int] | None = None  # (node, graph size) a lap went nowhere from
 
     @property
     def done(self) -> bool:
@@ -281,6 +290,7 @@ class ProgramStack:
 
     def start(self, t: float) -> None:
         self.stack = [_Frame(self.program, self.program.first())]
+        self._held = None
 
     def request_exit(self, t: float) -> None:
         """Unwind: each frame jumps to its forced statements (or exit vertex) or is dropped.
@@ -293,9 +303,22 @@ class ProgramStack:
             if cursor is not None:
                 kept.append(_Frame(frame.program, cursor))
         self.stack = kept
+        self._held = None
 
     def update(self, t: float) -> Status:
-        """Run statements until one blocks (waiting for the body) or the program ends."""
+        """Run statements until one blocks (waiting for the body) or the program ends.
+
+        A program whose courses all lead where the body rests (``getTo "sit"; wait; cycle 0``
+        once sat) comes back to a statement it ran this tick: it holds there, the body at its
+        target, and is not run again (its courses searched again) until the body is moved
+        or the motor graph grows. Running on, it spun until :data:`MAX_STEPS` and raised,
+        ending the run (thesis "motor program graphs": a program is a way of being, here
+        one of staying)."""
+        if self._held is not None and self._held == self._resting(t):
+            return Status.RUNNING
+        self._held = None
+        seen: dict[tuple[int, object], int] = {}  # statements run this tick: how many courses had been set
+        courses, frames = 0, []  # frames kept alive: their ids key ``seen``
         for _ in range(self.MAX_STEPS):
             if not self.stack:
                 return Status.DONE
@@ -303,6 +326,12 @@ class ProgramStack:
             stmt = frame.program.statement(frame.cursor)
             if stmt.op in ("wait", "cycle") and not self.motor.arrived(t):
                 return Status.RUNNING
+            here = (id(frame), frame.cursor)
+            if seen.get(here, courses) < courses and self._resting(t) is not None:  # a lap went nowhere
+                self._held = self._resting(t)
+                return Status.RUNNING
+            seen[here] = courses
+            frames.append(frame)
             self.trace.append((t, frame.program.name, str(stmt)))
             nxt = frame.program.advance(frame.cursor, self.motor, t)
             callee = self._callee(stmt)
@@ -314,6 +343,7 @@ class ProgramStack:
                 self.stack.append(_Frame(callee, callee.first()))
             elif stmt.op in ("getTo", "getToClosest", "getToFurthest", "forcedGetTo"):
                 self.motor.set_course(t, self.motor.course(t, stmt.targets, furthest=stmt.op == "getToFurthest"))
+                courses += 1
             elif stmt.op == "cycle" and nxt is not None:
                 if len(self.stack) > 1:
                     # A sub-program that cycles hands control back to its caller's wait.
@@ -324,6 +354,12 @@ class ProgramStack:
             f"motor program {self.stack[-1].program.name!r} ran {self.MAX_STEPS} statements"
             " without the body moving (a cycle with no course to follow?)"
         )
+
+    def _resting(self, t: float) -> tuple[int, int] | None:
+        """Where the body rests (its node, and the motor graph's size: a graph grown since
+        may offer a nearer target), or None while it travels."""
+        node = self.motor.resting(t)
+        return None if node is None else (node, len(self.motor.graph))
 
     def _callee(self, stmt: Statement) -> Program | None:
         """The sub-program a ``getTo``-style statement names, if it names one."""
