@@ -788,7 +788,7 @@ STOPPED = {
     "rehearse": "no report was printed",
     "offline": "nothing was published; the output directory holds the previous run's outputs as they were",
     "demo": "nothing was published; the output directory holds the previous run's outputs as they were",
-    "run": "stopped before the run began or while it saved; the state folder holds the last state saved",
+    "run": "stopped before the run began or as it ended; the state folder holds the last state saved",
     "inspect": "the page was not written",
     "view": "the view was closed",
     "render": "the frames drawn so far are in the output directory",
@@ -825,7 +825,7 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt as stopped:  # creatures/stop.py: SIGTERM and SIGHUP are raised as Ctrl-C is
         signum = stopped.signum if isinstance(stopped, stop.Terminated) else signal.SIGINT
         left = STOPPED.get(args.command)
-        how = "Ctrl-C" if signum == signal.SIGINT else signal.Signals(signum).name
+        how = stop.named(signum)
         print(f"creatures {args.command}: stopped by {how}" + (f"; {left}" if left else ""), file=sys.stderr)
         return 128 + signum
     finally:

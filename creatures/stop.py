@@ -23,7 +23,8 @@ import os
 import signal
 import stat
 import sys
-from typing import Any, Callable
+from contextlib import contextmanager
+from typing import Any, Callable, Iterator
 
 
 class Terminated(KeyboardInterrupt):
@@ -117,3 +118,30 @@ def install() -> Callable[[], None]:
         requested = None
 
     return restore
+
+
+@contextmanager
+def finishing() -> Iterator[list[int]]:
+    """While a stopped command finishes (a live run's final save, its devices closed), a
+    further SIGINT, SIGTERM or SIGHUP is kept in the list this yields, not raised: a
+    supervisor or systemd sending SIGTERM twice, or a second Ctrl-C, cut the final save
+    short between two creatures' files (each written whole, persist.atomic_write), the run's
+    last learning lost and its devices left open. The caller says what came once it is
+    done; SIGKILL (systemd's ``TimeoutStopSec``) still ends a save that hangs. Main thread only."""
+    again: list[int] = []
+
+    def keep(signum: int, _: Any) -> None:
+        again.append(signum)
+        hung_up(signum)
+
+    previous = {sig: signal.signal(sig, keep) for sig in STOPPING}
+    try:
+        yield again
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+def named(signum: int) -> str:
+    """How a stop is said: ``Ctrl-C``, ``SIGTERM``, ``SIGHUP``."""
+    return "Ctrl-C" if signum == signal.SIGINT else signal.Signals(signum).name

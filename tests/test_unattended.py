@@ -456,3 +456,68 @@ def test_check_says_what_to_do_when_no_midi_backend_or_sound_card_is_there(tmp_p
     assert detail.startswith("'FLUID': MIDI ports cannot be listed (MidiOutAlsa::initialize")
     ok, detail = _audio(inst)
     assert not ok and detail.startswith("default: no audio output devices found") and "creatures devices" in detail
+
+
+SAVE_HELD = '''
+import os, signal, sys, threading
+from creatures import cli
+from creatures.runtime import live
+from creatures.runtime.session import write_snapshot
+
+def held(directory, snapshot):
+    """The final save (the only one: save_every is an hour), held until a signal has come:
+    its byte on a wakeup pipe says Python's handler is due, on this thread, at once."""
+    if threading.current_thread() is threading.main_thread():
+        ear, mouth = os.pipe()
+        os.set_blocking(mouth, False)
+        before = signal.set_wakeup_fd(mouth)
+        print("FINAL SAVE", flush=True)
+        os.read(ear, 1)
+        signal.set_wakeup_fd(before)
+    write_snapshot(directory, snapshot)
+
+live.write_snapshot = held
+sys.exit(cli.main(sys.argv[1:]))
+'''
+
+
+@pytest.mark.parametrize("again", ["SIGTERM", "SIGINT"])
+def test_a_second_stop_during_the_final_save_is_said_and_the_save_finished(tmp_path: Path, again: str) -> None:
+    """systemd or a keeper sending SIGTERM twice (or a Ctrl-C after it) while the run wrote its
+    final state raised in the middle of the save: the state folder kept the last periodic save
+    (here, none), the devices were left open and the run exited 143 or 130. Now the second
+    stop is kept until the run has stopped, said, and the save whole: a real signal to a real
+    ``creatures run``, the save held by the child until the signal has reached it."""
+    import os
+    import signal
+    import subprocess
+    import sys
+
+    config = tmp_path / "show.toml"
+    config.write_text(COLONY.replace("save_every = 0.2", "save_every = 3600"))
+    notify = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+    notify.bind(str(tmp_path / "notify"))
+    notify.settimeout(180)  # starting python and numba under load: slow, not timed
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parent.parent),
+           "NOTIFY_SOCKET": str(tmp_path / "notify"), "PYTHONUNBUFFERED": "1"}
+    run = subprocess.Popen([sys.executable, "-c", SAVE_HELD, "run", str(config), f"--state={tmp_path / 'state'}",
+                            "--duration", "600"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
+    try:
+        while b"READY=1" not in notify.recv(4096).split(b"\n"):
+            pass
+        run.send_signal(signal.SIGTERM)
+        said = []
+        while not said or said[-1] != "FINAL SAVE\n":
+            said.append(run.stdout.readline())
+            assert said[-1], "".join(said)  # the run ended before its final save
+        run.send_signal(getattr(signal, again))
+        out = run.communicate(timeout=120)[0]
+    finally:
+        notify.close()
+        run.kill()
+        run.wait()
+    how = "Ctrl-C" if again == "SIGINT" else again
+    assert run.returncode == 0, "".join(said) + out
+    assert f"{how} while the run was stopping: taken as the same stop, after its final save" in out
+    assert "state" in json.loads((tmp_path / "state" / "ada.json").read_text())  # whole: it reads
+    assert not [p for p in (tmp_path / "state").iterdir() if p.name.startswith(".")]  # no temp file, lock let go

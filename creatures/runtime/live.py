@@ -587,49 +587,54 @@ def run_live(
         except KeyboardInterrupt:
             pass
         finally:
-            notifier.stopping()
             for sig, handler in previous.items():
                 signal.signal(sig, handler)
-            supervisor.stop()  # before what it watches closes
-            outlets.close()
-            summary.outlets = outlets.counts()
-            for what, counts in summary.outlets.items():  # "stream" and "console" events: what each did
-                session.world.emit(what, **counts)
-            counters.log_change(always=True)
-            timing.log_change(always=True)
-            summary.underruns, summary.overruns, summary.audio_gaps, summary.audio_skips = counters.now()
-            inputs.tally()
-            if port is not None:  # what never reached the synth is said, not lost in silence
-                summary.midi_dropped = port.dropped
-                session.world.emit("midi output", port=settings.midi.output_port, dropped=port.dropped)
-            session.close()
-            if score is not None and recorded is not None:  # written beside the final save
-                score.finish(session.world, recorded, start, say)
-            if saver is not None:
-                saver.final(session, wall.now() - start)
-            if microphone is not None:
-                microphone.stop()
-            if isinstance(output, Watched):  # said when the run began: where the sound went at the end
-                summary.sound = _sound_at_end(output, summary.sound)
-            if output is not None:
-                output.close()
-            if bodies is not None:
-                bodies.close()
-                summary.frames_dropped = bodies.dropped
-            if server is not None:
-                server.close()
-                feed.close()
-                summary.view_dropped = feed.dropped
-            inputs.close()
-            if inputs.network is not None:
-                summary.network = inputs.network.counts()
-            if shared is not None:
-                summary.room_share = shared.counts()
-                session.world.emit("room share", **summary.room_share)
-                shared.close()
-            log.close()
-            if score is not None:
-                score.wait()
+            # A second stop (SIGTERM twice from a supervisor, a Ctrl-C after it) is said once
+            # the run has stopped, not raised in the middle of its final save (creatures/stop.py).
+            with stops.finishing() as again:
+                notifier.stopping()
+                supervisor.stop()  # before what it watches closes
+                outlets.close()
+                summary.outlets = outlets.counts()
+                for what, counts in summary.outlets.items():  # "stream" and "console" events: what each did
+                    session.world.emit(what, **counts)
+                counters.log_change(always=True)
+                timing.log_change(always=True)
+                summary.underruns, summary.overruns, summary.audio_gaps, summary.audio_skips = counters.now()
+                inputs.tally()
+                if port is not None:  # what never reached the synth is said, not lost in silence
+                    summary.midi_dropped = port.dropped
+                    session.world.emit("midi output", port=settings.midi.output_port, dropped=port.dropped)
+                session.close()
+                if score is not None and recorded is not None:  # written beside the final save
+                    score.finish(session.world, recorded, start, say)
+                if saver is not None:
+                    saver.final(session, wall.now() - start)
+                if microphone is not None:
+                    microphone.stop()
+                if isinstance(output, Watched):  # said when the run began: where the sound went at the end
+                    summary.sound = _sound_at_end(output, summary.sound)
+                if output is not None:
+                    output.close()
+                if bodies is not None:
+                    bodies.close()
+                    summary.frames_dropped = bodies.dropped
+                if server is not None:
+                    server.close()
+                    feed.close()
+                    summary.view_dropped = feed.dropped
+                inputs.close()
+                if inputs.network is not None:
+                    summary.network = inputs.network.counts()
+                if shared is not None:
+                    summary.room_share = shared.counts()
+                    session.world.emit("room share", **summary.room_share)
+                    shared.close()
+                log.close()
+                if score is not None:
+                    score.wait()
+            for signum in again:
+                say(f"{stops.named(signum)} while the run was stopping: taken as the same stop, after its final save")
     summary.seconds = wall.now() - start
     summary.ticks = session.ticks
     summary.late, summary.skipped = loop.timing.late, loop.skipped
