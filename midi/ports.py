@@ -117,9 +117,10 @@ class MidoInputs:
         return list(probe.get_ports()) if probe is not None else list(self.backend.get_input_names())
 
     def stale(self, port: BasePort) -> bool:
-        """Whether ``port``'s JACK server is gone: it must be neither used nor closed."""
-        pulse = self._jack()
-        return pulse is not None and getattr(port, "jack_generation", pulse.generation) != pulse.generation
+        """Whether ``port``'s JACK server is gone: it must be neither used nor closed. A port
+        opened on JACK's API is JACK's still after RtMidi, told no API, chose another."""
+        generation = getattr(port, "jack_generation", None)
+        return generation is not None and self._pulse is not None and generation != self._pulse.generation
 
     def _jack(self) -> JackPulse | None:
         if self.backend.name != "mido.backends.rtmidi" or self._api() != "UNIX_JACK":
@@ -136,16 +137,23 @@ class MidoInputs:
 
     def _rtmidi_probe(self, kind: str = "MidiIn"):
         """The kept rtmidi client that lists ports, or None for other backends; under JACK, a
-        new one once the server it listed went away."""
+        new one once the server it listed went away. Where RtMidi took JACK's API, told none,
+        it is told none again then, and takes the first API that has ports now: an engineer
+        who named no API meant whichever has the synth (a USB synth on ALSA's sequencer with
+        JACK gone), and JACK's taken for good left the run saying the server was not running
+        until it came back, the synth beside it unplayed."""
         if self.backend.name != "mido.backends.rtmidi":
             return None
         pulse = self._jack()
         if pulse is not None:
-            if not pulse.alive():
-                raise OSError("the JACK server is not running")
+            alive = pulse.alive()
             if self._probe is not None and self._probe_generation != pulse.generation:
                 abandon(self._probe)
                 self._probe = None
+                if self.backend.api is None:  # chosen by RtMidi: chosen again, below
+                    self._chose_jack, pulse = False, None
+            if pulse is not None and not alive:
+                raise OSError("the JACK server is not running")
         if self._probe is None:
             import rtmidi
 

@@ -198,6 +198,74 @@ def test_rtmidi_told_no_api_is_watched_by_the_pulse_where_it_took_jack(monkeypat
         assert said == [ports] * 4 and not outputs.stale(port) and server.opened == 0 and opened_on == [{}]
 
 
+class _Chooses:
+    """An rtmidi client told no API, made as RtMidi makes one: on the first compiled API (ALSA's,
+    then JACK's) that lists ports now, else on the last it tried. ``offered`` is what each API
+    lists; a JACK client lists what its server had when it was made (one of a dead server
+    still lists the old ports)."""
+
+    offered: dict[str, list[str]] = {}
+
+    def __init__(self, rtapi: int, name: str) -> None:
+        import rtmidi
+
+        assert rtapi == rtmidi.API_UNSPECIFIED
+        self.api = next((api for api in ("LINUX_ALSA", "UNIX_JACK") if self.offered.get(api)), "UNIX_JACK")
+        self.made_with = list(self.offered.get(self.api, []))
+
+    def get_current_api(self) -> int:
+        import rtmidi
+
+        return getattr(rtmidi, f"API_{self.api}")
+
+    def get_ports(self) -> list[str]:
+        return list(self.offered.get("LINUX_ALSA", [])) if self.api == "LINUX_ALSA" else list(self.made_with)
+
+    def get_port_count(self) -> int:
+        return len(self.get_ports())
+
+
+def test_rtmidi_told_no_api_chooses_again_when_the_jack_it_took_is_gone(monkeypatch, clock):
+    """Told no API, RtMidi took JACK's (ALSA's sequencer had no port then); a USB synth is
+    plugged into ALSA's and the JACK server goes. The port was looked for on JACK for ever
+    ("the JACK server is not running"), the synth beside it unplayed; now RtMidi is asked
+    again, takes ALSA's, and the port opens there. The lost JACK port is abandoned, not closed."""
+    import mido
+    import rtmidi
+
+    from midi.ports import MemoryOutput, MidoOutputs
+
+    server = _Backend()
+    pulse = JackPulse(patience=0.5, clock=clock.now)
+    pulse._open_pair = server.pair
+    monkeypatch.setattr(_Chooses, "offered", {"LINUX_ALSA": [], "UNIX_JACK": ["fluidsynth:midi_in"]})
+    monkeypatch.setattr(rtmidi, "MidiOut", _Chooses)
+    backend = mido.Backend("mido.backends.rtmidi", load=False)  # MIDO_BACKEND without an API
+    opened, closed = [], []
+
+    def open_output(name, virtual=False, **api):
+        port = MemoryOutput(name)
+        port.close = lambda: closed.append(name)
+        opened.append((name, api))
+        return port
+
+    monkeypatch.setattr(backend, "open_output", open_output)
+    reports: list[str] = []
+    port = ResilientPort("synth", MidoOutputs(backend, pulse=pulse), clock, retry_interval=1.0, report=reports.append)
+    assert opened == [("fluidsynth:midi_in", {"api": "UNIX_JACK"})] and port.connected
+    _Chooses.offered["LINUX_ALSA"] = ["USB synth:USB synth MIDI 1 20:0"]  # plugged in
+    _Chooses.offered["UNIX_JACK"] = []
+    server.up = False  # the JACK server goes
+    for _ in range(5):
+        clock.advance(1.0)
+        port.send(mido.Message("note_on"))
+    assert opened[1:] == [("USB synth:USB synth MIDI 1 20:0", {})]  # on ALSA's API, as RtMidi chose it
+    assert port.connected and port.port.name == "USB synth:USB synth MIDI 1 20:0"
+    assert reports == ["MIDI port 'fluidsynth:midi_in' lost (it is no longer listed); will reopen it when it returns",
+                       "MIDI port 'USB synth:USB synth MIDI 1 20:0' is back"]
+    assert closed == []  # the JACK port went with its server: abandoned, never closed
+
+
 # --- the same with a real JACK server, in a child process ---------------------------------
 
 
