@@ -1,5 +1,6 @@
 """``include = ["creatures/heron.toml"]``: creature files an installation includes (paths
-relative to the including file). Each included file holds ``[[creature]]`` tables (and may
+relative to the file that writes the ``include``: an ``extends`` base in another folder
+includes from its own folder). Each included file holds ``[[creature]]`` tables (and may
 include further files); they are appended to the installation's creatures in order, and
 their key lines keep pointing into their own file, so an error in a creature says where it
 was written. A missing or circular include is a :class:`ConfigError` at the ``include`` line.
@@ -11,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 import installations
-from creatures.config import ConfigError, _merge, config_error, nearest, nearest_file, read_toml
+from creatures.config import ConfigError, _merge, config_error, nearest, nearest_file, read_toml, written_in
 
 Where = dict[tuple, tuple[Path, int]]
 
@@ -23,18 +24,19 @@ def expand_includes(data: dict[str, Any], where: Where, path: Path, *, _chain: t
         return
     if not isinstance(includes, list) or not all(isinstance(i, str) for i in includes):
         raise config_error(path, where, ("include",), "must be a list of file names (strings)")
-    chain = (*_chain, path.resolve())
+    including = written_in(where, ("include",), path)  # the config, or the extends base that wrote it
+    chain = (*_chain, including.resolve())
     creatures = data.setdefault("creature", [])
     if not isinstance(creatures, list):
         return  # the schema reports the malformed [[creature]] itself
     for k, name in enumerate(includes):
-        file = (path.parent / name).resolve()
+        file = (including.parent / name).resolve()
         if file in chain:
             loop = " -> ".join(p.name for p in (*chain, file))
             raise config_error(path, where, ("include", k), f"circular include ({loop})")
         if not file.is_file():
             raise config_error(path, where, ("include", k), f"included file {name!r} not found (looked for {file})"
-                               + nearest_file(name, path.parent))
+                               + nearest_file(name, including.parent))
         sub, sub_where = read_toml(file)
         expand_includes(sub, sub_where, file, _chain=chain)
         extra = set(sub) - {"creature"}
