@@ -28,6 +28,11 @@ MAX_CONFIG_BYTES = 1024 * 1024
 MAX_CONFIG_DEPTH = 16
 """Deepest nesting of tables and arrays a config may have (the schema needs five)."""
 
+MAX_CONFIG_CHAIN = 32
+"""Longest chain of files one ``extends`` (or ``include``) pulls in after another. Each link
+is read recursively: a generated chain of a thousand ran out of stack (a traceback, or an
+error about nesting in a file that nests nothing)."""
+
 _HEADER = re.compile(r"^\s*(\[\[?)\s*([^\]]+?)\s*\]\]?\s*(#.*)?$")
 _ASSIGN = re.compile(r"""^\s*((?:[A-Za-z0-9_\-]+|"[^"]*"|'[^']*')(?:\s*\.\s*(?:[A-Za-z0-9_\-]+|"[^"]*"|'[^']*'))*)\s*=""")
 
@@ -140,6 +145,9 @@ def read_toml(path: str | Path, *, _seen: tuple[Path, ...] = ()) -> tuple[dict[s
         found = "not found" if not base.exists() else f"is {kind_of(base.stat().st_mode)}, not a regular file"
         near = nearest_file(parent, path.parent) if not base.exists() else ""
         raise ConfigError(path, f"base config {parent!r} {found} (looked for {base}){near}", key="extends", line=line)
+    if len(_seen) + 1 >= MAX_CONFIG_CHAIN:
+        raise ConfigError(path, f"more than {MAX_CONFIG_CHAIN} configs extend one another; refused", key="extends",
+                          line=line)
     base_data, base_where = read_toml(base, _seen=(*_seen, path))
     return _extend(base_data, base_where, data, where)
 

@@ -4,7 +4,10 @@ problem is an error naming the file, the key and the line, before anything runs)
 
 from __future__ import annotations
 
+import pytest
+
 from creatures.authored import registry
+from creatures.config import MAX_CONFIG_CHAIN, ConfigError
 from creatures.runtime.schema import load_installation
 from tests.test_authored import CREATURE, HEAD, write
 
@@ -36,3 +39,31 @@ def test_a_base_in_another_folder_includes_and_imports_from_its_own_folder(tmp_p
     inst = load_installation(write(tmp_path, 'extends = "../shared/base.toml"\n', "rooms/inst.toml"))
     assert [s.name for s in inst.specs] == ["c"]
     assert "croak_of_the_base" in registry.ACTIONS
+
+
+def _naming(key: str, file: str) -> str:
+    """The line of a config that names ``file`` with ``key``."""
+    return f'include = ["{file}"]\n' if key == "include" else f'extends = "{file}"\n'
+
+
+def _chain(tmp_path, key: str, links: int):
+    """``KEY.toml`` and ``links`` files after it, each naming the next with ``key``; the last
+    holds the creature (and, for ``extends``, the installation's keys)."""
+    write(tmp_path, CREATURE if key == "include" else HEAD + CREATURE, f"{key}/{links - 1}.toml")
+    for i in range(links - 1):
+        write(tmp_path, _naming(key, f"{i + 1}.toml"), f"{key}/{i}.toml")
+    return write(tmp_path, (HEAD if key == "include" else "") + _naming(key, f"{key}/0.toml"), f"{key}.toml")
+
+
+@pytest.mark.parametrize("key", ["include", "extends"])
+def test_a_chain_of_files_ends_at_a_limit_named_at_its_line(tmp_path, key):
+    """A thousand files each naming the next (a generator's slip) ran out of stack: a
+    traceback for ``extends``, and for ``include`` an error blaming nesting in a file that
+    nests nothing."""
+    assert [s.name for s in load_installation(_chain(tmp_path / "ok", key, MAX_CONFIG_CHAIN - 1)).specs] == ["c"]
+    for links in (MAX_CONFIG_CHAIN, 1000):
+        with pytest.raises(ConfigError) as info:
+            load_installation(_chain(tmp_path / str(links), key, links))
+        error = info.value
+        assert f"more than {MAX_CONFIG_CHAIN}" in error.message and error.line == 1
+        assert error.file.name == f"{MAX_CONFIG_CHAIN - 2}.toml" and error.key.startswith(key)

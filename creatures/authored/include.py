@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 import installations
-from creatures.config import ConfigError, _merge, config_error, nearest, nearest_file, read_toml, written_in
+from creatures.config import MAX_CONFIG_CHAIN, ConfigError, _merge, config_error, nearest, nearest_file, read_toml, written_in
 
 Where = dict[tuple, tuple[Path, int]]
 
@@ -34,6 +34,9 @@ def expand_includes(data: dict[str, Any], where: Where, path: Path, *, _chain: t
         if file in chain:
             loop = " -> ".join(p.name for p in (*chain, file))
             raise config_error(path, where, ("include", k), f"circular include ({loop})")
+        if len(chain) >= MAX_CONFIG_CHAIN:
+            raise config_error(path, where, ("include", k), f"more than {MAX_CONFIG_CHAIN} files include one "
+                                                            "another; refused")
         if not file.is_file():
             raise config_error(path, where, ("include", k), f"included file {name!r} not found (looked for {file})"
                                + nearest_file(name, including.parent))
