@@ -326,6 +326,9 @@ def validate(
         if error["type"] == "list_type" and isinstance(got, dict):  # [creature] for [[creature]]
             header = ".".join(str(part) for part in loc if isinstance(part, str))
             message, got = f"a list of tables: write [[{header}]] (two brackets) before each one", None
+        if error["type"] == "too_long" and isinstance(got, list):  # the first entry past the limit, by its line
+            limit = error["ctx"]["max_length"]
+            loc, message, got = (*loc, limit), f"at most {limit} entries here, not {len(got)}", None
         if error["type"] == "missing" and len(loc) > len(prefix) and isinstance(loc[-1], int):
             short = _at(data, loc[len(prefix):-1])  # a pair written with one value: at = [1.0]
             if isinstance(short, list):
@@ -441,6 +444,17 @@ def written_in(where: dict[tuple, tuple[Path, int]], key: tuple[str | int, ...],
     return where.get(key, (config, 0))[0]
 
 
+SHOWN_CHARS = 120
+"""Longest value an error repeats back: the value is on the line the error names, and a list
+of 300 creatures quoted whole was half a megabyte of one message."""
+
+
+def _shown(value: Any) -> str:
+    """``value`` as an error repeats it, cut to :data:`SHOWN_CHARS`."""
+    text = repr(value)
+    return text if len(text) <= SHOWN_CHARS else text[:SHOWN_CHARS - 1] + "…"
+
+
 def config_error(
     file: Path,
     where: dict[tuple, tuple[Path, int]],
@@ -461,7 +475,7 @@ def config_error(
         close = difflib.get_close_matches(str(loc[-1]), list(choices), n=1)
         message = "unknown key" + (f" (did you mean {close[0]!r}?)" if close else "")
     elif got is not None:
-        message += f" (got {got!r})"
+        message += f" (got {_shown(got)})"
     return ConfigError(file, message, key=key, line=line)
 
 

@@ -9,7 +9,7 @@ import pytest
 from creatures.authored import registry
 from creatures.config import MAX_CONFIG_CHAIN, ConfigError
 from creatures.runtime.schema import load_installation
-from tests.test_authored import CREATURE, HEAD, write
+from tests.test_authored import CREATURE, HEAD, line_of, write
 
 CROAK = '''
 from creatures.authored.actions import ActionPart, Playing
@@ -67,3 +67,18 @@ def test_a_chain_of_files_ends_at_a_limit_named_at_its_line(tmp_path, key):
         error = info.value
         assert f"more than {MAX_CONFIG_CHAIN}" in error.message and error.line == 1
         assert error.file.name == f"{MAX_CONFIG_CHAIN - 2}.toml" and error.key.startswith(key)
+
+
+def test_too_many_creatures_is_said_at_the_first_one_too_many_without_quoting_them_all(tmp_path):
+    """300 generated creatures: the error quoted every table (half a megabyte of one line),
+    with no line; it names the 257th at its line, and a value repeated back stays short."""
+    path = write(tmp_path, HEAD + "".join(CREATURE.replace('name = "c"', f'name = "c{i}"') for i in range(300)))
+    with pytest.raises(ConfigError) as info:
+        load_installation(path)
+    error = info.value
+    assert error.key == "creature.256" and "at most 256" in error.message and "not 300" in error.message
+    assert error.line == line_of(path, 'name = "c256"') - 1 and len(str(error)) < 300
+    long_name = write(tmp_path, HEAD + CREATURE.replace('name = "c"', f'name = {["x" * 50] * 40}'), "long.toml")
+    with pytest.raises(ConfigError) as info:
+        load_installation(long_name)
+    assert info.value.key == "creature.0.name" and len(str(info.value)) < 300 and info.value.message.endswith("…)")
