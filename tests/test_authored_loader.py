@@ -82,3 +82,36 @@ def test_too_many_creatures_is_said_at_the_first_one_too_many_without_quoting_th
     with pytest.raises(ConfigError) as info:
         load_installation(long_name)
     assert info.value.key == "creature.0.name" and len(str(info.value)) < 300 and info.value.message.endswith("…)")
+
+
+CLASH = '''
+from creatures.authored.actions import ActionPart
+from creatures.authored.registry import ACTIONS
+from creatures.kinds import register
+from creatures.kinds.base import CreatureKind
+
+
+{decorator}
+class Mine({base}):
+    """A part named as a built-in one."""
+
+    name = "echo"
+'''
+
+
+@pytest.mark.parametrize("decorator, base, taken", [("@ACTIONS.register", "ActionPart", "action name 'echo'"),
+                                                     ('@register("authored")', "CreatureKind",
+                                                      "creature kind name 'authored'")])
+def test_a_plugin_part_named_as_a_built_in_one_is_refused_at_its_plugins_line(tmp_path, decorator, base, taken):
+    """It silently took the built-in's place for every creature after it (this config's
+    ``echo`` tuple then failed on a key the plugin's part lacked)."""
+    write(tmp_path, CLASH.format(decorator=decorator, base=base), "mine.py")
+    path = write(tmp_path, HEAD + 'plugins = ["mine.py"]\n' + CREATURE.replace(
+        'action = "rest"', 'action = { type = "echo", count = 2 }'))
+    with pytest.raises(ConfigError) as info:
+        load_installation(path)
+    error = info.value
+    assert error.key == "plugins.0" and error.line == 3 and "mine.py" in error.message
+    assert taken in error.message and "give this one a name of its own" in error.message
+    assert registry.ACTIONS.get("echo").__module__ == "creatures.authored.actions"
+    assert [s.name for s in load_installation(write(tmp_path, HEAD + CREATURE, "after.toml")).specs] == ["c"]

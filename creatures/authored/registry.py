@@ -86,6 +86,19 @@ class Part:
 P = TypeVar("P", bound=type[Part])
 
 
+def claim(parts: dict[str, Any], name: str, cls: type, what: str) -> None:
+    """Enter ``cls`` as ``parts[name]``, or :class:`PluginError` when another class has that
+    name: a plugin's ``echo`` silently took the built-in's place for every creature, and a
+    config written for the built-in then failed on keys the plugin's part lacked. The same
+    class again (a module imported twice) is no clash."""
+    taken = parts.get(name)
+    if taken is not None and (taken.__module__, taken.__qualname__) != (cls.__module__, cls.__qualname__):
+        source = getattr(sys.modules.get(taken.__module__), "__file__", None) or taken.__module__
+        raise PluginError(f"{cls.__qualname__}: the {what} name {name!r} is taken by {taken.__qualname__} of "
+                          f"{source}; give this one a name of its own")
+    parts[name] = cls
+
+
 class Registry(Generic[P]):
     """Parts of one kind by name; ``lookup`` suggests the nearest name for a typo."""
 
@@ -98,7 +111,7 @@ class Registry(Generic[P]):
         name = getattr(cls, "name", None)
         if not isinstance(name, str) or not name:
             raise PluginError(f"{cls.__qualname__}: a {self.what} needs a class attribute 'name'")
-        self._parts[name] = cls
+        claim(self._parts, name, cls, self.what)
         return cls
 
     def names(self) -> list[str]:

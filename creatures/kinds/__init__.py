@@ -22,7 +22,9 @@ def register(kind: str) -> Callable[[Kind], Kind]:
     class itself is returned unchanged, so type checkers keep its own type)."""
 
     def add(cls: Kind) -> Kind:
-        KINDS[kind] = cls
+        from creatures.authored.registry import claim
+
+        claim(KINDS, kind, cls, "creature kind")
         return cls
 
     return add
