@@ -115,3 +115,12 @@ def test_a_plugin_part_named_as_a_built_in_one_is_refused_at_its_plugins_line(tm
     assert taken in error.message and "give this one a name of its own" in error.message
     assert registry.ACTIONS.get("echo").__module__ == "creatures.authored.actions"
     assert [s.name for s in load_installation(write(tmp_path, HEAD + CREATURE, "after.toml")).specs] == ["c"]
+
+
+def test_a_plugin_that_exits_as_it_imports_is_an_error_at_its_line(tmp_path):
+    """A script reused as a plugin, parsing its command line at import: its ``SystemExit``
+    ended ``creatures`` with the script's usage line, not a word of the config."""
+    write(tmp_path, "import argparse\nargparse.ArgumentParser().parse_args(['--frogs'])\n", "script.py")
+    with pytest.raises(ConfigError) as info:
+        load_installation(write(tmp_path, HEAD + 'plugins = ["script.py"]\n' + CREATURE))
+    assert info.value.key == "plugins.0" and info.value.line == 3 and "SystemExit: 2" in info.value.message

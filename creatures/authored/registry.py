@@ -137,13 +137,18 @@ MODELS: Registry[Any] = Registry("model")
 
 _loaded: set[str] = set()
 
+FOREIGN_FAILURES = (Exception, SystemExit)
+"""What importing a plugin may raise that is the plugin's failure: a script reused as one, its
+``argparse`` or ``sys.exit()`` run at import, ended the program with its own usage line and
+no word of the config or the plugin."""
+
 
 def _import(module: str, origin: str) -> None:
     if module in _loaded:
         return
     try:
         importlib.import_module(module)
-    except Exception as exc:  # any failure of foreign code is that plugin's error, named
+    except FOREIGN_FAILURES as exc:  # any failure of foreign code is that plugin's error, named
         raise PluginError(f"{origin}: cannot import {module!r} ({type(exc).__name__}: {exc})") from None
     _loaded.add(module)
 
@@ -183,7 +188,7 @@ def load_plugin_file(path: Path) -> None:
     sys.modules[key] = module
     try:
         spec.loader.exec_module(module)
-    except Exception as exc:  # the plugin's own bug, reported as such
+    except FOREIGN_FAILURES as exc:  # the plugin's own bug, reported as such
         del sys.modules[key]
         raise PluginError(f"{path}: plugin failed to import ({type(exc).__name__}: {exc})") from None
     _loaded.add(key)
