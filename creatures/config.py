@@ -141,10 +141,8 @@ def read_toml(path: str | Path, *, _seen: tuple[Path, ...] = ()) -> tuple[dict[s
     base = path.parent / parent
     if not base.is_file():
         # Named here, at the including file's line: the base's own path alone would not say
-        # which config asked for it. A FIFO or a folder there is said as what it is.
-        found = "not found" if not base.exists() else f"is {kind_of(base.stat().st_mode)}, not a regular file"
-        near = nearest_file(parent, path.parent) if not base.exists() else ""
-        raise ConfigError(path, f"base config {parent!r} {found} (looked for {base}){near}", key="extends", line=line)
+        # which config asked for it.
+        raise ConfigError(path, f"base config {parent!r} {not_a_file(parent, path.parent)}", key="extends", line=line)
     if len(_seen) + 1 >= MAX_CONFIG_CHAIN:
         raise ConfigError(path, f"more than {MAX_CONFIG_CHAIN} configs extend one another; refused", key="extends",
                           line=line)
@@ -436,6 +434,16 @@ def nearest_file(name: str, base: Path) -> str:
         return f" (did you mean {written.with_name(close[0]).as_posix()!r}?)"
     alike = [written.with_name(f).as_posix() for f in files if PurePath(f).suffix == written.suffix]
     return f" ({written.suffix or 'such'} files there: {', '.join(alike)})" if alike else ""
+
+
+def not_a_file(name: str, base: Path) -> str:
+    """Why the file a config names (relative to ``base``) cannot be read, for its error: not
+    found, with the nearest file there; or a folder or a FIFO there, said as what it is (a
+    folder "not found" sent the artist looking for a file that was never meant)."""
+    file = base / name
+    if file.exists():
+        return f"is {kind_of(file.stat().st_mode)}, not a regular file (looked for {file})"
+    return f"not found (looked for {file}){nearest_file(name, base)}"
 
 
 def written_in(where: dict[tuple, tuple[Path, int]], key: tuple[str | int, ...], config: Path) -> Path:

@@ -124,3 +124,15 @@ def test_a_plugin_that_exits_as_it_imports_is_an_error_at_its_line(tmp_path):
     with pytest.raises(ConfigError) as info:
         load_installation(write(tmp_path, HEAD + 'plugins = ["script.py"]\n' + CREATURE))
     assert info.value.key == "plugins.0" and info.value.line == 3 and "SystemExit: 2" in info.value.message
+
+
+@pytest.mark.parametrize("key", ["include", "plugins"])
+def test_a_folder_named_as_a_file_is_said_to_be_a_folder(tmp_path, key):
+    """``include = ["creatures"]`` for the folder of creature files: "not found", of a folder
+    that is there."""
+    (tmp_path / "creatures").mkdir()
+    with pytest.raises(ConfigError) as info:
+        load_installation(write(tmp_path, HEAD + f'{key} = ["creatures"]\n' + CREATURE))
+    error = info.value
+    assert error.key == f"{key}.0" and error.line == 3
+    assert "'creatures' is a directory, not a regular file" in error.message and "not found" not in error.message

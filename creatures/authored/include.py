@@ -12,7 +12,8 @@ from pathlib import Path
 from typing import Any
 
 import installations
-from creatures.config import MAX_CONFIG_CHAIN, ConfigError, _merge, config_error, nearest, nearest_file, read_toml, written_in
+from creatures.config import (MAX_CONFIG_CHAIN, ConfigError, _merge, config_error, nearest, not_a_file, read_toml,
+                              written_in)
 
 Where = dict[tuple, tuple[Path, int]]
 
@@ -38,8 +39,8 @@ def expand_includes(data: dict[str, Any], where: Where, path: Path, *, _chain: t
             raise config_error(path, where, ("include", k), f"more than {MAX_CONFIG_CHAIN} files include one "
                                                             "another; refused")
         if not file.is_file():
-            raise config_error(path, where, ("include", k), f"included file {name!r} not found (looked for {file})"
-                               + nearest_file(name, including.parent))
+            raise config_error(path, where, ("include", k), f"included file {name!r} "
+                                                            f"{not_a_file(name, including.parent)}")
         sub, sub_where = read_toml(file)
         expand_includes(sub, sub_where, file, _chain=chain)
         extra = set(sub) - {"creature"}
