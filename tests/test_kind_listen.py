@@ -6,6 +6,7 @@ what the inspector shows."""
 from __future__ import annotations
 
 import json
+import shutil
 import tempfile
 from pathlib import Path
 
@@ -13,6 +14,7 @@ import numpy as np
 import pytest
 
 import installations
+from creatures.authored.migrate import keep_originals
 from creatures.clock import SimulatedClock
 from creatures.config import ConfigError
 from creatures.events import EventLog
@@ -253,3 +255,25 @@ def test_a_class_listen_state_is_refused_where_nothing_can_take_it(tmp_path):
     (state / "lis.json").write_text(json.dumps(saved))
     with pytest.raises(StateFileError, match="lis.json: malformed authored state"):
         _session().load_state(state)
+
+
+def test_a_live_run_taking_in_a_class_listen_state_keeps_its_original_beside_it(tmp_path):
+    """A live run loads its state folder and saves into it: the class-based original was
+    overwritten by the authored state at the first save, and with it the way back."""
+    from creatures.runtime import live
+
+    state = tmp_path / "state"
+    shutil.copytree(RETIRED, state)
+    inst = load_installation(installations.path("listen"))
+    inst.settings.midi.input_port = inst.settings.midi.output_port = None
+    said: list[str] = []
+    assert live.run_live(inst, duration=0.2, state=state, say=said.append).restored == ["ada", "lis", "bo"]
+    assert json.loads((state / "lis.json").read_text())["kind"] == "authored"
+    assert (state / "lis.json.listen").read_bytes() == (RETIRED / "lis.json").read_bytes()
+    assert any("lis.json" in line and "kept as lis.json.listen" in line for line in said)
+    session = _session()
+    assert session.load_state(state) == ["ada", "lis", "bo"] and session.migrated == []  # the copy is no one's state
+    shutil.copy(RETIRED / "lis.json", state)  # the same original put back: kept once, not twice
+    session.load_state(state)
+    keep_originals(session.migrated, said.append)
+    assert sorted(p.name for p in state.glob("lis.json*")) == ["lis.json", "lis.json.listen"]

@@ -11,10 +11,11 @@ never half-restored.
 
 from __future__ import annotations
 
+import itertools
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable
 
-from creatures.persist import StateFileError
+from creatures.persist import StateFileError, atomic_write
 
 if TYPE_CHECKING:
     from creatures.authored.creature import Authored
@@ -53,6 +54,32 @@ def from_retired(path: Path, saved_kind: object, state: dict[str, Any], creature
         raise StateFileError(f"{path}: cannot take this state into {creature.name!r} ({exc}); move {path.name} out "
                              f"of the state folder to start {creature.name!r} afresh, or run the config it was "
                              f"saved with") from None
+
+
+def keep_original(path: Path, saved_kind: str) -> Path:
+    """Copy the state file ``path``, saved by the retired ``saved_kind``, to
+    ``NAME.json.KIND`` beside it (atomically, never over another original) and return where.
+
+    The run that took it in saves the creature as authored over ``path``: without the copy,
+    the class-based original was gone after the first save, and with it the way back to the
+    release that wrote it. The copy's name does not end in ``.json``, so no creature takes it."""
+    raw = path.read_bytes()
+    names = (path.with_name(f"{path.name}.{saved_kind}" + (f".{n}" if n else "")) for n in itertools.count())
+    # The first free name, or the copy an earlier run made of this same file (it did not save).
+    kept = next(k for k in names if not k.exists() or k.is_file() and k.read_bytes() == raw)
+    if not kept.exists():
+        atomic_write(kept, lambda handle: handle.write(raw), "wb")
+    return kept
+
+
+def keep_originals(migrated: list[tuple[Path, str]], say: Callable[[str], None]) -> None:
+    """Keep each state file a session took in from a retired kind (``Session.migrated``)
+    before a run saves over it, saying where; a copy that cannot be written is an
+    :class:`OSError`, and the run is refused rather than the original lost."""
+    for path, saved_kind in migrated:
+        kept = keep_original(path, saved_kind)
+        say(f"{path}: saved by the class-based {saved_kind!r} and taken into its authored creature; "
+            f"the original is kept as {kept.name}")
 
 
 @retired("listen")

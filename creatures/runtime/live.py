@@ -39,6 +39,7 @@ import numpy as np
 
 from audio.resilient import ResilientInput, ResilientOutput, Watched
 from creatures import lock, stop as stops
+from creatures.authored.migrate import keep_originals
 from creatures.clock import Clock, SimulatedClock, WallClock
 from creatures.events import EventLog
 from creatures.paths import directory, regular_file, writable_directory
@@ -407,6 +408,7 @@ def run_live(
         session.world.record(KEPT)  # out.mid's input track and heard tempo
     if state_dir is not None:
         summary.restored = session.load_state(state_dir)
+        keep_originals(session.migrated, say)  # this run saves into the folder it read
     feed = server = None
     if view is not None:  # before any device opens: a port taken since the check fails with nothing to close
         from creatures.view.feed import Feed

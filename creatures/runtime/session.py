@@ -58,6 +58,9 @@ class Session:
         settings = inst.settings
         self.say = say
         self.inst = inst
+        self.migrated: list[tuple[Path, str]] = []
+        """State files :meth:`load_state` took in from a retired kind, with that kind: a run
+        that saves into their folder keeps them first (:func:`creatures.authored.migrate.keep_originals`)."""
         self.clock = clock
         self.log = log
         self.scheduler = NoteScheduler(sink, clock)
@@ -254,9 +257,9 @@ class Session:
         """Restore creatures from ``directory`` where a file exists; returns who was restored.
 
         A file saved by a retired class-based kind is taken into the authored creature that
-        replaced it (:mod:`creatures.authored.migrate`); a file of another kind, or one whose
-        content the kind cannot take back, raises :class:`StateFileError` naming it (never a
-        silent mix).
+        replaced it (:mod:`creatures.authored.migrate`) and listed in :attr:`migrated`; a file
+        of another kind, or one whose content the kind cannot take back, raises
+        :class:`StateFileError` naming it (never a silent mix).
         """
         restored = []
         for creature in self.creatures:
@@ -267,7 +270,8 @@ class Session:
             state = data.get("state", {})
             if not isinstance(state, dict):
                 raise StateFileError(f"{path}: 'state' must be a table, found {type(state).__name__}")
-            if data.get("kind") != creature.spec.kind:  # a retired class's state, or refused naming both
+            migrated = data.get("kind") != creature.spec.kind
+            if migrated:  # a retired class's state, or refused naming both
                 state = from_retired(path, data.get("kind"), state, creature)
             try:
                 creature.restore(state)
@@ -280,6 +284,8 @@ class Session:
                 # on is reported as that file's fault (creatures.behaviour.creature does the same).
                 # Each kind checks bounds with creatures.bounds, whose messages name the key.
                 raise StateFileError(f"{path}: malformed {creature.spec.kind} state ({type(exc).__name__}: {exc})") from None
+            if migrated:
+                self.migrated.append((path, data["kind"]))
             restored.append(creature.name)
             self._report_unplaced(path, creature)
         self._report_strangers(directory)
