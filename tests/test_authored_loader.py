@@ -136,3 +136,17 @@ def test_a_folder_named_as_a_file_is_said_to_be_a_folder(tmp_path, key):
     error = info.value
     assert error.key == f"{key}.0" and error.line == 3
     assert "'creatures' is a directory, not a regular file" in error.message and "not found" not in error.message
+
+
+@pytest.mark.parametrize("twice", [False, True])
+def test_a_duplicate_creature_name_says_where_the_first_was_written(tmp_path, twice):
+    """Two creatures named alike files apart (or one file included twice): the error named
+    the second's line only, and the first had to be hunted for through the includes."""
+    first = write(tmp_path, CREATURE, "creatures/c.toml")
+    second = first if twice else write(tmp_path, CREATURE, "creatures/also_c.toml")
+    line = line_of(first, 'name = "c"')
+    with pytest.raises(ConfigError) as info:
+        load_installation(write(tmp_path, HEAD + f'include = ["creatures/c.toml", "creatures/{second.name}"]\n'))
+    error = info.value
+    assert error.file == second and error.line == line_of(second, 'name = "c"')
+    assert f"duplicate creature name 'c' (the first is at c.toml:{line})" in error.message

@@ -503,6 +503,13 @@ def _sensor(path: Path, where, loc: tuple, params: dict, sensors: list[str]) -> 
         raise config_error(path, where, loc, f"no input map writes a sensor {name!r} ({hint})")
 
 
+def _first_named(where: dict, index: int, path: Path) -> str:
+    """Where the first creature of a duplicated name was written: with includes the two may be
+    files apart (or one file included twice), and the error's own line is the second's."""
+    file, line = where.get(("creature", index, "name")) or where.get(("creature", index), (path, None))
+    return f" (the first is at {file.name}:{line})" if line is not None else ""
+
+
 def load_installation(path: str | Path) -> LoadedInstallation:
     """Read and validate an installation config; :class:`ConfigError` names key and line."""
     path = Path(path).resolve()
@@ -519,7 +526,7 @@ def load_installation(path: str | Path) -> LoadedInstallation:
     except PluginError as exc:  # an installed package's entry point that does not import
         raise ConfigError(path, str(exc)) from None
     specs: list[CreatureSpec] = []
-    names: set[str] = set()
+    names: dict[str, int] = {}  # each creature's name: its table's index
     try:
         tables, origin = expand_crowds(settings.creature, settings.seed)
     except CrowdError as exc:
@@ -536,8 +543,9 @@ def load_installation(path: str | Path) -> LoadedInstallation:
         if check is not None:
             check(path, where, ("creature", i))
         if spec.name in names:
-            raise config_error(path, where, ("creature", i, "name"), f"duplicate creature name {spec.name!r}")
-        names.add(spec.name)
+            raise config_error(path, where, ("creature", i, "name"), f"duplicate creature name {spec.name!r}"
+                                                                     + _first_named(where, names[spec.name], path))
+        names[spec.name] = i
         specs.append(spec)
     by_name = {spec.name: spec for spec in specs}
     sensors = sorted({m.name for m in settings.input.map if m.to == "sensor" and m.name})
