@@ -452,6 +452,8 @@ def test_a_note_map_takes_a_note_name_for_its_constant_pitch(tmp_path):
     ('osc = "/a"\nto = "note"\nvelocity = 0', "input.0.velocity", "a velocity is a MIDI number 1-127"),
     # a key of {arg = N} mistyped was a bare 'unknown key': a number or a table, the table meant
     ('osc = "/a"\nto = "note"\n[input.pitch]\nar = 0', "input.0.pitch.ar", "unknown key (did you mean 'arg'?)"),
+    # a sensor with no name loaded and was fed as world.sensors[None], which nothing can read
+    ('osc = "/lux"\nto = "sensor"', "input.0.name", "to = 'sensor' needs name = NAME"),
 ])
 def test_a_bad_input_map_names_key_and_line(tmp_path, table, key, message):
     path = tmp_path / "bad.toml"

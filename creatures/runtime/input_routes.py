@@ -154,6 +154,9 @@ class Route:
             if arity is not None and index >= arity:
                 what = f"midi = {self.midi!r}" if self.midi else f"args = {arity}"
                 raise MapError(key, f"argument {index} is beyond the {arity} argument(s) of {what}")
+        if spec.to == "sensor" and spec.name is None:
+            # a sensor with no name was made as world.sensors[None]: fed, and read by nothing
+            raise MapError("name", "to = 'sensor' needs name = NAME (what percepts and [[room.visitors]] read it by)")
         self.creatures = self._creatures(colony)
 
     def _check_filters(self) -> None:

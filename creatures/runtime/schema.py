@@ -287,7 +287,7 @@ class InputMap(Strict):
     velocity: Number | None = Field(None, description="to = 'note': velocity 1-127 (default: the MIDI note's, "
                                                       "else 100)")
     duration: Number | None = Field(None, description="to = 'note': seconds (default 0.25)")
-    name: str | None = Field(None, pattern=r"^[A-Za-z0-9_.\-]+$", description="to = 'sensor': the sensor's name "
+    name: str | None = Field(None, pattern=r"^[A-Za-z0-9_.\-]+$", description="to = 'sensor' (needed): the sensor's name "
                                                                              "(world.sensors[name], a StateObject: "
                                                                              "saliency = |reading|, habituating "
                                                                              "to repetition)")
