@@ -454,6 +454,12 @@ def test_a_note_map_takes_a_note_name_for_its_constant_pitch(tmp_path):
     ('osc = "/a"\nto = "note"\n[input.pitch]\nar = 0', "input.0.pitch.ar", "unknown key (did you mean 'arg'?)"),
     # a sensor with no name loaded and was fed as world.sensors[None], which nothing can read
     ('osc = "/lux"\nto = "sensor"', "input.0.name", "to = 'sensor' needs name = NAME"),
+    # an input_range without range was ignored (a 0..1023 reading went in unscaled); an empty one
+    # made every reading malformed
+    ('osc = "/lux"\nto = "sensor"\nname = "lux"\ninput_range = [0, 1023]', "input.0.input_range",
+     "add range, or remove input_range"),
+    ('osc = "/lux"\nto = "sensor"\nname = "lux"\nrange = [0, 1]\ninput_range = [5, 5]', "input.0.input_range",
+     "input_range [5.0, 5.0] is empty"),
 ])
 def test_a_bad_input_map_names_key_and_line(tmp_path, table, key, message):
     path = tmp_path / "bad.toml"

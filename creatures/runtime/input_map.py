@@ -235,8 +235,6 @@ class InputRouter:
         value = as_number(read(spec.value, args, Arg(arg=0)), "value")
         if spec.range is not None:
             lo, hi = spec.input_range or MIDI_SPAN.get(route.midi or "", (0.0, 127.0) if route.midi else (0.0, 1.0))
-            if hi == lo:
-                raise Unreadable("input_range is empty")
             value = within(spec.range[0] + (value - lo) / (hi - lo) * (spec.range[1] - spec.range[0]), "scaled value")
         sensor = self.world.sensors[spec.name]
         saliency = sensor.push(max(t, sensor.times_array[-1]) if len(sensor) else t, value)

@@ -154,9 +154,8 @@ class Route:
             if arity is not None and index >= arity:
                 what = f"midi = {self.midi!r}" if self.midi else f"args = {arity}"
                 raise MapError(key, f"argument {index} is beyond the {arity} argument(s) of {what}")
-        if spec.to == "sensor" and spec.name is None:
-            # a sensor with no name was made as world.sensors[None]: fed, and read by nothing
-            raise MapError("name", "to = 'sensor' needs name = NAME (what percepts and [[room.visitors]] read it by)")
+        if spec.to == "sensor":
+            self._check_sensor()
         self.creatures = self._creatures(colony)
 
     def _check_filters(self) -> None:
@@ -166,6 +165,23 @@ class Route:
                 raise MapError(key, f"only for midi = {' / '.join(repr(k) for k in kinds)}")
         if spec.args is not None and self.pattern is None:
             raise MapError("args", "the arity of an OSC message: only with osc = ...")
+
+    def _check_sensor(self) -> None:
+        """A sensor map's name and scaling. Each slip here once loaded and failed quietly: a
+        nameless sensor was fed as ``world.sensors[None]``, which nothing reads; an
+        ``input_range`` without ``range`` was ignored (a 0..1023 reading went in unscaled); an
+        empty one made every reading malformed, the run's first message the first sign."""
+        spec = self.spec
+        if spec.name is None:
+            raise MapError("name", "to = 'sensor' needs name = NAME (what percepts and [[room.visitors]] read it by)")
+        if spec.input_range is None:
+            return
+        if spec.range is None:
+            raise MapError("input_range", "input_range is what range = [lo, hi] scales from: without range the "
+                                          "reading goes in as it is; add range, or remove input_range")
+        if spec.input_range[0] == spec.input_range[1]:
+            raise MapError("input_range", f"input_range {list(spec.input_range)} is empty: no reading can be "
+                                          "scaled from it (give the reading's lowest and highest values)")
 
     def _creatures(self, colony: dict[str, Colony]) -> list[str] | None:
         """The creatures a reward or drive reaches (None: named by an argument)."""

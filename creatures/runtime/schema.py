@@ -294,7 +294,8 @@ class InputMap(Strict):
     value: Number | None = Field(None, description="to = 'sensor': the reading (default: {arg = 0})")
     range: tuple[Bounded, Bounded] | None = Field(None, description="to = 'sensor': scale the reading linearly from "
                                                                 "`input_range` to [lo, hi]")
-    input_range: tuple[Bounded, Bounded] | None = Field(None, description="to = 'sensor': the reading's own span "
+    input_range: tuple[Bounded, Bounded] | None = Field(None, description="to = 'sensor', with `range`: the reading's "
+                                                                      "own span, not empty; reversed inverts it "
                                                                       "(default: the MIDI value's, 0-127 or "
                                                                       "-8192..8191; for OSC [0, 1])")
     creatures: Annotated[list[str], Field(max_length=256)] | Arg | None = Field(None, description="to = 'reward' or 'drive': the creatures it "
