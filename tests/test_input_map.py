@@ -572,6 +572,60 @@ def test_a_missing_serial_device_is_reported_once_and_retried(tmp_path):
         os.close(slave)
 
 
+def test_an_over_long_serial_line_is_dropped_to_its_newline_and_counted_once(tmp_path):
+    """A device printing a long line (a boot banner, a debug dump, the wrong baud rate) is one
+    malformed line: its tail after the first MAX_LINE bytes is no line of its own."""
+    session, clock = colony(tmp_path)
+    master, slave = pty.openpty()
+    try:
+        source = SerialSource(os.ttyname(slave), 115200, clock, session.inputs, [].append)
+        source.poll(0.0)
+        for step, chunk in enumerate((b"calibrating " + b"." * 3000, b"." * 3000, b"." * 3000 + b" lux 0.9\n",
+                                      b"lux 0.5\n"), 1):
+            os.write(master, chunk)
+            arrived(slave)
+            clock.advance_to(0.02 * step)
+            source.poll(clock.now())
+        source.close()
+    finally:
+        os.close(master)
+        os.close(slave)
+    assert session.world.sensor("lux").data == [0.5]  # not 0.9, the tail of the long line
+    assert session.inputs.counts["malformed serial"] == 1 and session.inputs.counts["mapped serial"] == 1
+
+
+def test_a_line_cut_off_by_an_unplug_is_not_joined_to_the_first_after_it(tmp_path):
+    session, clock = colony(tmp_path)
+    said: list[str] = []
+    terminals = [pty.openpty(), pty.openpty()]  # the device before the unplug, and after
+
+    def opener(path, **kwargs):
+        import serial
+
+        return serial.serial_for_url(os.ttyname(terminals[len(said) and 1][1]), **kwargs)
+
+    try:
+        source = SerialSource("/dev/ttyACM0", 9600, clock, session.inputs, said.append, opener=opener)
+        source.poll(0.0)
+        os.write(terminals[0][0], b"lux 0.9")  # the cable is pulled before the line ends
+        arrived(terminals[0][1])
+        source.poll(0.0)
+        os.close(terminals[0][0])
+        source.poll(0.0)
+        assert "lost" in said[0] and source.port is None
+        clock.advance_to(RETRY)
+        source.poll(RETRY)
+        os.write(terminals[1][0], b"\r\nlux 0.2\n")  # the device boots: a newline, then its readings
+        arrived(terminals[1][1])
+        source.poll(RETRY)
+        source.close()
+    finally:
+        os.close(terminals[0][1])
+        os.close(terminals[1][0])
+        os.close(terminals[1][1])
+    assert "connected" in said[-1] and session.world.sensor("lux").data == [0.2]
+
+
 @pytest.mark.parametrize("line,message", [
     ("light 0.5", ("/light", [0.5])),
     ("/a/b,1,x, true", ("/a/b", [1, "x", True])),

@@ -36,7 +36,8 @@ RETRY = 2.0
 """Seconds between attempts to open a serial device that is absent."""
 
 MAX_LINE = 256
-"""Longest serial line read (bytes); a longer run without a newline is dropped as malformed."""
+"""Longest serial line read (bytes); a longer run without a newline is dropped as malformed, up
+to and with its newline (its tail is no line of its own)."""
 
 MAX_ROWS = 1_000_000
 """Most rows of a rehearsal file (a night of a 30 Hz sensor)."""
@@ -156,6 +157,7 @@ class SerialSource:
         self.opener = opener
         self.port: Any = None
         self.buffer = b""
+        self.skipping = False  # inside an over-long line, dropped up to its newline
         self.next_try = -math.inf
         self.reported = False
 
@@ -183,17 +185,24 @@ class SerialSource:
             if self.port is None:
                 return 0
         try:
-            self.buffer += self.port.read(4096)
+            chunk = self.port.read(4096)
         except Exception as exc:  # pyserial raises SerialException, OSError, TypeError on unplug
             self.close()
             self.next_try = self.clock.now() + RETRY
             self.reported = True
             self.say(f"serial input {self.device} lost ({exc}); looking for it every {RETRY:.0f} s")
             return 0
-        *lines, self.buffer = self.buffer.split(b"\n")
+        *lines, rest = (self.buffer + chunk).split(b"\n")
+        if self.skipping:
+            # The tail of an over-long line was heard as a line of its own ("calibrating ....
+            # lux 0.9" gave the sensor 0.9), and each 4 KiB of one counted once more.
+            if not lines:
+                return 0
+            lines, self.skipping = lines[1:], False
+        self.buffer = rest
         if len(self.buffer) > MAX_LINE:
             self.router.miss("malformed", "serial", self.device, t, f"a line longer than {MAX_LINE} bytes")
-            self.buffer = b""
+            self.buffer, self.skipping = b"", True
         notes = 0
         for raw in lines:
             try:
@@ -208,6 +217,9 @@ class SerialSource:
         return notes
 
     def close(self) -> None:
+        # a line cut off by an unplug is no reading: joined to the first after the device came
+        # back, it made a reading of what the device sent before it went
+        self.buffer, self.skipping = b"", False
         if self.port is not None:
             try:
                 self.port.close()
