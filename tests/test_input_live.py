@@ -25,6 +25,7 @@ from input_fixtures import COLONY, all_read, live_run
 
 from creatures.clock import SimulatedClock
 from creatures.events import EventLog
+from creatures.runtime.input_sources import RETRY
 from creatures.runtime.live import LiveInputs
 from creatures.runtime.offline import run_offline
 from creatures.runtime.schema import load_installation
@@ -364,3 +365,32 @@ def test_maps_no_port_can_reach_are_reported_at_start(tmp_path):
     LiveInputs(inst, Session(inst, clock, EventLog(), MemorySink()), clock, said.append).close()
     assert said == ["[[input]] maps OSC messages but [osc] port is not set: nothing will reach them",
                     "[[input]] maps MIDI messages but [midi] input_port is not set: nothing will reach them"]
+
+
+def test_a_serial_device_missing_and_back_is_in_the_events_log(tmp_path):
+    """As the MIDI port's going and coming are (``device`` events): a weekend's log said when
+    the synth went, but of the sensors' Arduino only the terminal knew."""
+    import os
+    import pty
+
+    master, slave = pty.openpty()
+    device = tmp_path / "ttyUSB0"
+    config = tmp_path / "c.toml"
+    config.write_text(CREATURES + MAPS + f'\n[[input.map]]\nserial = "{device}"\n')
+    inst = load_installation(config)
+    clock = SimulatedClock()
+    said: list[str] = []
+    session = Session(inst, clock, EventLog(), MemorySink())
+    inputs = LiveInputs(inst, session, clock, said.append)
+    try:
+        inputs.poll(0.0)
+        device.symlink_to(os.ttyname(slave))  # plugged in
+        clock.advance_to(RETRY)
+        inputs.poll(RETRY)
+    finally:
+        inputs.close()
+        os.close(master)
+        os.close(slave)
+    logged = [e["message"] for e in session.log.records if e["kind"] == "device"]
+    assert len(logged) == 2 and "unavailable" in logged[0] and "connected" in logged[1]
+    assert logged == said[-2:]

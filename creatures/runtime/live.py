@@ -160,7 +160,8 @@ class LiveInputs:
         if settings.osc.port is not None:
             self.network = Network(settings.osc, session.world, clock, say, elsewhere=self.router, epoch=epoch,
                                    where=lambda key, message: inst.error(("osc", key), message))
-        self.sources = open_sources(inst, self.router, clock, say, live=True)
+        # a serial device's going and coming back is kept in the events log as the MIDI port's is
+        self.sources = open_sources(inst, self.router, clock, logged(session.world.log, clock, say), live=True)
         self.microphone: MicrophoneNotes | None = None  # notes in the microphone, heard between ticks too
         reached = "only the config's serial devices and rehearsal files" if self.sources else "nothing"
         for routes, source, key in ((self.router.osc_routes, self.network, "[osc] port"),
