@@ -444,6 +444,9 @@ def test_a_note_map_takes_a_note_name_for_its_constant_pitch(tmp_path):
     ('osc = "/a"\ncontrol = 7\nto = "note"', "input.0.control", "only for midi = 'cc'"),
     ('serial = "/dev/ttyUSB0"\nto = "note"', "input.0.to", "a serial table is a source"),
     ('file = "r.csv"\nchannel = 2', "input.0.channel", "a file table is a source"),
+    # a URL was opened on the creatures' thread (rfc2217:// waited 3 s a retry); '' looked for all night
+    ('serial = "rfc2217://192.168.1.50:2217"', "input.0.serial", "is a URL"),
+    ('serial = ""', "input.0.serial", "names no device"),
     ('osc = "/a"\nto = "note"\nbaud = 9600', "input.0.baud", "only with serial"),
     ('file = "missing.csv"', "input.0.file", "cannot read rehearsal file"),
     ('osc = "/a"\nto = "note"\npitchh = 3', "input.0.pitchh", "did you mean 'pitch'"),
@@ -470,6 +473,17 @@ def test_a_bad_input_map_names_key_and_line(tmp_path, table, key, message):
         load_installation(path)
     assert err.value.key == key and message in err.value.message, str(err.value)
     assert err.value.line == line, str(err.value)
+
+
+def test_a_serial_device_read_by_two_tables_is_refused_at_the_second(tmp_path):
+    """Two readers of one device each took part of its lines: half the readings went missing."""
+    path = tmp_path / "twice.toml"
+    path.write_text(COLONY + '\n[[input]]\nserial = "/dev/ttyUSB0"\n\n[[input]]\nbaud = 115200\n'
+                    'serial = "/dev/../dev/ttyUSB0"\n')
+    with pytest.raises(ConfigError) as err:
+        load_installation(path)
+    assert err.value.key == "input.1.serial" and err.value.line == COLONY.count("\n") + 7
+    assert "read by [[input]] table 0 (from 0) already" in err.value.message
 
 
 def test_a_bad_map_is_exit_2_before_anything_runs(tmp_path, capsys):

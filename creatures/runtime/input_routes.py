@@ -9,6 +9,7 @@ messages against.
 
 from __future__ import annotations
 
+import os
 import re
 from dataclasses import dataclass
 
@@ -221,10 +222,29 @@ class Route:
                 and (spec.note is None or msg.note == spec.note))
 
 
+def check_device(device: str, devices: dict[str, int], index: int) -> None:
+    """A ``serial = ...`` that can work: a device's path, read by one table (``devices``: the
+    paths read so far, by table). A URL pyserial would take (``rfc2217://``, ``socket://``)
+    waited seconds on the network at every retry, on the creatures' thread; a device read by
+    two tables gave each half its lines, and a ``""`` was looked for all night."""
+    if not device.strip():
+        raise MapError("serial", "serial = '' names no device (e.g. '/dev/ttyUSB0', '/dev/serial/by-id/...')")
+    if "://" in device:
+        raise MapError("serial", f"serial = {device!r} is a URL: a serial table reads a device's path "
+                                 "(e.g. '/dev/ttyUSB0'); a sender on the network sends OSC to [osc] port")
+    real = os.path.realpath(device)
+    if real in devices:
+        raise MapError("serial", f"{device!r} is read by [[input]] table {devices[real]} (from 0) already: two "
+                                 "readers of one device each hear part of its lines; read it once and map "
+                                 "its lines with osc = ... tables")
+    devices[real] = index
+
+
 def compile_maps(maps: list[InputMap], colony: dict[str, Colony]) -> list[Route]:
     """Every mapping table (``to`` set; source tables excluded) as a :class:`Route`;
     :class:`MapError` (with ``index``, the table's position) for the first that cannot work."""
     routes = []
+    devices: dict[str, int] = {}  # serial devices by their real path: the table reading each
     for i, spec in enumerate(maps):
         try:
             given = [key for key in SOURCES if getattr(spec, key) is not None]
@@ -237,6 +257,8 @@ def compile_maps(maps: list[InputMap], colony: dict[str, Colony]) -> list[Route]
                 if others:
                     raise MapError(others[0], f"a {given[0]} table is a source of OSC messages (its keys: "
                                               f"{', '.join(own)}); map them with osc = ... tables")
+                if spec.serial is not None:
+                    check_device(spec.serial, devices, i)
                 continue
             if "baud" in spec.model_fields_set:
                 raise MapError("baud", "the speed of a serial device: only with serial = ...")

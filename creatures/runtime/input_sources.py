@@ -164,7 +164,7 @@ class SerialSource:
     def _open(self) -> None:
         import serial
 
-        opener = self.opener or serial.serial_for_url
+        opener = self.opener or serial.Serial  # a device's path: no URL handler (input_routes.check_device)
         try:
             self.port = opener(self.device, baudrate=self.baud, timeout=0)
         except (serial.SerialException, OSError, ValueError) as exc:

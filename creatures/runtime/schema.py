@@ -271,7 +271,8 @@ class InputMap(Strict):
                                                               "'polytouch')")
     args: int | None = Field(None, ge=0, le=64, description="OSC arity: only messages with exactly this many "
                                                             "arguments; none = any")
-    serial: str | None = Field(None, description="serial device read as a source (lines `name value ...`, "
+    serial: str | None = Field(None, description="serial device's path read as a source, by one table "
+                                                 "(e.g. '/dev/ttyUSB0'; lines `name value ...`, "
                                                  "spaces or commas): a line is heard as the OSC message "
                                                  "`/name value ...`; a missing device is reported and retried")
     baud: int = Field(9600, gt=0, le=4_000_000, description="serial speed, bits per second")
