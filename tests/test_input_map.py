@@ -715,6 +715,19 @@ def test_rehearsal_files_in_json_lines_and_their_errors(tmp_path):
         load_installation(config)
 
 
+def test_rehearsal_files_as_a_spreadsheet_or_an_editor_saves_them(tmp_path):
+    """A spreadsheet's "CSV UTF-8" begins with a byte-order mark, which made the header a row
+    and the file an error at line 1; an editor's last line of spaces did the same to JSON lines."""
+    from creatures.runtime.input_sources import load_rehearsal
+
+    sheet = tmp_path / "sheet.csv"
+    sheet.write_bytes("\ufefftime,address,args\r\n0.5,/lux,0.3\r\n".encode())
+    lines = tmp_path / "lines.jsonl"
+    lines.write_bytes('\ufeff{"time": 1, "address": "/lux", "args": [1]}\n  \n'.encode())
+    assert [(r.time, r.address, r.args) for r in load_rehearsal(sheet)] == [(0.5, "/lux", (0.3,))]
+    assert [(r.time, r.address, r.args) for r in load_rehearsal(lines)] == [(1.0, "/lux", (1,))]
+
+
 def test_the_readme_example_loads(tmp_path):
     readme = (__import__("pathlib").Path(__file__).parent.parent / "README.md").read_text()
     example = readme.split("### The input map: `[[input]]`", 1)[1].split("```toml\n", 1)[1].split("```", 1)[0]

@@ -84,7 +84,7 @@ def load_rehearsal(path: Path) -> list[Row]:
     """The rows of a CSV (``time,address,args...``; a first row ``time,...`` is a header) or
     JSON-lines (``{"time": s, "address": "/x", "args": [...]}``) file, in time order."""
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")  # the byte-order mark a spreadsheet's "CSV UTF-8" begins with
     except (OSError, UnicodeDecodeError) as exc:
         raise RehearsalError(path, f"cannot read rehearsal file ({exc})") from None
     rows: list[Row] = []
@@ -93,7 +93,7 @@ def load_rehearsal(path: Path) -> list[Row]:
     for number, line in enumerate(lines, 1):
         if len(rows) >= MAX_ROWS:
             raise RehearsalError(path, f"more than {MAX_ROWS} rows", number)
-        if not line or (not jsonl and (not "".join(line).strip() or line[0].strip().startswith("#"))):
+        if not "".join(line).strip() or (not jsonl and line[0].strip().startswith("#")):
             continue
         try:
             if jsonl:
