@@ -222,6 +222,16 @@ def test_a_rehearsal_offline_gives_the_events_of_the_same_messages_live(tmp_path
     assert [e["value"] for e in rehearsed if e["kind"] == "sensor"] == [0.2, 0.9, 1.0]  # the knob: cc 127
 
 
+def test_rehearsal_rows_past_an_offline_run_are_said_not_dropped_in_silence(tmp_path):
+    (tmp_path / "long.csv").write_text("time,address,args\n" + "".join(f"{t},/light/x,0.5\n" for t in (0.5, 1.0, 3.0, 9.5)))
+    config = tmp_path / "c.toml"
+    config.write_text(CREATURES + '[output]\nwav = false\nmidi = false\nreport = false\n[input]\ngenerate = "none"\n'
+                      + MAPS + '[[input.map]]\nfile = "long.csv"\n')
+    summary = run_offline(load_installation(config), tmp_path / "out", duration=1.0, progress=False)
+    assert [e["value"] for e in records(tmp_path / "out" / "events.jsonl") if e["kind"] == "sensor"] == [0.5, 0.5]
+    assert any("long.csv: 2 of its 4 rows fall past the run's 1 s (the last at 9.5 s)" in m for m in summary.messages)
+
+
 # -- fuzz ---------------------------------------------------------------------------------------
 ADDRESSES = ["/note", "/reward", "/light/x", "/bored", "/creature/x/note", "/creature/x/hello", "/creature/bo/state",
              "/other", "/light"]

@@ -115,6 +115,17 @@ def load_rehearsal(path: Path) -> list[Row]:
     return sorted(rows, key=lambda r: r.time)
 
 
+def unplayed(file: str, rows: list[Row], duration: float) -> str | None:
+    """What an offline run of ``duration`` s leaves of a rehearsal file, said (None: every row
+    plays). A ten-minute rehearsal in the config's default 60 s run played its first minute,
+    and the rest went unsaid, as if the colony had heard it and done nothing."""
+    late = [row for row in rows if row.time > duration]
+    if not late:
+        return None
+    return (f"{file}: {len(late)} of its {len(rows)} rows fall past the run's {duration:g} s (the last at "
+            f"{late[-1].time:,.1f} s) and are not played; give --duration to play them")
+
+
 def note_on(note: NoteEvent) -> mido.Message:
     """A recorded note as the note-on a live port would have sent."""
     return mido.Message("note_on", channel=note.channel, note=note.pitch, velocity=max(note.velocity, 1))

@@ -34,7 +34,7 @@ from creatures.clock import SimulatedClock
 from creatures.events import EventLog
 from creatures.runtime.bodies import BodyFrames
 from creatures.runtime.body_stream import BodyStream
-from creatures.runtime.input_sources import Rehearsal, Row, note_on, open_sources
+from creatures.runtime.input_sources import Rehearsal, Row, note_on, open_sources, unplayed
 from creatures.runtime.inputs import phrase_notes, render_notes
 from creatures.runtime.outputs import OutputDirectoryError, discard, hold, publish, recover, refuse_foreign, stage
 from creatures.runtime.schema import Installation, LoadedInstallation
@@ -157,6 +157,9 @@ def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path 
                         "and what they learn is saved into the output's state/ folder")
     session.world.recording = settings.output.midi  # out.mid's input track and heard tempo
     sources = open_sources(inst, session.inputs, clock, messages.append, live=False)  # rehearsal files
+    for i, spec in enumerate(settings.input.map):
+        if spec.file is not None and (cut := unplayed(spec.file, inst.rehearsals[i], duration)) is not None:
+            messages.append(cut)
     session.world.emit("run", title=settings.title, mode="offline", duration=duration, seed=settings.seed,
                        creatures=[c.name for c in session.creatures], config=str(inst.path))
     poses = PoseLog(settings.view.log_fps, session.world, messages.append) if settings.view.log_fps else None
