@@ -119,6 +119,14 @@ def test_a_corpus_is_read_and_a_bad_one_is_named(tmp_path: Path):
         load_corpus(tmp_path / "nothing.mid")
 
 
+def test_a_corpus_folder_takes_midi_files_whatever_the_case_of_their_names(tmp_path: Path):
+    """Files from Windows or a DAW ("TAKE1.MID", "b.midi") were passed over: "holds no phrase"."""
+    write_notes(tmp_path / "TAKE1.MID", [NoteEvent(0.0, 60, 90, 0, 0.5)])
+    write_notes(tmp_path / "b.midi", [NoteEvent(0.0, 67, 90, 0, 0.5)])
+    (tmp_path / "notes.txt").write_text("not a phrase of the folder\n")
+    assert [[n.pitch for n in p.notes] for p in load_corpus(tmp_path)] == [[60], [67]]
+
+
 def test_the_rehearse_section_is_bounded():
     base = installations.path("curve").read_text()  # a shipped config without a [rehearse] of its own
     assert "[rehearse]" not in base

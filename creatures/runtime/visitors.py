@@ -29,6 +29,10 @@ LONGEST_PHRASE = 60.0
 """Seconds of a corpus phrase a visitor plays (a longer file is cut: a visitor is no concert)."""
 
 
+MIDI_SUFFIXES = (".mid", ".midi")
+"""The names of a corpus folder's MIDI files, in any case (``.MID``)."""
+
+
 class CorpusError(ValueError):
     """``[rehearse] corpus`` cannot be read; the message names the file."""
 
@@ -75,7 +79,9 @@ def load_corpus(path: Path) -> list[Phrase]:
             raise CorpusError(f"[rehearse] corpus {path}: cannot read it ({exc})") from None
         phrases = [Phrase(line=line) for line in lines if line]
     else:
-        files = sorted(path.glob("*.mid")) if path.is_dir() else [path]
+        # a folder's MIDI files whatever their case: one copied from Windows or a DAW ("Take 1.MID",
+        # "b.midi") was passed over, and a folder of them held "no phrase"
+        files = sorted(p for p in path.iterdir() if p.suffix.lower() in MIDI_SUFFIXES) if path.is_dir() else [path]
         phrases = []
         for file in files:
             try:
