@@ -540,6 +540,10 @@ def test_a_creature_behind_an_obstacle_is_not_seen_by_the_stage(tmp_path):
      "set by their own names"),
     ('visitors = [{ x = "vxx", y = "vy" }]\n' + TRACKER, "", "no input map writes a sensor 'vxx' \\(did you mean 'vx'"),
     ('visitors = [{ x = "vx", y = "vy" }]', "", "no input map writes a sensor 'vx' \\(no \\[\\[input\\]\\] map"),
+    # a visitor table copied unchanged counted one person twice; y = x walked them on the diagonal
+    ('visitors = [{ x = "vx", y = "vy" }, { x = "vx", y = "vy" }]\n' + TRACKER, "",
+     "sensor 'vx' is read by visitor 0's x already"),
+    ('visitors = [{ x = "vx", y = "vx" }]\n' + TRACKER, "", "sensor 'vx' is read by visitor 0's x already"),
 ])
 def test_places_and_zones_that_cannot_be_are_config_errors(tmp_path, room, creature, message):
     text = HEADER.format(room=room) + singer("a", 1.0, 1.0).replace("at = [1.0, 1.0]", creature or "at = [1.0, 1.0]")

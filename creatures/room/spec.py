@@ -229,7 +229,7 @@ class RoomSection(Strict):
                                      "between them lower with distance, m (default: the farthest corner)")
     input_at: Point | None = Field(None, description="where input notes sound when no visitor "
                                                                    "is tracked (default: the listener)")
-    visitors: list[VisitorSpec] = Field(default_factory=list, max_length=64, description="visitors tracked through the input map's sensors")
+    visitors: list[VisitorSpec] = Field(default_factory=list, max_length=64, description="visitors tracked through the input map's sensors (a sensor of its own for each coordinate of each)")
     hearing: HearingSpec = HearingSpec()
     lod: LodSpec | None = Field(None, description="[room.lod]; none = every creature steers every sub-step")
     zones: list[ZoneSpec] = Field(default_factory=list, max_length=256, description="zones (REACT's ActionBoxes) that change the creatures inside")

@@ -569,9 +569,15 @@ def load_installation(path: str | Path) -> LoadedInstallation:
         except RoomError as exc:
             raise config_error(path, where, ("room", *exc.key), str(exc)) from None
     if settings.room is not None:  # a visitor is tracked through sensors the input map writes
+        read: dict[str, str] = {}  # each sensor a visitor reads, by whom
         for k, visitor in enumerate(settings.room.visitors):
             for axis in ("x", "y"):
-                _sensor(path, where, ("room", "visitors", k, axis), {"sensor": getattr(visitor, axis)}, sensors)
+                name, loc = getattr(visitor, axis), ("room", "visitors", k, axis)
+                _sensor(path, where, loc, {"sensor": name}, sensors)
+                if name in read:  # a copied table: one person counted twice, or walking the diagonal
+                    raise config_error(path, where, loc, f"sensor {name!r} is read by {read[name]} already: "
+                                                         "each coordinate of each visitor has a sensor of its own")
+                read[name] = f"visitor {k}'s {axis}"
     for key in ("audio", "midi"):
         file = getattr(settings.input, key)
         if file is not None and not (written_in(where, ("input", key), path).parent / file).exists():
