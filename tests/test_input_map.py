@@ -728,6 +728,21 @@ def test_rehearsal_files_as_a_spreadsheet_or_an_editor_saves_them(tmp_path):
     assert [(r.time, r.address, r.args) for r in load_rehearsal(lines)] == [(1.0, "/lux", (1,))]
 
 
+def test_a_rehearsal_file_a_european_spreadsheet_or_another_encoding_saved_is_said_at_its_line(tmp_path):
+    """Semicolons between fields (a spreadsheet in a European locale) were an IndexError; a
+    Latin-1 byte was "cannot read rehearsal file" with no line, in a file of a million rows."""
+    from creatures.runtime.input_sources import RehearsalError, load_rehearsal
+
+    semicolons = tmp_path / "semi.csv"
+    semicolons.write_text("time;address;args\n0.5;/lux;0.3\n")
+    with pytest.raises(RehearsalError, match=r"semi.csv:1: fields are separated by ';'"):
+        load_rehearsal(semicolons)
+    latin = tmp_path / "latin.csv"
+    latin.write_bytes("time,address,args\n0.5,/lux,0.3\n1.0,/caf\u00e9,1\n".encode("latin-1"))
+    with pytest.raises(RehearsalError, match=r"latin.csv:3: not UTF-8 text \(byte 39: b'\\xe9'\)"):
+        load_rehearsal(latin)
+
+
 def test_the_readme_example_loads(tmp_path):
     readme = (__import__("pathlib").Path(__file__).parent.parent / "README.md").read_text()
     example = readme.split("### The input map: `[[input]]`", 1)[1].split("```toml\n", 1)[1].split("```", 1)[0]

@@ -84,9 +84,15 @@ def load_rehearsal(path: Path) -> list[Row]:
     """The rows of a CSV (``time,address,args...``; a first row ``time,...`` is a header) or
     JSON-lines (``{"time": s, "address": "/x", "args": [...]}``) file, in time order."""
     try:
-        text = path.read_text(encoding="utf-8-sig")  # the byte-order mark a spreadsheet's "CSV UTF-8" begins with
-    except (OSError, UnicodeDecodeError) as exc:
+        data = path.read_bytes()
+    except OSError as exc:
         raise RehearsalError(path, f"cannot read rehearsal file ({exc})") from None
+    try:
+        text = data.decode("utf-8-sig")  # the byte-order mark a spreadsheet's "CSV UTF-8" begins with
+    except UnicodeDecodeError as exc:  # said at its line: a file of a million rows is not searched by eye
+        raise RehearsalError(path, f"not UTF-8 text (byte {exc.start}: {data[exc.start:exc.start + 1]!r}); save "
+                                   "it as UTF-8 (a spreadsheet's \"CSV UTF-8\")",
+                             data[:exc.start].count(b"\n") + 1) from None
     rows: list[Row] = []
     jsonl = path.suffix.lower() in (".jsonl", ".ndjson", ".json")
     lines = text.splitlines() if jsonl else list(csv.reader(io.StringIO(text)))
@@ -107,6 +113,9 @@ def load_rehearsal(path: Path) -> list[Row]:
             if not isinstance(address, str) or not isinstance(args, list):
                 raise TypeError("address must be a string and args a list")
         except (ValueError, KeyError, IndexError, TypeError) as exc:
+            if not jsonl and len(line) == 1 and ";" in line[0]:  # a spreadsheet saving in a European locale
+                raise RehearsalError(path, "fields are separated by ';': a rehearsal CSV separates them by ','",
+                                     number) from None
             raise RehearsalError(path, f"row is not time,address,args... ({type(exc).__name__}: {exc})",
                                  number) from None
         if not (math.isfinite(time) and time >= 0) or not (address.startswith("/") or address == "midi"):
