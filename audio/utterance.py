@@ -17,6 +17,7 @@ can seed another creature with musical material.
 
 from __future__ import annotations
 
+import hashlib
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -429,6 +430,18 @@ def _arrays_path(path: Path) -> Path:
     return path.with_suffix(".npz")
 
 
+def _digest(samples: np.ndarray, features: np.ndarray) -> str:
+    """What the JSON half of a model records of its arrays, to know them for its own: the two
+    files are each written atomically but not together, so a save cut between them (or a
+    ``.npz`` copied from another model) left a pair that loaded when the counts agreed, every
+    utterance's sound and cepstra another's."""
+    h = hashlib.sha256()
+    for a in (samples, features):
+        h.update(f"{a.dtype.str}{a.shape}".encode())
+        h.update(np.ascontiguousarray(a).tobytes())
+    return h.hexdigest()
+
+
 def save_aural_model(root: UtterancePercept, path: str | os.PathLike) -> None:
     """Save a tree as ``path`` (JSON structure) + ``path`` with ``.npz`` (samples, cepstra).
 
@@ -478,7 +491,8 @@ def save_aural_model(root: UtterancePercept, path: str | os.PathLike) -> None:
     else:
         samples, features = np.zeros(0, np.float32), np.zeros((len(WARPS), 0, N_CEPSTRA))
     save_npz(_arrays_path(path), {"samples": samples, "features": features})
-    save_json(path, {"tree": tree, "utterances": utterances, "features": FEATURES}, kind=KIND)
+    save_json(path, {"tree": tree, "utterances": utterances, "features": FEATURES,
+                     "arrays_sha256": _digest(samples, features)}, kind=KIND)
 
 
 def load_aural_model(path: str | os.PathLike) -> UtterancePercept:
@@ -498,6 +512,11 @@ def load_aural_model(path: str | os.PathLike) -> UtterancePercept:
     try:
         meta, tree = doc["utterances"], doc["tree"]
         samples, features = arrays["samples"], arrays["features"]
+        if doc.get("arrays_sha256", _digest(samples, features)) != _digest(samples, features):  # older: no digest
+            raise StateFileError(
+                f"{_arrays_path(path)}: not the arrays {path.name} was saved with (a save cut between the two "
+                f"files, or one copied from another model): copy the pair together, or make the model again"
+            )
         sample_ends = np.cumsum([u["n_samples"] for u in meta], dtype=int)
         frame_ends = np.cumsum([u["n_frames"] for u in meta], dtype=int)
         if features.shape[::2] != (len(WARPS), N_CEPSTRA) or (sample_ends[-1:] != len(samples)).any() \

@@ -331,3 +331,24 @@ def test_a_heard_sound_is_warped_once_against_each_exemplar_of_the_tree(speaker,
             assert node.evaluate(t + 0.2) == 2.0 ** (-nearest / node.radius)
     members = {m for c in born for m in c.members}
     assert sum(warped) == 3 * len(members)  # never the same exemplar twice for one sound
+
+
+def test_a_model_whose_arrays_are_another_saves_is_refused(speaker: Speaker, tmp_path: Path) -> None:
+    """The .json and .npz are written one after the other: a save cut between them (the .npz
+    of a later save of the same model beside the .json of an earlier one) loaded whenever the
+    counts agreed, each utterance with other sound and cepstra. The JSON knows its arrays now;
+    a model saved before it did still loads."""
+    path = tmp_path / "ear.json"
+    save_aural_model(grown_tree(speaker, ["ai", "ua"] * 2)[0], path)
+    npz = path.with_suffix(".npz")
+    own = npz.read_bytes()
+    with np.load(npz) as arrays:
+        later = {"samples": arrays["samples"] * 0.5, "features": arrays["features"] + 1.0}  # same shapes
+    np.savez(npz, **later)
+    with pytest.raises(StateFileError, match=r"ear.npz: not the arrays ear.json was saved with"):
+        load_aural_model(path)
+    npz.write_bytes(own)
+    doc = json.loads(path.read_text())
+    doc.pop("arrays_sha256")
+    path.write_text(json.dumps(doc))
+    assert len(load_aural_model(path).members) == 4
