@@ -203,3 +203,25 @@ def test_a_shared_succession_keeps_a_stream_for_each_group():
     assert x["B"].trigger.evaluate(t) > 2.0 > x["C"].trigger.evaluate(t)  # after x's A: B
     assert y["C"].trigger.evaluate(t) > 2.0 > y["B"].trigger.evaluate(t)  # after y's B: C
     assert heard["A"].trigger.evaluate(t) > 2.0  # the ear's last was C: A is what follows it
+
+
+def test_sub_hypotheses_are_bounded_however_long_the_valuable_successor_keeps_changing():
+    """A group whose valuable successor keeps changing (a new one every hundred starts) grows
+    sub-hypotheses one level deep only: at most N + N² tuples however long it plays (before,
+    "A→B" split again into "A→B→C", ... : 25 tuples, 15 deep after 3000 starts)."""
+    succession = Succession(window=10)
+    names = "ABCD"
+    pool = [follow(ActionTuple(n, WhateverPercept(), Action(n), DoUntil(0.5), 0.5), succession) for n in names]
+    rng = np.random.default_rng(0)
+    for k in range(3000):
+        if k % 100 == 0:
+            values = dict(zip(names, rng.uniform(0.0, 1.0, len(names))))
+        tuple_ = pool[rng.integers(len(pool))]
+        tuple_.value.value = float(values[tuple_.name[-1]])  # a version of B is worth what B is
+        child = succession.observe(tuple_)
+        if child is not None:
+            pool.append(child)
+    grown = [tp.name for tp in pool[len(names):]]
+    assert len(grown) >= 4  # it did split, repeatedly...
+    assert all(name.count("→") == 1 and name.split("→")[0] in names for name in grown)  # ...one level deep
+    assert len(pool) <= len(names) + len(names) ** 2 and len(set(grown)) == len(grown)

@@ -199,7 +199,10 @@ class GroupSpec(Strict):
     discount: float = Field(0.8, ge=0, le=1, description="credit discount β")
     multiple: float = Field(1.5, ge=1, le=1e3, description="interruption hysteresis")
     innovation: float | None = Field(0.25, ge=0, le=LARGEST_RATE, description="value gap for forward-transition fission "
-                                                              "(tuples with until.follow); none = never")
+                                                              "(tuples with until.follow): a tuple A splits off 'A→B' "
+                                                              "once per successor B, and a split-off tuple never "
+                                                              "splits again, so N tuples grow at most N² (thesis "
+                                                              "'forward transition models'); none = never")
     succession: str | None = Field(None, min_length=1, max_length=256,
                                    description="the colony's forward transition model of this name: the group's "
                                                "until.follow tuples record into, and are primed by, one model "

@@ -75,7 +75,9 @@ class Succession:
     is what makes the divergence matter: η² alone is scale-free, and two successors whose
     values differ by a few hundredths would explain all of a tiny spread. ``None`` leaves
     fission to the author. ``fissioned`` maps each sub-hypothesis made here to the
-    successor it leads to (so A→B is not split again towards B).
+    successor it leads to; a sub-hypothesis is not split again and is no successor to split
+    towards (see :func:`fission`), so a group of N followed tuples grows at most N² of them
+    however long it plays.
     """
 
     def __init__(
@@ -229,24 +231,37 @@ def fission(
     A's action, trigger and duration model (a fresh Du around the same model), starts with the mean value of the
     A → B transitions, and inherits as many A' → B transitions (at that mean value) — so it
     tends to lead to B, while A stays the general hypothesis. Returns None when no split is
-    warranted, A' exists, or A is itself a sub-hypothesis leading to that successor. A' is
+    warranted, A' exists, or A is itself a sub-hypothesis. A' is
     wrapped in :func:`follow` already; add it to the group with ``group.add``. (Its Du is a
     plain one: interval constraints on A are not copied.)
+
+    **One level.** Only the tuples the group was given split, and only towards one of them:
+    a sub-hypothesis is neither split again nor a successor to split towards. The thesis
+    ("forward transition models", figure 10, step 5) splits A to "explore and refine
+    versions of action-tuple A that lead to B separately from those which tend to lead to
+    C": the children are versions of A, told apart by the successor. A→B followed best by C
+    is a version of A that leads to C, which the sibling A→C already is, and a version of A
+    leading to "B→C" is one leading to a version of B; splitting either way named a new
+    tuple from a name that grew each time ("A→B→C→B→…"), so a group whose valuable
+    successor kept changing grew tuples without bound (4 followed tuples, a new valuable
+    one every 100 starts: 51 tuples, 19 deep after 20,000 starts, still growing). Split
+    once per pair, a group of N tuples holds at most N + N² however long it plays.
     """
     if not isinstance(tuple_.do_until, TransitionDoUntil) or not isinstance(tuple_.trigger, LikelySuccessor):
         raise ValueError(f"{tuple_.name!r} does not model transitions: wrap it with follow() first")
     model, name = succession.model, tuple_.name
-    if model.value_contrast(name) < min_contrast:
+    if name in succession.fissioned or model.value_contrast(name) < min_contrast:
         return None
     stats = {j: model.value_stats(name, j) for j in model.names}
-    seen = {j: mean for j, (count, mean, _) in stats.items() if count >= min_count and not math.isnan(mean)}
+    seen = {j: mean for j, (count, mean, _) in stats.items()
+            if count >= min_count and not math.isnan(mean) and j not in succession.fissioned}
     if not seen:
         return None
     valued = [(count, mean) for count, mean, _ in stats.values() if count > 0]
     overall = sum(count * mean for count, mean in valued) / sum(count for count, _ in valued)
     best = max(seen, key=seen.__getitem__)
     child_name = f"{name}→{best}"
-    if seen[best] - overall < min_gap or child_name in model.names or succession.fissioned.get(name) == best:
+    if seen[best] - overall < min_gap or child_name in model.names:
         return None
     inner = tuple_.do_until.inner
     child = ActionTuple(
