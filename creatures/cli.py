@@ -374,6 +374,8 @@ def _check(args: argparse.Namespace) -> int:
     except ConfigError as exc:
         print(f"creatures: {exc}", file=sys.stderr)
         return 2
+    for note in installation.notes:
+        print(f"note: {note}")
     rows = check(installation, args.state or installation.resolve(installation.settings.state, ("state",)))
     print(table(rows))
     failed = [what for what, ok, _ in rows if not ok]

@@ -539,3 +539,55 @@ def test_a_cycling_course_ends_with_its_tuple_and_is_forgotten(tmp_path):
     stopped = next(r["t"] for r in session.world.log.records if r["kind"] == "stop" and r["tuple"] == "hook")
     assert stopped == pytest.approx(5.0, abs=0.05) and len(hooks) == 2 and max(hooks) < stopped, hooks
     assert score.layers["top"].program is None and not score._goal_end
+
+
+SCORED = ('[[creature]]\nname = "{name}"\nkind = "authored"\n'
+          '[creature.score]\ntiles = "tiles.toml"\n{layers}'
+          '[creature.tuples.wait]\naction = "rest"\nuntil = {{ seconds = 1.0 }}\nvalue = 0.1\n'
+          '[creature.groups.main]\ntuples = ["wait"]\nalpha = 0.0\n')
+
+
+def scored(tmp_path: Path, tiles: str, creatures: dict[str, list[str]]) -> Path:
+    """A config of score creatures (name → the layers it declares, each idling on "idle")
+    reading one tile file."""
+    (tmp_path / "tiles.toml").write_text(tiles)
+    text = 'title = "layers"\n[output]\nwav = false\nreport = false\n'
+    for name, layers in creatures.items():
+        text += SCORED.format(name=name, layers="".join(f'[creature.score.layers.{layer}]\nidle = "idle"\n'
+                                                        for layer in layers))
+    (tmp_path / "s.toml").write_text(text)
+    return tmp_path / "s.toml"
+
+
+TILES = ('[tiles.rest]\nlayer = "theme"\nbeats = 2\ntags = ["idle"]\n'
+         '[tiles.hook]\nlayer = "theem"\nbeats = 2\ntags = ["hook"]\nnotes = [[0, 72, 90, 1]]\n'
+         '[tiles.riff]\nlayer = "theem"\nbeats = 2\ntags = ["hook"]\nnotes = [[0, 74, 90, 1]]\n'
+         '[tiles.hum]\nlayer = "drone"\nbeats = 2\ntags = ["idle"]\nnotes = [[0, 48, 60, 2]]\n')
+
+
+def test_a_misspelt_layer_in_a_tile_file_one_score_reads_is_refused_at_its_line(tmp_path):
+    """``layer = "theem"`` in a file only one score reads: its tiles would never play and
+    nothing said so; now refused at the first such tile's line, with the layer meant."""
+    with pytest.raises(ConfigError) as caught:
+        load_installation(scored(tmp_path, TILES, {"band": ["theme", "drone"]}))
+    problem = caught.value
+    assert problem.file == (tmp_path / "tiles.toml").resolve() and problem.line == 6  # hook's layer key
+    assert "'theem'" in str(problem) and "did you mean 'theme'" in str(problem)
+    assert "hook, riff" in str(problem) and "'band'" in str(problem)
+
+
+def test_a_layer_no_score_plays_is_said_at_the_start_and_kept_in_the_events_log(tmp_path):
+    """A layer far from every declared one (one score), or near one but in a file two scores
+    share: not refused (it may be for another score), but said with its file, line and the
+    nearest declared layer; a layer another score reading the file plays is not said."""
+    config = scored(tmp_path, TILES.replace('"theem"', '"theme"'), {"band": ["theme"]})
+    notes = load_installation(config).notes
+    assert len(notes) == 1 and f"{(tmp_path / 'tiles.toml').resolve()}:16" in notes[0]
+    assert "'drone'" in notes[0] and "(layers there: theme)" in notes[0] and "tile 'hum' never plays" in notes[0]
+    config = scored(tmp_path, TILES, {"band": ["theme"], "drums": ["theme", "drone"]})
+    said: list[str] = []
+    session = Session(load_installation(config), SimulatedClock(), EventLog(keep_in_memory=100), MemorySink(),
+                      say=said.append)
+    assert len(said) == 1 and "'theem'" in said[0] and "did you mean 'theme'" in said[0]
+    assert "'band' or 'drums'" in said[0] and "drone" not in said[0]  # drums plays the drone
+    assert [r["note"] for r in session.world.log.records if r["kind"] == "config"] == said

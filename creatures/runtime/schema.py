@@ -27,6 +27,7 @@ from creatures.kinds import CreatureSpec, load_all
 from creatures.authored.percepts import ROOM_PERCEPTS
 from creatures.room.crowd import CrowdError, expand as expand_crowds
 from creatures.room.spec import RoomSection
+from creatures.score.spec import ScoreSpec
 from creatures.room.stage import RoomError, StageError, check_places, recipes as room_recipes
 from creatures.kinds.body_source import MaterialSpec
 from creatures.motor.material import MaterialError
@@ -464,6 +465,9 @@ class LoadedInstallation:
         self.routes = compile_maps(settings.input.map, {
             spec.name: Colony(kinds[spec.kind].drive_names(spec), kinds[spec.kind].rewardable(spec)) for spec in specs})
         self.rehearsals: dict[int, list] = {}  # rows of each rehearsal file, by [[input]] table
+        self.notes: list[str] = []
+        """What loading found that is not an error but may be a mistake (a run says each at its
+        start and keeps it in the events log as a ``config`` event; ``creatures check`` says it)."""
 
     def error(self, loc: tuple[str | int, ...], message: str) -> ConfigError:
         """A :class:`ConfigError` at key path ``loc`` of this config, with its line."""
@@ -613,8 +617,13 @@ def load_installation(path: str | Path) -> LoadedInstallation:
         problem = check_source(stream.source, kind.drive_names(by_name[creature]), kind.has_body(by_name[creature]))
         if problem is not None:
             raise config_error(path, where, ("output", "cc", i, "source"), problem)
-    return _with_input_maps(path, settings, specs, where, ("input",) if isinstance(data.get("input"), list)
+    from creatures.score.tiles import unplayed_layers  # tiles read pitches as input maps do: imported late
+
+    notes = unplayed_layers({spec.name: spec.score for spec in specs if isinstance(getattr(spec, "score", None), ScoreSpec)})
+    inst = _with_input_maps(path, settings, specs, where, ("input",) if isinstance(data.get("input"), list)
                             else ("input", "map"))
+    inst.notes = notes
+    return inst
 
 
 def _resolve_body(kind: type, spec: CreatureSpec, path: Path, where: dict[tuple, tuple[Path, int]],

@@ -65,6 +65,9 @@ class Session:
         self.log = log
         self.scheduler = NoteScheduler(sink, clock)
         self.world = World(clock, log, self.scheduler, HeardPulse(settings.pulse.prior, settings.pulse.readings))
+        for note in inst.notes:  # what loading found that may be a mistake: said, and kept with the run
+            say(note)
+            self.world.emit("config", note=note)
         # The [[input]] maps; their sensors exist before the creatures, which may model them.
         self.inputs = InputRouter(inst.routes, self.world, say)
         seeds = np.random.SeedSequence(settings.seed).spawn(len(inst.specs) + 1)

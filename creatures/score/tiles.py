@@ -20,8 +20,10 @@ Every problem names the file, the key and its line (and the nearest valid key or
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import difflib
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from pydantic import BaseModel, Field, field_validator, model_validator
@@ -30,6 +32,9 @@ from creatures.bounds import FINITE
 from creatures.config import config_error, nearest, read_toml, validate
 from creatures.runtime.input_map import Unreadable, as_pitch
 from midi.fifths import fifths_vector
+
+if TYPE_CHECKING:
+    from creatures.score.spec import ScoreSpec
 
 LONGEST_TILE = 256.0
 """Beats: the longest tile (64 bars of 4)."""
@@ -120,6 +125,8 @@ class TileSet:
     tiles: tuple[Tile, ...]
     meter: int
     file: Path
+    where: dict[tuple, tuple[Path, int]] = field(default_factory=dict, compare=False, repr=False)
+    """Key path → (file, line), so a problem found after loading still names the tile's line."""
 
     def __len__(self) -> int:
         return len(self.tiles)
@@ -160,4 +167,43 @@ def load_tiles(path: str | Path) -> TileSet:
         notes = notes[np.argsort(notes[:, 0], kind="stable")]  # in time order: the output takes them so
         tiles.append(Tile(name, t.layer, t.part, t.beats, frozenset(t.tags), tuple(t.follows), notes[:, 0],
                           notes[:, 1].astype(np.int64), notes[:, 2].astype(np.int64), notes[:, 3]))
-    return TileSet(tuple(tiles), spec.meter, path)
+    return TileSet(tuple(tiles), spec.meter, path, where)
+
+
+def unplayed_layers(scores: dict[str, "ScoreSpec"]) -> list[str]:
+    """What to say of the layers of tile files that no score reading them plays.
+
+    ``scores`` are the colony's ``[creature.score]`` tables by creature, their ``tiles``
+    resolved. A layer no ``[creature.score.layers]`` table names is never laid, so its tiles
+    never sound, and nothing at run time says so. That is no error in itself: a tile file
+    shared by two scores (or by two installations) may hold layers one of them leaves out.
+    So a layer is looked at across every score reading its file, and the note names the
+    layer, the line of its first tile and the nearest declared layer. A file read by one
+    score whose unplayed layer is near one it declares ("theem", "theme") is a typo that
+    silences those tiles for the whole run: a :class:`~creatures.config.ConfigError` at the
+    tile's line, as an unknown name in a config is. Returns the notes.
+    """
+    readers: dict[str, list[str]] = {}
+    for creature, score in scores.items():
+        readers.setdefault(score.tiles, []).append(creature)
+    notes = []
+    for file, creatures in readers.items():
+        tiles = load_tiles(file)
+        declared = sorted({layer for creature in creatures for layer in scores[creature].layers})
+        for layer in tiles.layers:
+            if layer in declared:
+                continue
+            dead = [t.name for t in tiles.tiles if t.layer == layer]
+            loc = ("tiles", dead[0], "layer")
+            default = "" if loc in tiles.where else f" (a tile with no 'layer' is in {layer!r})"
+            whose = " or ".join(repr(creature) for creature in creatures)
+            named = f"{', '.join(dead[:4])}{', …' if len(dead) > 4 else ''}"
+            message = (f"layer {layer!r}{default} is in no [creature.score.layers] of {whose}"
+                       f"{nearest(layer, declared, 'layers there')}: "
+                       + (f"its {len(dead)} tiles ({named}) never play" if len(dead) > 1 else
+                          f"its tile {named!r} never plays"))
+            problem = config_error(tiles.file, tiles.where, loc, message)
+            if len(creatures) == 1 and difflib.get_close_matches(layer, declared, n=1):
+                raise problem
+            notes.append(str(problem))
+    return notes
