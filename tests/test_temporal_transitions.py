@@ -225,3 +225,23 @@ def test_sub_hypotheses_are_bounded_however_long_the_valuable_successor_keeps_ch
     assert len(grown) >= 4  # it did split, repeatedly...
     assert all(name.count("→") == 1 and name.split("→")[0] in names for name in grown)  # ...one level deep
     assert len(pool) <= len(names) + len(names) ** 2 and len(set(grown)) == len(grown)
+
+
+def test_a_labelled_tuple_splits_under_its_label():
+    """``follow_as``: the model knows a tuple by its label, and fission looked it up by its
+    name ("no tuple named 'A'", a KeyError that ended the run at the first valued transition
+    out of it). The sub-hypothesis is named after the tuple and recorded under the label."""
+    succession = Succession(window=10)
+    pool = [follow(ActionTuple(n, WhateverPercept(), Action(n), DoUntil(0.5), 0.5), succession, label=f"heard {n}")
+            for n in "ABC"]
+    rng = np.random.default_rng(0)
+    grown = []
+    for _ in range(400):
+        tuple_ = pool[rng.integers(len(pool))]
+        tuple_.value.value = 1.0 if tuple_.name.endswith("B") else 0.0
+        child = succession.observe(tuple_, tuple_.do_until.label)
+        if child is not None:
+            pool.append(child)
+            grown.append((child.name, child.do_until.label))
+    assert ("A→heard B", "heard A→heard B") in grown
+    assert all(label in succession.model.names and label in succession.fissioned for _, label in grown)

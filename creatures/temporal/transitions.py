@@ -249,7 +249,9 @@ def fission(
     """
     if not isinstance(tuple_.do_until, TransitionDoUntil) or not isinstance(tuple_.trigger, LikelySuccessor):
         raise ValueError(f"{tuple_.name!r} does not model transitions: wrap it with follow() first")
-    model, name = succession.model, tuple_.name
+    # The model knows a tuple by its label (``follow_as``; its name by default): by its name a
+    # labelled tuple was "no tuple named" there, a KeyError that ended the run.
+    model, name = succession.model, tuple_.do_until.label
     if name in succession.fissioned or model.value_contrast(name) < min_contrast:
         return None
     stats = {j: model.value_stats(name, j) for j in model.names}
@@ -260,19 +262,19 @@ def fission(
     valued = [(count, mean) for count, mean, _ in stats.values() if count > 0]
     overall = sum(count * mean for count, mean in valued) / sum(count for count, _ in valued)
     best = max(seen, key=seen.__getitem__)
-    child_name = f"{name}→{best}"
-    if seen[best] - overall < min_gap or child_name in model.names:
+    child_label = f"{name}→{best}"
+    if seen[best] - overall < min_gap or child_label in model.names:
         return None
     inner = tuple_.do_until.inner
     child = ActionTuple(
-        child_name,
+        f"{tuple_.name}→{best}",
         tuple_.trigger.trigger,
         tuple_.action,
         DoUntil(inner.duration, until=inner.until, learn=inner.learn),
         ScalarValue(seen[best]),
     )
-    follow(child, succession, strength=tuple_.trigger.strength)
-    succession.fissioned[child_name] = best
+    follow(child, succession, strength=tuple_.trigger.strength, label=child_label)
+    succession.fissioned[child_label] = best
     for _ in range(stats[best][0]):
-        model.record(child_name, best, seen[best])
+        model.record(child_label, best, seen[best])
     return child
