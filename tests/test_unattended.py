@@ -458,6 +458,43 @@ def test_check_says_what_to_do_when_no_midi_backend_or_sound_card_is_there(tmp_p
     assert not ok and detail.startswith("default: no audio output devices found") and "creatures devices" in detail
 
 
+def test_check_looks_for_the_microphone_a_listening_piece_hears_through(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                                       capsys: pytest.CaptureFixture[str]) -> None:
+    """duncan, soundcreatures and the three creatures hear their trainer or performer through
+    ``[audio] input_device``; `creatures check` looked only at the output, so a show with no
+    microphone passed its pre-flight and opened deaf (the live run notes it in its log and goes
+    on). The row says the input is missing, and is there only when the piece listens."""
+    import audio.device
+    from creatures.cli import main
+
+    class SpeakersOnly:  # a sound card with outputs and no inputs
+        PortAudioError = OSError
+
+        def query_devices(self, device=None, kind=None):
+            card = {"index": 0, "name": "speakers", "max_input_channels": 0, "max_output_channels": 2,
+                    "default_samplerate": 48000.0}
+            return [card] if kind is None else card  # the list, or the (default) device of a kind
+
+    def rows() -> dict[str, str]:
+        return {line.split("  ")[0].strip(): line for line in capsys.readouterr().out.splitlines()}
+
+    monkeypatch.setattr(audio.device, "portaudio", SpeakersOnly)
+    monkeypatch.setattr("creatures.runtime.preflight._budget", lambda inst: (True, "not measured here"))
+    config = tmp_path / "show.toml"
+    state = f'state = "{tmp_path / "state"}"\n'
+    config.write_text(state + COLONY.replace("output = false", "output = true"))
+    assert main(["check", str(config)]) == 0
+    first = rows()  # hears no microphone: no row for one
+    assert "audio input" not in first and "ok" in first["audio output"]
+    config.write_text(state + COLONY.replace("output = false", 'output = true\ninput_device = "default"'))
+    assert main(["check", str(config)]) == 1
+    found = rows()
+    assert "ok" in found["audio output"] and "FAIL" in found["audio input"]
+    assert "no audio input devices found" in found["audio input"]
+    for name in ("duncan", "soundcreatures", "three_creatures", "three_creatures_compared"):
+        main(["check", name, "--state", str(tmp_path / name)])
+        assert "FAIL" in rows()["audio input"], name
+
 SAVE_HELD = '''
 import os, signal, sys, threading
 from creatures import cli

@@ -43,6 +43,8 @@ def check(inst: LoadedInstallation, state: Path | None) -> list[Row]:
     rows += _midi(inst)
     if inst.settings.audio.output:
         rows.append(_guarded("audio output", lambda: _audio(inst)))
+    if inst.settings.audio.input_device is not None:  # the microphone a listening piece hears through
+        rows.append(_guarded("audio input", lambda: _audio(inst, "input")))
     rows += _state(state)
     if inst.settings.output.frames:
         rows.append(_guarded("OpenGL", _gl))
@@ -84,17 +86,25 @@ def _midi(inst: LoadedInstallation) -> list[Row]:
     return rows
 
 
-def _audio(inst: LoadedInstallation) -> tuple[bool, str]:
+def _audio(inst: LoadedInstallation, kind: str = "output") -> tuple[bool, str]:
+    """The output device, or the microphone (``kind = "input"``): duncan's trainer, the
+    soundcreatures' performer and every piece with ``[audio] input_device`` are heard through
+    it, and a live run without it hears nothing (a silent piece, its absence said only in the
+    run's log)."""
     from audio.device import AudioDeviceUnavailable, device_rate, find_device
 
-    device = inst.settings.audio.output_device
-    rate = device_rate(device, kind="output")
+    audio = inst.settings.audio
+    if kind == "output":
+        device = audio.output_device
+    else:  # "default" is the system's microphone, as the live run opens it
+        device = None if audio.input_device == "default" else audio.input_device
+    rate = device_rate(device, kind=kind)
     if rate is None:
         try:  # why not, in the words a live run uses: PortAudio missing, no device at all, or the ones there are
-            find_device(device, kind="output")
+            find_device(device, kind=kind)
         except AudioDeviceUnavailable as exc:
             return False, f"{device or 'default'}: {exc}"
-    return rate is not None, f"{device or 'default'}: " + (f"{rate} Hz" if rate else "no such output device")
+    return rate is not None, f"{device or 'default'}: " + (f"{rate} Hz" if rate else f"no such {kind} device")
 
 
 def _state(state: Path | None) -> list[Row]:
