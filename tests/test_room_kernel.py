@@ -143,3 +143,23 @@ def test_the_kernels_grid_finds_the_kd_trees_neighbours(n: int) -> None:
         ours = nearest(pos, k, reach, np.array([12.0, 9.0]))
         theirs = Neighbours(pos).near(who, pos, k=k, radius=reach).index
         np.testing.assert_array_equal(ours, theirs)
+
+
+def test_the_kernels_grid_has_the_crowds_size_not_the_floors() -> None:
+    """A small reach over a large floor: the grid's cells stay a few per body (cells one reach
+    wide made 10⁸ of them for 0.1 m in a 1000 m square room, 3.4 s a sub-step), still at least
+    a reach wide, and the neighbours are still the kd-tree's, pairs within reach included."""
+    from creatures.room.index import Neighbours
+    from creatures.room.kernel import CELLS_PER_BODY, _layout, nearest
+
+    for n, reach, size in ((300, 0.1, (1000.0, 1000.0)), (15, 3.0, (14.0, 10.0)), (1, 0.5, (1000.0, 50.0))):
+        cell, nx, ny = _layout(reach, *size, n)
+        assert cell >= reach and nx * cell >= size[0] and ny * cell >= size[1]
+        assert nx * ny <= CELLS_PER_BODY * n + nx + ny + 1, (n, reach, nx, ny)
+    rng = np.random.default_rng(4)
+    centres = rng.uniform(1, 999, (150, 2))
+    pos = np.concatenate([centres, centres + rng.uniform(-0.05, 0.05, (150, 2))])  # 150 pairs within reach
+    ours = nearest(pos, 3, 0.1, np.array([1000.0, 1000.0]))
+    theirs = Neighbours(pos).near(np.arange(300), pos, k=3, radius=0.1).index
+    np.testing.assert_array_equal(ours, theirs)
+    assert (ours[:, 0] < 300).all()  # each has its pair

@@ -12,10 +12,13 @@ numpy crowd's paths (within 1e-9 m) for every behaviour, every policy, level of 
 shared room's remote creatures. A recipe naming a path or field the room does not have runs in
 numpy, whose call says what is missing (:meth:`Program.of`; the config loader refuses it first).
 
-Neighbours come from a grid of cells one ``reach`` wide rebuilt each sub-step (a counting
-sort: O(n)), searched 3 × 3 cells round each creature: the ``k`` nearest within ``reach``, as
-the kd-tree of :mod:`.index` gives the numpy crowd (REACT 2.5.1; a grid is the kd-tree's
-equal at a crowd's even density, and a few lines of compiled code).
+Neighbours come from a grid of cells at least one ``reach`` wide rebuilt each sub-step (a
+counting sort: O(n + cells)), searched 3 × 3 cells round each creature: the ``k`` nearest
+within ``reach``, as the kd-tree of :mod:`.index` gives the numpy crowd (REACT 2.5.1; a grid
+is the kd-tree's equal at a crowd's even density, and a few lines of compiled code). The
+cells are widened until there are at most :data:`CELLS_PER_BODY` per body (:func:`_layout`):
+cells one reach wide over a large floor cost more than the crowd (300 creatures with a
+0.1 m reach in a 1000 m square room built 10⁸ cells, 800 MB and 3.4 s, every sub-step).
 
 The crowd's random numbers are drawn before the call (:func:`draws`) in the numpy crowd's
 order, so a seed traces the same paths on either path.
@@ -211,6 +214,19 @@ def _desired(dx: float, dy: float, speed: float, vx: float, vy: float) -> tuple[
 def _truncate(x: float, y: float, limit: float) -> tuple[float, float]:
     scale = min(1.0, limit / max(math.hypot(x, y), EPS))
     return x * scale, y * scale
+
+
+CELLS_PER_BODY = 4
+"""Most grid cells per body (remote ones included) in the kernel's neighbour search."""
+
+
+@numba.njit(cache=True)
+def _layout(reach: float, size_x: float, size_y: float, n: int) -> tuple[float, int, int]:
+    """The neighbour grid's cell side and its columns and rows: at least ``reach`` (so the 3 × 3
+    cells round a body hold every neighbour within reach), and wide enough that the floor has
+    at most :data:`CELLS_PER_BODY` cells per body (the grid is built every sub-step)."""
+    cell = max(reach, 1e-3, math.sqrt(size_x * size_y / (CELLS_PER_BODY * max(n, 1))))
+    return cell, max(int(math.ceil(size_x / cell)), 1), max(int(math.ceil(size_y / cell)), 1)
 
 
 @numba.njit(cache=True)
@@ -531,9 +547,7 @@ def substeps(dt: float, steer: np.ndarray, noise: np.ndarray, pos: np.ndarray, v
     total = n + o_n
     rows = np.empty((5, total))
     allx, ally, allvx, allvy, allr = rows[0], rows[1], rows[2], rows[3], rows[4]
-    cell = max(g_reach.max() if groups_n else 1.0, 1e-3)
-    nx = max(int(math.ceil(size[0] / cell)), 1)
-    ny = max(int(math.ceil(size[1] / cell)), 1)
+    cell, nx, ny = _layout(g_reach.max() if groups_n else 1.0, size[0], size[1], total)
     kmax = max(g_k.max() if groups_n else 1, 1)
     near, dist = np.empty(kmax, np.int64), np.empty(kmax)
     members, base, rank = np.zeros(groups_n, np.int64), np.zeros(groups_n, np.int64), np.zeros(n, np.int64)
@@ -636,8 +650,7 @@ def substeps(dt: float, steer: np.ndarray, noise: np.ndarray, pos: np.ndarray, v
 @numba.njit(cache=True)
 def _all_nearest(px: np.ndarray, py: np.ndarray, k: int, reach: float, size_x: float, size_y: float,
                  index: np.ndarray) -> None:
-    cell = max(reach, 1e-3)
-    nx, ny = max(int(math.ceil(size_x / cell)), 1), max(int(math.ceil(size_y / cell)), 1)
+    cell, nx, ny = _layout(reach, size_x, size_y, len(px))
     order, first, where = _grid(px, py, cell, nx, ny)
     near, dist = np.empty(k, np.int64), np.empty(k)
     for i in range(len(px)):
