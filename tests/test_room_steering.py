@@ -29,6 +29,22 @@ def one(behaviour: str, start, *, room=Room(10, 10), around=None, heading=None, 
     return Crowd(room, v, [Recipe((Behaviour(behaviour, params=params),))], around=around)
 
 
+def test_separation_parts_bodies_that_stand_at_one_point():
+    """Six clones of one ``at`` (and a pair the walls pushed into one corner) have no direction
+    away from each other: separation pushed each along a zero offset, and they stood as one for
+    ever. Now each pair parts along its own direction, compiled or in numpy, alike."""
+    ends = []
+    for compiled in (True, False):
+        v = Vehicles.at([(5.0, 5.0)] * 6 + [(0.25, 0.25)] * 2, radius=0.25)
+        c = Crowd(Room(10, 10), v, [Recipe((Behaviour("separation"),))], seed=1)
+        if not compiled:
+            c.compiled = None
+        c.advance_to(3.0)
+        assert pdist(v.pos[:6]).min() >= 0.5 and pdist(v.pos[6:]).min() >= 0.5  # two radii
+        ends.append(v.pos)
+    np.testing.assert_allclose(ends[0], ends[1], atol=1e-9)
+
+
 def test_arrival_comes_to_rest_on_its_target():
     target = np.array([6.0, 4.0])
     c = one("arrival", (1.0, 1.0), target=(6.0, 4.0), slowing=1.0)

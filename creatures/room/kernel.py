@@ -36,6 +36,7 @@ import numpy as np
 from creatures.room import steering as st
 from creatures.room.director import FlowField, Path
 from creatures.room.recipe import NAMED_TARGETS, WANDER_RATE, Recipe, Surroundings
+from creatures.room.steering import GOLDEN
 from creatures.room.vehicle import EPS
 
 PARAMS: dict[str, tuple[str, ...]] = {
@@ -334,11 +335,11 @@ def _obstacle(x: float, y: float, vx: float, vy: float, fx: float, fy: float, r:
 
 
 @numba.njit(cache=True)
-def _steer(code: int, x: float, y: float, vx: float, vy: float, hx: float, hy: float, speed: float, r: float,
+def _steer(code: int, me: int, x: float, y: float, vx: float, vy: float, hx: float, hy: float, speed: float, r: float,
            dt: float, p0: float, p1: float, p2: float, present: bool, tx: float, ty: float, tvx: float, tvy: float,
            noise: float, angle: float, rows: np.ndarray, near: np.ndarray, found: int, size: np.ndarray,
            centres: np.ndarray, radii: np.ndarray) -> tuple[float, float, float]:
-    """One behaviour's force on one creature (the per-creature arithmetic of :mod:`.steering`)
+    """One behaviour's force on creature ``me`` (the per-creature arithmetic of :mod:`.steering`)
     and its wander angle after. Its target (``present``, at ``tx, ty`` moving ``tvx, tvy``)
     comes resolved; ``rows`` are the crowd's and the remote creatures' x, y, vx, vy, radius
     (5, N), ``near`` the ``found`` neighbours' columns. Scalars in, scalars out: a call that
@@ -386,6 +387,10 @@ def _steer(code: int, x: float, y: float, vx: float, vy: float, hx: float, hy: f
         if code == SEPARATION:
             ox, oy = x - allx[j], y - ally[j]
             d = math.hypot(ox, oy)
+            if d < EPS:  # steering.apart: one point, the pair's own direction
+                a, sign = GOLDEN * (me + j), EPS if me > j else -EPS
+                ox, oy = math.cos(a) * sign, math.sin(a) * sign
+                d = math.hypot(ox, oy)
             personal = p0 * (r + allr[j])
             safe = max(d, EPS)
             if d < personal:
@@ -605,7 +610,7 @@ def substeps(dt: float, steer: np.ndarray, noise: np.ndarray, pos: np.ndarray, v
                                                     radius[i], tx, ty, tvx, tvy, hx, hy, par[b, 0], par[b, 1],
                                                     par[b, 2])
                     else:
-                        fx, fy, angle[i] = _steer(code[b], pos[i, 0], pos[i, 1], vel[i, 0], vel[i, 1],
+                        fx, fy, angle[i] = _steer(code[b], i, pos[i, 0], pos[i, 1], vel[i, 0], vel[i, 1],
                                                   heading[i, 0], heading[i, 1], max_speed[i], radius[i], dt,
                                                   par[b, 0], par[b, 1], par[b, 2], present, tx, ty, tvx, tvy, z,
                                                   angle[i], rows, near, found, size, centres, radii)

@@ -106,11 +106,31 @@ def wander(s: Scene, angle: np.ndarray, noise: np.ndarray, *, rate: float, radiu
 
 
 # -- the neighbours (flocking: Reynolds 1987) -----------------------------------------------
+GOLDEN = np.pi * (3.0 - np.sqrt(5.0))
+"""The golden angle, rad: the directions two bodies at one point part in (:func:`apart`)."""
+
+
+def apart(me: np.ndarray, other: np.ndarray) -> np.ndarray:
+    """The offset, ``EPS`` long, from body ``other`` to body ``me`` when they stand at one point
+    (clones of one ``at``, or two bodies pushed into one corner by the walls): it has no
+    direction, and separation's push along it was zero, so they never parted. Each pair parts
+    along its own direction (the golden angle × the sum of their indices), opposite for the
+    two of it."""
+    angle = GOLDEN * (me + other)
+    sign = np.where(me > other, EPS, -EPS)
+    return np.stack([np.cos(angle), np.sin(angle)], axis=-1) * sign[..., None]
+
+
 def separation(s: Scene, *, reach: float = 3.0) -> np.ndarray:
     """Push away from neighbours nearer than ``reach`` × the two bodies' radii, harder the
-    closer they are (REACT "Separation"): each contributes its direction away × (reach·r / d − 1)."""
+    closer they are (REACT "Separation"): each contributes its direction away × (reach·r / d − 1);
+    from one at the same point, the pair's own direction (:func:`apart`)."""
     offset = s.pos[:, None, :] - s.nbr_pos
     d = norms(offset)
+    together = s.near.mask & (d < EPS)
+    if together.any():
+        offset = np.where(together[..., None], apart(s.who[:, None], s.near.index), offset)
+        d = norms(offset)
     personal = reach * (s.radius[:, None] + s.nbr_radius)
     safe = np.maximum(d, EPS)
     factor = np.where(s.near.mask & (d < personal), (personal / safe - 1.0) / safe, 0.0)  # weight / distance
