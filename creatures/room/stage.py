@@ -88,11 +88,24 @@ def check_places(section: RoomSection, specs: list, drives: list[tuple[str, ...]
     def off(point: tuple[float, float] | None) -> bool:
         return point is not None and not (0 <= point[0] <= size[0] and 0 <= point[1] <= size[1])
 
+    room = f"{size[0]:g} x {size[1]:g} m room"
+    _check_floor(section, off, room)
     for i, spec in enumerate(specs):
-        if off(spec.vehicle.at):
-            raise StageError(i, ("vehicle", "at"), f"start {list(spec.vehicle.at)} is outside the "
-                             f"{size[0]:g} x {size[1]:g} m room")
-        if spec.vehicle.gait is not None:
+        vehicle = spec.vehicle
+        if off(vehicle.at):
+            raise StageError(i, ("vehicle", "at"), f"start {list(vehicle.at)} is outside the {room}")
+        if 2 * vehicle.radius > min(size):
+            raise StageError(i, ("vehicle", "radius"), f"a body of radius {vehicle.radius:g} m does not fit in the "
+                             f"{room} (the walls would hold it outside the room)")
+        for n, o in enumerate(section.obstacles):
+            if vehicle.at is not None and np.hypot(vehicle.at[0] - o.at[0], vehicle.at[1] - o.at[1]) < o.radius:
+                raise StageError(i, ("vehicle", "at"), f"start {list(vehicle.at)} is inside obstacle {n} (at "
+                                 f"{list(o.at)}, radius {o.radius:g} m)")
+        for b, steer in enumerate(vehicle.steer):
+            if not isinstance(steer.target, str) and off(steer.target):
+                raise StageError(i, ("vehicle", "steer", b, "target"), f"target {list(steer.target)} is outside "
+                                 f"the {room}: the creature would press against the wall")
+        if vehicle.gait is not None:
             walk(spec, i)
     for n, note in enumerate(section.notes):
         if off(note.at):
@@ -115,6 +128,41 @@ def check_places(section: RoomSection, specs: list, drives: list[tuple[str, ...]
                                     f"{name!r}{nearest(name, sorted(all_tuples), 'tuples')}")
         if (problem := spec_problem(zone, specs)) is not None:
             raise RoomError(("zones", z, "spec", problem[0]), problem[1])
+
+
+def _check_floor(section: RoomSection, off: Callable[[tuple[float, float] | None], bool], room: str) -> None:
+    """What the director lays on the floor is on it (:class:`RoomError`): a zone no one can stand
+    in (off the floor, or of no area), an obstacle wholly off it, a path with a point off it
+    (its followers would press against the wall), a body key of a zone that no room would hold,
+    and two zones, paths or flow fields of one name (a path or field named twice was the last
+    one; a zone's events could not say which)."""
+    size = (section.width, section.depth)
+    for key in ("zones", "paths", "flows"):
+        seen: set[str] = set()
+        for n, item in enumerate(getattr(section, key)):
+            if item.name in seen:
+                raise RoomError((key, n, "name"), f"two [[room.{key}]] are named {item.name!r}")
+            seen.add(item.name)
+    for z, zone in enumerate(section.zones):
+        low, high = np.minimum(zone.low, zone.high), np.maximum(zone.low, zone.high)
+        if (low >= high).any():
+            raise RoomError(("zones", z, "high"), f"zone {zone.name!r} from {list(zone.low)} to {list(zone.high)} "
+                            "has no area: no creature could stand in it")
+        if (low >= size).any():
+            raise RoomError(("zones", z, "low"), f"zone {zone.name!r} from {list(zone.low)} to {list(zone.high)} "
+                            f"lies outside the {room}: no creature could stand in it")
+        if 2 * zone.spec.get("radius", 0.0) > min(size):
+            raise RoomError(("zones", z, "spec", "radius"), f"zone {zone.name!r}: a body of radius "
+                            f"{zone.spec['radius']:g} m does not fit in the {room}")
+    for n, o in enumerate(section.obstacles):
+        if np.hypot(*(np.clip(o.at, 0.0, size) - o.at)) >= o.radius:  # the floor's nearest point is not in it
+            raise RoomError(("obstacles", n, "at"), f"obstacle {list(o.at)} of radius {o.radius:g} m lies "
+                            f"outside the {room}")
+    for n, path in enumerate(section.paths):
+        for point in path.points:
+            if off(point):
+                raise RoomError(("paths", n, "points"), f"path {path.name!r}: point {list(point)} is outside the "
+                                f"{room}: its followers would press against the wall")
 
 
 def recipes(section: RoomSection, specs: list, index: dict[str, int]
