@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-from pydantic import AfterValidator, BaseModel, Field, model_validator
+from pydantic import AfterValidator, BaseModel, Field, ValidationError, model_validator
 
 from creatures.bounds import FINITE, Bounded
 from creatures.config import nearest
@@ -18,6 +18,10 @@ from creatures.room.recipe import BEHAVIOURS
 BODY_KEYS = ("max_speed", "max_force", "mass", "radius", "max_turn")
 """The ``[creature.vehicle]`` keys a zone's ``spec`` may override (the vehicle's columns; its
 other keys are read when the room is built)."""
+
+LIGHTEST = 0.001
+"""Kilograms: the least mass of a vehicle. Any positive mass was taken, and under ~1e-308 kg
+(a subnormal float) force / mass overflowed to infinity and every position became NaN."""
 
 LARGEST_ROOM = 1000.0
 """Metres: the longest side a room may have (a field, not a continent)."""
@@ -75,13 +79,20 @@ class ZoneSpec(Strict):
 
     @model_validator(mode="after")
     def _body_keys(self) -> "ZoneSpec":
-        """The vehicle's keys are numbers here; a creature's spec keys are checked against the
-        creatures' specs when the room is (creatures.room.stage.check_places)."""
+        """The vehicle's keys are numbers within ``[creature.vehicle]``'s own bounds here (one
+        bound for all, (0, 36000], let a zone set 36000 m/s or a mass of 1e-310 kg, which made
+        positions NaN); a creature's spec keys are checked against the creatures' specs when
+        the room is (creatures.room.stage.check_places)."""
         for key, value in self.spec.items():
             if key not in BODY_KEYS:
                 continue
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value <= 36000:
-                raise ValueError(f"zone {self.name!r}: spec[{key!r}] = {value!r} must be a number in (0, 36000]")
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise ValueError(f"zone {self.name!r}: spec[{key!r}] = {value!r} must be a number")
+            try:
+                VehicleSpec.model_validate({key: value})
+            except ValidationError as error:
+                raise ValueError(f"zone {self.name!r}: spec[{key!r}] = {value!r}: "
+                                 f"{error.errors()[0]['msg']}") from None
         return self
 
 
@@ -297,7 +308,7 @@ class VehicleSpec(Strict):
 
     at: Point | None = Field(None, description="start [x, y], m (default: a seeded random place)")
     heading: float | None = Field(None, ge=-360, le=360, description="start heading, degrees (default: random)")
-    mass: float = Field(1.0, gt=0, le=1000, description="kg")
+    mass: float = Field(1.0, ge=LIGHTEST, le=1000, description="kg (at least a gram)")
     max_force: float = Field(2.0, gt=0, le=1000, description="largest steering force, N")
     max_speed: float = Field(1.0, gt=0, le=100, description="m/s")
     radius: float = Field(0.25, gt=0, le=LARGEST_ROOM, description="body radius, m")
