@@ -569,6 +569,16 @@ def test_places_and_zones_that_cannot_be_are_config_errors(tmp_path, room, creat
     assert info.value.file.name == "room.toml"
 
 
+def test_a_flow_field_of_more_cells_than_a_painted_one_may_have_is_a_config_error(tmp_path):
+    """0.02 m cells over a 1000 m square room: 2.5e9 cells, 40 GB asked for as the run began."""
+    text = (HEADER.format(room='[[room.flows]]\nname = "f"\ncell = 0.02').replace("= 10.0", "= 1000.0")
+            + singer("a", 1.0, 1.0))
+    with pytest.raises(ConfigError, match="flow 'f': cells of 0.02 m make 2.5e\\+09 over the 1000 x 1000 m room, "
+                                          "more than 1e\\+06 \\(at least 1 m\\)") as info:
+        load_installation(write(tmp_path, text))
+    assert info.value.line is not None
+
+
 def test_far_creatures_decide_less_often_within_a_budget_and_still_hear(tmp_path):
     """[room.lod] with decide: a creature 8 m from the listener (level 3) runs its behaviour one
     tick in eight; two near ones sharing a budget of one decider a tick take turns (neither

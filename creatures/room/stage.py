@@ -49,6 +49,11 @@ PLAYER_FOR = 4.0
 (a phrase's gaps must not scatter a crowd gathered round whoever plays)."""
 
 
+LARGEST_FIELD = 1_000_000
+"""Most cells of a uniform or vortex flow field (a painted one's: 1000 rows of 1000): 0.02 m
+cells over a 1000 m room were 2.5e9 cells, 40 GB, asked for when the run began."""
+
+
 class StageError(ValueError):
     """A ``[creature.vehicle]`` that names what is not there; ``key`` is the path under the creature."""
 
@@ -158,6 +163,12 @@ def _check_floor(section: RoomSection, off: Callable[[tuple[float, float] | None
         if np.hypot(*(np.clip(o.at, 0.0, size) - o.at)) >= o.radius:  # the floor's nearest point is not in it
             raise RoomError(("obstacles", n, "at"), f"obstacle {list(o.at)} of radius {o.radius:g} m lies "
                             f"outside the {room}")
+    for n, flow in enumerate(section.flows):
+        cells = int(np.ceil(size[0] / flow.cell)) * int(np.ceil(size[1] / flow.cell))
+        if flow.shape != "painted" and cells > LARGEST_FIELD:
+            raise RoomError(("flows", n, "cell"), f"flow {flow.name!r}: cells of {flow.cell:g} m make {cells:.3g} over "
+                            f"the {room}, more than {LARGEST_FIELD:.0e} (at least "
+                            f"{np.sqrt(size[0] * size[1] / LARGEST_FIELD):.3g} m)")
     for n, path in enumerate(section.paths):
         for point in path.points:
             if off(point):
