@@ -14,6 +14,7 @@ import html
 from collections import defaultdict
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Iterable
 
 import matplotlib
 import numpy as np
@@ -37,6 +38,20 @@ def _series(events: list[dict], kind: str, key: str) -> dict[str, dict[str, list
     return out
 
 
+MAX_PANELS = 12
+"""Most creatures a report's plot draws one by one (a panel, a legend entry, rows of
+selections): a REACT crowd of 300 singers drew 300 panels a plot, a figure 780 inches tall,
+and its report took 302 of a 364 s offline run; the plot says how many it leaves out."""
+
+
+def _some(names: "Iterable[str]") -> tuple[list[str], str]:
+    """The creatures a plot draws one by one (the first :data:`MAX_PANELS`, by name) and what
+    its title adds when there were more."""
+    every = sorted(names)
+    kept = every[:MAX_PANELS]
+    return kept, "" if len(every) == len(kept) else f" ({len(kept)} of {len(every)} creatures shown)"
+
+
 def saved(fig: Figure, path: Path) -> Path:
     """Lay ``fig`` out, write it to ``path`` (PNG) and let it go. A write that fails (a full
     disk) is an :class:`OSError` naming the file: from inside matplotlib it named none, and a
@@ -54,12 +69,13 @@ def saved(fig: Figure, path: Path) -> Path:
 def _plot_series(series: dict, title: str, ylabel: str, path: Path) -> Path | None:
     if not series:
         return None
-    fig, axes = plt.subplots(len(series), 1, figsize=(9, 2.6 * len(series)), squeeze=False, sharex=True)
-    for ax, (creature, lines) in zip(axes[:, 0], sorted(series.items())):
-        for name, points in sorted(lines.items()):
+    shown, left = _some(series)
+    fig, axes = plt.subplots(len(shown), 1, figsize=(9, 2.6 * len(shown)), squeeze=False, sharex=True)
+    for ax, creature in zip(axes[:, 0], shown):
+        for name, points in sorted(series[creature].items()):
             ts, vs = zip(*points)
             ax.plot(ts, vs, label=name, linewidth=1)
-        ax.set_title(f"{creature}: {title}", fontsize=9)
+        ax.set_title(f"{creature}: {title}" + (left if ax is axes[0, 0] else ""), fontsize=9)
         ax.set_ylabel(ylabel)
         ax.legend(fontsize=6, loc="upper left", ncol=4)
     axes[-1, 0].set_xlabel("time (s)")
@@ -70,16 +86,23 @@ def _plot_notes(events: list[dict], path: Path) -> Path | None:
     played = [e for e in events if e["kind"] in ("note", "heard")]
     if not played:
         return None
-    who = sorted({e.get("creature") or e.get("source", "") for e in played})
+    by: dict[str, list[dict]] = defaultdict(list)
+    for e in played:
+        by[e.get("creature") or e.get("source", "")].append(e)
+    shown, left = _some(by)
     fig, ax = plt.subplots(figsize=(9, 3.2))
-    for i, name in enumerate(who):
-        mine = [e for e in played if (e.get("creature") or e.get("source")) == name]
+    others = [e for name in sorted(set(by) - set(shown)) for e in by[name]]
+    for i, (name, mine, colour) in enumerate([*((n, by[n], None) for n in shown), ("the others", others, "0.6")]):
+        if not mine:
+            continue
+        colour = colour or f"C{i}"
         ax.hlines([e["pitch"] for e in mine], [e["time"] for e in mine],
-                  [e["time"] + max(e["duration"], 0.02) for e in mine], color=f"C{i}", linewidth=3)
-        ax.scatter([e["time"] for e in mine], [e["pitch"] for e in mine], s=8, color=f"C{i}", label=name)
+                  [e["time"] + max(e["duration"], 0.02) for e in mine], color=colour, linewidth=3)
+        ax.scatter([e["time"] for e in mine], [e["pitch"] for e in mine], s=8, color=colour, label=name)
     ax.set_xlabel("time (s)")
     ax.set_ylabel("MIDI pitch")
-    ax.set_title("notes heard and played", fontsize=9)
+    ax.set_title("notes heard and played" + (f" ({len(shown)} of {len(by)} in colour, the others in grey)"
+                                             if left else ""), fontsize=9)
     ax.legend(fontsize=7, loc="upper right")
     return saved(fig, path)
 
@@ -88,13 +111,15 @@ def _plot_selections(events: list[dict], path: Path) -> Path | None:
     chosen = [e for e in events if e["kind"] == "selection"]
     if not chosen:
         return None
+    shown, left = _some({e.get("creature", "") for e in chosen})
+    chosen = [e for e in chosen if e.get("creature", "") in shown]
     rows = sorted({(e.get("creature", ""), e["tuple"]) for e in chosen})
     index = {row: i for i, row in enumerate(rows)}
     fig, ax = plt.subplots(figsize=(9, 1.4 + 0.22 * len(rows)))  # 1.4 in: the title and the time axis, for one row too
     ax.scatter([e["t"] for e in chosen], [index[(e.get("creature", ""), e["tuple"])] for e in chosen], s=6, marker="|")
     ax.set_yticks(range(len(rows)), [f"{c}: {t}" for c, t in rows], fontsize=6)
     ax.set_xlabel("time (s)")
-    ax.set_title("action selections", fontsize=9)
+    ax.set_title("action selections" + left, fontsize=9)
     return saved(fig, path)
 
 
@@ -157,8 +182,10 @@ def plot_motor_graph(events: list[dict], path: Path) -> Path | None:
     walks = {c: w for c, w in motor_walks(events).items() if len(w.hands)}
     if not walks:
         return None
-    fig, axes = plt.subplots(1, len(walks), figsize=(4.4 * len(walks), 4.4), squeeze=False)
-    for ax, (creature, walk) in zip(axes[0], sorted(walks.items())):
+    shown, left = _some(walks)
+    fig, axes = plt.subplots(1, len(shown), figsize=(4.4 * len(shown), 4.4), squeeze=False)
+    for ax, creature in zip(axes[0], shown):
+        walk = walks[creature]
         front = walk.hands[:, :2]
         ax.add_collection(LineCollection([front[[a, b]] for a, b in sorted(walk.edges)], colors="0.82",
                                          linewidths=0.4, zorder=1))
@@ -177,7 +204,8 @@ def plot_motor_graph(events: list[dict], path: Path) -> Path | None:
             ax.legend(fontsize=6, loc="lower right")
         jumps = walk.jumps()
         ax.set_title(f"{creature}: {len(walk.hands)} nodes, {len(walk.edges)} edges; walked {len(steps)} edges "
-                     f"through {len(visited)} nodes" + (f" ({jumps} restarts)" if jumps else ""), fontsize=8)
+                     f"through {len(visited)} nodes" + (f" ({jumps} restarts)" if jumps else "")
+                     + (left if ax is axes[0, 0] else ""), fontsize=8)
         ax.set_xlabel("hand x (m)")
         ax.set_ylabel("hand height (m)")
         ax.autoscale_view()
@@ -191,9 +219,11 @@ def plot_bars(groups: dict[str, dict[str, float]], title: str, xlabel: str, path
     groups = {g: bars for g, bars in groups.items() if bars}
     if not groups:
         return None
-    height = sum(1.3 + 0.25 * len(bars) for bars in groups.values())
-    fig, axes = plt.subplots(len(groups), 1, figsize=(9, height), squeeze=False)
-    for ax, (group, bars) in zip(axes[:, 0], sorted(groups.items())):
+    shown, left = _some(groups)
+    height = sum(1.3 + 0.25 * len(groups[g]) for g in shown)
+    fig, axes = plt.subplots(len(shown), 1, figsize=(9, height), squeeze=False)
+    for ax, group in zip(axes[:, 0], shown):
+        bars = groups[group]
         names = sorted(bars)
         alpha = [min(1.0, max(0.15, (shade or {}).get(group, {}).get(n, 1.0))) for n in names]
         for i, (name, a) in enumerate(zip(names, alpha)):
@@ -201,7 +231,7 @@ def plot_bars(groups: dict[str, dict[str, float]], title: str, xlabel: str, path
             if shade and name in shade.get(group, {}):
                 ax.text(bars[name], i, f"  confidence {shade[group][name]:.2f}", va="center", fontsize=6)
         ax.set_yticks(range(len(names)), names, fontsize=7)
-        ax.set_title(f"{group}: {title}", fontsize=9)
+        ax.set_title(f"{group}: {title}" + (left if ax is axes[0, 0] else ""), fontsize=9)
         ax.set_xlabel(xlabel)
     return saved(fig, path)
 
