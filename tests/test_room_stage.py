@@ -373,6 +373,29 @@ def test_a_visitor_from_the_tracker_is_sought_and_fled(tmp_path):
     assert np.linalg.norm(s.stage.v.pos[1] - [6.0, 6.0]) > 3.9
 
 
+def test_a_visitor_the_tracker_gives_one_coordinate_of_is_said_once(tmp_path):
+    """A tracker sending x alone (or a map reading the wrong argument) left the visitor never
+    shown and nothing said: it is a ``room visitor half`` event once its timeout has passed,
+    once, and not while the visitor is seen whole."""
+    room = 'visitors = [{ x = "vx", y = "vy", timeout = 1.0 }]'
+    log = EventLog()
+    inst = load_installation(write(tmp_path, HEADER.format(room=room) + TRACKER.replace('"/v"', '"/vx"', 1)
+                                   + singer("a", 2.0, 2.0)))
+    clock = SimulatedClock()
+    s = Session(inst, clock, log, MemorySink())
+    for k in range(int(6.0 / TICK)):
+        t = clock.advance(TICK)
+        if k % 5 == 0:
+            s.inputs.osc("/vx", [6.0], t)  # x alone, for 3 s; then both
+            if t > 3.0:
+                s.inputs.osc("/v", [0.0, 6.0], t)
+        s.step(t, 0, None, audio=False)
+    half = [e for e in log.records if e["kind"] == "room visitor half"]
+    assert [(e["visitor"], e["heard"], e["missing"]) for e in half] == [(0, "vx", "vy")]
+    assert 1.0 <= half[0]["t"] <= 1.2
+    assert len(s.stage.crowd.around.visitors) == 1  # seen whole at the end
+
+
 def test_a_ring_of_speakers_writes_one_channel_each_panned_by_place(tmp_path):
     room = 'speakers = "ring"\nchannels = 4'
     inst = load_installation(write(tmp_path, HEADER.format(room=room) + caller("east", 9.0, 5.0)))

@@ -51,7 +51,8 @@ class ObstacleSpec(Strict):
 
 class VisitorSpec(Strict):
     """A tracked visitor: two sensors of the input map (``[[input]]`` with ``to = "sensor"``,
-    e.g. an OSC tracker's ``/visitor/1 x y``) giving their position."""
+    e.g. an OSC tracker's ``/visitor/1 x y``) giving their position. One heard without the
+    other for ``timeout`` is said once in the events log (a ``room visitor half`` event)."""
 
     x: str = Field(description="sensor holding x, m (scale a tracker's 0..1 with the map's `range`)")
     y: str = Field(description="sensor holding y, m")

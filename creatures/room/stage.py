@@ -28,7 +28,7 @@ from creatures.room.lod import Audibility, LevelOfDetail, Sounding, overdue_firs
 from creatures.room.motion import Crowd
 from creatures.room.recipe import NAMED_TARGETS, Behaviour, Recipe, Surroundings
 from creatures.room.space import Obstacle, Room
-from creatures.room.spec import RoomSection, VehicleSpec
+from creatures.room.spec import RoomSection, VehicleSpec, VisitorSpec
 from creatures.room.speakers import DOME, Dome, azimuth, ring, stereo, vbap
 from creatures.room.vehicle import Vehicles, norms
 from creatures.room.vision import visible
@@ -282,6 +282,7 @@ class Stage:
         self._world: World | None = None
         self._remote: dict[str, int] = {}  # a shared room's remote creature -> its row in around.others
         self._next_beat = -np.inf  # the next shared beat the pulse hears (counted from the first one seen)
+        self._half: dict[int, float | None] = {}  # a visitor with one coordinate: since when (None: said)
         # The tick each last decided on; staggered so a level's creatures spread over its ticks.
         self._decided = -1 - np.arange(len(creatures), dtype=np.int64) % 256
         # What each creature sounds now, for [room.lod] unheard (None: levels by distance alone).
@@ -339,7 +340,7 @@ class Stage:
         """Visitors from the tracker, ``when`` weights from the creatures' percepts (``percept(i,
         name)``), the zones, then the sub-steps up to ``t``. Returns the note objects struck:
         (creature index, note) for the caller to play as that creature's."""
-        self._visitors(t)
+        self._visitors(t, emit)
         self._loud = [(end, where) for end, where in self._loud if end > t]
         self.crowd.around.loud = np.array([w for _, w in self._loud]).reshape(-1, 2)
         if self._player is not None and self._player[0] <= t:
@@ -484,19 +485,32 @@ class Stage:
                 world.pulse.hear(t - (beat - self._next_beat) * 60.0 / share.timeline.tempo)
                 self._next_beat += 1
 
-    def _visitors(self, t: float) -> None:
+    def _visitors(self, t: float, emit: Callable[..., None]) -> None:
         seen, moving = [], []
-        for visitor in self.section.visitors:
+        for i, visitor in enumerate(self.section.visitors):
             x, y = self.sensors.get(visitor.x), self.sensors.get(visitor.y)
-            if x is None or y is None or not len(x) or not len(y):
-                continue
-            if min(x.times_array[-1], y.times_array[-1]) < t - visitor.timeout:
-                continue  # the tracker lost them: gone
+            fresh = [s is not None and len(s) > 0 and s.times_array[-1] >= t - visitor.timeout for s in (x, y)]
+            if fresh[0] != fresh[1]:
+                self._half_seen(i, visitor, fresh[0], t, emit)
+            if not all(fresh):
+                continue  # the tracker lost them (or never found them): gone
+            self._half.pop(i, None)
             seen.append((float(x.latest()), float(y.latest())))
             moving.append(self._velocity(x, y))
         room = self.crowd.around
         room.visitors = np.clip(np.array(seen, float).reshape(-1, 2), 0.0, self.room.size)
         room.visitor_vel = np.array(moving, float).reshape(-1, 2)
+
+    def _half_seen(self, i: int, visitor: VisitorSpec, has_x: bool, t: float, emit: Callable[..., None]) -> None:
+        """Visitor ``i`` has one coordinate and not the other. Shown only whole, such a visitor
+        was never there and nothing said why (a tracker sending ``/visitor/1 x`` alone, a map's
+        ``value = { arg = 1 }`` for a message of one argument); once it has stayed so for its
+        ``timeout`` it is said once, as a ``room visitor half`` event, until it is seen whole."""
+        since = self._half.setdefault(i, t)
+        if since is not None and t - since >= visitor.timeout:
+            heard, missing = (visitor.x, visitor.y) if has_x else (visitor.y, visitor.x)
+            emit("room visitor half", visitor=i, heard=heard, missing=missing)
+            self._half[i] = None
 
     @staticmethod
     def _velocity(x: "StateObject", y: "StateObject") -> tuple[float, float]:
