@@ -182,21 +182,23 @@ def _rehearse(args: argparse.Namespace) -> int:
 
     from creatures.config import ConfigError
     from creatures.persist import atomic_write
-    from creatures.runtime.rehearse import rehearse, report
+    from creatures.runtime.rehearse import plan, rehearse, report
     from creatures.runtime.schema import load_installation
     from creatures.runtime.visitors import CorpusError
 
     try:
-        # Every config is read, and the --json folder looked at, before a week is rehearsed: a
-        # typo in --compare's config, or a missing folder, was found after minutes of the first.
+        # Every config is read (its opening hours and corpus too), and the --json folder looked
+        # at, before a week is rehearsed: a slip in --compare's config, or a missing folder, was
+        # found after the minutes of the first one's week.
         configs = [args.config] + ([args.compare] if args.compare is not None else [])
         loaded = [load_installation(_config_path(c)) for c in configs]
         folder = None if args.json is None else args.json.parent
         if folder is not None and not (folder.is_dir() and os.access(folder, os.W_OK)):
             raise OSError(f"--json {args.json}: " + (f"{folder} is not writable" if folder.is_dir()
                                                       else f"there is no folder {folder}"))
-        runs = [rehearse(inst, args.days, progress=lambda line: print(line, file=sys.stderr, flush=True))
-                for inst in loaded]
+        plans = [plan(inst, args.days) for inst in loaded]
+        runs = [rehearse(inst, planned=p, progress=lambda line: print(line, file=sys.stderr, flush=True))
+                for inst, p in zip(loaded, plans)]
         if len(runs) == 2 and runs[0].title == runs[1].title:  # two versions of one piece: name them by file
             runs = [dataclasses.replace(r, title=f"{r.title} ({c.name})") for r, c in zip(runs, configs)]
         print(report(*runs))

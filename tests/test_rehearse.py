@@ -267,6 +267,11 @@ def test_the_command_reads_every_config_and_its_json_folder_before_rehearsing(tm
     assert main(["rehearse", str(config), "--days", "1", "--compare", str(other)]) == 2
     said = capsys.readouterr()
     assert "other.toml" in said.err and "day" in said.err and "rehearsed" not in said.err, said.err
+    (tmp_path / "empty").mkdir()  # a corpus folder with no MIDI file in it: said before the first week too
+    other.write_text(config.read_text().replace("[rehearse]", '[rehearse]\ncorpus = "empty"', 1))
+    assert main(["rehearse", str(config), "--days", "1", "--compare", str(other)]) == 2
+    said = capsys.readouterr()
+    assert "corpus" in said.err and "holds no phrase" in said.err and "rehearsed" not in said.err, said.err
     missing = tmp_path / "no" / "r.json"
     assert main(["rehearse", str(config), "--days", "1", "--json", str(missing)]) == 2
     said = capsys.readouterr()

@@ -150,24 +150,48 @@ def _row_time(row: Row) -> float:
     return row.time
 
 
-def rehearse(inst: LoadedInstallation, days: int | None = None, *,
-             taps: tuple[Callable[[dict[str, Any]], None], ...] = (),
-             progress: Callable[[str], None] | None = None) -> Rehearsal:
-    """Rehearse ``inst`` for ``days`` simulated days (default ``[rehearse] days``); ``taps``
-    see every events-log record as it is written (nothing is kept for a week); ``progress``
-    is told each opening hour as it is done (a week takes minutes)."""
+@dataclass(frozen=True)
+class Plan:
+    """What a rehearsal of one config will open and play, read before any hour is rehearsed:
+    ``creatures rehearse --compare`` makes both configs' plans first, so a slip in the second
+    (days holding no opening hours, a corpus that cannot be read) is said before the minutes
+    the first one's week takes, not after."""
+
+    days: int
+    spans: list[tuple[float, float]]
+    corpus: list[Phrase]
+
+
+def plan(inst: LoadedInstallation, days: int | None = None) -> Plan:
+    """The opening spans of ``days`` simulated days (default ``[rehearse] days``) and the
+    visitors' corpus; :class:`ConfigError` or :class:`CorpusError` when either cannot be."""
     settings = inst.settings
     params = settings.rehearse
     days = days or params.days
     hours = params.hours or (settings.schedule if settings.schedule.opens is not None else GALLERY)
-    if not open_spans(hours, days):  # e.g. one day: a rehearsal begins on a Monday, a gallery's day off
+    spans = open_spans(hours, days)
+    if not spans:  # e.g. one day: a rehearsal begins on a Monday, a gallery's day off
         raise inst.error(("rehearse", "days"), f"{days} day(s) from Monday hold no opening hours (open "
                                                f"{', '.join(hours.days)}): rehearse more days (--days, "
                                                "[rehearse] days) or set [rehearse] hours")
+    corpus = load_corpus(inst.resolve(params.corpus, ("rehearse", "corpus"))) if params.corpus else generated(settings.input.generate == "speech")
+    return Plan(days, spans, corpus)
+
+
+def rehearse(inst: LoadedInstallation, days: int | None = None, *,
+             taps: tuple[Callable[[dict[str, Any]], None], ...] = (),
+             progress: Callable[[str], None] | None = None, planned: Plan | None = None) -> Rehearsal:
+    """Rehearse ``inst`` for ``days`` simulated days (default ``[rehearse] days``), or as
+    ``planned`` (:func:`plan`); ``taps`` see every events-log record as it is written
+    (nothing is kept for a week); ``progress`` is told each opening hour as it is done (a
+    week takes minutes)."""
+    settings = inst.settings
+    params = settings.rehearse
+    planned = planned or plan(inst, days)
+    days, spans, corpus = planned.days, planned.spans, planned.corpus
     tick = params.tick or settings.tick
     sr = settings.audio.sample_rate
     hearing = settings.input.generate != "none" or settings.input.audio is not None
-    corpus = load_corpus(inst.resolve(params.corpus, ("rehearse", "corpus"))) if params.corpus else generated(settings.input.generate == "speech")
     rng = np.random.default_rng([settings.seed, 20])
     visitors = Visitors(params, corpus, rng)
     ears = _Ears(sr, rng) if hearing else None
@@ -176,7 +200,6 @@ def rehearse(inst: LoadedInstallation, days: int | None = None, *,
     clock, log = SimulatedClock(), EventLog(keep_in_memory=0)  # the taps see every record; none is kept
     session = Session(inst, clock, log, CountingSink())
     names = [c.name for c in session.creatures]
-    spans = open_spans(hours, days)
     hours_open = len({hour for a, b in spans for hour in range(int(a // 3600), math.ceil(b / 3600))})
     per_day: dict[int, float] = {}
     for a, b in spans:
