@@ -4,6 +4,11 @@ Several creatures share one loudspeaker pair (thesis *exchange*, *soundcreatures
 "together"). The mix is one matrix product ``(frames, sources) @ (sources, 2)`` written
 into a buffer allocated once, so mixing a block allocates nothing. Pan is equal-power
 (−3 dB in the centre) so a creature keeps its loudness as it moves across the stereo field.
+
+Each voice is soft-limited (:func:`audio.scanned.soft_limit`), but their sum, times the
+creatures' gains, is not: past full scale the file (libsndfile) and the sound card clip it
+hard. The mixer counts those samples (:attr:`Mixer.clipped`) and keeps the loudest
+(:attr:`Mixer.peak`), so a run says it clipped rather than distorting without a word.
 """
 
 from __future__ import annotations
@@ -30,6 +35,10 @@ class Mixer:
         self._placed = np.zeros(n_sources, dtype=bool)  # rows set by place(), not by gain and pan
         self._weights = np.zeros((n_sources, channels))
         self._out = np.zeros((block_size, channels))
+        self.clipped = 0
+        """Samples (all channels) of the mix beyond full scale (±1), which the output clips."""
+        self.peak = 0.0
+        """The largest magnitude the mix reached."""
         self._update_weights()
 
     def set(self, source: int, *, gain: float | None = None, pan: float | None = None) -> None:
@@ -76,4 +85,10 @@ class Mixer:
             )
         out = self._out[:frames]
         np.matmul(blocks.T, self._weights, out=out)
+        if frames:
+            loudest = max(out.max(), -out.min())  # no temporary array unless it is over
+            if loudest > self.peak:
+                self.peak = float(loudest)
+            if loudest > 1.0:
+                self.clipped += int(np.count_nonzero(np.abs(out) > 1.0))
         return out

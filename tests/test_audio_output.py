@@ -98,6 +98,21 @@ def test_mixer_sums_with_gain_and_equal_power_pan(rng):
         mixer.mix(np.zeros((3, 129)))
 
 
+def test_mixer_counts_the_samples_past_full_scale_that_the_output_clips():
+    """Each voice is soft-limited but the sum of loud creatures is not: libsndfile writes 1.5
+    as full scale. The mixer says how many samples went past it, and the loudest."""
+    mixer = Mixer(2, block_size=64)
+    mixer.set(0, gain=4.0, pan=-1.0)
+    mixer.set(1, pan=1.0)
+    quiet = np.full((2, 64), 0.2)
+    mixer.mix(quiet)
+    assert mixer.clipped == 0 and mixer.peak == pytest.approx(0.8)
+    loud = quiet.copy()
+    loud[0, :10] = -0.3  # 10 samples at −1.2 on the left
+    mixer.mix(loud)
+    assert mixer.clipped == 10 and mixer.peak == pytest.approx(1.2)
+
+
 def test_live_output_degrades_to_silence_with_a_clear_message(monkeypatch, caplog):
     def missing():
         raise AudioDeviceUnavailable("live audio unavailable: PortAudio library not found; install PortAudio")

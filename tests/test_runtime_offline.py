@@ -154,3 +154,19 @@ def test_the_coarsest_tick_the_schema_accepts_renders_audio(tmp_path):
     inst.settings.output.report = False
     run_offline(inst, tmp_path / "out", duration=6)
     assert soundfile.info(tmp_path / "out" / "out.wav").frames == 6 * 22050
+
+
+def test_a_mix_driven_past_full_scale_is_said_and_logged(tmp_path):
+    """Creatures at gain 4 singing through strings at gain 4 sum past full scale, which out.wav
+    clips hard: the run says so (the samples, the peak) instead of a distorted file and no word."""
+    inst = load_installation(EXCHANGE)
+    inst.settings.output.report = False
+    for spec in inst.specs:
+        spec.gain = 4.0
+        spec.voice.gain = 4.0
+    summary = run_offline(inst, tmp_path / "out", duration=7)  # the first notes are played from 5.4 s
+    said = [m for m in summary.messages if m.startswith("out.wav: the mix clipped")]
+    clipped = [e for e in read_events(tmp_path / "out" / "events.jsonl") if e["kind"] == "clipped"]
+    assert len(said) == 1 and len(clipped) == 1 and clipped[0]["samples"] > 0 and clipped[0]["peak"] > 1
+    data, _ = soundfile.read(tmp_path / "out" / "out.wav")
+    assert (abs(data) >= 32767 / 32768).sum() >= clipped[0]["samples"] // 2  # what was counted is in the file, clipped

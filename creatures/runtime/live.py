@@ -609,6 +609,8 @@ def run_live(
                     summary.midi_dropped = port.dropped
                     session.world.emit("midi output", port=settings.midi.output_port, dropped=port.dropped)
                 session.close()
+                if (clipped := session.clipping()) is not None:  # sounded only if a loudspeaker played it
+                    say(clipped)
                 if score is not None and recorded is not None:  # written beside the final save
                     score.finish(session.world, recorded, start, say)
                 if saver is not None:

@@ -231,6 +231,8 @@ def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path 
     if wav is not None:
         wav.close()
         files["wav"] = out / "out.wav"
+        if (clipped := session.clipping()) is not None:
+            messages.append(f"out.wav: {clipped}")
     if settings.output.midi:
         write_score(out / "out.mid", session.world, sink.messages)
         files["midi"] = out / "out.mid"

@@ -223,10 +223,21 @@ class Session:
         return heard
 
     def close(self) -> None:
-        """Silence every sounding note and log the input counters and the end of the run."""
+        """Silence every sounding note and log the input counters, the mix's clipping (if any)
+        and the end of the run."""
         self.scheduler.all_notes_off()
         self.world.emit("inputs", **self.inputs.summary())
+        if self.mixer.clipped:
+            self.world.emit("clipped", samples=self.mixer.clipped, peak=round(self.mixer.peak, 3))
         self.world.emit("end", ticks=self.ticks, notes=self.world.notes_played)
+
+    def clipping(self) -> str | None:
+        """What the mix lost past full scale, said as the artist can act on it; None when nothing."""
+        if not self.mixer.clipped:
+            return None
+        over = 20.0 * math.log10(self.mixer.peak)
+        return (f"the mix clipped: {self.mixer.clipped} samples beyond full scale (peak {self.mixer.peak:.2f}, "
+                f"{over:+.1f} dB): lower the creatures' gain or voice.gain")
 
     # -- state that lasts across restarts ---------------------------------------------------
     def save_state(self, directory: Path) -> None:
