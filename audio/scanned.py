@@ -288,9 +288,14 @@ class ScannedString:
         self._state[4] = self._frequency / self.sample_rate
 
     def _bump(self, position: float, width: float) -> np.ndarray:
+        """A raised cosine ``width`` wide at ``position`` along the string, at the masses. One
+        narrower than two spacings of the masses is widened to two: else it could fall between
+        them and move none (a note on a string of 1–3 masses plucked nothing and sang silence)."""
         if not (0.0 <= position <= 1.0 and 0.0 < width <= 1.0):
             raise ValueError(f"position must be in [0, 1] and width in (0, 1], got {position!r}, {width!r}")
-        u = np.linspace(0.0, 1.0, self.parameters.n_masses)
+        n = self.parameters.n_masses
+        width = max(width, 2.0 / max(n - 1, 1))
+        u = np.linspace(0.0, 1.0, n)
         d = np.abs(u - position)
         if self.parameters.ring:
             d = np.minimum(d, 1.0 - d)

@@ -83,6 +83,23 @@ def test_one_mass_is_a_damped_oscillator_scanned_as_a_pulse_wave():
     assert ringing_hz(x_ring, ring.haptic_rate) == pytest.approx(centring_hz, rel=0.02)
 
 
+@pytest.mark.parametrize("masses", [1, 2, 3, 4, 12])
+def test_a_note_sounds_on_a_string_of_any_mass_count_the_config_takes(masses):
+    """note_on plucks 0.2 wide at 0.3: on 1–3 masses no mass lay under that bump, so the string
+    stayed at rest and the note was silence. A bump at least two spacings wide moves one."""
+    string = ScannedString(StringParameters(n_masses=masses), sample_rate=SR)
+    string.note_on(220.0, 0.5)
+    assert np.abs(string.x).max() >= 0.15  # the nearest mass carries a good part of the pluck
+    assert np.sqrt(np.mean(string.render(SR // 4) ** 2)) > 0.01
+
+
+def test_a_bump_wider_than_two_spacings_is_as_asked():
+    string = ScannedString(StringParameters(n_masses=64), sample_rate=SR)
+    u = np.linspace(0.0, 1.0, 64)
+    d = np.abs(u - 0.3)
+    np.testing.assert_array_equal(string._bump(0.3, 0.2), np.where(d < 0.1, 0.5 * (1 + np.cos(2 * np.pi * d / 0.2)), 0.0))
+
+
 @pytest.mark.parametrize("damping", [0.5, 2.0])
 def test_energy_decays_and_faster_with_more_damping(damping):
     def energies(d):
