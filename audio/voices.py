@@ -74,6 +74,14 @@ class VoicePool:
         """Release every voice sounding ``pitch`` (unknown pitches are ignored, like MIDI)."""
         self.slope[(self.pitch == pitch) & (self.slope == 0)] = -self._release_step
 
+    def release(self, index: int, started: float) -> None:
+        """Release voice ``index`` if it still sounds the note it started at stamp ``started``
+        (``started[index]`` just after its :meth:`note_on`): one note's end, which leaves any
+        other note of the same pitch sounding (thesis "exchange": every note is independent of
+        every other, even of the same pitch), and a voice stolen since alone."""
+        if self.started[index] == started and self.pitch[index] >= 0 and self.slope[index] == 0:
+            self.slope[index] = -self._release_step
+
     @property
     def active(self) -> int:
         return int((self.pitch >= 0).sum())

@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 
 from audio.scanned import GESTURAL_LIMIT_HZ, ScannedString, StringParameters, UnstableStringError
 from audio.voices import VoicePool, midi_to_hz
-from creatures.kinds.parts import VoiceSpec
+from creatures.kinds.parts import Voice, VoiceSpec
 
 SR = 48000
 
@@ -238,6 +238,25 @@ def test_voice_pool_steals_the_oldest_voice_and_releases():
         pool.render(out)
     assert pool.active == 0
     assert not pool.render(out).any()
+
+
+@pytest.mark.parametrize("second_end", [3.0, 0.8])
+def test_a_note_ends_at_its_own_end_not_at_another_of_its_pitch(second_end):
+    """Two notes of one pitch overlapping (0–1 s and 0.5 s–``second_end``): each voice is
+    released at its own note's end. The first's end released every voice of the pitch, so
+    the second, due to 3 s, fell silent at 1 s (or the first was cut at 0.8 s by the second's)."""
+    sr, block = 8000, 400
+    voice = Voice(VoiceSpec(damping=0.0, release=0.05), sr, block_size=block)
+    voice.play(60, 100, end=1.0)
+    voice.play(60, 100, end=second_end, start=0.5)
+    heard = []
+    for k in range(1, 31):  # 0.05 s blocks up to 1.5 s
+        out = np.zeros(block)
+        voice.render(out, k * block / sr)
+        heard.append(np.sqrt(np.mean(out**2)))
+    assert heard[18] > 0.01  # 0.9 s: the first note, to its end
+    assert heard[26] > 0.01 if second_end > 1.0 else heard[26] == 0.0  # 1.3 s: the longer note alone
+    assert voice.pool.active == (1 if second_end > 1.0 else 0)
 
 
 @pytest.mark.parametrize("haptic_rate", [250.0, 1000.0])

@@ -121,7 +121,7 @@ class Voice:
                               block_size=block_size)
         self._strings, self._tuning = parameters, (1.0, 1.0)
         self.sample_rate = sample_rate
-        self._ends: list[tuple[float, int]] = []
+        self._ends: list[tuple[float, int, float]] = []  # (end, voice, its note's stamp in the pool)
         self._starts: list[tuple[float, int, int, float]] = []  # (start, pitch, velocity, end), not yet sounding
         self.coupling: BodyCoupling | None = None
         self.shape: BodyShape | None = None
@@ -136,8 +136,8 @@ class Voice:
         """Sound ``pitch`` until clock time ``end``: at once, or from ``start`` (a note handed
         over ahead of its time starts in the block that reaches it, not when it was handed over)."""
         if start is None:
-            self.pool.note_on(pitch, velocity / 127.0)
-            self._ends.append((end, pitch))
+            index = self.pool.note_on(pitch, velocity / 127.0)
+            self._ends.append((end, index, self.pool.started[index]))  # this note's end, not its pitch's
         else:
             self._starts.append((start, pitch, velocity, end))
 
@@ -169,8 +169,8 @@ class Voice:
         """Fill ``out`` with the voice up to clock time ``t`` (note-offs that fell due first),
         through the ``bright_hz`` low-pass at ``cutoff`` × its cutoff (a skill's ``voice.cutoff``)."""
         due, self._ends = _fall_due(self._ends, t)
-        for _, pitch in due:
-            self.pool.note_off(pitch)
+        for _, index, started in due:
+            self.pool.release(index, started)
         starting, self._starts = _fall_due(self._starts, t)  # after the note-offs: each sounds a block at least
         for _, pitch, velocity, end in starting:
             self.play(pitch, velocity, end)
