@@ -45,7 +45,13 @@ class LowPass:
         self._zi: np.ndarray | None = None
 
     def set(self, cutoff_hz: float) -> None:
-        """Move the cutoff (held to [:data:`LOWEST_HZ`, 0.99 × Nyquist])."""
+        """Move the cutoff (held to [:data:`LOWEST_HZ`, 0.99 × Nyquist]; a NaN keeps the cutoff
+        it had: its coefficients would be NaN, and the state they left NaN for good, so one NaN
+        from a drive silenced the voice for the rest of the run)."""
+        if math.isnan(cutoff_hz):
+            if self.cutoff is not None:
+                return
+            cutoff_hz = 0.5 * self.sample_rate  # nothing to keep yet: open
         cutoff = min(max(float(cutoff_hz), LOWEST_HZ), 0.99 * 0.5 * self.sample_rate)
         if cutoff == self.cutoff:
             return

@@ -37,3 +37,15 @@ def test_a_silent_block_passes_once_the_ringing_has_died():
     for _ in range(100):
         out = lowpass.run(silence, 500.0)
     assert out is silence and not out.any()  # died away: passed through, untouched
+
+
+def test_a_nan_cutoff_keeps_the_last_and_the_filter_sings_on():
+    """A NaN cutoff made NaN coefficients and left the state NaN: every block after it NaN (a
+    voice's limiter turned that into silence for the rest of the run)."""
+    x = np.random.default_rng(1).normal(size=441)
+    lowpass = LowPass(22050)
+    lowpass.run(x, 800.0)
+    assert np.isfinite(lowpass.run(x, float("nan"))).all() and lowpass.cutoff == 800.0
+    assert np.isfinite(lowpass.run(x, 800.0)).all()
+    fresh = LowPass(22050)
+    assert np.isfinite(fresh.run(x, float("nan"))).all() and fresh.cutoff == pytest.approx(0.99 * 11025)
