@@ -116,6 +116,25 @@ def test_energy_decays_and_faster_with_more_damping(damping):
     assert after_more < after and rms_more < rms
 
 
+def test_damping_past_critical_holds_the_shape_and_the_note_rings_longer():
+    """[creature.voice] damping's description: a note ends soonest near the string's critical
+    damping 2·√(mass·(centring + stiffness·π²/(masses + 1)²)); past it the string creeps and the
+    scan reads a shape that holds (the docs said only "how fast a string rings down", and an
+    artist asking damping 50 for a short note got one that rang on)."""
+    def falls(damping: float) -> float:
+        string = ScannedString(StringParameters(n_masses=64, damping=damping), sample_rate=8000)
+        string.note_on(220.0, 0.5)
+        string.render(4000)
+        early = np.sqrt(np.mean(string.render(400) ** 2))  # at 0.5 s
+        string.render(3600)
+        return 1.0 - np.sqrt(np.mean(string.render(400) ** 2)) / early  # at 1 s
+
+    critical = 2.0 * math.sqrt(4.0 + 800.0 * math.pi ** 2 / 65 ** 2)
+    assert critical == pytest.approx(4.8, abs=0.05)
+    assert falls(5.0) == pytest.approx(0.65, abs=0.05)
+    assert falls(50.0) == pytest.approx(0.20, abs=0.05) and falls(500.0) == pytest.approx(0.06, abs=0.03)
+
+
 def test_stiffer_string_struck_by_a_hammer_sounds_darker():
     """A strike gives mode n displacement v_n / ω_n; stiffness raises high-mode ω_n most,
     so the stiffer string's shape is smoother and its spectral centroid *falls*."""
