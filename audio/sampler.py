@@ -19,6 +19,12 @@ import numpy as np
 
 from audio.lowpass import LowPass
 
+MAX_PLAYING = 32
+"""Most sounds a sampler plays at once, as a voice pool's polyphony is (:mod:`audio.voices`):
+past it the oldest fades out over the next block. Each overlapping :meth:`Sampler.play` added
+one more for good, so a creature asked to sing back faster than its sounds end mixed more of
+them each block, its cost per block growing with the asking."""
+
 
 class Sampler:
     """Stored sounds, played (overlapping) through one body-driven gain and low-pass.
@@ -34,7 +40,7 @@ class Sampler:
     def __init__(self, sample_rate: float = 48000.0, *, block_size: int = 1024) -> None:
         self.sample_rate = float(sample_rate)
         self.sounds: list[np.ndarray] = []
-        self.playing: list[list] = []  # [sound index, next frame, gain]
+        self.playing: list[list] = []  # [sound index, next frame, gain, stolen (fades out this block)]
         self._free: list[int] = []  # slots of sounds let go, taken by the next ones added
         self._mix = np.zeros(block_size)
         self._amplitude = 0.0
@@ -62,10 +68,14 @@ class Sampler:
             self._free.append(index)
 
     def play(self, index: int, *, gain: float = 1.0) -> None:
-        """Start sound ``index`` from its beginning (several may overlap)."""
+        """Start sound ``index`` from its beginning (several may overlap, :data:`MAX_PLAYING`
+        at most: the oldest sounding fades out to make room)."""
         if not 0 <= index < len(self.sounds) or not len(self.sounds[index]):
             raise IndexError(f"no stored sound {index} (have {len(self.sounds) - len(self._free)})")
-        self.playing.append([index, 0, float(gain)])
+        sounding = [v for v in self.playing if not v[3]]
+        if len(sounding) >= MAX_PLAYING:
+            sounding[0][3] = True
+        self.playing.append([index, 0, float(gain), False])
 
     def render(self, out: np.ndarray, *, amplitude: float = 1.0, cutoff_hz: float = 20000.0) -> np.ndarray:
         """Mix the playing sounds into ``out`` through the body's gain and low-pass."""
@@ -74,12 +84,16 @@ class Sampler:
             raise ValueError(f"block of {frames} frames exceeds block_size {len(self._mix)}")
         mix = self._mix[:frames]
         mix[:] = 0.0
+        fade = None
         for voice in self.playing:
             sound = self.sounds[voice[0]]
             part = sound[voice[1] : voice[1] + frames]
+            if voice[3]:  # stolen: faded to nothing across this block, no click
+                fade = np.linspace(1.0, 0.0, frames) if fade is None else fade
+                part = part * fade[: len(part)]
             mix[: len(part)] += voice[2] * part
             voice[1] += frames
-        self.playing = [v for v in self.playing if v[1] < len(self.sounds[v[0]])]
+        self.playing = [v for v in self.playing if v[1] < len(self.sounds[v[0]]) and not v[3]]
         filtered = self._lowpass.run(mix, cutoff_hz)
         ramp = np.arange(1, frames + 1) / frames
         out[:] = filtered * (self._amplitude + (amplitude - self._amplitude) * ramp)

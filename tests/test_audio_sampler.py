@@ -69,3 +69,28 @@ def test_bad_sounds_and_indices_are_refused():
         sampler.add(np.array([0.0, np.nan]))
     with pytest.raises(IndexError, match="no stored sound 0"):
         sampler.play(0)
+
+
+def test_at_most_max_playing_sound_at_once_the_oldest_fading_out():
+    """Every overlapping play stayed for good: a creature asked to sing back faster than its
+    sounds end mixed more of them each block. Past MAX_PLAYING the oldest fades out over the
+    next block (no click), and the rest play on."""
+    from audio.sampler import MAX_PLAYING
+
+    def sampler_playing(which: list[int]) -> Sampler:
+        sampler = Sampler(SR, block_size=BLOCK)
+        for k in range(MAX_PLAYING + 8):
+            sampler.add(tone(110.0 * (1 + k % 7), 1.0))
+        sampler.render(np.empty(BLOCK), amplitude=1.0)  # settle the gain ramp from 0
+        for k in which:
+            sampler.play(k, gain=1.0 / MAX_PLAYING)
+        return sampler
+
+    every = list(range(MAX_PLAYING + 8))
+    crowded, kept = sampler_playing(every), sampler_playing(every[8:])
+    crowded_block, kept_block = play_all(crowded, 1, amplitude=1.0), play_all(kept, 1, amplitude=1.0)
+    assert len(crowded.playing) == MAX_PLAYING and [v[0] for v in crowded.playing] == every[8:]
+    faded = crowded_block - kept_block  # the eight stolen, through the same (linear) filter
+    assert np.abs(faded[:BLOCK // 4]).max() > 0.02  # they sounded as the block began...
+    assert np.abs(faded[-8:]).max() < 0.002  # ...and are gone by its end: the next block joins on
+    np.testing.assert_allclose(play_all(crowded, 2, amplitude=1.0), play_all(kept, 2, amplitude=1.0), atol=0.01)
