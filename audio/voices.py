@@ -3,8 +3,10 @@
 A creature's motor system emits note events (thesis NoteObjects); each sounding note needs
 its own string because the string's shape *is* the note's timbre. :class:`VoicePool` keeps
 a fixed set of :class:`~audio.scanned.ScannedString` voices (allocated once, so a live
-block never allocates) and hands a note-on to a free voice, or steals the one that started
-longest ago. Note-off starts a linear release so a stolen or ended note does not click.
+block never allocates) and hands a note-on to a free voice, or steals one: the quietest
+already fading, else the one that started longest ago. A note's end starts a linear release
+so an ended note does not click; a stolen one stops where it is (its string is the new
+note's), which is why a fading voice, nearest silence, is taken first.
 The voices are one :class:`~audio.string_bank.StringBank`: a block renders, envelopes and
 mixes every sounding voice in one compiled call.
 """
@@ -58,7 +60,13 @@ class VoicePool:
     def note_on(self, pitch: float, velocity: float = 1.0) -> int:
         """Start a note (MIDI pitch, velocity 0..1); returns the voice index used."""
         free = np.flatnonzero(self.pitch < 0)
-        index = int(free[0]) if len(free) else int(np.argmin(self.started))
+        fading = np.flatnonzero(self.slope < 0)
+        if len(free):
+            index = int(free[0])
+        elif len(fading):  # the quietest of the notes already ending: the smallest step to silence
+            index = int(fading[np.argmin(self.level[fading])])
+        else:
+            index = int(np.argmin(self.started))
         voice = self.voices[index]
         voice.silence()
         hz = midi_to_hz(pitch)
@@ -69,10 +77,6 @@ class VoicePool:
         self.pitch[index], self.started[index] = pitch, self._count
         self.level[index], self.slope[index] = 1.0, 0.0
         return index
-
-    def note_off(self, pitch: float) -> None:
-        """Release every voice sounding ``pitch`` (unknown pitches are ignored, like MIDI)."""
-        self.slope[(self.pitch == pitch) & (self.slope == 0)] = -self._release_step
 
     def release(self, index: int, started: float) -> None:
         """Release voice ``index`` if it still sounds the note it started at stamp ``started``

@@ -251,12 +251,27 @@ def test_voice_pool_steals_the_oldest_voice_and_releases():
     assert sorted(pool.pitch) == [64, 67]
     out = np.empty(512)
     assert np.abs(pool.render(out)).max() > 0
-    pool.note_off(64)
-    pool.note_off(67)
+    for index in (first, second):
+        pool.release(index, pool.started[index])
     for _ in range(2):  # 0.01 s release = 480 samples
         pool.render(out)
     assert pool.active == 0
     assert not pool.render(out).any()
+
+
+def test_a_full_pool_steals_a_fading_voice_before_a_sounding_one():
+    """A stolen voice stops where it is, so the one nearest silence is taken: a note already
+    fading (the quietest of them), not the oldest still sounding in full (a click)."""
+    pool = VoicePool(3, sample_rate=SR, release=0.5, block_size=512)
+    held, ending, later = pool.note_on(48), pool.note_on(60), pool.note_on(64)
+    pool.release(ending, pool.started[ending])
+    pool.render(np.empty(512))
+    assert pool.note_on(67) == ending and pool.pitch[held] == 48  # the held 48, the oldest, sounds on
+    pool.release(held, pool.started[held])
+    pool.render(np.empty(512))
+    pool.release(later, pool.started[later])
+    pool.render(np.empty(512))
+    assert pool.note_on(72) == held  # released first, so the quieter of the two fading
 
 
 @pytest.mark.parametrize("second_end", [3.0, 0.8])

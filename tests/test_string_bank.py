@@ -98,7 +98,8 @@ def test_voice_pool_mix_is_the_sum_of_enveloped_reference_strings():
     out = np.empty(1000)  # longer than block_size: rendered in pieces
     for round_ in range(4):
         if round_ == 1:
-            pool.note_off(55)
+            released = int(np.flatnonzero(pool.pitch == 55)[0])
+            pool.release(released, pool.started[released])
             for index, reference in references.items():
                 if pool.pitch[index] == 55:
                     level[index] = (1.0, -step)
