@@ -402,3 +402,26 @@ def test_portaudio_rereads_its_device_list_only_while_no_stream_is_open():
     playing.close()
     backend.refresh()
     assert calls == ["terminate", "initialize"]
+
+
+def test_a_live_run_says_the_mix_clipped_when_it_first_does_not_only_when_it_stops():
+    """An installation too loud for its speakers was said to clip only at the run's end,
+    weeks on: the first clipped block is said at the next housekeeping, once."""
+    import installations
+    from creatures.events import EventLog
+    from creatures.runtime.live import _Counters
+    from creatures.runtime.schema import load_installation
+    from creatures.runtime.session import Session
+    from midi.sinks import MemorySink
+
+    session = Session(load_installation(installations.path("exchange")), SimulatedClock(), EventLog(), MemorySink())
+    said: list[str] = []
+    counters = _Counters(session, None, None, said.append)
+    quiet, loud = (np.full((len(session.creatures), 64), level) for level in (0.1, 4.0))
+    session.mixer.mix(quiet)
+    counters.log_change()
+    assert said == []
+    for _ in range(3):
+        session.mixer.mix(loud)
+        counters.log_change()
+    assert len(said) == 1 and said[0].startswith("the mix clipped: 128 samples")  # the first block's, both channels

@@ -209,13 +209,17 @@ class LiveInputs:
 
 class _Counters:
     """Audio underruns, the output's gaps and skips, and microphone overruns: read, and logged
-    whenever they change."""
+    whenever they change. The mix clipping is said the first time, while the run plays: an
+    installation too loud for its speakers was said to be so only when it stopped, weeks on."""
 
-    def __init__(self, session: Session, output: ResilientOutput | None, microphone: ResilientInput | None) -> None:
+    def __init__(self, session: Session, output: ResilientOutput | None, microphone: ResilientInput | None,
+                 say: Callable[[str], None]) -> None:
         self.session = session
         self.output = output
         self.microphone = microphone
+        self.say = say
         self.last = (0, 0, 0, 0)
+        self.clipped_said = False
 
     def now(self) -> tuple[int, int, int, int]:
         """Underruns, overruns, and the output's gaps and skips (audio/lead.py)."""
@@ -228,6 +232,9 @@ class _Counters:
         if always or counts != self.last:
             self.last = counts
             self.session.world.emit("xruns", underruns=counts[0], overruns=counts[1], gaps=counts[2], skips=counts[3])
+        if not self.clipped_said and (clipped := self.session.clipping()) is not None:
+            self.clipped_said = True
+            self.say(f"{clipped} (counted on; the total is said when the run stops)")
 
 
 class _Timing:
@@ -438,7 +445,7 @@ def run_live(
                                     supervisor=supervisor)
         if session.transcribe:
             inputs.microphone = MicrophoneNotes(microphone, session)
-    counters = _Counters(session, output, microphone)
+    counters = _Counters(session, output, microphone, say)
     if feed is not None:
         feed.hello["status"]["sound"] = summary.sound  # what the page's status line says of the loudspeaker
         say(f"view: open {server.url}")
