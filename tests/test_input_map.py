@@ -463,6 +463,11 @@ def test_a_note_map_takes_a_note_name_for_its_constant_pitch(tmp_path):
      "add range, or remove input_range"),
     ('osc = "/lux"\nto = "sensor"\nname = "lux"\nrange = [0, 1]\ninput_range = [5, 5]', "input.0.input_range",
      "input_range [5.0, 5.0] is empty"),
+    # a text default for a number loaded, and every message short of the argument was malformed
+    ('osc = "/lux"\nto = "sensor"\nname = "lux"\nvalue = { arg = 1, default = "low" }', "input.0.value",
+     "default 'low' is text: value is a number"),
+    ('osc = "/a"\nto = "note"\npitch = { arg = 1, default = "middle C" }', "input.0.pitch",
+     "default 'middle C' is no pitch"),
 ])
 def test_a_bad_input_map_names_key_and_line(tmp_path, table, key, message):
     path = tmp_path / "bad.toml"

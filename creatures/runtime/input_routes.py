@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import mido
 
 from creatures.config import nearest
-from creatures.runtime.schema import Arg, InputMap
+from creatures.runtime.schema import Arg, InputMap, named_pitch
 
 SOURCES = ("osc", "midi", "serial", "file")
 TARGETS = ("note", "sensor", "reward", "drive")
@@ -155,9 +155,23 @@ class Route:
             if arity is not None and index >= arity:
                 what = f"midi = {self.midi!r}" if self.midi else f"args = {arity}"
                 raise MapError(key, f"argument {index} is beyond the {arity} argument(s) of {what}")
+            self._check_default(key)
         if spec.to == "sensor":
             self._check_sensor()
         self.creatures = self._creatures(colony)
+
+    def _check_default(self, key: str) -> None:
+        """A ``default`` the key can take: text only for a pitch (a note name, ``"C4"``) or the
+        creatures a reward reaches. ``value = { arg = 1, default = "low" }`` loaded, and every
+        message short of that argument was then dropped as malformed."""
+        default = getattr(getattr(self.spec, key, None), "default", None)
+        if not isinstance(default, str) or key == "creatures":
+            return
+        if key == "pitch":
+            if named_pitch(default) is None:
+                raise MapError(key, f"default {default!r} is no pitch: a MIDI number or a note name such as 'C4'")
+            return
+        raise MapError(key, f"default {default!r} is text: {key} is a number")
 
     def _check_filters(self) -> None:
         spec = self.spec
