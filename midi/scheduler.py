@@ -7,6 +7,13 @@ the clock's present. A sounding note's note-off is always kept: it can be moved 
 "musical worlds") but never dropped, and :meth:`NoteScheduler.all_notes_off` — run on exit
 from a ``with`` block, however it exits — silences every sounding note explicitly and sends
 CC 123 (All Notes Off) on every channel used.
+
+MIDI has one key per pitch and channel: a second note-on of a sounding key, then the first
+note's note-off, silences the key while the second note should still sound (a synth hears
+on, on, off and stops; a repeated pitch in a phrase lost its tail). So a note that starts on
+a sounding key re-strikes it: the earlier note's note-off goes out just before the new
+note-on, its own later note-off is dropped, and the key sounds until the later of the two
+ends. Every re-strike is counted (:attr:`NoteScheduler.restruck`).
 """
 
 from __future__ import annotations
@@ -47,6 +54,9 @@ class NoteScheduler:
         self._handles: dict[int, NoteHandle] = {}  # note id -> handle, until its note-off went
         self._sounding: dict[int, NoteHandle] = {}  # the subset whose note-on went out
         self._channels: set[int] = set()
+        self._keys: dict[tuple[int, int], int] = {}  # (channel, pitch) -> the note sounding it
+        self.restruck = 0
+        """Notes that started on a key still sounding, cutting the earlier note short there."""
 
     def play(self, note: NoteEvent, *, hold: bool = False) -> NoteHandle:
         """Schedule ``note`` (its ``time`` is clock time); ``hold`` leaves it sounding until
@@ -114,14 +124,37 @@ class NoteScheduler:
                 continue
             time, order, _, msg, note_id = entry
             if order == _ON:
-                self._sounding[note_id] = self._handles[note_id]
+                handle = self._handles[note_id]
+                if (earlier := self._keys.get((handle.channel, handle.pitch))) is not None:
+                    self._restrike(time, earlier, handle)
+                    sent += 1
+                self._sounding[note_id] = handle
+                self._keys[handle.channel, handle.pitch] = note_id
             elif order in (_OFF, _OFF_AFTER_ON):
-                self._sounding.pop(note_id, None)
-                self._ends.pop(note_id, None)
-                self._handles.pop(note_id, None)
+                self._end(note_id)
             self.sink.send(time, msg)
             sent += 1
         return sent
+
+    def _end(self, note_id: int) -> None:
+        """Forget a note whose note-off is going out."""
+        self._sounding.pop(note_id, None)
+        self._ends.pop(note_id, None)
+        handle = self._handles.pop(note_id, None)
+        if handle is not None and self._keys.get((handle.channel, handle.pitch)) == note_id:
+            del self._keys[handle.channel, handle.pitch]
+
+    def _restrike(self, time: float, earlier: int, handle: NoteHandle) -> None:
+        """End note ``earlier`` now, on the key ``handle``'s note-on is about to strike, and
+        keep the key sounding until the later of the two notes' ends (a held earlier note
+        ends with the new one: the new note has no handle its owner would release)."""
+        end = self._ends[earlier]
+        self._end(earlier)
+        self.sink.send(time, mido.Message("note_off", note=handle.pitch, channel=handle.channel))
+        self.restruck += 1
+        if self._ends[handle.id] < end < float("inf"):
+            self._ends[handle.id] = end
+            self._push(end, _OFF, mido.Message("note_off", note=handle.pitch, channel=handle.channel), handle.id)
 
     def all_notes_off(self) -> None:
         """Silence everything now: explicit note-offs for sounding notes, then CC 123 on every
@@ -133,6 +166,7 @@ class NoteScheduler:
         self._ends.clear()
         self._sounding.clear()
         self._handles.clear()
+        self._keys.clear()
         failed = None
         for msg in silence:  # one failing send must not keep the rest from going out
             try:

@@ -14,6 +14,7 @@ from creatures.events import EventLog
 from creatures.runtime.schema import load_installation
 from creatures.runtime.session import Session
 from midi.channel_setup import CcStream, channel_setup, midi_pan
+from midi.notes import NoteEvent
 from midi.sinks import MemorySink
 
 COLONY = """
@@ -135,3 +136,22 @@ def test_out_mid_opens_in_mido_and_music21_with_input_named_tracks_programs_pan_
     assert 48 in programs["ada"] and 19 in programs["bo"]
     marks = [round(m.number, 1) for m in score.recurse().getElementsByClass("MetronomeMark")]
     assert round(mido.tempo2bpm(tempos[-1]), 1) in marks, marks
+
+
+def test_a_run_says_how_many_notes_re_struck_a_sounding_key(tmp_path):
+    """Two creatures on one channel playing one pitch at once share MIDI's one key: the
+    re-strike that keeps the later note whole is counted in the log and said at the end."""
+    config = tmp_path / "daw.toml"
+    config.write_text(COLONY.replace("channel = 1", "channel = 0"))
+    said: list[str] = []
+    clock = SimulatedClock()
+    log = EventLog()
+    session = Session(load_installation(config), clock, log, MemorySink(), say=said.append)
+    ada, bo = session.creatures
+    session.world.play(ada, NoteEvent(0.0, 60, 100, 0, 2.0))
+    session.world.play(bo, NoteEvent(1.0, 60, 90, 0, 2.0))
+    clock.advance_to(4.0)
+    session.scheduler.pump()
+    session.close()
+    assert [e["notes"] for e in log.records if e["kind"] == "restruck"] == [1]
+    assert any(message.startswith("1 notes started on a key (channel and pitch) still sounding") for message in said)

@@ -226,6 +226,11 @@ class Session:
         """Silence every sounding note and log the input counters, the mix's clipping (if any)
         and the end of the run."""
         self.scheduler.all_notes_off()
+        if restruck := self.scheduler.restruck:
+            self.world.emit("restruck", notes=restruck)
+            self.say(f"{restruck} notes started on a key (channel and pitch) still sounding: MIDI has one key per "
+                     "pitch and channel, so each re-struck it, ending the earlier note there (the key sounded on "
+                     "to the later end; the events log keeps the notes as played)")
         self.world.emit("inputs", **self.inputs.summary())
         if self.mixer.clipped:
             self.world.emit("clipped", samples=self.mixer.clipped, peak=round(self.mixer.peak, 3))
