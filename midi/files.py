@@ -266,14 +266,20 @@ def write_tracks(
     *,
     tempo: TempoMap | None = None,
 ) -> None:
-    """Write named tracks of timed messages (each in time order) to a type 1 ``.mid`` file,
-    atomically, after a first track holding the tempo map."""
+    """Write named tracks of timed messages to a type 1 ``.mid`` file, atomically, after a
+    first track holding the tempo map.
+
+    Each track is put in time order, keeping the given order at equal times: a sink keeps
+    messages in the order they were sent, and a note a creature played in the past (sent late,
+    stamped with its own time) came after later ones, a negative delta mido refused when
+    saving, so the whole ``out.mid`` of the run was lost."""
     tempo = tempo or TempoMap(480)
     midi = mido.MidiFile(type=1, ticks_per_beat=tempo.ticks_per_beat)
     midi.tracks.append(_track("tempo", [(t, mido.MetaMessage("set_tempo", tempo=q)) for t, q in tempo.changes()]))
     for name, timed in tracks:
         ticks = tempo.to_ticks(np.array([t for t, _ in timed], dtype=np.float64))
-        midi.tracks.append(_track(name, list(zip(ticks.tolist(), (msg for _, msg in timed)))))
+        order = np.argsort(ticks, kind="stable").tolist()
+        midi.tracks.append(_track(name, [(int(ticks[i]), timed[i][1]) for i in order]))
     atomic_write(Path(path), lambda handle: midi.save(file=handle), "wb")
 
 

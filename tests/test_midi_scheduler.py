@@ -212,3 +212,20 @@ def test_one_failed_send_does_not_stop_the_rest_of_all_notes_off(clock):
     tail = [m for _, m in sink.messages[3:]]
     assert [(m.type, getattr(m, "note", None)) for m in tail] == [("note_off", 64), ("note_off", 67), ("control_change", None)]
     assert scheduler.sounding == []
+
+
+def test_a_note_played_in_the_past_is_filed_at_its_time(clock, tmp_path):
+    """A note due before messages already sent goes out late, stamped with its own time; the
+    file puts it in time order (mido refused the negative delta: no ``.mid`` at all)."""
+    from midi.files import read_notes
+
+    with FileSink(tmp_path / "take.mid") as sink:
+        scheduler = NoteScheduler(sink, clock)
+        scheduler.play(NoteEvent(5.9, 60, 100, 0, 0.05))
+        run_until(scheduler, clock, 6.0)
+        scheduler.play(NoteEvent(5.5, 62, 90, 0, 0.25))
+        scheduler.pump()  # its on and its off, both due
+        run_until(scheduler, clock, 7.0)
+    back = read_notes(tmp_path / "take.mid")
+    assert [(n.pitch, n.velocity) for n in back] == [(62, 90), (60, 100)]
+    assert [(n.time, n.duration) for n in back] == [pytest.approx((5.5, 0.25), abs=1e-3), pytest.approx((5.9, 0.05), abs=1e-3)]
