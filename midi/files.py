@@ -294,11 +294,24 @@ def write_notes(
     write_messages(path, to_messages(notes), tempo=tempo, split_channels=split_channels)
 
 
+MAX_DELTA = 0x0FFFFFFF
+"""The longest delta time a Standard MIDI File can say: a variable-length quantity of at most
+four bytes (some 78 hours at 480 ticks a beat and 120 bpm)."""
+
+
 def _track(name: str, events: list[tuple[int, mido.Message]]) -> mido.MidiTrack:
-    """A track from absolute-tick events (already in time order), with delta times."""
+    """A track from absolute-tick events (already in time order), with delta times.
+
+    A longer pause than :data:`MAX_DELTA` is bridged by empty text events, each that far
+    apart: mido wrote the delta in five bytes, which the SMF standard does not allow (a track
+    of a live run silent over a long weekend, then playing, was unreadable to a DAW).
+    """
     track = mido.MidiTrack([mido.MetaMessage("track_name", name=name)])
     previous = 0
     for tick, msg in events:
+        while tick - previous > MAX_DELTA:
+            track.append(mido.MetaMessage("text", text="", time=MAX_DELTA))
+            previous += MAX_DELTA
         track.append(msg.copy(time=tick - previous))
         previous = tick
     track.append(mido.MetaMessage("end_of_track", time=0))

@@ -6,6 +6,7 @@ import mido
 import numpy as np
 import pytest
 
+from midi import smf
 from midi.files import MidiFileError, TempoMap, read_messages, read_notes, write_notes
 from midi.notes import NoteEvent
 
@@ -193,3 +194,13 @@ def test_an_empty_file_is_said_to_be_empty(tmp_path):
     for read in (read_notes, read_messages):
         with pytest.raises(MidiFileError, match=r"none\.mid: empty file \(0 bytes\)"):
             read(tmp_path / "none.mid")
+
+
+def test_a_pause_longer_than_a_delta_can_say_is_bridged(tmp_path):
+    """Four bytes of delta are 2^28 ticks (78 hours at 120 bpm): a note a million seconds in
+    is reached through filler events, so the strict reader takes the file, note for note."""
+    path = tmp_path / "long.mid"
+    notes = [NoteEvent(1.0, 60, 100, 0, 1.0), NoteEvent(1e6, 62, 90, 0, 1.0)]
+    write_notes(path, notes)
+    assert smf.parse(path.read_bytes()) is not None  # no delta past four bytes
+    assert read_notes(path) == notes
