@@ -40,6 +40,7 @@ class NoteHandle:
     id: int
     channel: int
     pitch: int
+    time: float = 0.0  # when it starts: with channel and pitch, which played note it is
 
 
 class NoteScheduler:
@@ -61,7 +62,7 @@ class NoteScheduler:
     def play(self, note: NoteEvent, *, hold: bool = False) -> NoteHandle:
         """Schedule ``note`` (its ``time`` is clock time); ``hold`` leaves it sounding until
         :meth:`release` — a "stuck" note."""
-        handle = NoteHandle(next(self._seq), note.channel, note.pitch)
+        handle = NoteHandle(next(self._seq), note.channel, note.pitch, note.time)
         self._push(note.time, _ON, note.note_on(), handle.id)
         self._channels.add(note.channel)
         if not hold:

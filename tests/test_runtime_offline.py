@@ -170,3 +170,35 @@ def test_a_mix_driven_past_full_scale_is_said_and_logged(tmp_path):
     assert len(said) == 1 and len(clipped) == 1 and clipped[0]["samples"] > 0 and clipped[0]["peak"] > 1
     data, _ = soundfile.read(tmp_path / "out" / "out.wav")
     assert (abs(data) >= 32767 / 32768).sum() >= clipped[0]["samples"] // 2  # what was counted is in the file, clipped
+
+
+def _played(path: Path) -> list:
+    """The notes of ``out.mid``'s creature tracks (the tempo track's map, the input track left out)."""
+    from midi.notes import from_messages
+
+    midi = mido.MidiFile(path)
+    now, tempo, timed = 0.0, 500_000, []
+    for msg in mido.merge_tracks([t for t in midi.tracks if t.name != "input"]):
+        now += mido.tick2second(msg.time, midi.ticks_per_beat, tempo)
+        tempo = msg.tempo if msg.type == "set_tempo" else tempo
+        if not msg.is_meta:
+            timed.append((now, msg))
+    return from_messages(timed)
+
+
+def test_every_logged_note_is_in_out_mid_as_it_sounded(exchange_run):
+    """Note for note, the events log and out.mid agree: pitch, velocity, channel, start, and
+    the end the log gives (a struck note rings on: ``rang_on``; the run's end cuts the rest),
+    to a tick (1/960 s at 120 bpm). Before ``rang_on`` was logged a ringing note's length in the
+    log was the one it was played with, up to half as long again as it sounded."""
+    events = read_events(exchange_run / "events.jsonl")
+    stop = next(e["t"] for e in events if e["kind"] == "end")
+    ends = {(e["time"], e["pitch"], e["channel"]): e["end"] for e in events if e["kind"] in ("rang_on", "released")}
+    assert ends and not any(e["kind"] == "restruck" for e in events)  # this take's notes ring on; none re-strikes
+    logged = sorted((e["channel"], e["pitch"], e["time"], e["velocity"],
+                     min(ends.get((e["time"], e["pitch"], e["channel"]), e["time"] + e["duration"]), stop) - e["time"])
+                    for e in events if e["kind"] == "note")
+    played = sorted((n.channel, n.pitch, n.time, n.velocity, n.duration) for n in _played(exchange_run / "out.mid"))
+    assert len(logged) > 20 and [(w[0], w[1], w[3]) for w in logged] == [(p[0], p[1], p[3]) for p in played]
+    tick = 1.0 / 960 + 1e-9
+    assert all(abs(w[2] - p[2]) <= tick / 2 and abs(w[4] - p[4]) <= tick for w, p in zip(logged, played))

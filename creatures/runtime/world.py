@@ -206,5 +206,23 @@ class CreatureScheduler:
     def play(self, note: NoteEvent, *, hold: bool = False) -> NoteHandle:
         return self._world.play(self._creature, note, hold=hold)
 
+    def extend(self, handle: NoteHandle, end: float) -> bool:
+        """Move a sounding note's end (struck again, it rings on), logged as ``rang_on``: the
+        ``note`` record gave the length it was played with, and ``out.mid`` holds the longer."""
+        return self._moved("rang_on", handle, self._world.scheduler.extend(handle, end))
+
+    def release(self, handle: NoteHandle) -> bool:
+        """End a (stuck) note now, logged as ``released``: a held note's ``note`` record gives
+        no end."""
+        return self._moved("released", handle, self._world.scheduler.release(handle))
+
+    def _moved(self, kind: str, handle: NoteHandle, done: bool) -> bool:
+        """Log where the note of ``handle`` now ends (if it was still sounding); ``done``."""
+        if done:
+            end = self._world.scheduler.end_of(handle)
+            self._world.emit(kind, creature=self._creature.name, time=handle.time, pitch=handle.pitch,
+                             channel=handle.channel, end=self._world.clock.now() if end is None else end)
+        return done
+
     def __getattr__(self, name: str):
         return getattr(self._world.scheduler, name)
