@@ -377,6 +377,34 @@ def test_an_adverb_takes_exactly_one_source(tmp_path):
         session_of(tmp_path, ADVERB.format(level=0.0, source='percept = "heard"'))
 
 
+def test_an_adverb_value_beyond_its_examples_is_refused_at_its_line(tmp_path):
+    # at 3 over examples at 0 and 1 the RBF weights were −2 and 3: the neck turned 67°, past
+    # any example's 40°, and at −3 the cycle lasted 1 µs, replayed every tick
+    for value in (3.0, -3.0):
+        with pytest.raises(ConfigError, match=rf"look.toml:\d+: .*value {value:g} lies outside the examples' "
+                                              r"places \[0, 1\]"):
+            session_of(tmp_path, ADVERB.format(level=0.0, source=f"value = {value}"))
+    assert session_of(tmp_path, ADVERB.format(level=0.0, source="value = 1.0"))  # an example's own place
+
+
+def test_an_adverb_sampled_beyond_its_examples_is_clamped_to_them_and_said(tmp_path):
+    # the model's range reaches to 3, the examples to 1: a sample of 3 plays the last example
+    extra = ADVERB.format(level=0.0, source='percept = "manner model"') + """
+[creature.percepts."manner model"]
+type = "adverb_model"
+prior_mean = 3.0
+prior_std = 0.01
+range = [2.5, 3.0]
+"""
+    session = session_of(tmp_path, extra, keep=10_000)
+    bird = session.creatures[1]
+    run(session, 1.0)
+    action = bird.tuples["manner"].action
+    assert action.sampled > 2.5 and action.adverb == 1.0 and action._length == pytest.approx(4.0)
+    said = [r for r in session.log.records if r["kind"] == "adverb"]
+    assert said and said[0]["adverb"] == 1.0 and said[0]["sampled"] == action.sampled
+
+
 # -- simple shaping ----------------------------------------------------------------------------
 SHAPED = """
 [creature.drives.boredom]

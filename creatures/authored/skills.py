@@ -479,7 +479,8 @@ class _AdverbParams(Params):
                                                                 "example's place")
     percept: str | None = Field(None, description="an 'adverb_model' percept the adverb is sampled from when "
                                                   "the tuple starts (and that rewards shape)")
-    value: float | None = Field(None, ge=-1e6, le=1e6, description="a fixed adverb (neither drive nor percept)")
+    value: float | None = Field(None, ge=-1e6, le=1e6, description="a fixed adverb (neither drive nor percept), "
+                                                   "within the examples' places")
     fade: float = Field(1.0, ge=0, le=60, description="seconds the layer eases in and out")
     blend: LayerSpec = blend_field()
 
@@ -491,6 +492,13 @@ class _AdverbParams(Params):
             raise ValueError(f"an adverb takes its value from exactly one of drive, percept or value (got {given or 'none'})")
         if len({e.at for e in self.examples}) != len(self.examples):
             raise ValueError("two examples at one place of the adverb axis")
+        places = [e.at for e in self.examples]
+        if self.value is not None and not min(places) <= self.value <= max(places):
+            # beyond the examples the RBF weights extrapolate: at 3 over examples at 0 and 1 they
+            # are −2 and 3, the cycle lasts 3 × its slow example less 2 × its quick one (at −3 it
+            # lasted "1 µs", replayed every tick) and the joints turn 3× as far as any example
+            raise ValueError(f"value {self.value:g} lies outside the examples' places [{min(places):g}, "
+                             f"{max(places):g}]: an adverb blends between its examples")
         return self
 
 
@@ -553,12 +561,15 @@ class AdverbAction(Action):
         self._cycle_at, self._frames, self._length = -math.inf, np.empty((0, 0, 4)), 0.0
 
     def _value(self, t: float) -> float:
+        """The adverb now, within the examples' places (a percept's sample too: its model's
+        ``range`` may reach past them, and beyond the examples the blend extrapolates)."""
         p = self.params
         if p.drive is not None:
             low, high = p.levels
             u = 0.0 if high == low else (self.creature.level(p.drive, t) - low) / (high - low)
             return self.places[0] + min(max(u, 0.0), 1.0) * (self.places[1] - self.places[0])
-        return self.sampled if p.percept is not None else float(p.value)
+        value = self.sampled if p.percept is not None else float(p.value)
+        return min(max(value, self.places[0]), self.places[1])
 
     def _cycle(self, t: float) -> None:
         """A new cycle from ``t`` at the adverb's value now (not changed within a cycle: the
@@ -583,7 +594,10 @@ class AdverbAction(Action):
         if layers is None or self.name not in layers.blend:  # restarted while still in: the cycle goes on
             self._cycle(t)
         self.creature.body.layer(self.params.blend.contribution(self.name, self._source, self.mask, self.params.fade), t)
-        self.creature.world.emit("adverb", creature=self.creature.name, tuple=self.name, adverb=self.adverb)
+        low, high = self.places
+        clamped = {"sampled": self.sampled} if self.sampled is not None and not low <= self.sampled <= high else {}
+        self.creature.world.emit("adverb", creature=self.creature.name, tuple=self.name, adverb=self.adverb,
+                                 **clamped)
 
     def stop(self, t: float, *, interrupted: bool) -> None:
         self.creature.body.unlayer(self.name, t)
