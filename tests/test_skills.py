@@ -297,6 +297,9 @@ alpha = 0.0
         session_of(tmp_path, extra)
     with pytest.raises(ConfigError, match="a joint variable is 'joint.x'"):
         session_of(tmp_path, extra.replace("nekc.x", "neck"))
+    with pytest.raises(ConfigError, match=r"look.toml:\d+: .*'voice.pann' is no voice parameter \(did you mean "
+                                          r"'voice.pan'\?\)"):
+        session_of(tmp_path, extra.replace("nekc.x", "voice.pann"))
     # voice.cutoff is a low-pass's: a creature that sings through strings without bright_hz has none
     with pytest.raises(ConfigError, match=r"look.toml:\d+: .*voice.cutoff, a low-pass: the creature needs one, "
                                           r"a mouth's \(\[creature.hearing\].*\[creature.voice\] bright_hz"):

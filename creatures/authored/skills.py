@@ -33,6 +33,7 @@ from creatures.authored.registry import ACTIONS, PERCEPTS, Params
 from creatures.behaviour.action_tuple import Action, ActionTuple
 from creatures.behaviour.models.gaussian import GaussianModel
 from creatures.behaviour.percept import FunctionPercept
+from creatures.config import nearest
 from creatures.kinds.layers import LayerSpec, blend_field, source_limits
 from creatures.motor.adverbs import AdverbBlend, Example
 from creatures.motor.pose import PoseSet
@@ -219,7 +220,7 @@ def _named(names) -> None:
     _joint_variables(n for n in names if not n.startswith("voice."))
     for n in names:
         if n.startswith("voice.") and n not in VOICE_PARAMETERS:
-            raise ValueError(f"{n!r}: the voice parameters are {', '.join(VOICE_PARAMETERS)}")
+            raise ValueError(f"{n!r} is no voice parameter{nearest(n, VOICE_PARAMETERS, 'voice parameters')}")
 
 
 def _joints_of(names) -> list[str]:
