@@ -528,6 +528,42 @@ alpha = 0.0
     assert 1.0 < starts[1] < 1.5  # off target for its patience (1 s) on end: done (and the group starts it again)
 
 
+def test_a_servo_whose_percept_reads_nan_keeps_its_last_target_and_says_so(tmp_path):
+    extra = """
+[creature.drives.rising]
+growth = 0.1
+
+[creature.percepts.rising]
+type = "drive"
+drive = "rising"
+scale = "level"
+
+[creature.tuples.follow]
+until = { seconds = 30.0 }
+
+[creature.tuples.follow.action]
+type = "servo"
+variables = { "neck.x" = [0.0, 40.0], "voice.gain" = [0.0, 0.5] }
+percept = "rising"
+
+[creature.groups.skills]
+tuples = ["follow"]
+alpha = 0.0
+"""
+    session = session_of(tmp_path, extra, keep=10_000)
+    bird = session.creatures[1]
+    run(session, 1.0)
+    bird.percepts["rising"].evaluate = lambda t: math.nan  # a percept gone wrong
+    run(session, 2.0, 1.0)
+    neck = bird.body.pose.rotations[bird.body.skeleton.index("neck")]
+    # NaN passed min(max(u, 0), 1): the gain went NaN (the creature's sound with it) and the neck
+    # snapped back to rest
+    assert np.isfinite(bird.voice_parameters().resolve(2.0)).all()
+    assert np.degrees(quat.angle_between(neck, quat.identity())) > 5.0  # held where it went by 1 s (10.9°), not at rest
+    said = [r for r in session.log.records if r["kind"] == "servo percept not finite"]
+    assert len(said) == 1 and said[0]["percept"] == "rising"
+
+
 @pytest.mark.parametrize("policy,weight", [("exclusive", 1.0), ("mean", 3.0), ("add", 1.0)])
 def test_a_layers_policy_weight_and_priority_come_from_the_config(tmp_path, policy, weight):
     """``blend = {policy, weight, priority}`` on a skill: ``exclusive`` holds the neck at the

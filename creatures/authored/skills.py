@@ -398,13 +398,22 @@ class ServoVariables(_SkillPart):
         layers = Variables(creature, name, list(params.variables), servo.step, params.blend)
 
         class ServoAction(Action):
+            said = False  # a percept that read NaN has been logged
+
             def start(self, t, tuple_):
                 servo.patience, servo.gave_up = params.patience, False
                 layers.start(t, params.fade)
                 self.update(t)
 
             def update(self, t):
-                u = min(max(percept.evaluate(t), 0.0), 1.0)
+                u = percept.evaluate(t)
+                if not math.isfinite(u):  # NaN passed the clamp below and every offset went NaN
+                    if not self.said:
+                        creature.world.emit("servo percept not finite", creature=creature.name, tuple=name,
+                                            percept=params.percept)
+                        self.said = True
+                    return  # the servo keeps its last target
+                u = min(max(u, 0.0), 1.0)
                 servo.aim(ranges[:, 0] + u * (ranges[:, 1] - ranges[:, 0]), t)
 
             def stop(self, t, *, interrupted):
