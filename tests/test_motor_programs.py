@@ -168,7 +168,8 @@ def test_changing_course_mid_way_does_not_jump(graph, clock):
     "text, message",
     [
         ('getTo "x"', r"<motor program>:1: statement .* before any 'name:' header"),
-        ("walk:\n  fly away", r"<motor program>:2: unknown motor statement 'fly'"),
+        ("walk:\n  fly away", r"<motor program>:2: unknown motor statement 'fly' \(known: getTo, "),
+        ("walk:\n  wiat", r"<motor program>:2: unknown motor statement 'wiat' \(did you mean 'wait'\?\)"),
         ("walk:\n  getTo", r"<motor program>:2: 'getTo' needs a target"),
         ("walk:\n  wait 3", r"<motor program>:2: 'wait' takes no arguments"),
         ("walk:\n  getTo {a, b", r"<motor program>:2: unclosed target set"),

@@ -34,6 +34,7 @@ from typing import Protocol, Sequence
 import numpy as np
 
 from creatures.clock import SimulatedClock
+from creatures.config import nearest
 from creatures.motor.graph import MotorGraph
 from creatures.motor.playback import Playback
 from creatures.motor.pose import BodyPose
@@ -141,7 +142,7 @@ class Statement:
 
     def __post_init__(self) -> None:
         if self.op not in self.OPS:
-            raise ValueError(f"unknown motor statement {self.op!r} (known: {', '.join(self.OPS)})")
+            raise ValueError(f"unknown motor statement {self.op!r}{nearest(self.op, self.OPS, 'known')}")
 
     def __str__(self) -> str:
         if self.op == "cycle":
