@@ -471,8 +471,7 @@ def test_rewarding_high_begs_shapes_the_adverb_higher_within_40_rewards(tmp_path
 
 
 # -- oscillators and servos over joints and voice parameters -------------------------------
-def test_an_oscillator_swings_the_voice_gain_and_a_servo_follows_a_percept_until_it_gives_up(tmp_path):
-    extra = """
+RISING = """
 [creature.drives.rising]
 growth = {growth}
 
@@ -480,7 +479,12 @@ growth = {growth}
 type = "drive"
 drive = "rising"
 scale = "level"
+"""
+"""A drive rising at ``growth`` a second, and a percept of its level for a servo to follow."""
 
+
+def test_an_oscillator_swings_the_voice_gain_and_a_servo_follows_a_percept_until_it_gives_up(tmp_path):
+    extra = RISING + """
 [creature.tuples.swell]
 action = {{ type = "oscillate", variables = {{ "voice.gain" = 0.5 }}, period = 1.0, fade = 0.0 }}
 until = {{ seconds = 30.0 }}
@@ -529,15 +533,7 @@ alpha = 0.0
 
 
 def test_a_servo_whose_percept_reads_nan_keeps_its_last_target_and_says_so(tmp_path):
-    extra = """
-[creature.drives.rising]
-growth = 0.1
-
-[creature.percepts.rising]
-type = "drive"
-drive = "rising"
-scale = "level"
-
+    extra = RISING.format(growth=0.1) + """
 [creature.tuples.follow]
 until = { seconds = 30.0 }
 
@@ -551,8 +547,8 @@ tuples = ["follow"]
 alpha = 0.0
 """
     session = session_of(tmp_path, extra, keep=10_000)
-    bird = session.creatures[1]
     run(session, 1.0)
+    bird = session.creatures[1]
     bird.percepts["rising"].evaluate = lambda t: math.nan  # a percept gone wrong
     run(session, 2.0, 1.0)
     neck = bird.body.pose.rotations[bird.body.skeleton.index("neck")]
