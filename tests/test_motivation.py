@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
+from creatures import bounds
 from creatures.behaviour.motivation import Motivation
 from creatures.behaviour.state_object import StateObject
 from creatures.behaviour.value import ChainValue
@@ -191,3 +192,21 @@ def test_drives_advanced_together_are_each_as_advanced_alone():
                 b.advance(t)
             for a, b in made:
                 assert a.levels.tobytes() == b.levels.tobytes() and a.time == b.time
+
+
+def test_a_drive_without_a_ceiling_stays_finite_and_loads_back_after_a_long_run():
+    """A coupling loop that feeds itself faster than it decays (eigenvalue +0.05/s) overflowed
+    to inf within four hours of 1 s ticks, and a drive that only grows (1/s, no decay) left the
+    range its saved level loads in after twelve days: both stop at the open bound."""
+    loop = Motivation({"a": 1.0, "b": 0.0}, decay={"a": 0.05, "b": 0.05}, equilibrium={"a": 0.0, "b": 0.0},
+                      coupling={("a", "b"): 0.1, ("b", "a"): 0.1})
+    for k in range(1, 6 * 3600, 60):
+        loop.advance(float(k))
+    assert np.isfinite(loop.levels).all() and loop.levels.max() == bounds.LARGEST_RATE
+    bored = Motivation({"boredom": 0.0}, growth={"boredom": 1.0})
+    bored.advance(30 * 86400.0)
+    assert bored.level("boredom") == bounds.LARGEST_RATE
+    for drives in (loop, bored):
+        fresh = Motivation({name: 0.0 for name in drives.names})
+        fresh.restore(json.loads(json.dumps(drives.to_dict())), now=0.0)
+        assert np.array_equal(fresh.levels, drives.levels)

@@ -309,8 +309,8 @@ class AuthoredSpec(CreatureSpec):
     kind: Literal["authored"]
     drives: dict[str, DriveSpec] = Field(default_factory=dict, max_length=256, description="drives by name: [creature.drives.NAME] "
                                                                            "(docs/authoring.md, 'Reference')")
-    drive_floor: float | None = Field(0.0, ge=-LARGEST_RATE, le=LARGEST_RATE, description="lowest level of any drive; none = unbounded")
-    drive_ceiling: float | None = Field(None, ge=-LARGEST_RATE, le=LARGEST_RATE, description="highest level of any drive; none = unbounded")
+    drive_floor: float | None = Field(0.0, ge=-LARGEST_RATE, le=LARGEST_RATE, description="lowest level of any drive; none = -1e6 (the range a saved level loads in)")
+    drive_ceiling: float | None = Field(None, ge=-LARGEST_RATE, le=LARGEST_RATE, description="highest level of any drive; none = 1e6 (the range a saved level loads in)")
     percepts: dict[str, PerceptSpec] = Field(default_factory=dict, description="percepts by name: "
                                                                                "[creature.percepts.NAME]")
     tuples: dict[str, TupleSpec] = Field(default_factory=dict, description="action-tuples by name: "

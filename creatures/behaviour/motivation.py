@@ -17,9 +17,12 @@ The system is integrated *exactly* over any elapsed clock time, x(t+dt) = Φx + 
 M = C − D, b = r + D·x_eq + u, Φ = e^{M·dt} and Ψ = ∫₀^dt e^{M·s} ds, both read from one
 matrix exponential of [[M, I], [0, 0]]·dt, so the result never depends on how often the
 creature ticks. Φ and Ψ depend on the step only (not on the inputs), so a creature that
-re-sets its inputs every step (a sensed presence) still reuses them. Optional floor/ceiling
-clip afterwards (chemical concentrations do not go negative); clipping is the only
-non-linear step.
+re-sets its inputs every step (a sensed presence) still reuses them. A floor/ceiling clip
+afterwards (chemical concentrations do not go negative); clipping is the only non-linear
+step. A bound left open is ±:data:`creatures.bounds.LARGEST_RATE`, the range a saved level
+is read back within: a drive that only grows (growth, no decay) or a coupling loop that
+feeds itself faster than it decays would otherwise climb for as long as the show runs, out
+of the range its own saved state loads in, and a loop to overflow and NaN within hours.
 
 A live run hears notes between its ticks (creatures/runtime/ticking.py), at times off the
 tick grid: integrating to such a time would need a matrix exponential for a step seen once
@@ -140,13 +143,12 @@ class Motivation:
         return e[:n, :n], e[:n, n:]
 
     def _clip(self, x: np.ndarray) -> np.ndarray:
-        # The ufunc np.clip itself resolves to for a one-sided bound, called directly: every
-        # tick clips each creature's drives, and np.clip's dispatch cost more than the clip.
-        if self.ceiling is None:
-            return x if self.floor is None else np.maximum(x, self.floor)
-        if self.floor is None:
-            return np.minimum(x, self.ceiling)
-        return np.clip(x, self.floor, self.ceiling)
+        # The ufuncs np.clip itself resolves to, called directly: every tick clips each
+        # creature's drives, and np.clip's dispatch cost more than the clip. An open bound is
+        # ±LARGEST_RATE (see the module docstring).
+        low = -bounds.LARGEST_RATE if self.floor is None else self.floor
+        high = bounds.LARGEST_RATE if self.ceiling is None else self.ceiling
+        return np.minimum(np.maximum(x, low), high)
 
     def levels_at(self, t: float) -> np.ndarray:
         """Every drive's level at ``t`` ≥ the current time, without moving the state."""
