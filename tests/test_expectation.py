@@ -481,3 +481,22 @@ def test_an_unexpected_successor_surprises_the_tuple_whose_forward_model_it_viol
     assert surprise["p"] == pytest.approx(1.0 - 3 * 0.1 / 1.3)
     assert surprise["confidence"] > 0.9 and surprise["surprise"] == pytest.approx(surprise["confidence"] * surprise["p"])
     assert after > 0.3  # the surprise percept of a, fading over ``decay``
+
+
+def test_a_removed_tuple_leaves_the_expectations_so_a_growing_and_fusing_tree_holds_no_more():
+    """Each hypothesis a fission makes has a new name and a fusion removes it: a month of
+    them left every one (its percept and models with it) in the expectations, 400 after 400
+    cycles; only the tuples still in the group are kept now."""
+    ex = Expectations()
+    keep = ActionTuple("keep", FunctionPercept("p", lambda t: 1.0), Action("keep"), DoUntil(1.0), 1.0)
+    g = ActionGroup("g", [keep], rng=np.random.default_rng(0), alpha=0.0, expectations=ex)
+    t = 0.0
+    for k in range(400):
+        grown = g.add(ActionTuple(f"p.{k}|sing", FunctionPercept(f"p.{k}", lambda t: 1.0), Action("sing"),
+                                  DoUntil(0.5), 1.0))
+        g.force(grown.name, t)
+        t += 1.0
+        g.tick(t)  # ended on its plan: judged
+        assert ex.of(grown).tests >= 1
+        g.remove(grown, t)
+    assert len(ex._of) == len(ex._names) == 1 and ex.confidence(t, "p.0|sing") == 0.0

@@ -255,6 +255,8 @@ class ActionGroup:
             activation.triggers = np.delete(activation.triggers, i)
         if self.last_active is tuple_:
             self.last_active = None
+        if self.expectations is not None:
+            self.expectations.forget(tuple_)
         self._reindex()
 
     def find(self, name: str) -> ActionTuple:

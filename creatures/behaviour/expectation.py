@@ -133,6 +133,17 @@ class Expectations:
             self._names[tuple_.name] = state
         return state
 
+    def forget(self, tuple_: ActionTuple) -> None:
+        """``tuple_`` has left its group (percept fusion, a refined or replaced tuple): drop
+        its expectations and any end still waiting to be judged. Each new hypothesis gets a
+        new name, so a creature that keeps growing and fusing its percept tree would
+        otherwise hold every tuple it ever had (and through it that tuple's percept and
+        models) for as long as the show runs."""
+        state = self._of.pop(id(tuple_), None)
+        if state is not None and self._names.get(tuple_.name) is state:
+            del self._names[tuple_.name]
+        self._pending = [p for p in self._pending if p.tuple_ is not tuple_]
+
     # -- readings (the percepts) ------------------------------------------------------------
     def surprise(self, t: float, name: str | None = None) -> float:
         """The surprise of tuple ``name`` (or the creature's latest), fading with ``decay``."""
