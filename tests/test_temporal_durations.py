@@ -344,3 +344,19 @@ def test_surprise_fires_within_four_notes_of_a_rhythm_change_and_rarely_on_a_ste
             surprised.append(model.surprised)
         late += [] if any(surprised[first:]) else [seed]
     assert not late, f"no surprise within 4 notes of the change for seeds {late}"
+
+
+def test_a_pulse_longer_than_the_longest_duration_saves_and_loads_back():
+    """Gaps of an hour, fifty minutes, fifty minutes (accepted durations) are heard as ratios
+    below 1 of a pulse of about 4600 s: the saved FIFO of pulses was refused on load (read as
+    durations, at most 3600 s), and the creature's learnt pulse with it."""
+    model = LowIntegerRatioModel(0.5)
+    for k in range(200):
+        model.update(3600.0 if k % 3 == 0 else 3000.0)
+    assert model.pulse > model.max_duration
+    again = LowIntegerRatioModel.from_dict(json.loads(json.dumps(model.to_dict())))
+    assert again.pulse == model.pulse and list(again._labels) == list(model._labels)
+    damaged = model.to_dict()
+    damaged["fifo"][0] = 4.0 * model.max_duration + 1.0  # no duration is heard as that pulse
+    with pytest.raises(ValueError, match="fifo"):
+        LowIntegerRatioModel.from_dict(damaged)

@@ -641,10 +641,13 @@ class LowIntegerRatioModel:
         recent = bounds.items(data.get("recent"), f"{what}.recent", longest=min(model.reanchor_window, len(labels)))
         trouble = bounds.items(data.get("recent_trouble"), f"{what}.recent_trouble", shortest=len(recent),
                                longest=len(recent))
-        for key, durations in (("fifo", fifo), ("recent", recent)):
+        # The FIFO holds pulses, d / r: a duration up to max_duration heard as the smallest
+        # ratio (1/4 by default) is a pulse of four times it, as the model runs.
+        longest_pulse = model.max_duration / float(min(1, *model.ratios))
+        for key, durations, longest in (("fifo", fifo, longest_pulse), ("recent", recent, model.max_duration)):
             for i, d in enumerate(durations):
-                bounds.number(d, f"{what}.{key}.{i}", low=0.0, high=model.max_duration)
-            if not valid_durations(durations, max_duration=model.max_duration).all():
+                bounds.number(d, f"{what}.{key}.{i}", low=0.0, high=longest)
+            if not valid_durations(durations, max_duration=longest).all():
                 raise ValueError(f"{what}.{key}: must hold positive, finite durations")
         model._fifo = deque((float(d) for d in fifo), model.size)
         model._labels.extend(bounds.count(lab, f"{what}.labels.{i}", low=-1, high=len(model.ratios) - 1)
