@@ -210,3 +210,19 @@ def test_a_drive_without_a_ceiling_stays_finite_and_loads_back_after_a_long_run(
         fresh = Motivation({name: 0.0 for name in drives.names})
         fresh.restore(json.loads(json.dumps(drives.to_dict())), now=0.0)
         assert np.array_equal(fresh.levels, drives.levels)
+
+
+def test_a_night_long_step_of_a_drive_that_feeds_itself_reaches_its_bound_not_nan():
+    """A clock gap of ten hours (the machine suspended) over drives growing at +0.05/s: one
+    exact step overflowed (e^1800) and left both drives NaN for good, alone and in a crowd."""
+    def loop() -> Motivation:
+        return Motivation({"a": 1.0, "b": -0.5}, decay={"a": 0.05, "b": 0.05}, equilibrium={"a": 0.0, "b": 0.0},
+                          coupling={("a", "b"): 0.1, ("b", "a"): 0.1}, floor=None)
+    alone, crowd = loop(), [loop(), Motivation({"a": 1.0, "b": 0.0}, floor=None)]
+    with np.errstate(over="ignore", invalid="ignore"):  # the first, exact, try overflows
+        alone.advance(36000.0)
+        Motivation.advance_all(crowd, 36000.0)
+    assert alone.levels.tolist() == [bounds.LARGEST_RATE] * 2
+    assert np.array_equal(crowd[0].levels, alone.levels) and crowd[1].levels.tolist() == [1.0, 0.0]
+    alone.advance(36001.0)
+    assert alone.levels.tolist() == [bounds.LARGEST_RATE] * 2

@@ -165,8 +165,26 @@ class Motivation:
             return self._last_levels[1].copy()
         phi, offset = self._propagator(dt)
         levels = self._clip(phi @ self.levels + offset)
+        if not np.isfinite(levels).all():
+            levels = self._in_steps(dt)
         self._last_levels = (key, levels)
         return levels.copy()
+
+    def _in_steps(self, dt: float) -> np.ndarray:
+        """The levels after ``dt``, integrated in as many equal steps, each clipped, as keep
+        every step finite: a drive that feeds itself (a coupling loop growing at +0.05/s)
+        grows by e^1800 over a night's clock gap, past any float, and one exact step gave
+        inf − inf = NaN for good; clipped step by step it reaches its bound."""
+        steps = 2
+        while True:
+            with np.errstate(over="ignore", invalid="ignore"):
+                phi, offset = self._propagator(dt / steps)
+                levels = self.levels
+                for _ in range(steps):
+                    levels = self._clip(phi @ levels + offset)
+            if np.isfinite(levels).all():
+                return levels
+            steps *= 2
 
     def advance(self, t: float) -> None:
         """Integrate exactly from the current time to clock time ``t`` (nothing to do at the
@@ -197,7 +215,10 @@ class Motivation:
                      + join([m.inputs for m in ms])).reshape(n, d, 1)
             offset = np.matmul(join([psi for _, psi in steps]).reshape(n, d, d), rates)
             levels = np.matmul(join([phi for phi, _ in steps]).reshape(n, d, d), join([m.levels for m in ms]).reshape(n, d, 1))
-            for m, row in zip(ms, ms[0]._clip((levels + offset)[:, :, 0])):
+            rows = ms[0]._clip((levels + offset)[:, :, 0])
+            if not np.isfinite(rows).all():  # a step too long for a drive that feeds itself
+                rows = [row if np.isfinite(row).all() else m._in_steps(t - m.time) for m, row in zip(ms, rows)]
+            for m, row in zip(ms, rows):
                 m.levels, m.time = row, t
 
     def level(self, name: str, t: float | None = None) -> float:
