@@ -110,3 +110,15 @@ def test_bad_input_is_refused():
         TransitionModel.from_dict(data)
     with pytest.raises(ValueError, match="window"):
         TransitionModel(window=0)
+
+
+@pytest.mark.parametrize("value", [1.0 / 3.0, 0.1, 64.0, 0.0])
+def test_a_constant_credit_has_no_value_contrast_whatever_its_last_bits(value):
+    """Ten credits of 1/3, half to each of two destinations, read as a contrast of 1 (the
+    grounds for fission): their mean is a rounding away from 1/3, and only those bits differed."""
+    model = TransitionModel(["a", "b", "c"], window=10)
+    for k in range(10):
+        model.record("a", "b" if k % 2 else "c", value)
+    assert model.value_contrast("a") == 0.0
+    model.record("a", "b", value * (1.0 + 1e-3) + 1e-3)  # a real difference still tells
+    assert model.value_contrast("a") > 0.0

@@ -26,6 +26,11 @@ import numpy as np
 
 _EMPTY = -1
 
+SAME = 1e-9
+"""Values within this fraction of their size of each other are one value: a constant credit
+(1/3, ten times) has a mean a rounding away from each of its values, and those last bits
+alone, split by destination, read as a contrast of 1."""
+
 
 def _with_prior(counts: np.ndarray, alpha: float) -> np.ndarray:
     """(N'_ij / Σ_j N'_ij + α) / (1 + αN) along the last axis of a count row or matrix.
@@ -120,14 +125,12 @@ class TransitionModel:
         The correlation ratio η² = between-destination / total sum of squares over the
         recent valued transitions, in [0, 1]: near 1 when each destination carries its own
         value (fission would pay), 0 when the destination makes no difference or there is
-        no spread at all.
+        no spread at all (none beyond :data:`SAME`).
         """
         dest, vals = self._valued(i)
-        if len(vals) < 2:
+        if len(vals) < 2 or np.ptp(vals) <= SAME * np.abs(vals).max():
             return 0.0
         total = float(((vals - vals.mean()) ** 2).sum())
-        if total == 0.0:
-            return 0.0
         n = len(self.names)
         count = np.bincount(dest, minlength=n)
         means = np.bincount(dest, weights=vals, minlength=n) / np.maximum(count, 1)
