@@ -360,3 +360,25 @@ def test_a_pulse_longer_than_the_longest_duration_saves_and_loads_back():
     damaged["fifo"][0] = 4.0 * model.max_duration + 1.0  # no duration is heard as that pulse
     with pytest.raises(ValueError, match="fifo"):
         LowIntegerRatioModel.from_dict(damaged)
+
+
+@pytest.mark.parametrize("model", [SimpleDurationModel(5.0, 1.0), LowIntegerRatioModel(5.0)],
+                         ids=["simple", "ratio"])
+def test_a_tuple_held_open_for_two_hours_ends_without_teaching_its_model(model):
+    """A 5 s tuple held open by another (interval constraint 'during') for two hours of lived
+    time, ticked every second: its model refused the 7200 s with a ValueError in the group's
+    tick, and the creature stopped."""
+    from creatures.behaviour.action_group import ActionGroup
+    from creatures.behaviour.percept import FunctionPercept
+    from creatures.temporal.intervals import ConstrainedDoUntil
+
+    hold = [1.0]
+    du = ConstrainedDoUntil(DoUntil(model), hold=FunctionPercept("held", lambda t: hold[0]))
+    tuple_ = ActionTuple("sing", WhateverPercept(), Action("sing"), du, 1.0)
+    group = ActionGroup("g", [tuple_], rng=np.random.default_rng(0), alpha=0.0)
+    before = model.to_dict()
+    for t in range(7200):
+        group.tick(float(t))
+    hold[0] = 0.0
+    group.tick(7200.0)
+    assert tuple_.stopped_at == 7200.0 and model.to_dict() == before

@@ -10,6 +10,7 @@ Every tuple follows one life cycle, after py_trees: ``start`` → ``update``… 
 
 from __future__ import annotations
 
+import math
 from typing import Any, Protocol
 
 import numpy as np
@@ -157,13 +158,18 @@ class DoUntil:
 
     def end(self, t: float) -> float:
         """Close the activation; teach the model the actual duration (unless the activation
-        spans a clock gap); return it."""
+        spans a clock gap, or lasted longer than the model's ``max_duration``); return it.
+
+        A tuple held open by another (an interval constraint) or planned from a pulse longer
+        than an hour can live longer than its model takes a duration: the model refused it
+        with a ValueError, raised in the middle of the group's tick, and the creature stopped."""
         if self.started_at is None:
             return 0.0
         actual = t - self.started_at
         self.started_at = None
         model = self.model
-        if self.learn and model is not None and actual > 0 and not self.spans_gap:
+        if (self.learn and model is not None and 0 < actual <= getattr(model, "max_duration", math.inf)
+                and not self.spans_gap):
             model.update(actual)
         self.spans_gap = False
         return actual
