@@ -149,3 +149,15 @@ def test_a_level_saves_what_it_learnt():
     with pytest.raises(ValueError):
         fresh.restore({"own": fresh.own.to_dict(), "heard": -1})
     assert fresh.heard == half.model.heard  # a damaged state changes nothing
+
+
+def test_a_du_on_a_level_ends_a_long_activation_without_teaching_it():
+    """A Du on the half-beat of a 0.5 s beat (a 0.25 s grid) whose tuple lasted 20 minutes:
+    the level's own model refused 4800 grid steps with a ValueError in the group's tick."""
+    level = PulsePercept("beat", LowIntegerRatioModel(0.5)).level(Fraction(1, 2)).model
+    du = DoUntil(level)
+    du.begin(0.0, np.random.default_rng(0))
+    assert du.end(1200.0) == 1200.0 and level.heard == 0
+    du.begin(1200.0, np.random.default_rng(0))
+    du.end(1200.5)  # a note of the level is still learnt
+    assert level.heard == 1

@@ -29,7 +29,7 @@ import numpy as np
 
 from creatures import bounds
 from creatures.behaviour.percept import Percept
-from creatures.temporal.durations import LowIntegerRatioModel, PulseModel, check_duration
+from creatures.temporal.durations import MAX_DURATION, LowIntegerRatioModel, PulseModel, check_duration
 
 
 def on_grid(phase: float, sharpness: float) -> float:
@@ -83,6 +83,14 @@ class Subdivision:
 
     def sample_pulse(self, rng: np.random.Generator) -> float:
         return float(self.ratio) * self.parent.sample_pulse(rng)
+
+    @property
+    def max_duration(self) -> float:
+        """The longest duration :meth:`update` takes: one the own model takes in grid steps
+        (3600 of them: 15 minutes of a quarter-second grid), and no longer than any model
+        takes. A Du on this level ends longer ones without teaching them
+        (:meth:`~creatures.behaviour.action_tuple.DoUntil.end`)."""
+        return min(MAX_DURATION, self.own.max_duration * self.pulse)
 
     def sample(self, rng: np.random.Generator) -> float:
         """A duration of this level: its own learned pattern (in grid steps) × the grid step."""
