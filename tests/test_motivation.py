@@ -226,3 +226,23 @@ def test_a_night_long_step_of_a_drive_that_feeds_itself_reaches_its_bound_not_na
     assert np.array_equal(crowd[0].levels, alone.levels) and crowd[1].levels.tolist() == [1.0, 0.0]
     alone.advance(36001.0)
     assert alone.levels.tolist() == [bounds.LARGEST_RATE] * 2
+
+
+
+def test_a_clock_gap_over_the_largest_accepted_coupling_saturates_in_a_few_steps(monkeypatch):
+    """Coupling at 1e6/s (the largest a config takes) over a ten-hour gap needs 2^26 clipped
+    steps to stay finite: they ran for minutes, and the creature's tick with them. Levels held
+    at their bounds stop the stepping (counted here as clips, stopped at 10 000)."""
+    drives = Motivation({"a": 1.0, "b": -0.5}, decay={"a": 0.05, "b": 0.05}, floor=None,
+                        coupling={("a", "b"): bounds.LARGEST_RATE, ("b", "a"): bounds.LARGEST_RATE})
+    clip, clips = drives._clip, []
+
+    def counted(x: np.ndarray) -> np.ndarray:
+        clips.append(1)
+        assert len(clips) < 10_000, "still stepping"
+        return clip(x)
+
+    monkeypatch.setattr(drives, "_clip", counted)
+    with np.errstate(over="ignore", invalid="ignore"):
+        drives.advance(36000.0)
+    assert drives.levels.tolist() == [bounds.LARGEST_RATE] * 2
