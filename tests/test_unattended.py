@@ -555,6 +555,6 @@ def test_a_second_stop_during_the_final_save_is_said_and_the_save_finished(tmp_p
         run.wait()
     how = "Ctrl-C" if again == "SIGINT" else again
     assert run.returncode == 0, "".join(said) + out
-    assert f"{how} while the run was stopping: taken as the same stop, after its final save" in out
+    assert f"{how} while the run was ending: it ended after its final save, as it was" in out
     assert "state" in json.loads((tmp_path / "state" / "ada.json").read_text())  # whole: it reads
     assert not [p for p in (tmp_path / "state").iterdir() if p.name.startswith(".")]  # no temp file, lock let go

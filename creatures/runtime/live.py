@@ -232,8 +232,8 @@ class _Counters:
         if always or counts != self.last:
             self.last = counts
             self.session.world.emit("xruns", underruns=counts[0], overruns=counts[1], gaps=counts[2], skips=counts[3])
-        if not self.clipped_said and (clipped := self.session.clipping()) is not None:
-            self.clipped_said = True
+        if not always and not self.clipped_said and (clipped := self.session.clipping()) is not None:
+            self.clipped_said = True  # (at the end, the total alone is said: session.clipping)
             self.say(f"{clipped} (counted on; the total is said when the run stops)")
 
 
@@ -646,7 +646,7 @@ def run_live(
                 if score is not None:
                     score.wait()
             for signum in again:
-                say(f"{stops.named(signum)} while the run was stopping: taken as the same stop, after its final save")
+                say(f"{stops.named(signum)} while the run was ending: it ended after its final save, as it was")
     summary.seconds = wall.now() - start
     summary.ticks = session.ticks
     summary.late, summary.skipped = loop.timing.late, loop.skipped
