@@ -246,3 +246,28 @@ def test_a_clock_gap_over_the_largest_accepted_coupling_saturates_in_a_few_steps
     with np.errstate(over="ignore", invalid="ignore"):
         drives.advance(36000.0)
     assert drives.levels.tolist() == [bounds.LARGEST_RATE] * 2
+
+
+def test_a_clock_gap_over_a_feeding_loop_beside_drives_that_never_settle_ends_within_the_cap(monkeypatch):
+    """A loop at the largest coupling needs 2^26 clipped steps over ten hours, and two drives
+    that circle one another (coupled each way with opposite signs, no decay) never settle, so
+    nothing stopped the stepping early: minutes on the creature's thread. At most
+    MOST_SUBSTEPS sub-steps run: the levels come back finite and within their bounds."""
+    from creatures.behaviour.motivation import MOST_SUBSTEPS
+
+    drives = Motivation({"a": 1.0, "b": -0.5, "x": 1.0, "y": 0.0},
+                        decay={"a": 0.05, "b": 0.05, "x": 0.0, "y": 0.0}, floor=None,
+                        coupling={("a", "b"): bounds.LARGEST_RATE, ("b", "a"): bounds.LARGEST_RATE,
+                                  ("x", "y"): 0.01, ("y", "x"): -0.01})
+    clip, clips = drives._clip, []
+
+    def counted(x: np.ndarray) -> np.ndarray:
+        clips.append(1)
+        assert len(clips) <= 4 * MOST_SUBSTEPS, "still stepping"
+        return clip(x)
+
+    monkeypatch.setattr(drives, "_clip", counted)
+    with np.errstate(over="ignore", invalid="ignore"):
+        drives.advance(36000.0)
+    assert np.isfinite(drives.levels).all()
+    assert np.all(np.abs(drives.levels) <= bounds.LARGEST_RATE)

@@ -57,6 +57,11 @@ def between_ticks() -> Iterator[None]:
         _between_ticks.reset(token)
 
 
+MOST_SUBSTEPS = 2 ** 16
+"""Most clipped sub-steps run for one step of the drives (:meth:`Motivation._in_steps`): a few
+tenths of a second of the creature's thread, once, after a clock gap."""
+
+
 class Motivation:
     """A creature's named drives and their linear dynamics.
 
@@ -177,13 +182,16 @@ class Motivation:
         inf − inf = NaN for good; clipped step by step it reaches its bound. Every step is
         the same map, so levels it leaves unchanged (held at their bounds) stay so for the
         steps left: a loop at the largest rates (1e6/s, 2^26 steps over ten hours) saturates
-        within a few."""
+        within a few. Drives that never settle (a coupling that oscillates) beside one that
+        needs that many would run them all, minutes on the creature's thread, so at most
+        :data:`MOST_SUBSTEPS` are run: such drives are then where that many sub-steps took
+        them, short of the gap's end (finite, and at their bounds where they fed themselves)."""
         steps = 2
         while True:
             with np.errstate(over="ignore", invalid="ignore"):
                 phi, offset = self._propagator(dt / steps)
                 levels = self.levels
-                for _ in range(steps):
+                for _ in range(min(steps, MOST_SUBSTEPS)):
                     after = self._clip(phi @ levels + offset)
                     if not np.isfinite(after).all() or np.array_equal(after, levels):
                         break
