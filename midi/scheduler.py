@@ -13,7 +13,9 @@ note's note-off, silences the key while the second note should still sound (a sy
 on, on, off and stops; a repeated pitch in a phrase lost its tail). So a note that starts on
 a sounding key re-strikes it: the earlier note's note-off goes out just before the new
 note-on, its own later note-off is dropped, and the key sounds until the later of the two
-ends. Every re-strike is counted (:attr:`NoteScheduler.restruck`).
+ends, except that a held (stuck) earlier note ends with the new one: the new note's owner
+holds no handle to release a key held for good. Every re-strike is counted
+(:attr:`NoteScheduler.restruck`) and said at the end of a run.
 """
 
 from __future__ import annotations
