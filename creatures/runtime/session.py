@@ -230,7 +230,8 @@ class Session:
             self.world.emit("restruck", notes=restruck)
             self.say(f"{restruck} notes started on a key (channel and pitch) still sounding: MIDI has one key per "
                      "pitch and channel, so each re-struck it, ending the earlier note there (the key sounded on "
-                     "to the later end; the events log keeps the notes as played)")
+                     "to the later end, or to the new note's if the earlier was held; the events log keeps the "
+                     "notes as played)")
         self.world.emit("inputs", **self.inputs.summary())
         if self.mixer.clipped:
             self.world.emit("clipped", samples=self.mixer.clipped, peak=round(self.mixer.peak, 3))
