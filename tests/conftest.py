@@ -39,3 +39,22 @@ def rng() -> np.random.Generator:
 @pytest.fixture
 def clock() -> SimulatedClock:
     return SimulatedClock()
+
+
+@pytest.fixture
+def own_registry(monkeypatch):
+    """Parts and kinds a test's plugin registers leave with it, so a later test in the same
+    worker (the generated reference in docs/authoring.md among them) sees the built-ins only.
+    The built-ins are loaded first, so they are kept."""
+    from creatures import kinds
+    from creatures.authored import registry
+
+    kinds.load_all()
+    registry.load_parts()
+    saved = dict(kinds.KINDS)
+    for parts in (registry.ACTIONS, registry.PERCEPTS, registry.MODELS):
+        monkeypatch.setattr(parts, "_parts", dict(parts._parts))
+    monkeypatch.setattr(registry, "_loaded", set(registry._loaded))
+    yield
+    kinds.KINDS.clear()
+    kinds.KINDS.update(saved)

@@ -11,6 +11,9 @@ from creatures.config import MAX_CONFIG_CHAIN, ConfigError
 from creatures.runtime.schema import load_installation
 from tests.test_authored import CREATURE, HEAD, line_of, write
 
+# Parts a test's plugin registers leave with it (tests/conftest.py).
+pytestmark = pytest.mark.usefixtures("own_registry")
+
 CROAK = '''
 from creatures.authored.actions import ActionPart, Playing
 from creatures.authored.registry import ACTIONS

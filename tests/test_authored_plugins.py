@@ -23,6 +23,9 @@ from creatures.events import read_events
 from creatures.runtime.offline import run_offline
 from creatures.runtime.schema import load_installation
 
+# Parts a test's plugin registers leave with it (tests/conftest.py).
+pytestmark = pytest.mark.usefixtures("own_registry")
+
 ROOT = Path(__file__).resolve().parents[1]
 
 CROAK = '''
@@ -77,20 +80,6 @@ value = 0.5
 tuples = ["croak", "rest"]
 alpha = 0.0
 '''
-
-
-@pytest.fixture(autouse=True)
-def _own_registry(monkeypatch):
-    """Parts a test registers leave with it (the built-in ones are loaded first)."""
-    from creatures import kinds
-
-    kinds.load_all()
-    saved = dict(kinds.KINDS)
-    monkeypatch.setattr(registry.ACTIONS, "_parts", dict(registry.ACTIONS._parts))
-    monkeypatch.setattr(registry, "_loaded", set(registry._loaded))
-    yield
-    kinds.KINDS.clear()
-    kinds.KINDS.update(saved)
 
 
 def _wheel(tmp_path: Path, module: str, source: str, group: str = "actions") -> Path:
