@@ -13,11 +13,13 @@ and returning is :class:`audio.resilient.ResilientInput`.
 
 from __future__ import annotations
 
+import logging
 import math
 import os
+import re
 from abc import ABC, abstractmethod
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any, Callable, Iterator
 
 import numpy as np
 import soundfile
@@ -25,6 +27,8 @@ import soxr
 
 from audio.device import AudioBackend, AudioDeviceUnavailable, find_device, portaudio, start_stream
 from audio.resample import Resampler
+
+_log = logging.getLogger(__name__)
 
 ANALYSIS_RATE = 22050
 """The rate every source delivers (librosa's default; enough for speech and song)."""
@@ -48,6 +52,15 @@ sample is garbage (a wrong byte order, a corrupt float file, a driver writing ju
 ±1e18 the spectra's squares overflow float32 to inf, which crashed the offline ear in scipy's
 clustering. A file holding such samples is refused like one holding NaN/inf; live, they are
 counted and zeroed like non-finite ones."""
+
+READ_BLOCK = 4096
+"""Frames read at a time from a file whose decoder failed part-way, so the frames before the
+fault are kept (a whole-file read returns nothing but the error). libsndfile cannot seek in a
+FLAC once its decoder has lost sync, so the fault is found in one pass of blocks this size:
+up to 0.1 s at 44.1 kHz before it is lost with it."""
+
+_PROMISED = re.compile(r"^data\s*:\s*(\d+)\s*\(should be (\d+)\)", re.MULTILINE)
+"""libsndfile's log line for a WAV whose data chunk claims more bytes than the file holds."""
 
 __all__ = [
     "ANALYSIS_RATE",
@@ -130,8 +143,49 @@ class ArraySource(AudioSource):
         return block
 
 
+def _promised_seconds(sound: soundfile.SoundFile) -> float | None:
+    """Seconds a cut WAV's header promised, or None when the file holds all it promised.
+
+    libsndfile reads a WAV cut short (a recorder that crashed, a copy that stopped) up to
+    where it ends and only notes the difference in its log; the file is heard, and said."""
+    found = _PROMISED.search(sound.extra_info)
+    if found is None or int(found[1]) <= int(found[2]):
+        return None
+    return sound.frames * int(found[1]) / int(found[2]) / sound.samplerate
+
+
+def _read_what_decodes(path: Path, frames: int, dtype: str) -> tuple[np.ndarray, int, str | None]:
+    """``frames`` frames of ``path`` (-1: all), the frames its header promises, and why the read
+    stopped early if the decoder failed.
+
+    A FLAC cut inside its data fails in the decoder, and one read of the whole file returns
+    nothing but the error: a three-hour field recording missing its last minute was refused
+    whole. Read again block by block from a fresh handle, everything before the fault is kept."""
+    with soundfile.SoundFile(path) as sound:
+        promised = sound.frames
+        try:
+            return sound.read(frames, dtype=dtype, always_2d=True), promised, None
+        except (soundfile.LibsndfileError, RuntimeError) as exc:
+            fault = exc
+    blocks: list[np.ndarray] = []
+    left = frames if frames >= 0 else promised
+    with soundfile.SoundFile(path) as sound:
+        while left > 0:
+            try:
+                block = sound.read(min(READ_BLOCK, left), dtype=dtype, always_2d=True)
+            except (soundfile.LibsndfileError, RuntimeError):
+                break
+            if block.shape[0] == 0:
+                break
+            blocks.append(block)
+            left -= block.shape[0]
+    if not blocks:
+        raise fault
+    return np.concatenate(blocks), promised, str(fault).strip()
+
+
 def load_audio(path: str | os.PathLike, *, samplerate: int = ANALYSIS_RATE,
-               seconds: float | None = None) -> np.ndarray:
+               seconds: float | None = None, say: Callable[[str], None] | None = None) -> np.ndarray:
     """Read a sound file as mono float32 at ``samplerate``.
 
     Any format libsndfile reads (WAV 8/16/24/32-bit and float, FLAC, OGG, ...) at any rate;
@@ -140,12 +194,18 @@ def load_audio(path: str | os.PathLike, *, samplerate: int = ANALYSIS_RATE,
     samples or samples beyond :data:`LARGEST_SAMPLE` (silently zeroing those would hide a
     broken recording).
 
+    A file cut short (a WAV holding less than its header promises, a FLAC or OGG whose decoder
+    fails part-way) is heard up to where it ends, and that is said to ``say`` (the module's
+    logger when none): losing the recording whole would lose what it holds, and hearing it
+    silently would hide why the creatures fall quiet early.
+
     ``seconds`` reads no further than that much of the file (plus :data:`RESAMPLE_MARGIN`, so
     the samples up to it are exactly those of the whole file resampled); only what is read is
     checked. An offline run hears only its duration, and reading the whole file first made a
     5-second run of a one-hour stereo recording take 27 s and 3.3 GB, and a 4 GB WAV more
     memory than a gallery machine has.
     """
+    say = say or _log.warning
     path = Path(path)
     if not path.is_file():
         raise AudioFileError(f"{path}: no such sound file")
@@ -158,13 +218,21 @@ def load_audio(path: str | os.PathLike, *, samplerate: int = ANALYSIS_RATE,
             # A double file is checked before it is narrowed: 1e300 (a wrong scale) cast to
             # float32 is inf, and was refused as "NaN/inf", whose cause and fix differ.
             wide = sound.subtype == "DOUBLE"
-            data = sound.read(frames, dtype="float64" if wide else "float32", always_2d=True)
+            cut = _promised_seconds(sound)
+        data, promised, fault = _read_what_decodes(path, frames, "float64" if wide else "float32")
     except (soundfile.LibsndfileError, RuntimeError, OSError) as exc:
         if path.stat().st_size == 0:
             raise AudioFileError(f"{path}: empty file (0 bytes)") from None
         raise AudioFileError(f"{path}: unreadable or corrupt ({exc})") from None
     if data.shape[0] == 0:
-        raise AudioFileError(f"{path}: contains no samples (zero-length recording)")
+        raise AudioFileError(f"{path}: contains no samples (a zero-length recording, or an Ogg file cut "
+                             "short: libsndfile reads an Ogg stream's length from its end)")
+    if fault is not None:
+        say(f"{path}: cut short: it decodes to {data.shape[0] / rate:,.1f} s of the {promised / rate:,.1f} s "
+            f"its header promises ({fault}); heard up to there")
+    elif cut is not None and (seconds is None or seconds > data.shape[0] / rate):
+        say(f"{path}: cut short: it holds {data.shape[0] / rate:,.1f} s of the {cut:,.1f} s its header "
+            "promises; heard up to there")
     _refuse_unusable(path, data, rate)
     data = data.astype(np.float32, copy=False)
     mono = data.mean(axis=1) if data.shape[1] > 1 else data[:, 0]

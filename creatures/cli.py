@@ -691,7 +691,8 @@ def _aural_model(args: argparse.Namespace) -> int:
         print(f"creatures: {refused}", file=sys.stderr)
         return 2
     try:
-        sounds = [load_audio(path, samplerate=args.rate) for path in args.sounds]
+        sounds = [load_audio(path, samplerate=args.rate, say=lambda m: print(f"creatures: {m}", file=sys.stderr))
+                  for path in args.sounds]
         if args.top_db > 0:
             sounds = [trim(sound, top_db=args.top_db)[0] for sound in sounds]
         silent = [str(path) for path, sound in zip(args.sounds, sounds) if not np.any(sound)]

@@ -11,6 +11,8 @@ import numpy as np
 import pytest
 import soundfile
 
+import installations
+
 from audio.device import AudioDeviceUnavailable
 from audio.segment import Segmenter
 from audio.sources import (
@@ -23,6 +25,8 @@ from audio.sources import (
     load_audio,
 )
 from audio_fixtures import SR, tone, write_wav
+from creatures.runtime.offline import run_offline
+from creatures.runtime.schema import load_installation
 
 
 def peak_hz(x: np.ndarray, sr: int) -> float:
@@ -104,14 +108,56 @@ def test_the_offline_run_refuses_a_far_too_loud_file_in_one_line(tmp_path: Path,
     assert len(err) == 1 and "loud.wav" in err[0] and "beyond ±1000" in err[0]
 
 
-def test_file_cut_inside_the_data_keeps_what_was_recorded(tmp_path: Path) -> None:
+def test_file_cut_inside_the_data_keeps_what_was_recorded_and_says_so(tmp_path: Path) -> None:
+    """A WAV holding less than its header promises (a recorder that crashed) is heard up to
+    where it ends; it was heard silently, and the creatures falling quiet early had no cause."""
     x = tone(440, 1.0)
     data = write_wav(tmp_path / "full.wav", x).read_bytes()
     cut = tmp_path / "cut.wav"
     cut.write_bytes(data[: len(data) // 2])
-    y = load_audio(cut)
+    said: list[str] = []
+    y = load_audio(cut, say=said.append)
     assert 0.45 * SR < len(y) < 0.55 * SR
     np.testing.assert_allclose(y, x[: len(y)], atol=1 / 2**15)
+    assert len(said) == 1 and "cut.wav: cut short: it holds 0.5 s of the 1.0 s" in said[0]
+    said.clear()
+    load_audio(cut, seconds=0.2, say=said.append)  # the part a short run hears is whole
+    assert said == []
+    load_audio(write_wav(tmp_path / "whole.wav", x), say=said.append)
+    assert said == []
+
+
+def test_a_flac_cut_short_keeps_what_decodes(tmp_path: Path) -> None:
+    """A FLAC cut inside its data fails in the decoder part-way; one read of the whole file
+    returned only the error, and the whole recording was refused as corrupt."""
+    x = tone(440.0, 6.0, SR, harmonics=1)
+    path = tmp_path / "cut.flac"
+    soundfile.write(path, x, SR, format="FLAC")
+    path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
+    said: list[str] = []
+    y = load_audio(path, say=said.append)
+    assert 2.5 * SR < len(y) < 3.5 * SR
+    np.testing.assert_allclose(y, x[: len(y)], atol=1e-4)
+    assert len(said) == 1 and "cut.flac: cut short: it decodes to" in said[0] and "6.0 s" in said[0]
+
+
+def test_an_ogg_cut_short_is_refused_with_the_likely_cause(tmp_path: Path) -> None:
+    """libsndfile finds no samples at all in an Ogg file cut short (it reads the length from
+    the end); the message said only "zero-length recording"."""
+    path = tmp_path / "cut.ogg"
+    soundfile.write(path, tone(440.0, 6.0, SR, harmonics=1), SR, format="OGG")
+    path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
+    with pytest.raises(AudioFileError, match="cut.ogg: contains no samples .*Ogg file cut short"):
+        load_audio(path)
+
+
+def test_the_offline_run_says_its_recording_was_cut_short(tmp_path: Path) -> None:
+    data = write_wav(tmp_path / "full.wav", tone(440, 2.0)).read_bytes()
+    cut = tmp_path / "cut.wav"
+    cut.write_bytes(data[: len(data) // 2])
+    summary = run_offline(load_installation(installations.path("soundcreatures")), tmp_path / "o", audio=cut,
+                          duration=3.0)
+    assert any("cut.wav: cut short" in m for m in summary.messages)
 
 
 def test_a_part_of_a_long_file_is_read_exactly_as_the_whole_would_give_it(tmp_path: Path) -> None:

@@ -85,7 +85,7 @@ def _inputs(inst: LoadedInstallation, audio: Path | None, midi: Path | None, dur
     audio = audio or inst.resolve(settings.input.audio, ("input", "audio"))
     midi = midi or inst.resolve(settings.input.midi, ("input", "midi"))
     notes = read_notes(midi) if midi is not None else []
-    samples = load_audio(audio, samplerate=sr, seconds=duration) if audio is not None else None  # only what is heard
+    samples = load_audio(audio, samplerate=sr, seconds=duration, say=say) if audio is not None else None  # only what is heard
     if midi is None and audio is None and settings.input.generate == "phrase":
         notes = phrase_notes(rng=rng)
         samples = render_notes(notes, sr, duration)
