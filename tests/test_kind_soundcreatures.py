@@ -332,3 +332,24 @@ def test_a_sampler_lets_a_sound_go_and_reuses_its_slot():
     with pytest.raises(IndexError):
         sampler.play(a)
     assert sampler.add(np.full(5, 0.5)) == a and len(sampler.sounds) == 2
+
+
+def test_a_class_no_tuple_sings_any_more_leaves_memory(tmp_path):
+    """Each class ever sung kept its singing action, and with it the class's members and their
+    raw samples, for the whole run: a week of fission and fusion grew without bound. A singer
+    is shared while tuples sing its class and goes with the last of them."""
+    import gc
+    import weakref
+
+    from audio.utterance import Utterance, UtterancePercept
+
+    session = Session(load_installation(CONFIG), SimulatedClock(), EventLog(tmp_path / "e.jsonl"), MemorySink())
+    aural = session.creatures[0].aural
+    fused = UtterancePercept("fused away", radius=250.0, memory=1.0, max_members=8, max_classes=4)
+    fused.hear(Utterance(np.ones(22050, dtype=np.float32), SR, np.zeros((4, 13)), 0.0))
+    singer = aural.sing_from(fused)
+    assert aural.sing_from(fused) is singer  # one action per class: credit flows by its name
+    gone = weakref.ref(fused)
+    del fused, singer
+    gc.collect()
+    assert gone() is None

@@ -22,7 +22,7 @@ from creatures.authored.skills import CUTOFF
 from creatures.behaviour.action_group import ActionGroup
 from creatures.behaviour.action_tuple import ActionTuple, DoUntil
 from creatures.config import ConfigError
-from creatures.kinds.hearing_parts import AuralLearning, Ear, Mouth, SingFrom, tree_from_state, tree_state
+from creatures.kinds.hearing_parts import AuralLearning, Ear, Mouth, Singers, SingFrom, tree_from_state, tree_state
 from creatures.motor.search import NoPath
 
 if TYPE_CHECKING:
@@ -39,7 +39,7 @@ class Aural:
         self.mouth = Mouth(spec.mouth, self.ear.singing, None if creature.body is None else creature.body.graph)
         self.root: UtterancePercept | None = None
         self.attended: Utterance | None = None  # the sound an ``attend`` last took
-        self._singers: dict[int, SingFrom] = {}
+        self.singers = Singers(creature.rng, self._sing)
 
     def tree(self, name: str, seed_model: str | None, *, nearest: bool = False) -> UtterancePercept:
         """The creature's utterance tree, named ``name`` (one per creature: Tr and Ac share it);
@@ -82,9 +82,7 @@ class Aural:
     def sing_from(self, percept: UtterancePercept) -> SingFrom:
         """The one singing action of ``percept``, shared by every tuple that sings it (credit
         flows between them by its name)."""
-        if id(percept) not in self._singers:
-            self._singers[id(percept)] = SingFrom(percept, self.creature.rng, self._sing)
-        return self._singers[id(percept)]
+        return self.singers(percept)
 
     def _sing(self, t: float, utterance: Utterance, percept: UtterancePercept) -> None:
         c = self.creature
@@ -141,7 +139,6 @@ class Aural:
         self.root.members, self.root._born = saved.members, saved._born
         for child in list(saved.utterance_children()):
             self.root.add_child(child)
-        self._singers = {k: s for k, s in self._singers.items() if s.percept is self.root}
         percepts = {p.name: p for p in self.root.walk()}
         try:
             for group_name, tuples in state.get("tuples", {}).items():

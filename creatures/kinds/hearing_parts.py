@@ -419,6 +419,27 @@ class SingFrom(Action):
             self.perform(t, self.percept.draw(self.rng), self.percept)
 
 
+class Singers:
+    """The one :class:`SingFrom` of each percept, shared by every tuple that sings it (credit
+    flows between them by its name), and held only while one does.
+
+    A plain dict kept every singer made, and each singer holds its percept, whose members hold
+    their raw samples: every class that ever fused away stayed in memory for the whole run.
+    Weakly held, a singer goes with its last tuple, so its id cannot be reused while it is kept.
+    """
+
+    def __init__(self, rng: np.random.Generator, perform: Callable[[float, Utterance, UtterancePercept], None]) -> None:
+        self.rng = rng
+        self.perform = perform
+        self._of: weakref.WeakValueDictionary[int, SingFrom] = weakref.WeakValueDictionary()
+
+    def __call__(self, percept: UtterancePercept) -> SingFrom:
+        singer = self._of.get(id(percept))
+        if singer is None:
+            singer = self._of[id(percept)] = SingFrom(percept, self.rng, self.perform)
+        return singer
+
+
 class AuralLearning(PerceptLearning):
     """:class:`PerceptLearning` for a tree of utterance percepts shared by Tr and Ac.
 

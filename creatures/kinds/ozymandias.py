@@ -87,7 +87,7 @@ from creatures.bounds import LARGEST_RATE, LONGEST_OFFLINE, LONGEST_SECONDS, Sec
 from creatures.config import config_error
 from creatures.image.spec import ImagesSpec, make_video
 from creatures.kinds.base import CreatureKind, CreatureSpec
-from creatures.kinds.hearing_parts import AuralLearning, Ear, HearingSpec, SingFrom, tree_from_state, tree_state
+from creatures.kinds.hearing_parts import AuralLearning, Ear, HearingSpec, Singers, SingFrom, tree_from_state, tree_state
 from creatures.persist import load_json, save_json
 
 if TYPE_CHECKING:
@@ -164,7 +164,7 @@ class Ozymandias(CreatureKind):
                                      max_classes=spec.hearing.classes)
         self.motivation = Motivation({"excitement": 0.0}, decay={"excitement": np.log(2.0) / spec.calm},
                                      equilibrium={"excitement": 0.0}, ceiling=1.0)
-        self._readers: dict[int, SingFrom] = {}
+        self.readers = Singers(self.rng, self._read)
         self._queued: list[tuple[np.ndarray, float, int]] = []  # part, gain, source frame: to start
         self._playing: list[list] = []  # [part, gain, next frame]
         self._frame = 0  # frames of output rendered so far
@@ -216,9 +216,7 @@ class Ozymandias(CreatureKind):
 
     def reader(self, percept: UtterancePercept) -> SingFrom:
         """The one reading action of ``percept`` (shared by every tuple that reads it)."""
-        if id(percept) not in self._readers:
-            self._readers[id(percept)] = SingFrom(percept, self.rng, self._read)
-        return self._readers[id(percept)]
+        return self.readers(percept)
 
     def _read(self, t: float, utterance: Utterance, percept: UtterancePercept) -> None:
         """Read a part of ``utterance`` back now, louder the more excited."""
@@ -293,7 +291,6 @@ class Ozymandias(CreatureKind):
 
     def restore(self, state: dict[str, Any]) -> None:
         self.root = tree_from_state(state["tree"], like=self.root)
-        self._readers.clear()
         self._build_group()
         percepts = {p.name: p for p in self.root.walk()}
         percepts.update({tp.trigger.name: tp.trigger for tp in self.group.tuples})
