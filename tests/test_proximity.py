@@ -87,6 +87,27 @@ def test_without_learning_or_when_fixed_a_proximity_stays_as_written(rng):
     assert fixed.table[("sit", "other")] == 1.0 and fixed.table[("sit", "lure")] > 0.9
 
 
+def test_an_action_no_tuple_performs_any_more_is_forgotten(rng):
+    """The learnt table grew with every action a run ever tried (a sound class that fused
+    away kept its row for the whole run), and a new action given a freed name would have
+    inherited the old one's proximities. The author's pairs and fixed ones stay."""
+    proximity = Proximity({("sit", "rest"): 0.3}, rate=0.2, window=3.0, fixed=[("sit", "other")])
+    group = _group(rng, proximity, [])
+    group.add(_tuple("lure"))  # a second tuple performing 'lure'
+    for k in range(5):
+        _round(group, 10.0 * k)
+    learnt = set(proximity.table)
+    assert ("sit", "lure") in learnt and ("sit", "rest") in learnt and ("sit", "other") in learnt
+    first, second = [tp for tp in group.tuples if tp.action.name == "lure"]
+    group.remove(first, 60.0)
+    assert set(proximity.table) == learnt  # 'lure' is still performed
+    group.remove(second, 60.0)
+    assert not any("lure" in key for key in proximity.table)
+    group.remove(group.find("rest"), 60.0)
+    group.remove(group.find("other"), 60.0)
+    assert proximity.table[("sit", "rest")] != 0.3 and ("sit", "other") in proximity.table
+
+
 LEARNS = HEAD + """
 [[creature]]
 name = "p"

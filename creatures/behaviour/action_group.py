@@ -257,6 +257,8 @@ class ActionGroup:
             self.last_active = None
         if self.expectations is not None:
             self.expectations.forget(tuple_)
+        if all(tp.action.name != tuple_.action.name for tp in self.tuples):
+            self.proximities.forget(tuple_.action.name)
         self._reindex()
 
     def find(self, name: str) -> ActionTuple:

@@ -53,6 +53,7 @@ class Proximity:
         self.version = 0
         for (a, b), p in (table or {}).items():
             self.set(a, b, p)
+        self.written = set(self.table)  # the author's pairs: learnt further, never forgotten
         for a, b in fixed:
             self.fix(a, b, self.table.get((a, b), 1.0))
 
@@ -73,6 +74,17 @@ class Proximity:
         if a is b or a.name == b.name:
             return 1.0
         return self.table.get((a.name, b.name), a.proximity_to(b))
+
+    def forget(self, name: str) -> None:
+        """Drop the learnt pairs naming action ``name``, which no tuple of the group performs
+        any more (its class fused away, its hypothesis was dropped). The table grew with every
+        action a run ever tried; a new action given a freed name (a class numbered again)
+        would also have inherited the old one's proximities. Written and fixed pairs stay."""
+        gone = [key for key in self.table if name in key and key not in self.written and key not in self.fixed]
+        for key in gone:
+            del self.table[key]
+        if gone:
+            self.version += 1
 
     @property
     def learning(self) -> bool:
