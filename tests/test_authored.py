@@ -549,6 +549,38 @@ window = 100.0""")
     assert level[10.0][2] == pytest.approx(5.0, abs=0.03) and level[20.0][2] == pytest.approx(15.0, abs=0.06)
 
 
+def test_a_drive_fed_past_the_largest_rate_keeps_a_state_that_loads(tmp_path):
+    """Each input is bounded, their sum was not: a heard note at 1e6/s beside an arc at 1e6/s
+    fed 2e6/s, and the creature's next run refused its own saved state."""
+    import json
+
+    import numpy as np
+
+    from creatures.kinds import KINDS
+    from midi.notes import NoteEvent
+
+    text = HEAD + CREATURE.replace("[creature.drives.boredom]\ngrowth = 0.1", """[creature.drives.boredom]
+inputs = { hearing = 1e6 }
+arc = [[0.0, 1e6]]
+
+[creature.percepts.hearing]
+type = "heard"
+window = 100.0""")
+    spec = load_installation(write(tmp_path, text)).specs[0]
+    clock, world = _world_with({})
+    c = KINDS["authored"](spec, world, np.random.default_rng(0))
+    world.add(c)
+    world.inject(NoteEvent(0.05, 60, 90, 0, 0.2))
+    for k in range(1, 5):
+        clock.advance(0.05)
+        world.deliver(k * 0.05)
+        c.tick(k * 0.05)
+    assert c.motivation.inputs[c.motivation.index("boredom")] == 1e6
+    again = KINDS["authored"](spec, world, np.random.default_rng(0))
+    again.restore(json.loads(json.dumps(c.state())))
+    assert again.motivation.levels[0] == c.motivation.levels[0]
+
+
 def test_a_repeating_arc_waxes_and_wanes_for_the_whole_run(tmp_path):
     """``arc_repeat``: the arc starts again from its first point every cycle (thesis
     "exchange": a waxing and waning of complexity scripted over time)."""

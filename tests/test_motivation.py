@@ -271,3 +271,16 @@ def test_a_clock_gap_over_a_feeding_loop_beside_drives_that_never_settle_ends_wi
         drives.advance(36000.0)
     assert np.isfinite(drives.levels).all()
     assert np.all(np.abs(drives.levels) <= bounds.LARGEST_RATE)
+
+
+def test_an_input_is_held_within_the_bound_its_saved_state_loads_in():
+    """A rate past ±1e6 was held as given and saved, and the next run refused the state; a
+    NaN from a broken sensor keeps the rate before it."""
+    m = Motivation({"presence": 0.0})
+    m.set_input(1.0, "presence", 3e10)
+    assert m.inputs[0] == bounds.LARGEST_RATE
+    m.set_input(2.0, "presence", float("nan"))
+    assert m.inputs[0] == bounds.LARGEST_RATE
+    fresh = Motivation({"presence": 0.0})
+    fresh.restore(json.loads(json.dumps(m.to_dict())), now=0.0)
+    assert fresh.inputs[0] == bounds.LARGEST_RATE

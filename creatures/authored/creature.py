@@ -355,7 +355,7 @@ class Authored(CreatureKind):
         breath) runs it as it starts and stops, so the change counts from that instant."""
         self.motivation.advance(t)
         for i, inputs, arc in self._fed:
-            self.motivation.inputs[i] = sum(r * p.evaluate(t) for p, r in inputs) + arc(t)
+            self.motivation.hold_input(i, sum(r * p.evaluate(t) for p, r in inputs) + arc(t))
 
     def reporting(self, report: Callable[[float], None]) -> None:
         """Call ``report(t)`` with every values snapshot (a part's own events-log record)."""

@@ -243,7 +243,15 @@ class Motivation:
     def set_input(self, t: float, name: str, rate: float) -> None:
         """From ``t`` on, feed ``rate`` per second into a drive (a sensed presence, say)."""
         self.advance(t)
-        self.inputs[self.index(name)] = float(rate)
+        self.hold_input(self.index(name), rate)
+
+    def hold_input(self, i: int, rate: float) -> None:
+        """Feed ``rate`` per second into drive ``i`` until changed, within
+        ±:data:`creatures.bounds.LARGEST_RATE`, the bound a saved state's inputs load in: 256
+        percept inputs at the largest accepted rate, reading a pitch, summed to 3e10/s, and the
+        creature's next run refused its own state. A NaN rate (a broken sensor) keeps the last."""
+        if not np.isnan(rate):
+            self.inputs[i] = min(max(float(rate), -bounds.LARGEST_RATE), bounds.LARGEST_RATE)
 
     def perturb(self, t: float, name: str, amount: float) -> None:
         """An impulse at ``t``: behaviour acting on state (eating: hunger − amount); between
