@@ -61,6 +61,12 @@ def atomic_write(path: str | os.PathLike, write: Callable[[Any], None], mode: st
             # "No space left on device" alone does not say which save failed.
             raise type(exc)(exc.errno, exc.strerror, str(path)) from None
         raise
+    fsync_directory(directory)
+
+
+def fsync_directory(directory: Path) -> None:
+    """Make the renames into ``directory`` durable (a power cut after a rename could otherwise
+    lose it); a filesystem that cannot fsync a folder is let be."""
     try:
         dir_fd = os.open(directory, os.O_RDONLY)
     except OSError:

@@ -339,7 +339,7 @@ def test_disk_full_during_a_state_save_keeps_the_previous_state(colony, tmp_path
     with pytest.raises(OSError) as caught:
         session.save_state(state)
     monkeypatch.undo()
-    assert caught.value.errno == errno.ENOSPC and caught.value.filename == str(state / "ada.json")
+    assert caught.value.errno == errno.ENOSPC and caught.value.filename == str(state / ".saving" / "ada.json")
     assert len(failures) == 1  # the first file failed; the save stopped there
     assert _tree(state) == before  # previous files intact, no partial temp file left
     assert _colony_session(colony, 0.02).load_state(state) == ["ada", "bo"]

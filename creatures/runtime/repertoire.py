@@ -25,6 +25,7 @@ from creatures.bounds import table
 from creatures.config import nearest
 from creatures.lock import FolderLock
 from creatures.persist import StateFileError, atomic_write, json_text, load_json
+from creatures.state_set import settle
 from creatures.runtime import snapshots
 from creatures.runtime.repertoire_shape import SHAPES
 from creatures.runtime.session import COLONY_FILE, RESTORE_ERRORS, STATE_KIND
@@ -167,6 +168,7 @@ def rollback(state_dir: Path, snapshot: Path, name: str) -> Path:
         raise StateFileError(f"{source} holds a creature of kind {kind!r} and {target} one of kind {now!r}: a "
                              f"snapshot of another installation? (nothing changed)")
     with FolderLock(state_dir, "state folder"):
+        settle(state_dir)  # a save a crash cut short, finished now: rolled forward later, it would undo this
         atomic_write(target, lambda handle: handle.write(data), "wb")
     return target
 
@@ -200,6 +202,7 @@ def merge(source: Path, name: str, target: Path, into: str) -> list[str]:
     text = json_text({**{k: v for k, v in dst.items() if k not in ("format", "version")}, "state": state},
                      kind=STATE_KIND)  # what else the file keeps (the path its body took) stays
     with FolderLock(target, "state folder"):
+        settle(target)  # as rollback
         atomic_write(path, lambda handle: handle.write(text), "w")
     return added
 

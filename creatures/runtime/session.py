@@ -24,7 +24,8 @@ from creatures.clock import Clock, clock_gap
 from creatures.events import EventLog
 from creatures.authored.migrate import from_retired
 from creatures.kinds import KINDS
-from creatures.persist import StateFileError, json_text, load_json, write_json_text
+from creatures.persist import StateFileError, json_text, load_json
+from creatures.state_set import settle, write_set
 from creatures.runtime.cc_sources import Reader, parse, reader
 from creatures.runtime.input_map import InputRouter
 from creatures.runtime.pulse import HeardPulse
@@ -281,6 +282,7 @@ class Session:
         of another kind, or one whose content the kind cannot take back, raises
         :class:`StateFileError` naming it (never a silent mix).
         """
+        settle(directory)
         restored = []
         for creature in self.creatures:
             path = directory / f"{creature.name}.json"
@@ -344,8 +346,6 @@ class Session:
 
 
 def write_snapshot(directory: Path, snapshot: list[tuple[str, str]]) -> None:
-    """Write a :meth:`Session.snapshot` into ``directory``, each file atomically (creatures
-    first, the colony's last, as :meth:`Session.save_state` always has)."""
-    directory.mkdir(parents=True, exist_ok=True)
-    for name, text in snapshot:
-        write_json_text(directory / name, text)
+    """Write a :meth:`Session.snapshot` into ``directory`` as one set (:mod:`creatures.state_set`):
+    after a crash the folder holds all of one save, never creatures from two."""
+    write_set(directory, snapshot)
