@@ -154,7 +154,8 @@ class GestureModel:
     # --- learning -------------------------------------------------------------------------
 
     def learn(self, observations: Iterable[Observation | int]) -> list[int]:
-        """Add one sequence; returns the state each observation was assigned to."""
+        """Add one sequence; returns the state each observation was assigned to. A gap between
+        observations counts towards a state's dwell as at most ``MAX_DURATION`` seconds."""
         items = [o if isinstance(o, Observation) else Observation(int(o), float(i)) for i, o in enumerate(observations)]
         if not items:
             return []
@@ -167,7 +168,9 @@ class GestureModel:
                 g.notes.append(obs.note)
             if k + 1 < len(items):
                 self._link(state, states[k + 1])
-                gap = items[k + 1].time - obs.time
+                # within [0, MAX_DURATION], the bound :meth:`from_dict` reads back: music that
+                # stops overnight made a dwell of hours, and the saved model was refused
+                gap = min(max(items[k + 1].time - obs.time, 0.0), MAX_DURATION)
                 g.dwell += (gap - g.dwell) / g.visits
         self.sequences += 1
         self._changed()
