@@ -420,3 +420,18 @@ def test_a_hierarchy_alone_is_a_skeleton(tmp_path: Path):
     text = config.read_text()
     config.write_text(text.replace("[[creature.body.animations]]", 'skeleton = "rig.bvh"\n[[creature.body.animations]]'))
     assert body_of(config).graph.skeleton.names == ("base", "neck", "head", "head_end")
+
+
+@pytest.mark.parametrize("table, name", [
+    ('[[blend]]\nnodes = "a"\nfile = "b.bvh"\nframes = 3\nweight = 0.5\n', "frames"),
+    ('[[add]]\nfile = "b.bvh"\nlabels = [1, 2]\n', "labels"),
+    ('[[add]]\nfile = "b.bvh"\nlabels = "beg"\n', "labels"),
+])
+def test_an_edit_field_of_the_wrong_kind_is_refused_at_its_line(tmp_path: Path, table: str, name: str):
+    """``frames = 3`` or ``labels = "beg"`` was a TypeError / AttributeError out of the reader
+    (``object of type 'int' has no len()``), not an error naming the file and line."""
+    path = tmp_path / "e.toml"
+    path.write_text(f'skeleton = "x"\n{table}')
+    line = next(i for i, text in enumerate(path.read_text().splitlines(), 1) if text.startswith(name))
+    with pytest.raises(EditError, match=rf"e\.toml:{line}: .* {name} = "):
+        read_edits(path)

@@ -144,11 +144,11 @@ def _checked(op: str, table: dict[str, Any], at) -> dict[str, Any]:
             good = good and (value >= 0 if name == "cost" else 0 <= value <= 1 if name == "weight" else value > 0)
         elif kind is int:
             good = isinstance(value, int) and not isinstance(value, bool) and 1 <= value <= 1000
-        elif name == "frames":
-            good = (len(value) == 2 and all(isinstance(x, int) and not isinstance(x, bool) and x >= 0 for x in value)
-                    and value[0] <= value[1])
+        elif name == "frames":  # its kind is checked first: ``frames = 3`` was a TypeError, not a line
+            good = _frame_range(value)
         elif name == "labels":
-            good = all(isinstance(r, list) and all(_frame_range(x) for x in r) for r in value.values())
+            good = isinstance(value, dict) and all(isinstance(r, list) and all(_frame_range(x) for x in r)
+                                                   for r in value.values())
         else:
             good = isinstance(value, kind) and bool(value)
         if not good:
