@@ -204,3 +204,24 @@ until = { done = true }
 def test_describe_shows_a_group_proximity_table(tmp_path):
     text = describe(load_installation(write(tmp_path, LEARNS)))
     assert "proximity learnt at 0.2 over 2 s" in text and "proximity sit → lure: 0.4" in text
+
+
+@pytest.mark.parametrize("gestures, message", [
+    (("reach",), "'reach' is already material of the body"),
+    (("spin", "spin"), "'s learnt gesture too"),
+])
+def test_a_learnt_gesture_named_like_the_bodys_material_or_another_gesture_is_refused(tmp_path, gestures, message):
+    """Accepted, the gesture could never be dispatched: after ``dispatch_after`` lessons (hours
+    into a run) :func:`dispatch` raised "the graph already has material by that name" on the
+    creature's thread ('reach' is a take of the shipped figure; two tuples share one name)."""
+    tables = "".join(f'''[creature.tuples.chase{k or ""}]
+action = {{ type = "shape_gesture", guide = "lure", gesture = "{g}" }}
+until = {{ done = true }}
+
+''' for k, g in enumerate(gestures))
+    members = ", ".join(f'"chase{k or ""}"' for k in range(len(gestures)))
+    text = LEARNS.replace('[creature.groups.main]', tables + '[creature.groups.main]').replace(
+        'tuples = ["lure", "sit", "treat"]', f'tuples = ["lure", "sit", "treat", {members}]')
+    text = text.replace('name = "p"\nkind = "authored"', 'name = "p"\nkind = "authored"\nbody = true')
+    error = error_of(write(tmp_path, text))
+    assert message in error.message and str(error).split(":")[1].strip().isdigit()

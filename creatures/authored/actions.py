@@ -547,7 +547,8 @@ class _ShapeParams(Params):
                                                                 "dispatched into the motor graph")
     gesture: str | None = Field(None, pattern=r"^[A-Za-z_][\w -]*$", max_length=64,
                                 description="name of the new material and of the tuple left behind that "
-                                            "performs it (default: '<tuple> gesture')")
+                                            "performs it, not a take of the body nor another tuple's gesture "
+                                            "(default: '<tuple> gesture')")
 
 
 @ACTIONS.register

@@ -431,11 +431,35 @@ def _proximities(c: _Checker, name: str, g) -> None:
         if guide not in members:
             raise c.error(("tuples", m, "action", "guide"), f"the guide {guide!r} is not a tuple of {m!r}'s group "
                                                             f"{name!r} (its tuples: {members})")
-        gesture = action.params().get("gesture") or f"{m} gesture"
+        gesture = _gesture(m, action)
         if gesture in c.spec.tuples or gesture in c.spec.groups:
             raise c.error(("tuples", m, "action", "gesture"), f"the learnt gesture's tuple would be named {gesture!r}, "
                                                               "which is already a tuple or group: give 'gesture' "
                                                               "another name")
+        _dispatchable(c, m, gesture)
+
+
+def _gesture(tuple_: str, action) -> str | None:
+    """The name a shape_gesture tuple's learnt gesture is dispatched under (None: another action)."""
+    if getattr(action, "type", None) != "shape_gesture":
+        return None
+    return action.params().get("gesture") or f"{tuple_} gesture"
+
+
+def _dispatchable(c: _Checker, tuple_: str, gesture: str) -> None:
+    """The gesture becomes new material of the body under its name: a take of the body, or
+    another tuple's gesture, by that name would make the dispatch fail after ``dispatch_after``
+    lessons, hours into a run, on the creature's thread."""
+    from creatures.kinds.figures import body_graph
+
+    loc = ("tuples", tuple_, "action", "gesture")
+    twin = next((o for o, tp in c.spec.tuples.items() if o != tuple_ and _gesture(o, tp.action) == gesture), None)
+    if twin is not None:
+        raise c.error(loc, f"{gesture!r} is {twin!r}'s learnt gesture too: give 'gesture' another name")
+    takes = body_graph(c.spec.body).poses.sources
+    if gesture in takes:
+        raise c.error(loc, f"{gesture!r} is already material of the body (its takes: {', '.join(takes)}): "
+                           "give 'gesture' another name")
 
 
 def _grounded(c: _Checker, group) -> bool:
