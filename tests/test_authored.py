@@ -339,6 +339,21 @@ def test_bad_motor_actions_are_errors_at_load(tmp_path, old, new, message):
     assert message in error.message and error.line is not None, str(error)
 
 
+@pytest.mark.parametrize("action", [
+    """{ type = "motor_program", text = 'sway: getTo "sway left"; wait; getTo 500; wait; end' }""",
+    """{ type = "motor_program", text = 'sway: getTo -1; wait' }""",
+    """{ type = "motor_graph", vertices = { start = 'getTo 500', exit = "end" }, edges = { start = ["exit"] } }""",
+])
+def test_a_motor_program_naming_a_node_the_body_lacks_is_refused_at_load(tmp_path, action):
+    """Accepted, ``getTo 500`` on the 193-node figure raised IndexError ("index 500 is out of
+    bounds") on the creature's thread when the statement ran; ``getTo -1`` went to node 192."""
+    text = DANCER.replace("""{ type = "motor_program", text = 'sway: getToClosest {"sway left"}; wait; """
+                          """getTo "sway right"; wait; end' }""", action)
+    assert action in text
+    error = error_of(write(tmp_path, HEAD + text))
+    assert "the body's motor graph has nodes 0..192" in error.message and error.line is not None, str(error)
+
+
 def test_like_starts_a_creature_from_an_earlier_one(tmp_path):
     twin = HEAD + CREATURE + '\n[[creature]]\nname = "twin"\nlike = "c"\nchannel = 3\ntuples.rest.value = 0.5\n'
     inst = load_installation(write(tmp_path, twin))

@@ -390,9 +390,17 @@ class RunProgram(MotorPart):
 
     @classmethod
     def labels(cls, params):
+        return sorted(x for x in cls._targets(params) if isinstance(x, str))
+
+    @classmethod
+    def nodes(cls, params):
+        """Node indices the text names (checked at load against the body's graph)."""
+        return sorted(x for x in cls._targets(params) if isinstance(x, int))
+
+    @staticmethod
+    def _targets(params) -> set:
         programs = parse_programs(params.text)
-        return sorted({x for p in programs.values() for s in p.statements for x in s.targets
-                       if isinstance(x, str) and x not in programs})
+        return {x for p in programs.values() for s in p.statements for x in s.targets if x not in programs}
 
     def build(self, params, creature, name):
         programs = parse_programs(params.text, source=f"tuple {name!r}")
@@ -460,6 +468,11 @@ class RunGraph(MotorPart):
     @classmethod
     def labels(cls, params):
         return sorted({x for v in params.vertices.values() for x in _statement(v).targets if isinstance(x, str)})
+
+    @classmethod
+    def nodes(cls, params):
+        """Node indices the vertices name (checked at load against the body's graph)."""
+        return sorted({x for v in params.vertices.values() for x in _statement(v).targets if isinstance(x, int)})
 
     def build(self, params, creature, name):
         graph = MotorProgramGraph(name, {k: _statement(v) for k, v in params.vertices.items()}, params.edges)

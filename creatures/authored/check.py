@@ -226,6 +226,9 @@ def _action(c: _Checker, action, loc: tuple):
     labels = getattr(cls, "labels", None)
     if labels is not None:
         _labels(c, labels(params), loc)
+    nodes = getattr(cls, "nodes", None)
+    if nodes is not None:
+        _nodes(c, nodes(params), loc)
     joints = getattr(cls, "joints", None)
     if joints is not None and not (getattr(c.spec.body, "custom", False) and getattr(cls, "leaves_out_joints", False)):
         _joints(c, joints(params), loc)  # a body of files is built before this check (schema._resolve_body)
@@ -334,6 +337,19 @@ def _labels(c: _Checker, wanted: list[str], loc: tuple) -> None:
     for label in wanted:
         if label not in known:
             raise c.error(loc, f"the body has no motor label {label!r}{nearest(label, known, 'labels')}")
+
+
+def _nodes(c: _Checker, wanted: list[int], loc: tuple) -> None:
+    """Node indices a motor program names are nodes of the body's graph: one past its end was
+    an IndexError on the creature's thread when the statement ran, and -1 went to the last."""
+    from creatures.kinds.figures import body_graph
+
+    if not wanted:
+        return
+    size = len(body_graph(c.spec.body))
+    for node in wanted:
+        if not 0 <= node < size:
+            raise c.error(loc, f"the program names node {node}, and the body's motor graph has nodes 0..{size - 1}")
 
 
 def _tuples(c: _Checker) -> None:
