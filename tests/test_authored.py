@@ -354,6 +354,20 @@ def test_a_motor_program_naming_a_node_the_body_lacks_is_refused_at_load(tmp_pat
     assert "the body's motor graph has nodes 0..192" in error.message and error.line is not None, str(error)
 
 
+def test_a_motor_graph_looping_without_a_wait_is_refused_at_load(tmp_path):
+    """Accepted, the loop ``start → b → start`` of two getTo vertices ran 256 statements in the
+    first tick and raised RuntimeError ("ran 256 statements without the body moving") out of
+    the creature's thread: the body never gets to arrive anywhere on such a loop."""
+    action = ("""{ type = "motor_graph", vertices = { start = 'getTo "sway left"', b = 'getTo "sway right"' }, """
+              """edges = { start = ["b"], b = ["start"] } }""")
+    text = DANCER.replace("""{ type = "motor_program", text = 'sway: getToClosest {"sway left"}; wait; """
+                          """getTo "sway right"; wait; end' }""", action)
+    error = error_of(write(tmp_path, HEAD + text))
+    assert "start → b → start" in error.message and "wait" in error.message and error.line is not None, str(error)
+    assert load_installation(write(tmp_path, HEAD + text.replace('b = ["start"]', 'b = ["w"], w = ["start"]')
+                                   .replace("b = 'getTo", "w = 'wait', b = 'getTo"), "ok.toml"))
+
+
 def test_like_starts_a_creature_from_an_earlier_one(tmp_path):
     twin = HEAD + CREATURE + '\n[[creature]]\nname = "twin"\nlike = "c"\nchannel = 3\ntuples.rest.value = 0.5\n'
     inst = load_installation(write(tmp_path, twin))

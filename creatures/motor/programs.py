@@ -207,6 +207,33 @@ class MotorProgramGraph:
             for name in (source, *targets):
                 if name not in self.vertices:
                     raise ValueError(f"motor program graph {self.name!r}: edge names unknown vertex {name!r}")
+        loop = self._loop_without_wait()
+        if loop:
+            raise ValueError(f"motor program graph {self.name!r}: the loop {' → '.join(loop)} has no 'wait' (or "
+                             "'cycle') vertex, so the body never gets to arrive: flow went round it "
+                             f"{ProgramStack.MAX_STEPS} times in one tick and stopped the run; put a wait on it")
+
+    def _loop_without_wait(self) -> list[str]:
+        """A loop of vertices none of which blocks (``wait``, ``cycle``), as ``[a, …, a]``, or []."""
+        free = {v for v, s in self.vertices.items() if s.op not in ("wait", "cycle")}
+        state: dict[str, int] = {}  # 1: on the current path, 2: explored
+        for root in (v for v in self.vertices if v in free):  # from "start" first, as flow goes
+            if root in state:
+                continue
+            path, todo = [root], [iter(self.edges.get(root, []))]
+            state[root] = 1
+            while todo:
+                nxt = next((w for w in todo[-1] if w in free and state.get(w) != 2), None)
+                if nxt is None:
+                    state[path.pop()] = 2
+                    todo.pop()
+                elif state.get(nxt) == 1:
+                    return [*path[path.index(nxt):], nxt]
+                else:
+                    state[nxt] = 1
+                    path.append(nxt)
+                    todo.append(iter(self.edges.get(nxt, [])))
+        return []
 
     def first(self) -> str:
         return "start"
