@@ -354,6 +354,21 @@ def test_a_motor_program_naming_a_node_the_body_lacks_is_refused_at_load(tmp_pat
     assert "the body's motor graph has nodes 0..192" in error.message and error.line is not None, str(error)
 
 
+@pytest.mark.parametrize("text", [
+    """p: getTo "sway left"; wait; getTo q\nq: getTo "sway right"; wait; getTo p""",
+    "p: getTo q; wait\nq: getTo p; wait",
+])
+def test_a_motor_program_calling_itself_is_refused_at_load(tmp_path, text):
+    """A called program returns only when it ends: accepted, ``p → q → p`` laps piled a frame
+    on the stack each lap (1,757 after a simulated hour, without bound), and with no course
+    before the call spun 256 statements in the first tick and raised RuntimeError."""
+    action = '{ type = "motor_program", text = """' + text + '""" }'
+    body = DANCER.replace("""{ type = "motor_program", text = 'sway: getToClosest {"sway left"}; wait; """
+                          """getTo "sway right"; wait; end' }""", action)
+    error = error_of(write(tmp_path, HEAD + body))
+    assert "calls itself (p → q → p)" in error.message and "cycle" in error.message and error.line is not None
+
+
 def test_a_motor_graph_looping_without_a_wait_is_refused_at_load(tmp_path):
     """Accepted, the loop ``start → b → start`` of two getTo vertices ran 256 statements in the
     first tick and raised RuntimeError ("ran 256 statements without the body moving") out of

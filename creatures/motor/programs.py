@@ -215,25 +215,8 @@ class MotorProgramGraph:
 
     def _loop_without_wait(self) -> list[str]:
         """A loop of vertices none of which blocks (``wait``, ``cycle``), as ``[a, …, a]``, or []."""
-        free = {v for v, s in self.vertices.items() if s.op not in ("wait", "cycle")}
-        state: dict[str, int] = {}  # 1: on the current path, 2: explored
-        for root in (v for v in self.vertices if v in free):  # from "start" first, as flow goes
-            if root in state:
-                continue
-            path, todo = [root], [iter(self.edges.get(root, []))]
-            state[root] = 1
-            while todo:
-                nxt = next((w for w in todo[-1] if w in free and state.get(w) != 2), None)
-                if nxt is None:
-                    state[path.pop()] = 2
-                    todo.pop()
-                elif state.get(nxt) == 1:
-                    return [*path[path.index(nxt):], nxt]
-                else:
-                    state[nxt] = 1
-                    path.append(nxt)
-                    todo.append(iter(self.edges.get(nxt, [])))
-        return []
+        free = [v for v, s in self.vertices.items() if s.op not in ("wait", "cycle")]  # "start" first
+        return _loop({v: [w for w in self.edges.get(v, []) if w in free] for v in free})
 
     def first(self) -> str:
         return "start"
@@ -283,6 +266,29 @@ class MotorProgramGraph:
                     parents[nxt] = name
                     queue.append(nxt)
         return None
+
+
+def _loop(edges: dict[str, list[str]]) -> list[str]:
+    """A loop in the directed graph ``edges`` (name → successors, every one a key), as
+    ``[a, …, a]`` from the first key that leads into one, or [] when there is none."""
+    state: dict[str, int] = {}  # 1: on the current path, 2: explored
+    for root in edges:
+        if root in state:
+            continue
+        path, todo = [root], [iter(edges[root])]
+        state[root] = 1
+        while todo:
+            nxt = next((w for w in todo[-1] if state.get(w) != 2), None)
+            if nxt is None:
+                state[path.pop()] = 2
+                todo.pop()
+            elif state.get(nxt) == 1:
+                return [*path[path.index(nxt):], nxt]
+            else:
+                state[nxt] = 1
+                path.append(nxt)
+                todo.append(iter(edges[nxt]))
+    return []
 
 
 # --- the stack machine ------------------------------------------------------------------
@@ -434,6 +440,11 @@ def chosen_program(text: str, run: str | None, *, source: str) -> tuple[dict[str
         raise ValueError("the text holds no 'name:' program")
     if run is not None and run not in programs:
         raise ValueError(f"no program {run!r} in the text (programs: {sorted(programs)})")
+    loop = _loop({name: [x for s in p.statements for x in s.targets if x in programs] for name, p in programs.items()})
+    if loop:
+        raise ValueError(f"program {loop[0]!r} calls itself ({' → '.join(loop)}): a call returns only when the "
+                         "called program ends, so the calls pile up on the stack, one more each lap (or "
+                         f"{ProgramStack.MAX_STEPS} in one tick, stopping the run); repeat with 'cycle n'")
     return programs, run or next(iter(programs))
 
 
