@@ -220,3 +220,14 @@ def test_a_course_to_where_the_body_rests_goes_nowhere(graph, clock):
     motor = MotorSystem(graph, start=node)
     motor.set_course(clock.now(), motor.course(clock.now(), ["reach"]))
     assert motor.playback is None and motor.arrived(clock.now()) and not motor.arrivals
+
+
+def test_a_program_cycling_for_an_hour_keeps_a_bounded_trace(graph, clock):
+    """A swaying program held for a gallery hour: the trace kept every statement run (4,391
+    entries after an hour, growing for as long as the tuple ran); now the latest TRACE_KEPT."""
+    stack = ProgramStack(MotorSystem(graph, start=0),
+                         parse_programs(f'sway: getTo "{LEFT}"; wait; getTo "{RIGHT}"; wait; cycle 0')["sway"])
+    stack.start(clock.now())
+    assert run(stack, clock, until=3600.0, step=0.1) is Status.RUNNING
+    assert stack.cycles > 500 and len(stack.trace) <= ProgramStack.TRACE_KEPT
+    assert stack.trace[-1][0] > 3590.0  # the newest are the ones kept
