@@ -20,6 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
+from creatures.image.frame_store import FrameStore, NoRoom
+
 MAX_FRAMES = 100_000
 """Frames one footage may hold (≈ an hour at 25 fps); more is refused, not truncated."""
 
@@ -52,22 +54,27 @@ class Footage:
         return int(min(max(np.floor(seconds * self.fps + 1e-9), 0), len(self.frames) - 1))
 
 
-def load_footage(source: str | Path, *, fps: float, duration: float, size: tuple[int, int]) -> Footage:
+def load_footage(source: str | Path, *, fps: float, duration: float, size: tuple[int, int],
+                 scratch: Path | None = None) -> Footage:
     """Footage from ``source`` (``"cube"``, a PNG directory or a video file), ``fps`` frames a
-    second; the generated cube lasts ``duration`` seconds at ``size`` (width, height)."""
-    if str(source) == "cube":
-        return cube_footage(duration=duration, fps=fps, size=size)
-    path = Path(source)
-    if path.is_dir():
-        return Footage(_read_pngs(path), fps)
-    if path.is_file() and path.suffix.lower() in VIDEO_SUFFIXES:
-        return Footage(_read_video(path), fps)
+    second; the generated cube lasts ``duration`` seconds at ``size`` (width, height). Frames
+    past :data:`creatures.image.frame_store.IN_MEMORY` bytes are kept in ``scratch``."""
+    try:
+        if str(source) == "cube":
+            return cube_footage(duration=duration, fps=fps, size=size, scratch=scratch)
+        path = Path(source)
+        if path.is_dir():
+            return Footage(_read_pngs(path, scratch), fps)
+        if path.is_file() and path.suffix.lower() in VIDEO_SUFFIXES:
+            return Footage(_read_video(path, scratch), fps)
+    except NoRoom as exc:  # in the scratch folder, for frames past IN_MEMORY
+        raise FootageError(f"{source}: {exc.strerror}") from None
     if path.is_file():
         raise FootageError(f"{path}: footage is a directory of PNG frames or a video ({', '.join(VIDEO_SUFFIXES)})")
     raise FootageError(f"{path}: no such footage (a directory of PNG frames, a video file, or \"cube\")")
 
 
-def _read_pngs(directory: Path) -> np.ndarray:
+def _read_pngs(directory: Path, scratch: Path | None) -> np.ndarray:
     import imageio.v3 as iio
 
     files = sorted(directory.glob("*.png"))
@@ -75,32 +82,37 @@ def _read_pngs(directory: Path) -> np.ndarray:
         raise FootageError(f"{directory}: holds no PNG frames")
     if len(files) > MAX_FRAMES:
         raise FootageError(f"{directory}: {len(files)} frames, more than {MAX_FRAMES}")
-    frames = []
+    store: FrameStore | None = None
     for file in files:
         try:
             image = np.asarray(iio.imread(file))
         except Exception as exc:  # imageio raises many types for a broken image
             raise FootageError(f"{file}: not a readable PNG ({type(exc).__name__}: {exc})") from None
-        frames.append(_rgb(image, file, frames[0].shape if frames else None))
-    return np.stack(frames)
+        frame = _rgb(image, file, None if store is None else store.shape)
+        store = store or FrameStore(frame.shape, scratch, capacity=len(files))
+        store.append(frame)
+    assert store is not None
+    return store.frames()
 
 
-def _read_video(path: Path) -> np.ndarray:
+def _read_video(path: Path, scratch: Path | None) -> np.ndarray:
     import imageio.v3 as iio
 
-    frames = []
+    store: FrameStore | None = None
     try:
         for image in iio.imiter(path):
-            frames.append(_rgb(np.asarray(image), path, frames[0].shape if frames else None))
-            if len(frames) > MAX_FRAMES:
+            frame = _rgb(np.asarray(image), path, None if store is None else store.shape)
+            store = store or FrameStore(frame.shape, scratch)
+            store.append(frame)
+            if store.count > MAX_FRAMES:
                 raise FootageError(f"{path}: more than {MAX_FRAMES} frames")
-    except FootageError:
+    except (FootageError, NoRoom):
         raise
     except Exception as exc:
         raise FootageError(f"{path}: not a readable video ({type(exc).__name__}: {exc})") from None
-    if not frames:
+    if store is None:
         raise FootageError(f"{path}: holds no frames")
-    return np.stack(frames)
+    return store.frames()
 
 
 def _rgb(image: np.ndarray, file: Path, shape: tuple[int, ...] | None) -> np.ndarray:
@@ -126,7 +138,7 @@ _COLOURS = np.array([[200, 60, 50], [60, 170, 80], [60, 90, 200], [220, 190, 60]
                     dtype=np.float64)
 
 
-def cube_footage(*, duration: float, fps: float, size: tuple[int, int]) -> Footage:
+def cube_footage(*, duration: float, fps: float, size: tuple[int, int], scratch: Path | None = None) -> Footage:
     """A cube turning about two axes (one turn every 4 s about y, every 11 s about x), each
     face a colour with a stripe texture that breaks the cube's symmetry (as the thesis's
     textured faces did), fading to grey over the footage: loops and near-loops for the graph
@@ -134,11 +146,14 @@ def cube_footage(*, duration: float, fps: float, size: tuple[int, int]) -> Foota
     width, height = size
     count = max(int(np.ceil(duration * fps)), 2)
     unit = 0.32 * min(width, height)
-    frames = np.full((count, height, width, 3), 24, np.uint8)
+    store = FrameStore((height, width, 3), scratch, capacity=count)
+    frame = np.empty((height, width, 3), np.uint8)
     for f in range(count):
         t = f / fps
-        _draw_cube(frames[f], t, t / max(duration, 1e-9), unit)
-    return Footage(frames, fps)
+        frame.fill(24)
+        _draw_cube(frame, t, t / max(duration, 1e-9), unit)
+        store.append(frame)
+    return Footage(store.frames(), fps)
 
 
 def _draw_cube(image: np.ndarray, t: float, age: float, unit: float) -> None:

@@ -36,17 +36,25 @@ LOW = (32, 24)
 """Width and height frames are compared at (the thesis's "low resolution sub-sampling")."""
 
 
+LOW_CHUNK = 64
+"""Frames made grey and small at a time: the whole footage as float32 grey was 4/3 of its own
+size again at once (a 5-minute cube's graph peaked at 2.7 GB, an hour's would need 32 GB)."""
+
+
 def low_resolution(frames: np.ndarray, size: tuple[int, int] = LOW) -> np.ndarray:
     """Frames as flat grey vectors at ``size`` (box-averaged), float32 in [0, 1]."""
     n, h, w, _ = frames.shape
     width, height = min(size[0], w), min(size[1], h)
-    grey = frames.astype(np.float32).mean(axis=3) / 255.0
     rows = np.linspace(0, h, height + 1).astype(int)
     cols = np.linspace(0, w, width + 1).astype(int)
-    # box average: sums over row bands, then over column bands
-    banded = np.add.reduceat(grey, rows[:-1], axis=1) / np.diff(rows)[None, :, None]
-    boxed = np.add.reduceat(banded, cols[:-1], axis=2) / np.diff(cols)[None, None, :]
-    return boxed.reshape(n, -1)
+    low = np.empty((n, height * width), np.float32)
+    for start in range(0, n, LOW_CHUNK):
+        grey = frames[start : start + LOW_CHUNK].astype(np.float32).mean(axis=3) / 255.0
+        # box average: sums over row bands, then over column bands
+        banded = np.add.reduceat(grey, rows[:-1], axis=1) / np.diff(rows)[None, :, None]
+        boxed = np.add.reduceat(banded, cols[:-1], axis=2) / np.diff(cols)[None, None, :]
+        low[start : start + LOW_CHUNK] = boxed.reshape(len(grey), -1)
+    return low
 
 
 def squared_distances(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -58,14 +58,16 @@ class ImagesSpec(BaseModel):
 
 
 @functools.lru_cache(maxsize=1)
-def _footage(source: str, fps: float, duration: float, size: tuple[int, int]) -> Footage:
-    """One footage for every creature of a run that names the same (frames are large)."""
-    return load_footage(source, fps=fps, duration=duration, size=size)
+def _footage(source: str, fps: float, duration: float, size: tuple[int, int], scratch: Path) -> Footage:
+    """One footage for every creature of a run that names the same (frames are large; past
+    :data:`creatures.image.frame_store.IN_MEMORY` they wait in ``scratch``, the run's folder)."""
+    return load_footage(source, fps=fps, duration=duration, size=size, scratch=scratch)
 
 
 @functools.lru_cache(maxsize=1)
-def _graph(source: str, fps: float, duration: float, size: tuple[int, int], subsample: int, jumps: int) -> ImageGraph:
-    return ImageGraph.build(_footage(source, fps, duration, size), subsample=subsample, jumps=jumps)
+def _graph(source: str, fps: float, duration: float, size: tuple[int, int], scratch: Path, subsample: int,
+           jumps: int) -> ImageGraph:
+    return ImageGraph.build(_footage(source, fps, duration, size, scratch), subsample=subsample, jumps=jumps)
 
 
 def make_video(spec: ImagesSpec, name: str, entries: list[dict[str, Any]], sample_rate: int, duration: float,
@@ -73,7 +75,7 @@ def make_video(spec: ImagesSpec, name: str, entries: list[dict[str, Any]], sampl
     """Walk the graph as ``entries`` command and write ``<name>.mp4`` (and PNGs) and
     ``<name>.images.json`` into ``out``; the files by name."""
     duration = min(max(duration, 1.0 / spec.fps), LONGEST_OFFLINE)
-    key = (str(spec.source()), spec.fps, round(duration, 3), tuple(spec.size))
+    key = (str(spec.source()), spec.fps, round(duration, 3), tuple(spec.size), out)
     footage = _footage(*key)
     graph = _graph(*key, spec.subsample, spec.jumps)
     commands = [Command.from_entry(e, sample_rate) for e in entries] if sample_rate else []
