@@ -204,3 +204,17 @@ def test_a_pause_longer_than_a_delta_can_say_is_bridged(tmp_path):
     write_notes(path, notes)
     assert smf.parse(path.read_bytes()) is not None  # no delta past four bytes
     assert read_notes(path) == notes
+
+
+def test_a_note_written_at_a_slow_heard_tempo_lands_within_a_millisecond(tmp_path):
+    """At 480 ticks a beat a 40 bpm pulse placed notes up to 1.6 ms off where they were played;
+    a file of a slow piece moved its notes by more than a struck key's own jitter."""
+    from midi.files import TICKS_PER_BEAT
+
+    rng = np.random.default_rng(7)
+    notes = [NoteEvent(float(t), 60, 90, 0, 0.1) for t in np.sort(rng.uniform(0.0, 60.0, 200))]
+    path = tmp_path / "slow.mid"
+    write_notes(path, notes, tempo=TempoMap.from_seconds(TICKS_PER_BEAT, [(0.0, 40.0)]))
+    back = read_notes(path)
+    assert len(back) == len(notes)
+    assert max(abs(a.time - b.time) for a, b in zip(back, notes)) < 1e-3

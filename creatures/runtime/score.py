@@ -16,10 +16,8 @@ import os
 from typing import Iterable
 
 from creatures.runtime.world import World
-from midi.files import TempoMap, write_tracks
+from midi.files import TICKS_PER_BEAT, TempoMap, write_tracks
 from midi.notes import TimedMessage, to_messages
-
-TICKS_PER_BEAT = 480
 
 
 def heard_tempo(world: World, origin: float = 0.0) -> TempoMap:
