@@ -17,11 +17,14 @@ from audio.cepstrum import cepstra
 from audio.formants import word
 from audio.utterance import Utterance, UtterancePercept, load_aural_model, save_aural_model
 from audio_fixtures import SR, warm_librosa  # noqa: F401
+from creatures.clock import SimulatedClock
 from creatures.config import ConfigError
-from creatures.events import read_events
+from creatures.events import EventLog, read_events
 from creatures.runtime.offline import run_offline
 from creatures.runtime.schema import load_installation
+from creatures.runtime.session import Session
 from installations import path as installation_path
+from midi.sinks import MemorySink
 from test_kind_three import performance
 
 pytestmark = pytest.mark.usefixtures("warm_librosa")
@@ -124,6 +127,28 @@ def test_a_bad_score_is_a_config_error_with_file_and_line(scored, tmp_path, edit
     run = subprocess.run([sys.executable, "-m", "creatures.cli", "offline", str(config), "--out", str(tmp_path / "out")],
                          capture_output=True, text=True)
     assert run.returncode == 2 and "score" in run.stderr and "Traceback" not in run.stderr
+
+
+def test_a_score_flush_into_a_memory_not_yet_full_keeps_every_memory_it_has_room_for(tmp_path):
+    """memory_size 8, three seeded sounds, a flush of four slots: 8 − 4 = 4 memories may stay,
+    so all three seeds stay beside the four samples. The slice ``memory[3 − 4:]`` kept only
+    the newest seed (5 memories, two seeds forgotten for no reason)."""
+    rng = np.random.default_rng(9)
+    seeds = model(tmp_path / "seed.json", "oe", 0.0, rng) - {3.0}
+    tree = load_aural_model(tmp_path / "seed.json")
+    tree.members = [u for u in tree.members if u.time in seeds]
+    save_aural_model(tree, tmp_path / "seed.json")
+    scored = model(tmp_path / "a.json", "ieu", 1000.0, rng)
+    (tmp_path / "s.toml").write_text(CONFIG.format(slots=8, first=1.0, second=2.0, a=tmp_path / "a.json",
+                                                   b=tmp_path / "a.json")
+                                     .replace("slots = 8", "slots = 4")
+                                     .replace("flush_size = 0", f'flush_size = 0\nseed_model = "{tmp_path / "seed.json"}"'))
+    session = Session(load_installation(tmp_path / "s.toml"), SimulatedClock(), EventLog(tmp_path / "e.jsonl"),
+                      MemorySink())
+    creature = session.creatures[0]
+    assert [m.utterance.time for m in creature.memory] == [0.0, 1.0, 2.0]
+    creature.tick(1.0)
+    assert sorted(m.utterance.time for m in creature.memory) == [0.0, 1.0, 2.0, *sorted(scored)]
 
 
 # -- the shipped piece's score (installations/three_creatures.toml) -------------------------

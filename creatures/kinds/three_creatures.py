@@ -287,9 +287,10 @@ class ThreeCreature(CreatureKind):
         self._emit_flush(fresh, "input")
 
     def _scored(self, t: float, samples: list[Memory]) -> None:
-        """The score computer's flush: the oldest memories give way to ``samples``."""
+        """The score computer's flush: the oldest memories give way to ``samples``, only as many
+        as the memory lacks room for (a memory not yet full keeps every sound it has room for)."""
         keep = self.spec.memory_size - len(samples)
-        self.memory = [*(self.memory[len(self.memory) - keep:] if keep > 0 else []), *samples]
+        self.memory = [*(self.memory[max(len(self.memory) - keep, 0):] if keep > 0 else []), *samples]
         self._emit_flush([m.utterance for m in samples], "score")
 
     def _emit_flush(self, sounds: list[Utterance], source: str) -> None:
