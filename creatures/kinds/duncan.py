@@ -105,7 +105,8 @@ class DuncanSpec(CreatureSpec):
                               description="the tricks, by the body's motor labels")
     offers: list[str] = Field(["sit", "lie down", "beg"], max_length=32,
                               description="tricks it offers unbidden now and then (its innate repertoire; not a "
-                                          "roll over, which takes the longest to come out of when a cue comes)")
+                                          "roll over, which takes the longest to come out of when a cue comes; the default's "
+                                          "tricks the dog lacks are dropped)")
     rest: str = Field("stand", description="the body's label for standing about (the grounding idle tuple)")
     hold: float = Field(1.5, gt=0, le=60, description="seconds a trick is held once the body is there")
     patience: float = Field(6.0, gt=0, le=600, description="longest a trick lasts, getting there included")
@@ -125,7 +126,8 @@ class DuncanSpec(CreatureSpec):
     hearing: HearingSpec = HearingSpec(half_duplex=False, memory=1.0)
     beg: BegSpec = BegSpec()
     notes: dict[str, int] = Field({"sit": 60, "lie down": 55, "beg": 64, "roll over": 67, "stand": 48},
-                                  description="trick → the MIDI pitch it sounds when the body gets there")
+                                  description="trick → the MIDI pitch it sounds when the body gets there (the default's "
+                                              "pitches of tricks the dog lacks are dropped)")
     beg_notes: int = Field(7, ge=0, le=24, description="semitones a beg's pitch rises from the lowest beg to the "
                                                        "highest (shaping the beg shapes a melody)")
     velocity: int = Field(90, ge=1, le=127, description="velocity of its notes")
@@ -142,6 +144,11 @@ class DuncanSpec(CreatureSpec):
             problem = self.missing(poses.every_label, poses.skeleton.names, f"the {figure}")
             if problem is not None:
                 raise ValueError(problem)
+        # The defaults name the shipped tricks: their entries for tricks this dog lacks are not its own.
+        if "offers" not in self.model_fields_set:
+            self.offers = [offer for offer in self.offers if offer in self.tricks]
+        if "notes" not in self.model_fields_set:
+            self.notes = {trick: pitch for trick, pitch in self.notes.items() if trick in [*self.tricks, self.rest]}
         for offer in self.offers:
             if offer not in self.tricks:
                 raise ValueError(f"offers: {offer!r} is not one of the tricks {self.tricks}")
