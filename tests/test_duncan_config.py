@@ -43,3 +43,12 @@ def test_offers_written_for_a_trick_the_dog_lacks_are_still_refused(tmp_path):
 def test_notes_written_for_a_trick_the_dog_lacks_are_still_refused(tmp_path):
     with pytest.raises(ConfigError, match=r"duncan\.toml:\d+.*notes: 'roll over'"):
         load_installation(_config(tmp_path, 'tricks = ["sit", "beg"]\noffers = []\nnotes = {"roll over" = 67}'))
+
+
+@pytest.mark.parametrize("keys, key", [('tricks = ["sit", "beg", "sit"]', "tricks"),
+                                       ('offers = ["sit", "sit"]', "offers")])
+def test_a_trick_named_twice_is_refused(tmp_path, keys, key):
+    """Accepted, ``tricks = ["sit", "beg", "sit"]`` gave every cue two "heard/k|sit" tuples of
+    one name (twice the chance of sitting on any cue, their two values saved under one key)."""
+    with pytest.raises(ConfigError, match=rf"duncan\.toml:\d+.*{key}: 'sit' is named twice"):
+        load_installation(_config(tmp_path, keys))

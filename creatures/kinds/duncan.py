@@ -144,6 +144,10 @@ class DuncanSpec(CreatureSpec):
             problem = self.missing(poses.every_label, poses.skeleton.names, f"the {figure}")
             if problem is not None:
                 raise ValueError(problem)
+        for key, names in (("tricks", self.tricks), ("offers", self.offers)):
+            twice = next((name for i, name in enumerate(names) if name in names[:i]), None)
+            if twice is not None:  # one name, two tuples: twice the chance of it, one saved value
+                raise ValueError(f"{key}: {twice!r} is named twice")
         # The defaults name the shipped tricks: their entries for tricks this dog lacks are not its own.
         if "offers" not in self.model_fields_set:
             self.offers = [offer for offer in self.offers if offer in self.tricks]
