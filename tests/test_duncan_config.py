@@ -52,3 +52,22 @@ def test_a_trick_named_twice_is_refused(tmp_path, keys, key):
     one name (twice the chance of sitting on any cue, their two values saved under one key)."""
     with pytest.raises(ConfigError, match=rf"duncan\.toml:\d+.*{key}: 'sit' is named twice"):
         load_installation(_config(tmp_path, keys))
+
+
+def test_a_restored_beg_model_keeps_its_clicked_begs_and_the_configs_prior_and_size(tmp_path):
+    """The beg model's prior and buffer size are settings (GaussianModel.restore: "an edited
+    config wins over a saved file"); the saved clicked begs are what the dog learnt. Restored
+    with ``GaussianModel.from_dict``, a dog saved at prior 0.2 and size 6 kept both after its
+    config said prior_mean 0.6, size 10 and prior_weight 0.5: its beg mean stayed the saved
+    0.623 (0.668 with the config's prior)."""
+    first = Session(load_installation(SHIPPED), SimulatedClock(), EventLog(tmp_path / "a.jsonl"),
+                    MemorySink()).creatures[0]
+    for height in (0.9, 0.95, 1.0):
+        first.beg_height.update(height)
+    saved = first.state()
+    edited = _config(tmp_path, "beg = { prior_mean = 0.6, size = 10, prior_weight = 0.5 }")
+    dog = Session(load_installation(edited), SimulatedClock(), EventLog(tmp_path / "b.jsonl"), MemorySink()).creatures[0]
+    dog.restore(saved)
+    model = dog.beg_height
+    assert (model.prior_mean, model.prior_weight, model.size) == (0.6, 0.5, 10)
+    assert {0.9, 0.95, 1.0} <= set(model.buffer.tolist())  # the clicked begs came back

@@ -342,9 +342,17 @@ class Duncan(CreatureKind):
         return {"values": self.group.value_state(), "beg": self.beg_height.to_dict()}
 
     def restore(self, state: dict[str, Any]) -> None:
-        """Values and the beg model come back; sound classes do not (their exemplars are audio,
-        not kept in the state), so a restarted dog relearns which sound is which cue."""
+        """Values and the beg model's samples come back; sound classes do not (their exemplars
+        are audio, not kept in the state), so a restarted dog relearns which sound is which cue.
+        The beg model's prior and size are settings (thesis "simple shaping": the prior is the
+        authored expectation), so the config's win: the saved samples, oldest first, are pushed
+        into a model of the config's own (a smaller one keeps the newest)."""
         if "values" in state:
             self.group.restore_values(state["values"])
         if "beg" in state:
-            self.beg_height = GaussianModel.from_dict(state["beg"])
+            saved = GaussianModel.from_dict(state["beg"])  # checks every number
+            b = self.spec.beg
+            self.beg_height = GaussianModel(b.prior_mean, b.prior_std, size=b.size, prior_weight=b.prior_weight)
+            for k in range(saved.size):
+                i = (saved._head + k) % saved.size
+                self.beg_height.update(float(saved.buffer[i]), float(saved.weights[i]))
