@@ -157,6 +157,27 @@ def test_state_survives_a_save(reading, tmp_path):
 
 
 
+def test_parts_read_in_a_run_without_audio_are_not_kept(reading, tmp_path):
+    """A run that renders no audio (``creatures rehearse``, an offline run with ``[output] wav
+    = false``; the shipped config's air is off, so nothing else asks for its voice) never
+    calls :meth:`Ozymandias.sound`, which is what starts queued parts. Each read's part was
+    queued for ever: 148 parts over the three creatures in 20 s (each a view keeping its whole
+    word's samples alive), some 26,000 an hour of a rehearsed gallery week."""
+    inst = load_installation(CONFIG)
+    session = Session(inst, SimulatedClock(), EventLog(tmp_path / "a.jsonl"), MemorySink())
+    x = load_audio(reading, samplerate=SR)
+    frames = int(0.02 * SR)
+    reads: list[str] = []
+    emit = session.world.emit
+    session.world.emit = lambda kind, **fields: (reads.append(fields["creature"]) if kind == "read" else None,
+                                                 emit(kind, **fields))
+    for k in range(1, int(20.0 / 0.02) + 1):
+        session.clock.advance_to(k * 0.02)
+        session.step(k * 0.02, frames, x[(k - 1) * frames : k * frames], audio=False)
+    assert len(reads) > 100, "they read all the same"
+    assert all(len(c._queued) <= 1 and not c._playing for c in session.creatures)
+
+
 def late_readings(out: Path, *, clicking: bool) -> list[str]:
     """One creature hears "ai" and "oe" in turn for 300 s while the author clicks live (the
     reward route, :meth:`Ozymandias.reward`) whenever it starts reading part of an "ai"

@@ -241,6 +241,10 @@ class Ozymandias(CreatureKind):
                             start=utterance.time - len(utterance.samples) / sample_rate)
 
     def tick(self, t: float) -> None:
+        # Parts read at a tick start in that step's sound(); any still queued now were never
+        # rendered (a run without audio: a rehearsal, wav = false), so nothing plays them and
+        # no EDL line points at them. Kept, they grew for as long as the run (~26,000 an hour).
+        self._queued.clear()
         self.motivation.advance(t)
         self.group.tick(t)
         if t >= self._next_report:
