@@ -12,6 +12,7 @@ import pytest
 
 import installations
 from creatures.clock import SimulatedClock
+from creatures.config import ConfigError
 from creatures.events import EventLog, read_events
 from creatures.kinds import KINDS
 from creatures.kinds.note_world import NoteWorld, Vary
@@ -339,3 +340,17 @@ def test_a_graded_du_lets_hunger_interrupt_wandering_and_resting_more(tmp_path: 
         events = run_colony(tmp_path / str(graded), graded=graded, manner=False, vary=False)  # the main group's own Du
         counts[graded] = sum(e["kind"] == "interruption" and e["tuple"] in ("wander", "rest") for e in events)
     assert counts[True] >= 2 * counts[False] > 0, counts
+
+
+@pytest.mark.parametrize("space, key", [("max_notes = 5", r"exchange\.toml:\d+.*percepts\.passage\.notes"),
+                                        ("max_notes = 8\n[creature.tuples.swap]\naction = { type = \"vary\", "
+                                         "transform = \"swap\", segment = 5 }", r"small\.toml:\d+.*tuples\.swap\.action\.segment")])
+def test_a_passage_longer_than_the_space_remembers_is_a_config_error(tmp_path, space, key):
+    """The space remembers at most ``max_notes`` heard notes (NoteWorld.heard), so a passage
+    percept or a vary asking for more is never satisfied. Accepted, exchange with max_notes = 5
+    (its passage percept and swap need 6) selected retrograde and swap 0 times in 120 s of the
+    generated phrases (9 and 8 at the default 48)."""
+    config = tmp_path / "small.toml"
+    config.write_text(f'title = "small"\n[[creature]]\nname = "ex"\nkind = "exchange"\n[creature.space]\n{space}\n')
+    with pytest.raises(ConfigError, match=rf"{key}.*remembers at most \d+ \(space\.max_notes\)"):
+        load_installation(config)

@@ -634,6 +634,11 @@ class VaryPassage(MotorPart):
     ends = True
     Params = _VaryParams
 
+    @staticmethod
+    def passage_notes(params) -> tuple[str, int]:
+        """The key and the fewest heard notes a passage needs to be varied (:class:`Vary`)."""
+        return ("transform", 2) if params.transform == "retrograde" else ("segment", 2 * params.segment)
+
     def build(self, params, creature, name):
         return Vary(creature.notes, name, transform=params.transform, passage=params.passage, segment=params.segment)
 

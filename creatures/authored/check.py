@@ -140,6 +140,7 @@ def _percepts(c: _Checker) -> None:
         if getattr(params, "seed_model", None) is not None:
             _seed_model(c, p, (*loc, "seed_model"))
         _needs(c, cls, (*loc, "type"))
+        _passage(c, cls, params, loc)
         edges[name] = c.references(cls, params, loc)
         c.need("percepts", p.parent, (*loc, "parent"))
         edges[name].append(p.parent)
@@ -223,6 +224,7 @@ def _action(c: _Checker, action, loc: tuple):
     cls, params = c.part(ACTIONS, action.type, action.params(), loc)
     c.references(cls, params, loc)
     _needs(c, cls, loc)
+    _passage(c, cls, params, loc)
     labels = getattr(cls, "labels", None)
     if labels is not None:
         _labels(c, labels(params), loc)
@@ -292,6 +294,19 @@ def _needs(c: _Checker, cls, loc: tuple) -> None:
         raise c.error(loc, f"{cls.name!r} uses notes in space: give the creature a [creature.space] table")
     if getattr(cls, "needs", None) == "score" and c.spec.score is None:
         raise c.error(loc, f"{cls.name!r} steers a score: give the creature a [creature.score] table")
+
+
+def _passage(c: _Checker, cls, params, loc: tuple) -> None:
+    """A heard passage longer than the space remembers heard notes (``space.max_notes``:
+    :attr:`NoteWorld.heard`) is never found, so a part waiting for one would never act
+    (thesis "exchange (installation)": the variations are of passages heard)."""
+    fewest = getattr(cls, "passage_notes", None)
+    if fewest is None or c.spec.space is None:
+        return
+    key, notes = fewest(params)
+    if notes > c.spec.space.max_notes:
+        raise c.error((*loc, key), f"{cls.name!r} needs a heard passage of {notes} notes, and the space remembers "
+                                   f"at most {c.spec.space.max_notes} (space.max_notes): it would never act")
 
 
 def _score(c: _Checker) -> None:

@@ -542,6 +542,11 @@ class PassagePercept(PerceptPart):
     needs = "space"
     Params = _PassageParams
 
+    @staticmethod
+    def passage_notes(params) -> tuple[str, int]:
+        """The key and the fewest heard notes a passage needs (checked against space.max_notes)."""
+        return "notes", params.notes
+
     def build(self, params, creature, name):
         return FunctionPercept(name, lambda t: 1.0 if any(len(p) >= params.notes for p in creature.notes.passages())
                                else 0.0)
