@@ -166,10 +166,16 @@ class ModelPopulation:
         member.model = fresh
 
     def to_dict(self) -> dict[str, Any]:
-        return {"next_id": self._next_id, "time": self._time,
+        """The members, and how well the best one matched (what the ``population`` percept
+        reads between analyses: without it a restored best matched at −inf, the percept 0);
+        a match never made (−inf, not JSON) is left out, as states saved before it were."""
+        data = {"next_id": self._next_id, "time": self._time,
                 "best": None if self.best is None else self.best.id,
                 "members": [{"id": m.id, "born": m.born, "usefulness": m.usefulness, "model": m.model.to_dict()}
                             for m in self.members]}
+        if self.best is not None and math.isfinite(self.best_score):
+            data["best_score"] = self.best_score
+        return data
 
     def restore(self, data: dict[str, Any], *, nodes: int) -> None:
         """Take back saved members (models over a graph of ``nodes`` poses); every number is
@@ -188,6 +194,10 @@ class ModelPopulation:
                                   bounds.number(m["usefulness"], f"{where}.usefulness")))
         self.members = members
         self.best = next((m for m in self.members if m.id == data["best"]), None)
+        self.best_score = -math.inf
+        if self.best is not None and data.get("best_score") is not None:  # a log-likelihood: at most 0
+            self.best_score = bounds.number(data["best_score"], "population.best_score",
+                                            low=-bounds.LARGEST_VALUE, high=0.0)
 
 
 MOST_MODELS, MOST_STATES = 64, 4096
