@@ -178,6 +178,20 @@ def test_parts_read_in_a_run_without_audio_are_not_kept(reading, tmp_path):
     assert all(len(c._queued) <= 1 and not c._playing for c in session.creatures)
 
 
+def test_a_run_that_writes_no_edl_keeps_none(reading, tmp_path):
+    """Only an offline run writes ``<creature>.edl.json`` (its end asks each creature for its
+    outputs); a live run kept every line of it for as long as it ran, some 8 a second over the
+    shipped three, and never wrote it."""
+    session = Session(load_installation(CONFIG), SimulatedClock(), EventLog(tmp_path / "a.jsonl"), MemorySink())
+    x = load_audio(reading, samplerate=SR)
+    frames = int(0.02 * SR)
+    for k in range(1, int(20.0 / 0.02) + 1):
+        session.clock.advance_to(k * 0.02)
+        session.step(k * 0.02, frames, x[(k - 1) * frames : k * frames])
+    assert session.world.sounds_made > 10, "they read aloud all the same"
+    assert all(c.edl == [] for c in session.creatures)
+
+
 def late_readings(out: Path, *, clicking: bool) -> list[str]:
     """One creature hears "ai" and "oe" in turn for 300 s while the author clicks live (the
     reward route, :meth:`Ozymandias.reward`) whenever it starts reading part of an "ai"

@@ -264,7 +264,8 @@ class Ozymandias(CreatureKind):
     def sound(self, out: np.ndarray, sample_rate: int) -> None:
         self.sample_rate = sample_rate
         for part, gain, source in self._queued:
-            self.edl.append(edl_entry(self.name, source, source + len(part), self._frame, gain, sample_rate))
+            if self.world.writes_outputs:  # only an offline run writes the EDL (finish)
+                self.edl.append(edl_entry(self.name, source, source + len(part), self._frame, gain, sample_rate))
             self._playing.append([part, gain, 0])
         self._queued.clear()
         out[:] = 0.0

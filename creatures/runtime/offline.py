@@ -156,6 +156,7 @@ def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path 
         messages.append(f"state = {settings.state!r} is for live runs: offline, the creatures start fresh "
                         "and what they learn is saved into the output's state/ folder")
     session.world.recording = settings.output.midi  # out.mid's input track and heard tempo
+    session.world.writes_outputs = True  # each creature's finish(out) below
     sources = open_sources(inst, session.inputs, clock, messages.append, live=False)  # rehearsal files
     for i, spec in enumerate(settings.input.map):
         if spec.file is not None and (cut := unplayed(spec.file, inst.rehearsals[i], duration)) is not None:

@@ -67,6 +67,10 @@ class World:
         # A recording run (offline: out.mid) keeps every note heard from outside (the input
         # track) and every tempo change; a live run of weeks keeps only the latest tempo.
         self.recording = False
+        # An offline run ends by asking each creature for its own outputs (Creature.finish:
+        # ozymandias's EDL); a live run or a rehearsal never asks, so what only those outputs
+        # hold is not kept for weeks (ozymandias's EDL grew ~8 entries a second, for good).
+        self.writes_outputs = False
         self.heard: deque[NoteEvent] = deque()
         self.tempo: deque[tuple[float, float]] = deque()  # (time, bpm) whenever the heard tempo moved
         # With a [room] (creatures/room/stage.py), a note reaches each ear from where it was
