@@ -548,10 +548,22 @@ def test_a_sensor_no_input_map_writes_is_a_config_error_at_its_line(tmp_path, ma
     assert (err.value.key, err.value.line) == ("creature.0.percepts.door.sensor", line)
 
 
-def test_drives_grow_decay_couple_take_percept_inputs_and_follow_scripted_arcs(tmp_path):
+def _drive_creature(tmp_path, text: str):
+    """The clock, world and creature of the config ``text`` (one authored creature)."""
     import numpy as np
 
     from creatures.kinds import KINDS
+
+    spec = load_installation(write(tmp_path, text)).specs[0]
+    clock, world = _world_with({})
+    c = KINDS["authored"](spec, world, np.random.default_rng(0))
+    world.add(c)
+    return clock, world, c
+
+
+def test_drives_grow_decay_couple_take_percept_inputs_and_follow_scripted_arcs(tmp_path):
+    import numpy as np
+
     from midi.notes import NoteEvent
 
     text = HEAD + CREATURE.replace("[creature.drives.boredom]\ngrowth = 0.1", """[creature.drives.boredom]
@@ -571,10 +583,7 @@ arc = [[0.0, 0.0], [10.0, 1.0]]
 [creature.percepts.hearing]
 type = "heard"
 window = 100.0""")
-    spec = load_installation(write(tmp_path, text)).specs[0]
-    clock, world = _world_with({})
-    c = KINDS["authored"](spec, world, np.random.default_rng(0))
-    world.add(c)
+    clock, world, c = _drive_creature(tmp_path, text)
     level = {}
     for k in range(1, 601):
         t = k * 0.05
@@ -610,17 +619,14 @@ arc = [[0.0, 1e6]]
 [creature.percepts.hearing]
 type = "heard"
 window = 100.0""")
-    spec = load_installation(write(tmp_path, text)).specs[0]
-    clock, world = _world_with({})
-    c = KINDS["authored"](spec, world, np.random.default_rng(0))
-    world.add(c)
+    clock, world, c = _drive_creature(tmp_path, text)
     world.inject(NoteEvent(0.05, 60, 90, 0, 0.2))
     for k in range(1, 5):
         clock.advance(0.05)
         world.deliver(k * 0.05)
         c.tick(k * 0.05)
     assert c.motivation.inputs[c.motivation.index("boredom")] == 1e6
-    again = KINDS["authored"](spec, world, np.random.default_rng(0))
+    again = KINDS["authored"](c.spec, world, np.random.default_rng(0))
     again.restore(json.loads(json.dumps(c.state())))
     assert again.motivation.levels[0] == c.motivation.levels[0]
 

@@ -129,13 +129,19 @@ def test_the_video_holds_one_frame_per_output_frame(run):
     assert tail[visits >= 8].mean() >= tail[visits <= 2].mean() + 2
 
 
-def test_footage_from_png_frames_and_from_a_video(tmp_path):
+def _cube_files(tmp_path: Path) -> tuple[Footage, Path]:
+    """A second of the cube, and the folder of its PNG frames (its video is ``cube.mp4`` beside)."""
     cube = cube_footage(duration=1.0, fps=FPS, size=(64, 48))
     pngs = tmp_path / "frames"
     writer = FrameWriter(directory=pngs, video=tmp_path / "cube.mp4", fps=FPS)
     for frame in cube.frames:
         writer.write(frame)
     writer.close()
+    return cube, pngs
+
+
+def test_footage_from_png_frames_and_from_a_video(tmp_path):
+    cube, pngs = _cube_files(tmp_path)
     read = load_footage(pngs, fps=FPS, duration=1.0, size=(64, 48))
     assert np.array_equal(read.frames, cube.frames)
     video = load_footage(tmp_path / "cube.mp4", fps=FPS, duration=1.0, size=(64, 48))
@@ -149,12 +155,7 @@ def test_footage_past_the_memory_budget_waits_on_disk_and_reads_the_same(tmp_pat
     run's folder, every path reading the same pictures."""
     from creatures.image import frame_store
 
-    cube = cube_footage(duration=1.0, fps=FPS, size=(64, 48))
-    pngs = tmp_path / "frames"
-    writer = FrameWriter(directory=pngs, video=tmp_path / "cube.mp4", fps=FPS)
-    for frame in cube.frames:
-        writer.write(frame)
-    writer.close()
+    cube, pngs = _cube_files(tmp_path)
     in_memory = load_footage(tmp_path / "cube.mp4", fps=FPS, duration=1.0, size=(64, 48))
     scratch = tmp_path / "run"
     scratch.mkdir()
