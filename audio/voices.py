@@ -5,8 +5,10 @@ its own string because the string's shape *is* the note's timbre. :class:`VoiceP
 a fixed set of :class:`~audio.scanned.ScannedString` voices (allocated once, so a live
 block never allocates) and hands a note-on to a free voice, or steals one: the quietest
 already fading, else the one that started longest ago. A note's end starts a linear release
-so an ended note does not click; a stolen one stops where it is (its string is the new
-note's), which is why a fading voice, nearest silence, is taken first.
+so an ended note does not click. A stolen voice's string is the new note's, so what it was
+sounding moves to one more string kept aside (its shape, motion and scan copied), which fades
+it out over :data:`STEAL_FADE`: cut where it stood, its last sample stepped to the new note's
+first, a click at every steal of a full pool.
 The voices are one :class:`~audio.string_bank.StringBank`: a block renders, envelopes and
 mixes every sounding voice in one compiled call.
 """
@@ -17,6 +19,10 @@ import numpy as np
 
 from audio.scanned import StringParameters
 from audio.string_bank import StringBank
+
+
+STEAL_FADE = 0.005
+"""Seconds over which a stolen note fades out on the string kept aside for it."""
 
 
 def midi_to_hz(pitch: float) -> float:
@@ -47,26 +53,32 @@ class VoicePool:
             raise ValueError(f"n_voices must be ≥ 1, got {n_voices}")
         if not release > 0:
             raise ValueError(f"release must be > 0 seconds, got {release!r}")
-        self.bank = StringBank(n_voices, parameters, sample_rate=sample_rate, block_size=block_size)
-        self.voices = self.bank.strings
+        # one string more than the voices: the last sounds a stolen note out (STEAL_FADE)
+        self.bank = StringBank(n_voices + 1, parameters, sample_rate=sample_rate, block_size=block_size)
+        self.n_voices = int(n_voices)
+        self.voices = self.bank.strings[:n_voices]
         self.sample_rate = float(sample_rate)
-        self.pitch = np.full(n_voices, -1.0)  # -1: free
-        self.started = np.full(n_voices, -np.inf)  # note-on order stamp
-        self.level = np.zeros(n_voices)  # envelope now
-        self.slope = np.zeros(n_voices)  # envelope change per sample (negative while releasing)
+        self.pitch = np.full(n_voices + 1, -1.0)  # -1: free
+        self.started = np.full(n_voices + 1, -np.inf)  # note-on order stamp
+        self.level = np.zeros(n_voices + 1)  # envelope now
+        self.slope = np.zeros(n_voices + 1)  # envelope change per sample (negative while releasing)
         self._release_step = 1.0 / (release * sample_rate)
+        self._steal_step = 1.0 / (STEAL_FADE * sample_rate)
         self._count = 0
 
     def note_on(self, pitch: float, velocity: float = 1.0) -> int:
         """Start a note (MIDI pitch, velocity 0..1); returns the voice index used."""
-        free = np.flatnonzero(self.pitch < 0)
-        fading = np.flatnonzero(self.slope < 0)
+        n = self.n_voices
+        free = np.flatnonzero(self.pitch[:n] < 0)
+        fading = np.flatnonzero(self.slope[:n] < 0)
         if len(free):
             index = int(free[0])
         elif len(fading):  # the quietest of the notes already ending: the smallest step to silence
             index = int(fading[np.argmin(self.level[fading])])
         else:
-            index = int(np.argmin(self.started))
+            index = int(np.argmin(self.started[:n]))
+        if self.pitch[index] >= 0:
+            self._set_aside(index)
         voice = self.voices[index]
         voice.silence()
         hz = midi_to_hz(pitch)
@@ -86,9 +98,19 @@ class VoicePool:
         if self.started[index] == started and self.pitch[index] >= 0 and self.slope[index] == 0:
             self.slope[index] = -self._release_step
 
+    def _set_aside(self, index: int) -> None:
+        """Move what voice ``index`` sounds to the string kept aside, fading out from its level
+        now (a note stolen while the last one still fades there ends it there, as before)."""
+        aside, bank = self.n_voices, self.bank
+        for array in (bank.x, bank.v, bank.x_prev, bank.force, bank.state):
+            array[aside] = array[index]
+        self.pitch[aside], self.started[aside] = self.pitch[index], -np.inf  # no note's release reaches it
+        self.level[aside], self.slope[aside] = self.level[index], -self._steal_step
+
     @property
     def active(self) -> int:
-        return int((self.pitch >= 0).sum())
+        """Voices sounding a note (the string kept aside, fading a stolen one out, is none)."""
+        return int((self.pitch[: self.n_voices] >= 0).sum())
 
     def render(self, out: np.ndarray) -> np.ndarray:
         """Sum all sounding voices into ``out`` (raw, before any limiter); frees finished voices.

@@ -248,7 +248,7 @@ def test_voice_pool_steals_the_oldest_voice_and_releases():
     first, second = pool.note_on(60), pool.note_on(64)
     assert first != second and pool.active == 2
     assert pool.note_on(67) == first  # full: the oldest (60) is stolen
-    assert sorted(pool.pitch) == [64, 67]
+    assert sorted(pool.pitch[: pool.n_voices]) == [64, 67]  # 60 fades out aside
     out = np.empty(512)
     assert np.abs(pool.render(out)).max() > 0
     for index in (first, second):
@@ -260,8 +260,8 @@ def test_voice_pool_steals_the_oldest_voice_and_releases():
 
 
 def test_a_full_pool_steals_a_fading_voice_before_a_sounding_one():
-    """A stolen voice stops where it is, so the one nearest silence is taken: a note already
-    fading (the quietest of them), not the oldest still sounding in full (a click)."""
+    """A stolen voice's note is cut short (faded out in 5 ms), so the one nearest silence is
+    taken: a note already fading (the quietest of them), not the oldest still sounding in full."""
     pool = VoicePool(3, sample_rate=SR, release=0.5, block_size=512)
     held, ending, later = pool.note_on(48), pool.note_on(60), pool.note_on(64)
     pool.release(ending, pool.started[ending])
@@ -272,6 +272,30 @@ def test_a_full_pool_steals_a_fading_voice_before_a_sounding_one():
     pool.release(later, pool.started[later])
     pool.render(np.empty(512))
     assert pool.note_on(72) == held  # released first, so the quieter of the two fading
+
+
+def test_a_sounding_voice_stolen_fades_out_instead_of_clicking():
+    """A full pool of sounding notes steals the oldest: its string became the new note's at
+    once, and the output stepped from the old note's last sample to the new one's first (a
+    step of 0.05–0.09 at five moments, larger than any step of the music around it, 0.065).
+    The stolen note now fades out over STEAL_FADE on a string kept aside."""
+    steps, amplitude = [], []
+    for blocks in (20, 37, 53, 71, 90):
+        pool = VoicePool(2, sample_rate=48000, release=0.2, block_size=256)
+        pool.note_on(48)
+        pool.note_on(55)
+        out = np.empty(256)
+        for _ in range(blocks):
+            pool.render(out)
+        last = out[-1]
+        amplitude.append(np.abs(out).max())
+        assert pool.note_on(67) == 0 and pool.active == 2  # the oldest taken; the one aside is no voice
+        pool.render(out)
+        steps.append(abs(out[0] - last))
+    assert min(amplitude) > 0.1  # loud enough for a cut to click
+    assert np.mean(steps) < 0.01 and max(steps) < 0.03
+    pool.render(out)
+    assert pool.pitch[-1] == -1  # 5 ms later the stolen note is gone from the string aside
 
 
 @pytest.mark.parametrize("second_end", [3.0, 0.8])
