@@ -260,3 +260,14 @@ def test_input_maps_as_a_list_beside_an_input_table_is_explained(tmp_path):
     path = write(tmp_path, "a.toml", 'title = "x"\n[[input]]\nosc = "/a"\nto = "note"\n[input]\ngenerate = "none"\n')
     with pytest.raises(ConfigError, match=r"\[\[input\]\] and \[input\] are both written.*\[\[input\.map\]\]"):
         load_config(path, Installation)
+
+
+def test_a_misspelt_generated_input_names_the_nearest_choice(tmp_path):
+    """`generate` is one of three words: a slip says which was meant, as every other choice
+    does (it said only that the text should match a pattern)."""
+    from creatures.runtime.schema import load_installation
+
+    text = 'title = "x"\n[input]\ngenerate = "phrse"\n[[creature]]\nname = "a"\nkind = "exchange"\n'
+    with pytest.raises(ConfigError, match=r"did you mean 'phrase'") as info:
+        load_installation(write(tmp_path, "a.toml", text))
+    assert info.value.line == 3

@@ -350,7 +350,7 @@ class InputSection(Strict):
 
     audio: str | None = Field(None, description="recorded audio fed offline (path relative to the config)")
     midi: str | None = Field(None, description="recorded MIDI fed offline (path relative to the config)")
-    generate: str = Field("phrase", pattern="^(phrase|speech|none)$",
+    generate: Literal["phrase", "speech", "none"] = Field("phrase",
                           description="input generated when no recording is given (--audio, --midi, or "
                                       "`audio`/`midi` here): 'phrase' (three note fragments, as notes and as "
                                       "tones), 'speech' (the poem Ozymandias read by formant voices, audio only) "
