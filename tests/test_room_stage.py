@@ -833,3 +833,19 @@ def test_a_crowd_following_a_tracked_visitor_ticked_at_0_02_and_0_04_s_agrees_wi
     assert apart <= 0.5 * 0.04  # the visitor's travel in one coarse tick
     assert norms(fine[-1] - fine[0]).min() > 2.0  # both followed the walking visitor a long way
     assert apart > 1e-6  # the sampling does show: this is not the 1e-9 of steering alone
+
+
+@pytest.mark.parametrize("vary, message", [
+    # a slip in the last part: said at the vary key's own line, not the vehicle table's
+    ('vary = { "vehicle.max_sped" = [0.5, 1.5] }', r"vary\.vehicle\.max_sped: unknown key \(did you mean 'max_speed'\?\)"),
+    # a slip in a table written above: the nearest written name, not a new tuple that lacks its keys
+    ('vary = { "tuples.ecco.action.count" = [2, 4] }', r"no 'ecco' under 'tuples' in the table \(did you mean 'echo'\?\)"),
+    ('cycle = { chanel = [0, 1] }', r"cycle\.chanel: unknown key \(did you mean 'channel'\?\)"),
+])
+def test_a_slip_in_a_crowds_vary_or_cycle_is_said_at_its_line(tmp_path, vary, message):
+    crowd = singer("bird", 5.0, 5.0).replace('name = "bird"', f'name = "bird"\ncount = 3\n{vary}')
+    crowd = crowd.replace("at = [5.0, 5.0]", "")
+    text = HEADER.format(room="") + crowd
+    with pytest.raises(ConfigError, match=message) as info:
+        load_installation(write(tmp_path, text))
+    assert info.value.line == text.splitlines().index(vary) + 1

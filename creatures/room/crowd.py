@@ -14,6 +14,7 @@ random draws could put two on one channel.
 from __future__ import annotations
 
 import copy
+import difflib
 from typing import Any
 
 import numpy as np
@@ -43,14 +44,38 @@ def _draw(rng: np.random.Generator, span: Any, key: str) -> float | int:
     return float(rng.uniform(low, high))
 
 
-def _set(table: dict, dotted: str, value: Any) -> None:
+def _set(table: dict, dotted: str, value: Any, section: str = "vary") -> None:
     *parents, last = dotted.split(".")
-    for part in parents:
+    for n, part in enumerate(parents):
+        if part not in table and table:  # a slip for a written table ("tuples.chrip") would make a new one
+            close = difflib.get_close_matches(part, [str(k) for k in table], n=1)
+            if close:
+                under = f" under {'.'.join(parents[:n])!r}" if n else ""
+                raise CrowdError((section, dotted), f"no {part!r}{under} in the table (did you mean {close[0]!r}?)")
         nested = table.setdefault(part, {})
         if not isinstance(nested, dict):
-            raise CrowdError(("vary", dotted), f"vary[{dotted!r}]: {part!r} is not a table")
+            raise CrowdError((section, dotted), f"{section}[{dotted!r}]: {part!r} is not a table")
         table = nested
     table[last] = value
+
+
+def created(table: dict) -> list[tuple[tuple[str, ...], str, str]]:
+    """What the ``vary`` and ``cycle`` keys of one table write that the table itself does not:
+    for each such key, the first part of its path not written (a key path under the table), its
+    section ("vary" or "cycle") and its dotted key. A clone's error at or under that path is the
+    key's own slip, said at its line rather than at the table around what it made."""
+    out = []
+    for section in ("vary", "cycle"):
+        keys = table.get(section)
+        for dotted in keys if isinstance(keys, dict) else ():
+            at: Any = table
+            parts = tuple(str(dotted).split("."))
+            for n, part in enumerate(parts):
+                if not isinstance(at, dict) or part not in at:
+                    out.append((parts[:n + 1], section, dotted))
+                    break
+                at = at[part]
+    return out
 
 
 def expand(tables: list[dict], seed: int) -> tuple[list[dict], list[int]]:
@@ -87,7 +112,7 @@ def _clones(table: dict, rng: np.random.Generator) -> list[dict]:
         clone = copy.deepcopy(base)
         clone["name"] = f"{base.get('name', 'creature')}-{k}"
         for key in sorted(cycle):
-            _set(clone, key, copy.deepcopy(cycle[key][k % len(cycle[key])]))
+            _set(clone, key, copy.deepcopy(cycle[key][k % len(cycle[key])]), "cycle")
         for key in sorted(vary):
             _set(clone, key, _draw(rng, vary[key], key))
         clones.append(clone)

@@ -25,7 +25,7 @@ from creatures.runtime.cc_sources import check_source
 from creatures.config import ConfigError, config_error, nearest, read_toml, validate, written_in
 from creatures.kinds import CreatureSpec, load_all
 from creatures.authored.percepts import ROOM_PERCEPTS
-from creatures.room.crowd import CrowdError, expand as expand_crowds
+from creatures.room.crowd import CrowdError, created as crowd_created, expand as expand_crowds
 from creatures.room.spec import RoomSection
 from creatures.score.spec import ScoreSpec
 from creatures.room.stage import RoomError, StageError, check_places, recipes as room_recipes
@@ -513,6 +513,19 @@ def _sensor(path: Path, where, loc: tuple, params: dict, sensors: list[str]) -> 
         raise config_error(path, where, loc, f"no input map writes a sensor {name!r} ({hint})")
 
 
+def _crowd_slip(exc: ConfigError, table: dict, index: int, path: Path, where: dict) -> ConfigError:
+    """A clone's error under a key only its table's ``vary`` or ``cycle`` wrote (a misspelt
+    ``"tuples.chirp.action.transpos"``) is that key's: said at its line, naming it, not at the
+    line of the table it landed in, where the misspelling is nowhere to be seen."""
+    for parts, section, dotted in crowd_created(table):
+        made = ".".join(("creature", str(index), *parts))
+        if exc.key == made or exc.key.startswith(made + "."):
+            return config_error(path, where, ("creature", index, section, dotted),
+                                f"{exc.message} (at {exc.key.removeprefix(f'creature.{index}.')}, which "
+                                f"{section} sets for each clone)")
+    return exc
+
+
 def _first_named(where: dict, index: int, path: Path) -> str:
     """Where the first creature of a duplicated name was written: with includes the two may be
     files apart (or one file included twice), and the error's own line is the second's."""
@@ -547,11 +560,14 @@ def load_installation(path: str | Path) -> LoadedInstallation:
             known = sorted({*kinds, *installations.creature_names()})  # classes and shipped creature documents
             raise config_error(path, where, ("creature", i, "kind"),
                                f"unknown creature kind {kind!r}{nearest(kind, known, 'choose from')}")
-        spec = validate(kinds[kind].Spec, table, where, path, prefix=("creature", i))
-        _resolve_body(kinds[kind], spec, path, where, ("creature", i))
-        check = getattr(spec, "check_references", None)  # kinds that name parts resolve them now
-        if check is not None:
-            check(path, where, ("creature", i))
+        try:
+            spec = validate(kinds[kind].Spec, table, where, path, prefix=("creature", i))
+            _resolve_body(kinds[kind], spec, path, where, ("creature", i))
+            check = getattr(spec, "check_references", None)  # kinds that name parts resolve them now
+            if check is not None:
+                check(path, where, ("creature", i))
+        except ConfigError as exc:
+            raise _crowd_slip(exc, settings.creature[i], i, path, where) from None
         if spec.name in names:
             raise config_error(path, where, ("creature", i, "name"), f"duplicate creature name {spec.name!r}"
                                                                      + _first_named(where, names[spec.name], path))
