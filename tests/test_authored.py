@@ -323,6 +323,59 @@ def test_motor_programs_and_labels_move_the_body_there(tmp_path):
     assert {"sway left", "sway right", "reach"} <= seen
 
 
+TWO_PROGRAMS = """
+[[creature]]
+name = "s"
+kind = "authored"
+body = true
+
+[creature.percepts.later]
+type = "schedule"
+times = [5.0]
+width = 2.0
+
+[creature.tuples.sway]
+action = { type = "motor_program", text = 'sway: getToClosest {"sway left"}; wait; getTo "sway right"; wait; cycle 0' }
+until = { seconds = 30.0 }
+
+[creature.tuples.lunge]
+trigger = "later"
+action = { type = "motor_program", text = 'lunge: getTo "strike ready"; wait; getTo "strike"; wait; end' }
+until = { done = true }
+
+[creature.tuples.idle]
+action = "rest"
+until = { seconds = 1.0 }
+value = 0.01
+
+[creature.groups.a]
+tuples = ["sway"]
+alpha = 0.0
+
+[creature.groups.b]
+tuples = ["lunge", "idle"]
+alpha = 0.0
+"""
+
+
+def test_two_motor_programs_at_once_take_turns_with_the_body(tmp_path):
+    """A sway in one group, a lunge begun at 5 s in another: the lunge waited for an arrival
+    the sway never let come and stayed active to the end of the run, unsaid (a new user's
+    config). The newer course now has the body; the sway waits, said in the log, and sways on."""
+    from creatures.kinds.parts import shared_graph
+
+    events = ran(tmp_path, write(tmp_path, HEAD + TWO_PROGRAMS), 30.0)
+    lunge = [e for e in events if e["kind"] in ("selection", "stop") and e.get("tuple") == "lunge"]
+    assert [e["kind"] for e in lunge][:2] == ["selection", "stop"] and not lunge[1]["interrupted"]
+    assert lunge[1]["t"] < 10.0, "the lunge got the body and finished"
+    said = [(e["kind"], e["action"]) for e in events if e["kind"] in ("motor paused", "motor resumed")]
+    assert said[:2] == [("motor paused", "sway"), ("motor resumed", "sway")]
+    labels = shared_graph().poses.labels
+    after = {label for e in events if e["kind"] == "motor" and e["t"] > lunge[1]["t"] + 1.0
+             for n in e["reached"] for label in labels[n]}
+    assert {"sway left", "sway right"} <= after  # swaying on
+
+
 @pytest.mark.parametrize(
     ("old", "new", "message"),
     [

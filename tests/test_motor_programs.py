@@ -231,3 +231,31 @@ def test_a_program_cycling_for_an_hour_keeps_a_bounded_trace(graph, clock):
     assert run(stack, clock, until=3600.0, step=0.1) is Status.RUNNING
     assert stack.cycles > 500 and len(stack.trace) <= ProgramStack.TRACE_KEPT
     assert stack.trace[-1][0] > 3590.0  # the newest are the ones kept
+
+
+def test_a_program_gives_the_body_to_a_newer_one_and_takes_it_back_when_free(graph, clock):
+    """One body, two programs: a sway cycling and a lunge begun later. The lunge's wait never
+    arrived (the sway sent the body elsewhere each time it arrived) and it stayed unfinished; now
+    the newer course has the body, the sway waits (paused), and sways on once the lunge ends."""
+    motor = MotorSystem(graph, start=0)
+    sway = ProgramStack(motor, parse_programs(f'sway: getToClosest {{"{LEFT}"}}; wait; getTo "{RIGHT}"; wait; '
+                                              "cycle 0")["sway"])
+    lunge = ProgramStack(motor, parse_programs('lunge: getTo "strike ready"; wait; getTo "strike"; wait; end')["lunge"])
+    sway.start(clock.now())
+    run(sway, clock, until=5.0)
+    swayed = len(motor.arrivals)
+    lunge.start(clock.now())
+    ended = None
+    while clock.now() < 20.0:
+        sway.update(clock.now())
+        if ended is None and lunge.update(clock.now()) is Status.DONE:
+            ended = clock.now()
+            assert sway.paused and sway.yields == 1
+        clock.advance(1.0 / 30.0)
+    assert ended is not None and ended < 10.0, "the lunge got the body and finished"
+    labels = [graph.poses.labels[node] for _, node in motor.arrivals]
+    assert any("strike" in tags for tags in labels)
+    assert not sway.paused and len(motor.arrivals) - swayed >= 6  # swaying on after the lunge
+    later = [tags & {LEFT, RIGHT} for at, node in motor.arrivals if at > ended
+             for tags in [graph.poses.labels[node]]]
+    assert later and all(later)

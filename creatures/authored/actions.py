@@ -409,7 +409,9 @@ class RunProgram(MotorPart):
 
 class ProgramAction(Action):
     """Runs a motor program (text or graph) under a :class:`ProgramStack` while the tuple is
-    active; stopping the tuple asks the program to exit (its forced statements still run)."""
+    active; stopping the tuple asks the program to exit (its forced statements still run) and
+    gives the body up. A program another action took the body from waits for it, said in the
+    events log (``motor paused``, ``motor resumed``)."""
 
     def __init__(self, name: str, creature: "Authored", program, library: dict | None = None) -> None:
         super().__init__(name)
@@ -417,20 +419,27 @@ class ProgramAction(Action):
         self.program = program
         self.library = library or {}
         self.stack: ProgramStack | None = None
+        self._paused = False  # the program waiting for the body another action took (logged)
 
     def start(self, t: float, tuple_: ActionTuple) -> None:
         self.stack = ProgramStack(self.creature.body.motor, self.program, library=self.library)
         self.stack.start(t)
+        self._paused = False
 
     def update(self, t: float) -> None:
         try:
             self.stack.update(t)
         except NoPath:
             self.stack.stack.clear()  # nowhere to go from here: the program is over
+        if self.stack.paused != self._paused:  # in the log: two actions at once on one body
+            self._paused = self.stack.paused
+            c = self.creature
+            c.world.emit("motor paused" if self._paused else "motor resumed", creature=c.name, action=self.name)
 
     def stop(self, t: float, *, interrupted: bool) -> None:
         if interrupted:
             self.stack.request_exit(t)
+        self.stack.release()  # a program waiting for the body takes it back
 
     def done(self, t: float) -> float:
         return 1.0 if self.stack is None or self.stack.done else 0.0

@@ -71,6 +71,7 @@ class MotorSystem:
         self._rest = GraphPosition(start)
         self.playback: Playback | None = None
         self.arrivals: deque[tuple[float, int]] = deque(maxlen=self.ARRIVALS_KEPT)
+        self.owner: object | None = None  # who set the course the body follows (None: no one who says)
 
     def position(self, t: float) -> GraphPosition:
         return self.playback.position(t) if self.playback else self._rest
@@ -114,10 +115,12 @@ class MotorSystem:
         paths = [self.finder.path(start, self.goals(target)) for target in targets]
         return max(paths, key=lambda p: p.cost)
 
-    def set_course(self, t: float, path: Path) -> None:
-        """Follow ``path`` from time ``t`` (it starts where the body is, even mid-edge). A path
-        to the node the body rests on goes nowhere: the body stays, and logs no arrival (a
-        program holding at its target would fill :attr:`arrivals` with it)."""
+    def set_course(self, t: float, path: Path, *, owner: object | None = None) -> None:
+        """Follow ``path`` from time ``t`` (it starts where the body is, even mid-edge), set by
+        ``owner`` (a :class:`ProgramStack` says it is; anything else setting a course takes the
+        body from it). A path to the node the body rests on goes nowhere: the body stays, and
+        logs no arrival (a program holding at its target would fill :attr:`arrivals` with it)."""
+        self.owner = owner
         if self.resting(t) == path.goal and len(path.nodes) == 1:
             return
         origin = None
@@ -307,6 +310,14 @@ class ProgramStack:
     the root program's ``cycle`` statements; ``trace`` records the latest ``TRACE_KEPT``
     executed statements (a cycling program held for a gallery hour ran 4,391: an unbounded
     list grew for as long as the tuple ran).
+
+    A body follows one course, and the newest claim has it. A program whose course another
+    action has since replaced (a second program, a ``go_to``, a sung breath) gives the body
+    up (:attr:`paused`, counted in :attr:`yields`) until it is free again — the other program
+    ended, the other action's course arrived — and then takes it back, sending it again where
+    it was going. It used to wait on regardless: for an arrival where the other had sent the
+    body, which a program cycling beside it never let come (a lunge stayed active 25 s, its
+    ``done`` never reached), or, the other gone, frozen where that one had left it.
     """
 
     MAX_STEPS = 256
@@ -320,6 +331,9 @@ class ProgramStack:
         self.cycles = 0
         self.trace: deque[tuple[float, str, str]] = deque(maxlen=self.TRACE_KEPT)
         self._held: tuple[int, int] | None = None  # (node, graph size) a lap went nowhere from
+        self._course: Statement | None = None  # the last course it set: set again when it takes the body back
+        self.paused = False
+        self.yields = 0
 
     @property
     def done(self) -> bool:
@@ -328,6 +342,7 @@ class ProgramStack:
     def start(self, t: float) -> None:
         self.stack = [_Frame(self.program, self.program.first())]
         self._held = None
+        self._course, self.paused = None, False
 
     def request_exit(self, t: float) -> None:
         """Unwind: each frame jumps to its forced statements (or exit vertex) or is dropped.
@@ -350,7 +365,14 @@ class ProgramStack:
         target, and is not run again (its courses searched again) until the body is moved
         or the motor graph grows. Running on, it spun until :data:`MAX_STEPS` and raised,
         ending the run (thesis "motor program graphs": a program is a way of being, here
-        one of staying)."""
+        one of staying). A program whose course another has replaced waits for the body."""
+        if self._course is not None and self.stack and self.motor.owner is not self:
+            if self.motor.owner is not None or not self.motor.arrived(t):  # another holds it
+                self.yields += not self.paused
+                self.paused = True
+                return Status.RUNNING
+            self.paused, self._held = False, None
+            self._go(t, self._course)  # free again: back on the way it was going
         if self._held is not None and self._held == self._resting(t):
             return Status.RUNNING
         self._held = None
@@ -358,6 +380,7 @@ class ProgramStack:
         courses, frames = 0, []  # frames kept alive: their ids key ``seen``
         for _ in range(self.MAX_STEPS):
             if not self.stack:
+                self.release()
                 return Status.DONE
             frame = self.stack[-1]
             stmt = frame.program.statement(frame.cursor)
@@ -379,7 +402,7 @@ class ProgramStack:
             if callee is not None:
                 self.stack.append(_Frame(callee, callee.first()))
             elif stmt.op in ("getTo", "getToClosest", "getToFurthest", "forcedGetTo"):
-                self.motor.set_course(t, self.motor.course(t, stmt.targets, furthest=stmt.op == "getToFurthest"))
+                self._go(t, stmt)
                 courses += 1
             elif stmt.op == "cycle" and nxt is not None:
                 if len(self.stack) > 1:
@@ -391,6 +414,17 @@ class ProgramStack:
             f"motor program {self.stack[-1].program.name!r} ran {self.MAX_STEPS} statements"
             " without the body moving (a cycle with no course to follow?)"
         )
+
+    def _go(self, t: float, stmt: Statement) -> None:
+        """Set the course ``stmt`` (a ``getTo``-style statement) names, as this program's."""
+        self.motor.set_course(t, self.motor.course(t, stmt.targets, furthest=stmt.op == "getToFurthest"), owner=self)
+        self._course = stmt
+
+    def release(self) -> None:
+        """Give the body up (the program ended, or its tuple stopped): a program waiting for it
+        takes it once its course has arrived."""
+        if self.motor.owner is self:
+            self.motor.owner = None
 
     def _resting(self, t: float) -> tuple[int, int] | None:
         """Where the body rests (its node, and the motor graph's size: a graph grown since
