@@ -73,7 +73,7 @@ from creatures.bounds import FINITE, LARGEST_RATE
 from creatures.kinds import register
 from creatures.kinds.base import CreatureKind, CreatureSpec
 from creatures.kinds.figures import FigureBodySpec, figure_graph
-from creatures.kinds.hearing_parts import Ear, HearingSpec
+from creatures.kinds.hearing_parts import Ear, HearingSpec, tree_from_state, tree_state
 from creatures.kinds.parts import Body, Voice, VoiceSpec, couple_to_hands
 from creatures.kinds.report_parts import MotorTrail, report_values, selection_logger
 from midi.notes import NoteEvent
@@ -339,14 +339,26 @@ class Duncan(CreatureKind):
 
     # -- persistence ----------------------------------------------------------------------
     def state(self) -> dict[str, Any]:
-        return {"values": self.group.value_state(), "beg": self.beg_height.to_dict()}
+        return {"values": self.group.value_state(), "beg": self.beg_height.to_dict(), "tree": tree_state(self.heard)}
 
     def restore(self, state: dict[str, Any]) -> None:
-        """Values and the beg model's samples come back; sound classes do not (their exemplars
-        are audio, not kept in the state), so a restarted dog relearns which sound is which cue.
-        The beg model's prior and size are settings (thesis "simple shaping": the prior is the
-        authored expectation), so the config's win: the saved samples, oldest first, are pushed
-        into a model of the config's own (a smaller one keeps the newest)."""
+        """Values, the sound classes and the beg model's samples come back. A cue's tuples
+        ("heard/k | trick") exist only while its class does, so the classes (their exemplars,
+        :func:`tree_state`) are taken back first, in place (the percept tree holds the root),
+        each judging sounds at the config's sharpness, and every one gets its hypotheses again
+        for the values to land on (thesis "percept trees": the learnt distinctions are what the
+        dog was trained on; without them a restarted dog forgot every cue). The beg model's
+        prior and size are settings (thesis "simple shaping": the prior is the authored
+        expectation), so the config's win: the saved samples, oldest first, are pushed into a
+        model of the config's own (a smaller one keeps the newest)."""
+        if "tree" in state:  # a state saved before the classes were kept has none
+            tree = tree_from_state(state["tree"], like=self.heard)
+            for cls in tree.utterance_children():
+                self.heard.add_child(cls)
+                cls.radius = self.spec.sharpness
+                for trick in self.spec.tricks:
+                    self.group.add(self._hypothesis(cls, trick))
+            self.heard._born = tree._born  # a class formed from now on takes a new name
         if "values" in state:
             self.group.restore_values(state["values"])
         if "beg" in state:
