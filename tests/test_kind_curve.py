@@ -4,17 +4,20 @@ to each other's presence (approach, mirror) only when they perceive each other."
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.signal import stft
 
 from creatures.clock import SimulatedClock
+from creatures.config import ConfigError
 from creatures.events import EventLog
 from creatures.kinds import load_all
 from creatures.kinds.curve import MIRROR_TOLERANCE, mirror_nodes
 from creatures.kinds.moves import head_for
 from creatures.kinds.parts import shared_graph
+from creatures.runtime.schema import load_installation
 from creatures.runtime.world import World
 from midi.scheduler import NoteScheduler
 from midi.notes import NoteEvent
@@ -181,3 +184,16 @@ def test_state_round_trips_and_bad_config_names_the_key():
         tp.name: tp.value.to_float() for tp in a.group.tuples}
     with pytest.raises(ValueError, match="near"):
         load_all()["curve"].Spec(name="x", kind="curve", near=-1.0)
+
+
+def test_close_beyond_seen_is_refused_at_its_key_and_line(tmp_path):
+    """"other close" is a child of "other seen" in the percept tree: a creature close to another
+    is one it sees. Accepted, ``sense = 0.01`` with ``near = 200`` mirrored two creatures 1.2 m
+    apart 5 times in 20 s while "seen" read 0.0 throughout. ``near = sense`` is still allowed."""
+    shipped = Path(__file__).resolve().parents[1] / "installations" / "curve.toml"
+    config = tmp_path / "curve.toml"
+    config.write_text(shipped.read_text().replace('name = "bow"\n', 'name = "bow"\nsense = 0.01\nnear = 200.0\n'))
+    with pytest.raises(ConfigError, match=r"curve\.toml:\d+.*near: 200 m is beyond sense \(0\.01 m\)") as caught:
+        load_installation(config)
+    assert "creature.1" in str(caught.value)
+    load_all()["curve"].Spec(name="x", kind="curve", sense=0.8, near=0.8)

@@ -78,7 +78,8 @@ class CurveSpec(CreatureSpec):
     walk_speed: float = Field(0.4, gt=0, le=5, description="how fast the creature walks along the room (m/s)")
     drift: float = Field(0.4, ge=0, le=100, description="furthest a wander moves it along the room (m)")
     sense: float = Field(2.5, gt=0, le=200, description="distance between bodies within which another creature is seen (m)")
-    near: float = Field(0.8, gt=0, le=200, description="distance between bodies at which another creature is close (m)")
+    near: float = Field(0.8, gt=0, le=200, description="distance between bodies at which another creature is close (m; "
+                                                       "at most sense: a creature close is one seen)")
     note_length: float = Field(3.0, gt=0, le=30, description="seconds each note the creature sounds is held")
     temperature: float | None = Field(None, gt=0, le=1e3, description="Boltzmann temperature of action selection")
     voice: VoiceSpec = VoiceSpec(voices=3, body_gain=12.0)
@@ -89,6 +90,17 @@ class CurveSpec(CreatureSpec):
     limbs: list[str] | None = Field(None, max_length=256,
                                     description="joints whose movement pushes the strings; default the elbows, "
                                                 "wrists and hands the body has, else its striking joints")
+
+    @model_validator(mode="after")
+    def _close_is_seen(self) -> "CurveSpec":
+        """"other close" is a child of "other seen" in the percept tree (thesis "percept trees": a
+        child is a more specific case of its parent), so a creature close must be one seen.
+        Accepted, ``near`` beyond ``sense`` triggered mirror while nothing was seen (sense 0.01,
+        near 200: 5 mirrors in 20 s, "seen" 0.0 throughout)."""
+        if self.near > self.sense:
+            raise ValueError(f"near: {self.near:g} m is beyond sense ({self.sense:g} m): a creature close to "
+                             f"another is one it sees, so near must be at most sense")
+        return self
 
     @model_validator(mode="after")
     def _limbs_on_the_figure(self) -> "CurveSpec":
