@@ -96,11 +96,11 @@ def test_transformation_detector():
     assert not recognisable(PHRASE, PHRASE)  # the passage passed on unchanged is no variation
 
 
-def hearing_ada(heard: list[tuple[float, str, int]]) -> tuple[SimulatedClock, NoteWorld]:
+def hearing_ada(heard: list[tuple[float, str, int]], **space) -> tuple[SimulatedClock, NoteWorld]:
     """The shipped colony's first creature alone, its copies never transposed, having heard
-    ``(time, player, pitch)``; its notes in space."""
+    ``(time, player, pitch)``; its notes in space (``space``: other ``[creature.space]`` keys)."""
     spec = load_installation(installations.path("exchange")).specs[0]
-    spec.space.mutation = 0.0
+    spec.space = spec.space.model_copy(update={"mutation": 0.0, **space})
     clock = SimulatedClock()
     world = World(clock, EventLog(None), NoteScheduler(MemorySink(), clock))
     ada = KINDS["authored"](spec, world, np.random.default_rng(7))
@@ -121,6 +121,19 @@ def test_passages_are_each_players_notes_until_a_silence():
     assert [[o.pitch for o in p] for p in notes.passages()] == [[48, 50, 52], PHRASE, [79, 81, 83]]
     notes.fade(8.0 + notes.spec.note_lifetime - 3.0)  # the first two passages fade, the last stays
     assert [[o.pitch for o in p] for p in notes.passages()] == [[79, 81, 83]]
+
+
+def test_a_renewed_note_is_fresh_when_the_full_space_forgets_its_oldest():
+    """Hearing a pitch already in space renews its note, and "the oldest fade first" counts
+    from the renewal, as ``note_lifetime`` does. With ``max_notes = 3``, 60, 62 and 64 heard, 60
+    heard again and then 65, the space forgot the renewed 60 (its first placing was the
+    oldest) and kept 62, heard 2 s before: 60 was lost from the latest passage it had just
+    been heard in."""
+    _, notes = hearing_ada([(1.0, "input", 60), (2.0, "input", 62), (3.0, "input", 64),
+                            (4.0, "input", 60), (5.0, "input", 65)], max_notes=3)
+    assert sorted(o.pitch for o in notes.space.objects) == [60, 64, 65]
+    assert [[o.pitch for o in p] for p in notes.passages()] == [[64, 60, 65]]
+    assert notes.remembered() <= 2 * len(notes.space)
 
 
 @pytest.mark.parametrize("transform", ["retrograde", "swap"])

@@ -10,7 +10,8 @@ share.
 * a struck note plays (and the colony hears it); no note is struck within ``strike_interval``
   of the last strike, and none the hand passes or hunger seeks within ``refractory`` seconds of
   its own last strike (a variation plays its passage whole);
-* notes older than ``note_lifetime`` fade, and at most ``max_notes`` stay (oldest first);
+* notes placed (or renewed) more than ``note_lifetime`` ago fade, and at most ``max_notes``
+  stay (the one placed or renewed longest ago goes first);
 * with ``answer`` a note may be struck the moment it lands (a reflex, within the same limits);
 * the space remembers what it heard as passages (:meth:`NoteWorld.passages`): each player's
   notes, as the note objects they landed on, until ``passage_gap`` of silence from that player.
@@ -51,7 +52,8 @@ class SpaceSpec(BaseModel):
 
     strike_radius: float = Field(0.15, gt=0, le=1.0, description="how close the hand must pass to strike a note (m)")
     note_lifetime: float = Field(45.0, gt=0, le=LONGEST_SECONDS, description="seconds a placed note stays in space")
-    max_notes: int = Field(48, ge=1, le=4096, description="most notes in space; the oldest fade first")
+    max_notes: int = Field(48, ge=1, le=4096, description="most notes in space; the oldest (placed or renewed longest ago) "
+                                                                 "fade first")
     refractory: float = Field(20.0, ge=0, le=LONGEST_SECONDS,
                               description="seconds before the same note is struck again in passing or sought again "
                                           "(a variation plays its passage whole)")
@@ -113,9 +115,11 @@ class NoteWorld:
             obj = self.space.place(copy, position)
             self.creature.world.emit("placed", creature=self.creature.name, pitch=pitch, source=source,
                                      heard=note.pitch, position=obj.position)
-            while len(self.space) > self.spec.max_notes:
-                self._forget(self.space.objects[0])
         self.placed_at[id(obj)] = t
+        # The oldest goes first counting from when a note was placed or last renewed, as it fades
+        # (a renewed note forgotten by its first placing left the passage it was just heard in).
+        while len(self.space) > self.spec.max_notes:
+            self._forget(min(self.space.objects, key=lambda o: self.placed_at[id(o)]))
         self.heard.append(Heard(t, source, obj))
         self._answer(t, obj)
 
