@@ -29,10 +29,10 @@ def test_describe_prints_drives_percept_trees_groups_and_tuples(capsys):
     assert main(["describe", str(TUTORIAL / "heron-4.toml")]) == 0
     out = capsys.readouterr().out.splitlines()
     assert out[1] == "heron (authored)"
-    assert "│  └─ boredom = 0 (growth 0.05, decay 0)" in out
+    assert "│  └─ boredom = 0 (growth 0.05, decay 0, on_heard -0.3, on_played -0.08)" in out  # what moves it
     assert "│     ├─ bored (drive)" in out
     assert "└─ group main [max_active 1, alpha 0.2, discount 0.8]" in out
-    assert "   └─ praised: praise | praised | 0.5 s | V 4, non-plastic" in out
+    assert "   └─ praised: praise | rest | 0.5 s | V 4, non-plastic" in out  # its action by type
 
 
 def test_describe_shows_graded_du_and_chained_values(capsys):
@@ -40,9 +40,9 @@ def test_describe_shows_graded_du_and_chained_values(capsys):
     serves, beside what it is worth now; a graded Du says so."""
     assert main(["describe", "cadence"]) == 0
     out = capsys.readouterr().out
-    assert ("home: whatever if ending(dominant) | home | 3 s graded until home done | V 0.8, non-plastic, "
+    assert ("home: whatever if ending(dominant) | play_phrase | 3 s graded until home done | V 0.8, non-plastic, "
             "chained = home (learnt 4; serves home)") in out
-    assert "wander: whatever | wander | 2.4 s graded until wander done | V 0.5, chained (learnt 1; serves home, summit)" in out
+    assert "wander: whatever | play_phrase | 2.4 s graded until wander done | V 0.5, chained (learnt 1; serves home, summit)" in out
 
 
 def test_describe_builds_a_real_visitors_praise_from_the_input_map(tmp_path, capsys):
@@ -71,7 +71,7 @@ def test_describe_shows_class_based_kinds_and_nested_groups_too(tmp_path, capsys
     out = capsys.readouterr().out.splitlines()
     assert any(line.endswith("voice: whatever | voice | until voice:done | V 1 [max_active 1, alpha 0, "
                              "discount 0.8]") for line in out), out
-    assert any("call: bored | call | until call done | V 1" in line for line in out)
+    assert any("call: bored | play_phrase | until call done | V 1" in line for line in out)
 
 
 def test_describe_shows_a_kinds_own_parts_and_no_empty_percept_tree(capsys):

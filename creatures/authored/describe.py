@@ -47,15 +47,17 @@ def _du(du: DoUntil) -> str:
         length = ""
     elif isinstance(du.duration, int | float):
         length = f"{du.duration:g} s"
-    else:
-        length = type(du.duration).__name__
+    else:  # a model: what it samples from (its repr), not only its class
+        length = repr(du.duration)
     if length and du.graded:
         length += " graded"
     until = f"until {du.until.name}" if du.until is not None else ""
     return " ".join(x for x in (length, until) if x) or "—"
 
 
-def _tuple(tp: ActionTuple) -> tuple[str, list[Any]] | str:
+def _tuple(tp: ActionTuple, actions: dict[str, str]) -> tuple[str, list[Any]] | str:
+    """A tuple as ``name: Tr | Ac | Du | V``; an authored action named after its tuple is shown
+    by its type (``echo``), which says what it does."""
     value = tp.value
     plastic = "" if getattr(value, "plasticity", 1.0) else ", non-plastic"
     if isinstance(value, ChainValue):  # what it is worth now is its learnt value × the drives its goals serve
@@ -64,13 +66,14 @@ def _tuple(tp: ActionTuple) -> tuple[str, list[Any]] | str:
         plastic += f", chained{goal} (learnt {value.value:.3g}{'; serves ' + serves if serves else ''})"
     if isinstance(value, StanceValue):  # the emotional tag each start pulls the mood toward
         plastic += f", stance {value.stance:+.2g}"
-    label = f"{tp.name}: {tp.trigger.name} | {tp.action.name} | {_du(tp.do_until)} | V {value.to_float():.3g}{plastic}"
+    action = actions.get(tp.action.name, tp.action.name) if tp.action.name == tp.name else tp.action.name
+    label = f"{tp.name}: {tp.trigger.name} | {action} | {_du(tp.do_until)} | V {value.to_float():.3g}{plastic}"
     if isinstance(tp.action, GroupAction):
-        return _group(tp.action.group, label)
+        return _group(tp.action.group, actions, label)
     return label
 
 
-def _group(group: ActionGroup, label: str | None = None) -> tuple[str, list[Any]]:
+def _group(group: ActionGroup, actions: dict[str, str], label: str | None = None) -> tuple[str, list[Any]]:
     settings = f"max_active {group.max_active}, alpha {group.alpha:g}, discount {group.discount:g}"
     if group.temperature is not None:
         settings += f", temperature {group.temperature:g}"
@@ -78,7 +81,7 @@ def _group(group: ActionGroup, label: str | None = None) -> tuple[str, list[Any]
     if p.learning:
         settings += f", proximity learnt at {p.rate:g} over {p.window:g} s"
     near = [f"proximity {a} → {b}: {x:g}{' (fixed)' if (a, b) in p.fixed else ''}" for (a, b), x in sorted(p.table.items())]
-    return (f"{label or 'group ' + group.name} [{settings}]", [_tuple(tp) for tp in group.tuples] + near)
+    return (f"{label or 'group ' + group.name} [{settings}]", [_tuple(tp, actions) for tp in group.tuples] + near)
 
 
 def _percept(p: Percept, types: dict[str, str]) -> tuple[str, list[Any]] | str:
@@ -98,9 +101,27 @@ def _roots(groups: Iterable[ActionGroup]) -> list[Percept]:
     return list(roots.values())
 
 
-def _drives(m: Motivation) -> list[str]:
-    return [f"{name} = {m.levels[i]:g} (growth {m.growth[i]:g}, decay {m.decay[i]:g})"
-            for i, name in enumerate(m.names)]
+def _drives(m: Motivation, spec: Any) -> list[str]:
+    """Each drive's level and dynamics; an authored drive's impulses, inputs and coupling too
+    (what moves it is most of what it is)."""
+    written = getattr(spec, "drives", {})
+    lines = []
+    for i, name in enumerate(m.names):
+        parts = [f"growth {m.growth[i]:g}", f"decay {m.decay[i]:g}"]
+        d = written.get(name)
+        if d is not None:
+            parts += [f"{key} {getattr(d, key):g}" for key in ("on_heard", "on_played") if getattr(d, key)]
+            parts += [f"{what} {{{', '.join(f'{k} {v:g}' for k, v in getattr(d, what).items())}}}"
+                      for what in ("inputs", "coupling") if getattr(d, what)]
+            parts += [f"arc of {len(d.arc)} points"] if d.arc else []
+        lines.append(f"{name} = {m.levels[i]:g} ({', '.join(parts)})")
+    return lines
+
+
+def _actions(spec: Any) -> dict[str, str]:
+    """An authored creature's tuples' action types by tuple name (a name alone is its own type)."""
+    return {name: tp.action if isinstance(tp.action, str) else tp.action.type
+            for name, tp in getattr(spec, "tuples", {}).items()}
 
 
 def describe(inst: LoadedInstallation) -> str:
@@ -121,10 +142,10 @@ def describe(inst: LoadedInstallation) -> str:
         children: list[Any] = []
         motivations = [m for m in parts.values() if isinstance(m, Motivation)]
         if motivations:
-            children.append(("drives", _drives(motivations[0])))
+            children.append(("drives", _drives(motivations[0], spec)))
         types = {name: p.type for name, p in getattr(spec, "percepts", {}).items()}
         roots = [_percept(r, types) for r in _roots(top)]
         children += [("percepts", roots)] if roots else []
-        children += [_group(g) for g in top] + creature.described()
+        children += [_group(g, _actions(spec)) for g in top] + creature.described()
         out += _tree(f"{spec.name} ({spec.kind})", children)
     return "\n".join(out) + "\n"

@@ -184,6 +184,10 @@ class PulseDuration:
         self.beats = beats
         self.level = level
 
+    def __repr__(self) -> str:
+        of = "the heard pulse" if self.level is None else f"the heard pulse's {self.level} level"
+        return f"{self.beats} steps of {of} (until heard: {self.fallback!r})"
+
     def sample(self, rng: np.random.Generator) -> float:
         if not self.pulse.ready:
             return self.fallback.sample(rng)
