@@ -784,6 +784,10 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+COMPILING = {"offline", "demo", "run", "rehearse", "inspect", "render", "images", "view"}
+"""Commands that run creatures (or draw them) and so compile numba's kernels on a first run."""
+
+
 PRINTING = {"version", "devices", "config-docs", "describe", "state"}
 """Commands that only print: a reader that stops reading (``| head``) ends them silently. Not
 the shows, whose sockets must never end a run by a signal."""
@@ -811,6 +815,7 @@ def main(argv: list[str] | None = None) -> int:
     if piped:  # `creatures state diff … | head` ends quietly, as cat does
         sigpipe = signal.signal(signal.SIGPIPE, signal.SIG_DFL)
     restore = stop.install()
+    unsay: Callable[[], None] = lambda: None  # noqa: E731
     try:
         import scipy.linalg  # noqa: F401 - loads numpy's and scipy's BLAS, so the limit below reaches them
         from threadpoolctl import threadpool_limits
@@ -826,6 +831,10 @@ def main(argv: list[str] | None = None) -> int:
 
         log_limit.install()  # a library that logs per bad packet must not flood stderr
         alsa.quiet()  # libasound's own stderr lines: the errors they precede are reported once, in words
+        if args.command in COMPILING:  # a first run's long start, said (on a terminal)
+            from creatures.runtime.first_compile import say_first_compile
+
+            unsay = say_first_compile()
         return int(args.run(args))
     except KeyboardInterrupt as stopped:  # creatures/stop.py: SIGTERM and SIGHUP are raised as Ctrl-C is
         signum = stopped.signum if isinstance(stopped, stop.Terminated) else signal.SIGINT
@@ -834,6 +843,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"creatures {args.command}: stopped by {how}" + (f"; {left}" if left else ""), file=sys.stderr)
         return 128 + signum
     finally:
+        unsay()
         restore()
         if piped:
             signal.signal(signal.SIGPIPE, sigpipe)
