@@ -36,7 +36,8 @@ class CreatureSpec(BaseModel):
     name: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_\-]+$", description="unique name (ASCII letters, digits, _ and -: it goes into OSC addresses and file names)")
     kind: str = Field(description="which creature kind (the sections below)")
     channel: int = Field(0, ge=0, le=15, description="MIDI channel this creature plays on")
-    gain: float = Field(0.8, ge=0.0, le=4.0, description="linear gain of its voice in the mix")
+    gain: float = Field(0.8, ge=0.0, le=4.0, description="linear gain of its voice in the audio mix (out.wav, the "
+                                                         "loudspeakers; MIDI velocities are the notes' own)")
     pan: float = Field(0.0, ge=-1.0, le=1.0, description="stereo position of its voice (and MIDI pan, CC 10, "
                                                           "sent on its channel at start)")
     program: int | None = Field(None, ge=0, le=127, description="General MIDI program sent on its channel at start "
