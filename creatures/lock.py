@@ -87,11 +87,11 @@ class FolderLock:
         return True
 
     def release(self) -> None:
+        if _LOCKS.get(os.path.abspath(self.directory)) is self:  # a retake another run refused left it there
+            del _LOCKS[os.path.abspath(self.directory)]
         fd, self._fd = self._fd, None
         if fd is None:
             return
-        if _LOCKS.get(os.path.abspath(self.directory)) is self:
-            del _LOCKS[os.path.abspath(self.directory)]
         with contextlib.suppress(OSError):
             if _same_file(fd, self.path):  # unlinked while still locked: no one can take a ghost
                 os.unlink(self.path)

@@ -28,6 +28,7 @@ from pathlib import Path
 
 import pytest
 
+from creatures import lock
 from creatures.cli import main
 from creatures.events import EventLog, read_events
 from creatures.lock import LOCK_FILE, FolderLock, FolderLockedError
@@ -582,6 +583,7 @@ def test_a_state_folder_removed_mid_run_is_locked_again_by_the_save_that_makes_i
     finally:
         if ours is not None:
             ours.release()
+    assert os.path.abspath(state) not in lock._LOCKS  # the lock another run refused is not kept as this process's
 
 
 def test_a_stale_lock_of_a_dead_run_is_taken_over(config, tmp_path, holder, capsys):
