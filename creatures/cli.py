@@ -829,7 +829,7 @@ def main(argv: list[str] | None = None) -> int:
         from creatures import log_limit
         from midi import alsa
 
-        log_limit.install()  # a library that logs per bad packet must not flood stderr
+        log_limit.install().reset()  # a library that logs per bad packet must not flood stderr; counts per command
         alsa.quiet()  # libasound's own stderr lines: the errors they precede are reported once, in words
         if args.command in COMPILING:  # a first run's long start, said (on a terminal)
             from creatures.runtime.first_compile import say_first_compile

@@ -46,6 +46,12 @@ class RateLimit(logging.Filter):
         self._windows[cause] = [now + self.interval, 0]
         return True
 
+    def reset(self) -> None:
+        """Start counting afresh (a new command in the same process: what an earlier one left
+        out is not this one's to report)."""
+        self.suppressed = 0
+        self._windows.clear()
+
     def pending(self) -> list[str]:
         """What was left out since each cause's last shown line (for the end of a run)."""
         return [f"{n} more log line(s) from {name} ({path.rsplit('/', 1)[-1]}:{line}) not shown"

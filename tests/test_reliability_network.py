@@ -21,7 +21,7 @@ from pythonosc.osc_packet import OscPacket
 
 import installations
 from bench.flood import packets
-from creatures import cli
+from creatures import cli, log_limit
 from creatures.clock import SimulatedClock
 from creatures.config import ConfigError
 from creatures.events import EventLog
@@ -434,3 +434,17 @@ def test_the_cli_installs_the_limit_for_its_runs(capsys):
         noisy.warning("bad thing %d", i)  # one call site: one cause
     err = capsys.readouterr().err.splitlines()
     assert len(err) == 1 and "bad thing" in err[0]
+
+
+def test_a_command_counts_only_the_log_lines_it_left_out(capsys):
+    """The limit is installed once per process, but what it left out is each command's own: a
+    second run in one process summed the first's into its ``log_suppressed`` and said the first's
+    left-out lines again at its end (after the test above, 501 were counted here)."""
+    assert cli.main(["version"]) == 0
+    noisy = logging.getLogger("some.library")
+    for i in range(3):
+        noisy.warning("more bad things %d", i)
+    assert log_limit.suppressed() == 2 and len(log_limit.install().pending()) == 1
+    assert cli.main(["version"]) == 0
+    assert log_limit.suppressed() == 0 and log_limit.install().pending() == []
+    capsys.readouterr()
