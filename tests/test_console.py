@@ -18,6 +18,7 @@ import threading
 import time
 import urllib.error
 import urllib.request
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -97,15 +98,13 @@ heartbeat = ["127.0.0.1:{heartbeat}"]
             self.process.kill()
 
 
-@pytest.fixture(scope="module")
-def show(tmp_path_factory):
+def _showing(where: Path):
     beats: list[tuple[float, list]] = []
     dispatcher = Dispatcher()
     dispatcher.map("/colony/heartbeat", lambda address, *args: beats.append((time.monotonic(), list(args))))
     server = ThreadingOSCUDPServer(("127.0.0.1", 0), dispatcher)
     threading.Thread(target=server.serve_forever, daemon=True).start()
-    running = Show(tmp_path_factory.mktemp("show"), _free_port(), _free_port(socket.SOCK_STREAM),
-                   server.server_address[1])
+    running = Show(where, _free_port(), _free_port(socket.SOCK_STREAM), server.server_address[1])
     running.beats = beats
     deadline = time.monotonic() + 120
     while True:  # until the loop answers (starting takes seconds: compiled kernels load)
@@ -121,6 +120,18 @@ def show(tmp_path_factory):
     server.server_close()
     assert running.process.returncode == 0, out
     running.out = out
+
+
+@pytest.fixture(scope="module")
+def show(tmp_path_factory):
+    yield from _showing(tmp_path_factory.mktemp("show"))
+
+
+@pytest.fixture
+def own_show(tmp_path):
+    """A show for the test that stops it: the module's stays up for the others whatever their
+    order (after that test stopped it, every later query got no reply)."""
+    yield from _showing(tmp_path)
 
 
 def _status(show: Show) -> dict:
@@ -259,9 +270,10 @@ def test_health_endpoint_and_heartbeat(show):
     assert all(0.7 <= b - a <= 1.3 for a, b in zip(uptimes, uptimes[1:])), uptimes
 
 
-def test_console_set_and_pause_are_in_the_log(show):
-    """Does its own set, pause and bad requests first: under xdist the tests before it may have
-    run against another worker's show, so it must not rely on what they sent."""
+def test_console_set_and_pause_are_in_the_log(own_show):
+    """Does its own set, pause and bad requests first, on a show of its own: it stops the show
+    to read the run's summary, so it must not rely on what other tests sent, nor leave them none."""
+    show = own_show
     assert show.ask("set", "ada", "gain", 0.5) == ("reply", {"set": "gain", "value": 0.5})
     assert show.ask("pause") == ("reply", {"paused": True})
     assert show.ask("resume") == ("reply", {"paused": False})
