@@ -5,9 +5,12 @@ Each creature's file was written atomically, but the set was not: a power cut be
 creatures' files left one creature's state from one save beside another's from the save before,
 each whole and loadable, and the colony's pulse from either. A save is now written into a hidden
 journal folder (:data:`JOURNAL`) beside the files, then the list of its files (:data:`LISTED`),
-and only then renamed into place. :func:`settle`, run under the state folder's lock before the
-set is read or written, finishes a save whose list was written (every file of it is whole) and
-drops one whose list was not (the files in place are still the last whole set).
+and only then renamed into place. :func:`settle`, run holding the state folder's lock (a live
+run's start, a save, ``state rollback`` and ``merge``), finishes a save whose list was written
+(every file of it is whole) and drops one whose list was not (the files in place are still the
+last whole set). What reads the folder without its lock (``inspect``, ``state diff``,
+``export-motion``; a live start on a read-only folder, which cannot finish the save) reads it
+through :func:`files`: the last whole save, whether or not its renames were finished.
 """
 
 from __future__ import annotations
@@ -60,8 +63,19 @@ def settle(directory: Path) -> None:
         shutil.rmtree(journal)
 
 
-def _roll_forward(directory: Path, journal: Path) -> None:
-    """Rename every listed file of ``journal`` into ``directory``, then remove the journal."""
+def files(directory: Path) -> dict[str, Path]:
+    """The state files of ``directory`` by name (``NAME.json``, the colony's), as its last whole
+    save left them: those of a listed journal where a crash cut its renames short, the folder's
+    own otherwise. For a reader that does not hold the folder's lock."""
+    found = {p.name: p for p in sorted(directory.glob("[!.]*.json"))}
+    journal = directory / JOURNAL
+    if (journal / LISTED).is_file() and not journal.is_symlink():
+        found.update({name: journal / name for name in _listed(journal) if (journal / name).is_file()})
+    return dict(sorted(found.items()))
+
+
+def _listed(journal: Path) -> list[str]:
+    """The names a journal's list holds; :class:`StateFileError` naming it when damaged."""
     listed = journal / LISTED
     try:
         names = json.loads(listed.read_text(encoding="utf-8"))
@@ -71,6 +85,12 @@ def _roll_forward(directory: Path, journal: Path) -> None:
     if not (isinstance(names, list) and all(isinstance(n, str) and n and "/" not in n and not n.startswith(".")
                                             for n in names)):
         raise StateFileError(f"{listed}: not a list of state files; remove {journal} to keep the files in place")
+    return names
+
+
+def _roll_forward(directory: Path, journal: Path) -> None:
+    """Rename every listed file of ``journal`` into ``directory``, then remove the journal."""
+    names = _listed(journal)
     for name in names:
         with contextlib.suppress(FileNotFoundError):  # renamed before a crash cut the roll forward short
             os.replace(journal / name, directory / name)

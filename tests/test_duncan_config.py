@@ -146,3 +146,16 @@ def test_a_restored_dog_keeps_its_cues_and_does_the_trained_trick_on_one(tmp_pat
     dog, answers, _ = _session(tmp_path, 10, 2, state=saved, clicks=False)
     assert [c.name for c in dog.heard.utterance_children()] == ["heard/1"]  # the tone is the cue it knew
     assert answers.count("heard/1|sit") >= 7, answers
+
+
+def test_a_running_dog_of_the_default_tricks_can_drop_one_as_a_fresh_config_can():
+    """The defaults' offers and notes, filtered to the dog's tricks, were marked written, so a
+    live change of its tricks (the console, a zone: spec_keys.with_key) took the defaults'
+    "roll over" pitch as the author's and refused to drop that trick (a review)."""
+    from creatures.kinds.duncan import DuncanSpec
+    from creatures.kinds.spec_keys import with_key
+
+    dog = DuncanSpec(name="d", kind="duncan", body={"figure": "dog"})
+    assert "notes" not in dog.model_fields_set and "offers" not in dog.model_fields_set
+    fewer = with_key(dog, "tricks", ["sit", "beg", "lie down"], "d")
+    assert "roll over" not in fewer.notes and "roll over" not in fewer.offers

@@ -259,3 +259,23 @@ def test_a_program_gives_the_body_to_a_newer_one_and_takes_it_back_when_free(gra
     later = [tags & {LEFT, RIGHT} for at, node in motor.arrivals if at > ended
              for tags in [graph.poses.labels[node]]]
     assert later and all(later)
+
+
+def test_a_program_stopped_gives_the_body_back_to_the_one_it_took_it_from(graph, clock):
+    """A gesture's program (kinds/shaping.py) stopped mid-course kept the body: the sway beside
+    it stayed paused until some other course came. Stopping a program gives the body up."""
+    motor = MotorSystem(graph, start=0)
+    sway = ProgramStack(motor, parse_programs(f'sway: getToClosest {{"{LEFT}"}}; wait; getTo "{RIGHT}"; wait; '
+                                              "cycle 0")["sway"])
+    lunge = ProgramStack(motor, parse_programs('lunge: getTo "strike ready"; wait; getTo "strike"; wait; end')["lunge"])
+    sway.start(clock.now())
+    run(sway, clock, until=3.0)
+    lunge.start(clock.now())
+    lunge.tick(clock.now())
+    clock.advance(1.0 / 30.0)
+    sway.tick(clock.now())
+    assert sway.paused
+    lunge.stop(clock.now(), interrupted=True)  # its tuple outbid, or its until ended
+    before = len(motor.arrivals)
+    run(sway, clock, until=30.0)
+    assert not sway.paused and len(motor.arrivals) - before >= 4

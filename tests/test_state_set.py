@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from creatures.persist import StateFileError
-from creatures.state_set import JOURNAL, LISTED, settle, write_set
+from creatures.state_set import JOURNAL, LISTED, files, settle, write_set
 from test_faults import _colony_session, colony  # noqa: F401 (a fixture)
 
 OLD = [("ada.json", '{"save": 1}'), ("bo.json", '{"save": 1}'), ("colony.state.json", '{"save": 1}')]
@@ -111,3 +111,65 @@ def test_a_live_start_loads_the_finished_save(colony, tmp_path, monkeypatch):  #
 
 def _saves_bytes(directory: Path) -> dict[str, bytes]:
     return {p.name: p.read_bytes() for p in sorted(directory.glob("*.json"))}
+
+
+def _cut_after_listing(directory: Path, saved: list[tuple[str, str]]) -> None:
+    """A save whose list was written and none of whose renames were made (a power cut)."""
+    journal = directory / JOURNAL
+    journal.mkdir()
+    for name, text in saved:
+        (journal / name).write_text(text)
+    (journal / LISTED).write_text(json.dumps([name for name, _ in saved]))
+
+
+def test_a_reader_without_the_lock_reads_the_last_whole_save(tmp_path):
+    """``inspect``, ``state diff`` and ``export-motion`` read a folder a run may hold, so they
+    cannot finish its save; they read it as the last whole save left it."""
+    write_set(tmp_path, OLD)
+    _cut_after_listing(tmp_path, NEW[:2])  # a save of two files
+    assert {name: json.loads(path.read_text())["save"] for name, path in files(tmp_path).items()} == {
+        "ada.json": 2, "bo.json": 2, "colony.state.json": 1}
+
+
+def test_a_merge_after_a_crash_merges_into_the_last_whole_save(tmp_path):
+    """The merge read its target before finishing the interrupted save, then wrote the merge
+    of the older file over the newer: what the newer save learnt was lost (a review)."""
+    from creatures.runtime import repertoire
+    from test_state_history import FIRST, SECOND, live_for
+
+    one, two = tmp_path / "one", tmp_path / "two"
+    live_for(None, 10, FIRST)[0].save_state(two)
+    newer = live_for(two, 10, SECOND)[0].snapshot()
+    _cut_after_listing(two, newer)
+    live_for(None, 10, (61, 63, 66))[0].save_state(one)
+    repertoire.merge(one, "heron", two, "heron")
+    assert not (two / JOURNAL).exists()
+    merged = json.loads((two / "heron.json").read_text())["state"]
+    assert len(merged["phrases"]) > len(json.loads(dict(newer)["heron.json"])["state"]["phrases"])
+
+
+def test_a_read_only_folder_starts_from_the_save_it_cannot_finish(colony, tmp_path, monkeypatch):  # noqa: F811
+    """A run may start on a read-only state folder (lock.hold lets it); one holding a listed
+    journal could not finish it (EROFS) and the run did not start at all."""
+    import errno
+
+    state = tmp_path / "state"
+    first = _colony_session(colony, 1.0)
+    first.save_state(state)
+    later = _colony_session(colony, 3.0)
+    assert later.world.pulse.heard != first.world.pulse.heard
+    _cut_after_listing(state, later.snapshot())
+    real = os.replace
+
+    def read_only(src, dst, *args, **kwargs):
+        if Path(dst).parent == state:
+            raise OSError(errno.EROFS, os.strerror(errno.EROFS))
+        return real(src, dst, *args, **kwargs)
+
+    monkeypatch.setattr(os, "replace", read_only)
+    said: list[str] = []
+    fresh = _colony_session(colony, 0.02)
+    fresh.say = said.append
+    assert fresh.load_state(state) == ["ada", "bo"]
+    assert len(said) == 1 and "could not finish the save a crash interrupted" in said[0]
+    assert fresh.world.pulse.heard == later.world.pulse.heard  # the colony's file of the later save

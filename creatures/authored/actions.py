@@ -427,19 +427,14 @@ class ProgramAction(Action):
         self._paused = False
 
     def update(self, t: float) -> None:
-        try:
-            self.stack.update(t)
-        except NoPath:
-            self.stack.stack.clear()  # nowhere to go from here: the program is over
+        self.stack.tick(t)
         if self.stack.paused != self._paused:  # in the log: two actions at once on one body
             self._paused = self.stack.paused
             c = self.creature
             c.world.emit("motor paused" if self._paused else "motor resumed", creature=c.name, action=self.name)
 
     def stop(self, t: float, *, interrupted: bool) -> None:
-        if interrupted:
-            self.stack.request_exit(t)
-        self.stack.release()  # a program waiting for the body takes it back
+        self.stack.stop(t, interrupted=interrupted)
 
     def done(self, t: float) -> float:
         return 1.0 if self.stack is None or self.stack.done else 0.0

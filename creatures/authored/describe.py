@@ -47,8 +47,9 @@ def _du(du: DoUntil) -> str:
         length = ""
     elif isinstance(du.duration, int | float):
         length = f"{du.duration:g} s"
-    else:  # a model: what it samples from (its repr), not only its class
-        length = repr(du.duration)
+    else:  # a model: what it samples from (its repr), or its class when it says nothing (a plugin's)
+        said = repr(du.duration)
+        length = type(du.duration).__name__ if " object at 0x" in said else said
     if length and du.graded:
         length += " graded"
     until = f"until {du.until.name}" if du.until is not None else ""

@@ -149,10 +149,14 @@ class DuncanSpec(CreatureSpec):
             if twice is not None:  # one name, two tuples: twice the chance of it, one saved value
                 raise ValueError(f"{key}: {twice!r} is named twice")
         # The defaults name the shipped tricks: their entries for tricks this dog lacks are not its own.
+        # Set here, they stay unwritten: a live change of tricks (spec_keys.with_key validates
+        # what was written) must filter them again, not take the defaults' "roll over" as the author's.
         if "offers" not in self.model_fields_set:
             self.offers = [offer for offer in self.offers if offer in self.tricks]
+            self.model_fields_set.discard("offers")
         if "notes" not in self.model_fields_set:
             self.notes = {trick: pitch for trick, pitch in self.notes.items() if trick in [*self.tricks, self.rest]}
+            self.model_fields_set.discard("notes")
         for offer in self.offers:
             if offer not in self.tricks:
                 raise ValueError(f"offers: {offer!r} is not one of the tricks {self.tricks}")

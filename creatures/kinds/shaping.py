@@ -135,14 +135,11 @@ class RunsProgram(Action):
 
     def update(self, t: float) -> None:
         if self.stack is not None:
-            try:
-                self.stack.update(t)
-            except NoPath:
-                self.stack.stack.clear()  # nowhere to go from here: the program is over
+            self.stack.tick(t)
 
     def stop(self, t: float, *, interrupted: bool) -> None:
-        if interrupted and self.stack is not None:
-            self.stack.request_exit(t)
+        if self.stack is not None:
+            self.stack.stop(t, interrupted=interrupted)
         if self.began is not None:
             self.performed = (self.began, t)
 

@@ -415,6 +415,23 @@ class ProgramStack:
             " without the body moving (a cycle with no course to follow?)"
         )
 
+    def tick(self, t: float) -> None:
+        """:meth:`update` for an action's tick: a program with nowhere to go from here is over
+        (and gives the body up)."""
+        try:
+            self.update(t)
+        except NoPath:
+            self.stack.clear()
+            self.release()
+
+    def stop(self, t: float, *, interrupted: bool) -> None:
+        """Its action stopped: an interrupted program unwinds (:meth:`request_exit`), and either
+        way gives the body up, so a program waiting for it takes it back. An action that kept
+        the body when it stopped left the one beside it paused until some other course came."""
+        if interrupted:
+            self.request_exit(t)
+        self.release()
+
     def _go(self, t: float, stmt: Statement) -> None:
         """Set the course ``stmt`` (a ``getTo``-style statement) names, as this program's."""
         self.motor.set_course(t, self.motor.course(t, stmt.targets, furthest=stmt.op == "getToFurthest"), owner=self)

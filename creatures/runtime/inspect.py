@@ -35,6 +35,7 @@ from creatures.events import read_events
 from creatures.persist import StateFileError, atomic_write, load_json
 from creatures.runtime.report import counts_table, event_plots, html_page, plot_bars, plt, saved
 from creatures.runtime.session import COLONY_FILE, COLONY_KIND, STATE_KIND
+from creatures.state_set import files
 from creatures.temporal.durations import LowIntegerRatioModel, SimpleDurationModel
 
 VALUE_KINDS = ("scalar", "chain", "gaussian", "stance")
@@ -131,7 +132,8 @@ def read_state(directory: Path, skipped: list[str] | None = None) -> list[Knowle
     state, or are damaged, are skipped, each with why (the error naming it) in ``skipped``."""
     found = []
     skipped = [] if skipped is None else skipped
-    for path in sorted(directory.glob("[!.]*.json")):
+    state_files = files(directory)  # as the last whole save left them (creatures.state_set)
+    for path in state_files.values():
         if path.name == COLONY_FILE:
             continue
         try:
@@ -142,11 +144,11 @@ def read_state(directory: Path, skipped: list[str] | None = None) -> list[Knowle
         state = document.get("state")
         if isinstance(state, dict):
             found.append(knowledge(path.stem, str(document.get("kind", "?")), state))
+    colony = state_files.get(COLONY_FILE, directory / COLONY_FILE)
     try:
-        found.append(knowledge(COLONY, "what the creatures hear together", load_json(directory / COLONY_FILE,
-                                                                                     kind=COLONY_KIND)))
+        found.append(knowledge(COLONY, "what the creatures hear together", load_json(colony, kind=COLONY_KIND)))
     except StateFileError as exc:  # none (a state directory from before colonies saved one), or unreadable
-        if (directory / COLONY_FILE).exists():
+        if colony.exists():
             skipped.append(str(exc))
     return found
 

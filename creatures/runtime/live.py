@@ -43,6 +43,7 @@ from creatures.authored.migrate import keep_originals
 from creatures.clock import Clock, SimulatedClock, WallClock
 from creatures.events import EventLog
 from creatures.paths import directory, regular_file, writable_directory
+from creatures.persist import StateFileError
 from creatures.runtime.bodies import FramesBeside
 from creatures.runtime.input_sources import SerialSource, open_sources
 from creatures.runtime.live_score import KEPT, LiveScore, RecordingSink
@@ -286,7 +287,8 @@ def _write_state(state_dir: Path, snapshot: list[tuple[str, str]], summary: Live
         if lock.retake(state_dir):
             say(f"state folder {state_dir} was removed while the run used it: made again and locked again")
         write_snapshot(state_dir, snapshot)
-    except OSError as exc:  # a full disk, or another run took the folder while it was gone
+    except (OSError, StateFileError) as exc:  # a full disk, another run took the folder while it was gone,
+        # or a save a crash cut short whose list is damaged (creatures.state_set): said at each try
         summary.failed_saves += 1
         say(f"could not save creature state ({exc}); the previous state is kept"
             + ("" if final else ", will try again"))

@@ -24,6 +24,7 @@ from creatures.paths import open_regular
 from creatures.persist import load_json
 from creatures.runtime.schema import load_installation
 from creatures.runtime.session import STATE_KIND
+from creatures.state_set import files
 
 
 def export_motion_of_run(path: Path, creature: str, out: Path, *, config: Path | None = None,
@@ -34,7 +35,7 @@ def export_motion_of_run(path: Path, creature: str, out: Path, *, config: Path |
     took in the run that saved it, and the config that ran)."""
     refuse_to_lose(out)
     log = path if path.is_file() else path / "events.jsonl"
-    saved = path / f"{creature}.json"
+    saved = files(path).get(f"{creature}.json", path / f"{creature}.json") if path.is_dir() else path / f"{creature}.json"
     if log.is_file():
         events = read_events(log)
         if config is None:

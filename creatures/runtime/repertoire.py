@@ -25,7 +25,7 @@ from creatures.bounds import table
 from creatures.config import nearest
 from creatures.lock import FolderLock
 from creatures.persist import StateFileError, atomic_write, json_text, load_json
-from creatures.state_set import settle
+from creatures.state_set import files, settle
 from creatures.runtime import snapshots
 from creatures.runtime.repertoire_shape import SHAPES
 from creatures.runtime.session import COLONY_FILE, RESTORE_ERRORS, STATE_KIND
@@ -72,7 +72,7 @@ def read_creatures(folder: Path) -> dict[str, dict[str, Any]]:
     if not folder.is_dir():
         raise StateFileError(f"{folder}: not a state folder or snapshot")
     found = {}
-    for path in sorted(folder.glob("*.json")):
+    for path in files(folder).values():  # as the last whole save left them (creatures.state_set)
         if path.name != COLONY_FILE:
             document = load_json(path, kind=STATE_KIND)
             found[path.stem] = {"kind": document.get("kind"), "state": document.get("state", {})}
@@ -132,7 +132,7 @@ def _key(item: Any) -> str:
 
 def _saved_names(folder: Path) -> list[str]:
     """The creatures a state folder or snapshot keeps a file for (``NAME.json``), unread."""
-    return sorted(p.stem for p in folder.glob("[!.]*.json") if p.name != COLONY_FILE)
+    return sorted(Path(name).stem for name in files(folder) if name != COLONY_FILE)
 
 
 def _creature_file(folder: Path, name: str) -> Path:
@@ -144,7 +144,7 @@ def _creature_file(folder: Path, name: str) -> Path:
     names = _saved_names(folder)
     if name not in names:
         raise StateFileError(f"{folder}: no saved state for creature {name!r}{nearest(name, names, 'saved')}")
-    return folder / f"{name}.json"
+    return files(folder)[f"{name}.json"]
 
 
 def rollback(state_dir: Path, snapshot: Path, name: str) -> Path:
@@ -156,6 +156,12 @@ def rollback(state_dir: Path, snapshot: Path, name: str) -> Path:
     if not state_dir.is_dir():
         raise StateFileError(f"{state_dir}: no such state folder" + (" (it is a file)" if state_dir.exists() else ""))
     snapshots.refuse_to_change(state_dir, "roll back")
+    with FolderLock(state_dir, "state folder"):
+        settle(state_dir)  # a save a crash cut short, finished first: rolled forward later, it would undo this
+        return _rollback(state_dir, snapshot, name)
+
+
+def _rollback(state_dir: Path, snapshot: Path, name: str) -> Path:
     source = _creature_file(snapshot, name)
     kind = load_json(source, kind=STATE_KIND).get("kind")  # a damaged snapshot is refused before anything changes
     data = source.read_bytes()
@@ -167,9 +173,7 @@ def rollback(state_dir: Path, snapshot: Path, name: str) -> Path:
     if now != kind:
         raise StateFileError(f"{source} holds a creature of kind {kind!r} and {target} one of kind {now!r}: a "
                              f"snapshot of another installation? (nothing changed)")
-    with FolderLock(state_dir, "state folder"):
-        settle(state_dir)  # a save a crash cut short, finished now: rolled forward later, it would undo this
-        atomic_write(target, lambda handle: handle.write(data), "wb")
+    atomic_write(target, lambda handle: handle.write(data), "wb")
     return target
 
 
@@ -178,6 +182,12 @@ def merge(source: Path, name: str, target: Path, into: str) -> list[str]:
     (same kind), keeping everything ``into`` knew; returns what was added. A snapshot is read
     as a source, never written as a target."""
     snapshots.refuse_to_change(target, "merge into")
+    with FolderLock(target, "state folder"):
+        settle(target)  # as rollback: the file merged into is the last save's
+        return _merge(source, name, target, into)
+
+
+def _merge(source: Path, name: str, target: Path, into: str) -> list[str]:
     src_path = _creature_file(source, name)
     src = load_json(src_path, kind=STATE_KIND)
     path = _creature_file(target, into)
@@ -201,9 +211,7 @@ def merge(source: Path, name: str, target: Path, into: str) -> list[str]:
                              f"({type(exc).__name__}: {exc}); nothing merged") from None
     text = json_text({**{k: v for k, v in dst.items() if k not in ("format", "version")}, "state": state},
                      kind=STATE_KIND)  # what else the file keeps (the path its body took) stays
-    with FolderLock(target, "state folder"):
-        settle(target)  # as rollback
-        atomic_write(path, lambda handle: handle.write(text), "w")
+    atomic_write(path, lambda handle: handle.write(text), "w")
     return added
 
 

@@ -25,7 +25,7 @@ from creatures.events import EventLog
 from creatures.authored.migrate import from_retired
 from creatures.kinds import KINDS
 from creatures.persist import StateFileError, json_text, load_json
-from creatures.state_set import settle, write_set
+from creatures.state_set import files, settle, write_set
 from creatures.runtime.cc_sources import Reader, parse, reader
 from creatures.runtime.input_map import InputRouter
 from creatures.runtime.pulse import HeardPulse
@@ -282,11 +282,16 @@ class Session:
         of another kind, or one whose content the kind cannot take back, raises
         :class:`StateFileError` naming it (never a silent mix).
         """
-        settle(directory)
+        try:
+            settle(directory)
+        except OSError as exc:  # a read-only folder, which lock.hold lets a run start on: read it as it lies
+            self.say(f"{directory}: could not finish the save a crash interrupted ({exc.strerror or exc}); its "
+                     "files are read where they lie")
+        saved = files(directory)
         restored = []
         for creature in self.creatures:
-            path = directory / f"{creature.name}.json"
-            if not path.exists():
+            path = saved.get(f"{creature.name}.json")
+            if path is None:
                 continue
             data = load_json(path, kind=STATE_KIND)
             state = data.get("state", {})
@@ -310,16 +315,16 @@ class Session:
                 self.migrated.append((path, data["kind"]))
             restored.append(creature.name)
             self._report_unplaced(path, creature)
-        self._report_strangers(directory)
-        self._load_colony(directory / COLONY_FILE)
+        self._report_strangers(directory, saved)
+        self._load_colony(saved.get(COLONY_FILE))
         return restored
 
-    def _report_strangers(self, directory: Path) -> None:
+    def _report_strangers(self, directory: Path, saved: dict[str, Path]) -> None:
         """Say which saved creatures no creature of the config takes (one renamed or removed):
         their files are left as they are, and taken back if a creature of that name returns."""
         names = {creature.name for creature in self.creatures}
-        strangers = sorted(p.stem for p in directory.glob("[!.]*.json")  # a creature's NAME.json, no colony.state.json
-                           if "." not in p.stem and p.stem not in names)
+        stems = (Path(name).stem for name in saved)  # a creature's NAME.json, no colony.state.json
+        strangers = sorted(stem for stem in stems if "." not in stem and stem not in names)
         if strangers:
             self.say(f"{directory}: saved state of {', '.join(strangers)} matches no creature in "
                      f"{self.inst.path.name} (renamed or removed?); left as it is, and taken back if a creature "
@@ -334,9 +339,9 @@ class Session:
             self.say(f"{path}: saved values of {names} match no tuple in {self.inst.path.name} (renamed or removed?); "
                      "kept in the state file, and taken back if a tuple of that name returns")
 
-    def _load_colony(self, path: Path) -> None:
+    def _load_colony(self, path: Path | None) -> None:
         """The colony's heard pulse, if a file was saved (older state directories have none)."""
-        if not path.exists():
+        if path is None:
             return
         data = load_json(path, kind=COLONY_KIND)
         try:
