@@ -228,6 +228,34 @@ def test_the_server_sends_the_hello_then_the_feeds_frames_on_its_own_thread():
         feed.close()
 
 
+def test_a_record_orjson_refuses_does_not_stop_the_live_view(tmp_path):
+    # A log with a file hands its taps the fields as emitted (a numpy integer key, an integer
+    # beyond 64 bits: the log's own line falls back to the standard library for them); the
+    # view's encoding raised on such a record and its feeding task died: no frame after it.
+    log = EventLog(tmp_path / "events.jsonl")
+    session, clock = exchange_session(log)
+    feed = Feed("exchange", session.creatures, log, clock, 25.0)
+    server = ViewServer(LiveSource(feed, 25.0)).start()
+    try:
+        async def scenario() -> list[dict]:
+            reading = asyncio.ensure_future(_read(server.url, 3))
+            while not server.clients:
+                await asyncio.sleep(0.01)
+            log.emit(clock.now(), "values", creature="ada", values={np.int64(3): 0.5}, count=2**70)
+            step(session, clock, 1, feed.offer)
+            await asyncio.sleep(0.2)
+            step(session, clock, 1, feed.offer)
+            return await asyncio.wait_for(reading, 10)
+
+        _, first, second = asyncio.run(scenario())
+    finally:
+        server.close()
+        feed.close()
+        log.close()
+    assert first["events"][0]["values"] == {"3": 0.5} and first["events"][0]["count"] == 2**70
+    assert second["type"] == "frame" and second["t"] > first["t"]
+
+
 def test_a_replay_sends_every_frame_at_its_time(offline_run):
     played = load_replay(offline_run)
     server = ViewServer(ReplaySource(played, speed=20.0)).start()

@@ -19,8 +19,8 @@ from dataclasses import asdict, dataclass, field
 from typing import TYPE_CHECKING, Any, Iterable
 
 import numpy as np
-import orjson
 
+from creatures.events import _line
 from creatures.kinds.base import CreatureKind
 
 if TYPE_CHECKING:
@@ -197,9 +197,9 @@ def trees(t: float | None, known: list["Knowledge"]) -> Message:
     return {"type": "trees", "t": t, "trees": {k.creature: [asdict(tree) for tree in k.trees] for k in known}}
 
 
-_OPTIONS = orjson.OPT_SERIALIZE_NUMPY | orjson.OPT_NON_STR_KEYS
-
-
 def encode(message: Message) -> str:
-    """A message as JSON text (numpy arrays as nested lists, NaN as null)."""
-    return orjson.dumps(message, option=_OPTIONS).decode()
+    """A message as JSON text (numpy arrays as nested lists, NaN as null), as the events log
+    writes its line: a record orjson refuses (a numpy integer key, an integer beyond 64 bits,
+    which a log with a file hands its taps as emitted) goes through the standard library (it
+    raised here, and the live view's feeding task died: no frame after it, for any browser)."""
+    return _line(message)[:-1].decode()
