@@ -292,3 +292,25 @@ def test_a_page_left_open_keeps_a_bounded_list_of_its_errors(browser):
     finally:
         server.close()
     assert shown["kept"] == 100 and shown["first"] == "e0" and shown["seen"] == 1000
+
+
+def test_a_damaged_record_does_not_stop_the_page_drawing(browser):
+    """A replayed log may hold a record the page cannot read (a ``values`` event without its
+    values: the log's reader checks only the fields it takes itself). Its panel refresh threw
+    inside the animation frame before the next was asked for, so the page never drew again: a
+    kiosk's picture froze on that frame for good."""
+    from creatures.view.server import ViewServer
+
+    hello = {"type": "hello", "title": "damaged", "mode": "replay", "status": {},
+             "creatures": [{"name": "ada", "kind": "authored", "parents": [-1, 0], "place": [0, 0, 0]}]}
+    frame = {"type": "frame", "t": 1.0, "bodies": {"ada": [[0, 1, 0], [0, 0, 0]]}, "marks": {}, "status": {},
+             "events": [{"t": 1.0, "kind": "values", "creature": "ada"}]}
+    server = ViewServer(_Scripted(hello, [frame])).start()
+    try:
+        page, _ = open_page(browser, server.url)
+        page.wait_for_function("window.__view.errorsSeen > 0 && window.__view.drawn > 0", timeout=30_000)
+        drawn = page.evaluate("__view.drawn")
+        page.evaluate("__view.redraw()")
+        page.wait_for_function(f"window.__view.drawn > {drawn}", timeout=5_000)
+    finally:
+        server.close()

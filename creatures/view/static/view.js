@@ -320,9 +320,11 @@ if (new URLSearchParams(location.search).has("projection")) projection(true);
 
 let lastPanels = 0;
 function animate(now) {
-  if (dirty) { draw(); dirty = false; }
-  if (view.hello && now - lastPanels > 250) { lastPanels = now; refreshPanels(); }
+  // Asked for first: an error below (a damaged record in a replayed log) reaches the error
+  // handler and costs this frame only; asked for last, it stopped the page drawing for good.
   requestAnimationFrame(animate);
+  if (dirty) { dirty = false; draw(); }
+  if (view.hello && now - lastPanels > 250) { lastPanels = now; refreshPanels(); }
 }
 window.addEventListener("resize", () => { dirty = true; });
 connect();
