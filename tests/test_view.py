@@ -188,22 +188,27 @@ async def _read(url: str, count: int) -> list[dict]:
     return got
 
 
+async def _hello_and_two_frames(server: ViewServer, session: Session, clock: SimulatedClock, feed: Feed,
+                                connected=lambda: None) -> list[dict]:
+    """What a browser reads from a live view: its hello and the frames of two ticks 0.2 s apart
+    (``connected`` runs once the browser is, before the first tick)."""
+    reading = asyncio.ensure_future(_read(server.url, 3))
+    while not server.clients:
+        await asyncio.sleep(0.01)
+    connected()
+    step(session, clock, 1, feed.offer)
+    await asyncio.sleep(0.2)
+    step(session, clock, 1, feed.offer)
+    return await reading
+
+
 def test_the_server_sends_the_hello_then_the_feeds_frames_on_its_own_thread():
     log = EventLog(keep_in_memory=10)
     session, clock = exchange_session(log)
     feed = Feed("exchange", session.creatures, log, clock, 25.0)
     server = ViewServer(LiveSource(feed, 25.0)).start()
     try:
-        async def scenario() -> list[dict]:
-            reading = asyncio.ensure_future(_read(server.url, 3))
-            while not server.clients:
-                await asyncio.sleep(0.01)
-            step(session, clock, 1, feed.offer)
-            await asyncio.sleep(0.2)
-            step(session, clock, 1, feed.offer)
-            return await reading
-
-        hello, first, second = asyncio.run(scenario())
+        hello, first, second = asyncio.run(_hello_and_two_frames(server, session, clock, feed))
         assert hello["type"] == "hello" and hello["mode"] == "live"
         assert [c["parents"] for c in hello["creatures"]][0] == session.creatures[0].figure()[1].tolist()
         assert first["type"] == second["type"] == "frame" and second["t"] > first["t"]
@@ -237,17 +242,9 @@ def test_a_record_orjson_refuses_does_not_stop_the_live_view(tmp_path):
     feed = Feed("exchange", session.creatures, log, clock, 25.0)
     server = ViewServer(LiveSource(feed, 25.0)).start()
     try:
-        async def scenario() -> list[dict]:
-            reading = asyncio.ensure_future(_read(server.url, 3))
-            while not server.clients:
-                await asyncio.sleep(0.01)
-            log.emit(clock.now(), "values", creature="ada", values={np.int64(3): 0.5}, count=2**70)
-            step(session, clock, 1, feed.offer)
-            await asyncio.sleep(0.2)
-            step(session, clock, 1, feed.offer)
-            return await asyncio.wait_for(reading, 10)
-
-        _, first, second = asyncio.run(scenario())
+        _, first, second = asyncio.run(_hello_and_two_frames(
+            server, session, clock, feed,
+            lambda: log.emit(clock.now(), "values", creature="ada", values={np.int64(3): 0.5}, count=2**70)))
     finally:
         server.close()
         feed.close()
