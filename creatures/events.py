@@ -13,6 +13,7 @@ import contextlib
 import errno
 import io
 import json
+import logging
 import math
 import os
 import stat
@@ -22,6 +23,8 @@ from typing import IO, Any, Callable
 import orjson
 
 from creatures.paths import UnsafePathError, kind_of, open_regular, regular_file
+
+_log = logging.getLogger(__name__)
 
 
 def _plain(value: Any) -> Any:
@@ -380,10 +383,15 @@ def _malformed(event: Any) -> str | None:
     return None
 
 
-def read_events(path: str | os.PathLike) -> list[dict[str, Any]]:
+def read_events(path: str | os.PathLike, say: Callable[[str], None] | None = None) -> list[dict[str, Any]]:
     """Read a JSONL events log; a malformed line — not JSON, not UTF-8, nested too deep, or
     an event lacking what the readers take from it (:data:`FIELDS`) — raises ValueError
-    naming file and line (issue 13: ``creatures inspect`` gave tracebacks on such logs)."""
+    naming file and line (issue 13: ``creatures inspect`` gave tracebacks on such logs).
+
+    A last line cut short (no newline: a live run's ``--log`` when the power went) is the
+    write the cut interrupted, not a damaged log: it is left out and said to ``say`` (the
+    module's logger when none). ``creatures view``, ``inspect`` and the report refused the
+    whole run for it."""
     events = []
     with open_regular(path, "events log") as handle:  # a FIFO would block inspect forever
         for lineno, raw in enumerate(handle, 1):
@@ -391,10 +399,13 @@ def read_events(path: str | os.PathLike) -> list[dict[str, Any]]:
                 continue
             try:
                 event = json.loads(raw.decode("utf-8"))
-            except UnicodeDecodeError:
-                raise ValueError(f"{path}:{lineno}: malformed event (not UTF-8 text)") from None
-            except json.JSONDecodeError as exc:
-                raise ValueError(f"{path}:{lineno}: malformed event ({exc.msg})") from None
+            except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+                if not raw.endswith(b"\n"):  # only the last line can lack one
+                    (say or _log.warning)(f"{path}:{lineno}: the last line was cut short (its write interrupted); "
+                                          "read without it")
+                    break
+                why = "not UTF-8 text" if isinstance(exc, UnicodeDecodeError) else exc.msg
+                raise ValueError(f"{path}:{lineno}: malformed event ({why})") from None
             except RecursionError:
                 raise ValueError(f"{path}:{lineno}: malformed event (nested too deeply)") from None
             problem = _malformed(event)

@@ -72,6 +72,21 @@ def test_malformed_line_names_file_and_line(tmp_path):
         read_events(path)
 
 
+def test_a_last_line_cut_short_is_left_out_and_said(tmp_path):
+    """A live run's --log when the power went ends mid-line; ``creatures view``, ``inspect``
+    and the report refused the whole run for it. A damaged line before the last still is."""
+    path = tmp_path / "events.jsonl"
+    path.write_text('{"t": 0, "kind": "a"}\n{"t": 0.5, "kind": "b"}\n{"t": 1.0, "ki')
+    said: list[str] = []
+    assert [e["kind"] for e in read_events(path, said.append)] == ["a", "b"]
+    assert said == [f"{path}:3: the last line was cut short (its write interrupted); read without it"]
+    path.write_bytes(b'{"t": 0, "kind": "a"}\n{"t": 0.5, "kind": "\xc3')  # cut inside a character
+    assert [e["kind"] for e in read_events(path, said.append)] == ["a"]
+    path.write_text('{"t": 0, "kind": "a"}\n{"t": 0.5, "ki\n{"t": 1.0, "kind": "c"}')
+    with pytest.raises(ValueError, match=r"events.jsonl:2: malformed event"):
+        read_events(path)
+
+
 def test_a_full_disk_is_counted_loss_naming_the_log_and_close_still_lets_go(tmp_path):
     """A full disk never raises out of the log (issue 13: it crashed a live run): the events
     are counted lost, the reason names the file, and close lets go of it."""
