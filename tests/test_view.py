@@ -253,6 +253,38 @@ def test_a_record_orjson_refuses_does_not_stop_the_live_view(tmp_path):
     assert second["type"] == "frame" and second["t"] > first["t"]
 
 
+def test_a_frame_the_live_view_cannot_make_is_skipped_said_and_counted(monkeypatch):
+    """Any error making a frame ended the view's feeding task silently: /status answered on and
+    no browser got a frame again for the rest of the run (an audit)."""
+    log = EventLog(keep_in_memory=10)
+    session, clock = exchange_session(log)
+    feed = Feed("exchange", session.creatures, log, clock, 25.0)
+    take, broken = feed.take, [True]
+
+    def once_broken():
+        if broken:
+            broken.clear()
+            raise RuntimeError("a reader's slip")
+        return take()
+
+    monkeypatch.setattr(feed, "take", once_broken)
+    server = ViewServer(LiveSource(feed, 25.0)).start()
+    try:
+        _, first, second = asyncio.run(_hello_and_two_frames(server, session, clock, feed))
+
+        async def status() -> dict:
+            async with aiohttp.ClientSession() as client:
+                async with client.get(server.url + "status") as answer:
+                    return await answer.json()
+
+        counted = asyncio.run(status())
+    finally:
+        server.close()
+        feed.close()
+    assert first["type"] == second["type"] == "frame" and second["t"] > first["t"]
+    assert counted["failed"] == 1
+
+
 def test_a_replay_sends_every_frame_at_its_time(offline_run):
     played = load_replay(offline_run)
     server = ViewServer(ReplaySource(played, speed=20.0)).start()

@@ -16,6 +16,7 @@ loopback address (a web page elsewhere cannot reach it through DNS rebinding).
 from __future__ import annotations
 
 import asyncio
+import logging
 import socket
 import threading
 from pathlib import Path
@@ -26,6 +27,8 @@ from aiohttp import WSCloseCode, WSMsgType, web
 
 from creatures.view.feed import Feed
 from creatures.view.snapshot import Message, Replay, encode, trees
+
+_log = logging.getLogger(__name__)
 
 STATIC = Path(__file__).with_name("static")
 HOST = "127.0.0.1"
@@ -97,6 +100,7 @@ class LiveSource:
         self.period = 1.0 / fps
         self.trees: str | None = None  # the latest trees message, encoded
         self._states: object = None
+        self.failed = 0  # frames that could not be made or sent (said, and in /status)
 
     def hello(self) -> Message:
         return self.feed.hello
@@ -107,17 +111,27 @@ class LiveSource:
     async def run(self, clients: set[Client]) -> None:
         while True:
             await asyncio.sleep(self.period / 2)
-            latest = self.feed.take()
-            texts = [] if latest is None else [encode(latest)]
-            states = self.feed.states
-            if states is not None and states is not self._states:
-                self._states = states
-                known = [self.knowledge(name, kind, orjson.loads(state)) for name, kind, state in states[1]]
-                self.trees = encode(trees(states[0], known))
-                texts.append(self.trees)
-            for text in texts:
-                for client in clients:
-                    client.offer(text)
+            try:
+                self._send(clients)
+            except Exception as exc:  # noqa: BLE001 - a frame the view cannot make is skipped, said and counted
+                self.failed += 1
+                _log.warning("view: a frame could not be sent (%s: %s); %d skipped so far", type(exc).__name__,
+                             exc, self.failed)
+
+    def _send(self, clients: set[Client]) -> None:
+        """The latest frame (and new percept trees) to every browser. An error here ended the
+        feeding task silently: ``/status`` went on answering and no browser got a frame again."""
+        latest = self.feed.take()
+        texts = [] if latest is None else [encode(latest)]
+        states = self.feed.states
+        if states is not None and states is not self._states:
+            self._states = states
+            known = [self.knowledge(name, kind, orjson.loads(state)) for name, kind, state in states[1]]
+            self.trees = encode(trees(states[0], known))
+            texts.append(self.trees)
+        for text in texts:
+            for client in clients:
+                client.offer(text)
 
     async def serve(self, client: Client) -> None:
         pass
@@ -232,7 +246,8 @@ class ViewServer:
         return web.json_response({"clients": len(self.clients), "sent": self.sent,
                                   "client_dropped": self.left_dropped + sum(c.dropped for c in self.clients),
                                   "dropped": feed.dropped if feed is not None else 0,
-                                  "events_dropped": feed.events_dropped if feed is not None else 0})
+                                  "events_dropped": feed.events_dropped if feed is not None else 0,
+                                  "failed": getattr(self.source, "failed", 0)})
 
     async def _socket(self, request: web.Request) -> web.WebSocketResponse:
         ws = web.WebSocketResponse(heartbeat=20.0, compress=False)  # loopback: deflate would only cost CPU
