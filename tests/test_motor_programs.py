@@ -233,14 +233,20 @@ def test_a_program_cycling_for_an_hour_keeps_a_bounded_trace(graph, clock):
     assert stack.trace[-1][0] > 3590.0  # the newest are the ones kept
 
 
-def test_a_program_gives_the_body_to_a_newer_one_and_takes_it_back_when_free(graph, clock):
-    """One body, two programs: a sway cycling and a lunge begun later. The lunge's wait never
-    arrived (the sway sent the body elsewhere each time it arrived) and it stayed unfinished; now
-    the newer course has the body, the sway waits (paused), and sways on once the lunge ends."""
+def _sway_and_lunge(graph: MotorGraph) -> tuple[MotorSystem, ProgramStack, ProgramStack]:
+    """One body, and two programs for it: a sway that cycles, a lunge that ends."""
     motor = MotorSystem(graph, start=0)
     sway = ProgramStack(motor, parse_programs(f'sway: getToClosest {{"{LEFT}"}}; wait; getTo "{RIGHT}"; wait; '
                                               "cycle 0")["sway"])
     lunge = ProgramStack(motor, parse_programs('lunge: getTo "strike ready"; wait; getTo "strike"; wait; end')["lunge"])
+    return motor, sway, lunge
+
+
+def test_a_program_gives_the_body_to_a_newer_one_and_takes_it_back_when_free(graph, clock):
+    """One body, two programs: a sway cycling and a lunge begun later. The lunge's wait never
+    arrived (the sway sent the body elsewhere each time it arrived) and it stayed unfinished; now
+    the newer course has the body, the sway waits (paused), and sways on once the lunge ends."""
+    motor, sway, lunge = _sway_and_lunge(graph)
     sway.start(clock.now())
     run(sway, clock, until=5.0)
     swayed = len(motor.arrivals)
@@ -264,10 +270,7 @@ def test_a_program_gives_the_body_to_a_newer_one_and_takes_it_back_when_free(gra
 def test_a_program_stopped_gives_the_body_back_to_the_one_it_took_it_from(graph, clock):
     """A gesture's program (kinds/shaping.py) stopped mid-course kept the body: the sway beside
     it stayed paused until some other course came. Stopping a program gives the body up."""
-    motor = MotorSystem(graph, start=0)
-    sway = ProgramStack(motor, parse_programs(f'sway: getToClosest {{"{LEFT}"}}; wait; getTo "{RIGHT}"; wait; '
-                                              "cycle 0")["sway"])
-    lunge = ProgramStack(motor, parse_programs('lunge: getTo "strike ready"; wait; getTo "strike"; wait; end')["lunge"])
+    motor, sway, lunge = _sway_and_lunge(graph)
     sway.start(clock.now())
     run(sway, clock, until=3.0)
     lunge.start(clock.now())
