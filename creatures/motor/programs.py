@@ -29,6 +29,7 @@ import enum
 import re
 from collections import deque
 from dataclasses import dataclass, field
+from graphlib import CycleError, TopologicalSorter
 from typing import Protocol, Sequence
 
 import numpy as np
@@ -273,24 +274,12 @@ class MotorProgramGraph:
 
 def _loop(edges: dict[str, list[str]]) -> list[str]:
     """A loop in the directed graph ``edges`` (name → successors, every one a key), as
-    ``[a, …, a]`` from the first key that leads into one, or [] when there is none."""
-    state: dict[str, int] = {}  # 1: on the current path, 2: explored
-    for root in edges:
-        if root in state:
-            continue
-        path, todo = [root], [iter(edges[root])]
-        state[root] = 1
-        while todo:
-            nxt = next((w for w in todo[-1] if state.get(w) != 2), None)
-            if nxt is None:
-                state[path.pop()] = 2
-                todo.pop()
-            elif state.get(nxt) == 1:
-                return [*path[path.index(nxt):], nxt]
-            else:
-                state[nxt] = 1
-                path.append(nxt)
-                todo.append(iter(edges[nxt]))
+    ``[a, …, a]`` in the edges' direction, or [] when there is none (graphlib finds it: given
+    successors as predecessors, it lists the loop backwards)."""
+    try:
+        TopologicalSorter(edges).prepare()
+    except CycleError as exc:
+        return exc.args[1][::-1]
     return []
 
 
