@@ -154,25 +154,24 @@ def _promised_seconds(sound: soundfile.SoundFile) -> float | None:
     return sound.frames * int(found[1]) / int(found[2]) / sound.samplerate
 
 
-def _read_what_decodes(path: Path, frames: int, dtype: str) -> tuple[np.ndarray, int, str | None]:
-    """``frames`` frames of ``path`` (-1: all), the frames its header promises, and why the read
-    stopped early if the decoder failed.
+def _read_what_decodes(sound: soundfile.SoundFile, frames: int, dtype: str) -> tuple[np.ndarray, str | None]:
+    """``frames`` frames of the open ``sound`` (-1: all), and why the read stopped early if the
+    decoder failed.
 
     A FLAC cut inside its data fails in the decoder, and one read of the whole file returns
     nothing but the error: a three-hour field recording missing its last minute was refused
-    whole. Read again block by block from a fresh handle, everything before the fault is kept."""
-    with soundfile.SoundFile(path) as sound:
-        promised = sound.frames
-        try:
-            return sound.read(frames, dtype=dtype, always_2d=True), promised, None
-        except (soundfile.LibsndfileError, RuntimeError) as exc:
-            fault = exc
+    whole. Read again block by block from a fresh handle (libsndfile cannot seek in a FLAC
+    whose decoder lost sync), everything before the fault is kept."""
+    try:
+        return sound.read(frames, dtype=dtype, always_2d=True), None
+    except (soundfile.LibsndfileError, RuntimeError) as exc:
+        fault = exc
     blocks: list[np.ndarray] = []
-    left = frames if frames >= 0 else promised
-    with soundfile.SoundFile(path) as sound:
+    left = frames if frames >= 0 else sound.frames
+    with soundfile.SoundFile(sound.name) as again:
         while left > 0:
             try:
-                block = sound.read(min(READ_BLOCK, left), dtype=dtype, always_2d=True)
+                block = again.read(min(READ_BLOCK, left), dtype=dtype, always_2d=True)
             except (soundfile.LibsndfileError, RuntimeError):
                 break
             if block.shape[0] == 0:
@@ -181,7 +180,7 @@ def _read_what_decodes(path: Path, frames: int, dtype: str) -> tuple[np.ndarray,
             left -= block.shape[0]
     if not blocks:
         raise fault
-    return np.concatenate(blocks), promised, str(fault).strip()
+    return np.concatenate(blocks), str(fault).strip()
 
 
 def load_audio(path: str | os.PathLike, *, samplerate: int = ANALYSIS_RATE,
@@ -218,8 +217,8 @@ def load_audio(path: str | os.PathLike, *, samplerate: int = ANALYSIS_RATE,
             # A double file is checked before it is narrowed: 1e300 (a wrong scale) cast to
             # float32 is inf, and was refused as "NaN/inf", whose cause and fix differ.
             wide = sound.subtype == "DOUBLE"
-            cut = _promised_seconds(sound)
-        data, promised, fault = _read_what_decodes(path, frames, "float64" if wide else "float32")
+            cut, promised = _promised_seconds(sound), sound.frames
+            data, fault = _read_what_decodes(sound, frames, "float64" if wide else "float32")
     except (soundfile.LibsndfileError, RuntimeError, OSError) as exc:
         if path.stat().st_size == 0:
             raise AudioFileError(f"{path}: empty file (0 bytes)") from None
