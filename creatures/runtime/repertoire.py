@@ -130,21 +130,17 @@ def _key(item: Any) -> str:
     return json.dumps(item, sort_keys=True)
 
 
-def _saved_names(folder: Path) -> list[str]:
-    """The creatures a state folder or snapshot keeps a file for (``NAME.json``), unread."""
-    return sorted(Path(name).stem for name in files(folder) if name != COLONY_FILE)
-
-
 def _creature_file(folder: Path, name: str) -> Path:
     """``folder``'s file of creature ``name``. Only a name the folder keeps a file for is one:
     ``--creature ../other/x`` read (and a merge wrote) a file outside the folder, and the
     colony's own file was taken for a creature's."""
     if not folder.is_dir():
         raise StateFileError(f"{folder}: not a state folder or snapshot")
-    names = _saved_names(folder)
-    if name not in names:
+    saved = files(folder)  # the creatures it keeps a file for (NAME.json), unread
+    if f"{name}.json" not in saved or f"{name}.json" == COLONY_FILE:
+        names = sorted(Path(file).stem for file in saved if file != COLONY_FILE)
         raise StateFileError(f"{folder}: no saved state for creature {name!r}{nearest(name, names, 'saved')}")
-    return files(folder)[f"{name}.json"]
+    return saved[f"{name}.json"]
 
 
 def rollback(state_dir: Path, snapshot: Path, name: str) -> Path:
