@@ -82,35 +82,30 @@ def _read_pngs(directory: Path, scratch: Path | None) -> np.ndarray:
         raise FootageError(f"{directory}: holds no PNG frames")
     if len(files) > MAX_FRAMES:
         raise FootageError(f"{directory}: {len(files)} frames, more than {MAX_FRAMES}")
-    store: FrameStore | None = None
+    store = FrameStore(scratch, capacity=len(files))
     for file in files:
         try:
             image = np.asarray(iio.imread(file))
         except Exception as exc:  # imageio raises many types for a broken image
             raise FootageError(f"{file}: not a readable PNG ({type(exc).__name__}: {exc})") from None
-        frame = _rgb(image, file, None if store is None else store.shape)
-        store = store or FrameStore(frame.shape, scratch, capacity=len(files))
-        store.append(frame)
-    assert store is not None
+        store.append(_rgb(image, file, store.shape))
     return store.frames()
 
 
 def _read_video(path: Path, scratch: Path | None) -> np.ndarray:
     import imageio.v3 as iio
 
-    store: FrameStore | None = None
+    store = FrameStore(scratch)
     try:
         for image in iio.imiter(path):
-            frame = _rgb(np.asarray(image), path, None if store is None else store.shape)
-            store = store or FrameStore(frame.shape, scratch)
-            store.append(frame)
+            store.append(_rgb(np.asarray(image), path, store.shape))
             if store.count > MAX_FRAMES:
                 raise FootageError(f"{path}: more than {MAX_FRAMES} frames")
     except (FootageError, NoRoom):
         raise
     except Exception as exc:
         raise FootageError(f"{path}: not a readable video ({type(exc).__name__}: {exc})") from None
-    if store is None:
+    if store.count == 0:
         raise FootageError(f"{path}: holds no frames")
     return store.frames()
 
@@ -146,7 +141,7 @@ def cube_footage(*, duration: float, fps: float, size: tuple[int, int], scratch:
     width, height = size
     count = max(int(np.ceil(duration * fps)), 2)
     unit = 0.32 * min(width, height)
-    store = FrameStore((height, width, 3), scratch, capacity=count)
+    store = FrameStore(scratch, capacity=count)
     frame = np.empty((height, width, 3), np.uint8)
     for f in range(count):
         t = f / fps

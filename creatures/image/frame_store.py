@@ -27,20 +27,26 @@ class NoRoom(OSError):
 
 
 class FrameStore:
-    """Frames of one ``shape`` (height, width, 3) appended in order; :meth:`frames` is them all.
+    """Frames of one shape (height, width, 3), the first one's, appended in order; :meth:`frames`
+    is them all.
 
     ``scratch``: the folder for frames past :data:`IN_MEMORY` (None: the system's temporary
-    folder, which may be memory itself on some systems). Grows by doubling, so appending a
-    video of unknown length copies each frame at most about twice."""
+    folder, which may be memory itself on some systems). ``capacity`` frames are made room for
+    at the first; past them it grows by doubling, so appending a video of unknown length copies
+    each frame at most about twice."""
 
-    def __init__(self, shape: tuple[int, ...], scratch: Path | None = None, capacity: int = 64) -> None:
-        self.shape = tuple(shape)
+    def __init__(self, scratch: Path | None = None, capacity: int = 64) -> None:
         self.scratch = scratch
+        self.capacity = max(int(capacity), 1)
+        self.shape: tuple[int, ...] | None = None  # the first frame's
         self.count = 0
-        self._array = self._allocate(max(int(capacity), 1))
+        self._array: np.ndarray | None = None
 
     def append(self, frame: np.ndarray) -> None:
-        if self.count == len(self._array):
+        if self._array is None:
+            self.shape = frame.shape
+            self._array = self._allocate(self.capacity)
+        elif self.count == len(self._array):
             grown = self._allocate(2 * len(self._array))
             grown[: self.count] = self._array[: self.count]
             self._array = grown
@@ -48,10 +54,12 @@ class FrameStore:
         self.count += 1
 
     def frames(self) -> np.ndarray:
-        """The frames appended, ``(count, *shape)`` uint8 (a view: no copy)."""
+        """The frames appended, ``(count, *shape)`` uint8 (a view: no copy), once there is one."""
+        assert self._array is not None, "no frame appended"
         return self._array[: self.count]
 
     def _allocate(self, capacity: int) -> np.ndarray:
+        assert self.shape is not None
         size = capacity * math.prod(self.shape)
         if size <= IN_MEMORY:
             return np.empty((capacity, *self.shape), np.uint8)
@@ -61,5 +69,5 @@ class FrameStore:
                 os.posix_fallocate(handle.fileno(), 0, size)
             except OSError as exc:
                 raise NoRoom(exc.errno, f"no room for {size / 2**30:.1f} GB of footage frames in "
-                                                   f"{folder} ({exc.strerror})") from None
+                                        f"{folder} ({exc.strerror})") from None
             return np.memmap(handle, np.uint8, "w+", shape=(capacity, *self.shape))
