@@ -471,12 +471,16 @@ class RunGraph(MotorPart):
 
     @classmethod
     def labels(cls, params):
-        return sorted({x for v in params.vertices.values() for x in _statement(v).targets if isinstance(x, str)})
+        return sorted(x for x in cls._targets(params) if isinstance(x, str))
 
     @classmethod
     def nodes(cls, params):
         """Node indices the vertices name (checked at load against the body's graph)."""
-        return sorted({x for v in params.vertices.values() for x in _statement(v).targets if isinstance(x, int)})
+        return sorted(x for x in cls._targets(params) if isinstance(x, int))
+
+    @staticmethod
+    def _targets(params) -> set:
+        return {x for v in params.vertices.values() for x in _statement(v).targets}
 
     def build(self, params, creature, name):
         graph = MotorProgramGraph(name, {k: _statement(v) for k, v in params.vertices.items()}, params.edges)
