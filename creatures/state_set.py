@@ -30,17 +30,17 @@ LISTED = ".files"
 """The journal's list of the files of its save, written last: a journal holding it is whole."""
 
 
-def write_set(directory: Path, files: list[tuple[str, str]]) -> None:
-    """Write ``files`` (name, JSON text) into ``directory`` as one set. On an error (a full
+def write_set(directory: Path, saved: list[tuple[str, str]]) -> None:
+    """Write ``saved`` (name, JSON text) into ``directory`` as one set. On an error (a full
     disk) before the list is written, the journal is removed and the files in place are kept."""
     directory.mkdir(parents=True, exist_ok=True)
     settle(directory)
     journal = directory / JOURNAL
     journal.mkdir()
     try:
-        for name, text in files:
+        for name, text in saved:
             write_json_text(journal / name, text)
-        write_json_text(journal / LISTED, json.dumps([name for name, _ in files]))
+        write_json_text(journal / LISTED, json.dumps([name for name, _ in saved]))
     except BaseException:
         shutil.rmtree(journal, ignore_errors=True)
         raise
@@ -67,7 +67,7 @@ def files(directory: Path) -> dict[str, Path]:
     """The state files of ``directory`` by name (``NAME.json``, the colony's), as its last whole
     save left them: those of a listed journal where a crash cut its renames short, the folder's
     own otherwise. For a reader that does not hold the folder's lock."""
-    found = {p.name: p for p in sorted(directory.glob("[!.]*.json"))}
+    found = {p.name: p for p in directory.glob("[!.]*.json")}
     journal = directory / JOURNAL
     if (journal / LISTED).is_file() and not journal.is_symlink():
         found.update({name: journal / name for name in _listed(journal) if (journal / name).is_file()})

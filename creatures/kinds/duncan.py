@@ -369,6 +369,5 @@ class Duncan(CreatureKind):
             saved = GaussianModel.from_dict(state["beg"])  # checks every number
             b = self.spec.beg
             self.beg_height = GaussianModel(b.prior_mean, b.prior_std, size=b.size, prior_weight=b.prior_weight)
-            for k in range(saved.size):
-                i = (saved._head + k) % saved.size
-                self.beg_height.update(float(saved.buffer[i]), float(saved.weights[i]))
+            for x, weight in saved.observations():
+                self.beg_height.update(x, weight)

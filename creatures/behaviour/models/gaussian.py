@@ -113,6 +113,12 @@ class GaussianModel:
         self._head = (self._head + 1) % len(self.buffer)
         self._refresh()
 
+    def observations(self) -> list[tuple[float, float]]:
+        """The samples with their weights, oldest first: what :meth:`update` took, in order (a
+        model of another size takes them back by updating with each)."""
+        order = np.roll(np.arange(self.size), -self._head)
+        return list(zip(self.buffer[order].tolist(), self.weights[order].tolist()))
+
     def sample(self, rng: np.random.Generator) -> float:
         """Draw from the current model modulated by the prior (the prior-pooled Gaussian)."""
         return float(rng.normal(self._mean, self._std))
