@@ -43,7 +43,7 @@ def _plain(value: Any) -> Any:
 _ORJSON = orjson.OPT_SERIALIZE_NUMPY | orjson.OPT_NON_STR_KEYS
 
 
-def _line(record: dict[str, Any]) -> bytes:
+def json_line(record: dict[str, Any]) -> bytes:
     """One JSON line for ``record``, UTF-8. orjson writes numpy values and NaN (as ``null``)
     itself, about 9× faster than the standard library; a record it refuses (a key JSON cannot
     take, e.g. a numpy integer, or an integer beyond 64 bits) goes through :func:`_plain` and
@@ -165,7 +165,7 @@ class EventLog:
             tap(record)
         if self.path is None or self._closed:
             return
-        line = _line(record)
+        line = json_line(record)
         with self._lock:
             self._t = t
             if self._handle is None and not self._reopen():
@@ -273,7 +273,7 @@ class EventLog:
         except OSError:
             return False
         self._gap_pending = True
-        self._append(_line({"t": round(float(self._t), 6), "kind": "events lost", "lost": self.lost,
+        self._append(json_line({"t": round(float(self._t), 6), "kind": "events lost", "lost": self.lost,
                             "error": self.error}))
         return True
 

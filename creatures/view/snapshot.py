@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any, Iterable
 
 import numpy as np
 
-from creatures.events import _line
+from creatures.events import json_line
 from creatures.kinds.base import CreatureKind
 
 if TYPE_CHECKING:
@@ -202,4 +202,4 @@ def encode(message: Message) -> str:
     writes its line: a record orjson refuses (a numpy integer key, an integer beyond 64 bits,
     which a log with a file hands its taps as emitted) goes through the standard library (it
     raised here, and the live view's feeding task died: no frame after it, for any browser)."""
-    return _line(message)[:-1].decode()
+    return json_line(message)[:-1].decode()
