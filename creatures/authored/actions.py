@@ -377,8 +377,26 @@ class _ProgramParams(Params):
         return self
 
 
+class _ProgramPart(MotorPart):
+    """A motor program's part: the labels and node indices its statements name, checked at
+    load against the body (a node past the graph's end was an IndexError on the creature's
+    thread when its statement ran)."""
+
+    @classmethod
+    def labels(cls, params):
+        return sorted(x for x in cls._targets(params) if isinstance(x, str))
+
+    @classmethod
+    def nodes(cls, params):
+        return sorted(x for x in cls._targets(params) if isinstance(x, int))
+
+    @staticmethod
+    def _targets(params) -> set:  # pragma: no cover - every subclass says
+        raise NotImplementedError
+
+
 @ACTIONS.register
-class RunProgram(MotorPart):
+class RunProgram(_ProgramPart):
     """Run a motor program written as text (getTo / getToClosest / getToFurthest /
     forcedGetTo / wait / cycle; a target may name another program of the text). Done when the
     program ends; stopping the tuple asks it to exit (its forcedGetTo statements still run)."""
@@ -387,15 +405,6 @@ class RunProgram(MotorPart):
     name = "motor_program"
     thesis = "motor program graphs"
     Params = _ProgramParams
-
-    @classmethod
-    def labels(cls, params):
-        return sorted(x for x in cls._targets(params) if isinstance(x, str))
-
-    @classmethod
-    def nodes(cls, params):
-        """Node indices the text names (checked at load against the body's graph)."""
-        return sorted(x for x in cls._targets(params) if isinstance(x, int))
 
     @staticmethod
     def _targets(params) -> set:
@@ -460,7 +469,7 @@ class _GraphParams(Params):
 
 
 @ACTIONS.register
-class RunGraph(MotorPart):
+class RunGraph(_ProgramPart):
     """Run a motor program graph: statements as vertices, at each branch the successor whose
     target is nearest on the motor graph; stopping the tuple heads for the nearest exit."""
 
@@ -468,15 +477,6 @@ class RunGraph(MotorPart):
     name = "motor_graph"
     thesis = "motor program graphs"
     Params = _GraphParams
-
-    @classmethod
-    def labels(cls, params):
-        return sorted(x for x in cls._targets(params) if isinstance(x, str))
-
-    @classmethod
-    def nodes(cls, params):
-        """Node indices the vertices name (checked at load against the body's graph)."""
-        return sorted(x for x in cls._targets(params) if isinstance(x, int))
 
     @staticmethod
     def _targets(params) -> set:
