@@ -5,6 +5,7 @@ from __future__ import annotations
 import errno
 import os
 import time
+from collections import Counter
 
 import numpy as np
 import pytest
@@ -70,6 +71,19 @@ def test_malformed_line_names_file_and_line(tmp_path):
     path.write_text('{"t": 0, "kind": "a"}\n{broken\n')
     with pytest.raises(ValueError, match=r"events.jsonl:2"):
         read_events(path)
+
+
+def test_a_reader_keeps_the_kinds_it_asks_for_and_counts_every_kind(tmp_path):
+    """The report draws no poses, most of a log: it keeps what it draws and counts the rest."""
+    path = tmp_path / "events.jsonl"
+    path.write_text('{"t": 0, "kind": "stop"}\n{"t": 0, "kind": "note", "time": 0, "pitch": 60, "duration": 1}\n'
+                    '{"t": 1, "kind": "stop"}\n{"t": 1, "kind": "run"}\n')
+    counts: Counter[str] = Counter()
+    kept = read_events(path, kinds=("note", "run"), counts=counts)
+    assert [e["kind"] for e in kept] == ["note", "run"] and counts == {"stop": 2, "note": 1, "run": 1}
+    path.write_text('{"t": 0, "kind": "stop"}\n{"t": 1, "kind": "note"}\n')  # a kind not kept is still checked
+    with pytest.raises(ValueError, match=r"events.jsonl:2: malformed event \('note' event with a missing"):
+        read_events(path, kinds=("run",))
 
 
 def test_a_last_line_cut_short_is_left_out_and_said(tmp_path):

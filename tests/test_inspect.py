@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import base64
 import re
+from collections import Counter
 
 import numpy as np
 import pytest
@@ -60,6 +61,10 @@ def test_inspect_an_offline_run(offline_run, tmp_path, capsys):
     # The run saved what its creatures learned into DIR/state, and the page is drawn from it.
     assert {"ada.json", "bo.json", "cy.json", COLONY_FILE} <= {p.name for p in (offline_run / "state").iterdir()}
     assert "(saved state)" in page and "<h3>colony <small>" in page
+    # Every kind the log holds is counted, those no plot draws (poses, most of a log) too.
+    logged = Counter(e["kind"] for e in read_events(offline_run / "events.jsonl"))
+    assert logged["pose"] and f"<p>{logged.total()} events, " in page
+    assert f"<td>pose</td><td>{logged['pose']}</td>" in page and f"<td>note</td><td>{logged['note']}</td>" in page
 
 
 def test_the_motor_graph_is_the_real_graph_and_the_path_walks_its_edges(offline_run):

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import base64
 import html
+from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -33,7 +34,7 @@ from typing import Any
 from creatures.behaviour.value import value_from_dict
 from creatures.events import read_events
 from creatures.persist import StateFileError, atomic_write, load_json
-from creatures.runtime.report import counts_table, event_plots, html_page, plot_bars, plt, saved
+from creatures.runtime.report import PLOTTED, counts_table, event_plots, html_page, plot_bars, plt, saved
 from creatures.runtime.session import COLONY_FILE, COLONY_KIND, STATE_KIND
 from creatures.state_set import files
 from creatures.temporal.durations import LowIntegerRatioModel, SimpleDurationModel
@@ -233,13 +234,14 @@ def inspect(path: Path, out: Path, skipped: list[str] | None = None) -> Path:
     events_path = path / "events.jsonl"
     # exists(), not is_file(): an events.jsonl that is a FIFO or a device is refused by
     # read_events, not skipped in silence
-    events = read_events(events_path) if events_path.exists() else []
+    counts: Counter[str] = Counter()
+    events = read_events(events_path, kinds=PLOTTED, counts=counts) if events_path.exists() else []
     saved = path / "state" if (path / "state").is_dir() else path  # an offline run saves into DIR/state
     known = read_state(saved, skipped) if saved.is_dir() else []
-    if not events and not known and skipped:
+    if not counts and not known and skipped:
         more = f" (and {len(skipped) - 1} more)" if len(skipped) > 1 else ""
         raise InspectError(f"{saved}: no events.jsonl, and every state file there was skipped: {skipped[0]}{more}")
-    if not events and not known:
+    if not counts and not known:
         raise InspectError(f"{path}: no events.jsonl and no creature state files "
                            f"(give an offline output directory or a --state directory)")
     from_state = bool(known)
@@ -265,9 +267,9 @@ def inspect(path: Path, out: Path, skipped: list[str] | None = None) -> Path:
     unread = "".join(f"<li>{html.escape(s)}</li>" for s in skipped)
     creatures = sum(k.creature != COLONY for k in known)  # the colony's own knowledge is not a creature
     colony = " and the colony" if creatures < len(known) else ""
-    page = html_page(title, f"<p>{len(events)} events, {creatures} creature(s){colony} from {html.escape(what)}.</p>"
+    page = html_page(title, f"<p>{counts.total()} events, {creatures} creature(s){colony} from {html.escape(what)}.</p>"
                             f"{f'<p>State files skipped:</p><ul>{unread}</ul>' if unread else ''}"
-                            f"{counts_table(events) if events else ''}"
+                            f"{counts_table(counts) if counts else ''}"
                             f"<h2>What each creature knows</h2>{''.join(_creature_html(k) for k in known)}{figures}")
     page_path = out / "index.html"
     # atomic: a Ctrl-C or a full disk leaves the previous page whole, not half of this one

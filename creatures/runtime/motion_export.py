@@ -37,7 +37,7 @@ def export_motion_of_run(path: Path, creature: str, out: Path, *, config: Path |
     log = path if path.is_file() else path / "events.jsonl"
     saved = files(path).get(f"{creature}.json", path / f"{creature}.json") if path.is_dir() else path / f"{creature}.json"
     if log.is_file():
-        events = read_events(log)
+        events = read_events(log, kinds=("run", "motor"))  # a path needs no poses, most of a log
         if config is None:
             named = [e.get("config") for e in events if e.get("kind") == "run" and e.get("config")]
             if not named:

@@ -11,7 +11,7 @@ the motor path, and each motor graph with the path walked over it. The inspector
 from __future__ import annotations
 
 import html
-from collections import defaultdict
+from collections import Counter, defaultdict
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterable
@@ -121,6 +121,11 @@ def _plot_selections(events: list[dict], path: Path) -> Path | None:
     ax.set_xlabel("time (s)")
     ax.set_title("action selections" + left, fontsize=9)
     return saved(fig, path)
+
+
+PLOTTED = frozenset({"note", "heard", "selection", "values", "motivation", "percepts", "motor", "motor graph"})
+"""The kinds of event :func:`event_plots` draws from: a reader keeps these and counts the rest
+(a run's log is mostly ``pose`` events, 85 % of the bytes of a 10-minute exchange run)."""
 
 
 def event_plots(events: list[dict], out: Path) -> list[tuple[str, Path]]:
@@ -236,11 +241,8 @@ def plot_bars(groups: dict[str, dict[str, float]], title: str, xlabel: str, path
     return saved(fig, path)
 
 
-def counts_table(events: list[dict]) -> str:
+def counts_table(counts: Counter[str]) -> str:
     """An HTML table of how many events of each kind were logged."""
-    counts: dict[str, int] = defaultdict(int)
-    for e in events:
-        counts[e["kind"]] += 1
     rows = "".join(f"<tr><td>{html.escape(k)}</td><td>{v}</td></tr>" for k, v in sorted(counts.items()))
     return f"<table><tr><th>event</th><th>count</th></tr>{rows}</table>"
 
@@ -258,13 +260,14 @@ def html_page(title: str, body: str) -> str:
 def write_report(events_path: Path, out: Path, *, title: str) -> Path:
     """Write PNG plots and ``index.html`` for the run logged at ``events_path``; return ``out``."""
     out.mkdir(parents=True, exist_ok=True)
-    events = read_events(events_path)
+    counts: Counter[str] = Counter()
+    events = read_events(events_path, kinds=PLOTTED, counts=counts)
     plots = event_plots(events, out)
     figures = "".join(
         f'<h2>{html.escape(name)}</h2><img src="{path.name}" alt="{html.escape(name)}">'
         for name, path in plots
     )
-    page = html_page(title, f"<p>{len(events)} events from {html.escape(events_path.name)}</p>"
-                            f"{counts_table(events)}{figures}")
+    page = html_page(title, f"<p>{counts.total()} events from {html.escape(events_path.name)}</p>"
+                            f"{counts_table(counts)}{figures}")
     (out / "index.html").write_text(page, encoding="utf-8")
     return out

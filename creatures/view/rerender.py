@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Iterator
 
 import numpy as np
 
-from creatures.events import read_events
+from creatures.events import iter_events
 from creatures.view.snapshot import Replay, replay, scene, trees
 
 if TYPE_CHECKING:
@@ -70,7 +70,7 @@ def load_replay(run_dir: Path) -> Replay:
     log = run_dir / "events.jsonl" if run_dir.is_dir() else run_dir
     if not log.exists():
         raise ValueError(f"{log}: no events log (an offline run's output directory holds events.jsonl)")
-    return replay(read_events(log))
+    return replay(iter_events(log))
 
 
 def sampled(frames: list[dict], fps: float) -> list[tuple[dict, int]]:

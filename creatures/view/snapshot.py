@@ -122,53 +122,73 @@ STILL_EVERY = 0.1
 """Seconds of clock time per frame when a run has no bodies to pace its replay."""
 
 
-def replay(events: list[Message]) -> Replay:
+def replay(events: Iterable[Message]) -> Replay:
     """The view messages an offline run's events log holds: one frame per distinct ``pose``
     time, carrying the poses of that time (a creature without a pose there keeps its last) and
     the shown events since the previous frame; a run whose creatures have no bodies (or was
     run with ``[view] log_fps = 0``) has a frame every :data:`STILL_EVERY` seconds, carrying
     its events. Raises ValueError for a log with nothing to show, or a pose that does not fit
-    its skeleton (naming creature and time)."""
-    run = next((e for e in events if e["kind"] == "run"), {})
-    skeletons = {e["creature"]: e for e in events if e["kind"] == "skeleton"}
-    names = [n for n in run.get("creatures", []) if isinstance(n, str)] or list(skeletons)
-    found = [Body(n, skeletons[n].get("kind_of", ""), list(skeletons[n]["parents"]), tuple(skeletons[n]["place"]))
-             if n in skeletons else Body(n, "", None, place(i, len(names))) for i, n in enumerate(names)]
-    result = Replay(hello(run.get("title", ""), "replay", found, creatures=len(names)))
-    posed = any(e["kind"] == "pose" for e in events)
+    its skeleton (naming creature and time).
+
+    One pass over ``events``, which may be :func:`~creatures.events.iter_events`: a pose is
+    kept as an array, not as the event that carried it (poses are 85 % of a log's bytes, and a
+    10-minute run's events held as dicts took 218 MB)."""
+    run: Message = {}
+    skeletons: dict[str, Message] = {}
+    frames: list[Message] = []
     joints: dict[str, np.ndarray] = {}
-    marks: dict[str, list] = {}
+    marks: dict[str, np.ndarray] = {}  # (N, 4): x, y, z, pitch
     shown: list[Message] = []
+    still: list[Message] | None = []  # the shown events, until a pose says the run has bodies
     current: float | None = None
 
-    def close_frame() -> None:
-        result.frames.append({"type": "frame", "t": current, "bodies": dict(joints), "marks": dict(marks),
-                              "events": shown[:]})
+    def close_frame(t: float) -> None:
+        frames.append({"type": "frame", "t": t, "bodies": dict(joints), "marks": dict(marks), "events": shown[:]})
         shown.clear()
 
     for event in events:
         kind, t = event["kind"], event["t"]
-        if not posed and kind in SHOWN:
-            t = round(STILL_EVERY * math.floor(t / STILL_EVERY + 1e-9), DIGITS)
-            if current is not None and t > current:
-                close_frame()
-            current = t
-            shown.append(event)
+        if kind == "run":
+            run = run or event
+        elif kind == "skeleton":
+            skeletons[event["creature"]] = event
         elif kind == "pose":
+            still = None
             if current is not None and t != current:
-                close_frame()
+                close_frame(current)
             current = t
-            who = event["creature"]
-            if who not in skeletons or len(skeletons[who]["parents"]) != len(event["joints"]):
-                raise ValueError(f"the pose of {who!r} at {t} s does not fit its skeleton (a damaged log)")
-            joints[who] = np.asarray(event["joints"], float)
-            marks[who] = event.get("marks", [])
+            joints[event["creature"]] = np.asarray(event["joints"], float)
+            marks[event["creature"]] = np.asarray(event.get("marks", []), float).reshape(-1, 4)
         elif kind in SHOWN:
             shown.append(event)
-    if current is None:
+            if still is not None:
+                still.append(event)
+    if still is not None:  # no poses: frames paced by the clock
+        frames = _still_frames(still)
+    elif current is not None:
+        close_frame(current)
+    if not frames:
         raise ValueError("the events log holds nothing to show: no body poses and no notes, selections or drives")
-    close_frame()
-    return result
+    for frame in frames:
+        for who, posed in frame["bodies"].items():
+            if who not in skeletons or len(skeletons[who]["parents"]) != len(posed):
+                raise ValueError(f"the pose of {who!r} at {frame['t']} s does not fit its skeleton (a damaged log)")
+    names = [n for n in run.get("creatures", []) if isinstance(n, str)] or list(skeletons)
+    found = [Body(n, skeletons[n].get("kind_of", ""), list(skeletons[n]["parents"]), tuple(skeletons[n]["place"]))
+             if n in skeletons else Body(n, "", None, place(i, len(names))) for i, n in enumerate(names)]
+    return Replay(hello(run.get("title", ""), "replay", found, creatures=len(names)), frames)
+
+
+def _still_frames(shown: list[Message]) -> list[Message]:
+    """Frames every :data:`STILL_EVERY` seconds of clock time, each carrying the shown events
+    of its interval: the replay of a run without bodies."""
+    frames: list[Message] = []
+    for event in shown:
+        t = round(STILL_EVERY * math.floor(event["t"] / STILL_EVERY + 1e-9), DIGITS)
+        if not frames or t > frames[-1]["t"]:
+            frames.append({"type": "frame", "t": t, "bodies": {}, "marks": {}, "events": []})
+        frames[-1]["events"].append(event)
+    return frames
 
 
 def scene(message: Message, hello_message: Message) -> tuple[np.ndarray, np.ndarray, list[tuple[tuple, float]]]:
@@ -184,7 +204,8 @@ def scene(message: Message, hello_message: Message) -> tuple[np.ndarray, np.ndar
             positions.append(np.asarray(joints, float) + shift)
             parents.append(np.where(np.asarray(body["parents"]) >= 0, np.asarray(body["parents"]) + offset, -1))
             offset += len(joints)
-        marks += [(tuple(float(v) for v in np.asarray(m[:3]) + shift), m[3]) for m in message["marks"].get(body["name"], [])]
+        marks += [(tuple(float(v) for v in np.asarray(m[:3]) + shift), float(m[3]))
+                  for m in message["marks"].get(body["name"], [])]
     if not positions:
         return np.zeros((0, 3)), np.zeros(0, int), marks
     return np.concatenate(positions), np.concatenate(parents), marks
