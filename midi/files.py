@@ -4,7 +4,9 @@ Times inside a file are ticks whose length changes with every tempo change; crea
 in seconds. :class:`TempoMap` converts both ways (``mido.tick2second`` applied to arrays, segment by
 segment). Files are written as type 1 — a tempo-map
 track, then one track per channel (or one merged track) — which every DAW opens, and saved
-atomically through :func:`creatures.persist.atomic_write`.
+atomically through :func:`creatures.persist.atomic_write`. A track sounds one note per key at a
+time (:func:`midi.notes.restrike`), so overlapping notes of one pitch come back with the
+earlier one ending where the later one starts.
 
 mido raises an assortment of exceptions on bad files (``OSError``, ``EOFError``,
 ``ValueError``, ``KeyError``, ``IndexError``); :func:`read_notes` turns every one of them into
@@ -24,7 +26,7 @@ import numpy as np
 from creatures.bounds import LATEST_TIME
 from creatures.persist import atomic_write
 from midi import smf
-from midi.notes import NoteEvent, TimedMessage, from_messages, to_messages
+from midi.notes import NoteEvent, TimedMessage, from_messages, restrike, to_messages
 
 DEFAULT_TEMPO = 500_000  # microseconds per beat: 120 bpm, the MIDI file default
 
@@ -277,14 +279,20 @@ def write_tracks(
     Each track is put in time order, keeping the given order at equal times: a sink keeps
     messages in the order they were sent, and a note a creature played in the past (sent late,
     stamped with its own time) came after later ones, a negative delta mido refused when
-    saving, so the whole ``out.mid`` of the run was lost."""
+    saving, so the whole ``out.mid`` of the run was lost.
+
+    A key struck again while it sounds is re-struck (:func:`midi.notes.restrike`: note-off then
+    note-on at the same tick), on the ticks written: the ``input`` track's overlapping notes of
+    one key were written on, on, off, off, which synths and DAWs play as a second note cut
+    short by the first's end (or a hanging note), and two times that round to one tick (a
+    note starting a hair before the previous one of its key ends) must keep the new note."""
     tempo = tempo or TempoMap(TICKS_PER_BEAT)
     midi = mido.MidiFile(type=1, ticks_per_beat=tempo.ticks_per_beat)
     midi.tracks.append(_track("tempo", [(t, mido.MetaMessage("set_tempo", tempo=q)) for t, q in tempo.changes()]))
     for name, timed in tracks:
         ticks = tempo.to_ticks(np.array([t for t, _ in timed], dtype=np.float64))
         order = np.argsort(ticks, kind="stable").tolist()
-        midi.tracks.append(_track(name, [(int(ticks[i]), timed[i][1]) for i in order]))
+        midi.tracks.append(_track(name, restrike([(int(ticks[i]), timed[i][1]) for i in order])))
     atomic_write(Path(path), lambda handle: midi.save(file=handle), "wb")
 
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from collections import defaultdict, deque
 from dataclasses import dataclass
-from typing import Iterable
+from typing import Iterable, TypeVar
 
 import mido
 
@@ -24,6 +24,8 @@ file) for this long."""
 
 TimedMessage = tuple[float, mido.Message]
 """A MIDI message with the time (seconds on the run's clock) at which it happens."""
+
+T = TypeVar("T", int, float)
 
 
 @dataclass(frozen=True, slots=True)
@@ -85,6 +87,42 @@ def to_messages(notes: Iterable[NoteEvent]) -> list[TimedMessage]:
         keyed.append(((note.end, 0 if note.duration > 0 else 2, i), note.note_off()))
     keyed.sort(key=lambda pair: pair[0])
     return [(key[0], msg) for key, msg in keyed]
+
+
+def restrike(events: Iterable[tuple[T, mido.Message]]) -> list[tuple[T, mido.Message]]:
+    """``events`` (in time order) with one key (channel and pitch) sounding at a time: a note-on
+    of a key still sounding is preceded, at its own time, by a note-off of that key, and the
+    note-offs of the notes it cut short are dropped while the key sounds on, so the key is
+    released at the last of the overlapping notes' ends.
+
+    MIDI has one key per channel and pitch: on, on, off, off (a key struck again before its
+    first note ended) is played by most synths and sequencers as a second note ending at the
+    first note-off, or as a hanging note. Re-striking is what
+    :class:`midi.scheduler.NoteScheduler` sends live; written files (:mod:`midi.files`) say the
+    same, so ``out.mid`` plays as the run sounded. Read back (FIFO pairing), the notes keep
+    their onsets and pitches; the earlier of two overlapping notes ends at the re-strike and
+    the later one sounds to the later end. Messages other than notes, and a note-off of a key
+    not sounding, pass unchanged. ``T`` is whatever the times are (seconds, file ticks)."""
+    sounding: dict[tuple[int, int], int] = {}  # key -> note-ons not yet ended on it
+    out: list[tuple[T, mido.Message]] = []
+    for time, msg in events:
+        if msg.type not in ("note_on", "note_off"):
+            out.append((time, msg))
+            continue
+        key = (msg.channel, msg.note)
+        depth = sounding.get(key, 0)
+        if is_note_off(msg):
+            if depth > 1:  # an earlier note's end: the key rings on for a later one
+                sounding[key] = depth - 1
+                continue
+            sounding.pop(key, None)
+        elif depth:
+            out.append((time, mido.Message("note_off", note=msg.note, channel=msg.channel)))
+            sounding[key] = depth + 1
+        else:
+            sounding[key] = 1
+        out.append((time, msg))
+    return out
 
 
 class NotePairer:

@@ -2,18 +2,20 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import mido
 import numpy as np
 import pytest
 
 from midi import smf
 from midi.files import MidiFileError, TempoMap, read_messages, read_notes, write_notes
-from midi.notes import NoteEvent
+from midi.notes import NoteEvent, from_messages, is_note_off
 
 
 def random_notes(rng: np.random.Generator, n: int, *, seconds: float = 120.0) -> list[NoteEvent]:
     """Random notes on 16 channels; same-pitch notes may overlap, but a later start never ends
-    earlier (MIDI cannot say which of two overlapping equal notes an off ends; we pair FIFO)."""
+    earlier (so each key's last overlapping note ends at the last of their ends)."""
     starts = np.sort(rng.uniform(0.0, seconds, n))
     pitches, channels = rng.integers(48, 72, n), rng.integers(0, 16, n)
     ends = starts + rng.uniform(0.01, 3.0, n)
@@ -30,6 +32,30 @@ def by_voice(notes: list[NoteEvent]) -> list[NoteEvent]:
     return sorted(notes, key=lambda n: (n.channel, n.pitch, n.time))
 
 
+def re_struck(voices: list[NoteEvent]) -> list[NoteEvent]:
+    """``voices`` (:func:`by_voice`, later starts never ending earlier) as a file sounds them:
+    a note still sounding when its key is struck again ends there."""
+    return [replace(a, duration=b.time - a.time) if (b.channel, b.pitch) == (a.channel, a.pitch) and b.time < a.end
+            else a for a, b in zip(voices, voices[1:])] + voices[-1:]
+
+
+def key_events(track: mido.MidiTrack) -> list[tuple[int, str, int, int]]:
+    """(absolute tick, "on"/"off", channel, pitch) of a track's notes, in file order."""
+    ticks = np.cumsum([m.time for m in track]).tolist()
+    return [(tick, "off" if is_note_off(m) else "on", m.channel, m.note)
+            for tick, m in zip(ticks, track) if m.type in ("note_on", "note_off")]
+
+
+def one_key_at_a_time(events: list[tuple[int, str, int, int]]) -> bool:
+    """No note-on of a key already sounding, no note-off of a key silent (as a synth keeps keys)."""
+    down: set[tuple[int, int]] = set()
+    for _, kind, channel, pitch in events:
+        if (kind == "on") == ((channel, pitch) in down):
+            return False
+        (down.add if kind == "on" else down.remove)((channel, pitch))
+    return not down
+
+
 def tick_length(tempo: TempoMap, seconds: np.ndarray) -> np.ndarray:
     """Seconds per tick under the tempo in force at each time in ``seconds``."""
     i = np.searchsorted(tempo.seconds, seconds, side="right") - 1
@@ -43,14 +69,15 @@ def test_thousand_notes_with_tempo_changes_round_trip_within_one_tick(rng, tmp_p
     overlapping = sum(
         a.channel == b.channel and a.pitch == b.pitch and b.time < a.end for a, b in zip(voices, voices[1:])
     )
-    assert overlapping > 10  # the FIFO pairing of overlapping same-pitch notes is exercised
+    assert overlapping > 10  # the re-strike of overlapping same-pitch notes is exercised
     tempo = TempoMap.from_seconds(480, [(12.5, 90.0), (40.0, 173.0), (77.7, 61.0), (100.0, 140.0)])
     path = tmp_path / "phrase.mid"
     write_notes(path, notes, tempo=tempo, split_channels=split_channels)
 
     back = read_notes(path)
     assert len(back) == len(notes)
-    originals, reads = by_voice(notes), by_voice(back)
+    assert all(one_key_at_a_time(key_events(track)) for track in mido.MidiFile(path).tracks)
+    originals, reads = re_struck(voices), by_voice(back)
     for original, read in zip(originals, reads):
         assert (read.pitch, read.velocity, read.channel) == (original.pitch, original.velocity, original.channel)
     for when in (lambda n: n.time, lambda n: n.end):
@@ -58,6 +85,33 @@ def test_thousand_notes_with_tempo_changes_round_trip_within_one_tick(rng, tmp_p
         got = np.array([when(n) for n in reads])
         # Each difference in ticks, measured with the tick length where the note is.
         assert np.all(np.abs(got - wanted) / tick_length(tempo, wanted) <= 1.0 + 1e-9)
+
+
+def test_a_key_struck_again_while_it_sounds_is_written_off_then_on_at_one_tick(tmp_path):
+    """on, on, off, off of one key plays as a second note cut short by the first's end (or a
+    hanging note): the file ends the sounding note at the re-strike, off first, and the key
+    sounds to the later of the two ends. Read back by every reader, the onsets and pitches are
+    the notes'; the earlier note is shortened to the re-strike."""
+    notes = [NoteEvent(0.0, 60, 100, 0, 2.0), NoteEvent(1.0, 60, 90, 0, 2.0),  # overlapping by a second
+             NoteEvent(4.0, 62, 100, 1, 3.0), NoteEvent(5.0, 62, 70, 1, 0.5),  # inside the first
+             NoteEvent(8.0, 64, 100, 2, 1.0), NoteEvent(8.0, 64, 80, 2, 0.0),  # the same instant, no length
+             NoteEvent(9.5, 65, 100, 3, 1.0), NoteEvent(10.4999, 65, 100, 3, 1.0)]  # rounds onto the first's end
+    path = tmp_path / "again.mid"
+    write_notes(path, notes, split_channels=False)
+
+    track = mido.MidiFile(path).tracks[1]  # a real reader: ticks of 960 a beat at 120 bpm, 1920 a second
+    assert key_events(track) == [(0, "on", 0, 60), (1920, "off", 0, 60), (1920, "on", 0, 60), (5760, "off", 0, 60),
+                                 (7680, "on", 1, 62), (9600, "off", 1, 62), (9600, "on", 1, 62),
+                                 (13440, "off", 1, 62),
+                                 (15360, "on", 2, 64), (15360, "off", 2, 64), (15360, "on", 2, 64),
+                                 (17280, "off", 2, 64),
+                                 (18240, "on", 3, 65), (20160, "off", 3, 65), (20160, "on", 3, 65),
+                                 (22080, "off", 3, 65)]
+    assert one_key_at_a_time(key_events(track))
+    wanted = [(0.0, 60, 1.0), (1.0, 60, 2.0), (4.0, 62, 1.0), (5.0, 62, 2.0), (8.0, 64, 0.0), (8.0, 64, 1.0),
+              (9.5, 65, 1.0), (10.5, 65, 1.0)]
+    for back in (read_notes(path), from_messages(read_messages(path))):  # read_messages: FileSource's reader
+        assert [(n.time, n.pitch, round(n.duration, 4)) for n in back] == wanted
 
 
 def test_written_file_is_type_1_with_tempo_track_and_one_track_per_channel(rng, tmp_path):

@@ -5,6 +5,7 @@ programs and pan) and the tempo the colony heard."""
 from __future__ import annotations
 
 import mido
+import numpy as np
 import pytest
 
 from creatures.cli import main
@@ -14,7 +15,8 @@ from creatures.events import EventLog
 from creatures.runtime.schema import load_installation
 from creatures.runtime.session import Session
 from midi.channel_setup import CcStream, channel_setup, midi_pan
-from midi.notes import NoteEvent
+from midi.files import TICKS_PER_BEAT, read_notes
+from midi.notes import NoteEvent, is_note_off
 from midi.sinks import MemorySink
 
 COLONY = """
@@ -155,3 +157,33 @@ def test_a_run_says_how_many_notes_re_struck_a_sounding_key(tmp_path):
     session.close()
     assert [e["notes"] for e in log.records if e["kind"] == "restruck"] == [1]
     assert any(message.startswith("1 notes started on a key (channel and pitch) still sounding") for message in said)
+
+
+def test_out_mid_input_track_re_strikes_a_key_played_again_before_its_note_ended(tmp_path):
+    """An input that strikes a key again while it sounds (on, on, off, off: two controllers,
+    a sequencer) was written to out.mid's input track the same way, which a synth plays as the
+    second note cut short at the first note-off. The track ends the first note at the re-strike
+    (off, then on, at one tick) and sounds the key to the later end; read back, the onsets and
+    pitches are those heard and the first note is shortened to the re-strike."""
+    config = tmp_path / "daw.toml"
+    config.write_text(COLONY)
+    played = mido.MidiFile(type=0, ticks_per_beat=480)  # 120 bpm: 960 ticks a second
+    played.tracks.append(mido.MidiTrack([
+        mido.Message("note_on", channel=5, note=70, velocity=100, time=480),   # 0.5 s
+        mido.Message("note_on", channel=5, note=70, velocity=80, time=960),    # 1.5 s, the key still down
+        mido.Message("note_off", channel=5, note=70, time=960),                # 2.5 s
+        mido.Message("note_off", channel=5, note=70, time=480)]))              # 3.0 s
+    played.save(tmp_path / "again.mid")
+    out = tmp_path / "out"
+    assert main(["offline", str(config), "--midi", str(tmp_path / "again.mid"), "--out", str(out),
+                 "--duration", "6"]) == 0
+
+    midi = mido.MidiFile(out / "out.mid")
+    track = next(t for t in midi.tracks if t.name == "input")
+    ticks = np.cumsum([m.time for m in track]).tolist()
+    notes = [(tick / (2 * midi.ticks_per_beat), "off" if is_note_off(m) else "on", m.note)
+             for tick, m in zip(ticks, track) if m.type in ("note_on", "note_off")]
+    assert midi.ticks_per_beat == TICKS_PER_BEAT and notes == [(0.5, "on", 70), (1.5, "off", 70), (1.5, "on", 70),
+                                                               (3.0, "off", 70)]  # 120 bpm: no pulse heard in two
+    heard = [(n.time, n.pitch, n.velocity, n.duration) for n in read_notes(out / "out.mid") if n.channel == 5]
+    assert heard == [(0.5, 70, 100, 1.0), (1.5, 70, 80, 1.5)]

@@ -5,7 +5,9 @@ tempo map that follows the pulse the colony heard (:class:`~creatures.runtime.pu
 so bars line up with the music rather than with 120 bpm), a track called ``input`` with the
 notes heard from outside, then one track per creature named after it, opening with its
 channel's setup (program, pan, volume: :mod:`midi.channel_setup`) so each part plays back in
-the voice it had. Creatures that share a channel share a track (``ada+bo``). A track no creature
+the voice it had. Every track sounds a key once at a time: a key heard struck again before its
+note ended is re-struck (:func:`midi.notes.restrike`), as the scheduler re-strikes the
+creatures' own. Creatures that share a channel share a track (``ada+bo``). A track no creature
 plays (messages sent on a channel no creature has) is named by its channel as the DAW that
 opens the file counts them, 1–16: the config's ``channel = 9`` is the DAW's "channel 10".
 """
