@@ -52,7 +52,8 @@ when higher begs are what gets clicked. Design decisions:
 
 Events logged: ``cue`` (an utterance heard and the class it joined), ``hypothesis`` (a new
 class and its tuples), ``trick`` (a trick started: name, tuple, beg height sampled) and
-``trick held`` (the body got there: at what time, and the front paws' height for a beg), and
+``trick held`` (the body got there: at what time, and the front paws' height for a beg),
+``trick refused`` (no path on the motor graph reaches the trick's pose from where the body is), and
 the group's ``selection``/``values``.
 """
 
@@ -74,6 +75,7 @@ from creatures.kinds import register
 from creatures.kinds.base import CreatureKind, CreatureSpec
 from creatures.kinds.figures import FigureBodySpec, figure_graph
 from creatures.kinds.hearing_parts import Ear, HearingSpec, tree_from_state, tree_state
+from creatures.kinds.moves import head_for
 from creatures.kinds.parts import Body, Voice, VoiceSpec, couple_to_hands
 from creatures.kinds.report_parts import MotorTrail, report_values, selection_logger
 from midi.notes import NoteEvent
@@ -179,7 +181,15 @@ class DuncanSpec(CreatureSpec):
 
 
 class Trick(Action):
-    """Get the body to the nearest pose with a label and hold it (a beg: the pose of height ĥ)."""
+    """Get the body to the nearest pose with a label and hold it (a beg: the pose of height ĥ).
+
+    A pose no path reaches from where the body is (an edited graph, a body from files whose
+    clip no edge enters) refuses the trick: it is logged (``trick refused``), the body carries
+    on with what it was doing (:func:`~creatures.kinds.moves.head_for`) and the trick is never
+    held, so no note sounds and no click can shape a beg it did not make; its tuple lasts its
+    patience, as an unfinished trick does (ended at once, the group could choose it again on the
+    next tick while its trigger holds: a trained cue's tuple, the most valued, refused tick after
+    tick for as long as the cue is remembered)."""
 
     def __init__(self, dog: "Duncan", label: str) -> None:
         super().__init__(label)
@@ -187,20 +197,23 @@ class Trick(Action):
         self.nodes = dog.body.graph.poses.labelled(label)
         self.held_from: float | None = None
         self.height: float | None = None
+        self.refused = False
 
     def start(self, t: float, tuple_: ActionTuple) -> None:
-        motor = self.dog.body.motor
         targets = self.nodes
         self.height = None
         if self.name == self.dog.spec.beg.label:
             self.height = float(np.clip(self.dog.beg_height.sample(self.dog.rng), 0.0, 1.0))
             targets = [self.dog.beg_node(self.height)]
-        motor.set_course(t, motor.finder.path(motor.position(t), list(targets)))
         self.held_from = None
-        self.dog.trick_started(t, self, tuple_)
+        self.refused = not head_for(self.dog.body, t, list(targets))
+        if self.refused:
+            self.dog.trick_refused(t, self, tuple_)
+        else:
+            self.dog.trick_started(t, self, tuple_)
 
     def update(self, t: float) -> None:
-        if self.held_from is None and self.dog.body.motor.arrived(t):
+        if self.held_from is None and not self.refused and self.dog.body.motor.arrived(t):
             self.held_from = t
             self.dog.trick_held(t, self)
 
@@ -297,6 +310,12 @@ class Duncan(CreatureKind):
     def trick_started(self, t: float, trick: Trick, tuple_: ActionTuple) -> None:
         self.doing = trick
         self.world.emit("trick", creature=self.name, trick=trick.name, tuple=tuple_.name, height=trick.height)
+
+    def trick_refused(self, t: float, trick: Trick, tuple_: ActionTuple) -> None:
+        """No path reaches the trick's pose from where the body is: said, and nothing is under way."""
+        self.doing = None
+        self.world.emit("trick refused", creature=self.name, trick=trick.name, tuple=tuple_.name, height=trick.height,
+                        why="no path on the motor graph from where the body is to the trick's pose")
 
     def trick_held(self, t: float, trick: Trick) -> None:
         """The body got there: log it and sound the trick's note (a beg's higher the higher it is)."""
