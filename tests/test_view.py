@@ -28,6 +28,7 @@ from creatures.runtime.schema import load_installation
 from creatures.runtime.session import Session
 from creatures.view import feed as feeds
 from creatures.view import poses
+from creatures.view import server as server_module
 from creatures.view.feed import Feed
 from creatures.view.poses import PoseLog
 from creatures.view.rerender import load_replay, parse_orbit, sampled
@@ -523,6 +524,44 @@ def test_the_frames_a_browser_lost_stay_counted_after_it_leaves():
         assert reported["clients"] == 0 and reported["client_dropped"] >= lost
     finally:
         server.close()
+
+
+def test_browsers_past_the_limit_are_refused_and_counted(monkeypatch):
+    """A local script opening sockets in a loop once got a queue and a send per frame each, without bound."""
+    monkeypatch.setattr(server_module, "MAX_CLIENTS", 2)
+    source = _Gated()
+    source.go.set()
+    server = ViewServer(source).start()
+
+    async def crowd() -> tuple[list[str], int | None, dict, str]:
+        async with aiohttp.ClientSession() as client:
+            first = await client.ws_connect(f"{server.url}ws")
+            second = await client.ws_connect(f"{server.url}ws")
+            hellos = [json.loads((await ws.receive()).data)["type"] for ws in (first, second)]
+            try:
+                await client.ws_connect(f"{server.url}ws")
+                turned = None
+            except aiohttp.WSServerHandshakeError as exc:
+                turned = exc.status
+            async with client.get(f"{server.url}status") as answer:
+                status = await answer.json()
+            await first.close()
+            for _ in range(500):  # the server notices the close on its own thread
+                if len(server.clients) < 2:
+                    break
+                await asyncio.sleep(0.01)
+            third = await client.ws_connect(f"{server.url}ws")
+            again = json.loads((await third.receive()).data)["type"]
+            await third.close()
+            await second.close()
+            return hellos, turned, status, again
+
+    try:
+        hellos, turned, status, again = asyncio.run(crowd())
+    finally:
+        server.close()
+    assert hellos == ["hello", "hello"] and turned == 503
+    assert status["clients"] == 2 and status["refused"] == 1 and again == "hello"
 
 
 class _Gated:

@@ -37,6 +37,11 @@ LOOPBACK_NAMES = frozenset({"127.0.0.1", "localhost", "::1"})
 CLIENT_QUEUE = 16
 """Encoded frames waiting for one browser; more are dropped for it and counted."""
 
+MAX_CLIENTS = 32
+"""Browsers served at once. Each costs a queue of :data:`CLIENT_QUEUE` frames and a send per
+frame on the view's thread; a local script opening sockets in a loop would otherwise take
+memory and the thread's time without bound. More are refused (503) and counted in /status."""
+
 CLOSE_WAIT = 1.0
 """Seconds a browser is given to take the closing message when the view stops: one that has
 stopped reading (a frozen kiosk tab, a stalled network) would keep the close waiting for room
@@ -180,6 +185,8 @@ class ViewServer:
         self.clients: set[Client] = set()
         self._sockets: set[web.WebSocketResponse] = set()
         self.sent = 0
+        self.refused = 0
+        """Browsers turned away because :data:`MAX_CLIENTS` were connected."""
         self.left_dropped = 0
         """Frames dropped for browsers since gone: /status's count of a browser's drops must not
         fall when that browser leaves (a kiosk that reloads would hide what it lost)."""
@@ -247,9 +254,12 @@ class ViewServer:
                                   "client_dropped": self.left_dropped + sum(c.dropped for c in self.clients),
                                   "dropped": feed.dropped if feed is not None else 0,
                                   "events_dropped": feed.events_dropped if feed is not None else 0,
-                                  "failed": getattr(self.source, "failed", 0)})
+                                  "failed": getattr(self.source, "failed", 0), "refused": self.refused})
 
     async def _socket(self, request: web.Request) -> web.WebSocketResponse:
+        if len(self._sockets) >= MAX_CLIENTS:
+            self.refused += 1
+            raise web.HTTPServiceUnavailable(text=f"the view serves {MAX_CLIENTS} browsers at once; close one")
         ws = web.WebSocketResponse(heartbeat=20.0, compress=False)  # loopback: deflate would only cost CPU
         await ws.prepare(request)
         self._sockets.add(ws)
