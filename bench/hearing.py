@@ -23,6 +23,7 @@ from audio.formants import SAMPLE_RATE as SR
 from audio.formants import WORDS, word
 from audio.segment import segment
 from bench import Row, best_of
+from bench._peers import skipped
 from bench._sampled import (RANGES, answer_delays, chorale, given_times, have_sampler, note_f1, random_texture,
                             render)
 from bench.voice import one_core
@@ -101,6 +102,10 @@ def _dtw_rows(quick: bool) -> list[Row]:
     ]
 
 
+BASIC_PITCH = "pip install basic-pitch==0.4.0 --no-deps onnxruntime pretty_midi 'resampy<0.4.3' importlib_resources"
+"""How the peer is installed (its own dependencies would pull in TensorFlow)."""
+
+
 def basic_pitch_model() -> str | None:
     """Where basic-pitch's ONNX model is, if the package (``--no-deps``, with ``onnxruntime``,
     ``pretty_midi``, ``resampy<0.4.3`` and, for pretty_midi 0.2.11, ``importlib_resources``, for its
@@ -157,21 +162,21 @@ def _stream(ear: object, mono: np.ndarray, block: int = 512) -> list[tuple[float
     return [(n.time, n.end, n.pitch) for n in ear.ended]
 
 
-def _basic_pitch_session() -> object | None:
-    """An onnxruntime session of basic-pitch's model on one thread, or None where it (or its note
-    creation, which imports pretty_midi) cannot be loaded."""
+def _basic_pitch_session() -> tuple[object | None, str]:
+    """An onnxruntime session of basic-pitch's model on one thread, or None and why it (or its
+    note creation, which imports pretty_midi) cannot be loaded."""
     model = basic_pitch_model()
     if model is None:
-        return None
+        return None, f"not installed: {BASIC_PITCH}"
     try:
         import onnxruntime
         from basic_pitch import note_creation  # noqa: F401
-    except ImportError:
-        return None
+    except ImportError as exc:
+        return None, f"installed but cannot be imported ({exc}): {BASIC_PITCH}"
 
     options = onnxruntime.SessionOptions()
     options.intra_op_num_threads = options.inter_op_num_threads = 1
-    return onnxruntime.InferenceSession(model, options, providers=["CPUExecutionProvider"])
+    return onnxruntime.InferenceSession(model, options, providers=["CPUExecutionProvider"]), ""
 
 
 TABLE = [("piano", 1, "random"), ("piano", 4, "random"), ("piano", 4, "chorale"), ("guitar", 1, "random"),
@@ -188,7 +193,7 @@ def _transcription_rows(quick: bool) -> list[Row]:
     from audio.transcribe import EARS, LIVE, OFFLINE, QUICK, Transcriber
 
     if not have_sampler():
-        return [Row("transcription (skipped: needs fluidsynth and fluid-soundfont-gm)", 0.0, "")]
+        return [skipped("transcription", "needs fluidsynth and fluid-soundfont-gm")]
     rate, seconds = 44100, 30.0 if quick else 120.0
     rng = np.random.default_rng(11)
     notes = random_texture(rng, 4, seconds / 2, 36, 96)
@@ -216,11 +221,9 @@ def _transcription_rows(quick: bool) -> list[Row]:
         rows.append(Row(f"  onset → note event, {look} look, p90 (p50 {np.median(delays):.0f}, max {delays.max():.0f} ms; "
                         f"{np.mean(delays <= 60):.0%} ≤ 60 ms)", float(np.percentile(delays, 90)), "ms",
                         target=60.0, higher_is_better=False))
-    session = _basic_pitch_session()
+    session, why = _basic_pitch_session()
     if session is None:
-        rows.append(Row("basic-pitch ONNX (not installed: pip install basic-pitch==0.4.0 --no-deps onnxruntime "
-                        "pretty_midi 'resampy<0.4.3' importlib_resources)", 0.0, ""))
-        return rows
+        return rows + [skipped("basic-pitch ONNX, same audio", why)]
     theirs: list[tuple[float, float, int]] = []
 
     def infer() -> None:

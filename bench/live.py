@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import bisect
 import os
-import sys
 import tempfile
 import time
 from collections import defaultdict
@@ -35,6 +34,7 @@ import numpy as np
 
 import installations
 from bench import Row
+from bench._peers import skipped
 from bench.live_parts import Synth, after_first_second, free_udp_port, missing_parts, send_notes, sent_notes
 from creatures.events import read_events
 from creatures.runtime import live
@@ -93,8 +93,7 @@ def answer_latencies(sent: list[dict], arrivals: dict[tuple[int, int], list[floa
 def run(quick: bool) -> list[Row]:
     reason = missing_parts()
     if reason:
-        print(f"live: skipped: {reason}", file=sys.stderr)
-        return []
+        return [skipped("live show on JACK", reason)]
     seconds = 15.0 if quick else 60.0
     os.environ.setdefault("MIDO_BACKEND", "mido.backends.rtmidi/UNIX_JACK")
     inst = load_installation(installations.path("exchange"))

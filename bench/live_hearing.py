@@ -27,6 +27,7 @@ from typing import NamedTuple
 import numpy as np
 
 from bench import Row
+from bench._peers import skipped
 
 CONFIG = """title = "hearing latency"
 tick = 0.01
@@ -222,12 +223,13 @@ def measure(onsets: int = 40, gap: float = 0.5, *, warm_up: float = 2.0, timeout
 def run(quick: bool) -> list[Row]:
     why = jack_available()
     if why is not None:
-        return [Row(f"live onset → answer (skipped: {why})", 0.0, "")]
+        return [skipped("live onset → answer", why)]
     rows = []
     for look in ("live", "quick"):  # the quick look is the one made for the 30 ms
         heard = measure(20 if quick else 60, look=look)
         if not heard.latencies:
-            rows.append(Row(f"{look} look: onset → answer: none of {heard.played} onsets answered", 0.0, ""))
+            # no latency to give: the row fails instead of printing a time nothing took
+            rows.append(Row(f"{look} look: onsets answered (none of {heard.played})", 0.0, "onsets", target=1.0))
             continue
         ms = 1e3 * np.array(heard.latencies)
         rows += [
