@@ -201,6 +201,7 @@ def _transcription_rows(quick: bool) -> list[Row]:
               for n in chorale(rng, 4, seconds / 2, 36, 96)]
     mono = render(notes, "piano", rate).mean(axis=1)
     rows, speeds = [], {}
+    repeat = 1 if quick else 2  # each side's best of as many runs: its first run's warm-up left out alike
     for look in (LIVE, QUICK, OFFLINE):
         heard: list[tuple[float, float, int]] = []
 
@@ -208,7 +209,7 @@ def _transcription_rows(quick: bool) -> list[Row]:
             heard[:] = _stream(Transcriber(rate, look=look), mono)
 
         ear = Transcriber(rate, look=look)
-        speed = len(mono) / rate / best_of(stream, repeat=1 if quick else 2, clock=time.process_time)
+        speed = len(mono) / rate / best_of(stream, repeat=repeat, clock=time.process_time)
         speeds[look] = Row(f"transcription, 4-voice piano 44.1 kHz, {look} look ({1e3 * ear.latency:.0f} ms), "
                            "one core", speed, "× real time", target=50.0)
         rows.append(speeds[look])
@@ -229,7 +230,7 @@ def _transcription_rows(quick: bool) -> list[Row]:
     def infer() -> None:
         theirs[:] = basic_pitch_notes(session, mono, rate)
 
-    their_speed = len(mono) / rate / best_of(infer, repeat=1, clock=time.process_time)
+    their_speed = len(mono) / rate / best_of(infer, repeat=repeat, clock=time.process_time)
     offline = speeds[OFFLINE]  # the like-for-like look
     offline.baseline, offline.ratio = "basic-pitch ONNX", offline.value / their_speed
     rows += [
