@@ -7,6 +7,7 @@ same process so the printed ratio means the same on any machine.
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import asdict, dataclass
 from typing import Any, Callable
@@ -46,9 +47,11 @@ def format_row(bench: str, row: Row, previous: float | None = None) -> str:
     target = "" if row.target is None else f"{'≥' if row.higher_is_better else '≤'}{row.target:g}"
     ratio = "" if row.ratio is None else f"{row.ratio:.3g}× {row.baseline or ''}"
     line = f"{bench + ': ' + row.name:<58} {row.value:>14.4g} {row.unit:<12} {target:>10}  {ratio:>18}  {mark}"
-    if previous is not None:
-        line += f"  {row.value / previous:.3g}× prev" if previous else "  (prev 0)"
-    return line
+    if previous is None:
+        return line
+    if not (math.isfinite(row.value) and math.isfinite(previous)):  # a skipped row has no number (NaN)
+        return line + f"  (prev {previous:.4g})"
+    return line + (f"  {row.value / previous:.3g}× prev" if previous else "  (prev 0)")
 
 
 def best_of(fn: Callable[[], object], *, repeat: int = 3,

@@ -76,3 +76,14 @@ def test_a_benchmark_beside_the_others_gets_a_core_they_do_not_use(tmp_path, mon
 def test_format_row_marks_pass_and_fail():
     assert bench.format_row("x", Row("a", 1.0, "s", target=2.0, higher_is_better=False)).endswith("PASS")
     assert bench.format_row("x", Row("a", 3.0, "s", target=2.0, higher_is_better=False)).endswith("FAIL")
+
+
+def test_a_row_without_a_number_is_not_given_a_ratio_to_the_previous_run():
+    from bench._peers import skipped
+
+    skip = skipped("peer", "not installed")
+    assert bench.format_row("x", skip, float("nan")).endswith("(prev nan)")
+    unanswered = Row("latency p99", float("inf"), "ms", target=5.0, higher_is_better=False)
+    line = bench.format_row("x", unanswered, 2.5)
+    assert line.endswith("FAIL  (prev 2.5)") and "× prev" not in line
+    assert bench.format_row("x", Row("latency p99", 5.0, "ms"), 2.5).endswith("2× prev")
