@@ -15,7 +15,13 @@ from typing import Any, Callable
 
 @dataclass
 class Row:
-    """One measured number with its unit, target and (optional) same-run baseline."""
+    """One measured number with its unit, target and (optional) same-run baseline.
+
+    ``ratio`` is how many times better the number is than the baseline's, in the row's own
+    sense: baseline / value where lower is better (a time, a cost), value / baseline where
+    higher is (a rate, a score). Above 1 ours is ahead, below 1 behind, whatever the unit: the
+    table's column reads "6.7× mido" for a load 6.7 times as fast and "0.8× course alone" for
+    a tick that costs 1.25 times as much."""
 
     name: str
     value: float
@@ -36,7 +42,7 @@ class Row:
         return {**asdict(self), "passed": self.passed}
 
 
-HEADER = f"{'benchmark':<58} {'value':>14} {'unit':<12} {'target':>10}  {'ratio':>18}  ok"
+HEADER = f"{'benchmark':<58} {'value':>14} {'unit':<12} {'target':>10}  {'× better than':>18}  ok"
 """The heading of the table :func:`format_row` lines up under."""
 
 

@@ -6,8 +6,9 @@ rehearsal's default gallery (10:00–18:00, Tuesday to Sunday: 48 open hours) at
 suite may (10 minutes), so the suite rehearses ``HOURS`` open hours of the same week and
 projects the week from them (the colony's cold build once, then the hours): each open hour costs the same (the colony's state is bounded,
 as bench/soak.py shows over a day, and the nights are skipped, not ticked). ``python -m bench
-rehearse`` with ``REHEARSE_DAYS=6`` in the environment rehearses the whole week instead. The
-ratio is the week's wall time to the target.
+rehearse`` with ``REHEARSE_DAYS=6`` in the environment rehearses the whole week instead. Every
+time here is this process's CPU time (one core), so the week is held to the target in CPU
+seconds, not those of a shared machine's wall clock.
 
 ``REHEARSE_WEEK=all`` (or a comma-separated list of shipped installations) also rehearses each
 one's whole gallery week (seven days, 48 open hours, its visitors at their default rate) at the
@@ -30,7 +31,7 @@ from creatures.runtime.schema import ScheduleSection, load_installation
 from creatures.runtime.session import Session
 
 TARGET = 1800.0
-"""Wall seconds a rehearsed week of exchange may take (issue 20)."""
+"""Seconds a rehearsed week of exchange may take on one core (issue 20), held in CPU seconds."""
 
 HOURS = 1
 """Open hours the suite rehearses (quick: a tenth of one)."""
@@ -91,5 +92,5 @@ def run(quick: bool = False) -> list[Row]:
     every = week_rows(installations.names() if chosen == "all" else [n for n in chosen.split(",") if n])
     return [Row("exchange, building the colony (once a rehearsal), CPU", setup, "s"),
             Row(f"exchange, {open_hours:g} open h rehearsed (tick {rehearsal.tick:g} s), CPU", cpu, "s"),
-            Row(f"exchange, a rehearsed gallery week ({week_hours} open h){'' if days else ', projected'}", week, "s",
-                target=TARGET, higher_is_better=False, baseline="the 30-min target", ratio=week / TARGET)] + every
+            Row(f"exchange, a rehearsed gallery week ({week_hours} open h){'' if days else ', projected'}, CPU", week, "s",
+                target=TARGET, higher_is_better=False)] + every
