@@ -149,14 +149,19 @@ def _render_rows(quick: bool) -> list[Row]:
             camera = renderer.camera_pose
             ours = frames / best_of(lambda: [renderer.render(positions + 0.01 * i, parents, notes, out=out)
                                              for i in range(frames)], repeat=2)
-        peer, slow_frames = PyrenderBodies(640, 480, camera), max(frames // 4, 5)  # pyrender is slower
+        row = Row(f"{what}, instanced GL", ours, "frames/s", target=120.0 if count == 3 else None)
+        try:
+            peer = PyrenderBodies(640, 480, camera)
+        except (ImportError, OSError, RuntimeError, ValueError) as exc:  # not installed, or no GL platform for it
+            rows += [row, skipped(f"{what}, pyrender", f"{type(exc).__name__}: {exc}")]
+            continue
+        slow_frames = max(frames // 4, 5)  # pyrender is slower
         peer.render(positions, parents, notes)
         theirs = slow_frames / best_of(lambda: [peer.render(positions + 0.01 * i, parents, notes)
                                                 for i in range(slow_frames)], repeat=2)
         peer.close()
-        rows += [Row(f"{what}, instanced GL", ours, "frames/s", target=120.0 if count == 3 else None,
-                     baseline="pyrender", ratio=ours / theirs),
-                 Row(f"{what}, pyrender (peer, same run)", theirs, "frames/s")]
+        row.baseline, row.ratio = "pyrender", ours / theirs
+        rows += [row, Row(f"{what}, pyrender (peer, same run)", theirs, "frames/s")]
     return rows
 
 
@@ -207,9 +212,13 @@ def _peer_rows(quick: bool) -> list[Row]:
     for masses, voices in ((128, 512), (1, 512), (3, 512), (64, 512), (1024, 64)):
         voices = voices // 4 if quick else voices
         what = f"{masses}-mass strings in real time @48 kHz, 1 kHz physics"
-        theirs = csound_string_seconds(voices=voices, seconds=seconds, masses=masses, sample_rate=SR,
-                                       haptic_rate=int(PEER_PHYSICS["haptic_rate"]), mass=PEER_PHYSICS["mass"],
-                                       stiffness=PEER_PHYSICS["stiffness"], damp=damp, repeat=REPEAT)
+        why = "csound not installed"
+        try:
+            theirs = csound_string_seconds(voices=voices, seconds=seconds, masses=masses, sample_rate=SR,
+                                           haptic_rate=int(PEER_PHYSICS["haptic_rate"]), mass=PEER_PHYSICS["mass"],
+                                           stiffness=PEER_PHYSICS["stiffness"], damp=damp, repeat=REPEAT)
+        except RuntimeError as exc:  # installed, but it would not render the orchestra
+            theirs, why = None, str(exc)
         peer = None if theirs is None else voices * seconds / theirs
         for interpolation in ("none", "linear") if masses == 128 else ("none",):
             ours = voices * seconds / _pool_seconds(masses, voices, seconds, REPEAT, interpolation)
@@ -220,7 +229,7 @@ def _peer_rows(quick: bool) -> list[Row]:
             equal = interpolation == "none"  # scantable reads the nearest mass of the latest frame
             rows.append(Row(label, ours, "voices", target=1.5 * peer if equal else None,
                             baseline="Csound scantable" + ("" if equal else " (no interp.)"), ratio=ours / peer))
-        rows.append(skipped(f"{what}, Csound scantable", "csound not installed") if peer is None else
+        rows.append(skipped(f"{what}, Csound scantable", why) if peer is None else
                     Row(f"{what} (Csound 6.18 scantable, same run)", peer, "voices"))
     return rows
 
