@@ -16,9 +16,10 @@ import pkgutil
 import platform
 import sys
 import time
+import traceback
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import bench
 
@@ -57,6 +58,21 @@ def spare_core() -> int | None:
     return spare
 
 
+def crashed(exc: Exception) -> bench.Row:
+    """A failing row for a benchmark that raised ``exc`` (its traceback goes to stderr): the run
+    keeps the rows of every other benchmark, in the table and the JSON, and still fails."""
+    traceback.print_exception(exc)
+    return bench.Row(f"crashed: {type(exc).__name__}: {exc}", float("nan"), "", target=0.0)
+
+
+def rows_of(measure: Callable[..., list[bench.Row]], **kwargs: Any) -> list[bench.Row]:
+    """``measure(**kwargs)``'s rows, or one :func:`crashed` row where it raises."""
+    try:
+        return list(measure(**kwargs))
+    except Exception as exc:
+        return [crashed(exc)]
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m bench", description=__doc__)
     parser.add_argument("names", nargs="*", help=f"benchmarks to run (default all: {available()})")
@@ -80,7 +96,12 @@ def main(argv: list[str] | None = None) -> int:
         results.append({"bench": name, **row.to_dict()})
 
     start = time.perf_counter()
-    modules = {name: importlib.import_module(f"bench.{name}") for name in names}
+    modules = {}
+    for name in names:
+        try:
+            modules[name] = importlib.import_module(f"bench.{name}")
+        except Exception as exc:  # a peer's package broken on import, say: the other benchmarks still run
+            show(name, crashed(exc))
     cpu = spare_core() if any(hasattr(m, "start") for m in modules.values()) else None
     beside = {name: module.start(quick=args.quick, cpu=cpu) for name, module in modules.items()
               if hasattr(module, "start") and cpu is not None}
@@ -88,11 +109,11 @@ def main(argv: list[str] | None = None) -> int:
         if name in beside:
             continue
         t0 = time.perf_counter()
-        for row in module.run(quick=args.quick):
+        for row in rows_of(module.run, quick=args.quick):
             show(name, row)
         print(f"  ({name} took {time.perf_counter() - t0:.1f} s)", file=sys.stderr)
     for name, finish in beside.items():
-        for row in finish():
+        for row in rows_of(finish):
             show(name, row)
         print(f"  ({name}, beside the others, took {time.perf_counter() - start:.1f} s)", file=sys.stderr)
     if not args.names and not args.quick:  # the whole suite must fit in 10 minutes on 2 cores

@@ -87,3 +87,28 @@ def test_a_row_without_a_number_is_not_given_a_ratio_to_the_previous_run():
     line = bench.format_row("x", unanswered, 2.5)
     assert line.endswith("FAIL  (prev 2.5)") and "× prev" not in line
     assert bench.format_row("x", Row("latency p99", 5.0, "ms"), 2.5).endswith("2× prev")
+
+
+def test_a_benchmark_that_raises_fails_the_run_but_keeps_the_others_rows(tmp_path, monkeypatch, capsys, affinity):
+    def broken(quick: bool) -> list[Row]:
+        raise IndexError("index -1 is out of bounds for axis 0 with size 0")
+
+    fake_bench(monkeypatch, "broken", run=broken)
+    fake_bench(monkeypatch, "steady", run=lambda quick: [Row("ticks/s", 400.0, "1/s", target=200.0)])
+    out = tmp_path / "r.json"
+    assert runner.main(["broken", "steady", "--json", str(out)]) == 1
+    saved = json.loads(out.read_text())["results"]
+    assert [(r["bench"], r["passed"]) for r in saved] == [("broken", False), ("steady", True)]
+    assert saved[0]["name"] == "crashed: IndexError: index -1 is out of bounds for axis 0 with size 0"
+    assert "Traceback" in capsys.readouterr().err
+
+
+def test_a_benchmark_that_cannot_be_imported_is_a_failing_row(tmp_path, monkeypatch, affinity):
+    fake_bench(monkeypatch, "unloadable", run=lambda quick: [])
+    monkeypatch.setitem(sys.modules, "bench.unloadable", None)  # importing it raises ImportError
+    fake_bench(monkeypatch, "steady", run=lambda quick: [Row("ticks/s", 400.0, "1/s", target=200.0)])
+    out = tmp_path / "r.json"
+    assert runner.main(["unloadable", "steady", "--json", str(out)]) == 1
+    saved = json.loads(out.read_text())["results"]
+    assert [(r["bench"], r["passed"]) for r in saved] == [("unloadable", False), ("steady", True)]
+    assert saved[0]["name"].startswith("crashed: ModuleNotFoundError")
