@@ -39,7 +39,11 @@ class Row:
         return bool(self.value >= self.target if self.higher_is_better else self.value <= self.target)
 
     def to_dict(self) -> dict[str, Any]:
-        return {**asdict(self), "passed": self.passed}
+        """The row for the results file. A number without a value (a skipped row's NaN, an
+        unanswered note's infinite wait) is written as the string ``float`` reads back ("nan",
+        "inf"): ``json`` would write the bare ``NaN`` and ``Infinity`` that strict readers refuse."""
+        row = {key: str(v) if isinstance(v, float) and not math.isfinite(v) else v for key, v in asdict(self).items()}
+        return {**row, "passed": self.passed}
 
 
 HEADER = f"{'benchmark':<58} {'value':>14} {'unit':<12} {'target':>10}  {'× better than':>18}  ok"

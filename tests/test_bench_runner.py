@@ -112,3 +112,19 @@ def test_a_benchmark_that_cannot_be_imported_is_a_failing_row(tmp_path, monkeypa
     saved = json.loads(out.read_text())["results"]
     assert [(r["bench"], r["passed"]) for r in saved] == [("unloadable", False), ("steady", True)]
     assert saved[0]["name"].startswith("crashed: ModuleNotFoundError")
+
+
+def test_the_results_file_is_strict_json_and_a_skipped_row_reads_back(tmp_path, monkeypatch, capsys, affinity):
+    from bench._peers import skipped
+
+    def strict(constant: str) -> None:
+        pytest.fail(f"{constant} is not JSON")
+
+    fake_bench(monkeypatch, "peers", run=lambda quick: [skipped("peer", "not installed"),
+                                                        Row("wait p99", float("inf"), "ms", target=5.0, higher_is_better=False)])
+    first = tmp_path / "first.json"
+    assert runner.main(["peers", "--json", str(first)]) == 1  # the infinite wait fails its target
+    saved = json.loads(first.read_text(), parse_constant=strict)["results"]
+    assert [r["value"] for r in saved] == ["nan", "inf"]
+    assert runner.main(["peers", "--json", str(tmp_path / "second.json"), "--compare", str(first)]) == 1
+    assert "(prev nan)" in capsys.readouterr().out
