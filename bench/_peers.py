@@ -7,6 +7,7 @@ so (:func:`skipped`) instead of carrying a number from elsewhere.
 
 from __future__ import annotations
 
+import re
 import resource
 import shutil
 import subprocess
@@ -81,6 +82,14 @@ def csound_string_seconds(*, voices: int, seconds: float, masses: int, sample_ra
         full.write_text(CSOUND_STRING.format(score=notes, **fields))
         empty.write_text(CSOUND_STRING.format(score=f"f0 {seconds}", **fields))
         return _best_run(full, repeat) - _best_run(empty, repeat)
+
+
+def csound_version() -> str:
+    """The installed Csound's version as it gives it (``csound --version``: "6.18"), for the
+    rows that name the peer they measured."""
+    done = subprocess.run(["csound", "--version"], capture_output=True, text=True)
+    found = re.search(r"Csound version (\d+(?:\.\d+)*)", done.stdout + done.stderr)
+    return found[1] if found else "(version unknown)"
 
 
 def _best_run(csd: Path, repeat: int) -> float:

@@ -3,7 +3,7 @@
 Rows (``python -m bench voice``):
 
 * strings in real time at 48 kHz with 1 kHz physics (a :class:`~audio.voices.VoicePool`, the
-  path a creature's voice takes), beside Csound 6.18's ``scantable`` rendering the same
+  path a creature's voice takes), beside Csound's ``scantable`` (6.18 here) rendering the same
   strings in the same run (:mod:`bench._peers`): 128 masses, then 1, 3, 64 and 1,024, each
   with the target ≥ 1.5× Csound; at 128 masses also with ours' default linear interpolation,
   which does more per sample than ``scantable``. One mass on a ring is its own neighbour in
@@ -45,7 +45,7 @@ from audio.coupling import BodyCoupling
 from audio.scanned import ScannedString, StringParameters
 from audio.voices import VoicePool
 from bench import Row, best_of
-from bench._peers import best_cpu_of, csound_string_seconds, skipped
+from bench._peers import best_cpu_of, csound_string_seconds, csound_version, skipped
 
 SR = 48000
 BLOCK = 512
@@ -230,7 +230,7 @@ def _peer_rows(quick: bool) -> list[Row]:
             rows.append(Row(label, ours, "voices", target=1.5 * peer if equal else None,
                             baseline="Csound scantable" + ("" if equal else " (no interp.)"), ratio=ours / peer))
         rows.append(skipped(f"{what}, Csound scantable", why) if peer is None else
-                    Row(f"{what} (Csound 6.18 scantable, same run)", peer, "voices"))
+                    Row(f"{what} (Csound {csound_version()} scantable, same run)", peer, "voices"))
     return rows
 
 

@@ -5,8 +5,11 @@ of ending the benchmark with a traceback."""
 from __future__ import annotations
 
 import math
+import re
+import shutil
 
 import numpy as np
+import pytest
 
 import bench._peers
 import bench.voice as voice
@@ -55,3 +58,17 @@ def test_a_pyrender_that_cannot_load_leaves_our_frames_and_says_why(monkeypatch)
     assert all("No module named 'pyrender'" in r.name for r in rows[1::2])
     three = rows[2]
     assert three.target == 120.0 and three.passed and three.ratio is None
+
+
+def test_the_csound_row_names_the_version_that_ran(monkeypatch) -> None:
+    monkeypatch.setattr(voice, "csound_string_seconds", lambda **kwargs: 1.0)
+    monkeypatch.setattr(voice, "csound_version", lambda: "7.0")
+    monkeypatch.setattr(voice, "_pool_seconds", lambda masses, voices, seconds, repeat, interpolation: 0.5)
+    peers = [r for r in voice._peer_rows(quick=True) if "scantable, same run" in r.name]
+    assert len(peers) == 5 and all("Csound 7.0 scantable" in r.name for r in peers)
+
+
+def test_the_installed_csound_gives_its_version() -> None:
+    if shutil.which("csound") is None:
+        pytest.skip("csound is not installed")
+    assert re.fullmatch(r"\d+(\.\d+)+", bench._peers.csound_version())
