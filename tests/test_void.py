@@ -449,6 +449,17 @@ def test_a_bad_tile_file_is_refused_naming_file_key_and_line(tmp_path, edit, key
     assert caught.value.line is not None
 
 
+def test_a_tile_of_next_to_no_beats_is_refused_at_its_line(tmp_path):
+    # A layer idling in a tacet of 1e-300 beats laid it again and again without getting any
+    # further (1.0 + 1e-300 is 1.0): the run hung at its first tick, laying tiles until memory ran out.
+    path = tmp_path / "tiles.toml"
+    path.write_text('[tiles.rest]\nlayer = "theme"\ntags = ["tacet"]\nbeats = 1e-300\n')
+    with pytest.raises(ConfigError) as caught:
+        load_tiles(path)
+    assert str(path) in str(caught.value) and "tiles.rest.beats" in str(caught.value)
+    assert caught.value.line == 4 and "0.0625" in str(caught.value)
+
+
 def test_a_score_action_naming_a_missing_tag_is_refused_with_the_nearest(tmp_path):
     text = (HERE / "void.toml").read_text().replace("getTo eddie-head", "getTo eddie-haed")
     (tmp_path / "void").mkdir()

@@ -39,6 +39,12 @@ if TYPE_CHECKING:
 LONGEST_TILE = 256.0
 """Beats: the longest tile (64 bars of 4)."""
 
+SHORTEST_TILE = 1 / 16
+"""Beats: the shortest tile (a sixty-fourth note in 4/4). A layer lays tiles until it reaches
+its lookahead, so one of next to no beats (1e-300: 1.0 + 1e-300 is 1.0) never got it there
+and the run hung at its first tick, laying tiles until memory ran out; one of 1/16 takes at
+most 16 × 64 tiles to fill the longest lookahead."""
+
 class TileTable(BaseModel):
     """One ``[tiles.NAME]`` table."""
 
@@ -46,7 +52,7 @@ class TileTable(BaseModel):
 
     layer: str = Field("bed", description="the layer that plays it: tiles of one layer follow each other, layers overlay")
     part: str = Field("band", description="whose music it is (a channel, timbre and balance in [creature.score.parts])")
-    beats: float = Field(gt=0, le=LONGEST_TILE, description="its length in beats")
+    beats: float = Field(ge=SHORTEST_TILE, le=LONGEST_TILE, description="its length in beats")
     tags: list[str] = Field(default_factory=list, max_length=32, description="what the behaviour system may ask for")
     follows: list[str] = Field(default_factory=list, max_length=64, description="tiles the composer wrote to follow it")
     notes: list[tuple[float, int | str, int, float]] = Field(default_factory=list, max_length=4096,
