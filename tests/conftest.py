@@ -58,3 +58,16 @@ def own_registry(monkeypatch):
     yield
     kinds.KINDS.clear()
     kinds.KINDS.update(saved)
+
+
+@pytest.fixture(params=["none found", "IMAGEIO_FFMPEG_EXE names none"])
+def no_video_encoder(request, monkeypatch):
+    """No ffmpeg for imageio: none installed (imageio-ffmpeg finds none), or the environment
+    naming one that is not there."""
+    import imageio_ffmpeg._utils
+
+    monkeypatch.setattr(imageio_ffmpeg._utils, "_get_ffmpeg_exe", lambda: None)
+    if request.param == "none found":
+        monkeypatch.delenv("IMAGEIO_FFMPEG_EXE", raising=False)
+    else:
+        monkeypatch.setenv("IMAGEIO_FFMPEG_EXE", "/nonexistent/ffmpeg")

@@ -295,3 +295,23 @@ def test_a_video_made_again_and_stopped_leaves_the_earlier_one_whole(tmp_path, m
         make_video(spec, "oz", entries, 8000, 2.0, tmp_path)
     assert (tmp_path / "oz.mp4").read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["oz.images.json", "oz.mp4"]
+
+
+def test_without_a_video_encoder_a_run_keeps_its_outputs_and_images_says_why(tmp_path, no_video_encoder, capsys,
+                                                                               caplog):
+    """The traveller's video is made when the run is over: without ffmpeg the run died there
+    with a traceback and published nothing. Now it publishes all but the video and warns why;
+    ``creatures images``, asked for a video, says why in a line (exit 2) before reading footage."""
+    from creatures.cli import main
+
+    inst = load_installation(CONFIG)
+    inst.settings.output.report = False
+    summary = run_offline(inst, tmp_path / "run", duration=2.0)
+    assert {"edl traveller", "images traveller"} <= set(summary.files) and "video traveller" not in summary.files
+    assert not list((tmp_path / "run").glob("*.mp4"))
+    said = [r.getMessage() for r in caplog.records if "no video encoder" in r.getMessage()]
+    assert len(said) == 1 and said[0].startswith("traveller: cannot write") and "without the video" in said[0]
+    assert main(["images", str(tmp_path / "run"), "--creature", "traveller", "--out", str(tmp_path / "v")]) == 2
+    err = capsys.readouterr().err
+    assert "traveller.mp4" in err and "no video encoder" in err and "Traceback" not in err
+    assert not (tmp_path / "v").exists() or not any((tmp_path / "v").iterdir())

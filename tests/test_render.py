@@ -16,7 +16,7 @@ import pytest
 from scipy.ndimage import binary_dilation, binary_erosion
 
 from creatures.body import render
-from creatures.body.frames import FrameClock, FrameWriter
+from creatures.body.frames import FrameClock, FrameWriter, VideoUnavailable
 from creatures.body.render import BodyRenderer, NoteMark, RenderUnavailable, pitch_colour
 
 # A tiny stick figure: pelvis, spine, head, two arms, two legs (parents as the motor Skeleton has them).
@@ -207,6 +207,34 @@ def test_frame_writer_writes_pngs_and_a_video(tmp_path, rng):
     with imageio_v2.get_reader(tmp_path / "body.mp4") as video:
         decoded = [frame for frame in video]
     assert len(decoded) == 5 and decoded[0].shape == (48, 64, 3)
+
+
+def test_without_a_video_encoder_the_writer_says_so_before_writing_anything(tmp_path, no_video_encoder):
+    """imageio looks for ffmpeg at the first frame: a run asked for a video died there with a
+    traceback (its RuntimeError, or a FileNotFoundError naming only the missing program)."""
+    with pytest.raises(VideoUnavailable) as caught:
+        FrameWriter(directory=tmp_path / "png", video=tmp_path / "body.mp4", fps=10)
+    said = str(caught.value)
+    assert said.startswith("cannot write body.mp4: no video encoder") and "ffmpeg" in said.lower()
+    assert isinstance(caught.value, OSError)  # what the commands say in a line and exit 2 on
+    assert not any(tmp_path.iterdir())
+
+
+@pytest.mark.gl
+def test_a_run_without_a_video_encoder_draws_its_frames_and_says_why_no_video(tmp_path, clock, no_video_encoder):
+    from creatures.runtime.bodies import BodyFrames
+    from creatures.runtime.schema import OutputSection
+
+    messages: list[str] = []
+    frames = BodyFrames(OutputSection(frames=True, video=True, width=32, height=24, fps=10.0), tmp_path, clock,
+                        messages)
+    if frames.renderer is None:
+        pytest.skip(messages[0])
+    frames.paint((STANDING, PARENTS, []), 2)
+    frames.close()
+    assert len(messages) == 1 and messages[0].startswith("no video: ") and "out.mp4" in messages[0]
+    assert frames.writer.video is None and len(list((tmp_path / "frames").glob("frame_*.png"))) == 2
+    assert not (tmp_path / "out.mp4").exists()
 
 
 def test_a_video_of_odd_size_is_padded_to_even_not_rescaled(tmp_path, caplog):

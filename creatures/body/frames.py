@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import os
+import shutil
 from pathlib import Path
 
 import imageio.v2 as imageio_v2
@@ -39,22 +40,49 @@ class FrameClock:
         return count
 
 
+class VideoUnavailable(OSError):
+    """No video encoder (ffmpeg) to write a video with; the message says what was looked for."""
+
+
+def video_encoder(video: str | os.PathLike) -> str:
+    """The ffmpeg imageio would encode ``video`` with, or :class:`VideoUnavailable` naming it.
+
+    imageio looks for it only at the first frame: without one, a run asked for a video died at
+    its first frame with a traceback (imageio-ffmpeg's RuntimeError), and ozymandias's, whose
+    video is made when the run is over, lost the whole run. ``IMAGEIO_FFMPEG_EXE`` is taken as
+    given by imageio, so it is checked here to be a program."""
+    import imageio_ffmpeg
+
+    try:
+        exe = imageio_ffmpeg.get_ffmpeg_exe()
+    except RuntimeError as exc:  # imageio-ffmpeg's "No ffmpeg exe could be found ..."
+        raise VideoUnavailable(f"cannot write {Path(video).name}: no video encoder ({exc})") from None
+    if shutil.which(exe) is None:
+        raise VideoUnavailable(f"cannot write {Path(video).name}: no video encoder ({exe}, from IMAGEIO_FFMPEG_EXE, is not "
+                               "a program: point it at ffmpeg or unset it)")
+    return exe
+
+
 class FrameWriter:
     """Writes RGB frames as numbered PNGs into ``directory`` and/or a ``video`` (imageio-ffmpeg).
 
     H.264 in yuv420p (what players play) needs even sizes: a frame of odd width or height goes
     into the video with its last column or row repeated (201×301 → 202×301 → 202×302), never
-    rescaled; imageio's own fix scaled it up to a multiple of 8 (208×304), with a warning."""
+    rescaled; imageio's own fix scaled it up to a multiple of 8 (208×304), with a warning.
+    Without an encoder for the video it raises :class:`VideoUnavailable` before writing anything."""
 
     def __init__(self, *, directory: str | os.PathLike | None = None, video: str | os.PathLike | None = None,
                  fps: float = 30.0) -> None:
         if directory is None and video is None:
             raise ValueError("FrameWriter needs a directory for PNGs, a video path, or both")
+        if video is not None:
+            video_encoder(video)
         self.directory = None if directory is None else Path(directory)
         if self.directory is not None:
             self.directory.mkdir(parents=True, exist_ok=True)
         if video is not None:
             Path(video).parent.mkdir(parents=True, exist_ok=True)  # a video alone (--no-pngs) has its folder too
+        self.video = None if video is None else Path(video)
         self._video = None if video is None else imageio_v2.get_writer(
             video, fps=fps, codec="libx264", quality=7, macro_block_size=1)
         self.count = 0

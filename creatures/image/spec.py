@@ -10,6 +10,7 @@ from typing import Annotated, Any
 
 from pydantic import BaseModel, Field, PrivateAttr
 
+from creatures.body.frames import video_encoder
 from creatures.bounds import FINITE, LONGEST_OFFLINE
 from creatures.image.footage import Footage, load_footage
 from creatures.image.image_graph import ImageGraph
@@ -74,6 +75,8 @@ def make_video(spec: ImagesSpec, name: str, entries: list[dict[str, Any]], sampl
                out: Path) -> dict[str, Path]:
     """Walk the graph as ``entries`` command and write ``<name>.mp4`` (and PNGs) and
     ``<name>.images.json`` into ``out``; the files by name."""
+    if spec.video:
+        video_encoder(out / f"{name}.mp4")  # VideoUnavailable before the footage is read and walked
     duration = min(max(duration, 1.0 / spec.fps), LONGEST_OFFLINE)
     key = (str(spec.source()), spec.fps, round(duration, 3), tuple(spec.size), out)
     footage = _footage(*key)

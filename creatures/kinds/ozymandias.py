@@ -68,6 +68,7 @@ placed at output_frame, then mixed with ``mix`` (equal-power pan, :class:`audio.
 from __future__ import annotations
 
 import bisect
+import logging
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -85,6 +86,7 @@ from creatures.behaviour.value import ScalarValue, value_from_dict
 from creatures.kinds import register
 from creatures.bounds import LARGEST_RATE, LONGEST_OFFLINE, LONGEST_SECONDS, Seconds, count
 from creatures.config import config_error
+from creatures.body.frames import VideoUnavailable, video_encoder
 from creatures.image.spec import ImagesSpec, make_video
 from creatures.kinds.base import CreatureKind, CreatureSpec
 from creatures.kinds.hearing_parts import AuralLearning, Ear, HearingSpec, Singers, SingFrom, tree_from_state, tree_state
@@ -92,6 +94,8 @@ from creatures.persist import load_json, save_json
 
 if TYPE_CHECKING:
     from creatures.runtime.world import World
+
+logger = logging.getLogger(__name__)
 
 EDL_KIND = "creature-music edl"
 CLICK_LENGTH = 0.1
@@ -285,9 +289,22 @@ class Ozymandias(CreatureKind):
         files = {f"edl {self.name}": path}
         if self.spec.images is not None:
             rate = self.sample_rate or 0
-            files.update(make_video(self.spec.images, self.name, self.edl, rate,
+            files.update(make_video(self._images(out), self.name, self.edl, rate,
                                     self._frame / rate if rate else self.world.clock.now(), out))
         return files
+
+    def _images(self, out: Path) -> ImagesSpec:
+        """The images to make: without a video encoder, all but the video (and a warning why),
+        since a run that crashed here at its end lost every output. (The events log is closed
+        by now.)"""
+        images = self.spec.images
+        if images.video:
+            try:
+                video_encoder(out / f"{self.name}.mp4")
+            except VideoUnavailable as exc:
+                logger.warning("%s: %s; its images are made without the video", self.name, exc)
+                return images.model_copy(update={"video": False})
+        return images
 
     # -- persistence ---------------------------------------------------------------------
     def state(self) -> dict[str, Any]:

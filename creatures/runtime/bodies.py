@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from creatures.body.frames import FrameClock, FrameWriter
+from creatures.body.frames import FrameClock, FrameWriter, VideoUnavailable, video_encoder
 from creatures.clock import Clock
 from creatures.kinds.base import CreatureKind
 from creatures.runtime.schema import OutputSection
@@ -69,8 +69,14 @@ class BodyFrames:
             messages.append(f"no frames: {exc}")
             self.renderer = None
             return
-        self.writer = FrameWriter(directory=out / "frames", video=out / "out.mp4" if output.video else None,
-                                  fps=output.fps)
+        video = out / "out.mp4" if output.video else None
+        if video is not None:
+            try:
+                video_encoder(video)
+            except VideoUnavailable as exc:  # as without GL: the run goes on, with the PNGs
+                messages.append(f"no video: {exc}")
+                video = None
+        self.writer = FrameWriter(directory=out / "frames", video=video, fps=output.fps)
         self.clock = FrameClock(output.fps, clock)  # frames count from when drawing can start
         self._frame = np.empty((output.height, output.width, 3), np.uint8)  # drawn into, frame after frame
         self.painted = 0  # scenes drawn: none when no creature has a body
@@ -123,7 +129,7 @@ def _draw_beside(output: dict, out: str, scenes: multiprocessing.Queue, ready: m
     from creatures.clock import WallClock
 
     frames = BodyFrames(OutputSection(**output), Path(out), WallClock(), messages)
-    ready.put(messages[0] if messages else "")
+    ready.put((frames.renderer is not None, messages))  # drawing, and what to say (no GL, no video)
     if frames.renderer is None:
         return
     try:
@@ -144,10 +150,10 @@ class FramesBeside:
                                        name="creatures-frames", daemon=True)
         self.process.start()
         self.dropped = 0  # frames that found the drawing process busy
-        problem = ready.get(timeout=120)  # before the run starts: the process has its renderer or says why
-        self.drawing = not problem
-        if problem:
-            messages.append(problem)
+        # before the run starts: the process has its renderer or says why (and whether it has a video)
+        self.drawing, said = ready.get(timeout=120)
+        messages.extend(said)
+        if not self.drawing:
             self.process.join(10)
         self.clock = FrameClock(output.fps, clock)
 

@@ -249,8 +249,8 @@ def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path 
         shutil.rmtree(out / "frames", ignore_errors=True)  # not published empty
     elif bodies is not None and bodies.renderer is not None:
         files["frames"] = out / "frames"
-        if settings.output.video:
-            files["video"] = out / "out.mp4"
+        if bodies.writer.video is not None:  # asked for, and an encoder found
+            files["video"] = bodies.writer.video
     if log.loss:
         messages.append(log.loss)
     summary = OfflineSummary(duration, time.perf_counter() - wall0, session.world.notes_played, files, messages,
