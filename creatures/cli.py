@@ -528,8 +528,10 @@ def _images(args: argparse.Namespace) -> int:
     from creatures.image.spec import ImagesSpec, make_video
     from creatures.kinds.ozymandias import read_edl
     from creatures.persist import StateFileError
+    from creatures.runtime.outputs import publishing
 
     out = args.out or args.run_dir / "images"
+    name = args.creature
     try:
         edl = read_edl(_edl_of(args.run_dir, args.creature))
         spec = ImagesSpec(footage=args.footage, fps=args.fps, png=args.png)
@@ -539,13 +541,14 @@ def _images(args: argparse.Namespace) -> int:
         rate = edl["sample_rate"]
         last = max((e["output_frame"] + e["source_end_frame"] - e["source_start_frame"] for e in edl["entries"]),
                    default=0)
-        out.mkdir(parents=True, exist_ok=True)
-        files = make_video(spec, args.creature, edl["entries"], rate, last / rate if rate else 0.0, out)
+        # made aside and published whole: stopped with --png, the frames were drawn over the last ones
+        with publishing(out, {f"{name}.mp4", f"{name}.images.json", f"{name}.frames"}) as staged:
+            files = make_video(spec, name, edl["entries"], rate, last / rate if rate else 0.0, staged)
     except (ValueError, OSError, StateFileError) as exc:  # FootageError is a ValueError
         print(f"creatures: {exc}", file=sys.stderr)
         return 2
-    for name, path in files.items():
-        print(f"  {name:<20} {path}")
+    for what, path in files.items():
+        print(f"  {what:<20} {out / path.relative_to(staged)}")
     return 0
 
 
@@ -800,9 +803,9 @@ STOPPED = {
     "run": "stopped before the run began or as it ended; the state folder holds the last state saved",
     "inspect": "the page was not written",
     "view": "the view was closed",
-    "render": "the frames drawn so far are in the output directory",
+    "render": "nothing was replaced; the output directory holds the previous render as it was",
     "export-motion": "the BVH file was not written (or is the previous one)",
-    "images": "the video may be cut short; run it again",
+    "images": "nothing was replaced; the output directory holds the previous video and images as they were",
 }
 """What a command stopped by Ctrl-C, SIGTERM or SIGHUP outside its own handling left behind."""
 

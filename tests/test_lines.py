@@ -21,6 +21,7 @@ from creatures.motor.spline import SplinePose, catmull_rom, strokes
 from creatures.motor.drawing import DrawingError, drawing_lines, read_drawing, resample
 from creatures.runtime.offline import run_offline
 from creatures.runtime.schema import load_installation
+from test_faults import _tree
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIBBLE = ROOT / "installations" / "scribble.toml"
@@ -256,13 +257,42 @@ def test_a_string_body_sounds_its_pose():
 
 def test_a_render_again_into_its_folder_leaves_no_frames_of_the_last(scribbled, tmp_path):
     """Drawn at 5 fps, then again into the same folder at 1 fps: the folder holds the second
-    render's frames only (it kept the first's after them: a sequence of both), and a file that
-    is not a frame stays."""
+    render's frames only (it kept the first's after them: a sequence of both); a file put
+    among them that no render wrote is never removed: the render is refused, nothing changed."""
     from creatures.body.lines import render_lines
+    from creatures.runtime.outputs import OutputDirectoryError
 
     first = render_lines(scribbled, tmp_path, fps=5.0)
     (tmp_path / "lines" / "notes.txt").write_text("mine")
+    before = _tree(tmp_path / "lines")
+    with pytest.raises(OutputDirectoryError, match="notes.txt"):
+        render_lines(scribbled, tmp_path, fps=1.0)
+    assert _tree(tmp_path / "lines") == before
+    (tmp_path / "lines" / "notes.txt").unlink()
     second = render_lines(scribbled, tmp_path, fps=1.0)
     assert first > second > 0
     files = sorted(p.name for p in (tmp_path / "lines").iterdir())
-    assert files == [f"frame_{n:06d}.svg" for n in range(second)] + ["notes.txt"]
+    assert files == [f"frame_{n:06d}.svg" for n in range(second)]
+
+
+def test_a_render_stopped_part_way_leaves_the_last_one_as_it_was(scribbled, tmp_path, monkeypatch):
+    """Stopped after two drawings (Ctrl-C), a render again at 1 fps had written them over the
+    first two of the last render's and left the rest after them: a sequence of both that
+    looked whole. Now the folder is the last render's, byte for byte, and nothing is left aside."""
+    from creatures.body import lines
+
+    lines.render_lines(scribbled, tmp_path, fps=5.0)
+    before = _tree(tmp_path)
+    drawn = lines.draw
+
+    def stopped(*args, **kwargs):
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        calls.append(1)
+        return drawn(*args, **kwargs)
+
+    calls: list[int] = []
+    monkeypatch.setattr(lines, "draw", stopped)
+    with pytest.raises(KeyboardInterrupt):
+        lines.render_lines(scribbled, tmp_path, fps=1.0)
+    assert len(calls) == 2 and _tree(tmp_path) == before

@@ -297,6 +297,33 @@ def test_a_video_made_again_and_stopped_leaves_the_earlier_one_whole(tmp_path, m
     assert sorted(p.name for p in tmp_path.iterdir()) == ["oz.images.json", "oz.mp4"]
 
 
+def test_images_made_again_and_stopped_leave_the_last_ones_as_they_were(tmp_path, monkeypatch, capsys):
+    """``creatures images --png`` stopped part way (Ctrl-C) had drawn its frames over the start
+    of the last ones, beside the last video and record: now the folder is as it was."""
+    from creatures.cli import main
+    from creatures.image import video as video_module
+    from creatures.kinds.ozymandias import EDL_KIND
+    from creatures.persist import save_json
+    from test_faults import _tree
+
+    save_json(tmp_path / "oz.edl.json", {"sample_rate": 8000, "creature": "oz", "entries": [
+        {"output_frame": 0, "source_start_frame": 8000, "source_end_frame": 16000, "gain": 1.0}]}, kind=EDL_KIND)
+    images = ["images", str(tmp_path), "--creature", "oz", "--png", "--fps"]
+    assert main([*images, "5"]) == 0
+    before = _tree(tmp_path / "images")
+    composed = video_module.Blur.compose
+
+    def stopped(self, shot):
+        if shot.time > 0.5:
+            raise KeyboardInterrupt
+        return composed(self, shot)
+
+    monkeypatch.setattr(video_module.Blur, "compose", stopped)
+    assert main([*images, "10"]) == 130
+    assert _tree(tmp_path / "images") == before and len(list((tmp_path / "images" / "oz.frames").iterdir())) == 5
+    assert "nothing was replaced" in capsys.readouterr().err
+
+
 def test_without_a_video_encoder_a_run_keeps_its_outputs_and_images_says_why(tmp_path, no_video_encoder, capsys,
                                                                                caplog):
     """The traveller's video is made when the run is over: without ffmpeg the run died there

@@ -106,6 +106,44 @@ def test_an_artists_file_put_into_an_earlier_runs_output_is_never_removed(config
 
 
 # -- defect 2: all or none ----------------------------------------------------------------
+def test_a_publish_of_part_of_a_folder_replaces_only_its_part_and_keeps_the_rest(tmp_path):
+    """``creatures render`` publishes its frames into a run's folder, and its line drawings
+    beside them: each replaces only its own entries, keeps the others and the run's facts; a
+    block that fails changes nothing, and one that would replace a file no run wrote is refused
+    before it starts."""
+    out = tmp_path / "run"
+
+    def made(files: dict[str, str], replaces: set[str] | None, **facts) -> None:
+        staged = outputs.stage(out)
+        for name, text in files.items():
+            (staged / name).parent.mkdir(parents=True, exist_ok=True)
+            (staged / name).write_text(text)
+        outputs.publish(staged, out, replaces=replaces, **facts)
+        outputs.discard(staged)
+
+    out.mkdir()
+    made({"events.jsonl": "run", "frames/frame_000000.png": "run"}, None, events_lost=3)
+    with outputs.publishing(out, {"frames", "out.mp4"}) as staged:
+        (staged / "frames").mkdir()
+        (staged / "frames" / "frame_000001.png").write_text("render")
+    with outputs.publishing(out, {"lines"}) as staged:
+        (staged / "lines").mkdir()
+        (staged / "lines" / "frame_000000.svg").write_text("lines")
+    manifest = load_json(out / MANIFEST, kind=MANIFEST_KIND)
+    assert manifest["events_lost"] == 3
+    assert sorted(manifest["files"]) == ["events.jsonl", "frames/", "frames/frame_000001.png", "lines/",
+                                         "lines/frame_000000.svg"]
+    before = _tree(out)
+    with pytest.raises(KeyboardInterrupt), outputs.publishing(out, {"lines"}) as staged:
+        (staged / "lines").mkdir()
+        raise KeyboardInterrupt
+    assert _tree(out) == before
+    (out / "lines" / "mine.txt").write_text("an artist's")
+    with pytest.raises(OutputDirectoryError, match="mine.txt"), outputs.publishing(out, {"lines"}):
+        pytest.fail("a publish that would remove an artist's file began")
+    assert _tree(out) == {**before, "lines/mine.txt": b"an artist's"}
+
+
 def test_a_plain_file_where_the_state_folder_was_replaces_nothing(config, tmp_path, capsys):
     """The issue's case: DIR/state is a plain file. Before, events.jsonl, out.mid and out.wav
     were already replaced when the rename of state/ failed."""

@@ -389,6 +389,43 @@ def test_render_draws_every_frame_at_the_size_and_camera_asked(offline_run, tmp_
     assert (video / "out.mp4").stat().st_size > 1000 and not (video / "frames").exists()
 
 
+@pytest.mark.gl
+def test_a_render_stopped_part_way_leaves_the_last_render_and_the_line_drawings_as_they_were(offline_run, tmp_path,
+                                                                                          monkeypatch):
+    """Stopped (Ctrl-C) part way, a render had cut the last render's out.mp4 short (a short video
+    that plays as if whole) and drawn its frames over the start of the last render's. Now the
+    folder is as it was; a render finished beside the line drawings keeps them."""
+    from creatures.body import frames as frames_module
+    from creatures.body.lines import render_lines
+    from creatures.body.render import RenderUnavailable
+    from creatures.view.rerender import render_run
+    from test_faults import _tree
+
+    out = tmp_path / "render"
+    try:
+        drawn = render_run(offline_run, out, width=48, height=32, video=True)
+    except RenderUnavailable as exc:
+        pytest.skip(str(exc))
+    lines = render_lines(offline_run, out)
+    before = _tree(out)
+    write = frames_module.FrameWriter.write
+
+    def stopped(self, frame, *, repeat=1):
+        if self.count >= 5:
+            raise KeyboardInterrupt
+        write(self, frame, repeat=repeat)
+
+    monkeypatch.setattr(frames_module.FrameWriter, "write", stopped)
+    with pytest.raises(KeyboardInterrupt):
+        render_run(offline_run, out, width=64, height=48, fps=20.0, video=True)
+    assert _tree(out) == before
+    monkeypatch.undo()
+    again = render_run(offline_run, out, width=64, height=48, fps=20.0)
+    assert again > drawn and len(list((out / "frames").glob("frame_*.png"))) == again
+    assert not (out / "out.mp4").exists()  # this render made none: the last one's went with its frames
+    assert len(list((out / "lines").glob("frame_*.svg"))) == lines
+
+
 def test_the_percept_trees_reach_the_page_live_and_replayed(tmp_path):
     from creatures.view.rerender import learned
 

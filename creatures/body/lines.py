@@ -109,8 +109,9 @@ def render_lines(run_dir: Path, out: Path, *, fmt: Format = "svg", width: int = 
                  fps: float | None = None, yaw: float = 0.0, pitch: float = 0.0) -> int:
     """Draw a finished run's bodies (its log's poses) as ``out/lines/frame_NNNNNN.svg`` (or
     ``.eps``) at ``fps``; the count of files written (a frame that fills several output frames
-    is written once per output frame, as the PNG frames are)."""
-    from creatures.body.frames import drop_stale
+    is written once per output frame, as the PNG frames are). ``out/lines`` is replaced whole
+    once every file is written."""
+    from creatures.runtime.outputs import publishing
     from creatures.view.rerender import load_replay, log_rate, sampled
     from creatures.view.snapshot import scene
 
@@ -121,14 +122,14 @@ def render_lines(run_dir: Path, out: Path, *, fmt: Format = "svg", width: int = 
     scenes = [(scene(message, played.hello), repeat) for message, repeat in sampled(played.frames, fps)]
     everything = np.concatenate([s[0] for s, _ in scenes if len(s[0])])
     page = Page.framing(everything, width, height, yaw=yaw, pitch=pitch)
-    directory = out / "lines"
-    directory.mkdir(parents=True, exist_ok=True)
     suffix = "svg" if fmt == "svg" else "eps"
     count = 0
-    for (positions, parents, marks), repeat in scenes:
-        text = draw(page, positions, parents, marks, fmt)
-        for _ in range(repeat):
-            (directory / f"frame_{count:06d}.{suffix}").write_text(text)
-            count += 1
-    drop_stale(directory, suffix, count)
+    with publishing(out, {"lines"}) as staged:  # whole or not at all, as the frames of render_run
+        directory = staged / "lines"
+        directory.mkdir()
+        for (positions, parents, marks), repeat in scenes:
+            text = draw(page, positions, parents, marks, fmt)
+            for _ in range(repeat):
+                (directory / f"frame_{count:06d}.{suffix}").write_text(text)
+                count += 1
     return count

@@ -27,10 +27,12 @@ Renames within one file system are atomic, and all of these are inside ``DIR``.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
 import tempfile
 from pathlib import Path
+from typing import Iterator
 
 from creatures.lock import FolderLock, FolderLockedError
 from creatures.paths import directory
@@ -101,12 +103,13 @@ def foreign(out: Path, names: set[str], ours: set[str]) -> list[str]:
     return strangers
 
 
-def refuse_foreign(out: Path, names: set[str]) -> None:
+def refuse_foreign(out: Path, names: set[str], replaces: set[str] | None = None) -> None:
     """Raise :class:`OutputDirectoryError` if publishing ``names`` (top-level entries) into
-    ``out`` would replace or remove anything the previous run did not write."""
+    ``out`` would replace or remove anything the previous run did not write (of what it wrote,
+    only the entries ``replaces`` names go, when it is given)."""
     ours = owned(out)
     previous = {e.split("/", 1)[0] for e in ours}
-    strangers = foreign(out, names | previous, ours)
+    strangers = foreign(out, names | (previous if replaces is None else previous & replaces), ours)
     if strangers:
         more = f" (and {len(strangers) - 1} more)" if len(strangers) > 1 else ""
         raise OutputDirectoryError(
@@ -137,13 +140,24 @@ def stage(out: Path) -> Path:
     return _hidden_dir(out, STAGING)
 
 
-def publish(staged: Path, out: Path, **facts: object) -> None:
+def publish(staged: Path, out: Path, *, replaces: set[str] | None = None, **facts: object) -> None:
     """Move a finished run's outputs from ``staged`` into ``out`` all or none (module
-    docstring); ``facts`` are recorded in the manifest beside the file list."""
+    docstring); ``facts`` are recorded in the manifest beside the file list.
+
+    ``replaces``: the top-level entries this publish owns, for a command that writes a part of
+    a folder (``creatures render`` beside a run's outputs, or its line drawings beside its
+    frames): the previous manifest's other entries, and its facts, are kept as they were.
+    None: everything the previous run wrote is replaced or removed."""
     new = sorted(p.name for p in staged.iterdir() if p.name != MARKER)
-    refuse_foreign(out, set(new))
+    refuse_foreign(out, set(new), replaces)
     ours = owned(out)
     old = sorted({e.split("/", 1)[0] for e in ours if os.path.lexists(out / e.split("/", 1)[0])})
+    kept: list[str] = []
+    if replaces is not None:
+        kept = [e for e in sorted(ours) if e.split("/", 1)[0] not in replaces | set(new)
+                and os.path.lexists(out / e.split("/", 1)[0])]
+        old = [name for name in old if name in replaces | set(new)]
+        facts = {**_facts(out), **facts}
     retired = _hidden_dir(out, RETIRED)
     save_json(out / JOURNAL, {"staged": staged.name, "retired": retired.name, "new": new, "old": old},
               kind=JOURNAL_KIND)
@@ -154,7 +168,7 @@ def publish(staged: Path, out: Path, **facts: object) -> None:
             os.replace(out / name, retired / name)
         for name in new:
             os.replace(staged / name, out / name)
-        save_json(out / MANIFEST, {"files": [e for name in new for e in _listing(out, name)], **facts},
+        save_json(out / MANIFEST, {**facts, "files": [e for name in new for e in _listing(out, name)] + kept},
                   kind=MANIFEST_KIND)  # the commit
     except BaseException:
         _undo(out, staged, retired, new, old)  # if this fails too, the journal is left for the next run
@@ -162,6 +176,15 @@ def publish(staged: Path, out: Path, **facts: object) -> None:
         shutil.rmtree(retired, ignore_errors=True)
         raise
     _finish(out, staged, retired)
+
+
+def _facts(out: Path) -> dict:
+    """What the previous manifest records beside its files (nothing, without a readable one)."""
+    try:
+        previous = load_json(out / MANIFEST, kind=MANIFEST_KIND)
+    except StateFileError:
+        return {}
+    return {k: v for k, v in previous.items() if k not in ("files", "format", "version")}
 
 
 def _listing(out: Path, name: str) -> list[str]:
@@ -215,4 +238,33 @@ def discard(staged: Path) -> None:
     shutil.rmtree(staged, ignore_errors=True)
 
 
-__all__ = ["MANIFEST", "OutputDirectoryError", "discard", "publish", "recover", "refuse_foreign", "stage"]
+@contextlib.contextmanager
+def publishing(out: Path, replaces: set[str]) -> Iterator[Path]:
+    """``with publishing(out, {"frames", "out.mp4"}) as staged:`` — write into ``staged``; when
+    the block ends its entries are published into ``out``, replacing of what was published
+    there before only the entries ``replaces`` names (:func:`publish`). A block that fails
+    (Ctrl-C, a full disk) changes nothing in ``out``; one that would replace what no run wrote
+    is refused before it starts. ``out`` is held meanwhile, as a run holds it."""
+    made = not out.exists()
+    try:
+        with hold(out):
+            recover(out)
+            refuse_foreign(out, replaces, replaces)
+            try:
+                staged = stage(out)
+            except OSError as exc:
+                raise OutputDirectoryError(f"cannot write outputs to {out}: {exc.strerror or exc}") from None
+            try:
+                yield staged
+                publish(staged, out, replaces=replaces)
+            finally:
+                discard(staged)
+    except BaseException:
+        if made:  # stopped or failed, it leaves no empty folder it made
+            with contextlib.suppress(OSError):
+                out.rmdir()
+        raise
+
+
+__all__ = ["MANIFEST", "OutputDirectoryError", "discard", "publish", "publishing", "recover", "refuse_foreign",
+           "stage"]

@@ -112,9 +112,15 @@ def frames(played: Replay, renderer: "BodyRenderer", fps: float) -> Iterator[tup
 def render_run(run_dir: Path, out: Path, *, width: int = 640, height: int = 480, fps: float | None = None,
                camera: Orbit | None = None, pngs: bool = True, video: bool = False) -> int:
     """Draw the run's frames into ``out/frames`` (PNGs) and/or ``out/out.mp4``; the count drawn.
-    Raises :class:`~creatures.body.render.RenderUnavailable` without an offscreen GL platform."""
-    from creatures.body.frames import FrameWriter, drop_stale
+    Raises :class:`~creatures.body.render.RenderUnavailable` without an offscreen GL platform.
+
+    Both are drawn aside and published together once whole (:func:`~creatures.runtime.outputs.publishing`):
+    a render stopped part way (Ctrl-C, a full disk) wrote into ``out`` directly, leaving a
+    short ``out.mp4`` that played as if whole and its frames over the start of the last
+    render's, which stayed after them. Now it leaves ``out`` as it was."""
+    from creatures.body.frames import FrameWriter
     from creatures.body.render import BodyRenderer
+    from creatures.runtime.outputs import publishing
 
     played = load_replay(run_dir)
     if not any(f["bodies"] for f in played.frames):
@@ -122,12 +128,11 @@ def render_run(run_dir: Path, out: Path, *, width: int = 640, height: int = 480,
                          "have no bodies, or it was run with [view] log_fps = 0")
     fps = fps or log_rate(played.frames)
     drawn = 0
-    with BodyRenderer(width, height, camera_pose=None if camera is None else camera.pose()) as renderer, \
-            FrameWriter(directory=out / "frames" if pngs else None, video=out / "out.mp4" if video else None,
+    with publishing(out, {"frames", "out.mp4"}) as staged, \
+            BodyRenderer(width, height, camera_pose=None if camera is None else camera.pose()) as renderer, \
+            FrameWriter(directory=staged / "frames" if pngs else None, video=staged / "out.mp4" if video else None,
                         fps=fps) as writer:
         for image, repeat in frames(played, renderer, fps):
             writer.write(image, repeat=repeat)
             drawn += repeat
-    if pngs:
-        drop_stale(out / "frames", "png", drawn)
     return drawn
