@@ -195,6 +195,18 @@ def test_frame_clock_counts_frames_from_elapsed_time(clock):
         FrameClock(0.0, clock)
 
 
+def test_frames_of_a_clock_gap_are_skipped_not_written_again_and_again(clock):
+    """A machine suspended for a night: one frame falls due on waking, the gap's are counted
+    as skipped (the drawing process wrote the last picture once per frame of the night)."""
+    frames = FrameClock(12.0, clock)
+    assert frames.due() == 1
+    clock.advance(8 * 3600.0)
+    assert frames.due() == 1 and frames.skipped == 8 * 3600 * 12 - 1
+    clock.advance(0.25)  # and on at the frame rate from there
+    assert frames.due() == 3 and frames.skipped == 8 * 3600 * 12 - 1
+    assert frames.emitted == 8 * 3600 * 12 + 4  # frame numbers keep to the clock: no drift after it
+
+
 def test_frame_writer_writes_pngs_and_a_video(tmp_path, rng):
     frames = [rng.integers(0, 255, size=(48, 64, 3), dtype=np.uint8) for _ in range(3)]
     with FrameWriter(directory=tmp_path / "png", video=tmp_path / "body.mp4", fps=10) as writer:
