@@ -276,21 +276,13 @@ def test_frames_made_again_shorter_leave_none_of_the_longer_behind(tmp_path):
 def test_a_video_made_again_and_stopped_leaves_the_earlier_one_whole(tmp_path, monkeypatch):
     """``creatures images`` writes into a finished run: stopped part way (Ctrl-C, a full disk),
     it had already cut the run's video short; now the new one replaces it only once whole."""
-    from creatures.image import video as video_module
     from creatures.image.spec import ImagesSpec, make_video
 
     entries = [{"output_frame": 0, "source_start_frame": 8000, "source_end_frame": 16000}]
     spec = ImagesSpec(fps=10.0, size=(32, 24))
     make_video(spec, "oz", entries, 8000, 2.0, tmp_path)
     before = (tmp_path / "oz.mp4").read_bytes()
-    composed = video_module.Blur.compose
-
-    def stopped(self, shot):
-        if shot.time > 1.0:
-            raise KeyboardInterrupt
-        return composed(self, shot)
-
-    monkeypatch.setattr(video_module.Blur, "compose", stopped)
+    _stop_composing_after(1.0, monkeypatch)
     with pytest.raises(KeyboardInterrupt):
         make_video(spec, "oz", entries, 8000, 2.0, tmp_path)
     assert (tmp_path / "oz.mp4").read_bytes() == before
@@ -301,7 +293,6 @@ def test_images_made_again_and_stopped_leave_the_last_ones_as_they_were(tmp_path
     """``creatures images --png`` stopped part way (Ctrl-C) had drawn its frames over the start
     of the last ones, beside the last video and record: now the folder is as it was."""
     from creatures.cli import main
-    from creatures.image import video as video_module
     from creatures.kinds.ozymandias import EDL_KIND
     from creatures.persist import save_json
     from test_faults import _tree
@@ -311,17 +302,24 @@ def test_images_made_again_and_stopped_leave_the_last_ones_as_they_were(tmp_path
     images = ["images", str(tmp_path), "--creature", "oz", "--png", "--fps"]
     assert main([*images, "5"]) == 0
     before = _tree(tmp_path / "images")
+    _stop_composing_after(0.5, monkeypatch)
+    assert main([*images, "10"]) == 130
+    assert _tree(tmp_path / "images") == before and len(list((tmp_path / "images" / "oz.frames").iterdir())) == 5
+    assert "nothing was replaced" in capsys.readouterr().err
+
+
+def _stop_composing_after(seconds: float, monkeypatch) -> None:
+    """A Ctrl-C as the frame after ``seconds`` of output is composed."""
+    from creatures.image import video as video_module
+
     composed = video_module.Blur.compose
 
     def stopped(self, shot):
-        if shot.time > 0.5:
+        if shot.time > seconds:
             raise KeyboardInterrupt
         return composed(self, shot)
 
     monkeypatch.setattr(video_module.Blur, "compose", stopped)
-    assert main([*images, "10"]) == 130
-    assert _tree(tmp_path / "images") == before and len(list((tmp_path / "images" / "oz.frames").iterdir())) == 5
-    assert "nothing was replaced" in capsys.readouterr().err
 
 
 def test_without_a_video_encoder_a_run_keeps_its_outputs_and_images_says_why(tmp_path, no_video_encoder, capsys,
