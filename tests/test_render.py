@@ -160,6 +160,24 @@ def test_bad_pose_shapes_are_refused(renderer):
         renderer.render(STANDING[:, :2], PARENTS)
 
 
+@pytest.mark.gl
+@pytest.mark.parametrize("follow", [False, True])
+def test_a_pose_with_a_nan_joint_does_not_blind_the_camera_for_the_frames_after_it(follow):
+    """The camera is framed on the first body drawn (and, following, anchored on its roots): one
+    NaN joint there made it NaN, and every later frame the background alone."""
+    try:
+        renderer = BodyRenderer(160, 120, follow=follow)
+    except RenderUnavailable as exc:
+        pytest.skip(f"no GL platform: {exc}")
+    with renderer:
+        broken = STANDING.copy()
+        broken[0, 0] = np.nan  # the root: the anchor a following camera moves from
+        renderer.render(broken, PARENTS)
+        assert np.isfinite(renderer.camera_pose).all()
+        with BodyRenderer(160, 120, follow=follow) as fresh:
+            np.testing.assert_array_equal(renderer.render(STANDING, PARENTS), fresh.render(STANDING, PARENTS))
+
+
 def test_missing_gl_platform_gives_a_clear_message(monkeypatch):
     monkeypatch.delenv("PYOPENGL_PLATFORM", raising=False)
     monkeypatch.setattr(render.subprocess, "run", lambda *a, **k: subprocess.CompletedProcess(

@@ -219,7 +219,12 @@ class BodyRenderer:
         return self._camera.copy()
 
     def frame_camera(self, positions: np.ndarray) -> None:
-        """Aim the camera at a body from the front, far enough to see all of it (and the light with it)."""
+        """Aim the camera at a body from the front, far enough to see all of it (and the light
+        with it). Joints that are not finite are not aimed at (none: the camera waits for a
+        body): one NaN joint in the first frame made the camera NaN, and every frame after it blank."""
+        positions = positions[np.isfinite(positions).all(axis=1)]
+        if not len(positions):
+            return
         low, high = positions.min(axis=0), positions.max(axis=0)
         centre, size = 0.5 * (low + high), max(float(np.max(high - low)), 0.5)
         self._camera = look_at(centre + np.array([0.25, 0.3, 1.7]) * size, centre)
@@ -260,8 +265,10 @@ class BodyRenderer:
         counts = self._fill(positions, parents, notes)
         self._context.make_current()  # another renderer's context may have been current
         camera = self._camera
-        if self.follow:
-            middle = positions[parents < 0].mean(axis=0) * np.array([1.0, 0.0, 1.0])
+        roots = positions[parents < 0]
+        roots = roots[np.isfinite(roots).all(axis=1)]
+        if self.follow and len(roots):  # a root not finite neither moves the camera nor anchors it
+            middle = roots.mean(axis=0) * np.array([1.0, 0.0, 1.0])
             if self._anchor is None:
                 self._anchor = middle
             camera = camera.copy()
