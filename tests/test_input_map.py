@@ -182,6 +182,28 @@ def test_two_thousand_distinct_unmapped_addresses_are_one_cause_logged_at_most_e
     assert events(session, "inputs")[-1]["unmapped"] == 2001
 
 
+def test_what_was_counted_since_the_last_line_is_said_when_the_run_ends(tmp_path):
+    """Messages of a cause after its line and within 10 s of it were counted and then never
+    said: a run that ended before the next such message lost their addresses and why (a live
+    run sent 9 malformed OSC messages and logged the first alone)."""
+    session, clock = colony(tmp_path)
+    router = session.inputs
+    said: list[str] = []
+    router.say = said.append
+    router.osc("/note", ["sixty"], 1.0)  # said at once
+    router.osc("/note", [200], 2.0)  # pitch out of range: counted, held for the next line
+    router.osc("/lux", ["bright"], 2.5)  # not a reading
+    router.osc("/note", [], 3.0)  # no pitch
+    router.osc("/synth/freq", [440.0], 3.5)  # unmapped, said at once: nothing held
+    session.close()
+    assert [(e["count"], e["address"], e["why"], e["examples"]) for e in events(session, "malformed")] == [
+        (1, "/note", "pitch: 'sixty' is not a number", ["/note"]),
+        (3, "/note", "no argument 0 (the message has 0)", ["/note", "/lux"])]  # the latest's address and why
+    assert [e["count"] for e in events(session, "unmapped")] == [1]
+    assert len(said) == 3 and "3 messages" in said[2] and "no argument 0" in said[2]
+    assert events(session, "inputs")[-1]["malformed"] == 4
+
+
 def test_wildcard_any_arity_and_bool_readings_reach_named_sensors(tmp_path):
     session, clock = colony(tmp_path)
     router = session.inputs

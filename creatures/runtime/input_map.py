@@ -20,8 +20,9 @@ one over its map's ``limit`` of messages a second (10 for rewards unless set: a 
 is a retraining, :data:`creatures.runtime.input_routes.CLICKS_PER_SECOND`) is *throttled*.
 Both are counted, and logged as one cause per source: a line (and an event) the first time,
 then at most every :data:`LOG_EVERY` seconds with the count since and a few of the addresses
-(2,000 distinct addresses once made 1,023 lines in under a second: one per address); the
-counters are logged at the end of the run (``inputs``). Every message is applied at the time
+(2,000 distinct addresses once made 1,023 lines in under a second: one per address), and at
+the end of the run whatever was counted since a cause's last line; the counters are logged
+at the end of the run (``inputs``). Every message is applied at the time
 it is polled, on the creature's thread.
 
 Every number read from a message meets a bound before it reaches a value, the way a config
@@ -136,8 +137,8 @@ class InputRouter:
         self.world = world
         self.say = say
         self.counts: Counter[str] = Counter()  # mapped / unmapped / malformed, and by source
-        # (what, via) -> when last logged, messages since, a few of their addresses
-        self._logged: dict[tuple[str, str], tuple[float, int, tuple[str, ...]]] = {}
+        # (what, via) -> when last logged, messages since, a few of their addresses, the latest's address and why
+        self._logged: dict[tuple[str, str], tuple[float, int, tuple[str, ...], str, str]] = {}
         self._sensor_logged: dict[str, float] = {}
         # each map's ``limit``: a bucket of ``limit`` messages (at least one) refilled at ``limit`` a
         # second of the run's clock; the session's, not the Route's (the installation's routes are
@@ -279,19 +280,32 @@ class InputRouter:
         to :data:`EXAMPLES` of the addresses, however many distinct addresses there are."""
         self.counts[what] += 1
         self.counts[f"{what} {via}"] += 1
-        last, since, examples = self._logged.get((what, via), (-math.inf, 0, ()))
+        last, since, examples, _, _ = self._logged.get((what, via), (-math.inf, 0, (), "", ""))
         address = address[:80]
         if address not in examples and len(examples) < EXAMPLES:
             examples += (address,)
         if t - last < LOG_EVERY:
-            self._logged[(what, via)] = (last, since + 1, examples)
+            self._logged[(what, via)] = (last, since + 1, examples, address, why)
             return
-        self._logged[(what, via)] = (t, 0, ())
-        self.world.emit(what, via=via, address=address, why=why, count=since + 1, examples=list(examples))
+        self._line(what, via, address, t, last, since + 1, examples, why)
+
+    def flush(self, t: float) -> None:
+        """Say what each cause counted since its last line: at the end of a run, or the messages
+        of the last ``LOG_EVERY`` seconds before it would be counted and never said."""
+        for (what, via), (last, since, examples, address, why) in list(self._logged.items()):
+            if since:
+                self._line(what, via, address, t, last, since, examples, why)
+
+    def _line(self, what: str, via: str, address: str, t: float, last: float, count: int,
+              examples: tuple[str, ...], why: str) -> None:
+        """One log line (and event) of a cause: ``count`` messages since ``last``, the latest
+        one's ``address`` and ``why``."""
+        self._logged[(what, via)] = (t, 0, (), address, why)
+        self.world.emit(what, via=via, address=address, why=why, count=count, examples=list(examples))
         if last == -math.inf:
             self.say(f"{via} input {address!r} {what} ({why}); counted, logged at most every {LOG_EVERY:.0f} s")
         else:
-            self.say(f"{via} input {what}: {since + 1} messages in {t - last:.0f} s, e.g. "
+            self.say(f"{via} input {what}: {count} messages in {t - last:.0f} s, e.g. "
                      f"{', '.join(map(repr, examples))} (last: {why})")
 
     def summary(self) -> dict[str, int]:

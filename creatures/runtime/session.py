@@ -224,8 +224,8 @@ class Session:
         return heard
 
     def close(self) -> None:
-        """Silence every sounding note and log the input counters, the mix's clipping (if any)
-        and the end of the run."""
+        """Silence every sounding note and log what the input map counted and has not yet said,
+        the input counters, the mix's clipping (if any) and the end of the run."""
         self.scheduler.all_notes_off()
         if restruck := self.scheduler.restruck:
             self.world.emit("restruck", notes=restruck)
@@ -233,6 +233,7 @@ class Session:
                      "pitch and channel, so each re-struck it, ending the earlier note there (the key sounded on "
                      "to the later end, or to the new note's if the earlier was held; the events log keeps the "
                      "notes as played)")
+        self.inputs.flush(self.clock.now())
         self.world.emit("inputs", **self.inputs.summary())
         if self.mixer.clipped:
             self.world.emit("clipped", samples=self.mixer.clipped, peak=round(self.mixer.peak, 3))
