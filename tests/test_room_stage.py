@@ -181,6 +181,10 @@ def test_bad_crowds_are_errors_at_the_table(tmp_path, old, new, key, message):
     ('steer = [{ behaviour = "seek", target = "nobody" }]', "no creature named 'nobody'"),
     ('steer = [{ behaviour = "seak" }]', "did you mean 'seek'"),
     ('steer = [{ behaviour = "path_following", path = "aisle" }]', "path_following needs path"),
+    # the table a field is named in is [[room.flows]]: the message said [[room.fields]], which is no key
+    ('steer = [{ behaviour = "flow_following", field = "rond" }]',
+     "flow_following needs field = one of the room's \\[\\[room.flows\\]\\] names, got 'rond' "
+     "\\(\\[\\[room.flows\\]\\]: none\\)"),
     ('steer = [{ behaviour = "seek", when = "hungry" }]', "no percept 'hungry'"),
     # a slip is said with the nearest name, as everywhere else in a config
     ('steer = [{ behaviour = "seek", target = "visiter" }]', "no creature named 'visiter' .*did you mean 'visitor'"),

@@ -201,11 +201,13 @@ def recipes(section: RoomSection, specs: list, index: dict[str, int]
                     raise StageError(i, ("vehicle", "steer", b, "target"), f"no creature named {target!r} to steer "
                                      f"by{nearest(target, [*NAMED_TARGETS, *index, '[x, y]'], 'targets')}")
                 params["target"] = index[target]
-            need = {"path_following": ("path", paths), "flow_following": ("field", flows)}.get(steer.behaviour)
+            need = {"path_following": ("path", paths, "[[room.paths]]"),
+                    "flow_following": ("field", flows, "[[room.flows]]")}.get(steer.behaviour)
             if need is not None and params.get(need[0]) not in need[1]:
-                raise StageError(i, ("vehicle", "steer", b, need[0]), f"{steer.behaviour} needs {need[0]} = one of "
-                                 f"the room's [[room.{need[0]}s]] names, got {params.get(need[0])!r}"
-                                 f"{nearest(params.get(need[0]), sorted(need[1]), f'[[room.{need[0]}s]]')}")
+                key, names, table = need
+                raise StageError(i, ("vehicle", "steer", b, key), f"{steer.behaviour} needs {key} = one of the "
+                                 f"room's {table} names, got {params.get(key)!r}"
+                                 f"{nearest(params.get(key), sorted(names), table)}")
             if steer.when is not None:
                 percepts = getattr(spec, "percepts", None)
                 if percepts is None or steer.when not in percepts:
