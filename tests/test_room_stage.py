@@ -198,6 +198,21 @@ def test_steering_that_names_what_is_not_there_is_a_config_error(tmp_path, steer
     assert info.value.line is not None
 
 
+@pytest.mark.parametrize("steer, message", [
+    # loaded, then the first sub-step raised "seek() got an unexpected keyword argument 'panic'"
+    ('{ behaviour = "seek", target = "centre", panic = 2.0 }',
+     "panic is a key of flee and evasion, not of seek \\(seek takes: target, weight, probability, when\\)"),
+    ('{ behaviour = "separation", target = "centre" }', "target is a key of seek, flee, .*, not of separation"),
+    ('{ behaviour = "wander", path = "aisle" }', "path is a key of path_following, not of wander "
+                                                 "\\(wander takes: rate, weight, probability, when\\)"),
+])
+def test_a_steering_key_its_behaviour_does_not_take_is_a_config_error(tmp_path, steer, message):
+    path = write(tmp_path, HEADER.format(room="") + singer("a", 1.0, 1.0, vehicle=f"steer = [{steer}]"))
+    with pytest.raises(ConfigError, match=message) as info:
+        load_installation(path)
+    assert info.value.line is not None and "vehicle.steer.0" in str(info.value)
+
+
 def test_room_percepts_need_a_room(tmp_path):
     text = HEADER.format(room="").replace("[room]\nwidth = 10.0\ndepth = 10.0\nlistener = [5.0, 5.0]\n", "")
     text += singer("a", 1.0, 1.0).replace("[creature.percepts.heard]", "[creature.percepts.near]\ntype = "

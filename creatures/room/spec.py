@@ -271,6 +271,18 @@ class RoomSection(Strict):
                                                       "(live runs)")
 
 
+AIMED = ("seek", "flee", "arrival", "pursuit", "evasion", "leader_following")
+"""The behaviours that steer by a ``target``."""
+
+TAKEN_BY: dict[str, tuple[str, ...]] = {
+    "target": AIMED, "slowing": ("arrival", "leader_following"), "panic": ("flee", "evasion"),
+    "behind": ("leader_following",), "path": ("path_following",), "field": ("flow_following",),
+    "rate": ("wander",),
+}
+"""Each parameter of a steer table and the behaviours that take it: a parameter set on any other
+loaded, and the behaviour's function refused it at the first sub-step (a traceback mid-run)."""
+
+
 class SteerSpec(Strict):
     """One steering behaviour of a creature (``[[creature.vehicle.steer]]``), in priority order."""
 
@@ -280,11 +292,12 @@ class SteerSpec(Strict):
     when: str | None = Field(None, description="a percept of the creature whose value (0..1) scales the weight "
                                                "each tick (gathering only while someone plays)")
     target: str | Point | None = Field(
-        None, description="seek, flee, arrival, pursuit, evasion, leader_following: 'visitor' (the nearest), "
+        None, description=", ".join(AIMED) + ": 'visitor' (the nearest), "
                           "'player' (where the last note from outside came from, for 4 s), 'loud' (the nearest "
                           "loud sound), 'note' (the nearest [[room.notes]] object), 'centre', [x, y], or another "
                           "creature's name; none: 'visitor'")
-    slowing: float | None = Field(None, gt=0, le=LARGEST_ROOM, description="arrival: slowing distance, m")
+    slowing: float | None = Field(None, gt=0, le=LARGEST_ROOM,
+                                  description="arrival, leader_following: slowing distance, m")
     panic: float | None = Field(None, gt=0, le=LARGEST_ROOM, description="flee, evasion: only within this, m")
     behind: float | None = Field(None, gt=0, le=LARGEST_ROOM, description="leader_following: distance behind, m")
     path: str | None = Field(None, description="path_following: a [[room.paths]] name")
@@ -296,12 +309,17 @@ class SteerSpec(Strict):
         if self.behaviour not in BEHAVIOURS:
             raise ValueError(f"unknown steering behaviour {self.behaviour!r}"
                              f"{nearest(self.behaviour, sorted(BEHAVIOURS), 'behaviours')}")
+        for key in self.params():
+            owners = TAKEN_BY[key]
+            if self.behaviour not in owners:
+                takes = [k for k, by in TAKEN_BY.items() if self.behaviour in by] + ["weight", "probability", "when"]
+                raise ValueError(f"{key} is a key of {', '.join(owners[:-1]) + ' and ' if owners[1:] else ''}"
+                                 f"{owners[-1]}, not of {self.behaviour} ({self.behaviour} takes: {', '.join(takes)})")
         return self
 
     def params(self) -> dict[str, Any]:
         """The behaviour's keyword parameters (those set)."""
-        keys = ("target", "slowing", "panic", "behind", "path", "field", "rate")
-        return {k: getattr(self, k) for k in keys if getattr(self, k) is not None}
+        return {k: getattr(self, k) for k in TAKEN_BY if getattr(self, k) is not None}
 
 
 class VehicleSpec(Strict):
