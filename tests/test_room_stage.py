@@ -213,6 +213,29 @@ def test_a_steering_key_its_behaviour_does_not_take_is_a_config_error(tmp_path, 
     assert info.value.line is not None and "vehicle.steer.0" in str(info.value)
 
 
+@pytest.mark.parametrize("vehicle, percept, key, message", [
+    ('steer = [{ behaviour = "seek" }]', "", "vehicle.steer.0.target",
+     "seek steers to the nearest tracked visitor \\(its target when none is given\\), and the room tracks none"),
+    ('steer = [{ behaviour = "wander" }, { behaviour = "flee", target = "visitor" }]', "", "vehicle.steer.1.target",
+     "flee steers to the nearest tracked visitor, and the room tracks none"),
+    ("", 'type = "proximity"', "percepts.near.of",
+     "proximity of the nearest tracked visitor \\(its 'of' when none is given\\), and the room tracks none"),
+    ("", 'type = "sees"\nof = "visitor"', "percepts.near.of", "sees of the nearest tracked visitor, and the room"),
+])
+def test_a_visitor_in_a_room_that_tracks_none_is_a_config_error(tmp_path, vehicle, percept, key, message):
+    """Without [[room.visitors]] there is never a visitor: a creature seeking one stood still and
+    a percept of one read 0 for the whole run, nothing said."""
+    creature = singer("a", 1.0, 1.0, vehicle=vehicle)
+    if percept:
+        creature = creature.replace("[creature.percepts.heard]", f"[creature.percepts.near]\n{percept}\n"
+                                                                 "[creature.percepts.heard]")
+    with pytest.raises(ConfigError, match=message) as info:
+        load_installation(write(tmp_path, HEADER.format(room="") + creature))
+    assert info.value.line is not None and key in str(info.value) and "[[room.visitors]]" in str(info.value)
+    tracked = HEADER.format(room='visitors = [{ x = "vx", y = "vy" }]') + TRACKER + creature
+    assert load_installation(write(tmp_path, tracked)).specs[0].name == "a"  # with a tracked visitor it loads
+
+
 def test_room_percepts_need_a_room(tmp_path):
     text = HEADER.format(room="").replace("[room]\nwidth = 10.0\ndepth = 10.0\nlistener = [5.0, 5.0]\n", "")
     text += singer("a", 1.0, 1.0).replace("[creature.percepts.heard]", "[creature.percepts.near]\ntype = "

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from typing import TYPE_CHECKING, ClassVar, Literal
+from typing import TYPE_CHECKING, Any, ClassVar, Literal
 
 from pydantic import BaseModel, Field, field_validator, model_validator
 
@@ -627,6 +627,15 @@ ROOM_PERCEPTS = ("proximity", "bearing", "crowding", "sees")
 """Percept types that need a ``[room]`` (the config loader refuses them without one)."""
 
 Whom = Literal["visitor", "creature", "player", "loud"]
+
+
+def watched(kind: str, params: dict[str, Any]) -> str | None:
+    """Whom a room percept of type ``kind`` with these keys watches (its ``of``, written or by
+    default: the config loader refuses a visitor in a room that tracks none); None for a percept
+    of no one in particular (crowding)."""
+    part = PERCEPTS.get(kind)
+    field = None if part is None else part.Params.model_fields.get("of")
+    return None if field is None else params.get("of", field.default)
 
 
 def _stage(creature: "Authored"):

@@ -28,7 +28,7 @@ from creatures.room.lod import Audibility, LevelOfDetail, Sounding, overdue_firs
 from creatures.room.motion import Crowd
 from creatures.room.recipe import NAMED_TARGETS, Behaviour, Recipe, Surroundings
 from creatures.room.space import Obstacle, Room
-from creatures.room.spec import RoomSection, VehicleSpec, VisitorSpec
+from creatures.room.spec import AIMED, RoomSection, VehicleSpec, VisitorSpec
 from creatures.room.speakers import DOME, Dome, azimuth, ring, stereo, vbap
 from creatures.room.vehicle import Vehicles, norms
 from creatures.room.vision import visible
@@ -176,6 +176,11 @@ def _check_floor(section: RoomSection, off: Callable[[tuple[float, float] | None
                                 f"{room}: its followers would press against the wall")
 
 
+UNTRACKED = "track one (two sensors of the input map, named in [[room.visitors]]) or name another"
+"""What to do about a creature that steers by, or perceives, a visitor in a room that tracks
+none: without [[room.visitors]] there is never one, so it stood still, or read 0, all run."""
+
+
 def recipes(section: RoomSection, specs: list, index: dict[str, int]
             ) -> tuple[list[Recipe], np.ndarray, list[tuple[int, int, str]]]:
     """One recipe per distinct steering (a crowd's clones share one, so they steer as one
@@ -214,6 +219,10 @@ def recipes(section: RoomSection, specs: list, index: dict[str, int]
                     raise StageError(i, ("vehicle", "steer", b, "when"), f"no percept {steer.when!r}"
                                      f"{nearest(steer.when, sorted(percepts or []), 'its percepts')}")
                 when.append((i, b, steer.when))
+            if steer.behaviour in AIMED and target in (None, "visitor") and not section.visitors:
+                raise StageError(i, ("vehicle", "steer", b, "target"), f"{steer.behaviour} steers to the nearest "
+                                 f"tracked visitor{' (its target when none is given)' if target is None else ''}, and "
+                                 f"the room tracks none ([[room.visitors]]): {UNTRACKED}")
             behaviours.append(Behaviour(steer.behaviour, steer.weight, steer.probability, params))
         key = json.dumps([[b.name, b.weight, b.probability, sorted(b.params.items())] for b in behaviours]
                          + [s.combine, s.neighbours, s.reach], default=str)

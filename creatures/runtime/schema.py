@@ -24,11 +24,11 @@ from creatures.authored.registry import PluginError
 from creatures.runtime.cc_sources import check_source
 from creatures.config import ConfigError, config_error, nearest, read_toml, validate, written_in
 from creatures.kinds import CreatureSpec, load_all
-from creatures.authored.percepts import ROOM_PERCEPTS
+from creatures.authored.percepts import ROOM_PERCEPTS, watched
 from creatures.room.crowd import CrowdError, created as crowd_created, expand as expand_crowds
 from creatures.room.spec import RoomSection
 from creatures.score.spec import ScoreSpec
-from creatures.room.stage import RoomError, StageError, check_places, recipes as room_recipes
+from creatures.room.stage import UNTRACKED, RoomError, StageError, check_places, recipes as room_recipes
 from creatures.kinds.body_source import MaterialSpec
 from creatures.motor.material import MaterialError
 
@@ -580,6 +580,12 @@ def load_installation(path: str | Path) -> LoadedInstallation:
             if percept.type in ROOM_PERCEPTS and settings.room is None:
                 raise config_error(path, where, ("creature", i, "percepts", name, "type"),
                                    f"percept type {percept.type!r} needs a [room] (where would it be?)")
+            if percept.type in ROOM_PERCEPTS and not settings.room.visitors \
+                    and watched(percept.type, percept.params()) == "visitor":
+                given = "" if "of" in percept.params() else " (its 'of' when none is given)"
+                raise config_error(path, where, ("creature", i, "percepts", name, "of"),
+                                   f"{percept.type} of the nearest tracked visitor{given}, and the room tracks "
+                                   f"none ([[room.visitors]]): {UNTRACKED}")
             if percept.type == "sensed":
                 _sensed(path, where, ("creature", i, "percepts", name), spec.name, percept.params(), by_name)
             if percept.type == "sensor":
