@@ -721,7 +721,7 @@ def _describe_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("config", type=Path, help="installation config (TOML), or a shipped installation's name")
 
 
-@command("describe", "print each creature's drives, percept trees, groups and tuples as a tree", _describe_options)
+@command("describe", "print each creature's drives, percept trees, groups, tuples and (in a room) steering as a tree", _describe_options)
 def _describe(args: argparse.Namespace) -> int:
     from creatures.authored.describe import describe
     from creatures.config import ConfigError

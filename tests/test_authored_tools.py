@@ -84,6 +84,23 @@ def test_describe_shows_a_kinds_own_parts_and_no_empty_percept_tree(capsys):
     assert not any(line.endswith("percepts") for line in out)
 
 
+def test_describe_shows_each_creatures_vehicle_and_steering_in_a_room(capsys):
+    """In a room what a creature does is also where it goes: its vehicle (a crowd's clones each
+    with their own drawn speed) and its steering in priority order, what each aims at (a seek
+    written without a target seeks the visitor) and the percept that gates it. Before, a crowd
+    piece's tree said nothing of either."""
+    assert main(["describe", "flock"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    vehicles = [line for line in out if line.startswith("├─ vehicle [")]
+    assert len(vehicles) == 15 and len(set(vehicles)) == 15  # vary draws each singer's max_speed
+    assert vehicles[0].endswith("max_force 2 N, mass 1 kg, radius 0.25 m, max_turn 360°/s, budget, "
+                                "8 neighbours within 3 m, fov 240°, sight 10 m]")
+    assert "│  ├─ wall_avoidance (weight 3)" in out
+    assert "│  ├─ flee (target loud, panic 4, weight 3)" in out
+    assert "│  ├─ arrival (target player, slowing 2.5, weight 1.5, when calm)" in out
+    assert "│  └─ wander (weight 0.3)" in out
+
+
 def test_describe_of_a_bad_config_is_exit_2(tmp_path, capsys):
     bad = tmp_path / "bad.toml"
     bad.write_text((TUTORIAL / "heron-1.toml").read_text().replace('action = "rest"', 'action = "rset"'))

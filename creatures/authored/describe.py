@@ -4,7 +4,7 @@
 Every creature is built on a silent world (a simulated clock, no output), so the tree shows
 what the runtime would run — class-based kinds as well as authored ones: their action-groups
 (nested groups inside), each tuple as ``Tr | Ac | Du | V``, the percept trees its triggers
-grow from, and its drives.
+grow from, and its drives; in a ``[room]``, its vehicle and steering too.
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ from creatures.behaviour.value import ChainValue, StanceValue
 from creatures.clock import SimulatedClock
 from creatures.events import EventLog
 from creatures.kinds import KINDS
+from creatures.room.spec import AIMED, SteerSpec, VehicleSpec
 from creatures.runtime.schema import LoadedInstallation
 from creatures.runtime.input_map import InputRouter
 from creatures.runtime.world import World
@@ -119,6 +120,33 @@ def _drives(m: Motivation, spec: Any) -> list[str]:
     return lines
 
 
+def _vehicle(v: VehicleSpec) -> tuple[str, list[str]]:
+    """A creature's vehicle (a crowd's clones each with what ``vary`` drew) and its steering in
+    priority order: in a room, where it goes is as much of what it does as what it plays."""
+    at = f"at [{v.at[0]:g}, {v.at[1]:g}], " if v.at is not None else ""
+    label = (f"vehicle [{at}max_speed {v.max_speed:g} m/s, max_force {v.max_force:g} N, mass {v.mass:g} kg, "
+             f"radius {v.radius:g} m, max_turn {v.max_turn:g}°/s, {v.combine}, {v.neighbours} neighbours within "
+             f"{v.reach:g} m, fov {v.fov:g}°, sight {v.sight:g} m]")
+    return label, [_steer(s) for s in v.steer]
+
+
+def _steer(s: SteerSpec) -> str:
+    """One steering behaviour with what it aims at (an aimed one written without a target: the
+    visitor), its keys, weight and gate."""
+    params = ({"target": "visitor"} if s.behaviour in AIMED else {}) | s.params()
+    keys = [f"{k} {_said(v)}" for k, v in params.items()] + [f"weight {s.weight:g}"]
+    keys += [f"probability {s.probability:g}"] if s.probability < 1 else []
+    keys += [f"when {s.when}"] if s.when else []
+    return f"{s.behaviour} ({', '.join(keys)})"
+
+
+def _said(value: Any) -> str:
+    """A steering parameter as written: a number without trailing zeros, a point as [x, y]."""
+    if isinstance(value, tuple):
+        return f"[{value[0]:g}, {value[1]:g}]"
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
 def _actions(spec: Any) -> dict[str, str]:
     """An authored creature's tuples' action types by tuple name (a name alone is its own type)."""
     return {name: tp.action if isinstance(tp.action, str) else tp.action.type
@@ -147,6 +175,7 @@ def describe(inst: LoadedInstallation) -> str:
         types = {name: p.type for name, p in getattr(spec, "percepts", {}).items()}
         roots = [_percept(r, types) for r in _roots(top)]
         children += [("percepts", roots)] if roots else []
+        children += [_vehicle(spec.vehicle)] if inst.settings.room is not None else []
         children += [_group(g, _actions(spec)) for g in top] + creature.described()
         out += _tree(f"{spec.name} ({spec.kind})", children)
     return "\n".join(out) + "\n"
