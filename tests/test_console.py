@@ -480,6 +480,25 @@ def test_a_set_gain_reaches_the_mixer(tmp_path):
     assert (session.mixer.gains == before).all() and session.creatures[1].spec.pan == -0.5  # refused: unchanged
 
 
+def test_a_set_of_a_vehicle_key_is_refused_as_read_once(tmp_path):
+    """[creature.vehicle] is read once, when the room is built: ``set fox vehicle.max_speed 0.05``
+    was answered ``{"set": ...}`` and the fox went on at its old speed (a zone refuses the same
+    key at load). Refused now, saying what does change a vehicle while the show runs."""
+    config = tmp_path / "c.toml"
+    config.write_text('title = "t"\n[room]\n[[creature]]\nname = "fox"\nkind = "authored"\n'
+                      '[creature.vehicle]\nmax_speed = 1.5\nsteer = [{ behaviour = "wander" }]\n'
+                      '[creature.tuples.sit]\naction = "rest"\nuntil = { seconds = 1.0 }\n'
+                      '[creature.groups.main]\ntuples = ["sit"]\nalpha = 0.0\n')
+    session = Session(load_installation(config), SimulatedClock(), EventLog(keep_in_memory=0), MemorySink())
+    colony = ColonyHandle(session, pause=lambda on: None, save=None, status=dict)
+    for key, value in (("vehicle.max_speed", 0.05), ("vehicle.steer", "[]")):
+        with pytest.raises(Refused, match=f"^{key}: \\[creature.vehicle\\] is read once, when the room is "
+                                          "built .*\\[\\[room.zones\\]\\]"):
+            colony.apply(Request(1, "set", ("fox", key, value), ("127.0.0.1", 9)), 0.0)
+    assert session.creatures[0].spec.vehicle.max_speed == 1.5 and session.stage.v.max_speed[0] == 1.5
+    assert colony.apply(Request(2, "set", ("fox", "gain", 0.5), ("127.0.0.1", 9)), 0.0)["value"] == 0.5
+
+
 @pytest.mark.parametrize("sent", ["yes", "on", "off", "T", "n", 2, 0.5, '{"x": 1}'])
 def test_a_truth_value_is_set_only_as_a_config_or_a_toggle_says_it(tmp_path, sent):
     """Lax mode read "yes", "on", "off", "t" or "n" as a truth value, which no config takes
