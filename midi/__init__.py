@@ -7,7 +7,7 @@ One module per concern (thesis sections "exchange", "musical worlds", "listen"):
 - :mod:`midi.parser` — raw byte streams with running status.
 - :mod:`midi.files` — ``.mid`` in and out with tempo maps; :class:`MidiFileError`.
 - :mod:`midi.ports` — in-memory ports, port lookup, ports that survive device faults.
-- :mod:`midi.sources` / :mod:`midi.sinks` — where notes come from and go to.
+- :mod:`midi.polled` — a live input read once a tick; :mod:`midi.sinks` — where notes go to.
 - :mod:`midi.scheduler` — :class:`NoteScheduler`: due-time sending, no hanging notes.
 - :mod:`midi.note_objects` — :class:`NoteObject` / :class:`NoteSpace`.
 - :mod:`midi.osc` / :mod:`midi.osc_peer` — the network colony over OSC/UDP.

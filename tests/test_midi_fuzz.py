@@ -7,11 +7,9 @@ import mido
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from creatures.clock import SimulatedClock
 from midi.files import MidiFileError, read_notes, write_notes
 from midi.notes import NoteEvent
 from midi.parser import StreamParser, parse_bytes
-from midi.sources import ByteSource
 
 
 @settings(max_examples=300, deadline=None)
@@ -40,11 +38,11 @@ def test_undefined_status_bytes_cost_only_themselves(notes, data):
     for _ in range(data.draw(st.integers(0, 10))):
         stream.insert(data.draw(st.integers(0, len(stream))), data.draw(st.sampled_from([0xF9, 0xFD])))
     junk = sum(b in (0xF4, 0xF5, 0xF9, 0xFD) for b in stream)
-    source = ByteSource(SimulatedClock())
-    source.feed(bytes(stream))
-    got = [m for _, m in source.poll()]
+    parser = StreamParser()
+    parser.feed(bytes(stream))
+    got = parser.pending()
     assert got == [mido.Message("note_on", note=p, velocity=v, channel=c) for p, v, c in notes]
-    assert source.malformed_bytes == junk
+    assert parser.malformed_bytes == junk
 
 
 def _valid_file(notes: list[NoteEvent], tmp_path) -> bytes:

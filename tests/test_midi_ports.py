@@ -13,7 +13,6 @@ import pytest
 from mido.ports import BaseInput, BaseOutput
 
 from midi.ports import MidoInputs, MidoOutputs, ResilientPort, match_port, memory_pair
-from midi.sources import PortSource
 from midi.sinks import PortSink
 
 
@@ -84,13 +83,10 @@ def test_match_port_by_exact_name_regex_or_substring():
 
 def test_memory_pair_needs_no_backend(clock):
     inport, outport = memory_pair("creature")
-    source = PortSource(inport, clock)
     for pitch in (60, 64, 67):
         PortSink(outport).send(0.0, mido.Message("note_on", note=pitch))
-    clock.advance(0.25)
-    heard = source.poll()
-    assert [(t, m.note) for t, m in heard] == [(0.25, 60), (0.25, 64), (0.25, 67)]
-    assert source.poll() == []  # non-blocking when empty
+    assert [m.note for m in inport.iter_pending()] == [60, 64, 67]
+    assert list(inport.iter_pending()) == []  # non-blocking when empty
 
 
 @pytest.mark.parametrize("raises", [True, False], ids=["port-raises", "port-goes-quiet"])
@@ -150,11 +146,13 @@ def _jack_backend() -> mido.Backend:
     return backend
 
 
-def _receive_all(source: PortSource, n: int, timeout: float = 5.0) -> list[mido.Message]:
+def _receive_all(port: BaseInput | ResilientPort, n: int, timeout: float = 5.0) -> list[mido.Message]:
+    """Up to ``n`` messages from ``port``, read without blocking as the live run reads its
+    input (``ResilientPort.pending``), or from a plain port's ``iter_pending``."""
     got: list[mido.Message] = []
     deadline = time.monotonic() + timeout
     while len(got) < n and time.monotonic() < deadline:
-        got += [m for _, m in source.poll()]
+        got += port.pending() if isinstance(port, ResilientPort) else list(port.iter_pending())
         time.sleep(0.001)  # yield to the backend thread; the deadline bounds the wait
     return got
 
@@ -163,10 +161,10 @@ def _receive_all(source: PortSource, n: int, timeout: float = 5.0) -> list[mido.
 def test_jack_virtual_ports_loop_100_messages(clock):
     backend = _jack_backend()
     inputs, outputs = MidoInputs(backend), MidoOutputs(backend)
-    ear = PortSource("creature-ear", clock, virtual=True, factory=inputs)  # others play into it
+    ear = inputs.open("creature-ear", virtual=True)  # others play into it
     voice = outputs.open("creature-voice", virtual=True)  # others listen to it
     player = outputs.open(match_port(outputs.names(), r"creature-ear$"))
-    listener = PortSource(match_port(inputs.names(), r"creature-voice$"), clock, factory=inputs)
+    listener = ResilientPort(match_port(inputs.names(), r"creature-voice$"), inputs, clock)
     try:
         sent = [mido.Message("note_on", note=i % 128, velocity=1 + i % 127) for i in range(100)]
         for msg in sent:
@@ -191,7 +189,7 @@ def test_jack_input_keeps_every_note_while_python_is_busy(clock):
     backend = _jack_backend()
     inputs, outputs = MidoInputs(backend), MidoOutputs(backend)
     voice = outputs.open("creature-busy", virtual=True)
-    listener = PortSource(match_port(inputs.names(), r"creature-busy$"), clock, factory=inputs)
+    listener = ResilientPort(match_port(inputs.names(), r"creature-busy$"), inputs, clock)
     floats = np.random.default_rng(0).random(4_000_000).tolist()
     busy = threading.Thread(target=sorted, args=(floats,))  # list sorting never releases the GIL
     sent = [mido.Message("note_on", note=i % 128, velocity=1 + i % 127) for i in range(100)]
@@ -219,7 +217,7 @@ def test_alsa_sequencer_virtual_port(clock):
         pytest.skip(reason)
     backend = mido.Backend("mido.backends.rtmidi/LINUX_ALSA", load=True)
     inputs, outputs = MidoInputs(backend), MidoOutputs(backend)
-    ear = PortSource("creature-alsa", clock, virtual=True, factory=inputs)  # a player connects to it
+    ear = inputs.open("creature-alsa", virtual=True)  # a player connects to it
     player = outputs.open(match_port(outputs.names(), "creature-alsa"))
     try:
         player.send(mido.Message("note_on", note=60))
