@@ -52,7 +52,6 @@ import numpy as np
 from audio.logspectrum import HOP, LONG_LOW, LONG_STEP, RATE, SCALE, LogSpectrum
 from audio.note_model import PITCHES, Judged, NoteModel, default
 from audio.onset_ear import LEAD, LIVE_WINDOW, OFFLINE_WINDOW, Candidate, OnsetEar
-from audio.pitch import velocity_from_level
 from audio.resample import Resampler
 from audio.sources import unusable
 from midi.notes import NoteEvent
@@ -229,6 +228,11 @@ semitone neighbour has P(onset) ≥ this in its frame is judged again a frame (5
 given only if it sounds at least as surely as its neighbours. Without it the generated phrases
 were not heard note for note at any threshold (tools/tune_hearing.py); the live and offline
 looks, which judge 35 ms and more past an attack, never needed it and do not use it."""
+
+
+def velocity_from_level(level_db: float, *, floor_db: float = -60.0) -> int:
+    """Map an RMS level (dBFS) linearly onto MIDI velocity: ``floor_db`` → 1, 0 dBFS → 127."""
+    return int(np.clip(round(1 + 126 * (level_db - floor_db) / -floor_db), 1, 127))
 
 
 def _level_bands() -> np.ndarray:

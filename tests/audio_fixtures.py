@@ -27,13 +27,10 @@ def warm_librosa() -> None:
     """librosa and the DTW kernel JIT-compile on first use (~15 s cold, a few seconds from
     numba's cache): pay it once, before the first test that times or loops over them."""
     from audio.cepstrum import cepstra, utterance_distance
-    from audio.pitch import note_events
-    from audio.segment import SoundEvent
 
     x = tone(220.0, 0.3).astype(np.float32)
     c = cepstra(x, SR)
     utterance_distance(c, c)
-    note_events(SoundEvent(0.0, 0.3, x, SR, -20.0))
 
 
 def alternating_words(classes: tuple[str, ...], talking: float, *, seed: int = 1, length: float = 60.0,

@@ -8,7 +8,7 @@ import warnings
 import numpy as np
 import pytest
 
-from audio.transcribe import LIVE, OFFLINE, QUICK, Transcriber
+from audio.transcribe import LIVE, OFFLINE, QUICK, Transcriber, velocity_from_level
 from creatures.runtime.inputs import phrase_notes, render_notes
 
 PITCHES = [60, 64, 67]
@@ -210,3 +210,10 @@ def test_a_note_both_ears_hear_is_given_once(look: str) -> None:
     assert all(judged.onset[:, p - 21].max() >= ear.threshold for p in pitches)
     assert [n.pitch for n in notes] == pitches
     assert all(abs(n.time - (0.5 + i)) < 0.05 for i, n in enumerate(notes))
+
+
+def test_velocity_follows_level_from_the_floor_to_full_scale() -> None:
+    levels = [-80.0, -60.0, -30.0, -6.0, 0.0, 6.0]
+    velocities = [velocity_from_level(db) for db in levels]
+    assert velocities == sorted(velocities) and velocities[0] == velocities[1] == 1
+    assert velocities[-2] == velocities[-1] == 127
