@@ -40,11 +40,6 @@ HOLD = 0.1
 is only eased to arrive on time, not stopped and started."""
 
 
-def taken_nodes(events: list[dict[str, Any]], creature: str, nodes: int) -> list[int]:
-    """The nodes ``creature`` reached, in order, from its ``motor`` events."""
-    return taken_path(events, creature, nodes)[0]
-
-
 def taken_path(events: list[dict[str, Any]], creature: str, nodes: int) -> tuple[list[int], list[float] | None]:
     """The nodes ``creature`` reached, in order, from its ``motor`` events, and the clock time
     each was reached (None for a log written before the events carried times)."""
