@@ -125,10 +125,6 @@ class MotorGraph:
     def __len__(self) -> int:
         return len(self.poses)
 
-    @property
-    def edge_count(self) -> int:
-        return len(self._edge_arrays[0]) if self._edge_dict is None else len(self._edge_dict)
-
     def edges(self) -> dict[tuple[int, int], float]:
         """Current edge costs (base metric × edge scale × node favour)."""
         return {
