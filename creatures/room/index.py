@@ -56,7 +56,3 @@ class Neighbours:
             mask = np.pad(mask, ((0, 0), (0, pad)))
             dist = np.pad(dist, ((0, 0), (0, pad)), constant_values=np.inf)
         return Neighbourhood(index, mask, dist)
-
-    def count_within(self, pos: np.ndarray, radius: float) -> np.ndarray:
-        """How many of the crowd are within ``radius`` of each point (crowd density)."""
-        return np.asarray(self.tree.query_ball_point(pos, radius, return_length=True))
