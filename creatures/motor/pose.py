@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Iterable, Sequence
+from typing import Sequence
 
 import numpy as np
 
@@ -172,28 +172,6 @@ class PoseSet:
         line body's metric measures (``MetricWeights.content = "spline"``). Made on first use
         from the rotations and velocities, which a pose set never changes in place."""
         return LineShapes.of(self.skeleton, self.rotations, self.velocities)
-
-    @classmethod
-    def from_poses(cls, skeleton: Skeleton, poses: Iterable[BodyPose]) -> PoseSet:
-        """Stack poses (in order); their ``source`` strings become ``sources``."""
-        poses = list(poses)
-        if not poses:
-            raise ValueError("a PoseSet needs at least one pose")
-        sources: list[str] = []
-        for pose in poses:
-            if pose.source not in sources:
-                sources.append(pose.source)
-        return cls(
-            skeleton=skeleton,
-            rotations=np.stack([p.rotations for p in poses]),
-            velocities=np.stack([p.velocities for p in poses]),
-            roots=np.stack([p.root for p in poses]),
-            times=np.array([p.time for p in poses]),
-            source_ids=np.array([sources.index(p.source) for p in poses]),
-            sources=sources,
-            labels=[p.labels for p in poses],
-            positions=np.stack([p.positions for p in poses]),
-        )
 
     @classmethod
     def animation(
