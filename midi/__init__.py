@@ -10,7 +10,7 @@ One module per concern (thesis sections "exchange", "musical worlds", "listen"):
 - :mod:`midi.polled` — a live input read once a tick; :mod:`midi.sinks` — where notes go to.
 - :mod:`midi.scheduler` — :class:`NoteScheduler`: due-time sending, no hanging notes.
 - :mod:`midi.note_objects` — :class:`NoteObject` / :class:`NoteSpace`.
-- :mod:`midi.osc` / :mod:`midi.osc_peer` — the network colony over OSC/UDP.
+- :mod:`midi.osc` — the network colony over OSC/UDP.
 """
 
 from __future__ import annotations

@@ -9,6 +9,7 @@ import subprocess
 import sys
 import threading
 import time
+from pathlib import Path
 from typing import Callable
 
 import pytest
@@ -91,11 +92,11 @@ def test_messages_outside_the_protocol_are_refused_with_a_reason(address, args, 
 
 
 class Peer:
-    """A ``python -m midi.osc_peer`` process whose JSON report lines are read by a thread."""
+    """A ``tests/osc_peer.py`` process whose JSON report lines are read by a thread."""
 
     def __init__(self, name: str, *extra: str) -> None:
         self.process = subprocess.Popen(
-            [sys.executable, "-m", "midi.osc_peer", "--name", name, *extra],
+            [sys.executable, str(Path(__file__).with_name("osc_peer.py")), "--name", name, *extra],
             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
         )
         self.events: queue.Queue[dict] = queue.Queue()

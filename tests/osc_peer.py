@@ -1,18 +1,18 @@
-"""A minimal exchange creature on the network: ``python -m midi.osc_peer --name A --port 9001
---peer 127.0.0.1:9002``.
+"""A minimal exchange peer the OSC tests run as a process of its own: ``python tests/osc_peer.py
+--name A --port 9001 --peer 127.0.0.1:9002`` (tests/test_midi_osc.py).
 
-It plays the exchange game over OSC (thesis, "exchange"): every note it hears is remembered
-(placed, in the full installation, in space); at its own pace it plays back the oldest
-remembered note, transformed (transposed), or its own seed note when it remembers nothing.
-Passages therefore pass back and forth between creatures and drift. It learns peers from
-their ``hello`` messages (a bounded table, :mod:`midi.peer_table`), so a peer that restarts
-is heard again without configuration. With
-each hello it sends its state: ``remembered`` (notes waiting to be played back).
+It plays the exchange game over OSC (thesis, "exchange"): every note it hears is remembered;
+at its own pace it plays back the oldest remembered note, transformed (transposed), or its
+own seed note when it remembers nothing. It learns peers from their ``hello`` messages (a
+bounded table, :mod:`midi.peer_table`), so a peer that restarts is heard again without
+configuration. With each hello it sends its state: ``remembered`` (notes waiting to be played
+back).
 
 It reports on stdout, one JSON object per line: ``listening``, ``hello``, ``heard`` (each note
 heard), ``state`` (each state value heard) and ``stats`` (whenever a dropped-packet counter
-changes) — what the two-process test reads. The framework's own creatures speak the same
-protocol (``creatures run`` with ``[osc]``, :mod:`creatures.runtime.network`).
+changes) — what the two-process tests read. The framework's own creatures speak the same
+protocol (``creatures run`` with ``[osc]``, :mod:`creatures.runtime.network`); this peer lives
+with the tests because nothing in the product runs it.
 """
 
 from __future__ import annotations
@@ -48,7 +48,7 @@ def transform(note: NoteEvent, transpose: int, *, low: int = 36, high: int = 96)
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m midi.osc_peer", description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(prog="python tests/osc_peer.py", description=__doc__.split("\n\n")[0])
     parser.add_argument("--name", required=True)
     parser.add_argument("--host", default="127.0.0.1", help="address to listen on")
     parser.add_argument("--port", type=int, default=0, help="UDP port to listen on (0: any free)")
