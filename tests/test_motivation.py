@@ -11,7 +11,6 @@ from scipy.integrate import solve_ivp
 
 from creatures import bounds
 from creatures.behaviour.motivation import Motivation
-from creatures.behaviour.state_object import StateObject
 from creatures.behaviour.value import ChainValue
 
 
@@ -75,20 +74,6 @@ def test_behaviour_closes_the_loop_with_impulses():
     assert m.level("hunger") == 0.0  # the floor: concentrations do not go negative
     with pytest.raises(ValueError, match="time went backwards"):
         m.advance(1.0)
-
-
-def test_modulate_a_consummatory_value():
-    m = Motivation({"hunger": 0.25})
-    assert m.modulate(100.0, "hunger") == pytest.approx(25.0)
-    assert m.modulate(100.0, "hunger", base=1.0, gain=2.0) == pytest.approx(150.0)
-
-
-def test_hunger_modulates_the_smell_of_food():
-    m = Motivation({"hunger": 0.0}, growth={"hunger": 0.5})
-    smell = StateObject("food smell")
-    smell.modulate_by(m.modulator("hunger"))
-    assert smell.push(0.0, 1.0) == pytest.approx(1.0)
-    assert smell.push(4.0, 1.0) == pytest.approx(1.0 + 2.0)
 
 
 def test_hungry_versus_not_hungry_reweights_whole_chains():

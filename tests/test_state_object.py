@@ -68,15 +68,6 @@ def test_inhibition_by_another_state_object():
     assert hearing.push(2.5, 1.0) == 1.0
 
 
-def test_motivation_modulates_saliency():
-    hunger = {"level": 0.2}
-    smell = StateObject("food smell")
-    smell.modulate_by(lambda t: 1.0 + hunger["level"])
-    assert smell.push(0.0, 1.0) == pytest.approx(1.2)
-    hunger["level"] = 2.0
-    assert smell.push(1.0, 1.0) == pytest.approx(3.0)
-
-
 def test_habituation_lowers_repeated_saliency_and_recovers_after_rest():
     state = StateObject("click", habituation=Habituation(rate=0.5, recovery=20.0))
     first = state.push(0.0, 1.0)

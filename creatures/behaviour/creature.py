@@ -263,7 +263,7 @@ def _restore_state(state: StateObject, data: dict[str, Any], arrays: dict[str, n
     times, saliencies, values = (arrays[f"{key}/{part}"] for part in ("times", "saliencies", "data"))
     if not len(times) == len(saliencies) == len(values):
         raise ValueError(f"state object {state.name!r}: history arrays differ in length")
-    state._start = state._end = 0  # empty the history, keep inhibitors and modulators
+    state._start = state._end = 0  # empty the history, keep its inhibitors
     for t, datum, saliency in zip(times, values, saliencies):
         state._append(float(t), datum if np.ndim(datum) else float(datum), float(saliency))
     state._stimulus = float(data["stimulus"])

@@ -36,7 +36,7 @@ from __future__ import annotations
 
 from contextlib import contextmanager
 from contextvars import ContextVar
-from typing import Any, Callable, Iterator, Mapping, Sequence
+from typing import Any, Iterator, Mapping, Sequence
 
 import numpy as np
 from scipy.linalg import expm
@@ -262,17 +262,6 @@ class Motivation:
         self.levels[i] = self._clip(self.levels[i : i + 1] + float(amount))[0]
 
     # -- reaching behaviour ---------------------------------------------------------------------
-    def modulate(self, value: float, name: str, *, gain: float = 1.0, base: float = 0.0) -> float:
-        """``value`` scaled by (base + gain·level): a drive weighting a consummatory value."""
-        return float(value) * (base + gain * self.level(name))
-
-    def modulator(
-        self, name: str, *, gain: float = 1.0, base: float = 1.0
-    ) -> Callable[[float], float]:
-        """A saliency gain t ↦ base + gain·level(t) for :meth:`StateObject.modulate_by`
-        (hunger sharpening the smell of food)."""
-        return lambda t: base + gain * self.level(name, max(float(t), self.time))
-
     def importance(self, sources: Mapping[str, str]) -> Mapping[str, float]:
         """A live map from value-chain source to the level of the drive it serves, e.g.
         ``{"eat": "hunger"}``, to hand to :class:`ChainValue` as its ``importance``."""

@@ -4,8 +4,9 @@ memory traces").
 A StateObject wraps one flow of data a percept needs (a level, a pitch, a cepstral frame) and
 keeps a bounded history of ``(time, data, saliency)`` so credit assignment can look back at
 what *led up to* an action. Saliency is a low-level measure of how stimulating the flow is;
-this is where habituation, sensitisation, inhibition (not hearing while singing) and
-motivational modulation (hunger sharpening a food smell) live. Because the history is kept,
+this is where habituation, sensitisation and inhibition (not hearing while singing) live; a
+drive reaches perception through percepts of its own (a ``drive`` percept, ramped or combined).
+Because the history is kept,
 saliency can also be filtered *acausally*: a salient event masks less salient ones both
 before and after it (thesis: "percept updating – model building").
 
@@ -81,12 +82,11 @@ class StateObject:
     """A bounded history of samples of one data flow, with a computed saliency.
 
     ``saliency_fn`` maps a pushed datum to raw saliency (default: ``abs(float(datum))``).
-    The stored saliency is raw × inhibition × habituation gain × modulators:
+    The stored saliency is raw × inhibition × habituation gain:
 
     - inhibitors scale it by (1 − strength·s_other) while they are salient themselves, e.g.
       the creature's own "singing" flow inhibits its "hearing" flow;
-    - ``habituation`` (optional) lowers the gain under repeated stimulation;
-    - modulators are functions of time returning a gain, e.g. a hunger drive's level.
+    - ``habituation`` (optional) lowers the gain under repeated stimulation.
     """
 
     def __init__(
@@ -104,7 +104,6 @@ class StateObject:
         self.saliency_fn = saliency_fn or magnitude
         self.habituation = habituation
         self.inhibitors: list[tuple[StateObject, float]] = []
-        self.modulators: list[Callable[[float], float]] = []
         self._capacity = 2 * self.history
         self._times = np.empty(self._capacity)
         self._saliencies = np.empty(self._capacity)
@@ -151,15 +150,11 @@ class StateObject:
         """While ``other`` is salient, this flow's saliency is scaled by (1 − strength·s)."""
         self.inhibitors.append((other, float(strength)))
 
-    def modulate_by(self, gain: Callable[[float], float]) -> None:
-        """Scale saliency by ``gain(t)``: where motivation and emotion reach perception."""
-        self.modulators.append(gain)
-
     def push(self, t: float, datum: Any) -> float:
         """Record a datum at time ``t``; returns the saliency stored with it.
 
         Hot path (every heard note pushes five flows at every ear): a flow with no
-        inhibitors, habituation or modulators skips their factors, each of which would be
+        inhibitors or habituation skips their factors, each of which would be
         exactly 1.0 (x·1.0 is x, bit for bit), and the newest time is kept as a float."""
         t = float(t)
         if self._end > self._start and t < self._last:
@@ -169,15 +164,10 @@ class StateObject:
         if self.inhibitors:
             stimulus *= self._inhibition(t)
         saliency = stimulus
-        if self.habituation is not None or self.modulators:
-            gain = 1.0
-            if self.habituation is not None:
-                if self._end > self._start:
-                    self.habituation.advance(t - self._last, self._stimulus)
-                gain = self.habituation.gain
-            for modulator in self.modulators:
-                gain *= float(modulator(t))
-            saliency = stimulus * gain
+        if self.habituation is not None:
+            if self._end > self._start:
+                self.habituation.advance(t - self._last, self._stimulus)
+            saliency = stimulus * self.habituation.gain
         self._stimulus = stimulus
         self._append(t, datum, saliency)
         return saliency
