@@ -29,16 +29,6 @@ def fifths_position(pitch: int | np.ndarray) -> int | np.ndarray:
     return (pitch * 7) % STEPS
 
 
-def fifths_distance(a: int, b: int) -> int:
-    """Steps round the circle of fifths between two pitches' classes, 0..6 (symmetric).
-
-    >>> fifths_distance(60, 67), fifths_distance(60, 66), fifths_distance(62, 60)
-    (1, 6, 2)
-    """
-    d = abs(fifths_position(int(a)) - fifths_position(int(b)))
-    return min(d, STEPS - d)
-
-
 def fifths_vector(pitches: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
     """Sum of unit vectors at the pitches' circle positions (weighted): ``(2,)``.
 
