@@ -118,10 +118,3 @@ class StreamParser:
         out = list(self.messages)
         self.messages.clear()
         return out
-
-
-def parse_bytes(data: bytes | bytearray | Iterable[int]) -> list[mido.Message]:
-    """All complete messages in ``data`` (running status honoured, junk dropped)."""
-    parser = StreamParser()
-    parser.feed(data)
-    return parser.pending()
