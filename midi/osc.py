@@ -492,10 +492,6 @@ class OscSender(_Sends):
         self.sent_bytes = 0  # bytes that left, to every peer
         self.socket = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
 
-    def add_peer(self, name: str, address: tuple[str, int]) -> None:
-        """Speak to ``address`` as peer ``name`` (a newer hello replaces an older address)."""
-        self.peers[name] = address
-
     def hello(self, port: int, tokens: dict[str, int] | None = None) -> None:
         """Hello to every peer; to those in ``tokens`` (peer key → token it asked for) with it."""
         plain = self._message("hello", [port]).dgram

@@ -184,8 +184,7 @@ def test_osc_flood_of_malformed_packets_at_a_running_listener(colony, rng):
     inputs = live.LiveInputs(colony, session, clock, print)
     listener = inputs.network.listener
     assert listener.socket.getsockname()[0] == "127.0.0.1"  # loopback unless configured
-    visitor = OscSender("visitor")
-    visitor.add_peer("colony", ("127.0.0.1", listener.port))
+    visitor = OscSender("visitor", peers={"colony": ("127.0.0.1", listener.port)})
     flood = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     target = ("127.0.0.1", listener.port)
 

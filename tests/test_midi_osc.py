@@ -37,8 +37,7 @@ def wait_until(condition: Callable[[], bool], timeout: float = 5.0) -> bool:
 
 def test_notes_and_state_cross_between_two_creatures_in_process(clock):
     ear = OscListener(clock)
-    voice = OscSender("exchange-1")
-    voice.add_peer("ear", ("127.0.0.1", ear.port))
+    voice = OscSender("exchange-1", peers={"ear": ("127.0.0.1", ear.port)})
     notes = [NoteEvent(0.0, 40 + i % 50, 1 + i % 127, i % 16, 0.125 * (i % 5)) for i in range(100)]
     try:
         for note in notes:
@@ -62,8 +61,7 @@ def test_a_burst_of_2000_notes_is_received_whole(clock):
     """python-osc's ThreadingOSCUDPServer dropped most of such a burst here (ENVIRONMENT.md);
     a polled socket with a large receive buffer keeps them all."""
     ear = OscListener(clock)
-    voice = OscSender("burst")
-    voice.add_peer("ear", ("127.0.0.1", ear.port))
+    voice = OscSender("burst", peers={"ear": ("127.0.0.1", ear.port)})
     heard: list = []
     try:
         for i in range(2000):
