@@ -213,15 +213,9 @@ def dtw_cost(a: np.ndarray, b: np.ndarray) -> tuple[float, int]:
     return float(cost), int(length)
 
 
-def dtw_distance(a: np.ndarray, b: np.ndarray) -> float:
-    """Time-warped distance between two (frames, coefficients) arrays: best path cost per step."""
-    cost, length = dtw_cost(a, b)
-    return cost / length
-
-
 def utterance_distance(a: np.ndarray, b: np.ndarray) -> float:
-    """Distance between two utterances' :func:`cepstra`: the smallest :func:`dtw_distance` of
-    ``a`` at warp w against ``b`` at the opposite warp, over :data:`WARPS` (symmetric)."""
+    """Distance between two utterances' :func:`cepstra`: the smallest time-warped distance (best
+    path cost per step, :func:`dtw_cost`) of ``a`` at warp w against ``b`` at the opposite warp, over :data:`WARPS` (symmetric)."""
     return float(_warped(*_checked(a, b, dims=3)))
 
 

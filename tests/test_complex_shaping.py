@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from audio.cepstrum import dtw_distance
+from audio.cepstrum import dtw_cost
 from creatures.behaviour.action_group import ActionGroup
 from creatures.behaviour.action_tuple import Action, ActionTuple, DoUntil
 from creatures.behaviour.percept import WhateverPercept
@@ -74,6 +74,12 @@ def _hand(events: list[dict], start: float, stop: float) -> np.ndarray:
     """The effector's path between two times, from the creature's motor reports (ten a second)."""
     return np.array([[e["position"][k] for k in "xyz"] for e in events
                      if e["kind"] == "motor" and start <= e["t"] < stop])
+
+
+def dtw_distance(a: np.ndarray, b: np.ndarray) -> float:
+    """Time-warped distance between two trajectories: the best path's cost per step."""
+    cost, length = dtw_cost(a, b)
+    return cost / length
 
 
 def _random_walk(seed: int, seconds: float) -> np.ndarray:
