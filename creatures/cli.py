@@ -339,7 +339,10 @@ def _run(args: argparse.Namespace) -> int:
               f"({r['send_errors']} failed)")
     if summary.inputs:
         print("outside input: " + ", ".join(f"{summary.inputs.get(what, 0)} {what}"
-                                            for what in ("mapped", "unmapped", "malformed", "throttled", "refused osc")))
+                                            for what in ("mapped", "unmapped", "malformed", "throttled", "refused osc"))
+              + (f", {junk} refused midi bytes" if (junk := summary.inputs.get("refused midi bytes")) else "")
+              + (f"; the MIDI input's queue was full at {full} polls: messages may have been lost"
+                 if (full := summary.inputs.get("full midi queue")) else ""))
     print(f"timing: ticks began at most {summary.worst_lateness * 1e3:.1f} ms late (p99 "
           f"{summary.lateness_p99 * 1e3:.2f} ms), {summary.late} more than {LATE_TICK * 1e3:g} ms late, "
           f"{summary.skipped} skips ahead; {summary.late_notes} notes reached the MIDI port more than "

@@ -240,6 +240,11 @@ class ResilientPort:
         self.faults = 0  # times the port was lost
         self.reopened = 0  # times it came back
         self.dropped = 0  # outgoing messages that found no port
+        # What the input lost on the way in, over every port it opened (a polled input's
+        # counters, midi/polled.py; other backends keep none): polls that found RtMidi's queue
+        # full, so messages may have been lost, and bytes that belonged to no message.
+        self.full_queues = 0
+        self.malformed_bytes = 0
         self._missing_reported = False
         self._last_check = -float("inf")
         self._broken: list[tuple[BasePort, str]] = []  # failed on the creature's thread, to let go
@@ -258,11 +263,15 @@ class ResilientPort:
         port = self.port
         if port is None:
             return []
+        full, junk = getattr(port, "full_queues", 0), getattr(port, "malformed_bytes", 0)
         try:
-            return list(port.iter_pending())
+            messages = list(port.iter_pending())
         except Exception as exc:  # any backend error means the device is gone
             self._failed(port, f"{exc}")
             return []
+        self.full_queues += getattr(port, "full_queues", 0) - full
+        self.malformed_bytes += getattr(port, "malformed_bytes", 0) - junk
+        return messages
 
     def send(self, msg: mido.Message) -> bool:
         """Send ``msg`` if the port is there; return whether it went out."""

@@ -311,3 +311,27 @@ def test_osc_notes_go_out_time_tagged_with_when_they_sound(tmp_path):
     (timed,) = packet.messages
     assert timed.message.address == "/creature/ada/note" and timed.message.params[:2] == [62, 90]
     assert timed.time == pytest.approx(1_800_000_000.0 + 100.25, abs=1e-3)
+
+
+class LossyKeyboard(MemoryInput):
+    """A keyboard read as a polled RtMidi input is (midi/polled.py): its first poll found the
+    driver's queue full and two bytes that belonged to no message."""
+
+    full_queues = 0
+    malformed_bytes = 0
+
+    def _receive(self, block: bool = True) -> None:
+        self.full_queues, self.malformed_bytes = 1, 2
+
+
+def test_what_the_midi_input_lost_is_counted_logged_and_reported(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(live, "MidoInputs", lambda: MemoryPorts(LossyKeyboard("keys")))
+    config = tmp_path / "live.toml"
+    config.write_text(CONFIG.replace('output_device = "NoSuchCard"', "output = false")
+                      .replace("[midi]", '[midi]\ninput_port = "keys"'))
+    log = tmp_path / "events.jsonl"
+    assert main(["run", str(config), "--duration", "0.3", "--log", str(log)]) == 0
+    out = capsys.readouterr().out
+    assert "2 refused midi bytes; the MIDI input's queue was full at 1 polls: messages may have been lost" in out
+    counts = [e for e in map(json.loads, log.read_text().splitlines()) if e["kind"] == "inputs"][-1]
+    assert counts["refused midi bytes"] == 2 and counts["full midi queue"] == 1

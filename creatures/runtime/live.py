@@ -185,10 +185,16 @@ class LiveInputs:
 
     def tally(self) -> None:
         """Count, with the input map's counters, the OSC packets the listener refused (not OSC,
-        too large, or not fitting ``/creature/…``): nothing that arrived goes uncounted."""
+        too large, or not fitting ``/creature/…``), and what the MIDI input lost before a message
+        was whole (bytes of no message; polls that found its queue full, where messages may have
+        been lost): nothing that arrived goes uncounted."""
         if self.network is not None:
             ear = self.network.listener
             self.router.counts["refused osc"] = ear.malformed + ear.oversize
+        if self.midi is not None:
+            for key, n in (("refused midi bytes", self.midi.malformed_bytes), ("full midi queue", self.midi.full_queues)):
+                if n:
+                    self.router.counts[key] = n
 
     def wait(self, timeout: float) -> None:
         """Sleep up to ``timeout`` s; an OSC packet wakes the loop at once (RtMidi has no handle
