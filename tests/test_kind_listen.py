@@ -84,6 +84,13 @@ def core_pitches(world: World) -> list[int]:
     return modelled(world)["core"]
 
 
+def restored_at_zero(population: dict) -> dict:
+    """A saved population as a run whose clock starts at 0 saves it again: the same models,
+    as old as they were (their births count back from the new run's start)."""
+    shift = population["time"]
+    return {**population, "time": 0.0, "members": [{**m, "born": m["born"] - shift} for m in population["members"]]}
+
+
 def is_rotation(a: list[int], b: list[int]) -> bool:
     return len(a) == len(b) and any(a == b[k:] + b[:k] for k in range(len(b)))
 
@@ -198,7 +205,8 @@ def test_state_round_trips_through_json(danced):
     fresh.restore(state)
     again = json.loads(json.dumps(fresh.state()))["parts"]["percepts"]["heard"]
     saved = state["parts"]["percepts"]["heard"]
-    assert again["poses"] == saved["poses"] and again["population"] == saved["population"]
+    assert again["poses"] == saved["poses"]
+    assert again["population"] == restored_at_zero(saved["population"])
     assert again["expected match"] == saved["expected match"]
     run(other, fresh, TICK)
     assert modelled(other)["core"] == core_pitches(world)
@@ -248,7 +256,7 @@ def test_a_state_saved_by_the_class_based_listen_loads_into_the_authored_one(tmp
     lis = next(c for c in session.creatures if c.name == "lis")
     parts = lis.state()["parts"]["percepts"]["heard"]
     assert parts["poses"] == saved["state"]["poses"]
-    assert parts["population"] == saved["state"]["population"]
+    assert parts["population"] == restored_at_zero(saved["state"]["population"])
     assert parts["expected match"] == saved["state"]["expected match"]
     assert lis.state()["motivation"]["levels"] == saved["state"]["motivation"]["levels"]
     lis.tick(0.0)
@@ -292,3 +300,26 @@ def test_a_live_run_taking_in_a_class_listen_state_keeps_its_original_beside_it(
     session.load_state(state)
     keep_originals(session.migrated, said.append)
     assert sorted(p.name for p in state.glob("lis.json*")) == ["lis.json", "lis.json.listen"]
+
+
+def test_a_restored_population_forgets_at_its_rate_from_the_new_runs_clock(danced):
+    """A live run's clock starts again at 0. The population's clock and its models' births
+    were taken back as the last run left them, so for as long as that run had lasted nothing
+    decayed and nothing was old enough to retire (after ten minutes of a phrase, a model the
+    music had then left kept its usefulness, 62.5, where the run that went on let it fall to
+    1.5 in 140 s). Restored, each model keeps its age and usefulness and forgets from now."""
+    _, creature, _, _ = danced
+    saved = json.loads(json.dumps(creature.state()))
+    population = saved["parts"]["percepts"]["heard"]["population"]
+    other, fresh = colony(seed=11)
+    fresh.restore(saved)
+    run(other, fresh, 30.0)  # silence: the models are not used
+    [member] = fresh.percepts["heard"].population.members
+    [was] = population["members"]
+    assert member.born == pytest.approx(was["born"] - population["time"])  # as old as it was, now
+    assert member.usefulness == pytest.approx(was["usefulness"] * np.exp(-30.0 / 120.0), rel=0.02)
+    resaved = json.loads(json.dumps(fresh.state()))
+    _, reloaded = colony(seed=11)
+    reloaded.restore(resaved)  # born before this run's start, it loads back
+    [again] = restored_at_zero(resaved["parts"]["percepts"]["heard"]["population"])["members"]
+    assert reloaded.percepts["heard"].population.members[0].born == again["born"]

@@ -310,7 +310,8 @@ class Listening(Percept):
         if "poses" in state:
             self.poses.restore(state["poses"])
         if "population" in state:
-            self.population.restore(state["population"], nodes=len(self.creature.body.graph))
+            self.population.restore(state["population"], nodes=len(self.creature.body.graph),
+                                    now=self.creature.now())
             self.dance.follow(self.population.best)
         if "expected match" in state:
             self.expected_match.restore(state["expected match"])

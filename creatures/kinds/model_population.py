@@ -177,11 +177,17 @@ class ModelPopulation:
             data["best_score"] = self.best_score
         return data
 
-    def restore(self, data: dict[str, Any], *, nodes: int) -> None:
+    def restore(self, data: dict[str, Any], *, nodes: int, now: float) -> None:
         """Take back saved members (models over a graph of ``nodes`` poses); every number is
-        checked against this population's bounds, which stay its own (the config's)."""
+        checked against this population's bounds, which stay its own (the config's).
+
+        The clock restarts at ``now`` (a run's clock starts at 0): each member keeps its age,
+        so it is born before ``now`` (a negative time for one older than this run), and
+        usefulness decays from ``now``. Taken back as saved, the clock stood where the last
+        run ended and nothing decayed or grew old enough to retire for as long again."""
         self._next_id = bounds.count(data["next_id"], "population.next_id")
-        self._time = bounds.number(data["time"], "population.time", low=0.0, high=bounds.LATEST_TIME)
+        saved_at = bounds.number(data["time"], "population.time", low=0.0, high=bounds.LATEST_TIME)
+        self._time = now
         members = []
         # The config's max_models wins: a population saved larger keeps its first members.
         saved = bounds.items(data["members"], "population.members", longest=MOST_MODELS)[: self.max_models]
@@ -190,7 +196,8 @@ class ModelPopulation:
             m = bounds.table(m, where)
             members.append(Member(bounds.count(m["id"], f"{where}.id"),
                                   GestureModel.from_dict(m["model"], nodes=nodes, longest=4 * MOST_STATES, where=f"{where}.model"),
-                                  bounds.number(m["born"], f"{where}.born", low=0.0, high=bounds.LATEST_TIME),
+                                  now - saved_at + bounds.number(m["born"], f"{where}.born", low=-bounds.LATEST_TIME,
+                                                                 high=bounds.LATEST_TIME),
                                   bounds.number(m["usefulness"], f"{where}.usefulness")))
         self.members = members
         self.best = next((m for m in self.members if m.id == data["best"]), None)
