@@ -131,6 +131,7 @@ class Singing(Action):
         self.song = Song(params.phrases)
         self.breathless = False
         self.next_onset = 0.0
+        self.sung = 0  # notes begun since the tuple started
         m = creature.motivation
         self._drive = {key: None if getattr(params, key) is None else m.index(getattr(params, key))
                        for key in ("breath", "boredom", "pulse")}
@@ -143,6 +144,7 @@ class Singing(Action):
     def start(self, t: float, tuple_: ActionTuple) -> None:
         self.breathless = False
         self.next_onset = t
+        self.sung = 0
         self.creature.feed(t)  # singing draws breath (and spends desire) from now
 
     def stop(self, t: float, *, interrupted: bool) -> None:
@@ -160,7 +162,11 @@ class Singing(Action):
         """Play every note of the song whose onset has come, while breath lasts. Across a
         clock gap (a night the gallery was closed, a pause: ``creatures.clock.clock_gap``)
         the song resumes where it stopped, from now: that time was not lived, and singing
-        its onsets would send a night of notes at once."""
+        its onsets would send a night of notes at once.
+
+        A note longer than the breath the turn began with (a long note, a slow tempo or pulse)
+        is sung for as long as that breath lasts, and the turn ends: never begun, it stopped
+        the song there for good, each turn ending breathless the moment it began."""
         m, p = self.creature.motivation, self.params
         if clock_gap(self.next_onset, t):
             self.next_onset = t
@@ -172,10 +178,18 @@ class Singing(Action):
             velocity, legato = self.timbre()
             onset, duration = self.next_onset, legato * beats / rate
             if i is not None and self._level("breath", 1.0) - drawn * (onset + duration - m.time) <= 0.0:
+                held = self._level("breath", 1.0) / drawn - (onset - m.time)  # seconds the breath lasts
+                if self.sung == 0 and held > 0.0:
+                    self._sing(pitch, velocity, held, onset)
                 self.breathless = True
                 self.creature.world.emit("breathless", creature=self.creature.name, phrase=self.song.phrase,
                                          note=self.song.note)
                 return
-            self.creature.play(pitch, velocity, round(duration, 6), at=onset)
-            ended = self.song.step()
+            ended = self._sing(pitch, velocity, duration, onset)
             self.next_onset = onset + (beats + (p.phrase_rest if ended else 0.0)) / rate
+
+    def _sing(self, pitch: int, velocity: int, duration: float, onset: float) -> bool:
+        """Play one note of the song and move past it; True when that finished a segment."""
+        self.creature.play(pitch, velocity, round(duration, 6), at=onset)
+        self.sung += 1
+        return self.song.step()
