@@ -323,3 +323,27 @@ def test_a_restored_population_forgets_at_its_rate_from_the_new_runs_clock(dance
     reloaded.restore(resaved)  # born before this run's start, it loads back
     [again] = restored_at_zero(resaved["parts"]["percepts"]["heard"]["population"])["members"]
     assert reloaded.percepts["heard"].population.members[0].born == again["born"]
+
+
+def test_a_burst_of_notes_sets_the_dancing_body_off_once():
+    """Every note heard since the last step moves the dance on, but only the last sets the
+    body's course: each note set off its own A* course, each replaced within the same tick,
+    so 10,000 notes arriving at once (a MIDI flood) held the shipped listen's tick for 8 s
+    of CPU. The dance still steps through every note of the burst."""
+    world, creature = colony(seed=5)
+    t = feed(world, PHRASE, 6, 1.0)
+    burst = [PHRASE[i % len(PHRASE)] for i in range(400)]
+    for pitch in burst:
+        world.inject(NoteEvent(t, pitch, 90, 0, 0.3))
+    run(world, creature, t - TICK)
+    heard = creature.percepts["heard"]
+    assert heard.dancing
+    expected = heard.dance.state
+    for pitch in burst:  # where stepping through the burst note by note leaves the dance
+        heard.dance.state = heard.dance.locate(heard.poses.node(pitch))
+    expected, heard.dance.state = heard.dance.state, expected
+    motor, courses = creature.body.motor, []
+    set_course = motor.set_course
+    motor.set_course = lambda *args, **keys: courses.append(args[0]) or set_course(*args, **keys)
+    run(world, creature, t + TICK, start=t - TICK)
+    assert len(courses) == 1 and heard.dance.state == expected

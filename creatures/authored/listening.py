@@ -250,12 +250,16 @@ class Listening(Percept):
     # -- dancing -----------------------------------------------------------------------------
     def step_with_music(self, t: float, maps: MusicPoseMaps | None = None) -> None:
         """Each note heard since the last step moves the dance on; the body heads for the
-        pose of the note the model predicts next (or of the note itself, if none)."""
-        while self.heard:
-            _, observation = self.heard.popleft()
+        pose of the note the model predicts after the last of them (or of that note itself,
+        if none). One course a step: a course set for each note was replaced by the next
+        within the same tick (a burst of 10,000 notes cost 10,000 A* searches)."""
+        if not self.heard:
+            return
+        for _, observation in self.heard:
             self.dance.state = self.dance.locate(observation.node)
-            self.dance.at = t
-            self._move_on(t, observation.node, maps)
+        self.heard.clear()
+        self.dance.at = t
+        self._move_on(t, observation.node, maps)
 
     def step_alone(self, t: float, velocity: float, maps: MusicPoseMaps | None = None) -> bool:
         """Without music: move to the predicted state when its time comes and play its note
