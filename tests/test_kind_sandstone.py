@@ -275,6 +275,15 @@ def test_a_note_longer_than_a_whole_breath_is_sung_while_the_breath_lasts(tmp_pa
     assert len([e for e in events if e["kind"] == "breathless"]) <= len(notes)
 
 
+def test_the_shortest_notes_a_song_may_have_are_sung_at_a_bounded_rate(tmp_path):
+    """Sixteenths of a beat at the fastest tempo, no rest between segments: every note is
+    sung, at most 16 × 400 / 60 × 2 (internal time at twice the tempo) a second."""
+    events = _run(tmp_path, [{PRESENCE: [[0.0, 1.0]], PHRASES: [[[72, 0.0625]]], "tuples.sing.action.tempo": 400.0,
+                              "tuples.sing.action.phrase_rest": 0.0}], duration=5.0)
+    onsets = np.array([n["time"] for n in _notes(events)])
+    assert len(onsets) > 100 and np.diff(onsets).min() >= 0.0625 * 60 / 400 / 2 - 1e-6
+
+
 def test_boredom_softens_and_detaches_the_singing(tmp_path):
     events = _run(tmp_path, [{PRESENCE: [[0.0, 1.0]], HABITUATION: 0.02}], duration=60.0)
     notes = _notes(events)
@@ -378,6 +387,8 @@ def test_a_song_resumes_after_a_clock_gap_without_singing_the_gap():
     ("percepts.presence.points", "[[0.0, 1.5]]", "0..1"),
     ("tuples.sing.action.phrases", "[[[60, 1.0], [200, 0.5]]]", "phrase 0 note 1"),
     ("tuples.sing.action.phrases", "[[]]", "phrase 0 is empty"),
+    # a millionth of a beat was taken, and a rock sang 133,000 notes a tick: 3 s did not end in 6 min
+    ("tuples.sing.action.phrases", "[[[72, 0.000001]]]", "phrase 0 note 0: need pitch 0..127 and 1/16 <= beats"),
 ])
 def test_bad_scripts_and_phrases_are_named(tmp_path, key, value, phrase):
     config = tmp_path / "bad.toml"

@@ -796,11 +796,17 @@ class Anticipate(MotorPart):
 
 
 # -- singing a precomposed song (thesis: "sand:stone (installation)") ---------------------
+SHORTEST_BEATS = 1 / 16
+"""Shortest note of a song, in beats: at the fastest internal time (tempo 400, pulse 2) 213
+notes a second. A song is sung as fast as its onsets come, so with no bound a millionth of a
+beat sent 133,000 notes a tick and a run never ended."""
+
+
 class _SongParams(Params):
     phrases: list[list[tuple[int, float]]] = Field(min_length=1, max_length=1024,
                                                    description="precomposed segments, sung in order: each a list of "
                                                                "[pitch, beats] notes (beats from this note's onset "
-                                                               "to the next)")
+                                                               "to the next, 1/16 to 64)")
     tempo: float = Field(96.0, ge=10, le=400, description="beats per minute of internal time at pulse 1 (at 10, the "
                                                           "longest note lasts under 13 minutes)")
     phrase_rest: float = Field(1.0, ge=0, le=64, description="beats of silence between the end of a segment and the "
@@ -820,8 +826,8 @@ class _SongParams(Params):
             if not phrase:
                 raise ValueError(f"phrase {p} is empty")
             for n, (pitch, beats) in enumerate(phrase):
-                if not 0 <= pitch <= 127 or not 0 < beats <= 64:
-                    raise ValueError(f"phrase {p} note {n}: need pitch 0..127 and 0 < beats <= 64, "
+                if not 0 <= pitch <= 127 or not SHORTEST_BEATS <= beats <= 64:
+                    raise ValueError(f"phrase {p} note {n}: need pitch 0..127 and 1/16 <= beats <= 64, "
                                      f"got [{pitch}, {beats}]")
         return phrases
 
