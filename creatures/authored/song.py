@@ -164,9 +164,10 @@ class Singing(Action):
         the song resumes where it stopped, from now: that time was not lived, and singing
         its onsets would send a night of notes at once.
 
-        A note longer than the breath the turn began with (a long note, a slow tempo or pulse)
-        is sung for as long as that breath lasts, and the turn ends: never begun, it stopped
-        the song there for good, each turn ending breathless the moment it began."""
+        A note longer than the breath a turn begins with (a long note, a slow tempo or pulse)
+        is sung for as long as that breath lasts, singing on (drawing breath) until then:
+        never begun, it stopped the song there for good, each turn ending breathless the
+        moment it began."""
         m, p = self.creature.motivation, self.params
         if clock_gap(self.next_onset, t):
             self.next_onset = t
@@ -176,20 +177,16 @@ class Singing(Action):
             pitch, beats = self.song.current()
             rate = p.tempo / 60.0 * min(PULSE_RANGE[1], max(PULSE_RANGE[0], self._level("pulse", 1.0)))
             velocity, legato = self.timbre()
-            onset, duration = self.next_onset, legato * beats / rate
+            onset, duration, held = self.next_onset, legato * beats / rate, None
             if i is not None and self._level("breath", 1.0) - drawn * (onset + duration - m.time) <= 0.0:
                 held = self._level("breath", 1.0) / drawn - (onset - m.time)  # seconds the breath lasts
-                if self.sung == 0 and held > 0.0:
-                    self._sing(pitch, velocity, held, onset)
-                self.breathless = True
-                self.creature.world.emit("breathless", creature=self.creature.name, phrase=self.song.phrase,
-                                         note=self.song.note)
-                return
-            ended = self._sing(pitch, velocity, duration, onset)
-            self.next_onset = onset + (beats + (p.phrase_rest if ended else 0.0)) / rate
-
-    def _sing(self, pitch: int, velocity: int, duration: float, onset: float) -> bool:
-        """Play one note of the song and move past it; True when that finished a segment."""
-        self.creature.play(pitch, velocity, round(duration, 6), at=onset)
-        self.sung += 1
-        return self.song.step()
+                if self.sung or held <= 0.0:
+                    self.breathless = True
+                    self.creature.world.emit("breathless", creature=self.creature.name, phrase=self.song.phrase,
+                                             note=self.song.note)
+                    return
+                duration = held
+            self.creature.play(pitch, velocity, round(duration, 6), at=onset)
+            self.sung += 1
+            ended = self.song.step()
+            self.next_onset = onset + (held if held is not None else (beats + (p.phrase_rest if ended else 0.0)) / rate)
