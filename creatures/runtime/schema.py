@@ -288,8 +288,9 @@ class InputMap(Strict):
     to: str | None = Field(None, description="what the message becomes: 'note' (a heard note), 'sensor' (a named "
                                              "sensor creatures read as a percept), 'reward' (the clicker) or "
                                              "'drive' (a drive perturbation)")
-    pitch: Number | None = Field(None, description="to = 'note': MIDI pitch, or a note name such as 'C4' "
-                                                   "(default: {arg = 0})")
+    pitch: Number | None = Field(None, description="to = 'note': MIDI pitch (a fractional one, a sensor's 60.4, "
+                                                   "to the nearest key), or a note name such as 'C4' (default: "
+                                                   "{arg = 0})")
     velocity: Number | None = Field(None, description="to = 'note': velocity 1-127 (default: the MIDI note's, "
                                                       "else 100)")
     duration: Number | None = Field(None, description="to = 'note': seconds (default 0.25)")
