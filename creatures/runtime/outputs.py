@@ -154,9 +154,9 @@ def publish(staged: Path, out: Path, *, replaces: set[str] | None = None, **fact
     old = sorted({e.split("/", 1)[0] for e in ours if os.path.lexists(out / e.split("/", 1)[0])})
     kept: list[str] = []
     if replaces is not None:
-        kept = [e for e in sorted(ours) if e.split("/", 1)[0] not in replaces | set(new)
-                and os.path.lexists(out / e.split("/", 1)[0])]
-        old = [name for name in old if name in replaces | set(new)]
+        going = replaces | set(new)
+        kept = [e for e in sorted(ours) if e.split("/", 1)[0] not in going and os.path.lexists(out / e.split("/", 1)[0])]
+        old = [name for name in old if name in going]
         facts = {**_facts(out), **facts}
     retired = _hidden_dir(out, RETIRED)
     save_json(out / JOURNAL, {"staged": staged.name, "retired": retired.name, "new": new, "old": old},
