@@ -178,6 +178,35 @@ def test_a_pose_with_a_nan_joint_does_not_blind_the_camera_for_the_frames_after_
             np.testing.assert_array_equal(renderer.render(STANDING, PARENTS), fresh.render(STANDING, PARENTS))
 
 
+@pytest.mark.gl
+def test_a_crowd_over_a_floor_is_seen_from_above_and_every_one_of_it_is_drawn():
+    """Fifteen room markers (creatures/room/stage.py: a 0.6 m post, an arm to the heading) over a
+    12 × 8 m floor in a 320 × 240 frame: seen from the front, 10° up, they stood in one line,
+    their 2.5 cm bones under a pixel. Each is drawn where it stands, apart from the others."""
+    from creatures.room.stage import MARKER, MARKER_PARENTS
+
+    rng = np.random.default_rng(5)
+    at = np.column_stack([rng.uniform(0.0, 12.0, 15), np.zeros(15), rng.uniform(-8.0, 0.0, 15)])
+    positions = np.concatenate([MARKER + p for p in at])
+    parents = np.concatenate([MARKER_PARENTS + 3 * i * (MARKER_PARENTS >= 0) for i in range(15)])
+    try:
+        renderer = BodyRenderer(320, 240)
+    except RenderUnavailable as exc:
+        pytest.skip(f"no GL platform: {exc}")
+    with renderer:
+        _, depth = renderer.render_with_depth(positions, parents)
+        assert renderer.camera_pose[1, 3] > 5.0  # above the floor, looking down
+        view = np.linalg.inv(renderer.camera_pose)
+        seen = []
+        for p in at:  # each post's foot, projected: something is drawn within 3 px of it
+            x, y, z, _ = view @ np.r_[p, 1.0]
+            f = 120 / np.tan(BodyRenderer.YFOV / 2)
+            u, v = int(round(160 + f * x / -z)), int(round(120 - f * y / -z))
+            seen.append(bool((depth[max(v - 3, 0):v + 4, max(u - 3, 0):u + 4] > 0).any()))
+        assert all(seen)
+        assert (depth > 0).sum() > 15 * 12  # each a few pixels wide, not a hairline
+
+
 def test_missing_gl_platform_gives_a_clear_message(monkeypatch):
     monkeypatch.delenv("PYOPENGL_PLATFORM", raising=False)
     monkeypatch.setattr(render.subprocess, "run", lambda *a, **k: subprocess.CompletedProcess(

@@ -741,8 +741,9 @@ def test_a_creature_steers_to_a_note_object_and_strikes_it_once_per_stepping_on(
     assert abs(next(e for e in played if e["pitch"] == 67)["t"] - struck[0]["t"]) < 1e-9
     from creatures.runtime.bodies import gather
 
-    assert gather(s.creatures) is None  # no body here, so nothing is drawn
-    assert s.stage.note_marks() == [((7.0, 0.0, -5.0), 67), ((1.0, 0.0, -9.0), 48)]
+    positions, parents, marks = gather(s.creatures)  # no body here: the seeker is drawn as a marker
+    assert parents.tolist() == [-1, 0, 1] and np.allclose(positions[0], [7.0, 0.0, -5.0], atol=0.1)  # on the object
+    assert marks == s.stage.note_marks() == [((7.0, 0.0, -5.0), 67), ((1.0, 0.0, -9.0), 48)]
 
 
 @pytest.mark.parametrize("room, vehicle, message", [
@@ -891,3 +892,54 @@ def test_a_slip_in_a_crowds_vary_or_cycle_is_said_at_its_line(tmp_path, vary, me
     with pytest.raises(ConfigError, match=message) as info:
         load_installation(write(tmp_path, text))
     assert info.value.line == text.splitlines().index(vary) + 1
+
+
+WANDERING = ('max_speed = 1.0\nmax_turn = 90.0\n'
+             'steer = [{ behaviour = "wander", weight = 1.0 }, { behaviour = "wall_avoidance", weight = 3.0 }]')
+
+
+def test_a_creature_without_a_body_is_drawn_as_a_marker_where_its_vehicle_stands(tmp_path):
+    """A crowd of singers without bodies (the flock) was drawn nowhere: no frames, no poses,
+    nothing in the live view or the body stream. In a room each is a post where its vehicle
+    stands with an arm pointing its heading, in every picture alike."""
+    from creatures.room.stage import MARKER_JOINTS
+    from creatures.runtime.bodies import gather
+    from creatures.runtime.body_stream import hello_of, snapshot
+    from creatures.view.snapshot import bodies, frame, pose_event
+
+    s, clock = session(tmp_path, "", singer("a", 2.0, 5.0, vehicle=WANDERING), singer("b", 7.0, 3.0, vehicle=WANDERING))
+    start = s.stage.v.pos.copy()
+    run(s, clock, 3.0)
+    assert np.linalg.norm(s.stage.v.pos - start, axis=1).min() > 0.5  # both wandered off
+    positions, parents, _ = gather(s.creatures)
+    assert parents.tolist() == [-1, 0, 1, -1, 3, 4]
+    for i, creature in enumerate(s.creatures):
+        joints = positions[3 * i:3 * i + 3]
+        (x, y), (hx, hy) = s.stage.v.pos[i], s.stage.v.heading[i]
+        assert np.allclose(joints[0], [x, 0.0, -y]) and np.allclose(joints[1], [x, 0.6, -y])
+        assert np.allclose(joints[2] - joints[1], [0.25 * hx, 0.0, -0.25 * hy])  # room (x, y) is (x, −z)
+        # The live view's frame, the pose events and the body stream show the same joints.
+        assert np.allclose(frame(3.0, s.creatures)["bodies"][creature.name], joints)
+        assert np.allclose(pose_event(creature)["joints"], joints, atol=1e-5)
+        assert np.allclose(snapshot(creature).positions, joints)
+        assert hello_of(creature, i).joints == MARKER_JOINTS
+    assert [b.parents for b in bodies(s.creatures)] == [[-1, 0, 1]] * 2
+
+
+def test_an_offline_room_without_bodies_logs_its_markers_for_the_replay(tmp_path):
+    from creatures.view.snapshot import replay
+
+    inst = load_installation(write(tmp_path, HEADER.format(room="") + singer("a", 2.0, 5.0, vehicle=WANDERING)))
+    run_offline(inst, tmp_path / "out", duration=2.0)
+    events = read_events(tmp_path / "out" / "events.jsonl")
+    (skeleton,) = [e for e in events if e["kind"] == "skeleton"]
+    assert skeleton["parents"] == [-1, 0, 1]
+    rooms = {round(e["t"], 3): e["pos"][0] for e in events if e["kind"] == "room"}
+    poses = [e for e in events if e["kind"] == "pose"]
+    assert len(poses) >= 15  # [view] log_fps 10 over 2 s
+    matched = [(p["joints"][0], rooms[round(p["t"], 3)]) for p in poses if round(p["t"], 3) in rooms]
+    assert matched and all(np.allclose([x, -z], at, atol=1e-3) for (x, _, z), at in matched)
+    shown = replay(events)
+    assert shown.hello["creatures"][0]["parents"] == [-1, 0, 1]
+    floors = np.array([f["bodies"]["a"][0] for f in shown.frames])
+    assert np.ptp(floors[:, [0, 2]], axis=0).max() > 0.5  # it moves in the replay

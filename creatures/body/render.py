@@ -184,6 +184,9 @@ class BodyRenderer:
     SPHERE, CYLINDER = 0, 1
     YFOV, ZNEAR = np.pi / 3.5, 0.05
     LIGHT_INTENSITY, AMBIENT = 3.0, (0.25, 0.25, 0.25)
+    FLAT = 4.0
+    """How many times wider than high a first frame must be to be seen from above (a standing
+    person is not; a dog walking 1 m is not; a crowd over a floor is)."""
 
     def __init__(self, width: int = 640, height: int = 480, *, joint_radius: float = 0.04,
                  bone_radius: float = 0.025, camera_pose: np.ndarray | None = None,
@@ -210,6 +213,7 @@ class BodyRenderer:
         self._projection = perspective(self.YFOV, width / height, self.ZNEAR)
         self._camera = np.eye(4) if camera_pose is None else np.asarray(camera_pose, float)
         self._framed = camera_pose is not None
+        self._thickness = 1.0  # joints, bones and notes drawn this many times their radii (frame_camera)
         self.follow = follow
         self._anchor: np.ndarray | None = None  # the roots' middle on the ground when first drawn
 
@@ -220,14 +224,23 @@ class BodyRenderer:
 
     def frame_camera(self, positions: np.ndarray) -> None:
         """Aim the camera at a body from the front, far enough to see all of it (and the light
-        with it). Joints that are not finite are not aimed at (none: the camera waits for a
+        with it); at a crowd spread over a floor (wider than :data:`FLAT` times its height), from
+        45° above: seen from the front, 10° up, fifteen singers across a 14 × 10 m room stood
+        in one line. Joints that are not finite are not aimed at (none: the camera waits for a
         body): one NaN joint in the first frame made the camera NaN, and every frame after it blank."""
         positions = positions[np.isfinite(positions).all(axis=1)]
         if not len(positions):
             return
         low, high = positions.min(axis=0), positions.max(axis=0)
-        centre, size = 0.5 * (low + high), max(float(np.max(high - low)), 0.5)
-        self._camera = look_at(centre + np.array([0.25, 0.3, 1.7]) * size, centre)
+        spread = high - low
+        centre, size = 0.5 * (low + high), max(float(np.max(spread)), 0.5)
+        flat = max(spread[0], spread[2]) > self.FLAT * max(spread[1], 0.1)
+        away = np.array([0.25, 1.2, 1.2] if flat else [0.25, 0.3, 1.7]) * size
+        self._camera = look_at(centre + away, centre)
+        # A bone at least a pixel either side of its axis where the camera aims: 2.5 cm bones
+        # 20 m away (a room's crowd in a 320 × 240 frame) were under a pixel and hardly drawn.
+        pixel = 2.0 * float(np.linalg.norm(away)) * np.tan(self.YFOV / 2.0) / self.height
+        self._thickness = max(1.0, pixel / self.bone_radius)
         self._framed = True
 
     def _fill(self, positions: np.ndarray, parents: np.ndarray, notes: Iterable[NoteMark]) -> list[int]:
@@ -241,16 +254,16 @@ class BodyRenderer:
             meshes.reserve([max(c, cap) * 2 for c, cap in zip(counts, meshes.capacities)])
         spheres = meshes.instances[meshes.offsets[self.SPHERE]:][:counts[self.SPHERE]]
         joints, marks = spheres[:len(positions)], spheres[len(positions):]
-        _place_spheres(joints, positions, self.joint_radius)
+        _place_spheres(joints, positions, self.joint_radius * self._thickness)
         joints[:, gl.BASE], joints[:, gl.EMISSIVE], joints[:, gl.ROUGHNESS] = self.body_colour, 0.0, 0.7
         if notes:
-            _place_spheres(marks, [n.position for n in notes], np.array([n.radius for n in notes]))
+            _place_spheres(marks, [n.position for n in notes], self._thickness * np.array([n.radius for n in notes]))
             colours = np.array([pitch_colour(int(round(n.pitch))) for n in notes])
             marks[:, gl.BASE], marks[:, gl.EMISSIVE], marks[:, gl.ROUGHNESS] = colours, colours, 1.0
         spheres[:, gl.METALLIC] = 1.0
         if len(child):
             bones = meshes.instances[meshes.offsets[self.CYLINDER]:][:counts[self.CYLINDER]]
-            _place_bones(bones, positions[parents[child]], positions[child], self.bone_radius)
+            _place_bones(bones, positions[parents[child]], positions[child], self.bone_radius * self._thickness)
             bones[:, gl.BASE], bones[:, gl.EMISSIVE] = self.body_colour, 0.0
             bones[:, gl.ROUGHNESS], bones[:, gl.METALLIC] = 0.7, 1.0
         return counts

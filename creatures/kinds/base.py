@@ -206,11 +206,15 @@ class CreatureKind(ABC):
 
     def shown(self) -> tuple[np.ndarray, np.ndarray] | None:
         """:meth:`figure` as drawn: in a room (``[room]``) where its vehicle stands, facing its
-        heading, walking if it has a gait (:meth:`creatures.room.stage.Stage.figure`); without a
-        room, its own figure (the view and the frames put it at its side-by-side place)."""
+        heading, walking if it has a gait (:meth:`creatures.room.stage.Stage.figure`), and a
+        creature without a body as a marker there (:data:`creatures.room.stage.MARKER`: a post
+        and an arm pointing its heading); without a room, its own figure or None (the view and
+        the frames put it at its side-by-side place)."""
         figure = self.figure()
-        if figure is None or self.stage is None:
+        if self.stage is None:
             return figure
+        if figure is None:
+            return self.stage.marker(self)
         return self.stage.figure(self, figure[0]), figure[1]
 
     def shown_marks(self) -> list[tuple[tuple[float, float, float], int]]:

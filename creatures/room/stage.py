@@ -49,6 +49,16 @@ PLAYER_FOR = 4.0
 (a phrase's gaps must not scatter a crowd gathered round whoever plays)."""
 
 
+MARKER = np.array([[0.0, 0.0, 0.0], [0.0, 0.6, 0.0], [0.0, 0.6, 0.25]])
+"""How a creature without a body is drawn in a room, in its own frame (facing +z, y up): a post
+0.6 m high where its vehicle stands, and at its top a 0.25 m arm pointing where it heads. A
+crowd of singers without bodies (installations/flock.toml) was drawn nowhere: no frames, no
+poses in the log, nothing in the live view or the body stream, so nobody could see it flock."""
+MARKER_PARENTS = np.array([-1, 0, 1])
+MARKER_JOINTS = ("floor", "top", "heading")
+"""The marker's joints by name (the body stream's hello names them)."""
+
+
 LARGEST_FIELD = 1_000_000
 """Most cells of a uniform or vortex flow field (a painted one's: 1000 rows of 1000): 0.02 m
 cells over a 1000 m room were 2.5e9 cells, 40 GB, asked for when the run began."""
@@ -541,6 +551,11 @@ class Stage:
         i = self.index[creature.name]
         local = own - _travel(creature)
         return self.gaits.figure(i, local, self.v.pos[i], self.v.heading[i], float(np.hypot(*self.v.vel[i])))
+
+    def marker(self, creature: "CreatureKind") -> tuple[np.ndarray, np.ndarray]:
+        """The :data:`MARKER` of ``creature`` (one without a body) where it stands, turned to its
+        heading: joints and parents, as a figure."""
+        return self.carry(creature, MARKER), MARKER_PARENTS.copy()
 
     def carry(self, creature: "CreatureKind", points: np.ndarray) -> np.ndarray:
         """Points ``(K, 3)`` in ``creature``'s own space (its note objects) where it stands in the

@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 
 from creatures.behaviour.motivation import Motivation
+from creatures.room.stage import MARKER_JOINTS
 from creatures.runtime.network import doing
 
 if TYPE_CHECKING:
@@ -110,8 +111,8 @@ def _motivation(creature: "CreatureKind") -> Motivation | None:
 
 def hello_of(creature: "CreatureKind", index: int) -> Hello:
     """A creature's :class:`Hello`: its skeleton's names where its body has one that matches
-    what it draws, else ``j0``, ``j1``, …"""
-    figure = creature.figure()
+    what it draws, a room's marker's for one without a body in a room, else ``j0``, ``j1``, …"""
+    figure = creature.shown()
     motivation = _motivation(creature)
     drives = tuple(motivation.names) if motivation is not None else ()
     if figure is None:
@@ -119,6 +120,8 @@ def hello_of(creature: "CreatureKind", index: int) -> Hello:
     positions, parents = figure
     skeleton = getattr(getattr(creature, "body", None), "skeleton", None)
     parents = tuple(int(p) for p in parents)
+    if creature.figure() is None:  # drawn in a room as its marker
+        return Hello(creature.name, index, MARKER_JOINTS, parents, drives)
     if skeleton is None or len(skeleton.names) != len(positions):
         return Hello(creature.name, index, tuple(f"j{j}" for j in range(len(positions))), parents, drives)
     offsets = tuple((float(x), float(y), float(z)) for x, y, z in skeleton.offsets)

@@ -58,10 +58,11 @@ class Body:
 
 
 def bodies(creatures: list[CreatureKind]) -> list[Body]:
-    """Every creature's skeleton (from its first figure) and place."""
+    """Every creature's skeleton (from its first figure as drawn: in a room, one without a body
+    is a marker) and place."""
     found = []
     for i, creature in enumerate(creatures):
-        figure = creature.figure()
+        figure = creature.shown()
         parents = None if figure is None else [int(p) for p in figure[1]]
         found.append(Body(creature.name, creature.spec.kind, parents, place(i, len(creatures), creature)))
     return found
