@@ -17,7 +17,8 @@ becomes (``to``):
 Nothing is dropped in silence. A message no map takes is *unmapped*; one a map takes but
 cannot read (an argument missing or of the wrong type, a pitch out of range) is *malformed*;
 one over its map's ``limit`` of messages a second (10 for rewards unless set: a flood of clicks
-is a retraining, :data:`creatures.runtime.input_routes.CLICKS_PER_SECOND`) is *throttled*.
+is a retraining, :data:`creatures.runtime.input_routes.CLICKS_PER_SECOND`) is *throttled*, as is
+one from the live MIDI input beyond ``[midi] max_rate`` (:mod:`midi.gate`).
 Both are counted, and logged as one cause per source: a line (and an event) the first time,
 then at most every :data:`LOG_EVERY` seconds with the count since and a few of the addresses
 (2,000 distinct addresses once made 1,023 lines in under a second: one per address), and at
@@ -274,20 +275,21 @@ class InputRouter:
         return {c.name for c in self.world.creatures if route.spec.drive in c.drive_names(c.spec)}
 
     # -- what nothing takes ----------------------------------------------------------------
-    def miss(self, what: str, via: str, address: str, t: float, why: str) -> None:
-        """Count an unmapped, malformed or throttled message; log its cause (``what`` from ``via``) the
+    def miss(self, what: str, via: str, address: str, t: float, why: str, count: int = 1) -> None:
+        """Count an unmapped, malformed or throttled message (or ``count`` of them, the last at
+        ``address``: a flood's drops counted at once); log its cause (``what`` from ``via``) the
         first time, then at most every :data:`LOG_EVERY` seconds with the count since and up
         to :data:`EXAMPLES` of the addresses, however many distinct addresses there are."""
-        self.counts[what] += 1
-        self.counts[f"{what} {via}"] += 1
+        self.counts[what] += count
+        self.counts[f"{what} {via}"] += count
         last, since, examples, _, _ = self._logged.get((what, via), (-math.inf, 0, (), "", ""))
         address = address[:80]
         if address not in examples and len(examples) < EXAMPLES:
             examples += (address,)
         if t - last < LOG_EVERY:
-            self._logged[(what, via)] = (last, since + 1, examples, address, why)
+            self._logged[(what, via)] = (last, since + count, examples, address, why)
             return
-        self._line(what, via, address, t, last, since + 1, examples, why)
+        self._line(what, via, address, t, last, since + count, examples, why)
 
     def flush(self, t: float) -> None:
         """Say what each cause counted since its last line: at the end of a run, or the messages

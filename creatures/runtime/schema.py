@@ -74,6 +74,10 @@ class MidiSection(Strict):
     set ``program``, ``bank``, ``volume`` or ``bend_range`` themselves; pan comes from each creature's ``pan``."""
 
     input_port: str | None = Field(None, description="live MIDI input port name or pattern")
+    max_rate: int = Field(500, ge=100, le=100_000, description="MIDI input messages a second taken at most "
+                                                              "(half a second's worth at once); beyond, "
+                                                              "they are dropped and counted as throttled, "
+                                                              "except the note-off of a note let in")
     output_port: str | None = Field(None, description="live MIDI output port name or pattern")
     program: int | None = Field(None, ge=0, le=127, description="General MIDI program (0 = piano) sent on "
                                                                 "every creature's channel at start; none = the synth's own")
