@@ -347,7 +347,9 @@ def _run(args: argparse.Namespace) -> int:
           f"{summary.lateness_p99 * 1e3:.2f} ms), {summary.late} more than {LATE_TICK * 1e3:g} ms late, "
           f"{summary.skipped} skips ahead; {summary.late_notes} notes reached the MIDI port more than "
           f"{LATE_NOTE * 1e3:g} ms late" + (f"; {summary.frames_dropped} frames dropped (drawing too slow)"
-                                            if summary.frames_dropped else ""))
+                                            if summary.frames_dropped else "")
+          + (f"; {summary.frames_skipped} frames skipped over clock gaps (the machine suspended or the loop "
+             "stalled: the pictures went on from the time it came back)" if summary.frames_skipped else ""))
     for what, counts in summary.outlets.items():  # the body stream's and the console's counters
         print(f"{what}: " + ", ".join(f"{n} {name.replace('_', ' ')}" for name, n in counts.items()))
     for line in log_limit.install().pending():

@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 
 from audio.device import device_rate
+from creatures.body.frames import FrameClock
 from creatures.cli import main
 from creatures.clock import SimulatedClock
 from creatures.events import EventLog
@@ -99,6 +100,30 @@ def test_live_frames_follow_their_own_clock(tmp_path, capsys):
     count = len(list((pictures / "frames").glob("frame_*.png")))
     # 10 fps of wall time, whatever the tick rate: at least the 1 s run, at most the whole call
     assert 8 <= count <= math.floor(10 * elapsed) + 1, (count, elapsed)
+
+
+def test_frames_skipped_over_a_clock_gap_are_in_the_summary(tmp_path, monkeypatch, capsys):
+    class Pictures:
+        """Live frames whose clock leaps an hour after the first (the machine suspended)."""
+
+        def __init__(self, output, out, clock, messages) -> None:
+            self.leaping = SimulatedClock()
+            self.clock = FrameClock(output.fps, self.leaping)
+            self.dropped = 0
+
+        def draw(self, creatures) -> None:
+            self.clock.due()
+            self.leaping.advance_to(3600.0)
+
+        def close(self) -> None:
+            pass
+
+    monkeypatch.setattr(live, "FramesBeside", Pictures)
+    config = tmp_path / "live.toml"
+    config.write_text(CONFIG.replace("[midi]", "[output]\nfps = 10\n[midi]"))
+    assert main(["run", str(config), "--duration", "0.2", "--frames", str(tmp_path / "pictures")]) == 0
+    # the hour's 36,000 frames but the one drawn when the clock came back
+    assert "35999 frames skipped over clock gaps" in capsys.readouterr().out
 
 
 def test_live_midi_notes_are_heard_when_the_key_goes_down(tmp_path):

@@ -25,8 +25,9 @@ class FrameClock:
     """Frames at ``fps`` from a clock's elapsed time; frame 0 falls due at the first call.
 
     Across a clock gap (:func:`~creatures.clock.clock_gap`: a suspended machine, a stalled
-    thread) the frames of the gap are skipped, counted in :attr:`skipped`, and one falls due:
-    the picture goes on from now, as the bodies and the score do. Counted as due, a live run's
+    thread) the frames of the gap are skipped, counted in :attr:`skipped` (said at the end of a
+    live run drawing frames; an offline run's clock steps a tick at a time, never a gap), and
+    one falls due: the picture goes on from now, as the bodies and the score do. Counted as due, a live run's
     machine woken after a night had its drawing process write the last picture 345,600 times
     (8 h at 12 fps), gigabytes of PNGs, while it dropped every new frame."""
 

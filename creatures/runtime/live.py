@@ -117,6 +117,7 @@ class LiveSummary:
     late_notes: int = 0  # note-ons that reached the MIDI port more than sinks.LATE_NOTE late
     midi_dropped: int | None = None  # MIDI messages that found no output port (None: no port configured)
     frames_dropped: int = 0  # frames the drawing process was too busy to take
+    frames_skipped: int = 0  # frames of clock gaps (a suspended machine) never drawn (FrameClock.skipped)
     view_dropped: int = 0  # live view snapshots its thread was too slow to take
     heard_between_ticks: int = 0  # notes heard (and answerable) at once, not at the next tick
     underruns: int = 0  # audio output callbacks that found no sound ready and played silence
@@ -655,7 +656,7 @@ def run_live(
                     output.close()
                 if bodies is not None:
                     bodies.close()
-                    summary.frames_dropped = bodies.dropped
+                    summary.frames_dropped, summary.frames_skipped = bodies.dropped, bodies.clock.skipped
                 if server is not None:
                     server.close()
                     feed.close()
