@@ -6,6 +6,7 @@ MIDI bytes that never crashes the loop and leaves nothing uncounted."""
 from __future__ import annotations
 
 import json
+import re
 import shutil
 import socket
 import subprocess
@@ -23,6 +24,7 @@ from pythonosc.udp_client import SimpleUDPClient
 
 from input_fixtures import COLONY, all_read, live_run
 
+from creatures.cli import main
 from creatures.clock import SimulatedClock
 from creatures.events import EventLog
 from creatures.runtime.input_sources import RETRY
@@ -230,6 +232,20 @@ def test_rehearsal_rows_past_an_offline_run_are_said_not_dropped_in_silence(tmp_
     summary = run_offline(load_installation(config), tmp_path / "out", duration=1.0, progress=False)
     assert [e["value"] for e in records(tmp_path / "out" / "events.jsonl") if e["kind"] == "sensor"] == [0.5, 0.5]
     assert any("long.csv: 2 of its 4 rows fall past the run's 1 s (the last at 9.5 s)" in m for m in summary.messages)
+
+
+def test_rehearsal_rows_a_live_run_never_reached_are_counted_when_it_stops(tmp_path, capsys):
+    (tmp_path / "long.csv").write_text("time,address,args\n" + "".join(f"{t},/light/x,0.5\n" for t in (0.05, 0.2, 30, 95.5)))
+    config = tmp_path / "c.toml"
+    config.write_text(CREATURES + MAPS + '[[input.map]]\nfile = "long.csv"\n')
+    log = tmp_path / "events.jsonl"
+    assert main(["run", str(config), "--duration", "0.3", "--log", str(log)]) == 0
+    said = re.search(r"long\.csv: 2 of its 4 rows were not played: the run stopped ([\d.]+) s into them, before "
+                     r"the row at 30\.0 s \(the last at 95\.5 s\)", capsys.readouterr().out)
+    assert said and 0.3 <= float(said.group(1)) < 30
+    events = records(log)
+    assert [e["value"] for e in events if e["kind"] == "sensor"] == [0.5, 0.5]
+    assert [(e["file"], e["rows"], e["of"]) for e in events if e["kind"] == "unplayed"] == [("long.csv", 2, 4)]
 
 
 # -- fuzz ---------------------------------------------------------------------------------------

@@ -142,13 +142,27 @@ def note_on(note: NoteEvent) -> mido.Message:
 
 class Rehearsal:
     """A rehearsal file played from ``start`` seconds on the run's clock (None: from the
-    first poll, the start of a live run)."""
+    first poll, the start of a live run); ``file`` names it (rows of no file: empty)."""
 
-    def __init__(self, rows: list[Row], start: float | None, router: InputRouter) -> None:
+    def __init__(self, rows: list[Row], start: float | None, router: InputRouter, file: str = "") -> None:
         self.rows = rows
         self.start = start
         self.router = router
+        self.file = file
         self.next = 0
+
+    def unreached(self, t: float) -> str | None:
+        """The rows a live run that stopped at ``t`` never reached, said (None: it played them
+        all). Its end is known only when it stops (Ctrl-C, SIGTERM, the schedule, a wedged
+        device or ``--duration``), so it is said then, in the summary: rows past the end were
+        never played and went unsaid, as if the colony had heard them and done nothing."""
+        left = len(self.rows) - self.next
+        if not left:
+            return None
+        ran = t - self.start if self.start is not None else 0.0
+        return (f"{self.file}: {left} of its {len(self.rows)} rows were not played: the run stopped {ran:,.1f} s "
+                f"into them, before the row at {self.rows[self.next].time:,.1f} s (the last at "
+                f"{self.rows[-1].time:,.1f} s)")
 
     def poll(self, t: float) -> int:
         if self.start is None:
@@ -255,7 +269,7 @@ def open_sources(inst: "LoadedInstallation", router: InputRouter, clock: Clock, 
     sources: list[Rehearsal | SerialSource] = []
     for i, spec in enumerate(inst.settings.input.map):
         if spec.file is not None:
-            sources.append(Rehearsal(inst.rehearsals[i], None if live else 0.0, router))
+            sources.append(Rehearsal(inst.rehearsals[i], None if live else 0.0, router, spec.file))
         elif spec.serial is not None and live:
             sources.append(SerialSource(spec.serial, spec.baud, clock, router, say))
         elif spec.serial is not None:

@@ -46,7 +46,7 @@ from creatures.events import EventLog
 from creatures.paths import directory, regular_file, writable_directory
 from creatures.persist import StateFileError
 from creatures.runtime.bodies import FramesBeside
-from creatures.runtime.input_sources import SerialSource, open_sources
+from creatures.runtime.input_sources import Rehearsal, SerialSource, open_sources
 from creatures.runtime.live_score import KEPT, LiveScore, RecordingSink
 from creatures.runtime.network import Network, open_listener
 from creatures.runtime.shared_room import check_share_port, open_shared_room
@@ -213,6 +213,15 @@ class LiveInputs:
             for key, n in (("refused midi bytes", self.midi.malformed_bytes), ("full midi queue", self.midi.full_queues)):
                 if n:
                     self.router.counts[key] = n
+
+    def unreached(self, t: float, say: Callable[[str], None]) -> None:
+        """Say, and log (``unplayed``), the rows of each rehearsal file the run, stopping at
+        ``t``, never reached (:meth:`~creatures.runtime.input_sources.Rehearsal.unreached`)."""
+        for source in self.sources:
+            if isinstance(source, Rehearsal) and (said := source.unreached(t)) is not None:
+                say(said)
+                self.router.world.emit("unplayed", file=source.file, rows=len(source.rows) - source.next,
+                                       of=len(source.rows), said=said)
 
     def wait(self, timeout: float) -> None:
         """Sleep up to ``timeout`` s; an OSC packet wakes the loop at once (RtMidi has no handle
@@ -638,6 +647,7 @@ def run_live(
                 timing.log_change(always=True)
                 summary.underruns, summary.overruns, summary.audio_gaps, summary.audio_skips = counters.now()
                 inputs.tally()
+                inputs.unreached(clock.now(), say)
                 if port is not None:  # what never reached the synth is said, not lost in silence
                     summary.midi_dropped = port.dropped
                     session.world.emit("midi output", port=settings.midi.output_port, dropped=port.dropped)

@@ -288,7 +288,8 @@ class InputMap(Strict):
     file: str | None = Field(None, description="rehearsal file (path relative to the config) of timed messages "
                                                "played from the start of the run: CSV rows `time,address,args...` "
                                                "or JSON lines {\"time\", \"address\", \"args\"}; address 'midi' "
-                                               "takes the MIDI bytes as args")
+                                               "takes the MIDI bytes as args. Rows past the run's end are said: "
+                                               "offline before it plays, live as a count when it stops")
     to: str | None = Field(None, description="what the message becomes: 'note' (a heard note), 'sensor' (a named "
                                              "sensor creatures read as a percept), 'reward' (the clicker) or "
                                              "'drive' (a drive perturbation)")
