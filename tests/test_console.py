@@ -542,3 +542,42 @@ def test_console_and_health_are_off_and_loopback_by_default():
     assert settings.console.port is None and settings.health.port is None and not settings.health.heartbeat
     assert ConsoleSection().host == HealthSection().host == "127.0.0.1" and ConsoleSection().secret is None
     assert not settings.stream.targets and not settings.stream.file
+
+
+def test_an_id_beyond_32_bits_is_answered_as_malformed_and_the_console_goes_on(tmp_path):
+    """python-osc reads an OSC int64 (``h``) as an int: ``/console/status`` with an id of 2**40
+    raised on the creatures' thread when its reply's int32 was packed (the run ended with a
+    traceback), and an unknown verb with such an id ended the console's own thread (every
+    request after it unanswered, the show going on deaf). Both are now answered as malformed
+    (id -1: the id cannot come back) and the next request is answered."""
+    from creatures.runtime.console import Console
+    from creatures.runtime.osc_wire import head
+    from creatures.runtime.schema import ConsoleSection
+
+    def int64_id(address: str, rid: int) -> bytes:
+        return head(address, "h") + rid.to_bytes(8, "big", signed=True)
+
+    config = tmp_path / "c.toml"
+    config.write_text('title = "t"\n' + creature_tables("ada"))
+    session = Session(load_installation(config), SimulatedClock(), EventLog(keep_in_memory=0), MemorySink())
+    console = Console(ConsoleSection(port=None), ColonyHandle(session, pause=lambda on: None, save=None,
+                                                               status=lambda: {"ticks": 3}))
+    console.start()
+    client = SimpleUDPClient("127.0.0.1", console.port)
+    try:
+        for address, rid in (("/console/status", 2**40), ("/console/nope", -(2**31) - 1)):
+            client._sock.sendto(int64_id(address, rid), ("127.0.0.1", console.port))
+        client.send_message("/console/status", [7])
+        deadline = time.monotonic() + 20
+        while console.counts["received"] < 3 or console.requests.empty():
+            assert time.monotonic() < deadline, console.counts
+            time.sleep(0.01)
+        console.serve(0.0)
+        replies = [OscMessage(client.receive(5)) for _ in range(3)]
+    finally:
+        console.close()
+    errors = [r.params for r in replies if r.address == "/console/error"]
+    assert errors == [[-1, "a request's id is a 32-bit int (-2147483648 to 2147483647), got 1099511627776"],
+                      [-1, "a request's id is a 32-bit int (-2147483648 to 2147483647), got -2147483649"]]
+    assert [r.params for r in replies if r.address == "/console/reply"] == [[7, '{"ticks": 3}']]
+    assert console.counts["malformed"] == 2 and console.counts["answered"] == 1

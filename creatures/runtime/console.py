@@ -59,6 +59,11 @@ REWARD_LIMIT = 1000.0
 REWARD_WINDOW, REWARD_RATE = 1.5, 0.2
 """A console reward's window and blend rate: the input map's defaults (``[[input]]``)."""
 
+ID_MIN, ID_MAX = -(2**31), 2**31 - 1
+"""The ids a reply can carry (an OSC int32). python-osc reads an int64 (``h``) as an int too: a
+status with an id of 2**40 raised on the creatures' thread while its reply was encoded and ended
+the run with a traceback, and a malformed one ended the console's thread, deaf from then on."""
+
 Arity = tuple[type, ...]
 VERBS: dict[str, Arity] = {
     "status": (), "pause": (), "resume": (), "save": (),
@@ -108,6 +113,8 @@ def parse(data: bytes, sender: tuple[str, int], secret: str | None) -> Request:
     rid = params[0] if params and isinstance(params[0], int) and not isinstance(params[0], bool) else None
     if rid is None:
         raise Malformed(-1, "malformed", "a request's first argument is its id (an int)")
+    if not ID_MIN <= rid <= ID_MAX:  # an OSC int64 ('h') id: the reply's int32 could not carry it back
+        raise Malformed(-1, "malformed", f"a request's id is a 32-bit int ({ID_MIN} to {ID_MAX}), got {rid}")
     verb = msg.address[len(PREFIX):] if msg.address.startswith(PREFIX) else None
     if verb not in VERBS:
         raise Malformed(rid, "malformed", f"unknown request {msg.address!r} (verbs: {', '.join(sorted(VERBS))})")
