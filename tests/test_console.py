@@ -581,3 +581,28 @@ def test_an_id_beyond_32_bits_is_answered_as_malformed_and_the_console_goes_on(t
                       [-1, "a request's id is a 32-bit int (-2147483648 to 2147483647), got -2147483649"]]
     assert [r.params for r in replies if r.address == "/console/reply"] == [[7, '{"ticks": 3}']]
     assert console.counts["malformed"] == 2 and console.counts["answered"] == 1
+
+
+def test_a_request_waiting_when_the_run_ends_is_answered_and_counted(tmp_path):
+    """A request the console's thread queued after the creatures' last look (a SIGTERM, the
+    duration up) was dropped when the console closed: no reply (its client waited out its
+    timeout) and no count (a live run's summary said ``6 received``, ``5 answered``)."""
+    from creatures.runtime.console import Console
+    from creatures.runtime.schema import ConsoleSection
+
+    config = tmp_path / "c.toml"
+    config.write_text('title = "t"\n' + creature_tables("ada"))
+    session = Session(load_installation(config), SimulatedClock(), EventLog(keep_in_memory=0), MemorySink())
+    console = Console(ConsoleSection(port=None), ColonyHandle(session, pause=lambda on: None, save=None,
+                                                               status=dict))
+    console.start()
+    client = SimpleUDPClient("127.0.0.1", console.port)
+    client.send_message("/console/pause", [41])
+    deadline = time.monotonic() + 20
+    while console.requests.empty():
+        assert time.monotonic() < deadline
+        time.sleep(0.01)
+    console.close()  # the run ends: no serve after this
+    reply = OscMessage(client.receive(5))
+    assert (reply.address, reply.params) == ("/console/error", [41, "the run is ending: pause not done"])
+    assert console.summary() == {"ending": 1, "received": 1}

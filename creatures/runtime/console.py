@@ -308,7 +308,21 @@ class Console:
         return dict(sorted(self.counts.items()))
 
     def close(self) -> None:
+        """Stop reading, answer what still waits (:meth:`_turn_away`), let the port go."""
         self._running = False
         if self._thread.is_alive():
             self._thread.join(2)
+        self._turn_away()
         self.socket.close()
+
+    def _turn_away(self) -> None:
+        """Requests queued after the creatures' last look (the run was ending) are answered and
+        counted as ``ending``: they were dropped unanswered and uncounted, and a client waited
+        out its timeout for the one reply every request is promised."""
+        while True:
+            try:
+                request = self.requests.get_nowait()
+            except queue.Empty:
+                return
+            self.counts["ending"] += 1
+            self._error(request.sender, request.id, f"the run is ending: {request.verb} not done")
