@@ -82,3 +82,42 @@ def test_a_saved_creature_no_creature_takes_is_reported_and_left_as_it_is(tmp_pa
     assert _session(said).load_state(tmp_path) == ["bo", "cy"]
     assert len(said) == 1 and "saved state of ann matches no creature in exchange.toml" in said[0], said
     assert (tmp_path / "ann.json").read_bytes() == before
+
+
+def _motivation(path) -> dict:
+    return json.loads(path.read_text())["state"]["motivation"]
+
+
+def test_a_saved_drive_level_no_drive_takes_is_reported_with_the_nearest_and_kept(tmp_path):
+    """A drive renamed in the config (``boredum`` corrected to ``boredom``) lost the level the
+    creature had reached without a word: restore forgot it, and the next save wrote the file
+    without it. Now it is said, with the nearest drive, kept in every save, and a drive given
+    that name again takes it back."""
+    _session([]).save_state(tmp_path)
+    data = json.loads((tmp_path / "ada.json").read_text())
+    motivation = data["state"]["motivation"]
+    for table in ("levels", "inputs"):  # saved when the config called it "boredum"
+        motivation[table]["boredum"] = motivation[table].pop("boredom")
+    motivation["levels"]["boredum"] = 0.7
+    (tmp_path / "ada.json").write_text(json.dumps(data))
+    said: list[str] = []
+    session = _session(said)
+    session.load_state(tmp_path)
+    assert said == [f"{tmp_path / 'ada.json'}: the saved level of drive 'boredum' matches no drive of ada in "
+                    "exchange.toml (did you mean 'boredom'?); kept in the state file, and taken back if a drive of "
+                    "that name returns"]
+    session.save_state(tmp_path)
+    assert _motivation(tmp_path / "ada.json")["unplaced"]["levels"] == {"boredum": 0.7}  # kept, not lost
+    # Saved while the config had no "boredom" (kept aside at 0.4), loaded by one that has it again.
+    data = json.loads((tmp_path / "ada.json").read_text())
+    motivation = data["state"]["motivation"]
+    motivation["unplaced"] = {table: {"boredom": motivation[table].pop("boredom")} for table in ("levels", "inputs")}
+    motivation["unplaced"]["levels"]["boredom"] = 0.4
+    (tmp_path / "ada.json").write_text(json.dumps(data))
+    said.clear()
+    again = _session(said)
+    again.load_state(tmp_path)
+    ada = again.world.creatures[0].motivation
+    assert said == [] and ada.levels[ada.index("boredom")] == 0.4 and ada.unplaced == {}
+    again.save_state(tmp_path)
+    assert "unplaced" not in _motivation(tmp_path / "ada.json")

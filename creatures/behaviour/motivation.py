@@ -101,6 +101,10 @@ class Motivation:
         self.floor = floor
         self.ceiling = ceiling
         self.time = float(start)
+        self.unplaced: dict[str, dict[str, float]] = {}
+        """Saved ``levels`` and ``inputs`` of drives this motivation has none of (a drive renamed
+        or removed in the config): kept and saved again (:meth:`to_dict`), so a drive named back
+        takes its level back, as a renamed tuple's value is kept."""
 
     def _vector(self, values: Mapping[str, float], what: str) -> np.ndarray:
         out = np.zeros(len(self.names))
@@ -290,6 +294,7 @@ class Motivation:
             "floor": self.floor,
             "ceiling": self.ceiling,
             "time": self.time,
+            **({"unplaced": self.unplaced} if self.unplaced else {}),
         }
 
     @classmethod
@@ -327,15 +332,20 @@ class Motivation:
         data = bounds.table(data, "motivation")
         low = -bounds.LARGEST_RATE if self.floor is None else self.floor
         high = bounds.LARGEST_RATE if self.ceiling is None else self.ceiling
-        levels = bounds.table(data.get("levels"), "motivation.levels")
-        inputs = bounds.table(data.get("inputs", {}), "motivation.inputs")
+        kept = bounds.table(data.get("unplaced", {}), "motivation.unplaced")
         restored = self.levels.copy(), self.inputs.copy()
-        for vector, saved, what, (lo, hi) in ((restored[0], levels, "levels", (low, high)),
-                                               (restored[1], inputs, "inputs", (-bounds.LARGEST_RATE, bounds.LARGEST_RATE))):
-            for name, value in saved.items():
-                if name in self._index:  # a drive the config no longer has is forgotten
-                    vector[self._index[name]] = bounds.number(value, f"motivation.{what}.{name}", low=lo, high=hi)
-        self.levels, self.inputs = restored
+        unplaced: dict[str, dict[str, float]] = {}
+        for vector, what, (lo, hi) in ((restored[0], "levels", (low, high)),
+                                       (restored[1], "inputs", (-bounds.LARGEST_RATE, bounds.LARGEST_RATE))):
+            for where, saved in ((f"motivation.unplaced.{what}", kept.get(what, {})),
+                                 (f"motivation.{what}", data.get(what, {} if what == "inputs" else None))):
+                for name, value in bounds.table(saved, where).items():
+                    number = bounds.number(value, f"{where}.{name}", low=lo, high=hi)
+                    if name in self._index:
+                        vector[self._index[name]] = number
+                    else:  # a drive the config no longer has: kept, not forgotten
+                        unplaced.setdefault(what, {})[name] = number
+        self.levels, self.inputs, self.unplaced = *restored, unplaced
         self.time = float(now)
 
     def __repr__(self) -> str:

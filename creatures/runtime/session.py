@@ -21,6 +21,7 @@ import numpy as np
 from audio.mixer import Mixer
 from audio.transcribe import Transcriber
 from creatures.clock import Clock, clock_gap
+from creatures.config import nearest
 from creatures.events import EventLog
 from creatures.authored.migrate import from_retired
 from creatures.kinds import KINDS
@@ -332,13 +333,19 @@ class Session:
                      "of that name returns")
 
     def _report_unplaced(self, path: Path, creature: Any) -> None:
-        """Say which saved values no tuple of the config takes (a tuple renamed or removed):
-        they are kept in the state, not lost, but the creature starts those tuples afresh."""
+        """Say which saved values no tuple of the config takes (a tuple renamed or removed),
+        and which saved drive levels no drive takes (the nearest drive named): they are kept in
+        the state, not lost, but the creature starts those tuples and drives afresh."""
         unplaced = getattr(creature, "unplaced", {})
         if unplaced:
             names = ", ".join(f"{group}.{name}" for group, values in unplaced.items() for name in values)
             self.say(f"{path}: saved values of {names} match no tuple in {self.inst.path.name} (renamed or removed?); "
                      "kept in the state file, and taken back if a tuple of that name returns")
+        motivation = getattr(creature, "motivation", None)
+        for name in sorted({n for saved in getattr(motivation, "unplaced", {}).values() for n in saved}):
+            self.say(f"{path}: the saved level of drive {name!r} matches no drive of {creature.name} in "
+                     f"{self.inst.path.name}{nearest(name, motivation.names, 'drives')}; kept in the state file, "
+                     "and taken back if a drive of that name returns")
 
     def _load_colony(self, path: Path | None) -> None:
         """The colony's heard pulse, if a file was saved (older state directories have none)."""
