@@ -26,6 +26,7 @@ import soundfile
 
 from audio.sources import load_audio
 from creatures.clock import SimulatedClock
+from duncan_configs import with_trainer  # the shipped trainer out: the cues and clicks here are this file's
 from creatures.events import EventLog
 from creatures.kinds.duncan import Duncan
 from creatures.runtime.schema import load_installation
@@ -226,7 +227,7 @@ def test_the_clicks_as_a_rehearsal_file_replay_the_same_dog(trained, tmp_path):
     where, trials, audio, trainer, events, _ = trained
     soundfile.write(tmp_path / "cues.wav", audio, SR, subtype="FLOAT")
     (tmp_path / "clicks.csv").write_text("".join(f"{t:.6f},/click\n" for t in trainer.clicks), encoding="utf-8")
-    config = SHIPPED.read_text(encoding="utf-8").replace(
+    config = with_trainer("").replace(
         '[[input.map]]\nosc = "/click"', '[[input.map]]\nfile = "clicks.csv"\n\n[[input.map]]\nosc = "/click"', 1)
     (tmp_path / "duncan.toml").write_text(config, encoding="utf-8")
     subprocess.run([sys.executable, "-m", "creatures.cli", "offline", str(tmp_path / "duncan.toml"), "--audio",
@@ -284,7 +285,9 @@ def test_midi_clicks_offline_reward_the_dog(tmp_path):
     from midi.notes import NoteEvent
 
     write_notes(tmp_path / "clicks.mid", [NoteEvent(5.0 + 4.0 * k, 36, 100, 9, 0.1) for k in range(5)])
-    subprocess.run([sys.executable, "-m", "creatures.cli", "offline", str(SHIPPED), "--midi", str(tmp_path / "clicks.mid"),
+    config = tmp_path / "duncan.toml"
+    config.write_text(with_trainer(""), encoding="utf-8")
+    subprocess.run([sys.executable, "-m", "creatures.cli", "offline", str(config), "--midi", str(tmp_path / "clicks.mid"),
                     "--out", str(tmp_path / "out"), "--duration", "30"], check=True, capture_output=True)
     events = [json.loads(line) for line in (tmp_path / "out" / "events.jsonl").read_text().splitlines()]
     rewards = [e for e in events if e["kind"] == "reward"]

@@ -12,6 +12,7 @@ import pytest
 from creatures.clock import SimulatedClock
 from creatures.config import ConfigError
 from creatures.events import EventLog
+from duncan_configs import with_trainer
 from creatures.runtime.schema import load_installation
 from creatures.runtime.session import Session
 from midi.sinks import MemorySink
@@ -21,8 +22,10 @@ SR = 22050
 
 
 def _config(tmp_path: Path, keys: str) -> Path:
+    """The shipped dog with ``keys`` of its own, without the shipped trainer, whose cues name
+    the shipped tricks (tests/test_trainer.py: a dog lacking one is told which cue)."""
     config = tmp_path / "duncan.toml"
-    config.write_text(SHIPPED.read_text().replace('kind = "duncan"\n', f'kind = "duncan"\n{keys}\n'))
+    config.write_text(with_trainer("").replace('kind = "duncan"\n', f'kind = "duncan"\n{keys}\n'))
     return config
 
 

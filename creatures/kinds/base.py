@@ -9,6 +9,7 @@ cycle for everything).
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar, Sequence
 
 import numpy as np
@@ -26,6 +27,16 @@ if TYPE_CHECKING:
 
     from creatures.runtime.world import World
     from midi.notes import NoteEvent
+
+
+@dataclass(frozen=True, slots=True)
+class Holding:
+    """A trick a body holds, as someone watching it sees it: which, since when (clock
+    seconds) and, for a trick held at a height (a beg), how high (metres, the body's units)."""
+
+    trick: str
+    since: float
+    height: float | None = None
 
 
 class CreatureSpec(BaseModel):
@@ -94,6 +105,22 @@ class CreatureKind(ABC):
     def rewardable(cls, spec: CreatureSpec) -> bool:
         """Whether a creature of this spec has an action-group to reward."""
         return cls.REWARDABLE
+
+    @classmethod
+    def tricks(cls, spec: CreatureSpec) -> tuple[str, ...]:
+        """The tricks a trainer can cue and see a creature of this spec hold (``[input.trainer]``
+        names them): none for kinds that do no tricks."""
+        return ()
+
+    @classmethod
+    def graded_tricks(cls, spec: CreatureSpec) -> tuple[str, ...]:
+        """Those of :meth:`tricks` held at a height a trainer can shape (``[input.trainer] shaping``)."""
+        return ()
+
+    def holding(self) -> "Holding | None":
+        """The trick the body holds now, as a trainer watching it sees it; None while it holds
+        none (and always, for kinds that do no tricks)."""
+        return None
 
     @classmethod
     def has_body(cls, spec: CreatureSpec) -> bool:

@@ -72,7 +72,7 @@ from creatures.behaviour.percept import FunctionPercept, WhateverPercept
 from creatures.behaviour.value import ScalarValue
 from creatures.bounds import FINITE, LARGEST_RATE
 from creatures.kinds import register
-from creatures.kinds.base import CreatureKind, CreatureSpec
+from creatures.kinds.base import CreatureKind, CreatureSpec, Holding
 from creatures.kinds.figures import FigureBodySpec, figure_graph
 from creatures.kinds.hearing_parts import Ear, HearingSpec, tree_from_state, tree_state
 from creatures.kinds.moves import head_for
@@ -197,6 +197,7 @@ class Trick(Action):
         self.nodes = dog.body.graph.poses.labelled(label)
         self.held_from: float | None = None
         self.height: float | None = None
+        self.paw: float | None = None  # a beg's paw height once held, metres
         self.refused = False
 
     def start(self, t: float, tuple_: ActionTuple) -> None:
@@ -206,6 +207,7 @@ class Trick(Action):
             self.height = float(np.clip(self.dog.beg_height.sample(self.dog.rng), 0.0, 1.0))
             targets = [self.dog.beg_node(self.height)]
         self.held_from = None
+        self.paw = None
         self.refused = not head_for(self.dog.body, t, list(targets))
         if self.refused:
             self.dog.trick_refused(t, self, tuple_)
@@ -274,6 +276,22 @@ class Duncan(CreatureKind):
         return ActionTuple(f"{trigger.name}|{trick}", trigger, action, DoUntil(self.spec.patience, until=stop),
                            value or ScalarValue(self.spec.trick_value))
 
+    @classmethod
+    def tricks(cls, spec: DuncanSpec) -> tuple[str, ...]:
+        return tuple(spec.tricks)
+
+    @classmethod
+    def graded_tricks(cls, spec: DuncanSpec) -> tuple[str, ...]:
+        return (spec.beg.label,) if spec.beg.label in spec.tricks else ()
+
+    def holding(self) -> Holding | None:
+        """The trick held now (standing about is none), a beg with its paw's height: what the
+        in-run trainer (:mod:`creatures.runtime.trainer`) sees, as a person would."""
+        trick = self.doing
+        if trick is None or trick.held_from is None or isinstance(trick, Stand):
+            return None
+        return Holding(trick.name, trick.held_from, trick.paw)
+
     def beg_node(self, height: float) -> int:
         """The beg pose whose paw height (0 the lowest beg, 1 the highest) is nearest ``height``."""
         return int(self._beg_nodes[int(np.argmin(np.abs(self._beg_heights - height)))])
@@ -320,6 +338,7 @@ class Duncan(CreatureKind):
     def trick_held(self, t: float, trick: Trick) -> None:
         """The body got there: log it and sound the trick's note (a beg's higher the higher it is)."""
         paw = float(self.body.pose.positions[self._paw, 1]) if trick.height is not None else None
+        trick.paw = paw
         self.world.emit("trick held", creature=self.name, trick=trick.name, paw=paw)
         pitch = self.spec.notes.get(trick.name)
         if pitch is not None:

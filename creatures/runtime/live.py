@@ -55,6 +55,7 @@ from creatures.runtime.schema import LoadedInstallation
 from creatures.runtime.microphone_notes import MicrophoneNotes
 from creatures.runtime.session import Session, write_snapshot
 from creatures.runtime.opening import OpeningHours, Schedule
+from creatures.runtime.trainer_spec import LIVE as TRAINER_LIVE
 from creatures.runtime.sd_notify import Notifier
 from creatures.runtime.snapshots import Snapshotter
 from creatures.runtime import kernels
@@ -428,6 +429,8 @@ def run_live(
         score = LiveScore(out)  # held for the run, and refused now if it cannot be written
     elif out is not None:
         say(f"[output] midi = false: no out.mid is written to {out}")
+    if settings.input.trainer is not None:
+        say(TRAINER_LIVE)
     rehearse(inst)
     wall = WallClock()
     clock = SimulatedClock(wall.now())  # the creatures' time, moved by the loop (ticking.py)

@@ -39,6 +39,7 @@ from creatures.runtime.inputs import phrase_notes, render_notes
 from creatures.runtime.outputs import OutputDirectoryError, discard, hold, publish, recover, refuse_foreign, stage
 from creatures.runtime.schema import Installation, LoadedInstallation
 from creatures.runtime.speech_input import spoken_poem
+from creatures.runtime.trainer import Trainer
 from creatures.runtime.stream_sinks import JsonLinesStreamSink
 from creatures.runtime.session import Session
 from creatures.runtime.shared_room import offline_note
@@ -165,6 +166,9 @@ def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path 
                        creatures=[c.name for c in session.creatures], config=str(inst.path))
     poses = PoseLog(settings.view.log_fps, session.world, messages.append) if settings.view.log_fps else None
     notes, samples = _inputs(inst, audio, midi, duration, session.input_rng, messages.append)
+    trainer = Trainer.of(inst, session)  # says cues into what is heard and clicks through the maps
+    if trainer is not None:
+        sources.append(trainer)
     mapped = [note_on(n) for n in notes]
     mapped = [m if any(r.matches_midi("note", m) for r in session.inputs.midi_routes) else None for m in mapped]
     if any(mapped):  # a recorded MIDI take goes through the [[input]] maps as a live one would (a click pad)
@@ -174,7 +178,8 @@ def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path 
         if message is None:  # heard, with its length as the file has it
             session.world.inject(note)
     transcribe = settings.audio.transcribe
-    session.transcribe = samples is not None and (transcribe if transcribe is not None else not notes)
+    session.transcribe = (samples is not None or trainer is not None) and (transcribe if transcribe is not None
+                                                                           else not notes)
     session.transcribe_look = OFFLINE  # nobody waits offline: the further look hears swells and chords better
 
     sr, tick = settings.audio.sample_rate, settings.tick
@@ -200,11 +205,15 @@ def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path 
                 source.poll(t)
             a, b = int(round(t0 * sr)), int(round(t * sr))
             recorded = None if samples is None or a >= len(samples) else samples[a:min(b, len(samples))]
+            if trainer is not None:
+                recorded = trainer.heard(recorded, a, b)
             if stream is not None:  # frames between two ticks show the body the earlier one left
                 stream.advance(t, before=True)
             mix = session.step(t, b - a, recorded, audio=wav is not None)
             if stream is not None:
                 stream.advance(t)
+            if trainer is not None:
+                trainer.watch(t)
             if wav is not None:
                 wav.write(mix)
             if bodies is not None:

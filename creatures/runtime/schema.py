@@ -22,6 +22,7 @@ from creatures.authored.include import expand_includes, expand_kinds, expand_lik
 from creatures.authored.plugins import load_plugins
 from creatures.authored.registry import PluginError
 from creatures.runtime.cc_sources import check_source
+from creatures.runtime.trainer_spec import TrainerSection, check_trainer, unrewarded
 from creatures.config import ConfigError, config_error, nearest, read_toml, validate, written_in
 from creatures.kinds import CreatureSpec, load_all
 from creatures.authored.percepts import ROOM_PERCEPTS, watched
@@ -363,6 +364,8 @@ class InputSection(Strict):
                                       "or 'none'. An input map's rehearsal `file` plays beside it: 'none' to "
                                       "hear the rehearsal alone")
     map: list[InputMap] = Field(default_factory=list, max_length=1024, description="the input maps (see `[[input]]`)")
+    trainer: TrainerSection | None = Field(None, description="a simulated clicker trainer that says cues and clicks, "
+                                                             "offline only")
 
 
 class CcSection(Strict):
@@ -614,6 +617,8 @@ def load_installation(path: str | Path) -> LoadedInstallation:
                     raise config_error(path, where, loc, f"sensor {name!r} is read by {read[name]} already: "
                                                          "each coordinate of each visitor has a sensor of its own")
                 read[name] = f"visitor {k}'s {axis}"
+    if settings.input.trainer is not None:
+        check_trainer(settings.input.trainer, specs, kinds, path, where)
     for key in ("audio", "midi"):
         file = getattr(settings.input, key)
         if file is not None and not (written_in(where, ("input", key), path).parent / file).exists():
@@ -655,6 +660,8 @@ def load_installation(path: str | Path) -> LoadedInstallation:
     inst = _with_input_maps(path, settings, specs, where, ("input",) if isinstance(data.get("input"), list)
                             else ("input", "map"))
     inst.notes = notes
+    if settings.input.trainer is not None and (note := unrewarded(settings.input.trainer, inst.routes)) is not None:
+        inst.notes.append(note)
     return inst
 
 
