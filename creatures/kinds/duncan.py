@@ -33,7 +33,8 @@ when higher begs are what gets clicked. Design decisions:
   trick (it was already lying when "down" came), and the dog lay down unbidden most of the
   time. The issue asks for ≤ 30 %.
 * **The click is a reward from outside.** An ``[[input]]`` table with ``to = "reward"``
-  (OSC, MIDI, a rehearsal file offline) credits the tuples active in its window, each in
+  (OSC, MIDI, a rehearsal file offline, or the simulated trainer's clicks offline:
+  :mod:`creatures.runtime.trainer`, which watches :meth:`Duncan.holding`) credits the tuples active in its window, each in
   proportion to its trigger when it began (:meth:`ActionGroup.reward`): the cue's own tuple
   takes the credit when the cue was heard, an unbidden trick's none.
 * **Tricks are places on the motor graph.** A trick is a label of the dog's body (sit, lie

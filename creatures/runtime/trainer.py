@@ -119,7 +119,7 @@ class Trainer:
         self.voice_at = start
         at, end = start / self.sample_rate, (start + len(self.voice)) / self.sample_rate
         trick = s.cues[cue]
-        if self.trial is not None and not self.trial.judged:  # cues are further apart than windows: never
+        if self.trial is not None and not self.trial.judged:  # its window closed within this tick (a long tick)
             self._judge(self.trial, None, at)
         self.trial = Trial(cue, trick, at, end, s.window_of(trick))
         self.next_cue = at + float(self.rng.uniform(*s.every))

@@ -9,12 +9,12 @@ waits, and how it shapes a graded trick. The trainer itself is
 A cue is said as one formant word of its vowels (:func:`audio.formants.vowels_of`: "lie
 down" is "ieo"). The ear that hears it takes each sound's mean spectrum out (cepstral mean
 normalisation, :mod:`audio.cepstrum`), so a word of one vowel is a steady spectrum with
-nothing left to tell it from another: measured with duncan's ear, formant "sit", "down" and
-"beg" (i, o, e) lay 0.43–1.10 from their own repeats and 0.28–1.22 from each other, no two
-classes at all. A cue therefore needs at least two vowels, and two cues must not be the same
-word. ("seated", "lie down", "paws up" — eae, ieo, au — lay within 0.33 of their own repeats
-and at least 0.90 from each other, with the trainer's pitch, stretch and level varied as
-shipped: the ear's radius is 0.36.)
+nothing left to tell it from another: measured with duncan's ear (ten of each, pitch,
+stretch and level drawn from the defaults' ranges), formant "sit", "down" and "beg" (i, o, e)
+lay 0.32–0.98 from their own repeats and 0.32–1.06 from each other: no classes at all. A cue
+therefore needs at least two vowels, and two cues must not be the same word. ("seated", "lie
+down", "paws up" — eae, ieo, au — lay 0.11–0.34 from their own repeats and 0.92–1.72 from
+each other; the ear's radius is 0.36.)
 """
 
 from __future__ import annotations
