@@ -213,3 +213,24 @@ def test_the_config_reference_documents_every_key_of_the_trainer():
     for key in TrainerSection.model_fields:
         assert f"| `{key}` |" in section, key
     assert "| `creature` | list" not in page.split("## `[[input]]`")[0]  # the creatures' list: its own section
+
+
+def test_the_trainers_voice_goes_on_over_a_recording_block_by_block():
+    """Given a recording (``--audio``), the dog hears it with the cues over it: block by block,
+    the recording plus one cue begun where the trainer's clock says, nothing made ahead."""
+    from types import SimpleNamespace
+
+    from creatures.runtime.trainer import Trainer
+
+    spec = TrainerSection(creature="duncan", cues={"seated": "sit"}, every=(4.0, 4.0))
+    said: list[dict] = []
+    trainer = Trainer(spec, SimpleNamespace(name="duncan"), None, lambda kind, **f: said.append({"kind": kind, **f}), 22050,
+                      np.random.default_rng(1))
+    recording = np.random.default_rng(2).normal(0, 0.01, 22050 * 10).astype(np.float32)
+    blocks = [trainer.heard(recording[a:a + 1102], a, a + 1102) for a in range(0, 22050 * 10 - 1102, 1102)]
+    heard = np.concatenate(blocks)
+    voice = heard - recording[:len(heard)]
+    sounding = np.flatnonzero(np.abs(voice) > 1e-6)
+    assert [round(f["at"], 3) for f in said if f["kind"] == "cue said"] == [4.0, 8.0]  # every 4 s, the first 4 s in
+    assert abs(sounding[0] / 22050 - 4.0) < 0.02 and 0.3 < (sounding[sounding < 8 * 22050][-1] - sounding[0]) / 22050 < 0.6
+    assert len(trainer.voice) < 22050  # one cue held at a time
