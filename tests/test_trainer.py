@@ -234,3 +234,15 @@ def test_the_trainers_voice_goes_on_over_a_recording_block_by_block():
     assert [round(f["at"], 3) for f in said if f["kind"] == "cue said"] == [4.0, 8.0]  # every 4 s, the first 4 s in
     assert abs(sounding[0] / 22050 - 4.0) < 0.02 and 0.3 < (sounding[sounding < 8 * 22050][-1] - sounding[0]) / 22050 < 0.6
     assert len(trainer.voice) < 22050  # one cue held at a time
+
+
+def test_a_run_too_short_to_train_says_how_long_would(tmp_path):
+    """The demo's 30 s give the dog a few cues and no chance to learn: the summary says what
+    the trainer did and how long a session trains it, not a silent untrained dog."""
+    summary = run_offline(load_installation(_config(tmp_path, SHIPPED.read_text(encoding="utf-8"))), tmp_path / "out",
+                          duration=30.0)
+    (line,) = [m for m in summary.messages if m.startswith("trainer:")]
+    said = [json.loads(x) for x in (tmp_path / "out" / "events.jsonl").read_text().splitlines()]
+    cues = sum(e["kind"] == "cue said" for e in said)
+    assert 3 <= cues <= 6 and line.startswith(f"trainer: {cues} cues said to duncan, ")
+    assert "too few to learn from (about 40 cues train it: --duration 240)" in line

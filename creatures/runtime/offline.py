@@ -237,6 +237,8 @@ def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path 
                 closing.callback(bar.close)
             closing.callback(session.close)  # first: it logs the end and silences every note
 
+    if trainer is not None:
+        messages.append(trainer.said())
     files = {"events": out / "events.jsonl"}
     if wav is not None:
         wav.close()

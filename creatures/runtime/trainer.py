@@ -75,6 +75,8 @@ class Trainer:
         self.offered: list[float] = []  # heights of the shaped trick held after its cue
         self.due: list[float] = []  # clicks decided, sent on the next tick
         self.clicks = 0
+        self.cues = 0  # cues said
+        self.seen: list[bool] = []  # per cue judged: was its trick held within its window
 
     @classmethod
     def of(cls, inst: "LoadedInstallation", session: "Session") -> "Trainer | None":
@@ -122,6 +124,7 @@ class Trainer:
         if self.trial is not None and not self.trial.judged:  # its window closed within this tick (a long tick)
             self._judge(self.trial, None, at)
         self.trial = Trial(cue, trick, at, end, s.window_of(trick))
+        self.cues += 1
         self.next_cue = at + float(self.rng.uniform(*s.every))
         self.emit("cue said", creature=self.creature.name, word=cue, trick=trick, at=round(at, 6), end=round(end, 6))
 
@@ -137,8 +140,20 @@ class Trainer:
         if held is not None and held.trick == trial.trick and held.since >= trial.at:
             self._judge(trial, held.height, t, seen=True)
 
+    def said(self) -> str:
+        """The session in one line for the run's summary: a run too short to train the creature
+        (the demo's 30 s give a few cues) must say so, not leave it looking untrainable."""
+        third = max(len(self.seen) // 3, 1)
+        early, late = self.seen[:third], self.seen[-third:]
+        answered = (f"its trick held within the window after {sum(early)} of the first {len(early)} and "
+                    f"{sum(late)} of the last {len(late)}" if len(self.seen) >= 6 else
+                    f"{sum(self.seen)} of {len(self.seen)} answered: too few to learn from (about 40 cues "
+                    f"train it: --duration {40 * sum(self.spec.every) / 2:.0f})")
+        return (f"trainer: {self.cues} cues said to {self.creature.name}, {self.clicks} clicks; {answered}")
+
     def _judge(self, trial: Trial, height: float | None, t: float, *, seen: bool = False) -> None:
         trial.judged = True
+        self.seen.append(seen)
         clicked = seen
         if seen and trial.trick == self.spec.shaping and height is not None:
             bar = float(np.median(self.offered[-self.spec.bar:])) if self.offered else -np.inf
