@@ -16,6 +16,7 @@ from creatures.events import EventLog
 from creatures.kinds.figures import BODIES, figure_graph
 from creatures.kinds.parts import Body
 from creatures.motor import quaternion as quat
+from creatures.motor.material import MaterialError, read_clips
 from creatures.motor.pose import LOW_ENERGY
 from creatures.runtime.schema import load_installation
 from creatures.runtime.session import Session
@@ -220,3 +221,24 @@ def test_curve_creatures_on_a_body_of_their_own_approach_and_mirror(tmp_path: Pa
     reflected = np.linalg.norm(p[mirror][:, swap] * [-1.0, 1.0, 1.0] - p, axis=-1).mean(axis=-1)
     copies = mirror == np.arange(len(mirror))
     assert (reflected[~copies] <= MIRROR_TOLERANCE + 1e-12).all() and (~copies).sum() > 50
+
+
+@pytest.mark.parametrize("old, new, line, message", [
+    ("root_motion = true", "root_moton = true", 21, "[[clip]] has no key 'root_moton' (did you mean 'root_motion'?)"),
+    ('name = "low energy"\n', 'name = "low energy"\nframe = [0, 30]\n', 12,
+     "[[label]] has no key 'frame' (did you mean 'frames'?)"),
+    ('bvh = "dog.bvh"\n', 'bvh = "dog.bvh"\nskeleton = "x.bvh"\n', 5,
+     "a clips file has no key 'skeleton' (keys: bvh, clip, label)"),
+])
+def test_a_clips_file_with_a_key_it_does_not_take_is_refused_at_its_line(tmp_path: Path, old: str, new: str,
+                                                                         line: int, message: str):
+    """A typo in a clips file was read as nothing: ``root_moton = true`` left the walk in place
+    with no word. Each key it does not take is refused at its own line, with the nearest."""
+    text = (BODIES / "dog.labels.toml").read_text(encoding="utf-8")
+    assert old in text
+    clips = tmp_path / "dog.labels.toml"
+    clips.write_text(text.replace(old, new, 1).replace('bvh = "dog.bvh"', f'bvh = "{BODIES / "dog.bvh"}"'),
+                     encoding="utf-8")
+    with pytest.raises(MaterialError) as caught:
+        read_clips(clips)
+    assert str(caught.value) == f"{clips}:{line}: {message}"

@@ -271,6 +271,23 @@ def load_material(skeleton: Skeleton, animations: list[Animation], conventions: 
     return Material(PoseSet.concatenate(sets), frame_times, walking)
 
 
+CLIPS_KEYS = {"": ("bvh", "clip", "label"), "clip": ("name", "frames", "root_motion"), "label": ("name", "frames")}
+"""The keys a clips file takes: at its top (``""``) and in each ``[[clip]]`` and ``[[label]]``."""
+
+
+def _only_keys(path: Path, lines: list[str], header: int, table: dict, known: tuple[str, ...], what: str) -> None:
+    """Refuse a key of ``table`` (its header at 1-based line ``header``; 0: the file's top) that
+    is not ``known``, at that key's own line, with the nearest known one: a typo read as
+    nothing (``root_moton = true``) would leave a walk in place without a word."""
+    for key in table:
+        if key in known:
+            continue
+        rows = enumerate(lines[header:], header + 1)
+        at = next((n for n, row in rows if row.startswith("[") or row.split("=", 1)[0].strip() == key), None)
+        line = at if at is not None and not lines[at - 1].startswith("[") else header or 1
+        raise MaterialError(f"{path}:{line}: {what} has no key {key!r}{nearest(key, known, 'keys')}", ("clips",))
+
+
 def read_clips(path: Path) -> list[Animation]:
     """The takes of a clips file: one BVH of many clips (``bvh``, relative to the file) and
     ``[[clip]]`` tables (a name over inclusive ``frames``, optional ``root_motion``: walk, else
@@ -283,11 +300,12 @@ def read_clips(path: Path) -> list[Animation]:
         data = tomllib.loads(text)
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise MaterialError(f"{path}:1: cannot read clips file ({exc})", ("clips",)) from None
+    lines = text.splitlines()
+    _only_keys(path, lines, 0, data, CLIPS_KEYS[""], "a clips file")
     if not isinstance(data.get("bvh"), str):
         raise MaterialError(f"{path}:1: a clips file names its BVH: bvh = \"file.bvh\"", ("clips",))
     bvh = path.parent / data["bvh"]
     count = bvh_frame_count(bvh)
-    lines = text.splitlines()
     found: dict[str, list[tuple[str, int, int, int, bool]]] = {}
     for kind in ("clip", "label"):
         headers = [n for n, line in enumerate(lines, 1) if line.strip() == f"[[{kind}]]"]
@@ -297,6 +315,8 @@ def read_clips(path: Path) -> list[Animation]:
         found[kind] = []
         for k, table in enumerate(tables):
             line = headers[k] if k < len(headers) else 1
+            if isinstance(table, dict):
+                _only_keys(path, lines, line, table, CLIPS_KEYS[kind], f"[[{kind}]]")
             span = table.get("frames") if isinstance(table, dict) else None
             if not isinstance(table, dict) or not isinstance(table.get("name"), str) or not (
                     isinstance(span, list) and len(span) == 2 and all(type(f) is int for f in span)):
