@@ -383,11 +383,14 @@ def test_frames_asked_of_creatures_without_bodies_say_so_and_list_no_frames(tmp_
     '{ type = "oscillate", variables = { "nek.x" = 20.0 }, period = 2.0 }',
     '{ type = "sweep", variables = { "nek.x" = [-20.0, 30.0] } }',
     '{ type = "look_at", joints = { nek = 40.0 } }',
+    '{ type = "adverb", value = 0.0, examples = [{ at = 0.0, seconds = 1.0, keys = [{ "nek.x" = 20.0 }] }, '
+    '{ at = 1.0, seconds = 2.0, keys = [{ "chest.x" = 10.0 }] }] }',
 ])
 def test_a_layer_on_a_body_from_files_names_a_joint_it_lacks_at_load(tmp_path: Path, action: str):
     """A skill's joints are checked against a body of files as against a shipped figure: a typo is
     a config error at the action's line with the nearest joint (it was a traceback at build). An
-    adverb leaves out what the body lacks instead (PlayAdverb.leaves_out_joints)."""
+    adverb leaves out only the stick figure's joints the body lacks (``chest`` here: a manner
+    written for the stick figure); a typo'd one was left out too, so it ran without a word."""
     config = heron_config(tmp_path, kind="authored")
     with config.open("a") as handle:
         handle.write(f"""

@@ -232,8 +232,8 @@ def _action(c: _Checker, action, loc: tuple):
     if nodes is not None:
         _nodes(c, nodes(params), loc)
     joints = getattr(cls, "joints", None)
-    if joints is not None and not (getattr(c.spec.body, "custom", False) and getattr(cls, "leaves_out_joints", False)):
-        _joints(c, joints(params), loc)  # a body of files is built before this check (schema._resolve_body)
+    if joints is not None:  # a body of files is built before this check (schema._resolve_body)
+        _joints(c, _named_joints(c, cls, joints(params)), loc)
     voice = getattr(cls, "voice_parameters", None)
     named = voice(params) if voice is not None else []
     _voice_parameters(c, named, loc)
@@ -246,6 +246,18 @@ def _action(c: _Checker, action, loc: tuple):
             raise c.error(loc, "blend.policy 'budget' shares each joint's budget: set [creature.body] budget "
                                "(degrees)")
     return cls
+
+
+def _named_joints(c: _Checker, cls, joints: list[str]) -> list[str]:
+    """The joints a skill names that the body must have: all of them, but an adverb on a body
+    of files leaves out those of the stick figure (a manner written for it: logged when built,
+    ``leaves_out_joints``), so only a joint no body the file was written for has is a typo."""
+    if not (getattr(c.spec.body, "custom", False) and getattr(cls, "leaves_out_joints", False)):
+        return joints
+    from creatures.kinds.figures import figure_graph
+
+    stick = figure_graph("stick").skeleton.names
+    return [joint for joint in joints if joint not in stick]
 
 
 def _joints(c: _Checker, wanted: list[str], loc: tuple) -> None:

@@ -523,9 +523,9 @@ class PlayAdverb(MotorPart):
     Params = _AdverbParams
     refs = {"drive": "drives", "percept": "adverb models"}
     leaves_out_joints = True
-    """On a body of files the joints it names that the body lacks are left out (logged), not
-    refused: a creature file written for the stick figure (exchange's bored manner) keeps its
-    manner on a body of one's own."""
+    """On a body of files the stick figure's joints it names that the body lacks are left out
+    (logged), not refused: a creature file written for the stick figure (exchange's bored
+    manner) keeps its manner on a body of one's own. Any other joint it lacks is refused."""
 
     @classmethod
     def joints(cls, params):
