@@ -408,6 +408,37 @@ alpha = 0.0
         load_installation(config)
 
 
+@pytest.mark.parametrize("action", [
+    '{ type = "oscillate", variables = { "base.y" = 20.0 }, period = 2.0 }',
+    '{ type = "look_at", joints = { neck = 30.0, base = 40.0 } }',
+    '{ type = "adverb", value = 0.0, examples = [{ at = 0.0, seconds = 1.0, keys = [{ "base.y" = 0.0 }] }, '
+    '{ at = 1.0, seconds = 2.0, keys = [{ "base.y" = 20.0 }] }] }',
+])
+def test_a_layer_on_a_joint_its_material_never_turns_is_refused_at_load(tmp_path: Path, action: str):
+    """The heron's takes never turn its base from rest, and a body never turns a joint further
+    than its material does: a layer on ``base`` ran and moved nothing (an adverb on it too, its
+    ``motor`` events naming it as driving the base). Refused at the action's line, with the
+    joints that do turn."""
+    config = heron_config(tmp_path, kind="authored")
+    with config.open("a") as handle:
+        handle.write(f"""
+[creature.tuples.nod]
+action = {action}
+until = {{ seconds = 4.0 }}
+
+[creature.groups.layer]
+tuples = ["nod"]
+alpha = 0.0
+""")
+    line = config.read_text().splitlines().index(f"action = {action}") + 1
+    with pytest.raises(ConfigError) as caught:
+        load_installation(config)
+    assert str(caught.value) == (
+        f"{config}:{line}: creature.0.tuples.nod.action: no frame of the body's material turns the joint 'base' "
+        "from rest, and the body never turns a joint further than its material does, so no layer can move it "
+        "(joints it turns: neck, head); give it a take or a rest_pose that turns it")
+
+
 @pytest.mark.parametrize("extra, key, message", [  # (the rest pose carries the first rest label)
     ('joint_limits = { nek = 1.0 }', "joint_limits.nek", "no joint 'nek' in the body (did you mean 'neck'?)"),
     ('effectors = ["hed_end"]', "effectors.hed_end", "no joint 'hed_end' in the body (did you mean 'head_end'?)"),

@@ -306,6 +306,25 @@ alpha = 0.0
         session_of(tmp_path, extra.replace('"nekc.x" = [-20.0, 30.0]', '"voice.cutoff" = [-0.5, 0.0]'))
 
 
+def test_a_layer_on_a_joint_the_figure_never_turns_is_refused_at_its_line(tmp_path):
+    """The bird's material never turns its beak from rest, and a body never turns a joint
+    further than its material does (blend.Limits): a sweep of ``beak.x`` moved nothing while
+    the ``motor`` events named it as driving the beak. It is refused at load instead."""
+    extra = """
+[creature.tuples.nod]
+action = { type = "sweep", variables = { "beak.x" = [-20.0, 30.0] } }
+until = { done = true }
+
+[creature.groups.nodding]
+tuples = ["nod"]
+alpha = 0.0
+"""
+    with pytest.raises(ConfigError, match=r"look.toml:\d+: creature\.1\.tuples\.nod\.action: no frame of the "
+                                          r"body's material turns the joint 'beak' from rest"):
+        session_of(tmp_path, extra)
+    session_of(tmp_path / "neck", extra.replace("beak.x", "neck.x"))  # a joint it turns
+
+
 def test_voice_cutoff_darkens_what_a_mouth_sings():
     """``voice.cutoff`` scales the mouth's low-pass over what the body sets: a fifth of it
     leaves a tenth as much of a bright sound above 4 kHz."""

@@ -249,9 +249,10 @@ def _action(c: _Checker, action, loc: tuple):
 
 
 def _named_joints(c: _Checker, cls, joints: list[str]) -> list[str]:
-    """The joints a skill names that the body must have: all of them, but an adverb on a body
-    of files leaves out those of the stick figure (a manner written for it: logged when built,
-    ``leaves_out_joints``), so only a joint no body the file was written for has is a typo."""
+    """The joints a skill names that the body must have and turn: all of them, but an adverb on
+    a body of files takes the stick figure's as a manner written for it (``leaves_out_joints``:
+    those the body lacks are left out, logged when built; those its material never turns stay
+    still, as exchange's bored chest does on the dog), so only the others are checked."""
     if not (getattr(c.spec.body, "custom", False) and getattr(cls, "leaves_out_joints", False)):
         return joints
     from creatures.kinds.figures import figure_graph
@@ -261,14 +262,26 @@ def _named_joints(c: _Checker, cls, joints: list[str]) -> list[str]:
 
 
 def _joints(c: _Checker, wanted: list[str], loc: tuple) -> None:
+    """Each joint a skill names is on the body, and its material turns it: a body never turns
+    a joint further than its material does (:class:`~creatures.motor.blend.Limits`), so a layer
+    on a joint no frame turns from rest would run and move nothing."""
     from creatures.kinds.figures import body_graph
+    from creatures.kinds.layers import source_limits
 
     if wanted and not c.spec.body:
         raise c.error(loc, f"it moves the joint {wanted[0]!r}: set 'body = true' on the creature")
-    known = body_graph(c.spec.body).skeleton.names if wanted else ()
+    if not wanted:
+        return
+    graph = body_graph(c.spec.body)
+    known = graph.skeleton.names
+    turned = [name for name, most in zip(known, source_limits(graph).range) if most > 0.0]
     for joint in wanted:
         if joint not in known:
             raise c.error(loc, f"the body has no joint {joint!r}{nearest(joint, known, 'joints')}")
+        if joint not in turned:
+            raise c.error(loc, f"no frame of the body's material turns the joint {joint!r} from rest, and the body "
+                               "never turns a joint further than its material does, so no layer can move it "
+                               f"(joints it turns: {', '.join(turned)}); give it a take or a rest_pose that turns it")
 
 
 def _voice_parameters(c: _Checker, named: list[str], loc: tuple) -> None:
