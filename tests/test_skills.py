@@ -399,6 +399,16 @@ def test_an_adverb_takes_exactly_one_source(tmp_path):
         session_of(tmp_path, ADVERB.format(level=0.0, source='percept = "heard"'))
 
 
+def test_an_adverb_whose_levels_are_one_level_is_refused_at_its_line(tmp_path):
+    """``levels = [1, 1]`` read every level of the drive as the first example's place (a zero
+    span taken as 0), so however bored the creature grew its manner never changed, without a
+    word. Reversed levels still map the other way round."""
+    with pytest.raises(ConfigError, match=r"look.toml:\d+: creature\.1\.tuples\.manner\.action: levels \[1, 1\] map "
+                                          r"every level of drive 'boredom' to one place"):
+        session_of(tmp_path, ADVERB.format(level=5.0, source='drive = "boredom"\nlevels = [1.0, 1.0]'))
+    session_of(tmp_path / "reversed", ADVERB.format(level=5.0, source='drive = "boredom"\nlevels = [1.0, 0.0]'))
+
+
 def test_an_adverb_value_beyond_its_examples_is_refused_at_its_line(tmp_path):
     # at 3 over examples at 0 and 1 the RBF weights were −2 and 3: the neck turned 67°, past
     # any example's 40°, and at −3 the cycle lasted 1 µs, replayed every tick

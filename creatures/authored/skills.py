@@ -485,8 +485,8 @@ class _AdverbParams(Params):
     examples: list[AdverbExample] = Field(min_length=2, description="example animations of one verb at "
                                                                      "points of the adverb axis")
     drive: str | None = Field(None, description="a drive whose level sets the adverb (re-read every cycle)")
-    levels: tuple[float, float] = Field((0.0, 1.0), description="drive levels mapped to the first and last "
-                                                                "example's place")
+    levels: tuple[float, float] = Field((0.0, 1.0), description="two different drive levels, mapped to the "
+                                                                "first and last example's place")
     percept: str | None = Field(None, description="an 'adverb_model' percept the adverb is sampled from when "
                                                   "the tuple starts (and that rewards shape)")
     value: float | None = Field(None, ge=-1e6, le=1e6, description="a fixed adverb (neither drive nor percept), "
@@ -502,6 +502,10 @@ class _AdverbParams(Params):
             raise ValueError(f"an adverb takes its value from exactly one of drive, percept or value (got {given or 'none'})")
         if len({e.at for e in self.examples}) != len(self.examples):
             raise ValueError("two examples at one place of the adverb axis")
+        low, high = self.levels
+        if self.drive is not None and low == high:
+            raise ValueError(f"levels [{low:g}, {high:g}] map every level of drive {self.drive!r} to one place: give "
+                             "two levels, the first example's and the last's")
         places = [e.at for e in self.examples]
         if self.value is not None and not min(places) <= self.value <= max(places):
             # beyond the examples the RBF weights extrapolate: at 3 over examples at 0 and 1 they
@@ -576,7 +580,7 @@ class AdverbAction(Action):
         p = self.params
         if p.drive is not None:
             low, high = p.levels
-            u = 0.0 if high == low else (self.creature.level(p.drive, t) - low) / (high - low)
+            u = (self.creature.level(p.drive, t) - low) / (high - low)  # two levels: checked at load
             return self.places[0] + min(max(u, 0.0), 1.0) * (self.places[1] - self.places[0])
         value = self.sampled if p.percept is not None else float(p.value)
         return min(max(value, self.places[0]), self.places[1])
