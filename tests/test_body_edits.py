@@ -317,7 +317,7 @@ edits.forbid = [{ from = "heron@20", to = "heron@21" }]
     assert ("heron@10", "heron@11") not in edges and ("heron@20", "heron@21") not in edges
     assert favour and set(favour.values()) == {0.25} and all("peck" in labels[k] for k in favour)
     config.write_text(config.read_text().replace('node = "peck"', 'node = "preen"'))
-    with pytest.raises(ConfigError, match=r"\[creature\.body\] edits: favour\.0\.node: node 'preen'"):
+    with pytest.raises(ConfigError, match=r"heron\.toml:\d+: creature\.0\.body\.edits\.favour\.0\.node: node 'preen'"):
         load_installation(config)
 
 

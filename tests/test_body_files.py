@@ -439,6 +439,26 @@ alpha = 0.0
         "(joints it turns: neck, head); give it a take or a rest_pose that turns it")
 
 
+@pytest.mark.parametrize("edits, key, message", [
+    ('edits.blend = [{ nodes = "peck", file = "heron.bvh", frames = [0, 4], weight = 2.0 }]', "edits.blend.0.weight",
+     "[[blend]] weight = 2.0 is not a weight in [0, 1]"),
+    ('edits.blend = [{ nodes = "peck", file = "heron.bvh", frames = [0, 4], weight = 0.5 }, '
+     '{ nodes = "heron@100..102", file = "heron.bvh", frames = [0, 2], weight = 0.5 }]', "edits.blend.1",
+     "[[blend]] conflicts with edits.blend.0: both blend node heron@100"),
+])
+def test_an_edit_in_the_config_itself_is_said_at_its_key_not_as_a_file(tmp_path: Path, edits: str, key: str,
+                                                                        message: str):
+    """The config's own ``edits`` were named as a file that is not there, after the key that
+    already names them (``…/[creature.body] edits: blend.0.weight: [[blend]] weight …``): the
+    message is now the config's line and key, then what is wrong, and a conflict names the
+    other edit by its key."""
+    config = heron_config(tmp_path, extra=edits)
+    line = config.read_text().splitlines().index(edits) + 1
+    with pytest.raises(ConfigError) as caught:
+        load_installation(config)
+    assert str(caught.value) == f"{config}:{line}: creature.0.body.{key}: {message}"
+
+
 @pytest.mark.parametrize("extra, key, message", [  # (the rest pose carries the first rest label)
     ('joint_limits = { nek = 1.0 }', "joint_limits.nek", "no joint 'nek' in the body (did you mean 'neck'?)"),
     ('effectors = ["hed_end"]', "effectors.hed_end", "no joint 'hed_end' in the body (did you mean 'head_end'?)"),

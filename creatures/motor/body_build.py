@@ -63,6 +63,11 @@ class Sources:
     ratios: bool = False  # the exchange metric (moves at low-integer ratios of a take: note_space.exchange_metric)
     metric: Content = "rotations"  # what the metric measures between poses (MetricWeights.content)
 
+    @property
+    def inline_path(self) -> Path:
+        """The config's own edits as an edit file is named (the files they name are beside it)."""
+        return (self.inline_base or Path(".")) / INLINE_EDITS
+
     def key(self, edit_files: list[EditFile]) -> str:
         """Hash of the parameters and the bytes of every file the graph reads (BLAKE2b: a ten-minute
         take is 70 MB of text, and SHA-256 of it was a third of a cached reload)."""
@@ -116,14 +121,15 @@ def build(sources: Sources, edit_files: list[EditFile]) -> MotorGraph:
     for i, edit_file in enumerate(edit_files):
         _as_material_error(lambda: check_skeleton(edit_file, skeleton, expected), i)
     takes = _as_material_error(lambda: added_material(edit_files, skeleton, conventions,
-                                                      set(material.poses.sources)), None)
+                                                      set(material.poses.sources)), None, sources.inline_path)
     own = material.poses  # the body's own takes, before any edit file adds to or blends them
     if takes:
         poses = PoseSet.concatenate([material.poses, *(t for t, _ in takes)])
         added = frozenset(t.sources[0] for t, _ in takes) if conventions.root_motion else frozenset()
         material = Material(poses, {**material.frame_times, **{t.sources[0]: ft for t, ft in takes}},
                             material.walking | added)
-    material = _as_material_error(lambda: blended(material, edit_files, skeleton, conventions), None)
+    material = _as_material_error(lambda: blended(material, edit_files, skeleton, conventions), None,
+                                  sources.inline_path)
     walking = material.walking
     poses, advances = walking_in_place(material.poses, walking) if walking else (material.poses, None)
     weights = MetricWeights(content=sources.metric)
@@ -145,7 +151,7 @@ def build(sources: Sources, edit_files: list[EditFile]) -> MotorGraph:
                                 f"{nearest(label, known, 'labels')}", ("rest_labels",))
         for node in nodes.tolist():
             graph.label(node, LOW_ENERGY)
-    _as_material_error(lambda: apply_edges(graph, material, edit_files), None)
+    _as_material_error(lambda: apply_edges(graph, material, edit_files), None, sources.inline_path)
     try:
         graph.reconnect()
     except ValueError as exc:  # the forbids left a pose (or an island) with no way out
@@ -161,18 +167,22 @@ def build(sources: Sources, edit_files: list[EditFile]) -> MotorGraph:
     return graph
 
 
-def _as_material_error(step: Callable, index: int | None):
+def _as_material_error(step: Callable, index: int | None, inline: Path | None = None):
     """Run ``step``; an :class:`EditError` becomes a MaterialError at ``graph_edits`` (its message
-    names the edit file and line)."""
+    names the edit file and line), or, for an edit written in the config itself (named as the
+    file ``inline``: :attr:`Sources.inline_path`), at its own key, which the config's error
+    names before the message: so each ``<inline>: blend.0`` in it is said ``edits.blend.0``, the
+    one of that key left out."""
     try:
         return step()
     except EditError as exc:
         text = str(exc)
-        if INLINE_EDITS in text:  # an edit written in the config itself: at its own key's line
-            where = text.split(INLINE_EDITS + ": ", 1)[-1].split(":", 1)[0].split(".")
-            key = tuple(int(part) if part.isdigit() else part for part in where if part)
-            raise MaterialError(text, ("edits", *key)) from None
-        raise MaterialError(str(exc), ("graph_edits", *([index] if index is not None else []))) from None
+        if inline is not None and f"{inline}: " in text:
+            where = text.split(f"{inline}: ", 1)[1].split(":", 1)[0]
+            key = tuple(int(part) if part.isdigit() else part for part in where.split(".") if part)
+            said = text.replace(f"{inline}: ", "edits.")
+            raise MaterialError(said.removeprefix(f"edits.{where}: "), ("edits", *key)) from None
+        raise MaterialError(text, ("graph_edits", *([index] if index is not None else []))) from None
 
 
 def load_or_build(sources: Sources, cache: Path | None) -> MotorGraph:
@@ -181,8 +191,9 @@ def load_or_build(sources: Sources, cache: Path | None) -> MotorGraph:
     for i, path in enumerate(sources.edits):
         edit_files.append(_as_material_error(lambda path=path: read_edits(path), i))
     if sources.inline:
-        where = (sources.inline_base or Path(".")) / INLINE_EDITS
-        edit_files.append(_as_material_error(lambda: edits_from(json.loads(sources.inline), where, {}, None), None))
+        where = sources.inline_path
+        edit_files.append(_as_material_error(lambda: edits_from(json.loads(sources.inline), where, {}, None), None,
+                                             where))
     key = sources.key(edit_files)
     if cache is not None and cache.exists():
         graph = read_cache(cache, key)
