@@ -379,6 +379,22 @@ def test_frames_asked_of_creatures_without_bodies_say_so_and_list_no_frames(tmp_
     assert any("no creature of this installation has a body" in m for m in summary.messages)
 
 
+def heron_with_layer(tmp_path: Path, action: str) -> tuple[Path, int]:
+    """The authored heron with a second group running ``action`` as a layer, and that line."""
+    config = heron_config(tmp_path, kind="authored")
+    with config.open("a") as handle:
+        handle.write(f"""
+[creature.tuples.nod]
+action = {action}
+until = {{ seconds = 4.0 }}
+
+[creature.groups.layer]
+tuples = ["nod"]
+alpha = 0.0
+""")
+    return config, config.read_text().splitlines().index(f"action = {action}") + 1
+
+
 @pytest.mark.parametrize("action", [
     '{ type = "oscillate", variables = { "nek.x" = 20.0 }, period = 2.0 }',
     '{ type = "sweep", variables = { "nek.x" = [-20.0, 30.0] } }',
@@ -391,18 +407,7 @@ def test_a_layer_on_a_body_from_files_names_a_joint_it_lacks_at_load(tmp_path: P
     a config error at the action's line with the nearest joint (it was a traceback at build). An
     adverb leaves out only the stick figure's joints the body lacks (``chest`` here: a manner
     written for the stick figure); a typo'd one was left out too, so it ran without a word."""
-    config = heron_config(tmp_path, kind="authored")
-    with config.open("a") as handle:
-        handle.write(f"""
-[creature.tuples.nod]
-action = {action}
-until = {{ seconds = 4.0 }}
-
-[creature.groups.layer]
-tuples = ["nod"]
-alpha = 0.0
-""")
-    line = config.read_text().splitlines().index(f"action = {action}") + 1
+    config, line = heron_with_layer(tmp_path, action)
     with pytest.raises(ConfigError, match=rf"heron.toml:{line}: creature\.0\.tuples\.nod\.action: "
                                           r"the body has no joint 'nek' \(did you mean 'neck'\?\)"):
         load_installation(config)
@@ -419,18 +424,7 @@ def test_a_layer_on_a_joint_its_material_never_turns_is_refused_at_load(tmp_path
     than its material does: a layer on ``base`` ran and moved nothing (an adverb on it too, its
     ``motor`` events naming it as driving the base). Refused at the action's line, with the
     joints that do turn."""
-    config = heron_config(tmp_path, kind="authored")
-    with config.open("a") as handle:
-        handle.write(f"""
-[creature.tuples.nod]
-action = {action}
-until = {{ seconds = 4.0 }}
-
-[creature.groups.layer]
-tuples = ["nod"]
-alpha = 0.0
-""")
-    line = config.read_text().splitlines().index(f"action = {action}") + 1
+    config, line = heron_with_layer(tmp_path, action)
     with pytest.raises(ConfigError) as caught:
         load_installation(config)
     assert str(caught.value) == (

@@ -283,8 +283,7 @@ alpha = 0.0
     assert not nod.active or nod.started_at > 2.0  # done when back, at 2 s
 
 
-def test_sweep_names_must_be_joint_variables(tmp_path):
-    extra = """
+NOD = """
 [creature.tuples.nod]
 action = { type = "sweep", variables = { "nekc.x" = [-20.0, 30.0] } }
 until = { done = true }
@@ -293,6 +292,11 @@ until = { done = true }
 tuples = ["nod"]
 alpha = 0.0
 """
+"""A second group sweeping a joint variable (a typo'd neck: each test puts its own in its place)."""
+
+
+def test_sweep_names_must_be_joint_variables(tmp_path):
+    extra = NOD
     with pytest.raises(ConfigError, match=r"look.toml:\d+: .*no joint 'nekc' \(did you mean 'neck'\?\)"):
         session_of(tmp_path, extra)
     with pytest.raises(ConfigError, match="a joint variable is 'joint.x'"):
@@ -310,15 +314,7 @@ def test_a_layer_on_a_joint_the_figure_never_turns_is_refused_at_its_line(tmp_pa
     """The bird's material never turns its beak from rest, and a body never turns a joint
     further than its material does (blend.Limits): a sweep of ``beak.x`` moved nothing while
     the ``motor`` events named it as driving the beak. It is refused at load instead."""
-    extra = """
-[creature.tuples.nod]
-action = { type = "sweep", variables = { "beak.x" = [-20.0, 30.0] } }
-until = { done = true }
-
-[creature.groups.nodding]
-tuples = ["nod"]
-alpha = 0.0
-"""
+    extra = NOD.replace("nekc.x", "beak.x")
     with pytest.raises(ConfigError, match=r"look.toml:\d+: creature\.1\.tuples\.nod\.action: no frame of the "
                                           r"body's material turns the joint 'beak' from rest"):
         session_of(tmp_path, extra)
