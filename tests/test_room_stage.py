@@ -924,6 +924,11 @@ def test_a_creature_without_a_body_is_drawn_as_a_marker_where_its_vehicle_stands
         assert np.allclose(snapshot(creature).positions, joints)
         assert hello_of(creature, i).joints == MARKER_JOINTS
     assert [b.parents for b in bodies(s.creatures)] == [[-1, 0, 1]] * 2
+    # The crowd's markers are placed once a tick: they follow it on, and a place taken back.
+    run(s, clock, 3.5)
+    assert np.allclose(s.creatures[1].shown()[0][0], [s.stage.v.pos[1][0], 0.0, -s.stage.v.pos[1][1]])
+    s.stage.put("a", {"at": [9.0, 1.0], "velocity": [0.0, 0.0], "heading": [0.0, 1.0]})
+    assert np.allclose(s.creatures[0].shown()[0], [[9.0, 0.0, -1.0], [9.0, 0.6, -1.0], [9.0, 0.6, -1.25]])
 
 
 def test_an_offline_room_without_bodies_logs_its_markers_for_the_replay(tmp_path):

@@ -73,11 +73,14 @@ def in_room(local: np.ndarray, at: np.ndarray, heading: np.ndarray) -> np.ndarra
     ``heading`` (a unit room vector) and put at room point ``at``. Room (x, y) is the world's
     (x, −z): with y up, that keeps the room's anticlockwise turns anticlockwise seen from above,
     so a body's left is the left of its heading (a creature that turns its head to a sound on
-    its left, by :meth:`Stage._bearing`, is drawn looking at it)."""
-    hx, hy = float(heading[0]), float(heading[1])
-    x, z = local[:, 0], local[:, 2]
+    its left, by :meth:`Stage._bearing`, is drawn looking at it). ``at`` and ``heading`` may
+    be ``(N, 2)``: N creatures at once, ``(N, J, 3)`` (a crowd's markers, one call a tick)."""
+    at, heading = np.asarray(at, float), np.asarray(heading, float)
+    hx, hy = heading[..., 0, None], heading[..., 1, None]
+    x, y, z = local[..., 0], local[..., 1], local[..., 2]
     # In room terms local +z goes to (hx, hy) and local +x to its left (−hy, hx).
-    return np.column_stack([-x * hy + z * hx + at[0], local[:, 1], -(x * hx + z * hy + at[1])])
+    return np.stack([-x * hy + z * hx + at[..., 0, None], np.broadcast_to(y, np.broadcast_shapes(y.shape, hx.shape)),
+                     -(x * hx + z * hy + at[..., 1, None])], axis=-1)
 
 
 class Gaits:
