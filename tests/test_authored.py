@@ -436,6 +436,37 @@ def test_a_motor_graph_looping_without_a_wait_is_refused_at_load(tmp_path):
                                    .replace("b = 'getTo", "w = 'wait', b = 'getTo"), "ok.toml"))
 
 
+WALKER = HEAD + """
+[[creature]]
+name = "g"
+kind = "authored"
+body = true
+
+[creature.tuples.walk]
+action = { type = "motor_graph", vertices = { start = 'getTo "sway left"', w = "wait", right = 'getTo "sway right"', w2 = "wait", exit = "end" }, edges = { start = ["w"], w = ["right"], right = ["w2"], w2 = ["exit"] } }
+until = { done = true }
+
+[creature.groups.main]
+tuples = ["walk"]
+alpha = 0.0
+"""
+
+
+@pytest.mark.parametrize(("old", "new", "key", "said"), [
+    ('w = "wait"', 'w = "wiat"', "vertices.w", "unknown motor statement 'wiat' (did you mean 'wait'?)"),
+    ("start = 'getTo", "begin = 'getTo", "vertices", "needs a 'start' vertex (vertices: begin, w, right, w2, exit)"),
+    ('w2 = ["exit"]', 'w2 = ["exti"]', "edges", "edge w2 → exti: unknown vertex 'exti' (did you mean 'exit'?)"),
+])
+def test_a_motor_graph_error_names_the_tuple_s_key_and_the_nearest_vertex(tmp_path, old, new, key, said):
+    """Each was said of a graph called 'check' (the validator's own stand-in name) at the
+    action's key, and an unknown vertex came with no nearest one: "motor program graph 'check':
+    edge names unknown vertex 'exti'"."""
+    assert old in WALKER
+    error = error_of(write(tmp_path, WALKER.replace(old, new)))
+    assert error.key == f"creature.0.tuples.walk.action.{key}" and error.line == 10, str(error)
+    assert said in error.message and "'check'" not in error.message, str(error)
+
+
 def test_like_starts_a_creature_from_an_earlier_one(tmp_path):
     twin = HEAD + CREATURE + '\n[[creature]]\nname = "twin"\nlike = "c"\nchannel = 3\ntuples.rest.value = 0.5\n'
     inst = load_installation(write(tmp_path, twin))

@@ -10,16 +10,17 @@ the tuple when the phrase has been played out.
 from __future__ import annotations
 
 import dataclasses
-from typing import TYPE_CHECKING, Callable, ClassVar, Literal
+from typing import TYPE_CHECKING, Annotated, Callable, ClassVar, Literal
 
 import numpy as np
-from pydantic import BaseModel, Field, field_validator, model_validator
+from pydantic import AfterValidator, BaseModel, Field, ValidationInfo, field_validator, model_validator
 
 from creatures.authored.registry import ACTIONS, Params, Part
 from creatures.behaviour.action_tuple import Action, ActionTuple
 from creatures.bounds import MidiPitch
 from creatures.kinds.note_world import SeekNote, Vary, Variation, Wander
-from creatures.motor.programs import MotorProgramGraph, ProgramStack, Statement, chosen_program, parse_programs
+from creatures.motor.programs import (MotorProgramGraph, ProgramStack, Statement, chosen_program, edge_problem,
+                                      parse_programs, parse_statement, start_problem)
 from creatures.motor.search import NoPath
 from creatures.temporal.readings import Level
 from midi.notes import NoteEvent
@@ -451,21 +452,40 @@ class ProgramAction(Action):
 
 def _statement(text: str) -> Statement:
     """One statement of the motor-program language (``getTo "reach"``, ``wait`` …)."""
-    statements = parse_programs(f"vertex: {text}", source="motor graph vertex")["vertex"].statements
-    if len(statements) != 1:
-        raise ValueError(f"a vertex holds one statement (got {text!r})")
-    return statements[0]
+    if ";" in text:
+        raise ValueError("a vertex holds one statement: give each of these a vertex of its own, joined by edges")
+    return parse_statement(text)
+
+
+def _vertex(text: str) -> str:
+    """A vertex's statement, checked where the config writes it (``vertices.w``)."""
+    _statement(text)
+    return text
 
 
 class _GraphParams(Params):
-    vertices: dict[str, str] = Field(description="vertex name → one statement; flow starts at 'start', an "
-                                                 "exit heads for the nearest vertex named 'exit…'")
+    vertices: dict[str, Annotated[str, AfterValidator(_vertex)]] = Field(
+        description="vertex name → one statement; flow starts at 'start', an exit heads for the nearest vertex "
+                    "named 'exit…'")
     edges: dict[str, list[str]] = Field(default_factory=dict, description="vertex → the vertices that may follow")
 
-    @model_validator(mode="after")
-    def _builds(self):
-        MotorProgramGraph("check", {k: _statement(v) for k, v in self.vertices.items()}, self.edges)
-        return self
+    @field_validator("vertices")
+    @classmethod
+    def _starts(cls, vertices: dict[str, str]) -> dict[str, str]:
+        problem = start_problem(vertices)
+        if problem:
+            raise ValueError(problem)
+        return vertices
+
+    @field_validator("edges")
+    @classmethod
+    def _joins(cls, edges: dict[str, list[str]], info: ValidationInfo) -> dict[str, list[str]]:
+        """The edges, checked against the vertices (when those were valid: else their error is the one said)."""
+        vertices = info.data.get("vertices")
+        problem = vertices is not None and edge_problem({k: _statement(v) for k, v in vertices.items()}, edges)
+        if problem:
+            raise ValueError(problem)
+        return edges
 
 
 @ACTIONS.register

@@ -205,22 +205,9 @@ class MotorProgramGraph:
     edges: dict[str, list[str]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        if "start" not in self.vertices:
-            raise ValueError(f"motor program graph {self.name!r} needs a 'start' vertex")
-        for source, targets in self.edges.items():
-            for name in (source, *targets):
-                if name not in self.vertices:
-                    raise ValueError(f"motor program graph {self.name!r}: edge names unknown vertex {name!r}")
-        loop = self._loop_without_wait()
-        if loop:
-            raise ValueError(f"motor program graph {self.name!r}: the loop {' → '.join(loop)} has no 'wait' (or "
-                             "'cycle') vertex, so the body never gets to arrive: flow went round it "
-                             f"{ProgramStack.MAX_STEPS} times in one tick and stopped the run; put a wait on it")
-
-    def _loop_without_wait(self) -> list[str]:
-        """A loop of vertices none of which blocks (``wait``, ``cycle``), as ``[a, …, a]``, or []."""
-        free = [v for v, s in self.vertices.items() if s.op not in ("wait", "cycle")]  # "start" first
-        return _loop({v: [w for w in self.edges.get(v, []) if w in free] for v in free})
+        problem = start_problem(self.vertices) or edge_problem(self.vertices, self.edges)
+        if problem:
+            raise ValueError(f"motor program graph {self.name!r}: {problem}")
 
     def first(self) -> str:
         return "start"
@@ -270,6 +257,30 @@ class MotorProgramGraph:
                     parents[nxt] = name
                     queue.append(nxt)
         return None
+
+
+def start_problem(vertices: dict[str, object]) -> str | None:
+    """What is wrong with a program graph's vertices (a config names them before its edges)."""
+    if "start" not in vertices:
+        return f"needs a 'start' vertex{nearest('start', vertices, 'vertices')}"
+    return None
+
+
+def edge_problem(vertices: dict[str, Statement], edges: dict[str, list[str]]) -> str | None:
+    """What is wrong with a program graph's edges, as a sentence naming the edge: an edge to a
+    vertex that is not there, or a loop on which the body never gets to arrive."""
+    for source, targets in edges.items():
+        for name in (source, *targets):
+            if name not in vertices:
+                edge = f"edge {source} → {name}" if name != source else f"edges from {name}"
+                return f"{edge}: unknown vertex {name!r}{nearest(name, vertices, 'vertices')}"
+    free = [v for v, s in vertices.items() if s.op not in ("wait", "cycle")]  # "start" first
+    loop = _loop({v: [w for w in edges.get(v, []) if w in free] for v in free})
+    if loop:
+        return (f"the loop {' → '.join(loop)} has no 'wait' (or 'cycle') vertex, so the body never gets to "
+                f"arrive: flow went round it {ProgramStack.MAX_STEPS} times in one tick and stopped the run; "
+                "put a wait on it")
+    return None
 
 
 def _loop(edges: dict[str, list[str]]) -> list[str]:
@@ -491,6 +502,22 @@ def chosen_program(text: str, run: str | None, *, source: str) -> tuple[dict[str
     return programs, run or next(iter(programs))
 
 
+def parse_statement(text: str) -> Statement:
+    """One statement (``getTo "reach"``, ``wait``, ``cycle 2`` …); a ValueError says what is wrong."""
+    match = _STATEMENT.match(text.strip())
+    if match is None:
+        raise ValueError(f"cannot read {text!r}")
+    op, args = match.group("op"), match.group("args")
+    if op == "cycle":
+        return Statement("cycle", jump=int(args or 0))
+    if op in ("wait", "end") and args.strip():
+        raise ValueError(f"{op!r} takes no arguments")
+    targets = _parse_targets(args) if args.strip() else ()
+    if op.startswith(("getTo", "forcedGetTo")) and not targets:
+        raise ValueError(f"{op!r} needs a target")
+    return Statement(op, targets)
+
+
 def parse_programs(text: str, *, source: str = "<motor program>") -> dict[str, MotorProgram]:
     """Parse ``name: statements`` blocks (``;`` or newlines between statements).
 
@@ -512,20 +539,8 @@ def parse_programs(text: str, *, source: str = "<motor program>") -> dict[str, M
                 continue
             if current is None:
                 raise ProgramSyntaxError(f"{source}:{number}: statement {part!r} before any 'name:' header")
-            match = _STATEMENT.match(part)
             try:
-                if match is None:
-                    raise ValueError(f"cannot read {part!r}")
-                op, args = match.group("op"), match.group("args")
-                if op == "cycle":
-                    current.statements.append(Statement("cycle", jump=int(args or 0)))
-                elif op in ("wait", "end") and args.strip():
-                    raise ValueError(f"{op!r} takes no arguments")
-                else:
-                    targets = _parse_targets(args) if args.strip() else ()
-                    if op.startswith(("getTo", "forcedGetTo")) and not targets:
-                        raise ValueError(f"{op!r} needs a target")
-                    current.statements.append(Statement(op, targets))
+                current.statements.append(parse_statement(part))
             except ValueError as exc:
                 raise ProgramSyntaxError(f"{source}:{number}: {exc}") from None
     for program in programs.values():
