@@ -422,6 +422,24 @@ def test_a_motor_program_calling_itself_is_refused_at_load(tmp_path, text):
     assert "calls itself (p → q → p)" in error.message and "cycle" in error.message and error.line is not None
 
 
+@pytest.mark.parametrize("action", [
+    """{ type = "motor_program", text = 'sway: getTo "sway right"; getTo "strike"; wait; end' }""",
+    """{ type = "motor_graph", vertices = { start = 'getTo "sway right"', high = 'getTo "strike"', w = "wait", """
+    """exit = "end" }, edges = { start = ["high"], high = ["w"], w = ["exit"] } }""",
+])
+def test_a_course_replaced_at_once_by_the_next_is_refused_at_load(tmp_path, action):
+    """Accepted, ``getTo "sway right"; getTo "strike"; wait`` from "sway left" arrived only at
+    "strike" (the second course replaced the first in the same tick), and nothing said so; with
+    a wait between, the body arrives at "sway right", then at "strike"."""
+    text = DANCER.replace("""{ type = "motor_program", text = 'sway: getToClosest {"sway left"}; wait; """
+                          """getTo "sway right"; wait; end' }""", action)
+    assert action in text
+    error = error_of(write(tmp_path, HEAD + text))
+    assert "getTo {'sway right'} is followed by getTo {'strike'} with no 'wait' between" in error.message, str(error)
+    assert "never heads for 'sway right'" in error.message and error.line is not None
+    assert error.key.startswith("creature.0.tuples.sway.action"), str(error)
+
+
 def test_a_motor_graph_looping_without_a_wait_is_refused_at_load(tmp_path):
     """Accepted, the loop ``start → b → start`` of two getTo vertices ran 256 statements in the
     first tick and raised RuntimeError ("ran 256 statements without the body moving") out of
@@ -432,8 +450,9 @@ def test_a_motor_graph_looping_without_a_wait_is_refused_at_load(tmp_path):
                           """getTo "sway right"; wait; end' }""", action)
     error = error_of(write(tmp_path, HEAD + text))
     assert "start → b → start" in error.message and "wait" in error.message and error.line is not None, str(error)
-    assert load_installation(write(tmp_path, HEAD + text.replace('b = ["start"]', 'b = ["w"], w = ["start"]')
-                                   .replace("b = 'getTo", "w = 'wait', b = 'getTo"), "ok.toml"))
+    assert load_installation(write(tmp_path, HEAD + text.replace('start = ["b"], b = ["start"]',
+                                                                 'start = ["v"], v = ["b"], b = ["w"], w = ["start"]')
+                                   .replace("b = 'getTo", "v = 'wait', w = 'wait', b = 'getTo"), "ok.toml"))
 
 
 WALKER = HEAD + """

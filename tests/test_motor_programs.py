@@ -17,6 +17,7 @@ from creatures.motor.programs import (
     Statement,
     Status,
     parse_programs,
+    replaced_courses,
     run,
 )
 from motor_fixtures import fastest_source_step
@@ -282,3 +283,16 @@ def test_a_program_stopped_gives_the_body_back_to_the_one_it_took_it_from(graph,
     before = len(motor.arrivals)
     run(sway, clock, until=30.0)
     assert not sway.paused and len(motor.arrivals) - before >= 4
+
+
+@pytest.mark.parametrize(("text", "replaced"), [
+    ('p: getTo "a"; getTo "b"; wait', "getTo {'a'} is followed by getTo {'b'}"),
+    ('p: getToClosest {"a", "b"}; forcedGetTo "c"; wait', "getToClosest {'a', 'b'} is followed by forcedGetTo {'c'}"),
+    ('p: getTo "a"; wait; getTo "b"; wait; cycle 0', None),
+    ('p: getTo "a"; end', None),  # a course set last: the body goes on its way as the program ends
+    ('p: getTo "a"; getTo q\nq: wait; getTo "b"; wait', None),  # a call: the callee says what comes first
+])
+def test_a_course_the_next_statement_replaces_at_once_is_found(text, replaced):
+    """``getTo`` does not wait, so a course followed straight away by another is never followed."""
+    problem = replaced_courses(parse_programs(text))
+    assert (problem is None) if replaced is None else (replaced in problem and problem.startswith("program 'p'"))

@@ -20,7 +20,7 @@ from creatures.behaviour.action_tuple import Action, ActionTuple
 from creatures.bounds import MidiPitch
 from creatures.kinds.note_world import SeekNote, Vary, Variation, Wander
 from creatures.motor.programs import (MotorProgramGraph, ProgramStack, Statement, chosen_program, edge_problem,
-                                      parse_programs, parse_statement, start_problem)
+                                      parse_programs, parse_statement, replaced_courses, start_problem)
 from creatures.motor.search import NoPath
 from creatures.temporal.readings import Level
 from midi.notes import NoteEvent
@@ -374,7 +374,10 @@ class _ProgramParams(Params):
 
     @model_validator(mode="after")
     def _parses(self):
-        chosen_program(self.text, self.program, source="motor program")
+        programs, _ = chosen_program(self.text, self.program, source="motor program")
+        problem = replaced_courses(programs)
+        if problem:
+            raise ValueError(problem)
         return self
 
 
@@ -400,7 +403,9 @@ class _ProgramPart(MotorPart):
 class RunProgram(_ProgramPart):
     """Run a motor program written as text (getTo / getToClosest / getToFurthest /
     forcedGetTo / wait / cycle; a target may name another program of the text). Done when the
-    program ends; stopping the tuple asks it to exit (its forcedGetTo statements still run)."""
+    program ends; stopping the tuple asks it to exit (its forcedGetTo statements still run).
+    A getTo sets a course and does not wait: one followed at once by another course is refused
+    (the body would never head for the first); put ``wait`` between them."""
 
     ends = True
     name = "motor_program"
@@ -491,7 +496,9 @@ class _GraphParams(Params):
 @ACTIONS.register
 class RunGraph(_ProgramPart):
     """Run a motor program graph: statements as vertices, at each branch the successor whose
-    target is nearest on the motor graph; stopping the tuple heads for the nearest exit."""
+    target is nearest on the motor graph; stopping the tuple heads for the nearest exit. An
+    edge from one getTo vertex straight to another is refused (the second course would replace
+    the first at once): put a wait vertex between them."""
 
     ends = True
     name = "motor_graph"

@@ -15,6 +15,17 @@ which is then pushed on the stack ("a dynamic alias for other nodes"). ``forcedG
 marks the statements that still run when the program is asked to exit (the "forced low
 energy state" example).
 
+A course followed at once by another (``getTo "low"; getTo "high"``: no ``wait`` between, in
+the text or along a graph's edge) is refused at load (:func:`replaced_course`). The second
+replaced the first in the same tick, so the body never set off for "low", and nothing said so;
+an author writing "go low, then go high" means both. Refusing keeps the thesis's meaning of
+``getTo`` (it sets a course and does not wait: ``getTo a; end`` leaves the body on its way, a
+graph branches on where the body is headed) where an implied wait would change it for every
+program, and the fix is one word the message gives. A course then a call of another program
+(``getTo a; getTo sub``) is left alone: what the call does first is the callee's to say. A
+score's pattern generator (creatures/score/program.py) lays its ``getTo`` in turn, and keeps
+that.
+
 :class:`MotorProgramGraph` lays the same statements out as vertices: flow starts at the
 vertex ``"start"``, takes at each branch the successor whose target is nearest in the
 motor graph, and on exit heads for the nearest vertex ``"exit"``.
@@ -30,7 +41,7 @@ import re
 from collections import deque
 from dataclasses import dataclass, field
 from graphlib import CycleError, TopologicalSorter
-from typing import Protocol, Sequence
+from typing import Collection, Protocol, Sequence
 
 import numpy as np
 
@@ -142,11 +153,17 @@ class Statement:
     targets: tuple[Target, ...] = ()
     jump: int = 0
 
-    OPS = ("getTo", "getToClosest", "getToFurthest", "forcedGetTo", "wait", "cycle", "end")
+    COURSES = ("getTo", "getToClosest", "getToFurthest", "forcedGetTo")
+    OPS = (*COURSES, "wait", "cycle", "end")
 
     def __post_init__(self) -> None:
         if self.op not in self.OPS:
             raise ValueError(f"unknown motor statement {self.op!r}{nearest(self.op, self.OPS, 'known')}")
+
+    @property
+    def sets_course(self) -> bool:
+        """Whether it sends the body somewhere (or calls a program, when a target names one)."""
+        return self.op in self.COURSES
 
     def __str__(self) -> str:
         if self.op == "cycle":
@@ -266,6 +283,30 @@ def start_problem(vertices: dict[str, object]) -> str | None:
     return None
 
 
+def replaced_course(first: Statement, then: Statement, programs: Collection[str] = ()) -> str | None:
+    """Why running ``then`` straight after ``first`` loses ``first``'s course, or None: both set
+    a course, so the second replaces the first in the same tick and the body never heads for
+    the first's targets. A call of one of ``programs`` is not judged (the callee may wait first)."""
+    if not (first.sets_course and then.sets_course):
+        return None
+    if any(isinstance(x, str) and x in programs for x in (*first.targets, *then.targets)):
+        return None
+    return (f"{first} is followed by {then} with no 'wait' between: a getTo does not wait, so the second "
+            "course replaces the first at once and the body never heads for "
+            f"{', '.join(repr(x) for x in first.targets)}; put a wait between them to go to both in turn")
+
+
+def replaced_courses(programs: dict[str, MotorProgram]) -> str | None:
+    """The first course in ``programs`` (a motor program text) that the next statement replaces
+    at once (:func:`replaced_course`), as a sentence naming the program, or None."""
+    for name, program in programs.items():
+        for first, then in zip(program.statements, program.statements[1:]):
+            problem = replaced_course(first, then, programs)
+            if problem:
+                return f"program {name!r}: {problem}"
+    return None
+
+
 def edge_problem(vertices: dict[str, Statement], edges: dict[str, list[str]]) -> str | None:
     """What is wrong with a program graph's edges, as a sentence naming the edge: an edge to a
     vertex that is not there, or a loop on which the body never gets to arrive."""
@@ -280,6 +321,11 @@ def edge_problem(vertices: dict[str, Statement], edges: dict[str, list[str]]) ->
         return (f"the loop {' → '.join(loop)} has no 'wait' (or 'cycle') vertex, so the body never gets to "
                 f"arrive: flow went round it {ProgramStack.MAX_STEPS} times in one tick and stopped the run; "
                 "put a wait on it")
+    for source, targets in edges.items():
+        for name in targets:
+            problem = replaced_course(vertices[source], vertices[name])
+            if problem:
+                return f"edge {source} → {name}: {problem} (a wait vertex: {source} → wait → {name})"
     return None
 
 
@@ -401,7 +447,7 @@ class ProgramStack:
                 frame.cursor = nxt
             if callee is not None:
                 self.stack.append(_Frame(callee, callee.first()))
-            elif stmt.op in ("getTo", "getToClosest", "getToFurthest", "forcedGetTo"):
+            elif stmt.sets_course:
                 self._go(t, stmt)
                 courses += 1
             elif stmt.op == "cycle" and nxt is not None:
