@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from body_fixtures import BODY, heron_config
+from body_fixtures import BODY, heron_config, heron_frames, write_bvh
 from creatures.events import read_events
 from creatures.cli import main
 from creatures.config import ConfigError
@@ -233,7 +233,10 @@ effectors = ["nose_end"]
 root_motion = true
 rest_labels = ["rest"]
 {"".join(tables)}""", encoding="utf-8")
-    spec = load_installation(tmp_path / "walker.toml").specs[0].body
+    inst = load_installation(tmp_path / "walker.toml")
+    # exchange's bored manner, written for the stick figure, asks the chest the dog never turns: said, not refused
+    assert ["tuples.bored manner.action: it turns chest 17° (the takes never turn it)" in n for n in inst.notes] == [True]
+    spec = inst.specs[0].body
     body = Body(np.random.default_rng(4), spec=spec)
     graph = body.graph
     assert body.root_motion is not None and graph.advances.any()
@@ -431,6 +434,41 @@ def test_a_layer_on_a_joint_its_material_never_turns_is_refused_at_load(tmp_path
         f"{config}:{line}: creature.0.tuples.nod.action: no frame of the body's material turns the joint 'base' "
         "from rest, and the body never turns a joint further than its material does, so no layer can move it "
         "(joints it turns: neck, head); give it a take or a rest_pose that turns it")
+
+
+@pytest.mark.parametrize("still_head, action, said", [
+    (False, '{ type = "oscillate", variables = { "neck.x" = 120.0 }, period = 2.0 }',
+     "it turns neck 120° (takes: at most 68.8°)"),
+    (False, '{ type = "sweep", variables = { "neck.x" = [-20.0, 30.0], "head.x" = [0.0, 90.0] } }',
+     "it turns head 90° (takes: at most 70.0°)"),
+    (True, '{ type = "adverb", value = 0.0, examples = [{ at = 0.0, seconds = 1.0, keys = [{ "head.x" = 20.0 }] }, '
+           '{ at = 1.0, seconds = 2.0, keys = [{ "neck.x" = 10.0 }] }] }',
+     "it turns head 20° (the takes never turn it)"),
+    (False, '{ type = "oscillate", variables = { "neck.x" = 20.0, "voice.gain" = 0.5 }, period = 2.0 }', None),
+])
+def test_a_layer_asking_more_than_the_takes_turn_is_said_at_load_and_in_the_summary(tmp_path: Path, still_head: bool,
+                                                                                    action: str, said: str | None):
+    """A body never turns a joint further than its takes do, and a layer asking more (120° of
+    a neck its takes and joint_limits hold to 68.8°; an adverb, a manner written for the stick
+    figure, nodding a head these takes never turn) ran held there with nothing said. Not
+    refused (the rest of the layer moves, and exchange's bored manner on the dog asks its
+    chest): said once at load with the joints and ranges, as a ``config`` event and a line of
+    the run's summary."""
+    if still_head:
+        rows = heron_frames()
+        rows[:, 10] = 0.0  # the head's nod: now it never turns
+        write_bvh(tmp_path / "heron.bvh", rows)
+    config, line = heron_with_layer(tmp_path, action)
+    inst = load_installation(config)
+    assert inst.notes == ([] if said is None else [
+        f"{config}:{line}: creature.0.tuples.nod.action: {said}: a body never turns a joint further than its "
+        "takes do, so the layer is held there on those joints"])
+    if said is not None:
+        inst.settings.output.wav = inst.settings.output.report = False
+        summary = run_offline(inst, tmp_path / "out", duration=1.0, progress=False)
+        assert [m for m in summary.messages if "takes" in m] == inst.notes
+        events = read_events(tmp_path / "out" / "events.jsonl")
+        assert [e["note"] for e in events if e["kind"] == "config"] == inst.notes
 
 
 @pytest.mark.parametrize("edits, key, message", [

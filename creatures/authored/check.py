@@ -14,6 +14,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from creatures.authored.registry import ACTIONS, MODELS, PERCEPTS, PluginError, load_parts
 from creatures.authored.skills import VOICE_PARAMETERS
 from creatures.config import nearest
@@ -36,6 +38,7 @@ TYPED = {"utterances": ("utterance", "the aural tree"), "populations": ("populat
 class _Checker:
     def __init__(self, spec: "AuthoredSpec", file: Path, where: Where, prefix: tuple) -> None:
         self.spec, self.file, self.where, self.prefix = spec, file, where, prefix
+        self.notes: list[str] = []  # what may be a mistake but is run (the loader says each at a run's start)
         self.names = {
             "percepts": {ROOT, *spec.percepts},
             "drives": set(spec.drives),
@@ -78,7 +81,9 @@ class _Checker:
 """Reference namespaces that name a percept of one type: namespace → (type, what it is)."""
 
 
-def check(spec: "AuthoredSpec", file: Path, where: Where, prefix: tuple) -> None:
+def check(spec: "AuthoredSpec", file: Path, where: Where, prefix: tuple) -> list[str]:
+    """Raise a :class:`ConfigError` for the first name or part that cannot work; return what
+    runs but may be a mistake, one sentence each, with its file, line and key."""
     try:
         load_parts()
     except PluginError as exc:
@@ -99,6 +104,7 @@ def check(spec: "AuthoredSpec", file: Path, where: Where, prefix: tuple) -> None
     _learning(c)
     _expectations(c)
     _mood(c)
+    return c.notes
 
 
 def _mouth(c: _Checker) -> None:
@@ -234,6 +240,9 @@ def _action(c: _Checker, action, loc: tuple):
     joints = getattr(cls, "joints", None)
     if joints is not None:  # a body of files is built before this check (schema._resolve_body)
         _joints(c, _named_joints(c, cls, joints(params)), loc)
+    turns = getattr(cls, "turns", None)
+    if turns is not None and c.spec.body:
+        _held(c, turns(params), loc)
     voice = getattr(cls, "voice_parameters", None)
     named = voice(params) if voice is not None else []
     _voice_parameters(c, named, loc)
@@ -282,6 +291,32 @@ def _joints(c: _Checker, wanted: list[str], loc: tuple) -> None:
             raise c.error(loc, f"no frame of the body's material turns the joint {joint!r} from rest, and the body "
                                "never turns a joint further than its material does, so no layer can move it "
                                f"(joints it turns: {', '.join(turned)}); give it a take or a rest_pose that turns it")
+
+
+HELD_SLACK = 0.5
+"""Degrees past a joint's range a layer may ask without a word (a rounded range written by hand)."""
+
+
+def _held(c: _Checker, turns: dict[str, float], loc: tuple) -> None:
+    """A layer asking a joint to turn further than the body's takes do (or asking one they never
+    turn: an adverb written for the stick figure, as exchange's bored chest on the dog) runs
+    held within the takes' range: said once at load with the joints and their ranges, not
+    refused, since the rest of the layer still moves. Joints the body lacks are left out of
+    an adverb, and said when it is built (``layer joints missing``)."""
+    from creatures.kinds.figures import body_graph
+    from creatures.kinds.layers import held_range
+
+    body = c.spec.body
+    graph = body_graph(body)
+    names = graph.skeleton.names
+    held = np.degrees(held_range(graph, body.material().limits if getattr(body, "custom", False) else None))
+    past = {j: (asked, float(held[names.index(j)])) for j, asked in turns.items()
+            if j in names and asked > held[names.index(j)] + HELD_SLACK}
+    if past:
+        said = ", ".join(f"{j} {asked:.0f}° ({f'takes: at most {most:.1f}°' if most > 0 else 'the takes never turn it'})"
+                         for j, (asked, most) in past.items())
+        c.notes.append(str(c.error(loc, f"it turns {said}: a body never turns a joint further than its takes do, "
+                                        "so the layer is held there on those joints")))
 
 
 def _voice_parameters(c: _Checker, named: list[str], loc: tuple) -> None:

@@ -71,6 +71,22 @@ def _joint_variables(names) -> None:
             raise ValueError(f"{name!r}: a joint variable is 'joint.x', 'joint.y' or 'joint.z'")
 
 
+def asked_turns(frames: list[dict[str, float]]) -> dict[str, float]:
+    """The most each joint is asked to turn (degrees) over ``frames`` (joint variable →
+    degrees; voice parameters are passed over): a frame's turns about one joint's axes are one
+    rotation (:class:`JointOffsets`), as far as their root sum of squares."""
+    most: dict[str, float] = {}
+    for frame in frames:
+        squares: dict[str, float] = {}
+        for name, degrees in frame.items():
+            if not name.startswith("voice."):
+                joint = name.rpartition(".")[0]
+                squares[joint] = squares.get(joint, 0.0) + degrees * degrees
+        for joint, total in squares.items():
+            most[joint] = max(most.get(joint, 0.0), math.sqrt(total))
+    return most
+
+
 class JointOffsets:
     """An ``add`` layer's source: named joint variables (degrees) as one rotation per joint
     (the turns about each joint's axes summed as a rotation vector)."""
@@ -278,6 +294,13 @@ class _SkillPart(ActionPart):
     def voice_parameters(cls, params) -> list[str]:
         """The voice parameters it drives (a mouth's, checked against the creature at load)."""
         return [n for n in params.variables if n.startswith("voice.")]
+
+    @classmethod
+    def turns(cls, params) -> dict[str, float]:
+        """The most it asks of each joint (degrees): a variable's depth, or either end of its
+        [min, max] or [at 0, at 1] (all of them move together)."""
+        ends = {n: v if isinstance(v, tuple) else (v,) for n, v in params.variables.items()}
+        return asked_turns([{n: e[min(k, len(e) - 1)] for n, e in ends.items()} for k in range(2)])
 
 
 class _VariablesParams(Params):
@@ -534,6 +557,12 @@ class PlayAdverb(MotorPart):
     @classmethod
     def joints(cls, params):
         return list(dict.fromkeys(v.rpartition(".")[0] for e in params.examples for key in e.keys for v in key))
+
+    @classmethod
+    def turns(cls, params) -> dict[str, float]:
+        """The most its examples' key frames ask of each joint (degrees; a blend between the
+        examples, within their places, interpolates them)."""
+        return asked_turns([key for e in params.examples for key in e.keys])
 
     def build(self, params, creature, name):
         body = creature.body

@@ -359,12 +359,13 @@ class AuthoredSpec(CreatureSpec):
                                           "weight × saliency to the parameter (and to what skills set), each block")
     _file: Path | None = PrivateAttr(None)
 
-    def check_references(self, file: Path, where: dict, prefix: tuple) -> None:
-        """Resolve every name (called by the loader with the config's key lines)."""
+    def check_references(self, file: Path, where: dict, prefix: tuple) -> list[str]:
+        """Resolve every name (called by the loader with the config's key lines); return what
+        runs but may be a mistake (the loader's notes)."""
         from creatures.authored.check import check
 
         self._file = where.get(prefix, (file, 0))[0]
-        check(self, file, where, prefix)
+        return check(self, file, where, prefix)
 
     def source_file(self) -> Path:
         """The config file this creature was written in (for errors found while building it)."""

@@ -150,6 +150,13 @@ def source_limits(graph: MotorGraph) -> Limits:
     return Limits.of(graph.poses, graph.timing.max_speed)
 
 
+def held_range(graph: MotorGraph, joint_limits: np.ndarray | None = None) -> np.ndarray:
+    """Each joint's range (radians) a body's blended frames are held within: its source
+    material's, narrowed by ``[creature.body] joint_limits`` (a body of files)."""
+    held = source_limits(graph).range
+    return held if joint_limits is None else np.minimum(held, joint_limits)
+
+
 class BodyLayers:
     """The course plus layers, resolved per tick into the pose the body shows.
 
@@ -162,9 +169,7 @@ class BodyLayers:
     def __init__(self, graph: MotorGraph, layers: list[Contribution], t: float = 0.0, *,
                  joint_limits: np.ndarray | None = None, budget: float | None = None) -> None:
         self.skeleton = graph.skeleton
-        self.limits = source_limits(graph)
-        if joint_limits is not None:  # [creature.body] joint_limits narrow the source's own range
-            self.limits = Limits(np.minimum(self.limits.range, joint_limits), self.limits.max_speed)
+        self.limits = Limits(held_range(graph, joint_limits), source_limits(graph).max_speed)
         self.blend = Blend(self.skeleton.joint_count, budget=np.inf if budget is None else np.radians(budget))
         self._course = quat.identity((self.skeleton.joint_count,))
         self.blend.start(Contribution("course", lambda _t: self._course, fade=0.0), t)

@@ -559,6 +559,7 @@ def load_installation(path: str | Path) -> LoadedInstallation:
         raise ConfigError(path, str(exc)) from None
     specs: list[CreatureSpec] = []
     names: dict[str, int] = {}  # each creature's name: its table's index
+    said: list[str] = []  # what a creature's check found that runs but may be a mistake
     try:
         tables, origin = expand_crowds(settings.creature, settings.seed)
     except CrowdError as exc:
@@ -574,7 +575,7 @@ def load_installation(path: str | Path) -> LoadedInstallation:
             _resolve_body(kinds[kind], spec, path, where, ("creature", i))
             check = getattr(spec, "check_references", None)  # kinds that name parts resolve them now
             if check is not None:
-                check(path, where, ("creature", i))
+                said += check(path, where, ("creature", i)) or []
         except ConfigError as exc:
             raise _crowd_slip(exc, settings.creature[i], i, path, where) from None
         if spec.name in names:
@@ -659,7 +660,7 @@ def load_installation(path: str | Path) -> LoadedInstallation:
     notes = unplayed_layers({spec.name: spec.score for spec in specs if isinstance(getattr(spec, "score", None), ScoreSpec)})
     inst = _with_input_maps(path, settings, specs, where, ("input",) if isinstance(data.get("input"), list)
                             else ("input", "map"))
-    inst.notes = notes
+    inst.notes = notes + list(dict.fromkeys(said))  # a crowd's copies of one table say it once
     if settings.input.trainer is not None and (note := unrewarded(settings.input.trainer, inst.routes)) is not None:
         inst.notes.append(note)
     return inst
