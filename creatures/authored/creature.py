@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 import numpy as np
 
+from creatures import bounds
 from creatures.authored import registry
 from creatures.authored.aural import Aural
 from creatures.authored.check import ROOT
@@ -40,6 +41,7 @@ from creatures.behaviour.motivation import Motivation
 from creatures.behaviour.percept import FunctionPercept, Percept, WhateverPercept
 from creatures.behaviour.proximity import Proximity
 from creatures.behaviour.state_object import StateObject
+from creatures.behaviour.unplaced import Unplaced
 from creatures.behaviour.value import ChainValue, GaussianValue, ProcessedValue, ScalarValue, StanceValue, Value
 from creatures.clock import Clock
 from creatures.config import ConfigError
@@ -639,20 +641,23 @@ class Authored(CreatureKind):
         aural = {}
         if self.aural is not None and self.aural.root is not None:
             aural = {"aural": self.aural.state([self.groups[n] for n in self.spec.learning.aural], set(self.tuples))}
-        shaping = {name: tp.action.to_dict() for name, tp in self.tuples.items() if isinstance(tp.action, GestureShaping)}
+        kept = self.unplaced_parts
+        shaping = kept.carry("shaping", {name: tp.action.to_dict() for name, tp in self.tuples.items()
+                                         if isinstance(tp.action, GestureShaping)})
+        parts = self._parts_state()
         return {
             **aural,
             **({"shaping": shaping} if shaping else {}),
             **({"gestures": [{"shaping": s, **g.to_dict()} for s, g in self.gestures]} if self.gestures else {}),
-            "proximity": {name: g.proximities.to_dict() for name, g in self.groups.items()},
+            "proximity": kept.carry("proximity", {name: g.proximities.to_dict() for name, g in self.groups.items()}),
             "values": {**self.unplaced, **{name: {**self.unplaced.get(name, {}), **g.value_state()}
                                            for name, g in self.groups.items()}},
             "motivation": None if self.motivation is None else self.motivation.to_dict(),
             "phrases": [[[n.time, n.pitch, n.velocity, n.duration] for n in p] for p in self.ear.phrases],
             "phrases_made": self.ear.phrases_made,
             "learnt": list(self._learnt),
-            **({"parts": self._parts_state()} if self._kept else {}),
-            "adverb_models": {n: p.model.to_dict() for n, p in self._adverb_models().items()},
+            **({"parts": parts} if parts else {}),
+            "adverb_models": kept.carry("adverb_models", {n: p.model.to_dict() for n, p in self._adverb_models().items()}),
         }
 
     def restore(self, state: dict[str, Any]) -> None:
@@ -666,36 +671,39 @@ class Authored(CreatureKind):
                 self._phrase_tuple(int(number))
         if "aural" in state and self.aural is not None and self.aural.root is not None:
             self.aural.restore(state["aural"], self.groups)
+        kept = self.unplaced_parts = Unplaced()
         self._restore_shaping(state)
-        for name, data in state.get("proximity", {}).items():
-            if name in self.groups:
-                self.groups[name].proximities.restore(data, f"proximity.{name}")
+        for name, data in kept.place("proximity", state.get("proximity", {}), self.groups, what="proximity table",
+                                     of="action-group", check=lambda data, key: Proximity().restore(data, key)).items():
+            self.groups[name].proximities.restore(data, f"proximity.{name}")
         self.unplaced = {}
         for name, values in state.get("values", {}).items():
             left = self.groups[name].restore_values(values) if name in self.groups else dict(values)
             if left:
                 self.unplaced[name] = left
-        for name, percept in self._adverb_models().items():
-            if name in state.get("adverb_models", {}):
-                percept.model = GaussianModel.from_dict(state["adverb_models"][name])
+        models = self._adverb_models()
+        for name, data in kept.place("adverb_models", state.get("adverb_models", {}), models, what="adverb model",
+                                     of="percept", no="adverb_model percept", check=_adverb_model).items():
+            models[name].model = _adverb_model(data, f"adverb_models.{name}")
         if state.get("motivation") and self.motivation is not None:
             # Levels only: the rates are the config's, so an edited growth takes effect after a restart.
             self.motivation.restore(state["motivation"], now=self.now())
-        parts = state.get("parts", {})
-        if not isinstance(parts, dict):
-            raise ValueError(f"parts must be a table, found {type(parts).__name__}")
-        for (section, name), (_, restore) in self._kept.items():
-            saved = parts.get(section, {})
-            if not isinstance(saved, dict):
-                raise ValueError(f"parts.{section} must be a table, found {type(saved).__name__}")
-            if name in saved:
-                restore(saved[name])
+        parts = bounds.table(state.get("parts", {}), "parts")
+        for section in sorted({section for section, _ in self._kept} | parts.keys()):
+            names = {name: restore for (where, name), (_, restore) in self._kept.items() if where == section}
+            for name, saved in kept.place(f"parts.{section}", parts.get(section, {}), names, what="state",
+                                          of=section.removesuffix("s")).items():
+                names[name](saved)
 
     def _parts_state(self) -> dict[str, dict[str, Any]]:
+        """What each part keeps (:meth:`keep`), by section and name, with what is kept for
+        names no part of this config has."""
         out: dict[str, dict[str, Any]] = {}
         for (section, name), (state, _) in self._kept.items():
             out.setdefault(section, {})[name] = state()
-        return out
+        sections = {section for section, _ in self._kept} | {s.removeprefix("parts.") for s in self.unplaced_parts.kept
+                                                             if s.startswith("parts.")}
+        return {section: self.unplaced_parts.carry(f"parts.{section}", out.get(section, {})) for section in sorted(sections)}
 
     def _restore_shaping(self, state: dict[str, Any]) -> None:
         """Gesture models, then the gestures dispatched from them, again into the body's own
@@ -704,9 +712,9 @@ class Authored(CreatureKind):
         # every shaping tuple the config wrote, even one a dispatched gesture has replaced: its
         # model still judges the gesture's performances (the 'shaped' percept)
         shaping = {name: tp.action for name, tp in self.tuples.items() if isinstance(tp.action, GestureShaping)}
-        for name, data in state.get("shaping", {}).items():
-            if name in shaping:
-                shaping[name].restore(data, f"shaping.{name}")
+        for name, data in self.unplaced_parts.place("shaping", state.get("shaping", {}), shaping, what="shaping",
+                                                    of="tuple", no="shape_gesture tuple").items():
+            shaping[name].restore(data, f"shaping.{name}")
         for k, data in enumerate(state.get("gestures", [])):
             where = f"gestures.{k}"
             name = data.get("shaping") if isinstance(data, dict) else None
@@ -716,6 +724,14 @@ class Authored(CreatureKind):
                 raise ValueError(f"{where}: a gesture needs a body")
             shaping[name].dispatched = gesture = redispatch(self.body.own_graph(), data, where)
             self.leave_behind(name, gesture, restored=True)
+
+
+def _adverb_model(data: Any, key: str) -> GaussianModel:
+    """An Ac percept's saved model (:class:`ValueError` naming ``key`` when damaged)."""
+    try:
+        return GaussianModel.from_dict(bounds.table(data, key))
+    except ValueError as exc:
+        raise ValueError(f"{key}: {exc}") from None
 
 
 class _Arc:

@@ -42,6 +42,7 @@ import numpy as np
 from scipy.linalg import expm
 
 from creatures import bounds
+from creatures.behaviour.unplaced import Unplaced
 
 _between_ticks: ContextVar[bool] = ContextVar("between_ticks", default=False)
 
@@ -101,7 +102,7 @@ class Motivation:
         self.floor = floor
         self.ceiling = ceiling
         self.time = float(start)
-        self.unplaced: dict[str, dict[str, float]] = {}
+        self.unplaced = Unplaced()
         """Saved ``levels`` and ``inputs`` of drives this motivation has none of (a drive renamed
         or removed in the config): kept and saved again (:meth:`to_dict`), so a drive named back
         takes its level back, as a renamed tuple's value is kept."""
@@ -294,7 +295,7 @@ class Motivation:
             "floor": self.floor,
             "ceiling": self.ceiling,
             "time": self.time,
-            **({"unplaced": self.unplaced} if self.unplaced else {}),
+            **({"unplaced": self.unplaced.kept} if self.unplaced.kept else {}),
         }
 
     @classmethod
@@ -334,17 +335,16 @@ class Motivation:
         high = bounds.LARGEST_RATE if self.ceiling is None else self.ceiling
         kept = bounds.table(data.get("unplaced", {}), "motivation.unplaced")
         restored = self.levels.copy(), self.inputs.copy()
-        unplaced: dict[str, dict[str, float]] = {}
+        unplaced = Unplaced()
         for vector, what, (lo, hi) in ((restored[0], "levels", (low, high)),
                                        (restored[1], "inputs", (-bounds.LARGEST_RATE, bounds.LARGEST_RATE))):
-            for where, saved in ((f"motivation.unplaced.{what}", kept.get(what, {})),
-                                 (f"motivation.{what}", data.get(what, {} if what == "inputs" else None))):
-                for name, value in bounds.table(saved, where).items():
-                    number = bounds.number(value, f"{where}.{name}", low=lo, high=hi)
-                    if name in self._index:
-                        vector[self._index[name]] = number
-                    else:  # a drive the config no longer has: kept, not forgotten
-                        unplaced.setdefault(what, {})[name] = number
+            numbers = {name: bounds.number(value, f"{where}.{name}", low=lo, high=hi)
+                       for where, saved in ((f"motivation.unplaced.{what}", kept.get(what, {})),
+                                            (f"motivation.{what}", data.get(what, {} if what == "inputs" else None)))
+                       for name, value in bounds.table(saved, where).items()}
+            # a drive the config no longer has: kept, not forgotten
+            for name, number in unplaced.place(what, numbers, self._index, what="level", of="drive").items():
+                vector[self._index[name]] = number
         self.levels, self.inputs, self.unplaced = *restored, unplaced
         self.time = float(now)
 

@@ -19,6 +19,7 @@ from creatures.bounds import FINITE
 from creatures.room.spec import VehicleSpec
 
 from creatures.behaviour.action_group import ActionGroup
+from creatures.behaviour.unplaced import Unplaced
 
 if TYPE_CHECKING:
     from pathlib import Path
@@ -94,6 +95,9 @@ class CreatureKind(ABC):
         self.name = spec.name
         self.world = world
         self.rng = rng
+        self.unplaced_parts = Unplaced()
+        """What :meth:`restore` was given under names this config has none of (a group, percept
+        or tuple renamed or removed): kept, carried into :meth:`state`, said at load."""
 
     @classmethod
     def drive_names(cls, spec: CreatureSpec) -> tuple[str, ...]:

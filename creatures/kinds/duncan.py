@@ -382,7 +382,7 @@ class Duncan(CreatureKind):
 
     # -- persistence ----------------------------------------------------------------------
     def state(self) -> dict[str, Any]:
-        return {"values": self.group.value_state(), "beg": self.beg_height.to_dict(), "tree": tree_state(self.heard)}
+        return {"values": self.unplaced_parts.carry("values", self.group.value_state()), "beg": self.beg_height.to_dict(), "tree": tree_state(self.heard)}
 
     def restore(self, state: dict[str, Any]) -> None:
         """Values, the sound classes and the beg model's samples come back. A cue's tuples
@@ -402,8 +402,10 @@ class Duncan(CreatureKind):
                 for trick in self.spec.tricks:
                     self.group.add(self._hypothesis(cls, trick))
             self.heard._born = tree._born  # a class formed from now on takes a new name
-        if "values" in state:
-            self.group.restore_values(state["values"])
+        if "values" in state:  # a trick's tuples the config no longer has (its trick renamed or removed): kept
+            self.group.restore_values(self.unplaced_parts.place("values", state["values"],
+                                                                {tp.name for tp in self.group.tuples},
+                                                                what="value", of="tuple"))
         if "beg" in state:
             saved = GaussianModel.from_dict(state["beg"])  # checks every number
             b = self.spec.beg
