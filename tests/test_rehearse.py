@@ -278,3 +278,24 @@ def test_the_command_reads_every_config_and_its_json_folder_before_rehearsing(tm
     assert f"there is no folder {missing.parent}" in said.err and "rehearsed" not in said.err, said.err
     assert main(["rehearse", str(config), "--days", "1", "--json", str(tmp_path / "r.json")]) == 0
     assert [p.name for p in tmp_path.glob("*.json*")] == ["r.json"]  # no temporary file left beside it
+
+
+def test_a_rehearsal_file_the_week_does_not_play_is_said_once(tmp_path: Path, capsys):
+    """flock's ``[[input.map]] file = "flock-rehearsal.csv"`` (a visitor's walk, timed from a
+    run's start) fed its offline runs; a rehearsed week never played a row of it and said
+    nothing, so its author could think the week had heard it. It is not played (its rows are one
+    take from a run's start; the week's visitors are [rehearse]'s, and it starts on a closed
+    Monday night): the command says so once, before the week, naming the file and its line."""
+    config = tmp_path / "exchange.toml"
+    (tmp_path / "walk.csv").write_text("1,/clap,1\n2,/clap,1\n")
+    shipped = installations.path("exchange").read_text()
+    hours = '[rehearse]\nhours = { opens = "10:00", closes = "10:01" }'
+    config.write_text(shipped.replace("[rehearse]", hours, 1) + '\n[[input.map]]\nfile = "walk.csv"\n\n'
+                      '[[input.map]]\nosc = "/clap"\nto = "reward"\n')
+    assert main(["rehearse", str(config), "--days", "2"]) == 0
+    err = capsys.readouterr().err.splitlines()
+    line = config.read_text().splitlines().index('file = "walk.csv"') + 1
+    assert err[0] == (f"{config}:{line}: input.map.0.file: the rehearsal file 'walk.csv' (2 rows) is not played in a "
+                      "rehearsed week: its rows are one take timed from a run's start (`creatures offline` and live "
+                      "runs play it); the week's visitors are [rehearse]'s"), err
+    assert sum("walk.csv" in e for e in err) == 1 and len(err) == 3  # once, then each of the two opening hours

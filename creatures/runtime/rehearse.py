@@ -160,6 +160,8 @@ class Plan:
     days: int
     spans: list[tuple[float, float]]
     corpus: list[Phrase]
+    unplayed: list[str] = field(default_factory=list)
+    """What the config feeds a run that the week leaves out, said (:func:`unplayed_files`)."""
 
 
 def plan(inst: LoadedInstallation, days: int | None = None) -> Plan:
@@ -175,7 +177,20 @@ def plan(inst: LoadedInstallation, days: int | None = None) -> Plan:
                                                f"{', '.join(hours.days)}): rehearse more days (--days, "
                                                "[rehearse] days) or set [rehearse] hours")
     corpus = load_corpus(inst.resolve(params.corpus, ("rehearse", "corpus"))) if params.corpus else generated(settings.input.generate == "speech")
-    return Plan(days, spans, corpus)
+    return Plan(days, spans, corpus, unplayed_files(inst))
+
+
+def unplayed_files(inst: LoadedInstallation) -> list[str]:
+    """The config's rehearsal files (``[[input]] file``), each said as not played: its rows are
+    one take timed from a run's start (an offline run plays it from 0 s, a live one from its
+    start), a stand-in for visitors, while a rehearsed week begins on a Monday at midnight,
+    most of it closed, and its visitors are ``[rehearse]``'s. Played at the week's start they
+    would fall in a closed night; played each opening, one take would become every visitor."""
+    return [str(inst.error(("input", "map", i, "file"),
+                           f"the rehearsal file {spec.file!r} ({len(inst.rehearsals[i])} rows) is not played in a "
+                           "rehearsed week: its rows are one take timed from a run's start (`creatures offline` and "
+                           "live runs play it); the week's visitors are [rehearse]'s"))
+            for i, spec in enumerate(inst.settings.input.map) if spec.file is not None]
 
 
 def rehearse(inst: LoadedInstallation, days: int | None = None, *,
@@ -183,8 +198,8 @@ def rehearse(inst: LoadedInstallation, days: int | None = None, *,
              progress: Callable[[str], None] | None = None, planned: Plan | None = None) -> Rehearsal:
     """Rehearse ``inst`` for ``days`` simulated days (default ``[rehearse] days``), or as
     ``planned`` (:func:`plan`); ``taps`` see every events-log record as it is written
-    (nothing is kept for a week); ``progress`` is told each opening hour as it is done (a
-    week takes minutes)."""
+    (nothing is kept for a week); ``progress`` is told first what of the config the week does
+    not play (:func:`unplayed_files`), then each opening hour as it is done (a week takes minutes)."""
     settings = inst.settings
     params = settings.rehearse
     planned = planned or plan(inst, days)
@@ -196,6 +211,8 @@ def rehearse(inst: LoadedInstallation, days: int | None = None, *,
     visitors = Visitors(params, corpus, rng)
     ears = _Ears(sr, rng) if hearing else None
     wall0 = time.perf_counter()
+    for line in planned.unplayed if progress is not None else ():
+        progress(line)
 
     clock, log = SimulatedClock(), EventLog(keep_in_memory=0)  # the taps see every record; none is kept
     session = Session(inst, clock, log, CountingSink())
