@@ -152,3 +152,18 @@ def test_a_duncan_value_of_a_trick_the_config_no_longer_has_is_said_kept_and_tak
                     "duncan in duncan.toml (did you mean 'quiet|sit'?); kept in the state file, and taken "
                     "back if one of that name returns"], said
     assert _state(tmp_path / "duncan.json")["values"]["quiet|sat"]["value"] == 3.5
+
+
+def test_the_aural_tuples_of_a_renamed_group_are_said_and_kept_not_refused(tmp_path):
+    """A soundcreature's learnt aural tuples are saved by group. Saved when its group was
+    called "mian" (since corrected to "main"), the whole file was refused (exit 2: "saved tuples
+    name an unknown group"), and the creature could not start with that config at all."""
+    def rename(state: dict) -> None:
+        for table in (state["aural"]["tuples"], state["aural"]["refined"]):
+            table["mian"] = table.pop("main")
+    said = _saved_renamed(tmp_path, "soundcreatures", "parrot", rename)
+    assert said == [f"{tmp_path / 'parrot.json'}: the saved aural learning of action-group 'mian' matches no "
+                    "action-group of parrot in soundcreatures.toml (did you mean 'main'?); kept in the state file, "
+                    "and taken back if one of that name returns"], said
+    aural = _state(tmp_path / "parrot.json")["aural"]
+    assert {"main", "mian"} == aural["tuples"].keys() == aural["refined"].keys()

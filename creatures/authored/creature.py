@@ -638,10 +638,11 @@ class Authored(CreatureKind):
 
     # -- persistence -------------------------------------------------------------------
     def state(self) -> dict[str, Any]:
+        kept = self.unplaced_parts
         aural = {}
         if self.aural is not None and self.aural.root is not None:
-            aural = {"aural": self.aural.state([self.groups[n] for n in self.spec.learning.aural], set(self.tuples))}
-        kept = self.unplaced_parts
+            heard = self.aural.state([self.groups[n] for n in self.spec.learning.aural], set(self.tuples))
+            aural = {"aural": {**heard, **{key: kept.carry(f"aural.{key}", heard[key]) for key in AURAL_BY_GROUP}}}
         shaping = kept.carry("shaping", {name: tp.action.to_dict() for name, tp in self.tuples.items()
                                          if isinstance(tp.action, GestureShaping)})
         parts = self._parts_state()
@@ -669,9 +670,12 @@ class Authored(CreatureKind):
         for number in state.get("learnt", []):
             if self.spec.learning.phrases is not None and int(number) not in self._learnt:
                 self._phrase_tuple(int(number))
-        if "aural" in state and self.aural is not None and self.aural.root is not None:
-            self.aural.restore(state["aural"], self.groups)
         kept = self.unplaced_parts = Unplaced()
+        if "aural" in state and self.aural is not None and self.aural.root is not None:
+            aural = bounds.table(state["aural"], "aural")
+            self.aural.restore({**aural, **{key: kept.place(f"aural.{key}", aural[key], self.groups, what="aural learning",
+                                                            of="action-group") for key in AURAL_BY_GROUP if key in aural}},
+                               self.groups)
         self._restore_shaping(state)
         for name, data in kept.place("proximity", state.get("proximity", {}), self.groups, what="proximity table",
                                      of="action-group", check=lambda data, key: Proximity().restore(data, key)).items():
@@ -724,6 +728,10 @@ class Authored(CreatureKind):
                 raise ValueError(f"{where}: a gesture needs a body")
             shaping[name].dispatched = gesture = redispatch(self.body.own_graph(), data, where)
             self.leave_behind(name, gesture, restored=True)
+
+
+AURAL_BY_GROUP = ("tuples", "refined")
+"""The keys of the aural state that hold what learning did to each action-group, by its name."""
 
 
 def _adverb_model(data: Any, key: str) -> GaussianModel:
