@@ -8,6 +8,7 @@ and a reload of the creature's state."""
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +28,7 @@ from creatures.persist import StateFileError
 from creatures.runtime.schema import load_installation
 from creatures.runtime.session import Session
 from midi.sinks import MemorySink
+from tests.test_state_renamed_parts import _dog
 
 DOG = Path(__file__).resolve().parents[1] / "installations" / "tutorial" / "dog.toml"
 TICK = 0.05
@@ -284,3 +286,24 @@ def test_merged_gestures_are_renumbered_after_the_targets_own():
     other = {"gestures": [gesture("bow", 90, 5)], "shaping": {"spin": {}}}
     with pytest.raises(StateFileError, match="different bodies"):
         repertoire._merge_gestures(src, other)
+
+
+def test_a_gesture_of_a_renamed_shaping_tuple_is_kept_not_refused(trained, tmp_path):
+    """The shaping tuple renamed in the config ('chase' to 'chaser') after the dog had learnt its
+    gesture: the whole state file was refused ("gestures.0.shaping: no shape_gesture tuple named
+    'chase'"), so the dog could not start with that config. Now the gesture's nodes are
+    dispatched again (a later gesture's nodes follow them), it is kept in every save, said with
+    its shaping, and left behind in its tuple's place when the name returns."""
+    session, _, saved = trained
+    state = tmp_path / "state"
+    shutil.copytree(saved, state)
+    said: list[str] = []
+    renamed = _dog(tmp_path, said, chase="chaser")
+    assert renamed.load_state(state) == ["dog"]
+    assert any("the saved shaping of tuple 'chase' matches no shape_gesture tuple" in line for line in said), said
+    assert len(renamed.creatures[0].body.graph) == len(session.creatures[0].body.graph)
+    renamed.save_state(state)
+    assert [g["shaping"] for g in json.loads((state / "dog.json").read_text())["state"]["gestures"]] == ["chase"]
+    back = _dog(tmp_path, [])  # the name returns: the gesture is performed in the shaping tuple's place again
+    back.load_state(state)
+    assert isinstance(back.creatures[0].groups["main"].find("chase tail").action, PerformGesture)

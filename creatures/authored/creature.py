@@ -712,7 +712,8 @@ class Authored(CreatureKind):
     def _restore_shaping(self, state: dict[str, Any]) -> None:
         """Gesture models, then the gestures dispatched from them, again into the body's own
         graph (same base graph, same order: the same new nodes), each left behind in its
-        shaping tuple's place."""
+        shaping tuple's place; one of a shaping tuple the config no longer has is dispatched
+        and kept, not left behind."""
         # every shaping tuple the config wrote, even one a dispatched gesture has replaced: its
         # model still judges the gesture's performances (the 'shaped' percept)
         shaping = {name: tp.action for name, tp in self.tuples.items() if isinstance(tp.action, GestureShaping)}
@@ -722,12 +723,16 @@ class Authored(CreatureKind):
         for k, data in enumerate(state.get("gestures", [])):
             where = f"gestures.{k}"
             name = data.get("shaping") if isinstance(data, dict) else None
-            if name not in shaping:
-                raise ValueError(f"{where}.shaping: no shape_gesture tuple named {name!r} in this creature")
+            if not isinstance(name, str) or not name or name in self.tuples and name not in shaping:
+                raise ValueError(f"{where}.shaping: {name!r} is not a shape_gesture tuple of this creature")
             if self.body is None:
                 raise ValueError(f"{where}: a gesture needs a body")
-            shaping[name].dispatched = gesture = redispatch(self.body.own_graph(), data, where)
-            self.leave_behind(name, gesture, restored=True)
+            gesture = redispatch(self.body.own_graph(), data, where)
+            if name in shaping:
+                shaping[name].dispatched = gesture
+                self.leave_behind(name, gesture, restored=True)
+            else:  # its tuple renamed or removed (its shaping said so): dispatched all the same, for the
+                self.gestures.append((name, gesture))  # nodes of later ones, and kept for the name's return
 
 
 AURAL_BY_GROUP = ("tuples", "refined")
