@@ -84,11 +84,11 @@ def test_the_parts_of_a_renamed_group_percept_and_tuple_are_said_kept_and_taken_
     renamed.load_state(state)
     path = state / "dog.json"
     assert said == [
-        f"{path}: saved values of main.chase, main.follow, main.idle, main.praise, main.treat match no tuple in "
-        "dog.toml (renamed or removed?); kept in the state file, and taken back if a tuple of that name returns",
         f"{path}: the saved shaping of tuple 'chase' matches no shape_gesture tuple of dog in dog.toml "
         "(did you mean 'chaser'?); kept in the state file, and taken back if one of that name returns",
         f"{path}: the saved proximity table of action-group 'main' matches no action-group of dog in dog.toml "
+        "(did you mean 'mainly'?); kept in the state file, and taken back if one of that name returns",
+        f"{path}: the saved value table of action-group 'main' matches no action-group of dog in dog.toml "
         "(did you mean 'mainly'?); kept in the state file, and taken back if one of that name returns",
         f"{path}: the saved adverb model of percept 'lift' matches no adverb_model percept of dog in dog.toml "
         "(did you mean 'lifted'?); kept in the state file, and taken back if one of that name returns",
@@ -103,9 +103,9 @@ def test_the_parts_of_a_renamed_group_percept_and_tuple_are_said_kept_and_taken_
     back = _dog(tmp_path, said)  # the config's names back as they were: each takes its part back
     back.load_state(state)
     # what the renamed run learnt under its names is, in turn, said and kept
-    assert [next(w for w in ("values of mainly.", "'chaser' matches", "'mainly' matches", "'lifted' matches")
-                 if w in line) for line in said] == ["values of mainly.", "'chaser' matches", "'mainly' matches",
-                                                     "'lifted' matches"], said
+    assert [line.split(" matches ")[0].split(": ")[1] for line in said] == [
+        "the saved shaping of tuple 'chaser'", "the saved proximity table of action-group 'mainly'",
+        "the saved value table of action-group 'mainly'", "the saved adverb model of percept 'lifted'"], said
     dog = back.world.creatures[0]
     assert dog.groups["main"].proximities.table[("follow", "idle")] == 0.42
     assert dog.percepts["lift"].model.buffer.tolist() == learnt["adverb_models"]["lift"]["buffer"]
@@ -167,3 +167,15 @@ def test_the_aural_tuples_of_a_renamed_group_are_said_and_kept_not_refused(tmp_p
                     "and taken back if one of that name returns"], said
     aural = _state(tmp_path / "parrot.json")["aural"]
     assert {"main", "mian"} == aural["tuples"].keys() == aural["refined"].keys()
+
+
+def test_a_tuple_value_saved_under_a_misspelt_name_is_said_with_the_nearest_tuple(tmp_path):
+    """"saved values of main.wandr match no tuple in exchange.toml (renamed or removed?)": the
+    one kept part whose line did not name the tuple the saved name was nearest."""
+    def rename(state: dict) -> None:
+        state["values"]["main"]["wandr"] = state["values"]["main"].pop("wander")
+    said = _saved_renamed(tmp_path, "exchange", "ada", rename)
+    assert said == [f"{tmp_path / 'ada.json'}: the saved value of tuple 'wandr' in action-group 'main' matches no "
+                    "tuple of ada in exchange.toml (did you mean 'wander'?); kept in the state file, and taken back "
+                    "if one of that name returns"], said
+    assert "wandr" in _state(tmp_path / "ada.json")["values"]["main"]

@@ -114,9 +114,6 @@ class Authored(CreatureKind):
         learning = spec.learning
         self.ear = Ear(phrase_gap=learning.phrase_gap, max_phrases=learning.max_phrases)
         self.motivation = self._drives(spec)
-        self.unplaced: dict[str, dict[str, Any]] = {}
-        """Saved tuple values (by group, then tuple) that no tuple of this config is named for:
-        kept and saved again, so a tuple renamed by mistake and named back gets its value back."""
         # Each drive's impulse per note heard and per note played, the non-zero ones (every
         # note reaches every ear of a crowd: the spec is not searched for them each time).
         self._impulses = {which: [(name, getattr(d, which)) for name, d in spec.drives.items() if getattr(d, which)]
@@ -651,8 +648,8 @@ class Authored(CreatureKind):
             **({"shaping": shaping} if shaping else {}),
             **({"gestures": [{"shaping": s, **g.to_dict()} for s, g in self.gestures]} if self.gestures else {}),
             "proximity": kept.carry("proximity", {name: g.proximities.to_dict() for name, g in self.groups.items()}),
-            "values": {**self.unplaced, **{name: {**self.unplaced.get(name, {}), **g.value_state()}
-                                           for name, g in self.groups.items()}},
+            "values": kept.carry("values", {name: kept.carry(f"values.{name}", g.value_state())
+                                            for name, g in self.groups.items()}),
             "motivation": None if self.motivation is None else self.motivation.to_dict(),
             "phrases": [[[n.time, n.pitch, n.velocity, n.duration] for n in p] for p in self.ear.phrases],
             "phrases_made": self.ear.phrases_made,
@@ -680,11 +677,11 @@ class Authored(CreatureKind):
         for name, data in kept.place("proximity", state.get("proximity", {}), self.groups, what="proximity table",
                                      of="action-group", check=lambda data, key: Proximity().restore(data, key)).items():
             self.groups[name].proximities.restore(data, f"proximity.{name}")
-        self.unplaced = {}
-        for name, values in state.get("values", {}).items():
-            left = self.groups[name].restore_values(values) if name in self.groups else dict(values)
-            if left:
-                self.unplaced[name] = left
+        for name, values in kept.place("values", state.get("values", {}), self.groups, what="value table",
+                                       of="action-group").items():
+            group = self.groups[name]
+            group.restore_values(kept.place(f"values.{name}", values, {tp.name for tp in group.tuples}, what="value",
+                                            of="tuple", within=f" in action-group {name!r}"))
         models = self._adverb_models()
         for name, data in kept.place("adverb_models", state.get("adverb_models", {}), models, what="adverb model",
                                      of="percept", no="adverb_model percept", check=_adverb_model).items():

@@ -644,14 +644,12 @@ class ActionGroup:
         """Every tuple's learned value, by tuple name (JSON-able)."""
         return {tp.name: tp.value.to_dict() for tp in self.tuples}
 
-    def restore_values(self, saved: dict[str, dict[str, Any]]) -> dict[str, dict[str, Any]]:
-        """Take back values saved by :meth:`value_state`; tuples not saved keep theirs. Returns
-        the saved values no tuple of this group is named for (a tuple renamed or removed)."""
+    def restore_values(self, saved: dict[str, dict[str, Any]]) -> None:
+        """Take back values saved by :meth:`value_state`; tuples not saved keep theirs, and a
+        saved value no tuple is named for is the caller's to keep (creatures/behaviour/unplaced.py)."""
         for tp in self.tuples:
             if tp.name in saved:
                 tp.value = reattach(value_from_dict(saved[tp.name]), tp.value)
-        names = {tp.name for tp in self.tuples}
-        return {name: value for name, value in saved.items() if name not in names}
 
     def _emit(self, event: str, t: float, **fields: Any) -> None:
         if self.on_event is not None:

@@ -21,12 +21,14 @@ from creatures import bounds
 
 @dataclass(frozen=True)
 class Unmatched:
-    """One saved entry no part takes, as the run says it: ``the saved {what} of {of} {name!r}
-    matches no {no} …``, the nearest of ``among`` (the config's names of its kind) named."""
+    """One saved entry no part takes, as the run says it: ``the saved {what} of {of}
+    {name!r}{within} matches no {no} …``, the nearest of ``among`` (the config's names of its
+    kind) named."""
 
     what: str
     of: str
     name: str
+    within: str
     no: str
     among: tuple[str, ...]
 
@@ -35,6 +37,7 @@ class Unmatched:
 class _Section:
     what: str
     of: str
+    within: str
     no: str
     among: tuple[str, ...]
 
@@ -49,11 +52,11 @@ class Unplaced:
         self._sections: dict[str, _Section] = {}
 
     def place(self, section: str, saved: Any, names: Collection[str], *, what: str, of: str, no: str | None = None,
-              check: Callable[[Any, str], object] | None = None) -> dict[str, Any]:
+              within: str = "", check: Callable[[Any, str], object] | None = None) -> dict[str, Any]:
         """The entries of ``saved`` (a table; :class:`ValueError` naming ``section`` if not)
         whose name is one of ``names``; the others replace what ``section`` kept, each given to
         ``check(entry, key)`` first, so a damaged one is refused naming its key as one a part
-        takes is. ``what``, ``of`` and ``no`` (``of`` when not given) say them (:class:`Unmatched`)."""
+        takes is. ``what``, ``of``, ``within`` and ``no`` (``of`` when not given) say them (:class:`Unmatched`)."""
         placed: dict[str, Any] = {}
         kept: dict[str, Any] = {}
         for name, entry in bounds.table(saved, section).items():
@@ -66,7 +69,7 @@ class Unplaced:
         self.kept.pop(section, None)
         if kept:
             self.kept[section] = kept
-            self._sections[section] = _Section(what, of, no or of, tuple(sorted(names)))
+            self._sections[section] = _Section(what, of, within, no or of, tuple(sorted(names)))
         return placed
 
     def carry(self, section: str, current: Mapping[str, Any]) -> dict[str, Any]:
@@ -81,7 +84,7 @@ class Unplaced:
         for section, kept in self.kept.items():
             how = self._sections[section]
             for name in sorted(kept):
-                unmatched = Unmatched(how.what, how.of, name, how.no, how.among)
+                unmatched = Unmatched(how.what, how.of, name, how.within, how.no, how.among)
                 if unmatched not in seen:
                     seen.add(unmatched)
                     yield unmatched

@@ -333,19 +333,14 @@ class Session:
                      "of that name returns")
 
     def _report_unplaced(self, path: Path, creature: Any) -> None:
-        """Say which saved values no tuple of the config takes (a tuple renamed or removed),
-        and which saved drive levels, proximity tables, adverb models, shaping and parts' state
-        no drive, group, percept or tuple takes (the nearest named): they are kept in the
-        state, not lost, but the creature starts those parts afresh."""
-        unplaced = getattr(creature, "unplaced", {})
-        if unplaced:
-            names = ", ".join(f"{group}.{name}" for group, values in unplaced.items() for name in values)
-            self.say(f"{path}: saved values of {names} match no tuple in {self.inst.path.name} (renamed or removed?); "
-                     "kept in the state file, and taken back if a tuple of that name returns")
+        """Say which saved drive levels, tuple values, proximity tables, adverb models, shaping
+        and parts' state no drive, group, percept or tuple of the config takes (one renamed or
+        removed), the nearest named: they are kept in the state, not lost, but the creature
+        starts those parts afresh."""
         motivation = getattr(creature, "motivation", None)
         for kept in (getattr(motivation, "unplaced", None), creature.unplaced_parts):
             for part in kept.said() if kept is not None else ():
-                self.say(f"{path}: the saved {part.what} of {part.of} {part.name!r} matches no {part.no} of "
+                self.say(f"{path}: the saved {part.what} of {part.of} {part.name!r}{part.within} matches no {part.no} of "
                          f"{creature.name} in {self.inst.path.name}{nearest(part.name, part.among, part.no + 's')}; "
                          "kept in the state file, and taken back if one of that name returns")
 
