@@ -178,7 +178,11 @@ def _load_with(tmp_path: Path, table: str) -> None:
      r"duncan\.toml:\d+: input\.trainer\.shaping: 'duncan' holds 'sit' at no height to shape"),
     ('[input.trainer]\ncreature = "duncan"\ncues = { seated = "sit" }\nwindows = { begg = 4.0 }\n',
      r"duncan\.toml:\d+: input\.trainer\.windows\.begg: no cue asks for 'begg'"),
-], ids=["unknown key", "creature", "trick", "one vowel", "same word", "every", "shaping", "windows"])
+    ('[input.trainer]\ncreature = "duncan"\ncues = { seated = "sit" }\nlevel = [0.0, 1.0]\n',
+     r"duncan\.toml:\d+: input\.trainer\.level: .*within 0\.001\.\.0\.5"),
+    ('[input.trainer]\ncreature = "duncan"\ncues = { seated = "sit" }\npitch = [nan, 120.0]\n',
+     r"duncan\.toml:\d+: input\.trainer\.pitch"),
+], ids=["unknown key", "creature", "trick", "one vowel", "same word", "every", "shaping", "windows", "level", "nan"])
 def test_a_wrong_trainer_is_a_config_error_at_its_line(tmp_path, table, error):
     with pytest.raises(ConfigError, match=error):
         _load_with(tmp_path, table)

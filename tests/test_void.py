@@ -601,4 +601,6 @@ def test_a_layer_no_score_plays_is_said_at_the_start_and_kept_in_the_events_log(
                       say=said.append)
     assert len(said) == 1 and "'theem'" in said[0] and "did you mean 'theme'" in said[0]
     assert "'band' or 'drums'" in said[0] and "drone" not in said[0]  # drums plays the drone
-    assert [r["note"] for r in session.world.log.records if r["kind"] == "config"] == said
+    session.begin(title="void", mode="offline")
+    records = session.world.log.records
+    assert records[0]["kind"] == "run" and [r["note"] for r in records if r["kind"] == "config"] == said

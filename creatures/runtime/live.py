@@ -506,9 +506,8 @@ def run_live(
         return bool(why)
 
     previous = {sig: signal.signal(sig, stop) for sig in (signal.SIGTERM, signal.SIGHUP)}
-    session.world.emit("run", title=settings.title, mode="live", seed=settings.seed,
-                       creatures=[c.name for c in session.creatures], restored=summary.restored,
-                       config=str(inst.path), epoch=round(epoch, 6))  # Unix time of clock time 0
+    session.begin(title=settings.title, mode="live", seed=settings.seed, restored=summary.restored,
+                  config=str(inst.path), epoch=round(epoch, 6))  # Unix time of clock time 0
     # Poses into the events log as an offline run writes them, so `creatures view` and `creatures
     # render` replay a live run too (bounded by POSE_BUDGET): at log_fps the tick rounds each body's
     # joints into an event; the supervisor's thread writes the log, never the tick.

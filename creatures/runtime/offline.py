@@ -162,8 +162,7 @@ def _run(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path 
     for i, spec in enumerate(settings.input.map):
         if spec.file is not None and (cut := unplayed(spec.file, inst.rehearsals[i], duration)) is not None:
             messages.append(cut)
-    session.world.emit("run", title=settings.title, mode="offline", duration=duration, seed=settings.seed,
-                       creatures=[c.name for c in session.creatures], config=str(inst.path))
+    session.begin(title=settings.title, mode="offline", duration=duration, seed=settings.seed, config=str(inst.path))
     poses = PoseLog(settings.view.log_fps, session.world, messages.append) if settings.view.log_fps else None
     notes, samples = _inputs(inst, audio, midi, duration, session.input_rng, messages.append)
     trainer = Trainer.of(inst, session)  # says cues into what is heard and clicks through the maps

@@ -67,9 +67,8 @@ class Session:
         self.log = log
         self.scheduler = NoteScheduler(sink, clock)
         self.world = World(clock, log, self.scheduler, HeardPulse(settings.pulse.prior, settings.pulse.readings))
-        for note in inst.notes:  # what loading found that may be a mistake: said, and kept with the run
+        for note in inst.notes:  # what loading found that may be a mistake: said now, logged by begin()
             say(note)
-            self.world.emit("config", note=note)
         # The [[input]] maps; their sensors exist before the creatures, which may model them.
         self.inputs = InputRouter(inst.routes, self.world, say)
         seeds = np.random.SeedSequence(settings.seed).spawn(len(inst.specs) + 1)
@@ -106,6 +105,14 @@ class Session:
         self.ticks = 0
         self._set_up_channels()
         self._cc = self._cc_streams()
+
+    def begin(self, **run: object) -> None:
+        """The events log's first records: ``run`` (``run``'s fields and the creatures' names),
+        then each ``config`` note loading found (kept with the run). A log begins with its run:
+        the notes, logged while the session was made, came before it (void's dancers' hip note)."""
+        self.world.emit("run", **run, creatures=[c.name for c in self.creatures])
+        for note in self.inst.notes:
+            self.world.emit("config", note=note)
 
     def step(self, t: float, frames: int, recorded: np.ndarray | None, *, audio: bool = True,
              transcribed: bool = False) -> np.ndarray | None:
