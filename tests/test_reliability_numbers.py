@@ -77,9 +77,7 @@ def test_a_non_finite_or_huge_number_is_refused_at_its_key_and_line(tmp_path, na
 
 VALIDATED = {"AudioSection.input_device": "an index or name looked up among the devices present",
              "AudioSection.output_device": "an index or name looked up among the devices present",
-             "OscSection.peers": "host:port strings, no numbers (the network's own checks)",
-             **{f"TrainerSection.{key}": "a range held within its bounds by TrainerSection._ranges"
-                for key in ("every", "pitch", "stretch", "level")}}
+             "OscSection.peers": "host:port strings, no numbers (the network's own checks)"}
 
 
 def _unbounded(annotation: object, metadata: list) -> list[str]:

@@ -20,7 +20,7 @@ each other; the ear's radius is 0.36.)
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any
+from typing import TYPE_CHECKING, Annotated
 
 from pydantic import BaseModel, Field, field_validator, model_validator
 
@@ -37,7 +37,12 @@ LONGEST_CUE = 1.0
 gap between two cues leaves this before the first cue's window."""
 
 
-Seconds = Annotated[float, Field(gt=0, le=60)]
+Window = Annotated[float, Field(gt=0, le=60)]
+Every = Annotated[float, Field(ge=0.5, le=3600.0)]
+Pitch = Annotated[float, Field(ge=50.0, le=400.0)]
+Stretch = Annotated[float, Field(ge=0.5, le=1.5)]
+Level = Annotated[float, Field(ge=0.001, le=0.5)]
+"""The ranges' ends, each bounded as every number of the schema is (tests/test_reliability_numbers.py)."""
 
 
 LIVE = ("[input.trainer] is for offline runs: live, a person says the cues into the microphone and clicks "
@@ -64,12 +69,12 @@ class TrainerSection(BaseModel):
                                              "a cue is said as one formant word of its vowels, so it needs two or "
                                              "more that change (\"sit\", one vowel, is heard as no word in "
                                              "particular: say \"seated\")")
-    every: tuple[float, float] = Field((6.0, 8.0), description="seconds from one cue to the next, drawn from "
+    every: tuple[Every, Every] = Field((6.0, 8.0), description="seconds from one cue to the next, drawn from "
                                                                "this range, within 0.5..3600 (the first comes as long "
                                                                "after the start)")
     window: float = Field(2.0, gt=0, le=60, description="seconds after a cue has been said within which the trick "
                                                         "held is clicked")
-    windows: dict[str, Seconds] = Field({"beg": 4.0}, description="tricks that take longer to get to, with their "
+    windows: dict[str, Window] = Field({"beg": 4.0}, description="tricks that take longer to get to, with their "
                                                                 "own window (the default's tricks no cue asks for "
                                                                 "are dropped)")
     shaping: str | None = Field("beg", description="the graded trick it shapes (Galbicka's percentile schedule): "
@@ -79,19 +84,15 @@ class TrainerSection(BaseModel):
     click: str = Field("/click", pattern=r"^/[^\s#*,?\[\]{}]*$",
                        description="the OSC address its clicks send through the [[input]] maps (the same path "
                                    "as a real clicker's; a map with to = \"reward\" must take it)")
-    pitch: tuple[float, float] = Field((100.0, 150.0), description="its voice's pitch range, Hz, within 50..400 "
+    pitch: tuple[Pitch, Pitch] = Field((100.0, 150.0), description="its voice's pitch range, Hz, within 50..400 "
                                                                    "(each cue's drawn from it by the run's seed)")
-    stretch: tuple[float, float] = Field((0.85, 1.2), description="how much slower or faster it says a cue, "
+    stretch: tuple[Stretch, Stretch] = Field((0.85, 1.2), description="how much slower or faster it says a cue, "
                                                                   "a range within 0.5..1.5 (1 = a vowel in 0.15 s)")
-    level: tuple[float, float] = Field((0.05, 0.12), description="loudness of a cue, RMS, a range within 0.001..0.5")
+    level: tuple[Level, Level] = Field((0.05, 0.12), description="loudness of a cue, RMS, a range within 0.001..0.5")
 
     @field_validator("every", "pitch", "stretch", "level")
     @classmethod
-    def _ranges(cls, value: tuple[float, float], info: Any) -> tuple[float, float]:
-        low = {"every": 0.5, "pitch": 50.0, "stretch": 0.5, "level": 0.001}[info.field_name]
-        high = {"every": 3600.0, "pitch": 400.0, "stretch": 1.5, "level": 0.5}[info.field_name]
-        if not (low <= value[0] and value[1] <= high):
-            raise ValueError(f"within {low:g}..{high:g}")
+    def _ranges(cls, value: tuple[float, float]) -> tuple[float, float]:
         return _span(value)
 
     @field_validator("cues")
