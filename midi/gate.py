@@ -12,7 +12,11 @@ next when it filled, note-offs with the rest, and what stayed would arrive late.
 message is never dropped: the note-off of a note that was let in (a note-on of velocity 0
 included), which passes without a token; dropped, it would leave the note held for ever. A
 note-off of a note not let in (dropped, or pressed before the port opened) spends a token as
-any message does.
+any message does. A channel-mode message that ends every note of its channel (All Sound Off,
+All Notes Off and the mode changes that imply it: CC 120 and 123–127, a controller's panic
+button) passes the same way when that channel holds notes let in, and they are all ended: a
+flood must not leave a panicking player's notes held. On a channel holding none it spends a
+token, so a flood of them is bounded like any other.
 """
 
 from __future__ import annotations
@@ -23,6 +27,10 @@ import mido
 
 from midi.notes import is_note_off
 from midi.peer_table import Bucket
+
+ENDS_EVERY_NOTE = frozenset({120, 123, 124, 125, 126, 127})
+"""Channel-mode controllers that end every note of their channel (MIDI 1.0: All Sound Off,
+All Notes Off, Omni Off/On, Mono On, Poly On)."""
 
 BURST = 0.5
 """Seconds of ``max_rate`` taken at once after a quiet spell: at the default 500 a second, 250
@@ -39,11 +47,18 @@ class MidiGate:
         self._held: Counter[tuple[int, int]] = Counter()  # (channel, note) -> note-ons let in, not yet ended
 
     def admit(self, msg: mido.Message, t: float) -> bool:
-        """Whether ``msg`` passes: a note-off of a note let in always does, without a token;
-        any other message if the bucket holds one, which it spends."""
+        """Whether ``msg`` passes: a note-off of a note let in always does, without a token, and
+        so does a message ending every note of a channel holding notes let in; any other message
+        if the bucket holds one, which it spends."""
         if is_note_off(msg) and self._held[(msg.channel, msg.note)]:
             self._held[(msg.channel, msg.note)] -= 1
             return True
+        if msg.type == "control_change" and msg.control in ENDS_EVERY_NOTE:
+            held = [key for key, count in self._held.items() if key[0] == msg.channel and count]
+            for key in held:
+                del self._held[key]
+            if held:
+                return True
         if not self._budget.take(t):
             return False
         if msg.type == "note_on":  # not a note-off (above): a key went down

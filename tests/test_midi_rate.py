@@ -137,3 +137,27 @@ def test_the_run_summary_and_the_inputs_event_say_what_max_rate_dropped(tmp_path
     assert f"{2 * taken} mapped, 0 unmapped, 0 malformed, {2 * (2_000 - taken)} throttled" in capsys.readouterr().out
     counted = [e for e in map(json.loads, log.read_text().splitlines()) if e["kind"] == "inputs"][-1]
     assert counted["throttled midi"] == 2 * (2_000 - taken)
+
+
+def test_a_panic_all_notes_off_passes_a_spent_budget_on_a_channel_holding_notes_and_ends_them(tmp_path):
+    """CC 123 (or 120, 124–127) ends every note of its channel: on a channel holding notes let in
+    it passes without a token, as their note-offs would, and those notes are no longer held (their
+    late note-offs spend the budget as any message); on a channel holding none it spends one."""
+    session, inputs, keys, clock = colony(tmp_path, '\n[[input]]\nmidi = "cc"\ncontrol = 123\nto = "sensor"\nname = "panic"\n')
+    for n in (48, 52, 55):
+        keys.inject(on(n, channel=3))
+    clock.advance(0.02)
+    assert inputs.poll(clock.now()) == 3
+    for i in range(10_000):  # a broken pad spends the budget
+        keys.inject(on(36 + i % 12, channel=9))
+    keys.inject(mido.Message("control_change", channel=3, control=123, value=0))  # the panic button
+    keys.inject(mido.Message("control_change", channel=5, control=123, value=0))  # a channel holding nothing
+    for n in (48, 52, 55):  # their note-offs after it: those notes already ended
+        keys.inject(off(n, channel=3))
+    inputs.poll(clock.now())
+    assert len(session.world.sensors["panic"]) == 1  # channel 3's passed, channel 5's was throttled
+    inputs.close()
+    counted = counts(session)
+    budget = int(session.inst.settings.midi.max_rate * BURST)
+    assert counted["mapped midi"] == budget + 1  # 3 chord notes + 247 of the pad's, and the panic
+    assert counted["throttled midi"] == 10_000 - (budget - 3) + 1 + 3
