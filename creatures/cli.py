@@ -763,11 +763,15 @@ def _demo_options(parser: argparse.ArgumentParser) -> None:
 
     parser.add_argument("name", nargs="?", default="exchange", help=f"one of {installations.names()}")
     parser.add_argument("--out", type=Path, default=Path("creatures-demo"), help="output directory")
-    parser.add_argument("--duration", type=_seconds(LONGEST_OFFLINE), default=30.0, help="simulated seconds")
+    parser.add_argument("--duration", type=_seconds(LONGEST_OFFLINE),
+                        help="simulated seconds (default: the piece's own, its config's duration)")
 
 
 @command("demo", "run a shipped installation offline on generated input (no hardware needed)", _demo_options)
 def _demo(args: argparse.Namespace) -> int:
+    """A piece runs as long as it was composed (its config's ``duration``) unless ``--duration``
+    says otherwise: one 30 s default for every piece (until 2026-12-07) showed Duncan four cues
+    and no learning, and cut void's 180 s and cadence's 120 s short."""
     import installations
 
     try:

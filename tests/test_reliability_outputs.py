@@ -905,3 +905,21 @@ def test_a_midi_file_the_run_hears_nothing_of_is_said(config, tmp_path, capsys):
     assert f"{late}: none of its 1 notes falls within the run's 1 s (the first at 5.0 s)" in capsys.readouterr().out
     assert _offline(config, tmp_path / "c", 6.0, "--midi", str(late)) == 0
     assert "late.mid" not in capsys.readouterr().out.split("wrote")[0]
+
+
+def test_the_demo_runs_a_piece_as_long_as_its_config_says(tmp_path, monkeypatch, capsys):
+    """One 30 s default for every piece showed Duncan four cues and no learning: a piece runs
+    its own ``duration`` unless ``--duration`` says otherwise."""
+    import shutil
+
+    import installations
+
+    shipped = tmp_path / "shipped"
+    shutil.copytree(installations.HERE / "tutorial", shipped / "tutorial")
+    heron = shipped / "tutorial" / "heron-1.toml"
+    heron.write_text(heron.read_text(encoding="utf-8").replace("duration = 120.0", "duration = 2.5"), encoding="utf-8")
+    monkeypatch.setattr(installations, "HERE", shipped)
+    assert main(["demo", "tutorial/heron-1", "--out", str(tmp_path / "own")]) == 0
+    assert "2.5 simulated s" in capsys.readouterr().out
+    assert main(["demo", "tutorial/heron-1", "--out", str(tmp_path / "asked"), "--duration", "1.5"]) == 0
+    assert "1.5 simulated s" in capsys.readouterr().out

@@ -241,7 +241,7 @@ def test_the_trainers_voice_goes_on_over_a_recording_block_by_block():
 
 
 def test_a_run_too_short_to_train_says_how_long_would(tmp_path):
-    """The demo's 30 s give the dog a few cues and no chance to learn: the summary says what
+    """30 s (the demo's default until 2026-12-07) give the dog a few cues and no chance to learn: the summary says what
     the trainer did and how long a session trains it, not a silent untrained dog."""
     summary = run_offline(load_installation(_config(tmp_path, SHIPPED.read_text(encoding="utf-8"))), tmp_path / "out",
                           duration=30.0)
