@@ -20,8 +20,9 @@ from __future__ import annotations
 
 import numba
 import numpy as np
-from scipy.fft import rfft
 from scipy.sparse import csr_array
+
+from audio.rfft import magnitudes
 
 RATE = 22050
 """Analysis rate: partials up to 10 kHz, and MIDI 108's fundamental (4.2 kHz) has two."""
@@ -132,7 +133,7 @@ class LogSpectrum:
         self.floors = np.empty_like(rows)
         if self._floor is None:
             self._floor = np.zeros(self.width, dtype=np.float32)  # the first frame sets it
-        _pool(np.abs(rfft(long, axis=1, overwrite_x=True)), np.abs(rfft(short, axis=1, overwrite_x=True)), *self._long, *self._short,
+        _pool(magnitudes(long), magnitudes(short), *self._long, *self._short,
               self._floor, self._rise, self.frames == hops, rows, self.floors)
         return rows
 

@@ -31,9 +31,9 @@ from typing import NamedTuple
 
 import numba
 import numpy as np
-from scipy.fft import rfft
 
 from audio.logspectrum import HOP, RATE
+from audio.rfft import magnitudes
 from audio.salience import HarmonicSalience
 
 SHORT = 512
@@ -131,7 +131,7 @@ class OnsetEar:
         if looked:
             frames = np.stack([stream[ends[i] - self.window_length:ends[i]] for i in looked])
             long = dict(zip(looked, self._spectra(frames)))
-        short = np.abs(rfft(np.stack([stream[end - SHORT:end] for end in ends]) * self._short_window, axis=1))
+        short = magnitudes(np.stack([stream[end - SHORT:end] for end in ends]) * self._short_window)
         found: list[Candidate] = []
         for i in range(hops):
             self._end = ends[i]
@@ -142,7 +142,7 @@ class OnsetEar:
     def _spectra(self, frames: np.ndarray) -> np.ndarray:
         """Magnitude spectra (zero-padded) of window-length frames, DC removed."""
         frames = frames - frames.mean(axis=-1, keepdims=True)  # DC offset is no sound
-        return np.abs(rfft(frames * self._window, n=self.n_fft, axis=-1))
+        return magnitudes(frames * self._window, self.n_fft)
 
     def _step(self, long: np.ndarray | None, short: np.ndarray) -> list[Candidate]:
         """One hop; ``long`` is its long spectrum on every NOISE_EVERY-th hop, else ``None``."""
