@@ -440,6 +440,38 @@ def test_a_course_replaced_at_once_by_the_next_is_refused_at_load(tmp_path, acti
     assert error.key.startswith("creature.0.tuples.sway.action"), str(error)
 
 
+@pytest.mark.parametrize("text, lost, said", [
+    ('sway: getTo lean; getTo "strike"; wait; end\nlean: getTo "sway right"', "sway right",
+     "whose program 'lean' ends on getTo {'sway right'}"),
+    ("""sway: getTo "sway right"; getTo lean; wait; end\nlean: getTo "strike"; wait""", "sway right",
+     "whose program 'lean' begins with getTo {'strike'}"),
+    ("""sway: getTo lean; getTo "strike"; wait; end\nlean: getTo deeper; end\ndeeper: wait; getTo "sway right"; end""",
+     "sway right", "whose program 'lean' ends on getTo {'deeper'}) (whose program 'deeper' ends on getTo {'sway right'}"),
+])
+def test_a_course_a_called_program_sets_and_the_caller_replaces_at_once_is_refused(tmp_path, text, lost, said):
+    """A call returns in the tick its callee ends: ``getTo lean; getTo "strike"`` with ``lean``
+    ending on ``getTo "sway right"`` never headed for "sway right" (nor did a course before a
+    callee that begins with one), and nothing said so."""
+    action = '{ type = "motor_program", text = """' + text + '""" }'
+    body = DANCER.replace("""{ type = "motor_program", text = 'sway: getToClosest {"sway left"}; wait; """
+                          """getTo "sway right"; wait; end' }""", action)
+    assert action in body
+    error = error_of(write(tmp_path, HEAD + body))
+    assert said in error.message and f"never heads for {lost!r}" in error.message and error.line is not None, str(error)
+
+
+@pytest.mark.parametrize("text", [
+    """sway: getTo lean; getTo "strike"; wait; end\nlean: getTo "sway right"; wait""",
+    """sway: getTo "sway right"; getTo lean; wait; end\nlean: wait; getTo "strike"; wait""",
+    """sway: getTo lean; getTo "strike"; wait; end\nlean: getTo "sway right"; wait; cycle 0""",
+])
+def test_a_call_whose_callee_waits_where_it_meets_the_caller_is_accepted(tmp_path, text):
+    action = '{ type = "motor_program", text = """' + text + '""" }'
+    body = DANCER.replace("""{ type = "motor_program", text = 'sway: getToClosest {"sway left"}; wait; """
+                          """getTo "sway right"; wait; end' }""", action)
+    assert load_installation(write(tmp_path, HEAD + body))
+
+
 def test_a_motor_graph_looping_without_a_wait_is_refused_at_load(tmp_path):
     """Accepted, the loop ``start → b → start`` of two getTo vertices ran 256 statements in the
     first tick and raised RuntimeError ("ran 256 statements without the body moving") out of

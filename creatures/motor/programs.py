@@ -21,10 +21,12 @@ replaced the first in the same tick, so the body never set off for "low", and no
 an author writing "go low, then go high" means both. Refusing keeps the thesis's meaning of
 ``getTo`` (it sets a course and does not wait: ``getTo a; end`` leaves the body on its way, a
 graph branches on where the body is headed) where an implied wait would change it for every
-program, and the fix is one word the message gives. A course then a call of another program
-(``getTo a; getTo sub``) is left alone: what the call does first is the callee's to say. A
-score's pattern generator (creatures/score/program.py) lays its ``getTo`` in turn, and keeps
-that.
+program, and the fix is one word the message gives. A call of another program is judged by
+what the callee does: ``getTo a; getTo sub`` loses ``a`` when ``sub`` begins with a course, and
+``getTo sub; getTo b`` loses the course ``sub`` ends on when it ends without a wait (it returns
+in the same tick, and ``b`` replaces its last course); a callee that waits first, or last, is
+left alone. A score's pattern generator (creatures/score/program.py) lays its ``getTo`` in
+turn, and keeps that.
 
 :class:`MotorProgramGraph` lays the same statements out as vertices: flow starts at the
 vertex ``"start"``, takes at each branch the successor whose target is nearest in the
@@ -41,7 +43,7 @@ import re
 from collections import deque
 from dataclasses import dataclass, field
 from graphlib import CycleError, TopologicalSorter
-from typing import Collection, Protocol, Sequence
+from typing import Callable, Mapping, Protocol, Sequence
 
 import numpy as np
 
@@ -283,17 +285,53 @@ def start_problem(vertices: dict[str, object]) -> str | None:
     return None
 
 
-def replaced_course(first: Statement, then: Statement, programs: Collection[str] = ()) -> str | None:
-    """Why running ``then`` straight after ``first`` loses ``first``'s course, or None: both set
-    a course, so the second replaces the first in the same tick and the body never heads for
-    the first's targets. A call of one of ``programs`` is not judged (the callee may wait first)."""
-    if not (first.sets_course and then.sets_course):
+def replaced_course(first: Statement, then: Statement, programs: Mapping[str, object] | None = None) -> str | None:
+    """Why running ``then`` straight after ``first`` loses a course, or None: both set a course,
+    so the second replaces the first in the same tick and the body never heads for the first's
+    targets. A call of one of ``programs`` stands for the course the callee begins with (as
+    ``then``) or ends on without a wait (as ``first``); a callee that waits there loses nothing."""
+    last, first_via = _course_of(first, programs or {}, _closing)
+    begun, then_via = _course_of(then, programs or {}, _opening)
+    if last is None or begun is None:
         return None
-    if any(isinstance(x, str) and x in programs for x in (*first.targets, *then.targets)):
-        return None
-    return (f"{first} is followed by {then} with no 'wait' between: a getTo does not wait, so the second "
-            "course replaces the first at once and the body never heads for "
-            f"{', '.join(repr(x) for x in first.targets)}; put a wait between them to go to both in turn")
+    return (f"{first}{first_via} is followed by {then}{then_via} with no 'wait' between: a getTo does not wait, "
+            f"so the second course replaces the first at once and the body never heads for "
+            f"{', '.join(repr(x) for x in last.targets)}; put a wait between them to go to both in turn")
+
+
+def _course_of(stmt: Statement, programs: Mapping[str, object],
+               end: Callable[[MotorProgram], Statement | None]) -> tuple[Statement | None, str]:
+    """The course ``stmt`` sets at that ``end`` of itself (a call: the callee's, followed through
+    calls), and how to say it; None if it sets none there or where it leads cannot be told (a
+    call among node targets, a program graph, a call of itself)."""
+    seen: set[str] = set()
+    via = ""
+    while stmt.sets_course:
+        called = [x for x in stmt.targets if isinstance(x, str) and x in programs]
+        if not called:
+            return stmt, via
+        callee = programs[called[0]]
+        if len(stmt.targets) > 1 or not isinstance(callee, MotorProgram) or callee.name in seen:
+            return None, ""
+        seen.add(callee.name)
+        inner = end(callee)
+        if inner is None:
+            return None, ""
+        via += f" (whose program {callee.name!r} {'ends on' if end is _closing else 'begins with'} {inner})"
+        stmt = inner
+    return None, ""
+
+
+def _opening(program: MotorProgram) -> Statement | None:
+    """The statement a linear program runs first."""
+    return program.statements[0] if program.statements else None
+
+
+def _closing(program: MotorProgram) -> Statement | None:
+    """The statement a linear program runs last before it ends by running out (or reaching a
+    final ``end``); None when it ends no other way (a ``cycle`` laps on)."""
+    statements = program.statements[:-1] if program.statements and program.statements[-1].op == "end" else program.statements
+    return statements[-1] if statements and statements[-1].op != "cycle" else None
 
 
 def replaced_courses(programs: dict[str, MotorProgram]) -> str | None:
