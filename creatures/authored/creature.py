@@ -27,13 +27,14 @@ from creatures.authored.aural import Aural
 from creatures.authored.check import ROOT
 from creatures.authored.scripted import Scripted
 from creatures.authored.ear import Ear
+from creatures.authored.learnt import learning_state, restore_learning
 from creatures.authored.skills import (CUTOFF, DAMPING, GAIN, PAN, PUSH, TENSION, VOICE_PARAMETERS, VOICE_REST,
                                        AdverbModel)
 from creatures.authored.spec import AuthoredSpec, PartSpec, TupleSpec, UntilSpec, ValueSpec
 from creatures.behaviour.action_group import ActionGroup, CrowdTick, group_tuple
 from creatures.behaviour.action_tuple import ActionTuple, DoUntil
 from creatures.behaviour.emotion import Mood
-from creatures.behaviour.expectation import Expectations
+from creatures.behaviour.expectation import Expectations, check_saved
 from creatures.behaviour.learning import PerceptLearning, copy_value
 from creatures.behaviour.models.fuzzy import OrPercept
 from creatures.behaviour.models.gaussian import GaussianModel
@@ -643,8 +644,13 @@ class Authored(CreatureKind):
         shaping = kept.carry("shaping", {name: tp.action.to_dict() for name, tp in self.tuples.items()
                                          if isinstance(tp.action, GestureShaping)})
         parts = self._parts_state()
+        learnt = learning_state(self, kept)
+        expected = kept.carry("expectations", {name: kept.carry(f"expectations.{name}", self._expected(self.groups[name]))
+                                               for name in self.spec.expectations.groups})
         return {
             **aural,
+            **({"learning": learnt} if learnt else {}),
+            **({"expectations": expected} if expected else {}),
             **({"shaping": shaping} if shaping else {}),
             **({"gestures": [{"shaping": s, **g.to_dict()} for s, g in self.gestures]} if self.gestures else {}),
             "proximity": kept.carry("proximity", {name: g.proximities.to_dict() for name, g in self.groups.items()}),
@@ -674,6 +680,8 @@ class Authored(CreatureKind):
                                                             of="action-group") for key in AURAL_BY_GROUP if key in aural}},
                                self.groups)
         self._restore_shaping(state)
+        if "learning" in state:  # the trees and tuples learning grew, before their values
+            restore_learning(self, kept, state["learning"])
         for name, data in kept.place("proximity", state.get("proximity", {}), self.groups, what="proximity table",
                                      of="action-group", check=lambda data, key: Proximity().restore(data, key)).items():
             self.groups[name].proximities.restore(data, f"proximity.{name}")
@@ -682,6 +690,7 @@ class Authored(CreatureKind):
             group = self.groups[name]
             group.restore_values(kept.place(f"values.{name}", values, {tp.name for tp in group.tuples}, what="value",
                                             of="tuple", within=f" in action-group {name!r}"))
+        self._restore_expectations(state.get("expectations", {}))
         models = self._adverb_models()
         for name, data in kept.place("adverb_models", state.get("adverb_models", {}), models, what="adverb model",
                                      of="percept", no="adverb_model percept", check=_adverb_model).items():
@@ -695,6 +704,22 @@ class Authored(CreatureKind):
             for name, saved in kept.place(f"parts.{section}", parts.get(section, {}), names, what="state",
                                           of=section.removesuffix("s")).items():
                 names[name](saved)
+
+    def _expected(self, group: ActionGroup) -> dict[str, Any]:
+        """The expectation state of each tuple of ``group`` that has one, by tuple name."""
+        states = {tp.name: self.expectations.state(tp, self.now()) for tp in group.tuples}
+        return {name: state for name, state in states.items() if state is not None}
+
+    def _restore_expectations(self, saved: Any) -> None:
+        """Each tuple's confidence and counts, by group and tuple name, after every tuple
+        (learnt ones too) is back."""
+        kept = self.unplaced_parts
+        for name, tuples in kept.place("expectations", saved, self.spec.expectations.groups, what="expectations",
+                                       of="action-group", check=_expectations).items():
+            group = {tp.name: tp for tp in self.groups[name].tuples}
+            for tuple_name, data in kept.place(f"expectations.{name}", tuples, group, what="expectation", of="tuple",
+                                               within=f" in action-group {name!r}", check=check_saved).items():
+                self.expectations.restore(group[tuple_name], data, self.now(), f"expectations.{name}.{tuple_name}")
 
     def _parts_state(self) -> dict[str, dict[str, Any]]:
         """What each part keeps (:meth:`keep`), by section and name, with what is kept for
@@ -734,6 +759,12 @@ class Authored(CreatureKind):
 
 AURAL_BY_GROUP = ("tuples", "refined")
 """The keys of the aural state that hold what learning did to each action-group, by its name."""
+
+
+def _expectations(data: Any, key: str) -> None:
+    """A group's saved expectations checked, tuple by tuple (:class:`ValueError` naming the key)."""
+    for name, entry in bounds.table(data, key).items():
+        check_saved(entry, f"{key}.{name}")
 
 
 def _adverb_model(data: Any, key: str) -> GaussianModel:

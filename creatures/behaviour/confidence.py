@@ -9,6 +9,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
+
+from creatures import bounds
 
 
 @dataclass
@@ -32,3 +35,21 @@ class Confidence:
         self.reliability += self.reliance * weight * ((1.0 if hit else 0.0) - self.reliability)
         if t is not None:
             self.tested_at = t
+
+    def state(self, t: float) -> dict[str, Any]:
+        """JSON-able: the reliability and the seconds untested at ``t`` (not the clock time of
+        the last test: a restarted run's clock starts again, so that time would be meaningless)."""
+        return {"reliability": self.reliability,
+                "untested": None if self.tested_at is None else max(0.0, t - self.tested_at)}
+
+    def restore(self, data: Any, t: float, key: str) -> None:
+        """Take back :meth:`state` at ``t``: as reliable, and untested as long, as it was
+        saved (the time the creature was not running does not count). :class:`ValueError`
+        naming ``key`` for a damaged entry, before anything changes."""
+        data = bounds.table(data, key)
+        reliability = bounds.number(data.get("reliability"), f"{key}.reliability", low=0.0, high=1.0)
+        untested = data.get("untested")
+        if untested is not None:
+            untested = bounds.number(untested, f"{key}.untested", low=0.0, high=bounds.LATEST_TIME)
+        self.reliability = reliability
+        self.tested_at = None if untested is None else t - untested

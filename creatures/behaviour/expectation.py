@@ -42,8 +42,10 @@ One :class:`Expectations` is creature-wide (like percepts) and is attached to ea
 that keeps expectations (``group.expectations``); the group calls :meth:`starting` before a
 tuple starts, :meth:`ended` before a tuple stops, :meth:`tick` at each tick and
 :meth:`credit_rates` at each credit assignment.
-Confidence is not saved: a restarted creature has tested nothing for a while, and the
-thesis's own rule makes it unconfident.
+Each tuple's confidence (its reliability, how long it has gone untested) and its counts of
+tests and violations are saved by name (:meth:`Expectations.state`) and taken back at a
+restart (:meth:`Expectations.restore`): a creature that had learnt which of its expectations
+hold is as sure of them after a restart, less only as it tests them no more.
 """
 
 from __future__ import annotations
@@ -54,6 +56,7 @@ from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
+from creatures import bounds
 from creatures.behaviour.action_tuple import ActionTuple
 from creatures.behaviour.confidence import Confidence
 
@@ -143,6 +146,20 @@ class Expectations:
         if state is not None and self._names.get(tuple_.name) is state:
             del self._names[tuple_.name]
         self._pending = [p for p in self._pending if p.tuple_ is not tuple_]
+
+    # -- state that lasts across restarts ----------------------------------------------------
+    def state(self, tuple_: ActionTuple, t: float) -> dict[str, Any] | None:
+        """``tuple_``'s confidence and counts at ``t`` (JSON-able); None while it has none."""
+        e = self._of.get(id(tuple_))
+        return None if e is None else {**e.confidence.state(t), "tests": e.tests, "violations": e.violations}
+
+    def restore(self, tuple_: ActionTuple, data: Any, t: float, key: str) -> None:
+        """Take back what :meth:`state` saved of ``tuple_`` at ``t``; :class:`ValueError` naming
+        ``key`` for a damaged entry, before anything changes."""
+        tests, violations = check_saved(data, key)
+        state = self.of(tuple_)
+        state.confidence.restore(data, t, key)
+        state.tests, state.violations = tests, violations
 
     # -- readings (the percepts) ------------------------------------------------------------
     def surprise(self, t: float, name: str | None = None) -> float:
@@ -236,3 +253,12 @@ class Expectations:
     def _emit(self, event: str, t: float, **fields: Any) -> None:
         if self.on_event is not None:
             self.on_event({"event": event, "t": t, **fields})
+
+
+def check_saved(data: Any, key: str) -> tuple[int, int]:
+    """A saved tuple's expectation checked (:class:`ValueError` naming ``key``): its counts of
+    tests and violations."""
+    data = bounds.table(data, key)
+    Confidence().restore(data, 0.0, key)
+    tests = bounds.count(data.get("tests"), f"{key}.tests")
+    return tests, bounds.count(data.get("violations"), f"{key}.violations", high=tests)

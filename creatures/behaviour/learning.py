@@ -35,6 +35,7 @@ import numpy as np
 from creatures.behaviour.action_group import ActionGroup
 from creatures.behaviour.action_tuple import Action, ActionTuple, DoUntil
 from creatures.behaviour.models.gaussian import GaussianModel, GaussianPercept
+from creatures.behaviour.percept import Percept
 from creatures.behaviour.value import Value, value_from_dict
 
 
@@ -104,6 +105,16 @@ def copy_value(value: Value) -> Value:
     if getattr(value, "importance", None) is not None:
         copy.importance = value.importance
     return copy
+
+
+def hypothesise(name: str, trigger: Percept, tuple_: ActionTuple) -> ActionTuple:
+    """``trigger | Ac | Du | V`` named ``name``: ``tuple_``'s Ac (shared), a fresh Do-until on
+    its Du's duration (model) and until-percept, its V copied. What fission tries on a new
+    child, and what a restart builds again for each such tuple saved."""
+    du = tuple_.do_until
+    return ActionTuple(name, trigger, tuple_.action,
+                       DoUntil(du.duration, until=du.until, learn=du.learn, graded=du.graded, fresh=du.fresh),
+                       copy_value(tuple_.value))
 
 
 class ParametrisedAction(Action):
@@ -297,14 +308,7 @@ class PerceptLearning:
         for child in tuple_.trigger.children:
             if any(tp.trigger is child and tp.action is tuple_.action for tp in group.tuples):
                 continue
-            du = tuple_.do_until
-            hypothesis = ActionTuple(
-                f"{child.name}|{tuple_.action.name}",
-                child,
-                tuple_.action,
-                DoUntil(du.duration, until=du.until, learn=du.learn, graded=du.graded, fresh=du.fresh),
-                copy_value(tuple_.value),
-            )
+            hypothesis = hypothesise(f"{child.name}|{tuple_.action.name}", child, tuple_)
             group.add(hypothesis)
             made.append(hypothesis)
             self._emit("hypothesis", t, tuple=hypothesis.name, parent=tuple_.name)
