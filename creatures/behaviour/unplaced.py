@@ -2,10 +2,10 @@
 restart keeps").
 
 A creature's state keeps much of what it learned by name: a drive's level, an action-group's
-proximity table, an Ac percept's adverb model, a shaping tuple's model, a part's own state. A
-name renamed between runs (a typo corrected, ``boredum`` to ``boredom``) or removed matched
-nothing at the next load, and what had been learned under it was forgotten without a word and
-gone at the next save. :class:`Unplaced` sorts a saved table by the config's names: the entries
+proximity table, a percept's grown tree, an Ac percept's adverb model, a shaping tuple's model,
+a tuple's expectation confidence, a part's own state. A name renamed between runs (a typo
+corrected, ``boredum`` to ``boredom``) or removed matched nothing at the next load, and what
+had been learned under it was forgotten without a word and gone at the next save. :class:`Unplaced` sorts a saved table by the config's names: the entries
 a name takes go to their parts; the others are kept, carried into every save, and taken back
 when a part of that name returns; and the run says each once at load, with the nearest name
 (:meth:`Unplaced.said`, creatures/runtime/session.py).

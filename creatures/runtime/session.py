@@ -340,10 +340,10 @@ class Session:
                      "of that name returns")
 
     def _report_unplaced(self, path: Path, creature: Any) -> None:
-        """Say which saved drive levels, tuple values, proximity tables, adverb models, shaping
-        and parts' state no drive, group, percept or tuple of the config takes (one renamed or
-        removed), the nearest named: they are kept in the state, not lost, but the creature
-        starts those parts afresh."""
+        """Say which saved drive levels, tuple values, proximity tables, percept learning and
+        expectations, adverb models, shaping and parts' state no drive, group, percept or tuple
+        of the config takes (one renamed or removed), the nearest named: they are kept in the
+        state, not lost, but the creature starts those parts afresh."""
         motivation = getattr(creature, "motivation", None)
         for kept in (getattr(motivation, "unplaced", None), creature.unplaced_parts):
             for part in kept.said() if kept is not None else ():
