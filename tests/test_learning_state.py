@@ -196,3 +196,16 @@ def test_the_tree_of_a_renamed_percept_is_said_kept_and_grown_again_when_the_nam
     f = back.creatures[0]
     assert _tree(f.percepts["tone"])["children"] == saved["trees"]["tone"]["children"]
     assert {"tone.1|answer", "tone.2|answer"} <= {tp.name for tp in f.groups["main"].tuples}
+
+
+def test_a_diff_of_two_saves_of_a_creature_that_learned_nothing_between_them_is_empty(tmp_path):
+    """Seconds untested and the count of percepts grown are bookkeeping, not learning: `creatures
+    state diff` of two saves a minute apart, nothing ticked between them, shows nothing."""
+    from creatures.runtime.repertoire import diff
+
+    first = _session(tmp_path / "a")
+    _run(first, 70.0)
+    first.save_state(tmp_path / "before")
+    first.clock.advance(60.0)
+    first.save_state(tmp_path / "after")
+    assert [str(c) for c in diff(tmp_path / "before", tmp_path / "after")] == []

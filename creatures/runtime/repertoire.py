@@ -30,13 +30,16 @@ from creatures.runtime import snapshots
 from creatures.runtime.repertoire_shape import SHAPES
 from creatures.runtime.session import COLONY_FILE, RESTORE_ERRORS, STATE_KIND
 
-SKIPPED = frozenset({"motivation", "time", "born", "next_id", "phrases_made", "learnt"})
+SKIPPED = frozenset({"motivation", "time", "born", "next_id", "phrases_made", "learnt", "grown", "untested"})
 """Keys a diff leaves out: drive levels and bookkeeping (``learnt`` is the phrase numbers that
-have tuples: each shows as its tuple's value appearing)."""
+have tuples: each shows as its tuple's value appearing; ``grown`` counts percepts made, each
+shows as its percept; ``untested`` is how long an expectation went untested, which every
+save finds longer)."""
 
 LABELS = {"values": "value", "phrases": "phrase", "tree": "percept", "tuples": "tuple", "poses": "motor material",
           "population": "phrase model", "memory": "sound", "expected match": "expectation",
-          "gestures": "motor material", "shaping": "gesture model", "aural": "aural percept tree"}
+          "gestures": "motor material", "shaping": "gesture model", "aural": "aural percept tree",
+          "learning": "percept learning", "expectations": "expectation"}
 """What each section of a kind's state is, in the words of the thesis."""
 
 
