@@ -655,7 +655,7 @@ def _state(args: argparse.Namespace) -> int:
             print(f"{args.into}: added {', '.join(added) if added else 'nothing (it knew all of it)'}")
             left = repertoire.not_carried(args.source, args.creature)
             if left:
-                print(f"note: not carried: {', '.join(left)} (a part's own learning: {args.into} keeps its own)")
+                print(f"note: not carried: {', '.join(left)} ({args.into} keeps its own)")
         else:
             if not args.state.is_dir():
                 raise StateFileError(f"{args.state}: no such state folder")

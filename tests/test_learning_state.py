@@ -209,3 +209,19 @@ def test_a_diff_of_two_saves_of_a_creature_that_learned_nothing_between_them_is_
     first.clock.advance(60.0)
     first.save_state(tmp_path / "after")
     assert [str(c) for c in diff(tmp_path / "before", tmp_path / "after")] == []
+
+
+def test_a_merge_says_it_does_not_carry_the_grown_tree_nor_the_confidences(tmp_path, capsys):
+    """`creatures state merge` grafts phrases and sound classes; a tree split by the source's
+    experience and its confidences in its own tuples stay the target's, and the merge says so
+    (it said only what parts it left)."""
+    from creatures.cli import main
+    from creatures.runtime import repertoire
+
+    source = _saved(tmp_path)
+    target = tmp_path / "target"
+    _session(tmp_path / "t").save_state(target)
+    assert repertoire.not_carried(source, "f") == ["learning.trees.tone", "expectations.main"]
+    assert main(["state", "merge", str(source), "--creature", "f", str(target), "--into", "f"]) == 0
+    assert capsys.readouterr().out.splitlines()[-1] == ("note: not carried: learning.trees.tone, expectations.main "
+                                                         "(f keeps its own)")

@@ -191,8 +191,7 @@ def test_a_merge_says_which_parts_learning_it_does_not_carry(tmp_path: Path, cap
     session.save_state(tmp_path / "b")
     assert repertoire.not_carried(tmp_path / "a", "lis") == ["parts.percepts.heard"]
     assert main(["state", "merge", str(tmp_path / "a"), "--creature", "lis", str(tmp_path / "b"), "--into", "lis"]) == 0
-    assert capsys.readouterr().out.splitlines()[-1] == ("note: not carried: parts.percepts.heard (a part's own "
-                                                         "learning: lis keeps its own)")
+    assert capsys.readouterr().out.splitlines()[-1] == "note: not carried: parts.percepts.heard (lis keeps its own)"
     assert repertoire.not_carried(tmp_path / "a", "ada") == []  # exchange's creatures keep no part of their own
 
 

@@ -215,15 +215,22 @@ def _merge(source: Path, name: str, target: Path, into: str) -> list[str]:
 
 
 def not_carried(source: Path, name: str) -> list[str]:
-    """What a merge of creature ``name`` of ``source`` leaves behind: an authored creature's
-    parts' own learning (``parts.<section>.<name>``: a model population, a percept's memory),
-    which is the part's and has no phrase or class to graft, so the target keeps its own."""
-    state = load_json(_creature_file(source, name), kind=STATE_KIND).get("state")
-    parts = state.get("parts") if isinstance(state, dict) else None
-    if not isinstance(parts, dict):  # none kept, or damaged: the merge itself has said what it could
-        return []
-    return [f"parts.{section}.{part}" for section, kept in sorted(parts.items()) if isinstance(kept, dict)
-            for part in sorted(kept)]
+    """What a merge of creature ``name`` of ``source`` leaves behind, the target keeping its own:
+    an authored creature's parts' own learning (``parts.<section>.<name>``: a model population, a
+    percept's memory), which has no phrase or class to graft; the percept trees its
+    ``[creature.learning] groups`` grew (``learning.trees.<percept>``, with the tuples tried on
+    them), which split the target's own percepts by the source's experience; and its tuples'
+    expectation confidences (``expectations.<group>``), which are its own tests of its own tuples."""
+    state = _table(load_json(_creature_file(source, name), kind=STATE_KIND).get("state"))  # damaged: the merge said it
+    left = [f"parts.{section}.{part}" for section, kept in sorted(_table(state.get("parts")).items())
+            if isinstance(kept, dict) for part in sorted(kept)]
+    left += [f"learning.trees.{percept}" for percept in sorted(_table(_table(state.get("learning")).get("trees")))]
+    return left + [f"expectations.{group}" for group in sorted(_table(state.get("expectations")))]
+
+
+def _table(value: Any) -> dict[str, Any]:
+    """``value`` if it is a table, else an empty one (what a damaged file has of it)."""
+    return value if isinstance(value, dict) else {}
 
 
 def _merge_authored(src: dict[str, Any], dst: dict[str, Any]) -> tuple[dict[str, Any], list[str]]:
