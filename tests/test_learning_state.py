@@ -225,3 +225,17 @@ def test_a_merge_says_it_does_not_carry_the_grown_tree_nor_the_confidences(tmp_p
     assert main(["state", "merge", str(source), "--creature", "f", str(target), "--into", "f"]) == 0
     assert capsys.readouterr().out.splitlines()[-1] == ("note: not carried: learning.trees.tone, expectations.main "
                                                          "(f keeps its own)")
+
+
+def test_inspect_shows_each_tuples_expectation_as_saved(tmp_path):
+    """The confidences are saved: the inspector's page shows them, with how often each
+    expectation was tested and violated (it showed the trees, not these)."""
+    from creatures.runtime.inspect import inspect
+
+    state = _saved(tmp_path)
+    saved = json.loads((state / "f.json").read_text())["state"]["expectations"]["main"]
+    name, entry = max(saved.items(), key=lambda item: item[1]["tests"])
+    assert entry["tests"] > 0
+    page = inspect(state, tmp_path / "page").read_text()
+    assert (f"<tr><td>main: {name}</td><td>{entry['reliability']:.3f}</td><td>{entry['tests']}</td>"
+            f"<td>{entry['violations']}</td></tr>") in page

@@ -9,6 +9,8 @@ creature and one for the colony, written by ``Session.save_state``, i.e. ``creat
 * action-tuples with their learned values, and expectations (e.g. *listen*'s expected match),
   with confidence where the value kind has one (thesis, "surprise and confidence": a
   :class:`GaussianValue`'s reliability, faded by time untested);
+* each action-tuple's expectation: its confidence as saved (the reliability of its
+  expectation, thesis "expectations about value"), how often it was tested and violated;
 * percept trees with the size of every node (thesis, "percept trees");
 * duration models: the pulse and the ratio histogram of a low-integer-ratio model (thesis,
   figure 11) — the colony's heard pulse, and any a creature keeps —, the mean of a simple one;
@@ -67,6 +69,7 @@ class Knowledge:
     drives: dict[str, float] = field(default_factory=dict)
     trees: list[Tree] = field(default_factory=list)
     durations: list[tuple[str, Any]] = field(default_factory=list)  # (where, rebuilt model)
+    expected: dict[str, tuple[float, int, int]] = field(default_factory=dict)  # "group: tuple" → reliability, tests, violated
 
 
 def _tree(node: dict[str, Any]) -> Tree:
@@ -121,7 +124,20 @@ def knowledge(creature: str, kind: str, state: dict[str, Any]) -> Knowledge:
             visit(child, name, f"{path}.{key}" if path else str(key))
 
     visit(state, "", "")
+    known.expected = _expectations(state.get("expectations"))
     return known
+
+
+def _expectations(saved: Any) -> dict[str, tuple[float, int, int]]:
+    """The saved ``expectations`` section (group → tuple → reliability, tests, violations) as
+    rows; an entry not as saved is left out, as a damaged value is."""
+    rows = {}
+    for group, tuples in (saved.items() if isinstance(saved, dict) else ()):
+        for name, e in (tuples.items() if isinstance(tuples, dict) else ()):
+            numbers = [e.get(k) for k in ("reliability", "tests", "violations")] if isinstance(e, dict) else []
+            if len(numbers) == 3 and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in numbers):
+                rows[f"{group}: {name}"] = (float(numbers[0]), int(numbers[1]), int(numbers[2]))
+    return rows
 
 
 COLONY = "colony"
@@ -211,6 +227,10 @@ def _creature_html(k: Knowledge) -> str:
     if rows:
         parts.append(f"<table><tr><th>action-tuple or expectation</th><th>value</th><th>confidence</th></tr>"
                      f"{rows}</table>")
+    if k.expected:
+        parts.append("<table><tr><th>expectation of</th><th>confidence</th><th>tested</th><th>violated</th></tr>"
+                     + "".join(f"<tr><td>{html.escape(n)}</td><td>{r:.3f}</td><td>{t}</td><td>{v}</td></tr>"
+                               for n, (r, t, v) in sorted(k.expected.items())) + "</table>")
     if k.durations:
         parts.append("<table><tr><th>duration model</th><th>pulse</th><th>p(ratio)</th></tr>"
                      + "".join(_duration_html(where, m) for where, m in k.durations) + "</table>")
