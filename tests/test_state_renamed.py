@@ -125,3 +125,23 @@ def test_a_saved_drive_level_no_drive_takes_is_reported_with_the_nearest_and_kep
     assert said == [] and ada.levels[ada.index("boredom")] == 0.4 and not ada.unplaced.kept
     again.save_state(tmp_path)
     assert "unplaced" not in _motivation(tmp_path / "ada.json")
+
+
+def test_a_damaged_value_kept_under_an_old_name_is_refused_at_load_naming_its_key(tmp_path):
+    """A value no tuple takes is kept as saved: a damaged one was carried through every save and
+    refused only when a tuple of its name returned, runs later. Now it is refused at once, as a
+    damaged value of a tuple the config has is, naming its key."""
+    import pytest
+
+    from creatures.persist import StateFileError
+
+    _session([]).save_state(tmp_path)
+    _rename(tmp_path / "ada.json", "wander", "stroll", {**LEARNT, "value": "x"})
+    with pytest.raises(StateFileError, match=r"values\.main\.stroll: value: must be a number, found 'x'"):
+        _session([]).load_state(tmp_path)
+    data = json.loads((tmp_path / "bo.json").read_text())
+    data["state"]["values"]["dance"] = {"spin": {**LEARNT, "plasticity": -1.0}}
+    (tmp_path / "bo.json").write_text(json.dumps(data))
+    _rename(tmp_path / "ada.json", "stroll", "stroll", LEARNT)
+    with pytest.raises(StateFileError, match=r"values\.dance\.spin: plasticity"):
+        _session([]).load_state(tmp_path)

@@ -43,7 +43,7 @@ from creatures.behaviour.percept import FunctionPercept, Percept, WhateverPercep
 from creatures.behaviour.proximity import Proximity
 from creatures.behaviour.state_object import StateObject
 from creatures.behaviour.unplaced import Unplaced
-from creatures.behaviour.value import ChainValue, GaussianValue, ProcessedValue, ScalarValue, StanceValue, Value
+from creatures.behaviour.value import ChainValue, GaussianValue, ProcessedValue, ScalarValue, StanceValue, Value, value_from_dict
 from creatures.clock import Clock
 from creatures.config import ConfigError
 from creatures.kinds import register
@@ -686,10 +686,10 @@ class Authored(CreatureKind):
                                      of="action-group", check=lambda data, key: Proximity().restore(data, key)).items():
             self.groups[name].proximities.restore(data, f"proximity.{name}")
         for name, values in kept.place("values", state.get("values", {}), self.groups, what="value table",
-                                       of="action-group").items():
+                                       of="action-group", check=_value_table).items():
             group = self.groups[name]
             group.restore_values(kept.place(f"values.{name}", values, {tp.name for tp in group.tuples}, what="value",
-                                            of="tuple", within=f" in action-group {name!r}"))
+                                            of="tuple", within=f" in action-group {name!r}", check=_value))
         self._restore_expectations(state.get("expectations", {}))
         models = self._adverb_models()
         for name, data in kept.place("adverb_models", state.get("adverb_models", {}), models, what="adverb model",
@@ -759,6 +759,21 @@ class Authored(CreatureKind):
 
 AURAL_BY_GROUP = ("tuples", "refined")
 """The keys of the aural state that hold what learning did to each action-group, by its name."""
+
+
+def _value(data: Any, key: str) -> None:
+    """A saved value checked as a tuple would take it (:class:`ValueError` naming ``key``): one
+    kept for a tuple of another name is refused at load, not carried until the name returns."""
+    try:
+        value_from_dict(data)
+    except ValueError as exc:
+        raise ValueError(f"{key}: {exc}") from None
+
+
+def _value_table(data: Any, key: str) -> None:
+    """A saved group's values checked, tuple by tuple (:func:`_value`)."""
+    for name, entry in bounds.table(data, key).items():
+        _value(entry, f"{key}.{name}")
 
 
 def _expectations(data: Any, key: str) -> None:
