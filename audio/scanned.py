@@ -45,6 +45,8 @@ from dataclasses import dataclass, replace
 import numba
 import numpy as np
 
+from audio.bandlimit import NO_BASIS, band_limit, dft_basis, harmonics, kept_harmonics
+
 #: Highest mode the thesis allows for gestural control ("lower than 10-15Hz").
 GESTURAL_LIMIT_HZ = 15.0
 
@@ -150,16 +152,23 @@ def _haptic_step(x, v, force, ring, k, c, gamma, inv_m, h):
 
 @numba.njit(cache=True, fastmath=False)
 def _scan(out, x, v, x_prev, force, trajectory, state, ring, k, c, gamma, inv_m, h,
-          haptic_per_sample, phase_per_sample, dc_pole, interpolate):
+          haptic_per_sample, phase_per_sample, dc_pole, interpolate, table, table_prev, basis, first, stop, keep,
+          scratch):
     """Fill ``out`` by scanning the chain; run a haptic step whenever a frame is due.
 
     ``state`` = [scan phase (0..1), haptic fraction (0..1), dc-blocker x₁, dc-blocker y₁, …].
     The value at trajectory position ``p`` is the node shape interpolated linearly along
     the trajectory and between the previous and current haptic frames, or (``interpolate``
-    false) the current frame's node at ``int(p)``.
+    false) the current frame's node at ``int(p)``. With harmonics ``first < stop`` of ``basis`` the
+    scan is band-limited (:mod:`audio.bandlimit`): it reads, the same way, ``table`` and
+    ``table_prev``, the current and previous frames read along the trajectory and projected.
     """
     n_points = trajectory.shape[0]
     n = x.shape[0]
+    limited = first < stop
+    if limited:  # the frames as they are now: a pluck or a write to x since the last block is heard
+        band_limit(table_prev, x_prev, trajectory, basis, first, stop, keep, scratch)
+        band_limit(table, x, trajectory, basis, first, stop, keep, scratch)
     phase, frac, dc_x1, dc_y1 = state[0], state[1], state[2], state[3]
     for s in range(out.shape[0]):
         frac += haptic_per_sample
@@ -168,6 +177,9 @@ def _scan(out, x, v, x_prev, force, trajectory, state, ring, k, c, gamma, inv_m,
             for i in range(n):
                 x_prev[i] = x[i]
             _haptic_step(x, v, force, ring, k, c, gamma, inv_m, h)
+            if limited:
+                table_prev[:] = table
+                band_limit(table, x, trajectory, basis, first, stop, keep, scratch)
         pos = phase * n_points
         j = int(pos)
         a = pos - j
@@ -175,7 +187,12 @@ def _scan(out, x, v, x_prev, force, trajectory, state, ring, k, c, gamma, inv_m,
         j1 = trajectory[(j + 1) % n_points]
         y0 = 0.0
         y1 = 0.0
-        if not interpolate:
+        if limited:  # the projected tables, read point by point
+            t0, t1 = j % n_points, (j + 1) % n_points
+            y0 = table_prev[t0] + frac * (table[t0] - table_prev[t0])
+            y1 = table_prev[t1] + frac * (table[t1] - table_prev[t1])
+            y = y0 + a * (y1 - y0)
+        elif not interpolate:
             y = x[j0] if j0 >= 0 else 0.0
         else:
             if j0 >= 0:
@@ -256,12 +273,15 @@ class ScannedString:
         n = self.parameters.n_masses
         self.sample_rate = float(sample_rate)
         self._state = np.zeros(5)  # scan phase, haptic fraction, DC blocker x₁ and y₁, scan increment
+        self._band: tuple[float, tuple[int, int, bool]] = (math.nan, (0, 0, True))  # increment → harmonics
         self.frequency = frequency
         self.gain = float(gain)
         traj = default_trajectory(n, ring=self.parameters.ring) if trajectory is None else np.asarray(trajectory, dtype=np.int64)
         if traj.ndim != 1 or len(traj) < 1 or traj.max() >= n or traj.min() < -1:
             raise ValueError(f"trajectory must be a 1-D path of node indices in [-1, {n - 1}], got shape {traj.shape}")
         self.trajectory = traj
+        self._tables = np.zeros((2, len(traj)))  # band-limited frame and previous frame
+        self._scratch = np.zeros((5, len(traj)))  # their projection's work space
         self.x = np.zeros(n)
         self.v = np.zeros(n)
         self._x_prev = np.zeros(n)
@@ -336,12 +356,28 @@ class ScannedString:
         stretch = ends[1] - ends[0]
         return float(0.5 * (p.mass * self.v @ self.v + p.stiffness * stretch @ stretch + p.centring * self.x @ self.x))
 
+    def band(self) -> tuple[int, int, bool]:
+        """The harmonics this string's scan is projected on at its frequency
+        (:func:`~audio.bandlimit.harmonics`): ``first == stop`` when none of its shape lies above
+        the band, or the reading is ``"none"`` (not band-limited)."""
+        increment = self._state[4]  # the bank may move a note here without the setter (a stolen voice)
+        if increment != self._band[0]:
+            first, stop, keep = harmonics(kept_harmonics(increment), len(self.trajectory))
+            linear = self.parameters.interpolation == "linear"
+            self._band = (increment, (int(first), int(stop), bool(keep)) if linear else (0, 0, True))
+        return self._band[1]
+
     def render_raw(self, out: np.ndarray) -> np.ndarray:
-        """Scan ``len(out)`` samples into ``out`` (no gain, no limiter); advances the physics."""
+        """Scan ``len(out)`` samples into ``out`` (no gain, no limiter); advances the physics.
+        Band-limited (:mod:`audio.bandlimit`) when the note has harmonics above the band."""
         p = self.parameters
+        first, stop, keep = self.band()
+        basis = dft_basis(len(self.trajectory)) if first < stop else NO_BASIS
+        table, table_prev = self._tables
         _scan(out, self.x, self.v, self._x_prev, self.force, self.trajectory, self._state,
               p.ring, p.stiffness, p.centring, p.damping / p.mass, 1.0 / p.mass, 1.0 / p.haptic_rate,
-              p.haptic_rate / self.sample_rate, self._state[4], self.dc_pole, p.interpolation == "linear")
+              p.haptic_rate / self.sample_rate, self._state[4], self.dc_pole, p.interpolation == "linear",
+              table, table_prev, basis, first, stop, keep, self._scratch)
         if not math.isfinite(self.x.sum() + self._state[3]):
             self.silence()  # only reachable by forces of ~1e300: restart quiet rather than NaN
             out[:] = 0.0

@@ -44,7 +44,8 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from audio.scanned import ScannedString, StringParameters
+from audio.bandlimit import dft_basis, harmonics, kept_harmonics
+from audio.scanned import ScannedString, StringParameters, _scan
 
 #: Layout of a string's ``state`` row: scan phase, haptic fraction, DC blocker x₁ and y₁,
 #: scan increment per sample (frequency / sample rate).
@@ -308,6 +309,35 @@ def _render(mix, voices, x, v, x_prev, force, state, level, slope, failed, out, 
             mix[s] += total
 
 
+@numba.njit(cache=True, fastmath=False)
+def _render_limited(mix, voices, first, stop, keep, x, v, x_prev, force, state, level, slope, failed, column,
+                    tables, scratch, trajectory, basis, ring, k, c, gamma, inv_m, h, haptic_per_sample, dc_pole):
+    """Add the band-limited strings ``voices`` to ``mix`` as :func:`_render` adds the others (each
+    scaled by its envelope, a failed one silenced and flagged), each scanned one at a time by the
+    reference's own band-limited scan (:func:`audio.scanned._scan`), projected on harmonics
+    ``first[q]…stop[q]`` of ``basis`` (:mod:`audio.bandlimit`). Its per-frame projection, not
+    the per-sample recurrences that the group kernel shares across voices, is what such a
+    string costs; ``tables`` is the scan's scratch (projected frame, previous, scratch)."""
+    frames = mix.shape[0]
+    out = column[:frames]
+    for q in range(voices.shape[0]):
+        i = voices[q]
+        _scan(out, x[i], v[i], x_prev[i], force[i], trajectory, state[i], ring, k, c, gamma, inv_m, h,
+              haptic_per_sample, state[i, INCREMENT], dc_pole, True, tables[0], tables[1], basis, first[q], stop[q],
+              keep[q], scratch)
+        gain, fade = level[i], slope[i]
+        if math.isfinite(x[i].sum() + state[i, DC_Y]):
+            for s in range(frames):
+                mix[s] += out[s] * min(max(gain + fade * (s + 1), 0.0), 1.0)
+        else:  # the reference's reset
+            failed[i] = True
+            x[i, :] = 0.0
+            v[i, :] = 0.0
+            x_prev[i, :] = 0.0
+            state[i, DC_X] = state[i, DC_Y] = 0.0
+        level[i] = min(max(gain + fade * frames, 0.0), 1.0)
+
+
 class StringBank:
     """``size`` scanned strings sharing :class:`StringParameters` and a sample rate.
 
@@ -330,6 +360,10 @@ class StringBank:
         self._out = np.zeros((self.block_size, min(size, MAX_GROUP)))  # a group's samples, one column a string
         self._failed = np.zeros(size, dtype=np.bool_)
         self.sample_rate = float(sample_rate)
+        self.trajectory = self.strings[0].trajectory
+        self._column = np.zeros(self.block_size)  # a band-limited string's samples
+        self._tables = np.zeros((2, len(self.trajectory)))  # its projected frames
+        self._scratch = np.zeros((5, len(self.trajectory)))  # their projection's work space
 
     def push(self, voices: np.ndarray, force: np.ndarray) -> None:
         """Set the per-node force of strings ``voices`` (the body's push, as
@@ -348,10 +382,19 @@ class StringBank:
         if len(mix) > self.block_size:
             raise ValueError(f"block of {len(mix)} samples exceeds the bank's block_size {self.block_size}")
         p = self.parameters
-        _render(mix, np.asarray(voices, dtype=np.int64), self.x, self.v, self.x_prev, self.force, self.state,
-                level, slope, self._failed, self._out, p.ring, p.stiffness, p.centring, p.damping / p.mass,
-                1.0 / p.mass, 1.0 / p.haptic_rate, p.haptic_rate / self.sample_rate, self.strings[0].dc_pole,
-                p.interpolation == "linear")
+        voices = np.asarray(voices, dtype=np.int64)
+        constants = (p.ring, p.stiffness, p.centring, p.damping / p.mass, 1.0 / p.mass, 1.0 / p.haptic_rate,
+                     p.haptic_rate / self.sample_rate, self.strings[0].dc_pole)
+        if p.interpolation == "linear":
+            first, stop, keep = harmonics(kept_harmonics(self.state[voices, INCREMENT]), len(self.trajectory))
+            limited = first < stop
+            if limited.any():  # notes with harmonics above the band: scanned band-limited, one at a time
+                _render_limited(mix, voices[limited], first[limited], stop[limited], keep[limited], self.x, self.v,
+                                self.x_prev, self.force, self.state, level, slope, self._failed, self._column,
+                                self._tables, self._scratch, self.trajectory, dft_basis(len(self.trajectory)), *constants)
+                voices = voices[~limited]
+        _render(mix, voices, self.x, self.v, self.x_prev, self.force, self.state, level, slope, self._failed,
+                self._out, *constants, p.interpolation == "linear")
         if self._failed.any():
             for i in np.flatnonzero(self._failed):
                 self.strings[i].resets += 1

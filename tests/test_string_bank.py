@@ -82,26 +82,29 @@ def test_strings_whose_frames_fall_due_apart_mix_as_the_references(masses, inter
         np.testing.assert_allclose(string.x, reference.x, rtol=0, atol=1e-9)
 
 
-def test_voice_pool_mix_is_the_sum_of_enveloped_reference_strings():
+@pytest.mark.parametrize("sample_rate, pitches", [(SR, (48, 55, 60, 67)), (22050, (48, 91, 60, 108))])
+def test_voice_pool_mix_is_the_sum_of_enveloped_reference_strings(sample_rate, pitches):
     """The pool's one-call mix equals the old path: each sounding voice rendered alone, times
-    its linear release, summed; released voices are freed when the release ends."""
+    its linear release, summed; released voices are freed when the release ends. At 22050 Hz
+    MIDI 91 and 108 have harmonics above the band: band-limited, in the bank as alone."""
     parameters = StringParameters(n_masses=32, ring=False)
-    pool = VoicePool(4, parameters, sample_rate=SR, release=0.005, block_size=256)
+    pool = VoicePool(4, parameters, sample_rate=sample_rate, release=0.005, block_size=256)
     references: dict[int, ScannedString] = {}
     level = {}
-    step = 1.0 / (0.005 * SR)
-    for pitch in (48, 55, 60, 67):
+    step = 1.0 / (0.005 * sample_rate)
+    ended = pitches[1]
+    for pitch in pitches:
         index = pool.note_on(pitch, 0.8)
-        reference = ScannedString(parameters, sample_rate=SR)
+        reference = ScannedString(parameters, sample_rate=sample_rate)
         reference.note_on(midi_to_hz(pitch), 0.8)
         references[index], level[index] = reference, (1.0, 0.0)
     out = np.empty(1000)  # longer than block_size: rendered in pieces
     for round_ in range(4):
         if round_ == 1:
-            released = int(np.flatnonzero(pool.pitch == 55)[0])
+            released = int(np.flatnonzero(pool.pitch == ended)[0])
             pool.release(released, pool.started[released])
             for index, reference in references.items():
-                if pool.pitch[index] == 55:
+                if pool.pitch[index] == ended:
                     level[index] = (1.0, -step)
         pool.render(out)
         expected = np.zeros(len(out))
@@ -119,21 +122,27 @@ def test_voice_pool_mix_is_the_sum_of_enveloped_reference_strings():
                 expected[piece] += samples
         assert np.abs(expected).max() > 0
         np.testing.assert_allclose(out, expected, rtol=0, atol=1e-6)
-    assert pool.active == 3 and 55 not in pool.pitch
+    assert pool.active == 3 and ended not in pool.pitch
+    assert [bank_string.band()[0] < bank_string.band()[1] for bank_string in pool.voices] == [
+        sample_rate == 22050 and midi_to_hz(pitch) * 16 > 0.45 * sample_rate for pitch in pitches]
 
 
-def test_a_string_that_blows_up_is_reset_and_adds_nothing():
+@pytest.mark.parametrize("frequency", [220.0, 5000.0])  # the second band-limited (harmonics 5–8 above 0.45 SR)
+def test_a_string_that_blows_up_is_reset_and_adds_nothing(frequency):
     parameters = dataclasses.replace(StringParameters(n_masses=16), ring=True)
     bank = StringBank(2, parameters, sample_rate=SR, block_size=512)
+    for string in bank.strings:
+        string.frequency = frequency
     bank.strings[0].pluck(amplitude=1e308)
     bank.strings[0].push(np.full(16, 1e308))
     bank.strings[1].pluck(amplitude=0.5)
     mix = np.zeros(512)
     bank.render(mix, np.array([0, 1]), np.ones(2), np.zeros(2))
     alone = np.zeros(512)
-    reference = ScannedString(parameters, sample_rate=SR)
+    reference = ScannedString(parameters, sample_rate=SR, frequency=frequency)
     reference.pluck(amplitude=0.5)
     alone[:] = reference.render_raw(np.empty(512))
+    assert np.abs(alone).max() > 0.01
     np.testing.assert_allclose(mix, alone, rtol=0, atol=1e-6)
     assert bank.strings[0].resets == 1 and not bank.strings[0].x.any() and bank.strings[1].resets == 0
 

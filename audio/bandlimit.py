@@ -1,0 +1,125 @@
+"""Band-limited scanning: the string's shape read as a wavetable with no harmonic above the band.
+
+Scanned synthesis reads the shape as one period of a waveform at the note's frequency f₀ (thesis
+"scanned synthesis models (technology)", step 3), so the shape's k-th harmonic sounds at k·f₀.
+A table of N trajectory points holds harmonics up to N/2; above the output's Nyquist they fold
+back, off the note's harmonics: at 22050 Hz, 128 masses read naively put 8.8 % of a MIDI 96's
+energy and 64 % of a MIDI 108's off its harmonics (``tests/test_bandlimit.py`` measures it).
+
+How, as wavetable oscillators do it: the table is projected onto its harmonics up to
+``K = ⌊LIMIT · sample_rate / f₀⌋`` (a real DFT across the trajectory's points, the others
+zeroed) and the scanner reads the projected table exactly as it read the shape — linearly
+between points and between the last two haptic frames. The projection is linear, so
+interpolating projected frames is projecting the interpolated shape: what sounds is the naive
+scan with the harmonics above the band taken out, nothing else changed. It runs once per haptic
+frame (the shape changes at the gestural rate, 500–1000 frames a second), not per sample, and
+only for a string whose note has harmonics above the band (K < N/2): a low note reads its shape
+as before, sample for sample (:func:`kept_harmonics`).
+
+Why a projection per frame rather than the alternatives: mip-mapped tables (one per octave,
+as for a fixed wavetable) would each need the same projection, since the table changes every
+frame, and would also cut up to an octave of harmonics that fit; oversampling by R and
+decimating removes only what lies between the Nyquist and R times it, while a 128-point table
+at MIDI 108 reaches 130 times the Nyquist of 22050 Hz. The projection is exact, and it costs
+about ``2·N·M`` multiply-adds a frame, M the smaller of the harmonics kept and removed
+(:func:`harmonics`): little for a high note (MIDI 96 at 22050 Hz keeps 4 harmonics), most for a
+note whose band falls half-way up its table.
+
+What stays: the linear reading's own images (the table read between its points has harmonics
+above N/2, each its table harmonic times sinc² of its place in the table), which are 60 dB
+down or more where the band is small; and ``interpolation = "none"`` (Csound's ``scantable``:
+the nearest node, its steps are its sound) is read as it always was, not band-limited.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numba
+import numpy as np
+
+LIMIT = 0.45
+"""Highest harmonic frequency kept, as a fraction of the sample rate: below the Nyquist (0.5),
+leaving the linear reading's first images room to fall above it."""
+
+NO_BASIS = np.zeros((2, 0, 0))
+"""The basis passed for a string that is not band-limited (the kernels take an array)."""
+
+
+def kept_harmonics(increment: np.ndarray | float) -> np.ndarray:
+    """``K``, the harmonics of a scan of ``increment`` cycles a sample (f₀ / sample rate) that lie
+    within :data:`LIMIT`; a still scan (increment 0) keeps every one (``inf``)."""
+    increment = np.asarray(increment, dtype=float)
+    with np.errstate(divide="ignore"):
+        return np.floor(LIMIT / increment)
+
+
+def harmonics(kept: np.ndarray, n_points: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Which harmonics of tables of ``n_points`` keeping ``kept`` harmonics each to project on:
+    ``(first, stop, keep)``, the kept ``0…K`` (``keep``) or the removed ``K+1…N/2``, whichever
+    are fewer; ``first == stop`` where nothing lies above the band (K ≥ N/2, the table's top)."""
+    top = n_points // 2
+    kept = np.minimum(kept, top).astype(np.int64)
+    limited = kept < top
+    keep = kept + 1 <= top - kept
+    first = np.where(limited & ~keep, kept + 1, 0)
+    stop = np.where(limited, np.where(keep, kept + 1, top + 1), 0)
+    return first, stop, keep
+
+
+@lru_cache(maxsize=8)
+def dft_basis(n_points: int) -> np.ndarray:
+    """The real DFT of ``n_points``, orthonormal, folded: ``[0, k, t]`` and ``[1, k, t]`` are the
+    cosine and sine of harmonic ``k`` at points ``t`` and ``N − t`` (t = 0…N/2), scaled so the
+    projection on harmonic k is its coefficient times them. A cosine is the same at ``t`` and
+    ``N − t`` and a sine opposite, so half of each row is all of it: half the work."""
+    top = n_points // 2
+    k = np.arange(top + 1)[:, None]
+    angle = 2.0 * np.pi * k * np.arange(top + 1)[None, :] / n_points
+    scale = np.where((k == 0) | (2 * k == n_points), np.sqrt(1.0 / n_points), np.sqrt(2.0 / n_points))
+    basis = np.stack([scale * np.cos(angle), scale * np.sin(angle)])
+    basis[1, :, 0] = 0.0
+    if n_points % 2 == 0:
+        basis[1, :, top] = 0.0  # sin(πk): exactly 0, not its rounding
+    basis.setflags(write=False)
+    return basis
+
+
+@numba.njit(cache=True, fastmath={"reassoc", "contract"})
+def band_limit(table, shape, trajectory, basis, first, stop, keep, scratch):
+    """``table`` ← the shape read along ``trajectory`` (``-1`` a fixed end, 0), projected on
+    harmonics ``first…stop`` of ``basis`` (``keep``) or with them taken out; ``scratch`` is
+    (5, ≥ N) of work space. The table is folded into its even and odd halves about point 0
+    (:func:`dft_basis`), projected there and unfolded. Reassociation is allowed here only: the
+    sums over the table then vectorise, and the bank and the lone string call this same code,
+    so they still agree."""
+    n = table.shape[0]
+    half = n // 2 + 1
+    raw, even, odd, cos_part, sin_part = scratch[0], scratch[1], scratch[2], scratch[3], scratch[4]
+    for t in range(n):
+        j = trajectory[t]
+        raw[t] = shape[j] if j >= 0 else 0.0
+    for t in range(half):
+        mirror = (n - t) % n
+        even[t] = raw[t] + raw[mirror] if 0 < t < n - t else raw[t]
+        odd[t] = raw[t] - raw[mirror] if 0 < t < n - t else 0.0
+        cos_part[t] = 0.0
+        sin_part[t] = 0.0
+    cosines, sines = basis[0], basis[1]
+    for k in range(first, stop):
+        a = 0.0
+        b = 0.0
+        for t in range(half):
+            a += cosines[k, t] * even[t]
+            b += sines[k, t] * odd[t]
+        for t in range(half):
+            cos_part[t] += a * cosines[k, t]
+            sin_part[t] += b * sines[k, t]
+    sign = 1.0 if keep else -1.0
+    for t in range(half):
+        table[t] = sign * (cos_part[t] + sin_part[t])
+        if 0 < t < n - t:
+            table[n - t] = sign * (cos_part[t] - sin_part[t])
+    if not keep:
+        for t in range(n):
+            table[t] += raw[t]
