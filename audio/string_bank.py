@@ -44,8 +44,8 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from audio.bandlimit import dft_basis, harmonics, kept_harmonics
-from audio.scanned import ScannedString, StringParameters, _scan
+from audio.bandlimit import NO_BASIS, band_limit, dft_basis, harmonics, kept_harmonics
+from audio.scanned import ScannedString, StringParameters
 
 #: Layout of a string's ``state`` row: scan phase, haptic fraction, DC blocker x₁ and y₁,
 #: scan increment per sample (frequency / sample rate).
@@ -138,6 +138,26 @@ def _from_stack(values, stack, start, step):
 
 
 @numba.njit(cache=True, fastmath=False, inline="always")
+def _table_to_stack(stack, table, start, step, offset):
+    """A projected table into a string's read rows (point ``p`` in row ``p + offset``), and its
+    point 0 again after the last, where the scan wraps."""
+    n = table.shape[0]
+    for t in range(n):
+        stack[start + (t + offset) * step] = table[t]
+    stack[start + (n + offset) * step] = table[0]
+
+
+@numba.njit(cache=True, fastmath=False, inline="always")
+def _next_table(read, read_prev, shape, start, step, offset, trajectory, basis, low, high, keep, table, scratch):
+    """A band-limited string's new frame: its read rows become the previous frame's, and
+    ``shape`` projected (:func:`audio.bandlimit.band_limit`) takes their place."""
+    for t in range(offset, offset + table.shape[0] + 1):
+        read_prev[start + t * step] = read[start + t * step]
+    band_limit(table, shape, trajectory, basis, low, high, keep, scratch)
+    _table_to_stack(read, table, start, step, offset)
+
+
+@numba.njit(cache=True, fastmath=False, inline="always")
 def _step_mass(x, v, x_prev, x_left, x_right, force, size, k, c, damp, inv_m, h):
     """The step of one mass of the first ``size`` strings of a group, across the voices. Each
     index is the loop's own, from 0, so numba adds no negative-index test and LLVM vectorises."""
@@ -199,143 +219,151 @@ def _read(shown, sx, sp, phase, frac, size, n_points, offset, point_step, voice_
             shown[q] = sx[r]
 
 
-@numba.njit(cache=True, fastmath=False)
-def _render(mix, voices, x, v, x_prev, force, state, level, slope, failed, out, ring, k, c, gamma, inv_m, h,
-            haptic_per_sample, dc_pole, interpolate):
-    """Add every string in ``voices`` to ``mix``, each scaled by its envelope ``level`` moving
-    by ``slope`` per sample (clipped to [0, 1]); a string whose state stops being finite is
-    silenced, adds nothing this block, and is flagged in ``failed`` (the reference's reset).
+def _render_kernel(limited: bool):
+    """The group kernel, compiled apart for band-limited strings (``limited``) and the others:
+    a constant there, so each version holds none of the other's branches (in one kernel, the
+    band-limited steps alone cost the others' scan 20 %: measured 2,636 against 3,358 voices)."""
 
-    Strings go in groups of up to :data:`MAX_GROUP`, a sample at a time across the group. The
-    group's shapes (and previous frames) live on the stack, ``masses + 2`` rows per string,
-    trajectory point ``p`` in row ``p`` of a string (its fixed end in row 0) or ``p + 1`` of a
-    ring. Short strings keep their whole physics there, voice-minor so a step runs across the
-    voices (:data:`ACROSS`); long ones step in the bank's rows and copy each new frame over,
-    string-major so the copy is contiguous."""
-    n = x.shape[1]
-    rows = n + 2
-    offset = 1 if ring else 0
-    n_points = n + 1 - offset
-    frames = mix.shape[0]
-    damp = 1.0 - gamma * h
-    across = n <= ACROSS
-    group = max(1, min(out.shape[1], STACK // rows))  # out is at most MAX_GROUP wide
-    point_step, voice_step = (group, 1) if across else (1, rows)  # where row r of string q lives: r·point + q·voice
-    # separate allocations, not one cut in four: LLVM then knows they never overlap
-    sx, sp = numba.carray(_stack_doubles(STACK), STACK), numba.carray(_stack_doubles(STACK), STACK)
-    sv, sf = numba.carray(_stack_doubles(STACK), STACK), numba.carray(_stack_doubles(STACK), STACK)
-    scalars = numba.carray(_stack_doubles(SCALARS), (8, MAX_GROUP))
-    phase, frac, dc_x, dc_y, increment, gain, fade = (scalars[0], scalars[1], scalars[2], scalars[3],
-                                                      scalars[4], scalars[5], scalars[6])
-    lane = numba.carray(_stack_doubles(LANES), LANES)
-    shown = numba.carray(_stack_doubles(MAX_GROUP), MAX_GROUP)  # what each string of the group read
-    for first in range(0, voices.shape[0], group):
-        size = min(group, voices.shape[0] - first)
-        for q in range(size):
-            i = voices[first + q]
-            at = q * voice_step
-            _to_stack(sx, x[i], at, point_step, rows, ring)
-            _to_stack(sp, x_prev[i], at, point_step, rows, ring)
-            if across:
-                _to_stack(sv, v[i], at, point_step, rows, ring)
-                _to_stack(sf, force[i], at, point_step, rows, ring)
-            phase[q], frac[q], dc_x[q], dc_y[q], increment[q] = (state[i, 0], state[i, 1], state[i, 2], state[i, 3],
-                                                                 state[i, 4])
-            gain[q], fade[q] = level[i], slope[i]
-        enveloped = False
-        due = 0
-        for q in range(size):
-            enveloped |= fade[q] != 0.0 or gain[q] != 1.0
-            due += _tick(frac, q, haptic_per_sample)
-        for s in range(frames):
-            if across and due == size:
-                _step_across(sx, sv, sp, sf, -1, size, rows, group, ring, k, c, damp, inv_m, h)
-            elif due:
-                for q in range(size):
-                    if frac[q] < haptic_per_sample:  # it just wrapped: f − 1 < haptic_per_sample ≤ f
-                        if across:
-                            _step_across(sx, sv, sp, sf, q, size, rows, group, ring, k, c, damp, inv_m, h)
-                        else:
-                            i = voices[first + q]
-                            _step_along(x[i], v[i], x_prev[i], force[i], ring, k, c, damp, inv_m, h)
-                            _to_stack(sx, x[i], q * voice_step, point_step, rows, ring)
-                            if interpolate:
-                                _to_stack(sp, x_prev[i], q * voice_step, point_step, rows, ring)
-            row = out[s]
-            ticking = s + 1 < frames
-            _read(shown, sx, sp, phase, frac, size, n_points, offset, point_step, voice_step, interpolate)
+    @numba.njit(cache=True, fastmath=False)
+    def render(mix, voices, x, v, x_prev, force, state, level, slope, failed, out, ring, k, c, gamma, inv_m, h,
+               haptic_per_sample, dc_pole, interpolate, trajectory, basis, low, high, keep, table, shape, scratch):
+        """Add every string in ``voices`` to ``mix``, each scaled by its envelope ``level`` moving
+        by ``slope`` per sample (clipped to [0, 1]); a string whose state stops being finite is
+        silenced, adds nothing this block, and is flagged in ``failed`` (the reference's reset).
+
+        Strings go in groups of up to :data:`MAX_GROUP`, a sample at a time across the group. The
+        group's shapes (and previous frames) live on the stack, ``masses + 2`` rows per string,
+        trajectory point ``p`` in row ``p`` of a string (its fixed end in row 0) or ``p + 1`` of a
+        ring. Short strings keep their whole physics there, voice-minor so a step runs across the
+        voices (:data:`ACROSS`); long ones step in the bank's rows and copy each new frame over,
+        string-major so the copy is contiguous.
+
+        With ``limited`` every string in ``voices`` is band-limited (:mod:`audio.bandlimit`), on
+        harmonics ``low[q]…high[q]`` (``keep[q]``): the scan reads each frame projected, as the
+        reference's does, from rows laid out as the shapes' (a long string's instead of its copied
+        frame; a short one's in two arrays of their own, its physics being in the others)."""
+        n = x.shape[1]
+        rows = n + 2
+        offset = 1 if ring else 0
+        n_points = n + 1 - offset
+        frames = mix.shape[0]
+        damp = 1.0 - gamma * h
+        across = n <= ACROSS
+        group = max(1, min(out.shape[1], STACK // rows))  # out is at most MAX_GROUP wide
+        point_step, voice_step = (group, 1) if across else (1, rows)  # where row r of string q lives: r·point + q·voice
+        # separate allocations, not one cut in four: LLVM then knows they never overlap
+        sx, sp = numba.carray(_stack_doubles(STACK), STACK), numba.carray(_stack_doubles(STACK), STACK)
+        sv, sf = numba.carray(_stack_doubles(STACK), STACK), numba.carray(_stack_doubles(STACK), STACK)
+        scalars = numba.carray(_stack_doubles(SCALARS), (8, MAX_GROUP))
+        phase, frac, dc_x, dc_y, increment, gain, fade = (scalars[0], scalars[1], scalars[2], scalars[3],
+                                                          scalars[4], scalars[5], scalars[6])
+        lane = numba.carray(_stack_doubles(LANES), LANES)
+        shown = numba.carray(_stack_doubles(MAX_GROUP), MAX_GROUP)  # what each string of the group read
+        tx, tp = numba.carray(_stack_doubles(STACK), STACK), numba.carray(_stack_doubles(STACK), STACK)
+        apart = limited and across  # the scan reads tx, tp (projections) instead of sx, sp (shapes)
+        for first in range(0, voices.shape[0], group):
+            size = min(group, voices.shape[0] - first)
+            for q in range(size):
+                i = voices[first + q]
+                at = q * voice_step
+                _to_stack(sx, x[i], at, point_step, rows, ring)
+                _to_stack(sp, x_prev[i], at, point_step, rows, ring)
+                if across:
+                    _to_stack(sv, v[i], at, point_step, rows, ring)
+                    _to_stack(sf, force[i], at, point_step, rows, ring)
+                if limited:  # the frames as they are now, projected
+                    band_limit(table, x_prev[i], trajectory, basis, low[first + q], high[first + q], keep[first + q],
+                               scratch)
+                    _table_to_stack(tp if apart else sp, table, at, point_step, offset)
+                    band_limit(table, x[i], trajectory, basis, low[first + q], high[first + q], keep[first + q], scratch)
+                    _table_to_stack(tx if apart else sx, table, at, point_step, offset)
+                phase[q], frac[q], dc_x[q], dc_y[q], increment[q] = (state[i, 0], state[i, 1], state[i, 2], state[i, 3],
+                                                                     state[i, 4])
+                gain[q], fade[q] = level[i], slope[i]
+            enveloped = False
             due = 0
-            for q in range(size):  # the rest of the sample, across the group
-                y = shown[q]
-                blocked = y - dc_x[q] + dc_pole * dc_y[q]  # the reference's DC blocker
-                dc_x[q] = y
-                dc_y[q] = blocked
-                row[q] = blocked * min(max(gain[q] + fade[q] * (s + 1), 0.0), 1.0) if enveloped else blocked
-                p = phase[q] + increment[q]
-                phase[q] = p - 1.0 if p >= 1.0 else p
-                if ticking:  # the next sample's haptic clock, in the same pass
-                    due += _tick(frac, q, haptic_per_sample)
-        for q in range(size):
-            i = voices[first + q]
-            if across:
-                _from_stack(x[i], sx, q, group)
-                _from_stack(v[i], sv, q, group)
-                _from_stack(x_prev[i], sp, q, group)
-            total = dc_y[q]
-            for m in range(n):
-                total += x[i, m]
-            if not math.isfinite(total):
-                failed[i] = True
-                out[:frames, q] = 0.0
-                x[i, :] = 0.0
-                v[i, :] = 0.0
-                x_prev[i, :] = 0.0
-                dc_x[q] = dc_y[q] = 0.0
-            state[i, 0], state[i, 1], state[i, 2], state[i, 3] = phase[q], frac[q], dc_x[q], dc_y[q]
-            level[i] = min(max(gain[q] + fade[q] * frames, 0.0), 1.0)
-        for s in range(frames):  # the group's mix: eight running sums, so the adds vectorise
-            row = out[s]
-            for lane_ in range(LANES):
-                lane[lane_] = 0.0
-            whole = size - size % LANES
-            for chunk in range(0, whole, LANES):  # range loops: indices known ≥ 0, no negative-index test
-                for lane_ in range(LANES):
-                    lane[lane_] += row[chunk + lane_]
-            total = 0.0
-            for lane_ in range(LANES):
-                total += lane[lane_]
-            for q in range(whole, size):
-                total += row[q]
-            mix[s] += total
-
-
-@numba.njit(cache=True, fastmath=False)
-def _render_limited(mix, voices, first, stop, keep, x, v, x_prev, force, state, level, slope, failed, column,
-                    tables, scratch, trajectory, basis, ring, k, c, gamma, inv_m, h, haptic_per_sample, dc_pole):
-    """Add the band-limited strings ``voices`` to ``mix`` as :func:`_render` adds the others (each
-    scaled by its envelope, a failed one silenced and flagged), each scanned one at a time by the
-    reference's own band-limited scan (:func:`audio.scanned._scan`), projected on harmonics
-    ``first[q]…stop[q]`` of ``basis`` (:mod:`audio.bandlimit`). Its per-frame projection, not
-    the per-sample recurrences that the group kernel shares across voices, is what such a
-    string costs; ``tables`` is the scan's scratch (projected frame, previous, scratch)."""
-    frames = mix.shape[0]
-    out = column[:frames]
-    for q in range(voices.shape[0]):
-        i = voices[q]
-        _scan(out, x[i], v[i], x_prev[i], force[i], trajectory, state[i], ring, k, c, gamma, inv_m, h,
-              haptic_per_sample, state[i, INCREMENT], dc_pole, True, tables[0], tables[1], basis, first[q], stop[q],
-              keep[q], scratch)
-        gain, fade = level[i], slope[i]
-        if math.isfinite(x[i].sum() + state[i, DC_Y]):
+            for q in range(size):
+                enveloped |= fade[q] != 0.0 or gain[q] != 1.0
+                due += _tick(frac, q, haptic_per_sample)
             for s in range(frames):
-                mix[s] += out[s] * min(max(gain + fade * (s + 1), 0.0), 1.0)
-        else:  # the reference's reset
-            failed[i] = True
-            x[i, :] = 0.0
-            v[i, :] = 0.0
-            x_prev[i, :] = 0.0
-            state[i, DC_X] = state[i, DC_Y] = 0.0
-        level[i] = min(max(gain + fade * frames, 0.0), 1.0)
+                if across and due == size:
+                    _step_across(sx, sv, sp, sf, -1, size, rows, group, ring, k, c, damp, inv_m, h)
+                elif due:
+                    for q in range(size):
+                        if frac[q] < haptic_per_sample:  # it just wrapped: f − 1 < haptic_per_sample ≤ f
+                            if across:
+                                _step_across(sx, sv, sp, sf, q, size, rows, group, ring, k, c, damp, inv_m, h)
+                            else:
+                                i = voices[first + q]
+                                _step_along(x[i], v[i], x_prev[i], force[i], ring, k, c, damp, inv_m, h)
+                                if limited:
+                                    _next_table(sx, sp, x[i], q * voice_step, point_step, offset, trajectory, basis,
+                                                low[first + q], high[first + q], keep[first + q], table, scratch)
+                                    continue
+                                _to_stack(sx, x[i], q * voice_step, point_step, rows, ring)
+                                if interpolate:
+                                    _to_stack(sp, x_prev[i], q * voice_step, point_step, rows, ring)
+                if apart and due:  # each short string stepped just now: its new frame projected
+                    for q in range(size):
+                        if frac[q] < haptic_per_sample:
+                            _from_stack(shape, sx, q, group)
+                            _next_table(tx, tp, shape, q, group, offset, trajectory, basis, low[first + q],
+                                        high[first + q], keep[first + q], table, scratch)
+                row = out[s]
+                ticking = s + 1 < frames
+                if apart:  # two calls, not one on a choice of arrays: LLVM then still knows what each reads
+                    _read(shown, tx, tp, phase, frac, size, n_points, offset, point_step, voice_step, interpolate)
+                else:
+                    _read(shown, sx, sp, phase, frac, size, n_points, offset, point_step, voice_step, interpolate)
+                due = 0
+                for q in range(size):  # the rest of the sample, across the group
+                    y = shown[q]
+                    blocked = y - dc_x[q] + dc_pole * dc_y[q]  # the reference's DC blocker
+                    dc_x[q] = y
+                    dc_y[q] = blocked
+                    row[q] = blocked * min(max(gain[q] + fade[q] * (s + 1), 0.0), 1.0) if enveloped else blocked
+                    p = phase[q] + increment[q]
+                    phase[q] = p - 1.0 if p >= 1.0 else p
+                    if ticking:  # the next sample's haptic clock, in the same pass
+                        due += _tick(frac, q, haptic_per_sample)
+            for q in range(size):
+                i = voices[first + q]
+                if across:
+                    _from_stack(x[i], sx, q, group)
+                    _from_stack(v[i], sv, q, group)
+                    _from_stack(x_prev[i], sp, q, group)
+                total = dc_y[q]
+                for m in range(n):
+                    total += x[i, m]
+                if not math.isfinite(total):
+                    failed[i] = True
+                    out[:frames, q] = 0.0
+                    x[i, :] = 0.0
+                    v[i, :] = 0.0
+                    x_prev[i, :] = 0.0
+                    dc_x[q] = dc_y[q] = 0.0
+                state[i, 0], state[i, 1], state[i, 2], state[i, 3] = phase[q], frac[q], dc_x[q], dc_y[q]
+                level[i] = min(max(gain[q] + fade[q] * frames, 0.0), 1.0)
+            for s in range(frames):  # the group's mix: eight running sums, so the adds vectorise
+                row = out[s]
+                for lane_ in range(LANES):
+                    lane[lane_] = 0.0
+                whole = size - size % LANES
+                for chunk in range(0, whole, LANES):  # range loops: indices known ≥ 0, no negative-index test
+                    for lane_ in range(LANES):
+                        lane[lane_] += row[chunk + lane_]
+                total = 0.0
+                for lane_ in range(LANES):
+                    total += lane[lane_]
+                for q in range(whole, size):
+                    total += row[q]
+                mix[s] += total
+
+    return render
+
+
+_render = _render_kernel(False)
+_render_band_limited = _render_kernel(True)
 
 
 class StringBank:
@@ -361,9 +389,10 @@ class StringBank:
         self._failed = np.zeros(size, dtype=np.bool_)
         self.sample_rate = float(sample_rate)
         self.trajectory = self.strings[0].trajectory
-        self._column = np.zeros(self.block_size)  # a band-limited string's samples
-        self._tables = np.zeros((2, len(self.trajectory)))  # its projected frames
-        self._scratch = np.zeros((5, len(self.trajectory)))  # their projection's work space
+        self._table = np.zeros(len(self.trajectory))  # a band-limited string's projected frame
+        self._shape = np.zeros(n)  # a short one's shape, off the stack to be projected
+        self._scratch = np.zeros((5, len(self.trajectory)))  # the projection's work space
+        self._no_band = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.bool_))  # for the others
 
     def push(self, voices: np.ndarray, force: np.ndarray) -> None:
         """Set the per-node force of strings ``voices`` (the body's push, as
@@ -383,18 +412,18 @@ class StringBank:
             raise ValueError(f"block of {len(mix)} samples exceeds the bank's block_size {self.block_size}")
         p = self.parameters
         voices = np.asarray(voices, dtype=np.int64)
-        constants = (p.ring, p.stiffness, p.centring, p.damping / p.mass, 1.0 / p.mass, 1.0 / p.haptic_rate,
-                     p.haptic_rate / self.sample_rate, self.strings[0].dc_pole)
+        args = (self.x, self.v, self.x_prev, self.force, self.state, level, slope, self._failed, self._out, p.ring,
+                p.stiffness, p.centring, p.damping / p.mass, 1.0 / p.mass, 1.0 / p.haptic_rate,
+                p.haptic_rate / self.sample_rate, self.strings[0].dc_pole, p.interpolation == "linear")
+        scratch = (self._table, self._shape, self._scratch)
         if p.interpolation == "linear":
-            first, stop, keep = harmonics(kept_harmonics(self.state[voices, INCREMENT]), len(self.trajectory))
-            limited = first < stop
-            if limited.any():  # notes with harmonics above the band: scanned band-limited, one at a time
-                _render_limited(mix, voices[limited], first[limited], stop[limited], keep[limited], self.x, self.v,
-                                self.x_prev, self.force, self.state, level, slope, self._failed, self._column,
-                                self._tables, self._scratch, self.trajectory, dft_basis(len(self.trajectory)), *constants)
+            low, high, keep = harmonics(kept_harmonics(self.state[voices, INCREMENT]), len(self.trajectory))
+            limited = low < high
+            if limited.any():  # notes with harmonics above the band: their scans read projected frames
+                _render_band_limited(mix, voices[limited], *args, self.trajectory, dft_basis(len(self.trajectory)),
+                                     low[limited], high[limited], keep[limited], *scratch)
                 voices = voices[~limited]
-        _render(mix, voices, self.x, self.v, self.x_prev, self.force, self.state, level, slope, self._failed,
-                self._out, *constants, p.interpolation == "linear")
+        _render(mix, voices, *args, self.trajectory, NO_BASIS, *self._no_band, *scratch)
         if self._failed.any():
             for i in np.flatnonzero(self._failed):
                 self.strings[i].resets += 1
