@@ -9,7 +9,8 @@ The thesis' three steps, one per part of this module:
 2. forces applied to it — a pluck (initial shape), a hammer strike (initial velocity), note
    events, and pushes from a creature's body (:mod:`audio.coupling`);
 3. the shape is *scanned* repeatedly along a trajectory at audio rate; the scan frequency
-   is the pitch, the shape is the timbre.
+   is the pitch, the shape is the timbre — band-limited: a note whose shape has harmonics
+   above the output's band reads the shape without them (:mod:`audio.bandlimit`).
 
 The names follow Csound's ``scanu``/``scans`` where they agree: ``haptic_rate`` is
 ``1/irate``, ``mass``/``stiffness``/``centring``/``damping`` are ``kmass``/``kstif``/
@@ -45,7 +46,7 @@ from dataclasses import dataclass, replace
 import numba
 import numpy as np
 
-from audio.bandlimit import NO_BASIS, band_limit, dft_basis, harmonics, kept_harmonics
+from audio.bandlimit import band_limit, dft_basis, harmonics, kept_harmonics
 
 #: Highest mode the thesis allows for gestural control ("lower than 10-15Hz").
 GESTURAL_LIMIT_HZ = 15.0
@@ -150,22 +151,22 @@ def _haptic_step(x, v, force, ring, k, c, gamma, inv_m, h):
         x[i] += h * v[i]
 
 
-@numba.njit(cache=True, fastmath=False)
-def _scan(out, x, v, x_prev, force, trajectory, state, ring, k, c, gamma, inv_m, h,
-          haptic_per_sample, phase_per_sample, dc_pole, interpolate, table, table_prev, basis, first, stop, keep,
-          scratch):
+@numba.njit(cache=True, fastmath=False, inline="always")
+def _scan_body(out, x, v, x_prev, force, trajectory, state, ring, k, c, gamma, inv_m, h,
+               haptic_per_sample, phase_per_sample, dc_pole, interpolate, limited, table, table_prev, basis, first,
+               stop, keep, scratch):
     """Fill ``out`` by scanning the chain; run a haptic step whenever a frame is due.
 
     ``state`` = [scan phase (0..1), haptic fraction (0..1), dc-blocker x₁, dc-blocker y₁, …].
     The value at trajectory position ``p`` is the node shape interpolated linearly along
     the trajectory and between the previous and current haptic frames, or (``interpolate``
-    false) the current frame's node at ``int(p)``. With harmonics ``first < stop`` of ``basis`` the
-    scan is band-limited (:mod:`audio.bandlimit`): it reads, the same way, ``table`` and
-    ``table_prev``, the current and previous frames read along the trajectory and projected.
+    false) the current frame's node at ``int(p)``. ``limited`` (a constant of each caller, so
+    the other's branches compile away) scans band-limited (:mod:`audio.bandlimit`): it reads,
+    the same way, ``table`` and ``table_prev``, the current and previous frames read along the
+    trajectory and projected on harmonics ``first…stop`` of ``basis``.
     """
     n_points = trajectory.shape[0]
     n = x.shape[0]
-    limited = first < stop
     if limited:  # the frames as they are now: a pluck or a write to x since the last block is heard
         band_limit(table_prev, x_prev, trajectory, basis, first, stop, keep, scratch)
         band_limit(table, x, trajectory, basis, first, stop, keep, scratch)
@@ -206,6 +207,24 @@ def _scan(out, x, v, x_prev, force, trajectory, state, ring, k, c, gamma, inv_m,
         phase += phase_per_sample
         phase -= math.floor(phase)
     state[0], state[1], state[2], state[3] = phase, frac, dc_x1, dc_y1
+
+
+@numba.njit(cache=True, fastmath=False)
+def _scan(out, x, v, x_prev, force, trajectory, state, ring, k, c, gamma, inv_m, h,
+          haptic_per_sample, phase_per_sample, dc_pole, interpolate):
+    """:func:`_scan_body` reading the shape itself (a note with nothing above the band)."""
+    _scan_body(out, x, v, x_prev, force, trajectory, state, ring, k, c, gamma, inv_m, h, haptic_per_sample,
+               phase_per_sample, dc_pole, interpolate, False, out[:0], out[:0], np.empty((2, 0, 0)), 0, 0, True,
+               np.empty((5, 0)))
+
+
+@numba.njit(cache=True, fastmath=False)
+def _scan_band_limited(out, x, v, x_prev, force, trajectory, state, ring, k, c, gamma, inv_m, h,
+                       haptic_per_sample, phase_per_sample, dc_pole, table, table_prev, basis, first, stop, keep,
+                       scratch):
+    """:func:`_scan_body` reading the shape band-limited (linear interpolation only)."""
+    _scan_body(out, x, v, x_prev, force, trajectory, state, ring, k, c, gamma, inv_m, h, haptic_per_sample,
+               phase_per_sample, dc_pole, True, True, table, table_prev, basis, first, stop, keep, scratch)
 
 
 @numba.njit(cache=True)
@@ -372,12 +391,13 @@ class ScannedString:
         Band-limited (:mod:`audio.bandlimit`) when the note has harmonics above the band."""
         p = self.parameters
         first, stop, keep = self.band()
-        basis = dft_basis(len(self.trajectory)) if first < stop else NO_BASIS
-        table, table_prev = self._tables
-        _scan(out, self.x, self.v, self._x_prev, self.force, self.trajectory, self._state,
-              p.ring, p.stiffness, p.centring, p.damping / p.mass, 1.0 / p.mass, 1.0 / p.haptic_rate,
-              p.haptic_rate / self.sample_rate, self._state[4], self.dc_pole, p.interpolation == "linear",
-              table, table_prev, basis, first, stop, keep, self._scratch)
+        args = (out, self.x, self.v, self._x_prev, self.force, self.trajectory, self._state, p.ring, p.stiffness,
+                p.centring, p.damping / p.mass, 1.0 / p.mass, 1.0 / p.haptic_rate, p.haptic_rate / self.sample_rate,
+                self._state[4], self.dc_pole)
+        if first < stop:
+            _scan_band_limited(*args, *self._tables, dft_basis(len(self.trajectory)), first, stop, keep, self._scratch)
+        else:
+            _scan(*args, p.interpolation == "linear")
         if not math.isfinite(self.x.sum() + self._state[3]):
             self.silence()  # only reachable by forces of ~1e300: restart quiet rather than NaN
             out[:] = 0.0
