@@ -26,6 +26,11 @@ string steps along its own masses in the bank's rows, as the reference does, and
 new frame over. Each string keeps its own haptic clock, so strings whose frames fall due apart
 step apart.
 
+A note with harmonics above the band (:mod:`audio.bandlimit`) is scanned band-limited, as the
+reference does it: its frames are projected when they step and the scan reads the projections,
+laid out as the shapes are. Such strings render in a kernel of their own (:func:`_render_kernel`),
+so the others' costs nothing more; each of theirs costs its projection, which is most of it.
+
 The arithmetic is the reference's, term for term and in the same order, so the samples are
 the reference integrator's (``tests/test_string_bank.py`` holds them within 1e-6 at 1 to 1,024
 masses; only the mix adds the strings in another order). float64 stays: the stability bound

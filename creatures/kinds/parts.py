@@ -76,8 +76,9 @@ class VoiceSpec(BaseModel):
                                                                        "filter")
     interpolation: Literal["linear", "none"] = Field(
         "linear", description="how the scan reads the string: linear between masses and physics frames "
-        "(smooth, like Csound's scans) or none, the nearest mass of the latest frame (brighter and "
-        "stepped at the haptic rate, like Csound's scantable)")
+        "(smooth, like Csound's scans; band-limited, see audio.sample_rate) or none, the nearest mass of the "
+        "latest frame (brighter and stepped at the haptic rate, like Csound's scantable, and like it not "
+        "band-limited: a high note aliases)")
 
     @model_validator(mode="after")
     def _stable_and_gestural(self) -> "VoiceSpec":
