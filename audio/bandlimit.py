@@ -48,10 +48,12 @@ NO_BASIS = np.zeros((2, 0, 0))
 
 def kept_harmonics(increment: np.ndarray | float) -> np.ndarray:
     """``K``, the harmonics of a scan of ``increment`` cycles a sample (f₀ / sample rate) that lie
-    within :data:`LIMIT`; a still scan (increment 0) keeps every one (``inf``)."""
+    within :data:`LIMIT`, and always the fundamental (below the Nyquist, it aliases nowhere: a
+    note between 0.45 and 0.5 × the rate sounds it rather than silence); a still scan
+    (increment 0) keeps every one (``inf``)."""
     increment = np.asarray(increment, dtype=float)
     with np.errstate(divide="ignore"):
-        return np.floor(LIMIT / increment)
+        return np.maximum(np.floor(LIMIT / increment), 1.0)
 
 
 def harmonics(kept: np.ndarray, n_points: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -117,3 +117,17 @@ def test_the_projection_is_the_dft_with_the_harmonics_above_zeroed(masses, ring)
         expected = spectrum.copy()
         expected[kept + 1:] = 0.0
         np.testing.assert_allclose(table, np.fft.irfft(expected, n), rtol=0, atol=1e-12)
+
+
+def test_a_note_just_below_the_nyquist_still_sounds_its_fundamental():
+    """At 0.47 × the rate no harmonic but the fundamental fits the band, which aliases nowhere:
+    the string sounds it (a sine at f₀), not silence."""
+    sample_rate = 22050
+    f0 = 0.47 * sample_rate
+    string = ScannedString(StringParameters(), sample_rate=sample_rate, frequency=f0)
+    string.pluck(amplitude=1.0)
+    out = string.render_raw(np.empty(sample_rate))
+    assert string.band() == (0, 2, True)  # the mean and the fundamental
+    assert np.sqrt(np.mean(out[2000:] ** 2)) > 0.01
+    assert off_harmonics(out, f0, sample_rate) < 1e-3
+
