@@ -92,36 +92,56 @@ def band_limit(table, shape, trajectory, basis, first, stop, keep, scratch):
     """``table`` ← the shape read along ``trajectory`` (``-1`` a fixed end, 0), projected on
     harmonics ``first…stop`` of ``basis`` (``keep``) or with them taken out; ``scratch`` is
     (5, ≥ N) of work space. The table is folded into its even and odd halves about point 0
-    (:func:`dft_basis`), projected there and unfolded. Reassociation is allowed here only: the
-    sums over the table then vectorise, and the bank and the lone string call this same code,
-    so they still agree."""
+    (:func:`dft_basis`), projected there two harmonics a pass, and unfolded. Reassociation is
+    allowed here only: the sums over the table then vectorise, and the bank and the lone string
+    call this same code, so they still agree."""
     n = table.shape[0]
     half = n // 2 + 1
+    pairs = (n + 1) // 2  # points 1…pairs−1 have their mirror n − t apart from them
     raw, even, odd, cos_part, sin_part = scratch[0], scratch[1], scratch[2], scratch[3], scratch[4]
     for t in range(n):
         j = trajectory[t]
         raw[t] = shape[j] if j >= 0 else 0.0
-    for t in range(half):
-        mirror = (n - t) % n
-        even[t] = raw[t] + raw[mirror] if 0 < t < n - t else raw[t]
-        odd[t] = raw[t] - raw[mirror] if 0 < t < n - t else 0.0
-        cos_part[t] = 0.0
-        sin_part[t] = 0.0
+    even[0] = raw[0]
+    odd[0] = 0.0
+    for t in range(1, pairs):
+        even[t] = raw[t] + raw[n - t]
+        odd[t] = raw[t] - raw[n - t]
+    if pairs < half:
+        even[pairs] = raw[pairs]
+        odd[pairs] = 0.0
+    cos_part[:half] = 0.0
+    sin_part[:half] = 0.0
     cosines, sines = basis[0], basis[1]
-    for k in range(first, stop):
-        a = 0.0
-        b = 0.0
+    k = first
+    while k + 2 <= stop:
+        c0, c1, s0, s1 = cosines[k], cosines[k + 1], sines[k], sines[k + 1]
+        a0 = a1 = b0 = b1 = 0.0
         for t in range(half):
-            a += cosines[k, t] * even[t]
-            b += sines[k, t] * odd[t]
+            a0 += c0[t] * even[t]
+            a1 += c1[t] * even[t]
+            b0 += s0[t] * odd[t]
+            b1 += s1[t] * odd[t]
         for t in range(half):
-            cos_part[t] += a * cosines[k, t]
-            sin_part[t] += b * sines[k, t]
+            cos_part[t] += a0 * c0[t] + a1 * c1[t]
+            sin_part[t] += b0 * s0[t] + b1 * s1[t]
+        k += 2
+    if k < stop:
+        c0, s0 = cosines[k], sines[k]
+        a0 = b0 = 0.0
+        for t in range(half):
+            a0 += c0[t] * even[t]
+            b0 += s0[t] * odd[t]
+        for t in range(half):
+            cos_part[t] += a0 * c0[t]
+            sin_part[t] += b0 * s0[t]
     sign = 1.0 if keep else -1.0
-    for t in range(half):
+    table[0] = sign * cos_part[0]
+    for t in range(1, pairs):
         table[t] = sign * (cos_part[t] + sin_part[t])
-        if 0 < t < n - t:
-            table[n - t] = sign * (cos_part[t] - sin_part[t])
+        table[n - t] = sign * (cos_part[t] - sin_part[t])
+    if pairs < half:
+        table[pairs] = sign * cos_part[pairs]
     if not keep:
         for t in range(n):
             table[t] += raw[t]
