@@ -50,19 +50,23 @@ def kept_harmonics(increment: np.ndarray | float) -> np.ndarray:
     """``K``, the harmonics of a scan of ``increment`` cycles a sample (f₀ / sample rate) that lie
     within :data:`LIMIT`, and always the fundamental (below the Nyquist, it aliases nowhere: a
     note between 0.45 and 0.5 × the rate sounds it rather than silence); a still scan
-    (increment 0) keeps every one (``inf``)."""
-    increment = np.asarray(increment, dtype=float)
-    with np.errstate(divide="ignore"):
-        return np.maximum(np.floor(LIMIT / increment), 1.0)
+    (increment 0) keeps every one (a number past any table's harmonics)."""
+    return np.maximum(np.floor(LIMIT / np.maximum(increment, 1e-300)), 1.0)
+
+
+def above_band(kept: np.ndarray | float, n_points: int) -> np.ndarray | bool:
+    """Whether a table of ``n_points`` read keeping ``kept`` harmonics has any above them (its
+    top harmonic is N/2): only then is it band-limited."""
+    return kept < n_points // 2
 
 
 def harmonics(kept: np.ndarray, n_points: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Which harmonics of tables of ``n_points`` keeping ``kept`` harmonics each to project on:
     ``(first, stop, keep)``, the kept ``0…K`` (``keep``) or the removed ``K+1…N/2``, whichever
-    are fewer; ``first == stop`` where nothing lies above the band (K ≥ N/2, the table's top)."""
+    are fewer; ``first == stop`` where nothing lies above the band (:func:`above_band`)."""
     top = n_points // 2
+    limited = above_band(kept, n_points)
     kept = np.minimum(kept, top).astype(np.int64)
-    limited = kept < top
     keep = kept + 1 <= top - kept
     first = np.where(limited & ~keep, kept + 1, 0)
     stop = np.where(limited, np.where(keep, kept + 1, top + 1), 0)

@@ -49,7 +49,7 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from audio.bandlimit import NO_BASIS, band_limit, dft_basis, harmonics, kept_harmonics
+from audio.bandlimit import NO_BASIS, above_band, band_limit, dft_basis, harmonics, kept_harmonics
 from audio.scanned import ScannedString, StringParameters
 
 #: Layout of a string's ``state`` row: scan phase, haptic fraction, DC blocker x₁ and y₁,
@@ -421,8 +421,10 @@ class StringBank:
                 p.stiffness, p.centring, p.damping / p.mass, 1.0 / p.mass, 1.0 / p.haptic_rate,
                 p.haptic_rate / self.sample_rate, self.strings[0].dc_pole, p.interpolation == "linear")
         scratch = (self._table, self._shape, self._scratch)
-        if p.interpolation == "linear":
-            low, high, keep = harmonics(kept_harmonics(self.state[voices, INCREMENT]), len(self.trajectory))
+        increments = self.state[voices, INCREMENT]
+        if p.interpolation == "linear" and len(voices) and above_band(kept_harmonics(increments.max()),
+                                                                      len(self.trajectory)):
+            low, high, keep = harmonics(kept_harmonics(increments), len(self.trajectory))
             limited = low < high
             if limited.any():  # notes with harmonics above the band: their scans read projected frames
                 _render_band_limited(mix, voices[limited], *args, self.trajectory, dft_basis(len(self.trajectory)),
