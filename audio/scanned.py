@@ -388,7 +388,8 @@ class ScannedString:
 
     def render_raw(self, out: np.ndarray) -> np.ndarray:
         """Scan ``len(out)`` samples into ``out`` (no gain, no limiter); advances the physics.
-        Band-limited (:mod:`audio.bandlimit`) when the note has harmonics above the band."""
+        Band-limited (:mod:`audio.bandlimit`) when the note has harmonics above the band and fewer
+        than :data:`~audio.bandlimit.FULL_BAND` in it."""
         p = self.parameters
         first, stop, keep = self.band()
         args = (out, self.x, self.v, self._x_prev, self.force, self.trajectory, self._state, p.ring, p.stiffness,

@@ -26,7 +26,7 @@ string steps along its own masses in the bank's rows, as the reference does, and
 new frame over. Each string keeps its own haptic clock, so strings whose frames fall due apart
 step apart.
 
-A note with harmonics above the band (:mod:`audio.bandlimit`) is scanned band-limited, as the
+A note with harmonics above the band and fewer than 16 in it (:mod:`audio.bandlimit`) is scanned band-limited, as the
 reference does it: its frames are projected when they step and the scan reads the projections,
 laid out as the shapes are. Such strings render in a kernel of their own (:func:`_render_kernel`),
 so the others' costs nothing more; each of theirs costs its projection, which is most of it.

@@ -6,9 +6,8 @@ Rows (``python -m bench voice``):
   path a creature's voice takes), beside Csound's ``scantable`` (6.18 here) rendering the same
   strings in the same run (:mod:`bench._peers`): 128 masses, then 1, 3, 64 and 1,024, each
   with the target ≥ 1.5× Csound; at 128 masses also with ours' default linear interpolation,
-  which does more per sample than ``scantable`` and is band-limited (:mod:`audio.bandlimit`):
-  the row's notes MIDI 65–87 (of 40–87) have harmonics above 0.45 × 48 kHz on a 128-point
-  table, and each such string projects its shape at every physics frame. One mass on a ring is its own neighbour in
+  which does more per sample than ``scantable`` (none of its notes, MIDI 40–87 at 48 kHz, has a
+  band of fewer than 16 harmonics, so none is band-limited: :mod:`audio.bandlimit`). One mass on a ring is its own neighbour in
   both (its spring pulls on nothing; Csound's 1-point table reads one word before each table
   for that neighbour, which holds no stiffness here) and the scan reads the same point every
   sample: no pitch, but the same work per sample as any string, which is what the row times;

@@ -46,11 +46,12 @@ class AudioSection(Strict):
     """Sample rate, live audio devices, and whether creatures hear each other."""
 
     sample_rate: int = Field(22050, ge=8000, le=192000, description="rate of synthesis and analysis, Hz. The "
-                             "scanned strings are band-limited: a note whose string has harmonics above 0.45 × this "
-                             "rate is read without them, so a high voice does not alias (measured at 22050: under "
-                             "0.0001 % of a MIDI 96's or 108's energy off its harmonics, was 8.8 % and 64 %) but "
-                             "keeps only its harmonics below 9.9 kHz there; such a note costs more CPU (its "
-                             "string's shape is projected at every physics frame)")
+                             "scanned strings are band-limited: a note with fewer than 16 of its string's harmonics "
+                             "below 0.45 × this rate is read without those above, so a high voice does not alias "
+                             "(measured at 22050: under 0.0001 % of a MIDI 96's or 108's energy off its harmonics, "
+                             "was 8.8 % and 64 %; a lower note folds under 0.005 %) but keeps only its harmonics "
+                             "below 9.9 kHz there; such a note costs more CPU (its string's shape is projected at "
+                             "every physics frame)")
     block: int = Field(512, ge=32, le=16384, description="frames per audio block")
     input_device: str | int | None = Field(None, description="live input device (name fragment or index, or "
                                                             "'default' for the system's); none = no microphone")
