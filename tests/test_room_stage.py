@@ -244,6 +244,19 @@ def test_room_percepts_need_a_room(tmp_path):
         load_installation(write(tmp_path, text))
 
 
+@pytest.mark.parametrize("vehicle", ['steer = [{ behaviour = "wander" }]', "max_speed = 0.5"])
+def test_a_vehicle_without_a_room_is_a_config_error(tmp_path, vehicle):
+    """A [creature.vehicle] (a place, steering) in an installation with no [room] loaded and ran
+    as if it were not there: the creature never moved, nothing said (copying a crowd's creature
+    into a piece without its [room] table, say)."""
+    text = HEADER.format(room="").replace("[room]\nwidth = 10.0\ndepth = 10.0\nlistener = [5.0, 5.0]\n", "")
+    text += singer("a", 1.0, 1.0, vehicle=vehicle)
+    with pytest.raises(ConfigError, match="there is no \\[room\\]") as info:
+        load_installation(write(tmp_path, text))
+    assert info.value.line == text.splitlines().index("[creature.vehicle]") + 1
+    assert "creature.0.vehicle" in str(info.value)
+
+
 def test_a_zone_changes_a_creature_inside_and_puts_it_back_when_it_leaves(tmp_path):
     room = """[[room.zones]]
 name = "slow"

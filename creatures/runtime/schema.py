@@ -602,6 +602,10 @@ def load_installation(path: str | Path) -> LoadedInstallation:
                 _sensed(path, where, ("creature", i, "percepts", name), spec.name, percept.params(), by_name)
             if percept.type == "sensor":
                 _sensor(path, where, ("creature", i, "percepts", name, "sensor"), percept.params(), sensors)
+        if settings.room is None and "vehicle" in spec.model_fields_set:  # it would never move, nothing said
+            raise config_error(path, where, ("creature", i, "vehicle"),
+                               "[creature.vehicle] places and steers a creature on a room's floor, and there is "
+                               "no [room]: add one (README, \"Creatures in a room\") or leave the vehicle out")
     if settings.room is not None:  # what the creatures' steering names must be in the room
         try:
             room_recipes(settings.room, specs, {spec.name: i for i, spec in enumerate(specs)})
