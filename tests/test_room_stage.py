@@ -257,6 +257,22 @@ def test_a_vehicle_without_a_room_is_a_config_error(tmp_path, vehicle):
     assert "creature.0.vehicle" in str(info.value)
 
 
+def test_a_proximity_whose_near_is_beyond_its_far_is_a_config_error(tmp_path):
+    """``near = 5.0, far = 1.0`` (the two swapped) loaded and read 1 with no one within 5 m and 0
+    with someone beside it: the percept meant "someone is near" said "no one is", all run.
+    ``near = far`` (a step at that distance) still loads."""
+    percept = '[creature.percepts.near]\ntype = "proximity"\nof = "creature"\nnear = {near}\nfar = 1.0\n'
+
+    def text(near: float) -> str:
+        return HEADER.format(room="") + singer("a", 1.0, 1.0).replace(
+            "[creature.percepts.heard]", percept.format(near=near) + "[creature.percepts.heard]")
+
+    with pytest.raises(ConfigError, match="near = 5 m is beyond far = 1 m") as info:
+        load_installation(write(tmp_path, text(5.0)))
+    assert info.value.line == text(5.0).splitlines().index("far = 1.0") + 1
+    assert load_installation(write(tmp_path, text(1.0))).specs[0].name == "a"
+
+
 def test_a_zone_changes_a_creature_inside_and_puts_it_back_when_it_leaves(tmp_path):
     room = """[[room.zones]]
 name = "slow"

@@ -12,7 +12,7 @@ import math
 from collections import deque
 from typing import TYPE_CHECKING, Any, ClassVar, Literal
 
-from pydantic import BaseModel, Field, field_validator, model_validator
+from pydantic import BaseModel, Field, ValidationInfo, field_validator, model_validator
 
 from creatures.authored.ear import DENSITY_WINDOW
 
@@ -657,6 +657,16 @@ class _ProximityParams(Params):
                                             "last outside note came from) or 'loud' (a loud sound)")
     near: float = Field(1.0, ge=0, le=1000, description="metres at which it is fully salient")
     far: float = Field(5.0, ge=0, le=1000, description="metres beyond which it is 0")
+
+    @field_validator("far")
+    @classmethod
+    def _beyond_near(cls, far: float, info: ValidationInfo) -> float:
+        """Swapped, the ramp read 1 with no one near and 0 with someone beside it, nothing said."""
+        near = info.data.get("near")
+        if near is not None and near > far:
+            raise ValueError(f"near = {near:g} m is beyond far = {far:g} m: the percept would read 1 when no one "
+                             "is near and 0 when someone is (near ≤ far; a 'not' percept reads distance)")
+        return far
 
 
 @PERCEPTS.register
