@@ -663,6 +663,30 @@ def test_places_and_zones_that_cannot_be_are_config_errors(tmp_path, room, creat
     assert info.value.file.name == "room.toml"
 
 
+def quadrants(radius: float) -> str:
+    """Four pillars, one in each quarter of the 10 m room: of radius 3.4 m, with a 0.25 m body's
+    reach they cover the floor; of 3.2 m they leave a diamond round the middle."""
+    return "obstacles = [" + ", ".join(f"{{ at = [{x}, {y}], radius = {radius} }}" for x in (2.5, 7.5)
+                                       for y in (2.5, 7.5)) + "]"
+
+
+@pytest.mark.parametrize("obstacles, key", [
+    ("obstacles = [{ at = [5.0, 5.0], radius = 100.0 }]", "room.obstacles.0.radius"),  # 100 for 1.0
+    (quadrants(3.4), "room.obstacles:"),
+])
+def test_obstacles_that_leave_no_floor_to_start_on_are_a_config_error(tmp_path, obstacles, key):
+    """A creature with no ``at`` starts at a seeded free place; obstacles over the whole floor
+    left none, so it started inside one (the last of 100 draws) and the walls and the obstacle
+    between them held it in a corner for the whole run, nothing said."""
+    unplaced = singer("a", 1.0, 1.0).replace("at = [1.0, 1.0]\n", "")
+    with pytest.raises(ConfigError, match="covers? the whole floor .* no place where 'a' \\(radius 0.25 m\\)") as info:
+        load_installation(write(tmp_path, HEADER.format(room=obstacles) + unplaced))
+    assert info.value.line is not None and key in str(info.value)
+    s, clock = session(tmp_path, quadrants(3.2), unplaced)  # a gap of a few cm a side is enough
+    run(s, clock, 0.1)
+    assert np.hypot(*(s.stage.v.pos[0] - 5.0)) < 0.2
+
+
 def test_a_flow_field_of_more_cells_than_a_painted_one_may_have_is_a_config_error(tmp_path):
     """0.02 m cells over a 1000 m square room: 2.5e9 cells, 40 GB asked for as the run began."""
     text = (HEADER.format(room='[[room.flows]]\nname = "f"\ncell = 0.02').replace("= 10.0", "= 1000.0")

@@ -7,6 +7,7 @@ height of bodies and speakers is not modelled (a room's sound and sight are plan
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -79,6 +80,43 @@ class Room:
                 vel[i] -= into * normal
         r = radius[:, None]
         np.clip(pos, r, self.size[None, :] - r, out=pos)
+
+    def standing_room(self, radius: float) -> np.ndarray:
+        """The places where a body of ``radius`` may stand, inside the walls and off every
+        obstacle, (K, 2); none (K = 0) when the obstacles cover the floor.
+
+        Not a sample: if any such place exists, one is a corner of the free floor (a corner of
+        the walls, a wall crossing an obstacle's reach, or two reaches crossing), since the
+        free floor is what lies outside round discs, whose arcs bulge into it. Those are the
+        candidates kept, so a gap of a few centimetres is found where random draws miss it."""
+        low, high = np.full(2, radius), self.size - radius
+        reach = self.radii + radius
+        points = [np.array([[x, y] for x in (low[0], high[0]) for y in (low[1], high[1])])]
+        for axis, wall in itertools.product(range(2), (0, 1)):
+            at = (low, high)[wall][axis]
+            off = at - self.centres[:, axis]
+            half = np.sqrt(np.clip(reach ** 2 - off ** 2, 0.0, None))[off ** 2 <= reach ** 2]
+            along = self.centres[off ** 2 <= reach ** 2, 1 - axis]
+            for sign in (-1.0, 1.0):
+                p = np.empty((len(half), 2))
+                p[:, axis], p[:, 1 - axis] = at, along + sign * half
+                points.append(p)
+        a, b = np.triu_indices(len(reach), 1)
+        gap = self.centres[b] - self.centres[a]
+        d = np.hypot(gap[:, 0], gap[:, 1])
+        meet = (d > 0) & (d <= reach[a] + reach[b]) & (d >= np.abs(reach[a] - reach[b]))
+        a, b, gap, d = a[meet], b[meet], gap[meet], d[meet]
+        along = (reach[a] ** 2 - reach[b] ** 2 + d ** 2) / (2 * d)
+        across = np.sqrt(np.clip(reach[a] ** 2 - along ** 2, 0.0, None))
+        mid = self.centres[a] + gap * (along / d)[:, None]
+        normal = np.stack([-gap[:, 1], gap[:, 0]], axis=1) / d[:, None]
+        points += [mid + normal * across[:, None], mid - normal * across[:, None]]
+        p = np.concatenate(points)
+        p = p[np.all((p >= low - 1e-9) & (p <= high + 1e-9), axis=1)]
+        if len(reach):
+            dist = np.hypot(*(p[:, None, :] - self.centres[None, :, :]).transpose(2, 0, 1))
+            p = p[np.all(dist >= reach[None, :] - 1e-9, axis=1)]
+        return np.clip(p, low, high)
 
     def inside(self, pos: np.ndarray) -> np.ndarray:
         """Which points are on the floor (walls included), (N,) bool."""

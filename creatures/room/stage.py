@@ -93,6 +93,30 @@ def walk(spec, i: int) -> Walk:
         raise StageError(i, ("vehicle", "gait"), str(error)) from None
 
 
+def floor(section: RoomSection) -> Room:
+    """The walls and obstacles of a ``[room]`` table."""
+    return Room(section.width, section.depth, tuple(Obstacle(o.at[0], o.at[1], o.radius) for o in section.obstacles))
+
+
+def _standing_room(section: RoomSection, specs: list, room: str) -> None:
+    """Obstacles that leave no floor where a creature with no ``at`` could start (:class:`RoomError`):
+    it started inside one, and the walls and the obstacle held it in a corner all run. The
+    largest such body is the one checked: a place for it is a place for any smaller one."""
+    unplaced = [(spec.vehicle.radius, spec.name) for spec in specs if spec.vehicle.at is None]
+    if not unplaced or not section.obstacles:
+        return
+    radius, name = max(unplaced)
+    if len(floor(section).standing_room(radius)):
+        return
+    alone = [n for n, o in enumerate(section.obstacles)
+             if not len(Room(section.width, section.depth, (Obstacle(o.at[0], o.at[1], o.radius),)).standing_room(radius))]
+    key = ("obstacles", alone[0], "radius") if alone else ("obstacles",)
+    which = f"obstacle {alone[0]} (radius {section.obstacles[alone[0]].radius:g} m) covers" if alone else \
+        "the obstacles cover"
+    raise RoomError(key, f"{which} the whole floor of the {room}: no place where {name!r} (radius {radius:g} m) "
+                         "could start")
+
+
 def check_places(section: RoomSection, specs: list, drives: list[tuple[str, ...]]) -> None:
     """Every place named is on the floor, and every zone's drives, tuples and spec keys are some
     creature's, with values its schema takes (:class:`StageError`, :class:`RoomError`; a
@@ -105,6 +129,7 @@ def check_places(section: RoomSection, specs: list, drives: list[tuple[str, ...]
 
     room = f"{size[0]:g} x {size[1]:g} m room"
     _check_floor(section, off, room)
+    _standing_room(section, specs, room)
     for i, spec in enumerate(specs):
         vehicle = spec.vehicle
         if off(vehicle.at):
@@ -251,8 +276,7 @@ class Stage:
         self.section = section
         self.creatures = creatures
         self.index = {c.name: i for i, c in enumerate(creatures)}
-        self.room = Room(section.width, section.depth,
-                         tuple(Obstacle(o.at[0], o.at[1], o.radius) for o in section.obstacles))
+        self.room = floor(section)
         self.sensors = sensors
         specs = [c.spec.vehicle for c in creatures]
         self.v = self._vehicles(specs, rng)
@@ -335,11 +359,14 @@ class Stage:
             if s.at is not None:
                 pos[i] = s.at
             else:
-                for _ in range(100):  # a free place (off the obstacles), else the last draw
+                for _ in range(100):  # a free place (off the obstacles), else a corner of the free floor
                     pos[i] = rng.uniform(s.radius, size - s.radius)
                     if not len(self.room.obstacles) or (
                             norms(self.room.centres - pos[i]) > self.room.radii + s.radius).all():
                         break
+                else:  # some floor is free (creatures.room.stage.check_places), if too little to draw
+                    free = self.room.standing_room(s.radius)
+                    pos[i] = free[rng.integers(len(free))]
             angle = np.radians(s.heading) if s.heading is not None else rng.uniform(-np.pi, np.pi)
             heading[i] = (np.cos(angle), np.sin(angle))
 
