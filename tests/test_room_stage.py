@@ -624,6 +624,9 @@ def test_a_creature_behind_an_obstacle_is_not_seen_by_the_stage(tmp_path):
     ("", 'at = [1.0, 1.0]\nsteer = [{ behaviour = "seek", target = [5.0, 12.0] }]',
      "target \\[5.0, 12.0\\] is outside the 10 x 10 m room"),
     ('[[room.paths]]\nname = "p"\npoints = [[1.0, 1.0], [11.0, 1.0]]', "", "path 'p': point \\[11.0, 1.0\\] is outside"),
+    # a path drawn through a pillar: followers pressed against it (one of four stood there 10 s of 20)
+    ('obstacles = [{ at = [5.0, 5.0], radius = 1.0 }]\n[[room.paths]]\nname = "p"\npoints = [[1.0, 5.5], [9.0, 5.5]]',
+     "", "path 'p': from \\[1.0, 5.5\\] to \\[9.0, 5.5\\] it passes through obstacle 0 \\(at \\[5.0, 5.0\\], radius 1 m\\)"),
     ('[[room.zones]]\nname = "z"\nlow = [11.0, 0.0]\nhigh = [12.0, 4.0]', "", "zone 'z' .* lies outside the 10 x 10"),
     ('[[room.zones]]\nname = "z"\nlow = [3.0, 0.0]\nhigh = [3.0, 4.0]', "", "zone 'z' .* has no area"),
     ("", 'at = [1.0, 1.0]\nmass = 1e-310', "vehicle.mass: Input should be greater than or equal to 0.001"),

@@ -30,6 +30,7 @@ from creatures.room.recipe import NAMED_TARGETS, Behaviour, Recipe, Surroundings
 from creatures.room.space import Obstacle, Room
 from creatures.room.spec import AIMED, RoomSection, VehicleSpec, VisitorSpec
 from creatures.room.speakers import DOME, Dome, azimuth, ring, stereo, vbap
+from creatures.room.steering import project
 from creatures.room.vehicle import Vehicles, norms
 from creatures.room.vision import visible
 from creatures.room.zones import Zones, spec_problem
@@ -172,8 +173,9 @@ def check_places(section: RoomSection, specs: list, drives: list[tuple[str, ...]
 
 def _check_floor(section: RoomSection, off: Callable[[tuple[float, float] | None], bool], room: str) -> None:
     """What the director lays on the floor is on it (:class:`RoomError`): a zone no one can stand
-    in (off the floor, or of no area), an obstacle wholly off it, a path with a point off it
-    (its followers would press against the wall), a body key of a zone that no room would hold,
+    in (off the floor, or of no area), an obstacle wholly off it, a path with a point off it or
+    a line through an obstacle (its followers would press against the wall or the obstacle, the
+    path pulling them back onto its line), a body key of a zone that no room would hold,
     and two zones, paths or flow fields of one name (a path or field named twice was the last
     one; a zone's events could not say which)."""
     size = (section.width, section.depth)
@@ -209,6 +211,16 @@ def _check_floor(section: RoomSection, off: Callable[[tuple[float, float] | None
             if off(point):
                 raise RoomError(("paths", n, "points"), f"path {path.name!r}: point {list(point)} is outside the "
                                 f"{room}: its followers would press against the wall")
+        if section.obstacles:  # pure pursuit along the line holds a follower against a pillar on it
+            centres = np.array([o.at for o in section.obstacles])
+            foot, seg, _ = project(np.array(path.points, dtype=float), centres)
+            through = np.hypot(*(foot - centres).T) < [o.radius for o in section.obstacles]
+            if through.any():
+                o, k = int(np.argmax(through)), int(seg[np.argmax(through)])
+                raise RoomError(("paths", n, "points"), f"path {path.name!r}: from {list(path.points[k])} to "
+                                f"{list(path.points[k + 1])} it passes through obstacle {o} (at "
+                                f"{list(section.obstacles[o].at)}, radius {section.obstacles[o].radius:g} m): its "
+                                "followers would press against the obstacle")
 
 
 UNTRACKED = "track one (two sensors of the input map, named in [[room.visitors]]) or name another"
