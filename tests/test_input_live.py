@@ -175,9 +175,9 @@ def rounded(v):
 
 
 def same(events: list[dict]) -> list[tuple]:
-    """The events the input map causes (and the creatures' answers), without the source's name."""
+    """The events the input map causes (and the creatures' answers), without the source's name or place."""
     return [(e["kind"], round(e["t"], 6), *sorted((k, json.dumps(rounded(v))) for k, v in e.items()
-                                                   if k not in ("t", "kind", "via", "source", "time")))
+                                                   if k not in ("t", "kind", "via", "source", "time", "at")))
             for e in events if e["kind"] in COMPARED]
 
 
@@ -232,6 +232,23 @@ def test_rehearsal_rows_past_an_offline_run_are_said_not_dropped_in_silence(tmp_
     summary = run_offline(load_installation(config), tmp_path / "out", duration=1.0, progress=False)
     assert [e["value"] for e in records(tmp_path / "out" / "events.jsonl") if e["kind"] == "sensor"] == [0.5, 0.5]
     assert any("long.csv: 2 of its 4 rows fall past the run's 1 s (the last at 9.5 s)" in m for m in summary.messages)
+
+
+def test_a_rehearsal_row_no_map_can_read_is_said_at_its_line(tmp_path):
+    """A tracker's export with a lost reading (``nan``), a decimal comma or a slip of an address
+    plays on, each row counted; what was said named the address and why, not where: in a file
+    of a hundred ``/light/x`` rows the author hunted for the one."""
+    rows = ["0.1,/light/x,0.5", "0.2,/light/x,nan", "0.3,/light/x,0.6", "0.4,/ligth/x,0.5", "0.5,midi,300"]
+    (tmp_path / "walk.csv").write_text("time,address,args\n" + "".join(f"{row}\n" for row in rows))
+    config = tmp_path / "c.toml"
+    config.write_text(CREATURES + '[output]\nwav = false\nmidi = false\nreport = false\n[input]\ngenerate = "none"\n'
+                      + MAPS + '[[input.map]]\nfile = "walk.csv"\n')
+    summary = run_offline(load_installation(config), tmp_path / "out", duration=1.0, progress=False)
+    assert [e["value"] for e in records(tmp_path / "out" / "events.jsonl") if e["kind"] == "sensor"] == [0.5, 0.6]
+    said = "\n".join(summary.messages)
+    assert "'/light/x' malformed (value: nan is not a finite number within ±1e+06, at walk.csv:3)" in said
+    assert "'/ligth/x' unmapped (no [[input]] map takes it, at walk.csv:5)" in said
+    assert "e.g. 'midi' (last: not one MIDI message (invalid status byte 300), at walk.csv:6)" in said
 
 
 def test_rehearsal_rows_a_live_run_never_reached_are_counted_when_it_stops(tmp_path, capsys):

@@ -138,8 +138,9 @@ class InputRouter:
         self.world = world
         self.say = say
         self.counts: Counter[str] = Counter()  # mapped / unmapped / malformed, and by source
-        # (what, via) -> when last logged, messages since, a few of their addresses, the latest's address and why
-        self._logged: dict[tuple[str, str], tuple[float, int, tuple[str, ...], str, str]] = {}
+        # (what, via) -> when last logged, messages since, a few of their addresses, the latest's address, why
+        # and where it was read
+        self._logged: dict[tuple[str, str], tuple[float, int, tuple[str, ...], str, str, str]] = {}
         self._sensor_logged: dict[str, float] = {}
         # each map's ``limit``: a bucket of ``limit`` messages (at least one) refilled at ``limit`` a
         # second of the run's clock; the session's, not the Route's (the installation's routes are
@@ -157,24 +158,25 @@ class InputRouter:
             self.world.sensors[spec.name] = StateObject(spec.name, history=1024, habituation=Habituation())
 
     # -- sources --------------------------------------------------------------------------
-    def osc(self, address: str, args: list | tuple, t: float, via: str = "osc") -> int:
-        """An OSC message (or a serial line or rehearsal row read as one); notes heard."""
+    def osc(self, address: str, args: list | tuple, t: float, via: str = "osc", at: str = "") -> int:
+        """An OSC message (or a serial line or rehearsal row read as one); notes heard. ``at``
+        is where it was read (a rehearsal file's line), said with what cannot be taken."""
         args = tuple(args)
         matched = [r for r in self.osc_routes if r.matches_osc(address, args)]
         if not matched:
-            self.miss("unmapped", via, address, t, "no [[input]] map takes it")
+            self.miss("unmapped", via, address, t, "no [[input]] map takes it", at=at)
             return 0
-        return self._apply(matched, args, t, via, address)
+        return self._apply(matched, args, t, via, address, at)
 
-    def midi(self, msg: mido.Message, t: float, via: str = "midi") -> int:
+    def midi(self, msg: mido.Message, t: float, via: str = "midi", at: str = "") -> int:
         """A MIDI message: mapped ones go where their map says; unmapped note-ons are heard
         as notes (a keyboard needs no map) and note-offs end them; anything else is unmapped."""
         kind = "note_off" if is_note_off(msg) else MIDI_KIND.get(msg.type)
         matched = [r for r in self.midi_routes if kind is not None and r.matches_midi(kind, msg)]
         if matched:
-            return self._apply(matched, tuple(getattr(msg, field) for field in MIDI[kind][1]), t, via, kind)
+            return self._apply(matched, tuple(getattr(msg, field) for field in MIDI[kind][1]), t, via, kind, at)
         if kind not in ("note", "note_off"):
-            self.miss("unmapped", via, msg.type, t, "no [[input]] map takes it")
+            self.miss("unmapped", via, msg.type, t, "no [[input]] map takes it", at=at)
             return 0
         self.mapped(via)  # by the default map of a keyboard
         if kind == "note_off":
@@ -184,17 +186,17 @@ class InputRouter:
         self.world.inject(NoteEvent(t, msg.note, msg.velocity, msg.channel, HEARD_LENGTH), via=via)
         return 1
 
-    def midi_bytes(self, data: bytes | list[int], t: float, via: str) -> int:
+    def midi_bytes(self, data: bytes | list[int], t: float, via: str, at: str = "") -> int:
         """Raw MIDI bytes (a rehearsal row, a fuzzer): one message, or malformed."""
         try:
             msg = mido.Message.from_bytes(list(data))
         except (ValueError, TypeError, IndexError) as exc:
-            self.miss("malformed", via, "midi", t, f"not one MIDI message ({exc})")
+            self.miss("malformed", via, "midi", t, f"not one MIDI message ({exc})", at=at)
             return 0
-        return self.midi(msg, t, via)
+        return self.midi(msg, t, via, at)
 
     # -- targets ----------------------------------------------------------------------------
-    def _apply(self, routes: list[Route], args: tuple, t: float, via: str, address: str) -> int:
+    def _apply(self, routes: list[Route], args: tuple, t: float, via: str, address: str, at: str = "") -> int:
         """Every matching route within its ``limit`` takes the message; it counts once: mapped,
         malformed if any route could not read it, or throttled if every route was over its limit."""
         # a message spends its map's allowance before it is read: a flood of unreadable ones is a flood all the same
@@ -205,7 +207,7 @@ class InputRouter:
             except Unreadable as exc:
                 failed = failed or str(exc)
         if failed is not None:
-            self.miss("malformed", via, address, t, failed)
+            self.miss("malformed", via, address, t, failed, at=at)
         elif not taken:
             self.miss("throttled", via, address, t, f"over its map's limit of {routes[0].limit:g} a second")
         else:
@@ -275,35 +277,39 @@ class InputRouter:
         return {c.name for c in self.world.creatures if route.spec.drive in c.drive_names(c.spec)}
 
     # -- what nothing takes ----------------------------------------------------------------
-    def miss(self, what: str, via: str, address: str, t: float, why: str, count: int = 1) -> None:
+    def miss(self, what: str, via: str, address: str, t: float, why: str, count: int = 1, at: str = "") -> None:
         """Count an unmapped, malformed or throttled message (or ``count`` of them, the last at
         ``address``: a flood's drops counted at once); log its cause (``what`` from ``via``) the
         first time, then at most every :data:`LOG_EVERY` seconds with the count since and up
-        to :data:`EXAMPLES` of the addresses, however many distinct addresses there are."""
+        to :data:`EXAMPLES` of the addresses, however many distinct addresses there are. ``at``
+        is where the message was read, when that is known (a rehearsal file's line: in a file
+        of a hundred rows of one address, the author looked for the one row)."""
         self.counts[what] += count
         self.counts[f"{what} {via}"] += count
-        last, since, examples, _, _ = self._logged.get((what, via), (-math.inf, 0, (), "", ""))
+        last, since, examples, *_ = self._logged.get((what, via), (-math.inf, 0, ()))
         address = address[:80]
         if address not in examples and len(examples) < EXAMPLES:
             examples += (address,)
         if t - last < LOG_EVERY:
-            self._logged[(what, via)] = (last, since + count, examples, address, why)
+            self._logged[(what, via)] = (last, since + count, examples, address, why, at)
             return
-        self._line(what, via, address, t, last, since + count, examples, why)
+        self._line(what, via, address, t, last, since + count, examples, why, at)
 
     def flush(self, t: float) -> None:
         """Say what each cause counted since its last line: at the end of a run, or the messages
         of the last ``LOG_EVERY`` seconds before it would be counted and never said."""
-        for (what, via), (last, since, examples, address, why) in list(self._logged.items()):
+        for (what, via), (last, since, examples, address, why, at) in list(self._logged.items()):
             if since:
-                self._line(what, via, address, t, last, since, examples, why)
+                self._line(what, via, address, t, last, since, examples, why, at)
 
     def _line(self, what: str, via: str, address: str, t: float, last: float, count: int,
-              examples: tuple[str, ...], why: str) -> None:
+              examples: tuple[str, ...], why: str, at: str) -> None:
         """One log line (and event) of a cause: ``count`` messages since ``last``, the latest
-        one's ``address`` and ``why``."""
-        self._logged[(what, via)] = (t, 0, (), address, why)
-        self.world.emit(what, via=via, address=address, why=why, count=count, examples=list(examples))
+        one's ``address``, ``why`` and ``at``."""
+        self._logged[(what, via)] = (t, 0, (), address, why, at)
+        self.world.emit(what, via=via, address=address, why=why, count=count, examples=list(examples),
+                        **({"at": at} if at else {}))
+        why += f", at {at}" if at else ""
         if last == -math.inf:
             self.say(f"{via} input {address!r} {what} ({why}); counted, logged at most every {LOG_EVERY:.0f} s")
         else:

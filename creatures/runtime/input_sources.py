@@ -78,6 +78,7 @@ class Row:
     time: float
     address: str
     args: tuple
+    line: int = 0  # of its rehearsal file (0: not read from one)
 
 
 def load_rehearsal(path: Path) -> list[Row]:
@@ -120,7 +121,7 @@ def load_rehearsal(path: Path) -> list[Row]:
                                  number) from None
         if not (math.isfinite(time) and time >= 0) or not (address.startswith("/") or address == "midi"):
             raise RehearsalError(path, "time must be seconds >= 0 and address an OSC address or 'midi'", number)
-        rows.append(Row(time, address, tuple(args)))
+        rows.append(Row(time, address, tuple(args), number))
     return sorted(rows, key=lambda r: r.time)
 
 
@@ -171,10 +172,11 @@ class Rehearsal:
         while self.next < len(self.rows) and self.start + self.rows[self.next].time <= t:
             row = self.rows[self.next]
             self.next += 1
+            at = f"{self.file}:{row.line}" if row.line else ""
             if row.address == "midi":
-                notes += self.router.midi_bytes(row.args, t, "file")
+                notes += self.router.midi_bytes(row.args, t, "file", at)
             else:
-                notes += self.router.osc(row.address, row.args, t, "file")
+                notes += self.router.osc(row.address, row.args, t, "file", at)
         return notes
 
 
