@@ -234,6 +234,18 @@ def test_rehearsal_rows_past_an_offline_run_are_said_not_dropped_in_silence(tmp_
     assert any("long.csv: 2 of its 4 rows fall past the run's 1 s (the last at 9.5 s)" in m for m in summary.messages)
 
 
+@pytest.mark.parametrize("text", ["", "time,address,args\n", "# exported 2026-12-07\n\n"])
+def test_a_rehearsal_file_of_no_rows_is_said_at_its_key(tmp_path, text):
+    """An export that wrote only its header (or nothing) played nothing, and nothing said so."""
+    (tmp_path / "walk.csv").write_text(text)
+    config = tmp_path / "c.toml"
+    config.write_text(CREATURES + '[output]\nwav = false\nmidi = false\nreport = false\n[input]\ngenerate = "none"\n'
+                      + MAPS + '[[input.map]]\nfile = "walk.csv"\n')
+    inst = load_installation(config)
+    said = [note for note in inst.notes if "walk.csv holds no rows" in note]
+    assert len(said) == 1 and re.match(rf"{re.escape(str(config))}:\d+: input\.map\.\d+\.file: ", said[0]), inst.notes
+
+
 def test_a_rehearsal_row_no_map_can_read_is_said_at_its_line(tmp_path):
     """A tracker's export with a lost reading (``nan``), a decimal comma or a slip of an address
     plays on, each row counted; what was said named the address and why, not where: in a file

@@ -666,7 +666,7 @@ def load_installation(path: str | Path) -> LoadedInstallation:
     notes = unplayed_layers({spec.name: spec.score for spec in specs if isinstance(getattr(spec, "score", None), ScoreSpec)})
     inst = _with_input_maps(path, settings, specs, where, ("input",) if isinstance(data.get("input"), list)
                             else ("input", "map"))
-    inst.notes = notes + list(dict.fromkeys(said))  # a crowd's copies of one table say it once
+    inst.notes = notes + list(dict.fromkeys(said)) + inst.notes  # a crowd's copies of one table say it once
     if settings.input.trainer is not None and (note := unrewarded(settings.input.trainer, inst.routes)) is not None:
         inst.notes.append(note)
     return inst
@@ -709,6 +709,9 @@ def _with_input_maps(path: Path, settings: Installation, specs: list[CreatureSpe
                 inst.rehearsals[i] = load_rehearsal(written_in(where, (*prefix, i, "file"), path).parent / spec.file)
             except RehearsalError as exc:
                 raise config_error(path, where, (*prefix, i, "file"), str(exc)) from None
+            if not inst.rehearsals[i]:  # an export that wrote only its header: the run heard nothing, and said nothing
+                inst.notes.append(str(config_error(path, where, (*prefix, i, "file"), f"{spec.file} holds no rows "
+                                                   "(empty, or only a header and comments): it plays nothing")))
     return inst
 
 
