@@ -435,3 +435,19 @@ class StringBank:
             for i in np.flatnonzero(self._failed):
                 self.strings[i].resets += 1
             self._failed[:] = False
+
+
+def prepare(sample_rate: float) -> None:
+    """Compile (or load from numba's cache) the kernels a band-limited note takes, now: a live
+    run's rehearsal (:func:`creatures.runtime.live.rehearse`) plays what a second of the colony
+    plays, which may be no note high enough to be band-limited, and the first one played in the
+    show then compiled them on the creature's thread (a fresh install's first live run: one
+    tick 13 s late, a thousand audio underruns). A one-string bank and a lone string each play
+    a note whose band holds two harmonics; their kernels' argument types are every string's."""
+    parameters = StringParameters(n_masses=16)
+    bank = StringBank(1, parameters, sample_rate=sample_rate, block_size=64)
+    bank.strings[0].note_on(0.2 * sample_rate)
+    bank.render(np.zeros(64), np.zeros(1, dtype=np.int64), np.ones(1), np.zeros(1))
+    lone = ScannedString(parameters, sample_rate=sample_rate)
+    lone.note_on(0.2 * sample_rate)
+    lone.render_raw(np.empty(64))

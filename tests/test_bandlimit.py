@@ -3,6 +3,8 @@ with nothing above the band sounds as before, and the projection is the DFT's.""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -148,3 +150,43 @@ def test_a_note_whose_band_holds_full_band_harmonics_is_read_as_it_is_and_folds_
     assert first == stop
     assert off_harmonics(played(pitch, 22050), f0, 22050) < 5e-5
     assert not above_band(kept_harmonics(midi_to_hz(87) / 48000), 128)  # bench voice's top note at 48 kHz
+
+
+PREPARED = """
+import numpy as np
+from numba.core import event
+from audio import string_bank
+from audio.scanned import ScannedString, StringParameters
+from audio.voices import VoicePool, midi_to_hz
+
+string_bank.prepare(22050)
+compiled = []
+class Heard(event.Listener):
+    def on_start(self, ev): compiled.append(ev.data["dispatcher"].py_func.__name__)
+    def on_end(self, ev): pass
+event.register("numba:compile", Heard())
+pool = VoicePool(2, StringParameters(), sample_rate=22050, block_size=512)
+pool.note_on(100, 1.0)
+pool.note_on(60, 1.0)
+pool.render(np.empty(1024))
+lone = ScannedString(StringParameters(ring=True), sample_rate=22050)
+lone.note_on(midi_to_hz(100), 1.0)
+lone.render_raw(np.empty(512))
+print("compiled after prepare:", compiled)
+"""
+
+
+def test_prepare_compiles_what_a_band_limited_note_takes_before_the_show(tmp_path):
+    """A fresh install's first live run compiled the band-limited kernels when the show first
+    played a high note (the rehearsal had played none): one tick 13 s late. After
+    ``string_bank.prepare`` (which the rehearsal calls) a high note and a low one, in a pool and
+    on a lone ring, compile nothing; on an empty numba cache, in a process of its own."""
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba")}
+    done = subprocess.run([sys.executable, "-c", PREPARED], capture_output=True, text=True, env=env, timeout=600,
+                          cwd=Path(__file__).resolve().parents[1])
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "compiled after prepare: []", done.stdout

@@ -38,6 +38,7 @@ from typing import Callable
 import mido
 import numpy as np
 
+from audio import string_bank
 from audio.resilient import ResilientInput, ResilientOutput, Watched
 from creatures import lock, stop as stops
 from creatures.authored.migrate import keep_originals
@@ -304,6 +305,7 @@ def rehearse(inst: LoadedInstallation) -> None:
         clock.advance_to(step * tick)
         session.step(clock.now(), int(round(tick * sr)), None)
     session.close()
+    string_bank.prepare(sr)  # a band-limited note's kernels: a second of the colony may play none
     kernels.warm(kernels.project_modules())
 
 
