@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from creatures.behaviour.expectation import check_saved
 from creatures.behaviour.value import value_from_dict
 from creatures.events import read_events
 from creatures.persist import StateFileError, atomic_write, load_json
@@ -133,10 +134,12 @@ def _expectations(saved: Any) -> dict[str, tuple[float, int, int]]:
     rows; an entry not as saved is left out, as a damaged value is."""
     rows = {}
     for group, tuples in (saved.items() if isinstance(saved, dict) else ()):
-        for name, e in (tuples.items() if isinstance(tuples, dict) else ()):
-            numbers = [e.get(k) for k in ("reliability", "tests", "violations")] if isinstance(e, dict) else []
-            if len(numbers) == 3 and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in numbers):
-                rows[f"{group}: {name}"] = (float(numbers[0]), int(numbers[1]), int(numbers[2]))
+        for name, entry in (tuples.items() if isinstance(tuples, dict) else ()):
+            try:  # the check a restore makes of it (creatures.behaviour.expectation)
+                tests, violations = check_saved(entry, f"expectations.{group}.{name}")
+            except ValueError:
+                continue
+            rows[f"{group}: {name}"] = (float(entry["reliability"]), tests, violations)
     return rows
 
 
