@@ -36,6 +36,9 @@ from creatures.runtime.schema import OscSection
 SECONDS = 10.0
 """Length of the flood (the issue's)."""
 
+PROVED_EVERY = 64
+"""One packet in this many of a round is a hello proved with the flooder's token (64 a round)."""
+
 WARMUP = 2.0
 """Seconds the colony runs before the flood starts and after it ends."""
 
@@ -81,14 +84,17 @@ def send(port: int, seconds: float, seed: int = 13, ready: Callable[[], None] = 
     """Send :func:`packets` round and round to 127.0.0.1:``port`` for ``seconds``, flat out.
 
     The flooder also plays the cleverest attacker on loopback: first it gets itself asked (its
-    socket is where its hellos say it listens) and keeps the token; then after every round of
-    the pool it adds 64 hellos from new names carrying it, so the colony's table of proved
-    peers is pushed to its bound too. ``ready()`` is called once the pool is made, and the
-    flood starts when it returns."""
+    socket is where its hellos say it listens) and proves its hello with the token, as a
+    colony asked does; then every round of the pool carries 64 hellos from new names with the
+    token, so the colony's table of proved peers is pushed to its bound too. They are spread
+    through the round, one every :data:`PROVED_EVERY` packets: sent as a burst at its end they
+    met a full socket buffer together, and a slow flood (a few rounds on a loaded CI machine)
+    once proved none. ``ready()`` is called once the pool is made, and the flood starts when it
+    returns. Returns the packets and bytes sent, and the proved hellos among them."""
     pool = packets(seed)
     ready()
     target = ("127.0.0.1", port)
-    count = total = 0
+    count = total = proved = 0
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
         s.bind(("127.0.0.1", 0))
         own = s.getsockname()[1]
@@ -97,9 +103,15 @@ def send(port: int, seconds: float, seed: int = 13, ready: Callable[[], None] = 
         end = time.monotonic() + seconds
         while time.monotonic() < end:  # looked at every 4,096 packets: a few ms
             rounds += 1
-            extra = [_message(f"/creature/p{rounds}x{i}/hello", own, *([token] if token is not None else []))
-                     for i in range(64)]
-            for packet in pool + extra:
+            if token is None:
+                this_round = pool
+            else:  # one proved hello from a new name before every PROVED_EVERY packets of the pool
+                this_round = []
+                for i in range(0, len(pool), PROVED_EVERY):
+                    this_round.append(_message(f"/creature/p{rounds}x{i}/hello", own, token))
+                    this_round.extend(pool[i : i + PROVED_EVERY])
+                proved += len(this_round) - len(pool)
+            for packet in this_round:
                 try:
                     total += s.sendto(packet, target)
                 except OSError:  # ENOBUFS under load: the next one goes
@@ -110,7 +122,7 @@ def send(port: int, seconds: float, seed: int = 13, ready: Callable[[], None] = 
                     token = _token(s.recv(2048)) or token
             except (BlockingIOError, InterruptedError):
                 pass
-    return {"packets": count, "bytes": total}
+    return {"packets": count, "bytes": total, "proved": proved}
 
 
 def _token(ask: bytes) -> int | None:
@@ -118,13 +130,15 @@ def _token(ask: bytes) -> int | None:
 
 
 def _asked(s: socket.socket, target: tuple[str, int], own: int) -> int | None:
-    """Say hello until the colony asks for a token (at most 2 s); the token, if one came."""
+    """Say hello until the colony asks for a token (at most 2 s), then say it again with the
+    token; the token, if one came (a late ask is read between rounds)."""
     s.settimeout(0.1)
     try:
         for _ in range(20):
             s.sendto(_message("/creature/asker/hello", own), target)
             try:
                 if (token := _token(s.recv(2048))) is not None:
+                    s.sendto(_message("/creature/asker/hello", own, token), target)
                     return token
             except TimeoutError:
                 continue
@@ -143,6 +157,7 @@ class FloodResult:
     bytes_out: int  # what it sent
     sent_packets: int  # what the flooder sent
     sent_bytes: int
+    proved_sent: int  # hellos from new names carrying the flooder's token (0: it was never asked)
     stderr_lines: int
     dropped: dict[str, int]
     summary: str
@@ -203,7 +218,7 @@ def flood_colony(folder: Path, *, seconds: float = SECONDS, installation: str = 
         # the run's own seconds include its shutdown; its ticks are due over --duration
         ticks=ticks, expected_ticks=round((seconds + 2 * WARMUP) / tick), peers=max(r["peers"] for r in network),
         max_peers=OscSection().max_peers, bytes_in=final["received_bytes"], bytes_out=final["sent_bytes"],
-        sent_packets=sent["packets"], sent_bytes=sent["bytes"], stderr_lines=len(err.splitlines()),
+        sent_packets=sent["packets"], sent_bytes=sent["bytes"], proved_sent=sent["proved"], stderr_lines=len(err.splitlines()),
         dropped=final["dropped"], summary=summary)
 
 

@@ -11,7 +11,9 @@ the asks and proves hellos from new names), bytes out/in 0.02–0.035, no stderr
 50,000–190,000 packets a second. At ``max_rate`` 2,000, 2 runs of 4 at load 12 lost a
 second (92 %); the same run with no flood once stalled so too at load 7. So a run that falls
 short is tried a second time before the test fails: a real regression (a loop spinning on the
-flooded socket made 55 % here) fails both."""
+flooded socket made 55 % here) fails both. A CI run whose flooder sent only ~16,000 packets
+once held no peer: its proved hellos went in a burst at each round's end, into a full socket
+buffer; they are now spread through the round, and the asker proves its own hello at once."""
 
 from __future__ import annotations
 
@@ -27,7 +29,8 @@ def test_a_colony_flooded_for_ten_seconds_keeps_its_time_its_table_and_its_bound
         result = flood_colony(tmp_path / "second", seconds=SECONDS)
     assert result.sent_packets > 10_000 * SECONDS / 10, "the flooder hardly sent: not a flood"
     assert result.kept >= 0.95, result.summary
-    assert 0 < result.peers <= result.max_peers  # the flooder proves some hellos (it hears asks)
+    assert result.proved_sent > 0, "the colony never asked the flooder for its token"
+    assert 0 < result.peers <= result.max_peers, result.summary  # the flooder proved some hellos
     assert result.bytes_out <= result.bytes_in, result.summary
     assert result.stderr_lines < 100
     # the drops were counted by cause, and shown at the end of the run
