@@ -623,6 +623,11 @@ def test_a_creature_behind_an_obstacle_is_not_seen_by_the_stage(tmp_path):
     ('obstacles = [{ at = [11.0, 5.0], radius = 0.8 }]', "", "obstacle \\[11.0, 5.0\\] of radius 0.8 m lies outside"),
     ("", 'at = [1.0, 1.0]\nsteer = [{ behaviour = "seek", target = [5.0, 12.0] }]',
      "target \\[5.0, 12.0\\] is outside the 10 x 10 m room"),
+    # aimed into a pillar, or a note object laid within one: pressed against it all run, never struck
+    ('obstacles = [{ at = [5.0, 5.0], radius = 1.0 }]', 'at = [1.0, 1.0]\nsteer = [{ behaviour = "seek", target = [5.2, 5.0] }]',
+     "target \\[5.2, 5.0\\] is inside obstacle 0 \\(at \\[5.0, 5.0\\], radius 1 m\\): the creature would press"),
+    ('obstacles = [{ at = [5.0, 5.0], radius = 1.0 }]\n[[room.notes]]\nat = [5.5, 5.0]\npitch = 60', "",
+     "note object \\[5.5, 5.0\\] \\(radius 0.3 m\\) lies inside obstacle 0 .*: no creature could step onto it"),
     ('[[room.paths]]\nname = "p"\npoints = [[1.0, 1.0], [11.0, 1.0]]', "", "path 'p': point \\[11.0, 1.0\\] is outside"),
     # a path drawn through a pillar: followers pressed against it (one of four stood there 10 s of 20)
     ('obstacles = [{ at = [5.0, 5.0], radius = 1.0 }]\n[[room.paths]]\nname = "p"\npoints = [[1.0, 5.5], [9.0, 5.5]]',

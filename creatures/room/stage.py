@@ -138,20 +138,24 @@ def check_places(section: RoomSection, specs: list, drives: list[tuple[str, ...]
         if 2 * vehicle.radius > min(size):
             raise StageError(i, ("vehicle", "radius"), f"a body of radius {vehicle.radius:g} m does not fit in the "
                              f"{room} (the walls would hold it outside the room)")
-        for n, o in enumerate(section.obstacles):
-            if vehicle.at is not None and np.hypot(vehicle.at[0] - o.at[0], vehicle.at[1] - o.at[1]) < o.radius:
-                raise StageError(i, ("vehicle", "at"), f"start {list(vehicle.at)} is inside obstacle {n} (at "
-                                 f"{list(o.at)}, radius {o.radius:g} m)")
+        if (inside := _in_obstacle(section, vehicle.at)) is not None:
+            raise StageError(i, ("vehicle", "at"), f"start {list(vehicle.at)} is inside {inside}")
         for b, steer in enumerate(vehicle.steer):
             if not isinstance(steer.target, str) and off(steer.target):
                 raise StageError(i, ("vehicle", "steer", b, "target"), f"target {list(steer.target)} is outside "
                                  f"the {room}: the creature would press against the wall")
+            if not isinstance(steer.target, str) and (inside := _in_obstacle(section, steer.target)) is not None:
+                raise StageError(i, ("vehicle", "steer", b, "target"), f"target {list(steer.target)} is inside "
+                                 f"{inside}: the creature would press against it")
         if vehicle.gait is not None:
             walk(spec, i)
     for n, note in enumerate(section.notes):
         if off(note.at):
             raise RoomError(("notes", n, "at"), f"note object {list(note.at)} is outside the "
                             f"{size[0]:g} x {size[1]:g} m room")
+        if (inside := _in_obstacle(section, note.at, note.radius)) is not None:
+            raise RoomError(("notes", n, "at"), f"note object {list(note.at)} (radius {note.radius:g} m) lies "
+                            f"inside {inside}: no creature could step onto it")
     for key in ("listener", "input_at"):
         if off(getattr(section, key)):
             raise RoomError((key,), f"{key} {list(getattr(section, key))} is outside the {size[0]:g} x {size[1]:g} m room")
@@ -169,6 +173,15 @@ def check_places(section: RoomSection, specs: list, drives: list[tuple[str, ...]
                                     f"{name!r}{nearest(name, sorted(all_tuples), 'tuples')}")
         if (problem := spec_problem(zone, specs)) is not None:
             raise RoomError(("zones", z, "spec", problem[0]), problem[1])
+
+
+def _in_obstacle(section: RoomSection, point: tuple[float, float] | None, reach: float = 0.0) -> str | None:
+    """The first obstacle that holds ``point`` and everything within ``reach`` m of it, said as
+    an error names it, or None."""
+    for n, o in enumerate(section.obstacles):
+        if point is not None and np.hypot(point[0] - o.at[0], point[1] - o.at[1]) + reach < o.radius:
+            return f"obstacle {n} (at {list(o.at)}, radius {o.radius:g} m)"
+    return None
 
 
 def _check_floor(section: RoomSection, off: Callable[[tuple[float, float] | None], bool], room: str) -> None:
