@@ -210,12 +210,12 @@ def _read(shown, sx, sp, phase, frac, size, n_points, offset, point_step, voice_
     for q in range(size):
         pos = phase[q] * n_points
         j = int(pos)
-        if j >= n_points:  # phase just below 1 can round up to n_points
+        a = pos - j
+        if j >= n_points:  # a phase of 1.0 (the wrap below keeps it under 1) reads point 0, not past the table
             j -= n_points
         # unsigned: numba then adds no negative-index test to the gather
         r = np.uint64((j + offset) * point_step + q * voice_step)
         if interpolate:
-            a = pos - j
             r1 = np.uint64((j + offset + 1) * point_step + q * voice_step)
             y0 = sp[r] + frac[q] * (sx[r] - sp[r])
             y1 = sp[r1] + frac[q] * (sx[r1] - sp[r1])

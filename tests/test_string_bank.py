@@ -184,3 +184,18 @@ def test_scanning_without_interpolation_reads_the_nearest_mass_of_the_latest_fra
         VoiceSpec(interpolation="cubic")
     with pytest.raises(ValueError, match="interpolation must be one of"):
         StringParameters(interpolation="cubic")
+
+
+def test_a_scan_at_phase_one_reads_the_first_point_as_the_reference_does():
+    """The reference reads ``phase × points`` with its index taken modulo the points, so a
+    phase of 1.0 reads point 0 with weight 0 on point 1. The bank's reader wrapped the index
+    but kept the weight ``pos - j`` of the unwrapped position: a phase of 1.0 read
+    y0 + 4 × (y1 − y0) on a 4-point trajectory (the kernel's own wrap keeps a phase under 1;
+    a phase of exactly 1 can only come from outside it, but must not read off the table)."""
+    from audio.string_bank import _read
+
+    rows = np.arange(10, dtype=float) + 1.0  # the shape, point p in row p
+    shown = np.zeros(1)
+    for phase in (0.0, 1.0):
+        _read(shown, rows, rows, np.array([phase]), np.array([0.0]), 1, 4, 0, 1, 0, True)
+        assert shown[0] == 1.0, phase
