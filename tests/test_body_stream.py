@@ -188,6 +188,7 @@ def test_a_stuck_renderer_costs_frames_not_ticks(tmp_path):
     assert stream.advance(0.5) == 1 and stream.skipped == 15
 
 
+@pytest.mark.realtime  # alone: it times a live loop in real time, which a busy neighbour test delays
 def test_live_stream_arrives_at_its_rate(tmp_path):
     """A live run streaming 60 frames a second (more often than its 50 ticks: frames are
     taken between ticks too) to a python-osc server on loopback: frames arrive at 60/s ± 10 %

@@ -140,6 +140,7 @@ def _status(show: Show) -> dict:
     return status
 
 
+@pytest.mark.realtime  # alone: it times a live loop in real time, which a busy neighbour test delays
 def test_a_query_is_answered_within_20_ms(show):
     took = []
     for _ in range(30):
@@ -232,6 +233,7 @@ def _malformed(n: int) -> list[bytes]:
     return [kinds[k % 4](k) for k in range(n)]
 
 
+@pytest.mark.realtime  # alone: it times a live loop in real time, which a busy neighbour test delays
 def test_ten_thousand_malformed_requests_are_answered_counted_and_the_grid_kept(show):
     before, started = _status(show), time.monotonic()
     flood = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -267,7 +269,7 @@ def test_health_endpoint_and_heartbeat(show):
     beats = _beats_after(show, time.monotonic(), 3)
     ticks, uptimes = [b[0] for b in beats], [b[3] for b in beats]
     assert ticks == sorted(ticks) and ticks[-1] > ticks[0]
-    assert all(0.7 <= b - a <= 1.3 for a, b in zip(uptimes, uptimes[1:])), uptimes
+    assert all(0.5 <= b - a <= 1.5 for a, b in zip(uptimes, uptimes[1:])), uptimes  # a beat a second
 
 
 def test_console_set_and_pause_are_in_the_log(own_show):

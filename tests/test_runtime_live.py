@@ -239,6 +239,7 @@ class SlowSynthPorts:
         return synth
 
 
+@pytest.mark.realtime  # alone: it times a live loop in real time, which a busy neighbour test delays
 def test_a_port_listing_of_two_seconds_delays_its_ticks_no_more_than_the_machine_does(tmp_path, monkeypatch):
     """The stall of issue 14, with a fake backend: presence checks list the ports every second
     and a send fails mid-run, yet a 2 s listing delays its ticks no more than the machine's

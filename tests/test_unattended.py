@@ -171,12 +171,12 @@ def test_supervisor_restarts_a_killed_run_with_its_learned_state(tmp_path: Path)
         child = int(subprocess.check_output(["pgrep", "-P", str(keeper.pid)]).split()[0])
         os.kill(child, signal.SIGKILL)
         killed = time.monotonic()
-        while time.monotonic() - killed < 5:
+        while time.monotonic() - killed < 15:  # the keeper waits 1 s (said below); the rest is a loaded machine
             found = subprocess.run(["pgrep", "-P", str(keeper.pid)], capture_output=True, text=True).stdout.split()
             if found and int(found[0]) != child:
                 break
             time.sleep(0.05)
-        assert found and int(found[0]) != child, "not restarted within 5 s"
+        assert found and int(found[0]) != child, "not restarted within 15 s"
         while not any(r["restored"] for r in runs()) and time.monotonic() < deadline:  # the new run's log
             time.sleep(0.1)
         assert [r["restored"] for r in runs()] == [["ada"]]

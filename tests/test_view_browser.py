@@ -73,7 +73,7 @@ def test_the_live_page_of_a_running_colony_moves_changes_and_grows(browser, tmp_
     config.write_text(f'extends = "{installations.path("exchange")}"\nrealtime = false\n'
                       f'[audio]\noutput = false\n[osc]\nport = {osc}\n')
     colony = subprocess.Popen([sys.executable, "-m", "creatures.cli", "run", str(config), "--view", str(view),
-                               "--duration", "60"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                               "--duration", "180"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                               env={**os.environ, "PYTHONUNBUFFERED": "1"})
     try:
         for line in colony.stdout:
