@@ -205,9 +205,10 @@ def test_the_feed_drops_and_counts_what_the_view_is_too_slow_to_take():
     assert feed.events[-1]["pitch"] == 60  # closed: the tap is gone
 
 
-async def _read(url: str, count: int) -> list[dict]:
-    """The first ``count`` messages from the view's websocket, other than percept trees."""
-    got = []
+async def _read(url: str, count: int, got: list[dict] | None = None) -> list[dict]:
+    """The first ``count`` messages from the view's websocket, other than percept trees (into
+    ``got`` as they come, when given, so a caller can wait for one)."""
+    got = [] if got is None else got
     async with aiohttp.ClientSession() as client:
         async with client.ws_connect(url + "ws") as ws:
             while len(got) < count:
@@ -219,14 +220,19 @@ async def _read(url: str, count: int) -> list[dict]:
 
 async def _hello_and_two_frames(server: ViewServer, session: Session, clock: SimulatedClock, feed: Feed,
                                 connected=lambda: None) -> list[dict]:
-    """What a browser reads from a live view: its hello and the frames of two ticks 0.2 s apart
-    (``connected`` runs once the browser is, before the first tick)."""
-    reading = asyncio.ensure_future(_read(server.url, 3))
+    """What a browser reads from a live view: its hello and the frames of two ticks, the second
+    ticked once the first frame was read (``connected`` runs once the browser is, before the
+    first tick)."""
+    got: list[dict] = []
+    reading = asyncio.ensure_future(_read(server.url, 3, got))
     while not server.clients:
         await asyncio.sleep(0.01)
     connected()
     step(session, clock, 1, feed.offer)
-    await asyncio.sleep(0.2)
+    for _ in range(1000):  # the first frame read before the second tick replaces it (the view sends the newest)
+        if len(got) >= 2 or reading.done():
+            break
+        await asyncio.sleep(0.01)
     step(session, clock, 1, feed.offer)
     return await reading
 
