@@ -501,6 +501,29 @@ def test_a_set_of_a_vehicle_key_is_refused_as_read_once(tmp_path):
     assert colony.apply(Request(2, "set", ("fox", "gain", 0.5), ("127.0.0.1", 9)), 0.0)["value"] == 0.5
 
 
+@pytest.mark.parametrize("key, value", [("tuples.sit.value", 5.0), ("tuples", "{}"), ("groups.main.alpha", 0.5),
+                                        ("drives", '{"x": {"growth": 1.0}}'), ("percepts", "{}"), ("body", True)])
+def test_a_set_of_what_an_authored_creature_built_at_the_start_is_refused_as_read_once(tmp_path, key, value):
+    """An authored creature's tuples, groups, drives, percepts and body are built once, from the
+    spec it started with: ``set fox tuples.sit.value 5`` was answered ``{"set": ...}`` and the
+    tuple kept its value, and ``set fox drives {...}`` left the input map routing to drives the
+    creature does not have. Refused now, saying so and changing nothing."""
+    config = tmp_path / "c.toml"
+    config.write_text('title = "t"\n[[creature]]\nname = "fox"\nkind = "authored"\n'
+                      '[creature.drives.boredom]\ngrowth = 0.1\n'
+                      '[creature.tuples.sit]\naction = "rest"\nuntil = { seconds = 1.0 }\n'
+                      '[creature.groups.main]\ntuples = ["sit"]\nalpha = 0.0\n')
+    session = Session(load_installation(config), SimulatedClock(), EventLog(keep_in_memory=0), MemorySink())
+    colony = ColonyHandle(session, pause=lambda on: None, save=None, status=dict)
+    fox = session.creatures[0]
+    before = fox.spec
+    table = key.split(".")[0]
+    with pytest.raises(Refused, match=f"^{key}: \\[creature.{table}\\] is built once, when the creature starts"):
+        colony.apply(Request(1, "set", ("fox", key, value), ("127.0.0.1", 9)), 0.0)
+    assert fox.spec is before
+    assert colony.apply(Request(2, "set", ("fox", "gain", 0.5), ("127.0.0.1", 9)), 0.0)["value"] == 0.5
+
+
 @pytest.mark.parametrize("sent", ["yes", "on", "off", "T", "n", 2, 0.5, '{"x": 1}'])
 def test_a_truth_value_is_set_only_as_a_config_or_a_toggle_says_it(tmp_path, sent):
     """Lax mode read "yes", "on", "off", "t" or "n" as a truth value, which no config takes

@@ -8,7 +8,7 @@ error names file, key and line.
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, ClassVar, Literal
 
 from pathlib import Path
 
@@ -357,6 +357,15 @@ class AuthoredSpec(CreatureSpec):
                                           "(thesis 'sand:stone': 'timbre is modulated directly by the boredom "
                                           "model'): [creature.modulate] \"voice.cutoff\" = { bored = -0.8 } adds "
                                           "weight × saliency to the parameter (and to what skills set), each block")
+    READ_ONCE: ClassVar[dict[str, str]] = {
+        **CreatureSpec.READ_ONCE,
+        **{table: f"[creature.{table}] is built once, when the creature starts: the running creature keeps what it "
+                  "was built from (change the config and restart the run)"
+           for table in ("drives", "percepts", "tuples", "groups", "body", "space", "score", "hearing", "mouth",
+                         "expectations", "mood", "modulate")}}
+    """What :class:`~creatures.authored.creature.Authored` builds its parts from when it starts
+    (its motivation, percepts, tuples, groups, body …): a console ``set`` there was answered and
+    changed nothing, or left the spec naming drives the creature does not have."""
     _file: Path | None = PrivateAttr(None)
 
     def check_references(self, file: Path, where: dict, prefix: tuple) -> list[str]:

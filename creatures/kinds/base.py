@@ -65,6 +65,14 @@ class CreatureSpec(BaseModel):
     vehicle: VehicleSpec = Field(VehicleSpec(), description="[creature.vehicle]: its place, body and steering in the "
                                                            "installation's [room] (ignored without one)")
 
+    READ_ONCE: ClassVar[dict[str, str]] = {
+        "vehicle": "[creature.vehicle] is read once, when the room is built (a [[room.zones]] spec changes "
+                   "max_speed, max_force, mass, radius or max_turn while the creature stands in it)"}
+    """Keys a running creature's spec keeps but nothing reads again, with why: the console's
+    ``set`` and a zone refuse them (:func:`creatures.kinds.spec_keys.with_key`), since a set
+    there would be taken and change nothing (``set vehicle.max_speed`` was answered and the
+    creature kept its speed). A kind's spec adds the tables it builds its parts from."""
+
 
 class CreatureKind(ABC):
     """A creature in a run. Subclasses set ``Spec`` and implement :meth:`tick`.

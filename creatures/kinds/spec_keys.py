@@ -5,8 +5,9 @@ accepts exactly what the console would, with the schema's own message.
 A key is dotted for a nested table (``voice.gain``). The new spec is validated as a config's
 would be; from then on the creature reads it: what it reads as it runs (``gain``, which the
 mixer takes each tick in a room, ``hears_input``, ``voice.gain``, …) changes at once; what it
-built from its spec at the start (a body, a voice, its tuples) keeps until the run restarts.
-A key of a table nothing reads again once the run is built (``vehicle``) is refused, not taken.
+built from its spec at the start (a voice) keeps until the run restarts. A key of a table
+nothing reads again once the run is built (``vehicle``; an authored creature's tuples, groups,
+drives, percepts, body…: the spec class's ``READ_ONCE``) is refused, not taken.
 """
 
 from __future__ import annotations
@@ -20,11 +21,6 @@ from creatures.config import ConfigError, validate
 
 FIXED = ("name", "kind")
 """Keys no running creature may change: they are who it is."""
-
-READ_ONCE = {"vehicle": "[creature.vehicle] is read once, when the room is built (a [[room.zones]] spec changes "
-                        "max_speed, max_force, mass, radius or max_turn while the creature stands in it)"}
-"""Tables a running creature's spec keeps but nothing reads again: a set there would be taken and
-change nothing (a console's ``set vehicle.max_speed`` was answered and the creature kept its speed)."""
 
 Spec = TypeVar("Spec", bound=BaseModel)
 
@@ -72,8 +68,9 @@ def with_key(spec: Spec, key: str, value: Any, name: str, *, literal: bool = Tru
     parts = key.split(".")
     if parts[0] in FIXED:
         raise SpecKeyError(f"{parts[0]} cannot change while the creature runs")
-    if parts[0] in READ_ONCE:
-        raise SpecKeyError(f"{key}: {READ_ONCE[parts[0]]}")
+    once = getattr(type(spec), "READ_ONCE", {})
+    if parts[0] in once:
+        raise SpecKeyError(f"{key}: {once[parts[0]]}")
     # What the config set, not every default: a validator that asks which keys were given
     # (a body by figure or by files, never both) must see the spec as it was written.
     data, whole = spec.model_dump(exclude_unset=True), spec.model_dump()
