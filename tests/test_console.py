@@ -608,6 +608,57 @@ def test_an_id_beyond_32_bits_is_answered_as_malformed_and_the_console_goes_on(t
     assert console.counts["malformed"] == 2 and console.counts["answered"] == 1
 
 
+def test_the_requests_of_an_osc_bundle_are_each_answered(tmp_path):
+    """TouchDesigner's OSC Out, SuperCollider's sendBundle and liblo's lo_send_bundle send OSC
+    bundles: each was answered ``not an OSC message (a request is /console/<verb> id ...)``
+    with id -1, though it held well-formed requests. Each message of a bundle (nested ones
+    opened) is now a request answered with its own id; a bundle that holds none, or whose
+    sizes do not add up, is malformed, saying so."""
+    from pythonosc.osc_bundle_builder import IMMEDIATELY, OscBundleBuilder
+
+    from creatures.runtime.console import Console
+    from creatures.runtime.schema import ConsoleSection
+
+    def bundle(*contents):
+        builder = OscBundleBuilder(IMMEDIATELY)
+        for content in contents:
+            builder.add_content(content)
+        return builder.build()
+
+    def request(verb: str, *args):
+        builder = OscMessageBuilder("/console/" + verb)
+        for arg in args:
+            builder.add_arg(arg)
+        return builder.build()
+
+    config = tmp_path / "c.toml"
+    config.write_text('title = "t"\n' + creature_tables("ada"))
+    session = Session(load_installation(config), SimulatedClock(), EventLog(keep_in_memory=0), MemorySink())
+    console = Console(ConsoleSection(port=None), ColonyHandle(session, pause=lambda on: None, save=None,
+                                                               status=lambda: {"ticks": 3}))
+    console.start()
+    client = SimpleUDPClient("127.0.0.1", console.port)
+    whole = bundle(request("status", 7), bundle(request("drives", 8, "ada"), request("drives", 9, "nobody")))
+    try:
+        for dgram in (whole.dgram, bundle().dgram, whole.dgram[:-4]):
+            client._sock.sendto(dgram, ("127.0.0.1", console.port))
+        deadline = time.monotonic() + 20
+        while console.counts["received"] < 5 or console.requests.qsize() < 3:
+            assert time.monotonic() < deadline, console.counts
+            time.sleep(0.01)
+        console.serve(0.0)
+        replies = [OscMessage(client.receive(5)) for _ in range(5)]
+    finally:
+        console.close()
+    answers = {r.params[0]: (r.address, r.params[1]) for r in replies if r.params[0] != -1}
+    assert answers[7] == ("/console/reply", '{"ticks": 3}')
+    assert answers[8][0] == "/console/reply" and "boredom" in json.loads(answers[8][1])
+    assert answers[9] == ("/console/error", "no creature named 'nobody' (creatures: ada)")
+    assert [r.params for r in replies if r.params[0] == -1] == [
+        [-1, "an OSC bundle that holds no request, or whose elements' sizes do not add up"]] * 2
+    assert console.counts["malformed"] == 2 and console.counts["answered"] == 2
+
+
 def test_a_request_waiting_when_the_run_ends_is_answered_and_counted(tmp_path):
     """A request the console's thread queued after the creatures' last look (a SIGTERM, the
     duration up) was dropped when the console closed: no reply (its client waited out its

@@ -6,7 +6,7 @@ that id, with the values asked for or an error. The console does the same over O
 
 ``/console/<verb> id:int [secret:str] args...`` is answered to the address it came from with
 ``/console/reply id:int json:str`` or ``/console/error id:int message:str`` (id -1 when the
-request had none). The verbs (``docs/stream.md`` lists their arguments): ``status``,
+request had none). Each message of an OSC bundle is a request of its own. The verbs (``docs/stream.md`` lists their arguments): ``status``,
 ``drives``, ``values``, ``percepts``, ``state``, ``set``, ``trigger``, ``reward``, ``pause``,
 ``resume``, ``save``.
 
@@ -49,6 +49,9 @@ if TYPE_CHECKING:
 PREFIX = "/console/"
 MAX_REQUEST = 4096
 """Bytes a request may take (a datagram beyond is malformed): every request here is short."""
+
+BUNDLE = b"#bundle\x00"
+"""How an OSC bundle begins (its 8-byte time tag follows, then size-prefixed elements)."""
 
 MAX_REPLY = 60_000
 """Bytes a reply may take (one UDP datagram); a larger answer is an error saying so."""
@@ -101,10 +104,31 @@ def _fits(value: Any, kind: type) -> bool:
     return isinstance(value, kind)
 
 
+def requests_in(data: bytes) -> list[bytes]:
+    """The requests a datagram holds: itself, or each message of an OSC bundle, nested bundles
+    opened (TouchDesigner's OSC Out, SuperCollider's sendBundle and liblo send bundles). The time
+    tag is not kept: a bundled request is applied at the creatures' next look, as any other. A
+    bundle that holds none, or whose sizes do not add up, is returned whole for :func:`parse`
+    to refuse."""
+    if not data.startswith(BUNDLE) or len(data) > MAX_REQUEST:
+        return [data]
+    found, index = [], len(BUNDLE) + 8
+    while index + 4 <= len(data):
+        size = int.from_bytes(data[index:index + 4], "big", signed=True)
+        element = data[index + 4:index + 4 + size]
+        if size <= 0 or len(element) < size:
+            return [data]
+        found.extend(requests_in(element))
+        index += 4 + size
+    return found if found and index == len(data) else [data]
+
+
 def parse(data: bytes, sender: tuple[str, int], secret: str | None) -> Request:
-    """A request from a datagram, or :class:`Malformed`."""
+    """A request from a datagram (a message: :func:`requests_in` opens bundles), or :class:`Malformed`."""
     if len(data) > MAX_REQUEST:
         raise Malformed(-1, "malformed", f"request larger than {MAX_REQUEST} bytes")
+    if data.startswith(BUNDLE):
+        raise Malformed(-1, "malformed", "an OSC bundle that holds no request, or whose elements' sizes do not add up")
     try:
         msg = OscMessage(data)
         params = list(msg.params)
@@ -249,7 +273,8 @@ class Console:
                     break
                 except OSError:  # an ICMP error queued on the socket (a client gone); the next read is fine
                     continue
-                self._take(data, sender)
+                for request in requests_in(data):
+                    self._take(request, sender)
 
     def _take(self, data: bytes, sender: tuple[str, int]) -> None:
         self.counts["received"] += 1
