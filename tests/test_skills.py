@@ -310,6 +310,21 @@ def test_sweep_names_must_be_joint_variables(tmp_path):
         session_of(tmp_path, extra.replace('"nekc.x" = [-20.0, 30.0]', '"voice.cutoff" = [-0.5, 0.0]'))
 
 
+@pytest.mark.parametrize("action", ['{ type = "oscillate", variables = { "neck.x" = 1e300 } }',
+                                    '{ type = "sweep", variables = { "neck.x" = [-20.0, 1e300] } }',
+                                    '{ type = "servo", percept = "heard", variables = { "neck.x" = [0.0, -1e300] } }'])
+def test_a_skills_depth_beyond_a_million_is_refused_at_its_line(tmp_path, action):
+    """An oscillator of ``"chest.y" = 1e300`` loaded (noted as turning the chest ``inf°``, to be
+    held within its takes' 40°) and then never moved the chest at all, while 1e6 swung it to
+    its limit: each depth is now held to the bounds of every other rate (±1e6)."""
+    extra = NOD.replace('{ type = "sweep", variables = { "nekc.x" = [-20.0, 30.0] } }', action).replace(
+        "until = { done = true }", "until = { seconds = 2.0 }")
+    with pytest.raises(ConfigError, match=r"look.toml:\d+: creature\.1\.tuples\.nod\.action\.variables\.neck\.x.*"
+                                          r"(less|greater) than or equal to -?1000000"):
+        session_of(tmp_path, extra)
+    session_of(tmp_path / "ok", extra.replace("e300", "e6"))
+
+
 def test_a_layer_on_a_joint_the_figure_never_turns_is_refused_at_its_line(tmp_path):
     """The bird's material never turns its beak from rest, and a body never turns a joint
     further than its material does (blend.Limits): a sweep of ``beak.x`` moved nothing while

@@ -33,6 +33,7 @@ from creatures.authored.registry import ACTIONS, PERCEPTS, Params
 from creatures.behaviour.action_tuple import Action, ActionTuple
 from creatures.behaviour.models.gaussian import GaussianModel
 from creatures.behaviour.percept import FunctionPercept
+from creatures.bounds import Bounded
 from creatures.config import nearest
 from creatures.kinds.layers import LayerSpec, blend_field, source_limits
 from creatures.motor.adverbs import AdverbBlend, Example
@@ -316,7 +317,7 @@ class _VariablesParams(Params):
 
 
 class _SweepParams(_VariablesParams):
-    variables: dict[str, tuple[float, float]] = Field(min_length=1, description="joint variable ('chest.y', "
+    variables: dict[str, tuple[Bounded, Bounded]] = Field(min_length=1, description="joint variable ('chest.y', "
                                                                                "degrees) or voice parameter "
                                                                                "('voice.gain') → [min, max] offset")
     duration: float = Field(2.0, gt=0, le=3600, description="seconds for current→min→max→current")
@@ -360,7 +361,7 @@ class SweepVariables(_SkillPart):
 
 
 class _OscillateParams(_VariablesParams):
-    variables: dict[str, float] = Field(min_length=1, description="joint variable (degrees) or voice parameter → "
+    variables: dict[str, Bounded] = Field(min_length=1, description="joint variable (degrees) or voice parameter → "
                                                                   "the depth it swings either side")
     period: float = Field(2.0, gt=0, le=3600, description="seconds per cycle")
 
@@ -392,7 +393,7 @@ class Oscillate(_SkillPart):
 
 
 class _ServoParams(_VariablesParams):
-    variables: dict[str, tuple[float, float]] = Field(min_length=1, description="joint variable (degrees) or voice "
+    variables: dict[str, tuple[Bounded, Bounded]] = Field(min_length=1, description="joint variable (degrees) or voice "
                                                                                "parameter → [offset at 0, offset at "
                                                                                "1] of the percept")
     percept: str = Field(description="the percept whose saliency sets the target")
