@@ -482,17 +482,22 @@ def test_a_set_gain_reaches_the_mixer(tmp_path):
     assert (session.mixer.gains == before).all() and session.creatures[1].spec.pan == -0.5  # refused: unchanged
 
 
+def _fox(tmp_path, head: str, tables: str) -> tuple[Session, ColonyHandle]:
+    """A colony of one resting authored creature, fox, and its console's handle: ``head`` goes
+    before its ``[[creature]]`` table, ``tables`` before its tuples."""
+    config = tmp_path / "c.toml"
+    config.write_text(f'title = "t"\n{head}[[creature]]\nname = "fox"\nkind = "authored"\n{tables}'
+                      '[creature.tuples.sit]\naction = "rest"\nuntil = { seconds = 1.0 }\n'
+                      '[creature.groups.main]\ntuples = ["sit"]\nalpha = 0.0\n')
+    session = Session(load_installation(config), SimulatedClock(), EventLog(keep_in_memory=0), MemorySink())
+    return session, ColonyHandle(session, pause=lambda on: None, save=None, status=dict)
+
+
 def test_a_set_of_a_vehicle_key_is_refused_as_read_once(tmp_path):
     """[creature.vehicle] is read once, when the room is built: ``set fox vehicle.max_speed 0.05``
     was answered ``{"set": ...}`` and the fox went on at its old speed (a zone refuses the same
     key at load). Refused now, saying what does change a vehicle while the show runs."""
-    config = tmp_path / "c.toml"
-    config.write_text('title = "t"\n[room]\n[[creature]]\nname = "fox"\nkind = "authored"\n'
-                      '[creature.vehicle]\nmax_speed = 1.5\nsteer = [{ behaviour = "wander" }]\n'
-                      '[creature.tuples.sit]\naction = "rest"\nuntil = { seconds = 1.0 }\n'
-                      '[creature.groups.main]\ntuples = ["sit"]\nalpha = 0.0\n')
-    session = Session(load_installation(config), SimulatedClock(), EventLog(keep_in_memory=0), MemorySink())
-    colony = ColonyHandle(session, pause=lambda on: None, save=None, status=dict)
+    session, colony = _fox(tmp_path, "[room]\n", '[creature.vehicle]\nmax_speed = 1.5\nsteer = [{ behaviour = "wander" }]\n')
     for key, value in (("vehicle.max_speed", 0.05), ("vehicle.steer", "[]")):
         with pytest.raises(Refused, match=f"^{key}: \\[creature.vehicle\\] is read once, when the room is "
                                           "built .*\\[\\[room.zones\\]\\]"):
@@ -508,13 +513,7 @@ def test_a_set_of_what_an_authored_creature_built_at_the_start_is_refused_as_rea
     spec it started with: ``set fox tuples.sit.value 5`` was answered ``{"set": ...}`` and the
     tuple kept its value, and ``set fox drives {...}`` left the input map routing to drives the
     creature does not have. Refused now, saying so and changing nothing."""
-    config = tmp_path / "c.toml"
-    config.write_text('title = "t"\n[[creature]]\nname = "fox"\nkind = "authored"\n'
-                      '[creature.drives.boredom]\ngrowth = 0.1\n'
-                      '[creature.tuples.sit]\naction = "rest"\nuntil = { seconds = 1.0 }\n'
-                      '[creature.groups.main]\ntuples = ["sit"]\nalpha = 0.0\n')
-    session = Session(load_installation(config), SimulatedClock(), EventLog(keep_in_memory=0), MemorySink())
-    colony = ColonyHandle(session, pause=lambda on: None, save=None, status=dict)
+    session, colony = _fox(tmp_path, "", "[creature.drives.boredom]\ngrowth = 0.1\n")
     fox = session.creatures[0]
     before = fox.spec
     table = key.split(".")[0]
@@ -569,18 +568,11 @@ def test_console_and_health_are_off_and_loopback_by_default():
     assert not settings.stream.targets and not settings.stream.file
 
 
-def test_an_id_beyond_32_bits_is_answered_as_malformed_and_the_console_goes_on(tmp_path):
-    """python-osc reads an OSC int64 (``h``) as an int: ``/console/status`` with an id of 2**40
-    raised on the creatures' thread when its reply's int32 was packed (the run ended with a
-    traceback), and an unknown verb with such an id ended the console's own thread (every
-    request after it unanswered, the show going on deaf). Both are now answered as malformed
-    (id -1: the id cannot come back) and the next request is answered."""
+def _ada_console(tmp_path):
+    """A started console (its own thread, a free port) of a colony of one creature, ada, whose
+    status is ``{"ticks": 3}``; and a python-osc client of it."""
     from creatures.runtime.console import Console
-    from creatures.runtime.osc_wire import head
     from creatures.runtime.schema import ConsoleSection
-
-    def int64_id(address: str, rid: int) -> bytes:
-        return head(address, "h") + rid.to_bytes(8, "big", signed=True)
 
     config = tmp_path / "c.toml"
     config.write_text('title = "t"\n' + creature_tables("ada"))
@@ -588,17 +580,37 @@ def test_an_id_beyond_32_bits_is_answered_as_malformed_and_the_console_goes_on(t
     console = Console(ConsoleSection(port=None), ColonyHandle(session, pause=lambda on: None, save=None,
                                                                status=lambda: {"ticks": 3}))
     console.start()
-    client = SimpleUDPClient("127.0.0.1", console.port)
+    return console, SimpleUDPClient("127.0.0.1", console.port)
+
+
+def _served(console, client: SimpleUDPClient, *, received: int, queued: int) -> list[OscMessage]:
+    """Once the console's thread has read ``received`` requests and queued ``queued`` of them,
+    the creatures' look (at clock time 0) and every reply, one per request read."""
+    deadline = time.monotonic() + 20
+    while console.counts["received"] < received or console.requests.qsize() < queued:
+        assert time.monotonic() < deadline, console.counts
+        time.sleep(0.01)
+    console.serve(0.0)
+    return [OscMessage(client.receive(5)) for _ in range(received)]
+
+
+def test_an_id_beyond_32_bits_is_answered_as_malformed_and_the_console_goes_on(tmp_path):
+    """python-osc reads an OSC int64 (``h``) as an int: ``/console/status`` with an id of 2**40
+    raised on the creatures' thread when its reply's int32 was packed (the run ended with a
+    traceback), and an unknown verb with such an id ended the console's own thread (every
+    request after it unanswered, the show going on deaf). Both are now answered as malformed
+    (id -1: the id cannot come back) and the next request is answered."""
+    from creatures.runtime.osc_wire import head
+
+    def int64_id(address: str, rid: int) -> bytes:
+        return head(address, "h") + rid.to_bytes(8, "big", signed=True)
+
+    console, client = _ada_console(tmp_path)
     try:
         for address, rid in (("/console/status", 2**40), ("/console/nope", -(2**31) - 1)):
             client._sock.sendto(int64_id(address, rid), ("127.0.0.1", console.port))
         client.send_message("/console/status", [7])
-        deadline = time.monotonic() + 20
-        while console.counts["received"] < 3 or console.requests.empty():
-            assert time.monotonic() < deadline, console.counts
-            time.sleep(0.01)
-        console.serve(0.0)
-        replies = [OscMessage(client.receive(5)) for _ in range(3)]
+        replies = _served(console, client, received=3, queued=1)
     finally:
         console.close()
     errors = [r.params for r in replies if r.address == "/console/error"]
@@ -616,9 +628,6 @@ def test_the_requests_of_an_osc_bundle_are_each_answered(tmp_path):
     sizes do not add up, is malformed, saying so."""
     from pythonosc.osc_bundle_builder import IMMEDIATELY, OscBundleBuilder
 
-    from creatures.runtime.console import Console
-    from creatures.runtime.schema import ConsoleSection
-
     def bundle(*contents):
         builder = OscBundleBuilder(IMMEDIATELY)
         for content in contents:
@@ -631,23 +640,12 @@ def test_the_requests_of_an_osc_bundle_are_each_answered(tmp_path):
             builder.add_arg(arg)
         return builder.build()
 
-    config = tmp_path / "c.toml"
-    config.write_text('title = "t"\n' + creature_tables("ada"))
-    session = Session(load_installation(config), SimulatedClock(), EventLog(keep_in_memory=0), MemorySink())
-    console = Console(ConsoleSection(port=None), ColonyHandle(session, pause=lambda on: None, save=None,
-                                                               status=lambda: {"ticks": 3}))
-    console.start()
-    client = SimpleUDPClient("127.0.0.1", console.port)
+    console, client = _ada_console(tmp_path)
     whole = bundle(request("status", 7), bundle(request("drives", 8, "ada"), request("drives", 9, "nobody")))
     try:
         for dgram in (whole.dgram, bundle().dgram, whole.dgram[:-4]):
             client._sock.sendto(dgram, ("127.0.0.1", console.port))
-        deadline = time.monotonic() + 20
-        while console.counts["received"] < 5 or console.requests.qsize() < 3:
-            assert time.monotonic() < deadline, console.counts
-            time.sleep(0.01)
-        console.serve(0.0)
-        replies = [OscMessage(client.receive(5)) for _ in range(5)]
+        replies = _served(console, client, received=5, queued=3)
     finally:
         console.close()
     answers = {r.params[0]: (r.address, r.params[1]) for r in replies if r.params[0] != -1}
