@@ -73,6 +73,53 @@ def test_each_creature_channel_is_set_up_before_its_first_note(tmp_path):
     assert (6, 2) in controls and (38, 50) in controls  # its pitch-bend range, 2.5 semitones
 
 
+def test_a_program_volume_or_pan_set_while_the_run_goes_is_sent_to_the_synth_that_tick(tmp_path):
+    """The console's ``set ada program 40`` (and a zone's spec) replace the creature's spec: the
+    setup was sent once, at the start, and the synth kept the old instrument. A set that changes
+    no setting of the channel (its gain) sends nothing."""
+    from creatures.kinds.spec_keys import with_key
+
+    config = tmp_path / "daw.toml"
+    config.write_text(COLONY)
+    sink, clock = MemorySink(), SimulatedClock()
+    session = Session(load_installation(config), clock, EventLog(), sink)
+    ada = session.creatures[0]
+    session.step(clock.advance(0.02), 0, None, audio=False)
+    started = len(sink.messages)
+    ada.spec = with_key(ada.spec, "gain", 0.5, "ada")
+    session.step(clock.advance(0.02), 0, None, audio=False)
+    assert not [m for _, m in sink.messages[started:] if m.type in ("program_change", "control_change")]
+    ada.spec = with_key(ada.spec, "program", 40, "ada")
+    ada.spec = with_key(ada.spec, "pan", 0.0, "ada")
+    t = clock.advance(0.02)
+    session.step(t, 0, None, audio=False)
+    sent = [(when, m) for when, m in sink.messages[started:] if m.type in ("program_change", "control_change")]
+    assert [m.program for _, m in sent if m.type == "program_change"] == [40]
+    assert (10, 64) in [_cc(m) for _, m in sent if m.type == "control_change"]  # the centre
+    assert {m.channel for _, m in sent} == {0} and {when for when, _ in sent} == {t}
+    session.step(clock.advance(0.02), 0, None, audio=False)
+    assert len([m for _, m in sink.messages if m.type == "program_change" and m.channel == 0]) == 2  # once each
+
+
+def test_a_zone_that_sets_a_program_changes_the_instrument_while_a_creature_stands_in_it(tmp_path):
+    config = tmp_path / "room.toml"
+    config.write_text(COLONY + "[creature.vehicle]\nat = [1.0, 1.0]\nmax_speed = 1.0\n"  # bo's
+                      'steer = [{ behaviour = "seek", target = [9.0, 1.0] }]\n'
+                      "[room]\nwidth = 10.0\ndepth = 2.0\n"
+                      '[[room.zones]]\nname = "organ"\nlow = [4.0, 0.0]\nhigh = [6.0, 2.0]\nspec = { program = 20 }\n')
+    sink, clock = MemorySink(), SimulatedClock()
+    session = Session(load_installation(config), clock, EventLog(), sink)
+    programs = []
+    for _ in range(600):  # 12 s: bo walks from x = 1 through the zone (4–6 m) and on
+        t = clock.advance(0.02)
+        session.step(t, 0, None, audio=False)
+        x = float(session.stage.v.pos[1, 0])
+        programs += [(round(x, 1), m.program) for when, m in sink.messages if when == t and m.channel == 1
+                     and m.type == "program_change"]
+    assert [p for _, p in programs] == [20, 19]  # into the zone the organ, out of it [midi]'s program again
+    assert 4.0 <= programs[0][0] <= 4.3 and 6.0 <= programs[1][0] <= 6.3
+
+
 def test_a_cc_stream_follows_a_drive_at_its_rate_and_only_when_it_changes(tmp_path):
     config = tmp_path / "daw.toml"
     config.write_text(COLONY + '[[output.cc]]\nsource = "bo.boredom"\ncontroller = 74\nrange = [0.0, 2.0]\nrate = 5\n')

@@ -51,13 +51,14 @@ class CreatureSpec(BaseModel):
     gain: float = Field(0.8, ge=0.0, le=4.0, description="linear gain of its voice in the audio mix (out.wav, the "
                                                          "loudspeakers; MIDI velocities are the notes' own)")
     pan: float = Field(0.0, ge=-1.0, le=1.0, description="stereo position of its voice (and MIDI pan, CC 10, "
-                                                          "sent on its channel at start)")
-    program: int | None = Field(None, ge=0, le=127, description="General MIDI program sent on its channel at start "
+                                                          "sent on its channel at start and when it changes)")
+    program: int | None = Field(None, ge=0, le=127, description="General MIDI program sent on its channel at start, "
+                                                                "and again when a console set or a zone changes it "
                                                                 "(default: [midi] program)")
     bank: int | None = Field(None, ge=0, le=16383, description="bank sent before the program (default: [midi] bank)")
-    volume: int | None = Field(None, ge=0, le=127, description="channel volume, CC 7, sent at start "
+    volume: int | None = Field(None, ge=0, le=127, description="channel volume, CC 7, sent at start and when it changes "
                                                                "(default: [midi] volume)")
-    bend_range: float | None = Field(None, ge=0, le=24, description="pitch-bend range in semitones sent at start "
+    bend_range: float | None = Field(None, ge=0, le=24, description="pitch-bend range in semitones sent at start and when it changes "
                                                                     "(default: [midi] bend_range)")
     hears_input: bool = Field(True, description="hear what comes from outside the colony (MIDI, OSC, the input "
                                                 "map's notes, the input audio and its notes); else only other "

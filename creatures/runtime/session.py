@@ -148,6 +148,7 @@ class Session:
         for kind, run in itertools.groupby(self.creatures if deciding is None else [self.creatures[i] for i in deciding],
                                            key=type):
             kind.tick_many(list(run), t)
+        self._set_up_changed(t)  # a console's or a zone's set of program, volume, pan …, this tick
         for read, stream in self._cc:
             msg = stream.due(t, read(t))
             if msg is not None:
@@ -173,16 +174,28 @@ class Session:
         return float(self.creatures[i].percept(name).evaluate(self.clock.now()))
 
     def _set_up_channels(self) -> None:
-        """Each creature's channel in its voice before its first note (midi/channel_setup.py):
-        its own ``program``/``bank``/``volume``/``bend_range``, else ``[midi]``'s, and its pan."""
+        """Each creature's channel in its voice before its first note (midi/channel_setup.py)."""
+        self._set_up: list[tuple[object, tuple]] = [(None, ()) for _ in self.creatures]
+        self._set_up_changed(self.clock.now())
+
+    def _set_up_changed(self, t: float) -> None:
+        """Send the channel setup of every creature whose spec changed what it says: its
+        ``channel``, ``pan`` and own ``program``/``bank``/``volume``/``bend_range`` (else
+        ``[midi]``'s). A console ``set ada program 40`` or a zone's ``spec = { program = 40 }``
+        was taken and the synth kept the old instrument: the setup was sent once, at the start.
+        A spec is replaced whole when a key changes, so an unchanged one costs one identity test."""
         midi = self.inst.settings.midi
-        now = self.clock.now()
-        for creature in self.creatures:
+        for i, creature in enumerate(self.creatures):
             spec = creature.spec
+            if spec is self._set_up[i][0]:
+                continue
             chosen = {key: getattr(spec, key) if getattr(spec, key) is not None else getattr(midi, key)
                       for key in ("program", "bank", "volume", "bend_range")}
-            for msg in channel_setup(spec.channel, pan=spec.pan, **chosen):
-                self.scheduler.send_at(now, msg)
+            said = (spec.channel, spec.pan, *chosen.values())
+            if said != self._set_up[i][1]:
+                for msg in channel_setup(spec.channel, pan=spec.pan, **chosen):
+                    self.scheduler.send_at(t, msg)
+            self._set_up[i] = (spec, said)
 
     def _cc_streams(self) -> list[tuple[Reader, CcStream]]:
         """``[[output.cc]]``: each stream's per-tick reading (a drive or a body feature, which
