@@ -178,8 +178,10 @@ def check_places(section: RoomSection, specs: list, drives: list[tuple[str, ...]
 def _in_obstacle(section: RoomSection, point: tuple[float, float] | None, reach: float = 0.0) -> str | None:
     """The first obstacle that holds ``point`` and everything within ``reach`` m of it, said as
     an error names it, or None."""
+    if point is None:
+        return None
     for n, o in enumerate(section.obstacles):
-        if point is not None and np.hypot(point[0] - o.at[0], point[1] - o.at[1]) + reach < o.radius:
+        if np.hypot(point[0] - o.at[0], point[1] - o.at[1]) + reach < o.radius:
             return f"obstacle {n} (at {list(o.at)}, radius {o.radius:g} m)"
     return None
 

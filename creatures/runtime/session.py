@@ -103,7 +103,8 @@ class Session:
         self.transcribe_look = settings.audio.look  # live or quick (about 35 and 23 ms past a struck attack's hop; docs/hearing.md); offline looks further
         self._transcriber: Transcriber | None = None
         self.ticks = 0
-        self._set_up_channels()
+        self._set_up: list[tuple[object, tuple]] = [(None, ()) for _ in self.creatures]  # (spec, setup sent)
+        self._set_up_changed(self.clock.now())  # each channel in its creature's voice before its first note
         self._cc = self._cc_streams()
 
     def begin(self, **run: object) -> None:
@@ -173,15 +174,10 @@ class Session:
         checked the creature has it)."""
         return float(self.creatures[i].percept(name).evaluate(self.clock.now()))
 
-    def _set_up_channels(self) -> None:
-        """Each creature's channel in its voice before its first note (midi/channel_setup.py)."""
-        self._set_up: list[tuple[object, tuple]] = [(None, ()) for _ in self.creatures]
-        self._set_up_changed(self.clock.now())
-
     def _set_up_changed(self, t: float) -> None:
-        """Send the channel setup of every creature whose spec changed what it says: its
-        ``channel``, ``pan`` and own ``program``/``bank``/``volume``/``bend_range`` (else
-        ``[midi]``'s). A console ``set ada program 40`` or a zone's ``spec = { program = 40 }``
+        """Send the channel setup (midi/channel_setup.py) of every creature whose spec changed
+        what it says: its ``channel``, ``pan`` and own ``program``/``bank``/``volume``/
+        ``bend_range`` (else ``[midi]``'s). A console ``set ada program 40`` or a zone's ``spec = { program = 40 }``
         was taken and the synth kept the old instrument: the setup was sent once, at the start.
         A spec is replaced whole when a key changes, so an unchanged one costs one identity test."""
         midi = self.inst.settings.midi
