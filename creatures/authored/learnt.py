@@ -69,18 +69,18 @@ def restore_learning(creature: "Authored", kept: Unplaced, saved: Any) -> None:
     groups = kept.place("learning.groups", saved.get("groups", {}), creature.spec.learning.groups,
                         what="learning", of="action-group", no="learning group", check=_check_group)
     for name, data in groups.items():
-        key = f"learning.groups.{name}"
-        _check_group(data, key)
         group = creature.groups[name]
         group.learning.grown = max(group.learning.grown, data["grown"])
-        _restore_tuples(creature, kept, group, data.get("tuples", {}), percepts)
+        _restore_tuples(creature, kept, group, data.get("tuples", {}),
+                        _check_group(data, f"learning.groups.{name}"), percepts)
 
 
-def _check_group(data: Any, key: str) -> None:
+def _check_group(data: Any, key: str) -> dict[str, tuple[str, str]]:
+    """A saved group's entry checked: its learnt tuples' (trigger, action) by name."""
     data = bounds.table(data, key)
     bounds.count(data.get("grown"), f"{key}.grown")
-    for name, entry in bounds.table(data.get("tuples", {}), f"{key}.tuples").items():
-        _check_tuple(entry, f"{key}.tuples.{name}")
+    return {name: _check_tuple(entry, f"{key}.tuples.{name}")
+            for name, entry in bounds.table(data.get("tuples", {}), f"{key}.tuples").items()}
 
 
 def _check_tuple(entry: Any, key: str) -> tuple[str, str]:
@@ -89,11 +89,11 @@ def _check_tuple(entry: Any, key: str) -> tuple[str, str]:
 
 
 def _restore_tuples(creature: "Authored", kept: Unplaced, group: "ActionGroup", saved: dict[str, Any],
-                    percepts: dict[str, Any]) -> None:
-    """Each learnt tuple whose trigger and action this creature has, built as fission built it
-    (the authored tuple of that action lends its Du); the others are kept."""
+                    entries: dict[str, tuple[str, str]], percepts: dict[str, Any]) -> None:
+    """Each learnt tuple whose trigger and action this creature has (``entries``, checked from
+    ``saved``), built as fission built it (the authored tuple of that action lends its Du); the
+    others are kept."""
     authored = {tp.action.name: tp for tp in group.tuples if tp.name in creature.spec.groups[group.name].tuples}
-    entries = {name: _check_tuple(entry, f"learning.groups.{group.name}.tuples.{name}") for name, entry in saved.items()}
     buildable = {name for name, (trigger, action) in entries.items() if trigger in percepts and action in authored}
     have = {tp.name for tp in group.tuples}
     for name in kept.place(f"learning.groups.{group.name}.tuples", saved, buildable, what="learnt tuple",
