@@ -186,7 +186,14 @@ def test_the_tree_of_a_renamed_percept_is_said_kept_and_grown_again_when_the_nam
     assert said[0] == (f"{state / 'f.json'}: the saved percept tree of percept 'tone' matches no Gaussian percept "
                        "of f in inst.toml (did you mean 'tones'?); kept in the state file, and taken back if one "
                        "of that name returns"), said
-    assert "the saved learnt tuple of trigger|action 'tone.1|answer' in action-group 'main' matches no percept|tuple pair" in "\n".join(said)
+    # The tree's five learnt tuples, their values and their expectations: one line each, not one a tuple
+    # (sixteen lines before).
+    learnt = "'tone.1|answer', 'tone.1|rest', 'tone.2|answer', 'tone.2|rest' and 'tone|rest' in action-group 'main' match"
+    assert [line.split(": ", 1)[1].split(learnt)[0] for line in said[1:]] == [
+        "the saved learnt tuple of trigger|actions ", "the saved value of tuples ", "the saved expectation of tuples "], said
+    assert said[2].endswith(" match no tuple of f in inst.toml (did you mean 'answer' for 'tone.1|answer', 'answer' for "
+                            "'tone.2|answer', 'rest' for 'tone|rest'?); kept in the state file, each taken back if one "
+                            "of its name returns"), said[2]
     assert _size(renamed.creatures[0].percepts["tones"]) == 1
     renamed.save_state(state)
     kept = json.loads((state / "f.json").read_text())["state"]["learning"]

@@ -10,6 +10,8 @@ rounding never drifts). Only where time comes from and where the outputs go diff
 
 from __future__ import annotations
 
+import difflib
+
 import itertools
 import json
 import math
@@ -25,6 +27,7 @@ from creatures.config import nearest
 from creatures.events import EventLog
 from creatures.authored.migrate import from_retired
 from creatures.kinds import KINDS
+from creatures.behaviour.unplaced import Unmatched
 from creatures.persist import StateFileError, json_text, load_json
 from creatures.state_set import files, settle, write_set
 from creatures.runtime.cc_sources import Reader, parse, reader
@@ -356,9 +359,7 @@ class Session:
         motivation = getattr(creature, "motivation", None)
         for kept in (getattr(motivation, "unplaced", None), creature.unplaced_parts):
             for part in kept.said() if kept is not None else ():
-                self.say(f"{path}: the saved {part.what} of {part.of} {part.name!r}{part.within} matches no {part.no} of "
-                         f"{creature.name} in {self.inst.path.name}{nearest(part.name, part.among, part.no + 's')}; "
-                         "kept in the state file, and taken back if one of that name returns")
+                self.say(f"{path}: {_unmatched(part, f'{creature.name} in {self.inst.path.name}')}")
 
     def _load_colony(self, path: Path | None) -> None:
         """The colony's heard pulse, if a file was saved (older state directories have none)."""
@@ -369,6 +370,32 @@ class Session:
             self.world.pulse.restore(data)
         except RESTORE_ERRORS as exc:
             raise StateFileError(f"{path}: malformed colony state ({type(exc).__name__}: {exc})") from None
+
+
+def _unmatched(part: Unmatched, where: str) -> str:
+    """What a load says of the saved entries one section keeps (``where``: the creature and its
+    config), in one line however many."""
+    one = len(part.names) == 1
+    return (f"the saved {part.what} of {part.of}{'' if one else 's'} {_names(part.names)}{part.within} "
+            f"{'matches' if one else 'match'} no {part.no} of {where}{_nearest_each(part.names, part.among, part.no + 's')}; "
+            f"kept in the state file, {'and taken back if one of that name' if one else 'each taken back if one of its name'} "
+            "returns")
+
+
+def _names(names: tuple[str, ...]) -> str:
+    """``'a'``, ``'a' and 'b'``, ``'a', 'b' and 'c'``."""
+    quoted = [repr(name) for name in names]
+    return quoted[0] if len(quoted) == 1 else f"{', '.join(quoted[:-1])} and {quoted[-1]}"
+
+
+def _nearest_each(names: tuple[str, ...], among: tuple[str, ...], what: str) -> str:
+    """:func:`creatures.config.nearest` for one name; for several, the near ones each named
+    (`` (did you mean 'answer' for 'tone.1|answer'?)``), else every valid one."""
+    close = {name: difflib.get_close_matches(name, among, n=1) for name in names}
+    near = [f"{found[0]!r} for {name!r}" for name, found in close.items() if found]
+    if len(names) == 1 or not near:
+        return nearest(names[0], among, what)  # the one name's nearest, or every valid one
+    return f" (did you mean {', '.join(near)}?)"
 
 
 def write_snapshot(directory: Path, snapshot: list[tuple[str, str]]) -> None:
