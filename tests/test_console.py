@@ -87,8 +87,7 @@ heartbeat = ["127.0.0.1:{heartbeat}"]
                 raise TimeoutError(f"no reply to {verb}")
             reply = OscMessage(data)
             if reply.params[0] == rid:
-                kind = reply.address.rsplit("/", 1)[1]
-                return kind, json.loads(reply.params[1]) if kind == "reply" else reply.params[1]
+                return _answer(reply)
 
     def stop(self) -> str:
         self.process.send_signal(signal.SIGTERM)
@@ -96,6 +95,12 @@ heartbeat = ["127.0.0.1:{heartbeat}"]
             return self.process.communicate(timeout=60)[0]
         finally:
             self.process.kill()
+
+
+def _answer(reply: OscMessage) -> tuple[str, object]:
+    """A reply as its client reads it: ("reply", decoded JSON) or ("error", message)."""
+    kind = reply.address.rsplit("/", 1)[1]
+    return kind, json.loads(reply.params[1]) if kind == "reply" else reply.params[1]
 
 
 def _showing(where: Path):
@@ -517,7 +522,7 @@ def test_a_set_of_what_an_authored_creature_built_at_the_start_is_refused_as_rea
     fox = session.creatures[0]
     before = fox.spec
     table = key.split(".")[0]
-    with pytest.raises(Refused, match=f"^{key}: \\[creature.{table}\\] is built once, when the creature starts"):
+    with pytest.raises(Refused, match=f"^{key}: {table} is read once, when the creature starts"):
         colony.apply(Request(1, "set", ("fox", key, value), ("127.0.0.1", 9)), 0.0)
     assert fox.spec is before
     assert colony.apply(Request(2, "set", ("fox", "gain", 0.5), ("127.0.0.1", 9)), 0.0)["value"] == 0.5
@@ -568,19 +573,29 @@ def test_console_and_health_are_off_and_loopback_by_default():
     assert not settings.stream.targets and not settings.stream.file
 
 
-def _ada_console(tmp_path):
-    """A started console (its own thread, a free port) of a colony of one creature, ada, whose
-    status is ``{"ticks": 3}``; and a python-osc client of it."""
+def _colony(tmp_path, tables: str) -> Session:
+    """The session of a colony of ``tables`` (``[[creature]]`` tables and what follows them),
+    on a simulated clock, its events kept in memory."""
+    config = tmp_path / "c.toml"
+    config.write_text('title = "t"\n' + tables)
+    return Session(load_installation(config), SimulatedClock(), EventLog(), MemorySink())
+
+
+def _started_console(session: Session):
+    """A started console (its own thread, a free port) of ``session``, whose status is
+    ``{"ticks": 3}``; and a python-osc client of it."""
     from creatures.runtime.console import Console
     from creatures.runtime.schema import ConsoleSection
 
-    config = tmp_path / "c.toml"
-    config.write_text('title = "t"\n' + creature_tables("ada"))
-    session = Session(load_installation(config), SimulatedClock(), EventLog(keep_in_memory=0), MemorySink())
     console = Console(ConsoleSection(port=None), ColonyHandle(session, pause=lambda on: None, save=None,
                                                                status=lambda: {"ticks": 3}))
     console.start()
     return console, SimpleUDPClient("127.0.0.1", console.port)
+
+
+def _ada_console(tmp_path):
+    """:func:`_started_console` of a colony of one creature, ada."""
+    return _started_console(_colony(tmp_path, creature_tables("ada")))
 
 
 def _served(console, client: SimpleUDPClient, *, received: int, queued: int) -> list[OscMessage]:
@@ -592,6 +607,126 @@ def _served(console, client: SimpleUDPClient, *, received: int, queued: int) -> 
         time.sleep(0.01)
     console.serve(0.0)
     return [OscMessage(client.receive(5)) for _ in range(received)]
+
+
+def _asked(console, client: SimpleUDPClient, *requests: tuple) -> list[tuple[str, object]]:
+    """``requests`` (each a verb and its arguments) sent by the python-osc client as a user's
+    tool sends them, served at one look of the creatures; each one's answer, in order."""
+    for rid, (verb, *args) in enumerate(requests, 1):
+        client.send_message(f"/console/{verb}", [rid, *args])
+    replies = _served(console, client, received=len(requests), queued=len(requests))
+    return [_answer(reply) for reply in sorted(replies, key=lambda reply: reply.params[0])]
+
+
+def _set(colony: ColonyHandle, name: str, key: str, value) -> dict:
+    return colony.apply(Request(1, "set", (name, key, value), ("127.0.0.1", 9)), 0.0)
+
+
+@pytest.mark.parametrize("kind, key, value", [
+    ("curve", "temperature", 0.5), ("curve", "place", 1.0), ("curve", "springs", "{}"), ("curve", "limbs", '["hand_l"]'),
+    ("duncan", "alpha", 0.5), ("duncan", "offers", '["sit"]'), ("duncan", "beg.prior_mean", 0.8),
+    ("duncan", "hearing.radius", 0.5), ("ozymandias", "calm", 1.0), ("ozymandias", "clicks", "[1.0]"),
+    ("ozymandias", "innovation", 2.0), ("three_creatures", "urge_decay", 0.5),
+    ("three_creatures", "interest_growth", 0.5), ("three_creatures", "mouth.loud", 0.5)])
+def test_a_set_of_what_a_kind_built_at_the_start_is_refused_as_read_once(tmp_path, kind, key, value):
+    """Each kind builds parts from some of its keys when the creature starts (curve's group at
+    its temperature, duncan's beg model, ozymandias's excitement half-life, three_creatures'
+    mouth): ``set it alpha 0.5`` was answered ``{"set": ...}`` and the dog learnt at the old rate.
+    Refused now, saying so and changing nothing."""
+    session = _colony(tmp_path, creature_tables("it", kind=kind))
+    colony = ColonyHandle(session, pause=lambda on: None, save=None, status=dict)
+    before = session.creatures[0].spec
+    table = key.split(".")[0]
+    with pytest.raises(Refused, match=f"^{key}: {table} is read once, when the creature starts: the running "
+                                      "creature keeps what it was built from"):
+        _set(colony, "it", key, value)
+    assert session.creatures[0].spec is before
+
+
+@pytest.mark.parametrize("kind", ["curve", "duncan", "exchange"])
+def test_a_voice_keeps_its_strings_but_sounds_a_set_gain_at_its_next_block(tmp_path, kind):
+    """A creature's strings are built at its first audio block: ``set it voice.gain 0`` was
+    answered and the voice sang on at its old gain (the strings kept the spec they were built
+    from), and ``set it voice.masses 32`` was answered and changed nothing. The gain is taken
+    each block now; the rest of ``[creature.voice]``, and the table whole, are refused."""
+    session = _colony(tmp_path, creature_tables("it", kind=kind))
+    colony = ColonyHandle(session, pause=lambda on: None, save=None, status=dict)
+    it, out = session.creatures[0], np.zeros(512, np.float32)
+    it.sound(out, 22050)
+    it.voice.play(60, 100, 10.0)
+    it.sound(out, 22050)
+    assert np.abs(out).max() > 0.0
+    for key, value in (("voice.masses", 32), ("voice", '{"gain": 0.5}')):
+        with pytest.raises(Refused, match=f"^{key}: \\[creature.voice\\] is built at the first audio block"):
+            _set(colony, "it", key, value)
+    assert _set(colony, "it", "voice.gain", 0.0) == {"set": "voice.gain", "value": 0.0}
+    it.sound(out, 22050)
+    assert not out.any()
+
+
+def test_a_curve_creature_set_a_smaller_room_is_within_it_at_the_next_tick(tmp_path):
+    """What curve reads as it runs still changes at once: its room's half-width."""
+    session = _colony(tmp_path, creature_tables("it", kind="curve") + "place = 2.5\n")
+    colony = ColonyHandle(session, pause=lambda on: None, save=None, status=dict)
+    it = session.creatures[0]
+    assert it.x == 2.5
+    assert _set(colony, "it", "room", 1.0)["value"] == 1.0
+    it.tick(0.02)
+    assert it.x == 1.0
+
+
+def test_a_dog_set_a_velocity_and_a_tricks_pitch_sounds_them_at_its_next_trick(tmp_path):
+    """What duncan reads as it runs still changes at once: its notes and their velocity."""
+    from creatures.kinds.duncan import Trick
+
+    session = _colony(tmp_path, creature_tables("it", kind="duncan"))
+    colony = ColonyHandle(session, pause=lambda on: None, save=None, status=dict)
+    dog, played = session.creatures[0], []
+    session.world.listeners.append(lambda name, note: played.append((note.pitch, note.velocity)))
+    _set(colony, "it", "velocity", 30)
+    _set(colony, "it", "notes.sit", 50)
+    dog.trick_held(1.0, Trick(dog, "sit"))
+    assert played == [(50, 30)]
+
+
+def _sound_heard(creature, at: float) -> None:
+    """A tone of 0.4 s between silences, heard by ``creature``'s ear from clock time ``at``."""
+    from audio_fixtures import SR, silence, tone
+
+    sound = np.concatenate([silence(0.3), tone(440.0, 0.4), silence(0.8)]).astype(np.float32)
+    for i, block in enumerate(np.array_split(sound, len(sound) // 1024)):
+        creature.listen(at + (i + 1) * 1024 / SR, block, SR)
+
+
+def test_an_ozymandias_set_an_excitement_is_that_excited_by_the_next_sound(tmp_path):
+    """What ozymandias reads as it runs still changes at once: the excitement a sound adds."""
+    session = _colony(tmp_path, creature_tables("it", kind="ozymandias"))
+    colony = ColonyHandle(session, pause=lambda on: None, save=None, status=dict)
+    it = session.creatures[0]
+    _sound_heard(it, 0.0)
+    first = it.motivation.level("excitement")
+    assert 0.2 < first <= 0.35
+    _set(colony, "it", "excitement", 0.0)
+    _sound_heard(it, 100.0)  # the first sound's excitement long calmed
+    assert it.motivation.level("excitement") < 1e-3
+
+
+def test_a_three_creature_set_to_flush_oftener_flushes_oftener(tmp_path):
+    """What three_creatures reads as it runs still changes at once: the time between flushes."""
+    session = _colony(tmp_path, creature_tables("it", kind="three_creatures"))
+    colony = ColonyHandle(session, pause=lambda on: None, save=None, status=dict)
+    it = session.creatures[0]
+
+    def flushes(start: float, end: float) -> int:
+        before = len(session.world.log.records)
+        for t in np.arange(start, end, 0.1):
+            it.tick(float(t))
+        return sum(e["kind"] == "flush" for e in session.world.log.records[before:])
+
+    assert flushes(0.0, 30.0) == 2  # every 15 s
+    _set(colony, "it", "flush_every", 2.0)
+    flushes(30.0, 45.0)  # the flush due already comes first
+    assert flushes(45.0, 75.0) in (14, 15)
 
 
 def test_an_id_beyond_32_bits_is_answered_as_malformed_and_the_console_goes_on(tmp_path):

@@ -556,7 +556,7 @@ alpha = 0.0
     neck = bird.body.layers.blend.channel_contributors(6.0)[bird.body.skeleton.index("neck")]
     assert neck == {"course": 1.0, "follow": 1.0}
     # The voice really is scaled: each block sounds at voice.gain, ramped from the last block's.
-    bird.voice = type("Steady", (), {"render": lambda self, o, t, cutoff=1.0: o.fill(1.0), "retune": lambda self, *knobs: None})()
+    bird.voice = type("Steady", (), {"render": lambda self, o, t, cutoff=1.0, gain=None: o.fill(1.0), "retune": lambda self, *knobs: None})()
     out = np.zeros(100)
     bird.sound(out, 22050)
     now = bird.voice_parameters().resolve(session.clock.now())[0]

@@ -593,7 +593,7 @@ class Authored(CreatureKind):
                 knobs = self.voice_now(self.now())
                 self.voice.retune(float(knobs[TENSION]), float(knobs[DAMPING]))
                 cutoff = max(float(knobs[CUTOFF]), 0.0)
-            self.voice.render(out, self.now(), cutoff=cutoff)
+            self.voice.render(out, self.now(), cutoff=cutoff, gain=self.spec.voice.gain)
             if self.score is not None and self.score.band is not None:
                 self.score.band.render(out, self.now(), sample_rate)
         if self._voiced:  # voice.gain, ramped across the block (no zipper steps)

@@ -16,11 +16,11 @@ from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, field_validator,
 
 from creatures.bounds import FINITE, LARGEST_RATE, LONGEST_SECONDS, Bounded, Seconds
 
-from creatures.kinds.base import CreatureSpec
+from creatures.kinds.base import CreatureSpec, built_once
 from creatures.kinds.figures import FigureBodySpec
 from creatures.kinds.hearing_parts import HearingSpec, MouthSpec
 from creatures.kinds.note_world import SpaceSpec
-from creatures.kinds.parts import VoiceSpec
+from creatures.kinds.parts import VOICE_READ_ONCE, VoiceSpec
 from creatures.score.spec import ScoreSpec
 
 
@@ -358,14 +358,12 @@ class AuthoredSpec(CreatureSpec):
                                           "model'): [creature.modulate] \"voice.cutoff\" = { bored = -0.8 } adds "
                                           "weight × saliency to the parameter (and to what skills set), each block")
     READ_ONCE: ClassVar[dict[str, str]] = {
-        **CreatureSpec.READ_ONCE,
-        **{table: f"[creature.{table}] is built once, when the creature starts: the running creature keeps what it "
-                  "was built from (change the config and restart the run)"
-           for table in ("drives", "percepts", "tuples", "groups", "body", "space", "score", "hearing", "mouth",
-                         "expectations", "mood", "modulate")}}
+        **CreatureSpec.READ_ONCE, **VOICE_READ_ONCE,
+        **built_once("drives", "percepts", "tuples", "groups", "body", "space", "score", "hearing", "mouth",
+                     "expectations", "mood", "modulate")}
     """What :class:`~creatures.authored.creature.Authored` builds its parts from when it starts
-    (its motivation, percepts, tuples, groups, body …): a console ``set`` there was answered and
-    changed nothing, or left the spec naming drives the creature does not have."""
+    (its motivation, percepts, tuples, groups, body …) and its voice's strings: a console ``set``
+    there was answered and changed nothing, or left the spec naming drives the creature does not have."""
     _file: Path | None = PrivateAttr(None)
 
     def check_references(self, file: Path, where: dict, prefix: tuple) -> list[str]:

@@ -72,7 +72,15 @@ class CreatureSpec(BaseModel):
     """Keys a running creature's spec keeps but nothing reads again, with why: the console's
     ``set`` and a zone refuse them (:func:`creatures.kinds.spec_keys.with_key`), since a set
     there would be taken and change nothing (``set vehicle.max_speed`` was answered and the
-    creature kept its speed). A kind's spec adds the tables it builds its parts from."""
+    creature kept its speed). A kind's spec adds the keys it builds its parts from
+    (:func:`built_once`); a dotted entry (``voice.masses``) is that key of a table."""
+
+
+def built_once(*keys: str) -> dict[str, str]:
+    """``READ_ONCE`` entries for the keys a kind builds its parts from when the creature starts
+    (its action-group's temperature, its ear, its body …), saying so."""
+    return {key: f"{key} is read once, when the creature starts: the running creature keeps what it was built "
+                 "from (change the config and restart the run)" for key in keys}
 
 
 class CreatureKind(ABC):

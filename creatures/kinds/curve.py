@@ -38,7 +38,7 @@ from __future__ import annotations
 
 import math
 import weakref
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Any, ClassVar, Literal
 
 import numpy as np
 from pydantic import Field, model_validator
@@ -51,10 +51,10 @@ from creatures.behaviour.models.gaussian import GaussianModel
 from creatures.behaviour.percept import FunctionPercept, WhateverPercept
 from creatures.config import nearest
 from creatures.kinds import register
-from creatures.kinds.base import CreatureKind, CreatureSpec
+from creatures.kinds.base import CreatureKind, CreatureSpec, built_once
 from creatures.kinds.moves import Rest, head_for
 from creatures.kinds.figures import FigureBodySpec, figure_graph
-from creatures.kinds.parts import Body, Voice, VoiceSpec, shared_graph
+from creatures.kinds.parts import VOICE_READ_ONCE, Body, Voice, VoiceSpec, shared_graph
 from creatures.motor.graph import MotorGraph
 from creatures.kinds.report_parts import MotorTrail, report_values, selection_logger
 from creatures.motor.note_space import NotePlacement
@@ -90,6 +90,10 @@ class CurveSpec(CreatureSpec):
     limbs: list[str] | None = Field(None, max_length=256,
                                     description="joints whose movement pushes the strings; default the elbows, "
                                                 "wrists and hands the body has, else its striking joints")
+    READ_ONCE: ClassVar[dict[str, str]] = {**CreatureSpec.READ_ONCE, **VOICE_READ_ONCE,
+                                           **built_once("place", "temperature", "body", "springs", "limbs")}
+    """Where it starts, its action-group's temperature, its body, springs and pushing limbs
+    and its strings are built when it starts (:class:`Curve`); the rest is read as it runs."""
 
     @model_validator(mode="after")
     def _close_is_seen(self) -> "CurveSpec":
@@ -408,7 +412,7 @@ class Curve(CreatureKind):
                               joints=None)
             if self.spec.voice.body_shape > 0:  # the second connection: its strings hold its body's shape
                 self.voice.shape_as(self.body.line())
-        self.voice.render(out, self.world.clock.now())
+        self.voice.render(out, self.world.clock.now(), gain=self.spec.voice.gain)
 
     def figure(self) -> tuple[np.ndarray, np.ndarray] | None:
         return self.positions() + [self.x, 0.0, 0.0], np.asarray(self.body.skeleton.parents)

@@ -60,7 +60,7 @@ the group's ``selection``/``values``.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Any, ClassVar, Literal
 
 import numpy as np
 from pydantic import BaseModel, Field, model_validator
@@ -73,11 +73,11 @@ from creatures.behaviour.percept import FunctionPercept, WhateverPercept
 from creatures.behaviour.value import ScalarValue
 from creatures.bounds import FINITE, LARGEST_RATE
 from creatures.kinds import register
-from creatures.kinds.base import CreatureKind, CreatureSpec, Holding
+from creatures.kinds.base import CreatureKind, CreatureSpec, Holding, built_once
 from creatures.kinds.figures import FigureBodySpec, figure_graph
 from creatures.kinds.hearing_parts import Ear, HearingSpec, tree_from_state, tree_state
 from creatures.kinds.moves import head_for
-from creatures.kinds.parts import Body, Voice, VoiceSpec, couple_to_hands
+from creatures.kinds.parts import VOICE_READ_ONCE, Body, Voice, VoiceSpec, couple_to_hands
 from creatures.kinds.report_parts import MotorTrail, report_values, selection_logger
 from midi.notes import NoteEvent
 
@@ -135,6 +135,14 @@ class DuncanSpec(CreatureSpec):
                                                        "highest (shaping the beg shapes a melody)")
     velocity: int = Field(90, ge=1, le=127, description="velocity of its notes")
     voice: VoiceSpec = VoiceSpec()
+    READ_ONCE: ClassVar[dict[str, str]] = {
+        **CreatureSpec.READ_ONCE, **VOICE_READ_ONCE,
+        **built_once("body", "offers", "rest", "idle", "idle_value", "unbidden_value", "temperature", "alpha",
+                     "discount", "classes", "hearing", "beg")}
+    """What :class:`Duncan` builds when it starts: its body, the tuples of standing about and of
+    the tricks it offers, its action-group, its ear and its beg model, and its strings. What a
+    new cue's hypotheses are made of (``tricks``, ``patience``, ``trick_value``, ``sharpness``)
+    is read when a cue is first heard; the rest as it runs."""
 
     @model_validator(mode="after")
     def _labels_on_the_body(self) -> "DuncanSpec":
@@ -353,7 +361,7 @@ class Duncan(CreatureKind):
         if self.voice is None:
             self.voice = Voice(self.spec.voice, sample_rate)
             couple_to_hands(self.voice, self.body)  # the nose pushes the strings
-        self.voice.render(out, self.world.clock.now())
+        self.voice.render(out, self.world.clock.now(), gain=self.spec.voice.gain)
 
     def reward(self, amount: float, t: float, window: float, rate: float) -> list[str]:
         """The click: credit assignment as for any reward (:meth:`CreatureKind.reward`), and a

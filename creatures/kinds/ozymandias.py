@@ -70,7 +70,7 @@ from __future__ import annotations
 import bisect
 import logging
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Any, ClassVar, Literal
 
 import numpy as np
 from pydantic import Field, field_validator
@@ -88,7 +88,7 @@ from creatures.bounds import LARGEST_RATE, LONGEST_OFFLINE, LONGEST_SECONDS, Sec
 from creatures.config import config_error
 from creatures.body.frames import VideoUnavailable, video_encoder
 from creatures.image.spec import ImagesSpec, make_video
-from creatures.kinds.base import CreatureKind, CreatureSpec
+from creatures.kinds.base import CreatureKind, CreatureSpec, built_once
 from creatures.kinds.hearing_parts import AuralLearning, Ear, HearingSpec, Singers, SingFrom, tree_from_state, tree_state
 from creatures.persist import load_json, save_json
 
@@ -127,6 +127,10 @@ class OzymandiasSpec(CreatureSpec):
     hearing: HearingSpec = HearingSpec(half_duplex=False, memory=0.5)
     images: ImagesSpec | None = Field(None, description="the image half: video walked out of a graph of frames "
                                                         "by this creature's EDL (thesis, \"off-line image processing\")")
+    READ_ONCE: ClassVar[dict[str, str]] = {
+        **CreatureSpec.READ_ONCE, **built_once("clicks", "click_value", "calm", "innovation", "hearing")}
+    """What :class:`Ozymandias` builds when it starts: its tuples and their scripted clicks (a
+    console ``reward`` clicks live), its excitement's half-life, its learning and its ear."""
 
     def check_references(self, file: Path, where: dict, prefix: tuple) -> None:
         """Tie the footage to the directory of the file that names it."""

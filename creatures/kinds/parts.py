@@ -100,6 +100,14 @@ class VoiceSpec(BaseModel):
                                 interpolation=self.interpolation)
 
 
+VOICE_READ_ONCE = {
+    f"voice.{name}": "[creature.voice] is built at the first audio block: its strings keep what they were built "
+                     "from, but for voice.gain, which changes at once (change the config and restart the run)"
+    for name in VoiceSpec.model_fields if name != "gain"}
+"""``READ_ONCE`` entries of a kind with a :class:`Voice`: each key of ``[creature.voice]`` but
+``gain`` (:meth:`Voice.render` takes it each block) is built into its strings."""
+
+
 def _round_down(value: float, digits: int = 4) -> float:
     """``value`` cut to ``digits`` significant figures, rounding down: an advised upper bound
     that, typed back into the config, is itself accepted."""
@@ -172,9 +180,12 @@ class Voice:
             self._tuning = (tension, damping)
             self.pool.bank.parameters = self._strings.retuned(tension, damping)
 
-    def render(self, out: np.ndarray, t: float, *, cutoff: float = 1.0) -> None:
+    def render(self, out: np.ndarray, t: float, *, cutoff: float = 1.0, gain: float | None = None) -> None:
         """Fill ``out`` with the voice up to clock time ``t`` (note-offs that fell due first),
-        through the ``bright_hz`` low-pass at ``cutoff`` × its cutoff (a skill's ``voice.cutoff``)."""
+        through the ``bright_hz`` low-pass at ``cutoff`` × its cutoff (a skill's ``voice.cutoff``),
+        at ``gain``: the creature's ``voice.gain`` as its spec says now (a console ``set`` or a
+        zone changes it; the strings were built from the spec of their first block), else the
+        built spec's."""
         due, self._ends = _fall_due(self._ends, t)
         for _, index, started in due:
             self.pool.release(index, started)
@@ -187,7 +198,7 @@ class Voice:
         self.pool.render(out)
         if self.lowpass is not None:
             out[:] = self.lowpass.run(out, self.spec.bright_hz * cutoff)  # (a silent block costs nothing)
-        out *= self.spec.gain
+        out *= self.spec.gain if gain is None else gain
         soft_limit(out, out=out)
 
 

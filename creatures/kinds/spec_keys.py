@@ -4,10 +4,10 @@ accepts exactly what the console would, with the schema's own message.
 
 A key is dotted for a nested table (``voice.gain``). The new spec is validated as a config's
 would be; from then on the creature reads it: what it reads as it runs (``gain``, which the
-mixer takes each tick in a room, ``hears_input``, ``voice.gain``, …) changes at once; what it
-built from its spec at the start (a voice) keeps until the run restarts. A key of a table
-nothing reads again once the run is built (``vehicle``; an authored creature's tuples, groups,
-drives, percepts, body…: the spec class's ``READ_ONCE``) is refused, not taken.
+mixer takes each tick in a room, ``hears_input``, ``voice.gain``, …) changes at once. A key it
+built parts from when it started, which nothing reads again (``vehicle``; an authored
+creature's tuples, groups, drives, percepts, body…; a voice's strings but for ``voice.gain``:
+the spec class's ``READ_ONCE``), is refused, not taken, and so is a table that holds one.
 """
 
 from __future__ import annotations
@@ -58,6 +58,16 @@ def has(spec: BaseModel, key: str) -> bool:
     return True
 
 
+def read_once(spec: BaseModel, parts: tuple[str, ...]) -> str | None:
+    """Why the key along ``parts`` cannot be set (its spec class's ``READ_ONCE``: the key, a
+    table above it, or a key within it is read once), else None."""
+    for entry, why in getattr(type(spec), "READ_ONCE", {}).items():
+        held = tuple(entry.split("."))
+        if parts[:len(held)] == held or held[:len(parts)] == parts:
+            return why
+    return None
+
+
 def with_key(spec: Spec, key: str, value: Any, name: str, *, literal: bool = True) -> Spec:
     """A copy of ``spec`` with ``key`` set to ``value``, validated by its own schema as a
     config would be (:class:`SpecKeyError` with the schema's message; ``name`` is the
@@ -65,12 +75,12 @@ def with_key(spec: Spec, key: str, value: Any, name: str, *, literal: bool = Tru
     text as a number, as pydantic's lax mode does: an OSC controller (a Max or Pd toggle)
     has no truth values and sends what it has. Lax mode's other truth values ("yes", "on",
     "t" …) are refused still, as a config refuses them."""
-    parts = key.split(".")
+    parts = tuple(key.split("."))
     if parts[0] in FIXED:
         raise SpecKeyError(f"{parts[0]} cannot change while the creature runs")
-    once = getattr(type(spec), "READ_ONCE", {})
-    if parts[0] in once:
-        raise SpecKeyError(f"{key}: {once[parts[0]]}")
+    once = read_once(spec, parts)
+    if once is not None:
+        raise SpecKeyError(f"{key}: {once}")
     # What the config set, not every default: a validator that asks which keys were given
     # (a body by figure or by files, never both) must see the spec as it was written.
     data, whole = spec.model_dump(exclude_unset=True), spec.model_dump()

@@ -52,7 +52,7 @@ from __future__ import annotations
 import functools
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Any, ClassVar, Literal
 
 # by name: librosa's lazy parts load at import, not at a creature's first heard word
 from librosa import stft
@@ -66,7 +66,7 @@ from creatures.kinds import register
 from creatures import bounds
 from creatures.bounds import FINITE, LARGEST_RATE, LONGEST_SECONDS, Seconds
 from creatures.config import config_error, written_in
-from creatures.kinds.base import CreatureKind, CreatureSpec
+from creatures.kinds.base import CreatureKind, CreatureSpec, built_once
 from creatures.kinds.hearing_parts import (AuralModelFile, Ear, HearingSpec, Mouth, MouthSpec, SeedModel, pack_samples,
                                               resolve_aural_model, utterance_from_state)
 
@@ -162,6 +162,11 @@ class ThreeCreaturesSpec(CreatureSpec):
                                     "flushes, in time order")
     hearing: HearingSpec = HearingSpec(hold=0.05)
     mouth: MouthSpec = MouthSpec()
+    READ_ONCE: ClassVar[dict[str, str]] = {
+        **CreatureSpec.READ_ONCE,
+        **built_once("interest_growth", "urge_decay", "seed_model", "score", "hearing", "mouth")}
+    """What :class:`ThreeCreature` builds when it starts: its drives' growth and decay, the
+    memory it is seeded with, the score computer's flushes, its ear and its mouth."""
 
     def check_references(self, file: Path, where: dict, prefix: tuple) -> None:
         """Tie the aural models to the directory of the file that names each (and load them)."""
