@@ -664,6 +664,20 @@ def test_a_voice_keeps_its_strings_but_sounds_a_set_gain_at_its_next_block(tmp_p
     assert not out.any()
 
 
+def test_a_client_is_told_a_read_once_key_is_refused_and_a_running_one_is_taken(tmp_path):
+    """As a user's OSC tool sees it: one answer per set, the refusal saying why."""
+    session = _colony(tmp_path, creature_tables("it", kind="curve"))
+    console, client = _started_console(session)
+    try:
+        answers = _asked(console, client, ("set", "it", "temperature", 0.5), ("set", "it", "voice.gain", 0.5))
+    finally:
+        console.close()
+    assert answers == [("error", "temperature: temperature is read once, when the creature starts: the running "
+                                 "creature keeps what it was built from (change the config and restart the run)"),
+                       ("reply", {"set": "voice.gain", "value": 0.5})]
+    assert session.creatures[0].spec.temperature is None and session.creatures[0].spec.voice.gain == 0.5
+
+
 def test_a_curve_creature_set_a_smaller_room_is_within_it_at_the_next_tick(tmp_path):
     """What curve reads as it runs still changes at once: its room's half-width."""
     session = _colony(tmp_path, creature_tables("it", kind="curve") + "place = 2.5\n")
