@@ -743,6 +743,53 @@ def test_a_three_creature_set_to_flush_oftener_flushes_oftener(tmp_path):
     assert flushes(45.0, 75.0) in (14, 15)
 
 
+DOTTED_DOG = """[[creature]]
+name = "rex"
+kind = "duncan"
+tricks = ["sit.low", "beg"]
+offers = []
+notes = { "sit.low" = 60, beg = 64 }
+beg = { paw = "head" }
+[creature.body]
+effectors = ["head_end"]
+scale = 0.01
+rest_labels = ["stand"]
+[[creature.body.animations]]
+file = "heron.bvh"
+labels = { "sit.low" = [[0, 60]], stand = [[80, 140]], beg = [[160, 230]] }
+"""
+"""A dog on the heron's body whose trick ``sit.low`` holds a dot (a label of a body from files)."""
+
+
+def test_a_key_whose_name_holds_a_dot_is_set_quoted_as_toml_quotes_it(tmp_path):
+    """``set rex notes.sit.low 62`` could not reach the trick ``sit.low``'s pitch: the key was
+    split at every dot (``'sit' is not a table``), and no spelling reached it. A name that holds
+    a dot is quoted whole, as a config writes it (``notes."sit.low"``), and a key that splits
+    such a name says how to write it."""
+    from body_fixtures import heron_frames, write_bvh
+    from creatures.kinds.duncan import Trick
+    from creatures.kinds.spec_keys import keys
+
+    write_bvh(tmp_path / "heron.bvh", heron_frames())
+    session = _colony(tmp_path, DOTTED_DOG)
+    console, client = _started_console(session)
+    try:
+        answers = _asked(console, client, ("set", "rex", 'notes."sit.low"', 62), ("set", "rex", "notes.sit.low", 50),
+                         ("set", "rex", 'notes."sit.low', 50), ("set", "rex", "notes..beg", 50))
+    finally:
+        console.close()
+    malformed = ': a key is names joined by dots, a name that holds a dot quoted whole (notes."roll.over")'
+    assert answers == [("reply", {"set": 'notes."sit.low"', "value": 62}),
+                       ("error", "notes.sit.low: 'sit' is not a table of duncan's spec (a name with a dot is quoted: "
+                                 'notes."sit.low")'),
+                       ("error", 'notes."sit.low' + malformed), ("error", "notes..beg" + malformed)]
+    dog, played = session.creatures[0], []
+    session.world.listeners.append(lambda name, note: played.append(note.pitch))
+    dog.trick_held(1.0, Trick(dog, "sit.low"))
+    assert played == [62]
+    assert 'notes."sit.low"' in keys(dog.spec)  # the nearest name a zone's typo is told
+
+
 def test_an_id_beyond_32_bits_is_answered_as_malformed_and_the_console_goes_on(tmp_path):
     """python-osc reads an OSC int64 (``h``) as an int: ``/console/status`` with an id of 2**40
     raised on the creatures' thread when its reply's int32 was packed (the run ended with a

@@ -73,7 +73,7 @@ class ZoneSpec(Strict):
         default_factory=dict, max_length=64,
         description="keys overridden inside: the vehicle's max_speed, max_force, mass, radius, max_turn, or any "
                     "key of the creature's spec the remote console may set (gain, hears_input, voice.gain, …; "
-                    "dotted for a nested table)")
+                    "dotted for a nested table, a name that holds a dot quoted whole: notes.\"sit.low\")")
     enable: list[str] = Field(default_factory=list, max_length=256, description="tuples enabled inside (and "
                                                                             "off everywhere else)")
     disable: list[str] = Field(default_factory=list, max_length=256, description="tuples disabled inside")
