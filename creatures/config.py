@@ -312,6 +312,8 @@ def validate(
         if error["type"] in ("bool_type", "bool_parsing"):  # "unable to interpret input" names no spelling
             message = _truth(literal)
         got = error.get("input") if error["type"] not in ("missing", "extra_forbidden") else None
+        if error["type"] == "value_error" and isinstance(got, dict):  # a validator's sentence about a table
+            got = None  # names what is wrong in it: the table repeated after it (an action's) buried that
         if error["type"] == "literal_error" and isinstance(got, str):  # kind = "gausian"
             close = difflib.get_close_matches(got, re.findall(r"'([^']*)'", str(error["ctx"]["expected"])), n=1)
             message += f" (got {got!r}" + (f"; did you mean {close[0]!r}?)" if close else ")")
@@ -410,12 +412,24 @@ def _quoted_scalar(valid: Any, data: Any, at: tuple[str | int, ...] = (), *,
                  if (found := _quoted_scalar(value, data[key], (*at, key), toggles=toggles)) is not None), None)
 
 
-def nearest(name: object, choices: typing.Iterable[str], what: str) -> str:
-    """The end of an error about a name that is not there: `` (did you mean 'neck'?)``, else
-    every valid one (`` (joints: base, neck, head)``), so a typo's fix is in the message."""
+SHOWN_NAMES = 12
+"""Most valid names an error lists when none is near the one written: a body's 60 joints, or
+every name a table could hold, buried the name that was wrong."""
+
+
+def nearest(name: object, choices: typing.Iterable[str], what: str, *, n: int = 1) -> str:
+    """The end of an error about a name that is not there: `` (did you mean 'neck'?)`` (the
+    ``n`` nearest, nearest first: `` (did you mean 'neck.x', 'neck.y' or 'neck.z'?)``), else
+    the valid ones, at most :data:`SHOWN_NAMES` (`` (joints: base, neck, head)``), so a typo's
+    fix is in the message."""
     choices = list(choices)
-    close = difflib.get_close_matches(str(name), choices, n=1)
-    return f" (did you mean {close[0]!r}?)" if close else f" ({what}: {', '.join(choices) or 'none'})"
+    close = difflib.get_close_matches(str(name), choices, n=n)
+    if close:
+        ranked = sorted(close, key=lambda c: (-difflib.SequenceMatcher(None, str(name), c).ratio(), c))
+        quoted = [repr(c) for c in ranked]
+        return f" (did you mean {' or '.join([', '.join(quoted[:-1]), quoted[-1]] if len(quoted) > 1 else quoted)}?)"
+    more = f" and {len(choices) - SHOWN_NAMES} more" if len(choices) > SHOWN_NAMES else ""
+    return f" ({what}: {', '.join(choices[:SHOWN_NAMES]) or 'none'}{more})"
 
 
 def nearest_file(name: str, base: Path) -> str:

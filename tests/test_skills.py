@@ -4,6 +4,7 @@ current→min→max→current sweep, adverbs played by creatures, and simple sha
 from __future__ import annotations
 
 import math
+import re
 
 import textwrap
 from pathlib import Path
@@ -293,6 +294,27 @@ tuples = ["nod"]
 alpha = 0.0
 """
 """A second group sweeping a joint variable (a typo'd neck: each test puts its own in its place)."""
+
+
+@pytest.mark.parametrize("written, meant", [("neck.w", "(did you mean 'neck.x', 'neck.y' or 'neck.z'?)"),
+                                            ("neck.xx", "(did you mean 'neck.x', 'neck.y' or 'neck.z'?)"),
+                                            ("neck.rotation", "(joint variables: neck.x, neck.y, neck.z)")])
+def test_a_bad_axis_is_named_with_the_variables_it_could_mean_not_the_action_table(tmp_path, written, meant):
+    """``"neck.w"`` in a sweep was refused as ``a joint variable is 'joint.x', 'joint.y' or
+    'joint.z'`` followed by the action's whole table (``(got {'variables': {...}, ...})``, cut
+    at 120 characters), which named neither the axis that was wrong nor the variable meant."""
+    with pytest.raises(ConfigError) as bad:
+        session_of(tmp_path, NOD.replace("nekc.x", written))
+    axis = written.split(".")[1]
+    assert str(bad.value).endswith(f"creature.1.tuples.nod.action: {written!r}: no axis {axis!r} {meant}")
+
+
+def test_a_joint_near_no_name_of_the_body_is_told_a_short_list(tmp_path):
+    """A joint no name of the body is near listed every joint of the body (a body from files
+    may have 60): at most twelve now, and how many more."""
+    with pytest.raises(ConfigError) as bad:
+        session_of(tmp_path, NOD.replace("nekc.x", "qqqq.x"))
+    assert re.search(r"no joint 'qqqq' \(joints: (\w+, ){11}\w+ and \d+ more\)$", str(bad.value)), str(bad.value)
 
 
 def test_sweep_names_must_be_joint_variables(tmp_path):

@@ -55,21 +55,24 @@ LOOK_CHAIN = {"eye_l": 30.0, "eye_r": 30.0, "head": 70.0, "neck": 50.0, "chest":
 
 
 def _variable(body: "Body", name: str) -> tuple[int, np.ndarray]:
-    """``"joint.axis"`` → the joint's index and its unit axis (ValueError naming the joints)."""
+    """``"joint.axis"`` → the joint's index and its unit axis (ValueError naming the nearest joints)."""
+    _joint_variables([name])
     joint, _, axis = name.rpartition(".")
-    if axis not in AXES or not joint:
-        raise ValueError(f"{name!r}: a joint variable is 'joint.x', 'joint.y' or 'joint.z'")
     if joint not in body.skeleton.names:
-        raise ValueError(f"{name!r}: no joint {joint!r} in the body (joints: {', '.join(body.skeleton.names)})")
+        raise ValueError(f"{name!r}: no joint {joint!r} in the body{nearest(joint, body.skeleton.names, 'joints')}")
     return body.skeleton.names.index(joint), np.array(AXES[axis])
 
 
 def _joint_variables(names) -> None:
-    """Every name is ``joint.x``, ``joint.y`` or ``joint.z`` (a ValueError for the config's line)."""
+    """Every name is ``joint.x``, ``joint.y`` or ``joint.z`` (a ValueError for the config's line,
+    naming the name and the nearest it could mean)."""
     for name in names:
         joint, _, axis = name.rpartition(".")
-        if axis not in AXES or not joint:
+        if not joint:
             raise ValueError(f"{name!r}: a joint variable is 'joint.x', 'joint.y' or 'joint.z'")
+        if axis not in AXES:
+            meant = nearest(name, [f"{joint}.{a}" for a in AXES], "joint variables", n=len(AXES))
+            raise ValueError(f"{name!r}: no axis {axis!r}{meant}")
 
 
 def asked_turns(frames: list[dict[str, float]]) -> dict[str, float]:
