@@ -512,7 +512,8 @@ def test_a_set_of_a_vehicle_key_is_refused_as_read_once(tmp_path):
 
 
 @pytest.mark.parametrize("key, value", [("tuples.sit.value", 5.0), ("tuples", "{}"), ("groups.main.alpha", 0.5),
-                                        ("drives", '{"x": {"growth": 1.0}}'), ("percepts", "{}"), ("body", True)])
+                                        ("drives", '{"x": {"growth": 1.0}}'), ("percepts", "{}"), ("body", True),
+                                        ("drive_floor", -5.0), ("ratio_metric", True)])
 def test_a_set_of_what_an_authored_creature_built_at_the_start_is_refused_as_read_once(tmp_path, key, value):
     """An authored creature's tuples, groups, drives, percepts and body are built once, from the
     spec it started with: ``set fox tuples.sit.value 5`` was answered ``{"set": ...}`` and the

@@ -359,8 +359,8 @@ class AuthoredSpec(CreatureSpec):
                                           "weight × saliency to the parameter (and to what skills set), each block")
     READ_ONCE: ClassVar[dict[str, str]] = {
         **CreatureSpec.READ_ONCE, **VOICE_READ_ONCE,
-        **built_once("drives", "percepts", "tuples", "groups", "body", "space", "score", "hearing", "mouth",
-                     "expectations", "mood", "modulate")}
+        **built_once("drives", "drive_floor", "drive_ceiling", "percepts", "tuples", "groups", "body",
+                     "ratio_metric", "space", "score", "hearing", "mouth", "expectations", "mood", "modulate")}
     """What :class:`~creatures.authored.creature.Authored` builds its parts from when it starts
     (its motivation, percepts, tuples, groups, body …) and its voice's strings: a console ``set``
     there was answered and changed nothing, or left the spec naming drives the creature does not have."""
