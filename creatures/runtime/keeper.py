@@ -21,11 +21,12 @@ import shlex
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 from typing import Callable
 
-from creatures.stop import STOPPING, hung_up
+from creatures.stop import STOPPING, hung_up, named
 
 RESTART_AFTER = 1.0
 """Seconds between a crash and the restart."""
@@ -49,13 +50,17 @@ def supervise(command: list[str], say: Callable[[str], None] = print, *,
               launch: Callable[[list[str]], subprocess.Popen[bytes]] = subprocess.Popen) -> int:
     """Run ``command`` until it ends cleanly; returns its last exit code. SIGTERM, SIGINT and
     SIGHUP are passed to the child, which then saves and stops as it would alone (a SIGHUP the
-    keeper died of left its child running, holding the state folder's lock)."""
-    stopping = False
+    keeper died of left its child running, holding the state folder's lock). A stop that comes
+    while no child runs (the wait before a restart, up to :data:`SLOWEST` seconds) ends the wait
+    and the keeper, exit code ``128 + signal``: it went on to start a new child, which ran on
+    with no one left to stop it but a second signal."""
+    stopped = threading.Event()
+    asked: list[int] = []
     child: subprocess.Popen[bytes] | None = None
 
     def forward(signum: int, _: object) -> None:
-        nonlocal stopping
-        stopping = True
+        asked.append(signum)
+        stopped.set()
         hung_up(signum)
         if child is not None and child.poll() is None:
             child.send_signal(signum)
@@ -66,8 +71,10 @@ def supervise(command: list[str], say: Callable[[str], None] = print, *,
         while True:
             began = time.monotonic()
             child = launch(command)
+            if asked and child.poll() is None:  # the stop came while it was being started
+                child.send_signal(asked[0])
             code = child.wait()
-            if stopping or code == 0 or code - 128 in STOPPING:
+            if asked or code == 0 or code - 128 in STOPPING:
                 return code
             if code == REFUSED:
                 say("creatures: the run was refused before it began (above: why); not restarting, since the "
@@ -81,7 +88,9 @@ def supervise(command: list[str], say: Callable[[str], None] = print, *,
             why = (f"killed by {signal.Signals(-code).name}" if code < 0 else "to be started afresh, its audio device "
                    "lost for that process" if code == AFRESH else f"exit code {code}")
             say(f"creatures: the run stopped ({why}); restart {restarts} in {wait:g} s")
-            time.sleep(wait)
+            if stopped.wait(wait):
+                say(f"creatures: {named(asked[0])} before the restart: not restarting")
+                return 128 + asked[0]
     finally:
         for s, handler in previous.items():
             signal.signal(s, handler)
