@@ -44,3 +44,56 @@ def test_a_stop_while_the_keeper_waits_to_restart_ends_it_and_starts_nothing(tmp
     assert code == 128 + sig
     assert "not restarting" in keeper.stdout.read()
     assert runs.read_text() == "x"  # one child only: none was started after the stop
+
+
+COLONY = f"""
+extends = "{ROOT / 'installations' / 'exchange.toml'}"
+[output]
+report = false
+"""
+
+
+def _tree(root: Path) -> dict[str, bytes]:
+    return {p.relative_to(root).as_posix(): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+def test_learning_a_live_run_saved_into_an_offline_runs_state_is_never_removed(tmp_path: Path, capsys) -> None:
+    """An offline run's ``state/`` is "as a live run's --state saves it" (README), so an engineer
+    goes on learning live there: ``creatures run show.toml --state DIR/state``. The next
+    ``creatures offline show.toml --out DIR`` took those files for its own old outputs (the
+    manifest listed their names) and removed them with the live run's learning: exit 0."""
+    from creatures.cli import main
+
+    config, out = tmp_path / "show.toml", tmp_path / "DIR"
+    config.write_text(COLONY)
+    assert main(["offline", str(config), "--out", str(out), "--duration", "1", "--no-progress"]) == 0
+    offline = _tree(out / "state")
+    live = subprocess.run([sys.executable, "-m", "creatures", "run", str(config), "--state", str(out / "state"),
+                           "--duration", "1"], env={**os.environ, "PYTHONPATH": str(ROOT)}, capture_output=True,
+                          text=True, timeout=300)
+    assert live.returncode == 0, live.stderr
+    learned = _tree(out / "state")
+    assert learned != offline and set(learned) == set(offline)  # the same names, the live run's learning
+    capsys.readouterr()
+    before = _tree(out)
+    assert main(["offline", str(config), "--out", str(out), "--duration", "1", "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "changed since a creatures run wrote it" in err and str(out / "state") in err
+    assert _tree(out) == before  # nothing replaced, nothing removed
+
+
+def test_outputs_of_a_manifest_without_stamps_are_still_the_runs_to_replace(tmp_path: Path) -> None:
+    """An output folder written before stamps has a manifest of names only: its files are still
+    replaced by the next run, not refused as changed."""
+    from creatures.cli import main
+    from creatures.persist import load_json, save_json
+    from creatures.runtime.outputs import MANIFEST, MANIFEST_KIND
+
+    config, out = tmp_path / "show.toml", tmp_path / "DIR"
+    config.write_text(COLONY)
+    assert main(["offline", str(config), "--out", str(out), "--duration", "1", "--no-progress"]) == 0
+    manifest = load_json(out / MANIFEST, kind=MANIFEST_KIND)
+    assert set(manifest.pop("stamps")) == {e for e in manifest["files"] if not e.endswith("/")}
+    save_json(out / MANIFEST, {k: v for k, v in manifest.items() if k not in ("format", "version")}, kind=MANIFEST_KIND)
+    (out / "state" / "ada.json").write_text((out / "state" / "ada.json").read_text() + " ")  # changed: unknowable
+    assert main(["offline", str(config), "--out", str(out), "--duration", "2", "--no-progress"]) == 0

@@ -5,11 +5,11 @@ state, an older run's outputs. An offline run therefore
 
 * writes every output into a hidden staging directory inside ``DIR`` (``.creatures-run-*``);
 * records what it published in a manifest, ``DIR/.creatures-manifest.json``: every file and
-  directory, relative to ``DIR``;
-* replaces only what the previous manifest lists. Before running, and again before
-  publishing, it checks every name it will write and every name the previous run wrote: a
-  name that holds anything the previous manifest does not list (a ``state/`` the artist made,
-  a note put into ``report/``) is *refused*, with the path named and nothing changed. We chose
+  directory, relative to ``DIR``, each file with its :func:`stamp`;
+* replaces only what the previous manifest lists, as it wrote it. Before running, and again
+  before publishing, it checks every name it will write and every name the previous run
+  wrote: a name that holds anything the previous manifest does not list (a ``state/`` the
+  artist made, a note put into ``report/``), or a file whose stamp changed, is *refused*, with the path named and nothing changed. We chose
   refusal over publishing elsewhere: an output directory whose layout depended on what
   happened to be in it would break every script that reads ``DIR/events.jsonl``;
 * publishes all or none. The previous run's entries are moved aside into a hidden
@@ -32,7 +32,7 @@ import os
 import shutil
 import tempfile
 from pathlib import Path
-from typing import Iterator
+from typing import Any, Iterator
 
 from creatures.lock import FolderLock, FolderLockedError
 from creatures.paths import directory
@@ -68,13 +68,46 @@ def _entry(out: Path, name: str) -> str:
     return f"{name}/" if (out / name).is_dir() and not (out / name).is_symlink() else name
 
 
-def owned(out: Path) -> set[str]:
-    """What the manifest says the previous run wrote (nothing, without a readable one)."""
+def _manifest(out: Path) -> dict[str, Any]:
+    """The previous run's manifest ({} without a readable one)."""
     try:
-        files = load_json(out / MANIFEST, kind=MANIFEST_KIND).get("files")
+        return load_json(out / MANIFEST, kind=MANIFEST_KIND)
     except StateFileError:
-        return set()
+        return {}
+
+
+def _listed(manifest: dict[str, Any]) -> set[str]:
+    files = manifest.get("files")
     return {f for f in files if isinstance(f, str) and inside(f)} if isinstance(files, list) else set()
+
+
+def stamp(path: Path) -> list[int]:
+    """A file's size and modification time (ns), recorded in the manifest as it was published.
+    A name alone owned whatever came to stand under it: a live run's ``--state`` pointed at an
+    offline run's ``state/`` saved its learning there, and the next run into ``--out`` removed
+    it as its own old output; so did an artist's edit of ``report/index.html``."""
+    here = os.lstat(path)
+    return [here.st_size, here.st_mtime_ns]
+
+
+def _unchanged(path: Path, was: object) -> bool:
+    """Whether ``path`` is as the manifest's stamp ``was`` records it (no stamp: a manifest
+    written before stamps, owned by its name)."""
+    if was is None:
+        return True
+    try:
+        return stamp(path) == was
+    except OSError:
+        return False
+
+
+def owned(out: Path) -> set[str]:
+    """What the manifest says the previous run wrote and is still as it wrote it (nothing,
+    without a readable manifest): a file changed since is no longer the run's to replace."""
+    manifest = _manifest(out)
+    stamps = manifest.get("stamps")
+    stamps = stamps if isinstance(stamps, dict) else {}
+    return {f for f in _listed(manifest) if f.endswith("/") or _unchanged(out / f, stamps.get(f))}
 
 
 def inside(entry: str) -> bool:
@@ -112,9 +145,11 @@ def refuse_foreign(out: Path, names: set[str], replaces: set[str] | None = None)
     strangers = foreign(out, names | (previous if replaces is None else previous & replaces), ours)
     if strangers:
         more = f" (and {len(strangers) - 1} more)" if len(strangers) > 1 else ""
+        why = ("it changed since a creatures run wrote it (saved into by a live run's --state, or edited)"
+               if strangers[0] in _listed(_manifest(out)) else f"no creatures run wrote it (it is not in {MANIFEST})")
         raise OutputDirectoryError(
-            f"{out}: not replacing {out / strangers[0]}{more}: no creatures run wrote it (it is not in "
-            f"{MANIFEST}); nothing was changed. Move it away or choose another --out")
+            f"{out}: not replacing {out / strangers[0]}{more}: {why}; nothing was changed. Move it away or "
+            "choose another --out")
 
 
 def hold(out: Path) -> FolderLock:
@@ -150,14 +185,15 @@ def publish(staged: Path, out: Path, *, replaces: set[str] | None = None, **fact
     None: everything the previous run wrote is replaced or removed."""
     new = sorted(p.name for p in staged.iterdir() if p.name != MARKER)
     refuse_foreign(out, set(new), replaces)
-    ours = owned(out)
+    ours, previous = owned(out), _manifest(out)
+    previous_stamps = previous.get("stamps") if isinstance(previous.get("stamps"), dict) else {}
     old = sorted({e.split("/", 1)[0] for e in ours if os.path.lexists(out / e.split("/", 1)[0])})
     kept: list[str] = []
     if replaces is not None:
         going = replaces | set(new)
         kept = [e for e in sorted(ours) if e.split("/", 1)[0] not in going and os.path.lexists(out / e.split("/", 1)[0])]
         old = [name for name in old if name in going]
-        facts = {**_facts(out), **facts}
+        facts = {**_facts(previous), **facts}
     retired = _hidden_dir(out, RETIRED)
     save_json(out / JOURNAL, {"staged": staged.name, "retired": retired.name, "new": new, "old": old},
               kind=JOURNAL_KIND)
@@ -168,8 +204,11 @@ def publish(staged: Path, out: Path, *, replaces: set[str] | None = None, **fact
             os.replace(out / name, retired / name)
         for name in new:
             os.replace(staged / name, out / name)
-        save_json(out / MANIFEST, {**facts, "files": [e for name in new for e in _listing(out, name)] + kept},
-                  kind=MANIFEST_KIND)  # the commit
+        files = [e for name in new for e in _listing(out, name)] + kept
+        keep = set(kept)
+        stamps = {**{e: was for e, was in previous_stamps.items() if e in keep},
+                  **{e: stamp(out / e) for e in files if not e.endswith("/") and e not in keep}}
+        save_json(out / MANIFEST, {**facts, "files": files, "stamps": stamps}, kind=MANIFEST_KIND)  # the commit
     except BaseException:
         _undo(out, staged, retired, new, old)  # if this fails too, the journal is left for the next run
         (out / JOURNAL).unlink()
@@ -178,13 +217,9 @@ def publish(staged: Path, out: Path, *, replaces: set[str] | None = None, **fact
     _finish(out, staged, retired)
 
 
-def _facts(out: Path) -> dict:
-    """What the previous manifest records beside its files (nothing, without a readable one)."""
-    try:
-        previous = load_json(out / MANIFEST, kind=MANIFEST_KIND)
-    except StateFileError:
-        return {}
-    return {k: v for k, v in previous.items() if k not in ("files", "format", "version")}
+def _facts(previous: dict[str, Any]) -> dict[str, Any]:
+    """What a manifest records beside its files."""
+    return {k: v for k, v in previous.items() if k not in ("files", "stamps", "format", "version")}
 
 
 def _listing(out: Path, name: str) -> list[str]:
