@@ -97,3 +97,28 @@ def test_outputs_of_a_manifest_without_stamps_are_still_the_runs_to_replace(tmp_
     save_json(out / MANIFEST, {k: v for k, v in manifest.items() if k not in ("format", "version")}, kind=MANIFEST_KIND)
     (out / "state" / "ada.json").write_text((out / "state" / "ada.json").read_text() + " ")  # changed: unknowable
     assert main(["offline", str(config), "--out", str(out), "--duration", "2", "--no-progress"]) == 0
+
+
+def test_a_live_run_given_a_snapshot_as_its_state_is_refused_and_the_snapshot_kept(tmp_path: Path) -> None:
+    """``creatures run show.toml --state STATE/snapshots/<stamp>`` (an engineer going back to
+    last Tuesday) ran, and every save rewrote the snapshot: the history `state diff` and
+    `rollback` read was gone, with nothing said. ``rollback`` and ``merge`` refused to write
+    into a snapshot; the run now does too, before anything starts."""
+    config, state = tmp_path / "show.toml", tmp_path / "state"
+    config.write_text(COLONY)
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    first = subprocess.run([sys.executable, "-m", "creatures", "run", str(config), "--state", str(state),
+                            "--duration", "1"], env=env, capture_output=True, text=True, timeout=300)
+    assert first.returncode == 0, first.stderr
+    snapshot = state / "snapshots" / "2026-12-01T000000Z"
+    snapshot.mkdir(parents=True)
+    for saved in state.glob("*.json"):
+        (snapshot / saved.name).write_bytes(saved.read_bytes())
+    kept = _tree(snapshot)
+    run = subprocess.run([sys.executable, "-m", "creatures", "run", str(config), "--state", str(snapshot),
+                          "--duration", "1"], env=env, capture_output=True, text=True, timeout=300)
+    assert run.returncode == 2
+    assert run.stderr.splitlines() == [f"creatures: {snapshot}: is a snapshot, kept as the colony was then; run on "
+                                       f"the state folder ({state}), and its next snapshot keeps that (nothing "
+                                       "changed; to work from the snapshot itself, copy it into a folder of its own)"]
+    assert _tree(snapshot) == kept

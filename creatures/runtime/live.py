@@ -58,7 +58,7 @@ from creatures.runtime.session import Session, write_snapshot
 from creatures.runtime.opening import OpeningHours, Schedule
 from creatures.runtime.trainer_spec import LIVE as TRAINER_LIVE
 from creatures.runtime.sd_notify import Notifier
-from creatures.runtime.snapshots import Snapshotter
+from creatures.runtime.snapshots import Snapshotter, refuse_to_change
 from creatures.runtime import kernels
 from creatures.runtime.ticking import TickLoop, TickTiming, gil_handover, realtime, setup_kept
 from creatures.supervisor import Supervisor
@@ -384,13 +384,14 @@ def check_before_running(inst: LoadedInstallation, *, state: Path | None, log_pa
                          pictures: Path | None, view: int | None = None) -> None:
     """What a live run is given, checked before anything runs or is made (``creatures run``
     calls it before it locks, and so makes, the state folder): the log a regular file or
-    absent, the state a folder or absent, no two listeners on one port, the OSC, console,
-    health, shared room and view ports free, and last the ``--frames`` folder made and written
-    in. The first that fails raises, naming its option or config key."""
+    absent, the state a folder or absent and not a snapshot (history, never written), no two
+    listeners on one port, the OSC, console, health, shared room and view ports free, and last
+    the ``--frames`` folder made and written in. The first that fails raises, naming its option or config key."""
     if log_path is not None:
         regular_file(log_path, "--log")
     if state is not None:
         directory(state, "state folder")
+        refuse_to_change(state, "run on")
     check_apart(inst, view)
     if inst.settings.osc.port is not None:  # bound and let go: a port in use is said now
         open_listener(inst.settings.osc, WallClock(), lambda key, message: inst.error(("osc", key), message)).close()

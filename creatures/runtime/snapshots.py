@@ -34,10 +34,12 @@ def stamp_of(path: Path) -> datetime | None:
 def refuse_to_change(folder: Path, what: str) -> None:
     """A :class:`StateFileError` when ``folder`` is a snapshot (``STATE/snapshots/<stamp>``):
     a snapshot is the colony as it was on that day, which a rollback reads back; a merge or a
-    rollback written into one changed that history, with nothing said."""
+    rollback written into one changed that history, with nothing said, and so did a live run
+    given one as its ``--state`` (each save rewrote it)."""
     if folder.resolve().parent.name == FOLDER and stamp_of(folder.resolve()) is not None:
         raise StateFileError(f"{folder}: is a snapshot, kept as the colony was then; {what} the state folder "
-                             f"({folder.resolve().parent.parent}), and its next snapshot keeps that (nothing changed)")
+                             f"({folder.resolve().parent.parent}), and its next snapshot keeps that (nothing changed; "
+                             "to work from the snapshot itself, copy it into a folder of its own)")
 
 
 def listed(state_dir: Path) -> list[tuple[datetime, Path]]:
