@@ -402,8 +402,7 @@ def _service_options(parser: argparse.ArgumentParser) -> None:
 @command("service", "write a systemd unit for an installation (restart on failure, watchdog)", _service_options)
 def _service(args: argparse.Namespace) -> int:
     from creatures.config import ConfigError
-    from creatures.persist import write_json_text
-    from creatures.runtime.keeper import unit
+    from creatures.runtime.keeper import unit, write_unit
     from creatures.runtime.schema import load_installation
 
     try:
@@ -413,7 +412,7 @@ def _service(args: argparse.Namespace) -> int:
         if args.out is None:
             sys.stdout.write(text)
         else:
-            write_json_text(args.out, text)  # atomic, as every file the project writes
+            write_unit(args.out, text)  # atomic, and never over a file it did not write
             print(f"wrote {args.out}; install: systemctl --user link {args.out.resolve()} && "
                   f"systemctl --user enable --now {args.out.name}")
     except (ConfigError, OSError) as exc:

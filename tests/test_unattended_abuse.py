@@ -122,3 +122,24 @@ def test_a_live_run_given_a_snapshot_as_its_state_is_refused_and_the_snapshot_ke
                                        f"the state folder ({state}), and its next snapshot keeps that (nothing "
                                        "changed; to work from the snapshot itself, copy it into a folder of its own)"]
     assert _tree(snapshot) == kept
+
+
+def test_service_never_writes_its_unit_over_a_file_it_did_not_write(tmp_path: Path) -> None:
+    """``creatures service show.toml --out show.toml`` (the unit's name typed as the config's)
+    wrote the unit over the installation's config: exit 0, the piece gone. A unit the command
+    wrote is still replaced by the next one (a new --watchdog)."""
+    config, unit = tmp_path / "show.toml", tmp_path / "show.service"
+    config.write_text(COLONY)
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+
+    def service(out: Path, *more: str) -> subprocess.CompletedProcess[str]:
+        return subprocess.run([sys.executable, "-m", "creatures", "service", str(config), "--out", str(out), *more],
+                              env=env, capture_output=True, text=True, timeout=120)
+
+    refused = service(config)
+    assert refused.returncode == 2
+    assert refused.stderr == (f"creatures: --out {config}: holds a file that is not a unit `creatures service` wrote; "
+                              "not replaced (nothing written): choose another --out, or move that file away\n")
+    assert config.read_text() == COLONY and sorted(p.name for p in tmp_path.iterdir()) == ["show.toml"]
+    assert service(unit).returncode == 0 and "WatchdogSec=30" in unit.read_text()
+    assert service(unit, "--watchdog", "20").returncode == 0 and "WatchdogSec=20" in unit.read_text()

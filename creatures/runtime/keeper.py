@@ -26,6 +26,8 @@ import time
 from pathlib import Path
 from typing import Callable
 
+from creatures.paths import UnsafePathError, read_regular, regular_file
+from creatures.persist import write_json_text
 from creatures.stop import STOPPING, hung_up, named
 
 RESTART_AFTER = 1.0
@@ -124,3 +126,26 @@ def unit(config: Path, state: Path | None, *, watchdog: float, python: str = sys
         "WantedBy=default.target",
         "",
     ])
+
+
+WRITTEN_HERE = "[Unit]\nDescription=creature-music: "
+"""How every unit :func:`unit` writes begins: one that does is this command's to replace."""
+
+
+def write_unit(path: Path, text: str) -> None:
+    """Write the unit ``text`` to ``path`` atomically. A file already there is replaced only if
+    it is a unit this command wrote: ``creatures service show.toml --out show.toml`` (a slip of
+    the hand) wrote the unit over the installation's config, which was gone. Anything else
+    there is a :class:`FileExistsError` naming it, and nothing is written."""
+    regular_file(path, "--out")
+    try:
+        there = read_regular(path, "--out", 64 * 1024)
+    except FileNotFoundError:
+        there = None
+    except UnsafePathError:  # larger than any unit
+        there = b""
+    if there is not None and not there.startswith(WRITTEN_HERE.encode()):
+        raise FileExistsError(f"--out {path}: holds a file that is not a unit `creatures service` wrote; not "
+                              "replaced (nothing written): choose another --out, or move that file away")
+    write_json_text(path, text)
+
