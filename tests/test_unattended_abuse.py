@@ -143,3 +143,30 @@ def test_service_never_writes_its_unit_over_a_file_it_did_not_write(tmp_path: Pa
     assert config.read_text() == COLONY and sorted(p.name for p in tmp_path.iterdir()) == ["show.toml"]
     assert service(unit).returncode == 0 and "WatchdogSec=30" in unit.read_text()
     assert service(unit, "--watchdog", "20").returncode == 0 and "WatchdogSec=20" in unit.read_text()
+
+
+def test_inspect_never_writes_its_page_over_the_artists(tmp_path: Path) -> None:
+    """``creatures inspect STATE --out ~/site`` wrote its index.html (and PNGs) over the
+    artist's own page there: exit 0, the page gone. Now it is refused, naming the file, and
+    nothing is written; a folder inspect wrote is still written again."""
+    config, state, site = tmp_path / "show.toml", tmp_path / "state", tmp_path / "site"
+    config.write_text(COLONY)
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+
+    def creatures(*argv: str) -> subprocess.CompletedProcess[str]:
+        return subprocess.run([sys.executable, "-m", "creatures", *argv], env=env, capture_output=True, text=True,
+                              timeout=300)
+
+    assert creatures("run", str(config), "--state", str(state), "--duration", "1").returncode == 0
+    site.mkdir()
+    (site / "index.html").write_text("<h1>the gallery's own page</h1>")
+    before = _tree(site)
+    refused = creatures("inspect", str(state), "--out", str(site))
+    assert refused.returncode == 2
+    assert refused.stderr == (f"creatures: {site}: not replacing {site / 'index.html'}: no creatures run wrote it "
+                              "(it is not in .creatures-manifest.json); nothing was changed. Move it away or choose "
+                              "another --out\n")
+    assert _tree(site) == before
+    for _ in range(2):  # its own folder: written, then written again
+        assert creatures("inspect", str(state), "--out", str(tmp_path / "seen")).returncode == 0
+    assert "ada" in (tmp_path / "seen" / "index.html").read_text()

@@ -36,7 +36,8 @@ from typing import Any
 from creatures.behaviour.expectation import check_saved
 from creatures.behaviour.value import value_from_dict
 from creatures.events import read_events
-from creatures.persist import StateFileError, atomic_write, load_json
+from creatures.persist import StateFileError, load_json
+from creatures.runtime.outputs import publishing
 from creatures.runtime.report import PLOTTED, counts_table, event_plots, html_page, plot_bars, plt, saved
 from creatures.runtime.session import COLONY_FILE, COLONY_KIND, STATE_KIND
 from creatures.state_set import files
@@ -44,6 +45,9 @@ from creatures.temporal.durations import LowIntegerRatioModel, SimpleDurationMod
 
 VALUE_KINDS = ("scalar", "chain", "gaussian", "stance")
 DURATION_MODELS = {m.kind: m for m in (LowIntegerRatioModel, SimpleDurationModel)}
+PAGE = "index.html"
+KNOWN_PLOTS = ("known_values.png", "known_drives.png", "known_trees.png", "known_durations.png")
+"""What the page shows from saved state, beside the events' plots (creatures.runtime.report)."""
 
 
 class InspectError(Exception):
@@ -270,18 +274,27 @@ def inspect(path: Path, out: Path, skipped: list[str] | None = None) -> Path:
     from_state = bool(known)
     if not known:
         known = latest_values(events)
-    out.mkdir(parents=True, exist_ok=True)
+    # Drawn aside and published whole (a Ctrl-C or a full disk leaves the previous page as it was),
+    # and never over a file no run wrote: `--out ~/site` wrote its index.html over the artist's.
+    with publishing(out, {PAGE, *KNOWN_PLOTS}) as staged:
+        _render(staged, path, events, counts, known, skipped, from_state)
+    return out / PAGE
+
+
+def _render(out: Path, path: Path, events: list[dict[str, Any]], counts: Counter[str], known: list[Knowledge],
+            skipped: list[str], from_state: bool) -> None:
+    """Draw the plots and write the page into ``out``."""
     what = "saved state" if from_state else "the last values logged"
     plots = [
         (f"Values of action-tuples and expectations, with confidence ({what})",
-         plot_bars({k.creature: k.values for k in known}, "values", "V", out / "known_values.png",
+         plot_bars({k.creature: k.values for k in known}, "values", "V", out / KNOWN_PLOTS[0],
                    shade={k.creature: k.confidence for k in known})),
         (f"Drives ({what})",
-         plot_bars({k.creature: k.drives for k in known}, "drive levels", "level", out / "known_drives.png")),
+         plot_bars({k.creature: k.drives for k in known}, "drive levels", "level", out / KNOWN_PLOTS[1])),
         ("Percept trees (saved state)",
          plot_bars({k.creature: {t.name: t.size for t in k.trees} for k in known}, "percept tree sizes", "nodes",
-                   out / "known_trees.png")),
-        ("Duration models (saved state)", _plot_durations(known, out / "known_durations.png")),
+                   out / KNOWN_PLOTS[2])),
+        ("Duration models (saved state)", _plot_durations(known, out / KNOWN_PLOTS[3])),
     ]
     plots = [(name, p) for name, p in plots if p is not None] + event_plots(events, out)
     title = f"inside {path.name or path}"
@@ -294,7 +307,4 @@ def inspect(path: Path, out: Path, skipped: list[str] | None = None) -> Path:
                             f"{f'<p>State files skipped:</p><ul>{unread}</ul>' if unread else ''}"
                             f"{counts_table(counts) if counts else ''}"
                             f"<h2>What each creature knows</h2>{''.join(_creature_html(k) for k in known)}{figures}")
-    page_path = out / "index.html"
-    # atomic: a Ctrl-C or a full disk leaves the previous page whole, not half of this one
-    atomic_write(page_path, lambda handle: handle.write(page.encode("utf-8")), "wb")
-    return page_path
+    (out / PAGE).write_text(page, encoding="utf-8")
