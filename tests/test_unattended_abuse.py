@@ -170,3 +170,28 @@ def test_inspect_never_writes_its_page_over_the_artists(tmp_path: Path) -> None:
     for _ in range(2):  # its own folder: written, then written again
         assert creatures("inspect", str(state), "--out", str(tmp_path / "seen")).returncode == 0
     assert "ada" in (tmp_path / "seen" / "index.html").read_text()
+
+
+def test_a_live_runs_out_mid_leaves_an_offline_runs_outputs_beside_it(tmp_path: Path) -> None:
+    """``creatures run show.toml --out DIR`` into the folder of the rehearsal's offline run
+    published its ``out.mid`` as if it were a whole run's outputs, and so removed the offline
+    run's ``events.jsonl``, ``out.wav`` and learned ``state/`` when the show ended, saying only
+    "wrote DIR/out.mid". It replaces ``out.mid`` alone now; the next offline run still
+    replaces all of it."""
+    from creatures.cli import main
+    from creatures.persist import load_json
+    from creatures.runtime.outputs import MANIFEST, MANIFEST_KIND
+
+    config, out = tmp_path / "show.toml", tmp_path / "DIR"
+    config.write_text(COLONY)
+    assert main(["offline", str(config), "--out", str(out), "--duration", "1", "--no-progress"]) == 0
+    rehearsed = {name: data for name, data in _tree(out).items() if name not in (MANIFEST, "out.mid")}
+    live = subprocess.run([sys.executable, "-m", "creatures", "run", str(config), "--out", str(out), "--duration", "1"],
+                          env={**os.environ, "PYTHONPATH": str(ROOT)}, capture_output=True, text=True, timeout=300)
+    assert live.returncode == 0, live.stderr
+    assert f"wrote {out / 'out.mid'}" in live.stdout
+    after = _tree(out)
+    assert {name: after.get(name) for name in rehearsed} == rehearsed and "state/ada.json" in rehearsed
+    listed = set(load_json(out / MANIFEST, kind=MANIFEST_KIND)["files"])
+    assert listed == {e for e in [*after, "state/"] if e != MANIFEST}
+    assert main(["offline", str(config), "--out", str(out), "--duration", "1", "--no-progress"]) == 0

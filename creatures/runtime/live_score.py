@@ -9,7 +9,9 @@ by a thread of its own, beside the final save, into a staging folder and then in
 all or none, as offline outputs are (:mod:`creatures.runtime.outputs`): ``DIR`` is locked
 for the run, checked before it starts (a folder that cannot be written, or an ``out.mid``
 there that no run wrote, stops the run before anything plays), and a failure keeps the
-previous ``out.mid``.
+previous ``out.mid``. It replaces ``out.mid`` alone: published as a whole run's outputs, it
+removed what an offline run had written there (its ``events.jsonl``, ``out.wav``, ``report/``
+and the learned ``state/``) when the show ended.
 """
 
 from __future__ import annotations
@@ -59,7 +61,7 @@ class LiveScore:
         self.lock: FolderLock = hold(out)
         try:
             recover(out)
-            refuse_foreign(out, {NAME})
+            refuse_foreign(out, {NAME}, {NAME})
         except BaseException:
             self.lock.release()
             raise
@@ -85,7 +87,7 @@ class LiveScore:
             staged = stage(self.out)
             try:
                 write_score(staged / NAME, world, list(recorded.messages), origin)
-                publish(staged, self.out)
+                publish(staged, self.out, replaces={NAME})  # an offline run's other outputs there stay
             finally:
                 discard(staged)
         except (OSError, OutputDirectoryError) as exc:
