@@ -351,7 +351,8 @@ def _run(args: argparse.Namespace) -> int:
           + (f"; {summary.frames_skipped} frames skipped over clock gaps (the machine suspended or the loop "
              "stalled: the pictures went on from the time it came back)" if summary.frames_skipped else ""))
     for what, counts in summary.outlets.items():  # the body stream's and the console's counters
-        print(f"{what}: " + ", ".join(f"{n} {name.replace('_', ' ')}" for name, n in counts.items()))
+        said = ", ".join(f"{n} {name.replace('_', ' ')}" for name, n in counts.items())
+        print(f"{what}: {said or 'no requests'}")  # the stream always counts: only a console no one asked is empty
     for line in log_limit.install().pending():
         print(line, file=sys.stderr)
     if summary.log_loss:

@@ -877,3 +877,16 @@ def test_a_request_waiting_when_the_run_ends_is_answered_and_counted(tmp_path):
     reply = OscMessage(client.receive(5))
     assert (reply.address, reply.params) == ("/console/error", [41, "the run is ending: pause not done"])
     assert console.summary() == {"ending": 1, "received": 1}
+
+
+def test_a_console_no_one_asked_says_so_in_the_run_summary(tmp_path, capsys):
+    """The run's summary line of the console's counters was ``console: `` and nothing after it
+    when no request came (a new user's live run of docs/stream.md's ``[console]``)."""
+    from creatures.cli import main
+
+    config = tmp_path / "quiet.toml"
+    config.write_text(f'title = "t"\ntick = {TICK}\nrealtime = false\n[audio]\noutput = false\n'
+                      f'[console]\nport = {_free_port()}\n' + creature_tables("ada", kind="curve"))
+    assert main(["run", str(config), "--duration", "0.2"]) == 0
+    lines = [line for line in capsys.readouterr().out.splitlines() if line.startswith("console:")]
+    assert lines == ["console: no requests"]
