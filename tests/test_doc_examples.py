@@ -12,6 +12,8 @@ from __future__ import annotations
 import argparse
 import re
 from pathlib import Path
+from contextlib import redirect_stderr
+from io import StringIO
 from typing import Callable
 
 import pytest
@@ -167,10 +169,11 @@ def _commands() -> list[tuple[str, str]]:
     found = []
     for page in PAGES + ["docs/unattended.md", "docs/hearing.md"]:
         text = (ROOT / page).read_text()
-        spans = re.findall(r"`([^`\n]*)`", text)
+        prose = re.sub(r"^```.*?^```", "", text, flags=re.M | re.S)
+        spans = [" ".join(span.split()) for span in re.findall(r"`([^`]+)`", prose)]  # one may wrap a line
         spans += [line.split("#")[0] for _, block in examples(page, "sh") for line in block.splitlines()]
         found += [(page, m.group(0).strip()) for span in spans
-                  for m in re.finditer(r"(?:^|(?<=[\s(]))creatures [a-z][a-z-]*[^;|&]*", span)]
+                  for m in re.finditer(r"(?:^|(?<=[\s(]))creatures [a-z][a-z-]*[^;&]*", span)]
     return found
 
 
@@ -186,3 +189,24 @@ def test_every_command_the_pages_name_takes_the_options_they_give():
         wrong += [f"{page}: {command!r}: {flag}" for flag in re.findall(r"--[a-z][a-z-]*", command)
                   if flag not in options]
     assert len(_commands()) > 40 and not wrong, wrong
+
+
+def _placeholder(word: str) -> bool:
+    """``[--out DIR]``, ``NAME``, ``OUT.json``, ``svg|ps``, ``SOUND.wav...``: a form, not a command."""
+    return bool(re.search(r"[\[\]…|<>]|\.\.\.", word) or re.match(r"[A-Z][A-Z_]*(\.|$)", word))
+
+
+def test_every_whole_command_the_pages_show_runs_as_written():
+    """A command with its arguments and no placeholder is one to copy: it must parse as written
+    (`creatures offline exchange` lacked the --out every offline run needs)."""
+    refused = []
+    for page, command in _commands():
+        words = command.split()[1:]
+        if any(_placeholder(w) for w in words) or not any(not w.startswith("-") for w in words[1:]):
+            continue  # a form, or a command named in passing (`creatures render --video`)
+        try:
+            with redirect_stderr(StringIO()) as said:
+                build_parser().parse_args(words)
+        except SystemExit:
+            refused.append(f"{page}: {command!r}: {said.getvalue().strip().splitlines()[-1]}")
+    assert not refused, refused
