@@ -191,18 +191,23 @@ def test_every_command_the_pages_name_takes_the_options_they_give():
     assert len(_commands()) > 40 and not wrong, wrong
 
 
-def _placeholder(word: str) -> bool:
-    """``[--out DIR]``, ``NAME``, ``OUT.json``, ``svg|ps``, ``SOUND.wav...``: a form, not a command."""
-    return bool(re.search(r"[\[\]…|<>]|\.\.\.", word) or re.match(r"[A-Z][A-Z_]*(\.|$)", word))
+def _form(word: str) -> bool:
+    """``[--out DIR]``, ``svg|ps``, ``SOUND.wav...``: a form of many commands, not one to copy."""
+    return bool(re.search(r"[\[\]…|<>]|\.\.\.", word))
+
+
+def _filled(word: str) -> str:
+    """A placeholder (``DIR``, ``NAME``, ``OUT.json``) as a value any of them takes."""
+    return "1" if re.match(r"[A-Z][A-Z_]*(\.|$)", word) else word
 
 
 def test_every_whole_command_the_pages_show_runs_as_written():
-    """A command with its arguments and no placeholder is one to copy: it must parse as written
-    (`creatures offline exchange` lacked the --out every offline run needs)."""
+    """A command with its arguments is one to copy: it must parse as written, its placeholders
+    filled (`creatures offline exchange` lacked the --out every offline run needs)."""
     refused = []
     for page, command in _commands():
-        words = command.split()[1:]
-        if any(_placeholder(w) for w in words) or not any(not w.startswith("-") for w in words[1:]):
+        words = [_filled(w) for w in command.split()[1:]]
+        if any(_form(w) for w in command.split()) or not any(not w.startswith("-") for w in words[1:]):
             continue  # a form, or a command named in passing (`creatures render --video`)
         try:
             with redirect_stderr(StringIO()) as said:
