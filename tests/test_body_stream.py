@@ -43,6 +43,14 @@ def _session(tmp_path, extra: str = "") -> Session:
     return Session(load_installation(config), SimulatedClock(), EventLog(keep_in_memory=0), MemorySink())
 
 
+def test_the_stream_file_is_read_from_the_path_a_user_types(tmp_path):
+    """docs/stream.md names ``read_stream`` as the reader of an offline ``stream.jsonl``; given the
+    path as text (``read_stream("out/stream.jsonl")``) it raised AttributeError: 'str' has no open."""
+    path = tmp_path / "stream.jsonl"
+    path.write_text('{"kind": "hello", "rate": 60.0, "creatures": []}\n{"kind": "frame", "index": 0}\n')
+    assert read_stream(str(path)) == ({"kind": "hello", "rate": 60.0, "creatures": []}, [{"kind": "frame", "index": 0}])
+
+
 def test_offline_stream_is_what_figure_drew_at_each_frame_time(tmp_path, monkeypatch):
     """60 frames a second over 20 ms ticks: frame times fall between ticks, and each frame
     holds the body its creature's last tick left (recorded here from figure() itself)."""

@@ -10,6 +10,7 @@ a renderer started late learns them without asking.
 from __future__ import annotations
 
 import json
+import os
 import socket
 import struct
 from pathlib import Path
@@ -86,11 +87,11 @@ class JsonLinesStreamSink:
         self.file.close()
 
 
-def read_stream(path: Path) -> tuple[dict, list[dict]]:
-    """A ``stream.jsonl``: its hello, and its frames in order."""
+def read_stream(path: str | os.PathLike) -> tuple[dict, list[dict]]:
+    """A ``stream.jsonl``: its hello, and its frames in order (the path as a user types it, or a Path)."""
     hello: dict = {}
     frames = []
-    with path.open(encoding="utf-8") as lines:
+    with Path(path).open(encoding="utf-8") as lines:
         for line in lines:
             record = json.loads(line)
             if record["kind"] == "hello":
