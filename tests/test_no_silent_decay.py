@@ -12,11 +12,12 @@ import numpy as np
 import pytest
 
 import installations
-from creatures.behaviour.action_group import ActionGroup
+from creatures.behaviour.action_group import ActionGroup, group_tuple
 from creatures.behaviour.action_tuple import Action, ActionTuple, DoUntil
 from creatures.behaviour.percept import WhateverPercept
 from creatures.behaviour.value import ScalarValue
 from creatures.clock import SimulatedClock
+from creatures.config import ConfigError
 from creatures.events import EventLog, read_events
 from creatures.runtime.session import Session
 from creatures.runtime.offline import run_offline
@@ -49,6 +50,38 @@ def test_a_group_built_empty_is_refused_when_it_first_ticks():
 @pytest.mark.parametrize("kwargs", [{"alpha": 0.0}, {"discount": 1.0}, {"grounded_by": "a trainer's clicks"}])
 def test_groups_without_decay_or_with_a_named_ground_are_accepted(kwargs):
     ActionGroup("lis", _tuples(), rng=np.random.default_rng(0), **kwargs).tick(0.0)
+
+
+def test_a_reward_inside_a_group_it_holds_grounds_the_outer_group():
+    """Credit reaches leaves only (hierarchical groups): the outer group blends its leaves toward
+    the value of the leaf that ran inside a group tuple, so a non-plastic leaf there grounds it.
+    docs/authoring.md's songs-after-a-wait, with its songs as the rewards, was refused."""
+    root = WhateverPercept()
+    songs = ActionGroup("songs", [ActionTuple("low", root, Action("low"), DoUntil(1.0), ScalarValue(2.0, plasticity=0.0))],
+                        rng=np.random.default_rng(0))
+    wait = ActionTuple("wait", root, Action("wait"), DoUntil(1.0), 1.0)
+    main = ActionGroup("main", [wait, group_tuple(songs, root, 3.0)], rng=np.random.default_rng(0), alpha=0.2)
+    for k in range(5_000):
+        main.tick(k * 1.0)
+    assert wait.value.to_float() > 0.5  # held up by the song's 2.0 (toward 0.8 × 2.0), not decayed to 0
+    with pytest.raises(ValueError, match="non-plastic value"):  # no ground at any depth: refused as before
+        ActionGroup("main", [ActionTuple("wait", root, Action("wait"), DoUntil(1.0), 1.0),
+                             group_tuple(ActionGroup("songs", _tuples()[:1], rng=np.random.default_rng(0)), root, 3.0)],
+                    rng=np.random.default_rng(0), alpha=0.2)
+
+
+def test_an_authored_group_grounded_by_a_reward_in_a_group_it_holds_loads(tmp_path):
+    config = tmp_path / "songs.toml"
+    tables = "".join(f'[creature.tuples.{name}]\naction = "rest"\nuntil = {{ seconds = 1.0 }}\nvalue = {value}\n'
+                     for name, value in (("wait", "1.0"), ("low", "{ value = 2.0, plastic = false }"), ("high", "1.0")))
+    groups = ('[creature.groups.main]\ntuples = ["wait", "songs"]\nalpha = 0.2\n'
+              '[creature.groups.songs]\ntuples = ["low", "high"]\nalpha = 0.0\nvalue = 3.0\n')
+    config.write_text('title = "t"\n[[creature]]\nname = "ada"\nkind = "authored"\n' + tables + groups)
+    session = Session(load_installation(config), SimulatedClock(), EventLog(keep_in_memory=0), MemorySink())
+    assert [c.name for c in session.creatures] == ["ada"]
+    config.write_text(config.read_text().replace("{ value = 2.0, plastic = false }", "2.0"))
+    with pytest.raises(ConfigError, match="groups.main.alpha: group 'main' assigns credit"):
+        load_installation(config)
 
 
 def test_a_non_plastic_reward_grounds_the_values_over_many_selections():

@@ -554,7 +554,11 @@ def _dispatchable(c: _Checker, tuple_: str, gesture: str) -> None:
 
 
 def _grounded(c: _Checker, group) -> bool:
+    """A non-plastic tuple among the group's leaves: credit blends toward the leaf that ran, inside
+    a group it holds too (hierarchical groups; the groups were checked acyclic before)."""
     for member in group.tuples:
+        if member in c.spec.groups and _grounded(c, c.spec.groups[member]):
+            return True
         tp = c.spec.tuples.get(member)
         if tp is not None and not isinstance(tp.value, float | int) and (not tp.value.plastic or tp.value.plasticity == 0):
             return True

@@ -51,7 +51,7 @@ across the crowd, and only a group with something to do runs its own Python.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Callable, Iterable, Protocol
+from typing import TYPE_CHECKING, Any, Callable, Iterable, Iterator, Protocol
 
 import numpy as np
 
@@ -114,7 +114,7 @@ def ungrounded_message(name: str, alpha: float, discount: float) -> str:
     assignment": values flow back from consummatory actions; with none, each step only blends
     a value toward β × another value and all of them shrink geometrically toward 0)."""
     return (f"group {name!r} assigns credit (alpha = {alpha:g}, discount = {discount:g}) but none of its tuples "
-            f"has a non-plastic value: every value would only be blended toward {discount:g} × another value, "
+            f"(nor those of the groups it holds) has a non-plastic value: every value would only be blended toward {discount:g} × another value, "
             "shrinking geometrically toward 0 (thesis 'credit assignment': values are grounded by consummatory "
             "rewards)")
 
@@ -122,6 +122,16 @@ def ungrounded_message(name: str, alpha: float, discount: float) -> str:
 def grounds(value: Value) -> bool:
     """A value credit assignment cannot move (plasticity 0): a reward that grounds the others."""
     return getattr(value, "plasticity", 1.0) == 0.0
+
+
+def leaves(tuples: Iterable[ActionTuple]) -> Iterator[ActionTuple]:
+    """The leaf tuples under ``tuples``: a group tuple's are its group's, at any depth. Credit
+    targets a leaf's value (:meth:`ActionGroup.assign_credit`), so a reward there grounds the group."""
+    for tp in tuples:
+        if isinstance(tp.action, GroupAction):
+            yield from leaves(tp.action.group.tuples)
+        else:
+            yield tp
 
 
 def selection_probabilities(expected: np.ndarray, temperature: float | None = None) -> np.ndarray | None:
@@ -214,7 +224,7 @@ class ActionGroup:
         """Refuse credit assignment with nothing to ground it (see the class docstring)."""
         self._checked = True
         if self.alpha > 0 and self.discount < 1 and self.grounded_by is None:
-            if not any(grounds(tp.value) for tp in self.tuples):
+            if not any(grounds(tp.value) for tp in leaves(self.tuples)):
                 raise ValueError(ungrounded_message(self.name, self.alpha, self.discount))
 
     # -- membership -------------------------------------------------------------------
