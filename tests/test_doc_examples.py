@@ -115,8 +115,8 @@ AROUND: dict[str, Callable[[str, Path], str]] = {  # an example's first line →
     "drive_floor = -1.0": lambda x, d: HEAD + '[[input]]\nosc = "/click"\nto = "sensor"\nname = "click"\n'
     'value = { arg = 0 }\n' + ADA + x + '[creature.percepts.click]\ntype = "sensor"\nsensor = "click"\n'
     + _group("main", "startle", "eat", alpha="0.2"),
-    "[creature.percepts.later]": lambda x, d: HEAD + ADA + _tuple("wait", "{ value = 1.0, plastic = false }")
-    + _tuple("low") + _tuple("high") + x,
+    "[creature.percepts.later]": lambda x, d: HEAD + ADA + _tuple("wait")  # the songs are main's rewards
+    + _tuple("low", "{ value = 1.0, plastic = false }") + _tuple("high", "{ value = 2.0, plastic = false }") + x,
     "[[creature]]\nname = \"heron\"\nkind = \"exchange\"": _bodies_first,
     '[creature.body]\nfigure = "dog"': lambda x, d: HEAD + '[[creature]]\nname = "rex"\nkind = "exchange"\n' + x,
     'skeleton = "3fa9c2d1e0b4"': _edit_file,
