@@ -203,7 +203,7 @@ def test_a_run_says_how_many_notes_re_struck_a_sounding_key(tmp_path):
     session.scheduler.pump()
     session.close()
     assert [e["notes"] for e in log.records if e["kind"] == "restruck"] == [1]
-    assert any(message.startswith("1 notes started on a key (channel and pitch) still sounding") for message in said)
+    assert any(message.startswith("1 note started on a key (channel and pitch) still sounding") for message in said)
 
 
 def test_out_mid_input_track_re_strikes_a_key_played_again_before_its_note_ended(tmp_path):

@@ -299,3 +299,10 @@ def test_a_rehearsal_file_the_week_does_not_play_is_said_once(tmp_path: Path, ca
                       "rehearsed week: its rows are one take timed from a run's start (`creatures offline` and live "
                       "runs play it); the week's visitors are [rehearse]'s"), err
     assert sum("walk.csv" in e for e in err) == 1 and len(err) == 3  # once, then each of the two opening hours
+
+
+def test_a_silence_under_a_minute_is_said_in_seconds() -> None:
+    """The summary's longest silences: 40 s was printed '0 min', as if the creature never fell silent."""
+    from creatures.runtime.rehearse import _span
+
+    assert [_span(s) for s in (40.0, 59.4, 60.0, 131.0)] == ["40 s", "59 s", "1 min", "2 min"]

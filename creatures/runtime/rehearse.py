@@ -346,8 +346,13 @@ def _cell(row: HourMeasures | None, key: str, form: str) -> str:
     return "-" if value is None else form.format(value)
 
 
+def _span(seconds: float) -> str:
+    """A silence as read at a glance: seconds under a minute (``0 min`` hid 40 s), else minutes."""
+    return f"{seconds:.0f} s" if seconds < 60 else f"{seconds / 60:.0f} min"
+
+
 def _summary(r: Rehearsal) -> list[str]:
-    silent = ", ".join(f"{who} {s / 60:.0f} min" for who, s in r.longest_silence.items())
+    silent = ", ".join(f"{who} {_span(s)}" for who, s in r.longest_silence.items())
     return [f"{r.title}: {r.days} days, {len(r.hours)} opening hours, tick {r.tick:g} s, {r.visitors} visitors, "
             f"{r.crash_free} of {len(r.hours)} hours crash-free, {r.open_seconds / max(r.wall, 1e-9):.0f}x real time",
             f"  longest silence of each creature (open time; an opening day is {r.opening_day / 60:.0f} min): {silent}",

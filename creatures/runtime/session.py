@@ -249,8 +249,8 @@ class Session:
         self.scheduler.all_notes_off()
         if restruck := self.scheduler.restruck:
             self.world.emit("restruck", notes=restruck)
-            self.say(f"{restruck} notes started on a key (channel and pitch) still sounding: MIDI has one key per "
-                     "pitch and channel, so each re-struck it, ending the earlier note there (the key sounded on "
+            self.say(f"{restruck} {'note' if restruck == 1 else 'notes'} started on a key (channel and pitch) still "
+                     "sounding: MIDI has one key per pitch and channel, so each re-struck it, ending the earlier note there (the key sounded on "
                      "to the later end, or to the new note's if the earlier was held; the events log keeps the "
                      "notes as played)")
         self.inputs.flush(self.clock.now())
