@@ -128,7 +128,7 @@ def load_json(path: str | os.PathLike, *, kind: str) -> dict[str, Any]:
             raise StateFileError(f"{path}: state file larger than {MAX_STATE_BYTES} bytes; refused")
         text = read_regular(path, "state file", MAX_STATE_BYTES).decode("utf-8")
     except FileNotFoundError:
-        raise StateFileError(f"{path}: state file not found") from None
+        raise StateFileError(f"{path}: state file {_absent(path)}") from None
     except UnsafePathError as exc:  # a FIFO or a device: it would block or never end
         raise StateFileError(str(exc)) from None
     except (OSError, UnicodeDecodeError) as exc:
@@ -153,6 +153,15 @@ def load_json(path: str | os.PathLike, *, kind: str) -> dict[str, Any]:
             f" (this build reads version {FORMAT_VERSION})"
         )
     return document
+
+
+def _absent(path: Path) -> str:
+    """Why a file that is not there is not: "not found", or, for a symbolic link whose target is
+    gone (a state file linked to a drive not mounted), where it points: "not found" sent the
+    engineer looking for a file that is there, as a link."""
+    if path.is_symlink():
+        return f"is a link to {os.readlink(path)}, which does not exist"
+    return "not found"
 
 
 def _refuse_constant(name: str) -> float:
@@ -185,7 +194,7 @@ def load_npz(path: str | os.PathLike) -> dict[str, np.ndarray]:
             each_holds_what_it_claims(path, data.zip)
             return {name: data[name] for name in data.files}
     except FileNotFoundError:
-        raise StateFileError(f"{path}: array file not found") from None
+        raise StateFileError(f"{path}: array file {_absent(path)}") from None
     except UnsafePathError as exc:
         raise StateFileError(str(exc)) from None
     # truncated: BadZipFile; a damaged header can claim a zip version zipfile lacks: NotImplementedError

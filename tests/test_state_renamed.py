@@ -6,9 +6,12 @@ from __future__ import annotations
 
 import json
 
+import pytest
+
 import installations
 from creatures.clock import SimulatedClock
 from creatures.events import EventLog
+from creatures.persist import StateFileError
 from creatures.runtime.schema import load_installation
 from creatures.runtime.session import Session
 from midi.sinks import MemorySink
@@ -144,4 +147,38 @@ def test_a_damaged_value_kept_under_an_old_name_is_refused_at_load_naming_its_ke
     (tmp_path / "bo.json").write_text(json.dumps(data))
     _rename(tmp_path / "ada.json", "stroll", "stroll", LEARNT)
     with pytest.raises(StateFileError, match=r"values\.dance\.spin: plasticity"):
+        _session([]).load_state(tmp_path)
+
+
+def test_a_state_file_linked_elsewhere_is_read_said_and_left_as_it_is_by_a_save(tmp_path):
+    """A state file may be a link to a shared one (a pre-trained creature): it is read through
+    the link, the run says a save will put a file of its own there (a state folder is saved as
+    one set, renamed into place), and the file linked to is never written."""
+    shared, folder = tmp_path / "shared", tmp_path / "state"
+    _session([]).save_state(shared)
+    _session([]).save_state(folder)
+    _rename(shared / "ada.json", "wander", "wander", LEARNT)
+    before = (shared / "ada.json").read_bytes()
+    (folder / "ada.json").unlink()
+    (folder / "ada.json").symlink_to(shared / "ada.json")
+    said: list[str] = []
+    session = _session(said)
+    session.load_state(folder)
+    assert said == [f"{folder / 'ada.json'}: read through its link to {shared / 'ada.json'}; a save writes ada.json "
+                    "here as a file of the state folder's set and leaves that file as it is"], said
+    ada = session.world.creatures[0]
+    assert [tp.value.to_dict()["value"] for tp in ada.groups["main"].tuples if tp.name == "wander"] == [2.5]
+    session.save_state(folder)
+    assert (shared / "ada.json").read_bytes() == before
+    assert not (folder / "ada.json").is_symlink() and _values(folder / "ada.json")["main"]["wander"]["value"] == 2.5
+
+
+def test_a_state_file_linked_to_nothing_says_where_it_points(tmp_path):
+    """A link whose target is gone (a drive not mounted) was "state file not found", though the
+    file was there, as a link."""
+    _session([]).save_state(tmp_path)
+    (tmp_path / "ada.json").unlink()
+    (tmp_path / "ada.json").symlink_to("/nonexistent/ada.json")
+    with pytest.raises(StateFileError, match=r"ada\.json: state file is a link to /nonexistent/ada\.json, which "
+                                             "does not exist"):
         _session([]).load_state(tmp_path)

@@ -15,6 +15,7 @@ import difflib
 import itertools
 import json
 import math
+import os
 from pathlib import Path
 from typing import Any, Callable
 
@@ -315,6 +316,9 @@ class Session:
             if path is None:
                 continue
             data = load_json(path, kind=STATE_KIND)
+            if path.is_symlink():  # a state set is renamed into place whole: a save puts a file where the link is
+                self.say(f"{path}: read through its link to {os.readlink(path)}; a save writes {path.name} here as a "
+                         "file of the state folder's set and leaves that file as it is")
             state = data.get("state", {})
             if not isinstance(state, dict):
                 raise StateFileError(f"{path}: 'state' must be a table, found {type(state).__name__}")
