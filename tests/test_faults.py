@@ -458,7 +458,9 @@ def test_disk_full_while_writing_offline_outputs_keeps_the_previous_run(full_at,
         run_offline(colony, out, duration=1.5)
     monkeypatch.undo()
     assert len(failures) >= 1 and all(full_at in path.name for path in failures)
-    assert caught.value.filename is not None and full_at in caught.value.filename  # it names the file
+    # It names the output as published, not the hidden staging folder's copy, and says nothing changed.
+    assert caught.value.filename == str(out / full_at), caught.value.filename
+    assert f"while writing {out / full_at}; nothing in {out} was changed" in str(caught.value)
     assert _tree(out) == before  # the previous run whole; nothing of the failed one left
 
     summary = run_offline(colony, out, duration=1.5)  # with room again, the next run replaces it

@@ -36,7 +36,7 @@ from creatures.runtime.bodies import BodyFrames
 from creatures.runtime.body_stream import BodyStream
 from creatures.runtime.input_sources import Rehearsal, Row, note_on, open_sources, unplayed
 from creatures.runtime.inputs import phrase_notes, render_notes
-from creatures.runtime.outputs import OutputDirectoryError, discard, hold, publish, recover, refuse_foreign, stage
+from creatures.runtime.outputs import publishing
 from creatures.runtime.schema import Installation, LoadedInstallation
 from creatures.runtime.speech_input import spoken_poem
 from creatures.runtime.trainer import Trainer
@@ -118,25 +118,10 @@ def run_offline(
     """
     settings = inst.settings
     duration = float(duration if duration is not None else settings.duration)
-    made = not out.exists()
-    try:
-        with hold(out):
-            recover(out)
-            refuse_foreign(out, _planned(settings))
-            try:
-                staged = stage(out)
-            except OSError as exc:
-                raise OutputDirectoryError(f"cannot write outputs to {out}: {exc.strerror or exc}") from None
-            try:
-                summary = _run(inst, staged, audio=audio, midi=midi, duration=duration, progress=progress)
-                publish(staged, out, events_lost=summary.events_lost)
-            finally:
-                discard(staged)
-    except BaseException:
-        if made:  # a run that failed (a bad input file, Ctrl-C) leaves no empty folder it made
-            with contextlib.suppress(OSError):
-                out.rmdir()
-        raise
+    facts: dict[str, object] = {}
+    with publishing(out, None, planned=_planned(settings), facts=facts) as staged:
+        summary = _run(inst, staged, audio=audio, midi=midi, duration=duration, progress=progress)
+        facts["events_lost"] = summary.events_lost
     summary.files = {name: out / path.relative_to(staged) for name, path in summary.files.items()}
     return summary
 

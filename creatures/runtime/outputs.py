@@ -274,24 +274,30 @@ def discard(staged: Path) -> None:
 
 
 @contextlib.contextmanager
-def publishing(out: Path, replaces: set[str]) -> Iterator[Path]:
+def publishing(out: Path, replaces: set[str] | None, *, planned: set[str] | None = None,
+               facts: dict[str, object] | None = None) -> Iterator[Path]:
     """``with publishing(out, {"frames", "out.mp4"}) as staged:`` — write into ``staged``; when
-    the block ends its entries are published into ``out``, replacing of what was published
-    there before only the entries ``replaces`` names (:func:`publish`). A block that fails
-    (Ctrl-C, a full disk) changes nothing in ``out``; one that would replace what no run wrote
-    is refused before it starts. ``out`` is held meanwhile, as a run holds it."""
+    the block ends its entries are published into ``out`` with ``facts`` (filled in by the
+    block, if it likes), replacing of what was published there before only the entries
+    ``replaces`` names, or everything with None (:func:`publish`). A block that fails (Ctrl-C,
+    a full disk) changes nothing in ``out``; one that would replace what no run wrote (of
+    ``planned``, the names it will write, ``replaces`` if not given) is refused before it
+    starts. ``out`` is held meanwhile, as a run holds it."""
     made = not out.exists()
     try:
         with hold(out):
             recover(out)
-            refuse_foreign(out, replaces, replaces)
+            refuse_foreign(out, replaces if planned is None else planned, replaces)
             try:
                 staged = stage(out)
             except OSError as exc:
                 raise OutputDirectoryError(f"cannot write outputs to {out}: {exc.strerror or exc}") from None
             try:
-                yield staged
-                publish(staged, out, replaces=replaces)
+                try:
+                    yield staged
+                except OSError as exc:
+                    raise _unwritten(exc, staged, out) from None
+                publish(staged, out, replaces=replaces, **(facts or {}))
             finally:
                 discard(staged)
     except BaseException:
@@ -299,6 +305,18 @@ def publishing(out: Path, replaces: set[str]) -> Iterator[Path]:
             with contextlib.suppress(OSError):
                 out.rmdir()
         raise
+
+
+def _unwritten(exc: OSError, staged: Path, out: Path) -> OSError:
+    """A write into ``staged`` that failed (a full disk, a file too large), said of the output
+    it was to become, and that ``out`` is as it was: the hidden staging path it named
+    (``out/.creatures-run-x1y2/out.wav``) told the engineer neither."""
+    written = Path(str(exc.filename)) if exc.filename is not None else None
+    if isinstance(exc, OutputDirectoryError) or written is None or not written.is_relative_to(staged):
+        return exc
+    output = out / written.relative_to(staged)
+    return OutputDirectoryError(exc.errno, f"{exc.strerror or exc} while writing {output}; nothing in {out} was "
+                                "changed (the previous run's outputs are as they were)", str(output))
 
 
 __all__ = ["MANIFEST", "OutputDirectoryError", "discard", "publish", "publishing", "recover", "refuse_foreign",
