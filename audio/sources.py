@@ -59,8 +59,24 @@ fault are kept (a whole-file read returns nothing but the error). libsndfile can
 FLAC once its decoder has lost sync, so the fault is found in one pass of blocks this size:
 up to 0.1 s at 44.1 kHz before it is lost with it."""
 
-_PROMISED = re.compile(r"^data\s*:\s*(\d+)\s*\(should be (\d+)\)", re.MULTILINE)
-"""libsndfile's log line for a WAV whose data chunk claims more bytes than the file holds."""
+_PROMISED = re.compile(r"^\s*(?:data|SSND)\s*:\s*(\d+)\s*\(should be (\d+)\)", re.MULTILINE)
+"""libsndfile's log line for a WAV's data chunk (an AIFF's SSND) that claims more bytes than the
+file holds."""
+
+_BYTES_PER_SECOND = re.compile(r"^\s*Bytes/sec\s*:\s*(\d+)", re.MULTILINE)
+"""libsndfile's log line of a WAV's fmt chunk: what the promised bytes are in seconds."""
+
+_FRAMES = re.compile(r"^\s*Frames\s*:\s*(\d+)", re.MULTILINE)
+"""libsndfile's log line of an AIFF's COMM chunk: the frames it promises."""
+
+_UNENDED = "Ogg: Last page lacks an end-of-stream bit."
+"""libsndfile's log line for an Ogg stream cut short: it is read up to its last whole page."""
+
+STREAMED = 0x7FFF0000
+"""A data chunk this large (2 GiB less 64 kB) or larger is a placeholder, not a promise: a WAV
+written to a pipe cannot have its sizes patched in at its end (``espeak-ng --stdout`` writes
+0x7ffff000, ffmpeg 0xffffffff), and holds all there is. A real WAV this long that was cut short
+is heard up to where it ends without that being said."""
 
 __all__ = [
     "ANALYSIS_RATE",
@@ -143,15 +159,30 @@ class ArraySource(AudioSource):
         return block
 
 
-def _promised_seconds(sound: soundfile.SoundFile) -> float | None:
-    """Seconds a cut WAV's header promised, or None when the file holds all it promised.
+def _cut_short(sound: soundfile.SoundFile) -> str | None:
+    """What a file cut short lacks ("of the 6.0 s its header promises"), or None when it holds
+    all it promised.
 
-    libsndfile reads a WAV cut short (a recorder that crashed, a copy that stopped) up to
-    where it ends and only notes the difference in its log; the file is heard, and said."""
-    found = _PROMISED.search(sound.extra_info)
-    if found is None or int(found[1]) <= int(found[2]):
+    libsndfile reads a WAV or AIFF cut short (a recorder that crashed, a copy that stopped) up to
+    where it ends, and an Ogg stream up to its last whole page, and only notes the difference in
+    its log; the file is heard, and said. A header that promises nothing it can be held to (a
+    streamed WAV's placeholder size, :data:`STREAMED`) is not a cut."""
+    info = sound.extra_info
+    if _UNENDED in info:
+        return "and ends without its end-of-stream page"
+    found = _PROMISED.search(info)
+    if found is None or int(found[1]) <= int(found[2]) or int(found[1]) >= STREAMED:
         return None
-    return sound.frames * int(found[1]) / int(found[2]) / sound.samplerate
+    per_second, frames = _BYTES_PER_SECOND.search(info), _FRAMES.search(info)
+    if per_second is not None:
+        promised = int(found[1]) / int(per_second[1])
+    elif frames is not None:
+        promised = int(frames[1]) / sound.samplerate
+    elif int(found[2]):
+        promised = sound.frames * int(found[1]) / int(found[2]) / sound.samplerate
+    else:
+        return None
+    return f"of the {promised:,.1f} s its header promises"
 
 
 def _read_what_decodes(sound: soundfile.SoundFile, frames: int, dtype: str) -> tuple[np.ndarray, str | None]:
@@ -193,8 +224,8 @@ def load_audio(path: str | os.PathLike, *, samplerate: int = ANALYSIS_RATE,
     samples or samples beyond :data:`LARGEST_SAMPLE` (silently zeroing those would hide a
     broken recording).
 
-    A file cut short (a WAV holding less than its header promises, a FLAC or OGG whose decoder
-    fails part-way) is heard up to where it ends, and that is said to ``say`` (the module's
+    A file cut short (a WAV or AIFF holding less than its header promises, an Ogg stream without
+    its last page, a FLAC whose decoder fails part-way) is heard up to where it ends, and that is said to ``say`` (the module's
     logger when none): losing the recording whole would lose what it holds, and hearing it
     silently would hide why the creatures fall quiet early.
 
@@ -217,21 +248,21 @@ def load_audio(path: str | os.PathLike, *, samplerate: int = ANALYSIS_RATE,
             # A double file is checked before it is narrowed: 1e300 (a wrong scale) cast to
             # float32 is inf, and was refused as "NaN/inf", whose cause and fix differ.
             wide = sound.subtype == "DOUBLE"
-            cut, promised = _promised_seconds(sound), sound.frames
+            cut, promised = _cut_short(sound), sound.frames
             data, fault = _read_what_decodes(sound, frames, "float64" if wide else "float32")
     except (soundfile.LibsndfileError, RuntimeError, OSError) as exc:
         if path.stat().st_size == 0:
             raise AudioFileError(f"{path}: empty file (0 bytes)") from None
         raise AudioFileError(f"{path}: unreadable or corrupt ({exc})") from None
     if data.shape[0] == 0:
-        raise AudioFileError(f"{path}: contains no samples (a zero-length recording, or an Ogg file cut "
+        raise AudioFileError(f"{path}: cut short: it holds no samples {cut}" if cut is not None else
+                             f"{path}: contains no samples (a zero-length recording, or an Ogg file cut "
                              "short: libsndfile reads an Ogg stream's length from its end)")
     if fault is not None:
         say(f"{path}: cut short: it decodes to {data.shape[0] / rate:,.1f} s of the {promised / rate:,.1f} s "
             f"its header promises ({fault}); heard up to there")
     elif cut is not None and (seconds is None or seconds > data.shape[0] / rate):
-        say(f"{path}: cut short: it holds {data.shape[0] / rate:,.1f} s of the {cut:,.1f} s its header "
-            "promises; heard up to there")
+        say(f"{path}: cut short: it holds {data.shape[0] / rate:,.1f} s {cut}; heard up to there")
     _refuse_unusable(path, data, rate)
     data = data.astype(np.float32, copy=False)
     mono = data.mean(axis=1) if data.shape[1] > 1 else data[:, 0]

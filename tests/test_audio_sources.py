@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import importlib.abc
+import shutil
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -24,7 +26,7 @@ from audio.sources import (
     RingBuffer,
     load_audio,
 )
-from audio_fixtures import SR, tone, write_wav
+from audio_fixtures import SR, noise, tone, write_wav
 from creatures.runtime.offline import run_offline
 from creatures.runtime.schema import load_installation
 
@@ -127,6 +129,57 @@ def test_file_cut_inside_the_data_keeps_what_was_recorded_and_says_so(tmp_path: 
     assert said == []
 
 
+def test_a_wav_cut_before_its_first_sample_is_one_line_not_a_traceback(tmp_path: Path, capsys) -> None:
+    """A recorder that stopped as it began leaves a WAV header and no sound: the offline run
+    ended in a ZeroDivisionError traceback (the header's promise divided by the 0 bytes held)."""
+    from creatures.cli import main
+
+    data = write_wav(tmp_path / "full.wav", tone(440, 2.0)).read_bytes()
+    cut = tmp_path / "cut.wav"
+    cut.write_bytes(data[:44])  # RIFF, fmt and the data chunk's header: not one sample
+    code = main(["offline", "exchange", "--audio", str(cut), "--out", str(tmp_path / "o"), "--duration", "1"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2
+    assert len(err) == 1 and "cut.wav: cut short: it holds no samples of the 2.0 s its header promises" in err[0]
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.skipif(shutil.which("espeak-ng") is None, reason="espeak-ng is not installed")
+def test_a_streamed_wav_whose_header_gives_no_length_is_heard_whole_and_not_said_cut(tmp_path: Path) -> None:
+    """A WAV written to a pipe cannot have its lengths patched in: ``espeak-ng --stdout``
+    writes 0x7ffff000, ffmpeg 0xffffffff. Such a file was said to hold "1.6 s of the 48,695.7 s
+    its header promises", cut short, when it holds all there is."""
+    spoken = tmp_path / "spoken.wav"
+    with spoken.open("wb") as handle:
+        subprocess.run(["espeak-ng", "--stdout", "the creatures sing again"], stdout=handle, check=True)
+    whole = soundfile.read(spoken)[0]
+    streamed = bytearray(spoken.read_bytes())
+    streamed[4:8] = streamed[40:44] = (0xFFFFFFFF).to_bytes(4, "little")
+    (tmp_path / "ffmpeg.wav").write_bytes(streamed)
+    for path in (spoken, tmp_path / "ffmpeg.wav"):
+        said: list[str] = []
+        heard = load_audio(path, samplerate=22050, say=said.append)
+        assert said == [] and len(heard) == len(whole)
+
+
+@pytest.mark.parametrize("fmt", ["AIFF", "OGG"])
+def test_an_aiff_or_ogg_cut_short_is_heard_up_to_there_and_said(tmp_path: Path, fmt: str) -> None:
+    """Only a WAV's cut was said: an AIFF holding half of what its header promises, or an Ogg
+    stream cut before its end-of-stream page, was heard up to there in silence."""
+    x = tone(440.0, 6.0, SR) + noise(6.0, np.random.default_rng(2), rms=0.01)  # a room: Vorbis pages fill
+    path = tmp_path / f"cut.{fmt.lower()}"
+    soundfile.write(path, x, SR, format=fmt)
+    path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
+    said: list[str] = []
+    y = load_audio(path, say=said.append)
+    assert 1.5 * SR < len(y) < 3.5 * SR
+    lacks = {"AIFF": "of the 6.0 s its header promises", "OGG": "and ends without its end-of-stream page"}[fmt]
+    assert said == [f"{path}: cut short: it holds {len(y) / SR:.1f} s {lacks}; heard up to there"]
+    said.clear()
+    load_audio(path, seconds=0.5, say=said.append)  # the part a short run hears is whole
+    assert said == []
+
+
 def test_a_flac_cut_short_keeps_what_decodes(tmp_path: Path) -> None:
     """A FLAC cut inside its data fails in the decoder part-way; one read of the whole file
     returned only the error, and the whole recording was refused as corrupt."""
@@ -147,7 +200,7 @@ def test_an_ogg_cut_short_is_refused_with_the_likely_cause(tmp_path: Path) -> No
     path = tmp_path / "cut.ogg"
     soundfile.write(path, tone(440.0, 6.0, SR, harmonics=1), SR, format="OGG")
     path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
-    with pytest.raises(AudioFileError, match="cut.ogg: contains no samples .*Ogg file cut short"):
+    with pytest.raises(AudioFileError, match="cut.ogg: cut short: it holds no samples and ends without its end-of-stream"):
         load_audio(path)
 
 
