@@ -185,6 +185,15 @@ def _cut_short(sound: soundfile.SoundFile) -> str | None:
     return f"of the {promised:,.1f} s its header promises"
 
 
+def _is_midi(path: Path) -> bool:
+    """Whether ``path`` begins as a Standard MIDI File (or one in a RIFF ``RMID`` wrapper): given
+    where sound belongs (the phrase beside its render), libsndfile only says "Format not
+    recognised", as of a damaged file."""
+    with open(path, "rb") as handle:
+        head = handle.read(12)
+    return head.startswith(b"MThd") or (head.startswith(b"RIFF") and head[8:12] == b"RMID")
+
+
 def _read_what_decodes(sound: soundfile.SoundFile, frames: int, dtype: str) -> tuple[np.ndarray, str | None]:
     """``frames`` frames of the open ``sound`` (-1: all), and why the read stopped early if the
     decoder failed.
@@ -253,6 +262,8 @@ def load_audio(path: str | os.PathLike, *, samplerate: int = ANALYSIS_RATE,
     except (soundfile.LibsndfileError, RuntimeError, OSError) as exc:
         if path.stat().st_size == 0:
             raise AudioFileError(f"{path}: empty file (0 bytes)") from None
+        if _is_midi(path):
+            raise AudioFileError(f"{path}: a MIDI file, not a sound file (an offline run takes MIDI with --midi)") from None
         raise AudioFileError(f"{path}: unreadable or corrupt ({exc})") from None
     if data.shape[0] == 0:
         raise AudioFileError(f"{path}: cut short: it holds no samples {cut}" if cut is not None else

@@ -108,6 +108,8 @@ def _read_capped(path: Path) -> bytes:
         raise MidiFileError(f"{path}: MIDI file not found") from None
     except OSError as exc:
         raise MidiFileError(f"{path}: cannot read the MIDI file ({exc.strerror or exc})") from None
+    if (kind := _sound_kind(raw)) is not None:  # a long recording is past the cap: said as what it is
+        raise MidiFileError(f"{path}: a {kind} sound file, not a MIDI file (an offline run takes sound with --audio)")
     if len(raw) > MAX_MIDI_BYTES:
         raise MidiFileError(f"{path}: MIDI file larger than {MAX_MIDI_BYTES} bytes; refused")
     if not raw:  # mido says "truncated … inside a chunk" of a file that has no chunk
@@ -123,6 +125,18 @@ def _open(path: Path, data: bytes) -> mido.MidiFile:
         raise MidiFileError(f"{path}: truncated MIDI file (ended inside a chunk)") from None
     except (OSError, ValueError, KeyError, IndexError, TypeError) as exc:
         raise MidiFileError(f"{path}: malformed MIDI file ({exc or type(exc).__name__})") from None
+
+
+SOUND_FILES = ((b"RIFF", b"WAVE", "WAV"), (b"RF64", b"WAVE", "WAV"), (b"FORM", b"AIFF", "AIFF"),
+               (b"FORM", b"AIFC", "AIFF"), (b"fLaC", b"", "FLAC"), (b"OggS", b"", "Ogg"), (b"ID3", b"", "MP3"))
+"""How sound files begin (their first bytes, the form at byte 8, their name): a render given
+where its MIDI file belongs was a "malformed MIDI file (MThd not found…)", as if damaged."""
+
+
+def _sound_kind(raw: bytes) -> str | None:
+    """The kind of sound file ``raw`` begins as, or None."""
+    return next((name for magic, form, name in SOUND_FILES if raw.startswith(magic) and raw[8:12].startswith(form)),
+                None)
 
 
 def _load(path: Path) -> smf.Events | mido.MidiFile:

@@ -27,8 +27,11 @@ from audio.sources import (
     load_audio,
 )
 from audio_fixtures import SR, noise, tone, write_wav
+from bench._sampled import SOUNDFONT, fluidsynth, have_sampler
 from creatures.runtime.offline import run_offline
 from creatures.runtime.schema import load_installation
+from midi.files import write_notes
+from midi.notes import NoteEvent
 
 
 def peak_hz(x: np.ndarray, sr: int) -> float:
@@ -178,6 +181,27 @@ def test_an_aiff_or_ogg_cut_short_is_heard_up_to_there_and_said(tmp_path: Path, 
     said.clear()
     load_audio(path, seconds=0.5, say=said.append)  # the part a short run hears is whole
     assert said == []
+
+
+@pytest.mark.skipif(not have_sampler(), reason="needs fluidsynth and the GM soundfont")
+def test_a_midi_file_and_its_render_given_the_wrong_way_round_are_each_named_for_what_they_are(
+        tmp_path: Path, capsys) -> None:
+    """A phrase and its fluidsynth render side by side, given to the wrong flags: the MIDI file
+    was "unreadable or corrupt (Format not recognised)" and the WAV "malformed MIDI file (MThd not
+    found…)", as if either were damaged; each is now said to be the other kind, with the flag
+    that takes it."""
+    from creatures.cli import main
+
+    phrase = tmp_path / "phrase.mid"
+    write_notes(phrase, [NoteEvent(0.2 + 0.5 * i, p, 90, 0, 0.4) for i, p in enumerate((60, 64, 67))])
+    render = tmp_path / "phrase.wav"
+    fluidsynth(SOUNDFONT, phrase, render, 44100)
+    for flag, path, said in (("--audio", phrase, "a MIDI file, not a sound file (an offline run takes MIDI with --midi)"),
+                             ("--midi", render, "a WAV sound file, not a MIDI file (an offline run takes sound "
+                                                "with --audio)")):
+        code = main(["offline", "exchange", flag, str(path), "--out", str(tmp_path / "o"), "--duration", "1"])
+        assert code == 2 and capsys.readouterr().err.strip().splitlines() == [f"creatures: {path}: {said}"]
+        assert not (tmp_path / "o").exists()
 
 
 def test_a_flac_cut_short_keeps_what_decodes(tmp_path: Path) -> None:
