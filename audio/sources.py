@@ -234,8 +234,8 @@ def load_audio(path: str | os.PathLike, *, samplerate: int = ANALYSIS_RATE,
     broken recording).
 
     A file cut short (a WAV or AIFF holding less than its header promises, an Ogg stream without
-    its last page, a FLAC whose decoder fails part-way) is heard up to where it ends, and that is said to ``say`` (the module's
-    logger when none): losing the recording whole would lose what it holds, and hearing it
+    its last page, a FLAC whose decoder fails part-way) is heard up to where it ends, and that is
+    said to ``say`` (the module's logger when none): losing the recording whole would lose what it holds, and hearing it
     silently would hide why the creatures fall quiet early.
 
     ``seconds`` reads no further than that much of the file (plus :data:`RESAMPLE_MARGIN`, so
@@ -263,7 +263,8 @@ def load_audio(path: str | os.PathLike, *, samplerate: int = ANALYSIS_RATE,
         if path.stat().st_size == 0:
             raise AudioFileError(f"{path}: empty file (0 bytes)") from None
         if _is_midi(path):
-            raise AudioFileError(f"{path}: a MIDI file, not a sound file (an offline run takes MIDI with --midi)") from None
+            raise AudioFileError(f"{path}: a MIDI file, not a sound file (an offline run takes MIDI with "
+                                 "--midi)") from None
         raise AudioFileError(f"{path}: unreadable or corrupt ({exc})") from None
     if data.shape[0] == 0:
         raise AudioFileError(f"{path}: cut short: it holds no samples {cut}" if cut is not None else
