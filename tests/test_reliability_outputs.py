@@ -105,6 +105,23 @@ def test_an_artists_file_put_into_an_earlier_runs_output_is_never_removed(config
     assert _tree(out) == before
 
 
+def test_a_runs_own_output_fed_back_as_its_input_into_the_same_out_is_refused_not_replaced(config, tmp_path, capsys):
+    """What the creatures played, fed back to them (`--midi DIR/out.mid` or `--audio DIR/out.wav`
+    with the same `--out DIR`): the run read it, then published its own out.mid or out.wav over
+    it, and the take the artist fed was gone. The run refuses before it starts, saying why."""
+    out = tmp_path / "DIR"
+    assert _offline(config, out, 4.0) == 0
+    capsys.readouterr()
+    before = _tree(out)
+    for flag, name in (("--midi", "out.mid"), ("--audio", "out.wav")):
+        assert _offline(config, out, 2.0, flag, str(out / name)) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert err == [f"creatures: {flag} {out / name} is this run's own {name} in {out}, which the run would "
+                       "replace: copy it out of there first, or give another --out"]
+        assert _tree(out) == before
+    assert _offline(config, tmp_path / "other", 2.0, "--midi", str(out / "out.mid")) == 0  # elsewhere, it is heard
+
+
 # -- defect 2: all or none ----------------------------------------------------------------
 def test_a_publish_of_part_of_a_folder_replaces_only_its_part_and_keeps_the_rest(tmp_path):
     """``creatures render`` publishes its frames into a run's folder, and its line drawings

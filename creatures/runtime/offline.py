@@ -36,7 +36,7 @@ from creatures.runtime.bodies import BodyFrames
 from creatures.runtime.body_stream import BodyStream
 from creatures.runtime.input_sources import Rehearsal, Row, note_on, open_sources, unplayed
 from creatures.runtime.inputs import phrase_notes, render_notes
-from creatures.runtime.outputs import publishing
+from creatures.runtime.outputs import OutputDirectoryError, publishing
 from creatures.runtime.schema import Installation, LoadedInstallation
 from creatures.runtime.speech_input import spoken_poem
 from creatures.runtime.trainer import Trainer
@@ -100,6 +100,27 @@ def _inputs(inst: LoadedInstallation, audio: Path | None, midi: Path | None, dur
     return heard, samples
 
 
+def _refuse_replacing_inputs(inst: LoadedInstallation, out: Path, *, audio: Path | None, midi: Path | None) -> None:
+    """Raise :class:`OutputDirectoryError` (before running) when an input file is one of the
+    outputs this run publishes in ``out``, or lies in one: what the creatures played, fed back
+    to them with the same ``--out`` (``--midi DIR/out.mid``), was read, then replaced by this
+    run's own, and the take the artist fed was lost."""
+    settings = inst.settings
+    given = (("--audio", audio) if audio is not None else
+             ("input.audio", inst.resolve(settings.input.audio, ("input", "audio"))),
+             ("--midi", midi) if midi is not None else
+             ("input.midi", inst.resolve(settings.input.midi, ("input", "midi"))))
+    for what, path in given:
+        if path is None:
+            continue
+        where = path.resolve()
+        for name in sorted(_planned(settings)):
+            own = (out / name).resolve()
+            if where == own or own in where.parents:
+                raise OutputDirectoryError(f"{what} {path} is this run's own {name} in {out}, which the run would "
+                                           "replace: copy it out of there first, or give another --out")
+
+
 def run_offline(
     inst: LoadedInstallation,
     out: Path,
@@ -118,6 +139,7 @@ def run_offline(
     """
     settings = inst.settings
     duration = float(duration if duration is not None else settings.duration)
+    _refuse_replacing_inputs(inst, out, audio=audio, midi=midi)  # before anything is held or made
     facts: dict[str, object] = {}
     with publishing(out, None, planned=_planned(settings), facts=facts) as staged:
         summary = _run(inst, staged, audio=audio, midi=midi, duration=duration, progress=progress)
