@@ -37,6 +37,10 @@ MIN_FILE_RATE = 1000
 """Lowest sample rate a sound file may declare. Resampling multiplies a file's size by
 ``samplerate / rate``: a 44 kB file claiming 1 Hz would unpack to 2 GB at 22.05 kHz."""
 
+MAX_FILE_RATE = 768_000
+"""Highest sample rate a sound file may declare: the fastest audio interfaces record at 768 kHz.
+A damaged header's rate of 2 GHz made six seconds of a phrase 0.1 ms long, heard as nothing."""
+
 RESAMPLE_MARGIN = 1.0
 """Seconds read past the part of a file that is wanted (:func:`load_audio`'s ``seconds``): soxr's
 filter looks ahead a few milliseconds, and with this margin the wanted samples come out exactly
@@ -251,8 +255,9 @@ def load_audio(path: str | os.PathLike, *, samplerate: int = ANALYSIS_RATE,
     try:
         with soundfile.SoundFile(path) as sound:
             rate = sound.samplerate
-            if rate < MIN_FILE_RATE:
-                raise AudioFileError(f"{path}: sample rate {rate} Hz is below {MIN_FILE_RATE} Hz (a damaged header?)")
+            if not MIN_FILE_RATE <= rate <= MAX_FILE_RATE:
+                bound = f"below {MIN_FILE_RATE} Hz" if rate < MIN_FILE_RATE else f"above {MAX_FILE_RATE:,} Hz"
+                raise AudioFileError(f"{path}: sample rate {rate:,} Hz is {bound} (a damaged header?)")
             frames = -1 if seconds is None else math.ceil((seconds + RESAMPLE_MARGIN) * rate)
             # A double file is checked before it is narrowed: 1e300 (a wrong scale) cast to
             # float32 is inf, and was refused as "NaN/inf", whose cause and fix differ.

@@ -19,6 +19,7 @@ from audio.device import AudioDeviceUnavailable
 from audio.segment import Segmenter
 from audio.sources import (
     ANALYSIS_RATE,
+    MAX_FILE_RATE,
     ArraySource,
     AudioFileError,
     FileSource,
@@ -263,6 +264,20 @@ def test_96_khz_is_resampled_to_the_analysis_rate(tmp_path: Path) -> None:
     y = load_audio(write_wav(tmp_path / "hi.wav", x, 96000))
     assert abs(len(y) - ANALYSIS_RATE) <= 1
     assert peak_hz(y, ANALYSIS_RATE) == pytest.approx(1000.0, abs=2.0)
+
+
+def test_a_header_claiming_a_rate_no_recorder_makes_is_refused_not_heard_as_nothing(tmp_path: Path) -> None:
+    """A damaged header's rate of 2 GHz made six seconds of a phrase 0.1 ms long: the run heard
+    nothing, silently. Only a rate below 1 kHz was refused; above :data:`MAX_FILE_RATE` is too."""
+    x = tone(440.0, 6.0, 44100)
+    data = bytearray(write_wav(tmp_path / "phrase.wav", x, 44100).read_bytes())
+    data[24:32] = (2_000_000_000).to_bytes(4, "little") + (0xFFFFFFFF).to_bytes(4, "little")  # rate, bytes a second
+    (tmp_path / "damaged.wav").write_bytes(data)
+    with pytest.raises(AudioFileError, match=r"damaged.wav: sample rate 2,000,000,000 Hz is above 768,000 Hz "
+                                             r"\(a damaged header\?\)"):
+        load_audio(tmp_path / "damaged.wav")
+    y = load_audio(write_wav(tmp_path / "dxd.wav", tone(440.0, 0.5, MAX_FILE_RATE), MAX_FILE_RATE))
+    assert abs(len(y) - ANALYSIS_RATE // 2) <= 1 and peak_hz(y, ANALYSIS_RATE) == pytest.approx(440.0, abs=3.0)
 
 
 def test_multichannel_is_mixed_down(tmp_path: Path) -> None:

@@ -6,7 +6,8 @@ the machine unless told to, or read unbounded input. The bounds, in one place:
 * state file (JSON) and unpacked NPZ arrays: ``creatures.persist.MAX_STATE_BYTES`` = 256 MiB;
 * config file: ``creatures.config.MAX_CONFIG_BYTES`` = 1 MiB;
 * sound file: a declared rate below ``audio.sources.MIN_FILE_RATE`` = 1 kHz is refused (so
-  resampling grows a file at most 22×, not 22,050×);
+  resampling grows a file at most 22×, not 22,050×), and one above ``MAX_FILE_RATE`` = 768 kHz
+  (a damaged header; tests/test_audio_sources.py);
 * events log: ``EventLog(max_bytes=64 MiB, backups=5)``, rotated (see ``test_soak.py``).
 """
 
