@@ -57,6 +57,11 @@ sample is garbage (a wrong byte order, a corrupt float file, a driver writing ju
 clustering. A file holding such samples is refused like one holding NaN/inf; live, they are
 counted and zeroed like non-finite ones."""
 
+CANCELLED_DB = 20.0
+"""A file's channels mixed this far below their own level cancel: one is the other inverted (a
+balanced lead wired the other way round), and the ear, which hears the mix, hears almost
+nothing. Unrelated channels mix 3 dB below theirs, a wide stereo mix a few dB more."""
+
 READ_BLOCK = 4096
 """Frames read at a time from a file whose decoder failed part-way, so the frames before the
 fault are kept (a whole-file read returns nothing but the error). libsndfile cannot seek in a
@@ -227,12 +232,24 @@ def _read_what_decodes(sound: soundfile.SoundFile, frames: int, dtype: str) -> t
     return np.concatenate(blocks), str(fault).strip()
 
 
+def _cancelled(data: np.ndarray, mono: np.ndarray) -> float | None:
+    """How far (dB) the mix ``mono`` of ``data``'s channels lies below their mean level, when
+    past :data:`CANCELLED_DB`; else None."""
+    channels = float(np.mean(np.square(data, dtype=np.float64)))
+    mixed = float(np.mean(np.square(mono, dtype=np.float64)))
+    if channels == 0.0:
+        return None
+    below = 10.0 * math.log10(channels / max(mixed, channels * 1e-12))
+    return below if below >= CANCELLED_DB else None
+
+
 def load_audio(path: str | os.PathLike, *, samplerate: int = ANALYSIS_RATE,
                seconds: float | None = None, say: Callable[[str], None] | None = None) -> np.ndarray:
     """Read a sound file as mono float32 at ``samplerate``.
 
     Any format libsndfile reads (WAV 8/16/24/32-bit and float, FLAC, OGG, ...) at any rate;
-    channels are averaged, the rate is converted with soxr. Raises :class:`AudioFileError`
+    channels are averaged (channels that cancel so are said: :data:`CANCELLED_DB`), the rate is
+    converted with soxr. Raises :class:`AudioFileError`
     naming the file when it is unreadable, truncated beyond use, empty, or holds NaN/inf
     samples or samples beyond :data:`LARGEST_SAMPLE` (silently zeroing those would hide a
     broken recording).
@@ -283,6 +300,9 @@ def load_audio(path: str | os.PathLike, *, samplerate: int = ANALYSIS_RATE,
     _refuse_unusable(path, data, rate)
     data = data.astype(np.float32, copy=False)
     mono = data.mean(axis=1) if data.shape[1] > 1 else data[:, 0]
+    if data.shape[1] > 1 and (below := _cancelled(data, mono)) is not None:
+        say(f"{path}: its {data.shape[1]} channels cancel when mixed to the one the ear hears ({below:.0f} dB below "
+            "them): one is the other inverted (a lead wired the other way round?); heard as mixed")
     if rate != samplerate:
         mono = soxr.resample(mono, rate, samplerate)
     return np.ascontiguousarray(mono, dtype=np.float32)

@@ -280,6 +280,27 @@ def test_a_header_claiming_a_rate_no_recorder_makes_is_refused_not_heard_as_noth
     assert abs(len(y) - ANALYSIS_RATE // 2) <= 1 and peak_hz(y, ANALYSIS_RATE) == pytest.approx(440.0, abs=3.0)
 
 
+@pytest.mark.skipif(not have_sampler(), reason="needs fluidsynth and the GM soundfont")
+def test_channels_that_cancel_when_mixed_are_said_not_heard_as_silence_in_silence(tmp_path: Path) -> None:
+    """One microphone recorded on both channels, one through a balanced lead wired the other way
+    round, mixes to nothing: the run heard not one of the phrase's notes and said nothing. Now it
+    says why; the stereo render as it is, its channels inverted (a sampled piano's two sides
+    differ: 3 dB), and two channels of unrelated noise are not said."""
+    phrase = tmp_path / "phrase.mid"
+    write_notes(phrase, [NoteEvent(0.2 + 0.5 * i, p, 90, 0, 0.4) for i, p in enumerate((60, 64, 67))])
+    fluidsynth(SOUNDFONT, phrase, tmp_path / "render.wav", 44100)
+    stereo, rate = soundfile.read(tmp_path / "render.wav")
+    soundfile.write(tmp_path / "wide.wav", stereo * [1.0, -1.0], rate, subtype="PCM_16")
+    one = stereo.mean(axis=1, keepdims=True)
+    soundfile.write(tmp_path / "inverted.wav", one * [1.0, -1.0], rate, subtype="PCM_16")
+    noisy = np.random.default_rng(3).normal(0.0, 0.1, (rate, 2))
+    soundfile.write(tmp_path / "noise.wav", noisy, rate, subtype="PCM_16")
+    said: list[str] = []
+    for name in ("render.wav", "wide.wav", "noise.wav", "inverted.wav"):
+        load_audio(tmp_path / name, say=said.append)
+    assert len(said) == 1 and said[0].startswith(f"{tmp_path / 'inverted.wav'}: its 2 channels cancel when mixed")
+
+
 def test_multichannel_is_mixed_down(tmp_path: Path) -> None:
     a, b = tone(300.0, 0.5, harmonics=1), tone(700.0, 0.5, harmonics=1)
     quad = np.stack([a, b, a, -a], axis=1)
