@@ -248,7 +248,8 @@ def load_audio(path: str | os.PathLike, *, samplerate: int = ANALYSIS_RATE,
     """Read a sound file as mono float32 at ``samplerate``.
 
     Any format libsndfile reads (WAV 8/16/24/32-bit and float, FLAC, OGG, ...) at any rate;
-    channels are averaged (channels that cancel so are said: :data:`CANCELLED_DB`), the rate is
+    channels are averaged (channels that cancel so are said: :data:`CANCELLED_DB`; so are samples at
+    :data:`FULL_SCALE`, clipped, which the transcriber counted and nothing told), the rate is
     converted with soxr. Raises :class:`AudioFileError`
     naming the file when it is unreadable, truncated beyond use, empty, or holds NaN/inf
     samples or samples beyond :data:`LARGEST_SAMPLE` (silently zeroing those would hide a
@@ -300,6 +301,10 @@ def load_audio(path: str | os.PathLike, *, samplerate: int = ANALYSIS_RATE,
     _refuse_unusable(path, data, rate)
     data = data.astype(np.float32, copy=False)
     mono = data.mean(axis=1) if data.shape[1] > 1 else data[:, 0]
+    if (clipped := int(np.count_nonzero(np.abs(data) >= FULL_SCALE))):
+        first = int(np.flatnonzero((np.abs(data) >= FULL_SCALE).any(axis=1))[0])
+        say(f"{path}: {clipped:,} samples at full scale, the first at {first / rate:,.2f} s: clipped (a clipped tone "
+            "sounds partials of its own, which the ear does not take as notes where it clips); record it quieter")
     if data.shape[1] > 1 and (below := _cancelled(data, mono)) is not None:
         say(f"{path}: its {data.shape[1]} channels cancel when mixed to the one the ear hears ({below:.0f} dB below "
             "them): one is the other inverted (a lead wired the other way round?); heard as mixed")

@@ -301,6 +301,21 @@ def test_channels_that_cancel_when_mixed_are_said_not_heard_as_silence_in_silenc
     assert len(said) == 1 and said[0].startswith(f"{tmp_path / 'inverted.wav'}: its 2 channels cancel when mixed")
 
 
+def test_a_clipped_recording_is_said_with_where_it_first_clips(tmp_path: Path) -> None:
+    """A recording made too hot (a tone driven 3× past full scale from 0.5 s) was heard with
+    nothing said: the transcriber counted its clipped samples and takes no note from a clipped
+    tone's own partials, so notes went missing with no word why. A tone just under full scale is
+    not said."""
+    x = tone(220.0, 1.0, 44100, harmonics=1)
+    hot = np.clip(np.where(np.arange(len(x)) >= 22050, 3.0, 0.9) * x / np.abs(x).max(), -1.0, 1.0)
+    said: list[str] = []
+    load_audio(write_wav(tmp_path / "hot.wav", hot, 44100, subtype="FLOAT"), say=said.append)
+    load_audio(write_wav(tmp_path / "fine.wav", 0.99 * x / np.abs(x).max(), 44100, subtype="FLOAT"), say=said.append)
+    assert len(said) == 1 and said[0].startswith(f"{tmp_path / 'hot.wav'}: "), said
+    count = int(np.count_nonzero(np.abs(hot) >= 0.999))
+    assert f"{count:,} samples at full scale, the first at 0.50 s: clipped" in said[0] and count > 10_000
+
+
 def test_multichannel_is_mixed_down(tmp_path: Path) -> None:
     a, b = tone(300.0, 0.5, harmonics=1), tone(700.0, 0.5, harmonics=1)
     quad = np.stack([a, b, a, -a], axis=1)
