@@ -1347,3 +1347,18 @@ def test_extends_keeps_the_bases_creatures_tunes_one_by_name_and_adds_a_new_one(
     typo = write(tmp_path, child.read_text().replace("growth = 0.5", "growth = 0.5\nx = 1"), "x.toml")
     error = error_of(typo)  # in the heron, as tuned here
     assert (error.file, error.line, error.key) == (typo, line_of(typo, "x = 1"), "creature.0.x"), str(error)
+
+
+@pytest.mark.parametrize("keys, bad, said", [
+    ("split_at = 1.0\nfuse_below = 5.0", "fuse_below = 5.0", "learning.fuse_below: must be below split_at (1)"),
+    ("split_at = 2.0\nfuse_below = 2.0", "fuse_below = 2.0", "learning.fuse_below: must be below split_at (2)"),
+    ("statistics = 2.0\ninnovation = 1.0", "innovation = 1.0", "learning.innovation: must not be below statistics (2)"),
+])
+def test_learning_thresholds_in_the_wrong_order_are_refused_at_their_line(tmp_path, keys, bad, said):
+    """Before, these passed the schema and the creature's PerceptLearning raised a bare
+    ValueError when the run built it: a traceback, not the key and its line."""
+    text = FISSION.replace("statistics = 0.2\ninnovation = 0.3", keys)
+    path = write(tmp_path, text)
+    err = error_of(path)
+    line = text.splitlines().index(bad) + 1
+    assert f"{path}:{line}: creature.0.{said}" in str(err), str(err)

@@ -12,7 +12,7 @@ from typing import Annotated, Any, ClassVar, Literal
 
 from pathlib import Path
 
-from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationInfo, field_validator, model_validator
 
 from creatures.bounds import FINITE, LARGEST_RATE, LONGEST_SECONDS, Bounded, Seconds
 
@@ -303,6 +303,26 @@ class LearningSpec(Strict):
     max_phrases: int = Field(8, ge=1, le=256, description="phrases remembered")
     phrases: PhraseHypotheses | None = Field(None, description="a new tuple for every phrase heard "
                                                                 "([creature.learning.phrases])")
+
+    @field_validator("innovation")
+    @classmethod
+    def _innovation_above_statistics(cls, innovation: float, info: ValidationInfo) -> float:
+        """A percept may split only once its tuple's value has taught it (PerceptLearning)."""
+        statistics = info.data.get("statistics")
+        if statistics is not None and innovation < statistics:
+            raise ValueError(f"must not be below statistics ({statistics:g}): a percept may split only once "
+                             "its tuple is worth enough to teach it")
+        return innovation
+
+    @field_validator("fuse_below")
+    @classmethod
+    def _fuse_below_split(cls, fuse_below: float, info: ValidationInfo) -> float:
+        """Fission and fusion need a gap between them, or children would fuse as they split."""
+        split_at = info.data.get("split_at")
+        if split_at is not None and fuse_below >= split_at:
+            raise ValueError(f"must be below split_at ({split_at:g}): between them lies the hysteresis that "
+                             "keeps children from fusing as soon as they split")
+        return fuse_below
 
 
 class AuthoredSpec(CreatureSpec):
