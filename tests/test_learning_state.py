@@ -246,3 +246,30 @@ def test_inspect_shows_each_tuples_expectation_as_saved(tmp_path):
     page = inspect(state, tmp_path / "page").read_text()
     assert (f"<tr><td>main: {name}</td><td>{entry['reliability']:.3f}</td><td>{entry['tests']}</td>"
             f"<td>{entry['violations']}</td></tr>") in page
+
+
+def test_a_reward_or_plasticity_edited_in_the_config_since_the_save_is_what_the_restart_takes(tmp_path):
+    """Before, the saved record replaced each tuple's value whole: a reward raised from 5 to 9,
+    a tuple made a reward, or a plasticity lowered in the config were silently the saved ones
+    after a restart. Now the learnt number comes back and the authored rest stays the config's."""
+    state = tmp_path / "state"
+    first = _session(tmp_path / "a")
+    _run(first, 30.0)
+    first.save_state(state)
+    saved = {tp.name: tp.value.to_float() for tp in first.creatures[0].groups["main"].tuples}
+    assert saved["answer"] != 1.0  # it learnt something to take back
+    edited = CONFIG.replace("value = { value = 5.0, plastic = false }", "value = { value = 9.0, plastic = false }")
+    edited = edited.replace("value = 0.2", "value = { value = 0.2, plastic = false }")
+    edited = edited.replace("action = { type = \"play_heard\", count = 1 }\nuntil = { done = true }\nvalue = 1.0",
+                            "action = { type = \"play_heard\", count = 1 }\nuntil = { done = true }\n"
+                            "value = { value = 1.0, plasticity = 0.25 }")
+    assert edited.count("plastic") == 3
+    folder = tmp_path / "b"
+    folder.mkdir()
+    (folder / "inst.toml").write_text(textwrap.dedent(edited))
+    second = Session(load_installation(folder / "inst.toml"), SimulatedClock(), EventLog(), MemorySink())
+    second.load_state(state)
+    values = {tp.name: tp.value for tp in second.creatures[0].groups["main"].tuples}
+    assert (values["praised"].to_float(), values["praised"].plasticity) == (9.0, 0.0)  # the raised reward
+    assert (values["rest"].to_float(), values["rest"].plasticity) == (0.2, 0.0)  # a reward now
+    assert (values["answer"].to_float(), values["answer"].plasticity) == (saved["answer"], 0.25)  # learnt, slower

@@ -58,7 +58,7 @@ import numpy as np
 from creatures.behaviour.action_tuple import Action, ActionTuple, DoUntil
 from creatures.behaviour.percept import Percept
 from creatures.behaviour.proximity import Proximity
-from creatures.behaviour.value import Value, reattach, value_from_dict
+from creatures.behaviour.value import Value, reattach, restored, value_from_dict
 from creatures.clock import clock_gap
 
 if TYPE_CHECKING:
@@ -655,11 +655,12 @@ class ActionGroup:
         return {tp.name: tp.value.to_dict() for tp in self.tuples}
 
     def restore_values(self, saved: dict[str, dict[str, Any]]) -> None:
-        """Take back values saved by :meth:`value_state`; tuples not saved keep theirs, and a
-        saved value no tuple is named for is the caller's to keep (creatures/behaviour/unplaced.py)."""
+        """Take back values saved by :meth:`value_state` (a reward stays the config's, see
+        :func:`restored`); tuples not saved keep theirs, and a saved value no tuple is named for
+        is the caller's to keep (creatures/behaviour/unplaced.py)."""
         for tp in self.tuples:
             if tp.name in saved:
-                tp.value = reattach(value_from_dict(saved[tp.name]), tp.value)
+                tp.value = restored(tp.value, reattach(value_from_dict(saved[tp.name]), tp.value))
 
     def _emit(self, event: str, t: float, **fields: Any) -> None:
         if self.on_event is not None:

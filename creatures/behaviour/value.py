@@ -482,6 +482,21 @@ def reattach(fresh: Value, old: Value) -> Value:
     return fresh
 
 
+def restored(authored: Value, saved: Value) -> Value:
+    """The value a restart gives a tuple: what it learnt (``saved``), moved thereafter as fast
+    as the config now says (its plasticity), or the config's own where either is a reward.
+
+    A non-plastic value was written by the author, never learnt: the config's stands, so an
+    author who raises a reward, or makes a tuple a reward, hears it after a restart (before,
+    the saved record replaced it whole, and a group could lose the reward that grounds it).
+    """
+    if getattr(authored, "plasticity", 1.0) == 0.0 or getattr(saved, "plasticity", 1.0) == 0.0:
+        return authored
+    if hasattr(authored, "plasticity"):
+        saved.plasticity = authored.plasticity
+    return saved
+
+
 def value_from_dict(data: dict[str, Any]) -> Value:
     """Rebuild a value saved with ``to_dict``; the ``kind`` key picks the class.
 
