@@ -1362,3 +1362,16 @@ def test_learning_thresholds_in_the_wrong_order_are_refused_at_their_line(tmp_pa
     err = error_of(path)
     line = text.splitlines().index(bad) + 1
     assert f"{path}:{line}: creature.0.{said}" in str(err), str(err)
+
+
+@pytest.mark.parametrize("old, new, key", [
+    ("near = 60.0", "near = 1e308", "percepts.tone.near"),
+    ("spread = 8.0", "spread = 1e308", "percepts.tone.spread"),
+])
+def test_a_gaussian_percept_past_its_range_is_refused_at_its_line(tmp_path, old, new, key):
+    """Before, near = 1e308 loaded; the model's mean overflowed to nan as it learnt, and the
+    offline run died with a JSON traceback at the final save, having written nothing."""
+    text = FISSION.replace(old, new)
+    path = write(tmp_path, text)
+    line = text.splitlines().index(new) + 1
+    assert f"{path}:{line}: creature.0.{key}: Input should be less than or equal to 1000000" in str(error_of(path))

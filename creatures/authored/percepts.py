@@ -122,11 +122,14 @@ class Silence(PerceptPart):
 
 
 class _FeatureParams(Params):
-    near: float | None = Field(None, description="Gaussian model: the typical value (with 'spread')")
-    spread: float = Field(2.0, gt=0, description="Gaussian model: its standard deviation")
-    low: float | None = Field(None, description="fuzzy ramp: saliency 0 here …")
-    high: float | None = Field(None, description="… and 1 here (either order)")
-    lookback: float = Field(0.0, ge=0, description="Gaussian model: learn from the most salient datum this "
+    near: float | None = Field(None, ge=-bounds.LARGEST_RATE, le=bounds.LARGEST_RATE,
+                               description="Gaussian model: the typical value (with 'spread')")
+    spread: float = Field(2.0, gt=0, le=bounds.LARGEST_RATE, description="Gaussian model: its standard deviation")
+    low: float | None = Field(None, ge=-bounds.LARGEST_RATE, le=bounds.LARGEST_RATE,
+                              description="fuzzy ramp: saliency 0 here …")
+    high: float | None = Field(None, ge=-bounds.LARGEST_RATE, le=bounds.LARGEST_RATE,
+                               description="… and 1 here (either order)")
+    lookback: float = Field(0.0, ge=0, le=LONGEST_SECONDS, description="Gaussian model: learn from the most salient datum this "
                                                    "many seconds before a valued action")
 
     @model_validator(mode="after")
@@ -241,7 +244,7 @@ class _DriveParams(Params):
     scale: Literal["free", "level"] = Field("free", description="'free': how high the level is among the levels "
                                                                "it has had (a model of the drive); 'level': the "
                                                                "level itself")
-    spread: float = Field(0.1, gt=0, description="free: the model's prior spread")
+    spread: float = Field(0.1, gt=0, le=bounds.LARGEST_RATE, description="free: the model's prior spread")
     low: float | None = Field(None, description="level: a fuzzy ramp of it instead, saliency 0 here …")
     high: float | None = Field(None, description="… and 1 here (either order; equal: a step)")
 
@@ -555,7 +558,7 @@ class PassagePercept(PerceptPart):
 # -- temporal and activation models ---------------------------------------------------------
 class _DueParams(Params):
     mean: float = Field(1.0, gt=0, description="prior inter-onset interval, seconds")
-    std: float = Field(0.5, gt=0, description="its prior spread")
+    std: float = Field(0.5, gt=0, le=bounds.LARGEST_RATE, description="its prior spread")
     longest: float = Field(3.0, gt=0, description="a longer gap is a pause, not an interval of the rhythm")
     memory: int = Field(8, ge=2, le=1024, description="intervals the model remembers")
 
