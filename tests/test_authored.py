@@ -1375,3 +1375,13 @@ def test_a_gaussian_percept_past_its_range_is_refused_at_its_line(tmp_path, old,
     path = write(tmp_path, text)
     line = text.splitlines().index(new) + 1
     assert f"{path}:{line}: creature.0.{key}: Input should be less than or equal to 1000000" in str(error_of(path))
+
+
+def test_a_learning_group_that_assigns_no_credit_is_refused_at_its_line(tmp_path):
+    """Before, learning.groups on a group with alpha = 0 loaded and ran: credit assignment, where
+    percepts learn, blended nothing, and the tree never grew, nothing said."""
+    text = FISSION.replace("alpha = 0.3", "alpha = 0.0")
+    path = write(tmp_path, text)
+    line = text.splitlines().index('groups = ["main"]') + 1
+    assert (f"{path}:{line}: creature.0.learning.groups.0: group 'main' has alpha = 0: it assigns no credit"
+            in str(error_of(path)))

@@ -569,6 +569,12 @@ def _learning(c: _Checker) -> None:
     learning = c.spec.learning
     for k, group in enumerate(learning.groups):
         c.need("groups", group, ("learning", "groups", k))
+        if c.spec.groups[group].alpha == 0:
+            # PerceptLearning learns in credit assignment, whose blend rates are alpha × …: at 0 it never
+            # runs, and the group's percepts would silently never learn nor grow
+            raise c.error(("learning", "groups", k), f"group {group!r} has alpha = 0: it assigns no credit, "
+                                                     "so its percepts would never learn nor split; give it an "
+                                                     "alpha above 0")
     for k, group in enumerate(learning.aural):
         c.need("groups", group, ("learning", "aural", k))
         if group in learning.groups:
