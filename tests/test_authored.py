@@ -1385,3 +1385,27 @@ def test_a_learning_group_that_assigns_no_credit_is_refused_at_its_line(tmp_path
     line = text.splitlines().index('groups = ["main"]') + 1
     assert (f"{path}:{line}: creature.0.learning.groups.0: group 'main' has alpha = 0: it assigns no credit"
             in str(error_of(path)))
+
+
+def test_a_learning_group_with_no_gaussian_trigger_is_refused_at_its_line(tmp_path):
+    """Before, 'tone' written as a fuzzy ramp (low, high) instead of a model (near, spread)
+    loaded and ran: percept learning had no model to teach nor split, and said nothing."""
+    text = FISSION.replace("near = 60.0\nspread = 8.0", "low = 40.0\nhigh = 80.0")
+    path = write(tmp_path, text)
+    line = text.splitlines().index('groups = ["main"]') + 1
+    assert (f"{path}:{line}: creature.0.learning.groups.0: group 'main' learns by splitting the Gaussian percepts its "
+            "tuples are triggered by" in str(error_of(path)))
+    load_installation(write(tmp_path, FISSION))  # with 'near' it loads
+
+
+@pytest.mark.parametrize("old, new, key", [
+    ('[creature.learning]\ngroups = ["main"]', '[creature.learning]\ngroups = ["main", "main"]', "learning.groups.1"),
+    ('[creature.learning]\ngroups = ["main"]',
+     '[creature.expectations]\ngroups = ["main", "main"]\n\n[creature.learning]\ngroups = ["main"]',
+     "expectations.groups.1"),
+])
+def test_a_group_named_twice_in_a_list_of_groups_is_refused(tmp_path, old, new, key):
+    """``groups = ["main", "main"]`` loaded without a word, as if the second meant something."""
+    text = FISSION.replace(old, new)
+    assert text != FISSION
+    assert f"creature.0.{key}: group 'main' is named twice (first at 0)" in str(error_of(write(tmp_path, text)))
