@@ -15,9 +15,11 @@ from creatures.behaviour.value import (
     ChainValue,
     Comparison,
     GaussianValue,
+    ProcessedValue,
     ScalarValue,
     StanceValue,
     Value,
+    restored,
     value_from_dict,
 )
 from creatures.clock import SimulatedClock
@@ -181,3 +183,22 @@ def test_startle_accumulates_positive_stance_from_food():
     assert startle.perturb(0.0, 0.5) == pytest.approx(0.5 * startle.stance)
     with pytest.raises(ValueError, match="stance"):
         StanceValue(1.0, stance=2.0)
+
+
+def test_a_restart_takes_what_a_value_learnt_and_the_settings_the_config_now_gives_it():
+    """A value saved learnt comes back learnt, with the settings edited in the config since the
+    save: before, a leak, its rest, a chain's source or a Gaussian value's memory came back as
+    saved, though every other setting is the config's at a restart."""
+    leaky = restored(ProcessedValue(1.0, leak=0.5, rest=0.2, momentum=0.3),
+                     ProcessedValue(3.0, leak=0.0, rest=0.0, momentum=0.0, velocity=0.4))
+    assert (leaky.value, leaky.velocity, leaky.leak, leaky.rest, leaky.momentum) == (3.0, 0.4, 0.5, 0.2, 0.3)
+    chain = restored(ChainValue(1.0, source="drink", max_distance=8.0, half_distance=2.0),
+                     ChainValue(2.5, distances={"eat": 1.5, "play": 9.0}, source="sleep"))
+    assert (chain.value, chain.source, chain.max_distance, chain.half_distance) == (2.5, "drink", 8.0, 2.0)
+    assert chain.distances == {"eat": 1.5, "play": 8.0, "drink": 0.0}  # learnt, clamped; the new source 0
+    learnt = GaussianValue(4.0, threshold=0.2, reliance=0.2, memory=600.0)
+    learnt.reliability = 0.7
+    gaussian = restored(GaussianValue(1.0, threshold=0.5, reliance=0.4, memory=60.0), learnt)
+    assert (gaussian.value, gaussian.reliability, gaussian.threshold, gaussian.reliance, gaussian.memory) == (
+        4.0, 0.7, 0.5, 0.4, 60.0)
+    assert restored(ScalarValue(5.0, plasticity=0.0), ScalarValue(2.0)).value == 5.0  # a reward is the config's

@@ -69,6 +69,9 @@ class ScalarValue(Value):
     """
 
     kind = "scalar"
+    SETTINGS: tuple[str, ...] = ("plasticity",)
+    """What the author sets and learning never moves: a restart takes these from the config
+    (:func:`restored`), the rest from the saved record."""
 
     def __init__(self, value: float, *, plasticity: float = 1.0) -> None:
         self.value = float(value)
@@ -76,6 +79,12 @@ class ScalarValue(Value):
 
     def to_float(self) -> float:
         return self.value
+
+    def take_settings(self, authored: "ScalarValue") -> None:
+        """This (learnt) value given ``authored``'s :data:`SETTINGS` (a restart, :func:`restored`)."""
+        for setting in self.SETTINGS:
+            if hasattr(authored, setting):
+                setattr(self, setting, getattr(authored, setting))
 
     def rate(self, alpha: float) -> float:
         """The effective blend parameter: ``alpha`` scaled by plasticity, kept in [0, 1]."""
@@ -126,6 +135,7 @@ class ChainValue(ScalarValue):
     """
 
     kind = "chain"
+    SETTINGS = (*ScalarValue.SETTINGS, "source", "max_distance", "half_distance")
 
     def __init__(
         self,
@@ -153,6 +163,17 @@ class ChainValue(ScalarValue):
 
     def distance_from(self, source: str) -> float:
         return self.distances.get(source, self.max_distance)
+
+    def take_settings(self, authored: ScalarValue) -> None:
+        """As a scalar's; a source changed leaves the old one's distance (0 by being the source,
+        never learnt) and is 0 itself, and distances past a lowered ``max_distance`` are clamped."""
+        was = self.source
+        super().take_settings(authored)
+        if self.source != was:
+            self.distances.pop(was, None)
+            if self.source is not None:
+                self.distances[self.source] = 0.0
+        self.distances = {k: min(d, self.max_distance) for k, d in self.distances.items()}
 
     def modulation(self) -> float:
         """The motivational factor applied by ``to_float`` (1 without an importance map)."""
@@ -237,6 +258,7 @@ class GaussianValue(ScalarValue):
     """
 
     kind = "gaussian"
+    SETTINGS = (*ScalarValue.SETTINGS, "threshold", "reliance", "memory")
 
     def __init__(
         self,
@@ -267,9 +289,17 @@ class GaussianValue(ScalarValue):
     def reliance(self) -> float:
         return self.trust.reliance
 
+    @reliance.setter
+    def reliance(self, rate: float) -> None:
+        self.trust.reliance = rate
+
     @property
     def memory(self) -> float:
         return self.trust.memory
+
+    @memory.setter
+    def memory(self, seconds: float) -> None:
+        self.trust.memory = seconds
 
     @property
     def reliability(self) -> float:
@@ -412,6 +442,7 @@ class ProcessedValue(ScalarValue):
     """
 
     kind = "processed"
+    SETTINGS = (*ScalarValue.SETTINGS, "leak", "rest", "momentum")
 
     def __init__(
         self,
@@ -483,17 +514,20 @@ def reattach(fresh: Value, old: Value) -> Value:
 
 
 def restored(authored: Value, saved: Value) -> Value:
-    """The value a restart gives a tuple: what it learnt (``saved``), moved thereafter as fast
-    as the config now says (its plasticity), or the config's own where either is a reward.
+    """The value a restart gives a tuple: what it learnt (``saved``) with the settings the
+    config now gives it (its kind's ``SETTINGS``: plasticity, a leak and its rest, a chain's
+    source …), or the config's own where either is a reward.
 
     A non-plastic value was written by the author, never learnt: the config's stands, so an
     author who raises a reward, or makes a tuple a reward, hears it after a restart (before,
     the saved record replaced it whole, and a group could lose the reward that grounds it).
+    Settings are the config's as every other setting is (README, "What a restart keeps"): an
+    edited leak or rest came back as saved.
     """
     if getattr(authored, "plasticity", 1.0) == 0.0 or getattr(saved, "plasticity", 1.0) == 0.0:
         return authored
-    if hasattr(authored, "plasticity"):
-        saved.plasticity = authored.plasticity
+    if isinstance(saved, ScalarValue) and isinstance(authored, ScalarValue):
+        saved.take_settings(authored)
     return saved
 
 
