@@ -1387,17 +1387,6 @@ def test_a_learning_group_that_assigns_no_credit_is_refused_at_its_line(tmp_path
             in str(error_of(path)))
 
 
-def test_a_learning_group_with_no_gaussian_trigger_is_refused_at_its_line(tmp_path):
-    """Before, 'tone' written as a fuzzy ramp (low, high) instead of a model (near, spread)
-    loaded and ran: percept learning had no model to teach nor split, and said nothing."""
-    text = FISSION.replace("near = 60.0\nspread = 8.0", "low = 40.0\nhigh = 80.0")
-    path = write(tmp_path, text)
-    line = text.splitlines().index('groups = ["main"]') + 1
-    assert (f"{path}:{line}: creature.0.learning.groups.0: group 'main' learns by splitting the Gaussian percepts its "
-            "tuples are triggered by" in str(error_of(path)))
-    load_installation(write(tmp_path, FISSION))  # with 'near' it loads
-
-
 @pytest.mark.parametrize("old, new, key", [
     ('[creature.learning]\ngroups = ["main"]', '[creature.learning]\ngroups = ["main", "main"]', "learning.groups.1"),
     ('[creature.learning]\ngroups = ["main"]',

@@ -572,33 +572,12 @@ def _once_each(c: _Checker, names: list[str], loc: tuple) -> None:
             raise c.error((*loc, k), f"group {name!r} is named twice (first at {names.index(name)})")
 
 
-def _learns_a_model(c: _Checker, group: str) -> bool:
-    """Whether percept learning has a model to learn in ``group``: a tuple triggered by a
-    feature percept given 'near' (a Gaussian model), or by a plug-in's percept (whose model
-    only building tells). A trigger written as a fuzzy ramp (low, high) has none: it learnt
-    nothing, silently."""
-    for name in c.spec.groups[group].tuples:
-        tp = c.spec.tuples.get(name)
-        percept = None if tp is None else c.spec.percepts.get(tp.trigger)
-        if percept is None:
-            continue
-        cls = PERCEPTS.get(percept.type)
-        if "near" in percept.params() or cls is None or not cls.__module__.startswith("creatures."):
-            return True
-    return False
-
-
 def _learning(c: _Checker) -> None:
     learning = c.spec.learning
     _once_each(c, learning.groups, ("learning", "groups"))
     _once_each(c, learning.aural, ("learning", "aural"))
     for k, group in enumerate(learning.groups):
         c.need("groups", group, ("learning", "groups", k))
-        if not _learns_a_model(c, group):
-            raise c.error(("learning", "groups", k), f"group {group!r} learns by splitting the Gaussian percepts "
-                                                     "its tuples are triggered by (a feature with 'near' and "
-                                                     "'spread'): none of its tuples' triggers is one, so it would "
-                                                     "learn nothing")
         if c.spec.groups[group].alpha == 0:
             # PerceptLearning learns in credit assignment, whose blend rates are alpha × …: at 0 it never
             # runs, and the group's percepts would silently never learn nor grow
