@@ -101,12 +101,18 @@ def _unchanged(path: Path, was: object) -> bool:
         return False
 
 
-def owned(out: Path) -> set[str]:
-    """What the manifest says the previous run wrote and is still as it wrote it (nothing,
-    without a readable manifest): a file changed since is no longer the run's to replace."""
-    manifest = _manifest(out)
+def _stamps(manifest: dict[str, Any]) -> dict[str, Any]:
+    """A manifest's stamps by entry ({} for one written before stamps, or damaged)."""
     stamps = manifest.get("stamps")
-    stamps = stamps if isinstance(stamps, dict) else {}
+    return stamps if isinstance(stamps, dict) else {}
+
+
+def owned(out: Path, manifest: dict[str, Any] | None = None) -> set[str]:
+    """What the manifest (``out``'s, read unless given) says the previous run wrote and is
+    still as it wrote it (nothing, without a readable manifest): a file changed since is no
+    longer the run's to replace."""
+    manifest = _manifest(out) if manifest is None else manifest
+    stamps = _stamps(manifest)
     return {f for f in _listed(manifest) if f.endswith("/") or _unchanged(out / f, stamps.get(f))}
 
 
@@ -140,13 +146,14 @@ def refuse_foreign(out: Path, names: set[str], replaces: set[str] | None = None)
     """Raise :class:`OutputDirectoryError` if publishing ``names`` (top-level entries) into
     ``out`` would replace or remove anything the previous run did not write (of what it wrote,
     only the entries ``replaces`` names go, when it is given)."""
-    ours = owned(out)
+    manifest = _manifest(out)
+    ours = owned(out, manifest)
     previous = {e.split("/", 1)[0] for e in ours}
     strangers = foreign(out, names | (previous if replaces is None else previous & replaces), ours)
     if strangers:
         more = f" (and {len(strangers) - 1} more)" if len(strangers) > 1 else ""
         why = ("it changed since a creatures run wrote it (saved into by a live run's --state, or edited)"
-               if strangers[0] in _listed(_manifest(out)) else f"no creatures run wrote it (it is not in {MANIFEST})")
+               if strangers[0] in _listed(manifest) else f"no creatures run wrote it (it is not in {MANIFEST})")
         raise OutputDirectoryError(
             f"{out}: not replacing {out / strangers[0]}{more}: {why}; nothing was changed. Move it away or "
             "choose another --out")
@@ -185,8 +192,8 @@ def publish(staged: Path, out: Path, *, replaces: set[str] | None = None, **fact
     None: everything the previous run wrote is replaced or removed."""
     new = sorted(p.name for p in staged.iterdir() if p.name != MARKER)
     refuse_foreign(out, set(new), replaces)
-    ours, previous = owned(out), _manifest(out)
-    previous_stamps = previous.get("stamps") if isinstance(previous.get("stamps"), dict) else {}
+    previous = _manifest(out)
+    ours, previous_stamps = owned(out, previous), _stamps(previous)
     old = sorted({e.split("/", 1)[0] for e in ours if os.path.lexists(out / e.split("/", 1)[0])})
     kept: list[str] = []
     if replaces is not None:
