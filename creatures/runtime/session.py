@@ -11,7 +11,6 @@ rounding never drifts). Only where time comes from and where the outputs go diff
 from __future__ import annotations
 
 import difflib
-
 import itertools
 import json
 import math
